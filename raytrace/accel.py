@@ -1,0 +1,99 @@
+"""Embree through embreex: batched first-hit and occlusion queries.
+
+The only module that imports embreex. Rays cross into Embree as float32; what comes back is
+refined in float64: the hit distance is recomputed exactly on the hit triangle's plane, so hit
+points, normals and every radiometric quantity after them are float64. Shadow rays are offset by
+an epsilon proportional to the scene's size. Embree releases the GIL, so `threads > 1` splits a
+batch over a thread pool.
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+CHUNK = 1 << 15
+
+
+class Accelerator:
+    def __init__(self, triangles: np.ndarray, extent_points: np.ndarray | None = None):
+        """`triangles`: (T, 3, 3) float64. `extent_points`: more points (camera, lights) that set the
+        scale of the shadow-ray offset together with the geometry."""
+        self.triangles = np.ascontiguousarray(triangles, dtype=np.float64)
+        e1 = self.triangles[:, 1] - self.triangles[:, 0]
+        e2 = self.triangles[:, 2] - self.triangles[:, 0]
+        n = np.cross(e1, e2)
+        norm = np.linalg.norm(n, axis=1)
+        self.normals = n / np.where(norm > 0, norm, 1.0)[:, None]
+        pts = self.triangles.reshape(-1, 3)
+        if extent_points is not None and len(extent_points):
+            pts = np.concatenate([pts, np.asarray(extent_points, dtype=np.float64).reshape(-1, 3)])
+        self.scale = float(np.max(np.abs(pts))) if len(pts) else 1.0
+        self.epsilon = 1e-5 * max(self.scale, 1e-6)
+        self._scene = None
+        if len(self.triangles):
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
+
+            self._scene = rtcore_scene.EmbreeScene()
+            TriangleMesh(self._scene, self.triangles.astype(np.float32))
+
+    def _map(self, fn, n, threads, *arrays):
+        chunks = [tuple(a[i:i + CHUNK] for a in arrays) for i in range(0, n, CHUNK)]
+        if threads <= 1 or len(chunks) <= 1:
+            return [fn(*c) for c in chunks]
+        with ThreadPoolExecutor(threads) as pool:
+            return list(pool.map(lambda c: fn(*c), chunks))
+
+    def first_hit(self, origins: np.ndarray, dirs: np.ndarray, threads: int = 1):
+        """Nearest hit of each ray: (t float64, inf on a miss; triangle index int64, -1 on a miss)."""
+        n = len(origins)
+        if self._scene is None or n == 0:
+            return np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+        o32 = np.ascontiguousarray(origins, dtype=np.float32)
+        d32 = np.ascontiguousarray(dirs, dtype=np.float32)
+        prim = np.concatenate(self._map(self._intersect, n, threads, o32, d32)).astype(np.int64)
+        hit = prim >= 0
+        t = np.full(n, np.inf)
+        # exact float64 distance on the hit triangle's plane
+        nrm = self.normals[prim[hit]]
+        v0 = self.triangles[prim[hit], 0]
+        denom = np.einsum("ij,ij->i", nrm, dirs[hit])
+        t_plane = np.einsum("ij,ij->i", nrm, v0 - origins[hit]) / np.where(denom != 0.0, denom, 1.0)
+        ok = (denom != 0.0) & (t_plane > 0.0)
+        t_hit = np.where(ok, t_plane, np.nan)
+        t[hit] = t_hit
+        bad = hit.copy()
+        bad[hit] = ~ok
+        if bad.any():  # degenerate plane solve: fall back to Embree's float32 distance
+            t[bad] = self._distance(o32[bad], d32[bad]).astype(np.float64)
+        return t, prim
+
+    def _intersect(self, o, d):
+        return self._scene.run(o, d, query="INTERSECT", output=1)["primID"]
+
+    def _distance(self, o, d):
+        return self._scene.run(o, d, query="DISTANCE")
+
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray, tmax: np.ndarray, threads: int = 1):
+        """True where something lies between origin and origin + tmax * dir."""
+        n = len(origins)
+        if self._scene is None or n == 0:
+            return np.zeros(n, dtype=bool)
+        o32 = np.ascontiguousarray(origins, dtype=np.float32)
+        d32 = np.ascontiguousarray(dirs, dtype=np.float32)
+        t32 = np.ascontiguousarray(np.maximum(tmax, 0.0), dtype=np.float32)
+        res = self._map(lambda o, d, t: self._scene.run(o, d, dists=t, query="OCCLUDED"), n, threads, o32, d32, t32)
+        return np.concatenate(res) >= 0
+
+    def shadow_rays(self, points: np.ndarray, normals: np.ndarray, light: np.ndarray):
+        """Rays from surface points (offset along the normal facing the light) towards `light`:
+        (origins, unit directions, distances to stop at, distance from the point to the light)."""
+        to_light = light[None, :] - points
+        dist = np.linalg.norm(to_light, axis=1)
+        side = np.sign(np.einsum("ij,ij->i", normals, to_light))[:, None]
+        origins = points + side * self.epsilon * normals
+        seg = light[None, :] - origins
+        seg_len = np.linalg.norm(seg, axis=1)
+        dirs = seg / np.where(seg_len > 0, seg_len, 1.0)[:, None]
+        return origins, dirs, seg_len - self.epsilon, dist

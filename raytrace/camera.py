@@ -1,0 +1,68 @@
+"""Cameras (SCENE_FORMAT.md conventions) and the deterministic pixel-sample pattern every method shares.
+
+Image row 0 is the top. Perspective: pixel (i, j) with offset (s, t) looks along
+forward + (2(i+s)/W - 1) tan(fov/2) (W/H) right + (1 - 2(j+t)/H) tan(fov/2) up, with
+right = normalize(forward x up) and up re-orthogonalised. Environment (equirectangular):
+phi = 2 pi ((i+s)/W - 0.5) from forward towards right, theta = pi (j+t)/H from up.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .scene.format import Camera
+
+
+def sample_offsets(spp: int) -> np.ndarray:
+    """(spp, 2) offsets in [0, 1)^2: the pixel centre for spp = 1, a stratified grid of cell centres
+    when spp is a square, otherwise the R2 low-discrepancy sequence (deterministic)."""
+    if spp == 1:
+        return np.array([[0.5, 0.5]])
+    n = math.isqrt(spp)
+    if n * n == spp:
+        a = (np.arange(n) + 0.5) / n
+        s, t = np.meshgrid(a, a, indexing="xy")
+        return np.stack([s.ravel(), t.ravel()], axis=1)
+    phi = 1.32471795724474602596  # plastic number
+    k = np.arange(1, spp + 1)
+    return np.stack([(0.5 + k / phi) % 1.0, (0.5 + k / phi**2) % 1.0], axis=1)
+
+
+def basis(cam: Camera):
+    forward = cam.look_at - cam.position
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, cam.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    return forward, right, up
+
+
+def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = None):
+    """Rays of the pixel block rows x cols, every sample of a pixel consecutive.
+
+    Returns origins (N, 3), unit directions (N, 3) in float64, with N = rows * cols * spp, in the
+    order (row, column, sample)."""
+    rows = rows or slice(0, cam.height)
+    cols = cols or slice(0, cam.width)
+    j = np.arange(rows.start, rows.stop, dtype=np.float64)
+    i = np.arange(cols.start, cols.stop, dtype=np.float64)
+    off = sample_offsets(cam.spp)
+    x = (i[None, :, None] + off[None, None, :, 0]) * np.ones((len(j), 1, 1))
+    y = (j[:, None, None] + off[None, None, :, 1]) * np.ones((1, len(i), 1))
+    forward, right, up = basis(cam)
+    W, H = cam.width, cam.height
+    if cam.type == "perspective":
+        tan = math.tan(math.radians(cam.fov) / 2.0)
+        a = (2.0 * x / W - 1.0) * tan * (W / H)
+        b = (1.0 - 2.0 * y / H) * tan
+        d = forward + a[..., None] * right + b[..., None] * up
+    else:
+        phi = 2.0 * math.pi * (x / W - 0.5)
+        theta = math.pi * y / H
+        st = np.sin(theta)[..., None]
+        d = st * (np.cos(phi)[..., None] * forward + np.sin(phi)[..., None] * right) + np.cos(theta)[..., None] * up
+    d = d.reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    o = np.broadcast_to(cam.position, d.shape).copy()
+    return o, d

@@ -1,0 +1,207 @@
+"""Command line: render, describe, methods, diff (SCENE_FORMAT.md).
+
+User errors print one line on stderr and exit with status 2; nothing half-written stays on disk.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+
+COMMANDS = ("render", "describe", "methods", "diff")
+
+
+def _method_param_flags():
+    """Every parameter some method declares becomes a flag (--precision, --terms, --rtol, ...)."""
+    from .media import registry
+
+    flags = {}
+    for m in registry().values():
+        for name, p in m.params.items():
+            flags.setdefault(name, p)
+    return flags
+
+
+def _add_scene_args(p):
+    p.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value, e.g. --set medium.sigma_s=0.2 (repeatable)")
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(prog="render.py", description="Single scattering in homogeneous media.")
+    sub = parser.add_subparsers(dest="command")
+    r = sub.add_parser("render", help="render a scene to EXR (and PNG)")
+    _add_scene_args(r)
+    r.add_argument("--method", help="air-light method (see `methods`)")
+    r.add_argument("--spp", type=int)
+    r.add_argument("--width", type=int)
+    r.add_argument("--height", type=int)
+    r.add_argument("--seed", type=int)
+    r.add_argument("--out", help="output EXR (default out/<scene name>.exr, with a PNG beside it)")
+    r.add_argument("--png", help="also write a tone-mapped PNG preview here")
+    r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic)")
+    r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    for name, p in _method_param_flags().items():
+        r.add_argument(f"--{name}", dest=f"param_{name}", type=p.type, help=p.help)
+    d = sub.add_parser("describe", help="print what a scene file parsed into")
+    _add_scene_args(d)
+    sub.add_parser("methods", help="list the air-light methods and their parameters")
+    f = sub.add_parser("diff", help="error of TEST.exr against REF.exr, with an error map")
+    f.add_argument("test")
+    f.add_argument("ref")
+    f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
+    f.add_argument("--map-exr", help="absolute error per pixel as EXR")
+    f.add_argument("--max", type=float, help="top of the error map's scale (default: the largest error)")
+    return parser
+
+
+def load(args):
+    from .default_scene import DEFAULT_TOML
+    from .scene.format import load_scene, scene_from_text
+
+    if args.scene is None:
+        return scene_from_text(DEFAULT_TOML, "default scene", None, args.overrides)
+    return load_scene(args.scene, args.overrides)
+
+
+def _validate_positive(name, value):
+    if value is not None and value <= 0:
+        raise UserError(f"--{name} {value}: must be positive; give a value of at least 1")
+
+
+def cmd_render(args):
+    from . import film, renderer
+    from .media import get_method
+
+    scene = load(args)
+    cam = scene.camera
+    for name in ("spp", "width", "height", "threads"):
+        _validate_positive(name, getattr(args, name))
+    if args.seed is not None and args.seed < 0:
+        raise UserError(f"--seed {args.seed}: must be >= 0; give a non-negative integer")
+    cam.spp = args.spp or cam.spp
+    cam.width = args.width or cam.width
+    cam.height = args.height or cam.height
+    method = get_method(args.method or scene.render.get("method", "analytic"))
+    given = {k: v for k, v in scene.render.items() if k not in ("method", "seed")}
+    given.update({k[len("param_"):]: v for k, v in vars(args).items() if k.startswith("param_") and v is not None})
+    seed = args.seed if args.seed is not None else scene.render.get("seed", 0)
+    out = Path(args.out) if args.out else Path("out") / f"{scene.name}.exr"
+    png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
+    if out.suffix.lower() != ".exr":
+        raise UserError(f"--out {out}: must end in .exr; the image is written as linear float32 EXR")
+    if not args.out:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    for p in (out, png):
+        if p is not None:
+            film.check_writable(p)
+    prep = renderer.prepare(scene)
+    bar = None
+    if not args.quiet and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=cam.height, unit="row", desc=f"{method.name}", file=sys.stderr, leave=False)
+    try:
+        result = renderer.render(prep, method.name, given, seed, args.threads,
+                                 progress=bar.update if bar else None, source=str(scene.path or "default scene"))
+    finally:
+        if bar:
+            bar.close()
+    if not np.all(np.isfinite(result.image)):
+        raise UserError(f"{scene.path or 'default scene'}: the render produced non-finite pixels; "
+                        "this is a bug, please report the scene")
+    header = {"scene": scene.name, "method": result.method, "spp": cam.spp, "seed": seed,
+              "render_seconds": f"{result.seconds:.3f}", "compile_seconds": f"{result.compile_seconds:.3f}",
+              "params": " ".join(f"{k}={v}" for k, v in result.params.items()),
+              "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    header.update({f"stats.{k}": v for k, v in result.stats.items()})
+    film.write_exr(out, result.image, header)
+    if png is not None:
+        film.write_png(png, film.tonemap(result.image, args.exposure))
+    if not args.quiet:
+        print(f"{scene.name}: {cam.width}x{cam.height}, {cam.spp} spp, method {result.method} "
+              f"in {result.seconds:.2f} s (+{result.compile_seconds:.2f} s compile) → {out}"
+              + (f", {png}" if png else ""))
+        for k, v in result.stats.items():
+            print(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
+    return 0
+
+
+def cmd_describe(args):
+    from .media.phase import NAMES
+    from .scene.meshes import scene_triangles
+
+    scene = load(args)
+    cam = scene.camera
+    tris, _ = scene_triangles(scene)
+    print(f"scene {scene.name!r} ({scene.path or 'built-in'})")
+    print(f"camera: {cam.type}, {cam.width}x{cam.height}, {cam.spp} spp, position {cam.position.tolist()}, "
+          f"look_at {cam.look_at.tolist()}, up {cam.up.tolist()}" + (f", fov {cam.fov}" if cam.type == "perspective" else ""))
+    kinds = {}
+    for s in scene.shapes:
+        kinds[s.kind] = kinds.get(s.kind, 0) + 1
+    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}), {len(tris)} triangles")
+    if len(tris):
+        pts = tris.reshape(-1, 3)
+        print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")
+    for i, l in enumerate(scene.lights):
+        print(f"light[{i}]: point at {l.position.tolist()}, intensity {l.intensity.tolist()}")
+    m = scene.medium
+    phase = NAMES[m.phase] + (f" g={m.g}" if NAMES[m.phase] == "hg" else "")
+    print(f"medium: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, sigma_t {m.sigma_t.tolist()}, phase {phase}")
+    print(f"background: {scene.background.tolist()}")
+    if scene.render:
+        print(f"render: {scene.render}")
+    return 0
+
+
+def cmd_methods(args):
+    from .media import registry
+
+    for m in registry().values():
+        print(f"{m.name}: {m.summary}")
+        for name, p in m.params.items():
+            print(f"    --{name} (default {p.default!r}): {p.help}")
+    return 0
+
+
+def cmd_diff(args):
+    from . import film, metrics
+
+    test, _ = film.read_exr(args.test)
+    ref, _ = film.read_exr(args.ref)
+    e = metrics.errors(test, ref)
+    for k, v in e.items():
+        print(f"{k}: {v:.6e}")
+    if args.map or args.map_exr:
+        rgb, err, vmax = metrics.error_map(test, ref, args.max)
+        if args.map:
+            film.write_png(args.map, rgb)
+        if args.map_exr:
+            film.write_exr(args.map_exr, np.repeat(err[..., None], 3, axis=2), {"scale_max": vmax})
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv:
+        argv = ["render"]
+    elif argv[0] not in COMMANDS and argv[0] not in ("-h", "--help"):
+        argv.insert(0, "render")
+    args = build_parser().parse_args(argv)
+    handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff}
+    try:
+        return handlers[args.command](args)
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130

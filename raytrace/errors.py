@@ -1,0 +1,9 @@
+"""The one exception type for mistakes a user can make (bad scene keys, missing meshes, bad numbers).
+
+Its message names the file, the key and the fix; the command line prints it on one line and exits
+with status 2.
+"""
+
+
+class UserError(Exception):
+    """A problem in the user's input, with a one-line message that says how to fix it."""

@@ -1,0 +1,103 @@
+"""Image files: linear float32 RGB EXR (with metadata in the header) and tone-mapped PNG previews.
+
+Files are written to a temporary name beside the target and renamed, so a failed or interrupted
+write never leaves a partial image behind.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+
+
+def _atomic_write(path: Path, write):
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise UserError(f"{path}: folder {folder} does not exist; create it or choose another --out")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write there ({exc.strerror}); choose a writable --out path") from None
+    os.close(fd)
+    try:
+        write(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def check_writable(path: Path):
+    """Fail early (before a long render) when `path` cannot be written."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise UserError(f"{path}: folder {folder} does not exist; create it or choose another output path")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)) or path.is_dir():
+        raise UserError(f"{path}: not writable; choose a writable output path")
+
+
+def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict | None = None):
+    """Write (H, W, 3) linear RGB as float32 EXR; `header` values become string attributes,
+    `extra` maps channel names (e.g. "variance.R") to (H, W) arrays."""
+    import OpenEXR
+
+    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for k, v in (header or {}).items():
+        hdr[str(k)] = str(v)
+    img = np.ascontiguousarray(image, dtype=np.float32)
+    channels = {"R": img[..., 0].copy(), "G": img[..., 1].copy(), "B": img[..., 2].copy()}
+    for k, v in (extra or {}).items():
+        channels[k] = np.ascontiguousarray(v, dtype=np.float32)
+
+    def write(tmp):
+        with OpenEXR.File(hdr, channels) as f:
+            f.write(tmp)
+
+    _atomic_write(Path(path), write)
+
+
+def read_exr(path) -> tuple[np.ndarray, dict]:
+    """(H, W, 3) float64 RGB and the header's string attributes."""
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: no such image; check the path")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            ch = f.channels()
+            img = np.stack([np.asarray(ch[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
+            header = {k: v for k, v in f.header().items() if isinstance(v, str)}
+    except Exception as exc:  # OpenEXR raises plain Exceptions for unreadable files
+        raise UserError(f"{path}: not a readable RGB EXR image ({exc}); give a file written by render") from None
+    return img, header
+
+
+def tonemap(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
+    """8-bit sRGB preview. `exposure` in stops; None scales the 99.5th percentile of luminance to 1."""
+    lum = image @ np.array([0.2126, 0.7152, 0.0722])
+    if exposure is None:
+        ref = np.percentile(lum, 99.5) if lum.size else 0.0
+        scale = 1.0 / ref if ref > 0 and np.isfinite(ref) else 1.0
+    else:
+        scale = 2.0 ** exposure
+    x = np.clip(np.nan_to_num(image * scale, nan=0.0, posinf=1.0), 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return (srgb * 255.0 + 0.5).astype(np.uint8)
+
+
+def write_png(path, rgb8: np.ndarray):
+    from PIL import Image
+
+    _atomic_write(Path(path), lambda tmp: Image.fromarray(rgb8, "RGB").save(tmp, format="PNG"))

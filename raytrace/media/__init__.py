@@ -1,0 +1,78 @@
+"""The registry of air-light methods: name → Method (parameters with defaults, a docstring table).
+
+The renderer, the command line, the tests and the benchmarks all iterate `registry()`, so a new
+method module only has to define ``METHOD`` and be listed in ``_MODULES``.
+"""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+_MODULES = ("quadrature",)
+
+
+@dataclass(frozen=True)
+class Param:
+    default: object
+    type: type
+    help: str
+
+
+@dataclass
+class RayBatch:
+    """Camera rays of one tile: origins, unit directions, segment ends (inf on a miss), and the
+    (pixel, sample) key of each ray for counter-based random numbers."""
+    origins: np.ndarray
+    dirs: np.ndarray
+    tmax: np.ndarray
+    keys: np.ndarray
+    seed: int = 0
+
+
+@dataclass
+class Method:
+    name: str
+    summary: str
+    params: dict[str, Param]
+    # airlight(batch, medium, light_pos (L,3), light_intensity (L,3), params) -> (radiance (N,3), stats)
+    airlight: Callable
+    stats_size: int = 0
+    summarize: Callable[[np.ndarray], dict] = field(default=lambda stats: {})
+    check: Callable = field(default=lambda medium, params: None)  # raises UserError if unsupported
+
+
+def registry() -> dict[str, Method]:
+    out = {}
+    for name in _MODULES:
+        m = importlib.import_module(f"{__name__}.{name}").METHOD
+        out[m.name] = m
+    return out
+
+
+def get_method(name: str) -> Method:
+    from ..errors import UserError
+
+    methods = registry()
+    if name not in methods:
+        raise UserError(f"--method {name}: unknown method; choose one of {', '.join(methods)}")
+    return methods[name]
+
+
+def resolve_params(method: Method, given: dict, source: str) -> dict:
+    """Defaults of `method` updated with `given` (only the keys it declares), type-checked."""
+    from ..errors import UserError
+
+    out = {k: p.default for k, p in method.params.items()}
+    for k, v in given.items():
+        if k not in method.params or v is None:
+            continue
+        p = method.params[k]
+        try:
+            v = p.type(v)
+        except (TypeError, ValueError):
+            raise UserError(f"{source}: {k}: expected {p.type.__name__}, got {v!r}; {p.help}") from None
+        out[k] = v
+    return out

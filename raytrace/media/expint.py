@@ -1,0 +1,175 @@
+"""Scaled exponential integrals and the PP09 integrals I0/I1 (METHODS.md §4-5).
+
+* ``g_scaled(w)``   g(w) = e^w E1(w), complex w in the closed right half-plane (bounded, ~1/w).
+* ``en_scaled(n, x)`` e^x E_n(x) for real x >= 0 (used by the on-axis limit of analytic.py).
+* ``i0i1_stable(H, va, vb)`` I0 = int_va^vb e^{-Hv}/(1+v^2) dv and I1 = int e^{-Hv} v/(1+v^2) dv
+  via the scaled-E1 form (no cancellation of O(pi) constants, no overflow), vb may be +inf.
+* ``i01_series(a, va, vb, precision, max_iter)`` the paper's Fig. 2 loop (power series of Ei with
+  the amplitude indicator, relative control ``indicator <= precision*|I0|``), returning
+  (I0, I1, iterations).  Accurate only for small rho = |a| sqrt(1+v^2) (it loses about
+  log10(e^rho) digits; see tests/test_expint.py for the documented failure at rho ~ 30).
+
+Written from the formulas of METHODS.md; no external code.
+"""
+import cmath
+import math
+
+from ..jit import njit
+
+EULER_GAMMA = 0.57721566490153286060651209
+_EPS = 2.220446049250313e-16
+_FPMIN = 1e-300
+
+# |w| below which g uses the power series (above: modified Lentz continued fraction).
+# The series loses ~log10(e^|w|)/|g| digits, i.e. < 1 digit at |w| = 2, and is cheaper than the
+# continued fraction near the imaginary axis, where the CF converges slowly.
+G_SERIES_RADIUS = 2.0
+
+
+@njit
+def g_scaled(w):
+    """g(w) = exp(w) E1(w) (principal branch) for complex w with Re w >= 0, w != 0."""
+    if abs(w) < G_SERIES_RADIUS:
+        # E1(w) = -gamma - log w - sum_{k>=1} (-w)^k / (k k!)
+        s = 0.0 + 0.0j
+        term = 1.0 + 0.0j  # (-w)^k / k!
+        for k in range(1, 80):
+            term = term * (-w) / k
+            inc = term / k
+            s += inc
+            if abs(inc) < 1e-17 * (abs(s) + 1.0):
+                break
+        return cmath.exp(w) * (-EULER_GAMMA - cmath.log(w) - s)
+    # even continued fraction e^w E1(w) = 1/(w+1- 1/(w+3- 4/(w+5- ...))), modified Lentz
+    b = w + 1.0
+    c = 1.0 / _FPMIN + 0.0j
+    d = 1.0 / b
+    h = d
+    for i in range(1, 500):
+        an = -float(i * i)
+        b = b + 2.0
+        d = an * d + b
+        if d == 0.0:
+            d = _FPMIN + 0.0j
+        c = b + an / c
+        if c == 0.0:
+            c = _FPMIN + 0.0j
+        d = 1.0 / d
+        de = c * d
+        h = h * de
+        if abs(de.real - 1.0) + abs(de.imag) < 1e-16:
+            break
+    return h
+
+
+@njit
+def en_scaled(n, x):
+    """e^x E_n(x) for integer n >= 1 and real x >= 0 (x = 0 needs n >= 2: 1/(n-1))."""
+    if x == 0.0:
+        return 1.0 / (n - 1)
+    if x < 1.0:
+        # E1 by its series, then E_{k+1} = (e^{-x} - x E_k)/k (stable for x < 1)
+        s = 0.0
+        term = 1.0
+        for k in range(1, 60):
+            term = term * (-x) / k
+            inc = term / k
+            s += inc
+            if abs(inc) < 1e-17 * (abs(s) + 1.0):
+                break
+        e = -EULER_GAMMA - math.log(x) - s
+        ex = math.exp(-x)
+        for k in range(1, n):
+            e = (ex - x * e) / k
+        return math.exp(x) * e
+    b = x + n
+    c = 1.0 / _FPMIN
+    d = 1.0 / b
+    h = d
+    for i in range(1, 500):
+        an = -float(i * (n - 1 + i))
+        b += 2.0
+        d = an * d + b
+        if d == 0.0:
+            d = _FPMIN
+        c = b + an / c
+        if c == 0.0:
+            c = _FPMIN
+        d = 1.0 / d
+        de = c * d
+        h *= de
+        if abs(de - 1.0) < 1e-16:
+            break
+    return h
+
+
+@njit
+def i0i1_stable(H, va, vb):
+    """(I0, I1)(a=-H, va, vb) from the scaled E1: I0 = [e^{-Hv} Im g(H(v+i))]_va^vb,
+    I1 = -[e^{-Hv} Re g(H(v+i))]_va^vb. H > 0, 0 <= va <= vb <= +inf."""
+    ga = g_scaled(complex(H * va, H))
+    ea = math.exp(-H * va)
+    i0 = -ea * ga.imag
+    i1 = ea * ga.real
+    if vb < math.inf:
+        gb = g_scaled(complex(H * vb, H))
+        eb = math.exp(-H * vb)
+        i0 += eb * gb.imag
+        i1 -= eb * gb.real
+    return i0, i1
+
+
+@njit
+def i0_exact_antideriv(a, v):
+    """i0(a, v) = -Im[e^{-ia} Ei(a(v+i))] for a < 0 (PP-12), via g; for tests/diagnostics."""
+    H = -a
+    gw = g_scaled(complex(H * v, H))
+    return math.exp(-H * v) * gw.imag + math.pi * math.cos(H)
+
+
+@njit
+def i01_series(a, va, vb, precision, max_iter):
+    """The paper's Fig. 2 loop: (I0, I1, iterations) for a < 0, va < vb (vb may be +inf).
+
+    Convergence test (PP09's relative control): stop when the amplitude indicator
+    (rho_b^k + rho_a^k)/(k k!) <= precision * |I0|, or after max_iter iterations.
+    For vb = +inf the closed limits i0(a, inf) = pi cos a, i1(a, inf) = -pi sin a replace the
+    upper antiderivative (only the lower end is summed).
+    """
+    sina = math.sin(a)
+    cosa = math.cos(a)
+    rva = abs(a) * math.sqrt(va * va + 1.0)
+    pva = math.atan2(a, a * va)
+    if vb < math.inf:
+        rvb = abs(a) * math.sqrt(vb * vb + 1.0)
+        pvb = math.atan2(a, a * vb)
+        logv = math.log(rvb / rva)
+        phiv = pvb - pva
+        i0 = sina * logv - cosa * phiv
+        i1 = cosa * logv + sina * phiv
+        wb = 1.0
+    else:
+        rvb = 0.0
+        pvb = 0.0
+        lg = EULER_GAMMA + math.log(rva)
+        # I = i(inf) - i(va)
+        i0 = math.pi * cosa - (sina * lg - cosa * pva)
+        i1 = -math.pi * sina - (cosa * lg + sina * pva)
+        wb = 0.0
+    kfac = 1.0
+    rka = 1.0
+    rkb = 1.0
+    k = 0
+    for k in range(1, max_iter + 1):
+        kfac *= k
+        rka *= rva
+        rkb *= rvb
+        pka = a - k * pva
+        pkb = a - k * pvb
+        denom = 1.0 / (k * kfac)
+        i0 += (wb * rkb * math.sin(pkb) - rka * math.sin(pka)) * denom
+        i1 += (wb * rkb * math.cos(pkb) - rka * math.cos(pka)) * denom
+        indicator = (rkb + rka) * denom
+        if indicator <= precision * abs(i0):
+            break
+    return i0, i1, k

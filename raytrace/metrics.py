@@ -1,0 +1,68 @@
+"""Errors of an image against a reference, and error maps coloured like the paper's fig. 6.
+
+The map shows the absolute error per pixel (mean over channels) as a hue from blue (0) through
+cyan, green and yellow to red (the top of the scale); the scale is written on the image.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import UserError
+
+
+def errors(test: np.ndarray, ref: np.ndarray) -> dict:
+    """Mean absolute, RMS and mean relative error over pixels and channels (relative error uses
+    |ref| floored at 1e-3 of the mean |ref| so that black pixels do not dominate), plus the max."""
+    if test.shape != ref.shape:
+        raise UserError(f"images differ in size: {test.shape[1]}x{test.shape[0]} vs "
+                        f"{ref.shape[1]}x{ref.shape[0]}; render both at the same resolution")
+    diff = np.abs(test - ref)
+    mean_ref = float(np.mean(np.abs(ref)))
+    floor = max(1e-3 * mean_ref, 1e-300)
+    rel = diff / np.maximum(np.abs(ref), floor)
+    return {
+        "mean_abs": float(diff.mean()),
+        "rms": float(np.sqrt(np.mean(diff ** 2))),
+        "mean_rel": float(rel.mean()),
+        "max_rel": float(rel.max()),
+        "max_abs": float(diff.max()),
+        "mean_abs_over_mean_ref": float(diff.mean() / mean_ref) if mean_ref > 0 else float("nan"),
+    }
+
+
+def hue_map(values: np.ndarray, vmax: float) -> np.ndarray:
+    """Map values in [0, vmax] to RGB8 along the hue wheel from blue (240°) to red (0°)."""
+    x = np.clip(values / vmax if vmax > 0 else np.zeros_like(values), 0.0, 1.0)
+    h = (1.0 - x) * 4.0  # 4 = blue, 3 = cyan, 2 = green, 1 = yellow, 0 = red (in 60° units)
+    c = np.ones_like(h)
+    k = h % 2.0
+    xx = 1.0 - np.abs(k - 1.0)
+    rgb = np.zeros(values.shape + (3,))
+    seg = np.floor(h).astype(int).clip(0, 4)
+    table = {0: (c, xx, 0 * c), 1: (xx, c, 0 * c), 2: (0 * c, c, xx), 3: (0 * c, xx, c), 4: (0 * c, 0 * c, c)}
+    for s, (r, g, b) in table.items():
+        m = seg == s
+        rgb[m, 0], rgb[m, 1], rgb[m, 2] = r[m], g[m], b[m]
+    return (rgb * 255.0 + 0.5).astype(np.uint8)
+
+
+def error_map(test: np.ndarray, ref: np.ndarray, vmax: float | None = None):
+    """(RGB8 image with a legend strip, per-pixel absolute error (H, W), the scale's maximum)."""
+    from PIL import Image, ImageDraw
+
+    err = np.abs(test - ref).mean(axis=2)
+    if vmax is None:
+        vmax = float(err.max())
+    body = hue_map(err, vmax)
+    h, w = err.shape
+    bar_h = max(24, h // 12)
+    bar = hue_map(np.tile(np.linspace(0.0, vmax, w), (bar_h // 2, 1)), vmax)
+    canvas = Image.new("RGB", (w, h + bar_h), (0, 0, 0))
+    canvas.paste(Image.fromarray(body, "RGB"), (0, 0))
+    canvas.paste(Image.fromarray(bar, "RGB"), (0, h))
+    draw = ImageDraw.Draw(canvas)
+    y = h + bar_h // 2
+    draw.text((2, y), "0", fill=(255, 255, 255))
+    label = f"abs. error {vmax:.3g}"
+    draw.text((max(2, w - 6 * len(label) - 2), y), label, fill=(255, 255, 255))
+    return np.asarray(canvas), err, vmax

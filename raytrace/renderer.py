@@ -1,0 +1,119 @@
+"""The render loop: tiles of rows on a thread pool (Embree and the numba kernels release the GIL).
+
+Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
+L = exp(-kt t) Lb + sum of air-lights, averaged over the pixel's samples. Results do not depend
+on the thread count: every tile is computed the same way whichever thread runs it.
+"""
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .accel import Accelerator
+from .camera import generate_rays
+from .media import RayBatch, get_method, resolve_params
+from .scene.format import Scene
+from .scene.meshes import scene_triangles
+from .shading import facing_normals, surface_radiance, transmittance
+
+RAYS_PER_TILE = 1 << 14
+
+
+@dataclass
+class Prepared:
+    """Everything about a scene that does not depend on the method: geometry and its accelerator."""
+    scene: Scene
+    accel: Accelerator
+    reflectance: np.ndarray
+    light_pos: np.ndarray
+    light_int: np.ndarray
+
+
+@dataclass
+class RenderResult:
+    image: np.ndarray  # (H, W, 3) float64
+    method: str
+    params: dict
+    seconds: float  # wall time of the render, compile time excluded
+    compile_seconds: float
+    stats: dict = field(default_factory=dict)
+
+
+def prepare(scene: Scene) -> Prepared:
+    tris, refl = scene_triangles(scene)
+    lights = np.array([l.position for l in scene.lights]).reshape(-1, 3)
+    extent = np.concatenate([lights, scene.camera.position[None, :]])
+    return Prepared(scene, Accelerator(tris, extent), refl, lights,
+                    np.array([l.intensity for l in scene.lights]).reshape(-1, 3))
+
+
+def default_threads() -> int:
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
+def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed):
+    """Radiance (N, 3) of camera rays and the method's statistics array."""
+    scene = prep.scene
+    medium = scene.medium
+    t, prim = prep.accel.first_hit(origins, dirs)
+    hit = prim >= 0
+    radiance = np.zeros((len(origins), 3))
+    if hit.any():
+        points = origins[hit] + t[hit, None] * dirs[hit]
+        normals = facing_normals(prep.accel.normals[prim[hit]], dirs[hit])
+        radiance[hit] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[hit]],
+                                         prep.light_pos, prep.light_int, medium.sigma_t)
+    radiance[~hit] = scene.background
+    radiance *= transmittance(medium.sigma_t, t)
+    stats = np.zeros(method.stats_size)
+    if len(prep.light_pos) and np.any(medium.sigma_s > 0.0):
+        air, stats = method.airlight(RayBatch(origins, dirs, t, keys, seed), medium, prep.light_pos,
+                                     prep.light_int, params)
+        radiance += air
+    return radiance, stats
+
+
+def warm_up(prep: Prepared, method, params, seed) -> float:
+    """Compile the method's kernels on a few rays; returns the seconds it took."""
+    start = time.perf_counter()
+    o, d = generate_rays(prep.scene.camera, slice(0, 1), slice(0, 1))
+    shade_rays(prep, method, params, o[:1], d[:1], np.zeros(1, dtype=np.uint64), seed)
+    return time.perf_counter() - start
+
+
+def render(prep: Prepared, method_name: str, given_params: dict | None = None, seed: int = 0,
+           threads: int | None = None, progress=None, source: str = "render") -> RenderResult:
+    """Render the whole image. `progress(n)` is called with the number of rows finished."""
+    scene = prep.scene
+    method = get_method(method_name)
+    params = resolve_params(method, given_params or {}, source)
+    method.check(scene.medium, params)
+    cam = scene.camera
+    compile_s = warm_up(prep, method, params, seed)
+    rows_per_tile = max(1, RAYS_PER_TILE // (cam.width * cam.spp))
+    tiles = [slice(r, min(r + rows_per_tile, cam.height)) for r in range(0, cam.height, rows_per_tile)]
+    image = np.zeros((cam.height, cam.width, 3))
+    totals = np.zeros(method.stats_size)
+
+    def work(rows):
+        o, d = generate_rays(cam, rows)
+        pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(cam.width)[None, :]).ravel()
+        keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp) + np.arange(cam.spp, dtype=np.uint64)).ravel()
+        rad, stats = shade_rays(prep, method, params, o, d, keys, seed)
+        image[rows] = rad.reshape(rows.stop - rows.start, cam.width, cam.spp, 3).mean(axis=2)
+        return rows.stop - rows.start, stats
+
+    start = time.perf_counter()
+    threads = threads or default_threads()
+    with ThreadPoolExecutor(threads) as pool:
+        for n_rows, stats in pool.map(work, tiles):
+            if len(stats):
+                totals += stats
+            if progress is not None:
+                progress(n_rows)
+    seconds = time.perf_counter() - start
+    return RenderResult(image, method.name, params, seconds, compile_s, method.summarize(totals))

@@ -1,0 +1,393 @@
+"""Scene files: TOML → validated dataclasses (SCENE_FORMAT.md).
+
+Validation is strict: unknown keys are errors with a "did you mean", every number is checked for
+type, sign and finiteness, and every message names the file, the key and the fix.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from ..media.phase import HG, ISOTROPIC, RAYLEIGH
+
+PRIMITIVES = ("box", "quad", "sphere", "cylinder")
+
+
+@dataclass
+class Camera:
+    type: str
+    position: np.ndarray
+    look_at: np.ndarray
+    up: np.ndarray
+    fov: float
+    width: int
+    height: int
+    spp: int
+
+
+@dataclass
+class Transform:
+    scale: np.ndarray
+    rotate: np.ndarray  # degrees about x, then y, then z
+    translate: np.ndarray
+
+
+@dataclass
+class Shape:
+    kind: str  # "mesh" or one of PRIMITIVES
+    params: dict  # mesh: {"mesh": path}; primitives: their numeric parameters
+    reflectance: np.ndarray | None
+    transform: Transform
+
+
+@dataclass
+class Light:
+    position: np.ndarray
+    intensity: np.ndarray
+
+
+@dataclass
+class Medium:
+    sigma_a: np.ndarray
+    sigma_s: np.ndarray
+    phase: int = ISOTROPIC
+    g: float = 0.0
+
+    @property
+    def sigma_t(self) -> np.ndarray:
+        return self.sigma_a + self.sigma_s
+
+
+@dataclass
+class Scene:
+    name: str
+    path: Path | None  # the scene file (None for the built-in default scene)
+    camera: Camera
+    shapes: list[Shape]
+    lights: list[Light]
+    medium: Medium
+    background: np.ndarray
+    render: dict = field(default_factory=dict)
+
+
+class _Ctx:
+    """Where we are in the file, to build messages that name the file and the key."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, problem: str, fix: str):
+        raise UserError(f"{self.source}: {key}: {problem}; {fix}")
+
+    def unknown(self, table: str, keys, allowed):
+        for k in keys:
+            if k not in allowed:
+                close = difflib.get_close_matches(k, list(allowed), n=1, cutoff=0.6)
+                hint = f'did you mean "{close[0]}"?' if close else "allowed keys: " + ", ".join(sorted(allowed))
+                where = f"{table}.{k}" if table else k
+                self.fail(where, "unknown key", hint)
+
+
+def _number(ctx, key, value, *, minimum=None, positive=False, integer=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        ctx.fail(key, f"expected a number, got {value!r}", "write a number such as 1.0")
+    if integer and not isinstance(value, int):
+        ctx.fail(key, f"expected an integer, got {value!r}", "write a whole number such as 64")
+    if not math.isfinite(value):
+        ctx.fail(key, f"{value!r} is not finite", "use a finite number")
+    if positive and value <= 0:
+        ctx.fail(key, f"must be positive, got {value!r}", "use a value greater than 0")
+    if minimum is not None and value < minimum:
+        ctx.fail(key, f"must be >= {minimum}, got {value!r}", f"use a value of at least {minimum}")
+    return value
+
+
+def _vec3(ctx, key, value):
+    if not isinstance(value, list) or len(value) != 3:
+        ctx.fail(key, f"expected a vector [x, y, z], got {value!r}", "write three numbers in brackets")
+    return np.array([_number(ctx, f"{key}[{i}]", v) for i, v in enumerate(value)], dtype=np.float64)
+
+
+def _rgb(ctx, key, value, *, minimum=0.0):
+    """A colour or per-channel coefficient: [r, g, b] or one number for all three."""
+    if isinstance(value, list):
+        if len(value) != 3:
+            ctx.fail(key, f"expected [r, g, b] or one number, got {value!r}", "give three numbers or one")
+        return np.array([_number(ctx, f"{key}[{i}]", v, minimum=minimum) for i, v in enumerate(value)])
+    v = _number(ctx, key, value, minimum=minimum)
+    return np.full(3, float(v))
+
+
+def _string(ctx, key, value, choices):
+    if not isinstance(value, str) or value not in choices:
+        close = difflib.get_close_matches(str(value), list(choices), n=1, cutoff=0.5)
+        hint = f'did you mean "{close[0]}"?' if close else "choose one of: " + ", ".join(choices)
+        ctx.fail(key, f"{value!r} is not one of {', '.join(choices)}", hint)
+    return value
+
+
+def _table(ctx, key, value):
+    if not isinstance(value, dict):
+        ctx.fail(key, f"expected a table, got {value!r}", f"write [{key}] with its keys")
+    return value
+
+
+CAMERA_KEYS = {"type", "position", "look_at", "up", "fov", "width", "height", "spp"}
+
+
+def _camera(ctx, raw):
+    raw = _table(ctx, "camera", raw)
+    ctx.unknown("camera", raw, CAMERA_KEYS)
+    kind = _string(ctx, "camera.type", raw.get("type", "perspective"), ("perspective", "environment"))
+    for k in ("position", "look_at"):
+        if k not in raw:
+            ctx.fail(f"camera.{k}", "missing", f"add camera.{k} = [x, y, z]")
+    pos = _vec3(ctx, "camera.position", raw["position"])
+    look = _vec3(ctx, "camera.look_at", raw["look_at"])
+    up = _vec3(ctx, "camera.up", raw.get("up", [0.0, 1.0, 0.0]))
+    fwd = look - pos
+    if np.linalg.norm(fwd) <= 1e-12 * max(1.0, np.linalg.norm(pos)):
+        ctx.fail("camera.look_at", "equals camera.position", "look at a point away from the camera")
+    if np.linalg.norm(up) == 0.0 or np.linalg.norm(np.cross(fwd / np.linalg.norm(fwd), up / np.linalg.norm(up))) < 1e-9:
+        ctx.fail("camera.up", "is zero or parallel to the view direction", "choose an up vector not along look_at - position")
+    fov = _number(ctx, "camera.fov", raw.get("fov", 60.0), positive=True)
+    if fov >= 180.0:
+        ctx.fail("camera.fov", f"must be below 180 degrees, got {fov!r}", "use a vertical field of view such as 60")
+    width = _number(ctx, "camera.width", raw.get("width", 512), positive=True, integer=True)
+    height = _number(ctx, "camera.height", raw.get("height", 512), positive=True, integer=True)
+    spp = _number(ctx, "camera.spp", raw.get("spp", 1), positive=True, integer=True)
+    return Camera(kind, pos, look, up, float(fov), width, height, spp)
+
+
+TRANSFORM_KEYS = {"scale", "rotate", "translate"}
+PRIMITIVE_KEYS = {
+    "box": {"min", "max"},
+    "quad": {"corners"},
+    "sphere": {"center", "radius", "segments"},
+    "cylinder": {"base", "top", "radius", "segments"},
+}
+SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform"}
+
+
+def _transform(ctx, key, raw):
+    if raw is None:
+        return Transform(np.ones(3), np.zeros(3), np.zeros(3))
+    raw = _table(ctx, key, raw)
+    ctx.unknown(key, raw, TRANSFORM_KEYS)
+    scale = raw.get("scale", 1.0)
+    scale = _vec3(ctx, f"{key}.scale", scale) if isinstance(scale, list) else np.full(3, float(_number(ctx, f"{key}.scale", scale)))
+    if np.any(scale == 0.0):
+        ctx.fail(f"{key}.scale", "contains 0, which flattens the shape", "use a non-zero scale")
+    return Transform(scale, _vec3(ctx, f"{key}.rotate", raw.get("rotate", [0.0, 0.0, 0.0])),
+                     _vec3(ctx, f"{key}.translate", raw.get("translate", [0.0, 0.0, 0.0])))
+
+
+def _shape(ctx, i, raw):
+    key = f"shape[{i}]"
+    raw = _table(ctx, key, raw)
+    if ("mesh" in raw) == ("primitive" in raw):
+        ctx.fail(key, "needs exactly one of mesh or primitive", 'write mesh = "file.obj" or primitive = "box"')
+    if "mesh" in raw:
+        ctx.unknown(key, raw, SHAPE_COMMON)
+        if not isinstance(raw["mesh"], str) or not raw["mesh"]:
+            ctx.fail(f"{key}.mesh", f"expected a file name, got {raw['mesh']!r}", 'write mesh = "folder/model.obj"')
+        kind, params = "mesh", {"mesh": raw["mesh"]}
+    else:
+        kind = _string(ctx, f"{key}.primitive", raw["primitive"], PRIMITIVES)
+        ctx.unknown(key, raw, SHAPE_COMMON | PRIMITIVE_KEYS[kind])
+        params = {}
+        for k in sorted(PRIMITIVE_KEYS[kind]):
+            if k == "segments":
+                params[k] = _number(ctx, f"{key}.segments", raw.get(k, 32), integer=True, minimum=3)
+            elif k == "radius":
+                if k not in raw:
+                    ctx.fail(f"{key}.radius", "missing", f"add {key}.radius = 1.0")
+                params[k] = float(_number(ctx, f"{key}.radius", raw[k], positive=True))
+            elif k == "corners":
+                c = raw.get(k)
+                if not isinstance(c, list) or len(c) != 4:
+                    ctx.fail(f"{key}.corners", "expected four [x, y, z] corners in order around the quad",
+                             "write corners = [[..], [..], [..], [..]]")
+                params[k] = np.array([_vec3(ctx, f"{key}.corners[{j}]", p) for j, p in enumerate(c)])
+            else:
+                if k not in raw:
+                    ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k} = [x, y, z]")
+                params[k] = _vec3(ctx, f"{key}.{k}", raw[k])
+        if kind == "box" and np.any(params["max"] <= params["min"]):
+            ctx.fail(f"{key}.max", "must exceed min in every coordinate", "swap or fix min and max")
+    refl = raw.get("reflectance")
+    refl = None if refl is None else _rgb(ctx, f"{key}.reflectance", refl)
+    if refl is not None and np.any(refl > 1.0):
+        ctx.fail(f"{key}.reflectance", "exceeds 1 (surfaces would create energy)", "use values in [0, 1]")
+    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")))
+
+
+LIGHT_KEYS = {"type", "position", "intensity"}
+
+
+def _light(ctx, i, raw):
+    key = f"light[{i}]"
+    raw = _table(ctx, key, raw)
+    ctx.unknown(key, raw, LIGHT_KEYS)
+    _string(ctx, f"{key}.type", raw.get("type", "point"), ("point",))
+    for k in ("position", "intensity"):
+        if k not in raw:
+            ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k}")
+    return Light(_vec3(ctx, f"{key}.position", raw["position"]), _rgb(ctx, f"{key}.intensity", raw["intensity"]))
+
+
+MEDIUM_KEYS = {"sigma_a", "sigma_s", "phase"}
+
+
+def _medium(ctx, raw):
+    if raw is None:
+        return Medium(np.zeros(3), np.zeros(3))
+    raw = _table(ctx, "medium", raw)
+    ctx.unknown("medium", raw, MEDIUM_KEYS)
+    sa = _rgb(ctx, "medium.sigma_a", raw.get("sigma_a", 0.0))
+    ss = _rgb(ctx, "medium.sigma_s", raw.get("sigma_s", 0.0))
+    phase = raw.get("phase", "isotropic")
+    if isinstance(phase, str):
+        name = _string(ctx, "medium.phase", phase, ("isotropic", "rayleigh", "hg"))
+        if name == "hg":
+            ctx.fail("medium.phase", "Henyey-Greenstein needs its asymmetry g", 'write phase = { type = "hg", g = 0.5 }')
+        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0)
+    phase = _table(ctx, "medium.phase", phase)
+    ctx.unknown("medium.phase", phase, {"type", "g"})
+    name = _string(ctx, "medium.phase.type", phase.get("type", "hg"), ("isotropic", "rayleigh", "hg"))
+    if name != "hg":
+        if "g" in phase:
+            ctx.fail("medium.phase.g", f"only Henyey-Greenstein takes g, not {name}", 'remove g or use type = "hg"')
+        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0)
+    if "g" not in phase:
+        ctx.fail("medium.phase.g", "missing", "add g in (-1, 1), e.g. g = 0.5")
+    g = float(_number(ctx, "medium.phase.g", phase["g"]))
+    if not abs(g) < 1.0:
+        ctx.fail("medium.phase.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
+    return Medium(sa, ss, HG, g)
+
+
+def render_keys():
+    """Keys allowed in [render]: method, seed, and every parameter some registered method declares."""
+    from ..media import registry
+
+    keys = {"method", "seed"}
+    for m in registry().values():
+        keys |= set(m.params)
+    return keys
+
+
+def _render(ctx, raw):
+    if raw is None:
+        return {}
+    raw = _table(ctx, "render", raw)
+    ctx.unknown("render", raw, render_keys())
+    out = dict(raw)
+    if "method" in out:
+        from ..media import registry
+
+        _string(ctx, "render.method", out["method"], tuple(registry()))
+    if "seed" in out:
+        _number(ctx, "render.seed", out["seed"], integer=True, minimum=0)
+    return out
+
+
+TOP_KEYS = {"name", "camera", "shape", "light", "medium", "background", "render"}
+
+
+def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
+    """Validate a parsed TOML document; `source` names it in error messages."""
+    ctx = _Ctx(source)
+    ctx.unknown("", raw, TOP_KEYS)
+    if "camera" not in raw:
+        ctx.fail("camera", "missing", "add a [camera] table with position and look_at")
+    camera = _camera(ctx, raw["camera"])
+    shapes_raw = raw.get("shape", [])
+    if not isinstance(shapes_raw, list):
+        ctx.fail("shape", "expected an array of tables", "write each shape as [[shape]]")
+    lights_raw = raw.get("light", [])
+    if not isinstance(lights_raw, list):
+        ctx.fail("light", "expected an array of tables", "write each light as [[light]]")
+    background = raw.get("background", {})
+    background = _table(ctx, "background", background)
+    ctx.unknown("background", background, {"radiance"})
+    name = raw.get("name", path.stem if path else "scene")
+    if not isinstance(name, str):
+        ctx.fail("name", f"expected a string, got {name!r}", 'write name = "my scene"')
+    return Scene(
+        name=name,
+        path=path,
+        camera=camera,
+        shapes=[_shape(ctx, i, s) for i, s in enumerate(shapes_raw)],
+        lights=[_light(ctx, i, s) for i, s in enumerate(lights_raw)],
+        medium=_medium(ctx, raw.get("medium")),
+        background=_rgb(ctx, "background.radiance", background.get("radiance", 0.0)),
+        render=_render(ctx, raw.get("render")),
+    )
+
+
+def parse_override(text: str, source: str):
+    """Split a ``--set key.path=value`` override; the value is read as TOML, or as a bare string."""
+    if "=" not in text:
+        raise UserError(f"{source}: --set {text}: expected key.path=value; for example --set medium.sigma_s=0.2")
+    key, value = text.split("=", 1)
+    key = key.strip()
+    try:
+        parsed = tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        parsed = value.strip()
+    return key, parsed
+
+
+def apply_override(raw: dict, key: str, value, source: str):
+    """Set raw[a][b]... = value for key "a.b..."; integers index arrays of tables (shape.0.reflectance)."""
+    parts = key.split(".")
+    node = raw
+    for i, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise UserError(f"{source}: --set {key}: {'.'.join(parts[:i])} has {len(node)} entries; "
+                                f"index them 0..{len(node) - 1}")
+            node = node[int(part)]
+        else:
+            if part in ("shape", "light") and part not in node:
+                raise UserError(f"{source}: --set {key}: the scene has no [[{part}]]; add one to the file")
+            node = node.setdefault(part, {})
+            if not isinstance(node, (dict, list)):
+                raise UserError(f"{source}: --set {key}: {part} is not a table; set it as a whole")
+    last = parts[-1]
+    if isinstance(node, list):
+        if not last.isdigit() or int(last) >= len(node):
+            raise UserError(f"{source}: --set {key}: index out of range; use 0..{len(node) - 1}")
+        node[int(last)] = value
+    else:
+        node[last] = value
+
+
+def load_scene(path: str | Path, overrides=()) -> Scene:
+    """Read, override and validate a scene file. Raises UserError naming the file, key and fix."""
+    path = Path(path)
+    source = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UserError(f"{source}: no such scene file; check the path") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{source}: cannot read the scene file ({exc}); check its permissions and encoding") from None
+    return scene_from_text(text, source, path, overrides)
+
+
+def scene_from_text(text: str, source: str, path: Path | None = None, overrides=()) -> Scene:
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{source}: malformed TOML ({exc}); fix the syntax at that line") from None
+    for item in overrides:
+        apply_override(raw, *parse_override(item, source), source)
+    return scene_from_dict(raw, source, path)
