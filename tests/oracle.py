@@ -1,0 +1,109 @@
+"""Slow, obvious twins of the renderer, written from SCENE_FORMAT.md and METHODS.md alone.
+
+Nothing here imports the renderer: the camera rays, the ray-box intersection, the surface term
+and the air-light (scipy `quad` of eq. 4 in the distance x, split at the light's foot point) are
+re-derived, so agreement with the renderer tests the conventions as well as the numbers.
+Only box rooms with lights inside are supported (every surface point sees every light).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import integrate
+
+
+def phase(name: str, g: float, mu: float) -> float:
+    if name == "isotropic":
+        return 1.0 / (4.0 * math.pi)
+    if name == "rayleigh":
+        return 3.0 / (16.0 * math.pi) * (1.0 + mu * mu)
+    return (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * mu) ** 1.5)
+
+
+def camera_ray(cam: dict, i: int, j: int, s: float = 0.5, t: float = 0.5):
+    pos = np.array(cam["position"], float)
+    fwd = np.array(cam["look_at"], float) - pos
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, np.array(cam.get("up", [0.0, 1.0, 0.0]), float))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    W, H = cam["width"], cam["height"]
+    if cam.get("type", "perspective") == "perspective":
+        tan = math.tan(math.radians(cam.get("fov", 60.0)) / 2)
+        d = fwd + (2 * (i + s) / W - 1) * tan * (W / H) * right + (1 - 2 * (j + t) / H) * tan * up
+    else:
+        phi = 2 * math.pi * ((i + s) / W - 0.5)
+        theta = math.pi * (j + t) / H
+        d = math.sin(theta) * (math.cos(phi) * fwd + math.sin(phi) * right) + math.cos(theta) * up
+    return pos, d / np.linalg.norm(d)
+
+
+def box_exit(o, d, lo, hi):
+    """Distance to the wall of the box [lo, hi] that a ray from inside leaves through, and its
+    inward normal."""
+    best, normal = math.inf, None
+    for a in range(3):
+        if d[a] > 0:
+            t, n = (hi[a] - o[a]) / d[a], -1.0
+        elif d[a] < 0:
+            t, n = (lo[a] - o[a]) / d[a], 1.0
+        else:
+            continue
+        if t < best:
+            best = t
+            normal = np.zeros(3)
+            normal[a] = n
+    return best, normal
+
+
+def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g):
+    if ks == 0.0:
+        return 0.0
+    p = np.asarray(light, float)
+
+    def f(x):
+        q = o + x * d
+        to = p - q
+        dist = math.sqrt(to @ to)
+        mu = -(x - xh) / dist  # cosine between the light's travel direction and the way back to the camera
+        return math.exp(-kt * (x + dist)) * ks * intensity * phase(phase_name, g, mu) / dist**2
+
+    xh = float((p - o) @ d)
+    h = float(np.linalg.norm(np.cross(p - o, d)))
+    points = sorted({x for x in (xh - 10 * h, xh - h, xh, xh + h, xh + 10 * h) if 0.0 < x < tmax})
+    edges = [0.0] + points + [tmax]
+    total = 0.0
+    for a, b in zip(edges[:-1], edges[1:]):
+        val, _ = integrate.quad(f, a, b, epsabs=0.0, epsrel=1e-12, limit=400)
+        total += val
+    return total
+
+
+def box_room_pixel(scene: dict, i: int, j: int) -> np.ndarray:
+    """Radiance of the pixel centre (spp = 1) of a box-room scene described as a plain dict."""
+    cam = scene["camera"]
+    box = scene["shape"][0]
+    lo, hi = np.array(box["min"], float), np.array(box["max"], float)
+    rho = np.broadcast_to(np.array(box.get("reflectance", 0.5), float), 3)
+    med = scene.get("medium", {})
+    ka = np.broadcast_to(np.array(med.get("sigma_a", 0.0), float), 3)
+    ks = np.broadcast_to(np.array(med.get("sigma_s", 0.0), float), 3)
+    kt = ka + ks
+    ph = med.get("phase", "isotropic")
+    name, g = (ph, 0.0) if isinstance(ph, str) else (ph.get("type", "hg"), ph.get("g", 0.0))
+    o, d = camera_ray(cam, i, j)
+    t, n = box_exit(o, d, lo, hi)
+    x = o + t * d
+    out = np.zeros(3)
+    for light in scene["light"]:
+        p = np.array(light["position"], float)
+        inten = np.broadcast_to(np.array(light["intensity"], float), 3)
+        to = p - x
+        dist = math.sqrt(to @ to)
+        cos = max(0.0, float(n @ to) / dist)
+        for c in range(3):
+            surface = rho[c] / math.pi * inten[c] * math.exp(-kt[c] * dist) / dist**2 * cos
+            out[c] += math.exp(-kt[c] * t) * surface
+            out[c] += airlight(o, d, t, p, inten[c], kt[c], ks[c], name, g)
+    return out
