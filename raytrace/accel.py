@@ -12,6 +12,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .jit import njit
+
 CHUNK = 1 << 15
 
 
@@ -50,30 +52,19 @@ class Accelerator:
         n = len(origins)
         if self._scene is None or n == 0:
             return np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+        parts = self._map(self._first_hit_chunk, n, threads, origins, dirs)
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+    def _first_hit_chunk(self, origins, dirs):
         o32 = np.ascontiguousarray(origins, dtype=np.float32)
         d32 = np.ascontiguousarray(dirs, dtype=np.float32)
-        prim = np.concatenate(self._map(self._intersect, n, threads, o32, d32)).astype(np.int64)
-        hit = prim >= 0
-        t = np.full(n, np.inf)
-        # exact float64 distance on the hit triangle's plane
-        nrm = self.normals[prim[hit]]
-        v0 = self.triangles[prim[hit], 0]
-        denom = np.einsum("ij,ij->i", nrm, dirs[hit])
-        t_plane = np.einsum("ij,ij->i", nrm, v0 - origins[hit]) / np.where(denom != 0.0, denom, 1.0)
-        ok = (denom != 0.0) & (t_plane > 0.0)
-        t_hit = np.where(ok, t_plane, np.nan)
-        t[hit] = t_hit
-        bad = hit.copy()
-        bad[hit] = ~ok
+        prim = self._scene.run(o32, d32).astype(np.int64)
+        t = np.empty(len(prim))
+        _refine(self.triangles, self.normals, origins, dirs, prim, t)
+        bad = np.isnan(t)
         if bad.any():  # degenerate plane solve: fall back to Embree's float32 distance
-            t[bad] = self._distance(o32[bad], d32[bad]).astype(np.float64)
+            t[bad] = self._scene.run(o32[bad], d32[bad], query="DISTANCE").astype(np.float64)
         return t, prim
-
-    def _intersect(self, o, d):
-        return self._scene.run(o, d, query="INTERSECT", output=1)["primID"]
-
-    def _distance(self, o, d):
-        return self._scene.run(o, d, query="DISTANCE")
 
     def occluded(self, origins: np.ndarray, dirs: np.ndarray, tmax: np.ndarray, threads: int = 1):
         """True where something lies between origin and origin + tmax * dir."""
@@ -97,3 +88,20 @@ class Accelerator:
         seg_len = np.linalg.norm(seg, axis=1)
         dirs = seg / np.where(seg_len > 0, seg_len, 1.0)[:, None]
         return origins, dirs, seg_len - self.epsilon, dist
+
+
+@njit
+def _refine(triangles, normals, origins, dirs, prim, t):
+    """Exact float64 distance from each origin to the plane of its hit triangle (inf on a miss,
+    NaN where the plane solve is degenerate)."""
+    for i in range(prim.shape[0]):
+        k = prim[i]
+        if k < 0:
+            t[i] = np.inf
+            continue
+        num = 0.0
+        den = 0.0
+        for a in range(3):
+            num += normals[k, a] * (triangles[k, 0, a] - origins[i, a])
+            den += normals[k, a] * dirs[i, a]
+        t[i] = num / den if den != 0.0 and num / den > 0.0 else np.nan
