@@ -33,8 +33,15 @@ def _add_scene_args(p):
                    help="override a scene value, e.g. --set medium.sigma_s=0.2 (repeatable)")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line on stderr (SCENE_FORMAT.md), not usage + message."""
+
+    def error(self, message):
+        self.exit(2, f"error: {self.prog}: {message}; see `{self.prog} --help`\n")
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="render.py", description="Single scattering in homogeneous media.")
+    parser = _Parser(prog="render.py", description="Single scattering in homogeneous media.")
     sub = parser.add_subparsers(dest="command")
     r = sub.add_parser("render", help="render a scene to EXR (and PNG)")
     _add_scene_args(r)
@@ -49,7 +56,7 @@ def build_parser():
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     for name, p in _method_param_flags().items():
-        r.add_argument(f"--{name}", dest=f"param_{name}", type=p.type, help=p.help)
+        r.add_argument(f"--{name.replace('_', '-')}", dest=f"param_{name}", type=p.type, help=p.help)
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
@@ -168,7 +175,7 @@ def cmd_methods(args):
     for m in registry().values():
         print(f"{m.name}: {m.summary}")
         for name, p in m.params.items():
-            print(f"    --{name} (default {p.default!r}): {p.help}")
+            print(f"    --{name.replace('_', '-')} (default {p.default!r}): {p.help}")
     return 0
 
 
@@ -177,6 +184,9 @@ def cmd_diff(args):
 
     test, _ = film.read_exr(args.test)
     ref, _ = film.read_exr(args.ref)
+    if test.shape != ref.shape:
+        raise UserError(f"{args.test} is {test.shape[1]}x{test.shape[0]} but {args.ref} is "
+                        f"{ref.shape[1]}x{ref.shape[0]}; render both at the same --width and --height")
     e = metrics.errors(test, ref)
     for k, v in e.items():
         print(f"{k}: {v:.6e}")
@@ -200,8 +210,10 @@ def main(argv=None) -> int:
     try:
         return handlers[args.command](args)
     except UserError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print("error: " + " ".join(str(exc).split("\n")), file=sys.stderr)  # always one line
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)
+        return 0

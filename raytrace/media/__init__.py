@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-_MODULES = ("quadrature",)
+_MODULES = ("analytic", "quadrature",)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,537 @@
+"""PP09 closed-form air-light of an isotropic point light (METHODS.md §1, §3-6).
+
+Scalar njit kernels, one (ray, light, colour channel) per call:
+
+    Lm = int_0^ell exp(-kt x) ks Phi_c(cos phi(x)) I exp(-kt d(x)) / d(x)^2 dx
+
+Geometry: light at signed projection ``xh`` on the ray, distance ``h`` > 0 from the ray line,
+distance ``da`` from the ray origin; segment [0, ell], ell may be +inf.
+
+Paths (counted in ``stats``):
+  series    the paper's Fig. 2 loop for I0/I1 (used while rho_max <= rho_switch(precision));
+  stable    scaled-E1 form (METHODS §5 boxed formula; exponentials folded into the optical path
+            kt*(x + d), so nothing overflows for lights far behind the camera);
+  near-line light (almost) on the ray line outside the segment: h -> 0 limit (closed forms);
+  fallback  adaptive Gauss-Kronrod (7/15) in the scattering angle phi (HG "exact" mode when the
+            Legendre length needed for `precision` exceeds the stable length, kt = 0 with an
+            anisotropic phase).
+
+Anisotropic modes: ANISO_TAYLOR (PP09 eqs. 14-19, Maclaurin series of Phi in v with `terms`
+coefficients, faithful incl. its divergence for v > R) and ANISO_EXACT (Phi as a polynomial in
+t = 1/(1+v^2) = (1+mu)/2 and the K_m/L_m integration-by-parts recurrence, METHODS §6.5).
+"""
+import math
+
+import numpy as np
+
+from ..errors import UserError
+from ..jit import njit
+from . import Method, Param
+from .geometry import ray_light
+from .expint import g_scaled, en_scaled, i01_series_est
+from .phase import ISOTROPIC, RAYLEIGH, HG, phase_value
+
+ANISO_TAYLOR = 0
+ANISO_EXACT = 1
+
+# ---- stats slots (float64 array of length STATS_SIZE, accumulated) ----
+ST_EVALS = 0            # number of air-light evaluations (kernel calls)
+ST_SERIES_ITERS = 1     # total iterations of the Fig. 2 loop
+ST_SERIES = 2           # evaluations on the series path
+ST_STABLE = 3           # evaluations on the stable scaled-E1 path
+ST_NEARLINE = 4         # evaluations on the near-line (h -> 0) path
+ST_FALLBACK = 5         # evaluations on the adaptive-quadrature fallback
+ST_TAYLOR_OUT = 6       # Taylor evaluations whose v-interval leaves the convergence radius
+ST_ZERO = 7             # trivial evaluations (ks = 0, empty segment)
+ST_FALLBACK_FEVALS = 8  # integrand evaluations spent in the fallback
+ST_SERIES_REJECTED = 9  # series results rejected by the rounding-error guard (then stable)
+STATS_SIZE = 10
+
+# ---- switching criteria (measured, see tests / report) ----
+# series loses ~log10(e^rho) digits: use it while 30*eps*e^rho <= precision, and (cost: the
+# loop needs ~2.5*rho+5 iterations of 4 trig calls, more than 2 scaled-E1 evaluations) rho <= 8
+RHO_SWITCH_CAP = 8.0
+# a-posteriori: series accepted if its rounding-error estimate <= SERIES_SAFETY*precision*I0
+SERIES_SAFETY = 0.1
+# near-line: light outside the segment and h/|x_end - xh| < NEARLINE_TOL at both ends
+NEARLINE_TOL = 3e-6
+# exact mode: Legendre/monomial recurrence route is used only up to this degree in t
+EXACT_MAX_DEGREE = 12
+# ... and for H = kt*h up to this value (the recurrence loses ~log10(H^m) digits beyond)
+EXACT_MAX_H = 4.0
+
+_INV_4PI = 1.0 / (4.0 * math.pi)
+_EPS = 2.220446049250313e-16
+
+
+@njit
+def rho_switch(precision):
+    """Largest rho for which the Fig. 2 series meets `precision` (loss ~ 1e-16 e^rho * 30)."""
+    r = math.log(precision / (30.0 * _EPS))
+    if r > RHO_SWITCH_CAP:
+        r = RHO_SWITCH_CAP
+    return r
+
+
+@njit
+def v_of(s, h):
+    """v = tan(phi/2) at x - xh = s, cancellation-free (METHODS §1)."""
+    d = math.sqrt(h * h + s * s)
+    if s > 0.0:
+        return (d + s) / h
+    return h / (d - s)
+
+
+# ----------------------------------------------------------------------------------------------
+# adaptive Gauss-Kronrod fallback in phi
+# ----------------------------------------------------------------------------------------------
+_XGK = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
+                 0.864864423359769072789712788640926, 0.741531185599394439863864773280788,
+                 0.586087235467691130294144845693013, 0.405845151377397166906606412076961,
+                 0.207784955007898467600689403773245, 0.0])
+_WGK = np.array([0.022935322010529224963732008058970, 0.063092092629978553290700663189204,
+                 0.104790010322250183839876322541518, 0.140653259715525918745189590510238,
+                 0.169004726639267902826583426598550, 0.190350578064785409913256402421014,
+                 0.204432940075298892414161999234649, 0.209482141084727828012999174891714])
+_WG = np.array([0.129484966168869693270611432679082, 0.279705391489276667901467771423780,
+                0.381830050505118944950369775488975, 0.417959183673469387755102040816327])
+
+
+@njit
+def _fb_f(phi, phia, h, kt, code, g):
+    # e^{-kt (x + d - da)} Phi(cos phi); x + d - da = h (tan(phi/2) - tan(phia/2))
+    c = math.cos(0.5 * phi)
+    if c <= 0.0:
+        return 0.0
+    dt = math.sin(0.5 * (phi - phia)) / (c * math.cos(0.5 * phia))
+    ex = 0.0
+    if kt > 0.0:
+        ex = math.exp(-kt * h * dt)
+    return ex * phase_value(code, g, math.cos(phi))
+
+
+@njit
+def _gk15(a, b, phia, h, kt, code, g, xgk, wgk, wg):
+    c = 0.5 * (a + b)
+    hl = 0.5 * (b - a)
+    fc = _fb_f(c, phia, h, kt, code, g)
+    rk = fc * wgk[7]
+    rg = fc * wg[3]
+    for j in range(7):
+        x = hl * xgk[j]
+        f1 = _fb_f(c - x, phia, h, kt, code, g)
+        f2 = _fb_f(c + x, phia, h, kt, code, g)
+        rk += wgk[j] * (f1 + f2)
+        if j % 2 == 1:
+            rg += wg[j // 2] * (f1 + f2)
+    return rk * hl, abs((rk - rg) * hl)
+
+
+@njit
+def phi_integral_adaptive(phia, phib, h, kt, code, g, rtol, stats):
+    """int_phia^phib e^{-kt(x+d-da)} Phi(cos phi) dphi by adaptive GK15 (stack, max depth 60)."""
+    xgk = _XGK
+    wgk = _WGK
+    wg = _WG
+    sa = np.empty(200)
+    sb = np.empty(200)
+    total, err = _gk15(phia, phib, phia, h, kt, code, g, xgk, wgk, wg)
+    nf = 15
+    if err <= rtol * abs(total):
+        stats[ST_FALLBACK_FEVALS] += nf
+        return total
+    # local refinement: accept sub-intervals whose error is below their share
+    result = 0.0
+    n = 1
+    sa[0] = phia
+    sb[0] = phib
+    width = phib - phia
+    while n > 0:
+        n -= 1
+        a = sa[n]
+        b = sb[n]
+        m = 0.5 * (a + b)
+        r1, e1 = _gk15(a, m, phia, h, kt, code, g, xgk, wgk, wg)
+        r2, e2 = _gk15(m, b, phia, h, kt, code, g, xgk, wgk, wg)
+        nf += 30
+        tol_here = rtol * abs(total) * (b - a) / width
+        if e1 + e2 <= tol_here or n >= 196 or (b - a) < 1e-14 * width:
+            result += r1 + r2
+            # refresh the scale estimate as exact pieces accumulate
+        else:
+            sa[n] = a
+            sb[n] = m
+            sa[n + 1] = m
+            sb[n + 1] = b
+            n += 2
+    stats[ST_FALLBACK_FEVALS] += nf
+    return result
+
+
+@njit
+def airlight_quad(xh, h, da, ell, kt, ks, intensity, phase_code, g, rtol, stats):
+    """Adaptive-quadrature air-light (the fallback, also usable as a baseline)."""
+    phia = math.atan2(h, xh)
+    if ell < math.inf:
+        phib = math.atan2(h, xh - ell)
+    else:
+        phib = math.pi
+    val = phi_integral_adaptive(phia, phib, h, kt, phase_code, g, rtol, stats)
+    return intensity * ks / h * math.exp(-kt * da) * val
+
+
+# ----------------------------------------------------------------------------------------------
+# building blocks
+# ----------------------------------------------------------------------------------------------
+@njit
+def _nearline(xh, h, da, ell, kt, ks, intensity, code, g):
+    """h -> 0 limit with the light on the line outside the segment (relative error
+    O((h/D)^2 * |Phi'/Phi|), D = distance to the nearer end)."""
+    if xh > 0.0:
+        # light ahead: x + d = xh constant, int dx/(xh-x)^2 = ell/(xh (xh-ell))
+        return intensity * ks * phase_value(code, g, 1.0) * math.exp(-kt * da) * ell / (xh * (xh - ell))
+    c = -xh
+    s = 2.0 * kt
+    val = math.exp(-kt * da) * en_scaled(2, s * c) / c
+    if ell < math.inf:
+        cb = c + ell
+        val -= math.exp(-kt * (c + 2.0 * ell)) * en_scaled(2, s * cb) / cb
+    return intensity * ks * phase_value(code, g, -1.0) * val
+
+
+@njit
+def _taylor_poly_part(H, va, vb, Ea, Eb, n):
+    """sum_{j=0}^{n-2} (Eb vb^j - Ea va^j) C(-H, j, n) (PP-16/19, folded exponentials)."""
+    s = 0.0
+    invH = 1.0 / H
+    for j in range(0, n - 1):
+        # C(-H, j, n) = sum_i (-1)^{(n-i-j)/2} (i+j)!/j! (1/H)^{i+1}, i = (n-2-j)%2 .. n-2-j step 2
+        c = 0.0
+        i = (n - 2 - j) % 2
+        while i <= n - 2 - j:
+            f = 1.0
+            for q in range(j + 1, i + j + 1):
+                f *= q
+            sg = 1.0 if ((n - i - j) // 2) % 2 == 0 else -1.0
+            c += sg * f * invH ** (i + 1)
+            i += 2
+        tb = 0.0
+        if vb < math.inf:
+            tb = Eb * vb ** j
+        s += (tb - Ea * va ** j) * c
+    return s
+
+
+@njit
+def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
+             aniso_mode, terms, coeffs, stats):
+    """Air-light Lm of one point light along one ray segment [0, ell] for one channel.
+
+    xh: signed projection of the light on the ray; h (>0): light-to-line distance; da: light
+    distance from the ray origin; ell: segment length (may be +inf); kt, ks: extinction and
+    scattering; intensity: radiant intensity; phase_code/g: phase.py codes; precision and
+    max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
+    isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
+    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: q_m, m = 0..M, with Phi_c(2t-1) t = sum q_m t^m,
+    empty => quadrature fallback); stats: float64[STATS_SIZE] accumulator.
+    """
+    stats[ST_EVALS] += 1.0
+    if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
+        stats[ST_ZERO] += 1.0
+        return 0.0
+    if not (kt > 0.0):
+        # vacuum with ks > 0 (not produced by scenes): geometric integral (I ks/h) int Phi dphi
+        phia = math.atan2(h, xh)
+        phib = math.pi if ell == math.inf else math.atan2(h, xh - ell)
+        if phase_code == ISOTROPIC:
+            stats[ST_STABLE] += 1.0
+            return intensity * ks / h * _INV_4PI * (phib - phia)
+        stats[ST_FALLBACK] += 1.0
+        return intensity * ks / h * phi_integral_adaptive(phia, phib, h, 0.0, phase_code, g,
+                                                          0.1 * precision, stats)
+
+    finite = ell < math.inf
+    # near-line: light outside the segment and the line passes within h << distance of it
+    if xh < 0.0 or (finite and xh > ell):
+        dmin = abs(xh)
+        if finite and abs(xh - ell) < dmin:
+            dmin = abs(xh - ell)
+        if h < NEARLINE_TOL * dmin:
+            stats[ST_NEARLINE] += 1.0
+            return _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g)
+
+    H = kt * h
+    va = v_of(-xh, h)
+    Ea = math.exp(-kt * da)
+    if finite:
+        sb = ell - xh
+        db = math.sqrt(h * h + sb * sb)
+        vb = v_of(sb, h)
+        Eb = math.exp(-kt * (ell + db))
+    else:
+        vb = math.inf
+        Eb = 0.0
+    pref = intensity * ks / h * 2.0  # times folded integrals
+
+    exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
+    if exact and (coeffs.shape[0] == 0 or H > EXACT_MAX_H):
+        stats[ST_FALLBACK] += 1.0
+        return airlight_quad(xh, h, da, ell, kt, ks, intensity, phase_code, g, 0.1 * precision, stats)
+
+    # ---- I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1 ----
+    rho_a = H * math.sqrt(1.0 + va * va)
+    rho_max = rho_a
+    if finite:
+        rho_b = H * math.sqrt(1.0 + vb * vb)
+        if rho_b > rho_max:
+            rho_max = rho_b
+    use_series = rho_max <= rho_switch(precision)
+    if use_series:
+        i0, i1, it, err = i01_series_est(-H, va, vb, precision, max_iter)
+        stats[ST_SERIES_ITERS] += it
+        # a-posteriori guard: estimated rounding error vs the requested precision
+        if not (err <= SERIES_SAFETY * precision * i0):
+            use_series = False
+            stats[ST_SERIES_REJECTED] += 1.0
+        else:
+            stats[ST_SERIES] += 1.0
+            f = math.exp(-kt * xh)
+            K1 = f * i0
+            L1 = f * i1
+    if not use_series:
+        stats[ST_STABLE] += 1.0
+        ga = g_scaled(complex(H * va, H))
+        K1 = -Ea * ga.imag
+        L1 = Ea * ga.real
+        if finite:
+            gb = g_scaled(complex(H * vb, H))
+            K1 += Eb * gb.imag
+            L1 -= Eb * gb.real
+
+    if phase_code == ISOTROPIC:
+        return pref * _INV_4PI * K1
+
+    if aniso_mode == ANISO_TAYLOR:
+        # PP-19 with N = terms coefficients c_n of Phi in v
+        R = 1.0
+        if phase_code == HG and g > 0.0:
+            R = (1.0 - g) / (1.0 + g)
+        if vb > R:
+            stats[ST_TAYLOR_OUT] += 1.0
+        s = 0.0
+        nmax = terms
+        if coeffs.shape[0] < nmax:
+            nmax = coeffs.shape[0]
+        for n in range(nmax):
+            cn = coeffs[n]
+            if cn == 0.0:
+                continue
+            sg = -1.0 if ((n % 4) // 2) == 1 else 1.0
+            base = K1 if n % 2 == 0 else L1
+            s += cn * (_taylor_poly_part(H, va, vb, Ea, Eb, n) + sg * base)
+        return pref * s
+
+    # ---- exact: sum_m q_m K_m, K_m = int e^{-Hv} t^m dv (folded), t = 1/(1+v^2) ----
+    a = -H
+    ta = 1.0 / (1.0 + va * va)
+    tb = 0.0
+    if finite:
+        tb = 1.0 / (1.0 + vb * vb)
+    Km = K1
+    Lm_ = L1
+    s = coeffs[1] * Km
+    tam = ta   # t_a^m
+    tbm = tb
+    vbtb = 0.0
+    for m in range(1, coeffs.shape[0] - 1):
+        bt = Eb * tbm - Ea * tam                 # [e^{av} t^m]
+        if finite:
+            vbtb = Eb * vb * tbm
+        bvt = vbtb - Ea * va * tam               # [e^{av} v t^m]
+        Lnext = (a * Km - bt) / (2.0 * m)
+        Knext = (bvt - a * Lm_ + (2.0 * m - 1.0) * Km) / (2.0 * m)
+        Km = Knext
+        Lm_ = Lnext
+        tam *= ta
+        tbm *= tb
+        s += coeffs[m + 1] * Km
+    return pref * s
+
+
+# ----------------------------------------------------------------------------------------------
+# Python helpers: coefficient tables and stats summary
+# ----------------------------------------------------------------------------------------------
+def taylor_coeffs(phase_code, g, n_terms):
+    """Maclaurin coefficients c_0..c_{N-1} of Phi_c((1-v^2)/(1+v^2)) in v (METHODS §6.2)."""
+    from math import comb, pi
+
+    c = np.zeros(n_terms)
+    if phase_code == ISOTROPIC:
+        c[0] = 1.0 / (4.0 * pi)
+        return c
+    if phase_code == RAYLEIGH:
+        for n in range(0, n_terms, 2):
+            k = n // 2
+            c[n] = 3.0 / (8.0 * pi) * (1.0 if k == 0 else (-1.0) ** k * 2 * k)
+        return c
+    # HG: (1+g)/(4 pi (1-g)^2) (1+v^2)^{3/2} (1+s v^2)^{-3/2}, s = ((1+g)/(1-g))^2
+    s = ((1.0 + g) / (1.0 - g)) ** 2
+    pre = (1.0 + g) / (4.0 * pi * (1.0 - g) ** 2)
+
+    def gbin(alpha, k):  # generalised binomial coefficient
+        r = 1.0
+        for i in range(k):
+            r *= (alpha - i) / (i + 1)
+        return r
+
+    for n in range(0, n_terms, 2):
+        m = n // 2
+        c[n] = pre * sum(gbin(1.5, k) * gbin(-1.5, m - k) * s ** (m - k) for k in range(m + 1))
+    return c
+
+
+def _legendre_shifted_to_t(l):
+    """Integer coefficients of P_l(2t-1) in powers of t."""
+    from math import comb
+
+    return [(-1) ** (l + k) * comb(l, k) * comb(l + k, k) for k in range(l + 1)]
+
+
+def hg_legendre_degree(g, precision):
+    """Legendre length L for HG: tail sum_{l>L} (2l+1)|g|^l <= precision * min(4 pi Phi)/2."""
+    ag = abs(g)
+    if ag == 0.0:
+        return 0
+    floor_ = (1.0 - ag) / (1.0 + ag) ** 2
+    L = 0
+    while True:
+        tail = sum((2 * l + 1) * ag ** l for l in range(L + 1, L + 400))
+        if tail <= 0.5 * precision * floor_ or L > 2000:
+            return L
+        L += 1
+
+
+def exact_coeffs(phase_code, g, precision, max_degree=None):
+    """q_m (m = 0..M) with Phi_c(2t-1) * t = sum_m q_m t^m; empty array if the Legendre length
+    needed by `precision` exceeds `max_degree` (then the kernel uses the quadrature fallback)."""
+    from fractions import Fraction
+    from math import pi
+
+    if max_degree is None:
+        max_degree = EXACT_MAX_DEGREE
+    if phase_code == ISOTROPIC:
+        return np.array([0.0, 1.0 / (4 * pi)])
+    if phase_code == RAYLEIGH:
+        # 3/(16 pi) (1 + (2t-1)^2) t = 3/(16 pi) (2t - 4t^2 + 4t^3)
+        return 3.0 / (16.0 * pi) * np.array([0.0, 2.0, -4.0, 4.0])
+    L = hg_legendre_degree(g, precision)
+    if L + 1 > max_degree:
+        return np.zeros(0)
+    import mpmath as mp
+
+    with mp.workdps(50):
+        q = [mp.mpf(0)] * (L + 2)
+        gg = mp.mpf(g)
+        for l in range(L + 1):
+            al = (2 * l + 1) * gg ** l / (4 * mp.pi)
+            for k, ck in enumerate(_legendre_shifted_to_t(l)):
+                q[k + 1] += al * ck
+        return np.array([float(x) for x in q])
+
+
+def make_coeffs(phase_code, g, aniso_mode, terms, precision):
+    """The `coeffs` argument of `airlight` for these settings."""
+    if aniso_mode == ANISO_TAYLOR:
+        return taylor_coeffs(phase_code, g, max(int(terms), 1))
+    return exact_coeffs(phase_code, g, precision)
+
+
+def new_stats():
+    return np.zeros(STATS_SIZE)
+
+
+def summarize_stats(stats):
+    """Dict summary of a stats array (possibly the sum of per-thread arrays)."""
+    st = np.asarray(stats, dtype=float)
+    n = st[ST_EVALS]
+    nz = max(n, 1.0)
+    return {
+        "evaluations": int(n),
+        "series": int(st[ST_SERIES]),
+        "stable": int(st[ST_STABLE]),
+        "near_line": int(st[ST_NEARLINE]),
+        "fallback": int(st[ST_FALLBACK]),
+        "zero": int(st[ST_ZERO]),
+        "series_iterations": int(st[ST_SERIES_ITERS]),
+        "mean_iterations_per_evaluation": st[ST_SERIES_ITERS] / nz,
+        "mean_iterations_per_series_evaluation": st[ST_SERIES_ITERS] / max(st[ST_SERIES], 1.0),
+        "taylor_out_of_range": int(st[ST_TAYLOR_OUT]),
+        "taylor_out_of_range_fraction": st[ST_TAYLOR_OUT] / nz,
+        "fallback_fraction": st[ST_FALLBACK] / nz,
+        "fallback_integrand_evaluations": int(st[ST_FALLBACK_FEVALS]),
+        "series_rejected": int(st[ST_SERIES_REJECTED]),
+    }
+
+
+# ----------------------------------------------------------------------------------------------
+# the registered method
+# ----------------------------------------------------------------------------------------------
+@njit
+def airlight_rays(origins, dirs, tmax, lpos, lint, kt, ks, code, g, precision, max_iter, aniso_mode, terms,
+                  coeffs, out, stats):
+    """Sum over lights and channels; channels with equal (kt, ks) share one evaluation."""
+    unit = np.empty(3)
+    for r in range(origins.shape[0]):
+        for li in range(lpos.shape[0]):
+            xh, h, da = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
+                                  lpos[li, 0], lpos[li, 1], lpos[li, 2])
+            for c in range(3):
+                same = -1
+                for c2 in range(c):
+                    if kt[c2] == kt[c] and ks[c2] == ks[c]:
+                        same = c2
+                        break
+                if same >= 0:
+                    unit[c] = unit[same]
+                else:
+                    unit[c] = airlight(xh, h, da, tmax[r], kt[c], ks[c], 1.0, code, g, precision, max_iter,
+                                       aniso_mode, terms, coeffs, stats)
+                out[r, c] += unit[c] * lint[li, c]
+
+
+ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
+
+
+def _check(medium, params):
+    if params["anisotropic"] not in ANISO_MODES:
+        raise UserError(f"--anisotropic {params['anisotropic']}: unknown; choose exact or taylor")
+    if not 0.0 < params["precision"] < 1.0:
+        raise UserError(f"--precision {params['precision']}: must lie in (0, 1); e.g. 1e-3")
+    if params["max_iter"] < 1 or params["terms"] < 1:
+        raise UserError("--max_iter and --terms must be at least 1")
+
+
+def _airlight(batch, medium, lpos, lint, params):
+    mode = ANISO_MODES[params["anisotropic"]]
+    coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], params["precision"])
+    out = np.zeros((len(batch.origins), 3))
+    stats = new_stats()
+    airlight_rays(batch.origins, batch.dirs, batch.tmax, lpos, lint, medium.sigma_t, medium.sigma_s, medium.phase,
+                  medium.g, params["precision"], params["max_iter"], mode, params["terms"], coeffs, out, stats)
+    return out, stats
+
+
+METHOD = Method(
+    name="analytic",
+    summary="Pegoraro & Parker's closed form (eq. 13) with Ei series / scaled E1, to a requested precision",
+    params={
+        "precision": Param(1e-3, float, "requested relative accuracy of each air-light, e.g. 1e-6"),
+        "max_iter": Param(1000, int, "maximum iterations of the paper's series loop (Fig. 2)"),
+        "anisotropic": Param("exact", str, "exact (polynomial in cos, beyond the paper) or taylor (paper eqs. 14-19)"),
+        "terms": Param(6, int, "Taylor coefficients of the phase function with --anisotropic taylor (paper: 3, 6)"),
+    },
+    airlight=_airlight,
+    stats_size=STATS_SIZE,
+    summarize=summarize_stats,
+    check=_check,
+)
