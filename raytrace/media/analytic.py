@@ -262,15 +262,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
     H = kt * h
     va = v_of(-xh, h)
-    Ea = math.exp(-kt * da)
-    if finite:
-        sb = ell - xh
-        db = math.sqrt(h * h + sb * sb)
-        vb = v_of(sb, h)
-        Eb = math.exp(-kt * (ell + db))
-    else:
-        vb = math.inf
-        Eb = 0.0
+    vb = v_of(ell - xh, h) if finite else math.inf
     pref = intensity * ks / h * 2.0  # times folded integrals
 
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
@@ -285,7 +277,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         rho_b = H * math.sqrt(1.0 + vb * vb)
         if rho_b > rho_max:
             rho_max = rho_b
-    use_series = rho_max <= rho_switch(precision)
+    use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(precision)
     if use_series:
         i0, i1, it, err = i01_series_est(-H, va, vb, precision, max_iter)
         stats[ST_SERIES_ITERS] += it
@@ -298,6 +290,11 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
             f = math.exp(-kt * xh)
             K1 = f * i0
             L1 = f * i1
+            if phase_code == ISOTROPIC:
+                return pref * _INV_4PI * K1
+    # folded end factors e^{-kt (x + d)} at both ends (optical path light -> end -> camera)
+    Ea = math.exp(-kt * da)
+    Eb = math.exp(-kt * (ell + math.sqrt(h * h + (ell - xh) * (ell - xh)))) if finite else 0.0
     if not use_series:
         stats[ST_STABLE] += 1.0
         ga = g_scaled(complex(H * va, H))

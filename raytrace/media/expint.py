@@ -150,17 +150,16 @@ def i01_series_est(a, va, vb, precision, max_iter):
     sina = math.sin(a)
     cosa = math.cos(a)
     rva = abs(a) * math.sqrt(va * va + 1.0)
-    pva = math.atan2(a, a * va)
     if vb < math.inf:
         rvb = abs(a) * math.sqrt(vb * vb + 1.0)
-        pvb = math.atan2(a, a * vb)
         logv = math.log(rvb / rva)
-        phiv = pvb - pva
+        phiv = math.atan2(va - vb, 1.0 + va * vb)  # phi_b - phi_a = arg(z_b conj(z_a))
         i0 = sina * logv - cosa * phiv
         i1 = cosa * logv + sina * phiv
         zb = complex(a * vb, -a)
     else:
         rvb = 0.0
+        pva = math.atan2(a, a * va)
         lg = EULER_GAMMA + math.log(rva)
         # I = i(inf) - i(va)
         i0 = math.pi * cosa - (sina * lg - cosa * pva)
