@@ -338,6 +338,8 @@ def parse_override(text: str, source: str):
         raise UserError(f"{source}: --set {text}: expected key.path=value; for example --set medium.sigma_s=0.2")
     key, value = text.split("=", 1)
     key = key.strip()
+    if not all(key.split(".")):
+        raise UserError(f"{source}: --set {text}: empty key in {key!r}; for example --set medium.sigma_s=0.2")
     try:
         parsed = tomllib.loads(f"v = {value}")["v"]
     except tomllib.TOMLDecodeError:

@@ -100,7 +100,7 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
     try:
         loaded = trimesh.load(str(path), force="scene", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
-        raise UserError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc}); "
+        raise UserError(f"{path}: {key}.mesh: cannot read mesh ({type(exc).__name__}: {exc}); "
                         "export it as OBJ, PLY or GLB") from None
     tris, refl = [], []
     for node in loaded.graph.nodes_geometry:
