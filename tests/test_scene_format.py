@@ -375,8 +375,6 @@ def test_obj_without_mtl_gets_a_valid_default(tmp_path):
     assert np.all((refl > 0.0) & (refl <= 1.0)) and np.all(refl == refl[0, 0])  # a grey in (0, 1]
 
 
-@pytest.mark.xfail(reason="trimesh needs charset_normalizer to read OBJ files that are not UTF-8; "
-                          "it is not a declared dependency", strict=False)
 def test_obj_with_latin1_comment(tmp_path):
     (tmp_path / "lat.obj").write_bytes(b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     tris, _ = scene_triangles(mesh_scene(tmp_path, "lat.obj"))

@@ -6,12 +6,13 @@ method module only has to define ``METHOD`` and be listed in ``_MODULES``.
 from __future__ import annotations
 
 import importlib
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-_MODULES = ("analytic", "quadrature",)
+_MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun",)
 
 
 @dataclass(frozen=True)
@@ -70,9 +71,14 @@ def resolve_params(method: Method, given: dict, source: str) -> dict:
         if k not in method.params or v is None:
             continue
         p = method.params[k]
+        flag = "--" + k.replace("_", "-")
+        if isinstance(v, bool) or (p.type in (int, float) and isinstance(v, str)):
+            raise UserError(f"{source}: {flag} (render.{k}): expected {p.type.__name__}, got {v!r}; {p.help}")
         try:
             v = p.type(v)
         except (TypeError, ValueError):
-            raise UserError(f"{source}: {k}: expected {p.type.__name__}, got {v!r}; {p.help}") from None
+            raise UserError(f"{source}: {flag} (render.{k}): expected {p.type.__name__}, got {v!r}; {p.help}") from None
+        if p.type in (int, float) and not (math.isfinite(v) and v >= 0):
+            raise UserError(f"{source}: {flag} (render.{k}): must be finite and >= 0, got {v!r}; {p.help}")
         out[k] = v
     return out
