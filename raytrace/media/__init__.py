@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-_MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun",)
+_MODULES = ("analytic", "quadrature")
 
 
 @dataclass(frozen=True)
