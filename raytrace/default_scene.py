@@ -75,5 +75,5 @@ sigma_s = 0.06
 phase = "isotropic"
 
 [render]
-method = "quadrature"
+method = "analytic"
 """
