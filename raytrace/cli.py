@@ -55,6 +55,13 @@ def build_parser():
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--passes", type=int, help="stochastic methods: number of progressive passes")
+    r.add_argument("--time-budget", type=float, help="stochastic methods: stop after this many seconds of rendering")
+    r.add_argument("--target-error", type=float,
+                   help="stochastic methods: stop when the estimated mean relative standard error falls to this")
+    r.add_argument("--checkpoint", help="stochastic methods: checkpoint file, resumed when it exists "
+                                        "(default: beside --out, <out>.ckpt.npz, when passes, a budget or a target are given)")
+    r.add_argument("--checkpoint-interval", type=float, default=30.0, help="seconds between checkpoint writes")
     for name, p in _method_param_flags().items():
         r.add_argument(f"--{name.replace('_', '-')}", dest=f"param_{name}", type=p.type, help=p.help)
     d = sub.add_parser("describe", help="print what a scene file parsed into")
@@ -109,18 +116,49 @@ def cmd_render(args):
     for p in (out, png):
         if p is not None:
             film.check_writable(p)
+    for name in ("passes", "time_budget", "target_error", "checkpoint_interval"):
+        _validate_positive(name.replace("_", "-"), getattr(args, name))
+    progressive = args.passes or args.time_budget or args.target_error or args.checkpoint
+    if progressive and not method.stochastic:
+        raise UserError(f"--method {method.name}: deterministic; --passes, --time-budget, --target-error and "
+                        "--checkpoint need a stochastic method such as montecarlo")
     prep = renderer.prepare(scene)
-    bar = None
-    if not args.quiet and sys.stderr.isatty():
-        from tqdm import tqdm
+    source = str(scene.path or "default scene")
+    show = not args.quiet and sys.stderr.isatty()
+    if method.stochastic:
+        from .progressive import render_progressive
 
-        bar = tqdm(total=cam.height, unit="row", desc=f"{method.name}", file=sys.stderr, leave=False)
-    try:
-        result = renderer.render(prep, method.name, given, seed, args.threads,
-                                 progress=bar.update if bar else None, source=str(scene.path or "default scene"))
-    finally:
-        if bar:
-            bar.close()
+        ckpt = Path(args.checkpoint) if args.checkpoint else (Path(str(out) + ".ckpt.npz") if progressive else None)
+        if ckpt is not None:
+            film.check_writable(ckpt)
+
+        def report(n, err):
+            if show:
+                print(f"\rpass {n}: estimated mean relative error {err:.3e}", end="", file=sys.stderr, flush=True)
+
+        try:
+            result = render_progressive(prep, method.name, given, seed, passes=args.passes,
+                                        time_budget=args.time_budget, target_error=args.target_error,
+                                        checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
+                                        threads=args.threads, on_pass=report, source=source)
+        except KeyboardInterrupt:
+            raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
+                                                         "the same command to resume" if ckpt else "")) from None
+        finally:
+            if show:
+                print(file=sys.stderr)
+    else:
+        bar = None
+        if show:
+            from tqdm import tqdm
+
+            bar = tqdm(total=cam.height, unit="row", desc=f"{method.name}", file=sys.stderr, leave=False)
+        try:
+            result = renderer.render(prep, method.name, given, seed, args.threads,
+                                     progress=bar.update if bar else None, source=source)
+        finally:
+            if bar:
+                bar.close()
     if not np.all(np.isfinite(result.image)):
         raise UserError(f"{scene.path or 'default scene'}: the render produced non-finite pixels; "
                         "this is a bug, please report the scene")
@@ -129,7 +167,10 @@ def cmd_render(args):
               "params": " ".join(f"{k}={v}" for k, v in result.params.items()),
               "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
     header.update({f"stats.{k}": v for k, v in result.stats.items()})
-    film.write_exr(out, result.image, header)
+    extra = {}
+    if result.variance is not None:
+        extra = {f"variance.{c}": result.variance[..., i] for i, c in enumerate("RGB")}
+    film.write_exr(out, result.image, header, extra)
     if png is not None:
         film.write_png(png, film.tonemap(result.image, args.exposure))
     if not args.quiet:

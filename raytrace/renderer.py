@@ -41,6 +41,8 @@ class RenderResult:
     seconds: float  # wall time of the render, compile time excluded
     compile_seconds: float
     stats: dict = field(default_factory=dict)
+    variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
+    passes: int = 1
 
 
 def prepare(scene: Scene) -> Prepared:
@@ -70,11 +72,14 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed):
     radiance[~hit] = scene.background
     radiance *= transmittance(medium.sigma_t, t)
     stats = np.zeros(method.stats_size)
+    variance = np.zeros_like(radiance) if method.stochastic else None
     if len(prep.light_pos) and np.any(medium.sigma_s > 0.0):
-        air, stats = method.airlight(RayBatch(origins, dirs, t, keys, seed), medium, prep.light_pos,
-                                     prep.light_int, params)
-        radiance += air
-    return radiance, stats
+        res = method.airlight(RayBatch(origins, dirs, t, keys, seed), medium, prep.light_pos, prep.light_int, params)
+        radiance += res[0]
+        stats = res[1]
+        if method.stochastic:
+            variance = res[2]
+    return radiance, stats, variance
 
 
 def warm_up(prep: Prepared, method, params, seed) -> float:
@@ -97,14 +102,18 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     rows_per_tile = max(1, RAYS_PER_TILE // (cam.width * cam.spp))
     tiles = [slice(r, min(r + rows_per_tile, cam.height)) for r in range(0, cam.height, rows_per_tile)]
     image = np.zeros((cam.height, cam.width, 3))
+    variance = np.zeros_like(image) if method.stochastic else None
     totals = np.zeros(method.stats_size)
 
     def work(rows):
         o, d = generate_rays(cam, rows)
         pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(cam.width)[None, :]).ravel()
         keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp) + np.arange(cam.spp, dtype=np.uint64)).ravel()
-        rad, stats = shade_rays(prep, method, params, o, d, keys, seed)
-        image[rows] = rad.reshape(rows.stop - rows.start, cam.width, cam.spp, 3).mean(axis=2)
+        rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed)
+        shape = (rows.stop - rows.start, cam.width, cam.spp, 3)
+        image[rows] = rad.reshape(shape).mean(axis=2)
+        if variance is not None:  # variance of the pixel mean of independent per-ray estimates
+            variance[rows] = var.reshape(shape).sum(axis=2) / cam.spp**2
         return rows.stop - rows.start, stats
 
     start = time.perf_counter()
@@ -116,4 +125,4 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
             if progress is not None:
                 progress(n_rows)
     seconds = time.perf_counter() - start
-    return RenderResult(image, method.name, params, seconds, compile_s, method.summarize(totals))
+    return RenderResult(image, method.name, params, seconds, compile_s, method.summarize(totals), variance)

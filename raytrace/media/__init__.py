@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-_MODULES = ("analytic", "quadrature")
+_MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo")
 
 
 @dataclass(frozen=True)
@@ -38,11 +38,13 @@ class Method:
     name: str
     summary: str
     params: dict[str, Param]
-    # airlight(batch, medium, light_pos (L,3), light_intensity (L,3), params) -> (radiance (N,3), stats)
+    # airlight(batch, medium, light_pos (L,3), light_intensity (L,3), params) -> (radiance (N,3), stats),
+    # or (radiance, stats, variance (N,3)) for a stochastic method: the variance of each ray's estimate
     airlight: Callable
     stats_size: int = 0
     summarize: Callable[[np.ndarray], dict] = field(default=lambda stats: {})
     check: Callable = field(default=lambda medium, params: None)  # raises UserError if unsupported
+    stochastic: bool = False  # results depend on the seed; the renderer keeps per-pixel variance
 
 
 def registry() -> dict[str, Method]:

@@ -1,0 +1,139 @@
+"""Progressive rendering of stochastic methods, with atomic checkpoints and exact resume.
+
+Pass p renders the whole image with the seed `pass_seed(seed, p)`; the image is the mean of the
+passes and its variance the sum of the passes' variances over passes². Passes are accumulated in
+order, so a render interrupted (Ctrl-C, crash, machine restart) and resumed from its checkpoint
+equals an uninterrupted one with the same seed and number of passes, bit for bit. Rendering stops
+after `passes` passes, when `time_budget` seconds (counted over all sessions) are spent, or when
+the estimated mean relative standard error of the pixels falls to `target_error`, whichever
+comes first. The checkpoint is kept afterwards, so the same command with a larger budget
+continues where the last one stopped.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+from .renderer import Prepared, RenderResult, render
+
+GOLDEN = 0x9E3779B97F4A7C15
+
+
+def pass_seed(seed: int, p: int) -> int:
+    return (seed + p * GOLDEN) % (1 << 64)
+
+
+def fingerprint(prep: Prepared, method: str, params: dict, seed: int) -> str:
+    """What a checkpoint must match to be resumed: scene content, camera, method, parameters, seed."""
+    h = hashlib.sha256()
+    cam = prep.scene.camera
+    meta = {"method": method, "params": params, "seed": seed, "camera": [cam.type, cam.position.tolist(),
+            cam.look_at.tolist(), cam.up.tolist(), cam.fov, cam.width, cam.height, cam.spp],
+            "medium": [prep.scene.medium.sigma_a.tolist(), prep.scene.medium.sigma_s.tolist(),
+                       prep.scene.medium.phase, prep.scene.medium.g],
+            "background": prep.scene.background.tolist()}
+    h.update(json.dumps(meta, sort_keys=True, default=str).encode())
+    for a in (prep.accel.triangles, prep.reflectance, prep.light_pos, prep.light_int):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def _save(path: Path, state: dict):
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
+    os.close(fd)
+    try:
+        np.savez(tmp, **state)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _load(path: Path, fp: str):
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            if str(z["fingerprint"]) != fp:
+                raise UserError(f"{path}: checkpoint of a different render (scene, method, parameters or seed "
+                                "differ); delete it or choose another --checkpoint")
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError, KeyError):
+        raise UserError(f"{path}: unreadable checkpoint; delete it to start afresh") from None
+
+
+def mean_relative_error(total, var_total, passes) -> float:
+    """Estimated mean relative standard error of the pixel estimates (floored at 1e-3 of the mean)."""
+    mean = total / passes
+    sd = np.sqrt(var_total) / passes
+    floor = max(1e-3 * float(np.mean(np.abs(mean))), 1e-300)
+    return float(np.mean(sd / np.maximum(np.abs(mean), floor)))
+
+
+def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int = 0, *, passes: int | None = None,
+                       time_budget: float | None = None, target_error: float | None = None,
+                       checkpoint: Path | None = None, checkpoint_interval: float = 30.0, threads=None,
+                       on_pass=None, source: str = "render") -> RenderResult:
+    """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress."""
+    if passes is None and time_budget is None and target_error is None:
+        passes = 1
+    fp = fingerprint(prep, method_name, params, seed)
+    state = _load(checkpoint, fp) if checkpoint else None
+    if state is None:
+        cam = prep.scene.camera
+        state = {"fingerprint": np.array(fp), "total": np.zeros((cam.height, cam.width, 3)),
+                 "var_total": np.zeros((cam.height, cam.width, 3)), "passes": np.array(0),
+                 "elapsed": np.array(0.0), "compile": np.array(0.0)}
+    done = int(state["passes"])
+    elapsed = float(state["elapsed"])
+    last_save = time.perf_counter()
+    result = None
+
+    def finished():
+        if done == 0:
+            return False
+        if passes is not None and done >= passes:
+            return True
+        if time_budget is not None and elapsed >= time_budget:
+            return True
+        return target_error is not None and mean_relative_error(state["total"], state["var_total"], done) <= target_error
+
+    try:
+        while not finished():
+            result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source)
+            if result.variance is None:
+                raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
+                                "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "
+                                "such as montecarlo")
+            state["total"] = state["total"] + result.image
+            state["var_total"] = state["var_total"] + result.variance
+            done += 1
+            elapsed += result.seconds
+            state["passes"], state["elapsed"] = np.array(done), np.array(elapsed)
+            state["compile"] = np.array(max(float(state["compile"]), result.compile_seconds))
+            if on_pass:
+                on_pass(done, mean_relative_error(state["total"], state["var_total"], done))
+            if checkpoint and time.perf_counter() - last_save >= checkpoint_interval:
+                _save(checkpoint, state)
+                last_save = time.perf_counter()
+    except KeyboardInterrupt:
+        if checkpoint and done:
+            _save(checkpoint, state)
+        raise
+    if checkpoint:
+        _save(checkpoint, state)
+    image = state["total"] / done
+    variance = state["var_total"] / done**2
+    stats = {"passes": done, "estimated mean relative error": mean_relative_error(state["total"], state["var_total"],
+                                                                                   done)}
+    if result is not None:
+        stats.update(result.stats)
+    return RenderResult(image, method_name, result.params if result else params, elapsed, float(state["compile"]),
+                        stats, variance, done)

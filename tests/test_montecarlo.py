@@ -1,0 +1,112 @@
+"""Monte Carlo: unbiasedness of each sampling mode, a per-pixel Z-test against `quadrature`
+(variance from the render itself, Šidák-corrected, as Mitsuba's render tests do), and exact
+checkpoint/resume."""
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from raytrace import progressive
+from raytrace.media import montecarlo as mc
+from raytrace.media import quadrature as q
+from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
+from raytrace.renderer import prepare, render
+from raytrace.scene.format import scene_from_text
+
+from .conftest import box_room, to_toml
+
+GEOMETRIES = [(2.0, 0.5, 6.0, 0.08, ISOTROPIC, 0.0), (2.0, 0.05, math.inf, 0.3, RAYLEIGH, 0.0),
+              (3.0, 1.0, 4.0, 1.0, HG, 0.6), (-1.0, 0.3, 5.0, 0.5, HG, -0.4)]
+
+
+@pytest.mark.parametrize("mode", ["equiangular", "freepath", "mis"])
+@pytest.mark.parametrize("xh,h,ell,kt,code,g", GEOMETRIES)
+def test_each_sampling_mode_is_unbiased(mode, xh, h, ell, kt, code, g):
+    ks = 0.7 * kt
+    ref = q.airlight_one(xh, h, ell, kt, ks, code, g, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    n = 20000
+    est = np.array([mc.estimate(xh, h, ell, kt, ks, code, g, mc.MODES[mode], 1, np.uint64(k), 0, np.uint64(7))[0]
+                    for k in range(n)])
+    se = est.std(ddof=1) / math.sqrt(n)
+    assert abs(est.mean() - ref) < 4.5 * se, (est.mean(), ref, se)
+
+
+def test_per_ray_variance_matches_the_spread_of_estimates():
+    args = (2.0, 0.5, 6.0, 0.3, 0.2, ISOTROPIC, 0.0, mc.EQUIANGULAR, 8)
+    res = np.array([mc.estimate(*args, np.uint64(k), 0, np.uint64(3)) for k in range(4000)])
+    assert res[:, 1].mean() == pytest.approx(res[:, 0].var(ddof=1), rel=0.1)
+
+
+def scene(**kw):
+    s = box_room(camera={"position": [0.3, 0.2, 3.0], "look_at": [0.0, 0.0, -1.0], "fov": 70.0, "width": 16,
+                         "height": 12, "spp": 4}, **kw)
+    return prepare(scene_from_text(to_toml(s), "test"))
+
+
+@pytest.mark.parametrize("mode", ["equiangular", "mis"])
+def test_z_test_against_quadrature(mode):
+    prep = scene(medium={"sigma_a": 0.05, "sigma_s": [0.2, 0.3, 0.4], "phase": {"type": "hg", "g": 0.5}})
+    ref = render(prep, "quadrature", {"rtol": 1e-12}, threads=1).image
+    res = render(prep, "montecarlo", {"samples": 16, "sampling": mode}, seed=11, threads=1)
+    var = np.maximum(res.variance, (1e-4 * ref) ** 2)  # variance floor: a relative s.d. of 1e-4
+    z = (res.image - ref) / np.sqrt(var)
+    n = z.size
+    alpha = 0.01
+    per_test = 1.0 - (1.0 - alpha) ** (1.0 / n)  # Šidák correction
+    z_crit = stats.norm.isf(per_test / 2)
+    pass_rate = np.mean(np.abs(z) < z_crit)
+    assert pass_rate >= 0.9975, (pass_rate, np.abs(z).max())
+    # and the errors look standard normal overall
+    assert abs(z.mean()) < 4.0 / math.sqrt(n) + 0.05 and 0.7 < z.std() < 1.3
+
+
+def test_result_does_not_depend_on_thread_count():
+    prep = scene()
+    a = render(prep, "montecarlo", {}, seed=5, threads=1).image
+    b = render(prep, "montecarlo", {}, seed=5, threads=2).image
+    assert np.array_equal(a, b)
+
+
+def test_resumed_render_equals_uninterrupted(tmp_path, monkeypatch):
+    prep = scene()
+    full = progressive.render_progressive(prep, "montecarlo", {}, 3, passes=3, threads=1)
+    ckpt = tmp_path / "r.ckpt.npz"
+    # interrupted during the second pass: the checkpoint keeps the first one
+    real_render = progressive.render
+    calls = {"n": 0}
+
+    def flaky(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real_render(*a, **k)
+
+    monkeypatch.setattr(progressive, "render", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        progressive.render_progressive(prep, "montecarlo", {}, 3, passes=3, checkpoint=ckpt, threads=1)
+    monkeypatch.setattr(progressive, "render", real_render)
+    with np.load(ckpt) as z:
+        assert int(z["passes"]) == 1
+    resumed = progressive.render_progressive(prep, "montecarlo", {}, 3, passes=3, checkpoint=ckpt, threads=1)
+    assert resumed.passes == 3
+    assert np.array_equal(resumed.image, full.image)
+    assert np.array_equal(resumed.variance, full.variance)
+    # more passes of the same render continue from the checkpoint; a different seed is refused
+    more = progressive.render_progressive(prep, "montecarlo", {}, 3, passes=4, checkpoint=ckpt, threads=1)
+    assert more.passes == 4
+    from raytrace.errors import UserError
+    with pytest.raises(UserError, match="different render"):
+        progressive.render_progressive(prep, "montecarlo", {}, 4, passes=4, checkpoint=ckpt, threads=1)
+
+
+def test_error_falls_as_one_over_sqrt_n():
+    prep = scene()
+    ref = render(prep, "quadrature", {"rtol": 1e-12}, threads=1).image
+    errs = []
+    ns = [1, 4, 16, 64]
+    for n in ns:
+        img = render(prep, "montecarlo", {"samples": n}, seed=2, threads=1).image
+        errs.append(np.sqrt(np.mean((img - ref) ** 2)))
+    slope = np.polyfit(np.log(ns), np.log(errs), 1)[0]
+    assert -0.62 < slope < -0.38, (slope, errs)
