@@ -63,7 +63,11 @@ def build_parser():
                                         "(default: beside --out, <out>.ckpt.npz, when passes, a budget or a target are given)")
     r.add_argument("--checkpoint-interval", type=float, default=30.0, help="seconds between checkpoint writes")
     for name, p in _method_param_flags().items():
-        r.add_argument(f"--{name.replace('_', '-')}", dest=f"param_{name}", type=p.type, help=p.help)
+        flag = f"--{name.replace('_', '-')}"
+        if p.type is bool:
+            r.add_argument(flag, dest=f"param_{name}", action="store_const", const=True, help=p.help)
+        else:
+            r.add_argument(flag, dest=f"param_{name}", type=p.type, help=p.help)
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")

@@ -15,6 +15,7 @@ import numpy as np
 
 from .accel import Accelerator
 from .camera import generate_rays
+from .errors import UserError
 from .media import RayBatch, get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
@@ -74,12 +75,45 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed):
     stats = np.zeros(method.stats_size)
     variance = np.zeros_like(radiance) if method.stochastic else None
     if len(prep.light_pos) and np.any(medium.sigma_s > 0.0):
-        res = method.airlight(RayBatch(origins, dirs, t, keys, seed), medium, prep.light_pos, prep.light_int, params)
-        radiance += res[0]
-        stats = res[1]
-        if method.stochastic:
-            variance = res[2]
+        batch = RayBatch(origins, dirs, t, keys, seed)
+        if params.get("volumetric_shadows"):
+            air, var = shadowed_airlight(prep, method, params, batch)
+            radiance += air
+            if method.stochastic:
+                variance = var
+        else:
+            res = method.airlight(batch, medium, prep.light_pos, prep.light_int, params)
+            radiance += res[0]
+            stats = res[1]
+            if method.stochastic:
+                variance = res[2]
     return radiance, stats, variance
+
+
+def shadowed_airlight(prep: Prepared, method, params, batch: RayBatch):
+    """Air-light with volumetric shadows: a shadow ray from every medium point of the method's
+    estimate to its light (Embree, in one batch per light and channel), then the estimate's mean
+    over iterations and the variance of that mean."""
+    pos, weight = method.points(batch, prep.scene.medium, prep.light_pos, prep.light_int, params)
+    visible = np.zeros(weight.shape, dtype=bool)
+    eps = prep.accel.epsilon
+    for li, lp in enumerate(prep.light_pos):
+        for c in range(3):
+            p, w = pos[:, li, ..., c, :], weight[:, li, ..., c]
+            if c > 0 and np.array_equal(p, pos[:, li, ..., 0, :]):
+                visible[:, li, ..., c] = visible[:, li, ..., 0]
+                continue
+            m = w != 0.0
+            to_light = lp - p[m]
+            dist = np.linalg.norm(to_light, axis=1)
+            d = to_light / np.where(dist > 0.0, dist, 1.0)[:, None]
+            vis = visible[:, li, ..., c]
+            vis[m] = ~prep.accel.occluded(p[m] + eps * d, d, dist - 2.0 * eps)
+            visible[:, li, ..., c] = vis
+    per_iter = (weight * visible).sum(axis=(1, 3))  # (N, n, 3): each iteration's estimate of the whole air-light
+    n = per_iter.shape[1]
+    var = per_iter.var(axis=1, ddof=1) / n if n > 1 else np.zeros((len(per_iter), 3))
+    return per_iter.mean(axis=1), var
 
 
 def warm_up(prep: Prepared, method, params, seed) -> float:
@@ -97,6 +131,9 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
     method.check(scene.medium, params)
+    if params.get("volumetric_shadows") and method.points is None:
+        raise UserError(f"{source}: --volumetric-shadows: method {method.name} has no medium sample points; "
+                        "use raymarch or montecarlo")
     cam = scene.camera
     compile_s = warm_up(prep, method, params, seed)
     rows_per_tile = max(1, RAYS_PER_TILE // (cam.width * cam.spp))

@@ -45,6 +45,10 @@ class Method:
     summarize: Callable[[np.ndarray], dict] = field(default=lambda stats: {})
     check: Callable = field(default=lambda medium, params: None)  # raises UserError if unsupported
     stochastic: bool = False  # results depend on the seed; the renderer keeps per-pixel variance
+    # points(batch, medium, light_pos, light_int, params) -> (pos (N, L, n, S, 3, 3), weight (N, L, n, S, 3)):
+    # the medium points behind the estimate, for volumetric shadows: the air-light of ray r is the
+    # mean over iterations j of sum over lights l and strategies s of V * weight[r, l, j, s]
+    points: Callable | None = None
 
 
 def registry() -> dict[str, Method]:
@@ -73,6 +77,13 @@ def resolve_params(method: Method, given: dict, source: str) -> dict:
         if k not in method.params or v is None:
             continue
         p = method.params[k]
+        if p.type is bool:
+            if isinstance(v, str) and v.lower() in ("true", "false", "1", "0", "yes", "no"):
+                v = v.lower() in ("true", "1", "yes")
+            if not isinstance(v, (bool, int)) or v not in (0, 1):
+                raise UserError(f"{source}: --{k.replace('_', '-')} (render.{k}): expected true or false, got {v!r}")
+            out[k] = bool(v)
+            continue
         flag = "--" + k.replace("_", "-")
         if isinstance(v, bool) or (p.type in (int, float) and isinstance(v, str)):
             raise UserError(f"{source}: {flag} (render.{k}): expected {p.type.__name__}, got {v!r}; {p.help}")

@@ -49,37 +49,50 @@ def _p_freepath(x, kt, norm):
 
 
 @njit
+def _draw(xh, h, ell, kt, ks, code, g, mode, key, dim, seed, th_a, th_b, norm):
+    """One iteration: (x_e, w_e, x_f, w_f), the equiangular and free-path sample positions with their
+    weights f/p (MIS: f/(p_e + p_f)); a strategy the mode does not use gets weight 0."""
+    xe = xf = 0.0
+    we = wf = 0.0
+    if mode != FREEPATH:
+        u = uniform(key, dim, seed)
+        xe = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
+        pe = _p_equiangular(xe, xh, h, th_a, th_b)
+        if mode == MIS:
+            pe += _p_freepath(xe, kt, norm)
+        we = _f(xe, xh, h, kt, ks, code, g) / pe
+    if mode != EQUIANGULAR:
+        u = uniform(key, dim + 1, seed)
+        xf = min(-math.log1p(-u * norm) / kt, ell)
+        pf = _p_freepath(xf, kt, norm)
+        if mode == MIS:
+            pf += _p_equiangular(xf, xh, h, th_a, th_b)
+        wf = _f(xf, xh, h, kt, ks, code, g) / pf
+    return xe, we, xf, wf
+
+
+@njit
+def _angles(xh, h, ell, kt):
+    th_a = math.atan2(-xh, h)
+    th_b = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
+    return th_a, th_b, -math.expm1(-kt * ell)
+
+
+@njit
 def estimate(xh, h, ell, kt, ks, code, g, mode, n, key, dim0, seed):
     """Mean and variance of the mean of n estimates of the air-light (unit intensity)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
-    th_a = math.atan2(-xh, h)
-    th_b = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
-    norm = -math.expm1(-kt * ell)
+    th_a, th_b, norm = _angles(xh, h, ell, kt)
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
-        est = 0.0
-        if mode != FREEPATH:  # equiangular sample
-            u = uniform(key, dim0 + 2 * j, seed)
-            x = xh + h * math.tan(th_a + u * (th_b - th_a))
-            x = min(max(x, 0.0), ell)
-            pe = _p_equiangular(x, xh, h, th_a, th_b)
-            if mode == MIS:
-                pe += _p_freepath(x, kt, norm)
-            est += _f(x, xh, h, kt, ks, code, g) / pe
-        if mode != EQUIANGULAR:  # free-path sample
-            u = uniform(key, dim0 + 2 * j + 1, seed)
-            x = -math.log1p(-u * norm) / kt
-            x = min(x, ell)
-            pf = _p_freepath(x, kt, norm)
-            if mode == MIS:
-                pf += _p_equiangular(x, xh, h, th_a, th_b)
-            est += _f(x, xh, h, kt, ks, code, g) / pf
+        _, we, _, wf = _draw(xh, h, ell, kt, ks, code, g, mode, key, dim0 + 2 * j, seed, th_a, th_b, norm)
+        est = we + wf
         acc += est
         acc2 += est * est
     mean = acc / n
-    var = max(acc2 / n - mean * mean, 0.0) * n / max(n - 1, 1) / n
+    var = max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
     return mean, var
 
 
@@ -94,6 +107,30 @@ def airlight_rays(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, 
                 m, v = estimate(xh, h, tmax[r], kt[c], ks[c], code, g, mode, n, keys[r], dim0, seed)
                 out[r, c] += m * lint[li, c]
                 var[r, c] += v * lint[li, c] * lint[li, c]
+
+
+@njit
+def sample_points(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, mode, n, pos, weight):
+    """The same samples as `airlight_rays`, as points for volumetric shadows: pos[r, l, j, s, c] is
+    the point drawn by strategy s (0 equiangular, 1 free-path) in iteration j for ray r, light l and
+    channel c (free-path distances depend on the channel's kt), weight[r, l, j, s, c] its I f / p."""
+    L = lpos.shape[0]
+    for r in range(origins.shape[0]):
+        for li in range(L):
+            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
+                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
+            for j in range(n):
+                for c in range(3):
+                    if ks[c] == 0.0 or not tmax[r] > 0.0:
+                        continue
+                    th_a, th_b, norm = _angles(xh, h, tmax[r], kt[c])
+                    xe, we, xf, wf = _draw(xh, h, tmax[r], kt[c], ks[c], code, g, mode, keys[r], 2 * n * li + 2 * j,
+                                           seed, th_a, th_b, norm)
+                    for a in range(3):
+                        pos[r, li, j, 0, c, a] = origins[r, a] + xe * dirs[r, a]
+                        pos[r, li, j, 1, c, a] = origins[r, a] + xf * dirs[r, a]
+                    weight[r, li, j, 0, c] = we * lint[li, c]
+                    weight[r, li, j, 1, c] = wf * lint[li, c]
 
 
 def _check(medium, params):
@@ -112,14 +149,26 @@ def _airlight(batch, medium, lpos, lint, params):
     return out, np.zeros(0), var
 
 
+def _points(batch, medium, lpos, lint, params):
+    n = params["samples"]
+    shape = (len(batch.origins), len(lpos), n, 2, 3)
+    pos = np.zeros(shape + (3,))
+    weight = np.zeros(shape)
+    sample_points(batch.origins, batch.dirs, batch.tmax, batch.keys, np.uint64(batch.seed), lpos, lint,
+                  medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], n, pos, weight)
+    return pos, weight
+
+
 METHOD = Method(
     name="montecarlo",
     summary="unbiased single scattering: equiangular, free-path or MIS distance sampling, per-pixel variance",
     params={
         "samples": Param(4, int, "distance samples per camera ray, light and strategy"),
+        "volumetric_shadows": Param(False, bool, "shadow rays from every sample point to the light (light shafts)"),
         "sampling": Param("equiangular", str, "equiangular (best near lights in thin media), freepath, or mis (balance heuristic, one sample of each)"),
     },
     airlight=_airlight,
     check=_check,
     stochastic=True,
+    points=_points,
 )
