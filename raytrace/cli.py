@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import UserError
 
-COMMANDS = ("render", "describe", "methods", "diff")
+COMMANDS = ("render", "describe", "methods", "diff", "compare")
 
 
 def _method_param_flags():
@@ -68,6 +68,16 @@ def build_parser():
             r.add_argument(flag, dest=f"param_{name}", action="store_const", const=True, help=p.help)
         else:
             r.add_argument(flag, dest=f"param_{name}", type=p.type, help=p.help)
+    c = sub.add_parser("compare", help="render several methods and a reference on the same samples; "
+                                       "images, error maps and a table of time and error")
+    _add_scene_args(c)
+    c.add_argument("--methods", required=True,
+                   help="comma-separated methods, each name or name:key=value:... (e.g. raymarch:steps=32)")
+    c.add_argument("--reference", default="quadrature", help="reference method (default quadrature)")
+    c.add_argument("--out", required=True, help="output folder")
+    for name in ("spp", "width", "height", "seed", "threads"):
+        c.add_argument(f"--{name}", type=int)
+    c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
@@ -100,17 +110,10 @@ def cmd_render(args):
 
     scene = load(args)
     cam = scene.camera
-    for name in ("spp", "width", "height", "threads"):
-        _validate_positive(name, getattr(args, name))
-    if args.seed is not None and args.seed < 0:
-        raise UserError(f"--seed {args.seed}: must be >= 0; give a non-negative integer")
-    cam.spp = args.spp or cam.spp
-    cam.width = args.width or cam.width
-    cam.height = args.height or cam.height
+    seed = _apply_camera_flags(scene, args)
     method = get_method(args.method or scene.render.get("method", "analytic"))
     given = {k: v for k, v in scene.render.items() if k not in ("method", "seed")}
     given.update({k[len("param_"):]: v for k, v in vars(args).items() if k.startswith("param_") and v is not None})
-    seed = args.seed if args.seed is not None else scene.render.get("seed", 0)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}.exr"
     png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
     if out.suffix.lower() != ".exr":
@@ -186,6 +189,34 @@ def cmd_render(args):
     return 0
 
 
+def _apply_camera_flags(scene, args):
+    for name in ("spp", "width", "height", "threads"):
+        _validate_positive(name, getattr(args, name))
+    if args.seed is not None and args.seed < 0:
+        raise UserError(f"--seed {args.seed}: must be >= 0; give a non-negative integer")
+    cam = scene.camera
+    cam.spp = args.spp or cam.spp
+    cam.width = args.width or cam.width
+    cam.height = args.height or cam.height
+    return args.seed if args.seed is not None else scene.render.get("seed", 0)
+
+
+def cmd_compare(args):
+    from . import renderer
+    from .experiments.compare import compare, parse_spec
+
+    scene = load(args)
+    seed = _apply_camera_flags(scene, args)
+    specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
+    reference = parse_spec(args.reference)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
+    compare(renderer.prepare(scene), specs, reference, out, seed, args.threads, args.exposure)
+    print(f"wrote {out / 'compare.md'}")
+    return 0
+
+
 def cmd_describe(args):
     from .media.phase import NAMES
     from .scene.meshes import scene_triangles
@@ -251,7 +282,8 @@ def main(argv=None) -> int:
     elif argv[0] not in COMMANDS and argv[0] not in ("-h", "--help"):
         argv.insert(0, "render")
     args = build_parser().parse_args(argv)
-    handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff}
+    handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
+                "compare": cmd_compare}
     try:
         return handlers[args.command](args)
     except UserError as exc:
