@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import UserError
 
-COMMANDS = ("render", "describe", "methods", "diff", "compare")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "table1")
 
 
 def _method_param_flags():
@@ -78,6 +78,11 @@ def build_parser():
     for name in ("spp", "width", "height", "seed", "threads"):
         c.add_argument(f"--{name}", type=int)
     c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
+    t = sub.add_parser("table1", help="the paper's Table 1 on its three scenes, with a report")
+    t.add_argument("--out", default="out/table1", help="output folder (default out/table1)")
+    t.add_argument("--quick", action="store_true", help="small images and 1 spp (for CI)")
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--threads", type=int)
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
@@ -217,6 +222,17 @@ def cmd_compare(args):
     return 0
 
 
+def cmd_table1(args):
+    from .experiments import table1
+
+    _validate_positive("threads", args.threads)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
+    table1.run(out, args.quick, args.seed, args.threads)
+    return 0
+
+
 def cmd_describe(args):
     from .media.phase import NAMES
     from .scene.meshes import scene_triangles
@@ -283,7 +299,7 @@ def main(argv=None) -> int:
         argv.insert(0, "render")
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
-                "compare": cmd_compare}
+                "compare": cmd_compare, "table1": cmd_table1}
     try:
         return handlers[args.command](args)
     except UserError as exc:
