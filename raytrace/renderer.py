@@ -22,6 +22,7 @@ from .scene.meshes import scene_triangles
 from .shading import facing_normals, surface_radiance, transmittance
 
 RAYS_PER_TILE = 1 << 14
+SHADOW_CHUNK = 1 << 10  # rays per batch of volumetric-shadow points
 
 
 @dataclass
@@ -94,6 +95,12 @@ def shadowed_airlight(prep: Prepared, method, params, batch: RayBatch):
     """Air-light with volumetric shadows: a shadow ray from every medium point of the method's
     estimate to its light (Embree, in one batch per light and channel), then the estimate's mean
     over iterations and the variance of that mean."""
+    if len(batch.origins) > SHADOW_CHUNK:  # bound the memory of the sample points
+        parts = [shadowed_airlight(prep, method, params, RayBatch(batch.origins[i:i + SHADOW_CHUNK],
+                                   batch.dirs[i:i + SHADOW_CHUNK], batch.tmax[i:i + SHADOW_CHUNK],
+                                   batch.keys[i:i + SHADOW_CHUNK], batch.seed))
+                 for i in range(0, len(batch.origins), SHADOW_CHUNK)]
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     pos, weight = method.points(batch, prep.scene.medium, prep.light_pos, prep.light_int, params)
     visible = np.zeros(weight.shape, dtype=bool)
     eps = prep.accel.epsilon

@@ -100,6 +100,10 @@ def test_edge_inputs_are_finite(xh, h, ell, kt, code, g):
 def test_check_rejects_bad_parameters():
     ok = {"steps": 64, "step": 0.0, "jitter": 0, "tau_max": 20.0}
     rm.METHOD.check(None, ok)
-    for bad in ({"steps": 0}, {"step": -1.0}, {"tau_max": 0.0}, {"jitter": 2}):
+    for bad in ({"steps": 0}, {"step": -1.0}, {"tau_max": 0.0}):
         with pytest.raises(UserError):
             rm.METHOD.check(None, {**ok, **bad})
+    from raytrace.media import resolve_params
+    assert resolve_params(rm.METHOD, {"jitter": "true"}, "t")["jitter"] is True
+    with pytest.raises(UserError):
+        resolve_params(rm.METHOD, {"jitter": 2}, "t")

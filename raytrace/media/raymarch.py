@@ -10,10 +10,10 @@ for lights far behind the camera) is summed at M equally spaced samples of the s
 
     Lm ~ Delta * sum_k f((k + xi) Delta),      Delta = end / M.
 
-* ``jitter = 0``: midpoint rule, xi = 1/2 (error O(Delta^2) for a smooth integrand; the
+* ``jitter = false``: midpoint rule, xi = 1/2 (error O(Delta^2) for a smooth integrand; the
   integrand peaks like 1/h^2 at the foot point, so the constant explodes for lights close to the
   ray -- PP09's "visible undersampling near lights").
-* ``jitter = 1``: one xi ~ U[0, 1) per ray, ``uniform(key, DIM_JITTER, seed)`` from raytrace.rng,
+* ``jitter = true``: one xi ~ U[0, 1) per ray, ``uniform(key, DIM_JITTER, seed)`` from raytrace.rng,
   shared by every light and channel of that ray (PP09 after [ET08]: trades aliasing for noise).
   The estimate is then unbiased for the integral over [0, end].
 * ``step > 0`` (scene units) fixes the step length instead of the count: M = ceil(end / step)
@@ -108,6 +108,62 @@ def airlight_rays(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, 
                 out[r, c] += unit[c] * lint[li, c]
 
 
+@njit
+def _count(ell, kt, steps, step, tau_max):
+    """(sample count, step length) of the march of one segment and channel (see airlight_one)."""
+    end = ell
+    if end == math.inf:
+        end = tau_max / kt if kt > 0.0 else 0.0
+    n = max(1, min(MAX_STEPS, int(math.ceil(end / step)))) if step > 0.0 else max(1, steps)
+    return n, end / n
+
+
+@njit
+def max_count(tmax, kt, steps, step, tau_max):
+    m = 1
+    for r in range(tmax.shape[0]):
+        for c in range(3):
+            m = max(m, _count(tmax[r], kt[c], steps, step, tau_max)[0])
+    return m
+
+
+@njit
+def sample_points(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, steps, step, tau_max, jitter,
+                  pos, weight):
+    """The march's samples as points for volumetric shadows: pos[r, l, k, 0, c] is sample k of ray r
+    for light l and channel c, weight[r, l, k, 0, c] = n_max * Delta * I * f(x_k), so that the mean
+    over k of the weights is the marched air-light (samples beyond a ray's own count weigh 0)."""
+    n_max = pos.shape[2]
+    for r in range(origins.shape[0]):
+        xi = uniform(keys[r], DIM_JITTER, seed) if jitter else 0.5
+        for li in range(lpos.shape[0]):
+            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
+                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
+            for c in range(3):
+                if ks[c] == 0.0 or not tmax[r] > 0.0:
+                    continue
+                n, delta = _count(tmax[r], kt[c], steps, step, tau_max)
+                for k in range(n):
+                    x = (k + xi) * delta
+                    for a in range(3):
+                        pos[r, li, k, 0, c, a] = origins[r, a] + x * dirs[r, a]
+                    weight[r, li, k, 0, c] = n_max * delta * lint[li, c] * integrand(x, xh, max(h, 1e-300), kt[c],
+                                                                                        ks[c], code, g)
+
+
+def _points(batch, medium, lpos, lint, params):
+    kt = np.asarray(medium.sigma_t, float)
+    args = (int(params["steps"]), float(params["step"]), float(params["tau_max"]))
+    n = max_count(batch.tmax, kt, *args)
+    shape = (len(batch.origins), len(lpos), n, 1, 3)
+    pos = np.zeros(shape + (3,))
+    weight = np.zeros(shape)
+    sample_points(batch.origins, batch.dirs, batch.tmax, np.ascontiguousarray(batch.keys, dtype=np.uint64),
+                  int(batch.seed), lpos, lint, kt, np.asarray(medium.sigma_s, float), medium.phase, medium.g, *args,
+                  bool(params["jitter"]), pos, weight)
+    return pos, weight
+
+
 def _airlight(batch, medium, lpos, lint, params):
     out = np.zeros((len(batch.origins), 3))
     stats = np.zeros(3)
@@ -132,8 +188,6 @@ def _check(medium, params):
         raise UserError(f"raymarch: step = {params['step']}: must be >= 0 (0 = use steps), e.g. --step 0.05")
     if not 0.0 < float(params["tau_max"]) < math.inf:
         raise UserError(f"raymarch: tau_max = {params['tau_max']}: must be a positive number, e.g. --tau_max 20")
-    if int(params["jitter"]) not in (0, 1):
-        raise UserError(f"raymarch: jitter = {params['jitter']}: must be 0 (midpoint) or 1 (one jitter per ray)")
 
 
 METHOD = Method(
@@ -142,11 +196,13 @@ METHOD = Method(
     params={
         "steps": Param(64, int, "samples per ray segment when step = 0, e.g. 64"),
         "step": Param(0.0, float, "fixed step length in scene units (0 = use steps), e.g. 0.05"),
-        "jitter": Param(0, int, "0 = midpoint samples, 1 = one random offset per ray (unbiased, noisy)"),
+        "jitter": Param(False, bool, "one random offset per ray instead of midpoints (unbiased, noisy)"),
+        "volumetric_shadows": Param(False, bool, "shadow rays from every sample point to the light (light shafts)"),
         "tau_max": Param(20.0, float, "optical depth at which rays that hit nothing stop, e.g. 20"),
     },
     airlight=_airlight,
     stats_size=3,
     summarize=_summarize,
     check=_check,
+    points=_points,
 )
