@@ -10,8 +10,11 @@ ray. With dx = h / sin^2 and d = h / sin, each piece becomes (METHODS.md §1, §
 
 whose integrands are bounded and smooth; x + d = x_h + h v is the whole optical path
 light → x → camera, so nothing overflows for lights behind the camera. Each interval is
-accepted when its 10- and 20-point Gauss-Legendre values agree to `rtol`; all contributions are
-positive, so the total meets `rtol` too (the 20-point value is far more accurate than that test).
+accepted when its 10- and 20-point Gauss-Legendre values agree to `rtol` relative to the interval, or
+to rtol/10 of a first estimate of the whole integral per unit angle (so that negligible tails, like
+the essential singularity of exp(-kt h cot(psi/2)) at psi = 0 on rays to infinity, are not chased);
+all contributions are positive, so the total meets `rtol` (the 20-point value is far more accurate
+than the test).
 """
 from __future__ import annotations
 
@@ -58,7 +61,7 @@ def _rule(piece, a, b, xh, h, kt, code, g, nodes, weights):
 
 
 @njit
-def _adaptive(piece, a, b, xh, h, kt, code, g, rtol, n10, w10, n20, w20, stats):
+def _adaptive(piece, a, b, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats):
     if not b > a:
         return 0.0
     lo = np.empty(STACK)
@@ -74,9 +77,9 @@ def _adaptive(piece, a, b, xh, h, kt, code, g, rtol, n10, w10, n20, w20, stats):
         fine = _rule(piece, x0, x1, xh, h, kt, code, g, n20, w20)
         count += 1
         mid = 0.5 * (x0 + x1)
-        if (abs(fine - coarse) <= rtol * abs(fine) or count >= MAX_INTERVALS or top + 2 > STACK
-                or not (x0 < mid < x1)):
-            if abs(fine - coarse) > rtol * abs(fine):
+        tol = max(rtol * abs(fine), density * (x1 - x0))
+        if abs(fine - coarse) <= tol or count >= MAX_INTERVALS or top + 2 > STACK or not (x0 < mid < x1):
+            if abs(fine - coarse) > tol:
                 stats[CAPPED] += 1.0
             total += fine
         else:
@@ -93,15 +96,27 @@ def airlight_one(xh, h, ell, kt, ks, code, g, rtol, n10, w10, n20, w20, stats):
     if ks == 0.0 or ell <= 0.0:
         return 0.0
     stats[EVALS] += 1.0
-    total = 0.0
+    phi_a = phi_b = psi_end = psi_start = 0.0
     if xh > 0.0:  # part of the segment lies before the foot point: phi in (0, pi/2]
         phi_a = math.atan2(h, xh)
         phi_b = math.atan2(h, xh - min(xh, ell))
-        total += _adaptive(0, phi_a, phi_b, xh, h, kt, code, g, rtol, n10, w10, n20, w20, stats)
     if ell > xh:  # part after the foot point: psi in (0, pi/2]
         psi_end = 0.0 if ell == math.inf else math.atan2(h, ell - xh)
         psi_start = math.atan2(h, max(0.0, xh) - xh)
-        total += _adaptive(1, psi_end, psi_start, xh, h, kt, code, g, rtol, n10, w10, n20, w20, stats)
+    # a first estimate of the whole integral sets an absolute floor per unit angle, so that tails
+    # contributing less than rtol/10 of the total are not refined to full relative accuracy
+    width = (phi_b - phi_a) + (psi_start - psi_end)
+    estimate = 0.0
+    if phi_b > phi_a:
+        estimate += _rule(0, phi_a, phi_b, xh, h, kt, code, g, n20, w20)
+    if psi_start > psi_end:
+        estimate += _rule(1, psi_end, psi_start, xh, h, kt, code, g, n20, w20)
+    density = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
+    total = 0.0
+    if phi_b > phi_a:
+        total += _adaptive(0, phi_a, phi_b, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats)
+    if psi_start > psi_end:
+        total += _adaptive(1, psi_end, psi_start, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats)
     return ks / h * total
 
 
