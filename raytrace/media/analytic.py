@@ -12,13 +12,17 @@ Paths (counted in ``stats``):
   stable    scaled-E1 form (METHODS §5 boxed formula; exponentials folded into the optical path
             kt*(x + d), so nothing overflows for lights far behind the camera);
   near-line light (almost) on the ray line outside the segment: h -> 0 limit (closed forms);
-  fallback  adaptive Gauss-Kronrod (7/15) in the scattering angle phi (HG "exact" mode when the
-            Legendre length needed for `precision` exceeds the stable length, kt = 0 with an
-            anisotropic phase).
+  fallback  adaptive Gauss-Kronrod (7/15) in the scattering angle phi: exact anisotropic mode on
+            rays whose H = kt h is too large for the forward moment recurrence (see below).
 
 Anisotropic modes: ANISO_TAYLOR (PP09 eqs. 14-19, Maclaurin series of Phi in v with `terms`
-coefficients, faithful incl. its divergence for v > R) and ANISO_EXACT (Phi as a polynomial in
-t = 1/(1+v^2) = (1+mu)/2 and the K_m/L_m integration-by-parts recurrence, METHODS §6.5).
+coefficients, faithful incl. its divergence for v > R) and ANISO_EXACT (beyond the paper, in the
+spirit of METHODS §6.5): the phase function as a Legendre series (exact for Rayleigh; for HG its
+length follows `precision`), rewritten as a cosine series sum_k c_k cos(k phi) with positive,
+well-conditioned weights, and integrated against e^{-H tan(phi/2)} through the Fourier moments
+E_k = int e^{-H tan(phi/2)} e^{ik phi} dphi, which obey a three-term recurrence started from
+I0 and I1 (legendre_moments.py). Forward, the recurrence is stable while H L is moderate; rays
+beyond the measured limit H_max(precision) go to the quadrature fallback and are counted.
 """
 import math
 
@@ -29,6 +33,8 @@ from ..jit import njit
 from . import Method, Param
 from .geometry import ray_light
 from .expint import g_scaled, en_scaled, i01_series_est
+from .legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
+                               legendre_to_cosine, rayleigh_legendre)
 from .phase import ISOTROPIC, RAYLEIGH, HG, phase_value
 
 ANISO_TAYLOR = 0
@@ -55,10 +61,6 @@ RHO_SWITCH_CAP = 8.0
 SERIES_SAFETY = 0.1
 # near-line: light outside the segment and h/|x_end - xh| < NEARLINE_TOL at both ends
 NEARLINE_TOL = 3e-6
-# exact mode: Legendre/monomial recurrence route is used only up to this degree in t
-EXACT_MAX_DEGREE = 12
-# ... and for H = kt*h up to this value (the recurrence loses ~log10(H^m) digits beyond)
-EXACT_MAX_H = 4.0
 
 _INV_4PI = 1.0 / (4.0 * math.pi)
 _EPS = 2.220446049250313e-16
@@ -232,8 +234,8 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     scattering; intensity: radiant intensity; phase_code/g: phase.py codes; precision and
     max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
     isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
-    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: q_m, m = 0..M, with Phi_c(2t-1) t = sum q_m t^m,
-    empty => quadrature fallback); stats: float64[STATS_SIZE] accumulator.
+    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: [H_max, ratio, cosine coefficients c_0..c_L], see
+    `exact_coeffs`); stats: float64[STATS_SIZE] accumulator.
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
@@ -266,7 +268,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     pref = intensity * ks / h * 2.0  # times folded integrals
 
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
-    if exact and (coeffs.shape[0] == 0 or H > EXACT_MAX_H):
+    if exact and H > coeffs[0]:  # the cosine-moment recurrence would lose digits: quadrature
         stats[ST_FALLBACK] += 1.0
         return airlight_quad(xh, h, da, ell, kt, ks, intensity, phase_code, g, 0.1 * precision, stats)
 
@@ -277,12 +279,17 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         rho_b = H * math.sqrt(1.0 + vb * vb)
         if rho_b > rho_max:
             rho_max = rho_b
-    use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(precision)
+    # the exact anisotropic mode amplifies errors of I0, I1 by at most e^{2 sqrt(H L)} in its
+    # recurrence and by sum|c_k| / min(Phi) in the final sum (coeffs[1] = 0.1 min(Phi) / sum|c_k|)
+    prec_i = precision
+    if exact:
+        prec_i = max(1e-15, precision * coeffs[1] * math.exp(-2.0 * math.sqrt(H * (coeffs.shape[0] - 3))))
+    use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series:
-        i0, i1, it, err = i01_series_est(-H, va, vb, precision, max_iter)
+        i0, i1, it, err = i01_series_est(-H, va, vb, prec_i, max_iter)
         stats[ST_SERIES_ITERS] += it
         # a-posteriori guard: estimated rounding error vs the requested precision
-        if not (err <= SERIES_SAFETY * precision * i0):
+        if not (err <= SERIES_SAFETY * prec_i * i0):
             use_series = False
             stats[ST_SERIES_REJECTED] += 1.0
         else:
@@ -328,31 +335,8 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
             s += cn * (_taylor_poly_part(H, va, vb, Ea, Eb, n) + sg * base)
         return pref * s
 
-    # ---- exact: sum_m q_m K_m, K_m = int e^{-Hv} t^m dv (folded), t = 1/(1+v^2) ----
-    a = -H
-    ta = 1.0 / (1.0 + va * va)
-    tb = 0.0
-    if finite:
-        tb = 1.0 / (1.0 + vb * vb)
-    Km = K1
-    Lm_ = L1
-    s = coeffs[1] * Km
-    tam = ta   # t_a^m
-    tbm = tb
-    vbtb = 0.0
-    for m in range(1, coeffs.shape[0] - 1):
-        bt = Eb * tbm - Ea * tam                 # [e^{av} t^m]
-        if finite:
-            vbtb = Eb * vb * tbm
-        bvt = vbtb - Ea * va * tam               # [e^{av} v t^m]
-        Lnext = (a * Km - bt) / (2.0 * m)
-        Knext = (bvt - a * Lm_ + (2.0 * m - 1.0) * Km) / (2.0 * m)
-        Km = Knext
-        Lm_ = Lnext
-        tam *= ta
-        tbm *= tb
-        s += coeffs[m + 1] * Km
-    return pref * s
+    # ---- exact: Phi as a cosine series, its Fourier moments by the forward recurrence ----
+    return pref * 0.5 * cosine_moments_forward(H, va, vb, K1, L1, Ea, Eb, coeffs[2:])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -387,13 +371,6 @@ def taylor_coeffs(phase_code, g, n_terms):
     return c
 
 
-def _legendre_shifted_to_t(l):
-    """Integer coefficients of P_l(2t-1) in powers of t."""
-    from math import comb
-
-    return [(-1) ** (l + k) * comb(l, k) * comb(l + k, k) for k in range(l + 1)]
-
-
 def hg_legendre_degree(g, precision):
     """Legendre length L for HG: tail sum_{l>L} (2l+1)|g|^l <= precision * min(4 pi Phi)/2."""
     ag = abs(g)
@@ -408,32 +385,35 @@ def hg_legendre_degree(g, precision):
         L += 1
 
 
-def exact_coeffs(phase_code, g, precision, max_degree=None):
-    """q_m (m = 0..M) with Phi_c(2t-1) * t = sum_m q_m t^m; empty array if the Legendre length
-    needed by `precision` exceeds `max_degree` (then the kernel uses the quadrature fallback)."""
-    from fractions import Fraction
-    from math import pi
-
-    if max_degree is None:
-        max_degree = EXACT_MAX_DEGREE
-    if phase_code == ISOTROPIC:
-        return np.array([0.0, 1.0 / (4 * pi)])
+def exact_coeffs(phase_code, g, precision):
+    """`coeffs` of the exact mode: [H_max, ratio, c_0, ..., c_L], the phase function as a cosine series
+    sum_k c_k cos(k phi) (exact for Rayleigh, HG truncated after L Legendre terms with L from
+    `precision`), and the largest H = kt h for which the forward recurrence of the moments keeps
+    a relative accuracy of precision / 10 (rays with larger H use the quadrature fallback), with
+    ratio = min(Phi) / (10 sum |c_k|), the loss of the final sum where it cancels."""
     if phase_code == RAYLEIGH:
-        # 3/(16 pi) (1 + (2t-1)^2) t = 3/(16 pi) (2t - 4t^2 + 4t^3)
-        return 3.0 / (16.0 * pi) * np.array([0.0, 2.0, -4.0, 4.0])
-    L = hg_legendre_degree(g, precision)
-    if L + 1 > max_degree:
-        return np.zeros(0)
-    import mpmath as mp
-
-    with mp.workdps(50):
-        q = [mp.mpf(0)] * (L + 2)
-        gg = mp.mpf(g)
-        for l in range(L + 1):
-            al = (2 * l + 1) * gg ** l / (4 * mp.pi)
-            for k, ck in enumerate(_legendre_shifted_to_t(l)):
-                q[k + 1] += al * ck
-        return np.array([float(x) for x in q])
+        a = rayleigh_legendre()
+    elif phase_code == HG:
+        a = hg_legendre(g, hg_legendre_degree(g, precision))
+    else:
+        a = np.array([1.0 / (4.0 * math.pi)])
+    c = legendre_to_cosine(a)
+    # the moments enter S = sum_k c_k Re E_k, which cancels down to the phase function's minimum
+    # where light is scattered backwards: rounding errors grow by sum |c_k| / min Phi
+    mu = np.linspace(-1.0, 1.0, 2001)
+    phi_min = float(np.min(np.polynomial.legendre.legval(mu, a)))
+    ratio = 0.1 * phi_min / float(np.sum(np.abs(c)))
+    tol = precision * ratio
+    lo, hi = 0.0, 1e4
+    if FORWARD_ERR_PER_LOSS * forward_loss(hi, c) <= tol:
+        lo = hi
+    for _ in range(60):  # bisection: the loss grows monotonically with H
+        mid = 0.5 * (lo + hi)
+        if FORWARD_ERR_PER_LOSS * forward_loss(mid, c) <= tol:
+            lo = mid
+        else:
+            hi = mid
+    return np.concatenate(([lo, ratio], c))
 
 
 def make_coeffs(phase_code, g, aniso_mode, terms, precision):

@@ -20,16 +20,17 @@ EULER_GAMMA = 0.57721566490153286060651209
 _EPS = 2.220446049250313e-16
 _FPMIN = 1e-300
 
-# |w| below which g uses the power series (above: modified Lentz continued fraction).
-# The series loses ~log10(e^|w|)/|g| digits, i.e. < 1 digit at |w| = 2, and is cheaper than the
-# continued fraction near the imaginary axis, where the CF converges slowly.
-G_SERIES_RADIUS = 2.0
+# The power series of E1 sums terms up to ~e^|w|/|w| to a result of size ~e^{-Re w}/|w|, so it
+# loses a factor ~e^{|w| + Re w} to rounding; it is used while |w| + Re w < G_SERIES_REACH (at most
+# ~2 digits lost), where it is cheaper than the continued fraction, which converges slowly near the
+# imaginary axis.
+G_SERIES_REACH = 5.0
 
 
 @njit
 def g_scaled(w):
     """g(w) = exp(w) E1(w) (principal branch) for complex w with Re w >= 0, w != 0."""
-    if abs(w) < G_SERIES_RADIUS:
+    if abs(w) + w.real < G_SERIES_REACH:
         # E1(w) = -gamma - log w - sum_{k>=1} (-w)^k / (k k!)
         s = 0.0 + 0.0j
         term = 1.0 + 0.0j  # (-w)^k / k!

@@ -171,16 +171,28 @@ def _endpoint_asym(H, k, v, zk):
                 break
         elif at > 1e4 * best:
             break
-    return zk * total
+    return zk * total, best / abs(total)
 
 
 @njit
 def _far_guess(H, k, va, vb, ea, eb, zak, zbk, fin):
-    """E_k ~ endpoint contribution at va minus that at vb (asymptotic, see _endpoint_asym)."""
-    e = ea * _endpoint_asym(H, k, va, zak)
-    if fin and eb != 0.0:
-        e -= eb * _endpoint_asym(H, k, vb, zbk)
-    return e
+    """(E_k, relative error estimate): endpoint contribution at va minus that at vb (the
+    essential-singularity parts at phi = pi cancel for a finite interval; for vb = inf the
+    neglected part is ~ exp(H va - 2 sqrt(H k)) relative, included in the estimate)."""
+    e, d = _endpoint_asym(H, k, va, zak)
+    e = ea * e
+    if fin:
+        if eb != 0.0:
+            eb_, db = _endpoint_asym(H, k, vb, zbk)
+            e -= eb * eb_
+            if db > d:
+                d = db
+    else:
+        x = H * va - 2.0 * math.sqrt(H * k)
+        if x > 0.0:
+            x = 0.0
+        d += math.exp(x)
+    return e, d
 
 
 @njit
@@ -213,7 +225,7 @@ def cosine_moments_olver(H, va, vb, K1, ea, eb, c, N, work):
         rprev = r
         pa *= za
         pb *= zb
-    Enext = _far_guess(H, N + 1, va, vb, ea, eb, pa, pb, fin)
+    Enext, d = _far_guess(H, N + 1, va, vb, ea, eb, pa, pb, fin)
     for k in range(N, 0, -1):
         Ek = (work[2 * k + 1] - (k + 1.0) * Enext) / work[2 * k]
         if k < n:
@@ -222,30 +234,44 @@ def cosine_moments_olver(H, va, vb, K1, ea, eb, c, N, work):
     return s
 
 
-# forward recurrence is used while its estimated amplification (see `forward_loss`) <= this
-FORWARD_MAX_LOSS = 1e3
+@njit
+def forward_loss(H, c):
+    """Estimated amplification of rounding errors by the forward recurrence,
+    max_k |c_k| exp(2 sqrt(H k)) / max_k |c_k|, sampled at <= 9 values of k (the dominant
+    homogeneous solution grows like exp(2 sqrt(H k)) relative to the wanted one)."""
+    L = c.shape[0] - 1
+    cmax = 0.0
+    for k in range(L + 1):
+        a = abs(c[k])
+        if a > cmax:
+            cmax = a
+    if cmax == 0.0:
+        return 1.0
+    best = 1.0
+    for j in range(9):
+        k = (L * (j + 1)) // 9
+        if k < 1:
+            continue
+        v = abs(c[k]) / cmax * math.exp(2.0 * math.sqrt(H * k))
+        if v > best:
+            best = v
+    return best
+
+
+# measured: forward relative error ~ FORWARD_ERR_PER_LOSS * forward_loss (<= 3e-15 * loss)
+FORWARD_ERR_PER_LOSS = 3e-15
+OLVER_MAX_N = 20000
 
 
 @njit
-def forward_loss(H, absc):
-    """Estimated amplification of rounding errors by the forward recurrence:
-    sum_k |c_k| exp(2 sqrt(H k)) / sum_k |c_k|."""
-    num = 0.0
-    den = 0.0
-    for k in range(absc.shape[0]):
-        num += absc[k] * math.exp(2.0 * math.sqrt(H * k))
-        den += absc[k]
-    return num / den
-
-
-@njit
-def olver_length(H, L, tol):
-    """N such that exp(-2 sqrt(H) (sqrt(N) - sqrt(L))) * 1e-2 <= tol (far-end guess ~1e-2 rel.),
-    and at least L + 8."""
-    x = math.log(1e-2 / tol)
+def olver_length(H, L, delta, tol):
+    """N with delta * exp(-2 sqrt(H) (sqrt(N) - sqrt(L))) <= tol, N >= L + 8."""
+    x = math.log(max(delta, 1e-300) / tol)
     if x < 0.0:
         x = 0.0
     sN = math.sqrt(L) + x / (2.0 * math.sqrt(H))
+    if sN * sN > OLVER_MAX_N:
+        return OLVER_MAX_N
     N = int(sN * sN) + 8
     if N < L + 8:
         N = L + 8
@@ -254,15 +280,29 @@ def olver_length(H, L, tol):
 
 @njit
 def legendre_integral(H, va, vb, K1, L1, ea, eb, c, tol, work):
-    """S = int_va^vb e^{-Hv} 2t sum_k c_k cos(k phi) dv (see module docstring for scaling).
+    """S = int_va^vb e^{-Hv} 2t sum_k c_k cos(k phi) dv, phi = 2 atan v (module docstring).
 
-    c: cosine coefficients (`legendre_to_cosine(a_l)`); tol: target relative accuracy (chooses
-    forward vs Olver and Olver's N); work: complex128 scratch, len >= 2*olver_length(...)+2
-    (reallocated if too short)."""
+    H > 0; 0 <= va < vb <= inf; K1, L1 = F*I0, F*I1 and ea = F e^{-H va}, eb = F e^{-H vb}
+    (eb = 0 for vb = inf) for a common factor F; returns F*S.  c: cosine coefficients
+    (`legendre_to_cosine(a_l)`, length L+1); tol: target relative accuracy (1e-12 typical),
+    selects forward recurrence vs Olver's method and Olver's length; work: complex128 scratch
+    of length >= 2N+2 (reallocated if too short; pass np.empty(0, np.complex128) to let the
+    kernel allocate)."""
     L = c.shape[0] - 1
-    if H * L <= 0.0 or forward_loss(H, np.abs(c)) <= FORWARD_MAX_LOSS:
+    if L <= 1:
         return cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c)
-    N = olver_length(H, L, tol)
+    floss = forward_loss(H, c)
+    if FORWARD_ERR_PER_LOSS * floss <= tol:
+        return cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c)
+    # quality of the far-end asymptotic value at k = L+1, then Olver's length
+    fin = vb < math.inf
+    ta, za, tb, zb = _ends(va, vb)
+    zak = za ** (L + 1)
+    zbk = zb ** (L + 1)
+    e, delta = _far_guess(H, L + 1, va, vb, 1.0, eb / ea if ea > 0.0 else 0.0, zak, zbk, fin)
+    N = olver_length(H, L, delta, tol)
+    if N >= OLVER_MAX_N and FORWARD_ERR_PER_LOSS * floss < delta:
+        return cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c)
     if work.shape[0] < 2 * N + 2:
         work = np.empty(2 * N + 2, dtype=np.complex128)
     return cosine_moments_olver(H, va, vb, K1, ea, eb, c, N, work)

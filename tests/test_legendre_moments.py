@@ -1,0 +1,88 @@
+"""legendre_integral (raytrace/media/legendre_moments.py) vs mpmath quadrature in phi."""
+import math
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+from raytrace.media.expint import g_scaled
+from raytrace.media.legendre_moments import (hg_legendre, legendre_integral, legendre_to_cosine,
+                                             rayleigh_legendre)
+
+
+def _inputs(H, va, vb):
+    """K1, L1, ea, eb scaled by F = e^{H va}."""
+    ga = g_scaled(complex(H * va, H))
+    K1, L1, eb = -ga.imag, ga.real, 0.0
+    if vb < math.inf:
+        eb = math.exp(-H * (vb - va))
+        gb = g_scaled(complex(H * vb, H))
+        K1 += eb * gb.imag
+        L1 -= eb * gb.real
+    return K1, L1, 1.0, eb
+
+
+def _ref(H, va, vb, c):
+    """e^{H va} int_{phia}^{phib} e^{-H tan(phi/2)} sum c_k cos(k phi) dphi, 30 digits."""
+    with mp.workdps(30):
+        cs = [mp.mpf(float(x)) for x in c]
+        pa = 2 * mp.atan(mp.mpf(va))
+        pb = mp.pi if vb == math.inf else 2 * mp.atan(mp.mpf(vb))
+        Hm = mp.mpf(H)
+
+        def f(p):
+            if p >= mp.pi:
+                return mp.mpf(0)
+            x = Hm * (mp.tan(p / 2) - va)
+            if x > 800:
+                return mp.mpf(0)
+            return mp.exp(-x) * sum(ck * mp.cos(k * p) for k, ck in enumerate(cs))
+
+        # breakpoints geometric in the optical depth from phia (peaked integrand for large H)
+        pts = [pa]
+        for d in (0.05, 0.2, 1.0, 3.0, 10.0, 30.0):
+            p = 2 * mp.atan(va + d / Hm)
+            if pts[-1] < p < pb:
+                pts.append(p)
+        pts.append(pb)
+        return float(mp.quad(f, pts))
+
+
+WORK = np.empty(0, dtype=np.complex128)
+
+
+@pytest.mark.parametrize("g", [0.9, -0.5])
+@pytest.mark.parametrize("H", [1e-4, 1.0, 10.0, 1000.0][::1])
+@pytest.mark.parametrize("va,vb", [(0.0, math.inf), (0.3, 2.0), (20.0, math.inf), (0.01, 0.02)])
+def test_hg_vs_mpmath(g, H, va, vb):
+    L = {0.9: 40, -0.5: 27}[g]
+    c = legendre_to_cosine(hg_legendre(g, L))
+    K1, L1, ea, eb = _inputs(H, va, vb)
+    s = legendre_integral(H, va, vb, K1, L1, ea, eb, c, 1e-12, WORK)
+    r = _ref(H, va, vb, c)
+    assert abs(s / r - 1.0) < 1e-9
+
+
+def test_cosine_conversion():
+    a = hg_legendre(0.6, 12)
+    c = legendre_to_cosine(a)
+    for mu in np.linspace(-1, 1, 7):
+        phi = math.acos(mu)
+        lhs = np.polynomial.legendre.legval(mu, a)
+        rhs = sum(ck * math.cos(k * phi) for k, ck in enumerate(c))
+        assert abs(lhs - rhs) < 1e-13 * abs(lhs)
+
+
+@pytest.mark.parametrize("H,va,vb", [(0.01, 0.0, math.inf), (0.5, 0.3, 2.0), (4.0, 1.0, math.inf), (50.0, 0.2, 0.9)])
+def test_rayleigh_exact(H, va, vb):
+    a = rayleigh_legendre()
+    assert np.allclose(a, [1 / (4 * math.pi), 0.0, 1 / (8 * math.pi)])
+    c = legendre_to_cosine(a)
+    assert np.allclose(c, 3 / (16 * math.pi) * np.array([1.5, 0.0, 0.5]))
+    K1, L1, ea, eb = _inputs(H, va, vb)
+    s = legendre_integral(H, va, vb, K1, L1, ea, eb, c, 1e-12, WORK)
+    with mp.workdps(30):
+        f = lambda v: mp.exp(-H * (v - va)) * 2 / (1 + v * v) * 3 / (16 * mp.pi) * (1 + ((1 - v * v) / (1 + v * v)) ** 2)
+        end = mp.inf if vb == math.inf else vb
+        r = float(mp.quad(f, [va, va + 1 / H, end] if va + 1 / H < end else [va, end]))
+    assert abs(s / r - 1.0) < 1e-12
