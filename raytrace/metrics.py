@@ -46,6 +46,18 @@ def hue_map(values: np.ndarray, vmax: float) -> np.ndarray:
     return (rgb * 255.0 + 0.5).astype(np.uint8)
 
 
+def shared_scale(images: list[np.ndarray], ref: np.ndarray, percentile: float = 99.0) -> float:
+    """One error-map scale for several images of a scene: the given percentile of the per-pixel
+    absolute errors pooled over the images, leaving out images whose mean relative error exceeds 1
+    (diverged methods, which then show saturated), so that a few extreme pixels or one broken method
+    do not turn every other map blue. Pixels above the scale show red."""
+    pooled = [np.abs(img - ref).mean(axis=2).ravel() for img in images if errors(img, ref)["mean_rel"] <= 1.0]
+    if not pooled:
+        pooled = [np.abs(img - ref).mean(axis=2).ravel() for img in images]
+    top = float(np.percentile(np.concatenate(pooled), percentile)) if pooled else 0.0
+    return top if top > 0.0 else 1e-300
+
+
 def error_map(test: np.ndarray, ref: np.ndarray, vmax: float | None = None):
     """(RGB8 image with a legend strip, per-pixel absolute error (H, W), the scale's maximum)."""
     from PIL import Image, ImageDraw
@@ -63,6 +75,6 @@ def error_map(test: np.ndarray, ref: np.ndarray, vmax: float | None = None):
     draw = ImageDraw.Draw(canvas)
     y = h + bar_h // 2
     draw.text((2, y), "0", fill=(255, 255, 255))
-    label = f"abs. error {vmax:.3g}"
+    label = f"abs. error {vmax:.3g} (and above)"
     draw.text((max(2, w - 6 * len(label) - 2), y), label, fill=(255, 255, 255))
     return np.asarray(canvas), err, vmax
