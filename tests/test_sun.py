@@ -105,8 +105,8 @@ finite = st.floats(allow_nan=True, allow_infinity=True)
 @settings(max_examples=300, deadline=None)
 @given(u=finite, v=finite, n=st.integers(2, 40), u_max=st.floats(1e-3, 1e3))
 def test_indices_stay_inside_the_table(u, v, n, u_max):
-    i, s = sun._u_cell(n, u_max, u)
-    j, t = sun._v_cell(n, v)
+    i, s = sun._cell(n, u_max, u)
+    j, t = sun._cell(n, math.pi / 2, v)
     assert 0 <= i <= n - 2 and 0 <= j <= n - 2 and 0.0 <= s <= 1.0 and 0.0 <= t <= 1.0
 
 

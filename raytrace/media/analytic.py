@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import UserError
 from ..jit import njit
 from . import Method, Param
-from .geometry import ray_light
+from .geometry import by_channel
 from .expint import g_scaled, en_scaled, i01_series_est
 from .legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre)
@@ -454,26 +454,12 @@ def summarize_stats(stats):
 # the registered method
 # ----------------------------------------------------------------------------------------------
 @njit
-def airlight_rays(origins, dirs, tmax, lpos, lint, kt, ks, code, g, precision, max_iter, aniso_mode, terms,
-                  coeffs, out, stats):
-    """Sum over lights and channels; channels with equal (kt, ks) share one evaluation."""
-    unit = np.empty(3)
-    for r in range(origins.shape[0]):
-        for li in range(lpos.shape[0]):
-            xh, h, da = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                  lpos[li, 0], lpos[li, 1], lpos[li, 2])
-            for c in range(3):
-                same = -1
-                for c2 in range(c):
-                    if kt[c2] == kt[c] and ks[c2] == ks[c]:
-                        same = c2
-                        break
-                if same >= 0:
-                    unit[c] = unit[same]
-                else:
-                    unit[c] = airlight(xh, h, da, tmax[r], kt[c], ks[c], 1.0, code, g, precision, max_iter,
-                                       aniso_mode, terms, coeffs, stats)
-                out[r, c] += unit[c] * lint[li, c]
+def evaluate_rays(xh, h, da, tmax, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, out, stats):
+    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
+    for r in range(xh.shape[0]):
+        for li in range(xh.shape[1]):
+            out[r, li] = airlight(xh[r, li], h[r, li], da[r, li], tmax[r], kt, ks, 1.0, code, g, precision, max_iter,
+                                  aniso_mode, terms, coeffs, stats)
 
 
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
@@ -491,11 +477,15 @@ def _check(medium, params):
 def _airlight(batch, medium, lpos, lint, params):
     mode = ANISO_MODES[params["anisotropic"]]
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], params["precision"])
-    out = np.zeros((len(batch.origins), 3))
     stats = new_stats()
-    airlight_rays(batch.origins, batch.dirs, batch.tmax, lpos, lint, medium.sigma_t, medium.sigma_s, medium.phase,
-                  medium.g, params["precision"], params["max_iter"], mode, params["terms"], coeffs, out, stats)
-    return out, stats
+
+    def evaluate(xh, h, da, tmax, kt, ks):
+        out = np.empty_like(xh)
+        evaluate_rays(xh, h, da, tmax, kt, ks, medium.phase, medium.g, params["precision"], params["max_iter"], mode,
+                      params["terms"], coeffs, out, stats)
+        return out
+
+    return by_channel(batch, medium, lpos, lint, evaluate), stats
 
 
 METHOD = Method(

@@ -7,6 +7,8 @@ H_MIN_REL * d_a so that a ray through a light gives a large but finite air-light
 """
 import math
 
+import numpy as np
+
 from ..jit import njit
 
 H_MIN_REL = 1e-9
@@ -24,3 +26,32 @@ def ray_light(ox, oy, oz, wx, wy, wz, px, py, pz):
     da = math.sqrt(rx * rx + ry * ry + rz * rz)
     h = max(h, H_MIN_REL * da, 1e-300)
     return xh, h, da
+
+
+@njit
+def ray_light_table(origins, dirs, lpos):
+    """(x_h, h, d_a) of every light for every ray, each (N, L)."""
+    n, nl = origins.shape[0], lpos.shape[0]
+    xh, h, da = np.empty((n, nl)), np.empty((n, nl)), np.empty((n, nl))
+    for r in range(n):
+        for li in range(nl):
+            xh[r, li], h[r, li], da[r, li] = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0],
+                                                       dirs[r, 1], dirs[r, 2], lpos[li, 0], lpos[li, 1], lpos[li, 2])
+    return xh, h, da
+
+
+def by_channel(batch, medium, lpos, lint, evaluate):
+    """Air-light (N, 3) of a ray batch summed over lights. `evaluate(xh, h, da, tmax, kt, ks)` returns
+    the unit-intensity air-light (N, L) for one channel's coefficients; channels with equal
+    (kt, ks) share one call, channels that do not scatter are 0."""
+    xh, h, da = ray_light_table(batch.origins, batch.dirs, lpos)
+    out = np.zeros((len(batch.origins), 3))
+    done = {}
+    for c in range(3):
+        key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
+        if key[1] == 0.0:
+            continue
+        if key not in done:
+            done[key] = evaluate(xh, h, da, batch.tmax, *key)
+        out[:, c] = done[key] @ lint[:, c]
+    return out

@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import UserError
 from ..jit import njit
 from . import Method, Param
-from .geometry import ray_light
+from .geometry import by_channel
 from .phase import HG, ISOTROPIC, RAYLEIGH
 
 MAX_TERMS = 16
@@ -179,25 +179,12 @@ def airlight_one(xh, h, ell, kt, ks, tsec, pser, terms, work, stats):
 
 
 @njit
-def airlight_rays(origins, dirs, tmax, lpos, lint, kt, ks, tsec, pser, terms, out, stats):
-    """Sum over lights and channels; channels with equal (kt, ks) share one evaluation."""
-    unit = np.empty(3)
+def evaluate_rays(xh, h, tmax, kt, ks, tsec, pser, terms, out, stats):
+    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
     work = np.zeros(2 * MAX_TERMS)
-    for r in range(origins.shape[0]):
-        for li in range(lpos.shape[0]):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
-            for c in range(3):
-                same = -1
-                for c2 in range(c):
-                    if kt[c2] == kt[c] and ks[c2] == ks[c]:
-                        same = c2
-                        break
-                if same >= 0:
-                    unit[c] = unit[same]
-                else:
-                    unit[c] = airlight_one(xh, h, tmax[r], kt[c], ks[c], tsec, pser, terms, work, stats)
-                out[r, c] += unit[c] * lint[li, c]
+    for r in range(xh.shape[0]):
+        for li in range(xh.shape[1]):
+            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, tsec, pser, terms, work, stats)
 
 
 _TSEC = tan_sec_series(MAX_TERMS)
@@ -208,13 +195,16 @@ def effective_terms(code, terms):
 
 
 def _airlight(batch, medium, lpos, lint, params):
-    out = np.zeros((len(batch.origins), 3))
     stats = np.zeros(3)
     terms = effective_terms(medium.phase, params["terms"])
     pser = phase_series(medium.phase, float(medium.g), MAX_TERMS)
-    airlight_rays(batch.origins, batch.dirs, batch.tmax, lpos, lint, np.asarray(medium.sigma_t, float),
-                  np.asarray(medium.sigma_s, float), _TSEC, pser, terms, out, stats)
-    return out, stats
+
+    def evaluate(xh, h, da, tmax, kt, ks):
+        out = np.empty_like(xh)
+        evaluate_rays(xh, h, tmax, kt, ks, _TSEC, pser, terms, out, stats)
+        return out
+
+    return by_channel(batch, medium, lpos, lint, evaluate), stats
 
 
 def _summarize(stats):

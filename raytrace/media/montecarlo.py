@@ -20,7 +20,7 @@ from ..errors import UserError
 from ..jit import njit
 from ..rng import uniform
 from . import Method, Param
-from .geometry import ray_light
+from .geometry import ray_light_table
 from .phase import phase_value
 
 EQUIANGULAR, FREEPATH, MIS = 0, 1, 2
@@ -97,35 +97,30 @@ def estimate(xh, h, ell, kt, ks, code, g, mode, n, key, dim0, seed):
 
 
 @njit
-def airlight_rays(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, mode, n, out, var):
-    for r in range(origins.shape[0]):
-        for li in range(lpos.shape[0]):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
-            dim0 = 2 * n * li
+def airlight_rays(xh, h, tmax, keys, seed, lint, kt, ks, code, g, mode, n, out, var):
+    """Estimates (N, 3) and their variances for the (x_h, h) table of every ray and light."""
+    for r in range(xh.shape[0]):
+        for li in range(xh.shape[1]):
             for c in range(3):
-                m, v = estimate(xh, h, tmax[r], kt[c], ks[c], code, g, mode, n, keys[r], dim0, seed)
+                m, v = estimate(xh[r, li], h[r, li], tmax[r], kt[c], ks[c], code, g, mode, n, keys[r], 2 * n * li, seed)
                 out[r, c] += m * lint[li, c]
                 var[r, c] += v * lint[li, c] * lint[li, c]
 
 
 @njit
-def sample_points(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, mode, n, pos, weight):
+def sample_points(origins, dirs, xh, h, tmax, keys, seed, lint, kt, ks, code, g, mode, n, pos, weight):
     """The same samples as `airlight_rays`, as points for volumetric shadows: pos[r, l, j, s, c] is
     the point drawn by strategy s (0 equiangular, 1 free-path) in iteration j for ray r, light l and
     channel c (free-path distances depend on the channel's kt), weight[r, l, j, s, c] its I f / p."""
-    L = lpos.shape[0]
-    for r in range(origins.shape[0]):
-        for li in range(L):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
+    for r in range(xh.shape[0]):
+        for li in range(xh.shape[1]):
             for j in range(n):
                 for c in range(3):
                     if ks[c] == 0.0 or not tmax[r] > 0.0:
                         continue
-                    th_a, th_b, norm = _angles(xh, h, tmax[r], kt[c])
-                    xe, we, xf, wf = _draw(xh, h, tmax[r], kt[c], ks[c], code, g, mode, keys[r], 2 * n * li + 2 * j,
-                                           seed, th_a, th_b, norm)
+                    th_a, th_b, norm = _angles(xh[r, li], h[r, li], tmax[r], kt[c])
+                    xe, we, xf, wf = _draw(xh[r, li], h[r, li], tmax[r], kt[c], ks[c], code, g, mode, keys[r],
+                                           2 * n * li + 2 * j, seed, th_a, th_b, norm)
                     for a in range(3):
                         pos[r, li, j, 0, c, a] = origins[r, a] + xe * dirs[r, a]
                         pos[r, li, j, 1, c, a] = origins[r, a] + xf * dirs[r, a]
@@ -141,11 +136,11 @@ def _check(medium, params):
 
 
 def _airlight(batch, medium, lpos, lint, params):
+    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
     out = np.zeros((len(batch.origins), 3))
     var = np.zeros_like(out)
-    airlight_rays(batch.origins, batch.dirs, batch.tmax, batch.keys, np.uint64(batch.seed), lpos, lint,
-                  medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]],
-                  params["samples"], out, var)
+    airlight_rays(xh, h, batch.tmax, batch.keys, np.uint64(batch.seed), lint, medium.sigma_t, medium.sigma_s,
+                  medium.phase, medium.g, MODES[params["sampling"]], params["samples"], out, var)
     return out, np.zeros(0), var
 
 
@@ -154,7 +149,8 @@ def _points(batch, medium, lpos, lint, params):
     shape = (len(batch.origins), len(lpos), n, 2, 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
-    sample_points(batch.origins, batch.dirs, batch.tmax, batch.keys, np.uint64(batch.seed), lpos, lint,
+    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
+    sample_points(batch.origins, batch.dirs, xh, h, batch.tmax, batch.keys, np.uint64(batch.seed), lint,
                   medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], n, pos, weight)
     return pos, weight
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..jit import njit
 from . import Method, Param
-from .geometry import ray_light
+from .geometry import by_channel
 from .phase import phase_value
 
 MAX_INTERVALS = 4000
@@ -121,32 +121,22 @@ def airlight_one(xh, h, ell, kt, ks, code, g, rtol, n10, w10, n20, w20, stats):
 
 
 @njit
-def airlight_rays(origins, dirs, tmax, lpos, lint, kt, ks, code, g, rtol, n10, w10, n20, w20, out, stats):
-    """Sum over lights and channels; channels with equal (kt, ks) share one integration."""
-    unit = np.empty(3)
-    for r in range(origins.shape[0]):
-        for li in range(lpos.shape[0]):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
-            for c in range(3):
-                same = -1
-                for c2 in range(c):
-                    if kt[c2] == kt[c] and ks[c2] == ks[c]:
-                        same = c2
-                        break
-                if same >= 0:
-                    unit[c] = unit[same]
-                else:
-                    unit[c] = airlight_one(xh, h, tmax[r], kt[c], ks[c], code, g, rtol, n10, w10, n20, w20, stats)
-                out[r, c] += unit[c] * lint[li, c]
+def evaluate_rays(xh, h, tmax, kt, ks, code, g, rtol, n10, w10, n20, w20, out, stats):
+    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
+    for r in range(xh.shape[0]):
+        for li in range(xh.shape[1]):
+            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, code, g, rtol, n10, w10, n20, w20, stats)
 
 
 def _airlight(batch, medium, lpos, lint, params):
-    out = np.zeros((len(batch.origins), 3))
     stats = np.zeros(3)
-    airlight_rays(batch.origins, batch.dirs, batch.tmax, lpos, lint, medium.sigma_t, medium.sigma_s,
-                  medium.phase, medium.g, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
-    return out, stats
+
+    def evaluate(xh, h, da, tmax, kt, ks):
+        out = np.empty_like(xh)
+        evaluate_rays(xh, h, tmax, kt, ks, medium.phase, medium.g, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+        return out
+
+    return by_channel(batch, medium, lpos, lint, evaluate), stats
 
 
 def _summarize(stats):

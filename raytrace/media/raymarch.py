@@ -33,7 +33,7 @@ from ..errors import UserError
 from ..jit import njit
 from ..rng import uniform
 from . import Method, Param
-from .geometry import ray_light
+from .geometry import by_channel, ray_light_table
 from .phase import phase_value
 
 MAX_STEPS = 1 << 20
@@ -86,26 +86,12 @@ def airlight_one(xh, h, ell, kt, ks, code, g, steps, step, tau_max, xi, stats):
 
 
 @njit
-def airlight_rays(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, steps, step, tau_max, jitter,
-                  out, stats):
-    """Sum over lights and channels; channels with equal (kt, ks) share one march."""
-    unit = np.empty(3)
-    for r in range(origins.shape[0]):
+def evaluate_rays(xh, h, tmax, keys, seed, kt, ks, code, g, steps, step, tau_max, jitter, out, stats):
+    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
+    for r in range(xh.shape[0]):
         xi = uniform(keys[r], DIM_JITTER, seed) if jitter else 0.5
-        for li in range(lpos.shape[0]):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
-            for c in range(3):
-                same = -1
-                for c2 in range(c):
-                    if kt[c2] == kt[c] and ks[c2] == ks[c]:
-                        same = c2
-                        break
-                if same >= 0:
-                    unit[c] = unit[same]
-                else:
-                    unit[c] = airlight_one(xh, h, tmax[r], kt[c], ks[c], code, g, steps, step, tau_max, xi, stats)
-                out[r, c] += unit[c] * lint[li, c]
+        for li in range(xh.shape[1]):
+            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, code, g, steps, step, tau_max, xi, stats)
 
 
 @njit
@@ -128,7 +114,7 @@ def max_count(tmax, kt, steps, step, tau_max):
 
 
 @njit
-def sample_points(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, steps, step, tau_max, jitter,
+def sample_points(origins, dirs, xh, h, tmax, keys, seed, lint, kt, ks, code, g, steps, step, tau_max, jitter,
                   pos, weight):
     """The march's samples as points for volumetric shadows: pos[r, l, k, 0, c] is sample k of ray r
     for light l and channel c, weight[r, l, k, 0, c] = n_max * Delta * I * f(x_k), so that the mean
@@ -136,9 +122,7 @@ def sample_points(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, 
     n_max = pos.shape[2]
     for r in range(origins.shape[0]):
         xi = uniform(keys[r], DIM_JITTER, seed) if jitter else 0.5
-        for li in range(lpos.shape[0]):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
+        for li in range(xh.shape[1]):
             for c in range(3):
                 if ks[c] == 0.0 or not tmax[r] > 0.0:
                     continue
@@ -147,7 +131,7 @@ def sample_points(origins, dirs, tmax, keys, seed, lpos, lint, kt, ks, code, g, 
                     x = (k + xi) * delta
                     for a in range(3):
                         pos[r, li, k, 0, c, a] = origins[r, a] + x * dirs[r, a]
-                    weight[r, li, k, 0, c] = n_max * delta * lint[li, c] * integrand(x, xh, max(h, 1e-300), kt[c],
+                    weight[r, li, k, 0, c] = n_max * delta * lint[li, c] * integrand(x, xh[r, li], h[r, li], kt[c],
                                                                                         ks[c], code, g)
 
 
@@ -158,21 +142,24 @@ def _points(batch, medium, lpos, lint, params):
     shape = (len(batch.origins), len(lpos), n, 1, 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
-    sample_points(batch.origins, batch.dirs, batch.tmax, np.ascontiguousarray(batch.keys, dtype=np.uint64),
-                  int(batch.seed), lpos, lint, kt, np.asarray(medium.sigma_s, float), medium.phase, medium.g, *args,
+    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
+    sample_points(batch.origins, batch.dirs, xh, h, batch.tmax, np.ascontiguousarray(batch.keys, dtype=np.uint64),
+                  int(batch.seed), lint, kt, np.asarray(medium.sigma_s, float), medium.phase, medium.g, *args,
                   bool(params["jitter"]), pos, weight)
     return pos, weight
 
 
 def _airlight(batch, medium, lpos, lint, params):
-    out = np.zeros((len(batch.origins), 3))
     stats = np.zeros(3)
     keys = np.ascontiguousarray(batch.keys, dtype=np.uint64)
-    airlight_rays(batch.origins, batch.dirs, batch.tmax, keys, int(batch.seed), lpos, lint,
-                  np.asarray(medium.sigma_t, float), np.asarray(medium.sigma_s, float), medium.phase, medium.g,
-                  int(params["steps"]), float(params["step"]), float(params["tau_max"]), bool(params["jitter"]),
-                  out, stats)
-    return out, stats
+
+    def evaluate(xh, h, da, tmax, kt, ks):
+        out = np.empty_like(xh)
+        evaluate_rays(xh, h, tmax, keys, int(batch.seed), kt, ks, medium.phase, medium.g, int(params["steps"]),
+                      float(params["step"]), float(params["tau_max"]), bool(params["jitter"]), out, stats)
+        return out
+
+    return by_channel(batch, medium, lpos, lint, evaluate), stats
 
 
 def _summarize(stats):

@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import UserError
 from ..jit import njit
 from . import Method, Param
-from .geometry import ray_light
+from .geometry import by_channel
 from .phase import ISOTROPIC, NAMES
 
 TABLE_VERSION = 1
@@ -145,25 +145,15 @@ def load_table(n: int = 512, u_max: float = 10.0) -> np.ndarray:
 # ---- kernels ----
 
 @njit
-def _u_cell(n, u_max, u):
-    fu = u / u_max * (n - 1)
-    if not fu > 0.0:  # also NaN
-        fu = 0.0
-    if fu > n - 1:
-        fu = n - 1.0
-    i = min(int(fu), n - 2)
-    return i, fu - i
-
-
-@njit
-def _v_cell(n, v):
-    fv = v / HALF_PI * (n - 1)
-    if not fv > 0.0:
-        fv = 0.0
-    if fv > n - 1:
-        fv = n - 1.0
-    j = min(int(fv), n - 2)
-    return j, fv - j
+def _cell(n, x_max, x):
+    """Cell index and fraction of x on the n-point grid over [0, x_max], clamped to its edges."""
+    f = x / x_max * (n - 1)
+    if not f > 0.0:  # also NaN
+        f = 0.0
+    if f > n - 1:
+        f = n - 1.0
+    i = min(int(f), n - 2)
+    return i, f - i
 
 
 @njit
@@ -177,8 +167,8 @@ def _row(table, i, s, j, t):
 def lookup(table, u_max, u, v):
     """Bilinear F(u, v) from the corner-grid table; u clamped to [0, u_max], v to [0, pi/2]."""
     n = table.shape[0]
-    i, s = _u_cell(n, u_max, u)
-    j, t = _v_cell(n, v)
+    i, s = _cell(n, u_max, u)
+    j, t = _cell(n, HALF_PI, v)
     return _row(table, i, s, j, t)
 
 
@@ -188,9 +178,9 @@ def lookup_diff(table, u_max, u, va, vb):
     non-decreasing in v (the table is), so within one cell the difference is (t_b - t_a) times the
     cell's slope, and across cells a negative rounding residue is impossible (max with 0)."""
     n = table.shape[0]
-    i, s = _u_cell(n, u_max, u)
-    ja, ta = _v_cell(n, va)
-    jb, tb = _v_cell(n, vb)
+    i, s = _cell(n, u_max, u)
+    ja, ta = _cell(n, HALF_PI, va)
+    jb, tb = _cell(n, HALF_PI, vb)
     if ja == jb:
         slope = ((1.0 - s) * (float(table[i, ja + 1]) - float(table[i, ja]))
                  + s * (float(table[i + 1, ja + 1]) - float(table[i + 1, ja])))
@@ -221,34 +211,24 @@ def airlight_one(xh, h, ell, kt, ks, table, u_max, stats):
 
 
 @njit
-def airlight_rays(origins, dirs, tmax, lpos, lint, kt, ks, table, u_max, out, stats):
-    """Sum over lights and channels; channels with equal (kt, ks) share one evaluation."""
-    unit = np.empty(3)
-    for r in range(origins.shape[0]):
-        for li in range(lpos.shape[0]):
-            xh, h, _ = ray_light(origins[r, 0], origins[r, 1], origins[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
-                                 lpos[li, 0], lpos[li, 1], lpos[li, 2])
-            for c in range(3):
-                same = -1
-                for c2 in range(c):
-                    if kt[c2] == kt[c] and ks[c2] == ks[c]:
-                        same = c2
-                        break
-                if same >= 0:
-                    unit[c] = unit[same]
-                else:
-                    unit[c] = airlight_one(xh, h, tmax[r], kt[c], ks[c], table, u_max, stats)
-                out[r, c] += unit[c] * lint[li, c]
+def evaluate_rays(xh, h, tmax, kt, ks, table, u_max, out, stats):
+    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
+    for r in range(xh.shape[0]):
+        for li in range(xh.shape[1]):
+            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, table, u_max, stats)
 
 
 def _airlight(batch, medium, lpos, lint, params):
-    out = np.zeros((len(batch.origins), 3))
     stats = np.zeros(3)
     u_max = float(params["u_max"])
     table = load_table(int(params["table_size"]), u_max)
-    airlight_rays(batch.origins, batch.dirs, batch.tmax, lpos, lint, np.asarray(medium.sigma_t, float),
-                  np.asarray(medium.sigma_s, float), table, u_max, out, stats)
-    return out, stats
+
+    def evaluate(xh, h, da, tmax, kt, ks):
+        out = np.empty_like(xh)
+        evaluate_rays(xh, h, tmax, kt, ks, table, u_max, out, stats)
+        return out
+
+    return by_channel(batch, medium, lpos, lint, evaluate), stats
 
 
 def _summarize(stats):
