@@ -12,8 +12,9 @@ Paths (counted in ``stats``):
   stable    scaled-E1 form (METHODS §5 boxed formula; exponentials folded into the optical path
             kt*(x + d), so nothing overflows for lights far behind the camera);
   near-line light (almost) on the ray line outside the segment: h -> 0 limit (closed forms);
-  fallback  adaptive Gauss-Kronrod (7/15) in the scattering angle phi: exact anisotropic mode on
-            rays whose H = kt h is too large for the forward moment recurrence (see below).
+  fallback  the reference quadrature (quadrature.py) at precision / 10: segments so short in angle
+            that the closed form's two end terms cancel beyond double precision, and, in the exact
+            anisotropic mode, rays whose H = kt h is too large for the forward moment recurrence.
 
 Anisotropic modes: ANISO_TAYLOR (PP09 eqs. 14-19, Maclaurin series of Phi in v with `terms`
 coefficients, faithful incl. its divergence for v > R) and ANISO_EXACT (beyond the paper, in the
@@ -36,6 +37,8 @@ from .expint import g_scaled, en_scaled, i01_series_est
 from .legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre)
 from .phase import ISOTROPIC, RAYLEIGH, HG, phase_value
+from .quadrature import _N10, _N20, _W10, _W20
+from .quadrature import airlight_one as quad_airlight
 
 ANISO_TAYLOR = 0
 ANISO_EXACT = 1
@@ -59,6 +62,8 @@ STATS_SIZE = 10
 RHO_SWITCH_CAP = 8.0
 # a-posteriori: series accepted if its rounding-error estimate <= SERIES_SAFETY*precision*I0
 SERIES_SAFETY = 0.1
+# relative accuracy of g_scaled (measured against mpmath: <= 2.3e-14), for the cancellation guard
+G_REL_ERR = 3e-14
 # near-line: light outside the segment and h/|x_end - xh| < NEARLINE_TOL at both ends
 NEARLINE_TOL = 3e-6
 
@@ -84,102 +89,16 @@ def v_of(s, h):
     return h / (d - s)
 
 
-# ----------------------------------------------------------------------------------------------
-# adaptive Gauss-Kronrod fallback in phi
-# ----------------------------------------------------------------------------------------------
-_XGK = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
-                 0.864864423359769072789712788640926, 0.741531185599394439863864773280788,
-                 0.586087235467691130294144845693013, 0.405845151377397166906606412076961,
-                 0.207784955007898467600689403773245, 0.0])
-_WGK = np.array([0.022935322010529224963732008058970, 0.063092092629978553290700663189204,
-                 0.104790010322250183839876322541518, 0.140653259715525918745189590510238,
-                 0.169004726639267902826583426598550, 0.190350578064785409913256402421014,
-                 0.204432940075298892414161999234649, 0.209482141084727828012999174891714])
-_WG = np.array([0.129484966168869693270611432679082, 0.279705391489276667901467771423780,
-                0.381830050505118944950369775488975, 0.417959183673469387755102040816327])
-
-
 @njit
-def _fb_f(phi, phia, h, kt, code, g):
-    # e^{-kt (x + d - da)} Phi(cos phi); x + d - da = h (tan(phi/2) - tan(phia/2))
-    c = math.cos(0.5 * phi)
-    if c <= 0.0:
-        return 0.0
-    dt = math.sin(0.5 * (phi - phia)) / (c * math.cos(0.5 * phia))
-    ex = 0.0
-    if kt > 0.0:
-        ex = math.exp(-kt * h * dt)
-    return ex * phase_value(code, g, math.cos(phi))
-
-
-@njit
-def _gk15(a, b, phia, h, kt, code, g, xgk, wgk, wg):
-    c = 0.5 * (a + b)
-    hl = 0.5 * (b - a)
-    fc = _fb_f(c, phia, h, kt, code, g)
-    rk = fc * wgk[7]
-    rg = fc * wg[3]
-    for j in range(7):
-        x = hl * xgk[j]
-        f1 = _fb_f(c - x, phia, h, kt, code, g)
-        f2 = _fb_f(c + x, phia, h, kt, code, g)
-        rk += wgk[j] * (f1 + f2)
-        if j % 2 == 1:
-            rg += wg[j // 2] * (f1 + f2)
-    return rk * hl, abs((rk - rg) * hl)
-
-
-@njit
-def phi_integral_adaptive(phia, phib, h, kt, code, g, rtol, stats):
-    """int_phia^phib e^{-kt(x+d-da)} Phi(cos phi) dphi by adaptive GK15 (stack, max depth 60)."""
-    xgk = _XGK
-    wgk = _WGK
-    wg = _WG
-    sa = np.empty(200)
-    sb = np.empty(200)
-    total, err = _gk15(phia, phib, phia, h, kt, code, g, xgk, wgk, wg)
-    nf = 15
-    if err <= rtol * abs(total):
-        stats[ST_FALLBACK_FEVALS] += nf
-        return total
-    # local refinement: accept sub-intervals whose error is below their share
-    result = 0.0
-    n = 1
-    sa[0] = phia
-    sb[0] = phib
-    width = phib - phia
-    while n > 0:
-        n -= 1
-        a = sa[n]
-        b = sb[n]
-        m = 0.5 * (a + b)
-        r1, e1 = _gk15(a, m, phia, h, kt, code, g, xgk, wgk, wg)
-        r2, e2 = _gk15(m, b, phia, h, kt, code, g, xgk, wgk, wg)
-        nf += 30
-        tol_here = rtol * abs(total) * (b - a) / width
-        if e1 + e2 <= tol_here or n >= 196 or (b - a) < 1e-14 * width:
-            result += r1 + r2
-            # refresh the scale estimate as exact pieces accumulate
-        else:
-            sa[n] = a
-            sb[n] = m
-            sa[n + 1] = m
-            sb[n + 1] = b
-            n += 2
-    stats[ST_FALLBACK_FEVALS] += nf
-    return result
-
-
-@njit
-def airlight_quad(xh, h, da, ell, kt, ks, intensity, phase_code, g, rtol, stats):
-    """Adaptive-quadrature air-light (the fallback, also usable as a baseline)."""
-    phia = math.atan2(h, xh)
-    if ell < math.inf:
-        phib = math.atan2(h, xh - ell)
-    else:
-        phib = math.pi
-    val = phi_integral_adaptive(phia, phib, h, kt, phase_code, g, rtol, stats)
-    return intensity * ks / h * math.exp(-kt * da) * val
+def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats):
+    """The reference quadrature (quadrature.py) to a tenth of the requested precision, counted.
+    Its Gauss-Legendre nodes are module constants of quadrature.py (numba freezes them, and they
+    never change)."""
+    stats[ST_FALLBACK] += 1.0
+    qstats = np.zeros(3)
+    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, 0.1 * precision, _N10, _W10, _N20, _W20, qstats)
+    stats[ST_FALLBACK_FEVALS] += 30.0 * qstats[1]
+    return intensity * val
 
 
 # ----------------------------------------------------------------------------------------------
@@ -241,16 +160,8 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
         stats[ST_ZERO] += 1.0
         return 0.0
-    if not (kt > 0.0):
-        # vacuum with ks > 0 (not produced by scenes): geometric integral (I ks/h) int Phi dphi
-        phia = math.atan2(h, xh)
-        phib = math.pi if ell == math.inf else math.atan2(h, xh - ell)
-        if phase_code == ISOTROPIC:
-            stats[ST_STABLE] += 1.0
-            return intensity * ks / h * _INV_4PI * (phib - phia)
-        stats[ST_FALLBACK] += 1.0
-        return intensity * ks / h * phi_integral_adaptive(phia, phib, h, 0.0, phase_code, g,
-                                                          0.1 * precision, stats)
+    if not (kt > 0.0):  # vacuum with ks > 0 (not produced by scenes, where ks <= kt)
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
 
     finite = ell < math.inf
     # near-line: light outside the segment and the line passes within h << distance of it
@@ -269,8 +180,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     if exact and H > coeffs[0]:  # the cosine-moment recurrence would lose digits: quadrature
-        stats[ST_FALLBACK] += 1.0
-        return airlight_quad(xh, h, da, ell, kt, ks, intensity, phase_code, g, 0.1 * precision, stats)
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
 
     # ---- I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1 ----
     rho_a = H * math.sqrt(1.0 + va * va)
@@ -303,14 +213,19 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     Ea = math.exp(-kt * da)
     Eb = math.exp(-kt * (ell + math.sqrt(h * h + (ell - xh) * (ell - xh)))) if finite else 0.0
     if not use_series:
-        stats[ST_STABLE] += 1.0
         ga = g_scaled(complex(H * va, H))
         K1 = -Ea * ga.imag
         L1 = Ea * ga.real
+        terms_size = abs(K1)
         if finite:
             gb = g_scaled(complex(H * vb, H))
             K1 += Eb * gb.imag
             L1 -= Eb * gb.real
+            terms_size += Eb * abs(gb.imag)
+        # a segment short in angle: the two ends' terms cancel beyond what g's accuracy resolves
+        if G_REL_ERR * terms_size > SERIES_SAFETY * max(prec_i, 1e-11) * abs(K1):
+            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
+        stats[ST_STABLE] += 1.0
 
     if phase_code == ISOTROPIC:
         return pref * _INV_4PI * K1
