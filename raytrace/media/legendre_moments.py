@@ -106,20 +106,22 @@ def cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c):
     et = ebt - eat
     E1 = complex(2.0 * evt + 2.0 * H * L1, -2.0 * (H * K1 + et))
     s += c[1] * E1.real
-    pa = za        # za^k
-    pb = zb
-    Em = E0
-    Ek = E1
-    iH = complex(0.0, H)
+    # real arithmetic: q = ebt zb^k - eat za^k (the boundary term), E_k = (er, ei), E_{k-1} = (mr, mi)
+    ar, ai = eat * za.real, eat * za.imag
+    br, bi = ebt * zb.real, ebt * zb.imag
+    zar, zai, zbr, zbi = za.real, za.imag, zb.real, zb.imag
+    mr, mi = E0.real, E0.imag
+    er, ei = E1.real, E1.imag
     for k in range(1, n - 1):
-        # -2i B_k = -4i (ebt zb^k - eat za^k)
-        rhs = complex(0.0, -4.0) * (ebt * pb - eat * pa)
-        En = (rhs - 2.0 * (k + iH) * Ek - (k - 1.0) * Em) / (k + 1.0)
-        Em = Ek
-        Ek = En
-        s += c[k + 1] * En.real
-        pa *= za
-        pb *= zb
+        qr, qi = br - ar, bi - ai
+        # (k+1) E_{k+1} = -4i q - 2 (k + iH) E_k - (k-1) E_{k-1}
+        inv = 1.0 / (k + 1.0)
+        nr = (4.0 * qi - 2.0 * (k * er - H * ei) - (k - 1.0) * mr) * inv
+        ni = (-4.0 * qr - 2.0 * (k * ei + H * er) - (k - 1.0) * mi) * inv
+        mr, mi, er, ei = er, ei, nr, ni
+        s += c[k + 1] * nr
+        ar, ai = ar * zar - ai * zai, ar * zai + ai * zar
+        br, bi = br * zbr - bi * zbi, br * zbi + bi * zbr
     return s
 
 
