@@ -349,19 +349,16 @@ def summarize_stats(stats):
     nz = max(n, 1.0)
     return {
         "evaluations": int(n),
-        "series": int(st[ST_SERIES]),
-        "stable": int(st[ST_STABLE]),
-        "near_line": int(st[ST_NEARLINE]),
-        "fallback": int(st[ST_FALLBACK]),
-        "zero": int(st[ST_ZERO]),
-        "series_iterations": int(st[ST_SERIES_ITERS]),
-        "mean_iterations_per_evaluation": st[ST_SERIES_ITERS] / nz,
+        "mean_iterations_per_evaluation": st[ST_SERIES_ITERS] / nz,  # PP09 Table 1, last row
         "mean_iterations_per_series_evaluation": st[ST_SERIES_ITERS] / max(st[ST_SERIES], 1.0),
-        "taylor_out_of_range": int(st[ST_TAYLOR_OUT]),
-        "taylor_out_of_range_fraction": st[ST_TAYLOR_OUT] / nz,
+        "series_fraction": st[ST_SERIES] / nz,
+        "stable_fraction": st[ST_STABLE] / nz,
+        "near_line_fraction": st[ST_NEARLINE] / nz,
         "fallback_fraction": st[ST_FALLBACK] / nz,
+        "zero_fraction": st[ST_ZERO] / nz,
+        "series_rejected_fraction": st[ST_SERIES_REJECTED] / nz,
+        "taylor_out_of_range_fraction": st[ST_TAYLOR_OUT] / nz,
         "fallback_integrand_evaluations": int(st[ST_FALLBACK_FEVALS]),
-        "series_rejected": int(st[ST_SERIES_REJECTED]),
     }
 
 
