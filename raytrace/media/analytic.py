@@ -89,6 +89,19 @@ def v_of(s, h):
     return h / (d - s)
 
 
+LOSS_TABLE = 17  # points of the tabulated recurrence loss in the exact mode's coeffs
+
+
+@njit
+def _loss(coeffs, H):
+    """The forward recurrence's error amplification at H (0 <= H <= H_max), interpolated from the
+    table of `exact_coeffs` (nodes quadratic in H: the loss grows like exp(2 sqrt(H k)))."""
+    x = (LOSS_TABLE - 1) * math.sqrt(H / coeffs[0]) if coeffs[0] > 0.0 else 0.0
+    i = min(int(x), LOSS_TABLE - 2)
+    f = x - i
+    return max(1.0, (1.0 - f) * coeffs[2 + i] + f * coeffs[3 + i])
+
+
 @njit
 def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats):
     """The reference quadrature (quadrature.py) to a tenth of the requested precision, counted.
@@ -153,7 +166,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     scattering; intensity: radiant intensity; phase_code/g: phase.py codes; precision and
     max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
     isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
-    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: [H_max, ratio, cosine coefficients c_0..c_L], see
+    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: [H_max, ratio, loss table, cosine coefficients], see
     `exact_coeffs`); stats: float64[STATS_SIZE] accumulator.
     """
     stats[ST_EVALS] += 1.0
@@ -189,11 +202,11 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         rho_b = H * math.sqrt(1.0 + vb * vb)
         if rho_b > rho_max:
             rho_max = rho_b
-    # the exact anisotropic mode amplifies errors of I0, I1 by at most e^{2 sqrt(H L)} in its
-    # recurrence and by sum|c_k| / min(Phi) in the final sum (coeffs[1] = 0.1 min(Phi) / sum|c_k|)
+    # the exact anisotropic mode amplifies errors of I0, I1 by the recurrence's loss (tabulated
+    # against H in coeffs) and by sum|c_k| / min(Phi) in the final sum (coeffs[1] = 0.1 min(Phi) / sum|c_k|)
     prec_i = precision
     if exact:
-        prec_i = max(1e-15, precision * coeffs[1] * math.exp(-2.0 * math.sqrt(H * (coeffs.shape[0] - 3))))
+        prec_i = max(1e-15, precision * coeffs[1] / _loss(coeffs, H))
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series:
         i0, i1, it, err = i01_series_est(-H, va, vb, prec_i, max_iter)
@@ -251,7 +264,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         return pref * s
 
     # ---- exact: Phi as a cosine series, its Fourier moments by the forward recurrence ----
-    return pref * 0.5 * cosine_moments_forward(H, va, vb, K1, L1, Ea, Eb, coeffs[2:])
+    return pref * 0.5 * cosine_moments_forward(H, va, vb, K1, L1, Ea, Eb, coeffs[2 + LOSS_TABLE:])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -306,11 +319,12 @@ def hg_legendre_degree(g, precision):
 
 
 def exact_coeffs(phase_code, g, precision):
-    """`coeffs` of the exact mode: [H_max, ratio, c_0, ..., c_L], the phase function as a cosine series
+    """`coeffs` of the exact mode: [H_max, ratio, loss table, c_0, ..., c_L], the phase function as a cosine series
     sum_k c_k cos(k phi) (exact for Rayleigh, HG truncated after L Legendre terms with L from
     `precision`), and the largest H = kt h for which the forward recurrence of the moments keeps
     a relative accuracy of precision / 10 (rays with larger H use the quadrature fallback), with
-    ratio = min(Phi) / (10 sum |c_k|), the loss of the final sum where it cancels."""
+    ratio = min(Phi) / (10 sum |c_k|), the loss of the final sum where it cancels, and the forward
+    recurrence's error amplification at H = H_max (i / (LOSS_TABLE - 1))^2 (see `_loss`)."""
     if phase_code == RAYLEIGH:
         a = rayleigh_legendre()
     elif phase_code == HG:
@@ -333,7 +347,8 @@ def exact_coeffs(phase_code, g, precision):
             lo = mid
         else:
             hi = mid
-    return np.concatenate(([lo, ratio], c))
+    losses = [forward_loss(lo * (i / (LOSS_TABLE - 1)) ** 2, c) for i in range(LOSS_TABLE)]
+    return np.concatenate(([lo, ratio], losses, c))
 
 
 def make_coeffs(phase_code, g, aniso_mode, terms, precision):
