@@ -6,7 +6,7 @@ The rays are the camera rays of the built-in default scene (two lamps in a hall,
 their first hits; the medium's phase function is switched between isotropic, Rayleigh and
 Henyey-Greenstein. The error of each run is measured against `quadrature` at rtol 1e-13 (itself
 checked against scipy in the tests): max and 99.9th percentile of the relative error per ray.
-Times are single-thread CPU seconds of the air-light kernel alone (median of 3), so figures are
+Times are single-thread CPU seconds of the air-light kernel alone (least of 5 rounds in which the compared runs take turns), so figures are
 ratios measured in one run on one machine. The last table compares a whole render of the same
 rays (first hits, surface term, shadow rays) without any air-light term and with `analytic`.
 """
@@ -31,13 +31,17 @@ PHASES = [("isotropic", ISOTROPIC, 0.0), ("rayleigh", RAYLEIGH, 0.0), ("hg g=0.5
           ("hg g=-0.5", HG, -0.5), ("hg g=0.9", HG, 0.9)]
 
 
-def cpu_median(fn, repeats=3):
-    times, out = [], None
+def cpu_best(*fns, repeats=5):
+    """Least single-thread CPU time of each function over `repeats` rounds, the functions taking
+    turns within a round (so that both see the same machine), and each one's result."""
+    times = [[] for _ in fns]
+    outs = [None] * len(fns)
     for _ in range(repeats):
-        t0 = time.process_time()
-        out = fn()
-        times.append(time.process_time() - t0)
-    return float(np.median(times)), out
+        for i, fn in enumerate(fns):
+            t0 = time.process_time()
+            outs[i] = fn()
+            times[i].append(time.process_time() - t0)
+    return [(float(np.min(t)), out) for t, out in zip(times, outs)]
 
 
 def airlight(method, params, batch, medium, prep):
@@ -78,8 +82,8 @@ def main():
         airlight("quadrature", {"rtol": 1e-3}, batch, medium, prep)()
         ref = airlight("quadrature", {"rtol": 1e-13}, batch, medium, prep)()[0]
         for prec in precisions:
-            ta, (va, _) = cpu_median(airlight("analytic", {"precision": prec}, batch, medium, prep))
-            tq, (vq, _) = cpu_median(airlight("quadrature", {"rtol": prec}, batch, medium, prep))
+            (ta, (va, _)), (tq, (vq, _)) = cpu_best(airlight("analytic", {"precision": prec}, batch, medium, prep),
+                                                    airlight("quadrature", {"rtol": prec}, batch, medium, prep))
             ea, eq = rel_errors(va, ref), rel_errors(vq, ref)
             print(f"| {label} | {prec:g} | {n_eval / ta / 1e6:.2f} | {ea[0]:.2e} | {ea[1]:.2e} | "
                   f"{n_eval / tq / 1e6:.2f} | {eq[0]:.2e} | {tq / ta:.1f}x |")
@@ -95,8 +99,8 @@ def main():
         method = get_method("analytic")
         for prec in precisions[:1]:
             params = resolve_params(method, {"precision": prec}, "benchmark")
-            t0, _ = cpu_median(lambda: shade_rays(prep_none, method, params, o, d, keys, 0))
-            t1, _ = cpu_median(lambda: shade_rays(prep_air, method, params, o, d, keys, 0))
+            (t0, _), (t1, _) = cpu_best(lambda: shade_rays(prep_none, method, params, o, d, keys, 0),
+                                        lambda: shade_rays(prep_air, method, params, o, d, keys, 0))
             print(f"| {label} | {prec:g} | {t0:.3f} | {t1:.3f} | {t1 / t0:.2f} |")
 
 
