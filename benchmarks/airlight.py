@@ -73,8 +73,8 @@ def main():
     n_eval = len(o) * len(prep.light_pos)
     print(f"{len(o)} rays x {len(prep.light_pos)} lights = {n_eval} air-light evaluations per run "
           f"(channels share coefficients); single-thread CPU time\n")
-    print(f"| phase | precision | analytic Mevals/s | analytic max rel | p99.9 | quadrature (rtol = precision) Mevals/s "
-          f"| quadrature max rel | speed-up |")
+    print("| phase | precision | analytic Mevals/s | analytic max rel | p99.9 | quadrature (rtol = precision) Mevals/s "
+          "| quadrature max rel | speed-up |")
     print("|---|---|---|---|---|---|---|---|")
     for label, code, g in PHASES:
         medium = dataclasses.replace(scene.medium, phase=code, g=g)

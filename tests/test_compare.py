@@ -3,7 +3,6 @@ behaviours the comparison is meant to show (issue: ray marching O(h^2), Lecocq w
 from the light, Monte Carlo converging as 1/sqrt(N))."""
 import json
 
-import numpy as np
 import pytest
 
 from raytrace.cli import main

@@ -2,7 +2,6 @@
 import math
 
 import numpy as np
-import pytest
 
 from raytrace.cli import main
 from raytrace.film import read_exr

@@ -110,9 +110,10 @@ def test_defaults_and_driver():
     want = [2 * lec(xh, h, ell, 1.0, 1.0, RAYLEIGH), 3 * lec(xh, h, ell, 0.5, 0.3, RAYLEIGH)]
     np.testing.assert_allclose(out[0], [want[0], want[0], want[1]], rtol=1e-14)
     assert stats[lc.EVALS] == 4  # two rays, two distinct channels
-    lc.METHOD.check(medium, {"terms": 0})
+    from raytrace.media import resolve_params
+    assert resolve_params(lc.METHOD, {"terms": 0}, "t")["terms"] == 0
     with pytest.raises(UserError):
-        lc.METHOD.check(medium, {"terms": 99})
+        resolve_params(lc.METHOD, {"terms": 99}, "t")
 
 
 @pytest.mark.parametrize("xh,h,ell,kt", [

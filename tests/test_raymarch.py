@@ -97,13 +97,11 @@ def test_edge_inputs_are_finite(xh, h, ell, kt, code, g):
     assert march(xh, h, ell, kt, 0.0) == 0.0
 
 
-def test_check_rejects_bad_parameters():
-    ok = {"steps": 64, "step": 0.0, "jitter": 0, "tau_max": 20.0}
-    rm.METHOD.check(None, ok)
-    for bad in ({"steps": 0}, {"step": -1.0}, {"tau_max": 0.0}):
-        with pytest.raises(UserError):
-            rm.METHOD.check(None, {**ok, **bad})
+def test_bad_parameters_are_rejected():
     from raytrace.media import resolve_params
+    ok = resolve_params(rm.METHOD, {}, "t")
+    assert ok == {"steps": 64, "step": 0.0, "jitter": False, "volumetric_shadows": False, "tau_max": 20.0}
+    for bad in ({"steps": 0}, {"step": -1.0}, {"tau_max": 0.0}, {"tau_max": math.inf}, {"jitter": 2}):
+        with pytest.raises(UserError):
+            resolve_params(rm.METHOD, bad, "t")
     assert resolve_params(rm.METHOD, {"jitter": "true"}, "t")["jitter"] is True
-    with pytest.raises(UserError):
-        resolve_params(rm.METHOD, {"jitter": 2}, "t")

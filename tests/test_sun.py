@@ -157,8 +157,10 @@ def test_check_accepts_isotropic_only():
         with pytest.raises(UserError, match="isotropic") as e:
             sun.METHOD.check(SimpleNamespace(phase=code, g=0.5), params)
         assert "\n" not in str(e.value)
-    with pytest.raises(UserError):
-        sun.METHOD.check(SimpleNamespace(phase=ISOTROPIC, g=0.0), {"table_size": 1, "u_max": 10.0})
+    from raytrace.media import resolve_params
+    for bad in ({"table_size": 1}, {"u_max": 0.0}, {"u_max": math.nan}):
+        with pytest.raises(UserError):
+            resolve_params(sun.METHOD, bad, "t")
 
 
 def test_driver_sums_lights_and_channels(table, tmp_path, monkeypatch):

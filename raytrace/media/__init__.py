@@ -17,9 +17,33 @@ _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo")
 
 @dataclass(frozen=True)
 class Param:
+    """A method parameter: default, type, help text, and the values it accepts: numbers within
+    [low, high] (`open_low` excludes low), strings among `choices`."""
     default: object
     type: type
     help: str
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    choices: tuple = ()
+
+    def rule(self) -> str:
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
+        lo = "" if self.low is None else (f"> {self.low:g}" if self.open_low else f">= {self.low:g}")
+        hi = "" if self.high is None else f"<= {self.high:g}"
+        return " and ".join(x for x in (lo, hi) if x) or "finite"
+
+    def accepts(self, v) -> bool:
+        if self.choices:
+            return v in self.choices
+        if self.type not in (int, float):
+            return True
+        if not math.isfinite(v):
+            return False
+        if self.low is not None and (v <= self.low if self.open_low else v < self.low):
+            return False
+        return self.high is None or v <= self.high
 
 
 @dataclass
@@ -91,7 +115,7 @@ def resolve_params(method: Method, given: dict, source: str) -> dict:
             v = p.type(v)
         except (TypeError, ValueError):
             raise UserError(f"{source}: {flag} (render.{k}): expected {p.type.__name__}, got {v!r}; {p.help}") from None
-        if p.type in (int, float) and not (math.isfinite(v) and v >= 0):
-            raise UserError(f"{source}: {flag} (render.{k}): must be finite and >= 0, got {v!r}; {p.help}")
+        if not p.accepts(v):
+            raise UserError(f"{source}: {flag} (render.{k}): must be {p.rule()}, got {v!r}; {p.help}")
         out[k] = v
     return out

@@ -29,7 +29,6 @@ import math
 
 import numpy as np
 
-from ..errors import UserError
 from ..jit import njit
 from . import Method, Param
 from .geometry import by_channel
@@ -272,7 +271,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 # ----------------------------------------------------------------------------------------------
 def taylor_coeffs(phase_code, g, n_terms):
     """Maclaurin coefficients c_0..c_{N-1} of Phi_c((1-v^2)/(1+v^2)) in v (METHODS §6.2)."""
-    from math import comb, pi
+    from math import pi
 
     c = np.zeros(n_terms)
     if phase_code == ISOTROPIC:
@@ -397,15 +396,6 @@ def evaluate_rays(xh, h, da, tmax, kt, ks, code, g, precision, max_iter, aniso_m
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
 
 
-def _check(medium, params):
-    if params["anisotropic"] not in ANISO_MODES:
-        raise UserError(f"--anisotropic {params['anisotropic']}: unknown; choose exact or taylor")
-    if not 0.0 < params["precision"] < 1.0:
-        raise UserError(f"--precision {params['precision']}: must lie in (0, 1); e.g. 1e-3")
-    if params["max_iter"] < 1 or params["terms"] < 1:
-        raise UserError("--max_iter and --terms must be at least 1")
-
-
 def working_precision(precision):
     """The precision the kernels work to. Below 1e-7 it is 1000 times finer than requested: a
     float32 image cannot hold relative differences below ~1.2e-7, and two renders accurate to
@@ -433,13 +423,14 @@ METHOD = Method(
     name="analytic",
     summary="Pegoraro & Parker's closed form (eq. 13) with Ei series / scaled E1, to a requested precision",
     params={
-        "precision": Param(1e-3, float, "requested relative accuracy of each air-light, e.g. 1e-6"),
-        "max_iter": Param(1000, int, "maximum iterations of the paper's series loop (Fig. 2)"),
-        "anisotropic": Param("exact", str, "exact (polynomial in cos, beyond the paper) or taylor (paper eqs. 14-19)"),
-        "terms": Param(6, int, "Taylor coefficients of the phase function with --anisotropic taylor (paper: 3, 6)"),
+        "precision": Param(1e-3, float, "requested relative accuracy of each air-light, e.g. 1e-6", 1e-14, 0.1),
+        "max_iter": Param(1000, int, "maximum iterations of the paper's series loop (Fig. 2)", 1),
+        "anisotropic": Param("exact", str, "exact (cosine-moment recurrence, beyond the paper) or taylor "
+                             "(paper eqs. 14-19)", choices=tuple(ANISO_MODES)),
+        "terms": Param(6, int, "Taylor coefficients of the phase function with --anisotropic taylor (paper: 3, 6)",
+                       1, 40),
     },
     airlight=_airlight,
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
-    check=_check,
 )

@@ -37,7 +37,6 @@ import math
 
 import numpy as np
 
-from ..errors import UserError
 from ..jit import njit
 from . import Method, Param
 from .geometry import by_channel
@@ -212,18 +211,11 @@ def _summarize(stats):
             "saturated estimates": int(stats[SATURATED])}
 
 
-def _check(medium, params):
-    t = params["terms"]
-    if t and not 1 <= int(t) <= MAX_TERMS:
-        raise UserError(f"lecocq: terms = {t}: must be 1..{MAX_TERMS} (0 = 5 isotropic, 3 anisotropic), e.g. --terms 5")
-
-
 METHOD = Method(
     name="lecocq",
     summary="Lecocq et al. 2000: Taylor polynomial of the whole angular integrand about the foot point (raw, unclamped)",
-    params={"terms": Param(0, int, "Taylor terms (0 = 5 isotropic, 3 Rayleigh/HG), at most 16")},
+    params={"terms": Param(0, int, "Taylor terms (0 = 5 isotropic, 3 Rayleigh/HG), at most 16", 0, MAX_TERMS)},
     airlight=_airlight,
     stats_size=3,
     summarize=_summarize,
-    check=_check,
 )

@@ -16,7 +16,6 @@ import math
 
 import numpy as np
 
-from ..errors import UserError
 from ..jit import njit
 from ..rng import uniform
 from . import Method, Param
@@ -128,13 +127,6 @@ def sample_points(origins, dirs, xh, h, tmax, keys, seed, lint, kt, ks, code, g,
                     weight[r, li, j, 1, c] = wf * lint[li, c]
 
 
-def _check(medium, params):
-    if params["sampling"] not in MODES:
-        raise UserError(f"--sampling {params['sampling']}: unknown; choose one of {', '.join(MODES)}")
-    if params["samples"] < 1:
-        raise UserError(f"--samples {params['samples']}: must be at least 1")
-
-
 def _airlight(batch, medium, lpos, lint, params):
     xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
     out = np.zeros((len(batch.origins), 3))
@@ -159,12 +151,12 @@ METHOD = Method(
     name="montecarlo",
     summary="unbiased single scattering: equiangular, free-path or MIS distance sampling, per-pixel variance",
     params={
-        "samples": Param(4, int, "distance samples per camera ray, light and strategy"),
+        "samples": Param(4, int, "distance samples per camera ray, light and strategy", 1),
         "volumetric_shadows": Param(False, bool, "shadow rays from every sample point to the light (light shafts)"),
-        "sampling": Param("equiangular", str, "equiangular (best near lights in thin media), freepath, or mis (balance heuristic, one sample of each)"),
+        "sampling": Param("equiangular", str, "equiangular (best near lights in thin media), freepath, or mis "
+                          "(balance heuristic, one sample of each)", choices=tuple(MODES)),
     },
     airlight=_airlight,
-    check=_check,
     stochastic=True,
     points=_points,
 )

@@ -145,19 +145,11 @@ def _summarize(stats):
             "evaluations not converged": int(stats[CAPPED])}
 
 
-def _check(medium, params):
-    if not 0.0 < params["rtol"] < 1.0:
-        from ..errors import UserError
-
-        raise UserError(f"--rtol {params['rtol']}: must lie in (0, 1); e.g. 1e-10")
-
-
 METHOD = Method(
     name="quadrature",
     summary="reference: adaptive Gauss-Legendre in the scattering angle, split at the light's foot point",
-    params={"rtol": Param(1e-10, float, "relative accuracy of each integral, e.g. 1e-10")},
+    params={"rtol": Param(1e-10, float, "relative accuracy of each integral, e.g. 1e-10", 0.0, 0.5, True)},
     airlight=_airlight,
     stats_size=3,
     summarize=_summarize,
-    check=_check,
 )

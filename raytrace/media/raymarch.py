@@ -29,7 +29,6 @@ import math
 
 import numpy as np
 
-from ..errors import UserError
 from ..jit import njit
 from ..rng import uniform
 from . import Method, Param
@@ -168,28 +167,18 @@ def _summarize(stats):
             "evaluations with capped step count": int(stats[CAPPED])}
 
 
-def _check(medium, params):
-    if int(params["steps"]) < 1:
-        raise UserError(f"raymarch: steps = {params['steps']}: must be >= 1, e.g. --steps 64")
-    if not float(params["step"]) >= 0.0:
-        raise UserError(f"raymarch: step = {params['step']}: must be >= 0 (0 = use steps), e.g. --step 0.05")
-    if not 0.0 < float(params["tau_max"]) < math.inf:
-        raise UserError(f"raymarch: tau_max = {params['tau_max']}: must be a positive number, e.g. --tau_max 20")
-
-
 METHOD = Method(
     name="raymarch",
     summary="ray marching with a fixed step count or length, midpoint or one jitter per ray (PP09's comparison)",
     params={
-        "steps": Param(64, int, "samples per ray segment when step = 0, e.g. 64"),
-        "step": Param(0.0, float, "fixed step length in scene units (0 = use steps), e.g. 0.05"),
+        "steps": Param(64, int, "samples per ray segment when step = 0, e.g. 64", 1, MAX_STEPS),
+        "step": Param(0.0, float, "fixed step length in scene units (0 = use steps), e.g. 0.05", 0.0),
         "jitter": Param(False, bool, "one random offset per ray instead of midpoints (unbiased, noisy)"),
         "volumetric_shadows": Param(False, bool, "shadow rays from every sample point to the light (light shafts)"),
-        "tau_max": Param(20.0, float, "optical depth at which rays that hit nothing stop, e.g. 20"),
+        "tau_max": Param(20.0, float, "optical depth at which rays that hit nothing stop, e.g. 20", 0.0, 700.0, True),
     },
     airlight=_airlight,
     stats_size=3,
     summarize=_summarize,
-    check=_check,
     points=_points,
 )

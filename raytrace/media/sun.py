@@ -243,18 +243,15 @@ def _check(medium, params):
         raise UserError(f"method sun: its table F(u, v) is for isotropic media only, but medium.phase is "
                         f"'{NAMES.get(medium.phase, medium.phase)}'; set medium.phase = \"isotropic\" or use "
                         f"--method quadrature")
-    if not 2 <= int(params["table_size"]) <= 8192:
-        raise UserError(f"sun: table_size = {params['table_size']}: must be 2..8192, e.g. --table_size 512")
-    if not 0.0 < float(params["u_max"]) < math.inf:
-        raise UserError(f"sun: u_max = {params['u_max']}: must be a positive number, e.g. --u_max 10")
 
 
 METHOD = Method(
     name="sun",
     summary="Sun et al. 2005: bilinear lookup in a precomputed F(u, v) table, clamped at its edges (isotropic only)",
     params={
-        "table_size": Param(512, int, "table resolution per axis (cell-corner grid), e.g. 512"),
-        "u_max": Param(10.0, float, "largest tabulated u = kt h; larger values read the edge, e.g. 10"),
+        "table_size": Param(512, int, "table resolution per axis (cell-corner grid), e.g. 512", 2, 8192),
+        "u_max": Param(10.0, float, "largest tabulated u = kt h; larger values read the edge, e.g. 10", 0.0, None,
+                       True),
     },
     airlight=_airlight,
     stats_size=3,
