@@ -110,3 +110,30 @@ def test_error_falls_as_one_over_sqrt_n():
         errs.append(np.sqrt(np.mean((img - ref) ** 2)))
     slope = np.polyfit(np.log(ns), np.log(errs), 1)[0]
     assert -0.62 < slope < -0.38, (slope, errs)
+
+
+def test_target_error_and_time_budget_stop_the_passes(tmp_path):
+    prep = scene()
+    one = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, 1, passes=1, threads=1)
+    target = 0.5 * one.stats["estimated mean relative error"]
+    res = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, 1, target_error=target, threads=1)
+    assert res.stats["estimated mean relative error"] <= target
+    assert 2 < res.passes < 10  # about four passes halve the error
+    timed = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, 1, time_budget=1e-9, threads=1)
+    assert timed.passes == 1  # the budget is checked after each pass
+
+
+def test_cli_writes_variance_channels_and_refuses_progressive_deterministic_methods(tmp_path, capsys):
+    import OpenEXR
+
+    from raytrace.cli import main
+
+    path = tmp_path / "s.toml"
+    path.write_text(to_toml(box_room()))
+    out = tmp_path / "mc.exr"
+    assert main(["render", str(path), "--method", "montecarlo", "--passes", "2", "--out", str(out), "--quiet"]) == 0
+    with OpenEXR.File(str(out), separate_channels=True) as f:
+        assert {"R", "G", "B", "variance.R", "variance.G", "variance.B"} <= set(f.channels())
+    assert (tmp_path / "mc.exr.ckpt.npz").is_file()
+    assert main(["render", str(path), "--method", "analytic", "--passes", "2", "--out", str(tmp_path / "a.exr")]) == 2
+    assert "stochastic" in capsys.readouterr().err
