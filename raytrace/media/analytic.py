@@ -25,6 +25,7 @@ E_k = int e^{-H tan(phi/2)} e^{ik phi} dphi, which obey a three-term recurrence 
 I0 and I1 (legendre_moments.py). Forward, the recurrence is stable while H L is moderate; rays
 beyond the measured limit H_max(precision) go to the quadrature fallback and are counted.
 """
+import functools
 import math
 
 import numpy as np
@@ -92,13 +93,13 @@ LOSS_TABLE = 17  # points of the tabulated recurrence loss in the exact mode's c
 
 
 @njit
-def _loss(coeffs, H):
+def _loss(block, H):
     """The forward recurrence's error amplification at H (0 <= H <= H_max), interpolated from the
-    table of `exact_coeffs` (nodes quadratic in H: the loss grows like exp(2 sqrt(H k)))."""
-    x = (LOSS_TABLE - 1) * math.sqrt(H / coeffs[0]) if coeffs[0] > 0.0 else 0.0
+    block's table (`_block`; nodes quadratic in H: the loss grows like exp(2 sqrt(H k)))."""
+    x = (LOSS_TABLE - 1) * math.sqrt(H / block[2]) if block[2] > 0.0 else 0.0
     i = min(int(x), LOSS_TABLE - 2)
     f = x - i
-    return max(1.0, (1.0 - f) * coeffs[2 + i] + f * coeffs[3 + i])
+    return max(1.0, (1.0 - f) * block[4 + i] + f * block[5 + i])
 
 
 @njit
@@ -165,14 +166,14 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     scattering; intensity: radiant intensity; phase_code/g: phase.py codes; precision and
     max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
     isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
-    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: [H_max, ratio, loss table, cosine coefficients], see
+    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: coefficient blocks, see
     `exact_coeffs`); stats: float64[STATS_SIZE] accumulator.
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
         stats[ST_ZERO] += 1.0
         return 0.0
-    if not (kt > 0.0):  # vacuum with ks > 0 (not produced by scenes, where ks <= kt)
+    if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
         return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
 
     finite = ell < math.inf
@@ -191,7 +192,13 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     pref = intensity * ks / h * 2.0  # times folded integrals
 
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
-    if exact and H > coeffs[0]:  # the cosine-moment recurrence would lose digits: quadrature
+    block = coeffs
+    if exact:
+        n1 = int(coeffs[0])
+        block = coeffs[1:1 + n1]
+        if coeffs.shape[0] > 1 + n1 and coeffs[1 + n1] <= va and vb <= coeffs[2 + n1]:
+            block = coeffs[1 + n1:]  # the short series fitted away from the phase function's peak
+    if exact and H > block[2]:  # the cosine-moment recurrence would lose digits: quadrature
         return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
 
     # ---- I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1 ----
@@ -202,10 +209,10 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         if rho_b > rho_max:
             rho_max = rho_b
     # the exact anisotropic mode amplifies errors of I0, I1 by the recurrence's loss (tabulated
-    # against H in coeffs) and by sum|c_k| / min(Phi) in the final sum (coeffs[1] = 0.1 min(Phi) / sum|c_k|)
+    # against H in the block) and by sum|c_k| / min(Phi) in the final sum (block[3] = 0.1 min(Phi) / sum|c_k|)
     prec_i = precision
     if exact:
-        prec_i = max(1e-15, precision * coeffs[1] / _loss(coeffs, H))
+        prec_i = max(1e-15, precision * block[3] / _loss(block, H))
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series:
         i0, i1, it, err = i01_series_est(-H, va, vb, prec_i, max_iter)
@@ -263,7 +270,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         return pref * s
 
     # ---- exact: Phi as a cosine series, its Fourier moments by the forward recurrence ----
-    return pref * 0.5 * cosine_moments_forward(H, va, vb, K1, L1, Ea, Eb, coeffs[2 + LOSS_TABLE:])
+    return pref * 0.5 * cosine_moments_forward(H, va, vb, K1, L1, Ea, Eb, block[4 + LOSS_TABLE:])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -302,40 +309,43 @@ def hg_legendre_degree(g, precision):
     """Smallest Legendre length L whose truncated HG phase function is within precision / 2 of the
     true one, relatively, at every scattering angle (checked on a grid dense near the forward peak;
     the relative error of the air-light is bounded by the largest pointwise one, as both the phase
-    function and the rest of the integrand are positive)."""
+    function and the rest of the integrand are positive). Doubling, then bisection."""
     if g == 0.0:
         return 0
     phi = np.concatenate([np.linspace(0.0, 0.2, 801), np.linspace(0.2, math.pi, 2001)])
     mu = np.cos(phi)
     exact = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * mu) ** 1.5)
-    L = 1
-    while L < 2000:
+
+    def good(L):
         err = np.max(np.abs(np.polynomial.legendre.legval(mu, hg_legendre(g, L)) - exact) / exact)
-        if err <= 0.5 * precision:
-            return L
-        L += max(1, L // 16)
-    return L
+        return err <= 0.5 * precision
+
+    hi = 1
+    while not good(hi) and hi < 4096:
+        hi *= 2
+    lo = hi // 2
+    while hi - lo > 1:  # the truncation error falls (essentially monotonically) with L
+        mid = (lo + hi) // 2
+        if good(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
-def exact_coeffs(phase_code, g, precision):
-    """`coeffs` of the exact mode: [H_max, ratio, loss table, c_0, ..., c_L], the phase function as a cosine series
-    sum_k c_k cos(k phi) (exact for Rayleigh, HG truncated after L Legendre terms with L from
-    `precision`), and the largest H = kt h for which the forward recurrence of the moments keeps
-    a relative accuracy of precision / 10 (rays with larger H use the quadrature fallback), with
-    ratio = min(Phi) / (10 sum |c_k|), the loss of the final sum where it cancels, and the forward
-    recurrence's error amplification at H = H_max (i / (LOSS_TABLE - 1))^2 (see `_loss`)."""
-    if phase_code == RAYLEIGH:
-        a = rayleigh_legendre()
-    elif phase_code == HG:
-        a = hg_legendre(g, hg_legendre_degree(g, precision))
-    else:
-        a = np.array([1.0 / (4.0 * math.pi)])
-    c = legendre_to_cosine(a)
-    # the moments enter S = sum_k c_k Re E_k, which cancels down to the phase function's minimum
-    # where light is scattered backwards: rounding errors grow by sum |c_k| / min Phi
-    mu = np.linspace(-1.0, 1.0, 2001)
-    phi_min = float(np.min(np.polynomial.legendre.legval(mu, a)))
-    ratio = 0.1 * phi_min / float(np.sum(np.abs(c)))
+FAR_ANGLE = 0.3  # radians: the strongly peaked HG lobe is fitted separately beyond this angle
+FAR_MIN_G = 0.6  # |g| from which the far block pays off
+
+
+def _block(c, phase, v_lo, v_hi, precision):
+    """One coefficient block of the exact mode, valid for rays with v_lo <= v_a, v_b <= v_hi:
+    [v_lo, v_hi, H_max, ratio, loss table (LOSS_TABLE values), c_0, ..., c_L]. `c` are cosine
+    coefficients (the phase function is sum_k c_k cos(k phi) on the block's range of angles),
+    `phase` the true phase function's values on that range. H_max is the largest H = kt h for which
+    the forward moment recurrence keeps a relative accuracy of precision / 10 (larger H: quadrature);
+    ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum where it cancels; the table
+    holds the recurrence's error amplification at H = H_max (i / (LOSS_TABLE - 1))^2 (`_loss`)."""
+    ratio = 0.1 * float(np.min(phase)) / float(np.sum(np.abs(c)))
     tol = precision * ratio
     lo, hi = 0.0, 1e4
     if FORWARD_ERR_PER_LOSS * forward_loss(hi, c) <= tol:
@@ -347,11 +357,58 @@ def exact_coeffs(phase_code, g, precision):
         else:
             hi = mid
     losses = [forward_loss(lo * (i / (LOSS_TABLE - 1)) ** 2, c) for i in range(LOSS_TABLE)]
-    return np.concatenate(([lo, ratio], losses, c))
+    return np.concatenate(([v_lo, v_hi, lo, ratio], losses, c))
 
 
+def _far_cosine_series(g, precision, phi_lo, phi_hi):
+    """Cosine coefficients of a polynomial in mu = cos(phi) within precision / 2 (relatively) of the
+    HG phase function on [phi_lo, phi_hi]: Chebyshev interpolation on that range of mu, rewritten in
+    T_k(mu) = cos(k phi) over [-1, 1]."""
+    from numpy.polynomial import chebyshev
+
+    def hg(mu):
+        return (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * mu) ** 1.5)
+
+    mu = np.cos(np.linspace(phi_lo, phi_hi, 4001))
+    exact = hg(mu)
+    for degree in range(2, 400):
+        p = chebyshev.Chebyshev.interpolate(hg, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
+        if np.max(np.abs(p(mu) - exact) / exact) <= 0.5 * precision:
+            break
+    return p.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
+
+
+def exact_coeffs(phase_code, g, precision):
+    """`coeffs` of the exact mode: [n, block valid for all rays (n values), optional far block].
+
+    The phase function is a cosine series (exact for Rayleigh; HG truncated after L Legendre terms,
+    L from `precision`). For strongly peaked HG (|g| >= FAR_MIN_G) that series is long (its terms
+    fall like |g|^l), so a second, much shorter series fitted only away from the peak (scattering
+    angles beyond FAR_ANGLE from it) serves the rays whose whole segment sees the light from there,
+    which are most rays. See `_block` for the layout of a block."""
+    if phase_code == RAYLEIGH:
+        a = rayleigh_legendre()
+    elif phase_code == HG:
+        a = hg_legendre(g, hg_legendre_degree(g, precision))
+    else:
+        a = np.array([1.0 / (4.0 * math.pi)])
+    full = _block(legendre_to_cosine(a), np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 2001), a), 0.0,
+                  math.inf, precision)
+    blocks = [full]
+    if phase_code == HG and abs(g) >= FAR_MIN_G:
+        if g > 0.0:  # the peak is forward (phi = 0): rays with phi >= FAR_ANGLE
+            phi_lo, phi_hi, v_lo, v_hi = FAR_ANGLE, math.pi, math.tan(0.5 * FAR_ANGLE), math.inf
+        else:  # backward peak (phi = pi): rays with phi <= pi - FAR_ANGLE
+            phi_lo, phi_hi, v_lo, v_hi = 0.0, math.pi - FAR_ANGLE, 0.0, 1.0 / math.tan(0.5 * FAR_ANGLE)
+        c, phase = _far_cosine_series(g, precision, phi_lo, phi_hi)
+        blocks.append(_block(c, phase, v_lo, v_hi, precision))
+    return np.concatenate([[len(full)]] + blocks)
+
+
+@functools.lru_cache(maxsize=64)
 def make_coeffs(phase_code, g, aniso_mode, terms, precision):
-    """The `coeffs` argument of `airlight` for these settings."""
+    """The `coeffs` argument of `airlight` for these settings (computed once per setting: the
+    renderer asks for every tile)."""
     if aniso_mode == ANISO_TAYLOR:
         return taylor_coeffs(phase_code, g, max(int(terms), 1))
     return exact_coeffs(phase_code, g, precision)
