@@ -121,14 +121,6 @@ def i0i1_stable(H, va, vb):
 
 
 @njit
-def i0_exact_antideriv(a, v):
-    """i0(a, v) = -Im[e^{-ia} Ei(a(v+i))] for a < 0 (PP-12), via g; for tests/diagnostics."""
-    H = -a
-    gw = g_scaled(complex(H * v, H))
-    return math.exp(-H * v) * gw.imag + math.pi * math.cos(H)
-
-
-@njit
 def i01_series(a, va, vb, precision, max_iter):
     """The paper's Fig. 2 loop (see `i01_series_est`), returning (I0, I1, iterations)."""
     i0, i1, k, err = i01_series_est(a, va, vb, precision, max_iter)
