@@ -246,7 +246,8 @@ def cmd_describe(args):
     kinds = {}
     for s in scene.shapes:
         kinds[s.kind] = kinds.get(s.kind, 0) + 1
-    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}), {len(tris)} triangles")
+    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}), {len(tris)} triangles "
+          "(zero-area triangles left out)")
     if len(tris):
         pts = tris.reshape(-1, 3)
         print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")

@@ -148,5 +148,5 @@ def scene_triangles(scene: Scene):
     tris = np.ascontiguousarray(np.concatenate(all_tris))
     refl = np.ascontiguousarray(np.concatenate(all_refl))
     area2 = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-    keep = area2 > 0.0
+    keep = area2 > 0.0  # degenerate (zero-area) triangles have no normal and are never hit
     return tris[keep], refl[keep]
