@@ -87,36 +87,14 @@ def test_read_exr_errors(tmp_path):
         film.read_exr(bad)
 
 
-def _method():
-    from raytrace.media import registry
-
-    names = list(registry())
-    return "analytic" if "analytic" in names else names[0]
-
-
-SCENE = """\
-[camera]
-position = [0.0, 0.0, 4.0]
-look_at = [0.0, 0.0, 0.0]
-[[shape]]
-primitive = "box"
-min = [-5.0, -5.0, -5.0]
-max = [5.0, 5.0, 5.0]
-[[light]]
-position = [1.0, 0.5, 0.0]
-intensity = 10.0
-[medium]
-sigma_a = 0.05
-sigma_s = 0.15
-"""
-
-
 def test_render_writes_exr_header_and_png(tmp_path, capsys):
+    from .conftest import box_room, to_toml
+
     scene = tmp_path / "s.toml"
-    scene.write_text(SCENE)
+    scene.write_text(to_toml(box_room()))
     out, png = tmp_path / "out" / "r.exr", tmp_path / "out" / "r.png"
     out.parent.mkdir()
-    method = _method()
+    method = "analytic"
     rc = main(["render", str(scene), "--method", method, "--spp", "4", "--seed", "11", "--width", "5",
                "--height", "3", "--out", str(out), "--png", str(png), "--quiet"])
     assert rc == 0
