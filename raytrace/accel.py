@@ -30,7 +30,7 @@ class Accelerator:
         pts = self.triangles.reshape(-1, 3)
         if extent_points is not None and len(extent_points):
             pts = np.concatenate([pts, np.asarray(extent_points, dtype=np.float64).reshape(-1, 3)])
-        self.scale = float(np.max(np.abs(pts))) if len(pts) else 1.0
+        self.scale = (float(np.max(np.abs(pts))) if len(pts) else 0.0) or 1.0
         self.epsilon = 1e-5 * max(self.scale, 1e-6)
         self._scene = None
         if len(self.triangles):

@@ -171,7 +171,7 @@ def cmd_render(args):
         finally:
             if bar:
                 bar.close()
-    if not np.all(np.isfinite(result.image)):
+    if not np.all(np.abs(result.image) < np.finfo(np.float32).max):  # also catches NaN
         raise UserError(f"{scene.path or 'default scene'}: the render produced non-finite pixels; "
                         "this is a bug, please report the scene")
     header = {"scene": scene.name, "method": result.method, "spp": cam.spp, "seed": seed,

@@ -76,7 +76,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed):
     stats = np.zeros(method.stats_size)
     variance = np.zeros_like(radiance) if method.stochastic else None
     if len(prep.light_pos) and np.any(medium.sigma_s > 0.0):
-        batch = RayBatch(origins, dirs, t, keys, seed)
+        batch = RayBatch(origins, dirs, t, keys, seed, prep.accel.scale)
         if params.get("volumetric_shadows"):
             air, var = shadowed_airlight(prep, method, params, batch)
             radiance += air
@@ -98,7 +98,7 @@ def shadowed_airlight(prep: Prepared, method, params, batch: RayBatch):
     if len(batch.origins) > SHADOW_CHUNK:  # bound the memory of the sample points
         parts = [shadowed_airlight(prep, method, params, RayBatch(batch.origins[i:i + SHADOW_CHUNK],
                                    batch.dirs[i:i + SHADOW_CHUNK], batch.tmax[i:i + SHADOW_CHUNK],
-                                   batch.keys[i:i + SHADOW_CHUNK], batch.seed))
+                                   batch.keys[i:i + SHADOW_CHUNK], batch.seed, batch.scale))
                  for i in range(0, len(batch.origins), SHADOW_CHUNK)]
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     pos, weight = method.points(batch, prep.scene.medium, prep.light_pos, prep.light_int, params)

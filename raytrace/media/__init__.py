@@ -55,6 +55,7 @@ class RayBatch:
     tmax: np.ndarray
     keys: np.ndarray
     seed: int = 0
+    scale: float = 1.0  # the scene's size (lights and point lights' regularisation, geometry.py)
 
 
 @dataclass

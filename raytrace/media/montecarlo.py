@@ -128,7 +128,7 @@ def sample_points(origins, dirs, xh, h, tmax, keys, seed, lint, kt, ks, code, g,
 
 
 def _airlight(batch, medium, lpos, lint, params):
-    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
+    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos, batch.scale)
     out = np.zeros((len(batch.origins), 3))
     var = np.zeros_like(out)
     airlight_rays(xh, h, batch.tmax, batch.keys, np.uint64(batch.seed), lint, medium.sigma_t, medium.sigma_s,
@@ -141,7 +141,7 @@ def _points(batch, medium, lpos, lint, params):
     shape = (len(batch.origins), len(lpos), n, 2, 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
-    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
+    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos, batch.scale)
     sample_points(batch.origins, batch.dirs, xh, h, batch.tmax, batch.keys, np.uint64(batch.seed), lint,
                   medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], n, pos, weight)
     return pos, weight

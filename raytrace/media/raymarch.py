@@ -141,7 +141,7 @@ def _points(batch, medium, lpos, lint, params):
     shape = (len(batch.origins), len(lpos), n, 1, 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
-    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos)
+    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos, batch.scale)
     sample_points(batch.origins, batch.dirs, xh, h, batch.tmax, np.ascontiguousarray(batch.keys, dtype=np.uint64),
                   int(batch.seed), lint, kt, np.asarray(medium.sigma_s, float), medium.phase, medium.g, *args,
                   bool(params["jitter"]), pos, weight)
