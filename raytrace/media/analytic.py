@@ -89,6 +89,7 @@ def v_of(s, h):
     return h / (d - s)
 
 
+QUAD_RTOL_MIN = 1e-13  # the quadrature cannot resolve finer differences of its 10- and 20-point rules
 LOSS_TABLE = 17  # points of the tabulated recurrence loss in the exact mode's coeffs
 
 
@@ -109,7 +110,8 @@ def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats):
     never change)."""
     stats[ST_FALLBACK] += 1.0
     qstats = np.zeros(3)
-    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, 0.1 * precision, _N10, _W10, _N20, _W20, qstats)
+    rtol = max(0.1 * precision, QUAD_RTOL_MIN)
+    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, rtol, _N10, _W10, _N20, _W20, qstats)
     stats[ST_FALLBACK_FEVALS] += 30.0 * qstats[1]
     return intensity * val
 
@@ -480,7 +482,7 @@ METHOD = Method(
     name="analytic",
     summary="Pegoraro & Parker's closed form (eq. 13) with Ei series / scaled E1, to a requested precision",
     params={
-        "precision": Param(1e-3, float, "requested relative accuracy of each air-light, e.g. 1e-6", 1e-14, 0.1),
+        "precision": Param(1e-3, float, "requested relative accuracy of each air-light, e.g. 1e-6", 1e-12, 0.1),
         "max_iter": Param(1000, int, "maximum iterations of the paper's series loop (Fig. 2)", 1),
         "anisotropic": Param("exact", str, "exact (cosine-moment recurrence, beyond the paper) or taylor "
                              "(paper eqs. 14-19)", choices=tuple(ANISO_MODES)),

@@ -148,7 +148,7 @@ def _summarize(stats):
 METHOD = Method(
     name="quadrature",
     summary="reference: adaptive Gauss-Legendre in the scattering angle, split at the light's foot point",
-    params={"rtol": Param(1e-10, float, "relative accuracy of each integral, e.g. 1e-10", 0.0, 0.5, True)},
+    params={"rtol": Param(1e-10, float, "relative accuracy of each integral, e.g. 1e-10", 1e-14, 0.5)},
     airlight=_airlight,
     stats_size=3,
     summarize=_summarize,
