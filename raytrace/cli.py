@@ -61,7 +61,8 @@ def build_parser():
                    help="stochastic methods: stop when the estimated mean relative standard error falls to this")
     r.add_argument("--checkpoint", help="stochastic methods: checkpoint file, resumed when it exists "
                                         "(default: beside --out, <out>.ckpt.npz, when passes, a budget or a target are given)")
-    r.add_argument("--checkpoint-interval", type=float, default=30.0, help="seconds between checkpoint writes")
+    r.add_argument("--checkpoint-interval", type=float, default=0.0,
+                   help="least seconds between checkpoint writes (default 0: after every pass)")
     for name, p in _method_param_flags().items():
         flag = f"--{name.replace('_', '-')}"
         if p.type is bool:
@@ -128,8 +129,11 @@ def cmd_render(args):
     for p in (out, png):
         if p is not None:
             film.check_writable(p)
-    for name in ("passes", "time_budget", "target_error", "checkpoint_interval"):
+    for name in ("passes", "time_budget", "target_error"):
         _validate_positive(name.replace("_", "-"), getattr(args, name))
+    if not args.checkpoint_interval >= 0.0:
+        raise UserError(f"--checkpoint-interval {args.checkpoint_interval}: must be >= 0 seconds; 0 saves after "
+                        "every pass")
     progressive = args.passes or args.time_budget or args.target_error or args.checkpoint
     if progressive and not method.stochastic:
         raise UserError(f"--method {method.name}: deterministic; --passes, --time-budget, --target-error and "

@@ -6,8 +6,9 @@ order, so a render interrupted (Ctrl-C, crash, machine restart) and resumed from
 equals an uninterrupted one with the same seed and number of passes, bit for bit. Rendering stops
 after `passes` passes, when `time_budget` seconds (counted over all sessions) are spent, or when
 the estimated mean relative standard error of the pixels falls to `target_error`, whichever
-comes first. The checkpoint is kept afterwards, so the same command with a larger budget
-continues where the last one stopped.
+comes first. The checkpoint is written after every pass (or at most every `checkpoint_interval`
+seconds) and on Ctrl-C, so a crash loses at most the pass in flight; it is kept afterwards, so
+the same command with a larger budget continues where the last one stopped.
 """
 from __future__ import annotations
 
@@ -79,7 +80,7 @@ def mean_relative_error(total, var_total, passes) -> float:
 
 def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int = 0, *, passes: int | None = None,
                        time_budget: float | None = None, target_error: float | None = None,
-                       checkpoint: Path | None = None, checkpoint_interval: float = 30.0, threads=None,
+                       checkpoint: Path | None = None, checkpoint_interval: float = 0.0, threads=None,
                        on_pass=None, source: str = "render") -> RenderResult:
     """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress."""
     if passes is None and time_budget is None and target_error is None:
