@@ -46,10 +46,10 @@ def build_parser():
     r = sub.add_parser("render", help="render a scene to EXR (and PNG)")
     _add_scene_args(r)
     r.add_argument("--method", help="air-light method (see `methods`)")
-    r.add_argument("--spp", type=int)
-    r.add_argument("--width", type=int)
-    r.add_argument("--height", type=int)
-    r.add_argument("--seed", type=int)
+    r.add_argument("--spp", type=int, help="samples per pixel (1 = the pixel centre)")
+    r.add_argument("--width", type=int, help="image width in pixels")
+    r.add_argument("--height", type=int, help="image height in pixels")
+    r.add_argument("--seed", type=int, help="random seed of the stochastic methods (default 0)")
     r.add_argument("--out", help="output EXR (default out/<scene name>.exr, with a PNG beside it)")
     r.add_argument("--png", help="also write a tone-mapped PNG preview here")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic)")
@@ -68,7 +68,7 @@ def build_parser():
         if p.type is bool:
             r.add_argument(flag, dest=f"param_{name}", action="store_const", const=True, help=p.help)
         else:
-            r.add_argument(flag, dest=f"param_{name}", type=p.type, help=p.help)
+            r.add_argument(flag, dest=f"param_{name}", type=p.type, metavar=name.upper(), help=p.help)
     c = sub.add_parser("compare", help="render several methods and a reference on the same samples; "
                                        "images, error maps and a table of time and error")
     _add_scene_args(c)
