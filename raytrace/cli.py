@@ -54,6 +54,8 @@ def build_parser():
     r.add_argument("--png", help="also write a tone-mapped PNG preview here")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
+    r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
+                   help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     r.add_argument("--passes", type=int, help="stochastic methods: number of progressive passes")
     r.add_argument("--time-budget", type=float, help="stochastic methods: stop after this many seconds of rendering")
@@ -120,6 +122,7 @@ def cmd_render(args):
     method = get_method(args.method or scene.render.get("method", "analytic"))
     given = {k: v for k, v in scene.render.items() if k not in ("method", "seed")}
     given.update({k[len("param_"):]: v for k, v in vars(args).items() if k.startswith("param_") and v is not None})
+    crop = _parse_crop(args.crop, cam) if args.crop else None
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}.exr"
     png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
     if out.suffix.lower() != ".exr":
@@ -156,7 +159,7 @@ def cmd_render(args):
             result = render_progressive(prep, method.name, given, seed, passes=args.passes,
                                         time_budget=args.time_budget, target_error=args.target_error,
                                         checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
-                                        threads=args.threads, on_pass=report, source=source)
+                                        threads=args.threads, on_pass=report, source=source, crop=crop)
         except KeyboardInterrupt:
             raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
                                                          "the same command to resume" if ckpt else "")) from None
@@ -168,10 +171,11 @@ def cmd_render(args):
         if show:
             from tqdm import tqdm
 
-            bar = tqdm(total=cam.height, unit="row", desc=f"{method.name}", file=sys.stderr, leave=False)
+            bar = tqdm(total=(crop[3] - crop[1]) if crop else cam.height, unit="row", desc=f"{method.name}",
+                       file=sys.stderr, leave=False)
         try:
             result = renderer.render(prep, method.name, given, seed, args.threads,
-                                     progress=bar.update if bar else None, source=source)
+                                     progress=bar.update if bar else None, source=source, crop=crop)
         finally:
             if bar:
                 bar.close()
@@ -179,6 +183,7 @@ def cmd_render(args):
         raise UserError(f"{scene.path or 'default scene'}: the render produced non-finite pixels; "
                         "this is a bug, please report the scene")
     header = {"scene": scene.name, "method": result.method, "spp": cam.spp, "seed": seed,
+              "crop": ",".join(map(str, crop)) if crop else "none",
               "render_seconds": f"{result.seconds:.3f}", "compile_seconds": f"{result.compile_seconds:.3f}",
               "params": " ".join(f"{k}={v}" for k, v in result.params.items()),
               "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -190,7 +195,8 @@ def cmd_render(args):
     if png is not None:
         film.write_png(png, film.tonemap(result.image, args.exposure))
     if not args.quiet:
-        print(f"{scene.name}: {cam.width}x{cam.height}, {cam.spp} spp, method {result.method} "
+        size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if crop else "")
+        print(f"{scene.name}: {size}, {cam.spp} spp, method {result.method} "
               f"in {result.seconds:.2f} s (+{result.compile_seconds:.2f} s compile) → {out}"
               + (f", {png}" if png else ""))
         for k, v in result.stats.items():
@@ -208,6 +214,17 @@ def _apply_camera_flags(scene, args):
     cam.width = args.width or cam.width
     cam.height = args.height or cam.height
     return args.seed if args.seed is not None else scene.render.get("seed", 0)
+
+
+def _parse_crop(text, cam):
+    try:
+        x0, y0, x1, y1 = (int(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"--crop {text}: expected four integers X0,Y0,X1,Y1, e.g. --crop 100,50,101,51") from None
+    if not (0 <= x0 < x1 <= cam.width and 0 <= y0 < y1 <= cam.height):
+        raise UserError(f"--crop {text}: must lie inside the {cam.width}x{cam.height} image with X0 < X1 and "
+                        "Y0 < Y1 (end exclusive)")
+    return x0, y0, x1, y1
 
 
 def cmd_compare(args):

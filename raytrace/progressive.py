@@ -81,16 +81,17 @@ def mean_relative_error(total, var_total, passes) -> float:
 def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int = 0, *, passes: int | None = None,
                        time_budget: float | None = None, target_error: float | None = None,
                        checkpoint: Path | None = None, checkpoint_interval: float = 0.0, threads=None,
-                       on_pass=None, source: str = "render") -> RenderResult:
+                       on_pass=None, source: str = "render", crop=None) -> RenderResult:
     """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress."""
     if passes is None and time_budget is None and target_error is None:
         passes = 1
-    fp = fingerprint(prep, method_name, params, seed)
+    fp = fingerprint(prep, method_name, {**params, "crop": crop}, seed)
     state = _load(checkpoint, fp) if checkpoint else None
     if state is None:
         cam = prep.scene.camera
-        state = {"fingerprint": np.array(fp), "total": np.zeros((cam.height, cam.width, 3)),
-                 "var_total": np.zeros((cam.height, cam.width, 3)), "passes": np.array(0),
+        x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
+        state = {"fingerprint": np.array(fp), "total": np.zeros((y1 - y0, x1 - x0, 3)),
+                 "var_total": np.zeros((y1 - y0, x1 - x0, 3)), "passes": np.array(0),
                  "elapsed": np.array(0.0), "compile": np.array(0.0)}
     done = int(state["passes"])
     elapsed = float(state["elapsed"])
@@ -108,7 +109,7 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
 
     try:
         while not finished():
-            result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source)
+            result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source, crop=crop)
             if result.variance is None:
                 raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "

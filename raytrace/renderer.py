@@ -132,8 +132,9 @@ def warm_up(prep: Prepared, method, params, seed) -> float:
 
 
 def render(prep: Prepared, method_name: str, given_params: dict | None = None, seed: int = 0,
-           threads: int | None = None, progress=None, source: str = "render") -> RenderResult:
-    """Render the whole image. `progress(n)` is called with the number of rows finished."""
+           threads: int | None = None, progress=None, source: str = "render", crop=None) -> RenderResult:
+    """Render the image, or the pixel block `crop` = (x0, y0, x1, y1) of it (end exclusive; the same
+    samples and random numbers as in the whole image). `progress(n)` gets the rows finished."""
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
@@ -142,22 +143,25 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
         raise UserError(f"{source}: --volumetric-shadows: method {method.name} has no medium sample points; "
                         "use raymarch or montecarlo")
     cam = scene.camera
+    x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
+    cols = slice(x0, x1)
     compile_s = warm_up(prep, method, params, seed)
-    rows_per_tile = max(1, RAYS_PER_TILE // (cam.width * cam.spp))
-    tiles = [slice(r, min(r + rows_per_tile, cam.height)) for r in range(0, cam.height, rows_per_tile)]
-    image = np.zeros((cam.height, cam.width, 3))
+    rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * cam.spp))
+    tiles = [slice(r, min(r + rows_per_tile, y1)) for r in range(y0, y1, rows_per_tile)]
+    image = np.zeros((y1 - y0, x1 - x0, 3))
     variance = np.zeros_like(image) if method.stochastic else None
     totals = np.zeros(method.stats_size)
 
     def work(rows):
-        o, d = generate_rays(cam, rows)
-        pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(cam.width)[None, :]).ravel()
+        o, d = generate_rays(cam, rows, cols)
+        pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
         keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp) + np.arange(cam.spp, dtype=np.uint64)).ravel()
         rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed)
-        shape = (rows.stop - rows.start, cam.width, cam.spp, 3)
-        image[rows] = rad.reshape(shape).mean(axis=2)
+        shape = (rows.stop - rows.start, x1 - x0, cam.spp, 3)
+        block = slice(rows.start - y0, rows.stop - y0)
+        image[block] = rad.reshape(shape).mean(axis=2)
         if variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            variance[rows] = var.reshape(shape).sum(axis=2) / cam.spp**2
+            variance[block] = var.reshape(shape).sum(axis=2) / cam.spp**2
         return rows.stop - rows.start, stats
 
     start = time.perf_counter()

@@ -2,6 +2,7 @@
 import math
 
 import numpy as np
+import pytest
 
 from raytrace.cli import main
 from raytrace.film import read_exr
@@ -76,3 +77,13 @@ def test_camera_on_a_light_is_finite_for_every_method(write_scene, tmp_path):
     for m, img in images.items():
         assert np.all(np.isfinite(img)), m
     np.testing.assert_allclose(images["analytic"], images["quadrature"], rtol=1e-3)
+
+
+@pytest.mark.parametrize("method", ["analytic", "montecarlo"])
+def test_crop_equals_the_block_of_the_whole_image(write_scene, tmp_path, method):
+    scene = box_room(camera={"position": [0.3, 0.2, 3.0], "look_at": [0.0, 0.0, -1.0], "width": 12, "height": 9,
+                             "spp": 4})
+    whole = render(write_scene, tmp_path, scene, "--method", method, name="whole.exr")
+    part = render(write_scene, tmp_path, scene, "--method", method, "--crop", "3,2,7,5", name="part.exr")
+    assert part.shape == (3, 4, 3)
+    np.testing.assert_array_equal(part, whole[2:5, 3:7])
