@@ -62,21 +62,8 @@ def airlight_one(xh, h, ell, kt, ks, code, g, steps, step, tau_max, xi, stats):
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     stats[EVALS] += 1.0
-    h = max(h, 1e-300)
-    end = ell
-    if end == math.inf:
-        if not kt > 0.0:
-            return 0.0  # unreachable for a physical medium (kt >= ks > 0); avoids an infinite march
-        end = tau_max / kt
-    if step > 0.0:
-        m = math.ceil(end / step)
-        if m > MAX_STEPS:
-            m = MAX_STEPS
-            stats[CAPPED] += 1.0
-        n = max(1, int(m))
-    else:
-        n = max(1, steps)
-    delta = end / n
+    n, delta, capped = _count(ell, kt, steps, step, tau_max)
+    stats[CAPPED] += capped
     stats[SAMPLES] += n
     acc = 0.0
     for k in range(n):
@@ -95,12 +82,20 @@ def evaluate_rays(xh, h, tmax, keys, seed, kt, ks, code, g, steps, step, tau_max
 
 @njit
 def _count(ell, kt, steps, step, tau_max):
-    """(sample count, step length) of the march of one segment and channel (see airlight_one)."""
+    """(sample count, step length, 1.0 if the count was capped at MAX_STEPS) of the march of one
+    segment and channel. Rays that hit nothing end at tau_max / kt (kt = 0 implies ks = 0: an
+    empty march)."""
     end = ell
     if end == math.inf:
         end = tau_max / kt if kt > 0.0 else 0.0
-    n = max(1, min(MAX_STEPS, int(math.ceil(end / step)))) if step > 0.0 else max(1, steps)
-    return n, end / n
+    if not step > 0.0:
+        n = max(1, steps)
+        return n, end / n, 0.0
+    m = math.ceil(end / step)
+    if m > MAX_STEPS:
+        return MAX_STEPS, end / MAX_STEPS, 1.0
+    n = max(1, int(m))
+    return n, end / n, 0.0
 
 
 @njit
@@ -125,7 +120,7 @@ def sample_points(origins, dirs, xh, h, tmax, keys, seed, lint, kt, ks, code, g,
             for c in range(3):
                 if ks[c] == 0.0 or not tmax[r] > 0.0:
                     continue
-                n, delta = _count(tmax[r], kt[c], steps, step, tau_max)
+                n, delta, _ = _count(tmax[r], kt[c], steps, step, tau_max)
                 for k in range(n):
                     x = (k + xi) * delta
                     for a in range(3):
