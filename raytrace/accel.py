@@ -79,15 +79,13 @@ class Accelerator:
 
     def shadow_rays(self, points: np.ndarray, normals: np.ndarray, light: np.ndarray):
         """Rays from surface points (offset along the normal facing the light) towards `light`:
-        (origins, unit directions, distances to stop at, distance from the point to the light)."""
-        to_light = light[None, :] - points
-        dist = np.linalg.norm(to_light, axis=1)
-        side = np.sign(np.einsum("ij,ij->i", normals, to_light))[:, None]
+        (origins, unit directions, distances to stop at)."""
+        side = np.sign(np.einsum("ij,ij->i", normals, light[None, :] - points))[:, None]
         origins = points + side * self.epsilon * normals
         seg = light[None, :] - origins
         seg_len = np.linalg.norm(seg, axis=1)
         dirs = seg / np.where(seg_len > 0, seg_len, 1.0)[:, None]
-        return origins, dirs, seg_len - self.epsilon, dist
+        return origins, dirs, seg_len - self.epsilon
 
 
 @njit

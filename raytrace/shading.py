@@ -28,7 +28,7 @@ def surface_radiance(accel, points, normals, reflectance, light_pos, light_int, 
         if not lit.any():
             continue
         idx = np.nonzero(lit)[0]
-        o, d, tmax, _ = accel.shadow_rays(points[idx], normals[idx], lp)
+        o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
         visible = ~accel.occluded(o, d, tmax)
         idx, dl, cl = idx[visible], dist[idx][visible], cos[idx][visible]
         irradiance = li[None, :] * np.exp(-sigma_t[None, :] * dl[:, None]) / (dl * dl)[:, None] * cl[:, None]
