@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
-from raytrace.media import RayBatch, get_method, resolve_params  # noqa: E402
+from raytrace.methods import RayBatch, get_method, resolve_params  # noqa: E402
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH  # noqa: E402
 from raytrace.renderer import prepare, shade_rays  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402

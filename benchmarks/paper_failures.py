@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
-from raytrace.media import RayBatch, get_method, resolve_params  # noqa: E402
-from raytrace.media.analytic import ST_EVALS, ST_TAYLOR_OUT  # noqa: E402
+from raytrace.methods import RayBatch, get_method, resolve_params  # noqa: E402
+from raytrace.methods.analytic import ST_EVALS, ST_TAYLOR_OUT  # noqa: E402
 from raytrace.media.expint import i01_series, i0i1_stable  # noqa: E402
 from raytrace.media.phase import HG, RAYLEIGH  # noqa: E402
 from raytrace.renderer import prepare  # noqa: E402

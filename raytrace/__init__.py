@@ -1,3 +1,10 @@
-"""Single scattering in homogeneous participating media lit by point lights (Pegoraro & Parker 2009)."""
+"""Single scattering in participating media with the closed-form air-light of Pegoraro & Parker 2009.
+
+`raytrace.render(scene, method=..., **params)` returns an `Image` (see raytrace/api.py)."""
 
 __version__ = "0.1.0"
+
+from .api import Image, load, render  # noqa: E402
+from .errors import UserError  # noqa: E402
+
+__all__ = ["Image", "UserError", "load", "render", "__version__"]

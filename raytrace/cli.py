@@ -17,8 +17,9 @@ COMMANDS = ("render", "describe", "methods", "diff", "compare", "table1")
 
 
 def _method_param_flags():
-    """Every parameter some method declares becomes a flag (--precision, --terms, --rtol, ...)."""
-    from .media import registry
+    """Every parameter some method declares becomes a flag (--precision, --terms, --rtol, ...); the
+    chosen method refuses the ones it does not read."""
+    from .methods import registry
 
     flags = {}
     for m in registry().values():
@@ -57,6 +58,8 @@ def build_parser():
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--volumetric-shadows", action="store_true",
+                   help="shadowed air-light: light shafts behind occluders (render.volumetric_shadows)")
     r.add_argument("--passes", type=int, help="stochastic methods: number of progressive passes")
     r.add_argument("--time-budget", type=float, help="stochastic methods: stop after this many seconds of rendering")
     r.add_argument("--target-error", type=float,
@@ -99,30 +102,21 @@ def build_parser():
 
 
 def load(args):
-    from .default_scene import DEFAULT_TOML
-    from .scene.format import load_scene, scene_from_text
+    from .api import load as load_scene
 
-    if args.scene is None:
-        return scene_from_text(DEFAULT_TOML, "default scene", None, args.overrides)
     return load_scene(args.scene, args.overrides)
 
 
-def _validate_positive(name, value):
-    if value is not None and value <= 0:
-        raise UserError(f"--{name} {value}: must be positive; give a value of at least 1")
+def _given_params(args):
+    """Method parameters given as flags (only those on the command line)."""
+    return {k[len("param_"):]: v for k, v in vars(args).items() if k.startswith("param_") and v is not None}
 
 
 def cmd_render(args):
-    from . import film, renderer
-    from .media import get_method
+    from . import film
+    from .api import render
 
     scene = load(args)
-    cam = scene.camera
-    seed = _apply_camera_flags(scene, args)
-    method = get_method(args.method or scene.render.get("method", "analytic"))
-    given = {k: v for k, v in scene.render.items() if k not in ("method", "seed")}
-    given.update({k[len("param_"):]: v for k, v in vars(args).items() if k.startswith("param_") and v is not None})
-    crop = _parse_crop(args.crop, cam) if args.crop else None
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}.exr"
     png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
     if out.suffix.lower() != ".exr":
@@ -132,76 +126,53 @@ def cmd_render(args):
     for p in (out, png):
         if p is not None:
             film.check_writable(p)
-    for name in ("passes", "time_budget", "target_error"):
-        _validate_positive(name.replace("_", "-"), getattr(args, name))
-    if not args.checkpoint_interval >= 0.0:
-        raise UserError(f"--checkpoint-interval {args.checkpoint_interval}: must be >= 0 seconds; 0 saves after "
-                        "every pass")
     progressive = args.passes or args.time_budget or args.target_error or args.checkpoint
-    if progressive and not method.stochastic:
-        raise UserError(f"--method {method.name}: deterministic; --passes, --time-budget, --target-error and "
-                        "--checkpoint need a stochastic method such as montecarlo")
-    prep = renderer.prepare(scene)
+    ckpt = Path(args.checkpoint) if args.checkpoint else (Path(str(out) + ".ckpt.npz") if progressive else None)
+    if ckpt is not None:
+        film.check_writable(ckpt)
     source = str(scene.path or "default scene")
     show = not args.quiet and sys.stderr.isatty()
-    if method.stochastic:
-        from .progressive import render_progressive
+    rows = (args.crop and _parse_crop(args.crop)) or None
+    bar = None
+    if show:
+        from tqdm import tqdm
 
-        ckpt = Path(args.checkpoint) if args.checkpoint else (Path(str(out) + ".ckpt.npz") if progressive else None)
-        if ckpt is not None:
-            film.check_writable(ckpt)
+        bar = tqdm(total=(rows[3] - rows[1]) if rows else (args.height or scene.camera.height), unit="row",
+                   desc="render", file=sys.stderr, leave=False)
 
-        def report(n, err):
-            if show:
-                print(f"\rpass {n}: estimated mean relative error {err:.3e}", end="", file=sys.stderr, flush=True)
-
-        try:
-            result = render_progressive(prep, method.name, given, seed, passes=args.passes,
-                                        time_budget=args.time_budget, target_error=args.target_error,
-                                        checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
-                                        threads=args.threads, on_pass=report, source=source, crop=crop)
-        except KeyboardInterrupt:
-            raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
-                                                         "the same command to resume" if ckpt else "")) from None
-        finally:
-            if show:
-                print(file=sys.stderr)
-    else:
-        bar = None
+    def report(n, err):
         if show:
-            from tqdm import tqdm
+            print(f"\rpass {n}: estimated mean relative error {err:.3e}", end="", file=sys.stderr, flush=True)
 
-            bar = tqdm(total=(crop[3] - crop[1]) if crop else cam.height, unit="row", desc=f"{method.name}",
-                       file=sys.stderr, leave=False)
-        try:
-            result = renderer.render(prep, method.name, given, seed, args.threads,
-                                     progress=bar.update if bar else None, source=source, crop=crop)
-        finally:
-            if bar:
-                bar.close()
-    if not np.all(np.abs(result.image) < np.finfo(np.float32).max):  # also catches NaN
-        raise UserError(f"{scene.path or 'default scene'}: the render produced non-finite pixels; "
-                        "this is a bug, please report the scene")
-    header = {"scene": scene.name, "method": result.method, "spp": cam.spp, "seed": seed,
-              "crop": ",".join(map(str, crop)) if crop else "none",
-              "render_seconds": f"{result.seconds:.3f}", "compile_seconds": f"{result.compile_seconds:.3f}",
-              "params": " ".join(f"{k}={v}" for k, v in result.params.items()),
-              "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    header.update({f"stats.{k}": v for k, v in result.stats.items()})
-    extra = {}
-    if result.variance is not None:
-        extra = {f"variance.{c}": result.variance[..., i] for i, c in enumerate("RGB")}
-    film.write_exr(out, result.image, header, extra)
+    try:
+        img = render(scene, args.method, spp=args.spp, width=args.width, height=args.height, seed=args.seed,
+                     threads=args.threads, crop=rows, volumetric_shadows=args.volumetric_shadows or None,
+                     passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
+                     checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
+                     progress=bar.update if bar else None, on_pass=report, **_given_params(args))
+    except KeyboardInterrupt:
+        raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
+                                                     "the same command to resume" if ckpt else "")) from None
+    finally:
+        if bar:
+            bar.close()
+    img.save(out)
     if png is not None:
-        film.write_png(png, film.tonemap(result.image, args.exposure))
+        img.save(png, args.exposure)
     if not args.quiet:
-        size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if crop else "")
-        print(f"{scene.name}: {size}, {cam.spp} spp, method {result.method} "
-              f"in {result.seconds:.2f} s (+{result.compile_seconds:.2f} s compile) → {out}"
+        cam = scene.camera
+        size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")
+        print(f"{scene.name}: {size}, {cam.spp} spp, method {img.method} "
+              f"in {img.seconds:.2f} s (+{img.compile_seconds:.2f} s compile) → {out}"
               + (f", {png}" if png else ""))
-        for k, v in result.stats.items():
+        for k, v in img.stats.items():
             print(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
     return 0
+
+
+def _validate_positive(name, value):
+    if value is not None and value <= 0:
+        raise UserError(f"--{name} {value}: must be positive; give a value of at least 1")
 
 
 def _apply_camera_flags(scene, args):
@@ -216,14 +187,11 @@ def _apply_camera_flags(scene, args):
     return args.seed if args.seed is not None else scene.render.get("seed", 0)
 
 
-def _parse_crop(text, cam):
+def _parse_crop(text):
     try:
         x0, y0, x1, y1 = (int(v) for v in text.split(","))
     except ValueError:
         raise UserError(f"--crop {text}: expected four integers X0,Y0,X1,Y1, e.g. --crop 100,50,101,51") from None
-    if not (0 <= x0 < x1 <= cam.width and 0 <= y0 < y1 <= cam.height):
-        raise UserError(f"--crop {text}: must lie inside the {cam.width}x{cam.height} image with X0 < X1 and "
-                        "Y0 < Y1 (end exclusive)")
     return x0, y0, x1, y1
 
 
@@ -284,12 +252,15 @@ def cmd_describe(args):
 
 
 def cmd_methods(args):
-    from .media import registry
+    from .methods import registry
 
     for m in registry().values():
-        print(f"{m.name}: {m.summary}")
+        supports = "volumetric shadows: " + ("sampled at its medium points" if m.points else "no")
+        print(f"{m.name}: {m.summary} ({supports})")
         for name, p in m.params.items():
-            print(f"    --{name.replace('_', '-')} (default {p.default!r}): {p.help}")
+            print(f"    --{name.replace('_', '-')} (default {p.default!r}, {p.rule()}): {p.help}")
+    print("render options (every method): --spp, --seed, --threads, --crop, --volumetric-shadows "
+          "(render.volumetric_shadows)")
     return 0
 
 

@@ -41,7 +41,7 @@ def fingerprint(prep: Prepared, method: str, params: dict, seed: int) -> str:
                        prep.scene.medium.phase, prep.scene.medium.g],
             "background": prep.scene.background.tolist()}
     h.update(json.dumps(meta, sort_keys=True, default=str).encode())
-    for a in (prep.accel.triangles, prep.reflectance, prep.light_pos, prep.light_int):
+    for a in (prep.accel.triangles, prep.reflectance, prep.lights.kind, prep.lights.position, prep.lights.intensity):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
 
@@ -81,11 +81,12 @@ def mean_relative_error(total, var_total, passes) -> float:
 def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int = 0, *, passes: int | None = None,
                        time_budget: float | None = None, target_error: float | None = None,
                        checkpoint: Path | None = None, checkpoint_interval: float = 0.0, threads=None,
-                       on_pass=None, source: str = "render", crop=None) -> RenderResult:
+                       on_pass=None, source: str = "render", crop=None,
+                       volumetric_shadows: bool = False) -> RenderResult:
     """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress."""
     if passes is None and time_budget is None and target_error is None:
         passes = 1
-    fp = fingerprint(prep, method_name, {**params, "crop": crop}, seed)
+    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": volumetric_shadows}, seed)
     state = _load(checkpoint, fp) if checkpoint else None
     if state is None:
         cam = prep.scene.camera
@@ -109,7 +110,8 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
 
     try:
         while not finished():
-            result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source, crop=crop)
+            result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source, crop=crop,
+                            volumetric_shadows=volumetric_shadows)
             if result.variance is None:
                 raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "

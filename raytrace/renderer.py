@@ -16,13 +16,14 @@ import numpy as np
 from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
-from .media import RayBatch, get_method, resolve_params
+from .lights import Lights
+from .methods import get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
-from .shading import facing_normals, surface_radiance, transmittance
+from .shading import facing_normals, surface_radiance
+from .visibility import shadowed_airlight, unshadowed_airlight, whole_rays
 
 RAYS_PER_TILE = 1 << 14
-SHADOW_CHUNK = 1 << 10  # rays per batch of volumetric-shadow points
 
 
 @dataclass
@@ -31,8 +32,7 @@ class Prepared:
     scene: Scene
     accel: Accelerator
     reflectance: np.ndarray
-    light_pos: np.ndarray
-    light_int: np.ndarray
+    lights: Lights
 
 
 @dataclass
@@ -49,18 +49,18 @@ class RenderResult:
 
 def prepare(scene: Scene) -> Prepared:
     tris, refl = scene_triangles(scene)
-    lights = np.array([l.position for l in scene.lights]).reshape(-1, 3)
-    extent = np.concatenate([lights, scene.camera.position[None, :]])
-    return Prepared(scene, Accelerator(tris, extent), refl, lights,
-                    np.array([l.intensity for l in scene.lights]).reshape(-1, 3))
+    lights = Lights.of(scene.lights)
+    extent = np.concatenate([lights.position, scene.camera.position[None, :]])
+    return Prepared(scene, Accelerator(tris, extent), refl, lights)
 
 
 def default_threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
-def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed):
-    """Radiance (N, 3) of camera rays and the method's statistics array."""
+def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, volumetric_shadows=False):
+    """Radiance (N, 3) of camera rays, the method's statistics array and, for a stochastic method,
+    the variance (N, 3) of each ray's estimate."""
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
@@ -69,83 +69,55 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed):
     if hit.any():
         points = origins[hit] + t[hit, None] * dirs[hit]
         normals = facing_normals(prep.accel.normals[prim[hit]], dirs[hit])
-        radiance[hit] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[hit]],
-                                         prep.light_pos, prep.light_int, medium.sigma_t)
+        radiance[hit] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[hit]], prep.lights,
+                                         medium)
     radiance[~hit] = scene.background
-    radiance *= transmittance(medium.sigma_t, t)
+    radiance *= medium.transmittance(t)
     stats = np.zeros(method.stats_size)
     variance = np.zeros_like(radiance) if method.stochastic else None
-    if len(prep.light_pos) and np.any(medium.sigma_s > 0.0):
-        batch = RayBatch(origins, dirs, t, keys, seed, prep.accel.scale)
-        if params.get("volumetric_shadows"):
-            air, var = shadowed_airlight(prep, method, params, batch)
-            radiance += air
-            if method.stochastic:
-                variance = var
+    if len(prep.lights) and medium.scatters:
+        if volumetric_shadows:
+            segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
+            air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
         else:
-            res = method.airlight(batch, medium, prep.light_pos, prep.light_int, params)
-            radiance += res[0]
-            stats = res[1]
-            if method.stochastic:
-                variance = res[2]
+            air, stats, var = unshadowed_airlight(method, medium, prep.lights, params, origins, dirs, t, keys, seed,
+                                                  prep.accel.scale)
+        radiance += air
+        if method.stochastic:
+            variance = var
     return radiance, stats, variance
 
 
-def shadowed_airlight(prep: Prepared, method, params, batch: RayBatch):
-    """Air-light with volumetric shadows: a shadow ray from every medium point of the method's
-    estimate to its light (Embree, in one batch per light and channel), then the estimate's mean
-    over iterations and the variance of that mean."""
-    if len(batch.origins) > SHADOW_CHUNK:  # bound the memory of the sample points
-        parts = [shadowed_airlight(prep, method, params, RayBatch(batch.origins[i:i + SHADOW_CHUNK],
-                                   batch.dirs[i:i + SHADOW_CHUNK], batch.tmax[i:i + SHADOW_CHUNK],
-                                   batch.keys[i:i + SHADOW_CHUNK], batch.seed, batch.scale))
-                 for i in range(0, len(batch.origins), SHADOW_CHUNK)]
-        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-    pos, weight = method.points(batch, prep.scene.medium, prep.light_pos, prep.light_int, params)
-    visible = np.zeros(weight.shape, dtype=bool)
-    eps = prep.accel.epsilon
-    for li, lp in enumerate(prep.light_pos):
-        for c in range(3):
-            p, w = pos[:, li, ..., c, :], weight[:, li, ..., c]
-            if c > 0 and np.array_equal(p, pos[:, li, ..., 0, :]):
-                visible[:, li, ..., c] = visible[:, li, ..., 0]
-                continue
-            m = w != 0.0
-            to_light = lp - p[m]
-            dist = np.linalg.norm(to_light, axis=1)
-            d = to_light / np.where(dist > 0.0, dist, 1.0)[:, None]
-            vis = visible[:, li, ..., c]
-            vis[m] = ~prep.accel.occluded(p[m] + eps * d, d, dist - 2.0 * eps)
-            visible[:, li, ..., c] = vis
-    per_iter = (weight * visible).sum(axis=(1, 3))  # (N, n, 3): each iteration's estimate of the whole air-light
-    n = per_iter.shape[1]
-    var = per_iter.var(axis=1, ddof=1) / n if n > 1 else np.zeros((len(per_iter), 3))
-    return per_iter.mean(axis=1), var
-
-
-def warm_up(prep: Prepared, method, params, seed) -> float:
+def warm_up(prep: Prepared, method, params, seed, volumetric_shadows=False) -> float:
     """Compile the method's kernels on a few rays; returns the seconds it took."""
     start = time.perf_counter()
     o, d = generate_rays(prep.scene.camera, slice(0, 1), slice(0, 1))
-    shade_rays(prep, method, params, o[:1], d[:1], np.zeros(1, dtype=np.uint64), seed)
+    shade_rays(prep, method, params, o[:1], d[:1], np.zeros(1, dtype=np.uint64), seed, volumetric_shadows)
     return time.perf_counter() - start
 
 
+def check_options(method, volumetric_shadows, source):
+    if volumetric_shadows and method.points is None:
+        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): method {method.name} has no "
+                        "medium sample points yet; use --method raymarch or montecarlo, or leave shadows off")
+
+
 def render(prep: Prepared, method_name: str, given_params: dict | None = None, seed: int = 0,
-           threads: int | None = None, progress=None, source: str = "render", crop=None) -> RenderResult:
+           threads: int | None = None, progress=None, source: str = "render", crop=None,
+           volumetric_shadows: bool = False) -> RenderResult:
     """Render the image, or the pixel block `crop` = (x0, y0, x1, y1) of it (end exclusive; the same
-    samples and random numbers as in the whole image). `progress(n)` gets the rows finished."""
+    samples and random numbers as in the whole image). `progress(n)` gets the rows finished.
+    `given_params` are the method's own parameters (any other key is refused); seed, threads, crop
+    and volumetric_shadows are render options."""
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
     method.check(scene.medium, params)
-    if params.get("volumetric_shadows") and method.points is None:
-        raise UserError(f"{source}: --volumetric-shadows: method {method.name} has no medium sample points; "
-                        "use raymarch or montecarlo")
+    check_options(method, volumetric_shadows, source)
     cam = scene.camera
     x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
     cols = slice(x0, x1)
-    compile_s = warm_up(prep, method, params, seed)
+    compile_s = warm_up(prep, method, params, seed, volumetric_shadows)
     rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * cam.spp))
     tiles = [slice(r, min(r + rows_per_tile, y1)) for r in range(y0, y1, rows_per_tile)]
     image = np.zeros((y1 - y0, x1 - x0, 3))
@@ -156,7 +128,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
         o, d = generate_rays(cam, rows, cols)
         pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
         keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp) + np.arange(cam.spp, dtype=np.uint64)).ravel()
-        rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed)
+        rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed, volumetric_shadows)
         shape = (rows.stop - rows.start, x1 - x0, cam.spp, 3)
         block = slice(rows.start - y0, rows.stop - y0)
         image[block] = rad.reshape(shape).mean(axis=2)

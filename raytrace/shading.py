@@ -17,10 +17,10 @@ def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     return np.where(flip[:, None], -normals, normals)
 
 
-def surface_radiance(accel, points, normals, reflectance, light_pos, light_int, sigma_t):
+def surface_radiance(accel, points, normals, reflectance, lights, medium):
     """Reflected radiance (N, 3) at surface points with ray-facing unit normals."""
     out = np.zeros((len(points), 3))
-    for lp, li in zip(light_pos, light_int):
+    for li, lp in enumerate(lights.position):
         to_light = lp[None, :] - points
         dist = np.linalg.norm(to_light, axis=1)
         cos = np.einsum("ij,ij->i", normals, to_light) / np.where(dist > 0.0, dist, 1.0)
@@ -31,13 +31,6 @@ def surface_radiance(accel, points, normals, reflectance, light_pos, light_int, 
         o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
         visible = ~accel.occluded(o, d, tmax)
         idx, dl, cl = idx[visible], dist[idx][visible], cos[idx][visible]
-        irradiance = li[None, :] * np.exp(-sigma_t[None, :] * dl[:, None]) / (dl * dl)[:, None] * cl[:, None]
+        irradiance = lights.irradiance(li, dl) * medium.transmittance(dl) * cl[:, None]
         out[idx] += reflectance[idx] / math.pi * irradiance
     return out
-
-
-def transmittance(sigma_t: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """exp(-kt t) per channel (N, 3), exactly 1 in vacuum channels even for t = inf."""
-    with np.errstate(invalid="ignore"):
-        tr = np.exp(-sigma_t[None, :] * t[:, None])
-    return np.where(sigma_t[None, :] == 0.0, 1.0, tr)

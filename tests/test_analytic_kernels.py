@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from raytrace.media import analytic as A
+from raytrace.methods import analytic as A
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 

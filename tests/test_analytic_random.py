@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from raytrace.media import analytic as A
-from raytrace.media import quadrature as q
+from raytrace.methods import analytic as A
+from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 

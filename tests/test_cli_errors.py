@@ -49,7 +49,7 @@ radiance = [0.0, 0.0, 0.0]
 
 def _method():
     """A registered method, so that valid scenes get past the method lookup."""
-    from raytrace.media import registry
+    from raytrace.methods import registry
 
     names = list(registry())
     return "analytic" if "analytic" in names else names[0]

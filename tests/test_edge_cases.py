@@ -69,7 +69,7 @@ def test_camera_on_a_light_is_finite_for_every_method(write_scene, tmp_path):
     """Every ray starts at the light: the true air-light of a point light is infinite; the light is
     regularised as a sphere of 1e-9 times the scene's size, so every method gives finite pixels,
     and the closed form agrees with the quadrature."""
-    from raytrace.media import registry
+    from raytrace.methods import registry
 
     scene = box_room(camera={"position": [0.0, 0.0, 0.0], "look_at": [0.0, 0.0, -1.0], "width": 4, "height": 3},
                      light=[{"position": [0.0, 0.0, 0.0], "intensity": 5.0}])

@@ -2,14 +2,16 @@
 accuracy near the light's foot point, and the raw artefacts PP09 reports when looking away from
 the light (negative estimates, large over-evaluations), all against the `quadrature` reference."""
 import math
-from types import SimpleNamespace
 
 import mpmath as mp
 import numpy as np
 import pytest
 
 from raytrace.errors import UserError
-from raytrace.media import RayBatch, lecocq as lc, quadrature as q
+from raytrace.lights import Light, Lights
+from raytrace.media import Medium
+from raytrace.methods import lecocq as lc, quadrature as q
+from raytrace.visibility import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 
@@ -99,18 +101,17 @@ def test_looking_away_from_the_light_gives_negative_and_over_estimates():
 def test_defaults_and_driver():
     assert lc.effective_terms(ISOTROPIC, 0) == 5 and lc.effective_terms(RAYLEIGH, None) == 3
     assert lc.effective_terms(HG, 4) == 4
-    medium = SimpleNamespace(sigma_t=np.array([1.0, 1.0, 0.5]), sigma_s=np.array([1.0, 1.0, 0.3]),
-                             phase=RAYLEIGH, g=0.0)
+    medium = Medium(np.array([0.0, 0.0, 0.2]), np.array([1.0, 1.0, 0.3]), RAYLEIGH)
     h = 0.5
     xh, ell = from_theta(-0.4, 0.5, h)
-    batch = RayBatch(np.zeros((2, 3)), np.tile([1.0, 0.0, 0.0], (2, 1)), np.array([ell, ell]),
-                     np.arange(2, dtype=np.uint64))
-    out, stats = lc.METHOD.airlight(batch, medium, np.array([[xh, h, 0.0]]), np.array([[2.0, 2.0, 3.0]]),
-                                    {"terms": 0})
+    lights = Lights.of([Light(np.array([xh, h, 0.0]), np.array([2.0, 2.0, 3.0]))])
+    out, stats, _ = unshadowed_airlight(lc.METHOD, medium, lights, {"terms": 0}, np.zeros((2, 3)),
+                                        np.tile([1.0, 0.0, 0.0], (2, 1)), np.array([ell, ell]),
+                                        np.arange(2, dtype=np.uint64))
     want = [2 * lec(xh, h, ell, 1.0, 1.0, RAYLEIGH), 3 * lec(xh, h, ell, 0.5, 0.3, RAYLEIGH)]
     np.testing.assert_allclose(out[0], [want[0], want[0], want[1]], rtol=1e-14)
     assert stats[lc.EVALS] == 4  # two rays, two distinct channels
-    from raytrace.media import resolve_params
+    from raytrace.methods import resolve_params
     assert resolve_params(lc.METHOD, {"terms": 0}, "t")["terms"] == 0
     with pytest.raises(UserError):
         resolve_params(lc.METHOD, {"terms": 99}, "t")

@@ -8,8 +8,8 @@ import pytest
 from scipy import stats
 
 from raytrace import progressive
-from raytrace.media import montecarlo as mc
-from raytrace.media import quadrature as q
+from raytrace.methods import montecarlo as mc
+from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text

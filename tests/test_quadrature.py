@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from raytrace.media import quadrature as q
+from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 from . import oracle

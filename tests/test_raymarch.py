@@ -2,13 +2,15 @@
 jittered marching unbiased over ray keys, the optical-depth cut-off for rays that hit nothing, and
 finite values on edge inputs."""
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from raytrace.errors import UserError
-from raytrace.media import RayBatch, raymarch as rm, quadrature as q
+from raytrace.lights import Light, Lights
+from raytrace.media import Medium
+from raytrace.methods import raymarch as rm, quadrature as q
+from raytrace.visibility import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 
@@ -55,27 +57,28 @@ def test_rays_that_hit_nothing_march_to_the_optical_depth_cutoff():
     assert short == pytest.approx(ref(2.0, 1.0, 5.0, kt, ks), rel=1e-6)
 
 
-def _batch(n, ell, seed=0):
+def _march_rays(n, ell, medium, lights, params, seed=0):
     o = np.zeros((n, 3))
     d = np.tile([1.0, 0.0, 0.0], (n, 1))
-    return RayBatch(o, d, np.full(n, ell), np.arange(n, dtype=np.uint64), seed)
+    return unshadowed_airlight(rm.METHOD, medium, lights, params, o, d, np.full(n, ell), np.arange(n, dtype=np.uint64),
+                               seed)[:2]
 
 
 def test_jittered_marching_is_unbiased_over_keys():
     xh, h, ell, kt, ks, steps, n = 2.1, 0.3, 5.0, 0.5, 0.4, 4, 20000  # light close to the ray: a peaky integrand
-    medium = SimpleNamespace(sigma_t=np.full(3, kt), sigma_s=np.full(3, ks), phase=ISOTROPIC, g=0.0)
-    lpos, lint = np.array([[xh, h, 0.0]]), np.ones((1, 3))
+    medium = Medium(np.full(3, kt - ks), np.full(3, ks), ISOTROPIC)
+    lights = Lights.of([Light(np.array([xh, h, 0.0]), np.ones(3))])
     params = {"steps": steps, "step": 0.0, "jitter": 1, "tau_max": 20.0}
-    vals, stats = rm.METHOD.airlight(_batch(n, ell), medium, lpos, lint, params)
+    vals, stats = _march_rays(n, ell, medium, lights, params)
     vals = vals[:, 0]
     exact = ref(xh, h, ell, kt, ks)
     se = vals.std(ddof=1) / math.sqrt(n)
     assert abs(vals.mean() - exact) < 4 * se, (vals.mean(), exact, se)
     midpoint = march(xh, h, ell, kt, ks, steps=steps)
     assert abs(midpoint - exact) > 20 * se  # the midpoint rule is biased at 4 steps; jitter is not
-    again, _ = rm.METHOD.airlight(_batch(n, ell), medium, lpos, lint, params)
+    again, _ = _march_rays(n, ell, medium, lights, params)
     assert np.array_equal(again[:, 0], vals)  # deterministic in (key, seed)
-    other, _ = rm.METHOD.airlight(_batch(n, ell, seed=1), medium, lpos, lint, params)
+    other, _ = _march_rays(n, ell, medium, lights, params, seed=1)
     assert not np.array_equal(other[:, 0], vals)
     assert stats[rm.EVALS] == n  # equal channels share one march
 
@@ -98,9 +101,9 @@ def test_edge_inputs_are_finite(xh, h, ell, kt, code, g):
 
 
 def test_bad_parameters_are_rejected():
-    from raytrace.media import resolve_params
+    from raytrace.methods import resolve_params
     ok = resolve_params(rm.METHOD, {}, "t")
-    assert ok == {"steps": 64, "step": 0.0, "jitter": False, "volumetric_shadows": False, "tau_max": 20.0}
+    assert ok == {"steps": 64, "step": 0.0, "jitter": False, "tau_max": 20.0}
     for bad in ({"steps": 0}, {"step": -1.0}, {"tau_max": 0.0}, {"tau_max": math.inf}, {"jitter": 2}):
         with pytest.raises(UserError):
             resolve_params(rm.METHOD, bad, "t")

@@ -11,7 +11,10 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from raytrace.errors import UserError
-from raytrace.media import RayBatch, quadrature as q, sun
+from raytrace.lights import Light, Lights
+from raytrace.media import Medium
+from raytrace.methods import quadrature as q, sun
+from raytrace.visibility import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 U_MAX = 10.0
@@ -157,7 +160,7 @@ def test_check_accepts_isotropic_only():
         with pytest.raises(UserError, match="isotropic") as e:
             sun.METHOD.check(SimpleNamespace(phase=code, g=0.5), params)
         assert "\n" not in str(e.value)
-    from raytrace.media import resolve_params
+    from raytrace.methods import resolve_params
     for bad in ({"table_size": 1}, {"u_max": 0.0}, {"u_max": math.nan}):
         with pytest.raises(UserError):
             resolve_params(sun.METHOD, bad, "t")
@@ -165,12 +168,12 @@ def test_check_accepts_isotropic_only():
 
 def test_driver_sums_lights_and_channels(table, tmp_path, monkeypatch):
     monkeypatch.setenv("RAYTRACE_CACHE", str(tmp_path))
-    medium = SimpleNamespace(sigma_t=np.array([0.2, 0.2, 0.5]), sigma_s=np.array([0.1, 0.1, 0.3]),
-                             phase=ISOTROPIC, g=0.0)
-    batch = RayBatch(np.zeros((1, 3)), np.array([[1.0, 0.0, 0.0]]), np.array([5.0]), np.zeros(1, np.uint64))
+    medium = Medium(np.array([0.1, 0.1, 0.2]), np.array([0.1, 0.1, 0.3]), ISOTROPIC)
     lpos = np.array([[2.0, 1.0, 0.0], [-1.0, 0.0, 2.0]])
     lint = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
-    out, stats = sun.METHOD.airlight(batch, medium, lpos, lint, {"table_size": 512, "u_max": 10.0})
+    lights = Lights.of([Light(p, i) for p, i in zip(lpos, lint)])
+    out, stats, _ = unshadowed_airlight(sun.METHOD, medium, lights, {"table_size": 512, "u_max": 10.0}, np.zeros((1, 3)),
+                                        np.array([[1.0, 0.0, 0.0]]), np.array([5.0]), np.zeros(1, np.uint64))
     one = lambda xh, h, c: sun.airlight_one(xh, h, 5.0, medium.sigma_t[c], medium.sigma_s[c], table, U_MAX,
                                             np.zeros(3))
     want = [sum(lint[li, c] * one(*xhh, c) for li, xhh in enumerate([(2.0, 1.0), (-1.0, 2.0)])) for c in range(3)]

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import film, metrics
 from ..errors import UserError
-from ..media import get_method
+from ..methods import get_method
 from ..progressive import render_progressive
 from ..renderer import Prepared, RenderResult, render
 from ..scene.format import parse_override

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..lights import Light
+from ..media.medium import Medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
 PRIMITIVES = ("box", "quad", "sphere", "cylinder")
@@ -44,24 +46,6 @@ class Shape:
     params: dict  # mesh: {"mesh": path}; primitives: their numeric parameters
     reflectance: np.ndarray | None
     transform: Transform
-
-
-@dataclass
-class Light:
-    position: np.ndarray
-    intensity: np.ndarray
-
-
-@dataclass
-class Medium:
-    sigma_a: np.ndarray
-    sigma_s: np.ndarray
-    phase: int = ISOTROPIC
-    g: float = 0.0
-
-    @property
-    def sigma_t(self) -> np.ndarray:
-        return self.sigma_a + self.sigma_s
 
 
 @dataclass
@@ -273,11 +257,15 @@ def _medium(ctx, raw):
     return Medium(sa, ss, HG, g)
 
 
-def render_keys():
-    """Keys allowed in [render]: method, seed, and every parameter some registered method declares."""
-    from ..media import registry
+RENDER_OPTIONS = ("method", "seed", "volumetric_shadows")  # [render] keys that are not method parameters
 
-    keys = {"method", "seed"}
+
+def render_keys():
+    """Keys allowed in [render]: the render options and every parameter some registered method
+    declares (checked against the chosen method when rendering)."""
+    from ..methods import registry
+
+    keys = set(RENDER_OPTIONS)
     for m in registry().values():
         keys |= set(m.params)
     return keys
@@ -290,11 +278,14 @@ def _render(ctx, raw):
     ctx.unknown("render", raw, render_keys())
     out = dict(raw)
     if "method" in out:
-        from ..media import registry
+        from ..methods import registry
 
         _string(ctx, "render.method", out["method"], tuple(registry()))
     if "seed" in out:
         _number(ctx, "render.seed", out["seed"], integer=True, minimum=0)
+    if "volumetric_shadows" in out and not isinstance(out["volumetric_shadows"], bool):
+        ctx.fail("render.volumetric_shadows", f"expected true or false, got {out['volumetric_shadows']!r}",
+                 "write volumetric_shadows = true")
     return out
 
 

@@ -23,9 +23,9 @@ import math
 import numpy as np
 
 from ..jit import njit
-from . import Method, Param
+from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from .phase import phase_value
+from ..media.phase import phase_value
 
 MAX_INTERVALS = 4000
 STACK = 200
@@ -121,22 +121,22 @@ def airlight_one(xh, h, ell, kt, ks, code, g, rtol, n10, w10, n20, w20, stats):
 
 
 @njit
-def evaluate_rays(xh, h, tmax, kt, ks, code, g, rtol, n10, w10, n20, w20, out, stats):
-    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
-    for r in range(xh.shape[0]):
-        for li in range(xh.shape[1]):
-            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, code, g, rtol, n10, w10, n20, w20, stats)
+def evaluate_segments(xh, h, ell, kt, ks, code, g, rtol, n10, w10, n20, w20, out, stats):
+    """Unit-intensity air-light of every segment for one channel's coefficients."""
+    for s in range(xh.shape[0]):
+        out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, code, g, rtol, n10, w10, n20, w20, stats)
 
 
-def _airlight(batch, medium, lpos, lint, params):
+def _airlight(segs, medium, lights, params):
     stats = np.zeros(3)
 
-    def evaluate(xh, h, da, tmax, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks):
         out = np.empty_like(xh)
-        evaluate_rays(xh, h, tmax, kt, ks, medium.phase, medium.g, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+        evaluate_segments(xh, h, ell, kt, ks, medium.phase, medium.g, params["rtol"], _N10, _W10, _N20, _W20, out,
+                          stats)
         return out
 
-    return by_channel(batch, medium, lpos, lint, evaluate), stats
+    return by_channel(segs, medium, lights, evaluate), stats
 
 
 def _summarize(stats):
@@ -150,6 +150,7 @@ METHOD = Method(
     summary="reference: adaptive Gauss-Legendre in the scattering angle, split at the light's foot point",
     params={"rtol": Param(1e-10, float, "relative accuracy of each integral, e.g. 1e-10", 1e-14, 0.5)},
     airlight=_airlight,
+    error_law=ErrorLaw({"rtol": 1e-10}, "max", 1e-8),
     stats_size=3,
     summarize=_summarize,
 )

@@ -38,9 +38,9 @@ import math
 import numpy as np
 
 from ..jit import njit
-from . import Method, Param
+from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from .phase import HG, ISOTROPIC, RAYLEIGH
+from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
 MAX_TERMS = 16
 SATURATE = 1e300
@@ -178,12 +178,11 @@ def airlight_one(xh, h, ell, kt, ks, tsec, pser, terms, work, stats):
 
 
 @njit
-def evaluate_rays(xh, h, tmax, kt, ks, tsec, pser, terms, out, stats):
-    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
+def evaluate_segments(xh, h, ell, kt, ks, tsec, pser, terms, out, stats):
+    """Unit-intensity air-light of every segment for one channel's coefficients."""
     work = np.zeros(2 * MAX_TERMS)
-    for r in range(xh.shape[0]):
-        for li in range(xh.shape[1]):
-            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, tsec, pser, terms, work, stats)
+    for s in range(xh.shape[0]):
+        out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, tsec, pser, terms, work, stats)
 
 
 _TSEC = tan_sec_series(MAX_TERMS)
@@ -193,17 +192,17 @@ def effective_terms(code, terms):
     return DEFAULT_TERMS[code] if not terms else int(terms)
 
 
-def _airlight(batch, medium, lpos, lint, params):
+def _airlight(segs, medium, lights, params):
     stats = np.zeros(3)
     terms = effective_terms(medium.phase, params["terms"])
     pser = phase_series(medium.phase, float(medium.g), MAX_TERMS)
 
-    def evaluate(xh, h, da, tmax, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks):
         out = np.empty_like(xh)
-        evaluate_rays(xh, h, tmax, kt, ks, _TSEC, pser, terms, out, stats)
+        evaluate_segments(xh, h, ell, kt, ks, _TSEC, pser, terms, out, stats)
         return out
 
-    return by_channel(batch, medium, lpos, lint, evaluate), stats
+    return by_channel(segs, medium, lights, evaluate), stats
 
 
 def _summarize(stats):
@@ -216,6 +215,7 @@ METHOD = Method(
     summary="Lecocq et al. 2000: Taylor polynomial of the whole angular integrand about the foot point (raw, unclamped)",
     params={"terms": Param(0, int, "Taylor terms (0 = 5 isotropic, 3 Rayleigh/HG), at most 16", 0, MAX_TERMS)},
     airlight=_airlight,
+    error_law=ErrorLaw({}, "median", 0.5),
     stats_size=3,
     summarize=_summarize,
 )

@@ -43,9 +43,9 @@ import numpy as np
 
 from ..errors import UserError
 from ..jit import njit
-from . import Method, Param
+from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from .phase import ISOTROPIC, NAMES
+from ..media.phase import ISOTROPIC, NAMES
 
 TABLE_VERSION = 1
 HALF_PI = 0.5 * math.pi
@@ -211,24 +211,23 @@ def airlight_one(xh, h, ell, kt, ks, table, u_max, stats):
 
 
 @njit
-def evaluate_rays(xh, h, tmax, kt, ks, table, u_max, out, stats):
-    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
-    for r in range(xh.shape[0]):
-        for li in range(xh.shape[1]):
-            out[r, li] = airlight_one(xh[r, li], h[r, li], tmax[r], kt, ks, table, u_max, stats)
+def evaluate_segments(xh, h, ell, kt, ks, table, u_max, out, stats):
+    """Unit-intensity air-light of every segment for one channel's coefficients."""
+    for s in range(xh.shape[0]):
+        out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, table, u_max, stats)
 
 
-def _airlight(batch, medium, lpos, lint, params):
+def _airlight(segs, medium, lights, params):
     stats = np.zeros(3)
     u_max = float(params["u_max"])
     table = load_table(int(params["table_size"]), u_max)
 
-    def evaluate(xh, h, da, tmax, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks):
         out = np.empty_like(xh)
-        evaluate_rays(xh, h, tmax, kt, ks, table, u_max, out, stats)
+        evaluate_segments(xh, h, ell, kt, ks, table, u_max, out, stats)
         return out
 
-    return by_channel(batch, medium, lpos, lint, evaluate), stats
+    return by_channel(segs, medium, lights, evaluate), stats
 
 
 def _summarize(stats):
@@ -254,6 +253,7 @@ METHOD = Method(
                        True),
     },
     airlight=_airlight,
+    error_law=ErrorLaw({}, "median", 0.05),
     stats_size=3,
     summarize=_summarize,
     check=_check,

@@ -18,21 +18,11 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import Method, Param
-from .geometry import ray_light_table
-from .phase import phase_value
+from . import ErrorLaw, Method, Param
+from .geometry import eq4_integrand, segment_geometry
 
 EQUIANGULAR, FREEPATH, MIS = 0, 1, 2
 MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS}
-
-
-@njit
-def _f(x, xh, h, kt, ks, code, g):
-    """Integrand of eq. 4 for a unit-intensity light at distance x along the ray."""
-    s = x - xh
-    d2 = h * h + s * s
-    d = math.sqrt(d2)
-    return ks * phase_value(code, g, -s / d) * math.exp(-kt * (x + d)) / d2
 
 
 @njit
@@ -59,14 +49,14 @@ def _draw(xh, h, ell, kt, ks, code, g, mode, key, dim, seed, th_a, th_b, norm):
         pe = _p_equiangular(xe, xh, h, th_a, th_b)
         if mode == MIS:
             pe += _p_freepath(xe, kt, norm)
-        we = _f(xe, xh, h, kt, ks, code, g) / pe
+        we = eq4_integrand(xe, xh, h, kt, ks, code, g) / pe
     if mode != EQUIANGULAR:
         u = uniform(key, dim + 1, seed)
         xf = min(-math.log1p(-u * norm) / kt, ell)
         pf = _p_freepath(xf, kt, norm)
         if mode == MIS:
             pf += _p_equiangular(xf, xh, h, th_a, th_b)
-        wf = _f(xf, xh, h, kt, ks, code, g) / pf
+        wf = eq4_integrand(xf, xh, h, kt, ks, code, g) / pf
     return xe, we, xf, wf
 
 
@@ -96,54 +86,54 @@ def estimate(xh, h, ell, kt, ks, code, g, mode, n, key, dim0, seed):
 
 
 @njit
-def airlight_rays(xh, h, tmax, keys, seed, lint, kt, ks, code, g, mode, n, out, var):
-    """Estimates (N, 3) and their variances for the (x_h, h) table of every ray and light."""
-    for r in range(xh.shape[0]):
-        for li in range(xh.shape[1]):
-            for c in range(3):
-                m, v = estimate(xh[r, li], h[r, li], tmax[r], kt[c], ks[c], code, g, mode, n, keys[r], 2 * n * li, seed)
-                out[r, c] += m * lint[li, c]
-                var[r, c] += v * lint[li, c] * lint[li, c]
+def airlight_segments(xh, h, ell, keys, stream, seed, intensity, kt, ks, code, g, mode, n, out, var):
+    """Estimates (S, 3) of every segment's air-light and their variances; segment s draws the
+    dimensions 2 n stream[s] + 2 j of its ray's key."""
+    for s in range(xh.shape[0]):
+        for c in range(3):
+            m, v = estimate(xh[s], h[s], ell[s], kt[c], ks[c], code, g, mode, n, keys[s], 2 * n * stream[s], seed)
+            out[s, c] = m * intensity[s, c]
+            var[s, c] = v * intensity[s, c] * intensity[s, c]
 
 
 @njit
-def sample_points(origins, dirs, xh, h, tmax, keys, seed, lint, kt, ks, code, g, mode, n, pos, weight):
-    """The same samples as `airlight_rays`, as points for volumetric shadows: pos[r, l, j, s, c] is
-    the point drawn by strategy s (0 equiangular, 1 free-path) in iteration j for ray r, light l and
-    channel c (free-path distances depend on the channel's kt), weight[r, l, j, s, c] its I f / p."""
-    for r in range(xh.shape[0]):
-        for li in range(xh.shape[1]):
-            for j in range(n):
-                for c in range(3):
-                    if ks[c] == 0.0 or not tmax[r] > 0.0:
-                        continue
-                    th_a, th_b, norm = _angles(xh[r, li], h[r, li], tmax[r], kt[c])
-                    xe, we, xf, wf = _draw(xh[r, li], h[r, li], tmax[r], kt[c], ks[c], code, g, mode, keys[r],
-                                           2 * n * li + 2 * j, seed, th_a, th_b, norm)
-                    for a in range(3):
-                        pos[r, li, j, 0, c, a] = origins[r, a] + xe * dirs[r, a]
-                        pos[r, li, j, 1, c, a] = origins[r, a] + xf * dirs[r, a]
-                    weight[r, li, j, 0, c] = we * lint[li, c]
-                    weight[r, li, j, 1, c] = wf * lint[li, c]
+def sample_points(origins, dirs, xh, h, ell, keys, stream, seed, intensity, kt, ks, code, g, mode, n, pos, weight):
+    """The same samples as `airlight_segments`, as points for volumetric shadows: pos[s, j, k, c] is
+    the point drawn by strategy k (0 equiangular, 1 free-path) in iteration j for segment s and
+    channel c (free-path distances depend on the channel's kt), weight[s, j, k, c] its I f / p."""
+    for s in range(xh.shape[0]):
+        for j in range(n):
+            for c in range(3):
+                if ks[c] == 0.0 or not ell[s] > 0.0:
+                    continue
+                th_a, th_b, norm = _angles(xh[s], h[s], ell[s], kt[c])
+                xe, we, xf, wf = _draw(xh[s], h[s], ell[s], kt[c], ks[c], code, g, mode, keys[s],
+                                       2 * n * stream[s] + 2 * j, seed, th_a, th_b, norm)
+                for a in range(3):
+                    pos[s, j, 0, c, a] = origins[s, a] + xe * dirs[s, a]
+                    pos[s, j, 1, c, a] = origins[s, a] + xf * dirs[s, a]
+                weight[s, j, 0, c] = we * intensity[s, c]
+                weight[s, j, 1, c] = wf * intensity[s, c]
 
 
-def _airlight(batch, medium, lpos, lint, params):
-    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos, batch.scale)
-    out = np.zeros((len(batch.origins), 3))
+def _args(segs, medium, lights, params):
+    xh, h, _ = segment_geometry(segs, lights)
+    return (xh, h, segs.length, segs.keys, segs.stream, np.uint64(segs.seed), lights.intensity[segs.light],
+            medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], params["samples"])
+
+
+def _airlight(segs, medium, lights, params):
+    out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
-    airlight_rays(xh, h, batch.tmax, batch.keys, np.uint64(batch.seed), lint, medium.sigma_t, medium.sigma_s,
-                  medium.phase, medium.g, MODES[params["sampling"]], params["samples"], out, var)
+    airlight_segments(*_args(segs, medium, lights, params), out, var)
     return out, np.zeros(0), var
 
 
-def _points(batch, medium, lpos, lint, params):
-    n = params["samples"]
-    shape = (len(batch.origins), len(lpos), n, 2, 3)
+def _points(segs, medium, lights, params):
+    shape = (len(segs), params["samples"], 2, 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
-    xh, h, _ = ray_light_table(batch.origins, batch.dirs, lpos, batch.scale)
-    sample_points(batch.origins, batch.dirs, xh, h, batch.tmax, batch.keys, np.uint64(batch.seed), lint,
-                  medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], n, pos, weight)
+    sample_points(segs.origins, segs.dirs, *_args(segs, medium, lights, params), pos, weight)
     return pos, weight
 
 
@@ -152,11 +142,12 @@ METHOD = Method(
     summary="unbiased single scattering: equiangular, free-path or MIS distance sampling, per-pixel variance",
     params={
         "samples": Param(4, int, "distance samples per camera ray, light and strategy", 1),
-        "volumetric_shadows": Param(False, bool, "shadow rays from every sample point to the light (light shafts)"),
         "sampling": Param("equiangular", str, "equiangular (best near lights in thin media), freepath, or mis "
                           "(balance heuristic, one sample of each)", choices=tuple(MODES)),
     },
     airlight=_airlight,
+    error_law=ErrorLaw({"samples": 64}, "sigma", 2.0),
     stochastic=True,
     points=_points,
+    point_count=lambda segs, medium, params: np.full(len(segs), 2 * params["samples"]),
 )

@@ -36,12 +36,12 @@ import math
 import numpy as np
 
 from ..jit import njit
-from . import Method, Param
+from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from .expint import g_scaled, en_scaled, i01_series_est
-from .legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
+from ..media.expint import g_scaled, en_scaled, i01_series_est
+from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre)
-from .phase import ISOTROPIC, RAYLEIGH, HG, phase_value
+from ..media.phase import ISOTROPIC, RAYLEIGH, HG, phase_value
 from .quadrature import _N10, _N20, _W10, _W20
 from .quadrature import airlight_one as quad_airlight
 
@@ -449,12 +449,11 @@ def summarize_stats(stats):
 # the registered method
 # ----------------------------------------------------------------------------------------------
 @njit
-def evaluate_rays(xh, h, da, tmax, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, out, stats):
-    """Unit-intensity air-light of every (ray, light) for one channel's coefficients."""
-    for r in range(xh.shape[0]):
-        for li in range(xh.shape[1]):
-            out[r, li] = airlight(xh[r, li], h[r, li], da[r, li], tmax[r], kt, ks, 1.0, code, g, precision, max_iter,
-                                  aniso_mode, terms, coeffs, stats)
+def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, out, stats):
+    """Unit-intensity air-light of every segment for one channel's coefficients."""
+    for s in range(xh.shape[0]):
+        out[s] = airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode, terms,
+                          coeffs, stats)
 
 
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
@@ -468,19 +467,19 @@ def working_precision(precision):
     return precision if precision >= 1e-7 else 1e-3 * precision
 
 
-def _airlight(batch, medium, lpos, lint, params):
+def _airlight(segs, medium, lights, params):
     mode = ANISO_MODES[params["anisotropic"]]
     precision = working_precision(params["precision"])
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], precision)
     stats = new_stats()
 
-    def evaluate(xh, h, da, tmax, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks):
         out = np.empty_like(xh)
-        evaluate_rays(xh, h, da, tmax, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
-                      params["terms"], coeffs, out, stats)
+        evaluate_segments(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
+                          params["terms"], coeffs, out, stats)
         return out
 
-    return by_channel(batch, medium, lpos, lint, evaluate), stats
+    return by_channel(segs, medium, lights, evaluate), stats
 
 
 METHOD = Method(
@@ -495,6 +494,7 @@ METHOD = Method(
                        1, 40),
     },
     airlight=_airlight,
+    error_law=ErrorLaw({"precision": 1e-6}, "max", 1e-5),
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
 )

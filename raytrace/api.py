@@ -1,0 +1,162 @@
+"""The Python API: `render(scene, method=..., **params)` returns an `Image` (the CLI is a thin layer).
+
+    import raytrace
+    img = raytrace.render("scenes/box_room.toml", method="analytic", precision=1e-6, spp=4)
+    img.array          # (H, W, 3) float64 linear radiance
+    img.stats          # the method's statistics (e.g. the analytic method's path fractions)
+    img.save("box.exr"); img.save("box.png")
+
+`scene` is a TOML file path, a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
+or None for the built-in default scene. Keyword arguments other than the render options below are
+the method's own parameters; a parameter the method does not read is an error (UserError).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+from .scene.format import Scene
+
+
+@dataclass
+class Image:
+    """A rendered image with what produced it."""
+    array: np.ndarray  # (H, W, 3) float64
+    scene: str
+    method: str
+    params: dict
+    stats: dict
+    seconds: float  # render wall time, compilation excluded
+    compile_seconds: float
+    spp: int
+    seed: int
+    crop: tuple | None = None
+    volumetric_shadows: bool = False
+    variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
+    extra_header: dict = field(default_factory=dict)
+
+    def header(self) -> dict:
+        """EXR header attributes: scene, method, parameters, options, times and statistics."""
+        out = {"scene": self.scene, "method": self.method, "spp": self.spp, "seed": self.seed,
+               "crop": ",".join(map(str, self.crop)) if self.crop else "none",
+               "volumetric_shadows": str(self.volumetric_shadows).lower(),
+               "render_seconds": f"{self.seconds:.3f}", "compile_seconds": f"{self.compile_seconds:.3f}",
+               "params": " ".join(f"{k}={v}" for k, v in self.params.items()),
+               "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        out.update({f"stats.{k}": v for k, v in self.stats.items()})
+        out.update(self.extra_header)
+        return out
+
+    def save(self, path, exposure: float | None = None):
+        """Write `path`: linear float32 EXR (.exr, with variance channels for stochastic methods) or a
+        tone-mapped PNG preview (.png; 99.5th percentile of luminance → white unless `exposure`)."""
+        from . import film
+
+        path = Path(path)
+        if path.suffix.lower() == ".png":
+            film.write_png(path, film.tonemap(self.array, exposure))
+        elif path.suffix.lower() == ".exr":
+            extra = {}
+            if self.variance is not None:
+                extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
+            film.write_exr(path, self.array, self.header(), extra)
+        else:
+            raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
+
+
+def load(scene=None, overrides=()) -> Scene:
+    """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default)."""
+    from .default_scene import DEFAULT_TOML
+    from .scene.format import load_scene, scene_from_dict, scene_from_text
+
+    if isinstance(scene, Scene):
+        if overrides:
+            raise UserError("overrides apply to scene files and dicts, not to a parsed Scene; pass the file or dict")
+        return scene
+    if scene is None:
+        return scene_from_text(DEFAULT_TOML, "default scene", None, overrides)
+    if isinstance(scene, dict):
+        import copy
+
+        from .scene.format import apply_override, parse_override
+
+        raw = copy.deepcopy(scene)
+        for item in overrides:
+            apply_override(raw, *parse_override(item, "scene dict"), "scene dict")
+        return scene_from_dict(raw, "scene dict", None)
+    return load_scene(scene, overrides)
+
+
+def _positive(name, value):
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value <= 0):
+        raise UserError(f"--{name} {value}: must be a positive integer; give a value of at least 1")
+
+
+def _check_crop(crop, cam):
+    x0, y0, x1, y1 = crop
+    if not (0 <= x0 < x1 <= cam.width and 0 <= y0 < y1 <= cam.height):
+        raise UserError(f"--crop {x0},{y0},{x1},{y1}: must lie inside the {cam.width}x{cam.height} image with "
+                        "X0 < X1 and Y0 < Y1 (end exclusive)")
+    return tuple(int(v) for v in crop)
+
+
+def render(scene=None, method: str | None = None, *, spp: int | None = None, width: int | None = None,
+           height: int | None = None, seed: int | None = None, threads: int | None = None, crop=None,
+           volumetric_shadows: bool | None = None, passes: int | None = None, time_budget: float | None = None,
+           target_error: float | None = None, checkpoint=None, checkpoint_interval: float = 0.0,
+           progress=None, on_pass=None, overrides=(), prepared=None, **params) -> Image:
+    """Render `scene` with `method` (default: the scene's [render] method, else analytic).
+
+    Render options: spp, width, height (override the camera), seed, threads, crop = (x0, y0, x1, y1)
+    (end exclusive; the same samples as in the whole image), volumetric_shadows; for stochastic
+    methods the progressive options passes, time_budget, target_error, checkpoint (a file, resumed
+    when it exists) and checkpoint_interval. `progress(rows)` and `on_pass(passes, error)` report
+    progress; `overrides` are "key=value" strings as --set; `prepared` reuses a `renderer.prepare`d
+    scene (geometry and accelerator) for repeated renders. Every other keyword is a parameter of the
+    method; the scene's [render] table supplies defaults for all of these."""
+    from . import renderer
+    from .methods import get_method
+    from .scene.format import RENDER_OPTIONS
+
+    scene = prepared.scene if prepared is not None else load(scene, overrides)
+    source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
+    for name, v in (("spp", spp), ("width", width), ("height", height), ("threads", threads), ("passes", passes)):
+        _positive(name, v)
+    for name, v in (("time-budget", time_budget), ("target-error", target_error)):
+        if v is not None and not v > 0:
+            raise UserError(f"--{name} {v}: must be positive; give a value above 0")
+    if not checkpoint_interval >= 0.0:
+        raise UserError(f"--checkpoint-interval {checkpoint_interval}: must be >= 0 seconds; 0 saves after every pass")
+    seed = scene.render.get("seed", 0) if seed is None else seed
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"--seed {seed}: must be >= 0; give a non-negative integer")
+    cam = scene.camera
+    cam.spp, cam.width, cam.height = spp or cam.spp, width or cam.width, height or cam.height
+    m = get_method(method or scene.render.get("method", "analytic"))
+    shadows = bool(scene.render.get("volumetric_shadows", False) if volumetric_shadows is None else volumetric_shadows)
+    given = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+    given.update({k: v for k, v in params.items() if v is not None})
+    crop = _check_crop(crop, cam) if crop is not None else None
+    progressive = passes or time_budget or target_error or checkpoint
+    if progressive and not m.stochastic:
+        raise UserError(f"--method {m.name}: deterministic; --passes, --time-budget, --target-error and "
+                        "--checkpoint need a stochastic method such as montecarlo")
+    prep = prepared if prepared is not None else renderer.prepare(scene)
+    if m.stochastic:
+        from .progressive import render_progressive
+
+        result = render_progressive(prep, m.name, given, seed, passes=passes, time_budget=time_budget,
+                                    target_error=target_error, checkpoint=Path(checkpoint) if checkpoint else None,
+                                    checkpoint_interval=checkpoint_interval, threads=threads, on_pass=on_pass,
+                                    source=source, crop=crop, volumetric_shadows=shadows)
+    else:
+        result = renderer.render(prep, m.name, given, seed, threads, progress=progress, source=source, crop=crop,
+                                 volumetric_shadows=shadows)
+    if not np.all(np.abs(result.image) < np.finfo(np.float32).max):  # also catches NaN
+        raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
+    return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
+                 result.compile_seconds, cam.spp, seed, crop, shadows, result.variance)

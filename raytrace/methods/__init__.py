@@ -1,0 +1,162 @@
+"""The registry of air-light methods: name → Method (parameters with defaults, a docstring table).
+
+The renderer, the command line, the tests and the benchmarks all iterate `registry()`, so a new
+method module only has to define ``METHOD`` and be listed in ``_MODULES``.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+_MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo")
+
+
+@dataclass(frozen=True)
+class Param:
+    """A method parameter: default, type, help text, and the values it accepts: numbers within
+    [low, high] (`open_low` excludes low), strings among `choices`."""
+    default: object
+    type: type
+    help: str
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    choices: tuple = ()
+
+    def rule(self) -> str:
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
+        lo = "" if self.low is None else (f"> {self.low:g}" if self.open_low else f">= {self.low:g}")
+        hi = "" if self.high is None else f"<= {self.high:g}"
+        return " and ".join(x for x in (lo, hi) if x) or "finite"
+
+    def accepts(self, v) -> bool:
+        if self.choices:
+            return v in self.choices
+        if self.type not in (int, float):
+            return True
+        if not math.isfinite(v):
+            return False
+        if self.low is not None and (v <= self.low if self.open_low else v < self.low):
+            return False
+        return self.high is None or v <= self.high
+
+
+@dataclass
+class Segments:
+    """The unit of work of every method (ARCHITECTURE.md): piece [t0, t0 + length] of a camera ray
+    lit by one light. `origins` are the segments' own start points o + t0 w (a method integrates
+    from there; the renderer applies the transmittance exp(-kt t0) in front), `length` may be inf,
+    `light` and `ray` index the light and the camera ray, `keys` is the camera ray's (pixel, sample)
+    key for counter-based random numbers and `stream` numbers the segment among its ray's segments
+    (light + lights x piece), so that every segment draws its own random numbers."""
+    origins: np.ndarray
+    dirs: np.ndarray
+    length: np.ndarray
+    light: np.ndarray
+    ray: np.ndarray
+    t0: np.ndarray
+    keys: np.ndarray
+    stream: np.ndarray
+    seed: int = 0
+    scale: float = 1.0  # the scene's size (point lights' regularisation, geometry.py)
+
+    def __len__(self) -> int:
+        return len(self.length)
+
+    def take(self, idx) -> "Segments":
+        """The segments at `idx` (an index array or slice)."""
+        return Segments(self.origins[idx], self.dirs[idx], self.length[idx], self.light[idx], self.ray[idx],
+                        self.t0[idx], self.keys[idx], self.stream[idx], self.seed, self.scale)
+
+
+@dataclass(frozen=True)
+class ErrorLaw:
+    """How close a method comes to the reference on the box-room oracle scenes, for the test over the
+    registry (tests/test_methods.py): with `params`, the per-pixel relative error's `statistic`
+    ("max" or "median") is at most `tolerance`; "sigma" (stochastic methods): the mean squared
+    z-score of the per-pixel errors against their variance estimate is at most `tolerance`."""
+    params: dict
+    statistic: str
+    tolerance: float
+
+
+@dataclass
+class Method:
+    name: str
+    summary: str
+    params: dict[str, Param]
+    # airlight(segments, medium, lights, params) -> (radiance (S, 3), stats), or (radiance, stats,
+    # variance (S, 3)) for a stochastic method: each segment's air-light from its own start point,
+    # the light's intensity included, and the variance of each estimate
+    airlight: Callable
+    error_law: ErrorLaw
+    stats_size: int = 0
+    summarize: Callable[[np.ndarray], dict] = field(default=lambda stats: {})
+    check: Callable = field(default=lambda medium, params: None)  # raises UserError if unsupported
+    stochastic: bool = False  # results depend on the seed; the renderer keeps per-pixel variance
+    # points(segments, medium, lights, params) -> (pos (S, n, k, 3, 3), weight (S, n, k, 3)): the
+    # medium points behind the estimate (n iterations of k strategies, per channel), for volumetric
+    # shadows: a segment's air-light is the mean over iterations of sum over strategies of V * weight
+    points: Callable | None = None
+    # point_count(segments, medium, params) -> (S,) iterations x strategies `points` would give each
+    # segment, so that the renderer can cut the work into chunks of bounded memory
+    point_count: Callable | None = None
+
+
+def registry() -> dict[str, Method]:
+    out = {}
+    for name in _MODULES:
+        m = importlib.import_module(f"{__name__}.{name}").METHOD
+        out[m.name] = m
+    return out
+
+
+def get_method(name: str) -> Method:
+    from ..errors import UserError
+
+    methods = registry()
+    if name not in methods:
+        raise UserError(f"--method {name}: unknown method; choose one of {', '.join(methods)}")
+    return methods[name]
+
+
+def resolve_params(method: Method, given: dict, source: str) -> dict:
+    """Defaults of `method` updated with `given`, type- and range-checked. A key the method does not
+    declare is refused, naming the methods that do take it (nothing is dropped silently)."""
+    from ..errors import UserError
+
+    out = {k: p.default for k, p in method.params.items()}
+    for k in given:
+        if k not in method.params and given[k] is not None:
+            takers = [m.name for m in registry().values() if k in m.params]
+            fix = (f"it is a parameter of {', '.join(takers)}: choose --method {takers[0]} or remove it" if takers
+                   else "no method takes it; see `render.py methods`")
+            raise UserError(f"{source}: --{k.replace('_', '-')} (render.{k}): method {method.name} does not read "
+                            f"this parameter; {fix}")
+    for k, v in given.items():
+        if v is None:
+            continue
+        p = method.params[k]
+        if p.type is bool:
+            if isinstance(v, str) and v.lower() in ("true", "false", "1", "0", "yes", "no"):
+                v = v.lower() in ("true", "1", "yes")
+            if not isinstance(v, (bool, int)) or v not in (0, 1):
+                raise UserError(f"{source}: --{k.replace('_', '-')} (render.{k}): expected true or false, got {v!r}")
+            out[k] = bool(v)
+            continue
+        flag = "--" + k.replace("_", "-")
+        if isinstance(v, bool) or (p.type in (int, float) and isinstance(v, str)):
+            raise UserError(f"{source}: {flag} (render.{k}): expected {p.type.__name__}, got {v!r}; {p.help}")
+        try:
+            v = p.type(v)
+        except (TypeError, ValueError):
+            raise UserError(f"{source}: {flag} (render.{k}): expected {p.type.__name__}, got {v!r}; {p.help}") from None
+        if not p.accepts(v):
+            raise UserError(f"{source}: {flag} (render.{k}): must be {p.rule()}, got {v!r}; {p.help}")
+        out[k] = v
+    return out
