@@ -6,7 +6,8 @@
     img.stats          # the method's statistics (e.g. the analytic method's path fractions)
     img.save("box.exr"); img.save("box.png")
 
-`scene` is a TOML file path, a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
+`scene` is a TOML file path, the name of a bundled scene (`box_room`, `sibenik`, `bridge`,
+`conference`: the repository's scenes/, installed with the package), a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
 or None for the built-in default scene. Keyword arguments other than the render options below are
 the method's own parameters; a parameter the method does not read is an error (UserError).
 """
@@ -71,6 +72,7 @@ class Image:
 def load(scene=None, overrides=()) -> Scene:
     """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default)."""
     from .default_scene import DEFAULT_TOML
+    from .scene.assets import bundled_scenes
     from .scene.format import load_scene, scene_from_dict, scene_from_text
 
     if isinstance(scene, Scene):
@@ -88,7 +90,10 @@ def load(scene=None, overrides=()) -> Scene:
         for item in overrides:
             apply_override(raw, *parse_override(item, "scene dict"), "scene dict")
         return scene_from_dict(raw, "scene dict", None)
-    return load_scene(scene, overrides)
+    path = Path(scene)
+    if not path.exists() and path.suffix == "" and str(scene) in bundled_scenes():
+        path = bundled_scenes()[str(scene)]
+    return load_scene(path, overrides)
 
 
 def _positive(name, value):

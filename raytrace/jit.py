@@ -1,13 +1,49 @@
-"""The one numba flag set of the project.
+"""The one numba flag set of the project, and its source-keyed kernel cache.
 
 Every kernel is compiled with ``njit`` from here: cached, GIL-free (so a thread pool over tiles
 uses every core) and with a fastmath subset that keeps NaN/Inf semantics (no ``nnan``/``ninf``,
-numba issues #2919 and #9383) and keeps libm accuracy (no ``afn``).
+numba issues #2919 and #9383) and keeps libm accuracy (no ``afn``). The cache of the package's
+kernels lives in `cache.kernel_cache_dir()`, keyed on all of the package's sources (a locator
+placed first in numba's list); numba's own locators serve everything else.
 """
 import functools
+import os
+from pathlib import Path
 
 import numba
+from numba.core import caching
+
+from .cache import PACKAGE_DIR, kernel_cache_dir
 
 FASTMATH = frozenset({"nsz", "arcp", "contract", "reassoc"})
+
+_Base = getattr(caching, "UserProvidedCacheLocator", None) or caching._UserProvidedCacheLocator
+_Impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+
+
+class SourceKeyedLocator(_Base):
+    """numba cache locator for the functions of this package: one folder per source hash."""
+    root = kernel_cache_dir()
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        rel = Path(py_file).resolve().relative_to(PACKAGE_DIR).parent
+        self._cache_path = os.path.join(self.root, str(rel))
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not Path(py_file).resolve().is_relative_to(PACKAGE_DIR):
+            return None
+        try:
+            locator = cls(py_func, py_file)
+            locator.ensure_cache_path()
+        except OSError:  # an unwritable cache folder: numba's own locators decide
+            return None
+        return locator
+
+
+if SourceKeyedLocator not in _Impl._locator_classes:
+    _Impl._locator_classes.insert(0, SourceKeyedLocator)
 
 njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMATH))

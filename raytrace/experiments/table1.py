@@ -25,10 +25,11 @@ from .. import film, metrics
 from ..errors import UserError
 from ..media.phase import ISOTROPIC
 from ..renderer import prepare
+from ..scene.assets import bundled_scenes
 from ..scene.format import load_scene
 from .compare import MethodSpec, render_spec, safe_name
 
-SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
+SCENES = bundled_scenes()
 
 # PP09 Table 1: (time s, average error) per method label, per scene; None where the paper has "–".
 PAPER = {
@@ -91,7 +92,7 @@ def matched_raymarch(prep, seed, target_seconds, threads, log) -> tuple[MethodSp
 
 
 def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log) -> dict:
-    path = SCENES_DIR / f"{name}.toml"
+    path = SCENES[name]
     overrides = ["camera.width=64", "camera.height=" + ("32" if name == "sibenik" else "64"), "camera.spp=1"] \
         if quick else []
     scene = load_scene(path, overrides)

@@ -7,6 +7,15 @@ from ..errors import UserError
 ENV = "RAYTRACE_ASSETS"
 
 
+def bundled_scenes() -> dict[str, Path]:
+    """The scene files shipped with the package (the repository's scenes/, package `raytrace.scenes`):
+    name -> path, usable as `render.py render NAME`."""
+    from importlib.resources import files
+
+    folder = Path(str(files("raytrace.scenes")))
+    return {p.stem: p for p in sorted(folder.glob("*.toml"))}
+
+
 def search_folders(scene_path: Path | None) -> list[Path]:
     folders = [scene_path.parent] if scene_path is not None else []
     folders += [Path(p) for p in os.environ.get(ENV, "").split(os.pathsep) if p]
