@@ -1,0 +1,102 @@
+"""The Python API (raytrace/api.py) and the strict separation of method parameters from render
+options (issue 8, defect 1: unread parameters were dropped silently)."""
+import numpy as np
+import pytest
+
+import raytrace
+from raytrace.cli import main
+from raytrace.film import read_exr
+from raytrace.methods import registry
+from raytrace.renderer import prepare, render as render_prepared
+from raytrace.scene.format import scene_from_text
+
+from .conftest import box_room, to_toml
+
+
+def test_render_from_a_dict_returns_the_renderers_image(tmp_path):
+    scene = box_room()
+    img = raytrace.render(scene, method="analytic", precision=1e-6, spp=4, threads=1)
+    assert img.array.shape == (6, 8, 3) and img.spp == 4 and img.method == "analytic"
+    assert img.params["precision"] == 1e-6 and img.stats["evaluations"] > 0
+    s = scene_from_text(to_toml(scene), "t")
+    s.camera.spp = 4
+    want = render_prepared(prepare(s), "analytic", {"precision": 1e-6}, threads=1).image
+    np.testing.assert_array_equal(img.array, want)
+    img.save(tmp_path / "a.exr")
+    img.save(tmp_path / "a.png")
+    back, header = read_exr(tmp_path / "a.exr")
+    np.testing.assert_allclose(back, img.array, rtol=1e-7)
+    assert header["method"] == "analytic" and "precision=1e-06" in header["params"]
+    assert (tmp_path / "a.png").stat().st_size > 0
+    with pytest.raises(raytrace.UserError, match=r"\.exr.*\.png"):
+        img.save(tmp_path / "a.tiff")
+
+
+def test_a_scene_file_a_bundled_name_and_the_default_scene(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(to_toml(box_room()))
+    a = raytrace.render(str(path), method="quadrature", width=4, height=3)
+    b = raytrace.render(box_room(), method="quadrature", width=4, height=3)
+    np.testing.assert_array_equal(a.array, b.array)
+    assert raytrace.load("box_room").name == "box_room"
+    assert raytrace.load(None).name == "default"
+
+
+def test_stochastic_methods_return_their_variance():
+    img = raytrace.render(box_room(), method="montecarlo", samples=2, seed=5)
+    assert img.variance.shape == img.array.shape and np.all(img.variance >= 0) and img.variance.max() > 0
+    again = raytrace.render(box_room(), method="montecarlo", samples=2, seed=5, threads=1)
+    np.testing.assert_array_equal(img.array, again.array)
+
+
+@pytest.mark.parametrize("method, key, taker", [("analytic", "steps", "raymarch"), ("quadrature", "precision", "analytic"),
+                                                 ("montecarlo", "rtol", "quadrature"), ("raymarch", "samples", "montecarlo")])
+def test_a_parameter_the_method_does_not_read_is_refused(method, key, taker):
+    value = {"steps": 128, "precision": 1e-6, "rtol": 1e-8, "samples": 8}[key]
+    with pytest.raises(raytrace.UserError) as e:
+        raytrace.render(box_room(), method=method, **{key: value})
+    msg = str(e.value)
+    assert f"method {method} does not read" in msg and f"--{key}" in msg and taker in msg and "\n" not in msg
+
+
+def test_an_unknown_keyword_names_no_method():
+    with pytest.raises(raytrace.UserError, match="no method takes it"):
+        raytrace.render(box_room(), method="analytic", precisoin=1e-6)
+
+
+def test_the_cli_refuses_unread_flags_and_scene_keys(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    out = tmp_path / "o.exr"
+    path.write_text(to_toml(box_room()))
+    assert main(["render", str(path), "--method", "analytic", "--steps", "128", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--steps" in err and "raymarch" in err and not out.exists()
+    path.write_text(to_toml(box_room(render={"method": "analytic", "steps": 32})))
+    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
+    assert "render.steps" in capsys.readouterr().err and not out.exists()
+    # the same key is read when the scene's method takes it
+    path.write_text(to_toml(box_room(render={"method": "raymarch", "steps": 32})))
+    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 0
+    assert "steps=32" in read_exr(out)[1]["params"]
+
+
+def test_render_options_are_not_method_parameters():
+    for m in registry().values():
+        assert not {"volumetric_shadows", "seed", "spp", "threads"} & set(m.params), m.name
+    img = raytrace.render(box_room(render={"volumetric_shadows": True}), method="raymarch", steps=16)
+    assert img.volumetric_shadows and "volumetric_shadows" not in img.params
+
+
+def test_methods_lists_each_methods_own_parameters(capsys):
+    assert main(["methods"]) == 0
+    text = capsys.readouterr().out
+    blocks = {}
+    for line in text.splitlines():
+        if not line.startswith(" ") and ":" in line and line.split(":")[0] in registry():
+            name = line.split(":")[0]
+            blocks[name] = []
+        elif line.startswith("    --"):
+            blocks[name].append(line.split()[0][2:].replace("-", "_"))
+    assert set(blocks) == set(registry())
+    for name, flags in blocks.items():
+        assert flags == list(registry()[name].params), name
