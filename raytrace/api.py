@@ -111,13 +111,14 @@ def _check_crop(crop, cam):
 
 def render(scene=None, method: str | None = None, *, spp: int | None = None, width: int | None = None,
            height: int | None = None, seed: int | None = None, threads: int | None = None, crop=None,
-           volumetric_shadows: bool | None = None, passes: int | None = None, time_budget: float | None = None,
+           volumetric_shadows: bool | None = None, shadow_spacing: float | None = None, passes: int | None = None, time_budget: float | None = None,
            target_error: float | None = None, checkpoint=None, checkpoint_interval: float = 0.0,
            progress=None, on_pass=None, overrides=(), prepared=None, **params) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
 
     Render options: spp, width, height (override the camera), seed, threads, crop = (x0, y0, x1, y1)
-    (end exclusive; the same samples as in the whole image), volumetric_shadows; for stochastic
+    (end exclusive; the same samples as in the whole image), volumetric_shadows and shadow_spacing
+    (radians between the visibility samples of the lit-interval search, raytrace/visibility.py); for stochastic
     methods the progressive options passes, time_budget, target_error, checkpoint (a file, resumed
     when it exists) and checkpoint_interval. `progress(rows)` and `on_pass(passes, error)` report
     progress; `overrides` are "key=value" strings as --set; `prepared` reuses a `renderer.prepare`d
@@ -126,6 +127,7 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
     from . import renderer
     from .methods import get_method
     from .scene.format import RENDER_OPTIONS
+    from .visibility import SHADOW_SPACING
 
     scene = prepared.scene if prepared is not None else load(scene, overrides)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
@@ -143,6 +145,7 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
     cam.spp, cam.width, cam.height = spp or cam.spp, width or cam.width, height or cam.height
     m = get_method(method or scene.render.get("method", "analytic"))
     shadows = bool(scene.render.get("volumetric_shadows", False) if volumetric_shadows is None else volumetric_shadows)
+    spacing = float(scene.render.get("shadow_spacing", SHADOW_SPACING) if shadow_spacing is None else shadow_spacing)
     given = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
     given.update({k: v for k, v in params.items() if v is not None})
     crop = _check_crop(crop, cam) if crop is not None else None
@@ -157,11 +160,12 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
         result = render_progressive(prep, m.name, given, seed, passes=passes, time_budget=time_budget,
                                     target_error=target_error, checkpoint=Path(checkpoint) if checkpoint else None,
                                     checkpoint_interval=checkpoint_interval, threads=threads, on_pass=on_pass,
-                                    source=source, crop=crop, volumetric_shadows=shadows)
+                                    source=source, crop=crop, volumetric_shadows=shadows, shadow_spacing=spacing)
     else:
         result = renderer.render(prep, m.name, given, seed, threads, progress=progress, source=source, crop=crop,
-                                 volumetric_shadows=shadows)
+                                 volumetric_shadows=shadows, shadow_spacing=spacing)
     if not np.all(np.abs(result.image) < np.finfo(np.float32).max):  # also catches NaN
         raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
-                 result.compile_seconds, cam.spp, seed, crop, shadows, result.variance)
+                 result.compile_seconds, cam.spp, seed, crop, shadows, result.variance,
+                 {"shadow_spacing": spacing} if shadows else {})

@@ -60,6 +60,9 @@ def build_parser():
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     r.add_argument("--volumetric-shadows", action="store_true",
                    help="shadowed air-light: light shafts behind occluders (render.volumetric_shadows)")
+    r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
+                   help="angle seen from the light between visibility samples of the lit-interval search "
+                        "(default 0.01; occluders narrower than this may be missed)")
     r.add_argument("--passes", type=int, help="stochastic methods: number of progressive passes")
     r.add_argument("--time-budget", type=float, help="stochastic methods: stop after this many seconds of rendering")
     r.add_argument("--target-error", type=float,
@@ -147,6 +150,7 @@ def cmd_render(args):
     try:
         img = render(scene, args.method, spp=args.spp, width=args.width, height=args.height, seed=args.seed,
                      threads=args.threads, crop=rows, volumetric_shadows=args.volumetric_shadows or None,
+                     shadow_spacing=args.shadow_spacing,
                      passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                      checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                      progress=bar.update if bar else None, on_pass=report, **_given_params(args))
@@ -255,12 +259,13 @@ def cmd_methods(args):
     from .methods import registry
 
     for m in registry().values():
-        supports = "volumetric shadows: " + ("sampled at its medium points" if m.points else "no")
-        print(f"{m.name}: {m.summary} ({supports})")
+        print(f"{m.name}: {m.summary}")
         for name, p in m.params.items():
             print(f"    --{name.replace('_', '-')} (default {p.default!r}, {p.rule()}): {p.help}")
     print("render options (every method): --spp, --seed, --threads, --crop, --volumetric-shadows "
-          "(render.volumetric_shadows)")
+          "(render.volumetric_shadows: the air-light over each light's lit intervals), --shadow-spacing RADIANS "
+          "(render.shadow_spacing, default 0.01: the lit-interval search samples visibility at this angle seen "
+          "from the light and bisects every change; it can miss occluders or gaps narrower than that)")
     return 0
 
 

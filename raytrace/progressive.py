@@ -23,6 +23,7 @@ import numpy as np
 
 from .errors import UserError
 from .renderer import Prepared, RenderResult, render
+from .visibility import SHADOW_SPACING
 
 GOLDEN = 0x9E3779B97F4A7C15
 
@@ -82,11 +83,12 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
                        time_budget: float | None = None, target_error: float | None = None,
                        checkpoint: Path | None = None, checkpoint_interval: float = 0.0, threads=None,
                        on_pass=None, source: str = "render", crop=None,
-                       volumetric_shadows: bool = False) -> RenderResult:
+                       volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING) -> RenderResult:
     """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress."""
     if passes is None and time_budget is None and target_error is None:
         passes = 1
-    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": volumetric_shadows}, seed)
+    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": volumetric_shadows,
+                                               "shadow_spacing": shadow_spacing}, seed)
     state = _load(checkpoint, fp) if checkpoint else None
     if state is None:
         cam = prep.scene.camera
@@ -111,7 +113,7 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
     try:
         while not finished():
             result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source, crop=crop,
-                            volumetric_shadows=volumetric_shadows)
+                            volumetric_shadows=volumetric_shadows, shadow_spacing=shadow_spacing)
             if result.variance is None:
                 raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "

@@ -21,7 +21,8 @@ from .methods import get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, surface_radiance
-from .visibility import shadowed_airlight, unshadowed_airlight, whole_rays
+from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, lit_intervals, segment_airlight,
+                         shadowed_airlight, whole_rays)
 
 RAYS_PER_TILE = 1 << 14
 
@@ -58,9 +59,10 @@ def default_threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
-def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, volumetric_shadows=False):
-    """Radiance (N, 3) of camera rays, the method's statistics array and, for a stochastic method,
-    the variance (N, 3) of each ray's estimate."""
+def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None):
+    """Radiance (N, 3) of camera rays, the statistics array (the method's, then the lit-interval
+    search's) and, for a stochastic method, the variance (N, 3) of each ray's estimate. `shadows`:
+    None for the paper's unshadowed air-light, else the angular spacing of the lit-interval search."""
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
@@ -73,62 +75,73 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, volume
                                          medium)
     radiance[~hit] = scene.background
     radiance *= medium.transmittance(t)
-    stats = np.zeros(method.stats_size)
+    stats = np.zeros(method.stats_size + len(LI_NAMES))
     variance = np.zeros_like(radiance) if method.stochastic else None
     if len(prep.lights) and medium.scatters:
-        if volumetric_shadows:
-            segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
+        segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
+        if shadows is not None and params.get("shadow_test") == "samples":
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
         else:
-            air, stats, var = unshadowed_airlight(method, medium, prep.lights, params, origins, dirs, t, keys, seed,
-                                                  prep.accel.scale)
+            if shadows is not None:
+                normals = np.zeros((len(origins), 3))
+                normals[hit] = prep.accel.normals[prim[hit]]
+                segs, stats[method.stats_size:] = lit_intervals(prep.accel, segs, prep.lights, len(prep.lights),
+                                                                shadows, np.repeat(normals, len(prep.lights), axis=0))
+            air, stats[:method.stats_size], var = segment_airlight(method, medium, prep.lights, params, segs,
+                                                                   len(origins))
         radiance += air
         if method.stochastic:
             variance = var
     return radiance, stats, variance
 
 
-def warm_up(prep: Prepared, method, params, seed, volumetric_shadows=False) -> float:
+def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
     """Compile the method's kernels on a few rays; returns the seconds it took."""
     start = time.perf_counter()
     o, d = generate_rays(prep.scene.camera, slice(0, 1), slice(0, 1))
-    shade_rays(prep, method, params, o[:1], d[:1], np.zeros(1, dtype=np.uint64), seed, volumetric_shadows)
+    shade_rays(prep, method, params, o[:1], d[:1], np.zeros(1, dtype=np.uint64), seed, shadows)
     return time.perf_counter() - start
 
 
-def check_options(method, volumetric_shadows, source):
-    if volumetric_shadows and method.points is None:
-        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): method {method.name} has no "
-                        "medium sample points yet; use --method raymarch or montecarlo, or leave shadows off")
+def check_options(method, params, volumetric_shadows, shadow_spacing, source):
+    lo, hi = SPACING_RANGE
+    if not lo <= shadow_spacing <= hi:
+        raise UserError(f"{source}: --shadow-spacing (render.shadow_spacing): must be within [{lo:g}, {hi:g}] "
+                        f"radians, got {shadow_spacing!r}; e.g. 0.01 (finer finds thinner occluders, costs more "
+                        "shadow rays)")
+    if params.get("shadow_test") == "samples" and not volumetric_shadows:
+        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows; "
+                        "add --volumetric-shadows or remove it")
 
 
 def render(prep: Prepared, method_name: str, given_params: dict | None = None, seed: int = 0,
            threads: int | None = None, progress=None, source: str = "render", crop=None,
-           volumetric_shadows: bool = False) -> RenderResult:
+           volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING) -> RenderResult:
     """Render the image, or the pixel block `crop` = (x0, y0, x1, y1) of it (end exclusive; the same
     samples and random numbers as in the whole image). `progress(n)` gets the rows finished.
-    `given_params` are the method's own parameters (any other key is refused); seed, threads, crop
-    and volumetric_shadows are render options."""
+    `given_params` are the method's own parameters (any other key is refused); seed, threads, crop,
+    volumetric_shadows and shadow_spacing (radians, visibility.py) are render options."""
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
     method.check(scene.medium, params)
-    check_options(method, volumetric_shadows, source)
+    check_options(method, params, volumetric_shadows, shadow_spacing, source)
+    shadows = float(shadow_spacing) if volumetric_shadows else None
     cam = scene.camera
     x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
     cols = slice(x0, x1)
-    compile_s = warm_up(prep, method, params, seed, volumetric_shadows)
+    compile_s = warm_up(prep, method, params, seed, shadows)
     rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * cam.spp))
     tiles = [slice(r, min(r + rows_per_tile, y1)) for r in range(y0, y1, rows_per_tile)]
     image = np.zeros((y1 - y0, x1 - x0, 3))
     variance = np.zeros_like(image) if method.stochastic else None
-    totals = np.zeros(method.stats_size)
+    totals = np.zeros(method.stats_size + len(LI_NAMES))
 
     def work(rows):
         o, d = generate_rays(cam, rows, cols)
         pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
         keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp) + np.arange(cam.spp, dtype=np.uint64)).ravel()
-        rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed, volumetric_shadows)
+        rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed, shadows)
         shape = (rows.stop - rows.start, x1 - x0, cam.spp, 3)
         block = slice(rows.start - y0, rows.stop - y0)
         image[block] = rad.reshape(shape).mean(axis=2)
@@ -140,9 +153,11 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     threads = threads or default_threads()
     with ThreadPoolExecutor(threads) as pool:
         for n_rows, stats in pool.map(work, tiles):
-            if len(stats):
-                totals += stats
+            totals += stats
             if progress is not None:
                 progress(n_rows)
     seconds = time.perf_counter() - start
-    return RenderResult(image, method.name, params, seconds, compile_s, method.summarize(totals), variance)
+    summary = method.summarize(totals[:method.stats_size])
+    if shadows is not None:
+        summary.update({f"shadows: {k}": int(v) for k, v in zip(LI_NAMES, totals[method.stats_size:])})
+    return RenderResult(image, method.name, params, seconds, compile_s, summary, variance)

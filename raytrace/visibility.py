@@ -1,10 +1,20 @@
 """From camera rays to segments, and light visibility inside the medium (ARCHITECTURE.md).
 
-`whole_rays` makes the unshadowed segments: one [0, t_hit] per (ray, light). `gather` adds
-segment air-lights to their camera rays with the transmittance exp(-kt t0) in front of each segment.
-`shadowed_airlight` is the sampled volumetric shadowing of the methods that expose their medium
-points (raymarch, montecarlo): a shadow ray from every point to its light, in chunks of bounded
-memory.
+`whole_rays` makes the unshadowed segments: one [0, t_hit] per (ray, light). `lit_intervals` cuts
+them into the pieces each light illuminates (volumetric shadows), so that every method integrates
+the shadowed air-light exactly between shadow boundaries. `gather` adds segment air-lights to their
+camera rays with the transmittance exp(-kt t0) in front of each segment. `shadowed_airlight` is the
+classic alternative of the methods that expose their medium points (raymarch, montecarlo with
+`shadow_test = "samples"`): a shadow ray from every point to its light.
+
+Lit-interval search. Seen from the light L, the point of a segment at distance x is at the angle
+theta = atan((x - x_h) / h) from the foot point (the closed form's own variable, METHODS.md §1);
+the ray from L towards it is cos(theta) n + sin(theta) w with length h / cos(theta) (n: unit vector
+from L to the foot point, w: the ray direction). Visibility is sampled at angles spaced evenly by
+at most `spacing` between the segment's ends, with shadow rays *from the light* (so points far
+along rays to infinity need no huge coordinates), and every change of visibility between two
+samples is bisected to BOUNDARY_TOL radians. What it can miss: an occluder (or a gap) narrower than
+`spacing` as seen from the light, between two samples of equal visibility.
 """
 from __future__ import annotations
 
@@ -13,6 +23,15 @@ import numpy as np
 from .methods import Segments
 
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
+SHADOW_SPACING = 0.01  # radians seen from the light between visibility samples (render.shadow_spacing)
+SPACING_RANGE = (1e-5, 0.5)
+BOUNDARY_TOL = 1e-10  # radians: shadow boundaries are bisected to this
+SAMPLES_PER_CHUNK = 1 << 20  # visibility samples per batch of shadow rays (~100 MB of arrays)
+
+# lit-interval statistics (`lit_intervals`' stats array)
+LI_SEGMENTS, LI_SAMPLES, LI_BOUNDARIES, LI_BISECTIONS, LI_INTERVALS, LI_SHADOWED = range(6)
+LI_NAMES = ("segments searched", "visibility samples", "shadow boundaries", "bisection shadow rays",
+            "lit intervals", "segments fully shadowed")
 
 
 def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
@@ -33,13 +52,137 @@ def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int =
     return out
 
 
-def unshadowed_airlight(method, medium, lights, params, origins, dirs, tmax, keys, seed=0, scale=1.0):
-    """Air-light (N, 3) of whole rays [0, tmax] summed over lights, the method's statistics, and the
+def _light_frame(segs: Segments, lights):
+    """Per segment: light position L (S, 3), unit n (S, 3) from L to the foot point, x_h, h, and the
+    angles of the segment's ends seen from L (theta_b = pi/2 for a segment to infinity)."""
+    L = lights.position[segs.light]
+    xh = np.einsum("ij,ij->i", L - segs.origins, segs.dirs)
+    nvec = segs.origins + xh[:, None] * segs.dirs - L
+    h = np.linalg.norm(nvec, axis=1)
+    tiny = h <= 1e-12 * np.maximum(np.abs(xh), segs.scale)
+    if tiny.any():  # the ray passes through the light: any direction perpendicular to the ray
+        w = segs.dirs[tiny]
+        alt = np.where(np.abs(w[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+        nvec[tiny] = np.cross(w, np.cross(alt, w))
+        h[tiny] = np.maximum(h[tiny], 1e-300)
+    n = nvec / np.linalg.norm(nvec, axis=1)[:, None]
+    th_a = np.arctan2(-xh, h)
+    with np.errstate(invalid="ignore"):
+        th_b = np.where(np.isinf(segs.length), 0.5 * np.pi, np.arctan2(segs.length - xh, h))
+    return L, n, xh, h, th_a, th_b
+
+
+FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a point by
+
+
+def _visible_at(accel, L, n, w, h, theta, at_surface=None):
+    """Visibility of the light from the segment points at angles theta (all arrays per sample).
+    Points in the air need no offset beyond float32 rounding; points on the surface a segment ends
+    on (`at_surface`) stop the shadow ray the shadow-ray epsilon short of that surface."""
+    c, s = np.cos(theta), np.sin(theta)
+    d = c[:, None] * n + s[:, None] * w
+    with np.errstate(divide="ignore"):
+        dist = np.where(c > 0.0, h / np.maximum(c, 1e-300), np.inf)
+    finite = np.isfinite(dist)
+    margin = FLOAT32_MARGIN * (np.where(finite, dist, 0.0) + np.linalg.norm(L, axis=1))
+    if at_surface is not None:
+        margin = np.where(at_surface, np.maximum(margin, accel.epsilon), margin)
+    return ~accel.occluded(L, d, np.where(finite, dist - margin, np.inf))
+
+
+def _search(accel, segs, lights, spacing, end_lit, stats):
+    """Lit angular intervals of a chunk: (segment index, theta start, theta end, starts at the
+    segment's start, ends at its end), and the light frame. `end_lit`: whether the light is on the
+    near side of the surface each segment ends on (True where it ends in the air)."""
+    L, n, xh, h, th_a, th_b = _light_frame(segs, lights)
+    count = np.clip(np.ceil((th_b - th_a) / spacing), 1, None).astype(np.int64)
+    owner = np.repeat(np.arange(len(segs)), count + 1)
+    first = np.concatenate(([0], np.cumsum(count + 1)[:-1]))
+    k = np.arange(len(owner)) - first[owner]
+    theta = th_a[owner] + (th_b - th_a)[owner] * (k / count[owner])
+    last = first + count
+    at_end = np.zeros(len(theta), bool)
+    at_end[last] = True
+    vis = _visible_at(accel, L[owner], n[owner], segs.dirs[owner], h[owner], theta, at_end)
+    vis[last] &= end_lit
+    stats[LI_SAMPLES] += len(theta)
+    # visibility changes between consecutive samples of one segment: bisect each to BOUNDARY_TOL
+    change = np.nonzero((vis[:-1] != vis[1:]) & (owner[:-1] == owner[1:]))[0]
+    lo, hi, vis_lo = theta[change].copy(), theta[change + 1].copy(), vis[change]
+    so = owner[change]
+    if len(change):
+        steps = int(np.ceil(np.log2(max(float(np.max(hi - lo)), BOUNDARY_TOL) / BOUNDARY_TOL)))
+        for _ in range(steps):
+            mid = 0.5 * (lo + hi)
+            same = _visible_at(accel, L[so], n[so], segs.dirs[so], h[so], mid) == vis_lo
+            lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+        stats[LI_BISECTIONS] += steps * len(change)
+    stats[LI_BOUNDARIES] += len(change)
+    bound = 0.5 * (lo + hi)
+    # interval starts: a visible first sample, or a change to visible; ends: the reverse
+    s_seg = np.concatenate([np.nonzero(vis[first])[0], so[~vis_lo]])
+    s_th = np.concatenate([th_a[vis[first]], bound[~vis_lo]])
+    s_at_start = np.concatenate([np.ones(int(vis[first].sum()), bool), np.zeros(int((~vis_lo).sum()), bool)])
+    e_seg = np.concatenate([np.nonzero(vis[last])[0], so[vis_lo]])
+    e_th = np.concatenate([th_b[vis[last]], bound[vis_lo]])
+    e_at_end = np.concatenate([np.ones(int(vis[last].sum()), bool), np.zeros(int(vis_lo.sum()), bool)])
+    si, ei = np.lexsort((s_th, s_seg)), np.lexsort((e_th, e_seg))
+    stats[LI_SHADOWED] += len(segs) - len(np.unique(s_seg))
+    return (s_seg[si], s_th[si], e_th[ei], s_at_start[si], e_at_end[ei]), xh, h
+
+
+def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float = SHADOW_SPACING,
+                  end_normals=None):
+    """The lit pieces of `segs` as new segments (each from its own start point, t0 along the camera
+    ray), and the search's statistics (LI_NAMES). `end_normals` (S, 3): the normal of the surface
+    each segment ends on (zero where it ends in the air); the air just before that surface sees the
+    light only from the surface's near side."""
+    end_lit = np.ones(len(segs), bool)
+    if end_normals is not None:
+        end = segs.origins + np.where(np.isfinite(segs.length), segs.length, 0.0)[:, None] * segs.dirs
+        to_light = np.einsum("ij,ij->i", end_normals, lights.position[segs.light] - end)
+        toward_camera = -np.einsum("ij,ij->i", end_normals, segs.dirs)
+        end_lit = to_light * toward_camera >= 0.0
+    stats = np.zeros(len(LI_NAMES))
+    stats[LI_SEGMENTS] = len(segs)
+    _, _, _, _, th_a, th_b = _light_frame(segs, lights)
+    per_segment = np.clip(np.ceil((th_b - th_a) / spacing), 1, None) + 1
+    parts = []
+    for part in chunks(np.ones(len(segs)), SAMPLES_PER_CHUNK // max(1, int(per_segment.max(initial=1)))):
+        seg = segs.take(part)
+        (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, seg, lights, spacing, end_lit[part], stats)
+        x0 = np.where(at_start, 0.0, xh[idx] + h[idx] * np.tan(t_s))
+        x1 = np.where(at_end, seg.length[idx], xh[idx] + h[idx] * np.tan(t_e))
+        x0 = np.clip(x0, 0.0, seg.length[idx])
+        x1 = np.clip(x1, x0, seg.length[idx])
+        piece = np.arange(len(idx)) - np.searchsorted(idx, idx)  # number of the piece within its segment
+        parts.append(Segments(seg.origins[idx] + x0[:, None] * seg.dirs[idx], seg.dirs[idx], x1 - x0,
+                              seg.light[idx], seg.ray[idx], seg.t0[idx] + x0, seg.keys[idx],
+                              seg.light[idx] + n_lights * piece, seg.seed, seg.scale))
+    stats[LI_INTERVALS] = sum(len(p) for p in parts)
+    return concat(parts, segs), stats
+
+
+def concat(parts: list[Segments], like: Segments) -> Segments:
+    if not parts:
+        return like.take(slice(0, 0))
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    return Segments(cat("origins"), cat("dirs"), cat("length"), cat("light"), cat("ray"), cat("t0"), cat("keys"),
+                    cat("stream"), like.seed, like.scale)
+
+
+def segment_airlight(method, medium, lights, params, segs: Segments, n_rays: int):
+    """Air-light (N, 3) of the camera rays from their segments, the method's statistics, and the
     variance (N, 3) of each ray's estimate (None for a deterministic method)."""
-    segs = whole_rays(origins, dirs, tmax, keys, len(lights), seed, scale)
     res = method.airlight(segs, medium, lights, params)
-    var = gather(segs, res[2], len(origins), medium, power=2) if method.stochastic else None
-    return gather(segs, res[0], len(origins), medium), res[1], var
+    var = gather(segs, res[2], n_rays, medium, power=2) if method.stochastic else None
+    return gather(segs, res[0], n_rays, medium), res[1], var
+
+
+def unshadowed_airlight(method, medium, lights, params, origins, dirs, tmax, keys, seed=0, scale=1.0):
+    """`segment_airlight` of whole rays [0, tmax], one segment per light."""
+    segs = whole_rays(origins, dirs, tmax, keys, len(lights), seed, scale)
+    return segment_airlight(method, medium, lights, params, segs, len(origins))
 
 
 def chunks(sizes: np.ndarray, budget: int):

@@ -107,3 +107,64 @@ def box_room_pixel(scene: dict, i: int, j: int) -> np.ndarray:
             out[c] += math.exp(-kt[c] * t) * surface
             out[c] += airlight(o, d, t, p, inten[c], kt[c], ks[c], name, g)
     return out
+
+
+def plate_shadow_breaks(o, d, tmax, light, plate):
+    """Distances along the ray o + x d (0 < x < tmax) where the segment light → point starts or stops
+    crossing the rectangle plate = (y0, (xmin, xmax), (zmin, zmax)) in the plane y = y0. The crossing
+    point's x and z coordinates are ratios of linear functions of x, so every edge gives one linear
+    equation."""
+    y0, (x_lo, x_hi), (z_lo, z_hi) = plate
+    L = np.asarray(light, float)
+    breaks = set()
+    # y of the point equals y0: the segment starts or stops reaching the plane
+    if d[1] != 0.0:
+        breaks.add((y0 - o[1]) / d[1])
+    for axis, edges in ((0, (x_lo, x_hi)), (2, (z_lo, z_hi))):
+        for e in edges:
+            # L_a + (y0 - L_y) (o_a + x d_a - L_a) / (o_y + x d_y - L_y) = e, linear in x
+            a = (y0 - L[1]) * d[axis] - (e - L[axis]) * d[1]
+            b = (y0 - L[1]) * (o[axis] - L[axis]) - (e - L[axis]) * (o[1] - L[1])
+            if a != 0.0:
+                breaks.add(-b / a)
+    return sorted(x for x in breaks if 0.0 < x < tmax)
+
+
+def plate_blocks(o, d, x, light, plate) -> bool:
+    y0, (x_lo, x_hi), (z_lo, z_hi) = plate
+    L = np.asarray(light, float)
+    p = o + x * d
+    if (p[1] - y0) * (L[1] - y0) >= 0.0:  # both on one side of the plane
+        return False
+    s = (y0 - L[1]) / (p[1] - L[1])
+    q = L + s * (p - L)
+    return x_lo < q[0] < x_hi and z_lo < q[2] < z_hi
+
+
+def shadowed_airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, plates):
+    """Air-light of eq. 4 over the lit parts of [0, tmax]: the visibility of the light is 0 where a
+    plate lies between the light and the point; integrated piece by piece between the analytic
+    shadow boundaries."""
+    breaks = sorted({0.0, tmax, *(b for p in plates for b in plate_shadow_breaks(o, d, tmax, light, p))})
+    total = 0.0
+    for a, b in zip(breaks[:-1], breaks[1:]):
+        mid = 0.5 * (a + b)
+        if not any(plate_blocks(o, d, mid, light, p) for p in plates):
+            total += airlight_between(o, d, a, b, light, intensity, kt, ks, phase_name, g)
+    return total
+
+
+def airlight_between(o, d, a, b, light, intensity, kt, ks, phase_name, g):
+    """eq. 4 over [a, b]: the air-light of [0, b] minus that of [0, a] would cancel; integrate [a, b]
+    from its own start and attenuate by exp(-kt a)."""
+    start = o + a * d
+    return math.exp(-kt * a) * airlight(start, d, b - a, light, intensity, kt, ks, phase_name, g)
+
+
+def plate_hit(o, d, plate):
+    y0, (x_lo, x_hi), (z_lo, z_hi) = plate
+    if d[1] == 0.0:
+        return math.inf
+    t = (y0 - o[1]) / d[1]
+    q = o + t * d
+    return t if t > 0.0 and x_lo < q[0] < x_hi and z_lo < q[2] < z_hi else math.inf

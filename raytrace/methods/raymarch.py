@@ -165,10 +165,13 @@ METHOD = Method(
         "step": Param(0.0, float, "fixed step length in scene units (0 = use steps), e.g. 0.05", 0.0),
         "jitter": Param(False, bool, "one random offset per ray instead of midpoints (unbiased, noisy)"),
         "tau_max": Param(20.0, float, "optical depth at which rays that hit nothing stop, e.g. 20", 0.0, 700.0, True),
+        "shadow_test": Param("intervals", str, "with volumetric shadows: integrate the lit intervals (exact between "
+                             "shadow boundaries) or samples (a shadow ray per medium sample, the classic)",
+                             choices=("intervals", "samples")),
     },
     airlight=_airlight,
     # midpoint rule: error O(Delta^2); 4096 steps over the box room's few metres, lights >= 0.1 from rays
-    error_law=ErrorLaw({"steps": 4096}, "median", 1e-5),
+    error_law=ErrorLaw({"steps": 4096}, "median", 5e-8),  # measured worst 1.8e-8 (hg_backward_light_behind_camera)
     stats_size=3,
     summarize=_summarize,
     points=_points,

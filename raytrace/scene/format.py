@@ -257,7 +257,7 @@ def _medium(ctx, raw):
     return Medium(sa, ss, HG, g)
 
 
-RENDER_OPTIONS = ("method", "seed", "volumetric_shadows")  # [render] keys that are not method parameters
+RENDER_OPTIONS = ("method", "seed", "volumetric_shadows", "shadow_spacing")  # [render] keys that are not method parameters
 
 
 def render_keys():
@@ -286,6 +286,8 @@ def _render(ctx, raw):
     if "volumetric_shadows" in out and not isinstance(out["volumetric_shadows"], bool):
         ctx.fail("render.volumetric_shadows", f"expected true or false, got {out['volumetric_shadows']!r}",
                  "write volumetric_shadows = true")
+    if "shadow_spacing" in out:
+        _number(ctx, "render.shadow_spacing", out["shadow_spacing"], positive=True)
     return out
 
 
