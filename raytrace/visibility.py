@@ -18,8 +18,11 @@ samples is bisected to BOUNDARY_TOL radians. What it can miss: an occluder (or a
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from .jit import njit
 from .methods import Segments
 
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
@@ -75,19 +78,33 @@ def _light_frame(segs: Segments, lights):
 FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a point by
 
 
-def _visible_at(accel, L, n, w, h, theta, at_surface=None):
-    """Visibility of the light from the segment points at angles theta (all arrays per sample).
+@njit
+def _shadow_rays(L, n, w, h, owner, theta, at_surface, epsilon, o32, d32, t32):
+    """Float32 shadow rays from the light of segment owner[i] towards its point at angle theta[i].
     Points in the air need no offset beyond float32 rounding; points on the surface a segment ends
-    on (`at_surface`) stop the shadow ray the shadow-ray epsilon short of that surface."""
-    c, s = np.cos(theta), np.sin(theta)
-    d = c[:, None] * n + s[:, None] * w
-    with np.errstate(divide="ignore"):
-        dist = np.where(c > 0.0, h / np.maximum(c, 1e-300), np.inf)
-    finite = np.isfinite(dist)
-    margin = FLOAT32_MARGIN * (np.where(finite, dist, 0.0) + np.linalg.norm(L, axis=1))
-    if at_surface is not None:
-        margin = np.where(at_surface, np.maximum(margin, accel.epsilon), margin)
-    return ~accel.occluded(L, d, np.where(finite, dist - margin, np.inf))
+    on (`at_surface`) stop the shadow-ray epsilon short of it."""
+    for i in range(theta.shape[0]):
+        s = owner[i]
+        c, sn = math.cos(theta[i]), math.sin(theta[i])
+        for a in range(3):
+            o32[i, a] = L[s, a]
+            d32[i, a] = c * n[s, a] + sn * w[s, a]
+        if c > 0.0:
+            dist = h[s] / c
+            margin = FLOAT32_MARGIN * (dist + math.sqrt(L[s, 0] ** 2 + L[s, 1] ** 2 + L[s, 2] ** 2))
+            if at_surface[i]:
+                margin = max(margin, epsilon)
+            t32[i] = max(dist - margin, 0.0)
+        else:
+            t32[i] = math.inf
+
+
+def _visible_at(accel, L, n, w, h, owner, theta, at_surface):
+    """Visibility of the light from the points at angles theta of the segments `owner`."""
+    m = len(theta)
+    o32, d32, t32 = np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.float32)
+    _shadow_rays(L, n, w, h, owner, theta, at_surface, accel.epsilon, o32, d32, t32)
+    return ~accel.occluded(o32, d32, t32)
 
 
 def _search(accel, segs, lights, spacing, end_lit, stats):
@@ -103,7 +120,7 @@ def _search(accel, segs, lights, spacing, end_lit, stats):
     last = first + count
     at_end = np.zeros(len(theta), bool)
     at_end[last] = True
-    vis = _visible_at(accel, L[owner], n[owner], segs.dirs[owner], h[owner], theta, at_end)
+    vis = _visible_at(accel, L, n, segs.dirs, h, owner, theta, at_end)
     vis[last] &= end_lit
     stats[LI_SAMPLES] += len(theta)
     # visibility changes between consecutive samples of one segment: bisect each to BOUNDARY_TOL
@@ -114,7 +131,7 @@ def _search(accel, segs, lights, spacing, end_lit, stats):
         steps = int(np.ceil(np.log2(max(float(np.max(hi - lo)), BOUNDARY_TOL) / BOUNDARY_TOL)))
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
-            same = _visible_at(accel, L[so], n[so], segs.dirs[so], h[so], mid) == vis_lo
+            same = _visible_at(accel, L, n, segs.dirs, h, so, mid, np.zeros(len(mid), bool)) == vis_lo
             lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
         stats[LI_BISECTIONS] += steps * len(change)
     stats[LI_BOUNDARIES] += len(change)
@@ -148,7 +165,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     _, _, _, _, th_a, th_b = _light_frame(segs, lights)
     per_segment = np.clip(np.ceil((th_b - th_a) / spacing), 1, None) + 1
     parts = []
-    for part in chunks(np.ones(len(segs)), SAMPLES_PER_CHUNK // max(1, int(per_segment.max(initial=1)))):
+    for part in chunks(per_segment, SAMPLES_PER_CHUNK):
         seg = segs.take(part)
         (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, seg, lights, spacing, end_lit[part], stats)
         x0 = np.where(at_start, 0.0, xh[idx] + h[idx] * np.tan(t_s))
@@ -185,15 +202,24 @@ def unshadowed_airlight(method, medium, lights, params, origins, dirs, tmax, key
     return segment_airlight(method, medium, lights, params, segs, len(origins))
 
 
+@njit
+def _chunk_ends(sizes, budget):
+    ends = []
+    start, biggest = 0, 0
+    for i in range(sizes.shape[0]):
+        biggest = max(biggest, sizes[i])
+        if i > start and (i + 1 - start) * biggest > budget:
+            ends.append(i)
+            start, biggest = i, sizes[i]
+    ends.append(sizes.shape[0])
+    return ends
+
+
 def chunks(sizes: np.ndarray, budget: int):
     """Consecutive slices of items whose count times their largest size stays within `budget`
     (a single item larger than the budget is a chunk of its own)."""
-    start, n = 0, len(sizes)
-    while start < n:
-        stop, biggest = start + 1, int(sizes[start])
-        while stop < n and (stop + 1 - start) * max(biggest, int(sizes[stop])) <= budget:
-            biggest = max(biggest, int(sizes[stop]))
-            stop += 1
+    start = 0
+    for stop in (_chunk_ends(np.asarray(sizes, np.int64), int(budget)) if len(sizes) else []):
         yield slice(start, stop)
         start = stop
 
