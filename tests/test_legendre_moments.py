@@ -11,6 +11,14 @@ from raytrace.media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moment
                                              hg_legendre, legendre_to_cosine, rayleigh_legendre)
 
 
+# Absolute cap on the error bounds below, which the code under test computes (its loss estimate
+# forward_loss times FORWARD_ERR_PER_LOSS): however large that estimate grows, the recurrence must
+# deliver, inside the stability region tested here, the finest working precision `analytic` asks
+# of it: 1e-11 (working_precision(1e-8)). Measured worst: 1.2e-12 (HG g = 0.9, H = 0.3, va = 20),
+# 6.2e-15 (Rayleigh); uncapped, the bounds reach 2e-6 and 1e-7.
+CAP = 1e-11
+
+
 def _inputs(H, va, vb):
     """K1, L1, ea, eb scaled by F = e^{H va}."""
     ga = g_scaled(complex(H * va, H))
@@ -59,7 +67,7 @@ def test_hg_vs_mpmath(g, L, H, va, vb):
     r = _ref(H, va, vb, c)
     # rounding grows like the recurrence's loss estimate times the cancellation of the final sum
     bound = max(1e-12, 30 * FORWARD_ERR_PER_LOSS * forward_loss(H, c) * np.abs(c).sum() / abs(r))
-    assert abs(s / r - 1.0) < bound
+    assert abs(s / r - 1.0) < min(bound, CAP)
     assert bound < 1e-5
 
 
@@ -91,4 +99,4 @@ def test_rayleigh_exact(H, va, vb):
         f = lambda v: mp.exp(-H * (v - va)) * 2 / (1 + v * v) * 3 / (16 * mp.pi) * (1 + ((1 - v * v) / (1 + v * v)) ** 2)
         end = mp.inf if vb == math.inf else vb
         r = float(mp.quad(f, [va, va + 1 / H, end] if va + 1 / H < end else [va, end]))
-    assert abs(s / r - 1.0) < 1e-12 * forward_loss(H, c)
+    assert abs(s / r - 1.0) < min(1e-12 * forward_loss(H, c), CAP)

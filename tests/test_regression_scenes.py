@@ -70,17 +70,44 @@ def test_table1_quick_runs_and_reports(tmp_path):
 
 
 @pytest.mark.slow
-def test_table1_full_beats_the_papers_analytic_error(tmp_path):
-    """The full `render.py table1` (about 1-2 minutes on 2 cores): in every scene our analytic
-    method's mean absolute error is below the paper's analytic error (Table 1: 1.9e-4, 5.5e-4 and,
-    with 6 terms, 3.2e-4), and the paper's ranking of Lecocq and Sun / ray marching holds."""
+def test_table1_full_analytic_meets_its_precision_and_ranks_first(tmp_path):
+    """The full `render.py table1` (a few minutes on 2 cores), judged against the table's own
+    reference (`quadrature`, rtol 1e-10, the same camera samples) rather than against the paper's
+    errors, which used another metric and Monte Carlo references on other media.
+
+    The analytic method (for Rayleigh its exact variant) at the table's precision P (1e-3): every
+    pixel is a sum of positive terms (surface term, one air-light per light) each computed to a
+    relative P, so the per-pixel relative error is at most P (measured 2.3e-4, 1.7e-4 and 6.8e-6;
+    the images are float32 EXRs, whose rounding, 6e-8, is far below P) and the mean absolute error
+    at most P times the mean reference radiance (measured 4.8e-5, 8.7e-6, 1.2e-6 relative).
+    Ranking (relative mean absolute error): analytic is the most accurate method of every scene by a
+    factor above 3 (measured: 6.8 over Sun in sibenik, 36 over Sun in bridge, 1.4e5 over Lecocq in
+    conference); Lecocq > Sun > analytic in sibenik (the paper's ranking) and in bridge; in bridge ray
+    marching at the analytic method's time is worse than Lecocq (the paper's ranking; measured 1.1 at
+    15 steps vs 2.0e-2, and still 4.7e-2 at 240 steps, so timing noise cannot flip it); in conference
+    our exact variant beats the paper's Taylor variants with 3 and 6 coefficients."""
     for name in make_refs.SIZES:
         load_or_skip(name)
     from raytrace.experiments import table1
 
     scenes = {sc["name"]: {r.label: r for r in sc["rows"]} for sc in table1.run(tmp_path, log=lambda *a: None)}
-    assert scenes["sibenik"]["analytic"].mean_abs < 1.9e-4
-    assert scenes["bridge"]["analytic"].mean_abs < 5.5e-4
-    assert scenes["conference"]["analytic exact"].mean_abs < 3.2e-4
-    assert scenes["sibenik"]["lecocq"].rel > scenes["sibenik"]["sun"].rel > scenes["sibenik"]["analytic"].rel
-    assert scenes["bridge"]["raymarch"].rel > scenes["bridge"]["lecocq"].rel > scenes["bridge"]["analytic"].rel
+    assert set(scenes) == {"sibenik", "bridge", "conference"}
+    for name, rows in scenes.items():
+        best = rows.get("analytic") or rows["analytic exact"]
+        precision = best.spec.params["precision"]
+        ref = read_exr(tmp_path / name / "reference.exr")[0]
+        img = read_exr(tmp_path / name / f"{table1.safe_name(best.label)}.exr")[0]
+        lit = ref > 0
+        assert lit.mean() > 0.99, f"{name}: {1 - lit.mean():.1%} of the reference pixel-channels are black"
+        rel = np.abs(img - ref)[lit] / ref[lit]
+        assert rel.max() <= precision, f"{name}: {best.label} max relative error {rel.max():.2e} > P {precision:g}"
+        assert best.rel <= precision, f"{name}: {best.label} mean relative error {best.rel:.2e} > P {precision:g}"
+        for label, r in rows.items():
+            if r is not best:
+                assert r.rel > 3 * best.rel, f"{name}: {label} {r.rel:.2e} vs {best.label} {best.rel:.2e}"
+    for name in ("sibenik", "bridge"):
+        rows = scenes[name]
+        assert rows["lecocq"].rel > rows["sun"].rel > rows["analytic"].rel, name
+    assert scenes["bridge"]["raymarch"].rel > scenes["bridge"]["lecocq"].rel
+    conf = scenes["conference"]
+    assert min(conf["analytic taylor 3"].rel, conf["analytic taylor 6"].rel) > conf["analytic exact"].rel

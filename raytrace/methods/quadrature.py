@@ -150,7 +150,7 @@ METHOD = Method(
     summary="reference: adaptive Gauss-Legendre in the scattering angle, split at the light's foot point",
     params={"rtol": Param(1e-10, float, "relative accuracy of each integral, e.g. 1e-10", 1e-14, 0.5)},
     airlight=_airlight,
-    error_law=ErrorLaw({"rtol": 1e-10}, "max", 1e-8),
+    error_law=ErrorLaw({"rtol": 1e-10}, "max", 1e-13),  # measured worst 2.3e-14 (hg_forward_light_near_axis)
     stats_size=3,
     summarize=_summarize,
 )
