@@ -21,6 +21,7 @@ from .methods import get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, surface_radiance
+from .shadow_maps import build as build_shadow_maps
 from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, lit_intervals, segment_airlight,
                          shadowed_airlight, whole_rays)
 
@@ -34,6 +35,13 @@ class Prepared:
     accel: Accelerator
     reflectance: np.ndarray
     lights: Lights
+    _maps: dict = field(default_factory=dict)
+
+    def shadow_maps(self, spacing: float) -> np.ndarray:
+        """The lights' depth cube maps for this search spacing, built once (shadow_maps.py)."""
+        if spacing not in self._maps:
+            self._maps[spacing] = build_shadow_maps(self.accel, self.lights, spacing)
+        return self._maps[spacing]
 
 
 @dataclass
@@ -86,7 +94,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                 normals = np.zeros((len(origins), 3))
                 normals[hit] = prep.accel.normals[prim[hit]]
                 segs, stats[method.stats_size:] = lit_intervals(prep.accel, segs, prep.lights, len(prep.lights),
-                                                                shadows, np.repeat(normals, len(prep.lights), axis=0))
+                                                                shadows, np.repeat(normals, len(prep.lights), axis=0),
+                                                                prep.shadow_maps(shadows))
             air, stats[:method.stats_size], var = segment_airlight(method, medium, prep.lights, params, segs,
                                                                    len(origins))
         radiance += air
@@ -130,6 +139,8 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     cam = scene.camera
     x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
     cols = slice(x0, x1)
+    if shadows is not None:
+        prep.shadow_maps(shadows)  # before the tiles' threads share it
     compile_s = warm_up(prep, method, params, seed, shadows)
     rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * cam.spp))
     tiles = [slice(r, min(r + rows_per_tile, y1)) for r in range(y0, y1, rows_per_tile)]

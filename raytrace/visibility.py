@@ -24,6 +24,7 @@ import numpy as np
 
 from .jit import njit
 from .methods import Segments
+from .shadow_maps import classify
 
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
 SHADOW_SPACING = 0.01  # radians seen from the light between visibility samples (render.shadow_spacing)
@@ -32,9 +33,9 @@ BOUNDARY_TOL = 1e-10  # radians: shadow boundaries are bisected to this
 SAMPLES_PER_CHUNK = 1 << 20  # visibility samples per batch of shadow rays (~100 MB of arrays)
 
 # lit-interval statistics (`lit_intervals`' stats array)
-LI_SEGMENTS, LI_SAMPLES, LI_BOUNDARIES, LI_BISECTIONS, LI_INTERVALS, LI_SHADOWED = range(6)
-LI_NAMES = ("segments searched", "visibility samples", "shadow boundaries", "bisection shadow rays",
-            "lit intervals", "segments fully shadowed")
+LI_SEGMENTS, LI_SAMPLES, LI_BOUNDARIES, LI_BISECTIONS, LI_INTERVALS, LI_SHADOWED, LI_RAYS = range(7)
+LI_NAMES = ("segments searched", "visibility samples", "shadow boundaries", "bisection steps",
+            "lit intervals", "segments fully shadowed", "shadow rays traced")
 
 
 def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
@@ -78,63 +79,107 @@ def _light_frame(segs: Segments, lights):
 FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a point by
 
 
+@njit(inline="always")  # called per sample from the kernels below: a call would cost more than its work
+def _ray_toward(L, n, w, h, light, s, theta, at_surface, epsilon, maps, o32, d32, t32, j):
+    """Write the float32 shadow ray j from segment s's light towards its point at angle theta and
+    return the depth maps' verdict on it (shadow_maps.classify; -1 on a surface). Points in the air
+    need no offset beyond float32 rounding; a point on the surface a segment ends on stops the
+    shadow-ray epsilon short of it."""
+    c, sn = math.cos(theta), math.sin(theta)
+    dx, dy, dz = c * n[s, 0] + sn * w[s, 0], c * n[s, 1] + sn * w[s, 1], c * n[s, 2] + sn * w[s, 2]
+    o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0], L[s, 1], L[s, 2]
+    d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
+    dist = h[s] / c if c > 0.0 else math.inf
+    if dist < math.inf:
+        margin = FLOAT32_MARGIN * (dist + math.sqrt(L[s, 0] ** 2 + L[s, 1] ** 2 + L[s, 2] ** 2))
+        if at_surface:
+            margin = max(margin, epsilon)
+        t32[j] = max(dist - margin, 0.0)
+    else:
+        t32[j] = math.inf
+    return -1 if at_surface else classify(maps, light[s], dx, dy, dz, dist)
+
+
 @njit
-def _shadow_rays(L, n, w, h, owner, theta, at_surface, epsilon, o32, d32, t32):
-    """Float32 shadow rays from the light of segment owner[i] towards its point at angle theta[i].
-    Points in the air need no offset beyond float32 rounding; points on the surface a segment ends
-    on (`at_surface`) stop the shadow-ray epsilon short of it."""
+def _sample(L, n, w, h, light, th_a, th_b, count, first, epsilon, maps, vis, trace, o32, d32, t32):
+    """Visibility samples k = 0..count[s] of every segment at evenly spaced angles: the maps'
+    verdicts go to vis, the undecided samples' rays to o32/d32/t32 with their indices in trace.
+    Returns the number of rays to trace."""
+    m = 0
+    for s in range(th_a.shape[0]):
+        for k in range(count[s] + 1):
+            i = first[s] + k
+            theta = th_a[s] + (th_b[s] - th_a[s]) * (k / count[s])
+            verdict = _ray_toward(L, n, w, h, light, s, theta, k == count[s], epsilon, maps, o32, d32, t32, m)
+            if verdict < 0:
+                trace[m] = i
+                m += 1
+            else:
+                vis[i] = verdict == 1
+    return m
+
+
+@njit
+def _rays_at(L, n, w, h, light, seg, theta, epsilon, maps, vis, trace, o32, d32, t32):
+    """`_sample` for one point per entry (bisection midpoints, never on a surface)."""
+    m = 0
     for i in range(theta.shape[0]):
-        s = owner[i]
-        c, sn = math.cos(theta[i]), math.sin(theta[i])
-        for a in range(3):
-            o32[i, a] = L[s, a]
-            d32[i, a] = c * n[s, a] + sn * w[s, a]
-        if c > 0.0:
-            dist = h[s] / c
-            margin = FLOAT32_MARGIN * (dist + math.sqrt(L[s, 0] ** 2 + L[s, 1] ** 2 + L[s, 2] ** 2))
-            if at_surface[i]:
-                margin = max(margin, epsilon)
-            t32[i] = max(dist - margin, 0.0)
+        verdict = _ray_toward(L, n, w, h, light, seg[i], theta[i], False, epsilon, maps, o32, d32, t32, m)
+        if verdict < 0:
+            trace[m] = i
+            m += 1
         else:
-            t32[i] = math.inf
+            vis[i] = verdict == 1
+    return m
 
 
-def _visible_at(accel, L, n, w, h, owner, theta, at_surface):
-    """Visibility of the light from the points at angles theta of the segments `owner`."""
-    m = len(theta)
+@njit
+def _changes(vis, first, count):
+    """(segment, k) of every pair of samples k, k + 1 of one segment with different visibility."""
+    seg, ks = [], []
+    for s in range(first.shape[0]):
+        for k in range(count[s]):
+            if vis[first[s] + k] != vis[first[s] + k + 1]:
+                seg.append(s)
+                ks.append(k)
+    return np.array(seg, dtype=np.int64), np.array(ks, dtype=np.int64)
+
+
+def _trace(accel, kernel, args, m, stats):
+    """Run a sampling kernel, then trace the rays it could not decide; returns the visibility."""
+    vis = np.zeros(m, bool)
+    trace = np.empty(m, np.int64)
     o32, d32, t32 = np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.float32)
-    _shadow_rays(L, n, w, h, owner, theta, at_surface, accel.epsilon, o32, d32, t32)
-    return ~accel.occluded(o32, d32, t32)
+    k = kernel(*args, vis, trace, o32, d32, t32)
+    vis[trace[:k]] = ~accel.occluded(o32[:k], d32[:k], t32[:k])
+    stats[LI_RAYS] += k
+    return vis
 
 
-def _search(accel, segs, lights, spacing, end_lit, stats):
+def _search(accel, maps, segs, lights, spacing, end_lit, stats):
     """Lit angular intervals of a chunk: (segment index, theta start, theta end, starts at the
     segment's start, ends at its end), and the light frame. `end_lit`: whether the light is on the
     near side of the surface each segment ends on (True where it ends in the air)."""
     L, n, xh, h, th_a, th_b = _light_frame(segs, lights)
     count = np.clip(np.ceil((th_b - th_a) / spacing), 1, None).astype(np.int64)
-    owner = np.repeat(np.arange(len(segs)), count + 1)
     first = np.concatenate(([0], np.cumsum(count + 1)[:-1]))
-    k = np.arange(len(owner)) - first[owner]
-    theta = th_a[owner] + (th_b - th_a)[owner] * (k / count[owner])
     last = first + count
-    at_end = np.zeros(len(theta), bool)
-    at_end[last] = True
-    vis = _visible_at(accel, L, n, segs.dirs, h, owner, theta, at_end)
+    frame = (L, n, segs.dirs, h, segs.light)
+    vis = _trace(accel, _sample, frame + (th_a, th_b, count, first, accel.epsilon, maps), int(last[-1]) + 1, stats)
     vis[last] &= end_lit
-    stats[LI_SAMPLES] += len(theta)
+    stats[LI_SAMPLES] += len(vis)
     # visibility changes between consecutive samples of one segment: bisect each to BOUNDARY_TOL
-    change = np.nonzero((vis[:-1] != vis[1:]) & (owner[:-1] == owner[1:]))[0]
-    lo, hi, vis_lo = theta[change].copy(), theta[change + 1].copy(), vis[change]
-    so = owner[change]
-    if len(change):
+    so, k = _changes(vis, first, count)
+    width = th_b[so] - th_a[so]
+    lo, hi, vis_lo = th_a[so] + width * (k / count[so]), th_a[so] + width * ((k + 1) / count[so]), vis[first[so] + k]
+    if len(so):
         steps = int(np.ceil(np.log2(max(float(np.max(hi - lo)), BOUNDARY_TOL) / BOUNDARY_TOL)))
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
-            same = _visible_at(accel, L, n, segs.dirs, h, so, mid, np.zeros(len(mid), bool)) == vis_lo
+            same = _trace(accel, _rays_at, frame + (so, mid, accel.epsilon, maps), len(mid), stats) == vis_lo
             lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
-        stats[LI_BISECTIONS] += steps * len(change)
-    stats[LI_BOUNDARIES] += len(change)
+        stats[LI_BISECTIONS] += steps * len(so)
+    stats[LI_BOUNDARIES] += len(so)
     bound = 0.5 * (lo + hi)
     # interval starts: a visible first sample, or a change to visible; ends: the reverse
     s_seg = np.concatenate([np.nonzero(vis[first])[0], so[~vis_lo]])
@@ -149,11 +194,13 @@ def _search(accel, segs, lights, spacing, end_lit, stats):
 
 
 def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float = SHADOW_SPACING,
-                  end_normals=None):
+                  end_normals=None, maps=None):
     """The lit pieces of `segs` as new segments (each from its own start point, t0 along the camera
     ray), and the search's statistics (LI_NAMES). `end_normals` (S, 3): the normal of the surface
     each segment ends on (zero where it ends in the air); the air just before that surface sees the
-    light only from the surface's near side."""
+    light only from the surface's near side. `maps`: the lights' depth cube maps for this spacing
+    (shadow_maps.build; None: an exact shadow ray for every sample)."""
+    maps = np.zeros((0, 6, 1, 1)) if maps is None else maps
     end_lit = np.ones(len(segs), bool)
     if end_normals is not None:
         end = segs.origins + np.where(np.isfinite(segs.length), segs.length, 0.0)[:, None] * segs.dirs
@@ -167,7 +214,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     parts = []
     for part in chunks(per_segment, SAMPLES_PER_CHUNK):
         seg = segs.take(part)
-        (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, seg, lights, spacing, end_lit[part], stats)
+        (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, maps, seg, lights, spacing, end_lit[part], stats)
         x0 = np.where(at_start, 0.0, xh[idx] + h[idx] * np.tan(t_s))
         x1 = np.where(at_end, seg.length[idx], xh[idx] + h[idx] * np.tan(t_e))
         x0 = np.clip(x0, 0.0, seg.length[idx])

@@ -10,7 +10,7 @@ import raytrace
 from raytrace.camera import generate_rays
 from raytrace.methods import registry
 from raytrace.renderer import prepare
-from raytrace.visibility import lit_intervals, whole_rays
+from raytrace.visibility import LI_BISECTIONS, LI_RAYS, LI_SAMPLES, lit_intervals, whole_rays
 
 from . import oracle
 from .conftest import box_room
@@ -150,3 +150,30 @@ def test_a_spacing_out_of_range_is_refused(spacing):
 def test_shadow_test_samples_needs_shadows():
     with pytest.raises(raytrace.UserError, match="only acts with volumetric shadows"):
         raytrace.render(scene(), method="raymarch", shadow_test="samples")
+
+
+def _segments(s, width=24, height=18):
+    sc = raytrace.load(s)
+    sc.camera.width, sc.camera.height = width, height
+    prep = prepare(sc)
+    o, d = generate_rays(sc.camera, slice(0, height), slice(0, width))
+    t, prim = prep.accel.first_hit(o, d)
+    normals = np.where((prim >= 0)[:, None], prep.accel.normals[np.maximum(prim, 0)], 0.0)
+    return prep, whole_rays(o, d, t, np.zeros(len(o), np.uint64), 1, 0, prep.accel.scale), normals
+
+
+def test_the_depth_maps_decide_most_samples_and_change_no_interval():
+    """shadow_maps.py only skips shadow rays whose answer its corners already give: the lit
+    intervals are the same as with a shadow ray for every sample."""
+    sphere = {"primitive": "sphere", "center": [0.6, 0.6, -0.5], "radius": 0.3, "reflectance": 0.0}
+    s = scene()
+    s["shape"].append(sphere)
+    prep, segs, normals = _segments(s)
+    a, sa = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals)
+    b, sb = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, prep.shadow_maps(0.01))
+    assert len(a) == len(b) and np.array_equal(a.ray, b.ray)
+    np.testing.assert_allclose(b.t0, a.t0, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b.length, a.length, rtol=1e-9, atol=1e-12)
+    rays_a, rays_b = sa[LI_RAYS], sb[LI_RAYS]
+    assert rays_a == sa[LI_SAMPLES] + sa[LI_BISECTIONS]
+    assert rays_b < 0.3 * rays_a, (rays_b, rays_a)
