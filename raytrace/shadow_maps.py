@@ -1,7 +1,8 @@
 """Depth cube maps of the lights: a cheap pre-classification of the lit-interval search's samples.
 
 For each light, the distance to the first surface is traced (Embree) in the directions of the
-corners of a cube map's texels, R x R texels per face. A visibility sample at distance r in a
+corners of a cube map's texels, R x R texels per face; each texel keeps the least and the largest
+of its corners' depths (float32, rounded outwards). A visibility sample at distance r in a
 direction whose texel's four corners all see farther than r (by a relative MARGIN) is taken as lit,
 one whose four corners all see nearer as shadowed; any other sample, and every sample on a surface,
 gets an exact shadow ray. The texel diagonal is kept below the search's angular spacing, so the map
@@ -43,16 +44,21 @@ def corner_directions(res: int) -> np.ndarray:
 
 
 def build(accel, lights, spacing: float) -> np.ndarray:
-    """Depth maps (L, 6, R+1, R+1) float64 (inf where nothing is hit), or an empty (0, 6, 1, 1) array
-    when the spacing is too fine for MAX_RES or the scene has no geometry."""
+    """Per light and texel the least and the largest depth of its four corners, (L, 6, R, R, 2)
+    float32 (inf where nothing is hit; the least rounded down, the largest up), or an empty
+    (0, 6, 1, 1, 2) array when the spacing is too fine for MAX_RES or the scene has no geometry."""
     res = resolution(spacing)
     if not res or not len(accel.triangles):
-        return np.zeros((0, 6, 1, 1))
+        return np.zeros((0, 6, 1, 1, 2), np.float32)
     dirs = corner_directions(res).reshape(-1, 3)
-    maps = np.empty((len(lights), 6, res + 1, res + 1))
+    maps = np.empty((len(lights), 6, res, res, 2), np.float32)
     for li, p in enumerate(lights.position):
         t, _ = accel.first_hit(np.broadcast_to(p, dirs.shape), dirs, threads=2)
-        maps[li] = t.reshape(6, res + 1, res + 1)
+        t = t.reshape(6, res + 1, res + 1)
+        corners = np.stack([t[:, :-1, :-1], t[:, 1:, :-1], t[:, :-1, 1:], t[:, 1:, 1:]])
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        maps[li, ..., 0] = np.nextafter(lo.astype(np.float32), np.float32(0.0))
+        maps[li, ..., 1] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
     return maps
 
 
@@ -70,11 +76,10 @@ def classify(maps, li, dx, dy, dz, r):
     else:
         a, m, u, v = 2, dz, dx / az, dy / az
     face = 2 * a + (0 if m > 0.0 else 1)
-    res = maps.shape[2] - 1
+    res = maps.shape[2]
     i = min(max(int(0.5 * (u + 1.0) * res), 0), res - 1)
     j = min(max(int(0.5 * (v + 1.0) * res), 0), res - 1)
-    lo = min(min(maps[li, face, i, j], maps[li, face, i + 1, j]), min(maps[li, face, i, j + 1], maps[li, face, i + 1, j + 1]))
-    hi = max(max(maps[li, face, i, j], maps[li, face, i + 1, j]), max(maps[li, face, i, j + 1], maps[li, face, i + 1, j + 1]))
+    lo, hi = maps[li, face, i, j, 0], maps[li, face, i, j, 1]
     if r == math.inf:
         return 1 if lo == math.inf else (0 if hi < math.inf else -1)
     if r * (1.0 + MARGIN) < lo:

@@ -80,51 +80,58 @@ FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a poi
 
 
 @njit(inline="always")  # called per sample from the kernels below: a call would cost more than its work
-def _ray_toward(L, n, w, h, light, s, theta, at_surface, epsilon, maps, o32, d32, t32, j):
-    """Write the float32 shadow ray j from segment s's light towards its point at angle theta and
-    return the depth maps' verdict on it (shadow_maps.classify; -1 on a surface). Points in the air
-    need no offset beyond float32 rounding; a point on the surface a segment ends on stops the
-    shadow-ray epsilon short of it."""
-    c, sn = math.cos(theta), math.sin(theta)
+def _verdict(L, n, w, h, lnorm, light, s, c, sn, at_surface, epsilon, maps, o32, d32, t32, j):
+    """The depth maps' verdict (shadow_maps.classify; -1 on a surface) on the point of segment s seen
+    from its light at the angle with cosine c and sine sn; if undecided, write its float32 shadow
+    ray at j. Points in the air need no offset beyond float32 rounding; a point on the surface a
+    segment ends on stops the shadow-ray epsilon short of it."""
     dx, dy, dz = c * n[s, 0] + sn * w[s, 0], c * n[s, 1] + sn * w[s, 1], c * n[s, 2] + sn * w[s, 2]
-    o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0], L[s, 1], L[s, 2]
-    d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
     dist = h[s] / c if c > 0.0 else math.inf
-    if dist < math.inf:
-        margin = FLOAT32_MARGIN * (dist + math.sqrt(L[s, 0] ** 2 + L[s, 1] ** 2 + L[s, 2] ** 2))
-        if at_surface:
-            margin = max(margin, epsilon)
-        t32[j] = max(dist - margin, 0.0)
-    else:
-        t32[j] = math.inf
-    return -1 if at_surface else classify(maps, light[s], dx, dy, dz, dist)
+    verdict = -1 if at_surface else classify(maps, light[s], dx, dy, dz, dist)
+    if verdict < 0:
+        o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0], L[s, 1], L[s, 2]
+        d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
+        if dist < math.inf:
+            margin = FLOAT32_MARGIN * (dist + lnorm[s])
+            if at_surface:
+                margin = max(margin, epsilon)
+            t32[j] = max(dist - margin, 0.0)
+        else:
+            t32[j] = math.inf
+    return verdict
 
 
 @njit
-def _sample(L, n, w, h, light, th_a, th_b, count, first, epsilon, maps, vis, trace, o32, d32, t32):
-    """Visibility samples k = 0..count[s] of every segment at evenly spaced angles: the maps'
-    verdicts go to vis, the undecided samples' rays to o32/d32/t32 with their indices in trace.
-    Returns the number of rays to trace."""
+def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, maps, vis, trace, o32, d32, t32):
+    """Visibility samples k = 0..count[s] of every segment at evenly spaced angles (cosines and sines
+    by rotation, the last one exact): the maps' verdicts go to vis, the undecided samples' rays to
+    o32/d32/t32 with their indices in trace. Returns the number of rays to trace."""
     m = 0
-    for s in range(th_a.shape[0]):
+    for s in order:  # light by light, neighbouring rays together: their samples share texels
+        step = (th_b[s] - th_a[s]) / count[s]
+        cd, sd = math.cos(step), math.sin(step)
+        c, sn = math.cos(th_a[s]), math.sin(th_a[s])
         for k in range(count[s] + 1):
+            if k == count[s]:
+                c, sn = math.cos(th_b[s]), math.sin(th_b[s])
             i = first[s] + k
-            theta = th_a[s] + (th_b[s] - th_a[s]) * (k / count[s])
-            verdict = _ray_toward(L, n, w, h, light, s, theta, k == count[s], epsilon, maps, o32, d32, t32, m)
+            verdict = _verdict(L, n, w, h, lnorm, light, s, c, sn, k == count[s], epsilon, maps, o32, d32, t32, m)
             if verdict < 0:
                 trace[m] = i
                 m += 1
             else:
                 vis[i] = verdict == 1
+            c, sn = c * cd - sn * sd, sn * cd + c * sd
     return m
 
 
 @njit
-def _rays_at(L, n, w, h, light, seg, theta, epsilon, maps, vis, trace, o32, d32, t32):
+def _rays_at(L, n, w, h, lnorm, light, seg, theta, epsilon, maps, vis, trace, o32, d32, t32):
     """`_sample` for one point per entry (bisection midpoints, never on a surface)."""
     m = 0
     for i in range(theta.shape[0]):
-        verdict = _ray_toward(L, n, w, h, light, seg[i], theta[i], False, epsilon, maps, o32, d32, t32, m)
+        verdict = _verdict(L, n, w, h, lnorm, light, seg[i], math.cos(theta[i]), math.sin(theta[i]), False, epsilon,
+                           maps, o32, d32, t32, m)
         if verdict < 0:
             trace[m] = i
             m += 1
@@ -164,8 +171,10 @@ def _search(accel, maps, segs, lights, spacing, end_lit, stats):
     count = np.clip(np.ceil((th_b - th_a) / spacing), 1, None).astype(np.int64)
     first = np.concatenate(([0], np.cumsum(count + 1)[:-1]))
     last = first + count
-    frame = (L, n, segs.dirs, h, segs.light)
-    vis = _trace(accel, _sample, frame + (th_a, th_b, count, first, accel.epsilon, maps), int(last[-1]) + 1, stats)
+    frame = (L, n, segs.dirs, h, np.linalg.norm(L, axis=1), segs.light)
+    order = np.argsort(segs.light, kind="stable")
+    vis = _trace(accel, _sample, frame + (th_a, th_b, count, first, order, accel.epsilon, maps), int(last[-1]) + 1,
+                 stats)
     vis[last] &= end_lit
     stats[LI_SAMPLES] += len(vis)
     # visibility changes between consecutive samples of one segment: bisect each to BOUNDARY_TOL
@@ -200,7 +209,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     each segment ends on (zero where it ends in the air); the air just before that surface sees the
     light only from the surface's near side. `maps`: the lights' depth cube maps for this spacing
     (shadow_maps.build; None: an exact shadow ray for every sample)."""
-    maps = np.zeros((0, 6, 1, 1)) if maps is None else maps
+    maps = np.zeros((0, 6, 1, 1, 2), np.float32) if maps is None else maps
     end_lit = np.ones(len(segs), bool)
     if end_normals is not None:
         end = segs.origins + np.where(np.isfinite(segs.length), segs.length, 0.0)[:, None] * segs.dirs

@@ -1,0 +1,155 @@
+"""Light shafts (volumetric shadows over lit intervals): accuracy, resolution, speed, equal time.
+
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/light_shafts.py [--quick]
+
+1. Accuracy: `analytic` with shadows against shadowed `quadrature` (the same lit intervals,
+   adaptive Gauss-Legendre on each) on box rooms with occluders (plates, a grid of bars, a sphere)
+   and on the paper's scenes: the largest per-pixel relative error, against 10 x precision.
+2. Resolution: the error of the search at angular spacing s against a search 8 times finer (same
+   method), and the share of camera rays whose lit intervals changed.
+3. Speed: a shadowed analytic render over the unshadowed one (interleaved rounds, median), and
+   the search's shadow rays per segment.
+4. Equal time: ray marching with a shadow ray per sample (`shadow_test = samples`, the classic),
+   its step count matched to the shadowed analytic render's time, and both errors.
+"""
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import raytrace  # noqa: E402
+from raytrace.renderer import prepare  # noqa: E402
+
+
+def box(shapes, w, h):
+    room = {"camera": {"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": w,
+                       "height": h, "spp": 1},
+            "shape": [{"primitive": "box", "min": [-3.0, -2.0, -4.0], "max": [3.0, 2.0, 4.0],
+                       "reflectance": [0.6, 0.5, 0.4]}] + shapes,
+            "light": [{"position": [0.0, 1.5, -1.0], "intensity": 20.0}],
+            "medium": {"sigma_a": 0.05, "sigma_s": [0.2, 0.3, 0.5], "phase": {"type": "hg", "g": 0.5}}}
+    return raytrace.load(room)
+
+
+def quad(y, x0, x1, z0, z1):
+    return {"primitive": "quad", "corners": [[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]]}
+
+
+def scenes(quick):
+    w, h = (48, 36) if quick else (160, 120)
+    bars = [quad(0.9, -2.5, 2.5, z, z + 0.08) for z in np.arange(-3.0, 1.0, 0.35)]
+    out = {"box: plate": box([quad(1.2, -1.0, 1.0, -2.0, 0.0)], w, h),
+           "box: grid of bars": box(bars, w, h),
+           "box: sphere": box([{"primitive": "sphere", "center": [0.5, 0.6, -1.2], "radius": 0.4}], w, h)}
+    size = ["camera.width=128", "camera.height=64", "camera.spp=1"] if quick else \
+        ["camera.width=256", "camera.height=128", "camera.spp=1"]
+    for name in ("sibenik", "bridge", "conference"):
+        try:
+            out[name] = raytrace.load(name, overrides=size)
+        except raytrace.UserError as exc:
+            print(f"({name} skipped: {exc})")
+    return out
+
+
+def rel_error(img, ref):
+    lit = ref > 1e-6 * ref.max()
+    return float(np.max(np.abs(img - ref)[lit] / ref[lit])), float(np.mean(np.abs(img - ref)[lit] / ref[lit]))
+
+
+def render(prep, method, **kw):
+    return raytrace.render(prepared=prep, method=method, **kw)
+
+
+def accuracy(all_scenes, spacing):
+    print("\n## Accuracy: analytic with shadows against shadowed quadrature (rtol 1e-10)\n")
+    print("| scene | precision | max rel. error | mean rel. error | fallback share |")
+    print("|---|---|---|---|---|")
+    refs = {}
+    for name, sc in all_scenes.items():
+        prep = prepare(sc)
+        refs[name] = (prep, render(prep, "quadrature", rtol=1e-10, volumetric_shadows=True,
+                                   shadow_spacing=spacing).array)
+        for p in (1e-3, 1e-6):
+            img = render(prep, "analytic", precision=p, volumetric_shadows=True, shadow_spacing=spacing)
+            mx, mean = rel_error(img.array, refs[name][1])
+            print(f"| {name} | {p:g} | {mx:.2e} ({'ok' if mx <= 10 * p else 'ABOVE 10 P'}) | {mean:.2e} | "
+                  f"{img.stats['fallback_fraction']:.2%} |")
+    return refs
+
+
+def resolution(all_scenes, spacings):
+    print("\n## Resolution: the search at spacing s against one 8 times finer (analytic, precision 1e-6)\n")
+    print("| scene | spacing (rad) | rays with other lit intervals | max rel. error | mean rel. error |")
+    print("|---|---|---|---|---|")
+    for name, sc in all_scenes.items():
+        prep = prepare(sc)
+        for s in spacings:
+            a = render(prep, "analytic", precision=1e-6, volumetric_shadows=True, shadow_spacing=s)
+            b = render(prep, "analytic", precision=1e-6, volumetric_shadows=True, shadow_spacing=s / 8)
+            changed = float(np.mean(np.any(np.abs(a.array - b.array) > 1e-5 * b.array, axis=2)))
+            mx, mean = rel_error(a.array, b.array)
+            print(f"| {name} | {s:g} | {changed:.2%} | {mx:.2e} | {mean:.2e} |")
+
+
+def speed(sc, rounds, label):
+    print(f"\n## Speed: {label}, {sc.camera.width}x{sc.camera.height}, {sc.camera.spp} spp, 2 threads\n")
+    prep = prepare(sc)
+    render(prep, "analytic", volumetric_shadows=True)  # compile, maps
+    times = {False: [], True: []}
+    stats = None
+    for _ in range(rounds):
+        for vs in (False, True):
+            img = render(prep, "analytic", volumetric_shadows=vs)
+            times[vs].append(img.seconds)
+            stats = img.stats if vs else stats
+    t0, t1 = np.median(times[False]), np.median(times[True])
+    segs = stats["shadows: segments searched"]
+    print("| unshadowed (s) | shadowed (s) | ratio | samples / segment | shadow rays / segment | boundaries / segment |")
+    print("|---|---|---|---|---|---|")
+    print(f"| {t0:.2f} | {t1:.2f} | {t1 / t0:.1f}x | {stats['shadows: visibility samples'] / segs:.1f} | "
+          f"{stats['shadows: shadow rays traced'] / segs:.1f} | {stats['shadows: shadow boundaries'] / segs:.2f} |")
+
+
+def equal_time(refs):
+    print("\n## Equal time: analytic (1e-3) against ray marching with a shadow ray per sample\n")
+    print("| scene | analytic time (s) | analytic mean rel. error | raymarch steps | raymarch time (s) | "
+          "raymarch mean rel. error | error ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for name, (prep, ref) in refs.items():
+        a = render(prep, "analytic", precision=1e-3, volumetric_shadows=True)
+        ea = rel_error(a.array, ref)[1]
+        steps, best = 4, None
+        while steps <= 4096:
+            r = render(prep, "raymarch", steps=steps, shadow_test="samples", volumetric_shadows=True)
+            best = (steps, r.seconds, rel_error(r.array, ref)[1])
+            if r.seconds >= a.seconds:
+                break
+            steps *= 2
+        print(f"| {name} | {a.seconds:.2f} | {ea:.2e} | {best[0]} | {best[1]:.2f} | {best[2]:.2e} | "
+              f"{best[2] / max(ea, 1e-300):.0f}x |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small images, fewer rounds (about a minute)")
+    args = ap.parse_args()
+    start = time.perf_counter()
+    print(f"# Light shafts benchmark ({'quick' if args.quick else 'full'})")
+    all_scenes = scenes(args.quick)
+    refs = accuracy(all_scenes, 0.01)
+    resolution({k: v for k, v in all_scenes.items() if k in ("box: grid of bars", "sibenik")},
+               (0.04, 0.02, 0.01) if args.quick else (0.04, 0.02, 0.01, 0.005))
+    equal_time(refs)
+    if "sibenik" in all_scenes:
+        full = raytrace.load("sibenik", overrides=["camera.width=256", "camera.height=128", "camera.spp=1"]) \
+            if args.quick else raytrace.load("sibenik")
+        speed(full, 2 if args.quick else 3, "Sibenik")
+    print(f"\n({time.perf_counter() - start:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
