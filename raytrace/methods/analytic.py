@@ -12,10 +12,13 @@ Paths (counted in ``stats``):
   series    the paper's Fig. 2 loop for I0/I1 (used while rho_max <= rho_switch(precision));
   stable    scaled-E1 form (METHODS §5 boxed formula; exponentials folded into the optical path
             kt*(x + d), so nothing overflows for lights far behind the camera);
-  near-line light (almost) on the ray line outside the segment: h -> 0 limit (closed forms);
+  near-line light (almost) on the ray line outside the segment: h -> 0 limit (closed forms), where
+            its error bound meets the precision;
   fallback  the reference quadrature (quadrature.py) at precision / 10: segments so short in angle
             that the closed form's two end terms cancel beyond double precision, and, in the exact
-            anisotropic mode, rays whose H = kt h is too large for the forward moment recurrence.
+            anisotropic mode, rays whose H = kt h is too large for the forward moment recurrence
+            (all of a block's rays where no series of bounded length meets the precision); its
+            evaluations that did not converge are counted too (ST_FALLBACK_CAPPED).
 
 Anisotropic modes: ANISO_TAYLOR (PP09 eqs. 14-19, Maclaurin series of Phi in v with `terms`
 coefficients, faithful incl. its divergence for v > R) and ANISO_EXACT (beyond the paper, in the
@@ -41,8 +44,8 @@ from .geometry import by_channel
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre)
-from ..media.phase import ISOTROPIC, RAYLEIGH, HG, phase_value
-from .quadrature import _N10, _N20, _W10, _W20
+from ..media.phase import ISOTROPIC, RAYLEIGH, HG
+from .quadrature import CAPPED, _N10, _N20, _W10, _W20, _phase
 from .quadrature import airlight_one as quad_airlight
 
 ANISO_TAYLOR = 0
@@ -58,8 +61,9 @@ ST_FALLBACK = 5         # evaluations on the adaptive-quadrature fallback
 ST_TAYLOR_OUT = 6       # Taylor evaluations whose v-interval leaves the convergence radius
 ST_ZERO = 7             # trivial evaluations (ks = 0, empty segment)
 ST_FALLBACK_FEVALS = 8  # integrand evaluations spent in the fallback
-ST_SERIES_REJECTED = 9  # series results rejected by the rounding-error guard (then stable)
-STATS_SIZE = 10
+ST_SERIES_REJECTED = 9  # series results rejected by the rounding-error guard or max_iter (then stable)
+ST_FALLBACK_CAPPED = 10  # fallback evaluations the quadrature did not converge (quadrature.CAPPED)
+STATS_SIZE = 11
 
 # ---- switching criteria (measured, see tests / report) ----
 # series loses ~log10(e^rho) digits: use it while 30*eps*e^rho <= precision, and (cost: the
@@ -69,7 +73,8 @@ RHO_SWITCH_CAP = 8.0
 SERIES_SAFETY = 0.1
 # relative accuracy of g_scaled (measured against mpmath: <= 2.3e-14), for the cancellation guard
 G_REL_ERR = 3e-14
-# near-line: light outside the segment and h/|x_end - xh| < NEARLINE_TOL at both ends
+# near-line: light outside the segment, h/|x_end - xh| < NEARLINE_TOL at both ends, and the h -> 0
+# limit within SERIES_SAFETY * precision (`_nearline`)
 NEARLINE_TOL = 3e-6
 
 _INV_4PI = 1.0 / (4.0 * math.pi)
@@ -118,6 +123,7 @@ def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats):
     rtol = max(0.1 * precision, QUAD_RTOL_MIN)
     val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, rtol, _N10, _W10, _N20, _W20, qstats)
     stats[ST_FALLBACK_FEVALS] += 30.0 * qstats[1]
+    stats[ST_FALLBACK_CAPPED] += qstats[CAPPED]
     return intensity * val
 
 
@@ -125,19 +131,32 @@ def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats):
 # building blocks
 # ----------------------------------------------------------------------------------------------
 @njit
-def _nearline(xh, h, da, ell, kt, ks, intensity, code, g):
-    """h -> 0 limit with the light on the line outside the segment (relative error
-    O((h/D)^2 * |Phi'/Phi|), D = distance to the nearer end)."""
+def _nearline(xh, h, da, ell, kt, ks, intensity, code, g, dmin, precision):
+    """h -> 0 limit with the light on the line outside the segment, D = dmin from its nearer end,
+    and whether it meets `precision`. Its relative error, to first order in (h/D)^2: (h/D)^2 from
+    1/d^2, (h/D)^2 / 2 max|d ln Phi / d mu| from the phase function h/D off the line (HG:
+    3|g| / (1 - |g|)^2, 3e4 at |g| = 0.99), kt h^2 / (2D) from the optical path; with the light
+    behind a finite segment the two ends' terms cancel (the stable path's guard)."""
+    slope = 0.0
+    if code == RAYLEIGH:
+        slope = 1.0
+    elif code == HG:
+        slope = 3.0 * abs(g) / ((1.0 - abs(g)) * (1.0 - abs(g)))
+    e2 = (h / dmin) * (h / dmin)
+    ok = e2 * (1.0 + 0.5 * slope + 0.5 * kt * dmin) <= SERIES_SAFETY * precision
     if xh > 0.0:
         # light ahead: x + d = xh constant, int dx/(xh-x)^2 = ell/(xh (xh-ell))
-        return intensity * ks * phase_value(code, g, 1.0) * math.exp(-kt * da) * ell / (xh * (xh - ell))
+        val = _phase(code, g, 1.0, 0.0, 2.0) * math.exp(-kt * da) * ell / (xh * (xh - ell))
+        return intensity * ks * val, ok
     c = -xh
     s = 2.0 * kt
     val = math.exp(-kt * da) * en_scaled(2, s * c) / c
     if ell < math.inf:
         cb = c + ell
-        val -= math.exp(-kt * (c + 2.0 * ell)) * en_scaled(2, s * cb) / cb
-    return intensity * ks * phase_value(code, g, -1.0) * val
+        end = math.exp(-kt * (c + 2.0 * ell)) * en_scaled(2, s * cb) / cb
+        ok = ok and G_REL_ERR * (val + end) <= SERIES_SAFETY * max(precision, 1e-11) * (val - end)
+        val -= end
+    return intensity * ks * _phase(code, g, -1.0, 2.0, 0.0) * val, ok
 
 
 @njit
@@ -190,8 +209,13 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         if finite and abs(xh - ell) < dmin:
             dmin = abs(xh - ell)
         if h < NEARLINE_TOL * dmin:
-            stats[ST_NEARLINE] += 1.0
-            return _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g)
+            val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
+            # the limit where it meets the precision (else the closed form below, or the fallback
+            # where its ends cancel); always in the Taylor mode, an approximation anyway, whose
+            # polynomial part grows like 1/H^(N-1) as h -> 0
+            if ok or (phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR):
+                stats[ST_NEARLINE] += 1.0
+                return val
 
     H = kt * h
     va = v_of(-xh, h)
@@ -224,8 +248,9 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     if use_series:
         i0, i1, it, err = i01_series_est(-H, va, vb, prec_i, max_iter)
         stats[ST_SERIES_ITERS] += it
-        # a-posteriori guard: estimated rounding error vs the requested precision
-        if not (err <= SERIES_SAFETY * prec_i * i0):
+        # a-posteriori guard: estimated rounding error vs the requested precision; a loop that
+        # used all max_iter iterations may not have converged
+        if it >= max_iter or not (err <= SERIES_SAFETY * prec_i * i0):
             use_series = False
             stats[ST_SERIES_REJECTED] += 1.0
         else:
@@ -312,11 +337,18 @@ def taylor_coeffs(phase_code, g, n_terms):
     return c
 
 
+MAX_LEGENDRE = 4096  # longest HG Legendre series tried (a power of 2: `hg_legendre_degree` doubles)
+MAX_FAR_DEGREE = 400  # highest degree of the far block's fit
+
+
 def hg_legendre_degree(g, precision):
-    """Smallest Legendre length L whose truncated HG phase function is within precision / 2 of the
-    true one, relatively, at every scattering angle (checked on a grid dense near the forward peak;
-    the relative error of the air-light is bounded by the largest pointwise one, as both the phase
-    function and the rest of the integrand are positive). Doubling, then bisection."""
+    """Smallest Legendre length L <= MAX_LEGENDRE whose truncated HG phase function is within
+    precision / 2 of the true one, relatively, at every scattering angle, or None if there is none
+    (the terms fall like |g|^l: g = 0.995 at precision 1e-3 needs more). Checked for |g| (g and -g
+    need the same L, mu -> -mu) on a grid dense near the peak; the relative error of the air-light
+    is bounded by the largest pointwise one, as both the phase function and the rest of the
+    integrand are positive. Doubling, then bisection."""
+    g = abs(g)
     if g == 0.0:
         return 0
     phi = np.concatenate([np.linspace(0.0, 0.2, 801), np.linspace(0.2, math.pi, 2001)])
@@ -328,7 +360,9 @@ def hg_legendre_degree(g, precision):
         return err <= 0.5 * precision
 
     hi = 1
-    while not good(hi) and hi < 4096:
+    while not good(hi):
+        if hi >= MAX_LEGENDRE:
+            return None
         hi *= 2
     lo = hi // 2
     while hi - lo > 1:  # the truncation error falls (essentially monotonically) with L
@@ -344,12 +378,19 @@ FAR_ANGLE = 0.3  # radians: the strongly peaked HG lobe is fitted separately bey
 FAR_MIN_G = 0.6  # |g| from which the far block pays off
 
 
+def _usable(precision, ratio):
+    """Whether a block with this `ratio` (`_block`) can serve any ray: the forward recurrence's
+    rounding, FORWARD_ERR_PER_LOSS times its loss (1 at H = 0), within precision * ratio."""
+    return FORWARD_ERR_PER_LOSS <= precision * ratio
+
+
 def _block(c, phase, v_lo, v_hi, precision):
     """One coefficient block of the exact mode, valid for rays with v_lo <= v_a, v_b <= v_hi:
     [v_lo, v_hi, H_max, ratio, loss table (LOSS_TABLE values), c_0, ..., c_L]. `c` are cosine
     coefficients (the phase function is sum_k c_k cos(k phi) on the block's range of angles),
     `phase` the true phase function's values on that range. H_max is the largest H = kt h for which
-    the forward moment recurrence keeps a relative accuracy of precision / 10 (larger H: quadrature);
+    the forward moment recurrence keeps a relative accuracy of precision / 10 (larger H: quadrature;
+    the bisection keeps lo within that accuracy, so H_max only errs low, 0 if not `_usable`);
     ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum where it cancels; the table
     holds the recurrence's error amplification at H = H_max (i / (LOSS_TABLE - 1))^2 (`_loss`)."""
     ratio = 0.1 * float(np.min(phase)) / float(np.sum(np.abs(c)))
@@ -370,7 +411,9 @@ def _block(c, phase, v_lo, v_hi, precision):
 def _far_cosine_series(g, precision, phi_lo, phi_hi):
     """Cosine coefficients of a polynomial in mu = cos(phi) within precision / 2 (relatively) of the
     HG phase function on [phi_lo, phi_hi]: Chebyshev interpolation on that range of mu, rewritten in
-    T_k(mu) = cos(k phi) over [-1, 1]."""
+    T_k(mu) = cos(k phi) over [-1, 1]; None if no degree below MAX_FAR_DEGREE gets there, or if the
+    block could not be `_usable` (its ratio is at most 0.1 min Phi / max Phi on the range, as
+    sum |c_k| >= max |sum c_k cos(k phi)|). Also returns the phase function on the range."""
     from numpy.polynomial import chebyshev
 
     def hg(mu):
@@ -378,11 +421,13 @@ def _far_cosine_series(g, precision, phi_lo, phi_hi):
 
     mu = np.cos(np.linspace(phi_lo, phi_hi, 4001))
     exact = hg(mu)
-    for degree in range(2, 400):
+    if not _usable(precision, 0.1 * np.min(exact) / np.max(exact)):
+        return None, exact
+    for degree in range(2, MAX_FAR_DEGREE):
         p = chebyshev.Chebyshev.interpolate(hg, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
         if np.max(np.abs(p(mu) - exact) / exact) <= 0.5 * precision:
-            break
-    return p.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
+            return p.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
+    return None, exact
 
 
 def exact_coeffs(phase_code, g, precision):
@@ -392,15 +437,25 @@ def exact_coeffs(phase_code, g, precision):
     L from `precision`). For strongly peaked HG (|g| >= FAR_MIN_G) that series is long (its terms
     fall like |g|^l), so a second, much shorter series fitted only away from the peak (scattering
     angles beyond FAR_ANGLE from it) serves the rays whose whole segment sees the light from there,
-    which are most rays. See `_block` for the layout of a block."""
+    which are most rays. See `_block` for the layout of a block. No series is cut short: where
+    `precision` needs more than MAX_LEGENDRE terms, or the block could not be `_usable` anyway
+    (HG: ratio = 0.1 ((1 - |g|) / (1 + |g|))^3, sum |c_k| being the peak value), the full block has
+    H_max = 0 and sends its rays to the quadrature fallback (counted); a far block that could serve
+    no ray is left out."""
+    a = None
     if phase_code == RAYLEIGH:
         a = rayleigh_legendre()
     elif phase_code == HG:
-        a = hg_legendre(g, hg_legendre_degree(g, precision))
+        if _usable(precision, 0.1 * ((1.0 - abs(g)) / (1.0 + abs(g))) ** 3):
+            L = hg_legendre_degree(g, precision)
+            a = None if L is None else hg_legendre(g, L)
     else:
         a = np.array([1.0 / (4.0 * math.pi)])
-    full = _block(legendre_to_cosine(a), np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 2001), a), 0.0,
-                  math.inf, precision)
+    if a is None:  # H_max = 0: all its rays to the fallback
+        full = np.concatenate(([0.0, math.inf, 0.0, 1.0], np.ones(LOSS_TABLE), [0.0]))
+    else:
+        full = _block(legendre_to_cosine(a), np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 2001), a), 0.0,
+                      math.inf, precision)
     blocks = [full]
     if phase_code == HG and abs(g) >= FAR_MIN_G:
         if g > 0.0:  # the peak is forward (phi = 0): rays with phi >= FAR_ANGLE
@@ -408,7 +463,9 @@ def exact_coeffs(phase_code, g, precision):
         else:  # backward peak (phi = pi): rays with phi <= pi - FAR_ANGLE
             phi_lo, phi_hi, v_lo, v_hi = 0.0, math.pi - FAR_ANGLE, 0.0, 1.0 / math.tan(0.5 * FAR_ANGLE)
         c, phase = _far_cosine_series(g, precision, phi_lo, phi_hi)
-        blocks.append(_block(c, phase, v_lo, v_hi, precision))
+        far = None if c is None else _block(c, phase, v_lo, v_hi, precision)
+        if far is not None and far[2] > 0.0:
+            blocks.append(far)
     return np.concatenate([[len(full)]] + blocks)
 
 
@@ -442,6 +499,7 @@ def summarize_stats(stats):
         "series_rejected_fraction": st[ST_SERIES_REJECTED] / nz,
         "taylor_out_of_range_fraction": st[ST_TAYLOR_OUT] / nz,
         "fallback_integrand_evaluations": int(st[ST_FALLBACK_FEVALS]),
+        "fallback_not_converged": int(st[ST_FALLBACK_CAPPED]),
     }
 
 

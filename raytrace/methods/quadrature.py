@@ -25,12 +25,12 @@ import numpy as np
 from ..jit import njit
 from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from ..media.phase import phase_value
+from ..media.phase import HG, INV_4PI, phase_value
 
 MAX_INTERVALS = 4000
 STACK = 200
 
-# stats slots
+# stats slots: evaluations, intervals, evaluations with an interval short of its tolerance
 EVALS, INTERVALS, CAPPED = 0, 1, 2
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
@@ -38,16 +38,34 @@ _N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
 @njit
+def _phase(code, g, mu, one_minus, one_plus):
+    """phase_value at mu, given 1 - mu and 1 + mu without cancellation: the HG denominator
+    1 + g^2 - 2 g mu as a sum of two non-negative terms, (1 - g)^2 + 2 g (1 - mu) for g >= 0 and
+    (1 + g)^2 - 2 g (1 + mu) for g < 0, keeps full relative accuracy at the peak (the direct form
+    loses 2 eps / (1 - |g|)^2 there, 2e-12 at |g| = 0.99, more than the 10- and 20-point rules'
+    agreement asked for at rtol 1e-13)."""
+    if code != HG:
+        return phase_value(code, g, mu)
+    if g >= 0.0:
+        den = (1.0 - g) * (1.0 - g) + 2.0 * g * one_minus
+    else:
+        den = (1.0 + g) * (1.0 + g) - 2.0 * g * one_plus
+    return INV_4PI * (1.0 - g) * (1.0 + g) / (den * math.sqrt(den))
+
+
+@njit
 def _integrand(piece, s, xh, h, kt, code, g):
-    if piece == 0:  # s = phi, before the foot point
-        t = math.tan(0.5 * s)
+    t = math.tan(0.5 * s)
+    t2 = t * t
+    if piece == 0:  # s = phi, before the foot point: 1 - mu = 2 t^2 / (1 + t^2)
         path = xh + h * t
-        mu = (1.0 - t * t) / (1.0 + t * t)
-    else:  # s = psi, after the foot point
-        t = math.tan(0.5 * s)
+        mu = (1.0 - t2) / (1.0 + t2)
+        one_minus, one_plus = 2.0 * t2 / (1.0 + t2), 2.0 / (1.0 + t2)
+    else:  # s = psi, after the foot point: 1 + mu = 2 t^2 / (1 + t^2)
         path = xh + h / t
-        mu = -(1.0 - t * t) / (1.0 + t * t)
-    return math.exp(-kt * path) * phase_value(code, g, mu)
+        mu = -(1.0 - t2) / (1.0 + t2)
+        one_minus, one_plus = 2.0 / (1.0 + t2), 2.0 * t2 / (1.0 + t2)
+    return math.exp(-kt * path) * _phase(code, g, mu, one_minus, one_plus)
 
 
 @njit
@@ -62,8 +80,11 @@ def _rule(piece, a, b, xh, h, kt, code, g, nodes, weights):
 
 @njit
 def _adaptive(piece, a, b, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats):
+    """The integral over [a, b] and whether every interval met its tolerance (False: an interval
+    was accepted at the MAX_INTERVALS / STACK caps or at the resolution of doubles)."""
     if not b > a:
-        return 0.0
+        return 0.0, True
+    converged = True
     lo = np.empty(STACK)
     hi = np.empty(STACK)
     lo[0], hi[0] = a, b
@@ -79,15 +100,14 @@ def _adaptive(piece, a, b, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20
         mid = 0.5 * (x0 + x1)
         tol = max(rtol * abs(fine), density * (x1 - x0))
         if abs(fine - coarse) <= tol or count >= MAX_INTERVALS or top + 2 > STACK or not (x0 < mid < x1):
-            if abs(fine - coarse) > tol:
-                stats[CAPPED] += 1.0
+            converged = converged and abs(fine - coarse) <= tol
             total += fine
         else:
             lo[top], hi[top] = x0, mid
             lo[top + 1], hi[top + 1] = mid, x1
             top += 2
     stats[INTERVALS] += count
-    return total
+    return total, converged
 
 
 @njit
@@ -112,12 +132,11 @@ def airlight_one(xh, h, ell, kt, ks, code, g, rtol, n10, w10, n20, w20, stats):
     if psi_start > psi_end:
         estimate += _rule(1, psi_end, psi_start, xh, h, kt, code, g, n20, w20)
     density = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-    total = 0.0
-    if phi_b > phi_a:
-        total += _adaptive(0, phi_a, phi_b, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats)
-    if psi_start > psi_end:
-        total += _adaptive(1, psi_end, psi_start, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats)
-    return ks / h * total
+    before, ok_before = _adaptive(0, phi_a, phi_b, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats)
+    after, ok_after = _adaptive(1, psi_end, psi_start, xh, h, kt, code, g, rtol, density, n10, w10, n20, w20, stats)
+    if not (ok_before and ok_after):
+        stats[CAPPED] += 1.0
+    return ks / h * (before + after)
 
 
 @njit
