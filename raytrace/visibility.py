@@ -24,12 +24,12 @@ import numpy as np
 
 from .jit import njit
 from .methods import Segments
-from .shadow_maps import classify
+from .shadow_maps import ShadowMaps, face_texel, verdict
 
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
 SHADOW_SPACING = 0.01  # radians seen from the light between visibility samples (render.shadow_spacing)
 SPACING_RANGE = (1e-5, 0.5)
-BOUNDARY_TOL = 1e-10  # radians: shadow boundaries are bisected to this
+BOUNDARY_TOL = 3e-8  # radians: boundaries are bisected to the resolution of float32 ray directions (6e-8)
 SAMPLES_PER_CHUNK = 1 << 20  # visibility samples per batch of shadow rays (~100 MB of arrays)
 
 # lit-interval statistics (`lit_intervals`' stats array)
@@ -80,63 +80,113 @@ FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a poi
 
 
 @njit(inline="always")  # called per sample from the kernels below: a call would cost more than its work
-def _verdict(L, n, w, h, lnorm, light, s, c, sn, at_surface, epsilon, maps, o32, d32, t32, j):
-    """The depth maps' verdict (shadow_maps.classify; -1 on a surface) on the point of segment s seen
-    from its light at the angle with cosine c and sine sn; if undecided, write its float32 shadow
-    ray at j. Points in the air need no offset beyond float32 rounding; a point on the surface a
-    segment ends on stops the shadow-ray epsilon short of it."""
-    dx, dy, dz = c * n[s, 0] + sn * w[s, 0], c * n[s, 1] + sn * w[s, 1], c * n[s, 2] + sn * w[s, 2]
-    dist = h[s] / c if c > 0.0 else math.inf
-    verdict = -1 if at_surface else classify(maps, light[s], dx, dy, dz, dist)
-    if verdict < 0:
-        o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0], L[s, 1], L[s, 2]
-        d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
-        if dist < math.inf:
-            margin = FLOAT32_MARGIN * (dist + lnorm[s])
-            if at_surface:
-                margin = max(margin, epsilon)
-            t32[j] = max(dist - margin, 0.0)
-        else:
-            t32[j] = math.inf
-    return verdict
+def _write_ray(L, lnorm, s, dx, dy, dz, dist, at_surface, epsilon, o32, d32, t32, j):
+    """The float32 shadow ray j from segment s's light towards its point at distance dist in the
+    direction (dx, dy, dz). Points in the air need no offset beyond float32 rounding; a point on the
+    surface a segment ends on stops the shadow-ray epsilon short of it."""
+    o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0], L[s, 1], L[s, 2]
+    d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
+    if dist < math.inf:
+        margin = FLOAT32_MARGIN * (dist + lnorm[s])
+        if at_surface:
+            margin = max(margin, epsilon)
+        t32[j] = max(dist - margin, 0.0)
+    else:
+        t32[j] = math.inf
+
+
+@njit(inline="always")
+def _point(n, w, h, s, theta):
+    """Unit direction from segment s's light to its point at angle theta, and the distance."""
+    c, sn = math.cos(theta), math.sin(theta)
+    return (c * n[s, 0] + sn * w[s, 0], c * n[s, 1] + sn * w[s, 1], c * n[s, 2] + sn * w[s, 2],
+            h[s] / c if c > 0.0 else math.inf)
+
+
+MAX_RUN = 64  # samples decided at once by one coarse texel, at most
 
 
 @njit
-def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, maps, vis, trace, o32, d32, t32):
-    """Visibility samples k = 0..count[s] of every segment at evenly spaced angles (cosines and sines
-    by rotation, the last one exact): the maps' verdicts go to vis, the undecided samples' rays to
-    o32/d32/t32 with their indices in trace. Returns the number of rays to trace."""
+def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, table, sizes, offsets, vis, trace,
+            o32, d32, t32):
+    """Visibility samples k = 0..count[s] of every segment at evenly spaced angles. Runs of samples
+    inside one texel of the depth pyramid (shadow_maps.py) that decides their whole range of
+    distances are set at once (the run length doubles after a success, halves after a failure);
+    other samples are decided by their finest texel or, failing that and always for the last sample
+    (on the surface the segment ends on), get a shadow ray in o32/d32/t32 with their index in trace.
+    Returns the number of rays to trace."""
     m = 0
+    levels = sizes.shape[0]
     for s in order:  # light by light, neighbouring rays together: their samples share texels
         step = (th_b[s] - th_a[s]) / count[s]
-        cd, sd = math.cos(step), math.sin(step)
-        c, sn = math.cos(th_a[s]), math.sin(th_a[s])
-        for k in range(count[s] + 1):
-            if k == count[s]:
-                c, sn = math.cos(th_b[s]), math.sin(th_b[s])
-            i = first[s] + k
-            verdict = _verdict(L, n, w, h, lnorm, light, s, c, sn, k == count[s], epsilon, maps, o32, d32, t32, m)
-            if verdict < 0:
-                trace[m] = i
+        li = light[s]
+        run = 1
+        k = 0
+        while k <= count[s]:
+            theta = th_a[s] + step * k if k < count[s] else th_b[s]
+            dx, dy, dz, dist = _point(n, w, h, s, theta)
+            if k == count[s] or levels == 0:
+                _write_ray(L, lnorm, s, dx, dy, dz, dist, k == count[s], epsilon, o32, d32, t32, m)
+                trace[m] = first[s] + k
                 m += 1
+                k += 1
+                continue
+            face, i, j = face_texel(sizes, dx, dy, dz)
+            decided = False
+            while run > 1 and not decided:
+                end = min(k + run, count[s] - 1)
+                if end <= k:
+                    break
+                ex, ey, ez, edist = _point(n, w, h, s, th_a[s] + step * end)
+                f2, i2, j2 = face_texel(sizes, ex, ey, ez)
+                level = 0
+                diff = max(i ^ i2, j ^ j2)
+                while diff > 0:
+                    diff >>= 1
+                    level += 1
+                if f2 == face and level < levels:
+                    r_lo = h[s] if (theta <= 0.0 <= th_a[s] + step * end) else min(dist, edist)
+                    v = verdict(table, sizes, offsets, level, li, face, i, j, r_lo, max(dist, edist))
+                    if v >= 0:
+                        for q in range(k, end + 1):
+                            vis[first[s] + q] = v == 1
+                        k = end + 1
+                        run = min(2 * run, MAX_RUN)
+                        decided = True
+                        break
+                run //= 2
+            if decided:
+                continue
+            v = verdict(table, sizes, offsets, 0, li, face, i, j, dist, dist)
+            if v >= 0:
+                vis[first[s] + k] = v == 1
+                run = 2
             else:
-                vis[i] = verdict == 1
-            c, sn = c * cd - sn * sd, sn * cd + c * sd
+                _write_ray(L, lnorm, s, dx, dy, dz, dist, False, epsilon, o32, d32, t32, m)
+                trace[m] = first[s] + k
+                m += 1
+            k += 1
     return m
 
 
 @njit
-def _rays_at(L, n, w, h, lnorm, light, seg, theta, epsilon, maps, vis, trace, o32, d32, t32):
-    """`_sample` for one point per entry (bisection midpoints, never on a surface)."""
+def _rays_at(L, n, w, h, lnorm, light, seg, theta, epsilon, table, sizes, offsets, vis, trace, o32, d32, t32):
+    """The finest texels' verdicts on one point per entry (bisection midpoints, never on a surface),
+    the undecided ones' shadow rays as in `_sample`."""
     m = 0
-    for i in range(theta.shape[0]):
-        verdict = _verdict(L, n, w, h, lnorm, light, seg[i], math.cos(theta[i]), math.sin(theta[i]), False, epsilon,
-                           maps, o32, d32, t32, m)
-        if verdict < 0:
-            trace[m] = i
-            m += 1
+    for q in range(theta.shape[0]):
+        s = seg[q]
+        dx, dy, dz, dist = _point(n, w, h, s, theta[q])
+        v = -1
+        if sizes.shape[0]:
+            face, i, j = face_texel(sizes, dx, dy, dz)
+            v = verdict(table, sizes, offsets, 0, light[s], face, i, j, dist, dist)
+        if v >= 0:
+            vis[q] = v == 1
         else:
-            vis[i] = verdict == 1
+            _write_ray(L, lnorm, s, dx, dy, dz, dist, False, epsilon, o32, d32, t32, m)
+            trace[m] = q
+            m += 1
     return m
 
 
@@ -173,8 +223,9 @@ def _search(accel, maps, segs, lights, spacing, end_lit, stats):
     last = first + count
     frame = (L, n, segs.dirs, h, np.linalg.norm(L, axis=1), segs.light)
     order = np.argsort(segs.light, kind="stable")
-    vis = _trace(accel, _sample, frame + (th_a, th_b, count, first, order, accel.epsilon, maps), int(last[-1]) + 1,
-                 stats)
+    pyramid = (maps.table, maps.sizes, maps.offsets)
+    vis = _trace(accel, _sample, frame + (th_a, th_b, count, first, order, accel.epsilon) + pyramid,
+                 int(last[-1]) + 1, stats)
     vis[last] &= end_lit
     stats[LI_SAMPLES] += len(vis)
     # visibility changes between consecutive samples of one segment: bisect each to BOUNDARY_TOL
@@ -185,7 +236,7 @@ def _search(accel, maps, segs, lights, spacing, end_lit, stats):
         steps = int(np.ceil(np.log2(max(float(np.max(hi - lo)), BOUNDARY_TOL) / BOUNDARY_TOL)))
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
-            same = _trace(accel, _rays_at, frame + (so, mid, accel.epsilon, maps), len(mid), stats) == vis_lo
+            same = _trace(accel, _rays_at, frame + (so, mid, accel.epsilon) + pyramid, len(mid), stats) == vis_lo
             lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
         stats[LI_BISECTIONS] += steps * len(so)
     stats[LI_BOUNDARIES] += len(so)
@@ -209,7 +260,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     each segment ends on (zero where it ends in the air); the air just before that surface sees the
     light only from the surface's near side. `maps`: the lights' depth cube maps for this spacing
     (shadow_maps.build; None: an exact shadow ray for every sample)."""
-    maps = np.zeros((0, 6, 1, 1, 2), np.float32) if maps is None else maps
+    maps = ShadowMaps.empty() if maps is None else maps
     end_lit = np.ones(len(segs), bool)
     if end_normals is not None:
         end = segs.origins + np.where(np.isfinite(segs.length), segs.length, 0.0)[:, None] * segs.dirs
