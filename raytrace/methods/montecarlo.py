@@ -4,7 +4,17 @@ Per camera ray, light and colour channel, `samples` distances x on the segment a
   * equiangular sampling (Kulla & Fajardo 2012): x = x_h + h tan(theta), theta uniform between the
     angles of the segment ends seen from the light; f/p is bounded (no 1/d^2 spike near lights);
   * free-path sampling: x from the transmittance exp(-kt x) truncated to the segment;
-  * `mis`: one sample of each per iteration, combined by the balance heuristic (f / (p_e + p_f)).
+  * `mis`: one sample of each per iteration, combined by the balance heuristic (f / (p_e + p_f));
+  * `cdf`: x drawn by inverting the exact air-light CDF along the segment (`_invert`), which the
+    closed form gives: F(x) = analytic.airlight of the sub-segment [0, x]. Then p = f / F(ell) and
+    every weight f/p is F(ell): zero variance unoccluded (per segment, hence also on the lit
+    intervals of volumetric shadows), and with shadow_test = samples only the visibility's
+    variance, F(ell)^2 P(1 - P) / n for a lit share P of F(ell). That is no lower bound for the
+    other modes: a single-strategy mode's variance per sample minus cdf's is
+    F(ell) E_cdf[(f/p - F(ell)) V], so equiangular wins where its weight f/p is below F(ell) on the
+    lit parts (isotropic: the far ends of rays, f/p ~ exp(-kt (x + d))). Each cdf draw costs a few
+    closed-form evaluations, F(ell) one per segment and channel, at CDF_PRECISION
+    (benchmarks/mc_sampling.py).
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
@@ -19,10 +29,12 @@ import numpy as np
 from ..jit import njit
 from ..rng import uniform
 from . import ErrorLaw, Method, Param
+from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import eq4_integrand, segment_geometry
+from .quadrature import _phase
 
-EQUIANGULAR, FREEPATH, MIS = 0, 1, 2
-MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS}
+EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
+MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CDF}
 
 
 @njit
@@ -116,41 +128,266 @@ def sample_points(origins, dirs, xh, h, ell, keys, stream, seed, intensity, kt, 
                 weight[s, j, 1, c] = wf * intensity[s, c]
 
 
+# ----------------------------------------------------------------------------------------------
+# cdf: distances from the exact air-light CDF
+# ----------------------------------------------------------------------------------------------
+# The CDF's precision: F(x) is analytic.airlight at working_precision(CDF_PRECISION) (1e-12: below
+# 1e-7 analytic works 1000 times finer than asked), so F(ell), the estimate unoccluded, carries a
+# relative error ~1e-12 and the CDF values that steer the Newton iteration ~1e-12 F(ell). The price:
+# at 1e-12 analytic's exact mode has no usable moment block for strongly peaked HG (g = 0.9), whose
+# evaluations all go to its quadrature fallback (counted: "cdf: quadrature fallback fraction").
+CDF_PRECISION = 1e-9
+# Newton's stopping rule: |F(x) - u F(ell)| <= NEWTON_TOL F(ell) (see `_invert`).
+NEWTON_TOL = 1e-9
+MAX_STEPS = 100  # safeguard only: bisection alone reaches the resolution of doubles in < 60 steps
+CDF_MAX_ITER = 1000  # analytic's Fig. 2 loop cap (its default)
+CDF_TERMS = 6  # not read by the exact anisotropic mode
+
+# cdf statistics (the method's stats array)
+CS_INVERSIONS, CS_NEWTON, CS_BISECT, CS_EVALS, CS_FALLBACK = range(5)
+CDF_STATS = 5
+
+
+@njit
+def _cdf_frame(xh, h, ell):
+    """(A, r2): A = theta_b - theta_a in (0, pi), the segment's extent in angle seen from the light
+    (one arctangent, without the cancellation of a difference of two on segments short in angle),
+    and r2 = h^2 + x_h^2, the squared distance from the light to the segment's start."""
+    if ell == math.inf:
+        A = math.atan2(h, -xh)
+    else:
+        A = math.atan2(ell * h, h * h + xh * (xh - ell))
+    return A, h * h + xh * xh
+
+
+@njit
+def _x_of(alpha, xh, h, r2, ell):
+    """Distance x along the segment of the point at angle alpha = theta - theta_a from its start:
+    x = h (tan theta - tan theta_a) = r2 sin(alpha) / (h cos(alpha) + x_h sin(alpha)), free of the
+    cancellation of x_h + h tan(theta) near the start when the light is far ahead."""
+    sa = math.sin(alpha)
+    den = h * math.cos(alpha) + xh * sa
+    if not den > 0.0:
+        return ell
+    return min(r2 * sa / den, ell)
+
+
+@njit
+def _density(x, xh, h, kt, code, g):
+    """dF/dtheta at x for ks = 1: Phi(cos phi) exp(-kt (x + d)) / h (the 1/d^2 of eq. 4 cancels
+    against dx/dtheta = d^2 / h); 1 -+ cos phi = (d +- (x - x_h)) / d without cancellation."""
+    if x == math.inf:
+        return 0.0
+    dx = x - xh
+    hh = h * h
+    d = math.sqrt(hh + dx * dx)
+    if dx > 0.0:
+        plus = d + dx
+        minus = hh / plus
+    else:
+        minus = d - dx
+        plus = hh / minus
+    return math.exp(-kt * (x + d)) * _phase(code, g, -dx / d, plus / d, minus / d) / h
+
+
+@njit
+def _cdf(x, xh, h, da, kt, code, g, precision, coeffs, astats):
+    """F(x): the closed-form air-light of the sub-segment [0, x] for ks = 1 and a unit light."""
+    return airlight(xh, h, da, x, kt, 1.0, 1.0, code, g, precision, CDF_MAX_ITER, ANISO_EXACT, CDF_TERMS, coeffs,
+                    astats)
+
+
+@njit
+def _invert(u, xh, h, da, r2, ell, A, ftot, kt, code, g, precision, coeffs, astats, cstats):
+    """The distance x with F(x) = u F(ell): safeguarded Newton in alpha = theta - theta_a.
+
+    Why the angle and not x: as a function of x the CDF has the shape of eq. 4's 1/d^2 peak; on a
+    ray passing at h << ell from the light it rises from ~0 to ~F(ell) within a few h of x_h, a
+    near-step whose derivative varies by (d_max / h)^2, so Newton from any point off the peak
+    overshoots by ~ell / h, and on rays to infinity x is unbounded. In theta the 1/d^2 is absorbed
+    exactly (dx = d^2 / h dtheta, the equiangular substitution): the domain is the bounded
+    [0, A], A < pi, and dF/dtheta = ks Phi(cos phi) exp(-kt (x + d)) / h varies only through the
+    phase function and the extinction. Where those are mild F(theta) is nearly linear and the
+    equiangular guess alpha = u A (the exact answer for kt = 0 and isotropic scattering) is
+    already close: Newton converges in a few steps (benchmarks/mc_sampling.py counts them).
+
+    Bracket [lo, hi] = [0, A], narrowed by the sign of every residual F(x) - u F(ell); a Newton
+    step (derivative `_density`) that leaves the bracket is replaced by bisection. Stops when
+    |F(x) - u F(ell)| <= NEWTON_TOL F(ell), or when the bracket reaches the resolution of doubles.
+    That tolerance bounds the Kolmogorov distance between the drawn distances' CDF and the exact
+    one by 1e-9 (+ the ~1e-12 of the CDF values): an estimate weighted by a visibility of m lit
+    intervals is biased by at most 2 m 1e-9 F(ell), far below any standard error a render can
+    reach (1e-9 relative needs ~1e18 samples), while the CDF values' own error, ~1e-12 F(ell),
+    is 1000 times smaller, so the bracket's sign decisions are sound. Newton's quadratic
+    convergence makes the tolerance cheap: the last step typically goes from ~1e-5 to below it."""
+    cstats[CS_INVERSIONS] += 1.0
+    target = u * ftot
+    tol = NEWTON_TOL * ftot
+    lo, hi = 0.0, A
+    alpha = u * A
+    x = _x_of(alpha, xh, h, r2, ell)
+    for _ in range(MAX_STEPS):
+        r = _cdf(x, xh, h, da, kt, code, g, precision, coeffs, astats) - target
+        if abs(r) <= tol:
+            break
+        if r < 0.0:
+            lo = alpha
+        else:
+            hi = alpha
+        dens = _density(x, xh, h, kt, code, g)
+        nxt = alpha - r / dens if dens > 0.0 else hi
+        if lo < nxt < hi:
+            cstats[CS_NEWTON] += 1.0
+        else:
+            nxt = 0.5 * (lo + hi)
+            cstats[CS_BISECT] += 1.0
+            if not (lo < nxt < hi):  # the bracket is two adjacent doubles
+                break
+        alpha = nxt
+        x = _x_of(alpha, xh, h, r2, ell)
+    if x == math.inf:  # only if rounding put alpha at the end of a ray to infinity: its lower bracket
+        x = _x_of(lo, xh, h, r2, ell)
+    return x
+
+
+@njit
+def _totals(xh, h, da, ell, kt, ks, code, g, precision, coeffs, astats, ftot):
+    """ftot[c] = F(ell) of every channel for ks = 1 (0 where ks = 0; channels of equal kt share one
+    evaluation)."""
+    for c in range(3):
+        ftot[c] = 0.0
+        if ks[c] == 0.0 or not ell > 0.0:
+            continue
+        same = -1
+        for c2 in range(c):
+            if ks[c2] != 0.0 and kt[c2] == kt[c]:
+                same = c2
+        ftot[c] = ftot[same] if same >= 0 else _cdf(ell, xh, h, da, kt[c], code, g, precision, coeffs, astats)
+
+
+@njit
+def airlight_segments_cdf(xh, h, da, ell, intensity, kt, ks, code, g, precision, coeffs, out, var, stats):
+    """`airlight_segments` for sampling = cdf: every sample's weight f/p is F(ell) wherever it
+    lands (p = f / F(ell)), so unoccluded the mean of n samples is F(ell) with variance 0, and no
+    distance needs to be drawn: one closed-form evaluation per segment and channel."""
+    astats = np.zeros(STATS_SIZE)
+    ftot = np.zeros(3)
+    for s in range(xh.shape[0]):
+        _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, precision, coeffs, astats, ftot)
+        for c in range(3):
+            out[s, c] = ks[c] * ftot[c] * intensity[s, c]
+            var[s, c] = 0.0
+    stats[CS_EVALS] += astats[ST_EVALS]
+    stats[CS_FALLBACK] += astats[ST_FALLBACK]
+
+
+@njit
+def sample_points_cdf(origins, dirs, xh, h, da, ell, keys, stream, seed, intensity, kt, ks, code, g, n, precision,
+                      coeffs, pos, weight, stats):
+    """`sample_points` for sampling = cdf (one strategy, k = 0): iteration j of segment s draws
+    u = uniform(key, 2 n stream + 2 j, seed) (the equiangular sample's number) and, per channel,
+    the distance with F(x) = u F(ell) (channels of equal kt share it); its weight is I ks F(ell)."""
+    astats = np.zeros(STATS_SIZE)
+    ftot = np.zeros(3)
+    xs = np.zeros(3)
+    for s in range(xh.shape[0]):
+        _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, precision, coeffs, astats, ftot)
+        A, r2 = _cdf_frame(xh[s], h[s], ell[s])
+        for j in range(n):
+            u = uniform(keys[s], 2 * n * stream[s] + 2 * j, seed)
+            for c in range(3):
+                if not ftot[c] > 0.0:
+                    continue
+                same = -1
+                for c2 in range(c):
+                    if ftot[c2] > 0.0 and kt[c2] == kt[c]:
+                        same = c2
+                if same >= 0:
+                    xs[c] = xs[same]
+                else:
+                    xs[c] = _invert(u, xh[s], h[s], da[s], r2, ell[s], A, ftot[c], kt[c], code, g, precision,
+                                    coeffs, astats, stats)
+                for a in range(3):
+                    pos[s, j, 0, c, a] = origins[s, a] + xs[c] * dirs[s, a]
+                weight[s, j, 0, c] = ks[c] * ftot[c] * intensity[s, c]
+    stats[CS_EVALS] += astats[ST_EVALS]
+    stats[CS_FALLBACK] += astats[ST_FALLBACK]
+
+
 def _args(segs, medium, lights, params):
     xh, h, _ = segment_geometry(segs, lights)
     return (xh, h, segs.length, segs.keys, segs.stream, np.uint64(segs.seed), lights.intensity[segs.light],
             medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], params["samples"])
 
 
+def cdf_setup(medium):
+    """(precision, coeffs) of the CDF's closed form for this medium (analytic's exact mode)."""
+    precision = working_precision(CDF_PRECISION)
+    return precision, make_coeffs(medium.phase, medium.g, ANISO_EXACT, CDF_TERMS, precision)
+
+
 def _airlight(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
-    airlight_segments(*_args(segs, medium, lights, params), out, var)
-    return out, np.zeros(0), var
+    stats = np.zeros(CDF_STATS)
+    if params["sampling"] == "cdf":
+        xh, h, da = segment_geometry(segs, lights)
+        airlight_segments_cdf(xh, h, da, segs.length, lights.intensity[segs.light], medium.sigma_t, medium.sigma_s,
+                              medium.phase, medium.g, *cdf_setup(medium), out, var, stats)
+    else:
+        airlight_segments(*_args(segs, medium, lights, params), out, var)
+    return out, stats, var
+
+
+def _strategies(params):
+    return 1 if params["sampling"] == "cdf" else 2
 
 
 def _points(segs, medium, lights, params):
-    shape = (len(segs), params["samples"], 2, 3)
+    shape = (len(segs), params["samples"], _strategies(params), 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
-    sample_points(segs.origins, segs.dirs, *_args(segs, medium, lights, params), pos, weight)
+    if params["sampling"] == "cdf":
+        xh, h, da = segment_geometry(segs, lights)
+        sample_points_cdf(segs.origins, segs.dirs, xh, h, da, segs.length, segs.keys, segs.stream, np.uint64(segs.seed),
+                          lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
+                          params["samples"], *cdf_setup(medium), pos, weight, np.zeros(CDF_STATS))
+    else:
+        sample_points(segs.origins, segs.dirs, *_args(segs, medium, lights, params), pos, weight)
     return pos, weight
+
+
+def _summarize(stats):
+    """The cdf mode's counters (nothing for the other modes)."""
+    if not stats[CS_EVALS] > 0.0:
+        return {}
+    out = {"cdf: closed-form evaluations": int(stats[CS_EVALS]),
+           "cdf: quadrature fallback fraction": stats[CS_FALLBACK] / stats[CS_EVALS]}
+    if stats[CS_INVERSIONS] > 0.0:
+        out["cdf: newton steps per inversion"] = stats[CS_NEWTON] / stats[CS_INVERSIONS]
+        out["cdf: bisection steps per inversion"] = stats[CS_BISECT] / stats[CS_INVERSIONS]
+    return out
 
 
 METHOD = Method(
     name="montecarlo",
-    summary="unbiased single scattering: equiangular, free-path or MIS distance sampling, per-pixel variance",
+    summary="unbiased single scattering: equiangular, free-path, MIS or exact-CDF distance sampling, per-pixel "
+            "variance",
     params={
         "samples": Param(4, int, "distance samples per camera ray, light and strategy", 1),
-        "sampling": Param("equiangular", str, "equiangular (best near lights in thin media), freepath, or mis "
-                          "(balance heuristic, one sample of each)", choices=tuple(MODES)),
+        "sampling": Param("equiangular", str, "equiangular (best near lights in thin media), freepath, mis "
+                          "(balance heuristic, one sample of each), or cdf (inverting the exact air-light CDF: "
+                          "zero variance unoccluded, only the visibility's with --shadow-test samples)",
+                          choices=tuple(MODES)),
         "shadow_test": Param("intervals", str, "with volumetric shadows: integrate the lit intervals (exact between "
                              "shadow boundaries) or samples (a shadow ray per medium sample, the classic)",
                              choices=("intervals", "samples")),
     },
     airlight=_airlight,
     error_law=ErrorLaw({"samples": 1024}, "sigma", 3.5),  # worst 1.8 over 100 seeds; at 64 samples 4.2 (g = 0.9)
+    stats_size=CDF_STATS,
+    summarize=_summarize,
     stochastic=True,
     points=_points,
-    point_count=lambda segs, medium, params: np.full(len(segs), 2 * params["samples"]),
+    point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
 )
