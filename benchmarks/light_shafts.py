@@ -115,22 +115,26 @@ def speed(sc, rounds, label):
 
 
 def equal_time(refs):
-    print("\n## Equal time: analytic (1e-3) against ray marching with a shadow ray per sample\n")
-    print("| scene | analytic time (s) | analytic mean rel. error | raymarch steps | raymarch time (s) | "
-          "raymarch mean rel. error | error ratio |")
+    print("\n## Equal time: analytic against ray marching with a shadow ray per sample (the classic)\n")
+    print("Ray marching's step count is doubled until its render takes at least as long as analytic's at "
+          "precision 1e-6 (the search for lit intervals dominates analytic's time, so its precision is "
+          "almost free); errors are mean relative errors against shadowed quadrature.\n")
+    print("| scene | analytic 1e-3: time (s), error | analytic 1e-6: time (s), error | raymarch steps | "
+          "raymarch time (s) | raymarch error | error ratio (raymarch / analytic 1e-6) |")
     print("|---|---|---|---|---|---|---|")
     for name, (prep, ref) in refs.items():
-        a = render(prep, "analytic", precision=1e-3, volumetric_shadows=True)
-        ea = rel_error(a.array, ref)[1]
+        a3 = render(prep, "analytic", precision=1e-3, volumetric_shadows=True)
+        a6 = render(prep, "analytic", precision=1e-6, volumetric_shadows=True)
+        e3, e6 = rel_error(a3.array, ref)[1], rel_error(a6.array, ref)[1]
         steps, best = 4, None
-        while steps <= 4096:
+        while steps <= 8192:
             r = render(prep, "raymarch", steps=steps, shadow_test="samples", volumetric_shadows=True)
             best = (steps, r.seconds, rel_error(r.array, ref)[1])
-            if r.seconds >= a.seconds:
+            if r.seconds >= a6.seconds:
                 break
             steps *= 2
-        print(f"| {name} | {a.seconds:.2f} | {ea:.2e} | {best[0]} | {best[1]:.2f} | {best[2]:.2e} | "
-              f"{best[2] / max(ea, 1e-300):.0f}x |")
+        print(f"| {name} | {a3.seconds:.2f}, {e3:.1e} | {a6.seconds:.2f}, {e6:.1e} | {best[0]} | {best[1]:.2f} | "
+              f"{best[2]:.1e} | {best[2] / max(e6, 1e-300):.0f}x |")
 
 
 def main():
