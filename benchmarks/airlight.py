@@ -6,9 +6,11 @@ The rays are the camera rays of the built-in default scene (two lamps in a hall,
 their first hits; the medium's phase function is switched between isotropic, Rayleigh and
 Henyey-Greenstein. The error of each run is measured against `quadrature` at rtol 1e-13 (itself
 checked against scipy in the tests): max and 99.9th percentile of the relative error per ray.
-Times are single-thread CPU seconds of the air-light kernel alone (least of 5 rounds in which the compared runs take turns), so figures are
-ratios measured in one run on one machine. The last table compares a whole render of the same
-rays (first hits, surface term, shadow rays) without any air-light term and with `analytic`.
+Times are single-thread CPU seconds of the air-light of whole rays alone
+(`visibility.unshadowed_airlight`: one segment per ray and light, the method's kernel, the sum
+onto the rays; least of 5 rounds in which the compared runs take turns), so figures are ratios
+measured in one run on one machine. The last table compares a whole render of the same rays
+(first hits, surface term, shadow rays) without any air-light term and with `analytic`.
 """
 import argparse
 import dataclasses
@@ -22,10 +24,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
-from raytrace.methods import RayBatch, get_method, resolve_params  # noqa: E402
+from raytrace.methods import get_method, resolve_params  # noqa: E402
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH  # noqa: E402
 from raytrace.renderer import prepare, shade_rays  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
+from raytrace.visibility import unshadowed_airlight  # noqa: E402
 
 PHASES = [("isotropic", ISOTROPIC, 0.0), ("rayleigh", RAYLEIGH, 0.0), ("hg g=0.5", HG, 0.5),
           ("hg g=-0.5", HG, -0.5), ("hg g=0.9", HG, 0.9)]
@@ -44,10 +47,12 @@ def cpu_best(*fns, repeats=5):
     return [(float(np.min(t)), out) for t, out in zip(times, outs)]
 
 
-def airlight(method, params, batch, medium, prep):
+def airlight(method, params, rays, medium, prep):
+    """The air-light of whole rays [0, t_hit] summed over the lights (segments, the method's
+    kernel and the gather onto the rays; the same work as the renderer without volumetric shadows)."""
     m = get_method(method)
     p = resolve_params(m, params, "benchmark")
-    return lambda: m.airlight(batch, medium, prep.light_pos, prep.light_int, p)
+    return lambda: unshadowed_airlight(m, medium, prep.lights, p, *rays, 0, prep.accel.scale)
 
 
 def rel_errors(test, ref):
@@ -69,21 +74,21 @@ def main():
     o, d = generate_rays(scene.camera)
     t, _ = prep.accel.first_hit(o, d)
     keys = np.arange(len(o), dtype=np.uint64)
-    batch = RayBatch(o, d, t, keys, 0)
-    n_eval = len(o) * len(prep.light_pos)
-    print(f"{len(o)} rays x {len(prep.light_pos)} lights = {n_eval} air-light evaluations per run "
+    rays = (o, d, t, keys)
+    n_eval = len(o) * len(prep.lights)
+    print(f"{len(o)} rays x {len(prep.lights)} lights = {n_eval} air-light evaluations per run "
           f"(channels share coefficients); single-thread CPU time\n")
     print("| phase | precision | analytic Mevals/s | analytic max rel | p99.9 | quadrature (rtol = precision) Mevals/s "
           "| quadrature max rel | speed-up |")
     print("|---|---|---|---|---|---|---|---|")
     for label, code, g in PHASES:
         medium = dataclasses.replace(scene.medium, phase=code, g=g)
-        airlight("analytic", {"precision": 1e-3}, batch, medium, prep)()  # compile
-        airlight("quadrature", {"rtol": 1e-3}, batch, medium, prep)()
-        ref = airlight("quadrature", {"rtol": 1e-13}, batch, medium, prep)()[0]
+        airlight("analytic", {"precision": 1e-3}, rays, medium, prep)()  # compile
+        airlight("quadrature", {"rtol": 1e-3}, rays, medium, prep)()
+        ref = airlight("quadrature", {"rtol": 1e-13}, rays, medium, prep)()[0]
         for prec in precisions:
-            (ta, (va, _)), (tq, (vq, _)) = cpu_best(airlight("analytic", {"precision": prec}, batch, medium, prep),
-                                                    airlight("quadrature", {"rtol": prec}, batch, medium, prep))
+            (ta, (va, *_)), (tq, (vq, *_)) = cpu_best(airlight("analytic", {"precision": prec}, rays, medium, prep),
+                                                      airlight("quadrature", {"rtol": prec}, rays, medium, prep))
             ea, eq = rel_errors(va, ref), rel_errors(vq, ref)
             print(f"| {label} | {prec:g} | {n_eval / ta / 1e6:.2f} | {ea[0]:.2e} | {ea[1]:.2e} | "
                   f"{n_eval / tq / 1e6:.2f} | {eq[0]:.2e} | {tq / ta:.1f}x |")

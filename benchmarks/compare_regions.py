@@ -26,6 +26,8 @@ def main(scene_path, folder, u_max=10.0):
     cam = scene.camera
     if cam.spp != 1 or len(scene.lights) != 1:
         raise SystemExit("needs a one-light scene rendered at 1 spp")
+    ref, _ = read_exr(Path(folder) / "reference.exr")
+    cam.height, cam.width = ref.shape[:2]  # the images' size (compare --width/--height)
     o, d = generate_rays(cam)
     rel = scene.lights[0].position - o
     xh = np.einsum("ij,ij->i", rel, d)
@@ -34,7 +36,6 @@ def main(scene_path, folder, u_max=10.0):
     u = h * float(scene.medium.sigma_t.max())
     regions = {"towards the light (< 30°)": angle < 30.0, "away (light behind)": xh < 0.0,
                f"u <= {u_max:g}": u <= u_max, f"u > {u_max:g}": u > u_max}
-    ref, _ = read_exr(Path(folder) / "reference.exr")
     print("| image | " + " | ".join(f"{k}: mean / max rel. error" for k in regions) + " |")
     print("|---" * (len(regions) + 1) + "|")
     for path in sorted(Path(folder).glob("*.exr")):

@@ -23,12 +23,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
-from raytrace.methods import RayBatch, get_method, resolve_params  # noqa: E402
+from raytrace.methods import get_method, resolve_params  # noqa: E402
 from raytrace.methods.analytic import ST_EVALS, ST_TAYLOR_OUT  # noqa: E402
 from raytrace.media.expint import i01_series, i0i1_stable  # noqa: E402
 from raytrace.media.phase import HG, RAYLEIGH  # noqa: E402
 from raytrace.renderer import prepare  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
+from raytrace.visibility import unshadowed_airlight  # noqa: E402
 
 
 def i0_mpmath(H, va, vb):
@@ -57,18 +58,18 @@ def taylor_table():
     prep = prepare(scene)
     o, d = generate_rays(scene.camera)
     t, _ = prep.accel.first_hit(o, d)
-    batch = RayBatch(o, d, t, np.arange(len(o), dtype=np.uint64), 0)
+    rays = (o, d, t, np.arange(len(o), dtype=np.uint64), 0, prep.accel.scale)
     analytic = get_method("analytic")
     print("\n| phase | variant | negative results | median rel. error | max rel. error | out of Taylor range |")
     print("|---|---|---|---|---|---|")
     for label, code, g in [("rayleigh", RAYLEIGH, 0.0), ("hg g=0.5", HG, 0.5), ("hg g=-0.5", HG, -0.5)]:
         medium = dataclasses.replace(scene.medium, phase=code, g=g)
         q = get_method("quadrature")
-        ref = q.airlight(batch, medium, prep.light_pos, prep.light_int, resolve_params(q, {"rtol": 1e-12}, ""))[0]
+        ref = unshadowed_airlight(q, medium, prep.lights, resolve_params(q, {"rtol": 1e-12}, ""), *rays)[0]
         variants = [("taylor", 3), ("taylor", 6), ("exact", 6)]
         for mode, terms in variants:
             p = resolve_params(analytic, {"anisotropic": mode, "terms": terms, "precision": 1e-6}, "")
-            val, stats = analytic.airlight(batch, medium, prep.light_pos, prep.light_int, p)
+            val, stats, _ = unshadowed_airlight(analytic, medium, prep.lights, p, *rays)
             rel = np.abs(val - ref) / ref
             name = f"taylor, {terms} terms" if mode == "taylor" else "exact (default), precision 1e-6"
             out = f"{stats[ST_TAYLOR_OUT] / stats[ST_EVALS]:.0%}" if mode == "taylor" else "-"
