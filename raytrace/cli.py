@@ -92,6 +92,10 @@ def build_parser():
     t.add_argument("--quick", action="store_true", help="small images and 1 spp (for CI)")
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--threads", type=int)
+    t.add_argument("--shadows", choices=("quarter", "full", "off"), default="quarter",
+                   help="the second table, with volumetric shadows: at a quarter of the width and height and "
+                        "1 spp (default; the lit-interval search makes every shadowed render 5-40x slower), at "
+                        "the full size, or off (with --quick it uses the quick images)")
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
@@ -222,7 +226,7 @@ def cmd_table1(args):
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
-    table1.run(out, args.quick, args.seed, args.threads)
+    table1.run(out, args.quick, args.seed, args.threads, shadows=args.shadows)
     return 0
 
 

@@ -18,6 +18,7 @@ from ..methods import get_method
 from ..progressive import render_progressive
 from ..renderer import Prepared, RenderResult, render
 from ..scene.format import parse_override
+from ..visibility import SHADOW_SPACING
 
 
 @dataclass
@@ -43,10 +44,15 @@ def parse_spec(text: str) -> MethodSpec:
     return MethodSpec(text.strip(), name, params)
 
 
-def render_spec(prep: Prepared, spec: MethodSpec, seed: int, threads=None) -> RenderResult:
+def render_spec(prep: Prepared, spec: MethodSpec, seed: int, threads=None, volumetric_shadows: bool = False,
+                shadow_spacing: float = SHADOW_SPACING) -> RenderResult:
+    """One render of `spec` (one pass for a stochastic method); `volumetric_shadows` and
+    `shadow_spacing` are the renderer's options (light shafts, visibility.py)."""
+    opts = {"volumetric_shadows": volumetric_shadows, "shadow_spacing": shadow_spacing}
     if get_method(spec.name).stochastic:
-        return render_progressive(prep, spec.name, spec.params, seed, passes=1, threads=threads, source=spec.label)
-    return render(prep, spec.name, spec.params, seed, threads, source=spec.label)
+        return render_progressive(prep, spec.name, spec.params, seed, passes=1, threads=threads, source=spec.label,
+                                  **opts)
+    return render(prep, spec.name, spec.params, seed, threads, source=spec.label, **opts)
 
 
 def safe_name(label: str) -> str:
