@@ -29,13 +29,15 @@ from .shadow_maps import ShadowMaps, face_texel, verdict
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
 SHADOW_SPACING = 0.01  # radians seen from the light between visibility samples (render.shadow_spacing)
 SPACING_RANGE = (1e-5, 0.5)
+EDGE_STEP = 1e-6  # radians: the probes either side of an occluder edge that confirm it as the boundary
+EDGE_ITERS = 4  # triangles followed along one occluder before bisection takes over
 BOUNDARY_TOL = 3e-8  # radians: boundaries are bisected to the resolution of float32 ray directions (6e-8)
 SAMPLES_PER_CHUNK = 1 << 20  # visibility samples per batch of shadow rays (~100 MB of arrays)
 
 # lit-interval statistics (`lit_intervals`' stats array)
-LI_SEGMENTS, LI_SAMPLES, LI_BOUNDARIES, LI_BISECTIONS, LI_INTERVALS, LI_SHADOWED, LI_RAYS = range(7)
+LI_SEGMENTS, LI_SAMPLES, LI_BOUNDARIES, LI_BISECTIONS, LI_INTERVALS, LI_SHADOWED, LI_RAYS, LI_EDGES = range(8)
 LI_NAMES = ("segments searched", "visibility samples", "shadow boundaries", "bisection steps",
-            "lit intervals", "segments fully shadowed", "shadow rays traced")
+            "lit intervals", "segments fully shadowed", "shadow rays traced", "boundaries at occluder edges")
 
 
 def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
@@ -202,6 +204,79 @@ def _changes(vis, first, count):
     return np.array(seg, dtype=np.int64), np.array(ks, dtype=np.int64)
 
 
+@njit
+def _edge_angles(tris, prim, L, n, w, seg, sign, out):
+    """For the triangle prim[q] hit from segment seg[q]'s light: the angle (seen from the light, in
+    the plane of the light and the segment) where the triangle's cross-section with that plane ends
+    on the side `sign` (+1: larger angles); nan where there is no such cross-section."""
+    for q in range(prim.shape[0]):
+        out[q] = math.nan
+        p, s = prim[q], seg[q]
+        if p < 0:
+            continue
+        nx = n[s, 1] * w[s, 2] - n[s, 2] * w[s, 1]
+        ny = n[s, 2] * w[s, 0] - n[s, 0] * w[s, 2]
+        nz = n[s, 0] * w[s, 1] - n[s, 1] * w[s, 0]
+        best = -math.inf
+        for e in range(3):
+            a, b = tris[p, e], tris[p, (e + 1) % 3]
+            da = (a[0] - L[s, 0]) * nx + (a[1] - L[s, 1]) * ny + (a[2] - L[s, 2]) * nz
+            db = (b[0] - L[s, 0]) * nx + (b[1] - L[s, 1]) * ny + (b[2] - L[s, 2]) * nz
+            if (da > 0.0) == (db > 0.0) and da != 0.0:
+                continue
+            f = da / (da - db) if da != db else 0.0
+            qx = a[0] + f * (b[0] - a[0]) - L[s, 0]
+            qy = a[1] + f * (b[1] - a[1]) - L[s, 1]
+            qz = a[2] + f * (b[2] - a[2]) - L[s, 2]
+            ang = math.atan2(qx * w[s, 0] + qy * w[s, 1] + qz * w[s, 2], qx * n[s, 0] + qy * n[s, 1] + qz * n[s, 2])
+            best = max(best, sign[q] * ang)
+        if best > -math.inf:
+            out[q] = sign[q] * best
+
+
+def _edges(accel, frame, pyramid, so, lo, hi, vis_lo, stats):
+    """Shadow boundaries from the occluders' own edges: from the shadowed end of each bracket, the
+    triangle that blocks the light is found (a first-hit ray from the light) and the end of its
+    cross-section with the plane of the light and the segment gives the boundary angle exactly, once
+    a step of EDGE_STEP beyond it is lit and a step before it shadowed; if not lit, the next triangle
+    is tried from there. Returns the brackets, zero-width where a boundary was found."""
+    L, n, w, h = frame[:4]
+    shadowed = np.where(vis_lo, hi, lo)
+    lit = np.where(vis_lo, lo, hi)
+    sign = np.where(vis_lo, -1.0, 1.0)  # from the shadowed end towards the lit one
+    open_ = np.ones(len(so), bool)
+    for _ in range(EDGE_ITERS):
+        act = np.nonzero(open_)[0]
+        if not len(act):
+            break
+        s = so[act]
+        c, sn = np.cos(shadowed[act]), np.sin(shadowed[act])
+        d = c[:, None] * n[s] + sn[:, None] * w[s]
+        _, prim = accel.first_hit(L[s], d)
+        stats[LI_RAYS] += len(act)
+        edge = np.empty(len(act))
+        _edge_angles(accel.triangles, prim, L, n, w, s, sign[act], edge)
+        inside = np.isfinite(edge) & ((edge - shadowed[act]) * sign[act] > 0) & ((lit[act] - edge) * sign[act] > EDGE_STEP)
+        open_[act[~inside]] = False  # no usable edge: bisection takes the bracket as it is
+        act, edge = act[inside], edge[inside]
+        if not len(act):
+            break
+        probe = np.concatenate([edge + sign[act] * EDGE_STEP, edge - sign[act] * EDGE_STEP])
+        seg2 = np.concatenate([so[act], so[act]])
+        vis = _trace(accel, _rays_at, frame + (seg2, probe) + pyramid, len(probe), stats)
+        after, before = vis[:len(act)], vis[len(act):]
+        found = after & ~before
+        lo[act[found]] = hi[act[found]] = edge[found]
+        open_[act[found]] = False
+        stats[LI_EDGES] += int(found.sum())
+        onward = ~after & ~before  # the occluder goes on past this triangle
+        shadowed[act[onward]] = edge[onward] + sign[act[onward]] * EDGE_STEP
+        open_[act[~found & ~onward]] = False
+    rest = open_ | (lo != hi)
+    lo[rest], hi[rest] = np.minimum(shadowed, lit)[rest], np.maximum(shadowed, lit)[rest]
+    return lo, hi
+
+
 def _trace(accel, kernel, args, m, stats):
     """Run a sampling kernel, then trace the rays it could not decide; returns the visibility."""
     vis = np.zeros(m, bool)
@@ -213,7 +288,7 @@ def _trace(accel, kernel, args, m, stats):
     return vis
 
 
-def _search(accel, maps, segs, lights, spacing, end_lit, stats):
+def _search(accel, maps, segs, lights, spacing, end_lit, stats, edges=True):
     """Lit angular intervals of a chunk: (segment index, theta start, theta end, starts at the
     segment's start, ends at its end), and the light frame. `end_lit`: whether the light is on the
     near side of the surface each segment ends on (True where it ends in the air)."""
@@ -232,13 +307,17 @@ def _search(accel, maps, segs, lights, spacing, end_lit, stats):
     so, k = _changes(vis, first, count)
     width = th_b[so] - th_a[so]
     lo, hi, vis_lo = th_a[so] + width * (k / count[so]), th_a[so] + width * ((k + 1) / count[so]), vis[first[so] + k]
-    if len(so):
-        steps = int(np.ceil(np.log2(max(float(np.max(hi - lo)), BOUNDARY_TOL) / BOUNDARY_TOL)))
+    if len(so) and edges:
+        lo, hi = _edges(accel, frame, (accel.epsilon,) + pyramid, so, lo, hi, vis_lo, stats)
+    todo = np.nonzero(hi - lo > BOUNDARY_TOL)[0]
+    if len(todo):
+        steps = int(np.ceil(np.log2(float(np.max(hi[todo] - lo[todo])) / BOUNDARY_TOL)))
         for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            same = _trace(accel, _rays_at, frame + (so, mid, accel.epsilon) + pyramid, len(mid), stats) == vis_lo
-            lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
-        stats[LI_BISECTIONS] += steps * len(so)
+            mid = 0.5 * (lo[todo] + hi[todo])
+            same = _trace(accel, _rays_at, frame + (so[todo], mid, accel.epsilon) + pyramid, len(mid),
+                          stats) == vis_lo[todo]
+            lo[todo], hi[todo] = np.where(same, mid, lo[todo]), np.where(same, hi[todo], mid)
+        stats[LI_BISECTIONS] += steps * len(todo)
     stats[LI_BOUNDARIES] += len(so)
     bound = 0.5 * (lo + hi)
     # interval starts: a visible first sample, or a change to visible; ends: the reverse
@@ -254,12 +333,13 @@ def _search(accel, maps, segs, lights, spacing, end_lit, stats):
 
 
 def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float = SHADOW_SPACING,
-                  end_normals=None, maps=None):
+                  end_normals=None, maps=None, edges=True):
     """The lit pieces of `segs` as new segments (each from its own start point, t0 along the camera
     ray), and the search's statistics (LI_NAMES). `end_normals` (S, 3): the normal of the surface
     each segment ends on (zero where it ends in the air); the air just before that surface sees the
     light only from the surface's near side. `maps`: the lights' depth cube maps for this spacing
-    (shadow_maps.build; None: an exact shadow ray for every sample)."""
+    (shadow_maps.build; None: an exact shadow ray for every sample). `edges`: locate boundaries at
+    the occluders' edges where possible (else bisection alone)."""
     maps = ShadowMaps.empty() if maps is None else maps
     end_lit = np.ones(len(segs), bool)
     if end_normals is not None:
@@ -274,7 +354,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     parts = []
     for part in chunks(per_segment, SAMPLES_PER_CHUNK):
         seg = segs.take(part)
-        (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, maps, seg, lights, spacing, end_lit[part], stats)
+        (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, maps, seg, lights, spacing, end_lit[part], stats, edges)
         x0 = np.where(at_start, 0.0, xh[idx] + h[idx] * np.tan(t_s))
         x1 = np.where(at_end, seg.length[idx], xh[idx] + h[idx] * np.tan(t_e))
         x0 = np.clip(x0, 0.0, seg.length[idx])

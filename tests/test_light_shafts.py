@@ -10,7 +10,7 @@ import raytrace
 from raytrace.camera import generate_rays
 from raytrace.methods import registry
 from raytrace.renderer import prepare
-from raytrace.visibility import LI_BISECTIONS, LI_RAYS, LI_SAMPLES, lit_intervals, whole_rays
+from raytrace.visibility import LI_BISECTIONS, LI_BOUNDARIES, LI_EDGES, LI_RAYS, LI_SAMPLES, lit_intervals, whole_rays
 
 from . import oracle
 from .conftest import box_room
@@ -169,11 +169,39 @@ def test_the_depth_maps_decide_most_samples_and_change_no_interval():
     s = scene()
     s["shape"].append(sphere)
     prep, segs, normals = _segments(s)
-    a, sa = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals)
-    b, sb = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, prep.shadow_maps(0.01))
+    a, sa = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, edges=False)
+    b, sb = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, prep.shadow_maps(0.01), edges=False)
     assert len(a) == len(b) and np.array_equal(a.ray, b.ray)
     np.testing.assert_allclose(b.t0, a.t0, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(b.length, a.length, rtol=1e-9, atol=1e-12)
     rays_a, rays_b = sa[LI_RAYS], sb[LI_RAYS]
     assert rays_a == sa[LI_SAMPLES] + sa[LI_BISECTIONS]
     assert rays_b < 0.3 * rays_a, (rays_b, rays_a)
+
+
+def _boundary_errors(segs, lit):
+    """Distance of every lit interval's ends from the nearest analytic shadow boundary of the plates
+    (or the segment's own ends)."""
+    out = []
+    for q in range(len(lit)):
+        r = lit.ray[q]
+        o, d, t = segs.origins[r], segs.dirs[r], segs.length[r]
+        breaks = [0.0, t] + [b for p in PLATES for b in oracle.plate_shadow_breaks(o, d, t, LIGHT, p)]
+        out += [min(abs(x - b) for b in breaks) for x in (lit.t0[q], lit.t0[q] + lit.length[q])]
+    return np.array(out)
+
+
+def test_boundaries_at_occluder_edges_are_exact():
+    """A boundary taken from the occluder's own edge (its cross-section with the plane of the light
+    and the ray, in float64) is exact; bisection with float32 shadow rays stops at their resolution.
+    Both against the twin's analytic plate boundaries."""
+    prep, segs, normals = _segments(scene(), 32, 24)
+    maps = prep.shadow_maps(0.01)
+    a, sa = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, maps, edges=False)
+    b, sb = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, maps)
+    assert len(a) == len(b) and np.array_equal(a.ray, b.ray)
+    ea, eb = _boundary_errors(segs, a), _boundary_errors(segs, b)
+    assert np.median(eb) < 1e-12 and np.median(ea) < 1e-6  # bisection: float32 resolution
+    assert eb.max() < 1e-5 and ea.max() < 1e-5  # within 1e-5 of the scene's size (the float32 margins)
+    assert sb[LI_EDGES] > 0.8 * sb[LI_BOUNDARIES]  # most boundaries found at an edge
+    assert sb[LI_RAYS] < 0.6 * sa[LI_RAYS]
