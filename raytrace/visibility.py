@@ -43,19 +43,29 @@ LI_NAMES = ("segments searched", "visibility samples", "shadow boundaries", "bis
 def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
     """One segment [0, tmax] per (ray, light), ray-major (segment r L + l)."""
     n = len(origins)
-    rep = lambda a: np.repeat(a, n_lights, axis=0)  # noqa: E731
+    rep = (lambda a: a) if n_lights == 1 else (lambda a: np.repeat(a, n_lights, axis=0))  # noqa: E731
     light = np.tile(np.arange(n_lights, dtype=np.int64), n)
     return Segments(rep(origins), rep(dirs), rep(np.asarray(tmax, float)), light,
                     rep(np.arange(n, dtype=np.int64)), np.zeros(n * n_lights), rep(np.asarray(keys, np.uint64)),
-                    light.copy(), int(seed), float(scale))
+                    light.copy(), int(seed), float(scale), per_ray=n_lights)
 
 
 def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
     """Sum (N, 3) over each ray's segments of exp(-kt t0)^power * values (S, 3); power 2 adds the
-    variances of independent segment estimates."""
+    variances of independent segment estimates. Whole rays (all t0 = 0) need no transmittance."""
     out = np.zeros((n_rays, 3))
-    np.add.at(out, segs.ray, values * medium.transmittance(segs.t0) ** power)
+    tr = medium.transmittance(segs.t0) ** power if segs.per_ray == 0 and np.any(segs.t0) else np.ones((0, 3))
+    _add_by_ray(values, segs.ray, tr, out)
     return out
+
+
+@njit
+def _add_by_ray(values, ray, tr, out):
+    """out[ray[s]] += values[s] (times tr[s] unless tr is empty)."""
+    for s in range(values.shape[0]):
+        r = ray[s]
+        for c in range(3):
+            out[r, c] += values[s, c] * tr[s, c] if tr.shape[0] else values[s, c]
 
 
 def _light_frame(segs: Segments, lights):

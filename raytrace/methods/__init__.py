@@ -64,12 +64,13 @@ class Segments:
     stream: np.ndarray
     seed: int = 0
     scale: float = 1.0  # the scene's size (point lights' regularisation, geometry.py)
+    per_ray: int = 0  # k when segment r k + j is ray r's j-th and every t0 is 0 (whole rays), else 0
 
     def __len__(self) -> int:
         return len(self.length)
 
     def take(self, idx) -> "Segments":
-        """The segments at `idx` (an index array or slice)."""
+        """The segments at `idx` (an index array or slice; the result has no per-ray layout)."""
         return Segments(self.origins[idx], self.dirs[idx], self.length[idx], self.light[idx], self.ray[idx],
                         self.t0[idx], self.keys[idx], self.stream[idx], self.seed, self.scale)
 

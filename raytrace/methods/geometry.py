@@ -65,7 +65,6 @@ def by_channel(segs, medium, lights, evaluate):
     one call, channels that do not scatter are 0."""
     xh, h, da = segment_geometry(segs, lights)
     out = np.zeros((len(segs), 3))
-    intensity = lights.intensity[segs.light]
     done = {}
     for c in range(3):
         key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
@@ -73,5 +72,12 @@ def by_channel(segs, medium, lights, evaluate):
             continue
         if key not in done:
             done[key] = evaluate(xh, h, da, segs.length, *key)
-        out[:, c] = done[key] * intensity[:, c]
+        _scale_into(out, c, done[key], lights.intensity, segs.light)
     return out
+
+
+@njit
+def _scale_into(out, c, unit, intensity, light):
+    """out[s, c] = unit[s] * intensity[light[s], c]."""
+    for s in range(unit.shape[0]):
+        out[s, c] = unit[s] * intensity[light[s], c]
