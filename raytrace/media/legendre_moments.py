@@ -38,8 +38,8 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .phase import INV_4PI
 
-_INV_4PI = 1.0 / (4.0 * math.pi)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -66,12 +66,12 @@ def legendre_to_cosine(a):
 def hg_legendre(g, L):
     """a_l = (2l+1) g^l / (4 pi), l = 0..L (Henyey-Greenstein, normalised over the sphere)."""
     l = np.arange(L + 1)
-    return (2 * l + 1) * float(g) ** l * _INV_4PI
+    return (2 * l + 1) * float(g) ** l * INV_4PI
 
 
 def rayleigh_legendre():
     """Rayleigh 3/(16 pi)(1+mu^2) = 1/(4 pi) P_0 + 1/(8 pi) P_2 (mu^2 = (1 + 2 P_2)/3)."""
-    return np.array([_INV_4PI, 0.0, 1.0 / (8.0 * math.pi)])
+    return np.array([INV_4PI, 0.0, 1.0 / (8.0 * math.pi)])
 
 
 # ----------------------------------------------------------------------------------------------

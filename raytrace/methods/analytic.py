@@ -44,8 +44,8 @@ from .geometry import by_channel
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre)
-from ..media.phase import ISOTROPIC, RAYLEIGH, HG
-from .quadrature import CAPPED, _N10, _N20, _W10, _W20, _phase
+from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split
+from .quadrature import CAPPED, _N10, _N20, _W10, _W20
 from .quadrature import airlight_one as quad_airlight
 
 ANISO_TAYLOR = 0
@@ -77,7 +77,6 @@ G_REL_ERR = 3e-14
 # limit within SERIES_SAFETY * precision (`_nearline`)
 NEARLINE_TOL = 3e-6
 
-_INV_4PI = 1.0 / (4.0 * math.pi)
 _EPS = 2.220446049250313e-16
 
 
@@ -146,7 +145,7 @@ def _nearline(xh, h, da, ell, kt, ks, intensity, code, g, dmin, precision):
     ok = e2 * (1.0 + 0.5 * slope + 0.5 * kt * dmin) <= SERIES_SAFETY * precision
     if xh > 0.0:
         # light ahead: x + d = xh constant, int dx/(xh-x)^2 = ell/(xh (xh-ell))
-        val = _phase(code, g, 1.0, 0.0, 2.0) * math.exp(-kt * da) * ell / (xh * (xh - ell))
+        val = phase_split(code, g, 1.0, 0.0, 2.0) * math.exp(-kt * da) * ell / (xh * (xh - ell))
         return intensity * ks * val, ok
     c = -xh
     s = 2.0 * kt
@@ -156,7 +155,7 @@ def _nearline(xh, h, da, ell, kt, ks, intensity, code, g, dmin, precision):
         end = math.exp(-kt * (c + 2.0 * ell)) * en_scaled(2, s * cb) / cb
         ok = ok and G_REL_ERR * (val + end) <= SERIES_SAFETY * max(precision, 1e-11) * (val - end)
         val -= end
-    return intensity * ks * _phase(code, g, -1.0, 2.0, 0.0) * val, ok
+    return intensity * ks * phase_split(code, g, -1.0, 2.0, 0.0) * val, ok
 
 
 @njit
@@ -259,7 +258,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
             K1 = f * i0
             L1 = f * i1
             if phase_code == ISOTROPIC:
-                return pref * _INV_4PI * K1
+                return pref * INV_4PI * K1
     # folded end factors e^{-kt (x + d)} at both ends (optical path light -> end -> camera)
     Ea = math.exp(-kt * da)
     Eb = math.exp(-kt * (ell + math.sqrt(h * h + (ell - xh) * (ell - xh)))) if finite else 0.0
@@ -279,7 +278,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         stats[ST_STABLE] += 1.0
 
     if phase_code == ISOTROPIC:
-        return pref * _INV_4PI * K1
+        return pref * INV_4PI * K1
 
     if aniso_mode == ANISO_TAYLOR:
         # PP-19 with N = terms coefficients c_n of Phi in v
@@ -314,7 +313,7 @@ def taylor_coeffs(phase_code, g, n_terms):
 
     c = np.zeros(n_terms)
     if phase_code == ISOTROPIC:
-        c[0] = 1.0 / (4.0 * pi)
+        c[0] = INV_4PI
         return c
     if phase_code == RAYLEIGH:
         for n in range(0, n_terms, 2):
@@ -323,7 +322,7 @@ def taylor_coeffs(phase_code, g, n_terms):
         return c
     # HG: (1+g)/(4 pi (1-g)^2) (1+v^2)^{3/2} (1+s v^2)^{-3/2}, s = ((1+g)/(1-g))^2
     s = ((1.0 + g) / (1.0 - g)) ** 2
-    pre = (1.0 + g) / (4.0 * pi * (1.0 - g) ** 2)
+    pre = INV_4PI * (1.0 + g) / (1.0 - g) ** 2
 
     def gbin(alpha, k):  # generalised binomial coefficient
         r = 1.0
@@ -353,7 +352,7 @@ def hg_legendre_degree(g, precision):
         return 0
     phi = np.concatenate([np.linspace(0.0, 0.2, 801), np.linspace(0.2, math.pi, 2001)])
     mu = np.cos(phi)
-    exact = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * mu) ** 1.5)
+    exact = hg(g, 1.0 - mu, 1.0 + mu)
 
     def good(L):
         err = np.max(np.abs(np.polynomial.legendre.legval(mu, hg_legendre(g, L)) - exact) / exact)
@@ -416,15 +415,15 @@ def _far_cosine_series(g, precision, phi_lo, phi_hi):
     sum |c_k| >= max |sum c_k cos(k phi)|). Also returns the phase function on the range."""
     from numpy.polynomial import chebyshev
 
-    def hg(mu):
-        return (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * mu) ** 1.5)
+    def phase(mu):
+        return hg(g, 1.0 - mu, 1.0 + mu)
 
     mu = np.cos(np.linspace(phi_lo, phi_hi, 4001))
-    exact = hg(mu)
+    exact = phase(mu)
     if not _usable(precision, 0.1 * np.min(exact) / np.max(exact)):
         return None, exact
     for degree in range(2, MAX_FAR_DEGREE):
-        p = chebyshev.Chebyshev.interpolate(hg, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
+        p = chebyshev.Chebyshev.interpolate(phase, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
         if np.max(np.abs(p(mu) - exact) / exact) <= 0.5 * precision:
             return p.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
     return None, exact
@@ -450,7 +449,7 @@ def exact_coeffs(phase_code, g, precision):
             L = hg_legendre_degree(g, precision)
             a = None if L is None else hg_legendre(g, L)
     else:
-        a = np.array([1.0 / (4.0 * math.pi)])
+        a = np.array([INV_4PI])
     if a is None:  # H_max = 0: all its rays to the fallback
         full = np.concatenate(([0.0, math.inf, 0.0, 1.0], np.ones(LOSS_TABLE), [0.0]))
     else:

@@ -40,7 +40,7 @@ import numpy as np
 from ..jit import njit
 from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from ..media.phase import HG, ISOTROPIC, RAYLEIGH
+from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH
 
 MAX_TERMS = 16
 SATURATE = 1e300
@@ -111,7 +111,7 @@ def phase_series(code, g, n=MAX_TERMS):
     s, _ = _sin_cos(n)
     if code == ISOTROPIC:
         out = np.zeros(n)
-        out[0] = 1.0 / (4.0 * math.pi)
+        out[0] = INV_4PI
         return out
     if code == RAYLEIGH:
         out = ser_mul(s, s, n)
@@ -119,7 +119,7 @@ def phase_series(code, g, n=MAX_TERMS):
         return 3.0 / (16.0 * math.pi) * out
     base = 2.0 * g * s  # 1 + g^2 - 2 g mu, mu = -sin
     base[0] += 1.0 + g * g
-    return (1.0 - g * g) / (4.0 * math.pi) * ser_pow(base, -1.5, n)
+    return (1.0 - g * g) * INV_4PI * ser_pow(base, -1.5, n)
 
 
 @njit

@@ -31,7 +31,7 @@ from ..rng import uniform
 from . import ErrorLaw, Method, Param
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import eq4_integrand, segment_geometry
-from .quadrature import _phase
+from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
 MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CDF}
@@ -187,7 +187,7 @@ def _density(x, xh, h, kt, code, g):
     else:
         minus = d - dx
         plus = hh / minus
-    return math.exp(-kt * (x + d)) * _phase(code, g, -dx / d, plus / d, minus / d) / h
+    return math.exp(-kt * (x + d)) * phase_split(code, g, -dx / d, plus / d, minus / d) / h
 
 
 @njit

@@ -25,7 +25,7 @@ import numpy as np
 from ..jit import njit
 from . import ErrorLaw, Method, Param
 from .geometry import by_channel
-from ..media.phase import HG, INV_4PI, phase_value
+from ..media.phase import phase_split
 
 MAX_INTERVALS = 4000
 STACK = 200
@@ -35,22 +35,6 @@ EVALS, INTERVALS, CAPPED = 0, 1, 2
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
 _N20, _W20 = np.polynomial.legendre.leggauss(20)
-
-
-@njit
-def _phase(code, g, mu, one_minus, one_plus):
-    """phase_value at mu, given 1 - mu and 1 + mu without cancellation: the HG denominator
-    1 + g^2 - 2 g mu as a sum of two non-negative terms, (1 - g)^2 + 2 g (1 - mu) for g >= 0 and
-    (1 + g)^2 - 2 g (1 + mu) for g < 0, keeps full relative accuracy at the peak (the direct form
-    loses 2 eps / (1 - |g|)^2 there, 2e-12 at |g| = 0.99, more than the 10- and 20-point rules'
-    agreement asked for at rtol 1e-13)."""
-    if code != HG:
-        return phase_value(code, g, mu)
-    if g >= 0.0:
-        den = (1.0 - g) * (1.0 - g) + 2.0 * g * one_minus
-    else:
-        den = (1.0 + g) * (1.0 + g) - 2.0 * g * one_plus
-    return INV_4PI * (1.0 - g) * (1.0 + g) / (den * math.sqrt(den))
 
 
 @njit
@@ -65,7 +49,7 @@ def _integrand(piece, s, xh, h, kt, code, g):
         path = xh + h / t
         mu = -(1.0 - t2) / (1.0 + t2)
         one_minus, one_plus = 2.0 / (1.0 + t2), 2.0 * t2 / (1.0 + t2)
-    return math.exp(-kt * path) * _phase(code, g, mu, one_minus, one_plus)
+    return math.exp(-kt * path) * phase_split(code, g, mu, one_minus, one_plus)
 
 
 @njit
