@@ -108,14 +108,14 @@ def _write_ray(L, lnorm, s, dx, dy, dz, dist, at_surface, epsilon, o32, d32, t32
 
 
 @njit(inline="always")
-def _point(n, w, h, s, theta):
-    """Unit direction from segment s's light to its point at angle theta, and the distance."""
-    c, sn = math.cos(theta), math.sin(theta)
+def _point(n, w, h, s, c, sn):
+    """Unit direction from segment s's light to its point at the angle of cosine c and sine sn, and
+    the distance."""
     return (c * n[s, 0] + sn * w[s, 0], c * n[s, 1] + sn * w[s, 1], c * n[s, 2] + sn * w[s, 2],
             h[s] / c if c > 0.0 else math.inf)
 
 
-MAX_RUN = 64  # samples decided at once by one coarse texel, at most
+MAX_RUN_LOG2 = 6  # runs of at most 64 samples decided at once by one coarse texel
 
 
 @njit
@@ -123,33 +123,49 @@ def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, 
             o32, d32, t32):
     """Visibility samples k = 0..count[s] of every segment at evenly spaced angles. Runs of samples
     inside one texel of the depth pyramid (shadow_maps.py) that decides their whole range of
-    distances are set at once (the run length doubles after a success, halves after a failure);
-    other samples are decided by their finest texel or, failing that and always for the last sample
-    (on the surface the segment ends on), get a shadow ray in o32/d32/t32 with their index in trace.
-    Returns the number of rays to trace."""
+    distances are set at once (the run length, a power of two, doubles after a success and halves
+    after a failure); other samples are decided by their finest texel or, failing that and always
+    for the last sample (on the surface the segment ends on), get a shadow ray in o32/d32/t32 with
+    their index in trace. Angles advance by rotation (cosine and sine of the step and of its powers
+    of two), so the loop calls no trigonometry. Returns the number of rays to trace."""
     m = 0
     levels = sizes.shape[0]
+    rot_c = np.empty(MAX_RUN_LOG2 + 1)
+    rot_s = np.empty(MAX_RUN_LOG2 + 1)
     for s in order:  # light by light, neighbouring rays together: their samples share texels
         step = (th_b[s] - th_a[s]) / count[s]
+        rot_c[0], rot_s[0] = math.cos(step), math.sin(step)
+        for e in range(MAX_RUN_LOG2):
+            rot_c[e + 1] = rot_c[e] * rot_c[e] - rot_s[e] * rot_s[e]
+            rot_s[e + 1] = 2.0 * rot_s[e] * rot_c[e]
         li = light[s]
-        run = 1
+        e = -1  # the run is 2^e samples; -1: single samples
+        c, sn = math.cos(th_a[s]), math.sin(th_a[s])
         k = 0
         while k <= count[s]:
-            theta = th_a[s] + step * k if k < count[s] else th_b[s]
-            dx, dy, dz, dist = _point(n, w, h, s, theta)
+            if k == count[s]:
+                c, sn = math.cos(th_b[s]), math.sin(th_b[s])
+            dx, dy, dz, dist = _point(n, w, h, s, c, sn)
             if k == count[s] or levels == 0:
                 _write_ray(L, lnorm, s, dx, dy, dz, dist, k == count[s], epsilon, o32, d32, t32, m)
                 trace[m] = first[s] + k
                 m += 1
                 k += 1
+                c, sn = c * rot_c[0] - sn * rot_s[0], sn * rot_c[0] + c * rot_s[0]
                 continue
             face, i, j = face_texel(sizes, dx, dy, dz)
             decided = False
-            while run > 1 and not decided:
-                end = min(k + run, count[s] - 1)
-                if end <= k:
-                    break
-                ex, ey, ez, edist = _point(n, w, h, s, th_a[s] + step * end)
+            while e > 0:
+                end = k + (1 << e)
+                if end <= count[s] - 1:
+                    ce, se = c * rot_c[e] - sn * rot_s[e], sn * rot_c[e] + c * rot_s[e]
+                else:
+                    end = count[s] - 1
+                    if end <= k:
+                        break
+                    theta = th_a[s] + step * end
+                    ce, se = math.cos(theta), math.sin(theta)
+                ex, ey, ez, edist = _point(n, w, h, s, ce, se)
                 f2, i2, j2 = face_texel(sizes, ex, ey, ez)
                 level = 0
                 diff = max(i ^ i2, j ^ j2)
@@ -157,27 +173,29 @@ def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, 
                     diff >>= 1
                     level += 1
                 if f2 == face and level < levels:
-                    r_lo = h[s] if (theta <= 0.0 <= th_a[s] + step * end) else min(dist, edist)
+                    r_lo = h[s] if (sn <= 0.0 <= se) else min(dist, edist)
                     v = verdict(table, sizes, offsets, level, li, face, i, j, r_lo, max(dist, edist))
                     if v >= 0:
                         for q in range(k, end + 1):
                             vis[first[s] + q] = v == 1
                         k = end + 1
-                        run = min(2 * run, MAX_RUN)
+                        c, sn = ce * rot_c[0] - se * rot_s[0], se * rot_c[0] + ce * rot_s[0]
+                        e = min(e + 1, MAX_RUN_LOG2)
                         decided = True
                         break
-                run //= 2
+                e -= 1
             if decided:
                 continue
             v = verdict(table, sizes, offsets, 0, li, face, i, j, dist, dist)
             if v >= 0:
                 vis[first[s] + k] = v == 1
-                run = 2
+                e = 1
             else:
                 _write_ray(L, lnorm, s, dx, dy, dz, dist, False, epsilon, o32, d32, t32, m)
                 trace[m] = first[s] + k
                 m += 1
             k += 1
+            c, sn = c * rot_c[0] - sn * rot_s[0], sn * rot_c[0] + c * rot_s[0]
     return m
 
 
@@ -188,7 +206,7 @@ def _rays_at(L, n, w, h, lnorm, light, seg, theta, epsilon, table, sizes, offset
     m = 0
     for q in range(theta.shape[0]):
         s = seg[q]
-        dx, dy, dz, dist = _point(n, w, h, s, theta[q])
+        dx, dy, dz, dist = _point(n, w, h, s, math.cos(theta[q]), math.sin(theta[q]))
         v = -1
         if sizes.shape[0]:
             face, i, j = face_texel(sizes, dx, dy, dz)
