@@ -12,9 +12,11 @@ theta = atan((x - x_h) / h) from the foot point (the closed form's own variable,
 the ray from L towards it is cos(theta) n + sin(theta) w with length h / cos(theta) (n: unit vector
 from L to the foot point, w: the ray direction). Visibility is sampled at angles spaced evenly by
 at most `spacing` between the segment's ends, with shadow rays *from the light* (so points far
-along rays to infinity need no huge coordinates), and every change of visibility between two
-samples is bisected to BOUNDARY_TOL radians. What it can miss: an occluder (or a gap) narrower than
-`spacing` as seen from the light, between two samples of equal visibility.
+along rays to infinity need no huge coordinates); the lights' depth pyramids (shadow_maps.py)
+decide most samples, alone or in runs, without a ray. Every change of visibility between two
+samples is located at the edge of the triangle that blocks the light (`_edges`, exact in float64)
+or, where that fails, bisected to BOUNDARY_TOL radians. What it can miss: an occluder (or a gap)
+narrower than `spacing` as seen from the light, between two samples of equal visibility.
 """
 from __future__ import annotations
 
@@ -316,11 +318,12 @@ def _trace(accel, kernel, args, m, stats):
     return vis
 
 
-def _search(accel, maps, segs, lights, spacing, end_lit, stats, edges=True):
+def _search(accel, maps, segs, light_frame, spacing, end_lit, stats, edges=True):
     """Lit angular intervals of a chunk: (segment index, theta start, theta end, starts at the
-    segment's start, ends at its end), and the light frame. `end_lit`: whether the light is on the
-    near side of the surface each segment ends on (True where it ends in the air)."""
-    L, n, xh, h, th_a, th_b = _light_frame(segs, lights)
+    segment's start, ends at its end). `light_frame`: the chunk's `_light_frame`; `end_lit`:
+    whether the light is on the near side of the surface each segment ends on (True where it ends
+    in the air)."""
+    L, n, xh, h, th_a, th_b = light_frame
     count = np.clip(np.ceil((th_b - th_a) / spacing), 1, None).astype(np.int64)
     first = np.concatenate(([0], np.cumsum(count + 1)[:-1]))
     last = first + count
@@ -357,7 +360,7 @@ def _search(accel, maps, segs, lights, spacing, end_lit, stats, edges=True):
     e_at_end = np.concatenate([np.ones(int(vis[last].sum()), bool), np.zeros(int(vis_lo.sum()), bool)])
     si, ei = np.lexsort((s_th, s_seg)), np.lexsort((e_th, e_seg))
     stats[LI_SHADOWED] += len(segs) - len(np.unique(s_seg))
-    return (s_seg[si], s_th[si], e_th[ei], s_at_start[si], e_at_end[ei]), xh, h
+    return s_seg[si], s_th[si], e_th[ei], s_at_start[si], e_at_end[ei]
 
 
 def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float = SHADOW_SPACING,
@@ -377,12 +380,15 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
         end_lit = to_light * toward_camera >= 0.0
     stats = np.zeros(len(LI_NAMES))
     stats[LI_SEGMENTS] = len(segs)
-    _, _, _, _, th_a, th_b = _light_frame(segs, lights)
+    frame = _light_frame(segs, lights)
+    th_a, th_b = frame[4], frame[5]
     per_segment = np.clip(np.ceil((th_b - th_a) / spacing), 1, None) + 1
     parts = []
     for part in chunks(per_segment, SAMPLES_PER_CHUNK):
         seg = segs.take(part)
-        (idx, t_s, t_e, at_start, at_end), xh, h = _search(accel, maps, seg, lights, spacing, end_lit[part], stats, edges)
+        local = tuple(a[part] for a in frame)
+        xh, h = local[2], local[3]
+        idx, t_s, t_e, at_start, at_end = _search(accel, maps, seg, local, spacing, end_lit[part], stats, edges)
         x0 = np.where(at_start, 0.0, xh[idx] + h[idx] * np.tan(t_s))
         x1 = np.where(at_end, seg.length[idx], xh[idx] + h[idx] * np.tan(t_e))
         x0 = np.clip(x0, 0.0, seg.length[idx])
