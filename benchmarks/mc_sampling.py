@@ -29,25 +29,10 @@ import raytrace  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.methods import montecarlo as mc  # noqa: E402
 from raytrace.methods.geometry import segment_geometry  # noqa: E402
-from raytrace.renderer import prepare  # noqa: E402
 from raytrace.visibility import whole_rays  # noqa: E402
-from tests.conftest import box_room  # noqa: E402
+from tests.conftest import plate_room  # noqa: E402
 
-LIGHT = [0.0, 1.5, -1.0]
-PLATE = {"primitive": "quad", "corners": [[-1.0, 1.2, -2.0], [1.0, 1.2, -2.0], [1.0, 1.2, 0.0], [-1.0, 1.2, 0.0]],
-         "reflectance": 0.0}
 PHASES = {"isotropic": "isotropic", "hg 0.9": {"type": "hg", "g": 0.9}}
-
-
-def scene(phase, plate, width, height):
-    s = box_room(camera={"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": width,
-                         "height": height, "spp": 1},
-                 medium={"sigma_a": 0.05, "sigma_s": [0.2, 0.3, 0.5], "phase": phase},
-                 light=[{"position": LIGHT, "intensity": 20.0}])
-    s["shape"][0]["reflectance"] = 0.0
-    if plate:
-        s["shape"].append(dict(PLATE))
-    return prepare(raytrace.load(s))
 
 
 def run(prep, threads, **kw):
@@ -77,7 +62,7 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|")
     for occluded in (False, True):
         for pname, phase in PHASES.items():
-            prep = scene(phase, occluded, args.width, args.height)
+            prep = plate_room(phase, occluded, args.width, args.height)
             ref = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, volumetric_shadows=occluded,
                                   threads=args.threads).array
             lit = ref > 1e-3 * ref.max()
@@ -111,7 +96,7 @@ def main():
           "quadrature fallback share |")
     print("|---|---|---|---|---|---|")
     for pname, phase in PHASES.items():
-        prep = scene(phase, False, args.width, args.height)
+        prep = plate_room(phase, False, args.width, args.height)
         cam = prep.scene.camera
         o, d = generate_rays(cam, slice(0, cam.height), slice(0, cam.width))
         t, _ = prep.accel.first_hit(o, d)

@@ -69,3 +69,24 @@ def box_room(**over) -> dict:
     for k, v in over.items():
         scene[k] = v
     return scene
+
+
+PLATE_LIGHT = [0.0, 1.5, -1.0]
+PLATE = {"primitive": "quad", "corners": [[-1.0, 1.2, -2.0], [1.0, 1.2, -2.0], [1.0, 1.2, 0.0], [-1.0, 1.2, 0.0]],
+         "reflectance": 0.0}
+
+
+def plate_room(phase, plate=True, width=16, height=12):
+    """A prepared box room with black walls (the image is the air-light) and, if `plate`, a black
+    plate just below its one light."""
+    import raytrace
+    from raytrace.renderer import prepare
+
+    s = box_room(camera={"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": width,
+                         "height": height, "spp": 1},
+                 medium={"sigma_a": 0.05, "sigma_s": [0.2, 0.3, 0.5], "phase": phase},
+                 light=[{"position": PLATE_LIGHT, "intensity": 20.0}])
+    s["shape"][0]["reflectance"] = 0.0
+    if plate:
+        s["shape"].append(dict(PLATE))
+    return prepare(raytrace.load(s))

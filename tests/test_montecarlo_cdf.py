@@ -16,10 +16,9 @@ import raytrace
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.methods import montecarlo as mc
 from raytrace.methods import quadrature as q
-from raytrace.renderer import prepare
 from raytrace.rng import uniform
 
-from .conftest import box_room
+from .conftest import box_room, plate_room
 
 PHASES = [(ISOTROPIC, 0.0), (RAYLEIGH, 0.0), (HG, 0.6), (HG, 0.9), (HG, -0.4)]
 
@@ -103,26 +102,12 @@ def test_distances_follow_the_cdf(code, g):
         assert st[mc.CS_NEWTON] + st[mc.CS_BISECT] < 12 * 300  # a few steps per draw
 
 
-LIGHT = [0.0, 1.5, -1.0]
-PLATE = {"primitive": "quad", "corners": [[-1.0, 1.2, -2.0], [1.0, 1.2, -2.0], [1.0, 1.2, 0.0], [-1.0, 1.2, 0.0]],
-         "reflectance": 0.0}
 
-
-def plate_scene(phase, plate=True, width=16, height=12):
-    """Black walls (the image is the air-light), a plate just below the light."""
-    s = box_room(camera={"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": width,
-                         "height": height, "spp": 1},
-                 medium={"sigma_a": 0.05, "sigma_s": [0.2, 0.3, 0.5], "phase": phase},
-                 light=[{"position": LIGHT, "intensity": 20.0}])
-    s["shape"][0]["reflectance"] = 0.0
-    if plate:
-        s["shape"].append(dict(PLATE))
-    return prepare(raytrace.load(s))
 
 
 @pytest.mark.parametrize("phase", ["isotropic", "rayleigh", {"type": "hg", "g": 0.9}])
 def test_render_is_exact_unoccluded_and_on_lit_intervals(phase):
-    prep = plate_scene(phase)
+    prep = plate_room(phase)
     for shadows in (False, True):
         ref = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, volumetric_shadows=shadows,
                               threads=1).array
@@ -141,7 +126,7 @@ def test_shadow_rays_per_sample_are_unbiased_with_only_the_visibility_variance(p
     lit share of F(ell) (shadowed / unshadowed quadrature), so its variance is F^2 P (1 - P) / n.
     (A Z-test with the render's own variance does not suit: a pixel with n P << 1 often draws no lit
     sample at all and reports variance 0.)"""
-    prep = plate_scene(phase)
+    prep = plate_room(phase)
     ref = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, volumetric_shadows=True, threads=1).array
     unshadowed = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, threads=1).array
     n = 64
