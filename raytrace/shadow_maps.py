@@ -71,8 +71,8 @@ def build(accel, lights, spacing: float) -> ShadowMaps:
     lo = np.empty((len(lights), 6, res, res), np.float32)
     hi = np.empty_like(lo)
     for li, p in enumerate(lights.position):
-        t, _ = accel.first_hit(np.broadcast_to(p, dirs.shape), dirs, threads=2)
-        t = t.reshape(6, res + 1, res + 1)
+        t, _ = accel.first_hit(p + accel.epsilon * dirs, dirs, threads=2)  # as the search's shadow rays
+        t = (t + accel.epsilon).reshape(6, res + 1, res + 1)
         corners = np.stack([t[:, :-1, :-1], t[:, 1:, :-1], t[:, :-1, 1:], t[:, 1:, 1:]])
         lo[li] = np.nextafter(corners.min(axis=0).astype(np.float32), np.float32(0.0))
         hi[li] = np.nextafter(corners.max(axis=0).astype(np.float32), np.float32(np.inf))

@@ -96,15 +96,16 @@ FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a poi
 @njit(inline="always")  # called per sample from the kernels below: a call would cost more than its work
 def _write_ray(L, lnorm, s, dx, dy, dz, dist, at_surface, epsilon, o32, d32, t32, j):
     """The float32 shadow ray j from segment s's light towards its point at distance dist in the
-    direction (dx, dy, dz). Points in the air need no offset beyond float32 rounding; a point on the
-    surface a segment ends on stops the shadow-ray epsilon short of it."""
-    o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0], L[s, 1], L[s, 2]
+    direction (dx, dy, dz). It starts the shadow-ray epsilon away from the light (a light on a
+    surface lights the side it faces). Points in the air need no offset beyond float32 rounding; a
+    point on the surface a segment ends on stops the shadow-ray epsilon short of it."""
+    o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0] + epsilon * dx, L[s, 1] + epsilon * dy, L[s, 2] + epsilon * dz
     d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
     if dist < math.inf:
         margin = FLOAT32_MARGIN * (dist + lnorm[s])
         if at_surface:
             margin = max(margin, epsilon)
-        t32[j] = max(dist - margin, 0.0)
+        t32[j] = max(dist - margin - epsilon, 0.0)
     else:
         t32[j] = math.inf
 
@@ -282,7 +283,7 @@ def _edges(accel, frame, pyramid, so, lo, hi, vis_lo, stats):
         s = so[act]
         c, sn = np.cos(shadowed[act]), np.sin(shadowed[act])
         d = c[:, None] * n[s] + sn[:, None] * w[s]
-        _, prim = accel.first_hit(L[s], d)
+        _, prim = accel.first_hit(L[s] + accel.epsilon * d, d)
         stats[LI_RAYS] += len(act)
         edge = np.empty(len(act))
         _edge_angles(accel.triangles, prim, L, n, w, s, sign[act], edge)

@@ -205,3 +205,13 @@ def test_boundaries_at_occluder_edges_are_exact():
     assert eb.max() < 1e-5 and ea.max() < 1e-5  # within 1e-5 of the scene's size (the float32 margins)
     assert sb[LI_EDGES] > 0.8 * sb[LI_BOUNDARIES]  # most boundaries found at an edge
     assert sb[LI_RAYS] < 0.6 * sa[LI_RAYS]
+
+
+def test_a_light_on_a_surface_lights_the_side_it_faces():
+    """Shadow rays start the shadow-ray epsilon away from the light: a lamp on the ceiling lights
+    the room (it was 0.196 of the unshadowed air-light when the rays started on the ceiling)."""
+    room = box_room(camera=dict(CAMERA), light=[{"position": [0.0, 2.0, 0.0], "intensity": 5.0}])
+    a = raytrace.render(room, method="analytic", threads=1).array
+    b = raytrace.render(room, method="analytic", threads=1, volumetric_shadows=True).array
+    assert abs(b.mean() / a.mean() - 1.0) < 1e-3
+    assert np.all(b <= a * (1 + 1e-9))
