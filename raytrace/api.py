@@ -96,9 +96,23 @@ def load(scene=None, overrides=()) -> Scene:
     return load_scene(path, overrides)
 
 
-def _positive(name, value):
+def check_positive(name, value):
+    """Refuse a count (spp, width, threads, ...) that is given but not a positive integer."""
     if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value <= 0):
         raise UserError(f"--{name} {value}: must be a positive integer; give a value of at least 1")
+
+
+def apply_camera_options(scene: Scene, spp=None, width=None, height=None, threads=None, seed=None) -> int:
+    """Check the render options shared by every command, set the camera's spp and size from them,
+    and return the seed (the scene's [render] seed when none is given)."""
+    for name, v in (("spp", spp), ("width", width), ("height", height), ("threads", threads)):
+        check_positive(name, v)
+    seed = scene.render.get("seed", 0) if seed is None else seed
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"--seed {seed}: must be >= 0; give a non-negative integer")
+    cam = scene.camera
+    cam.spp, cam.width, cam.height = spp or cam.spp, width or cam.width, height or cam.height
+    return seed
 
 
 def _check_crop(crop, cam):
@@ -131,18 +145,14 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
 
     scene = prepared.scene if prepared is not None else load(scene, overrides)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
-    for name, v in (("spp", spp), ("width", width), ("height", height), ("threads", threads), ("passes", passes)):
-        _positive(name, v)
+    seed = apply_camera_options(scene, spp, width, height, threads, seed)
+    check_positive("passes", passes)
     for name, v in (("time-budget", time_budget), ("target-error", target_error)):
         if v is not None and not v > 0:
             raise UserError(f"--{name} {v}: must be positive; give a value above 0")
     if not checkpoint_interval >= 0.0:
         raise UserError(f"--checkpoint-interval {checkpoint_interval}: must be >= 0 seconds; 0 saves after every pass")
-    seed = scene.render.get("seed", 0) if seed is None else seed
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise UserError(f"--seed {seed}: must be >= 0; give a non-negative integer")
     cam = scene.camera
-    cam.spp, cam.width, cam.height = spp or cam.spp, width or cam.width, height or cam.height
     m = get_method(method or scene.render.get("method", "analytic"))
     shadows = bool(scene.render.get("volumetric_shadows", False) if volumetric_shadows is None else volumetric_shadows)
     spacing = float(scene.render.get("shadow_spacing", SHADOW_SPACING) if shadow_spacing is None else shadow_spacing)

@@ -177,23 +177,6 @@ def cmd_render(args):
     return 0
 
 
-def _validate_positive(name, value):
-    if value is not None and value <= 0:
-        raise UserError(f"--{name} {value}: must be positive; give a value of at least 1")
-
-
-def _apply_camera_flags(scene, args):
-    for name in ("spp", "width", "height", "threads"):
-        _validate_positive(name, getattr(args, name))
-    if args.seed is not None and args.seed < 0:
-        raise UserError(f"--seed {args.seed}: must be >= 0; give a non-negative integer")
-    cam = scene.camera
-    cam.spp = args.spp or cam.spp
-    cam.width = args.width or cam.width
-    cam.height = args.height or cam.height
-    return args.seed if args.seed is not None else scene.render.get("seed", 0)
-
-
 def _parse_crop(text):
     try:
         x0, y0, x1, y1 = (int(v) for v in text.split(","))
@@ -204,10 +187,11 @@ def _parse_crop(text):
 
 def cmd_compare(args):
     from . import renderer
+    from .api import apply_camera_options
     from .experiments.compare import compare, parse_spec
 
     scene = load(args)
-    seed = _apply_camera_flags(scene, args)
+    seed = apply_camera_options(scene, args.spp, args.width, args.height, args.threads, args.seed)
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
     reference = parse_spec(args.reference)
     out = Path(args.out)
@@ -219,9 +203,10 @@ def cmd_compare(args):
 
 
 def cmd_table1(args):
+    from .api import check_positive
     from .experiments import table1
 
-    _validate_positive("threads", args.threads)
+    check_positive("threads", args.threads)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
