@@ -5,6 +5,7 @@ User errors print one line on stderr and exit with status 2; nothing half-writte
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -215,6 +216,7 @@ def cmd_table1(args):
 
 
 def cmd_describe(args):
+    from .lights import NAMES as NAMES_L
     from .media.phase import NAMES
     from .scene.meshes import scene_triangles
 
@@ -233,7 +235,9 @@ def cmd_describe(args):
         pts = tris.reshape(-1, 3)
         print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")
     for i, l in enumerate(scene.lights):
-        print(f"light[{i}]: point at {l.position.tolist()}, intensity {l.intensity.tolist()}")
+        cone = "" if l.axis is None else (f", axis {l.axis.round(6).tolist()}, cone {math.degrees(math.acos(l.cos_end)):g} deg, "
+                                          f"falloff from {math.degrees(math.acos(l.cos_start)):g} deg")
+        print(f"light[{i}]: {NAMES_L[l.kind]} at {l.position.tolist()}, intensity {l.intensity.tolist()}{cone}")
     m = scene.medium
     phase = NAMES[m.phase] + (f" g={m.g}" if NAMES[m.phase] == "hg" else "")
     print(f"medium: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, sigma_t {m.sigma_t.tolist()}, phase {phase}")
