@@ -127,17 +127,19 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
            height: int | None = None, seed: int | None = None, threads: int | None = None, crop=None,
            volumetric_shadows: bool | None = None, shadow_spacing: float | None = None, passes: int | None = None, time_budget: float | None = None,
            target_error: float | None = None, checkpoint=None, checkpoint_interval: float = 0.0,
-           progress=None, on_pass=None, overrides=(), prepared=None, **params) -> Image:
+           progress=None, on_pass=None, overrides=(), prepared=None, client=None, **params) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
 
     Render options: spp, width, height (override the camera), seed, threads, crop = (x0, y0, x1, y1)
     (end exclusive; the same samples as in the whole image), volumetric_shadows and shadow_spacing
     (radians between the visibility samples of the lit-interval search, raytrace/visibility.py); for stochastic
     methods the progressive options passes, time_budget, target_error, checkpoint (a file, resumed
-    when it exists) and checkpoint_interval. `progress(rows)` and `on_pass(passes, error)` report
-    progress; `overrides` are "key=value" strings as --set; `prepared` reuses a `renderer.prepare`d
-    scene (geometry and accelerator) for repeated renders. Every other keyword is a parameter of the
-    method; the scene's [render] table supplies defaults for all of these."""
+    when it exists) and checkpoint_interval. `progress(done, total)` (tiles) and `on_pass(passes,
+    error)` report progress; `overrides` are "key=value" strings as --set; `prepared` reuses a
+    `renderer.prepare`d scene (geometry and accelerator) for repeated renders; `client`, a
+    `dask.distributed.Client`, renders the tiles on its cluster (the same image). Every other
+    keyword is a parameter of the method; the scene's [render] table supplies defaults for all of
+    these."""
     from . import renderer
     from .methods import get_method
     from .scene.format import RENDER_OPTIONS
@@ -170,10 +172,11 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
         result = render_progressive(prep, m.name, given, seed, passes=passes, time_budget=time_budget,
                                     target_error=target_error, checkpoint=Path(checkpoint) if checkpoint else None,
                                     checkpoint_interval=checkpoint_interval, threads=threads, on_pass=on_pass,
-                                    source=source, crop=crop, volumetric_shadows=shadows, shadow_spacing=spacing)
+                                    source=source, crop=crop, volumetric_shadows=shadows, shadow_spacing=spacing,
+                                    client=client, progress=progress)
     else:
         result = renderer.render(prep, m.name, given, seed, threads, progress=progress, source=source, crop=crop,
-                                 volumetric_shadows=shadows, shadow_spacing=spacing)
+                                 volumetric_shadows=shadows, shadow_spacing=spacing, client=client)
     if not np.all(np.abs(result.image) < np.finfo(np.float32).max):  # also catches NaN
         raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,

@@ -38,16 +38,17 @@ def basis(cam: Camera):
     return forward, right, up
 
 
-def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = None):
-    """Rays of the pixel block rows x cols, every sample of a pixel consecutive.
+def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = None, samples: slice | None = None):
+    """Rays of the pixel block rows x cols (the pixel samples `samples`, default all), every sample
+    of a pixel consecutive.
 
-    Returns origins (N, 3), unit directions (N, 3) in float64, with N = rows * cols * spp, in the
+    Returns origins (N, 3), unit directions (N, 3) in float64, with N = rows * cols * samples, in the
     order (row, column, sample)."""
     rows = rows or slice(0, cam.height)
     cols = cols or slice(0, cam.width)
     j = np.arange(rows.start, rows.stop, dtype=np.float64)
     i = np.arange(cols.start, cols.stop, dtype=np.float64)
-    off = sample_offsets(cam.spp)
+    off = sample_offsets(cam.spp)[samples or slice(None)]
     x = (i[None, :, None] + off[None, None, :, 0]) * np.ones((len(j), 1, 1))
     y = (j[:, None, None] + off[None, None, :, 1]) * np.ones((1, len(i), 1))
     forward, right, up = basis(cam)

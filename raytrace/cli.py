@@ -1,10 +1,11 @@
-"""Command line: render, describe, methods, diff (SCENE_FORMAT.md).
+"""Command line: render, compare, sweep, table1, describe, methods, diff (SCENE_FORMAT.md).
 
 User errors print one line on stderr and exit with status 2; nothing half-written stays on disk.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 from pathlib import Path
@@ -13,7 +14,7 @@ import numpy as np
 
 from .errors import UserError
 
-COMMANDS = ("render", "describe", "methods", "diff", "compare", "table1")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1")
 
 
 def _method_param_flags():
@@ -32,6 +33,25 @@ def _add_scene_args(p):
     p.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set medium.sigma_s=0.2 (repeatable)")
+
+
+def _add_scheduler_arg(p):
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT|local:N",
+                   help="render on a Dask cluster: a scheduler's address, or local:N for N local worker processes "
+                        "(the same images; needs pip install -e '.[distributed]')")
+
+
+def _cluster(args):
+    """The Dask client of --scheduler, or None without it (Dask is then never imported)."""
+    if not args.scheduler:
+        return contextlib.nullcontext()
+    try:
+        from .distributed import connect
+    except ImportError:
+        raise UserError(f"--scheduler {args.scheduler}: needs Dask; install the extra: "
+                        "pip install -e '.[distributed]'") from None
+    return connect(args.scheduler, log=None if getattr(args, "quiet", False) else
+                   lambda line: print(line, file=sys.stderr))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -71,6 +91,7 @@ def build_parser():
                                         "(default: beside --out, <out>.ckpt.npz, when passes, a budget or a target are given)")
     r.add_argument("--checkpoint-interval", type=float, default=0.0,
                    help="least seconds between checkpoint writes (default 0: after every pass)")
+    _add_scheduler_arg(r)
     for name, p in _method_param_flags().items():
         flag = f"--{name.replace('_', '-')}"
         if p.type is bool:
@@ -87,6 +108,19 @@ def build_parser():
     for name in ("spp", "width", "height", "seed", "threads"):
         c.add_argument(f"--{name}", type=int)
     c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
+    _add_scheduler_arg(c)
+    s = sub.add_parser("sweep", help="a scene over a grid of --set values x methods: one EXR per point and method, "
+                                     "a CSV/JSON table of time and error against the reference at each point")
+    _add_scene_args(s)
+    s.add_argument("--grid", action="append", required=True, metavar="KEY=V1,V2,...",
+                   help="a grid axis: a scene key and its values (as --set values, split at top-level commas), "
+                        "e.g. --grid medium.sigma_s=0.05,0.1 (repeatable: the grid is the product)")
+    s.add_argument("--methods", required=True, help="comma-separated methods, as for compare")
+    s.add_argument("--reference", default="quadrature", help="reference method (default quadrature)")
+    s.add_argument("--out", required=True, help="output folder")
+    for name in ("spp", "width", "height", "seed", "threads"):
+        s.add_argument(f"--{name}", type=int)
+    _add_scheduler_arg(s)
     t = sub.add_parser("table1", help="the paper's Table 1 on its three scenes, with a report")
     t.add_argument("--out", default="out/table1", help="output folder (default out/table1)")
     t.add_argument("--quick", action="store_true", help="small images and 1 spp (for CI)")
@@ -96,6 +130,7 @@ def build_parser():
                    help="the second table, with volumetric shadows: at a quarter of the width and height and "
                         "1 spp (default; the lit-interval search makes every shadowed render 5-40x slower), at "
                         "the full size, or off (with --quick it uses the quick images)")
+    _add_scheduler_arg(t)
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
@@ -144,20 +179,25 @@ def cmd_render(args):
     if show:
         from tqdm import tqdm
 
-        bar = tqdm(total=(rows[3] - rows[1]) if rows else (args.height or scene.camera.height), unit="row",
-                   desc="render", file=sys.stderr, leave=False)
+        bar = tqdm(unit="tile", desc="render", file=sys.stderr, leave=False)
+
+    def tile_done(done, total):  # tiles of the render, or of the Monte Carlo pass in flight
+        if done == 1:
+            bar.reset(total)
+        bar.update(done - bar.n)
 
     def report(n, err):
         if show:
             print(f"\rpass {n}: estimated mean relative error {err:.3e}", end="", file=sys.stderr, flush=True)
 
     try:
-        img = render(scene, args.method, spp=args.spp, width=args.width, height=args.height, seed=args.seed,
-                     threads=args.threads, crop=rows, volumetric_shadows=args.volumetric_shadows or None,
-                     shadow_spacing=args.shadow_spacing,
-                     passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
-                     checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
-                     progress=bar.update if bar else None, on_pass=report, **_given_params(args))
+        with _cluster(args) as client:
+            img = render(scene, args.method, spp=args.spp, width=args.width, height=args.height, seed=args.seed,
+                         threads=args.threads, crop=rows, volumetric_shadows=args.volumetric_shadows or None,
+                         shadow_spacing=args.shadow_spacing,
+                         passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
+                         checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
+                         progress=tile_done if bar else None, on_pass=report, client=client, **_given_params(args))
     except KeyboardInterrupt:
         raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
                                                      "the same command to resume" if ckpt else "")) from None
@@ -195,11 +235,37 @@ def cmd_compare(args):
     seed = apply_camera_options(scene, args.spp, args.width, args.height, args.threads, args.seed)
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
     reference = parse_spec(args.reference)
-    out = Path(args.out)
+    out = _folder(args.out)
+    with _cluster(args) as client:
+        compare(renderer.prepare(scene), specs, reference, out, seed, args.threads, args.exposure, client=client)
+    print(f"wrote {out / 'compare.md'}")
+    return 0
+
+
+def _folder(path):
+    out = Path(path)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
-    compare(renderer.prepare(scene), specs, reference, out, seed, args.threads, args.exposure)
-    print(f"wrote {out / 'compare.md'}")
+    return out
+
+
+def cmd_sweep(args):
+    from .api import apply_camera_options, load as load_scene
+    from .experiments.compare import parse_spec
+    from .experiments.sweep import grid_points, parse_axis, sweep
+
+    axes = [parse_axis(g) for g in args.grid]
+    specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
+    reference = parse_spec(args.reference)
+    points = []
+    for where in grid_points(axes):  # every point parsed before anything is rendered or written
+        scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()])
+        seed = apply_camera_options(scene, args.spp, args.width, args.height, args.threads, args.seed)
+        points.append((where, scene))
+    out = _folder(args.out)
+    with _cluster(args) as client:
+        sweep(points, specs, reference, out, seed, args.threads, client)
+    print(f"wrote {out / 'sweep.csv'} and {out / 'sweep.json'}")
     return 0
 
 
@@ -208,10 +274,9 @@ def cmd_table1(args):
     from .experiments import table1
 
     check_positive("threads", args.threads)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
-    table1.run(out, args.quick, args.seed, args.threads, shadows=args.shadows)
+    out = _folder(args.out)
+    with _cluster(args) as client:
+        table1.run(out, args.quick, args.seed, args.threads, shadows=args.shadows, client=client)
     return 0
 
 
@@ -289,7 +354,7 @@ def main(argv=None) -> int:
         argv.insert(0, "render")
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
-                "compare": cmd_compare, "table1": cmd_table1}
+                "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1}
     try:
         return handlers[args.command](args)
     except UserError as exc:

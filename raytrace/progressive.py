@@ -83,8 +83,12 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
                        time_budget: float | None = None, target_error: float | None = None,
                        checkpoint: Path | None = None, checkpoint_interval: float = 0.0, threads=None,
                        on_pass=None, source: str = "render", crop=None,
-                       volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING) -> RenderResult:
-    """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress."""
+                       volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING,
+                       client=None, progress=None) -> RenderResult:
+    """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress,
+    as does `progress(done, total)` with the tiles of the pass in flight.
+    With a Dask `client` every pass runs on its cluster; the checkpoint is the same either way, so a
+    render resumes on one machine or a cluster alike."""
     if passes is None and time_budget is None and target_error is None:
         passes = 1
     fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": volumetric_shadows,
@@ -113,7 +117,8 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
     try:
         while not finished():
             result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source, crop=crop,
-                            volumetric_shadows=volumetric_shadows, shadow_spacing=shadow_spacing)
+                            volumetric_shadows=volumetric_shadows, shadow_spacing=shadow_spacing, client=client,
+                            progress=progress)
             if result.variance is None:
                 raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "

@@ -1,11 +1,15 @@
-"""The render loop: tiles of rows on a thread pool (Embree and the numba kernels release the GIL).
+"""The render loop: tiles (rows x pixel-sample ranges) on a thread pool (Embree and the numba
+kernels release the GIL) or, given a Dask client, as tasks on a cluster (distributed.py).
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
 L = exp(-kt t) Lb + sum of air-lights, averaged over the pixel's samples. Results do not depend
-on the thread count: every tile is computed the same way whichever thread runs it.
+on the thread or worker count: the tiles are the same and each is computed and reduced the same
+way wherever it runs.
 """
 from __future__ import annotations
 
+import contextlib
+import functools
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -123,52 +127,120 @@ def check_options(method, params, volumetric_shadows, shadow_spacing, source):
                         "add --volumetric-shadows or remove it")
 
 
+@dataclass(frozen=True)
+class Tile:
+    """One task of a render: the image rows `rows` (of the render's columns) x the pixel samples `samples`."""
+    rows: slice
+    samples: slice
+
+
+def tiles(cam, box) -> list[Tile]:
+    """The tasks of a render of the pixel block `box` = (x0, y0, x1, y1): at most about RAYS_PER_TILE
+    rays each, rows of all samples, or one row and a range of samples when a row of the whole image
+    has more rays. The sample ranges follow the image's width, not the block's, so a crop adds a
+    pixel's samples as the whole image does; nothing depends on the thread or worker count."""
+    x0, y0, x1, y1 = box
+    n = cam.spp if cam.width * cam.spp <= RAYS_PER_TILE else max(1, RAYS_PER_TILE // cam.width)
+    ranges = [slice(s, min(s + n, cam.spp)) for s in range(0, cam.spp, n)]
+    rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * n))
+    return [Tile(slice(r, min(r + rows_per_tile, y1)), s) for r in range(y0, y1, rows_per_tile) for s in ranges]
+
+
+def render_tile(prep: Prepared, method, params, seed, shadows, box, tile: Tile):
+    """The tile's radiance summed over its samples (rows, columns, 3), its statistics and, for a
+    stochastic method, its summed variance (else None): a function of the arguments alone, the
+    same whichever thread or cluster worker computes it."""
+    cam = prep.scene.camera
+    x0, _, x1, _ = box
+    rows, samples = tile.rows, tile.samples
+    o, d = generate_rays(cam, rows, slice(x0, x1), samples)
+    pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
+    keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp)
+            + np.arange(samples.start, samples.stop, dtype=np.uint64)).ravel()
+    rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed, shadows)
+    shape = (rows.stop - rows.start, x1 - x0, samples.stop - samples.start, 3)
+    return rad.reshape(shape).sum(axis=2), stats, None if var is None else var.reshape(shape).sum(axis=2)
+
+
+class Accumulator:
+    """Tile results reduced in one fixed order whatever order they arrive in: a pixel's sample
+    ranges are added in sample order, the statistics in tile order."""
+
+    def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int):
+        x0, self.y0, x1, y1 = box
+        self.work, self.spp = work, spp
+        self.image = np.zeros((y1 - self.y0, x1 - x0, 3))
+        self.variance = np.zeros_like(self.image) if stochastic else None
+        self.ranges = len({t.samples.start for t in work})
+        self._pending = {}  # first row of a tile -> {first sample: (radiance sum, variance sum)}
+        self._stats = [np.zeros(stats_size)] * len(work)
+
+    def add(self, i: int, result):
+        tile = self.work[i]
+        rad, self._stats[i], var = result
+        parts = self._pending.setdefault(tile.rows.start, {})
+        parts[tile.samples.start] = rad, var
+        if len(parts) < self.ranges:
+            return
+        del self._pending[tile.rows.start]
+        order = [parts[k] for k in sorted(parts)]
+        block = slice(tile.rows.start - self.y0, tile.rows.stop - self.y0)
+        self.image[block] = functools.reduce(np.add, [r for r, _ in order]) / self.spp
+        if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
+            self.variance[block] = functools.reduce(np.add, [v for _, v in order]) / self.spp**2
+
+    def totals(self) -> np.ndarray:
+        totals = np.zeros_like(self._stats[0])
+        for s in self._stats:
+            totals += s
+        return totals
+
+
 def render(prep: Prepared, method_name: str, given_params: dict | None = None, seed: int = 0,
            threads: int | None = None, progress=None, source: str = "render", crop=None,
-           volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING) -> RenderResult:
+           volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING, client=None) -> RenderResult:
     """Render the image, or the pixel block `crop` = (x0, y0, x1, y1) of it (end exclusive; the same
-    samples and random numbers as in the whole image). `progress(n)` gets the rows finished.
-    `given_params` are the method's own parameters (any other key is refused); seed, threads, crop,
-    volumetric_shadows and shadow_spacing (radians, visibility.py) are render options."""
+    samples and random numbers as in the whole image). `progress(done, total)` gets the tiles
+    finished. `given_params` are the method's own parameters (any other key is refused); seed,
+    threads, crop, volumetric_shadows and shadow_spacing (radians, visibility.py) are render
+    options. With a `dask.distributed.Client` the tiles are tasks on its cluster (distributed.py),
+    with the same result."""
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
     method.check(scene.medium, params)
     check_options(method, params, volumetric_shadows, shadow_spacing, source)
+    if client is not None and threads is not None:
+        raise UserError(f"{source}: --threads applies to one machine; with --scheduler every worker runs as many "
+                        "tiles as it has threads, remove --threads")
     shadows = float(shadow_spacing) if volumetric_shadows else None
     cam = scene.camera
-    x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
-    cols = slice(x0, x1)
-    if shadows is not None:
-        prep.shadow_maps(shadows)  # before the tiles' threads share it
-    compile_s = warm_up(prep, method, params, seed, shadows)
-    rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * cam.spp))
-    tiles = [slice(r, min(r + rows_per_tile, y1)) for r in range(y0, y1, rows_per_tile)]
-    image = np.zeros((y1 - y0, x1 - x0, 3))
-    variance = np.zeros_like(image) if method.stochastic else None
-    totals = np.zeros(method.stats_size + len(LI_NAMES))
+    box = crop or (0, 0, cam.width, cam.height)
+    work = tiles(cam, box)
+    acc = Accumulator(work, box, cam.spp, method.stochastic, method.stats_size + len(LI_NAMES))
+    if client is None:
+        if shadows is not None:
+            prep.shadow_maps(shadows)  # before the tiles' threads share it
+        compile_s = warm_up(prep, method, params, seed, shadows)
+        start = time.perf_counter()
+        pool = ThreadPoolExecutor(threads or default_threads())
+        done = enumerate(pool.map(lambda t: render_tile(prep, method, params, seed, shadows, box, t), work))
+    else:
+        from . import distributed
 
-    def work(rows):
-        o, d = generate_rays(cam, rows, cols)
-        pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
-        keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp) + np.arange(cam.spp, dtype=np.uint64)).ravel()
-        rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed, shadows)
-        shape = (rows.stop - rows.start, x1 - x0, cam.spp, 3)
-        block = slice(rows.start - y0, rows.stop - y0)
-        image[block] = rad.reshape(shape).mean(axis=2)
-        if variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            variance[block] = var.reshape(shape).sum(axis=2) / cam.spp**2
-        return rows.stop - rows.start, stats
-
-    start = time.perf_counter()
-    threads = threads or default_threads()
-    with ThreadPoolExecutor(threads) as pool:
-        for n_rows, stats in pool.map(work, tiles):
-            totals += stats
+        job = distributed.Job(scene, method.name, params, seed, shadows, box)
+        compile_s = distributed.prepare_workers(client, job)
+        start = time.perf_counter()
+        pool = contextlib.nullcontext()
+        done = distributed.map_tiles(client, job, work)
+    with pool:
+        for n, (i, result) in enumerate(done, 1):
+            acc.add(i, result)
             if progress is not None:
-                progress(n_rows)
+                progress(n, len(work))
     seconds = time.perf_counter() - start
+    totals = acc.totals()
     summary = method.summarize(totals[:method.stats_size])
     if shadows is not None:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(LI_NAMES, totals[method.stats_size:])})
-    return RenderResult(image, method.name, params, seconds, compile_s, summary, variance)
+    return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance)

@@ -45,10 +45,11 @@ def parse_spec(text: str) -> MethodSpec:
 
 
 def render_spec(prep: Prepared, spec: MethodSpec, seed: int, threads=None, volumetric_shadows: bool = False,
-                shadow_spacing: float = SHADOW_SPACING) -> RenderResult:
+                shadow_spacing: float = SHADOW_SPACING, client=None) -> RenderResult:
     """One render of `spec` (one pass for a stochastic method); `volumetric_shadows` and
-    `shadow_spacing` are the renderer's options (light shafts, visibility.py)."""
-    opts = {"volumetric_shadows": volumetric_shadows, "shadow_spacing": shadow_spacing}
+    `shadow_spacing` are the renderer's options (light shafts, visibility.py), `client` a Dask
+    client to render on its cluster."""
+    opts = {"volumetric_shadows": volumetric_shadows, "shadow_spacing": shadow_spacing, "client": client}
     if get_method(spec.name).stochastic:
         return render_progressive(prep, spec.name, spec.params, seed, passes=1, threads=threads, source=spec.label,
                                   **opts)
@@ -60,14 +61,15 @@ def safe_name(label: str) -> str:
 
 
 def compare(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, out: Path, seed: int = 0,
-            threads=None, exposure=None, log=print) -> list[dict]:
-    """Render the reference and every method; write images, error maps and compare.md/.json in `out`."""
+            threads=None, exposure=None, log=print, client=None) -> list[dict]:
+    """Render the reference and every method (on the cluster of Dask `client` if given); write
+    images, error maps and compare.md/.json in `out`."""
     out.mkdir(parents=True, exist_ok=True)
-    ref = render_spec(prep, reference, seed, threads)
+    ref = render_spec(prep, reference, seed, threads, client=client)
     header = {"scene": prep.scene.name, "spp": prep.scene.camera.spp, "seed": seed}
     film.write_exr(out / "reference.exr", ref.image, {**header, "method": reference.label})
     film.write_png(out / "reference.png", film.tonemap(ref.image, exposure))
-    results = [(spec, render_spec(prep, spec, seed, threads)) for spec in specs]
+    results = [(spec, render_spec(prep, spec, seed, threads, client=client)) for spec in specs]
     vmax = metrics.shared_scale([r.image for _, r in results], ref.image)
     rows = []
     for spec, r in results:

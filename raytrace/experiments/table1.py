@@ -93,7 +93,7 @@ def methods_for(phase: int) -> list[tuple[str, MethodSpec]]:
 
 
 def matched_raymarch(prep, seed, target_seconds, threads, log, volumetric_shadows: bool = False,
-                     label: str = "raymarch") -> tuple[MethodSpec, str]:
+                     label: str = "raymarch", client=None) -> tuple[MethodSpec, str]:
     """Ray-marching step count whose render time matches `target_seconds` (linear fit of time
     against steps from two calibration renders, at 8 and 64 steps). With `volumetric_shadows`, the
     classic shadowed ray marching: a shadow ray from every step to the light (`shadow_test =
@@ -103,7 +103,7 @@ def matched_raymarch(prep, seed, target_seconds, threads, log, volumetric_shadow
     times = {}
     for steps in (lo, hi):
         runs = [render_spec(prep, MethodSpec(label, "raymarch", {"steps": steps, **extra}), seed, threads,
-                            volumetric_shadows=volumetric_shadows).seconds
+                            volumetric_shadows=volumetric_shadows, client=client).seconds
                 for _ in range(3)]
         times[steps] = float(np.median(runs))
     per_step = max((times[hi] - times[lo]) / (hi - lo), 1e-12)
@@ -145,7 +145,8 @@ def finish_rows(rows: list[Row], results: dict, ref_image: np.ndarray, folder: P
     return vmax
 
 
-def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadows: str = "quarter") -> dict:
+def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadows: str = "quarter",
+              client=None) -> dict:
     path = SCENES[name]
     scene = load_scene(path, quick_overrides(name) if quick else [])
     log(f"{name}: {scene.camera.width}x{scene.camera.height}, {scene.camera.spp} spp")
@@ -155,16 +156,16 @@ def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadow
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     ref_spec = MethodSpec("reference (quadrature)", "quadrature", {"rtol": 1e-10})
-    ref = render_spec(prep, ref_spec, seed, threads)
+    ref = render_spec(prep, ref_spec, seed, threads, client=client)
     mean_ref = float(np.mean(np.abs(ref.image)))
     rows = [Row(label, spec) for label, spec in methods_for(scene.medium.phase)]
     results = {}
     for row in rows:
-        results[row.label] = render_spec(prep, row.spec, seed, threads)
+        results[row.label] = render_spec(prep, row.spec, seed, threads, client=client)
     analytic_label = "analytic" if "analytic" in results else "analytic exact"
-    rm_spec, note = matched_raymarch(prep, seed, results[analytic_label].seconds, threads, log)
+    rm_spec, note = matched_raymarch(prep, seed, results[analytic_label].seconds, threads, log, client=client)
     rm = Row("raymarch", rm_spec, note=note)
-    results["raymarch"] = render_spec(prep, rm_spec, seed, threads)
+    results["raymarch"] = render_spec(prep, rm_spec, seed, threads, client=client)
     rows.insert(0, rm)
     header = {"scene": name, "spp": scene.camera.spp, "seed": seed}
     film.write_exr(folder / "reference.exr", ref.image, {**header, "method": "quadrature"})
@@ -180,11 +181,11 @@ def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadow
         if overrides is None:  # the same images: reuse the unshadowed reference (and at full size the timing)
             result["shadowed"] = run_shadowed_scene(
                 name, prep, out, seed, threads, log, unshadowed_ref=ref.image,
-                unshadowed_seconds=None if quick else results[analytic_label].seconds)
+                unshadowed_seconds=None if quick else results[analytic_label].seconds, client=client)
         else:
             del prep
             result["shadowed"] = run_shadowed_scene(name, prepare(load_scene(path, overrides)), out, seed, threads,
-                                                    log)
+                                                    log, client=client)
     return result
 
 
@@ -197,7 +198,7 @@ def shadow_overrides(cam, quick: bool, shadows: str) -> list[str] | None:
 
 
 def run_shadowed_scene(name: str, prep, out: Path, seed: int, threads, log, unshadowed_ref=None,
-                       unshadowed_seconds=None, spacing: float = SHADOW_SPACING) -> dict:
+                       unshadowed_seconds=None, spacing: float = SHADOW_SPACING, client=None) -> dict:
     """The scene's shadowed table on `prep`'s camera: shadowed `quadrature` as the reference, the
     unshadowed table's methods with volumetric shadows, classic ray marching time matched to the
     shadowed analytic render, ray marching over lit intervals at its steps; the unshadowed
@@ -212,29 +213,30 @@ def run_shadowed_scene(name: str, prep, out: Path, seed: int, threads, log, unsh
     prep.shadow_maps(spacing)
     maps_seconds = time.perf_counter() - t0
     ref_spec = MethodSpec("reference (quadrature, shadowed)", "quadrature", {"rtol": 1e-10})
-    ref = render_spec(prep, ref_spec, seed, threads, **sh)
+    ref = render_spec(prep, ref_spec, seed, threads, client=client, **sh)
     if unshadowed_ref is None:
         unshadowed_ref = render_spec(prep, MethodSpec("reference (quadrature)", "quadrature", {"rtol": 1e-10}),
-                                     seed, threads).image
+                                     seed, threads, client=client).image
     mean_ref = float(np.mean(np.abs(ref.image)))
     mean_unshadowed = float(np.mean(np.abs(unshadowed_ref)))
     rows = [Row(label, spec) for label, spec in methods_for(scene.medium.phase)]
-    results = {row.label: render_spec(prep, row.spec, seed, threads, **sh) for row in rows}
+    results = {row.label: render_spec(prep, row.spec, seed, threads, client=client, **sh) for row in rows}
     analytic_label = "analytic" if "analytic" in results else "analytic exact"
     analytic_spec = next(row.spec for row in rows if row.label == analytic_label)
     if unshadowed_seconds is None:
-        unshadowed_seconds = float(np.median([render_spec(prep, analytic_spec, seed, threads).seconds
-                                              for _ in range(3)]))
+        unshadowed_seconds = float(np.median([render_spec(prep, analytic_spec, seed, threads,
+                                                          client=client).seconds for _ in range(3)]))
     if results[analytic_label].seconds < 1.0:  # the time to match: the median of three when it is short (noisy)
         results[analytic_label].seconds = float(np.median(
-            [results[analytic_label].seconds] + [render_spec(prep, analytic_spec, seed, threads, **sh).seconds
-                                                 for _ in range(2)]))
+            [results[analytic_label].seconds] + [render_spec(prep, analytic_spec, seed, threads, client=client,
+                                                             **sh).seconds for _ in range(2)]))
     target = results[analytic_label].seconds
-    classic_spec, note = matched_raymarch(prep, seed, target, threads, log, volumetric_shadows=True, label=CLASSIC)
-    results[CLASSIC] = render_spec(prep, classic_spec, seed, threads, **sh)
+    classic_spec, note = matched_raymarch(prep, seed, target, threads, log, volumetric_shadows=True, label=CLASSIC,
+                                          client=client)
+    results[CLASSIC] = render_spec(prep, classic_spec, seed, threads, client=client, **sh)
     steps = classic_spec.params["steps"]
     intervals_spec = MethodSpec(INTERVALS, "raymarch", {"steps": steps})
-    results[INTERVALS] = render_spec(prep, intervals_spec, seed, threads, **sh)
+    results[INTERVALS] = render_spec(prep, intervals_spec, seed, threads, client=client, **sh)
     rows = [Row(CLASSIC, classic_spec, note=note),
             Row(INTERVALS, intervals_spec, note=f"{steps} steps over the lit intervals (for information)")] + rows
     header = {"scene": name, "spp": scene.camera.spp, "seed": seed, "volumetric_shadows": True,
@@ -426,10 +428,11 @@ def html_report(md_lines: list[str], out: Path) -> str:
 
 
 def run(out: Path, quick: bool = False, seed: int = 0, threads=None, scenes=("sibenik", "bridge", "conference"),
-        log=print, shadows: str = "quarter") -> list[dict]:
+        log=print, shadows: str = "quarter", client=None) -> list[dict]:
     """Both tables; `shadows` is the size of the shadowed table's images: "quarter" (a quarter of
     the width and height, 1 spp), "full" (the unshadowed table's images) or "off" (no shadowed
-    table). With `quick` the shadowed table uses the quick images unless "off"."""
+    table). With `quick` the shadowed table uses the quick images unless "off". `client`: a Dask
+    client whose cluster renders every image."""
     if shadows not in SHADOW_SIZES:
         raise UserError(f"table1: --shadows {shadows!r}: choose one of {', '.join(SHADOW_SIZES)}")
     out.mkdir(parents=True, exist_ok=True)
@@ -437,7 +440,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, threads=None, scenes=("si
     results = []
     for name in scenes:
         try:
-            results.append(run_scene(name, out, quick, seed, threads, log, shadows))
+            results.append(run_scene(name, out, quick, seed, threads, log, shadows, client))
         except UserError as exc:
             raise UserError(f"table1 needs the paper's meshes: {exc}") from None
     write_reports(results, out, quick, time.perf_counter() - start)
