@@ -164,7 +164,8 @@ def atmosphere_distance(sigma0, h, mu, t0, tau, radius, scale_height, t_max):
     eq. 24), or inf if it is not reached by t_max (t_max may be inf; pass `ground_distance` to stop
     at the planet). Safeguarded Newton as the seed (f' is the density, eq. 17): the iterate stays
     in a bracket [lo, hi] and falls back to bisection (or, while hi is inf, to doubling the step);
-    it stops at |tau(t) - tau| <= 1e-14 tau or when the bracket is a few ulps wide."""
+    it stops at |tau(t) - tau| <= 1e-14 tau, or returns the better end of a bracket of two
+    neighbouring doubles (then the error is below one ulp of t times the extinction there)."""
     if not tau > 0.0:
         return t0
     if not sigma0 > 0.0:
@@ -178,10 +179,10 @@ def atmosphere_distance(sigma0, h, mu, t0, tau, radius, scale_height, t_max):
     b = r0 * math.sqrt((1.0 - mu) * (1.0 + mu))
     s0 = r0 * mu
     lo, hi = t0, t_max
+    f_lo, f_hi = -target, total - target
     ha, _ = _altitude(h, r0, s0, b, t0)
     dens = math.exp(-ha / H)
-    step = target / dens if dens > 0.0 else H
-    t = t0 + step
+    t = t0 + (target / dens if dens > 0.0 else H)
     if not t < hi:
         t = 0.5 * (lo + hi)
     for _ in range(NEWTON_MAX_ITER):
@@ -189,16 +190,17 @@ def atmosphere_distance(sigma0, h, mu, t0, tau, radius, scale_height, t_max):
         if abs(f) <= NEWTON_RTOL * target:
             return t
         if f < 0.0:
-            lo = t
+            lo, f_lo = t, f
         else:
-            hi = t
-        if hi < math.inf and hi - lo <= 4e-16 * hi:
-            return t
+            hi, f_hi = t, f
+        mid = 0.5 * (lo + hi)
+        if hi < math.inf and not lo < mid < hi:  # lo, hi are neighbouring doubles
+            return lo if -f_lo <= f_hi else hi
         ht, _ = _altitude(h, r0, s0, b, t)
         dens = math.exp(-ht / H)
         t_new = t - f / dens if dens > 0.0 else math.inf
-        if not (lo < t_new < hi):
-            t_new = 0.5 * (lo + hi) if hi < math.inf else lo + 2.0 * (lo - t0 + H)
+        if not lo < t_new < hi:
+            t_new = mid if hi < math.inf else lo + 2.0 * (lo - t0 + H)
         t = t_new
     return t
 
