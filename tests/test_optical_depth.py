@@ -1,12 +1,15 @@
 """Optical depth of height fogs and of the spherical atmosphere, and their inverses, against mpmath
 quadrature of the defining integrals (seed 004 eq. 26, 30, 34, 40, 42) at 30 digits.
 
-Worst relative errors measured on this grid (docs/optical_depth.md §3): Chapman function 2.1e-15;
-atmosphere column 4.6e-15 over ground, inside-layer and near-space origins of both Earth layers
-and the small planet (all directions, grazing the ground within 1e-9 rad, exactly horizontal,
-straight down, to infinity, to the ground, short and long segments); 1.7e-13 from one Earth radius
-up, where the condition number in mu is ~r0 mu^2/H (see test_far_space_is_conditioning_bound);
-exponential fog 2.2e-16; linear fog 4.4e-16. Inverses: tau(t(tau)) = tau within 1e-14 relative.
+Worst relative errors measured on this grid (docs/optical_depth.md §4): Chapman function 1.8e-15
+above the horizon, 6.6e-14 below it (where C ~ e^{a^2}, a^2 = z mu^2/(1 + sin chi) up to ~500
+here, so mu's own rounding moves C by ~2 a^2 eps); atmosphere column 6.8e-15 over ground,
+inside-layer and near-space (30 H) origins of both Earth layers (H = 8 km, 1.2 km) and a small
+planet (R/H = 10), all directions (exactly horizontal, +-1e-8, grazing the ground within 1e-9 rad,
+straight down), to infinity, to the ground, short (0.01 H), finite and long (1e3 H) segments;
+2.1e-14 from one Earth radius up (test_far_space); exponential fog 1.3e-14 (1.5e-15 for
+horizontal rays), linear fog 4.4e-16. Inverses: tau(t(tau)) = tau to 1e-14 relative, or within
+one ulp of t times the extinction there when that is coarser (a tiny tau far along the ray).
 """
 import math
 
@@ -85,7 +88,8 @@ def atmosphere_refs():
 def _rel(got, ref):
     got, ref = np.asarray(got, float), np.asarray(ref, float)
     both_inf = np.isinf(got) & np.isinf(ref)
-    return np.where(both_inf, 0.0, np.abs(got - ref) / np.where(ref == 0, 1.0, np.abs(ref)))
+    with np.errstate(invalid="ignore"):
+        return np.where(both_inf, 0.0, np.abs(got - ref) / np.where(ref == 0, 1.0, np.abs(ref)))
 
 
 def test_reference_quadrature():
@@ -123,22 +127,15 @@ def test_atmosphere_column(atmosphere_refs):
     assert np.all(np.isfinite(got)) and np.all(got >= 0.0)
 
 
-def test_far_space_is_conditioning_bound():
-    """From one planet radius up, mu's own rounding (1.1e-16 relative) moves the periapsis
-    altitude by ~ r0 mu^2 eps, i.e. the answer by r0 mu^2 eps / H relative (~1e-12 for the air
-    layer at 1.2 km): the kernel meets that bound, and the slightly perturbed input shows it is the
-    problem's condition, not the kernel's error."""
+def test_far_space():
+    """From one planet radius up (grazing, hitting and missing the planet) the answer's condition
+    number in mu is ~ r0 mu^2 / H (~1e4 for the 1.2 km layer): still within 1e-12 (2.1e-14)."""
     R, H = 6360e3, 1.2e3
-    hh = R
-    worst = 0.0
-    for mu in [-0.9, -0.8, grazing_mus(hh, R)[1], -0.5, 0.0, 0.5]:
-        tg = ch.ground_distance(hh, mu, R)
-        ref = float(ref_column(hh, mu, 0.0, tg, R, H))
-        err = abs(ch.atmosphere_column(hh, mu, 0.0, tg, R, H) / ref - 1.0) if ref > 0 else 0.0
-        cond = (R + hh) * mu * mu / H * 2.2e-16
-        assert err <= max(RTOL, 4 * cond), (mu, err, cond)
-        worst = max(worst, err)
-    assert worst > 0.0
+    for mu in [-0.9, -0.8, grazing_mus(R, R)[1], -0.5, 0.0, 0.5]:
+        tg = ch.ground_distance(R, mu, R)
+        ref = float(ref_column(R, mu, 0.0, tg, R, H))
+        got = ch.atmosphere_column(R, mu, 0.0, tg, R, H)
+        assert abs(got - ref) <= RTOL * ref, (mu, got, ref)
 
 
 def test_atmosphere_optical_depth_scales():
@@ -251,7 +248,8 @@ FOG_CASES = [(h, mu, t0, t1) for h in FOG_HEIGHTS for mu in FOG_MUS for t0, t1 i
 def test_fog_optical_depth(kernel, ref):
     sigma0 = 0.03
     c = np.array(FOG_CASES).T
-    got = kernel(sigma0, c[0], c[1], c[2], c[3], FOG_H)
+    with np.errstate(over="ignore"):  # numpy notices the inf that overflowing densities give
+        got = kernel(sigma0, c[0], c[1], c[2], c[3], FOG_H)
     want = [float(sigma0 * ref(h, mu, t0, t1, FOG_H)) for h, mu, t0, t1 in FOG_CASES]
     err = _rel(got, want)
     assert err.max() <= RTOL, (err.max(), FOG_CASES[int(np.argmax(err))])
