@@ -102,13 +102,13 @@ def main():
         t, _ = prep.accel.first_hit(o, d)
         segs = whole_rays(o, d, t, np.arange(len(o), dtype=np.uint64), 1, 1, prep.accel.scale)
         med, lights = prep.scene.medium, prep.lights
-        xh, h, da = segment_geometry(segs, lights)
+        xh, h, da, cone = segment_geometry(segs, lights)
         n = args.samples
         pos = np.zeros((len(segs), n, 1, 3, 3))
         w = np.zeros((len(segs), n, 1, 3))
         st = np.zeros(mc.CDF_STATS)
         prec, coeffs = mc.cdf_setup(med)
-        call = lambda: mc.sample_points_cdf(segs.origins, segs.dirs, xh, h, da, segs.length, segs.keys,  # noqa: E731
+        call = lambda: mc.sample_points_cdf(segs.origins, segs.dirs, xh, h, da, segs.length, cone, segs.keys,  # noqa: E731
                                             segs.stream, np.uint64(1), lights.intensity[segs.light], med.sigma_t,
                                             med.sigma_s, med.phase, med.g, n, prec, coeffs, pos, w, st)
         call()

@@ -1,43 +1,191 @@
 """Lights: what the scene file describes (`Light`) and the arrays kernels read (`Lights`).
 
-Only isotropic point lights exist today (SCENE_FORMAT.md): radiant intensity I per channel, so the
-irradiance at distance d, before the medium's attenuation, is I / d^2 (the paper's eq. 5 and 4).
-Each light has a type code so that spot and directional lights can join without new arrays.
+Point lights are isotropic: radiant intensity I per channel, so the irradiance at distance d,
+before the medium's attenuation, is I / d^2 (the paper's eqs. 4 and 5). A spot light (pbrt-v4's
+SpotLight) emits I F(cos) toward a direction at cosine `cos` from its axis, with the falloff F = 1
+within `falloff_start`, 0 beyond `cone_angle`, and smoothstep in the cosine between (`falloff`).
+
+Along a ray segment seen from a light (geometry.py: foot point distance h, x - x_h = h tan(theta)),
+the direction from the light is cos(theta) n + sin(theta) w, with n the unit vector from the light
+to the foot point and w the ray's direction, so the cosine to the spot axis a is
+
+    c = A cos(theta) + B sin(theta) = A sin(phi) - B cos(phi),     A = n·a, B = w·a,
+
+in the paper's scattering angle phi = theta + pi/2 (docs/spot_lights.md). `cone_breaks` finds where
+c crosses a given cosine, in the paper's variable v = tan(phi / 2).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from .jit import njit
+
 POINT = 0
-NAMES = {POINT: "point"}
+SPOT = 1
+NAMES = {POINT: "point", SPOT: "spot"}
+
+# the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1
+NO_CONE = (-3.0, -2.0)
 
 
 @dataclass
 class Light:
-    """One light of the scene file."""
+    """One light of the scene file; spot lights also have a unit `axis` and the cosines of their
+    cone (`cos_end`, zero beyond) and of their full-intensity core (`cos_start`)."""
     position: np.ndarray
-    intensity: np.ndarray  # W/sr per channel
+    intensity: np.ndarray  # W/sr per channel (spot: on the axis)
     kind: int = POINT
+    axis: np.ndarray | None = None
+    cos_end: float = NO_CONE[0]
+    cos_start: float = NO_CONE[1]
 
 
 @dataclass(frozen=True)
 class Lights:
-    """All lights as float64 arrays: `kind` (L,), `position` (L, 3), `intensity` (L, 3)."""
+    """All lights as float64 arrays: `kind` (L,), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3)
+    (zero for point lights), `cone` (L, 2): (cos_end, cos_start), NO_CONE for point lights."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray
+    axis: np.ndarray
+    cone: np.ndarray
 
     @classmethod
     def of(cls, lights: list[Light]) -> "Lights":
+        axis = [np.zeros(3) if l.axis is None else l.axis for l in lights]
         return cls(np.array([l.kind for l in lights], dtype=np.int64),
                    np.array([l.position for l in lights], dtype=float).reshape(-1, 3),
-                   np.array([l.intensity for l in lights], dtype=float).reshape(-1, 3))
+                   np.array([l.intensity for l in lights], dtype=float).reshape(-1, 3),
+                   np.array(axis, dtype=float).reshape(-1, 3),
+                   np.array([(l.cos_end, l.cos_start) for l in lights], dtype=float).reshape(-1, 2))
 
     def __len__(self) -> int:
         return len(self.kind)
 
-    def irradiance(self, index: int, dist: np.ndarray) -> np.ndarray:
-        """Unattenuated irradiance (N, 3) from light `index` at distances `dist` (N,) facing it."""
-        return self.intensity[index][None, :] / (dist * dist)[:, None]
+    def kinds(self) -> set[str]:
+        return {NAMES[int(k)] for k in self.kind}
+
+    def irradiance(self, index: int, to_points: np.ndarray, dist: np.ndarray) -> np.ndarray:
+        """Unattenuated irradiance (N, 3) from light `index` on surfaces facing it at the points
+        light + to_points (N, 3), at distances `dist` (N,) > 0."""
+        e = self.intensity[index][None, :] / (dist * dist)[:, None]
+        if self.kind[index] == SPOT:
+            cos = (to_points @ self.axis[index]) / dist
+            e = e * falloff_array(cos, *self.cone[index])[:, None]
+        return e
+
+
+@njit
+def falloff(c, cos_end, cos_start):
+    """pbrt-v4's spot falloff: smoothstep(cos_end, cos_start, c); a hard edge if they are equal."""
+    if c >= cos_start:
+        return 1.0
+    if c <= cos_end:
+        return 0.0
+    t = (c - cos_end) / (cos_start - cos_end)
+    return t * t * (3.0 - 2.0 * t)
+
+
+@njit
+def falloff_array(c, cos_end, cos_start):
+    out = np.empty(c.shape[0])
+    for i in range(c.shape[0]):
+        out[i] = falloff(c[i], cos_end, cos_start)
+    return out
+
+
+@njit
+def cosine_at(A, B, v):
+    """c at v = tan(phi/2) in [0, inf]: (2 A v - B (1 - v^2)) / (1 + v^2), B at v = inf."""
+    if v == math.inf:
+        return B
+    return (2.0 * A * v - B * (1.0 - v * v)) / (1.0 + v * v)
+
+
+@njit
+def cone_breaks(A, B, C, out):
+    """The v in (0, inf) where c = A sin(phi) - B cos(phi) equals C, written to out[:2]; returns how
+    many (0, 1 or 2), ascending. c = C is (B - C) v^2 + 2 A v - (B + C) = 0 (c = 2Av/(1+v^2) -
+    B (1-v^2)/(1+v^2)); both roots without cancellation (q = -(A + sign(A) sqrt(disc)))."""
+    disc = A * A + B * B - C * C
+    n = 0
+    if not disc > 0.0:
+        return 0
+    a2 = B - C
+    c0 = -(B + C)
+    q = -(A + math.copysign(math.sqrt(disc), A))
+    r1 = q / a2 if a2 != 0.0 else math.inf
+    r2 = c0 / q if q != 0.0 else math.inf
+    for r in (r1, r2):
+        if r > 0.0 and r < math.inf:
+            out[n] = r
+            n += 1
+    if n == 2 and out[1] < out[0]:
+        out[0], out[1] = out[1], out[0]
+    return n
+
+
+@njit
+def segment_cone(A, B, cos_end, cos_start, va, vb, out):
+    """The pieces of [va, vb] (v = tan(phi/2)) between the cone's crossings: out[i] = (v_lo, v_hi,
+    kind) with kind 0 (dark), 1 (full intensity), 2 (smoothstep band); returns the count (<= 5).
+    A light without a cone (cos_start <= -1) is one full piece."""
+    if cos_start <= -1.0:
+        out[0, 0], out[0, 1], out[0, 2] = va, vb, 1.0
+        return 1
+    cuts = np.empty(6)
+    roots = np.empty(2)
+    m = 0
+    for C in (cos_end, cos_start):
+        k = cone_breaks(A, B, C, roots)
+        for i in range(k):
+            if va < roots[i] < vb:
+                cuts[m] = roots[i]
+                m += 1
+        if cos_start == cos_end:
+            break
+    cuts[:m].sort()
+    n = 0
+    lo = va
+    for i in range(m + 1):
+        hi = cuts[i] if i < m else vb
+        if hi > lo:
+            # classify by the cosine inside the piece (a geometric mean keeps it inside for any scale)
+            mid = 0.5 * (lo + hi) if lo == 0.0 or hi == math.inf else math.sqrt(lo * hi)
+            if hi == math.inf:
+                mid = 2.0 * lo + 1.0
+            c = cosine_at(A, B, mid)
+            kind = 1.0 if c >= cos_start else (0.0 if c <= cos_end else 2.0)
+            out[n, 0], out[n, 1], out[n, 2] = lo, hi, kind
+            n += 1
+        lo = hi
+    return n
+
+
+@njit
+def smoothstep_trig(A, B, cos_end, cos_start, a, b):
+    """The falloff's smoothstep band as a trigonometric polynomial in phi: F = sum_{m=0}^{3}
+    a_m cos(m phi) + b_m sin(m phi) (a, b of length 4), for t = (c - cos_end) / (cos_start - cos_end)
+    and F = 3 t^2 - 2 t^3. With z = e^{i phi}, c - cos_end = alpha z + u0 + conj(alpha) / z,
+    alpha = -(B + iA) / 2, u0 = -cos_end; its square and cube are Laurent polynomials whose
+    coefficient P_m of z^m gives a_m = 2 Re P_m, b_m = -2 Im P_m (a_0 = P_0)."""
+    d = cos_start - cos_end
+    al = complex(-0.5 * B, -0.5 * A)
+    u0 = -cos_end
+    s0 = u0 * u0 + 2.0 * (al.real * al.real + al.imag * al.imag)  # u^2 coefficients: z^0, z^1, z^2
+    s1 = 2.0 * u0 * al
+    s2 = al * al
+    c0 = s0 * u0 + 2.0 * (s1 * al.conjugate()).real  # u^3: z^0 .. z^3
+    c1 = s0 * al + s1 * u0 + s2 * al.conjugate()
+    c2 = s1 * al + s2 * u0
+    c3 = s2 * al
+    p2, p3 = 3.0 / (d * d), 2.0 / (d * d * d)
+    a[0] = p2 * s0 - p3 * c0
+    b[0] = 0.0
+    for m, (sq, cu) in enumerate(((s1, c1), (s2, c2), (complex(0.0, 0.0), c3))):
+        P = p2 * sq - p3 * cu
+        a[m + 1] = 2.0 * P.real
+        b[m + 1] = -2.0 * P.imag

@@ -26,7 +26,7 @@ from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, surface_radiance
 from .shadow_maps import build as build_shadow_maps
-from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, lit_intervals, segment_airlight,
+from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, cone_segments, lit_intervals, segment_airlight,
                          shadowed_airlight, whole_rays)
 
 RAYS_PER_TILE = 1 << 14
@@ -91,15 +91,18 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     variance = np.zeros_like(radiance) if method.stochastic else None
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
+        ends = None  # the normal of the surface each segment ends on (zero in the air), for the lit intervals
+        if shadows is not None:
+            normals = np.zeros((len(origins), 3))
+            normals[hit] = prep.accel.normals[prim[hit]]
+            ends = np.repeat(normals, len(prep.lights), axis=0)
+        segs, ends = cone_segments(segs, prep.lights, ends)
         if shadows is not None and params.get("shadow_test") == "samples":
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
         else:
             if shadows is not None:
-                normals = np.zeros((len(origins), 3))
-                normals[hit] = prep.accel.normals[prim[hit]]
                 segs, stats[method.stats_size:] = lit_intervals(prep.accel, segs, prep.lights, len(prep.lights),
-                                                                shadows, np.repeat(normals, len(prep.lights), axis=0),
-                                                                prep.shadow_maps(shadows))
+                                                                shadows, ends, prep.shadow_maps(shadows))
             air, stats[:method.stats_size], var = segment_airlight(method, medium, prep.lights, params, segs,
                                                                    len(origins))
         radiance += air
@@ -209,6 +212,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
     method.check(scene.medium, params)
+    method.check_lights(prep.lights, source)
     check_options(method, params, volumetric_shadows, shadow_spacing, source)
     if client is not None and threads is not None:
         raise UserError(f"{source}: --threads applies to one machine; with --scheduler every worker runs as many "

@@ -1,7 +1,8 @@
 """The surface term (paper eq. 5) with shadow-ray visibility, summed over lights.
 
-Lb = sum_lights V (rho / pi) I exp(-kt d) / d^2 max(0, n·wi), with the geometric normal flipped to
-face the incoming ray (two-sided Lambertian surfaces). The camera sees it attenuated by
+Lb = sum_lights V (rho / pi) I F exp(-kt d) / d^2 max(0, n·wi), with the geometric normal flipped to
+face the incoming ray (two-sided Lambertian surfaces), F a spot light's falloff toward the point
+(lights.py, 1 for point lights). The camera sees it attenuated by
 exp(-kt t); that factor is applied by the renderer.
 """
 from __future__ import annotations
@@ -31,6 +32,6 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium):
         o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
         visible = ~accel.occluded(o, d, tmax)
         idx, dl, cl = idx[visible], dist[idx][visible], cos[idx][visible]
-        irradiance = lights.irradiance(li, dl) * medium.transmittance(dl) * cl[:, None]
+        irradiance = lights.irradiance(li, -to_light[idx], dl) * medium.transmittance(dl) * cl[:, None]
         out[idx] += reflectance[idx] / math.pi * irradiance
     return out

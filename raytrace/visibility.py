@@ -25,7 +25,9 @@ import math
 import numpy as np
 
 from .jit import njit
+from .lights import segment_cone
 from .methods import Segments
+from .methods.geometry import segment_geometry, v_of
 from .shadow_maps import ShadowMaps, face_texel, verdict
 
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
@@ -50,6 +52,57 @@ def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segmen
     return Segments(rep(origins), rep(dirs), rep(np.asarray(tmax, float)), light,
                     rep(np.arange(n, dtype=np.int64)), np.zeros(n * n_lights), rep(np.asarray(keys, np.uint64)),
                     light.copy(), int(seed), float(scale), per_ray=n_lights)
+
+
+CONE_STREAM = 1 << 20  # stream offset of a spot light's second lit piece (a cone cuts a line at most twice)
+
+
+def cone_segments(segs: Segments, lights, end_normals=None):
+    """The segments cut to where their spot lights shine (cosine to the axis above cos_end: at most
+    two pieces of a line, lights.segment_cone), dark ones dropped; point lights' segments unchanged.
+    `end_normals` (S, 3) or None follow the segments, zero for a piece that now ends in the air."""
+    if "spot" not in lights.kinds():
+        return segs, end_normals
+    xh, h, _, cone = segment_geometry(segs, lights)
+    src, x0, x1, piece = _cone_pieces(xh, h, segs.length, cone)
+    cut = Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
+                   segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src] + CONE_STREAM * len(lights) * piece,
+                   segs.seed, segs.scale)
+    if end_normals is not None:
+        end_normals = end_normals[src] * (x1 == segs.length[src])[:, None]
+    return cut, end_normals
+
+
+@njit
+def _cone_pieces(xh, h, length, cone):
+    """(source segment, x0, x1, piece number) of every lit piece: x = x_h + h (v - 1/v) / 2 at the
+    cone's crossings v, the segment's own ends exactly."""
+    n = xh.shape[0]
+    src = np.empty(2 * n, np.int64)
+    x0, x1, piece = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n, np.int64)
+    buf = np.empty((5, 3))
+    m = 0
+    for s in range(n):
+        ell = length[s]
+        if cone[s, 3] <= -1.0:
+            src[m], x0[m], x1[m], piece[m] = s, 0.0, ell, 0
+            m += 1
+            continue
+        va = v_of(-xh[s], h[s])
+        vb = v_of(ell - xh[s], h[s]) if ell < math.inf else math.inf
+        k = 0
+        for i in range(segment_cone(cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 2], va, vb, buf)):
+            if buf[i, 2] == 0.0:
+                continue
+            a = 0.0 if buf[i, 0] == va else xh[s] + 0.5 * h[s] * (buf[i, 0] - 1.0 / buf[i, 0])
+            b = ell if buf[i, 1] == vb else xh[s] + 0.5 * h[s] * (buf[i, 1] - 1.0 / buf[i, 1])
+            a = min(max(a, 0.0), ell)
+            b = min(max(b, a), ell)
+            if b > a:
+                src[m], x0[m], x1[m], piece[m] = s, a, b, k
+                m += 1
+                k += 1
+    return src[:m], x0[:m], x1[:m], piece[:m]
 
 
 def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
@@ -397,7 +450,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
         piece = np.arange(len(idx)) - np.searchsorted(idx, idx)  # number of the piece within its segment
         parts.append(Segments(seg.origins[idx] + x0[:, None] * seg.dirs[idx], seg.dirs[idx], x1 - x0,
                               seg.light[idx], seg.ray[idx], seg.t0[idx] + x0, seg.keys[idx],
-                              seg.light[idx] + n_lights * piece, seg.seed, seg.scale))
+                              seg.stream[idx] + n_lights * piece, seg.seed, seg.scale))
     stats[LI_INTERVALS] = sum(len(p) for p in parts)
     return concat(parts, segs), stats
 

@@ -3,14 +3,15 @@
 Nothing here imports the renderer: the camera rays, the ray-box intersection, the surface term
 and the air-light (scipy `quad` of eq. 4 in the distance x, split at the light's foot point) are
 re-derived, so agreement with the renderer tests the conventions as well as the numbers.
-Only box rooms with lights inside are supported (every surface point sees every light).
+Only box rooms with lights inside are supported (every surface point sees every light); lights
+may be spot lights.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from scipy import integrate
+from scipy import integrate, optimize
 
 
 def phase(name: str, g: float, mu: float) -> float:
@@ -57,7 +58,55 @@ def box_exit(o, d, lo, hi):
     return best, normal
 
 
-def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g):
+def spot_of(light: dict):
+    """(axis, cos_end, cos_start) of a [[light]] table of type "spot" (SCENE_FORMAT.md, pbrt-v4's
+    SpotLight: defaults cone_angle 30, falloff_start cone_angle - 5), None for a point light."""
+    if light.get("type", "point") != "spot":
+        return None
+    p = np.asarray(light["position"], float)
+    axis = np.asarray(light["look_at"], float) - p if "look_at" in light else np.asarray(light["direction"], float)
+    cone = light.get("cone_angle", 30.0)
+    start = light.get("falloff_start", max(cone - 5.0, 0.0))
+    return axis / np.linalg.norm(axis), math.cos(math.radians(cone)), math.cos(math.radians(start))
+
+
+def emission(spot, direction) -> float:
+    """The spot's falloff toward the unit `direction` from the light: smoothstep in the cosine."""
+    if spot is None:
+        return 1.0
+    axis, cos_end, cos_start = spot
+    c = float(direction @ axis)
+    if c >= cos_start:
+        return 1.0
+    if c <= cos_end:
+        return 0.0
+    t = (c - cos_end) / (cos_start - cos_end)
+    return t * t * (3 - 2 * t)
+
+
+def cone_crossings(o, d, tmax, p, spot):
+    """Distances in (0, tmax) where the ray crosses the spot's cone or core, by bracketing the
+    cosine to the axis on a fine grid (rays to infinity: up to 1e4 beyond the light) and brentq."""
+    if spot is None:
+        return []
+    axis, cos_end, cos_start = spot
+    end = tmax if math.isfinite(tmax) else float(np.linalg.norm(p - o)) + 1e4
+
+    def cos(x):
+        r = o + x * d - p
+        return float(r @ axis) / math.sqrt(r @ r)
+
+    xs = np.concatenate([np.linspace(0.0, end, 20001)[1:-1], [float((p - o) @ d)]])
+    xs = np.sort(xs[(xs > 0) & (xs < end)])
+    out = []
+    for level in (cos_end, cos_start):
+        vals = np.array([cos(x) for x in xs]) - level
+        for i in np.nonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))[0]:
+            out.append(optimize.brentq(lambda x: cos(x) - level, xs[i], xs[i + 1], xtol=1e-14, rtol=1e-15))
+    return out
+
+
+def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, spot=None):
     if ks == 0.0:
         return 0.0
     p = np.asarray(light, float)
@@ -67,11 +116,13 @@ def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g):
         to = p - q
         dist = math.sqrt(to @ to)
         mu = -(x - xh) / dist  # cosine between the light's travel direction and the way back to the camera
-        return math.exp(-kt * (x + dist)) * ks * intensity * phase(phase_name, g, mu) / dist**2
+        return (math.exp(-kt * (x + dist)) * ks * intensity * phase(phase_name, g, mu) * emission(spot, -to / dist)
+                / dist**2)
 
     xh = float((p - o) @ d)
     h = float(np.linalg.norm(np.cross(p - o, d)))
-    points = sorted({x for x in (xh - 10 * h, xh - h, xh, xh + h, xh + 10 * h) if 0.0 < x < tmax})
+    points = {x for x in (xh - 10 * h, xh - h, xh, xh + h, xh + 10 * h) if 0.0 < x < tmax}
+    points = sorted(points | set(cone_crossings(o, d, tmax, p, spot)))
     edges = [0.0] + points + [tmax]
     total = 0.0
     for a, b in zip(edges[:-1], edges[1:]):
@@ -99,13 +150,14 @@ def box_room_pixel(scene: dict, i: int, j: int) -> np.ndarray:
     for light in scene["light"]:
         p = np.array(light["position"], float)
         inten = np.broadcast_to(np.array(light["intensity"], float), 3)
+        spot = spot_of(light)
         to = p - x
         dist = math.sqrt(to @ to)
-        cos = max(0.0, float(n @ to) / dist)
+        cos = max(0.0, float(n @ to) / dist) * emission(spot, -to / dist)
         for c in range(3):
             surface = rho[c] / math.pi * inten[c] * math.exp(-kt[c] * dist) / dist**2 * cos
             out[c] += math.exp(-kt[c] * t) * surface
-            out[c] += airlight(o, d, t, p, inten[c], kt[c], ks[c], name, g)
+            out[c] += airlight(o, d, t, p, inten[c], kt[c], ks[c], name, g, spot)
     return out
 
 

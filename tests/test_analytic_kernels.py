@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.methods import analytic as A
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -77,7 +78,7 @@ def test_kernel_vs_oracle(code, g):
         stats = A.new_stats()
         for ci, (light, ell, kt) in enumerate(CASES):
             xh, h, da = _geom(light)
-            val = A.airlight(xh, h, da, ell, kt, 0.8 * kt, 2.0, code, g, prec, 1000, A.ANISO_EXACT, 6, co, stats)
+            val = A.airlight(xh, h, da, ell, kt, 0.8 * kt, 2.0, code, g, prec, 1000, A.ANISO_EXACT, 6, co, POINT_ROW, stats)
             ref = 2.0 * _ref(ci, code, g)
             assert math.isfinite(val) and val >= 0.0
             assert abs(val / ref - 1.0) <= 10 * prec, (code, g, prec, CASES[ci], val, ref)
@@ -95,7 +96,7 @@ def test_paths_are_exercised():
     co = A.make_coeffs(ISOTROPIC, 0.0, A.ANISO_EXACT, 1, 1e-6)
     for light, ell, kt in CASES:
         xh, h, da = _geom(light)
-        A.airlight(xh, h, da, ell, kt, 0.8 * kt, 1.0, ISOTROPIC, 0.0, 1e-6, 1000, 0, 1, co, stats)
+        A.airlight(xh, h, da, ell, kt, 0.8 * kt, 1.0, ISOTROPIC, 0.0, 1e-6, 1000, 0, 1, co, POINT_ROW, stats)
     assert stats[A.ST_SERIES] > 0 and stats[A.ST_STABLE] > 0 and stats[A.ST_NEARLINE] == 2
     assert A.summarize_stats(stats)["mean_iterations_per_series_evaluation"] > 1
 
@@ -125,7 +126,7 @@ def test_taylor_mode_equals_its_polynomial_phase(code, g, N):
 
     ref = _oracle(xh, h, ell, kt, 0.4, code, g, phase=poly_phase)
     stats = A.new_stats()
-    val = A.airlight(xh, h, da, ell, kt, 0.4, 1.0, code, g, 1e-10, 1000, A.ANISO_TAYLOR, N, c, stats)
+    val = A.airlight(xh, h, da, ell, kt, 0.4, 1.0, code, g, 1e-10, 1000, A.ANISO_TAYLOR, N, c, POINT_ROW, stats)
     assert val == pytest.approx(ref, rel=1e-8)
     assert stats[A.ST_TAYLOR_OUT] == 1  # v_b > R: the segment passes the light's foot point
 
@@ -138,7 +139,7 @@ def test_random_inputs_finite_nonnegative(xh, h, ell, kt, alb, code, g, mode, pr
     da = math.hypot(xh, h)
     co = A.make_coeffs(code, g, A.ANISO_EXACT, 3, prec)
     stats = A.new_stats()
-    val = A.airlight(xh, h, da, ell, kt, alb * kt, 1.0, code, g, prec, 200, A.ANISO_EXACT, 3, co, stats)
+    val = A.airlight(xh, h, da, ell, kt, alb * kt, 1.0, code, g, prec, 200, A.ANISO_EXACT, 3, co, POINT_ROW, stats)
     assert math.isfinite(val) and val >= 0.0
-    iso = A.airlight(xh, h, da, ell, kt, alb * kt, 1.0, 0, 0.0, prec, 200, 0, 1, co, stats)
+    iso = A.airlight(xh, h, da, ell, kt, alb * kt, 1.0, 0, 0.0, prec, 200, 0, 1, co, POINT_ROW, stats)
     assert math.isfinite(iso) and iso >= 0.0

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.methods import analytic as A
 from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
@@ -45,8 +46,8 @@ def test_random_geometries_meet_the_requested_precision():
         wp = A.working_precision(precision)
         coeffs = A.make_coeffs(code, g, A.ANISO_EXACT, 6, wp)
         val = A.airlight(xh, h, math.hypot(xh, h), ell, kt, ks, 1.0, code, g, wp, 1000, A.ANISO_EXACT, 6, coeffs,
-                         stats[(code, precision < 1e-7)])
-        ref = q.airlight_one(xh, h, ell, kt, ks, code, g, 1e-13, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+                         POINT_ROW, stats[(code, precision < 1e-7)])
+        ref = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-13, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
         assert math.isfinite(val) and val >= 0.0
         if ref > 1e-280:
             worst = max(worst, abs(val - ref) / ref / precision)

@@ -7,6 +7,7 @@ import mpmath as mp
 import numpy as np
 import pytest
 
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Medium
@@ -16,7 +17,7 @@ from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 
 def ref(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0):
-    return q.airlight_one(xh, h, ell, kt, ks, code, g, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
 
 
 def lec(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0, terms=0, stats=None):

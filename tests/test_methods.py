@@ -55,6 +55,7 @@ def rendered(method_name: str, name: str):
         prep = prepare(scene_from_text(to_toml(CASES[name]), name))
         try:
             method.check(prep.scene.medium, resolve_params(method, method.error_law.params, "test"))
+            method.check_lights(prep.lights, "test")
         except UserError as exc:
             _RENDERS[key] = exc
         else:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from raytrace.methods.geometry import POINT_ROW
 from raytrace import progressive
 from raytrace.methods import montecarlo as mc
 from raytrace.methods import quadrature as q
@@ -24,16 +25,16 @@ GEOMETRIES = [(2.0, 0.5, 6.0, 0.08, ISOTROPIC, 0.0), (2.0, 0.05, math.inf, 0.3, 
 @pytest.mark.parametrize("xh,h,ell,kt,code,g", GEOMETRIES)
 def test_each_sampling_mode_is_unbiased(mode, xh, h, ell, kt, code, g):
     ks = 0.7 * kt
-    ref = q.airlight_one(xh, h, ell, kt, ks, code, g, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    ref = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
     n = 20000
-    est = np.array([mc.estimate(xh, h, ell, kt, ks, code, g, mc.MODES[mode], 1, np.uint64(k), 0, np.uint64(7))[0]
+    est = np.array([mc.estimate(xh, h, ell, kt, ks, code, g, POINT_ROW, mc.MODES[mode], 1, np.uint64(k), 0, np.uint64(7))[0]
                     for k in range(n)])
     se = est.std(ddof=1) / math.sqrt(n)
     assert abs(est.mean() - ref) < 4.5 * se, (est.mean(), ref, se)
 
 
 def test_per_ray_variance_matches_the_spread_of_estimates():
-    args = (2.0, 0.5, 6.0, 0.3, 0.2, ISOTROPIC, 0.0, mc.EQUIANGULAR, 8)
+    args = (2.0, 0.5, 6.0, 0.3, 0.2, ISOTROPIC, 0.0, POINT_ROW, mc.EQUIANGULAR, 8)
     res = np.array([mc.estimate(*args, np.uint64(k), 0, np.uint64(3)) for k in range(4000)])
     assert res[:, 1].mean() == pytest.approx(res[:, 0].var(ddof=1), rel=0.1)
 

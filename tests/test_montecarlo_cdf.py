@@ -13,6 +13,7 @@ import pytest
 from scipy import stats
 
 import raytrace
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.methods import montecarlo as mc
 from raytrace.methods import quadrature as q
@@ -30,7 +31,7 @@ class _Medium:
 
 def quad(xh, h, ell, kt, ks, code, g, rtol=1e-12):
     st = np.zeros(3)
-    val = q.airlight_one(xh, h, ell, kt, ks, code, g, rtol, q._N10, q._W10, q._N20, q._W20, st)
+    val = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q._N10, q._W10, q._N20, q._W20, st)
     assert st[q.CAPPED] == 0
     return val
 
@@ -41,7 +42,7 @@ def one(v):
 
 def cdf_estimate(xh, h, ell, kt, ks, code, g):
     out, var, st = np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(mc.CDF_STATS)
-    mc.airlight_segments_cdf(one(xh), one(h), one(math.hypot(xh, h)), one(ell), np.ones((1, 3)), np.full(3, kt),
+    mc.airlight_segments_cdf(one(xh), one(h), one(math.hypot(xh, h)), one(ell), POINT_ROW[None], np.ones((1, 3)), np.full(3, kt),
                              np.full(3, ks), code, g, *mc.cdf_setup(_Medium(code, g)), out, var, st)
     return out[0], var[0]
 
@@ -50,7 +51,7 @@ def cdf_draws(xh, h, ell, kt, ks, code, g, n, key=5, seed=3):
     """n distances drawn on one segment along +z from the origin, their weights, and their u."""
     pos, w, st = np.zeros((1, n, 1, 3, 3)), np.zeros((1, n, 1, 3)), np.zeros(mc.CDF_STATS)
     mc.sample_points_cdf(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), one(xh), one(h), one(math.hypot(xh, h)),
-                         one(ell), np.array([key], np.uint64), np.array([0]), np.uint64(seed), np.ones((1, 3)),
+                         one(ell), POINT_ROW[None], np.array([key], np.uint64), np.array([0]), np.uint64(seed), np.ones((1, 3)),
                          np.full(3, kt), np.full(3, ks), code, g, n, *mc.cdf_setup(_Medium(code, g)), pos, w, st)
     u = np.array([uniform(np.uint64(key), 2 * j, np.uint64(seed)) for j in range(n)])
     assert np.all(pos[0, :, 0, :, :2] == 0.0)  # on the segment

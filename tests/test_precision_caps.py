@@ -16,6 +16,7 @@ import mpmath as mp
 import numpy as np
 import pytest
 
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.methods import analytic as A
 from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
@@ -27,7 +28,7 @@ def _hg(g, mu):
 
 def _quad(xh, h, ell, kt, ks, code, g, rtol=1e-12):
     stats = np.zeros(3)
-    return q.airlight_one(xh, h, ell, kt, ks, code, g, rtol, q._N10, q._W10, q._N20, q._W20, stats), stats
+    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q._N10, q._W10, q._N20, q._W20, stats), stats
 
 
 def _oracle(xh, h, ell, kt, ks, code, g):
@@ -61,7 +62,7 @@ def _analytic(xh, h, ell, kt, ks, code, g, precision, max_iter=1000):
     stats = A.new_stats()
     coeffs = A.make_coeffs(code, g, A.ANISO_EXACT, 6, wp)
     val = A.airlight(xh, h, math.hypot(xh, h), ell, kt, ks, 1.0, code, g, wp, max_iter, A.ANISO_EXACT, 6, coeffs,
-                     stats)
+                     POINT_ROW, stats)
     return val, stats
 
 
@@ -92,7 +93,7 @@ def test_hg_legendre_series_meets_its_precision_or_is_not_used():
     for g, precision in ((0.99, 1e-3), (-0.99, 1e-6), (0.995, 1e-3), (-0.995, 1e-5)):
         coeffs = A.exact_coeffs(HG, g, precision)
         full = coeffs[1:1 + int(coeffs[0])]
-        c = full[4 + A.LOSS_TABLE:]  # sum_k c_k cos(k phi) = sum_k c_k T_k(mu)
+        c = full[A.B_C:]  # sum_k c_k cos(k phi) = sum_k c_k T_k(mu)
         if abs(g) > 0.99:
             assert c.size == 1 and full[2] == 0.0, (g, precision, c.size)
             # a ray that looks within FAR_ANGLE of the peak (the full block's): to the fallback
@@ -119,7 +120,7 @@ def test_far_fit_meets_its_precision_or_is_left_out():
                 continue
             err = np.max(np.abs(np.polynomial.chebyshev.chebval(mu, c) - _hg(g, mu)) / _hg(g, mu))
             assert err <= precision, (g, precision, err)
-            assert far.size == 0 or np.array_equal(far[4 + A.LOSS_TABLE:], c)
+            assert far.size == 0 or np.array_equal(far[A.B_C:], c)
 
 
 def test_no_series_is_built_for_a_block_no_ray_can_use():
@@ -129,7 +130,7 @@ def test_no_series_is_built_for_a_block_no_ray_can_use():
     for g, precision in ((0.99, 1e-7), (0.99, 1e-15), (-0.99, 1e-11), (0.9, 1e-12), (0.95, 1e-13)):
         coeffs = A.make_coeffs(HG, g, A.ANISO_EXACT, 6, precision)
         n = int(coeffs[0])
-        assert n == 4 + A.LOSS_TABLE + 1 and coeffs[3] == 0.0, (g, precision, n)
+        assert n == A.B_C + 1 and coeffs[3] == 0.0, (g, precision, n)
 
 
 @pytest.mark.parametrize("code,g", [(ISOTROPIC, 0.0), (HG, 0.5)])

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Medium
@@ -15,11 +16,11 @@ from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 
 def ref(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0):
-    return q.airlight_one(xh, h, ell, kt, ks, code, g, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
 
 
 def march(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0, steps=64, step=0.0, tau_max=20.0, xi=0.5):
-    return rm.airlight_one(xh, h, ell, kt, ks, code, g, steps, step, tau_max, xi, np.zeros(3))
+    return rm.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, steps, step, tau_max, xi, np.zeros(3))
 
 
 # H = 0.91, theta in [-0.99, 1.26] (the METHODS.md §8/§9.1 example)
@@ -49,7 +50,7 @@ def test_rays_that_hit_nothing_march_to_the_optical_depth_cutoff():
     kt, ks = 0.2, 0.14
     exact = ref(2.0, 1.0, math.inf, kt, ks)
     stats = np.zeros(3)
-    got = rm.airlight_one(2.0, 1.0, math.inf, kt, ks, ISOTROPIC, 0.0, 0, 0.01, 20.0, 0.5, stats)
+    got = rm.airlight_one(2.0, 1.0, math.inf, kt, ks, ISOTROPIC, 0.0, POINT_ROW, 0, 0.01, 20.0, 0.5, stats)
     assert stats[rm.SAMPLES] == 10000  # end = tau_max / kt = 100
     assert got == pytest.approx(exact, rel=1e-5)
     # a short cut-off loses the tail beyond it: tau_max = 1 stops at x = 5

@@ -92,21 +92,26 @@ def _ends(va, vb):
 
 
 @njit
-def cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c):
-    """S = sum_k c_k Re E_k by the forward recurrence (stable only for small H*L)."""
-    n = c.shape[0]
+def trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, s):
+    """sum_k c_k Re E_k + s_k Im E_k (= int w(phi) [sum_k c_k cos(k phi) + s_k sin(k phi)] dphi) by
+    the forward recurrence (stable only for small H*L); `s` may be empty."""
+    nc, ns = c.shape[0], s.shape[0]
+    n = max(nc, ns)
     ta, za, tb, zb = _ends(va, vb)
     fin = vb < math.inf
     ebt = eb * tb if fin else 0.0
     eat = ea * ta
     E0 = complex(2.0 * K1, 0.0)
-    s = c[0] * E0.real
-    if n == 1:
-        return s
+    acc = c[0] * E0.real if nc > 0 else 0.0
+    if n <= 1:
+        return acc
     evt = (ebt * vb if fin else 0.0) - eat * va
     et = ebt - eat
     E1 = complex(2.0 * evt + 2.0 * H * L1, -2.0 * (H * K1 + et))
-    s += c[1] * E1.real
+    if nc > 1:
+        acc += c[1] * E1.real
+    if ns > 1:
+        acc += s[1] * E1.imag
     # real arithmetic: q = ebt zb^k - eat za^k (the boundary term), E_k = (er, ei), E_{k-1} = (mr, mi)
     ar, ai = eat * za.real, eat * za.imag
     br, bi = ebt * zb.real, ebt * zb.imag
@@ -120,10 +125,22 @@ def cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c):
         nr = (4.0 * qi - 2.0 * (k * er - H * ei) - (k - 1.0) * mr) * inv
         ni = (-4.0 * qr - 2.0 * (k * ei + H * er) - (k - 1.0) * mi) * inv
         mr, mi, er, ei = er, ei, nr, ni
-        s += c[k + 1] * nr
+        if k + 1 < nc:
+            acc += c[k + 1] * nr
+        if k + 1 < ns:
+            acc += s[k + 1] * ni
         ar, ai = ar * zar - ai * zai, ar * zai + ai * zar
         br, bi = br * zbr - bi * zbi, br * zbi + bi * zbr
-    return s
+    return acc
+
+
+_NO_SINES = np.zeros(0)
+
+
+@njit
+def cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c):
+    """S = sum_k c_k Re E_k by the forward recurrence (stable only for small H*L)."""
+    return trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, _NO_SINES)
 
 
 @njit
@@ -152,3 +169,26 @@ def forward_loss(H, c):
 
 # measured: forward relative error ~ FORWARD_ERR_PER_LOSS * forward_loss (<= 3e-15 * loss)
 FORWARD_ERR_PER_LOSS = 3e-15
+
+
+@njit
+def times_trig(c, a, b, gc, gs):
+    """The product of the cosine series sum_k c_k cos(k phi) (k <= L) and the trigonometric
+    polynomial sum_m a_m cos(m phi) + b_m sin(m phi) (m <= M), as gc (cosines) and gs (sines) of
+    length L + M + 1 (product-to-sum: cos k cos m = (cos(k+m) + cos(k-m)) / 2, cos k sin m =
+    (sin(k+m) - sin(k-m)) / 2); returns sum |gc| + sum |gs|."""
+    gc[:] = 0.0
+    gs[:] = 0.0
+    for k in range(c.shape[0]):
+        ck = c[k]
+        gc[k] += ck * a[0]
+        for m in range(1, a.shape[0]):
+            ha, hb = 0.5 * ck * a[m], 0.5 * ck * b[m]
+            gc[k + m] += ha
+            gc[abs(k - m)] += ha
+            gs[k + m] += hb
+            if m > k:
+                gs[m - k] += hb
+            elif m < k:
+                gs[k - m] -= hb
+    return np.sum(np.abs(gc)) + np.sum(np.abs(gs))

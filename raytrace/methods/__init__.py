@@ -107,6 +107,16 @@ class Method:
     # point_count(segments, medium, params) -> (S,) iterations x strategies `points` would give each
     # segment, so that the renderer can cut the work into chunks of bounded memory
     point_count: Callable | None = None
+    light_types: tuple = ("point",)  # the kinds of light (lights.NAMES) its air-light integrates
+
+    def check_lights(self, lights, source: str):
+        """Refuse lights of a kind this method does not integrate, naming the methods that do."""
+        from ..errors import UserError
+
+        for kind in sorted(lights.kinds() - set(self.light_types)):
+            takers = [m.name for m in registry().values() if kind in m.light_types]
+            raise UserError(f"{source}: --method {self.name}: it does not take {kind} lights (light.type = "
+                            f"\"{kind}\"); use --method {', '.join(takers)}, or make the lights point lights")
 
 
 def registry() -> dict[str, Method]:

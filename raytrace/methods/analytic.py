@@ -40,10 +40,11 @@ import numpy as np
 
 from ..jit import njit
 from . import ErrorLaw, Method, Param
-from .geometry import by_channel
+from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
+from ..lights import falloff, segment_cone, smoothstep_trig
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
-                               legendre_to_cosine, rayleigh_legendre)
+                               legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split
 from .quadrature import CAPPED, _N10, _N20, _W10, _W20
 from .quadrature import airlight_one as quad_airlight
@@ -63,7 +64,9 @@ ST_ZERO = 7             # trivial evaluations (ks = 0, empty segment)
 ST_FALLBACK_FEVALS = 8  # integrand evaluations spent in the fallback
 ST_SERIES_REJECTED = 9  # series results rejected by the rounding-error guard or max_iter (then stable)
 ST_FALLBACK_CAPPED = 10  # fallback evaluations the quadrature did not converge (quadrature.CAPPED)
-STATS_SIZE = 11
+ST_BANDS = 11           # spot smoothstep-band pieces evaluated in closed form
+ST_BAND_GUARD = 12      # band pieces integrated by quadrature because their terms cancel (narrow bands)
+STATS_SIZE = 13
 
 # ---- switching criteria (measured, see tests / report) ----
 # series loses ~log10(e^rho) digits: use it while 30*eps*e^rho <= precision, and (cost: the
@@ -89,41 +92,50 @@ def rho_switch(precision):
     return r
 
 
-@njit
-def v_of(s, h):
-    """v = tan(phi/2) at x - xh = s, cancellation-free (METHODS §1)."""
-    d = math.sqrt(h * h + s * s)
-    if s > 0.0:
-        return (d + s) / h
-    return h / (d - s)
-
-
 QUAD_RTOL_MIN = 1e-13  # the quadrature cannot resolve finer differences of its 10- and 20-point rules
 LOSS_TABLE = 17  # points of the tabulated recurrence loss in the exact mode's coeffs
+# layout of a coefficient block of the exact mode (`_block`): its range of v, the largest H of the
+# forward recurrence and its loss table for the cosine series (point lights, full-intensity pieces)
+# and for the series times a spot's smoothstep band (3 orders more), the final sum's ratio, the series
+B_VLO, B_VHI, B_HMAX, B_RATIO, B_LOSS = 0, 1, 2, 3, 4
+B_HMAX_BAND = B_LOSS + LOSS_TABLE
+B_LOSS_BAND = B_HMAX_BAND + 1
+B_C = B_LOSS_BAND + LOSS_TABLE
+BAND_ORDER = 3  # the smoothstep is a cubic in the cosine to the spot axis: a degree-3 trig polynomial
+BAND_MARGIN = 0.01  # a band's K1, L1 are computed this much finer than its polynomial's terms need
 
 
 @njit
-def _loss(block, H):
+def _loss(block, H, at):
     """The forward recurrence's error amplification at H (0 <= H <= H_max), interpolated from the
-    block's table (`_block`; nodes quadratic in H: the loss grows like exp(2 sqrt(H k)))."""
-    x = (LOSS_TABLE - 1) * math.sqrt(H / block[2]) if block[2] > 0.0 else 0.0
+    block's table at `at` (B_HMAX or B_HMAX_BAND, the table follows at B_LOSS / B_LOSS_BAND; nodes
+    quadratic in H: the loss grows like exp(2 sqrt(H k)))."""
+    hmax = block[at]
+    table = B_LOSS if at == B_HMAX else B_LOSS_BAND
+    x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
     i = min(int(x), LOSS_TABLE - 2)
     f = x - i
-    return max(1.0, (1.0 - f) * block[4 + i] + f * block[5 + i])
+    return max(1.0, (1.0 - f) * block[table + i] + f * block[table + 1 + i])
 
 
 @njit
-def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats):
-    """The reference quadrature (quadrature.py) to a tenth of the requested precision, counted.
-    Its Gauss-Legendre nodes are module constants of quadrature.py (numba freezes them, and they
-    never change)."""
-    stats[ST_FALLBACK] += 1.0
+def _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats):
+    """The reference quadrature (quadrature.py) to a tenth of the requested precision, its integrand
+    evaluations counted. Its Gauss-Legendre nodes are module constants of quadrature.py (numba
+    freezes them, and they never change)."""
     qstats = np.zeros(3)
     rtol = max(0.1 * precision, QUAD_RTOL_MIN)
-    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, rtol, _N10, _W10, _N20, _W20, qstats)
+    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, cone, rtol, _N10, _W10, _N20, _W20, qstats)
     stats[ST_FALLBACK_FEVALS] += 30.0 * qstats[1]
     stats[ST_FALLBACK_CAPPED] += qstats[CAPPED]
     return intensity * val
+
+
+@njit
+def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats):
+    """The whole segment by `_quadrature`, counted."""
+    stats[ST_FALLBACK] += 1.0
+    return _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -182,70 +194,66 @@ def _taylor_poly_part(H, va, vb, Ea, Eb, n):
 
 
 @njit
-def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-             aniso_mode, terms, coeffs, stats):
-    """Air-light Lm of one point light along one ray segment [0, ell] for one channel.
+def _spot_nearline(xh, h, dmin, cone, precision):
+    """The spot falloff for the near-line limit (`_nearline`): on a segment within h/D of the line
+    through the light the cosine to the axis is within dc = h / D of +-B (B ahead of the light,
+    -B behind it); returns (factor, ok), ok if the falloff's variation over that range (slope at most
+    1.5 / (cos_start - cos_end)) is within the precision, or the range lies wholly outside the cone
+    or inside its core."""
+    c0 = cone[1] if xh < 0.0 else -cone[1]
+    dc = h / dmin
+    if c0 + dc <= cone[2]:
+        return 0.0, True
+    if c0 - dc >= cone[3]:
+        return 1.0, True
+    f = falloff(c0, cone[2], cone[3])
+    band = cone[3] - cone[2]
+    return f, band > 0.0 and 1.5 * dc <= SERIES_SAFETY * precision * f * band
 
-    xh: signed projection of the light on the ray; h (>0): light-to-line distance; da: light
-    distance from the ray origin; ell: segment length (may be +inf); kt, ks: extinction and
-    scattering; intensity: radiant intensity; phase_code/g: phase.py codes; precision and
-    max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
-    isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
-    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: coefficient blocks, see
-    `exact_coeffs`); stats: float64[STATS_SIZE] accumulator.
-    """
-    stats[ST_EVALS] += 1.0
-    if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
-        stats[ST_ZERO] += 1.0
-        return 0.0
-    if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
-        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
 
-    finite = ell < math.inf
-    # near-line: light outside the segment and the line passes within h << distance of it
-    if xh < 0.0 or (finite and xh > ell):
-        dmin = abs(xh)
-        if finite and abs(xh - ell) < dmin:
-            dmin = abs(xh - ell)
-        if h < NEARLINE_TOL * dmin:
-            val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
-            # the limit where it meets the precision (else the closed form below, or the fallback
-            # where its ends cancel); always in the Taylor mode, an approximation anyway, whose
-            # polynomial part grows like 1/H^(N-1) as h -> 0
-            if ok or (phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR):
-                stats[ST_NEARLINE] += 1.0
-                return val
-
-    H = kt * h
-    va = v_of(-xh, h)
-    vb = v_of(ell - xh, h) if finite else math.inf
-    pref = intensity * ks / h * 2.0  # times folded integrals
-
+@njit
+def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, terms, coeffs, precision,
+           max_iter, stats):
+    """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
+    Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
+    the Taylor mode's PP-19 sum approximates it),
+    F = 1, or a spot's smoothstep band if `band` (docs/spot_lights.md); err bounds the band's
+    rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
+    moments = exact or band
     block = coeffs
-    if exact:
+    at = B_HMAX_BAND if band else B_HMAX
+    if moments:
         n1 = int(coeffs[0])
         block = coeffs[1:1 + n1]
-        if coeffs.shape[0] > 1 + n1 and coeffs[1 + n1] <= va and vb <= coeffs[2 + n1]:
+        if coeffs.shape[0] > 1 + n1 and coeffs[1 + n1] <= v1 and v2 <= coeffs[2 + n1]:
             block = coeffs[1 + n1:]  # the short series fitted away from the phase function's peak
-    if exact and H > block[2]:  # the cosine-moment recurrence would lose digits: quadrature
-        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
-
-    # ---- I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1 ----
-    rho_a = H * math.sqrt(1.0 + va * va)
-    rho_max = rho_a
-    if finite:
-        rho_b = H * math.sqrt(1.0 + vb * vb)
-        if rho_b > rho_max:
-            rho_max = rho_b
-    # the exact anisotropic mode amplifies errors of I0, I1 by the recurrence's loss (tabulated
-    # against H in the block) and by sum|c_k| / min(Phi) in the final sum (block[3] = 0.1 min(Phi) / sum|c_k|)
+        if H > block[at]:  # the moment recurrence would lose digits: quadrature
+            return 0.0, 0.0, False
+    # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
+    # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
+    # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
+    if band:
+        # F Phi as a trigonometric series of order L + 3 (gc, gs); its terms' size bounds the
+        # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
+        stats[ST_BANDS] += 1.0
+        a = np.empty(BAND_ORDER + 1)
+        b = np.empty(BAND_ORDER + 1)
+        smoothstep_trig(cone[0], cone[1], cone[2], cone[3], a, b)
+        c = block[B_C:]
+        gc = np.empty(c.shape[0] + BAND_ORDER)
+        gs = np.empty(c.shape[0] + BAND_ORDER)
+        size = times_trig(c, a, b, gc, gs)  # sum of |coefficients|
+    rho_max = H * math.sqrt(1.0 + v2 * v2)
     prec_i = precision
-    if exact:
-        prec_i = max(1e-15, precision * block[3] / _loss(block, H))
+    if moments:
+        prec_i = max(1e-15, precision * block[B_RATIO] / _loss(block, H, at))
+    if band:
+        prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
+    rel = prec_i  # relative accuracy of K1 and L1
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series:
-        i0, i1, it, err = i01_series_est(-H, va, vb, prec_i, max_iter)
+        i0, i1, it, err = i01_series_est(-H, v1, v2, prec_i, max_iter)
         stats[ST_SERIES_ITERS] += it
         # a-posteriori guard: estimated rounding error vs the requested precision; a loop that
         # used all max_iter iterations may not have converged
@@ -257,51 +265,143 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
             f = math.exp(-kt * xh)
             K1 = f * i0
             L1 = f * i1
-            if phase_code == ISOTROPIC:
-                return pref * INV_4PI * K1
-    # folded end factors e^{-kt (x + d)} at both ends (optical path light -> end -> camera)
-    Ea = math.exp(-kt * da)
-    Eb = math.exp(-kt * (ell + math.sqrt(h * h + (ell - xh) * (ell - xh)))) if finite else 0.0
+            if phase_code == ISOTROPIC and not band:
+                return INV_4PI * K1, 0.0, True
+    E1 = math.exp(-kt * p1)
+    E2 = math.exp(-kt * p2)
     if not use_series:
-        ga = g_scaled(complex(H * va, H))
-        K1 = -Ea * ga.imag
-        L1 = Ea * ga.real
-        terms_size = abs(K1)
-        if finite:
-            gb = g_scaled(complex(H * vb, H))
-            K1 += Eb * gb.imag
-            L1 -= Eb * gb.real
-            terms_size += Eb * abs(gb.imag)
-        # a segment short in angle: the two ends' terms cancel beyond what g's accuracy resolves
-        if G_REL_ERR * terms_size > SERIES_SAFETY * max(prec_i, 1e-11) * abs(K1):
-            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, precision, stats)
+        ga = g_scaled(complex(H * v1, H))
+        K1 = -E1 * ga.imag
+        L1 = E1 * ga.real
+        ends = abs(K1)
+        if v2 < math.inf:
+            gb = g_scaled(complex(H * v2, H))
+            K1 += E2 * gb.imag
+            L1 -= E2 * gb.real
+            ends += E2 * abs(gb.imag)
+        # a piece short in angle: the two ends' terms cancel beyond what g's accuracy resolves
+        if G_REL_ERR * ends > SERIES_SAFETY * max(prec_i, 1e-11) * abs(K1):
+            return 0.0, 0.0, False
         stats[ST_STABLE] += 1.0
+        if K1 != 0.0:
+            rel = G_REL_ERR * ends / abs(K1)
+
+    if band:
+        # its moments' rounding (relative `rel` from K1, L1, times the recurrence's loss) is bounded
+        # by |E_k| <= E_0 = 2 K1
+        val = 0.5 * trig_moments_forward(H, v1, v2, K1, L1, E1, E2, gc, gs)
+        err = (rel + FORWARD_ERR_PER_LOSS) * _loss(block, H, at) * abs(K1) * size
+        return val, err, True
 
     if phase_code == ISOTROPIC:
-        return pref * INV_4PI * K1
+        return INV_4PI * K1, 0.0, True
 
     if aniso_mode == ANISO_TAYLOR:
         # PP-19 with N = terms coefficients c_n of Phi in v
         R = 1.0
         if phase_code == HG and g > 0.0:
             R = (1.0 - g) / (1.0 + g)
-        if vb > R:
+        if v2 > R:
             stats[ST_TAYLOR_OUT] += 1.0
-        s = 0.0
-        nmax = terms
-        if coeffs.shape[0] < nmax:
-            nmax = coeffs.shape[0]
+        acc = 0.0
+        nmax = min(terms, coeffs.shape[0])
         for n in range(nmax):
             cn = coeffs[n]
             if cn == 0.0:
                 continue
             sg = -1.0 if ((n % 4) // 2) == 1 else 1.0
             base = K1 if n % 2 == 0 else L1
-            s += cn * (_taylor_poly_part(H, va, vb, Ea, Eb, n) + sg * base)
-        return pref * s
+            acc += cn * (_taylor_poly_part(H, v1, v2, E1, E2, n) + sg * base)
+        return acc, 0.0, True
 
-    # ---- exact: Phi as a cosine series, its Fourier moments by the forward recurrence ----
-    return pref * 0.5 * cosine_moments_forward(H, va, vb, K1, L1, Ea, Eb, block[4 + LOSS_TABLE:])
+    # exact: Phi as a cosine series, its Fourier moments by the forward recurrence
+    return 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, block[B_C:]), 0.0, True
+
+
+@njit
+def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
+             aniso_mode, terms, coeffs, cone, stats):
+    """Air-light Lm of one light along one ray segment [0, ell] for one channel.
+
+    xh: signed projection of the light on the ray; h (>0): light-to-line distance; da: light
+    distance from the ray origin; ell: segment length (may be +inf); kt, ks: extinction and
+    scattering; intensity: radiant intensity; phase_code/g: phase.py codes; precision and
+    max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
+    isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
+    `make_coeffs` (Taylor: c_0..c_{N-1}; exact: coefficient blocks, see `exact_coeffs`; spot
+    lights need the exact mode's); cone: the segment's cone row (geometry.py; a spot light's
+    segment is cut where it crosses the cone's edge and core, `lights.segment_cone`); stats:
+    float64[STATS_SIZE] accumulator.
+    """
+    stats[ST_EVALS] += 1.0
+    if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
+        stats[ST_ZERO] += 1.0
+        return 0.0
+    if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
+    spot = cone[3] > -1.0
+
+    finite = ell < math.inf
+    # near-line: light outside the segment and the line passes within h << distance of it
+    if xh < 0.0 or (finite and xh > ell):
+        dmin = abs(xh)
+        if finite and abs(xh - ell) < dmin:
+            dmin = abs(xh - ell)
+        if h < NEARLINE_TOL * dmin:
+            val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
+            if spot:
+                f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
+                val *= f
+                ok = ok and ok_f
+            # the limit where it meets the precision (else the closed form below, or the fallback
+            # where its ends cancel); always in the Taylor mode, an approximation anyway, whose
+            # polynomial part grows like 1/H^(N-1) as h -> 0
+            if ok or (phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR):
+                stats[ST_NEARLINE] += 1.0
+                return val
+
+    H = kt * h
+    va = v_of(-xh, h)
+    vb = v_of(ell - xh, h) if finite else math.inf
+    pref = intensity * ks / h * 2.0  # times folded integrals
+    # optical paths x + d (light -> end -> camera) at both ends
+    pa = da
+    pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
+    if not spot:
+        val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, False, cone, phase_code, g, aniso_mode, terms, coeffs,
+                            precision, max_iter, stats)
+        if not ok:
+            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
+        return pref * val
+    pieces = np.empty((5, 3))
+    n = segment_cone(cone[0], cone[1], cone[2], cone[3], va, vb, pieces)
+    vals = np.zeros(5)
+    errs = np.zeros(5)
+    for i in range(n):
+        if pieces[i, 2] == 0.0:
+            continue
+        v1, v2 = pieces[i, 0], pieces[i, 1]
+        p1 = pa if v1 == va else xh + h * v1
+        p2 = pb if v2 == vb else xh + h * v2
+        vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, pieces[i, 2] == 2.0, cone, phase_code, g,
+                                      aniso_mode, terms, coeffs, precision, max_iter, stats)
+        if not ok:
+            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
+    total = np.sum(vals)
+    out = pref * total
+    if np.sum(errs) > SERIES_SAFETY * precision * total:
+        # narrow bands: their polynomial's terms cancel; each band over its error share is integrated
+        # by quadrature instead, over its own stretch [x1, x2] of the segment (x = x_h + h (v - 1/v) / 2)
+        share = SERIES_SAFETY * precision * total / max(1.0, np.sum(errs > 0.0))
+        for i in range(n):
+            if errs[i] > share:
+                stats[ST_BAND_GUARD] += 1.0
+                v1, v2 = pieces[i, 0], pieces[i, 1]
+                x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
+                x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
+                out += (_quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats)
+                        * math.exp(-kt * x1) - pref * vals[i])
+    return out
 
 
 # ----------------------------------------------------------------------------------------------
@@ -384,27 +484,34 @@ def _usable(precision, ratio):
 
 
 def _block(c, phase, v_lo, v_hi, precision):
-    """One coefficient block of the exact mode, valid for rays with v_lo <= v_a, v_b <= v_hi:
-    [v_lo, v_hi, H_max, ratio, loss table (LOSS_TABLE values), c_0, ..., c_L]. `c` are cosine
-    coefficients (the phase function is sum_k c_k cos(k phi) on the block's range of angles),
-    `phase` the true phase function's values on that range. H_max is the largest H = kt h for which
-    the forward moment recurrence keeps a relative accuracy of precision / 10 (larger H: quadrature;
-    the bisection keeps lo within that accuracy, so H_max only errs low, 0 if not `_usable`);
-    ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum where it cancels; the table
-    holds the recurrence's error amplification at H = H_max (i / (LOSS_TABLE - 1))^2 (`_loss`)."""
+    """One coefficient block of the exact mode, valid for rays with v_lo <= v_a, v_b <= v_hi (layout:
+    the B_* offsets). `c` are cosine coefficients (the phase function is sum_k c_k cos(k phi) on the
+    block's range of angles), `phase` the true phase function's values on that range. H_max is the
+    largest H = kt h for which the forward moment recurrence keeps a relative accuracy of
+    precision / 10 (larger H: quadrature; the bisection keeps lo within that accuracy, so H_max only
+    errs low, 0 if not `_usable`); ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum
+    where it cancels; the table holds the recurrence's error amplification at H = H_max (i /
+    (LOSS_TABLE - 1))^2 (`_loss`). The band's H_max and table are those of the series times a spot's
+    smoothstep (order + 3: coefficient k of the product draws on c_{k-3} .. c_{k+3})."""
     ratio = 0.1 * float(np.min(phase)) / float(np.sum(np.abs(c)))
     tol = precision * ratio
-    lo, hi = 0.0, 1e4
-    if FORWARD_ERR_PER_LOSS * forward_loss(hi, c) <= tol:
-        lo = hi
-    for _ in range(60):  # bisection: the loss grows monotonically with H
-        mid = 0.5 * (lo + hi)
-        if FORWARD_ERR_PER_LOSS * forward_loss(mid, c) <= tol:
-            lo = mid
-        else:
-            hi = mid
-    losses = [forward_loss(lo * (i / (LOSS_TABLE - 1)) ** 2, c) for i in range(LOSS_TABLE)]
-    return np.concatenate(([v_lo, v_hi, lo, ratio], losses, c))
+
+    def limit(cc):
+        lo, hi = 0.0, 1e4
+        if FORWARD_ERR_PER_LOSS * forward_loss(hi, cc) <= tol:
+            lo = hi
+        for _ in range(60):  # bisection: the loss grows monotonically with H
+            mid = 0.5 * (lo + hi)
+            if FORWARD_ERR_PER_LOSS * forward_loss(mid, cc) <= tol:
+                lo = mid
+            else:
+                hi = mid
+        return [lo] + [forward_loss(lo * (i / (LOSS_TABLE - 1)) ** 2, cc) for i in range(LOSS_TABLE)]
+
+    pad = np.pad(np.abs(c), (BAND_ORDER, 2 * BAND_ORDER))
+    spread = np.max([pad[j:j + len(c) + BAND_ORDER] for j in range(2 * BAND_ORDER + 1)], axis=0)
+    point, band = limit(c), limit(spread)
+    return np.concatenate(([v_lo, v_hi, point[0], ratio], point[1:], band, c))
 
 
 def _far_cosine_series(g, precision, phi_lo, phi_hi):
@@ -451,7 +558,7 @@ def exact_coeffs(phase_code, g, precision):
     else:
         a = np.array([INV_4PI])
     if a is None:  # H_max = 0: all its rays to the fallback
-        full = np.concatenate(([0.0, math.inf, 0.0, 1.0], np.ones(LOSS_TABLE), [0.0]))
+        full = np.concatenate(([0.0, math.inf, 0.0, 1.0], np.ones(LOSS_TABLE), [0.0], np.ones(LOSS_TABLE), [0.0]))
     else:
         full = _block(legendre_to_cosine(a), np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 2001), a), 0.0,
                       math.inf, precision)
@@ -463,7 +570,7 @@ def exact_coeffs(phase_code, g, precision):
             phi_lo, phi_hi, v_lo, v_hi = 0.0, math.pi - FAR_ANGLE, 0.0, 1.0 / math.tan(0.5 * FAR_ANGLE)
         c, phase = _far_cosine_series(g, precision, phi_lo, phi_hi)
         far = None if c is None else _block(c, phase, v_lo, v_hi, precision)
-        if far is not None and far[2] > 0.0:
+        if far is not None and far[B_HMAX] > 0.0:
             blocks.append(far)
     return np.concatenate([[len(full)]] + blocks)
 
@@ -499,6 +606,8 @@ def summarize_stats(stats):
         "taylor_out_of_range_fraction": st[ST_TAYLOR_OUT] / nz,
         "fallback_integrand_evaluations": int(st[ST_FALLBACK_FEVALS]),
         "fallback_not_converged": int(st[ST_FALLBACK_CAPPED]),
+        "spot_band_pieces": int(st[ST_BANDS]),
+        "spot_band_quadrature_fraction": st[ST_BAND_GUARD] / max(st[ST_BANDS], 1.0),
     }
 
 
@@ -506,11 +615,12 @@ def summarize_stats(stats):
 # the registered method
 # ----------------------------------------------------------------------------------------------
 @njit
-def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, out, stats):
+def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
+                      stats):
     """Unit-intensity air-light of every segment for one channel's coefficients."""
     for s in range(xh.shape[0]):
         out[s] = airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode, terms,
-                          coeffs, stats)
+                          coeffs, cone[s], stats)
 
 
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
@@ -524,16 +634,29 @@ def working_precision(precision):
     return precision if precision >= 1e-7 else 1e-3 * precision
 
 
+def mode_for(medium, params, lights):
+    """The kernels' anisotropic mode: isotropic media always use the exact mode's coefficients (a
+    spot's band needs its moment blocks); the paper's Taylor mode takes no spot light (refused)."""
+    from ..errors import UserError
+
+    if medium.phase == ISOTROPIC:
+        return ANISO_EXACT
+    if params["anisotropic"] == "taylor" and "spot" in lights.kinds():
+        raise UserError("--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot light; "
+                        "use --anisotropic exact")
+    return ANISO_MODES[params["anisotropic"]]
+
+
 def _airlight(segs, medium, lights, params):
-    mode = ANISO_MODES[params["anisotropic"]]
+    mode = mode_for(medium, params, lights)
     precision = working_precision(params["precision"])
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], precision)
     stats = new_stats()
 
-    def evaluate(xh, h, da, ell, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         evaluate_segments(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
-                          params["terms"], coeffs, out, stats)
+                          params["terms"], coeffs, cone, out, stats)
         return out
 
     return by_channel(segs, medium, lights, evaluate), stats
@@ -554,4 +677,5 @@ METHOD = Method(
     error_law=ErrorLaw({"precision": 1e-6}, "max", 3e-7),  # measured worst 7.2e-8 (isotropic), tests/test_methods.py
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
+    light_types=("point", "spot"),
 )

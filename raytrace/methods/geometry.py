@@ -12,9 +12,11 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..lights import NO_CONE, falloff
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
+POINT_ROW = np.array([0.0, 0.0, *NO_CONE])  # the cone row of a point light (`segment_light_table`)
 
 
 @njit
@@ -32,38 +34,74 @@ def ray_light(ox, oy, oz, wx, wy, wz, px, py, pz, scale):
 
 
 @njit
-def segment_light_table(origins, dirs, lpos, light, scale):
-    """(x_h, h, d_a) of every segment's light from the segment's start, each (S,)."""
+def segment_light_table(origins, dirs, lpos, laxis, lcone, light, scale):
+    """(x_h, h, d_a) of every segment's light from the segment's start, each (S,), and the cone row
+    (S, 4) = (A, B, cos_end, cos_start) of lights.py: A = n·a from h A = (r x w)·(w x a) (r = p - o,
+    exact to rounding even for a light near the line), B = w·a; (0, 0, NO_CONE) for point lights."""
     n = origins.shape[0]
     xh, h, da = np.empty(n), np.empty(n), np.empty(n)
+    cone = np.empty((n, 4))
     for s in range(n):
         li = light[s]
-        xh[s], h[s], da[s] = ray_light(origins[s, 0], origins[s, 1], origins[s, 2], dirs[s, 0], dirs[s, 1],
-                                       dirs[s, 2], lpos[li, 0], lpos[li, 1], lpos[li, 2], scale)
-    return xh, h, da
+        ox, oy, oz = origins[s, 0], origins[s, 1], origins[s, 2]
+        wx, wy, wz = dirs[s, 0], dirs[s, 1], dirs[s, 2]
+        xh[s], h[s], da[s] = ray_light(ox, oy, oz, wx, wy, wz, lpos[li, 0], lpos[li, 1], lpos[li, 2], scale)
+        cone[s, 2], cone[s, 3] = lcone[li, 0], lcone[li, 1]
+        cone[s, 0] = cone[s, 1] = 0.0
+        if lcone[li, 1] > -1.0:
+            ax, ay, az = laxis[li, 0], laxis[li, 1], laxis[li, 2]
+            rx, ry, rz = lpos[li, 0] - ox, lpos[li, 1] - oy, lpos[li, 2] - oz
+            cx, cy, cz = ry * wz - rz * wy, rz * wx - rx * wz, rx * wy - ry * wx
+            ux, uy, uz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+            cone[s, 0] = min(max((cx * ux + cy * uy + cz * uz) / h[s], -1.0), 1.0)
+            cone[s, 1] = wx * ax + wy * ay + wz * az
+    return xh, h, da, cone
 
 
 def segment_geometry(segs, lights):
-    """(x_h, h, d_a) arrays (S,) of a `Segments` batch and its lights."""
-    return segment_light_table(segs.origins, segs.dirs, lights.position, segs.light, segs.scale)
+    """(x_h, h, d_a) arrays (S,) of a `Segments` batch and its lights, and their cone rows (S, 4)."""
+    return segment_light_table(segs.origins, segs.dirs, lights.position, lights.axis, lights.cone, segs.light,
+                               segs.scale)
 
 
 @njit
-def eq4_integrand(x, xh, h, kt, ks, code, g):
+def v_of(s, h):
+    """v = tan(phi/2) at x - xh = s, cancellation-free (METHODS §1)."""
+    d = math.sqrt(h * h + s * s)
+    if s > 0.0:
+        return (d + s) / h
+    return h / (d - s)
+
+
+@njit
+def spot_factor(dx, d, h, cone):
+    """A spot light's falloff (lights.py) toward the point at x - x_h = dx, distance d, on a segment
+    with cone row `cone`: the cosine to its axis is (h A + dx B) / d; 1 for point lights."""
+    if cone[3] <= -1.0:
+        return 1.0
+    return falloff((h * cone[0] + dx * cone[1]) / d, cone[2], cone[3])
+
+
+@njit
+def eq4_integrand(x, xh, h, kt, ks, code, g, cone):
     """The air-light integrand of eq. 4 for a unit-intensity light (x_h, h) at distance x along the
-    segment: ks Phi(-(x - x_h) / d) exp(-kt (x + d)) / d^2, d = sqrt(h^2 + (x - x_h)^2). x + d is the
-    whole optical path light -> x -> segment start, so nothing overflows for lights far behind."""
+    segment: ks Phi(-(x - x_h) / d) F exp(-kt (x + d)) / d^2, d = sqrt(h^2 + (x - x_h)^2), F the spot
+    falloff (`spot_factor`). x + d is the whole optical path light -> x -> segment start, so nothing
+    overflows for lights far behind."""
     dx = x - xh
     d2 = max(h * h + dx * dx, 1e-250)  # h is >= 1e-300: keep 1/d^2 finite when h*h underflows
     d = math.sqrt(d2)
-    return ks * math.exp(-kt * (x + d)) * phase_value(code, g, -dx / d) / d2
+    f = spot_factor(dx, d, h, cone)
+    if f == 0.0:
+        return 0.0
+    return ks * f * math.exp(-kt * (x + d)) * phase_value(code, g, -dx / d) / d2
 
 
 def by_channel(segs, medium, lights, evaluate):
-    """Air-light (S, 3) of a segment batch. `evaluate(xh, h, da, length, kt, ks)` returns the
+    """Air-light (S, 3) of a segment batch. `evaluate(xh, h, da, length, kt, ks, cone)` returns the
     unit-intensity air-light (S,) for one channel's coefficients; channels with equal (kt, ks) share
     one call, channels that do not scatter are 0."""
-    xh, h, da = segment_geometry(segs, lights)
+    xh, h, da, cone = segment_geometry(segs, lights)
     out = np.zeros((len(segs), 3))
     done = {}
     for c in range(3):
@@ -71,7 +109,7 @@ def by_channel(segs, medium, lights, evaluate):
         if key[1] == 0.0:
             continue
         if key not in done:
-            done[key] = evaluate(xh, h, da, segs.length, *key)
+            done[key] = evaluate(xh, h, da, segs.length, *key, cone)
         _scale_into(out, c, done[key], lights.intensity, segs.light)
     return out
 

@@ -197,7 +197,7 @@ def _airlight(segs, medium, lights, params):
     terms = effective_terms(medium.phase, params["terms"])
     pser = phase_series(medium.phase, float(medium.g), MAX_TERMS)
 
-    def evaluate(xh, h, da, ell, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         evaluate_segments(xh, h, ell, kt, ks, _TSEC, pser, terms, out, stats)
         return out

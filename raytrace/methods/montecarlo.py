@@ -30,7 +30,7 @@ from ..jit import njit
 from ..rng import uniform
 from . import ErrorLaw, Method, Param
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import eq4_integrand, segment_geometry
+from .geometry import eq4_integrand, segment_geometry, spot_factor
 from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
@@ -50,7 +50,7 @@ def _p_freepath(x, kt, norm):
 
 
 @njit
-def _draw(xh, h, ell, kt, ks, code, g, mode, key, dim, seed, th_a, th_b, norm):
+def _draw(xh, h, ell, kt, ks, code, g, cone, mode, key, dim, seed, th_a, th_b, norm):
     """One iteration: (x_e, w_e, x_f, w_f), the equiangular and free-path sample positions with their
     weights f/p (MIS: f/(p_e + p_f)); a strategy the mode does not use gets weight 0."""
     xe = xf = 0.0
@@ -61,14 +61,14 @@ def _draw(xh, h, ell, kt, ks, code, g, mode, key, dim, seed, th_a, th_b, norm):
         pe = _p_equiangular(xe, xh, h, th_a, th_b)
         if mode == MIS:
             pe += _p_freepath(xe, kt, norm)
-        we = eq4_integrand(xe, xh, h, kt, ks, code, g) / pe
+        we = eq4_integrand(xe, xh, h, kt, ks, code, g, cone) / pe
     if mode != EQUIANGULAR:
         u = uniform(key, dim + 1, seed)
         xf = min(-math.log1p(-u * norm) / kt, ell)
         pf = _p_freepath(xf, kt, norm)
         if mode == MIS:
             pf += _p_equiangular(xf, xh, h, th_a, th_b)
-        wf = eq4_integrand(xf, xh, h, kt, ks, code, g) / pf
+        wf = eq4_integrand(xf, xh, h, kt, ks, code, g, cone) / pf
     return xe, we, xf, wf
 
 
@@ -80,7 +80,7 @@ def _angles(xh, h, ell, kt):
 
 
 @njit
-def estimate(xh, h, ell, kt, ks, code, g, mode, n, key, dim0, seed):
+def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
     """Mean and variance of the mean of n estimates of the air-light (unit intensity)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
@@ -88,7 +88,7 @@ def estimate(xh, h, ell, kt, ks, code, g, mode, n, key, dim0, seed):
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
-        _, we, _, wf = _draw(xh, h, ell, kt, ks, code, g, mode, key, dim0 + 2 * j, seed, th_a, th_b, norm)
+        _, we, _, wf = _draw(xh, h, ell, kt, ks, code, g, cone, mode, key, dim0 + 2 * j, seed, th_a, th_b, norm)
         est = we + wf
         acc += est
         acc2 += est * est
@@ -98,18 +98,20 @@ def estimate(xh, h, ell, kt, ks, code, g, mode, n, key, dim0, seed):
 
 
 @njit
-def airlight_segments(xh, h, ell, keys, stream, seed, intensity, kt, ks, code, g, mode, n, out, var):
+def airlight_segments(xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, mode, n, out, var):
     """Estimates (S, 3) of every segment's air-light and their variances; segment s draws the
     dimensions 2 n stream[s] + 2 j of its ray's key."""
     for s in range(xh.shape[0]):
         for c in range(3):
-            m, v = estimate(xh[s], h[s], ell[s], kt[c], ks[c], code, g, mode, n, keys[s], 2 * n * stream[s], seed)
+            m, v = estimate(xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], mode, n, keys[s], 2 * n * stream[s],
+                            seed)
             out[s, c] = m * intensity[s, c]
             var[s, c] = v * intensity[s, c] * intensity[s, c]
 
 
 @njit
-def sample_points(origins, dirs, xh, h, ell, keys, stream, seed, intensity, kt, ks, code, g, mode, n, pos, weight):
+def sample_points(origins, dirs, xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, mode, n, pos,
+                  weight):
     """The same samples as `airlight_segments`, as points for volumetric shadows: pos[s, j, k, c] is
     the point drawn by strategy k (0 equiangular, 1 free-path) in iteration j for segment s and
     channel c (free-path distances depend on the channel's kt), weight[s, j, k, c] its I f / p."""
@@ -119,7 +121,7 @@ def sample_points(origins, dirs, xh, h, ell, keys, stream, seed, intensity, kt, 
                 if ks[c] == 0.0 or not ell[s] > 0.0:
                     continue
                 th_a, th_b, norm = _angles(xh[s], h[s], ell[s], kt[c])
-                xe, we, xf, wf = _draw(xh[s], h[s], ell[s], kt[c], ks[c], code, g, mode, keys[s],
+                xe, we, xf, wf = _draw(xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], mode, keys[s],
                                        2 * n * stream[s] + 2 * j, seed, th_a, th_b, norm)
                 for a in range(3):
                     pos[s, j, 0, c, a] = origins[s, a] + xe * dirs[s, a]
@@ -173,7 +175,7 @@ def _x_of(alpha, xh, h, r2, ell):
 
 
 @njit
-def _density(x, xh, h, kt, code, g):
+def _density(x, xh, h, kt, code, g, cone):
     """dF/dtheta at x for ks = 1: Phi(cos phi) exp(-kt (x + d)) / h (the 1/d^2 of eq. 4 cancels
     against dx/dtheta = d^2 / h); 1 -+ cos phi = (d +- (x - x_h)) / d without cancellation."""
     if x == math.inf:
@@ -187,18 +189,19 @@ def _density(x, xh, h, kt, code, g):
     else:
         minus = d - dx
         plus = hh / minus
-    return math.exp(-kt * (x + d)) * phase_split(code, g, -dx / d, plus / d, minus / d) / h
+    f = spot_factor(dx, d, h, cone)
+    return f * math.exp(-kt * (x + d)) * phase_split(code, g, -dx / d, plus / d, minus / d) / h
 
 
 @njit
-def _cdf(x, xh, h, da, kt, code, g, precision, coeffs, astats):
+def _cdf(x, xh, h, da, kt, code, g, cone, precision, coeffs, astats):
     """F(x): the closed-form air-light of the sub-segment [0, x] for ks = 1 and a unit light."""
     return airlight(xh, h, da, x, kt, 1.0, 1.0, code, g, precision, CDF_MAX_ITER, ANISO_EXACT, CDF_TERMS, coeffs,
-                    astats)
+                    cone, astats)
 
 
 @njit
-def _invert(u, xh, h, da, r2, ell, A, ftot, kt, code, g, precision, coeffs, astats, cstats):
+def _invert(u, xh, h, da, r2, ell, A, ftot, kt, code, g, cone, precision, coeffs, astats, cstats):
     """The distance x with F(x) = u F(ell): safeguarded Newton in alpha = theta - theta_a.
 
     Why the angle and not x: as a function of x the CDF has the shape of eq. 4's 1/d^2 peak; on a
@@ -227,14 +230,14 @@ def _invert(u, xh, h, da, r2, ell, A, ftot, kt, code, g, precision, coeffs, asta
     alpha = u * A
     x = _x_of(alpha, xh, h, r2, ell)
     for _ in range(MAX_STEPS):
-        r = _cdf(x, xh, h, da, kt, code, g, precision, coeffs, astats) - target
+        r = _cdf(x, xh, h, da, kt, code, g, cone, precision, coeffs, astats) - target
         if abs(r) <= tol:
             break
         if r < 0.0:
             lo = alpha
         else:
             hi = alpha
-        dens = _density(x, xh, h, kt, code, g)
+        dens = _density(x, xh, h, kt, code, g, cone)
         nxt = alpha - r / dens if dens > 0.0 else hi
         if lo < nxt < hi:
             cstats[CS_NEWTON] += 1.0
@@ -251,7 +254,7 @@ def _invert(u, xh, h, da, r2, ell, A, ftot, kt, code, g, precision, coeffs, asta
 
 
 @njit
-def _totals(xh, h, da, ell, kt, ks, code, g, precision, coeffs, astats, ftot):
+def _totals(xh, h, da, ell, kt, ks, code, g, cone, precision, coeffs, astats, ftot):
     """ftot[c] = F(ell) of every channel for ks = 1 (0 where ks = 0; channels of equal kt share one
     evaluation)."""
     for c in range(3):
@@ -262,18 +265,18 @@ def _totals(xh, h, da, ell, kt, ks, code, g, precision, coeffs, astats, ftot):
         for c2 in range(c):
             if ks[c2] != 0.0 and kt[c2] == kt[c]:
                 same = c2
-        ftot[c] = ftot[same] if same >= 0 else _cdf(ell, xh, h, da, kt[c], code, g, precision, coeffs, astats)
+        ftot[c] = ftot[same] if same >= 0 else _cdf(ell, xh, h, da, kt[c], code, g, cone, precision, coeffs, astats)
 
 
 @njit
-def airlight_segments_cdf(xh, h, da, ell, intensity, kt, ks, code, g, precision, coeffs, out, var, stats):
+def airlight_segments_cdf(xh, h, da, ell, cone, intensity, kt, ks, code, g, precision, coeffs, out, var, stats):
     """`airlight_segments` for sampling = cdf: every sample's weight f/p is F(ell) wherever it
     lands (p = f / F(ell)), so unoccluded the mean of n samples is F(ell) with variance 0, and no
     distance needs to be drawn: one closed-form evaluation per segment and channel."""
     astats = np.zeros(STATS_SIZE)
     ftot = np.zeros(3)
     for s in range(xh.shape[0]):
-        _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, precision, coeffs, astats, ftot)
+        _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, cone[s], precision, coeffs, astats, ftot)
         for c in range(3):
             out[s, c] = ks[c] * ftot[c] * intensity[s, c]
             var[s, c] = 0.0
@@ -282,8 +285,8 @@ def airlight_segments_cdf(xh, h, da, ell, intensity, kt, ks, code, g, precision,
 
 
 @njit
-def sample_points_cdf(origins, dirs, xh, h, da, ell, keys, stream, seed, intensity, kt, ks, code, g, n, precision,
-                      coeffs, pos, weight, stats):
+def sample_points_cdf(origins, dirs, xh, h, da, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, n,
+                      precision, coeffs, pos, weight, stats):
     """`sample_points` for sampling = cdf (one strategy, k = 0): iteration j of segment s draws
     u = uniform(key, 2 n stream + 2 j, seed) (the equiangular sample's number) and, per channel,
     the distance with F(x) = u F(ell) (channels of equal kt share it); its weight is I ks F(ell)."""
@@ -291,7 +294,7 @@ def sample_points_cdf(origins, dirs, xh, h, da, ell, keys, stream, seed, intensi
     ftot = np.zeros(3)
     xs = np.zeros(3)
     for s in range(xh.shape[0]):
-        _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, precision, coeffs, astats, ftot)
+        _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, cone[s], precision, coeffs, astats, ftot)
         A, r2 = _cdf_frame(xh[s], h[s], ell[s])
         for j in range(n):
             u = uniform(keys[s], 2 * n * stream[s] + 2 * j, seed)
@@ -305,8 +308,8 @@ def sample_points_cdf(origins, dirs, xh, h, da, ell, keys, stream, seed, intensi
                 if same >= 0:
                     xs[c] = xs[same]
                 else:
-                    xs[c] = _invert(u, xh[s], h[s], da[s], r2, ell[s], A, ftot[c], kt[c], code, g, precision,
-                                    coeffs, astats, stats)
+                    xs[c] = _invert(u, xh[s], h[s], da[s], r2, ell[s], A, ftot[c], kt[c], code, g, cone[s],
+                                    precision, coeffs, astats, stats)
                 for a in range(3):
                     pos[s, j, 0, c, a] = origins[s, a] + xs[c] * dirs[s, a]
                 weight[s, j, 0, c] = ks[c] * ftot[c] * intensity[s, c]
@@ -315,8 +318,8 @@ def sample_points_cdf(origins, dirs, xh, h, da, ell, keys, stream, seed, intensi
 
 
 def _args(segs, medium, lights, params):
-    xh, h, _ = segment_geometry(segs, lights)
-    return (xh, h, segs.length, segs.keys, segs.stream, np.uint64(segs.seed), lights.intensity[segs.light],
+    xh, h, _, cone = segment_geometry(segs, lights)
+    return (xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed), lights.intensity[segs.light],
             medium.sigma_t, medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], params["samples"])
 
 
@@ -331,8 +334,8 @@ def _airlight(segs, medium, lights, params):
     var = np.zeros_like(out)
     stats = np.zeros(CDF_STATS)
     if params["sampling"] == "cdf":
-        xh, h, da = segment_geometry(segs, lights)
-        airlight_segments_cdf(xh, h, da, segs.length, lights.intensity[segs.light], medium.sigma_t, medium.sigma_s,
+        xh, h, da, cone = segment_geometry(segs, lights)
+        airlight_segments_cdf(xh, h, da, segs.length, cone, lights.intensity[segs.light], medium.sigma_t, medium.sigma_s,
                               medium.phase, medium.g, *cdf_setup(medium), out, var, stats)
     else:
         airlight_segments(*_args(segs, medium, lights, params), out, var)
@@ -348,8 +351,8 @@ def _points(segs, medium, lights, params):
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
     if params["sampling"] == "cdf":
-        xh, h, da = segment_geometry(segs, lights)
-        sample_points_cdf(segs.origins, segs.dirs, xh, h, da, segs.length, segs.keys, segs.stream, np.uint64(segs.seed),
+        xh, h, da, cone = segment_geometry(segs, lights)
+        sample_points_cdf(segs.origins, segs.dirs, xh, h, da, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
                           lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
                           params["samples"], *cdf_setup(medium), pos, weight, np.zeros(CDF_STATS))
     else:
@@ -390,4 +393,5 @@ METHOD = Method(
     stochastic=True,
     points=_points,
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
+    light_types=("point", "spot"),
 )

@@ -42,12 +42,12 @@ EVALS, SAMPLES, CAPPED = 0, 1, 2
 
 
 @njit
-def airlight_one(xh, h, ell, kt, ks, code, g, steps, step, tau_max, xi, stats):
+def airlight_one(xh, h, ell, kt, ks, code, g, cone, steps, step, tau_max, xi, stats):
     """Ray-marched air-light of the segment [0, ell] (ell may be inf), one light, one channel.
 
     steps: sample count when step <= 0; step: step length in scene units (> 0 overrides steps);
     tau_max: optical depth of the cut-off for ell = inf; xi in [0, 1): sample offset in each cell
-    (0.5 = midpoint).
+    (0.5 = midpoint); cone: the segment's cone row (geometry.py).
     """
     if ks == 0.0 or not ell > 0.0:
         return 0.0
@@ -57,16 +57,16 @@ def airlight_one(xh, h, ell, kt, ks, code, g, steps, step, tau_max, xi, stats):
     stats[SAMPLES] += n
     acc = 0.0
     for k in range(n):
-        acc += eq4_integrand((k + xi) * delta, xh, h, kt, ks, code, g)
+        acc += eq4_integrand((k + xi) * delta, xh, h, kt, ks, code, g, cone)
     return acc * delta
 
 
 @njit
-def evaluate_segments(xh, h, ell, keys, seed, kt, ks, code, g, steps, step, tau_max, jitter, out, stats):
+def evaluate_segments(xh, h, ell, keys, seed, kt, ks, code, g, cone, steps, step, tau_max, jitter, out, stats):
     """Unit-intensity air-light of every segment for one channel's coefficients."""
     for s in range(xh.shape[0]):
         xi = uniform(keys[s], DIM_JITTER, seed) if jitter else 0.5
-        out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, code, g, steps, step, tau_max, xi, stats)
+        out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, code, g, cone[s], steps, step, tau_max, xi, stats)
 
 
 @njit
@@ -98,8 +98,8 @@ def counts(ell, kt, steps, step, tau_max):
 
 
 @njit
-def sample_points(origins, dirs, xh, h, ell, keys, seed, intensity, kt, ks, code, g, steps, step, tau_max, jitter,
-                  pos, weight):
+def sample_points(origins, dirs, xh, h, ell, cone, keys, seed, intensity, kt, ks, code, g, steps, step, tau_max,
+                  jitter, pos, weight):
     """The march's samples as points for volumetric shadows: pos[s, k, 0, c] is sample k of segment s
     for channel c, weight[s, k, 0, c] = n_max * Delta * I * f(x_k), so that the mean over k of the
     weights is the marched air-light (samples beyond a segment's own count weigh 0)."""
@@ -115,7 +115,7 @@ def sample_points(origins, dirs, xh, h, ell, keys, seed, intensity, kt, ks, code
                 for a in range(3):
                     pos[s, k, 0, c, a] = origins[s, a] + x * dirs[s, a]
                 weight[s, k, 0, c] = n_max * delta * intensity[s, c] * eq4_integrand(x, xh[s], h[s], kt[c], ks[c],
-                                                                                     code, g)
+                                                                                     code, g, cone[s])
 
 
 def _march(params):
@@ -131,8 +131,8 @@ def _points(segs, medium, lights, params):
     n = int(_point_count(segs, medium, params).max(initial=1))
     pos = np.zeros((len(segs), n, 1, 3, 3))
     weight = np.zeros((len(segs), n, 1, 3))
-    xh, h, _ = segment_geometry(segs, lights)
-    sample_points(segs.origins, segs.dirs, xh, h, segs.length, np.ascontiguousarray(segs.keys, dtype=np.uint64),
+    xh, h, _, cone = segment_geometry(segs, lights)
+    sample_points(segs.origins, segs.dirs, xh, h, segs.length, cone, np.ascontiguousarray(segs.keys, dtype=np.uint64),
                   int(segs.seed), lights.intensity[segs.light], kt, np.asarray(medium.sigma_s, float), medium.phase,
                   medium.g, *_march(params), bool(params["jitter"]), pos, weight)
     return pos, weight
@@ -142,9 +142,9 @@ def _airlight(segs, medium, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(xh, h, da, ell, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
-        evaluate_segments(xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, *_march(params),
+        evaluate_segments(xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone, *_march(params),
                           bool(params["jitter"]), out, stats)
         return out
 
@@ -176,4 +176,5 @@ METHOD = Method(
     summarize=_summarize,
     points=_points,
     point_count=_point_count,
+    light_types=("point", "spot"),
 )

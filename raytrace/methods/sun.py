@@ -219,7 +219,7 @@ def _airlight(segs, medium, lights, params):
     u_max = float(params["u_max"])
     table = load_table(int(params["table_size"]), u_max)
 
-    def evaluate(xh, h, da, ell, kt, ks):
+    def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         evaluate_segments(xh, h, ell, kt, ks, table, u_max, out, stats)
         return out

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from ..lights import Light
+from ..lights import SPOT, Light
 from ..media.medium import Medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -212,18 +212,49 @@ def _shape(ctx, i, raw):
     return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")))
 
 
-LIGHT_KEYS = {"type", "position", "intensity"}
+LIGHT_KEYS = {"point": {"type", "position", "intensity"},
+              "spot": {"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start"}}
 
 
 def _light(ctx, i, raw):
     key = f"light[{i}]"
     raw = _table(ctx, key, raw)
-    ctx.unknown(key, raw, LIGHT_KEYS)
-    _string(ctx, f"{key}.type", raw.get("type", "point"), ("point",))
+    kind = _string(ctx, f"{key}.type", raw.get("type", "point"), tuple(LIGHT_KEYS))
+    ctx.unknown(key, raw, LIGHT_KEYS[kind])
     for k in ("position", "intensity"):
         if k not in raw:
             ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k}")
-    return Light(_vec3(ctx, f"{key}.position", raw["position"]), _rgb(ctx, f"{key}.intensity", raw["intensity"]))
+    pos = _vec3(ctx, f"{key}.position", raw["position"])
+    intensity = _rgb(ctx, f"{key}.intensity", raw["intensity"])
+    if kind == "point":
+        return Light(pos, intensity)
+    return _spot(ctx, key, raw, pos, intensity)
+
+
+def _spot(ctx, key, raw, pos, intensity):
+    """A spot light (pbrt-v4 SpotLight): its axis from look_at or direction, cone and falloff angles
+    in degrees (0 <= falloff_start <= cone_angle < 180; pbrt-v4's defaults: 30 and 25)."""
+    if ("look_at" in raw) == ("direction" in raw):
+        ctx.fail(key, "a spot light needs exactly one of look_at or direction",
+                 "write look_at = [x, y, z] (a point on the axis) or direction = [x, y, z]")
+    if "look_at" in raw:
+        axis = _vec3(ctx, f"{key}.look_at", raw["look_at"]) - pos
+        what = "look_at equals position"
+    else:
+        axis = _vec3(ctx, f"{key}.direction", raw["direction"])
+        what = "direction is zero"
+    norm = float(np.linalg.norm(axis))
+    if not norm > 1e-12 * max(1.0, float(np.linalg.norm(pos))):
+        ctx.fail(f"{key}.{'look_at' if 'look_at' in raw else 'direction'}", what,
+                 "give the axis a length (a point away from the light, or a non-zero direction)")
+    cone = float(_number(ctx, f"{key}.cone_angle", raw.get("cone_angle", 30.0)))
+    if not 0.0 < cone < 180.0:
+        ctx.fail(f"{key}.cone_angle", f"must be in (0, 180) degrees, got {cone!r}", "use e.g. cone_angle = 30")
+    start = float(_number(ctx, f"{key}.falloff_start", raw.get("falloff_start", max(cone - 5.0, 0.0))))
+    if not 0.0 <= start <= cone:
+        ctx.fail(f"{key}.falloff_start", f"must be in [0, cone_angle = {cone:g}] degrees, got {start!r}",
+                 "use a value at most cone_angle (equal: a hard edge)")
+    return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)))
 
 
 MEDIUM_KEYS = {"sigma_a", "sigma_s", "phase"}
