@@ -18,6 +18,9 @@ compile excluded: every configuration is rendered once before timing). Rows:
 - equal time: ray-marching error / analytic error (mean relative, against quadrature at rtol
   1e-12) on the paper's scenes, ray marching's steps doubled until its render takes at least as
   long as analytic's (the two timed in turns at each step count). Skipped with a note when RAYTRACE_ASSETS does not find the meshes.
+- spot / point: analytic render time (precision 1e-6) with the box room's light made a spot light
+  (cone 60 degrees, full within 40, aimed down across the view) / with it a point light, per phase
+  function.
 - shadows: shadowed / unshadowed analytic render time (`volumetric_shadows=True`) on Sibenik, or on
   the plate room when the meshes are missing.
 """
@@ -150,6 +153,26 @@ def equal_time(scenes, rounds):
     return rows
 
 
+def spot_vs_point(size, rounds):
+    rows = []
+    for label, phase in PHASES.items():
+        camera = {**box_room()["camera"], "width": size[0], "height": size[1]}
+        medium = {"sigma_a": 0.05, "sigma_s": 0.15, "phase": phase}
+        point = box_room(camera=camera, medium=medium)
+        light = {**point["light"][0], "type": "spot", "look_at": [0.0, -2.0, -2.0], "cone_angle": 60.0,
+                 "falloff_start": 40.0}
+        spot = box_room(camera=camera, medium=medium, light=[light])
+        (t_spot, t_point), images = medians([(prepare(raytrace.load(spot)), "analytic", {"precision": PRECISION}),
+                                             (prepare(raytrace.load(point)), "analytic", {"precision": PRECISION})],
+                                            rounds)
+        st = images[0].stats
+        rows.append({"row": "spot / point analytic (time)", "case": f"box room, {label}", "ratio": t_spot / t_point,
+                     "detail": f"{t_spot:.3f} s / {t_point:.3f} s; {st['spot_band_pieces']} band pieces, "
+                               f"{st['spot_pieces_by_quadrature']} pieces by quadrature, "
+                               f"fallback {100 * st['fallback_fraction']:.2f}%"})
+    return rows
+
+
 def shadows(prep, case, rounds):
     (t0, t1), _ = medians([(prep, "analytic", {"precision": PRECISION}),
                            (prep, "analytic", {"precision": PRECISION, "volumetric_shadows": True})], rounds)
@@ -175,7 +198,7 @@ def main():
     start = time.perf_counter()
     box, paper, sibenik, rounds = ((240, 180), (384, 192), (512, 256), 7) if args.quick else \
         ((320, 240), (512, 256), (1024, 512), 9)
-    rows = airlight_cost(box, rounds) + equal_error(box, rounds)
+    rows = airlight_cost(box, rounds) + equal_error(box, rounds) + spot_vs_point(box, rounds)
     scenes, notes = paper_scenes(paper)
     rows += equal_time(scenes, rounds)
     if "sibenik" in scenes:

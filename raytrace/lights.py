@@ -29,6 +29,7 @@ NAMES = {POINT: "point", SPOT: "spot"}
 
 # the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1
 NO_CONE = (-3.0, -2.0)
+CUT_TOL = 1e-12  # relative: cone crossings this close to a segment's end are that end
 
 
 @dataclass
@@ -142,7 +143,8 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
     for C in (cos_end, cos_start):
         k = cone_breaks(A, B, C, roots)
         for i in range(k):
-            if va < roots[i] < vb:
+            # crossings within rounding of the ends (a segment cut at the cone, visibility.py) are the ends
+            if va * (1.0 + CUT_TOL) < roots[i] < vb * (1.0 - CUT_TOL):
                 cuts[m] = roots[i]
                 m += 1
         if cos_start == cos_end:
@@ -153,13 +155,20 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
     for i in range(m + 1):
         hi = cuts[i] if i < m else vb
         if hi > lo:
-            # classify by the cosine inside the piece (a geometric mean keeps it inside for any scale)
-            mid = 0.5 * (lo + hi) if lo == 0.0 or hi == math.inf else math.sqrt(lo * hi)
-            if hi == math.inf:
-                mid = 2.0 * lo + 1.0
-            c = cosine_at(A, B, mid)
-            kind = 1.0 if c >= cos_start else (0.0 if c <= cos_end else 2.0)
-            out[n, 0], out[n, 1], out[n, 2] = lo, hi, kind
+            # classify by the cosine at two inside points (geometric means keep them inside for any
+            # scale); two, so that a level the cosine only touches (a double root, no crossing) at
+            # one of them cannot decide: either in the band makes it a band, else the darker wins
+            k = np.empty(2)
+            for j, f in enumerate((0.3, 0.7)):
+                if hi == math.inf:
+                    x = (1.0 + lo) * (2.0 + 4.0 * f)
+                elif lo == 0.0:
+                    x = f * hi
+                else:
+                    x = lo ** (1.0 - f) * hi ** f
+                c = cosine_at(A, B, x)
+                k[j] = 1.0 if c >= cos_start else (0.0 if c <= cos_end else 2.0)
+            out[n, 0], out[n, 1], out[n, 2] = lo, hi, 2.0 if max(k[0], k[1]) == 2.0 else min(k[0], k[1])
             n += 1
         lo = hi
     return n

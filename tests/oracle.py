@@ -86,7 +86,8 @@ def emission(spot, direction) -> float:
 
 def cone_crossings(o, d, tmax, p, spot):
     """Distances in (0, tmax) where the ray crosses the spot's cone or core, by bracketing the
-    cosine to the axis on a fine grid (rays to infinity: up to 1e4 beyond the light) and brentq."""
+    cosine to the axis on a grid uniform in the distance and in the angle seen from the light (rays
+    to infinity: up to 1e4 beyond the light) and brentq."""
     if spot is None:
         return []
     axis, cos_end, cos_start = spot
@@ -96,7 +97,9 @@ def cone_crossings(o, d, tmax, p, spot):
         r = o + x * d - p
         return float(r @ axis) / math.sqrt(r @ r)
 
-    xs = np.concatenate([np.linspace(0.0, end, 20001)[1:-1], [float((p - o) @ d)]])
+    xh, h = float((p - o) @ d), float(np.linalg.norm(np.cross(p - o, d)))
+    angles = np.linspace(-0.5 * math.pi, 0.5 * math.pi, 2001)[1:-1]
+    xs = np.concatenate([np.linspace(0.0, end, 2001)[1:-1], [xh], xh + h * np.tan(angles)])
     xs = np.sort(xs[(xs > 0) & (xs < end)])
     out = []
     for level in (cos_end, cos_start):

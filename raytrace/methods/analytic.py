@@ -65,7 +65,7 @@ ST_FALLBACK_FEVALS = 8  # integrand evaluations spent in the fallback
 ST_SERIES_REJECTED = 9  # series results rejected by the rounding-error guard or max_iter (then stable)
 ST_FALLBACK_CAPPED = 10  # fallback evaluations the quadrature did not converge (quadrature.CAPPED)
 ST_BANDS = 11           # spot smoothstep-band pieces evaluated in closed form
-ST_BAND_GUARD = 12      # band pieces integrated by quadrature because their terms cancel (narrow bands)
+ST_PIECE_QUAD = 12      # spot pieces integrated by quadrature (no closed form, or a narrow band's terms cancel)
 STATS_SIZE = 13
 
 # ---- switching criteria (measured, see tests / report) ----
@@ -386,21 +386,23 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, pieces[i, 2] == 2.0, cone, phase_code, g,
                                       aniso_mode, terms, coeffs, precision, max_iter, stats)
         if not ok:
-            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
-    total = np.sum(vals)
+            errs[i] = math.inf  # no closed form for this piece: quadrature below
+    closed = errs < math.inf
+    total = np.sum(vals[closed])
     out = pref * total
     if np.sum(errs) > SERIES_SAFETY * precision * total:
-        # narrow bands: their polynomial's terms cancel; each band over its error share is integrated
-        # by quadrature instead, over its own stretch [x1, x2] of the segment (x = x_h + h (v - 1/v) / 2)
+        # pieces without a closed form, and narrow bands whose polynomial's terms cancel (each band
+        # over its share of the error): quadrature over the piece's own stretch [x1, x2] of the
+        # segment (x = x_h + h (v - 1/v) / 2)
         share = SERIES_SAFETY * precision * total / max(1.0, np.sum(errs > 0.0))
         for i in range(n):
             if errs[i] > share:
-                stats[ST_BAND_GUARD] += 1.0
+                stats[ST_PIECE_QUAD] += 1.0
                 v1, v2 = pieces[i, 0], pieces[i, 1]
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
-                out += (_quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats)
-                        * math.exp(-kt * x1) - pref * vals[i])
+                out += _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats) \
+                    * math.exp(-kt * x1) - (pref * vals[i] if closed[i] else 0.0)
     return out
 
 
@@ -607,7 +609,7 @@ def summarize_stats(stats):
         "fallback_integrand_evaluations": int(st[ST_FALLBACK_FEVALS]),
         "fallback_not_converged": int(st[ST_FALLBACK_CAPPED]),
         "spot_band_pieces": int(st[ST_BANDS]),
-        "spot_band_quadrature_fraction": st[ST_BAND_GUARD] / max(st[ST_BANDS], 1.0),
+        "spot_pieces_by_quadrature": int(st[ST_PIECE_QUAD]),
     }
 
 
