@@ -21,6 +21,7 @@ from collections import OrderedDict
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
+import dask
 from distributed import Client, LocalCluster, as_completed
 
 from . import renderer
@@ -31,6 +32,10 @@ from .scene.format import Scene
 CONNECT_TIMEOUT = 10.0  # seconds to reach a scheduler
 WORKER_TIMEOUT = 20.0  # seconds to wait for a scheduler's first worker
 CACHED_SCENES = 2  # prepared scenes kept per worker process
+# Dask starts worker processes with MALLOC_TRIM_THRESHOLD_ set, which turns off glibc's dynamic mmap
+# threshold: every large temporary array of a tile is then mapped and faulted in afresh, and tiles take
+# 25-40 % longer (benchmarks/cluster.py). Local clusters leave it unset (README: remote workers).
+TRIM = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
 
 _cache: OrderedDict[str, renderer.Prepared] = OrderedDict()
 _warm: set = set()
@@ -141,8 +146,10 @@ def connect(spec: str, log=None):
     logging.getLogger("distributed").setLevel(logging.CRITICAL)  # failures are reported as UserErrors
     if spec.startswith("local:"):
         n = _local_workers(spec)
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+        with (dask.config.set({TRIM: None}),
+              LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           silence_logs=logging.CRITICAL) as cluster,
+              Client(cluster) as client):
             _announce(client, spec, log)
             yield client
         return
