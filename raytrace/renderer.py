@@ -21,6 +21,7 @@ from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
 from .lights import Lights
+from .media.particles import particle_radiance
 from .methods import get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
@@ -108,6 +109,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         radiance += air
         if method.stochastic:
             variance = var
+    if medium.particles is not None:  # seed 003's particle layer on top of the air-light
+        radiance += particle_radiance(medium.particles, medium, prep.lights, prep.accel, origins, dirs, t, keys,
+                                      shadows is not None)
     return radiance, stats, variance
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .particles import Particles
 from .phase import ISOTROPIC
 
 
@@ -18,6 +19,7 @@ class Medium:
     sigma_s: np.ndarray
     phase: int = ISOTROPIC  # a phase.py code
     g: float = 0.0  # Henyey-Greenstein asymmetry
+    particles: Particles | None = None  # seed 003's particle layer (particles.py)
 
     @property
     def sigma_t(self) -> np.ndarray:

@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import UserError
 from ..lights import SPOT, Light
 from ..media.medium import Medium
+from ..media.particles import Particles
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
 PRIMITIVES = ("box", "quad", "sphere", "cylinder")
@@ -257,7 +258,50 @@ def _spot(ctx, key, raw, pos, intensity):
     return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)))
 
 
-MEDIUM_KEYS = {"sigma_a", "sigma_s", "phase"}
+MEDIUM_KEYS = {"sigma_a", "sigma_s", "phase", "particles"}
+PARTICLE_KEYS = {"density", "mu", "sigma", "cell", "offset", "step", "beta", "c1", "c2", "reflectance", "seed"}
+
+
+def _particles(ctx, raw, scatters):
+    """[medium.particles]: seed 003's particle layer (media/particles.py); defaults are the seed's."""
+    if raw is None:
+        return None
+    key = "medium.particles"
+    raw = _table(ctx, key, raw)
+    ctx.unknown(key, raw, PARTICLE_KEYS)
+    if not scatters:
+        ctx.fail(key, "the particles scatter with the medium's sigma_s, which is zero",
+                 "give the medium a sigma_s > 0 or remove [medium.particles]")
+    if "beta" in raw and ("c1" in raw or "c2" in raw):
+        ctx.fail(f"{key}.beta", "replaces the seed's beta = ((1 - d) + c1) c2, so c1 and c2 would be ignored",
+                 "give either beta or c1 and c2")
+    d = Particles()
+    density = float(_number(ctx, f"{key}.density", raw.get("density", d.density), minimum=0.0))
+    if density > 1.0:
+        ctx.fail(f"{key}.density", f"scales the density term d in [0, 1] and must be at most 1, got {density!r}",
+                 "use a value in [0, 1] (0: no particles)")
+    refl = float(_number(ctx, f"{key}.reflectance", raw.get("reflectance", d.reflectance), minimum=0.0))
+    if refl > 1.0:
+        ctx.fail(f"{key}.reflectance", f"exceeds 1 (particles would create energy), got {refl!r}",
+                 "use a value in [0, 1]")
+    seed = _number(ctx, f"{key}.seed", raw.get("seed", d.seed), integer=True, minimum=0)
+    if seed >= 2 ** 63:
+        ctx.fail(f"{key}.seed", f"must be below 2^63, got {seed!r}", "use a smaller whole number")
+    cell = float(_number(ctx, f"{key}.cell", raw.get("cell", d.cell), positive=True))
+    beta = raw.get("beta")
+    return Particles(
+        density=density,
+        mu=float(_number(ctx, f"{key}.mu", raw.get("mu", d.mu))),
+        sigma=float(_number(ctx, f"{key}.sigma", raw.get("sigma", d.sigma), positive=True)),
+        cell=cell,
+        offset=float(_number(ctx, f"{key}.offset", raw.get("offset", d.offset), minimum=0.0)),
+        step=float(_number(ctx, f"{key}.step", raw.get("step", cell), positive=True)),
+        beta=None if beta is None else float(_number(ctx, f"{key}.beta", beta, positive=True)),
+        c1=float(_number(ctx, f"{key}.c1", raw.get("c1", d.c1), minimum=0.0)),
+        c2=float(_number(ctx, f"{key}.c2", raw.get("c2", d.c2), minimum=0.0)),
+        reflectance=refl,
+        seed=seed,
+    )
 
 
 def _medium(ctx, raw):
@@ -267,25 +311,26 @@ def _medium(ctx, raw):
     ctx.unknown("medium", raw, MEDIUM_KEYS)
     sa = _rgb(ctx, "medium.sigma_a", raw.get("sigma_a", 0.0))
     ss = _rgb(ctx, "medium.sigma_s", raw.get("sigma_s", 0.0))
+    particles = _particles(ctx, raw.get("particles"), bool(np.any(ss > 0.0)))
     phase = raw.get("phase", "isotropic")
     if isinstance(phase, str):
         name = _string(ctx, "medium.phase", phase, ("isotropic", "rayleigh", "hg"))
         if name == "hg":
             ctx.fail("medium.phase", "Henyey-Greenstein needs its asymmetry g", 'write phase = { type = "hg", g = 0.5 }')
-        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0)
+        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0, particles)
     phase = _table(ctx, "medium.phase", phase)
     ctx.unknown("medium.phase", phase, {"type", "g"})
     name = _string(ctx, "medium.phase.type", phase.get("type", "hg"), ("isotropic", "rayleigh", "hg"))
     if name != "hg":
         if "g" in phase:
             ctx.fail("medium.phase.g", f"only Henyey-Greenstein takes g, not {name}", 'remove g or use type = "hg"')
-        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0)
+        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0, particles)
     if "g" not in phase:
         ctx.fail("medium.phase.g", "missing", "add g in (-1, 1), e.g. g = 0.5")
     g = float(_number(ctx, "medium.phase.g", phase["g"]))
     if not abs(g) < 1.0:
         ctx.fail("medium.phase.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
-    return Medium(sa, ss, HG, g)
+    return Medium(sa, ss, HG, g, particles)
 
 
 RENDER_OPTIONS = ("method", "seed", "volumetric_shadows", "shadow_spacing")  # [render] keys that are not method parameters
