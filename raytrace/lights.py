@@ -107,70 +107,75 @@ def cosine_at(A, B, v):
 
 
 @njit
-def cone_breaks(A, B, C, out):
-    """The v in (0, inf) where c = A sin(phi) - B cos(phi) equals C, written to out[:2]; returns how
-    many (0, 1 or 2), ascending. c = C is (B - C) v^2 + 2 A v - (B + C) = 0 (c = 2Av/(1+v^2) -
+def cone_breaks(A, B, C):
+    """(count, v1, v2): the v in (0, inf) where c = A sin(phi) - B cos(phi) equals C, ascending (0, 1
+    or 2 of them; unused slots inf). c = C is (B - C) v^2 + 2 A v - (B + C) = 0 (c = 2Av/(1+v^2) -
     B (1-v^2)/(1+v^2)); both roots without cancellation (q = -(A + sign(A) sqrt(disc)))."""
     disc = A * A + B * B - C * C
-    n = 0
     if not disc > 0.0:
-        return 0
+        return 0, math.inf, math.inf
     a2 = B - C
-    c0 = -(B + C)
     q = -(A + math.copysign(math.sqrt(disc), A))
     r1 = q / a2 if a2 != 0.0 else math.inf
-    r2 = c0 / q if q != 0.0 else math.inf
-    for r in (r1, r2):
-        if r > 0.0 and r < math.inf:
-            out[n] = r
-            n += 1
-    if n == 2 and out[1] < out[0]:
-        out[0], out[1] = out[1], out[0]
-    return n
+    r2 = -(B + C) / q if q != 0.0 else math.inf
+    good1 = 0.0 < r1 < math.inf
+    good2 = 0.0 < r2 < math.inf
+    if good1 and good2:
+        return 2, min(r1, r2), max(r1, r2)
+    if good1:
+        return 1, r1, math.inf
+    if good2:
+        return 1, r2, math.inf
+    return 0, math.inf, math.inf
+
+
+@njit
+def _kind(A, B, cos_end, cos_start, v):
+    c = cosine_at(A, B, v)
+    return 1.0 if c >= cos_start else (0.0 if c <= cos_end else 2.0)
 
 
 @njit
 def segment_cone(A, B, cos_end, cos_start, va, vb, out):
     """The pieces of [va, vb] (v = tan(phi/2)) between the cone's crossings: out[i] = (v_lo, v_hi,
-    kind) with kind 0 (dark), 1 (full intensity), 2 (smoothstep band); returns the count (<= 5).
-    A light without a cone (cos_start <= -1) is one full piece."""
+    kind) with kind 0 (dark), 1 (full intensity), 2 (smoothstep band); returns the count (<= 5 rows
+    of `out`, no allocation). A light without a cone (cos_start <= -1) is one full piece."""
     if cos_start <= -1.0:
         out[0, 0], out[0, 1], out[0, 2] = va, vb, 1.0
         return 1
-    cuts = np.empty(6)
-    roots = np.empty(2)
     m = 0
     for C in (cos_end, cos_start):
-        k = cone_breaks(A, B, C, roots)
+        k, r1, r2 = cone_breaks(A, B, C)
         for i in range(k):
+            r = r1 if i == 0 else r2
             # crossings within rounding of the ends (a segment cut at the cone, visibility.py) are the ends
-            if va * (1.0 + CUT_TOL) < roots[i] < vb * (1.0 - CUT_TOL):
-                cuts[m] = roots[i]
+            if va * (1.0 + CUT_TOL) < r < vb * (1.0 - CUT_TOL):
+                j = m  # insertion sort into the scratch column out[:, 2]
+                while j > 0 and out[j - 1, 2] > r:
+                    out[j, 2] = out[j - 1, 2]
+                    j -= 1
+                out[j, 2] = r
                 m += 1
         if cos_start == cos_end:
             break
-    cuts[:m].sort()
+    for i in range(m):
+        out[i + 1, 0] = out[i, 2]  # piece i + 1 starts at cut i
+    out[0, 0] = va
     n = 0
-    lo = va
     for i in range(m + 1):
-        hi = cuts[i] if i < m else vb
+        lo = out[i, 0]
+        hi = out[i + 1, 0] if i < m else vb
         if hi > lo:
-            # classify by the cosine at two inside points (geometric means keep them inside for any
-            # scale); two, so that a level the cosine only touches (a double root, no crossing) at
-            # one of them cannot decide: either in the band makes it a band, else the darker wins
-            k = np.empty(2)
-            for j, f in enumerate((0.3, 0.7)):
-                if hi == math.inf:
-                    x = (1.0 + lo) * (2.0 + 4.0 * f)
-                elif lo == 0.0:
-                    x = f * hi
-                else:
-                    x = lo ** (1.0 - f) * hi ** f
-                c = cosine_at(A, B, x)
-                k[j] = 1.0 if c >= cos_start else (0.0 if c <= cos_end else 2.0)
-            out[n, 0], out[n, 1], out[n, 2] = lo, hi, 2.0 if max(k[0], k[1]) == 2.0 else min(k[0], k[1])
+            # classify by the cosine at two inside points; two, so that a level the cosine only
+            # touches (a double root, no crossing) at one of them cannot decide: either in the band
+            # makes it a band, else the darker wins
+            if hi == math.inf:
+                x1, x2 = (1.0 + lo) * 3.2, (1.0 + lo) * 4.8
+            else:
+                x1, x2 = lo + 0.3 * (hi - lo), lo + 0.7 * (hi - lo)
+            k1, k2 = _kind(A, B, cos_end, cos_start, x1), _kind(A, B, cos_end, cos_start, x2)
+            out[n, 0], out[n, 1], out[n, 2] = lo, hi, 2.0 if max(k1, k2) == 2.0 else min(k1, k2)
             n += 1
-        lo = hi
     return n
 
 

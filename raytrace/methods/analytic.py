@@ -213,12 +213,13 @@ def _spot_nearline(xh, h, dmin, cone, precision):
 
 @njit
 def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, terms, coeffs, precision,
-           max_iter, stats):
+           max_iter, work, stats):
     """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
     Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
     the Taylor mode's PP-19 sum approximates it),
     F = 1, or a spot's smoothstep band if `band` (docs/spot_lights.md); err bounds the band's
-    rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature)."""
+    rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature).
+    `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     moments = exact or band
     block = coeffs
@@ -237,12 +238,13 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         # F Phi as a trigonometric series of order L + 3 (gc, gs); its terms' size bounds the
         # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
         stats[ST_BANDS] += 1.0
-        a = np.empty(BAND_ORDER + 1)
-        b = np.empty(BAND_ORDER + 1)
+        a = work[:BAND_ORDER + 1]
+        b = work[BAND_ORDER + 1:2 * BAND_ORDER + 2]
         smoothstep_trig(cone[0], cone[1], cone[2], cone[3], a, b)
         c = block[B_C:]
-        gc = np.empty(c.shape[0] + BAND_ORDER)
-        gs = np.empty(c.shape[0] + BAND_ORDER)
+        m = c.shape[0] + BAND_ORDER
+        gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
+        gs = work[2 * BAND_ORDER + 2 + m:2 * BAND_ORDER + 2 + 2 * m]
         size = times_trig(c, a, b, gc, gs)  # sum of |coefficients|
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     prec_i = precision
@@ -251,7 +253,9 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     if band:
         prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
     rel = prec_i  # relative accuracy of K1 and L1
-    use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
+    # (a band's K1, L1 are wanted finer than the series' rounding on a piece short in angle allows:
+    # the scaled-E1 ends at once)
+    use_series = not band and rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series:
         i0, i1, it, err = i01_series_est(-H, v1, v2, prec_i, max_iter)
         stats[ST_SERIES_ITERS] += it
@@ -369,14 +373,15 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
         val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, False, cone, phase_code, g, aniso_mode, terms, coeffs,
-                            precision, max_iter, stats)
+                            precision, max_iter, coeffs[:0], stats)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
         return pref * val
-    pieces = np.empty((5, 3))
+    work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
+    pieces = work[:15].reshape((5, 3))
+    vals = work[15:20]
+    errs = work[20:25]
     n = segment_cone(cone[0], cone[1], cone[2], cone[3], va, vb, pieces)
-    vals = np.zeros(5)
-    errs = np.zeros(5)
     for i in range(n):
         if pieces[i, 2] == 0.0:
             continue
@@ -384,17 +389,19 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         p1 = pa if v1 == va else xh + h * v1
         p2 = pb if v2 == vb else xh + h * v2
         vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, pieces[i, 2] == 2.0, cone, phase_code, g,
-                                      aniso_mode, terms, coeffs, precision, max_iter, stats)
+                                      aniso_mode, terms, coeffs, precision, max_iter, work[25:], stats)
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
-    closed = errs < math.inf
-    total = np.sum(vals[closed])
+    total = 0.0
+    for i in range(n):
+        if errs[i] < math.inf:
+            total += vals[i]
     out = pref * total
-    if np.sum(errs) > SERIES_SAFETY * precision * total:
+    if np.sum(errs[:n]) > SERIES_SAFETY * precision * total:
         # pieces without a closed form, and narrow bands whose polynomial's terms cancel (each band
         # over its share of the error): quadrature over the piece's own stretch [x1, x2] of the
         # segment (x = x_h + h (v - 1/v) / 2)
-        share = SERIES_SAFETY * precision * total / max(1.0, np.sum(errs > 0.0))
+        share = SERIES_SAFETY * precision * total / max(1.0, np.sum(errs[:n] > 0.0))
         for i in range(n):
             if errs[i] > share:
                 stats[ST_PIECE_QUAD] += 1.0
@@ -402,7 +409,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
                 out += _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats) \
-                    * math.exp(-kt * x1) - (pref * vals[i] if closed[i] else 0.0)
+                    * math.exp(-kt * x1) - (pref * vals[i] if errs[i] < math.inf else 0.0)
     return out
 
 

@@ -108,10 +108,10 @@ def _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, out0, out1):
     out0[0], out1[0] = phi_a, psi_end
     n0 = n1 = 1
     if cone[3] > -1.0:
-        roots = np.empty(2)
         for C in (cone[2], cone[3]):
-            for i in range(cone_breaks(cone[0], cone[1], C, roots)):
-                v = roots[i]
+            k, r1, r2 = cone_breaks(cone[0], cone[1], C)
+            for i in range(k):
+                v = r1 if i == 0 else r2
                 if v < 1.0:
                     phi = 2.0 * math.atan(v)
                     if phi_a < phi < phi_b:
