@@ -93,6 +93,23 @@ def _mesh_colour(geom) -> np.ndarray | None:
     return None
 
 
+def _first_bad_vertex(path) -> str:
+    """", first at line N" for the first OBJ vertex line (v x y z) with a nan or inf, else ""."""
+    if path.suffix.lower() != ".obj":
+        return ""
+    with open(path, "rb") as f:
+        for n, line in enumerate(f, 1):
+            parts = line.split()
+            if parts[:1] == [b"v"]:
+                try:
+                    values = [float(x) for x in parts[1:4]]
+                except ValueError:
+                    continue
+                if not all(np.isfinite(values)):
+                    return f", first at line {n}: {line.decode(errors='replace').strip()}"
+    return ""
+
+
 def load_mesh(shape: Shape, scene: Scene, key: str):
     import trimesh
 
@@ -109,6 +126,9 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
         if not hasattr(geom, "faces") or len(geom.faces) == 0:
             continue
         v = np.asarray(geom.vertices, dtype=np.float64)
+        if not np.all(np.isfinite(v)):
+            raise UserError(f"{path}: {key}.mesh: {int(np.sum(~np.all(np.isfinite(v), axis=1)))} vertices are not "
+                            f"finite (nan or inf){_first_bad_vertex(path)}; fix or remove them in the file")
         v = v @ transform[:3, :3].T + transform[:3, 3]
         t = v[np.asarray(geom.faces)]
         tris.append(t)
@@ -141,7 +161,12 @@ def scene_triangles(scene: Scene):
             refl = np.full((len(tris), 3), DEFAULT_REFLECTANCE)
         if shape.reflectance is not None:
             refl = np.broadcast_to(shape.reflectance, (len(tris), 3))
-        all_tris.append(apply_transform(tris, shape.transform))
+        with np.errstate(over="ignore", invalid="ignore"):  # checked just below
+            tris = apply_transform(tris, shape.transform)
+        if not np.all(np.isfinite(tris)):
+            raise UserError(f"{scene.path or 'scene'}: {key}.transform: makes vertices overflow to inf; "
+                            "use a smaller scale or translation (or scale the whole scene down)")
+        all_tris.append(tris)
         all_refl.append(np.clip(refl, 0.0, 1.0))
     if not all_tris:
         return np.zeros((0, 3, 3)), np.zeros((0, 3))

@@ -1,0 +1,41 @@
+"""Inputs just outside the tested list (issue 15): meshes with nan or inf vertices and transforms that
+overflow are refused with one line naming the file, the count and the first bad vertex line;
+nothing is written."""
+from __future__ import annotations
+
+import pytest
+
+from raytrace.cli import main
+
+from .conftest import box_room
+
+TRIANGLE = "v 0 0 -3\nv 1 0 -3\nv 0 1 -3\nf 1 2 3\n"
+
+
+def mesh_room(tmp_path, obj_text, transform=None):
+    (tmp_path / "m.obj").write_text(obj_text)
+    shape = {"mesh": "m.obj"}
+    if transform:
+        shape["transform"] = transform
+    return box_room(shape=[box_room()["shape"][0], shape])
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf"])
+def test_a_mesh_with_non_finite_vertices_is_refused(write_scene, tmp_path, capsys, bad):
+    text = "# a triangle and a broken one\n" + TRIANGLE + f"v 0 0 {bad}\nv 2 0 -3\nv 0 2 -3\nf 4 5 6\n"
+    path = write_scene(mesh_room(tmp_path, text))
+    out = tmp_path / "x.exr"
+    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "m.obj" in err and "shape[1].mesh" in err, err
+    assert "1 vertices are not finite" in err and f"first at line 6: v 0 0 {bad}" in err, err
+    assert not out.exists()
+
+
+def test_a_transform_that_overflows_is_refused(write_scene, tmp_path, capsys):
+    path = write_scene(mesh_room(tmp_path, TRIANGLE, {"scale": 1e308}))
+    out = tmp_path / "x.exr"
+    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "shape[1].transform" in err and "overflow" in err, err
+    assert not out.exists()
