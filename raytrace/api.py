@@ -13,6 +13,7 @@ the method's own parameters; a parameter the method does not read is an error (U
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,6 +124,27 @@ def _check_crop(crop, cam):
     return tuple(int(v) for v in crop)
 
 
+# bytes per pixel a render holds at its end: the float64 image (24), its variance (24, stochastic
+# methods), the float32 copy written to the EXR (12) and the PNG preview's working copy (24)
+PIXEL_BYTES, VARIANCE_BYTES = 60, 24
+MEMORY_SHARE = 0.8  # of the machine's physical memory a render may plan to use
+
+
+def physical_memory() -> int:
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def check_memory(cam, crop, stochastic: bool, source: str):
+    """Refuse, before anything is allocated, an image whose arrays would not fit in memory."""
+    x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
+    need = (x1 - x0) * (y1 - y0) * (PIXEL_BYTES + (VARIANCE_BYTES if stochastic else 0))
+    limit = MEMORY_SHARE * physical_memory()
+    if need > limit:
+        raise UserError(f"{source}: camera {cam.width}x{cam.height}: the image needs about {need / 2**30:.3g} GiB, "
+                        f"more than {limit / 2**30:.3g} GiB ({MEMORY_SHARE:.0%} of this machine's memory); lower "
+                        "camera.width / camera.height (--width, --height) or render it in parts with --crop")
+
+
 def render(scene=None, method: str | None = None, *, spp: int | None = None, width: int | None = None,
            height: int | None = None, seed: int | None = None, threads: int | None = None, crop=None,
            volumetric_shadows: bool | None = None, shadow_spacing: float | None = None, passes: int | None = None, time_budget: float | None = None,
@@ -165,6 +187,7 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
     if progressive and not m.stochastic:
         raise UserError(f"--method {m.name}: deterministic; --passes, --time-budget, --target-error and "
                         "--checkpoint need a stochastic method such as montecarlo")
+    check_memory(cam, crop, m.stochastic, source)
     prep = prepared if prepared is not None else renderer.prepare(scene)
     if m.stochastic:
         from .progressive import render_progressive

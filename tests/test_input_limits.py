@@ -39,3 +39,26 @@ def test_a_transform_that_overflows_is_refused(write_scene, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "shape[1].transform" in err and "overflow" in err, err
     assert not out.exists()
+
+
+def test_an_image_too_large_for_memory_is_refused_up_front(write_scene, tmp_path, capsys):
+    path = write_scene(box_room())
+    out = tmp_path / "x.exr"
+    assert main(["render", str(path), "--width", "100000", "--height", "100000", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "camera 100000x100000" in err and "GiB" in err and "--crop" in err, err
+    assert not out.exists()
+
+
+def test_a_large_legal_image_is_not_refused():
+    """A 16k x 8k environment map (Monte Carlo, with variance) fits a 24 GiB machine's budget."""
+    from types import SimpleNamespace
+
+    from raytrace import api
+
+    cam = SimpleNamespace(width=16384, height=8192)
+    need = 16384 * 8192 * (api.PIXEL_BYTES + api.VARIANCE_BYTES)
+    assert need < api.MEMORY_SHARE * 24 * 2**30
+    if need < api.MEMORY_SHARE * api.physical_memory():
+        api.check_memory(cam, None, True, "test")
+    api.check_memory(cam, (0, 0, 64, 64), True, "test")  # a crop of it always
