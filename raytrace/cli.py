@@ -281,7 +281,8 @@ def cmd_table1(args):
 
 
 def cmd_describe(args):
-    from .lights import NAMES as NAMES_L
+    from .lights import DIRECTIONAL, NAMES as NAMES_L
+    from .media.medium import HOMOGENEOUS, LINEAR
     from .media.phase import NAMES
     from .scene.meshes import scene_triangles
 
@@ -300,12 +301,20 @@ def cmd_describe(args):
         pts = tris.reshape(-1, 3)
         print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")
     for i, l in enumerate(scene.lights):
+        if l.kind == DIRECTIONAL:
+            print(f"light[{i}]: directional, travelling along {l.axis.round(6).tolist()}, irradiance "
+                  f"{l.intensity.tolist()}")
+            continue
         cone = "" if l.axis is None else (f", axis {l.axis.round(6).tolist()}, cone {math.degrees(math.acos(l.cos_end)):g} deg, "
                                           f"falloff from {math.degrees(math.acos(l.cos_start)):g} deg")
         print(f"light[{i}]: {NAMES_L[l.kind]} at {l.position.tolist()}, intensity {l.intensity.tolist()}{cone}")
     m = scene.medium
     phase = NAMES[m.phase] + (f" g={m.g}" if NAMES[m.phase] == "hg" else "")
     print(f"medium: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, sigma_t {m.sigma_t.tolist()}, phase {phase}")
+    if m.kind != HOMOGENEOUS:
+        profile = "linear" if m.profile == LINEAR else "exponential"
+        print(f"  {m.kind}: coefficients at h0 = {m.h0:g} along up {m.up.round(6).tolist()}, {profile} profile, "
+              f"scale height {m.scale_height:g}")
     print(f"background: {scene.background.tolist()}")
     if scene.render:
         print(f"render: {scene.render}")

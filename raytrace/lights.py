@@ -4,6 +4,8 @@ Point lights are isotropic: radiant intensity I per channel, so the irradiance a
 before the medium's attenuation, is I / d^2 (the paper's eqs. 4 and 5). A spot light (pbrt-v4's
 SpotLight) emits I F(cos) toward a direction at cosine `cos` from its axis, with the falloff F = 1
 within `falloff_start`, 0 beyond `cone_angle`, and smoothstep in the cosine between (`falloff`).
+A directional light (the sun) has no position: `axis` is its direction of travel and `intensity`
+its irradiance E per channel on a surface facing it, outside any medium.
 
 Along a ray segment seen from a light (geometry.py: foot point distance h, x - x_h = h tan(theta)),
 the direction from the light is cos(theta) n + sin(theta) w, with n the unit vector from the light
@@ -25,7 +27,8 @@ from .jit import njit
 
 POINT = 0
 SPOT = 1
-NAMES = {POINT: "point", SPOT: "spot"}
+DIRECTIONAL = 2
+NAMES = {POINT: "point", SPOT: "spot", DIRECTIONAL: "directional"}
 
 # the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1
 NO_CONE = (-3.0, -2.0)
@@ -35,9 +38,10 @@ CUT_TOL = 1e-12  # relative: cone crossings this close to a segment's end are th
 @dataclass
 class Light:
     """One light of the scene file; spot lights also have a unit `axis` and the cosines of their
-    cone (`cos_end`, zero beyond) and of their full-intensity core (`cos_start`)."""
+    cone (`cos_end`, zero beyond) and of their full-intensity core (`cos_start`); directional
+    lights a unit `axis` (direction of travel) and no position (zero)."""
     position: np.ndarray
-    intensity: np.ndarray  # W/sr per channel (spot: on the axis)
+    intensity: np.ndarray  # W/sr per channel (spot: on the axis; directional: irradiance W/m^2)
     kind: int = POINT
     axis: np.ndarray | None = None
     cos_end: float = NO_CONE[0]
@@ -47,7 +51,8 @@ class Light:
 @dataclass(frozen=True)
 class Lights:
     """All lights as float64 arrays: `kind` (L,), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3)
-    (zero for point lights), `cone` (L, 2): (cos_end, cos_start), NO_CONE for point lights."""
+    (zero for point lights), `cone` (L, 2): (cos_end, cos_start), NO_CONE for point and directional
+    lights."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray
@@ -71,7 +76,9 @@ class Lights:
 
     def irradiance(self, index: int, to_points: np.ndarray, dist: np.ndarray) -> np.ndarray:
         """Unattenuated irradiance (N, 3) from light `index` on surfaces facing it at the points
-        light + to_points (N, 3), at distances `dist` (N,) > 0."""
+        light + to_points (N, 3), at distances `dist` (N,) > 0 (a directional light's: its own)."""
+        if self.kind[index] == DIRECTIONAL:
+            return np.broadcast_to(self.intensity[index], (len(dist), 3))
         e = self.intensity[index][None, :] / (dist * dist)[:, None]
         if self.kind[index] == SPOT:
             cos = (to_points @ self.axis[index]) / dist

@@ -2,9 +2,9 @@
 kernels release the GIL) or, given a Dask client, as tasks on a cluster (distributed.py).
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
-L = exp(-kt t) Lb + sum of air-lights, averaged over the pixel's samples. Results do not depend
-on the thread or worker count: the tiles are the same and each is computed and reduced the same
-way wherever it runs.
+L = T(0, t) Lb + sum of air-lights (T the medium's transmittance from the camera, exp(-kt t) when
+homogeneous), averaged over the pixel's samples. Results do not depend on the thread or worker
+count: the tiles are the same and each is computed and reduced the same way wherever it runs.
 """
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ import numpy as np
 from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
-from .lights import Lights
+from .lights import DIRECTIONAL, Lights
+from .media.medium import HOMOGENEOUS
 from .media.particles import particle_radiance
 from .methods import get_method, resolve_params
 from .scene.format import Scene
@@ -64,7 +65,7 @@ class RenderResult:
 def prepare(scene: Scene) -> Prepared:
     tris, refl = scene_triangles(scene)
     lights = Lights.of(scene.lights)
-    extent = np.concatenate([lights.position, scene.camera.position[None, :]])
+    extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     return Prepared(scene, Accelerator(tris, extent), refl, lights)
 
 
@@ -87,7 +88,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         radiance[hit] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[hit]], prep.lights,
                                          medium)
     radiance[~hit] = scene.background
-    radiance *= medium.transmittance(t)
+    radiance *= medium.transmittance_on(origins, dirs, 0.0, t)
     stats = np.zeros(method.stats_size + len(LI_NAMES))
     variance = np.zeros_like(radiance) if method.stochastic else None
     if len(prep.lights) and medium.scatters:
@@ -123,7 +124,7 @@ def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
     return time.perf_counter() - start
 
 
-def check_options(method, params, volumetric_shadows, shadow_spacing, source):
+def check_options(method, params, volumetric_shadows, shadow_spacing, source, lights, medium):
     lo, hi = SPACING_RANGE
     if not lo <= shadow_spacing <= hi:
         raise UserError(f"{source}: --shadow-spacing (render.shadow_spacing): must be within [{lo:g}, {hi:g}] "
@@ -132,6 +133,12 @@ def check_options(method, params, volumetric_shadows, shadow_spacing, source):
     if params.get("shadow_test") == "samples" and not volumetric_shadows:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows; "
                         "add --volumetric-shadows or remove it")
+    if params.get("shadow_test") == "samples" and medium.kind != HOMOGENEOUS:
+        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.kind} "
+                        "media; use --shadow-test intervals (the default)")
+    if volumetric_shadows and "directional" in lights.kinds():
+        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): not implemented for directional "
+                        "lights yet; remove it (surfaces are still shadowed) or use point or spot lights")
 
 
 @dataclass(frozen=True)
@@ -215,9 +222,10 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
+    method.check_medium(scene.medium, source)
     method.check(scene.medium, params)
     method.check_lights(prep.lights, source)
-    check_options(method, params, volumetric_shadows, shadow_spacing, source)
+    check_options(method, params, volumetric_shadows, shadow_spacing, source, prep.lights, scene.medium)
     if client is not None and threads is not None:
         raise UserError(f"{source}: --threads applies to one machine; with --scheduler every worker runs as many "
                         "tiles as it has threads, remove --threads")

@@ -1,15 +1,20 @@
 """The surface term (paper eq. 5) with shadow-ray visibility, summed over lights.
 
-Lb = sum_lights V (rho / pi) I F exp(-kt d) / d^2 max(0, n·wi), with the geometric normal flipped to
-face the incoming ray (two-sided Lambertian surfaces), F a spot light's falloff toward the point
-(lights.py, 1 for point lights). The camera sees it attenuated by
-exp(-kt t); that factor is applied by the renderer.
+Lb = sum_lights V (rho / pi) I F T / d^2 max(0, n·wi), with the geometric normal flipped to face
+the incoming ray (two-sided Lambertian surfaces), F a spot light's falloff toward the point
+(lights.py, 1 for point lights) and T the medium's transmittance from the point to the light
+(exp(-kt d) when homogeneous, the closed-form optical depth in a height fog). A directional light
+gives V (rho / pi) E T max(0, n·wi) with wi against its direction of travel and T the
+transmittance to infinity toward it (seed 004, eq. 34 with t1 = inf). The camera sees Lb
+attenuated by its own transmittance; that factor is applied by the renderer.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
+from .lights import DIRECTIONAL
 
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -22,6 +27,9 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium):
     """Reflected radiance (N, 3) at surface points with ray-facing unit normals."""
     out = np.zeros((len(points), 3))
     for li, lp in enumerate(lights.position):
+        if lights.kind[li] == DIRECTIONAL:
+            _add_directional(out, accel, points, normals, reflectance, lights, li, medium)
+            continue
         to_light = lp[None, :] - points
         dist = np.linalg.norm(to_light, axis=1)
         cos = np.einsum("ij,ij->i", normals, to_light) / np.where(dist > 0.0, dist, 1.0)
@@ -32,6 +40,21 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium):
         o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
         visible = ~accel.occluded(o, d, tmax)
         idx, dl, cl = idx[visible], dist[idx][visible], cos[idx][visible]
-        irradiance = lights.irradiance(li, -to_light[idx], dl) * medium.transmittance(dl) * cl[:, None]
+        tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl)
+        irradiance = lights.irradiance(li, -to_light[idx], dl) * tr * cl[:, None]
         out[idx] += reflectance[idx] / math.pi * irradiance
     return out
+
+
+def _add_directional(out, accel, points, normals, reflectance, lights, li, medium):
+    """out += the directional light li's reflected radiance (shadow rays to infinity toward it)."""
+    wi = -lights.axis[li]
+    cos = normals @ wi
+    idx = np.nonzero(cos > 0.0)[0]
+    if not len(idx):
+        return
+    o = points[idx] + accel.epsilon * normals[idx]
+    d = np.broadcast_to(wi, o.shape)
+    idx = idx[~accel.occluded(o, d, np.full(len(idx), np.inf))]
+    tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf)
+    out[idx] += reflectance[idx] / math.pi * lights.intensity[li] * tr * cos[idx, None]

@@ -3,9 +3,9 @@
 `whole_rays` makes the unshadowed segments: one [0, t_hit] per (ray, light). `lit_intervals` cuts
 them into the pieces each light illuminates (volumetric shadows), so that every method integrates
 the shadowed air-light exactly between shadow boundaries. `gather` adds segment air-lights to their
-camera rays with the transmittance exp(-kt t0) in front of each segment. `shadowed_airlight` is the
-classic alternative of the methods that expose their medium points (raymarch, montecarlo with
-`shadow_test = "samples"`): a shadow ray from every point to its light.
+camera rays with the medium's transmittance from the camera to each segment's start.
+`shadowed_airlight` is the classic alternative of the methods that expose their medium points
+(raymarch, montecarlo with `shadow_test = "samples"`): a shadow ray from every point to its light.
 
 Lit-interval search. Seen from the light L, the point of a segment at distance x is at the angle
 theta = atan((x - x_h) / h) from the foot point (the closed form's own variable, METHODS.md §1);
@@ -106,10 +106,13 @@ def _cone_pieces(xh, h, length, cone):
 
 
 def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
-    """Sum (N, 3) over each ray's segments of exp(-kt t0)^power * values (S, 3); power 2 adds the
-    variances of independent segment estimates. Whole rays (all t0 = 0) need no transmittance."""
+    """Sum (N, 3) over each ray's segments of T^power * values (S, 3), T the transmittance from the
+    camera ray's origin to the segment's start (exp(-kt t0) when homogeneous: the t0 before the
+    segment's own origin); power 2 adds the variances of independent segment estimates. Whole rays
+    (all t0 = 0) need no transmittance."""
     out = np.zeros((n_rays, 3))
-    tr = medium.transmittance(segs.t0) ** power if segs.per_ray == 0 and np.any(segs.t0) else np.ones((0, 3))
+    whole = segs.per_ray != 0 or not np.any(segs.t0)
+    tr = np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
     _add_by_ray(values, segs.ray, tr, out)
     return out
 

@@ -1,25 +1,42 @@
 """What a medium is: its coefficients, its phase function, and the transmittance through it.
 
-Today one homogeneous medium fills all space (the paper's model): extinction kt = sigma_a + sigma_s
-per channel, so the transmittance over a length t is exp(-kt t).
+`homogeneous` (the paper's model) fills all space with extinction kt = sigma_a + sigma_s per
+channel: the transmittance over a length t is exp(-kt t). `height_fog` (seed 004) scales both
+coefficients, given at the reference height h0, by one density of the height p·up - h0: the
+exponential exp(-(p·up - h0)/H) (eq. 32) or the linear max(0, 1 - (p·up - h0)/H) (eq. 28); the
+transmittance along a ray is exp(-kt tau) with tau the closed-form unit optical depth of
+height_fog.py (eq. 34 / 30), the same for every channel.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..jit import njit
+from .height_fog import exponential_distance, exponential_optical_depth, linear_distance, linear_optical_depth
 from .particles import Particles
 from .phase import ISOTROPIC
+
+HOMOGENEOUS = "homogeneous"
+HEIGHT_FOG = "height_fog"
+EXPONENTIAL, LINEAR = 0, 1  # height-fog profiles
+PROFILES = {"exponential": EXPONENTIAL, "linear": LINEAR}
 
 
 @dataclass
 class Medium:
-    sigma_a: np.ndarray
+    sigma_a: np.ndarray  # height fog: at the reference height h0
     sigma_s: np.ndarray
     phase: int = ISOTROPIC  # a phase.py code
     g: float = 0.0  # Henyey-Greenstein asymmetry
     particles: Particles | None = None  # seed 003's particle layer (particles.py)
+    kind: str = HOMOGENEOUS
+    up: np.ndarray | None = None  # height fog: unit up vector, reference height, scale height, profile
+    h0: float = 0.0
+    scale_height: float = math.inf
+    profile: int = EXPONENTIAL
 
     @property
     def sigma_t(self) -> np.ndarray:
@@ -29,9 +46,64 @@ class Medium:
     def scatters(self) -> bool:
         return bool(np.any(self.sigma_s > 0.0))
 
+    @property
+    def fog(self) -> tuple:
+        """(up x, up y, up z, h0, H, profile): the height fog's arguments of the kernels below."""
+        return (*(float(u) for u in self.up), float(self.h0), float(self.scale_height), int(self.profile))
+
     def transmittance(self, t: np.ndarray) -> np.ndarray:
-        """exp(-kt t) per channel (N, 3) over lengths t (N,), exactly 1 in vacuum channels even for t = inf."""
+        """Homogeneous: exp(-kt t) per channel (N, 3) over lengths t (N,), exactly 1 in vacuum
+        channels even for t = inf."""
         kt = self.sigma_t
         with np.errstate(invalid="ignore"):
             tr = np.exp(-kt[None, :] * np.asarray(t, float)[:, None])
         return np.where(kt[None, :] == 0.0, 1.0, tr)
+
+    def transmittance_on(self, origins, dirs, a, b) -> np.ndarray:
+        """Transmittance (N, 3) over [a, b] of the rays origins + t dirs (a, b arrays (N,) or
+        scalars; b may be inf); homogeneous: `transmittance(b - a)`."""
+        n = len(origins)
+        a = np.broadcast_to(np.asarray(a, float), n)
+        b = np.broadcast_to(np.asarray(b, float), n)
+        if self.kind == HOMOGENEOUS:
+            return self.transmittance(b - a)
+        tau = np.empty(n)
+        ray_columns(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float),
+                    np.ascontiguousarray(a), np.ascontiguousarray(b), *self.fog, tau)
+        kt = self.sigma_t
+        with np.errstate(invalid="ignore"):
+            tr = np.exp(-kt[None, :] * tau[:, None])
+        return np.where(kt[None, :] == 0.0, 1.0, tr)
+
+
+@njit
+def density(h, H, profile):
+    """The fog's density relative to h0 at the height h above h0 (eq. 32 or eq. 28)."""
+    if profile == EXPONENTIAL:
+        return math.exp(-h / H)
+    return max(0.0, 1.0 - h / H)
+
+
+@njit
+def column(h, mu, t0, t1, H, profile):
+    """Unit-density optical depth over [t0, t1] of a ray starting at height h with up-cosine mu."""
+    if profile == EXPONENTIAL:
+        return exponential_optical_depth(1.0, h, mu, t0, t1, H)
+    return linear_optical_depth(1.0, h, mu, t0, t1, H)
+
+
+@njit
+def column_distance(h, mu, t0, tau, H, profile):
+    """The t >= t0 where `column` from t0 reaches tau (inf if never): eq. 35 or eq. 31."""
+    if profile == EXPONENTIAL:
+        return exponential_distance(1.0, h, mu, t0, tau, H)
+    return linear_distance(1.0, h, mu, t0, tau, H)
+
+
+@njit
+def ray_columns(origins, dirs, a, b, ux, uy, uz, h0, H, profile, out):
+    """out[i] = `column` over [a[i], b[i]] of ray i."""
+    for i in range(origins.shape[0]):
+        h = origins[i, 0] * ux + origins[i, 1] * uy + origins[i, 2] * uz - h0
+        mu = dirs[i, 0] * ux + dirs[i, 1] * uy + dirs[i, 2] * uz
+        out[i] = column(h, mu, a[i], b[i], H, profile)

@@ -50,10 +50,11 @@ class Param:
 class Segments:
     """The unit of work of every method (ARCHITECTURE.md): piece [t0, t0 + length] of a camera ray
     lit by one light. `origins` are the segments' own start points o + t0 w (a method integrates
-    from there; the renderer applies the transmittance exp(-kt t0) in front), `length` may be inf,
-    `light` and `ray` index the light and the camera ray, `keys` is the camera ray's (pixel, sample)
-    key for counter-based random numbers and `stream` numbers the segment among its ray's segments
-    (light + lights x piece), so that every segment draws its own random numbers."""
+    from there; the renderer applies the medium's transmittance from the camera ray's origin to t0,
+    exp(-kt t0) when homogeneous), `length` may be inf, `light` and `ray` index the light and the
+    camera ray, `keys` is the camera ray's (pixel, sample) key for counter-based random numbers and
+    `stream` numbers the segment among its ray's segments (light + lights x piece), so that every
+    segment draws its own random numbers."""
     origins: np.ndarray
     dirs: np.ndarray
     length: np.ndarray
@@ -108,6 +109,7 @@ class Method:
     # segment, so that the renderer can cut the work into chunks of bounded memory
     point_count: Callable | None = None
     light_types: tuple = ("point",)  # the kinds of light (lights.NAMES) its air-light integrates
+    media: tuple = ("homogeneous",)  # the medium types (media/medium.py) it integrates
 
     def check_lights(self, lights, source: str):
         """Refuse lights of a kind this method does not integrate, naming the methods that do."""
@@ -117,6 +119,15 @@ class Method:
             takers = [m.name for m in registry().values() if kind in m.light_types]
             raise UserError(f"{source}: --method {self.name}: it does not take {kind} lights (light.type = "
                             f"\"{kind}\"); use --method {', '.join(takers)}, or make the lights point lights")
+
+    def check_medium(self, medium, source: str):
+        """Refuse a medium type this method does not integrate, naming the methods that do."""
+        from ..errors import UserError
+
+        if medium.kind not in self.media:
+            takers = [m.name for m in registry().values() if medium.kind in m.media]
+            raise UserError(f"{source}: --method {self.name}: it does not take {medium.kind} media (medium.type = "
+                            f"\"{medium.kind}\"); use --method {', '.join(takers)}, or a homogeneous medium")
 
 
 def registry() -> dict[str, Method]:

@@ -12,7 +12,8 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..lights import NO_CONE, falloff
+from ..lights import DIRECTIONAL, NO_CONE, falloff
+from ..media.medium import column, density
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
@@ -119,3 +120,46 @@ def _scale_into(out, c, unit, intensity, light):
     """out[s, c] = unit[s] * intensity[light[s], c]."""
     for s in range(unit.shape[0]):
         out[s, c] = unit[s] * intensity[light[s], c]
+
+
+# a height-fog segment's row (`fog_rows`): heights above h0 and up-cosines of the ray and its light
+HO, MU, HL, MUS, COSD = range(5)
+
+
+def fog_rows(segs, medium, lights):
+    """(S, 5) rows of a segment batch in a height fog: HO the height of the segment's start above
+    h0, MU = w·up; HL a point or spot light's height above h0; for a directional light MUS, the
+    up-cosine toward it, and COSD, the scattering cosine -axis·w (both 0 for other lights)."""
+    up = np.asarray(medium.up, float)
+    rows = np.zeros((len(segs), 5))
+    rows[:, HO] = segs.origins @ up - medium.h0
+    rows[:, MU] = segs.dirs @ up
+    sun = lights.kind[segs.light] == DIRECTIONAL
+    rows[:, HL] = np.where(sun, 0.0, lights.position[segs.light] @ up - medium.h0)
+    axis = lights.axis[segs.light]
+    rows[:, MUS] = np.where(sun, -(axis @ up), 0.0)
+    rows[:, COSD] = np.where(sun, -np.einsum("ij,ij->i", axis, segs.dirs), 0.0)
+    return rows, sun
+
+
+@njit
+def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
+    """The in-scattered radiance per unit length at distance x along a height-fog segment, unit
+    light, without a point light's 1/d^2: ks rho(x) Phi(cos) F T_cam(x) T_light(x), both
+    transmittances exp(-kt tau) with tau the closed-form column (media/medium.py, seed 004 eq. 34
+    or 30); T_cam from the segment's start, T_light to the light or, for the sun, to infinity."""
+    hp = row[HO] + row[MU] * x
+    rho = density(hp, H, profile)
+    if rho == 0.0:
+        return 0.0
+    tau = column(row[HO], row[MU], 0.0, x, H, profile)
+    if sun:
+        return ks * rho * phase_value(code, g, row[COSD]) * math.exp(
+            -kt * (tau + column(hp, row[MUS], 0.0, math.inf, H, profile)))
+    dx = x - xh
+    d = math.sqrt(max(h * h + dx * dx, 1e-250))
+    f = spot_factor(dx, d, h, cone)
+    if f == 0.0:
+        return 0.0
+    tau += column(hp, (row[HL] - hp) / d, 0.0, d, H, profile)
+    return ks * rho * f * phase_value(code, g, -dx / d) * math.exp(-kt * tau)

@@ -26,9 +26,10 @@ import numpy as np
 
 from ..jit import njit
 from . import ErrorLaw, Method, Param
-from .geometry import by_channel
+from .geometry import COSD, HO, MU, MUS, by_channel, fog_inscatter, fog_rows
 from ..lights import cone_breaks, falloff
-from ..media.phase import phase_split
+from ..media.medium import HOMOGENEOUS, LINEAR, column, column_distance
+from ..media.phase import phase_split, phase_value
 
 MAX_INTERVALS = 4000
 STACK = 200
@@ -182,6 +183,16 @@ def evaluate_segments(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w2
 
 def _airlight(segs, medium, lights, params):
     stats = np.zeros(3)
+    if medium.kind != HOMOGENEOUS:
+        rows, sun = fog_rows(segs, medium, lights)
+
+        def evaluate(xh, h, da, ell, kt, ks, cone):
+            out = np.empty_like(xh)
+            fog_segments(rows, sun, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
+                         medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+            return out
+
+        return by_channel(segs, medium, lights, evaluate), stats
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
@@ -206,5 +217,130 @@ METHOD = Method(
     error_law=ErrorLaw({"rtol": 1e-10}, "max", 3e-13),  # measured worst 1.8e-13 (spot_hg_narrow_through_view)
     stats_size=3,
     summarize=_summarize,
-    light_types=("point", "spot"),
+    light_types=("point", "spot", "directional"),
+    media=("homogeneous", "height_fog"),
 )
+
+
+# --- height fog (seed 004): the same adaptive rule on the closed-form transmittances ---------------
+#
+# Point and spot lights: x = x_h + h tan(theta) (theta the angle seen from the light, 0 at the foot
+# point), dx / d^2 = dtheta / h, so Lm = (1/h) ∫ ks rho F Phi T_cam T_light dtheta over
+# [atan(-x_h/h), atan((ell - x_h)/h)], split at 0, the cone's crossings and the linear fog's top.
+# The sun: u = 1 - T_cam(x) (dx kt rho T_cam = du), so Lm = (ks/kt) Phi ∫ T_sun(x(u)) du over
+# [0, 1 - T_cam(ell)], x(u) the inverse optical depth (eq. 35 / 31).
+
+
+@njit
+def _fog_value(s, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
+    if sun:
+        x = column_distance(row[HO], row[MU], 0.0, -math.log1p(-s) / kt, H, profile)
+        if x == math.inf:
+            return 0.0
+        hp = row[HO] + row[MU] * x
+        return math.exp(-kt * column(hp, row[MUS], 0.0, math.inf, H, profile))
+    return fog_inscatter(xh + h * math.tan(s), row, xh, h, kt, ks, code, g, cone, H, profile, False)
+
+
+@njit
+def _fog_rule(a, b, row, xh, h, kt, ks, code, g, cone, H, profile, sun, nodes, weights):
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    acc = 0.0
+    for k in range(nodes.shape[0]):
+        acc += weights[k] * _fog_value(mid + half * nodes[k], row, xh, h, kt, ks, code, g, cone, H, profile, sun)
+    return acc * half
+
+
+@njit
+def _fog_adaptive(a, b, row, xh, h, kt, ks, code, g, cone, H, profile, sun, rtol, floor, n10, w10, n20, w20, stats):
+    """`_adaptive` for `_fog_value`: the integral over [a, b] and whether every interval converged."""
+    converged = True
+    lo = np.empty(STACK)
+    hi = np.empty(STACK)
+    lo[0], hi[0] = a, b
+    top = 1
+    total = 0.0
+    count = 0
+    while top > 0:
+        top -= 1
+        x0, x1 = lo[top], hi[top]
+        coarse = _fog_rule(x0, x1, row, xh, h, kt, ks, code, g, cone, H, profile, sun, n10, w10)
+        fine = _fog_rule(x0, x1, row, xh, h, kt, ks, code, g, cone, H, profile, sun, n20, w20)
+        count += 1
+        mid = 0.5 * (x0 + x1)
+        tol = max(rtol * abs(fine), floor * (x1 - x0))
+        if abs(fine - coarse) <= tol or count >= MAX_INTERVALS or top + 2 > STACK or not (x0 < mid < x1):
+            converged = converged and abs(fine - coarse) <= tol
+            total += fine
+        else:
+            lo[top], hi[top] = x0, mid
+            lo[top + 1], hi[top + 1] = mid, x1
+            top += 2
+    stats[INTERVALS] += count
+    return total, converged
+
+
+@njit
+def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
+    """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
+    x_top = (H - row[HO]) / row[MU] if profile == LINEAR and row[MU] != 0.0 else -1.0  # the linear fog's top
+    if sun:
+        out[0] = 0.0
+        out[1] = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
+        n = 2
+        if 0.0 < x_top < ell:
+            out[2] = -math.expm1(-kt * column(row[HO], row[MU], 0.0, x_top, H, profile))
+            n = 3
+    else:
+        out[0] = math.atan2(-xh, h)
+        out[1] = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
+        out[2] = 0.0
+        n = 3
+        if 0.0 < x_top < ell:
+            out[n] = math.atan2(x_top - xh, h)
+            n += 1
+        if cone[3] > -1.0:
+            for C in (cone[2], cone[3]):
+                k, r1, r2 = cone_breaks(cone[0], cone[1], C)
+                for i in range(k):
+                    out[n] = 2.0 * math.atan(r1 if i == 0 else r2) - 0.5 * math.pi
+                    n += 1
+    lo, hi = out[0], out[1]
+    m = 0
+    for i in range(n):  # keep the ends and the interior points, sorted
+        if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
+            out[m] = out[i]
+            m += 1
+    out[:m].sort()
+    return m
+
+
+@njit
+def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol, n10, w10, n20, w20, out, stats):
+    """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0."""
+    br = np.empty(9)
+    for s in range(xh.shape[0]):
+        out[s] = 0.0
+        if ks == 0.0 or not ell[s] > 0.0:
+            continue
+        stats[EVALS] += 1.0
+        m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, sun[s], br)
+        width = br[m - 1] - br[0]
+        estimate = 0.0
+        for i in range(m - 1):
+            if br[i + 1] > br[i]:
+                estimate += _fog_rule(br[i], br[i + 1], rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile,
+                                      sun[s], n20, w20)
+        floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
+        total = 0.0
+        ok = True
+        for i in range(m - 1):
+            if br[i + 1] > br[i]:
+                val, good = _fog_adaptive(br[i], br[i + 1], rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H,
+                                          profile, sun[s], rtol, floor, n10, w10, n20, w20, stats)
+                total += val
+                ok = ok and good
+        if not ok:
+            stats[CAPPED] += 1.0
+        out[s] = total * (ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s])

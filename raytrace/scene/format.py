@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from ..lights import SPOT, Light
-from ..media.medium import Medium
+from ..lights import DIRECTIONAL, SPOT, Light
+from ..media.medium import HEIGHT_FOG, HOMOGENEOUS, PROFILES, Medium
 from ..media.particles import Particles
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -214,7 +214,8 @@ def _shape(ctx, i, raw):
 
 
 LIGHT_KEYS = {"point": {"type", "position", "intensity"},
-              "spot": {"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start"}}
+              "spot": {"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start"},
+              "directional": {"type", "direction", "irradiance"}}
 
 
 def _light(ctx, i, raw):
@@ -222,6 +223,8 @@ def _light(ctx, i, raw):
     raw = _table(ctx, key, raw)
     kind = _string(ctx, f"{key}.type", raw.get("type", "point"), tuple(LIGHT_KEYS))
     ctx.unknown(key, raw, LIGHT_KEYS[kind])
+    if kind == "directional":
+        return _directional(ctx, key, raw)
     for k in ("position", "intensity"):
         if k not in raw:
             ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k}")
@@ -230,6 +233,18 @@ def _light(ctx, i, raw):
     if kind == "point":
         return Light(pos, intensity)
     return _spot(ctx, key, raw, pos, intensity)
+
+
+def _directional(ctx, key, raw):
+    """The sun: unit direction of travel, irradiance per channel on a surface facing it."""
+    for k, example in (("direction", "[0.3, -1.0, 0.2] (the way the light travels)"), ("irradiance", "3.0")):
+        if k not in raw:
+            ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k} = {example}")
+    axis = _vec3(ctx, f"{key}.direction", raw["direction"])
+    norm = float(np.linalg.norm(axis))
+    if not norm > 0.0:
+        ctx.fail(f"{key}.direction", "is zero", "give the direction the light travels, e.g. [0.3, -1.0, 0.2]")
+    return Light(np.zeros(3), _rgb(ctx, f"{key}.irradiance", raw["irradiance"]), DIRECTIONAL, axis / norm)
 
 
 def _spot(ctx, key, raw, pos, intensity):
@@ -258,7 +273,8 @@ def _spot(ctx, key, raw, pos, intensity):
     return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)))
 
 
-MEDIUM_KEYS = {"sigma_a", "sigma_s", "phase", "particles"}
+MEDIUM_KEYS = {HOMOGENEOUS: {"type", "sigma_a", "sigma_s", "phase", "particles"},
+               HEIGHT_FOG: {"type", "sigma_a", "sigma_s", "phase", "up", "h0", "scale_height", "profile"}}
 PARTICLE_KEYS = {"density", "mu", "sigma", "cell", "offset", "step", "beta", "c1", "c2", "reflectance", "seed"}
 
 
@@ -308,29 +324,67 @@ def _medium(ctx, raw):
     if raw is None:
         return Medium(np.zeros(3), np.zeros(3))
     raw = _table(ctx, "medium", raw)
-    ctx.unknown("medium", raw, MEDIUM_KEYS)
+    kind = _string(ctx, "medium.type", raw.get("type", HOMOGENEOUS), tuple(MEDIUM_KEYS))
+    if kind == HEIGHT_FOG and "particles" in raw:
+        ctx.fail("medium.particles", "the particle layer needs a homogeneous medium",
+                 'remove [medium.particles] or use type = "homogeneous"')
+    ctx.unknown("medium", raw, MEDIUM_KEYS[kind])
     sa = _rgb(ctx, "medium.sigma_a", raw.get("sigma_a", 0.0))
     ss = _rgb(ctx, "medium.sigma_s", raw.get("sigma_s", 0.0))
-    particles = _particles(ctx, raw.get("particles"), bool(np.any(ss > 0.0)))
-    phase = raw.get("phase", "isotropic")
+    if kind == HOMOGENEOUS:
+        particles = _particles(ctx, raw.get("particles"), bool(np.any(ss > 0.0)))
+        return Medium(sa, ss, *_phase(ctx, raw.get("phase", "isotropic")), particles)
+    return Medium(sa, ss, *_phase(ctx, raw.get("phase", "isotropic")), kind=kind, **_height_fog(ctx, raw))
+
+
+def _height_fog(ctx, raw):
+    """Seed 004's height fog: unit `up`, reference height `h0` (where sigma_a, sigma_s hold),
+    `scale_height` H > 0 and the density `profile` (exponential, eq. 32, or linear, eq. 28)."""
+    up = _vec3(ctx, "medium.up", raw.get("up", [0.0, 1.0, 0.0]))
+    norm = float(np.linalg.norm(up))
+    if not norm > 0.0:
+        ctx.fail("medium.up", "is zero", "give the direction heights are measured along, e.g. up = [0.0, 1.0, 0.0]")
+    if "scale_height" not in raw:
+        ctx.fail("medium.scale_height", "missing", "add medium.scale_height = 20.0 (the height over which the "
+                 "density falls by e)")
+    H = float(_number(ctx, "medium.scale_height", raw["scale_height"]))
+    if not H > 0.0:
+        ctx.fail("medium.scale_height", f"must be positive, got {H!r}", "use a height greater than 0, e.g. 20.0")
+    profile = _string(ctx, "medium.profile", raw.get("profile", "exponential"), tuple(PROFILES))
+    return {"up": up / norm, "h0": float(_number(ctx, "medium.h0", raw.get("h0", 0.0))), "scale_height": H,
+            "profile": PROFILES[profile]}
+
+
+def _phase(ctx, phase):
+    """(phase.py code, g) of medium.phase."""
     if isinstance(phase, str):
         name = _string(ctx, "medium.phase", phase, ("isotropic", "rayleigh", "hg"))
         if name == "hg":
             ctx.fail("medium.phase", "Henyey-Greenstein needs its asymmetry g", 'write phase = { type = "hg", g = 0.5 }')
-        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0, particles)
+        return (ISOTROPIC if name == "isotropic" else RAYLEIGH), 0.0
     phase = _table(ctx, "medium.phase", phase)
     ctx.unknown("medium.phase", phase, {"type", "g"})
     name = _string(ctx, "medium.phase.type", phase.get("type", "hg"), ("isotropic", "rayleigh", "hg"))
     if name != "hg":
         if "g" in phase:
             ctx.fail("medium.phase.g", f"only Henyey-Greenstein takes g, not {name}", 'remove g or use type = "hg"')
-        return Medium(sa, ss, ISOTROPIC if name == "isotropic" else RAYLEIGH, 0.0, particles)
+        return (ISOTROPIC if name == "isotropic" else RAYLEIGH), 0.0
     if "g" not in phase:
         ctx.fail("medium.phase.g", "missing", "add g in (-1, 1), e.g. g = 0.5")
     g = float(_number(ctx, "medium.phase.g", phase["g"]))
     if not abs(g) < 1.0:
         ctx.fail("medium.phase.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
-    return Medium(sa, ss, HG, g, particles)
+    return HG, g
+
+
+def _check_sun(ctx, lights, medium):
+    """A directional light cannot shine through a homogeneous medium filling all space."""
+    if medium.kind == HOMOGENEOUS and np.any(medium.sigma_t > 0.0):
+        for i, light in enumerate(lights):
+            if light.kind == DIRECTIONAL:
+                ctx.fail(f"light[{i}].type", "a directional light through a homogeneous medium filling all space "
+                         "arrives with zero transmittance", 'use medium.type = "height_fog", a vacuum medium, or a '
+                         "point or spot light")
 
 
 RENDER_OPTIONS = ("method", "seed", "volumetric_shadows", "shadow_spacing")  # [render] keys that are not method parameters
@@ -389,13 +443,17 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     name = raw.get("name", path.stem if path else "scene")
     if not isinstance(name, str):
         ctx.fail("name", f"expected a string, got {name!r}", 'write name = "my scene"')
+    shapes = [_shape(ctx, i, s) for i, s in enumerate(shapes_raw)]
+    lights = [_light(ctx, i, s) for i, s in enumerate(lights_raw)]
+    medium = _medium(ctx, raw.get("medium"))
+    _check_sun(ctx, lights, medium)
     return Scene(
         name=name,
         path=path,
         camera=camera,
-        shapes=[_shape(ctx, i, s) for i, s in enumerate(shapes_raw)],
-        lights=[_light(ctx, i, s) for i, s in enumerate(lights_raw)],
-        medium=_medium(ctx, raw.get("medium")),
+        shapes=shapes,
+        lights=lights,
+        medium=medium,
         background=_rgb(ctx, "background.radiance", background.get("radiance", 0.0)),
         render=_render(ctx, raw.get("render")),
     )
