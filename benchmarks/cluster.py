@@ -7,7 +7,9 @@ Prints the machine load (`os.getloadavg`: 1, 5, 15 minutes) before, after and pe
      --workers single-threaded worker processes, taking turns --repeats times; efficiency = threaded
      time / cluster time, the median over the rounds (each round's pair shares the machine's load
      of the moment; compile and scene loading excluded, as in the EXR header's render_seconds); the
-     images are checked to be bit-identical;
+     images are checked to be bit-identical. The CPU seconds of both (this process, and with the
+     cluster also its workers) give a second efficiency that other processes on the machine hardly
+     move: it counts the work that distribution adds, not the idle tail;
   2. per-task cost: from the same cluster renders, the tasks' own compute seconds against
      workers x wall time: overhead per task = (workers x wall - sum of compute) / tasks (scheduling,
      transfer, reduction on the client and the idle tail), next to Dask's floor (no-op tasks);
@@ -16,6 +18,7 @@ Prints the machine load (`os.getloadavg`: 1, 5, 15 minutes) before, after and pe
 """
 import argparse
 import os
+import resource
 import sys
 import time
 from pathlib import Path
@@ -30,6 +33,11 @@ from raytrace import distributed, renderer  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
 
 
+def cpu_seconds():
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
 def cluster_render(client, prep, method, params, seed, workers):
     """One render through distributed.map_tiles, keeping the tasks' compute times."""
     cam = prep.scene.camera
@@ -40,11 +48,13 @@ def cluster_render(client, prep, method, params, seed, workers):
     work = renderer.tiles(cam, box)
     acc = renderer.Accumulator(work, box, cam.spp, m.stochastic, m.stats_size + len(renderer.LI_NAMES))
     timings = []
+    cpu = cpu_seconds() + sum(client.run(cpu_seconds).values())
     start = time.perf_counter()
     for i, result in distributed.map_tiles(client, job, work, timings):
         acc.add(i, result)
     wall = time.perf_counter() - start
-    return acc.image, wall, len(work), sum(timings), (workers * wall - sum(timings)) / len(work)
+    cpu = cpu_seconds() + sum(client.run(cpu_seconds).values()) - cpu
+    return acc.image, wall, cpu, len(work), sum(timings), (workers * wall - sum(timings)) / len(work)
 
 
 def noop_floor(client, n=2000):
@@ -92,25 +102,30 @@ def main():
     params = {"samples": args.samples} if args.method == "montecarlo" else {}
     print(f"{args.scene} {args.width}x{args.height} {args.spp} spp, {args.method} {params}, "
           f"{len(renderer.tiles(scene.camera, (0, 0, args.width, args.height)))} tiles")
-    single, multi, overheads = [], [], []
+    single, multi, overheads, cpu_ratios = [], [], [], []
     with distributed.connect(f"local:{args.workers}") as client:
         floor = noop_floor(client)
         for rep in range(args.repeats):
+            cpu = cpu_seconds()
             ref = renderer.render(prep, args.method, params)
+            cpu = cpu_seconds() - cpu
             single.append(ref.seconds)
-            image, wall, tasks, compute, overhead = cluster_render(client, prep, args.method, params, 0, args.workers)
+            image, wall, cpu_n, tasks, compute, overhead = cluster_render(client, prep, args.method, params, 0,
+                                                                          args.workers)
             multi.append(wall)
             overheads.append(overhead)
+            cpu_ratios.append(cpu / cpu_n)
             same = image.tobytes() == ref.image.tobytes()
             print(f"  round {rep + 1}: threaded {ref.seconds:.2f} s, cluster {wall:.2f} s ({tasks} tasks, "
                   f"{compute / tasks * 1e3:.1f} ms compute each, overhead {overhead * 1e3:.1f} ms/task), "
-                  f"bit-identical: {same}; load {os.getloadavg()[0]:.2f}")
+                  f"CPU {cpu:.1f} / {cpu_n:.1f} s, bit-identical: {same}; load {os.getloadavg()[0]:.2f}")
             if not same:
                 raise SystemExit("the cluster's image differs from the threaded one")
     ratios = np.array(single) / np.array(multi)
     print(f"efficiency (threaded / cluster of {args.workers} workers, median of {args.repeats} rounds): "
           f"{np.median(ratios):.3f} (rounds {' '.join(f'{r:.3f}' for r in ratios)}; median times "
           f"{np.median(single):.2f} / {np.median(multi):.2f} s)")
+    print(f"CPU efficiency (threaded CPU s / cluster CPU s incl. workers, median): {np.median(cpu_ratios):.3f}")
     print(f"per-task overhead (median): {np.median(overheads) * 1e3:.1f} ms; Dask no-op task floor "
           f"{floor * 1e3:.2f} ms")
     print("scene loading (meshes, Embree, kernel warm-up):")
