@@ -82,6 +82,20 @@ def test_raymarch_converges_to_quadrature_as_step_squared():
     assert errs[1] < 1e-5 and errs[0] / errs[1] > 10.0, errs  # midpoint rule: 16 per 4x the steps
 
 
+@pytest.mark.parametrize("name", ["exponential_hg_rgb_point_and_spot", "valley_low_sun_and_lamp"])
+@pytest.mark.parametrize("sampling", ["equiangular", "freepath", "mis"])
+def test_montecarlo_passes_a_z_test_against_quadrature(name, sampling):
+    """Free-path draws by the inverse optical depth: the mean squared z-score of the per-pixel
+    errors against the render's own variance is about 1 (test_methods' law: at most 3.5)."""
+    scene = CASES[name][0]
+    ref = raytrace.render(scene, method="quadrature", threads=1).array
+    mc = raytrace.render(scene, method="montecarlo", samples=256, sampling=sampling, seed=7, threads=1)
+    noisy = mc.variance > 0
+    assert noisy.mean() > 0.5
+    z2 = (mc.array - ref)[noisy] ** 2 / mc.variance[noisy]
+    assert z2.mean() < 3.5, z2.mean()
+
+
 def test_volumetric_shadows_in_fog_use_the_closed_form_in_front_of_each_segment():
     """Lit intervals start inside the ray: gather's transmittance from the camera to each
     interval must be the fog's; without an occluder the shadowed render is the unshadowed one."""
@@ -115,13 +129,14 @@ SUN = {"type": "directional", "direction": [0.3, -1.0, 0.2], "irradiance": 3.0}
 @pytest.mark.parametrize("scene, args, message", [
     (box_room(medium=FOG), ["--method", "analytic"],
      "--method analytic: it does not take height_fog media (medium.type = \"height_fog\"); use --method quadrature, "
-     "raymarch"),
+     "raymarch, montecarlo"),
     (box_room(medium=FOG), ["--method", "lecocq"], "--method lecocq: it does not take height_fog media"),
     (box_room(medium=FOG), ["--method", "sun"], "--method sun: it does not take height_fog media"),
-    (box_room(medium=FOG), ["--method", "montecarlo"], "--method montecarlo: it does not take height_fog media"),
+    (box_room(medium=FOG), ["--method", "montecarlo", "--sampling", "cdf"],
+     "method montecarlo: --sampling cdf inverts the homogeneous medium's closed-form air-light"),
     (box_room(medium={"sigma_a": 0.0, "sigma_s": 0.0}, light=[SUN]), ["--method", "analytic"],
      "--method analytic: it does not take directional lights (light.type = \"directional\"); use --method "
-     "quadrature, raymarch"),
+     "quadrature, raymarch, montecarlo"),
     (box_room(light=[SUN]), ["--method", "quadrature"],
      "light[0].type: a directional light through a homogeneous medium filling all space arrives with zero "
      "transmittance"),
@@ -157,3 +172,24 @@ def test_bundled_valley_describes_and_renders(capsys):
     assert "light[0]: directional, travelling along" in text and "height_fog: coefficients at h0 = 0" in text
     img = raytrace.render("valley_fog", crop=(190, 90, 200, 100), threads=1).array
     assert np.all(np.isfinite(img)) and np.all(img > 0.0)
+
+
+def test_gather_attenuates_each_segment_from_the_camera_ray_origin():
+    """A segment starting at t0 inside a ray gets the fog's transmittance over [0, t0] of its camera
+    ray (scipy quad of the density), not exp(-kt t0) and not from its own start."""
+    from raytrace.methods import Segments
+    from raytrace.scene.format import scene_from_dict
+    from raytrace.visibility import gather
+
+    medium = scene_from_dict(box_room(medium={**FOG, "up": [0.3, 1.0, 0.2]}), "test").medium
+    rng = np.random.default_rng(3)
+    o = rng.normal(size=(6, 3))
+    d = rng.normal(size=(6, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    t0 = rng.uniform(0.5, 4.0, 6)
+    segs = Segments(o + t0[:, None] * d, d, np.ones(6), np.zeros(6, np.int64), np.arange(6), t0,
+                    np.zeros(6, np.uint64), np.zeros(6, np.int64))
+    got = gather(segs, np.ones((6, 3)), 6, medium)
+    fog = oracle.Fog({**FOG, "up": [0.3, 1.0, 0.2]})
+    want = np.array([np.exp(-(fog.ka + fog.ks) * fog.depth(o[i], d[i], t0[i])) for i in range(6)])
+    assert np.allclose(got, want, rtol=1e-12, atol=0.0)

@@ -15,6 +15,8 @@ Per camera ray, light and colour channel, `samples` distances x on the segment a
     lit parts (isotropic: the far ends of rays, f/p ~ exp(-kt (x + d))). Each cdf draw costs a few
     closed-form evaluations, F(ell) one per segment and channel, at CDF_PRECISION
     (benchmarks/mc_sampling.py).
+In a height fog (seed 004) every mode but cdf has a twin (`_fog_estimate`): free-path sampling
+inverts the closed-form optical depth, and the sun takes free-path draws only.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
@@ -30,7 +32,9 @@ from ..jit import njit
 from ..rng import uniform
 from . import ErrorLaw, Method, Param
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import eq4_integrand, segment_geometry, spot_factor
+from .geometry import HO, MU, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
+from ..errors import UserError
+from ..media.medium import HOMOGENEOUS, column, column_distance, density
 from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
@@ -333,7 +337,13 @@ def _airlight(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
     stats = np.zeros(CDF_STATS)
-    if params["sampling"] == "cdf":
+    if medium.kind != HOMOGENEOUS:
+        xh, h, _, cone = segment_geometry(segs, lights)
+        rows, sun = fog_rows(segs, medium, lights)
+        fog_segments(rows, sun, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
+                     lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
+                     medium.scale_height, medium.profile, MODES[params["sampling"]], params["samples"], out, var)
+    elif params["sampling"] == "cdf":
         xh, h, da, cone = segment_geometry(segs, lights)
         airlight_segments_cdf(xh, h, da, segs.length, cone, lights.intensity[segs.light], medium.sigma_t, medium.sigma_s,
                               medium.phase, medium.g, *cdf_setup(medium), out, var, stats)
@@ -372,6 +382,68 @@ def _summarize(stats):
     return out
 
 
+
+@njit
+def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode, n, key, dim0, seed):
+    """`estimate` in a height fog (seed 004): f = `fog_inscatter` (/ d^2 for point and spot lights);
+    free-path draws invert the closed-form optical depth, x = column_distance(-log(1 - u N) / kt)
+    with N = 1 - T_cam(ell) and p = kt rho(x) T_cam(x) / N (eq. 35 / 31); the sun takes free-path
+    draws in every mode (equiangular needs a light position)."""
+    if ks == 0.0 or not ell > 0.0:
+        return 0.0, 0.0
+    norm = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
+    if not norm > 0.0:
+        return 0.0, 0.0
+    th_a, th_b, _ = _angles(xh, h, ell, kt)
+    use_e = mode != FREEPATH and not sun
+    use_f = mode != EQUIANGULAR or sun
+    acc = 0.0
+    acc2 = 0.0
+    for j in range(n):
+        est = 0.0
+        for strategy in range(2):
+            if (strategy == 0 and not use_e) or (strategy == 1 and not use_f):
+                continue
+            u = uniform(key, dim0 + 2 * j + strategy, seed)
+            if strategy == 0:
+                x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
+            else:
+                x = min(column_distance(row[HO], row[MU], 0.0, -math.log1p(-u * norm) / kt, H, profile), ell)
+            p = 0.0
+            if use_e:
+                p += _p_equiangular(x, xh, h, th_a, th_b)
+            if use_f:
+                p += kt * density(row[HO] + row[MU] * x, H, profile) * math.exp(
+                    -kt * column(row[HO], row[MU], 0.0, x, H, profile)) / norm
+            if p > 0.0:
+                f = fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun)
+                if not sun:
+                    f /= max(h * h + (x - xh) * (x - xh), 1e-250)
+                est += f / p
+        acc += est
+        acc2 += est * est
+    mean = acc / n
+    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
+
+
+@njit
+def fog_segments(rows, sun, xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, H, profile, mode, n,
+                 out, var):
+    """`airlight_segments` in a height fog (the same random-number dimensions)."""
+    for s in range(xh.shape[0]):
+        for c in range(3):
+            m, v = _fog_estimate(rows[s], sun[s], xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], H, profile,
+                                 mode, n, keys[s], 2 * n * stream[s], seed)
+            out[s, c] = m * intensity[s, c]
+            var[s, c] = v * intensity[s, c] * intensity[s, c]
+
+
+def _check(medium, params):
+    if medium.kind != HOMOGENEOUS and params["sampling"] == "cdf":
+        raise UserError(f"method montecarlo: --sampling cdf inverts the homogeneous medium's closed-form air-light; "
+                        f"in {medium.kind} media use --sampling equiangular, freepath or mis")
+
+
 METHOD = Method(
     name="montecarlo",
     summary="unbiased single scattering: equiangular, free-path, MIS or exact-CDF distance sampling, per-pixel "
@@ -393,5 +465,7 @@ METHOD = Method(
     stochastic=True,
     points=_points,
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
-    light_types=("point", "spot"),
+    check=_check,
+    light_types=("point", "spot", "directional"),
+    media=("homogeneous", "height_fog"),
 )
