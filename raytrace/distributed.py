@@ -32,10 +32,12 @@ from .scene.format import Scene
 CONNECT_TIMEOUT = 10.0  # seconds to reach a scheduler
 WORKER_TIMEOUT = 20.0  # seconds to wait for a scheduler's first worker
 CACHED_SCENES = 2  # prepared scenes kept per worker process
-# Dask starts worker processes with MALLOC_TRIM_THRESHOLD_ set, which turns off glibc's dynamic mmap
-# threshold: every large temporary array of a tile is then mapped and faulted in afresh, and tiles take
-# 25-40 % longer (benchmarks/cluster.py). Local clusters leave it unset (README: remote workers).
-TRIM = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
+# Worker settings of local clusters (README: remote workers). Dask starts worker processes with
+# MALLOC_TRIM_THRESHOLD_ set, which turns off glibc's dynamic mmap threshold: every large temporary
+# array of a tile is then mapped and faulted in afresh, and tiles take 25-40 % longer; its sampling
+# profiler (every 10 ms) costs about 5 % of the CPU (benchmarks/cluster.py, CPU efficiency 0.87 -> 0.92).
+WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+                 "distributed.worker.profile.enabled": False}
 
 _cache: OrderedDict[str, renderer.Prepared] = OrderedDict()
 _warm: set = set()
@@ -146,7 +148,7 @@ def connect(spec: str, log=None):
     logging.getLogger("distributed").setLevel(logging.CRITICAL)  # failures are reported as UserErrors
     if spec.startswith("local:"):
         n = _local_workers(spec)
-        with (dask.config.set({TRIM: None}),
+        with (dask.config.set(WORKER_CONFIG),
               LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=logging.CRITICAL) as cluster,
               Client(cluster) as client):

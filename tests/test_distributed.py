@@ -89,7 +89,7 @@ def test_the_cluster_gives_the_threaded_image_bit_for_bit(client, small_tiles, m
 
 
 def test_local_workers_keep_the_dynamic_mmap_threshold(client):
-    """Dask's MALLOC_TRIM_THRESHOLD_ would make every tile 25-40 % slower (distributed.TRIM)."""
+    """Dask's MALLOC_TRIM_THRESHOLD_ would make every tile 25-40 % slower (distributed.WORKER_CONFIG)."""
     assert set(client.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_").values()) == {None}
 
 
