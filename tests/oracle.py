@@ -262,10 +262,11 @@ class Fog:
                    for lo, hi in zip(edges[:-1], edges[1:]))
 
 
-def fog_pixel(scene: dict, i: int, j: int, first_hit) -> np.ndarray:
+def fog_pixel(scene: dict, i: int, j: int, first_hit, plates=()) -> np.ndarray:
     """Radiance of pixel (i, j)'s centre in a height fog: T_cam(t) Lb + the single-scattering
     integral, every transmittance exp(-kt Fog.depth). `first_hit(o, d)` -> (t, inward normal or
-    None): the scene's first surface (every light reaches every surface point it faces)."""
+    None): the scene's first surface (every light reaches every surface point it faces). `plates`
+    (as `plate_blocks`) shadow the point lights' air-light (volumetric shadows), not the surfaces."""
     cam = scene["camera"]
     fog = Fog(scene["medium"])
     kt = fog.ka + fog.ks
@@ -312,8 +313,12 @@ def fog_pixel(scene: dict, i: int, j: int, first_hit) -> np.ndarray:
             h = float(np.linalg.norm(np.cross(light[0] - o, d)))
             points += [x for x in (xh - 10 * h, xh - h, xh, xh + h, xh + 10 * h) if 0.0 < x < t]
             points += cone_crossings(o, d, t, light[0], light[1])
+            points += [x for p in plates for x in plate_shadow_breaks(o, d, t, light[0], p)]
         edges = [0.0] + sorted(points) + [t]
         for lo, hi in zip(edges[:-1], edges[1:]):
+            mid = 0.5 * (lo + hi) if hi < math.inf else lo + 1.0
+            if light[0] is not None and any(plate_blocks(o, d, mid, light[0], p) for p in plates):
+                continue
             out += integrate.quad_vec(f, lo, hi, epsabs=1e-13, epsrel=1e-10, limit=400)[0]
     return out
 

@@ -96,6 +96,33 @@ def test_montecarlo_passes_a_z_test_against_quadrature(name, sampling):
     assert z2.mean() < 3.5, z2.mean()
 
 
+def test_shadowed_quadrature_in_fog_matches_brute_force(write_scene, tmp_path):
+    """A black plate under the lamp of a black room: the image is the fog's shadowed air-light, lit
+    intervals integrated from their own start and attenuated by the fog from the camera."""
+    from .conftest import PLATE, PLATE_LIGHT
+
+    scene = box_room(camera={"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": 6,
+                             "height": 5, "spp": 1},
+                     medium={**FOG, "h0": 0.0, "scale_height": 1.0},
+                     light=[{"position": PLATE_LIGHT, "intensity": 20.0}])
+    scene["shape"][0]["reflectance"] = 0.0
+    scene["shape"].append(dict(PLATE))
+    img = _render(scene, write_scene, tmp_path, "--method", "quadrature", "--volumetric-shadows")
+    (x0, y0, z0), (x1, _, z1) = PLATE["corners"][0], PLATE["corners"][2]
+    plate = (y0, (x0, x1), (z0, z1))
+    room = oracle.box_hit(scene)
+
+    def hit(o, d):
+        t, n = room(o, d)
+        return min(t, oracle.plate_hit(o, d, plate)), n
+
+    ref = np.array([[oracle.fog_pixel(scene, i, j, hit, [plate]) for i in range(6)] for j in range(5)])
+    lit = ref > 0
+    assert lit.sum() >= 20 and np.all(img[~lit] == 0.0)
+    rel = np.abs(img - ref)[lit] / ref[lit]
+    assert rel.max() < 1e-6, rel.max()
+
+
 def test_volumetric_shadows_in_fog_use_the_closed_form_in_front_of_each_segment():
     """Lit intervals start inside the ray: gather's transmittance from the camera to each
     interval must be the fog's; without an occluder the shadowed render is the unshadowed one."""
