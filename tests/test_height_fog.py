@@ -220,3 +220,17 @@ def test_gather_attenuates_each_segment_from_the_camera_ray_origin():
     fog = oracle.Fog({**FOG, "up": [0.3, 1.0, 0.2]})
     want = np.array([np.exp(-(fog.ka + fog.ks) * fog.depth(o[i], d[i], t0[i])) for i in range(6)])
     assert np.allclose(got, want, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("profile", ["exponential", "linear"])
+@pytest.mark.parametrize("method", ["quadrature", "raymarch", "montecarlo"])
+def test_rays_into_the_dense_fog_below_stay_finite(method, profile):
+    """Rays that miss everything and fall below h0 forever: the density overflows where the
+    transmittance is 0, and the product must be 0, not nan (raytrace.render refuses non-finite
+    pixels)."""
+    scene = {"camera": {"position": [0, 1, 5], "look_at": [0, -0.5, 0], "width": 8, "height": 6, "fov": 90},
+             "shape": [{"primitive": "box", "min": [-1, -1, -1], "max": [1, 0, 1]}],
+             "light": [{"position": [0.5, 1.0, -1.0], "intensity": 10.0}, SUN],
+             "medium": {"type": "height_fog", "sigma_a": 0.01, "sigma_s": 0.1, "scale_height": 0.5, "profile": profile}}
+    img = raytrace.render(scene, method=method, threads=1).array
+    assert np.all(np.isfinite(img)) and img.max() > 0.0

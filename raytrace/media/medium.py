@@ -77,11 +77,13 @@ class Medium:
 
 
 @njit
-def density(h, H, profile):
-    """The fog's density relative to h0 at the height h above h0 (eq. 32 or eq. 28)."""
+def attenuated_density(h, tau, H, profile):
+    """The fog's density relative to h0 at the height h above h0 (eq. 32 or eq. 28) times e^{-tau},
+    without inf * 0 deep below h0 (where the density overflows and tau is inf): the exponential's
+    as one exp(-h/H - tau)."""
     if profile == EXPONENTIAL:
-        return math.exp(-h / H)
-    return max(0.0, 1.0 - h / H)
+        return math.exp(-h / H - tau)
+    return max(0.0, 1.0 - h / H) * math.exp(-tau)
 
 
 @njit

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..jit import njit
 from ..lights import DIRECTIONAL, NO_CONE, falloff
-from ..media.medium import column, density
+from ..media.medium import LINEAR, attenuated_density, column
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
@@ -149,17 +149,16 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
     transmittances exp(-kt tau) with tau the closed-form column (media/medium.py, seed 004 eq. 34
     or 30); T_cam from the segment's start, T_light to the light or, for the sun, to infinity."""
     hp = row[HO] + row[MU] * x
-    rho = density(hp, H, profile)
-    if rho == 0.0:
+    if profile == LINEAR and hp >= H:  # above the linear fog's top
         return 0.0
     tau = column(row[HO], row[MU], 0.0, x, H, profile)
     if sun:
-        return ks * rho * phase_value(code, g, row[COSD]) * math.exp(
-            -kt * (tau + column(hp, row[MUS], 0.0, math.inf, H, profile)))
+        tau += column(hp, row[MUS], 0.0, math.inf, H, profile)
+        return ks * phase_value(code, g, row[COSD]) * attenuated_density(hp, kt * tau, H, profile)
     dx = x - xh
     d = math.sqrt(max(h * h + dx * dx, 1e-250))
     f = spot_factor(dx, d, h, cone)
     if f == 0.0:
         return 0.0
     tau += column(hp, (row[HL] - hp) / d, 0.0, d, H, profile)
-    return ks * rho * f * phase_value(code, g, -dx / d) * math.exp(-kt * tau)
+    return ks * f * phase_value(code, g, -dx / d) * attenuated_density(hp, kt * tau, H, profile)

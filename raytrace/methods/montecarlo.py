@@ -34,7 +34,7 @@ from . import ErrorLaw, Method, Param
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import HO, MU, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
 from ..errors import UserError
-from ..media.medium import HOMOGENEOUS, column, column_distance, density
+from ..media.medium import HOMOGENEOUS, attenuated_density, column, column_distance
 from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
@@ -413,8 +413,8 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
             if use_e:
                 p += _p_equiangular(x, xh, h, th_a, th_b)
             if use_f:
-                p += kt * density(row[HO] + row[MU] * x, H, profile) * math.exp(
-                    -kt * column(row[HO], row[MU], 0.0, x, H, profile)) / norm
+                p += kt * attenuated_density(row[HO] + row[MU] * x, kt * column(row[HO], row[MU], 0.0, x, H, profile),
+                                             H, profile) / norm
             if p > 0.0:
                 f = fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun)
                 if not sun:
