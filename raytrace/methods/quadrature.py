@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.extending import overload
 
 from ..jit import njit
 from . import ErrorLaw, Method, Param
@@ -69,10 +70,23 @@ def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
     return acc * half
 
 
+def _either_rule(a, b, args, nodes, weights):
+    """`_rule` for args = (piece, xh, h, kt, code, g, cone), else `_fog_rule` (chosen at compile time
+    by the tuple's length, `_either_rule_impl`)."""
+
+
+@overload(_either_rule)
+def _either_rule_impl(a, b, args, nodes, weights):
+    if len(args) == 7:
+        return lambda a, b, args, nodes, weights: _rule(args[0], a, b, args[1], args[2], args[3], args[4], args[5],
+                                                        args[6], nodes, weights)
+    return lambda a, b, args, nodes, weights: _fog_rule(a, b, args, nodes, weights)
+
+
 @njit
-def _adaptive(piece, a, b, xh, h, kt, code, g, cone, rtol, density, n10, w10, n20, w20, stats):
-    """The integral over [a, b] and whether every interval met its tolerance (False: an interval
-    was accepted at the MAX_INTERVALS / STACK caps or at the resolution of doubles)."""
+def _adaptive(args, a, b, rtol, density, n10, w10, n20, w20, stats):
+    """The integral over [a, b] of `_either_rule` and whether every interval met its tolerance (False:
+    an interval was accepted at the MAX_INTERVALS / STACK caps or at the resolution of doubles)."""
     if not b > a:
         return 0.0, True
     converged = True
@@ -85,8 +99,8 @@ def _adaptive(piece, a, b, xh, h, kt, code, g, cone, rtol, density, n10, w10, n2
     while top > 0:
         top -= 1
         x0, x1 = lo[top], hi[top]
-        coarse = _rule(piece, x0, x1, xh, h, kt, code, g, cone, n10, w10)
-        fine = _rule(piece, x0, x1, xh, h, kt, code, g, cone, n20, w20)
+        coarse = _either_rule(x0, x1, args, n10, w10)
+        fine = _either_rule(x0, x1, args, n20, w20)
         count += 1
         mid = 0.5 * (x0 + x1)
         tol = max(rtol * abs(fine), density * (x1 - x0))
@@ -160,13 +174,13 @@ def airlight_one(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w20, st
     total = 0.0
     ok = True
     for i in range(n0 - 1):
-        val, good = _adaptive(0, b0[i], b0[i + 1], xh, h, kt, code, g, cone, rtol, density, n10, w10, n20, w20,
-                              stats)
+        val, good = _adaptive((0, xh, h, kt, code, g, cone), b0[i], b0[i + 1], rtol, density, n10,
+                              w10, n20, w20, stats)
         total += val
         ok = ok and good
     for i in range(n1 - 1):
-        val, good = _adaptive(1, b1[i], b1[i + 1], xh, h, kt, code, g, cone, rtol, density, n10, w10, n20, w20,
-                              stats)
+        val, good = _adaptive((1, xh, h, kt, code, g, cone), b1[i], b1[i + 1], rtol, density, n10,
+                              w10, n20, w20, stats)
         total += val
         ok = ok and good
     if not ok:
@@ -243,42 +257,16 @@ def _fog_value(s, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
 
 
 @njit
-def _fog_rule(a, b, row, xh, h, kt, ks, code, g, cone, H, profile, sun, nodes, weights):
+def _fog_rule(a, b, args, nodes, weights):
+    """Gauss-Legendre rule of `_fog_value` over [a, b]; args = (row, xh, h, kt, ks, code, g, cone, H,
+    profile, sun)."""
+    row, xh, h, kt, ks, code, g, cone, H, profile, sun = args
     half = 0.5 * (b - a)
     mid = 0.5 * (a + b)
     acc = 0.0
     for k in range(nodes.shape[0]):
         acc += weights[k] * _fog_value(mid + half * nodes[k], row, xh, h, kt, ks, code, g, cone, H, profile, sun)
     return acc * half
-
-
-@njit
-def _fog_adaptive(a, b, row, xh, h, kt, ks, code, g, cone, H, profile, sun, rtol, floor, n10, w10, n20, w20, stats):
-    """`_adaptive` for `_fog_value`: the integral over [a, b] and whether every interval converged."""
-    converged = True
-    lo = np.empty(STACK)
-    hi = np.empty(STACK)
-    lo[0], hi[0] = a, b
-    top = 1
-    total = 0.0
-    count = 0
-    while top > 0:
-        top -= 1
-        x0, x1 = lo[top], hi[top]
-        coarse = _fog_rule(x0, x1, row, xh, h, kt, ks, code, g, cone, H, profile, sun, n10, w10)
-        fine = _fog_rule(x0, x1, row, xh, h, kt, ks, code, g, cone, H, profile, sun, n20, w20)
-        count += 1
-        mid = 0.5 * (x0 + x1)
-        tol = max(rtol * abs(fine), floor * (x1 - x0))
-        if abs(fine - coarse) <= tol or count >= MAX_INTERVALS or top + 2 > STACK or not (x0 < mid < x1):
-            converged = converged and abs(fine - coarse) <= tol
-            total += fine
-        else:
-            lo[top], hi[top] = x0, mid
-            lo[top + 1], hi[top + 1] = mid, x1
-            top += 2
-    stats[INTERVALS] += count
-    return total, converged
 
 
 @njit
@@ -327,18 +315,17 @@ def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol,
         stats[EVALS] += 1.0
         m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, sun[s], br)
         width = br[m - 1] - br[0]
+        args = (rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
         estimate = 0.0
         for i in range(m - 1):
             if br[i + 1] > br[i]:
-                estimate += _fog_rule(br[i], br[i + 1], rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile,
-                                      sun[s], n20, w20)
+                estimate += _fog_rule(br[i], br[i + 1], args, n20, w20)
         floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
         total = 0.0
         ok = True
         for i in range(m - 1):
             if br[i + 1] > br[i]:
-                val, good = _fog_adaptive(br[i], br[i + 1], rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H,
-                                          profile, sun[s], rtol, floor, n10, w10, n20, w20, stats)
+                val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
                 total += val
                 ok = ok and good
         if not ok:
