@@ -3,11 +3,14 @@
 The only module that imports embreex. Rays cross into Embree as float32; what comes back is
 refined in float64: the hit distance is recomputed exactly on the hit triangle's plane, so hit
 points, normals and every radiometric quantity after them are float64. Shadow rays are offset by
-an epsilon proportional to the scene's size. Embree releases the GIL, so `threads > 1` splits a
+an epsilon proportional to the scene's size. Embree treats coordinates beyond ~1.8e18 as infinite:
+a scene larger than 2^40 (or smaller than 2^-40) crosses the boundary divided by a power of two
+(`unit`, exact), so 1e30-metre scenes intersect as 1-metre ones. Embree releases the GIL, so `threads > 1` splits a
 batch over a thread pool.
 """
 from __future__ import annotations
 
+import math
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -15,6 +18,7 @@ import numpy as np
 from .jit import njit
 
 CHUNK = 1 << 15
+UNIT_RANGE = 2.0 ** 40  # scenes whose size lies outside [1 / UNIT_RANGE, UNIT_RANGE] are rescaled for Embree
 
 
 class Accelerator:
@@ -32,13 +36,18 @@ class Accelerator:
             pts = np.concatenate([pts, np.asarray(extent_points, dtype=np.float64).reshape(-1, 3)])
         self.scale = (float(np.max(np.abs(pts))) if len(pts) else 0.0) or 1.0
         self.epsilon = 1e-5 * max(self.scale, 1e-6)
+        self.unit = 1.0 if 1.0 / UNIT_RANGE <= self.scale <= UNIT_RANGE else 2.0 ** round(math.log2(self.scale))
         self._scene = None
         if len(self.triangles):
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
 
             self._scene = rtcore_scene.EmbreeScene()
-            TriangleMesh(self._scene, self.triangles.astype(np.float32))
+            TriangleMesh(self._scene, self._to_embree(self.triangles))
+
+    def _to_embree(self, a):
+        """Coordinates or distances as Embree sees them: float32, in units of `unit`."""
+        return np.ascontiguousarray(a if self.unit == 1.0 else a / self.unit, dtype=np.float32)
 
     def _map(self, fn, n, threads, *arrays):
         chunks = [tuple(a[i:i + CHUNK] for a in arrays) for i in range(0, n, CHUNK)]
@@ -56,14 +65,14 @@ class Accelerator:
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
     def _first_hit_chunk(self, origins, dirs):
-        o32 = np.ascontiguousarray(origins, dtype=np.float32)
+        o32 = self._to_embree(origins)
         d32 = np.ascontiguousarray(dirs, dtype=np.float32)
         prim = self._scene.run(o32, d32).astype(np.int64)
         t = np.empty(len(prim))
         _refine(self.triangles, self.normals, origins, dirs, prim, t)
         bad = np.isnan(t)
         if bad.any():  # degenerate plane solve: fall back to Embree's float32 distance
-            t[bad] = self._scene.run(o32[bad], d32[bad], query="DISTANCE").astype(np.float64)
+            t[bad] = self._scene.run(o32[bad], d32[bad], query="DISTANCE").astype(np.float64) * self.unit
         return t, prim
 
     def occluded(self, origins: np.ndarray, dirs: np.ndarray, tmax: np.ndarray, threads: int = 1):
@@ -71,9 +80,9 @@ class Accelerator:
         n = len(origins)
         if self._scene is None or n == 0:
             return np.zeros(n, dtype=bool)
-        o32 = np.ascontiguousarray(origins, dtype=np.float32)
+        o32 = self._to_embree(origins)
         d32 = np.ascontiguousarray(dirs, dtype=np.float32)
-        t32 = np.ascontiguousarray(np.maximum(tmax, 0.0), dtype=np.float32)
+        t32 = self._to_embree(np.maximum(tmax, 0.0))
         res = self._map(lambda o, d, t: self._scene.run(o, d, dists=t, query="OCCLUDED"), n, threads, o32, d32, t32)
         return np.concatenate(res) >= 0
 

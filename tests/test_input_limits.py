@@ -62,3 +62,42 @@ def test_a_large_legal_image_is_not_refused():
     if need < api.MEMORY_SHARE * api.physical_memory():
         api.check_memory(cam, None, True, "test")
     api.check_memory(cam, (0, 0, 64, 64), True, "test")  # a crop of it always
+
+
+@pytest.mark.parametrize("method", ["analytic", "quadrature", "raymarch", "montecarlo"])
+@pytest.mark.parametrize("sigma", [1e150, 1e308, 1.7e308])
+def test_extreme_coefficients_render_finite(method, sigma):
+    """A medium so dense that kt x overflows (sigma_s up to the largest doubles): every pixel is
+    finite and non-negative, no numpy warnings (was: overflow warnings and "non-finite pixels", exit 2)."""
+    import warnings
+
+    import numpy as np
+
+    import raytrace
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        img = raytrace.render(box_room(medium={"sigma_a": 0.05, "sigma_s": sigma}), method=method, threads=1)
+    assert np.all(np.isfinite(img.array)) and np.all(img.array >= 0.0)
+
+
+def test_a_huge_scene_in_proportion_renders_as_the_small_one():
+    """Lengths x 1e30, coefficients / 1e30, intensities x 1e60: the same radiance (the air-light and
+    the surface term are invariant), to the analytic method's precision."""
+    import numpy as np
+
+    import raytrace
+
+    s = 1e30
+    small = box_room()
+    big = box_room(
+        camera={**small["camera"], "position": [s * v for v in small["camera"]["position"]],
+                "look_at": [s * v for v in small["camera"]["look_at"]]},
+        shape=[{**small["shape"][0], "min": [s * v for v in small["shape"][0]["min"]],
+                "max": [s * v for v in small["shape"][0]["max"]]}],
+        light=[{"position": [s * v for v in small["light"][0]["position"]],
+                "intensity": [s * s * v for v in small["light"][0]["intensity"]]}],
+        medium={"sigma_a": 0.05 / s, "sigma_s": 0.15 / s})
+    a = raytrace.render(small, method="analytic", precision=1e-6, threads=1).array
+    b = raytrace.render(big, method="analytic", precision=1e-6, threads=1).array
+    assert np.max(np.abs(b - a) / a) < 1e-5

@@ -55,7 +55,7 @@ class Medium:
         """Homogeneous: exp(-kt t) per channel (N, 3) over lengths t (N,), exactly 1 in vacuum
         channels even for t = inf."""
         kt = self.sigma_t
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # kt t = inf (huge kt or t): exp(-inf) = 0
             tr = np.exp(-kt[None, :] * np.asarray(t, float)[:, None])
         return np.where(kt[None, :] == 0.0, 1.0, tr)
 

@@ -45,7 +45,7 @@ from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import falloff, segment_cone, smoothstep_trig
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
-from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split
+from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
 from .quadrature import CAPPED, _N10, _N20, _W10, _W20
 from .quadrature import _rule as quad_rule
 from .quadrature import airlight_one as quad_airlight
@@ -82,6 +82,7 @@ G_REL_ERR = 3e-14
 NEARLINE_TOL = 3e-6
 
 _EPS = 2.220446049250313e-16
+UNDERFLOW_PATH = 745.0  # e^{-745} is the smallest positive double
 
 
 @njit
@@ -348,6 +349,13 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         return 0.0
     if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
         return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
+    if kt * da > UNDERFLOW_PATH:
+        # optically so thick that the bound I ks max(Phi) pi / h e^{-kt d_a} (the optical path x + d is
+        # least, d_a, at the segment's start; int dx / d^2 <= pi / h) underflows: 0, and no inf * 0
+        peak = max(phase_value(phase_code, g, 1.0), phase_value(phase_code, g, -1.0))
+        if math.log(intensity) + math.log(ks) + math.log(math.pi * peak / h) - kt * da < -UNDERFLOW_PATH:
+            stats[ST_ZERO] += 1.0
+            return 0.0
     spot = cone[3] > -1.0
 
     finite = ell < math.inf
@@ -372,7 +380,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     H = kt * h
     va = v_of(-xh, h)
     vb = v_of(ell - xh, h) if finite else math.inf
-    pref = intensity * ks / h * 2.0  # times folded integrals
+    pref = 2.0 * intensity / h  # times ks times folded integrals (ks first: ks up to 1.8e308 stays finite)
     # optical paths x + d (light -> end -> camera) at both ends
     pa = da
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
@@ -381,7 +389,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
                             precision, max_iter, coeffs[:0], stats)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
-        return pref * val
+        return pref * (ks * val)
     work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
     pieces = work[:15].reshape((5, 3))
     vals = work[15:20]
@@ -407,7 +415,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     for i in range(n):
         if errs[i] < math.inf:
             total += vals[i]
-    out = pref * total
+    out = pref * (ks * total)
     if np.sum(errs[:n]) > SERIES_SAFETY * precision * total:
         # pieces without a closed form, and narrow bands whose polynomial's terms cancel (each band
         # over its share of the error): quadrature over the piece's own stretch [x1, x2] of the
@@ -417,10 +425,10 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
             if errs[i] > share:
                 stats[ST_PIECE_QUAD] += 1.0
                 v1, v2 = pieces[i, 0], pieces[i, 1]
-                old = pref * vals[i] if errs[i] < math.inf else 0.0
+                old = pref * (ks * vals[i]) if errs[i] < math.inf else 0.0
                 fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
                 if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
-                    out += pref * fine - old  # one 10/20-point Gauss-Legendre step suffices (smooth, short)
+                    out += pref * (ks * fine) - old  # one 10/20-point Gauss-Legendre step suffices (smooth, short)
                     continue
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
