@@ -200,8 +200,12 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
     else:
         result = renderer.render(prep, m.name, given, seed, threads, progress=progress, source=source, crop=crop,
                                  volumetric_shadows=shadows, shadow_spacing=spacing, client=client)
-    if not np.all(np.abs(result.image) < np.finfo(np.float32).max):  # also catches NaN
+    if np.any(np.isnan(result.image)):
         raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
+    if not np.all(result.image < np.finfo(np.float32).max):
+        raise UserError(f"{source}: {int(np.sum(~(result.image < np.finfo(np.float32).max)))} pixel channels exceed "
+                        "float32's 3.4e38 (an EXR cannot hold them): lower the lights' intensity or the medium's "
+                        "coefficients, or move the camera off the light it sits on")
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
                  result.compile_seconds, cam.spp, seed, crop, shadows, result.variance,
                  {"shadow_spacing": spacing} if shadows else {})

@@ -117,9 +117,11 @@ def by_channel(segs, medium, lights, evaluate):
 
 @njit
 def _scale_into(out, c, unit, intensity, light):
-    """out[s, c] = unit[s] * intensity[light[s], c]."""
+    """out[s, c] = unit[s] * intensity[light[s], c] (0 for a dark light, even where the unit value
+    overflowed: a camera on a light in a medium of sigma ~ 1e300)."""
     for s in range(unit.shape[0]):
-        out[s, c] = unit[s] * intensity[light[s], c]
+        i = intensity[light[s], c]
+        out[s, c] = unit[s] * i if i != 0.0 else 0.0
 
 
 # a height-fog segment's row (`fog_rows`): heights above h0 and up-cosines of the ray and its light
