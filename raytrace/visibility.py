@@ -119,11 +119,15 @@ def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int =
 
 @njit
 def _add_by_ray(values, ray, tr, out):
-    """out[ray[s]] += values[s] (times tr[s] unless tr is empty)."""
+    """out[ray[s]] += values[s] (times tr[s] unless tr is empty; nothing where tr is 0, even if the
+    segment's own value overflowed: a light on the camera in a medium of sigma ~ 1e300)."""
     for s in range(values.shape[0]):
         r = ray[s]
         for c in range(3):
-            out[r, c] += values[s, c] * tr[s, c] if tr.shape[0] else values[s, c]
+            if not tr.shape[0]:
+                out[r, c] += values[s, c]
+            elif tr[s, c] != 0.0:
+                out[r, c] += values[s, c] * tr[s, c]
 
 
 def _light_frame(segs: Segments, lights):

@@ -218,6 +218,16 @@ LIGHT_KEYS = {"point": {"type", "position", "intensity"},
               "directional": {"type", "direction", "irradiance"}}
 
 
+MAX_POWER = 1e150  # a light's intensity or irradiance: its square (a Monte Carlo variance) must stay finite
+
+
+def _power(ctx, key, value):
+    if np.any(value > MAX_POWER):
+        ctx.fail(key, f"{value.max():g} exceeds {MAX_POWER:g} (the variance of an estimate, its square, would "
+                 "overflow doubles)", "scale the scene's units of power down")
+    return value
+
+
 def _light(ctx, i, raw):
     key = f"light[{i}]"
     raw = _table(ctx, key, raw)
@@ -229,7 +239,7 @@ def _light(ctx, i, raw):
         if k not in raw:
             ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k}")
     pos = _vec3(ctx, f"{key}.position", raw["position"])
-    intensity = _rgb(ctx, f"{key}.intensity", raw["intensity"])
+    intensity = _power(ctx, f"{key}.intensity", _rgb(ctx, f"{key}.intensity", raw["intensity"]))
     if kind == "point":
         return Light(pos, intensity)
     return _spot(ctx, key, raw, pos, intensity)
@@ -244,7 +254,8 @@ def _directional(ctx, key, raw):
     norm = float(np.linalg.norm(axis))
     if not norm > 0.0:
         ctx.fail(f"{key}.direction", "is zero", "give the direction the light travels, e.g. [0.3, -1.0, 0.2]")
-    return Light(np.zeros(3), _rgb(ctx, f"{key}.irradiance", raw["irradiance"]), DIRECTIONAL, axis / norm)
+    return Light(np.zeros(3), _power(ctx, f"{key}.irradiance", _rgb(ctx, f"{key}.irradiance", raw["irradiance"])),
+                 DIRECTIONAL, axis / norm)
 
 
 def _spot(ctx, key, raw, pos, intensity):
