@@ -231,10 +231,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     block = coeffs
     at = B_HMAX_BAND if band else B_HMAX
     if moments:
-        n1 = int(coeffs[0])
-        block = coeffs[1:1 + n1]
-        if coeffs.shape[0] > 1 + n1 and coeffs[1 + n1] <= v1 and v2 <= coeffs[2 + n1]:
-            block = coeffs[1 + n1:]  # the short series fitted away from the phase function's peak
+        block = _block_for(coeffs, v1, v2)
         if H > block[at]:  # the moment recurrence would lose digits: quadrature
             return 0.0, 0.0, False
     # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
@@ -399,7 +396,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         if pieces[i, 2] == 0.0:
             continue
         v1, v2 = pieces[i, 0], pieces[i, 1]
-        if pieces[i, 2] == 2.0 and _series_length(coeffs, v1, v2) > BAND_GAUSS_FIRST:
+        if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2).shape[0] - B_C > BAND_GAUSS_FIRST:
             fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
             if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
                 stats[ST_PIECE_QUAD] += 1.0
@@ -438,12 +435,13 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
 
 @njit
-def _series_length(coeffs, v1, v2):
-    """Terms of the exact mode's cosine series a piece v1 < v < v2 would use (`_piece`'s block)."""
+def _block_for(coeffs, v1, v2):
+    """The exact mode's coefficient block for a piece v1 < v < v2: the short series fitted away from
+    the phase function's peak where the piece lies in its range, else the full one."""
     n1 = int(coeffs[0])
     if coeffs.shape[0] > 1 + n1 and coeffs[1 + n1] <= v1 and v2 <= coeffs[2 + n1]:
-        return coeffs.shape[0] - 1 - n1 - B_C
-    return n1 - B_C
+        return coeffs[1 + n1:]
+    return coeffs[1:1 + n1]
 
 
 @njit
