@@ -1,0 +1,228 @@
+"""Single scattering inside a bounded medium lit through its planar boundary (seed 002).
+
+Geometry of a segment (the seed's Fig. 1, in the project's segment terms, methods/geometry.py): a
+ray enters the medium at its start o with unit direction w and runs inside for x in [0, ell]; the
+boundary is the plane through the entry point with outward unit normal n. The depth of the point
+o + x w below the plane is z0 + a x with a = -w·n > 0 (the seed's omega_e·n_e, its omega = -w). A
+point or spot light at p lies outside, at the height H_L = (p - o)·n > 0 above the plane; x_h and h
+are its projection coordinate and distance to the ray line, d(x) = sqrt(h^2 + (x - x_h)^2).
+
+* Distant light (seed eq. 5): the light's refracted direction inside is constant; the path from
+  depth z to the boundary has length k = c x with c = a / b, b the cosine of the refracted light
+  direction to the normal (the seed's sin(beta) / sin(alpha)), so the in-scattered radiance is
+      L = ks Phi E_in ∫_0^ell exp(-kt (1 + c) x) dx = ks Phi E_in (1 - exp(-kt (1 + c) ell)) / (kt (1 + c)),
+  with E_in the irradiance of the refracted beam (`beam_irradiance`: E T cos1 / cos2, T the
+  Fresnel transmittance; E when the boundary is index-matched).
+* Point light, index-matched boundary (seed eq. 6-7): the straight path from o + x w to the light
+  crosses the plane after k(x) = d(x) (z0 + a x) / (z0 + a x + H_L) inside, so
+      L = I ks ∫_0^ell Phi(cos) exp(-kt (x + k(x)) - kt_out (d(x) - k(x))) / d(x)^2 dx,
+  kt_out the extinction outside (0 in the seed), cos = -(x - x_h) / d the scattering cosine. It has
+  no closed form; `point_exact` integrates it with the project's adaptive Gauss-Legendre rule
+  (methods/quadrature.py) in the angle theta = atan((x - x_h) / h) seen from the light
+  (dx / d^2 = dtheta / h: a bounded, smooth integrand). With the light in the plane (H_L = 0),
+  k = d and this is the air-light of eq. 4 (the seed's eq. 8).
+* The seed's separable approximation (its sec. 4.2, for thin media): the exponential part replaced
+  by its average under the distant-light limit, c taken at the entry point,
+      L_approx = I ks Phi(cos_a) (1 - exp(-kt (1 + c) ell)) / (kt (1 + c) ell) ∫_0^ell d(x)^-2 dx,
+  with ∫ d^-2 dx = (theta_b - theta_a) / h in closed form (`inverse_square_integral`).
+
+Refraction uses Snell's law in vector form and the unpolarised Fresnel reflectance of a smooth
+dielectric (`refract`, `fresnel`); eta = n_inside / n_outside.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import njit
+from ..methods.quadrature import CAPPED
+from ..methods.quadrature import _adaptive as adaptive
+from .phase import phase_value
+
+# an eq. 7 argument tuple for methods/quadrature.py's adaptive rule: its length tells the rule apart
+EQ7_ARGS = 12
+# eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
+# segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
+WITH_FALLOFF, NO_FALLOFF, BEHIND = 0, 1, 2
+
+
+@njit
+def fresnel(cos_i, eta):
+    """Unpolarised Fresnel reflectance of a smooth dielectric boundary for a ray arriving at cosine
+    cos_i (> 0) to the normal from the side of index 1, the other side of index eta (relative);
+    1 beyond the critical angle."""
+    if eta == 1.0:
+        return 0.0
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    if sin2_t >= 1.0:
+        return 1.0
+    cos_t = math.sqrt(1.0 - sin2_t)
+    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return 0.5 * (rs * rs + rp * rp)
+
+
+@njit
+def refract(dx, dy, dz, nx, ny, nz, eta):
+    """The direction of the unit ray d refracted through a boundary with unit normal n facing it
+    (n·d < 0) into a medium of relative index eta: (tx, ty, tz, cos_t), cos_t = -t·n > 0; cos_t = 0
+    and t = d on total internal reflection."""
+    cos_i = -(dx * nx + dy * ny + dz * nz)
+    r = 1.0 / eta
+    sin2_t = r * r * (1.0 - cos_i * cos_i)
+    if sin2_t >= 1.0:
+        return dx, dy, dz, 0.0
+    cos_t = math.sqrt(1.0 - sin2_t)
+    f = r * cos_i - cos_t
+    return r * dx + f * nx, r * dy + f * ny, r * dz + f * nz, cos_t
+
+
+@njit
+def beam_irradiance(cos_i, eta):
+    """Irradiance of a collimated beam inside a dielectric boundary, per unit irradiance outside on
+    a surface facing the beam, the beam arriving at cosine cos_i: T cos_i / cos_t (the beam's
+    cross-section widens from cos_i to cos_t per unit boundary area); 1 when index-matched."""
+    if eta == 1.0:
+        return 1.0
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    if sin2_t >= 1.0 or cos_i <= 0.0:
+        return 0.0
+    return (1.0 - fresnel(cos_i, eta)) * cos_i / math.sqrt(1.0 - sin2_t)
+
+
+@njit
+def slab_distant(kt, ks, phase, c, ell):
+    """Seed eq. 5 per unit beam irradiance: ks Phi ∫_0^ell exp(-kt (1 + c) x) dx, c >= 0, ell <= inf."""
+    q = kt * (1.0 + c)
+    if q * ell < 1e-300 or q == 0.0:
+        return ks * phase * ell
+    if ell == math.inf:
+        return ks * phase / q
+    return ks * phase * (-math.expm1(-q * ell)) / q
+
+
+@njit
+def light_path_inside(x, d, z0, a, hl):
+    """k(x): length inside of the straight path from depth z0 + a x to a light at height hl above
+    the plane, at distance d (seed eq. 6); d when the light lies in the plane."""
+    z = z0 + a * x
+    if z <= 0.0:
+        return 0.0
+    return d * z / (z + hl)
+
+
+@njit
+def eq7_value(v, args):
+    """The eq. 7 integrand at the integration variable v; args = (EQ7 tag, mode, xh, h, kt, ks, code,
+    g, z0, a, hl, kt_out). WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
+    BEHIND: v = u = 1 / (x - x_h) (dx / d^2 = du / (1 + h^2 u^2)), the value ks Phi exp(-(...)) / (1 + h^2 u^2);
+    NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the seed's Figs. 2-3)."""
+    mode, xh, h, kt, ks, code, g, z0, a, hl, kt_out = (args[1], args[2], args[3], args[4], args[5], args[6],
+                                                       args[7], args[8], args[9], args[10], args[11])
+    if mode == NO_FALLOFF:
+        x = v
+        d = math.sqrt(h * h + (x - xh) * (x - xh))
+        return math.exp(-kt * (x + light_path_inside(x, d, z0, a, hl)))
+    if mode == BEHIND:
+        if v <= 0.0:
+            return 0.0
+        q = math.sqrt(1.0 + h * h * v * v)
+        x = xh + 1.0 / v
+        d = q / v
+        k = light_path_inside(x, d, z0, a, hl)
+        path = kt * (x + k) + (kt_out * (d - k) if kt_out > 0.0 else 0.0)
+        return ks * phase_value(code, g, -1.0 / q) * math.exp(-path) / (q * q)
+    st = math.sin(v)
+    ct = math.cos(v)
+    if ct <= 0.0:
+        return 0.0
+    x = xh + h * st / ct
+    d = h / ct
+    k = light_path_inside(x, d, z0, a, hl)
+    path = kt * (x + k) + (kt_out * (d - k) if kt_out > 0.0 else 0.0)
+    return ks * phase_value(code, g, -st) * math.exp(-path)
+
+
+@njit
+def eq7_rule(a, b, args, nodes, weights):
+    """Gauss-Legendre rule of `eq7_value` over [a, b] (methods/quadrature.py's adaptive rule calls it
+    for argument tuples of length EQ7_ARGS)."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    acc = 0.0
+    for k in range(nodes.shape[0]):
+        acc += weights[k] * eq7_value(mid + half * nodes[k], args)
+    return acc * half
+
+
+def _gl(n):
+    return np.polynomial.legendre.leggauss(n)
+
+
+_N10, _W10 = _gl(10)
+_N20, _W20 = _gl(20)
+
+
+@njit
+def _eq7_adaptive(args, lo, hi, rtol, stats):
+    """The adaptive rule of methods/quadrature.py over [lo, hi], with its floor: tails below rtol/10
+    of a first 20-point estimate per unit of the variable are not refined."""
+    if not hi > lo:
+        return 0.0
+    floor = 0.1 * rtol * abs(eq7_rule(lo, hi, args, _N20, _W20)) / (hi - lo)
+    total, good = adaptive(args, lo, hi, rtol, floor, _N10, _W10, _N20, _W20, stats)
+    if not good:
+        stats[CAPPED] += 1.0
+    return total
+
+
+@njit
+def point_exact(xh, h, ell, kt, ks, code, g, z0, a, hl, kt_out, rtol, stats):
+    """Seed eq. 7 for a unit-intensity point light (module docstring), adaptive to `rtol`: the
+    in-scattered radiance at the segment's start."""
+    if ks == 0.0 or not ell > 0.0:
+        return 0.0
+    if xh < 0.0 and h < -xh:  # behind the start, within 45 degrees of the line: u = 1 / (x - x_h)
+        lo = 0.0 if ell == math.inf else 1.0 / (ell - xh)
+        args = (0, BEHIND, xh, h, kt, ks, code, g, z0, a, hl, kt_out)
+        return _eq7_adaptive(args, lo, -1.0 / xh, rtol, stats)
+    lo = math.atan2(-xh, h)
+    hi = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
+    total = _eq7_adaptive((0, WITH_FALLOFF, xh, h, kt, ks, code, g, z0, a, hl, kt_out), lo, hi, rtol, stats)
+    return total / h
+
+
+@njit
+def exponential_part(xh, h, ell, kt, z0, a, hl, rtol, stats):
+    """∫_0^ell exp(-kt (x + k(x))) dx: eq. 7 without the falloff and the phase function, as the seed
+    plots it (Figs. 2-3, 6-8)."""
+    if not ell > 0.0:
+        return 0.0
+    return _eq7_adaptive((0, NO_FALLOFF, xh, h, kt, 1.0, 0, 0.0, z0, a, hl, 0.0), 0.0, ell, rtol, stats)
+
+
+@njit
+def inverse_square_integral(xh, h, ell):
+    """∫_0^ell dx / (h^2 + (x - x_h)^2) = (atan((ell - x_h)/h) - atan(-x_h/h)) / h, as one atan2 (no
+    cancellation when the light is near the ray line, h -> 0: the seed's s / (l (s + l)))."""
+    b = ell - xh
+    if h == 0.0:  # on the line, outside the segment (xh < 0 or xh > ell)
+        return -1.0 / xh if ell == math.inf else ell / (-xh * b)
+    if ell == math.inf:
+        return (0.5 * math.pi - math.atan2(-xh, h)) / h
+    return math.atan2(ell * h, h * h - xh * b) / h
+
+
+@njit
+def point_approx(xh, h, ell, kt, ks, code, g, a, b):
+    """The seed's separable approximation of eq. 7 (sec. 4.2) for a unit-intensity light: the
+    distant-light average (eq. 5 / ell, c = a / b at the entry point) times ∫ d^-2 dx; the phase
+    function at the entry point's scattering angle. 0 for a light in the boundary plane (b = 0,
+    c = inf), as eq. 5."""
+    if ks == 0.0 or not ell > 0.0 or b <= 0.0 or ell == math.inf:
+        return 0.0
+    c = a / b
+    da = math.sqrt(h * h + xh * xh)
+    mean = slab_distant(kt, ks, phase_value(code, g, xh / da), c, ell) / ell
+    return mean * inverse_square_integral(xh, h, ell)
