@@ -1,4 +1,4 @@
-"""Command line: render, compare, sweep, table1, describe, methods, diff (SCENE_FORMAT.md).
+"""Command line: render, compare, sweep, table1, seed002, describe, methods, diff (SCENE_FORMAT.md).
 
 User errors print one line on stderr and exit with status 2; nothing half-written stays on disk.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from .errors import UserError
 
-COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002")
 
 
 def _method_param_flags():
@@ -131,6 +131,11 @@ def build_parser():
                         "1 spp (default; the lit-interval search makes every shadowed render 5-40x slower), at "
                         "the full size, or off (with --quick it uses the quick images)")
     _add_scheduler_arg(t)
+    e = sub.add_parser("seed002", help="seed 002's figures (slab single scattering vs the light's distance) and "
+                                       "the measured error of its point-light approximation: CSV, report, plots")
+    e.add_argument("--out", default="out/seed002", help="output folder (default out/seed002)")
+    e.add_argument("--quick", action="store_true", help="13 light distances instead of 121 (for CI)")
+    e.add_argument("--no-plots", action="store_true", help="CSV files and the report only (no matplotlib needed)")
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
@@ -280,6 +285,15 @@ def cmd_table1(args):
     return 0
 
 
+def cmd_seed002(args):
+    from .experiments import seed002
+
+    out = _folder(args.out)
+    seed002.run(out, plots=not args.no_plots, ls=seed002.QUICK_GRID if args.quick else seed002.L_GRID)
+    print(f"wrote {out / 'report.md'}, {out / 'curves.csv'} and {out / 'sweep.csv'}")
+    return 0
+
+
 def cmd_describe(args):
     from .lights import DIRECTIONAL, NAMES as NAMES_L
     from .media.medium import HOMOGENEOUS, LINEAR
@@ -363,7 +377,8 @@ def main(argv=None) -> int:
         argv.insert(0, "render")
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
-                "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1}
+                "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
+                "seed002": cmd_seed002}
     try:
         return handlers[args.command](args)
     except UserError as exc:

@@ -33,7 +33,9 @@ def imported_modules():
 def test_every_runtime_import_is_a_declared_dependency():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     declared = {_name(r) for r in project["dependencies"]}
-    optional = {"raytrace/distributed.py": {"dask", "distributed"}}  # the extra dask[distributed] installs both
+    optional = {"raytrace/distributed.py": {"dask", "distributed"},  # the extra dask[distributed] installs both
+                "raytrace/experiments/seed002.py": {"matplotlib"}}  # the `plots` extra
+    assert any(_name(r) == "matplotlib" for r in project["optional-dependencies"]["plots"])
     assert any(_name(r) == "dask" for r in project["optional-dependencies"]["distributed"])
     dists = packages_distributions()
     missing = []
