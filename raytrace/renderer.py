@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import bounded
 from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
@@ -42,6 +43,8 @@ class Prepared:
     reflectance: np.ndarray
     lights: Lights
     _maps: dict = field(default_factory=dict)
+    shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
+    interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
 
     def shadow_maps(self, spacing: float) -> np.ndarray:
         """The lights' depth cube maps for this search spacing, built once (shadow_maps.py)."""
@@ -63,30 +66,40 @@ class RenderResult:
 
 
 def prepare(scene: Scene) -> Prepared:
-    tris, refl = scene_triangles(scene)
+    tris, refl, ids = scene_triangles(scene, shape_ids=True)
     lights = Lights.of(scene.lights)
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
-    return Prepared(scene, Accelerator(tris, extent), refl, lights)
+    inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
+    return Prepared(scene, Accelerator(tris, extent), refl, lights, shape_ids=ids, interior_shapes=inner)
 
 
 def default_threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
-def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None):
+def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None, depth=0):
     """Radiance (N, 3) of camera rays, the statistics array (the method's, then the lit-interval
     search's) and, for a stochastic method, the variance (N, 3) of each ray's estimate. `shadows`:
-    None for the paper's unshadowed air-light, else the angular spacing of the lit-interval search."""
+    None for the paper's unshadowed air-light, else the angular spacing of the lit-interval search.
+    Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep)."""
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
-    if hit.any():
-        points = origins[hit] + t[hit, None] * dirs[hit]
-        normals = facing_normals(prep.accel.normals[prim[hit]], dirs[hit])
-        radiance[hit] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[hit]], prep.lights,
-                                         medium)
+    into = bounded.enters(prep, prim)
+    surf = hit & ~into
+    if surf.any():
+        points = origins[surf] + t[surf, None] * dirs[surf]
+        normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
+        radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
+                                          medium)
+    if into.any():
+        def behind(o, d, k, dep):
+            return shade_rays(prep, method, params, o, d, k, seed, shadows, dep)[0]
+
+        radiance[into] = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into], prim[into],
+                                          keys[into], seed, depth, behind)
     radiance[~hit] = scene.background
     radiance *= medium.transmittance_on(origins, dirs, 0.0, t)
     stats = np.zeros(method.stats_size + len(LI_NAMES))
@@ -224,8 +237,9 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     params = resolve_params(method, given_params or {}, source)
     method.check_medium(scene.medium, source)
     method.check(scene.medium, params)
-    method.check_lights(prep.lights, source)
+    method.check_lights(bounded.outside_lights(prep), source)
     check_options(method, params, volumetric_shadows, shadow_spacing, source, prep.lights, scene.medium)
+    bounded.check(prep, method, source, volumetric_shadows)
     if client is not None and threads is not None:
         raise UserError(f"{source}: --threads applies to one machine; with --scheduler every worker runs as many "
                         "tiles as it has threads, remove --threads")

@@ -44,7 +44,10 @@ from .phase import phase_value
 EQ7_ARGS = 12
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
 # segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
-WITH_FALLOFF, NO_FALLOFF, BEHIND = 0, 1, 2
+# DISTANT: a directional light, v = x
+WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT = 0, 1, 2, 3
+# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the seed's approximation
+QUAD, CLOSED, APPROX = 0, 1, 2
 
 
 @njit
@@ -117,9 +120,13 @@ def eq7_value(v, args):
     """The eq. 7 integrand at the integration variable v; args = (EQ7 tag, mode, xh, h, kt, ks, code,
     g, z0, a, hl, kt_out). WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
     BEHIND: v = u = 1 / (x - x_h) (dx / d^2 = du / (1 + h^2 u^2)), the value ks Phi exp(-(...)) / (1 + h^2 u^2);
-    NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the seed's Figs. 2-3)."""
+    NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the seed's Figs. 2-3); DISTANT: v = x, g holds
+    the phase function's value and hl the cosine b of the refracted light to the normal, the value
+    ks Phi exp(-kt (x + (z0 + a x) / b)) (eq. 5's integrand)."""
     mode, xh, h, kt, ks, code, g, z0, a, hl, kt_out = (args[1], args[2], args[3], args[4], args[5], args[6],
                                                        args[7], args[8], args[9], args[10], args[11])
+    if mode == DISTANT:
+        return ks * g * math.exp(-kt * (v + (z0 + a * v) / hl))
     if mode == NO_FALLOFF:
         x = v
         d = math.sqrt(h * h + (x - xh) * (x - xh))
@@ -226,3 +233,55 @@ def point_approx(xh, h, ell, kt, ks, code, g, a, b):
     da = math.sqrt(h * h + xh * xh)
     mean = slab_distant(kt, ks, phase_value(code, g, xh / da), c, ell) / ell
     return mean * inverse_square_integral(xh, h, ell)
+
+
+@njit
+def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
+    """Eq. 5's integral by the adaptive rule (the reference for `slab_distant`), per unit beam
+    irradiance; an infinite segment is cut where the integrand falls below e^-745 of its start."""
+    if ks == 0.0 or not ell > 0.0:
+        return 0.0
+    end = min(ell, 745.0 / (kt * (1.0 + a / b))) if kt > 0.0 else ell
+    return _eq7_adaptive((0, DISTANT, 0.0, 0.0, kt, ks, 0, phase, 0.0, a, b, 0.0), 0.0, end, rtol, stats)
+
+
+@njit
+def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, mode, rtol, out, stats):
+    """Single scattering over inside segments (module docstring), one light each, unit light, one
+    channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
+    of its refracted direction to the normal and mu the scattering cosine; for a point light
+    (index-matched) at height hl above the entry plane, kt_out the extinction outside. A light
+    below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
+    mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
+    and the seed's separable approximation, with the outside attenuation at the entry point)."""
+    for s in range(xh.shape[0]):
+        out[s] = 0.0
+        if distant[s]:
+            if b[s] <= 0.0:
+                continue
+            ph = phase_value(code, g, mu[s])
+            if mode == QUAD:
+                out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
+            else:
+                out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
+        elif hl[s] > 0.0:
+            if mode == QUAD:
+                out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
+            elif mode == APPROX:
+                da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
+                out[s] = (point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da)
+                          * math.exp(-kt_out * da))
+
+
+@njit
+def refract_rays(d, n, eta, out, cos_t):
+    """`refract` of every row of d (N, 3) through the facing normals n (N, 3): out (N, 3), cos_t (N,)."""
+    for i in range(d.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2], cos_t[i] = refract(d[i, 0], d[i, 1], d[i, 2], n[i, 0], n[i, 1], n[i, 2], eta)
+
+
+@njit
+def transmittances(cos_i, eta, out):
+    """1 - `fresnel` of every cosine."""
+    for i in range(cos_i.shape[0]):
+        out[i] = 1.0 - fresnel(cos_i[i], eta)

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-_MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo")
+_MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
 
 @dataclass(frozen=True)

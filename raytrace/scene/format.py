@@ -42,11 +42,27 @@ class Transform:
 
 
 @dataclass
+class Interior:
+    """The homogeneous medium a closed shape holds (seed 002): coefficients per channel, phase function,
+    and the index of refraction relative to the outside (1: index-matched, no boundary)."""
+    sigma_a: np.ndarray
+    sigma_s: np.ndarray
+    phase: int = ISOTROPIC
+    g: float = 0.0
+    ior: float = 1.0
+
+    @property
+    def sigma_t(self) -> np.ndarray:
+        return self.sigma_a + self.sigma_s
+
+
+@dataclass
 class Shape:
     kind: str  # "mesh" or one of PRIMITIVES
     params: dict  # mesh: {"mesh": path}; primitives: their numeric parameters
     reflectance: np.ndarray | None
     transform: Transform
+    interior: Interior | None = None
 
 
 @dataclass
@@ -157,7 +173,8 @@ PRIMITIVE_KEYS = {
     "sphere": {"center", "radius", "segments"},
     "cylinder": {"base", "top", "radius", "segments"},
 }
-SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform"}
+SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior"}
+INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
 
 
 def _transform(ctx, key, raw):
@@ -210,7 +227,20 @@ def _shape(ctx, i, raw):
     refl = None if refl is None else _rgb(ctx, f"{key}.reflectance", refl)
     if refl is not None and np.any(refl > 1.0):
         ctx.fail(f"{key}.reflectance", "exceeds 1 (surfaces would create energy)", "use values in [0, 1]")
-    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")))
+    interior = _interior(ctx, f"{key}.interior", raw["interior"]) if "interior" in raw else None
+    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior)
+
+
+def _interior(ctx, key, raw):
+    """shape.interior = { sigma_a, sigma_s, phase, ior }: a homogeneous medium inside a closed shape."""
+    raw = _table(ctx, key, raw)
+    ctx.unknown(key, raw, INTERIOR_KEYS)
+    ior = _number(ctx, f"{key}.ior", raw.get("ior", 1.0))
+    if ior <= 0.0:
+        ctx.fail(f"{key}.ior", f"must be positive, got {ior!r}", "use the index of refraction relative to the outside, "
+                 "e.g. 1.33 for water (1 = index-matched)")
+    return Interior(_rgb(ctx, f"{key}.sigma_a", raw.get("sigma_a", 0.0)), _rgb(ctx, f"{key}.sigma_s", raw.get("sigma_s", 0.0)),
+                    *_phase(ctx, raw.get("phase", "isotropic"), f"{key}.phase"), float(ior))
 
 
 LIGHT_KEYS = {"point": {"type", "position", "intensity"},
@@ -366,25 +396,25 @@ def _height_fog(ctx, raw):
             "profile": PROFILES[profile]}
 
 
-def _phase(ctx, phase):
-    """(phase.py code, g) of medium.phase."""
+def _phase(ctx, phase, key="medium.phase"):
+    """(phase.py code, g) of the phase function at `key` (medium.phase, or a shape's interior.phase)."""
     if isinstance(phase, str):
-        name = _string(ctx, "medium.phase", phase, ("isotropic", "rayleigh", "hg"))
+        name = _string(ctx, key, phase, ("isotropic", "rayleigh", "hg"))
         if name == "hg":
-            ctx.fail("medium.phase", "Henyey-Greenstein needs its asymmetry g", 'write phase = { type = "hg", g = 0.5 }')
+            ctx.fail(key, "Henyey-Greenstein needs its asymmetry g", 'write phase = { type = "hg", g = 0.5 }')
         return (ISOTROPIC if name == "isotropic" else RAYLEIGH), 0.0
-    phase = _table(ctx, "medium.phase", phase)
-    ctx.unknown("medium.phase", phase, {"type", "g"})
-    name = _string(ctx, "medium.phase.type", phase.get("type", "hg"), ("isotropic", "rayleigh", "hg"))
+    phase = _table(ctx, key, phase)
+    ctx.unknown(key, phase, {"type", "g"})
+    name = _string(ctx, f"{key}.type", phase.get("type", "hg"), ("isotropic", "rayleigh", "hg"))
     if name != "hg":
         if "g" in phase:
-            ctx.fail("medium.phase.g", f"only Henyey-Greenstein takes g, not {name}", 'remove g or use type = "hg"')
+            ctx.fail(f"{key}.g", f"only Henyey-Greenstein takes g, not {name}", 'remove g or use type = "hg"')
         return (ISOTROPIC if name == "isotropic" else RAYLEIGH), 0.0
     if "g" not in phase:
-        ctx.fail("medium.phase.g", "missing", "add g in (-1, 1), e.g. g = 0.5")
-    g = float(_number(ctx, "medium.phase.g", phase["g"]))
+        ctx.fail(f"{key}.g", "missing", "add g in (-1, 1), e.g. g = 0.5")
+    g = float(_number(ctx, f"{key}.g", phase["g"]))
     if not abs(g) < 1.0:
-        ctx.fail("medium.phase.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
+        ctx.fail(f"{key}.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
     return HG, g
 
 

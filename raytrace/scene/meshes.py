@@ -139,9 +139,24 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
     return np.concatenate(tris), np.concatenate(refl)
 
 
-def scene_triangles(scene: Scene):
-    """All triangles (T, 3, 3) and reflectances (T, 3) of the scene, in float64 world space."""
-    all_tris, all_refl = [], []
+def boundary_edges(tris: np.ndarray) -> int:
+    """The edges of a triangle soup used by an odd number of triangles (vertices merged where their
+    coordinates agree to 1e-9 of the soup's size): 0 for a closed surface."""
+    pts = tris.reshape(-1, 3)
+    size = float(np.max(np.abs(pts))) or 1.0
+    _, ids = np.unique(np.round(pts / (1e-9 * size)), axis=0, return_inverse=True)
+    ids = ids.reshape(-1, 3)
+    edges = np.sort(np.concatenate([ids[:, [0, 1]], ids[:, [1, 2]], ids[:, [2, 0]]]), axis=1)
+    edges = edges[edges[:, 0] != edges[:, 1]]  # collapsed edges of degenerate triangles (a sphere's poles)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return int(np.sum(counts % 2))
+
+
+def scene_triangles(scene: Scene, shape_ids: bool = False):
+    """All triangles (T, 3, 3) and reflectances (T, 3) of the scene, in float64 world space; with
+    `shape_ids` also each triangle's shape index (T,). A shape holding an interior medium must be
+    closed (`boundary_edges`)."""
+    all_tris, all_refl, all_ids = [], [], []
     for i, shape in enumerate(scene.shapes):
         key = f"shape[{i}]"
         p = shape.params
@@ -166,12 +181,20 @@ def scene_triangles(scene: Scene):
         if not np.all(np.isfinite(tris)):
             raise UserError(f"{scene.path or 'scene'}: {key}.transform: makes vertices overflow to inf; "
                             "use a smaller scale or translation (or scale the whole scene down)")
+        if shape.interior is not None and (open_edges := boundary_edges(tris)):
+            raise UserError(f"{scene.path or 'scene'}: {key}.interior: the shape is not closed ({open_edges} boundary "
+                            "edges), so it has no inside; close the mesh (or use a box, sphere or cylinder) or remove "
+                            "the interior")
         all_tris.append(tris)
         all_refl.append(np.clip(refl, 0.0, 1.0))
+        all_ids.append(np.full(len(tris), i, dtype=np.int64))
     if not all_tris:
-        return np.zeros((0, 3, 3)), np.zeros((0, 3))
+        empty = np.zeros((0, 3, 3)), np.zeros((0, 3))
+        return (*empty, np.zeros(0, dtype=np.int64)) if shape_ids else empty
     tris = np.ascontiguousarray(np.concatenate(all_tris))
     refl = np.ascontiguousarray(np.concatenate(all_refl))
     area2 = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
     keep = area2 > 0.0  # degenerate (zero-area) triangles have no normal and are never hit
+    if shape_ids:
+        return tris[keep], refl[keep], np.concatenate(all_ids)[keep]
     return tris[keep], refl[keep]

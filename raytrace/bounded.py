@@ -1,0 +1,214 @@
+"""Media inside shapes (seed 002): camera rays that enter a shape holding an `interior` medium.
+
+The renderer (`renderer.shade_rays`) hands over the rays whose first hit is such a shape, from
+outside. Here each ray is refracted into the shape (Snell, smooth dielectric; straight when
+ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
+segment gets the single scattering of every light (media/slab.py), the light entering through the
+plane of the entry face (the seed's planar boundary): a directional light refracted through it
+(eq. 5), a point light along its straight path (index-matched, eq. 7). At the exit the ray is
+refracted out and the renderer shades what lies behind (recursively, up to MAX_DEPTH boundaries).
+Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
+(the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
+the path (no reflected paths in this first cut).
+
+Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only) and
+`slab_approx` (eq. 5 and the seed's separable approximation for point lights) integrate the inside
+segments; the others are refused for scenes with interiors, in one line.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import UserError
+from .lights import DIRECTIONAL, POINT, Lights
+from .media.medium import HOMOGENEOUS
+from .media.slab import APPROX, CLOSED, QUAD, inside_radiance, refract_rays, transmittances
+from .methods.geometry import segment_light_table
+from .shading import facing_normals
+
+MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX}
+MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
+RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
+
+
+def interiors(scene) -> list:
+    """The interior medium of each shape (None for plain surfaces)."""
+    return [s.interior for s in scene.shapes]
+
+
+def outside_lights(prep):
+    """The lights whose air-light outside the shapes a method must integrate: none when the scene has
+    interior media and the outside does not scatter (then only bounded.py's kernels see them)."""
+    if len(prep.interior_shapes) and not prep.scene.medium.scatters:
+        return Lights.of([])
+    return prep.lights
+
+
+def check(prep, method, source: str, volumetric_shadows: bool):
+    """Refuse, in one line, what this first cut does not render in a scene with interior media."""
+    inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
+    if not inner:
+        return
+    key = f"shape[{inner[0]}].interior"
+    if method.name not in MODES:
+        raise UserError(f"{source}: --method {method.name}: it does not integrate media inside shapes ({key}); use "
+                        f"--method {', '.join(MODES)}")
+    kinds = prep.lights.kinds()
+    if "spot" in kinds:
+        raise UserError(f"{source}: {key}: spot lights are not implemented with media inside shapes yet; use point or "
+                        "directional lights")
+    if method.name == "analytic" and "point" in kinds:
+        raise UserError(f"{source}: --method analytic: a point light into a bounded medium ({key}) has no closed form "
+                        "(seed 002 eq. 7); use --method quadrature, or slab_approx for the seed's approximation")
+    medium = prep.scene.medium
+    if medium.kind != HOMOGENEOUS:
+        raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
+                        f"{medium.kind} is not implemented with them yet")
+    if volumetric_shadows:
+        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): not implemented with media "
+                        f"inside shapes ({key}) yet; remove it")
+    for i in inner:
+        m = prep.scene.shapes[i].interior
+        if m.ior != 1.0 and "point" in kinds:
+            raise UserError(f"{source}: shape[{i}].interior.ior: point lights through a refractive boundary are not "
+                            "implemented yet (the refracted path to a point light); use ior = 1 or a directional light")
+    inside = camera_inside(prep, inner)
+    if inside is not None:
+        raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
+                        "bounded medium is not supported yet, move the camera out of the shape")
+
+
+def camera_inside(prep, inner) -> int | None:
+    """The first shape of `inner` that contains the camera (odd number of crossings of a ray), else None."""
+    o = prep.scene.camera.position
+    d = np.array([0.5773502691896258, 0.5773502691896257, 0.5773502691896259]) + np.array([1e-3, -2e-3, 0.0])
+    d /= np.linalg.norm(d)
+    tris = prep.accel.triangles
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    pv = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, pv)
+    ok = np.abs(det) > 1e-300
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    tv = o - tris[:, 0]
+    u = np.einsum("ij,ij->i", tv, pv) * inv
+    qv = np.cross(tv, e1)
+    v = (qv @ d) * inv
+    t = np.einsum("ij,ij->i", e2, qv) * inv
+    cross = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    for i in inner:
+        if np.count_nonzero(cross & (prep.shape_ids == i)) % 2:
+            return i
+    return None
+
+
+def enters(prep, prim) -> np.ndarray:
+    """Which first hits `prim` (triangle ids, -1 for a miss) are on a shape holding a medium."""
+    if prep.interior_shapes is None or not len(prep.interior_shapes):
+        return np.zeros(len(prim), dtype=bool)
+    return (prim >= 0) & np.isin(prep.shape_ids[np.maximum(prim, 0)], prep.interior_shapes)
+
+
+def _nudge(accel, points, dirs, cos):
+    """Points moved along their rays (cosine `cos` to the face they leave) to about accel.epsilon off
+    the face: the ray's line is kept, so what it meets beyond is exactly what the unmoved ray meets."""
+    return points + (accel.epsilon / np.maximum(cos, 1e-2))[:, None] * dirs
+
+
+def _plane_distance(accel, points, dirs, prim):
+    """Distance from each point along its direction to the plane of triangle prim (inf on a miss): the
+    inside segment measured from the entry point itself, not from the offset start of the Embree ray."""
+    out = np.full(len(points), np.inf)
+    ok = prim >= 0
+    n = accel.normals[prim[ok]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.einsum("ij,ij->i", accel.triangles[prim[ok], 0] - points[ok], n) / np.einsum("ij,ij->i", dirs[ok], n)
+    out[ok] = np.where(np.isfinite(t) & (t > 0.0), t, 0.0)
+    return out
+
+
+def _refract(d, n, eta):
+    out, cos_t = np.empty_like(d), np.empty(len(d))
+    refract_rays(np.ascontiguousarray(d), np.ascontiguousarray(n), float(eta), out, cos_t)
+    return out, cos_t
+
+
+def _transmittance(cos_i, eta):
+    out = np.empty(len(cos_i))
+    transmittances(np.ascontiguousarray(cos_i), float(eta), out)
+    return out
+
+
+def single_scattering(prep, method, params, medium, points, normals, w, ell):
+    """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
+    summed over the lights, for the interior `medium` with outward entry normals `normals`."""
+    lights = prep.lights
+    n = len(points)
+    out = np.zeros((n, 3))
+    mode = MODES[method.name]
+    rtol = params.get("rtol", RTOL)
+    stats = np.zeros(3)
+    a = -np.einsum("ij,ij->i", w, normals)
+    for li in range(len(lights)):
+        idx = np.full(n, li, dtype=np.int64)
+        distant = np.full(n, lights.kind[li] == DIRECTIONAL)
+        xh = h = hl = b = mu = np.zeros(n)
+        scale = 1.0
+        if lights.kind[li] == DIRECTIONAL:
+            axis = np.broadcast_to(lights.axis[li], (n, 3))
+            cos_l = -(normals @ lights.axis[li])
+            t_l, b = _refract(axis, normals, medium.ior)
+            b = np.where(cos_l > 0.0, b, 0.0)
+            mu = -np.einsum("ij,ij->i", t_l, w)
+            scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
+                             / np.maximum(b, 1e-300), 0.0) if medium.ior != 1.0 else 1.0
+        else:
+            assert lights.kind[li] == POINT, "refused by check()"
+            xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx,
+                                              prep.accel.scale)
+            hl = np.einsum("ij,ij->i", lights.position[li] - points, normals)
+        for c in range(3):
+            kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
+            if ks == 0.0 or lights.intensity[li, c] == 0.0:
+                continue
+            unit = np.empty(n)
+            inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
+                            float(prep.scene.medium.sigma_t[c]), mode, rtol, unit, stats)
+            out[:, c] += unit * scale * lights.intensity[li, c]
+    return out
+
+
+def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
+    """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
+    what the inside scatters toward them and what comes through from behind the exit, through the
+    boundaries. `shade(origins, dirs, keys, depth)` is the renderer's radiance of rays leaving a shape."""
+    out = np.zeros((len(origins), 3))
+    if depth >= MAX_DEPTH:
+        return out
+    accel = prep.accel
+    points = origins + t[:, None] * dirs
+    normals = facing_normals(accel.normals[prim], dirs)
+    shape = prep.shape_ids[prim]
+    for sid in np.unique(shape):
+        sel = np.nonzero(shape == sid)[0]
+        medium = prep.scene.shapes[sid].interior
+        eta = medium.ior
+        d, nf, p = dirs[sel], normals[sel], points[sel]
+        w, cos_t = _refract(d, nf, eta)
+        t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
+        _, prim2 = accel.first_hit(_nudge(accel, p, w, cos_t), w)
+        ell = _plane_distance(accel, p, w, prim2)
+        inner = single_scattering(prep, method, params, medium, p, nf, w, ell)
+        exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
+        behind = np.zeros_like(inner)
+        if len(exits):
+            q = p[exits] + ell[exits, None] * w[exits]
+            m = facing_normals(accel.normals[prim2[exits]], w[exits])
+            w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
+            t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
+            seen = shade(_nudge(accel, q, w_out, cos_o), w_out, keys[sel][exits], depth + 1)
+            kt = medium.sigma_t[None, :]
+            with np.errstate(over="ignore", invalid="ignore"):
+                tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
+            behind[exits] = (t_out * eta * eta)[:, None] * seen * tr
+        out[sel] = (t_in / (eta * eta))[:, None] * (inner + behind)
+    return out
