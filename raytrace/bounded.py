@@ -11,9 +11,11 @@ Radiance crossing into a denser medium is multiplied by T eta^2 and back out by 
 (the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
 the path (no reflected paths in this first cut).
 
-Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only) and
-`slab_approx` (eq. 5 and the seed's separable approximation for point lights) integrate the inside
-segments; the others are refused for scenes with interiors, in one line.
+Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
+`slab_approx` (eq. 5 and the seed's separable approximation for point lights), `raymarch` (its
+`steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
+segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
+and `sun` are refused for scenes with interiors, in one line.
 """
 from __future__ import annotations
 
@@ -22,11 +24,11 @@ import numpy as np
 from .errors import UserError
 from .lights import DIRECTIONAL, POINT, Lights
 from .media.medium import HOMOGENEOUS
-from .media.slab import APPROX, CLOSED, QUAD, inside_radiance, refract_rays, transmittances
+from .media.slab import APPROX, CLOSED, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays, transmittances
 from .methods.geometry import segment_light_table
 from .shading import facing_normals
 
-MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX}
+MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 
@@ -44,7 +46,7 @@ def outside_lights(prep):
     return prep.lights
 
 
-def check(prep, method, source: str, volumetric_shadows: bool):
+def check(prep, method, method_params, source: str, volumetric_shadows: bool):
     """Refuse, in one line, what this first cut does not render in a scene with interior media."""
     inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
     if not inner:
@@ -57,6 +59,9 @@ def check(prep, method, source: str, volumetric_shadows: bool):
     if "spot" in kinds:
         raise UserError(f"{source}: {key}: spot lights are not implemented with media inside shapes yet; use point or "
                         "directional lights")
+    if method.name == "raymarch" and (method_params.get("step", 0.0) > 0.0 or method_params.get("jitter")):
+        raise UserError(f"{source}: --step / --jitter (render.step, render.jitter): not implemented inside bounded "
+                        f"media ({key}) yet; use --steps")
     if method.name == "analytic" and "point" in kinds:
         raise UserError(f"{source}: --method analytic: a point light into a bounded medium ({key}) has no closed form "
                         "(seed 002 eq. 7); use --method quadrature, or slab_approx for the seed's approximation")
@@ -138,14 +143,17 @@ def _transmittance(cos_i, eta):
     return out
 
 
-def single_scattering(prep, method, params, medium, points, normals, w, ell):
+def single_scattering(prep, method, params, medium, points, normals, w, ell, keys, seed, depth):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
-    summed over the lights, for the interior `medium` with outward entry normals `normals`."""
+    summed over the lights, for the interior `medium` with outward entry normals `normals`, and its
+    variance (N, 3) (0 but for montecarlo)."""
     lights = prep.lights
     n = len(points)
     out = np.zeros((n, 3))
+    var = np.zeros((n, 3))
     mode = MODES[method.name]
     rtol = params.get("rtol", RTOL)
+    steps = int(params.get("steps", params.get("samples", 1)))
     stats = np.zeros(3)
     a = -np.einsum("ij,ij->i", w, normals)
     for li in range(len(lights)):
@@ -170,20 +178,26 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell):
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
             if ks == 0.0 or lights.intensity[li, c] == 0.0:
                 continue
-            unit = np.empty(n)
+            unit, unit_var = np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), mode, rtol, unit, stats)
-            out[:, c] += unit * scale * lights.intensity[li, c]
-    return out
+                            float(prep.scene.medium.sigma_t[c]), mode, rtol, steps, keys,
+                            np.uint64(STREAM + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
+                            stats)
+            f = scale * lights.intensity[li, c]
+            out[:, c] += unit * f
+            var[:, c] += unit_var * f * f
+    return out, var
 
 
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
     """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
     what the inside scatters toward them and what comes through from behind the exit, through the
-    boundaries. `shade(origins, dirs, keys, depth)` is the renderer's radiance of rays leaving a shape."""
+    boundaries, and its variance (N, 3). `shade(origins, dirs, keys, depth)` is the renderer's radiance
+    and variance (or None) of rays leaving a shape."""
     out = np.zeros((len(origins), 3))
+    out_var = np.zeros_like(out)
     if depth >= MAX_DEPTH:
-        return out
+        return out, out_var
     accel = prep.accel
     points = origins + t[:, None] * dirs
     normals = facing_normals(accel.normals[prim], dirs)
@@ -197,18 +211,24 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
         _, prim2 = accel.first_hit(_nudge(accel, p, w, cos_t), w)
         ell = _plane_distance(accel, p, w, prim2)
-        inner = single_scattering(prep, method, params, medium, p, nf, w, ell)
+        inner, inner_var = single_scattering(prep, method, params, medium, p, nf, w, ell, keys[sel], seed, depth)
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)
+        behind_var = np.zeros_like(inner)
         if len(exits):
             q = p[exits] + ell[exits, None] * w[exits]
             m = facing_normals(accel.normals[prim2[exits]], w[exits])
             w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
             t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
-            seen = shade(_nudge(accel, q, w_out, cos_o), w_out, keys[sel][exits], depth + 1)
+            seen, seen_var = shade(_nudge(accel, q, w_out, cos_o), w_out, keys[sel][exits], depth + 1)
             kt = medium.sigma_t[None, :]
             with np.errstate(over="ignore", invalid="ignore"):
                 tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
-            behind[exits] = (t_out * eta * eta)[:, None] * seen * tr
-        out[sel] = (t_in / (eta * eta))[:, None] * (inner + behind)
-    return out
+            f = (t_out * eta * eta)[:, None] * tr
+            behind[exits] = f * seen
+            if seen_var is not None:
+                behind_var[exits] = f * f * seen_var
+        f = (t_in / (eta * eta))[:, None]
+        out[sel] = f * (inner + behind)
+        out_var[sel] = f * f * (inner_var + behind_var)
+    return out, out_var

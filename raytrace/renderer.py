@@ -96,14 +96,18 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                           medium)
     if into.any():
         def behind(o, d, k, dep):
-            return shade_rays(prep, method, params, o, d, k, seed, shadows, dep)[0]
+            rad, _, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
+            return rad, var
 
-        radiance[into] = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into], prim[into],
-                                          keys[into], seed, depth, behind)
+        radiance[into], into_var = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into],
+                                                    prim[into], keys[into], seed, depth, behind)
     radiance[~hit] = scene.background
-    radiance *= medium.transmittance_on(origins, dirs, 0.0, t)
+    tr = medium.transmittance_on(origins, dirs, 0.0, t)
+    radiance *= tr
     stats = np.zeros(method.stats_size + len(LI_NAMES))
     variance = np.zeros_like(radiance) if method.stochastic else None
+    if into.any() and variance is not None:
+        variance[into] = into_var * tr[into] ** 2
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         ends = None  # the normal of the surface each segment ends on (zero in the air), for the lit intervals
@@ -122,7 +126,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                                                    len(origins))
         radiance += air
         if method.stochastic:
-            variance = var
+            variance = variance + var
     if medium.particles is not None:  # seed 003's particle layer on top of the air-light
         radiance += particle_radiance(medium.particles, medium, prep.lights, prep.accel, origins, dirs, t, keys,
                                       shadows is not None)
@@ -239,7 +243,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None, s
     method.check(scene.medium, params)
     method.check_lights(bounded.outside_lights(prep), source)
     check_options(method, params, volumetric_shadows, shadow_spacing, source, prep.lights, scene.medium)
-    bounded.check(prep, method, source, volumetric_shadows)
+    bounded.check(prep, method, params, source, volumetric_shadows)
     if client is not None and threads is not None:
         raise UserError(f"{source}: --threads applies to one machine; with --scheduler every worker runs as many "
                         "tiles as it has threads, remove --threads")

@@ -236,3 +236,18 @@ def test_bad_input_is_refused_in_one_line(tmp_path):
     out = tmp_path / "o.exr"
     assert main(["render", str(path), "--out", str(out)]) == 2
     assert not out.exists()
+
+
+@pytest.mark.parametrize("case", ["sun_refracted", "lamp_index_matched"])
+def test_raymarch_and_montecarlo_inside(case):
+    """Ray marching converges as O(h^2) (midpoint rule); Monte Carlo free-path samples are unbiased:
+    mean squared z-score against the twin, with the render's own variance, about 1."""
+    ref = twin_image(case)
+    errs = [np.max(np.abs(image(case, "raymarch", {"steps": n}) - ref) / ref) for n in (64, 128)]
+    assert errs[1] < 1e-3 and 3.5 < errs[0] / errs[1] < 4.5, errs
+    prep = prepare(scene_from_text(to_toml(CASES[case]), case))
+    res = render(prep, "montecarlo", {"samples": 64}, seed=7, threads=1)
+    assert np.all(res.variance > 0)
+    z2 = np.mean((res.image - ref) ** 2 / res.variance)
+    assert z2 < 3.5
+    assert np.mean(ref**2 / res.variance) > 3.5  # an all-zero image would fail

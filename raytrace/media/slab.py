@@ -38,6 +38,7 @@ import numpy as np
 from ..jit import njit
 from ..methods.quadrature import CAPPED
 from ..methods.quadrature import _adaptive as adaptive
+from ..rng import uniform
 from .phase import phase_value
 
 # an eq. 7 argument tuple for methods/quadrature.py's adaptive rule: its length tells the rule apart
@@ -46,8 +47,10 @@ EQ7_ARGS = 12
 # segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
 # DISTANT: a directional light, v = x
 WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT = 0, 1, 2, 3
-# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the seed's approximation
-QUAD, CLOSED, APPROX = 0, 1, 2
+# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the seed's approximation,
+# the midpoint rule (ray marching), free-path sampling (Monte Carlo)
+QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
+STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
 
 
 @njit
@@ -246,31 +249,69 @@ def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
 
 
 @njit
-def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, mode, rtol, out, stats):
+def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out):
+    """The inside single-scattering integrand at depth x along the segment (module docstring): a
+    directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
+    value), or a point light's eq. 7 integrand per unit intensity."""
+    if distant:
+        return ks * phase * math.exp(-kt * (x + a * x / b))
+    dx = x - xh
+    d2 = max(h * h + dx * dx, 1e-250)
+    d = math.sqrt(d2)
+    k = light_path_inside(x, d, 0.0, a, hl)
+    return ks * phase_value(code, g, -dx / d) * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
+
+
+@njit
+def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, mode, rtol, steps, keys, dim0, seed,
+                    out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point light
     (index-matched) at height hl above the entry plane, kt_out the extinction outside. A light
     below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
     mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
-    and the seed's separable approximation, with the outside attenuation at the entry point)."""
+    and the seed's separable approximation, with the outside attenuation at the entry point), MARCH
+    (`steps` midpoints), SAMPLE (`steps` free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u
+    from the ray's key at dimensions dim0 + j; var gets the variance of the mean)."""
     for s in range(xh.shape[0]):
         out[s] = 0.0
-        if distant[s]:
-            if b[s] <= 0.0:
-                continue
-            ph = phase_value(code, g, mu[s])
+        var[s] = 0.0
+        if (distant[s] and b[s] <= 0.0) or (not distant[s] and hl[s] <= 0.0) or ks == 0.0 or not ell[s] > 0.0:
+            continue
+        ph = phase_value(code, g, mu[s]) if distant[s] else 0.0
+        if mode == MARCH or mode == SAMPLE:
+            length = min(ell[s], 745.0 / kt)  # beyond, exp(-kt x) underflows
+            if mode == MARCH:
+                dx = length / steps
+                acc = 0.0
+                for j in range(steps):
+                    acc += inside_integrand(distant[s], (j + 0.5) * dx, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks,
+                                            code, g, kt_out)
+                out[s] = acc * dx
+            else:
+                mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
+                acc = acc2 = 0.0
+                for j in range(steps):
+                    u = uniform(keys[s], dim0 + j, seed)
+                    x = -math.log1p(-u * kt * mass) / kt
+                    f = inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
+                                         kt_out) * mass * math.exp(kt * x)
+                    acc += f
+                    acc2 += f * f
+                mean = acc / steps
+                out[s] = mean
+                var[s] = max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
+        elif distant[s]:
             if mode == QUAD:
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
             else:
                 out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
-        elif hl[s] > 0.0:
-            if mode == QUAD:
-                out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
-            elif mode == APPROX:
-                da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
-                out[s] = (point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da)
-                          * math.exp(-kt_out * da))
+        elif mode == QUAD:
+            out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
+        elif mode == APPROX:
+            da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
+            out[s] = point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da) * math.exp(-kt_out * da)
 
 
 @njit
