@@ -154,6 +154,7 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell, key
     mode = MODES[method.name]
     rtol = params.get("rtol", RTOL)
     steps = int(params.get("steps", params.get("samples", 1)))
+    tau_max = float(params.get("tau_max", 745.0))  # raymarch's cut of long segments
     stats = np.zeros(3)
     a = -np.einsum("ij,ij->i", w, normals)
     for li in range(len(lights)):
@@ -180,7 +181,7 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell, key
                 continue
             unit, unit_var = np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), mode, rtol, steps, keys,
+                            float(prep.scene.medium.sigma_t[c]), mode, rtol, steps, tau_max, keys,
                             np.uint64(STREAM + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
                             stats)
             f = scale * lights.intensity[li, c]

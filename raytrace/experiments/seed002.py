@@ -114,7 +114,8 @@ def compute(ls=L_GRID):
         for s in SWEEP_S:
             pairs = np.array([exact_and_approx(l, 0.7, 0.7, kt, s) for l in ls])
             err = pairs[:, 1] / pairs[:, 0] - 1.0
-            sweep.append({"kt": kt, "s": s, "optical_thickness": kt * s, "max_abs_rel_error": float(np.max(np.abs(err))),
+            sweep.append({"kt": kt, "s": s, "optical_thickness": kt * s,
+                          "max_abs_rel_error": float(np.max(np.abs(err))),
                           "rel_error_at_l_0.01": float(np.interp(-2, np.log10(ls), err)),
                           "rel_error_at_l_0.1": float(np.interp(-1, np.log10(ls), err)),
                           "rel_error_at_l_1": float(np.interp(0, np.log10(ls), err)),

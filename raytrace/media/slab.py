@@ -263,8 +263,8 @@ def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out
 
 
 @njit
-def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, mode, rtol, steps, keys, dim0, seed,
-                    out, var, stats):
+def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, mode, rtol, steps, tau_max, keys, dim0,
+                    seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point light
@@ -272,8 +272,9 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
     below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
     mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
     and the seed's separable approximation, with the outside attenuation at the entry point), MARCH
-    (`steps` midpoints), SAMPLE (`steps` free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u
-    from the ray's key at dimensions dim0 + j; var gets the variance of the mean)."""
+    (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
+    free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
+    dim0 + j; var gets the variance of the mean)."""
     for s in range(xh.shape[0]):
         out[s] = 0.0
         var[s] = 0.0
@@ -281,7 +282,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
             continue
         ph = phase_value(code, g, mu[s]) if distant[s] else 0.0
         if mode == MARCH or mode == SAMPLE:
-            length = min(ell[s], 745.0 / kt)  # beyond, exp(-kt x) underflows
+            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
             if mode == MARCH:
                 dx = length / steps
                 acc = 0.0

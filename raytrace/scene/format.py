@@ -239,8 +239,9 @@ def _interior(ctx, key, raw):
     if ior <= 0.0:
         ctx.fail(f"{key}.ior", f"must be positive, got {ior!r}", "use the index of refraction relative to the outside, "
                  "e.g. 1.33 for water (1 = index-matched)")
-    return Interior(_rgb(ctx, f"{key}.sigma_a", raw.get("sigma_a", 0.0)), _rgb(ctx, f"{key}.sigma_s", raw.get("sigma_s", 0.0)),
-                    *_phase(ctx, raw.get("phase", "isotropic"), f"{key}.phase"), float(ior))
+    sa = _rgb(ctx, f"{key}.sigma_a", raw.get("sigma_a", 0.0))
+    ss = _rgb(ctx, f"{key}.sigma_s", raw.get("sigma_s", 0.0))
+    return Interior(sa, ss, *_phase(ctx, raw.get("phase", "isotropic"), f"{key}.phase"), float(ior))
 
 
 LIGHT_KEYS = {"point": {"type", "position", "intensity"},
