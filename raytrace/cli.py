@@ -314,6 +314,11 @@ def cmd_describe(args):
     if len(tris):
         pts = tris.reshape(-1, 3)
         print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")
+    for i, s in enumerate(scene.shapes):
+        if s.interior is not None:
+            m = s.interior
+            print(f"shape[{i}].interior: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, phase "
+                  f"{NAMES[m.phase]}{f' g={m.g}' if NAMES[m.phase] == 'hg' else ''}, ior {m.ior:g}")
     for i, l in enumerate(scene.lights):
         if l.kind == DIRECTIONAL:
             print(f"light[{i}]: directional, travelling along {l.axis.round(6).tolist()}, irradiance "

@@ -251,3 +251,11 @@ def test_raymarch_and_montecarlo_inside(case):
     z2 = np.mean((res.image - ref) ** 2 / res.variance)
     assert z2 < 3.5
     assert np.mean(ref**2 / res.variance) > 3.5  # an all-zero image would fail
+
+
+def test_describe_shows_the_interior(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text(to_toml(CASES["sun_refracted"]))
+    assert main(["describe", str(path)]) == 0
+    assert "shape[0].interior: sigma_a [0.3, 0.05, 0.02], sigma_s [0.1, 0.2, 0.05], phase hg g=0.7, ior 1.33" in \
+        capsys.readouterr().out
