@@ -5,7 +5,8 @@ outside. Here each ray is refracted into the shape (Snell, smooth dielectric; st
 ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the seed's planar boundary): a directional light refracted through it
-(eq. 5), a point light along its straight path (index-matched, eq. 7). At the exit the ray is
+(eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
+(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). At the exit the ray is
 refracted out and the renderer shades what lies behind (recursively, up to MAX_DEPTH boundaries).
 Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
 (the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
@@ -74,9 +75,9 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
                         f"inside shapes ({key}) yet; remove it")
     for i in inner:
         m = prep.scene.shapes[i].interior
-        if m.ior != 1.0 and "point" in kinds:
-            raise UserError(f"{source}: shape[{i}].interior.ior: point lights through a refractive boundary are not "
-                            "implemented yet (the refracted path to a point light); use ior = 1 or a directional light")
+        if m.ior != 1.0 and "point" in kinds and method.name == "slab_approx":
+            raise UserError(f"{source}: shape[{i}].interior.ior: the seed's approximation is for index-matched "
+                            "boundaries with point lights; use ior = 1, or --method quadrature")
     inside = camera_inside(prep, inner)
     if inside is not None:
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
@@ -160,7 +161,7 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell, key
     for li in range(len(lights)):
         idx = np.full(n, li, dtype=np.int64)
         distant = np.full(n, lights.kind[li] == DIRECTIONAL)
-        xh = h = hl = b = mu = np.zeros(n)
+        xh = h = hl = b = mu = wl = ll = np.zeros(n)
         scale = 1.0
         if lights.kind[li] == DIRECTIONAL:
             axis = np.broadcast_to(lights.axis[li], (n, 3))
@@ -174,14 +175,20 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell, key
             assert lights.kind[li] == POINT, "refused by check()"
             xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx,
                                               prep.accel.scale)
-            hl = np.einsum("ij,ij->i", lights.position[li] - points, normals)
+            rel = lights.position[li] - points
+            hl = np.einsum("ij,ij->i", rel, normals)
+            if medium.ior != 1.0:  # horizontal parts, for the refracted path (media/slab.py refracted_point)
+                lh = rel - hl[:, None] * normals
+                wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
+                ll = np.einsum("ij,ij->i", lh, lh)
         for c in range(3):
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
             if ks == 0.0 or lights.intensity[li, c] == 0.0:
                 continue
             unit, unit_var = np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), mode, rtol, steps, tau_max, keys,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), mode, rtol, steps, tau_max,
+                            keys,
                             np.uint64(STREAM + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
                             stats)
             f = scale * lights.intensity[li, c]

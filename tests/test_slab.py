@@ -195,3 +195,21 @@ def test_exponential_part_coincidence_and_airlight_limit():
     for l in (0.01, 1.0, 100.0):
         got = slab.exponential_part(-l, 1e-300, s, kt, 0.0, 1.0, l, 1e-12, np.zeros(3))
         assert got == pytest.approx(-math.expm1(-2 * kt * s) / (2 * kt), rel=1e-11)
+
+
+def test_refracted_point_light_reduces_to_the_straight_path():
+    """eta = 1: Fermat's path is the straight line and the ray tube's irradiance is I / d^2, so the
+    refracted integrand equals eq. 7's; below the light it is I T / (hl + z / eta)^2 (apparent depth)."""
+    w, p = unit([0.5, 0.2, -0.6]), np.array([1.5, -0.4, 0.9])
+    a = -w[2]
+    xh, h, hl = point_geometry(w, p)
+    lh = p - hl * N
+    wl, ll = float((w + a * N) @ lh), float(lh @ lh)
+    for x in (0.01, 0.7, 3.0):
+        straight = slab.inside_integrand(False, x, xh, h, hl, a, 0.0, 0.0, 0.8, 0.3, HG, 0.5, 0.1, wl, ll, 1.0)
+        bent = slab.refracted_point(x, wl, ll, a, hl, 1.0, 0.8, 0.3, HG, 0.5, 0.1)
+        assert bent == pytest.approx(straight, rel=1e-12)
+    eta, z = 1.33, 0.8  # a point straight below the light, seen along the normal
+    got = slab.refracted_point(z, 0.0, 0.0, 1.0, 2.0, eta, 0.0, 1.0, ISOTROPIC, 0.0, 0.0)
+    t = 1.0 - ((eta - 1) / (eta + 1)) ** 2
+    assert got == pytest.approx(t / (4 * math.pi) / (2.0 + z / eta) ** 2, rel=1e-12)

@@ -46,7 +46,8 @@ EQ7_ARGS = 12
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
 # segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
 # DISTANT: a directional light, v = x
-WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT = 0, 1, 2, 3
+# REFRACTED: a point light through a refractive plane, v = x
+WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT, REFRACTED = 0, 1, 2, 3, 4
 # how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the seed's approximation,
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
@@ -119,17 +120,82 @@ def light_path_inside(x, d, z0, a, hl):
 
 
 @njit
+def refraction_point(rho, z, hl, eta):
+    """The horizontal distance r, from the foot of a point at depth z > 0, of the point where the
+    path to a light at height hl > 0 and horizontal distance rho refracts (Snell: sin1 = eta sin2,
+    sin1 = (rho - r) / o, sin2 = r / k): f(r) = (rho - r) / o - eta r / k falls from f(0) >= 0 to
+    f(rho) <= 0, its root found by bisection to the resolution of doubles."""
+    lo, hi = 0.0, rho
+    for _ in range(80):
+        r = 0.5 * (lo + hi)
+        if not lo < r < hi:
+            break
+        f = (rho - r) / math.sqrt((rho - r) * (rho - r) + hl * hl) - eta * r / math.sqrt(r * r + z * z)
+        if f > 0.0:
+            lo = r
+        else:
+            hi = r
+    return 0.5 * (lo + hi)
+
+
+@njit
+def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out):
+    """The single-scattering integrand at depth x along an inside segment for a unit point light at
+    height hl above a refractive plane (eta = n_inside / n_outside): ks Phi(mu) E exp(-kt (x + k) -
+    kt_out o), k and o the path's lengths inside and outside (Fermat's path, `refraction_point`) and E
+    the irradiance across the refracted beam of a point source through a plane,
+        E = T(cos1) sin1 / (rho cos2 (hl / cos1^2 + z cos1 / (eta cos2^3))),
+    (the ray tube: sagittal width rho dphi, meridional d(rho) cos2 with rho = hl tan1 + z tan2 and
+    d2 / d1 = cos1 / (eta cos2); its limit I T / (hl + z / eta)^2 below the light, and I / d^2 for
+    eta = 1). The segment's horizontal direction w_h = w + a n and the light's horizontal offset L_h
+    from the entry point enter as wl = w_h·L_h and ll = |L_h|^2 (|w_h|^2 = 1 - a^2)."""
+    z = a * x
+    if z <= 0.0:
+        return 0.0
+    rho2 = max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0)
+    rho = math.sqrt(rho2)
+    r = refraction_point(rho, z, hl, eta)
+    k = math.sqrt(r * r + z * z)
+    o = math.sqrt((rho - r) * (rho - r) + hl * hl)
+    cos1, cos2 = hl / o, z / k
+    sin2 = r / k
+    if rho > 1e-12 * (hl + z):
+        e = (1.0 - fresnel(cos1, eta)) * ((rho - r) / o) / (rho * cos2 * (hl / (cos1 * cos1)
+                                                                        + z * cos1 / (eta * cos2 * cos2 * cos2)))
+        # the light travels along sin2 u - cos2 n, u = (X_h - L_h) / rho; mu = its cosine to -w
+        mu = -(sin2 * (x * (1.0 - a * a) - wl) / rho + a * cos2)
+    else:
+        q = hl + z / eta
+        e = (1.0 - fresnel(1.0, eta)) / (q * q)
+        mu = -a
+    return ks * phase_value(code, g, mu) * e * math.exp(-kt * (x + k) - kt_out * o)
+
+
+@njit
+def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, rtol, stats):
+    """Single scattering over [0, ell] for a unit point light through a refractive plane (adaptive);
+    an infinite segment is cut where exp(-kt x) underflows."""
+    if ks == 0.0 or not ell > 0.0:
+        return 0.0
+    end = min(ell, 745.0 / kt)
+    return _eq7_adaptive((eta, REFRACTED, wl, ll, kt, ks, code, g, 0.0, a, hl, kt_out), 0.0, end, rtol, stats)
+
+
+@njit
 def eq7_value(v, args):
-    """The eq. 7 integrand at the integration variable v; args = (EQ7 tag, mode, xh, h, kt, ks, code,
+    """The eq. 7 integrand at the integration variable v; args = (eta, mode, xh, h, kt, ks, code,
     g, z0, a, hl, kt_out). WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
     BEHIND: v = u = 1 / (x - x_h) (dx / d^2 = du / (1 + h^2 u^2)), the value ks Phi exp(-(...)) / (1 + h^2 u^2);
     NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the seed's Figs. 2-3); DISTANT: v = x, g holds
     the phase function's value and hl the cosine b of the refracted light to the normal, the value
-    ks Phi exp(-kt (x + (z0 + a x) / b)) (eq. 5's integrand)."""
+    ks Phi exp(-kt (x + (z0 + a x) / b)) (eq. 5's integrand); REFRACTED: v = x, a point light through a
+    refractive plane (`refracted_point`), xh and h hold w_h·L_h and |L_h|^2, z0 is unused."""
     mode, xh, h, kt, ks, code, g, z0, a, hl, kt_out = (args[1], args[2], args[3], args[4], args[5], args[6],
                                                        args[7], args[8], args[9], args[10], args[11])
     if mode == DISTANT:
         return ks * g * math.exp(-kt * (v + (z0 + a * v) / hl))
+    if mode == REFRACTED:
+        return refracted_point(v, xh, h, a, hl, args[0], kt, ks, code, g, kt_out)
     if mode == NO_FALLOFF:
         x = v
         d = math.sqrt(h * h + (x - xh) * (x - xh))
@@ -195,11 +261,11 @@ def point_exact(xh, h, ell, kt, ks, code, g, z0, a, hl, kt_out, rtol, stats):
         return 0.0
     if xh < 0.0 and h < -xh:  # behind the start, within 45 degrees of the line: u = 1 / (x - x_h)
         lo = 0.0 if ell == math.inf else 1.0 / (ell - xh)
-        args = (0, BEHIND, xh, h, kt, ks, code, g, z0, a, hl, kt_out)
+        args = (1.0, BEHIND, xh, h, kt, ks, code, g, z0, a, hl, kt_out)
         return _eq7_adaptive(args, lo, -1.0 / xh, rtol, stats)
     lo = math.atan2(-xh, h)
     hi = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
-    total = _eq7_adaptive((0, WITH_FALLOFF, xh, h, kt, ks, code, g, z0, a, hl, kt_out), lo, hi, rtol, stats)
+    total = _eq7_adaptive((1.0, WITH_FALLOFF, xh, h, kt, ks, code, g, z0, a, hl, kt_out), lo, hi, rtol, stats)
     return total / h
 
 
@@ -209,7 +275,7 @@ def exponential_part(xh, h, ell, kt, z0, a, hl, rtol, stats):
     plots it (Figs. 2-3, 6-8)."""
     if not ell > 0.0:
         return 0.0
-    return _eq7_adaptive((0, NO_FALLOFF, xh, h, kt, 1.0, 0, 0.0, z0, a, hl, 0.0), 0.0, ell, rtol, stats)
+    return _eq7_adaptive((1.0, NO_FALLOFF, xh, h, kt, 1.0, 0, 0.0, z0, a, hl, 0.0), 0.0, ell, rtol, stats)
 
 
 @njit
@@ -245,16 +311,18 @@ def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / (kt * (1.0 + a / b))) if kt > 0.0 else ell
-    return _eq7_adaptive((0, DISTANT, 0.0, 0.0, kt, ks, 0, phase, 0.0, a, b, 0.0), 0.0, end, rtol, stats)
+    return _eq7_adaptive((1.0, DISTANT, 0.0, 0.0, kt, ks, 0, phase, 0.0, a, b, 0.0), 0.0, end, rtol, stats)
 
 
 @njit
-def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out):
+def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta):
     """The inside single-scattering integrand at depth x along the segment (module docstring): a
     directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
-    value), or a point light's eq. 7 integrand per unit intensity."""
+    value), or a point light's eq. 7 integrand per unit intensity (`refracted_point` when eta != 1)."""
     if distant:
         return ks * phase * math.exp(-kt * (x + a * x / b))
+    if eta != 1.0:
+        return refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out)
     dx = x - xh
     d2 = max(h * h + dx * dx, 1e-250)
     d = math.sqrt(d2)
@@ -263,12 +331,13 @@ def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out
 
 
 @njit
-def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, mode, rtol, steps, tau_max, keys, dim0,
-                    seed, out, var, stats):
+def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, mode, rtol, steps,
+                    tau_max, keys, dim0, seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point light
-    (index-matched) at height hl above the entry plane, kt_out the extinction outside. A light
+    at height hl above the entry plane, kt_out the extinction outside (through a refractive plane,
+    eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
     below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
     mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
     and the seed's separable approximation, with the outside attenuation at the entry point), MARCH
@@ -288,7 +357,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                 acc = 0.0
                 for j in range(steps):
                     acc += inside_integrand(distant[s], (j + 0.5) * dx, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks,
-                                            code, g, kt_out)
+                                            code, g, kt_out, wl[s], ll[s], eta)
                 out[s] = acc * dx
             else:
                 mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
@@ -297,7 +366,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                     u = uniform(keys[s], dim0 + j, seed)
                     x = -math.log1p(-u * kt * mass) / kt
                     f = inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                         kt_out) * mass * math.exp(kt * x)
+                                         kt_out, wl[s], ll[s], eta) * mass * math.exp(kt * x)
                     acc += f
                     acc2 += f * f
                 mean = acc / steps
@@ -308,6 +377,8 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
             else:
                 out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
+        elif mode == QUAD and eta != 1.0:
+            out[s] = point_refracted(wl[s], ll[s], ell[s], kt, ks, code, g, a[s], hl[s], eta, kt_out, rtol, stats)
         elif mode == QUAD:
             out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
         elif mode == APPROX:
