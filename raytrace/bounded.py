@@ -107,6 +107,26 @@ def camera_inside(prep, inner) -> int | None:
     return None
 
 
+def convex_planes(prep, sid):
+    """The face planes (P, 4: outward unit normal, offset) of shape `sid` if it is convex and
+    index-matched, else an empty (0, 4) array; cached on `prep`."""
+    cache = prep.interior_planes
+    if sid not in cache:
+        cache[sid] = np.zeros((0, 4))
+        if prep.scene.shapes[sid].interior.ior == 1.0:
+            tris = prep.accel.triangles[prep.shape_ids == sid]
+            pts = tris.reshape(-1, 3)
+            n = prep.accel.normals[prep.shape_ids == sid]
+            n = n * np.where(np.einsum("ij,ij->i", n, pts.mean(axis=0) - tris[:, 0]) > 0.0, -1.0, 1.0)[:, None]
+            c = np.einsum("ij,ij->i", n, tris[:, 0])
+            size = float(np.max(np.abs(pts))) or 1.0
+            planes = np.unique(np.round(np.column_stack([n, c / size]), 12), axis=0)
+            planes[:, 3] *= size
+            if np.max(pts @ planes[:, :3].T - planes[:, 3]) <= 1e-9 * size:  # every vertex inside every plane
+                cache[sid] = np.ascontiguousarray(planes)
+    return cache[sid]
+
+
 def enters(prep, prim) -> np.ndarray:
     """Which first hits `prim` (triangle ids, -1 for a miss) are on a shape holding a medium."""
     if prep.interior_shapes is None or not len(prep.interior_shapes):
@@ -144,10 +164,16 @@ def _transmittance(cos_i, eta):
     return out
 
 
-def single_scattering(prep, method, params, medium, points, normals, w, ell, keys, seed, depth):
+def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, and its
-    variance (N, 3) (0 but for montecarlo)."""
+    variance (N, 3) (0 but for montecarlo). In a convex index-matched shape the light's path inside
+    is its exact straight path to the boundary (`convex_planes`), except for analytic's eq. 5 and
+    slab_approx, which keep the seed's entry plane."""
+    medium = prep.scene.shapes[sid].interior
+    planes = convex_planes(prep, sid)
+    geo = np.zeros((len(points), 9))
+    geo[:, :3], geo[:, 3:6] = points, w
     lights = prep.lights
     n = len(points)
     out = np.zeros((n, 3))
@@ -171,10 +197,12 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell, key
             mu = -np.einsum("ij,ij->i", t_l, w)
             scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
                              / np.maximum(b, 1e-300), 0.0) if medium.ior != 1.0 else 1.0
+            geo[:, 6:] = -lights.axis[li]
         else:
             assert lights.kind[li] == POINT, "refused by check()"
             xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx,
                                               prep.accel.scale)
+            geo[:, 6:] = lights.position[li]
             rel = lights.position[li] - points
             hl = np.einsum("ij,ij->i", rel, normals)
             if medium.ior != 1.0:  # horizontal parts, for the refracted path (media/slab.py refracted_point)
@@ -187,7 +215,8 @@ def single_scattering(prep, method, params, medium, points, normals, w, ell, key
                 continue
             unit, unit_var = np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), mode, rtol, steps, tau_max,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, planes, mode, rtol,
+                            steps, tau_max,
                             keys,
                             np.uint64(STREAM + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
                             stats)
@@ -219,7 +248,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
         _, prim2 = accel.first_hit(_nudge(accel, p, w, cos_t), w)
         ell = _plane_distance(accel, p, w, prim2)
-        inner, inner_var = single_scattering(prep, method, params, medium, p, nf, w, ell, keys[sel], seed, depth)
+        inner, inner_var = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel], seed, depth)
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)
         behind_var = np.zeros_like(inner)

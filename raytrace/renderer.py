@@ -45,6 +45,7 @@ class Prepared:
     _maps: dict = field(default_factory=dict)
     shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
+    interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
 
     def shadow_maps(self, spacing: float) -> np.ndarray:
         """The lights' depth cube maps for this search spacing, built once (shadow_maps.py)."""

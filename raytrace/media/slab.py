@@ -41,8 +41,10 @@ from ..methods.quadrature import _adaptive as adaptive
 from ..rng import uniform
 from .phase import phase_value
 
-# an eq. 7 argument tuple for methods/quadrature.py's adaptive rule: its length tells the rule apart
+# eq. 7's and the convex shapes' argument tuples for methods/quadrature.py's adaptive rule: their
+# lengths tell the rules apart
 EQ7_ARGS = 12
+CONVEX_ARGS = 10
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
 # segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
 # DISTANT: a directional light, v = x
@@ -315,6 +317,66 @@ def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
 
 
 @njit
+def convex_exit(px, py, pz, ux, uy, uz, planes):
+    """Distance from the inside point p along the unit direction u to the boundary of the convex
+    polyhedron {q : n_i·q <= c_i} (rows n_x, n_y, n_z, c of `planes`, n outward)."""
+    best = math.inf
+    for i in range(planes.shape[0]):
+        den = planes[i, 0] * ux + planes[i, 1] * uy + planes[i, 2] * uz
+        if den > 0.0:
+            t = (planes[i, 3] - planes[i, 0] * px - planes[i, 1] * py - planes[i, 2] * pz) / den
+            best = min(best, max(t, 0.0))
+    return best
+
+
+@njit
+def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
+    """The single-scattering integrand at x along an inside segment of a convex index-matched shape,
+    with the light's straight path inside measured exactly to the shape's boundary: geo = (entry
+    point, segment direction w, the light's position or, for a directional light, minus its
+    direction of travel); a directional light's value per unit irradiance (`phase` its phase
+    value), a point light's per unit intensity."""
+    X0, X1, X2 = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
+    if distant:
+        k = convex_exit(X0, X1, X2, geo[6], geo[7], geo[8], planes)
+        return ks * phase * math.exp(-kt * (x + k))
+    r0, r1, r2 = geo[6] - X0, geo[7] - X1, geo[8] - X2
+    d2 = max(r0 * r0 + r1 * r1 + r2 * r2, 1e-250)
+    d = math.sqrt(d2)
+    k = min(convex_exit(X0, X1, X2, r0 / d, r1 / d, r2 / d, planes), d)
+    mu = (r0 * geo[3] + r1 * geo[4] + r2 * geo[5]) / d  # the light travels along -r; the eye is along -w
+    return ks * phase_value(code, g, mu) * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
+
+
+@njit
+def convex_rule(a, b, args, nodes, weights):
+    """Gauss-Legendre rule of `convex_integrand` over [a, b]; args = (geo, planes, distant, kt, ks, code,
+    g, kt_out, phase, CONVEX_TAG) (methods/quadrature.py's adaptive rule calls it for tuples of length
+    CONVEX_ARGS)."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    acc = 0.0
+    for j in range(nodes.shape[0]):
+        acc += weights[j] * convex_integrand(mid + half * nodes[j], args[0], args[1], args[2], args[3], args[4],
+                                             args[5], args[6], args[7], args[8])
+    return acc * half
+
+
+@njit
+def convex_quadrature(geo, planes, distant, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
+    """∫_0^ell `convex_integrand` dx, adaptive (the floor of `_eq7_adaptive`)."""
+    if ks == 0.0 or not ell > 0.0:
+        return 0.0
+    end = min(ell, 745.0 / kt)
+    args = (geo, planes, distant, kt, ks, code, g, kt_out, phase, 0)
+    floor = 0.1 * rtol * abs(convex_rule(0.0, end, args, _N20, _W20)) / end
+    total, good = adaptive(args, 0.0, end, rtol, floor, _N10, _W10, _N20, _W20, stats)
+    if not good:
+        stats[CAPPED] += 1.0
+    return total
+
+
+@njit
 def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta):
     """The inside single-scattering integrand at depth x along the segment (module docstring): a
     directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
@@ -331,8 +393,8 @@ def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out
 
 
 @njit
-def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, mode, rtol, steps,
-                    tau_max, keys, dim0, seed, out, var, stats):
+def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode, rtol,
+                    steps, tau_max, keys, dim0, seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point light
@@ -343,21 +405,32 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
     and the seed's separable approximation, with the outside attenuation at the entry point), MARCH
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
     free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
-    dim0 + j; var gets the variance of the mean)."""
+    dim0 + j; var gets the variance of the mean). With `planes` (a convex index-matched shape, rows
+    of `convex_exit`; else an empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand`
+    (geo: its per-segment rows) instead: the exact straight path to every light outside."""
+    convex = planes.shape[0] > 0
     for s in range(xh.shape[0]):
         out[s] = 0.0
         var[s] = 0.0
-        if (distant[s] and b[s] <= 0.0) or (not distant[s] and hl[s] <= 0.0) or ks == 0.0 or not ell[s] > 0.0:
+        if ks == 0.0 or not ell[s] > 0.0:
             continue
         ph = phase_value(code, g, mu[s]) if distant[s] else 0.0
+        if convex and mode != CLOSED and mode != APPROX:
+            if mode == QUAD:
+                out[s] = convex_quadrature(geo[s], planes, distant[s], ell[s], kt, ks, code, g, kt_out, ph, rtol, stats)
+                continue
+        elif (distant[s] and b[s] <= 0.0) or (not distant[s] and hl[s] <= 0.0):
+            continue
         if mode == MARCH or mode == SAMPLE:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
             if mode == MARCH:
                 dx = length / steps
                 acc = 0.0
                 for j in range(steps):
-                    acc += inside_integrand(distant[s], (j + 0.5) * dx, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks,
-                                            code, g, kt_out, wl[s], ll[s], eta)
+                    x = (j + 0.5) * dx
+                    acc += (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
+                            inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
+                                             kt_out, wl[s], ll[s], eta))
                 out[s] = acc * dx
             else:
                 mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
@@ -365,8 +438,9 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                 for j in range(steps):
                     u = uniform(keys[s], dim0 + j, seed)
                     x = -math.log1p(-u * kt * mass) / kt
-                    f = inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                         kt_out, wl[s], ll[s], eta) * mass * math.exp(kt * x)
+                    f = (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
+                         inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
+                                          kt_out, wl[s], ll[s], eta)) * mass * math.exp(kt * x)
                     acc += f
                     acc2 += f * f
                 mean = acc / steps

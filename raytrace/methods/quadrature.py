@@ -71,8 +71,9 @@ def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
 
 
 def _either_rule(a, b, args, nodes, weights):
-    """`_rule` for args = (piece, xh, h, kt, code, g, cone), media/slab.py's `eq7_rule` for its
-    argument tuples, else `_fog_rule` (chosen at compile time by the tuple's length, `_either_rule_impl`)."""
+    """`_rule` for args = (piece, xh, h, kt, code, g, cone), media/slab.py's `eq7_rule` and
+    `convex_rule` for their argument tuples, else `_fog_rule` (chosen at compile time by the tuple's
+    length, `_either_rule_impl`)."""
 
 
 @overload(_either_rule)
@@ -80,10 +81,12 @@ def _either_rule_impl(a, b, args, nodes, weights):
     if len(args) == 7:
         return lambda a, b, args, nodes, weights: _rule(args[0], a, b, args[1], args[2], args[3], args[4], args[5],
                                                         args[6], nodes, weights)
-    from ..media.slab import EQ7_ARGS, eq7_rule  # seed 002's eq. 7 (bounded media)
+    from ..media.slab import CONVEX_ARGS, EQ7_ARGS, convex_rule, eq7_rule  # seed 002 (bounded media)
 
     if len(args) == EQ7_ARGS:
         return lambda a, b, args, nodes, weights: eq7_rule(a, b, args, nodes, weights)
+    if len(args) == CONVEX_ARGS:
+        return lambda a, b, args, nodes, weights: convex_rule(a, b, args, nodes, weights)
     return lambda a, b, args, nodes, weights: _fog_rule(a, b, args, nodes, weights)
 
 
