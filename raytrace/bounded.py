@@ -127,6 +127,21 @@ def convex_planes(prep, sid):
     return cache[sid]
 
 
+def warm_up_rays(prep, origins, dirs):
+    """`origins`, `dirs` and one ray from the camera toward the centre of each shape holding a medium,
+    so that the renderer's warm-up compiles the kernels of bounded media too."""
+    cam = prep.scene.camera.position
+    extra = []
+    for sid in prep.interior_shapes:
+        to = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3).mean(axis=0) - cam
+        if np.linalg.norm(to) > 0.0:
+            extra.append(to / np.linalg.norm(to))
+    if not extra:
+        return origins, dirs
+    return (np.concatenate([origins, np.repeat(cam[None, :], len(extra), axis=0)]),
+            np.concatenate([dirs, np.array(extra)]))
+
+
 def enters(prep, prim) -> np.ndarray:
     """Which first hits `prim` (triangle ids, -1 for a miss) are on a shape holding a medium."""
     if prep.interior_shapes is None or not len(prep.interior_shapes):

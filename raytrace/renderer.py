@@ -138,7 +138,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
     """Compile the method's kernels on a few rays; returns the seconds it took."""
     start = time.perf_counter()
     o, d = generate_rays(prep.scene.camera, slice(0, 1), slice(0, 1))
-    shade_rays(prep, method, params, o[:1], d[:1], np.zeros(1, dtype=np.uint64), seed, shadows)
+    o, d = bounded.warm_up_rays(prep, o[:1], d[:1])  # and one at each shape holding a medium
+    shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed, shadows)
     return time.perf_counter() - start
 
 
