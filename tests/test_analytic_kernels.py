@@ -61,7 +61,7 @@ CASES = [
     ((-2.0, 1e-7, 0.0), 3.0, 0.7),      # on the line behind the camera (near-line path)
     ((6.0, 1e-8, 0.0), 3.0, 0.7),       # on the line ahead of the segment (near-line path)
 ]
-PHASES = [(ISOTROPIC, 0.0), (RAYLEIGH, 0.0), (HG, -0.5), (HG, 0.5), (HG, 0.9)]
+PHASES = [(ISOTROPIC, 0.0), (RAYLEIGH, 0.0), (HG, -0.5), (HG, 0.5), (HG, 0.9), (HG, 0.95)]
 
 
 @lru_cache(maxsize=None)
