@@ -369,7 +369,7 @@ def main():
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT / "benchmarks"))
     start = time.perf_counter()
-    box, equal, paper, sibenik, rounds = ((240, 180), (120, 90), (384, 192), (512, 256), 7) if args.quick else \
+    box, equal, paper, sibenik, rounds = ((240, 180), (120, 90), (384, 192), (512, 256), 5) if args.quick else \
         ((320, 240), (240, 180), (512, 256), (1024, 512), 9)
     rows = airlight_cost(box, rounds) + equal_error(equal, rounds) + spot_vs_point(box, rounds)
     scenes, notes = paper_scenes(paper)
