@@ -371,7 +371,8 @@ def main():
     start = time.perf_counter()
     box, equal, paper, sibenik, rounds = ((240, 180), (120, 90), (384, 192), (512, 256), 5) if args.quick else \
         ((320, 240), (240, 180), (512, 256), (1024, 512), 9)
-    rows = airlight_cost(box, rounds) + equal_error(equal, rounds) + spot_vs_point(box, rounds)
+    # the box-room renders take 20-60 ms: more rounds for their ratios
+    rows = airlight_cost(box, 4 * rounds) + equal_error(equal, rounds) + spot_vs_point(box, 2 * rounds)
     scenes, notes = paper_scenes(paper)
     rows += equal_time(scenes, rounds)
     if "sibenik" in scenes:
