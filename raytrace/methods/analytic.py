@@ -231,7 +231,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     block = coeffs
     at = B_HMAX_BAND if band else B_HMAX
     if moments:
-        block = _block_for(coeffs, v1, v2)
+        block = _block_for(coeffs, v1, v2, H, at)
         if H > block[at]:  # the moment recurrence would lose digits: quadrature
             return 0.0, 0.0, False
     # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
@@ -396,7 +396,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         if pieces[i, 2] == 0.0:
             continue
         v1, v2 = pieces[i, 0], pieces[i, 1]
-        if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2).shape[0] - B_C > BAND_GAUSS_FIRST:
+        if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2, H, B_HMAX_BAND).shape[0] - B_C > BAND_GAUSS_FIRST:
             fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
             if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
                 stats[ST_PIECE_QUAD] += 1.0
@@ -435,17 +435,19 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
 
 @njit
-def _block_for(coeffs, v1, v2):
-    """The exact mode's coefficient block for a piece v1 < v < v2: the shortest block whose range of v
-    holds the piece (`exact_coeffs`: each block is preceded by its length, the full one first, the
-    fitted ones after it from the widest range to the narrowest)."""
+def _block_for(coeffs, v1, v2, H, at):
+    """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h: the shortest block whose
+    range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
+    full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
+    ones after it from the widest range to the narrowest)."""
     n = int(coeffs[0])
     best = coeffs[1:1 + n]
     pos = 1 + n
     while pos < coeffs.shape[0]:
         n = int(coeffs[pos])
-        if coeffs[pos + 1 + B_VLO] <= v1 and v2 <= coeffs[pos + 1 + B_VHI]:
-            best = coeffs[pos + 1:pos + 1 + n]
+        b = coeffs[pos + 1:pos + 1 + n]
+        if b[B_VLO] <= v1 and v2 <= b[B_VHI] and H <= b[at]:
+            best = b
         pos += 1 + n
     return best
 
