@@ -314,7 +314,7 @@ def cluster_rows(quick, rounds):
     with distributed.connect("local:2") as client:
         renderer.render(prep, "montecarlo", params)
         cluster.cluster_render(client, prep, "montecarlo", params, 0, 2)
-        for _ in range(max(1, rounds // 3)):
+        for _ in range(3):  # each round a threaded and a cluster render in turn
             threaded = renderer.render(prep, "montecarlo", params).seconds
             ratios.append(threaded / cluster.cluster_render(client, prep, "montecarlo", params, 0, 2)[1])
     return [{"row": "threaded / local cluster, 2 workers (time)", "case": f"{name} {size[0]}x{size[1]}, montecarlo "
