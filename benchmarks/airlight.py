@@ -31,7 +31,7 @@ from raytrace.scene.format import scene_from_text  # noqa: E402
 from raytrace.visibility import unshadowed_airlight  # noqa: E402
 
 PHASES = [("isotropic", ISOTROPIC, 0.0), ("rayleigh", RAYLEIGH, 0.0), ("hg g=0.5", HG, 0.5),
-          ("hg g=-0.5", HG, -0.5), ("hg g=0.9", HG, 0.9)]
+          ("hg g=-0.5", HG, -0.5), ("hg g=0.9", HG, 0.9), ("hg g=0.95", HG, 0.95)]
 
 
 def cpu_best(*fns, repeats=5):

@@ -1,20 +1,24 @@
 """One benchmark table: ratios measured in one process, with the machine and versions in its header.
 
-    RAYTRACE_ASSETS=../shared/scenes python benchmarks/run.py [--quick] [--json out/benchmarks.json]
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/run.py [--quick] [--all] [--json out/benchmarks.json]
 
 Every figure is a ratio of two measurements taken in the same run (timed renders take turns in
 interleaved rounds; the median of each), so tables from different commits on the same machine can
-be compared through the JSON file. Times are `Image.seconds` (render wall time on 2 threads,
-compile excluded: every configuration is rendered once before timing). Rows:
+be compared through the JSON file. Renders run on 2 threads (compile excluded: every configuration
+is rendered once before timing) and are timed in CPU seconds of this process (all its threads),
+which other jobs on a shared machine move far less than the wall time. Rows:
 
 - air-light cost: analytic render (precision 1e-6) / the same render without air-light, per phase
   function, on the box room of tests/conftest.py. "Without air-light" is the same scene with
   sigma_s = 0 and sigma_a = sigma_a + sigma_s (same sigma_t): the renderer skips the air-light
   when no channel scatters (`medium.scatters`).
-- equal error: quadrature / analytic render time, per phase function, on the black-walled box room
-  (tests/conftest.plate_room without its plate, so the image is the air-light). Analytic runs at
-  precision 1e-6; quadrature at the loosest rtol of a ladder whose max relative error
-  (`metrics.errors`) against quadrature at rtol 1e-12 is at most analytic's.
+- equal error: quadrature / analytic and fixed Gauss-Legendre / analytic air-light time, per phase
+  function, on the rays of the black-walled box room (tests/conftest.plate_room without its plate;
+  the segments' air-light alone, `Method.airlight`, one thread). Each method runs at the loosest
+  setting of its ladder (analytic precision, quadrature rtol, the rule's order n) whose max relative
+  error over all rays and channels against quadrature at rtol 1e-12 is at most TARGET = 1e-6. The
+  fixed rule is what a user would write instead: one n-point Gauss-Legendre rule in the scattering
+  angle over each segment's range of it (quadrature.py's integrand, no adaptivity).
 - equal time: ray-marching error / analytic error (mean relative, against quadrature at rtol
   1e-12) on the paper's scenes, ray marching's steps doubled until its render takes at least as
   long as analytic's (the two timed in turns at each step count). Skipped with a note when RAYTRACE_ASSETS does not find the meshes.
@@ -23,9 +27,16 @@ compile excluded: every configuration is rendered once before timing). Rows:
   function.
 - shadows: shadowed / unshadowed analytic render time (`volumetric_shadows=True`) on Sibenik, or on
   the plate room when the meshes are missing.
+
+With --all, also the rows of the other scripts, through their own measuring functions:
+benchmarks/height_fog.py (numerically integrated / closed-form optical depth at equal max error),
+benchmarks/cluster.py (threaded / local-cluster render time, 2 single-threaded workers) and
+benchmarks/vs_mitsuba.py (Mitsuba's time / ours to equal mean error; skipped with a note without the
+mitsuba package).
 """
 import argparse
 import json
+import math
 import os
 import platform
 import subprocess
@@ -40,14 +51,25 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import raytrace  # noqa: E402
+from raytrace.camera import generate_rays  # noqa: E402
+from raytrace.jit import njit  # noqa: E402
+from raytrace.methods import get_method, resolve_params  # noqa: E402
+from raytrace.methods.geometry import by_channel  # noqa: E402
+from raytrace.methods.quadrature import _rule as quad_rule  # noqa: E402
 from raytrace.metrics import errors  # noqa: E402
 from raytrace.renderer import prepare  # noqa: E402
+from raytrace.visibility import whole_rays  # noqa: E402
 from tests.conftest import box_room, plate_room  # noqa: E402
 
 PHASES = {"isotropic": "isotropic", "rayleigh": "rayleigh", "hg g=0.5": {"type": "hg", "g": 0.5},
-          "hg g=0.9": {"type": "hg", "g": 0.9}, "hg g=-0.5": {"type": "hg", "g": -0.5}}
-RTOLS = [10.0 ** -k for k in range(1, 12)]
+          "hg g=0.9": {"type": "hg", "g": 0.9}, "hg g=0.95": {"type": "hg", "g": 0.95},
+          "hg g=-0.5": {"type": "hg", "g": -0.5}}
 PRECISION = 1e-6
+TARGET = 1e-6  # the equal-error rows' max relative error
+# from each method's loosest allowed setting (analytic precision <= 0.1, quadrature rtol <= 0.5)
+LADDERS = {"analytic": ("precision", [10.0 ** -k for k in range(1, 9)]),
+           "quadrature": ("rtol", [0.5] + [10.0 ** -k for k in range(1, 12)]),
+           "fixed Gauss-Legendre": ("n", [4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024])}
 THREADS = 2
 
 
@@ -67,7 +89,8 @@ def machine():
     dirty = git("status", "--porcelain", "--", "raytrace")
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "numpy": version("numpy"),
             "numba": version("numba"), "embreex": version("embreex"),
-            "commit": git("rev-parse", "--short", "HEAD") + ("+dirty raytrace/" if dirty else "")}
+            "commit": git("rev-parse", "--short", "HEAD") + ("+dirty raytrace/" if dirty else ""),
+            "load": " ".join(f"{x:.1f}" for x in os.getloadavg())}
 
 
 def render(prep, method="analytic", **kw):
@@ -75,7 +98,8 @@ def render(prep, method="analytic", **kw):
 
 
 def medians(jobs, rounds):
-    """Median render seconds of each (prep, method, kwargs) job over `rounds` interleaved rounds,
+    """Median CPU seconds (all threads of this process: other jobs on a shared machine move it far
+    less than the wall time) of each (prep, method, kwargs) render over `rounds` interleaved rounds,
     after one untimed warm-up render of each; and each job's last image."""
     for prep, method, kw in jobs:
         render(prep, method, **kw)
@@ -83,8 +107,9 @@ def medians(jobs, rounds):
     images = [None] * len(jobs)
     for _ in range(rounds):
         for i, (prep, method, kw) in enumerate(jobs):
+            start = time.process_time()
             images[i] = render(prep, method, **kw)
-            times[i].append(images[i].seconds)
+            times[i].append(time.process_time() - start)
     return [float(np.median(t)) for t in times], images
 
 
@@ -101,25 +126,85 @@ def airlight_cost(size, rounds):
     return rows
 
 
+@njit
+def _fixed_gl(xh, h, ell, kt, ks, code, g, cone, nodes, weights, out):
+    """One n-point Gauss-Legendre rule in the scattering angle phi over each segment's range
+    [phi_a, phi_b] (phi_b = pi for a segment to infinity), of quadrature.py's integrand."""
+    for s in range(xh.shape[0]):
+        a = math.atan2(h[s], xh[s])
+        b = math.pi if ell[s] == math.inf else math.atan2(h[s], xh[s] - ell[s])
+        out[s] = ks / h[s] * quad_rule(0, a, b, xh[s], h[s], kt, code, g, cone[s], nodes, weights)
+
+
+def fixed_gl_airlight(segs, medium, lights, n):
+    nodes, weights = np.polynomial.legendre.leggauss(n)
+
+    def evaluate(xh, h, da, ell, kt, ks, cone):
+        out = np.empty_like(xh)
+        _fixed_gl(xh, h, ell, kt, ks, medium.phase, medium.g, cone, nodes, weights, out)
+        return out
+
+    return by_channel(segs, medium, lights, evaluate)
+
+
+def airlight_job(prep, segs, name, value):
+    """A function computing the segments' air-light (S, 3) with method `name` at its ladder `value`."""
+    medium, lights = prep.scene.medium, prep.lights
+    if name == "fixed Gauss-Legendre":
+        return lambda: fixed_gl_airlight(segs, medium, lights, value)
+    m = get_method(name)
+    p = resolve_params(m, {LADDERS[name][0]: value}, "benchmark")
+    return lambda: m.airlight(segs, medium, lights, p)[0]
+
+
+def loosest(prep, segs, name, ref):
+    """The loosest setting of `name`'s ladder whose max relative error is at most TARGET (the
+    tightest if none), and that error."""
+    mask = ref > 0.0
+    err = None
+    for value in LADDERS[name][1]:
+        out = airlight_job(prep, segs, name, value)()
+        err = float(np.max(np.abs(out[mask] - ref[mask]) / ref[mask]))
+        if err <= TARGET:
+            return value, err, True
+    return value, err, False
+
+
+def cpu_medians(jobs, rounds):
+    """Median single-thread CPU seconds of each function over `rounds` interleaved rounds (after one
+    untimed call of each)."""
+    for job in jobs:
+        job()
+    times = [[] for _ in jobs]
+    for _ in range(rounds):
+        for i, job in enumerate(jobs):
+            start = time.process_time()
+            job()
+            times[i].append(time.process_time() - start)
+    return [float(np.median(t)) for t in times]
+
+
 def equal_error(size, rounds):
     rows = []
     for label, phase in PHASES.items():
         prep = plate_room(phase, plate=False, width=size[0], height=size[1])
-        ref = render(prep, "quadrature", rtol=1e-12).array
-        e_a = errors(render(prep, precision=PRECISION).array, ref)["max_rel"]
-        rtol, e_q = RTOLS[-1], None
-        for r in RTOLS:
-            e_q = errors(render(prep, "quadrature", rtol=r).array, ref)["max_rel"]
-            if e_q <= e_a:
-                rtol = r
-                break
-        (t_a, t_q), _ = medians([(prep, "analytic", {"precision": PRECISION}), (prep, "quadrature", {"rtol": rtol})],
-                                rounds)
-        reached = "" if e_q <= e_a else " (not reached: tightest rtol)"
-        rows.append({"row": "quadrature / analytic at equal max error (time)", "case": f"air-light box, {label}",
-                     "ratio": t_q / t_a,
-                     "detail": f"analytic 1e-6: {t_a:.3f} s, err {e_a:.1e}; quadrature rtol {rtol:g}{reached}: "
-                               f"{t_q:.3f} s, err {e_q:.1e}"})
+        o, d = generate_rays(prep.scene.camera)
+        t, _ = prep.accel.first_hit(o, d)
+        segs = whole_rays(o, d, t, np.arange(len(o), dtype=np.uint64), len(prep.lights), 0, prep.accel.scale)
+        ref = airlight_job(prep, segs, "quadrature", 1e-12)()
+        found = {name: loosest(prep, segs, name, ref) for name in LADDERS}
+        times = dict(zip(LADDERS, cpu_medians([airlight_job(prep, segs, name, found[name][0]) for name in LADDERS],
+                                              rounds)))
+
+        def cell(name):
+            value, err, ok = found[name]
+            return (f"{name} {LADDERS[name][0]} {value:g}{'' if ok else ' (not reached: tightest)'}: "
+                    f"{times[name]:.3f} s, err {err:.1e}")
+
+        for name in ("quadrature", "fixed Gauss-Legendre"):
+            rows.append({"row": f"{name} / analytic at max error {TARGET:g} (air-light time)",
+                         "case": f"air-light box, {label}", "ratio": times[name] / times["analytic"],
+                         "detail": f"{cell('analytic')}; {cell(name)}"})
     return rows
 
 
@@ -180,10 +265,97 @@ def shadows(prep, case, rounds):
              "detail": f"{t1:.3f} s / {t0:.3f} s"}]
 
 
+def height_fog_rows(quick, rounds):
+    """benchmarks/height_fog.py's comparison: the midpoint rule's optical depth of an exponential fog
+    at the fewest steps n (of 1, 4, 16, ...) whose max relative error is at most 1e-3 / 1e-6, against
+    the closed form, on that script's random segments; time ratio of interleaved rounds."""
+    import height_fog as hf
+
+    n_seg = 50_000 if quick else hf.N_SEGMENTS
+    rng = np.random.default_rng(4)  # height_fog.main's segments
+    h = rng.uniform(-2.0, 10.0, n_seg) * hf.H
+    mu = rng.uniform(-1.0, 1.0, n_seg)
+    length = rng.uniform(0.0, 20.0, n_seg) * hf.H
+    ref, out = np.empty(n_seg), np.empty(n_seg)
+    hf.closed(h, mu, length, ref)
+    rows = []
+    for target in (1e-3, 1e-6):
+        n = 1
+        while True:
+            hf.midpoint(h, mu, length, n, out)
+            if np.max(np.abs(out - ref) / ref) <= target or n >= 4 ** 7:
+                break
+            n *= 4
+        t_closed, t_mid = cpu_medians([lambda: hf.closed(h, mu, length, ref),
+                                       lambda: hf.midpoint(h, mu, length, n, out)], rounds)
+        rows.append({"row": f"midpoint / closed-form optical depth at max error {target:g} (time)",
+                     "case": f"height fog, {n_seg} random segments", "ratio": t_mid / t_closed,
+                     "detail": f"{n} midpoint steps: {t_mid / n_seg * 1e9:.0f} ns; closed form (eq. 34) "
+                               f"{t_closed / n_seg * 1e9:.0f} ns per segment"})
+    return rows
+
+
+def cluster_rows(quick, rounds):
+    """benchmarks/cluster.py's efficiency: threaded render time / the same render on a local Dask
+    cluster of 2 single-threaded workers (`cluster.cluster_render`), median of interleaved rounds."""
+    import cluster
+    from raytrace import distributed, renderer
+
+    size, samples = ((256, 128), 16) if quick else ((512, 256), 48)
+    name = "sibenik"
+    try:
+        scene = raytrace.load(name, [f"camera.width={size[0]}", f"camera.height={size[1]}", "camera.spp=1"])
+    except raytrace.UserError:
+        name = "box room"
+        scene = raytrace.load(box_room(camera={**box_room()["camera"], "width": size[0], "height": size[1]}))
+    prep = renderer.prepare(scene)
+    params = {"samples": samples}
+    ratios = []
+    with distributed.connect("local:2") as client:
+        renderer.render(prep, "montecarlo", params)
+        cluster.cluster_render(client, prep, "montecarlo", params, 0, 2)
+        for _ in range(3):  # each round a threaded and a cluster render in turn
+            threaded = renderer.render(prep, "montecarlo", params).seconds
+            ratios.append(threaded / cluster.cluster_render(client, prep, "montecarlo", params, 0, 2)[1])
+    return [{"row": "threaded / local cluster, 2 workers (time)", "case": f"{name} {size[0]}x{size[1]}, montecarlo "
+             f"{samples} samples", "ratio": float(np.median(ratios)),
+             "detail": f"efficiency, median of {len(ratios)} rounds ({' '.join(f'{r:.3f}' for r in ratios)})"}]
+
+
+def mitsuba_rows(quick, notes):
+    """benchmarks/vs_mitsuba.py's time to equal mean relative error (1e-2, 1e-3): Mitsuba's time / ours,
+    per scene, through that script's `bench_scene`; a note if the mitsuba package is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec("mitsuba") is None:
+        notes.append("Mitsuba rows skipped: the mitsuba package is not installed (pip install -e '.[bench]')")
+        return []
+    import vs_mitsuba as vm
+    import drjit as dr
+    import mitsuba as mi
+
+    variant, _ = vm.choose_variant("auto")
+    mi.set_variant(variant)
+    rows = []
+    for index, (name, scene, shadows) in enumerate(vm.scenes(quick)):
+        res = vm.bench_scene(mi, dr, index, name, scene, shadows, quick, variant != "scalar_rgb")
+        for ours in ("analytic", "montecarlo"):
+            for target in vm.TARGETS:
+                value = res["mitsuba_over_ours_time"][ours][f"{target:g}"]
+                if value is not None:
+                    rows.append({"row": f"Mitsuba 3 / {ours} at mean error {target:g} (time)",
+                                 "case": f"{name} {res['width']}x{res['height']}", "ratio": value,
+                                 "detail": f"Mitsuba {mi.__version__} {variant}; time to error "
+                                           f"{vm.fmt_t(res['time_to_error']['mitsuba'][f'{target:g}'])} s / "
+                                           f"{vm.fmt_t(res['time_to_error'][ours][f'{target:g}'])} s"})
+    return rows
+
+
 def table(info, rows, notes, seconds, quick):
     head = (f"**raytrace benchmarks** ({'quick' if quick else 'full'}, {seconds:.0f} s): commit {info['commit']}; "
             f"{info['cpu']}, {info['cores']} cores; Python {info['python']}, numpy {info['numpy']}, "
-            f"numba {info['numba']}, embreex {info['embreex']}; {THREADS} threads, medians of interleaved rounds")
+            f"numba {info['numba']}, embreex {info['embreex']}; load average {info['load']} (1, 5, 15 min) at the end; "
+            f"renders on {THREADS} threads, air-light alone on 1; CPU seconds, medians of interleaved rounds")
     lines = [head, "", "| ratio | case | value | measured |", "|---|---|---|---|"]
     lines += [f"| {r['row']} | {r['case']} | {r['ratio']:.3g}x | {r['detail']} |" for r in rows]
     lines += [f"\n({n})" for n in notes]
@@ -193,12 +365,15 @@ def table(info, rows, notes, seconds, quick):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small images, fewer rounds (under 3 minutes)")
+    ap.add_argument("--all", action="store_true", help="also the rows of height_fog.py, cluster.py and vs_mitsuba.py")
     ap.add_argument("--json", default=str(ROOT / "out" / "benchmarks.json"), help="where to write the rows as JSON")
     args = ap.parse_args()
+    sys.path.insert(0, str(ROOT / "benchmarks"))
     start = time.perf_counter()
-    box, paper, sibenik, rounds = ((240, 180), (384, 192), (512, 256), 7) if args.quick else \
-        ((320, 240), (512, 256), (1024, 512), 9)
-    rows = airlight_cost(box, rounds) + equal_error(box, rounds) + spot_vs_point(box, rounds)
+    box, equal, paper, sibenik, rounds = ((240, 180), (120, 90), (384, 192), (512, 256), 5) if args.quick else \
+        ((320, 240), (240, 180), (512, 256), (1024, 512), 9)
+    # the box-room renders take 20-60 ms: more rounds for their ratios
+    rows = airlight_cost(box, 4 * rounds) + equal_error(equal, rounds) + spot_vs_point(box, 2 * rounds)
     scenes, notes = paper_scenes(paper)
     rows += equal_time(scenes, rounds)
     if "sibenik" in scenes:
@@ -208,6 +383,8 @@ def main():
     else:
         notes.append("paper scenes missing: shadow row on the plate room instead (set RAYTRACE_ASSETS)")
         rows += shadows(plate_room({"type": "hg", "g": 0.5}, width=box[0], height=box[1]), "plate room", rounds)
+    if args.all:
+        rows += height_fog_rows(args.quick, rounds) + cluster_rows(args.quick, rounds) + mitsuba_rows(args.quick, notes)
     info = machine()
     seconds = time.perf_counter() - start
     print(table(info, rows, notes, seconds, args.quick))

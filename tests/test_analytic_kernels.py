@@ -61,7 +61,7 @@ CASES = [
     ((-2.0, 1e-7, 0.0), 3.0, 0.7),      # on the line behind the camera (near-line path)
     ((6.0, 1e-8, 0.0), 3.0, 0.7),       # on the line ahead of the segment (near-line path)
 ]
-PHASES = [(ISOTROPIC, 0.0), (RAYLEIGH, 0.0), (HG, -0.5), (HG, 0.5), (HG, 0.9)]
+PHASES = [(ISOTROPIC, 0.0), (RAYLEIGH, 0.0), (HG, -0.5), (HG, 0.5), (HG, 0.9), (HG, 0.95)]
 
 
 @lru_cache(maxsize=None)
@@ -143,3 +143,24 @@ def test_random_inputs_finite_nonnegative(xh, h, ell, kt, alb, code, g, mode, pr
     assert math.isfinite(val) and val >= 0.0
     iso = A.airlight(xh, h, da, ell, kt, alb * kt, 1.0, 0, 0.0, prec, 200, 0, 1, co, POINT_ROW, stats)
     assert math.isfinite(iso) and iso >= 0.0
+
+
+def test_block_for_picks_the_shortest_block_that_holds_the_piece():
+    """HG's ladder of fitted blocks (`exact_coeffs`): a piece v1 < v < v2 at H gets the shortest block
+    whose range of v holds it and whose recurrence limit H_max admits H, the full one where none
+    does; the ranges are those of FAR_ANGLES."""
+    rng = np.random.default_rng(14)
+    for g, precision in ((0.5, 1e-6), (0.9, 1e-6), (0.95, 1e-6), (-0.9, 1e-6), (0.9, 1e-9)):
+        co = A.exact_coeffs(HG, g, precision)
+        blocks = A.coefficient_blocks(co)
+        assert len(blocks) >= 3 and blocks[0][A.B_VLO] == 0.0 and blocks[0][A.B_VHI] == math.inf
+        ranges = {A.fitted_range(g, angle)[2:] for angle in A.FAR_ANGLES}
+        assert all((b[A.B_VLO], b[A.B_VHI]) in ranges for b in blocks[1:])
+        for _ in range(300):
+            v1 = float(np.tan(0.5 * rng.uniform(0.0, math.pi)))
+            v2 = math.inf if rng.random() < 0.2 else v1 + float(10 ** rng.uniform(-3, 1))
+            H = float(10 ** rng.uniform(-3, 1))
+            for at in (A.B_HMAX, A.B_HMAX_BAND):
+                chosen = A._block_for(co, v1, v2, H, at)
+                holders = [b for b in blocks[1:] if b[A.B_VLO] <= v1 and v2 <= b[A.B_VHI] and H <= b[at]]
+                assert len(chosen) == min(len(b) for b in holders + [blocks[0]])

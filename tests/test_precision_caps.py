@@ -105,22 +105,26 @@ def test_hg_legendre_series_meets_its_precision_or_is_not_used():
 
 
 def test_far_fit_meets_its_precision_or_is_left_out():
-    """The far block's Chebyshev fit meets precision / 2 on its range, or there is no far block
-    (its rays use the full block). Before, precision 1e-13 kept the degree-399 attempt (its
-    coefficients sum to 1e38 times the phase function)."""
-    for g in (0.6, 0.9, 0.99, -0.99):
-        phi_lo, phi_hi = (A.FAR_ANGLE, math.pi) if g > 0 else (0.0, math.pi - A.FAR_ANGLE)
-        mu = np.cos(np.linspace(phi_lo, phi_hi, 10001))
+    """Each fitted block's Chebyshev fit meets precision / 2 on its range, or it is left out (its
+    rays use a longer block). Before, precision 1e-13 kept the degree-399 attempt (its coefficients
+    sum to 1e38 times the phase function)."""
+    for g in (0.6, 0.9, 0.95, 0.99, -0.99):
         for precision in (1e-3, 1e-7, 1e-11, 1e-13):
-            c, _ = A._far_cosine_series(g, precision, phi_lo, phi_hi)
-            coeffs = A.exact_coeffs(HG, g, precision)
-            far = coeffs[1 + int(coeffs[0]):]
-            if c is None:
-                assert precision <= 1e-11 and far.size == 0, (g, precision)
-                continue
-            err = np.max(np.abs(np.polynomial.chebyshev.chebval(mu, c) - _hg(g, mu)) / _hg(g, mu))
-            assert err <= precision, (g, precision, err)
-            assert far.size == 0 or np.array_equal(far[A.B_C:], c)
+            kept = {(b[A.B_VLO], b[A.B_VHI]): b for b in A.coefficient_blocks(A.exact_coeffs(HG, g, precision))[1:]}
+            for angle in A.FAR_ANGLES:
+                phi_lo, phi_hi, v_lo, v_hi = A.fitted_range(g, angle)
+                mu = np.cos(np.linspace(phi_lo, phi_hi, 10001))
+                c, _ = A._far_cosine_series(g, precision, phi_lo, phi_hi)
+                if c is None:
+                    assert (precision <= 1e-11 or angle < 0.3) and (v_lo, v_hi) not in kept, (g, precision, angle)
+                    continue
+                err = np.max(np.abs(np.polynomial.chebyshev.chebval(mu, c) - _hg(g, mu)) / _hg(g, mu))
+                assert err <= precision, (g, precision, angle, err)
+                if (v_lo, v_hi) in kept:
+                    assert np.array_equal(kept[(v_lo, v_hi)][A.B_C:], c)
+            # the ladder: ever narrower ranges, ever shorter series
+            sizes = [len(b) for b in kept.values()]
+            assert sizes == sorted(sizes, reverse=True), (g, precision, sizes)
 
 
 def test_no_series_is_built_for_a_block_no_ray_can_use():

@@ -24,6 +24,9 @@ CASES = {
     "hg_forward_light_near_axis": box_room(
         medium={"sigma_a": 0.01, "sigma_s": 0.2, "phase": {"type": "hg", "g": 0.9}},
         light=[{"position": [0.25, 0.18, 0.0], "intensity": 5.0}]),
+    "hg_095_light_in_view": box_room(
+        medium={"sigma_a": 0.02, "sigma_s": [0.1, 0.2, 0.3], "phase": {"type": "hg", "g": 0.95}},
+        light=[{"position": [0.6, 0.5, -1.5], "intensity": 5.0}]),
     "hg_backward_light_behind_camera": box_room(
         medium={"sigma_a": 0.05, "sigma_s": [0.1, 0.2, 0.3], "phase": {"type": "hg", "g": -0.5}},
         light=[{"position": [0.0, -0.5, 3.8], "intensity": [3.0, 6.0, 9.0]}]),

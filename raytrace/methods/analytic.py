@@ -27,9 +27,9 @@ length follows `precision`), rewritten as a cosine series sum_k c_k cos(k phi) w
 well-conditioned weights, and integrated against e^{-H tan(phi/2)} through the Fourier moments
 E_k = int e^{-H tan(phi/2)} e^{ik phi} dphi, which obey a three-term recurrence started from
 I0 and I1 (legendre_moments.py). Forward, the recurrence is stable while H L is moderate; rays
-beyond the measured limit H_max(precision) go to the quadrature fallback and are counted. For
-strongly peaked HG a second, short series fitted away from the peak serves the rays that never
-look within FAR_ANGLE of it (`exact_coeffs`).
+beyond the measured limit H_max(precision) go to the quadrature fallback and are counted. For HG
+a ladder of shorter series, each fitted only beyond an angle from the peak (FAR_ANGLES), serves
+the rays that never look closer to it (`exact_coeffs`).
 
 Below a precision of 1e-7 the kernels work 1000 times finer than requested (`working_precision`).
 """
@@ -231,7 +231,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     block = coeffs
     at = B_HMAX_BAND if band else B_HMAX
     if moments:
-        block = _block_for(coeffs, v1, v2)
+        block = _block_for(coeffs, v1, v2, H, at)
         if H > block[at]:  # the moment recurrence would lose digits: quadrature
             return 0.0, 0.0, False
     # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
@@ -396,7 +396,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         if pieces[i, 2] == 0.0:
             continue
         v1, v2 = pieces[i, 0], pieces[i, 1]
-        if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2).shape[0] - B_C > BAND_GAUSS_FIRST:
+        if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2, H, B_HMAX_BAND).shape[0] - B_C > BAND_GAUSS_FIRST:
             fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
             if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
                 stats[ST_PIECE_QUAD] += 1.0
@@ -435,13 +435,21 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
 
 @njit
-def _block_for(coeffs, v1, v2):
-    """The exact mode's coefficient block for a piece v1 < v < v2: the short series fitted away from
-    the phase function's peak where the piece lies in its range, else the full one."""
-    n1 = int(coeffs[0])
-    if coeffs.shape[0] > 1 + n1 and coeffs[1 + n1] <= v1 and v2 <= coeffs[2 + n1]:
-        return coeffs[1 + n1:]
-    return coeffs[1:1 + n1]
+def _block_for(coeffs, v1, v2, H, at):
+    """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h: the shortest block whose
+    range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
+    full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
+    ones after it from the widest range to the narrowest)."""
+    n = int(coeffs[0])
+    best = coeffs[1:1 + n]
+    pos = 1 + n
+    while pos < coeffs.shape[0]:
+        n = int(coeffs[pos])
+        b = coeffs[pos + 1:pos + 1 + n]
+        if b[B_VLO] <= v1 and v2 <= b[B_VHI] and H <= b[at]:
+            best = b
+        pos += 1 + n
+    return best
 
 
 @njit
@@ -495,7 +503,7 @@ def taylor_coeffs(phase_code, g, n_terms):
 
 
 MAX_LEGENDRE = 4096  # longest HG Legendre series tried (a power of 2: `hg_legendre_degree` doubles)
-MAX_FAR_DEGREE = 400  # highest degree of the far block's fit
+MAX_FAR_DEGREE = 400  # highest degree of a fitted block's series
 
 
 def hg_legendre_degree(g, precision):
@@ -531,8 +539,11 @@ def hg_legendre_degree(g, precision):
     return hi
 
 
-FAR_ANGLE = 0.3  # radians: the strongly peaked HG lobe is fitted separately beyond this angle
-FAR_MIN_G = 0.6  # |g| from which the far block pays off
+# radians from the peak: HG is also fitted on each range of scattering angles at least this far from its
+# peak, a ladder of ever shorter series (g = 0.9 at 1e-6: 224 Legendre terms for the whole sphere, 58
+# beyond 0.3 rad, 29 beyond 0.6, 17 beyond 1.0); a ray uses the shortest whose range holds all its angles
+FAR_ANGLES = (0.15, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3)
+FAR_GAIN = 0.8  # a rung is kept if its series has at most this fraction of the terms of the last one kept
 
 
 def _usable(precision, ratio):
@@ -594,18 +605,27 @@ def _far_cosine_series(g, precision, phi_lo, phi_hi):
     return None, exact
 
 
+def fitted_range(g, angle):
+    """(phi_lo, phi_hi, v_lo, v_hi): the scattering angles at least `angle` from HG's peak (forward
+    for g > 0, backward for g < 0) and their range of v = tan(phi / 2)."""
+    if g > 0.0:
+        return angle, math.pi, math.tan(0.5 * angle), math.inf
+    return 0.0, math.pi - angle, 0.0, 1.0 / math.tan(0.5 * angle)
+
+
 def exact_coeffs(phase_code, g, precision):
-    """`coeffs` of the exact mode: [n, block valid for all rays (n values), optional far block].
+    """`coeffs` of the exact mode: blocks, each preceded by its length: the block valid for all rays,
+    then for HG the fitted ones (`FAR_ANGLES`), from the widest range to the narrowest.
 
     The phase function is a cosine series (exact for Rayleigh; HG truncated after L Legendre terms,
-    L from `precision`). For strongly peaked HG (|g| >= FAR_MIN_G) that series is long (its terms
-    fall like |g|^l), so a second, much shorter series fitted only away from the peak (scattering
-    angles beyond FAR_ANGLE from it) serves the rays whose whole segment sees the light from there,
-    which are most rays. See `_block` for the layout of a block. No series is cut short: where
-    `precision` needs more than MAX_LEGENDRE terms, or the block could not be `_usable` anyway
-    (HG: ratio = 0.1 ((1 - |g|) / (1 + |g|))^3, sum |c_k| being the peak value), the full block has
-    H_max = 0 and sends its rays to the quadrature fallback (counted); a far block that could serve
-    no ray is left out."""
+    L from `precision`). HG's series is long where it is peaked (its terms fall like |g|^l), so
+    shorter series fitted only away from the peak (scattering angles beyond each of FAR_ANGLES from
+    it, `_far_cosine_series`) serve the rays whose whole segment sees the light from there, which are
+    most rays; a rung is kept where it is FAR_GAIN shorter than the last one kept. See `_block` for
+    the layout of a block. No series is cut short: where `precision` needs more than MAX_LEGENDRE
+    terms, or the block could not be `_usable` anyway (HG: ratio = 0.1 ((1 - |g|) / (1 + |g|))^3,
+    sum |c_k| being the peak value), the full block has H_max = 0 and sends its rays to the
+    quadrature fallback (counted); a fitted block that could serve no ray is left out."""
     a = None
     if phase_code == RAYLEIGH:
         a = rayleigh_legendre()
@@ -621,16 +641,28 @@ def exact_coeffs(phase_code, g, precision):
         full = _block(legendre_to_cosine(a), np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 2001), a), 0.0,
                       math.inf, precision)
     blocks = [full]
-    if phase_code == HG and abs(g) >= FAR_MIN_G:
-        if g > 0.0:  # the peak is forward (phi = 0): rays with phi >= FAR_ANGLE
-            phi_lo, phi_hi, v_lo, v_hi = FAR_ANGLE, math.pi, math.tan(0.5 * FAR_ANGLE), math.inf
-        else:  # backward peak (phi = pi): rays with phi <= pi - FAR_ANGLE
-            phi_lo, phi_hi, v_lo, v_hi = 0.0, math.pi - FAR_ANGLE, 0.0, 1.0 / math.tan(0.5 * FAR_ANGLE)
-        c, phase = _far_cosine_series(g, precision, phi_lo, phi_hi)
-        far = None if c is None else _block(c, phase, v_lo, v_hi, precision)
-        if far is not None and far[B_HMAX] > 0.0:
-            blocks.append(far)
-    return np.concatenate([[len(full)]] + blocks)
+    terms = len(full) - B_C if full[B_HMAX] > 0.0 else math.inf
+    if phase_code == HG and g != 0.0:
+        for angle in FAR_ANGLES:
+            phi_lo, phi_hi, v_lo, v_hi = fitted_range(g, angle)
+            c, phase = _far_cosine_series(g, precision, phi_lo, phi_hi)
+            if c is None or len(c) > FAR_GAIN * terms:
+                continue
+            far = _block(c, phase, v_lo, v_hi, precision)
+            if far[B_HMAX] > 0.0:
+                blocks.append(far)
+                terms = len(c)
+    return np.concatenate([np.concatenate(([len(b)], b)) for b in blocks])
+
+
+def coefficient_blocks(coeffs):
+    """The blocks of an exact mode's `coeffs` (`exact_coeffs`), full one first."""
+    out, pos = [], 0
+    while pos < len(coeffs):
+        n = int(coeffs[pos])
+        out.append(coeffs[pos + 1:pos + 1 + n])
+        pos += 1 + n
+    return out
 
 
 @functools.lru_cache(maxsize=64)
