@@ -26,7 +26,7 @@ from .media.particles import particle_radiance
 from .methods import get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
-from .shading import facing_normals, surface_radiance
+from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
 from .shadow_maps import build as build_shadow_maps
 from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, cone_segments, lit_intervals, segment_airlight,
                          shadowed_airlight, whole_rays)
@@ -80,6 +80,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
+    ground, t = planet_hits(medium, origins, dirs, t)  # an atmosphere's planet, intersected in float64
+    prim[ground] = -1
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     if hit.any():
@@ -87,7 +89,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         normals = facing_normals(prep.accel.normals[prim[hit]], dirs[hit])
         radiance[hit] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[hit]], prep.lights,
                                          medium)
-    radiance[~hit] = scene.background
+    if ground.any():
+        radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
+    radiance[~hit & ~ground] = scene.background
     radiance *= medium.transmittance_on(origins, dirs, 0.0, t)
     stats = np.zeros(method.stats_size + len(LI_NAMES))
     variance = np.zeros_like(radiance) if method.stochastic else None

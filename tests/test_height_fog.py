@@ -138,7 +138,7 @@ def test_volumetric_shadows_in_fog_use_the_closed_form_in_front_of_each_segment(
     ({"up": [0.0, 0.0, 0.0]}, "medium.up: is zero"),
     ({"scale_hight": 2.0}, 'medium.scale_hight: unknown key; did you mean "scale_height"?'),
     ({"profile": "cubic"}, "medium.profile: 'cubic' is not one of exponential, linear"),
-    ({"type": "heightfog"}, 'medium.type: \'heightfog\' is not one of homogeneous, height_fog; did you mean'),
+    ({"type": "heightfog"}, 'medium.type: \'heightfog\' is not one of homogeneous, height_fog, atmosphere; did you mean'),
     ({"particles": {}}, "medium.particles: the particle layer needs a homogeneous medium"),
 ])
 def test_bad_fog_is_one_line_exit_2(change, message, write_scene, tmp_path, capsys):
