@@ -140,12 +140,11 @@ def density_sum(hx, scale_heights, coef):
 
 
 @njit
-def inscatter(x, row, sun, kt, ks, codes, gs, scale_heights, radius, top, cols, tau_cam):
-    """In-scattered radiance per unit length at distance x of a segment, one channel, unit light,
-    without a point light's 1/d^2 or spot falloff: T_cam(x) T_light(x) sum_i ks_i rho_i(x)
-    Phi_i(cos), T_cam from the segment's start (`tau_cam`: its optical depth if the caller has it,
-    else negative), T_light to the light or, for the sun, out of the atmosphere (0 behind the
-    planet). kt, ks: (K,) of the channel."""
+def light_frame(x, row, sun, radius):
+    """At distance x of a segment: (h, p, l, d, cos, mu_l) with p = the point relative to the
+    centre (3 floats), l the unit vector toward the light (3 floats), d the distance to it (inf
+    for the sun), cos the scattering cosine (the light's travel direction . -w) and mu_l = the
+    zenith cosine of l at p; d = 0 (a point on the light) gives d = 0 and l = 0."""
     px, py, pz = row[QX] + x * row[WX], row[QY] + x * row[WY], row[QZ] + x * row[WZ]
     r = math.sqrt(px * px + py * py + pz * pz)
     hx = max(r - radius, 0.0)
@@ -155,21 +154,40 @@ def inscatter(x, row, sun, kt, ks, codes, gs, scale_heights, radius, top, cols, 
         lx, ly, lz = row[LX] - px, row[LY] - py, row[LZ] - pz
         d = math.sqrt(lx * lx + ly * ly + lz * lz)
         if not d > 0.0:
-            return 0.0
+            return hx, px, py, pz, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0
         lx, ly, lz = lx / d, ly / d, lz / d
-        cos = -(lx * row[WX] + ly * row[WY] + lz * row[WZ])  # light's travel direction . (-w)
+        cos = lx * row[WX] + ly * row[WY] + lz * row[WZ]  # travel direction -l against the way back -w
     mul = min(max((px * lx + py * ly + pz * lz) / r, -1.0), 1.0)
+    return hx, px, py, pz, lx, ly, lz, d, cos, mul
+
+
+@njit
+def scattering(hx, cos, ks, codes, gs, scale_heights):
+    """sum_i ks_i rho_i(hx) Phi_i(cos): the layers' scattering at altitude hx toward the camera."""
+    acc = 0.0
+    for i in range(ks.shape[0]):
+        if ks[i] != 0.0:
+            acc += ks[i] * math.exp(-hx / scale_heights[i]) * phase_value(codes[i], gs[i], cos)
+    return acc
+
+
+@njit
+def inscatter(x, row, sun, kt, ks, codes, gs, scale_heights, radius, top, cols, tau_cam):
+    """In-scattered radiance per unit length at distance x of a segment, one channel, unit light,
+    without a point light's 1/d^2 or spot falloff: T_cam(x) T_light(x) sum_i ks_i rho_i(x)
+    Phi_i(cos), T_cam from the segment's start (`tau_cam`: its optical depth if the caller has it,
+    else negative), T_light to the light or, for the sun, out of the atmosphere (0 behind the
+    planet). kt, ks: (K,) of the channel."""
+    hx, _, _, _, _, _, _, d, cos, mul = light_frame(x, row, sun, radius)
+    if not d > 0.0:
+        return 0.0
     if not columns(hx, mul, 0.0, d, radius, top, scale_heights, cols):
         return 0.0
     tau = optical_depth(cols, kt)
     if tau_cam < 0.0:
         columns(row[H0], row[MU0], 0.0, x, radius, top, scale_heights, cols)
         tau_cam = optical_depth(cols, kt)
-    acc = 0.0
-    for i in range(ks.shape[0]):
-        if ks[i] != 0.0:
-            acc += ks[i] * math.exp(-hx / scale_heights[i]) * phase_value(codes[i], gs[i], cos)
-    return acc * math.exp(-tau - tau_cam)
+    return scattering(hx, cos, ks, codes, gs, scale_heights) * math.exp(-tau - tau_cam)
 
 
 @njit
@@ -180,7 +198,7 @@ def free_path(row, x_lo, x_hi, target, kt, scale_heights, radius, top, cols):
     the bracket; stops at |f| <= 1e-13 target or when the bracket is two neighbouring doubles."""
     lo, hi = x_lo, x_hi
     h0, mu0 = row[H0], row[MU0]
-    ext = _extinction_at(x_lo, row, kt, scale_heights, radius)
+    ext = extinction_at(x_lo, row, kt, scale_heights, radius)
     x = x_lo + target / ext if ext > 0.0 else 0.5 * (lo + hi)
     if not lo < x < hi:
         x = 0.5 * (lo + hi)
@@ -196,14 +214,15 @@ def free_path(row, x_lo, x_hi, target, kt, scale_heights, radius, top, cols):
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:
             return x
-        ext = _extinction_at(x, row, kt, scale_heights, radius)
+        ext = extinction_at(x, row, kt, scale_heights, radius)
         nxt = x - f / ext if ext > 0.0 else mid
         x = nxt if lo < nxt < hi else mid
     return x
 
 
 @njit
-def _extinction_at(x, row, kt, scale_heights, radius):
+def extinction_at(x, row, kt, scale_heights, radius):
+    """The channel's extinction sum_i kt_i rho_i at distance x of a segment."""
     px, py, pz = row[QX] + x * row[WX], row[QY] + x * row[WY], row[QZ] + x * row[WZ]
     return density_sum(max(math.sqrt(px * px + py * py + pz * pz) - radius, 0.0), scale_heights, kt)
 

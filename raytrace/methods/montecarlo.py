@@ -16,7 +16,9 @@ Per camera ray, light and colour channel, `samples` distances x on the segment a
     closed-form evaluations, F(ell) one per segment and channel, at CDF_PRECISION
     (benchmarks/mc_sampling.py).
 In a height fog (seed 004) every mode but cdf has a twin (`_fog_estimate`): free-path sampling
-inverts the closed-form optical depth, and the sun takes free-path draws only.
+inverts the closed-form optical depth, and the sun takes free-path draws only. In an atmosphere
+(`_atm_estimate`) the same, on the part of the segment inside the air, free-path distances by
+safeguarded Newton on the sum of the layers' closed-form (Chapman) optical depths.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
@@ -32,9 +34,10 @@ from ..jit import njit
 from ..rng import uniform
 from . import ErrorLaw, Method, Param
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import HO, MU, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
+from .geometry import HO, MU, atmosphere_channels, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
 from ..errors import UserError
-from ..media.medium import HOMOGENEOUS, attenuated_density, column, column_distance
+from ..media import atmosphere as atmo
+from ..media.medium import ATMOSPHERE, HOMOGENEOUS, attenuated_density, column, column_distance
 from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
@@ -337,6 +340,19 @@ def _airlight(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
     stats = np.zeros(CDF_STATS)
+    if medium.kind == ATMOSPHERE:
+        atm = medium.atmosphere
+        keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
+
+        def evaluate(rows, sun, xh, h, cone, kt, ks):
+            mean, v = np.empty_like(xh), np.empty_like(xh)
+            atmosphere_segments(rows, sun, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
+                                atm.gs, atm.scale_heights, float(atm.radius), float(atm.top),
+                                MODES[params["sampling"]], params["samples"], mean, v)
+            return mean, v
+
+        out, var = atmosphere_channels(segs, medium, lights, evaluate, variance=True)
+        return out, stats, var
     if medium.kind != HOMOGENEOUS:
         xh, h, _, cone = segment_geometry(segs, lights)
         rows, sun = fog_rows(segs, medium, lights)
@@ -438,6 +454,64 @@ def fog_segments(rows, sun, xh, h, ell, cone, keys, stream, seed, intensity, kt,
             var[s, c] = v * intensity[s, c] * intensity[s, c]
 
 
+@njit
+def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols):
+    """`estimate` in an atmosphere, one channel: on the part [A, B] of the segment inside the air,
+    f = `atmosphere.inscatter` (x F / d^2 for point and spot lights); free-path draws solve
+    tau(A, x) = -log(1 - u N), N = 1 - T(A, B), by `atmosphere.free_path` (p = kt(x) T(A, x) / N);
+    the sun takes free-path draws in every mode."""
+    a, b = row[atmo.A], row[atmo.B]
+    if not b > a:
+        return 0.0, 0.0
+    atmo.columns(row[atmo.H0], row[atmo.MU0], a, b, R, top, Hs, cols)
+    norm = -math.expm1(-atmo.optical_depth(cols, kt))
+    if not norm > 0.0:
+        return 0.0, 0.0
+    th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
+    use_e = mode != FREEPATH and not sun
+    use_f = mode != EQUIANGULAR or sun
+    acc = 0.0
+    acc2 = 0.0
+    for j in range(n):
+        est = 0.0
+        for strategy in range(2):
+            if (strategy == 0 and not use_e) or (strategy == 1 and not use_f):
+                continue
+            u = uniform(key, dim0 + 2 * j + strategy, seed)
+            if strategy == 0:
+                x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), a), b)
+            else:
+                x = atmo.free_path(row, a, b, -math.log1p(-u * norm), kt, Hs, R, top, cols)
+            atmo.columns(row[atmo.H0], row[atmo.MU0], a, x, R, top, Hs, cols)
+            tau_cam = atmo.optical_depth(cols, kt)
+            p = 0.0
+            if use_e:
+                p += _p_equiangular(x, xh, h, th_a, th_b)
+            if use_f:
+                p += atmo.extinction_at(x, row, kt, Hs, R) * math.exp(-tau_cam) / norm
+            if p > 0.0:
+                f = atmo.inscatter(x, row, sun, kt, ks, codes, gs, Hs, R, top, cols, tau_cam)
+                if not sun:
+                    dx = x - xh
+                    d2 = max(h * h + dx * dx, 1e-250)
+                    f *= spot_factor(dx, math.sqrt(d2), h, cone) / d2
+                est += f / p
+        acc += est
+        acc2 += est * est
+    mean = acc / n
+    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
+
+
+@njit
+def atmosphere_segments(rows, sun, xh, h, cone, keys, stream, seed, kt, ks, codes, gs, Hs, R, top, mode, n, out, var):
+    """Unit-intensity estimates and their variances of every atmosphere segment, one channel (the
+    same random-number dimensions as `airlight_segments`)."""
+    cols = np.empty(Hs.shape[0])
+    for s in range(xh.shape[0]):
+        out[s], var[s] = _atm_estimate(rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, mode, n,
+                                       keys[s], 2 * n * stream[s], seed, cols)
+
+
 def _check(medium, params):
     if medium.kind != HOMOGENEOUS and params["sampling"] == "cdf":
         raise UserError(f"method montecarlo: --sampling cdf inverts the homogeneous medium's closed-form air-light; "
@@ -467,5 +541,5 @@ METHOD = Method(
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
     check=_check,
     light_types=("point", "spot", "directional"),
-    media=("homogeneous", "height_fog"),
+    media=("homogeneous", "height_fog", "atmosphere"),
 )
