@@ -234,3 +234,71 @@ def test_montecarlo_passes_a_z_test_against_quadrature(sampling):
     assert noisy.mean() > 0.5
     z2 = (mc.array - ref)[noisy] ** 2 / mc.variance[noisy]
     assert z2.mean() < 3.5, z2.mean()
+
+
+def _layer(i, **change):
+    layers = [dict(lay) for lay in SMALL["layer"]]
+    layers[i].update(change)
+    return layers
+
+
+@pytest.mark.parametrize("medium, extra, message", [
+    ({"layer": _layer(0, scale_height=0.0)}, {}, "medium.layer[0].scale_height: must be positive, got 0.0"),
+    ({"layer": _layer(1, scale_height=-1.5)}, {}, "medium.layer[1].scale_height: must be positive"),
+    ({"layer": _layer(0, scale_height=400.0)}, {}, "medium.layer[0].scale_height: 400 exceeds medium.radius / 3"),
+    ({"layer": _layer(0, scale_hight=10.0)}, {}, 'medium.layer[0].scale_hight: unknown key; did you mean'),
+    ({"layer": _layer(1, phase={"type": "hg"})}, {}, "medium.layer[1].phase.g: missing"),
+    ({"layer": []}, {}, "medium.layer: an atmosphere needs at least one layer"),
+    ({"top_radius": R}, {}, "medium.top_radius: must exceed medium.radius"),
+    ({"radius": 0.0}, {}, "medium.radius: must be positive"),
+    ({"sigma_s": 0.1}, {}, 'medium.sigma_s: unknown key'),
+    ({}, {"camera": {**GROUND["camera"], "position": [0.0, -3.0, 0.0]}},
+     "camera.position: [0.0, -3.0, 0.0] is inside the planet"),
+    ({}, {"light": [SUN, {"position": [0.0, -10.0, -5.0], "intensity": 1.0}]},
+     "light[1].position: [0.0, -10.0, -5.0] is inside the planet"),
+])
+def test_bad_atmosphere_is_one_line_exit_2(medium, extra, message, write_scene, tmp_path, capsys):
+    scene = {**GROUND, "medium": {**SMALL, **medium}, **extra}
+    out = tmp_path / "x.exr"
+    assert main(["render", str(write_scene(scene)), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and message in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--method", "analytic"], '--method analytic: it does not take atmosphere media (medium.type = "atmosphere"); '
+     "use --method quadrature, raymarch, montecarlo"),
+    (["--method", "lecocq"], "--method lecocq: it does not take atmosphere media"),
+    (["--method", "sun"], "--method sun: it does not take atmosphere media"),
+    (["--method", "montecarlo", "--sampling", "cdf"], "--sampling cdf inverts the homogeneous medium's"),
+    (["--method", "quadrature", "--volumetric-shadows"], "--volumetric-shadows (render.volumetric_shadows): not "
+     "implemented for directional lights"),
+])
+def test_methods_that_refuse_the_atmosphere(args, message, write_scene, tmp_path, capsys):
+    out = tmp_path / "x.exr"
+    assert main(["render", str(write_scene(GROUND)), "--out", str(out), "--quiet", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and message in err, err
+    assert not out.exists()
+
+
+def test_marched_transmittance_is_the_atmospheres_only(write_scene, tmp_path, capsys):
+    scene = {**GROUND, "medium": {"sigma_s": 0.1}, "light": GROUND["light"][1:]}
+    assert main(["render", str(write_scene(scene)), "--out", str(tmp_path / "x.exr"), "--quiet", "--method",
+                 "raymarch", "--transmittance", "marched"]) == 2
+    assert "--transmittance marched is the atmosphere's naive baseline" in capsys.readouterr().err
+
+
+def test_marched_transmittance_converges_to_the_closed_form():
+    closed = raytrace.render(GROUND, method="raymarch", steps=256, threads=1).array
+    errs = [np.max(np.abs(raytrace.render(GROUND, method="raymarch", steps=n, transmittance="marched",
+                                          threads=1).array - closed) / closed) for n in (64, 256)]
+    assert errs[1] < errs[0] / 3.0 and errs[1] < 1e-2, errs
+
+
+def test_bundled_scenes_describe(capsys):
+    for name in ("sunrise", "planet_from_space"):
+        assert main(["describe", name]) == 0
+        text = capsys.readouterr().out
+        assert "medium: atmosphere, planet centre" in text and "layer[1] mie:" in text and "phase hg g=0.8" in text
