@@ -33,13 +33,15 @@ def altitude_mu(qx, qy, qz, wx, wy, wz, radius):
 @njit
 def shell(h, mu, radius, top):
     """(t_in, t_out): the part t >= 0 of the ray inside the top sphere (radius `top`); t_in > t_out
-    when the ray never is. Both from products, without the cancellation of -s0 -+ sqrt(...)."""
+    when the ray never is. top^2 - b^2 = (top - r0)(top + r0) + s0^2 (b the impact parameter, s0 =
+    r0 mu; not from b, whose rounding would cost ~eps r0 / (top - b) near the tangent), and both
+    ends from products, without the cancellation of -s0 -+ sqrt(...)."""
     r0 = radius + h
-    b = r0 * math.sqrt((1.0 - mu) * (1.0 + mu))
-    if not b < top:
-        return 1.0, 0.0
     s0 = r0 * mu
-    half = math.sqrt((top - b) * (top + b))
+    disc = (top - r0) * (top + r0) + s0 * s0
+    if not disc > 0.0:
+        return 1.0, 0.0
+    half = math.sqrt(disc)
     if r0 <= top:
         t_out = half - s0 if s0 <= 0.0 else (top - r0) * (top + r0) / (half + s0)
         return 0.0, t_out
