@@ -19,6 +19,9 @@ from .chapman import atmosphere_column, ground_distance
 from .phase import phase_value
 
 
+GROUND_MARGIN = 1e-9
+
+
 @njit
 def altitude_mu(qx, qy, qz, wx, wy, wz, radius):
     """(h, mu) of the point c + q looking along the unit w: altitude |q| - R (clamped at 0: a point
@@ -54,8 +57,11 @@ def shell(h, mu, radius, top):
 @njit
 def columns(h, mu, t0, t1, radius, top, scale_heights, out):
     """out[i] = layer i's unit-density column over [t0, t1] (t1 may be inf) inside the top sphere;
-    False (out untouched) when the ground lies within [t0, t1] (the transmittance is 0)."""
-    if ground_distance(h, mu, radius) < t1:
+    False (out untouched) when the ground lies within [t0, t1] (the transmittance is 0). A segment
+    that ends on the ground is not blocked by it: the hit counts only 1e-9 (relative) before t1,
+    since kernels compiled with `contract`/`reassoc` (jit.py) round the same ground distance
+    differently by a few ulps."""
+    if ground_distance(h, mu, radius) < t1 * (1.0 - GROUND_MARGIN):
         return False
     a, b = shell(h, mu, radius, top)
     lo, hi = max(t0, a), min(t1, b)
@@ -95,8 +101,7 @@ def ray_transmittance(origins, dirs, a, b, cx, cy, cz, radius, top, scale_height
 
 @njit
 def planet_hits(origins, dirs, cx, cy, cz, radius, out):
-    """out[n] = the distance to the ground along ray n (inf if it misses), the same number
-    `columns` compares with, so that a ray ending on the ground is not blocked by it."""
+    """out[n] = the distance to the ground along ray n (inf if it misses), in float64."""
     for n in range(origins.shape[0]):
         h, mu = altitude_mu(origins[n, 0] - cx, origins[n, 1] - cy, origins[n, 2] - cz, dirs[n, 0], dirs[n, 1],
                             dirs[n, 2], radius)
