@@ -480,10 +480,11 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
             u = uniform(key, dim0 + 2 * j + strategy, seed)
             if strategy == 0:
                 x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), a), b)
-            else:
-                x = atmo.free_path(row, a, b, -math.log1p(-u * norm), kt, Hs, R, top, cols)
-            atmo.columns(row[atmo.H0], row[atmo.MU0], a, x, R, top, Hs, cols)
-            tau_cam = atmo.optical_depth(cols, kt)
+                atmo.columns(row[atmo.H0], row[atmo.MU0], a, x, R, top, Hs, cols)
+                tau_cam = atmo.optical_depth(cols, kt)
+            else:  # the optical depth to x is the target, to Newton's 1e-13
+                tau_cam = -math.log1p(-u * norm)
+                x = atmo.free_path(row, a, b, tau_cam, kt, Hs, R, top, cols)
             p = 0.0
             if use_e:
                 p += _p_equiangular(x, xh, h, th_a, th_b)
