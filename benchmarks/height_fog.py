@@ -188,9 +188,10 @@ def _analytic_freepath(rows, kt, ks, codes, gs, Hs, R, top, n, seed, out):
     """Per ray: the variance of one free-path estimate (the sun), by the closed-form inverse."""
     cols = np.empty(Hs.shape[0])
     cone = np.zeros(4)
+    pieces, buf = np.empty((3, 4)), np.empty(2)
     for s in range(rows.shape[0]):
         mean, var = _MC_ESTIMATE(rows[s], True, 0.0, 1.0, cone, kt, ks, codes, gs, Hs, R, top, 1, n, np.uint64(s), 0,
-                            seed, cols)
+                                 seed, cols, pieces, buf)
         out[s, 0], out[s, 1] = mean, var * n
 
 

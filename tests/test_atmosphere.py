@@ -235,12 +235,18 @@ def test_raymarch_converges_to_quadrature():
     assert errs[1] < 5e-3 and errs[0] / errs[1] > 8.0, errs  # midpoint rule: 16 per 4x the steps (lamp's spike)
 
 
-@pytest.mark.parametrize("sampling", ["equiangular", "freepath", "mis"])
-def test_montecarlo_passes_a_z_test_against_quadrature(sampling):
-    ref = raytrace.render(GROUND, method="quadrature", threads=1).array
-    mc = raytrace.render(GROUND, method="montecarlo", samples=256, sampling=sampling, seed=3, threads=1)
+@pytest.mark.parametrize("name, sampling", [("ground", "equiangular"), ("ground", "freepath"), ("ground", "mis"),
+                                            ("space", "freepath")])
+def test_montecarlo_passes_a_z_test_against_quadrature(name, sampling):
+    """256 samples: the mean squared z-score against the render's own variance is about 1 (measured
+    0.8-1.1 over 5 seeds on the ground, 0.5-1.5 from space, where the sun's free-path draws are
+    restricted to the parts of the rays outside the planet's shadow: unrestricted, no draw of 256
+    reached the thin sunlit part of night-side limb rays and the z-test failed at 91)."""
+    scene = {"ground": GROUND, "space": SPACE}[name]
+    ref = raytrace.render(scene, method="quadrature", threads=1).array
+    mc = raytrace.render(scene, method="montecarlo", samples=256, sampling=sampling, seed=3, threads=1)
     noisy = mc.variance > 0
-    assert noisy.mean() > 0.5
+    assert np.array_equal(noisy, ref > 0)  # every pixel that sees lit air is estimated with noise
     z2 = (mc.array - ref)[noisy] ** 2 / mc.variance[noisy]
     assert z2.mean() < 3.5, z2.mean()
 

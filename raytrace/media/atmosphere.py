@@ -259,3 +259,25 @@ def planet_shadow(row, radius, out):
     if n == 2 and out[1] < out[0]:
         out[0], out[1] = out[1], out[0]
     return n
+
+
+@njit
+def sunlit(row, radius, cuts, out):
+    """The pieces of [A, B] from which the sun (row[LX:LZ]) is not behind the planet, split at
+    `planet_shadow`'s crossings: out[k] = (lo, hi), ascending; returns their count (<= 3). cuts:
+    scratch of 2."""
+    n = planet_shadow(row, radius, cuts)
+    sx, sy, sz = row[LX], row[LY], row[LZ]
+    m = 0
+    lo = row[A]
+    for k in range(n + 1):
+        hi = cuts[k] if k < n else row[B]
+        mid = 0.5 * (lo + hi)
+        qx, qy, qz = row[QX] + mid * row[WX], row[QY] + mid * row[WY], row[QZ] + mid * row[WZ]
+        qs = qx * sx + qy * sy + qz * sz
+        ux, uy, uz = qx - qs * sx, qy - qs * sy, qz - qs * sz
+        if hi > lo and not (qs < 0.0 and ux * ux + uy * uy + uz * uz < radius * radius):
+            out[m, 0], out[m, 1] = lo, hi
+            m += 1
+        lo = hi
+    return m

@@ -455,16 +455,28 @@ def fog_segments(rows, sun, xh, h, ell, cone, keys, stream, seed, intensity, kt,
 
 
 @njit
-def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols):
+def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols, pieces, buf):
     """`estimate` in an atmosphere, one channel: on the part [A, B] of the segment inside the air,
-    f = `atmosphere.inscatter` (x F / d^2 for point and spot lights); free-path draws solve
-    tau(A, x) = -log(1 - u N), N = 1 - T(A, B), by `atmosphere.free_path` (p = kt(x) T(A, x) / N);
-    the sun takes free-path draws in every mode."""
+    f = `atmosphere.inscatter` (x F / d^2 for point and spot lights); free-path draws, restricted
+    for the sun to the pieces outside the planet's shadow (`atmosphere.sunlit`: elsewhere f = 0),
+    solve tau(A, x) = the target of u in that truncated distribution by `atmosphere.free_path`,
+    p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); the sun takes free-path
+    draws in every mode. pieces (3, 4), buf (2,): scratch."""
     a, b = row[atmo.A], row[atmo.B]
     if not b > a:
         return 0.0, 0.0
-    atmo.columns(row[atmo.H0], row[atmo.MU0], a, b, R, top, Hs, cols)
-    norm = -math.expm1(-atmo.optical_depth(cols, kt))
+    h0, mu0 = row[atmo.H0], row[atmo.MU0]
+    m = 1
+    pieces[0, 0], pieces[0, 1] = a, b
+    if sun:
+        m = atmo.sunlit(row, R, buf, pieces)
+    norm = 0.0
+    for k in range(m):  # pieces[k] = (lo, hi, tau(A, lo), mass)
+        atmo.columns(h0, mu0, a, pieces[k, 0], R, top, Hs, cols)
+        pieces[k, 2] = atmo.optical_depth(cols, kt)
+        atmo.columns(h0, mu0, pieces[k, 0], pieces[k, 1], R, top, Hs, cols)
+        pieces[k, 3] = math.exp(-pieces[k, 2]) * -math.expm1(-atmo.optical_depth(cols, kt))
+        norm += pieces[k, 3]
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
@@ -480,11 +492,17 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
             u = uniform(key, dim0 + 2 * j + strategy, seed)
             if strategy == 0:
                 x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), a), b)
-                atmo.columns(row[atmo.H0], row[atmo.MU0], a, x, R, top, Hs, cols)
+                atmo.columns(h0, mu0, a, x, R, top, Hs, cols)
                 tau_cam = atmo.optical_depth(cols, kt)
-            else:  # the optical depth to x is the target, to Newton's 1e-13
-                tau_cam = -math.log1p(-u * norm)
-                x = atmo.free_path(row, a, b, tau_cam, kt, Hs, R, top, cols)
+            else:  # the piece holding u N, then its optical depth from A: the target, to Newton's 1e-13
+                v = u * norm
+                k = 0
+                while k < m - 1 and v >= pieces[k, 3]:
+                    v -= pieces[k, 3]
+                    k += 1
+                v = min(v, pieces[k, 3])
+                tau_cam = pieces[k, 2] - math.log1p(-v * math.exp(pieces[k, 2]))
+                x = min(max(atmo.free_path(row, a, b, tau_cam, kt, Hs, R, top, cols), pieces[k, 0]), pieces[k, 1])
             p = 0.0
             if use_e:
                 p += _p_equiangular(x, xh, h, th_a, th_b)
@@ -508,9 +526,11 @@ def atmosphere_segments(rows, sun, xh, h, cone, keys, stream, seed, kt, ks, code
     """Unit-intensity estimates and their variances of every atmosphere segment, one channel (the
     same random-number dimensions as `airlight_segments`)."""
     cols = np.empty(Hs.shape[0])
+    pieces = np.empty((3, 4))
+    buf = np.empty(2)
     for s in range(xh.shape[0]):
         out[s], var[s] = _atm_estimate(rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, mode, n,
-                                       keys[s], 2 * n * stream[s], seed, cols)
+                                       keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
 def _check(medium, params):
