@@ -246,21 +246,9 @@ def freepath_variance_at_equal_time(samples=16, steps=(16, 64)):
                       *atm.center, atm.radius, atm.top, rows)
     kt, ks = np.ascontiguousarray(atm.sigma_t[:, 2]), np.ascontiguousarray(atm.sigma_s[:, 2])
     args = (rows, kt, ks, atm.phases, atm.gs, atm.scale_heights, atm.radius, atm.top, samples)
-    outs = {}
-
-    def run(name, fn, *extra):
-        out = np.empty((len(o), 2))
-        fn(*args, *extra, np.uint64(1), out)  # compile
-        times = []
-        for _ in range(3):
-            start = time.perf_counter()
-            fn(*args, *extra, np.uint64(1), out)
-            times.append(time.perf_counter() - start)
-        outs[name] = (out.copy(), float(np.median(times)))
-
-    run("closed-form inverse", _analytic_freepath)
-    for m in steps:
-        run(f"marched, {m} steps", _marched_freepath, m)
+    runs = [("closed-form inverse", _analytic_freepath, ())] + [(f"marched, {m} steps", _marched_freepath, (m,))
+                                                                for m in steps]
+    outs = _interleaved(runs, args, len(o))
     _print_ratios(f"sunrise rays (48 x 30, the sun, blue), {samples} samples per ray", outs)
 
 
@@ -326,24 +314,30 @@ def fog_freepath_variance_at_equal_time(samples=16, steps=(16, 64)):
     rows, _ = fog_rows(segs, scene.medium, prep.lights)
     med = scene.medium
     args = (rows, t, float(med.sigma_t[2]), float(med.sigma_s[2]), med.phase, med.g, med.scale_height, samples)
-    outs = {}
-    for name, fn, extra in [("closed-form inverse", _fog_analytic, ())] + [
-            (f"marched, {m} steps", _fog_marched, (m,)) for m in steps]:
-        out = np.empty((len(o), 2))
-        fn(*args, *extra, np.uint64(1), out)
-        times = []
-        for _ in range(3):
-            start = time.perf_counter()
-            fn(*args, *extra, np.uint64(1), out)
-            times.append(time.perf_counter() - start)
-        outs[name] = (out.copy(), float(np.median(times)))
+    runs = [("closed-form inverse", _fog_analytic, ())] + [(f"marched, {m} steps", _fog_marched, (m,)) for m in steps]
+    outs = _interleaved(runs, args, len(o))
     _print_ratios(f"valley_fog rays (64 x 36, the sun, blue), {samples} samples per ray", outs)
+
+
+def _interleaved(runs, args, n_rays, rounds=7):
+    """{name: (per-ray (mean, variance of one estimate), median seconds)} of the samplers `runs`
+    = [(name, kernel, extra args)], timed in interleaved rounds (the machine's load drifts)."""
+    outs = {name: np.empty((n_rays, 2)) for name, _, _ in runs}
+    for name, fn, extra in runs:
+        fn(*args, *extra, np.uint64(1), outs[name])  # compile
+    times = {name: [] for name, _, _ in runs}
+    for _ in range(rounds):
+        for name, fn, extra in runs:
+            start = time.perf_counter()
+            fn(*args, *extra, np.uint64(1), outs[name])
+            times[name].append(time.perf_counter() - start)
+    return {name: (outs[name], float(np.median(times[name]))) for name, _, _ in runs}
 
 
 def _print_ratios(title, outs):
     ref_out, ref_t = outs["closed-form inverse"]
     lit = ref_out[:, 1] > 0.0
-    print(f"\nfree-path sampling on {title}, one thread:")
+    print(f"\nfree-path sampling on {title}, one thread, median of 7 interleaved rounds:")
     print("| sampler | seconds | mean variance of one estimate / closed-form's | variance ratio at equal time |")
     print("|---|---|---|---|")
     for name, (out, sec) in outs.items():

@@ -105,12 +105,14 @@ def _lights(scene):
     return out
 
 
-def pixel(scene, i, j):
+def pixel(scene, i, j, plates=()):
     """Radiance of pixel (i, j)'s centre: the ground's surface term and the single-scattering
-    integral, split at the ray's lowest point and where it crosses the planet's shadow."""
+    integral, split at the ray's lowest point and where it crosses the planet's shadow. `plates`
+    (oracle.plate_blocks' black rectangles y = y0) stop camera rays and shadow the point lights."""
     planet = Planet(scene["medium"])
     o, d = oracle.camera_ray(scene["camera"], i, j)
     lights = _lights(scene)
+    t_plate = min([oracle.plate_hit(o, d, p) for p in plates] + [math.inf])
 
     def toward(light, x):
         p, axis, power = light
@@ -122,10 +124,14 @@ def pixel(scene, i, j):
 
     t = planet.ground(o, d)
     out = np.zeros(3)
-    if t < math.inf:
+    if t_plate < t:
+        t = t_plate
+    elif t < math.inf:
         x = o + t * d
         n = (x - planet.c) / planet.R
         for light in lights:
+            if light[0] is not None and any(oracle.plate_blocks(o, d, t, light[0], p) for p in plates):
+                continue
             e, wi, tr = toward(light, x)
             out += planet.refl / math.pi * e * tr * max(0.0, float(n @ wi))
         out *= planet.transmittance(o, d, 0.0, t)
@@ -158,8 +164,11 @@ def pixel(scene, i, j):
             xh = float((light[0] - o) @ d)
             h = float(np.linalg.norm(np.cross(light[0] - o, d)))
             breaks += [xh - 10 * h, xh - h, xh, xh + h, xh + 10 * h]
+            breaks += [x for p in plates for x in oracle.plate_shadow_breaks(o, d, hi, light[0], p)]
         edges = [lo] + sorted(x for x in breaks if lo < x < hi) + [hi]
         for u, v in zip(edges[:-1], edges[1:]):
+            if light[0] is not None and any(oracle.plate_blocks(o, d, 0.5 * (u + v), light[0], p) for p in plates):
+                continue
             out += integrate.quad_vec(f, u, v, epsabs=1e-15, epsrel=1e-10, limit=400)[0]
     return out
 
@@ -212,6 +221,22 @@ def test_quadrature_matches_brute_force_many_pixels(write_scene, tmp_path):
         worst, n = _check_scene(scene, write_scene, tmp_path, size=(16, 12))
         print(f"{n} pixels: worst relative error {worst:.3g}")
         assert worst < 1e-6
+
+
+def test_volumetric_shadows_of_a_lamp_in_the_atmosphere():
+    """A black plate under the lamp (the sun off): the shadowed quadrature against the brute force
+    with the plate's shadow boundaries as breakpoints, to 1e-6; some pixels are in its shadow."""
+    plate = (2.5, (2.0, 6.0), (-14.0, -10.0))
+    scene = {**GROUND, "camera": {**GROUND["camera"], "look_at": [4.0, 2.0, -12.0], "fov": 60.0},
+             "light": GROUND["light"][1:],
+             "shape": [{"primitive": "quad", "corners": [[2.0, 2.5, -14.0], [6.0, 2.5, -14.0], [6.0, 2.5, -10.0],
+                                                         [2.0, 2.5, -10.0]], "reflectance": 0.0}]}
+    img = raytrace.render(scene, method="quadrature", volumetric_shadows=True, threads=1).array
+    free = raytrace.render(scene, method="quadrature", threads=1).array
+    shadowed = [(int(i), int(j)) for j, i in zip(*np.nonzero(np.any(img < 0.99 * free, axis=2)))]
+    assert len(shadowed) >= 3
+    pixels = shadowed[:4] + [(0, 0)]  # and an unshadowed corner
+    assert _worst(img, lambda i, j: pixel(scene, i, j, (plate,)), pixels) < 1e-6
 
 
 def test_earth_sunrise_pixels():
