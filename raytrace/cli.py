@@ -282,7 +282,7 @@ def cmd_table1(args):
 
 def cmd_describe(args):
     from .lights import DIRECTIONAL, NAMES as NAMES_L
-    from .media.medium import ATMOSPHERE, HOMOGENEOUS, LINEAR
+    from .media.medium import ATMOSPHERE, HEIGHT_FOG, LINEAR
     from .media.phase import HG, NAMES
     from .scene.meshes import scene_triangles
 
@@ -317,13 +317,11 @@ def cmd_describe(args):
             phase = NAMES[int(a.phases[i])] + (f" g={a.gs[i]}" if a.phases[i] == HG else "")
             print(f"  layer[{i}] {name}: sigma_a {a.sigma_a[i].tolist()}, sigma_s {a.sigma_s[i].tolist()} at the "
                   f"ground, scale height {a.scale_heights[i]:g}, phase {phase}")
-        print(f"background: {scene.background.tolist()}")
-        if scene.render:
-            print(f"render: {scene.render}")
-        return 0
-    phase = NAMES[m.phase] + (f" g={m.g}" if NAMES[m.phase] == "hg" else "")
-    print(f"medium: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, sigma_t {m.sigma_t.tolist()}, phase {phase}")
-    if m.kind != HOMOGENEOUS:
+    else:
+        phase = NAMES[m.phase] + (f" g={m.g}" if NAMES[m.phase] == "hg" else "")
+        print(f"medium: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, sigma_t {m.sigma_t.tolist()}, "
+              f"phase {phase}")
+    if m.kind == HEIGHT_FOG:
         profile = "linear" if m.profile == LINEAR else "exponential"
         print(f"  {m.kind}: coefficients at h0 = {m.h0:g} along up {m.up.round(6).tolist()}, {profile} profile, "
               f"scale height {m.scale_height:g}")

@@ -283,6 +283,54 @@ def _fog_rule(a, b, args, nodes, weights):
 
 
 @njit
+def _cone_thetas(cone, out, n):
+    """Append a spot light's cone crossings as angles theta from the foot point (theta = phi -
+    pi/2) to out[n:]; returns the new count."""
+    if cone[3] > -1.0:
+        for C in (cone[2], cone[3]):
+            k, r1, r2 = cone_breaks(cone[0], cone[1], C)
+            for i in range(k):
+                out[n] = 2.0 * math.atan(r1 if i == 0 else r2) - 0.5 * math.pi
+                n += 1
+    return n
+
+
+@njit
+def _ends_and_inside(out, n):
+    """Keep of out[:n] the ends out[0], out[1] and the points strictly between them, sorted."""
+    lo, hi = out[0], out[1]
+    m = 0
+    for i in range(n):
+        if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
+            out[m] = out[i]
+            m += 1
+    out[:m].sort()
+    return m
+
+
+@njit
+def _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats):
+    """The adaptive rule (`_either_rule` of args) over the pieces br[:m], with the absolute floor of
+    a first estimate of the whole (as `airlight_one`); counts an evaluation short of its tolerance."""
+    width = br[m - 1] - br[0]
+    estimate = 0.0
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            estimate += _either_rule(br[i], br[i + 1], args, n20, w20)
+    floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
+    total = 0.0
+    ok = True
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
+            total += val
+            ok = ok and good
+    if not ok:
+        stats[CAPPED] += 1.0
+    return total
+
+
+@njit
 def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
     """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
     x_top = (H - row[HO]) / row[MU] if profile == LINEAR and row[MU] != 0.0 else -1.0  # the linear fog's top
@@ -301,20 +349,8 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
         if 0.0 < x_top < ell:
             out[n] = math.atan2(x_top - xh, h)
             n += 1
-        if cone[3] > -1.0:
-            for C in (cone[2], cone[3]):
-                k, r1, r2 = cone_breaks(cone[0], cone[1], C)
-                for i in range(k):
-                    out[n] = 2.0 * math.atan(r1 if i == 0 else r2) - 0.5 * math.pi
-                    n += 1
-    lo, hi = out[0], out[1]
-    m = 0
-    for i in range(n):  # keep the ends and the interior points, sorted
-        if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
-            out[m] = out[i]
-            m += 1
-    out[:m].sort()
-    return m
+        n = _cone_thetas(cone, out, n)
+    return _ends_and_inside(out, n)
 
 
 @njit
@@ -327,23 +363,8 @@ def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol,
             continue
         stats[EVALS] += 1.0
         m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, sun[s], br)
-        width = br[m - 1] - br[0]
         args = (rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
-        estimate = 0.0
-        for i in range(m - 1):
-            if br[i + 1] > br[i]:
-                estimate += _fog_rule(br[i], br[i + 1], args, n20, w20)
-        floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-        total = 0.0
-        ok = True
-        for i in range(m - 1):
-            if br[i + 1] > br[i]:
-                val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
-                total += val
-                ok = ok and good
-        if not ok:
-            stats[CAPPED] += 1.0
-        out[s] = total * (ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s])
+        out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats) * (ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s])
 
 
 # --- atmosphere (seed 004, media/atmosphere.py): the same adaptive rule, one channel at a time -------
@@ -390,20 +411,8 @@ def _atm_breaks(row, sun, xh, h, cone, R, out):
         out[0], out[1] = math.atan2(row[atmo.A] - xh, h), math.atan2(row[atmo.B] - xh, h)
         out[2], out[3] = 0.0, math.atan2(lowest - xh, h)
         n = 4
-        if cone[3] > -1.0:
-            for C in (cone[2], cone[3]):
-                k, r1, r2 = cone_breaks(cone[0], cone[1], C)
-                for i in range(k):
-                    out[n] = 2.0 * math.atan(r1 if i == 0 else r2) - 0.5 * math.pi
-                    n += 1
-    lo, hi = out[0], out[1]
-    m = 0
-    for i in range(n):  # keep the ends and the interior points, sorted
-        if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
-            out[m] = out[i]
-            m += 1
-    out[:m].sort()
-    return m
+        n = _cone_thetas(cone, out, n)
+    return _ends_and_inside(out, n)
 
 
 @njit
@@ -417,20 +426,5 @@ def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, r
             continue
         stats[EVALS] += 1.0
         m = _atm_breaks(rows[s], sun[s], xh[s], h[s], cone[s], R, br)
-        width = br[m - 1] - br[0]
         args = (rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
-        estimate = 0.0
-        for i in range(m - 1):
-            if br[i + 1] > br[i]:
-                estimate += _atm_rule(br[i], br[i + 1], args, n20, w20)
-        floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-        total = 0.0
-        ok = True
-        for i in range(m - 1):
-            if br[i + 1] > br[i]:
-                val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
-                total += val
-                ok = ok and good
-        if not ok:
-            stats[CAPPED] += 1.0
-        out[s] = total
+        out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats)
