@@ -45,6 +45,20 @@ MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CD
 
 
 @njit
+def _strategies_used(mode, sun):
+    """(equiangular?, free-path?) of a mode; the sun takes free-path draws only (equiangular needs
+    a light position)."""
+    return mode != FREEPATH and not sun, mode != EQUIANGULAR or sun
+
+
+@njit
+def _mean_var(acc, acc2, n):
+    """Mean and variance of the mean of n estimates from their sum and sum of squares."""
+    mean = acc / n
+    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
+
+
+@njit
 def _p_equiangular(x, xh, h, th_a, th_b):
     s = x - xh
     return h / ((th_b - th_a) * (h * h + s * s))
@@ -99,9 +113,7 @@ def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
         est = we + wf
         acc += est
         acc2 += est * est
-    mean = acc / n
-    var = max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
-    return mean, var
+    return _mean_var(acc, acc2, n)
 
 
 @njit
@@ -411,15 +423,12 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b, _ = _angles(xh, h, ell, kt)
-    use_e = mode != FREEPATH and not sun
-    use_f = mode != EQUIANGULAR or sun
+    use_e, use_f = _strategies_used(mode, sun)
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
         est = 0.0
-        for strategy in range(2):
-            if (strategy == 0 and not use_e) or (strategy == 1 and not use_f):
-                continue
+        for strategy in range(0 if use_e else 1, 2 if use_f else 1):  # 0 equiangular, 1 free-path
             u = uniform(key, dim0 + 2 * j + strategy, seed)
             if strategy == 0:
                 x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
@@ -438,8 +447,7 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
                 est += f / p
         acc += est
         acc2 += est * est
-    mean = acc / n
-    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
+    return _mean_var(acc, acc2, n)
 
 
 @njit
@@ -480,15 +488,12 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
-    use_e = mode != FREEPATH and not sun
-    use_f = mode != EQUIANGULAR or sun
+    use_e, use_f = _strategies_used(mode, sun)
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
         est = 0.0
-        for strategy in range(2):
-            if (strategy == 0 and not use_e) or (strategy == 1 and not use_f):
-                continue
+        for strategy in range(0 if use_e else 1, 2 if use_f else 1):  # 0 equiangular, 1 free-path
             u = uniform(key, dim0 + 2 * j + strategy, seed)
             if strategy == 0:
                 x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), a), b)
@@ -517,8 +522,7 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
                 est += f / p
         acc += est
         acc2 += est * est
-    mean = acc / n
-    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
+    return _mean_var(acc, acc2, n)
 
 
 @njit
