@@ -140,9 +140,6 @@ def check_options(method, params, volumetric_shadows, shadow_spacing, source, li
     if params.get("shadow_test") == "samples" and medium.kind != HOMOGENEOUS:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.kind} "
                         "media; use --shadow-test intervals (the default)")
-    if volumetric_shadows and "directional" in lights.kinds():
-        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): not implemented for directional "
-                        "lights yet; remove it (surfaces are still shadowed) or use point or spot lights")
 
 
 @dataclass(frozen=True)
