@@ -480,14 +480,15 @@ SUN_BISECTIONS = 48  # halvings of a sample interval in u: below 1e-14 of the sc
 def sun_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float, end_normals, stats) -> Segments:
     """The pieces of directional lights' segments from which the sun is not hidden by a mesh (the
     planet of an atmosphere shadows through the transmittance). The sun has no position to measure
-    angles from, so a segment is sampled evenly in u = x / (x + S), S the scene's size (u < 1 on rays
-    to infinity; a point light's quarter circle of angles maps to u in [0, 1) alike), with
+    angles from, so a segment is sampled evenly in u = x / (x + S), S the segment's length or, if
+    shorter, the scene's size (u < 1 on rays to infinity; a point light's quarter circle of angles
+    maps to u in [0, 1) alike), with
     ceil(u_end / (2 spacing / pi)) intervals; each sample sends a shadow ray to infinity toward the
     sun from the point moved epsilon toward it, and every change of visibility between two samples
     is bisected SUN_BISECTIONS times in u. What it can miss: an occluder (or gap) thinner than a
     sample interval. A segment ending on a surface that faces away from the sun ends unlit."""
-    S = max(segs.scale, 1e-300)
     ell = segs.length
+    S = np.maximum(np.minimum(ell, segs.scale), 1e-300)
     u_end = np.divide(ell, ell + S, out=np.ones_like(ell), where=np.isfinite(ell))
     count = np.maximum(1, np.ceil(u_end / (2.0 * spacing / np.pi))).astype(np.int64)
     first = np.concatenate([[0], np.cumsum(count + 1)[:-1]]).astype(np.int64)
@@ -497,7 +498,7 @@ def sun_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float, 
     wi = -lights.axis[segs.light]
 
     def visible(seg, uu):
-        x = np.where(uu >= 1.0, np.inf, S * uu / np.maximum(1.0 - uu, 1e-300))
+        x = np.where(uu >= 1.0, np.inf, S[seg] * uu / np.maximum(1.0 - uu, 1e-300))
         x = np.minimum(x, ell[seg])
         finite = np.isfinite(x)
         p = segs.origins[seg] + np.where(finite, x, 0.0)[:, None] * segs.dirs[seg] + accel.epsilon * wi[seg]
@@ -527,9 +528,9 @@ def sun_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float, 
         stats[LI_BISECTIONS] += len(change)
     stats[LI_BOUNDARIES] += len(change)
     src, u0, u1 = _lit_runs(vis, first, count, u_end, cseg, 0.5 * (lo + hi))
-    x0 = S * u0 / (1.0 - u0)
+    x0 = S[src] * u0 / (1.0 - u0)
     with np.errstate(divide="ignore"):
-        x1 = np.where(u1 >= u_end[src], ell[src], S * u1 / (1.0 - u1))
+        x1 = np.where(u1 >= u_end[src], ell[src], S[src] * u1 / (1.0 - u1))
     x1 = np.clip(x1, x0, ell[src])
     piece = np.arange(len(src)) - np.searchsorted(src, src)
     stats[LI_SHADOWED] += len(segs) - len(np.unique(src))
