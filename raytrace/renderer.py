@@ -27,7 +27,7 @@ from .media.particles import particle_radiance
 from .methods import get_method, resolve_params
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
-from .shading import facing_normals, surface_radiance
+from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
 from .shadow_maps import build as build_shadow_maps
 from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, cone_segments, lit_intervals, segment_airlight,
                          shadowed_airlight, whole_rays)
@@ -86,6 +86,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
+    ground, t = planet_hits(medium, origins, dirs, t)  # an atmosphere's planet, intersected in float64
+    prim[ground] = -1
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     into = bounded.enters(prep, prim)
@@ -95,6 +97,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium)
+    if ground.any():
+        radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
         def behind(o, d, k, dep):
             rad, _, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
@@ -102,7 +106,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
 
         radiance[into], into_var = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into],
                                                     prim[into], keys[into], seed, depth, behind)
-    radiance[~hit] = scene.background
+    radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
     stats = np.zeros(method.stats_size + len(LI_NAMES))
@@ -155,9 +159,6 @@ def check_options(method, params, volumetric_shadows, shadow_spacing, source, li
     if params.get("shadow_test") == "samples" and medium.kind != HOMOGENEOUS:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.kind} "
                         "media; use --shadow-test intervals (the default)")
-    if volumetric_shadows and "directional" in lights.kinds():
-        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): not implemented for directional "
-                        "lights yet; remove it (surfaces are still shadowed) or use point or spot lights")
 
 
 @dataclass(frozen=True)

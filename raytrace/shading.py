@@ -6,7 +6,10 @@ the incoming ray (two-sided Lambertian surfaces), F a spot light's falloff towar
 (exp(-kt d) when homogeneous, the closed-form optical depth in a height fog). A directional light
 gives V (rho / pi) E T max(0, n·wi) with wi against its direction of travel and T the
 transmittance to infinity toward it (seed 004, eq. 34 with t1 = inf). The camera sees Lb
-attenuated by its own transmittance; that factor is applied by the renderer.
+attenuated by its own transmittance; that factor is applied by the renderer. An atmosphere's
+planet (media/atmosphere.py) is a sphere the medium intersects in float64 (`planet_hits`), a diffuse
+ground of the medium's reflectance (`ground_radiance`); its shadow is in the transmittance (0 to a
+light behind it).
 """
 from __future__ import annotations
 
@@ -15,6 +18,8 @@ import math
 import numpy as np
 
 from .lights import DIRECTIONAL
+from .media.atmosphere import planet_hits as _planet_hits
+from .media.medium import ATMOSPHERE
 
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -58,3 +63,26 @@ def _add_directional(out, accel, points, normals, reflectance, lights, li, mediu
     idx = idx[~accel.occluded(o, d, np.full(len(idx), np.inf))]
     tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf)
     out[idx] += reflectance[idx] / math.pi * lights.intensity[li] * tr * cos[idx, None]
+
+
+def planet_hits(medium, origins, dirs, t):
+    """(ground, t): where rays meet an atmosphere's planet before the mesh hit at t, and t with
+    those distances (float64, the numbers the transmittance compares with)."""
+    if medium.kind != ATMOSPHERE:
+        return np.zeros(len(t), dtype=bool), t
+    atm = medium.atmosphere
+    tg = np.empty(len(t))
+    _planet_hits(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float), *(float(c) for c in atm.center),
+                 float(atm.radius), tg)
+    ground = tg < t
+    return ground, np.where(ground, tg, t)
+
+
+def ground_radiance(accel, origins, dirs, t, lights, medium):
+    """Reflected radiance (N, 3) of the planet's ground where rays origins + t dirs meet it."""
+    atm = medium.atmosphere
+    points = origins + t[:, None] * dirs
+    up = points - atm.center
+    normals = up / np.linalg.norm(up, axis=1)[:, None]
+    refl = np.broadcast_to(atm.ground, points.shape)
+    return surface_radiance(accel, points, facing_normals(normals, dirs), refl, lights, medium)

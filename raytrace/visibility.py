@@ -1,7 +1,8 @@
 """From camera rays to segments, and light visibility inside the medium (ARCHITECTURE.md).
 
 `whole_rays` makes the unshadowed segments: one [0, t_hit] per (ray, light). `lit_intervals` cuts
-them into the pieces each light illuminates (volumetric shadows), so that every method integrates
+them into the pieces each light illuminates (volumetric shadows; directional lights by
+`sun_intervals`, below), so that every method integrates
 the shadowed air-light exactly between shadow boundaries. `gather` adds segment air-lights to their
 camera rays with the medium's transmittance from the camera to each segment's start.
 `shadowed_airlight` is the classic alternative of the methods that expose their medium points
@@ -25,7 +26,7 @@ import math
 import numpy as np
 
 from .jit import njit
-from .lights import segment_cone
+from .lights import DIRECTIONAL, segment_cone
 from .methods import Segments
 from .methods.geometry import segment_geometry, v_of
 from .shadow_maps import ShadowMaps, face_texel, verdict
@@ -433,6 +434,17 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     (shadow_maps.build; None: an exact shadow ray for every sample). `edges`: locate boundaries at
     the occluders' edges where possible (else bisection alone)."""
     maps = ShadowMaps.empty() if maps is None else maps
+    sun = lights.kind[segs.light] == DIRECTIONAL
+    if sun.any():  # directional lights: their own search (`sun_intervals`), the rest as below
+        rest = np.nonzero(~sun)[0]
+        others, stats = segs.take(rest), np.zeros(len(LI_NAMES))
+        if len(rest):
+            others, stats = lit_intervals(accel, others, lights, n_lights, spacing,
+                                          None if end_normals is None else end_normals[rest], maps, edges)
+        sun_idx = np.nonzero(sun)[0]
+        pieces = sun_intervals(accel, segs.take(sun_idx), lights, n_lights, spacing,
+                               None if end_normals is None else end_normals[sun_idx], stats)
+        return concat([p for p in (others, pieces) if len(p)], segs), stats
     end_lit = np.ones(len(segs), bool)
     if end_normals is not None:
         end = segs.origins + np.where(np.isfinite(segs.length), segs.length, 0.0)[:, None] * segs.dirs
@@ -460,6 +472,98 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
                               seg.stream[idx] + n_lights * piece, seg.seed, seg.scale))
     stats[LI_INTERVALS] = sum(len(p) for p in parts)
     return concat(parts, segs), stats
+
+
+SUN_BISECTIONS = 48  # halvings of a sample interval in u: below 1e-14 of the scene's size near the camera
+
+
+def sun_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float, end_normals, stats) -> Segments:
+    """The pieces of directional lights' segments from which the sun is not hidden by a mesh (the
+    planet of an atmosphere shadows through the transmittance). The sun has no position to measure
+    angles from, so a segment is sampled evenly in u = x / (x + S), S the segment's length or, if
+    shorter, the scene's size (u < 1 on rays to infinity; a point light's quarter circle of angles
+    maps to u in [0, 1) alike), with
+    ceil(u_end / (2 spacing / pi)) intervals; each sample sends a shadow ray to infinity toward the
+    sun from the point moved epsilon toward it, and every change of visibility between two samples
+    is bisected SUN_BISECTIONS times in u. What it can miss: an occluder (or gap) thinner than a
+    sample interval. A segment ending on a surface that faces away from the sun ends unlit."""
+    ell = segs.length
+    S = np.maximum(np.minimum(ell, segs.scale), 1e-300)
+    u_end = np.divide(ell, ell + S, out=np.ones_like(ell), where=np.isfinite(ell))
+    count = np.maximum(1, np.ceil(u_end / (2.0 * spacing / np.pi))).astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(count + 1)[:-1]]).astype(np.int64)
+    seg_of = np.repeat(np.arange(len(segs)), count + 1)
+    k = np.arange(len(seg_of)) - first[seg_of]
+    u = u_end[seg_of] * k / count[seg_of]
+    wi = -lights.axis[segs.light]
+
+    def visible(seg, uu):
+        x = np.where(uu >= 1.0, np.inf, S[seg] * uu / np.maximum(1.0 - uu, 1e-300))
+        x = np.minimum(x, ell[seg])
+        finite = np.isfinite(x)
+        p = segs.origins[seg] + np.where(finite, x, 0.0)[:, None] * segs.dirs[seg] + accel.epsilon * wi[seg]
+        out = ~accel.occluded(p, wi[seg], np.full(len(seg), np.inf))
+        # a ray to infinity: its far end sees the sun unless the ray itself runs into the shadow
+        return np.where(finite, out, True)
+
+    vis = visible(seg_of, np.minimum(u, 1.0 - 1e-12))
+    if end_normals is not None:  # the last sample of a segment ending on a surface facing away: unlit
+        last = first + count
+        facing = np.einsum("ij,ij->i", end_normals, wi) * -np.einsum("ij,ij->i", end_normals, segs.dirs) >= 0.0
+        vis[last] &= facing
+    stats[LI_SEGMENTS] += len(segs)
+    stats[LI_SAMPLES] += len(vis)
+    stats[LI_RAYS] += len(vis)
+    change = np.nonzero((vis[:-1] != vis[1:]) & (seg_of[:-1] == seg_of[1:]))[0]
+    lo, hi = u[change], np.minimum(u[change + 1], 1.0 - 1e-12)
+    vis_lo = vis[change]
+    cseg = seg_of[change]
+    for _ in range(SUN_BISECTIONS):
+        if not len(change):
+            break
+        mid = 0.5 * (lo + hi)
+        same = visible(cseg, mid) == vis_lo
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+        stats[LI_RAYS] += len(change)
+        stats[LI_BISECTIONS] += len(change)
+    stats[LI_BOUNDARIES] += len(change)
+    src, u0, u1 = _lit_runs(vis, first, count, u_end, cseg, 0.5 * (lo + hi))
+    x0 = S[src] * u0 / (1.0 - u0)
+    with np.errstate(divide="ignore"):
+        x1 = np.where(u1 >= u_end[src], ell[src], S[src] * u1 / (1.0 - u1))
+    x1 = np.clip(x1, x0, ell[src])
+    piece = np.arange(len(src)) - np.searchsorted(src, src)
+    stats[LI_SHADOWED] += len(segs) - len(np.unique(src))
+    stats[LI_INTERVALS] += len(src)
+    return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
+                    segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src] + n_lights * piece, segs.seed,
+                    segs.scale)
+
+
+@njit
+def _lit_runs(vis, first, count, u_end, cseg, bound):
+    """(segment, u0, u1) of every lit run: samples k = 0..count[s] of segment s from first[s], the
+    boundaries `bound` (ascending within each segment, in segment order cseg) where visibility
+    changes; a run starts at 0 or at a boundary to lit and ends at the next boundary or u_end."""
+    src, a, b = [], [], []
+    j = 0
+    for s in range(first.shape[0]):
+        lit = vis[first[s]]
+        start = 0.0
+        while j < cseg.shape[0] and cseg[j] == s:
+            if lit:
+                src.append(s)
+                a.append(start)
+                b.append(bound[j])
+            else:
+                start = bound[j]
+            lit = not lit
+            j += 1
+        if lit:
+            src.append(s)
+            a.append(start)
+            b.append(u_end[s])
+    return np.array(src, dtype=np.int64), np.array(a), np.array(b)
 
 
 def concat(parts: list[Segments], like: Segments) -> Segments:

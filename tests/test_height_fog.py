@@ -138,7 +138,7 @@ def test_volumetric_shadows_in_fog_use_the_closed_form_in_front_of_each_segment(
     ({"up": [0.0, 0.0, 0.0]}, "medium.up: is zero"),
     ({"scale_hight": 2.0}, 'medium.scale_hight: unknown key; did you mean "scale_height"?'),
     ({"profile": "cubic"}, "medium.profile: 'cubic' is not one of exponential, linear"),
-    ({"type": "heightfog"}, 'medium.type: \'heightfog\' is not one of homogeneous, height_fog; did you mean'),
+    ({"type": "heightfog"}, 'medium.type: \'heightfog\' is not one of homogeneous, height_fog, atmosphere; did you mean'),
     ({"particles": {}}, "medium.particles: the particle layer needs a homogeneous medium"),
 ])
 def test_bad_fog_is_one_line_exit_2(change, message, write_scene, tmp_path, capsys):
@@ -167,8 +167,6 @@ SUN = {"type": "directional", "direction": [0.3, -1.0, 0.2], "irradiance": 3.0}
     (box_room(light=[SUN]), ["--method", "quadrature"],
      "light[0].type: a directional light through a homogeneous medium filling all space arrives with zero "
      "transmittance"),
-    (box_room(medium=FOG, light=[SUN]), ["--method", "quadrature", "--volumetric-shadows"],
-     "--volumetric-shadows (render.volumetric_shadows): not implemented for directional lights"),
     (box_room(medium=FOG), ["--method", "raymarch", "--volumetric-shadows", "--shadow-test", "samples"],
      "--shadow-test samples (render.shadow_test): not implemented in height_fog media"),
     (box_room(medium=FOG, light=[{**SUN, "direction": [0.0, 0.0, 0.0]}]), [], "light[0].direction: is zero"),
@@ -182,6 +180,15 @@ def test_refusals_are_one_line_exit_2(scene, args, message, write_scene, tmp_pat
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and message in err, err
     assert not out.exists()
+
+
+def test_sun_volumetric_shadows_without_occluders_change_nothing():
+    """The valley's ground does not shadow the fog above it: with --volumetric-shadows the sun's
+    segments stay whole (visibility.sun_intervals) and the image is the unshadowed one."""
+    a = raytrace.render(VALLEY, method="quadrature", threads=1).array
+    b = raytrace.render(VALLEY, method="quadrature", threads=1, volumetric_shadows=True)
+    assert np.max(np.abs(a - b.array) / a) < 1e-9
+    assert b.stats["shadows: shadow boundaries"] == 0
 
 
 def test_sun_in_vacuum_lights_surfaces_only():

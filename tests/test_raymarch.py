@@ -105,7 +105,7 @@ def test_bad_parameters_are_rejected():
     from raytrace.methods import resolve_params
     ok = resolve_params(rm.METHOD, {}, "t")
     assert ok == {"steps": 64, "step": 0.0, "jitter": False, "tau_max": 20.0,
-                  "shadow_test": "intervals"}
+                  "shadow_test": "intervals", "transmittance": "closed"}
     for bad in ({"steps": 0}, {"step": -1.0}, {"tau_max": 0.0}, {"tau_max": math.inf}, {"jitter": 2}):
         with pytest.raises(UserError):
             resolve_params(rm.METHOD, bad, "t")

@@ -5,7 +5,9 @@ channel: the transmittance over a length t is exp(-kt t). `height_fog` (seed 004
 coefficients, given at the reference height h0, by one density of the height p·up - h0: the
 exponential exp(-(p·up - h0)/H) (eq. 32) or the linear max(0, 1 - (p·up - h0)/H) (eq. 28); the
 transmittance along a ray is exp(-kt tau) with tau the closed-form unit optical depth of
-height_fog.py (eq. 34 / 30), the same for every channel.
+height_fog.py (eq. 34 / 30), the same for every channel. `atmosphere` (seed 004, Bruneton's
+model) is a planet with exponential layers of their own scale heights and phase functions
+(`Atmosphere`, atmosphere.py); `sigma_a`, `sigma_s` are then the layers' sums at the ground.
 """
 from __future__ import annotations
 
@@ -15,14 +17,41 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
+from .atmosphere import ray_transmittance
 from .height_fog import exponential_distance, exponential_optical_depth, linear_distance, linear_optical_depth
 from .particles import Particles
 from .phase import ISOTROPIC
 
 HOMOGENEOUS = "homogeneous"
 HEIGHT_FOG = "height_fog"
+ATMOSPHERE = "atmosphere"
 EXPONENTIAL, LINEAR = 0, 1  # height-fog profiles
 PROFILES = {"exponential": EXPONENTIAL, "linear": LINEAR}
+
+
+@dataclass
+class Atmosphere:
+    """A planet (centre, radius, ground reflectance) and K exponential layers of air up to `top`:
+    layer i has scale height scale_heights[i], coefficients sigma_a[i], sigma_s[i] (RGB) at the
+    ground and the phase function (phases[i], gs[i]) (phase.py codes)."""
+    center: np.ndarray
+    radius: float
+    top: float
+    ground: np.ndarray
+    names: tuple
+    scale_heights: np.ndarray  # (K,)
+    sigma_a: np.ndarray  # (K, 3)
+    sigma_s: np.ndarray  # (K, 3)
+    phases: np.ndarray  # (K,) int64
+    gs: np.ndarray  # (K,)
+
+    @property
+    def sigma_t(self) -> np.ndarray:
+        return self.sigma_a + self.sigma_s
+
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """True for points strictly inside the planet."""
+        return np.linalg.norm(np.asarray(points, float) - self.center, axis=-1) < self.radius
 
 
 @dataclass
@@ -37,6 +66,7 @@ class Medium:
     h0: float = 0.0
     scale_height: float = math.inf
     profile: int = EXPONENTIAL
+    atmosphere: Atmosphere | None = None
 
     @property
     def sigma_t(self) -> np.ndarray:
@@ -67,6 +97,13 @@ class Medium:
         b = np.broadcast_to(np.asarray(b, float), n)
         if self.kind == HOMOGENEOUS:
             return self.transmittance(b - a)
+        if self.kind == ATMOSPHERE:
+            atm = self.atmosphere
+            out = np.empty((n, 3))
+            ray_transmittance(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float),
+                              np.ascontiguousarray(a), np.ascontiguousarray(b), *(float(v) for v in atm.center),
+                              float(atm.radius), float(atm.top), atm.scale_heights, atm.sigma_t, out)
+            return out
         tau = np.empty(n)
         ray_columns(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float),
                     np.ascontiguousarray(a), np.ascontiguousarray(b), *self.fog, tau)

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..jit import njit
 from ..lights import DIRECTIONAL, NO_CONE, falloff
+from ..media.atmosphere import ROW, segment_rows
 from ..media.medium import LINEAR, attenuated_density, column
 from ..media.phase import phase_value
 
@@ -164,3 +165,28 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
         return 0.0
     tau += column(hp, (row[HL] - hp) / d, 0.0, d, H, profile)
     return ks * f * phase_value(code, g, -dx / d) * attenuated_density(hp, kt * tau, H, profile)
+
+
+def atmosphere_channels(segs, medium, lights, evaluate, variance=False):
+    """Air-light (S, 3) of a segment batch in an atmosphere (media/atmosphere.py): `evaluate(rows,
+    sun, xh, h, cone, kt, ks)` returns the unit-intensity air-light (S,) of one channel given its
+    layers' coefficients kt, ks (K,); rows are `atmosphere.segment_rows`, channels that do not
+    scatter are 0. With `variance`, evaluate returns (mean, variance) and so does this, (S, 3) each."""
+    atm = medium.atmosphere
+    xh, h, _, cone = segment_geometry(segs, lights)
+    sun = lights.kind[segs.light] == DIRECTIONAL
+    rows = np.empty((len(segs), ROW))
+    segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
+                 sun, *(float(v) for v in atm.center), float(atm.radius), float(atm.top), rows)
+    out = np.zeros((len(segs), 3))
+    var = np.zeros((len(segs), 3))
+    for c in range(3):
+        ks = np.ascontiguousarray(atm.sigma_s[:, c])
+        if not np.any(ks > 0.0):
+            continue
+        unit = evaluate(rows, sun, xh, h, cone, np.ascontiguousarray(atm.sigma_t[:, c]), ks)
+        if variance:
+            unit, v = unit
+            _scale_into(var, c, v, lights.intensity ** 2, segs.light)
+        _scale_into(out, c, unit, lights.intensity, segs.light)
+    return (out, var) if variance else out

@@ -16,7 +16,9 @@ Per camera ray, light and colour channel, `samples` distances x on the segment a
     closed-form evaluations, F(ell) one per segment and channel, at CDF_PRECISION
     (benchmarks/mc_sampling.py).
 In a height fog (seed 004) every mode but cdf has a twin (`_fog_estimate`): free-path sampling
-inverts the closed-form optical depth, and the sun takes free-path draws only.
+inverts the closed-form optical depth, and the sun takes free-path draws only. In an atmosphere
+(`_atm_estimate`) the same, on the part of the segment inside the air, free-path distances by
+safeguarded Newton on the sum of the layers' closed-form (Chapman) optical depths.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
@@ -32,13 +34,28 @@ from ..jit import njit
 from ..rng import uniform
 from . import ErrorLaw, Method, Param
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import HO, MU, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
+from .geometry import HO, MU, atmosphere_channels, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
 from ..errors import UserError
-from ..media.medium import HOMOGENEOUS, attenuated_density, column, column_distance
+from ..media import atmosphere as atmo
+from ..media.medium import ATMOSPHERE, HOMOGENEOUS, attenuated_density, column, column_distance
 from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
 MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CDF}
+
+
+@njit
+def _strategies_used(mode, sun):
+    """(equiangular?, free-path?) of a mode; the sun takes free-path draws only (equiangular needs
+    a light position)."""
+    return mode != FREEPATH and not sun, mode != EQUIANGULAR or sun
+
+
+@njit
+def _mean_var(acc, acc2, n):
+    """Mean and variance of the mean of n estimates from their sum and sum of squares."""
+    mean = acc / n
+    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
 
 
 @njit
@@ -96,9 +113,7 @@ def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
         est = we + wf
         acc += est
         acc2 += est * est
-    mean = acc / n
-    var = max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
-    return mean, var
+    return _mean_var(acc, acc2, n)
 
 
 @njit
@@ -337,6 +352,19 @@ def _airlight(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
     stats = np.zeros(CDF_STATS)
+    if medium.kind == ATMOSPHERE:
+        atm = medium.atmosphere
+        keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
+
+        def evaluate(rows, sun, xh, h, cone, kt, ks):
+            mean, v = np.empty_like(xh), np.empty_like(xh)
+            atmosphere_segments(rows, sun, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
+                                atm.gs, atm.scale_heights, float(atm.radius), float(atm.top),
+                                MODES[params["sampling"]], params["samples"], mean, v)
+            return mean, v
+
+        out, var = atmosphere_channels(segs, medium, lights, evaluate, variance=True)
+        return out, stats, var
     if medium.kind != HOMOGENEOUS:
         xh, h, _, cone = segment_geometry(segs, lights)
         rows, sun = fog_rows(segs, medium, lights)
@@ -395,15 +423,12 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b, _ = _angles(xh, h, ell, kt)
-    use_e = mode != FREEPATH and not sun
-    use_f = mode != EQUIANGULAR or sun
+    use_e, use_f = _strategies_used(mode, sun)
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
         est = 0.0
-        for strategy in range(2):
-            if (strategy == 0 and not use_e) or (strategy == 1 and not use_f):
-                continue
+        for strategy in range(0 if use_e else 1, 2 if use_f else 1):  # 0 equiangular, 1 free-path
             u = uniform(key, dim0 + 2 * j + strategy, seed)
             if strategy == 0:
                 x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
@@ -422,8 +447,7 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
                 est += f / p
         acc += est
         acc2 += est * est
-    mean = acc / n
-    return mean, max(acc2 / n - mean * mean, 0.0) / max(n - 1, 1)
+    return _mean_var(acc, acc2, n)
 
 
 @njit
@@ -436,6 +460,81 @@ def fog_segments(rows, sun, xh, h, ell, cone, keys, stream, seed, intensity, kt,
                                  mode, n, keys[s], 2 * n * stream[s], seed)
             out[s, c] = m * intensity[s, c]
             var[s, c] = v * intensity[s, c] * intensity[s, c]
+
+
+@njit
+def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols, pieces, buf):
+    """`estimate` in an atmosphere, one channel: on the part [A, B] of the segment inside the air,
+    f = `atmosphere.inscatter` (x F / d^2 for point and spot lights); free-path draws, restricted
+    for the sun to the pieces outside the planet's shadow (`atmosphere.sunlit`: elsewhere f = 0),
+    solve tau(A, x) = the target of u in that truncated distribution by `atmosphere.free_path`,
+    p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); the sun takes free-path
+    draws in every mode. pieces (3, 4), buf (2,): scratch."""
+    a, b = row[atmo.A], row[atmo.B]
+    if not b > a:
+        return 0.0, 0.0
+    h0, mu0 = row[atmo.H0], row[atmo.MU0]
+    m = 1
+    pieces[0, 0], pieces[0, 1] = a, b
+    if sun:
+        m = atmo.sunlit(row, R, buf, pieces)
+    norm = 0.0
+    for k in range(m):  # pieces[k] = (lo, hi, tau(A, lo), mass)
+        atmo.columns(h0, mu0, a, pieces[k, 0], R, top, Hs, cols)
+        pieces[k, 2] = atmo.optical_depth(cols, kt)
+        atmo.columns(h0, mu0, pieces[k, 0], pieces[k, 1], R, top, Hs, cols)
+        pieces[k, 3] = math.exp(-pieces[k, 2]) * -math.expm1(-atmo.optical_depth(cols, kt))
+        norm += pieces[k, 3]
+    if not norm > 0.0:
+        return 0.0, 0.0
+    th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
+    use_e, use_f = _strategies_used(mode, sun)
+    acc = 0.0
+    acc2 = 0.0
+    for j in range(n):
+        est = 0.0
+        for strategy in range(0 if use_e else 1, 2 if use_f else 1):  # 0 equiangular, 1 free-path
+            u = uniform(key, dim0 + 2 * j + strategy, seed)
+            if strategy == 0:
+                x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), a), b)
+                atmo.columns(h0, mu0, a, x, R, top, Hs, cols)
+                tau_cam = atmo.optical_depth(cols, kt)
+            else:  # the piece holding u N, then its optical depth from A: the target, to Newton's 1e-13
+                v = u * norm
+                k = 0
+                while k < m - 1 and v >= pieces[k, 3]:
+                    v -= pieces[k, 3]
+                    k += 1
+                v = min(v, pieces[k, 3])
+                tau_cam = pieces[k, 2] - math.log1p(-v * math.exp(pieces[k, 2]))
+                x = min(max(atmo.free_path(row, a, b, tau_cam, kt, Hs, R, top, cols), pieces[k, 0]), pieces[k, 1])
+            p = 0.0
+            if use_e:
+                p += _p_equiangular(x, xh, h, th_a, th_b)
+            if use_f:
+                p += atmo.extinction_at(x, row, kt, Hs, R) * math.exp(-tau_cam) / norm
+            if p > 0.0:
+                f = atmo.inscatter(x, row, sun, kt, ks, codes, gs, Hs, R, top, cols, tau_cam)
+                if not sun:
+                    dx = x - xh
+                    d2 = max(h * h + dx * dx, 1e-250)
+                    f *= spot_factor(dx, math.sqrt(d2), h, cone) / d2
+                est += f / p
+        acc += est
+        acc2 += est * est
+    return _mean_var(acc, acc2, n)
+
+
+@njit
+def atmosphere_segments(rows, sun, xh, h, cone, keys, stream, seed, kt, ks, codes, gs, Hs, R, top, mode, n, out, var):
+    """Unit-intensity estimates and their variances of every atmosphere segment, one channel (the
+    same random-number dimensions as `airlight_segments`)."""
+    cols = np.empty(Hs.shape[0])
+    pieces = np.empty((3, 4))
+    buf = np.empty(2)
+    for s in range(xh.shape[0]):
+        out[s], var[s] = _atm_estimate(rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, mode, n,
+                                       keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
 def _check(medium, params):
@@ -467,5 +566,5 @@ METHOD = Method(
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
     check=_check,
     light_types=("point", "spot", "directional"),
-    media=("homogeneous", "height_fog"),
+    media=("homogeneous", "height_fog", "atmosphere"),
 )

@@ -27,9 +27,10 @@ from numba.extending import overload
 
 from ..jit import njit
 from . import ErrorLaw, Method, Param
-from .geometry import COSD, HO, MU, MUS, by_channel, fog_inscatter, fog_rows
+from .geometry import COSD, HO, MU, MUS, atmosphere_channels, by_channel, fog_inscatter, fog_rows, spot_factor
 from ..lights import cone_breaks, falloff
-from ..media.medium import HOMOGENEOUS, LINEAR, column, column_distance
+from ..media import atmosphere as atmo
+from ..media.medium import ATMOSPHERE, HOMOGENEOUS, LINEAR, column, column_distance
 from ..media.phase import phase_split, phase_value
 
 MAX_INTERVALS = 4000
@@ -71,9 +72,9 @@ def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
 
 
 def _either_rule(a, b, args, nodes, weights):
-    """`_rule` for args = (piece, xh, h, kt, code, g, cone), media/slab.py's `eq7_rule` and
-    `convex_rule` for their argument tuples, else `_fog_rule` (chosen at compile time by the tuple's
-    length, `_either_rule_impl`)."""
+    """`_rule` for args = (piece, xh, h, kt, code, g, cone), `_atm_rule` for an atmosphere's 13
+    arguments, media/slab.py's `eq7_rule` and `convex_rule` for their argument tuples, else `_fog_rule`
+    (chosen at compile time by the tuple's length, `_either_rule_impl`)."""
 
 
 @overload(_either_rule)
@@ -81,6 +82,8 @@ def _either_rule_impl(a, b, args, nodes, weights):
     if len(args) == 7:
         return lambda a, b, args, nodes, weights: _rule(args[0], a, b, args[1], args[2], args[3], args[4], args[5],
                                                         args[6], nodes, weights)
+    if len(args) == 13:
+        return lambda a, b, args, nodes, weights: _atm_rule(a, b, args, nodes, weights)
     from ..media.slab import CONVEX_ARGS, EQ7_ARGS, convex_rule, eq7_rule  # seed 002 (bounded media)
 
     if len(args) == EQ7_ARGS:
@@ -204,6 +207,16 @@ def evaluate_segments(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w2
 
 def _airlight(segs, medium, lights, params):
     stats = np.zeros(3)
+    if medium.kind == ATMOSPHERE:
+        atm = medium.atmosphere
+
+        def evaluate(rows, sun, xh, h, cone, kt, ks):
+            out = np.empty_like(xh)
+            atmosphere_segments(rows, sun, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.scale_heights,
+                                float(atm.radius), float(atm.top), params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+            return out
+
+        return atmosphere_channels(segs, medium, lights, evaluate), stats
     if medium.kind != HOMOGENEOUS:
         rows, sun = fog_rows(segs, medium, lights)
 
@@ -239,7 +252,7 @@ METHOD = Method(
     stats_size=3,
     summarize=_summarize,
     light_types=("point", "spot", "directional"),
-    media=("homogeneous", "height_fog"),
+    media=("homogeneous", "height_fog", "atmosphere"),
 )
 
 
@@ -277,6 +290,54 @@ def _fog_rule(a, b, args, nodes, weights):
 
 
 @njit
+def _cone_thetas(cone, out, n):
+    """Append a spot light's cone crossings as angles theta from the foot point (theta = phi -
+    pi/2) to out[n:]; returns the new count."""
+    if cone[3] > -1.0:
+        for C in (cone[2], cone[3]):
+            k, r1, r2 = cone_breaks(cone[0], cone[1], C)
+            for i in range(k):
+                out[n] = 2.0 * math.atan(r1 if i == 0 else r2) - 0.5 * math.pi
+                n += 1
+    return n
+
+
+@njit
+def _ends_and_inside(out, n):
+    """Keep of out[:n] the ends out[0], out[1] and the points strictly between them, sorted."""
+    lo, hi = out[0], out[1]
+    m = 0
+    for i in range(n):
+        if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
+            out[m] = out[i]
+            m += 1
+    out[:m].sort()
+    return m
+
+
+@njit
+def _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats):
+    """The adaptive rule (`_either_rule` of args) over the pieces br[:m], with the absolute floor of
+    a first estimate of the whole (as `airlight_one`); counts an evaluation short of its tolerance."""
+    width = br[m - 1] - br[0]
+    estimate = 0.0
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            estimate += _either_rule(br[i], br[i + 1], args, n20, w20)
+    floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
+    total = 0.0
+    ok = True
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
+            total += val
+            ok = ok and good
+    if not ok:
+        stats[CAPPED] += 1.0
+    return total
+
+
+@njit
 def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
     """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
     x_top = (H - row[HO]) / row[MU] if profile == LINEAR and row[MU] != 0.0 else -1.0  # the linear fog's top
@@ -295,20 +356,8 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
         if 0.0 < x_top < ell:
             out[n] = math.atan2(x_top - xh, h)
             n += 1
-        if cone[3] > -1.0:
-            for C in (cone[2], cone[3]):
-                k, r1, r2 = cone_breaks(cone[0], cone[1], C)
-                for i in range(k):
-                    out[n] = 2.0 * math.atan(r1 if i == 0 else r2) - 0.5 * math.pi
-                    n += 1
-    lo, hi = out[0], out[1]
-    m = 0
-    for i in range(n):  # keep the ends and the interior points, sorted
-        if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
-            out[m] = out[i]
-            m += 1
-    out[:m].sort()
-    return m
+        n = _cone_thetas(cone, out, n)
+    return _ends_and_inside(out, n)
 
 
 @njit
@@ -321,20 +370,68 @@ def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol,
             continue
         stats[EVALS] += 1.0
         m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, sun[s], br)
-        width = br[m - 1] - br[0]
         args = (rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
-        estimate = 0.0
-        for i in range(m - 1):
-            if br[i + 1] > br[i]:
-                estimate += _fog_rule(br[i], br[i + 1], args, n20, w20)
-        floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-        total = 0.0
-        ok = True
-        for i in range(m - 1):
-            if br[i + 1] > br[i]:
-                val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
-                total += val
-                ok = ok and good
-        if not ok:
-            stats[CAPPED] += 1.0
-        out[s] = total * (ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s])
+        out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats) * (ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s])
+
+
+# --- atmosphere (seed 004, media/atmosphere.py): the same adaptive rule, one channel at a time -------
+#
+# The sun: in x over the part [A, B] of the segment inside the air, split at the ray's lowest point
+# (the densest) and where it enters or leaves the planet's shadow (T_sun jumps there). Point and
+# spot lights: in theta as in the fog (x = x_h + h tan(theta)), split at the foot point, the cone's
+# crossings and the lowest point.
+
+
+@njit
+def _atm_value(s, args):
+    row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, cols = args
+    if sun:
+        return atmo.inscatter(s, row, True, kt, ks, codes, gs, Hs, R, top, cols, -1.0)
+    dx = h * math.tan(s)
+    d = math.sqrt(h * h + dx * dx)
+    f = spot_factor(dx, d, h, cone)
+    if f == 0.0:
+        return 0.0
+    return f * atmo.inscatter(xh + dx, row, False, kt, ks, codes, gs, Hs, R, top, cols, -1.0) / h
+
+
+@njit
+def _atm_rule(a, b, args, nodes, weights):
+    """Gauss-Legendre rule of `_atm_value` over [a, b]."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    acc = 0.0
+    for k in range(nodes.shape[0]):
+        acc += weights[k] * _atm_value(mid + half * nodes[k], args)
+    return acc * half
+
+
+@njit
+def _atm_breaks(row, sun, xh, h, cone, R, out):
+    """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count."""
+    lowest = -(row[atmo.QX] * row[atmo.WX] + row[atmo.QY] * row[atmo.WY] + row[atmo.QZ] * row[atmo.WZ])
+    if sun:
+        out[0], out[1] = row[atmo.A], row[atmo.B]
+        out[2] = lowest
+        n = 3 + atmo.planet_shadow(row, R, out[3:])
+    else:
+        out[0], out[1] = math.atan2(row[atmo.A] - xh, h), math.atan2(row[atmo.B] - xh, h)
+        out[2], out[3] = 0.0, math.atan2(lowest - xh, h)
+        n = 4
+        n = _cone_thetas(cone, out, n)
+    return _ends_and_inside(out, n)
+
+
+@njit
+def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out, stats):
+    """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients."""
+    br = np.empty(12)
+    cols = np.empty(Hs.shape[0])
+    for s in range(xh.shape[0]):
+        out[s] = 0.0
+        if not rows[s, atmo.B] > rows[s, atmo.A]:
+            continue
+        stats[EVALS] += 1.0
+        m = _atm_breaks(rows[s], sun[s], xh[s], h[s], cone[s], R, br)
+        args = (rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
+        out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats)

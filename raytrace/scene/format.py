@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..lights import DIRECTIONAL, SPOT, Light
-from ..media.medium import HEIGHT_FOG, HOMOGENEOUS, PROFILES, Medium
+from ..media.medium import ATMOSPHERE, HEIGHT_FOG, HOMOGENEOUS, PROFILES, Atmosphere, Medium
 from ..media.particles import Particles
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -316,7 +316,10 @@ def _spot(ctx, key, raw, pos, intensity):
 
 
 MEDIUM_KEYS = {HOMOGENEOUS: {"type", "sigma_a", "sigma_s", "phase", "particles"},
-               HEIGHT_FOG: {"type", "sigma_a", "sigma_s", "phase", "up", "h0", "scale_height", "profile"}}
+               HEIGHT_FOG: {"type", "sigma_a", "sigma_s", "phase", "up", "h0", "scale_height", "profile"},
+               ATMOSPHERE: {"type", "center", "radius", "top_radius", "reflectance", "layer"}}
+LAYER_KEYS = {"name", "sigma_a", "sigma_s", "scale_height", "phase"}
+MIN_RADIUS_OVER_H = 3.0  # radius / scale_height below this is outside the Chapman kernels' measured range
 PARTICLE_KEYS = {"density", "mu", "sigma", "cell", "offset", "step", "beta", "c1", "c2", "reflectance", "seed"}
 
 
@@ -367,10 +370,12 @@ def _medium(ctx, raw):
         return Medium(np.zeros(3), np.zeros(3))
     raw = _table(ctx, "medium", raw)
     kind = _string(ctx, "medium.type", raw.get("type", HOMOGENEOUS), tuple(MEDIUM_KEYS))
-    if kind == HEIGHT_FOG and "particles" in raw:
+    if kind != HOMOGENEOUS and "particles" in raw:
         ctx.fail("medium.particles", "the particle layer needs a homogeneous medium",
                  'remove [medium.particles] or use type = "homogeneous"')
     ctx.unknown("medium", raw, MEDIUM_KEYS[kind])
+    if kind == ATMOSPHERE:
+        return _atmosphere(ctx, raw)
     sa = _rgb(ctx, "medium.sigma_a", raw.get("sigma_a", 0.0))
     ss = _rgb(ctx, "medium.sigma_s", raw.get("sigma_s", 0.0))
     if kind == HOMOGENEOUS:
@@ -397,8 +402,56 @@ def _height_fog(ctx, raw):
             "profile": PROFILES[profile]}
 
 
+def _atmosphere(ctx, raw):
+    """Seed 004's spherical atmosphere (Bruneton's model): planet `center`, `radius`, the ground's
+    `reflectance`, air up to `top_radius`, and [[medium.layer]] tables, each an exponential layer
+    with its coefficients at the ground, `scale_height` and `phase`."""
+    for k, example in (("center", "[0.0, -6360000.0, 0.0]"), ("radius", "6360000.0"), ("top_radius", "6420000.0")):
+        if k not in raw:
+            ctx.fail(f"medium.{k}", "missing", f"add medium.{k} = {example}")
+    center = _vec3(ctx, "medium.center", raw["center"])
+    radius = float(_number(ctx, "medium.radius", raw["radius"], positive=True))
+    top = float(_number(ctx, "medium.top_radius", raw["top_radius"]))
+    if not top > radius:
+        ctx.fail("medium.top_radius", f"must exceed medium.radius = {radius:g}, got {top!r}",
+                 "give the radius of the top of the atmosphere, e.g. radius + 60000.0")
+    layers = raw.get("layer")
+    if not isinstance(layers, list) or not layers:
+        ctx.fail("medium.layer", "an atmosphere needs at least one layer", "add [[medium.layer]] tables (sigma_s, "
+                 "sigma_a, scale_height, phase), e.g. Rayleigh and Mie")
+    names, heights, sa, ss, phases, gs = [], [], [], [], [], []
+    for i, layer in enumerate(layers):
+        key = f"medium.layer[{i}]"
+        layer = _table(ctx, key, layer)
+        ctx.unknown(key, layer, LAYER_KEYS)
+        name = layer.get("name", f"layer {i}")
+        if not isinstance(name, str):
+            ctx.fail(f"{key}.name", f"expected a string, got {name!r}", 'write name = "rayleigh"')
+        if "scale_height" not in layer:
+            ctx.fail(f"{key}.scale_height", "missing", "add scale_height = 8000.0 (the height over which the density "
+                     "falls by e)")
+        H = float(_number(ctx, f"{key}.scale_height", layer["scale_height"]))
+        if not H > 0.0:
+            ctx.fail(f"{key}.scale_height", f"must be positive, got {H!r}", "use a height greater than 0, e.g. 8000.0")
+        if radius / H < MIN_RADIUS_OVER_H:
+            ctx.fail(f"{key}.scale_height", f"{H:g} exceeds medium.radius / {MIN_RADIUS_OVER_H:g}",
+                     "use a scale height well below the planet's radius (the closed form is verified for "
+                     f"radius / scale_height >= {MIN_RADIUS_OVER_H:g})")
+        names.append(name)
+        heights.append(H)
+        sa.append(_rgb(ctx, f"{key}.sigma_a", layer.get("sigma_a", 0.0)))
+        ss.append(_rgb(ctx, f"{key}.sigma_s", layer.get("sigma_s", 0.0)))
+        code, g = _phase(ctx, layer.get("phase", "isotropic"), f"{key}.phase")
+        phases.append(code)
+        gs.append(g)
+    atm = Atmosphere(center, radius, top, _rgb(ctx, "medium.reflectance", raw.get("reflectance", 0.0)), tuple(names),
+                     np.array(heights), np.array(sa), np.array(ss), np.array(phases, dtype=np.int64), np.array(gs))
+    return Medium(atm.sigma_a.sum(axis=0), atm.sigma_s.sum(axis=0), kind=ATMOSPHERE, atmosphere=atm)
+
+
 def _phase(ctx, phase, key="medium.phase"):
-    """(phase.py code, g) of the phase function at `key` (medium.phase, or a shape's interior.phase)."""
+    """(phase.py code, g) of the phase function at `key` (medium.phase, an atmosphere layer's or a
+    shape's interior.phase)."""
     if isinstance(phase, str):
         name = _string(ctx, key, phase, ("isotropic", "rayleigh", "hg"))
         if name == "hg":
@@ -417,6 +470,20 @@ def _phase(ctx, phase, key="medium.phase"):
     if not abs(g) < 1.0:
         ctx.fail(f"{key}.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
     return HG, g
+
+
+def _check_planet(ctx, camera, lights, medium):
+    """Neither the camera nor a light may sit inside an atmosphere's planet (it is opaque)."""
+    if medium.kind != ATMOSPHERE:
+        return
+    atm = medium.atmosphere
+    if atm.inside(camera.position):
+        ctx.fail("camera.position", f"{camera.position.tolist()} is inside the planet (medium.center "
+                 f"{atm.center.tolist()}, radius {atm.radius:g})", "move the camera onto or above the ground")
+    for i, light in enumerate(lights):
+        if light.kind != DIRECTIONAL and atm.inside(light.position):
+            ctx.fail(f"light[{i}].position", f"{light.position.tolist()} is inside the planet (medium.center "
+                     f"{atm.center.tolist()}, radius {atm.radius:g})", "move the light above the ground")
 
 
 def _check_sun(ctx, lights, medium):
@@ -489,6 +556,7 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     lights = [_light(ctx, i, s) for i, s in enumerate(lights_raw)]
     medium = _medium(ctx, raw.get("medium"))
     _check_sun(ctx, lights, medium)
+    _check_planet(ctx, camera, lights, medium)
     return Scene(
         name=name,
         path=path,

@@ -1,0 +1,283 @@
+"""A planet's atmosphere (seed 004's exponential spherical atmosphere, Bruneton's layered model) as a
+participating medium: its geometry and its closed-form transmittances (docs/atmosphere.md).
+
+The planet is the sphere |p - c| = R, an opaque diffuse ground; the air fills R <= |p - c| <= top
+with K exponential layers, layer i of density exp(-(|p - c| - R)/H_i) times its coefficients at the
+ground (sigma_a, sigma_s per channel, its own phase function). Along a ray given by the altitude h
+and zenith cosine mu of its origin, layer i's column over [t0, t1] is `chapman.atmosphere_column`
+(seed 004 eq. 40-48) over the part of [t0, t1] inside the top sphere, and the transmittance of
+channel c is exp(-sum_i kt[i, c] column_i), or 0 if the ray meets the ground within [t0, t1].
+Everything here is float64: Embree's float32 cannot place a 6360 km sphere to the metre
+(ARCHITECTURE.md), so the medium intersects its own spheres; `ground_distance` is the planet's.
+"""
+import math
+
+import numpy as np
+
+from ..jit import njit
+from .chapman import atmosphere_column, ground_distance
+from .phase import phase_value
+
+
+GROUND_MARGIN = 1e-9
+
+
+@njit
+def altitude_mu(qx, qy, qz, wx, wy, wz, radius):
+    """(h, mu) of the point c + q looking along the unit w: altitude |q| - R (clamped at 0: a point
+    on the ground computed a rounding below it) and the cosine of the zenith angle."""
+    r = math.sqrt(qx * qx + qy * qy + qz * qz)
+    if not r > 0.0:
+        return 0.0, 1.0
+    mu = min(max((qx * wx + qy * wy + qz * wz) / r, -1.0), 1.0)
+    return max(r - radius, 0.0), mu
+
+
+@njit
+def shell(h, mu, radius, top):
+    """(t_in, t_out): the part t >= 0 of the ray inside the top sphere (radius `top`); t_in > t_out
+    when the ray never is. top^2 - b^2 = (top - r0)(top + r0) + s0^2 (b the impact parameter, s0 =
+    r0 mu; not from b, whose rounding would cost ~eps r0 / (top - b) near the tangent), and both
+    ends from products, without the cancellation of -s0 -+ sqrt(...)."""
+    r0 = radius + h
+    s0 = r0 * mu
+    disc = (top - r0) * (top + r0) + s0 * s0
+    if not disc > 0.0:
+        return 1.0, 0.0
+    half = math.sqrt(disc)
+    if r0 <= top:
+        t_out = half - s0 if s0 <= 0.0 else (top - r0) * (top + r0) / (half + s0)
+        return 0.0, t_out
+    if s0 >= 0.0:  # outside, going away
+        return 1.0, 0.0
+    t_in = (r0 - top) * (r0 + top) / (half - s0)
+    return t_in, half - s0
+
+
+@njit
+def columns(h, mu, t0, t1, radius, top, scale_heights, out):
+    """out[i] = layer i's unit-density column over [t0, t1] (t1 may be inf) inside the top sphere;
+    False (out untouched) when the ground lies within [t0, t1] (the transmittance is 0). A segment
+    that ends on the ground is not blocked by it: the hit counts only 1e-9 (relative) before t1,
+    since kernels compiled with `contract`/`reassoc` (jit.py) round the same ground distance
+    differently by a few ulps."""
+    if ground_distance(h, mu, radius) < t1 * (1.0 - GROUND_MARGIN):
+        return False
+    a, b = shell(h, mu, radius, top)
+    lo, hi = max(t0, a), min(t1, b)
+    for i in range(scale_heights.shape[0]):
+        out[i] = atmosphere_column(h, mu, lo, hi, radius, scale_heights[i]) if hi > lo else 0.0
+    return True
+
+
+@njit
+def optical_depth(cols, kt):
+    """sum_i kt[i] cols[i] of one channel's layer extinctions kt (K,)."""
+    tau = 0.0
+    for i in range(kt.shape[0]):
+        if kt[i] != 0.0:
+            tau += kt[i] * cols[i]
+    return tau
+
+
+@njit
+def ray_transmittance(origins, dirs, a, b, cx, cy, cz, radius, top, scale_heights, kt, out):
+    """out[n, c] = transmittance over [a[n], b[n]] of ray n (a may be negative: counted from the
+    point origin + a dir; b may be inf) in channel c; kt (K, 3)."""
+    cols = np.empty(scale_heights.shape[0])
+    for n in range(origins.shape[0]):
+        s = a[n]
+        qx = origins[n, 0] + s * dirs[n, 0] - cx
+        qy = origins[n, 1] + s * dirs[n, 1] - cy
+        qz = origins[n, 2] + s * dirs[n, 2] - cz
+        h, mu = altitude_mu(qx, qy, qz, dirs[n, 0], dirs[n, 1], dirs[n, 2], radius)
+        if not columns(h, mu, 0.0, b[n] - s, radius, top, scale_heights, cols):
+            for c in range(3):
+                out[n, c] = 0.0
+            continue
+        for c in range(3):
+            out[n, c] = math.exp(-optical_depth(cols, kt[:, c]))
+
+
+@njit
+def planet_hits(origins, dirs, cx, cy, cz, radius, out):
+    """out[n] = the distance to the ground along ray n (inf if it misses), in float64."""
+    for n in range(origins.shape[0]):
+        h, mu = altitude_mu(origins[n, 0] - cx, origins[n, 1] - cy, origins[n, 2] - cz, dirs[n, 0], dirs[n, 1],
+                            dirs[n, 2], radius)
+        out[n] = ground_distance(h, mu, radius)
+
+
+# --- one segment's in-scattering integrand -------------------------------------------------------
+# A segment's row (`segment_rows`): its start relative to the centre, its direction, its start's
+# altitude and zenith cosine, the part [A, B] of [0, ell] inside the air, and the light: for the
+# sun the unit vector toward it and the scattering cosine, for a point or spot light its position
+# relative to the centre.
+QX, QY, QZ, WX, WY, WZ, H0, MU0, A, B, LX, LY, LZ, COSD = range(14)
+ROW = 14
+
+
+@njit
+def segment_rows(origins, dirs, ell, lpos, laxis, light, sun, cx, cy, cz, radius, top, rows):
+    """Fill rows (S, ROW) of a segment batch (see above)."""
+    for s in range(origins.shape[0]):
+        r = rows[s]
+        r[QX], r[QY], r[QZ] = origins[s, 0] - cx, origins[s, 1] - cy, origins[s, 2] - cz
+        r[WX], r[WY], r[WZ] = dirs[s, 0], dirs[s, 1], dirs[s, 2]
+        r[H0], r[MU0] = altitude_mu(r[QX], r[QY], r[QZ], r[WX], r[WY], r[WZ], radius)
+        a, b = shell(r[H0], r[MU0], radius, top)
+        r[A], r[B] = a, min(b, ell[s])
+        li = light[s]
+        if sun[s]:
+            r[LX], r[LY], r[LZ] = -laxis[li, 0], -laxis[li, 1], -laxis[li, 2]
+            r[COSD] = laxis[li, 0] * -dirs[s, 0] + laxis[li, 1] * -dirs[s, 1] + laxis[li, 2] * -dirs[s, 2]
+        else:
+            r[LX], r[LY], r[LZ] = lpos[li, 0] - cx, lpos[li, 1] - cy, lpos[li, 2] - cz
+            r[COSD] = 0.0
+
+
+@njit
+def density_sum(hx, scale_heights, coef):
+    """sum_i coef[i] exp(-hx / H_i): a channel's extinction (coef = kt) or scattering at altitude hx."""
+    out = 0.0
+    for i in range(coef.shape[0]):
+        if coef[i] != 0.0:
+            out += coef[i] * math.exp(-hx / scale_heights[i])
+    return out
+
+
+@njit
+def light_frame(x, row, sun, radius):
+    """At distance x of a segment: (h, p, l, d, cos, mu_l) with p = the point relative to the
+    centre (3 floats), l the unit vector toward the light (3 floats), d the distance to it (inf
+    for the sun), cos the scattering cosine (the light's travel direction . -w) and mu_l = the
+    zenith cosine of l at p; d = 0 (a point on the light) gives d = 0 and l = 0."""
+    px, py, pz = row[QX] + x * row[WX], row[QY] + x * row[WY], row[QZ] + x * row[WZ]
+    r = math.sqrt(px * px + py * py + pz * pz)
+    hx = max(r - radius, 0.0)
+    if sun:
+        lx, ly, lz, d, cos = row[LX], row[LY], row[LZ], math.inf, row[COSD]
+    else:
+        lx, ly, lz = row[LX] - px, row[LY] - py, row[LZ] - pz
+        d = math.sqrt(lx * lx + ly * ly + lz * lz)
+        if not d > 0.0:
+            return hx, px, py, pz, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0
+        lx, ly, lz = lx / d, ly / d, lz / d
+        cos = lx * row[WX] + ly * row[WY] + lz * row[WZ]  # travel direction -l against the way back -w
+    mul = min(max((px * lx + py * ly + pz * lz) / r, -1.0), 1.0)
+    return hx, px, py, pz, lx, ly, lz, d, cos, mul
+
+
+@njit
+def scattering(hx, cos, ks, codes, gs, scale_heights):
+    """sum_i ks_i rho_i(hx) Phi_i(cos): the layers' scattering at altitude hx toward the camera."""
+    acc = 0.0
+    for i in range(ks.shape[0]):
+        if ks[i] != 0.0:
+            acc += ks[i] * math.exp(-hx / scale_heights[i]) * phase_value(codes[i], gs[i], cos)
+    return acc
+
+
+@njit
+def inscatter(x, row, sun, kt, ks, codes, gs, scale_heights, radius, top, cols, tau_cam):
+    """In-scattered radiance per unit length at distance x of a segment, one channel, unit light,
+    without a point light's 1/d^2 or spot falloff: T_cam(x) T_light(x) sum_i ks_i rho_i(x)
+    Phi_i(cos), T_cam from the segment's start (`tau_cam`: its optical depth if the caller has it,
+    else negative), T_light to the light or, for the sun, out of the atmosphere (0 behind the
+    planet). kt, ks: (K,) of the channel."""
+    hx, _, _, _, _, _, _, d, cos, mul = light_frame(x, row, sun, radius)
+    if not d > 0.0:
+        return 0.0
+    if not columns(hx, mul, 0.0, d, radius, top, scale_heights, cols):
+        return 0.0
+    tau = optical_depth(cols, kt)
+    if tau_cam < 0.0:
+        columns(row[H0], row[MU0], 0.0, x, radius, top, scale_heights, cols)
+        tau_cam = optical_depth(cols, kt)
+    return scattering(hx, cos, ks, codes, gs, scale_heights) * math.exp(-tau - tau_cam)
+
+
+@njit
+def free_path(row, x_lo, x_hi, target, kt, scale_heights, radius, top, cols):
+    """The x in [x_lo, x_hi] where the channel's optical depth from x_lo reaches `target` (which
+    the caller keeps below the whole interval's): safeguarded Newton on the sum of the layers'
+    closed-form columns (f' = the extinction at x, seed 004 eq. 17), bisection when a step leaves
+    the bracket; stops at |f| <= 1e-13 target or when the bracket is two neighbouring doubles."""
+    lo, hi = x_lo, x_hi
+    h0, mu0 = row[H0], row[MU0]
+    ext = extinction_at(x_lo, row, kt, scale_heights, radius)
+    x = x_lo + target / ext if ext > 0.0 else 0.5 * (lo + hi)
+    if not lo < x < hi:
+        x = 0.5 * (lo + hi)
+    for _ in range(100):
+        columns(h0, mu0, x_lo, x, radius, top, scale_heights, cols)
+        f = optical_depth(cols, kt) - target
+        if abs(f) <= 1e-13 * target:
+            return x
+        if f < 0.0:
+            lo = x
+        else:
+            hi = x
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            return x
+        ext = extinction_at(x, row, kt, scale_heights, radius)
+        nxt = x - f / ext if ext > 0.0 else mid
+        x = nxt if lo < nxt < hi else mid
+    return x
+
+
+@njit
+def extinction_at(x, row, kt, scale_heights, radius):
+    """The channel's extinction sum_i kt_i rho_i at distance x of a segment."""
+    px, py, pz = row[QX] + x * row[WX], row[QY] + x * row[WY], row[QZ] + x * row[WZ]
+    return density_sum(max(math.sqrt(px * px + py * py + pz * pz) - radius, 0.0), scale_heights, kt)
+
+
+@njit
+def planet_shadow(row, radius, out):
+    """The x in (A, B) where the segment crosses the edge of the planet's shadow cylinder (the sun
+    direction s = row[LX:LZ]; points with q.s < 0 and |q - (q.s) s| = R): T_sun jumps there.
+    Returns their count (<= 2), ascending in out."""
+    sx, sy, sz = row[LX], row[LY], row[LZ]
+    qs = row[QX] * sx + row[QY] * sy + row[QZ] * sz
+    ws = row[WX] * sx + row[WY] * sy + row[WZ] * sz
+    ux, uy, uz = row[QX] - qs * sx, row[QY] - qs * sy, row[QZ] - qs * sz
+    vx, vy, vz = row[WX] - ws * sx, row[WY] - ws * sy, row[WZ] - ws * sz
+    a2 = vx * vx + vy * vy + vz * vz
+    b1 = ux * vx + uy * vy + uz * vz
+    c0 = (math.sqrt(ux * ux + uy * uy + uz * uz) - radius) * (math.sqrt(ux * ux + uy * uy + uz * uz) + radius)
+    disc = b1 * b1 - a2 * c0
+    if not (a2 > 0.0 and disc > 0.0):
+        return 0
+    q = -(b1 + math.copysign(math.sqrt(disc), b1))
+    n = 0
+    for x in (q / a2, c0 / q if q != 0.0 else math.inf):
+        if row[A] < x < row[B] and qs + x * ws < 0.0:
+            out[n] = x
+            n += 1
+    if n == 2 and out[1] < out[0]:
+        out[0], out[1] = out[1], out[0]
+    return n
+
+
+@njit
+def sunlit(row, radius, cuts, out):
+    """The pieces of [A, B] from which the sun (row[LX:LZ]) is not behind the planet, split at
+    `planet_shadow`'s crossings: out[k] = (lo, hi), ascending; returns their count (<= 3). cuts:
+    scratch of 2."""
+    n = planet_shadow(row, radius, cuts)
+    sx, sy, sz = row[LX], row[LY], row[LZ]
+    m = 0
+    lo = row[A]
+    for k in range(n + 1):
+        hi = cuts[k] if k < n else row[B]
+        mid = 0.5 * (lo + hi)
+        qx, qy, qz = row[QX] + mid * row[WX], row[QY] + mid * row[WY], row[QZ] + mid * row[WZ]
+        qs = qx * sx + qy * sy + qz * sz
+        ux, uy, uz = qx - qs * sx, qy - qs * sy, qz - qs * sz
+        if hi > lo and not (qs < 0.0 and ux * ux + uy * uy + uz * uz < radius * radius):
+            out[m, 0], out[m, 1] = lo, hi
+            m += 1
+        lo = hi
+    return m
