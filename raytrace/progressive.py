@@ -12,6 +12,7 @@ the same command with a larger budget continues where the last one stopped.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -32,18 +33,31 @@ def pass_seed(seed: int, p: int) -> int:
     return (seed + p * GOLDEN) % (1 << 64)
 
 
+def _feed(h, obj):
+    """Hash `obj` by content: dataclasses field by field, arrays by dtype, shape and bytes."""
+    if dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            h.update(f.name.encode())
+            _feed(h, getattr(obj, f.name))
+    elif isinstance(obj, np.ndarray):
+        h.update(f"{obj.dtype}{obj.shape}".encode() + np.ascontiguousarray(obj).tobytes())
+    elif isinstance(obj, (list, tuple)):
+        h.update(f"[{len(obj)}".encode())
+        for x in obj:
+            _feed(h, x)
+    else:
+        h.update(json.dumps(obj, sort_keys=True, default=str).encode())
+
+
 def fingerprint(prep: Prepared, method: str, params: dict, seed: int) -> str:
-    """What a checkpoint must match to be resumed: scene content, camera, method, parameters, seed."""
+    """What a checkpoint must match to be resumed: the camera, every light and medium (the shapes'
+    interiors too) by content, the triangles and reflectances, the method, its parameters, the seed."""
     h = hashlib.sha256()
-    cam = prep.scene.camera
-    meta = {"method": method, "params": params, "seed": seed, "camera": [cam.type, cam.position.tolist(),
-            cam.look_at.tolist(), cam.up.tolist(), cam.fov, cam.width, cam.height, cam.spp],
-            "medium": [prep.scene.medium.sigma_a.tolist(), prep.scene.medium.sigma_s.tolist(),
-                       prep.scene.medium.phase, prep.scene.medium.g],
-            "background": prep.scene.background.tolist()}
-    h.update(json.dumps(meta, sort_keys=True, default=str).encode())
-    for a in (prep.accel.triangles, prep.reflectance, prep.lights.kind, prep.lights.position, prep.lights.intensity):
-        h.update(np.ascontiguousarray(a).tobytes())
+    scene = prep.scene
+    _feed(h, {"method": method, "params": params, "seed": seed})
+    _feed(h, [scene.camera, scene.lights, scene.medium, [s.interior for s in scene.shapes], scene.background])
+    for a in (prep.accel.triangles, prep.reflectance):
+        _feed(h, a)
     return h.hexdigest()
 
 

@@ -138,3 +138,26 @@ def test_cli_writes_variance_channels_and_refuses_progressive_deterministic_meth
     assert (tmp_path / "mc.exr.ckpt.npz").is_file()
     assert main(["render", str(path), "--method", "analytic", "--passes", "2", "--out", str(tmp_path / "a.exr")]) == 2
     assert "stochastic" in capsys.readouterr().err
+
+
+FOG = {"type": "height_fog", "sigma_a": 0.05, "sigma_s": 0.15, "up": [0.0, 1.0, 0.0], "scale_height": 2.0}
+SPOT = {"type": "spot", "position": [0.5, 1.0, -1.0], "look_at": [0.0, -2.0, -1.0], "intensity": 10.0,
+        "cone_angle": 40.0, "falloff_start": 30.0}
+WATER = {"sigma_a": 0.2, "sigma_s": 0.3, "ior": 1.0}
+CUBE = {"primitive": "box", "min": [-0.5, -0.5, -2.0], "max": [0.5, 0.5, -1.0]}
+
+
+@pytest.mark.parametrize("a,b", [
+    (box_room(medium=FOG), box_room(medium={**FOG, "scale_height": 3.0})),
+    (box_room(medium=FOG), box_room(medium={**FOG, "profile": "linear"})),
+    (box_room(light=[SPOT]), box_room(light=[{**SPOT, "falloff_start": 20.0}])),
+    (box_room(medium={"sigma_a": 0.05, "sigma_s": 0.15, "phase": {"type": "hg", "g": 0.5}}),
+     box_room(medium={"sigma_a": 0.05, "sigma_s": 0.15, "phase": {"type": "hg", "g": 0.6}})),
+    (box_room(shape=box_room()["shape"] + [{**CUBE, "interior": WATER}]),
+     box_room(shape=box_room()["shape"] + [{**CUBE, "interior": {**WATER, "sigma_s": 0.4}}])),
+])
+def test_a_checkpoint_knows_every_key_of_the_scene(a, b):
+    """Scenes that differ in one medium, light or interior key get different fingerprints (a fog's
+    scale height was once ignored, so a checkpoint of another fog would have been resumed)."""
+    fp = [progressive.fingerprint(prepare(scene_from_text(to_toml(s), "s.toml")), "montecarlo", {}, 1) for s in (a, a, b)]
+    assert fp[0] == fp[1] != fp[2]
