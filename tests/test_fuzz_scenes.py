@@ -166,8 +166,7 @@ def render_args(draw, methods=tuple(METHODS_BY_NAME)):
         if not draw(st.booleans()):
             continue
         params[k] = draw(st.sampled_from(p.choices) if p.choices else st.booleans() if p.type is bool
-                         else st.sampled_from(CHEAP[k]))
-        assert p.accepts(params[k]), (name, k, params[k])
+                         else st.sampled_from([v for v in CHEAP[k] if p.accepts(v)]))
     shadows = draw(st.booleans())
     if params.get("shadow_test") == "samples" and not shadows:
         shadows = draw(st.booleans())
@@ -301,6 +300,7 @@ def test_fuzzed_scenes_render_or_refuse_many():
 inside = st.floats(-1.75, 1.75)
 inside_vec = st.tuples(inside, inside, inside).map(list)
 coefficient = st.floats(0.01, 2.0)
+away = inside_vec.filter(lambda v: max(abs(v[0]), abs(v[2])) > 0.1)  # a view or spot axis, not along up
 # held to their law on every lit scene; lecocq and sun (the papers' approximations: an unclamped Taylor
 # polynomial in angle, a bilinear table) are only measured: their declared laws (median 0.75, 3e-4)
 # hold on the oracle's box rooms but not here (measured medians up to 4e4 and 1.7e-3 on 150 scenes:
@@ -316,11 +316,13 @@ def lit_scene(draw):
     the camera: on it the air-light is the regularisation's, geometry.py, which no sampling resolves), sigma_t from
     0.01 to 4 per unit (optical depths ~0.01 ... 30 across the room), any phase, walls of any
     reflectance, sometimes an occluder (a sphere or a quad) for the volumetric shadows."""
-    pos, view = draw(inside_vec), draw(inside_vec.filter(lambda v: max(abs(v[0]), abs(v[2])) > 0.1))
+    pos, view = draw(inside_vec), draw(away)
     lights = draw(st.lists(light(kinds=("point", "spot")), min_size=1, max_size=2))
     for x in lights:  # off the camera: there the air-light is infinite, a regularisation's convention
         x["position"] = draw(inside_vec.filter(lambda v: math.dist(v, pos) > 0.1))
         x["intensity"] = draw(st.floats(0.1, 100.0))
+        if "look_at" in x:
+            x["look_at"] = [p + v for p, v in zip(x["position"], draw(away))]
     cam = {"type": draw(st.sampled_from(["perspective", "environment"])), "position": pos,
            "look_at": [p + v for p, v in zip(pos, view)], "width": 4, "height": 3, "spp": 1}
     med = {"sigma_a": draw(st.one_of(st.just(0.0), coefficient)),
@@ -355,6 +357,7 @@ def check_laws(sc, shadows):
     ref = raytrace.render(sc, method="quadrature", threads=1, volumetric_shadows=shadows,
                           **METHODS_BY_NAME["quadrature"].error_law.params).array
     OUTCOMES["lit" if np.any(ref > 0) else "black"] += 1
+    floor = falloff_floor(sc)
     done = 0
     for name in HELD + MEASURED:
         law = METHODS_BY_NAME[name].error_law
@@ -362,14 +365,14 @@ def check_laws(sc, shadows):
             if name == "raymarch":
                 coarse, fine = (law_statistic(law, raytrace.render(sc, method=name, threads=1, volumetric_shadows=shadows,
                                                                     steps=n).array, ref) for n in ORDER_STEPS)
-                assert fine <= coarse / ORDER_RATIO + ORDER_FLOOR, \
+                assert fine <= coarse / ORDER_RATIO + ORDER_FLOOR + floor, \
                     f"raymarch: median {coarse:.3g} at {ORDER_STEPS[0]} steps, {fine:.3g} at {ORDER_STEPS[1]} on {sc} " \
                     f"shadows={shadows}"
             else:
                 img = raytrace.render(sc, method=name, threads=1, volumetric_shadows=shadows, **law.params).array
                 value = law_statistic(law, img, ref)
                 WORST[name] = max(WORST.get(name, 0.0), value)
-                assert name in MEASURED or value <= law.tolerance, \
+                assert name in MEASURED or value <= law.tolerance + floor, \
                     f"{name}: {law.statistic} {value:.3g} > {law.tolerance:g} on {sc} shadows={shadows}"
         except UserError as exc:  # a light or phase the method does not take, said so
             assert "--method" in str(exc) or "method " in str(exc), str(exc)
@@ -377,6 +380,16 @@ def check_laws(sc, shadows):
         OUTCOMES[name] += 1
         done += 1
     return done
+
+
+def falloff_floor(sc) -> float:
+    """The relative accuracy every method shares in a scene with narrow spots: the falloff is a
+    smoothstep in the cosine to the axis (lights.py) whose argument divides by about 1 - cos(cone)
+    = 2 sin^2(cone / 2), so rounding of the cosine (eps) becomes eps / (1 - cos) of it; 10 times that
+    (a 0.001-degree cone: 1.5e-5; measured floors: raymarch 9e-8 at every step count, analytic 2e-7;
+    0.01 degrees: 2e-9)."""
+    cones = [math.radians(x["cone_angle"]) for x in sc.get("light", []) if x.get("type") == "spot"]
+    return max([10.0 * 2.2e-16 / (2.0 * math.sin(c / 2.0) ** 2) for c in cones], default=0.0)
 
 
 ORDER_STEPS = (512, 1024)
