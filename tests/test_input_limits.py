@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import pytest
 
+import raytrace
 from raytrace.cli import main
+from raytrace.errors import UserError
 
 from .conftest import box_room
 
@@ -101,3 +103,13 @@ def test_a_huge_scene_in_proportion_renders_as_the_small_one():
     a = raytrace.render(small, method="analytic", precision=1e-6, threads=1).array
     b = raytrace.render(big, method="analytic", precision=1e-6, threads=1).array
     assert np.max(np.abs(b - a) / a) < 1e-5
+
+
+@pytest.mark.parametrize("primitive", ["sphere", "cylinder"])
+def test_too_many_segments_refused_before_tessellation(primitive):
+    """segments = 1e9 hung tessellating (the fuzzer's 'number out of range'); 2048 is the most."""
+    extra = {"center": [0.0, 0.0, 0.0]} if primitive == "sphere" else {"base": [0.0, 0.0, 0.0], "top": [0.0, 1.0, 0.0]}
+    sc = box_room()
+    sc["shape"].append({"primitive": primitive, "radius": 1.0, "segments": 10**9, **extra})
+    with pytest.raises(UserError, match=r"shape\[1\]\.segments: must be at most 2048"):
+        raytrace.render(sc, method="analytic", threads=1)
