@@ -479,3 +479,19 @@ def test_regression_camera_on_a_light_analytic_meets_its_law(light, sigma_s):
     img = raytrace.render(sc, method="analytic", threads=1, **law.params).array
     assert np.all(ref > 0)
     assert np.max(np.abs(img - ref) / ref) <= law.tolerance
+
+
+@pytest.mark.parametrize("shadow_test", ["intervals", "samples"])
+def test_regression_raymarch_in_a_subnormal_medium(shadow_test):
+    """Was NaN pixels ("this is a bug", lit intervals) or numpy 'invalid value in divide' (shadow ray
+    per sample), found by the slow fuzz run: rays that hit nothing march to tau_max / kt, which
+    overflowed to inf for sigma_s = 1e-310; the march now ends at raymarch.MAX_END at most."""
+    sc = {"camera": {"type": "perspective", "position": [0.0, 1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "width": 4,
+                     "height": 3, "up": [0.0, 0.0, 1.0]},
+          "shape": [{"primitive": "box", "min": [0.0, 0.0, 0.0], "max": [1e-06, 1e-06, 1e-06]}],
+          "light": [{"position": [0.0, 0.0, 0.0], "intensity": 1.0}],
+          "medium": {"sigma_a": 0.0, "sigma_s": 1e-310, "phase": "isotropic"}}
+    with np.errstate(over="raise", invalid="raise", divide="raise"):
+        img = raytrace.render(sc, method="raymarch", threads=1, volumetric_shadows=True, shadow_test=shadow_test)
+    assert np.all(np.isfinite(img.array)) and np.all(img.array >= 0.0)
+    assert np.all(img.array < 1e-300)  # at most ks I pi / (4 pi h) ~ 1e-310 / h, h > 0.1 here
