@@ -220,7 +220,7 @@ def _spoil(draw, sc, args):
         return sc, args, key
     if how == "degenerate":
         spoil = draw(st.sampled_from(["flat box", "point quad", "line quad", "zero cylinder", "tiny sphere",
-                                      "look at self", "up along view"]))
+                                      "look at self", "up along view", "grazing"]))
         cam = sc["camera"]
         if spoil == "flat box":
             sc.setdefault("shape", []).append({"primitive": "box", "min": [0.0, 0.0, 0.0], "max": [1.0, 0.0, 1.0]})
@@ -235,6 +235,12 @@ def _spoil(draw, sc, args):
         elif spoil == "tiny sphere":
             sc.setdefault("shape", []).append({"primitive": "sphere", "center": draw(vec), "radius": 1e-300,
                                                "segments": 3})
+        elif spoil == "grazing":  # camera and light on the room's ceiling, looking along it
+            y = 2.0
+            cam["position"][1], cam["look_at"][1] = y, y
+            for x in sc.get("light", []):
+                if "position" in x:
+                    x["position"][1] = y
         elif spoil == "look at self":
             cam["look_at"] = list(cam["position"])
         else:
