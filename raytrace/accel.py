@@ -6,11 +6,13 @@ points, normals and every radiometric quantity after them are float64. Shadow ra
 an epsilon proportional to the scene's size. Embree treats coordinates beyond ~1.8e18 as infinite:
 a scene larger than 2^40 (or smaller than 2^-40) crosses the boundary divided by a power of two
 (`unit`, exact), so 1e30-metre scenes intersect as 1-metre ones. Embree releases the GIL, so `threads > 1` splits a
-batch over a thread pool.
+batch over a thread pool. Every scene of a process shares one Embree device (`_device`).
 """
 from __future__ import annotations
 
 import math
+import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -19,6 +21,26 @@ from .jit import njit
 
 CHUNK = 1 << 15
 UNIT_RANGE = 2.0 ** 40  # scenes whose size lies outside [1 / UNIT_RANGE, UNIT_RANGE] are rescaled for Embree
+
+
+_DEVICE: dict = {}  # process id -> the Embree device every scene of that process shares
+_DEVICE_LOCK = threading.Lock()
+
+
+def _device():
+    """The process's one Embree device. embreex makes a device per scene unless given one; after
+    ~2000 renders in one process (each scene's device created and destroyed, each render's tiles on
+    a new thread) Embree crashed in scene construction (twice in the fuzzer's slow runs, not
+    reproducible on demand); Embree's documentation advises one device per application. Keyed by
+    process id: a forked worker makes its own."""
+    pid = os.getpid()
+    with _DEVICE_LOCK:
+        if pid not in _DEVICE:
+            from embreex import rtcore
+
+            _DEVICE.clear()
+            _DEVICE[pid] = rtcore.EmbreeDevice()
+        return _DEVICE[pid]
 
 
 class Accelerator:
@@ -42,7 +64,7 @@ class Accelerator:
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
 
-            self._scene = rtcore_scene.EmbreeScene()
+            self._scene = rtcore_scene.EmbreeScene(_device())
             TriangleMesh(self._scene, self._to_embree(self.triangles))
 
     def _to_embree(self, a):

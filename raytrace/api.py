@@ -13,6 +13,7 @@ the method's own parameters; a parameter the method does not read is an error (U
 """
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -124,9 +125,11 @@ def _check_crop(crop, cam):
     return tuple(int(v) for v in crop)
 
 
-# bytes per pixel a render holds at its end: the float64 image (24), its variance (24, stochastic
-# methods), the float32 copy written to the EXR (12) and the PNG preview's working copy (24)
-PIXEL_BYTES, VARIANCE_BYTES = 60, 24
+# bytes per pixel a render holds at its peak: the float64 image (24), the float32 copies written to
+# the EXR (24) and the PNG preview's bands; stochastic methods add the progressive sums of radiance
+# and variance and the final variance with its EXR channels. Measured peak RSS growth of render.py
+# render (benchmarks/memory_peak.py, 4096 x 2048, with --png): 51 B a pixel (analytic), 99 (montecarlo)
+PIXEL_BYTES, VARIANCE_BYTES = 60, 60
 MEMORY_SHARE = 0.8  # of the machine's physical memory a render may plan to use
 
 
@@ -134,22 +137,36 @@ def physical_memory() -> int:
     return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
 
 
-def check_memory(cam, crop, stochastic: bool, source: str):
-    """Refuse, before anything is allocated, an image whose arrays would not fit in memory."""
+def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | None = None):
+    """Refuse, before anything is allocated, an image whose arrays would not fit in the budget:
+    `max_memory` GiB (--max-memory) if given, else MEMORY_SHARE of the machine's physical memory.
+    The refusal gives the figure and the fixes, with the rows a --crop band may have."""
+    if max_memory is not None and (isinstance(max_memory, bool) or not isinstance(max_memory, (int, float))
+                                   or not 0.0 < max_memory < math.inf):
+        raise UserError(f"--max-memory {max_memory}: must be a positive number of GiB, e.g. --max-memory 8")
     x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
-    need = (x1 - x0) * (y1 - y0) * (PIXEL_BYTES + (VARIANCE_BYTES if stochastic else 0))
-    limit = MEMORY_SHARE * physical_memory()
+    per_pixel = PIXEL_BYTES + (VARIANCE_BYTES if stochastic else 0)
+    need = (x1 - x0) * (y1 - y0) * per_pixel
+    if max_memory is None:
+        limit = MEMORY_SHARE * physical_memory()
+        budget = f"{limit / 2**30:.3g} GiB ({MEMORY_SHARE:.0%} of this machine's memory; --max-memory sets another)"
+    else:
+        limit = max_memory * 2**30
+        budget = f"the --max-memory budget of {max_memory:g} GiB"
     if need > limit:
+        rows = int(limit // ((x1 - x0) * per_pixel))
+        band = (f"render it in bands of at most {rows} rows with --crop (e.g. --crop {x0},{y0},{x1},{y0 + rows})"
+                if rows >= 1 else "render it in parts with --crop")
         raise UserError(f"{source}: camera {cam.width}x{cam.height}: the image needs about {need / 2**30:.3g} GiB, "
-                        f"more than {limit / 2**30:.3g} GiB ({MEMORY_SHARE:.0%} of this machine's memory); lower "
-                        "camera.width / camera.height (--width, --height) or render it in parts with --crop")
+                        f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
 
 
 def render(scene=None, method: str | None = None, *, spp: int | None = None, width: int | None = None,
            height: int | None = None, seed: int | None = None, threads: int | None = None, crop=None,
            volumetric_shadows: bool | None = None, shadow_spacing: float | None = None, passes: int | None = None, time_budget: float | None = None,
            target_error: float | None = None, checkpoint=None, checkpoint_interval: float = 0.0,
-           progress=None, on_pass=None, overrides=(), prepared=None, client=None, **params) -> Image:
+           progress=None, on_pass=None, overrides=(), prepared=None, client=None, max_memory: float | None = None,
+           **params) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
 
     Render options: spp, width, height (override the camera), seed, threads, crop = (x0, y0, x1, y1)
@@ -159,7 +176,8 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
     when it exists) and checkpoint_interval. `progress(done, total)` (tiles) and `on_pass(passes,
     error)` report progress; `overrides` are "key=value" strings as --set; `prepared` reuses a
     `renderer.prepare`d scene (geometry and accelerator) for repeated renders; `client`, a
-    `dask.distributed.Client`, renders the tiles on its cluster (the same image). Every other
+    `dask.distributed.Client`, renders the tiles on its cluster (the same image); `max_memory` (GiB)
+    is the budget the image's arrays must fit (default 80 % of physical memory). Every other
     keyword is a parameter of the method; the scene's [render] table supplies defaults for all of
     these."""
     from . import renderer
@@ -187,7 +205,7 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
     if progressive and not m.stochastic:
         raise UserError(f"--method {m.name}: deterministic; --passes, --time-budget, --target-error and "
                         "--checkpoint need a stochastic method such as montecarlo")
-    check_memory(cam, crop, m.stochastic, source)
+    check_memory(cam, crop, m.stochastic, source, max_memory)
     prep = prepared if prepared is not None else renderer.prepare(scene)
     if m.stochastic:
         from .progressive import render_progressive

@@ -78,6 +78,9 @@ def build_parser():
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--max-memory", type=float, metavar="GIB",
+                   help="memory budget of the image's arrays in GiB (default: 80%% of the machine's memory); a "
+                        "larger image is refused up front with the figure and the fix")
     r.add_argument("--volumetric-shadows", action="store_true",
                    help="shadowed air-light: light shafts behind occluders (render.volumetric_shadows)")
     r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
@@ -202,7 +205,8 @@ def cmd_render(args):
                          shadow_spacing=args.shadow_spacing,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
-                         progress=tile_done if bar else None, on_pass=report, client=client, **_given_params(args))
+                         progress=tile_done if bar else None, on_pass=report, client=client,
+                         max_memory=args.max_memory, **_given_params(args))
     except KeyboardInterrupt:
         raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
                                                      "the same command to resume" if ckpt else "")) from None

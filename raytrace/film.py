@@ -84,6 +84,9 @@ def read_exr(path) -> tuple[np.ndarray, dict]:
     return img, header
 
 
+TONEMAP_VALUES = 1 << 20  # float64 values per band of `tonemap` (a few 8 MB temporaries)
+
+
 def tonemap(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
     """8-bit sRGB preview. `exposure` in stops; None scales the 99.5th percentile of luminance to 1."""
     lum = image @ np.array([0.2126, 0.7152, 0.0722])
@@ -92,9 +95,13 @@ def tonemap(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
         scale = 1.0 / ref if ref > 0 and np.isfinite(ref) else 1.0
     else:
         scale = 2.0 ** exposure
-    x = np.clip(np.nan_to_num(image * scale, nan=0.0, posinf=1.0), 0.0, 1.0)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return (srgb * 255.0 + 0.5).astype(np.uint8)
+    out = np.empty(image.shape, np.uint8)
+    rows = max(1, TONEMAP_VALUES // max(1, image[0].size)) if image.ndim == 3 and len(image) else 1
+    for r in range(0, len(image), rows):  # in bands: the temporaries stay small (issue 15's memory estimate)
+        x = np.clip(np.nan_to_num(image[r:r + rows] * scale, nan=0.0, posinf=1.0), 0.0, 1.0)
+        srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+        out[r:r + rows] = srgb * 255.0 + 0.5
+    return out
 
 
 def write_png(path, rgb8: np.ndarray):

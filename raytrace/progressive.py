@@ -85,12 +85,19 @@ def _load(path: Path, fp: str):
         raise UserError(f"{path}: unreadable checkpoint; delete it to start afresh") from None
 
 
+BAND = 1 << 20  # values per band of `mean_relative_error`: its temporaries stay small (issue 15)
+
+
 def mean_relative_error(total, var_total, passes) -> float:
-    """Estimated mean relative standard error of the pixel estimates (floored at 1e-3 of the mean)."""
-    mean = total / passes
-    sd = np.sqrt(var_total) / passes
-    floor = max(1e-3 * float(np.mean(np.abs(mean))), 1e-300)
-    return float(np.mean(sd / np.maximum(np.abs(mean), floor)))
+    """Estimated mean relative standard error of the pixel estimates (floored at 1e-3 of the mean),
+    computed in bands of rows."""
+    total, var_total = total.reshape(-1), var_total.reshape(-1)
+    if not total.size:
+        return float("nan")
+    bands = [slice(i, i + BAND) for i in range(0, total.size, BAND)]
+    floor = max(1e-3 * sum(float(np.abs(total[b]).sum()) for b in bands) / total.size / passes, 1e-300)
+    return sum(float((np.sqrt(var_total[b]) / passes / np.maximum(np.abs(total[b] / passes), floor)).sum())
+               for b in bands) / total.size
 
 
 def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int = 0, *, passes: int | None = None,
@@ -137,8 +144,9 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
                 raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "
                                 "such as montecarlo")
-            state["total"] = state["total"] + result.image
-            state["var_total"] = state["var_total"] + result.variance
+            state["total"] += result.image  # in place, and the pass's arrays let go: the memory estimate
+            state["var_total"] += result.variance  # (api.check_memory) counts two image-sized sums
+            result.image = result.variance = None
             done += 1
             elapsed += result.seconds
             state["passes"], state["elapsed"] = np.array(done), np.array(elapsed)

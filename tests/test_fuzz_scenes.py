@@ -1,10 +1,28 @@
-"""A scene fuzzer (issue 15, first part): random box-room scenes across magnitudes, phase functions,
-point and spot lights (anywhere: inside, on walls, outside, on the camera), media from vacuum to
-1e300, every deterministic and stochastic method, with and without volumetric shadows. Each scene
-either renders an image of finite, non-negative pixels, or is refused with one line (UserError);
-never another exception. Fixed seed; 40 scenes by default, `-m slow` runs 1000.
+"""A scene fuzzer (issue 15): random scenes across the whole format, valid and near-valid.
+
+`scene()` draws every primitive (box, quad, sphere, cylinder) with and without transforms, point,
+spot and directional lights (anywhere: inside, on walls, outside, on the camera), homogeneous media
+(with and without `[medium.particles]`) and height fogs (exponential and linear), every phase, both
+cameras, magnitudes from 0 to 1e300; `render_args()` every registered method with random values of
+its own parameters (volumetric shadows, shadow_test, sampling modes). `near_valid()` then spoils one
+thing: a misspelt key, a number out of range, degenerate geometry. Each scene either renders an
+image of finite, non-negative pixels (and variances), or is refused with one line (UserError) that
+is not "this is a bug" and, for a spoiled scene, names the spoiled key; never another exception, never
+a numpy floating-point warning.
+
+`lit_scene()` aims at what most fuzzed scenes are not: lit, moderately thick box rooms (sigma_t h
+from 0.01 to 10 across the room, lights inside, an occluder, volumetric shadows on or off), on which
+every deterministic method must agree with `quadrature` within its own declared error law
+(`Method.error_law`, raytrace/methods/__init__.py, as tests/test_methods.py applies it).
+
+Fixed seed (derandomized); the suite runs a few dozen scenes, `pytest -m slow -k fuzz` runs 1000
+of each fuzzer and prints the counts of scenes rendered and refused.
 """
 from __future__ import annotations
+
+import collections
+import copy
+import math
 
 import numpy as np
 import pytest
@@ -13,79 +31,411 @@ from hypothesis import strategies as st
 
 import raytrace
 from raytrace.errors import UserError
+from raytrace.methods import registry
 
 from .conftest import box_room
 
+METHODS_BY_NAME = registry()
 MAGNITUDES = st.sampled_from([0.0, 1e-300, 1e-30, 1e-6, 0.01, 0.1, 1.0, 10.0, 1e6, 1e30, 1e150, 1e300])
+POSITIVE = st.sampled_from([1e-300, 1e-30, 1e-6, 0.01, 0.1, 1.0, 10.0, 1e6, 1e30, 1e300])
 # mostly inside the room ([-3, 3] x [-2, 2] x [-4, 4]), sometimes on or beyond its walls
 coord = st.one_of(st.floats(-1.875, 1.875, width=32), st.floats(-5.0, 5.0, width=32), st.sampled_from([-3.0, 2.0, 4.0]))
 vec = st.tuples(coord, coord, coord).map(list)
-phase = st.one_of(st.sampled_from(["isotropic", "rayleigh"]),
+# half the time a moderate value, so that a good share of the scenes is lit
+MAGNITUDE = st.one_of(st.floats(0.0, 2.0), MAGNITUDES)
+rgb = st.one_of(MAGNITUDE, st.tuples(MAGNITUDE, MAGNITUDE, MAGNITUDE).map(list))
+unit = st.floats(0.0, 1.0)
+colour = st.one_of(unit, st.tuples(unit, unit, unit).map(list))
+phase = st.one_of(st.sampled_from(["isotropic", "rayleigh", {"type": "rayleigh"}, {"type": "isotropic"}]),
                   st.floats(-0.999, 0.999, allow_nan=False).map(lambda g: {"type": "hg", "g": g}))
 
 
 @st.composite
-def light(draw):
-    out = {"position": draw(vec), "intensity": draw(st.one_of(MAGNITUDES, st.tuples(MAGNITUDES, MAGNITUDES,
-                                                                                    MAGNITUDES).map(list)))}
+def transform(draw):
+    out = {}
     if draw(st.booleans()):
-        cone = draw(st.one_of(st.sampled_from([1e-3, 0.5, 1.0, 30.0, 90.0, 179.0, 179.999]),
-                              st.floats(1e-3, 179.999)))
-        out.update(type="spot", direction=draw(vec), cone_angle=cone,
-                   falloff_start=draw(st.floats(0.0, 1.0)) * cone)
+        out["scale"] = draw(st.one_of(st.sampled_from([1e-30, 0.5, -1.0, 2.0, 1e30]),
+                                      st.tuples(*[st.sampled_from([-2.0, 0.5, 1.0, 3.0])] * 3).map(list)))
+    if draw(st.booleans()):
+        out["rotate"] = draw(st.tuples(*[st.floats(-360.0, 360.0)] * 3).map(list))
+    if draw(st.booleans()):
+        out["translate"] = draw(vec)
+    return out
+
+
+@st.composite
+def shape(draw):
+    kind = draw(st.sampled_from(["box", "quad", "sphere", "cylinder"]))
+    out = {"primitive": kind}
+    if kind == "box":
+        lo = draw(vec)
+        out.update(min=lo, max=[a + draw(st.sampled_from([1e-6, 0.1, 1.0, 4.0])) for a in lo])
+    elif kind == "quad":
+        a, b, c = draw(vec), draw(vec), draw(vec)
+        out["corners"] = [a, b, c, [a[i] + c[i] - b[i] for i in range(3)]]  # a parallelogram (or a line)
+    else:
+        out["radius"] = draw(st.sampled_from([1e-6, 0.1, 0.5, 1.5, 10.0]))
+        out["segments"] = draw(st.sampled_from([3, 4, 7, 12]))
+        if kind == "sphere":
+            out["center"] = draw(vec)
+        else:
+            out["base"], out["top"] = draw(vec), draw(vec)
+    if draw(st.booleans()):
+        out["reflectance"] = draw(colour)
+    if draw(st.integers(0, 3)) == 0:
+        out["transform"] = draw(transform())
+    return out
+
+
+@st.composite
+def light(draw, kinds=("point", "spot", "directional")):
+    kind = draw(st.sampled_from(kinds))
+    if kind == "directional":
+        return {"type": "directional", "direction": draw(vec), "irradiance": draw(rgb)}
+    out = {"position": draw(vec), "intensity": draw(rgb)}
+    if kind == "spot":
+        cone = draw(st.one_of(st.sampled_from([1e-3, 0.5, 1.0, 30.0, 90.0, 179.0, 179.999]), st.floats(1e-3, 179.999)))
+        axis = "direction" if draw(st.booleans()) else "look_at"
+        out.update(type="spot", cone_angle=cone, falloff_start=draw(unit) * cone, **{axis: draw(vec)})
+    elif draw(st.booleans()):
+        out["type"] = "point"
+    return out
+
+
+@st.composite
+def particles(draw):
+    out = {}
+    for k, s in (("density", unit), ("mu", st.floats(-2.0, 2.0)), ("sigma", st.sampled_from([1e-3, 0.2, 1.0])),
+                 ("cell", st.sampled_from([0.3, 1.0, 3.0])), ("offset", st.sampled_from([0.0, 0.5])),
+                 ("reflectance", unit), ("seed", st.integers(0, 2**63 - 1))):
+        if draw(st.booleans()):
+            out[k] = draw(s)
+    if draw(st.booleans()):
+        out["beta"] = draw(st.sampled_from([1e-3, 0.05, 1.0]))
+    elif draw(st.booleans()):
+        out["c1"], out["c2"] = draw(st.sampled_from([0.0, 0.05])), draw(st.sampled_from([0.0, 0.03, 1.0]))
+    return out
+
+
+@st.composite
+def medium(draw):
+    out = {"sigma_a": draw(rgb), "sigma_s": draw(rgb), "phase": draw(phase)}
+    if draw(st.booleans()):
+        out["type"] = "height_fog"
+        out["scale_height"] = draw(st.one_of(st.floats(0.1, 10.0), POSITIVE))
+        for k, s in (("up", vec.filter(lambda v: any(v))), ("h0", coord),
+                     ("profile", st.sampled_from(["exponential", "linear"]))):
+            if draw(st.booleans()):
+                out[k] = draw(s)
+    elif draw(st.integers(0, 3)) == 0 and np.any(np.asarray(out["sigma_s"]) > 0):
+        out["particles"] = draw(particles())
     return out
 
 
 @st.composite
 def scene(draw):
     cam = {"type": draw(st.sampled_from(["perspective", "environment"])), "position": draw(vec),
-           "look_at": draw(vec), "width": 4, "height": 3, "spp": 1}
+           "look_at": draw(vec), "width": 4, "height": 3, "spp": draw(st.sampled_from([1, 1, 2]))}
+    if draw(st.booleans()):
+        cam["fov"] = draw(st.sampled_from([1e-3, 10.0, 70.0, 179.0]))
+    if draw(st.integers(0, 3)) == 0:
+        cam["up"] = draw(vec)
     lights = draw(st.lists(light(), min_size=0, max_size=3))
-    if lights and draw(st.booleans()):
-        lights[0]["position"] = list(cam["position"])  # a camera on a light
-    medium = {"sigma_a": draw(MAGNITUDES), "sigma_s": draw(MAGNITUDES), "phase": draw(phase)}
-    return box_room(camera=cam, light=lights, medium=medium)
+    point_like = [x for x in lights if x.get("type") != "directional"]
+    if point_like and draw(st.booleans()):
+        point_like[0]["position"] = list(cam["position"])  # a camera on a light
+    room = draw(st.integers(0, 3)) > 0
+    sc = box_room(camera=cam, light=lights, medium=draw(medium()))
+    sc["shape"] = (sc["shape"] if room else []) + draw(st.lists(shape(), min_size=0 if room else 1, max_size=2))
+    if draw(st.integers(0, 3)) == 0:
+        sc["background"] = {"radiance": draw(colour)}
+    if not lights:
+        del sc["light"]
+    return sc
 
 
-METHODS = [("analytic", {"precision": 1e-4}), ("quadrature", {"rtol": 1e-6}), ("raymarch", {"steps": 8}),
-           ("montecarlo", {"samples": 2}), ("lecocq", {}), ("sun", {})]
+# the values a fuzzed method parameter takes: within the declared range, capped where the cost grows
+CHEAP = {"precision": [1e-8, 1e-4, 1e-3, 0.1], "max_iter": [1, 3, 1000], "terms": [1, 3, 6, 40], "rtol": [1e-12, 1e-6, 0.5],
+         "steps": [1, 3, 64], "step": [0.0, 0.05, 1.0, 1e3], "tau_max": [1e-3, 1.0, 20.0, 700.0],
+         "table_size": [2, 3, 64], "u_max": [1e-3, 1.0, 10.0, 1e3], "samples": [1, 2]}
 
 
-def check(sc, method, params, shadows):
+@st.composite
+def render_args(draw, methods=tuple(METHODS_BY_NAME)):
+    """(method, its parameters, volumetric shadows): each parameter drawn or left at its default."""
+    name = draw(st.sampled_from(methods))
+    params = {}
+    for k, p in METHODS_BY_NAME[name].params.items():
+        if not draw(st.booleans()):
+            continue
+        params[k] = draw(st.sampled_from(p.choices) if p.choices else st.booleans() if p.type is bool
+                         else st.sampled_from([v for v in CHEAP[k] if p.accepts(v)]))
+    shadows = draw(st.booleans())
+    if params.get("shadow_test") == "samples" and not shadows:
+        shadows = draw(st.booleans())
+    return name, params, shadows
+
+
+def _rename(table: dict, draw) -> str:
+    # not type or primitive: without them the table's other keys are the first thing wrong
+    k = draw(st.sampled_from(sorted(set(table) - {"type", "primitive"})))
+    bad = k + "s" if not k.endswith("s") else k[:-1]
+    table[bad] = table.pop(k)
+    return bad
+
+
+@st.composite
+def near_valid(draw):
+    """(scene, render args, spoilt scene, its render args, what its refusal must name if the scene
+    itself renders): one thing spoilt; None where the spoilt scene is legal (degenerate geometry)."""
+    base, base_args = draw(scene()), draw(render_args())
+    sc, args = copy.deepcopy(base), base_args
+    return (base, base_args, *draw(_spoil(sc, args)))
+
+
+@st.composite
+def _spoil(draw, sc, args):
+    how = draw(st.sampled_from(["misspelt", "range", "degenerate", "parameter"]))
+    if how == "misspelt":
+        where = draw(st.sampled_from([k for k in ("camera", "medium", "light", "shape") if k in sc]))
+        table = sc[where] if isinstance(sc[where], dict) else draw(st.sampled_from(sc[where]))
+        return sc, args, _rename(table, draw)
+    if how == "range":
+        spoil = draw(st.sampled_from([
+            ("camera", "fov", [0.0, 180.0, -1.0]), ("camera", "width", [0, -4]), ("camera", "spp", [0]),
+            ("camera", "position", [[0.0, math.inf, 0.0], [math.nan, 0.0, 0.0], [1.0, 2.0]]),
+            ("medium", "sigma_s", [-1.0, math.inf, [0.1, -0.1, 0.1], 1e309]), ("medium", "sigma_a", [-1e-300]),
+            ("medium", "phase", [{"type": "hg", "g": 1.0}, {"type": "hg", "g": -1.5}, "mie"]),
+            ("medium", "scale_height", [0.0, -1.0]), ("medium", "profile", ["cubic"]),
+            ("medium", "type", ["fog"]), ("light", "intensity", [-1.0, 1e151]), ("light", "cone_angle", [0.0, 180.0, 200.0]),
+            ("light", "type", ["area"]), ("shape", "reflectance", [1.5, -0.1]), ("shape", "segments", [2, 10**9]),
+            ("shape", "radius", [0.0, -1.0]), ("background", "radiance", [-1.0])]))
+        table, key, values = spoil
+        if table == "background":
+            sc["background"] = {}
+        if table not in sc:
+            return sc, args, None
+        target = sc[table] if isinstance(sc[table], dict) else draw(st.sampled_from(sc[table]))
+        target[key] = draw(st.sampled_from(values))
+        return sc, args, key
+    if how == "degenerate":
+        spoil = draw(st.sampled_from(["flat box", "point quad", "line quad", "zero cylinder", "tiny sphere",
+                                      "look at self", "up along view", "grazing"]))
+        cam = sc["camera"]
+        if spoil == "flat box":
+            sc.setdefault("shape", []).append({"primitive": "box", "min": [0.0, 0.0, 0.0], "max": [1.0, 0.0, 1.0]})
+            return sc, args, "max"
+        if spoil in ("point quad", "line quad"):
+            a = draw(vec)
+            b = a if spoil == "point quad" else [x + 1.0 for x in a]
+            sc.setdefault("shape", []).append({"primitive": "quad", "corners": [a, a, b, b]})
+        elif spoil == "zero cylinder":
+            a = draw(vec)
+            sc.setdefault("shape", []).append({"primitive": "cylinder", "base": a, "top": a, "radius": 1.0})
+        elif spoil == "tiny sphere":
+            sc.setdefault("shape", []).append({"primitive": "sphere", "center": draw(vec), "radius": 1e-300,
+                                               "segments": 3})
+        elif spoil == "grazing":  # camera and light on the room's ceiling, looking along it
+            y = 2.0
+            cam["position"][1], cam["look_at"][1] = y, y
+            for x in sc.get("light", []):
+                if "position" in x:
+                    x["position"][1] = y
+        elif spoil == "look at self":
+            cam["look_at"] = list(cam["position"])
+        else:
+            cam["up"] = [cam["look_at"][i] - cam["position"][i] for i in range(3)]
+        return sc, args, None
+    name, params, shadows = args
+    spoilable = [k for k, p in METHODS_BY_NAME[name].params.items() if p.choices or p.low is not None or p.high is not None]
+    if not spoilable:
+        return sc, (name, {"precision": 1e-3}, shadows), "precision"  # a parameter of another method
+    k = draw(st.sampled_from(spoilable))
+    p = METHODS_BY_NAME[name].params[k]
+    bad = draw(st.sampled_from(["nonsense"] if p.choices else [v for v in (
+        p.low - 1.0 if p.low is not None else None, p.low if p.open_low else None,
+        p.high * 2.0 + 1.0 if p.high is not None else None, math.nan) if v is not None]))
+    return sc, (name, {**params, k: bad}, shadows), k.replace("_", "-")
+
+
+OUTCOMES = collections.Counter()
+
+
+def check(sc, method, params, shadows, names=None):
+    """Render: finite non-negative pixels, or a one-line refusal (naming `names` if given)."""
     try:
         img = raytrace.render(sc, method=method, threads=1, volumetric_shadows=shadows, **params)
     except UserError as exc:
         msg = str(exc)
         assert msg and "\n" not in msg and "this is a bug" not in msg, msg
-        return
+        assert names is None or names in msg, (names, msg)
+        OUTCOMES["refused"] += 1
+        return None
     assert np.all(np.isfinite(img.array)) and np.all(img.array >= 0.0), (sc, method)
     if img.variance is not None:
         assert np.all(np.isfinite(img.variance)) and np.all(img.variance >= 0.0)
+    OUTCOMES["rendered, lit" if np.any(img.array > 0) else "rendered, black"] += 1
+    return img
+
+
+def fuzz_settings(examples):
+    # derandomized; shrinking on: the embreex crash after ~2000 scenes that had it turned off did not
+    # recur (5000 accelerators built and dropped, or queried from fresh threads: RSS +0.1 / +2 MiB,
+    # threads and mappings constant; 2000 whole renders: +14 MiB, flat after the first 400; three slow
+    # runs shrinking failures for 5-10 minutes each without a crash)
+    return settings(max_examples=examples, derandomize=True, deadline=None, database=None,
+                    suppress_health_check=list(HealthCheck))
 
 
 def _fuzz(examples):
-    # no shrinking: it renders thousands of scenes in one process, and after ~2000 Embree scenes the
-    # process crashed in embreex's scene construction (a leak to look into); failures print unshrunk
-    @settings(max_examples=examples, derandomize=True, deadline=None, database=None,
-              suppress_health_check=list(HealthCheck), phases=(Phase.explicit, Phase.generate))
-    @given(scene(), st.sampled_from(METHODS), st.booleans())
-    def run(sc, method, shadows):
-        check(sc, method[0], method[1], shadows)
+    @fuzz_settings(examples)
+    @given(scene(), render_args())
+    def valid(sc, args):
+        check(sc, *args)
 
-    run()
+    @fuzz_settings(examples)
+    @given(near_valid())
+    def spoilt(case):
+        base, base_args, sc, args, names = case
+        rendered = check(base, *base_args) is not None
+        check(sc, *args, names=names if rendered else None)
+
+    with np.errstate(over="raise", invalid="raise", divide="raise", under="ignore"):  # a numpy warning fails too
+        valid()
+        spoilt()
 
 
 def test_fuzzed_scenes_render_or_refuse():
-    with np.errstate(over="raise", invalid="raise", divide="raise"):  # a numpy warning fails the scene too
-        _fuzz(40)
+    _fuzz(30)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="finds the open bug of test_regression_camera_on_a_spot_light_in_an_ultra_"
-                   "dense_medium (1000 scenes passed before intensities of 1e150 joined the strategies)")
 def test_fuzzed_scenes_render_or_refuse_many():
-    with np.errstate(over="raise", invalid="raise", divide="raise"):
-        _fuzz(1000)
+    OUTCOMES.clear()
+    _fuzz(1000)
+    print(f"\nfuzzed scenes: {dict(OUTCOMES)}")
+    assert OUTCOMES["rendered, lit"] >= 100  # not vacuous
+
+
+inside = st.floats(-1.75, 1.75)
+inside_vec = st.tuples(inside, inside, inside).map(list)
+coefficient = st.floats(0.01, 2.0)
+away = inside_vec.filter(lambda v: max(abs(v[0]), abs(v[2])) > 0.1)  # a view or spot axis, not along up
+# held to their law on every lit scene; lecocq and sun (the papers' approximations: an unclamped Taylor
+# polynomial in angle, a bilinear table) are only measured: their declared laws (median 0.75, 3e-4)
+# hold on the oracle's box rooms but not here (measured medians up to 4e4 and 1.7e-3 on 150 scenes:
+# lecocq's polynomial diverges far from the foot point, sun's table is coarse near the light's line)
+HELD = ("analytic", "raymarch")
+MEASURED = ("lecocq", "sun")
+WORST = {}
+
+
+@st.composite
+def lit_scene(draw):
+    """A lit, moderately thick box room: camera and 1-2 point or spot lights inside (not within 0.1 of
+    the camera: on it the air-light is the regularisation's, geometry.py, which no sampling resolves), sigma_t from
+    0.01 to 4 per unit (optical depths ~0.01 ... 30 across the room), any phase, walls of any
+    reflectance, sometimes an occluder (a sphere or a quad) for the volumetric shadows."""
+    pos, view = draw(inside_vec), draw(away)
+    lights = draw(st.lists(light(kinds=("point", "spot")), min_size=1, max_size=2))
+    for x in lights:  # off the camera: there the air-light is infinite, a regularisation's convention
+        x["position"] = draw(inside_vec.filter(lambda v: math.dist(v, pos) > 0.1))
+        x["intensity"] = draw(st.floats(0.1, 100.0))
+        if "look_at" in x:
+            x["look_at"] = [p + v for p, v in zip(x["position"], draw(away))]
+    cam = {"type": draw(st.sampled_from(["perspective", "environment"])), "position": pos,
+           "look_at": [p + v for p, v in zip(pos, view)], "width": 4, "height": 3, "spp": 1}
+    med = {"sigma_a": draw(st.one_of(st.just(0.0), coefficient)),
+           "sigma_s": draw(st.one_of(coefficient, st.tuples(coefficient, coefficient, coefficient).map(list))),
+           "phase": draw(phase)}
+    sc = box_room(camera=cam, light=lights, medium=med)
+    sc["shape"][0]["reflectance"] = draw(colour)
+    occluder = draw(st.sampled_from([None, "sphere", "quad"]))
+    if occluder == "sphere":
+        sc["shape"].append({"primitive": "sphere", "center": draw(inside_vec), "radius": draw(st.floats(0.1, 0.8)),
+                            "segments": 8})
+    elif occluder == "quad":
+        y = draw(inside)
+        sc["shape"].append({"primitive": "quad", "corners": [[-1.0, y, -2.0], [1.0, y, -2.0], [1.0, y, 0.0],
+                                                             [-1.0, y, 0.0]]})
+    return sc
+
+
+def law_statistic(law, img, ref):
+    """The law's statistic (tests/test_methods.py) of `img` against the quadrature image `ref`."""
+    lit = ref > 0
+    rel = np.abs(img - ref)[lit] / ref[lit]
+    return float(rel.max() if law.statistic == "max" else np.median(rel)) if lit.any() else 0.0
+
+
+def check_laws(sc, shadows):
+    """Every method of HELD that takes the scene meets its law against quadrature (MEASURED ones
+    record their worst statistic in WORST); returns the number of comparisons made. raymarch is held to its order, O(h^2) (midpoint rule, exact lit
+    intervals): halving the step divides its median error by at least ORDER_RATIO. Its declared
+    absolute law (median 5e-8 at 4096 steps) was measured on the oracle's scenes and does not
+    carry over to thick media, where the error scales as (kt h)^2: 8e-7 measured on these scenes."""
+    ref = raytrace.render(sc, method="quadrature", threads=1, volumetric_shadows=shadows,
+                          **METHODS_BY_NAME["quadrature"].error_law.params).array
+    OUTCOMES["lit" if np.any(ref > 0) else "black"] += 1
+    floor = falloff_floor(sc)
+    done = 0
+    for name in HELD + MEASURED:
+        law = METHODS_BY_NAME[name].error_law
+        try:
+            if name == "raymarch":
+                coarse, fine = (law_statistic(law, raytrace.render(sc, method=name, threads=1, volumetric_shadows=shadows,
+                                                                    steps=n).array, ref) for n in ORDER_STEPS)
+                assert fine <= coarse / ORDER_RATIO + ORDER_FLOOR + floor, \
+                    f"raymarch: median {coarse:.3g} at {ORDER_STEPS[0]} steps, {fine:.3g} at {ORDER_STEPS[1]} on {sc} " \
+                    f"shadows={shadows}"
+            else:
+                img = raytrace.render(sc, method=name, threads=1, volumetric_shadows=shadows, **law.params).array
+                value = law_statistic(law, img, ref)
+                WORST[name] = max(WORST.get(name, 0.0), value)
+                assert name in MEASURED or value <= law.tolerance + floor, \
+                    f"{name}: {law.statistic} {value:.3g} > {law.tolerance:g} on {sc} shadows={shadows}"
+        except UserError as exc:  # a light or phase the method does not take, said so
+            assert "--method" in str(exc) or "method " in str(exc), str(exc)
+            continue
+        OUTCOMES[name] += 1
+        done += 1
+    return done
+
+
+def falloff_floor(sc) -> float:
+    """The relative accuracy every method shares in a scene with narrow spots: the falloff is a
+    smoothstep in the cosine to the axis (lights.py) whose argument divides by about 1 - cos(cone)
+    = 2 sin^2(cone / 2), so rounding of the cosine (eps) becomes eps / (1 - cos) of it; 10 times that
+    (a 0.001-degree cone: 1.5e-5; measured floors: raymarch 9e-8 at every step count, analytic 2e-7;
+    0.01 degrees: 2e-9)."""
+    cones = [math.radians(x["cone_angle"]) for x in sc.get("light", []) if x.get("type") == "spot"]
+    return max([10.0 * 2.2e-16 / (2.0 * math.sin(c / 2.0) ** 2) for c in cones], default=0.0)
+
+
+ORDER_STEPS = (512, 1024)
+ORDER_RATIO = 3.6  # measured 4.00 (16 where the leading term vanishes by symmetry) on 40 scenes
+ORDER_FLOOR = 1e-12  # the reference's own error (quadrature's law: 3e-13)
+
+
+def _agree(examples):
+    @fuzz_settings(examples)
+    @given(lit_scene(), st.booleans())
+    def agree(sc, shadows):
+        check_laws(sc, shadows)
+
+    agree()
+
+
+def test_deterministic_methods_meet_their_law_on_fuzzed_lit_scenes():
+    _agree(12)
+
+
+@pytest.mark.slow
+def test_deterministic_methods_meet_their_law_on_fuzzed_lit_scenes_many():
+    OUTCOMES.clear()
+    _agree(300)
+    print(f"\nlit scenes (reference images lit / black) and comparisons per method: {dict(OUTCOMES)}; "
+          f"worst statistic of the measured methods: {WORST}")
 
 
 CAMERA_ON_SPOT_IN_ULTRA_DENSE_MEDIUM = box_room(
@@ -97,7 +447,60 @@ CAMERA_ON_SPOT_IN_ULTRA_DENSE_MEDIUM = box_room(
     medium={"sigma_a": 1.0, "sigma_s": 1e300, "phase": "isotropic"})
 
 
-@pytest.mark.xfail(strict=True, reason="open bug found by the slow fuzz run: NaN pixels (a camera on a spot light "
-                   "in a medium of sigma_s 1e300, analytic, volumetric shadows)")
+def test_regression_ultra_dense_height_fog_renders_black_without_a_warning():
+    """Was a numpy 'overflow in multiply' (the fuzzer): a height fog of sigma_a up to 1e300 and scale
+    height 1e-300, the camera far below h0 (a linear profile's density ~1e300 there): kt tau
+    overflows to inf in the transmittance, whose exp(-inf) = 0 is exact. Every optical path here is
+    beyond 1e299, so the image is exactly 0."""
+    sc = box_room(camera={"type": "environment", "position": [2.0, -1.9, 0.0], "look_at": [-3.0, 4.0, 0.0],
+                          "width": 4, "height": 3},
+                  light=[{"position": [2.0, -1.9, 0.0], "intensity": 1e30}],
+                  medium={"type": "height_fog", "sigma_a": [1e30, 1.0, 1e300], "sigma_s": 0.1, "scale_height": 1e-300,
+                          "up": [2.0, 4.0, 0.95], "profile": "linear"})
+    for method in ("quadrature", "raymarch", "montecarlo"):
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            img = raytrace.render(sc, method=method, threads=1)
+        assert np.array_equal(img.array, np.zeros_like(img.array)), method
+
+
 def test_regression_camera_on_a_spot_light_in_an_ultra_dense_medium():
-    check(CAMERA_ON_SPOT_IN_ULTRA_DENSE_MEDIUM, "analytic", {"precision": 1e-4}, True)
+    """Was NaN: the segments start at the light, whose distance to the ray line is clamped to the
+    regularisation radius h (methods/geometry.py) while d_a stayed 0, so analytic's optical path
+    started at 0 instead of h (e^0 against e^{-kt h} = 0). Every exp(-1e300 x) is 0 here: so is the image."""
+    img = raytrace.render(CAMERA_ON_SPOT_IN_ULTRA_DENSE_MEDIUM, method="analytic", threads=1,
+                          volumetric_shadows=True, precision=1e-4)
+    assert np.array_equal(img.array, np.zeros_like(img.array))
+
+
+@pytest.mark.parametrize("light", [{}, {"type": "spot", "direction": [0.0, 0.0, -1.0], "cone_angle": 60.0,
+                                        "falloff_start": 40.0}], ids=["point", "spot"])
+@pytest.mark.parametrize("sigma_s", [1e6, 1e8, 1e10])
+def test_regression_camera_on_a_light_analytic_meets_its_law(light, sigma_s):
+    """The same cause away from underflow: a camera on a light in a medium with kt h from 5e-3 to 50
+    (h the 5e-9 m regularisation radius). Before the fix analytic was 0.4 % (1e6), 49 % (1e8) and
+    2e17 times (1e10) off quadrature; now within its declared law (methods/__init__.py ErrorLaw)."""
+    law = METHODS_BY_NAME["analytic"].error_law
+    sc = box_room(light=[{"position": [0.3, 0.2, 3.0], "intensity": 10.0, **light}],
+                  medium={"sigma_a": 0.0, "sigma_s": sigma_s, "phase": "isotropic"},
+                  camera={"type": "perspective", "position": [0.3, 0.2, 3.0], "look_at": [0.0, 0.0, -1.0],
+                          "fov": 70.0, "width": 4, "height": 3, "spp": 1})
+    ref = raytrace.render(sc, method="quadrature", threads=1, **METHODS_BY_NAME["quadrature"].error_law.params).array
+    img = raytrace.render(sc, method="analytic", threads=1, **law.params).array
+    assert np.all(ref > 0)
+    assert np.max(np.abs(img - ref) / ref) <= law.tolerance
+
+
+@pytest.mark.parametrize("shadow_test", ["intervals", "samples"])
+def test_regression_raymarch_in_a_subnormal_medium(shadow_test):
+    """Was NaN pixels ("this is a bug", lit intervals) or numpy 'invalid value in divide' (shadow ray
+    per sample), found by the slow fuzz run: rays that hit nothing march to tau_max / kt, which
+    overflowed to inf for sigma_s = 1e-310; the march now ends at raymarch.MAX_END at most."""
+    sc = {"camera": {"type": "perspective", "position": [0.0, 1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "width": 4,
+                     "height": 3, "up": [0.0, 0.0, 1.0]},
+          "shape": [{"primitive": "box", "min": [0.0, 0.0, 0.0], "max": [1e-06, 1e-06, 1e-06]}],
+          "light": [{"position": [0.0, 0.0, 0.0], "intensity": 1.0}],
+          "medium": {"sigma_a": 0.0, "sigma_s": 1e-310, "phase": "isotropic"}}
+    with np.errstate(over="raise", invalid="raise", divide="raise"):
+        img = raytrace.render(sc, method="raymarch", threads=1, volumetric_shadows=True, shadow_test=shadow_test)
+    assert np.all(np.isfinite(img.array)) and np.all(img.array >= 0.0)
+    assert np.all(img.array < 1e-300)  # at most ks I pi / (4 pi h) ~ 1e-310 / h, h > 0.1 here

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import pytest
 
+import raytrace
 from raytrace.cli import main
+from raytrace.errors import UserError
 
 from .conftest import box_room
 
@@ -101,3 +103,34 @@ def test_a_huge_scene_in_proportion_renders_as_the_small_one():
     a = raytrace.render(small, method="analytic", precision=1e-6, threads=1).array
     b = raytrace.render(big, method="analytic", precision=1e-6, threads=1).array
     assert np.max(np.abs(b - a) / a) < 1e-5
+
+
+@pytest.mark.parametrize("primitive", ["sphere", "cylinder"])
+def test_too_many_segments_refused_before_tessellation(primitive):
+    """segments = 1e9 hung tessellating (the fuzzer's 'number out of range'); 2048 is the most."""
+    extra = {"center": [0.0, 0.0, 0.0]} if primitive == "sphere" else {"base": [0.0, 0.0, 0.0], "top": [0.0, 1.0, 0.0]}
+    sc = box_room()
+    sc["shape"].append({"primitive": primitive, "radius": 1.0, "segments": 10**9, **extra})
+    with pytest.raises(UserError, match=r"shape\[1\]\.segments: must be at most 2048"):
+        raytrace.render(sc, method="analytic", threads=1)
+
+
+def test_max_memory_sets_the_budget_with_the_figure_and_the_fix(write_scene, tmp_path, capsys):
+    """--max-memory GiB: a 1000 x 1000 analytic image needs 1000^2 x 60 B = 0.0559 GiB; with a budget of
+    0.01 GiB it is refused before rendering, naming the budget and a --crop band that fits
+    (0.01 GiB / (1000 x 60 B) = 178 rows); with 1 GiB the same command renders a small crop."""
+    path = write_scene(box_room())
+    out = tmp_path / "x.exr"
+    args = ["render", str(path), "--width", "1000", "--height", "1000", "--out", str(out), "--quiet"]
+    assert main(args + ["--max-memory", "0.01"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "0.0559 GiB" in err and "--max-memory budget of 0.01 GiB" in err, err
+    assert "bands of at most 178 rows with --crop (e.g. --crop 0,0,1000,178)" in err, err
+    assert not out.exists()
+    assert main(args + ["--max-memory", "1", "--crop", "0,0,4,3"]) == 0 and out.exists()
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("inf"), float("nan"), True, "8G"])
+def test_max_memory_must_be_a_positive_number_of_gib(bad):
+    with pytest.raises(UserError, match="--max-memory .*: must be a positive number of GiB"):
+        raytrace.render(box_room(), method="analytic", threads=1, max_memory=bad)

@@ -108,7 +108,7 @@ class Medium:
         ray_columns(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float),
                     np.ascontiguousarray(a), np.ascontiguousarray(b), *self.fog, tau)
         kt = self.sigma_t
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # kt tau = inf (sigma 1e300, H 1e-300): exp(-inf) = 0
             tr = np.exp(-kt[None, :] * tau[:, None])
         return np.where(kt[None, :] == 0.0, 1.0, tr)
 

@@ -5,7 +5,11 @@ the light's projection coordinate, h = |(p - o) x w| its distance to the ray lin
 product, which keeps full relative precision when the light is near the line), d_a = |p - o|. h is
 clamped to H_MIN_REL times the larger of d_a and the scene's size (`Segments.scale`): the light is
 treated as a sphere of that radius, so that a ray through a light, even a camera placed on a light,
-gives a large but finite air-light (a true point light on the ray gives an infinite one).
+gives a large but finite air-light (a true point light on the ray gives an infinite one). Where h is
+clamped, d_a is that of the clamped geometry, sqrt(h^2 + x_h^2): a segment starting at the light
+(a camera on a light) has d_a = h, not 0, so the optical path x + d is at least h all along it, as
+the integrand has it (with d_a = 0 analytic's folded exponentials started at e^0 where the integrand
+is e^{-kt h}: NaN for kt h beyond ~745).
 """
 import math
 
@@ -31,7 +35,10 @@ def ray_light(ox, oy, oz, wx, wy, wz, px, py, pz, scale):
     cz = rx * wy - ry * wx
     h = math.sqrt(cx * cx + cy * cy + cz * cz)
     da = math.sqrt(rx * rx + ry * ry + rz * rz)
-    h = max(h, H_MIN_REL * max(da, scale), 1e-300)
+    h_min = max(H_MIN_REL * max(da, scale), 1e-300)
+    if h < h_min:  # on the sphere of radius h_min, d_a is the distance d(0) of the clamped geometry, never < h
+        h = h_min
+        da = math.hypot(h, xh)
     return xh, h, da
 
 

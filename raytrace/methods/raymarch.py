@@ -82,14 +82,17 @@ def evaluate_segments(xh, h, ell, keys, seed, kt, ks, code, g, cone, steps, step
         out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, code, g, cone[s], steps, step, tau_max, xi, stats)
 
 
+MAX_END = 1e150  # the farthest march: squared distances to its points stay finite
+
+
 @njit
 def _count(ell, kt, steps, step, tau_max):
     """(sample count, step length, 1.0 if the count was capped at MAX_STEPS) of the march of one
-    segment and channel. Rays that hit nothing end at tau_max / kt (kt = 0 implies ks = 0: an
-    empty march)."""
+    segment and channel. Rays that hit nothing end at tau_max / kt, at most MAX_END (kt = 0 implies
+    ks = 0: an empty march)."""
     end = ell
-    if end == math.inf:
-        end = tau_max / kt if kt > 0.0 else 0.0
+    if end == math.inf:  # MAX_END: tau_max / kt overflowed to inf for kt below ~1e-307 (points at inf: NaN)
+        end = min(tau_max / kt, MAX_END) if kt > 0.0 else 0.0
     if not step > 0.0:
         n = max(1, steps)
         return n, end / n, 0.0

@@ -175,6 +175,7 @@ PRIMITIVE_KEYS = {
 }
 SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
+MAX_SEGMENTS = 2048  # a sphere of 2048 segments: 4.2 million triangles, ~0.3 GB (segments = 1e9 hung)
 
 
 def _transform(ctx, key, raw):
@@ -207,6 +208,9 @@ def _shape(ctx, i, raw):
         for k in sorted(PRIMITIVE_KEYS[kind]):
             if k == "segments":
                 params[k] = _number(ctx, f"{key}.segments", raw.get(k, 32), integer=True, minimum=3)
+                if params[k] > MAX_SEGMENTS:
+                    ctx.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS} (a sphere of n segments has about n^2 "
+                             f"triangles), got {params[k]!r}", "use fewer segments")
             elif k == "radius":
                 if k not in raw:
                     ctx.fail(f"{key}.radius", "missing", f"add {key}.radius = 1.0")
