@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import inside_paths
 from .errors import UserError
 from .lights import DIRECTIONAL, POINT, Lights
 from .media.medium import HOMOGENEOUS
 from .media.slab import APPROX, CLOSED, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays, transmittances
 from .methods.geometry import segment_light_table
+from .methods.quadrature import CAPPED
 from .shading import facing_normals
 
 MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
@@ -78,15 +80,19 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
         if m.ior != 1.0 and "point" in kinds and method.name == "slab_approx":
             raise UserError(f"{source}: shape[{i}].interior.ior: the seed's approximation is for index-matched "
                             "boundaries with point lights; use ior = 1, or --method quadrature")
-    inside = camera_inside(prep, inner)
+    inside = inside_of(prep, prep.scene.camera.position, inner)
     if inside is not None:
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
                         "bounded medium is not supported yet, move the camera out of the shape")
+    for li in np.nonzero(prep.lights.kind == POINT)[0]:
+        inside = inside_of(prep, prep.lights.position[li], inner)
+        if inside is not None:
+            raise UserError(f"{source}: light[{li}].position: inside shape[{inside}], which holds a medium; lights "
+                            "inside bounded media are not supported yet, move the light out of the shape")
 
 
-def camera_inside(prep, inner) -> int | None:
-    """The first shape of `inner` that contains the camera (odd number of crossings of a ray), else None."""
-    o = prep.scene.camera.position
+def inside_of(prep, o, inner) -> int | None:
+    """The first shape of `inner` that contains the point o (odd number of crossings of a ray), else None."""
     d = np.array([0.5773502691896258, 0.5773502691896257, 0.5773502691896259]) + np.array([1e-3, -2e-3, 0.0])
     d /= np.linalg.norm(d)
     tris = prep.accel.triangles
@@ -187,6 +193,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     slab_approx, which keep the seed's entry plane."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
+    traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
     geo = np.zeros((len(points), 9))
     geo[:, :3], geo[:, 3:6] = points, w
     lights = prep.lights
@@ -224,6 +231,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 lh = rel - hl[:, None] * normals
                 wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
                 ll = np.einsum("ij,ij->i", lh, lh)
+        if traced and mode in (QUAD, MARCH, SAMPLE):
+            _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale, mode,
+                    rtol, steps, tau_max, keys, STREAM + (depth * len(lights) + li) * steps, seed, out, var, stats)
+            continue
         for c in range(3):
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
             if ks == 0.0 or lights.intensity[li, c] == 0.0:
@@ -239,6 +250,28 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
     return out, var
+
+
+def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
+            stats):
+    """out, var += one light's single scattering over the segments of a non-convex index-matched
+    shape, the light's straight paths measured with Embree (inside_paths.py)."""
+    ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
+    if not len(ch):
+        return
+    kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
+    args = (prep, sid, geo, distant, ell, kts, kss, medium.phase, medium.g, kt_outs)
+    v = np.zeros((len(ell), len(ch)))
+    if mode == QUAD:
+        capped = np.zeros(1)
+        val = inside_paths.segment_quadrature(*args, rtol, capped)
+        stats[CAPPED] += capped[0]
+    elif mode == MARCH:
+        val = inside_paths.segment_march(*args, steps, tau_max)
+    else:
+        val, v = inside_paths.segment_samples(*args, steps, keys, dim0, seed)
+    out[:, ch] += val * intensity[ch]
+    var[:, ch] += v * intensity[ch] ** 2
 
 
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
