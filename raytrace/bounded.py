@@ -148,6 +148,34 @@ def warm_up_rays(prep, origins, dirs):
             np.concatenate([dirs, np.array(extra)]))
 
 
+def shadow_through(prep):
+    """The shading's `through(li, points)` for a scene with index-matched interiors (else None): the
+    transmittance toward light li of the interiors the straight shadow path crosses,
+    exp(-(sigma_t inside - sigma_t outside) x length inside) each (the outside's own transmittance is
+    the shading's); 0 where an opaque surface or a refractive interior blocks it (a refracted shadow
+    would be a caustic, beyond single scattering)."""
+    if prep.interior_shapes is None:
+        return None
+    matched = [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior == 1.0]
+    if not matched:
+        return None
+    kt = np.array([prep.scene.shapes[i].interior.sigma_t for i in matched]) - prep.scene.medium.sigma_t[None, :]
+    lights = prep.lights
+
+    def through(li, points):
+        if lights.kind[li] == DIRECTIONAL:
+            dirs = np.broadcast_to(-lights.axis[li], points.shape)
+            dist = np.full(len(points), np.inf)
+        else:
+            rel = lights.position[li] - points
+            dist = np.linalg.norm(rel, axis=1)
+            dirs = rel / dist[:, None]
+        lengths, blocked = inside_paths.inside_lengths(prep, points, dirs, dist, matched, block=True,
+                                                       margin=prep.accel.epsilon)
+        return np.where(blocked[:, None], 0.0, np.exp(-lengths @ kt))
+    return through
+
+
 def enters(prep, prim) -> np.ndarray:
     """Which first hits `prim` (triangle ids, -1 for a miss) are on a shape holding a medium."""
     if prep.interior_shapes is None or not len(prep.interior_shapes):

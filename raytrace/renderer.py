@@ -94,7 +94,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium)
+                                          medium, bounded.shadow_through(prep))
     if into.any():
         def behind(o, d, k, dep):
             rad, _, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)

@@ -167,3 +167,50 @@ def test_a_light_inside_a_medium_is_refused(tmp_path):
     (tmp_path / "u.toml").write_text(to_toml(sc))
     with pytest.raises(raytrace.UserError, match=r"light\[0\]\.position: inside shape\[0\]"):
         render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, threads=1)
+
+
+@pytest.mark.parametrize("name", sorted(LIGHTS))
+def test_shadows_through_an_index_matched_interior_are_attenuated(tmp_path, name):
+    F = 30.0  # the floor's half width
+    """A lit floor under the U: where the straight shadow path crosses the U (through one arm, or out
+    of one and into the other), the floor gets exp(-sigma_t x the length inside) of its unshadowed
+    radiance (the twin: Lambert's law and the boxes' slab lengths); 1e-9."""
+    light = dict(LIGHTS[name])
+    if name == "lamp":  # low beside the right arm: the shadow paths cross both arms and the notch
+        light["position"] = [2.0, 0.4, 0.1]
+        view = [-14.0, 2.0, 2.0], [-8.0, -2.0, 0.0]
+    else:
+        light["direction"] = [-0.5, -1.0, -0.2]
+        view = [-5.0, 3.0, 1.0], [-0.9, -2.0, -0.35]
+    (tmp_path / "u.obj").write_text(u_obj())
+    sc = u_scene(light)
+    sc["medium"] = {"sigma_a": 0.0}
+    sc["shape"].append({"primitive": "quad", "reflectance": 0.6,
+                        "corners": [[-F, -2.0, -F], [F, -2.0, -F], [F, -2.0, F], [-F, -2.0, F]]})
+    sc["camera"].update(position=view[0], look_at=view[1], width=16, height=12)
+    (tmp_path / "u.toml").write_text(to_toml(sc))
+    img = render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, threads=1).image
+    kt = KA + KS
+    shadowed = reentered = 0
+    for j in range(12):
+        for i in range(16):
+            o, d = oracle.camera_ray(sc["camera"], i, j)
+            if u_stretches(o, d) or d[1] >= 0:
+                continue  # the camera ray crosses the U or misses the floor
+            X = o + (-2.0 - o[1]) / d[1] * d
+            if np.max(np.abs(X)) > F:
+                continue  # beyond the floor
+            if light["type"] == "point":
+                rel = np.array(light["position"], float) - X
+                dist = np.linalg.norm(rel)
+                u, e = rel / dist, light["intensity"] / dist**2
+            else:
+                u = -np.array(light["direction"], float)
+                u /= np.linalg.norm(u)
+                dist, e = 10.0, light["irradiance"]
+            inside = u_length(X, u, 0.0, dist)
+            shadowed += inside > 0
+            reentered += len(u_stretches(X, u)) > 1
+            want = 0.6 / math.pi * e * u[1] * np.exp(-kt * inside)
+            assert img[j, i] == pytest.approx(want, rel=1e-9, abs=0.0), (i, j, inside)
+    assert shadowed >= 10 and reentered >= (50 if name == "lamp" else 1)  # measured 141, 88 and 11, 2
