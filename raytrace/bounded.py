@@ -29,7 +29,7 @@ from .media.medium import HOMOGENEOUS
 from .media.slab import APPROX, CLOSED, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays, transmittances
 from .methods.geometry import segment_light_table
 from .methods.quadrature import CAPPED
-from .shading import facing_normals
+from .shading import facing_normals, surface_radiance
 
 MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
@@ -302,6 +302,18 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, 
     var[:, ch] += v * intensity[ch] ** 2
 
 
+def _surface_inside(prep, q, w, prim, ell, medium):
+    """Radiance (M, 3) toward the entry point from surface points q (triangles prim) inside an
+    index-matched medium, reached along w after ell inside: the surface term, whose shadow rays leave
+    through the medium's boundary with the interior's transmittance (`shadow_through`), times
+    exp(-sigma_t ell) along the camera's path."""
+    accel = prep.accel
+    lb = surface_radiance(accel, q, facing_normals(accel.normals[prim], w), prep.reflectance[prim], prep.lights,
+                          prep.scene.medium, shadow_through(prep))
+    with np.errstate(over="ignore", invalid="ignore"):
+        return lb * np.where(medium.sigma_t[None, :] == 0.0, 1.0, np.exp(-medium.sigma_t[None, :] * ell[:, None]))
+
+
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
     """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
     what the inside scatters toward them and what comes through from behind the exit, through the
@@ -341,6 +353,10 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             behind[exits] = f * seen
             if seen_var is not None:
                 behind_var[exits] = f * f * seen_var
+        walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
+        if len(walls) and eta == 1.0:
+            behind[walls] = _surface_inside(prep, p[walls] + ell[walls, None] * w[walls], w[walls], prim2[walls],
+                                            ell[walls], medium)
         f = (t_in / (eta * eta))[:, None]
         out[sel] = f * (inner + behind)
         out_var[sel] = f * f * (inner_var + behind_var)

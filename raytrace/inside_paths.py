@@ -60,7 +60,8 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
     """Lengths (N, len(sids)) inside each shape of `sids` of the segments from `points` along the
     unit `dirs` over `dist` (inf: toward a directional light), and (N,) whether another shape lies on
     the segment (only looked for with `block`; then the walk stops there). The segment is walked from
-    its far end, which must lie outside every shape of `sids`, back to `margin` before the point; and
+    its far end, which must lie outside every shape of `sids`, back to the point (crossings closer to it
+    than `margin` are not counted: a surface point's own face); and
     (N, len(sids)) whether the walk ends inside each shape."""
     accel = prep.accel
     n = len(points)
@@ -93,7 +94,7 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
             blocked[active[stopped]] = True
             done |= stopped
         fin = active[done]
-        lengths[fin] += np.where(inside[fin], stop[fin, None] - since[fin], 0.0)
+        lengths[fin] += np.where(inside[fin], far[fin, None] - since[fin], 0.0)
         cross = np.nonzero(~done & (j >= 0))[0]
         r, c = active[cross], j[cross]
         lengths[r, c] += np.where(inside[r, c], at[cross] - since[r, c], 0.0)
@@ -120,7 +121,7 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
         inside[q, c] = ~inside[q, c]
         active = r[s[r] < stop[r]]
         fin = r[s[r] >= stop[r]]
-        lengths[fin] += np.where(inside[fin] & np.isfinite(s[fin, None]), stop[fin, None] - since[fin], 0.0)
+        lengths[fin] += np.where(inside[fin] & np.isfinite(s[fin, None]), far[fin, None] - since[fin], 0.0)
     return lengths, blocked, inside
 
 

@@ -365,3 +365,63 @@ def test_convex_index_matched_shapes_trace_the_exact_straight_path(case):
     assert 3.0 < errs[0] / errs[1] < 6.0 and errs[1] < 1e-5, errs  # O(h^2) (kinks where the exit face changes)
     plane = image(case, "analytic" if case.startswith("sun") else "slab_approx")
     assert np.max(np.abs(plane - ref)[lit] / ref[lit]) > 0.05
+
+
+ROCK_LO, ROCK_HI = np.array([-0.3, -0.8, -0.3]), np.array([0.3, -0.4, 0.3])
+WATER_LO, WATER_HI = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 0.0, 1.0])
+
+
+def slab(o, d, lo, hi):
+    """(t_in, t_out, normal at t_in) of the line o + t d through the box [lo, hi] (t_in may be < 0), or None."""
+    t0, t1, n0 = -math.inf, math.inf, None
+    for a in range(3):
+        if d[a] == 0.0:
+            if not lo[a] <= o[a] <= hi[a]:
+                return None
+            continue
+        ta, tb = (lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]
+        if min(ta, tb) > t0:
+            t0, n0 = min(ta, tb), np.eye(3)[a] * (-1.0 if ta < tb else 1.0)
+        t1 = min(t1, max(ta, tb))
+    return (t0, t1, n0) if t0 < t1 else None
+
+
+@pytest.mark.parametrize("light", [LAMP, {"type": "directional", "direction": [0.4, -1.0, -0.3], "irradiance": 2.0}])
+def test_a_surface_inside_an_index_matched_medium_is_lit_through_it(light):
+    """A rock (a plain box) inside an absorbing index-matched box: the camera sees it through the
+    medium and its shadow rays leave through the medium: rho / pi E cos exp(-sigma_t k - sigma_out (d - k))
+    exp(-sigma_t ell), the twin's lengths by the slab test; 1e-9."""
+    kt, kt_out = np.array([0.3, 0.1, 0.05]), (0.02 if light["type"] == "point" else 0.0)
+    sc = {"camera": {"position": [0.3, 2.0, 3.0], "look_at": [0.0, -0.6, 0.0], "fov": 16.0, "width": 12,
+                     "height": 9, "spp": 1},
+          "medium": {"sigma_a": kt_out},
+          "shape": [{"primitive": "box", "min": WATER_LO.tolist(), "max": WATER_HI.tolist(),
+                     "interior": {"sigma_a": kt.tolist(), "sigma_s": 0.0}},
+                    {"primitive": "box", "min": ROCK_LO.tolist(), "max": ROCK_HI.tolist(), "reflectance": 0.7}],
+          "light": [light]}
+    img = render(prepare(scene_from_text(to_toml(sc), "rock")), "quadrature", {}, threads=1).image
+    rocks = 0
+    for j in range(9):
+        for i in range(12):
+            o, d = oracle.camera_ray(sc["camera"], i, j)
+            hit = slab(o, d, ROCK_LO, ROCK_HI)
+            if hit is None:
+                assert np.all(img[j, i] == 0.0)
+                continue
+            rocks += 1
+            t_rock, _, n = hit
+            t_water = slab(o, d, WATER_LO, WATER_HI)[0]
+            X = o + t_rock * d
+            if light["type"] == "point":
+                rel = np.array(light["position"], float) - X
+                dist = np.linalg.norm(rel)
+                u, e = rel / dist, light["intensity"] / dist**2
+            else:
+                u = -np.array(light["direction"], float) / np.linalg.norm(light["direction"])
+                dist, e = math.inf, light["irradiance"]
+            k = slab(X, u, WATER_LO, WATER_HI)[1]
+            out = 0.0 if math.isinf(dist) else kt_out * (dist - k)
+            want = (0.7 / math.pi * e * max(float(n @ u), 0.0) * np.exp(-kt * k - out)
+                    * np.exp(-kt * (t_rock - t_water) - kt_out * t_water))
+            assert img[j, i] == pytest.approx(want, rel=1e-9, abs=1e-300), (i, j)
+    assert rocks >= 15
