@@ -80,6 +80,17 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
         if m.ior != 1.0 and "point" in kinds and method.name == "slab_approx":
             raise UserError(f"{source}: shape[{i}].interior.ior: the seed's approximation is for index-matched "
                             "boundaries with point lights; use ior = 1, or --method quadrature")
+    if "point" in kinds:
+        for i in inner:
+            if prep.scene.shapes[i].interior.ior == 1.0:
+                continue
+            for j in range(len(prep.scene.shapes)):
+                first = prep.accel.triangles[prep.shape_ids == j]
+                if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
+                    raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
+                                    f"(ior {prep.scene.shapes[i].interior.ior:g}); surfaces inside a refractive "
+                                    "medium are lit by directional lights only (point lights: not implemented yet); "
+                                    "use ior = 1 or a directional light")
     inside = inside_of(prep, prep.scene.camera.position, inner)
     if inside is not None:
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
@@ -302,16 +313,42 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, 
     var[:, ch] += v * intensity[ch] ** 2
 
 
-def _surface_inside(prep, q, w, prim, ell, medium):
-    """Radiance (M, 3) toward the entry point from surface points q (triangles prim) inside an
-    index-matched medium, reached along w after ell inside: the surface term, whose shadow rays leave
-    through the medium's boundary with the interior's transmittance (`shadow_through`), times
-    exp(-sigma_t ell) along the camera's path."""
+def _surface_inside(prep, p, n, w, prim, ell, medium):
+    """Radiance (M, 3) toward the entry points p (outward entry normals n) from the surface points
+    q = p + ell w (triangles prim) inside the medium, times exp(-sigma_t ell) along the camera's path.
+    Index-matched: the surface term, whose shadow rays leave through the medium with the interior's
+    transmittance (`shadow_through`). Refractive: the seed's planar boundary, the entry face's plane,
+    for directional lights (point lights are refused by `check`): the beam refracted into t through
+    it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
+    k = depth / cos_t; an opaque surface on that path shadows (the shape's own boundary does not:
+    the plane is the model)."""
     accel = prep.accel
-    lb = surface_radiance(accel, q, facing_normals(accel.normals[prim], w), prep.reflectance[prim], prep.lights,
-                          prep.scene.medium, shadow_through(prep))
+    q = p + ell[:, None] * w
+    normals = facing_normals(accel.normals[prim], w)
+    refl = prep.reflectance[prim]
+    kt = medium.sigma_t[None, :]
+    if medium.ior == 1.0:
+        lb = surface_radiance(accel, q, normals, refl, prep.lights, prep.scene.medium, shadow_through(prep))
+    else:
+        lb = np.zeros((len(q), 3))
+        lights = prep.lights
+        for li in np.nonzero(lights.kind == DIRECTIONAL)[0]:
+            axis = np.broadcast_to(lights.axis[li], q.shape)
+            cos_i = -(n @ lights.axis[li])
+            t, cos_t = _refract(axis, n, medium.ior)
+            cos_s = -np.einsum("ij,ij->i", normals, t)
+            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0))[0]
+            k = np.einsum("ij,ij->i", p[ok] - q[ok], n[ok]) / cos_t[ok]
+            o = q[ok] + accel.epsilon * normals[ok]
+            tb, hit = accel.first_hit(o, -t[ok])
+            blocked = (hit >= 0) & (tb < k) & ~enters(prep, hit)
+            ok, k = ok[~blocked], k[~blocked]
+            e_in = _transmittance(cos_i[ok], medium.ior) * cos_i[ok] / cos_t[ok]
+            with np.errstate(over="ignore", invalid="ignore"):
+                att = np.where(kt == 0.0, 1.0, np.exp(-kt * k[:, None]))
+            lb[ok] += refl[ok] / np.pi * lights.intensity[li] * (e_in * cos_s[ok])[:, None] * att
     with np.errstate(over="ignore", invalid="ignore"):
-        return lb * np.where(medium.sigma_t[None, :] == 0.0, 1.0, np.exp(-medium.sigma_t[None, :] * ell[:, None]))
+        return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
 
 
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
@@ -354,9 +391,8 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             if seen_var is not None:
                 behind_var[exits] = f * f * seen_var
         walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
-        if len(walls) and eta == 1.0:
-            behind[walls] = _surface_inside(prep, p[walls] + ell[walls, None] * w[walls], w[walls], prim2[walls],
-                                            ell[walls], medium)
+        if len(walls):
+            behind[walls] = _surface_inside(prep, p[walls], nf[walls], w[walls], prim2[walls], ell[walls], medium)
         f = (t_in / (eta * eta))[:, None]
         out[sel] = f * (inner + behind)
         out_var[sel] = f * f * (inner_var + behind_var)
