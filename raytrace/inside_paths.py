@@ -84,8 +84,9 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
         o = start[active] + s[active, None] * back[active]
         t, prim = accel.first_hit(o, back[active])
         t32 = accel.hit_distance32(o, back[active])
-        off = np.abs(t - t32) > FLOAT32_SLACK * (t32 + accel.scale)  # the plane of a neighbour: keep Embree's
-        t[off & (prim >= 0)] = t32[off & (prim >= 0)]
+        with np.errstate(invalid="ignore"):  # inf - inf on a miss
+            off = (prim >= 0) & (np.abs(t - t32) > FLOAT32_SLACK * (t32 + accel.scale))
+        t[off] = t32[off]  # the refinement took a neighbour's plane (a ray grazing an edge): keep Embree's
         at = s[active] + t
         done = (prim < 0) | (at >= stop[active])
         j = np.where(done, -1, lookup[prep.shape_ids[np.maximum(prim, 0)]])
