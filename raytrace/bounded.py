@@ -6,8 +6,12 @@ ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree),
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the seed's planar boundary): a directional light refracted through it
 (eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
-(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). At the exit the ray is
-refracted out and the renderer shades what lies behind (recursively, up to MAX_DEPTH boundaries).
+(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). In
+index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
+to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
+one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
+behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is shaded there
+(`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`).
 Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
 (the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
 the path (no reflected paths in this first cut).
@@ -227,9 +231,9 @@ def _transmittance(cos_i, eta):
 def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, and its
-    variance (N, 3) (0 but for montecarlo). In a convex index-matched shape the light's path inside
-    is its exact straight path to the boundary (`convex_planes`), except for analytic's eq. 5 and
-    slab_approx, which keep the seed's entry plane."""
+    variance (N, 3) (0 but for montecarlo). In an index-matched shape the light's path inside is its
+    exact straight path (convex: `convex_planes`; else traced, `_traced`), except for analytic's
+    eq. 5 and slab_approx, which keep the seed's entry plane."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
