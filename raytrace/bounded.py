@@ -36,6 +36,7 @@ from .methods.quadrature import CAPPED
 from .shading import facing_normals, surface_radiance
 
 MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
+TRACED = ("quadrature", "raymarch", "montecarlo")  # the methods that follow the light's exact straight path
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 
@@ -95,10 +96,11 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
                                     f"(ior {prep.scene.shapes[i].interior.ior:g}); surfaces inside a refractive "
                                     "medium are lit by directional lights only (point lights: not implemented yet); "
                                     "use ior = 1 or a directional light")
-    inside = inside_of(prep, prep.scene.camera.position, inner)
-    if inside is not None:
+    inside = prep.camera_inside
+    if inside is not None and (prep.scene.shapes[inside].interior.ior != 1.0 or method.name not in TRACED):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        "bounded medium is not supported yet, move the camera out of the shape")
+                        f"bounded medium needs an index-matched interior (ior = 1) and --method {', '.join(TRACED)}; "
+                        "move the camera out of the shape or change them")
     for li in np.nonzero(prep.lights.kind == POINT)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
@@ -202,6 +204,13 @@ def _nudge(accel, points, dirs, cos):
     """Points moved along their rays (cosine `cos` to the face they leave) to about accel.epsilon off
     the face: the ray's line is kept, so what it meets beyond is exactly what the unmoved ray meets."""
     return points + (accel.epsilon / np.maximum(cos, 1e-2))[:, None] * dirs
+
+
+def _leave(prep, points, dirs, cos):
+    """Where a ray leaving a shape at `points` goes on (`_nudge`) and the outside's transmittance (N, 3)
+    over that short step, which the renderer's rays from the moved points no longer see."""
+    step = prep.accel.epsilon / np.maximum(cos, 1e-2)
+    return _nudge(prep.accel, points, dirs, cos), prep.scene.medium.transmittance_on(points, dirs, 0.0, step)
 
 
 def _plane_distance(accel, points, dirs, prim):
@@ -355,6 +364,33 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
         return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
 
 
+def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade):
+    """Radiance (N, 3) and variance of camera rays that start inside the index-matched shape
+    prep.camera_inside and first meet its boundary or a surface at t (triangle prim): the inside
+    single scattering over [0, t] (the light's exact straight paths), then what lies beyond the
+    boundary (`shade(origins, dirs, keys, depth)`), or the surface met inside, times exp(-sigma_t t)."""
+    sid = prep.camera_inside
+    medium = prep.scene.shapes[sid].interior
+    accel = prep.accel
+    out, var = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
+    exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
+    if len(exits):
+        cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
+        q = origins[exits] + t[exits, None] * dirs[exits]
+        start, gap = _leave(prep, q, dirs[exits], cos)
+        seen, seen_var = shade(start, dirs[exits], keys[exits], 1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0,
+                          np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap
+        out[exits] += tr * seen
+        if seen_var is not None:
+            var[exits] += tr * tr * seen_var
+    walls = np.nonzero((prim >= 0) & ~enters(prep, prim))[0]
+    if len(walls):
+        out[walls] += _surface_inside(prep, origins[walls], -dirs[walls], dirs[walls], prim[walls], t[walls], medium)
+    return out, var
+
+
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
     """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
     what the inside scatters toward them and what comes through from behind the exit, through the
@@ -386,11 +422,12 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             m = facing_normals(accel.normals[prim2[exits]], w[exits])
             w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
             t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
-            seen, seen_var = shade(_nudge(accel, q, w_out, cos_o), w_out, keys[sel][exits], depth + 1)
+            start, gap = _leave(prep, q, w_out, cos_o)
+            seen, seen_var = shade(start, w_out, keys[sel][exits], depth + 1)
             kt = medium.sigma_t[None, :]
             with np.errstate(over="ignore", invalid="ignore"):
                 tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
-            f = (t_out * eta * eta)[:, None] * tr
+            f = (t_out * eta * eta)[:, None] * tr * gap
             behind[exits] = f * seen
             if seen_var is not None:
                 behind_var[exits] = f * f * seen_var

@@ -296,9 +296,11 @@ def test_bad_input_is_refused_in_one_line(tmp_path):
     assert "4 boundary edges" in bad(open_quad)
     with pytest.raises(UserError, match=r"interior\.ior: must be positive"):
         scene_from_text(to_toml(scene(SUN, ior=0.0)), "bad.toml")
-    inside = scene(SUN)
+    inside = scene(SUN, ior=1.33)
     inside["camera"]["position"] = [0.0, -0.5, 2.0]
     assert "camera.position: inside shape[0]" in bad(inside)
+    inside["shape"][0]["interior"]["ior"] = 1.0
+    assert "camera.position: inside shape[0]" in bad(inside, "analytic")
     assert "--method lecocq" in bad(scene(SUN), "lecocq")
     assert "no closed form" in bad(scene(LAMP), "analytic")
     assert "index-matched boundaries with point lights" in bad(scene(LAMP, ior=1.5), "slab_approx")

@@ -81,7 +81,7 @@ G = 0.3
 
 
 def u_scene(light):
-    """The U (seen from above and in front, so that camera rays leave one arm and enter the other) in an
+    """The U (seen from above and in front; the light's paths leave one arm and enter the other) in an
     absorbing outside (a vacuum for the directional light, which would get no light through an
     absorbing outside filling all space)."""
     return {"camera": {"position": [0.3, 1.4, 3.0], "look_at": [0.0, -0.3, 0.0], "fov": 45.0, "width": 10,
@@ -157,6 +157,25 @@ def test_non_convex_shape_traces_paths_that_leave_and_reenter(tmp_path, name):
     assert errs[0] / errs[1] > 2.0 and errs[1] < 1e-4, errs
     res = render(prep, "montecarlo", {"samples": 32}, seed=3, threads=1)
     assert np.mean((res.image - ref)[lit] ** 2 / res.variance[lit]) < 3.5
+
+
+@pytest.mark.parametrize("name", sorted(LIGHTS))
+def test_a_camera_inside_the_medium(tmp_path, name):
+    """The camera in the U's left arm looking across the notch into the right arm: the inside stretch
+    from the camera, the way out, the notch and the way back in (the twin's stretches start at 0);
+    quadrature 1e-7, Monte Carlo unbiased."""
+    (tmp_path / "u.obj").write_text(u_obj())
+    sc = u_scene(LIGHTS[name])
+    sc["camera"].update(position=[-0.7, 0.1, 0.3], look_at=[1.0, -0.2, -0.2], fov=60.0)
+    (tmp_path / "u.toml").write_text(to_toml(sc))
+    prep = prepare(load_scene(tmp_path / "u.toml"))
+    assert prep.camera_inside == 0
+    ref = twin_image(sc)
+    assert np.all(ref > 0)
+    img = render(prep, "quadrature", {"rtol": 1e-10}, threads=1).image
+    assert np.max(np.abs(img - ref) / ref) < 1e-7
+    res = render(prep, "montecarlo", {"samples": 32}, seed=5, threads=1)
+    assert np.mean((res.image - ref) ** 2 / res.variance) < 3.5
 
 
 def test_a_light_inside_a_medium_is_refused(tmp_path):
