@@ -11,7 +11,8 @@ index-matched shapes quadrature, raymarch and montecarlo use the light's exact s
 to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
 one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
 behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is shaded there
-(`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`).
+(`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`). A camera
+inside an index-matched medium starts its rays' first stretch there (`from_inside`).
 Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
 (the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
 the path (no reflected paths in this first cut).
