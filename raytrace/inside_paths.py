@@ -74,7 +74,7 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
     stop = far - margin
     inside = np.zeros((n, len(sids)), dtype=bool)
     since = np.zeros((n, len(sids)))
-    s = np.zeros(n)
+    s = np.where(np.isinf(dist), 0.0, accel.epsilon)  # a point light on a surface: not that surface
     active = np.nonzero(stop > 0.0)[0]
     lookup = np.full(len(prep.scene.shapes), -1, dtype=np.int64)
     lookup[sids] = np.arange(len(sids))

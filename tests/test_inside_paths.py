@@ -166,7 +166,7 @@ def test_a_camera_inside_the_medium(tmp_path, name):
     quadrature 1e-7, Monte Carlo unbiased."""
     (tmp_path / "u.obj").write_text(u_obj())
     sc = u_scene(LIGHTS[name])
-    sc["camera"].update(position=[-0.7, 0.1, 0.3], look_at=[1.0, -0.2, -0.2], fov=60.0)
+    sc["camera"].update(position=[-0.7, 0.1, 0.3], look_at=[1.0, -0.2, -0.2], fov=60.0, width=8, height=5)
     (tmp_path / "u.toml").write_text(to_toml(sc))
     prep = prepare(load_scene(tmp_path / "u.toml"))
     assert prep.camera_inside == 0
