@@ -97,6 +97,14 @@ class Accelerator:
             t[bad] = self._scene.run(o32[bad], d32[bad], query="DISTANCE").astype(np.float64) * self.unit
         return t, prim
 
+    def hit_distance32(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Embree's own float32 distance to the nearest hit (inf on a miss): a check on `first_hit`'s
+        plane distance where a ray grazing an edge is reported on the neighbouring triangle."""
+        if self._scene is None or not len(origins):
+            return np.full(len(origins), np.inf)
+        t = self._scene.run(self._to_embree(origins), np.ascontiguousarray(dirs, dtype=np.float32), query="DISTANCE")
+        return np.where(t < 1e37, t.astype(np.float64) * self.unit, np.inf)
+
     def occluded(self, origins: np.ndarray, dirs: np.ndarray, tmax: np.ndarray, threads: int = 1):
         """True where something lies between origin and origin + tmax * dir."""
         n = len(origins)

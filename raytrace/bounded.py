@@ -6,8 +6,13 @@ ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree),
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the seed's planar boundary): a directional light refracted through it
 (eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
-(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). At the exit the ray is
-refracted out and the renderer shades what lies behind (recursively, up to MAX_DEPTH boundaries).
+(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). In
+index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
+to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
+one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
+behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is shaded there
+(`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`). A camera
+inside an index-matched medium starts its rays' first stretch there (`from_inside`).
 Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
 (the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
 the path (no reflected paths in this first cut).
@@ -22,14 +27,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import inside_paths
 from .errors import UserError
 from .lights import DIRECTIONAL, POINT, Lights
 from .media.medium import HOMOGENEOUS
 from .media.slab import APPROX, CLOSED, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays, transmittances
 from .methods.geometry import segment_light_table
-from .shading import facing_normals
+from .methods.quadrature import CAPPED
+from .shading import facing_normals, surface_radiance
 
 MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
+TRACED = ("quadrature", "raymarch", "montecarlo")  # the methods that follow the light's exact straight path
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 
@@ -78,15 +86,31 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
         if m.ior != 1.0 and "point" in kinds and method.name == "slab_approx":
             raise UserError(f"{source}: shape[{i}].interior.ior: the seed's approximation is for index-matched "
                             "boundaries with point lights; use ior = 1, or --method quadrature")
-    inside = camera_inside(prep, inner)
-    if inside is not None:
+    if "point" in kinds:
+        for i in inner:
+            if prep.scene.shapes[i].interior.ior == 1.0:
+                continue
+            for j in range(len(prep.scene.shapes)):
+                first = prep.accel.triangles[prep.shape_ids == j]
+                if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
+                    raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
+                                    f"(ior {prep.scene.shapes[i].interior.ior:g}); surfaces inside a refractive "
+                                    "medium are lit by directional lights only (point lights: not implemented yet); "
+                                    "use ior = 1 or a directional light")
+    inside = prep.camera_inside
+    if inside is not None and (prep.scene.shapes[inside].interior.ior != 1.0 or method.name not in TRACED):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        "bounded medium is not supported yet, move the camera out of the shape")
+                        f"bounded medium needs an index-matched interior (ior = 1) and --method {', '.join(TRACED)}; "
+                        "move the camera out of the shape or change them")
+    for li in np.nonzero(prep.lights.kind == POINT)[0]:
+        inside = inside_of(prep, prep.lights.position[li], inner)
+        if inside is not None:
+            raise UserError(f"{source}: light[{li}].position: inside shape[{inside}], which holds a medium; lights "
+                            "inside bounded media are not supported yet, move the light out of the shape")
 
 
-def camera_inside(prep, inner) -> int | None:
-    """The first shape of `inner` that contains the camera (odd number of crossings of a ray), else None."""
-    o = prep.scene.camera.position
+def inside_of(prep, o, inner) -> int | None:
+    """The first shape of `inner` that contains the point o (odd number of crossings of a ray), else None."""
     d = np.array([0.5773502691896258, 0.5773502691896257, 0.5773502691896259]) + np.array([1e-3, -2e-3, 0.0])
     d /= np.linalg.norm(d)
     tris = prep.accel.triangles
@@ -142,6 +166,34 @@ def warm_up_rays(prep, origins, dirs):
             np.concatenate([dirs, np.array(extra)]))
 
 
+def shadow_through(prep):
+    """The shading's `through(li, points)` for a scene with index-matched interiors (else None): the
+    transmittance toward light li of the interiors the straight shadow path crosses,
+    exp(-(sigma_t inside - sigma_t outside) x length inside) each (the outside's own transmittance is
+    the shading's); 0 where an opaque surface or a refractive interior blocks it (a refracted shadow
+    would be a caustic, beyond single scattering)."""
+    if prep.interior_shapes is None:
+        return None
+    matched = [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior == 1.0]
+    if not matched:
+        return None
+    kt = np.array([prep.scene.shapes[i].interior.sigma_t for i in matched]) - prep.scene.medium.sigma_t[None, :]
+    lights = prep.lights
+
+    def through(li, points):
+        if lights.kind[li] == DIRECTIONAL:
+            dirs = np.broadcast_to(-lights.axis[li], points.shape)
+            dist = np.full(len(points), np.inf)
+        else:
+            rel = lights.position[li] - points
+            dist = np.linalg.norm(rel, axis=1)
+            dirs = rel / dist[:, None]
+        lengths, blocked = inside_paths.inside_lengths(prep, points, dirs, dist, matched, block=True,
+                                                       margin=prep.accel.epsilon)
+        return np.where(blocked[:, None], 0.0, np.exp(-lengths @ kt))
+    return through
+
+
 def enters(prep, prim) -> np.ndarray:
     """Which first hits `prim` (triangle ids, -1 for a miss) are on a shape holding a medium."""
     if prep.interior_shapes is None or not len(prep.interior_shapes):
@@ -153,6 +205,13 @@ def _nudge(accel, points, dirs, cos):
     """Points moved along their rays (cosine `cos` to the face they leave) to about accel.epsilon off
     the face: the ray's line is kept, so what it meets beyond is exactly what the unmoved ray meets."""
     return points + (accel.epsilon / np.maximum(cos, 1e-2))[:, None] * dirs
+
+
+def _leave(prep, points, dirs, cos):
+    """Where a ray leaving a shape at `points` goes on (`_nudge`) and the outside's transmittance (N, 3)
+    over that short step, which the renderer's rays from the moved points no longer see."""
+    step = prep.accel.epsilon / np.maximum(cos, 1e-2)
+    return _nudge(prep.accel, points, dirs, cos), prep.scene.medium.transmittance_on(points, dirs, 0.0, step)
 
 
 def _plane_distance(accel, points, dirs, prim):
@@ -182,11 +241,12 @@ def _transmittance(cos_i, eta):
 def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, and its
-    variance (N, 3) (0 but for montecarlo). In a convex index-matched shape the light's path inside
-    is its exact straight path to the boundary (`convex_planes`), except for analytic's eq. 5 and
-    slab_approx, which keep the seed's entry plane."""
+    variance (N, 3) (0 but for montecarlo). In an index-matched shape the light's path inside is its
+    exact straight path (convex: `convex_planes`; else traced, `_traced`), except for analytic's
+    eq. 5 and slab_approx, which keep the seed's entry plane."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
+    traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
     geo = np.zeros((len(points), 9))
     geo[:, :3], geo[:, 3:6] = points, w
     lights = prep.lights
@@ -224,6 +284,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 lh = rel - hl[:, None] * normals
                 wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
                 ll = np.einsum("ij,ij->i", lh, lh)
+        if traced and mode in (QUAD, MARCH, SAMPLE):
+            _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale, mode,
+                    rtol, steps, tau_max, keys, STREAM + (depth * len(lights) + li) * steps, seed, out, var, stats)
+            continue
         for c in range(3):
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
             if ks == 0.0 or lights.intensity[li, c] == 0.0:
@@ -238,6 +302,93 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             f = scale * lights.intensity[li, c]
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
+    return out, var
+
+
+def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
+            stats):
+    """out, var += one light's single scattering over the segments of a non-convex index-matched
+    shape, the light's straight paths measured with Embree (inside_paths.py)."""
+    ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
+    if not len(ch):
+        return
+    kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
+    args = (prep, sid, geo, distant, ell, kts, kss, medium.phase, medium.g, kt_outs)
+    v = np.zeros((len(ell), len(ch)))
+    if mode == QUAD:
+        capped = np.zeros(1)
+        val = inside_paths.segment_quadrature(*args, rtol, capped)
+        stats[CAPPED] += capped[0]
+    elif mode == MARCH:
+        val = inside_paths.segment_march(*args, steps, tau_max)
+    else:
+        val, v = inside_paths.segment_samples(*args, steps, keys, dim0, seed)
+    out[:, ch] += val * intensity[ch]
+    var[:, ch] += v * intensity[ch] ** 2
+
+
+def _surface_inside(prep, p, n, w, prim, ell, medium):
+    """Radiance (M, 3) toward the entry points p (outward entry normals n) from the surface points
+    q = p + ell w (triangles prim) inside the medium, times exp(-sigma_t ell) along the camera's path.
+    Index-matched: the surface term, whose shadow rays leave through the medium with the interior's
+    transmittance (`shadow_through`). Refractive: the seed's planar boundary, the entry face's plane,
+    for directional lights (point lights are refused by `check`): the beam refracted into t through
+    it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
+    k = depth / cos_t; an opaque surface on that path shadows (the shape's own boundary does not:
+    the plane is the model)."""
+    accel = prep.accel
+    q = p + ell[:, None] * w
+    normals = facing_normals(accel.normals[prim], w)
+    refl = prep.reflectance[prim]
+    kt = medium.sigma_t[None, :]
+    if medium.ior == 1.0:
+        lb = surface_radiance(accel, q, normals, refl, prep.lights, prep.scene.medium, shadow_through(prep))
+    else:
+        lb = np.zeros((len(q), 3))
+        lights = prep.lights
+        for li in np.nonzero(lights.kind == DIRECTIONAL)[0]:
+            axis = np.broadcast_to(lights.axis[li], q.shape)
+            cos_i = -(n @ lights.axis[li])
+            t, cos_t = _refract(axis, n, medium.ior)
+            cos_s = -np.einsum("ij,ij->i", normals, t)
+            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0))[0]
+            k = np.einsum("ij,ij->i", p[ok] - q[ok], n[ok]) / cos_t[ok]
+            o = q[ok] + accel.epsilon * normals[ok]
+            tb, hit = accel.first_hit(o, -t[ok])
+            blocked = (hit >= 0) & (tb < k) & ~enters(prep, hit)
+            ok, k = ok[~blocked], k[~blocked]
+            e_in = _transmittance(cos_i[ok], medium.ior) * cos_i[ok] / cos_t[ok]
+            with np.errstate(over="ignore", invalid="ignore"):
+                att = np.where(kt == 0.0, 1.0, np.exp(-kt * k[:, None]))
+            lb[ok] += refl[ok] / np.pi * lights.intensity[li] * (e_in * cos_s[ok])[:, None] * att
+    with np.errstate(over="ignore", invalid="ignore"):
+        return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
+
+
+def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade):
+    """Radiance (N, 3) and variance of camera rays that start inside the index-matched shape
+    prep.camera_inside and first meet its boundary or a surface at t (triangle prim): the inside
+    single scattering over [0, t] (the light's exact straight paths), then what lies beyond the
+    boundary (`shade(origins, dirs, keys, depth)`), or the surface met inside, times exp(-sigma_t t)."""
+    sid = prep.camera_inside
+    medium = prep.scene.shapes[sid].interior
+    accel = prep.accel
+    out, var = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
+    exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
+    if len(exits):
+        cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
+        q = origins[exits] + t[exits, None] * dirs[exits]
+        start, gap = _leave(prep, q, dirs[exits], cos)
+        seen, seen_var = shade(start, dirs[exits], keys[exits], 1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0,
+                          np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap
+        out[exits] += tr * seen
+        if seen_var is not None:
+            var[exits] += tr * tr * seen_var
+    walls = np.nonzero((prim >= 0) & ~enters(prep, prim))[0]
+    if len(walls):
+        out[walls] += _surface_inside(prep, origins[walls], -dirs[walls], dirs[walls], prim[walls], t[walls], medium)
     return out, var
 
 
@@ -272,14 +423,18 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             m = facing_normals(accel.normals[prim2[exits]], w[exits])
             w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
             t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
-            seen, seen_var = shade(_nudge(accel, q, w_out, cos_o), w_out, keys[sel][exits], depth + 1)
+            start, gap = _leave(prep, q, w_out, cos_o)
+            seen, seen_var = shade(start, w_out, keys[sel][exits], depth + 1)
             kt = medium.sigma_t[None, :]
             with np.errstate(over="ignore", invalid="ignore"):
                 tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
-            f = (t_out * eta * eta)[:, None] * tr
+            f = (t_out * eta * eta)[:, None] * tr * gap
             behind[exits] = f * seen
             if seen_var is not None:
                 behind_var[exits] = f * f * seen_var
+        walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
+        if len(walls):
+            behind[walls] = _surface_inside(prep, p[walls], nf[walls], w[walls], prim2[walls], ell[walls], medium)
         f = (t_in / (eta * eta))[:, None]
         out[sel] = f * (inner + behind)
         out_var[sel] = f * f * (inner_var + behind_var)

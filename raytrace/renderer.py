@@ -46,6 +46,7 @@ class Prepared:
     shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
+    camera_inside: int | None = None  # the shape holding a medium that contains the camera
 
     def shadow_maps(self, spacing: float) -> np.ndarray:
         """The lights' depth cube maps for this search spacing, built once (shadow_maps.py)."""
@@ -71,7 +72,10 @@ def prepare(scene: Scene) -> Prepared:
     lights = Lights.of(scene.lights)
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
-    return Prepared(scene, Accelerator(tris, extent), refl, lights, shape_ids=ids, interior_shapes=inner)
+    prep = Prepared(scene, Accelerator(tris, extent), refl, lights, shape_ids=ids, interior_shapes=inner)
+    if len(inner):
+        prep.camera_inside = bounded.inside_of(prep, scene.camera.position, inner)
+    return prep
 
 
 def default_threads() -> int:
@@ -88,6 +92,14 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     t, prim = prep.accel.first_hit(origins, dirs)
     ground, t = planet_hits(medium, origins, dirs, t)  # an atmosphere's planet, intersected in float64
     prim[ground] = -1
+
+    def behind(o, d, k, dep):
+        rad, _, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
+        return rad, var
+
+    if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
+        rad, var = bounded.from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, behind)
+        return rad, np.zeros(method.stats_size + len(LI_NAMES)), var if method.stochastic else None
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     into = bounded.enters(prep, prim)
@@ -96,14 +108,10 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium)
+                                          medium, bounded.shadow_through(prep))
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
-        def behind(o, d, k, dep):
-            rad, _, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
-            return rad, var
-
         radiance[into], into_var = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into],
                                                     prim[into], keys[into], seed, depth, behind)
     radiance[~hit & ~ground] = scene.background

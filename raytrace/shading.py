@@ -28,12 +28,14 @@ def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     return np.where(flip[:, None], -normals, normals)
 
 
-def surface_radiance(accel, points, normals, reflectance, lights, medium):
-    """Reflected radiance (N, 3) at surface points with ray-facing unit normals."""
+def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None):
+    """Reflected radiance (N, 3) at surface points with ray-facing unit normals. `through(li, points)`,
+    if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
+    where truly blocked; bounded.py's shadows through index-matched interiors)."""
     out = np.zeros((len(points), 3))
     for li, lp in enumerate(lights.position):
         if lights.kind[li] == DIRECTIONAL:
-            _add_directional(out, accel, points, normals, reflectance, lights, li, medium)
+            _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through)
             continue
         to_light = lp[None, :] - points
         dist = np.linalg.norm(to_light, axis=1)
@@ -43,15 +45,26 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium):
             continue
         idx = np.nonzero(lit)[0]
         o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
-        visible = ~accel.occluded(o, d, tmax)
-        idx, dl, cl = idx[visible], dist[idx][visible], cos[idx][visible]
-        tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl)
+        idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through)
+        dl, cl = dist[idx], cos[idx]
+        tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
         irradiance = lights.irradiance(li, -to_light[idx], dl) * tr * cl[:, None]
         out[idx] += reflectance[idx] / math.pi * irradiance
     return out
 
 
-def _add_directional(out, accel, points, normals, reflectance, lights, li, medium):
+def _unblocked(accel, o, d, tmax, idx, points, li, through):
+    """The points idx whose shadow rays (o, d, tmax) reach light li, and the transmittance (M, 3) of the
+    shapes they pass through (1 unless `through` lets an occluded ray through)."""
+    occ = accel.occluded(o, d, tmax)
+    part = np.ones((len(idx), 3))
+    if through is not None and occ.any():
+        part[occ] = through(li, points[idx[occ]])
+        occ = ~np.any(part > 0.0, axis=1)
+    return idx[~occ], part[~occ]
+
+
+def _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through=None):
     """out += the directional light li's reflected radiance (shadow rays to infinity toward it)."""
     wi = -lights.axis[li]
     cos = normals @ wi
@@ -60,8 +73,8 @@ def _add_directional(out, accel, points, normals, reflectance, lights, li, mediu
         return
     o = points[idx] + accel.epsilon * normals[idx]
     d = np.broadcast_to(wi, o.shape)
-    idx = idx[~accel.occluded(o, d, np.full(len(idx), np.inf))]
-    tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf)
+    idx, part = _unblocked(accel, o, d, np.full(len(idx), np.inf), idx, points, li, through)
+    tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf) * part
     out[idx] += reflectance[idx] / math.pi * lights.intensity[li] * tr * cos[idx, None]
 
 

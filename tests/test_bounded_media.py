@@ -296,9 +296,11 @@ def test_bad_input_is_refused_in_one_line(tmp_path):
     assert "4 boundary edges" in bad(open_quad)
     with pytest.raises(UserError, match=r"interior\.ior: must be positive"):
         scene_from_text(to_toml(scene(SUN, ior=0.0)), "bad.toml")
-    inside = scene(SUN)
+    inside = scene(SUN, ior=1.33)
     inside["camera"]["position"] = [0.0, -0.5, 2.0]
     assert "camera.position: inside shape[0]" in bad(inside)
+    inside["shape"][0]["interior"]["ior"] = 1.0
+    assert "camera.position: inside shape[0]" in bad(inside, "analytic")
     assert "--method lecocq" in bad(scene(SUN), "lecocq")
     assert "no closed form" in bad(scene(LAMP), "analytic")
     assert "index-matched boundaries with point lights" in bad(scene(LAMP, ior=1.5), "slab_approx")
@@ -365,3 +367,80 @@ def test_convex_index_matched_shapes_trace_the_exact_straight_path(case):
     assert 3.0 < errs[0] / errs[1] < 6.0 and errs[1] < 1e-5, errs  # O(h^2) (kinks where the exit face changes)
     plane = image(case, "analytic" if case.startswith("sun") else "slab_approx")
     assert np.max(np.abs(plane - ref)[lit] / ref[lit]) > 0.05
+
+
+ROCK_LO, ROCK_HI = np.array([-0.3, -0.8, -0.3]), np.array([0.3, -0.4, 0.3])
+WATER_LO, WATER_HI = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 0.0, 1.0])
+
+
+def slab(o, d, lo, hi):
+    """(t_in, t_out, normal at t_in) of the line o + t d through the box [lo, hi] (t_in may be < 0), or None."""
+    t0, t1, n0 = -math.inf, math.inf, None
+    for a in range(3):
+        if d[a] == 0.0:
+            if not lo[a] <= o[a] <= hi[a]:
+                return None
+            continue
+        ta, tb = (lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]
+        if min(ta, tb) > t0:
+            t0, n0 = min(ta, tb), np.eye(3)[a] * (-1.0 if ta < tb else 1.0)
+        t1 = min(t1, max(ta, tb))
+    return (t0, t1, n0) if t0 < t1 else None
+
+
+SUN_HIGH = {"type": "directional", "direction": [0.4, -1.0, -0.3], "irradiance": 2.0}
+
+
+@pytest.mark.parametrize("light,ior", [(LAMP, 1.0), (SUN_HIGH, 1.0), (SUN_HIGH, 1.33)])
+def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
+    """A rock (a plain box) inside an absorbing box of water seen through it. Index-matched: its shadow
+    rays leave through the medium, rho / pi E cos exp(-sigma_t k - sigma_out (d - k)) exp(-sigma_t ell),
+    the twin's lengths by the slab test. Refractive (ior 1.33, the seed's planar boundary): the sun
+    refracted through the entry face's plane (Snell by angles, Fresnel angle form, E T cos_i / cos_t),
+    attenuated back to that plane, the radiance x T / eta^2 out; 1e-9."""
+    kt, kt_out = np.array([0.3, 0.1, 0.05]), (0.02 if light["type"] == "point" else 0.0)
+    sc = {"camera": {"position": [0.3, 2.0, 3.0], "look_at": [0.0, -0.6, 0.0], "fov": 16.0, "width": 12,
+                     "height": 9, "spp": 1},
+          "medium": {"sigma_a": kt_out},
+          "shape": [{"primitive": "box", "min": WATER_LO.tolist(), "max": WATER_HI.tolist(),
+                     "interior": {"sigma_a": kt.tolist(), "sigma_s": 0.0, "ior": ior}},
+                    {"primitive": "box", "min": ROCK_LO.tolist(), "max": ROCK_HI.tolist(), "reflectance": 0.7}],
+          "light": [light]}
+    img = render(prepare(scene_from_text(to_toml(sc), "rock")), "quadrature", {}, threads=1).image
+    rocks = 0
+    for j in range(9):
+        for i in range(12):
+            o, d = oracle.camera_ray(sc["camera"], i, j)
+            t_water, n_in = box_entry(o, d, WATER_LO, WATER_HI)
+            P = o + t_water * d
+            w, ti, tt = snell(d, n_in, ior)
+            hit = slab(P, w, ROCK_LO, ROCK_HI)
+            if hit is None:
+                assert np.all(img[j, i] == 0.0)
+                continue
+            rocks += 1
+            ell, _, n = hit
+            X = P + ell * w
+            if light["type"] == "point":
+                rel = np.array(light["position"], float) - X
+                dist = np.linalg.norm(rel)
+                u, e = rel / dist, light["intensity"] / dist**2
+                k = slab(X, u, WATER_LO, WATER_HI)[1]
+                att = np.exp(-kt * k - kt_out * (dist - k))
+            else:
+                s_dir = np.array(light["direction"], float) / np.linalg.norm(light["direction"])
+                ts, si, st = snell(s_dir, n_in, ior)
+                u = -ts
+                e = light["irradiance"] * fresnel_t(si, st, ior) * math.cos(si) / math.cos(st)
+                k = float((P - X) @ n_in) / math.cos(st) if ior != 1.0 else slab(X, u, WATER_LO, WATER_HI)[1]
+                att = np.exp(-kt * k)
+            want = (0.7 / math.pi * e * max(float(n @ u), 0.0) * att * np.exp(-kt * ell - kt_out * t_water)
+                    * fresnel_t(ti, tt, ior) / ior**2)
+            assert img[j, i] == pytest.approx(want, rel=1e-9, abs=1e-300), (i, j)
+    assert rocks >= 15 and np.count_nonzero(img[..., 0]) >= 10
+
+
+def test_surfaces_inside_a_refractive_medium_with_a_point_light_are_refused():
+    sc = scene(LAMP, ior=1.33)
+    sc["shape"].append({"primitive": "box", "min": [-0.3, -0.8, -0.3], "max": [0.3, -0.4, 0.3]})
+    assert "shape[1]: lies inside shape[0], whose interior is refractive" in bad(sc)

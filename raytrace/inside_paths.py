@@ -1,0 +1,242 @@
+"""Straight light paths through index-matched shapes of any form, measured with Embree.
+
+A shape whose interior is index-matched (ior = 1) does not bend light: the light reaching a point
+travels the straight segment between them, and only the lengths of that segment inside each
+shape's medium change its transmittance (seed 002 eq. 6-7 with k(x) measured on the real
+boundary instead of the entry plane). For a non-convex shape (a U, a torus, a scanned mesh) the
+segment may leave and re-enter it: `inside_lengths` finds every crossing with Embree, walking the
+segment from the light's end (outside every shape, where the parity is known) to the point.
+
+`segment_quadrature`, `segment_march` and `segment_samples` integrate the inside single
+scattering of camera-ray segments with these lengths (quadrature, raymarch and montecarlo of
+bounded.py for non-convex index-matched shapes; convex ones use the exact numba kernel of
+media/slab.py instead). `shadow_transmittance` is the shadow test of surfaces: a shadow ray
+through an index-matched interior is attenuated, not blocked.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .jit import njit
+from .media.phase import phase_value
+from .rng import uniform
+
+MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
+FAR = 3.5  # x the scene's scale: from any scene point this far toward a directional light is outside every shape
+MAX_LEVELS = 40
+FLOAT32_SLACK = 1e-6  # relative: how far Embree's float32 distance may be from the exact one  # bisections of a quadrature panel
+
+
+def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None):
+    """`walk`, and again from a far end moved sideways by RETRY_SHIFT x the scene's scale for the
+    segments whose parity at the point contradicts `end_inside` (N, len(sids)) where given: Embree's
+    float32 decisions for two rays near a shape's edge can disagree and lose one crossing of a short
+    chord (a path grazing a corner), which would count the rest of the path on the wrong side."""
+    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin)
+    if end_inside is None:
+        return lengths, blocked
+    for attempt in range(1, RETRIES + 1):
+        bad = np.nonzero(np.any(inside != end_inside, axis=1) & ~blocked)[0]
+        if not len(bad):
+            break
+        far = np.where(np.isinf(dist[bad]), FAR * prep.accel.scale + np.linalg.norm(points[bad], axis=1), dist[bad])
+        side = np.cross(dirs[bad], SIDEWAYS[attempt % 3])
+        side /= np.maximum(np.linalg.norm(side, axis=1), 1e-300)[:, None]
+        end = points[bad] + far[:, None] * dirs[bad] + RETRY_SHIFT * attempt * prep.accel.scale * side
+        rel = end - points[bad]
+        d2 = np.linalg.norm(rel, axis=1)
+        lengths[bad], blocked[bad], inside[bad] = walk(prep, points[bad], rel / d2[:, None], d2, sids, block, margin)
+    return lengths, blocked
+
+
+RETRIES = 3
+RETRY_SHIFT = 1e-5
+SIDEWAYS = np.array([[0.6, 0.0, 0.8], [0.0, 0.8, 0.6], [0.8, 0.6, 0.0]])
+
+
+def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
+    """Lengths (N, len(sids)) inside each shape of `sids` of the segments from `points` along the
+    unit `dirs` over `dist` (inf: toward a directional light), and (N,) whether another shape lies on
+    the segment (only looked for with `block`; then the walk stops there). The segment is walked from
+    its far end, which must lie outside every shape of `sids`, back to the point (crossings closer to it
+    than `margin` are not counted: a surface point's own face); and
+    (N, len(sids)) whether the walk ends inside each shape."""
+    accel = prep.accel
+    n = len(points)
+    sids = np.asarray(sids, dtype=np.int64)
+    lengths = np.zeros((n, len(sids)))
+    blocked = np.zeros(n, dtype=bool)
+    far = np.where(np.isinf(dist), FAR * accel.scale + np.linalg.norm(points, axis=1), dist)
+    start = points + far[:, None] * dirs
+    back = -dirs
+    stop = far - margin
+    inside = np.zeros((n, len(sids)), dtype=bool)
+    since = np.zeros((n, len(sids)))
+    s = np.where(np.isinf(dist), 0.0, accel.epsilon)  # a point light on a surface: not that surface
+    active = np.nonzero(stop > 0.0)[0]
+    lookup = np.full(len(prep.scene.shapes), -1, dtype=np.int64)
+    lookup[sids] = np.arange(len(sids))
+    for _ in range(MAX_CROSSINGS):
+        if not len(active):
+            break
+        o = start[active] + s[active, None] * back[active]
+        t, prim = accel.first_hit(o, back[active])
+        t32 = accel.hit_distance32(o, back[active])
+        with np.errstate(invalid="ignore"):  # inf - inf on a miss
+            off = (prim >= 0) & (np.abs(t - t32) > FLOAT32_SLACK * (t32 + accel.scale))
+        t[off] = t32[off]  # the refinement took a neighbour's plane (a ray grazing an edge): keep Embree's
+        at = s[active] + t
+        done = (prim < 0) | (at >= stop[active])
+        j = np.where(done, -1, lookup[prep.shape_ids[np.maximum(prim, 0)]])
+        if block:
+            stopped = ~done & (j < 0)
+            blocked[active[stopped]] = True
+            done |= stopped
+        fin = active[done]
+        lengths[fin] += np.where(inside[fin], far[fin, None] - since[fin], 0.0)
+        cross = np.nonzero(~done & (j >= 0))[0]
+        r, c = active[cross], j[cross]
+        lengths[r, c] += np.where(inside[r, c], at[cross] - since[r, c], 0.0)
+        since[r, c] = at[cross]
+        inside[r, c] = ~inside[r, c]
+        go = np.nonzero(~done)[0]
+        r = active[go]
+        cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[go]], back[r]))
+        skip = accel.epsilon / np.maximum(cos, 1e-2)
+        s[r] = at[go] + skip
+        # a second crossing within the skip (a corner clipped): found looking back from the new start
+        tb, pb = accel.first_hit(start[r] + s[r, None] * back[r], dirs[r])
+        extra = (pb >= 0) & (pb != prim[go]) & (tb < (1.0 - 1e-9) * skip) & (s[r] - tb < stop[r])
+        jb = np.where(extra, lookup[prep.shape_ids[np.maximum(pb, 0)]], -1)
+        if block:
+            stopped = extra & (jb < 0)
+            blocked[r[stopped]] = True
+            s[r[stopped]] = np.inf
+        extra &= jb >= 0
+        q, c = r[extra], jb[extra]
+        atb = s[q] - tb[extra]
+        lengths[q, c] += np.where(inside[q, c], atb - since[q, c], 0.0)
+        since[q, c] = atb
+        inside[q, c] = ~inside[q, c]
+        active = r[s[r] < stop[r]]
+        fin = r[s[r] >= stop[r]]
+        lengths[fin] += np.where(inside[fin] & np.isfinite(s[fin, None]), far[fin, None] - since[fin], 0.0)
+    return lengths, blocked, inside
+
+
+def _geometry(prep, sid, geo, distant, seg, x):
+    """At the points x along segments `seg` (geo rows: entry point, direction w, the light's position
+    or minus its direction of travel): the light's distance d (inf for a directional light), its
+    path's length k inside shape sid and the scattering cosine mu."""
+    p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
+    if distant:
+        to = np.ascontiguousarray(geo[seg, 6:])
+        d = np.full(len(x), np.inf)
+    else:
+        rel = geo[seg, 6:] - p
+        d = np.maximum(np.linalg.norm(rel, axis=1), 1e-125)
+        to = rel / d[:, None]
+    k = inside_lengths(prep, p, to, d, [sid], end_inside=np.ones((len(x), 1), dtype=bool))[0][:, 0]
+    mu = np.einsum("ij,ij->i", to, geo[seg, 3:6])  # the light travels along -to; the eye is along -w
+    return d, np.minimum(k, d), mu
+
+
+@njit
+def _values(x, d, k, mu, kt, ks, code, g, kt_out, out):
+    """The single-scattering integrand (per unit light) at x for one channel: ks Phi(mu)
+    exp(-kt (x + k) - kt_out (d - k)) / d^2 for a point light, ks Phi(mu) exp(-kt (x + k)) for a
+    directional one (d = inf)."""
+    for i in range(x.shape[0]):
+        tau = kt * (x[i] + k[i])
+        if d[i] < math.inf:
+            out[i] = ks * phase_value(code, g, mu[i]) * math.exp(-tau - kt_out * (d[i] - k[i])) / (d[i] * d[i])
+        else:
+            out[i] = ks * phase_value(code, g, mu[i]) * math.exp(-tau)
+
+
+@njit
+def _uniforms(keys, seg, dims, seed, out):
+    for i in range(seg.shape[0]):
+        out[i] = uniform(keys[seg[i]], dims[i], seed)
+
+
+def _channels(prep, sid, geo, distant, seg, x, kts, kss, code, g, kt_outs):
+    """The integrand at (seg, x) for the channels (M, C)."""
+    d, k, mu = _geometry(prep, sid, geo, distant, seg, x)
+    out = np.empty((len(x), len(kts)))
+    col = np.empty(len(x))
+    for c in range(len(kts)):
+        _values(x, d, k, mu, float(kts[c]), float(kss[c]), code, g, float(kt_outs[c]), col)
+        out[:, c] = col
+    return out
+
+
+_N10, _W10 = np.polynomial.legendre.leggauss(10)
+_N20, _W20 = np.polynomial.legendre.leggauss(20)
+
+
+def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, rtol, stats):
+    """∫_0^ell of the integrand per segment and channel (N, C), adaptive: panels are halved until their
+    10- and 20-point Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the
+    whole per unit length (media/slab.py's rule, vectorised over segments because every evaluation
+    traces rays); panels still open after MAX_LEVELS halvings count in stats[0]."""
+    n, nc = len(ell), len(kts)
+    total = np.zeros((n, nc))
+    end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
+    seg = np.nonzero(end > 0.0)[0]
+    a, b = np.zeros(len(seg)), end[seg]
+    floor = None
+    for _ in range(MAX_LEVELS):
+        if not len(seg):
+            return total
+        half, mid = 0.5 * (b - a), 0.5 * (a + b)
+        xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()])
+        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
+        f = _channels(prep, sid, geo, distant, ss, xs, kts, kss, code, g, kt_outs)
+        m = len(seg)
+        g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
+        g20 = np.einsum("pkc,k->pc", f[10 * m:].reshape(m, 20, nc), _W20) * half[:, None]
+        if floor is None:
+            floor = np.zeros((n, nc))
+            floor[seg] = 0.1 * rtol * np.abs(g20) / (b - a)[:, None]
+        ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
+        np.add.at(total, seg[ok], g20[ok])
+        seg, a, b, mid = seg[~ok], a[~ok], b[~ok], mid[~ok]
+        seg, a, b = np.concatenate([seg, seg]), np.concatenate([a, mid]), np.concatenate([mid, b])
+    stats[0] += len(seg) // 2
+    return total
+
+
+def segment_march(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, steps, tau_max):
+    """The midpoint rule with `steps` points per segment and channel, the segment cut where its optical
+    depth reaches tau_max (media/slab.py's MARCH)."""
+    out = np.zeros((len(ell), len(kts)))
+    seg = np.repeat(np.arange(len(ell)), steps)
+    j = np.tile(np.arange(steps) + 0.5, len(ell))
+    for c in range(len(kts)):
+        dx = np.minimum(ell, tau_max / kts[c]) / steps
+        f = _channels(prep, sid, geo, distant, seg, j * dx[seg], kts[c:c + 1], kss[c:c + 1], code, g,
+                      kt_outs[c:c + 1])[:, 0]
+        out[:, c] = f.reshape(len(ell), steps).sum(axis=1) * dx
+    return out
+
+
+def segment_samples(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, steps, keys, dim0, seed):
+    """Free-path sampling (media/slab.py's SAMPLE): `steps` samples per segment and channel, the same
+    random numbers for every channel; the mean and the variance of the mean (N, C) each."""
+    n = len(ell)
+    out, var = np.zeros((n, len(kts))), np.zeros((n, len(kts)))
+    seg = np.repeat(np.arange(n), steps)
+    u = np.empty(len(seg))
+    _uniforms(keys, seg, np.tile(np.arange(steps, dtype=np.uint64), n) + np.uint64(dim0), np.uint64(seed), u)
+    for c in range(len(kts)):
+        kt = float(kts[c])
+        mass = -np.expm1(-kt * np.minimum(ell, 745.0 / kt)) / kt
+        x = -np.log1p(-u * kt * mass[seg]) / kt
+        f = _channels(prep, sid, geo, distant, seg, x, kts[c:c + 1], kss[c:c + 1], code, g, kt_outs[c:c + 1])[:, 0]
+        f = (f * mass[seg] * np.exp(kt * x)).reshape(n, steps)
+        out[:, c] = f.mean(axis=1)
+        var[:, c] = np.maximum((f * f).mean(axis=1) - out[:, c] ** 2, 0.0) / max(steps - 1, 1)
+    return out, var
