@@ -445,14 +445,18 @@ def slab(o, d, lo, hi):
 SUN_HIGH = {"type": "directional", "direction": [0.4, -1.0, -0.3], "irradiance": 2.0}
 
 
-@pytest.mark.parametrize("light,ior", [(LAMP, 1.0), (SUN_HIGH, 1.0), (SUN_HIGH, 1.33)])
+ROCK_SPOT = {"type": "spot", "position": [1.0, 3.0, 0.5], "look_at": [-0.3, -0.6, -0.1], "intensity": 5.0,
+             "cone_angle": 9.0, "falloff_start": 5.0}  # the beam's edge across the rock
+
+
+@pytest.mark.parametrize("light,ior", [(LAMP, 1.0), (SUN_HIGH, 1.0), (SUN_HIGH, 1.33), (ROCK_SPOT, 1.0)])
 def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
     """A rock (a plain box) inside an absorbing box of water seen through it. Index-matched: its shadow
     rays leave through the medium, rho / pi E cos exp(-sigma_t k - sigma_out (d - k)) exp(-sigma_t ell),
     the twin's lengths by the slab test. Refractive (ior 1.33, the seed's planar boundary): the sun
     refracted through the entry face's plane (Snell by angles, Fresnel angle form, E T cos_i / cos_t),
     attenuated back to that plane, the radiance x T / eta^2 out; 1e-9."""
-    kt, kt_out = np.array([0.3, 0.1, 0.05]), (0.02 if light["type"] == "point" else 0.0)
+    kt, kt_out = np.array([0.3, 0.1, 0.05]), (0.02 if light["type"] != "directional" else 0.0)
     sc = {"camera": {"position": [0.3, 2.0, 3.0], "look_at": [0.0, -0.6, 0.0], "fov": 16.0, "width": 12,
                      "height": 9, "spp": 1},
           "medium": {"sigma_a": kt_out},
@@ -461,7 +465,7 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
                     {"primitive": "box", "min": ROCK_LO.tolist(), "max": ROCK_HI.tolist(), "reflectance": 0.7}],
           "light": [light]}
     img = render(prepare(scene_from_text(to_toml(sc), "rock")), "quadrature", {}, threads=1).image
-    rocks = 0
+    rocks = partial = 0
     for j in range(9):
         for i in range(12):
             o, d = oracle.camera_ray(sc["camera"], i, j)
@@ -475,10 +479,13 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
             rocks += 1
             ell, _, n = hit
             X = P + ell * w
-            if light["type"] == "point":
+            if light["type"] != "directional":
                 rel = np.array(light["position"], float) - X
                 dist = np.linalg.norm(rel)
-                u, e = rel / dist, light["intensity"] / dist**2
+                u = rel / dist
+                fall = oracle.emission(oracle.spot_of(light), -u)
+                e = light["intensity"] * fall / dist**2
+                partial += 0.0 < fall < 1.0
                 k = slab(X, u, WATER_LO, WATER_HI)[1]
                 att = np.exp(-kt * k - kt_out * (dist - k))
             else:
@@ -492,6 +499,7 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
                     * fresnel_t(ti, tt, ior) / ior**2)
             assert img[j, i] == pytest.approx(want, rel=1e-9, abs=1e-300), (i, j)
     assert rocks >= 15 and np.count_nonzero(img[..., 0]) >= 10
+    assert light["type"] != "spot" or partial >= 5
 
 
 def test_surfaces_inside_a_refractive_medium_with_a_point_light_are_refused():
