@@ -480,11 +480,7 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
             ell, _, n = hit
             X = P + ell * w
             if light["type"] != "directional":
-                rel = np.array(light["position"], float) - X
-                dist = np.linalg.norm(rel)
-                u = rel / dist
-                fall = oracle.emission(oracle.spot_of(light), -u)
-                e = light["intensity"] * fall / dist**2
+                u, dist, e, fall = oracle.lamp_at(light, X)
                 partial += 0.0 < fall < 1.0
                 k = slab(X, u, WATER_LO, WATER_HI)[1]
                 att = np.exp(-kt * k - kt_out * (dist - k))

@@ -237,11 +237,7 @@ def test_shadows_through_an_index_matched_interior_are_attenuated(tmp_path, name
             if np.max(np.abs(X)) > F:
                 continue  # beyond the floor
             if light["type"] != "directional":
-                rel = np.array(light["position"], float) - X
-                dist = np.linalg.norm(rel)
-                u = rel / dist
-                fall = oracle.emission(oracle.spot_of(light), -u)
-                e = light["intensity"] * fall / dist**2
+                u, dist, e, fall = oracle.lamp_at(light, X)
                 partial += 0.0 < fall < 1.0 and u_length(X, u, 0.0, dist) > 0
             else:
                 u = -np.array(light["direction"], float)
