@@ -6,7 +6,8 @@ ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree),
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the seed's planar boundary): a directional light refracted through it
 (eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
-(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). In
+(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point); a
+spot light as a point light times its falloff on the direction in which the light leaves it. In
 index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
 to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
 one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
@@ -18,7 +19,7 @@ Radiance crossing into a denser medium is multiplied by T eta^2 and back out by 
 the path (no reflected paths in this first cut).
 
 Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
-`slab_approx` (eq. 5 and the seed's separable approximation for point lights), `raymarch` (its
+`slab_approx` (eq. 5 and the seed's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
 and `sun` are refused for scenes with interiors, in one line.
