@@ -6,7 +6,8 @@ ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree),
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the seed's planar boundary): a directional light refracted through it
 (eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
-(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point). In
+(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point); a
+spot light as a point light times its falloff on the direction in which the light leaves it. In
 index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
 to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
 one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
@@ -18,7 +19,7 @@ Radiance crossing into a denser medium is multiplied by T eta^2 and back out by 
 the path (no reflected paths in this first cut).
 
 Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
-`slab_approx` (eq. 5 and the seed's separable approximation for point lights), `raymarch` (its
+`slab_approx` (eq. 5 and the seed's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
 and `sun` are refused for scenes with interiors, in one line.
@@ -29,9 +30,10 @@ import numpy as np
 
 from . import inside_paths
 from .errors import UserError
-from .lights import DIRECTIONAL, POINT, Lights
+from .lights import DIRECTIONAL, Lights
 from .media.medium import HOMOGENEOUS
-from .media.slab import APPROX, CLOSED, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays, transmittances
+from .media.slab import (APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays,
+                         transmittances)
 from .methods.geometry import segment_light_table
 from .methods.quadrature import CAPPED
 from .shading import facing_normals, surface_radiance
@@ -65,15 +67,16 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
         raise UserError(f"{source}: --method {method.name}: it does not integrate media inside shapes ({key}); use "
                         f"--method {', '.join(MODES)}")
     kinds = prep.lights.kinds()
-    if "spot" in kinds:
-        raise UserError(f"{source}: {key}: spot lights are not implemented with media inside shapes yet; use point or "
-                        "directional lights")
+    near = "point" in kinds or "spot" in kinds  # lights with a position
     if method.name == "raymarch" and (method_params.get("step", 0.0) > 0.0 or method_params.get("jitter")):
         raise UserError(f"{source}: --step / --jitter (render.step, render.jitter): not implemented inside bounded "
                         f"media ({key}) yet; use --steps")
-    if method.name == "analytic" and "point" in kinds:
+    if method.name == "analytic" and near:
         raise UserError(f"{source}: --method analytic: a point light into a bounded medium ({key}) has no closed form "
                         "(seed 002 eq. 7); use --method quadrature, or slab_approx for the seed's approximation")
+    if method.name == "slab_approx" and "spot" in kinds:
+        raise UserError(f"{source}: --method slab_approx: the seed's approximation is for point lights, not spot "
+                        f"lights into a bounded medium ({key}); use --method quadrature, raymarch or montecarlo")
     medium = prep.scene.medium
     if medium.kind != HOMOGENEOUS:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
@@ -83,10 +86,10 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
                         f"inside shapes ({key}) yet; remove it")
     for i in inner:
         m = prep.scene.shapes[i].interior
-        if m.ior != 1.0 and "point" in kinds and method.name == "slab_approx":
+        if m.ior != 1.0 and near and method.name == "slab_approx":
             raise UserError(f"{source}: shape[{i}].interior.ior: the seed's approximation is for index-matched "
                             "boundaries with point lights; use ior = 1, or --method quadrature")
-    if "point" in kinds:
+    if near:
         for i in inner:
             if prep.scene.shapes[i].interior.ior == 1.0:
                 continue
@@ -95,14 +98,15 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
                 if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
                     raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
                                     f"(ior {prep.scene.shapes[i].interior.ior:g}); surfaces inside a refractive "
-                                    "medium are lit by directional lights only (point lights: not implemented yet); "
+                                    "medium are lit by directional lights only (point and spot lights: not "
+                                    "implemented yet); "
                                     "use ior = 1 or a directional light")
     inside = prep.camera_inside
     if inside is not None and (prep.scene.shapes[inside].interior.ior != 1.0 or method.name not in TRACED):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
                         f"bounded medium needs an index-matched interior (ior = 1) and --method {', '.join(TRACED)}; "
                         "move the camera out of the shape or change them")
-    for li in np.nonzero(prep.lights.kind == POINT)[0]:
+    for li in np.nonzero(prep.lights.kind != DIRECTIONAL)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
             raise UserError(f"{source}: light[{li}].position: inside shape[{inside}], which holds a medium; lights "
@@ -247,8 +251,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
-    geo = np.zeros((len(points), 9))
-    geo[:, :3], geo[:, 3:6] = points, w
+    geo = np.zeros((len(points), GEO_COLUMNS))
+    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
     lights = prep.lights
     n = len(points)
     out = np.zeros((n, 3))
@@ -272,12 +276,11 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             mu = -np.einsum("ij,ij->i", t_l, w)
             scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
                              / np.maximum(b, 1e-300), 0.0) if medium.ior != 1.0 else 1.0
-            geo[:, 6:] = -lights.axis[li]
-        else:
-            assert lights.kind[li] == POINT, "refused by check()"
+            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = -lights.axis[li], 0.0, lights.cone[li]
+        else:  # a point or spot light (the spot's falloff toward the direction it leaves in: media/slab.py)
             xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx,
                                               prep.accel.scale)
-            geo[:, 6:] = lights.position[li]
+            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li]
             rel = lights.position[li] - points
             hl = np.einsum("ij,ij->i", rel, normals)
             if medium.ior != 1.0:  # horizontal parts, for the refracted path (media/slab.py refracted_point)

@@ -20,7 +20,9 @@ import math
 import numpy as np
 
 from .jit import njit
+from .lights import falloff_array
 from .media.phase import phase_value
+from .media.slab import straight_cuts
 from .rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
@@ -127,20 +129,26 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
 
 
 def _geometry(prep, sid, geo, distant, seg, x):
-    """At the points x along segments `seg` (geo rows: entry point, direction w, the light's position
-    or minus its direction of travel): the light's distance d (inf for a directional light), its
-    path's length k inside shape sid and the scattering cosine mu."""
+    """At the points x along segments `seg` (geo rows of media/slab.py's inside_radiance: entry point,
+    direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
+    light's distance d (inf for a directional light), its path's length k inside shape sid, the
+    scattering cosine mu and a spot's falloff toward the direction it leaves in (1 for other lights)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
     if distant:
-        to = np.ascontiguousarray(geo[seg, 6:])
+        to = np.ascontiguousarray(geo[seg, 6:9])
         d = np.full(len(x), np.inf)
+        f = np.ones(len(x))
     else:
-        rel = geo[seg, 6:] - p
+        rel = geo[seg, 6:9] - p
         d = np.maximum(np.linalg.norm(rel, axis=1), 1e-125)
         to = rel / d[:, None]
-    k = inside_lengths(prep, p, to, d, [sid], end_inside=np.ones((len(x), 1), dtype=bool))[0][:, 0]
+        cone = geo[seg[0], 12:14] if len(seg) else (-3.0, -2.0)  # one light per call
+        f = falloff_array(np.ascontiguousarray(-np.einsum("ij,ij->i", to, geo[seg, 9:12])), cone[0], cone[1])
+    lit = np.nonzero(f > 0.0)[0]  # no rays traced outside a spot's cone
+    k = np.zeros(len(x))
+    k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool))[0][:, 0]
     mu = np.einsum("ij,ij->i", to, geo[seg, 3:6])  # the light travels along -to; the eye is along -w
-    return d, np.minimum(k, d), mu
+    return d, np.minimum(k, d), mu, f
 
 
 @njit
@@ -164,12 +172,12 @@ def _uniforms(keys, seg, dims, seed, out):
 
 def _channels(prep, sid, geo, distant, seg, x, kts, kss, code, g, kt_outs):
     """The integrand at (seg, x) for the channels (M, C)."""
-    d, k, mu = _geometry(prep, sid, geo, distant, seg, x)
+    d, k, mu, f = _geometry(prep, sid, geo, distant, seg, x)
     out = np.empty((len(x), len(kts)))
     col = np.empty(len(x))
     for c in range(len(kts)):
         _values(x, d, k, mu, float(kts[c]), float(kss[c]), code, g, float(kt_outs[c]), col)
-        out[:, c] = col
+        out[:, c] = col * f
     return out
 
 
@@ -181,12 +189,12 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
     """∫_0^ell of the integrand per segment and channel (N, C), adaptive: panels are halved until their
     10- and 20-point Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the
     whole per unit length (media/slab.py's rule, vectorised over segments because every evaluation
-    traces rays); panels still open after MAX_LEVELS halvings count in stats[0]."""
+    traces rays); the first panels end at a spot's cone crossings (media/slab.py straight_cuts);
+    panels still open after MAX_LEVELS halvings count in stats[0]."""
     n, nc = len(ell), len(kts)
     total = np.zeros((n, nc))
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    seg = np.nonzero(end > 0.0)[0]
-    a, b = np.zeros(len(seg)), end[seg]
+    seg, a, b = _first_panels(geo, distant, end)
     floor = None
     for _ in range(MAX_LEVELS):
         if not len(seg):
@@ -200,13 +208,28 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
         g20 = np.einsum("pkc,k->pc", f[10 * m:].reshape(m, 20, nc), _W20) * half[:, None]
         if floor is None:
             floor = np.zeros((n, nc))
-            floor[seg] = 0.1 * rtol * np.abs(g20) / (b - a)[:, None]
+            np.add.at(floor, seg, np.abs(g20))
+            floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
         np.add.at(total, seg[ok], g20[ok])
         seg, a, b, mid = seg[~ok], a[~ok], b[~ok], mid[~ok]
         seg, a, b = np.concatenate([seg, seg]), np.concatenate([a, mid]), np.concatenate([mid, b])
     stats[0] += len(seg) // 2
     return total
+
+
+def _first_panels(geo, distant, end):
+    """(segment, start, end) of the first panels of `segment_quadrature`: [0, end] of every segment
+    with end > 0, cut at its spot's cone crossings."""
+    seg, a, b = [], [], []
+    cuts = np.empty(4)
+    for s in np.nonzero(end > 0.0)[0]:
+        m = 0 if distant else straight_cuts(geo[s], end[s], cuts)
+        edges = [0.0, *cuts[:m], end[s]]
+        seg += [s] * (m + 1)
+        a += edges[:-1]
+        b += edges[1:]
+    return np.array(seg, dtype=np.int64), np.array(a), np.array(b)
 
 
 def segment_march(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, steps, tau_max):

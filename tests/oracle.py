@@ -85,6 +85,15 @@ def emission(spot, direction) -> float:
     return t * t * (3 - 2 * t)
 
 
+def lamp_at(light: dict, X):
+    """(unit direction from X to the point or spot light, distance, unattenuated irradiance on a
+    surface facing it, the spot's falloff toward X)."""
+    rel = np.asarray(light["position"], float) - X
+    dist = float(np.linalg.norm(rel))
+    fall = emission(spot_of(light), -rel / dist)
+    return rel / dist, dist, light["intensity"] * fall / dist**2, fall
+
+
 def cone_crossings(o, d, tmax, p, spot):
     """Distances in (0, tmax) where the ray crosses the spot's cone or core, by bracketing the
     cosine to the axis on a grid uniform in the distance and in the angle seen from the light (rays

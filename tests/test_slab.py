@@ -206,10 +206,11 @@ def test_refracted_point_light_reduces_to_the_straight_path():
     lh = p - hl * N
     wl, ll = float((w + a * N) @ lh), float(lh @ lh)
     for x in (0.01, 0.7, 3.0):
-        straight = slab.inside_integrand(False, x, xh, h, hl, a, 0.0, 0.0, 0.8, 0.3, HG, 0.5, 0.1, wl, ll, 1.0)
-        bent = slab.refracted_point(x, wl, ll, a, hl, 1.0, 0.8, 0.3, HG, 0.5, 0.1)
+        straight = slab.inside_integrand(False, x, xh, h, hl, a, 0.0, 0.0, 0.8, 0.3, HG, 0.5, 0.1, wl, ll, 1.0,
+                                         slab.NO_SPOT)
+        bent = slab.refracted_point(x, wl, ll, a, hl, 1.0, 0.8, 0.3, HG, 0.5, 0.1, *slab.NO_SPOT)
         assert bent == pytest.approx(straight, rel=1e-12)
     eta, z = 1.33, 0.8  # a point straight below the light, seen along the normal
-    got = slab.refracted_point(z, 0.0, 0.0, 1.0, 2.0, eta, 0.0, 1.0, ISOTROPIC, 0.0, 0.0)
+    got = slab.refracted_point(z, 0.0, 0.0, 1.0, 2.0, eta, 0.0, 1.0, ISOTROPIC, 0.0, 0.0, *slab.NO_SPOT)
     t = 1.0 - ((eta - 1) / (eta + 1)) ** 2
     assert got == pytest.approx(t / (4 * math.pi) / (2.0 + z / eta) ** 2, rel=1e-12)

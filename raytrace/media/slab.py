@@ -36,6 +36,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..lights import NO_CONE, cone_breaks, falloff
 from ..methods.quadrature import CAPPED
 from ..methods.quadrature import _adaptive as adaptive
 from ..rng import uniform
@@ -43,7 +44,7 @@ from .phase import phase_value
 
 # eq. 7's and the convex shapes' argument tuples for methods/quadrature.py's adaptive rule: their
 # lengths tell the rules apart
-EQ7_ARGS = 12
+EQ7_ARGS = 17
 CONVEX_ARGS = 10
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
 # segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
@@ -54,6 +55,11 @@ WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT, REFRACTED = 0, 1, 2, 3, 4
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
+# the spot terms (w_h·A, L_h·A, n·A, cos_end, cos_start) of `refracted_point` for a light without a cone
+NO_SPOT = (0.0, 0.0, 0.0, NO_CONE[0], NO_CONE[1])
+# geo rows of `inside_radiance`: entry point, direction w, the light's position (or minus a directional
+# light's direction of travel), the spot's axis, its (cos_end, cos_start), the entry face's outward normal
+GEO_COLUMNS = 17
 
 
 @njit
@@ -141,8 +147,70 @@ def refraction_point(rho, z, hl, eta):
 
 
 @njit
-def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out):
-    """The single-scattering integrand at depth x along an inside segment for a unit point light at
+def _fermat(x, wl, ll, a, hl, eta):
+    """(rho, r) of `refracted_point` at depth x: the horizontal distance between the light and the
+    point, and the refraction point's distance from the point's foot."""
+    rho = math.sqrt(max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0))
+    return rho, refraction_point(rho, a * x, hl, eta)
+
+
+@njit
+def _leaving_cosine(x, rho, r, o, hl, wa, la, na):
+    """The cosine to the spot's axis of the direction in which the light leaves toward the
+    refraction point (`refracted_point`); rho > 0."""
+    return ((rho - r) * (x * wa - la) / rho - hl * na) / o
+
+
+@njit
+def refracted_cosine(x, wl, ll, a, hl, eta, wa, la, na):
+    """`_leaving_cosine` at depth x > 0 (-na straight below the light)."""
+    rho, r = _fermat(x, wl, ll, a, hl, eta)
+    if not rho > 1e-12 * (hl + a * x):
+        return -na
+    return _leaving_cosine(x, rho, r, math.sqrt((rho - r) * (rho - r) + hl * hl), hl, wa, la, na)
+
+
+SCAN = 64  # samples of the leaving cosine over a refracted segment, to bracket the cone's crossings
+MAX_CUTS = 8
+
+
+@njit
+def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out):
+    """The depths in (0, end) where the cosine of the refracted path's leaving direction crosses the
+    cone's levels (kinks of the falloff, its jumps for a hard edge), bracketed on SCAN samples and
+    bisected to the resolution of doubles, ascending in out; returns their count (<= MAX_CUTS).
+    Crossings closer together than end / SCAN can be missed (the adaptive rule then meets them)."""
+    if cos_start <= -1.0:
+        return 0
+    m = 0
+    prev = refracted_cosine(end * 0.5 / SCAN, wl, ll, a, hl, eta, wa, la, na)
+    for i in range(1, SCAN):
+        x1 = end * (i + 0.5) / SCAN
+        c1 = refracted_cosine(x1, wl, ll, a, hl, eta, wa, la, na)
+        for level in (cos_end, cos_start):
+            if (prev - level) * (c1 - level) < 0.0 and m < MAX_CUTS:
+                lo, hi = end * (i - 0.5) / SCAN, x1
+                s_lo = prev - level
+                for _ in range(100):
+                    mid = 0.5 * (lo + hi)
+                    if not lo < mid < hi:
+                        break
+                    if (refracted_cosine(mid, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
+                        lo = mid
+                    else:
+                        hi = mid
+                out[m] = 0.5 * (lo + hi)
+                m += 1
+            if cos_start == cos_end:
+                break
+        prev = c1
+    out[:m].sort()
+    return m
+
+
+@njit
+def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start):
+    """The single-scattering integrand at depth x along an inside segment for a unit point or spot light at
     height hl above a refractive plane (eta = n_inside / n_outside): ks Phi(mu) E exp(-kt (x + k) -
     kt_out o), k and o the path's lengths inside and outside (Fermat's path, `refraction_point`) and E
     the irradiance across the refracted beam of a point source through a plane,
@@ -150,13 +218,14 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out):
     (the ray tube: sagittal width rho dphi, meridional d(rho) cos2 with rho = hl tan1 + z tan2 and
     d2 / d1 = cos1 / (eta cos2); its limit I T / (hl + z / eta)^2 below the light, and I / d^2 for
     eta = 1). The segment's horizontal direction w_h = w + a n and the light's horizontal offset L_h
-    from the entry point enter as wl = w_h·L_h and ll = |L_h|^2 (|w_h|^2 = 1 - a^2)."""
+    from the entry point enter as wl = w_h·L_h and ll = |L_h|^2 (|w_h|^2 = 1 - a^2). A spot light
+    (axis A, cone cos_end, cos_start; NO_SPOT for a point light) emits toward the refraction point R:
+    the light leaves along ((rho - r) u - hl n) / o, whose cosine to A is
+    ((rho - r)(x wa - la) / rho - hl na) / o with wa = w_h·A, la = L_h·A, na = n·A."""
     z = a * x
     if z <= 0.0:
         return 0.0
-    rho2 = max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0)
-    rho = math.sqrt(rho2)
-    r = refraction_point(rho, z, hl, eta)
+    rho, r = _fermat(x, wl, ll, a, hl, eta)
     k = math.sqrt(r * r + z * z)
     o = math.sqrt((rho - r) * (rho - r) + hl * hl)
     cos1, cos2 = hl / o, z / k
@@ -166,27 +235,43 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out):
                                                                         + z * cos1 / (eta * cos2 * cos2 * cos2)))
         # the light travels along sin2 u - cos2 n, u = (X_h - L_h) / rho; mu = its cosine to -w
         mu = -(sin2 * (x * (1.0 - a * a) - wl) / rho + a * cos2)
+        c = _leaving_cosine(x, rho, r, o, hl, wa, la, na)
     else:
         q = hl + z / eta
         e = (1.0 - fresnel(1.0, eta)) / (q * q)
         mu = -a
-    return ks * phase_value(code, g, mu) * e * math.exp(-kt * (x + k) - kt_out * o)
+        c = -na
+    f = falloff(c, cos_end, cos_start)
+    if f == 0.0:
+        return 0.0
+    return ks * phase_value(code, g, mu) * e * f * math.exp(-kt * (x + k) - kt_out * o)
 
 
 @njit
-def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, rtol, stats):
-    """Single scattering over [0, ell] for a unit point light through a refractive plane (adaptive);
-    an infinite segment is cut where exp(-kt x) underflows."""
+def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, spot, rtol, stats):
+    """Single scattering over [0, ell] for a unit point or spot light (`spot`: refracted_point's
+    (wa, la, na, cos_end, cos_start), NO_SPOT for a point light) through a refractive plane,
+    adaptive on the pieces between the cone's crossings (`refracted_cuts`); an infinite segment is
+    cut where exp(-kt x) underflows."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
-    return _eq7_adaptive((eta, REFRACTED, wl, ll, kt, ks, code, g, 0.0, a, hl, kt_out), 0.0, end, rtol, stats)
+    args = (eta, REFRACTED, wl, ll, kt, ks, code, g, 0.0, a, hl, kt_out) + spot
+    cuts = np.empty(MAX_CUTS)
+    m = refracted_cuts(wl, ll, a, hl, eta, spot[0], spot[1], spot[2], spot[3], spot[4], end, cuts)
+    total, lo = 0.0, 0.0
+    for i in range(m + 1):
+        hi = cuts[i] if i < m else end
+        total += _eq7_adaptive(args, lo, hi, rtol, stats)
+        lo = hi
+    return total
 
 
 @njit
 def eq7_value(v, args):
     """The eq. 7 integrand at the integration variable v; args = (eta, mode, xh, h, kt, ks, code,
-    g, z0, a, hl, kt_out). WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
+    g, z0, a, hl, kt_out) + the spot terms of `refracted_point` (NO_SPOT but for REFRACTED).
+    WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
     BEHIND: v = u = 1 / (x - x_h) (dx / d^2 = du / (1 + h^2 u^2)), the value ks Phi exp(-(...)) / (1 + h^2 u^2);
     NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the seed's Figs. 2-3); DISTANT: v = x, g holds
     the phase function's value and hl the cosine b of the refracted light to the normal, the value
@@ -197,7 +282,8 @@ def eq7_value(v, args):
     if mode == DISTANT:
         return ks * g * math.exp(-kt * (v + (z0 + a * v) / hl))
     if mode == REFRACTED:
-        return refracted_point(v, xh, h, a, hl, args[0], kt, ks, code, g, kt_out)
+        return refracted_point(v, xh, h, a, hl, args[0], kt, ks, code, g, kt_out, args[12], args[13], args[14],
+                               args[15], args[16])
     if mode == NO_FALLOFF:
         x = v
         d = math.sqrt(h * h + (x - xh) * (x - xh))
@@ -263,11 +349,12 @@ def point_exact(xh, h, ell, kt, ks, code, g, z0, a, hl, kt_out, rtol, stats):
         return 0.0
     if xh < 0.0 and h < -xh:  # behind the start, within 45 degrees of the line: u = 1 / (x - x_h)
         lo = 0.0 if ell == math.inf else 1.0 / (ell - xh)
-        args = (1.0, BEHIND, xh, h, kt, ks, code, g, z0, a, hl, kt_out)
+        args = (1.0, BEHIND, xh, h, kt, ks, code, g, z0, a, hl, kt_out) + NO_SPOT
         return _eq7_adaptive(args, lo, -1.0 / xh, rtol, stats)
     lo = math.atan2(-xh, h)
     hi = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
-    total = _eq7_adaptive((1.0, WITH_FALLOFF, xh, h, kt, ks, code, g, z0, a, hl, kt_out), lo, hi, rtol, stats)
+    total = _eq7_adaptive((1.0, WITH_FALLOFF, xh, h, kt, ks, code, g, z0, a, hl, kt_out) + NO_SPOT, lo, hi, rtol,
+                          stats)
     return total / h
 
 
@@ -277,7 +364,7 @@ def exponential_part(xh, h, ell, kt, z0, a, hl, rtol, stats):
     plots it (Figs. 2-3, 6-8)."""
     if not ell > 0.0:
         return 0.0
-    return _eq7_adaptive((1.0, NO_FALLOFF, xh, h, kt, 1.0, 0, 0.0, z0, a, hl, 0.0), 0.0, ell, rtol, stats)
+    return _eq7_adaptive((1.0, NO_FALLOFF, xh, h, kt, 1.0, 0, 0.0, z0, a, hl, 0.0) + NO_SPOT, 0.0, ell, rtol, stats)
 
 
 @njit
@@ -313,7 +400,7 @@ def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / (kt * (1.0 + a / b))) if kt > 0.0 else ell
-    return _eq7_adaptive((1.0, DISTANT, 0.0, 0.0, kt, ks, 0, phase, 0.0, a, b, 0.0), 0.0, end, rtol, stats)
+    return _eq7_adaptive((1.0, DISTANT, 0.0, 0.0, kt, ks, 0, phase, 0.0, a, b, 0.0) + NO_SPOT, 0.0, end, rtol, stats)
 
 
 @njit
@@ -343,9 +430,46 @@ def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
     r0, r1, r2 = geo[6] - X0, geo[7] - X1, geo[8] - X2
     d2 = max(r0 * r0 + r1 * r1 + r2 * r2, 1e-250)
     d = math.sqrt(d2)
+    f = falloff(-(r0 * geo[9] + r1 * geo[10] + r2 * geo[11]) / d, geo[12], geo[13])  # leaving the light along -r
+    if f == 0.0:
+        return 0.0
     k = min(convex_exit(X0, X1, X2, r0 / d, r1 / d, r2 / d, planes), d)
     mu = (r0 * geo[3] + r1 * geo[4] + r2 * geo[5]) / d  # the light travels along -r; the eye is along -w
-    return ks * phase_value(code, g, mu) * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
+    return ks * phase_value(code, g, mu) * f * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
+
+
+@njit
+def straight_cuts(geo, end, out):
+    """The distances in (0, end) along a segment (a `geo` row) where the straight line from a spot
+    light crosses its cone's levels (lights.cone_breaks in v = tan(phi / 2), x = x_h + h (v - 1/v) / 2;
+    A from h A = (r x w)·(w x a) as segment_light_table), ascending in out (>= 4); returns the count.
+    0 for a point light or a light on the segment's line."""
+    if geo[13] <= -1.0:
+        return 0
+    r0, r1, r2 = geo[6] - geo[0], geo[7] - geo[1], geo[8] - geo[2]
+    w0, w1, w2 = geo[3], geo[4], geo[5]
+    a0, a1, a2 = geo[9], geo[10], geo[11]
+    xh = r0 * w0 + r1 * w1 + r2 * w2
+    c0, c1, c2 = r1 * w2 - r2 * w1, r2 * w0 - r0 * w2, r0 * w1 - r1 * w0
+    h = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    if not h > 1e-12 * math.sqrt(r0 * r0 + r1 * r1 + r2 * r2):
+        return 0
+    u0, u1, u2 = w1 * a2 - w2 * a1, w2 * a0 - w0 * a2, w0 * a1 - w1 * a0
+    A = (c0 * u0 + c1 * u1 + c2 * u2) / h
+    B = w0 * a0 + w1 * a1 + w2 * a2
+    m = 0
+    for level in (geo[12], geo[13]):
+        k, v1, v2 = cone_breaks(A, B, level)
+        for i in range(k):
+            v = v1 if i == 0 else v2
+            x = xh + 0.5 * h * (v - 1.0 / v)
+            if 0.0 < x < end:
+                out[m] = x
+                m += 1
+        if geo[12] == geo[13]:
+            break
+    out[:m].sort()
+    return m
 
 
 @njit
@@ -364,27 +488,44 @@ def convex_rule(a, b, args, nodes, weights):
 
 @njit
 def convex_quadrature(geo, planes, distant, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
-    """∫_0^ell `convex_integrand` dx, adaptive (the floor of `_eq7_adaptive`)."""
+    """∫_0^ell `convex_integrand` dx, adaptive (the floor of `_eq7_adaptive`) on the pieces between a
+    spot's cone crossings (`straight_cuts`)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
     args = (geo, planes, distant, kt, ks, code, g, kt_out, phase, 0)
-    floor = 0.1 * rtol * abs(convex_rule(0.0, end, args, _N20, _W20)) / end
-    total, good = adaptive(args, 0.0, end, rtol, floor, _N10, _W10, _N20, _W20, stats)
-    if not good:
-        stats[CAPPED] += 1.0
+    cuts = np.empty(4)
+    m = 0 if distant else straight_cuts(geo, end, cuts)
+    first = 0.0
+    lo = 0.0
+    for i in range(m + 1):
+        hi = cuts[i] if i < m else end
+        first += abs(convex_rule(lo, hi, args, _N20, _W20))
+        lo = hi
+    floor = 0.1 * rtol * first / end
+    total, lo = 0.0, 0.0
+    for i in range(m + 1):
+        hi = cuts[i] if i < m else end
+        part, good = adaptive(args, lo, hi, rtol, floor, _N10, _W10, _N20, _W20, stats)
+        total += part
+        if not good:
+            stats[CAPPED] += 1.0
+        lo = hi
     return total
 
 
 @njit
-def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta):
+def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta, spot):
     """The inside single-scattering integrand at depth x along the segment (module docstring): a
     directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
-    value), or a point light's eq. 7 integrand per unit intensity (`refracted_point` when eta != 1)."""
+    value), or a point light's eq. 7 integrand per unit intensity (`refracted_point` when eta != 1,
+    with a spot's terms `spot`; the index-matched planar branch is for point lights only: spot lights
+    in index-matched shapes take `convex_integrand` or inside_paths.py)."""
     if distant:
         return ks * phase * math.exp(-kt * (x + a * x / b))
     if eta != 1.0:
-        return refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out)
+        return refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot[0], spot[1], spot[2], spot[3],
+                               spot[4])
     dx = x - xh
     d2 = max(h * h + dx * dx, 1e-250)
     d = math.sqrt(d2)
@@ -397,7 +538,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                     steps, tau_max, keys, dim0, seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
-    of its refracted direction to the normal and mu the scattering cosine; for a point light
+    of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
     at height hl above the entry plane, kt_out the extinction outside (through a refractive plane,
     eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
     below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
@@ -405,7 +546,8 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
     and the seed's separable approximation, with the outside attenuation at the entry point), MARCH
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
     free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
-    dim0 + j; var gets the variance of the mean). With `planes` (a convex index-matched shape, rows
+    dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per segment (a spot's axis and cone
+    there; NO_CONE for other lights). With `planes` (a convex index-matched shape, rows
     of `convex_exit`; else an empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand`
     (geo: its per-segment rows) instead: the exact straight path to every light outside."""
     convex = planes.shape[0] > 0
@@ -415,6 +557,14 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
         if ks == 0.0 or not ell[s] > 0.0:
             continue
         ph = phase_value(code, g, mu[s]) if distant[s] else 0.0
+        spot = NO_SPOT
+        if eta != 1.0 and not distant[s] and geo[s, 13] > -1.0:  # refracted_point's terms of a spot light
+            n0, n1, n2 = geo[s, 14], geo[s, 15], geo[s, 16]
+            na = n0 * geo[s, 9] + n1 * geo[s, 10] + n2 * geo[s, 11]
+            wa = geo[s, 3] * geo[s, 9] + geo[s, 4] * geo[s, 10] + geo[s, 5] * geo[s, 11] + a[s] * na
+            la = ((geo[s, 6] - geo[s, 0]) * geo[s, 9] + (geo[s, 7] - geo[s, 1]) * geo[s, 10]
+                  + (geo[s, 8] - geo[s, 2]) * geo[s, 11] - hl[s] * na)
+            spot = (wa, la, na, geo[s, 12], geo[s, 13])
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
                 out[s] = convex_quadrature(geo[s], planes, distant[s], ell[s], kt, ks, code, g, kt_out, ph, rtol, stats)
@@ -430,7 +580,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                     x = (j + 0.5) * dx
                     acc += (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
                             inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                             kt_out, wl[s], ll[s], eta))
+                                             kt_out, wl[s], ll[s], eta, spot))
                 out[s] = acc * dx
             else:
                 mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
@@ -440,7 +590,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                     x = -math.log1p(-u * kt * mass) / kt
                     f = (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
                          inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                          kt_out, wl[s], ll[s], eta)) * mass * math.exp(kt * x)
+                                          kt_out, wl[s], ll[s], eta, spot)) * mass * math.exp(kt * x)
                     acc += f
                     acc2 += f * f
                 mean = acc / steps
@@ -452,7 +602,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
             else:
                 out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
         elif mode == QUAD and eta != 1.0:
-            out[s] = point_refracted(wl[s], ll[s], ell[s], kt, ks, code, g, a[s], hl[s], eta, kt_out, rtol, stats)
+            out[s] = point_refracted(wl[s], ll[s], ell[s], kt, ks, code, g, a[s], hl[s], eta, kt_out, spot, rtol, stats)
         elif mode == QUAD:
             out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
         elif mode == APPROX:
