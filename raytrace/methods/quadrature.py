@@ -86,6 +86,8 @@ def _either_rule_impl(a, b, args, nodes, weights):
         return lambda a, b, args, nodes, weights: _atm_rule(a, b, args, nodes, weights)
     from ..media.slab import CONVEX_ARGS, EQ7_ARGS, convex_rule, eq7_rule  # seed 002 (bounded media)
 
+    assert len({7, 11, 13, EQ7_ARGS, CONVEX_ARGS}) == 5, "each rule's argument tuple needs a length of its own"
+
     if len(args) == EQ7_ARGS:
         return lambda a, b, args, nodes, weights: eq7_rule(a, b, args, nodes, weights)
     if len(args) == CONVEX_ARGS:
