@@ -260,6 +260,8 @@ def planet_scene(draw):
            "look_at": [p + scale * v for p, v in zip(pos, view)], "width": 4, "height": 3, "spp": 1}
     if draw(st.booleans()):
         cam["fov"] = draw(st.sampled_from([1e-3, 10.0, 70.0, 179.0]))
+    if abs(view[1]) > 0.99:  # looking straight down or up: the default up is along the view
+        cam["up"] = [1.0, 0.0, 0.0]
     lights = []
     for _ in range(draw(st.integers(0, 2))):
         kind = draw(st.sampled_from(["directional", "directional", "point", "spot"]))
@@ -267,7 +269,7 @@ def planet_scene(draw):
         if kind == "directional":
             lights.append({"type": "directional", "direction": direction(), "irradiance": power})
             continue
-        x = {"type": kind, "position": pos if draw(st.integers(0, 5)) == 0 else place(), "intensity": power * radius ** 2}
+        x = {"type": kind, "position": pos if draw(st.integers(0, 5)) == 0 else place(), "intensity": power * radius ** 2 if power <= 20.0 else power}
         if kind == "spot":
             x.update(direction=direction(), cone_angle=draw(st.sampled_from([1.0, 30.0, 90.0, 179.0])))
         lights.append(x)
@@ -288,16 +290,16 @@ CHEAP = {"precision": [1e-8, 1e-4, 1e-3, 0.1], "max_iter": [1, 3, 1000], "terms"
 
 
 @st.composite
-def render_args(draw, methods=tuple(METHODS_BY_NAME)):
+def render_args(draw, methods=tuple(METHODS_BY_NAME), cheap={}):
     """(method, its parameters, volumetric shadows): each parameter drawn or left at its default;
-    `methods` a tuple of names or a strategy drawing one."""
+    `methods` a tuple of names or a strategy drawing one; `cheap` overrides CHEAP's values."""
     name = draw(st.sampled_from(draw(methods) if isinstance(methods, st.SearchStrategy) else methods))
     params = {}
     for k, p in METHODS_BY_NAME[name].params.items():
         if not draw(st.booleans()):
             continue
         params[k] = draw(st.sampled_from(p.choices) if p.choices else st.booleans() if p.type is bool
-                         else st.sampled_from([v for v in CHEAP[k] if p.accepts(v)]))
+                         else st.sampled_from([v for v in cheap.get(k, CHEAP[k]) if p.accepts(v)]))
     shadows = draw(st.booleans())
     if params.get("shadow_test") == "samples" and not shadows:
         shadows = draw(st.booleans())
@@ -306,17 +308,21 @@ def render_args(draw, methods=tuple(METHODS_BY_NAME)):
 
 def _rename(table: dict, draw) -> str:
     # not type or primitive: without them the table's other keys are the first thing wrong
-    k = draw(st.sampled_from(sorted(set(table) - {"type", "primitive"})))
+    keys = sorted(set(table) - {"type", "primitive", "mesh"})
+    if not keys:  # a mesh shape with nothing else, an empty interior: an unknown key
+        table["colour"] = 0.5
+        return "colour"
+    k = draw(st.sampled_from(keys))
     bad = k + "s" if not k.endswith("s") else k[:-1]
     table[bad] = table.pop(k)
     return bad
 
 
 @st.composite
-def near_valid(draw, scenes=scene(), methods=tuple(METHODS_BY_NAME)):
+def near_valid(draw, scenes=scene(), methods=tuple(METHODS_BY_NAME), cheap={}):
     """(scene, render args, spoilt scene, its render args, what its refusal must name if the scene
     itself renders): one thing spoilt; None where the spoilt scene is legal (degenerate geometry)."""
-    base, base_args = draw(scenes), draw(render_args(methods))
+    base, base_args = draw(scenes), draw(render_args(methods, cheap))
     sc, args = copy.deepcopy(base), base_args
     return (base, base_args, *draw(_spoil(sc, args)))
 
@@ -426,8 +432,11 @@ def check(sc, method, params, shadows, names=None):
         OUTCOMES["refused"] += 1
         return None
     # lecocq returns the raw truncated Taylor polynomial, negative far from the foot point by design
-    # (PP09's "negative estimates", methods/lecocq.py: FAITHFUL, NOT FIXED): finite is all it promises
-    assert np.all(np.isfinite(img.array)) and (method == "lecocq" or np.all(img.array >= 0.0)), (sc, method)
+    # (PP09's "negative estimates", methods/lecocq.py: FAITHFUL, NOT FIXED), and so does analytic's
+    # --anisotropic taylor (the paper's eqs. 14-19) outside its convergence radius (counted in its
+    # taylor_out_of_range_fraction; e.g. -3e19 with the camera on a point light): finite is all they promise
+    raw = method == "lecocq" or params.get("anisotropic") == "taylor"
+    assert np.all(np.isfinite(img.array)) and (raw or np.all(img.array >= 0.0)), (sc, method, params)
     if img.variance is not None:
         assert np.all(np.isfinite(img.variance)) and np.all(img.variance >= 0.0)
     OUTCOMES["rendered, lit" if np.any(img.array > 0) else "rendered, black"] += 1
@@ -443,14 +452,14 @@ def fuzz_settings(examples):
                     suppress_health_check=list(HealthCheck))
 
 
-def _fuzz(examples, scenes=scene(), methods=tuple(METHODS_BY_NAME)):
+def _fuzz(examples, scenes=scene(), methods=tuple(METHODS_BY_NAME), cheap={}):
     @fuzz_settings(examples)
-    @given(scenes, render_args(methods))
+    @given(scenes, render_args(methods, cheap))
     def valid(sc, args):
         check(sc, *args)
 
     @fuzz_settings(examples)
-    @given(near_valid(scenes, methods))
+    @given(near_valid(scenes, methods, cheap))
     def spoilt(case):
         base, base_args, sc, args, names = case
         rendered = check(base, *base_args) is not None
@@ -468,10 +477,12 @@ def test_fuzzed_scenes_render_or_refuse():
 # the methods that take an atmosphere (analytic, lecocq, sun and slab_approx refuse it in one line, which
 # the scenes above check): most atmosphere scenes go to these, a few to any method
 ATMOSPHERE_METHODS = st.sampled_from([("quadrature", "raymarch", "montecarlo")] * 4 + [tuple(METHODS_BY_NAME)])
+# raymarch's step by count only: a 0.05 m step across a planet is ~1e8 steps per ray (170 s for 12 pixels)
+ATMOSPHERE_CHEAP = {"step": [0.0]}
 
 
 def test_fuzzed_atmospheres_render_or_refuse():
-    _fuzz(4, planet_scene(), ATMOSPHERE_METHODS)
+    _fuzz(4, planet_scene(), ATMOSPHERE_METHODS, ATMOSPHERE_CHEAP)
 
 
 @pytest.mark.slow
@@ -485,7 +496,7 @@ def test_fuzzed_scenes_render_or_refuse_many():
 @pytest.mark.slow
 def test_fuzzed_atmospheres_render_or_refuse_many():
     OUTCOMES.clear()
-    _fuzz(300, planet_scene(), ATMOSPHERE_METHODS)
+    _fuzz(300, planet_scene(), ATMOSPHERE_METHODS, ATMOSPHERE_CHEAP)
     print(f"\nfuzzed atmospheres: {dict(OUTCOMES)}")
     assert OUTCOMES["rendered, lit"] >= 30  # not vacuous
 
