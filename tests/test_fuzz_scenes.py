@@ -3,20 +3,27 @@
 `scene()` draws every primitive (box, quad, sphere, cylinder) with and without transforms, point,
 spot and directional lights (anywhere: inside, on walls, outside, on the camera), homogeneous media
 (with and without `[medium.particles]`) and height fogs (exponential and linear), every phase, both
-cameras, magnitudes from 0 to 1e300; `render_args()` every registered method with random values of
+cameras, magnitudes from 0 to 1e300, shapes holding a medium (`interior`, index-matched or refractive, on
+any primitive or a closed non-convex U mesh; the camera inside one; vacuum outside; an open U or a
+flat shape with an interior, which must be refused); `planet_scene()` a planet's atmosphere (100 m
+to Earth-sized, 1-3 layers, cameras and lamps on the ground, in the air, in space, grazing the ground
+or the top); `render_args()` every registered method with random values of
 its own parameters (volumetric shadows, shadow_test, sampling modes). `near_valid()` then spoils one
-thing: a misspelt key, a number out of range, degenerate geometry. Each scene either renders an
-image of finite, non-negative pixels (and variances), or is refused with one line (UserError) that
+thing: a misspelt key (interior and layer keys too), a number out of range, degenerate geometry. Each scene either renders an
+image of finite, non-negative pixels (and variances; lecocq and analytic --anisotropic taylor, the
+papers' raw series: finite), or is refused with one line (UserError) that
 is not "this is a bug" and, for a spoiled scene, names the spoiled key; never another exception, never
 a numpy floating-point warning.
 
 `lit_scene()` aims at what most fuzzed scenes are not: lit, moderately thick box rooms (sigma_t h
 from 0.01 to 10 across the room, lights inside, an occluder, volumetric shadows on or off), on which
 every deterministic method must agree with `quadrature` within its own declared error law
-(`Method.error_law`, raytrace/methods/__init__.py, as tests/test_methods.py applies it).
+(`Method.error_law`, raytrace/methods/__init__.py, as tests/test_methods.py applies it); sometimes
+the occluding sphere holds an index-matched medium. `lit_planet()`: small sunlit atmospheres, where
+raymarch is held to its order (the other deterministic methods refuse atmospheres).
 
 Fixed seed (derandomized); the suite runs a few dozen scenes, `pytest -m slow -k fuzz` runs 1000
-of each fuzzer and prints the counts of scenes rendered and refused.
+of each fuzzer (300 atmospheres) and prints the counts of scenes rendered and refused.
 """
 from __future__ import annotations
 
