@@ -534,6 +534,8 @@ def lit_scene(draw):
         x["intensity"] = draw(st.floats(0.1, 100.0))
         if "look_at" in x:
             x["look_at"] = [p + v for p, v in zip(x["position"], draw(away))]
+        elif "direction" in x:  # not zero
+            x["direction"] = draw(away)
     cam = {"type": draw(st.sampled_from(["perspective", "environment"])), "position": pos,
            "look_at": [p + v for p, v in zip(pos, view)], "width": 4, "height": 3, "spp": 1}
     med = {"sigma_a": draw(st.one_of(st.just(0.0), coefficient)),
