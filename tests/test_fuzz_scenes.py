@@ -23,7 +23,7 @@ the occluding sphere holds an index-matched medium. `lit_planet()`: small sunlit
 raymarch is held to its order (the other deterministic methods refuse atmospheres).
 
 Fixed seed (derandomized); the suite runs a few dozen scenes, `pytest -m slow -k fuzz` runs 1000
-of each fuzzer (300 atmospheres) and prints the counts of scenes rendered and refused.
+of each fuzzer (atmospheres too) and prints the counts of scenes rendered and refused.
 """
 from __future__ import annotations
 
@@ -493,7 +493,7 @@ ATMOSPHERE_CHEAP = {"step": [0.0]}
 
 
 def test_fuzzed_atmospheres_render_or_refuse():
-    _fuzz(4, planet_scene(), ATMOSPHERE_METHODS, ATMOSPHERE_CHEAP)
+    _fuzz(10, planet_scene(), ATMOSPHERE_METHODS, ATMOSPHERE_CHEAP)
 
 
 @pytest.mark.slow
@@ -507,9 +507,9 @@ def test_fuzzed_scenes_render_or_refuse_many():
 @pytest.mark.slow
 def test_fuzzed_atmospheres_render_or_refuse_many():
     OUTCOMES.clear()
-    _fuzz(300, planet_scene(), ATMOSPHERE_METHODS, ATMOSPHERE_CHEAP)
+    _fuzz(1000, planet_scene(), ATMOSPHERE_METHODS, ATMOSPHERE_CHEAP)
     print(f"\nfuzzed atmospheres: {dict(OUTCOMES)}")
-    assert OUTCOMES["rendered, lit"] >= 30  # not vacuous
+    assert OUTCOMES["rendered, lit"] >= 100  # not vacuous
 
 
 inside = st.floats(-1.75, 1.75)
