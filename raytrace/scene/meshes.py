@@ -185,6 +185,9 @@ def scene_triangles(scene: Scene, shape_ids: bool = False):
             raise UserError(f"{scene.path or 'scene'}: {key}.interior: the shape is not closed ({open_edges} boundary "
                             "edges), so it has no inside; close the mesh (or use a box, sphere or cylinder) or remove "
                             "the interior")
+        if shape.interior is not None and not np.any(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])):
+            raise UserError(f"{scene.path or 'scene'}: {key}.interior: every triangle of the shape has zero area, so "
+                            "it has no inside; give the shape a volume or remove the interior")
         all_tris.append(tris)
         all_refl.append(np.clip(refl, 0.0, 1.0))
         all_ids.append(np.full(len(tris), i, dtype=np.int64))
