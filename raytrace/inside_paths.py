@@ -27,8 +27,12 @@ from .rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
 FAR = 3.5  # x the scene's scale: from any scene point this far toward a directional light is outside every shape
-MAX_LEVELS = 40
-FLOAT32_SLACK = 1e-6  # relative: how far Embree's float32 distance may be from the exact one  # bisections of a quadrature panel
+MAX_LEVELS = 40  # halvings of a quadrature panel
+# open panels one level of `segment_quadrature` may hold: an integrand that never settles (float32
+# crossings jitter inside lengths by ~1e-7 of the scene) would otherwise double them every level
+# (the slow fuzz run reached 23 GB); beyond it the open panels keep their 20-point values, counted
+MAX_OPEN_PER_SEGMENT, MAX_OPEN = 4, 1 << 16
+FLOAT32_SLACK = 1e-6  # relative: how far Embree's float32 distance may be from the exact one
 
 
 def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None):
@@ -190,7 +194,7 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
     10- and 20-point Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the
     whole per unit length (media/slab.py's rule, vectorised over segments because every evaluation
     traces rays); the first panels end at a spot's cone crossings (media/slab.py straight_cuts);
-    panels still open after MAX_LEVELS halvings count in stats[0]."""
+    panels still open after MAX_LEVELS halvings, or beyond the MAX_OPEN bound, count in stats[0]."""
     n, nc = len(ell), len(kts)
     total = np.zeros((n, nc))
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
@@ -211,6 +215,10 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
             np.add.at(floor, seg, np.abs(g20))
             floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
+        if 2 * np.count_nonzero(~ok) > max(MAX_OPEN_PER_SEGMENT * n, MAX_OPEN):  # a memory bound, not a tolerance
+            np.add.at(total, seg, g20)
+            stats[0] += np.count_nonzero(~ok)
+            return total
         np.add.at(total, seg[ok], g20[ok])
         seg, a, b, mid = seg[~ok], a[~ok], b[~ok], mid[~ok]
         seg, a, b = np.concatenate([seg, seg]), np.concatenate([a, mid]), np.concatenate([mid, b])
