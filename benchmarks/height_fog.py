@@ -49,14 +49,22 @@ def midpoint(h, mu, length, n, out):
         out[i] = acc * dt
 
 
-def timed(fn, *args):
+def timed(fn, *args, per=N_SEGMENTS):
+    """Seconds per segment of fn(*args) over `per` segments: the best of 3 runs after a compiling one."""
     fn(*args)  # compile
     best = math.inf
     for _ in range(3):
         start = time.perf_counter()
         fn(*args)
         best = min(best, time.perf_counter() - start)
-    return best / N_SEGMENTS
+    return best / per
+
+
+def note_reached(reached, rel, n, ratio):
+    """Record in `reached` the first step count n whose max relative error meets 1e-3 and 1e-6."""
+    for target in (1e-3, 1e-6):
+        if target not in reached and rel.max() <= target:
+            reached[target] = (n, ratio)
 
 
 def main():
@@ -75,9 +83,7 @@ def main():
         t = timed(midpoint, h, mu, length, n, out)
         rel = np.abs(out - ref) / ref
         print(f"| {n} | {np.median(rel):.1e} | {rel.max():.1e} | {t * 1e9:.0f} | {t / t_closed:.0f} |")
-        for target in (1e-3, 1e-6):
-            if target not in reached and rel.max() <= target:
-                reached[target] = (n, t / t_closed)
+        note_reached(reached, rel, n, t / t_closed)
     for target, (n, ratio) in sorted(reached.items(), reverse=True):
         print(f"max error {target:g}: midpoint needs {n} steps, {ratio:.0f} x the closed form's time")
 
@@ -155,30 +161,17 @@ def atmosphere_optical_depth_at_equal_error():
     tg = np.array([atmo.ground_distance(a, b, R) for a, b in zip(h, mu)])
     t1 = np.minimum(rng.uniform(0.0, 300e3, n_seg), tg)
     ref = np.empty(n_seg)
-    _atm_closed(h, mu, t1, R, ref)
-    best = math.inf
-    for _ in range(3):
-        start = time.perf_counter()
-        _atm_closed(h, mu, t1, R, ref)
-        best = min(best, time.perf_counter() - start)
-    t_closed = best / n_seg
+    t_closed = timed(_atm_closed, h, mu, t1, R, ref, per=n_seg)
     print(f"\natmosphere column (Chapman, eq. 40-48): {t_closed * 1e9:.0f} ns per segment")
     print("| midpoint steps | max rel. error | ns per segment | x closed form |")
     print("|---|---|---|---|")
     out = np.empty(n_seg)
     reached = {}
     for n in (4, 16, 64, 256, 1024, 4096, 16384):
-        _atm_midpoint(h, mu, t1, R, n, out)
-        t = math.inf
-        for _ in range(3):
-            start = time.perf_counter()
-            _atm_midpoint(h, mu, t1, R, n, out)
-            t = min(t, (time.perf_counter() - start) / n_seg)
+        t = timed(_atm_midpoint, h, mu, t1, R, n, out, per=n_seg)
         rel = np.abs(out - ref) / ref
         print(f"| {n} | {rel.max():.1e} | {t * 1e9:.0f} | {t / t_closed:.1f} |")
-        for target in (1e-3, 1e-6):
-            if target not in reached and rel.max() <= target:
-                reached[target] = (n, t / t_closed)
+        note_reached(reached, rel, n, t / t_closed)
     for target, (n, ratio) in sorted(reached.items(), reverse=True):
         print(f"max error {target:g}: midpoint needs {n} steps, {ratio:.1f} x the closed form's time")
 
