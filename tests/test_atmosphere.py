@@ -250,38 +250,42 @@ def test_quadrature_matches_brute_force_many_pixels(write_scene, tmp_path):
         assert worst < 1e-6
 
 
-def test_volumetric_shadows_of_a_lamp_in_the_atmosphere():
-    """A black plate under the lamp (the sun off): the shadowed quadrature against the brute force
-    with the plate's shadow boundaries as breakpoints, to 1e-6; some pixels are in its shadow."""
-    plate = (2.5, (2.0, 6.0), (-14.0, -10.0))
-    scene = {**GROUND, "camera": {**GROUND["camera"], "look_at": [4.0, 2.0, -12.0], "fov": 60.0},
-             "light": GROUND["light"][1:],
-             "shape": [{"primitive": "quad", "corners": [[2.0, 2.5, -14.0], [6.0, 2.5, -14.0], [6.0, 2.5, -10.0],
-                                                         [2.0, 2.5, -10.0]], "reflectance": 0.0}]}
+PLATE = (2.5, (2.0, 6.0), (-14.0, -10.0))  # the brute force's plate: height, x range, z range
+
+
+def _plate_scene(lights, look_at, **camera):
+    """GROUND with a black plate at PLATE under the lights, and the camera looking at `look_at`."""
+    return {**GROUND, "camera": {**GROUND["camera"], "look_at": look_at, "fov": 60.0, **camera}, "light": lights,
+            "shape": [{"primitive": "quad", "corners": [[2.0, 2.5, -14.0], [6.0, 2.5, -14.0], [6.0, 2.5, -10.0],
+                                                        [2.0, 2.5, -10.0]], "reflectance": 0.0}]}
+
+
+def _shadowed(scene):
+    """The shadowed quadrature image and its pixels darker than the unshadowed one (at least 3)."""
     img = raytrace.render(scene, method="quadrature", volumetric_shadows=True, threads=1).array
     free = raytrace.render(scene, method="quadrature", threads=1).array
     shadowed = [(int(i), int(j)) for j, i in zip(*np.nonzero(np.any(img < 0.99 * free, axis=2)))]
     assert len(shadowed) >= 3
+    return img, shadowed
+
+
+def test_volumetric_shadows_of_a_lamp_in_the_atmosphere():
+    """A black plate under the lamp (the sun off): the shadowed quadrature against the brute force
+    with the plate's shadow boundaries as breakpoints, to 1e-6; some pixels are in its shadow."""
+    scene = _plate_scene(GROUND["light"][1:], [4.0, 2.0, -12.0])
+    img, shadowed = _shadowed(scene)
     pixels = shadowed[:4] + [(0, 0)]  # and an unshadowed corner
-    assert _worst(img, lambda i, j: pixel(scene, i, j, (plate,)), pixels) < 1e-6
+    assert _worst(img, lambda i, j: pixel(scene, i, j, (PLATE,)), pixels) < 1e-6
 
 
 def test_volumetric_shadows_of_the_sun():
     """A black plate in the sun (53 degrees up), the camera looking through its shadow: the sun's
     lit intervals (visibility.sun_intervals) against the brute force with the plate's shadow
     boundaries as breakpoints, to 1e-6, in quadrature; Monte Carlo's z-test on the same pieces."""
-    plate = (2.5, (2.0, 6.0), (-14.0, -10.0))
     sun = {"type": "directional", "direction": [-0.3, -0.8, 0.5], "irradiance": [20.0, 19.0, 17.0]}
-    scene = {**GROUND, "camera": {**GROUND["camera"], "look_at": [4.0, 1.0, -12.0], "fov": 60.0, "width": 9,
-                                  "height": 6},
-             "light": [sun],
-             "shape": [{"primitive": "quad", "corners": [[2.0, 2.5, -14.0], [6.0, 2.5, -14.0], [6.0, 2.5, -10.0],
-                                                         [2.0, 2.5, -10.0]], "reflectance": 0.0}]}
-    img = raytrace.render(scene, method="quadrature", volumetric_shadows=True, threads=1).array
-    free = raytrace.render(scene, method="quadrature", threads=1).array
-    shadowed = [(int(i), int(j)) for j, i in zip(*np.nonzero(np.any(img < 0.99 * free, axis=2)))]
-    assert len(shadowed) >= 3
-    assert _worst(img, lambda i, j: pixel(scene, i, j, (plate,)), shadowed[:5] + [(0, 0)]) < 1e-6
+    scene = _plate_scene([sun], [4.0, 1.0, -12.0], width=9, height=6)
+    img, shadowed = _shadowed(scene)
+    assert _worst(img, lambda i, j: pixel(scene, i, j, (PLATE,)), shadowed[:5] + [(0, 0)]) < 1e-6
     mc = raytrace.render(scene, method="montecarlo", samples=256, sampling="freepath", seed=5, threads=1,
                          volumetric_shadows=True)
     noisy = mc.variance > 0
