@@ -64,7 +64,7 @@ class Accelerator:
             from embreex import rtcore_scene
             from embreex.mesh_construction import TriangleMesh
 
-            self._scene = rtcore_scene.EmbreeScene(_device())
+            self._scene = rtcore_scene.EmbreeScene(_device(), robust=True)
             TriangleMesh(self._scene, self._to_embree(self.triangles))
 
     def _to_embree(self, a):

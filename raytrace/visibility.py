@@ -155,18 +155,14 @@ FLOAT32_MARGIN = 4e-7  # relative: what Embree's float32 rays can misplace a poi
 
 
 @njit(inline="always")  # called per sample from the kernels below: a call would cost more than its work
-def _write_ray(L, lnorm, s, dx, dy, dz, dist, at_surface, epsilon, o32, d32, t32, j):
-    """The float32 shadow ray j from segment s's light towards its point at distance dist in the
-    direction (dx, dy, dz). It starts the shadow-ray epsilon away from the light (a light on a
-    surface lights the side it faces). Points in the air need no offset beyond float32 rounding; a
-    point on the surface a segment ends on stops the shadow-ray epsilon short of it."""
+def _write_ray(L, lnorm, s, dx, dy, dz, dist, epsilon, o32, d32, t32, j):
+    """The float32 shadow ray j from segment s's light towards its point in the air at distance dist
+    in the direction (dx, dy, dz). It starts the shadow-ray epsilon away from the light (a light on
+    a surface lights the side it faces) and stops float32 rounding short of the point."""
     o32[j, 0], o32[j, 1], o32[j, 2] = L[s, 0] + epsilon * dx, L[s, 1] + epsilon * dy, L[s, 2] + epsilon * dz
     d32[j, 0], d32[j, 1], d32[j, 2] = dx, dy, dz
     if dist < math.inf:
-        margin = FLOAT32_MARGIN * (dist + lnorm[s])
-        if at_surface:
-            margin = max(margin, epsilon)
-        t32[j] = max(dist - margin - epsilon, 0.0)
+        t32[j] = max(dist - FLOAT32_MARGIN * (dist + lnorm[s]) - epsilon, 0.0)
     else:
         t32[j] = math.inf
 
@@ -189,8 +185,8 @@ def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, 
     inside one texel of the depth pyramid (shadow_maps.py) that decides their whole range of
     distances are set at once (the run length, a power of two, doubles after a success and halves
     after a failure); other samples are decided by their finest texel or, failing that and always
-    for the last sample (on the surface the segment ends on), get a shadow ray in o32/d32/t32 with
-    their index in trace. Angles advance by rotation (cosine and sine of the step and of its powers
+    get a shadow ray in o32/d32/t32 with their index in trace. The last sample (on the surface the
+    segment ends on) is left to `end_visible`. Angles advance by rotation (cosine and sine of the step and of its powers
     of two), so the loop calls no trigonometry. Returns the number of rays to trace."""
     m = 0
     levels = sizes.shape[0]
@@ -206,12 +202,10 @@ def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, 
         e = -1  # the run is 2^e samples; -1: single samples
         c, sn = math.cos(th_a[s]), math.sin(th_a[s])
         k = 0
-        while k <= count[s]:
-            if k == count[s]:
-                c, sn = math.cos(th_b[s]), math.sin(th_b[s])
+        while k < count[s]:
             dx, dy, dz, dist = _point(n, w, h, s, c, sn)
-            if k == count[s] or levels == 0:
-                _write_ray(L, lnorm, s, dx, dy, dz, dist, k == count[s], epsilon, o32, d32, t32, m)
+            if levels == 0:
+                _write_ray(L, lnorm, s, dx, dy, dz, dist, epsilon, o32, d32, t32, m)
                 trace[m] = first[s] + k
                 m += 1
                 k += 1
@@ -255,7 +249,7 @@ def _sample(L, n, w, h, lnorm, light, th_a, th_b, count, first, order, epsilon, 
                 vis[first[s] + k] = v == 1
                 e = 1
             else:
-                _write_ray(L, lnorm, s, dx, dy, dz, dist, False, epsilon, o32, d32, t32, m)
+                _write_ray(L, lnorm, s, dx, dy, dz, dist, epsilon, o32, d32, t32, m)
                 trace[m] = first[s] + k
                 m += 1
             k += 1
@@ -278,7 +272,7 @@ def _rays_at(L, n, w, h, lnorm, light, seg, theta, epsilon, table, sizes, offset
         if v >= 0:
             vis[q] = v == 1
         else:
-            _write_ray(L, lnorm, s, dx, dy, dz, dist, False, epsilon, o32, d32, t32, m)
+            _write_ray(L, lnorm, s, dx, dy, dz, dist, epsilon, o32, d32, t32, m)
             trace[m] = q
             m += 1
     return m
@@ -380,6 +374,24 @@ def _trace(accel, kernel, args, m, stats):
     return vis
 
 
+def end_visible(accel, segs: Segments, L: np.ndarray) -> np.ndarray:
+    """Whether each segment's last point sees its light at L (S, 3), tested from the light with a
+    float64 first hit: the last point usually lies on a surface, and a shadow ray stopped short of
+    it would miss an occluder closer to it than the stop (the far wall of a small closed shape, seen
+    through its near wall near the silhouette). What the light's ray meets within float32 reach of
+    the point is the point's own surface. A segment to infinity ends lit unless the ray's direction
+    itself is blocked."""
+    finite = np.isfinite(segs.length)
+    end = segs.origins + np.where(finite, segs.length, 0.0)[:, None] * segs.dirs
+    v = end - L
+    dist = np.where(finite, np.linalg.norm(v, axis=1), np.inf)
+    d = np.where(finite[:, None], v / np.where(dist > 0.0, dist, 1.0)[:, None], segs.dirs)
+    t, _ = accel.first_hit(L + accel.epsilon * d, d)
+    reach = FLOAT32_MARGIN * (dist + np.linalg.norm(L, axis=1))
+    with np.errstate(invalid="ignore"):  # inf - inf on segments to infinity
+        return (dist <= accel.epsilon) | (t >= dist - accel.epsilon - reach) | ~np.isfinite(t)
+
+
 def _search(accel, maps, segs, light_frame, spacing, end_lit, stats, edges=True):
     """Lit angular intervals of a chunk: (segment index, theta start, theta end, starts at the
     segment's start, ends at its end). `light_frame`: the chunk's `_light_frame`; `end_lit`:
@@ -394,7 +406,8 @@ def _search(accel, maps, segs, light_frame, spacing, end_lit, stats, edges=True)
     pyramid = (maps.table, maps.sizes, maps.offsets)
     vis = _trace(accel, _sample, frame + (th_a, th_b, count, first, order, accel.epsilon) + pyramid,
                  int(last[-1]) + 1, stats)
-    vis[last] &= end_lit
+    vis[last] = end_lit & end_visible(accel, segs, L)
+    stats[LI_RAYS] += len(segs)
     stats[LI_SAMPLES] += len(vis)
     # visibility changes between consecutive samples of one segment: bisect each to BOUNDARY_TOL
     so, k = _changes(vis, first, count)
@@ -474,6 +487,19 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     return concat(parts, segs), stats
 
 
+def sun_end_visible(accel, segs: Segments, wi: np.ndarray) -> np.ndarray:
+    """Whether each segment's last point sees the sun (toward wi), tested as `end_visible` does for
+    a point light: a float64 first hit from outside the scene's bounds toward the point, so that no
+    offset steps over an occluder near it. Segments to infinity end lit."""
+    finite = np.isfinite(segs.length)
+    end = segs.origins + np.where(finite, segs.length, 0.0)[:, None] * segs.dirs
+    far = np.linalg.norm(end, axis=1) + 2.0 * accel.scale  # beyond every triangle (|coordinates| <= scale)
+    start = end + far[:, None] * wi
+    t, _ = accel.first_hit(start, -wi)
+    reach = FLOAT32_MARGIN * (far + np.linalg.norm(start, axis=1))
+    return ~finite | (t >= far - reach)
+
+
 SUN_BISECTIONS = 48  # halvings of a sample interval in u: below 1e-14 of the scene's size near the camera
 
 
@@ -483,15 +509,17 @@ def sun_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float, 
     angles from, so a segment is sampled evenly in u = x / (x + S), S the segment's length or, if
     shorter, the scene's size (u < 1 on rays to infinity; a point light's quarter circle of angles
     maps to u in [0, 1) alike), with
-    ceil(u_end / (2 spacing / pi)) intervals; each sample sends a shadow ray to infinity toward the
-    sun from the point moved epsilon toward it, and every change of visibility between two samples
-    is bisected SUN_BISECTIONS times in u. What it can miss: an occluder (or gap) thinner than a
-    sample interval. A segment ending on a surface that faces away from the sun ends unlit."""
+    ceil(u_end / (2 spacing / pi)) intervals; each sample in the air sends a shadow ray to infinity
+    toward the sun, the last one (on the surface the segment ends on) is tested by `sun_end_visible`,
+    and every change of visibility between two samples is bisected SUN_BISECTIONS times in u. What
+    it can miss: an occluder (or gap) thinner than a sample interval. A segment ending on a surface
+    that faces away from the sun ends unlit."""
     ell = segs.length
     S = np.maximum(np.minimum(ell, segs.scale), 1e-300)
     u_end = np.divide(ell, ell + S, out=np.ones_like(ell), where=np.isfinite(ell))
     count = np.maximum(1, np.ceil(u_end / (2.0 * spacing / np.pi))).astype(np.int64)
     first = np.concatenate([[0], np.cumsum(count + 1)[:-1]]).astype(np.int64)
+    last = first + count
     seg_of = np.repeat(np.arange(len(segs)), count + 1)
     k = np.arange(len(seg_of)) - first[seg_of]
     u = u_end[seg_of] * k / count[seg_of]
@@ -499,16 +527,18 @@ def sun_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float, 
 
     def visible(seg, uu):
         x = np.where(uu >= 1.0, np.inf, S[seg] * uu / np.maximum(1.0 - uu, 1e-300))
-        x = np.minimum(x, ell[seg])
         finite = np.isfinite(x)
-        p = segs.origins[seg] + np.where(finite, x, 0.0)[:, None] * segs.dirs[seg] + accel.epsilon * wi[seg]
+        p = segs.origins[seg] + np.where(finite, x, 0.0)[:, None] * segs.dirs[seg]
         out = ~accel.occluded(p, wi[seg], np.full(len(seg), np.inf))
         # a ray to infinity: its far end sees the sun unless the ray itself runs into the shadow
         return np.where(finite, out, True)
 
-    vis = visible(seg_of, np.minimum(u, 1.0 - 1e-12))
+    air = np.ones(len(seg_of), bool)
+    air[last] = False
+    vis = np.empty(len(seg_of), bool)
+    vis[air] = visible(seg_of[air], u[air])
+    vis[last] = sun_end_visible(accel, segs, wi)
     if end_normals is not None:  # the last sample of a segment ending on a surface facing away: unlit
-        last = first + count
         facing = np.einsum("ij,ij->i", end_normals, wi) * -np.einsum("ij,ij->i", end_normals, segs.dirs) >= 0.0
         vis[last] &= facing
     stats[LI_SEGMENTS] += len(segs)
