@@ -651,7 +651,7 @@ def falloff_floor(sc) -> float:
     return max([10.0 * 2.2e-16 / (2.0 * math.sin(c / 2.0) ** 2) for c in cones], default=0.0)
 
 
-ORDER_STEPS = (256, 512, 1024)
+ORDER_STEPS = (512, 1024, 2048)
 ORDER_RATIO = 3.6  # measured 4.00 (16 where the leading term vanishes by symmetry) on 40 scenes
 ORDER_FLOOR = 1e-12  # the reference's own error (quadrature's law: 3e-13)
 FLOORS = []  # the limit's distance from quadrature over the last change, per raymarch check (printed by the slow run)
