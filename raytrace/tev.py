@@ -12,7 +12,8 @@ integers, float32 pixel data. Two packet types are sent here:
   then the floats: channel c of the tile's pixel p (row-major in the tile) is float
   `offset[c] + p * stride[c]`. Here R, G, B are interleaved: offsets 0, 1, 2 and strides 3.
 
-No CloseImage is sent: the finished image stays open in tev. A tile is split into several packets
+CreateImage grabs focus, the updates do not (the user may switch images while it renders). No
+CloseImage is sent: the finished image stays open in tev. A tile is split into several packets
 so that none exceeds MAX_PACKET bytes, tev's initial receive buffer (it grows the buffer for longer
 ones, but short packets keep every send short).
 
