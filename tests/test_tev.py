@@ -157,13 +157,14 @@ def test_create_image_and_every_pixel_once():
 
 
 def test_tiles_from_several_threads():
-    """The renderer's threads call the display at once while tev is busy: their packets of up to 1 MiB
-    (9 MB in all, more than the socket buffers hold) still arrive whole, each pixel once. Sends
-    that were not serialised would interleave here often, though not on every run."""
-    width, height, rows = 1024, 768, 96
+    """The renderer's threads call the display at once while tev is busy: their packets (1.6 MB in
+    all, far more than the two 64 kB socket buffers hold) still arrive whole, each pixel once.
+    Unserialised sends interleaved here in 8 runs of 8 (timing-dependent, so not guaranteed)."""
+    width, height, rows = 512, 256, 32
     img = gradient(width, height)
-    server = StandIn(delay=0.1)
+    server = StandIn(delay=0.05)
     display = TevDisplay.open(server.address, "threads", width, height)
+    display._sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 65536)  # the client side of the small buffers
     with ThreadPoolExecutor(4) as pool:
         list(pool.map(lambda y: display(y, y + rows, 0, width, img[y:y + rows]), range(0, height, rows)))
     display.close()
