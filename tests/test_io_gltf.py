@@ -9,7 +9,9 @@ import base64
 import copy
 import json
 import math
+import shutil
 import struct
+import subprocess
 import warnings
 from pathlib import Path
 
@@ -142,6 +144,16 @@ def test_blender_room_renders_as_the_hand_written_scene():
 def test_blender_room_with_its_spot_renders_as_the_hand_written_scene():
     got, want = _room_pair(with_spot=True)
     np.testing.assert_allclose(render(got), render(want), rtol=1e-10, atol=1e-14)
+
+
+@pytest.mark.peers
+@pytest.mark.skipif(shutil.which("blender") is None, reason="needs Blender (Debian: apt-get install blender python3-numpy)")
+@pytest.mark.parametrize("name", ["room.glb", "room.gltf"])
+def test_blender_exports_the_room_afresh(tmp_path, name):
+    """Blender's exporter run now (make_room.py) gives the hand-written scene, like the committed files."""
+    subprocess.run(["blender", "-b", "--factory-startup", "--python", str(DATA / "make_room.py"), "--", str(tmp_path)],
+                   check=True, capture_output=True, timeout=600)
+    assert_same_scene(gltf.read_scene(tmp_path / name), read_toml(DATA / "room.toml"))
 
 
 def test_blender_units_are_candela_over_683():

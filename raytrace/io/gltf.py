@@ -261,6 +261,8 @@ class _Reader:
             self.fail(key, f"componentType {ctype!r} / type {a.get('type')!r} is not a glTF accessor format",
                       "fix the file or export it again")
         dtype, width = np.dtype(COMPONENTS[ctype]).newbyteorder("<"), WIDTHS[a["type"]]
+        if integer and (dtype.kind == "f" or width != 1):
+            self.fail(key, "indices must be unsigned integer SCALARs", "fix the file or export it again")
         count = int(self.number(a, "count", key, lo=1))
         need = count * width * 8
         if need > self.budget:

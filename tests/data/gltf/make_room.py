@@ -1,9 +1,9 @@
 """Build the glTF test room in Blender and export it with Blender's own glTF exporter.
 
-    blender -b --factory-startup --python tests/data/gltf/make_room.py
+    blender -b --factory-startup --python tests/data/gltf/make_room.py [-- OUT_DIR]
 
 (Debian's `blender` 3.4 with `python3-numpy`.) Writes room.glb and room.gltf + room.bin beside this
-script. The same scene written by hand is room.toml; tests/test_io_gltf.py checks that the import of
+script, or into OUT_DIR. The same scene written by hand is room.toml; tests/test_io_gltf.py checks that the import of
 these files equals it.
 
 The scene, in glTF's (and the scene format's) coordinates, y up, metres; Blender's are z up, so a
@@ -21,6 +21,7 @@ The room's size is in its mesh; the block's in its node (scale, rotation).
 Values are chosen exactly representable in float32 where Blender stores them.
 """
 import math
+import sys
 from pathlib import Path
 
 import bpy
@@ -28,7 +29,7 @@ from mathutils import Vector
 
 from io_scene_gltf2.blender.com.gltf2_blender_material_helpers import create_settings_group, get_gltf_node_name
 
-HERE = Path(__file__).resolve().parent
+OUT = Path(sys.argv[sys.argv.index("--") + 1]) if "--" in sys.argv else Path(__file__).resolve().parent
 
 
 def blender(p):
@@ -113,7 +114,7 @@ def main():
     scene.camera = obj
 
     for fmt, name in (("GLB", "room.glb"), ("GLTF_SEPARATE", "room.gltf")):
-        bpy.ops.export_scene.gltf(filepath=str(HERE / name), export_format=fmt, export_lights=True,
+        bpy.ops.export_scene.gltf(filepath=str(OUT / name), export_format=fmt, export_lights=True,
                                   export_cameras=True, export_yup=True)
 
 
