@@ -472,6 +472,9 @@ def test_an_accessor_beyond_the_memory_budget_is_refused_before_reading(tmp_path
     path = write_gltf(tmp_path, {"nodes": [{"mesh": 0}], "accessors": [
         {"bufferView": 0, "componentType": 5126, "count": 2 ** 40, "type": "VEC3"}]})
     _cli_refuses(path, capsys, tmp_path, "accessors[0].count: 1099511627776 elements would take", "memory budget")
+    path = write_gltf(tmp_path, {"nodes": [{"mesh": 0}], "accessors": [
+        {"bufferView": 0, "componentType": 5126, "count": 10 ** 400, "type": "VEC3"}]})
+    _cli_refuses(path, capsys, tmp_path, "is beyond 64-bit integers")
 
 
 def test_a_truncated_glb_is_refused(tmp_path, capsys):
@@ -499,3 +502,34 @@ def test_the_glb_container_is_read_like_the_gltf(tmp_path):
     assert a == b
     header = struct.unpack_from("<4sII", (DATA / "room.glb").read_bytes())
     assert header[0] == b"glTF" and header[1] == 2
+
+
+def test_any_value_of_the_wrong_type_is_a_one_line_refusal(tmp_path):
+    """Every key of the Blender room set in turn to a value of another type or range: the import and
+    the scene's validation end in a UserError (or succeed), never in a traceback."""
+    base = json.loads((DATA / "room.gltf").read_text())
+    base["buffers"][0]["uri"] = str(DATA / "room.bin")
+    paths = []
+
+    def walk(node, at=()):
+        for k, v in (node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()):
+            paths.append(at + (k,))
+            walk(v, at + (k,))
+
+    walk(base)
+    wrong = ["x", -1, 0, 1e30, [], {}, None, True, [1, 2], 2 ** 40, 0.5]
+    path = tmp_path / "f.gltf"
+    for n, at in enumerate(paths):
+        doc = copy.deepcopy(base)
+        node = doc
+        for k in at[:-1]:
+            node = node[k]
+        node[at[-1]] = wrong[n % len(wrong)]
+        path.write_text(json.dumps(doc))
+        try:
+            raw = gltf.read_scene(path)
+            for light in raw.get("light", []):
+                light.pop("falloff", None)  # not parsed yet
+            scene_from_dict(raw, str(path), path)
+        except UserError as exc:
+            assert "\n" not in str(exc) and "malformed glTF (" not in str(exc), (at, exc)

@@ -109,22 +109,31 @@ def read_scene(path: Path, camera: str | None = None) -> dict:
     """The scene dict of a .gltf / .glb file: meshes as inline triangles in world space, materials as
     reflectances or interiors, KHR_lights_punctual lights, and the first perspective camera (or the
     one whose node or camera is named `camera`)."""
-    return _Reader(Path(path)).scene(camera)
+    try:
+        return _Reader(Path(path)).scene(camera)
+    except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as exc:
+        # a value of the wrong type or range that the checks above did not name
+        raise UserError(f"{path}: malformed glTF ({type(exc).__name__}: {exc}); fix the file or export it "
+                        "again") from None
 
 
 def _json(text: str, source: str) -> dict:
     """JSON with every number finite (NaN, Infinity and overflowing literals refused with their line)."""
-    def refuse(token):
+    def refuse(token, what="is not finite; glTF numbers must be finite"):
         where = re.search(r'(?<![\w."])' + re.escape(token) + r'(?![\w."])', text)
         line = text.count("\n", 0, where.start()) + 1 if where else "?"
-        raise UserError(f"{source}: the number {token} at line {line} is not finite; glTF numbers must be finite")
+        raise UserError(f"{source}: the number {token[:20]} at line {line} {what}")
 
     def number(token):
         value = float(token)
         return value if math.isfinite(value) else refuse(token)
 
+    def integer(token):
+        value = int(token)
+        return value if abs(value) < 2 ** 63 else refuse(token, "is beyond 64-bit integers; fix the file")
+
     try:
-        doc = json.loads(text, parse_constant=refuse, parse_float=number)
+        doc = json.loads(text, parse_constant=refuse, parse_float=number, parse_int=integer)
     except json.JSONDecodeError as exc:
         raise UserError(f"{source}: malformed JSON at line {exc.lineno} column {exc.colno} ({exc.msg}); "
                         "fix the file or export it again") from None
@@ -195,8 +204,10 @@ class _Reader:
 
     # typed access to the JSON, with the key in every message
     def _get(self, obj, key, kind, default=None, where=""):
-        value = obj.get(key, default)
-        if value is not None and not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+        value = obj.get(key)
+        if value is None:  # absent or null
+            return default
+        if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
             self.fail(f"{where}{key}", f"expected {getattr(kind, '__name__', 'a number')}, got {value!r}",
                       "fix the file or export it again")
         return value
@@ -226,9 +237,9 @@ class _Reader:
 
     # buffers and accessors
     def buffer(self, i) -> bytes:
+        b, key = self.item("buffers", i), f"buffers[{i}]"
         if i in self.buffers:
             return self.buffers[i]
-        b, key = self.item("buffers", i), f"buffers[{i}]"
         size = int(self.number(b, "byteLength", key, lo=1))
         uri = self._get(b, "uri", str, where=f"{key}.")
         if uri is None:
@@ -257,7 +268,8 @@ class _Reader:
         """Accessor i as a (count, width) float64 array (int64 for indices), checked before allocation."""
         a, key = self.item("accessors", i), f"accessors[{i}]"
         ctype = a.get("componentType")
-        if ctype not in COMPONENTS or a.get("type") not in WIDTHS:
+        if not isinstance(ctype, int) or ctype not in COMPONENTS or not isinstance(a.get("type"), str) \
+                or a["type"] not in WIDTHS:
             self.fail(key, f"componentType {ctype!r} / type {a.get('type')!r} is not a glTF accessor format",
                       "fix the file or export it again")
         dtype, width = np.dtype(COMPONENTS[ctype]).newbyteorder("<"), WIDTHS[a["type"]]
@@ -297,7 +309,7 @@ class _Reader:
     # the node graph
     def scene(self, camera_name: str | None) -> dict:
         for ext in self._get(self.doc, "extensionsRequired", list, []):
-            if ext not in READ_EXTENSIONS:
+            if not isinstance(ext, str) or ext not in READ_EXTENSIONS:
                 what = "compressed meshes are not decoded" if ext in COMPRESSION else "this extension is not read"
                 self.fail("extensionsRequired", f"{ext}: {what}", "export the scene without it")
         nodes = self._get(self.doc, "nodes", list, [])
@@ -484,8 +496,8 @@ class _Reader:
         return interior
 
     def light(self, index, world, node_key) -> dict:
-        ext = self._get(self.doc, "extensions", dict, {}).get("KHR_lights_punctual", {})
-        lights = ext.get("lights", []) if isinstance(ext, dict) else []
+        ext = self._get(self._get(self.doc, "extensions", dict, {}), "KHR_lights_punctual", dict, {}, "extensions.")
+        lights = self._get(ext, "lights", list, [], "extensions.KHR_lights_punctual.")
         if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(lights) \
                 or not isinstance(lights[index], dict):
             self.fail(f"{node_key}.extensions.KHR_lights_punctual.light", f"{index!r}: no such light "
