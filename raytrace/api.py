@@ -13,6 +13,7 @@ the method's own parameters; a parameter the method does not read is an error (U
 """
 from __future__ import annotations
 
+import copy
 import math
 import os
 import time
@@ -21,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import io
 from .errors import UserError
 from .scene.format import Scene
 
@@ -73,29 +75,39 @@ class Image:
 
 def load(scene=None, overrides=()) -> Scene:
     """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default)."""
-    from .default_scene import DEFAULT_TOML
-    from .scene.assets import bundled_scenes
-    from .scene.format import load_scene, scene_from_dict, scene_from_text
+    from .scene.format import scene_from_dict
 
     if isinstance(scene, Scene):
         if overrides:
             raise UserError("overrides apply to scene files and dicts, not to a parsed Scene; pass the file or dict")
         return scene
+    raw, source, path = scene_dict(scene, overrides)
+    return scene_from_dict(raw, source, path)
+
+
+def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
+    """(raw, source, path): the scene dict (the TOML structure) of a path, a bundled scene's name, a
+    dict or None (the built-in default), with the overrides applied; not yet validated."""
+    import tomllib
+
+    from .default_scene import DEFAULT_TOML
+    from .scene.assets import bundled_scenes
+    from .scene.format import apply_override, parse_override, read_toml
+
     if scene is None:
-        return scene_from_text(DEFAULT_TOML, "default scene", None, overrides)
-    if isinstance(scene, dict):
-        import copy
-
-        from .scene.format import apply_override, parse_override
-
-        raw = copy.deepcopy(scene)
-        for item in overrides:
-            apply_override(raw, *parse_override(item, "scene dict"), "scene dict")
-        return scene_from_dict(raw, "scene dict", None)
-    path = Path(scene)
-    if not path.exists() and path.suffix == "" and str(scene) in bundled_scenes():
-        path = bundled_scenes()[str(scene)]
-    return load_scene(path, overrides)
+        raw, source, path = tomllib.loads(DEFAULT_TOML), "default scene", None
+    elif isinstance(scene, dict):
+        raw, source, path = copy.deepcopy(scene), "scene dict", None
+    else:
+        path = Path(scene)
+        if not path.exists() and path.suffix == "" and str(scene) in bundled_scenes():
+            path = bundled_scenes()[str(scene)]
+        source = str(path)
+        # glTF, Mitsuba 3 and pbrt-v4 files are read into the scene dict by raytrace.io
+        raw = io.read_scene(path) if path.suffix.lower() in io.IMPORTERS else read_toml(path)
+    for item in overrides:
+        apply_override(raw, *parse_override(item, source), source)
+    return raw, source, path
 
 
 def check_positive(name, value):

@@ -5,6 +5,7 @@ User errors print one line on stderr and exit with status 2; nothing half-writte
 from __future__ import annotations
 
 import argparse
+import copy
 import contextlib
 import math
 import sys
@@ -14,7 +15,7 @@ import numpy as np
 
 from .errors import UserError
 
-COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export")
 
 
 def _method_param_flags():
@@ -142,6 +143,12 @@ def build_parser():
     d = sub.add_parser("describe", help="print what a scene file parsed into")
     _add_scene_args(d)
     sub.add_parser("methods", help="list the air-light methods and their parameters")
+    x = sub.add_parser("export", help="write a scene for Mitsuba 3, pbrt-v4 or glTF 2.0 (docs/formats/)")
+    _add_scene_args(x)
+    x.add_argument("--format", required=True, choices=("mitsuba", "pbrt", "gltf"), help="the file format to write")
+    x.add_argument("--out", required=True, help="the file to write (meshes are written beside it or embedded)")
+    x.add_argument("--approximate", action="store_true",
+                   help="write what the format cannot express exactly as its closest form, with a warning naming it")
     f = sub.add_parser("diff", help="error of TEST.exr against REF.exr, with an error map")
     f.add_argument("test")
     f.add_argument("ref")
@@ -354,6 +361,18 @@ def cmd_describe(args):
     return 0
 
 
+def cmd_export(args):
+    from . import io
+    from .api import scene_dict
+    from .scene.format import scene_from_dict
+
+    raw, source, path = scene_dict(args.scene, args.overrides)
+    scene_from_dict(copy.deepcopy(raw), source, path)  # the scene must be valid before anything is written
+    for written in io.export(raw, args.format, Path(args.out), source, args.approximate):
+        print(f"wrote {written}")
+    return 0
+
+
 def cmd_methods(args):
     from .methods import registry
 
@@ -397,7 +416,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
                 "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
-                "seed002": cmd_seed002}
+                "seed002": cmd_seed002, "export": cmd_export}
     try:
         return handlers[args.command](args)
     except UserError as exc:

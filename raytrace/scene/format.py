@@ -19,7 +19,7 @@ from ..media.medium import ATMOSPHERE, HEIGHT_FOG, HOMOGENEOUS, PROFILES, Atmosp
 from ..media.particles import Particles
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
-PRIMITIVES = ("box", "quad", "sphere", "cylinder")
+PRIMITIVES = ("box", "quad", "sphere", "cylinder", "triangles")
 
 
 @dataclass
@@ -115,6 +115,18 @@ def _vec3(ctx, key, value):
     return np.array([_number(ctx, f"{key}[{i}]", v) for i, v in enumerate(value)], dtype=np.float64)
 
 
+def _array(ctx, key, value, *, integer=False):
+    """An (N, 3) array of finite numbers (vertices) or of non-negative integers (faces)."""
+    what = "[i, j, k] vertex indices" if integer else "[x, y, z] points"
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = np.zeros((0, 0))
+    if a.ndim != 2 or a.shape[1] != 3 or not np.all(np.isfinite(a)) or (integer and (np.any(a < 0) or np.any(a % 1))):
+        ctx.fail(key, f"expected a list of {what}", f"write {key.rsplit('.', 1)[-1]} = [[..], [..], ...]")
+    return a.astype(np.int64) if integer else a
+
+
 def _rgb(ctx, key, value, *, minimum=0.0):
     """A colour or per-channel coefficient: [r, g, b] or one number for all three."""
     if isinstance(value, list):
@@ -172,6 +184,7 @@ PRIMITIVE_KEYS = {
     "quad": {"corners"},
     "sphere": {"center", "radius", "segments"},
     "cylinder": {"base", "top", "radius", "segments"},
+    "triangles": {"vertices", "faces"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
 SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
@@ -215,6 +228,8 @@ def _shape(ctx, i, raw):
                 if k not in raw:
                     ctx.fail(f"{key}.radius", "missing", f"add {key}.radius = 1.0")
                 params[k] = float(_number(ctx, f"{key}.radius", raw[k], positive=True))
+            elif k in ("vertices", "faces"):
+                params[k] = _array(ctx, f"{key}.{k}", raw.get(k), integer=k == "faces")
             elif k == "corners":
                 c = raw.get(k)
                 if not isinstance(c, list) or len(c) != 4:
@@ -225,6 +240,9 @@ def _shape(ctx, i, raw):
                 if k not in raw:
                     ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k} = [x, y, z]")
                 params[k] = _vec3(ctx, f"{key}.{k}", raw[k])
+        if kind == "triangles" and (params["faces"].size == 0 or params["faces"].max() >= len(params["vertices"])):
+            ctx.fail(f"{key}.faces", f"index vertices 0..{len(params['vertices']) - 1} and hold at least one triangle",
+                     "write faces = [[0, 1, 2], ...] with indices into vertices")
         if kind == "box" and np.any(params["max"] <= params["min"]):
             ctx.fail(f"{key}.max", "must exceed min in every coordinate", "swap or fix min and max")
     refl = raw.get("reflectance")
@@ -613,9 +631,8 @@ def apply_override(raw: dict, key: str, value, source: str):
         node[last] = value
 
 
-def load_scene(path: str | Path, overrides=()) -> Scene:
-    """Read, override and validate a scene file. Raises UserError naming the file, key and fix."""
-    path = Path(path)
+def read_toml(path: Path) -> dict:
+    """The scene dict of a TOML scene file. Raises UserError naming the file and the fix."""
     source = str(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -623,14 +640,27 @@ def load_scene(path: str | Path, overrides=()) -> Scene:
         raise UserError(f"{source}: no such scene file; check the path") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise UserError(f"{source}: cannot read the scene file ({exc}); check its permissions and encoding") from None
-    return scene_from_text(text, source, path, overrides)
+    return _parse_toml(text, source)
+
+
+def _parse_toml(text: str, source: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{source}: malformed TOML ({exc}); fix the syntax at that line") from None
+
+
+def load_scene(path: str | Path, overrides=()) -> Scene:
+    """Read, override and validate a TOML scene file. Raises UserError naming the file, key and fix."""
+    path = Path(path)
+    raw = read_toml(path)
+    for item in overrides:
+        apply_override(raw, *parse_override(item, str(path)), str(path))
+    return scene_from_dict(raw, str(path), path)
 
 
 def scene_from_text(text: str, source: str, path: Path | None = None, overrides=()) -> Scene:
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise UserError(f"{source}: malformed TOML ({exc}); fix the syntax at that line") from None
+    raw = _parse_toml(text, source)
     for item in overrides:
         apply_override(raw, *parse_override(item, source), source)
     return scene_from_dict(raw, source, path)

@@ -167,6 +167,8 @@ def scene_triangles(scene: Scene, shape_ids: bool = False):
                 tris = box_triangles(p["min"], p["max"])
             elif shape.kind == "quad":
                 tris = quad_triangles(p["corners"])
+            elif shape.kind == "triangles":
+                tris = p["vertices"][p["faces"]]
             elif shape.kind == "sphere":
                 tris = sphere_triangles(p["center"], p["radius"], p["segments"])
             else:
