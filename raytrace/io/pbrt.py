@@ -230,12 +230,22 @@ def _world_from_look_at(eye, look, up):
 class _State:
     """pbrt's graphics state: what AttributeBegin saves."""
     ctm: np.ndarray = field(default_factory=lambda: np.eye(4))
+    inv: np.ndarray = field(default_factory=lambda: np.eye(4))  # its inverse, kept exact as pbrt's Transform does
     material: tuple = ("diffuse", [0.5, 0.5, 0.5])
     inside: str = ""
     outside: str = ""
 
     def copy(self):
-        return _State(self.ctm.copy(), self.material, self.inside, self.outside)
+        return _State(self.ctm.copy(), self.inv.copy(), self.material, self.inside, self.outside)
+
+    def concat(self, m, inv):
+        self.ctm, self.inv = self.ctm @ m, inv @ self.inv
+
+    def set(self, m, inv=None):
+        if inv is None:
+            with np.errstate(all="ignore"):
+                inv = np.linalg.pinv(m)  # a singular transform is refused where it is used (`_Reader._affine`)
+        self.ctm, self.inv = m.copy(), inv.copy()
 
 
 OPTION_DIRECTIVES = {"Camera", "Film", "Sampler", "Integrator", "PixelFilter", "Accelerator", "ColorSpace", "Option"}
@@ -353,7 +363,7 @@ class _Reader:
                 w.fail(line, f"{d} after WorldBegin", "move it before WorldBegin")
             if d in WORLD_DIRECTIVES and not self.world:
                 w.fail(line, f"{d} before WorldBegin", "move it after WorldBegin")
-            ctm = self.state.ctm
+            st = self.state
             if d == "LookAt":
                 v = numbers(d, 9)
                 eye, look, up = v[:3], v[3:6], v[6:]
@@ -361,29 +371,35 @@ class _Reader:
                 if not np.linalg.norm(dirn) > 0 or not np.linalg.norm(np.cross(up, dirn)) > 0:
                     w.fail(line, "LookAt: the eye equals the look point, or up is zero or along the view direction",
                            "give a look point away from the eye and an up vector across the view")
-                self.state.ctm = ctm @ np.linalg.inv(_world_from_look_at(eye, look, up))
+                wfc = _world_from_look_at(eye, look, up)
+                st.concat(np.linalg.inv(wfc), wfc)
             elif d == "Translate":
-                self.state.ctm = ctm @ _translate(numbers(d, 3))
+                v = numbers(d, 3)
+                st.concat(_translate(v), _translate(-v))
             elif d == "Scale":
-                self.state.ctm = ctm @ np.diag([*numbers(d, 3), 1.0])
+                v = numbers(d, 3)
+                if not np.all(v != 0):
+                    w.fail(line, "Scale: a zero factor flattens everything after it", "use non-zero factors")
+                st.concat(np.diag([*v, 1.0]), np.diag([*(1.0 / v), 1.0]))
             elif d == "Rotate":
                 v = numbers(d, 4)
                 if not np.linalg.norm(v[1:]) > 0:
                     w.fail(line, "Rotate: the axis is zero", "give a non-zero axis")
-                self.state.ctm = ctm @ _rotate(v[0], v[1:])
+                r = _rotate(v[0], v[1:])
+                st.concat(r, r.T)
             elif d in ("Transform", "ConcatTransform"):
                 m = numbers(d, 16, bracketed=True).reshape(4, 4).T  # the file lists the matrix column by column
-                self.state.ctm = m if d == "Transform" else ctm @ m
+                st.set(m if d == "Transform" else st.ctm @ m)
             elif d == "Identity":
-                self.state.ctm = np.eye(4)
+                st.set(np.eye(4), np.eye(4))
             elif d == "CoordinateSystem":
-                self.named_cs[quoted(d)] = ctm.copy()
+                self.named_cs[quoted(d)] = (st.ctm.copy(), st.inv.copy())
             elif d == "CoordSysTransform":
                 name = quoted(d)
                 if name not in self.named_cs:
                     w.fail(line, f'CoordSysTransform: no coordinate system "{name}"',
                            f'define it with CoordinateSystem "{name}" first (or use "camera" after Camera)')
-                self.state.ctm = self.named_cs[name].copy()
+                st.set(*self.named_cs[name])
             elif d in ("AttributeBegin", "TransformBegin"):
                 self.stack.append((self.state.copy(), line, w.path))
             elif d in ("AttributeEnd", "TransformEnd"):
@@ -398,8 +414,8 @@ class _Reader:
                 if self.camera is None:
                     w.fail(line, "WorldBegin before any Camera", 'add LookAt ... and Camera "perspective" before it')
                 self.world = True
-                self.state.ctm = np.eye(4)
-                self.named_cs["world"] = np.eye(4)
+                st.set(np.eye(4), np.eye(4))
+                self.named_cs["world"] = (np.eye(4), np.eye(4))
             elif d in ("Include", "Import"):
                 sub = self.resolve(quoted(d))
                 saved = self.state.copy() if d == "Import" else None
@@ -434,8 +450,9 @@ class _Reader:
     def _Camera(self, kind, p, w, line):
         if kind not in ("perspective", "spherical"):
             w.fail(line, f'Camera "{kind}" is not read', 'use "perspective" or "spherical" (equirectangular)')
-        m = np.linalg.inv(self._affine(w, line, "Camera"))
-        self.named_cs["camera"] = m
+        self._affine(w, line, "Camera")
+        m = self.state.inv
+        self.named_cs["camera"] = (m.copy(), self.state.ctm.copy())
         if kind == "perspective":
             fov = p.one("fov", 90.0)
             if not 0.0 < fov < 180.0:
@@ -643,12 +660,12 @@ class _Reader:
         # (a plain LookAt); its equirectangular image matches ours when det > 0 (cameras.cpp GenerateRay)
         det = np.linalg.det(lin)
         mirror = det > 0 if kind == "perspective" else det < 0
-        s = np.array([-1.0, 1.0, 1.0]) if mirror else np.ones(3)
-        pos = wfc[:3, 3] * s
+        s = np.array([-1.0, 1.0, 1.0]) if mirror else np.ones(3)  # (+ 0.0 below: no -0.0 in the dict)
+        pos = wfc[:3, 3] * s + 0.0
         forward = (z if kind == "perspective" else -x) * s
         W, H = self.film
         cam = {"type": "perspective" if kind == "perspective" else "environment", "position": pos,
-               "look_at": pos + forward, "up": y * s, "width": W, "height": H, "spp": self.spp}
+               "look_at": pos + forward, "up": y * s + 0.0, "width": W, "height": H, "spp": self.spp}
         if kind == "perspective":
             # fov spans the shorter axis (cameras.cpp: the screen window's shorter side is [-1, 1]); ours is vertical
             cam["fov"] = fov if W > H else math.degrees(2.0 * math.atan(math.tan(math.radians(fov) / 2.0) * H / W))
@@ -659,7 +676,7 @@ class _Reader:
             light = dict(light)
             for k in ("position", "direction"):
                 if k in light:
-                    light[k] = light[k] * s
+                    light[k] = light[k] * s + 0.0
             out["light"].append(light)
         for shape in self.shapes:
             shape = self._surface(dict(shape), medium, camera_medium)
@@ -667,7 +684,7 @@ class _Reader:
                 continue
             for k in ("vertices", "center"):
                 if k in shape:
-                    shape[k] = shape[k] * s
+                    shape[k] = shape[k] * s + 0.0
             out["shape"].append(shape)
         return _plain(out)
 
@@ -689,13 +706,13 @@ class _Reader:
             w.fail(line, f'Shape: its outside medium "{outside}" is not the camera\'s "{camera_name}"',
                    "our scenes have one surrounding medium: give the shape MediumInterface \"inner\" \"" + camera_name
                    + '"')
+        inner = self._medium(inside, w, line) if transition else camera_medium
         if mat[0] == "diffuse":
             shape["reflectance"] = mat[1]  # opaque: a medium inside it is never reached
             return shape
         if mat[0] == "interface" and not transition:
             return None  # pbrt skips it: it changes nothing
-        medium = self._medium(inside, w, line) if transition else camera_medium
-        medium = medium or {"sigma_a": [0.0] * 3, "sigma_s": [0.0] * 3, "phase": "isotropic"}
+        medium = inner or {"sigma_a": [0.0] * 3, "sigma_s": [0.0] * 3, "phase": "isotropic"}
         shape["interior"] = {**medium, "ior": 1.0 if mat[0] == "interface" else mat[1]}
         return shape
 
