@@ -405,3 +405,22 @@ def test_approximate_writes_the_closest_form_with_a_warning(change, key, tmp_pat
     assert f"warning: shafts: {key}" in capsys.readouterr().err
     scene_from_dict(pbrt.read_scene(tmp_path / "x.pbrt"), "x.pbrt")
 
+
+
+def test_tokens_and_options(tmp_path):
+    """pbrt-v4's lexical rules (parser.cpp Tokenizer::Next, parseParameters): comments to the end of
+    the line (not inside strings), escapes in strings, numbers with signs, leading dots and exponents,
+    directives run together on one line, a bare value or a bracketed list; Option is read past, a
+    stratified sampler takes xsamples x ysamples, MediumInterface with one name sets both sides."""
+    toks = pbrt.tokenize('# a "comment"\n"a\\\\b\\"c" [+.5 5e-1]#x\nLookAt', "s")
+    assert [(t.kind, t.value, t.line) for t in toks] == [
+        ("str", 'a\\b"c', 2), ("[", "[", 2), ("word", "+.5", 2), ("word", "5e-1", 2), ("]", "]", 2),
+        ("word", "LookAt", 3)]
+    p = tmp_path / "t.pbrt"
+    p.write_text('Option "bool disablepixeljitter" true\nSampler "stratified" "integer xsamples" 3 '
+                 '"integer ysamples" [2]\nMakeNamedMedium "a b" "string type" "homogeneous" "rgb sigma_a" [0 0 0] '
+                 '"rgb sigma_s" [+.5 5e-1 0.5E0]\nMediumInterface "a b"\nScale -1 1 1 LookAt 0 0 5 0 0 0 0 1 0 '
+                 'Camera "perspective" "float fov" [30]#c\nWorldBegin\n')
+    d = pbrt.read_scene(p)
+    assert d["camera"]["spp"] == 6 and (d["camera"]["width"], d["camera"]["height"]) == (1280, 720)
+    assert d["medium"] == {"sigma_a": [0.0] * 3, "sigma_s": [0.5] * 3, "phase": "isotropic"}
