@@ -875,8 +875,7 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
         lines += [f"LookAt {' '.join(map(_f, cam.position))}  {' '.join(map(_f, cam.position - right))}  "
                   f"{' '.join(map(_f, up))}", 'Camera "spherical" "string mapping" "equirectangular"']
     lines.append("WorldBegin")
-    for i, (light, lraw) in enumerate(zip(scene.lights, raw.get("light", []))):
-        lines.append(_light_line(light, lraw))
+    lines += [_light_line(light, lraw) for light, lraw in zip(scene.lights, raw.get("light", []))]
     files = {}
     tris, refl, ids = scene_triangles(scene, shape_ids=True)
     for i, shape in enumerate(scene.shapes):
