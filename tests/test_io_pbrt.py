@@ -240,6 +240,8 @@ BASE = 'LookAt 0 0 0 0 0 1 0 1 0\nCamera "perspective"\nWorldBegin\n'
     (BASE + 'LightSource "infinite"\n', [":4:", 'LightSource "infinite" is not read']),
     (BASE + 'LightSource "point" "blackbody I" 3000\n', [":4:", '"blackbody I" is a non-RGB spectrum']),
     (BASE + 'Texture "t" "spectrum" "imagemap"\n', [":4:", "Texture (textures) is not read"]),
+    (BASE + 'Material "diffuse" "texture reflectance" "t"\n', [":4:", '"texture reflectance" is type texture']),
+    (BASE + 'Material "diffuse" "rgb reflectance" [ 1.5 0 0 ]\n', [":4:", "outside [0, 1]"]),
     (BASE + 'Shape "sphere" "float zmax" 0.5\n', [":4:", '"zmax" (a partial sphere)']),
     (BASE + 'Shape "sphere" "float radiuss" 2\n', [":4:", 'parameter "float radiuss" is not read']),
     (BASE + 'Shape "trianglemesh" "point3 P" [ 0 0 0 1 0 0 0 1 0 ] "integer indices" [ 0 1 3 ]\n',

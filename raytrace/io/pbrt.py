@@ -182,7 +182,7 @@ class Params:
         if v is None:
             return default
         if min(v) < 0.0 or albedo and max(v) > 1.0:
-            self.where.fail(self.line, f'{self.directive}: "rgb {name}" {v} is outside [0, {1 if albedo else "inf"})',
+            self.where.fail(self.line, f'{self.directive}: "rgb {name}" {v} is outside {"[0, 1]" if albedo else "[0, inf)"}',
                             "use non-negative values" + (" at most 1" if albedo else ""))
         return v
 
@@ -263,13 +263,13 @@ class _Reader:
         self.state = _State()
         self.stack: list[tuple[_State, int, Path]] = []
         self.world = False
-        self.named_cs: dict[str, np.ndarray] = {}
+        self.named_cs: dict[str, tuple] = {}  # name -> (CTM, its inverse)
         self.materials: dict[str, tuple] = {}
         self.media: dict[str, tuple] = {}  # name -> (dict of our medium keys, file, line)
         self.camera = None
         self.film = (1280, 720)
         self.spp = 16
-        self.shapes: list[dict] = []  # pbrt world coordinates; "_medium" keys resolved at the end
+        self.shapes: list[dict] = []  # pbrt world coordinates; their "_material", "_media" resolved at the end
         self.lights: list[dict] = []
         self.files: list[Path] = []
 
@@ -482,7 +482,7 @@ class _Reader:
         if kind == "stratified":
             n = p.ints("xsamples", [4])[0] * p.ints("ysamples", [4])[0]
         else:
-            n = p.ints("pixelsamples", [4 if kind == "pmj02bn" else 16])[0]
+            n = p.ints("pixelsamples", [4 if kind == "independent" else 16])[0]  # samplers.cpp: the defaults
         if n < 1:
             w.fail(line, f"{p.directive}: {n} samples per pixel", "use at least 1")
         self.spp = n  # the other sampler parameters only change pbrt's noise
@@ -501,9 +501,6 @@ class _Reader:
 
     def _material(self, kind, p, w, line):
         if kind == "diffuse":
-            if p.has("reflectance") and p.params["reflectance"].type == "texture":
-                w.fail(p.params["reflectance"].line, f'{p.directive}: a texture reflectance is not read',
-                       'give "rgb reflectance" [r g b]')
             mat = ("diffuse", p.rgb("reflectance", [0.5, 0.5, 0.5], albedo=True))
         elif kind == "interface":
             mat = ("interface",)
