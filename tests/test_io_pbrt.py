@@ -95,6 +95,40 @@ def test_camera_rays_match_pbrts(name, world_from_camera, fov, mirror):
     np.testing.assert_allclose(d, want, atol=1e-12)
 
 
+def pbrt_equirect_directions(world_from_camera, W, H, xs, ys):
+    """cameras.cpp SphericalCamera::GenerateRay, equirectangular: theta = pi y / H, phi = 2 pi x / W,
+    dir = (sin theta cos phi, sin theta sin phi, cos theta) with y and z swapped."""
+    theta, phi = math.pi * np.asarray(ys) / H, 2.0 * math.pi * np.asarray(xs) / W
+    d = np.stack([np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)], axis=-1)
+    return d @ world_from_camera[:3, :3].T
+
+
+@pytest.mark.parametrize("name, size", [("stage", None), ("stage", (9, 16)), ("box_room", None)])
+def test_exported_camera_is_ours_in_pbrt(name, size, tmp_path):
+    """The camera lines we write, read by the pbrt twins above (perspective: Scale -1 1 1 then LookAt,
+    so worldFromCamera = LookAt^-1 Scale(-1, 1, 1); spherical: a plain LookAt), give our camera's ray
+    at every pixel centre."""
+    out = tmp_path / "x.pbrt"
+    raw = read_toml(bundled_scenes()[name])
+    if size:  # a portrait film: pbrt's fov spans the width
+        raw["camera"].update(width=size[0], height=size[1])
+    pbrt.export(raw, out, name, False)
+    lines = out.read_text().splitlines()
+    look = next(np.array(ln.split()[1:], float) for ln in lines if ln.startswith("LookAt"))
+    wfc = pbrt_look_at(look[:3], look[3:6], look[6:])
+    cam = scene_from_dict(raw, name).camera
+    cam.spp = 1
+    _, d = generate_rays(cam)
+    j, i = np.meshgrid(np.arange(cam.height) + 0.5, np.arange(cam.width) + 0.5, indexing="ij")
+    if cam.type == "perspective":
+        assert "Scale -1 1 1" in lines
+        fov = float(next(ln for ln in lines if ln.startswith("Camera")).split("[")[1].split("]")[0])
+        want = pbrt_directions(wfc @ np.diag([-1.0, 1, 1, 1]), fov, cam.width, cam.height, i.ravel(), j.ravel())
+    else:
+        want = pbrt_equirect_directions(wfc, cam.width, cam.height, i.ravel(), j.ravel())
+    np.testing.assert_allclose(d, want, atol=1e-12)
+
+
 def test_image_orientation_asymmetric_scene():
     """asymmetric.pbrt: pbrt shows the sphere at world x = +1.5 right of centre (its docstring derives it
     from LookAt and rasterFromNDC), at raster x = 16 (1 + 0.3 / (2 tan 20 deg)) = 22.6, and the lit floor
