@@ -446,6 +446,7 @@ def test_export_refuses_what_pbrt_cannot_express(name, key, tmp_path, capsys):
 @pytest.mark.parametrize("change, key", [
     (lambda r: r["light"][0].update(type="spot", look_at=[0.0, 0.0, 0.0], falloff="mitsuba"), "light[0].falloff"),
     (lambda r: r["medium"].update(phase="rayleigh"), "medium.phase"),
+    (lambda r: r["medium"].update(phase={"type": "hg", "g": 0.995}), "medium.phase.g"),
     (lambda r: r.update(background={"radiance": 0.1}), "background.radiance"),
 ])
 def test_approximate_writes_the_closest_form_with_a_warning(change, key, tmp_path, capsys):

@@ -32,6 +32,7 @@ from ..errors import UserError
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
+HG_MAX = 0.99  # pbrt-v4 clamps HG's g to [-0.99, 0.99] (util/scattering.h HenyeyGreenstein)
 
 # ---------------------------------------------------------------------------------------------- tokens
 
@@ -537,8 +538,9 @@ class _Reader:
         ss = p.rgb("sigma_s", [1.0, 1.0, 1.0])
         scale = p.one("scale", 1.0)
         g = p.one("g", 0.0)
-        if scale < 0.0 or not abs(g) < 1.0:
-            w.fail(line, f"{p.directive}: needs scale >= 0 and |g| < 1, got scale {scale:g}, g {g:g}", "fix the value")
+        if scale < 0.0 or not abs(g) <= 1.0:
+            w.fail(line, f"{p.directive}: needs scale >= 0 and |g| <= 1, got scale {scale:g}, g {g:g}", "fix the value")
+        g = min(max(g, -HG_MAX), HG_MAX)  # as pbrt renders it
         p.done()
         medium = {"sigma_a": [scale * v for v in sa], "sigma_s": [scale * v for v in ss],
                   "phase": "isotropic" if g == 0.0 else {"type": "hg", "g": g}}
@@ -795,7 +797,12 @@ def _phase_g(phase, key, source, approximate) -> float:
         _refuse(source, key, "pbrt-v4's homogeneous medium has no Rayleigh phase function", approximate,
                 "isotropic (the same mean cosine, 0)")
         return 0.0
-    return float(phase.get("g", 0.0)) if isinstance(phase, dict) else 0.0
+    g = float(phase.get("g", 0.0)) if isinstance(phase, dict) else 0.0
+    if abs(g) > HG_MAX:
+        _refuse(source, f"{key}.g", f"pbrt-v4 clamps Henyey-Greenstein's g to +-{HG_MAX}", approximate,
+                f"g = {math.copysign(HG_MAX, g)}")
+        return math.copysign(HG_MAX, g)
+    return g
 
 
 def _medium_line(name, sa, ss, g) -> str:
