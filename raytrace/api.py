@@ -104,7 +104,7 @@ def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
             path = bundled_scenes()[str(scene)]
         source = str(path)
         # glTF, Mitsuba 3 and pbrt-v4 files are read into the scene dict by raytrace.io
-        raw = io.read_scene(path) if path.suffix.lower() in io.IMPORTERS else read_toml(path)
+        raw = io.read_scene(path) if io.importer(path) else read_toml(path)
     for item in overrides:
         apply_override(raw, *parse_override(item, source), source)
     return raw, source, path

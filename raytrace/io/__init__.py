@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..errors import UserError
 
-IMPORTERS = {".gltf": "gltf", ".glb": "gltf", ".xml": "mitsuba", ".pbrt": "pbrt"}  # file suffix -> module
+IMPORTERS = {".gltf": "gltf", ".glb": "gltf", ".xml": "mitsuba", ".pbrt": "pbrt", ".pbrt.gz": "pbrt"}  # suffix -> module
 FORMATS = ("gltf", "mitsuba", "pbrt")  # `render.py export --format`
 
 
@@ -25,12 +25,18 @@ def _module(name: str):
     return importlib.import_module(f"{__name__}.{name}")
 
 
+def importer(path: Path) -> str | None:
+    """The format module that reads `path` (by its suffix, `.pbrt.gz` too), or None (TOML)."""
+    name = Path(path).name.lower()
+    return next((IMPORTERS[s] for s in sorted(IMPORTERS, key=len, reverse=True) if name.endswith(s)), None)
+
+
 def read_scene(path: Path) -> dict:
     """The scene dict of a glTF, Mitsuba 3 or pbrt-v4 file (chosen by its suffix)."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such scene file; check the path")
-    return _module(IMPORTERS[path.suffix.lower()]).read_scene(path)
+    return _module(importer(path)).read_scene(path)
 
 
 def export(raw: dict, fmt: str, out: Path, source: str, approximate: bool = False) -> list[Path]:
