@@ -283,16 +283,26 @@ def _xyz(doc, el, default):
 
 
 def _rotation(axis, degrees):
-    """Rotation by `degrees` about `axis`, counter-clockwise looking down the axis (Rodrigues)."""
-    a = axis / np.linalg.norm(axis)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    """Rotation by `degrees` about `axis`, counter-clockwise looking down the axis: Rodrigues'
+    c I + (1 - c) u u^T + s [u]x with the axis as given, unnormalised, as Mitsuba builds it (so a
+    non-unit axis also scales, in Mitsuba and here)."""
+    u = np.asarray(axis, float)
+    K = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
     t = math.radians(degrees)
     R = np.eye(4)
-    R[:3, :3] = np.eye(3) + math.sin(t) * K + (1.0 - math.cos(t)) * K @ K
+    R[:3, :3] = math.cos(t) * np.eye(3) + (1.0 - math.cos(t)) * np.outer(u, u) + math.sin(t) * K
     return R
 
 
-def look_at_matrix(origin, target, up):
+def _perpendicular(n):
+    """Mitsuba's up vector for a lookat without one: the first axis of its coordinate_system(n), the
+    orthonormal basis of Duff et al., "Building an Orthonormal Basis, Revisited" (JCGT 6(1), 2017)."""
+    sign = 1.0 if n[2] >= 0.0 else -1.0
+    a = -1.0 / (sign + n[2])
+    return np.array([1.0 + sign * n[0] * n[0] * a, sign * n[0] * n[1] * a, -sign * n[0]])
+
+
+def _look_at(origin, target, up):
     """Mitsuba's look_at: columns left = up x dir, up' = dir x left, dir, origin."""
     d = target - origin
     d = d / np.linalg.norm(d)
@@ -326,7 +336,9 @@ def _transform(doc, el) -> np.ndarray:
             T[:n, :n] = np.reshape(values, (n, n))
         elif op.tag == "lookat":
             origin, target = (np.array([_finite(doc, op, t) for t in _tokens(op.get(k, ""))]) for k in ("origin", "target"))
-            up = np.array([_finite(doc, op, t) for t in _tokens(op.get("up", "0 1 0"))])
+            up = np.array([_finite(doc, op, t) for t in _tokens(op.get("up", "0 0 0"))])
+            if len(origin) == 3 and len(target) == 3 and len(up) == 3 and not np.any(up) and np.any(target - origin):
+                up = _perpendicular((target - origin) / np.linalg.norm(target - origin))
             if len(origin) != 3 or len(target) != 3 or len(up) != 3:
                 doc.fail(op, "origin, target and up need three numbers each", 'write origin="x, y, z"')
             d = target - origin
@@ -334,7 +346,7 @@ def _transform(doc, el) -> np.ndarray:
                     np.linalg.norm(up), 1e-300):
                 doc.fail(op, "target equals origin, or up is zero or parallel to the view direction",
                          "give a target away from the origin and an up not along target - origin")
-            T = look_at_matrix(origin, target, up)
+            T = _look_at(origin, target, up)
         else:
             doc.fail(op, "unsupported inside <transform>", "use translate, rotate, scale, matrix or lookat")
         M = T @ M
