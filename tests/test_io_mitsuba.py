@@ -59,7 +59,7 @@ def test_room_imports_to_the_dict_worked_out_by_hand():
     assert room == {"primitive": "box", "min": [-3.0, -2.0, -4.0], "max": [3.0, 2.0, 4.0],
                     "reflectance": [0.6, 0.55, 0.5]}
     assert {k: ball[k] for k in ("primitive", "center", "radius", "reflectance")} == {
-        "primitive": "sphere", "center": [0.8, -1.4, -1.6], "radius": 0.6, "reflectance": [0.3, 0.5, 0.7]}
+        "primitive": "sphere", "center": [-1.3, -1.4, -1.8], "radius": 0.6, "reflectance": [0.9, 0.7, 0.4]}
     assert 64 <= ball["segments"] <= 256
     # the rectangle's corners (+-1, +-1, 0) scaled by (0.6, 0.5), rotated -70 deg about x, translated
     c, s = math.cos(math.radians(-70)), math.sin(math.radians(-70))
@@ -117,8 +117,10 @@ def test_meshes_transforms_and_interiors(tmp_path):
   <ref name="interior" id="inside"/></shape>
 <shape type="cube"><bsdf type="null"/></shape>
 <shape type="disk"><transform name="to_world"><matrix value="2 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1"/></transform></shape>
-<shape type="cylinder"><float name="radius" value="0.5"/><point name="p1" value="0, 0, 3"/></shape>"""))
-    tet, disk, tube = raw["shape"]  # the null cube without an interior is invisible: left out
+<shape type="cylinder"><float name="radius" value="0.5"/><point name="p1" value="0, 0, 3"/></shape>
+<shape type="sphere"><float name="radius" value="0.5"/><bsdf type="null"/><ref name="interior" id="inside"/></shape>"""))
+    tet, disk, tube, ball = raw["shape"]  # the null cube without an interior is invisible: left out
+    assert ball["segments"] == 64 and ball["interior"]["sigma_s"] == [0.5, 1.0, 1.5] and "ior" not in ball["interior"]
     # scale 2, then 90 degrees about z (x -> y, y -> -x), then x + 5
     assert np.allclose(tet["vertices"], [[5, 0, 0], [5, 2, 0], [3, 0, 0], [5, 0, 2]], atol=1e-15)
     assert tet["faces"] == [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]

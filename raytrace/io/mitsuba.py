@@ -392,11 +392,8 @@ class _Reader:
                     shapes.append(shape)
             elif el.tag == "emitter":
                 lights.append(self.emitter(el))
-            elif el.tag in ("bsdf", "medium", "texture", "phase", "integrator"):
-                continue  # declared for <ref> (read where referenced); the integrator: ours is single scattering
-            elif el.tag in ("sensor", "ref"):
-                continue
-            else:
+            elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
+                # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
                 doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
         if shapes:
             out["shape"] = shapes
