@@ -712,10 +712,15 @@ def _channels(v):
     return v[0] if v[0] == v[1] == v[2] else v
 
 
-def _soup(tris, M) -> dict:
-    """An inline triangle mesh from a (T, 3, 3) soup (shared corners merged) under M."""
+def _merged(tris):
+    """(vertices (V, 3), faces (T, 3)) of a (T, 3, 3) triangle soup, equal corners merged."""
     v, f = np.unique(np.reshape(tris, (-1, 3)), axis=0, return_inverse=True)
-    return _triangles(v, f.reshape(-1, 3), M)
+    return v, f.reshape(-1, 3)
+
+
+def _soup(tris, M) -> dict:
+    """An inline triangle mesh from a (T, 3, 3) soup under M."""
+    return _triangles(*_merged(tris), M)
 
 
 def _triangles(v, f, M) -> dict:
@@ -806,6 +811,9 @@ class _Writer:
             med.sigma_a, med.sigma_s = med.sigma_a * density, med.sigma_s * density
         if med.particles is not None:
             self.refuse("medium.particles", "a particle layer", "remove [medium.particles]", "the medium without it")
+        from ..scene.meshes import scene_triangles
+
+        self.tris, self.refl, self.ids = scene_triangles(sc, shape_ids=True)
         fog = bool(np.any(med.sigma_a + med.sigma_s > 0.0))
         if fog:
             _medium(root, med, id="fog")
@@ -836,12 +844,8 @@ class _Writer:
 
     def size(self) -> float:
         """The scene's extent (camera, lights, geometry), for the sensor's clip distances."""
-        from ..scene.meshes import scene_triangles
-
-        pts = [self.scene.camera.position[None]] + [lt.position[None] for lt in self.scene.lights]
-        self.tris, self.refl, self.ids = scene_triangles(self.scene, shape_ids=True)
-        pts.append(self.tris.reshape(-1, 3))
-        pts = np.concatenate(pts)
+        pts = np.concatenate([self.scene.camera.position[None], self.tris.reshape(-1, 3)]
+                             + [lt.position[None] for lt in self.scene.lights])
         return max(float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))), 1e-3)
 
     def light(self, root, i, light, raw):
@@ -931,9 +935,8 @@ class _Writer:
 
 
 def _ply_bytes(tris) -> bytes:
-    """A binary little-endian PLY of a triangle soup (shared corners merged): float32 vertices."""
-    v, f = np.unique(np.reshape(tris, (-1, 3)), axis=0, return_inverse=True)
-    f = f.reshape(-1, 3)
+    """A binary little-endian PLY of a triangle soup (equal corners merged): float32 vertices."""
+    v, f = _merged(tris)
     head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
             f"property float z\nelement face {len(f)}\nproperty list uchar uint vertex_indices\nend_header\n")
     faces = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<u4", 3)])
