@@ -5,13 +5,15 @@ layered model) as a participating medium: its geometry and its closed-form trans
 The planet is the sphere |p - c| = R, an opaque diffuse ground; the air fills R <= |p - c| <= top
 with K layers, layer i of density rho_i(|p - c| - R) times its coefficients (sigma_a, sigma_s per
 channel, its own phase function). A layer's profile is a row of the table `layers` (K, 3):
-(EXPONENTIAL, H, 0) for exp(-altitude/H), coefficients at the ground. Along a ray given by the
-altitude h and zenith cosine mu of its origin, layer i's column over [t0, t1] is `layer_column`
-(Chapman's, seed 004 eq. 40-48, for the exponential) over the part of [t0, t1] inside the top
-sphere, and the transmittance of channel c is exp(-sum_i kt[i, c] column_i), or 0 if the ray meets
-the ground within [t0, t1]. The kernels also take a 1-D array of scale heights for exponential
-layers. Everything here is float64: Embree's float32 cannot place a 6360 km sphere to the metre
-(ARCHITECTURE.md), so the medium intersects its own spheres; `ground_distance` is the planet's.
+(EXPONENTIAL, H, 0) for exp(-altitude/H), coefficients at the ground, or (TENT, P, W) for
+Bruneton's ozone, max(0, 1 - |altitude - P|/W), coefficients at the peak (tent.py). Along a ray
+given by the altitude h and zenith cosine mu of its origin, layer i's column over [t0, t1] is
+`layer_column` (Chapman's, seed 004 eq. 40-48, for the exponential; tent.py's closed form for the
+tent) over the part of [t0, t1] inside the top sphere, and the transmittance of channel c is
+exp(-sum_i kt[i, c] column_i), or 0 if the ray meets the ground within [t0, t1]. The kernels also
+take a 1-D array of scale heights for exponential layers. Everything here is float64: Embree's
+float32 cannot place a 6360 km sphere to the metre (ARCHITECTURE.md), so the medium intersects its
+own spheres; `ground_distance` is the planet's.
 """
 from __future__ import annotations
 
@@ -26,10 +28,12 @@ from ..lights import DIRECTIONAL
 from .chapman import atmosphere_column, ground_distance
 from .medium import Medium
 from .phase import HG, NAMES as PHASE_NAMES, phase_value
+from .tent import tent_breaks, tent_column, tent_density
 
-EXPONENTIAL = 0  # layer profiles: codes in column 0 of the layers table
-PROFILES = {"exponential": EXPONENTIAL}
-LAYER_KEYS = {"name", "sigma_a", "sigma_s", "scale_height", "phase"}
+EXPONENTIAL, TENT = 0, 1  # layer profiles: codes in column 0 of the layers table
+PROFILES = {"exponential": EXPONENTIAL, "tent": TENT}
+PROFILE_KEYS = {EXPONENTIAL: {"scale_height"}, TENT: {"peak_altitude", "half_width"}}
+LAYER_KEYS = {"name", "sigma_a", "sigma_s", "phase", "profile"} | set().union(*PROFILE_KEYS.values())
 MIN_RADIUS_OVER_H = 3.0  # radius / scale_height below this is outside the Chapman kernels' measured range
 
 
@@ -143,6 +147,15 @@ class Atmosphere(Medium):
 
 def _layer_profile(read, key, layer, radius):
     """The row of the layers table of one [[medium.layer]]."""
+    name = read.string(f"{key}.profile", layer.get("profile", "exponential"), tuple(PROFILES))
+    code = PROFILES[name]
+    for other in sorted(set().union(*PROFILE_KEYS.values()) - PROFILE_KEYS[code]):
+        if other in layer:
+            owner = next(n for n, c in PROFILES.items() if other in PROFILE_KEYS[c])
+            read.fail(f"{key}.{other}", f"only a{'n' if owner[0] in 'aeiou' else ''} {owner} layer has it, this "
+                      f"layer is {name}", f'remove it or write profile = "{owner}"')
+    if code == TENT:
+        return _tent_profile(read, key, layer, radius)
     if "scale_height" not in layer:
         read.fail(f"{key}.scale_height", "missing", "add scale_height = 8000.0 (the height over which the density "
                   "falls by e)")
@@ -156,7 +169,26 @@ def _layer_profile(read, key, layer, radius):
     return (EXPONENTIAL, H, 0.0)
 
 
+def _tent_profile(read, key, layer, radius):
+    """(TENT, peak altitude, half-width) of a tent layer: the peak on or above the ground, the
+    half-width positive and below the planet's radius (the tent's spheres have positive radii)."""
+    for k, example in (("peak_altitude", "25000.0"), ("half_width", "15000.0")):
+        if k not in layer:
+            read.fail(f"{key}.{k}", "missing", f"add {k} = {example} (Bruneton's ozone)")
+    peak = float(read.number(f"{key}.peak_altitude", layer["peak_altitude"]))
+    if peak < 0.0:
+        read.fail(f"{key}.peak_altitude", f"must be at or above the ground (>= 0), got {peak!r}",
+                  "give the altitude of the density's peak above the ground, e.g. 25000.0")
+    width = float(read.number(f"{key}.half_width", layer["half_width"]))
+    if not 0.0 < width < radius:
+        read.fail(f"{key}.half_width", f"must be positive and below medium.radius = {radius:g}, got {width!r}",
+                  "give the altitude range from the peak to where the density reaches 0, e.g. 15000.0")
+    return (TENT, peak, width)
+
+
 def _profile_text(row):
+    if row[0] == TENT:
+        return f"at the peak, tent profile, peak altitude {row[1]:g}, half width {row[2]:g}"
     return f"at the ground, scale height {row[1]:g}"
 
 
@@ -175,29 +207,41 @@ def layer_column(layers, i, h, mu, t0, t1, radius):
 def _layer_density(layers, i, hx):
     if layers.ndim == 1:
         return lambda layers, i, hx: math.exp(-hx / layers[i])
-    return lambda layers, i, hx: math.exp(-hx / layers[i, 1])
+    return lambda layers, i, hx: (tent_density(hx, layers[i, 1], layers[i, 2]) if layers[i, 0] == TENT
+                                  else math.exp(-hx / layers[i, 1]))
 
 
 @overload(layer_column)
 def _layer_column(layers, i, h, mu, t0, t1, radius):
     if layers.ndim == 1:
         return lambda layers, i, h, mu, t0, t1, radius: atmosphere_column(h, mu, t0, t1, radius, layers[i])
-    return lambda layers, i, h, mu, t0, t1, radius: atmosphere_column(h, mu, t0, t1, radius, layers[i, 1])
+    return lambda layers, i, h, mu, t0, t1, radius: (
+        tent_column(h, mu, t0, t1, radius, layers[i, 1], layers[i, 2]) if layers[i, 0] == TENT
+        else atmosphere_column(h, mu, t0, t1, radius, layers[i, 1]))
 
 
 @njit
 def max_density_breaks(layers):
     """The most breakpoints `density_breaks` gives for these layers."""
-    return 1
+    n = 1
+    for i in range(layers.shape[0]):
+        if layers[i, 0] == TENT:
+            n += 6
+    return n
 
 
 @njit
 def density_breaks(row, layers, radius, out):
     """The distances along a segment (its row, below) where the integrand's density factor is not
     smooth or peaks, into out; returns their count (at most `max_density_breaks`): the ray's lowest
-    point, where the densities peak (it may lie outside the segment)."""
+    point, where the exponential densities peak, and where it crosses a tent's spheres (its ends
+    and its peak); they may lie outside the segment."""
     out[0] = -(row[QX] * row[WX] + row[QY] * row[WY] + row[QZ] * row[WZ])
-    return 1
+    n = 1
+    for i in range(layers.shape[0]):
+        if layers[i, 0] == TENT:
+            n += tent_breaks(row[H0], row[MU0], radius, layers[i, 1], layers[i, 2], out[n:])
+    return n
 
 
 GROUND_MARGIN = 1e-9
