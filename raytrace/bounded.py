@@ -31,7 +31,6 @@ import numpy as np
 from . import inside_paths
 from .errors import UserError
 from .lights import DIRECTIONAL, Lights
-from .media.medium import HOMOGENEOUS
 from .media.slab import (APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays,
                          transmittances)
 from .methods.geometry import segment_light_table
@@ -78,9 +77,9 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
         raise UserError(f"{source}: --method slab_approx: the seed's approximation is for point lights, not spot "
                         f"lights into a bounded medium ({key}); use --method quadrature, raymarch or montecarlo")
     medium = prep.scene.medium
-    if medium.kind != HOMOGENEOUS:
+    if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
-                        f"{medium.kind} is not implemented with them yet")
+                        f"{medium.type_name} is not implemented with them yet")
     if volumetric_shadows:
         raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): not implemented with media "
                         f"inside shapes ({key}) yet; remove it")

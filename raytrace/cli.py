@@ -307,8 +307,7 @@ def cmd_seed002(args):
 
 def cmd_describe(args):
     from .lights import DIRECTIONAL, NAMES as NAMES_L
-    from .media.medium import ATMOSPHERE, HEIGHT_FOG, LINEAR
-    from .media.phase import HG, NAMES
+    from .media.phase import NAMES
     from .scene.meshes import scene_triangles
 
     scene = load(args)
@@ -338,23 +337,8 @@ def cmd_describe(args):
         cone = "" if l.axis is None else (f", axis {l.axis.round(6).tolist()}, cone {math.degrees(math.acos(l.cos_end)):g} deg, "
                                           f"falloff from {math.degrees(math.acos(l.cos_start)):g} deg")
         print(f"light[{i}]: {NAMES_L[l.kind]} at {l.position.tolist()}, intensity {l.intensity.tolist()}{cone}")
-    m = scene.medium
-    if m.kind == ATMOSPHERE:
-        a = m.atmosphere
-        print(f"medium: atmosphere, planet centre {a.center.tolist()}, radius {a.radius:g}, top radius {a.top:g}, "
-              f"ground reflectance {a.ground.tolist()}")
-        for i, name in enumerate(a.names):
-            phase = NAMES[int(a.phases[i])] + (f" g={a.gs[i]}" if a.phases[i] == HG else "")
-            print(f"  layer[{i}] {name}: sigma_a {a.sigma_a[i].tolist()}, sigma_s {a.sigma_s[i].tolist()} at the "
-                  f"ground, scale height {a.scale_heights[i]:g}, phase {phase}")
-    else:
-        phase = NAMES[m.phase] + (f" g={m.g}" if NAMES[m.phase] == "hg" else "")
-        print(f"medium: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, sigma_t {m.sigma_t.tolist()}, "
-              f"phase {phase}")
-    if m.kind == HEIGHT_FOG:
-        profile = "linear" if m.profile == LINEAR else "exponential"
-        print(f"  {m.kind}: coefficients at h0 = {m.h0:g} along up {m.up.round(6).tolist()}, {profile} profile, "
-              f"scale height {m.scale_height:g}")
+    for line in scene.medium.describe():
+        print(line)
     print(f"background: {scene.background.tolist()}")
     if scene.render:
         print(f"render: {scene.render}")

@@ -22,7 +22,6 @@ from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
 from .lights import DIRECTIONAL, Lights
-from .media.medium import HOMOGENEOUS
 from .media.particles import particle_radiance
 from .methods import get_method, resolve_params
 from .scene.format import Scene
@@ -164,8 +163,8 @@ def check_options(method, params, volumetric_shadows, shadow_spacing, source, li
     if params.get("shadow_test") == "samples" and not volumetric_shadows:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows; "
                         "add --volumetric-shadows or remove it")
-    if params.get("shadow_test") == "samples" and medium.kind != HOMOGENEOUS:
-        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.kind} "
+    if params.get("shadow_test") == "samples" and not medium.homogeneous:
+        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.type_name} "
                         "media; use --shadow-test intervals (the default)")
 
 

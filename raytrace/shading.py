@@ -18,8 +18,6 @@ import math
 import numpy as np
 
 from .lights import DIRECTIONAL
-from .media.atmosphere import planet_hits as _planet_hits
-from .media.medium import ATMOSPHERE
 
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -79,23 +77,17 @@ def _add_directional(out, accel, points, normals, reflectance, lights, li, mediu
 
 
 def planet_hits(medium, origins, dirs, t):
-    """(ground, t): where rays meet an atmosphere's planet before the mesh hit at t, and t with
-    those distances (float64, the numbers the transmittance compares with)."""
-    if medium.kind != ATMOSPHERE:
+    """(ground, t): where rays meet the medium's own ground (an atmosphere's planet) before the mesh
+    hit at t, and t with those distances (float64, the numbers the transmittance compares with)."""
+    if not medium.has_ground:
         return np.zeros(len(t), dtype=bool), t
-    atm = medium.atmosphere
-    tg = np.empty(len(t))
-    _planet_hits(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float), *(float(c) for c in atm.center),
-                 float(atm.radius), tg)
+    tg = medium.ground_hits(origins, dirs)
     ground = tg < t
     return ground, np.where(ground, tg, t)
 
 
 def ground_radiance(accel, origins, dirs, t, lights, medium):
-    """Reflected radiance (N, 3) of the planet's ground where rays origins + t dirs meet it."""
-    atm = medium.atmosphere
+    """Reflected radiance (N, 3) of the medium's ground where rays origins + t dirs meet it."""
     points = origins + t[:, None] * dirs
-    up = points - atm.center
-    normals = up / np.linalg.norm(up, axis=1)[:, None]
-    refl = np.broadcast_to(atm.ground, points.shape)
+    normals, refl = medium.ground_surface(points)
     return surface_radiance(accel, points, facing_normals(normals, dirs), refl, lights, medium)

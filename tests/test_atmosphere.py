@@ -45,7 +45,9 @@ class Planet:
         self.c = np.array(med["center"], float)
         self.R, self.top = float(med["radius"]), float(med["top_radius"])
         self.refl = np.broadcast_to(np.array(med.get("reflectance", 0.0), float), 3)
-        self.H = np.array([lay["scale_height"] for lay in med["layer"]], float)
+        self.H = np.array([lay.get("scale_height", math.inf) for lay in med["layer"]], float)
+        self.tents = [(lay["peak_altitude"], lay["half_width"]) if lay.get("profile") == "tent" else None
+                      for lay in med["layer"]]
         rgb = lambda v: np.broadcast_to(np.array(v, float), 3)  # noqa: E731
         self.ks = np.array([rgb(lay.get("sigma_s", 0.0)) for lay in med["layer"]])
         self.kt = self.ks + np.array([rgb(lay.get("sigma_a", 0.0)) for lay in med["layer"]])
@@ -70,7 +72,17 @@ class Planet:
         return hit[0] if hit and hit[0] > 0.0 else math.inf
 
     def density(self, p):
-        return np.exp(-(np.linalg.norm(p - self.c) - self.R) / self.H)
+        alt = np.linalg.norm(p - self.c) - self.R
+        return np.array([np.exp(-alt / H) if tent is None else max(0.0, 1.0 - abs(alt - tent[0]) / tent[1])
+                         for H, tent in zip(self.H, self.tents)])
+
+    def kinks(self, o, d):
+        """Where o + x d crosses the spheres of the tent layers' ends and peaks (their densities' kinks)."""
+        out = []
+        for tent in filter(None, self.tents):
+            for alt in (tent[0] - tent[1], tent[0], tent[0] + tent[1]):
+                out += list(self.sphere(o, d, self.R + alt) or ())
+        return out
 
     def columns(self, o, d, a, b):
         """Each layer's column over [a, b] inside the air, or None if the ground is in between."""
@@ -83,7 +95,7 @@ class Planet:
         if not hi > lo:
             return np.zeros(len(self.H))
         low = -float((o - self.c) @ d)  # the lowest point, where the density peaks
-        pts = [x for x in (low,) if lo < x < hi]
+        pts = sorted(x for x in [low] + self.kinks(o, d) if lo < x < hi)
         edges = [lo] + pts + [hi]
         return sum(integrate.quad_vec(lambda x: self.density(o + x * d), u, v, epsabs=0.0, epsrel=1e-12)[0]
                    for u, v in zip(edges[:-1], edges[1:]))
@@ -174,7 +186,7 @@ def pixel(scene, i, j, plates=()):
                        for k in range(len(planet.H)))
             return scat * e * tr * planet.transmittance(o, d, lo, x)
 
-        breaks = [-float((o - planet.c) @ d)]
+        breaks = [-float((o - planet.c) @ d)] + planet.kinks(o, d)
         if light[0] is None:  # where the sun's ray from the point starts or stops grazing the planet
             s = -light[1]
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from raytrace.media import chapman as ch
-from raytrace.media import height_fog as hf
+from raytrace.media import fog as hf
 
 mp.mp.dps = 30
 RTOL = 1e-12

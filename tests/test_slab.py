@@ -17,7 +17,7 @@ from scipy import integrate
 
 from raytrace.lights import Light, Lights
 from raytrace.media import slab
-from raytrace.media.medium import Medium
+from raytrace.media import Homogeneous as Medium
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.methods import Segments, registry, resolve_params
 from raytrace.methods import quadrature as q

@@ -13,7 +13,7 @@ from hypothesis import given, settings, strategies as st
 from raytrace.methods.geometry import POINT_ROW
 from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
-from raytrace.media import Medium
+from raytrace.media import Homogeneous as Medium
 from raytrace.methods import quadrature as q, sun
 from raytrace.visibility import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH

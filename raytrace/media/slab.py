@@ -34,18 +34,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.extending import overload
 
 from ..jit import njit
 from ..lights import NO_CONE, cone_breaks, falloff
-from ..methods.quadrature import CAPPED
-from ..methods.quadrature import _adaptive as adaptive
 from ..rng import uniform
+from .adaptive import CAPPED, adaptive, claim, rule
 from .phase import phase_value
 
-# eq. 7's and the convex shapes' argument tuples for methods/quadrature.py's adaptive rule: their
-# lengths tell the rules apart
+# eq. 7's and the convex shapes' argument tuples for the adaptive rule (adaptive.py): their lengths
+# tell the rules apart
 EQ7_ARGS = 17
 CONVEX_ARGS = 10
+claim(EQ7_ARGS, CONVEX_ARGS)
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
 # segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
 # DISTANT: a directional light, v = x
@@ -310,14 +311,22 @@ def eq7_value(v, args):
 
 @njit
 def eq7_rule(a, b, args, nodes, weights):
-    """Gauss-Legendre rule of `eq7_value` over [a, b] (methods/quadrature.py's adaptive rule calls it
-    for argument tuples of length EQ7_ARGS)."""
+    """Gauss-Legendre rule of `eq7_value` over [a, b] (the adaptive rule calls it for argument tuples
+    of length EQ7_ARGS)."""
     half = 0.5 * (b - a)
     mid = 0.5 * (a + b)
     acc = 0.0
     for k in range(nodes.shape[0]):
         acc += weights[k] * eq7_value(mid + half * nodes[k], args)
     return acc * half
+
+
+@overload(rule)
+def _rule_impl(a, b, args, nodes, weights):
+    if len(args) == EQ7_ARGS:
+        return lambda a, b, args, nodes, weights: eq7_rule(a, b, args, nodes, weights)
+    if len(args) == CONVEX_ARGS:
+        return lambda a, b, args, nodes, weights: convex_rule(a, b, args, nodes, weights)
 
 
 def _gl(n):
@@ -330,7 +339,7 @@ _N20, _W20 = _gl(20)
 
 @njit
 def _eq7_adaptive(args, lo, hi, rtol, stats):
-    """The adaptive rule of methods/quadrature.py over [lo, hi], with its floor: tails below rtol/10
+    """The adaptive rule (adaptive.py) over [lo, hi], with its floor: tails below rtol/10
     of a first 20-point estimate per unit of the variable are not refined."""
     if not hi > lo:
         return 0.0
@@ -475,8 +484,7 @@ def straight_cuts(geo, end, out):
 @njit
 def convex_rule(a, b, args, nodes, weights):
     """Gauss-Legendre rule of `convex_integrand` over [a, b]; args = (geo, planes, distant, kt, ks, code,
-    g, kt_out, phase, CONVEX_TAG) (methods/quadrature.py's adaptive rule calls it for tuples of length
-    CONVEX_ARGS)."""
+    g, kt_out, phase, CONVEX_TAG) (the adaptive rule calls it for tuples of length CONVEX_ARGS)."""
     half = 0.5 * (b - a)
     mid = 0.5 * (a + b)
     acc = 0.0

@@ -12,6 +12,8 @@ from typing import Callable
 
 import numpy as np
 
+from ..media import Homogeneous
+
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
 
@@ -109,7 +111,7 @@ class Method:
     # segment, so that the renderer can cut the work into chunks of bounded memory
     point_count: Callable | None = None
     light_types: tuple = ("point",)  # the kinds of light (lights.NAMES) its air-light integrates
-    media: tuple = ("homogeneous",)  # the medium types (media/medium.py) it integrates
+    media: tuple = (Homogeneous,)  # the medium kinds (media/) it integrates
 
     def check_lights(self, lights, source: str):
         """Refuse lights of a kind this method does not integrate, naming the methods that do."""
@@ -124,10 +126,22 @@ class Method:
         """Refuse a medium type this method does not integrate, naming the methods that do."""
         from ..errors import UserError
 
-        if medium.kind not in self.media:
-            takers = [m.name for m in registry().values() if medium.kind in m.media]
-            raise UserError(f"{source}: --method {self.name}: it does not take {medium.kind} media (medium.type = "
-                            f"\"{medium.kind}\"); use --method {', '.join(takers)}, or a homogeneous medium")
+        if type(medium) not in self.media:
+            kind = medium.type_name
+            takers = [m.name for m in registry().values() if type(medium) in m.media]
+            raise UserError(f"{source}: --method {self.name}: it does not take {kind} media (medium.type = "
+                            f"\"{kind}\"); use --method {', '.join(takers)}, or a homogeneous medium")
+
+
+def by_kind(table: dict, medium):
+    """table[kind of medium]: a method's function for this medium kind; a kind it lacks is an error
+    (`Method.check_medium` names the methods that take it), never another kind's code."""
+    from ..errors import UserError
+
+    if type(medium) not in table:
+        raise UserError(f"medium.type = \"{medium.type_name}\": no integrator for this kind here; use one of "
+                        f"{', '.join(k.type_name for k in table)}")
+    return table[type(medium)]
 
 
 def registry() -> dict[str, Method]:

@@ -18,7 +18,7 @@ import numpy as np
 from ..jit import njit
 from ..lights import DIRECTIONAL, NO_CONE, falloff
 from ..media.atmosphere import ROW, segment_rows
-from ..media.medium import LINEAR, attenuated_density, column
+from ..media.fog import above_top, attenuated_density, column
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
@@ -159,7 +159,7 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
     transmittances exp(-kt tau) with tau the closed-form column (media/medium.py, seed 004 eq. 34
     or 30); T_cam from the segment's start, T_light to the light or, for the sun, to infinity."""
     hp = row[HO] + row[MU] * x
-    if profile == LINEAR and hp >= H:  # above the linear fog's top
+    if above_top(hp, H, profile):
         return 0.0
     tau = column(row[HO], row[MU], 0.0, x, H, profile)
     if sun:
@@ -179,19 +179,18 @@ def atmosphere_channels(segs, medium, lights, evaluate, variance=False):
     sun, xh, h, cone, kt, ks)` returns the unit-intensity air-light (S,) of one channel given its
     layers' coefficients kt, ks (K,); rows are `atmosphere.segment_rows`, channels that do not
     scatter are 0. With `variance`, evaluate returns (mean, variance) and so does this, (S, 3) each."""
-    atm = medium.atmosphere
     xh, h, _, cone = segment_geometry(segs, lights)
     sun = lights.kind[segs.light] == DIRECTIONAL
     rows = np.empty((len(segs), ROW))
     segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
-                 sun, *(float(v) for v in atm.center), float(atm.radius), float(atm.top), rows)
+                 sun, *(float(v) for v in medium.center), float(medium.radius), float(medium.top), rows)
     out = np.zeros((len(segs), 3))
     var = np.zeros((len(segs), 3))
     for c in range(3):
-        ks = np.ascontiguousarray(atm.sigma_s[:, c])
+        ks = np.ascontiguousarray(medium.layer_sigma_s[:, c])
         if not np.any(ks > 0.0):
             continue
-        unit = evaluate(rows, sun, xh, h, cone, np.ascontiguousarray(atm.sigma_t[:, c]), ks)
+        unit = evaluate(rows, sun, xh, h, cone, np.ascontiguousarray(medium.layer_sigma_t[:, c]), ks)
         if variance:
             unit, v = unit
             _scale_into(var, c, v, lights.intensity ** 2, segs.light)

@@ -32,12 +32,13 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import ErrorLaw, Method, Param
+from . import ErrorLaw, Method, Param, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import HO, MU, atmosphere_channels, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
 from ..errors import UserError
 from ..media import atmosphere as atmo
-from ..media.medium import ATMOSPHERE, HOMOGENEOUS, attenuated_density, column, column_distance
+from ..media import Atmosphere, HeightFog, Homogeneous
+from ..media.fog import attenuated_density, column, column_distance
 from ..media.phase import phase_split
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
@@ -349,29 +350,39 @@ def cdf_setup(medium):
 
 
 def _airlight(segs, medium, lights, params):
+    return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
+
+
+def _atmosphere(segs, atm, lights, params):
+    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
+
+    def evaluate(rows, sun, xh, h, cone, kt, ks):
+        mean, v = np.empty_like(xh), np.empty_like(xh)
+        atmosphere_segments(rows, sun, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
+                            atm.gs, atm.layers, float(atm.radius), float(atm.top), MODES[params["sampling"]],
+                            params["samples"], mean, v)
+        return mean, v
+
+    out, var = atmosphere_channels(segs, atm, lights, evaluate, variance=True)
+    return out, np.zeros(CDF_STATS), var
+
+
+def _fog(segs, medium, lights, params):
+    out = np.zeros((len(segs), 3))
+    var = np.zeros_like(out)
+    xh, h, _, cone = segment_geometry(segs, lights)
+    rows, sun = fog_rows(segs, medium, lights)
+    fog_segments(rows, sun, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
+                 lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
+                 medium.scale_height, medium.profile, MODES[params["sampling"]], params["samples"], out, var)
+    return out, np.zeros(CDF_STATS), var
+
+
+def _homogeneous(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
     stats = np.zeros(CDF_STATS)
-    if medium.kind == ATMOSPHERE:
-        atm = medium.atmosphere
-        keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
-
-        def evaluate(rows, sun, xh, h, cone, kt, ks):
-            mean, v = np.empty_like(xh), np.empty_like(xh)
-            atmosphere_segments(rows, sun, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
-                                atm.gs, atm.scale_heights, float(atm.radius), float(atm.top),
-                                MODES[params["sampling"]], params["samples"], mean, v)
-            return mean, v
-
-        out, var = atmosphere_channels(segs, medium, lights, evaluate, variance=True)
-        return out, stats, var
-    if medium.kind != HOMOGENEOUS:
-        xh, h, _, cone = segment_geometry(segs, lights)
-        rows, sun = fog_rows(segs, medium, lights)
-        fog_segments(rows, sun, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
-                     lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
-                     medium.scale_height, medium.profile, MODES[params["sampling"]], params["samples"], out, var)
-    elif params["sampling"] == "cdf":
+    if params["sampling"] == "cdf":
         xh, h, da, cone = segment_geometry(segs, lights)
         airlight_segments_cdf(xh, h, da, segs.length, cone, lights.intensity[segs.light], medium.sigma_t, medium.sigma_s,
                               medium.phase, medium.g, *cdf_setup(medium), out, var, stats)
@@ -538,9 +549,9 @@ def atmosphere_segments(rows, sun, xh, h, cone, keys, stream, seed, kt, ks, code
 
 
 def _check(medium, params):
-    if medium.kind != HOMOGENEOUS and params["sampling"] == "cdf":
+    if not medium.homogeneous and params["sampling"] == "cdf":
         raise UserError(f"method montecarlo: --sampling cdf inverts the homogeneous medium's closed-form air-light; "
-                        f"in {medium.kind} media use --sampling equiangular, freepath or mis")
+                        f"in {medium.type_name} media use --sampling equiangular, freepath or mis")
 
 
 METHOD = Method(
@@ -566,5 +577,6 @@ METHOD = Method(
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
     check=_check,
     light_types=("point", "spot", "directional"),
-    media=("homogeneous", "height_fog", "atmosphere"),
+    media=(Homogeneous, HeightFog, Atmosphere),
 )
+_BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}

@@ -26,18 +26,15 @@ import numpy as np
 from numba.extending import overload
 
 from ..jit import njit
-from . import ErrorLaw, Method, Param
+from . import ErrorLaw, Method, Param, by_kind
 from .geometry import COSD, HO, MU, MUS, atmosphere_channels, by_channel, fog_inscatter, fog_rows, spot_factor
 from ..lights import cone_breaks, falloff
 from ..media import atmosphere as atmo
-from ..media.medium import ATMOSPHERE, HOMOGENEOUS, LINEAR, column, column_distance
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, adaptive as _adaptive, claim, rule as _either_rule
+from ..media import Atmosphere, HeightFog, Homogeneous
+from ..media.fog import column, column_distance, top_distance
 from ..media.phase import phase_split, phase_value
 
-MAX_INTERVALS = 4000
-STACK = 200
-
-# stats slots: evaluations, intervals, evaluations with an interval short of its tolerance
-EVALS, INTERVALS, CAPPED = 0, 1, 2
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
 _N20, _W20 = np.polynomial.legendre.leggauss(20)
@@ -71,60 +68,20 @@ def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
     return acc * half
 
 
-def _either_rule(a, b, args, nodes, weights):
-    """`_rule` for args = (piece, xh, h, kt, code, g, cone), `_atm_rule` for an atmosphere's 13
-    arguments, media/slab.py's `eq7_rule` and `convex_rule` for their argument tuples, else `_fog_rule`
-    (chosen at compile time by the tuple's length, `_either_rule_impl`)."""
+claim(7, 11, 13)
 
 
 @overload(_either_rule)
 def _either_rule_impl(a, b, args, nodes, weights):
+    """`_rule` for args = (piece, xh, h, kt, code, g, cone), `_atm_rule` for an atmosphere's 13
+    arguments, `_fog_rule` for a height fog's 11."""
     if len(args) == 7:
         return lambda a, b, args, nodes, weights: _rule(args[0], a, b, args[1], args[2], args[3], args[4], args[5],
                                                         args[6], nodes, weights)
     if len(args) == 13:
         return lambda a, b, args, nodes, weights: _atm_rule(a, b, args, nodes, weights)
-    from ..media.slab import CONVEX_ARGS, EQ7_ARGS, convex_rule, eq7_rule  # seed 002 (bounded media)
-
-    assert len({7, 11, 13, EQ7_ARGS, CONVEX_ARGS}) == 5, "each rule's argument tuple needs a length of its own"
-
-    if len(args) == EQ7_ARGS:
-        return lambda a, b, args, nodes, weights: eq7_rule(a, b, args, nodes, weights)
-    if len(args) == CONVEX_ARGS:
-        return lambda a, b, args, nodes, weights: convex_rule(a, b, args, nodes, weights)
-    return lambda a, b, args, nodes, weights: _fog_rule(a, b, args, nodes, weights)
-
-
-@njit
-def _adaptive(args, a, b, rtol, density, n10, w10, n20, w20, stats):
-    """The integral over [a, b] of `_either_rule` and whether every interval met its tolerance (False:
-    an interval was accepted at the MAX_INTERVALS / STACK caps or at the resolution of doubles)."""
-    if not b > a:
-        return 0.0, True
-    converged = True
-    lo = np.empty(STACK)
-    hi = np.empty(STACK)
-    lo[0], hi[0] = a, b
-    top = 1
-    total = 0.0
-    count = 0
-    while top > 0:
-        top -= 1
-        x0, x1 = lo[top], hi[top]
-        coarse = _either_rule(x0, x1, args, n10, w10)
-        fine = _either_rule(x0, x1, args, n20, w20)
-        count += 1
-        mid = 0.5 * (x0 + x1)
-        tol = max(rtol * abs(fine), density * (x1 - x0))
-        if abs(fine - coarse) <= tol or count >= MAX_INTERVALS or top + 2 > STACK or not (x0 < mid < x1):
-            converged = converged and abs(fine - coarse) <= tol
-            total += fine
-        else:
-            lo[top], hi[top] = x0, mid
-            lo[top + 1], hi[top + 1] = mid, x1
-            top += 2
-    stats[INTERVALS] += count
-    return total, converged
+    if len(args) == 11:
+        return lambda a, b, args, nodes, weights: _fog_rule(a, b, args, nodes, weights)
 
 
 @njit
@@ -208,27 +165,36 @@ def evaluate_segments(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w2
 
 
 def _airlight(segs, medium, lights, params):
+    return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
+
+
+def _atmosphere(segs, atm, lights, params):
     stats = np.zeros(3)
-    if medium.kind == ATMOSPHERE:
-        atm = medium.atmosphere
 
-        def evaluate(rows, sun, xh, h, cone, kt, ks):
-            out = np.empty_like(xh)
-            atmosphere_segments(rows, sun, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.scale_heights,
-                                float(atm.radius), float(atm.top), params["rtol"], _N10, _W10, _N20, _W20, out, stats)
-            return out
+    def evaluate(rows, sun, xh, h, cone, kt, ks):
+        out = np.empty_like(xh)
+        atmosphere_segments(rows, sun, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
+                            float(atm.top), params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+        return out
 
-        return atmosphere_channels(segs, medium, lights, evaluate), stats
-    if medium.kind != HOMOGENEOUS:
-        rows, sun = fog_rows(segs, medium, lights)
+    return atmosphere_channels(segs, atm, lights, evaluate), stats
 
-        def evaluate(xh, h, da, ell, kt, ks, cone):
-            out = np.empty_like(xh)
-            fog_segments(rows, sun, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
-                         medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
-            return out
 
-        return by_channel(segs, medium, lights, evaluate), stats
+def _fog(segs, medium, lights, params):
+    stats = np.zeros(3)
+    rows, sun = fog_rows(segs, medium, lights)
+
+    def evaluate(xh, h, da, ell, kt, ks, cone):
+        out = np.empty_like(xh)
+        fog_segments(rows, sun, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
+                     medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+        return out
+
+    return by_channel(segs, medium, lights, evaluate), stats
+
+
+def _homogeneous(segs, medium, lights, params):
+    stats = np.zeros(3)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
@@ -254,8 +220,9 @@ METHOD = Method(
     stats_size=3,
     summarize=_summarize,
     light_types=("point", "spot", "directional"),
-    media=("homogeneous", "height_fog", "atmosphere"),
+    media=(Homogeneous, HeightFog, Atmosphere),
 )
+_BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 
 
 # --- height fog (seed 004): the same adaptive rule on the closed-form transmittances ---------------
@@ -342,7 +309,7 @@ def _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats):
 @njit
 def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
     """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
-    x_top = (H - row[HO]) / row[MU] if profile == LINEAR and row[MU] != 0.0 else -1.0  # the linear fog's top
+    x_top = top_distance(row[HO], row[MU], H, profile)
     if sun:
         out[0] = 0.0
         out[1] = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
@@ -409,31 +376,31 @@ def _atm_rule(a, b, args, nodes, weights):
 
 
 @njit
-def _atm_breaks(row, sun, xh, h, cone, R, out):
+def _atm_breaks(row, sun, xh, h, cone, Hs, R, out):
     """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count."""
-    lowest = -(row[atmo.QX] * row[atmo.WX] + row[atmo.QY] * row[atmo.WY] + row[atmo.QZ] * row[atmo.WZ])
     if sun:
         out[0], out[1] = row[atmo.A], row[atmo.B]
-        out[2] = lowest
-        n = 3 + atmo.planet_shadow(row, R, out[3:])
+        n = 2 + atmo.density_breaks(row, Hs, R, out[2:])
+        n += atmo.planet_shadow(row, R, out[n:])
     else:
-        out[0], out[1] = math.atan2(row[atmo.A] - xh, h), math.atan2(row[atmo.B] - xh, h)
-        out[2], out[3] = 0.0, math.atan2(lowest - xh, h)
-        n = 4
-        n = _cone_thetas(cone, out, n)
+        out[0], out[1], out[2] = math.atan2(row[atmo.A] - xh, h), math.atan2(row[atmo.B] - xh, h), 0.0
+        m = atmo.density_breaks(row, Hs, R, out[3:])
+        for i in range(3, 3 + m):
+            out[i] = math.atan2(out[i] - xh, h)
+        n = _cone_thetas(cone, out, 3 + m)
     return _ends_and_inside(out, n)
 
 
 @njit
 def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out, stats):
     """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients."""
-    br = np.empty(12)
+    br = np.empty(11 + atmo.max_density_breaks(Hs))
     cols = np.empty(Hs.shape[0])
     for s in range(xh.shape[0]):
         out[s] = 0.0
         if not rows[s, atmo.B] > rows[s, atmo.A]:
             continue
         stats[EVALS] += 1.0
-        m = _atm_breaks(rows[s], sun[s], xh[s], h[s], cone[s], R, br)
+        m = _atm_breaks(rows[s], sun[s], xh[s], h[s], cone[s], Hs, R, br)
         args = (rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
         out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats)

@@ -40,12 +40,13 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import ErrorLaw, Method, Param
+from . import ErrorLaw, Method, Param, by_kind
 from .geometry import (HO, MU, atmosphere_channels, by_channel, eq4_integrand, fog_inscatter, fog_rows,
                        segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
-from ..media.medium import ATMOSPHERE, HOMOGENEOUS, column, column_distance
+from ..media import Atmosphere, HeightFog, Homogeneous
+from ..media.fog import column, column_distance
 
 MAX_STEPS = 1 << 20
 DIM_JITTER = 0x524D  # rng dimension of the per-ray jitter ("RM"), distinct from other methods' dims
@@ -155,30 +156,40 @@ def _points(segs, medium, lights, params):
 
 
 def _airlight(segs, medium, lights, params):
+    return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
+
+
+def _atmosphere(segs, atm, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
-    if medium.kind == ATMOSPHERE:
-        atm = medium.atmosphere
 
-        def evaluate(rows, sun, xh, h, cone, kt, ks):
-            out = np.empty_like(xh)
-            atmosphere_segments(rows, sun, xh, h, cone, keys, int(segs.seed), kt, ks, atm.phases, atm.gs,
-                                atm.scale_heights, float(atm.radius), float(atm.top), int(params["steps"]),
-                                float(params["step"]), params["transmittance"] == "marched", bool(params["jitter"]),
-                                out, stats)
-            return out
+    def evaluate(rows, sun, xh, h, cone, kt, ks):
+        out = np.empty_like(xh)
+        atmosphere_segments(rows, sun, xh, h, cone, keys, int(segs.seed), kt, ks, atm.phases, atm.gs, atm.layers,
+                            float(atm.radius), float(atm.top), int(params["steps"]), float(params["step"]),
+                            params["transmittance"] == "marched", bool(params["jitter"]), out, stats)
+        return out
 
-        return atmosphere_channels(segs, medium, lights, evaluate), stats
-    if medium.kind != HOMOGENEOUS:
-        rows, sun = fog_rows(segs, medium, lights)
+    return atmosphere_channels(segs, atm, lights, evaluate), stats
 
-        def evaluate(xh, h, da, ell, kt, ks, cone):
-            out = np.empty_like(xh)
-            fog_segments(rows, sun, xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone,
-                         medium.scale_height, medium.profile, *_march(params), bool(params["jitter"]), out, stats)
-            return out
 
-        return by_channel(segs, medium, lights, evaluate), stats
+def _fog(segs, medium, lights, params):
+    stats = np.zeros(3)
+    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
+    rows, sun = fog_rows(segs, medium, lights)
+
+    def evaluate(xh, h, da, ell, kt, ks, cone):
+        out = np.empty_like(xh)
+        fog_segments(rows, sun, xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone,
+                     medium.scale_height, medium.profile, *_march(params), bool(params["jitter"]), out, stats)
+        return out
+
+    return by_channel(segs, medium, lights, evaluate), stats
+
+
+def _homogeneous(segs, medium, lights, params):
+    stats = np.zeros(3)
+    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
@@ -190,9 +201,9 @@ def _airlight(segs, medium, lights, params):
 
 
 def _check(medium, params):
-    if params["transmittance"] == "marched" and medium.kind != ATMOSPHERE:
+    if params["transmittance"] == "marched" and not isinstance(medium, Atmosphere):
         raise UserError(f"method raymarch: --transmittance marched is the atmosphere's naive baseline; in "
-                        f"{medium.kind} media use --transmittance closed (the default)")
+                        f"{medium.type_name} media use --transmittance closed (the default)")
 
 
 def _summarize(stats):
@@ -225,8 +236,9 @@ METHOD = Method(
     points=_points,
     point_count=_point_count,
     light_types=("point", "spot", "directional"),
-    media=("homogeneous", "height_fog", "atmosphere"),
+    media=(Homogeneous, HeightFog, Atmosphere),
 )
+_BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 
 
 @njit

@@ -15,8 +15,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..lights import DIRECTIONAL, SPOT, Light
-from ..media.medium import ATMOSPHERE, HEIGHT_FOG, HOMOGENEOUS, PROFILES, Atmosphere, Medium
-from ..media.particles import Particles
+from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
 PRIMITIVES = ("box", "quad", "sphere", "cylinder", "triangles")
@@ -337,138 +336,30 @@ def _spot(ctx, key, raw, pos, intensity):
     return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)))
 
 
-MEDIUM_KEYS = {HOMOGENEOUS: {"type", "sigma_a", "sigma_s", "phase", "particles"},
-               HEIGHT_FOG: {"type", "sigma_a", "sigma_s", "phase", "up", "h0", "scale_height", "profile"},
-               ATMOSPHERE: {"type", "center", "radius", "top_radius", "reflectance", "layer"}}
-LAYER_KEYS = {"name", "sigma_a", "sigma_s", "scale_height", "phase"}
-MIN_RADIUS_OVER_H = 3.0  # radius / scale_height below this is outside the Chapman kernels' measured range
-PARTICLE_KEYS = {"density", "mu", "sigma", "cell", "offset", "step", "beta", "c1", "c2", "reflectance", "seed"}
+class _Reader:
+    """The parsing helpers bound to the file, for the media kinds' own parsers (media/medium.py)."""
 
+    def __init__(self, ctx):
+        self.fail, self.unknown = ctx.fail, ctx.unknown
+        self.ctx = ctx
 
-def _particles(ctx, raw, scatters):
-    """[medium.particles]: seed 003's particle layer (media/particles.py); defaults are the seed's."""
-    if raw is None:
-        return None
-    key = "medium.particles"
-    raw = _table(ctx, key, raw)
-    ctx.unknown(key, raw, PARTICLE_KEYS)
-    if not scatters:
-        ctx.fail(key, "the particles scatter with the medium's sigma_s, which is zero",
-                 "give the medium a sigma_s > 0 or remove [medium.particles]")
-    if "beta" in raw and ("c1" in raw or "c2" in raw):
-        ctx.fail(f"{key}.beta", "replaces the seed's beta = ((1 - d) + c1) c2, so c1 and c2 would be ignored",
-                 "give either beta or c1 and c2")
-    d = Particles()
-    density = float(_number(ctx, f"{key}.density", raw.get("density", d.density), minimum=0.0))
-    if density > 1.0:
-        ctx.fail(f"{key}.density", f"scales the density term d in [0, 1] and must be at most 1, got {density!r}",
-                 "use a value in [0, 1] (0: no particles)")
-    refl = float(_number(ctx, f"{key}.reflectance", raw.get("reflectance", d.reflectance), minimum=0.0))
-    if refl > 1.0:
-        ctx.fail(f"{key}.reflectance", f"exceeds 1 (particles would create energy), got {refl!r}",
-                 "use a value in [0, 1]")
-    seed = _number(ctx, f"{key}.seed", raw.get("seed", d.seed), integer=True, minimum=0)
-    if seed >= 2 ** 63:
-        ctx.fail(f"{key}.seed", f"must be below 2^63, got {seed!r}", "use a smaller whole number")
-    cell = float(_number(ctx, f"{key}.cell", raw.get("cell", d.cell), positive=True))
-    beta = raw.get("beta")
-    return Particles(
-        density=density,
-        mu=float(_number(ctx, f"{key}.mu", raw.get("mu", d.mu))),
-        sigma=float(_number(ctx, f"{key}.sigma", raw.get("sigma", d.sigma), positive=True)),
-        cell=cell,
-        offset=float(_number(ctx, f"{key}.offset", raw.get("offset", d.offset), minimum=0.0)),
-        step=float(_number(ctx, f"{key}.step", raw.get("step", cell), positive=True)),
-        beta=None if beta is None else float(_number(ctx, f"{key}.beta", beta, positive=True)),
-        c1=float(_number(ctx, f"{key}.c1", raw.get("c1", d.c1), minimum=0.0)),
-        c2=float(_number(ctx, f"{key}.c2", raw.get("c2", d.c2), minimum=0.0)),
-        reflectance=refl,
-        seed=seed,
-    )
+    def number(self, key, value, **kw):
+        return _number(self.ctx, key, value, **kw)
 
+    def vec3(self, key, value):
+        return _vec3(self.ctx, key, value)
 
-def _medium(ctx, raw):
-    if raw is None:
-        return Medium(np.zeros(3), np.zeros(3))
-    raw = _table(ctx, "medium", raw)
-    kind = _string(ctx, "medium.type", raw.get("type", HOMOGENEOUS), tuple(MEDIUM_KEYS))
-    if kind != HOMOGENEOUS and "particles" in raw:
-        ctx.fail("medium.particles", "the particle layer needs a homogeneous medium",
-                 'remove [medium.particles] or use type = "homogeneous"')
-    ctx.unknown("medium", raw, MEDIUM_KEYS[kind])
-    if kind == ATMOSPHERE:
-        return _atmosphere(ctx, raw)
-    sa = _rgb(ctx, "medium.sigma_a", raw.get("sigma_a", 0.0))
-    ss = _rgb(ctx, "medium.sigma_s", raw.get("sigma_s", 0.0))
-    if kind == HOMOGENEOUS:
-        particles = _particles(ctx, raw.get("particles"), bool(np.any(ss > 0.0)))
-        return Medium(sa, ss, *_phase(ctx, raw.get("phase", "isotropic")), particles)
-    return Medium(sa, ss, *_phase(ctx, raw.get("phase", "isotropic")), kind=kind, **_height_fog(ctx, raw))
+    def rgb(self, key, value):
+        return _rgb(self.ctx, key, value)
 
+    def string(self, key, value, choices):
+        return _string(self.ctx, key, value, choices)
 
-def _height_fog(ctx, raw):
-    """Seed 004's height fog: unit `up`, reference height `h0` (where sigma_a, sigma_s hold),
-    `scale_height` H > 0 and the density `profile` (exponential, eq. 32, or linear, eq. 28)."""
-    up = _vec3(ctx, "medium.up", raw.get("up", [0.0, 1.0, 0.0]))
-    norm = float(np.linalg.norm(up))
-    if not norm > 0.0:
-        ctx.fail("medium.up", "is zero", "give the direction heights are measured along, e.g. up = [0.0, 1.0, 0.0]")
-    if "scale_height" not in raw:
-        ctx.fail("medium.scale_height", "missing", "add medium.scale_height = 20.0 (the height over which the "
-                 "density falls by e)")
-    H = float(_number(ctx, "medium.scale_height", raw["scale_height"]))
-    if not H > 0.0:
-        ctx.fail("medium.scale_height", f"must be positive, got {H!r}", "use a height greater than 0, e.g. 20.0")
-    profile = _string(ctx, "medium.profile", raw.get("profile", "exponential"), tuple(PROFILES))
-    return {"up": up / norm, "h0": float(_number(ctx, "medium.h0", raw.get("h0", 0.0))), "scale_height": H,
-            "profile": PROFILES[profile]}
+    def table(self, key, value):
+        return _table(self.ctx, key, value)
 
-
-def _atmosphere(ctx, raw):
-    """Seed 004's spherical atmosphere (Bruneton's model): planet `center`, `radius`, the ground's
-    `reflectance`, air up to `top_radius`, and [[medium.layer]] tables, each an exponential layer
-    with its coefficients at the ground, `scale_height` and `phase`."""
-    for k, example in (("center", "[0.0, -6360000.0, 0.0]"), ("radius", "6360000.0"), ("top_radius", "6420000.0")):
-        if k not in raw:
-            ctx.fail(f"medium.{k}", "missing", f"add medium.{k} = {example}")
-    center = _vec3(ctx, "medium.center", raw["center"])
-    radius = float(_number(ctx, "medium.radius", raw["radius"], positive=True))
-    top = float(_number(ctx, "medium.top_radius", raw["top_radius"]))
-    if not top > radius:
-        ctx.fail("medium.top_radius", f"must exceed medium.radius = {radius:g}, got {top!r}",
-                 "give the radius of the top of the atmosphere, e.g. radius + 60000.0")
-    layers = raw.get("layer")
-    if not isinstance(layers, list) or not layers:
-        ctx.fail("medium.layer", "an atmosphere needs at least one layer", "add [[medium.layer]] tables (sigma_s, "
-                 "sigma_a, scale_height, phase), e.g. Rayleigh and Mie")
-    names, heights, sa, ss, phases, gs = [], [], [], [], [], []
-    for i, layer in enumerate(layers):
-        key = f"medium.layer[{i}]"
-        layer = _table(ctx, key, layer)
-        ctx.unknown(key, layer, LAYER_KEYS)
-        name = layer.get("name", f"layer {i}")
-        if not isinstance(name, str):
-            ctx.fail(f"{key}.name", f"expected a string, got {name!r}", 'write name = "rayleigh"')
-        if "scale_height" not in layer:
-            ctx.fail(f"{key}.scale_height", "missing", "add scale_height = 8000.0 (the height over which the density "
-                     "falls by e)")
-        H = float(_number(ctx, f"{key}.scale_height", layer["scale_height"]))
-        if not H > 0.0:
-            ctx.fail(f"{key}.scale_height", f"must be positive, got {H!r}", "use a height greater than 0, e.g. 8000.0")
-        if radius / H < MIN_RADIUS_OVER_H:
-            ctx.fail(f"{key}.scale_height", f"{H:g} exceeds medium.radius / {MIN_RADIUS_OVER_H:g}",
-                     "use a scale height well below the planet's radius (the closed form is verified for "
-                     f"radius / scale_height >= {MIN_RADIUS_OVER_H:g})")
-        names.append(name)
-        heights.append(H)
-        sa.append(_rgb(ctx, f"{key}.sigma_a", layer.get("sigma_a", 0.0)))
-        ss.append(_rgb(ctx, f"{key}.sigma_s", layer.get("sigma_s", 0.0)))
-        code, g = _phase(ctx, layer.get("phase", "isotropic"), f"{key}.phase")
-        phases.append(code)
-        gs.append(g)
-    atm = Atmosphere(center, radius, top, _rgb(ctx, "medium.reflectance", raw.get("reflectance", 0.0)), tuple(names),
-                     np.array(heights), np.array(sa), np.array(ss), np.array(phases, dtype=np.int64), np.array(gs))
-    return Medium(atm.sigma_a.sum(axis=0), atm.sigma_s.sum(axis=0), kind=ATMOSPHERE, atmosphere=atm)
+    def phase(self, value, key):
+        return _phase(self.ctx, value, key)
 
 
 def _phase(ctx, phase, key="medium.phase"):
@@ -492,30 +383,6 @@ def _phase(ctx, phase, key="medium.phase"):
     if not abs(g) < 1.0:
         ctx.fail(f"{key}.g", f"|g| must be below 1, got {g!r}", "use -1 < g < 1 (g > 0 scatters forward)")
     return HG, g
-
-
-def _check_planet(ctx, camera, lights, medium):
-    """Neither the camera nor a light may sit inside an atmosphere's planet (it is opaque)."""
-    if medium.kind != ATMOSPHERE:
-        return
-    atm = medium.atmosphere
-    if atm.inside(camera.position):
-        ctx.fail("camera.position", f"{camera.position.tolist()} is inside the planet (medium.center "
-                 f"{atm.center.tolist()}, radius {atm.radius:g})", "move the camera onto or above the ground")
-    for i, light in enumerate(lights):
-        if light.kind != DIRECTIONAL and atm.inside(light.position):
-            ctx.fail(f"light[{i}].position", f"{light.position.tolist()} is inside the planet (medium.center "
-                     f"{atm.center.tolist()}, radius {atm.radius:g})", "move the light above the ground")
-
-
-def _check_sun(ctx, lights, medium):
-    """A directional light cannot shine through a homogeneous medium filling all space."""
-    if medium.kind == HOMOGENEOUS and np.any(medium.sigma_t > 0.0):
-        for i, light in enumerate(lights):
-            if light.kind == DIRECTIONAL:
-                ctx.fail(f"light[{i}].type", "a directional light through a homogeneous medium filling all space "
-                         "arrives with zero transmittance", 'use medium.type = "height_fog", a vacuum medium, or a '
-                         "point or spot light")
 
 
 RENDER_OPTIONS = ("method", "seed", "volumetric_shadows", "shadow_spacing")  # [render] keys that are not method parameters
@@ -576,9 +443,9 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
         ctx.fail("name", f"expected a string, got {name!r}", 'write name = "my scene"')
     shapes = [_shape(ctx, i, s) for i, s in enumerate(shapes_raw)]
     lights = [_light(ctx, i, s) for i, s in enumerate(lights_raw)]
-    medium = _medium(ctx, raw.get("medium"))
-    _check_sun(ctx, lights, medium)
-    _check_planet(ctx, camera, lights, medium)
+    read = _Reader(ctx)
+    medium = parse_medium(read, raw.get("medium"))
+    medium.check_scene(read, camera, lights)
     return Scene(
         name=name,
         path=path,

@@ -1,6 +1,9 @@
-"""Seed 004's height fogs on flat ground: optical depth of a ray segment and its inverse
-(docs/optical_depth.md §1). A ray is given by ``h`` = o·up - h0, the height of its origin above the
-reference height, and ``mu`` = d·up; t0 <= t1 are distances along it (t1 may be inf).
+"""`height_fog` (seed 004): fog over flat ground whose coefficients, given at the reference height
+h0, scale with one density of the height p·up - h0, exponential (eq. 32) or linear (eq. 28); the
+transmittance along a ray is exp(-kt tau) with tau the closed-form unit optical depth below, the
+same for every channel. Optical depth of a ray segment and its inverse (docs/optical_depth.md
+§1): a ray is given by ``h`` = o·up - h0, the height of its origin above the reference height, and
+``mu`` = d·up; t0 <= t1 are distances along it (t1 may be inf).
 
 * constant:    sigma(p) = sigma0                                  (eq. 25-27)
 * linear:      sigma(p) = sigma0 max(0, 1 - (p·up - h0)/H)        (eq. 28-31; zero above h0 + H)
@@ -10,11 +13,65 @@ Every result is a product of non-negative factors (no difference of two optical 
 exp of a positive argument except the density at the segment's densest end, which overflows only
 when the optical depth itself exceeds the float range); infinite optical depths come out as inf.
 """
+from __future__ import annotations
+
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..jit import njit
+from .medium import Medium, exp_transmittance
+
+EXPONENTIAL, LINEAR = 0, 1  # profiles
+PROFILES = {"exponential": EXPONENTIAL, "linear": LINEAR}
+
+
+@dataclass(kw_only=True)
+class HeightFog(Medium):
+    up: np.ndarray  # unit up vector
+    h0: float  # reference height (where sigma_a, sigma_s hold)
+    scale_height: float
+    profile: int = EXPONENTIAL
+
+    type_name = "height_fog"
+    keys = frozenset({"type", "sigma_a", "sigma_s", "phase", "up", "h0", "scale_height", "profile"})
+
+    @classmethod
+    def parse(cls, read, raw):
+        """Unit `up`, reference height `h0`, `scale_height` H > 0 and the density `profile`."""
+        sa = read.rgb("medium.sigma_a", raw.get("sigma_a", 0.0))
+        ss = read.rgb("medium.sigma_s", raw.get("sigma_s", 0.0))
+        phase = read.phase(raw.get("phase", "isotropic"), "medium.phase")
+        up = read.vec3("medium.up", raw.get("up", [0.0, 1.0, 0.0]))
+        norm = float(np.linalg.norm(up))
+        if not norm > 0.0:
+            read.fail("medium.up", "is zero", "give the direction heights are measured along, e.g. up = [0.0, 1.0, 0.0]")
+        if "scale_height" not in raw:
+            read.fail("medium.scale_height", "missing", "add medium.scale_height = 20.0 (the height over which the "
+                      "density falls by e)")
+        H = float(read.number("medium.scale_height", raw["scale_height"]))
+        if not H > 0.0:
+            read.fail("medium.scale_height", f"must be positive, got {H!r}", "use a height greater than 0, e.g. 20.0")
+        profile = read.string("medium.profile", raw.get("profile", "exponential"), tuple(PROFILES))
+        return cls(sa, ss, *phase, up=up / norm, h0=float(read.number("medium.h0", raw.get("h0", 0.0))),
+                   scale_height=H, profile=PROFILES[profile])
+
+    def describe(self):
+        profile = "linear" if self.profile == LINEAR else "exponential"
+        return super().describe() + [f"  {self.type_name}: coefficients at h0 = {self.h0:g} along up "
+                                     f"{self.up.round(6).tolist()}, {profile} profile, scale height "
+                                     f"{self.scale_height:g}"]
+
+    def transmittance_on(self, origins, dirs, a, b):
+        n = len(origins)
+        a = np.broadcast_to(np.asarray(a, float), n)
+        b = np.broadcast_to(np.asarray(b, float), n)
+        tau = np.empty(n)
+        ray_columns(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float), np.ascontiguousarray(a),
+                    np.ascontiguousarray(b), *(float(u) for u in self.up), float(self.h0), float(self.scale_height),
+                    int(self.profile), tau)
+        return exp_transmittance(self.sigma_t, tau)
 
 
 @njit
@@ -152,6 +209,54 @@ def linear_distance(sigma0, h, mu, t0, tau, scale_height):
     if disc < 0.0:
         return math.inf
     return lo + 2.0 * column / (c_lo + math.sqrt(disc))
+
+
+@njit
+def attenuated_density(h, tau, H, profile):
+    """The fog's density relative to h0 at the height h above h0 (eq. 32 or eq. 28) times e^{-tau},
+    without inf * 0 deep below h0 (where the density overflows and tau is inf): the exponential's
+    as one exp(-h/H - tau)."""
+    if profile == EXPONENTIAL:
+        return math.exp(-h / H - tau)
+    return max(0.0, 1.0 - h / H) * math.exp(-tau)
+
+
+@njit
+def above_top(h, H, profile):
+    """True where the density is 0: above the linear profile's top h0 + H."""
+    return profile == LINEAR and h >= H
+
+
+@njit
+def top_distance(h, mu, H, profile):
+    """The distance along a ray (height h, up-cosine mu) to the linear profile's top, where its
+    density's derivative jumps; -1 when there is none."""
+    return (H - h) / mu if profile == LINEAR and mu != 0.0 else -1.0
+
+
+@njit
+def column(h, mu, t0, t1, H, profile):
+    """Unit-density optical depth over [t0, t1] of a ray starting at height h with up-cosine mu."""
+    if profile == EXPONENTIAL:
+        return exponential_optical_depth(1.0, h, mu, t0, t1, H)
+    return linear_optical_depth(1.0, h, mu, t0, t1, H)
+
+
+@njit
+def column_distance(h, mu, t0, tau, H, profile):
+    """The t >= t0 where `column` from t0 reaches tau (inf if never): eq. 35 or eq. 31."""
+    if profile == EXPONENTIAL:
+        return exponential_distance(1.0, h, mu, t0, tau, H)
+    return linear_distance(1.0, h, mu, t0, tau, H)
+
+
+@njit
+def ray_columns(origins, dirs, a, b, ux, uy, uz, h0, H, profile, out):
+    """out[i] = `column` over [a[i], b[i]] of ray i."""
+    for i in range(origins.shape[0]):
+        h = origins[i, 0] * ux + origins[i, 1] * uy + origins[i, 2] * uz - h0
+        mu = dirs[i, 0] * ux + dirs[i, 1] * uy + dirs[i, 2] * uz
+        out[i] = column(h, mu, a[i], b[i], H, profile)
 
 
 # numpy-broadcasting wrappers (tests, Python callers); kernels should call the scalar functions
