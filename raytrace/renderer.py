@@ -164,7 +164,6 @@ def check_options(method, params, volumetric_shadows, source, lights, medium):
                         "media; use --shadow-test intervals (the default)")
 
 
-
 @dataclass(frozen=True)
 class Tile:
     """One task of a render: the image rows `rows` (of the render's columns) x the pixel samples `samples`."""
