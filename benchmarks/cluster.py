@@ -31,6 +31,7 @@ sys.path.insert(0, str(ROOT))
 import raytrace  # noqa: E402
 from raytrace import distributed, renderer  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
+from raytrace.options import RenderOptions  # noqa: E402
 
 
 def cpu_seconds():
@@ -43,7 +44,7 @@ def cluster_render(client, prep, method, params, seed, workers):
     cam = prep.scene.camera
     box = (0, 0, cam.width, cam.height)
     m = get_method(method)
-    job = distributed.Job(prep.scene, m.name, resolve_params(m, params, "bench"), seed, None, box)
+    job = distributed.Job(prep.scene, renderer.Task(m.name, resolve_params(m, params, "bench"), seed, None, box))
     distributed.prepare_workers(client, job)
     work = renderer.tiles(cam, box)
     acc = renderer.Accumulator(work, box, cam.spp, m.stochastic, m.stats_size + len(renderer.LI_NAMES))
@@ -69,9 +70,9 @@ def load_times(scene_name, max_workers):
     start = time.perf_counter()
     prep = renderer.prepare(scene)
     print(f"  {scene_name}: one process prepare() {time.perf_counter() - start:.2f} s")
-    renderer.render(prep, "analytic", crop=(0, 0, 1, 1))  # the kernels in the disk cache, as in a warm cluster
+    renderer.render(prep, "analytic", options=RenderOptions(crop=(0, 0, 1, 1)))  # the kernels in the disk cache
     m = get_method("analytic")
-    job = distributed.Job(scene, m.name, resolve_params(m, {}, "bench"), 0, None, (0, 0, 1, 1))
+    job = distributed.Job(scene, renderer.Task(m.name, resolve_params(m, {}, "bench"), 0, None, (0, 0, 1, 1)))
     for n in range(1, max_workers + 1):
         with distributed.connect(f"local:{n}") as client:
             start = time.perf_counter()

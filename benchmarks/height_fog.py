@@ -103,18 +103,20 @@ def raymarch_at_equal_error():
     """raymarch on the sunrise (64 x 40, one thread): closed-form (Chapman) against marched optical
     depths (the camera's summed along the march, the light's by a march of as many steps), error
     against quadrature (rtol 1e-9); then the time ratio at which each first reaches a max error."""
+    from raytrace.options import RenderOptions
     from raytrace.renderer import prepare, render
 
     prep = prepare(_sunrise(64, 40))
-    ref = render(prep, "quadrature", {"rtol": 1e-9}, threads=1).image
+    one = RenderOptions(threads=1)
+    ref = render(prep, "quadrature", {"rtol": 1e-9}, one).image
     print("\nraymarch on scenes/sunrise.toml, 64 x 40, one thread, error against quadrature:")
     print("| steps | transmittance | median rel. error | max rel. error | seconds |")
     print("|---|---|---|---|---|")
     best = {}
     for steps in (4, 16, 64, 256):
         for mode in ("closed", "marched"):
-            render(prep, "raymarch", {"steps": steps, "transmittance": mode}, threads=1)  # compile, warm
-            runs = [render(prep, "raymarch", {"steps": steps, "transmittance": mode}, threads=1) for _ in range(2)]
+            render(prep, "raymarch", {"steps": steps, "transmittance": mode}, one)  # compile, warm
+            runs = [render(prep, "raymarch", {"steps": steps, "transmittance": mode}, one) for _ in range(2)]
             sec = min(r.seconds for r in runs)
             rel = np.abs(runs[0].image - ref) / ref
             print(f"| {steps} | {mode} | {np.median(rel):.1e} | {rel.max():.1e} | {sec:.2f} |")

@@ -19,6 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
 from raytrace.metrics import errors  # noqa: E402
+from raytrace.options import RenderOptions  # noqa: E402
 from raytrace.renderer import prepare, render  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
 
@@ -33,7 +34,7 @@ LADDERS = {
 
 
 def timed(prep, name, params):
-    runs = [render(prep, name, params, seed=1) for _ in range(1 if name == "montecarlo" else 3)]
+    runs = [render(prep, name, params, RenderOptions(seed=1)) for _ in range(1 if name == "montecarlo" else 3)]
     return float(np.median([r.seconds for r in runs])), runs[0].image
 
 

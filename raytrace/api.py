@@ -8,23 +8,27 @@
 
 `scene` is a TOML file path, the name of a bundled scene (`box_room`, `sibenik`, `bridge`,
 `conference`: the repository's scenes/, installed with the package), a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
-or None for the built-in default scene. Keyword arguments other than the render options below are
-the method's own parameters; a parameter the method does not read is an error (UserError).
+or None for the built-in default scene. Keyword arguments other than the render options (the fields
+of `RenderOptions`, raytrace/options.py, checked once by `render_options`) are the method's own
+parameters; a parameter the method does not read is an error (UserError).
 """
 from __future__ import annotations
 
 import copy
 import math
-import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
 from . import io
 from .errors import UserError
+from .options import MEMORY_SHARE, RenderOptions, physical_memory  # noqa: F401  (api.MEMORY_SHARE for callers)
 from .scene.format import Scene
+from .visibility import SHADOW_SPACING, SPACING_RANGE
+
+OPTION_NAMES = frozenset(f.name for f in fields(RenderOptions))
 
 
 @dataclass
@@ -110,31 +114,77 @@ def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
     return raw, source, path
 
 
-def check_positive(name, value):
+def _named(key: str, value) -> str:
+    """An option as messages name it: the API keyword and its value, with the command line's flag."""
+    return f"{key}={value!r} (--{key.replace('_', '-')} on the command line)"
+
+
+def _check_count(key: str, value):
     """Refuse a count (spp, width, threads, ...) that is given but not a positive integer."""
     if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value <= 0):
-        raise UserError(f"--{name} {value}: must be a positive integer; give a value of at least 1")
+        raise UserError(f"{_named(key, value)}: must be a positive integer; give a value of at least 1")
 
 
-def apply_camera_options(scene: Scene, spp=None, width=None, height=None, threads=None, seed=None) -> int:
-    """Check the render options shared by every command, set the camera's spp and size from them,
-    and return the seed (the scene's [render] seed when none is given)."""
-    for name, v in (("spp", spp), ("width", width), ("height", height), ("threads", threads)):
-        check_positive(name, v)
-    seed = scene.render.get("seed", 0) if seed is None else seed
+def render_options(scene: Scene | None, source: str = "render", **given) -> RenderOptions:
+    """The checked `RenderOptions` of a render of `scene` from `given` keywords (its field names;
+    None or absent: the scene's [render] value where it has one, else the default). Every value is
+    checked here, once; the scene's camera takes the spp, width and height given, and the crop must
+    lie inside it (`scene` None: no [render] defaults, no camera, no crop)."""
+    given = {k: v for k, v in given.items() if v is not None}
+    table = scene.render if scene is not None else {}
+    for key in ("spp", "width", "height", "threads", "passes"):
+        _check_count(key, given.get(key))
+    for key in ("time_budget", "target_error"):
+        if key in given and not given[key] > 0:
+            raise UserError(f"{_named(key, given[key])}: must be positive; give a value above 0")
+    if not given.get("checkpoint_interval", 0.0) >= 0.0:
+        raise UserError(f"{_named('checkpoint_interval', given['checkpoint_interval'])}: must be >= 0 seconds; "
+                        "0 saves after every pass")
+    v = given.get("max_memory")
+    if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 < v < math.inf):
+        raise UserError(f"{_named('max_memory', v)}: must be a positive number of GiB, e.g. max_memory=8 "
+                        "(--max-memory 8)")
+    seed = given["seed"] = given.get("seed", table.get("seed", 0))
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise UserError(f"--seed {seed}: must be >= 0; give a non-negative integer")
-    cam = scene.camera
-    cam.spp, cam.width, cam.height = spp or cam.spp, width or cam.width, height or cam.height
-    return seed
+        raise UserError(f"{_named('seed', seed)}: must be >= 0; give a non-negative integer")
+    given["volumetric_shadows"] = bool(given.get("volumetric_shadows", table.get("volumetric_shadows", False)))
+    spacing = given["shadow_spacing"] = float(given.get("shadow_spacing", table.get("shadow_spacing", SHADOW_SPACING)))
+    lo, hi = SPACING_RANGE
+    if not lo <= spacing <= hi:
+        raise UserError(f"{source}: shadow_spacing (--shadow-spacing, render.shadow_spacing): must be within "
+                        f"[{lo:g}, {hi:g}] radians, got {spacing!r}; e.g. 0.01 (finer finds thinner occluders, costs "
+                        "more shadow rays)")
+    if "checkpoint" in given:
+        given["checkpoint"] = Path(given["checkpoint"])
+    options = RenderOptions(**given)
+    if scene is not None:
+        options.apply_camera(scene.camera)
+    if options.crop is not None:
+        options = replace(options, crop=_check_crop(options.crop, scene.camera))
+    return options
 
 
 def _check_crop(crop, cam):
     x0, y0, x1, y1 = crop
     if not (0 <= x0 < x1 <= cam.width and 0 <= y0 < y1 <= cam.height):
-        raise UserError(f"--crop {x0},{y0},{x1},{y1}: must lie inside the {cam.width}x{cam.height} image with "
-                        "X0 < X1 and Y0 < Y1 (end exclusive)")
+        raise UserError(f"{_named('crop', tuple(crop))}: must lie inside the {cam.width}x{cam.height} image with "
+                        "x0 < x1 and y0 < y1 (end exclusive)")
     return tuple(int(v) for v in crop)
+
+
+def executor(options: RenderOptions, client=None, source: str = "render"):
+    """Where the tiles run: on the cluster of a `dask.distributed.Client` (distributed.py, imported
+    only then), else on a pool of `options.threads` threads (renderer.Threads)."""
+    from . import renderer
+
+    if client is None:
+        return renderer.Threads(options.threads)
+    if options.threads is not None:
+        raise UserError(f"{source}: {_named('threads', options.threads)} applies to one machine; on a cluster "
+                        "(client, --scheduler) every worker runs as many tiles as it has threads: remove it")
+    from .distributed import Cluster
+
+    return Cluster(client)
 
 
 # bytes per pixel a render holds at its peak: the float64 image (24), the float32 copies written to
@@ -142,20 +192,10 @@ def _check_crop(crop, cam):
 # and variance and the final variance with its EXR channels. Measured peak RSS growth of render.py
 # render (benchmarks/memory_peak.py, 4096 x 2048, with --png): 51 B a pixel (analytic), 99 (montecarlo)
 PIXEL_BYTES, VARIANCE_BYTES = 60, 60
-MEMORY_SHARE = 0.8  # of the machine's physical memory a render may plan to use
-
-
-def physical_memory() -> int:
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-
-
 def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | None = None):
     """Refuse, before anything is allocated, an image whose arrays would not fit in the budget:
-    `max_memory` GiB (--max-memory) if given, else MEMORY_SHARE of the machine's physical memory.
+    `max_memory` GiB (checked by render_options) if given, else MEMORY_SHARE of the machine's physical memory.
     The refusal gives the figure and the fixes, with the rows a --crop band may have."""
-    if max_memory is not None and (isinstance(max_memory, bool) or not isinstance(max_memory, (int, float))
-                                   or not 0.0 < max_memory < math.inf):
-        raise UserError(f"--max-memory {max_memory}: must be a positive number of GiB, e.g. --max-memory 8")
     x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
     per_pixel = PIXEL_BYTES + (VARIANCE_BYTES if stochastic else 0)
     need = (x1 - x0) * (y1 - y0) * per_pixel
@@ -173,63 +213,40 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
 
 
-def render(scene=None, method: str | None = None, *, spp: int | None = None, width: int | None = None,
-           height: int | None = None, seed: int | None = None, threads: int | None = None, crop=None,
-           volumetric_shadows: bool | None = None, shadow_spacing: float | None = None, passes: int | None = None, time_budget: float | None = None,
-           target_error: float | None = None, checkpoint=None, checkpoint_interval: float = 0.0,
-           progress=None, on_pass=None, overrides=(), prepared=None, client=None, max_memory: float | None = None,
-           **params) -> Image:
+def render(scene=None, method: str | None = None, *, overrides=(), prepared=None, client=None, **kwargs) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
 
-    Render options: spp, width, height (override the camera), seed, threads, crop = (x0, y0, x1, y1)
-    (end exclusive; the same samples as in the whole image), volumetric_shadows and shadow_spacing
-    (radians between the visibility samples of the lit-interval search, raytrace/visibility.py); for stochastic
-    methods the progressive options passes, time_budget, target_error, checkpoint (a file, resumed
-    when it exists) and checkpoint_interval. `progress(done, total)` (tiles) and `on_pass(passes,
-    error)` report progress; `overrides` are "key=value" strings as --set; `prepared` reuses a
-    `renderer.prepare`d scene (geometry and accelerator) for repeated renders; `client`, a
-    `dask.distributed.Client`, renders the tiles on its cluster (the same image); `max_memory` (GiB)
-    is the budget the image's arrays must fit (default 80 % of physical memory). Every other
-    keyword is a parameter of the method; the scene's [render] table supplies defaults for all of
-    these."""
+    Keywords named as `RenderOptions`' fields are render options (raytrace/options.py: spp, width,
+    height, seed, threads, crop, volumetric_shadows, shadow_spacing, the progressive passes,
+    time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
+    progress, on_pass and observer); every other keyword is a parameter of the method. The scene's
+    [render] table supplies defaults for both. `overrides` are "key=value" strings as --set;
+    `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
+    `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
     from . import renderer
     from .methods import get_method
     from .scene.format import RENDER_OPTIONS
-    from .visibility import SHADOW_SPACING
 
     scene = prepared.scene if prepared is not None else load(scene, overrides)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
-    seed = apply_camera_options(scene, spp, width, height, threads, seed)
-    check_positive("passes", passes)
-    for name, v in (("time-budget", time_budget), ("target-error", target_error)):
-        if v is not None and not v > 0:
-            raise UserError(f"--{name} {v}: must be positive; give a value above 0")
-    if not checkpoint_interval >= 0.0:
-        raise UserError(f"--checkpoint-interval {checkpoint_interval}: must be >= 0 seconds; 0 saves after every pass")
+    options = render_options(scene, source, **{k: v for k, v in kwargs.items() if k in OPTION_NAMES})
     cam = scene.camera
     m = get_method(method or scene.render.get("method", "analytic"))
-    shadows = bool(scene.render.get("volumetric_shadows", False) if volumetric_shadows is None else volumetric_shadows)
-    spacing = float(scene.render.get("shadow_spacing", SHADOW_SPACING) if shadow_spacing is None else shadow_spacing)
     given = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
-    given.update({k: v for k, v in params.items() if v is not None})
-    crop = _check_crop(crop, cam) if crop is not None else None
-    progressive = passes or time_budget or target_error or checkpoint
-    if progressive and not m.stochastic:
-        raise UserError(f"--method {m.name}: deterministic; --passes, --time-budget, --target-error and "
-                        "--checkpoint need a stochastic method such as montecarlo")
-    check_memory(cam, crop, m.stochastic, source, max_memory)
+    given.update({k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None})
+    if options.progressive and not m.stochastic:
+        raise UserError(f"{source}: method {m.name} is deterministic; the progressive options passes, time_budget, "
+                        "target_error and checkpoint (--passes, --time-budget, --target-error, --checkpoint) need "
+                        "a stochastic method such as montecarlo")
+    check_memory(cam, options.crop, m.stochastic, source, options.max_memory)
+    run_on = executor(options, client, source)
     prep = prepared if prepared is not None else renderer.prepare(scene)
     if m.stochastic:
         from .progressive import render_progressive
 
-        result = render_progressive(prep, m.name, given, seed, passes=passes, time_budget=time_budget,
-                                    target_error=target_error, checkpoint=Path(checkpoint) if checkpoint else None,
-                                    checkpoint_interval=checkpoint_interval, threads=threads, on_pass=on_pass,
-                                    source=source, crop=crop, volumetric_shadows=shadows, shadow_spacing=spacing,
-                                    client=client, progress=progress)
+        result = render_progressive(prep, m.name, given, options, run_on, source)
     else:
-        result = renderer.render(prep, m.name, given, seed, threads, progress=progress, source=source, crop=crop,
-                                 volumetric_shadows=shadows, shadow_spacing=spacing, client=client)
+        result = renderer.render(prep, m.name, given, options, run_on, source)
     if np.any(np.isnan(result.image)):
         raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
     if not np.all(result.image < np.finfo(np.float32).max):
@@ -237,5 +254,5 @@ def render(scene=None, method: str | None = None, *, spp: int | None = None, wid
                         "float32's 3.4e38 (an EXR cannot hold them): lower the lights' intensity or the medium's "
                         "coefficients, or move the camera off the light it sits on")
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
-                 result.compile_seconds, cam.spp, seed, crop, shadows, result.variance,
-                 {"shadow_spacing": spacing} if shadows else {})
+                 result.compile_seconds, cam.spp, options.seed, options.crop, options.volumetric_shadows,
+                 result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {})

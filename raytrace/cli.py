@@ -207,13 +207,12 @@ def cmd_render(args):
 
     try:
         with _cluster(args) as client:
-            img = render(scene, args.method, spp=args.spp, width=args.width, height=args.height, seed=args.seed,
-                         threads=args.threads, crop=rows, volumetric_shadows=args.volumetric_shadows or None,
-                         shadow_spacing=args.shadow_spacing,
+            img = render(scene, args.method, client=client, **_option_args(args), crop=rows,
+                         volumetric_shadows=args.volumetric_shadows or None, shadow_spacing=args.shadow_spacing,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
-                         progress=tile_done if bar else None, on_pass=report, client=client,
-                         max_memory=args.max_memory, **_given_params(args))
+                         progress=tile_done if bar else None, on_pass=report, max_memory=args.max_memory,
+                         **_given_params(args))
     except KeyboardInterrupt:
         raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
                                                      "the same command to resume" if ckpt else "")) from None
@@ -242,18 +241,23 @@ def _parse_crop(text):
     return x0, y0, x1, y1
 
 
+def _option_args(args):
+    """The render options every rendering command takes (spp, size, seed, threads), as keywords."""
+    return {k: getattr(args, k) for k in ("spp", "width", "height", "seed", "threads")}
+
+
 def cmd_compare(args):
     from . import renderer
-    from .api import apply_camera_options
+    from .api import executor, render_options
     from .experiments.compare import compare, parse_spec
 
     scene = load(args)
-    seed = apply_camera_options(scene, args.spp, args.width, args.height, args.threads, args.seed)
+    options = render_options(scene, **_option_args(args))
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
     reference = parse_spec(args.reference)
     out = _folder(args.out)
     with _cluster(args) as client:
-        compare(renderer.prepare(scene), specs, reference, out, seed, args.threads, args.exposure, client=client)
+        compare(renderer.prepare(scene), specs, reference, out, options, executor(options, client), args.exposure)
     print(f"wrote {out / 'compare.md'}")
     return 0
 
@@ -266,7 +270,7 @@ def _folder(path):
 
 
 def cmd_sweep(args):
-    from .api import apply_camera_options, load as load_scene
+    from .api import executor, load as load_scene, render_options
     from .experiments.compare import parse_spec
     from .experiments.sweep import grid_points, parse_axis, sweep
 
@@ -276,23 +280,23 @@ def cmd_sweep(args):
     points = []
     for where in grid_points(axes):  # every point parsed before anything is rendered or written
         scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()])
-        seed = apply_camera_options(scene, args.spp, args.width, args.height, args.threads, args.seed)
+        options = render_options(scene, **_option_args(args))
         points.append((where, scene))
     out = _folder(args.out)
     with _cluster(args) as client:
-        sweep(points, specs, reference, out, seed, args.threads, client)
+        sweep(points, specs, reference, out, options, executor(options, client))
     print(f"wrote {out / 'sweep.csv'} and {out / 'sweep.json'}")
     return 0
 
 
 def cmd_table1(args):
-    from .api import check_positive
+    from .api import executor, render_options
     from .experiments import table1
 
-    check_positive("threads", args.threads)
+    options = render_options(None, seed=args.seed, threads=args.threads)
     out = _folder(args.out)
     with _cluster(args) as client:
-        table1.run(out, args.quick, args.seed, args.threads, shadows=args.shadows, client=client)
+        table1.run(out, args.quick, options, shadows=args.shadows, executor=executor(options, client))
     return 0
 
 

@@ -1,6 +1,7 @@
 """Rendering on a Dask distributed cluster (the optional extra `distributed`; imported only when used).
 
-The tiles of renderer.py (rows x pixel-sample ranges) become tasks; the client adds their results
+`Cluster(client)` is an executor of renderer.render (api.py plugs it in for `client=`): the tiles of
+renderer.py (rows x pixel-sample ranges) become tasks; the client adds their results
 in renderer.Accumulator's fixed order, so the image is the single machine's bit for bit whatever
 the number of workers. A task carries the parsed scene, not its meshes: each worker process loads
 the meshes (through its own RAYTRACE_ASSETS), builds the Embree accelerator and compiles the
@@ -46,13 +47,10 @@ _lock = threading.Lock()
 
 @dataclass(frozen=True)
 class Job:
-    """What every tile of one render shares (the scene without its meshes, so it is small)."""
+    """What every tile of one render shares: the scene without its meshes (so it is small) and the
+    renderer's task."""
     scene: Scene
-    method: str
-    params: dict
-    seed: int
-    shadows: float | None
-    box: tuple
+    task: renderer.Task
     scene_key: str = field(default="", compare=False)
 
     def __post_init__(self):
@@ -73,11 +71,12 @@ def _prepared(job: Job) -> tuple[renderer.Prepared, float, float]:
                 _cache.popitem(last=False)
             load_s = time.perf_counter() - start
         _cache.move_to_end(job.scene_key)
-        if job.shadows is not None:
-            prep.shadow_maps(job.shadows)
-        warm = (job.scene_key, job.method, repr(job.params), job.shadows)
+        task = job.task
+        if task.shadows is not None:
+            prep.shadow_maps(task.shadows)
+        warm = (job.scene_key, task.method, repr(task.params), task.shadows)
         if warm not in _warm:
-            compile_s = renderer.warm_up(prep, get_method(job.method), job.params, job.seed, job.shadows)
+            compile_s = renderer.warm_up(prep, get_method(task.method), task.params, task.seed, task.shadows)
             _warm.add(warm)
     return prep, load_s, compile_s
 
@@ -92,7 +91,7 @@ async def _preload(job: Job):
 def _tile_task(job: Job, tile: renderer.Tile):
     prep, _, _ = _prepared(job)
     start = time.perf_counter()
-    result = renderer.render_tile(prep, get_method(job.method), job.params, job.seed, job.shadows, job.box, tile)
+    result = renderer.render_tile(prep, job.task, tile)
     return result, time.perf_counter() - start
 
 
@@ -125,6 +124,20 @@ def map_tiles(client: Client, job: Job, work: list[renderer.Tile], timings: list
         raise UserError(f"--scheduler: a worker failed: {exc}") from None
     finally:
         client.cancel(list(futures))
+
+
+class Cluster:
+    """The executor of a Dask cluster (renderer.Threads' interface): every worker loads the scene
+    and compiles the kernels in `prepare`, then `map` runs the tiles as tasks."""
+
+    def __init__(self, client: Client):
+        self.client = client
+
+    def prepare(self, prep: renderer.Prepared, task: renderer.Task) -> float:
+        return prepare_workers(self.client, Job(prep.scene, task))
+
+    def map(self, prep: renderer.Prepared, task: renderer.Task, work: list[renderer.Tile]):
+        yield from map_tiles(self.client, Job(prep.scene, task), work)
 
 
 def dashboard(client: Client) -> str | None:

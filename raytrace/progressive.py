@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
+from .options import RenderOptions
 from .renderer import Prepared, RenderResult, render
-from .visibility import SHADOW_SPACING
 
 GOLDEN = 0x9E3779B97F4A7C15
 
@@ -100,20 +100,21 @@ def mean_relative_error(total, var_total, passes) -> float:
                for b in bands) / total.size
 
 
-def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int = 0, *, passes: int | None = None,
-                       time_budget: float | None = None, target_error: float | None = None,
-                       checkpoint: Path | None = None, checkpoint_interval: float = 0.0, threads=None,
-                       on_pass=None, source: str = "render", crop=None,
-                       volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING,
-                       client=None, progress=None) -> RenderResult:
-    """Render passes until a stopping rule holds; `on_pass(passes, error_estimate)` reports progress,
-    as does `progress(done, total)` with the tiles of the pass in flight.
-    With a Dask `client` every pass runs on its cluster; the checkpoint is the same either way, so a
-    render resumes on one machine or a cluster alike."""
+def render_progressive(prep: Prepared, method_name: str, params: dict, options: RenderOptions = RenderOptions(),
+                       executor=None, source: str = "render") -> RenderResult:
+    """Render passes until one of `options`' stopping rules holds (passes, time_budget, target_error;
+    one pass when none is given), resuming from and saving to `options.checkpoint`.
+    `options.on_pass(passes, error_estimate)` reports each pass, `options.progress(done, total)` the
+    tiles of the pass in flight and `options.observer(y0, y1, x0, x1, block)` each block of rows of
+    the pass in flight as soon as it is final, as the mean of the passes so far (the last pass's
+    blocks are the final image). Every pass runs on `executor` (renderer.render's); the checkpoint is
+    the same on one machine or a cluster, so a render resumes on either."""
+    passes, time_budget, target_error = options.passes, options.time_budget, options.target_error
+    checkpoint, crop = options.checkpoint, options.crop
     if passes is None and time_budget is None and target_error is None:
         passes = 1
-    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": volumetric_shadows,
-                                               "shadow_spacing": shadow_spacing}, seed)
+    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": options.volumetric_shadows,
+                                               "shadow_spacing": options.shadow_spacing}, options.seed)
     state = _load(checkpoint, fp) if checkpoint else None
     if state is None:
         cam = prep.scene.camera
@@ -135,11 +136,17 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
             return True
         return target_error is not None and mean_relative_error(state["total"], state["var_total"], done) <= target_error
 
+    ox, oy = crop[:2] if crop else (0, 0)
+
+    def observe(y0, y1, x0, x1, block):  # this pass's block, as the mean of the passes so far
+        options.observer(y0, y1, x0, x1, (state["total"][y0 - oy:y1 - oy, x0 - ox:x1 - ox] + block) / (done + 1))
+
     try:
         while not finished():
-            result = render(prep, method_name, params, pass_seed(seed, done), threads, source=source, crop=crop,
-                            volumetric_shadows=volumetric_shadows, shadow_spacing=shadow_spacing, client=client,
-                            progress=progress)
+            result = render(prep, method_name, params,
+                            dataclasses.replace(options, seed=pass_seed(options.seed, done),
+                                    observer=observe if options.observer is not None else None),
+                            executor, source)
             if result.variance is None:
                 raise UserError(f"{source}: method {method_name} is deterministic; progressive options "
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "
@@ -151,9 +158,9 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, seed: int
             elapsed += result.seconds
             state["passes"], state["elapsed"] = np.array(done), np.array(elapsed)
             state["compile"] = np.array(max(float(state["compile"]), result.compile_seconds))
-            if on_pass:
-                on_pass(done, mean_relative_error(state["total"], state["var_total"], done))
-            if checkpoint and time.perf_counter() - last_save >= checkpoint_interval:
+            if options.on_pass:
+                options.on_pass(done, mean_relative_error(state["total"], state["var_total"], done))
+            if checkpoint and time.perf_counter() - last_save >= options.checkpoint_interval:
                 _save(checkpoint, state)
                 last_save = time.perf_counter()
     except KeyboardInterrupt:

@@ -1,5 +1,6 @@
-"""The render loop: tiles (rows x pixel-sample ranges) on a thread pool (Embree and the numba
-kernels release the GIL) or, given a Dask client, as tasks on a cluster (distributed.py).
+"""The render loop: tiles (rows x pixel-sample ranges) run by an executor, a thread pool of this
+process (`Threads`: Embree and the numba kernels release the GIL) or any object with the same two
+methods (api.py plugs in distributed.py's Dask cluster; this module does not import it).
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
 L = T(0, t) Lb + sum of air-lights (T the medium's transmittance from the camera, exp(-kt t) when
@@ -8,7 +9,6 @@ count: the tiles are the same and each is computed and reduced the same way wher
 """
 from __future__ import annotations
 
-import contextlib
 import functools
 import os
 import time
@@ -24,12 +24,12 @@ from .errors import UserError
 from .lights import DIRECTIONAL, Lights
 from .media.particles import particle_radiance
 from .methods import get_method, resolve_params
+from .options import RenderOptions
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
 from .shadow_maps import build as build_shadow_maps
-from .visibility import (LI_NAMES, SHADOW_SPACING, SPACING_RANGE, cone_segments, lit_intervals, segment_airlight,
-                         shadowed_airlight, whole_rays)
+from .visibility import LI_NAMES, cone_segments, lit_intervals, segment_airlight, shadowed_airlight, whole_rays
 
 RAYS_PER_TILE = 1 << 14
 
@@ -154,12 +154,7 @@ def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
     return time.perf_counter() - start
 
 
-def check_options(method, params, volumetric_shadows, shadow_spacing, source, lights, medium):
-    lo, hi = SPACING_RANGE
-    if not lo <= shadow_spacing <= hi:
-        raise UserError(f"{source}: --shadow-spacing (render.shadow_spacing): must be within [{lo:g}, {hi:g}] "
-                        f"radians, got {shadow_spacing!r}; e.g. 0.01 (finer finds thinner occluders, costs more "
-                        "shadow rays)")
+def check_options(method, params, volumetric_shadows, source, lights, medium):
     if params.get("shadow_test") == "samples" and not volumetric_shadows:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows; "
                         "add --volumetric-shadows or remove it")
@@ -175,6 +170,18 @@ class Tile:
     samples: slice
 
 
+@dataclass(frozen=True)
+class Task:
+    """What every tile of one render shares besides the prepared scene (small and picklable: a
+    cluster's tasks carry it): the method, its resolved parameters, the seed, the lit-interval
+    search's spacing (None without volumetric shadows) and the pixel block `box` = (x0, y0, x1, y1)."""
+    method: str
+    params: dict
+    seed: int
+    shadows: float | None
+    box: tuple
+
+
 def tiles(cam, box) -> list[Tile]:
     """The tasks of a render of the pixel block `box` = (x0, y0, x1, y1): at most about RAYS_PER_TILE
     rays each, rows of all samples, or one row and a range of samples when a row of the whole image
@@ -187,20 +194,44 @@ def tiles(cam, box) -> list[Tile]:
     return [Tile(slice(r, min(r + rows_per_tile, y1)), s) for r in range(y0, y1, rows_per_tile) for s in ranges]
 
 
-def render_tile(prep: Prepared, method, params, seed, shadows, box, tile: Tile):
+def render_tile(prep: Prepared, task: Task, tile: Tile):
     """The tile's radiance summed over its samples (rows, columns, 3), its statistics and, for a
     stochastic method, its summed variance (else None): a function of the arguments alone, the
     same whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
-    x0, _, x1, _ = box
+    x0, _, x1, _ = task.box
     rows, samples = tile.rows, tile.samples
     o, d = generate_rays(cam, rows, slice(x0, x1), samples)
     pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
     keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(samples.start, samples.stop, dtype=np.uint64)).ravel()
-    rad, stats, var = shade_rays(prep, method, params, o, d, keys, seed, shadows)
+    rad, stats, var = shade_rays(prep, get_method(task.method), task.params, o, d, keys, task.seed, task.shadows)
     shape = (rows.stop - rows.start, x1 - x0, samples.stop - samples.start, 3)
     return rad.reshape(shape).sum(axis=2), stats, None if var is None else var.reshape(shape).sum(axis=2)
+
+
+def prepare_task(prep: Prepared, task: Task) -> float:
+    """Build what the tiles of `task` share (the lights' shadow maps) and compile the method's
+    kernels; returns the seconds the compilation took."""
+    if task.shadows is not None:
+        prep.shadow_maps(task.shadows)  # before the tiles' threads share it
+    return warm_up(prep, get_method(task.method), task.params, task.seed, task.shadows)
+
+
+class Threads:
+    """The executor of one machine: the tiles on a pool of `threads` threads (default: every core).
+    An executor has `prepare(prep, task)` (returns the compile seconds, before the timed render) and
+    `map(prep, task, work)` (yields (index in `work`, render_tile's result) in any order)."""
+
+    def __init__(self, threads: int | None = None):
+        self.threads = threads
+
+    def prepare(self, prep: Prepared, task: Task) -> float:
+        return prepare_task(prep, task)
+
+    def map(self, prep: Prepared, task: Task, work: list[Tile]):
+        with ThreadPoolExecutor(self.threads or default_threads()) as pool:
+            yield from enumerate(pool.map(lambda t: render_tile(prep, task, t), work))
 
 
 class Accumulator:
@@ -216,19 +247,22 @@ class Accumulator:
         self._pending = {}  # first row of a tile -> {first sample: (radiance sum, variance sum)}
         self._stats = [np.zeros(stats_size)] * len(work)
 
-    def add(self, i: int, result):
+    def add(self, i: int, result) -> slice | None:
+        """Add tile `i`'s result; returns the rows of the image (relative to the block) that it
+        finished, or None while some of their sample ranges are still to come."""
         tile = self.work[i]
         rad, self._stats[i], var = result
         parts = self._pending.setdefault(tile.rows.start, {})
         parts[tile.samples.start] = rad, var
         if len(parts) < self.ranges:
-            return
+            return None
         del self._pending[tile.rows.start]
         order = [parts[k] for k in sorted(parts)]
         block = slice(tile.rows.start - self.y0, tile.rows.stop - self.y0)
         self.image[block] = functools.reduce(np.add, [r for r, _ in order]) / self.spp
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
             self.variance[block] = functools.reduce(np.add, [v for _, v in order]) / self.spp**2
+        return block
 
     def totals(self) -> np.ndarray:
         totals = np.zeros_like(self._stats[0])
@@ -237,54 +271,40 @@ class Accumulator:
         return totals
 
 
-def render(prep: Prepared, method_name: str, given_params: dict | None = None, seed: int = 0,
-           threads: int | None = None, progress=None, source: str = "render", crop=None,
-           volumetric_shadows: bool = False, shadow_spacing: float = SHADOW_SPACING, client=None) -> RenderResult:
-    """Render the image, or the pixel block `crop` = (x0, y0, x1, y1) of it (end exclusive; the same
-    samples and random numbers as in the whole image). `progress(done, total)` gets the tiles
-    finished. `given_params` are the method's own parameters (any other key is refused); seed,
-    threads, crop, volumetric_shadows and shadow_spacing (radians, visibility.py) are render
-    options. With a `dask.distributed.Client` the tiles are tasks on its cluster (distributed.py),
-    with the same result."""
+def render(prep: Prepared, method_name: str, given_params: dict | None = None,
+           options: RenderOptions = RenderOptions(), executor=None, source: str = "render") -> RenderResult:
+    """Render the image, or the pixel block `options.crop` of it (the same samples and random numbers
+    as in the whole image), with `options`' seed, spp and size and volumetric shadows. The tiles run
+    on `executor` (default: `Threads(options.threads)`); `options.progress(done, total)` gets the
+    tiles finished and `options.observer(y0, y1, x0, x1, block)` every block of rows as soon as it is
+    final, each pixel once. `given_params` are the method's own parameters (any other key is refused).
+    The result does not depend on the executor, its threads or workers."""
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
     method.check_medium(scene.medium, source)
     method.check(scene.medium, params)
     method.check_lights(bounded.outside_lights(prep), source)
-    check_options(method, params, volumetric_shadows, shadow_spacing, source, prep.lights, scene.medium)
-    bounded.check(prep, method, params, source, volumetric_shadows)
-    if client is not None and threads is not None:
-        raise UserError(f"{source}: --threads applies to one machine; with --scheduler every worker runs as many "
-                        "tiles as it has threads, remove --threads")
-    shadows = float(shadow_spacing) if volumetric_shadows else None
+    check_options(method, params, options.volumetric_shadows, source, prep.lights, scene.medium)
+    bounded.check(prep, method, params, source, options.volumetric_shadows)
     cam = scene.camera
-    box = crop or (0, 0, cam.width, cam.height)
+    options.apply_camera(cam)
+    box = options.crop or (0, 0, cam.width, cam.height)
+    task = Task(method.name, params, options.seed, options.shadows, box)
     work = tiles(cam, box)
     acc = Accumulator(work, box, cam.spp, method.stochastic, method.stats_size + len(LI_NAMES))
-    if client is None:
-        if shadows is not None:
-            prep.shadow_maps(shadows)  # before the tiles' threads share it
-        compile_s = warm_up(prep, method, params, seed, shadows)
-        start = time.perf_counter()
-        pool = ThreadPoolExecutor(threads or default_threads())
-        done = enumerate(pool.map(lambda t: render_tile(prep, method, params, seed, shadows, box, t), work))
-    else:
-        from . import distributed
-
-        job = distributed.Job(scene, method.name, params, seed, shadows, box)
-        compile_s = distributed.prepare_workers(client, job)
-        start = time.perf_counter()
-        pool = contextlib.nullcontext()
-        done = distributed.map_tiles(client, job, work)
-    with pool:
-        for n, (i, result) in enumerate(done, 1):
-            acc.add(i, result)
-            if progress is not None:
-                progress(n, len(work))
+    executor = executor if executor is not None else Threads(options.threads)
+    compile_s = executor.prepare(prep, task)
+    start = time.perf_counter()
+    for n, (i, result) in enumerate(executor.map(prep, task, work), 1):
+        rows = acc.add(i, result)
+        if rows is not None and options.observer is not None:
+            options.observer(box[1] + rows.start, box[1] + rows.stop, box[0], box[2], acc.image[rows])
+        if options.progress is not None:
+            options.progress(n, len(work))
     seconds = time.perf_counter() - start
     totals = acc.totals()
     summary = method.summarize(totals[:method.stats_size])
-    if shadows is not None:
+    if task.shadows is not None:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(LI_NAMES, totals[method.stats_size:])})
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance)

@@ -7,6 +7,7 @@ camera. Images are compared in float64 through the renderer API (no EXR rounding
 import numpy as np
 import pytest
 
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
@@ -39,7 +40,7 @@ _REFERENCE = {}
 
 def reference(name):
     if name not in _REFERENCE:
-        _REFERENCE[name] = render(prepared(MEDIA[name]), "quadrature", {"rtol": 1e-12}, threads=1).image
+        _REFERENCE[name] = render(prepared(MEDIA[name]), "quadrature", {"rtol": 1e-12}, RenderOptions(threads=1)).image
     return _REFERENCE[name]
 
 
@@ -72,7 +73,7 @@ def fallback_bound(measured):
 @pytest.mark.parametrize("precision", PRECISIONS)
 @pytest.mark.parametrize("name", sorted(MEDIA))
 def test_analytic_meets_its_precision_in_every_pixel(name, precision):
-    result = render(prepared(MEDIA[name]), "analytic", {"precision": precision}, threads=1)
+    result = render(prepared(MEDIA[name]), "analytic", {"precision": precision}, RenderOptions(threads=1))
     img = result.image
     ref = reference(name)
     rel = np.abs(img - ref) / ref

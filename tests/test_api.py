@@ -7,6 +7,7 @@ import raytrace
 from raytrace.cli import main
 from raytrace.film import read_exr
 from raytrace.methods import registry
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render as render_prepared
 from raytrace.scene.format import scene_from_text
 
@@ -20,7 +21,7 @@ def test_render_from_a_dict_returns_the_renderers_image(tmp_path):
     assert img.params["precision"] == 1e-6 and img.stats["evaluations"] > 0
     s = scene_from_text(to_toml(scene), "t")
     s.camera.spp = 4
-    want = render_prepared(prepare(s), "analytic", {"precision": 1e-6}, threads=1).image
+    want = render_prepared(prepare(s), "analytic", {"precision": 1e-6}, RenderOptions(threads=1)).image
     np.testing.assert_array_equal(img.array, want)
     img.save(tmp_path / "a.exr")
     img.save(tmp_path / "a.png")

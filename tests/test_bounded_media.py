@@ -16,6 +16,7 @@ from scipy import integrate
 
 from raytrace.cli import main
 from raytrace.errors import UserError
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
@@ -276,7 +277,7 @@ def image(case, method, params=None):
     sc = dict((CASES | CUBES | SPOTS)[case])
     sc.pop("any_face", None)
     prep = prepare(scene_from_text(to_toml(sc), case))
-    return render(prep, method, params or {}, threads=1).image
+    return render(prep, method, params or {}, RenderOptions(threads=1)).image
 
 
 def twin_image(case, approx=False):
@@ -318,9 +319,9 @@ def test_exit_continues_to_what_lies_behind():
     base["shape"].append({"primitive": "quad",
                           "corners": [[-9.0, -3.0, -9.0], [9.0, -3.0, -9.0], [9.0, -3.0, 9.0], [-9.0, -3.0, 9.0]]})
     base["light"] = [{"type": "point", "position": [3.0, -1.5, 0.0], "intensity": 5.0}]  # below the box: no shadow
-    with_box = render(prepare(scene_from_text(to_toml(base), "t")), "quadrature", {}, threads=1).image
+    with_box = render(prepare(scene_from_text(to_toml(base), "t")), "quadrature", {}, RenderOptions(threads=1)).image
     base["shape"] = base["shape"][1:]
-    without = render(prepare(scene_from_text(to_toml(base), "t")), "quadrature", {}, threads=1).image
+    without = render(prepare(scene_from_text(to_toml(base), "t")), "quadrature", {}, RenderOptions(threads=1)).image
     assert np.all(without > 0)
     lo, hi = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 0.0, 1.0])
     crossed = 0
@@ -337,7 +338,7 @@ def test_exit_continues_to_what_lies_behind():
 
 def bad(scene_dict, method="quadrature"):
     with pytest.raises(UserError) as err:
-        render(prepare(scene_from_text(to_toml(scene_dict), "bad.toml")), method, {}, threads=1)
+        render(prepare(scene_from_text(to_toml(scene_dict), "bad.toml")), method, {}, RenderOptions(threads=1))
     msg = str(err.value)
     assert "\n" not in msg
     return msg
@@ -376,7 +377,7 @@ def test_raymarch_and_montecarlo_inside(case):
     errs = [np.max(np.abs(image(case, "raymarch", {"steps": n}) - ref) / ref) for n in (64, 128)]
     assert errs[1] < 1e-3 and 3.5 < errs[0] / errs[1] < 4.5, errs
     prep = prepare(scene_from_text(to_toml(CASES[case]), case))
-    res = render(prep, "montecarlo", {"samples": 64}, seed=7, threads=1)
+    res = render(prep, "montecarlo", {"samples": 64}, RenderOptions(seed=7, threads=1))
     assert np.all(res.variance > 0)
     z2 = np.mean((res.image - ref) ** 2 / res.variance)
     assert z2 < 3.5
@@ -464,7 +465,7 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
                      "interior": {"sigma_a": kt.tolist(), "sigma_s": 0.0, "ior": ior}},
                     {"primitive": "box", "min": ROCK_LO.tolist(), "max": ROCK_HI.tolist(), "reflectance": 0.7}],
           "light": [light]}
-    img = render(prepare(scene_from_text(to_toml(sc), "rock")), "quadrature", {}, threads=1).image
+    img = render(prepare(scene_from_text(to_toml(sc), "rock")), "quadrature", {}, RenderOptions(threads=1)).image
     rocks = partial = 0
     for j in range(9):
         for i in range(12):
@@ -544,7 +545,8 @@ def test_spot_lights_raymarch_and_montecarlo(case):
     assert errs[0] / errs[1] > (10.0 if "hard" not in case else 3.0) and errs[1] < 1e-2, errs
     sc = dict(SPOTS[case])
     sc.pop("any_face", None)
-    res = render(prepare(scene_from_text(to_toml(sc), case)), "montecarlo", {"samples": 64}, seed=11, threads=1)
+    res = render(prepare(scene_from_text(to_toml(sc), case)), "montecarlo", {"samples": 64},
+                 RenderOptions(seed=11, threads=1))
     z2 = np.mean((res.image - ref)[lit] ** 2 / res.variance[lit])
     assert z2 < 3.5 and np.mean(ref[lit] ** 2 / res.variance[lit]) > 3.5
 

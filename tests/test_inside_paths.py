@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
@@ -162,15 +163,15 @@ def test_non_convex_shape_traces_paths_that_leave_and_reenter(tmp_path, name):
     if name in ("spot", "hard"):
         point = twin_image(u_scene(LAMP))
         assert np.count_nonzero((ref < 0.99 * point) & lit) >= 10 and np.count_nonzero(point > 0) > lit.sum()
-    img = render(prep, "quadrature", {"rtol": 1e-10}, threads=1).image
+    img = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1)).image
     assert np.all(img[~lit] == 0) and np.max(np.abs(img - ref)[lit] / ref[lit]) < 1e-7
-    errs = [np.max(np.abs(render(prep, "raymarch", {"steps": n}, threads=1).image - ref)[lit] / ref[lit])
+    errs = [np.max(np.abs(render(prep, "raymarch", {"steps": n}, RenderOptions(threads=1)).image - ref)[lit] / ref[lit])
             for n in (64, 128)]
     if name == "hard":  # the midpoint rule across a jump: O(h) (measured 1.4e-2, 7.6e-3)
         assert errs[0] / errs[1] > 1.5 and errs[1] < 2e-2, errs
     else:
         assert errs[0] / errs[1] > 2.0 and errs[1] < 1e-4, errs
-    res = render(prep, "montecarlo", {"samples": 32}, seed=3, threads=1)
+    res = render(prep, "montecarlo", {"samples": 32}, RenderOptions(seed=3, threads=1))
     assert np.mean((res.image - ref)[lit] ** 2 / res.variance[lit]) < 3.5
 
 
@@ -187,9 +188,9 @@ def test_a_camera_inside_the_medium(tmp_path, name):
     assert prep.camera_inside == 0
     ref = twin_image(sc)
     assert np.all(ref > 0)
-    img = render(prep, "quadrature", {"rtol": 1e-10}, threads=1).image
+    img = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1)).image
     assert np.max(np.abs(img - ref) / ref) < 1e-7
-    res = render(prep, "montecarlo", {"samples": 32}, seed=5, threads=1)
+    res = render(prep, "montecarlo", {"samples": 32}, RenderOptions(seed=5, threads=1))
     assert np.mean((res.image - ref) ** 2 / res.variance) < 3.5
 
 
@@ -200,7 +201,7 @@ def test_a_light_inside_a_medium_is_refused(tmp_path):
     sc = u_scene({"type": "point", "position": [-0.7, 0.0, 0.0], "intensity": 1.0})
     (tmp_path / "u.toml").write_text(to_toml(sc))
     with pytest.raises(raytrace.UserError, match=r"light\[0\]\.position: inside shape\[0\]"):
-        render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, threads=1)
+        render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, RenderOptions(threads=1))
 
 
 @pytest.mark.parametrize("name", sorted(LIGHTS))
@@ -225,7 +226,7 @@ def test_shadows_through_an_index_matched_interior_are_attenuated(tmp_path, name
                         "corners": [[-F, -2.0, -F], [F, -2.0, -F], [F, -2.0, F], [-F, -2.0, F]]})
     sc["camera"].update(position=view[0], look_at=view[1], width=16, height=12)
     (tmp_path / "u.toml").write_text(to_toml(sc))
-    img = render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, threads=1).image
+    img = render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, RenderOptions(threads=1)).image
     kt = KA + KS
     shadowed = reentered = partial = 0
     for j in range(12):

@@ -13,6 +13,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 from raytrace.visibility import POINTS_PER_CHUNK
@@ -33,13 +34,14 @@ def test_volumetric_shadows_with_100000_steps_run_in_bounded_memory(shadow_test)
     scene = box_room(camera=CAMERA, light=LIGHT)
     prep = prepare(scene_from_text(to_toml(scene), "test"))
     params = {"steps": STEPS, "shadow_test": shadow_test}
-    render(prep, "raymarch", dict(params, steps=4), threads=1, volumetric_shadows=True)  # compile outside the trace
+    opts = RenderOptions(threads=1, volumetric_shadows=True)
+    render(prep, "raymarch", dict(params, steps=4), opts)  # compile outside the trace
     points = CAMERA["width"] * CAMERA["height"] * len(LIGHT) * STEPS
     unchunked = points * (3 * 3 + 3) * 8  # what the sample arrays alone of one batch took before
     assert unchunked > 10 * CHUNK_BYTES
     tracemalloc.start()
     try:
-        image = render(prep, "raymarch", params, threads=1, volumetric_shadows=True).image
+        image = render(prep, "raymarch", params, opts).image
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()

@@ -20,6 +20,7 @@ import pytest
 
 from raytrace.errors import UserError
 from raytrace.methods import ErrorLaw, registry, resolve_params
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
@@ -59,7 +60,7 @@ def rendered(method_name: str, name: str):
         except UserError as exc:
             _RENDERS[key] = exc
         else:
-            _RENDERS[key] = render(prep, method_name, method.error_law.params, seed=SEED, threads=1)
+            _RENDERS[key] = render(prep, method_name, method.error_law.params, RenderOptions(seed=SEED, threads=1))
     return _RENDERS[key]
 
 

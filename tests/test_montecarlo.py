@@ -2,6 +2,7 @@
 (variance from the render itself, Šidák-corrected, as Mitsuba's render tests do), and exact
 checkpoint/resume."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from raytrace import progressive
 from raytrace.methods import montecarlo as mc
 from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
@@ -48,8 +50,8 @@ def scene(**kw):
 @pytest.mark.parametrize("mode", ["equiangular", "mis"])
 def test_z_test_against_quadrature(mode):
     prep = scene(medium={"sigma_a": 0.05, "sigma_s": [0.2, 0.3, 0.4], "phase": {"type": "hg", "g": 0.5}})
-    ref = render(prep, "quadrature", {"rtol": 1e-12}, threads=1).image
-    res = render(prep, "montecarlo", {"samples": 16, "sampling": mode}, seed=11, threads=1)
+    ref = render(prep, "quadrature", {"rtol": 1e-12}, RenderOptions(threads=1)).image
+    res = render(prep, "montecarlo", {"samples": 16, "sampling": mode}, RenderOptions(seed=11, threads=1))
     var = np.maximum(res.variance, (1e-4 * ref) ** 2)  # variance floor: a relative s.d. of 1e-4
     z = (res.image - ref) / np.sqrt(var)
     n = z.size
@@ -64,14 +66,15 @@ def test_z_test_against_quadrature(mode):
 
 def test_result_does_not_depend_on_thread_count():
     prep = scene()
-    a = render(prep, "montecarlo", {}, seed=5, threads=1).image
-    b = render(prep, "montecarlo", {}, seed=5, threads=2).image
+    a = render(prep, "montecarlo", {}, RenderOptions(seed=5, threads=1)).image
+    b = render(prep, "montecarlo", {}, RenderOptions(seed=5, threads=2)).image
     assert np.array_equal(a, b)
 
 
 def test_resumed_render_equals_uninterrupted(tmp_path, monkeypatch):
     prep = scene()
-    full = progressive.render_progressive(prep, "montecarlo", {}, 3, passes=3, threads=1)
+    once = RenderOptions(seed=3, passes=3, threads=1)
+    full = progressive.render_progressive(prep, "montecarlo", {}, once)
     ckpt = tmp_path / "r.ckpt.npz"
     # interrupted during the second pass: the checkpoint keeps the first one
     real_render = progressive.render
@@ -85,29 +88,29 @@ def test_resumed_render_equals_uninterrupted(tmp_path, monkeypatch):
 
     monkeypatch.setattr(progressive, "render", flaky)
     with pytest.raises(KeyboardInterrupt):
-        progressive.render_progressive(prep, "montecarlo", {}, 3, passes=3, checkpoint=ckpt, threads=1)
+        progressive.render_progressive(prep, "montecarlo", {}, replace(once, checkpoint=ckpt))
     monkeypatch.setattr(progressive, "render", real_render)
     with np.load(ckpt) as z:
         assert int(z["passes"]) == 1
-    resumed = progressive.render_progressive(prep, "montecarlo", {}, 3, passes=3, checkpoint=ckpt, threads=1)
+    resumed = progressive.render_progressive(prep, "montecarlo", {}, replace(once, checkpoint=ckpt))
     assert resumed.passes == 3
     assert np.array_equal(resumed.image, full.image)
     assert np.array_equal(resumed.variance, full.variance)
     # more passes of the same render continue from the checkpoint; a different seed is refused
-    more = progressive.render_progressive(prep, "montecarlo", {}, 3, passes=4, checkpoint=ckpt, threads=1)
+    more = progressive.render_progressive(prep, "montecarlo", {}, replace(once, passes=4, checkpoint=ckpt))
     assert more.passes == 4
     from raytrace.errors import UserError
     with pytest.raises(UserError, match="different render"):
-        progressive.render_progressive(prep, "montecarlo", {}, 4, passes=4, checkpoint=ckpt, threads=1)
+        progressive.render_progressive(prep, "montecarlo", {}, replace(once, seed=4, passes=4, checkpoint=ckpt))
 
 
 def test_error_falls_as_one_over_sqrt_n():
     prep = scene()
-    ref = render(prep, "quadrature", {"rtol": 1e-12}, threads=1).image
+    ref = render(prep, "quadrature", {"rtol": 1e-12}, RenderOptions(threads=1)).image
     errs = []
     ns = [1, 4, 16, 64]
     for n in ns:
-        img = render(prep, "montecarlo", {"samples": n}, seed=2, threads=1).image
+        img = render(prep, "montecarlo", {"samples": n}, RenderOptions(seed=2, threads=1)).image
         errs.append(np.sqrt(np.mean((img - ref) ** 2)))
     slope = np.polyfit(np.log(ns), np.log(errs), 1)[0]
     assert -0.62 < slope < -0.38, (slope, errs)
@@ -115,12 +118,13 @@ def test_error_falls_as_one_over_sqrt_n():
 
 def test_target_error_and_time_budget_stop_the_passes(tmp_path):
     prep = scene()
-    one = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, 1, passes=1, threads=1)
+    base = RenderOptions(seed=1, threads=1)
+    one = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, replace(base, passes=1))
     target = 0.5 * one.stats["estimated mean relative error"]
-    res = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, 1, target_error=target, threads=1)
+    res = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, replace(base, target_error=target))
     assert res.stats["estimated mean relative error"] <= target
     assert 2 < res.passes < 10  # about four passes halve the error
-    timed = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, 1, time_budget=1e-9, threads=1)
+    timed = progressive.render_progressive(prep, "montecarlo", {"samples": 2}, replace(base, time_budget=1e-9))
     assert timed.passes == 1  # the budget is checked after each pass
 
 

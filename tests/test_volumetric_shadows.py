@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from raytrace.methods import registry
+from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
@@ -26,8 +27,8 @@ def test_some_methods_support_volumetric_shadows():
 @pytest.mark.parametrize("method", METHODS)
 def test_without_occluders_equals_the_unshadowed_result(method):
     p = prep([])
-    a = render(p, method, {}, seed=3, threads=1).image
-    b = render(p, method, {}, seed=3, threads=1, volumetric_shadows=True).image
+    a = render(p, method, {}, RenderOptions(seed=3, threads=1)).image
+    b = render(p, method, {}, RenderOptions(seed=3, threads=1, volumetric_shadows=True)).image
     np.testing.assert_allclose(b, a, rtol=1e-9)
 
 
@@ -38,9 +39,9 @@ def test_an_occluder_casts_a_shadow_into_the_fog(method):
     plate = {"primitive": "quad", "corners": [[-2.9, 1.2, -3.9], [2.9, 1.2, -3.9], [2.9, 1.2, 3.9], [-2.9, 1.2, 3.9]],
              "reflectance": 0.0}
     p = prep([plate])
-    a = render(p, method, {"samples": 16} if method == "montecarlo" else {}, seed=3, threads=1).image
-    b = render(p, method, {"samples": 16} if method == "montecarlo" else {}, seed=3, threads=1,
-               volumetric_shadows=True).image
+    params = {"samples": 16} if method == "montecarlo" else {}
+    a = render(p, method, params, RenderOptions(seed=3, threads=1)).image
+    b = render(p, method, params, RenderOptions(seed=3, threads=1, volumetric_shadows=True)).image
     lower = slice(8, 12)  # image rows looking down, whose rays stay below the plate
     assert np.all(b[lower] < 0.25 * a[lower])
     assert np.all(b <= a * (1 + 1e-12))

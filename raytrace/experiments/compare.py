@@ -7,7 +7,7 @@ so one method can appear with several settings.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +15,10 @@ import numpy as np
 from .. import film, metrics
 from ..errors import UserError
 from ..methods import get_method
+from ..options import RenderOptions
 from ..progressive import render_progressive
 from ..renderer import Prepared, RenderResult, render
 from ..scene.format import parse_override
-from ..visibility import SHADOW_SPACING
 
 
 @dataclass
@@ -44,32 +44,29 @@ def parse_spec(text: str) -> MethodSpec:
     return MethodSpec(text.strip(), name, params)
 
 
-def render_spec(prep: Prepared, spec: MethodSpec, seed: int, threads=None, volumetric_shadows: bool = False,
-                shadow_spacing: float = SHADOW_SPACING, client=None) -> RenderResult:
-    """One render of `spec` (one pass for a stochastic method); `volumetric_shadows` and
-    `shadow_spacing` are the renderer's options (light shafts, visibility.py), `client` a Dask
-    client to render on its cluster."""
-    opts = {"volumetric_shadows": volumetric_shadows, "shadow_spacing": shadow_spacing, "client": client}
+def render_spec(prep: Prepared, spec: MethodSpec, options: RenderOptions = RenderOptions(),
+                executor=None) -> RenderResult:
+    """One render of `spec` with `options` (one pass for a stochastic method) on `executor`
+    (renderer.render's; default a thread pool)."""
     if get_method(spec.name).stochastic:
-        return render_progressive(prep, spec.name, spec.params, seed, passes=1, threads=threads, source=spec.label,
-                                  **opts)
-    return render(prep, spec.name, spec.params, seed, threads, source=spec.label, **opts)
+        return render_progressive(prep, spec.name, spec.params, replace(options, passes=1), executor, spec.label)
+    return render(prep, spec.name, spec.params, options, executor, spec.label)
 
 
 def safe_name(label: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in label)
 
 
-def compare(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, out: Path, seed: int = 0,
-            threads=None, exposure=None, log=print, client=None) -> list[dict]:
-    """Render the reference and every method (on the cluster of Dask `client` if given); write
-    images, error maps and compare.md/.json in `out`."""
+def compare(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, out: Path,
+            options: RenderOptions = RenderOptions(), executor=None, exposure=None, log=print) -> list[dict]:
+    """Render the reference and every method with `options` on `executor` (renderer.render's);
+    write images, error maps and compare.md/.json in `out`."""
     out.mkdir(parents=True, exist_ok=True)
-    ref = render_spec(prep, reference, seed, threads, client=client)
-    header = {"scene": prep.scene.name, "spp": prep.scene.camera.spp, "seed": seed}
+    ref = render_spec(prep, reference, options, executor)
+    header = {"scene": prep.scene.name, "spp": prep.scene.camera.spp, "seed": options.seed}
     film.write_exr(out / "reference.exr", ref.image, {**header, "method": reference.label})
     film.write_png(out / "reference.png", film.tonemap(ref.image, exposure))
-    results = [(spec, render_spec(prep, spec, seed, threads, client=client)) for spec in specs]
+    results = [(spec, render_spec(prep, spec, options, executor)) for spec in specs]
     vmax = metrics.shared_scale([r.image for _, r in results], ref.image)
     rows = []
     for spec, r in results:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from .. import film, metrics
 from ..errors import UserError
+from ..options import RenderOptions
 from ..renderer import prepare
 from ..scene.format import Scene, parse_override
 from .compare import MethodSpec, render_spec, safe_name
@@ -61,21 +62,22 @@ def grid_points(axes: list[tuple[str, list[str]]]) -> list[dict]:
     return [dict(zip(keys, values)) for values in itertools.product(*[v for _, v in axes])]
 
 
-def sweep(points: list[tuple[dict, Scene]], specs: list[MethodSpec], reference: MethodSpec, out: Path, seed: int = 0,
-          threads=None, client=None, log=print) -> list[dict]:
-    """Render every grid point (its values and parsed scene) with the reference and every method (on
-    the cluster of Dask `client` if given); write p<i>_<method>.exr per point and sweep.csv / .json."""
+def sweep(points: list[tuple[dict, Scene]], specs: list[MethodSpec], reference: MethodSpec, out: Path,
+          options: RenderOptions = RenderOptions(), executor=None, log=print) -> list[dict]:
+    """Render every grid point (its values and parsed scene) with the reference and every method,
+    with `options` on `executor` (renderer.render's); write p<i>_<method>.exr per point and
+    sweep.csv / .json."""
     keys = list(points[0][0]) if points else []
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for i, (where, scene) in enumerate(points):
         prep = prepare(scene)
-        ref = render_spec(prep, reference, seed, threads, client=client)
-        header = {"scene": scene.name, "spp": scene.camera.spp, "seed": seed,
+        ref = render_spec(prep, reference, options, executor)
+        header = {"scene": scene.name, "spp": scene.camera.spp, "seed": options.seed,
                   "grid": " ".join(f"{k}={v}" for k, v in where.items())}
         film.write_exr(out / f"p{i:03d}_reference.exr", ref.image, {**header, "method": reference.label})
         for spec in specs:
-            r = render_spec(prep, spec, seed, threads, client=client)
+            r = render_spec(prep, spec, options, executor)
             extra = {f"variance.{c}": r.variance[..., j] for j, c in enumerate("RGB")} if r.variance is not None else {}
             film.write_exr(out / f"p{i:03d}_{safe_name(spec.label)}.exr", r.image,
                            {**header, "method": spec.label, "render_seconds": r.seconds}, extra)
@@ -88,6 +90,6 @@ def sweep(points: list[tuple[dict, Scene]], specs: list[MethodSpec], reference: 
     writer.writeheader()
     writer.writerows(rows)
     (out / "sweep.csv").write_text(buf.getvalue())
-    (out / "sweep.json").write_text(json.dumps({"scene": points[0][1].name if points else None, "seed": seed,
+    (out / "sweep.json").write_text(json.dumps({"scene": points[0][1].name if points else None, "seed": options.seed,
                                                 "reference": reference.label, "rows": rows}, indent=2, default=float))
     return rows

@@ -27,7 +27,7 @@ import base64
 import html
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,10 +35,10 @@ import numpy as np
 from .. import film, metrics
 from ..errors import UserError
 from ..media.phase import ISOTROPIC
+from ..options import RenderOptions
 from ..renderer import prepare
 from ..scene.assets import bundled_scenes
 from ..scene.format import load_scene
-from ..visibility import SHADOW_SPACING
 from .compare import MethodSpec, render_spec, safe_name
 
 SCENES = bundled_scenes()
@@ -92,18 +92,18 @@ def methods_for(phase: int) -> list[tuple[str, MethodSpec]]:
             ("analytic exact", MethodSpec("analytic exact", "analytic", {"precision": 1e-3, "anisotropic": "exact"}))]
 
 
-def matched_raymarch(prep, seed, target_seconds, threads, log, volumetric_shadows: bool = False,
-                     label: str = "raymarch", client=None) -> tuple[MethodSpec, str]:
+def matched_raymarch(prep, options: RenderOptions, target_seconds, log, label: str = "raymarch",
+                     executor=None) -> tuple[MethodSpec, str]:
     """Ray-marching step count whose render time matches `target_seconds` (linear fit of time
-    against steps from two calibration renders, at 8 and 64 steps). With `volumetric_shadows`, the
+    against steps from two calibration renders, at 8 and 64 steps). With volumetric shadows, the
     classic shadowed ray marching: a shadow ray from every step to the light (`shadow_test =
     samples`), calibrated at 4 and 32 steps (its steps cost ten times more; it matches at tens)."""
+    volumetric_shadows = options.volumetric_shadows
     extra = {"shadow_test": "samples"} if volumetric_shadows else {}
     lo, hi = (4, 32) if volumetric_shadows else (8, 64)
     times = {}
     for steps in (lo, hi):
-        runs = [render_spec(prep, MethodSpec(label, "raymarch", {"steps": steps, **extra}), seed, threads,
-                            volumetric_shadows=volumetric_shadows, client=client).seconds
+        runs = [render_spec(prep, MethodSpec(label, "raymarch", {"steps": steps, **extra}), options, executor).seconds
                 for _ in range(3)]
         times[steps] = float(np.median(runs))
     per_step = max((times[hi] - times[lo]) / (hi - lo), 1e-12)
@@ -145,8 +145,8 @@ def finish_rows(rows: list[Row], results: dict, ref_image: np.ndarray, folder: P
     return vmax
 
 
-def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadows: str = "quarter",
-              client=None) -> dict:
+def run_scene(name: str, out: Path, quick: bool, options: RenderOptions, log, shadows: str = "quarter",
+              executor=None) -> dict:
     path = SCENES[name]
     scene = load_scene(path, quick_overrides(name) if quick else [])
     log(f"{name}: {scene.camera.width}x{scene.camera.height}, {scene.camera.spp} spp")
@@ -156,18 +156,18 @@ def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadow
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     ref_spec = MethodSpec("reference (quadrature)", "quadrature", {"rtol": 1e-10})
-    ref = render_spec(prep, ref_spec, seed, threads, client=client)
+    ref = render_spec(prep, ref_spec, options, executor)
     mean_ref = float(np.mean(np.abs(ref.image)))
     rows = [Row(label, spec) for label, spec in methods_for(scene.medium.phase)]
     results = {}
     for row in rows:
-        results[row.label] = render_spec(prep, row.spec, seed, threads, client=client)
+        results[row.label] = render_spec(prep, row.spec, options, executor)
     analytic_label = "analytic" if "analytic" in results else "analytic exact"
-    rm_spec, note = matched_raymarch(prep, seed, results[analytic_label].seconds, threads, log, client=client)
+    rm_spec, note = matched_raymarch(prep, options, results[analytic_label].seconds, log, executor=executor)
     rm = Row("raymarch", rm_spec, note=note)
-    results["raymarch"] = render_spec(prep, rm_spec, seed, threads, client=client)
+    results["raymarch"] = render_spec(prep, rm_spec, options, executor)
     rows.insert(0, rm)
-    header = {"scene": name, "spp": scene.camera.spp, "seed": seed}
+    header = {"scene": name, "spp": scene.camera.spp, "seed": options.seed}
     film.write_exr(folder / "reference.exr", ref.image, {**header, "method": "quadrature"})
     film.write_png(folder / "reference.png", film.tonemap(ref.image))
     vmax = finish_rows(rows, results, ref.image, folder, name, header)
@@ -180,12 +180,12 @@ def run_scene(name: str, out: Path, quick: bool, seed: int, threads, log, shadow
         overrides = shadow_overrides(scene.camera, quick, shadows)
         if overrides is None:  # the same images: reuse the unshadowed reference (and at full size the timing)
             result["shadowed"] = run_shadowed_scene(
-                name, prep, out, seed, threads, log, unshadowed_ref=ref.image,
-                unshadowed_seconds=None if quick else results[analytic_label].seconds, client=client)
+                name, prep, out, options, log, unshadowed_ref=ref.image,
+                unshadowed_seconds=None if quick else results[analytic_label].seconds, executor=executor)
         else:
             del prep
-            result["shadowed"] = run_shadowed_scene(name, prepare(load_scene(path, overrides)), out, seed, threads,
-                                                    log, client=client)
+            result["shadowed"] = run_shadowed_scene(name, prepare(load_scene(path, overrides)), out, options, log,
+                                                    executor=executor)
     return result
 
 
@@ -197,49 +197,50 @@ def shadow_overrides(cam, quick: bool, shadows: str) -> list[str] | None:
     return [f"camera.width={max(1, cam.width // 4)}", f"camera.height={max(1, cam.height // 4)}", "camera.spp=1"]
 
 
-def run_shadowed_scene(name: str, prep, out: Path, seed: int, threads, log, unshadowed_ref=None,
-                       unshadowed_seconds=None, spacing: float = SHADOW_SPACING, client=None) -> dict:
-    """The scene's shadowed table on `prep`'s camera: shadowed `quadrature` as the reference, the
-    unshadowed table's methods with volumetric shadows, classic ray marching time matched to the
-    shadowed analytic render, ray marching over lit intervals at its steps; the unshadowed
+def run_shadowed_scene(name: str, prep, out: Path, options: RenderOptions, log, unshadowed_ref=None,
+                       unshadowed_seconds=None, executor=None) -> dict:
+    """The scene's shadowed table on `prep`'s camera (`options` with volumetric shadows, at its
+    shadow_spacing): shadowed `quadrature` as the reference, the unshadowed table's methods with
+    volumetric shadows, classic ray marching time matched to the shadowed analytic render, ray
+    marching over lit intervals at its steps; the unshadowed
     reference and analytic render on the same samples (darkening, time ratio), rendered here
     unless given (`unshadowed_ref` image, `unshadowed_seconds` of the analytic render)."""
     scene = prep.scene
     log(f"{name} with volumetric shadows: {scene.camera.width}x{scene.camera.height}, {scene.camera.spp} spp")
     folder = out / name / "shadowed"
     folder.mkdir(parents=True, exist_ok=True)
-    sh = {"volumetric_shadows": True, "shadow_spacing": spacing}
+    sh = replace(options, volumetric_shadows=True)
+    spacing = sh.shadow_spacing
     start = t0 = time.perf_counter()
     prep.shadow_maps(spacing)
     maps_seconds = time.perf_counter() - t0
     ref_spec = MethodSpec("reference (quadrature, shadowed)", "quadrature", {"rtol": 1e-10})
-    ref = render_spec(prep, ref_spec, seed, threads, client=client, **sh)
+    ref = render_spec(prep, ref_spec, sh, executor)
     if unshadowed_ref is None:
         unshadowed_ref = render_spec(prep, MethodSpec("reference (quadrature)", "quadrature", {"rtol": 1e-10}),
-                                     seed, threads, client=client).image
+                                     options, executor).image
     mean_ref = float(np.mean(np.abs(ref.image)))
     mean_unshadowed = float(np.mean(np.abs(unshadowed_ref)))
     rows = [Row(label, spec) for label, spec in methods_for(scene.medium.phase)]
-    results = {row.label: render_spec(prep, row.spec, seed, threads, client=client, **sh) for row in rows}
+    results = {row.label: render_spec(prep, row.spec, sh, executor) for row in rows}
     analytic_label = "analytic" if "analytic" in results else "analytic exact"
     analytic_spec = next(row.spec for row in rows if row.label == analytic_label)
     if unshadowed_seconds is None:
-        unshadowed_seconds = float(np.median([render_spec(prep, analytic_spec, seed, threads,
-                                                          client=client).seconds for _ in range(3)]))
+        unshadowed_seconds = float(np.median([render_spec(prep, analytic_spec, options, executor).seconds
+                                              for _ in range(3)]))
     if results[analytic_label].seconds < 1.0:  # the time to match: the median of three when it is short (noisy)
         results[analytic_label].seconds = float(np.median(
-            [results[analytic_label].seconds] + [render_spec(prep, analytic_spec, seed, threads, client=client,
-                                                             **sh).seconds for _ in range(2)]))
+            [results[analytic_label].seconds] + [render_spec(prep, analytic_spec, sh, executor).seconds
+                                                 for _ in range(2)]))
     target = results[analytic_label].seconds
-    classic_spec, note = matched_raymarch(prep, seed, target, threads, log, volumetric_shadows=True, label=CLASSIC,
-                                          client=client)
-    results[CLASSIC] = render_spec(prep, classic_spec, seed, threads, client=client, **sh)
+    classic_spec, note = matched_raymarch(prep, sh, target, log, label=CLASSIC, executor=executor)
+    results[CLASSIC] = render_spec(prep, classic_spec, sh, executor)
     steps = classic_spec.params["steps"]
     intervals_spec = MethodSpec(INTERVALS, "raymarch", {"steps": steps})
-    results[INTERVALS] = render_spec(prep, intervals_spec, seed, threads, client=client, **sh)
+    results[INTERVALS] = render_spec(prep, intervals_spec, sh, executor)
     rows = [Row(CLASSIC, classic_spec, note=note),
             Row(INTERVALS, intervals_spec, note=f"{steps} steps over the lit intervals (for information)")] + rows
-    header = {"scene": name, "spp": scene.camera.spp, "seed": seed, "volumetric_shadows": True,
+    header = {"scene": name, "spp": scene.camera.spp, "seed": options.seed, "volumetric_shadows": True,
               "shadow_spacing": spacing}
     film.write_exr(folder / "reference.exr", ref.image, {**header, "method": "quadrature"})
     film.write_png(folder / "reference.png", film.tonemap(ref.image))
@@ -427,12 +428,12 @@ def html_report(md_lines: list[str], out: Path) -> str:
            f"<body>{''.join(body)}</body></html>\n"
 
 
-def run(out: Path, quick: bool = False, seed: int = 0, threads=None, scenes=("sibenik", "bridge", "conference"),
-        log=print, shadows: str = "quarter", client=None) -> list[dict]:
+def run(out: Path, quick: bool = False, options: RenderOptions = RenderOptions(),
+        scenes=("sibenik", "bridge", "conference"), log=print, shadows: str = "quarter", executor=None) -> list[dict]:
     """Both tables; `shadows` is the size of the shadowed table's images: "quarter" (a quarter of
     the width and height, 1 spp), "full" (the unshadowed table's images) or "off" (no shadowed
-    table). With `quick` the shadowed table uses the quick images unless "off". `client`: a Dask
-    client whose cluster renders every image."""
+    table). With `quick` the shadowed table uses the quick images unless "off". Every image is
+    rendered with `options` (seed, threads) on `executor` (renderer.render's; a Dask cluster's too)."""
     if shadows not in SHADOW_SIZES:
         raise UserError(f"table1: --shadows {shadows!r}: choose one of {', '.join(SHADOW_SIZES)}")
     out.mkdir(parents=True, exist_ok=True)
@@ -440,7 +441,7 @@ def run(out: Path, quick: bool = False, seed: int = 0, threads=None, scenes=("si
     results = []
     for name in scenes:
         try:
-            results.append(run_scene(name, out, quick, seed, threads, log, shadows, client))
+            results.append(run_scene(name, out, quick, options, log, shadows, executor))
         except UserError as exc:
             raise UserError(f"table1 needs the paper's meshes: {exc}") from None
     write_reports(results, out, quick, time.perf_counter() - start)

@@ -164,7 +164,7 @@ class _Reader:
         if not version.startswith("2."):
             self.fail("asset.version", f"{version or 'missing'}: only glTF 2.0 is read", "export the scene as glTF 2.0")
         self.buffers: dict[int, bytes] = {}
-        from ..api import MEMORY_SHARE, physical_memory
+        from ..options import MEMORY_SHARE, physical_memory
 
         self.budget = MEMORY_SHARE * physical_memory()  # bytes the decoded accessors may take in all
         self.noted = set()
@@ -598,8 +598,8 @@ class _Writer:
 
     def write(self) -> list[Path]:
         scene = self.scene()
-        if scene.medium.kind != "homogeneous":
-            self.fail("medium.type", f"{scene.medium.kind!r}: glTF cannot express height fog or an atmosphere",
+        if not scene.medium.homogeneous:
+            self.fail("medium.type", f"{scene.medium.type_name!r}: glTF cannot express height fog or an atmosphere",
                       "export a scene with a homogeneous medium, or --format mitsuba or pbrt")
         if scene.camera.type != "perspective":
             self.fail("camera.type", f"{scene.camera.type!r}: glTF cameras are perspective or orthographic",

@@ -489,7 +489,7 @@ class _Reader:
                     doc.fail(v, f"a spatially varying {name} is not read", f"give {name} a constant")
                 q = _Props(doc, v)
                 if "value" not in q.values:
-                    doc.fail(v, "a constvolume needs its value", f'add <rgb name="value" value="..."/>')
+                    doc.fail(v, "a constvolume needs its value", 'add <rgb name="value" value="..."/>')
                 p.values[name] = q.values["value"]
                 q.read.add("value")
                 q.done()
@@ -782,9 +782,6 @@ class _Writer:
         warnings.warn(f"{self.source}: {key}: {problem}; written as {closest} (--approximate)", stacklevel=3)
 
     def xml(self, raw) -> ET.Element:
-        from ..media.medium import ATMOSPHERE, HEIGHT_FOG
-        from ..media.medium import attenuated_density
-
         sc, src = self.scene, self.source
         cam = sc.camera
         if cam.type != "perspective":
@@ -799,13 +796,12 @@ class _Writer:
         root = ET.Element("scene", version="3.0.0")
         _add(_add(root, "integrator", type="volpath"), "integer", name="max_depth", value="2")
         med = sc.medium
-        if med.kind == ATMOSPHERE:
+        if med.has_ground:
             raise UserError(f"{src}: medium.type: a planet's atmosphere is not expressible as a Mitsuba "
                             "homogeneous medium; export a homogeneous or no medium")
-        if med.kind == HEIGHT_FOG:
-            h = float(cam.position @ med.up) - med.h0
-            density = attenuated_density(h, 0.0, med.scale_height, med.profile)
-            self.refuse("medium.type", "height fog", 'use a homogeneous medium (medium.type = "homogeneous")',
+        if not med.homogeneous:
+            density = med.density_at(cam.position)
+            self.refuse("medium.type", med.type_name.replace("_", " "), 'use a homogeneous medium (medium.type = "homogeneous")',
                         f"homogeneous fog of its density at the camera ({density:.4g} x medium.sigma_*)")
             med = copy.copy(med)
             med.sigma_a, med.sigma_s = med.sigma_a * density, med.sigma_s * density

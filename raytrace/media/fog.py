@@ -63,6 +63,10 @@ class HeightFog(Medium):
                                      f"{self.up.round(6).tolist()}, {profile} profile, scale height "
                                      f"{self.scale_height:g}"]
 
+    def density_at(self, point):
+        return float(attenuated_density(float(np.asarray(point, float) @ self.up) - self.h0, 0.0, self.scale_height,
+                                        self.profile))
+
     def transmittance_on(self, origins, dirs, a, b):
         n = len(origins)
         a = np.broadcast_to(np.asarray(a, float), n)

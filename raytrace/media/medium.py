@@ -56,6 +56,10 @@ class Medium:
         b may be inf)."""
         raise NotImplementedError
 
+    def density_at(self, point) -> float:
+        """The density (the factor on sigma_a, sigma_s) at a point: 1 unless the kind has a profile."""
+        return 1.0
+
     def phase_text(self) -> str:
         return PHASE_NAMES[self.phase] + (f" g={self.g}" if PHASE_NAMES[self.phase] == "hg" else "")
 
