@@ -179,7 +179,7 @@ def test_methods_that_cannot_take_spot_lights_refuse(write_scene, tmp_path, caps
 
 @pytest.mark.parametrize("shadows", [False, True])
 def test_stage_scene_analytic_equals_quadrature(shadows):
-    """The bundled stage (three spot lights: narrow soft, wide hard-edged, one aimed at the camera; HG
+    """The bundled stage (three spot lights: narrow soft, wide hard-edged, a wide wash whose cone holds the whole view; HG
     0.6), small: analytic at 1e-6 within 10 x precision of quadrature in every lit pixel, with and
     without volumetric shadows (the lit intervals inside the cones)."""
     import raytrace

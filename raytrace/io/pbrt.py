@@ -841,17 +841,13 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
                     f'"{light["falloff"]}"', approximate, "a smoothstep spot with the same angles")
         light.pop("falloff", None)
     medium = raw.get("medium", {})
-    kind = medium.get("type", "homogeneous")
-    if kind != "homogeneous":
-        raise UserError(f"{source}: medium.type: pbrt-v4 cannot express a {kind} medium (its media are homogeneous "
-                        "or voxel grids); export a scene with a homogeneous medium")
     path = Path(source) if Path(source).is_file() else None
     scene = scene_from_dict(raw, source, path)
+    if not scene.medium.homogeneous:
+        raise UserError(f"{source}: medium.type: pbrt-v4 cannot express a {scene.medium.type_name} medium (its media "
+                        "are homogeneous or voxel grids); export a scene with a homogeneous medium")
     if "particles" in medium:
         _refuse(source, "medium.particles", "pbrt-v4 has no particle layer", approximate, "the air-light alone")
-    if np.any(scene.background > 0):
-        _refuse(source, "background.radiance", "pbrt's constant environment light would also light the scene",
-                approximate, "a black background")
     cam = scene.camera
     stem = out.name.removesuffix(".pbrt")
     lines = [f"# pbrt-v4 scene written by raytrace-media from {source}",
@@ -908,6 +904,9 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
             else:
                 lines.append(f'Shape "trianglemesh" "point3 P" {_list(v.ravel())} "integer indices" {_list(f.ravel())}')
         lines.append("AttributeEnd")
+    if np.any(scene.background > 0):
+        _refuse(source, "background.radiance", "pbrt's constant environment light would also light the scene",
+                approximate, "a black background")
     files[out] = ("\n".join(lines) + "\n").encode()
     written = []
     try:
