@@ -19,10 +19,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.accel import Accelerator  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
+from raytrace.media import Homogeneous  # noqa: E402
 from raytrace.renderer import default_threads  # noqa: E402
 from raytrace.scene.format import Camera  # noqa: E402
 from raytrace.scene.meshes import load_mesh  # noqa: E402
-from raytrace.scene.format import Shape, Transform, Scene, Medium  # noqa: E402
+from raytrace.scene.format import Shape, Transform, Scene  # noqa: E402
 
 
 def median_time(fn, repeats=3):
@@ -41,7 +42,7 @@ def main():
     cam = Camera("environment", np.array([-8.0, -10.0, 0.0]), np.array([10.0, -9.0, 0.0]), np.array([0.0, 1.0, 0.0]),
                  60.0, 2048, max(1, args.rays // 2048), 1)
     shape = Shape("mesh", {"mesh": "sibenik/sibenik.obj"}, None, Transform(np.ones(3), np.zeros(3), np.zeros(3)))
-    scene = Scene("sibenik", None, cam, [shape], [], Medium(np.zeros(3), np.zeros(3)), np.zeros(3))
+    scene = Scene("sibenik", None, cam, [shape], [], Homogeneous.vacuum(), np.zeros(3))
     tris, _ = load_mesh(shape, scene, "shape[0]")
     light = np.array([0.0, -5.0, 0.0])
     accel = Accelerator(tris, light[None, :])

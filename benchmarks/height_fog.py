@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.media import atmosphere as atmo  # noqa: E402
-from raytrace.media.medium import EXPONENTIAL, column, column_distance  # noqa: E402
+from raytrace.media.fog import EXPONENTIAL, column, column_distance  # noqa: E402
 from raytrace.methods.geometry import HO, MU, fog_inscatter  # noqa: E402
 from raytrace.methods.montecarlo import _atm_estimate as _MC_ESTIMATE, _fog_estimate as _FOG_ESTIMATE  # noqa: E402
 from raytrace.rng import uniform  # noqa: E402
@@ -179,23 +179,23 @@ def atmosphere_optical_depth_at_equal_error():
 
 
 @numba.njit(nogil=True)
-def _analytic_freepath(rows, kt, ks, codes, gs, Hs, R, top, n, seed, out):
+def _analytic_freepath(rows, kt, ks, codes, gs, layers, R, top, n, seed, out):
     """Per ray: the variance of one free-path estimate (the sun), by the closed-form inverse."""
-    cols = np.empty(Hs.shape[0])
+    cols = np.empty(layers.shape[0])
     cone = np.zeros(4)
     pieces, buf = np.empty((3, 4)), np.empty(2)
     for s in range(rows.shape[0]):
-        mean, var = _MC_ESTIMATE(rows[s], True, 0.0, 1.0, cone, kt, ks, codes, gs, Hs, R, top, 1, n, np.uint64(s), 0,
+        mean, var = _MC_ESTIMATE(rows[s], True, 0.0, 1.0, cone, kt, ks, codes, gs, layers, R, top, 1, n, np.uint64(s), 0,
                                  seed, cols, pieces, buf)
         out[s, 0], out[s, 1] = mean, var * n
 
 
 @numba.njit(nogil=True)
-def _marched_freepath(rows, kt, ks, codes, gs, Hs, R, top, n, steps, seed, out):
+def _marched_freepath(rows, kt, ks, codes, gs, layers, R, top, n, steps, seed, out):
     """The same estimator with distances drawn from the optical depth a march of `steps` midpoints
     gives (piecewise-constant extinction, inverted exactly): p(x) = kt_k exp(-tau_M(x)) / N_M, the
     density of what is drawn, so the estimate stays unbiased; f is the exact integrand."""
-    cols = np.empty(Hs.shape[0])
+    cols = np.empty(layers.shape[0])
     cum = np.empty(steps + 1)
     ext = np.empty(steps)
     for s in range(rows.shape[0]):
@@ -206,7 +206,7 @@ def _marched_freepath(rows, kt, ks, codes, gs, Hs, R, top, n, steps, seed, out):
         delta = (b - a) / steps
         cum[0] = 0.0
         for k in range(steps):
-            ext[k] = atmo.extinction_at(a + (k + 0.5) * delta, rows[s], kt, Hs, R)
+            ext[k] = atmo.extinction_at(a + (k + 0.5) * delta, rows[s], kt, layers, R)
             cum[k + 1] = cum[k] + ext[k] * delta
         norm = -math.expm1(-cum[steps])
         acc = acc2 = 0.0
@@ -216,7 +216,7 @@ def _marched_freepath(rows, kt, ks, codes, gs, Hs, R, top, n, steps, seed, out):
             k = min(max(np.searchsorted(cum, target) - 1, 0), steps - 1)
             x = min(a + k * delta + (target - cum[k]) / ext[k], b)
             p = ext[k] * math.exp(-target) / norm
-            est = atmo.inscatter(x, rows[s], True, kt, ks, codes, gs, Hs, R, top, cols, -1.0) / p
+            est = atmo.inscatter(x, rows[s], True, kt, ks, codes, gs, layers, R, top, cols, -1.0) / p
             acc += est
             acc2 += est * est
         mean = acc / n
@@ -232,15 +232,15 @@ def freepath_variance_at_equal_time(samples=16, steps=(16, 64)):
     from raytrace.camera import generate_rays
 
     scene = _sunrise(48, 30)
-    atm = scene.medium.atmosphere
+    atm = scene.medium
     o, d = generate_rays(scene.camera, slice(0, 30), slice(0, 48))
     _, t = planet_hits(scene.medium, o, d, np.full(len(o), np.inf))
     lights = Lights.of(scene.lights)
     rows = np.empty((len(o), atmo.ROW))
     atmo.segment_rows(o, d, t, lights.position, lights.axis, np.zeros(len(o), np.int64), np.ones(len(o), bool),
                       *atm.center, atm.radius, atm.top, rows)
-    kt, ks = np.ascontiguousarray(atm.sigma_t[:, 2]), np.ascontiguousarray(atm.sigma_s[:, 2])
-    args = (rows, kt, ks, atm.phases, atm.gs, atm.scale_heights, atm.radius, atm.top, samples)
+    kt, ks = np.ascontiguousarray(atm.layer_sigma_t[:, 2]), np.ascontiguousarray(atm.layer_sigma_s[:, 2])
+    args = (rows, kt, ks, atm.phases, atm.gs, atm.layers, atm.radius, atm.top, samples)
     runs = [("closed-form inverse", _analytic_freepath, ())] + [(f"marched, {m} steps", _marched_freepath, (m,))
                                                                 for m in steps]
     outs = _interleaved(runs, args, len(o))

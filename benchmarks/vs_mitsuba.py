@@ -260,7 +260,7 @@ def epsilon_prediction(prep, eps, nodes=64):
     and the shortened transmittance: (L exact (H, W, 3), L shortened (H, W, 3)). The quadrature is
     coarse at shadow boundaries, which cancels in the ratio of the two."""
     from raytrace.camera import generate_rays
-    from raytrace.media.medium import Medium
+    from raytrace.media import Homogeneous
     from raytrace.media.phase import phase_value
     from raytrace.shading import facing_normals, surface_radiance
 
@@ -276,7 +276,7 @@ def epsilon_prediction(prep, eps, nodes=64):
     if hit.any():
         pts = o[hit] + t[hit, None] * d[hit]
         nrm = facing_normals(accel.normals[prim[hit]], d[hit])
-        for k, m in enumerate((med, Medium(kt * (1.0 - eps), np.zeros(3)))):
+        for k, m in enumerate((med, Homogeneous(kt * (1.0 - eps), np.zeros(3)))):
             out[k][hit] = surface_radiance(accel, pts, nrm, prep.reflectance[prim[hit]], prep.lights, m) * \
                 np.exp(-kt[None, :] * t[hit, None])
     if np.any(ks > 0.0):
