@@ -2,13 +2,16 @@
 beyond Sun's table (u = kt h <= u_max).
 
     python render.py compare scenes/box_room.toml --methods lecocq,sun,analytic --out out/box
-    python benchmarks/compare_regions.py scenes/box_room.toml out/box
+    python benchmarks/compare_regions.py scenes/box_room.toml out/box [--set KEY=VALUE ...]
+
+Give compare's `--set` overrides again (the medium sets u).
 
 For a one-light scene at 1 spp: a pixel looks "towards" the light when the light lies ahead of the
 camera along its ray (x_h > 0) and within 30° of the ray, "away" when the light is behind the
 camera (x_h < 0, Lecocq's theta_a > 0). Prints the mean and max relative error of every image of
 the folder in each region.
 """
+import argparse
 import sys
 from pathlib import Path
 
@@ -21,8 +24,8 @@ from raytrace.film import read_exr  # noqa: E402
 from raytrace.scene.format import load_scene  # noqa: E402
 
 
-def main(scene_path, folder, u_max=10.0):
-    scene = load_scene(scene_path)
+def main(scene_path, folder, overrides=(), u_max=10.0):
+    scene = load_scene(scene_path, overrides)
     cam = scene.camera
     if cam.spp != 1 or len(scene.lights) != 1:
         raise SystemExit("needs a one-light scene rendered at 1 spp")
@@ -56,4 +59,9 @@ def main(scene_path, folder, u_max=10.0):
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene")
+    ap.add_argument("folder")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="the overrides compare was given")
+    args = ap.parse_args()
+    main(args.scene, args.folder, args.set)
