@@ -1,6 +1,6 @@
-"""`atmosphere`: a planet's atmosphere (seed 004's exponential spherical atmosphere, Bruneton's
-layered model) as a participating medium: its geometry and its closed-form transmittances
-(docs/atmosphere.md).
+"""`atmosphere`: a planet's atmosphere (the exponential spherical atmosphere of "Sampling Analytic
+Participating Media", Bruneton's layered model) as a participating medium: its geometry and its
+closed-form transmittances (docs/atmosphere.md).
 
 The planet is the sphere |p - c| = R, an opaque diffuse ground; the air fills R <= |p - c| <= top
 with K layers, layer i of density rho_i(|p - c| - R) times its coefficients (sigma_a, sigma_s per
@@ -8,7 +8,7 @@ channel, its own phase function). A layer's profile is a row of the table `layer
 (EXPONENTIAL, H, 0) for exp(-altitude/H), coefficients at the ground, or (TENT, P, W) for
 Bruneton's ozone, max(0, 1 - |altitude - P|/W), coefficients at the peak (tent.py). Along a ray
 given by the altitude h and zenith cosine mu of its origin, layer i's column over [t0, t1] is
-`layer_column` (Chapman's, seed 004 eq. 40-48, for the exponential; tent.py's closed form for the
+`layer_column` (Chapman's, eq. 40-48 of that article, for the exponential; tent.py's closed form for the
 tent) over the part of [t0, t1] inside the top sphere, and the transmittance of channel c is
 exp(-sum_i kt[i, c] column_i), or 0 if the ray meets the ground within [t0, t1]. The kernels also
 take a 1-D array of scale heights for exponential layers. Everything here is float64: Embree's
@@ -426,7 +426,7 @@ def inscatter(x, row, sun, kt, ks, codes, gs, layers, radius, top, cols, tau_cam
 def free_path(row, x_lo, x_hi, target, kt, layers, radius, top, cols):
     """The x in [x_lo, x_hi] where the channel's optical depth from x_lo reaches `target` (which
     the caller keeps below the whole interval's): safeguarded Newton on the sum of the layers'
-    closed-form columns (f' = the extinction at x, seed 004 eq. 17), bisection when a step leaves
+    closed-form columns (f' = the extinction at x, the article's eq. 17), bisection when a step leaves
     the bracket; stops at |f| <= 1e-13 target or when the bracket is two neighbouring doubles."""
     lo, hi = x_lo, x_hi
     h0, mu0 = row[H0], row[MU0]

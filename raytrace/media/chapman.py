@@ -1,5 +1,6 @@
-"""Seed 004's exponential spherical atmosphere: the Chapman function and the optical depth of a ray
-segment, in double precision, and its inverse for free-path sampling (docs/optical_depth.md).
+"""The exponential spherical atmosphere of "Sampling Analytic Participating Media" (the article
+below): the Chapman function and the optical depth of a ray segment, in double precision, and its
+inverse for free-path sampling (docs/optical_depth.md).
 
 Density sigma0 exp(-(|p - c| - R)/H). A ray is given by the altitude ``h`` = |o - c| - R of its
 origin and ``mu``, the cosine of its zenith angle there; t is the distance along the ray.
@@ -15,7 +16,7 @@ the substitution w^2 = z - beta turns eq. 40 into
 for two points p, q on the same side of the periapsis (q farther from it), where
 y(2 a_p + y) = (h - h_p)/H is the rise of the ray above p. The integrand is positive, bounded and
 smooth, so no value is ever a difference of two Chapman functions; the Chapman function (eq. 42)
-is the case y_q = inf, and the seed's lower-hemisphere identity (eq. 48) becomes the split of a
+is the case y_q = inf, and the article's lower-hemisphere identity (eq. 48) becomes the split of a
 segment at the periapsis into two such pieces, both with a_p = 0 (the C_h of eq. 47).
 
 The rise is cut at u = 40 (the neglected tail is below e^{-40} f-weighted, < 1e-17 relative) and
@@ -162,7 +163,7 @@ NEWTON_MAX_ITER = 100
 def atmosphere_distance(sigma0, h, mu, t0, tau, radius, scale_height, t_max):
     """The t in [t0, t_max] where the optical depth from t0 reaches tau (free-path sampling,
     eq. 24), or inf if it is not reached by t_max (t_max may be inf; pass `ground_distance` to stop
-    at the planet). Safeguarded Newton as the seed (f' is the density, eq. 17): the iterate stays
+    at the planet). Safeguarded Newton as in the article (f' is the density, eq. 17): the iterate stays
     in a bracket [lo, hi] and falls back to bisection (or, while hi is inf, to doubling the step);
     it stops at |tau(t) - tau| <= 1e-14 tau, or returns the better end of a bracket of two
     neighbouring doubles (then the error is below one ulp of t times the extinction there)."""

@@ -1,9 +1,10 @@
-"""`height_fog` (seed 004): fog over flat ground whose coefficients, given at the reference height
-h0, scale with one density of the height p·up - h0, exponential (eq. 32) or linear (eq. 28); the
-transmittance along a ray is exp(-kt tau) with tau the closed-form unit optical depth below, the
-same for every channel. Optical depth of a ray segment and its inverse (docs/optical_depth.md
-§1): a ray is given by ``h`` = o·up - h0, the height of its origin above the reference height, and
-``mu`` = d·up; t0 <= t1 are distances along it (t1 may be inf).
+"""`height_fog`, after "Sampling Analytic Participating Media" (its equation numbers): fog over flat
+ground whose coefficients, given at the reference height h0, scale with one density of the height
+p·up - h0, exponential (eq. 32) or linear (eq. 28); the transmittance along a ray is exp(-kt tau)
+with tau the closed-form unit optical depth below, the same for every channel. Optical depth of a
+ray segment and its inverse (docs/optical_depth.md §1): a ray is given by ``h`` = o·up - h0, the
+height of its origin above the reference height, and ``mu`` = d·up; t0 <= t1 are distances along
+it (t1 may be inf).
 
 * constant:    sigma(p) = sigma0                                  (eq. 25-27)
 * linear:      sigma(p) = sigma0 max(0, 1 - (p·up - h0)/H)        (eq. 28-31; zero above h0 + H)

@@ -1,7 +1,7 @@
 """`homogeneous` (the paper's model): extinction kt = sigma_a + sigma_s per channel everywhere, so
-the transmittance over a length t is exp(-kt t); optionally seed 003's particle layer on top
-(`[medium.particles]`, particles.py). A file without [medium] is the vacuum, a homogeneous medium
-of zero coefficients.
+the transmittance over a length t is exp(-kt t); optionally the particle layer of "Rendering
+Particles in a Shaft of Light" on top (`[medium.particles]`, particles.py). A file without [medium]
+is the vacuum, a homogeneous medium of zero coefficients.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ PARTICLE_KEYS = {"density", "mu", "sigma", "cell", "offset", "step", "beta", "c1
 
 @dataclass
 class Homogeneous(Medium):
-    particles: Particles | None = None  # seed 003's particle layer (particles.py)
+    particles: Particles | None = None  # the particle layer (particles.py)
 
     type_name = "homogeneous"
     keys = frozenset({"type", "sigma_a", "sigma_s", "phase", "particles"})
@@ -55,7 +55,7 @@ class Homogeneous(Medium):
 
 
 def _particles(read, raw, scatters):
-    """[medium.particles]: seed 003's particle layer (particles.py); defaults are the seed's."""
+    """[medium.particles]: the particle layer (particles.py); defaults are the article's."""
     if raw is None:
         return None
     key = "medium.particles"
@@ -65,7 +65,7 @@ def _particles(read, raw, scatters):
         read.fail(key, "the particles scatter with the medium's sigma_s, which is zero",
                   "give the medium a sigma_s > 0 or remove [medium.particles]")
     if "beta" in raw and ("c1" in raw or "c2" in raw):
-        read.fail(f"{key}.beta", "replaces the seed's beta = ((1 - d) + c1) c2, so c1 and c2 would be ignored",
+        read.fail(f"{key}.beta", "replaces the article's beta = ((1 - d) + c1) c2, so c1 and c2 would be ignored",
                   "give either beta or c1 and c2")
     d = Particles()
     density = float(read.number(f"{key}.density", raw.get("density", d.density), minimum=0.0))

@@ -33,7 +33,7 @@ class Medium:
     keys: ClassVar[frozenset] = frozenset()  # the keys of its [medium] table
     homogeneous: ClassVar[bool] = False  # constant coefficients everywhere (the paper's model)
     has_ground: ClassVar[bool] = False  # an opaque ground of its own (`ground_hits`, `ground_surface`)
-    particles: ClassVar[None] = None  # seed 003's particle layer: only homogeneous media carry one
+    particles: ClassVar[None] = None  # the particle layer (particles.py): only homogeneous media carry one
 
     @property
     def sigma_t(self) -> np.ndarray:

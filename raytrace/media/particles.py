@@ -1,7 +1,8 @@
-"""Seed 003's particles in a shaft of light, as an optional layer on the medium (`[medium.particles]`).
+"""The particles of "Rendering Particles in a Shaft of Light" (the article below), as an optional
+layer on the medium (`[medium.particles]`).
 
-The seed ("Rendering Particles in a Shaft of Light") ray-marches each camera ray and adds, per
-step i, a particle term to the air-light sample Io (its eq. 1, read from the garbled text as)
+The article ray-marches each camera ray and adds, per step i, a particle term to the air-light
+sample Io (its eq. 1, read from the garbled text as)
 
     I = Io + (1 - (1 - d)^0.4) Is,
 
@@ -17,13 +18,13 @@ beta = ((1 - d) + c1) c2, c1 = 0.05, c2 = 0.03 (eq. 5, appendix B):
 
     Is = I0 kd [exp(-T) cos(theta_s) / D_sp^2 + beta^2 G0(T, theta_s) / (2 pi T)],  T = beta D_sp.
 
-The seed calls its own model heuristic: it is "roughly based on multiple scattering theories",
+The article calls its own model heuristic: it is "roughly based on multiple scattering theories",
 "it does not compute scattering effects from every particle", and the (1 - d^0.4) weight replaces
 the physically motivated exp(-d) / distance^2 "because this term results in a more obvious result";
 c1 and c2 were set "experimentally".
 
 Here Io is the exact air-light of any method (computed elsewhere); this module adds the particle
-term. Where the seed is not explicit (README, "Particles in a shaft of light"): x is a uniform
+term. Where the article is not explicit (README, "Particles in a shaft of light"): x is a uniform
 random number per cubic cell of edge `cell` (the unit space), keyed by the cell, and d = density *
 cdf(x); D_i is kc (1 - d) cells; the particle is a facet whose normal is its `direction` (it faces
 the marching point), so cos(theta_s) is direction . (light - C_i) / D_sp; I0 is the light's
@@ -50,7 +51,7 @@ from ..lights import SPOT, falloff
 from ..rng import mix64, uniform
 
 EXPONENT = 0.4  # eq. 1
-KC = 7.0  # the seed's neighbour distance constant (eq. 3)
+KC = 7.0  # the article's neighbour distance constant (eq. 3)
 C1, C2 = 0.05, 0.03  # eq. 5
 _TABLE_T = 64  # G0 table: T through u = T / (1 + T) in [0, 1], theta_s in [0, pi]
 _TABLE_THETA = 33

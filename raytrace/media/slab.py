@@ -1,27 +1,28 @@
-"""Single scattering inside a bounded medium lit through its planar boundary (seed 002).
+"""Single scattering inside a bounded medium lit through its planar boundary (after the analytic note
+on single scattering in homogeneous slabs, "the note" below).
 
-Geometry of a segment (the seed's Fig. 1, in the project's segment terms, methods/geometry.py): a
+Geometry of a segment (the note's Fig. 1, in the project's segment terms, methods/geometry.py): a
 ray enters the medium at its start o with unit direction w and runs inside for x in [0, ell]; the
 boundary is the plane through the entry point with outward unit normal n. The depth of the point
-o + x w below the plane is z0 + a x with a = -w·n > 0 (the seed's omega_e·n_e, its omega = -w). A
+o + x w below the plane is z0 + a x with a = -w·n > 0 (the note's omega_e·n_e, its omega = -w). A
 point or spot light at p lies outside, at the height H_L = (p - o)·n > 0 above the plane; x_h and h
 are its projection coordinate and distance to the ray line, d(x) = sqrt(h^2 + (x - x_h)^2).
 
-* Distant light (seed eq. 5): the light's refracted direction inside is constant; the path from
+* Distant light (the note's eq. 5): the light's refracted direction inside is constant; the path from
   depth z to the boundary has length k = c x with c = a / b, b the cosine of the refracted light
-  direction to the normal (the seed's sin(beta) / sin(alpha)), so the in-scattered radiance is
+  direction to the normal (the note's sin(beta) / sin(alpha)), so the in-scattered radiance is
       L = ks Phi E_in ∫_0^ell exp(-kt (1 + c) x) dx = ks Phi E_in (1 - exp(-kt (1 + c) ell)) / (kt (1 + c)),
   with E_in the irradiance of the refracted beam (`beam_irradiance`: E T cos1 / cos2, T the
   Fresnel transmittance; E when the boundary is index-matched).
-* Point light, index-matched boundary (seed eq. 6-7): the straight path from o + x w to the light
+* Point light, index-matched boundary (the note's eq. 6-7): the straight path from o + x w to the light
   crosses the plane after k(x) = d(x) (z0 + a x) / (z0 + a x + H_L) inside, so
       L = I ks ∫_0^ell Phi(cos) exp(-kt (x + k(x)) - kt_out (d(x) - k(x))) / d(x)^2 dx,
-  kt_out the extinction outside (0 in the seed), cos = -(x - x_h) / d the scattering cosine. It has
+  kt_out the extinction outside (0 in the note), cos = -(x - x_h) / d the scattering cosine. It has
   no closed form; `point_exact` integrates it with the project's adaptive Gauss-Legendre rule
   (methods/quadrature.py) in the angle theta = atan((x - x_h) / h) seen from the light
   (dx / d^2 = dtheta / h: a bounded, smooth integrand). With the light in the plane (H_L = 0),
-  k = d and this is the air-light of eq. 4 (the seed's eq. 8).
-* The seed's separable approximation (its sec. 4.2, for thin media): the exponential part replaced
+  k = d and this is the air-light of eq. 4 (the note's eq. 8).
+* The note's separable approximation (its sec. 4.2, for thin media): the exponential part replaced
   by its average under the distant-light limit, c taken at the entry point,
       L_approx = I ks Phi(cos_a) (1 - exp(-kt (1 + c) ell)) / (kt (1 + c) ell) ∫_0^ell d(x)^-2 dx,
   with ∫ d^-2 dx = (theta_b - theta_a) / h in closed form (`inverse_square_integral`).
@@ -48,11 +49,11 @@ EQ7_ARGS = 17
 CONVEX_ARGS = 10
 claim(EQ7_ARGS, CONVEX_ARGS)
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
-# segment's start near its line; or its exponential part alone in x (the seed's Figs. 2-3)
+# segment's start near its line; or its exponential part alone in x (the note's Figs. 2-3)
 # DISTANT: a directional light, v = x
 # REFRACTED: a point light through a refractive plane, v = x
 WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT, REFRACTED = 0, 1, 2, 3, 4
-# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the seed's approximation,
+# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the note's approximation,
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
@@ -109,7 +110,7 @@ def beam_irradiance(cos_i, eta):
 
 @njit
 def slab_distant(kt, ks, phase, c, ell):
-    """Seed eq. 5 per unit beam irradiance: ks Phi ∫_0^ell exp(-kt (1 + c) x) dx, c >= 0, ell <= inf."""
+    """The note's eq. 5 per unit beam irradiance: ks Phi ∫_0^ell exp(-kt (1 + c) x) dx, c >= 0, ell <= inf."""
     q = kt * (1.0 + c)
     if q * ell < 1e-300 or q == 0.0:
         return ks * phase * ell
@@ -121,7 +122,7 @@ def slab_distant(kt, ks, phase, c, ell):
 @njit
 def light_path_inside(x, d, z0, a, hl):
     """k(x): length inside of the straight path from depth z0 + a x to a light at height hl above
-    the plane, at distance d (seed eq. 6); d when the light lies in the plane."""
+    the plane, at distance d (the note's eq. 6); d when the light lies in the plane."""
     z = z0 + a * x
     if z <= 0.0:
         return 0.0
@@ -274,7 +275,7 @@ def eq7_value(v, args):
     g, z0, a, hl, kt_out) + the spot terms of `refracted_point` (NO_SPOT but for REFRACTED).
     WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
     BEHIND: v = u = 1 / (x - x_h) (dx / d^2 = du / (1 + h^2 u^2)), the value ks Phi exp(-(...)) / (1 + h^2 u^2);
-    NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the seed's Figs. 2-3); DISTANT: v = x, g holds
+    NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the note's Figs. 2-3); DISTANT: v = x, g holds
     the phase function's value and hl the cosine b of the refracted light to the normal, the value
     ks Phi exp(-kt (x + (z0 + a x) / b)) (eq. 5's integrand); REFRACTED: v = x, a point light through a
     refractive plane (`refracted_point`), xh and h hold w_h·L_h and |L_h|^2, z0 is unused."""
@@ -352,7 +353,7 @@ def _eq7_adaptive(args, lo, hi, rtol, stats):
 
 @njit
 def point_exact(xh, h, ell, kt, ks, code, g, z0, a, hl, kt_out, rtol, stats):
-    """Seed eq. 7 for a unit-intensity point light (module docstring), adaptive to `rtol`: the
+    """The note's eq. 7 for a unit-intensity point light (module docstring), adaptive to `rtol`: the
     in-scattered radiance at the segment's start."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
@@ -369,7 +370,7 @@ def point_exact(xh, h, ell, kt, ks, code, g, z0, a, hl, kt_out, rtol, stats):
 
 @njit
 def exponential_part(xh, h, ell, kt, z0, a, hl, rtol, stats):
-    """∫_0^ell exp(-kt (x + k(x))) dx: eq. 7 without the falloff and the phase function, as the seed
+    """∫_0^ell exp(-kt (x + k(x))) dx: eq. 7 without the falloff and the phase function, as the note
     plots it (Figs. 2-3, 6-8)."""
     if not ell > 0.0:
         return 0.0
@@ -379,7 +380,7 @@ def exponential_part(xh, h, ell, kt, z0, a, hl, rtol, stats):
 @njit
 def inverse_square_integral(xh, h, ell):
     """∫_0^ell dx / (h^2 + (x - x_h)^2) = (atan((ell - x_h)/h) - atan(-x_h/h)) / h, as one atan2 (no
-    cancellation when the light is near the ray line, h -> 0: the seed's s / (l (s + l)))."""
+    cancellation when the light is near the ray line, h -> 0: the note's s / (l (s + l)))."""
     b = ell - xh
     if h == 0.0:  # on the line, outside the segment (xh < 0 or xh > ell)
         return -1.0 / xh if ell == math.inf else ell / (-xh * b)
@@ -390,7 +391,7 @@ def inverse_square_integral(xh, h, ell):
 
 @njit
 def point_approx(xh, h, ell, kt, ks, code, g, a, b):
-    """The seed's separable approximation of eq. 7 (sec. 4.2) for a unit-intensity light: the
+    """The note's separable approximation of eq. 7 (sec. 4.2) for a unit-intensity light: the
     distant-light average (eq. 5 / ell, c = a / b at the entry point) times ∫ d^-2 dx; the phase
     function at the entry point's scattering angle. 0 for a light in the boundary plane (b = 0,
     c = inf), as eq. 5."""
@@ -551,7 +552,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
     eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
     below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
     mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
-    and the seed's separable approximation, with the outside attenuation at the entry point), MARCH
+    and the note's separable approximation, with the outside attenuation at the entry point), MARCH
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
     free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
     dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per segment (a spot's axis and cone
