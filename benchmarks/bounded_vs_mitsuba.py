@@ -1,4 +1,4 @@
-"""An index-matched bounded medium against Mitsuba 3 `volpath` (issue 12): single scattering inside a
+"""An index-matched bounded medium against Mitsuba 3 `volpath`: single scattering inside a
 box seen and lit through its top face.
 
     pip install -e '.[bench]'   # mitsuba; exits 0 with a skip message without it
@@ -7,7 +7,7 @@ box seen and lit through its top face.
 Scenes (`--scene`): `top`, a box [-2, -1, -2] x [2, 0, 2] holding a grey medium (ior 1: Mitsuba's
 `null` BSDF on a `cube` with a `homogeneous` interior), a point light above the top face within its
 footprint and a camera looking down at the top face, so that every camera ray enters through the top
-and every straight path from inside to the light leaves through it (the seed's planar boundary is
+and every straight path from inside to the light leaves through it (the slab note's planar boundary is
 the exact geometry); `beside`, a unit cube seen on three faces and lit from beside, where the light's
 paths leave through any face (our convex shapes' exact straight paths). Mitsuba traces the actual box. Vacuum outside, black background, no other
 surfaces. Mitsuba: `scalar_rgb`, volpath with max_depth = 2 (null-surface crossings do not count:
@@ -19,7 +19,7 @@ with 3 degrees of freedom, whose square has mean 3 for an unbiased match).
 
 Measured (2 cores, shared), 4096 spp x 4 runs: `top` total ratio 1.00039 +- 0.00080 (per pixel
 median 1.0002, mean squared z 2.7, expected 3); `beside` 1.00065 +- 0.00103 (median 1.0006, mean
-squared z 2.8), where the seed's entry-plane model is more than 5 % off (tests/test_bounded_media.py).
+squared z 2.8), where the slab note's entry-plane model is more than 5 % off (tests/test_bounded_media.py).
 `u`: a U-shaped prism (an OBJ written to a temporary folder; non-convex, light paths leave one arm and
 enter the other, Embree-traced) over a grey floor lit through it: total ratio 0.99989 +- 0.00021,
 per-pixel median 1.0000 (5-95 % 0.985 .. 1.012), per-pixel z^2 median 0.65 (0.59 expected) but mean
@@ -43,7 +43,7 @@ import numpy as np
 
 KA, KS = 0.3, 0.5
 INTENSITY = 3.0
-# "top": a wide box seen and lit through its top face (the seed's planar boundary is exact);
+# "top": a wide box seen and lit through its top face (the slab note's planar boundary is exact);
 # "beside": a unit cube seen on three faces, lit from beside (light paths leave through any face:
 # our convex shapes' exact straight paths)
 SCENES = {

@@ -1,14 +1,15 @@
-"""Closed-form optical depth of an exponential height fog (seed 004, eq. 34) against the
-numerically integrated one users write (the midpoint rule with n steps), at equal error; then the
-atmosphere (scenes/sunrise.toml): raymarch with closed-form against marched transmittances at equal
-error, and Monte Carlo free-path sampling by the closed-form inverse against free-path sampling on
-a ray-marched optical depth at equal time.
+"""Closed-form optical depth of an exponential height fog ("Sampling Analytic Participating Media",
+eq. 34) against the numerically integrated one users write (the midpoint rule with n steps), at
+equal error; then the atmosphere (scenes/sunrise.toml, its layers table: Rayleigh, Mie, ozone):
+raymarch with closed-form against marched transmittances at equal error, and Monte Carlo free-path
+sampling by the closed-form inverse against free-path sampling on a ray-marched optical depth at
+equal time.
 
     python benchmarks/height_fog.py            # both parts
     python benchmarks/height_fog.py atmosphere # the atmosphere only
 
 Random segments (heights -2 ... 10 scale heights, all directions, lengths up to 20 scale heights)
-of the fog rho = exp(-h/H): the closed form (`medium.column`, verified against mpmath to ~1e-14 in
+of the fog rho = exp(-h/H): the closed form (`fog.column`, verified against mpmath to ~1e-14 in
 tests/test_optical_depth.py) is the reference. For each n: the median and maximum relative error
 of the midpoint rule and its time per segment; then the n and the time ratio at which the rule
 first reaches a maximum error of 1e-3 and 1e-6.

@@ -1,4 +1,4 @@
-"""Does api.check_memory's estimate cover what an image really costs? (issue 15)
+"""Does api.check_memory's estimate cover what an image really costs?
 
     python benchmarks/image_memory.py [--method analytic|montecarlo] [--sizes 1024x512,4096x2048]
 

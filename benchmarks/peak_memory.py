@@ -9,7 +9,7 @@ its peak RSS is that child's `ru_maxrss` (os.wait4), so one render's memory neve
 another's. Runs: `analytic` without and with volumetric shadows (lit intervals), and `raymarch` and
 `montecarlo` (their default parameters) with volumetric shadows by lit intervals and by a shadow
 ray per medium sample (`--shadow-test samples`: the renders that hold medium points, in chunks of
-bounded size; issue 8, defect 5); `--extra` adds runs. The render time is the EXR header's
+bounded size); `--extra` adds runs. The render time is the EXR header's
 render_seconds (compilation excluded). Exits with status 1 if a render fails or peaks above the
 limit (default 2 GiB).
 """
