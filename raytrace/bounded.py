@@ -275,11 +275,12 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             mu = -np.einsum("ij,ij->i", t_l, w)
             scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
                              / np.maximum(b, 1e-300), 0.0) if medium.ior != 1.0 else 1.0
-            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = -lights.axis[li], 0.0, lights.cone[li]
+            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14], geo[:, 17] = -lights.axis[li], 0.0, lights.cone[li, :2], lights.cone[li, 2]
         else:  # a point or spot light (the spot's falloff toward the direction it leaves in: media/slab.py)
             xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx,
                                               prep.accel.scale)
-            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li]
+            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
+            geo[:, 17] = lights.cone[li, 2]  # the spot's falloff curve
             rel = lights.position[li] - points
             hl = np.einsum("ij,ij->i", rel, normals)
             if medium.ior != 1.0:  # horizontal parts, for the refracted path (media/slab.py refracted_point)

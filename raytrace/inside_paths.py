@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from .jit import njit
-from .lights import falloff_array
+from .lights import NO_CONE, SMOOTHSTEP, falloff_array
 from .media.phase import phase_value
 from .media.slab import straight_cuts
 from .rng import uniform
@@ -146,8 +146,8 @@ def _geometry(prep, sid, geo, distant, seg, x):
         rel = geo[seg, 6:9] - p
         d = np.maximum(np.linalg.norm(rel, axis=1), 1e-125)
         to = rel / d[:, None]
-        cone = geo[seg[0], 12:14] if len(seg) else (-3.0, -2.0)  # one light per call
-        f = falloff_array(np.ascontiguousarray(-np.einsum("ij,ij->i", to, geo[seg, 9:12])), cone[0], cone[1])
+        cone = geo[seg[0], [12, 13, 17]] if len(seg) else (*NO_CONE, SMOOTHSTEP)  # one light per call
+        f = falloff_array(np.ascontiguousarray(-np.einsum("ij,ij->i", to, geo[seg, 9:12])), *cone)
     lit = np.nonzero(f > 0.0)[0]  # no rays traced outside a spot's cone
     k = np.zeros(len(x))
     k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool))[0][:, 0]

@@ -1,9 +1,11 @@
 """Lights: what the scene file describes (`Light`) and the arrays kernels read (`Lights`).
 
 Point lights are isotropic: radiant intensity I per channel, so the irradiance at distance d,
-before the medium's attenuation, is I / d^2 (the paper's eqs. 4 and 5). A spot light (pbrt-v4's
-SpotLight) emits I F(cos) toward a direction at cosine `cos` from its axis, with the falloff F = 1
-within `falloff_start`, 0 beyond `cone_angle`, and smoothstep in the cosine between (`falloff`).
+before the medium's attenuation, is I / d^2 (the paper's eqs. 4 and 5). A spot light emits I F(cos)
+toward a direction at cosine `cos` from its axis, with the falloff F = 1 within `falloff_start`, 0
+beyond `cone_angle`, and between them one of three curves (`falloff`, docs/spot_lights.md): pbrt-v4's
+SpotLight, smoothstep in the cosine (SMOOTHSTEP); Mitsuba 3's spot, linear in the angle (MITSUBA);
+KHR_lights_punctual's, the linear ramp in the cosine squared (GLTF).
 A directional light (the sun) has no position: `axis` is its direction of travel and `intensity`
 its irradiance E per channel on a surface facing it, outside any medium.
 
@@ -30,6 +32,11 @@ SPOT = 1
 DIRECTIONAL = 2
 NAMES = {POINT: "point", SPOT: "spot", DIRECTIONAL: "directional"}
 
+SMOOTHSTEP = 0  # the spot falloff curves (`falloff`); the scene file's names:
+MITSUBA = 1
+GLTF = 2
+CURVES = {"smoothstep": SMOOTHSTEP, "mitsuba": MITSUBA, "gltf": GLTF}
+
 # the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1
 NO_CONE = (-3.0, -2.0)
 CUT_TOL = 1e-12  # relative: cone crossings this close to a segment's end are that end
@@ -38,21 +45,23 @@ CUT_TOL = 1e-12  # relative: cone crossings this close to a segment's end are th
 @dataclass
 class Light:
     """One light of the scene file; spot lights also have a unit `axis` and the cosines of their
-    cone (`cos_end`, zero beyond) and of their full-intensity core (`cos_start`); directional
-    lights a unit `axis` (direction of travel) and no position (zero)."""
+    cone (`cos_end`, zero beyond) and of their full-intensity core (`cos_start`) and the `curve`
+    between (SMOOTHSTEP, MITSUBA or GLTF); directional lights a unit `axis` (direction of travel) and
+    no position (zero)."""
     position: np.ndarray
     intensity: np.ndarray  # W/sr per channel (spot: on the axis; directional: irradiance W/m^2)
     kind: int = POINT
     axis: np.ndarray | None = None
     cos_end: float = NO_CONE[0]
     cos_start: float = NO_CONE[1]
+    curve: int = SMOOTHSTEP
 
 
 @dataclass(frozen=True)
 class Lights:
     """All lights as float64 arrays: `kind` (L,), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3)
-    (zero for point lights), `cone` (L, 2): (cos_end, cos_start), NO_CONE for point and directional
-    lights."""
+    (zero for point lights), `cone` (L, 3): (cos_end, cos_start, curve), NO_CONE for point and
+    directional lights (their curve: SMOOTHSTEP, unused)."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray
@@ -66,7 +75,7 @@ class Lights:
                    np.array([l.position for l in lights], dtype=float).reshape(-1, 3),
                    np.array([l.intensity for l in lights], dtype=float).reshape(-1, 3),
                    np.array(axis, dtype=float).reshape(-1, 3),
-                   np.array([(l.cos_end, l.cos_start) for l in lights], dtype=float).reshape(-1, 2))
+                   np.array([(l.cos_end, l.cos_start, l.curve) for l in lights], dtype=float).reshape(-1, 3))
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -87,22 +96,53 @@ class Lights:
 
 
 @njit
-def falloff(c, cos_end, cos_start):
-    """pbrt-v4's spot falloff: smoothstep(cos_end, cos_start, c); a hard edge if they are equal."""
+def falloff(c, cos_end, cos_start, curve):
+    """The spot falloff at cosine c to the axis: 1 from cos_start up, 0 from cos_end down (a hard
+    edge if they are equal), and between, with t = (c - cos_end) / (cos_start - cos_end),
+    SMOOTHSTEP: 3t^2 - 2t^3 (pbrt-v4's SpotLight, smoothstep(cos_end, cos_start, c));
+    MITSUBA: (acos(cos_end) - acos(c)) / (acos(cos_end) - acos(cos_start)), linear in the angle
+    (Mitsuba 3's spot emitter, src/emitters/spot.cpp `falloff_curve`);
+    GLTF: t^2 (KHR_lights_punctual's recommended implementation)."""
     if c >= cos_start:
         return 1.0
     if c <= cos_end:
         return 0.0
+    if curve == MITSUBA:
+        cutoff = math.acos(cos_end)
+        return (cutoff - math.acos(c)) / (cutoff - math.acos(cos_start))
     t = (c - cos_end) / (cos_start - cos_end)
+    if curve == GLTF:
+        return t * t
     return t * t * (3.0 - 2.0 * t)
 
 
 @njit
-def falloff_array(c, cos_end, cos_start):
+def falloff_array(c, cos_end, cos_start, curve):
     out = np.empty(c.shape[0])
     for i in range(c.shape[0]):
-        out[i] = falloff(c[i], cos_end, cos_start)
+        out[i] = falloff(c[i], cos_end, cos_start, curve)
     return out
+
+
+@njit
+def polynomial_band(curve):
+    """Whether the curve's band is a polynomial in the cosine (`band_trig` writes it in phi)."""
+    return curve != MITSUBA
+
+
+@njit
+def band_slope(cos_end, cos_start, curve):
+    """(cos_start - cos_end) times the largest slope dF/dc of the curve over its band: 1.5
+    (smoothstep), 2 (gltf), (cos_start - cos_end) / ((acos(cos_end) - acos(cos_start)) sin(acos(cos_start)))
+    (mitsuba, dF/dc = 1 / ((cutoff - beam) sin(theta)) is largest at the core's edge; inf at a core
+    of 0 degrees)."""
+    if curve == SMOOTHSTEP:
+        return 1.5
+    if curve == GLTF:
+        return 2.0
+    s = math.sqrt(max(0.0, 1.0 - cos_start * cos_start))
+    den = (math.acos(cos_end) - math.acos(cos_start)) * s
+    return (cos_start - cos_end) / den if den > 0.0 else math.inf
 
 
 @njit
@@ -145,7 +185,7 @@ def _kind(A, B, cos_end, cos_start, v):
 @njit
 def segment_cone(A, B, cos_end, cos_start, va, vb, out):
     """The pieces of [va, vb] (v = tan(phi/2)) between the cone's crossings: out[i] = (v_lo, v_hi,
-    kind) with kind 0 (dark), 1 (full intensity), 2 (smoothstep band); returns the count (<= 5 rows
+    kind) with kind 0 (dark), 1 (full intensity), 2 (the falloff's band); returns the count (<= 5 rows
     of `out`, no allocation). A light without a cone (cos_start <= -1) is one full piece."""
     if cos_start <= -1.0:
         out[0, 0], out[0, 1], out[0, 2] = va, vb, 1.0
@@ -187,10 +227,11 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
 
 
 @njit
-def smoothstep_trig(A, B, cos_end, cos_start, a, b):
-    """The falloff's smoothstep band as a trigonometric polynomial in phi: F = sum_{m=0}^{3}
-    a_m cos(m phi) + b_m sin(m phi) (a, b of length 4), for t = (c - cos_end) / (cos_start - cos_end)
-    and F = 3 t^2 - 2 t^3. With z = e^{i phi}, c - cos_end = alpha z + u0 + conj(alpha) / z,
+def band_trig(A, B, cos_end, cos_start, curve, a, b):
+    """A polynomial curve's band (`polynomial_band`) as a trigonometric polynomial in phi:
+    F = sum_{m=0}^{3} a_m cos(m phi) + b_m sin(m phi) (a, b of length 4), for
+    t = (c - cos_end) / (cos_start - cos_end) and F = 3 t^2 - 2 t^3 (SMOOTHSTEP) or t^2 (GLTF:
+    a_3 = b_3 = 0). With z = e^{i phi}, c - cos_end = alpha z + u0 + conj(alpha) / z,
     alpha = -(B + iA) / 2, u0 = -cos_end; its square and cube are Laurent polynomials whose
     coefficient P_m of z^m gives a_m = 2 Re P_m, b_m = -2 Im P_m (a_0 = P_0)."""
     d = cos_start - cos_end
@@ -204,6 +245,8 @@ def smoothstep_trig(A, B, cos_end, cos_start, a, b):
     c2 = s1 * al + s2 * u0
     c3 = s2 * al
     p2, p3 = 3.0 / (d * d), 2.0 / (d * d * d)
+    if curve == GLTF:
+        p2, p3 = 1.0 / (d * d), 0.0
     a[0] = p2 * s0 - p3 * c0
     b[0] = 0.0
     for m, (sq, cu) in enumerate(((s1, c1), (s2, c2), (complex(0.0, 0.0), c3))):

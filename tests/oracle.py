@@ -71,8 +71,11 @@ def spot_of(light: dict):
     return axis / np.linalg.norm(axis), math.cos(math.radians(cone)), math.cos(math.radians(start))
 
 
-def emission(spot, direction) -> float:
-    """The spot's falloff toward the unit `direction` from the light: smoothstep in the cosine."""
+def emission(spot, direction, curve="smoothstep") -> float:
+    """The spot's falloff toward the unit `direction` from the light, between its core and its cone:
+    "smoothstep" in the cosine (pbrt-v4's SpotLight), "mitsuba" linear in the angle from the axis
+    (Mitsuba 3's spot: (cutoff_angle - angle) / (cutoff_angle - beam_width)), "gltf" the ramp
+    (cos - cos_outer) / (cos_inner - cos_outer) squared (KHR_lights_punctual)."""
     if spot is None:
         return 1.0
     axis, cos_end, cos_start = spot
@@ -81,7 +84,15 @@ def emission(spot, direction) -> float:
         return 1.0
     if c <= cos_end:
         return 0.0
+    if curve == "mitsuba":
+        (ax, ay, az), (dx, dy, dz) = axis, direction
+        angle = math.atan2(math.hypot(ay * dz - az * dy, az * dx - ax * dz, ax * dy - ay * dx), c)
+        cutoff, beam = math.acos(cos_end), math.acos(cos_start)
+        return (cutoff - angle) / (cutoff - beam)
     t = (c - cos_end) / (cos_start - cos_end)
+    if curve == "gltf":
+        return min(max(t, 0.0), 1.0) ** 2
+    assert curve == "smoothstep", curve
     return t * t * (3 - 2 * t)
 
 
@@ -90,7 +101,7 @@ def lamp_at(light: dict, X):
     surface facing it, the spot's falloff toward X)."""
     rel = np.asarray(light["position"], float) - X
     dist = float(np.linalg.norm(rel))
-    fall = emission(spot_of(light), -rel / dist)
+    fall = emission(spot_of(light), -rel / dist, light.get("falloff", "smoothstep"))
     return rel / dist, dist, light["intensity"] * fall / dist**2, fall
 
 
@@ -119,7 +130,7 @@ def cone_crossings(o, d, tmax, p, spot):
     return out
 
 
-def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, spot=None):
+def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, spot=None, curve="smoothstep"):
     if ks == 0.0:
         return 0.0
     p = np.asarray(light, float)
@@ -129,7 +140,7 @@ def airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, spot=None):
         to = p - q
         dist = math.sqrt(to @ to)
         mu = -(x - xh) / dist  # cosine between the light's travel direction and the way back to the camera
-        return (math.exp(-kt * (x + dist)) * ks * intensity * phase(phase_name, g, mu) * emission(spot, -to / dist)
+        return (math.exp(-kt * (x + dist)) * ks * intensity * phase(phase_name, g, mu) * emission(spot, -to / dist, curve)
                 / dist**2)
 
     xh = float((p - o) @ d)
@@ -166,11 +177,12 @@ def box_room_pixel(scene: dict, i: int, j: int) -> np.ndarray:
         spot = spot_of(light)
         to = p - x
         dist = math.sqrt(to @ to)
-        cos = max(0.0, float(n @ to) / dist) * emission(spot, -to / dist)
+        curve = light.get("falloff", "smoothstep")
+        cos = max(0.0, float(n @ to) / dist) * emission(spot, -to / dist, curve)
         for c in range(3):
             surface = rho[c] / math.pi * inten[c] * math.exp(-kt[c] * dist) / dist**2 * cos
             out[c] += math.exp(-kt[c] * t) * surface
-            out[c] += airlight(o, d, t, p, inten[c], kt[c], ks[c], name, g, spot)
+            out[c] += airlight(o, d, t, p, inten[c], kt[c], ks[c], name, g, spot, curve)
     return out
 
 
@@ -206,24 +218,24 @@ def plate_blocks(o, d, x, light, plate) -> bool:
     return x_lo < q[0] < x_hi and z_lo < q[2] < z_hi
 
 
-def shadowed_airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, plates):
+def shadowed_airlight(o, d, tmax, light, intensity, kt, ks, phase_name, g, plates, spot=None, curve="smoothstep"):
     """Air-light of eq. 4 over the lit parts of [0, tmax]: the visibility of the light is 0 where a
     plate lies between the light and the point; integrated piece by piece between the analytic
-    shadow boundaries."""
+    shadow boundaries (a spot light's `spot` and `curve` as `airlight`)."""
     breaks = sorted({0.0, tmax, *(b for p in plates for b in plate_shadow_breaks(o, d, tmax, light, p))})
     total = 0.0
     for a, b in zip(breaks[:-1], breaks[1:]):
         mid = 0.5 * (a + b)
         if not any(plate_blocks(o, d, mid, light, p) for p in plates):
-            total += airlight_between(o, d, a, b, light, intensity, kt, ks, phase_name, g)
+            total += airlight_between(o, d, a, b, light, intensity, kt, ks, phase_name, g, spot, curve)
     return total
 
 
-def airlight_between(o, d, a, b, light, intensity, kt, ks, phase_name, g):
+def airlight_between(o, d, a, b, light, intensity, kt, ks, phase_name, g, spot=None, curve="smoothstep"):
     """eq. 4 over [a, b]: the air-light of [0, b] minus that of [0, a] would cancel; integrate [a, b]
     from its own start and attenuate by exp(-kt a)."""
     start = o + a * d
-    return math.exp(-kt * a) * airlight(start, d, b - a, light, intensity, kt, ks, phase_name, g)
+    return math.exp(-kt * a) * airlight(start, d, b - a, light, intensity, kt, ks, phase_name, g, spot, curve)
 
 
 def plate_hit(o, d, plate):

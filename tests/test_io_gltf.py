@@ -27,7 +27,6 @@ from raytrace.scene.format import read_toml, scene_from_dict
 from raytrace.scene.meshes import scene_triangles
 
 DATA = Path(__file__).resolve().parent / "data" / "gltf"
-SPOT_XFAIL = pytest.mark.xfail(strict=True, reason="the spot falloff key lands with the falloff curves")
 FLOAT32 = 2e-7  # relative: what a float32 in the file holds of a float64
 FOG = {"sigma_a": 0.02, "sigma_s": 0.05}  # a glTF has no fog: the renders add the same to both sides
 
@@ -140,7 +139,6 @@ def test_blender_room_renders_as_the_hand_written_scene():
     np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-14)
 
 
-@SPOT_XFAIL
 def test_blender_room_with_its_spot_renders_as_the_hand_written_scene():
     got, want = _room_pair(with_spot=True)
     np.testing.assert_allclose(render(got), render(want), rtol=1e-10, atol=1e-14)
@@ -224,7 +222,6 @@ def test_round_trip_renders_the_same_image(tmp_path):
     np.testing.assert_allclose(raytrace.render(str(out), method="quadrature", width=48, height=32).array, b, rtol=1e-12)
 
 
-@SPOT_XFAIL
 def test_round_trip_with_a_gltf_spot_renders_the_same_image(tmp_path):
     raw = trip_scene(spot=True)
     gltf.export(raw, tmp_path / "s.glb", "trip.toml", approximate=False)

@@ -27,7 +27,6 @@ from raytrace.scene.meshes import scene_triangles
 from .conftest import ROOT, to_toml
 
 DATA = Path(__file__).parent / "data" / "mitsuba"
-FALLOFF = pytest.mark.xfail(strict=True, reason="the spot falloff key lands with the falloff curves")
 
 
 def unit(v):
@@ -80,7 +79,6 @@ def test_spot_reads_as_mitsuba_curve_through_include():
     assert spot["intensity"] == [20.0, 20.0, 30.0]
 
 
-@FALLOFF
 def test_spot_room_is_a_valid_scene():
     scene_from_dict(mitsuba.read_scene(DATA / "room_spot.xml"), "room_spot.xml")
 
@@ -231,7 +229,6 @@ def test_mitsuba_spot_exports_exactly(tmp_path):
     assert o.tolist() == [-1.0, 1.5, 0.0] and np.allclose(unit(t - o), unit([0.5, -3.5, -2.0]), atol=1e-15)
 
 
-@FALLOFF
 def test_spot_round_trip(tmp_path):
     raw = round_trip_scene(spot="mitsuba")
     out, _ = exported(tmp_path, raw)
@@ -390,7 +387,6 @@ def test_hand_written_room_agrees_with_mitsuba(mi):
 
 
 @pytest.mark.peers
-@FALLOFF
 def test_hand_written_room_with_spot_agrees_with_mitsuba(mi):
     ours = raytrace.render(str(DATA / "room_spot.xml"), method="quadrature", spp=256).array
     check_agreement(mitsuba_runs(mi, DATA / "room_spot.xml", 512, 16), ours)

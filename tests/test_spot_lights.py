@@ -6,6 +6,11 @@ within 10 x precision (analytic, precision 1e-6) and 1e-9 (quadrature, rtol 1e-1
 
 Also the scene-file contract: bad spot lights and spot lights in methods that cannot take them
 give one line and exit 2, with nothing written.
+
+The three falloff curves (`falloff` = "smoothstep", "mitsuba", "gltf") against the oracle's curves
+written from their specifications (pbrt-v4, Mitsuba 3's spot.cpp, KHR_lights_punctual): values,
+the glTF band's trigonometric form, random segments, and a room with a plate shadowing the beam
+rendered by every method that takes spot lights, judged as the methods' own error laws say.
 """
 from __future__ import annotations
 
@@ -15,7 +20,7 @@ import numpy as np
 import pytest
 
 from raytrace.cli import main
-from raytrace.lights import falloff
+from raytrace.lights import CURVES, GLTF, MITSUBA, SMOOTHSTEP, band_trig, falloff
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.methods import analytic as A
 from raytrace.methods import quadrature as Q
@@ -34,10 +39,10 @@ def spot(axis, cone, start):
     return axis / np.linalg.norm(axis), math.cos(math.radians(cone)), math.cos(math.radians(start))
 
 
-def renderer_pair(o, w, ell, p, sp, kt, ks, code, g, precision=PRECISION):
+def renderer_pair(o, w, ell, p, sp, kt, ks, code, g, precision=PRECISION, curve="smoothstep"):
     """(analytic, quadrature, analytic stats) for one segment, through the renderer's geometry."""
-    xh, h, da, row = segment_light_table(o[None], w[None], p[None], sp[0][None], np.array([[sp[1], sp[2]]]),
-                                         np.zeros(1, np.int64), 1.0)
+    xh, h, da, row = segment_light_table(o[None], w[None], p[None], sp[0][None],
+                                         np.array([[sp[1], sp[2], CURVES[curve]]]), np.zeros(1, np.int64), 1.0)
     wp = A.working_precision(precision)
     coeffs = A.make_coeffs(code, g, A.ANISO_EXACT, 6, wp)
     st = A.new_stats()
@@ -47,11 +52,11 @@ def renderer_pair(o, w, ell, p, sp, kt, ks, code, g, precision=PRECISION):
     return an, qu, st
 
 
-def check(o, w, ell, p, sp, kt, ks, code, g, name):
+def check(o, w, ell, p, sp, kt, ks, code, g, name, curve="smoothstep"):
     o, w, p = (np.asarray(v, float) for v in (o, w, p))
     w = w / np.linalg.norm(w)
-    ref = oracle.airlight(o, w, ell, p, 1.0, kt, ks, name, g, sp)
-    an, qu, st = renderer_pair(o, w, ell, p, sp, kt, ks, code, g)
+    ref = oracle.airlight(o, w, ell, p, 1.0, kt, ks, name, g, sp, curve)
+    an, qu, st = renderer_pair(o, w, ell, p, sp, kt, ks, code, g, curve=curve)
     assert math.isfinite(an) and an >= 0.0 and math.isfinite(qu)
     if ref == 0.0:
         assert an == 0.0 and qu == 0.0
@@ -131,10 +136,11 @@ def test_ray_through_the_apex_is_finite_and_agrees(code, g, name):
 def test_falloff_is_pbrt_smoothstep():
     ce, cs = math.cos(math.radians(30.0)), math.cos(math.radians(20.0))
     mid = 0.5 * (ce + cs)
-    assert falloff(1.0, ce, cs) == 1.0 and falloff(ce, ce, cs) == 0.0 and falloff(-1.0, ce, cs) == 0.0
-    assert falloff(mid, ce, cs) == pytest.approx(0.5)
-    assert falloff(ce + 0.25 * (cs - ce), ce, cs) == pytest.approx(0.25**2 * (3 - 0.5))
-    assert falloff(cs, cs, cs) == 1.0 and falloff(np.nextafter(cs, 0.0), cs, cs) == 0.0
+    f = lambda c, ce, cs: falloff(c, ce, cs, SMOOTHSTEP)  # noqa: E731
+    assert f(1.0, ce, cs) == 1.0 and f(ce, ce, cs) == 0.0 and f(-1.0, ce, cs) == 0.0
+    assert f(mid, ce, cs) == pytest.approx(0.5)
+    assert f(ce + 0.25 * (cs - ce), ce, cs) == pytest.approx(0.25**2 * (3 - 0.5))
+    assert f(cs, cs, cs) == 1.0 and f(np.nextafter(cs, 0.0), cs, cs) == 0.0
 
 
 SPOT = {"type": "spot", "position": [0.0, 1.5, -1.0], "look_at": [0.0, -2.0, -1.0], "intensity": 20.0,
@@ -193,3 +199,204 @@ def test_stage_scene_analytic_equals_quadrature(shadows):
     assert lit.mean() > 0.9
     assert np.max(np.abs(an.array - qu.array)[lit] / qu.array[lit]) <= 10 * PRECISION
     assert an.stats["spot_band_pieces"] > 0
+
+
+# ---- the falloff curves ----------------------------------------------------------------------------
+
+OTHER_CURVES = ["mitsuba", "gltf"]
+
+
+@pytest.mark.parametrize("cone,start", [(30.0, 20.0), (60.0, 0.0), (150.0, 100.0)])
+def test_falloff_curves_at_their_landmarks(cone, start):
+    """Mitsuba's curve is linear in the angle (half way in angle: 1/2, a quarter from the cone: 1/4),
+    glTF's the ramp in the cosine squared (half way in cosine: 1/4); all three are 1 on the core's edge
+    and 0 on the cone's, and hard-edged when the angles are equal; the oracle's curves agree."""
+    ce, cs = math.cos(math.radians(cone)), math.cos(math.radians(start))
+    for curve in (SMOOTHSTEP, MITSUBA, GLTF):
+        assert falloff(cs, ce, cs, curve) == 1.0 and falloff(ce, ce, cs, curve) == 0.0
+        assert falloff(ce, ce, ce, curve) == 1.0 and falloff(np.nextafter(ce, -2.0), ce, ce, curve) == 0.0
+    for frac, want in ((0.5, 0.5), (0.25, 0.25), (0.9, 0.9)):
+        c = math.cos(math.radians(cone - frac * (cone - start)))
+        assert falloff(c, ce, cs, MITSUBA) == pytest.approx(want, rel=1e-12)
+    assert falloff(0.5 * (ce + cs), ce, cs, GLTF) == pytest.approx(0.25, rel=1e-12)
+    axis = np.array([0.0, 0.0, 1.0])
+    for angle in np.linspace(start, cone, 7):
+        u = np.array([math.sin(math.radians(angle)), 0.0, math.cos(math.radians(angle))])
+        for name, code in CURVES.items():
+            assert falloff(float(u @ axis), ce, cs, code) == pytest.approx(
+                oracle.emission((axis, ce, cs), u, name), rel=1e-12, abs=1e-14)
+
+
+def test_gltf_band_as_a_trigonometric_polynomial():
+    """lights.band_trig's coefficients for the glTF curve reproduce t^2, t = (c - cos_end) /
+    (cos_start - cos_end), c = A sin(phi) - B cos(phi), at random phi (no cubic term)."""
+    rng = np.random.default_rng(7)
+    a, b = np.zeros(4), np.zeros(4)
+    for _ in range(50):
+        A, B = rng.uniform(-0.7, 0.7, 2)
+        ce = float(rng.uniform(-0.9, 0.8))
+        cs = float(rng.uniform(ce + 0.01, 1.0))
+        band_trig(A, B, ce, cs, GLTF, a, b)
+        assert a[3] == 0.0 and b[3] == 0.0
+        for phi in rng.uniform(0.0, math.pi, 5):
+            t = (A * math.sin(phi) - B * math.cos(phi) - ce) / (cs - ce)
+            got = sum(a[m] * math.cos(m * phi) + b[m] * math.sin(m * phi) for m in range(4))
+            assert got == pytest.approx(t * t, rel=1e-11, abs=1e-11 * max(1.0, 1.0 / (cs - ce) ** 2))
+
+
+def _random_curve_segments(curve, code, g, name, count, seed):
+    rng = np.random.default_rng(seed)
+    totals = np.zeros(A.STATS_SIZE)
+    for _ in range(count):
+        o, p = rng.uniform(-2, 2, 3), rng.uniform(-2, 2, 3)
+        cone = float(rng.uniform(5.0, 120.0))
+        start = cone if rng.random() < 0.15 else float(rng.uniform(0.0, 0.8 * cone))
+        ell = math.inf if rng.random() < 0.2 else float(rng.uniform(0.5, 6.0))
+        # the ray aimed near the beam, so that most segments cross its band
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        w = p + 2.0 * axis + rng.normal(scale=0.7, size=3) - o
+        totals += check(o, w, ell, p, spot(axis, cone, start), 0.3, 0.2, code, g, name, curve)
+    return totals
+
+
+@pytest.mark.parametrize("curve", OTHER_CURVES)
+@pytest.mark.parametrize("code,g,name", [PHASES[0], PHASES[2]])
+def test_curve_segments_match_the_oracle(curve, code, g, name):
+    """Random segments near the beam (cones 5-120 degrees, some hard-edged, rays to infinity): analytic
+    within 10 x precision, quadrature within 1e-9 of the oracle. glTF bands keep the closed form
+    (trigonometric moments); Mitsuba's bands, not polynomial in the cosine, go to the band quadrature,
+    counted."""
+    st = _random_curve_segments(curve, code, g, name, 8, 11 + code)
+    if curve == "gltf":
+        assert st[A.ST_BANDS] > 0
+    else:
+        assert st[A.ST_BANDS] == 0 and st[A.ST_PIECE_QUAD] > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("curve", OTHER_CURVES)
+@pytest.mark.parametrize("code,g,name", PHASES)
+def test_curve_segments_match_the_oracle_many(curve, code, g, name):
+    """As above, 40 segments for every phase function."""
+    _random_curve_segments(curve, code, g, name, 40, 101 + int(10 * g) + code)
+
+
+CURVE_LIGHT = [0.0, 1.5, -1.0]
+CURVE_PLATE = (0.5, (-0.5, 0.5), (-1.5, -0.5))  # one unit below the light, in its beam: a shadow in the shaft
+
+
+def curve_room(curve, width=8, height=6):
+    """A box room (grey walls, grey HG fog) lit by a spot tilted toward +x, the plate in its beam."""
+    y, (x0, x1), (z0, z1) = CURVE_PLATE
+    s = box_room(camera={"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": width,
+                         "height": height, "spp": 1},
+                 medium={"sigma_a": 0.05, "sigma_s": 0.2, "phase": {"type": "hg", "g": 0.5}},
+                 light=[{"type": "spot", "position": CURVE_LIGHT, "look_at": [1.5, -2.0, -1.5], "intensity": 20.0,
+                         "cone_angle": 60.0, "falloff_start": 20.0, "falloff": curve}])
+    s["shape"][0]["reflectance"] = 0.5
+    s["shape"].append({"primitive": "quad", "corners": [[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]],
+                       "reflectance": 0.0})
+    return s
+
+
+def curve_twin(s, shadows):
+    """The oracle's image of `curve_room`: per pixel centre, the ray to the nearer of the wall and the
+    (black) plate; the wall's diffuse term unless the plate shadows it; the air-light of the spot with
+    its curve, over the plate's lit pieces if `shadows`."""
+    cam, light = s["camera"], s["light"][0]
+    lo, hi = np.array(s["shape"][0]["min"], float), np.array(s["shape"][0]["max"], float)
+    ks = s["medium"]["sigma_s"]
+    kt = ks + s["medium"]["sigma_a"]
+    sp, curve, p = oracle.spot_of(light), light["falloff"], np.array(CURVE_LIGHT)
+    img = np.zeros((cam["height"], cam["width"]))
+    for j in range(cam["height"]):
+        for i in range(cam["width"]):
+            o, d = oracle.camera_ray(cam, i, j)
+            t, n = oracle.box_exit(o, d, lo, hi)
+            tp = oracle.plate_hit(o, d, CURVE_PLATE)
+            if t < tp and not oracle.plate_blocks(o, d, t, p, CURVE_PLATE):
+                to, dist, e, _ = oracle.lamp_at(light, o + t * d)
+                img[j, i] = 0.5 / math.pi * e * math.exp(-kt * (dist + t)) * max(0.0, float(n @ to))
+            img[j, i] += oracle.shadowed_airlight(o, d, min(t, tp), p, 20.0, kt, ks, "hg", 0.5,
+                                                  [CURVE_PLATE] if shadows else [], sp, curve)
+    return img[..., None] * np.ones(3)
+
+
+_TWINS: dict = {}
+
+
+def curve_reference(curve, shadows):
+    if (curve, shadows) not in _TWINS:
+        _TWINS[curve, shadows] = curve_twin(curve_room(curve), shadows)
+    return _TWINS[curve, shadows]
+
+
+def check_curve_room(curve, shadows):
+    """Every method that takes spot lights on `curve_room` against the twin: quadrature within 1e-9,
+    analytic (precision 1e-6) within 10 x its precision, both exactly 0 where the twin is; raymarch
+    and montecarlo (its default and exact-CDF sampling) by their error laws (tests/test_methods.py's
+    statistic)."""
+    import raytrace
+    from raytrace.methods import registry
+
+    from .test_methods import statistic
+
+    ref = curve_reference(curve, shadows)
+    lit = ref > 0
+    assert ref.min() >= 0.0 and lit.mean() > 0.4  # the rest sees no lit fog and no lit wall
+    runs = [("quadrature", {"rtol": 1e-12}), ("analytic", {"precision": PRECISION}),
+            ("raymarch", registry()["raymarch"].error_law.params), ("montecarlo", registry()["montecarlo"].error_law.params),
+            ("montecarlo", {**registry()["montecarlo"].error_law.params, "sampling": "cdf"})]
+    for name, params in runs:
+        img = raytrace.render(curve_room(curve), method=name, threads=1, seed=3, volumetric_shadows=shadows, **params)
+        if name in ("quadrature", "analytic"):
+            rel = np.max(np.abs(img.array - ref)[lit] / ref[lit])
+            assert rel <= (1e-9 if name == "quadrature" else 10 * PRECISION) and np.all(img.array[~lit] == 0.0), name
+            if name == "analytic" and curve != "smoothstep":  # the curve's bands: closed form or counted quadrature
+                assert img.stats["spot_band_pieces" if curve == "gltf" else "spot_pieces_by_quadrature"] > 0
+        else:
+            law = registry()[name].error_law
+            assert statistic(law, img.array, ref, img.variance) <= law.tolerance, (name, params)
+
+
+def test_curve_room_with_the_plate_shadow_in_the_beam():
+    """With volumetric shadows the plate's shadow lies in the shaft (the twin integrates the lit
+    pieces between its analytic boundaries): Mitsuba's curve, whose bands analytic integrates by its
+    band quadrature (the other curves: the slow test below)."""
+    check_curve_room("mitsuba", True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("curve,shadows", [("gltf", True), ("smoothstep", True), ("smoothstep", False),
+                                           ("mitsuba", False), ("gltf", False)])
+def test_curve_room_every_method_against_the_twin(curve, shadows):
+    """The same room for the other curves, and without volumetric shadows (the plate still blocks the
+    view and shadows the walls)."""
+    check_curve_room(curve, shadows)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("curve", OTHER_CURVES)
+def test_curve_room_twin_shows_the_shadow_and_the_curve(curve):
+    """The checks above are not vacuous: the shadow is in view (a tenth of the pixels lose more than
+    10 % of their light) and each curve's image differs from the smoothstep's by more than 5 % somewhere."""
+    ref = curve_reference(curve, True)
+    assert np.mean(ref < 0.9 * curve_reference(curve, False)) > 0.1
+    lit = ref > 0
+    assert np.max(np.abs(ref[lit] / curve_reference("smoothstep", True)[lit] - 1.0)) > 0.05
+
+
+@pytest.mark.parametrize("curve", OTHER_CURVES)
+def test_falloff_key_is_checked(write_scene, tmp_path, capsys, curve):
+    """The key is parsed (its curve reaches the lights) and a wrong name is one line, exit 2."""
+    import raytrace
+
+    assert raytrace.load(box_room(light=[SPOT | {"falloff": curve}])).lights[0].curve == CURVES[curve]
+    assert raytrace.load(box_room(light=[SPOT])).lights[0].curve == SMOOTHSTEP
+    path = write_scene(box_room(light=[SPOT | {"falloff": curve.upper()}]))
+    out = tmp_path / "x.exr"
+    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "light[0].falloff" in err and "smoothstep, mitsuba, gltf" in err, err
+    assert not out.exists()

@@ -585,16 +585,11 @@ class _Writer:
         warnings.warn(f"{self.source}: {key}: {problem}; written as {instead} (--approximate)", GltfNote, stacklevel=4)
 
     def scene(self):
-        """The validated scene (scene/format.py); each light's `falloff` is read from `raw` itself until
-        the parser accepts the key."""
+        """The validated scene (scene/format.py)."""
         from ..scene.format import scene_from_dict
 
-        raw = copy.deepcopy(self.raw)
-        for light in raw.get("light", []):
-            if isinstance(light, dict):
-                light.pop("falloff", None)
         path = Path(self.source)
-        return scene_from_dict(raw, self.source, path if path.is_file() else None)
+        return scene_from_dict(self.raw, self.source, path if path.is_file() else None)
 
     def write(self) -> list[Path]:
         scene = self.scene()

@@ -163,7 +163,7 @@ def _march(fill, origins, dirs, tmax, keys, p, seed, lk, lpos, lint, laxis, lcon
                 f = 1.0
                 if lk[l] == SPOT:
                     f = falloff(-(tx * laxis[l, 0] + ty * laxis[l, 1] + tz * laxis[l, 2]) / dist,
-                                lcone[l, 0], lcone[l, 1])
+                                lcone[l, 0], lcone[l, 1], lcone[l, 2])
                 if f == 0.0:
                     continue
                 if fill:

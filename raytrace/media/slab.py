@@ -38,14 +38,14 @@ import numpy as np
 from numba.extending import overload
 
 from ..jit import njit
-from ..lights import NO_CONE, cone_breaks, falloff
+from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff
 from ..rng import uniform
 from .adaptive import CAPPED, adaptive, claim, rule
 from .phase import phase_value
 
 # eq. 7's and the convex shapes' argument tuples for the adaptive rule (adaptive.py): their lengths
 # tell the rules apart
-EQ7_ARGS = 17
+EQ7_ARGS = 18
 CONVEX_ARGS = 10
 claim(EQ7_ARGS, CONVEX_ARGS)
 # eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
@@ -57,11 +57,12 @@ WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT, REFRACTED = 0, 1, 2, 3, 4
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
-# the spot terms (w_h·A, L_h·A, n·A, cos_end, cos_start) of `refracted_point` for a light without a cone
-NO_SPOT = (0.0, 0.0, 0.0, NO_CONE[0], NO_CONE[1])
+# the spot terms (w_h·A, L_h·A, n·A, cos_end, cos_start, curve) of `refracted_point` for a light without a cone
+NO_SPOT = (0.0, 0.0, 0.0, NO_CONE[0], NO_CONE[1], float(SMOOTHSTEP))
 # geo rows of `inside_radiance`: entry point, direction w, the light's position (or minus a directional
-# light's direction of travel), the spot's axis, its (cos_end, cos_start), the entry face's outward normal
-GEO_COLUMNS = 17
+# light's direction of travel), the spot's axis, its (cos_end, cos_start), the entry face's outward normal,
+# the spot's falloff curve (lights.py)
+GEO_COLUMNS = 18
 
 
 @njit
@@ -211,7 +212,7 @@ def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out)
 
 
 @njit
-def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start):
+def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start, curve):
     """The single-scattering integrand at depth x along an inside segment for a unit point or spot light at
     height hl above a refractive plane (eta = n_inside / n_outside): ks Phi(mu) E exp(-kt (x + k) -
     kt_out o), k and o the path's lengths inside and outside (Fermat's path, `refraction_point`) and E
@@ -221,7 +222,7 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, 
     d2 / d1 = cos1 / (eta cos2); its limit I T / (hl + z / eta)^2 below the light, and I / d^2 for
     eta = 1). The segment's horizontal direction w_h = w + a n and the light's horizontal offset L_h
     from the entry point enter as wl = w_h·L_h and ll = |L_h|^2 (|w_h|^2 = 1 - a^2). A spot light
-    (axis A, cone cos_end, cos_start; NO_SPOT for a point light) emits toward the refraction point R:
+    (axis A, cone cos_end, cos_start, its curve; NO_SPOT for a point light) emits toward the refraction point R:
     the light leaves along ((rho - r) u - hl n) / o, whose cosine to A is
     ((rho - r)(x wa - la) / rho - hl na) / o with wa = w_h·A, la = L_h·A, na = n·A."""
     z = a * x
@@ -243,7 +244,7 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, 
         e = (1.0 - fresnel(1.0, eta)) / (q * q)
         mu = -a
         c = -na
-    f = falloff(c, cos_end, cos_start)
+    f = falloff(c, cos_end, cos_start, curve)
     if f == 0.0:
         return 0.0
     return ks * phase_value(code, g, mu) * e * f * math.exp(-kt * (x + k) - kt_out * o)
@@ -252,7 +253,7 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, 
 @njit
 def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, spot, rtol, stats):
     """Single scattering over [0, ell] for a unit point or spot light (`spot`: refracted_point's
-    (wa, la, na, cos_end, cos_start), NO_SPOT for a point light) through a refractive plane,
+    (wa, la, na, cos_end, cos_start, curve), NO_SPOT for a point light) through a refractive plane,
     adaptive on the pieces between the cone's crossings (`refracted_cuts`); an infinite segment is
     cut where exp(-kt x) underflows."""
     if ks == 0.0 or not ell > 0.0:
@@ -285,7 +286,7 @@ def eq7_value(v, args):
         return ks * g * math.exp(-kt * (v + (z0 + a * v) / hl))
     if mode == REFRACTED:
         return refracted_point(v, xh, h, a, hl, args[0], kt, ks, code, g, kt_out, args[12], args[13], args[14],
-                               args[15], args[16])
+                               args[15], args[16], args[17])
     if mode == NO_FALLOFF:
         x = v
         d = math.sqrt(h * h + (x - xh) * (x - xh))
@@ -440,7 +441,7 @@ def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
     r0, r1, r2 = geo[6] - X0, geo[7] - X1, geo[8] - X2
     d2 = max(r0 * r0 + r1 * r1 + r2 * r2, 1e-250)
     d = math.sqrt(d2)
-    f = falloff(-(r0 * geo[9] + r1 * geo[10] + r2 * geo[11]) / d, geo[12], geo[13])  # leaving the light along -r
+    f = falloff(-(r0 * geo[9] + r1 * geo[10] + r2 * geo[11]) / d, geo[12], geo[13], geo[17])  # leaving the light along -r
     if f == 0.0:
         return 0.0
     k = min(convex_exit(X0, X1, X2, r0 / d, r1 / d, r2 / d, planes), d)
@@ -534,7 +535,7 @@ def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out
         return ks * phase * math.exp(-kt * (x + a * x / b))
     if eta != 1.0:
         return refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot[0], spot[1], spot[2], spot[3],
-                               spot[4])
+                               spot[4], spot[5])
     dx = x - xh
     d2 = max(h * h + dx * dx, 1e-250)
     d = math.sqrt(d2)
@@ -573,7 +574,7 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
             wa = geo[s, 3] * geo[s, 9] + geo[s, 4] * geo[s, 10] + geo[s, 5] * geo[s, 11] + a[s] * na
             la = ((geo[s, 6] - geo[s, 0]) * geo[s, 9] + (geo[s, 7] - geo[s, 1]) * geo[s, 10]
                   + (geo[s, 8] - geo[s, 2]) * geo[s, 11] - hl[s] * na)
-            spot = (wa, la, na, geo[s, 12], geo[s, 13])
+            spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
                 out[s] = convex_quadrature(geo[s], planes, distant[s], ell[s], kt, ks, code, g, kt_out, ph, rtol, stats)

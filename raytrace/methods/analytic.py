@@ -42,7 +42,7 @@ from ..jit import njit
 from . import ErrorLaw, Method, Param
 from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
-from ..lights import falloff, segment_cone, smoothstep_trig
+from ..lights import band_slope, band_trig, falloff, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
@@ -103,7 +103,7 @@ B_VLO, B_VHI, B_HMAX, B_RATIO, B_LOSS = 0, 1, 2, 3, 4
 B_HMAX_BAND = B_LOSS + LOSS_TABLE
 B_LOSS_BAND = B_HMAX_BAND + 1
 B_C = B_LOSS_BAND + LOSS_TABLE
-BAND_ORDER = 3  # the smoothstep is a cubic in the cosine to the spot axis: a degree-3 trig polynomial
+BAND_ORDER = 3  # a polynomial band is at most cubic in the cosine to the spot axis: a degree-3 trig polynomial
 # a band of a phase series longer than this is first tried by one Gauss-Legendre step (`_gauss_piece`):
 # the series times the band's cubic cancels (HG g = 0.9 at 1e-6: 224 terms, the closed form met its
 # bound on 10% of a box room's bands), and 30 integrand values cost less than 2 L + 7 L operations
@@ -204,17 +204,17 @@ def _spot_nearline(xh, h, dmin, cone, precision):
     """The spot falloff for the near-line limit (`_nearline`): on a segment within h/D of the line
     through the light the cosine to the axis is within dc = h / D of +-B (B ahead of the light,
     -B behind it); returns (factor, ok), ok if the falloff's variation over that range (slope at most
-    1.5 / (cos_start - cos_end)) is within the precision, or the range lies wholly outside the cone
-    or inside its core."""
+    `lights.band_slope` / (cos_start - cos_end)) is within the precision, or the range lies wholly
+    outside the cone or inside its core."""
     c0 = cone[1] if xh < 0.0 else -cone[1]
     dc = h / dmin
     if c0 + dc <= cone[2]:
         return 0.0, True
     if c0 - dc >= cone[3]:
         return 1.0, True
-    f = falloff(c0, cone[2], cone[3])
+    f = falloff(c0, cone[2], cone[3], cone[4])
     band = cone[3] - cone[2]
-    return f, band > 0.0 and 1.5 * dc <= SERIES_SAFETY * precision * f * band
+    return f, band > 0.0 and band_slope(cone[2], cone[3], cone[4]) * dc <= SERIES_SAFETY * precision * f * band
 
 
 @njit
@@ -223,7 +223,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
     Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
     the Taylor mode's PP-19 sum approximates it),
-    F = 1, or a spot's smoothstep band if `band` (docs/spot_lights.md); err bounds the band's
+    F = 1, or a spot's polynomial band if `band` (smoothstep or gltf, docs/spot_lights.md); err bounds the band's
     rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature).
     `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
@@ -243,7 +243,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         stats[ST_BANDS] += 1.0
         a = work[:BAND_ORDER + 1]
         b = work[BAND_ORDER + 1:2 * BAND_ORDER + 2]
-        smoothstep_trig(cone[0], cone[1], cone[2], cone[3], a, b)
+        band_trig(cone[0], cone[1], cone[2], cone[3], cone[4], a, b)
         c = block[B_C:]
         m = c.shape[0] + BAND_ORDER
         gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
@@ -394,6 +394,9 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     n = segment_cone(cone[0], cone[1], cone[2], cone[3], va, vb, pieces)
     for i in range(n):
         if pieces[i, 2] == 0.0:
+            continue
+        if pieces[i, 2] == 2.0 and not polynomial_band(cone[4]):
+            errs[i] = math.inf  # a band without a closed form (Mitsuba's curve): the band quadrature below
             continue
         v1, v2 = pieces[i, 0], pieces[i, 1]
         if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2, H, B_HMAX_BAND).shape[0] - B_C > BAND_GAUSS_FIRST:

@@ -16,13 +16,13 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..lights import DIRECTIONAL, NO_CONE, falloff
+from ..lights import DIRECTIONAL, NO_CONE, SMOOTHSTEP, falloff
 from ..media.atmosphere import ROW, segment_rows
 from ..media.fog import above_top, attenuated_density, column
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
-POINT_ROW = np.array([0.0, 0.0, *NO_CONE])  # the cone row of a point light (`segment_light_table`)
+POINT_ROW = np.array([0.0, 0.0, *NO_CONE, SMOOTHSTEP])  # the cone row of a point light (`segment_light_table`)
 
 
 @njit
@@ -45,17 +45,18 @@ def ray_light(ox, oy, oz, wx, wy, wz, px, py, pz, scale):
 @njit
 def segment_light_table(origins, dirs, lpos, laxis, lcone, light, scale):
     """(x_h, h, d_a) of every segment's light from the segment's start, each (S,), and the cone row
-    (S, 4) = (A, B, cos_end, cos_start) of lights.py: A = n·a from h A = (r x w)·(w x a) (r = p - o,
-    exact to rounding even for a light near the line), B = w·a; (0, 0, NO_CONE) for point lights."""
+    (S, 5) = (A, B, cos_end, cos_start, curve) of lights.py (`lcone`: `Lights.cone`): A = n·a from
+    h A = (r x w)·(w x a) (r = p - o, exact to rounding even for a light near the line), B = w·a;
+    (0, 0, NO_CONE, its curve) for point lights."""
     n = origins.shape[0]
     xh, h, da = np.empty(n), np.empty(n), np.empty(n)
-    cone = np.empty((n, 4))
+    cone = np.empty((n, 5))
     for s in range(n):
         li = light[s]
         ox, oy, oz = origins[s, 0], origins[s, 1], origins[s, 2]
         wx, wy, wz = dirs[s, 0], dirs[s, 1], dirs[s, 2]
         xh[s], h[s], da[s] = ray_light(ox, oy, oz, wx, wy, wz, lpos[li, 0], lpos[li, 1], lpos[li, 2], scale)
-        cone[s, 2], cone[s, 3] = lcone[li, 0], lcone[li, 1]
+        cone[s, 2], cone[s, 3], cone[s, 4] = lcone[li, 0], lcone[li, 1], lcone[li, 2]
         cone[s, 0] = cone[s, 1] = 0.0
         if lcone[li, 1] > -1.0:
             ax, ay, az = laxis[li, 0], laxis[li, 1], laxis[li, 2]
@@ -68,7 +69,7 @@ def segment_light_table(origins, dirs, lpos, laxis, lcone, light, scale):
 
 
 def segment_geometry(segs, lights):
-    """(x_h, h, d_a) arrays (S,) of a `Segments` batch and its lights, and their cone rows (S, 4)."""
+    """(x_h, h, d_a) arrays (S,) of a `Segments` batch and its lights, and their cone rows (S, 5)."""
     return segment_light_table(segs.origins, segs.dirs, lights.position, lights.axis, lights.cone, segs.light,
                                segs.scale)
 
@@ -88,7 +89,7 @@ def spot_factor(dx, d, h, cone):
     with cone row `cone`: the cosine to its axis is (h A + dx B) / d; 1 for point lights."""
     if cone[3] <= -1.0:
         return 1.0
-    return falloff((h * cone[0] + dx * cone[1]) / d, cone[2], cone[3])
+    return falloff((h * cone[0] + dx * cone[1]) / d, cone[2], cone[3], cone[4])
 
 
 @njit

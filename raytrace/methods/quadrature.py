@@ -54,7 +54,7 @@ def _integrand(piece, s, xh, h, kt, code, g, cone):
         one_minus, one_plus = 2.0 / (1.0 + t2), 2.0 * t2 / (1.0 + t2)
     f = 1.0
     if cone[3] > -1.0:  # spot: cosine to the axis A sin(phi) - B cos(phi), sin(phi) = sin(psi) = 2t / (1 + t^2)
-        f = falloff(cone[0] * 2.0 * t / (1.0 + t2) - cone[1] * mu, cone[2], cone[3])
+        f = falloff(cone[0] * 2.0 * t / (1.0 + t2) - cone[1] * mu, cone[2], cone[3], cone[4])
     return f * math.exp(-kt * path) * phase_split(code, g, mu, one_minus, one_plus)
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from ..lights import DIRECTIONAL, SPOT, Light
+from ..lights import CURVES, DIRECTIONAL, SPOT, Light
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -266,7 +266,8 @@ def _interior(ctx, key, raw):
 
 
 LIGHT_KEYS = {"point": {"type", "position", "intensity"},
-              "spot": {"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start"},
+              "spot": {"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start",
+                       "falloff"},
               "directional": {"type", "direction", "irradiance"}}
 
 
@@ -311,8 +312,9 @@ def _directional(ctx, key, raw):
 
 
 def _spot(ctx, key, raw, pos, intensity):
-    """A spot light (pbrt-v4 SpotLight): its axis from look_at or direction, cone and falloff angles
-    in degrees (0 <= falloff_start <= cone_angle < 180; pbrt-v4's defaults: 30 and 25)."""
+    """A spot light: its axis from look_at or direction, cone and falloff angles in degrees
+    (0 <= falloff_start <= cone_angle < 180; pbrt-v4's defaults: 30 and 25) and the falloff curve
+    between them (lights.CURVES; default pbrt-v4's smoothstep)."""
     if ("look_at" in raw) == ("direction" in raw):
         ctx.fail(key, "a spot light needs exactly one of look_at or direction",
                  "write look_at = [x, y, z] (a point on the axis) or direction = [x, y, z]")
@@ -333,7 +335,9 @@ def _spot(ctx, key, raw, pos, intensity):
     if not 0.0 <= start <= cone:
         ctx.fail(f"{key}.falloff_start", f"must be in [0, cone_angle = {cone:g}] degrees, got {start!r}",
                  "use a value at most cone_angle (equal: a hard edge)")
-    return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)))
+    curve = CURVES[_string(ctx, f"{key}.falloff", raw.get("falloff", "smoothstep"), tuple(CURVES))]
+    return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)),
+                 curve)
 
 
 class _Reader:
