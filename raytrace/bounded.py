@@ -9,8 +9,8 @@ plane of the entry face (the seed's planar boundary): a directional light refrac
 (Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point); a
 spot light as a point light times its falloff on the direction in which the light leaves it. In
 index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
-to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
-one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
+to the boundary of a convex shape (`convex_planes`, numba, when it has few faces; Embree's batched
+exits when it has many) or through every crossing of a non-convex one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
 behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is shaded there
 (`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`). A camera
 inside an index-matched medium starts its rays' first stretch there (`from_inside`).
@@ -35,12 +35,16 @@ from .media.slab import (APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREA
                          transmittances)
 from .methods.geometry import segment_light_table
 from .methods.quadrature import CAPPED
+from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
 
 MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
 TRACED = ("quadrature", "raymarch", "montecarlo")  # the methods that follow the light's exact straight path
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
+# face planes of a convex shape up to which media/slab.py's kernel (every plane at every evaluation) is
+# used; beyond, Embree's batched exits are faster (equal at ~120 planes: benchmarks/interiors_scale.py)
+KERNEL_PLANES = 64
 
 
 def interiors(scene) -> list:
@@ -134,24 +138,25 @@ def inside_of(prep, o, inner) -> int | None:
     return None
 
 
-def convex_planes(prep, sid):
-    """The face planes (P, 4: outward unit normal, offset) of shape `sid` if it is convex and
-    index-matched, else an empty (0, 4) array; cached on `prep`."""
+def hull_planes(prep, sid):
+    """The face planes (P, 4) of shape sid if it is convex and index-matched (scene/meshes.py
+    convex_planes), else None; cached on `prep` (inside_paths.py reads the cache)."""
     cache = prep.interior_planes
     if sid not in cache:
-        cache[sid] = np.zeros((0, 4))
+        cache[sid] = None
         if prep.scene.shapes[sid].interior.ior == 1.0:
-            tris = prep.accel.triangles[prep.shape_ids == sid]
-            pts = tris.reshape(-1, 3)
-            n = prep.accel.normals[prep.shape_ids == sid]
-            n = n * np.where(np.einsum("ij,ij->i", n, pts.mean(axis=0) - tris[:, 0]) > 0.0, -1.0, 1.0)[:, None]
-            c = np.einsum("ij,ij->i", n, tris[:, 0])
-            size = float(np.max(np.abs(pts))) or 1.0
-            planes = np.unique(np.round(np.column_stack([n, c / size]), 12), axis=0)
-            planes[:, 3] *= size
-            if np.max(pts @ planes[:, :3].T - planes[:, 3]) <= 1e-9 * size:  # every vertex inside every plane
-                cache[sid] = np.ascontiguousarray(planes)
+            sel = prep.shape_ids == sid
+            cache[sid] = hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
     return cache[sid]
+
+
+def convex_planes(prep, sid):
+    """The face planes (P, 4: outward unit normal, offset) of shape `sid` for media/slab.py's convex
+    kernel, which tests every plane at every integrand evaluation: those of a convex index-matched
+    shape with at most KERNEL_PLANES of them, else an empty (0, 4) array (then the light's paths are
+    measured with Embree, inside_paths.py: batched exits for convex shapes, walks for others)."""
+    planes = hull_planes(prep, sid)
+    return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
 
 
 def warm_up_rays(prep, origins, dirs):
