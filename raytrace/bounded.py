@@ -234,6 +234,49 @@ def _plane_distance(accel, points, dirs, prim):
     return out
 
 
+def _parts(prep):
+    """Embree scenes of the interiors' boundaries and of the opaque surfaces apart (built once)."""
+    inner = np.isin(prep.shape_ids, prep.interior_shapes)
+    return [prep.accel.subset(key, lambda m=mask: np.nonzero(m)[0])
+            for key, mask in (("interior boundaries", inner), ("opaque surfaces", ~inner))]
+
+
+def _met_at_once(prep, q, w, cos, touch):
+    """The opaque triangle (or -1) a ray leaving a shape at q along w (cosine `cos` to the exit
+    face) meets within the step `_leave` would skip, and where: `touch` (`_inside_hits`: a
+    surface touching the exit face, met at q) or the first opaque surface from q itself (the
+    interior's own faces are not in that scene), such as a floor beside the foot of a block that the
+    ray leaves through a side face just above it."""
+    opaque = _parts(prep)[1]
+    t, k = opaque.first_hit(q, w)
+    k[k >= 0] = opaque.ids[k[k >= 0]]
+    near = (touch < 0) & (k >= 0) & (t <= prep.accel.epsilon / np.maximum(cos, 1e-2))
+    return np.where(near, k, touch), q + np.where(near, t, 0.0)[:, None] * w
+
+
+def _inside_hits(prep, p, w, cos):
+    """What rays entering a shape at p along w (cosine `cos` to the entry face) meet first inside:
+    (distance from p, triangle, the triangle of an opaque surface touching the boundary crossed, or
+    -1). The interiors' boundaries and the opaque surfaces are asked of separate Embree scenes and
+    their hits measured from p in float64 (`_plane_distance`), so which of two coincident faces
+    Embree's float32 reports first does not matter: a surface is inside the medium only if it comes
+    more than accel.epsilon / cos (the step `_leave` takes) before the boundary; one within that of
+    it, on either side, touches the boundary (a block standing on a floor), and the ray leaves the
+    medium and meets it at once, the limit of a small gap."""
+    accel = prep.accel
+    start = _nudge(accel, p, w, cos)
+    hits = []
+    for part in _parts(prep):
+        _, k = part.first_hit(start, w)
+        k[k >= 0] = part.ids[k[k >= 0]]
+        hits.append((_plane_distance(accel, p, w, k), k))
+    (tb, kb), (to, ko) = hits
+    tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.normals[np.maximum(ko, 0)], w)), 1e-2)
+    wall = (ko >= 0) & (to < tb - tol)
+    touch = np.where(~wall & (ko >= 0) & (kb >= 0) & (to <= tb + tol), ko, -1)
+    return np.where(wall, to, tb), np.where(wall, ko, kb), touch
+
+
 def _refract(d, n, eta):
     out, cos_t = np.empty_like(d), np.empty(len(d))
     refract_rays(np.ascontiguousarray(d), np.ascontiguousarray(n), float(eta), out, cos_t)
@@ -419,8 +462,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         d, nf, p = dirs[sel], normals[sel], points[sel]
         w, cos_t = _refract(d, nf, eta)
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
-        _, prim2 = accel.first_hit(_nudge(accel, p, w, cos_t), w)
-        ell = _plane_distance(accel, p, w, prim2)
+        ell, prim2, touch = _inside_hits(prep, p, w, cos_t)
         inner, inner_var = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel], seed, depth)
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)
@@ -432,6 +474,16 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
             start, gap = _leave(prep, q, w_out, cos_o)
             seen, seen_var = shade(start, w_out, keys[sel][exits], depth + 1)
+            on, at = _met_at_once(prep, q, w_out, cos_o, touch[exits])
+            rest = np.nonzero(on >= 0)[0]
+            if len(rest):
+                on = on[rest]
+                seen[rest] = surface_radiance(accel, at[rest], facing_normals(accel.normals[on], w_out[rest]),
+                                              prep.reflectance[on], prep.lights, prep.scene.medium,
+                                              shadow_through(prep))
+                gap[rest] = 1.0
+                if seen_var is not None:
+                    seen_var[rest] = 0.0
             kt = medium.sigma_t[None, :]
             with np.errstate(over="ignore", invalid="ignore"):
                 tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
