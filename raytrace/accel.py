@@ -59,6 +59,12 @@ class Accelerator:
         self.scale = (float(np.max(np.abs(pts))) if len(pts) else 0.0) or 1.0
         self.epsilon = 1e-5 * max(self.scale, 1e-6)
         self.unit = 1.0 if 1.0 / UNIT_RANGE <= self.scale <= UNIT_RANGE else 2.0 ** round(math.log2(self.scale))
+        self.ids = np.arange(len(self.triangles))  # each triangle's index in the scene (`subset`)
+        self._subsets: dict = {}
+        self._lock = threading.Lock()
+        self._build()
+
+    def _build(self):
         self._scene = None
         if len(self.triangles):
             from embreex import rtcore_scene
@@ -66,6 +72,22 @@ class Accelerator:
 
             self._scene = rtcore_scene.EmbreeScene(_device(), robust=True)
             TriangleMesh(self._scene, self._to_embree(self.triangles))
+
+    def subset(self, key, keep) -> Accelerator:
+        """An accelerator over the triangles `keep()` (indices into this one's), built once per `key`,
+        with this one's scale, epsilon and unit: the same float32 crossing and float64 refinement;
+        its triangle indices map back through its `ids`. Used to query some shapes without the
+        others (an interior's own boundary; the opaque surfaces apart from the interiors)."""
+        with self._lock:
+            if key not in self._subsets:
+                part = object.__new__(Accelerator)
+                part.__dict__.update(self.__dict__)
+                part.ids = np.asarray(keep(), dtype=np.int64)
+                part.triangles, part.normals = self.triangles[part.ids], self.normals[part.ids]
+                part._subsets, part._lock = {}, threading.Lock()
+                part._build()
+                self._subsets[key] = part
+            return self._subsets[key]
 
     def _to_embree(self, a):
         """Coordinates or distances as Embree sees them: float32, in units of `unit`."""

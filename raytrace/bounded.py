@@ -9,8 +9,8 @@ plane of the entry face (the seed's planar boundary): a directional light refrac
 (Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point); a
 spot light as a point light times its falloff on the direction in which the light leaves it. In
 index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
-to the boundary of a convex shape (`convex_planes`, numba) or through every crossing of a non-convex
-one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
+to the boundary of a convex shape (`convex_planes`, numba, when it has few faces; Embree's batched
+exits when it has many) or through every crossing of a non-convex one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
 behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is shaded there
 (`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`). A camera
 inside an index-matched medium starts its rays' first stretch there (`from_inside`).
@@ -35,12 +35,16 @@ from .media.slab import (APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREA
                          transmittances)
 from .methods.geometry import segment_light_table
 from .methods.quadrature import CAPPED
+from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
 
 MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
 TRACED = ("quadrature", "raymarch", "montecarlo")  # the methods that follow the light's exact straight path
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
+# face planes of a convex shape up to which media/slab.py's kernel (every plane at every evaluation) is
+# used; beyond, Embree's batched exits are faster (equal at ~120 planes: benchmarks/interiors_scale.py)
+KERNEL_PLANES = 64
 
 
 def interiors(scene) -> list:
@@ -134,24 +138,25 @@ def inside_of(prep, o, inner) -> int | None:
     return None
 
 
-def convex_planes(prep, sid):
-    """The face planes (P, 4: outward unit normal, offset) of shape `sid` if it is convex and
-    index-matched, else an empty (0, 4) array; cached on `prep`."""
+def hull_planes(prep, sid):
+    """The face planes (P, 4) of shape sid if it is convex and index-matched (scene/meshes.py
+    convex_planes), else None; cached on `prep` (inside_paths.py reads the cache)."""
     cache = prep.interior_planes
     if sid not in cache:
-        cache[sid] = np.zeros((0, 4))
+        cache[sid] = None
         if prep.scene.shapes[sid].interior.ior == 1.0:
-            tris = prep.accel.triangles[prep.shape_ids == sid]
-            pts = tris.reshape(-1, 3)
-            n = prep.accel.normals[prep.shape_ids == sid]
-            n = n * np.where(np.einsum("ij,ij->i", n, pts.mean(axis=0) - tris[:, 0]) > 0.0, -1.0, 1.0)[:, None]
-            c = np.einsum("ij,ij->i", n, tris[:, 0])
-            size = float(np.max(np.abs(pts))) or 1.0
-            planes = np.unique(np.round(np.column_stack([n, c / size]), 12), axis=0)
-            planes[:, 3] *= size
-            if np.max(pts @ planes[:, :3].T - planes[:, 3]) <= 1e-9 * size:  # every vertex inside every plane
-                cache[sid] = np.ascontiguousarray(planes)
+            sel = prep.shape_ids == sid
+            cache[sid] = hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
     return cache[sid]
+
+
+def convex_planes(prep, sid):
+    """The face planes (P, 4: outward unit normal, offset) of shape `sid` for media/slab.py's convex
+    kernel, which tests every plane at every integrand evaluation: those of a convex index-matched
+    shape with at most KERNEL_PLANES of them, else an empty (0, 4) array (then the light's paths are
+    measured with Embree, inside_paths.py: batched exits for convex shapes, walks for others)."""
+    planes = hull_planes(prep, sid)
+    return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
 
 
 def warm_up_rays(prep, origins, dirs):
@@ -227,6 +232,49 @@ def _plane_distance(accel, points, dirs, prim):
         t = np.einsum("ij,ij->i", accel.triangles[prim[ok], 0] - points[ok], n) / np.einsum("ij,ij->i", dirs[ok], n)
     out[ok] = np.where(np.isfinite(t) & (t > 0.0), t, 0.0)
     return out
+
+
+def _parts(prep):
+    """Embree scenes of the interiors' boundaries and of the opaque surfaces apart (built once)."""
+    inner = np.isin(prep.shape_ids, prep.interior_shapes)
+    return [prep.accel.subset(key, lambda m=mask: np.nonzero(m)[0])
+            for key, mask in (("interior boundaries", inner), ("opaque surfaces", ~inner))]
+
+
+def _met_at_once(prep, q, w, cos, touch):
+    """The opaque triangle (or -1) a ray leaving a shape at q along w (cosine `cos` to the exit
+    face) meets within the step `_leave` would skip, and where: `touch` (`_inside_hits`: a
+    surface touching the exit face, met at q) or the first opaque surface from q itself (the
+    interior's own faces are not in that scene), such as a floor beside the foot of a block that the
+    ray leaves through a side face just above it."""
+    opaque = _parts(prep)[1]
+    t, k = opaque.first_hit(q, w)
+    k[k >= 0] = opaque.ids[k[k >= 0]]
+    near = (touch < 0) & (k >= 0) & (t <= prep.accel.epsilon / np.maximum(cos, 1e-2))
+    return np.where(near, k, touch), q + np.where(near, t, 0.0)[:, None] * w
+
+
+def _inside_hits(prep, p, w, cos):
+    """What rays entering a shape at p along w (cosine `cos` to the entry face) meet first inside:
+    (distance from p, triangle, the triangle of an opaque surface touching the boundary crossed, or
+    -1). The interiors' boundaries and the opaque surfaces are asked of separate Embree scenes and
+    their hits measured from p in float64 (`_plane_distance`), so which of two coincident faces
+    Embree's float32 reports first does not matter: a surface is inside the medium only if it comes
+    more than accel.epsilon / cos (the step `_leave` takes) before the boundary; one within that of
+    it, on either side, touches the boundary (a block standing on a floor), and the ray leaves the
+    medium and meets it at once, the limit of a small gap."""
+    accel = prep.accel
+    start = _nudge(accel, p, w, cos)
+    hits = []
+    for part in _parts(prep):
+        _, k = part.first_hit(start, w)
+        k[k >= 0] = part.ids[k[k >= 0]]
+        hits.append((_plane_distance(accel, p, w, k), k))
+    (tb, kb), (to, ko) = hits
+    tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.normals[np.maximum(ko, 0)], w)), 1e-2)
+    wall = (ko >= 0) & (to < tb - tol)
+    touch = np.where(~wall & (ko >= 0) & (kb >= 0) & (to <= tb + tol), ko, -1)
+    return np.where(wall, to, tb), np.where(wall, ko, kb), touch
 
 
 def _refract(d, n, eta):
@@ -415,8 +463,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         d, nf, p = dirs[sel], normals[sel], points[sel]
         w, cos_t = _refract(d, nf, eta)
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
-        _, prim2 = accel.first_hit(_nudge(accel, p, w, cos_t), w)
-        ell = _plane_distance(accel, p, w, prim2)
+        ell, prim2, touch = _inside_hits(prep, p, w, cos_t)
         inner, inner_var = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel], seed, depth)
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)
@@ -428,6 +475,16 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
             start, gap = _leave(prep, q, w_out, cos_o)
             seen, seen_var = shade(start, w_out, keys[sel][exits], depth + 1)
+            on, at = _met_at_once(prep, q, w_out, cos_o, touch[exits])
+            rest = np.nonzero(on >= 0)[0]
+            if len(rest):
+                on = on[rest]
+                seen[rest] = surface_radiance(accel, at[rest], facing_normals(accel.normals[on], w_out[rest]),
+                                              prep.reflectance[on], prep.lights, prep.scene.medium,
+                                              shadow_through(prep))
+                gap[rest] = 1.0
+                if seen_var is not None:
+                    seen_var[rest] = 0.0
             kt = medium.sigma_t[None, :]
             with np.errstate(over="ignore", invalid="ignore"):
                 tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))

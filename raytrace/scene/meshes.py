@@ -152,6 +152,31 @@ def boundary_edges(tris: np.ndarray) -> int:
     return int(np.sum(counts % 2))
 
 
+def convex_planes(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9) -> np.ndarray | None:
+    """The distinct face planes (P, 4: outward unit normal, offset) of a closed triangle soup (unit
+    `normals`, either orientation) if it bounds a convex solid, else None. Convex means every
+    triangle's plane, turned away from the vertices' mean, supports the vertex set: then it is the
+    plane of a facet of their convex hull (Qhull through scipy.spatial.ConvexHull), found by a k-d
+    tree on (normal, offset / size) to `tol`: time O(T log T) and memory linear in T."""
+    from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+    pts = tris.reshape(-1, 3)
+    size = float(np.max(np.abs(pts))) or 1.0
+    centre = pts.mean(axis=0)
+    n = normals * np.where(np.einsum("ij,ij->i", normals, centre - tris[:, 0]) > 0.0, -1.0, 1.0)[:, None]
+    faces = np.column_stack([n, np.einsum("ij,ij->i", n, tris[:, 0]) / size])
+    try:
+        hull = ConvexHull(np.unique(pts, axis=0))
+    except (QhullError, ValueError):  # flat or too few points: no solid
+        return None
+    facets = np.column_stack([hull.equations[:, :3], -hull.equations[:, 3] / size])
+    if np.max(cKDTree(facets).query(faces, distance_upper_bound=2.0 * tol)[0]) > tol:
+        return None
+    planes = np.unique(np.round(faces, 12), axis=0)
+    planes[:, 3] *= size
+    return np.ascontiguousarray(planes)
+
+
 def scene_triangles(scene: Scene, shape_ids: bool = False):
     """All triangles (T, 3, 3) and reflectances (T, 3) of the scene, in float64 world space; with
     `shape_ids` also each triangle's shape index (T,). A shape holding an interior medium must be

@@ -1,0 +1,95 @@
+"""Media inside finely tessellated shapes: load and render time and peak memory against triangle count.
+
+    python benchmarks/interiors_scale.py [--segments 32 100 320] [--width 12 --height 8]
+
+A sphere primitive of radius 1 holding a scattering medium, 2 x segments x (segments / 2 - 1)
+triangles (32, 100, 320 segments: about 1k, 10k and 100k), a point light beside it, the camera
+outside in a thin absorbing medium, one thread. `load` is `renderer.prepare` plus the convexity
+check of the interior (scene/meshes.py convex_planes, Qhull and a k-d tree) with its peak of traced
+allocations (tracemalloc: numpy's arrays included); `render` is the timed part of `renderer.render`
+(compilation excluded) for `quadrature` (adaptive to its rtol, so its evaluations grow with the
+kinks of the integrand, one wherever the light path's exit crosses a face edge), `raymarch` (64
+steps) and `montecarlo` (64 samples), whose evaluations are fixed; `evals` counts the light-path
+exits queried (Embree, batched). The last column is the peak resident memory of the process.
+"""
+import argparse
+import resource
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from raytrace import bounded, inside_paths  # noqa: E402
+from raytrace.options import RenderOptions  # noqa: E402
+from raytrace.renderer import prepare, render  # noqa: E402
+from raytrace.scene.format import scene_from_text  # noqa: E402
+
+SCENE = """
+[camera]
+position = [0.0, 0.5, 3.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40.0
+width = {width}
+height = {height}
+spp = 1
+[medium]
+sigma_a = 0.02
+[[shape]]
+primitive = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+segments = {segments}
+[shape.interior]
+sigma_a = [0.3, 0.2, 0.1]
+sigma_s = [0.5, 0.4, 0.3]
+[[light]]
+type = "point"
+position = [2.0, 2.0, 1.0]
+intensity = 5.0
+"""
+METHODS = {"quadrature": {}, "raymarch": {"steps": 64}, "montecarlo": {"samples": 64}}
+
+
+def counted_exits():
+    """Wrap inside_paths.convex_exits to count the points it is asked for."""
+    count = [0]
+    exits = inside_paths.convex_exits
+
+    def wrapped(prep, sid, points, dirs, dist):
+        count[0] += len(points)
+        return exits(prep, sid, points, dirs, dist)
+    inside_paths.convex_exits = wrapped
+    return count
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--segments", type=int, nargs="+", default=[32, 100, 320])
+    ap.add_argument("--width", type=int, default=12)
+    ap.add_argument("--height", type=int, default=8)
+    args = ap.parse_args()
+    count = counted_exits()
+    print("| triangles | load s | load peak MB | convex | method | render s | evals |")
+    print("|---:|---:|---:|---|---|---:|---:|")
+    for seg in args.segments:
+        text = SCENE.format(width=args.width, height=args.height, segments=seg)
+        tracemalloc.start()
+        t0 = time.perf_counter()
+        prep = prepare(scene_from_text(text, "interiors_scale"))
+        convex = bounded.hull_planes(prep, 0) is not None
+        load = time.perf_counter() - t0
+        peak = tracemalloc.get_traced_memory()[1] / 2**20
+        tracemalloc.stop()
+        kernel = "kernel" if len(bounded.convex_planes(prep, 0)) else "Embree"
+        for name, params in METHODS.items():
+            count[0] = 0
+            r = render(prep, name, params, RenderOptions(threads=1))
+            print(f"| {len(prep.accel.triangles)} | {load:.2f} | {peak:.0f} | {convex} ({kernel}) | {name} | "
+                  f"{r.seconds:.3f} | {count[0]} |", flush=True)
+    print(f"peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+
+
+if __name__ == "__main__":
+    main()
