@@ -1,10 +1,11 @@
-"""Media inside shapes (seed 002): camera rays that enter a shape holding an `interior` medium.
+"""Media inside shapes (after the analytic note on single scattering in homogeneous slabs): camera rays
+that enter a shape holding an `interior` medium.
 
 The renderer (`renderer.shade_rays`) hands over the rays whose first hit is such a shape, from
 outside. Here each ray is refracted into the shape (Snell, smooth dielectric; straight when
 ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
 segment gets the single scattering of every light (media/slab.py), the light entering through the
-plane of the entry face (the seed's planar boundary): a directional light refracted through it
+plane of the entry face (the note's planar boundary): a directional light refracted through it
 (eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
 (Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point); a
 spot light as a point light times its falloff on the direction in which the light leaves it. In
@@ -19,7 +20,7 @@ Radiance crossing into a denser medium is multiplied by T eta^2 and back out by 
 the path (no reflected paths in this first cut).
 
 Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
-`slab_approx` (eq. 5 and the seed's separable approximation for point lights, not spots), `raymarch` (its
+`slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
 and `sun` are refused for scenes with interiors, in one line.
@@ -76,10 +77,12 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
                         f"media ({key}) yet; use --steps")
     if method.name == "analytic" and near:
         raise UserError(f"{source}: --method analytic: a point light into a bounded medium ({key}) has no closed form "
-                        "(seed 002 eq. 7); use --method quadrature, or slab_approx for the seed's approximation")
+                        "(eq. 7 of the analytic note on single scattering in homogeneous slabs); use --method "
+                        "quadrature, or slab_approx for its separable approximation")
     if method.name == "slab_approx" and "spot" in kinds:
-        raise UserError(f"{source}: --method slab_approx: the seed's approximation is for point lights, not spot "
-                        f"lights into a bounded medium ({key}); use --method quadrature, raymarch or montecarlo")
+        raise UserError(f"{source}: --method slab_approx: the slab note's separable approximation is for point lights, "
+                        f"not spot lights into a bounded medium ({key}); use --method quadrature, raymarch or "
+                        "montecarlo")
     medium = prep.scene.medium
     if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
@@ -90,8 +93,8 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
     for i in inner:
         m = prep.scene.shapes[i].interior
         if m.ior != 1.0 and near and method.name == "slab_approx":
-            raise UserError(f"{source}: shape[{i}].interior.ior: the seed's approximation is for index-matched "
-                            "boundaries with point lights; use ior = 1, or --method quadrature")
+            raise UserError(f"{source}: shape[{i}].interior.ior: the slab note's separable approximation is for "
+                            "index-matched boundaries with point lights; use ior = 1, or --method quadrature")
     if near:
         for i in inner:
             if prep.scene.shapes[i].interior.ior == 1.0:
@@ -294,7 +297,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     summed over the lights, for the interior `medium` with outward entry normals `normals`, and its
     variance (N, 3) (0 but for montecarlo). In an index-matched shape the light's path inside is its
     exact straight path (convex: `convex_planes`; else traced, `_traced`), except for analytic's
-    eq. 5 and slab_approx, which keep the seed's entry plane."""
+    eq. 5 and slab_approx, which keep the note's entry plane."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
@@ -382,7 +385,7 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
     """Radiance (M, 3) toward the entry points p (outward entry normals n) from the surface points
     q = p + ell w (triangles prim) inside the medium, times exp(-sigma_t ell) along the camera's path.
     Index-matched: the surface term, whose shadow rays leave through the medium with the interior's
-    transmittance (`shadow_through`). Refractive: the seed's planar boundary, the entry face's plane,
+    transmittance (`shadow_through`). Refractive: the note's planar boundary, the entry face's plane,
     for directional lights (point lights are refused by `check`): the beam refracted into t through
     it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
     k = depth / cos_t; an opaque surface on that path shadows (the shape's own boundary does not:
