@@ -77,9 +77,9 @@ class LightBins:
 
 
 def default_resolution(n_triangles: int) -> int:
-    """Texels per cube-face edge (per grid edge for directional lights): about one triangle per
-    texel of a face, between 32 and 512."""
-    return int(min(512, max(32, 2 ** round(math.log2(max(n_triangles, 1) ** 0.5)))))
+    """Texels per cube-face edge (per grid edge for directional lights): a power of two near
+    sqrt(triangles) / 4, between 16 and 256 (measured on Sibenik: 64 for its 75,000 triangles)."""
+    return int(min(256, max(16, 2 ** round(math.log2(max(n_triangles, 1) ** 0.5 / 4.0)))))
 
 
 def build(accel, lights, resolution: int | None = None) -> list[LightBins]:
@@ -242,18 +242,18 @@ def _side(planes, signs, t, p, x, y, z):
     return signs[t, p] * (planes[t, p, 0] * x + planes[t, p, 1] * y + planes[t, p, 2] * z - planes[t, p, 3])
 
 
-@njit
-def _corner(kind, frame, grid, face, U, V):
-    """The corner (U, V) of a texel: a direction from the light on cube face `face`, or a point of
-    the ortho grid's plane."""
+@njit(inline="always")
+def _corner(kind, frame, face, U, V, out):
+    """Write into `out` the corner (U, V) of a texel: a direction from the light on cube face
+    `face`, or a point of the ortho grid's plane."""
     if kind == CUBE:
         a = face // 2
-        out = np.empty(3)
         out[a] = 1.0 - 2.0 * (face % 2)
         out[(a + 1) % 3] = U
         out[(a + 2) % 3] = V
-        return out
-    return U * frame[1] + V * frame[2]
+    else:
+        for k in range(3):
+            out[k] = U * frame[1, k] + V * frame[2, k]
 
 
 @njit
@@ -307,7 +307,10 @@ def _bin(planes, signs, rel, kind, res, grid, frame, counting, start, fill, tri,
     cs = np.empty((4, 3))
     du_d, dv_d = DILATE * (du * nu if kind == ORTHO else 1.0), DILATE * (dv * nv if kind == ORTHO else 1.0)
     dd = frame[3]
+    cn, pn = np.empty(4), np.empty(3)
     for t in range(planes.shape[0]):
+        for p in range(3):
+            pn[p] = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
         for face in range(faces):
             if kind == CUBE:
                 U0, U1, V0, V1 = _face_bbox(rel, t, face, buf, buf2)
@@ -327,14 +330,15 @@ def _bin(planes, signs, rel, kind, res, grid, frame, counting, start, fill, tri,
                     for c in range(4):
                         U = u_0 + (i + c % 2) * du + (du_d if c % 2 else -du_d)
                         V = v_0 + (j + c // 2) * dv + (dv_d if c // 2 else -dv_d)
-                        cs[c] = _corner(kind, frame, grid, face, U, V)
+                        _corner(kind, frame, face, U, V, cs[c])
+                    for c in range(4):
+                        cn[c] = math.sqrt(cs[c, 0] ** 2 + cs[c, 1] ** 2 + cs[c, 2] ** 2)
                     inside_all = True
                     out = False
                     for p in range(3):
                         n_out = 0
-                        scale = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
                         for c in range(4):
-                            tol = REL * scale * (math.sqrt(cs[c] @ cs[c]) + 1e-300) + REL * abs(planes[t, p, 3])
+                            tol = REL * (pn[p] * cn[c] + abs(planes[t, p, 3]))
                             s = _side(planes, signs, t, p, cs[c, 0], cs[c, 1], cs[c, 2])
                             if s < -tol:
                                 n_out += 1
@@ -355,7 +359,7 @@ def _bin(planes, signs, rel, kind, res, grid, frame, counting, start, fill, tri,
                                 nc = planes[t, 3, 0] * x + planes[t, 3, 1] * y + planes[t, 3, 2] * z
                                 if kind == CUBE:  # the own plane n . X = D along X = s c
                                     s = planes[t, 3, 3] / nc if nc != 0.0 else math.inf
-                                    depth = max(depth, s * math.sqrt(x * x + y * y + z * z) if s > 0 else math.inf)
+                                    depth = max(depth, s * cn[c] if s > 0 else math.inf)
                                 else:  # along c + s d
                                     nd = planes[t, 3, 0] * dd[0] + planes[t, 3, 1] * dd[1] + planes[t, 3, 2] * dd[2]
                                     depth = max(depth, (planes[t, 3, 3] - nc) / nd)
@@ -409,6 +413,8 @@ def _add(t, s, q, w, ell, planes, signs, stamp, c_lo, c_hi, k, stats):
             lo = max(lo, -a / b)
         else:
             hi = min(hi, -a / b)
+        if not lo < hi:
+            return k
     if lo < hi:
         c_lo[k], c_hi[k] = lo, hi
         return k + 1
