@@ -14,8 +14,10 @@ the edge's vertices in one canonical order (lexicographic), so both triangles ge
 bit for bit and their shadows meet without a gap; the side each keeps is a sign (that of the
 orientation determinant D = det(A - L, B - L, C - L), resp. n . d). A triangle whose D is within
 rounding of zero (seen exactly edge-on, or of zero area) has a frustum of no volume and is left
-out, as are, for point lights, triangles closer than the shadow-ray epsilon to the light (a light
-on a surface lights both sides of it, as the sampled search did). A segment that ends on a surface
+out, as are, for point lights, triangles whose plane passes within the shadow-ray epsilon of the
+light (1e-5 of the scene's size; seen edge-on to within epsilon / distance radians): they are taken
+to hold the light, so a light on a surface (placed on it up to rounding, on either side) lights
+both sides of it and the rest of the scene as if the surface were not there. A segment that ends on a surface
 ends inside that triangle's frustum exactly when the light is on the surface's far side, so no
 surface normal is needed.
 
@@ -182,8 +184,8 @@ def _less(a, b):
 @njit
 def _frusta(tris, L, d, sun, epsilon):
     """Per triangle: its four planes and their signs (LightBins), a lower bound on its depth from
-    the light, and whether it is kept (not edge-on within rounding, not within epsilon of a point
-    light)."""
+    the light, and whether it is kept (not edge-on within rounding; for a point light, its plane
+    not within epsilon of the light)."""
     n_t = tris.shape[0]
     planes = np.zeros((n_t, 4, 4))
     signs = np.zeros((n_t, 4))
@@ -205,11 +207,10 @@ def _frusta(tris, L, d, sun, epsilon):
         else:
             r0 = v[0] - L
             D = nx * r0[0] + ny * r0[1] + nz * r0[2]  # det(A - L, B - L, C - L)
-            if not abs(D) > EDGE_ON * size * math.sqrt(r0 @ r0):
+            area2 = math.sqrt(nx * nx + ny * ny + nz * nz)
+            if not (abs(D) > EDGE_ON * size * math.sqrt(r0 @ r0) and abs(D) > epsilon * area2):
                 continue
             lb[t] = _closest_distance(L[0], L[1], L[2], v[0], v[1], v[2])
-            if lb[t] <= epsilon:
-                continue
         keep[t] = True
         s = 1.0 if D > 0.0 else -1.0
         for e in range(3):
