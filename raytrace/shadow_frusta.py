@@ -396,76 +396,9 @@ def _sort_and_prune(start, tri, lb, cover_depth):
 
 
 @njit(inline="always")
-def _add(t, s, q, w, ell, planes, signs, stamp, c_lo, c_hi, k, stats):
-    """Triangle t's frustum interval on segment s (once per segment), appended if not empty."""
-    if stamp[t] == s:
-        return k
-    stamp[t] = s
-    stats[ST_FRUSTA] += 1
-    lo, hi = 0.0, ell
-    for p in range(4):
-        a = planes[t, p, 0] * q[0] + planes[t, p, 1] * q[1] + planes[t, p, 2] * q[2] - planes[t, p, 3]
-        b = planes[t, p, 0] * w[0] + planes[t, p, 1] * w[1] + planes[t, p, 2] * w[2]
-        sg = signs[t, p]
-        if b == 0.0:
-            if not sg * a > 0.0:
-                return k
-        elif sg * b > 0.0:
-            lo = max(lo, -a / b)
-        else:
-            hi = min(hi, -a / b)
-        if not lo < hi:
-            return k
-    if lo < hi:
-        c_lo[k], c_hi[k] = lo, hi
-        return k + 1
-    return k
-
-
-@njit(inline="always")
-def _run(tex, x, xn, s, q, w, ell, kind, d, start, tri, lb, cover, cover_depth, planes, signs, stamp, c_lo, c_hi, k,
-         slack, stats):
-    """The candidates of the run [x, xn] of segment s through texel tex (module docstring)."""
-    stats[ST_RUNS] += 1
-    first, last = start[tex], start[tex + 1]
-    if first == last:
-        stats[ST_NEAR] += 1
-        return k
-    if kind == CUBE:
-        r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
-        if xn < math.inf:
-            r2 = math.sqrt((q[0] + xn * w[0]) ** 2 + (q[1] + xn * w[1]) ** 2 + (q[2] + xn * w[2]) ** 2)
-        else:
-            r2 = math.inf
-        rmax, rmin = max(r1, r2), min(r1, r2)
-        xh = -(q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
-        if x < xh < xn:
-            rmin = math.sqrt((q[0] + xh * w[0]) ** 2 + (q[1] + xh * w[1]) ** 2 + (q[2] + xh * w[2]) ** 2)
-    else:
-        z0 = q[0] * d[0] + q[1] * d[1] + q[2] * d[2]
-        dz = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]
-        z1 = z0 + x * dz
-        z2 = z0 + xn * dz if xn < math.inf else (z0 if dz == 0.0 else math.copysign(math.inf, dz))
-        rmax, rmin = max(z1, z2), min(z1, z2)
-    far = rmax + REL * abs(rmax) + slack
-    near = rmin - REL * abs(rmin) - slack
-    if far < lb[first]:
-        stats[ST_NEAR] += 1
-        return k
-    if near > cover_depth[tex]:
-        stats[ST_COVERED] += 1
-        return _add(cover[tex], s, q, w, ell, planes, signs, stamp, c_lo, c_hi, k, stats)
-    for e in range(first, last):
-        if lb[e] >= far:
-            break
-        k = _add(tri[e], s, q, w, ell, planes, signs, stamp, c_lo, c_hi, k, stats)
-    return k
-
-
-@njit(inline="always")
 def _crossing(a_x, b_x, a_m, b_m, c, x):
     """Where the coordinate (a_x + b_x x) / (a_m + b_m x) reaches c, ahead of x on the same branch
-    (m > 0); inf if never."""
+    (m > 0); inf if never. Scalars only: an inlined helper taking arrays costs reference counts."""
     den = b_x - c * b_m
     if den == 0.0:
         return math.inf
@@ -476,111 +409,182 @@ def _crossing(a_x, b_x, a_m, b_m, c, x):
 
 
 @njit
-def _walk(a_u, b_u, a_v, b_v, a_m, b_m, xa, xb, face, grid, s, q, w, ell, kind, d, start, tri, lb, cover, cover_depth,
-          planes, signs, stamp, c_lo, c_hi, k, slack, stats):
-    """DDA over the texels of one face crossed by [xa, xb] of segment s, whose face coordinates are
-    U = (a_u + b_u x) / (a_m + b_m x), V alike (monotone in x on the piece)."""
-    u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
-    den = a_m + b_m * xa
-    if den > 0.0:
-        U, V = (a_u + b_u * xa) / den, (a_v + b_v * xa) / den
-    else:  # the piece starts at the light: the limit along the ray
-        U, V = b_u / b_m, b_v / b_m
-    i = min(max(int(math.floor((U - u_0) / du)), 0), nu - 1)
-    j = min(max(int(math.floor((V - v_0) / dv)), 0), nv - 1)
-    su = b_u * a_m - a_u * b_m
-    sv = b_v * a_m - a_v * b_m
-    x = xa
-    while True:
-        xu = math.inf
-        if su > 0.0 and i < nu - 1:
-            xu = _crossing(a_u, b_u, a_m, b_m, u_0 + (i + 1) * du, x)
-        elif su < 0.0 and i > 0:
-            xu = _crossing(a_u, b_u, a_m, b_m, u_0 + i * du, x)
-        xv = math.inf
-        if sv > 0.0 and j < nv - 1:
-            xv = _crossing(a_v, b_v, a_m, b_m, v_0 + (j + 1) * dv, x)
-        elif sv < 0.0 and j > 0:
-            xv = _crossing(a_v, b_v, a_m, b_m, v_0 + j * dv, x)
-        xn = min(xu, xv, xb)
-        tex = (face * nu + i) * nv + j
-        k = _run(tex, x, xn, s, q, w, ell, kind, d, start, tri, lb, cover, cover_depth, planes, signs, stamp, c_lo,
-                 c_hi, k, slack, stats)
-        if xn >= xb:
-            return k
-        if xu <= xv:
-            i += 1 if su > 0.0 else -1
-        else:
-            j += 1 if sv > 0.0 else -1
-        x = xn
+def _pieces(q, w, ell, kind, grid, frame, out):
+    """The parts of a segment over one face each: rows (xa, xb, face, a_u, b_u, a_v, b_v, a_m, b_m)
+    of `out` with face coordinates U = (a_u + b_u x) / (a_m + b_m x), V alike, monotone in x on
+    the part; returns their count. Cube: split where the largest coordinate changes; ortho grid:
+    the part over the grid (dilated), beyond which nothing casts a shadow."""
+    if kind == ORTHO:
+        u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], grid[4], grid[5]
+        a_u, b_u = q @ frame[1], w @ frame[1]
+        a_v, b_v = q @ frame[2], w @ frame[2]
+        xa, xb = 0.0, ell
+        for a_, b_, lo, hi in ((a_u, b_u, u_0 - DILATE * du * nu, u_0 + du * nu * (1.0 + DILATE)),
+                               (a_v, b_v, v_0 - DILATE * dv * nv, v_0 + dv * nv * (1.0 + DILATE))):
+            if b_ == 0.0:
+                if not lo <= a_ <= hi:
+                    return 0
+            else:
+                r1, r2 = (lo - a_) / b_, (hi - a_) / b_
+                xa, xb = max(xa, min(r1, r2)), min(xb, max(r1, r2))
+        if not xa < xb:
+            return 0
+        out[0, 0], out[0, 1], out[0, 2] = xa, xb, 0.0
+        out[0, 3], out[0, 4], out[0, 5], out[0, 6], out[0, 7], out[0, 8] = a_u, b_u, a_v, b_v, 1.0, 0.0
+        return 1
+    roots = np.empty(8)
+    nr = 1
+    roots[0] = 0.0
+    for a in range(3):
+        b = (a + 1) % 3
+        for sg in (1.0, -1.0):
+            den = w[a] - sg * w[b]
+            if den != 0.0:
+                r = -(q[a] - sg * q[b]) / den
+                if 0.0 < r < ell:
+                    roots[nr] = r
+                    nr += 1
+    roots[nr] = ell
+    nr += 1
+    roots[:nr].sort()
+    n = 0
+    for p in range(nr - 1):
+        xa, xb = roots[p], roots[p + 1]
+        if not xb > xa:
+            continue
+        xm = 0.5 * (xa + xb) if xb < math.inf else xa + max(abs(xa), 1.0)
+        best, a = -1.0, 0
+        for c in range(3):
+            v = abs(q[c] + xm * w[c])
+            if v > best:
+                best, a = v, c
+        sg = 1.0 if q[a] + xm * w[a] > 0.0 else -1.0
+        out[n, 0], out[n, 1], out[n, 2] = xa, xb, 2 * a + (0 if sg > 0.0 else 1)
+        out[n, 3], out[n, 4] = q[(a + 1) % 3], w[(a + 1) % 3]
+        out[n, 5], out[n, 6] = q[(a + 2) % 3], w[(a + 2) % 3]
+        out[n, 7], out[n, 8] = sg * q[a], sg * w[a]
+        n += 1
+    return n
 
 
 @njit
 def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, stats):
-    """(segment, x0, x1) of every lit piece of every segment, in segment order."""
+    """(segment, x0, x1) of every lit piece of every segment, in segment order. Per segment: each
+    face part is walked texel by texel (a DDA); each texel run is lit (nearer than every listed
+    triangle), inside the cover's frustum, or gives candidates (module docstring), whose exact
+    frustum intervals are computed once per segment; the lit pieces are the complement of their
+    union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call."""
     n_t = planes.shape[0]
     stamp = np.full(n_t, -1, np.int64)
     c_lo, c_hi = np.empty(n_t + 1), np.empty(n_t + 1)
     cap = 2 * origins.shape[0] + 16
     src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
     m = 0
-    roots = np.empty(8)
+    parts = np.empty((8, 9))
     q = np.empty(3)
     d = frame[3]
-    u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], grid[4], grid[5]
+    u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
+    n_runs = n_near = n_cov = n_fr = 0
     for s in range(origins.shape[0]):
         ell = length[s]
         w = dirs[s]
         for a in range(3):
             q[a] = origins[s, a] - (frame[0, a] if kind == CUBE else 0.0)
         k = 0
-        if n_t == 0 or not ell > 0.0:
-            pass
-        elif kind == CUBE:  # pieces between the points where the largest coordinate changes
-            nr = 1
-            roots[0] = 0.0
-            for a in range(3):
-                b = (a + 1) % 3
-                for sg in (1.0, -1.0):
-                    den = w[a] - sg * w[b]
-                    if den != 0.0:
-                        r = -(q[a] - sg * q[b]) / den
-                        if 0.0 < r < ell:
-                            roots[nr] = r
-                            nr += 1
-            roots[nr] = ell
-            nr += 1
-            roots[:nr].sort()
-            for p in range(nr - 1):
-                xa, xb = roots[p], roots[p + 1]
-                if not xb > xa:
-                    continue
-                xm = 0.5 * (xa + xb) if xb < math.inf else xa + max(abs(xa), 1.0)
-                best, a = -1.0, 0
-                for c in range(3):
-                    v = abs(q[c] + xm * w[c])
-                    if v > best:
-                        best, a = v, c
-                sg = 1.0 if q[a] + xm * w[a] > 0.0 else -1.0
-                face = 2 * a + (0 if sg > 0.0 else 1)
-                k = _walk(q[(a + 1) % 3], w[(a + 1) % 3], q[(a + 2) % 3], w[(a + 2) % 3], sg * q[a], sg * w[a], xa,
-                          xb, face, grid, s, q, w, ell, kind, d, start, tri, lb, cover, cover_depth, planes, signs,
-                          stamp, c_lo, c_hi, k, slack, stats)
-        else:  # the part of the segment over the grid (dilated); beyond it nothing casts a shadow
-            a_u, b_u = q @ frame[1], w @ frame[1]
-            a_v, b_v = q @ frame[2], w @ frame[2]
-            xa, xb = 0.0, ell
-            for a_, b_, lo, hi in ((a_u, b_u, u_0 - DILATE * du * nu, u_0 + du * nu * (1.0 + DILATE)),
-                                   (a_v, b_v, v_0 - DILATE * dv * nv, v_0 + dv * nv * (1.0 + DILATE))):
-                if b_ == 0.0:
-                    if not lo <= a_ <= hi:
-                        xb = -1.0
+        n_parts = _pieces(q, w, ell, kind, grid, frame, parts) if n_t and ell > 0.0 else 0
+        for p in range(n_parts):
+            xa, xb, face = parts[p, 0], parts[p, 1], int(parts[p, 2])
+            a_u, b_u, a_v, b_v, a_m, b_m = parts[p, 3], parts[p, 4], parts[p, 5], parts[p, 6], parts[p, 7], parts[p, 8]
+            den = a_m + b_m * xa
+            if den > 0.0:
+                U, V = (a_u + b_u * xa) / den, (a_v + b_v * xa) / den
+            else:  # the part starts at the light: the limit along the ray
+                U, V = b_u / b_m, b_v / b_m
+            i = min(max(int(math.floor((U - u_0) / du)), 0), nu - 1)
+            j = min(max(int(math.floor((V - v_0) / dv)), 0), nv - 1)
+            su = b_u * a_m - a_u * b_m
+            sv = b_v * a_m - a_v * b_m
+            x = xa
+            while True:
+                xu = math.inf
+                if su > 0.0 and i < nu - 1:
+                    xu = _crossing(a_u, b_u, a_m, b_m, u_0 + (i + 1) * du, x)
+                elif su < 0.0 and i > 0:
+                    xu = _crossing(a_u, b_u, a_m, b_m, u_0 + i * du, x)
+                xv = math.inf
+                if sv > 0.0 and j < nv - 1:
+                    xv = _crossing(a_v, b_v, a_m, b_m, v_0 + (j + 1) * dv, x)
+                elif sv < 0.0 and j > 0:
+                    xv = _crossing(a_v, b_v, a_m, b_m, v_0 + j * dv, x)
+                xn = min(xu, xv, xb)
+                # --- the run [x, xn] through texel tex
+                tex = (face * nu + i) * nv + j
+                n_runs += 1
+                first, last = start[tex], start[tex + 1]
+                if first == last:
+                    n_near += 1
                 else:
-                    r1, r2 = (lo - a_) / b_, (hi - a_) / b_
-                    xa, xb = max(xa, min(r1, r2)), min(xb, max(r1, r2))
-            if xa < xb:
-                k = _walk(a_u, b_u, a_v, b_v, 1.0, 0.0, xa, xb, 0, grid, s, q, w, ell, kind, d, start, tri, lb,
-                          cover, cover_depth, planes, signs, stamp, c_lo, c_hi, k, slack, stats)
+                    if kind == CUBE:
+                        r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
+                        r2 = math.inf
+                        if xn < math.inf:
+                            r2 = math.sqrt((q[0] + xn * w[0]) ** 2 + (q[1] + xn * w[1]) ** 2 + (q[2] + xn * w[2]) ** 2)
+                        rmax, rmin = max(r1, r2), min(r1, r2)
+                        xh = -(q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
+                        if x < xh < xn:
+                            rmin = math.sqrt((q[0] + xh * w[0]) ** 2 + (q[1] + xh * w[1]) ** 2 + (q[2] + xh * w[2]) ** 2)
+                    else:
+                        z0 = q[0] * d[0] + q[1] * d[1] + q[2] * d[2]
+                        dz = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]
+                        z1 = z0 + x * dz
+                        z2 = z0 + xn * dz if xn < math.inf else (z0 if dz == 0.0 else math.copysign(math.inf, dz))
+                        rmax, rmin = max(z1, z2), min(z1, z2)
+                    far = rmax + REL * abs(rmax) + slack
+                    near = rmin - REL * abs(rmin) - slack
+                    covered = near > cover_depth[tex]
+                    if far < lb[first]:
+                        n_near += 1
+                        last = first
+                    elif covered:  # the cover's frustum holds the whole run: the only candidate
+                        n_cov += 1
+                        last = first + 1
+                    for e in range(first, last):
+                        if covered:
+                            t = cover[tex]
+                        elif lb[e] >= far:
+                            break
+                        else:
+                            t = tri[e]
+                        if stamp[t] == s:
+                            continue
+                        stamp[t] = s
+                        n_fr += 1
+                        lo, hi = 0.0, ell
+                        for pl in range(4):  # sign * (a + b x) > 0 for every plane
+                            av = planes[t, pl, 0] * q[0] + planes[t, pl, 1] * q[1] + planes[t, pl, 2] * q[2] \
+                                - planes[t, pl, 3]
+                            bv = planes[t, pl, 0] * w[0] + planes[t, pl, 1] * w[1] + planes[t, pl, 2] * w[2]
+                            sg = signs[t, pl]
+                            if bv == 0.0:
+                                if not sg * av > 0.0:
+                                    hi = -math.inf
+                            elif sg * bv > 0.0:
+                                lo = max(lo, -av / bv)
+                            else:
+                                hi = min(hi, -av / bv)
+                            if not lo < hi:
+                                break
+                        if lo < hi:
+                            c_lo[k], c_hi[k] = lo, hi
+                            k += 1
+                # ---
+                if xn >= xb:
+                    break
+                if xu <= xv:
+                    i += 1 if su > 0.0 else -1
+                else:
+                    j += 1 if sv > 0.0 else -1
+                x = xn
         stats[ST_SHADOWS] += k
         if m + k + 1 > cap:
             cap = 2 * (m + k + 1)
@@ -600,6 +604,10 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
             m += 1
         if m == before:
             stats[ST_DARK] += 1
+    stats[ST_RUNS] += n_runs
+    stats[ST_NEAR] += n_near
+    stats[ST_COVERED] += n_cov
+    stats[ST_FRUSTA] += n_fr
     stats[ST_LIT] += m
     return src[:m].copy(), x0[:m].copy(), x1[:m].copy()
 
