@@ -17,9 +17,8 @@ rounding of zero (seen exactly edge-on, or of zero area) has a frustum of no vol
 out, as are, for point lights, triangles whose plane passes within the shadow-ray epsilon of the
 light (1e-5 of the scene's size; seen edge-on to within epsilon / distance radians): they are taken
 to hold the light, so a light on a surface (placed on it up to rounding, on either side) lights
-both sides of it and the rest of the scene as if the surface were not there. A segment that ends on a surface
-ends inside that triangle's frustum exactly when the light is on the surface's far side, so no
-surface normal is needed.
+both sides of it. A segment that ends on a surface ends inside that triangle's frustum exactly
+when the light is on the surface's far side, so no surface normal is needed.
 
 Acceleration (memory linear in the triangle count for a given resolution): each light has a cube
 map (point and spot lights, R x R texels per face) or an orthographic grid perpendicular to its
@@ -62,8 +61,10 @@ class LightBins:
     planes (canonical order) and its own plane as (nx, ny, nz, kappa): the condition is
     sign * (n . (P - origin) - kappa) > 0, `signs` (T, 4). `start` (texels + 1) and `tri`, `lb`:
     each texel's triangles and their depth lower bounds, ascending; `cover`, `cover_depth`: the
-    covering triangle (-1: none) and its largest depth in the texel. `proj`: kind (CUBE/ORTHO),
-    resolution, and for ORTHO the grid (u0, v0, du, dv, nu, nv); `frame` (4, 3): origin, u, v, d."""
+    covering triangle (-1: none) and its largest depth in the texel. `kind`: CUBE (texel
+    (face, i, j) at (face nu + i) nv + j) or ORTHO (one face); `grid`: the face coordinates of
+    texel (0, 0) and the texel sizes and counts; `frame` (4, 3): the origin of the planes (the
+    light, or zero for the sun), the grid's axes u, v and the sun's direction of travel d."""
     planes: np.ndarray
     signs: np.ndarray
     start: np.ndarray
@@ -122,10 +123,10 @@ def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
         kind, n_tex = CUBE, 6 * res * res
     rel = tris[keep] - (0.0 if sun else frame[0])
     count = np.zeros(n_tex + 1, np.int64)
-    dummy_i, dummy_f = np.zeros(0, np.int64), np.zeros(0)
+    dummy = np.zeros(0, np.int64)
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
-    _bin(planes, signs, rel, kind, res, grid, frame, True, count, dummy_i, dummy_i, cover, cover_depth)
+    _bin(planes, signs, rel, kind, res, grid, frame, True, count, dummy, dummy, cover, cover_depth)
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
     tri = np.empty(int(start[-1]), np.int64)
     _bin(planes, signs, rel, kind, res, grid, frame, False, start, np.zeros(n_tex, np.int64), tri, cover, cover_depth)
