@@ -81,7 +81,8 @@ def intervals(prep, bins):
             differ_fine += int(np.sum(np.abs(a - b) > tol))
             n_fine += len(pick)
     us = 1e6 / n_seg
-    print("| search | segments | time per segment (us) | total (s) | segments whose lit length differs from the exact |")
+    print("| search | segments | time per segment (us) | total (s) | segments whose lit length differs from "
+          "the exact |")
     print("|---|---|---|---|---|")
     print(f"| exact | {n_seg} | {t_exact * us:.2f} | {t_exact:.2f} | - |")
     print(f"| sampled, 0.01 rad | {n_seg} | {t_old * us:.2f} | {t_old:.2f} | {differ / n_seg:.2%} |")
@@ -135,8 +136,9 @@ def main():
     took = time.perf_counter() - start
     entries = sum(len(b.tri) for b in bins)
     mem = sum(sum(a.nbytes for a in (b.planes, b.signs, b.start, b.tri, b.lb, b.cover, b.cover_depth)) for b in bins)
-    print(f"Texel lists: resolution {bins[0].res}, built in {took:.2f} s, {entries / len(bins) / len(prep.accel.triangles):.1f}"
-          f" entries per triangle and light, {mem / 2**20:.0f} MB for {len(bins)} lights.\n")
+    per_tri = entries / len(bins) / len(prep.accel.triangles)
+    print(f"Texel lists: resolution {bins[0].res}, built in {took:.2f} s, {per_tri:.1f} entries per triangle and "
+          f"light, {mem / 2**20:.0f} MB for {len(bins)} lights.\n")
     exact_lit_intervals(prep.accel, whole_rays(np.zeros((1, 3)), np.array([[1.0, 0, 0]]), np.ones(1),
                                                np.zeros(1, np.uint64), 1), prep.lights, 1, bins)  # compile
     intervals(prep, bins)

@@ -532,8 +532,9 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
                             r2 = math.sqrt((q[0] + xn * w[0]) ** 2 + (q[1] + xn * w[1]) ** 2 + (q[2] + xn * w[2]) ** 2)
                         rmax, rmin = max(r1, r2), min(r1, r2)
                         xh = -(q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
-                        if x < xh < xn:
-                            rmin = math.sqrt((q[0] + xh * w[0]) ** 2 + (q[1] + xh * w[1]) ** 2 + (q[2] + xh * w[2]) ** 2)
+                        if x < xh < xn:  # the foot point: the nearest to the light
+                            rmin = math.sqrt((q[0] + xh * w[0]) ** 2 + (q[1] + xh * w[1]) ** 2
+                                             + (q[2] + xh * w[2]) ** 2)
                     else:
                         z0 = q[0] * d[0] + q[1] * d[1] + q[2] * d[2]
                         dz = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]

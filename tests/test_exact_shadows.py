@@ -16,7 +16,6 @@ from raytrace.shadow_frusta import ST_FRUSTA, ST_NEAR, ST_RUNS, build, default_r
 from raytrace.visibility import cone_segments, segment_airlight, whole_rays
 
 from . import oracle, oracle_shadows
-from .conftest import to_toml
 
 LIGHT = [0.0, 1.5, -1.0]
 ROOM = ((-3.0, -2.0, -4.0), (3.0, 2.0, 4.0))
