@@ -12,8 +12,9 @@ On Sibenik (1024x512, 4 spp; --quick: 256x128, 1 spp):
 3. Renders: analytic at its defaults, 2 threads, interleaved rounds (the least time of each, and the
    median over rounds of the ratio to the same round's unshadowed render, resist a shared machine's
    load): unshadowed, shadowed with the sampled search at 0.01, and shadowed with the exact
-   intervals (the renderer's call to `lit_intervals` replaced by the exact one in this process; its
-   texel lists built beforehand).
+   intervals (the renderer's own; for the sampled search its call to `exact_lit_intervals` is replaced
+   in this process, without the end normals the renderer used to pass; texel lists and depth maps built
+   beforehand).
 """
 import argparse
 import sys
@@ -26,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import raytrace  # noqa: E402
 import raytrace.renderer as renderer  # noqa: E402
+from raytrace import shadow_maps  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.renderer import prepare, tiles  # noqa: E402
 from raytrace.shadow_frusta import STATS_NAMES, build, exact_lit_intervals  # noqa: E402
@@ -52,7 +54,7 @@ def lit_length(pieces, n_lights, n):
 def intervals(prep, bins):
     cam = prep.scene.camera
     n_l = len(prep.lights)
-    maps = prep.shadow_maps(0.01)
+    maps = shadow_maps.build(prep.accel, prep.lights, 0.01)
     t_exact = t_old = t_fine = 0.0
     n_seg = n_fine = differ = differ_fine = 0
     stats = np.zeros(len(STATS_NAMES))
@@ -93,19 +95,21 @@ def intervals(prep, bins):
 
 
 def renders(prep, bins, rounds):
-    def exact(accel, segs, lights, n_lights, spacing, ends, maps):
-        return exact_lit_intervals(accel, segs, lights, n_lights, bins)
+    maps = shadow_maps.build(prep.accel, prep.lights, 0.01)
 
-    original = renderer.lit_intervals
-    kinds = {"unshadowed": (False, original), "sampled 0.01": (True, original), "exact": (True, exact)}
+    def sampled(accel, segs, lights, n_lights, _bins):  # the search the renderer used before (no end normals)
+        return lit_intervals(accel, segs, lights, n_lights, 0.01, None, maps)
+
+    original = renderer.exact_lit_intervals
+    kinds = {"unshadowed": (False, original), "sampled 0.01": (True, sampled), "exact": (True, original)}
     times = {k: [] for k in kinds}
     for r in range(rounds + 1):  # the first round compiles and is not counted
         for name, (vs, fn) in kinds.items():
-            renderer.lit_intervals = fn
+            renderer.exact_lit_intervals = fn
             try:
                 img = raytrace.render(prepared=prep, method="analytic", volumetric_shadows=vs)
             finally:
-                renderer.lit_intervals = original
+                renderer.exact_lit_intervals = original
             if r:
                 times[name].append(img.seconds)
     base = np.array(times["unshadowed"])

@@ -73,7 +73,7 @@ def _prepared(job: Job) -> tuple[renderer.Prepared, float, float]:
         _cache.move_to_end(job.scene_key)
         task = job.task
         if task.shadows is not None:
-            prep.shadow_maps(task.shadows)
+            prep.frusta()
         warm = (job.scene_key, task.method, repr(task.params), task.shadows)
         if warm not in _warm:
             compile_s = renderer.warm_up(prep, get_method(task.method), task.params, task.seed, task.shadows)

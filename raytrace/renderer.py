@@ -28,8 +28,8 @@ from .options import RenderOptions
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
-from .shadow_maps import build as build_shadow_maps
-from .visibility import LI_NAMES, cone_segments, lit_intervals, segment_airlight, shadowed_airlight, whole_rays
+from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals
+from .visibility import cone_segments, segment_airlight, shadowed_airlight, whole_rays
 
 RAYS_PER_TILE = 1 << 14
 
@@ -41,17 +41,17 @@ class Prepared:
     accel: Accelerator
     reflectance: np.ndarray
     lights: Lights
-    _maps: dict = field(default_factory=dict)
+    _frusta: list | None = None
     shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
 
-    def shadow_maps(self, spacing: float) -> np.ndarray:
-        """The lights' depth cube maps for this search spacing, built once (shadow_maps.py)."""
-        if spacing not in self._maps:
-            self._maps[spacing] = build_shadow_maps(self.accel, self.lights, spacing)
-        return self._maps[spacing]
+    def frusta(self) -> list:
+        """The lights' texel lists of shadow frusta for the exact lit intervals, built once (shadow_frusta.py)."""
+        if self._frusta is None:
+            self._frusta = build_frusta(self.accel, self.lights)
+        return self._frusta
 
 
 @dataclass
@@ -83,8 +83,9 @@ def default_threads() -> int:
 
 def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None, depth=0):
     """Radiance (N, 3) of camera rays, the statistics array (the method's, then the lit-interval
-    search's) and, for a stochastic method, the variance (N, 3) of each ray's estimate. `shadows`:
-    None for the paper's unshadowed air-light, else the angular spacing of the lit-interval search.
+    intervals') and, for a stochastic method, the variance (N, 3) of each ray's estimate. `shadows`:
+    None for the paper's unshadowed air-light, else the air-light over the exact lit intervals
+    (shadow_frusta.py; its value, a former search spacing, is not read).
     Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep)."""
     scene = prep.scene
     medium = scene.medium
@@ -98,7 +99,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
 
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
         rad, var = bounded.from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, behind)
-        return rad, np.zeros(method.stats_size + len(LI_NAMES)), var if method.stochastic else None
+        return rad, np.zeros(method.stats_size + len(STATS_NAMES)), var if method.stochastic else None
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     into = bounded.enters(prep, prim)
@@ -116,24 +117,19 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
-    stats = np.zeros(method.stats_size + len(LI_NAMES))
+    stats = np.zeros(method.stats_size + len(STATS_NAMES))
     variance = np.zeros_like(radiance) if method.stochastic else None
     if into.any() and variance is not None:
         variance[into] = into_var * tr[into] ** 2
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
-        ends = None  # the normal of the surface each segment ends on (zero in the air), for the lit intervals
-        if shadows is not None:
-            normals = np.zeros((len(origins), 3))
-            normals[hit] = prep.accel.normals[prim[hit]]
-            ends = np.repeat(normals, len(prep.lights), axis=0)
-        segs, ends = cone_segments(segs, prep.lights, ends)
+        segs, _ = cone_segments(segs, prep.lights)
         if shadows is not None and params.get("shadow_test") == "samples":
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
         else:
             if shadows is not None:
-                segs, stats[method.stats_size:] = lit_intervals(prep.accel, segs, prep.lights, len(prep.lights),
-                                                                shadows, ends, prep.shadow_maps(shadows))
+                segs, stats[method.stats_size:] = exact_lit_intervals(prep.accel, segs, prep.lights, len(prep.lights),
+                                                                      prep.frusta())
             air, stats[:method.stats_size], var = segment_airlight(method, medium, prep.lights, params, segs,
                                                                    len(origins))
         radiance += air
@@ -214,7 +210,7 @@ def prepare_task(prep: Prepared, task: Task) -> float:
     """Build what the tiles of `task` share (the lights' shadow maps) and compile the method's
     kernels; returns the seconds the compilation took."""
     if task.shadows is not None:
-        prep.shadow_maps(task.shadows)  # before the tiles' threads share it
+        prep.frusta()  # before the tiles' threads share it
     return warm_up(prep, get_method(task.method), task.params, task.seed, task.shadows)
 
 
@@ -292,7 +288,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     box = options.crop or (0, 0, cam.width, cam.height)
     task = Task(method.name, params, options.seed, options.shadows, box)
     work = tiles(cam, box)
-    acc = Accumulator(work, box, cam.spp, method.stochastic, method.stats_size + len(LI_NAMES))
+    acc = Accumulator(work, box, cam.spp, method.stochastic, method.stats_size + len(STATS_NAMES))
     executor = executor if executor is not None else Threads(options.threads)
     compile_s = executor.prepare(prep, task)
     start = time.perf_counter()
@@ -306,5 +302,5 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     totals = acc.totals()
     summary = method.summarize(totals[:method.stats_size])
     if task.shadows is not None:
-        summary.update({f"shadows: {k}": int(v) for k, v in zip(LI_NAMES, totals[method.stats_size:])})
+        summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance)

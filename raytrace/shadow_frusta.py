@@ -7,7 +7,10 @@ direction d the three edge planes contain d instead of L, and "beyond" is furthe
 segment P(x) = o + x w every one of these conditions is a x + b > 0 with a, b dot products, so a
 triangle's frustum meets the segment in one interval, in closed form. A segment's shadowed set is
 the union of those intervals over the triangles, its lit pieces the complement: no sampling, no
-parameter that trades accuracy, boundaries exact to float64 geometry.
+parameter that trades accuracy, boundaries exact to float64 geometry. Where frusta meet (a shared
+edge, a vertex of a closed mesh, the surface a segment ends on), the roots of their different
+planes may differ by rounding: a lit piece shorter than GAP_REL (64 ulps) of the scene's size is
+that rounding, not light, and is dropped.
 
 Exactness. Two triangles sharing an edge share the plane through it: the plane is computed from
 the edge's vertices in one canonical order (lexicographic), so both triangles get the same root
@@ -47,6 +50,7 @@ from .methods import Segments
 
 DILATE = 1e-8  # texels are binned as if larger by this much (face units; grid size for the ortho grid)
 REL = 1e-12  # relative slack of the depth comparisons
+GAP_REL = 64 * 2.0**-52  # lit pieces shorter than this x the scene's size: rounding between frusta that meet
 EDGE_ON = 8.0 * 2.0**-52  # |D| below this x |AB| |AC| |A - L| (or |n . d| below this x |AB| |AC|): no volume
 CUBE, ORTHO = 0, 1
 
@@ -469,7 +473,8 @@ def _pieces(q, w, ell, kind, grid, frame, out):
 
 
 @njit
-def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, stats):
+def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap,
+         stats):
     """(segment, x0, x1) of every lit piece of every segment, in segment order. Per segment: each
     face part is walked texel by texel (a DDA); each texel run is lit (nearer than every listed
     triangle), inside the cover's frustum, or gives candidates (module docstring), whose exact
@@ -597,11 +602,11 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
         cur = 0.0
         if k:
             for e in np.argsort(c_lo[:k]):
-                if c_lo[e] > cur:
+                if c_lo[e] - cur > gap:
                     src[m], x0[m], x1[m] = s, cur, c_lo[e]
                     m += 1
                 cur = max(cur, c_hi[e])
-        if cur < ell:
+        if ell - cur > gap:
             src[m], x0[m], x1[m] = s, cur, ell
             m += 1
         if m == before:
@@ -627,7 +632,8 @@ def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list
         lb_ = bins[li]
         src, x0, x1 = _lit(np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
                            np.ascontiguousarray(segs.length[idx]), lb_.kind, lb_.grid, lb_.frame, lb_.start, lb_.tri,
-                           lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack, stats)
+                           lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
+                           GAP_REL * accel.scale, stats)
         srcs.append(idx[src])
         a.append(x0)
         b.append(x1)

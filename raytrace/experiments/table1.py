@@ -199,8 +199,8 @@ def shadow_overrides(cam, quick: bool, shadows: str) -> list[str] | None:
 
 def run_shadowed_scene(name: str, prep, out: Path, options: RenderOptions, log, unshadowed_ref=None,
                        unshadowed_seconds=None, executor=None) -> dict:
-    """The scene's shadowed table on `prep`'s camera (`options` with volumetric shadows, at its
-    shadow_spacing): shadowed `quadrature` as the reference, the unshadowed table's methods with
+    """The scene's shadowed table on `prep`'s camera (`options` with volumetric shadows, exact lit
+    intervals): shadowed `quadrature` as the reference, the unshadowed table's methods with
     volumetric shadows, classic ray marching time matched to the shadowed analytic render, ray
     marching over lit intervals at its steps; the unshadowed
     reference and analytic render on the same samples (darkening, time ratio), rendered here
@@ -210,10 +210,9 @@ def run_shadowed_scene(name: str, prep, out: Path, options: RenderOptions, log, 
     folder = out / name / "shadowed"
     folder.mkdir(parents=True, exist_ok=True)
     sh = replace(options, volumetric_shadows=True)
-    spacing = sh.shadow_spacing
     start = t0 = time.perf_counter()
-    prep.shadow_maps(spacing)
-    maps_seconds = time.perf_counter() - t0
+    prep.frusta()
+    frusta_seconds = time.perf_counter() - t0
     ref_spec = MethodSpec("reference (quadrature, shadowed)", "quadrature", {"rtol": 1e-10})
     ref = render_spec(prep, ref_spec, sh, executor)
     if unshadowed_ref is None:
@@ -240,8 +239,7 @@ def run_shadowed_scene(name: str, prep, out: Path, options: RenderOptions, log, 
     results[INTERVALS] = render_spec(prep, intervals_spec, sh, executor)
     rows = [Row(CLASSIC, classic_spec, note=note),
             Row(INTERVALS, intervals_spec, note=f"{steps} steps over the lit intervals (for information)")] + rows
-    header = {"scene": name, "spp": scene.camera.spp, "seed": options.seed, "volumetric_shadows": True,
-              "shadow_spacing": spacing}
+    header = {"scene": name, "spp": scene.camera.spp, "seed": options.seed, "volumetric_shadows": True}
     film.write_exr(folder / "reference.exr", ref.image, {**header, "method": "quadrature"})
     film.write_png(folder / "reference.png", film.tonemap(ref.image))
     film.write_exr(folder / "unshadowed_reference.exr", unshadowed_ref,
@@ -256,12 +254,12 @@ def run_shadowed_scene(name: str, prep, out: Path, options: RenderOptions, log, 
     stats = results[analytic_label].stats
     segments = max(stats.get("shadows: segments searched", 0), 1)
     return {"width": scene.camera.width, "height": scene.camera.height, "spp": scene.camera.spp,
-            "shadow_spacing": spacing, "reference_seconds": ref.seconds, "shadow_maps_seconds": maps_seconds,
+            "reference_seconds": ref.seconds, "frusta_seconds": frusta_seconds,
             "mean_reference": mean_ref, "mean_unshadowed_reference": mean_unshadowed,
             "darkened_fraction": float(np.mean(ref.image.sum(axis=2) < (1 - 1e-6) * unshadowed_ref.sum(axis=2))),
             "analytic_label": analytic_label, "analytic_seconds": target,
             "analytic_unshadowed_seconds": unshadowed_seconds, "analytic_time_ratio": ratio,
-            "shadow_rays_per_segment": stats.get("shadows: shadow rays traced", 0) / segments,
+            "frusta_per_segment": stats.get("shadows: frusta intersected", 0) / segments,
             "lit_intervals_per_segment": stats.get("shadows: lit intervals", 0) / segments,
             "error_scale": vmax, "rows": rows, "reference_png": f"{name}/shadowed/reference.png",
             "wall_seconds": time.perf_counter() - start}
@@ -342,31 +340,29 @@ def shadowed_report(scenes: list[dict], quick: bool) -> list[str]:
                                             "a quarter of the table's width and height, 1 spp")
     md = ["# With volumetric shadows", "",
           f"Every scene again, with light shafts, at {size}. The renderer finds the pieces of every (camera ray, "
-          "light) segment that the light illuminates (visibility samples seen from the light every "
-          f"{shadowed[0]['shadowed']['shadow_spacing']:g} rad, each change bisected to 1e-10 rad) and every method "
-          "integrates those lit intervals. The reference is `quadrature` (relative 1e-10) on the same lit "
+          "light) segment that the light illuminates, exactly (the complement of the union of the triangles' shadow "
+          "frusta, raytrace/shadow_frusta.py), and every method integrates those lit intervals. The reference is `quadrature` (relative 1e-10) on the same lit "
           "intervals and camera samples; errors as above, *rel.* divided by the mean shadowed reference radiance, "
           "*max rel.* the largest per-pixel relative error. *raymarch (shadow rays)* is ray marching the classic way, "
-          "a shadow ray from every step to the light instead of the lit intervals (so it also sees occluders the "
-          "search passes over), its steps matched to the time of the shadowed analytic render; *raymarch (lit "
-          "intervals)* marches the lit intervals with the same steps, for information. The lights' depth maps, "
-          "which the search reads, are built once per scene and not counted in the times.", "",
+          "a shadow ray from every step to the light instead of the lit intervals, its steps matched to the time of the shadowed analytic render; *raymarch (lit "
+          "intervals)* marches the lit intervals with the same steps, for information. The lights' lists of shadow "
+          "frusta are built once per scene and not counted in the times.", "",
           "| scene | size | reference (s) | analytic (s) | analytic unshadowed (s) | shadowed / unshadowed time "
-          "| mean radiance shadowed / unshadowed | darkened pixels | shadow rays per segment | whole table (s) |",
+          "| mean radiance shadowed / unshadowed | darkened pixels | frusta intersected per segment | whole table (s) |",
           "|---|---|---|---|---|---|---|---|---|---|"]
     for sc in shadowed:
         s = sc["shadowed"]
         md.append(f"| {sc['name']} | {s['width']}x{s['height']}, {s['spp']} spp | {s['reference_seconds']:.2f} "
                   f"| {s['analytic_seconds']:.2f} | {s['analytic_unshadowed_seconds']:.3f} "
                   f"| {s['analytic_time_ratio']:.1f}x | {s['mean_reference'] / s['mean_unshadowed_reference']:.4f} "
-                  f"| {s['darkened_fraction']:.1%} | {s['shadow_rays_per_segment']:.1f} | {s['wall_seconds']:.0f} |")
+                  f"| {s['darkened_fraction']:.1%} | {s['frusta_per_segment']:.1f} | {s['wall_seconds']:.0f} |")
     md.append("")
     for sc in shadowed:
         s = sc["shadowed"]
         by_label = {r.label: r for r in s["rows"]}
         best, classic = by_label[s["analytic_label"]], by_label[CLASSIC]
         md += [f"## {sc['name']} with volumetric shadows ({s['width']}x{s['height']}, {s['spp']} spp)", "",
-               f"Reference: {s['reference_seconds']:.2f} s; depth maps {s['shadow_maps_seconds']:.2f} s; error maps "
+               f"Reference: {s['reference_seconds']:.2f} s; shadow frusta {s['frusta_seconds']:.2f} s; error maps "
                f"share one hue scale, blue = 0 to red = {s['error_scale']:.3g} and above.", "",
                "| method | time (s) | compile (s) | mean abs. error | rel. error | max rel. error | note |",
                "|---|---|---|---|---|---|---|"]
