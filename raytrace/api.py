@@ -60,14 +60,17 @@ class Image:
         out.update(self.extra_header)
         return out
 
-    def save(self, path, exposure: float | None = None):
-        """Write `path`: linear float32 EXR (.exr, with variance channels for stochastic methods) or a
-        tone-mapped PNG preview (.png; 99.5th percentile of luminance → white unless `exposure`)."""
+    def save(self, path, exposure: float | None = None, view: str = "aces"):
+        """Write `path`: linear float32 EXR (.exr, with variance channels for stochastic methods) or an
+        8-bit PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off
+        without clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is
+        in stops (each doubles the radiance); None is automatic: the log-average luminance at middle
+        grey for "aces", the 99.5th percentile of luminance at white for "standard"."""
         from . import film
 
         path = Path(path)
         if path.suffix.lower() == ".png":
-            film.write_png(path, film.tonemap(self.array, exposure))
+            film.write_png(path, film.tonemap(self.array, exposure, view))
         elif path.suffix.lower() == ".exr":
             extra = {}
             if self.variance is not None:

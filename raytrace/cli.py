@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
+from .film import VIEWS
 
 COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export")
 
@@ -73,8 +74,12 @@ def build_parser():
     r.add_argument("--height", type=int, help="image height in pixels")
     r.add_argument("--seed", type=int, help="random seed of the stochastic methods (default 0)")
     r.add_argument("--out", help="output EXR (default out/<scene name>.exr, with a PNG beside it)")
-    r.add_argument("--png", help="also write a tone-mapped PNG preview here")
-    r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic)")
+    r.add_argument("--png", help="also write an 8-bit PNG preview here")
+    r.add_argument("--exposure", type=float, help="PNG exposure in stops, each doubling the radiance (default: "
+                                                  "automatic, the log-average luminance at middle grey)")
+    r.add_argument("--view", choices=VIEWS, default="aces",
+                   help="PNG view: aces (ACES 2.0 SDR, highlights roll off, colours do not clip; default) or "
+                        "standard (the exact sRGB encode, clipped at 1)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
@@ -172,7 +177,9 @@ def _given_params(args):
 def cmd_render(args):
     from . import film
     from .api import render
+    from .view import check_exposure
 
+    check_exposure(args.exposure, "--exposure")
     scene = load(args)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}.exr"
     png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
@@ -221,7 +228,7 @@ def cmd_render(args):
             bar.close()
     img.save(out)
     if png is not None:
-        img.save(png, args.exposure)
+        img.save(png, args.exposure, args.view)
     if not args.quiet:
         cam = scene.camera
         size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")
@@ -250,7 +257,9 @@ def cmd_compare(args):
     from . import renderer
     from .api import executor, render_options
     from .experiments.compare import compare, parse_spec
+    from .view import check_exposure
 
+    check_exposure(args.exposure, "--exposure")
     scene = load(args)
     options = render_options(scene, **_option_args(args))
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
