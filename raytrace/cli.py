@@ -9,6 +9,7 @@ import copy
 import contextlib
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +85,9 @@ def build_parser():
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--display-server", metavar="HOST:PORT",
+                   help="show the image in the tev viewer listening there as it renders (e.g. 127.0.0.1:14158, "
+                        "tev's default); an unreachable viewer is a warning, the render goes on")
     r.add_argument("--max-memory", type=float, metavar="GIB",
                    help="memory budget of the image's arrays in GiB (default: 80%% of the machine's memory); a "
                         "larger image is refused up front with the figure and the fix")
@@ -197,6 +201,7 @@ def cmd_render(args):
     source = str(scene.path or "default scene")
     show = not args.quiet and sys.stderr.isatty()
     rows = (args.crop and _parse_crop(args.crop)) or None
+    display = _display(args, scene, out.stem)
     bar = None
     if show:
         from tqdm import tqdm
@@ -214,7 +219,7 @@ def cmd_render(args):
 
     try:
         with _cluster(args) as client:
-            img = render(scene, args.method, client=client, **_option_args(args), crop=rows,
+            img = render(scene, args.method, client=client, **_option_args(args), crop=rows, observer=display,
                          volumetric_shadows=args.volumetric_shadows or None, shadow_spacing=args.shadow_spacing,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
@@ -226,6 +231,8 @@ def cmd_render(args):
     finally:
         if bar:
             bar.close()
+        if display is not None:
+            display.close()
     img.save(out)
     if png is not None:
         img.save(png, args.exposure, args.view)
@@ -238,6 +245,19 @@ def cmd_render(args):
         for k, v in img.stats.items():
             print(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
     return 0
+
+
+def _display(args, scene, name):
+    """The tev display of --display-server showing the image `name` (None without the flag)."""
+    if not args.display_server:
+        return None
+    from .api import render_options
+    from .tev import TevDisplay, parse_address
+
+    parse_address(args.display_server)  # a badly formed address is refused before --width is looked at
+    render_options(None, width=args.width, height=args.height)  # refuses a size that is not positive
+    return TevDisplay.open(args.display_server, name, args.width or scene.camera.width,
+                           args.height or scene.camera.height)
 
 
 def _parse_crop(text):
@@ -404,6 +424,20 @@ def cmd_diff(args):
     return 0
 
 
+@contextlib.contextmanager
+def _one_line_warnings():
+    """Every warning (importers' notes, --approximate, the live display's) as one line on stderr:
+    `warning: <message>`, without the source line Python prints by default."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print("warning: " + " ".join(str(message).split()), file=sys.stderr)
+
+    saved, warnings.showwarning = warnings.showwarning, show
+    try:
+        yield
+    finally:
+        warnings.showwarning = saved
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
@@ -415,7 +449,8 @@ def main(argv=None) -> int:
                 "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
                 "seed002": cmd_seed002, "export": cmd_export}
     try:
-        return handlers[args.command](args)
+        with _one_line_warnings():
+            return handlers[args.command](args)
     except UserError as exc:
         print("error: " + " ".join(str(exc).split("\n")), file=sys.stderr)  # always one line
         return 2
