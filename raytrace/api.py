@@ -80,21 +80,25 @@ class Image:
             raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
 
 
-def load(scene=None, overrides=()) -> Scene:
-    """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default)."""
+def load(scene=None, overrides=(), camera: str | None = None) -> Scene:
+    """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default);
+    `overrides` and `camera` as for `scene_dict`."""
     from .scene.format import scene_from_dict
 
     if isinstance(scene, Scene):
-        if overrides:
-            raise UserError("overrides apply to scene files and dicts, not to a parsed Scene; pass the file or dict")
+        if overrides or camera is not None:
+            raise UserError("overrides and camera apply to scene files and dicts, not to a parsed Scene; pass the "
+                            "file or dict")
         return scene
-    raw, source, path = scene_dict(scene, overrides)
+    raw, source, path = scene_dict(scene, overrides, camera)
     return scene_from_dict(raw, source, path)
 
 
-def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
+def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dict, str, Path | None]:
     """(raw, source, path): the scene dict (the TOML structure) of a path, a bundled scene's name, a
-    dict or None (the built-in default), with the overrides applied; not yet validated."""
+    dict or None (the built-in default), with the overrides applied; not yet validated. `camera`
+    names the camera of a file that names its cameras (glTF: a node's or a camera's name; raytrace.io);
+    a TOML scene has one [camera], so a name given for it is refused."""
     import tomllib
 
     from .default_scene import DEFAULT_TOML
@@ -111,7 +115,11 @@ def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
             path = bundled_scenes()[str(scene)]
         source = str(path)
         # glTF, Mitsuba 3 and pbrt-v4 files are read into the scene dict by raytrace.io
-        raw = io.read_scene(path) if io.importer(path) else read_toml(path)
+        raw = io.read_scene(path, camera) if io.importer(path) else read_toml(path)
+    if camera is not None and not (path is not None and io.importer(path)):
+        raise UserError(f"{source}: {_named('camera', camera)}: names a camera of a glTF file; this scene has one "
+                        "[camera]: leave it out and change the view with camera.position and camera.look_at "
+                        "(--set camera.position=[x, y, z])")
     for item in overrides:
         apply_override(raw, *parse_override(item, source), source)
     return raw, source, path
@@ -216,7 +224,8 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
 
 
-def render(scene=None, method: str | None = None, *, overrides=(), prepared=None, client=None, **kwargs) -> Image:
+def render(scene=None, method: str | None = None, *, overrides=(), camera: str | None = None, prepared=None,
+           client=None, **kwargs) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
 
     Keywords named as `RenderOptions`' fields are render options (raytrace/options.py: spp, width,
@@ -224,13 +233,14 @@ def render(scene=None, method: str | None = None, *, overrides=(), prepared=None
     time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
     progress, on_pass and observer); every other keyword is a parameter of the method. The scene's
     [render] table supplies defaults for both. `overrides` are "key=value" strings as --set;
+    `camera` names the camera of a glTF file (as --camera);
     `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
     from . import renderer
     from .methods import get_method
     from .scene.format import RENDER_OPTIONS
 
-    scene = prepared.scene if prepared is not None else load(scene, overrides)
+    scene = prepared.scene if prepared is not None else load(scene, overrides, camera)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
     options = render_options(scene, source, **{k: v for k, v in kwargs.items() if k in OPTION_NAMES})
     cam = scene.camera

@@ -36,6 +36,8 @@ def _add_scene_args(p):
     p.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set medium.sigma_s=0.2 (repeatable)")
+    p.add_argument("--camera", metavar="NAME",
+                   help="the camera of a glTF scene to use, by its node's or its own name (default: the first)")
 
 
 def _add_scheduler_arg(p):
@@ -170,7 +172,7 @@ def build_parser():
 def load(args):
     from .api import load as load_scene
 
-    return load_scene(args.scene, args.overrides)
+    return load_scene(args.scene, args.overrides, args.camera)
 
 
 def _given_params(args):
@@ -308,7 +310,7 @@ def cmd_sweep(args):
     reference = parse_spec(args.reference)
     points = []
     for where in grid_points(axes):  # every point parsed before anything is rendered or written
-        scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()])
+        scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()], args.camera)
         options = render_options(scene, **_option_args(args))
         points.append((where, scene))
     out = _folder(args.out)
@@ -383,7 +385,7 @@ def cmd_export(args):
     from .api import scene_dict
     from .scene.format import scene_from_dict
 
-    raw, source, path = scene_dict(args.scene, args.overrides)
+    raw, source, path = scene_dict(args.scene, args.overrides, args.camera)
     scene_from_dict(copy.deepcopy(raw), source, path)  # the scene must be valid before anything is written
     for written in io.export(raw, args.format, Path(args.out), source, args.approximate):
         print(f"wrote {written}")
