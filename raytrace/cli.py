@@ -93,8 +93,9 @@ def build_parser():
     r.add_argument("--max-memory", type=float, metavar="GIB",
                    help="memory budget of the image's arrays in GiB (default: 80%% of the machine's memory); a "
                         "larger image is refused up front with the figure and the fix")
-    r.add_argument("--volumetric-shadows", action="store_true",
-                   help="shadowed air-light: light shafts behind occluders (render.volumetric_shadows)")
+    r.add_argument("--volumetric-shadows", action=argparse.BooleanOptionalAction,
+                   help="shadowed air-light: light shafts behind occluders (default: the scene's "
+                        "render.volumetric_shadows, else off); --no-volumetric-shadows turns a scene's off")
     r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
                    help="angle seen from the light between visibility samples of the lit-interval search "
                         "(default 0.01; occluders narrower than this may be missed)")
@@ -222,7 +223,7 @@ def cmd_render(args):
     try:
         with _cluster(args) as client:
             img = render(scene, args.method, client=client, **_option_args(args), crop=rows, observer=display,
-                         volumetric_shadows=args.volumetric_shadows or None, shadow_spacing=args.shadow_spacing,
+                         volumetric_shadows=args.volumetric_shadows, shadow_spacing=args.shadow_spacing,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                          progress=tile_done if bar else None, on_pass=report, max_memory=args.max_memory,
