@@ -17,6 +17,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+import warnings
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
@@ -224,6 +225,28 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
 
 
+class SceneDefaultNote(UserWarning):
+    """A scene's [render] parameter that the chosen method does not read was left out."""
+
+
+def scene_defaults(scene: Scene, method, source: str) -> dict:
+    """The method parameters of the scene's [render] table for a render with `method`. When `method`
+    is not the table's own `method`, the parameters it does not read (e.g. a quadrature scene's rtol
+    when rendering with raymarch) are defaults for another method: left out with one
+    SceneDefaultNote, never refused. The table's own method gets them all (one it does not read
+    is the file's mistake, refused by the method as a keyword given here is)."""
+    from .scene.format import RENDER_OPTIONS
+
+    params = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+    if scene.render.get("method") == method.name:
+        return params
+    unread = [k for k in params if k not in method.params]
+    if unread:
+        warnings.warn(f"{source}: [render] {', '.join(f'{k} = {params[k]!r}' for k in unread)}: not read by method "
+                      f"{method.name}; ignored", SceneDefaultNote, stacklevel=3)
+    return {k: v for k, v in params.items() if k not in unread}
+
+
 def render(scene=None, method: str | None = None, *, overrides=(), camera: str | None = None, prepared=None,
            client=None, **kwargs) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
@@ -238,14 +261,13 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
     from . import renderer
     from .methods import get_method
-    from .scene.format import RENDER_OPTIONS
 
     scene = prepared.scene if prepared is not None else load(scene, overrides, camera)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
     options = render_options(scene, source, **{k: v for k, v in kwargs.items() if k in OPTION_NAMES})
     cam = scene.camera
     m = get_method(method or scene.render.get("method", "analytic"))
-    given = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+    given = scene_defaults(scene, m, source)
     given.update({k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None})
     if options.progressive and not m.stochastic:
         raise UserError(f"{source}: method {m.name} is deterministic; the progressive options passes, time_budget, "
