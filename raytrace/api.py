@@ -4,7 +4,7 @@
     img = raytrace.render("scenes/box_room.toml", method="analytic", precision=1e-6, spp=4)
     img.array          # (H, W, 3) float64 linear radiance
     img.stats          # the method's statistics (e.g. the analytic method's path fractions)
-    img.save("box.exr"); img.save("box.png")
+    img.save("box.exr", "box.png")  # both or neither
 
 `scene` is a TOML file path, the name of a bundled scene (`box_room`, `sibenik`, `bridge`,
 `conference`: the repository's scenes/, installed with the package), a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
@@ -61,24 +61,29 @@ class Image:
         out.update(self.extra_header)
         return out
 
-    def save(self, path, exposure: float | None = None, view: str = "aces"):
-        """Write `path`: linear float32 EXR (.exr, with variance channels for stochastic methods) or an
-        8-bit PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off
-        without clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is
-        in stops (each doubles the radiance); None is automatic: the log-average luminance at middle
-        grey for "aces", the 99.5th percentile of luminance at white for "standard"."""
+    def save(self, *paths, exposure: float | None = None, view: str = "aces"):
+        """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
+        written): linear float32 EXR (.exr, with variance channels for stochastic methods) or an 8-bit
+        PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off without
+        clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is in stops
+        (each doubles the radiance); None is automatic: the log-average luminance at middle grey for
+        "aces", the 99.5th percentile of luminance at white for "standard"."""
         from . import film
+        from .view import check_exposure
 
-        path = Path(path)
-        if path.suffix.lower() == ".png":
-            film.write_png(path, film.tonemap(self.array, exposure, view))
-        elif path.suffix.lower() == ".exr":
-            extra = {}
-            if self.variance is not None:
-                extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
-            film.write_exr(path, self.array, self.header(), extra)
-        else:
-            raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
+        exposure, view = check_exposure(exposure), film.check_view(view)
+        jobs = []
+        for path in map(Path, paths):
+            if path.suffix.lower() == ".png":
+                jobs.append((path, film.png_writer(film.tonemap(self.array, exposure, view))))
+            elif path.suffix.lower() == ".exr":
+                extra = {}
+                if self.variance is not None:
+                    extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
+                jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
+            else:
+                raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
+        film.write_together(jobs)
 
 
 def load(scene=None, overrides=(), camera: str | None = None) -> Scene:

@@ -86,7 +86,9 @@ def build_parser():
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
-    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    r.add_argument("--stats", action="store_true",
+                   help="after the summary line, the method's statistics (also in the EXR header, stats.*)")
     r.add_argument("--display-server", metavar="HOST:PORT",
                    help="show the image in the tev viewer listening there as it renders (e.g. 127.0.0.1:14158, "
                         "tev's default); an unreachable viewer is a warning, the render goes on")
@@ -192,6 +194,8 @@ def cmd_render(args):
     png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
     if out.suffix.lower() != ".exr":
         raise UserError(f"--out {out}: must end in .exr; the image is written as linear float32 EXR")
+    if png is not None and png.suffix.lower() != ".png":
+        raise UserError(f"--png {png}: must end in .png; the preview is written as an 8-bit PNG")
     if not args.out:
         out.parent.mkdir(parents=True, exist_ok=True)
     for p in (out, png):
@@ -229,22 +233,22 @@ def cmd_render(args):
                          progress=tile_done if bar else None, on_pass=report, max_memory=args.max_memory,
                          **_given_params(args))
     except KeyboardInterrupt:
-        raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
-                                                     "the same command to resume" if ckpt else "")) from None
+        print(f"interrupted: {source}" + (f"; the checkpoint {ckpt} keeps the finished passes, run the same "
+                                          "command to resume" if ckpt else "; nothing was written"), file=sys.stderr)
+        return 130
     finally:
         if bar:
             bar.close()
         if display is not None:
             display.close()
-    img.save(out)
-    if png is not None:
-        img.save(png, args.exposure, args.view)
+    img.save(out, *([png] if png is not None else []), exposure=args.exposure, view=args.view)  # both or neither
     if not args.quiet:
         cam = scene.camera
         size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")
         print(f"{scene.name}: {size}, {cam.spp} spp, method {img.method} "
               f"in {img.seconds:.2f} s (+{img.compile_seconds:.2f} s compile) → {out}"
               + (f", {png}" if png else ""))
+    if args.stats:
         for k, v in img.stats.items():
             print(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
     return 0

@@ -15,27 +15,43 @@ import numpy as np
 from .errors import UserError
 
 
-def _atomic_write(path: Path, write):
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise UserError(f"{path}: folder {folder} does not exist; create it or choose another --out")
+def write_together(jobs):
+    """Write every (path, write) of `jobs`, all or nothing: `write(tmp)` fills a temporary file beside
+    its path, and the temporaries are renamed onto their paths only once all are written; on any
+    failure (or Ctrl-C) no temporary stays and no path is touched. UserError names the path."""
+    jobs = [(Path(path), write) for path, write in jobs]
+    temporaries = []
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write there ({exc.strerror}); choose a writable --out path") from None
-    os.close(fd)
-    try:
-        write(tmp)
+        for path, write in jobs:
+            folder = path.parent if str(path.parent) else Path(".")
+            if not folder.is_dir():
+                raise UserError(f"{path}: folder {folder} does not exist; create it or choose another --out")
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write there ({exc.strerror}); choose a writable --out path") from None
+            os.close(fd)
+            temporaries.append(tmp)
+            try:
+                write(tmp)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
+        for (path, _), tmp in zip(jobs, temporaries):
+            try:
+                os.chmod(tmp, 0o666 & ~umask)
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for tmp in temporaries:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
+def _atomic_write(path: Path, write):
+    write_together([(path, write)])
 
 
 def check_writable(path: Path):
@@ -51,6 +67,11 @@ def check_writable(path: Path):
 def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict | None = None):
     """Write (H, W, 3) linear RGB as float32 EXR; `header` values become string attributes,
     `extra` maps channel names (e.g. "variance.R") to (H, W) arrays."""
+    _atomic_write(Path(path), exr_writer(image, header, extra))
+
+
+def exr_writer(image: np.ndarray, header: dict | None = None, extra: dict | None = None):
+    """`write(tmp)` of `write_exr`'s file, for `write_together`."""
     import OpenEXR
 
     hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
@@ -65,7 +86,7 @@ def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict |
         with OpenEXR.File(hdr, channels) as f:
             f.write(tmp)
 
-    _atomic_write(Path(path), write)
+    return write
 
 
 def read_exr(path) -> tuple[np.ndarray, dict]:
@@ -126,6 +147,11 @@ def srgb_encode(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
 
 
 def write_png(path, rgb8: np.ndarray):
+    _atomic_write(Path(path), png_writer(rgb8))
+
+
+def png_writer(rgb8: np.ndarray):
+    """`write(tmp)` of `write_png`'s file, for `write_together`."""
     from PIL import Image
 
-    _atomic_write(Path(path), lambda tmp: Image.fromarray(rgb8, "RGB").save(tmp, format="PNG"))
+    return lambda tmp: Image.fromarray(rgb8, "RGB").save(tmp, format="PNG")
