@@ -15,6 +15,7 @@ parameters; a parameter the method does not read is an error (UserError).
 from __future__ import annotations
 
 import copy
+import difflib
 import math
 import time
 import warnings
@@ -30,6 +31,9 @@ from .scene.format import Scene
 from .visibility import SHADOW_SPACING, SPACING_RANGE
 
 OPTION_NAMES = frozenset(f.name for f in fields(RenderOptions))
+
+
+PREVIEW_WIDTH = 480  # pixels: the widest preview a notebook shows (Image._repr_png_)
 
 
 @dataclass
@@ -60,6 +64,34 @@ class Image:
         out.update({f"stats.{k}": v for k, v in self.stats.items()})
         out.update(self.extra_header)
         return out
+
+    def _repr_png_(self) -> bytes:
+        """A notebook's preview: the PNG (ACES view, automatic exposure) at most PREVIEW_WIDTH wide."""
+        from io import BytesIO
+
+        from PIL import Image as Picture
+
+        from . import film
+
+        picture = Picture.fromarray(film.tonemap(self.array), "RGB")
+        if picture.width > PREVIEW_WIDTH:
+            height = max(1, round(picture.height * PREVIEW_WIDTH / picture.width))
+            picture = picture.resize((PREVIEW_WIDTH, height), Picture.Resampling.BOX)
+        buffer = BytesIO()
+        picture.save(buffer, format="PNG")
+        return buffer.getvalue()
+
+    def _repr_html_(self) -> str:
+        """The preview with a caption: scene, size, method, spp and render time."""
+        import base64
+        import html
+
+        height, width = self.array.shape[:2]
+        caption = (f"{self.scene}: {width}x{height}, method {self.method}, {self.spp} spp, {self.seconds:.2f} s "
+                   f"(+{self.compile_seconds:.2f} s compile)")
+        data = base64.b64encode(self._repr_png_()).decode("ascii")
+        return (f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(caption)}">'
+                f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
     def save(self, *paths, exposure: float | None = None, view: str = "aces"):
         """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
@@ -117,7 +149,10 @@ def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dic
         raw, source, path = copy.deepcopy(scene), "scene dict", None
     else:
         path = Path(scene)
-        if not path.exists() and path.suffix == "" and str(scene) in bundled_scenes():
+        if not path.exists() and path.suffix == "":
+            if str(scene) not in bundled_scenes():
+                raise UserError(f"{scene}: no such scene file or bundled scene; {_did_you_mean(str(scene), bundled_scenes())}"
+                                f"give a scene file's path or a bundled scene: {', '.join(sorted(bundled_scenes()))}")
             path = bundled_scenes()[str(scene)]
         source = str(path)
         # glTF, Mitsuba 3 and pbrt-v4 files are read into the scene dict by raytrace.io
@@ -129,6 +164,22 @@ def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dic
     for item in overrides:
         apply_override(raw, *parse_override(item, source), source)
     return raw, source, path
+
+
+def _did_you_mean(name: str, choices) -> str:
+    """'did you mean "x"? ' for the choice closest to `name`, or '' when none is close."""
+    close = difflib.get_close_matches(name, list(choices), n=1)
+    return f'did you mean "{close[0]}"? ' if close else ""
+
+
+def get_method(name: str, source: str):
+    """The registered method `name`; UserError with the closest name and the list otherwise."""
+    from .methods import get_method as registered, registry
+
+    if name not in registry():
+        raise UserError(f"{source}: {_named('method', name)}: unknown method; {_did_you_mean(str(name), registry())}"
+                        f"choose one of: {', '.join(registry())}")
+    return registered(name)
 
 
 def _named(key: str, value) -> str:
@@ -265,13 +316,12 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
     from . import renderer
-    from .methods import get_method
 
     scene = prepared.scene if prepared is not None else load(scene, overrides, camera)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
     options = render_options(scene, source, **{k: v for k, v in kwargs.items() if k in OPTION_NAMES})
     cam = scene.camera
-    m = get_method(method or scene.render.get("method", "analytic"))
+    m = get_method(method or scene.render.get("method", "analytic"), source)
     given = scene_defaults(scene, m, source)
     given.update({k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None})
     if options.progressive and not m.stochastic:
