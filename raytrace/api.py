@@ -177,7 +177,7 @@ def get_method(name: str, source: str):
     from .methods import get_method as registered, registry
 
     if name not in registry():
-        raise UserError(f"{source}: {_named('method', name)}: unknown method; {_did_you_mean(str(name), registry())}"
+        raise UserError(f"{source}: method={name!r} (--method {name}): unknown method; {_did_you_mean(str(name), registry())}"
                         f"choose one of: {', '.join(registry())}")
     return registered(name)
 

@@ -431,18 +431,22 @@ def cmd_diff(args):
     return 0
 
 
+def one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as the command line prints it: `warning: <message>` on one line, without the source
+    line Python adds by default."""
+    return "warning: " + " ".join(str(message).split()) + "\n"
+
+
 @contextlib.contextmanager
 def _one_line_warnings():
-    """Every warning (importers' notes, --approximate, the live display's) as one line on stderr:
-    `warning: <message>`, without the source line Python prints by default."""
-    def show(message, category, filename, lineno, file=None, line=None):
-        print("warning: " + " ".join(str(message).split()), file=sys.stderr)
-
-    saved, warnings.showwarning = warnings.showwarning, show
+    """Every warning (importers' notes, --approximate, the live display's, scene defaults ignored)
+    printed as one line on stderr. The format is replaced rather than `showwarning`, so that a
+    caller recording warnings (warnings.catch_warnings(record=True), pytest.warns) still gets them."""
+    saved, warnings.formatwarning = warnings.formatwarning, one_line_warning
     try:
         yield
     finally:
-        warnings.showwarning = saved
+        warnings.formatwarning = saved
 
 
 def main(argv=None) -> int:

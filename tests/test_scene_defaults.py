@@ -10,7 +10,7 @@ import pytest
 
 import raytrace
 from raytrace.api import SceneDefaultNote
-from raytrace.cli import main
+from raytrace.cli import main, one_line_warning
 from raytrace.methods import registry
 from raytrace.scene.assets import bundled_scenes
 
@@ -33,13 +33,17 @@ def test_a_keyword_the_method_does_not_read_is_still_refused():
         raytrace.render(box_room(), method="raymarch", rtol=1e-6)
 
 
-def test_the_cli_prints_the_note_on_one_line(tmp_path, capsys):
+def test_the_cli_renders_with_the_note(tmp_path):
     out = tmp_path / "a.exr"
-    assert main(["sunrise", "--method", "raymarch", "--width", "4", "--height", "3", "--threads", "1",
-                 "--out", str(out), "--quiet"]) == 0
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("warning: ") and "rtol = 1e-06: not read by method raymarch" in err
+    with pytest.warns(SceneDefaultNote, match=r"sunrise\.toml: \[render\] rtol = 1e-06: not read by method raymarch"):
+        assert main(["sunrise", "--method", "raymarch", "--width", "4", "--height", "3", "--threads", "1",
+                     "--out", str(out), "--quiet"]) == 0
     assert out.is_file()
+
+
+def test_the_cli_prints_a_warning_on_one_line():
+    text = one_line_warning("a.toml: [render] rtol = 1e-06:\n  not read", SceneDefaultNote, "api.py", 1, "source")
+    assert text == "warning: a.toml: [render] rtol = 1e-06: not read\n"
 
 
 def _available(name, path):
