@@ -4,7 +4,7 @@
     img = raytrace.render("scenes/box_room.toml", method="analytic", precision=1e-6, spp=4)
     img.array          # (H, W, 3) float64 linear radiance
     img.stats          # the method's statistics (e.g. the analytic method's path fractions)
-    img.save("box.exr"); img.save("box.png")
+    img.save("box.exr", "box.png")  # both or neither
 
 `scene` is a TOML file path, the name of a bundled scene (`box_room`, `sibenik`, `bridge`,
 `conference`: the repository's scenes/, installed with the package), a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
@@ -15,8 +15,10 @@ parameters; a parameter the method does not read is an error (UserError).
 from __future__ import annotations
 
 import copy
+import difflib
 import math
 import time
+import warnings
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
@@ -29,6 +31,9 @@ from .scene.format import Scene
 from .visibility import SHADOW_SPACING, SPACING_RANGE
 
 OPTION_NAMES = frozenset(f.name for f in fields(RenderOptions))
+
+
+PREVIEW_WIDTH = 480  # pixels: the widest preview a notebook shows (Image._repr_png_)
 
 
 @dataclass
@@ -60,38 +65,78 @@ class Image:
         out.update(self.extra_header)
         return out
 
-    def save(self, path, exposure: float | None = None):
-        """Write `path`: linear float32 EXR (.exr, with variance channels for stochastic methods) or a
-        tone-mapped PNG preview (.png; 99.5th percentile of luminance → white unless `exposure`)."""
+    def _repr_png_(self) -> bytes:
+        """A notebook's preview: the PNG (ACES view, automatic exposure) at most PREVIEW_WIDTH wide."""
+        from io import BytesIO
+
+        from PIL import Image as Picture
+
         from . import film
 
-        path = Path(path)
-        if path.suffix.lower() == ".png":
-            film.write_png(path, film.tonemap(self.array, exposure))
-        elif path.suffix.lower() == ".exr":
-            extra = {}
-            if self.variance is not None:
-                extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
-            film.write_exr(path, self.array, self.header(), extra)
-        else:
-            raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
+        picture = Picture.fromarray(film.tonemap(self.array), "RGB")
+        if picture.width > PREVIEW_WIDTH:
+            height = max(1, round(picture.height * PREVIEW_WIDTH / picture.width))
+            picture = picture.resize((PREVIEW_WIDTH, height), Picture.Resampling.BOX)
+        buffer = BytesIO()
+        picture.save(buffer, format="PNG")
+        return buffer.getvalue()
+
+    def _repr_html_(self) -> str:
+        """The preview with a caption: scene, size, method, spp and render time."""
+        import base64
+        import html
+
+        height, width = self.array.shape[:2]
+        caption = (f"{self.scene}: {width}x{height}, method {self.method}, {self.spp} spp, {self.seconds:.2f} s "
+                   f"(+{self.compile_seconds:.2f} s compile)")
+        data = base64.b64encode(self._repr_png_()).decode("ascii")
+        return (f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(caption)}">'
+                f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+    def save(self, *paths, exposure: float | None = None, view: str = "aces"):
+        """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
+        written): linear float32 EXR (.exr, with variance channels for stochastic methods) or an 8-bit
+        PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off without
+        clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is in stops
+        (each doubles the radiance); None is automatic: the log-average luminance at middle grey for
+        "aces", the 99.5th percentile of luminance at white for "standard"."""
+        from . import film
+        from .view import check_exposure
+
+        exposure, view = check_exposure(exposure), film.check_view(view)
+        jobs = []
+        for path in map(Path, paths):
+            if path.suffix.lower() == ".png":
+                jobs.append((path, film.png_writer(film.tonemap(self.array, exposure, view))))
+            elif path.suffix.lower() == ".exr":
+                extra = {}
+                if self.variance is not None:
+                    extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
+                jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
+            else:
+                raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
+        film.write_together(jobs)
 
 
-def load(scene=None, overrides=()) -> Scene:
-    """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default)."""
+def load(scene=None, overrides=(), camera: str | None = None) -> Scene:
+    """A `Scene` from a path, a dict, a `Scene` (returned as is) or None (the built-in default);
+    `overrides` and `camera` as for `scene_dict`."""
     from .scene.format import scene_from_dict
 
     if isinstance(scene, Scene):
-        if overrides:
-            raise UserError("overrides apply to scene files and dicts, not to a parsed Scene; pass the file or dict")
+        if overrides or camera is not None:
+            raise UserError("overrides and camera apply to scene files and dicts, not to a parsed Scene; pass the "
+                            "file or dict")
         return scene
-    raw, source, path = scene_dict(scene, overrides)
+    raw, source, path = scene_dict(scene, overrides, camera)
     return scene_from_dict(raw, source, path)
 
 
-def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
+def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dict, str, Path | None]:
     """(raw, source, path): the scene dict (the TOML structure) of a path, a bundled scene's name, a
-    dict or None (the built-in default), with the overrides applied; not yet validated."""
+    dict or None (the built-in default), with the overrides applied; not yet validated. `camera`
+    names the camera of a file that names its cameras (glTF: a node's or a camera's name; raytrace.io);
+    a TOML scene has one [camera], so a name given for it is refused."""
     import tomllib
 
     from .default_scene import DEFAULT_TOML
@@ -104,14 +149,37 @@ def scene_dict(scene=None, overrides=()) -> tuple[dict, str, Path | None]:
         raw, source, path = copy.deepcopy(scene), "scene dict", None
     else:
         path = Path(scene)
-        if not path.exists() and path.suffix == "" and str(scene) in bundled_scenes():
+        if not path.exists() and path.suffix == "":
+            if str(scene) not in bundled_scenes():
+                raise UserError(f"{scene}: no such scene file or bundled scene; {_did_you_mean(str(scene), bundled_scenes())}"
+                                f"give a scene file's path or a bundled scene: {', '.join(sorted(bundled_scenes()))}")
             path = bundled_scenes()[str(scene)]
         source = str(path)
         # glTF, Mitsuba 3 and pbrt-v4 files are read into the scene dict by raytrace.io
-        raw = io.read_scene(path) if io.importer(path) else read_toml(path)
+        raw = io.read_scene(path, camera) if io.importer(path) else read_toml(path)
+    if camera is not None and not (path is not None and io.importer(path)):
+        raise UserError(f"{source}: {_named('camera', camera)}: names a camera of a glTF file; this scene has one "
+                        "[camera]: leave it out and change the view with camera.position and camera.look_at "
+                        "(--set camera.position=[x, y, z])")
     for item in overrides:
         apply_override(raw, *parse_override(item, source), source)
     return raw, source, path
+
+
+def _did_you_mean(name: str, choices) -> str:
+    """'did you mean "x"? ' for the choice closest to `name`, or '' when none is close."""
+    close = difflib.get_close_matches(name, list(choices), n=1)
+    return f'did you mean "{close[0]}"? ' if close else ""
+
+
+def get_method(name: str, source: str):
+    """The registered method `name`; UserError with the closest name and the list otherwise."""
+    from .methods import get_method as registered, registry
+
+    if name not in registry():
+        raise UserError(f"{source}: method={name!r} (--method {name}): unknown method; {_did_you_mean(str(name), registry())}"
+                        f"choose one of: {', '.join(registry())}")
+    return registered(name)
 
 
 def _named(key: str, value) -> str:
@@ -213,7 +281,30 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
 
 
-def render(scene=None, method: str | None = None, *, overrides=(), prepared=None, client=None, **kwargs) -> Image:
+class SceneDefaultNote(UserWarning):
+    """A scene's [render] parameter that the chosen method does not read was left out."""
+
+
+def scene_defaults(scene: Scene, method, source: str) -> dict:
+    """The method parameters of the scene's [render] table for a render with `method`. When `method`
+    is not the table's own `method`, the parameters it does not read (e.g. a quadrature scene's rtol
+    when rendering with raymarch) are defaults for another method: left out with one
+    SceneDefaultNote, never refused. The table's own method gets them all (one it does not read
+    is the file's mistake, refused by the method as a keyword given here is)."""
+    from .scene.format import RENDER_OPTIONS
+
+    params = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+    if scene.render.get("method") == method.name:
+        return params
+    unread = [k for k in params if k not in method.params]
+    if unread:
+        warnings.warn(f"{source}: [render] {', '.join(f'{k} = {params[k]!r}' for k in unread)}: not read by method "
+                      f"{method.name}; ignored", SceneDefaultNote, stacklevel=3)
+    return {k: v for k, v in params.items() if k not in unread}
+
+
+def render(scene=None, method: str | None = None, *, overrides=(), camera: str | None = None, prepared=None,
+           client=None, **kwargs) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
 
     Keywords named as `RenderOptions`' fields are render options (raytrace/options.py: spp, width,
@@ -221,18 +312,17 @@ def render(scene=None, method: str | None = None, *, overrides=(), prepared=None
     time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
     progress, on_pass and observer); every other keyword is a parameter of the method. The scene's
     [render] table supplies defaults for both. `overrides` are "key=value" strings as --set;
+    `camera` names the camera of a glTF file (as --camera);
     `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
     from . import renderer
-    from .methods import get_method
-    from .scene.format import RENDER_OPTIONS
 
-    scene = prepared.scene if prepared is not None else load(scene, overrides)
+    scene = prepared.scene if prepared is not None else load(scene, overrides, camera)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
     options = render_options(scene, source, **{k: v for k, v in kwargs.items() if k in OPTION_NAMES})
     cam = scene.camera
-    m = get_method(method or scene.render.get("method", "analytic"))
-    given = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+    m = get_method(method or scene.render.get("method", "analytic"), source)
+    given = scene_defaults(scene, m, source)
     given.update({k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None})
     if options.progressive and not m.stochastic:
         raise UserError(f"{source}: method {m.name} is deterministic; the progressive options passes, time_budget, "

@@ -9,11 +9,13 @@ import copy
 import contextlib
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .errors import UserError
+from .film import VIEWS
 
 COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export")
 
@@ -34,6 +36,8 @@ def _add_scene_args(p):
     p.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set medium.sigma_s=0.2 (repeatable)")
+    p.add_argument("--camera", metavar="NAME",
+                   help="the camera of a glTF scene to use, by its node's or its own name (default: the first)")
 
 
 def _add_scheduler_arg(p):
@@ -73,17 +77,27 @@ def build_parser():
     r.add_argument("--height", type=int, help="image height in pixels")
     r.add_argument("--seed", type=int, help="random seed of the stochastic methods (default 0)")
     r.add_argument("--out", help="output EXR (default out/<scene name>.exr, with a PNG beside it)")
-    r.add_argument("--png", help="also write a tone-mapped PNG preview here")
-    r.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic)")
+    r.add_argument("--png", help="also write an 8-bit PNG preview here")
+    r.add_argument("--exposure", type=float, help="PNG exposure in stops, each doubling the radiance (default: "
+                                                  "automatic, the log-average luminance at middle grey)")
+    r.add_argument("--view", choices=VIEWS, default="aces",
+                   help="PNG view: aces (ACES 2.0 SDR, highlights roll off, colours do not clip; default) or "
+                        "standard (the exact sRGB encode, clipped at 1)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
-    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
+    r.add_argument("--stats", action="store_true",
+                   help="after the summary line, the method's statistics (also in the EXR header, stats.*)")
+    r.add_argument("--display-server", metavar="HOST:PORT",
+                   help="show the image in the tev viewer listening there as it renders (e.g. 127.0.0.1:14158, "
+                        "tev's default); an unreachable viewer is a warning, the render goes on")
     r.add_argument("--max-memory", type=float, metavar="GIB",
                    help="memory budget of the image's arrays in GiB (default: 80%% of the machine's memory); a "
                         "larger image is refused up front with the figure and the fix")
-    r.add_argument("--volumetric-shadows", action="store_true",
-                   help="shadowed air-light: light shafts behind occluders (render.volumetric_shadows)")
+    r.add_argument("--volumetric-shadows", action=argparse.BooleanOptionalAction,
+                   help="shadowed air-light: light shafts behind occluders (default: the scene's "
+                        "render.volumetric_shadows, else off); --no-volumetric-shadows turns a scene's off")
     r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
                    help="angle seen from the light between visibility samples of the lit-interval search "
                         "(default 0.01; occluders narrower than this may be missed)")
@@ -161,7 +175,7 @@ def build_parser():
 def load(args):
     from .api import load as load_scene
 
-    return load_scene(args.scene, args.overrides)
+    return load_scene(args.scene, args.overrides, args.camera)
 
 
 def _given_params(args):
@@ -172,12 +186,16 @@ def _given_params(args):
 def cmd_render(args):
     from . import film
     from .api import render
+    from .view import check_exposure
 
+    check_exposure(args.exposure, "--exposure")
     scene = load(args)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}.exr"
     png = Path(args.png) if args.png else (None if args.out else out.with_suffix(".png"))
     if out.suffix.lower() != ".exr":
         raise UserError(f"--out {out}: must end in .exr; the image is written as linear float32 EXR")
+    if png is not None and png.suffix.lower() != ".png":
+        raise UserError(f"--png {png}: must end in .png; the preview is written as an 8-bit PNG")
     if not args.out:
         out.parent.mkdir(parents=True, exist_ok=True)
     for p in (out, png):
@@ -190,6 +208,7 @@ def cmd_render(args):
     source = str(scene.path or "default scene")
     show = not args.quiet and sys.stderr.isatty()
     rows = (args.crop and _parse_crop(args.crop)) or None
+    display = _display(args, scene, out.stem)
     bar = None
     if show:
         from tqdm import tqdm
@@ -207,30 +226,45 @@ def cmd_render(args):
 
     try:
         with _cluster(args) as client:
-            img = render(scene, args.method, client=client, **_option_args(args), crop=rows,
-                         volumetric_shadows=args.volumetric_shadows or None, shadow_spacing=args.shadow_spacing,
+            img = render(scene, args.method, client=client, **_option_args(args), crop=rows, observer=display,
+                         volumetric_shadows=args.volumetric_shadows, shadow_spacing=args.shadow_spacing,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                          progress=tile_done if bar else None, on_pass=report, max_memory=args.max_memory,
                          **_given_params(args))
     except KeyboardInterrupt:
-        raise UserError(f"{source}: interrupted" + (f"; the checkpoint {ckpt} keeps the finished passes, run "
-                                                     "the same command to resume" if ckpt else "")) from None
+        print(f"interrupted: {source}" + (f"; the checkpoint {ckpt} keeps the finished passes, run the same "
+                                          "command to resume" if ckpt else "; nothing was written"), file=sys.stderr)
+        return 130
     finally:
         if bar:
             bar.close()
-    img.save(out)
-    if png is not None:
-        img.save(png, args.exposure)
+        if display is not None:
+            display.close()
+    img.save(out, *([png] if png is not None else []), exposure=args.exposure, view=args.view)  # both or neither
     if not args.quiet:
         cam = scene.camera
         size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")
         print(f"{scene.name}: {size}, {cam.spp} spp, method {img.method} "
               f"in {img.seconds:.2f} s (+{img.compile_seconds:.2f} s compile) → {out}"
               + (f", {png}" if png else ""))
+    if args.stats:
         for k, v in img.stats.items():
             print(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
     return 0
+
+
+def _display(args, scene, name):
+    """The tev display of --display-server showing the image `name` (None without the flag)."""
+    if not args.display_server:
+        return None
+    from .api import render_options
+    from .tev import TevDisplay, parse_address
+
+    parse_address(args.display_server)  # a badly formed address is refused before --width is looked at
+    render_options(None, width=args.width, height=args.height)  # refuses a size that is not positive
+    return TevDisplay.open(args.display_server, name, args.width or scene.camera.width,
+                           args.height or scene.camera.height)
 
 
 def _parse_crop(text):
@@ -250,7 +284,9 @@ def cmd_compare(args):
     from . import renderer
     from .api import executor, render_options
     from .experiments.compare import compare, parse_spec
+    from .view import check_exposure
 
+    check_exposure(args.exposure, "--exposure")
     scene = load(args)
     options = render_options(scene, **_option_args(args))
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
@@ -279,7 +315,7 @@ def cmd_sweep(args):
     reference = parse_spec(args.reference)
     points = []
     for where in grid_points(axes):  # every point parsed before anything is rendered or written
-        scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()])
+        scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()], args.camera)
         options = render_options(scene, **_option_args(args))
         points.append((where, scene))
     out = _folder(args.out)
@@ -354,7 +390,7 @@ def cmd_export(args):
     from .api import scene_dict
     from .scene.format import scene_from_dict
 
-    raw, source, path = scene_dict(args.scene, args.overrides)
+    raw, source, path = scene_dict(args.scene, args.overrides, args.camera)
     scene_from_dict(copy.deepcopy(raw), source, path)  # the scene must be valid before anything is written
     for written in io.export(raw, args.format, Path(args.out), source, args.approximate):
         print(f"wrote {written}")
@@ -395,6 +431,24 @@ def cmd_diff(args):
     return 0
 
 
+def one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as the command line prints it: `warning: <message>` on one line, without the source
+    line Python adds by default."""
+    return "warning: " + " ".join(str(message).split()) + "\n"
+
+
+@contextlib.contextmanager
+def _one_line_warnings():
+    """Every warning (importers' notes, --approximate, the live display's, scene defaults ignored)
+    printed as one line on stderr. The format is replaced rather than `showwarning`, so that a
+    caller recording warnings (warnings.catch_warnings(record=True), pytest.warns) still gets them."""
+    saved, warnings.formatwarning = warnings.formatwarning, one_line_warning
+    try:
+        yield
+    finally:
+        warnings.formatwarning = saved
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
@@ -406,7 +460,8 @@ def main(argv=None) -> int:
                 "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
                 "seed002": cmd_seed002, "export": cmd_export}
     try:
-        return handlers[args.command](args)
+        with _one_line_warnings():
+            return handlers[args.command](args)
     except UserError as exc:
         print("error: " + " ".join(str(exc).split("\n")), file=sys.stderr)  # always one line
         return 2

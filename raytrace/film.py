@@ -1,4 +1,5 @@
-"""Image files: linear float32 RGB EXR (with metadata in the header) and tone-mapped PNG previews.
+"""Image files: linear float32 RGB EXR (with metadata in the header) and PNG previews (through
+view.py's ACES 2.0 view, or a plain sRGB encode).
 
 Files are written to a temporary name beside the target and renamed, so a failed or interrupted
 write never leaves a partial image behind.
@@ -14,27 +15,43 @@ import numpy as np
 from .errors import UserError
 
 
-def _atomic_write(path: Path, write):
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise UserError(f"{path}: folder {folder} does not exist; create it or choose another --out")
+def write_together(jobs):
+    """Write every (path, write) of `jobs`, all or nothing: `write(tmp)` fills a temporary file beside
+    its path, and the temporaries are renamed onto their paths only once all are written; on any
+    failure (or Ctrl-C) no temporary stays and no path is touched. UserError names the path."""
+    jobs = [(Path(path), write) for path, write in jobs]
+    temporaries = []
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write there ({exc.strerror}); choose a writable --out path") from None
-    os.close(fd)
-    try:
-        write(tmp)
+        for path, write in jobs:
+            folder = path.parent if str(path.parent) else Path(".")
+            if not folder.is_dir():
+                raise UserError(f"{path}: folder {folder} does not exist; create it or choose another --out")
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write there ({exc.strerror}); choose a writable --out path") from None
+            os.close(fd)
+            temporaries.append(tmp)
+            try:
+                write(tmp)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
+        for (path, _), tmp in zip(jobs, temporaries):
+            try:
+                os.chmod(tmp, 0o666 & ~umask)
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for tmp in temporaries:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
+def _atomic_write(path: Path, write):
+    write_together([(path, write)])
 
 
 def check_writable(path: Path):
@@ -50,6 +67,11 @@ def check_writable(path: Path):
 def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict | None = None):
     """Write (H, W, 3) linear RGB as float32 EXR; `header` values become string attributes,
     `extra` maps channel names (e.g. "variance.R") to (H, W) arrays."""
+    _atomic_write(Path(path), exr_writer(image, header, extra))
+
+
+def exr_writer(image: np.ndarray, header: dict | None = None, extra: dict | None = None):
+    """`write(tmp)` of `write_exr`'s file, for `write_together`."""
     import OpenEXR
 
     hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
@@ -64,7 +86,7 @@ def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict |
         with OpenEXR.File(hdr, channels) as f:
             f.write(tmp)
 
-    _atomic_write(Path(path), write)
+    return write
 
 
 def read_exr(path) -> tuple[np.ndarray, dict]:
@@ -84,11 +106,31 @@ def read_exr(path) -> tuple[np.ndarray, dict]:
     return img, header
 
 
-TONEMAP_VALUES = 1 << 20  # float64 values per band of `tonemap` (a few 8 MB temporaries)
+TONEMAP_VALUES = 1 << 20  # float64 values per band of `srgb_encode` (a few 8 MB temporaries)
+VIEWS = ("aces", "standard")  # preview views: ACES 2.0's SDR output transform (view.py), or a plain sRGB encode
 
 
-def tonemap(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
-    """8-bit sRGB preview. `exposure` in stops; None scales the 99.5th percentile of luminance to 1."""
+def check_view(name, what: str = "view") -> str:
+    """`name` if it is one of VIEWS; UserError naming `what` otherwise."""
+    if name not in VIEWS:
+        raise UserError(f"{what}: unknown view {name!r}; choose one of: {', '.join(VIEWS)} (aces rolls highlights "
+                        "off without clipping colours, standard is the exact sRGB encode that clips at 1)")
+    return name
+
+
+def tonemap(image: np.ndarray, exposure: float | None = None, view: str = "aces") -> np.ndarray:
+    """8-bit sRGB preview of linear radiance through `view` (VIEWS), `exposure` in stops (None:
+    automatic): "aces" is `view.to_display`; "standard" is `srgb_encode`."""
+    from . import view as views
+
+    check_view(view)
+    exposure = views.check_exposure(exposure)
+    return views.to_display(image, exposure) if view == "aces" else srgb_encode(image, exposure)
+
+
+def srgb_encode(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
+    """8-bit sRGB (IEC 61966-2-1) of radiance x 2^exposure clipped to [0, 1]; exposure None scales
+    the 99.5th percentile of luminance to 1."""
     lum = image @ np.array([0.2126, 0.7152, 0.0722])
     if exposure is None:
         ref = np.percentile(lum, 99.5) if lum.size else 0.0
@@ -97,7 +139,7 @@ def tonemap(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
         scale = 2.0 ** exposure
     out = np.empty(image.shape, np.uint8)
     rows = max(1, TONEMAP_VALUES // max(1, image[0].size)) if image.ndim == 3 and len(image) else 1
-    for r in range(0, len(image), rows):  # in bands: the temporaries stay small (issue 15's memory estimate)
+    for r in range(0, len(image), rows):  # in bands: the temporaries stay small
         x = np.clip(np.nan_to_num(image[r:r + rows] * scale, nan=0.0, posinf=1.0), 0.0, 1.0)
         srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
         out[r:r + rows] = srgb * 255.0 + 0.5
@@ -105,6 +147,11 @@ def tonemap(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
 
 
 def write_png(path, rgb8: np.ndarray):
+    _atomic_write(Path(path), png_writer(rgb8))
+
+
+def png_writer(rgb8: np.ndarray):
+    """`write(tmp)` of `write_png`'s file, for `write_together`."""
     from PIL import Image
 
-    _atomic_write(Path(path), lambda tmp: Image.fromarray(rgb8, "RGB").save(tmp, format="PNG"))
+    return lambda tmp: Image.fromarray(rgb8, "RGB").save(tmp, format="PNG")

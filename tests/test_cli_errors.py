@@ -253,11 +253,15 @@ SET_CASES = [
     ("empty-segment", "medium..sigma_s=0.2", "--set medium..sigma_s", "for example"),
     ("misspelt-leaf", "medium.sigmas=0.2", "medium.sigmas", 'did you mean "sigma_s"'),
     ("unknown-top", "fog.sigma_s=0.2", "fog", "allowed keys"),
-    ("shape-index-out-of-range", "shape.3.reflectance=0.2", "--set shape.3.reflectance", "index them 0..0"),
+    ("shape-index-out-of-range", "shape.3.reflectance=0.2", "--set shape[3].reflectance", "index them 0..0"),
     ("shape-index-not-a-number", "shape.first.reflectance=0.2", "--set shape.first.reflectance", "index them"),
     ("vector-component-by-name", "camera.position.x=1.0", "--set camera.position.x", "0..2"),
     ("into-a-number", "camera.fov.x=1.0", "--set camera.fov.x", "set it as a whole"),
     ("into-a-vector", "medium.sigma_s.r=0.2", "--set medium.sigma_s.r", "0..2"),
+    ("bracket-index-out-of-range", "shape[3].reflectance=0.2", "--set shape[3].reflectance", "index them 0..0"),
+    ("bracket-not-closed", "shape[0.reflectance=0.2", "malformed key 'shape[0.reflectance'", "light[1].intensity"),
+    ("bracket-not-a-number", "shape[a].reflectance=0.2", "malformed key", "in brackets"),
+    ("index-of-a-table", "medium[0].sigma_s=0.2", "--set medium[0].sigma_s", "not an array"),
     ("bad-value", "medium.sigma_s=-1", "medium.sigma_s", "at least 0"),
     ("bad-g", 'medium.phase={type="hg",g=1.5}', "medium.phase.g", "-1 < g < 1"),
 ]
@@ -274,7 +278,7 @@ def test_set_errors(work, capsys, override, key, fix):
 def test_set_on_a_scene_without_lights(work, capsys):
     scene = write_scene(work, BASE.split("[[light]]")[0] + "[medium]\nsigma_s = 0.1\n")
     err = run_inprocess(render_argv(work, scene, "--set", "light.0.intensity=1.0"), capsys)
-    check_one_line(err, str(scene), "--set light.0.intensity", "add one")
+    check_one_line(err, str(scene), "--set light[0].intensity", "add one")
 
 
 def test_nonexistent_scene_file(work, capsys):

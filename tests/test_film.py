@@ -135,7 +135,7 @@ def test_png_size_and_pixels(tmp_path):
 ])
 def test_tonemap_srgb_anchor_values(linear, expected):
     """Well-known 8-bit sRGB codes: linear 0.5 → 188, mid grey 0.18 → 118, code 128 ↔ 0.2158605."""
-    out = film.tonemap(np.full((1, 1, 3), linear), exposure=0.0)
+    out = film.tonemap(np.full((1, 1, 3), linear), exposure=0.0, view="standard")
     assert out.dtype == np.uint8 and out.shape == (1, 1, 3)
     assert np.all(out == expected)
 
@@ -143,7 +143,7 @@ def test_tonemap_srgb_anchor_values(linear, expected):
 def test_tonemap_matches_srgb_everywhere():
     x = np.linspace(0.0, 1.0, 2001)
     img = np.stack([x, x[::-1], np.sqrt(x)], axis=-1)[None]
-    out = film.tonemap(img, exposure=0.0).astype(int)
+    out = film.tonemap(img, exposure=0.0, view="standard").astype(int)
     assert np.abs(out - srgb8(img)).max() <= 1  # rounding at code boundaries only
     assert np.mean(out == srgb8(img)) > 0.99
 
@@ -152,25 +152,25 @@ def test_tonemap_monotone_and_exposure():
     x = np.geomspace(1e-6, 50.0, 3000)
     img = np.repeat(x[None, :, None], 3, axis=2)
     for exposure in (-3.0, 0.0, 2.5):
-        out = film.tonemap(img, exposure)[0, :, 0].astype(int)
+        out = film.tonemap(img, exposure, "standard")[0, :, 0].astype(int)
         assert np.all(np.diff(out) >= 0)
     # one stop of exposure is a factor of two
-    np.testing.assert_array_equal(film.tonemap(img * 2.0, 0.0), film.tonemap(img, 1.0))
-    np.testing.assert_array_equal(film.tonemap(img, -2.0), film.tonemap(img / 4.0, 0.0))
+    np.testing.assert_array_equal(film.tonemap(img * 2.0, 0.0, "standard"), film.tonemap(img, 1.0, "standard"))
+    np.testing.assert_array_equal(film.tonemap(img, -2.0, "standard"), film.tonemap(img / 4.0, 0.0, "standard"))
 
 
 def test_tonemap_auto_exposure_and_bad_pixels():
     grey = np.full((4, 4, 3), 0.3)
-    assert np.all(film.tonemap(grey) == 255)  # 99.5th percentile of luminance → 1
+    assert np.all(film.tonemap(grey, view="standard") == 255)  # 99.5th percentile of luminance → 1
     img = np.zeros((10, 20, 3))
     img[..., :] = np.linspace(0.0, 4.0, 20)[None, :, None]
-    out = film.tonemap(img)
+    out = film.tonemap(img, view="standard")
     # the 99.5th percentile of 0..4 in 20 steps is close to 4: the brightest column is (nearly) white
     p = np.percentile(img[..., 0], 99.5)
     np.testing.assert_array_equal(out[0, :, 0], srgb8(img[0, :, 0] / p))
     bad = np.array([[[np.nan, np.inf, -np.inf]]])
-    np.testing.assert_array_equal(film.tonemap(bad, 0.0), [[[0, 255, 0]]])
-    black = film.tonemap(np.zeros((2, 2, 3)))
+    np.testing.assert_array_equal(film.tonemap(bad, 0.0, "standard"), [[[0, 255, 0]]])
+    black = film.tonemap(np.zeros((2, 2, 3)), view="standard")
     assert np.all(black == 0)
 
 

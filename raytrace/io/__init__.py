@@ -5,6 +5,7 @@ docs/scene_format.md); unit and convention conversions live in these modules and
 Each format module has
 
     read_scene(path: Path) -> dict          the scene dict, or UserError naming the file, the key and the fix
+                                            (a format whose files name their cameras takes `camera=NAME` too)
     export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]
                                             the files written (the scene and what it references)
 
@@ -13,6 +14,7 @@ Triangle meshes travel inline as `primitive = "triangles"` shapes (`vertices`, `
 from __future__ import annotations
 
 import importlib
+import inspect
 from pathlib import Path
 
 from ..errors import UserError
@@ -31,12 +33,20 @@ def importer(path: Path) -> str | None:
     return next((IMPORTERS[s] for s in sorted(IMPORTERS, key=len, reverse=True) if name.endswith(s)), None)
 
 
-def read_scene(path: Path) -> dict:
-    """The scene dict of a glTF, Mitsuba 3 or pbrt-v4 file (chosen by its suffix)."""
+def read_scene(path: Path, camera: str | None = None) -> dict:
+    """The scene dict of a glTF, Mitsuba 3 or pbrt-v4 file (chosen by its suffix), with the camera
+    named `camera` where the format names its cameras (None: the format's default camera)."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such scene file; check the path")
-    return _module(importer(path)).read_scene(path)
+    module = _module(importer(path))
+    if camera is None:
+        return module.read_scene(path)
+    if "camera" not in inspect.signature(module.read_scene).parameters:
+        raise UserError(f"{path}: camera {camera!r} (--camera): this format's importer reads one camera and does "
+                        "not choose by name; leave --camera out and set the view with --set camera.position=... "
+                        "--set camera.look_at=...")
+    return module.read_scene(path, camera=camera)
 
 
 def export(raw: dict, fmt: str, out: Path, source: str, approximate: bool = False) -> list[Path]:

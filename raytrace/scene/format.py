@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -463,13 +464,13 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
 
 
 def parse_override(text: str, source: str):
-    """Split a ``--set key.path=value`` override; the value is read as TOML, or as a bare string."""
+    """Split a ``--set key.path=value`` override into the canonical key (entries of arrays in
+    brackets: ``light[1].intensity``, as error messages write them; ``light.1.intensity`` is read the
+    same) and the value, read as TOML, or as a bare string."""
     if "=" not in text:
         raise UserError(f"{source}: --set {text}: expected key.path=value; for example --set medium.sigma_s=0.2")
     key, value = text.split("=", 1)
-    key = key.strip()
-    if not all(key.split(".")):
-        raise UserError(f"{source}: --set {text}: empty key in {key!r}; for example --set medium.sigma_s=0.2")
+    key = override_key(_key_parts(key.strip(), text, source))
     try:
         parsed = tomllib.loads(f"v = {value}")["v"]
     except tomllib.TOMLDecodeError:
@@ -477,29 +478,54 @@ def parse_override(text: str, source: str):
     return key, parsed
 
 
+_SEGMENT = re.compile(r"([^.\[\]\s]+)((?:\[[0-9]+\])*)")
+
+
+def _key_parts(key: str, text: str, source: str) -> list:
+    """``a.b[1].c`` or ``a.b.1.c`` as ["a", "b", 1, "c"]: names, and integers that index arrays."""
+    parts = []
+    for segment in key.split("."):
+        m = _SEGMENT.fullmatch(segment)
+        if not m:
+            raise UserError(f"{source}: --set {text}: malformed key {key!r}; write names joined by dots and array "
+                            "entries in brackets, for example --set medium.sigma_s=0.2 or --set light[1].intensity=20")
+        name, index = m.groups()
+        parts.append(int(name) if name.isdigit() else name)
+        parts += [int(i) for i in re.findall(r"[0-9]+", index)]
+    return parts
+
+
+def override_key(parts) -> str:
+    """The canonical spelling of a key path: ``light[1].position[0]``."""
+    return "".join(f"[{p}]" if isinstance(p, int) else (f".{p}" if i else p) for i, p in enumerate(parts))
+
+
 def apply_override(raw: dict, key: str, value, source: str):
-    """Set raw[a][b]... = value for key "a.b..."; integers index arrays of tables (shape.0.reflectance)."""
-    parts = key.split(".")
+    """Set raw[a][b]... = value for key "a.b..." (either spelling); integers index arrays
+    (light[1].intensity, camera.position[0])."""
+    parts = _key_parts(key, key, source)
+    key = override_key(parts)
     node = raw
-    for i, part in enumerate(parts[:-1]):
+    for i, part in enumerate(parts):
+        where, last = override_key(parts[:i]), i == len(parts) - 1
         if isinstance(node, list):
-            if not part.isdigit() or int(part) >= len(node):
-                raise UserError(f"{source}: --set {key}: {'.'.join(parts[:i])} has {len(node)} entries; "
-                                f"index them 0..{len(node) - 1}")
-            node = node[int(part)]
-        else:
-            if part in ("shape", "light") and part not in node:
-                raise UserError(f"{source}: --set {key}: the scene has no [[{part}]]; add one to the file")
+            if not isinstance(part, int) or part >= len(node):
+                raise UserError(f"{source}: --set {key}: {where} has {len(node)} entries; index them "
+                                f"0..{len(node) - 1}, e.g. {where}[0]" if node else
+                                f"{source}: --set {key}: {where} is empty; set it as a whole")
+        elif isinstance(part, int):
+            raise UserError(f"{source}: --set {key}: {where or 'the scene'} is a table, not an array; name its key")
+        elif part in ("shape", "light") and part not in node and not last:
+            raise UserError(f"{source}: --set {key}: the scene has no [[{part}]]; add one to the file")
+        if last:
+            node[part] = value
+            return
+        if isinstance(node, dict):
             node = node.setdefault(part, {})
-            if not isinstance(node, (dict, list)):
-                raise UserError(f"{source}: --set {key}: {part} is not a table; set it as a whole")
-    last = parts[-1]
-    if isinstance(node, list):
-        if not last.isdigit() or int(last) >= len(node):
-            raise UserError(f"{source}: --set {key}: index out of range; use 0..{len(node) - 1}")
-        node[int(last)] = value
-    else:
-        node[last] = value
+        else:
+            node = node[part]
+        if not isinstance(node, (dict, list)):
+            raise UserError(f"{source}: --set {key}: {override_key(parts[:i + 1])} is not a table; set it as a whole")
 
 
 def read_toml(path: Path) -> dict:
