@@ -61,6 +61,14 @@ def outside_lights(prep):
     return prep.lights
 
 
+def no_shadows(prep) -> str | None:
+    """Why volumetric shadows cannot be computed in `prep`'s scene yet (None: they can): the lit
+    intervals are not implemented with media inside shapes. `check` refuses a request for them;
+    shadows on by default go off instead (api.render, with one note)."""
+    inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
+    return f"not implemented with media inside shapes (shape[{inner[0]}].interior) yet" if inner else None
+
+
 def check(prep, method, method_params, source: str, volumetric_shadows: bool):
     """Refuse, in one line, what this first cut does not render in a scene with interior media."""
     inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
@@ -87,9 +95,9 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
     if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
                         f"{medium.type_name} is not implemented with them yet")
-    if volumetric_shadows:
-        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): not implemented with media "
-                        f"inside shapes ({key}) yet; remove it")
+    why = no_shadows(prep)
+    if volumetric_shadows and why:
+        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): {why}; remove it")
     for i in inner:
         m = prep.scene.shapes[i].interior
         if m.ior != 1.0 and near and method.name == "slab_approx":

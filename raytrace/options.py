@@ -25,7 +25,8 @@ class RenderOptions:
     seed: int = 0  # of the stochastic methods' random numbers
     threads: int | None = None  # of the thread pool (None: every core this process may use)
     crop: tuple[int, int, int, int] | None = None  # (x0, y0, x1, y1), end exclusive: the same samples
-    volumetric_shadows: bool = False  # the air-light over each light's lit intervals (visibility.py)
+    volumetric_shadows: bool = False  # the air-light over each light's lit intervals (shadow_frusta.py);
+    # off in this record (the renderer's and experiments' own calls), on by default in api.render
     shadow_spacing: float = SHADOW_SPACING  # radians between the lit-interval search's visibility samples
     passes: int | None = None  # stochastic methods' progressive rendering (progressive.py): stop after
     time_budget: float | None = None  # this many passes, seconds of rendering, or at this estimated
