@@ -1,12 +1,14 @@
-"""`--volumetric-shadows` / `--no-volumetric-shadows` and `volumetric_shadows=` in the API against a
-scene whose [render] table turns shadows on (the bundled `shafts`)."""
+"""`--volumetric-shadows` / `--no-volumetric-shadows` and `volumetric_shadows=` in the API: on by
+default, a scene's [render] table (the bundled `shafts` turns them on), and the default's fallback."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import raytrace
 from raytrace import film
-from raytrace.cli import main
+from raytrace.api import ShadowsNote
+from raytrace.cli import main, one_line_warning
 
 SMALL = dict(width=6, height=4, threads=1)
 
@@ -29,3 +31,53 @@ def test_the_flags_override_the_scene_both_ways(tmp_path):
     out = tmp_path / "scene.exr"
     assert main(["shafts", "--out", str(out), *args]) == 0  # neither flag: the scene's [render] value
     assert film.read_exr(out)[1]["volumetric_shadows"] == "true"
+
+
+def test_shadows_are_on_by_default():
+    """A scene without [render] volumetric_shadows (box_room: a crate under the lamp) renders as
+    with volumetric_shadows=True; False gives the unshadowed air-light, a different image."""
+    default = raytrace.render("box_room", **SMALL)
+    on = raytrace.render("box_room", volumetric_shadows=True, **SMALL)
+    off = raytrace.render("box_room", volumetric_shadows=False, **SMALL)
+    assert default.volumetric_shadows and not off.volumetric_shadows
+    np.testing.assert_array_equal(default.array, on.array)
+    assert not np.array_equal(default.array, off.array)
+
+
+def test_default_shadows_go_off_with_one_note_where_not_implemented(recwarn):
+    """Media inside shapes (wax): shadows on by default give the unshadowed image with one
+    ShadowsNote naming why and the flag that silences it; asked for, they are refused."""
+    default = raytrace.render("wax", **SMALL)
+    notes = [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
+    assert len(notes) == 1
+    text = str(notes[0].message)
+    assert "\n" not in text and "inside shapes" in text and "--no-volumetric-shadows" in text
+    recwarn.clear()
+    off = raytrace.render("wax", volumetric_shadows=False, **SMALL)
+    assert not [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
+    assert not default.volumetric_shadows
+    np.testing.assert_array_equal(default.array, off.array)
+    for asked in (dict(volumetric_shadows=True), dict(overrides=["render.volumetric_shadows=true"])):
+        with pytest.raises(raytrace.UserError, match="media inside shapes"):
+            raytrace.render("wax", **asked, **SMALL)
+
+
+def test_the_cli_warns_once_and_the_flag_silences_it(tmp_path, recwarn):
+    args = ["--width", "6", "--height", "4", "--threads", "1", "--quiet"]
+    assert main(["wax", "--out", str(tmp_path / "a.exr"), *args]) == 0
+    notes = [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
+    assert len(notes) == 1 and one_line_warning(notes[0].message, ShadowsNote, "", 0).count("\n") == 1
+    assert film.read_exr(tmp_path / "a.exr")[1]["volumetric_shadows"] == "false"
+    recwarn.clear()
+    assert main(["wax", "--no-volumetric-shadows", "--out", str(tmp_path / "b.exr"), *args]) == 0
+    assert not [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
+
+
+def test_table1_starts_unshadowed(tmp_path, monkeypatch):
+    """The paper's Table 1 is unshadowed: the command gives table1.run options without shadows."""
+    from raytrace.experiments import table1
+
+    seen = []
+    monkeypatch.setattr(table1, "run", lambda out, quick, options, **kw: seen.append(options))
+    assert main(["table1", "--out", str(tmp_path), "--quick"]) == 0
+    assert len(seen) == 1 and seen[0].volumetric_shadows is False
