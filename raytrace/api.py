@@ -329,8 +329,8 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
     progress, on_pass and observer); every other keyword is a parameter of the method. The scene's
     [render] table supplies defaults for both. Volumetric shadows are on unless volumetric_shadows=False
-    or the scene's [render] turns them off; where they cannot be computed yet (media inside shapes) a
-    render with them on by default goes on without them, with one ShadowsNote. `overrides` are "key=value" strings as --set;
+    or the scene's [render] turns them off; where they cannot be computed yet (media inside shapes),
+    shadows on by default are off, with one ShadowsNote. `overrides` are "key=value" strings as --set;
     `camera` names the camera of a glTF file (as --camera);
     `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""

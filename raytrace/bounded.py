@@ -95,9 +95,8 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
     if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
                         f"{medium.type_name} is not implemented with them yet")
-    why = no_shadows(prep)
-    if volumetric_shadows and why:
-        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): {why}; remove it")
+    if volumetric_shadows:
+        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): {no_shadows(prep)}; remove it")
     for i in inner:
         m = prep.scene.shapes[i].interior
         if m.ior != 1.0 and near and method.name == "slab_approx":

@@ -98,7 +98,7 @@ def build_parser():
     r.add_argument("--volumetric-shadows", action=argparse.BooleanOptionalAction,
                    help="shadowed air-light: light shafts behind occluders (default: the scene's "
                         "render.volumetric_shadows, else on; with media inside shapes, where they are not "
-                        "implemented yet, off with a note); --no-volumetric-shadows turns them off")
+                        "implemented yet, off with a warning)")
     r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
                    help="angle seen from the light between visibility samples of the lit-interval search "
                         "(default 0.01; occluders narrower than this may be missed)")

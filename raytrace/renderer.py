@@ -152,8 +152,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
 
 def check_options(method, params, volumetric_shadows, source, lights, medium):
     if params.get("shadow_test") == "samples" and not volumetric_shadows:
-        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows; "
-                        "add --volumetric-shadows or remove it")
+        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows, "
+                        "which are off in this render; remove it")
     if params.get("shadow_test") == "samples" and not medium.homogeneous:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.type_name} "
                         "media; use --shadow-test intervals (the default)")

@@ -16,7 +16,7 @@ from .conftest import box_room, to_toml
 
 def test_render_from_a_dict_returns_the_renderers_image(tmp_path):
     scene = box_room()
-    img = raytrace.render(scene, method="analytic", precision=1e-6, spp=4, threads=1)
+    img = raytrace.render(scene, method="analytic", precision=1e-6, spp=4, threads=1, volumetric_shadows=False)
     assert img.array.shape == (6, 8, 3) and img.spp == 4 and img.method == "analytic"
     assert img.params["precision"] == 1e-6 and img.stats["evaluations"] > 0
     s = scene_from_text(to_toml(scene), "t")

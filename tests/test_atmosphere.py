@@ -275,7 +275,7 @@ def _plate_scene(lights, look_at, **camera):
 def _shadowed(scene):
     """The shadowed quadrature image and its pixels darker than the unshadowed one (at least 3)."""
     img = raytrace.render(scene, method="quadrature", volumetric_shadows=True, threads=1).array
-    free = raytrace.render(scene, method="quadrature", threads=1).array
+    free = raytrace.render(scene, method="quadrature", volumetric_shadows=False, threads=1).array
     shadowed = [(int(i), int(j)) for j, i in zip(*np.nonzero(np.any(img < 0.99 * free, axis=2)))]
     assert len(shadowed) >= 3
     return img, shadowed

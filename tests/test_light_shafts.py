@@ -95,14 +95,14 @@ def test_every_method_integrates_the_lit_intervals(reference):
         except raytrace.UserError as exc:
             pytest.fail(f"{name} refused volumetric shadows: {exc}")
         unshadowed = raytrace.render(scene(medium={**MEDIUM, "phase": "isotropic"}), method=name, threads=1,
-                                     seed=1, **law.params)
+                                     seed=1, volumetric_shadows=False, **law.params)
         assert np.all(np.isfinite(img.array)) and img.array.mean() < 0.8 * unshadowed.array.mean(), name
 
 
 def test_without_occluders_shadows_change_nothing():
     s = scene(plates=[], medium={**MEDIUM, "phase": "isotropic"})
     for name, m in registry().items():
-        a = raytrace.render(s, method=name, threads=1, seed=2, **m.error_law.params)
+        a = raytrace.render(s, method=name, threads=1, seed=2, volumetric_shadows=False, **m.error_law.params)
         b = raytrace.render(s, method=name, threads=1, seed=2, volumetric_shadows=True, **m.error_law.params)
         np.testing.assert_allclose(b.array, a.array, rtol=1e-12, err_msg=name)
         assert b.stats["shadows: lit intervals"] == b.stats["shadows: segments searched"] > 0  # every segment whole
@@ -150,7 +150,7 @@ def test_a_spacing_out_of_range_is_refused(spacing):
 
 def test_shadow_test_samples_needs_shadows():
     with pytest.raises(raytrace.UserError, match="only acts with volumetric shadows"):
-        raytrace.render(scene(), method="raymarch", shadow_test="samples")
+        raytrace.render(scene(), method="raymarch", shadow_test="samples", volumetric_shadows=False)
 
 
 def _segments(s, width=24, height=18):
@@ -212,7 +212,7 @@ def test_a_light_on_a_surface_lights_the_side_it_faces():
     """Shadow rays start the shadow-ray epsilon away from the light: a lamp on the ceiling lights
     the room (it was 0.196 of the unshadowed air-light when the rays started on the ceiling)."""
     room = box_room(camera=dict(CAMERA), light=[{"position": [0.0, 2.0, 0.0], "intensity": 5.0}])
-    a = raytrace.render(room, method="analytic", threads=1).array
+    a = raytrace.render(room, method="analytic", threads=1, volumetric_shadows=False).array
     b = raytrace.render(room, method="analytic", threads=1, volumetric_shadows=True).array
     assert abs(b.mean() / a.mean() - 1.0) < 1e-3
     assert np.all(b <= a * (1 + 1e-9))

@@ -129,7 +129,8 @@ def test_shadow_rays_per_sample_are_unbiased_with_only_the_visibility_variance(p
     sample at all and reports variance 0.)"""
     prep = plate_room(phase)
     ref = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, volumetric_shadows=True, threads=1).array
-    unshadowed = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, threads=1).array
+    unshadowed = raytrace.render(prepared=prep, method="quadrature", rtol=1e-12, volumetric_shadows=False,
+                                 threads=1).array
     n = 64
     img = raytrace.render(prepared=prep, method="montecarlo", sampling="cdf", samples=n, volumetric_shadows=True,
                           shadow_test="samples", seed=4, threads=1)
