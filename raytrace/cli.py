@@ -100,8 +100,7 @@ def build_parser():
                         "render.volumetric_shadows, else on; with media inside shapes, where they are not "
                         "implemented yet, off with a warning)")
     r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
-                   help="angle seen from the light between visibility samples of the lit-interval search "
-                        "(default 0.01; occluders narrower than this may be missed)")
+                   help="not read any more: the lit intervals are exact; accepted so that older scripts run")
     r.add_argument("--passes", type=int, help="stochastic methods: number of progressive passes")
     r.add_argument("--time-budget", type=float, help="stochastic methods: stop after this many seconds of rendering")
     r.add_argument("--target-error", type=float,
@@ -407,10 +406,8 @@ def cmd_methods(args):
         for name, p in m.params.items():
             print(f"    --{name.replace('_', '-')} (default {p.default!r}, {p.rule()}): {p.help}")
     print("render options (every method): --spp, --seed, --threads, --crop, --[no-]volumetric-shadows "
-          "(render.volumetric_shadows, on by default: the air-light over each light's lit intervals), "
-          "--shadow-spacing RADIANS "
-          "(render.shadow_spacing, default 0.01: the lit-interval search samples visibility at this angle seen "
-          "from the light and bisects every change; it can miss occluders or gaps narrower than that)")
+          "(render.volumetric_shadows, on by default: the air-light over each light's lit intervals, which are "
+          "exact: docs/exact_shadows.md)")
     return 0
 
 
