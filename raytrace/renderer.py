@@ -169,8 +169,9 @@ class Tile:
 @dataclass(frozen=True)
 class Task:
     """What every tile of one render shares besides the prepared scene (small and picklable: a
-    cluster's tasks carry it): the method, its resolved parameters, the seed, the lit-interval
-    search's spacing (None without volumetric shadows) and the pixel block `box` = (x0, y0, x1, y1)."""
+    cluster's tasks carry it): the method, its resolved parameters, the seed, `shadows` (None without
+    volumetric shadows, else a number that is no longer read: the lit intervals are exact) and the
+    pixel block `box` = (x0, y0, x1, y1)."""
     method: str
     params: dict
     seed: int

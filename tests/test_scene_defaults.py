@@ -3,7 +3,6 @@ that the chosen one does not read are left out with one note (api.scene_defaults
 scene renders with every method that supports its medium and lights."""
 from __future__ import annotations
 
-import os
 import warnings
 
 import pytest
