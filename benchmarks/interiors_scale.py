@@ -1,6 +1,7 @@
 """Media inside finely tessellated shapes: load and render time and peak memory against triangle count.
 
     python benchmarks/interiors_scale.py [--segments 32 100 320] [--width 12 --height 8]
+    python benchmarks/interiors_scale.py --blender 4 7        # Blender's icospheres (1,280 and 81,920 triangles)
 
 A sphere primitive of radius 1 holding a scattering medium, 2 x segments x (segments / 2 - 1)
 triangles (32, 100, 320 segments: about 1k, 10k and 100k), a point light beside it, the camera
@@ -11,10 +12,15 @@ allocations (tracemalloc: numpy's arrays included); `render` is the timed part o
 kinks of the integrand, one wherever the light path's exit crosses a face edge), `raymarch` (64
 steps) and `montecarlo` (64 samples), whose evaluations are fixed; `evals` counts the light-path
 exits queried (Embree, batched). The last column is the peak resident memory of the process.
+With `--blender LEVELS`, the shapes are instead unit icospheres made by Blender itself
+(tests/data/blender/make_icospheres.py, run headless; Blender's level n has 20 * 4^(n - 1) triangles),
+read as PLY meshes.
 """
 import argparse
 import resource
+import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
 from pathlib import Path
@@ -41,7 +47,7 @@ primitive = "sphere"
 center = [0.0, 0.0, 0.0]
 radius = 1.0
 segments = {segments}
-[shape.interior]
+{mesh}[shape.interior]
 sigma_a = [0.3, 0.2, 0.1]
 sigma_s = [0.5, 0.4, 0.3]
 [[light]]
@@ -64,17 +70,32 @@ def counted_exits():
     return count
 
 
+def shapes(args, folder):
+    """(label, the [[shape]] lines that differ) for each sphere of the run."""
+    if not args.blender:
+        return [(seg, "") for seg in args.segments]
+    maker = Path(__file__).resolve().parents[1] / "tests" / "data" / "blender" / "make_icospheres.py"
+    subprocess.run(["blender", "-b", "--factory-startup", "--python", str(maker), "--", folder,
+                    *map(str, args.blender)], check=True, capture_output=True)
+    return [(0, f'mesh = "{folder}/icosphere_{level}.ply"\n') for level in args.blender]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--segments", type=int, nargs="+", default=[32, 100, 320])
     ap.add_argument("--width", type=int, default=12)
     ap.add_argument("--height", type=int, default=8)
+    ap.add_argument("--blender", type=int, nargs="+", metavar="LEVEL",
+                    help="Blender's icospheres of these subdivision levels instead of sphere primitives")
     args = ap.parse_args()
+    folder = tempfile.mkdtemp()
     count = counted_exits()
     print("| triangles | load s | load peak MB | convex | method | render s | evals |")
     print("|---:|---:|---:|---|---|---:|---:|")
-    for seg in args.segments:
-        text = SCENE.format(width=args.width, height=args.height, segments=seg)
+    for seg, mesh in shapes(args, folder):
+        text = SCENE.format(width=args.width, height=args.height, segments=seg, mesh=mesh)
+        if mesh:  # a mesh file instead of the primitive
+            text = text.replace('primitive = "sphere"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nsegments = 0\n', "")
         tracemalloc.start()
         t0 = time.perf_counter()
         prep = prepare(scene_from_text(text, "interiors_scale"))
