@@ -1,14 +1,16 @@
 """Exact single scattering of a directional light inside convex index-matched shapes
 (raytrace/media/convex_directional.py) against an independent twin.
 
-The twin integrates eq. (2) with scipy quad, the light's path s(t) found by brute force (the minimum
-over the faces the light crosses, in extended precision, np.longdouble), the envelope's kinks found
-by brute force too (every pairwise crossing of the faces' lines and every zero, kept where both
-lines are lowest) and passed as breakpoints. Shapes: a box, a triangular prism, a thin tilted
-cuboid, a random convex hull (scipy.spatial.ConvexHull); random segments (some on the boundary,
-some running to the exit), random and grazing light (n·u = ±1e-9), kt from 1e-6 to 1e3 per
-channel: 1e-12 relative. Also: the planar model (slab.slab_distant) where it is exact, the
-existing convex quadrature (slab.convex_quadrature), the edge cases of the module docstring.
+The twin (`twin`) integrates eq. (2) with mpmath at 40 digits for the given doubles: the light's
+path s(t) by brute force (the minimum over the faces the light crosses), the kinks of s by brute
+force too (every crossing of two faces' lines and every zero, kept where those lines are lowest),
+Gauss-Legendre between them. Shapes: a box, a triangular prism, a thin tilted cuboid, a random
+convex hull (scipy.spatial.ConvexHull's equations); random segments (a quarter starting on a face,
+a third running to the exit), random and grazing light (n·u = ±1e-9), kt from 1e-6 to 1e3 per
+channel: 1e-12 relative (measured: <= 1e-13 on the box, prism and slab, 8e-13 on the hull), except
+where the answer itself is ill-conditioned in doubles (`test_against_the_twin`). Also: the sweep
+against the brute-force minimum, a box by hand, the planar model (slab.slab_distant) where it is
+exact, the existing convex quadrature (slab.convex_quadrature), the edge cases of the module docstring.
 """
 import itertools
 import math
@@ -16,7 +18,6 @@ import math
 import numpy as np
 import mpmath as mp
 import pytest
-from scipy import integrate
 from scipy.spatial import ConvexHull
 
 from raytrace.media import slab
@@ -179,9 +180,10 @@ def test_against_the_twin(name):
     of T moves the exact answer by as much: measured 1.5e-5 on the box at kt = 745)."""
     n, c = SHAPES[name]
     rng = np.random.default_rng(sorted(SHAPES).index(name))
-    worst, loose = 0.0, 0
-    lights = light_directions(rng, n, 6)
-    for o, w, length in segments(rng, n, c, 12):
+    worst, loose, off = 0.0, 0, 0
+    count = 8 if name == "hull" else 12  # the hull's twin is the slow one (40-digit minima over its faces)
+    lights = light_directions(rng, n, count // 2)
+    for o, w, length in segments(rng, n, c, count):
         for toward in lights:
             kt = 10.0 ** rng.uniform(-6, 3, size=3)
             ks = kt * rng.uniform(0.1, 1.0, size=3)
@@ -194,14 +196,24 @@ def test_against_the_twin(name):
             err = np.abs(got - ref) / np.maximum(ref, 1e-300)
             worst = max(worst, np.max(err, where=allow <= 1e-9, initial=0.0))
             loose += np.count_nonzero(allow > 1e-9)
-    print(f"{name}: worst relative error {worst:.2e} where the allowance <= 1e-9; {loose} channels beyond")
+            off += np.count_nonzero(err > RTOL)
+    print(f"{name}: worst relative error {worst:.2e} where the allowance <= 1e-9; {loose} channels beyond, "
+          f"{off} of them off by more than 1e-12")
 
 
-@pytest.mark.parametrize("name", sorted(SHAPES))
+def sphere_hull(points=32, seed=4):
+    """Qhull's facets of points on the unit sphere (60 for 32 points)."""
+    p = np.random.default_rng(seed).normal(size=(points, 3))
+    h = ConvexHull(p / np.linalg.norm(p, axis=1)[:, None])
+    return h.equations[:, :3].copy(), -h.equations[:, 3].copy()
+
+
+@pytest.mark.parametrize("name", sorted(SHAPES) + ["sphere hull"])
 def test_envelope_is_the_brute_force_minimum(name):
     """The sweep's pieces: s on each piece equals the minimum over the faces at points inside it, and
     the slopes fall from piece to piece (a concave envelope, each face at most once)."""
-    n, c = SHAPES[name]
+    n, c = SHAPES[name] if name in SHAPES else sphere_hull()
+    assert len(n) <= MAX_FACES
     rng = np.random.default_rng(11)
     f = len(n)
     alpha, beta, cuts, lines = np.empty(f), np.empty(f), np.empty(f + 1), np.empty(f, dtype=np.int64)
@@ -219,7 +231,7 @@ def test_envelope_is_the_brute_force_minimum(name):
                     brute = float(max(0, min((mp.mpf(cf) - fdot([mp.mpf(x) for x in nf], p)) / fdot(nf, toward)
                                              for nf, cf in zip(n, c) if nf @ toward > 0)))
                 assert abs(alpha[lines[i]] + beta[lines[i]] * t - brute) <= 1e-12 * (1.0 + brute)
-    assert max(pieces) >= (4 if name == "hull" else 2)  # the light enters through several faces along some
+    assert max(pieces) >= (4 if "hull" in name else 2)  # the light enters through several faces along some
 
 
 def test_a_box_lit_through_its_side_by_hand():

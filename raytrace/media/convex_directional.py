@@ -30,8 +30,11 @@ over any length, also where no face faces the light); kt > 0 with no face toward
 
 `MAX_FACES` bounds F: the envelope's sweep costs O(F x pieces) per segment, and a shape with
 more faces returns False (nothing computed) so that the caller keeps its existing model.
-Verified in tests/test_convex_directional.py against scipy quad of (2) with s(t) by brute force in
-extended precision.
+Accuracy: a few 1e-14 relative, 1e-12 at worst, against a 40-digit twin of (2) with s by brute
+force (tests/test_convex_directional.py), but where the answer itself is ill-conditioned in
+doubles: a segment ending on a face the light grazes (q_f ~ 1e-9) is lit mostly in its last
+~1e-10, where s rests on (c_f - n_f·p) / q_f, rounded to 1e-17 / q_f (1.5e-5 measured at kt = 745,
+which the last bit of T moves as much).
 """
 import math
 
