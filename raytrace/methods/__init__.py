@@ -1,7 +1,7 @@
 """The registry of air-light methods: name → Method (parameters with defaults, a docstring table).
 
 The renderer, the command line, the tests and the benchmarks all iterate `registry()`, so a new
-method module only has to define ``METHOD`` and be listed in ``_MODULES``.
+method module only has to define ``METHOD`` (with its ``Supports``) and be listed in ``_MODULES``.
 """
 from __future__ import annotations
 
