@@ -47,7 +47,7 @@ def cluster_render(client, prep, method, params, seed, workers):
     job = distributed.Job(prep.scene, renderer.Task(m.name, resolve_params(m, params, "bench"), seed, None, box))
     distributed.prepare_workers(client, job)
     work = renderer.tiles(cam, box)
-    acc = renderer.Accumulator(work, box, cam.spp, m.stochastic, m.stats_size + len(renderer.LI_NAMES))
+    acc = renderer.Accumulator(work, box, cam.spp, m.stochastic, renderer.stats_size(m))
     timings = []
     cpu = cpu_seconds() + sum(client.run(cpu_seconds).values())
     start = time.perf_counter()

@@ -19,7 +19,8 @@ Radiance crossing into a denser medium is multiplied by T eta^2 and back out by 
 (the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
 the path (no reflected paths in this first cut).
 
-Methods: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
+Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside segments
+and what it takes there: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
 `slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
@@ -32,20 +33,30 @@ import numpy as np
 from . import inside_paths
 from .errors import UserError
 from .lights import DIRECTIONAL, Lights
-from .media.slab import (APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, refract_rays,
-                         transmittances)
+from .media.adaptive import CAPPED
+from .media.slab import GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
+from .methods import registry
 from .methods.geometry import segment_light_table
-from .methods.quadrature import CAPPED
 from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
 
-MODES = {"quadrature": QUAD, "analytic": CLOSED, "slab_approx": APPROX, "raymarch": MARCH, "montecarlo": SAMPLE}
-TRACED = ("quadrature", "raymarch", "montecarlo")  # the methods that follow the light's exact straight path
+STATS_SIZE = 3  # the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED)
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 # face planes of a convex shape up to which media/slab.py's kernel (every plane at every evaluation) is
 # used; beyond, Embree's batched exits are faster (equal at ~120 planes: benchmarks/interiors_scale.py)
 KERNEL_PLANES = 64
+
+
+def summarize(prep, method, stats) -> dict:
+    """The render statistics of the inside integrals (`single_scattering`'s) in a scene with media
+    inside shapes: the adaptive integrator's integrals that fell short of their tolerance (a piece
+    accepted at a cap), as quadrature reports its own outside; nothing for the other inside
+    integrators, which have no caps."""
+    sup = method.supports.interiors
+    if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None or sup.mode != QUAD:
+        return {}
+    return {"inside: integrals not converged": int(stats[CAPPED])}
 
 
 def interiors(scene) -> list:
@@ -70,27 +81,26 @@ def no_shadows(prep) -> str | None:
 
 
 def check(prep, method, method_params, source: str, volumetric_shadows: bool):
-    """Refuse, in one line, what this first cut does not render in a scene with interior media."""
+    """Refuse, in one line, what this first cut, or the method (its `Supports.interiors`), does not
+    render in a scene with interior media."""
     inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
     if not inner:
         return
     key = f"shape[{inner[0]}].interior"
-    if method.name not in MODES:
+    sup = method.supports.interiors
+    if sup is None:
         raise UserError(f"{source}: --method {method.name}: it does not integrate media inside shapes ({key}); use "
-                        f"--method {', '.join(MODES)}")
+                        f"--method {', '.join(_takers())}")
     kinds = prep.lights.kinds()
     near = "point" in kinds or "spot" in kinds  # lights with a position
-    if method.name == "raymarch" and (method_params.get("step", 0.0) > 0.0 or method_params.get("jitter")):
-        raise UserError(f"{source}: --step / --jitter (render.step, render.jitter): not implemented inside bounded "
-                        f"media ({key}) yet; use --steps")
-    if method.name == "analytic" and near:
-        raise UserError(f"{source}: --method analytic: a point light into a bounded medium ({key}) has no closed form "
-                        "(eq. 7 of the analytic note on single scattering in homogeneous slabs); use --method "
-                        "quadrature, or slab_approx for its separable approximation")
-    if method.name == "slab_approx" and "spot" in kinds:
-        raise UserError(f"{source}: --method slab_approx: the slab note's separable approximation is for point lights, "
-                        f"not spot lights into a bounded medium ({key}); use --method quadrature, raymarch or "
-                        "montecarlo")
+    fixed = [k for k in sup.fixed if method_params.get(k, method.params[k].default) != method.params[k].default]
+    if fixed:
+        raise UserError(f"{source}: {' / '.join('--' + k.replace('_', '-') for k in fixed)} "
+                        f"({', '.join('render.' + k for k in fixed)}): not implemented inside bounded media ({key}) "
+                        f"yet; remove {'it' if len(fixed) == 1 else 'them'}")
+    for kind in sorted(kinds - set(sup.lights)):
+        raise UserError(f"{source}: --method {method.name}: {kind} lights into a bounded medium ({key}): {sup.limits}; "
+                        f"use --method {', '.join(_takers(lambda s: kind in s.lights))}")
     medium = prep.scene.medium
     if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
@@ -99,9 +109,11 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
         raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): {no_shadows(prep)}; remove it")
     for i in inner:
         m = prep.scene.shapes[i].interior
-        if m.ior != 1.0 and near and method.name == "slab_approx":
-            raise UserError(f"{source}: shape[{i}].interior.ior: the slab note's separable approximation is for "
-                            "index-matched boundaries with point lights; use ior = 1, or --method quadrature")
+        method.check_phase(m, f"shape[{i}].interior.phase", source)
+        for kind in sorted(kinds - set(sup.refracted) if m.ior != 1.0 else ()):
+            raise UserError(f"{source}: shape[{i}].interior.ior: --method {method.name}: {kind} lights through a "
+                            f"refractive boundary: {sup.limits}; use ior = 1, or --method "
+                            f"{', '.join(_takers(lambda s: kind in s.refracted))}")
     if near:
         for i in inner:
             if prep.scene.shapes[i].interior.ior == 1.0:
@@ -115,15 +127,20 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
                                     "implemented yet); "
                                     "use ior = 1 or a directional light")
     inside = prep.camera_inside
-    if inside is not None and (prep.scene.shapes[inside].interior.ior != 1.0 or method.name not in TRACED):
+    if inside is not None and (prep.scene.shapes[inside].interior.ior != 1.0 or not sup.exact_paths):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        f"bounded medium needs an index-matched interior (ior = 1) and --method {', '.join(TRACED)}; "
-                        "move the camera out of the shape or change them")
+                        "bounded medium needs an index-matched interior (ior = 1) and --method "
+                        f"{', '.join(_takers(lambda s: s.exact_paths))}; move the camera out of the shape or change them")
     for li in np.nonzero(prep.lights.kind != DIRECTIONAL)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
             raise UserError(f"{source}: light[{li}].position: inside shape[{inside}], which holds a medium; lights "
                             "inside bounded media are not supported yet, move the light out of the shape")
+
+
+def _takers(test=lambda interiors: True) -> list[str]:
+    """The methods that integrate media inside shapes and whose `Supports.interiors` passes `test`."""
+    return [m.name for m in registry().values() if m.supports.interiors is not None and test(m.supports.interiors)]
 
 
 def inside_of(prep, o, inner) -> int | None:
@@ -301,10 +318,11 @@ def _transmittance(cos_i, eta):
 
 def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
-    summed over the lights, for the interior `medium` with outward entry normals `normals`, and its
-    variance (N, 3) (0 but for montecarlo). In an index-matched shape the light's path inside is its
-    exact straight path (convex: `convex_planes`; else traced, `_traced`), except for analytic's
-    eq. 5 and slab_approx, which keep the note's entry plane."""
+    summed over the lights, for the interior `medium` with outward entry normals `normals`, its
+    variance (N, 3) (0 but for the sampling integrator) and its statistics (STATS_SIZE). The method's
+    inside integrator is its `Supports.interiors.mode`; in an index-matched shape the light's path
+    inside is its exact straight path (convex: `convex_planes`; else traced, `_traced`) for the
+    methods with `exact_paths`, else the note's entry plane (analytic's eq. 5, slab_approx)."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
@@ -314,11 +332,12 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     n = len(points)
     out = np.zeros((n, 3))
     var = np.zeros((n, 3))
-    mode = MODES[method.name]
+    sup = method.supports.interiors
+    mode = sup.mode
     rtol = params.get("rtol", RTOL)
     steps = int(params.get("steps", params.get("samples", 1)))
     tau_max = float(params.get("tau_max", 745.0))  # raymarch's cut of long segments
-    stats = np.zeros(3)
+    stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
     for li in range(len(lights)):
         idx = np.full(n, li, dtype=np.int64)
@@ -345,7 +364,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 lh = rel - hl[:, None] * normals
                 wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
                 ll = np.einsum("ij,ij->i", lh, lh)
-        if traced and mode in (QUAD, MARCH, SAMPLE):
+        if traced and sup.exact_paths:
             _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale, mode,
                     rtol, steps, tau_max, keys, STREAM + (depth * len(lights) + li) * steps, seed, out, var, stats)
             continue
@@ -363,7 +382,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             f = scale * lights.intensity[li, c]
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
-    return out, var
+    return out, var, stats
 
 
 def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
@@ -427,14 +446,14 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
 
 
 def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade):
-    """Radiance (N, 3) and variance of camera rays that start inside the index-matched shape
-    prep.camera_inside and first meet its boundary or a surface at t (triangle prim): the inside
+    """Radiance (N, 3), variance and inside statistics (STATS_SIZE) of camera rays that start inside
+    the index-matched shape prep.camera_inside and first meet its boundary or a surface at t (triangle prim): the inside
     single scattering over [0, t] (the light's exact straight paths), then what lies beyond the
     boundary (`shade(origins, dirs, keys, depth)`), or the surface met inside, times exp(-sigma_t t)."""
     sid = prep.camera_inside
     medium = prep.scene.shapes[sid].interior
     accel = prep.accel
-    out, var = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
+    out, var, stats = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
     if len(exits):
         cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
@@ -450,18 +469,20 @@ def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade)
     walls = np.nonzero((prim >= 0) & ~enters(prep, prim))[0]
     if len(walls):
         out[walls] += _surface_inside(prep, origins[walls], -dirs[walls], dirs[walls], prim[walls], t[walls], medium)
-    return out, var
+    return out, var, stats
 
 
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
     """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
     what the inside scatters toward them and what comes through from behind the exit, through the
-    boundaries, and its variance (N, 3). `shade(origins, dirs, keys, depth)` is the renderer's radiance
-    and variance (or None) of rays leaving a shape."""
+    boundaries, its variance (N, 3) and the inside integrals' statistics (STATS_SIZE; those of the
+    rays `shade` follows are the renderer's). `shade(origins, dirs, keys, depth)` is the renderer's
+    radiance and variance (or None) of rays leaving a shape."""
     out = np.zeros((len(origins), 3))
     out_var = np.zeros_like(out)
+    stats = np.zeros(STATS_SIZE)
     if depth >= MAX_DEPTH:
-        return out, out_var
+        return out, out_var, stats
     accel = prep.accel
     points = origins + t[:, None] * dirs
     normals = facing_normals(accel.normals[prim], dirs)
@@ -474,7 +495,9 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         w, cos_t = _refract(d, nf, eta)
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
         ell, prim2, touch = _inside_hits(prep, p, w, cos_t)
-        inner, inner_var = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel], seed, depth)
+        inner, inner_var, inner_stats = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel], seed,
+                                                          depth)
+        stats += inner_stats
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)
         behind_var = np.zeros_like(inner)
@@ -508,4 +531,4 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         f = (t_in / (eta * eta))[:, None]
         out[sel] = f * (inner + behind)
         out_var[sel] = f * f * (inner_var + behind_var)
-    return out, out_var
+    return out, out_var, stats

@@ -82,9 +82,9 @@ def default_threads() -> int:
 
 
 def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None, depth=0):
-    """Radiance (N, 3) of camera rays, the statistics array (the method's, then the lit-interval
-    intervals') and, for a stochastic method, the variance (N, 3) of each ray's estimate. `shadows`:
-    None for the paper's unshadowed air-light, else the air-light over the exact lit intervals
+    """Radiance (N, 3) of camera rays, the statistics array (`stats_size`: the method's, the lit
+    intervals', the inside integrals', summed over the rays followed behind shapes) and, for a
+    stochastic method, the variance (N, 3) of each ray's estimate. `shadows`: None for the paper's unshadowed air-light, else the air-light over the exact lit intervals
     (shadow_frusta.py; its value, a former search spacing, is not read).
     Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep)."""
     scene = prep.scene
@@ -93,13 +93,17 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     ground, t = planet_hits(medium, origins, dirs, t)  # an atmosphere's planet, intersected in float64
     prim[ground] = -1
 
+    deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
+
     def behind(o, d, k, dep):
-        rad, _, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
+        rad, s, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
+        deeper[:] += s
         return rad, var
 
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
-        rad, var = bounded.from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, behind)
-        return rad, np.zeros(method.stats_size + len(STATS_NAMES)), var if method.stochastic else None
+        rad, var, deeper[-bounded.STATS_SIZE:] = bounded.from_inside(prep, method, params, origins, dirs, t, prim,
+                                                                      keys, seed, behind)
+        return rad, deeper, var if method.stochastic else None
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     into = bounded.enters(prep, prim)
@@ -112,12 +116,13 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
-        radiance[into], into_var = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into],
-                                                    prim[into], keys[into], seed, depth, behind)
+        radiance[into], into_var, inside = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into],
+                                                            prim[into], keys[into], seed, depth, behind)
+        deeper[-bounded.STATS_SIZE:] += inside
     radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
-    stats = np.zeros(method.stats_size + len(STATS_NAMES))
+    stats = np.zeros(stats_size(method))
     variance = np.zeros_like(radiance) if method.stochastic else None
     if into.any() and variance is not None:
         variance[into] = into_var * tr[into] ** 2
@@ -128,8 +133,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
         else:
             if shadows is not None:
-                segs, stats[method.stats_size:] = exact_lit_intervals(prep.accel, segs, prep.lights, len(prep.lights),
-                                                                      prep.frusta())
+                segs, stats[method.stats_size:-bounded.STATS_SIZE] = exact_lit_intervals(
+                    prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
             air, stats[:method.stats_size], var = segment_airlight(method, medium, prep.lights, params, segs,
                                                                    len(origins))
         radiance += air
@@ -138,7 +143,12 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if medium.particles is not None:  # seed 003's particle layer on top of the air-light
         radiance += particle_radiance(medium.particles, medium, prep.lights, prep.accel, origins, dirs, t, keys,
                                       shadows is not None)
-    return radiance, stats, variance
+    return radiance, stats + deeper, variance
+
+
+def stats_size(method) -> int:
+    """The length of a render's statistics array: the method's, the lit intervals', the inside integrals'."""
+    return method.stats_size + len(STATS_NAMES) + bounded.STATS_SIZE
 
 
 def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
@@ -289,7 +299,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     box = options.crop or (0, 0, cam.width, cam.height)
     task = Task(method.name, params, options.seed, options.shadows, box)
     work = tiles(cam, box)
-    acc = Accumulator(work, box, cam.spp, method.stochastic, method.stats_size + len(STATS_NAMES))
+    acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method))
     executor = executor if executor is not None else Threads(options.threads)
     compile_s = executor.prepare(prep, task)
     start = time.perf_counter()
@@ -304,4 +314,5 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     summary = method.summarize(totals[:method.stats_size])
     if task.shadows is not None:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
+    summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:]))
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance)

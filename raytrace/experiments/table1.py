@@ -304,7 +304,7 @@ def write_reports(scenes: list[dict], out: Path, quick: bool, total_seconds: flo
                "| paper error | note |", "|---|---|---|---|---|---|---|---|---|"]
         for r in sc["rows"]:
             p = paper.get(r.label)
-            it = f"{r.iterations:.2f}" if r.iterations is not None and r.spec.name == "analytic" else ""
+            it = f"{r.iterations:.2f}" if r.iterations is not None else ""  # the methods that report them
             if r.label in ("analytic", "analytic exact", "analytic taylor 3"):
                 it += f" (paper {paper['iterations']:.2f})" if it else ""
             md.append(f"| {r.label} | {r.seconds:.2f} | {r.compile_seconds:.2f} | {r.mean_abs:.2e} | {r.rel:.2e} | {it} "

@@ -1,7 +1,7 @@
 """The registry of air-light methods: name → Method (parameters with defaults, a docstring table).
 
 The renderer, the command line, the tests and the benchmarks all iterate `registry()`, so a new
-method module only has to define ``METHOD`` and be listed in ``_MODULES``.
+method module only has to define ``METHOD`` (with its ``Supports``) and be listed in ``_MODULES``.
 """
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 
 from ..media import Homogeneous
+from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
 
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
@@ -89,6 +90,40 @@ class ErrorLaw:
     tolerance: float
 
 
+LIGHTS = ("point", "spot", "directional")  # lights.NAMES
+
+
+@dataclass(frozen=True)
+class Interiors:
+    """How a method integrates media inside shapes (bounded.py): media/slab.py's inside integrator
+    `mode` (QUAD adaptive, CLOSED eq. 5, APPROX the slab note's separable approximation, MARCH
+    midpoints, SAMPLE free paths), for the light kinds `lights`, of which `refracted` also through a
+    refractive boundary (ior != 1). `exact_paths`: in index-matched shapes the light's exact straight
+    path (and a camera inside such a shape is taken), else the entry face's plane (the note's model).
+    `fixed`: its parameters not implemented inside (they must keep their defaults). `limits`: what
+    its refusal of a light says."""
+    mode: int
+    lights: tuple = LIGHTS
+    refracted: tuple = LIGHTS
+    exact_paths: bool = False
+    fixed: tuple = ()
+    limits: str = ""
+
+
+@dataclass(frozen=True)
+class Supports:
+    """What a method integrates; the registry refuses the rest in one line, naming the methods that
+    take it: light kinds (lights.NAMES), medium kinds (media/ classes), phase functions (media/phase.py
+    codes, of the camera's medium and of interiors), media inside shapes (None: refused) and the
+    volumetric shadow tests ("intervals": over the exact lit intervals; "samples": a shadow ray per
+    medium point, which needs the method's `points`)."""
+    lights: tuple = ("point",)
+    media: tuple = (Homogeneous,)
+    phases: tuple = (ISOTROPIC, RAYLEIGH, HG)
+    interiors: Interiors | None = None
+    shadow_tests: tuple = ("intervals",)
+
+
 @dataclass
 class Method:
     name: str
@@ -110,27 +145,43 @@ class Method:
     # point_count(segments, medium, params) -> (S,) iterations x strategies `points` would give each
     # segment, so that the renderer can cut the work into chunks of bounded memory
     point_count: Callable | None = None
-    light_types: tuple = ("point",)  # the kinds of light (lights.NAMES) its air-light integrates
-    media: tuple = (Homogeneous,)  # the medium kinds (media/) it integrates
+    supports: Supports = Supports()
+
+    def __post_init__(self):
+        samples = "samples" in self.supports.shadow_tests
+        assert samples == (self.points is not None) == ("shadow_test" in self.params), self.name
+        assert not samples or self.params["shadow_test"].choices == self.supports.shadow_tests, self.name
 
     def check_lights(self, lights, source: str):
         """Refuse lights of a kind this method does not integrate, naming the methods that do."""
         from ..errors import UserError
 
-        for kind in sorted(lights.kinds() - set(self.light_types)):
-            takers = [m.name for m in registry().values() if kind in m.light_types]
+        for kind in sorted(lights.kinds() - set(self.supports.lights)):
+            takers = [m.name for m in registry().values() if kind in m.supports.lights]
             raise UserError(f"{source}: --method {self.name}: it does not take {kind} lights (light.type = "
                             f"\"{kind}\"); use --method {', '.join(takers)}, or make the lights point lights")
 
     def check_medium(self, medium, source: str):
-        """Refuse a medium type this method does not integrate, naming the methods that do."""
+        """Refuse a medium type or phase function this method does not integrate, naming the methods
+        that do."""
         from ..errors import UserError
 
-        if type(medium) not in self.media:
+        if type(medium) not in self.supports.media:
             kind = medium.type_name
-            takers = [m.name for m in registry().values() if type(medium) in m.media]
+            takers = [m.name for m in registry().values() if type(medium) in m.supports.media]
             raise UserError(f"{source}: --method {self.name}: it does not take {kind} media (medium.type = "
                             f"\"{kind}\"); use --method {', '.join(takers)}, or a homogeneous medium")
+        self.check_phase(medium, "medium.phase", source)
+
+    def check_phase(self, medium, key: str, source: str):
+        """Refuse the phase function of `medium` (scene key `key`) if this method does not take it."""
+        from ..errors import UserError
+
+        if medium.phase not in self.supports.phases:
+            name = PHASE_NAMES[medium.phase]
+            takers = [m.name for m in registry().values() if medium.phase in m.supports.phases]
+            raise UserError(f"{source}: --method {self.name}: it does not take {name} phase functions ({key} = "
+                            f"\"{name}\"); use --method {', '.join(takers)}, or an isotropic medium")
 
 
 def by_kind(table: dict, medium):

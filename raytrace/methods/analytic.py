@@ -39,13 +39,14 @@ import math
 import numpy as np
 
 from ..jit import njit
-from . import ErrorLaw, Method, Param
+from . import ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import band_slope, band_trig, falloff, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
+from ..media.slab import CLOSED
 from .quadrature import CAPPED, _N10, _N20, _W10, _W20
 from .quadrature import _rule as quad_rule
 from .quadrature import airlight_one as quad_airlight
@@ -772,5 +773,7 @@ METHOD = Method(
     error_law=ErrorLaw({"precision": 1e-6}, "max", 3e-7),  # measured worst 7.2e-8 (isotropic), tests/test_methods.py
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
-    light_types=("point", "spot"),
+    supports=Supports(lights=("point", "spot"), interiors=Interiors(
+        CLOSED, lights=("directional",), refracted=("directional",),
+        limits="no closed form (eq. 7 of the analytic note on single scattering in homogeneous slabs)")),
 )

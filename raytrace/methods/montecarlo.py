@@ -32,7 +32,7 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import ErrorLaw, Method, Param, by_kind
+from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import HO, MU, atmosphere_channels, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
 from ..errors import UserError
@@ -40,6 +40,7 @@ from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import attenuated_density, column, column_distance
 from ..media.phase import phase_split
+from ..media.slab import SAMPLE
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
 MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CDF}
@@ -576,7 +577,7 @@ METHOD = Method(
     points=_points,
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
     check=_check,
-    light_types=("point", "spot", "directional"),
-    media=(Homogeneous, HeightFog, Atmosphere),
+    supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
+                      interiors=Interiors(SAMPLE, exact_paths=True), shadow_tests=("intervals", "samples")),
 )
 _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}

@@ -26,7 +26,7 @@ import numpy as np
 from numba.extending import overload
 
 from ..jit import njit
-from . import ErrorLaw, Method, Param, by_kind
+from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import COSD, HO, MU, MUS, atmosphere_channels, by_channel, fog_inscatter, fog_rows, spot_factor
 from ..lights import cone_breaks, falloff
 from ..media import atmosphere as atmo
@@ -34,6 +34,7 @@ from ..media.adaptive import CAPPED, EVALS, INTERVALS, adaptive as _adaptive, cl
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance, top_distance
 from ..media.phase import phase_split, phase_value
+from ..media.slab import QUAD
 
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
@@ -219,8 +220,8 @@ METHOD = Method(
     error_law=ErrorLaw({"rtol": 1e-10}, "max", 3e-13),  # measured worst 1.8e-13 (spot_hg_narrow_through_view)
     stats_size=3,
     summarize=_summarize,
-    light_types=("point", "spot", "directional"),
-    media=(Homogeneous, HeightFog, Atmosphere),
+    supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
+                      interiors=Interiors(QUAD, exact_paths=True)),
 )
 _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 

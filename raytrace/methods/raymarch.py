@@ -40,13 +40,14 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import ErrorLaw, Method, Param, by_kind
+from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (HO, MU, atmosphere_channels, by_channel, eq4_integrand, fog_inscatter, fog_rows,
                        segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance
+from ..media.slab import MARCH
 
 MAX_STEPS = 1 << 20
 DIM_JITTER = 0x524D  # rng dimension of the per-ray jitter ("RM"), distinct from other methods' dims
@@ -235,8 +236,9 @@ METHOD = Method(
     summarize=_summarize,
     points=_points,
     point_count=_point_count,
-    light_types=("point", "spot", "directional"),
-    media=(Homogeneous, HeightFog, Atmosphere),
+    supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
+                      interiors=Interiors(MARCH, exact_paths=True, fixed=("step", "jitter")),
+                      shadow_tests=("intervals", "samples")),
 )
 _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 

@@ -10,19 +10,19 @@ media (measured by `render.py seed002`: down to -99 % at kt s = 100). Outside bo
 air-light is the analytic method's, with its parameters, so on scenes without interiors this
 method is `analytic` and declares analytic's error law.
 """
-from . import Method
-from .analytic import METHOD as ANALYTIC
+from dataclasses import replace
 
-METHOD = Method(
+from .analytic import METHOD as ANALYTIC
+from ..media.slab import APPROX
+
+# analytic's parameters, kernels and error law (outside bounded media it is analytic: tests/test_methods.py)
+METHOD = replace(
+    ANALYTIC,
     name="slab_approx",
     summary="inside bounded media, the separable point-light approximation of the analytic note on single "
             "scattering in homogeneous slabs (its eq. 5 for directional lights); the analytic air-light outside",
-    params=ANALYTIC.params,
-    airlight=ANALYTIC.airlight,
-    error_law=ANALYTIC.error_law,  # outside bounded media it is analytic (tests/test_methods.py)
-    stats_size=ANALYTIC.stats_size,
-    summarize=ANALYTIC.summarize,
-    check=ANALYTIC.check,
-    light_types=ANALYTIC.light_types,
-    media=ANALYTIC.media,
+    supports=replace(ANALYTIC.supports, interiors=replace(
+        ANALYTIC.supports.interiors, mode=APPROX, lights=("point", "directional"),
+        limits="the slab note's separable approximation is for index-matched boundaries with point lights, not "
+               "spot lights")),
 )

@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import UserError
 from ..cache import cache_dir
 from ..jit import njit
-from . import ErrorLaw, Method, Param
+from . import ErrorLaw, Method, Param, Supports
 from .geometry import by_channel
 from ..media.phase import ISOTROPIC, NAMES
 
@@ -254,4 +254,5 @@ METHOD = Method(
     stats_size=3,
     summarize=_summarize,
     check=_check,
+    supports=Supports(phases=(ISOTROPIC,)),
 )

@@ -1,0 +1,58 @@
+"""The statistics of the integrals inside shapes (bounded.py) reach the render's, as quadrature's own
+do outside.
+
+Before the fix, `bounded.single_scattering` filled its statistics and dropped them: a render with
+media inside shapes never said that inside integrals had stopped short of their tolerance (the U
+prism under a directional light, tests/test_inside_paths.py, has 15 such panels at the default
+rtol: Embree's float32 length decisions jump at the U's edges).
+"""
+import raytrace
+from raytrace.options import RenderOptions
+from raytrace.renderer import prepare, render
+from raytrace.scene.format import load_scene, scene_from_text
+
+from . import test_bounded_media as bounded_media
+from . import test_inside_paths as u_prism
+from .conftest import to_toml
+
+NOT_CONVERGED = "inside: integrals not converged"
+
+
+def u_render(tmp_path, light, params, camera=None):
+    (tmp_path / "u.obj").write_text(u_prism.u_obj())
+    sc = u_prism.u_scene(light)
+    sc["camera"].update(camera or {})
+    (tmp_path / "u.toml").write_text(to_toml(sc))
+    prep = prepare(load_scene(tmp_path / "u.toml"))
+    return prep, render(prep, "quadrature", params, RenderOptions(threads=1))
+
+
+def test_inside_integrals_that_stop_short_are_reported(tmp_path):
+    """The traced path (a non-convex shape, inside_paths.py), from outside and from a camera inside,
+    and the convex kernel (media/slab.py) at the finest rtol: each counts what did not converge, and a
+    lamp whose integrals all converge reports 0."""
+    _, res = u_render(tmp_path, u_prism.SUN, {"rtol": 1e-10})
+    assert res.stats[NOT_CONVERGED] > 0, res.stats
+    prep, res = u_render(tmp_path, u_prism.SUN, {"rtol": 1e-10},
+                         dict(position=[-0.7, 0.1, 0.3], look_at=[1.0, -0.2, -0.2], fov=60.0, width=8, height=5))
+    assert prep.camera_inside == 0 and res.stats[NOT_CONVERGED] > 0, res.stats
+    _, res = u_render(tmp_path, u_prism.LAMP, {"rtol": 1e-10})
+    assert res.stats[NOT_CONVERGED] == 0, res.stats
+    sc = dict(bounded_media.SPOTS["spot_beside_cube"])
+    sc.pop("any_face", None)
+    prep = prepare(scene_from_text(to_toml(sc), "cube"))
+    assert len(raytrace.bounded.convex_planes(prep, 0))  # the kernel's convex path
+    res = render(prep, "quadrature", {"rtol": 1e-14}, RenderOptions(threads=1))
+    assert res.stats[NOT_CONVERGED] > 0, res.stats
+    assert NOT_CONVERGED not in render(prep, "raymarch", {"steps": 4}, RenderOptions(threads=1)).stats
+
+
+def test_the_count_does_not_depend_on_the_tiles(tmp_path):
+    """The inside statistics travel with each tile's and are reduced like the method's own."""
+    (tmp_path / "u.obj").write_text(u_prism.u_obj())
+    (tmp_path / "u.toml").write_text(to_toml(u_prism.u_scene(u_prism.SUN)))
+    prep = prepare(load_scene(tmp_path / "u.toml"))
+    whole = render(prep, "quadrature", {}, RenderOptions(threads=1)).stats[NOT_CONVERGED]
+    parts = sum(render(prep, "quadrature", {}, RenderOptions(threads=2, crop=box)).stats[NOT_CONVERGED]
+                for box in ((0, 0, 10, 3), (0, 3, 10, 7)))
+    assert whole == parts > 0
