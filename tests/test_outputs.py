@@ -228,3 +228,33 @@ def test_a_render_on_a_terminal_shows_its_bar_and_finishes(tmp_path, scene):
     assert proc.returncode == 0, terminal
     assert stdout.startswith("s: 8x6, 1 spp") and out.is_file()
     assert "render" in terminal and "tile" in terminal, terminal  # tqdm's bar: "render: ... tile/s"
+
+
+def test_concurrent_writers_of_a_pair_leave_one_writers_pair(tmp_path, monkeypatch):
+    """Writer "slow" pauses between its two renames; writer "fast" writes the same pair meanwhile.
+    Unlocked, the EXR would be fast's and the PNG slow's; under the lock fast waits, and its pair wins."""
+    exr, png = tmp_path / "a.exr", tmp_path / "a.png"
+    (tmp_path / ".a.exr.lock").write_text("")  # a crashed writer's: flock holds no lock for it
+    replace, renamed = os.replace, threading.Event()
+
+    def slow_replace(src, dst):
+        replace(src, dst)
+        if threading.current_thread().name == "slow" and str(dst).endswith(".exr"):
+            renamed.set()
+            time.sleep(0.3)
+
+    def writer(name):
+        def write(tmp):
+            Path(tmp).write_text(name)
+        film.write_together([(exr, write), (png, write)])
+
+    monkeypatch.setattr(os, "replace", slow_replace)
+    slow = threading.Thread(target=writer, args=("slow",), name="slow")
+    slow.start()
+    assert renamed.wait(10)
+    fast = threading.Thread(target=writer, args=("fast",), name="fast")
+    fast.start()
+    slow.join(10)
+    fast.join(10)
+    assert (exr.read_text(), png.read_text()) == ("fast", "fast")
+    assert sorted(os.listdir(tmp_path)) == ["a.exr", "a.png"]  # the lock file removed
