@@ -220,9 +220,12 @@ def cmd_render(args):
             bar.reset(total)
         bar.update(done - bar.n)
 
+    passes_shown = []
+
     def report(n, err):
         if show:
             print(f"\rpass {n}: estimated mean relative error {err:.3e}", end="", file=sys.stderr, flush=True)
+            passes_shown.append(n)
 
     try:
         with _cluster(args) as client:
@@ -230,14 +233,17 @@ def cmd_render(args):
                          volumetric_shadows=args.volumetric_shadows, shadow_spacing=args.shadow_spacing,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
-                         progress=tile_done if bar else None, on_pass=report, max_memory=args.max_memory,
+                         progress=tile_done if bar is not None else None, on_pass=report, max_memory=args.max_memory,
                          **_given_params(args))
     except KeyboardInterrupt:
-        print(f"interrupted: {source}" + (f"; the checkpoint {ckpt} keeps the finished passes, run the same "
-                                          "command to resume" if ckpt else "; nothing was written"), file=sys.stderr)
+        if bar is not None:
+            bar.close()  # before the line, which would otherwise follow the bar's
+        print(("\n" if passes_shown else "") + f"interrupted: {source}"
+              + (f"; the checkpoint {ckpt} keeps the finished passes, run the same command to resume" if ckpt
+                 else "; nothing was written"), file=sys.stderr)
         return 130
     finally:
-        if bar:
+        if bar is not None:
             bar.close()
         if display is not None:
             display.close()

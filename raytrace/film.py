@@ -2,23 +2,68 @@
 view.py's ACES 2.0 view, or a plain sRGB encode).
 
 Files are written to a temporary name beside the target and renamed, so a failed or interrupted
-write never leaves a partial image behind.
+write never leaves a partial image behind. Several files written together (an EXR and its PNG) are
+renamed under an exclusive lock, so that concurrent writers of the same files leave one writer's set.
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
 
 from .errors import UserError
 
+_UMASK = threading.Lock()
+
+
+def _umask() -> int:
+    """The process's umask (read by setting it, so under a lock: concurrent writers in threads)."""
+    with _UMASK:
+        umask = os.umask(0)
+        os.umask(umask)
+    return umask
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """An exclusive flock on `.<name>.lock` beside `path`, held for the block and then removed. A
+    writer that locked a lock file another one removed meanwhile locks the new one instead, so
+    exactly one writer holds the lock of a path at any time."""
+    lock = path.with_name(f".{path.name}.lock")
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise UserError(f"{path}: cannot write there ({exc.strerror}); choose a writable path") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            try:
+                current = os.path.samestat(os.fstat(fd), os.stat(lock))  # not removed meanwhile
+            except FileNotFoundError:
+                current = False
+        except BaseException:
+            os.close(fd)
+            raise
+        if current:
+            break
+        os.close(fd)
+    try:
+        yield
+    finally:
+        os.unlink(lock)  # while still held: a waiter then sees it removed and locks a new one
+        os.close(fd)
+
 
 def write_together(jobs):
     """Write every (path, write) of `jobs`, all or nothing: `write(tmp)` fills a temporary file beside
-    its path, and the temporaries are renamed onto their paths only once all are written; on any
-    failure (or Ctrl-C) no temporary stays and no path is touched. UserError names the path."""
+    its path, and the temporaries are renamed onto their paths only once all are written, holding the
+    lock of the first path (`_locked`): concurrent writers of the same paths leave one writer's files.
+    On any failure (or Ctrl-C) no temporary stays and no path is touched. UserError names the path."""
     jobs = [(Path(path), write) for path, write in jobs]
     temporaries = []
     try:
@@ -36,14 +81,14 @@ def write_together(jobs):
                 write(tmp)
             except OSError as exc:
                 raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
-        umask = os.umask(0)
-        os.umask(umask)
-        for (path, _), tmp in zip(jobs, temporaries):
-            try:
-                os.chmod(tmp, 0o666 & ~umask)
-                os.replace(tmp, path)
-            except OSError as exc:
-                raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
+        umask = _umask()
+        with _locked(jobs[0][0]) if jobs else contextlib.nullcontext():
+            for (path, _), tmp in zip(jobs, temporaries):
+                try:
+                    os.chmod(tmp, 0o666 & ~umask)
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    raise UserError(f"{path}: cannot write ({exc.strerror}); choose a writable path") from None
     finally:
         for tmp in temporaries:
             if os.path.exists(tmp):

@@ -9,8 +9,10 @@ count: the tiles are the same and each is computed and reduced the same way wher
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -228,7 +230,9 @@ def prepare_task(prep: Prepared, task: Task) -> float:
 class Threads:
     """The executor of one machine: the tiles on a pool of `threads` threads (default: every core).
     An executor has `prepare(prep, task)` (returns the compile seconds, before the timed render) and
-    `map(prep, task, work)` (yields (index in `work`, render_tile's result) in any order)."""
+    `map(prep, task, work)`, a generator of (index in `work`, render_tile's result) in any order;
+    `render` closes it when it stops early (Ctrl-C, a callback's exception), and it then stops
+    its tiles."""
 
     def __init__(self, threads: int | None = None):
         self.threads = threads
@@ -237,8 +241,18 @@ class Threads:
         return prepare_task(prep, task)
 
     def map(self, prep: Prepared, task: Task, work: list[Tile]):
+        cancelled = threading.Event()  # checked by each tile before it starts
+
+        def run(tile):
+            return None if cancelled.is_set() else render_tile(prep, task, tile)
+
         with ThreadPoolExecutor(self.threads or default_threads()) as pool:
-            yield from enumerate(pool.map(lambda t: render_tile(prep, task, t), work))
+            try:
+                yield from enumerate(pool.map(run, work))
+            except BaseException:  # Ctrl-C, the generator closed (GeneratorExit) or a tile's error:
+                cancelled.set()  # no further tile starts, and only the tiles running are waited for
+                pool.shutdown(cancel_futures=True)
+                raise
 
 
 class Accumulator:
@@ -303,12 +317,13 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     executor = executor if executor is not None else Threads(options.threads)
     compile_s = executor.prepare(prep, task)
     start = time.perf_counter()
-    for n, (i, result) in enumerate(executor.map(prep, task, work), 1):
-        rows = acc.add(i, result)
-        if rows is not None and options.observer is not None:
-            options.observer(box[1] + rows.start, box[1] + rows.stop, box[0], box[2], acc.image[rows])
-        if options.progress is not None:
-            options.progress(n, len(work))
+    with contextlib.closing(executor.map(prep, task, work)) as results:  # an exception here stops the tiles
+        for n, (i, result) in enumerate(results, 1):
+            rows = acc.add(i, result)
+            if rows is not None and options.observer is not None:
+                options.observer(box[1] + rows.start, box[1] + rows.stop, box[0], box[2], acc.image[rows])
+            if options.progress is not None:
+                options.progress(n, len(work))
     seconds = time.perf_counter() - start
     totals = acc.totals()
     summary = method.summarize(totals[:method.stats_size])
