@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from .jit import njit
-from .lights import DIRECTIONAL, segment_cone
+from .lights import DIRECTIONAL, is_spot, segment_cone
 from .methods import Segments
 from .methods.geometry import segment_geometry, v_of
 from .shadow_maps import ShadowMaps, face_texel, verdict
@@ -85,7 +85,7 @@ def _cone_pieces(xh, h, length, cone):
     m = 0
     for s in range(n):
         ell = length[s]
-        if cone[s, 3] <= -1.0:
+        if not is_spot(cone[s, 3]):
             src[m], x0[m], x1[m], piece[m] = s, 0.0, ell, 0
             m += 1
             continue
