@@ -447,14 +447,14 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     (shadow_maps.build; None: an exact shadow ray for every sample). `edges`: locate boundaries at
     the occluders' edges where possible (else bisection alone)."""
     maps = ShadowMaps.empty() if maps is None else maps
-    sun = lights.kind[segs.light] == DIRECTIONAL
-    if sun.any():  # directional lights: their own search (`sun_intervals`), the rest as below
-        rest = np.nonzero(~sun)[0]
+    directional = lights.kind[segs.light] == DIRECTIONAL
+    if directional.any():  # directional lights: their own search (`sun_intervals`), the rest as below
+        rest = np.nonzero(~directional)[0]
         others, stats = segs.take(rest), np.zeros(len(LI_NAMES))
         if len(rest):
             others, stats = lit_intervals(accel, others, lights, n_lights, spacing,
                                           None if end_normals is None else end_normals[rest], maps, edges)
-        sun_idx = np.nonzero(sun)[0]
+        sun_idx = np.nonzero(directional)[0]
         pieces = sun_intervals(accel, segs.take(sun_idx), lights, n_lights, spacing,
                                None if end_normals is None else end_normals[sun_idx], stats)
         return concat([p for p in (others, pieces) if len(p)], segs), stats

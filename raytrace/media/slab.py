@@ -454,7 +454,7 @@ class ConvexIntegrand(NamedTuple):
     """`convex_integrand` in x along an inside segment of a convex index-matched shape."""
     geo: np.ndarray
     planes: np.ndarray
-    distant: bool
+    directional: bool
     kt: float
     ks: float
     code: int
@@ -464,14 +464,14 @@ class ConvexIntegrand(NamedTuple):
 
 
 @njit
-def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
+def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase):
     """The single-scattering integrand at x along an inside segment of a convex index-matched shape,
     with the light's straight path inside measured exactly to the shape's boundary: geo = (entry
     point, segment direction w, the light's position or, for a directional light, minus its
     direction of travel); a directional light's value per unit irradiance (`phase` its phase
     value), a point light's per unit intensity."""
     X0, X1, X2 = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
-    if distant:
+    if directional:
         k = convex_exit(X0, X1, X2, geo[6], geo[7], geo[8], planes)
         return ks * phase * math.exp(-kt * (x + k))
     r0, r1, r2 = geo[6] - X0, geo[7] - X1, geo[8] - X2
@@ -488,7 +488,7 @@ def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
 @integrand_of(ConvexIntegrand)
 @njit
 def _convex_value(x, r):
-    return convex_integrand(x, r.geo, r.planes, r.distant, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase)
+    return convex_integrand(x, r.geo, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase)
 
 
 @njit
@@ -526,7 +526,7 @@ def straight_cuts(geo, end, out):
 
 
 @njit
-def convex_quadrature(geo, planes, distant, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
+def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
     """∫_0^ell `convex_integrand` dx, adaptive (adaptive.piecewise) on the pieces between a spot's
     cone crossings (`straight_cuts`)."""
     if ks == 0.0 or not ell > 0.0:
@@ -534,20 +534,20 @@ def convex_quadrature(geo, planes, distant, ell, kt, ks, code, g, kt_out, phase,
     end = min(ell, 745.0 / kt)
     br = np.empty(6)
     br[0] = 0.0
-    m = 0 if distant else straight_cuts(geo, end, br[1:])
+    m = 0 if directional else straight_cuts(geo, end, br[1:])
     br[m + 1] = end
-    rec = ConvexIntegrand(geo, planes, distant, kt, ks, code, g, kt_out, phase)
+    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase)
     return piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
 
 
 @njit
-def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta, spot):
+def inside_integrand(directional, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta, spot):
     """The inside single-scattering integrand at depth x along the segment (module docstring): a
     directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
     value), or a point light's eq. 7 integrand per unit intensity (`refracted_point` when eta != 1,
     with a spot's terms `spot`; the index-matched planar branch is for point lights only: spot lights
     in index-matched shapes take `convex_integrand` or inside_paths.py)."""
-    if distant:
+    if directional:
         return ks * phase * math.exp(-kt * (x + a * x / b))
     if eta != 1.0:
         return refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot[0], spot[1], spot[2], spot[3],
@@ -560,10 +560,10 @@ def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out
 
 
 @njit
-def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode, rtol,
-                    steps, tau_max, keys, dim0, seed, out, var, stats):
+def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode,
+                    rtol, steps, tau_max, keys, dim0, seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
-    channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
+    channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
     at height hl above the entry plane, kt_out the extinction outside (through a refractive plane,
     eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
@@ -582,9 +582,9 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
         var[s] = 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        ph = phase_value(code, g, mu[s]) if distant[s] else 0.0
+        ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         spot = NO_SPOT
-        if eta != 1.0 and not distant[s] and is_spot(geo[s, 13]):  # refracted_point's terms of a spot light
+        if eta != 1.0 and not directional[s] and is_spot(geo[s, 13]):  # refracted_point's terms of a spot light
             n0, n1, n2 = geo[s, 14], geo[s, 15], geo[s, 16]
             na = n0 * geo[s, 9] + n1 * geo[s, 10] + n2 * geo[s, 11]
             wa = geo[s, 3] * geo[s, 9] + geo[s, 4] * geo[s, 10] + geo[s, 5] * geo[s, 11] + a[s] * na
@@ -593,9 +593,10 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
             spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
-                out[s] = convex_quadrature(geo[s], planes, distant[s], ell[s], kt, ks, code, g, kt_out, ph, rtol, stats)
+                out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, rtol,
+                                           stats)
                 continue
-        elif (distant[s] and b[s] <= 0.0) or (not distant[s] and hl[s] <= 0.0):
+        elif (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
             continue
         if mode == MARCH or mode == SAMPLE:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
@@ -604,8 +605,9 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                 acc = 0.0
                 for j in range(steps):
                     x = (j + 0.5) * dx
-                    acc += (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
-                            inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
+                    acc += (convex_integrand(x, geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph)
+                            if convex else
+                            inside_integrand(directional[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
                                              kt_out, wl[s], ll[s], eta, spot))
                 out[s] = acc * dx
             else:
@@ -614,15 +616,15 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
                 for j in range(steps):
                     u = uniform(keys[s], dim0 + j, seed)
                     x = -math.log1p(-u * kt * mass) / kt
-                    f = (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
-                         inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
+                    f = (convex_integrand(x, geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph) if convex else
+                         inside_integrand(directional[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
                                           kt_out, wl[s], ll[s], eta, spot)) * mass * math.exp(kt * x)
                     acc += f
                     acc2 += f * f
                 mean = acc / steps
                 out[s] = mean
                 var[s] = max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
-        elif distant[s]:
+        elif directional[s]:
             if mode == QUAD:
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
             else:

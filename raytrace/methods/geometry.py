@@ -145,16 +145,16 @@ def fog_rows(segs, medium, lights):
     rows = np.zeros((len(segs), 5))
     rows[:, HO] = segs.origins @ up - medium.h0
     rows[:, MU] = segs.dirs @ up
-    sun = lights.kind[segs.light] == DIRECTIONAL
-    rows[:, HL] = np.where(sun, 0.0, lights.position[segs.light] @ up - medium.h0)
+    directional = lights.kind[segs.light] == DIRECTIONAL
+    rows[:, HL] = np.where(directional, 0.0, lights.position[segs.light] @ up - medium.h0)
     axis = lights.axis[segs.light]
-    rows[:, MUS] = np.where(sun, -(axis @ up), 0.0)
-    rows[:, COSD] = np.where(sun, -np.einsum("ij,ij->i", axis, segs.dirs), 0.0)
-    return rows, sun
+    rows[:, MUS] = np.where(directional, -(axis @ up), 0.0)
+    rows[:, COSD] = np.where(directional, -np.einsum("ij,ij->i", axis, segs.dirs), 0.0)
+    return rows, directional
 
 
 @njit
-def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
+def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional):
     """The in-scattered radiance per unit length at distance x along a height-fog segment, unit
     light, without a point light's 1/d^2: ks rho(x) Phi(cos) F T_cam(x) T_light(x), both
     transmittances exp(-kt tau) with tau the closed-form column (media/medium.py, seed 004 eq. 34
@@ -163,7 +163,7 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
     if above_top(hp, H, profile):
         return 0.0
     tau = column(row[HO], row[MU], 0.0, x, H, profile)
-    if sun:
+    if directional:
         tau += column(hp, row[MUS], 0.0, math.inf, H, profile)
         return ks * phase_value(code, g, row[COSD]) * attenuated_density(hp, kt * tau, H, profile)
     dx = x - xh
@@ -181,17 +181,17 @@ def atmosphere_channels(segs, medium, lights, evaluate, variance=False):
     layers' coefficients kt, ks (K,); rows are `atmosphere.segment_rows`, channels that do not
     scatter are 0. With `variance`, evaluate returns (mean, variance) and so does this, (S, 3) each."""
     xh, h, _, cone = segment_geometry(segs, lights)
-    sun = lights.kind[segs.light] == DIRECTIONAL
+    directional = lights.kind[segs.light] == DIRECTIONAL
     rows = np.empty((len(segs), ROW))
     segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
-                 sun, *(float(v) for v in medium.center), float(medium.radius), float(medium.top), rows)
+                 directional, *(float(v) for v in medium.center), float(medium.radius), float(medium.top), rows)
     out = np.zeros((len(segs), 3))
     var = np.zeros((len(segs), 3))
     for c in range(3):
         ks = np.ascontiguousarray(medium.layer_sigma_s[:, c])
         if not np.any(ks > 0.0):
             continue
-        unit = evaluate(rows, sun, xh, h, cone, np.ascontiguousarray(medium.layer_sigma_t[:, c]), ks)
+        unit = evaluate(rows, directional, xh, h, cone, np.ascontiguousarray(medium.layer_sigma_t[:, c]), ks)
         if variance:
             unit, v = unit
             _scale_into(var, c, v, lights.intensity ** 2, segs.light)

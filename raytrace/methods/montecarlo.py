@@ -46,10 +46,10 @@ MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CD
 
 
 @njit
-def _strategies_used(mode, sun):
+def _strategies_used(mode, directional):
     """(equiangular?, free-path?) of a mode; the sun takes free-path draws only (equiangular needs
     a light position)."""
-    return mode != FREEPATH and not sun, mode != EQUIANGULAR or sun
+    return mode != FREEPATH and not directional, mode != EQUIANGULAR or directional
 
 
 @njit
@@ -356,9 +356,9 @@ def _airlight(segs, medium, lights, params):
 def _atmosphere(segs, atm, lights, params):
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(rows, sun, xh, h, cone, kt, ks):
+    def evaluate(rows, directional, xh, h, cone, kt, ks):
         mean, v = np.empty_like(xh), np.empty_like(xh)
-        atmosphere_segments(rows, sun, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
+        atmosphere_segments(rows, directional, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
                             atm.gs, atm.layers, float(atm.radius), float(atm.top), MODES[params["sampling"]],
                             params["samples"], mean, v)
         return mean, v
@@ -371,8 +371,8 @@ def _fog(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
     xh, h, _, cone = segment_geometry(segs, lights)
-    rows, sun = fog_rows(segs, medium, lights)
-    fog_segments(rows, sun, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
+    rows, directional = fog_rows(segs, medium, lights)
+    fog_segments(rows, directional, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
                  lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
                  medium.scale_height, medium.profile, MODES[params["sampling"]], params["samples"], out, var)
     return out, np.zeros(CDF_STATS), var
@@ -423,7 +423,7 @@ def _summarize(stats):
 
 
 @njit
-def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode, n, key, dim0, seed):
+def _fog_estimate(row, directional, xh, h, ell, kt, ks, code, g, cone, H, profile, mode, n, key, dim0, seed):
     """`estimate` in a height fog (seed 004): f = `fog_inscatter` (/ d^2 for point and spot lights);
     free-path draws invert the closed-form optical depth, x = column_distance(-log(1 - u N) / kt)
     with N = 1 - T_cam(ell) and p = kt rho(x) T_cam(x) / N (eq. 35 / 31); the sun takes free-path
@@ -434,7 +434,7 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b, _ = _angles(xh, h, ell, kt)
-    use_e, use_f = _strategies_used(mode, sun)
+    use_e, use_f = _strategies_used(mode, directional)
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
@@ -452,8 +452,8 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
                 p += kt * attenuated_density(row[HO] + row[MU] * x, kt * column(row[HO], row[MU], 0.0, x, H, profile),
                                              H, profile) / norm
             if p > 0.0:
-                f = fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun)
-                if not sun:
+                f = fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional)
+                if not directional:
                     f /= max(h * h + (x - xh) * (x - xh), 1e-250)
                 est += f / p
         acc += est
@@ -462,19 +462,20 @@ def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode,
 
 
 @njit
-def fog_segments(rows, sun, xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, H, profile, mode, n,
-                 out, var):
+def fog_segments(rows, directional, xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, H, profile,
+                 mode, n, out, var):
     """`airlight_segments` in a height fog (the same random-number dimensions)."""
     for s in range(xh.shape[0]):
         for c in range(3):
-            m, v = _fog_estimate(rows[s], sun[s], xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], H, profile,
-                                 mode, n, keys[s], 2 * n * stream[s], seed)
+            m, v = _fog_estimate(rows[s], directional[s], xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], H,
+                                 profile, mode, n, keys[s], 2 * n * stream[s], seed)
             out[s, c] = m * intensity[s, c]
             var[s, c] = v * intensity[s, c] * intensity[s, c]
 
 
 @njit
-def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols, pieces, buf):
+def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols,
+                  pieces, buf):
     """`estimate` in an atmosphere, one channel: on the part [A, B] of the segment inside the air,
     f = `atmosphere.inscatter` (x F / d^2 for point and spot lights); free-path draws, restricted
     for the sun to the pieces outside the planet's shadow (`atmosphere.sunlit`: elsewhere f = 0),
@@ -487,7 +488,7 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
     h0, mu0 = row[atmo.H0], row[atmo.MU0]
     m = 1
     pieces[0, 0], pieces[0, 1] = a, b
-    if sun:
+    if directional:
         m = atmo.sunlit(row, R, buf, pieces)
     norm = 0.0
     for k in range(m):  # pieces[k] = (lo, hi, tau(A, lo), mass)
@@ -499,7 +500,7 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
-    use_e, use_f = _strategies_used(mode, sun)
+    use_e, use_f = _strategies_used(mode, directional)
     acc = 0.0
     acc2 = 0.0
     for j in range(n):
@@ -525,8 +526,8 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
             if use_f:
                 p += atmo.extinction_at(x, row, kt, Hs, R) * math.exp(-tau_cam) / norm
             if p > 0.0:
-                f = atmo.inscatter(x, row, sun, kt, ks, codes, gs, Hs, R, top, cols, tau_cam)
-                if not sun:
+                f = atmo.inscatter(x, row, directional, kt, ks, codes, gs, Hs, R, top, cols, tau_cam)
+                if not directional:
                     dx = x - xh
                     d2 = max(h * h + dx * dx, 1e-250)
                     f *= spot_factor(dx, math.sqrt(d2), h, cone) / d2
@@ -537,15 +538,16 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
 
 
 @njit
-def atmosphere_segments(rows, sun, xh, h, cone, keys, stream, seed, kt, ks, codes, gs, Hs, R, top, mode, n, out, var):
+def atmosphere_segments(rows, directional, xh, h, cone, keys, stream, seed, kt, ks, codes, gs, Hs, R, top, mode, n,
+                        out, var):
     """Unit-intensity estimates and their variances of every atmosphere segment, one channel (the
     same random-number dimensions as `airlight_segments`)."""
     cols = np.empty(Hs.shape[0])
     pieces = np.empty((3, 4))
     buf = np.empty(2)
     for s in range(xh.shape[0]):
-        out[s], var[s] = _atm_estimate(rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, mode, n,
-                                       keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
+        out[s], var[s] = _atm_estimate(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
+                                       mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
 def _check(medium, params):

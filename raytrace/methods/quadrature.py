@@ -155,9 +155,9 @@ def _airlight(segs, medium, lights, params):
 def _atmosphere(segs, atm, lights, params):
     stats = np.zeros(3)
 
-    def evaluate(rows, sun, xh, h, cone, kt, ks):
+    def evaluate(rows, directional, xh, h, cone, kt, ks):
         out = np.empty_like(xh)
-        atmosphere_segments(rows, sun, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
+        atmosphere_segments(rows, directional, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
                             float(atm.top), params["rtol"], _N10, _W10, _N20, _W20, out, stats)
         return out
 
@@ -166,11 +166,11 @@ def _atmosphere(segs, atm, lights, params):
 
 def _fog(segs, medium, lights, params):
     stats = np.zeros(3)
-    rows, sun = fog_rows(segs, medium, lights)
+    rows, directional = fog_rows(segs, medium, lights)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
-        fog_segments(rows, sun, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
+        fog_segments(rows, directional, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
                      medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
         return out
 
@@ -220,7 +220,7 @@ _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 
 class FogIntegrand(NamedTuple):
     """A height-fog segment's air-light (above): in theta for a point or spot light (the fog's
-    `fog_inscatter`), in u = 1 - T_cam for the sun (`sun`)."""
+    `fog_inscatter`), in u = 1 - T_cam for a directional light."""
     row: np.ndarray
     xh: float
     h: float
@@ -231,14 +231,14 @@ class FogIntegrand(NamedTuple):
     cone: np.ndarray
     H: float
     profile: int
-    sun: bool
+    directional: bool
 
 
 @integrand_of(FogIntegrand)
 @njit
 def _fog_value(s, r):
     row, H, profile = r.row, r.H, r.profile
-    if r.sun:
+    if r.directional:
         x = column_distance(row[HO], row[MU], 0.0, -math.log1p(-s) / r.kt, H, profile)
         if x == math.inf:
             return 0.0
@@ -274,10 +274,10 @@ def _ends_and_inside(out, n):
 
 
 @njit
-def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
+def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
     """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
     x_top = top_distance(row[HO], row[MU], H, profile)
-    if sun:
+    if directional:
         out[0] = 0.0
         out[1] = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
         n = 2
@@ -297,7 +297,8 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
 
 
 @njit
-def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol, n10, w10, n20, w20, out, stats):
+def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol, n10, w10, n20, w20, out,
+                 stats):
     """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0."""
     br = np.empty(9)
     for s in range(xh.shape[0]):
@@ -305,9 +306,9 @@ def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol,
         if ks == 0.0 or not ell[s] > 0.0:
             continue
         stats[EVALS] += 1.0
-        m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, sun[s], br)
-        rec = FogIntegrand(rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
-        scale = ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s]
+        m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
+        rec = FogIntegrand(rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, directional[s])
+        scale = ks / kt * phase_value(code, g, rows[s, COSD]) if directional[s] else 1.0 / h[s]
         out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats) * scale
 
 
@@ -323,7 +324,7 @@ class AtmosphereIntegrand(NamedTuple):
     """An atmosphere segment's air-light (above), one channel's layers: in x for the sun, in theta
     for a point or spot light; `cols` is scratch for the layers' columns."""
     row: np.ndarray
-    sun: bool
+    directional: bool
     xh: float
     h: float
     cone: np.ndarray
@@ -340,7 +341,7 @@ class AtmosphereIntegrand(NamedTuple):
 @integrand_of(AtmosphereIntegrand)
 @njit
 def _atm_value(s, r):
-    if r.sun:
+    if r.directional:
         return atmo.inscatter(s, r.row, True, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, -1.0)
     h = r.h
     dx = h * math.tan(s)
@@ -352,9 +353,9 @@ def _atm_value(s, r):
 
 
 @njit
-def _atm_breaks(row, sun, xh, h, cone, Hs, R, out):
+def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
     """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count."""
-    if sun:
+    if directional:
         out[0], out[1] = row[atmo.A], row[atmo.B]
         n = 2 + atmo.density_breaks(row, Hs, R, out[2:])
         n += atmo.planet_shadow(row, R, out[n:])
@@ -368,7 +369,8 @@ def _atm_breaks(row, sun, xh, h, cone, Hs, R, out):
 
 
 @njit
-def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out, stats):
+def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out,
+                        stats):
     """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients."""
     br = np.empty(11 + atmo.max_density_breaks(Hs))
     cols = np.empty(Hs.shape[0])
@@ -377,6 +379,6 @@ def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, r
         if not rows[s, atmo.B] > rows[s, atmo.A]:
             continue
         stats[EVALS] += 1.0
-        m = _atm_breaks(rows[s], sun[s], xh[s], h[s], cone[s], Hs, R, br)
-        rec = AtmosphereIntegrand(rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
+        m = _atm_breaks(rows[s], directional[s], xh[s], h[s], cone[s], Hs, R, br)
+        rec = AtmosphereIntegrand(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
         out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)

@@ -163,10 +163,10 @@ def _atmosphere(segs, atm, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(rows, sun, xh, h, cone, kt, ks):
+    def evaluate(rows, directional, xh, h, cone, kt, ks):
         out = np.empty_like(xh)
-        atmosphere_segments(rows, sun, xh, h, cone, keys, int(segs.seed), kt, ks, atm.phases, atm.gs, atm.layers,
-                            float(atm.radius), float(atm.top), int(params["steps"]), float(params["step"]),
+        atmosphere_segments(rows, directional, xh, h, cone, keys, int(segs.seed), kt, ks, atm.phases, atm.gs,
+                            atm.layers, float(atm.radius), float(atm.top), int(params["steps"]), float(params["step"]),
                             params["transmittance"] == "marched", bool(params["jitter"]), out, stats)
         return out
 
@@ -176,11 +176,11 @@ def _atmosphere(segs, atm, lights, params):
 def _fog(segs, medium, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
-    rows, sun = fog_rows(segs, medium, lights)
+    rows, directional = fog_rows(segs, medium, lights)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
-        fog_segments(rows, sun, xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone,
+        fog_segments(rows, directional, xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone,
                      medium.scale_height, medium.profile, *_march(params), bool(params["jitter"]), out, stats)
         return out
 
@@ -253,8 +253,8 @@ def _fog_end(row, kt, H, profile, tau_max):
 
 
 @njit
-def fog_segments(rows, sun, xh, h, ell, keys, seed, kt, ks, code, g, cone, H, profile, steps, step, tau_max, jitter,
-                 out, stats):
+def fog_segments(rows, directional, xh, h, ell, keys, seed, kt, ks, code, g, cone, H, profile, steps, step, tau_max,
+                 jitter, out, stats):
     """Ray-marched unit-intensity air-light of every height-fog segment for one channel: the
     midpoint (or jittered) rule on `fog_inscatter`, whose transmittances are closed form."""
     for s in range(xh.shape[0]):
@@ -270,8 +270,8 @@ def fog_segments(rows, sun, xh, h, ell, keys, seed, kt, ks, code, g, cone, H, pr
         acc = 0.0
         for k in range(n):
             x = (k + xi) * delta
-            f = fog_inscatter(x, rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
-            if not sun[s]:
+            f = fog_inscatter(x, rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, directional[s])
+            if not directional[s]:
                 dx = x - xh[s]
                 f /= max(h[s] * h[s] + dx * dx, 1e-250)
             acc += f
@@ -299,8 +299,8 @@ def _marched_depth(px, py, pz, lx, ly, lz, d, kt, Hs, R, top, steps):
 
 
 @njit
-def atmosphere_segments(rows, sun, xh, h, cone, keys, seed, kt, ks, codes, gs, Hs, R, top, steps, step, marched, jitter,
-                        out, stats):
+def atmosphere_segments(rows, directional, xh, h, cone, keys, seed, kt, ks, codes, gs, Hs, R, top, steps, step,
+                        marched, jitter, out, stats):
     """Ray-marched unit-intensity air-light of every atmosphere segment for one channel's layers,
     over the part [A, B] of the segment inside the air: the midpoint (or jittered) rule on
     `atmosphere.inscatter` (closed-form transmittances), or with `marched` on the same integrand
@@ -322,14 +322,14 @@ def atmosphere_segments(rows, sun, xh, h, cone, keys, seed, kt, ks, codes, gs, H
         for k in range(n):
             x = a + (k + xi) * delta
             if marched:
-                hx, px, py, pz, lx, ly, lz, d, cos, _ = atmo.light_frame(x, rows[s], sun[s], R)
+                hx, px, py, pz, lx, ly, lz, d, cos, _ = atmo.light_frame(x, rows[s], directional[s], R)
                 ext = atmo.density_sum(hx, Hs, kt)
                 tau_l = _marched_depth(px, py, pz, lx, ly, lz, d, kt, Hs, R, top, steps) if d > 0.0 else math.inf
                 f = atmo.scattering(hx, cos, ks, codes, gs, Hs) * math.exp(-tau_l - tau_cam - ext * xi * delta)
                 tau_cam += ext * delta
             else:
-                f = atmo.inscatter(x, rows[s], sun[s], kt, ks, codes, gs, Hs, R, top, cols, -1.0)
-            if not sun[s]:
+                f = atmo.inscatter(x, rows[s], directional[s], kt, ks, codes, gs, Hs, R, top, cols, -1.0)
+            if not directional[s]:
                 dx = x - xh[s]
                 d2 = max(h[s] * h[s] + dx * dx, 1e-250)
                 f *= spot_factor(dx, math.sqrt(d2), h[s], cone[s]) / d2
