@@ -22,7 +22,7 @@ class Unregistered(NamedTuple):
 def test_unknown_record_is_a_compile_time_error():
     """A record class without a registered integrand does not compile, even with the fields of one
     that has (slab.DistantSlab): no fall-through to another integrand."""
-    with pytest.raises(TypingError, match="no integrand is registered"):
+    with pytest.raises(TypingError, match="integrand: nothing is registered"):
         adaptive.rule(0.0, 1.0, Unregistered(1.0, 1.0, 1.0, 1.0, 1.0), N20, W20)
 
 

@@ -1,47 +1,16 @@
 """The adaptive Gauss-Legendre driver shared by the air-light methods (methods/quadrature.py) and
-the kernels of media inside shapes (slab.py).
-
-An integrand is a typed record: a NamedTuple class whose module registers its value f(x, record)
-with `integrand_of`. `rule`, `adaptive` and `piecewise` dispatch on the record's class when numba
-compiles them (an overload of `integrand`), so the driver imports none of the integrands' modules,
-and a record class that nobody registered is a compile-time error (a numba TypingError), never a
-fall-through to another integrand.
+the kernels of media inside shapes (slab.py), on the typed integrand records of integrand.py.
 """
 import numpy as np
-from numba.core.errors import TypingError
-from numba.extending import overload
 
 from ..jit import njit
+from .integrand import integrand
 
 MAX_INTERVALS = 4000
 STACK = 200
 
 # stats slots: evaluations, intervals, evaluations with an interval short of its tolerance
 EVALS, INTERVALS, CAPPED = 0, 1, 2
-
-_VALUES = {}  # record class -> its njit value f(x, record)
-
-
-def integrand_of(record):
-    """Register the decorated njit function f(x, rec) as the integrand of the NamedTuple class `record`."""
-    def register(value):
-        assert record not in _VALUES, f"{record.__name__} already has an integrand"
-        _VALUES[record] = value
-        return value
-    return register
-
-
-def integrand(x, rec):
-    """The value at x of the integrand that the record `rec` names (`integrand_of`)."""
-
-
-@overload(integrand)
-def _integrand(x, rec):
-    value = _VALUES.get(getattr(rec, "instance_class", None))
-    if value is None:
-        raise TypingError(f"no integrand is registered for {rec} (media/adaptive.py integrand_of)")
-    return lambda x, rec: value(x, rec)
-
 
 @njit
 def rule(a, b, rec, nodes, weights):

@@ -40,7 +40,9 @@ import numpy as np
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
 from ..rng import uniform
-from .adaptive import integrand_of, piecewise
+from .adaptive import piecewise
+from .integrand import integrand, integrand_of
+from .march import march
 from .phase import phase_value
 
 # how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the note's approximation,
@@ -559,6 +561,52 @@ def inside_integrand(directional, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt
     return ks * phase_value(code, g, -dx / d) * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
 
 
+class InsideIntegrand(NamedTuple):
+    """`inside_integrand` in x (its arguments but x)."""
+    directional: bool
+    xh: float
+    h: float
+    hl: float
+    a: float
+    b: float
+    phase: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    wl: float
+    ll: float
+    eta: float
+    spot: tuple
+
+
+@integrand_of(InsideIntegrand)
+@njit
+def _inside_value(x, r):
+    return inside_integrand(r.directional, x, r.xh, r.h, r.hl, r.a, r.b, r.phase, r.kt, r.ks, r.code, r.g, r.kt_out,
+                            r.wl, r.ll, r.eta, r.spot)
+
+
+@njit
+def _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
+    """(value, variance of the mean) of an inside segment [0, length]: MARCH, the midpoint rule with
+    `steps` cells (variance 0); SAMPLE, the mean of `steps` free-path samples
+    x = -ln(1 - u (1 - e^{-kt length})) / kt, u from the ray's key at dimensions dim0 + j."""
+    if mode == MARCH:
+        return march(rec, 0.0, steps, length / steps, 0.5), 0.0
+    mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
+    acc = acc2 = 0.0
+    for j in range(steps):
+        u = uniform(key, dim0 + j, seed)
+        x = -math.log1p(-u * kt * mass) / kt
+        f = integrand(x, rec) * mass * math.exp(kt * x)
+        acc += f
+        acc2 += f * f
+    mean = acc / steps
+    return mean, max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
+
+
 @njit
 def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode,
                     rtol, steps, tau_max, keys, dim0, seed, out, var, stats):
@@ -600,30 +648,13 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             continue
         if mode == MARCH or mode == SAMPLE:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
-            if mode == MARCH:
-                dx = length / steps
-                acc = 0.0
-                for j in range(steps):
-                    x = (j + 0.5) * dx
-                    acc += (convex_integrand(x, geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph)
-                            if convex else
-                            inside_integrand(directional[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                             kt_out, wl[s], ll[s], eta, spot))
-                out[s] = acc * dx
+            if convex:
+                rec = ConvexIntegrand(geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph)
+                out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
             else:
-                mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
-                acc = acc2 = 0.0
-                for j in range(steps):
-                    u = uniform(keys[s], dim0 + j, seed)
-                    x = -math.log1p(-u * kt * mass) / kt
-                    f = (convex_integrand(x, geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph) if convex else
-                         inside_integrand(directional[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                          kt_out, wl[s], ll[s], eta, spot)) * mass * math.exp(kt * x)
-                    acc += f
-                    acc2 += f * f
-                mean = acc / steps
-                out[s] = mean
-                var[s] = max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
+                rec2 = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out,
+                                       wl[s], ll[s], eta, spot)
+                out[s], var[s] = _march_or_sample(rec2, mode, length, kt, steps, keys[s], dim0, seed)
         elif directional[s]:
             if mode == QUAD:
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)

@@ -12,13 +12,16 @@ the integrand has it (with d_a = 0 analytic's folded exponentials started at e^0
 is e^{-kt h}: NaN for kt h beyond ~745).
 """
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..jit import njit
 from ..lights import DIRECTIONAL, NO_CONE, SMOOTHSTEP, falloff, is_spot
+from ..media import atmosphere as atmo
 from ..media.atmosphere import ROW, segment_rows
 from ..media.fog import above_top, attenuated_density, column
+from ..media.integrand import integrand_of
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
@@ -107,6 +110,23 @@ def eq4_integrand(x, xh, h, kt, ks, code, g, cone):
     return ks * f * math.exp(-kt * (x + d)) * phase_value(code, g, -dx / d) / d2
 
 
+class Eq4(NamedTuple):
+    """`eq4_integrand` in x: the homogeneous air-light of a unit light (x_h, h) with cone row `cone`."""
+    xh: float
+    h: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    cone: np.ndarray
+
+
+@integrand_of(Eq4)
+@njit
+def _eq4_value(x, r):
+    return eq4_integrand(x, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone)
+
+
 def by_channel(segs, medium, lights, evaluate):
     """Air-light (S, 3) of a segment batch. `evaluate(xh, h, da, length, kt, ks, cone)` returns the
     unit-intensity air-light (S,) for one channel's coefficients; channels with equal (kt, ks) share
@@ -173,6 +193,63 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional)
         return 0.0
     tau += column(hp, (row[HL] - hp) / d, 0.0, d, H, profile)
     return ks * f * phase_value(code, g, -dx / d) * attenuated_density(hp, kt * tau, H, profile)
+
+
+class FogInX(NamedTuple):
+    """A height fog's air-light integrand in x, unit light: `fog_inscatter`, divided by d^2 for
+    point and spot lights."""
+    row: np.ndarray
+    xh: float
+    h: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    cone: np.ndarray
+    H: float
+    profile: int
+    directional: bool
+
+
+@integrand_of(FogInX)
+@njit
+def _fog_in_x(x, r):
+    f = fog_inscatter(x, r.row, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone, r.H, r.profile, r.directional)
+    if not r.directional:
+        dx = x - r.xh
+        f /= max(r.h * r.h + dx * dx, 1e-250)
+    return f
+
+
+class AtmosphereInX(NamedTuple):
+    """An atmosphere's air-light integrand in x, one channel's layers, unit light:
+    `atmosphere.inscatter` (tau_cam: the camera's optical depth to x if known, else negative), times
+    a spot's falloff over d^2 for point and spot lights; `cols` is scratch for the layers' columns."""
+    row: np.ndarray
+    directional: bool
+    xh: float
+    h: float
+    cone: np.ndarray
+    kt: np.ndarray
+    ks: np.ndarray
+    codes: np.ndarray
+    gs: np.ndarray
+    Hs: np.ndarray
+    R: float
+    top: float
+    cols: np.ndarray
+    tau_cam: float
+
+
+@integrand_of(AtmosphereInX)
+@njit
+def _atmosphere_in_x(x, r):
+    f = atmo.inscatter(x, r.row, r.directional, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, r.tau_cam)
+    if not r.directional:
+        dx = x - r.xh
+        d2 = max(r.h * r.h + dx * dx, 1e-250)
+        f *= spot_factor(dx, math.sqrt(d2), r.h, r.cone) / d2
+    return f
 
 
 def atmosphere_channels(segs, medium, lights, evaluate, variance=False):

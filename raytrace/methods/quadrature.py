@@ -30,7 +30,8 @@ from . import ErrorLaw, Method, Param, by_kind
 from .geometry import COSD, HO, MU, MUS, atmosphere_channels, by_channel, fog_inscatter, fog_rows, spot_factor
 from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
-from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, integrand_of, piecewise, refine, rule
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, piecewise, refine, rule
+from ..media.integrand import integrand_of
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance, top_distance
 from ..media.phase import phase_split, phase_value
