@@ -151,13 +151,13 @@ def convex_exits(prep, sid, points, dirs, dist):
     return np.minimum(t, dist)
 
 
-def _geometry(prep, sid, geo, distant, seg, x):
+def _geometry(prep, sid, geo, directional, seg, x):
     """At the points x along segments `seg` (geo rows of media/slab.py's inside_radiance: entry point,
     direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
     light's distance d (inf for a directional light), its path's length k inside shape sid, the
     scattering cosine mu and a spot's falloff toward the direction it leaves in (1 for other lights)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
-    if distant:
+    if directional:
         to = np.ascontiguousarray(geo[seg, 6:9])
         d = np.full(len(x), np.inf)
         f = np.ones(len(x))
@@ -197,9 +197,9 @@ def _uniforms(keys, seg, dims, seed, out):
         out[i] = uniform(keys[seg[i]], dims[i], seed)
 
 
-def _channels(prep, sid, geo, distant, seg, x, kts, kss, code, g, kt_outs):
+def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs):
     """The integrand at (seg, x) for the channels (M, C)."""
-    d, k, mu, f = _geometry(prep, sid, geo, distant, seg, x)
+    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x)
     out = np.empty((len(x), len(kts)))
     col = np.empty(len(x))
     for c in range(len(kts)):
@@ -212,7 +212,7 @@ _N10, _W10 = np.polynomial.legendre.leggauss(10)
 _N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
-def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, rtol, stats):
+def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rtol, stats):
     """∫_0^ell of the integrand per segment and channel (N, C), adaptive: panels are halved until their
     10- and 20-point Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the
     whole per unit length (media/slab.py's rule, vectorised over segments because every evaluation
@@ -221,7 +221,7 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
     n, nc = len(ell), len(kts)
     total = np.zeros((n, nc))
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    seg, a, b = _first_panels(geo, distant, end)
+    seg, a, b = _first_panels(geo, directional, end)
     floor = None
     for _ in range(MAX_LEVELS):
         if not len(seg):
@@ -229,7 +229,7 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
         xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()])
         ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
-        f = _channels(prep, sid, geo, distant, ss, xs, kts, kss, code, g, kt_outs)
+        f = _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs)
         m = len(seg)
         g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
         g20 = np.einsum("pkc,k->pc", f[10 * m:].reshape(m, 20, nc), _W20) * half[:, None]
@@ -249,13 +249,13 @@ def segment_quadrature(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs,
     return total
 
 
-def _first_panels(geo, distant, end):
+def _first_panels(geo, directional, end):
     """(segment, start, end) of the first panels of `segment_quadrature`: [0, end] of every segment
     with end > 0, cut at its spot's cone crossings."""
     seg, a, b = [], [], []
     cuts = np.empty(4)
     for s in np.nonzero(end > 0.0)[0]:
-        m = 0 if distant else straight_cuts(geo[s], end[s], cuts)
+        m = 0 if directional else straight_cuts(geo[s], end[s], cuts)
         edges = [0.0, *cuts[:m], end[s]]
         seg += [s] * (m + 1)
         a += edges[:-1]
@@ -263,7 +263,7 @@ def _first_panels(geo, distant, end):
     return np.array(seg, dtype=np.int64), np.array(a), np.array(b)
 
 
-def segment_march(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, steps, tau_max):
+def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, tau_max):
     """The midpoint rule with `steps` points per segment and channel, the segment cut where its optical
     depth reaches tau_max (media/slab.py's MARCH)."""
     out = np.zeros((len(ell), len(kts)))
@@ -271,13 +271,13 @@ def segment_march(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, step
     j = np.tile(np.arange(steps) + 0.5, len(ell))
     for c in range(len(kts)):
         dx = np.minimum(ell, tau_max / kts[c]) / steps
-        f = _channels(prep, sid, geo, distant, seg, j * dx[seg], kts[c:c + 1], kss[c:c + 1], code, g,
+        f = _channels(prep, sid, geo, directional, seg, j * dx[seg], kts[c:c + 1], kss[c:c + 1], code, g,
                       kt_outs[c:c + 1])[:, 0]
         out[:, c] = f.reshape(len(ell), steps).sum(axis=1) * dx
     return out
 
 
-def segment_samples(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, steps, keys, dim0, seed):
+def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, keys, dim0, seed):
     """Free-path sampling (media/slab.py's SAMPLE): `steps` samples per segment and channel, the same
     random numbers for every channel; the mean and the variance of the mean (N, C) each."""
     n = len(ell)
@@ -289,7 +289,7 @@ def segment_samples(prep, sid, geo, distant, ell, kts, kss, code, g, kt_outs, st
         kt = float(kts[c])
         mass = -np.expm1(-kt * np.minimum(ell, 745.0 / kt)) / kt
         x = -np.log1p(-u * kt * mass[seg]) / kt
-        f = _channels(prep, sid, geo, distant, seg, x, kts[c:c + 1], kss[c:c + 1], code, g, kt_outs[c:c + 1])[:, 0]
+        f = _channels(prep, sid, geo, directional, seg, x, kts[c:c + 1], kss[c:c + 1], code, g, kt_outs[c:c + 1])[:, 0]
         f = (f * mass[seg] * np.exp(kt * x)).reshape(n, steps)
         out[:, c] = f.mean(axis=1)
         var[:, c] = np.maximum((f * f).mean(axis=1) - out[:, c] ** 2, 0.0) / max(steps - 1, 1)

@@ -96,6 +96,13 @@ class Lights:
 
 
 @njit
+def is_spot(cos_start):
+    """Whether a light whose core has the cosine `cos_start` (`Light.cos_start`, column 1 of
+    `Lights.cone`, column 3 of a segment's cone row) has a cone: NO_CONE's is below -1."""
+    return cos_start > -1.0
+
+
+@njit
 def falloff(c, cos_end, cos_start, curve):
     """The spot falloff at cosine c to the axis: 1 from cos_start up, 0 from cos_end down (a hard
     edge if they are equal), and between, with t = (c - cos_end) / (cos_start - cos_end),
@@ -187,7 +194,7 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
     """The pieces of [va, vb] (v = tan(phi/2)) between the cone's crossings: out[i] = (v_lo, v_hi,
     kind) with kind 0 (dark), 1 (full intensity), 2 (the falloff's band); returns the count (<= 5 rows
     of `out`, no allocation). A light without a cone (cos_start <= -1) is one full piece."""
-    if cos_start <= -1.0:
+    if not is_spot(cos_start):
         out[0, 0], out[0, 1], out[0, 2] = va, vb, 1.0
         return 1
     m = 0

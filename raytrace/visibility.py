@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from .jit import njit
-from .lights import DIRECTIONAL, segment_cone
+from .lights import DIRECTIONAL, is_spot, segment_cone
 from .methods import Segments
 from .methods.geometry import segment_geometry, v_of
 from .shadow_maps import ShadowMaps, face_texel, verdict
@@ -85,7 +85,7 @@ def _cone_pieces(xh, h, length, cone):
     m = 0
     for s in range(n):
         ell = length[s]
-        if cone[s, 3] <= -1.0:
+        if not is_spot(cone[s, 3]):
             src[m], x0[m], x1[m], piece[m] = s, 0.0, ell, 0
             m += 1
             continue
@@ -447,14 +447,14 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     (shadow_maps.build; None: an exact shadow ray for every sample). `edges`: locate boundaries at
     the occluders' edges where possible (else bisection alone)."""
     maps = ShadowMaps.empty() if maps is None else maps
-    sun = lights.kind[segs.light] == DIRECTIONAL
-    if sun.any():  # directional lights: their own search (`sun_intervals`), the rest as below
-        rest = np.nonzero(~sun)[0]
+    directional = lights.kind[segs.light] == DIRECTIONAL
+    if directional.any():  # directional lights: their own search (`sun_intervals`), the rest as below
+        rest = np.nonzero(~directional)[0]
         others, stats = segs.take(rest), np.zeros(len(LI_NAMES))
         if len(rest):
             others, stats = lit_intervals(accel, others, lights, n_lights, spacing,
                                           None if end_normals is None else end_normals[rest], maps, edges)
-        sun_idx = np.nonzero(sun)[0]
+        sun_idx = np.nonzero(directional)[0]
         pieces = sun_intervals(accel, segs.take(sun_idx), lights, n_lights, spacing,
                                None if end_normals is None else end_normals[sun_idx], stats)
         return concat([p for p in (others, pieces) if len(p)], segs), stats

@@ -1,14 +1,10 @@
 """The adaptive Gauss-Legendre driver shared by the air-light methods (methods/quadrature.py) and
-the kernels of media inside shapes (slab.py): `adaptive` integrates `rule(a, b, args, nodes,
-weights)` over [a, b], halving intervals until their 10- and 20-point values agree.
-
-`rule` is a stub that each module owning an integrand completes with a numba overload for its
-argument tuples (told apart by their lengths, which `claim` keeps distinct); the driver therefore
-imports none of them, and neither package imports the other for it.
+the kernels of media inside shapes (slab.py), on the typed integrand records of integrand.py.
 """
 import numpy as np
 
 from ..jit import njit
+from .integrand import integrand
 
 MAX_INTERVALS = 4000
 STACK = 200
@@ -16,25 +12,23 @@ STACK = 200
 # stats slots: evaluations, intervals, evaluations with an interval short of its tolerance
 EVALS, INTERVALS, CAPPED = 0, 1, 2
 
-_CLAIMED = set()
-
-
-def claim(*lengths):
-    """Reserve argument-tuple lengths for one module's overload of `rule`."""
-    assert not _CLAIMED & set(lengths), "each rule's argument tuple needs a length of its own"
-    _CLAIMED.update(lengths)
-
-
-def rule(a, b, args, nodes, weights):
-    """The Gauss-Legendre rule (nodes, weights on [-1, 1]) over [a, b] of the integrand `args` names."""
+@njit
+def rule(a, b, rec, nodes, weights):
+    """The Gauss-Legendre rule (nodes, weights on [-1, 1]) over [a, b] of the integrand `rec` names."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (a + b)
+    acc = 0.0
+    for k in range(nodes.shape[0]):
+        acc += weights[k] * integrand(mid + half * nodes[k], rec)
+    return acc * half
 
 
 @njit
-def adaptive(args, a, b, rtol, density, n10, w10, n20, w20, stats):
-    """The integral over [a, b] of `rule` and whether every interval met its tolerance (False:
-    an interval was accepted at the MAX_INTERVALS / STACK caps or at the resolution of doubles).
-    An interval is accepted when its two values agree to rtol relative or to `density` times its
-    width."""
+def adaptive(rec, a, b, rtol, density, n10, w10, n20, w20, stats):
+    """The integral over [a, b] of the integrand `rec` names and whether every interval met its
+    tolerance (False: an interval was accepted at the MAX_INTERVALS / STACK caps or at the
+    resolution of doubles). An interval is accepted when its 10- and 20-point values agree to rtol
+    relative or to `density` times its width."""
     if not b > a:
         return 0.0, True
     converged = True
@@ -47,8 +41,8 @@ def adaptive(args, a, b, rtol, density, n10, w10, n20, w20, stats):
     while top > 0:
         top -= 1
         x0, x1 = lo[top], hi[top]
-        coarse = rule(x0, x1, args, n10, w10)
-        fine = rule(x0, x1, args, n20, w20)
+        coarse = rule(x0, x1, rec, n10, w10)
+        fine = rule(x0, x1, rec, n20, w20)
         count += 1
         mid = 0.5 * (x0 + x1)
         tol = max(rtol * abs(fine), density * (x1 - x0))
@@ -61,3 +55,40 @@ def adaptive(args, a, b, rtol, density, n10, w10, n20, w20, stats):
             top += 2
     stats[INTERVALS] += count
     return total, converged
+
+
+@njit
+def first_estimate(rec, br, m, n20, w20, acc):
+    """acc plus the 20-point values of `rec` over the pieces between the ascending breakpoints br[:m]."""
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            acc += abs(rule(br[i], br[i + 1], rec, n20, w20))
+    return acc
+
+
+@njit
+def refine(rec, br, m, rtol, floor, n10, w10, n20, w20, stats, acc):
+    """acc plus `adaptive` (absolute floor `floor` per unit of the variable) over each piece between
+    the breakpoints br[:m]; and whether every piece converged."""
+    ok = True
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            val, good = adaptive(rec, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
+            acc += val
+            ok = ok and good
+    return acc, ok
+
+
+@njit
+def piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats):
+    """The integral of `rec` over [br[0], br[m - 1]], adaptive on the pieces between the breakpoints
+    br[:m] (an array or a tuple) to rtol, or to rtol/10 of a first 20-point estimate of the whole per
+    unit of the variable (so that negligible tails are not refined to full relative accuracy; the
+    integrands are positive, so the total meets rtol). Counts an evaluation short of its tolerance."""
+    width = br[m - 1] - br[0]
+    estimate = first_estimate(rec, br, m, n20, w20, 0.0)
+    floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
+    total, ok = refine(rec, br, m, rtol, floor, n10, w10, n20, w20, stats, 0.0)
+    if not ok:
+        stats[CAPPED] += 1.0
+    return total

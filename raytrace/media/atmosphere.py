@@ -343,7 +343,7 @@ ROW = 14
 
 
 @njit
-def segment_rows(origins, dirs, ell, lpos, laxis, light, sun, cx, cy, cz, radius, top, rows):
+def segment_rows(origins, dirs, ell, lpos, laxis, light, directional, cx, cy, cz, radius, top, rows):
     """Fill rows (S, ROW) of a segment batch (see above)."""
     for s in range(origins.shape[0]):
         r = rows[s]
@@ -353,7 +353,7 @@ def segment_rows(origins, dirs, ell, lpos, laxis, light, sun, cx, cy, cz, radius
         a, b = shell(r[H0], r[MU0], radius, top)
         r[A], r[B] = a, min(b, ell[s])
         li = light[s]
-        if sun[s]:
+        if directional[s]:
             r[LX], r[LY], r[LZ] = -laxis[li, 0], -laxis[li, 1], -laxis[li, 2]
             r[COSD] = laxis[li, 0] * -dirs[s, 0] + laxis[li, 1] * -dirs[s, 1] + laxis[li, 2] * -dirs[s, 2]
         else:
@@ -372,7 +372,7 @@ def density_sum(hx, layers, coef):
 
 
 @njit
-def light_frame(x, row, sun, radius):
+def light_frame(x, row, directional, radius):
     """At distance x of a segment: (h, p, l, d, cos, mu_l) with p = the point relative to the
     centre (3 floats), l the unit vector toward the light (3 floats), d the distance to it (inf
     for the sun), cos the scattering cosine (the light's travel direction . -w) and mu_l = the
@@ -380,7 +380,7 @@ def light_frame(x, row, sun, radius):
     px, py, pz = row[QX] + x * row[WX], row[QY] + x * row[WY], row[QZ] + x * row[WZ]
     r = math.sqrt(px * px + py * py + pz * pz)
     hx = max(r - radius, 0.0)
-    if sun:
+    if directional:
         lx, ly, lz, d, cos = row[LX], row[LY], row[LZ], math.inf, row[COSD]
     else:
         lx, ly, lz = row[LX] - px, row[LY] - py, row[LZ] - pz
@@ -404,13 +404,13 @@ def scattering(hx, cos, ks, codes, gs, layers):
 
 
 @njit
-def inscatter(x, row, sun, kt, ks, codes, gs, layers, radius, top, cols, tau_cam):
+def inscatter(x, row, directional, kt, ks, codes, gs, layers, radius, top, cols, tau_cam):
     """In-scattered radiance per unit length at distance x of a segment, one channel, unit light,
     without a point light's 1/d^2 or spot falloff: T_cam(x) T_light(x) sum_i ks_i rho_i(x)
     Phi_i(cos), T_cam from the segment's start (`tau_cam`: its optical depth if the caller has it,
     else negative), T_light to the light or, for the sun, out of the atmosphere (0 behind the
     planet). kt, ks: (K,) of the channel."""
-    hx, _, _, _, _, _, _, d, cos, mul = light_frame(x, row, sun, radius)
+    hx, _, _, _, _, _, _, d, cos, mul = light_frame(x, row, directional, radius)
     if not d > 0.0:
         return 0.0
     if not columns(hx, mul, 0.0, d, radius, top, layers, cols):

@@ -19,7 +19,7 @@ are its projection coordinate and distance to the ray line, d(x) = sqrt(h^2 + (x
       L = I ks ∫_0^ell Phi(cos) exp(-kt (x + k(x)) - kt_out (d(x) - k(x))) / d(x)^2 dx,
   kt_out the extinction outside (0 in the note), cos = -(x - x_h) / d the scattering cosine. It has
   no closed form; `point_exact` integrates it with the project's adaptive Gauss-Legendre rule
-  (methods/quadrature.py) in the angle theta = atan((x - x_h) / h) seen from the light
+  (media/adaptive.py) in the angle theta = atan((x - x_h) / h) seen from the light
   (dx / d^2 = dtheta / h: a bounded, smooth integrand). With the light in the plane (H_L = 0),
   k = d and this is the air-light of eq. 4 (the note's eq. 8).
 * The note's separable approximation (its sec. 4.2, for thin media): the exponential part replaced
@@ -33,26 +33,18 @@ dielectric (`refract`, `fresnel`); eta = n_inside / n_outside.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
-from numba.extending import overload
 
 from ..jit import njit
-from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff
+from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
 from ..rng import uniform
-from .adaptive import CAPPED, adaptive, claim, rule
+from .adaptive import piecewise
+from .integrand import integrand, integrand_of
+from .march import march
 from .phase import phase_value
 
-# eq. 7's and the convex shapes' argument tuples for the adaptive rule (adaptive.py): their lengths
-# tell the rules apart
-EQ7_ARGS = 18
-CONVEX_ARGS = 10
-claim(EQ7_ARGS, CONVEX_ARGS)
-# eq. 7 with the point light's 1/d^2 in the angle theta, or in u = 1/(x - x_h) for a light behind the
-# segment's start near its line; or its exponential part alone in x (the note's Figs. 2-3)
-# DISTANT: a directional light, v = x
-# REFRACTED: a point light through a refractive plane, v = x
-WITH_FALLOFF, NO_FALLOFF, BEHIND, DISTANT, REFRACTED = 0, 1, 2, 3, 4
 # how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the note's approximation,
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
@@ -183,7 +175,7 @@ def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out)
     cone's levels (kinks of the falloff, its jumps for a hard edge), bracketed on SCAN samples and
     bisected to the resolution of doubles, ascending in out; returns their count (<= MAX_CUTS).
     Crossings closer together than end / SCAN can be missed (the adaptive rule then meets them)."""
-    if cos_start <= -1.0:
+    if not is_spot(cos_start):
         return 0
     m = 0
     prev = refracted_cosine(end * 0.5 / SCAN, wl, ll, a, hl, eta, wa, la, na)
@@ -250,6 +242,124 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, 
     return ks * phase_value(code, g, mu) * e * f * math.exp(-kt * (x + k) - kt_out * o)
 
 
+_N10, _W10 = np.polynomial.legendre.leggauss(10)
+_N20, _W20 = np.polynomial.legendre.leggauss(20)
+
+
+class PlanarTheta(NamedTuple):
+    """Eq. 7's integrand for a unit point light through an index-matched plane (module docstring), in
+    the angle theta = atan((x - x_h) / h) seen from the light (dx / d^2 = dtheta / h): ks Phi
+    exp(-(...)), the 1/h outside."""
+    xh: float
+    h: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    z0: float
+    a: float
+    hl: float
+    kt_out: float
+
+
+class PlanarBehind(PlanarTheta):
+    """The same in u = 1 / (x - x_h), for a light behind the segment's start within 45 degrees of its
+    line (dx / d^2 = du / (1 + h^2 u^2)): ks Phi exp(-(...)) / (1 + h^2 u^2)."""
+
+
+class ExponentialPart(NamedTuple):
+    """Eq. 7's exponential part alone in x, exp(-kt (x + k(x))) (the note's Figs. 2-3)."""
+    xh: float
+    h: float
+    kt: float
+    z0: float
+    a: float
+    hl: float
+
+
+class DistantSlab(NamedTuple):
+    """Eq. 5's integrand in x, ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` the
+    phase function's value, b the cosine of the refracted light to the normal)."""
+    kt: float
+    ks: float
+    phase: float
+    a: float
+    b: float
+
+
+class RefractedPoint(NamedTuple):
+    """`refracted_point` in x: a point or spot light (`spot`: its terms, NO_SPOT for a point light)
+    through a refractive plane."""
+    wl: float
+    ll: float
+    a: float
+    hl: float
+    eta: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    spot: tuple
+
+
+@integrand_of(PlanarTheta)
+@njit
+def _planar_theta(v, r):
+    h = r.h
+    st = math.sin(v)
+    ct = math.cos(v)
+    if ct <= 0.0:
+        return 0.0
+    x = r.xh + h * st / ct
+    d = h / ct
+    k = light_path_inside(x, d, r.z0, r.a, r.hl)
+    path = r.kt * (x + k) + (r.kt_out * (d - k) if r.kt_out > 0.0 else 0.0)
+    return r.ks * phase_value(r.code, r.g, -st) * math.exp(-path)
+
+
+@integrand_of(PlanarBehind)
+@njit
+def _planar_behind(v, r):
+    if v <= 0.0:
+        return 0.0
+    h = r.h
+    q = math.sqrt(1.0 + h * h * v * v)
+    x = r.xh + 1.0 / v
+    d = q / v
+    k = light_path_inside(x, d, r.z0, r.a, r.hl)
+    path = r.kt * (x + k) + (r.kt_out * (d - k) if r.kt_out > 0.0 else 0.0)
+    return r.ks * phase_value(r.code, r.g, -1.0 / q) * math.exp(-path) / (q * q)
+
+
+@integrand_of(ExponentialPart)
+@njit
+def _exponential_part(x, r):
+    d = math.sqrt(r.h * r.h + (x - r.xh) * (x - r.xh))
+    return math.exp(-r.kt * (x + light_path_inside(x, d, r.z0, r.a, r.hl)))
+
+
+@integrand_of(DistantSlab)
+@njit
+def _distant_slab(x, r):
+    return r.ks * r.phase * math.exp(-r.kt * (x + r.a * x / r.b))
+
+
+@integrand_of(RefractedPoint)
+@njit
+def _refracted(x, r):
+    sp = r.spot
+    return refracted_point(x, r.wl, r.ll, r.a, r.hl, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2],
+                           sp[3], sp[4], sp[5])
+
+
+@njit
+def _one_piece(rec, lo, hi, rtol, stats):
+    """The adaptive rule (adaptive.piecewise) over [lo, hi]: tails below rtol/10 of a first 20-point
+    estimate per unit of the variable are not refined."""
+    return piecewise(rec, (lo, hi), 2, rtol, _N10, _W10, _N20, _W20, stats)
+
+
 @njit
 def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, spot, rtol, stats):
     """Single scattering over [0, ell] for a unit point or spot light (`spot`: refracted_point's
@@ -259,96 +369,14 @@ def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, spot, rtol
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
-    args = (eta, REFRACTED, wl, ll, kt, ks, code, g, 0.0, a, hl, kt_out) + spot
+    rec = RefractedPoint(wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot)
     cuts = np.empty(MAX_CUTS)
     m = refracted_cuts(wl, ll, a, hl, eta, spot[0], spot[1], spot[2], spot[3], spot[4], end, cuts)
     total, lo = 0.0, 0.0
     for i in range(m + 1):
         hi = cuts[i] if i < m else end
-        total += _eq7_adaptive(args, lo, hi, rtol, stats)
+        total += _one_piece(rec, lo, hi, rtol, stats)
         lo = hi
-    return total
-
-
-@njit
-def eq7_value(v, args):
-    """The eq. 7 integrand at the integration variable v; args = (eta, mode, xh, h, kt, ks, code,
-    g, z0, a, hl, kt_out) + the spot terms of `refracted_point` (NO_SPOT but for REFRACTED).
-    WITH_FALLOFF: v = theta, the value ks Phi exp(-(...)) (times 1/h outside);
-    BEHIND: v = u = 1 / (x - x_h) (dx / d^2 = du / (1 + h^2 u^2)), the value ks Phi exp(-(...)) / (1 + h^2 u^2);
-    NO_FALLOFF: v = x, the value exp(-kt (x + k(x))) alone (the note's Figs. 2-3); DISTANT: v = x, g holds
-    the phase function's value and hl the cosine b of the refracted light to the normal, the value
-    ks Phi exp(-kt (x + (z0 + a x) / b)) (eq. 5's integrand); REFRACTED: v = x, a point light through a
-    refractive plane (`refracted_point`), xh and h hold w_h·L_h and |L_h|^2, z0 is unused."""
-    mode, xh, h, kt, ks, code, g, z0, a, hl, kt_out = (args[1], args[2], args[3], args[4], args[5], args[6],
-                                                       args[7], args[8], args[9], args[10], args[11])
-    if mode == DISTANT:
-        return ks * g * math.exp(-kt * (v + (z0 + a * v) / hl))
-    if mode == REFRACTED:
-        return refracted_point(v, xh, h, a, hl, args[0], kt, ks, code, g, kt_out, args[12], args[13], args[14],
-                               args[15], args[16], args[17])
-    if mode == NO_FALLOFF:
-        x = v
-        d = math.sqrt(h * h + (x - xh) * (x - xh))
-        return math.exp(-kt * (x + light_path_inside(x, d, z0, a, hl)))
-    if mode == BEHIND:
-        if v <= 0.0:
-            return 0.0
-        q = math.sqrt(1.0 + h * h * v * v)
-        x = xh + 1.0 / v
-        d = q / v
-        k = light_path_inside(x, d, z0, a, hl)
-        path = kt * (x + k) + (kt_out * (d - k) if kt_out > 0.0 else 0.0)
-        return ks * phase_value(code, g, -1.0 / q) * math.exp(-path) / (q * q)
-    st = math.sin(v)
-    ct = math.cos(v)
-    if ct <= 0.0:
-        return 0.0
-    x = xh + h * st / ct
-    d = h / ct
-    k = light_path_inside(x, d, z0, a, hl)
-    path = kt * (x + k) + (kt_out * (d - k) if kt_out > 0.0 else 0.0)
-    return ks * phase_value(code, g, -st) * math.exp(-path)
-
-
-@njit
-def eq7_rule(a, b, args, nodes, weights):
-    """Gauss-Legendre rule of `eq7_value` over [a, b] (the adaptive rule calls it for argument tuples
-    of length EQ7_ARGS)."""
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    acc = 0.0
-    for k in range(nodes.shape[0]):
-        acc += weights[k] * eq7_value(mid + half * nodes[k], args)
-    return acc * half
-
-
-@overload(rule)
-def _rule_impl(a, b, args, nodes, weights):
-    if len(args) == EQ7_ARGS:
-        return lambda a, b, args, nodes, weights: eq7_rule(a, b, args, nodes, weights)
-    if len(args) == CONVEX_ARGS:
-        return lambda a, b, args, nodes, weights: convex_rule(a, b, args, nodes, weights)
-
-
-def _gl(n):
-    return np.polynomial.legendre.leggauss(n)
-
-
-_N10, _W10 = _gl(10)
-_N20, _W20 = _gl(20)
-
-
-@njit
-def _eq7_adaptive(args, lo, hi, rtol, stats):
-    """The adaptive rule (adaptive.py) over [lo, hi], with its floor: tails below rtol/10
-    of a first 20-point estimate per unit of the variable are not refined."""
-    if not hi > lo:
-        return 0.0
-    floor = 0.1 * rtol * abs(eq7_rule(lo, hi, args, _N20, _W20)) / (hi - lo)
-    total, good = adaptive(args, lo, hi, rtol, floor, _N10, _W10, _N20, _W20, stats)
-    if not good:
-        stats[CAPPED] += 1.0
     return total
 
 
@@ -360,13 +388,10 @@ def point_exact(xh, h, ell, kt, ks, code, g, z0, a, hl, kt_out, rtol, stats):
         return 0.0
     if xh < 0.0 and h < -xh:  # behind the start, within 45 degrees of the line: u = 1 / (x - x_h)
         lo = 0.0 if ell == math.inf else 1.0 / (ell - xh)
-        args = (1.0, BEHIND, xh, h, kt, ks, code, g, z0, a, hl, kt_out) + NO_SPOT
-        return _eq7_adaptive(args, lo, -1.0 / xh, rtol, stats)
+        return _one_piece(PlanarBehind(xh, h, kt, ks, code, g, z0, a, hl, kt_out), lo, -1.0 / xh, rtol, stats)
     lo = math.atan2(-xh, h)
     hi = 0.5 * math.pi if ell == math.inf else math.atan2(ell - xh, h)
-    total = _eq7_adaptive((1.0, WITH_FALLOFF, xh, h, kt, ks, code, g, z0, a, hl, kt_out) + NO_SPOT, lo, hi, rtol,
-                          stats)
-    return total / h
+    return _one_piece(PlanarTheta(xh, h, kt, ks, code, g, z0, a, hl, kt_out), lo, hi, rtol, stats) / h
 
 
 @njit
@@ -375,7 +400,7 @@ def exponential_part(xh, h, ell, kt, z0, a, hl, rtol, stats):
     plots it (Figs. 2-3, 6-8)."""
     if not ell > 0.0:
         return 0.0
-    return _eq7_adaptive((1.0, NO_FALLOFF, xh, h, kt, 1.0, 0, 0.0, z0, a, hl, 0.0) + NO_SPOT, 0.0, ell, rtol, stats)
+    return _one_piece(ExponentialPart(xh, h, kt, z0, a, hl), 0.0, ell, rtol, stats)
 
 
 @njit
@@ -411,7 +436,7 @@ def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / (kt * (1.0 + a / b))) if kt > 0.0 else ell
-    return _eq7_adaptive((1.0, DISTANT, 0.0, 0.0, kt, ks, 0, phase, 0.0, a, b, 0.0) + NO_SPOT, 0.0, end, rtol, stats)
+    return _one_piece(DistantSlab(kt, ks, phase, a, b), 0.0, end, rtol, stats)
 
 
 @njit
@@ -427,15 +452,28 @@ def convex_exit(px, py, pz, ux, uy, uz, planes):
     return best
 
 
+class ConvexIntegrand(NamedTuple):
+    """`convex_integrand` in x along an inside segment of a convex index-matched shape."""
+    geo: np.ndarray
+    planes: np.ndarray
+    directional: bool
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    phase: float
+
+
 @njit
-def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
+def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase):
     """The single-scattering integrand at x along an inside segment of a convex index-matched shape,
     with the light's straight path inside measured exactly to the shape's boundary: geo = (entry
     point, segment direction w, the light's position or, for a directional light, minus its
     direction of travel); a directional light's value per unit irradiance (`phase` its phase
     value), a point light's per unit intensity."""
     X0, X1, X2 = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
-    if distant:
+    if directional:
         k = convex_exit(X0, X1, X2, geo[6], geo[7], geo[8], planes)
         return ks * phase * math.exp(-kt * (x + k))
     r0, r1, r2 = geo[6] - X0, geo[7] - X1, geo[8] - X2
@@ -449,13 +487,19 @@ def convex_integrand(x, geo, planes, distant, kt, ks, code, g, kt_out, phase):
     return ks * phase_value(code, g, mu) * f * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
 
 
+@integrand_of(ConvexIntegrand)
+@njit
+def _convex_value(x, r):
+    return convex_integrand(x, r.geo, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase)
+
+
 @njit
 def straight_cuts(geo, end, out):
     """The distances in (0, end) along a segment (a `geo` row) where the straight line from a spot
     light crosses its cone's levels (lights.cone_breaks in v = tan(phi / 2), x = x_h + h (v - 1/v) / 2;
     A from h A = (r x w)·(w x a) as segment_light_table), ascending in out (>= 4); returns the count.
     0 for a point light or a light on the segment's line."""
-    if geo[13] <= -1.0:
+    if not is_spot(geo[13]):
         return 0
     r0, r1, r2 = geo[6] - geo[0], geo[7] - geo[1], geo[8] - geo[2]
     w0, w1, w2 = geo[3], geo[4], geo[5]
@@ -484,54 +528,28 @@ def straight_cuts(geo, end, out):
 
 
 @njit
-def convex_rule(a, b, args, nodes, weights):
-    """Gauss-Legendre rule of `convex_integrand` over [a, b]; args = (geo, planes, distant, kt, ks, code,
-    g, kt_out, phase, CONVEX_TAG) (the adaptive rule calls it for tuples of length CONVEX_ARGS)."""
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    acc = 0.0
-    for j in range(nodes.shape[0]):
-        acc += weights[j] * convex_integrand(mid + half * nodes[j], args[0], args[1], args[2], args[3], args[4],
-                                             args[5], args[6], args[7], args[8])
-    return acc * half
-
-
-@njit
-def convex_quadrature(geo, planes, distant, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
-    """∫_0^ell `convex_integrand` dx, adaptive (the floor of `_eq7_adaptive`) on the pieces between a
-    spot's cone crossings (`straight_cuts`)."""
+def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
+    """∫_0^ell `convex_integrand` dx, adaptive (adaptive.piecewise) on the pieces between a spot's
+    cone crossings (`straight_cuts`)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
-    args = (geo, planes, distant, kt, ks, code, g, kt_out, phase, 0)
-    cuts = np.empty(4)
-    m = 0 if distant else straight_cuts(geo, end, cuts)
-    first = 0.0
-    lo = 0.0
-    for i in range(m + 1):
-        hi = cuts[i] if i < m else end
-        first += abs(convex_rule(lo, hi, args, _N20, _W20))
-        lo = hi
-    floor = 0.1 * rtol * first / end
-    total, lo = 0.0, 0.0
-    for i in range(m + 1):
-        hi = cuts[i] if i < m else end
-        part, good = adaptive(args, lo, hi, rtol, floor, _N10, _W10, _N20, _W20, stats)
-        total += part
-        if not good:
-            stats[CAPPED] += 1.0
-        lo = hi
-    return total
+    br = np.empty(6)
+    br[0] = 0.0
+    m = 0 if directional else straight_cuts(geo, end, br[1:])
+    br[m + 1] = end
+    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase)
+    return piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
 
 
 @njit
-def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta, spot):
+def inside_integrand(directional, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out, wl, ll, eta, spot):
     """The inside single-scattering integrand at depth x along the segment (module docstring): a
     directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
     value), or a point light's eq. 7 integrand per unit intensity (`refracted_point` when eta != 1,
     with a spot's terms `spot`; the index-matched planar branch is for point lights only: spot lights
     in index-matched shapes take `convex_integrand` or inside_paths.py)."""
-    if distant:
+    if directional:
         return ks * phase * math.exp(-kt * (x + a * x / b))
     if eta != 1.0:
         return refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot[0], spot[1], spot[2], spot[3],
@@ -543,11 +561,57 @@ def inside_integrand(distant, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt_out
     return ks * phase_value(code, g, -dx / d) * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
 
 
+class InsideIntegrand(NamedTuple):
+    """`inside_integrand` in x (its arguments but x)."""
+    directional: bool
+    xh: float
+    h: float
+    hl: float
+    a: float
+    b: float
+    phase: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    wl: float
+    ll: float
+    eta: float
+    spot: tuple
+
+
+@integrand_of(InsideIntegrand)
 @njit
-def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode, rtol,
-                    steps, tau_max, keys, dim0, seed, out, var, stats):
+def _inside_value(x, r):
+    return inside_integrand(r.directional, x, r.xh, r.h, r.hl, r.a, r.b, r.phase, r.kt, r.ks, r.code, r.g, r.kt_out,
+                            r.wl, r.ll, r.eta, r.spot)
+
+
+@njit
+def _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
+    """(value, variance of the mean) of an inside segment [0, length]: MARCH, the midpoint rule with
+    `steps` cells (variance 0); SAMPLE, the mean of `steps` free-path samples
+    x = -ln(1 - u (1 - e^{-kt length})) / kt, u from the ray's key at dimensions dim0 + j."""
+    if mode == MARCH:
+        return march(rec, 0.0, steps, length / steps, 0.5), 0.0
+    mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
+    acc = acc2 = 0.0
+    for j in range(steps):
+        u = uniform(key, dim0 + j, seed)
+        x = -math.log1p(-u * kt * mass) / kt
+        f = integrand(x, rec) * mass * math.exp(kt * x)
+        acc += f
+        acc2 += f * f
+    mean = acc / steps
+    return mean, max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
+
+
+@njit
+def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode,
+                    rtol, steps, tau_max, keys, dim0, seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
-    channel: for a directional light (`distant`) per unit beam irradiance inside, with b the cosine
+    channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
     at height hl above the entry plane, kt_out the extinction outside (through a refractive plane,
     eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
@@ -566,9 +630,9 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
         var[s] = 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        ph = phase_value(code, g, mu[s]) if distant[s] else 0.0
+        ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         spot = NO_SPOT
-        if eta != 1.0 and not distant[s] and geo[s, 13] > -1.0:  # refracted_point's terms of a spot light
+        if eta != 1.0 and not directional[s] and is_spot(geo[s, 13]):  # refracted_point's terms of a spot light
             n0, n1, n2 = geo[s, 14], geo[s, 15], geo[s, 16]
             na = n0 * geo[s, 9] + n1 * geo[s, 10] + n2 * geo[s, 11]
             wa = geo[s, 3] * geo[s, 9] + geo[s, 4] * geo[s, 10] + geo[s, 5] * geo[s, 11] + a[s] * na
@@ -577,36 +641,21 @@ def inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, 
             spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
-                out[s] = convex_quadrature(geo[s], planes, distant[s], ell[s], kt, ks, code, g, kt_out, ph, rtol, stats)
+                out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, rtol,
+                                           stats)
                 continue
-        elif (distant[s] and b[s] <= 0.0) or (not distant[s] and hl[s] <= 0.0):
+        elif (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
             continue
         if mode == MARCH or mode == SAMPLE:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
-            if mode == MARCH:
-                dx = length / steps
-                acc = 0.0
-                for j in range(steps):
-                    x = (j + 0.5) * dx
-                    acc += (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
-                            inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                             kt_out, wl[s], ll[s], eta, spot))
-                out[s] = acc * dx
+            if convex:
+                rec = ConvexIntegrand(geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph)
+                out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
             else:
-                mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
-                acc = acc2 = 0.0
-                for j in range(steps):
-                    u = uniform(keys[s], dim0 + j, seed)
-                    x = -math.log1p(-u * kt * mass) / kt
-                    f = (convex_integrand(x, geo[s], planes, distant[s], kt, ks, code, g, kt_out, ph) if convex else
-                         inside_integrand(distant[s], x, xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g,
-                                          kt_out, wl[s], ll[s], eta, spot)) * mass * math.exp(kt * x)
-                    acc += f
-                    acc2 += f * f
-                mean = acc / steps
-                out[s] = mean
-                var[s] = max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
-        elif distant[s]:
+                rec2 = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out,
+                                       wl[s], ll[s], eta, spot)
+                out[s], var[s] = _march_or_sample(rec2, mode, length, kt, steps, keys[s], dim0, seed)
+        elif directional[s]:
             if mode == QUAD:
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
             else:

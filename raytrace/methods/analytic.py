@@ -42,7 +42,7 @@ from ..jit import njit
 from . import ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
-from ..lights import band_slope, band_trig, falloff, polynomial_band, segment_cone
+from ..lights import band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
@@ -354,7 +354,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         if math.log(intensity) + math.log(ks) + math.log(math.pi * peak / h) - kt * da < -UNDERFLOW_PATH:
             stats[ST_ZERO] += 1.0
             return 0.0
-    spot = cone[3] > -1.0
+    spot = is_spot(cone[3])
 
     finite = ell < math.inf
     # near-line: light outside the segment and the line passes within h << distance of it

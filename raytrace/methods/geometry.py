@@ -12,13 +12,16 @@ the integrand has it (with d_a = 0 analytic's folded exponentials started at e^0
 is e^{-kt h}: NaN for kt h beyond ~745).
 """
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..jit import njit
-from ..lights import DIRECTIONAL, NO_CONE, SMOOTHSTEP, falloff
+from ..lights import DIRECTIONAL, NO_CONE, SMOOTHSTEP, falloff, is_spot
+from ..media import atmosphere as atmo
 from ..media.atmosphere import ROW, segment_rows
 from ..media.fog import above_top, attenuated_density, column
+from ..media.integrand import integrand_of
 from ..media.phase import phase_value
 
 H_MIN_REL = 1e-9
@@ -58,7 +61,7 @@ def segment_light_table(origins, dirs, lpos, laxis, lcone, light, scale):
         xh[s], h[s], da[s] = ray_light(ox, oy, oz, wx, wy, wz, lpos[li, 0], lpos[li, 1], lpos[li, 2], scale)
         cone[s, 2], cone[s, 3], cone[s, 4] = lcone[li, 0], lcone[li, 1], lcone[li, 2]
         cone[s, 0] = cone[s, 1] = 0.0
-        if lcone[li, 1] > -1.0:
+        if is_spot(lcone[li, 1]):
             ax, ay, az = laxis[li, 0], laxis[li, 1], laxis[li, 2]
             rx, ry, rz = lpos[li, 0] - ox, lpos[li, 1] - oy, lpos[li, 2] - oz
             cx, cy, cz = ry * wz - rz * wy, rz * wx - rx * wz, rx * wy - ry * wx
@@ -87,7 +90,7 @@ def v_of(s, h):
 def spot_factor(dx, d, h, cone):
     """A spot light's falloff (lights.py) toward the point at x - x_h = dx, distance d, on a segment
     with cone row `cone`: the cosine to its axis is (h A + dx B) / d; 1 for point lights."""
-    if cone[3] <= -1.0:
+    if not is_spot(cone[3]):
         return 1.0
     return falloff((h * cone[0] + dx * cone[1]) / d, cone[2], cone[3], cone[4])
 
@@ -105,6 +108,23 @@ def eq4_integrand(x, xh, h, kt, ks, code, g, cone):
     if f == 0.0:
         return 0.0
     return ks * f * math.exp(-kt * (x + d)) * phase_value(code, g, -dx / d) / d2
+
+
+class Eq4(NamedTuple):
+    """`eq4_integrand` in x: the homogeneous air-light of a unit light (x_h, h) with cone row `cone`."""
+    xh: float
+    h: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    cone: np.ndarray
+
+
+@integrand_of(Eq4)
+@njit
+def _eq4_value(x, r):
+    return eq4_integrand(x, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone)
 
 
 def by_channel(segs, medium, lights, evaluate):
@@ -145,16 +165,16 @@ def fog_rows(segs, medium, lights):
     rows = np.zeros((len(segs), 5))
     rows[:, HO] = segs.origins @ up - medium.h0
     rows[:, MU] = segs.dirs @ up
-    sun = lights.kind[segs.light] == DIRECTIONAL
-    rows[:, HL] = np.where(sun, 0.0, lights.position[segs.light] @ up - medium.h0)
+    directional = lights.kind[segs.light] == DIRECTIONAL
+    rows[:, HL] = np.where(directional, 0.0, lights.position[segs.light] @ up - medium.h0)
     axis = lights.axis[segs.light]
-    rows[:, MUS] = np.where(sun, -(axis @ up), 0.0)
-    rows[:, COSD] = np.where(sun, -np.einsum("ij,ij->i", axis, segs.dirs), 0.0)
-    return rows, sun
+    rows[:, MUS] = np.where(directional, -(axis @ up), 0.0)
+    rows[:, COSD] = np.where(directional, -np.einsum("ij,ij->i", axis, segs.dirs), 0.0)
+    return rows, directional
 
 
 @njit
-def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
+def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional):
     """The in-scattered radiance per unit length at distance x along a height-fog segment, unit
     light, without a point light's 1/d^2: ks rho(x) Phi(cos) F T_cam(x) T_light(x), both
     transmittances exp(-kt tau) with tau the closed-form column (media/medium.py, seed 004 eq. 34
@@ -163,7 +183,7 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
     if above_top(hp, H, profile):
         return 0.0
     tau = column(row[HO], row[MU], 0.0, x, H, profile)
-    if sun:
+    if directional:
         tau += column(hp, row[MUS], 0.0, math.inf, H, profile)
         return ks * phase_value(code, g, row[COSD]) * attenuated_density(hp, kt * tau, H, profile)
     dx = x - xh
@@ -175,23 +195,80 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
     return ks * f * phase_value(code, g, -dx / d) * attenuated_density(hp, kt * tau, H, profile)
 
 
+class FogInX(NamedTuple):
+    """A height fog's air-light integrand in x, unit light: `fog_inscatter`, divided by d^2 for
+    point and spot lights."""
+    row: np.ndarray
+    xh: float
+    h: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    cone: np.ndarray
+    H: float
+    profile: int
+    directional: bool
+
+
+@integrand_of(FogInX)
+@njit
+def _fog_in_x(x, r):
+    f = fog_inscatter(x, r.row, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone, r.H, r.profile, r.directional)
+    if not r.directional:
+        dx = x - r.xh
+        f /= max(r.h * r.h + dx * dx, 1e-250)
+    return f
+
+
+class AtmosphereInX(NamedTuple):
+    """An atmosphere's air-light integrand in x, one channel's layers, unit light:
+    `atmosphere.inscatter` (tau_cam: the camera's optical depth to x if known, else negative), times
+    a spot's falloff over d^2 for point and spot lights; `cols` is scratch for the layers' columns."""
+    row: np.ndarray
+    directional: bool
+    xh: float
+    h: float
+    cone: np.ndarray
+    kt: np.ndarray
+    ks: np.ndarray
+    codes: np.ndarray
+    gs: np.ndarray
+    Hs: np.ndarray
+    R: float
+    top: float
+    cols: np.ndarray
+    tau_cam: float
+
+
+@integrand_of(AtmosphereInX)
+@njit
+def _atmosphere_in_x(x, r):
+    f = atmo.inscatter(x, r.row, r.directional, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, r.tau_cam)
+    if not r.directional:
+        dx = x - r.xh
+        d2 = max(r.h * r.h + dx * dx, 1e-250)
+        f *= spot_factor(dx, math.sqrt(d2), r.h, r.cone) / d2
+    return f
+
+
 def atmosphere_channels(segs, medium, lights, evaluate, variance=False):
     """Air-light (S, 3) of a segment batch in an atmosphere (media/atmosphere.py): `evaluate(rows,
     sun, xh, h, cone, kt, ks)` returns the unit-intensity air-light (S,) of one channel given its
     layers' coefficients kt, ks (K,); rows are `atmosphere.segment_rows`, channels that do not
     scatter are 0. With `variance`, evaluate returns (mean, variance) and so does this, (S, 3) each."""
     xh, h, _, cone = segment_geometry(segs, lights)
-    sun = lights.kind[segs.light] == DIRECTIONAL
+    directional = lights.kind[segs.light] == DIRECTIONAL
     rows = np.empty((len(segs), ROW))
     segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
-                 sun, *(float(v) for v in medium.center), float(medium.radius), float(medium.top), rows)
+                 directional, *(float(v) for v in medium.center), float(medium.radius), float(medium.top), rows)
     out = np.zeros((len(segs), 3))
     var = np.zeros((len(segs), 3))
     for c in range(3):
         ks = np.ascontiguousarray(medium.layer_sigma_s[:, c])
         if not np.any(ks > 0.0):
             continue
-        unit = evaluate(rows, sun, xh, h, cone, np.ascontiguousarray(medium.layer_sigma_t[:, c]), ks)
+        unit = evaluate(rows, directional, xh, h, cone, np.ascontiguousarray(medium.layer_sigma_t[:, c]), ks)
         if variance:
             unit, v = unit
             _scale_into(var, c, v, lights.intensity ** 2, segs.light)

@@ -15,10 +15,11 @@ Per camera ray, light and colour channel, `samples` distances x on the segment a
     lit parts (isotropic: the far ends of rays, f/p ~ exp(-kt (x + d))). Each cdf draw costs a few
     closed-form evaluations, F(ell) one per segment and channel, at CDF_PRECISION
     (benchmarks/mc_sampling.py).
-In a height fog (seed 004) every mode but cdf has a twin (`_fog_estimate`): free-path sampling
-inverts the closed-form optical depth, and the sun takes free-path draws only. In an atmosphere
-(`_atm_estimate`) the same, on the part of the segment inside the air, free-path distances by
-safeguarded Newton on the sum of the layers' closed-form (Chapman) optical depths.
+Every mode but cdf is one sampler (`_estimate`) over a medium's paths record: homogeneous, a height
+fog (seed 004; `_fog_estimate`: free-path sampling inverts the closed-form optical depth) or an
+atmosphere (`_atm_estimate`: on the part of the segment inside the air, free-path distances by
+safeguarded Newton on the sum of the layers' closed-form (Chapman) optical depths); a directional
+light takes free-path draws only.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
@@ -27,14 +28,17 @@ into per-pixel variance channels (the variance of the pixel's estimate).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..jit import njit
+from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import HO, MU, atmosphere_channels, eq4_integrand, fog_inscatter, fog_rows, segment_geometry, spot_factor
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, fog_rows, segment_geometry,
+                       spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
@@ -47,10 +51,10 @@ MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CD
 
 
 @njit
-def _strategies_used(mode, sun):
+def _strategies_used(mode, directional):
     """(equiangular?, free-path?) of a mode; the sun takes free-path draws only (equiangular needs
     a light position)."""
-    return mode != FREEPATH and not sun, mode != EQUIANGULAR or sun
+    return mode != FREEPATH and not directional, mode != EQUIANGULAR or directional
 
 
 @njit
@@ -72,27 +76,98 @@ def _p_freepath(x, kt, norm):
     return kt * math.exp(-kt * x) / norm
 
 
+# --- the one sampler: equiangular, free-path or both (balance heuristic), over a medium's paths ------
+#
+# A paths record (HomogeneousPaths, FogPaths, AtmospherePaths below) gives the medium's part: its
+# free-path draw and density, the camera's optical depth to a point (for the integrand, where it
+# needs one) and the integrand f; `_sample` is one draw of one strategy with its weight f / p.
+
+def free_path(paths, u):
+    """(x, tau_cam): the free-path distance of the uniform number u and the camera's optical depth to it."""
+
+
+def free_density(paths, x, tau):
+    """The free-path density at x (tau: the camera's optical depth to x, where the record uses it)."""
+
+
+def depth_to(paths, x):
+    """The camera's optical depth to x where the record's integrand needs it (else unused)."""
+
+
+def value(paths, x, tau):
+    """The integrand f at x (unit light; tau as for free_density)."""
+
+
+_free_path_of = record_dispatch(free_path, 0)
+_free_density_of = record_dispatch(free_density, 0)
+_depth_to_of = record_dispatch(depth_to, 0)
+_value_of = record_dispatch(value, 0)
+
+
 @njit
-def _draw(xh, h, ell, kt, ks, code, g, cone, mode, key, dim, seed, th_a, th_b, norm):
-    """One iteration: (x_e, w_e, x_f, w_f), the equiangular and free-path sample positions with their
-    weights f/p (MIS: f/(p_e + p_f)); a strategy the mode does not use gets weight 0."""
-    xe = xf = 0.0
-    we = wf = 0.0
-    if mode != FREEPATH:
-        u = uniform(key, dim, seed)
-        xe = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
-        pe = _p_equiangular(xe, xh, h, th_a, th_b)
-        if mode == MIS:
-            pe += _p_freepath(xe, kt, norm)
-        we = eq4_integrand(xe, xh, h, kt, ks, code, g, cone) / pe
-    if mode != EQUIANGULAR:
-        u = uniform(key, dim + 1, seed)
-        xf = min(-math.log1p(-u * norm) / kt, ell)
-        pf = _p_freepath(xf, kt, norm)
-        if mode == MIS:
-            pf += _p_equiangular(xf, xh, h, th_a, th_b)
-        wf = eq4_integrand(xf, xh, h, kt, ks, code, g, cone) / pf
-    return xe, we, xf, wf
+def _sample(paths, strategy, use_e, use_f, xh, h, th_a, th_b, lo, hi, key, dim, seed):
+    """(x, f(x) / p(x)) of one draw of `strategy` (0 equiangular in [lo, hi], between the angles th_a,
+    th_b seen from the light; 1 free-path), p the sum of the densities of the strategies used."""
+    u = uniform(key, dim, seed)
+    if strategy == 0:
+        x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), lo), hi)
+        tau = depth_to(paths, x)
+    else:
+        x, tau = free_path(paths, u)
+    p = 0.0
+    if use_e:
+        p += _p_equiangular(x, xh, h, th_a, th_b)
+    if use_f:
+        p += free_density(paths, x, tau)
+    return x, (value(paths, x, tau) / p if p > 0.0 else 0.0)
+
+
+@njit
+def _estimate(paths, use_e, use_f, xh, h, th_a, th_b, lo, hi, n, key, dim0, seed):
+    """Mean and variance of the mean of n estimates, each the sum of one draw per strategy used;
+    iteration j draws the dimensions dim0 + 2 j (equiangular) and dim0 + 2 j + 1 (free-path)."""
+    acc = 0.0
+    acc2 = 0.0
+    for j in range(n):
+        est = 0.0
+        for strategy in range(0 if use_e else 1, 2 if use_f else 1):
+            est += _sample(paths, strategy, use_e, use_f, xh, h, th_a, th_b, lo, hi, key, dim0 + 2 * j + strategy,
+                           seed)[1]
+        acc += est
+        acc2 += est * est
+    return _mean_var(acc, acc2, n)
+
+
+class HomogeneousPaths(NamedTuple):
+    """A homogeneous segment [0, ell]: free paths from exp(-kt x) truncated to it (norm = 1 -
+    exp(-kt ell)), f = eq. 4's integrand."""
+    f: Eq4
+    ell: float
+    norm: float
+
+
+@_free_path_of(HomogeneousPaths)
+@njit
+def _homogeneous_free_path(paths, u):
+    return min(-math.log1p(-u * paths.norm) / paths.f.kt, paths.ell), 0.0
+
+
+@_free_density_of(HomogeneousPaths)
+@njit
+def _homogeneous_density(paths, x, tau):
+    return _p_freepath(x, paths.f.kt, paths.norm)
+
+
+@_depth_to_of(HomogeneousPaths)
+@njit
+def _homogeneous_depth(paths, x):
+    return 0.0
+
+
+@_value_of(HomogeneousPaths)
+@njit
+def _homogeneous_value(paths, x, tau):
+    return integrand(x, paths.f)
 
 
 @njit
@@ -108,14 +183,9 @@ def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
     th_a, th_b, norm = _angles(xh, h, ell, kt)
-    acc = 0.0
-    acc2 = 0.0
-    for j in range(n):
-        _, we, _, wf = _draw(xh, h, ell, kt, ks, code, g, cone, mode, key, dim0 + 2 * j, seed, th_a, th_b, norm)
-        est = we + wf
-        acc += est
-        acc2 += est * est
-    return _mean_var(acc, acc2, n)
+    use_e, use_f = _strategies_used(mode, False)
+    paths = HomogeneousPaths(Eq4(xh, h, kt, ks, code, g, cone), ell, norm)
+    return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
 
 
 @njit
@@ -136,14 +206,21 @@ def sample_points(origins, dirs, xh, h, ell, cone, keys, stream, seed, intensity
     """The same samples as `airlight_segments`, as points for volumetric shadows: pos[s, j, k, c] is
     the point drawn by strategy k (0 equiangular, 1 free-path) in iteration j for segment s and
     channel c (free-path distances depend on the channel's kt), weight[s, j, k, c] its I f / p."""
+    use_e, use_f = _strategies_used(mode, False)
     for s in range(xh.shape[0]):
         for j in range(n):
             for c in range(3):
                 if ks[c] == 0.0 or not ell[s] > 0.0:
                     continue
                 th_a, th_b, norm = _angles(xh[s], h[s], ell[s], kt[c])
-                xe, we, xf, wf = _draw(xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], mode, keys[s],
-                                       2 * n * stream[s] + 2 * j, seed, th_a, th_b, norm)
+                paths = HomogeneousPaths(Eq4(xh[s], h[s], kt[c], ks[c], code, g, cone[s]), ell[s], norm)
+                dim = 2 * n * stream[s] + 2 * j
+                xe = xf = we = wf = 0.0
+                if use_e:
+                    xe, we = _sample(paths, 0, use_e, use_f, xh[s], h[s], th_a, th_b, 0.0, ell[s], keys[s], dim, seed)
+                if use_f:
+                    xf, wf = _sample(paths, 1, use_e, use_f, xh[s], h[s], th_a, th_b, 0.0, ell[s], keys[s], dim + 1,
+                                     seed)
                 for a in range(3):
                     pos[s, j, 0, c, a] = origins[s, a] + xe * dirs[s, a]
                     pos[s, j, 1, c, a] = origins[s, a] + xf * dirs[s, a]
@@ -357,9 +434,9 @@ def _airlight(segs, medium, lights, params):
 def _atmosphere(segs, atm, lights, params):
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(rows, sun, xh, h, cone, kt, ks):
+    def evaluate(rows, directional, xh, h, cone, kt, ks):
         mean, v = np.empty_like(xh), np.empty_like(xh)
-        atmosphere_segments(rows, sun, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
+        atmosphere_segments(rows, directional, xh, h, cone, keys, segs.stream, np.uint64(segs.seed), kt, ks, atm.phases,
                             atm.gs, atm.layers, float(atm.radius), float(atm.top), MODES[params["sampling"]],
                             params["samples"], mean, v)
         return mean, v
@@ -372,8 +449,8 @@ def _fog(segs, medium, lights, params):
     out = np.zeros((len(segs), 3))
     var = np.zeros_like(out)
     xh, h, _, cone = segment_geometry(segs, lights)
-    rows, sun = fog_rows(segs, medium, lights)
-    fog_segments(rows, sun, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
+    rows, directional = fog_rows(segs, medium, lights)
+    fog_segments(rows, directional, xh, h, segs.length, cone, segs.keys, segs.stream, np.uint64(segs.seed),
                  lights.intensity[segs.light], medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
                  medium.scale_height, medium.profile, MODES[params["sampling"]], params["samples"], out, var)
     return out, np.zeros(CDF_STATS), var
@@ -423,72 +500,148 @@ def _summarize(stats):
 
 
 
+class FogPaths(NamedTuple):
+    """A height-fog segment [0, ell]: free paths invert the closed-form optical depth (norm = 1 -
+    T_cam(ell)), f = `geometry.FogInX`."""
+    f: FogInX
+    ell: float
+    norm: float
+
+
+@_free_path_of(FogPaths)
 @njit
-def _fog_estimate(row, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, mode, n, key, dim0, seed):
+def _fog_free_path(paths, u):
+    r = paths.f
+    tau = -math.log1p(-u * paths.norm) / r.kt
+    return min(column_distance(r.row[HO], r.row[MU], 0.0, tau, r.H, r.profile), paths.ell), 0.0
+
+
+@_free_density_of(FogPaths)
+@njit
+def _fog_density(paths, x, tau):
+    r = paths.f
+    row, H, profile = r.row, r.H, r.profile
+    return r.kt * attenuated_density(row[HO] + row[MU] * x, r.kt * column(row[HO], row[MU], 0.0, x, H, profile), H,
+                                     profile) / paths.norm
+
+
+@_depth_to_of(FogPaths)
+@njit
+def _fog_depth(paths, x):
+    return 0.0
+
+
+@_value_of(FogPaths)
+@njit
+def _fog_value(paths, x, tau):
+    return integrand(x, paths.f)
+
+
+@njit
+def _fog_estimate(row, directional, xh, h, ell, kt, ks, code, g, cone, H, profile, mode, n, key, dim0, seed):
     """`estimate` in a height fog (seed 004): f = `fog_inscatter` (/ d^2 for point and spot lights);
     free-path draws invert the closed-form optical depth, x = column_distance(-log(1 - u N) / kt)
-    with N = 1 - T_cam(ell) and p = kt rho(x) T_cam(x) / N (eq. 35 / 31); the sun takes free-path
-    draws in every mode (equiangular needs a light position)."""
+    with N = 1 - T_cam(ell) and p = kt rho(x) T_cam(x) / N (eq. 35 / 31); a directional light takes
+    free-path draws in every mode (equiangular needs a light position)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
     norm = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b, _ = _angles(xh, h, ell, kt)
-    use_e, use_f = _strategies_used(mode, sun)
-    acc = 0.0
-    acc2 = 0.0
-    for j in range(n):
-        est = 0.0
-        for strategy in range(0 if use_e else 1, 2 if use_f else 1):  # 0 equiangular, 1 free-path
-            u = uniform(key, dim0 + 2 * j + strategy, seed)
-            if strategy == 0:
-                x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
-            else:
-                x = min(column_distance(row[HO], row[MU], 0.0, -math.log1p(-u * norm) / kt, H, profile), ell)
-            p = 0.0
-            if use_e:
-                p += _p_equiangular(x, xh, h, th_a, th_b)
-            if use_f:
-                p += kt * attenuated_density(row[HO] + row[MU] * x, kt * column(row[HO], row[MU], 0.0, x, H, profile),
-                                             H, profile) / norm
-            if p > 0.0:
-                f = fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, sun)
-                if not sun:
-                    f /= max(h * h + (x - xh) * (x - xh), 1e-250)
-                est += f / p
-        acc += est
-        acc2 += est * est
-    return _mean_var(acc, acc2, n)
+    use_e, use_f = _strategies_used(mode, directional)
+    paths = FogPaths(FogInX(row, xh, h, kt, ks, code, g, cone, H, profile, directional), ell, norm)
+    return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
 
 
 @njit
-def fog_segments(rows, sun, xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, H, profile, mode, n,
-                 out, var):
+def fog_segments(rows, directional, xh, h, ell, cone, keys, stream, seed, intensity, kt, ks, code, g, H, profile,
+                 mode, n, out, var):
     """`airlight_segments` in a height fog (the same random-number dimensions)."""
     for s in range(xh.shape[0]):
         for c in range(3):
-            m, v = _fog_estimate(rows[s], sun[s], xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], H, profile,
-                                 mode, n, keys[s], 2 * n * stream[s], seed)
+            m, v = _fog_estimate(rows[s], directional[s], xh[s], h[s], ell[s], kt[c], ks[c], code, g, cone[s], H,
+                                 profile, mode, n, keys[s], 2 * n * stream[s], seed)
             out[s, c] = m * intensity[s, c]
             var[s, c] = v * intensity[s, c] * intensity[s, c]
 
 
+class AtmospherePaths(NamedTuple):
+    """An atmosphere segment's part [A, B] inside the air, one channel: free paths over the pieces
+    (lo, hi, tau(A, lo), mass) of `pieces[:m]` (norm: their total mass), by `atmosphere.free_path`;
+    f = `geometry.AtmosphereInX` at the camera's optical depth; `cols` is scratch."""
+    row: np.ndarray
+    directional: bool
+    xh: float
+    h: float
+    cone: np.ndarray
+    kt: np.ndarray
+    ks: np.ndarray
+    codes: np.ndarray
+    gs: np.ndarray
+    Hs: np.ndarray
+    R: float
+    top: float
+    cols: np.ndarray
+    pieces: np.ndarray
+    m: int
+    norm: float
+
+
+@_free_path_of(AtmospherePaths)
 @njit
-def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols, pieces, buf):
+def _atm_free_path(paths, u):
+    """The piece holding u N, then its optical depth from A: the target, to Newton's 1e-13."""
+    pieces, m = paths.pieces, paths.m
+    v = u * paths.norm
+    k = 0
+    while k < m - 1 and v >= pieces[k, 3]:
+        v -= pieces[k, 3]
+        k += 1
+    v = min(v, pieces[k, 3])
+    tau_cam = pieces[k, 2] - math.log1p(-v * math.exp(pieces[k, 2]))
+    row = paths.row
+    x = atmo.free_path(row, row[atmo.A], row[atmo.B], tau_cam, paths.kt, paths.Hs, paths.R, paths.top, paths.cols)
+    return min(max(x, pieces[k, 0]), pieces[k, 1]), tau_cam
+
+
+@_free_density_of(AtmospherePaths)
+@njit
+def _atm_density(paths, x, tau):
+    return atmo.extinction_at(x, paths.row, paths.kt, paths.Hs, paths.R) * math.exp(-tau) / paths.norm
+
+
+@_depth_to_of(AtmospherePaths)
+@njit
+def _atm_depth(paths, x):
+    row = paths.row
+    atmo.columns(row[atmo.H0], row[atmo.MU0], row[atmo.A], x, paths.R, paths.top, paths.Hs, paths.cols)
+    return atmo.optical_depth(paths.cols, paths.kt)
+
+
+@_value_of(AtmospherePaths)
+@njit
+def _atm_value(paths, x, tau):
+    return integrand(x, AtmosphereInX(paths.row, paths.directional, paths.xh, paths.h, paths.cone, paths.kt, paths.ks,
+                                      paths.codes, paths.gs, paths.Hs, paths.R, paths.top, paths.cols, tau))
+
+
+@njit
+def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n, key, dim0, seed, cols,
+                  pieces, buf):
     """`estimate` in an atmosphere, one channel: on the part [A, B] of the segment inside the air,
     f = `atmosphere.inscatter` (x F / d^2 for point and spot lights); free-path draws, restricted
-    for the sun to the pieces outside the planet's shadow (`atmosphere.sunlit`: elsewhere f = 0),
-    solve tau(A, x) = the target of u in that truncated distribution by `atmosphere.free_path`,
-    p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); the sun takes free-path
-    draws in every mode. pieces (3, 4), buf (2,): scratch."""
+    for a directional light to the pieces outside the planet's shadow (`atmosphere.sunlit`:
+    elsewhere f = 0), solve tau(A, x) = the target of u in that truncated distribution by
+    `atmosphere.free_path`, p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); a
+    directional light takes free-path draws in every mode. pieces (3, 4), buf (2,): scratch."""
     a, b = row[atmo.A], row[atmo.B]
     if not b > a:
         return 0.0, 0.0
     h0, mu0 = row[atmo.H0], row[atmo.MU0]
     m = 1
     pieces[0, 0], pieces[0, 1] = a, b
-    if sun:
+    if directional:
         m = atmo.sunlit(row, R, buf, pieces)
     norm = 0.0
     for k in range(m):  # pieces[k] = (lo, hi, tau(A, lo), mass)
@@ -500,53 +653,22 @@ def _atm_estimate(row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, mode, n,
     if not norm > 0.0:
         return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
-    use_e, use_f = _strategies_used(mode, sun)
-    acc = 0.0
-    acc2 = 0.0
-    for j in range(n):
-        est = 0.0
-        for strategy in range(0 if use_e else 1, 2 if use_f else 1):  # 0 equiangular, 1 free-path
-            u = uniform(key, dim0 + 2 * j + strategy, seed)
-            if strategy == 0:
-                x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), a), b)
-                atmo.columns(h0, mu0, a, x, R, top, Hs, cols)
-                tau_cam = atmo.optical_depth(cols, kt)
-            else:  # the piece holding u N, then its optical depth from A: the target, to Newton's 1e-13
-                v = u * norm
-                k = 0
-                while k < m - 1 and v >= pieces[k, 3]:
-                    v -= pieces[k, 3]
-                    k += 1
-                v = min(v, pieces[k, 3])
-                tau_cam = pieces[k, 2] - math.log1p(-v * math.exp(pieces[k, 2]))
-                x = min(max(atmo.free_path(row, a, b, tau_cam, kt, Hs, R, top, cols), pieces[k, 0]), pieces[k, 1])
-            p = 0.0
-            if use_e:
-                p += _p_equiangular(x, xh, h, th_a, th_b)
-            if use_f:
-                p += atmo.extinction_at(x, row, kt, Hs, R) * math.exp(-tau_cam) / norm
-            if p > 0.0:
-                f = atmo.inscatter(x, row, sun, kt, ks, codes, gs, Hs, R, top, cols, tau_cam)
-                if not sun:
-                    dx = x - xh
-                    d2 = max(h * h + dx * dx, 1e-250)
-                    f *= spot_factor(dx, math.sqrt(d2), h, cone) / d2
-                est += f / p
-        acc += est
-        acc2 += est * est
-    return _mean_var(acc, acc2, n)
+    use_e, use_f = _strategies_used(mode, directional)
+    paths = AtmospherePaths(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, cols, pieces, m, norm)
+    return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, a, b, n, key, dim0, seed)
 
 
 @njit
-def atmosphere_segments(rows, sun, xh, h, cone, keys, stream, seed, kt, ks, codes, gs, Hs, R, top, mode, n, out, var):
+def atmosphere_segments(rows, directional, xh, h, cone, keys, stream, seed, kt, ks, codes, gs, Hs, R, top, mode, n,
+                        out, var):
     """Unit-intensity estimates and their variances of every atmosphere segment, one channel (the
     same random-number dimensions as `airlight_segments`)."""
     cols = np.empty(Hs.shape[0])
     pieces = np.empty((3, 4))
     buf = np.empty(2)
     for s in range(xh.shape[0]):
-        out[s], var[s] = _atm_estimate(rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, mode, n,
-                                       keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
+        out[s], var[s] = _atm_estimate(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
+                                       mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
 def _check(medium, params):

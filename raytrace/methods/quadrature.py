@@ -21,16 +21,17 @@ than the test).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
-from numba.extending import overload
 
 from ..jit import njit
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import COSD, HO, MU, MUS, atmosphere_channels, by_channel, fog_inscatter, fog_rows, spot_factor
-from ..lights import cone_breaks, falloff
+from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
-from ..media.adaptive import CAPPED, EVALS, INTERVALS, adaptive as _adaptive, claim, rule as _either_rule
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, piecewise, refine, rule
+from ..media.integrand import integrand_of
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance, top_distance
 from ..media.phase import phase_split, phase_value
@@ -39,6 +40,18 @@ from ..media.slab import QUAD
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
 _N20, _W20 = np.polynomial.legendre.leggauss(20)
+
+
+class AngleIntegrand(NamedTuple):
+    """The homogeneous air-light in the scattering angle (module docstring): piece 0 in phi before
+    the foot point, 1 in psi after it, for a unit light (x_h, h) with the cone row `cone`."""
+    piece: int
+    xh: float
+    h: float
+    kt: float
+    code: int
+    g: float
+    cone: np.ndarray
 
 
 @njit
@@ -54,35 +67,21 @@ def _integrand(piece, s, xh, h, kt, code, g, cone):
         mu = -(1.0 - t2) / (1.0 + t2)
         one_minus, one_plus = 2.0 / (1.0 + t2), 2.0 * t2 / (1.0 + t2)
     f = 1.0
-    if cone[3] > -1.0:  # spot: cosine to the axis A sin(phi) - B cos(phi), sin(phi) = sin(psi) = 2t / (1 + t^2)
+    if is_spot(cone[3]):  # cosine to the axis A sin(phi) - B cos(phi), sin(phi) = sin(psi) = 2t / (1 + t^2)
         f = falloff(cone[0] * 2.0 * t / (1.0 + t2) - cone[1] * mu, cone[2], cone[3], cone[4])
     return f * math.exp(-kt * path) * phase_split(code, g, mu, one_minus, one_plus)
 
 
+@integrand_of(AngleIntegrand)
+@njit
+def _angle_value(s, r):
+    return _integrand(r.piece, s, r.xh, r.h, r.kt, r.code, r.g, r.cone)
+
+
 @njit
 def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    acc = 0.0
-    for k in range(nodes.shape[0]):
-        acc += weights[k] * _integrand(piece, mid + half * nodes[k], xh, h, kt, code, g, cone)
-    return acc * half
-
-
-claim(7, 11, 13)
-
-
-@overload(_either_rule)
-def _either_rule_impl(a, b, args, nodes, weights):
-    """`_rule` for args = (piece, xh, h, kt, code, g, cone), `_atm_rule` for an atmosphere's 13
-    arguments, `_fog_rule` for a height fog's 11."""
-    if len(args) == 7:
-        return lambda a, b, args, nodes, weights: _rule(args[0], a, b, args[1], args[2], args[3], args[4], args[5],
-                                                        args[6], nodes, weights)
-    if len(args) == 13:
-        return lambda a, b, args, nodes, weights: _atm_rule(a, b, args, nodes, weights)
-    if len(args) == 11:
-        return lambda a, b, args, nodes, weights: _fog_rule(a, b, args, nodes, weights)
+    """`rule` of one piece's AngleIntegrand (analytic.py integrates spot bands with it)."""
+    return rule(a, b, AngleIntegrand(piece, xh, h, kt, code, g, cone), nodes, weights)
 
 
 @njit
@@ -92,7 +91,7 @@ def _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, out0, out1):
     the piece's ends; returns their lengths."""
     out0[0], out1[0] = phi_a, psi_end
     n0 = n1 = 1
-    if cone[3] > -1.0:
+    if is_spot(cone[3]):
         for C in (cone[2], cone[3]):
             k, r1, r2 = cone_breaks(cone[0], cone[1], C)
             for i in range(k):
@@ -132,28 +131,14 @@ def airlight_one(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w20, st
     n0, n1 = _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, b0, b1)
     # a first estimate of the whole integral sets an absolute floor per unit angle, so that tails
     # contributing less than rtol/10 of the total are not refined to full relative accuracy
+    before = AngleIntegrand(0, xh, h, kt, code, g, cone)
+    after = AngleIntegrand(1, xh, h, kt, code, g, cone)
     width = (phi_b - phi_a) + (psi_start - psi_end)
-    estimate = 0.0
-    for i in range(n0 - 1):
-        if b0[i + 1] > b0[i]:
-            estimate += _rule(0, b0[i], b0[i + 1], xh, h, kt, code, g, cone, n20, w20)
-    for i in range(n1 - 1):
-        if b1[i + 1] > b1[i]:
-            estimate += _rule(1, b1[i], b1[i + 1], xh, h, kt, code, g, cone, n20, w20)
+    estimate = first_estimate(after, b1, n1, n20, w20, first_estimate(before, b0, n0, n20, w20, 0.0))
     density = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-    total = 0.0
-    ok = True
-    for i in range(n0 - 1):
-        val, good = _adaptive((0, xh, h, kt, code, g, cone), b0[i], b0[i + 1], rtol, density, n10,
-                              w10, n20, w20, stats)
-        total += val
-        ok = ok and good
-    for i in range(n1 - 1):
-        val, good = _adaptive((1, xh, h, kt, code, g, cone), b1[i], b1[i + 1], rtol, density, n10,
-                              w10, n20, w20, stats)
-        total += val
-        ok = ok and good
-    if not ok:
+    total, ok0 = refine(before, b0, n0, rtol, density, n10, w10, n20, w20, stats, 0.0)
+    total, ok1 = refine(after, b1, n1, rtol, density, n10, w10, n20, w20, stats, total)
+    if not (ok0 and ok1):
         stats[CAPPED] += 1.0
     return ks / h * total
 
@@ -172,9 +157,9 @@ def _airlight(segs, medium, lights, params):
 def _atmosphere(segs, atm, lights, params):
     stats = np.zeros(3)
 
-    def evaluate(rows, sun, xh, h, cone, kt, ks):
+    def evaluate(rows, directional, xh, h, cone, kt, ks):
         out = np.empty_like(xh)
-        atmosphere_segments(rows, sun, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
+        atmosphere_segments(rows, directional, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
                             float(atm.top), params["rtol"], _N10, _W10, _N20, _W20, out, stats)
         return out
 
@@ -183,11 +168,11 @@ def _atmosphere(segs, atm, lights, params):
 
 def _fog(segs, medium, lights, params):
     stats = np.zeros(3)
-    rows, sun = fog_rows(segs, medium, lights)
+    rows, directional = fog_rows(segs, medium, lights)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
-        fog_segments(rows, sun, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
+        fog_segments(rows, directional, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
                      medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
         return out
 
@@ -235,35 +220,40 @@ _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 # [0, 1 - T_cam(ell)], x(u) the inverse optical depth (eq. 35 / 31).
 
 
+class FogIntegrand(NamedTuple):
+    """A height-fog segment's air-light (above): in theta for a point or spot light (the fog's
+    `fog_inscatter`), in u = 1 - T_cam for a directional light."""
+    row: np.ndarray
+    xh: float
+    h: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    cone: np.ndarray
+    H: float
+    profile: int
+    directional: bool
+
+
+@integrand_of(FogIntegrand)
 @njit
-def _fog_value(s, row, xh, h, kt, ks, code, g, cone, H, profile, sun):
-    if sun:
-        x = column_distance(row[HO], row[MU], 0.0, -math.log1p(-s) / kt, H, profile)
+def _fog_value(s, r):
+    row, H, profile = r.row, r.H, r.profile
+    if r.directional:
+        x = column_distance(row[HO], row[MU], 0.0, -math.log1p(-s) / r.kt, H, profile)
         if x == math.inf:
             return 0.0
         hp = row[HO] + row[MU] * x
-        return math.exp(-kt * column(hp, row[MUS], 0.0, math.inf, H, profile))
-    return fog_inscatter(xh + h * math.tan(s), row, xh, h, kt, ks, code, g, cone, H, profile, False)
-
-
-@njit
-def _fog_rule(a, b, args, nodes, weights):
-    """Gauss-Legendre rule of `_fog_value` over [a, b]; args = (row, xh, h, kt, ks, code, g, cone, H,
-    profile, sun)."""
-    row, xh, h, kt, ks, code, g, cone, H, profile, sun = args
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    acc = 0.0
-    for k in range(nodes.shape[0]):
-        acc += weights[k] * _fog_value(mid + half * nodes[k], row, xh, h, kt, ks, code, g, cone, H, profile, sun)
-    return acc * half
+        return math.exp(-r.kt * column(hp, row[MUS], 0.0, math.inf, H, profile))
+    return fog_inscatter(r.xh + r.h * math.tan(s), row, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone, H, profile, False)
 
 
 @njit
 def _cone_thetas(cone, out, n):
     """Append a spot light's cone crossings as angles theta from the foot point (theta = phi -
     pi/2) to out[n:]; returns the new count."""
-    if cone[3] > -1.0:
+    if is_spot(cone[3]):
         for C in (cone[2], cone[3]):
             k, r1, r2 = cone_breaks(cone[0], cone[1], C)
             for i in range(k):
@@ -286,32 +276,10 @@ def _ends_and_inside(out, n):
 
 
 @njit
-def _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats):
-    """The adaptive rule (`_either_rule` of args) over the pieces br[:m], with the absolute floor of
-    a first estimate of the whole (as `airlight_one`); counts an evaluation short of its tolerance."""
-    width = br[m - 1] - br[0]
-    estimate = 0.0
-    for i in range(m - 1):
-        if br[i + 1] > br[i]:
-            estimate += _either_rule(br[i], br[i + 1], args, n20, w20)
-    floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-    total = 0.0
-    ok = True
-    for i in range(m - 1):
-        if br[i + 1] > br[i]:
-            val, good = _adaptive(args, br[i], br[i + 1], rtol, floor, n10, w10, n20, w20, stats)
-            total += val
-            ok = ok and good
-    if not ok:
-        stats[CAPPED] += 1.0
-    return total
-
-
-@njit
-def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
+def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
     """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
     x_top = top_distance(row[HO], row[MU], H, profile)
-    if sun:
+    if directional:
         out[0] = 0.0
         out[1] = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
         n = 2
@@ -331,7 +299,8 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, sun, out):
 
 
 @njit
-def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol, n10, w10, n20, w20, out, stats):
+def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol, n10, w10, n20, w20, out,
+                 stats):
     """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0."""
     br = np.empty(9)
     for s in range(xh.shape[0]):
@@ -339,9 +308,10 @@ def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol,
         if ks == 0.0 or not ell[s] > 0.0:
             continue
         stats[EVALS] += 1.0
-        m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, sun[s], br)
-        args = (rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
-        out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats) * (ks / kt * phase_value(code, g, rows[s, COSD]) if sun[s] else 1.0 / h[s])
+        m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
+        rec = FogIntegrand(rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, directional[s])
+        scale = ks / kt * phase_value(code, g, rows[s, COSD]) if directional[s] else 1.0 / h[s]
+        out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats) * scale
 
 
 # --- atmosphere (seed 004, media/atmosphere.py): the same adaptive rule, one channel at a time -------
@@ -352,34 +322,42 @@ def fog_segments(rows, sun, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol,
 # crossings and the lowest point.
 
 
+class AtmosphereIntegrand(NamedTuple):
+    """An atmosphere segment's air-light (above), one channel's layers: in x for the sun, in theta
+    for a point or spot light; `cols` is scratch for the layers' columns."""
+    row: np.ndarray
+    directional: bool
+    xh: float
+    h: float
+    cone: np.ndarray
+    kt: np.ndarray
+    ks: np.ndarray
+    codes: np.ndarray
+    gs: np.ndarray
+    Hs: np.ndarray
+    R: float
+    top: float
+    cols: np.ndarray
+
+
+@integrand_of(AtmosphereIntegrand)
 @njit
-def _atm_value(s, args):
-    row, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, cols = args
-    if sun:
-        return atmo.inscatter(s, row, True, kt, ks, codes, gs, Hs, R, top, cols, -1.0)
+def _atm_value(s, r):
+    if r.directional:
+        return atmo.inscatter(s, r.row, True, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, -1.0)
+    h = r.h
     dx = h * math.tan(s)
     d = math.sqrt(h * h + dx * dx)
-    f = spot_factor(dx, d, h, cone)
+    f = spot_factor(dx, d, h, r.cone)
     if f == 0.0:
         return 0.0
-    return f * atmo.inscatter(xh + dx, row, False, kt, ks, codes, gs, Hs, R, top, cols, -1.0) / h
+    return f * atmo.inscatter(r.xh + dx, r.row, False, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, -1.0) / h
 
 
 @njit
-def _atm_rule(a, b, args, nodes, weights):
-    """Gauss-Legendre rule of `_atm_value` over [a, b]."""
-    half = 0.5 * (b - a)
-    mid = 0.5 * (a + b)
-    acc = 0.0
-    for k in range(nodes.shape[0]):
-        acc += weights[k] * _atm_value(mid + half * nodes[k], args)
-    return acc * half
-
-
-@njit
-def _atm_breaks(row, sun, xh, h, cone, Hs, R, out):
+def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
     """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count."""
-    if sun:
+    if directional:
         out[0], out[1] = row[atmo.A], row[atmo.B]
         n = 2 + atmo.density_breaks(row, Hs, R, out[2:])
         n += atmo.planet_shadow(row, R, out[n:])
@@ -393,7 +371,8 @@ def _atm_breaks(row, sun, xh, h, cone, Hs, R, out):
 
 
 @njit
-def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out, stats):
+def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out,
+                        stats):
     """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients."""
     br = np.empty(11 + atmo.max_density_breaks(Hs))
     cols = np.empty(Hs.shape[0])
@@ -402,6 +381,6 @@ def atmosphere_segments(rows, sun, xh, h, cone, kt, ks, codes, gs, Hs, R, top, r
         if not rows[s, atmo.B] > rows[s, atmo.A]:
             continue
         stats[EVALS] += 1.0
-        m = _atm_breaks(rows[s], sun[s], xh[s], h[s], cone[s], Hs, R, br)
-        args = (rows[s], sun[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
-        out[s] = _piecewise(args, br, m, rtol, n10, w10, n20, w20, stats)
+        m = _atm_breaks(rows[s], directional[s], xh[s], h[s], cone[s], Hs, R, br)
+        rec = AtmosphereIntegrand(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
+        out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)

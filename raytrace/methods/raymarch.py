@@ -41,12 +41,13 @@ import numpy as np
 from ..jit import njit
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (HO, MU, atmosphere_channels, by_channel, eq4_integrand, fog_inscatter, fog_rows,
-                       segment_geometry, spot_factor)
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, by_channel, eq4_integrand,
+                       fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance
+from ..media.march import march
 from ..media.slab import MARCH
 
 MAX_STEPS = 1 << 20
@@ -70,10 +71,7 @@ def airlight_one(xh, h, ell, kt, ks, code, g, cone, steps, step, tau_max, xi, st
     n, delta, capped = _count(ell, kt, steps, step, tau_max)
     stats[CAPPED] += capped
     stats[SAMPLES] += n
-    acc = 0.0
-    for k in range(n):
-        acc += eq4_integrand((k + xi) * delta, xh, h, kt, ks, code, g, cone)
-    return acc * delta
+    return march(Eq4(xh, h, kt, ks, code, g, cone), 0.0, n, delta, xi)
 
 
 @njit
@@ -164,10 +162,10 @@ def _atmosphere(segs, atm, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(rows, sun, xh, h, cone, kt, ks):
+    def evaluate(rows, directional, xh, h, cone, kt, ks):
         out = np.empty_like(xh)
-        atmosphere_segments(rows, sun, xh, h, cone, keys, int(segs.seed), kt, ks, atm.phases, atm.gs, atm.layers,
-                            float(atm.radius), float(atm.top), int(params["steps"]), float(params["step"]),
+        atmosphere_segments(rows, directional, xh, h, cone, keys, int(segs.seed), kt, ks, atm.phases, atm.gs,
+                            atm.layers, float(atm.radius), float(atm.top), int(params["steps"]), float(params["step"]),
                             params["transmittance"] == "marched", bool(params["jitter"]), out, stats)
         return out
 
@@ -177,11 +175,11 @@ def _atmosphere(segs, atm, lights, params):
 def _fog(segs, medium, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
-    rows, sun = fog_rows(segs, medium, lights)
+    rows, directional = fog_rows(segs, medium, lights)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
-        fog_segments(rows, sun, xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone,
+        fog_segments(rows, directional, xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone,
                      medium.scale_height, medium.profile, *_march(params), bool(params["jitter"]), out, stats)
         return out
 
@@ -255,8 +253,8 @@ def _fog_end(row, kt, H, profile, tau_max):
 
 
 @njit
-def fog_segments(rows, sun, xh, h, ell, keys, seed, kt, ks, code, g, cone, H, profile, steps, step, tau_max, jitter,
-                 out, stats):
+def fog_segments(rows, directional, xh, h, ell, keys, seed, kt, ks, code, g, cone, H, profile, steps, step, tau_max,
+                 jitter, out, stats):
     """Ray-marched unit-intensity air-light of every height-fog segment for one channel: the
     midpoint (or jittered) rule on `fog_inscatter`, whose transmittances are closed form."""
     for s in range(xh.shape[0]):
@@ -269,15 +267,8 @@ def fog_segments(rows, sun, xh, h, ell, keys, seed, kt, ks, code, g, cone, H, pr
         n, delta, capped = _count(end, kt, steps, step, tau_max)
         stats[CAPPED] += capped
         stats[SAMPLES] += n
-        acc = 0.0
-        for k in range(n):
-            x = (k + xi) * delta
-            f = fog_inscatter(x, rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, sun[s])
-            if not sun[s]:
-                dx = x - xh[s]
-                f /= max(h[s] * h[s] + dx * dx, 1e-250)
-            acc += f
-        out[s] = acc * delta
+        rec = FogInX(rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, directional[s])
+        out[s] = march(rec, 0.0, n, delta, xi)
 
 
 @njit
@@ -301,13 +292,33 @@ def _marched_depth(px, py, pz, lx, ly, lz, d, kt, Hs, R, top, steps):
 
 
 @njit
-def atmosphere_segments(rows, sun, xh, h, cone, keys, seed, kt, ks, codes, gs, Hs, R, top, steps, step, marched, jitter,
-                        out, stats):
+def _marched_airlight(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, steps, a, n, delta, xi):
+    """The naive baseline's march over the cells of [A, B]: `atmosphere.scattering` with the camera's
+    optical depth summed cell by cell and the light's by `_marched_depth`."""
+    acc = 0.0
+    tau_cam = 0.0  # the optical depth of the cells before this one
+    for k in range(n):
+        x = a + (k + xi) * delta
+        hx, px, py, pz, lx, ly, lz, d, cos, _ = atmo.light_frame(x, row, directional, R)
+        ext = atmo.density_sum(hx, Hs, kt)
+        tau_l = _marched_depth(px, py, pz, lx, ly, lz, d, kt, Hs, R, top, steps) if d > 0.0 else math.inf
+        f = atmo.scattering(hx, cos, ks, codes, gs, Hs) * math.exp(-tau_l - tau_cam - ext * xi * delta)
+        tau_cam += ext * delta
+        if not directional:
+            dx = x - xh
+            d2 = max(h * h + dx * dx, 1e-250)
+            f *= spot_factor(dx, math.sqrt(d2), h, cone) / d2
+        acc += f
+    return acc * delta
+
+
+@njit
+def atmosphere_segments(rows, directional, xh, h, cone, keys, seed, kt, ks, codes, gs, Hs, R, top, steps, step,
+                        marched, jitter, out, stats):
     """Ray-marched unit-intensity air-light of every atmosphere segment for one channel's layers,
     over the part [A, B] of the segment inside the air: the midpoint (or jittered) rule on
     `atmosphere.inscatter` (closed-form transmittances), or with `marched` on the same integrand
-    with both optical depths summed numerically (the camera's along the march, the light's by
-    `_marched_depth`)."""
+    with both optical depths summed numerically (`_marched_airlight`)."""
     cols = np.empty(Hs.shape[0])
     for s in range(xh.shape[0]):
         out[s] = 0.0
@@ -319,21 +330,10 @@ def atmosphere_segments(rows, sun, xh, h, cone, keys, seed, kt, ks, codes, gs, H
         n, delta, capped = _count(b - a, 1.0, steps, step, 1.0)
         stats[CAPPED] += capped
         stats[SAMPLES] += n
-        acc = 0.0
-        tau_cam = 0.0  # marched: the optical depth of the cells before this one
-        for k in range(n):
-            x = a + (k + xi) * delta
-            if marched:
-                hx, px, py, pz, lx, ly, lz, d, cos, _ = atmo.light_frame(x, rows[s], sun[s], R)
-                ext = atmo.density_sum(hx, Hs, kt)
-                tau_l = _marched_depth(px, py, pz, lx, ly, lz, d, kt, Hs, R, top, steps) if d > 0.0 else math.inf
-                f = atmo.scattering(hx, cos, ks, codes, gs, Hs) * math.exp(-tau_l - tau_cam - ext * xi * delta)
-                tau_cam += ext * delta
-            else:
-                f = atmo.inscatter(x, rows[s], sun[s], kt, ks, codes, gs, Hs, R, top, cols, -1.0)
-            if not sun[s]:
-                dx = x - xh[s]
-                d2 = max(h[s] * h[s] + dx * dx, 1e-250)
-                f *= spot_factor(dx, math.sqrt(d2), h[s], cone[s]) / d2
-            acc += f
-        out[s] = acc * delta
+        if marched:
+            out[s] = _marched_airlight(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
+                                       steps, a, n, delta, xi)
+        else:
+            rec = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols,
+                                -1.0)
+            out[s] = march(rec, a, n, delta, xi)

@@ -1,0 +1,42 @@
+"""Typed records and their compile-time dispatch: the one interface of the shared integrators
+(adaptive.py's Gauss-Legendre driver, march.py's midpoint march, methods/montecarlo.py's sampler).
+
+A record is a NamedTuple. `record_dispatch(stub, at)` makes numba dispatch the pure-Python function
+`stub` on the class of its argument number `at` when it compiles a caller (an overload), and returns
+the decorator that registers an njit implementation for one class. The integrators therefore import
+none of the modules that define records, numba caches them (no first-class function arguments),
+and a record class without an implementation is a compile-time error (a numba TypingError), never
+a fall-through to another record's code.
+
+`integrand(x, rec)`: the value at x of the integrand a record names, registered with `integrand_of`.
+"""
+from numba.core.errors import TypingError
+from numba.extending import overload
+
+
+def record_dispatch(stub, at):
+    """Dispatch `stub` on the record class of its argument `at`; returns `register(cls)`, the
+    decorator that makes an njit function (with stub's arguments) the implementation for cls."""
+    impls = {}
+
+    @overload(stub)
+    def _dispatch(*args):
+        impl = impls.get(getattr(args[at], "instance_class", None))
+        if impl is None:
+            raise TypingError(f"{stub.__name__}: nothing is registered for {args[at]} (media/integrand.py)")
+        return lambda *args: impl(*args)
+
+    def register(cls):
+        def decorate(fn):
+            assert cls not in impls, f"{stub.__name__} is already registered for {cls.__name__}"
+            impls[cls] = fn
+            return fn
+        return decorate
+    return register
+
+
+def integrand(x, rec):
+    """The value at x of the integrand that the record `rec` names (`integrand_of`)."""
+
+
+integrand_of = record_dispatch(integrand, 1)
