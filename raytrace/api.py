@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io
+from . import error_bounds, io
 from .errors import UserError
 from .options import MEMORY_SHARE, RenderOptions, physical_memory  # noqa: F401  (api.MEMORY_SHARE for callers)
 from .scene.format import Scene
@@ -52,6 +52,9 @@ class Image:
     volumetric_shadows: bool = False
     variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
     extra_header: dict = field(default_factory=dict)
+    # (H, W, 3): |array - exact| <= error_bound per pixel and channel, inf where no bound is known; for a
+    # stochastic method its standard error instead (statistical, not a bound): docs/error_bounds.md
+    error_bound: np.ndarray | None = None
 
     def header(self) -> dict:
         """EXR header attributes: scene, method, parameters, options, times and statistics."""
@@ -95,7 +98,8 @@ class Image:
 
     def save(self, *paths, exposure: float | None = None, view: str = "aces"):
         """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
-        written): linear float32 EXR (.exr, with variance channels for stochastic methods) or an 8-bit
+        written): linear float32 EXR (.exr, with error_bound.R/G/B channels, the bound of the float32
+        values, error_bounds.stored, and variance channels for stochastic methods) or an 8-bit
         PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off without
         clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is in stops
         (each doubles the radiance); None is automatic: the log-average luminance at middle grey for
@@ -110,8 +114,11 @@ class Image:
                 jobs.append((path, film.png_writer(film.tonemap(self.array, exposure, view))))
             elif path.suffix.lower() == ".exr":
                 extra = {}
+                if self.error_bound is not None:
+                    stored = error_bounds.stored(self.array, self.error_bound)
+                    extra = {f"error_bound.{c}": stored[..., i] for i, c in enumerate("RGB")}
                 if self.variance is not None:
-                    extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
+                    extra.update({f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")})
                 jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
             else:
                 raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
@@ -368,6 +375,10 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
         raise UserError(f"{source}: {int(np.sum(~(result.image < np.finfo(np.float32).max)))} pixel channels exceed "
                         "float32's 3.4e38 (an EXR cannot hold them): lower the lights' intensity or the medium's "
                         "coefficients, or move the camera off the light it sits on")
+    bound = result.error_bound
+    if result.variance is not None:
+        bound = error_bounds.with_standard_error(bound, result.variance)
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
                  result.compile_seconds, cam.spp, options.seed, options.crop, options.volumetric_shadows,
-                 result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {})
+                 result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {},
+                 bound)

@@ -1,0 +1,77 @@
+"""Per-pixel error bounds (docs/error_bounds.md): for every pixel and channel a B with
+|pixel - exact| <= B, the exact value being the single scattering of the scene as modelled (the
+same camera rays, float64 geometry, lit intervals and light model) averaged over the pixel's samples.
+
+Built from what each part of a render knows (renderer.py adds them up; all radiances are >= 0, so
+bounds add by the triangle inequality, over a ray's lit segments and lights and over a pixel's
+samples):
+* a method whose air-light returns a bound (`Method.airlight`'s third value for a deterministic
+  method; `analytic`: the requested precision times the value, `relative_bound`) adds it; one that
+  does not (quadrature, raymarch, lecocq, sun, the Taylor series) makes the rays it integrated
+  infinite; a stochastic method's air-light adds nothing here: its pixels carry their standard
+  error instead (`with_standard_error`, a statistical measure, not a bound);
+* closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;
+* rays that enter a shape holding a medium, and the particle layer's glints: infinite;
+* a float32 EXR adds its own rounding (`stored`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# relative allowance for float64 closed forms and sums (surface term, exp(-kt t), the 1/spp mean):
+# each is a few dozen operations of relative error 2^-53 ~ 1.1e-16 with condition numbers up to the
+# optical path kt t (< 745 where exp does not underflow): below 1e-13, so 1e-12 is an upper bound
+ROUNDING = 1e-12
+# the finest relative accuracy `analytic`'s kernels promise whatever the precision asked (its
+# cancellation guards accept relative rounding up to 1e-12 below precision 1e-11)
+KERNEL_FLOOR = 1e-11
+F32_REL = 2.0 ** -24  # float32 round-to-nearest: |fl(x) - x| <= 2^-24 |x| for normal x ...
+F32_ABS = 2.0 ** -149  # ... plus half the smallest subnormal step below 2^-126 (counted whole)
+INFINITE_STAT = "error bound: pixels with an infinite bound"
+
+
+def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium) -> np.ndarray:
+    """Bound (S, 3) of a segment batch's air-light `radiance` evaluated to relative `precision`:
+    max(precision, KERNEL_FLOOR) |value| + rounding, infinite where the evaluation did not meet it.
+    `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's keys);
+    channels that do not scatter are exactly 0."""
+    bound = (max(precision, KERNEL_FLOOR) + ROUNDING) * np.abs(radiance)
+    for c in range(3):
+        key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
+        if key in met:
+            bound[~met[key], c] = np.inf
+    return bound
+
+
+def rays_with(ray_index: np.ndarray, n_rays: int) -> np.ndarray:
+    """(N,) bool: the rays that own at least one of the segments whose ray indices are given."""
+    out = np.zeros(n_rays, dtype=bool)
+    out[ray_index] = True
+    return out
+
+
+def scaled(bound: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """bound x factor (a transmittance), infinite where the bound is: an unknown error stays unknown
+    (and no inf x 0 = NaN)."""
+    return np.where(np.isinf(bound), np.inf, bound * factor)
+
+
+def with_standard_error(bound: np.ndarray, variance: np.ndarray) -> np.ndarray:
+    """A stochastic method's error channel: the standard error sqrt(variance) plus the deterministic
+    parts' bound, infinite where that is."""
+    return np.where(np.isinf(bound), np.inf, bound + np.sqrt(np.maximum(variance, 0.0)))
+
+
+def stored(image: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """float32 bound of the float32 copy of `image`: `bound` plus float32's rounding of each value,
+    itself rounded up, so that |float32(image) - exact| <= result wherever |image - exact| <= bound."""
+    total = bound + F32_REL * np.abs(image) + F32_ABS
+    out = total.astype(np.float32)
+    low = out.astype(np.float64) < total
+    out[low] = np.nextafter(out[low], np.float32(np.inf))
+    return out
+
+
+def summary(bound: np.ndarray) -> dict:
+    """The render statistics of a bound image (H, W, 3): pixels with an infinite bound in any channel."""
+    return {INFINITE_STAT: int(np.count_nonzero(np.isinf(bound).any(axis=-1)))}
