@@ -25,17 +25,23 @@ ROUNDING = 1e-12
 # the finest relative accuracy `analytic`'s kernels promise whatever the precision asked (its
 # cancellation guards accept relative rounding up to 1e-12 below precision 1e-11)
 KERNEL_FLOOR = 1e-11
+# a spot's falloff divides the cosine to its axis (rounded to a few eps) by about 1 - cos_end, the
+# cone's width in cosine: a relative allowance of SPOT_ROUNDING / (1 - cos_end) on its air-light (the
+# floor every method shares, measured 2e-7 for analytic in a 0.001-degree cone, tests/test_fuzz_scenes.py)
+SPOT_ROUNDING = 10.0 * 2.0 ** -52
 F32_REL = 2.0 ** -24  # float32 round-to-nearest: |fl(x) - x| <= 2^-24 |x| for normal x ...
 F32_ABS = 2.0 ** -149  # ... plus half the smallest subnormal step below 2^-126 (counted whole)
 INFINITE_STAT = "error bound: pixels with an infinite bound"
 
 
-def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium) -> np.ndarray:
+def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium, cos_end: np.ndarray) -> np.ndarray:
     """Bound (S, 3) of a segment batch's air-light `radiance` evaluated to relative `precision`:
-    max(precision, KERNEL_FLOOR) |value| + rounding, infinite where the evaluation did not meet it.
-    `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's keys);
-    channels that do not scatter are exactly 0."""
-    bound = (max(precision, KERNEL_FLOOR) + ROUNDING) * np.abs(radiance)
+    (max(precision, KERNEL_FLOOR) + rounding) |value|, the rounding with a spot's (`cos_end` (S,):
+    the cosine of each segment's light's cone, <= -1 without one), infinite where the evaluation did
+    not meet it. `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's
+    keys); channels that do not scatter are exactly 0."""
+    spot = np.where(cos_end > -1.0, SPOT_ROUNDING / np.maximum(1.0 - cos_end, 1e-300), 0.0)
+    bound = (max(precision, KERNEL_FLOOR) + ROUNDING + spot[:, None]) * np.abs(radiance)
     for c in range(3):
         key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
         if key in met:

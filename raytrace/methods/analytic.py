@@ -776,7 +776,8 @@ def _airlight(segs, medium, lights, params):
         return out
 
     radiance = by_channel(segs, medium, lights, evaluate)
-    return radiance, stats, error_bounds.relative_bound(radiance, params["precision"], met, medium)
+    return radiance, stats, error_bounds.relative_bound(radiance, params["precision"], met, medium,
+                                                        lights.cone[segs.light, 0])
 
 
 METHOD = Method(
