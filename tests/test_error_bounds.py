@@ -25,6 +25,7 @@ from .test_bounded_media import CUBES
 from .test_fuzz_scenes import fuzz_settings, lit_scene
 from .test_light_shafts import PLATES, scene as shaft_scene, twin as shaft_twin
 from .test_methods import oracle_image
+from .test_particles import ROOM, _room
 from .test_render_reference import CASES
 
 TWIN_CASES = ["isotropic", "rayleigh_rgb_two_lights", "hg_forward_light_near_axis", "hg_backward_light_behind_camera",
@@ -123,6 +124,18 @@ def test_interiors_are_infinite_and_the_rest_is_bounded():
     assert 0 < inf.sum() < inf.size and img.stats[error_bounds.INFINITE_STAT] == inf.sum()
     assert np.all(img.array[inf].max(axis=1) > 0.0)  # the cube's pixels: single scattering inside it
     assert np.all(img.error_bound[~inf] == 0.0) and np.all(img.array[~inf] == 0.0)  # the background, exactly 0
+
+
+def test_particle_layer_is_infinite_where_it_adds_light():
+    """The particle layer (seed 003) is an approximation with no bound: infinite on the rays it
+    brightens (here every pixel); with density 0 it adds nothing and the bound is the air-light's."""
+    clear = raytrace.render(ROOM, "analytic", threads=1)
+    dusty = raytrace.render(_room(), "analytic", threads=1)
+    brighter = np.any(dusty.array != clear.array, axis=2)
+    assert np.array_equal(np.isinf(dusty.error_bound).any(axis=2), brighter) and brighter.any()
+    assert dusty.stats[error_bounds.INFINITE_STAT] == brighter.sum()
+    none = raytrace.render(_room(density=0.0), "analytic", threads=1)
+    assert np.all(np.isfinite(clear.error_bound)) and np.array_equal(none.error_bound, clear.error_bound)
 
 
 def test_montecarlo_carries_its_standard_error():
