@@ -52,8 +52,9 @@ class Image:
     volumetric_shadows: bool = False
     variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
     extra_header: dict = field(default_factory=dict)
-    # (H, W, 3): |array - exact| <= error_bound per pixel and channel, inf where no bound is known; for a
-    # stochastic method its standard error instead (statistical, not a bound): docs/error_bounds.md
+    # (H, W, 3) float32 (rounded up): |array - exact| <= error_bound per pixel and channel, inf where no
+    # bound is known; for a stochastic method its standard error instead (statistical, not a bound):
+    # docs/error_bounds.md
     error_bound: np.ndarray | None = None
 
     def header(self) -> dict:
@@ -116,7 +117,7 @@ class Image:
                 extra = {}
                 if self.error_bound is not None:
                     stored = error_bounds.stored(self.array, self.error_bound)
-                    extra = {f"error_bound.{c}": stored[..., i] for i, c in enumerate("RGB")}
+                    extra = {f"error_bound.{c}": stored[i] for i, c in enumerate("RGB")}
                 if self.variance is not None:
                     extra.update({f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")})
                 jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
@@ -262,11 +263,13 @@ def executor(options: RenderOptions, client=None, source: str = "render"):
     return Cluster(client)
 
 
-# bytes per pixel a render holds at its peak: the float64 image (24), the float32 copies written to
-# the EXR (24) and the PNG preview's bands; stochastic methods add the progressive sums of radiance
-# and variance and the final variance with its EXR channels. Measured peak RSS growth of render.py
-# render (benchmarks/memory_peak.py, 4096 x 2048, with --png): 51 B a pixel (analytic), 99 (montecarlo)
-PIXEL_BYTES, VARIANCE_BYTES = 60, 60
+# bytes per pixel a render holds at its peak: the float64 image (24), its float32 error bound (12),
+# the float32 copies written to the EXR (24, and 12 of the bound's channels) and the PNG preview's
+# bands; stochastic methods add the progressive sums of radiance, variance and bound and the final
+# variance with its EXR channels. Measured peak RSS growth of
+# render.py render (benchmarks/image_memory.py, 4096 x 2048, with --png): 78 B a pixel (analytic),
+# 116 (montecarlo)
+PIXEL_BYTES, VARIANCE_BYTES = 90, 50
 def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | None = None):
     """Refuse, before anything is allocated, an image whose arrays would not fit in the budget:
     `max_memory` GiB (checked by render_options) if given, else MEMORY_SHARE of the machine's physical memory.

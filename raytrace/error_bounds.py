@@ -56,26 +56,44 @@ def rays_with(ray_index: np.ndarray, n_rays: int) -> np.ndarray:
     return out
 
 
-def scaled(bound: np.ndarray, factor: np.ndarray) -> np.ndarray:
-    """bound x factor (a transmittance), infinite where the bound is: an unknown error stays unknown
-    (and no inf x 0 = NaN)."""
-    return np.where(np.isinf(bound), np.inf, bound * factor)
-
-
 def with_standard_error(bound: np.ndarray, variance: np.ndarray) -> np.ndarray:
-    """A stochastic method's error channel: the standard error sqrt(variance) plus the deterministic
-    parts' bound, infinite where that is."""
-    return np.where(np.isinf(bound), np.inf, bound + np.sqrt(np.maximum(variance, 0.0)))
+    """A stochastic method's error channel: the deterministic parts' float32 bound plus the standard
+    error sqrt(variance), rounded up, in place in `bound` (still infinite where it was)."""
+    for b in _bands(bound):
+        bound[b] = _up(bound[b] + np.sqrt(np.maximum(variance[b], 0.0)))
+    return bound
+
+
+def add_up(total: np.ndarray, bound: np.ndarray, divide: float = 1.0):
+    """total += bound / divide in place, float32 rounded up (a bound of the exact sum), in bands."""
+    for b in _bands(total):
+        total[b] = _up(total[b] + np.asarray(bound[b], np.float64) / divide)
+
+
+def _up(x: np.ndarray) -> np.ndarray:
+    """float32 of x (float64) rounded toward +inf."""
+    low = x.astype(np.float32)
+    up = low.astype(np.float64) < x
+    low[up] = np.nextafter(low[up], np.float32(np.inf))
+    return low
 
 
 def stored(image: np.ndarray, bound: np.ndarray) -> np.ndarray:
-    """float32 bound of the float32 copy of `image`: `bound` plus float32's rounding of each value,
-    itself rounded up, so that |float32(image) - exact| <= result wherever |image - exact| <= bound."""
-    total = bound + F32_REL * np.abs(image) + F32_ABS
-    out = total.astype(np.float32)
-    low = out.astype(np.float64) < total
-    out[low] = np.nextafter(out[low], np.float32(np.inf))
+    """float32 bound (3, H, W), channel-major for the EXR, of the float32 copy of `image` (H, W, 3):
+    `bound` plus float32's rounding of each value, itself rounded up, so that |float32(image) - exact|
+    <= result wherever |image - exact| <= bound. Computed in bands of rows (small temporaries)."""
+    out = np.empty((3,) + image.shape[:-1], dtype=np.float32)
+    for b in _bands(image):
+        out[:, b] = np.moveaxis(_up(bound[b] + F32_REL * np.abs(image[b]) + F32_ABS), -1, 0)
     return out
+
+
+BAND_VALUES = 1 << 20  # values per band of the image-sized computations above
+
+
+def _bands(a: np.ndarray):
+    rows = max(1, BAND_VALUES // max(1, a[0].size)) if len(a) else 1
+    return [slice(r, r + rows) for r in range(0, len(a), rows)]
 
 
 def summary(bound: np.ndarray) -> dict:

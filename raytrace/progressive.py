@@ -122,11 +122,11 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
         cam = prep.scene.camera
         x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
         state = {"fingerprint": np.array(fp), "total": np.zeros((y1 - y0, x1 - x0, 3)),
-                 "var_total": np.zeros((y1 - y0, x1 - x0, 3)), "bound_total": np.zeros((y1 - y0, x1 - x0, 3)),
+                 "var_total": np.zeros((y1 - y0, x1 - x0, 3)), "bound_total": np.zeros((y1 - y0, x1 - x0, 3), np.float32),
                  "passes": np.array(0),
                  "elapsed": np.array(0.0), "compile": np.array(0.0)}
     if "bound_total" not in state:  # a checkpoint written before the bounds: its passes' are unknown
-        state["bound_total"] = np.full_like(state["total"], np.inf)
+        state["bound_total"] = np.full(state["total"].shape, np.inf, np.float32)
     done = int(state["passes"])
     elapsed = float(state["elapsed"])
     last_save = time.perf_counter()
@@ -158,7 +158,7 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
                                 "such as montecarlo")
             state["total"] += result.image  # in place, and the pass's arrays let go: the memory estimate
             state["var_total"] += result.variance  # (api.check_memory) counts three image-sized sums
-            state["bound_total"] += result.error_bound
+            error_bounds.add_up(state["bound_total"], result.error_bound)
             result.image = result.variance = result.error_bound = None
             done += 1
             elapsed += result.seconds
@@ -177,7 +177,8 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
         _save(checkpoint, state)
     image = state["total"] / done
     variance = state["var_total"] / done**2
-    bound = state["bound_total"] / done
+    bound = np.zeros_like(state["bound_total"])
+    error_bounds.add_up(bound, state.pop("bound_total"), done)
     stats = {"passes": done, "estimated mean relative error": mean_relative_error(state["total"], state["var_total"],
                                                                                    done)}
     if result is not None:

@@ -66,8 +66,8 @@ class RenderResult:
     stats: dict = field(default_factory=dict)
     variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
     passes: int = 1
-    # (H, W, 3) |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic method
-    # the bound of all but its estimator's noise, whose standard error is sqrt(variance)
+    # (H, W, 3) float32 |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic
+    # method the bound of all but its estimator's noise, whose standard error is sqrt(variance)
     error_bound: np.ndarray | None = None
 
 
@@ -275,7 +275,7 @@ class Accumulator:
         self.work, self.spp = work, spp
         self.image = np.zeros((y1 - self.y0, x1 - x0, 3))
         self.variance = np.zeros_like(self.image) if stochastic else None
-        self.bound = np.zeros_like(self.image)
+        self.bound = np.zeros(self.image.shape, dtype=np.float32)  # rounded up: still a bound, half the memory
         self.ranges = len({t.samples.start for t in work})
         self._pending = {}  # first row of a tile -> {first sample: (radiance, variance, bound sums)}
         self._stats = [np.zeros(stats_size)] * len(work)
@@ -295,7 +295,7 @@ class Accumulator:
         self.image[block] = functools.reduce(np.add, [r for r, _, _ in order]) / self.spp
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
             self.variance[block] = functools.reduce(np.add, [v for _, v, _ in order]) / self.spp**2
-        self.bound[block] = functools.reduce(np.add, [b for _, _, b in order]) / self.spp
+        error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b in order]), self.spp)
         return block
 
     def totals(self) -> np.ndarray:

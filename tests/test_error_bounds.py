@@ -142,7 +142,8 @@ def test_montecarlo_carries_its_standard_error():
     img = raytrace.render(CASES["isotropic"], "montecarlo", samples=4, threads=1, seed=5)
     se = np.sqrt(img.variance)
     assert np.all(se > 0.0)
-    np.testing.assert_allclose(img.error_bound, se, rtol=1e-9)
+    assert np.all(img.error_bound >= se)
+    np.testing.assert_allclose(img.error_bound, se, rtol=2.0 ** -23)  # rounded up to float32
 
 
 def test_progressive_checkpoints_keep_the_bound(tmp_path):
@@ -157,7 +158,7 @@ def test_progressive_checkpoints_keep_the_bound(tmp_path):
     np.testing.assert_array_equal(resumed.error_bound, straight.error_bound)
     inf = np.isinf(resumed.error_bound)
     assert inf.any() and not inf.all() and resumed.stats[error_bounds.INFINITE_STAT] == inf.any(axis=2).sum()
-    np.testing.assert_allclose(resumed.error_bound[~inf], np.sqrt(resumed.variance[~inf]), rtol=1e-9)
+    np.testing.assert_allclose(resumed.error_bound[~inf], np.sqrt(resumed.variance[~inf]), rtol=2.0 ** -23)
 
 
 def test_exr_round_trip_bounds_the_float32_image(tmp_path):
@@ -166,7 +167,7 @@ def test_exr_round_trip_bounds_the_float32_image(tmp_path):
     img.save(path)
     stored, _ = film.read_exr(path)
     bound = film.read_exr_channels(path, "error_bound")
-    np.testing.assert_array_equal(bound, error_bounds.stored(img.array, img.error_bound))
+    np.testing.assert_array_equal(bound, np.moveaxis(error_bounds.stored(img.array, img.error_bound), 0, -1))
     assert np.all(bound >= img.error_bound)
     ref = twin("rayleigh_rgb_two_lights")
     assert np.all(np.abs(stored - ref) <= bound)
