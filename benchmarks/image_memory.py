@@ -6,8 +6,8 @@ Renders a vacuum box room (the image's arrays dominate: no air-light work) with 
 ... --out X.exr --png X.png` in a subprocess per size and reports its peak RSS (ru_maxrss) less
 that of a 64 x 32 render, against the estimate width x height x (PIXEL_BYTES [+ VARIANCE_BYTES]).
 Exits with status 1 if the growth exceeds the estimate at the largest size (an underestimate).
-Measured (2 cores, loaded), 4096 x 2048: analytic 408 MiB against 480 estimated, montecarlo
-(--samples 1) 794 MiB against 960.
+Measured (2 cores), 4096 x 2048: analytic 623 MiB against 720 estimated, montecarlo
+(--samples 1) 972 MiB against 1120 (with the error bounds' arrays, docs/error_bounds.md).
 """
 import argparse
 import os

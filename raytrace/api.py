@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import io
+from . import error_bounds, io
 from .errors import UserError
 from .options import MEMORY_SHARE, RenderOptions, physical_memory  # noqa: F401  (api.MEMORY_SHARE for callers)
 from .scene.format import Scene
@@ -52,6 +52,10 @@ class Image:
     volumetric_shadows: bool = False
     variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
     extra_header: dict = field(default_factory=dict)
+    # (H, W, 3) float32 (rounded up): |array - exact| <= error_bound per pixel and channel, inf where no
+    # bound is known; for a stochastic method its standard error instead (statistical, not a bound):
+    # docs/error_bounds.md
+    error_bound: np.ndarray | None = None
 
     def header(self) -> dict:
         """EXR header attributes: scene, method, parameters, options, times and statistics."""
@@ -95,7 +99,8 @@ class Image:
 
     def save(self, *paths, exposure: float | None = None, view: str = "aces"):
         """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
-        written): linear float32 EXR (.exr, with variance channels for stochastic methods) or an 8-bit
+        written): linear float32 EXR (.exr, with error_bound.R/G/B channels, the bound of the float32
+        values, error_bounds.stored, and variance channels for stochastic methods) or an 8-bit
         PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off without
         clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is in stops
         (each doubles the radiance); None is automatic: the log-average luminance at middle grey for
@@ -110,8 +115,11 @@ class Image:
                 jobs.append((path, film.png_writer(film.tonemap(self.array, exposure, view))))
             elif path.suffix.lower() == ".exr":
                 extra = {}
+                if self.error_bound is not None:
+                    stored = error_bounds.stored(self.array, self.error_bound)
+                    extra = {f"error_bound.{c}": stored[i] for i, c in enumerate("RGB")}
                 if self.variance is not None:
-                    extra = {f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")}
+                    extra.update({f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")})
                 jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
             else:
                 raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
@@ -255,11 +263,13 @@ def executor(options: RenderOptions, client=None, source: str = "render"):
     return Cluster(client)
 
 
-# bytes per pixel a render holds at its peak: the float64 image (24), the float32 copies written to
-# the EXR (24) and the PNG preview's bands; stochastic methods add the progressive sums of radiance
-# and variance and the final variance with its EXR channels. Measured peak RSS growth of render.py
-# render (benchmarks/memory_peak.py, 4096 x 2048, with --png): 51 B a pixel (analytic), 99 (montecarlo)
-PIXEL_BYTES, VARIANCE_BYTES = 60, 60
+# bytes per pixel a render holds at its peak: the float64 image (24), its float32 error bound (12),
+# the float32 copies written to the EXR (24, and 12 of the bound's channels) and the PNG preview's
+# bands; stochastic methods add the progressive sums of radiance, variance and bound and the final
+# variance with its EXR channels. Measured peak RSS growth of
+# render.py render (benchmarks/image_memory.py, 4096 x 2048, with --png): 78 B a pixel (analytic),
+# 116 (montecarlo)
+PIXEL_BYTES, VARIANCE_BYTES = 90, 50
 def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | None = None):
     """Refuse, before anything is allocated, an image whose arrays would not fit in the budget:
     `max_memory` GiB (checked by render_options) if given, else MEMORY_SHARE of the machine's physical memory.
@@ -368,6 +378,10 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
         raise UserError(f"{source}: {int(np.sum(~(result.image < np.finfo(np.float32).max)))} pixel channels exceed "
                         "float32's 3.4e38 (an EXR cannot hold them): lower the lights' intensity or the medium's "
                         "coefficients, or move the camera off the light it sits on")
+    bound = result.error_bound
+    if result.variance is not None:
+        bound = error_bounds.with_standard_error(bound, result.variance)
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
                  result.compile_seconds, cam.spp, options.seed, options.crop, options.volumetric_shadows,
-                 result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {})
+                 result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {},
+                 bound)

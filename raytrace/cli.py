@@ -169,6 +169,9 @@ def build_parser():
     f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
     f.add_argument("--map-exr", help="absolute error per pixel as EXR")
     f.add_argument("--max", type=float, help="top of the error map's scale (default: the largest error)")
+    f.add_argument("--bounds", type=float, metavar="K",
+                   help="exit 1 unless |TEST - REF| <= K x (the sum of their error_bound channels) at every pixel "
+                        "(docs/error_bounds.md)")
     return parser
 
 
@@ -428,13 +431,25 @@ def cmd_diff(args):
     e = metrics.errors(test, ref)
     for k, v in e.items():
         print(f"{k}: {v:.6e}")
+    failed = False
+    if args.bounds is not None:
+        if not args.bounds > 0:
+            raise UserError(f"--bounds {args.bounds}: must be a positive factor, e.g. --bounds 1")
+        bounds = [film.read_exr_channels(p, "error_bound") for p in (args.test, args.ref)]
+        for path, b in zip((args.test, args.ref), bounds):
+            if b is None:
+                raise UserError(f"{path}: no error_bound.R/G/B channels; render it again with render.py render")
+        check = metrics.bound_check(test, ref, *bounds, args.bounds)
+        for k, v in check.items():
+            print(f"{k}: {v:.6e}" if isinstance(v, float) else f"{k}: {v}")
+        failed = check["pixels_over_bounds"] > 0
     if args.map or args.map_exr:
         rgb, err, vmax = metrics.error_map(test, ref, args.max)
         if args.map:
             film.write_png(args.map, rgb)
         if args.map_exr:
             film.write_exr(args.map_exr, np.repeat(err[..., None], 3, axis=2), {"scale_max": vmax})
-    return 0
+    return 1 if failed else 0
 
 
 def one_line_warning(message, category, filename, lineno, line=None) -> str:

@@ -151,6 +151,18 @@ def read_exr(path) -> tuple[np.ndarray, dict]:
     return img, header
 
 
+def read_exr_channels(path, prefix: str) -> np.ndarray | None:
+    """(H, W, 3) float64 of the channels `prefix`.R, .G, .B of an EXR `read_exr` has read (e.g.
+    "error_bound"), or None if it has none."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        ch = f.channels()
+        if not all(f"{prefix}.{c}" in ch for c in "RGB"):
+            return None
+        return np.stack([np.asarray(ch[f"{prefix}.{c}"].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
+
+
 TONEMAP_VALUES = 1 << 20  # float64 values per band of `srgb_encode` (a few 8 MB temporaries)
 VIEWS = ("aces", "standard")  # preview views: ACES 2.0's SDR output transform (view.py), or a plain sRGB encode
 

@@ -78,3 +78,22 @@ def error_map(test: np.ndarray, ref: np.ndarray, vmax: float | None = None):
     label = f"abs. error {vmax:.3g} (and above)"
     draw.text((max(2, w - 6 * len(label) - 2), y), label, fill=(255, 255, 255))
     return np.asarray(canvas), err, vmax
+
+
+def bound_check(a: np.ndarray, b: np.ndarray, bound_a: np.ndarray, bound_b: np.ndarray, k: float) -> dict:
+    """`render.py diff --bounds k`: the pixel-channels where |a - b| > k (bound_a + bound_b), i.e. where
+    the two images' error bounds (or, for Monte Carlo, standard errors; docs/error_bounds.md) cannot
+    both hold at k; the largest ratio |a - b| / (bound_a + bound_b) (0 where both are 0 and a = b);
+    and the pixels whose combined bound is infinite (the check says nothing there)."""
+    if a.shape != b.shape or bound_a.shape != a.shape or bound_b.shape != b.shape:
+        raise UserError(f"images or bounds differ in size: {a.shape} vs {b.shape}; render both at the same resolution")
+    diff = np.abs(a - b)
+    combined = bound_a + bound_b
+    finite = np.isfinite(combined)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(diff == 0.0, 0.0, diff / np.where(finite, combined, np.inf))
+    return {
+        "pixels_over_bounds": int(np.count_nonzero((diff > k * combined).any(axis=-1))),
+        "max_diff_over_bounds": float(ratio.max()) if ratio.size else 0.0,
+        "pixels_infinite_bound": int(np.count_nonzero((~finite).any(axis=-1))),
+    }

@@ -1,7 +1,8 @@
 """Progressive rendering of stochastic methods, with atomic checkpoints and exact resume.
 
 Pass p renders the whole image with the seed `pass_seed(seed, p)`; the image is the mean of the
-passes and its variance the sum of the passes' variances over passes². Passes are accumulated in
+passes, its variance the sum of the passes' variances over passes² and its error bound (of all but
+the estimator's noise, error_bounds.py) the mean of the passes' bounds. Passes are accumulated in
 order, so a render interrupted (Ctrl-C, crash, machine restart) and resumed from its checkpoint
 equals an uninterrupted one with the same seed and number of passes, bit for bit. Rendering stops
 after `passes` passes, when `time_budget` seconds (counted over all sessions) are spent, or when
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import error_bounds
 from .errors import UserError
 from .options import RenderOptions
 from .renderer import Prepared, RenderResult, render
@@ -120,8 +122,11 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
         cam = prep.scene.camera
         x0, y0, x1, y1 = crop or (0, 0, cam.width, cam.height)
         state = {"fingerprint": np.array(fp), "total": np.zeros((y1 - y0, x1 - x0, 3)),
-                 "var_total": np.zeros((y1 - y0, x1 - x0, 3)), "passes": np.array(0),
+                 "var_total": np.zeros((y1 - y0, x1 - x0, 3)), "bound_total": np.zeros((y1 - y0, x1 - x0, 3), np.float32),
+                 "passes": np.array(0),
                  "elapsed": np.array(0.0), "compile": np.array(0.0)}
+    if "bound_total" not in state:  # a checkpoint written before the bounds: its passes' are unknown
+        state["bound_total"] = np.full(state["total"].shape, np.inf, np.float32)
     done = int(state["passes"])
     elapsed = float(state["elapsed"])
     last_save = time.perf_counter()
@@ -152,8 +157,9 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
                                 "(--passes, --time-budget, --target-error, --checkpoint) need a stochastic method "
                                 "such as montecarlo")
             state["total"] += result.image  # in place, and the pass's arrays let go: the memory estimate
-            state["var_total"] += result.variance  # (api.check_memory) counts two image-sized sums
-            result.image = result.variance = None
+            state["var_total"] += result.variance  # (api.check_memory) counts three image-sized sums
+            error_bounds.add_up(state["bound_total"], result.error_bound)
+            result.image = result.variance = result.error_bound = None
             done += 1
             elapsed += result.seconds
             state["passes"], state["elapsed"] = np.array(done), np.array(elapsed)
@@ -171,9 +177,12 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
         _save(checkpoint, state)
     image = state["total"] / done
     variance = state["var_total"] / done**2
+    bound = np.zeros_like(state["bound_total"])
+    error_bounds.add_up(bound, state.pop("bound_total"), done)
     stats = {"passes": done, "estimated mean relative error": mean_relative_error(state["total"], state["var_total"],
                                                                                    done)}
     if result is not None:
         stats.update(result.stats)
+    stats.update(error_bounds.summary(bound))
     return RenderResult(image, method_name, result.params if result else params, elapsed, float(state["compile"]),
-                        stats, variance, done)
+                        stats, variance, done, bound)

@@ -4,8 +4,10 @@ methods (api.py plugs in distributed.py's Dask cluster; this module does not imp
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
 L = T(0, t) Lb + sum of air-lights (T the medium's transmittance from the camera, exp(-kt t) when
-homogeneous), averaged over the pixel's samples. Results do not depend on the thread or worker
-count: the tiles are the same and each is computed and reduced the same way wherever it runs.
+homogeneous), averaged over the pixel's samples, and beside it each pixel's error bound
+(error_bounds.py: the sum of its parts' bounds over the samples / spp). Results do not depend on the
+thread or worker count: the tiles are the same and each is computed and reduced the same way
+wherever it runs.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bounded
+from . import bounded, error_bounds
 from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
@@ -31,7 +33,7 @@ from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
 from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals
-from .visibility import cone_segments, segment_airlight, shadowed_airlight, whole_rays
+from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
 RAYS_PER_TILE = 1 << 14
 
@@ -66,6 +68,9 @@ class RenderResult:
     stats: dict = field(default_factory=dict)
     variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
     passes: int = 1
+    # (H, W, 3) float32 |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic
+    # method the bound of all but its estimator's noise, whose standard error is sqrt(variance)
+    error_bound: np.ndarray | None = None
 
 
 def prepare(scene: Scene) -> Prepared:
@@ -83,12 +88,32 @@ def default_threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+def airlight(method, medium, lights, params, segs, n_rays: int):
+    """Air-light (N, 3) of the camera rays from their segments, the method's statistics, the
+    variance (N, 3) of a stochastic method's estimate (else None) and the error bound (N, 3): the
+    method's own segment bounds where it gives them (`Method.airlight`'s third value of a
+    deterministic method), else infinite on every ray with a segment; 0 for a stochastic method,
+    whose error is its variance."""
+    res = method.airlight(segs, medium, lights, params)
+    var = gather(segs, res[2], n_rays, medium, power=2) if method.stochastic else None
+    if method.stochastic:
+        bound = np.zeros((n_rays, 3))
+    elif len(res) > 2:
+        bound = gather(segs, res[2], n_rays, medium)
+    else:
+        bound = np.where(error_bounds.rays_with(segs.ray, n_rays)[:, None], np.inf, np.zeros((n_rays, 3)))
+    return gather(segs, res[0], n_rays, medium), res[1], var, bound
+
+
 def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None, depth=0):
     """Radiance (N, 3) of camera rays, the statistics array (`stats_size`: the method's, the lit
-    intervals', the inside integrals', summed over the rays followed behind shapes) and, for a
-    stochastic method, the variance (N, 3) of each ray's estimate. `shadows`: None for the paper's unshadowed air-light, else the air-light over the exact lit intervals
+    intervals', the inside integrals', summed over the rays followed behind shapes), for a stochastic
+    method the variance (N, 3) of each ray's estimate (else None), and the error bound (N, 3) of each
+    ray's radiance (error_bounds.py). `shadows`: None for the paper's unshadowed air-light, else the
+    air-light over the exact lit intervals
     (shadow_frusta.py; its value, a former search spacing, is not read).
-    Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep)."""
+    Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep);
+    their bound is infinite (the interiors' kernels report none)."""
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
@@ -98,14 +123,14 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
 
     def behind(o, d, k, dep):
-        rad, s, var = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
+        rad, s, var, _ = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
         deeper[:] += s
         return rad, var
 
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
         rad, var, deeper[-bounded.STATS_SIZE:] = bounded.from_inside(prep, method, params, origins, dirs, t, prim,
                                                                       keys, seed, behind)
-        return rad, deeper, var if method.stochastic else None
+        return rad, deeper, var if method.stochastic else None, np.full_like(rad, np.inf)
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     into = bounded.enters(prep, prim)
@@ -128,24 +153,31 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     variance = np.zeros_like(radiance) if method.stochastic else None
     if into.any() and variance is not None:
         variance[into] = into_var * tr[into] ** 2
+    bound = np.where(into[:, None], np.inf, np.zeros_like(radiance))
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)
         if shadows is not None and params.get("shadow_test") == "samples":
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
+            if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
+                bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
         else:
             if shadows is not None:
                 segs, stats[method.stats_size:-bounded.STATS_SIZE] = exact_lit_intervals(
                     prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
-            air, stats[:method.stats_size], var = segment_airlight(method, medium, prep.lights, params, segs,
-                                                                   len(origins))
+            air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
+                                                                      len(origins))
+            bound += air_bound
         radiance += air
         if method.stochastic:
             variance = variance + var
-    if medium.particles is not None:  # seed 003's particle layer on top of the air-light
-        radiance += particle_radiance(medium.particles, medium, prep.lights, prep.accel, origins, dirs, t, keys,
-                                      shadows is not None)
-    return radiance, stats + deeper, variance
+    if medium.particles is not None:  # seed 003's particle layer on top of the air-light (no bound)
+        glints = particle_radiance(medium.particles, medium, prep.lights, prep.accel, origins, dirs, t, keys,
+                                   shadows is not None)
+        radiance += glints
+        bound[np.any(glints != 0.0, axis=1)] = np.inf
+    bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
+    return radiance, stats + deeper, variance, bound
 
 
 def stats_size(method) -> int:
@@ -204,9 +236,9 @@ def tiles(cam, box) -> list[Tile]:
 
 
 def render_tile(prep: Prepared, task: Task, tile: Tile):
-    """The tile's radiance summed over its samples (rows, columns, 3), its statistics and, for a
-    stochastic method, its summed variance (else None): a function of the arguments alone, the
-    same whichever thread or cluster worker computes it."""
+    """The tile's radiance summed over its samples (rows, columns, 3), its statistics, for a
+    stochastic method its summed variance (else None), and its summed error bound: a function of
+    the arguments alone, the same whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
     rows, samples = tile.rows, tile.samples
@@ -214,9 +246,11 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
     keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(samples.start, samples.stop, dtype=np.uint64)).ravel()
-    rad, stats, var = shade_rays(prep, get_method(task.method), task.params, o, d, keys, task.seed, task.shadows)
+    rad, stats, var, bound = shade_rays(prep, get_method(task.method), task.params, o, d, keys, task.seed,
+                                        task.shadows)
     shape = (rows.stop - rows.start, x1 - x0, samples.stop - samples.start, 3)
-    return rad.reshape(shape).sum(axis=2), stats, None if var is None else var.reshape(shape).sum(axis=2)
+    return (rad.reshape(shape).sum(axis=2), stats, None if var is None else var.reshape(shape).sum(axis=2),
+            bound.reshape(shape).sum(axis=2))
 
 
 def prepare_task(prep: Prepared, task: Task) -> float:
@@ -257,32 +291,35 @@ class Threads:
 
 class Accumulator:
     """Tile results reduced in one fixed order whatever order they arrive in: a pixel's sample
-    ranges are added in sample order, the statistics in tile order."""
+    ranges are added in sample order, the statistics in tile order; the error bound is the mean of
+    the samples' bounds."""
 
     def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int):
         x0, self.y0, x1, y1 = box
         self.work, self.spp = work, spp
         self.image = np.zeros((y1 - self.y0, x1 - x0, 3))
         self.variance = np.zeros_like(self.image) if stochastic else None
+        self.bound = np.zeros(self.image.shape, dtype=np.float32)  # rounded up: still a bound, half the memory
         self.ranges = len({t.samples.start for t in work})
-        self._pending = {}  # first row of a tile -> {first sample: (radiance sum, variance sum)}
+        self._pending = {}  # first row of a tile -> {first sample: (radiance, variance, bound sums)}
         self._stats = [np.zeros(stats_size)] * len(work)
 
     def add(self, i: int, result) -> slice | None:
         """Add tile `i`'s result; returns the rows of the image (relative to the block) that it
         finished, or None while some of their sample ranges are still to come."""
         tile = self.work[i]
-        rad, self._stats[i], var = result
+        rad, self._stats[i], var, bound = result
         parts = self._pending.setdefault(tile.rows.start, {})
-        parts[tile.samples.start] = rad, var
+        parts[tile.samples.start] = rad, var, bound
         if len(parts) < self.ranges:
             return None
         del self._pending[tile.rows.start]
         order = [parts[k] for k in sorted(parts)]
         block = slice(tile.rows.start - self.y0, tile.rows.stop - self.y0)
-        self.image[block] = functools.reduce(np.add, [r for r, _ in order]) / self.spp
+        self.image[block] = functools.reduce(np.add, [r for r, _, _ in order]) / self.spp
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            self.variance[block] = functools.reduce(np.add, [v for _, v in order]) / self.spp**2
+            self.variance[block] = functools.reduce(np.add, [v for _, v, _ in order]) / self.spp**2
+        error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b in order]), self.spp)
         return block
 
     def totals(self) -> np.ndarray:
@@ -330,4 +367,6 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     if task.shadows is not None:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:]))
-    return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance)
+    summary.update(error_bounds.summary(acc.bound))
+    return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,
+                        error_bound=acc.bound)

@@ -116,16 +116,16 @@ def test_too_many_segments_refused_before_tessellation(primitive):
 
 
 def test_max_memory_sets_the_budget_with_the_figure_and_the_fix(write_scene, tmp_path, capsys):
-    """--max-memory GiB: a 1000 x 1000 analytic image needs 1000^2 x 60 B = 0.0559 GiB; with a budget of
+    """--max-memory GiB: a 1000 x 1000 analytic image needs 1000^2 x 90 B = 0.0838 GiB; with a budget of
     0.01 GiB it is refused before rendering, naming the budget and a --crop band that fits
-    (0.01 GiB / (1000 x 60 B) = 178 rows); with 1 GiB the same command renders a small crop."""
+    (0.01 GiB / (1000 x 90 B) = 119 rows); with 1 GiB the same command renders a small crop."""
     path = write_scene(box_room())
     out = tmp_path / "x.exr"
     args = ["render", str(path), "--width", "1000", "--height", "1000", "--out", str(out), "--quiet"]
     assert main(args + ["--max-memory", "0.01"]) == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "0.0559 GiB" in err and "--max-memory budget of 0.01 GiB" in err, err
-    assert "bands of at most 178 rows with --crop (e.g. --crop 0,0,1000,178)" in err, err
+    assert "\n" not in err and "0.0838 GiB" in err and "--max-memory budget of 0.01 GiB" in err, err
+    assert "bands of at most 119 rows with --crop (e.g. --crop 0,0,1000,119)" in err, err
     assert not out.exists()
     assert main(args + ["--max-memory", "1", "--crop", "0,0,4,3"]) == 0 and out.exists()
 

@@ -131,7 +131,9 @@ class Method:
     params: dict[str, Param]
     # airlight(segments, medium, lights, params) -> (radiance (S, 3), stats), or (radiance, stats,
     # variance (S, 3)) for a stochastic method: each segment's air-light from its own start point,
-    # the light's intensity included, and the variance of each estimate
+    # the light's intensity included, and the variance of each estimate; a deterministic method may
+    # return (radiance, stats, bound (S, 3)), a bound on each value's error (else: infinite,
+    # error_bounds.py)
     airlight: Callable
     error_law: ErrorLaw
     stats_size: int = 0

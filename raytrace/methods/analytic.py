@@ -38,6 +38,7 @@ import math
 
 import numpy as np
 
+from .. import error_bounds
 from ..jit import njit
 from . import ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, v_of
@@ -128,19 +129,19 @@ def _loss(block, H, at):
 @njit
 def _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats):
     """The reference quadrature (quadrature.py) to a tenth of the requested precision, its integrand
-    evaluations counted. Its Gauss-Legendre nodes are module constants of quadrature.py (numba
+    evaluations counted, and whether it converged (not quadrature.CAPPED). Its Gauss-Legendre nodes are module constants of quadrature.py (numba
     freezes them, and they never change)."""
     qstats = np.zeros(3)
     rtol = max(0.1 * precision, QUAD_RTOL_MIN)
     val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, cone, rtol, _N10, _W10, _N20, _W20, qstats)
     stats[ST_FALLBACK_FEVALS] += 30.0 * qstats[1]
     stats[ST_FALLBACK_CAPPED] += qstats[CAPPED]
-    return intensity * val
+    return intensity * val, qstats[CAPPED] == 0.0
 
 
 @njit
 def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats):
-    """The whole segment by `_quadrature`, counted."""
+    """The whole segment by `_quadrature`, counted: (value, converged)."""
     stats[ST_FALLBACK] += 1.0
     return _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
 
@@ -329,7 +330,20 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
 @njit
 def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
              aniso_mode, terms, coeffs, cone, stats):
-    """Air-light Lm of one light along one ray segment [0, ell] for one channel.
+    """Air-light Lm of one light along one ray segment [0, ell] for one channel (`checked_airlight`'s
+    value)."""
+    return checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode,
+                            terms, coeffs, cone, stats)[0]
+
+
+@njit
+def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
+                     aniso_mode, terms, coeffs, cone, stats):
+    """(Lm, met): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
+    whether it is known to meet `precision` (error_bounds.py): False where a quadrature it fell back
+    on did not converge (ST_FALLBACK_CAPPED) and in the Taylor mode of an anisotropic medium (the
+    paper's series, an approximation with no bound); True on every other path, each of which is
+    accepted only where its own error estimate meets the precision.
 
     xh: signed projection of the light on the ray; h (>0): light-to-line distance; da: light
     distance from the ray origin; ell: segment length (may be +inf); kt, ks: extinction and
@@ -344,7 +358,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
         stats[ST_ZERO] += 1.0
-        return 0.0
+        return 0.0, True
     if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
         return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
     if kt * da > UNDERFLOW_PATH:
@@ -353,8 +367,9 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
         peak = max(phase_value(phase_code, g, 1.0), phase_value(phase_code, g, -1.0))
         if math.log(intensity) + math.log(ks) + math.log(math.pi * peak / h) - kt * da < -UNDERFLOW_PATH:
             stats[ST_ZERO] += 1.0
-            return 0.0
+            return 0.0, True
     spot = is_spot(cone[3])
+    taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
 
     finite = ell < math.inf
     # near-line: light outside the segment and the line passes within h << distance of it
@@ -373,7 +388,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
             # polynomial part grows like 1/H^(N-1) as h -> 0
             if ok or (phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR):
                 stats[ST_NEARLINE] += 1.0
-                return val
+                return val, ok and not taylor
 
     H = kt * h
     va = v_of(-xh, h)
@@ -387,7 +402,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
                             precision, max_iter, coeffs[:0], stats)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
-        return pref * (ks * val)
+        return pref * (ks * val), not taylor
     work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
     pieces = work[:15].reshape((5, 3))
     vals = work[15:20]
@@ -412,6 +427,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
                                       aniso_mode, terms, coeffs, precision, max_iter, work[25:], stats)
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
+    met = True
     total = 0.0
     for i in range(n):
         if errs[i] < math.inf:
@@ -433,9 +449,11 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
                     continue
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
-                out += _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats) \
-                    * math.exp(-kt * x1) - old
-    return out
+                part, converged = _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision,
+                                              stats)
+                out += part * math.exp(-kt * x1) - old
+                met = met and converged
+    return out, met and not taylor
 
 
 @njit
@@ -712,11 +730,12 @@ def summarize_stats(stats):
 # ----------------------------------------------------------------------------------------------
 @njit
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      stats):
-    """Unit-intensity air-light of every segment for one channel's coefficients."""
+                      met, stats):
+    """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
+    met the precision (`checked_airlight`)."""
     for s in range(xh.shape[0]):
-        out[s] = airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode, terms,
-                          coeffs, cone[s], stats)
+        out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
+                                          aniso_mode, terms, coeffs, cone[s], stats)
 
 
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
@@ -748,14 +767,18 @@ def _airlight(segs, medium, lights, params):
     precision = working_precision(params["precision"])
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], precision)
     stats = new_stats()
+    met = {}  # (kt, ks) -> whether each segment's evaluation met the precision
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
+        met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
         evaluate_segments(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
-                          params["terms"], coeffs, cone, out, stats)
+                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats)
         return out
 
-    return by_channel(segs, medium, lights, evaluate), stats
+    radiance = by_channel(segs, medium, lights, evaluate)
+    return radiance, stats, error_bounds.relative_bound(radiance, params["precision"], met, medium,
+                                                        lights.cone[segs.light, 0])
 
 
 METHOD = Method(

@@ -1,0 +1,101 @@
+"""Per-pixel error bounds (docs/error_bounds.md): for every pixel and channel a B with
+|pixel - exact| <= B, the exact value being the single scattering of the scene as modelled (the
+same camera rays, float64 geometry, lit intervals and light model) averaged over the pixel's samples.
+
+Built from what each part of a render knows (renderer.py adds them up; all radiances are >= 0, so
+bounds add by the triangle inequality, over a ray's lit segments and lights and over a pixel's
+samples):
+* a method whose air-light returns a bound (`Method.airlight`'s third value for a deterministic
+  method; `analytic`: the requested precision times the value, `relative_bound`) adds it; one that
+  does not (quadrature, raymarch, lecocq, sun, the Taylor series) makes the rays it integrated
+  infinite; a stochastic method's air-light adds nothing here: its pixels carry their standard
+  error instead (`with_standard_error`, a statistical measure, not a bound);
+* closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;
+* rays that enter a shape holding a medium, and the particle layer's glints: infinite;
+* a float32 EXR adds its own rounding (`stored`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# relative allowance for float64 closed forms and sums (surface term, exp(-kt t), the 1/spp mean):
+# each is a few dozen operations of relative error 2^-53 ~ 1.1e-16 with condition numbers up to the
+# optical path kt t (< 745 where exp does not underflow): below 1e-13, so 1e-12 is an upper bound
+ROUNDING = 1e-12
+# the finest relative accuracy `analytic`'s kernels promise whatever the precision asked (its
+# cancellation guards accept relative rounding up to 1e-12 below precision 1e-11)
+KERNEL_FLOOR = 1e-11
+# a spot's falloff divides the cosine to its axis (rounded to a few eps) by about 1 - cos_end, the
+# cone's width in cosine: a relative allowance of SPOT_ROUNDING / (1 - cos_end) on its air-light (the
+# floor every method shares, measured 2e-7 for analytic in a 0.001-degree cone, tests/test_fuzz_scenes.py)
+SPOT_ROUNDING = 10.0 * 2.0 ** -52
+F32_REL = 2.0 ** -24  # float32 round-to-nearest: |fl(x) - x| <= 2^-24 |x| for normal x ...
+F32_ABS = 2.0 ** -149  # ... plus half the smallest subnormal step below 2^-126 (counted whole)
+INFINITE_STAT = "error bound: pixels with an infinite bound"
+
+
+def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium, cos_end: np.ndarray) -> np.ndarray:
+    """Bound (S, 3) of a segment batch's air-light `radiance` evaluated to relative `precision`:
+    (max(precision, KERNEL_FLOOR) + rounding) |value|, the rounding with a spot's (`cos_end` (S,):
+    the cosine of each segment's light's cone, <= -1 without one), infinite where the evaluation did
+    not meet it. `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's
+    keys); channels that do not scatter are exactly 0."""
+    spot = np.where(cos_end > -1.0, SPOT_ROUNDING / np.maximum(1.0 - cos_end, 1e-300), 0.0)
+    bound = (max(precision, KERNEL_FLOOR) + ROUNDING + spot[:, None]) * np.abs(radiance)
+    for c in range(3):
+        key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
+        if key in met:
+            bound[~met[key], c] = np.inf
+    return bound
+
+
+def rays_with(ray_index: np.ndarray, n_rays: int) -> np.ndarray:
+    """(N,) bool: the rays that own at least one of the segments whose ray indices are given."""
+    out = np.zeros(n_rays, dtype=bool)
+    out[ray_index] = True
+    return out
+
+
+def with_standard_error(bound: np.ndarray, variance: np.ndarray) -> np.ndarray:
+    """A stochastic method's error channel: the deterministic parts' float32 bound plus the standard
+    error sqrt(variance), rounded up, in place in `bound` (still infinite where it was)."""
+    for b in _bands(bound):
+        bound[b] = _up(bound[b] + np.sqrt(np.maximum(variance[b], 0.0)))
+    return bound
+
+
+def add_up(total: np.ndarray, bound: np.ndarray, divide: float = 1.0):
+    """total += bound / divide in place, float32 rounded up (a bound of the exact sum), in bands."""
+    for b in _bands(total):
+        total[b] = _up(total[b] + np.asarray(bound[b], np.float64) / divide)
+
+
+def _up(x: np.ndarray) -> np.ndarray:
+    """float32 of x (float64) rounded toward +inf."""
+    low = x.astype(np.float32)
+    up = low.astype(np.float64) < x
+    low[up] = np.nextafter(low[up], np.float32(np.inf))
+    return low
+
+
+def stored(image: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """float32 bound (3, H, W), channel-major for the EXR, of the float32 copy of `image` (H, W, 3):
+    `bound` plus float32's rounding of each value, itself rounded up, so that |float32(image) - exact|
+    <= result wherever |image - exact| <= bound. Computed in bands of rows (small temporaries)."""
+    out = np.empty((3,) + image.shape[:-1], dtype=np.float32)
+    for b in _bands(image):
+        out[:, b] = np.moveaxis(_up(bound[b] + F32_REL * np.abs(image[b]) + F32_ABS), -1, 0)
+    return out
+
+
+BAND_VALUES = 1 << 20  # values per band of the image-sized computations above
+
+
+def _bands(a: np.ndarray):
+    rows = max(1, BAND_VALUES // max(1, a[0].size)) if len(a) else 1
+    return [slice(r, r + rows) for r in range(0, len(a), rows)]
+
+
+def summary(bound: np.ndarray) -> dict:
+    """The render statistics of a bound image (H, W, 3): pixels with an infinite bound in any channel."""
+    return {INFINITE_STAT: int(np.count_nonzero(np.isinf(bound).any(axis=-1)))}

@@ -1,0 +1,228 @@
+"""Per-pixel error bounds (issue 22; raytrace/error_bounds.py, docs/error_bounds.md).
+
+`analytic`'s bound holds against the independent twins (tests/oracle.py: scipy quad of eq. 4, exact
+box and plate geometry) on box rooms with isotropic, Rayleigh and HG media, spot lights, a thick
+medium, an environment camera, volumetric shadows, and rays nearly tangent to the floor or passing
+within 1e-9 of a light; it is not vacuous; it is infinite where nothing is known (the other
+deterministic methods' air-light, the Taylor series, interiors); it survives the float32 EXR and
+progressive checkpoints; `render.py diff --bounds` passes renders that agree within their bounds
+and fails a perturbed one.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import raytrace
+from raytrace import error_bounds, film
+from raytrace.cli import main
+
+from . import oracle
+from .conftest import box_room
+from .test_bounded_media import CUBES
+from .test_fuzz_scenes import fuzz_settings, lit_scene
+from .test_light_shafts import PLATES, scene as shaft_scene, twin as shaft_twin
+from .test_methods import oracle_image
+from .test_particles import ROOM, _room
+from .test_render_reference import CASES
+
+TWIN_CASES = ["isotropic", "rayleigh_rgb_two_lights", "hg_forward_light_near_axis", "hg_backward_light_behind_camera",
+              "thick", "environment_hg", "spot_isotropic", "spot_hg_narrow_through_view"]
+# near-tangent rays: a camera 1 mm above the floor looking along it (the lower rows graze it), and a
+# light on the central ray's line behind the camera (h -> 0: analytic's near-line limit) and
+# one 1e-9 off it
+GRAZING = box_room(camera={"position": [0.0, -1.999, 3.0], "look_at": [0.0, -1.999, -1.0], "fov": 50.0,
+                           "width": 9, "height": 7, "spp": 1},
+                   medium={"sigma_a": 0.05, "sigma_s": 0.2, "phase": {"type": "hg", "g": 0.5}},
+                   light=[{"position": [0.0, -1.999, 3.5], "intensity": 6.0},
+                          {"position": [1e-9, 1.0, -1.0], "intensity": 4.0}])
+_TWINS: dict = {}
+
+
+def twin(name: str) -> np.ndarray:
+    if name == "grazing":
+        if name not in _TWINS:
+            cam = GRAZING["camera"]
+            _TWINS[name] = np.array([[oracle.box_room_pixel(GRAZING, i, j) for i in range(cam["width"])]
+                                     for j in range(cam["height"])])
+        return _TWINS[name]
+    return oracle_image(name)
+
+
+def check_bound(img, ref, precision):
+    """The bound holds at every pixel-channel and its median relative to the lit pixels' value is at
+    most 10 x precision; returns (max |err| / bound, median bound / value)."""
+    err = np.abs(img.array - ref)
+    bound = img.error_bound
+    assert bound.shape == img.array.shape and np.all(np.isfinite(bound))
+    ratio = np.where(err == 0.0, 0.0, err / np.where(bound > 0.0, bound, 1e-300))
+    lit = ref > 0.0
+    median = float(np.median(bound[lit] / ref[lit]))
+    worst = np.unravel_index(ratio.argmax(), ratio.shape)
+    assert ratio.max() <= 1.0, f"pixel {worst}: |err| {err[worst]:.3g} > bound {bound[worst]:.3g}"
+    assert median <= 10.0 * precision, median
+    assert img.stats[error_bounds.INFINITE_STAT] == 0
+    return float(ratio.max()), median
+
+
+@pytest.mark.parametrize("precision", [1e-3, 1e-6])
+@pytest.mark.parametrize("name", TWIN_CASES + ["grazing"])
+def test_analytic_bound_holds_against_the_twin(name, precision):
+    scene = GRAZING if name == "grazing" else CASES[name]
+    img = raytrace.render(scene, "analytic", precision=precision, threads=1)
+    check_bound(img, twin(name), precision)
+
+
+@pytest.mark.parametrize("precision", [1e-3, 1e-6])
+def test_analytic_bound_holds_in_light_shafts(precision):
+    """Volumetric shadows (the exact lit intervals) against the plates' twin with exact shadow
+    boundaries: the bound is that of each lit piece's air-light, summed."""
+    img = raytrace.render(shaft_scene(), "analytic", precision=precision, volumetric_shadows=True, threads=1)
+    assert img.stats["shadows: shadow intervals"] > 0
+    check_bound(img, shaft_twin(shaft_scene(), PLATES), precision)
+
+
+def test_the_bound_is_not_met_by_a_wrong_image():
+    """The check above can fail: an image 3 x its precision off breaks the bound at 1e-6."""
+    img = raytrace.render(CASES["isotropic"], "analytic", precision=1e-6, threads=1)
+    ref = twin("isotropic")
+    assert np.max(np.abs(img.array * (1.0 + 3e-6) - ref) / img.error_bound) > 1.0
+
+
+@pytest.mark.parametrize("method", ["quadrature", "raymarch", "lecocq", "sun"])
+def test_methods_without_a_bound_are_infinite_and_counted(method):
+    scene = CASES["isotropic"]
+    img = raytrace.render(scene, method, threads=1)
+    assert np.all(np.isinf(img.error_bound))
+    assert img.stats[error_bounds.INFINITE_STAT] == scene["camera"]["width"] * scene["camera"]["height"]
+
+
+def test_taylor_series_is_infinite_and_isotropic_taylor_is_not():
+    hg = raytrace.render(CASES["hg_backward_light_behind_camera"], "analytic", anisotropic="taylor", threads=1)
+    assert np.all(np.isinf(hg.error_bound))
+    iso = raytrace.render(CASES["isotropic"], "analytic", anisotropic="taylor", precision=1e-6, threads=1)
+    check_bound(iso, twin("isotropic"), 1e-6)  # isotropic media take the exact closed form in every mode
+
+
+@pytest.mark.parametrize("method", ["quadrature", "raymarch", "lecocq", "montecarlo"])
+def test_without_scattering_every_method_is_bounded(method):
+    """No air-light to integrate: the surface term alone, a float64 closed form, bounded by its rounding."""
+    scene = CASES["vacuum"]
+    img = raytrace.render(scene, method, threads=1, seed=3)
+    ref = twin("vacuum")
+    assert np.all(np.abs(img.array - ref) <= img.error_bound)
+    assert np.all(img.error_bound <= 1e-11 * img.array)
+
+
+def test_interiors_are_infinite_and_the_rest_is_bounded():
+    scene = dict(CUBES["sun_beside_cube"])
+    scene.pop("any_face")
+    img = raytrace.render(scene, "analytic", threads=1, volumetric_shadows=False)
+    inf = np.isinf(img.error_bound).any(axis=2)
+    assert 0 < inf.sum() < inf.size and img.stats[error_bounds.INFINITE_STAT] == inf.sum()
+    assert np.all(img.array[inf].max(axis=1) > 0.0)  # the cube's pixels: single scattering inside it
+    assert np.all(img.error_bound[~inf] == 0.0) and np.all(img.array[~inf] == 0.0)  # the background, exactly 0
+
+
+def test_particle_layer_is_infinite_where_it_adds_light():
+    """The particle layer (seed 003) is an approximation with no bound: infinite on the rays it
+    brightens (here every pixel); with density 0 it adds nothing and the bound is the air-light's."""
+    clear = raytrace.render(ROOM, "analytic", threads=1)
+    dusty = raytrace.render(_room(), "analytic", threads=1)
+    brighter = np.any(dusty.array != clear.array, axis=2)
+    assert np.array_equal(np.isinf(dusty.error_bound).any(axis=2), brighter) and brighter.any()
+    assert dusty.stats[error_bounds.INFINITE_STAT] == brighter.sum()
+    none = raytrace.render(_room(density=0.0), "analytic", threads=1)
+    assert np.all(np.isfinite(clear.error_bound)) and np.array_equal(none.error_bound, clear.error_bound)
+
+
+def test_montecarlo_carries_its_standard_error():
+    img = raytrace.render(CASES["isotropic"], "montecarlo", samples=4, threads=1, seed=5)
+    se = np.sqrt(img.variance)
+    assert np.all(se > 0.0)
+    assert np.all(img.error_bound >= se)
+    np.testing.assert_allclose(img.error_bound, se, rtol=2.0 ** -23)  # rounded up to float32
+
+
+def test_progressive_checkpoints_keep_the_bound(tmp_path):
+    scene = dict(CUBES["lamp_beside_cube"])
+    scene.pop("any_face")
+    scene["medium"] = {"sigma_a": 0.02, "sigma_s": 0.1}  # fog outside too: standard errors on the outside pixels
+    ckpt = tmp_path / "mc.ckpt.npz"
+    kw = dict(samples=2, threads=1, seed=7, volumetric_shadows=False)
+    raytrace.render(scene, "montecarlo", passes=1, checkpoint=ckpt, **kw)
+    resumed = raytrace.render(scene, "montecarlo", passes=3, checkpoint=ckpt, **kw)
+    straight = raytrace.render(scene, "montecarlo", passes=3, **kw)
+    np.testing.assert_array_equal(resumed.error_bound, straight.error_bound)
+    inf = np.isinf(resumed.error_bound)
+    assert inf.any() and not inf.all() and resumed.stats[error_bounds.INFINITE_STAT] == inf.any(axis=2).sum()
+    np.testing.assert_allclose(resumed.error_bound[~inf], np.sqrt(resumed.variance[~inf]), rtol=2.0 ** -23)
+
+
+def test_exr_round_trip_bounds_the_float32_image(tmp_path):
+    img = raytrace.render(CASES["rayleigh_rgb_two_lights"], "analytic", precision=1e-6, threads=1)
+    path = tmp_path / "a.exr"
+    img.save(path)
+    stored, _ = film.read_exr(path)
+    bound = film.read_exr_channels(path, "error_bound")
+    np.testing.assert_array_equal(bound, np.moveaxis(error_bounds.stored(img.array, img.error_bound), 0, -1))
+    assert np.all(bound >= img.error_bound)
+    ref = twin("rayleigh_rgb_two_lights")
+    assert np.all(np.abs(stored - ref) <= bound)
+    assert np.median(bound / ref) < 2e-6  # the float32 rounding (6e-8) adds little at 1e-6
+
+
+def _save(tmp_path, name, img):
+    path = tmp_path / f"{name}.exr"
+    img.save(path)
+    return str(path)
+
+
+def test_diff_bounds_passes_agreeing_renders_and_fails_a_perturbed_one(tmp_path, capsys):
+    scene = CASES["hg_backward_light_behind_camera"]
+    fine = _save(tmp_path, "fine", raytrace.render(scene, "analytic", precision=1e-6, threads=1))
+    coarse = _save(tmp_path, "coarse", raytrace.render(scene, "analytic", precision=1e-3, threads=1))
+    mc = _save(tmp_path, "mc", raytrace.render(scene, "montecarlo", samples=64, threads=1, seed=11))
+    assert main(["diff", coarse, fine, "--bounds", "1"]) == 0
+    assert main(["diff", mc, fine, "--bounds", "5"]) == 0  # within 5 standard errors
+    out = capsys.readouterr().out
+    assert "pixels_over_bounds: 0" in out and "pixels_infinite_bound: 0" in out
+    image, header = film.read_exr(fine)
+    bound = film.read_exr_channels(fine, "error_bound")
+    image[2, 3, 1] *= 1.01  # one pixel-channel 1 % off: far beyond 1e-6
+    bad = tmp_path / "bad.exr"
+    film.write_exr(bad, image, header, {f"error_bound.{c}": bound[..., i] for i, c in enumerate("RGB")})
+    assert main(["diff", str(bad), fine, "--bounds", "1"]) == 1
+    assert "pixels_over_bounds: 1" in capsys.readouterr().out
+    assert main(["diff", str(bad), coarse, "--bounds", "1"]) == 1  # 1 % is beyond 1e-3 too
+
+
+def test_diff_bounds_needs_the_channels(tmp_path, capsys):
+    fine = _save(tmp_path, "fine", raytrace.render(CASES["isotropic"], "analytic", threads=1))
+    image, header = film.read_exr(fine)
+    plain = tmp_path / "plain.exr"
+    film.write_exr(plain, image, header)
+    assert main(["diff", str(plain), fine, "--bounds", "1"]) == 2
+    assert "no error_bound.R/G/B channels" in capsys.readouterr().err
+
+
+@fuzz_settings(16)
+@given(lit_scene(), st.sampled_from([1e-3, 1e-6]), st.booleans())
+def test_analytic_bound_holds_on_fuzzed_lit_rooms(sc, precision, shadows):
+    """The fuzzer's lit rooms (tests/test_fuzz_scenes.py: thick to thin media, every phase, point and
+    spot lights, occluders, interiors), against quadrature at rtol 1e-12 of the same rays, which
+    it may miss by that much: wherever the bound is finite it holds."""
+    shadows = shadows and not any("interior" in x for x in sc["shape"])
+    try:
+        img = raytrace.render(sc, "analytic", precision=precision, volumetric_shadows=shadows, threads=1)
+    except raytrace.UserError as exc:  # a light or interior analytic does not take
+        assert "--method" in str(exc), str(exc)
+        return
+    ref = raytrace.render(sc, "quadrature", rtol=1e-12, volumetric_shadows=shadows, threads=1).array
+    finite = np.isfinite(img.error_bound)
+    assert finite.any() and np.all(img.error_bound >= 0.0)
+    err = np.abs(img.array - ref)[finite]
+    assert np.all(err <= img.error_bound[finite] + 1e-11 * ref[finite]), \
+        f"max |err| / bound {np.max(err / np.maximum(img.error_bound[finite], 1e-300)):.3g} on {sc}"
