@@ -102,7 +102,8 @@ def test_the_exr_is_the_same_on_one_machine_one_worker_and_two(client, small_til
     assert "dask local:1: 1 workers" in capsys.readouterr().err
     assert main(common + ["--out", str(tmp_path / "two.exr"), "--quiet", "--scheduler", client.scheduler.address]) == 0
     want = exr_channels(tmp_path / "threads.exr")
-    assert set(want[0]) == {"R", "G", "B", "variance.R", "variance.G", "variance.B"}
+    assert set(want[0]) == {"R", "G", "B", "variance.R", "variance.G", "variance.B",
+                            "error_bound.R", "error_bound.G", "error_bound.B"}
     assert exr_channels(tmp_path / "one.exr") == want
     assert exr_channels(tmp_path / "two.exr") == want
 
