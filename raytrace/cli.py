@@ -59,6 +59,12 @@ def _cluster(args):
                    lambda line: print(line, file=sys.stderr))
 
 
+def _add_compare_shadows_arg(p):
+    p.add_argument("--volumetric-shadows", action=argparse.BooleanOptionalAction,
+                   help="shadowed air-light (light shafts) in every render (default: the scene's "
+                        "render.volumetric_shadows, else off, unlike render)")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line on stderr (SCENE_FORMAT.md), not usage + message."""
 
@@ -126,9 +132,10 @@ def build_parser():
     for name in ("spp", "width", "height", "seed", "threads"):
         c.add_argument(f"--{name}", type=int)
     c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
+    _add_compare_shadows_arg(c)
     _add_scheduler_arg(c)
-    s = sub.add_parser("sweep", help="a scene over a grid of --set values x methods: one EXR per point and method, "
-                                     "a CSV/JSON table of time and error against the reference at each point")
+    s = sub.add_parser("sweep", help="a scene over a grid of --set values x methods: one EXR and PNG per point and "
+                                     "method, a CSV/JSON table of time and error against the reference at each point")
     _add_scene_args(s)
     s.add_argument("--grid", action="append", required=True, metavar="KEY=V1,V2,...",
                    help="a grid axis: a scene key and its values (as --set values, split at top-level commas), "
@@ -138,6 +145,8 @@ def build_parser():
     s.add_argument("--out", required=True, help="output folder")
     for name in ("spp", "width", "height", "seed", "threads"):
         s.add_argument(f"--{name}", type=int)
+    s.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
+    _add_compare_shadows_arg(s)
     _add_scheduler_arg(s)
     t = sub.add_parser("table1", help="the paper's Table 1 on its three scenes, with a report")
     t.add_argument("--out", default="out/table1", help="output folder (default out/table1)")
@@ -297,7 +306,7 @@ def cmd_compare(args):
 
     check_exposure(args.exposure, "--exposure")
     scene = load(args)
-    options = render_options(scene, **_option_args(args))
+    options = render_options(scene, **_option_args(args), volumetric_shadows=args.volumetric_shadows)
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
     reference = parse_spec(args.reference)
     out = _folder(args.out)
@@ -318,18 +327,20 @@ def cmd_sweep(args):
     from .api import executor, load as load_scene, render_options
     from .experiments.compare import parse_spec
     from .experiments.sweep import grid_points, parse_axis, sweep
+    from .view import check_exposure
 
+    check_exposure(args.exposure, "--exposure")
     axes = [parse_axis(g) for g in args.grid]
     specs = [parse_spec(s) for s in args.methods.split(",") if s.strip()]
     reference = parse_spec(args.reference)
     points = []
     for where in grid_points(axes):  # every point parsed before anything is rendered or written
         scene = load_scene(args.scene, args.overrides + [f"{k}={v}" for k, v in where.items()], args.camera)
-        options = render_options(scene, **_option_args(args))
-        points.append((where, scene))
+        options = render_options(scene, **_option_args(args), volumetric_shadows=args.volumetric_shadows)
+        points.append((where, scene, options))  # each point its own options (a grid may set [render] keys)
     out = _folder(args.out)
     with _cluster(args) as client:
-        sweep(points, specs, reference, out, options, executor(options, client))
+        sweep(points, specs, reference, out, executor(options, client), args.exposure)
     print(f"wrote {out / 'sweep.csv'} and {out / 'sweep.json'}")
     return 0
 
