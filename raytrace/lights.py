@@ -103,6 +103,26 @@ def is_spot(cos_start):
 
 
 @njit
+def light_sample(kind, position, axis, cone, li, px, py, pz):
+    """(ux, uy, uz, dist, f) of light li (the `Lights` arrays `kind`, `position`, `axis`, `cone`) seen
+    from the point p: the unit direction toward the light, its distance (inf for a directional
+    light) and its emission factor toward p (a spot light's falloff, else 1). The unattenuated
+    irradiance at p on a surface facing the light is intensity f / dist^2, a directional light's
+    intensity f; (0, 0, 0, 0, 0) at a point or spot light's own position."""
+    if kind[li] == DIRECTIONAL:
+        return -axis[li, 0], -axis[li, 1], -axis[li, 2], math.inf, 1.0
+    tx, ty, tz = position[li, 0] - px, position[li, 1] - py, position[li, 2] - pz
+    dist = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if not dist > 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    ux, uy, uz = tx / dist, ty / dist, tz / dist
+    f = 1.0
+    if is_spot(cone[li, 1]):  # the light leaves along -u
+        f = falloff(-(ux * axis[li, 0] + uy * axis[li, 1] + uz * axis[li, 2]), cone[li, 0], cone[li, 1], cone[li, 2])
+    return ux, uy, uz, dist, f
+
+
+@njit
 def falloff(c, cos_end, cos_start, curve):
     """The spot falloff at cosine c to the axis: 1 from cos_start up, 0 from cos_end down (a hard
     edge if they are equal), and between, with t = (c - cos_end) / (cos_start - cos_end),

@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from raytrace.cli import main
-from raytrace.lights import CURVES, GLTF, MITSUBA, SMOOTHSTEP, band_trig, falloff
+from raytrace.lights import CURVES, DIRECTIONAL, GLTF, MITSUBA, SMOOTHSTEP, SPOT as SPOT_KIND, Light, Lights, \
+    band_trig, falloff, light_sample
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.methods import analytic as A
 from raytrace.methods import quadrature as Q
@@ -141,6 +142,32 @@ def test_falloff_is_pbrt_smoothstep():
     assert f(mid, ce, cs) == pytest.approx(0.5)
     assert f(ce + 0.25 * (cs - ce), ce, cs) == pytest.approx(0.25**2 * (3 - 0.5))
     assert f(cs, cs, cs) == 1.0 and f(np.nextafter(cs, 0.0), cs, cs) == 0.0
+
+
+def test_light_sample_against_the_lights_own_geometry():
+    """light_sample's direction, distance and factor, against a spot built from degrees (its falloff
+    from the angle's cosine) and against Lights.irradiance for every kind."""
+    axis = np.array([0.0, -1.0, 0.0])
+    ce, cs = math.cos(math.radians(30.0)), math.cos(math.radians(10.0))
+    lights = Lights.of([Light(np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.0, 3.0])),
+                        Light(np.array([0.0, 3.0, 0.0]), np.ones(3), SPOT_KIND, axis, ce, cs, MITSUBA),
+                        Light(np.zeros(3), np.full(3, 2.0), DIRECTIONAL, np.array([0.6, -0.8, 0.0]))])
+    rng = np.random.default_rng(5)
+    for p in rng.uniform(-2.0, 2.0, (200, 3)):
+        for li in range(3):
+            ux, uy, uz, dist, f = light_sample(lights.kind, lights.position, lights.axis, lights.cone, li, *p)
+            if li == 2:
+                assert (ux, uy, uz, dist, f) == (-0.6, 0.8, -0.0, math.inf, 1.0)
+                continue
+            rel = lights.position[li] - p
+            assert dist == pytest.approx(np.linalg.norm(rel), rel=1e-15)
+            np.testing.assert_allclose([ux, uy, uz], rel / np.linalg.norm(rel), rtol=0, atol=1e-15)
+            angle = math.degrees(math.acos(np.clip(-rel @ axis / np.linalg.norm(rel), -1, 1)))
+            want = 1.0 if li == 0 or angle <= 10.0 else max(0.0, (30.0 - angle) / 20.0)
+            assert f == pytest.approx(want, abs=1e-12)
+            e = lights.irradiance(li, (p - lights.position[li])[None, :], np.array([dist]))[0]
+            np.testing.assert_allclose(lights.intensity[li] * f / dist**2, e, rtol=1e-13)
+    assert light_sample(lights.kind, lights.position, lights.axis, lights.cone, 1, 0.0, 3.0, 0.0)[3:] == (0.0, 0.0)
 
 
 SPOT = {"type": "spot", "position": [0.0, 1.5, -1.0], "look_at": [0.0, -2.0, -1.0], "intensity": 20.0,

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
-from ..lights import SPOT, falloff
+from ..lights import light_sample
 from ..rng import mix64, uniform
 
 EXPONENT = 0.4  # eq. 1
@@ -156,18 +156,11 @@ def _march(fill, origins, dirs, tmax, keys, p, seed, lk, lpos, lint, laxis, lcon
             cx, cy, cz = rx + D * ux, ry + D * uy, rz + D * uz
             beta = beta_user if beta_user > 0.0 else ((1.0 - d) + c1) * c2
             for l in range(lpos.shape[0]):
-                tx, ty, tz = lpos[l, 0] - cx, lpos[l, 1] - cy, lpos[l, 2] - cz
-                dist = math.sqrt(tx * tx + ty * ty + tz * tz)
-                if not dist > 0.0:
-                    continue
-                f = 1.0
-                if lk[l] == SPOT:
-                    f = falloff(-(tx * laxis[l, 0] + ty * laxis[l, 1] + tz * laxis[l, 2]) / dist,
-                                lcone[l, 0], lcone[l, 1], lcone[l, 2])
+                tx, ty, tz, dist, f = light_sample(lk, lpos, laxis, lcone, l, cx, cy, cz)
                 if f == 0.0:
                     continue
                 if fill:
-                    cos_s = (ux * tx + uy * ty + uz * tz) / dist
+                    cos_s = ux * tx + uy * ty + uz * tz
                     T = beta * dist
                     Is = kd * (math.exp(-T) * max(0.0, cos_s) / (dist * dist)
                                + beta * _g0(table, T, cos_s) / (2.0 * math.pi * dist))
