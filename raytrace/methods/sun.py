@@ -30,8 +30,7 @@ with E1 so nothing overflows):
 using scipy.special.exp1 on complex arguments, and cached as .npy under $RAYTRACE_CACHE (default
 ~/.cache/raytrace), keyed by (table_size, u_max, TABLE_VERSION); writes are atomic (temporary file
 + os.replace) and an unreadable or inconsistent cache file is regenerated. Isotropic media only
-(an anisotropic phase would need a table per phase function): its `Supports.phases`, so another
-phase is refused by `Method.check_phase`, naming the methods that take it.
+(an anisotropic phase would need a table per phase function): `check` raises UserError otherwise.
 """
 from __future__ import annotations
 
@@ -42,11 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UserError
 from ..cache import cache_dir
 from ..jit import njit
 from . import ErrorLaw, Method, Param, Supports
 from .geometry import by_channel
-from ..media.phase import ISOTROPIC
+from ..media.phase import ISOTROPIC, NAMES
 
 TABLE_VERSION = 1
 HALF_PI = 0.5 * math.pi
@@ -234,6 +234,13 @@ def _summarize(stats):
             "saturated estimates": int(stats[SATURATED])}
 
 
+def _check(medium, params):
+    if medium.phase != ISOTROPIC:
+        raise UserError(f"method sun: its table F(u, v) is for isotropic media only, but medium.phase is "
+                        f"'{NAMES.get(medium.phase, medium.phase)}'; set medium.phase = \"isotropic\" or use "
+                        f"--method quadrature")
+
+
 METHOD = Method(
     name="sun",
     summary="Sun et al. 2005: bilinear lookup in a precomputed F(u, v) table, clamped at its edges (isotropic only)",
@@ -246,5 +253,6 @@ METHOD = Method(
     error_law=ErrorLaw({}, "median", 3e-4),  # measured worst 1.0e-4 (thick), tests/test_methods.py
     stats_size=3,
     summarize=_summarize,
+    check=_check,
     supports=Supports(phases=(ISOTROPIC,)),
 )
