@@ -22,7 +22,7 @@ import pytest
 from raytrace import error_bounds
 from raytrace.options import RenderOptions
 from raytrace.renderer import prepare, render
-from raytrace.scene.format import load_scene
+from raytrace.scene.format import load_scene, scene_from_text
 
 from . import oracle
 from .conftest import to_toml
@@ -169,3 +169,49 @@ def test_analytic_is_exact_where_the_sun_enters_through_the_sides(tmp_path, name
     assert np.median(bound[seen] / ref[seen]) <= 1e-10
     planar = render(prep, "slab_approx", {"precision": precision}, RenderOptions(threads=1)).image
     assert np.max(np.abs(planar - ref)[seen] / ref[seen]) > 1e-3
+
+
+def test_the_cube_lit_from_beside_against_the_seed_twin():
+    """tests/test_bounded_media.py's cube lit from beside (its twin measures the light's paths on the
+    actual cube, scipy quad): analytic to 1e-9 where the entry plane was more than 5 % off, bounded."""
+    from .test_bounded_media import CUBES, twin_image
+
+    sc = dict(CUBES["sun_beside_cube"])
+    sc.pop("any_face")
+    ref = twin_image("sun_beside_cube")
+    lit = ref > 0
+    res = render(prepare(scene_from_text(to_toml(sc), "cube")), "analytic", {}, RenderOptions(threads=1))
+    assert np.all(res.image[~lit] == 0) and np.max(np.abs(res.image - ref)[lit] / ref[lit]) < 1e-9
+    assert np.all(np.isfinite(res.error_bound)) and res.stats["inside: segments handed to quadrature"] == 0
+
+
+def fallback_cases(tmp_path):
+    """A non-convex U (tests/test_inside_paths.py) and a sphere of 24 segments (300 face planes, more
+    than MAX_FACES) under the sun."""
+    from .test_inside_paths import SUN as U_SUN, u_obj, u_scene
+
+    (tmp_path / "u.obj").write_text(u_obj())
+    (tmp_path / "u.toml").write_text(to_toml(u_scene(U_SUN)))
+    sphere = {"camera": {"position": [0.4, 0.6, 3.0], "look_at": [0.0, 0.0, 0.0], "fov": 45.0, "width": 8,
+                         "height": 6, "spp": 1},
+              "shape": [{"primitive": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0, "segments": 24,
+                         "interior": {"sigma_a": SIGMA_A.tolist(), "sigma_s": SIGMA_S.tolist()}}],
+              "light": [SUN]}
+    return {"U": prepare(load_scene(tmp_path / "u.toml")), "sphere": prepare(scene_from_text(to_toml(sphere), "s"))}
+
+
+def test_shapes_without_the_closed_form_go_to_quadrature_counted(tmp_path):
+    """Their segments are integrated by the adaptive quadrature (the same as `quadrature`'s image),
+    counted in `inside: segments handed to quadrature`, and their pixels' bounds are infinite, counted."""
+    from raytrace import bounded
+    from raytrace.media.convex_directional import MAX_FACES
+
+    for name, prep in fallback_cases(tmp_path).items():
+        if name == "sphere":
+            assert len(bounded.hull_planes(prep, 0)) > MAX_FACES
+        res = render(prep, "analytic", {}, RenderOptions(threads=1))
+        ref = render(prep, "quadrature", {}, RenderOptions(threads=1))
+        handed = res.stats["inside: segments handed to quadrature"]
+        inf = np.isinf(res.error_bound).any(axis=2)
+        assert handed == inf.sum() > 0 and res.stats[error_bounds.INFINITE_STAT] == inf.sum(), (name, handed)
+        np.testing.assert_array_equal(res.image, ref.image)
