@@ -184,7 +184,8 @@ def segments_bounded(n, c, origins, dirs, lengths, toward, kt, ks, code, g, out,
     cuts, lines = np.empty(nf + 1), np.empty(nf, dtype=np.int64)
     for s in range(origins.shape[0]):
         o, w, length = origins[s], dirs[s], lengths[s]
-        mu = toward[0] * w[0] + toward[1] * w[1] + toward[2] * w[2]  # the light travels along -toward, the eye is along -w
+        # the scattering cosine: the light travels along -toward, the eye is along -w
+        mu = toward[0] * w[0] + toward[1] * w[1] + toward[2] * w[2]
         m = _pieces(n, c, o, w, toward, length, kt, ks, phase_value(code, g, mu), out[s], alpha, beta, cuts, lines)
         scale = 0.0
         norm_o = math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2])

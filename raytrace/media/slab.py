@@ -46,7 +46,8 @@ from .integrand import integrand, integrand_of
 from .march import march
 from .phase import phase_value
 
-# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the note's approximation,
+# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only (CLOSED; in convex index-matched
+# shapes bounded.py takes media/convex_directional.py's exact closed form instead), the note's approximation,
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
