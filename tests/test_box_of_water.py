@@ -166,6 +166,8 @@ def test_analytic_is_exact_where_the_sun_enters_through_the_sides(tmp_path, name
     bound = res.error_bound
     assert np.all(np.isfinite(bound)) and res.stats[error_bounds.INFINITE_STAT] == 0
     assert np.all(err <= bound), np.max(err / bound)
+    print(f"{name}: median bound / value on the shape {np.median(bound[seen] / ref[seen]):.2e}, worst err / bound "
+          f"{np.max(err / bound):.2e}")
     assert np.median(bound[seen] / ref[seen]) <= 1e-10
     planar = render(prep, "slab_approx", {"precision": precision}, RenderOptions(threads=1)).image
     assert np.max(np.abs(planar - ref)[seen] / ref[seen]) > 1e-3
