@@ -573,4 +573,6 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
 
 def scaled(bound, f):
     """bound x f (f >= 0), inf where bound is inf (also where f = 0: nothing known was multiplied)."""
-    return np.where(np.isinf(bound), np.inf, bound * f)
+    out = np.full(np.broadcast_shapes(bound.shape, np.shape(f)), np.inf)
+    np.multiply(bound, f, out=out, where=~np.isinf(bound))
+    return out
