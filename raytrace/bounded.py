@@ -6,8 +6,10 @@ outside. Here each ray is refracted into the shape (Snell, smooth dielectric; st
 ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the note's planar boundary): a directional light refracted through it
-(eq. 5), a point light along its straight path (index-matched, eq. 7) or along its refracted path
-(Fermat's path through the plane, with the ray tube's irradiance: media/slab.py refracted_point); a
+(eq. 5; in index-matched convex shapes `analytic` takes its exact path through whichever face it
+meets instead, media/convex_directional.py), a point light along its straight path (index-matched,
+eq. 7) or along its refracted path (Fermat's path through the plane, with the ray tube's
+irradiance: media/slab.py refracted_point); a
 spot light as a point light times its falloff on the direction in which the light leaves it. In
 index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
 to the boundary of a convex shape (`convex_planes`, numba, when it has few faces; Embree's batched
@@ -20,7 +22,9 @@ Radiance crossing into a denser medium is multiplied by T eta^2 and back out by 
 the path (no reflected paths in this first cut).
 
 Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside segments
-and what it takes there: `quadrature` (adaptive, the reference), `analytic` (eq. 5: directional lights only),
+and what it takes there: `quadrature` (adaptive, the reference), `analytic` (directional lights only: the
+exact closed form in convex index-matched shapes of at most MAX_FACES planes, with an error bound; the
+adaptive quadrature in other index-matched shapes, counted; eq. 5 through refractive boundaries),
 `slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
@@ -34,13 +38,17 @@ from . import inside_paths
 from .errors import UserError
 from .lights import DIRECTIONAL, Lights
 from .media.adaptive import CAPPED
-from .media.slab import GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
+from .media.convex_directional import MAX_FACES, segments_bounded
+from .media.slab import CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
 from .methods import registry
 from .methods.geometry import segment_light_table
 from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
 
-STATS_SIZE = 3  # the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED)
+# the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), then the segments
+# a CLOSED-mode method hands to quadrature (`single_scattering`)
+STATS_SIZE = 4
+HANDED = 3
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 # face planes of a convex shape up to which media/slab.py's kernel (every plane at every evaluation) is
@@ -51,12 +59,16 @@ KERNEL_PLANES = 64
 def summarize(prep, method, stats) -> dict:
     """The render statistics of the inside integrals (`single_scattering`'s) in a scene with media
     inside shapes: the adaptive integrator's integrals that fell short of their tolerance (a piece
-    accepted at a cap), as quadrature reports its own outside; nothing for the other inside
+    accepted at a cap), as quadrature reports its own outside; for a CLOSED-mode method also the
+    segments (one per ray and light) it handed to quadrature; nothing for the other inside
     integrators, which have no caps."""
     sup = method.supports.interiors
-    if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None or sup.mode != QUAD:
+    if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None or sup.mode not in (QUAD, CLOSED):
         return {}
-    return {"inside: integrals not converged": int(stats[CAPPED])}
+    out = {"inside: integrals not converged": int(stats[CAPPED])}
+    if sup.mode == CLOSED:
+        out["inside: segments handed to quadrature"] = int(stats[HANDED])
+    return out
 
 
 def interiors(scene) -> list:
@@ -319,10 +331,15 @@ def _transmittance(cos_i, eta):
 def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, its
-    variance (N, 3) (0 but for the sampling integrator) and its statistics (STATS_SIZE). The method's
-    inside integrator is its `Supports.interiors.mode`; in an index-matched shape the light's path
-    inside is its exact straight path (convex: `convex_planes`; else traced, `_traced`) for the
-    methods with `exact_paths`, else the note's entry plane (analytic's eq. 5, slab_approx)."""
+    variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
+    (N, 3) on its error (inf where none is known). The method's inside integrator is its
+    `Supports.interiors.mode`; in an index-matched shape the light's path inside is its exact
+    straight path (convex: `convex_planes`; else traced, `_traced`) for the methods with
+    `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights)
+    in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
+    media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
+    (`_traced`, rtol RTOL), counted (HANDED), unbounded; through a refractive boundary eq. 5 (the
+    note's entry plane), unbounded."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
@@ -334,6 +351,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     var = np.zeros((n, 3))
     sup = method.supports.interiors
     mode = sup.mode
+    closed = mode == CLOSED and medium.ior == 1.0  # the exact closed form, or quadrature where there is none
+    kernel = closed and 0 < len(planes) <= MAX_FACES
+    bound = np.zeros((n, 3)) if kernel else np.full((n, 3), np.inf)
     rtol = params.get("rtol", RTOL)
     steps = int(params.get("steps", params.get("samples", 1)))
     tau_max = float(params.get("tau_max", 745.0))  # raymarch's cut of long segments
@@ -364,9 +384,20 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 lh = rel - hl[:, None] * normals
                 wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
                 ll = np.einsum("ij,ij->i", lh, lh)
-        if traced and sup.exact_paths:
-            _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale, mode,
-                    rtol, steps, tau_max, keys, STREAM + (depth * len(lights) + li) * steps, seed, out, var, stats)
+        if kernel:
+            val, b = np.empty((n, 3)), np.empty((n, 3))
+            segments_bounded(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]),
+                             np.ascontiguousarray(points), np.ascontiguousarray(w), np.ascontiguousarray(ell),
+                             -lights.axis[li], medium.sigma_t, medium.sigma_s, medium.phase, medium.g, val, b)
+            out += val * lights.intensity[li]
+            bound += b * lights.intensity[li]
+            continue
+        if closed or (traced and sup.exact_paths):
+            if closed:
+                stats[HANDED] += np.count_nonzero(ell > 0.0)
+            _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale,
+                    QUAD if closed else mode, rtol, steps, tau_max, keys, STREAM + (depth * len(lights) + li) * steps,
+                    seed, out, var, stats)
             continue
         for c in range(3):
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
@@ -382,13 +413,13 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             f = scale * lights.intensity[li, c]
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
-    return out, var, stats
+    return out, var, stats, bound
 
 
 def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
             stats):
-    """out, var += one light's single scattering over the segments of a non-convex index-matched
-    shape, the light's straight paths measured with Embree (inside_paths.py)."""
+    """out, var += one light's single scattering over the segments of an index-matched shape (non-convex,
+    or handed over by CLOSED), the light's straight paths measured with Embree (inside_paths.py)."""
     ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
     if not len(ch):
         return
@@ -453,13 +484,13 @@ def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade)
     sid = prep.camera_inside
     medium = prep.scene.shapes[sid].interior
     accel = prep.accel
-    out, var, stats = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
+    out, var, stats, _ = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
     if len(exits):
         cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
         q = origins[exits] + t[exits, None] * dirs[exits]
         start, gap = _leave(prep, q, dirs[exits], cos)
-        seen, seen_var = shade(start, dirs[exits], keys[exits], 1)
+        seen, seen_var, _ = shade(start, dirs[exits], keys[exits], 1)
         with np.errstate(over="ignore", invalid="ignore"):
             tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0,
                           np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap
@@ -475,14 +506,17 @@ def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade)
 def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
     """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
     what the inside scatters toward them and what comes through from behind the exit, through the
-    boundaries, its variance (N, 3) and the inside integrals' statistics (STATS_SIZE; those of the
-    rays `shade` follows are the renderer's). `shade(origins, dirs, keys, depth)` is the renderer's
-    radiance and variance (or None) of rays leaving a shape."""
+    boundaries, its variance (N, 3), the inside integrals' statistics (STATS_SIZE; those of the
+    rays `shade` follows are the renderer's) and a bound (N, 3) on its error (error_bounds.py: the
+    inside's, `single_scattering`, plus what lies behind's; the float64 rounding of the closed forms
+    here is the renderer's allowance on the whole). `shade(origins, dirs, keys, depth)` is the
+    renderer's radiance, variance (or None) and bound of rays leaving a shape."""
     out = np.zeros((len(origins), 3))
     out_var = np.zeros_like(out)
+    out_bound = np.zeros_like(out)
     stats = np.zeros(STATS_SIZE)
-    if depth >= MAX_DEPTH:
-        return out, out_var, stats
+    if depth >= MAX_DEPTH:  # black by the model
+        return out, out_var, stats, out_bound
     accel = prep.accel
     points = origins + t[:, None] * dirs
     normals = facing_normals(accel.normals[prim], dirs)
@@ -495,8 +529,8 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         w, cos_t = _refract(d, nf, eta)
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
         ell, prim2, touch = _inside_hits(prep, p, w, cos_t)
-        inner, inner_var, inner_stats = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel], seed,
-                                                          depth)
+        inner, inner_var, inner_stats, bound = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel],
+                                                                 seed, depth)
         stats += inner_stats
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)
@@ -507,7 +541,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
             w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
             t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
             start, gap = _leave(prep, q, w_out, cos_o)
-            seen, seen_var = shade(start, w_out, keys[sel][exits], depth + 1)
+            seen, seen_var, seen_bound = shade(start, w_out, keys[sel][exits], depth + 1)
             on, at = _met_at_once(prep, q, w_out, cos_o, touch[exits])
             rest = np.nonzero(on >= 0)[0]
             if len(rest):
@@ -516,6 +550,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
                                               prep.reflectance[on], prep.lights, prep.scene.medium,
                                               shadow_through(prep))
                 gap[rest] = 1.0
+                seen_bound[rest] = 0.0  # a float64 closed form
                 if seen_var is not None:
                     seen_var[rest] = 0.0
             kt = medium.sigma_t[None, :]
@@ -523,6 +558,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
                 tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
             f = (t_out * eta * eta)[:, None] * tr * gap
             behind[exits] = f * seen
+            bound[exits] += scaled(seen_bound, f)
             if seen_var is not None:
                 behind_var[exits] = f * f * seen_var
         walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
@@ -531,4 +567,12 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         f = (t_in / (eta * eta))[:, None]
         out[sel] = f * (inner + behind)
         out_var[sel] = f * f * (inner_var + behind_var)
-    return out, out_var, stats
+        out_bound[sel] = scaled(bound, f)
+    return out, out_var, stats, out_bound
+
+
+def scaled(bound, f):
+    """bound x f (f >= 0), inf where bound is inf (also where f = 0: nothing known was multiplied)."""
+    out = np.full(np.broadcast_shapes(bound.shape, np.shape(f)), np.inf)
+    np.multiply(bound, f, out=out, where=~np.isinf(bound))
+    return out

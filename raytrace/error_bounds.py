@@ -11,7 +11,12 @@ samples):
   infinite; a stochastic method's air-light adds nothing here: its pixels carry their standard
   error instead (`with_standard_error`, a statistical measure, not a bound);
 * closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;
-* rays that enter a shape holding a medium, and the particle layer's glints: infinite;
+* rays that enter a shape holding a medium: the inside's bound and what lies behind's (bounded.py),
+  finite only where `analytic` integrates a convex index-matched shape under directional lights in
+  closed form (media/convex_directional.py `segments_bounded`: KERNEL_FLOOR plus the condition of
+  the light's path in its inputs, times the value); infinite for every other inside integrator, for
+  the segments it hands to quadrature and through refractive boundaries (the note's entry plane);
+* the particle layer's glints: infinite;
 * a float32 EXR adds its own rounding (`stored`).
 """
 from __future__ import annotations

@@ -112,8 +112,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     ray's radiance (error_bounds.py). `shadows`: None for the paper's unshadowed air-light, else the
     air-light over the exact lit intervals
     (shadow_frusta.py; its value, a former search spacing, is not read).
-    Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep);
-    their bound is infinite (the interiors' kernels report none)."""
+    Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep),
+    with the bound bounded.radiance gives them (infinite where the interior's integrator has none)."""
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
@@ -123,9 +123,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
 
     def behind(o, d, k, dep):
-        rad, s, var, _ = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
+        rad, s, var, b = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
         deeper[:] += s
-        return rad, var
+        return rad, var, b
 
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
         rad, var, deeper[-bounded.STATS_SIZE:] = bounded.from_inside(prep, method, params, origins, dirs, t, prim,
@@ -143,8 +143,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
-        radiance[into], into_var, inside = bounded.radiance(prep, method, params, origins[into], dirs[into], t[into],
-                                                            prim[into], keys[into], seed, depth, behind)
+        radiance[into], into_var, inside, into_bound = bounded.radiance(prep, method, params, origins[into],
+                                                                        dirs[into], t[into], prim[into], keys[into],
+                                                                        seed, depth, behind)
         deeper[-bounded.STATS_SIZE:] += inside
     radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
@@ -153,7 +154,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     variance = np.zeros_like(radiance) if method.stochastic else None
     if into.any() and variance is not None:
         variance[into] = into_var * tr[into] ** 2
-    bound = np.where(into[:, None], np.inf, np.zeros_like(radiance))
+    bound = np.zeros_like(radiance)
+    if into.any():
+        bound[into] = bounded.scaled(into_bound, tr[into])
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)

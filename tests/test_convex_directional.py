@@ -10,7 +10,8 @@ a third running to the exit), random and grazing light (n·u = ±1e-9), kt from 
 channel: 1e-12 relative (measured: <= 1e-13 on the box, prism and slab, 8e-13 on the hull), except
 where the answer itself is ill-conditioned in doubles (`test_against_the_twin`). Also: the sweep
 against the brute-force minimum, a box by hand, the planar model (slab.slab_distant) where it is
-exact, the existing convex quadrature (slab.convex_quadrature), the edge cases of the module docstring.
+exact, the existing convex quadrature (slab.convex_quadrature), the edge cases of the module docstring,
+and the error bound bounded.py renders with (`segments_bounded`) against the twin.
 """
 import itertools
 import math
@@ -21,7 +22,9 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from raytrace.media import slab
-from raytrace.media.convex_directional import MAX_FACES, envelope, segment_radiance, segments_radiance
+from raytrace.media.convex_directional import (MAX_FACES, envelope, segment_radiance, segments_bounded,
+                                               segments_radiance)
+from raytrace.media.phase import HG, ISOTROPIC, phase_value
 
 RTOL = 1e-12
 FALLS = list(range(11)) + [12, 15, 20, 25, 30, 40, 50, 60]
@@ -199,6 +202,48 @@ def test_against_the_twin(name):
             off += np.count_nonzero(err > RTOL)
     print(f"{name}: worst relative error {worst:.2e} where the allowance <= 1e-9; {loose} channels beyond, "
           f"{off} of them off by more than 1e-12")
+
+
+@pytest.mark.parametrize("name", sorted(SHAPES))
+def test_the_bound_holds_against_the_twin(name):
+    """`segments_bounded` (what bounded.py renders with): the values of `segments_radiance` with the
+    phase function at each segment's scattering cosine, and a bound that the twin's error never
+    exceeds (half the lights grazing a face at 1e-9), finite for finite segments, and within
+    1e-10 of the value wherever the twin's allowance is below 1e-12."""
+    n, c = SHAPES[name]
+    rng = np.random.default_rng(40 + sorted(SHAPES).index(name))
+    lights = light_directions(rng, n, 3)
+    worst, tight, loose = 0.0, 0, 0
+    for o, w, length in segments(rng, n, c, 6 if name == "hull" else 12):
+        for toward in lights:
+            kt = 10.0 ** rng.uniform(-6, 3, size=3)
+            ks = kt * rng.uniform(0.1, 1.0, size=3)
+            out, bound = np.zeros((1, 3)), np.zeros((1, 3))
+            assert segments_bounded(n, c, o[None, :], w[None, :], np.array([length]), toward, kt, ks, HG, 0.6, out,
+                                    bound)
+            phase = float(phase_value(HG, 0.6, float(toward @ w)))
+            assert np.array_equal(out[0], kernel(n, c, o, w, length, toward, kt, ks, phase))
+            ref, allow = twin(n, c, o, w, length, toward, kt, ks, phase)
+            err = np.abs(out[0] - ref)
+            assert np.all(np.isfinite(bound)) and np.all(err <= bound[0]), (o, w, length, toward, kt, err, bound)
+            worst = max(worst, float(np.max(err / np.where(bound[0] > 0, bound[0], 1.0))))
+            small = allow < 1e-12
+            assert np.all(bound[0][small] <= 1e-10 * out[0][small])
+            tight += np.count_nonzero(small)
+            loose += np.count_nonzero(allow > 1e-9)
+    assert tight > 0
+    print(f"{name}: largest error / bound {worst:.2e}; {loose} channels where the allowance exceeds 1e-9")
+
+
+def test_the_bound_of_an_infinite_segment_is_infinite():
+    """A half-space entered along its boundary plane's normal, T = inf: the value is finite, the
+    allowance (|c| + |o| + T) / q is not, so neither is the bound; vacuum channels and no light: 0."""
+    out, bound = np.zeros((1, 2)), np.zeros((1, 2))
+    assert segments_bounded(np.array([[0.0, 0.0, 1.0]]), np.array([0.0]), np.zeros((1, 3)), np.array([[0.0, 0.0, -1.0]]),
+                            np.array([math.inf]), unit(np.array([0.0, 0.3, 1.0])), np.array([1.0, 2.0]),
+                            np.array([0.5, 0.0]), ISOTROPIC, 0.0, out, bound)
+    assert np.isfinite(out[0, 0]) and out[0, 0] > 0 and bound[0, 0] == math.inf
+    assert out[0, 1] == 0.0 and bound[0, 1] == 0.0
 
 
 def sphere_hull(points=32, seed=4):

@@ -41,11 +41,13 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
 from ..rng import uniform
 from .adaptive import piecewise
+from .convex_directional import envelope
 from .integrand import integrand, integrand_of
 from .march import march
 from .phase import phase_value
 
-# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only, the note's approximation,
+# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only (CLOSED; in convex index-matched
+# shapes bounded.py takes media/convex_directional.py's exact closed form instead), the note's approximation,
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
@@ -530,15 +532,25 @@ def straight_cuts(geo, end, out):
 @njit
 def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
     """∫_0^ell `convex_integrand` dx, adaptive (adaptive.piecewise) on the pieces between a spot's
-    cone crossings (`straight_cuts`)."""
+    cone crossings (`straight_cuts`), or a directional light's kinks, where the face its path enters
+    through changes (convex_directional.envelope: a kink the rules' nodes straddle, 1e-3 of the segment
+    from its end, was accepted 2e-7 off at any rtol)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
+    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase)
+    if directional:
+        nf = planes.shape[0]
+        cuts = np.empty(nf + 1)
+        m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, np.empty(nf), np.empty(nf),
+                     cuts, np.empty(nf, dtype=np.int64))
+        if m > 0:
+            return piecewise(rec, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
+        return 0.0  # no face toward the light: an infinite path inside (kt > 0)
     br = np.empty(6)
     br[0] = 0.0
-    m = 0 if directional else straight_cuts(geo, end, br[1:])
+    m = straight_cuts(geo, end, br[1:])
     br[m + 1] = end
-    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase)
     return piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
 
 

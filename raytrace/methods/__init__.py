@@ -96,10 +96,13 @@ LIGHTS = ("point", "spot", "directional")  # lights.NAMES
 @dataclass(frozen=True)
 class Interiors:
     """How a method integrates media inside shapes (bounded.py): media/slab.py's inside integrator
-    `mode` (QUAD adaptive, CLOSED eq. 5, APPROX the slab note's separable approximation, MARCH
-    midpoints, SAMPLE free paths), for the light kinds `lights`, of which `refracted` also through a
+    `mode` (QUAD adaptive, CLOSED closed forms: a directional light's exact path in convex index-matched
+    shapes, media/convex_directional.py, quadrature in other index-matched ones, counted, eq. 5 through
+    refractive boundaries; APPROX the slab note's separable approximation, MARCH midpoints, SAMPLE free
+    paths), for the light kinds `lights`, of which `refracted` also through a
     refractive boundary (ior != 1). `exact_paths`: in index-matched shapes the light's exact straight
-    path (and a camera inside such a shape is taken), else the entry face's plane (the note's model).
+    path (and a camera inside such a shape is taken), else the entry face's plane (the note's model;
+    CLOSED as above, a camera inside refused).
     `fixed`: its parameters not implemented inside (they must keep their defaults). `limits`: what
     its refusal of a light says."""
     mode: int
