@@ -1,4 +1,4 @@
-"""Command line: render, compare, sweep, table1, seed002, describe, methods, diff (SCENE_FORMAT.md).
+"""Command line: render, compare, sweep, table1, seed002, describe, methods, diff, export, gallery (docs/cli.md).
 
 User errors print one line on stderr and exit with status 2; nothing half-written stays on disk.
 """
@@ -17,7 +17,7 @@ import numpy as np
 from .errors import UserError
 from .film import VIEWS
 
-COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export", "gallery")
 
 
 def _method_param_flags():
@@ -172,6 +172,12 @@ def build_parser():
     x.add_argument("--out", required=True, help="the file to write (meshes are written beside it or embedded)")
     x.add_argument("--approximate", action="store_true",
                    help="write what the format cannot express exactly as its closest form, with a warning naming it")
+    g = sub.add_parser("gallery", help="every bundled scene (or those named) as a PNG preview with its own method "
+                                       "and spp, at --width and the camera's aspect (README's gallery)")
+    g.add_argument("scenes", nargs="*", metavar="SCENE", help="bundled scene names (default: all of them)")
+    g.add_argument("--out", default="docs/gallery", help="output folder, one NAME.png per scene (default docs/gallery)")
+    g.add_argument("--width", type=int, default=960, help="image width in pixels (default 960)")
+    g.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     f = sub.add_parser("diff", help="error of TEST.exr against REF.exr, with an error map")
     f.add_argument("test")
     f.add_argument("ref")
@@ -418,6 +424,15 @@ def cmd_export(args):
     return 0
 
 
+def cmd_gallery(args):
+    from .gallery import render_gallery
+
+    written = render_gallery(Path(args.out), args.width, args.scenes, note=lambda line: print(line, flush=True),
+                             threads=args.threads)
+    print(f"wrote {len(written)} images to {args.out}")
+    return 0
+
+
 def cmd_methods(args):
     from .methods import registry
 
@@ -490,7 +505,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
                 "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
-                "seed002": cmd_seed002, "export": cmd_export}
+                "seed002": cmd_seed002, "export": cmd_export, "gallery": cmd_gallery}
     try:
         with _one_line_warnings():
             return handlers[args.command](args)
