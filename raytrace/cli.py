@@ -449,7 +449,7 @@ def cmd_gallery(args):
 
     written = render_gallery(Path(args.out), args.width, args.scenes, note=lambda line: print(line, flush=True),
                              threads=args.threads)
-    print(f"wrote {len(written)} images to {args.out}")
+    print(f"wrote {len(written)} image{'' if len(written) == 1 else 's'} to {args.out}")
     return 0
 
 
