@@ -1,4 +1,4 @@
-"""Command line: render, compare, sweep, table1, seed002, describe, methods, diff (SCENE_FORMAT.md).
+"""Command line: render, compare, sweep, table1, seed002, describe, methods, diff, export, gallery (docs/cli.md).
 
 User errors print one line on stderr and exit with status 2; nothing half-written stays on disk.
 """
@@ -17,7 +17,10 @@ import numpy as np
 from .errors import UserError
 from .film import VIEWS
 
-COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export")
+PAPER = '"An Analytical Solution to Single Scattering in Homogeneous Participating Media" (Pegoraro & Parker)'
+DESCRIPTION = ("Render single scattering in participating media (fog, atmospheres, media inside shapes) to EXR and "
+               f"PNG: the closed-form air-light of {PAPER}, and ray marching, quadrature and Monte Carlo to check it.")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export", "gallery")
 
 
 def _method_param_flags():
@@ -33,11 +36,25 @@ def _method_param_flags():
 
 
 def _add_scene_args(p):
-    p.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in default scene)")
+    p.add_argument("scene", nargs="?", help="a scene file (TOML; glTF, Mitsuba 3 XML or pbrt-v4 are read too) or a "
+                                            "bundled scene's name, e.g. box_room (default: the built-in default scene)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set medium.sigma_s=0.2 (repeatable)")
     p.add_argument("--camera", metavar="NAME",
                    help="the camera of a glTF scene to use, by its node's or its own name (default: the first)")
+
+
+OPTION_HELP = {"spp": "samples per pixel (default: the scene's camera.spp)",
+               "width": "image width in pixels (default: the scene's camera.width)",
+               "height": "image height in pixels (default: the scene's camera.height)",
+               "seed": "random seed of the stochastic methods (default 0)",
+               "threads": "worker threads (default: all cores)"}
+
+
+def _add_option_args(p):
+    """--spp, --width, --height, --seed, --threads: the render options of compare and sweep."""
+    for name, text in OPTION_HELP.items():
+        p.add_argument(f"--{name}", type=int, help=text)
 
 
 def _add_scheduler_arg(p):
@@ -73,11 +90,13 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser():
-    parser = _Parser(prog="render.py", description="Single scattering in homogeneous media.")
+    parser = _Parser(prog="render.py", description=DESCRIPTION,
+                     epilog="Without a command, the arguments are render's: `render.py box_room` renders the bundled "
+                            "scene box_room. `render.py COMMAND --help` lists a command's options; docs/cli.md has them all.")
     sub = parser.add_subparsers(dest="command")
     r = sub.add_parser("render", help="render a scene to EXR (and PNG)")
     _add_scene_args(r)
-    r.add_argument("--method", help="air-light method (see `methods`)")
+    r.add_argument("--method", help="air-light method (see `methods`; default: the scene's render.method, else analytic)")
     r.add_argument("--spp", type=int, help="samples per pixel (1 = the pixel centre)")
     r.add_argument("--width", type=int, help="image width in pixels")
     r.add_argument("--height", type=int, help="image height in pixels")
@@ -129,8 +148,7 @@ def build_parser():
                    help="comma-separated methods, each name or name:key=value:... (e.g. raymarch:steps=32)")
     c.add_argument("--reference", default="quadrature", help="reference method (default quadrature)")
     c.add_argument("--out", required=True, help="output folder")
-    for name in ("spp", "width", "height", "seed", "threads"):
-        c.add_argument(f"--{name}", type=int)
+    _add_option_args(c)
     c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     _add_compare_shadows_arg(c)
     _add_scheduler_arg(c)
@@ -143,23 +161,25 @@ def build_parser():
     s.add_argument("--methods", required=True, help="comma-separated methods, as for compare")
     s.add_argument("--reference", default="quadrature", help="reference method (default quadrature)")
     s.add_argument("--out", required=True, help="output folder")
-    for name in ("spp", "width", "height", "seed", "threads"):
-        s.add_argument(f"--{name}", type=int)
+    _add_option_args(s)
     s.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     _add_compare_shadows_arg(s)
     _add_scheduler_arg(s)
-    t = sub.add_parser("table1", help="the paper's Table 1 on its three scenes, with a report")
+    t = sub.add_parser("table1", help=f"Table 1 of {PAPER} on the paper's three scenes (time and error of each "
+                                      "method), with a report")
     t.add_argument("--out", default="out/table1", help="output folder (default out/table1)")
     t.add_argument("--quick", action="store_true", help="small images and 1 spp (for CI)")
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--threads", type=int)
+    t.add_argument("--seed", type=int, default=0, help=OPTION_HELP["seed"])
+    t.add_argument("--threads", type=int, help=OPTION_HELP["threads"])
     t.add_argument("--shadows", choices=("quarter", "full", "off"), default="quarter",
                    help="the second table, with volumetric shadows: at a quarter of the width and height and "
                         "1 spp (default; the lit-interval search makes every shadowed render 5-40x slower), at "
                         "the full size, or off (with --quick it uses the quick images)")
     _add_scheduler_arg(t)
-    e = sub.add_parser("seed002", help="seed 002's figures (slab single scattering vs the light's distance) and "
-                                       "the measured error of its point-light approximation: CSV, report, plots")
+    e = sub.add_parser("seed002", help="the figures of the note on single scattering in a homogeneous slab (its "
+                                       "abstract opens \"An analytical approach toward visualization of participating "
+                                       "media\"): the air-light against the light's distance, and the measured error "
+                                       "of its point-light approximation; CSV, report, plots")
     e.add_argument("--out", default="out/seed002", help="output folder (default out/seed002)")
     e.add_argument("--quick", action="store_true", help="13 light distances instead of 121 (for CI)")
     e.add_argument("--no-plots", action="store_true", help="CSV files and the report only (no matplotlib needed)")
@@ -172,9 +192,15 @@ def build_parser():
     x.add_argument("--out", required=True, help="the file to write (meshes are written beside it or embedded)")
     x.add_argument("--approximate", action="store_true",
                    help="write what the format cannot express exactly as its closest form, with a warning naming it")
+    g = sub.add_parser("gallery", help="every bundled scene (or those named) as a PNG preview with its own method "
+                                       "and spp, at --width and the camera's aspect (README's gallery)")
+    g.add_argument("scenes", nargs="*", metavar="SCENE", help="bundled scene names (default: all of them)")
+    g.add_argument("--out", default="docs/gallery", help="output folder, one NAME.png per scene (default docs/gallery)")
+    g.add_argument("--width", type=int, default=960, help="image width in pixels (default 960)")
+    g.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     f = sub.add_parser("diff", help="error of TEST.exr against REF.exr, with an error map")
-    f.add_argument("test")
-    f.add_argument("ref")
+    f.add_argument("test", help="the EXR to check")
+    f.add_argument("ref", help="the reference EXR, of the same size")
     f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
     f.add_argument("--map-exr", help="absolute error per pixel as EXR")
     f.add_argument("--max", type=float, help="top of the error map's scale (default: the largest error)")
@@ -418,6 +444,15 @@ def cmd_export(args):
     return 0
 
 
+def cmd_gallery(args):
+    from .gallery import render_gallery
+
+    written = render_gallery(Path(args.out), args.width, args.scenes, note=lambda line: print(line, flush=True),
+                             threads=args.threads)
+    print(f"wrote {len(written)} image{'' if len(written) == 1 else 's'} to {args.out}")
+    return 0
+
+
 def cmd_methods(args):
     from .methods import registry
 
@@ -490,7 +525,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
                 "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
-                "seed002": cmd_seed002, "export": cmd_export}
+                "seed002": cmd_seed002, "export": cmd_export, "gallery": cmd_gallery}
     try:
         with _one_line_warnings():
             return handlers[args.command](args)

@@ -1,0 +1,84 @@
+"""The gallery: every bundled scene rendered with its own method as a PNG preview, by one command.
+
+    RAYTRACE_ASSETS=../shared/scenes python render.py gallery --out docs/gallery [--width 960] [SCENE ...]
+
+Each scene keeps its camera's aspect at `width` pixels (960x480 for a 2:1 camera) and its [render]
+method and spp; the PNG is `render --png`'s preview (ACES view, automatic exposure), written with
+film.write_together (a temporary file renamed into place) and compressed with PNG's optimize pass.
+A scene whose meshes are not on the asset path (RAYTRACE_ASSETS) is skipped with a note. README.md's
+gallery links the files, with the meshes' credits from the asset folder's SOURCES.md.
+"""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+from . import api, film
+from .errors import UserError
+from .scene.assets import bundled_scenes, find_asset
+
+
+def missing_asset(scene) -> str | None:
+    """Why `scene` cannot be rendered here (the first mesh file not found, find_asset's message), or None."""
+    for i, shape in enumerate(scene.shapes):
+        if shape.kind == "mesh":
+            try:
+                find_asset(shape.params["mesh"], scene.path, f"shape[{i}].mesh")
+            except UserError as exc:
+                return str(exc)
+    return None
+
+
+def gallery_size(camera, width: int) -> tuple[int, int]:
+    """`width` and the height that keeps the camera's aspect (at least 1 pixel)."""
+    return width, max(1, round(width * camera.height / camera.width))
+
+
+def _png_writer(rgb8):
+    """`write(tmp)` of an optimized 8-bit PNG, for film.write_together."""
+    from PIL import Image as Picture
+
+    return lambda tmp: Picture.fromarray(rgb8, "RGB").save(tmp, format="PNG", optimize=True)
+
+
+def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: int | None = None) -> list[Path]:
+    """Render `names` (default: every bundled scene) into `out`/NAME.png, one `note` line per scene
+    (its size, method, spp and time, or why it was skipped); returns the files written. Every name and
+    output path is checked before the first render."""
+    scenes = bundled_scenes()
+    names = list(names) or sorted(scenes)
+    for name in names:
+        if name not in scenes:
+            raise UserError(f"gallery: {name}: not a bundled scene; {api._did_you_mean(name, scenes)}"
+                            f"choose from: {', '.join(sorted(scenes))}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"--out {out}: cannot create the folder ({exc.strerror}); choose a writable folder") from None
+    for name in names:
+        film.check_writable(out / f"{name}.png")
+    written = []
+    for name in names:
+        scene = api.load(name)
+        why = missing_asset(scene)
+        if why is not None:
+            note(f"gallery: skipped {name}: {why}")
+            continue
+        w, h = gallery_size(scene.camera, width)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", api.ShadowsNote)
+            image = api.render(scene, width=w, height=h, threads=threads)
+        for w_ in caught:
+            if issubclass(w_.category, api.ShadowsNote):
+                note(f"gallery: {name}: note: {' '.join(str(w_.message).split())}")
+            else:
+                warnings.warn_explicit(w_.message, w_.category, w_.filename, w_.lineno)
+        path = out / f"{name}.png"
+        film.write_together([(path, _png_writer(film.tonemap(image.array)))])
+        note(f"gallery: {name}: {w}x{h}, method {image.method}, {image.spp} spp, {image.seconds:.1f} s "
+             f"(+{image.compile_seconds:.1f} s compile) -> {path}")
+        written.append(path)
+    return written
