@@ -293,7 +293,7 @@ def _met_at_once(prep, q, w, cos, touch):
     return np.where(near, k, touch), q + np.where(near, t, 0.0)[:, None] * w
 
 
-def _inside_hits(prep, p, w, cos):
+def _inside_hits(prep, p, w, cos, prim):
     """What rays entering a shape at p along w (cosine `cos` to the entry face) meet first inside:
     (distance from p, triangle, the triangle of an opaque surface touching the boundary crossed, or
     -1). The interiors' boundaries and the opaque surfaces are asked of separate Embree scenes and
@@ -301,7 +301,10 @@ def _inside_hits(prep, p, w, cos):
     Embree's float32 reports first does not matter: a surface is inside the medium only if it comes
     more than accel.epsilon / cos (the step `_leave` takes) before the boundary; one within that of
     it, on either side, touches the boundary (a block standing on a floor), and the ray leaves the
-    medium and meets it at once, the limit of a small gap."""
+    medium and meets it at once, the limit of a small gap. A ray that meets no boundary beyond the
+    step left the closed shape within it (it clips an edge or a corner of the entry face `prim`): it
+    leaves at once, back through the entry face's plane (distance 0, triangle `prim`), the limit of
+    a clip of vanishing length, never a surface beyond taken for one inside the medium."""
     accel = prep.accel
     start = _nudge(accel, p, w, cos)
     hits = []
@@ -311,9 +314,10 @@ def _inside_hits(prep, p, w, cos):
         hits.append((_plane_distance(accel, p, w, k), k))
     (tb, kb), (to, ko) = hits
     tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.normals[np.maximum(ko, 0)], w)), 1e-2)
-    wall = (ko >= 0) & (to < tb - tol)
-    touch = np.where(~wall & (ko >= 0) & (kb >= 0) & (to <= tb + tol), ko, -1)
-    return np.where(wall, to, tb), np.where(wall, ko, kb), touch
+    clip = kb < 0
+    wall = (ko >= 0) & ~clip & (to < tb - tol)
+    touch = np.where(~wall & (ko >= 0) & ~clip & (to <= tb + tol), ko, -1)
+    return np.where(wall, to, np.where(clip, 0.0, tb)), np.where(wall, ko, np.where(clip, prim, kb)), touch
 
 
 def _refract(d, n, eta):
@@ -528,7 +532,7 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         d, nf, p = dirs[sel], normals[sel], points[sel]
         w, cos_t = _refract(d, nf, eta)
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
-        ell, prim2, touch = _inside_hits(prep, p, w, cos_t)
+        ell, prim2, touch = _inside_hits(prep, p, w, cos_t, prim[sel])
         inner, inner_var, inner_stats, bound = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel],
                                                                  seed, depth)
         stats += inner_stats
