@@ -458,6 +458,7 @@ def cmd_methods(args):
 
     for m in registry().values():
         print(f"{m.name}: {m.summary}")
+        print(f"    {m.supports.describe()}")
         for name, p in m.params.items():
             print(f"    --{name.replace('_', '-')} (default {p.default!r}, {p.rule()}): {p.help}")
     print("render options (every method): --spp, --seed, --threads, --crop, --[no-]volumetric-shadows "

@@ -5,6 +5,7 @@ import pytest
 
 import raytrace
 from raytrace.cli import main
+from raytrace.errors import UserError
 from raytrace.film import read_exr
 from raytrace.methods import registry
 from raytrace.options import RenderOptions
@@ -101,3 +102,21 @@ def test_methods_lists_each_methods_own_parameters(capsys):
     assert set(blocks) == set(registry())
     for name, flags in blocks.items():
         assert flags == list(registry()[name].params), name
+
+
+def test_methods_says_what_each_method_takes(capsys):
+    """`render.py methods` gives each method's lights, media, phases and interiors, as rendering
+    accepts or refuses them (a method refuses a light kind it does not list)."""
+    assert main(["methods"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for name, m in registry().items():
+        takes = lines[lines.index(next(l for l in lines if l.startswith(f"{name}: "))) + 1].strip()
+        lights, media, phases, shapes = takes.removeprefix("takes ").split("; ", 3)
+        assert set(lights.removesuffix(" lights").split(", ")) == set(m.supports.lights), name
+        assert media.removesuffix(" media").split(", ") == [k.type_name for k in m.supports.media], name
+        assert len(phases.removesuffix(" phases").split(", ")) == len(m.supports.phases), name
+        assert (shapes == "no media inside shapes") == (m.supports.interiors is None), name
+    refused = box_room(light=[{"type": "spot", "position": [0.0, 1.0, 0.0], "look_at": [0.0, 0.0, 0.0],
+                               "intensity": 1.0, "cone_angle": 30.0}])
+    with pytest.raises(UserError, match="does not take spot lights"):
+        raytrace.render(refused, method="lecocq", width=4, height=3)

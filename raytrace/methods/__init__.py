@@ -14,6 +14,7 @@ import numpy as np
 
 from ..media import Homogeneous
 from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
+from ..media.slab import CLOSED
 
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
@@ -125,6 +126,22 @@ class Supports:
     phases: tuple = (ISOTROPIC, RAYLEIGH, HG)
     interiors: Interiors | None = None
     shadow_tests: tuple = ("intervals",)
+
+    def describe(self) -> str:
+        """One line of what the method takes (`render.py methods`)."""
+        inside = self.interiors
+        if inside is None:
+            shapes = "no media inside shapes"
+        else:
+            model = ("exact straight light paths" if inside.exact_paths else
+                     "closed forms: exact in convex index-matched shapes, the entry face's plane through refractive "
+                     "boundaries" if inside.mode == CLOSED else
+                     "the slab note's separable approximation")
+            through = "" if inside.refracted == inside.lights else \
+                f"; through refractive boundaries: {', '.join(inside.refracted)}"
+            shapes = f"media inside shapes ({', '.join(inside.lights)} lights{through}; {model})"
+        return (f"takes {', '.join(self.lights)} lights; {', '.join(m.type_name for m in self.media)} media; "
+                f"{', '.join(PHASE_NAMES[p] for p in self.phases)} phases; {shapes}")
 
 
 @dataclass
