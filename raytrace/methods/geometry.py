@@ -110,6 +110,13 @@ def eq4_integrand(x, xh, h, kt, ks, code, g, cone):
     return ks * f * math.exp(-kt * (x + d)) * phase_value(code, g, -dx / d) / d2
 
 
+@njit
+def cone_row(cone):
+    """A segment's cone row (S, 5) row as the tuple the integrand records hold: a record holding an
+    array costs a reference count at every integrand call (twice the time of a march step)."""
+    return cone[0], cone[1], cone[2], cone[3], cone[4]
+
+
 class Eq4(NamedTuple):
     """`eq4_integrand` in x: the homogeneous air-light of a unit light (x_h, h) with cone row `cone`."""
     xh: float
@@ -118,7 +125,7 @@ class Eq4(NamedTuple):
     ks: float
     code: int
     g: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
 
 
 @integrand_of(Eq4)
@@ -205,7 +212,7 @@ class FogInX(NamedTuple):
     ks: float
     code: int
     g: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
     H: float
     profile: int
     directional: bool
@@ -229,7 +236,7 @@ class AtmosphereInX(NamedTuple):
     directional: bool
     xh: float
     h: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
     kt: np.ndarray
     ks: np.ndarray
     codes: np.ndarray

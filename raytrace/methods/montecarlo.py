@@ -37,7 +37,7 @@ from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, fog_rows, segment_geometry,
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, cone_row, fog_rows, segment_geometry,
                        spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
@@ -184,7 +184,7 @@ def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
         return 0.0, 0.0
     th_a, th_b, norm = _angles(xh, h, ell, kt)
     use_e, use_f = _strategies_used(mode, False)
-    paths = HomogeneousPaths(Eq4(xh, h, kt, ks, code, g, cone), ell, norm)
+    paths = HomogeneousPaths(Eq4(xh, h, kt, ks, code, g, cone_row(cone)), ell, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
 
 
@@ -213,7 +213,7 @@ def sample_points(origins, dirs, xh, h, ell, cone, keys, stream, seed, intensity
                 if ks[c] == 0.0 or not ell[s] > 0.0:
                     continue
                 th_a, th_b, norm = _angles(xh[s], h[s], ell[s], kt[c])
-                paths = HomogeneousPaths(Eq4(xh[s], h[s], kt[c], ks[c], code, g, cone[s]), ell[s], norm)
+                paths = HomogeneousPaths(Eq4(xh[s], h[s], kt[c], ks[c], code, g, cone_row(cone[s])), ell[s], norm)
                 dim = 2 * n * stream[s] + 2 * j
                 xe = xf = we = wf = 0.0
                 if use_e:
@@ -550,7 +550,7 @@ def _fog_estimate(row, directional, xh, h, ell, kt, ks, code, g, cone, H, profil
         return 0.0, 0.0
     th_a, th_b, _ = _angles(xh, h, ell, kt)
     use_e, use_f = _strategies_used(mode, directional)
-    paths = FogPaths(FogInX(row, xh, h, kt, ks, code, g, cone, H, profile, directional), ell, norm)
+    paths = FogPaths(FogInX(row, xh, h, kt, ks, code, g, cone_row(cone), H, profile, directional), ell, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
 
 
@@ -574,7 +574,7 @@ class AtmospherePaths(NamedTuple):
     directional: bool
     xh: float
     h: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
     kt: np.ndarray
     ks: np.ndarray
     codes: np.ndarray
@@ -654,7 +654,7 @@ def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, 
         return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
     use_e, use_f = _strategies_used(mode, directional)
-    paths = AtmospherePaths(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, cols, pieces, m, norm)
+    paths = AtmospherePaths(row, directional, xh, h, cone_row(cone), kt, ks, codes, gs, Hs, R, top, cols, pieces, m, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, a, b, n, key, dim0, seed)
 
 

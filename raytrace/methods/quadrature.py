@@ -27,7 +27,8 @@ import numpy as np
 
 from ..jit import njit
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import COSD, HO, MU, MUS, atmosphere_channels, by_channel, fog_inscatter, fog_rows, spot_factor
+from .geometry import (COSD, HO, MU, MUS, atmosphere_channels, by_channel, cone_row, fog_inscatter, fog_rows,
+                       spot_factor)
 from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, piecewise, refine, rule
@@ -51,7 +52,7 @@ class AngleIntegrand(NamedTuple):
     kt: float
     code: int
     g: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
 
 
 @njit
@@ -81,7 +82,7 @@ def _angle_value(s, r):
 @njit
 def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
     """`rule` of one piece's AngleIntegrand (analytic.py integrates spot bands with it)."""
-    return rule(a, b, AngleIntegrand(piece, xh, h, kt, code, g, cone), nodes, weights)
+    return rule(a, b, AngleIntegrand(piece, xh, h, kt, code, g, cone_row(cone)), nodes, weights)
 
 
 @njit
@@ -131,8 +132,8 @@ def airlight_one(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w20, st
     n0, n1 = _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, b0, b1)
     # a first estimate of the whole integral sets an absolute floor per unit angle, so that tails
     # contributing less than rtol/10 of the total are not refined to full relative accuracy
-    before = AngleIntegrand(0, xh, h, kt, code, g, cone)
-    after = AngleIntegrand(1, xh, h, kt, code, g, cone)
+    before = AngleIntegrand(0, xh, h, kt, code, g, cone_row(cone))
+    after = AngleIntegrand(1, xh, h, kt, code, g, cone_row(cone))
     width = (phi_b - phi_a) + (psi_start - psi_end)
     estimate = first_estimate(after, b1, n1, n20, w20, first_estimate(before, b0, n0, n20, w20, 0.0))
     density = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
@@ -230,7 +231,7 @@ class FogIntegrand(NamedTuple):
     ks: float
     code: int
     g: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
     H: float
     profile: int
     directional: bool
@@ -309,7 +310,7 @@ def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, cone, H, profil
             continue
         stats[EVALS] += 1.0
         m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
-        rec = FogIntegrand(rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, directional[s])
+        rec = FogIntegrand(rows[s], xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s])
         scale = ks / kt * phase_value(code, g, rows[s, COSD]) if directional[s] else 1.0 / h[s]
         out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats) * scale
 
@@ -329,7 +330,7 @@ class AtmosphereIntegrand(NamedTuple):
     directional: bool
     xh: float
     h: float
-    cone: np.ndarray
+    cone: tuple  # cone_row
     kt: np.ndarray
     ks: np.ndarray
     codes: np.ndarray
@@ -382,5 +383,5 @@ def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R
             continue
         stats[EVALS] += 1.0
         m = _atm_breaks(rows[s], directional[s], xh[s], h[s], cone[s], Hs, R, br)
-        rec = AtmosphereIntegrand(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols)
+        rec = AtmosphereIntegrand(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
         out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)

@@ -41,7 +41,7 @@ import numpy as np
 from ..jit import njit
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, by_channel, eq4_integrand,
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, by_channel, cone_row, eq4_integrand,
                        fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
@@ -71,7 +71,7 @@ def airlight_one(xh, h, ell, kt, ks, code, g, cone, steps, step, tau_max, xi, st
     n, delta, capped = _count(ell, kt, steps, step, tau_max)
     stats[CAPPED] += capped
     stats[SAMPLES] += n
-    return march(Eq4(xh, h, kt, ks, code, g, cone), 0.0, n, delta, xi)
+    return march(Eq4(xh, h, kt, ks, code, g, cone_row(cone)), 0.0, n, delta, xi)
 
 
 @njit
@@ -267,7 +267,7 @@ def fog_segments(rows, directional, xh, h, ell, keys, seed, kt, ks, code, g, con
         n, delta, capped = _count(end, kt, steps, step, tau_max)
         stats[CAPPED] += capped
         stats[SAMPLES] += n
-        rec = FogInX(rows[s], xh[s], h[s], kt, ks, code, g, cone[s], H, profile, directional[s])
+        rec = FogInX(rows[s], xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s])
         out[s] = march(rec, 0.0, n, delta, xi)
 
 
@@ -334,6 +334,6 @@ def atmosphere_segments(rows, directional, xh, h, cone, keys, seed, kt, ks, code
             out[s] = _marched_airlight(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
                                        steps, a, n, delta, xi)
         else:
-            rec = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top, cols,
+            rec = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols,
                                 -1.0)
             out[s] = march(rec, a, n, delta, xi)
