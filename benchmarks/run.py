@@ -94,6 +94,9 @@ def machine():
 
 
 def render(prep, method="analytic", **kw):
+    """A render of the rows: unshadowed (the paper's air-light) unless a row asks for shadows, which
+    are the API's default, so that the rows time what they say."""
+    kw.setdefault("volumetric_shadows", False)
     return raytrace.render(prepared=prep, method=method, threads=THREADS, **kw)
 
 
