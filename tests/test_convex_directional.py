@@ -22,8 +22,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from raytrace.media import slab
-from raytrace.media.convex_directional import (MAX_FACES, envelope, segment_radiance, segments_bounded,
-                                               segments_radiance)
+from raytrace.media.convex_directional import MAX_FACES, envelope, segment_radiance, segments_bounded
 from raytrace.media.phase import HG, ISOTROPIC, phase_value
 
 RTOL = 1e-12
@@ -139,9 +138,10 @@ def twin(n, c, o, w, length, toward, kt, ks, phase):
 
 
 def kernel(n, c, o, w, length, toward, kt, ks, phase):
-    out = np.zeros((1, len(kt)))
-    assert segments_radiance(n, c, o[None, :], w[None, :], np.array([length]), toward, kt, ks, np.array([phase]), out)
-    return out[0]
+    out, f = np.zeros(len(kt)), len(n)
+    assert segment_radiance(n, c, o, w, toward, length, kt, ks, phase, out, np.empty(f), np.empty(f), np.empty(f + 1),
+                            np.empty(f, dtype=np.int64))
+    return out
 
 
 def light_directions(rng, n, count):
@@ -206,7 +206,7 @@ def test_against_the_twin(name):
 
 @pytest.mark.parametrize("name", sorted(SHAPES))
 def test_the_bound_holds_against_the_twin(name):
-    """`segments_bounded` (what bounded.py renders with): the values of `segments_radiance` with the
+    """`segments_bounded` (what bounded.py renders with): the values of `segment_radiance` with the
     phase function at each segment's scattering cosine, and a bound that the twin's error never
     exceeds (half the lights grazing a face at 1e-9), finite for finite segments, and within
     1e-10 of the value wherever the twin's allowance is below 1e-12."""
@@ -358,10 +358,10 @@ def test_edge_cases():
     many_n = np.random.default_rng(1).normal(size=(MAX_FACES + 1, 3))  # a polyhedron about the unit ball
     many_n /= np.linalg.norm(many_n, axis=1)[:, None]
     many_c = np.ones(MAX_FACES + 1)
-    out = np.full((1, 2), -7.0)
-    assert not segments_radiance(many_n, many_c, np.zeros((1, 3)), np.array([[1.0, 0, 0]]), np.array([0.1]),
-                                 np.array([0.0, 0, 1.0]), np.ones(2), np.ones(2), np.ones(1), out)
-    assert np.all(out == -7.0)
+    out, bound = np.full((1, 2), -7.0), np.full((1, 2), -7.0)
+    assert not segments_bounded(many_n, many_c, np.zeros((1, 3)), np.array([[1.0, 0, 0]]), np.array([0.1]),
+                                np.array([0.0, 0, 1.0]), np.ones(2), np.ones(2), HG, 0.6, out, bound)
+    assert np.all(out == -7.0) and np.all(bound == -7.0)
     f = len(many_n)
     assert not segment_radiance(many_n, many_c, np.zeros(3), np.array([1.0, 0, 0]), np.array([0.0, 0, 1.0]), 0.1,
                                 np.ones(2), np.ones(2), 1.0, out[0], np.empty(f), np.empty(f), np.empty(f + 1),

@@ -154,23 +154,9 @@ def segment_radiance(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta
 
 
 @njit
-def segments_radiance(n, c, origins, dirs, lengths, toward, kt, ks, phase, out):
-    """`segment_radiance` of N segments (origins, dirs (N, 3), lengths and phase values (N,)) into out
-    (N, C); False (out untouched) for more than MAX_FACES faces."""
-    if n.shape[0] > MAX_FACES:
-        return False
-    nf = n.shape[0]
-    alpha, beta = np.empty(nf), np.empty(nf)
-    cuts, lines = np.empty(nf + 1), np.empty(nf, dtype=np.int64)
-    for s in range(origins.shape[0]):
-        segment_radiance(n, c, origins[s], dirs[s], toward, lengths[s], kt, ks, phase[s], out[s], alpha, beta, cuts,
-                         lines)
-    return True
-
-
-@njit
 def segments_bounded(n, c, origins, dirs, lengths, toward, kt, ks, code, g, out, bound):
-    """`segments_radiance` with the phase function (code, g) at each segment's scattering cosine
+    """`segment_radiance` of N segments (origins, dirs (N, 3), lengths (N,)) into out (N, C), with the
+    phase function (code, g) at each segment's scattering cosine
     toward·w, and a bound on each value's error (N, C): (KERNEL_FLOOR + 8 eps kt max_f (|c_f| + |o| +
     T) / q_f) x value, the maximum over the faces of the segment's envelope (the docstring's accuracy,
     1e-12 at worst, and the condition of eq. (2) in its inputs where a face the light grazes
