@@ -313,23 +313,6 @@ def scene_defaults(scene: Scene, method, source: str) -> dict:
     return {k: v for k, v in params.items() if k not in unread}
 
 
-class ShadowsNote(UserWarning):
-    """Volumetric shadows on by default were turned off: the scene needs what they do not compute yet."""
-
-
-def _default_shadows(prep, options: RenderOptions, source: str) -> RenderOptions:
-    """`options` (shadows on by default, not asked for) without volumetric shadows, with one
-    ShadowsNote, where they cannot be computed yet (bounded.no_shadows); else unchanged."""
-    from . import bounded
-
-    why = bounded.no_shadows(prep)
-    if why is None:
-        return options
-    warnings.warn(f"{source}: rendered without volumetric shadows (on by default): {why}; --no-volumetric-shadows "
-                  "(volumetric_shadows=False) silences this note", ShadowsNote, stacklevel=3)
-    return replace(options, volumetric_shadows=False)
-
-
 def render(scene=None, method: str | None = None, *, overrides=(), camera: str | None = None, prepared=None,
            client=None, **kwargs) -> Image:
     """Render `scene` with `method` (default: the scene's [render] method, else analytic).
@@ -339,8 +322,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
     progress, on_pass and observer); every other keyword is a parameter of the method. The scene's
     [render] table supplies defaults for both. Volumetric shadows are on unless volumetric_shadows=False
-    or the scene's [render] turns them off; where they cannot be computed yet (media inside shapes),
-    shadows on by default are off, with one ShadowsNote. `overrides` are "key=value" strings as --set;
+    or the scene's [render] turns them off. `overrides` are "key=value" strings as --set;
     `camera` names the camera of a glTF file (as --camera);
     `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
@@ -349,8 +331,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     scene = prepared.scene if prepared is not None else load(scene, overrides, camera)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
     given_options = {k: v for k, v in kwargs.items() if k in OPTION_NAMES and v is not None}
-    shadows_by_default = "volumetric_shadows" not in given_options and "volumetric_shadows" not in scene.render
-    if shadows_by_default:
+    if "volumetric_shadows" not in given_options and "volumetric_shadows" not in scene.render:
         given_options["volumetric_shadows"] = True
     options = render_options(scene, source, **given_options)
     cam = scene.camera
@@ -364,8 +345,6 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     check_memory(cam, options.crop, m.stochastic, source, options.max_memory)
     run_on = executor(options, client, source)
     prep = prepared if prepared is not None else renderer.prepare(scene)
-    if shadows_by_default:
-        options = _default_shadows(prep, options, source)
     if m.stochastic:
         from .progressive import render_progressive
 

@@ -40,15 +40,20 @@ from .lights import DIRECTIONAL, Lights
 from .media.adaptive import CAPPED
 from .media.convex_directional import MAX_FACES, segments_bounded
 from .media.slab import CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
-from .methods import registry
+from .methods import Segments, registry
 from .methods.geometry import segment_light_table
 from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
+from .shadow_frusta import exact_lit_intervals
+from .visibility import gather
 
-# the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), then the segments
-# a CLOSED-mode method hands to quadrature (`single_scattering`)
-STATS_SIZE = 4
-HANDED = 3
+# the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a
+# CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
+# rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit pieces of
+# the others, and the outside air-light's pieces whose light crosses index-matched interiors
+# (`through_airlight`) and those of their integrals that fell short of their tolerance
+STATS_SIZE = 8
+HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 # face planes of a convex shape up to which media/slab.py's kernel (every plane at every evaluation) is
@@ -56,18 +61,26 @@ RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own
 KERNEL_PLANES = 64
 
 
-def summarize(prep, method, stats) -> dict:
+def summarize(prep, method, stats, shadows: bool = False) -> dict:
     """The render statistics of the inside integrals (`single_scattering`'s) in a scene with media
     inside shapes: the adaptive integrator's integrals that fell short of their tolerance (a piece
     accepted at a cap), as quadrature reports its own outside; for a CLOSED-mode method also the
     segments (one per ray and light) it handed to quadrature; nothing for the other inside
-    integrators, which have no caps."""
+    integrators, which have no caps. With volumetric shadows also the inside segments rendered
+    unshadowed, the lit pieces of the others, and the outside pieces integrated through interiors."""
     sup = method.supports.interiors
-    if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None or sup.mode not in (QUAD, CLOSED):
+    if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None:
         return {}
-    out = {"inside: integrals not converged": int(stats[CAPPED])}
+    out = {}
+    if sup.mode in (QUAD, CLOSED):
+        out["inside: integrals not converged"] = int(stats[CAPPED])
     if sup.mode == CLOSED:
         out["inside: segments handed to quadrature"] = int(stats[HANDED])
+    if shadows:
+        out.update({"inside: segments unshadowed (refractive or planar model)": int(stats[UNSHADOWED]),
+                    "inside: lit pieces": int(stats[LIT_PIECES]),
+                    "shadows: pieces through interiors (quadrature)": int(stats[THROUGH]),
+                    "shadows: through-interior integrals not converged": int(stats[THROUGH_CAPPED])})
     return out
 
 
@@ -84,15 +97,31 @@ def outside_lights(prep):
     return prep.lights
 
 
-def no_shadows(prep) -> str | None:
-    """Why volumetric shadows cannot be computed in `prep`'s scene yet (None: they can): the lit
-    intervals are not implemented with media inside shapes. `check` refuses a request for them;
-    shadows on by default go off instead (api.render, with one note)."""
-    inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
-    return f"not implemented with media inside shapes (shape[{inner[0]}].interior) yet" if inner else None
+def matched(prep) -> list[int]:
+    """The shapes whose interior is index-matched (ior = 1): light crosses them straight, attenuated."""
+    if prep.interior_shapes is None:
+        return []
+    return [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior == 1.0]
 
 
-def check(prep, method, method_params, source: str, volumetric_shadows: bool):
+def blockers(prep) -> np.ndarray | None:
+    """The triangles that stop light (a mask over prep.accel.triangles; None: all of them): opaque
+    surfaces and refractive interiors' boundaries (a refracted shadow would be a caustic, beyond
+    single scattering), not index-matched interiors' boundaries, which attenuate it (`attenuators`)."""
+    inner = matched(prep)
+    return ~np.isin(prep.shape_ids, inner) if inner else None
+
+
+def attenuators(prep) -> np.ndarray | None:
+    """The index-matched interiors' triangles (a mask; None where the outside air-light never needs
+    them: no such interior, or an outside medium that does not scatter)."""
+    inner = matched(prep)
+    if not inner or not prep.scene.medium.scatters:
+        return None
+    return np.isin(prep.shape_ids, inner)
+
+
+def check(prep, method, method_params, source: str):
     """Refuse, in one line, what this first cut, or the method (its `Supports.interiors`), does not
     render in a scene with interior media."""
     inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
@@ -117,8 +146,6 @@ def check(prep, method, method_params, source: str, volumetric_shadows: bool):
     if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "
                         f"{medium.type_name} is not implemented with them yet")
-    if volumetric_shadows:
-        raise UserError(f"{source}: --volumetric-shadows (render.volumetric_shadows): {no_shadows(prep)}; remove it")
     for i in inner:
         m = prep.scene.shapes[i].interior
         method.check_phase(m, f"shape[{i}].interior.phase", source)
@@ -219,12 +246,10 @@ def shadow_through(prep):
     exp(-(sigma_t inside - sigma_t outside) x length inside) each (the outside's own transmittance is
     the shading's); 0 where an opaque surface or a refractive interior blocks it (a refracted shadow
     would be a caustic, beyond single scattering)."""
-    if prep.interior_shapes is None:
+    inner = matched(prep)
+    if not inner:
         return None
-    matched = [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior == 1.0]
-    if not matched:
-        return None
-    kt = np.array([prep.scene.shapes[i].interior.sigma_t for i in matched]) - prep.scene.medium.sigma_t[None, :]
+    kt = np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]) - prep.scene.medium.sigma_t[None, :]
     lights = prep.lights
 
     def through(li, points):
@@ -235,7 +260,7 @@ def shadow_through(prep):
             rel = lights.position[li] - points
             dist = np.linalg.norm(rel, axis=1)
             dirs = rel / dist[:, None]
-        lengths, blocked = inside_paths.inside_lengths(prep, points, dirs, dist, matched, block=True,
+        lengths, blocked = inside_paths.inside_lengths(prep, points, dirs, dist, inner, block=True,
                                                        margin=prep.accel.epsilon)
         return np.where(blocked[:, None], 0.0, np.exp(-lengths @ kt))
     return through
@@ -332,7 +357,7 @@ def _transmittance(cos_i, eta):
     return out
 
 
-def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
+def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, light=None, piece=0):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, its
     variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
@@ -343,7 +368,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
     media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
     (`_traced`, rtol RTOL), counted (HANDED), unbounded; through a refractive boundary eq. 5 (the
-    note's entry plane), unbounded."""
+    note's entry plane), unbounded. `light`: that light only (else all); `piece`: the segments' rank
+    among their ray's lit pieces (`lit_single_scattering`), which numbers their random streams."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
@@ -363,7 +389,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     tau_max = float(params.get("tau_max", 745.0))  # raymarch's cut of long segments
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
-    for li in range(len(lights)):
+    dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
+    for li in range(len(lights)) if light is None else [light]:
         idx = np.full(n, li, dtype=np.int64)
         distant = np.full(n, lights.kind[li] == DIRECTIONAL)
         xh = h = hl = b = mu = wl = ll = np.zeros(n)
@@ -400,7 +427,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             if closed:
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
             _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale,
-                    QUAD if closed else mode, rtol, steps, tau_max, keys, STREAM + (depth * len(lights) + li) * steps,
+                    QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
                     seed, out, var, stats)
             continue
         for c in range(3):
@@ -412,12 +439,69 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                             float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, planes, mode, rtol,
                             steps, tau_max,
                             keys,
-                            np.uint64(STREAM + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
+                            np.uint64(dims + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
                             stats)
             f = scale * lights.intensity[li, c]
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
     return out, var, stats, bound
+
+
+def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, shadows: bool):
+    """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
+    that each light reaches past the blockers (shadow_frusta.py's exact lit intervals of `blockers`;
+    the shape's own boundary attenuates, it does not block), each piece integrated from its own
+    start and carried back to the entry by exp(-sigma_t t0). Where the light's path is not straight
+    (a refractive interior: eq. 5's path through the entry plane) or not traced (a method without
+    exact paths: the note's planar model), the segments are unshadowed, counted (UNSHADOWED)."""
+    medium = prep.scene.shapes[sid].interior
+    n, n_lights = len(points), len(prep.lights)
+    if not shadows or not n or not n_lights:
+        return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
+    if medium.ior != 1.0 or not method.supports.interiors.exact_paths:
+        out = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
+        out[2][UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
+        return out
+    rays = np.tile(np.arange(n), n_lights)
+    segs = Segments(points[rays], w[rays], ell[rays], np.repeat(np.arange(n_lights), n), rays, np.zeros(len(rays)),
+                    keys[rays], np.zeros(len(rays), np.int64), seed, prep.accel.scale)
+    lit, _ = exact_lit_intervals(prep.accel, segs, prep.lights, n_lights, prep.frusta())
+    out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    stats = np.zeros(STATS_SIZE)
+    stats[LIT_PIECES] += len(lit)
+    piece = lit.stream // n_lights
+    kt = medium.sigma_t[None, :]
+    for li, rank in sorted(set(zip(lit.light.tolist(), piece.tolist()))):
+        at = np.nonzero((lit.light == li) & (piece == rank))[0]
+        r = lit.ray[at]
+        val, v, st, b = single_scattering(prep, method, params, sid, lit.origins[at], normals[r], lit.dirs[at],
+                                          lit.length[at], keys[r], seed, depth, li, rank)
+        stats += st
+        with np.errstate(over="ignore", invalid="ignore"):
+            tr = np.where(kt == 0.0, 1.0, np.exp(-kt * lit.t0[at, None]))
+        np.add.at(out, r, tr * val)
+        np.add.at(var, r, tr * tr * v)
+        np.add.at(bound, r, scaled(b, tr))
+    return out, var, stats, bound
+
+
+def through_airlight(prep, segs: Segments, n_rays: int, stats):
+    """The outside medium's air-light (N, 3) of the pieces `segs` whose light crosses index-matched
+    interiors (shadow_frusta.split_lit's `behind`): the light attenuated by exp(-(sigma_t inside -
+    sigma_t outside) x length inside) of each interior on its straight path, integrated by the
+    traced adaptive quadrature (inside_paths.through_quadrature, rtol RTOL) whatever the method,
+    counted (THROUGH; integrals short of their tolerance: THROUGH_CAPPED), carried to the camera
+    by the outside's transmittance over t0."""
+    inner = matched(prep)
+    for sid in inner:
+        hull_planes(prep, sid)  # fills the convex shapes' planes, which through_quadrature reads
+    medium = prep.scene.medium
+    kt_in = np.array([prep.scene.shapes[i].interior.sigma_t for i in inner])
+    capped = np.zeros(1)
+    values = inside_paths.through_quadrature(prep, segs, medium, inner, kt_in, RTOL, capped)
+    stats[THROUGH] += len(segs)
+    stats[THROUGH_CAPPED] += capped[0]
+    return gather(segs, values, n_rays, medium)
 
 
 def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
@@ -480,7 +564,7 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
         return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
 
 
-def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade):
+def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade, shadows=False):
     """Radiance (N, 3), variance and inside statistics (STATS_SIZE) of camera rays that start inside
     the index-matched shape prep.camera_inside and first meet its boundary or a surface at t (triangle prim): the inside
     single scattering over [0, t] (the light's exact straight paths), then what lies beyond the
@@ -488,7 +572,8 @@ def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade)
     sid = prep.camera_inside
     medium = prep.scene.shapes[sid].interior
     accel = prep.accel
-    out, var, stats, _ = single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0)
+    out, var, stats, _ = lit_single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0,
+                                               shadows)
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
     if len(exits):
         cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
@@ -507,7 +592,7 @@ def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade)
     return out, var, stats
 
 
-def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade):
+def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade, shadows=False):
     """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
     what the inside scatters toward them and what comes through from behind the exit, through the
     boundaries, its variance (N, 3), the inside integrals' statistics (STATS_SIZE; those of the
@@ -533,8 +618,8 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         w, cos_t = _refract(d, nf, eta)
         t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
         ell, prim2, touch = _inside_hits(prep, p, w, cos_t, prim[sel])
-        inner, inner_var, inner_stats, bound = single_scattering(prep, method, params, sid, p, nf, w, ell, keys[sel],
-                                                                 seed, depth)
+        inner, inner_var, inner_stats, bound = lit_single_scattering(prep, method, params, sid, p, nf, w, ell,
+                                                                     keys[sel], seed, depth, shadows)
         stats += inner_stats
         exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
         behind = np.zeros_like(inner)

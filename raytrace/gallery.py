@@ -10,7 +10,6 @@ gallery links the files, with the meshes' credits from the asset folder's SOURCE
 """
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 from . import api, film
@@ -68,14 +67,7 @@ def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: i
             note(f"gallery: skipped {name}: {why}")
             continue
         w, h = gallery_size(scene.camera, width)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", api.ShadowsNote)
-            image = api.render(scene, width=w, height=h, threads=threads)
-        for w_ in caught:
-            if issubclass(w_.category, api.ShadowsNote):
-                note(f"gallery: {name}: note: {' '.join(str(w_.message).split())}")
-            else:
-                warnings.warn_explicit(w_.message, w_.category, w_.filename, w_.lineno)
+        image = api.render(scene, width=w, height=h, threads=threads)
         path = out / f"{name}.png"
         film.write_together([(path, _png_writer(film.tonemap(image.array)))])
         note(f"gallery: {name}: {w}x{h}, method {image.method}, {image.spp} spp, {image.seconds:.1f} s "

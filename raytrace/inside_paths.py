@@ -213,15 +213,22 @@ _N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
 def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rtol, stats):
-    """∫_0^ell of the integrand per segment and channel (N, C), adaptive: panels are halved until their
-    10- and 20-point Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the
-    whole per unit length (media/slab.py's rule, vectorised over segments because every evaluation
-    traces rays); the first panels end at a spot's cone crossings (media/slab.py straight_cuts);
-    panels still open after MAX_LEVELS halvings, or beyond the MAX_OPEN bound, count in stats[0]."""
-    n, nc = len(ell), len(kts)
-    total = np.zeros((n, nc))
+    """∫_0^ell of the integrand per segment and channel (N, C), by `adaptive`; the first panels end at
+    a spot's cone crossings (media/slab.py straight_cuts)."""
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     seg, a, b = _first_panels(geo, directional, end)
+    return adaptive(lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs),
+                    end, len(kts), seg, a, b, rtol, stats)
+
+
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats):
+    """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
+    panels (seg, a, b), adaptive: panels are halved until their 10- and 20-point Gauss-Legendre values
+    agree to rtol, or to rtol/10 of a first estimate of the whole per unit length (media/slab.py's
+    rule, vectorised over segments because every evaluation traces rays); panels still open after
+    MAX_LEVELS halvings, or beyond the MAX_OPEN bound, count in stats[0]."""
+    n = len(end)
+    total = np.zeros((n, nc))
     floor = None
     for _ in range(MAX_LEVELS):
         if not len(seg):
@@ -229,7 +236,7 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
         xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()])
         ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
-        f = _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs)
+        f = integrand(ss, xs)
         m = len(seg)
         g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
         g20 = np.einsum("pkc,k->pc", f[10 * m:].reshape(m, 20, nc), _W20) * half[:, None]
@@ -247,6 +254,65 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
         seg, a, b = np.concatenate([seg, seg]), np.concatenate([a, mid]), np.concatenate([mid, b])
     stats[0] += len(seg) // 2
     return total
+
+
+def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
+    """The outside medium's single scattering (N, 3) over segments `segs` (point and spot lights)
+    whose light crosses the index-matched shapes `sids` (interior sigma_t `kt_in`, (S, 3)) on its
+    straight path: the integrand ks Phi(mu) F exp(-kt (x + d)) / d^2 of the unshadowed air-light
+    times exp(-(kt_in - kt) . k) over the lengths k inside each shape (`chords`), by `adaptive`
+    from the whole segments (cone crossings were cut before: visibility.cone_segments)."""
+    lights = prep.lights
+    kt, ks = medium.sigma_t, medium.sigma_s
+    end = np.minimum(segs.length, 745.0 / max(float(np.min(kt)), 1e-300))
+    seg = np.nonzero(end > 0.0)[0]
+    dk = kt_in - kt[None, :]
+
+    def integrand(ss, x):
+        li = segs.light[ss]
+        p = segs.origins[ss] + x[:, None] * segs.dirs[ss]
+        rel = lights.position[li] - p
+        d = np.maximum(np.linalg.norm(rel, axis=1), 1e-125)
+        to = rel / d[:, None]
+        f = np.ones(len(x))
+        for l in np.unique(li):  # a spot's falloff toward the direction the light leaves in
+            at = np.nonzero(li == l)[0]
+            f[at] = falloff_array(np.ascontiguousarray(-to[at] @ lights.axis[l]), *lights.cone[l])
+        mu = np.einsum("ij,ij->i", to, segs.dirs[ss])
+        att = f[:, None] * np.exp(-chords(prep, sids, p, to, d) @ dk) * lights.intensity[li]
+        out = np.empty((len(x), 3))
+        col = np.empty(len(x))
+        zero = np.zeros(len(x))
+        for c in range(3):
+            _values(x, d, zero, mu, float(kt[c]), float(ks[c]), medium.phase, medium.g, float(kt[c]), col)
+            out[:, c] = col * att[:, c]
+        return out
+
+    return adaptive(integrand, end, 3, seg, np.zeros(len(seg)), end[seg], rtol, stats)
+
+
+def chords(prep, sids, points, dirs, dist):
+    """Lengths (M, len(sids)) inside each index-matched shape of the segments from `points` outside
+    every shape along the unit `dirs` over `dist`: a convex shape's by its face planes in float64
+    (bounded.hull_planes' cache), another's walked with Embree (`inside_lengths`)."""
+    out = np.zeros((len(points), len(sids)))
+    walked = []
+    for j, sid in enumerate(sids):
+        planes = prep.interior_planes.get(sid)
+        if planes is None:
+            walked.append(j)
+            continue
+        num = planes[:, 3][None, :] - points @ planes[:, :3].T  # >= 0 inside each half-space
+        den = dirs @ planes[:, :3].T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = num / den
+        lo = np.max(np.where(den < 0.0, t, np.where((den == 0.0) & (num < 0.0), np.inf, 0.0)), axis=1)
+        hi = np.min(np.where(den > 0.0, t, np.where((den == 0.0) & (num < 0.0), -np.inf, np.inf)), axis=1)
+        out[:, j] = np.maximum(np.minimum(hi, dist) - np.maximum(lo, 0.0), 0.0)
+    if walked:
+        out[:, walked] = inside_lengths(prep, points, dirs, dist, [sids[j] for j in walked],
+                                        end_inside=np.zeros((len(points), len(walked)), dtype=bool))[0]
+    return out
 
 
 def _first_panels(geo, directional, end):

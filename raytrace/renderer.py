@@ -32,7 +32,7 @@ from .options import RenderOptions
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
 from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
-from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals
+from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
 RAYS_PER_TILE = 1 << 14
@@ -46,16 +46,26 @@ class Prepared:
     reflectance: np.ndarray
     lights: Lights
     _frusta: list | None = None
+    _through: list | None = None
     shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
 
     def frusta(self) -> list:
-        """The lights' texel lists of shadow frusta for the exact lit intervals, built once (shadow_frusta.py)."""
+        """The lights' texel lists of the shadow frusta of the triangles that stop light
+        (bounded.blockers), for the exact lit intervals, built once (shadow_frusta.py)."""
         if self._frusta is None:
-            self._frusta = build_frusta(self.accel, self.lights)
+            self._frusta = build_frusta(self.accel, self.lights, select=bounded.blockers(self))
         return self._frusta
+
+    def through(self) -> list | None:
+        """The same of the index-matched interiors' triangles, which attenuate the outside air-light's
+        light (bounded.attenuators; None where none need it), built once."""
+        mask = bounded.attenuators(self)
+        if mask is not None and self._through is None:
+            self._through = build_frusta(self.accel, self.lights, select=mask)
+        return None if mask is None else self._through
 
 
 @dataclass
@@ -129,7 +139,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
 
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
         rad, var, deeper[-bounded.STATS_SIZE:] = bounded.from_inside(prep, method, params, origins, dirs, t, prim,
-                                                                      keys, seed, behind)
+                                                                      keys, seed, behind, shadows is not None)
         return rad, deeper, var if method.stochastic else None, np.full_like(rad, np.inf)
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
@@ -145,7 +155,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if into.any():
         radiance[into], into_var, inside, into_bound = bounded.radiance(prep, method, params, origins[into],
                                                                         dirs[into], t[into], prim[into], keys[into],
-                                                                        seed, depth, behind)
+                                                                        seed, depth, behind, shadows is not None)
         deeper[-bounded.STATS_SIZE:] += inside
     radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
@@ -165,12 +175,18 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
                 bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
         else:
+            through = None
             if shadows is not None:
                 segs, stats[method.stats_size:-bounded.STATS_SIZE] = exact_lit_intervals(
                     prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
+                if prep.through() is not None:  # pieces whose light crosses index-matched interiors
+                    segs, through, _ = split_lit(prep.accel, segs, len(prep.lights), prep.through())
             air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
                                                                       len(origins))
             bound += air_bound
+            if through is not None and len(through):
+                air = air + bounded.through_airlight(prep, through, len(origins), stats[-bounded.STATS_SIZE:])
+                bound[error_bounds.rays_with(through.ray, len(origins))] = np.inf
         radiance += air
         if method.stochastic:
             variance = variance + var
@@ -347,7 +363,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     method.check(scene.medium, params)
     method.check_lights(bounded.outside_lights(prep), source)
     check_options(method, params, options.volumetric_shadows, source, prep.lights, scene.medium)
-    bounded.check(prep, method, params, source, options.volumetric_shadows)
+    bounded.check(prep, method, params, source)
     cam = scene.camera
     options.apply_camera(cam)
     box = options.crop or (0, 0, cam.width, cam.height)
@@ -369,7 +385,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     summary = method.summarize(totals[:method.stats_size])
     if task.shadows is not None:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
-    summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:]))
+    summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:], task.shadows is not None))
     summary.update(error_bounds.summary(acc.bound))
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,
                         error_bound=acc.bound)

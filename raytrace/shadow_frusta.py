@@ -89,9 +89,10 @@ def default_resolution(n_triangles: int) -> int:
     return int(min(256, max(16, 2 ** round(math.log2(max(n_triangles, 1) ** 0.5 / 4.0)))))
 
 
-def build(accel, lights, resolution: int | None = None) -> list[LightBins]:
-    """The frusta and texel lists of every light (a list indexed like `lights`)."""
-    tris = accel.triangles
+def build(accel, lights, resolution: int | None = None, select: np.ndarray | None = None) -> list[LightBins]:
+    """The frusta and texel lists of every light (a list indexed like `lights`) of the triangles
+    `select` (a boolean mask over accel.triangles; all if None)."""
+    tris = accel.triangles if select is None else accel.triangles[select]
     res = resolution or default_resolution(len(tris))
     out = []
     for li in range(len(lights)):
@@ -625,7 +626,44 @@ def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list
     (STATS_NAMES). `bins`: `build(accel, lights)`, built here if None (build it once per scene)."""
     bins = build(accel, lights) if bins is None else bins
     stats = np.zeros(len(STATS_NAMES))
-    stats[ST_SEGMENTS] = len(segs)
+    src, x0, x1 = _lit_pieces(accel, segs, bins, stats)
+    piece = np.arange(len(src)) - np.searchsorted(src, src)
+    return _take(segs, src, x0, x1, segs.stream[src] + n_lights * piece), stats
+
+
+def split_lit(accel, segs: Segments, n_lights: int, bins: list[LightBins]):
+    """`segs` cut into the pieces outside every frustum of `bins` (their light reaches them past no
+    triangle of the bins: `clear`) and the pieces inside one (`behind`), as segments from their own
+    start points, and the statistics (STATS_NAMES). Streams are renumbered per camera ray and light
+    over the clear pieces (light + n_lights x rank, as whole rays number them); the behind pieces
+    keep their segment's (bounded.py integrates them without random numbers)."""
+    stats = np.zeros(len(STATS_NAMES))
+    src, x0, x1 = _lit_pieces(accel, segs, bins, stats)
+    clear = _take(segs, src, x0, x1, np.zeros(len(src), np.int64))
+    order = np.lexsort((clear.t0, clear.light, clear.ray))
+    clear = clear.take(order)
+    group = clear.ray * n_lights + clear.light
+    rank = np.arange(len(group)) - np.searchsorted(group, group)
+    clear = Segments(clear.origins, clear.dirs, clear.length, clear.light, clear.ray, clear.t0, clear.keys,
+                     clear.light + n_lights * rank, segs.seed, segs.scale)
+    # the gaps between each segment's clear pieces: from 0 and from every piece's end to the next start
+    n, m = len(segs), len(src)
+    count = np.bincount(src, minlength=n)
+    at = np.arange(m) + src  # piece i's slot in the gaps list (a segment s has count[s] + 1 slots)
+    g0, g1 = np.zeros(n + m), np.empty(n + m)
+    g0[at + 1] = x1
+    g1[at] = x0
+    g1[np.cumsum(count + 1) - 1] = segs.length
+    parent = np.repeat(np.arange(n), count + 1)
+    with np.errstate(invalid="ignore"):  # inf - inf after a piece to infinity: no gap
+        keep = g1 - g0 > GAP_REL * accel.scale
+    behind = _take(segs, parent[keep], g0[keep], g1[keep], segs.stream[parent[keep]])
+    return clear, behind, stats
+
+
+def _lit_pieces(accel, segs, bins, stats):
+    """(segment, x0, x1) of the lit pieces of `segs` under `bins`, in segment order."""
+    stats[ST_SEGMENTS] += len(segs)
     srcs, a, b = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)]
     for li in np.unique(segs.light):
         idx = np.nonzero(segs.light == li)[0]
@@ -639,9 +677,10 @@ def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list
         b.append(x1)
     src, x0, x1 = np.concatenate(srcs), np.concatenate(a), np.concatenate(b)
     order = np.argsort(src, kind="stable")
-    src, x0, x1 = src[order], x0[order], x1[order]
-    piece = np.arange(len(src)) - np.searchsorted(src, src)
-    out = Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
-                   segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src] + n_lights * piece, segs.seed,
-                   segs.scale)
-    return out, stats
+    return src[order], x0[order], x1[order]
+
+
+def _take(segs, src, x0, x1, stream):
+    """Pieces [x0, x1] of segments `src` as segments from their own start points."""
+    return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
+                    segs.ray[src], segs.t0[src] + x0, segs.keys[src], stream, segs.seed, segs.scale)
