@@ -142,6 +142,9 @@ def check(prep, method, method_params, source: str):
     for kind in sorted(kinds - set(sup.lights)):
         raise UserError(f"{source}: --method {method.name}: {kind} lights into a bounded medium ({key}): {sup.limits}; "
                         f"use --method {', '.join(_takers(lambda s: kind in s.lights))}")
+    if method_params.get("shadow_test") == "samples":
+        raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented with media inside "
+                        f"shapes ({key}); use --shadow-test intervals (the default)")
     medium = prep.scene.medium
     if not medium.homogeneous:
         raise UserError(f"{source}: {key}: media inside shapes need a homogeneous (or vacuum) [medium] outside; "

@@ -122,8 +122,7 @@ def build_parser():
                         "larger image is refused up front with the figure and the fix")
     r.add_argument("--volumetric-shadows", action=argparse.BooleanOptionalAction,
                    help="shadowed air-light: light shafts behind occluders (default: the scene's "
-                        "render.volumetric_shadows, else on; with media inside shapes, where they are not "
-                        "implemented yet, off with a warning)")
+                        "render.volumetric_shadows, else on)")
     r.add_argument("--shadow-spacing", type=float, metavar="RADIANS",
                    help="not read any more: the lit intervals are exact; accepted so that older scripts run")
     r.add_argument("--passes", type=int, help="stochastic methods: number of progressive passes")

@@ -680,8 +680,7 @@ def _agree(examples, scenes=lit_scene()):
     @fuzz_settings(examples)
     @given(scenes, st.booleans())
     def agree(sc, shadows):
-        # volumetric shadows are refused with media inside shapes (bounded.py), by quadrature too
-        check_laws(sc, shadows and not any("interior" in x for x in sc.get("shape", [])))
+        check_laws(sc, shadows)
 
     agree()
 

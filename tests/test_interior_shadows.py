@@ -137,14 +137,19 @@ def outside_twin(i, j):
     hit = box_clip(o, d, OUT_LO, OUT_HI)
     if hit is not None and hit[1] > 0.0:
         return None
-    # the path to the light enters or leaves the box's shadow, or changes faces, where the line from the
-    # light through one of the box's edges crosses the ray: found on a fine grid, then refined by quad
+    # the path to the light can enter or leave the box, or change faces, only where the ray crosses a
+    # plane through the light and one of the box's 12 edges: every such crossing is a break
     kt = FOG_KS + FOG_KA
     end = 40.0 / kt.min()
-    xs = np.concatenate([np.linspace(0.0, 12.0, 2401), np.linspace(12.0, end, 401)[1:]])
-    ch = np.array([chord(o + x * d, OUT_LO, OUT_HI) for x in xs])
-    slope = np.diff(ch) / np.diff(xs)
-    kinks = [xs[k + 1] for k in range(len(slope) - 1) if abs(slope[k + 1] - slope[k]) > 1e-6]
+    corners = [np.array([OUT_LO[0] if m & 1 else OUT_HI[0], OUT_LO[1] if m & 2 else OUT_HI[1],
+                         OUT_LO[2] if m & 4 else OUT_HI[2]]) for m in range(8)]
+    kinks = []
+    for u in range(8):
+        for v in range(u + 1, 8):
+            if bin(u ^ v).count("1") == 1:  # an edge
+                n = np.cross(corners[u] - LIGHT, corners[v] - LIGHT)
+                if n @ d != 0.0:
+                    kinks.append(float(n @ (LIGHT - o) / (n @ d)))
     out = np.zeros(3)
     for c in range(3):
         dk = OUT_KS[c] + OUT_KA[c] - kt[c]
@@ -229,3 +234,19 @@ def test_refractive_interiors_block_and_stay_unshadowed_inside(tmp_path):
     off = render(prep, "quadrature", {}, RenderOptions(**column))
     assert on.stats["inside: segments unshadowed (refractive or planar model)"] > 0
     assert np.all(on.image[7, 0] < 0.9 * off.image[7, 0])
+
+
+def test_shadow_rays_per_sample_are_refused_with_interiors(tmp_path):
+    """`--shadow-test samples` casts plain shadow rays, which would take every boundary for an
+    occluder: refused in one line."""
+    import raytrace
+
+    (tmp_path / "s.toml").write_text(to_toml({
+        "name": "fog under a box", "camera": OUT_CAMERA | {"width": 4, "height": 3},
+        "medium": {"type": "homogeneous", "sigma_a": FOG_KA.tolist(), "sigma_s": FOG_KS.tolist()},
+        "light": [{"type": "point", "position": LIGHT.tolist(), "intensity": INTENSITY}],
+        "shape": [{"primitive": "box", "min": OUT_LO.tolist(), "max": OUT_HI.tolist(),
+                   "interior": {"sigma_a": OUT_KA.tolist(), "sigma_s": OUT_KS.tolist()}}]}))
+    with pytest.raises(raytrace.UserError, match="shadow-test samples.*inside shapes") as err:
+        raytrace.render(tmp_path / "s.toml", "raymarch", shadow_test="samples", threads=1)
+    assert "\n" not in str(err.value)

@@ -1,14 +1,12 @@
 """`--volumetric-shadows` / `--no-volumetric-shadows` and `volumetric_shadows=` in the API: on by
-default, a scene's [render] table (the bundled `shafts` turns them on), and the default's fallback."""
+default, and a scene's [render] table (the bundled `shafts` turns them on)."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import raytrace
 from raytrace import film
-from raytrace.api import ShadowsNote
-from raytrace.cli import main, one_line_warning
+from raytrace.cli import main
 
 SMALL = dict(width=6, height=4, threads=1)
 
@@ -44,33 +42,29 @@ def test_shadows_are_on_by_default():
     assert not np.array_equal(default.array, off.array)
 
 
-def test_default_shadows_go_off_with_one_note_where_not_implemented(recwarn):
-    """Media inside shapes (wax): shadows on by default give the unshadowed image with one
-    ShadowsNote naming why and the flag that silences it; asked for, they are refused."""
-    default = raytrace.render("wax", **SMALL)
-    notes = [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
-    assert len(notes) == 1
-    text = str(notes[0].message)
-    assert "\n" not in text and "inside shapes" in text and "--no-volumetric-shadows" in text
-    recwarn.clear()
+def test_media_inside_shapes_are_shadowed_by_default():
+    """Media inside shapes (wax) take volumetric shadows like any scene: on by default, with no note,
+    the same image as when asked for; off when turned off."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        default = raytrace.render("wax", **SMALL)
+    on = raytrace.render("wax", volumetric_shadows=True, **SMALL)
+    asked = raytrace.render("wax", overrides=["render.volumetric_shadows=true"], **SMALL)
     off = raytrace.render("wax", volumetric_shadows=False, **SMALL)
-    assert not [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
-    assert not default.volumetric_shadows
-    np.testing.assert_array_equal(default.array, off.array)
-    for asked in (dict(volumetric_shadows=True), dict(overrides=["render.volumetric_shadows=true"])):
-        with pytest.raises(raytrace.UserError, match="media inside shapes"):
-            raytrace.render("wax", **asked, **SMALL)
+    assert default.volumetric_shadows and not off.volumetric_shadows
+    np.testing.assert_array_equal(default.array, on.array)
+    np.testing.assert_array_equal(default.array, asked.array)
+    assert default.stats["inside: lit pieces"] > 0 and "inside: lit pieces" not in off.stats
 
 
-def test_the_cli_warns_once_and_the_flag_silences_it(tmp_path, recwarn):
+def test_the_cli_shadows_media_inside_shapes_and_the_flag_turns_them_off(tmp_path):
     args = ["--width", "6", "--height", "4", "--threads", "1", "--quiet"]
     assert main(["wax", "--out", str(tmp_path / "a.exr"), *args]) == 0
-    notes = [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
-    assert len(notes) == 1 and one_line_warning(notes[0].message, ShadowsNote, "", 0).count("\n") == 1
-    assert film.read_exr(tmp_path / "a.exr")[1]["volumetric_shadows"] == "false"
-    recwarn.clear()
+    assert film.read_exr(tmp_path / "a.exr")[1]["volumetric_shadows"] == "true"
     assert main(["wax", "--no-volumetric-shadows", "--out", str(tmp_path / "b.exr"), *args]) == 0
-    assert not [w for w in recwarn.list if issubclass(w.category, ShadowsNote)]
+    assert film.read_exr(tmp_path / "b.exr")[1]["volumetric_shadows"] == "false"
 
 
 def test_table1_starts_unshadowed(tmp_path, monkeypatch):
