@@ -18,8 +18,10 @@ behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is 
 (`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`). A camera
 inside an index-matched medium starts its rays' first stretch there (`from_inside`).
 Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
-(the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); total internal reflection ends
-the path (no reflected paths in this first cut).
+(the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it). Where a camera path meets a
+refractive boundary from outside, the boundary also mirrors what the reflected ray sees, times
+Fresnel's reflectance 1 - T (`radiance`); reflections inside a shape are not followed: total internal
+reflection at an exit ends the path.
 
 Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside segments
 and what it takes there: `quadrature` (adaptive, the reference), `analytic` (directional lights only: the
@@ -660,6 +662,15 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         out[sel] = f * (inner + behind)
         out_var[sel] = f * f * (inner_var + behind_var)
         out_bound[sel] = scaled(bound, f)
+        if eta != 1.0:  # the boundary's mirror reflection, Fresnel's 1 - T (1 on total reflection)
+            cos = -np.einsum("ij,ij->i", d, nf)
+            start, gap = _leave(prep, p, d + 2.0 * cos[:, None] * nf, cos)
+            seen, seen_var, seen_bound = shade(start, d + 2.0 * cos[:, None] * nf, keys[sel], depth + 1)
+            r = (1.0 - t_in)[:, None] * gap
+            out[sel] += r * seen
+            out_bound[sel] += scaled(seen_bound, r)
+            if seen_var is not None:
+                out_var[sel] += r * r * seen_var
     return out, out_var, stats, out_bound
 
 

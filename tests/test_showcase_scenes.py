@@ -10,6 +10,8 @@ import pytest
 import raytrace
 from raytrace.camera import generate_rays
 
+from .test_boundary_reflection import fresnel_reflectance
+
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -55,10 +57,13 @@ def test_stage_column_casts_a_dark_shaft_into_the_key_beam():
 
 
 def test_ocean_floor_darkens_with_depth_under_a_sky():
-    """Rays that rise see the sky: exactly the background radiance (the outside is vacuum). Along the
-    image's middle column, below the horizon, the sea floor deepens away from the camera and the
-    luminance falls row by row toward the horizon, by more than 10 times; the water is blue-green:
-    red is the weakest channel wherever the floor lies deeper than 5 m."""
+    """Rays that rise see the sky: exactly the background radiance (the outside is vacuum). Below the
+    horizon the surface mirrors the sky by Fresnel's reflectance (tests/test_boundary_reflection.py's
+    formula; the mirrored rays of the middle column rise to the sky, no post in their way): near the
+    horizon the sea is mostly sky. What comes up through the surface (the pixel minus that reflection)
+    falls row by row toward the horizon along the image's middle column, by more than 10 times, as the
+    sea floor deepens away from the camera; the water is blue-green: red is the weakest channel
+    wherever the floor lies deeper than 5 m."""
     w, h = 64, 40
     scene, o, d = small("ocean", w, h)
     img = raytrace.render("ocean", width=w, height=h, threads=1).array
@@ -68,7 +73,11 @@ def test_ocean_floor_darkens_with_depth_under_a_sky():
     np.testing.assert_array_equal(img[sky], np.broadcast_to(scene.background, img[sky].shape))
     col = w // 2
     rows = np.nonzero(dy[:, col] < 0)[0]  # top (horizon) to bottom (near)
-    lum = img[rows, col] @ LUMINANCE
+    mirrored = np.array([fresnel_reflectance(-dy[r, col], 1.33) for r in rows])[:, None] * scene.background
+    assert img[rows[0], col] @ LUMINANCE > 0.5 * scene.background @ LUMINANCE  # grazing: mostly sky
+    up = img[rows, col] - mirrored
+    assert np.all(up > 0.0)
+    lum = up @ LUMINANCE
     assert np.all(np.diff(lum) > 0), lum
     assert lum[-1] > 10 * lum[0]
     # where the ray meets the floor (the plane through its corners), and how deep it is there
@@ -80,7 +89,7 @@ def test_ocean_floor_darkens_with_depth_under_a_sky():
     depth_below_entry = -(a[1] + (hit_surface[:, 2] - a[2]) * (c[1] - a[1]) / (c[2] - a[2]))
     deep = depth_below_entry > 5.0
     assert deep.sum() >= 3
-    px = img[rows[deep], col]
+    px = up[deep]
     assert np.all(px[:, 0] < px[:, 1]) and np.all(px[:, 0] < px[:, 2])
 
 
