@@ -18,13 +18,12 @@ def test_gallery_writes_the_preview_and_skips_a_scene_without_its_mesh(tmp_path,
     assert sorted(p.name for p in out.iterdir()) == ["ocean.png"]
     skipped = [line for line in lines if line.startswith("gallery: skipped sibenik: ")]
     assert len(skipped) == 1 and "sibenik/sibenik.obj" in skipped[0] and "RAYTRACE_ASSETS" in skipped[0]
-    # ocean's water is a medium inside a shape: shadows on by default go off, said as a note line
-    assert any(line.startswith("gallery: ocean: note: ") and "without volumetric shadows" in line for line in lines)
+    assert not any(": note: " in line for line in lines)  # the water (a medium inside a shape) takes shadows
     assert any(line.startswith("gallery: ocean: 24x15, method analytic, 1 spp, ") for line in lines)  # 320x200
     assert lines[-1] == f"wrote 1 image to {out}"
     with Picture.open(out / "ocean.png") as picture:
         written = np.asarray(picture.convert("RGB"))
-    expected = film.tonemap(raytrace.render("ocean", width=24, height=15, threads=1, volumetric_shadows=False).array)
+    expected = film.tonemap(raytrace.render("ocean", width=24, height=15, threads=1).array)
     np.testing.assert_array_equal(written, expected)  # exactly the preview `render --png` writes
 
 
