@@ -76,8 +76,9 @@ def add_up(total: np.ndarray, bound: np.ndarray, divide: float = 1.0):
 
 
 def _up(x: np.ndarray) -> np.ndarray:
-    """float32 of x (float64) rounded toward +inf."""
-    low = x.astype(np.float32)
+    """float32 of x (float64) rounded toward +inf (inf beyond float32's range)."""
+    with np.errstate(over="ignore"):
+        low = x.astype(np.float32)
     up = low.astype(np.float64) < x
     low[up] = np.nextafter(low[up], np.float32(np.inf))
     return low

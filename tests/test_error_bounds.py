@@ -228,3 +228,17 @@ def test_analytic_bound_holds_on_fuzzed_lit_rooms(sc, precision, shadows):
     err = np.abs(img.array - ref)[finite]
     assert np.all(err <= img.error_bound[finite] + 1e-11 * ref[finite]), \
         f"max |err| / bound {np.max(err / np.maximum(img.error_bound[finite], 1e-300)):.3g} on {sc}"
+
+
+def test_a_bound_beyond_float32_is_refused_as_the_image_is():
+    """A lamp of 1e150 W/sr (the slow fuzz run's example): the bound's float64 value overflows float32
+    (rounded up to inf, not an error), and the render is refused in one line for its pixels, which an
+    EXR cannot hold either; under numpy's raising error state, as the fuzz run renders."""
+    with pytest.raises(raytrace.UserError, match="exceed float32"), np.errstate(all="raise"):
+        raytrace.render({"camera": {"position": [0.0, 0.0, 0.0], "look_at": [0.0, 0.0, 1.0], "width": 4,
+                                    "height": 3, "spp": 1},
+                         "shape": [{"primitive": "box", "min": [-3.0, -2.0, -4.0], "max": [3.0, 2.0, 4.0],
+                                    "reflectance": [0.6, 0.5, 0.4]}],
+                         "light": [{"position": [0.0, 0.0, 0.0], "intensity": 1e150}],
+                         "medium": {"sigma_a": 0.0, "sigma_s": 0.0}},
+                        method="analytic", threads=1, volumetric_shadows=False)
