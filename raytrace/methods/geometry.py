@@ -229,9 +229,8 @@ def _fog_in_x(x, r):
 
 
 class AtmosphereInX(NamedTuple):
-    """An atmosphere's air-light integrand in x, one channel's layers, unit light:
-    `atmosphere.inscatter` (tau_cam: the camera's optical depth to x if known, else negative), times
-    a spot's falloff over d^2 for point and spot lights; `cols` is scratch for the layers' columns."""
+    """An atmosphere's air-light integrand in x, one channel's layers, unit light (`atmosphere_in_x`
+    without the camera's optical depth); `cols` is scratch for the layers' columns."""
     row: np.ndarray
     directional: bool
     xh: float
@@ -245,18 +244,31 @@ class AtmosphereInX(NamedTuple):
     R: float
     top: float
     cols: np.ndarray
-    tau_cam: float
 
 
-@integrand_of(AtmosphereInX)
 @njit
-def _atmosphere_in_x(x, r):
-    f = atmo.inscatter(x, r.row, r.directional, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, r.tau_cam)
+def atmosphere_inscatter(x, r, tau_cam):
+    """`atmosphere.inscatter` at x of the AtmosphereInX record r (tau_cam as there)."""
+    return atmo.inscatter(x, r.row, r.directional, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, tau_cam)
+
+
+@njit
+def atmosphere_in_x(x, r, tau_cam):
+    """The air-light integrand at x of the AtmosphereInX record r: `atmosphere.inscatter` (tau_cam:
+    the camera's optical depth to x if known, else negative), times a spot's falloff over d^2 for
+    point and spot lights."""
+    f = atmosphere_inscatter(x, r, tau_cam)
     if not r.directional:
         dx = x - r.xh
         d2 = max(r.h * r.h + dx * dx, 1e-250)
         f *= spot_factor(dx, math.sqrt(d2), r.h, r.cone) / d2
     return f
+
+
+@integrand_of(AtmosphereInX)
+@njit
+def _atmosphere_in_x(x, r):
+    return atmosphere_in_x(x, r, -1.0)
 
 
 def atmosphere_channels(segs, medium, lights, evaluate, variance=False):

@@ -334,6 +334,5 @@ def atmosphere_segments(rows, directional, xh, h, cone, keys, seed, kt, ks, code
             out[s] = _marched_airlight(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
                                        steps, a, n, delta, xi)
         else:
-            rec = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols,
-                                -1.0)
+            rec = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
             out[s] = march(rec, a, n, delta, xi)
