@@ -37,8 +37,8 @@ from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, cone_row,
-                       fog_rows, segment_geometry, spot_factor)
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
+                       cone_row, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
@@ -624,7 +624,7 @@ def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, 
     for a directional light to the pieces outside the planet's shadow (`atmosphere.sunlit`:
     elsewhere f = 0), solve tau(A, x) = the target of u in that truncated distribution by
     `atmosphere.free_path`, p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); a
-    directional light takes free-path draws in every mode.
+    directional light takes free-path draws in every mode. row: `geometry.atmosphere_row`;
     pieces (3, 4), buf (2,): scratch."""
     a, b = row[atmo.A], row[atmo.B]
     if not b > a:
@@ -659,8 +659,8 @@ def atmosphere_segments(rows, directional, xh, h, cone, keys, stream, seed, kt, 
     pieces = np.empty((3, 4))
     buf = np.empty(2)
     for s in range(xh.shape[0]):
-        out[s], var[s] = _atm_estimate(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs,
-                                       Hs, R, top, mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
+        out[s], var[s] = _atm_estimate(atmosphere_row(rows[s]), directional[s], xh[s], h[s], cone[s], kt, ks, codes,
+                                       gs, Hs, R, top, mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
 def _check(medium, params):

@@ -27,8 +27,8 @@ import numpy as np
 
 from ..jit import njit
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (COSD, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_inscatter, by_channel,
-                       cone_row, fog_inscatter, fog_rows, spot_factor)
+from .geometry import (COSD, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_inscatter,
+                       atmosphere_row, by_channel, cone_row, fog_inscatter, fog_rows, spot_factor)
 from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, piecewise, refine, rule
@@ -371,6 +371,7 @@ def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R
         if not rows[s, atmo.B] > rows[s, atmo.A]:
             continue
         stats[EVALS] += 1.0
-        m = _atm_breaks(rows[s], directional[s], xh[s], h[s], cone[s], Hs, R, br)
-        f = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
+        row = atmosphere_row(rows[s])
+        m = _atm_breaks(row, directional[s], xh[s], h[s], cone[s], Hs, R, br)
+        f = AtmosphereInX(row, directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
         out[s] = piecewise(AtmosphereIntegrand(f), br, m, rtol, n10, w10, n20, w20, stats)
