@@ -37,8 +37,8 @@ from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, cone_row, fog_rows, segment_geometry,
-                       spot_factor)
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
+                       cone_row, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
@@ -569,20 +569,8 @@ def fog_segments(rows, directional, xh, h, ell, cone, keys, stream, seed, intens
 class AtmospherePaths(NamedTuple):
     """An atmosphere segment's part [A, B] inside the air, one channel: free paths over the pieces
     (lo, hi, tau(A, lo), mass) of `pieces[:m]` (norm: their total mass), by `atmosphere.free_path`;
-    f = `geometry.AtmosphereInX` at the camera's optical depth; `cols` is scratch."""
-    row: np.ndarray
-    directional: bool
-    xh: float
-    h: float
-    cone: tuple  # cone_row
-    kt: np.ndarray
-    ks: np.ndarray
-    codes: np.ndarray
-    gs: np.ndarray
-    Hs: np.ndarray
-    R: float
-    top: float
-    cols: np.ndarray
+    f = `geometry.atmosphere_in_x` at the camera's optical depth."""
+    f: AtmosphereInX
     pieces: np.ndarray
     m: int
     norm: float
@@ -600,30 +588,32 @@ def _atm_free_path(paths, u):
         k += 1
     v = min(v, pieces[k, 3])
     tau_cam = pieces[k, 2] - math.log1p(-v * math.exp(pieces[k, 2]))
-    row = paths.row
-    x = atmo.free_path(row, row[atmo.A], row[atmo.B], tau_cam, paths.kt, paths.Hs, paths.R, paths.top, paths.cols)
+    r = paths.f
+    row = r.row
+    x = atmo.free_path(row, row[atmo.A], row[atmo.B], tau_cam, r.kt, r.Hs, r.R, r.top, r.cols)
     return min(max(x, pieces[k, 0]), pieces[k, 1]), tau_cam
 
 
 @_free_density_of(AtmospherePaths)
 @njit
 def _atm_density(paths, x, tau):
-    return atmo.extinction_at(x, paths.row, paths.kt, paths.Hs, paths.R) * math.exp(-tau) / paths.norm
+    r = paths.f
+    return atmo.extinction_at(x, r.row, r.kt, r.Hs, r.R) * math.exp(-tau) / paths.norm
 
 
 @_depth_to_of(AtmospherePaths)
 @njit
 def _atm_depth(paths, x):
-    row = paths.row
-    atmo.columns(row[atmo.H0], row[atmo.MU0], row[atmo.A], x, paths.R, paths.top, paths.Hs, paths.cols)
-    return atmo.optical_depth(paths.cols, paths.kt)
+    r = paths.f
+    row = r.row
+    atmo.columns(row[atmo.H0], row[atmo.MU0], row[atmo.A], x, r.R, r.top, r.Hs, r.cols)
+    return atmo.optical_depth(r.cols, r.kt)
 
 
 @_value_of(AtmospherePaths)
 @njit
 def _atm_value(paths, x, tau):
-    return integrand(x, AtmosphereInX(paths.row, paths.directional, paths.xh, paths.h, paths.cone, paths.kt, paths.ks,
-                                      paths.codes, paths.gs, paths.Hs, paths.R, paths.top, paths.cols, tau))
+    return atmosphere_in_x(x, paths.f, tau)
 
 
 @njit
@@ -634,7 +624,8 @@ def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, 
     for a directional light to the pieces outside the planet's shadow (`atmosphere.sunlit`:
     elsewhere f = 0), solve tau(A, x) = the target of u in that truncated distribution by
     `atmosphere.free_path`, p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); a
-    directional light takes free-path draws in every mode. pieces (3, 4), buf (2,): scratch."""
+    directional light takes free-path draws in every mode. row: `geometry.atmosphere_row`;
+    pieces (3, 4), buf (2,): scratch."""
     a, b = row[atmo.A], row[atmo.B]
     if not b > a:
         return 0.0, 0.0
@@ -654,7 +645,8 @@ def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, 
         return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
     use_e, use_f = _strategies_used(mode, directional)
-    paths = AtmospherePaths(row, directional, xh, h, cone_row(cone), kt, ks, codes, gs, Hs, R, top, cols, pieces, m, norm)
+    paths = AtmospherePaths(AtmosphereInX(row, directional, xh, h, cone_row(cone), kt, ks, codes, gs, Hs, R, top, cols),
+                            pieces, m, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, a, b, n, key, dim0, seed)
 
 
@@ -667,8 +659,8 @@ def atmosphere_segments(rows, directional, xh, h, cone, keys, stream, seed, kt, 
     pieces = np.empty((3, 4))
     buf = np.empty(2)
     for s in range(xh.shape[0]):
-        out[s], var[s] = _atm_estimate(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
-                                       mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
+        out[s], var[s] = _atm_estimate(atmosphere_row(rows[s]), directional[s], xh[s], h[s], cone[s], kt, ks, codes,
+                                       gs, Hs, R, top, mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
 def _check(medium, params):

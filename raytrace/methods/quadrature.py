@@ -27,8 +27,8 @@ import numpy as np
 
 from ..jit import njit
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (COSD, HO, MU, MUS, atmosphere_channels, by_channel, cone_row, fog_inscatter, fog_rows,
-                       spot_factor)
+from .geometry import (COSD, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_inscatter,
+                       atmosphere_row, by_channel, cone_row, fog_inscatter, fog_rows, spot_factor)
 from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, piecewise, refine, rule
@@ -325,34 +325,23 @@ def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, cone, H, profil
 
 class AtmosphereIntegrand(NamedTuple):
     """An atmosphere segment's air-light (above), one channel's layers: in x for the sun, in theta
-    for a point or spot light; `cols` is scratch for the layers' columns."""
-    row: np.ndarray
-    directional: bool
-    xh: float
-    h: float
-    cone: tuple  # cone_row
-    kt: np.ndarray
-    ks: np.ndarray
-    codes: np.ndarray
-    gs: np.ndarray
-    Hs: np.ndarray
-    R: float
-    top: float
-    cols: np.ndarray
+    for a point or spot light, of the segment's `geometry.AtmosphereInX` f."""
+    f: AtmosphereInX
 
 
 @integrand_of(AtmosphereIntegrand)
 @njit
 def _atm_value(s, r):
-    if r.directional:
-        return atmo.inscatter(s, r.row, True, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, -1.0)
-    h = r.h
+    f = r.f
+    if f.directional:
+        return atmosphere_inscatter(s, f, -1.0)
+    h = f.h
     dx = h * math.tan(s)
     d = math.sqrt(h * h + dx * dx)
-    f = spot_factor(dx, d, h, r.cone)
-    if f == 0.0:
+    spot = spot_factor(dx, d, h, f.cone)
+    if spot == 0.0:
         return 0.0
-    return f * atmo.inscatter(r.xh + dx, r.row, False, r.kt, r.ks, r.codes, r.gs, r.Hs, r.R, r.top, r.cols, -1.0) / h
+    return spot * atmosphere_inscatter(f.xh + dx, f, -1.0) / h
 
 
 @njit
@@ -382,6 +371,7 @@ def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R
         if not rows[s, atmo.B] > rows[s, atmo.A]:
             continue
         stats[EVALS] += 1.0
-        m = _atm_breaks(rows[s], directional[s], xh[s], h[s], cone[s], Hs, R, br)
-        rec = AtmosphereIntegrand(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
-        out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)
+        row = atmosphere_row(rows[s])
+        m = _atm_breaks(row, directional[s], xh[s], h[s], cone[s], Hs, R, br)
+        f = AtmosphereInX(row, directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
+        out[s] = piecewise(AtmosphereIntegrand(f), br, m, rtol, n10, w10, n20, w20, stats)

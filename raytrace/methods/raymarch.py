@@ -41,8 +41,8 @@ import numpy as np
 from ..jit import njit
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, by_channel, cone_row, eq4_integrand,
-                       fog_rows, segment_geometry, spot_factor)
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel, cone_row,
+                       eq4_integrand, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
@@ -334,6 +334,6 @@ def atmosphere_segments(rows, directional, xh, h, cone, keys, seed, kt, ks, code
             out[s] = _marched_airlight(rows[s], directional[s], xh[s], h[s], cone[s], kt, ks, codes, gs, Hs, R, top,
                                        steps, a, n, delta, xi)
         else:
-            rec = AtmosphereInX(rows[s], directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols,
-                                -1.0)
+            rec = AtmosphereInX(atmosphere_row(rows[s]), directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes,
+                                gs, Hs, R, top, cols)
             out[s] = march(rec, a, n, delta, xi)
