@@ -235,13 +235,13 @@ def cmd_render(args):
         raise UserError(f"--png {png}: must end in .png; the preview is written as an 8-bit PNG")
     if not args.out:
         out.parent.mkdir(parents=True, exist_ok=True)
-    for p in (out, png):
+    for p, flag in ((out, "--out"), (png, "--png")):
         if p is not None:
-            film.check_writable(p)
+            film.check_writable(p, flag)
     progressive = args.passes or args.time_budget or args.target_error or args.checkpoint
     ckpt = Path(args.checkpoint) if args.checkpoint else (Path(str(out) + ".ckpt.npz") if progressive else None)
     if ckpt is not None:
-        film.check_writable(ckpt)
+        film.check_writable(ckpt, "--checkpoint")
     source = str(scene.path or "default scene")
     show = not args.quiet and sys.stderr.isatty()
     rows = (args.crop and _parse_crop(args.crop)) or None

@@ -99,14 +99,21 @@ def _atomic_write(path: Path, write):
     write_together([(path, write)])
 
 
-def check_writable(path: Path):
-    """Fail early (before a long render) when `path` cannot be written."""
+def check_writable(path: Path, flag: str = "--out"):
+    """Fail early (before a long render) when `path` (given as `flag`) cannot be written: its folder
+    must exist and take a new file (tried: permission bits do not tell for root or for /proc)."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise UserError(f"{path}: folder {folder} does not exist; create it or choose another output path")
+        raise UserError(f"{flag} {path}: folder {folder} does not exist; create it or choose another output path")
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)) or path.is_dir():
-        raise UserError(f"{path}: not writable; choose a writable output path")
+        raise UserError(f"{flag} {path}: not writable; choose a writable output path")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=folder)
+    except OSError as exc:
+        raise UserError(f"{flag} {path}: not writable ({exc.strerror}); choose a writable output path") from None
+    os.close(fd)
+    os.unlink(tmp)
 
 
 def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict | None = None):

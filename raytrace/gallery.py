@@ -58,7 +58,7 @@ def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: i
     except OSError as exc:
         raise UserError(f"--out {out}: cannot create the folder ({exc.strerror}); choose a writable folder") from None
     for name in names:
-        film.check_writable(out / f"{name}.png")
+        film.check_writable(out / f"{name}.png", "--out")
     written = []
     for name in names:
         scene = api.load(name)

@@ -529,3 +529,14 @@ def test_unreadable_mesh_simulated(work, capsys, monkeypatch):
     err = run_inprocess(render_argv(work, scene), capsys)
     check_one_line(err, str(mesh), "shape[1].mesh", "Permission denied")
     check_nothing_written(work)
+
+
+@pytest.mark.parametrize("flag, path", [("--png", "/proc/a.png"), ("--checkpoint", "/proc/c.ckpt.npz")])
+def test_an_unwritable_preview_or_checkpoint_is_named_before_rendering(work, capsys, flag, path):
+    """A path whose folder exists but takes no file (/proc, even for root): one line naming the flag,
+    exit 2, before any render; nothing written."""
+    scene = write_scene(work, BASE)
+    extra = [flag, path] + (["--method", "montecarlo", "--passes", "2"] if flag == "--checkpoint" else [])
+    err = run_inprocess(render_argv(work, scene) + extra, capsys)
+    check_one_line(err, f"{flag} {path}", "not writable")
+    check_nothing_written(work)
