@@ -664,8 +664,9 @@ def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, sh
         out_bound[sel] = scaled(bound, f)
         if eta != 1.0:  # the boundary's mirror reflection, Fresnel's 1 - T (1 on total reflection)
             cos = -np.einsum("ij,ij->i", d, nf)
-            start, gap = _leave(prep, p, d + 2.0 * cos[:, None] * nf, cos)
-            seen, seen_var, seen_bound = shade(start, d + 2.0 * cos[:, None] * nf, keys[sel], depth + 1)
+            mirrored = d + 2.0 * cos[:, None] * nf
+            start, gap = _leave(prep, p, mirrored, cos)
+            seen, seen_var, seen_bound = shade(start, mirrored, keys[sel], depth + 1)
             r = (1.0 - t_in)[:, None] * gap
             out[sel] += r * seen
             out_bound[sel] += scaled(seen_bound, r)

@@ -26,6 +26,7 @@ from raytrace.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
 from . import oracle
+from .test_bounded_media import slab
 from .conftest import to_toml
 
 LIGHT = np.array([0.0, 3.0, 0.0])
@@ -50,15 +51,8 @@ OUT_CAMERA = {"position": [0.0, 0.4, 4.0], "look_at": [0.0, 0.6, 0.0], "fov": 50
 
 def box_clip(o, d, lo, hi):
     """(t_in, t_out) of the line o + t d through the box [lo, hi] (t_in may be negative), or None."""
-    t0, t1 = -math.inf, math.inf
-    for a in range(3):
-        if d[a] == 0.0:
-            if not lo[a] <= o[a] <= hi[a]:
-                return None
-            continue
-        u, v = (lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]
-        t0, t1 = max(t0, min(u, v)), min(t1, max(u, v))
-    return (t0, t1) if t0 < t1 else None
+    hit = slab(o, d, lo, hi)
+    return None if hit is None else hit[:2]
 
 
 def chord(p, lo, hi):
