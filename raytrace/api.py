@@ -10,7 +10,8 @@
 `conference`: the repository's scenes/, installed with the package), a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
 or None for the built-in default scene. Keyword arguments other than the render options (the fields
 of `RenderOptions`, raytrace/options.py, checked once by `render_options`) are the method's own
-parameters; a parameter the method does not read is an error (UserError).
+parameters; one the method does not read is an error (UserError), while one in the scene's [render]
+table that it does not read is ignored with one `SceneDefaultNote` warning.
 """
 from __future__ import annotations
 
@@ -296,16 +297,13 @@ class SceneDefaultNote(UserWarning):
 
 
 def scene_defaults(scene: Scene, method, source: str) -> dict:
-    """The method parameters of the scene's [render] table for a render with `method`. When `method`
-    is not the table's own `method`, the parameters it does not read (e.g. a quadrature scene's rtol
-    when rendering with raymarch) are defaults for another method: left out with one
-    SceneDefaultNote, never refused. The table's own method gets them all (one it does not read
-    is the file's mistake, refused by the method as a keyword given here is)."""
+    """The method parameters of the scene's [render] table (the file's, with --set render.X edits)
+    that `method` reads. The ones it does not read (e.g. a quadrature scene's rtol when rendering
+    with raymarch, or a stray rtol beside method = "analytic") are left out with one
+    SceneDefaultNote, never refused: only a keyword or flag given explicitly is (resolve_params)."""
     from .scene.format import RENDER_OPTIONS
 
     params = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
-    if scene.render.get("method") == method.name:
-        return params
     unread = [k for k in params if k not in method.params]
     if unread:
         warnings.warn(f"{source}: [render] {', '.join(f'{k} = {params[k]!r}' for k in unread)}: not read by method "

@@ -25,7 +25,8 @@ COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1
 
 def _method_param_flags():
     """Every parameter some method declares becomes a flag (--precision, --terms, --rtol, ...); the
-    chosen method refuses the ones it does not read."""
+    chosen method refuses a flag it does not read (a scene's [render] parameter it does not read,
+    from the file or --set render.X, is ignored with one warning line instead)."""
     from .methods import registry
 
     flags = {}

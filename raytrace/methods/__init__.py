@@ -236,7 +236,9 @@ def get_method(name: str) -> Method:
 
 def resolve_params(method: Method, given: dict, source: str) -> dict:
     """Defaults of `method` updated with `given`, type- and range-checked. A key the method does not
-    declare is refused, naming the methods that do take it (nothing is dropped silently)."""
+    declare is refused, naming the methods that do take it (nothing is dropped silently): `given` holds
+    the keywords and flags given explicitly (api.scene_defaults has left out, with a note, the
+    scene's [render] parameters the method does not read)."""
     from ..errors import UserError
 
     out = {k: p.default for k, p in method.params.items()}
@@ -245,8 +247,8 @@ def resolve_params(method: Method, given: dict, source: str) -> dict:
             takers = [m.name for m in registry().values() if k in m.params]
             fix = (f"it is a parameter of {', '.join(takers)}: choose --method {takers[0]} or remove it" if takers
                    else "no method takes it; see `render.py methods`")
-            raise UserError(f"{source}: --{k.replace('_', '-')} (render.{k}): method {method.name} does not read "
-                            f"this parameter; {fix}")
+            raise UserError(f"{source}: {k}={given[k]!r} (--{k.replace('_', '-')} on the command line): method "
+                            f"{method.name} does not read this parameter; {fix}")
     for k, v in given.items():
         if v is None:
             continue
