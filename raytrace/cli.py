@@ -276,9 +276,10 @@ def cmd_render(args):
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()  # before the line, which would otherwise follow the bar's
+        # the checkpoint is named only once a pass (of this run or an earlier one) has written it
         print(("\n" if passes_shown else "") + f"interrupted: {source}"
-              + (f"; the checkpoint {ckpt} keeps the finished passes, run the same command to resume" if ckpt
-                 else "; nothing was written"), file=sys.stderr)
+              + (f"; the checkpoint {ckpt} keeps the finished passes, run the same command to resume"
+                 if ckpt is not None and ckpt.is_file() else "; nothing was written"), file=sys.stderr)
         return 130
     finally:
         if bar is not None:
