@@ -90,12 +90,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {self.prog}: {message}; see `{self.prog} --help`\n")
 
 
+def _command(sub, name: str, summary: str, details: str):
+    """A subcommand: `summary` is its line in `render.py --help`; its own --help opens with the
+    summary as a sentence, then `details`."""
+    return sub.add_parser(name, help=summary, description=f"{summary[0].upper()}{summary[1:]}. {details}")
+
+
 def build_parser():
     parser = _Parser(prog="render.py", description=DESCRIPTION,
                      epilog="Without a command, the arguments are render's: `render.py box_room` renders the bundled "
                             "scene box_room. `render.py COMMAND --help` lists a command's options; docs/cli.md has them all.")
     sub = parser.add_subparsers(dest="command")
-    r = sub.add_parser("render", help="render a scene to EXR (and PNG)")
+    r = _command(sub, "render", "render a scene to EXR (and PNG)",
+                 "A linear float32 EXR (with per-pixel error bounds) and an 8-bit PNG preview, with one air-light "
+                 "method; every output path is checked before rendering and the files are written together.")
     _add_scene_args(r)
     r.add_argument("--method", help="air-light method (see `methods`; default: the scene's render.method, else analytic)")
     r.add_argument("--spp", type=int, help="samples per pixel (1 = the pixel centre)")
@@ -141,8 +149,9 @@ def build_parser():
             r.add_argument(flag, dest=f"param_{name}", action="store_const", const=True, help=p.help)
         else:
             r.add_argument(flag, dest=f"param_{name}", type=p.type, metavar=name.upper(), help=p.help)
-    c = sub.add_parser("compare", help="render several methods and a reference on the same samples; "
-                                       "images, error maps and a table of time and error")
+    c = _command(sub, "compare", "render several methods and a reference on the same samples; images, error maps "
+                                 "and a table of time and error",
+                 "Writes each method's EXR and PNG, its error map and compare.md / compare.json in --out.")
     _add_scene_args(c)
     c.add_argument("--methods", required=True,
                    help="comma-separated methods, each name or name:key=value:... (e.g. raymarch:steps=32)")
@@ -152,8 +161,9 @@ def build_parser():
     c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     _add_compare_shadows_arg(c)
     _add_scheduler_arg(c)
-    s = sub.add_parser("sweep", help="a scene over a grid of --set values x methods: one EXR and PNG per point and "
-                                     "method, a CSV/JSON table of time and error against the reference at each point")
+    s = _command(sub, "sweep", "a scene over a grid of --set values x methods: one EXR and PNG per point and "
+                               "method, a CSV/JSON table of time and error against the reference at each point",
+                 "Every grid point is parsed before anything is rendered.")
     _add_scene_args(s)
     s.add_argument("--grid", action="append", required=True, metavar="KEY=V1,V2,...",
                    help="a grid axis: a scene key and its values (as --set values, split at top-level commas), "
@@ -165,8 +175,11 @@ def build_parser():
     s.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     _add_compare_shadows_arg(s)
     _add_scheduler_arg(s)
-    t = sub.add_parser("table1", help=f"Table 1 of {PAPER} on the paper's three scenes (time and error of each "
-                                      "method), with a report")
+    t = _command(sub, "table1", f"Table 1 of {PAPER} on the paper's three scenes (time and error of each "
+                                "method), with a report",
+                 "The scenes Sibenik, bridge and conference (their meshes through RAYTRACE_ASSETS), unshadowed as in "
+                 "the paper, then with volumetric shadows; images, error maps, report.md, report.json and report.html "
+                 "with the paper's figures beside ours.")
     t.add_argument("--out", default="out/table1", help="output folder (default out/table1)")
     t.add_argument("--quick", action="store_true", help="small images and 1 spp (for CI)")
     t.add_argument("--seed", type=int, default=0, help=OPTION_HELP["seed"])
@@ -176,29 +189,40 @@ def build_parser():
                         "1 spp (default; the lit-interval search makes every shadowed render 5-40x slower), at "
                         "the full size, or off (with --quick it uses the quick images)")
     _add_scheduler_arg(t)
-    e = sub.add_parser("seed002", help="the figures of the note on single scattering in a homogeneous slab (its "
-                                       "abstract opens \"An analytical approach toward visualization of participating "
-                                       "media\"): the air-light against the light's distance, and the measured error "
-                                       "of its point-light approximation; CSV, report, plots")
+    e = _command(sub, "seed002", "the figures of the note on single scattering in a homogeneous slab (its "
+                                 "abstract opens \"An analytical approach toward visualization of participating "
+                                 "media\"): the air-light against the light's distance, and the measured error "
+                                 "of its point-light approximation; CSV, report, plots",
+                 "The note (an analytic single-scattering solution for homogeneous slabs, ocean and translucent "
+                 "materials; its text carries no title, so it is named by its abstract) is the source of the media "
+                 "inside shapes. Writes curves.csv, sweep.csv, report.md and, with matplotlib, PNG plots.")
     e.add_argument("--out", default="out/seed002", help="output folder (default out/seed002)")
     e.add_argument("--quick", action="store_true", help="13 light distances instead of 121 (for CI)")
     e.add_argument("--no-plots", action="store_true", help="CSV files and the report only (no matplotlib needed)")
-    d = sub.add_parser("describe", help="print what a scene file parsed into")
+    d = _command(sub, "describe", "print what a scene file parsed into",
+                 "Camera, shapes and triangle count, bounds, lights, medium, background and [render].")
     _add_scene_args(d)
-    sub.add_parser("methods", help="list the air-light methods and their parameters")
-    x = sub.add_parser("export", help="write a scene for Mitsuba 3, pbrt-v4 or glTF 2.0 (docs/formats/)")
+    _command(sub, "methods", "list the air-light methods and their parameters",
+             "Each method with what it takes (lights, media, phase functions, media inside shapes), then its "
+             "parameters with their defaults and allowed ranges.")
+    x = _command(sub, "export", "write a scene for Mitsuba 3, pbrt-v4 or glTF 2.0 (docs/formats/)",
+                 "What the format cannot express is refused in one line naming the key (or, with --approximate, "
+                 "written as its closest form with a warning).")
     _add_scene_args(x)
     x.add_argument("--format", required=True, choices=("mitsuba", "pbrt", "gltf"), help="the file format to write")
     x.add_argument("--out", required=True, help="the file to write (meshes are written beside it or embedded)")
     x.add_argument("--approximate", action="store_true",
                    help="write what the format cannot express exactly as its closest form, with a warning naming it")
-    g = sub.add_parser("gallery", help="every bundled scene (or those named) as a PNG preview with its own method "
-                                       "and spp, at --width and the camera's aspect (README's gallery)")
+    g = _command(sub, "gallery", "every bundled scene (or those named) as a PNG preview with its own method "
+                                 "and spp, at --width and the camera's aspect (README's gallery)",
+                 "A scene whose meshes are not on RAYTRACE_ASSETS is skipped with a warning line.")
     g.add_argument("scenes", nargs="*", metavar="SCENE", help="bundled scene names (default: all of them)")
     g.add_argument("--out", default="docs/gallery", help="output folder, one NAME.png per scene (default docs/gallery)")
     g.add_argument("--width", type=int, default=960, help="image width in pixels (default 960)")
     g.add_argument("--threads", type=int, help="worker threads (default: all cores)")
-    f = sub.add_parser("diff", help="error of TEST.exr against REF.exr, with an error map")
+    f = _command(sub, "diff", "error of TEST.exr against REF.exr, with an error map",
+                 "Mean absolute, RMS, mean and maximum relative error; --bounds checks the difference against the "
+                 "images' error_bound channels.")
     f.add_argument("test", help="the EXR to check")
     f.add_argument("ref", help="the reference EXR, of the same size")
     f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
