@@ -202,15 +202,28 @@ def _check_count(key: str, value):
         raise UserError(f"{_named(key, value)}: must be a positive integer; give a value of at least 1")
 
 
+def image_size(cam, width: int | None = None, height: int | None = None) -> tuple[int, int]:
+    """(width, height) of a render of camera `cam`: both given, as given; one given, the other keeps
+    the camera's aspect (rounded to the nearest integer, halves up, at least 1); neither, the camera's."""
+    if width is not None and height is None:
+        height = max(1, (2 * width * cam.height + cam.width) // (2 * cam.width))
+    elif height is not None and width is None:
+        width = max(1, (2 * height * cam.width + cam.height) // (2 * cam.height))
+    return width or cam.width, height or cam.height
+
+
 def render_options(scene: Scene | None, source: str = "render", **given) -> RenderOptions:
     """The checked `RenderOptions` of a render of `scene` from `given` keywords (its field names;
     None or absent: the scene's [render] value where it has one, else the default). Every value is
-    checked here, once; the scene's camera takes the spp, width and height given, and the crop must
-    lie inside it (`scene` None: no [render] defaults, no camera, no crop)."""
+    checked here, once; the scene's camera takes the spp, width and height given (one of width and
+    height alone keeps its aspect: `image_size`), and the crop must lie inside it (`scene` None: no
+    [render] defaults, no camera, no crop)."""
     given = {k: v for k, v in given.items() if v is not None}
     table = scene.render if scene is not None else {}
     for key in ("spp", "width", "height", "threads", "passes"):
         _check_count(key, given.get(key))
+    if scene is not None and ("width" in given or "height" in given):
+        given["width"], given["height"] = image_size(scene.camera, given.get("width"), given.get("height"))
     for key in ("time_budget", "target_error"):
         if key in given and not given[key] > 0:
             raise UserError(f"{_named(key, given[key])}: must be positive; give a value above 0")

@@ -46,8 +46,10 @@ def _add_scene_args(p):
 
 
 OPTION_HELP = {"spp": "samples per pixel (default: the scene's camera.spp)",
-               "width": "image width in pixels (default: the scene's camera.width)",
-               "height": "image height in pixels (default: the scene's camera.height)",
+               "width": "image width in pixels (default: the scene's camera.width; alone, the height keeps the "
+                        "camera's aspect)",
+               "height": "image height in pixels (default: the scene's camera.height; alone, the width keeps the "
+                         "camera's aspect)",
                "seed": "random seed of the stochastic methods (default 0)",
                "threads": "worker threads (default: all cores)"}
 
@@ -107,8 +109,8 @@ def build_parser():
     _add_scene_args(r)
     r.add_argument("--method", help="air-light method (see `methods`; default: the scene's render.method, else analytic)")
     r.add_argument("--spp", type=int, help="samples per pixel (1 = the pixel centre)")
-    r.add_argument("--width", type=int, help="image width in pixels")
-    r.add_argument("--height", type=int, help="image height in pixels")
+    r.add_argument("--width", type=int, help=OPTION_HELP["width"])
+    r.add_argument("--height", type=int, help=OPTION_HELP["height"])
     r.add_argument("--seed", type=int, help="random seed of the stochastic methods (default 0)")
     r.add_argument("--out", help="output EXR (default out/<scene name>.exr, with a PNG beside it)")
     r.add_argument("--png", help="also write an 8-bit PNG preview here")
@@ -327,13 +329,12 @@ def _display(args, scene, name):
     """The tev display of --display-server showing the image `name` (None without the flag)."""
     if not args.display_server:
         return None
-    from .api import render_options
+    from .api import image_size, render_options
     from .tev import TevDisplay, parse_address
 
     parse_address(args.display_server)  # a badly formed address is refused before --width is looked at
     render_options(None, width=args.width, height=args.height)  # refuses a size that is not positive
-    return TevDisplay.open(args.display_server, name, args.width or scene.camera.width,
-                           args.height or scene.camera.height)
+    return TevDisplay.open(args.display_server, name, *image_size(scene.camera, args.width, args.height))
 
 
 def _parse_crop(text):

@@ -28,11 +28,6 @@ def missing_asset(scene) -> str | None:
     return None
 
 
-def gallery_size(camera, width: int) -> tuple[int, int]:
-    """`width` and the height that keeps the camera's aspect (at least 1 pixel)."""
-    return width, max(1, round(width * camera.height / camera.width))
-
-
 def _png_writer(rgb8):
     """`write(tmp)` of an optimized 8-bit PNG, for film.write_together."""
     from PIL import Image as Picture
@@ -66,8 +61,8 @@ def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: i
         if why is not None:
             note(f"gallery: skipped {name}: {why}")
             continue
-        w, h = gallery_size(scene.camera, width)
-        image = api.render(scene, width=w, height=h, threads=threads)
+        image = api.render(scene, width=width, threads=threads)  # the height keeps the camera's aspect
+        h, w = image.array.shape[:2]
         path = out / f"{name}.png"
         film.write_together([(path, _png_writer(film.tonemap(image.array)))])
         note(f"gallery: {name}: {w}x{h}, method {image.method}, {image.spp} spp, {image.seconds:.1f} s "
