@@ -260,8 +260,6 @@ def cmd_render(args):
         raise UserError(f"--out {out}: must end in .exr; the image is written as linear float32 EXR")
     if png is not None and png.suffix.lower() != ".png":
         raise UserError(f"--png {png}: must end in .png; the preview is written as an 8-bit PNG")
-    if not args.out:
-        out.parent.mkdir(parents=True, exist_ok=True)
     for p, flag in ((out, "--out"), (png, "--png")):
         if p is not None:
             film.check_writable(p, flag)
@@ -312,7 +310,9 @@ def cmd_render(args):
             bar.close()
         if display is not None:
             display.close()
-    img.save(out, *([png] if png is not None else []), exposure=args.exposure, view=args.view)  # both or neither
+    outputs = [out] + ([png] if png is not None else [])
+    with film.folders_for(outputs):  # missing folders are created now, and removed again if the save fails
+        img.save(*outputs, exposure=args.exposure, view=args.view)  # both or neither
     if not args.quiet:
         cam = scene.camera
         size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")

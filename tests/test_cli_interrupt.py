@@ -12,16 +12,18 @@ from raytrace.cli import main
 
 from .conftest import box_room, to_toml
 
+RENDER = raytrace.progressive.render  # one pass, unpatched
+
 
 def _interrupt_pass(monkeypatch, after: int):
     """Let `after` passes render, then raise KeyboardInterrupt in the next one, as Ctrl-C does."""
-    calls, render = [], raytrace.progressive.render
+    calls = []
 
     def interrupted(*args, **kwargs):
         calls.append(1)
         if len(calls) > after:
             raise KeyboardInterrupt
-        return render(*args, **kwargs)
+        return RENDER(*args, **kwargs)
     monkeypatch.setattr(raytrace.progressive, "render", interrupted)
 
 
@@ -51,3 +53,13 @@ def test_after_a_pass_the_checkpoint_written_is_named(tmp_path, argv, capsys, mo
     _interrupt_pass(monkeypatch, after=0)
     assert main(argv) == 130
     assert "the checkpoint" in capsys.readouterr().err and ckpt.is_file()
+
+
+def test_a_checkpoint_folder_is_created_by_the_first_save_only(tmp_path, argv, capsys, monkeypatch):
+    ckpt = tmp_path / "new" / "c.ckpt.npz"
+    _interrupt_pass(monkeypatch, after=0)
+    assert main(argv + ["--checkpoint", str(ckpt)]) == 130
+    assert "nothing was written" in capsys.readouterr().err and not ckpt.parent.exists()
+    _interrupt_pass(monkeypatch, after=1)
+    assert main(argv + ["--checkpoint", str(ckpt)]) == 130
+    assert f"the checkpoint {ckpt} keeps" in capsys.readouterr().err and ckpt.is_file()

@@ -49,7 +49,7 @@ def _failing_png(monkeypatch):
     monkeypatch.setattr(film, "png_writer", png_writer)
 
 
-@pytest.mark.parametrize("png, message", [("nope/a.png", "folder .*nope does not exist"),
+@pytest.mark.parametrize("png, message", [("s.toml/a.png", r"s\.toml is a file, not a folder"),
                                           ("a.jpg", r"--png .*a\.jpg: must end in \.png")])
 def test_an_unusable_png_path_is_refused_before_rendering(tmp_path, scene, capsys, monkeypatch, png, message):
     _no_render(monkeypatch)
