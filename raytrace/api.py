@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from . import error_bounds, io
-from .errors import UserError
+from .errors import UserError, counted
 from .options import MEMORY_SHARE, RenderOptions, physical_memory  # noqa: F401  (api.MEMORY_SHARE for callers)
 from .scene.format import Scene
 from .visibility import SHADOW_SPACING, SPACING_RANGE
@@ -299,7 +299,7 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
         budget = f"the --max-memory budget of {max_memory:g} GiB"
     if need > limit:
         rows = int(limit // ((x1 - x0) * per_pixel))
-        band = (f"render it in bands of at most {rows} rows with --crop (e.g. --crop {x0},{y0},{x1},{y0 + rows})"
+        band = (f"render it in bands of at most {counted(rows, 'row')} with --crop (e.g. --crop {x0},{y0},{x1},{y0 + rows})"
                 if rows >= 1 else "render it in parts with --crop")
         raise UserError(f"{source}: camera {cam.width}x{cam.height}: the image needs about {need / 2**30:.3g} GiB, "
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
@@ -365,7 +365,8 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     if np.any(np.isnan(result.image)):
         raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
     if not np.all(result.image < np.finfo(np.float32).max):
-        raise UserError(f"{source}: {int(np.sum(~(result.image < np.finfo(np.float32).max)))} pixel channels exceed "
+        over = int(np.sum(~(result.image < np.finfo(np.float32).max)))
+        raise UserError(f"{source}: {counted(over, 'pixel channel exceeds', 'pixel channels exceed')} "
                         "float32's 3.4e38 (an EXR cannot hold them): lower the lights' intensity or the medium's "
                         "coefficients, or move the camera off the light it sits on")
     bound = result.error_bound

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UserError
+from .errors import UserError, counted
 from .film import VIEWS
 
 PAPER = '"An Analytical Solution to Single Scattering in Homogeneous Participating Media" (Pegoraro & Parker)'
@@ -432,8 +432,8 @@ def cmd_describe(args):
     kinds = {}
     for s in scene.shapes:
         kinds[s.kind] = kinds.get(s.kind, 0) + 1
-    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}), {len(tris)} triangles "
-          "(zero-area triangles left out)")
+    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{k}: {v}' for k, v in kinds.items())}), "
+          f"{counted(len(tris), 'triangle')} (zero-area triangles left out)")
     if len(tris):
         pts = tris.reshape(-1, 3)
         print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")
@@ -475,7 +475,7 @@ def cmd_gallery(args):
 
     written = render_gallery(Path(args.out), args.width, args.scenes, note=lambda line: print(line, flush=True),
                              threads=args.threads)
-    print(f"wrote {len(written)} image{'' if len(written) == 1 else 's'} to {args.out}")
+    print(f"wrote {counted(len(written), 'image')} to {args.out}")
     return 0
 
 

@@ -19,6 +19,11 @@ from ..media.slab import CLOSED
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
 
+def _readable(v: float) -> str:
+    """A bound as people write it: whole numbers in full (1048576, not 1.04858e+06), others to 6 digits."""
+    return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else f"{v:g}"
+
+
 @dataclass(frozen=True)
 class Param:
     """A method parameter: default, type, help text, and the values it accepts: numbers within
@@ -34,8 +39,8 @@ class Param:
     def rule(self) -> str:
         if self.choices:
             return "one of " + ", ".join(self.choices)
-        lo = "" if self.low is None else (f"> {self.low:g}" if self.open_low else f">= {self.low:g}")
-        hi = "" if self.high is None else f"<= {self.high:g}"
+        lo = "" if self.low is None else (f"> {_readable(self.low)}" if self.open_low else f">= {_readable(self.low)}")
+        hi = "" if self.high is None else f"<= {_readable(self.high)}"
         return " and ".join(x for x in (lo, hi) if x) or "finite"
 
     def accepts(self, v) -> bool:
