@@ -299,7 +299,8 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
         budget = f"the --max-memory budget of {max_memory:g} GiB"
     if need > limit:
         rows = int(limit // ((x1 - x0) * per_pixel))
-        band = (f"render it in bands of at most {counted(rows, 'row')} with --crop (e.g. --crop {x0},{y0},{x1},{y0 + rows})"
+        band = (f"render it in bands of at most {counted(rows, 'row')} with --crop "
+                f"(e.g. --crop {x0},{y0},{x1},{y0 + rows})"
                 if rows >= 1 else "render it in parts with --crop")
         raise UserError(f"{source}: camera {cam.width}x{cam.height}: the image needs about {need / 2**30:.3g} GiB, "
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")

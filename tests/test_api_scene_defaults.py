@@ -45,7 +45,8 @@ def test_the_cli_renders_a_scene_with_the_note(tmp_path, capsys):
 
 def test_set_render_key_edits_the_scene_so_it_is_a_note_too(tmp_path):
     out = tmp_path / "a.exr"
-    with pytest.warns(SceneDefaultNote, match=r"box_room\.toml: \[render\] rtol = 0\.0001: not read by method analytic"):
+    note = r"box_room\.toml: \[render\] rtol = 0\.0001: not read by method analytic"
+    with pytest.warns(SceneDefaultNote, match=note):
         assert main(["render", "box_room", "--set", "render.rtol=1e-4", "--width", "4", "--height", "3",
                      "--threads", "1", "--out", str(out), "--quiet"]) == 0
     assert out.is_file()
