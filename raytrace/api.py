@@ -10,7 +10,8 @@
 `conference`: the repository's scenes/, installed with the package), a dict with the file's structure (SCENE_FORMAT.md), a parsed `Scene`,
 or None for the built-in default scene. Keyword arguments other than the render options (the fields
 of `RenderOptions`, raytrace/options.py, checked once by `render_options`) are the method's own
-parameters; a parameter the method does not read is an error (UserError).
+parameters; one the method does not read is an error (UserError), while one in the scene's [render]
+table that it does not read is ignored with one `SceneDefaultNote` warning.
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from . import error_bounds, io
-from .errors import UserError
+from .errors import UserError, counted
 from .options import MEMORY_SHARE, RenderOptions, physical_memory  # noqa: F401  (api.MEMORY_SHARE for callers)
 from .scene.format import Scene
 from .visibility import SHADOW_SPACING, SPACING_RANGE
@@ -201,15 +202,28 @@ def _check_count(key: str, value):
         raise UserError(f"{_named(key, value)}: must be a positive integer; give a value of at least 1")
 
 
+def image_size(cam, width: int | None = None, height: int | None = None) -> tuple[int, int]:
+    """(width, height) of a render of camera `cam`: both given, as given; one given, the other keeps
+    the camera's aspect (rounded to the nearest integer, halves up, at least 1); neither, the camera's."""
+    if width is not None and height is None:
+        height = max(1, (2 * width * cam.height + cam.width) // (2 * cam.width))
+    elif height is not None and width is None:
+        width = max(1, (2 * height * cam.width + cam.height) // (2 * cam.height))
+    return width or cam.width, height or cam.height
+
+
 def render_options(scene: Scene | None, source: str = "render", **given) -> RenderOptions:
     """The checked `RenderOptions` of a render of `scene` from `given` keywords (its field names;
     None or absent: the scene's [render] value where it has one, else the default). Every value is
-    checked here, once; the scene's camera takes the spp, width and height given, and the crop must
-    lie inside it (`scene` None: no [render] defaults, no camera, no crop)."""
+    checked here, once; the scene's camera takes the spp, width and height given (one of width and
+    height alone keeps its aspect: `image_size`), and the crop must lie inside it (`scene` None: no
+    [render] defaults, no camera, no crop)."""
     given = {k: v for k, v in given.items() if v is not None}
     table = scene.render if scene is not None else {}
     for key in ("spp", "width", "height", "threads", "passes"):
         _check_count(key, given.get(key))
+    if scene is not None and ("width" in given or "height" in given):
+        given["width"], given["height"] = image_size(scene.camera, given.get("width"), given.get("height"))
     for key in ("time_budget", "target_error"):
         if key in given and not given[key] > 0:
             raise UserError(f"{_named(key, given[key])}: must be positive; give a value above 0")
@@ -285,7 +299,8 @@ def check_memory(cam, crop, stochastic: bool, source: str, max_memory: float | N
         budget = f"the --max-memory budget of {max_memory:g} GiB"
     if need > limit:
         rows = int(limit // ((x1 - x0) * per_pixel))
-        band = (f"render it in bands of at most {rows} rows with --crop (e.g. --crop {x0},{y0},{x1},{y0 + rows})"
+        band = (f"render it in bands of at most {counted(rows, 'row')} with --crop "
+                f"(e.g. --crop {x0},{y0},{x1},{y0 + rows})"
                 if rows >= 1 else "render it in parts with --crop")
         raise UserError(f"{source}: camera {cam.width}x{cam.height}: the image needs about {need / 2**30:.3g} GiB, "
                         f"more than {budget}; lower camera.width / camera.height (--width, --height) or {band}")
@@ -296,16 +311,13 @@ class SceneDefaultNote(UserWarning):
 
 
 def scene_defaults(scene: Scene, method, source: str) -> dict:
-    """The method parameters of the scene's [render] table for a render with `method`. When `method`
-    is not the table's own `method`, the parameters it does not read (e.g. a quadrature scene's rtol
-    when rendering with raymarch) are defaults for another method: left out with one
-    SceneDefaultNote, never refused. The table's own method gets them all (one it does not read
-    is the file's mistake, refused by the method as a keyword given here is)."""
+    """The method parameters of the scene's [render] table (the file's, with --set render.X edits)
+    that `method` reads. The ones it does not read (e.g. a quadrature scene's rtol when rendering
+    with raymarch, or a stray rtol beside method = "analytic") are left out with one
+    SceneDefaultNote, never refused: only a keyword or flag given explicitly is (resolve_params)."""
     from .scene.format import RENDER_OPTIONS
 
     params = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
-    if scene.render.get("method") == method.name:
-        return params
     unread = [k for k in params if k not in method.params]
     if unread:
         warnings.warn(f"{source}: [render] {', '.join(f'{k} = {params[k]!r}' for k in unread)}: not read by method "
@@ -354,7 +366,8 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     if np.any(np.isnan(result.image)):
         raise UserError(f"{source}: the render produced non-finite pixels; this is a bug, please report the scene")
     if not np.all(result.image < np.finfo(np.float32).max):
-        raise UserError(f"{source}: {int(np.sum(~(result.image < np.finfo(np.float32).max)))} pixel channels exceed "
+        over = int(np.sum(~(result.image < np.finfo(np.float32).max)))
+        raise UserError(f"{source}: {counted(over, 'pixel channel exceeds', 'pixel channels exceed')} "
                         "float32's 3.4e38 (an EXR cannot hold them): lower the lights' intensity or the medium's "
                         "coefficients, or move the camera off the light it sits on")
     bound = result.error_bound

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UserError
+from .errors import UserError, counted
 from .film import VIEWS
 
 PAPER = '"An Analytical Solution to Single Scattering in Homogeneous Participating Media" (Pegoraro & Parker)'
@@ -25,7 +25,8 @@ COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1
 
 def _method_param_flags():
     """Every parameter some method declares becomes a flag (--precision, --terms, --rtol, ...); the
-    chosen method refuses the ones it does not read."""
+    chosen method refuses a flag it does not read (a scene's [render] parameter it does not read,
+    from the file or --set render.X, is ignored with one warning line instead)."""
     from .methods import registry
 
     flags = {}
@@ -45,8 +46,10 @@ def _add_scene_args(p):
 
 
 OPTION_HELP = {"spp": "samples per pixel (default: the scene's camera.spp)",
-               "width": "image width in pixels (default: the scene's camera.width)",
-               "height": "image height in pixels (default: the scene's camera.height)",
+               "width": "image width in pixels (default: the scene's camera.width; alone, the height keeps the "
+                        "camera's aspect)",
+               "height": "image height in pixels (default: the scene's camera.height; alone, the width keeps the "
+                         "camera's aspect)",
                "seed": "random seed of the stochastic methods (default 0)",
                "threads": "worker threads (default: all cores)"}
 
@@ -89,17 +92,25 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {self.prog}: {message}; see `{self.prog} --help`\n")
 
 
+def _command(sub, name: str, summary: str, details: str):
+    """A subcommand: `summary` is its line in `render.py --help`; its own --help opens with the
+    summary as a sentence, then `details`."""
+    return sub.add_parser(name, help=summary, description=f"{summary[0].upper()}{summary[1:]}. {details}")
+
+
 def build_parser():
     parser = _Parser(prog="render.py", description=DESCRIPTION,
                      epilog="Without a command, the arguments are render's: `render.py box_room` renders the bundled "
                             "scene box_room. `render.py COMMAND --help` lists a command's options; docs/cli.md has them all.")
     sub = parser.add_subparsers(dest="command")
-    r = sub.add_parser("render", help="render a scene to EXR (and PNG)")
+    r = _command(sub, "render", "render a scene to EXR (and PNG)",
+                 "A linear float32 EXR (with per-pixel error bounds) and an 8-bit PNG preview, with one air-light "
+                 "method; every output path is checked before rendering and the files are written together.")
     _add_scene_args(r)
     r.add_argument("--method", help="air-light method (see `methods`; default: the scene's render.method, else analytic)")
     r.add_argument("--spp", type=int, help="samples per pixel (1 = the pixel centre)")
-    r.add_argument("--width", type=int, help="image width in pixels")
-    r.add_argument("--height", type=int, help="image height in pixels")
+    r.add_argument("--width", type=int, help=OPTION_HELP["width"])
+    r.add_argument("--height", type=int, help=OPTION_HELP["height"])
     r.add_argument("--seed", type=int, help="random seed of the stochastic methods (default 0)")
     r.add_argument("--out", help="output EXR (default out/<scene name>.exr, with a PNG beside it)")
     r.add_argument("--png", help="also write an 8-bit PNG preview here")
@@ -140,8 +151,9 @@ def build_parser():
             r.add_argument(flag, dest=f"param_{name}", action="store_const", const=True, help=p.help)
         else:
             r.add_argument(flag, dest=f"param_{name}", type=p.type, metavar=name.upper(), help=p.help)
-    c = sub.add_parser("compare", help="render several methods and a reference on the same samples; "
-                                       "images, error maps and a table of time and error")
+    c = _command(sub, "compare", "render several methods and a reference on the same samples; images, error maps "
+                                 "and a table of time and error",
+                 "Writes each method's EXR and PNG, its error map and compare.md / compare.json in --out.")
     _add_scene_args(c)
     c.add_argument("--methods", required=True,
                    help="comma-separated methods, each name or name:key=value:... (e.g. raymarch:steps=32)")
@@ -151,8 +163,9 @@ def build_parser():
     c.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     _add_compare_shadows_arg(c)
     _add_scheduler_arg(c)
-    s = sub.add_parser("sweep", help="a scene over a grid of --set values x methods: one EXR and PNG per point and "
-                                     "method, a CSV/JSON table of time and error against the reference at each point")
+    s = _command(sub, "sweep", "a scene over a grid of --set values x methods: one EXR and PNG per point and "
+                               "method, a CSV/JSON table of time and error against the reference at each point",
+                 "Every grid point is parsed before anything is rendered.")
     _add_scene_args(s)
     s.add_argument("--grid", action="append", required=True, metavar="KEY=V1,V2,...",
                    help="a grid axis: a scene key and its values (as --set values, split at top-level commas), "
@@ -164,8 +177,11 @@ def build_parser():
     s.add_argument("--exposure", type=float, help="PNG exposure in stops (default: automatic per image)")
     _add_compare_shadows_arg(s)
     _add_scheduler_arg(s)
-    t = sub.add_parser("table1", help=f"Table 1 of {PAPER} on the paper's three scenes (time and error of each "
-                                      "method), with a report")
+    t = _command(sub, "table1", f"Table 1 of {PAPER} on the paper's three scenes (time and error of each "
+                                "method), with a report",
+                 "The scenes Sibenik, bridge and conference (their meshes through RAYTRACE_ASSETS), unshadowed as in "
+                 "the paper, then with volumetric shadows; images, error maps, report.md, report.json and report.html "
+                 "with the paper's figures beside ours.")
     t.add_argument("--out", default="out/table1", help="output folder (default out/table1)")
     t.add_argument("--quick", action="store_true", help="small images and 1 spp (for CI)")
     t.add_argument("--seed", type=int, default=0, help=OPTION_HELP["seed"])
@@ -175,29 +191,40 @@ def build_parser():
                         "1 spp (default; the lit-interval search makes every shadowed render 5-40x slower), at "
                         "the full size, or off (with --quick it uses the quick images)")
     _add_scheduler_arg(t)
-    e = sub.add_parser("seed002", help="the figures of the note on single scattering in a homogeneous slab (its "
-                                       "abstract opens \"An analytical approach toward visualization of participating "
-                                       "media\"): the air-light against the light's distance, and the measured error "
-                                       "of its point-light approximation; CSV, report, plots")
+    e = _command(sub, "seed002", "the figures of the note on single scattering in a homogeneous slab (its "
+                                 "abstract opens \"An analytical approach toward visualization of participating "
+                                 "media\"): the air-light against the light's distance, and the measured error "
+                                 "of its point-light approximation; CSV, report, plots",
+                 "The note (an analytic single-scattering solution for homogeneous slabs, ocean and translucent "
+                 "materials; its text carries no title, so it is named by its abstract) is the source of the media "
+                 "inside shapes. Writes curves.csv, sweep.csv, report.md and, with matplotlib, PNG plots.")
     e.add_argument("--out", default="out/seed002", help="output folder (default out/seed002)")
     e.add_argument("--quick", action="store_true", help="13 light distances instead of 121 (for CI)")
     e.add_argument("--no-plots", action="store_true", help="CSV files and the report only (no matplotlib needed)")
-    d = sub.add_parser("describe", help="print what a scene file parsed into")
+    d = _command(sub, "describe", "print what a scene file parsed into",
+                 "Camera, shapes and triangle count, bounds, lights, medium, background and [render].")
     _add_scene_args(d)
-    sub.add_parser("methods", help="list the air-light methods and their parameters")
-    x = sub.add_parser("export", help="write a scene for Mitsuba 3, pbrt-v4 or glTF 2.0 (docs/formats/)")
+    _command(sub, "methods", "list the air-light methods and their parameters",
+             "Each method with what it takes (lights, media, phase functions, media inside shapes), then its "
+             "parameters with their defaults and allowed ranges.")
+    x = _command(sub, "export", "write a scene for Mitsuba 3, pbrt-v4 or glTF 2.0 (docs/formats/)",
+                 "What the format cannot express is refused in one line naming the key (or, with --approximate, "
+                 "written as its closest form with a warning).")
     _add_scene_args(x)
     x.add_argument("--format", required=True, choices=("mitsuba", "pbrt", "gltf"), help="the file format to write")
     x.add_argument("--out", required=True, help="the file to write (meshes are written beside it or embedded)")
     x.add_argument("--approximate", action="store_true",
                    help="write what the format cannot express exactly as its closest form, with a warning naming it")
-    g = sub.add_parser("gallery", help="every bundled scene (or those named) as a PNG preview with its own method "
-                                       "and spp, at --width and the camera's aspect (README's gallery)")
+    g = _command(sub, "gallery", "every bundled scene (or those named) as a PNG preview with its own method "
+                                 "and spp, at --width and the camera's aspect (README's gallery)",
+                 "A scene whose meshes are not on RAYTRACE_ASSETS is skipped with a warning line.")
     g.add_argument("scenes", nargs="*", metavar="SCENE", help="bundled scene names (default: all of them)")
     g.add_argument("--out", default="docs/gallery", help="output folder, one NAME.png per scene (default docs/gallery)")
     g.add_argument("--width", type=int, default=960, help="image width in pixels (default 960)")
     g.add_argument("--threads", type=int, help="worker threads (default: all cores)")
-    f = sub.add_parser("diff", help="error of TEST.exr against REF.exr, with an error map")
+    f = _command(sub, "diff", "error of TEST.exr against REF.exr, with an error map",
+                 "Mean absolute, RMS, mean and maximum relative error; --bounds checks the difference against the "
+                 "images' error_bound channels.")
     f.add_argument("test", help="the EXR to check")
     f.add_argument("ref", help="the reference EXR, of the same size")
     f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
@@ -233,8 +260,6 @@ def cmd_render(args):
         raise UserError(f"--out {out}: must end in .exr; the image is written as linear float32 EXR")
     if png is not None and png.suffix.lower() != ".png":
         raise UserError(f"--png {png}: must end in .png; the preview is written as an 8-bit PNG")
-    if not args.out:
-        out.parent.mkdir(parents=True, exist_ok=True)
     for p, flag in ((out, "--out"), (png, "--png")):
         if p is not None:
             film.check_writable(p, flag)
@@ -275,16 +300,19 @@ def cmd_render(args):
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()  # before the line, which would otherwise follow the bar's
+        # the checkpoint is named only once a pass (of this run or an earlier one) has written it
         print(("\n" if passes_shown else "") + f"interrupted: {source}"
-              + (f"; the checkpoint {ckpt} keeps the finished passes, run the same command to resume" if ckpt
-                 else "; nothing was written"), file=sys.stderr)
+              + (f"; the checkpoint {ckpt} keeps the finished passes, run the same command to resume"
+                 if ckpt is not None and ckpt.is_file() else "; nothing was written"), file=sys.stderr)
         return 130
     finally:
         if bar is not None:
             bar.close()
         if display is not None:
             display.close()
-    img.save(out, *([png] if png is not None else []), exposure=args.exposure, view=args.view)  # both or neither
+    outputs = [out] + ([png] if png is not None else [])
+    with film.folders_for(outputs):  # missing folders are created now, and removed again if the save fails
+        img.save(*outputs, exposure=args.exposure, view=args.view)  # both or neither
     if not args.quiet:
         cam = scene.camera
         size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")
@@ -301,13 +329,12 @@ def _display(args, scene, name):
     """The tev display of --display-server showing the image `name` (None without the flag)."""
     if not args.display_server:
         return None
-    from .api import render_options
+    from .api import image_size, render_options
     from .tev import TevDisplay, parse_address
 
     parse_address(args.display_server)  # a badly formed address is refused before --width is looked at
     render_options(None, width=args.width, height=args.height)  # refuses a size that is not positive
-    return TevDisplay.open(args.display_server, name, args.width or scene.camera.width,
-                           args.height or scene.camera.height)
+    return TevDisplay.open(args.display_server, name, *image_size(scene.camera, args.width, args.height))
 
 
 def _parse_crop(text):
@@ -405,8 +432,8 @@ def cmd_describe(args):
     kinds = {}
     for s in scene.shapes:
         kinds[s.kind] = kinds.get(s.kind, 0) + 1
-    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{v} {k}' for k, v in kinds.items())}), {len(tris)} triangles "
-          "(zero-area triangles left out)")
+    print(f"shapes: {len(scene.shapes)} ({', '.join(f'{k}: {v}' for k, v in kinds.items())}), "
+          f"{counted(len(tris), 'triangle')} (zero-area triangles left out)")
     if len(tris):
         pts = tris.reshape(-1, 3)
         print(f"bounds: {pts.min(axis=0).round(4).tolist()} to {pts.max(axis=0).round(4).tolist()}")
@@ -448,7 +475,7 @@ def cmd_gallery(args):
 
     written = render_gallery(Path(args.out), args.width, args.scenes, note=lambda line: print(line, flush=True),
                              threads=args.threads)
-    print(f"wrote {len(written)} image{'' if len(written) == 1 else 's'} to {args.out}")
+    print(f"wrote {counted(len(written), 'image')} to {args.out}")
     return 0
 
 

@@ -26,7 +26,7 @@ import dask
 from distributed import Client, LocalCluster, as_completed
 
 from . import renderer
-from .errors import UserError
+from .errors import UserError, counted
 from .methods import get_method
 from .scene.format import Scene
 
@@ -188,5 +188,5 @@ def _announce(client: Client, spec: str, log):
     if log is not None:
         nthreads = client.nthreads()
         link = dashboard(client)
-        log(f"dask {spec}: {len(nthreads)} workers, {sum(nthreads.values())} threads"
+        log(f"dask {spec}: {counted(len(nthreads), 'worker')}, {counted(sum(nthreads.values()), 'thread')}"
             + (f", dashboard {link}" if link else ""))

@@ -100,12 +100,16 @@ def _atomic_write(path: Path, write):
 
 
 def check_writable(path: Path, flag: str = "--out"):
-    """Fail early (before a long render) when `path` (given as `flag`) cannot be written: its folder
-    must exist and take a new file (tried: permission bits do not tell for root or for /proc)."""
+    """Fail early (before a long render) when `path` (given as `flag`) cannot be written: its folder,
+    or where that is missing its nearest existing ancestor (the missing folders are created only
+    when writing: `folders_for`), must be a folder that takes a new file (tried: permission bits do
+    not tell for root or for /proc)."""
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
     if not folder.is_dir():
-        raise UserError(f"{flag} {path}: folder {folder} does not exist; create it or choose another output path")
+        raise UserError(f"{flag} {path}: {folder} is a file, not a folder; choose another output path")
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)) or path.is_dir():
         raise UserError(f"{flag} {path}: not writable; choose a writable output path")
     try:
@@ -114,6 +118,28 @@ def check_writable(path: Path, flag: str = "--out"):
         raise UserError(f"{flag} {path}: not writable ({exc.strerror}); choose a writable output path") from None
     os.close(fd)
     os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def folders_for(paths):
+    """Create the missing folders of `paths` (checked by `check_writable`); if the block fails (or
+    is interrupted), remove again the ones created here that are still empty."""
+    created = []
+    try:
+        for path in paths:
+            for folder in reversed([f for f in Path(path).parents if not f.exists()]):
+                try:
+                    folder.mkdir()
+                except OSError as exc:
+                    raise UserError(f"{path}: cannot create the folder {folder} ({exc.strerror}); choose a "
+                                    "writable output path") from None
+                created.append(folder)
+        yield
+    except BaseException:
+        for folder in reversed(created):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
 
 
 def write_exr(path, image: np.ndarray, header: dict | None = None, extra: dict | None = None):

@@ -5,16 +5,22 @@
 Each scene keeps its camera's aspect at `width` pixels (960x480 for a 2:1 camera) and its [render]
 method and spp; the PNG is `render --png`'s preview (ACES view, automatic exposure), written with
 film.write_together (a temporary file renamed into place) and compressed with PNG's optimize pass.
-A scene whose meshes are not on the asset path (RAYTRACE_ASSETS) is skipped with a note. README.md's
+A scene whose meshes are not on the asset path (RAYTRACE_ASSETS) is skipped with a `GalleryNote`
+warning (one `warning:` line on the command line, like every other note). README.md's
 gallery links the files, with the meshes' credits from the asset folder's SOURCES.md.
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 from . import api, film
 from .errors import UserError
 from .scene.assets import bundled_scenes, find_asset
+
+
+class GalleryNote(UserWarning):
+    """A bundled scene left out of the gallery (its meshes are not on RAYTRACE_ASSETS)."""
 
 
 def missing_asset(scene) -> str | None:
@@ -28,11 +34,6 @@ def missing_asset(scene) -> str | None:
     return None
 
 
-def gallery_size(camera, width: int) -> tuple[int, int]:
-    """`width` and the height that keeps the camera's aspect (at least 1 pixel)."""
-    return width, max(1, round(width * camera.height / camera.width))
-
-
 def _png_writer(rgb8):
     """`write(tmp)` of an optimized 8-bit PNG, for film.write_together."""
     from PIL import Image as Picture
@@ -42,8 +43,8 @@ def _png_writer(rgb8):
 
 def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: int | None = None) -> list[Path]:
     """Render `names` (default: every bundled scene) into `out`/NAME.png, one `note` line per scene
-    (its size, method, spp and time, or why it was skipped); returns the files written. Every name and
-    output path is checked before the first render."""
+    (its size, method, spp and time; a scene skipped is a GalleryNote warning instead); returns the
+    files written. Every name and output path is checked before the first render."""
     scenes = bundled_scenes()
     names = list(names) or sorted(scenes)
     for name in names:
@@ -64,10 +65,10 @@ def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: i
         scene = api.load(name)
         why = missing_asset(scene)
         if why is not None:
-            note(f"gallery: skipped {name}: {why}")
+            warnings.warn(f"gallery: skipped {name}: {why}", GalleryNote, stacklevel=2)
             continue
-        w, h = gallery_size(scene.camera, width)
-        image = api.render(scene, width=w, height=h, threads=threads)
+        image = api.render(scene, width=width, threads=threads)  # the height keeps the camera's aspect
+        h, w = image.array.shape[:2]
         path = out / f"{name}.png"
         film.write_together([(path, _png_writer(film.tonemap(image.array)))])
         note(f"gallery: {name}: {w}x{h}, method {image.method}, {image.spp} spp, {image.seconds:.1f} s "

@@ -64,6 +64,7 @@ def fingerprint(prep: Prepared, method: str, params: dict, seed: int) -> str:
 
 
 def _save(path: Path, state: dict):
+    path.parent.mkdir(parents=True, exist_ok=True)  # the first save creates a missing folder
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
     os.close(fd)
     try:

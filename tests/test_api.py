@@ -66,16 +66,18 @@ def test_an_unknown_keyword_names_no_method():
         raytrace.render(box_room(), method="analytic", precisoin=1e-6)
 
 
-def test_the_cli_refuses_unread_flags_and_scene_keys(tmp_path, capsys):
+def test_the_cli_refuses_unread_flags_and_notes_unread_scene_keys(tmp_path, capsys):
     path = tmp_path / "s.toml"
     out = tmp_path / "o.exr"
     path.write_text(to_toml(box_room()))
     assert main(["render", str(path), "--method", "analytic", "--steps", "128", "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--steps" in err and "raymarch" in err and not out.exists()
+    # a [render] key that the table's own method does not read is ignored with one warning
     path.write_text(to_toml(box_room(render={"method": "analytic", "steps": 32})))
-    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
-    assert "render.steps" in capsys.readouterr().err and not out.exists()
+    with pytest.warns(raytrace.api.SceneDefaultNote, match=r"\[render\] steps = 32: not read by method analytic"):
+        assert main(["render", str(path), "--out", str(out), "--quiet"]) == 0
+    assert "steps" not in read_exr(out)[1]["params"]
     # the same key is read when the scene's method takes it
     path.write_text(to_toml(box_room(render={"method": "raymarch", "steps": 32})))
     assert main(["render", str(path), "--out", str(out), "--quiet"]) == 0

@@ -29,7 +29,7 @@ def test_load_and_describe_choose_the_named_camera(tmp_path, capsys):
 def test_render_takes_the_camera_keyword(tmp_path):
     path = write_gltf(tmp_path, CAMERAS)
     img = raytrace.render(path, camera="square", height=4, width=None, method="analytic")
-    assert img.array.shape == (4, 512, 3)
+    assert img.array.shape == (4, 4, 3)  # the square camera's aspect (the first, 1024 x 512, would give 4 x 8)
 
 
 def test_an_unknown_name_lists_the_cameras(tmp_path, capsys):

@@ -253,12 +253,12 @@ SET_CASES = [
     ("empty-segment", "medium..sigma_s=0.2", "--set medium..sigma_s", "for example"),
     ("misspelt-leaf", "medium.sigmas=0.2", "medium.sigmas", 'did you mean "sigma_s"'),
     ("unknown-top", "fog.sigma_s=0.2", "fog", "allowed keys"),
-    ("shape-index-out-of-range", "shape.3.reflectance=0.2", "--set shape[3].reflectance", "index them 0..0"),
-    ("shape-index-not-a-number", "shape.first.reflectance=0.2", "--set shape.first.reflectance", "index them"),
+    ("shape-index-out-of-range", "shape.3.reflectance=0.2", "--set shape[3].reflectance", "1 entry; index it as shape[0]"),
+    ("shape-index-not-a-number", "shape.first.reflectance=0.2", "--set shape.first.reflectance", "index it as shape[0]"),
     ("vector-component-by-name", "camera.position.x=1.0", "--set camera.position.x", "0..2"),
     ("into-a-number", "camera.fov.x=1.0", "--set camera.fov.x", "set it as a whole"),
     ("into-a-vector", "medium.sigma_s.r=0.2", "--set medium.sigma_s.r", "0..2"),
-    ("bracket-index-out-of-range", "shape[3].reflectance=0.2", "--set shape[3].reflectance", "index them 0..0"),
+    ("bracket-index-out-of-range", "shape[3].reflectance=0.2", "--set shape[3].reflectance", "1 entry; index it as shape[0]"),
     ("bracket-not-closed", "shape[0.reflectance=0.2", "malformed key 'shape[0.reflectance'", "light[1].intensity"),
     ("bracket-not-a-number", "shape[a].reflectance=0.2", "malformed key", "in brackets"),
     ("index-of-a-table", "medium[0].sigma_s=0.2", "--set medium[0].sigma_s", "not an array"),
@@ -360,25 +360,52 @@ def test_unreadable_mesh_no_permission(work, capsys):
 
 # --- output paths --------------------------------------------------------------------------------------------
 
-def test_output_folder_does_not_exist(work, capsys):
+def test_missing_output_folders_are_created_when_writing(work, capsys):
     scene = write_scene(work, BASE)
-    target = work / "out" / "nope" / "img.exr"
+    exr, png = work / "new" / "deeper" / "img.exr", work / "other" / "img.png"
     argv = render_argv(work, scene)
-    argv[argv.index("--out") + 1] = str(target)
+    argv[argv.index("--out") + 1], argv[argv.index("--png") + 1] = str(exr), str(png)
+    assert main(argv) == 0
+    assert exr.is_file() and png.is_file()
+
+
+def test_a_refused_render_creates_no_folder(work, capsys):
+    """A refusal that comes after the output checks (the method refuses a flag) leaves no folder."""
+    scene = write_scene(work, BASE)
+    argv = render_argv(work, scene, "--precision", "1e-6", method=False) + ["--method", "raymarch"]
+    argv[argv.index("--out") + 1] = str(work / "new" / "img.exr")
     err = run_inprocess(argv, capsys)
-    check_one_line(err, str(target), "does not exist", "create it")
-    assert not target.parent.exists()
+    check_one_line(err, "--precision", "method raymarch does not read")
+    assert not (work / "new").exists()
     check_nothing_written(work)
 
 
-def test_png_folder_does_not_exist(work, capsys):
+def test_a_failed_save_removes_the_folders_it_made(work, capsys, monkeypatch):
+    from raytrace import film
+
+    def png_writer(rgb8):
+        def write(tmp):
+            raise OSError(28, "No space left on device")
+        return write
+    monkeypatch.setattr(film, "png_writer", png_writer)
     scene = write_scene(work, BASE)
-    target = work / "nope" / "img.png"
     argv = render_argv(work, scene)
-    argv[argv.index("--png") + 1] = str(target)
+    argv[argv.index("--out") + 1] = str(work / "new" / "deeper" / "img.exr")
     err = run_inprocess(argv, capsys)
-    check_one_line(err, str(target), "does not exist")
-    check_nothing_written(work)  # the EXR was not written either
+    check_one_line(err, "img.png", "No space left on device")
+    assert not (work / "new").exists()
+    check_nothing_written(work)
+
+
+@pytest.mark.parametrize("flag", ["--out", "--png"])
+def test_an_output_under_a_file_is_refused(work, capsys, flag):
+    scene = write_scene(work, BASE)
+    target = scene / "sub" / ("img.exr" if flag == "--out" else "img.png")
+    argv = render_argv(work, scene)
+    argv[argv.index(flag) + 1] = str(target)
+    err = run_inprocess(argv, capsys)
+    check_one_line(err, f"{flag} {target}", f"{scene} is a file, not a folder")
+    check_nothing_written(work)
 
 
 def test_output_path_is_a_folder(work, capsys):
@@ -478,7 +505,7 @@ def test_subprocess_end_to_end(work, case):
         frags = [str(scene), "shape[1].mesh", str(scene.parent), str(extra_dir)]
     elif case == "unwritable-output":
         scene = write_scene(work, BASE)
-        frags = ["does not exist"]
+        frags = ["is a file, not a folder"]
     elif case == "width-flag-zero":
         scene = write_scene(work, BASE)
         extra = ["--width", "0"]
@@ -494,7 +521,7 @@ def test_subprocess_end_to_end(work, case):
     else:
         argv = render_argv(work, scene, *extra)
         if case == "unwritable-output":
-            argv[argv.index("--out") + 1] = str(work / "out" / "missing" / "img.exr")
+            argv[argv.index("--out") + 1] = str(scene / "img.exr")  # under the scene file
     proc = _run(argv, env)
     assert proc.returncode != 0, proc.stderr
     assert proc.stdout == ""

@@ -99,7 +99,7 @@ def test_the_exr_is_the_same_on_one_machine_one_worker_and_two(client, small_til
     common = ["render", str(path), "--method", "montecarlo", "--samples", "2", "--seed", "3"]
     assert main(common + ["--out", str(tmp_path / "threads.exr"), "--quiet"]) == 0
     assert main(common + ["--out", str(tmp_path / "one.exr"), "--scheduler", "local:1"]) == 0
-    assert "dask local:1: 1 workers" in capsys.readouterr().err
+    assert "dask local:1: 1 worker, " in capsys.readouterr().err
     assert main(common + ["--out", str(tmp_path / "two.exr"), "--quiet", "--scheduler", client.scheduler.address]) == 0
     want = exr_channels(tmp_path / "threads.exr")
     assert set(want[0]) == {"R", "G", "B", "variance.R", "variance.G", "variance.B",

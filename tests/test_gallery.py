@@ -3,20 +3,23 @@ aspect, a scene whose mesh is missing skipped with one note, bad input refused b
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from PIL import Image as Picture
 
 import raytrace
 from raytrace import film
 from raytrace.cli import main
+from raytrace.gallery import GalleryNote
 
 
 def test_gallery_writes_the_preview_and_skips_a_scene_without_its_mesh(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("RAYTRACE_ASSETS", str(tmp_path / "no_meshes_here"))
     out = tmp_path / "gallery"  # created by the command
-    assert main(["gallery", "--out", str(out), "--width", "24", "--threads", "1", "ocean", "sibenik"]) == 0
+    with pytest.warns(GalleryNote) as caught:  # one `warning:` line on the command line
+        assert main(["gallery", "--out", str(out), "--width", "24", "--threads", "1", "ocean", "sibenik"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert sorted(p.name for p in out.iterdir()) == ["ocean.png"]
-    skipped = [line for line in lines if line.startswith("gallery: skipped sibenik: ")]
+    skipped = [str(w.message) for w in caught if str(w.message).startswith("gallery: skipped sibenik: ")]
     assert len(skipped) == 1 and "sibenik/sibenik.obj" in skipped[0] and "RAYTRACE_ASSETS" in skipped[0]
     assert not any(": note: " in line for line in lines)  # the water (a medium inside a shape) takes shadows
     assert any(line.startswith("gallery: ocean: 24x15, method analytic, 1 spp, ") for line in lines)  # 320x200

@@ -30,7 +30,7 @@ def test_a_mesh_with_non_finite_vertices_is_refused(write_scene, tmp_path, capsy
     assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "m.obj" in err and "shape[1].mesh" in err, err
-    assert "1 vertices are not finite" in err and f"first at line 6: v 0 0 {bad}" in err, err
+    assert "1 vertex is not finite" in err and f"first at line 6: v 0 0 {bad}" in err, err
     assert not out.exists()
 
 

@@ -447,7 +447,7 @@ def test_non_finite_json_numbers_are_refused(tmp_path, capsys, literal):
 def test_non_finite_vertices_are_refused(tmp_path, capsys):
     blob = np.array([[0, 0, 0], [1, np.nan, 0], [0, 1, 0]], dtype=np.float32).tobytes()
     path = write_gltf(tmp_path, {"nodes": [{"mesh": 0}]}, blob)
-    _cli_refuses(path, capsys, tmp_path, "accessors[0]: 1 of its 3 elements are not finite")
+    _cli_refuses(path, capsys, tmp_path, "accessors[0]: 1 of its 3 elements is not finite")
 
 
 def test_a_missing_buffer_is_refused(tmp_path, capsys):

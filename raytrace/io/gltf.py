@@ -27,7 +27,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, counted
 
 LUMENS_PER_WATT = 683.0  # candela = 683 W/sr, lux = 683 W/m^2 (KHR_lights_punctual; Blender's exporter)
 DEFAULT_HEIGHT = 512  # image rows for a camera without our `extras`; the width keeps its aspectRatio
@@ -185,7 +185,7 @@ class _Reader:
         if version != 2:
             self.fail("", f"GLB container version {version}", "export the scene as glTF 2.0")
         if length != len(data):
-            self.fail("", f"the GLB header says {length} bytes but the file has {len(data)} (truncated?)",
+            self.fail("", f"the GLB header says {counted(length, 'byte')} but the file has {len(data)} (truncated?)",
                       "copy or export the file again")
         chunks, at = [], 12
         while at + 8 <= length:
@@ -259,7 +259,7 @@ class _Reader:
                 self.fail(f"{key}.uri", f"{uri!r} is missing beside the file ({file})",
                           f"copy {Path(uri).name} next to {self.path.name} or export the scene as .glb")
         if len(data) < size:
-            self.fail(f"{key}.byteLength", f"says {size} bytes but the data has {len(data)}",
+            self.fail(f"{key}.byteLength", f"says {counted(size, 'byte')} but the data has {len(data)}",
                       "copy the buffer again or export the scene again")
         self.buffers[i] = data
         return data
@@ -294,7 +294,8 @@ class _Reader:
         size = dtype.itemsize * width
         stride = int(self.number(view, "byteStride", vkey, size, lo=size, hi=252))
         if start + length > len(data) or offset + stride * (count - 1) + size > length:
-            self.fail(key, f"{count} elements run past the end of {vkey} or its buffer", "fix the file or export it again")
+            self.fail(key, f"{counted(count, 'element runs', 'elements run')} past the end of {vkey} or its buffer",
+                      "fix the file or export it again")
         arr = np.ndarray((count, width), dtype=dtype, buffer=data, offset=start + offset, strides=(stride, dtype.itemsize))
         if integer:
             return arr.astype(np.int64)
@@ -303,7 +304,8 @@ class _Reader:
             out = np.maximum(out / np.iinfo(dtype).max, -1.0)
         if not np.all(np.isfinite(out)):
             bad = int(np.sum(~np.all(np.isfinite(out), axis=1)))
-            self.fail(key, f"{bad} of its {count} elements are not finite (nan or inf)", "fix the mesh and export it again")
+            self.fail(key, f"{bad} of its {counted(count, 'element')} {'is' if bad == 1 else 'are'} not finite "
+                      "(nan or inf)", "fix the mesh and export it again")
         return out
 
     # the node graph
@@ -382,7 +384,8 @@ class _Reader:
             self.fail(f"{key}.attributes.POSITION", "is not VEC3", "fix the file or export it again")
         idx = self.accessor(prim["indices"], integer=True).ravel() if "indices" in prim else np.arange(len(pos))
         if len(idx) and (idx.min() < 0 or idx.max() >= len(pos)):
-            self.fail(f"{key}.indices", f"indices beyond its {len(pos)} vertices", "fix the mesh and export it again")
+            self.fail(f"{key}.indices", f"indices beyond its {counted(len(pos), 'vertex', 'vertices')}",
+                      "fix the mesh and export it again")
         if mode == TRIANGLES:
             faces = idx[:len(idx) // 3 * 3].reshape(-1, 3)
         else:

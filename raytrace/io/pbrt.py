@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, counted
 
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
 MAX_INCLUDE_DEPTH = 32
@@ -148,8 +148,8 @@ class Params:
             return default
         v = [self.where.number(t, f'{self.directive} "{name}"') for t in p.values]
         if count is not None and len(v) != count or count is None and len(v) % 3:
-            n = count if count is not None else "a multiple of 3"
-            self.where.fail(p.line, f'{self.directive}: "{name}" needs {n} values, got {len(v)}', "give that many numbers")
+            n = counted(count, "value") if count is not None else "a multiple of 3 values"
+            self.where.fail(p.line, f'{self.directive}: "{name}" needs {n}, got {len(v)}', "give that many numbers")
         return v
 
     def one(self, name, default, types=("float",)):
@@ -620,7 +620,7 @@ class _Reader:
             idx = np.array(idx, dtype=np.int64)
             if len(pts) == 0 or idx.size == 0 or idx.size % per or idx.min() < 0 or idx.max() >= len(pts):
                 w.fail(line, f'{p.directive}: needs points "P" and {per} indices per element into them',
-                       f"check the counts (P has {len(pts)} points)")
+                       f"check the counts (P has {counted(len(pts), 'point')})")
             p.ignore("uv", "N", "S", "faceIndices")  # shading attributes: our surfaces use geometric normals
             p.done()
             pts = pts @ m[:3, :3].T + m[:3, 3]

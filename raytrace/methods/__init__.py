@@ -19,6 +19,11 @@ from ..media.slab import CLOSED
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
 
+def _readable(v: float) -> str:
+    """A bound as people write it: whole numbers in full (1048576, not 1.04858e+06), others to 6 digits."""
+    return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else f"{v:g}"
+
+
 @dataclass(frozen=True)
 class Param:
     """A method parameter: default, type, help text, and the values it accepts: numbers within
@@ -34,8 +39,8 @@ class Param:
     def rule(self) -> str:
         if self.choices:
             return "one of " + ", ".join(self.choices)
-        lo = "" if self.low is None else (f"> {self.low:g}" if self.open_low else f">= {self.low:g}")
-        hi = "" if self.high is None else f"<= {self.high:g}"
+        lo = "" if self.low is None else (f"> {_readable(self.low)}" if self.open_low else f">= {_readable(self.low)}")
+        hi = "" if self.high is None else f"<= {_readable(self.high)}"
         return " and ".join(x for x in (lo, hi) if x) or "finite"
 
     def accepts(self, v) -> bool:
@@ -236,7 +241,9 @@ def get_method(name: str) -> Method:
 
 def resolve_params(method: Method, given: dict, source: str) -> dict:
     """Defaults of `method` updated with `given`, type- and range-checked. A key the method does not
-    declare is refused, naming the methods that do take it (nothing is dropped silently)."""
+    declare is refused, naming the methods that do take it (nothing is dropped silently): `given` holds
+    the keywords and flags given explicitly (api.scene_defaults has left out, with a note, the
+    scene's [render] parameters the method does not read)."""
     from ..errors import UserError
 
     out = {k: p.default for k, p in method.params.items()}
@@ -245,8 +252,8 @@ def resolve_params(method: Method, given: dict, source: str) -> dict:
             takers = [m.name for m in registry().values() if k in m.params]
             fix = (f"it is a parameter of {', '.join(takers)}: choose --method {takers[0]} or remove it" if takers
                    else "no method takes it; see `render.py methods`")
-            raise UserError(f"{source}: --{k.replace('_', '-')} (render.{k}): method {method.name} does not read "
-                            f"this parameter; {fix}")
+            raise UserError(f"{source}: {k}={given[k]!r} (--{k.replace('_', '-')} on the command line): method "
+                            f"{method.name} does not read this parameter; {fix}")
     for k, v in given.items():
         if v is None:
             continue

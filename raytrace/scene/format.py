@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, counted
 from ..lights import CURVES, DIRECTIONAL, SPOT, Light
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
@@ -473,9 +473,19 @@ def parse_override(text: str, source: str):
     key = override_key(_key_parts(key.strip(), text, source))
     try:
         parsed = tomllib.loads(f"v = {value}")["v"]
-    except tomllib.TOMLDecodeError:
+    except tomllib.TOMLDecodeError as exc:
         parsed = value.strip()
+        if parsed[:1] in _TOML_OPENERS:  # an array, table or string that is not well formed: not a bare word
+            reason = re.sub(r" \(at .*\)$", "", str(exc))
+            raise UserError(f"{source}: --set {key}={parsed}: bad TOML ({reason}); write a complete TOML "
+                            f"{_TOML_OPENERS[parsed[0]][0]}, quoted for the shell, e.g. "
+                            f"--set '{key}={_TOML_OPENERS[parsed[0]][1]}'") from None
     return key, parsed
+
+
+# what a --set value that opens with these characters must be, with an example
+_TOML_OPENERS = {"[": ("array", "[1, 2, 3]"), "{": ("inline table", '{type = "hg", g = 0.5}'),
+                 '"': ("string", '"text"'), "'": ("string", "'text'")}
 
 
 _SEGMENT = re.compile(r"([^.\[\]\s]+)((?:\[[0-9]+\])*)")
@@ -510,8 +520,9 @@ def apply_override(raw: dict, key: str, value, source: str):
         where, last = override_key(parts[:i]), i == len(parts) - 1
         if isinstance(node, list):
             if not isinstance(part, int) or part >= len(node):
-                raise UserError(f"{source}: --set {key}: {where} has {len(node)} entries; index them "
-                                f"0..{len(node) - 1}, e.g. {where}[0]" if node else
+                raise UserError(f"{source}: --set {key}: {where} has {counted(len(node), 'entry', 'entries')}; "
+                                + (f"index it as {where}[0]" if len(node) == 1 else
+                                   f"index them 0..{len(node) - 1}, e.g. {where}[0]") if node else
                                 f"{source}: --set {key}: {where} is empty; set it as a whole")
         elif isinstance(part, int):
             raise UserError(f"{source}: --set {key}: {where or 'the scene'} is a table, not an array; name its key")

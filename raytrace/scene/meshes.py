@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, counted
 from .assets import find_asset
 from .format import Scene, Shape, Transform
 
@@ -127,7 +127,8 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
             continue
         v = np.asarray(geom.vertices, dtype=np.float64)
         if not np.all(np.isfinite(v)):
-            raise UserError(f"{path}: {key}.mesh: {int(np.sum(~np.all(np.isfinite(v), axis=1)))} vertices are not "
+            raise UserError(f"{path}: {key}.mesh: "
+                            f"{counted(int(np.sum(~np.all(np.isfinite(v), axis=1))), 'vertex is', 'vertices are')} not "
                             f"finite (nan or inf){_first_bad_vertex(path)}; fix or remove them in the file")
         v = v @ transform[:3, :3].T + transform[:3, 3]
         t = v[np.asarray(geom.faces)]
