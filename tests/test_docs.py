@@ -227,3 +227,60 @@ def test_readme_names_every_bundled_scene_and_its_two_commands():
     first = text.split("```")[1]
     assert ".venv/bin/pip install -q -e . && .venv/bin/python render.py" in first
     assert '.venv/bin/pip install -q -e ".[test,distributed,plots]" && .venv/bin/python -m pytest' in first
+
+
+# Pages are for users: no commit ids, no numbers of this project's issues, the papers by title.
+HEX_ID = re.compile(r"(?<![\w#])[0-9a-f]{7,40}(?!\w)")                # a git hash, short or full
+ISSUE_NO = re.compile(r"\bissues?\s+#?\d+|(?<![\w/-])#\d+\b", re.I)      # "issue 15", "#22"; not pbrt-v4#433
+SEED_NO = re.compile(r"(?<![\w/.-])seed[ _-]?00\d(?!\w|/|\.\w)", re.I)  # "seed 002"; not seed002.py, seed002/
+ANECDOTE = re.compile(r"load average|\b1-minute load|\bload \d|\b(?:loaded|busy|quiet|shared)(?: [\w-]+){0,2} machine"
+                      r"|\bmachine (?:shared|under load|loaded)|\bcores? (?:loaded|shared)|\bother (?:jobs|engineers)"
+                      r"|shared with other", re.I)  # how busy the machine was: figures name the machine once, neutrally
+
+
+def _commit_ids(line: str) -> list[str]:
+    """Hex words of 7-40 digits with a digit and a letter, outside URLs; not colours (#...) nor 1e100."""
+    words = HEX_ID.findall(re.sub(r"https?://\S*", " ", line))
+    return [w for w in words if re.search(r"\d", w) and re.search(r"[a-f]", w) and not re.fullmatch(r"\d+e\d+", w)]
+
+
+def _prose(line: str) -> str:
+    """A line without its URLs, inline code and link targets: what reads as text."""
+    line = re.sub(r"https?://[^\s)>]*", " ", line)
+    line = re.sub(r"`[^`]*`", " ", line)
+    return re.sub(r"\]\([^)]*\)", "]", line)
+
+
+def work_notes(page: Path) -> list[str]:
+    """line: what, for each commit id, issue number, "seed 00N" or machine anecdote on `page`; issue
+    numbers, paper numbers and anecdotes count in prose only (not in code blocks, code spans, links)."""
+    found = []
+    fenced = False
+    for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+        found += [f"{n}: commit id {w}" for w in _commit_ids(line)]
+        if not fenced:
+            found += [f"{n}: {m.group(0)!r}" for rx in (ISSUE_NO, SEED_NO, ANECDOTE) for m in rx.finditer(_prose(line))]
+    return found
+
+
+def test_work_notes_are_found(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("Fixed at 3e4f5f6 (Issue 15, #22), on main (abc1234), as seed 002 says.\n"
+                    "The Seed-004 page; a loaded machine, load average 3, 2 cores shared with other jobs.\n"
+                    "```sh\ngit checkout 0123abcdef456789 # issue 3 in code is not prose\n```\n"
+                    "pbrt-v4#433, `python render.py seed002` and `seed 002`, [report](seed002/report.md),\n"
+                    "raytrace/experiments/seed002.py, tests/test_seed002.py, 6360000, 2.5e-12, 1e10000, defaced,\n"
+                    "colour #a1b2c3d4, <https://github.com/o/r/commit/3e4f5f6a>, ../papers/002_debc87b35cc1caf8.txt.\n",
+                    encoding="utf-8")
+    assert work_notes(page) == [
+        "1: commit id 3e4f5f6", "1: commit id abc1234", "1: 'Issue 15'", "1: '#22'", "1: 'seed 002'",
+        "2: 'Seed-004'", "2: 'loaded machine'", "2: 'load average'", "2: 'cores shared'", "2: 'other jobs'",
+        "4: commit id 0123abcdef456789"]
+
+
+def test_pages_cite_no_commits_issues_or_paper_numbers():
+    found = [f"{page.relative_to(ROOT)}:{w}" for page in [README, *sorted((ROOT / "docs").rglob("*.md"))]
+             for w in work_notes(page)]
+    assert found == [], "pages for users carry work notes (cite papers by title):\n" + "\n".join(found)
