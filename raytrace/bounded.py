@@ -6,8 +6,9 @@ outside. Here each ray is refracted into the shape (Snell, smooth dielectric; st
 ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the note's planar boundary): a directional light refracted through it
-(eq. 5; in index-matched convex shapes `analytic` takes its exact path through whichever face it
-meets instead, media/convex_directional.py), a point light along its straight path (index-matched,
+(eq. 5; in convex shapes every method but slab_approx takes its exact path instead, through
+whichever face it meets, and refracted through every face it meets if the shape is refractive:
+`refracted_beams`; `analytic` in closed form, media/convex_directional.py), a point light along its straight path (index-matched,
 eq. 7) or along its refracted path (Fermat's path through the plane, with the ray tube's
 irradiance: media/slab.py refracted_point); a
 spot light as a point light times its falloff on the direction in which the light leaves it. In
@@ -26,7 +27,8 @@ reflection at an exit ends the path.
 Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside segments
 and what it takes there: `quadrature` (adaptive, the reference), `analytic` (directional lights only: the
 exact closed form in convex index-matched shapes of at most MAX_FACES planes, with an error bound; the
-adaptive quadrature in other index-matched shapes, counted; eq. 5 through refractive boundaries),
+adaptive quadrature in other index-matched shapes, counted; the refracted beams in convex refractive
+shapes, bounded; eq. 5 through other refractive boundaries),
 `slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`

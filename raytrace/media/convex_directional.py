@@ -1,6 +1,6 @@
-"""Exact single scattering of a directional light along a segment inside a convex, index-matched
-polyhedron filled with a homogeneous medium (issue 22: the light enters through whichever face its
-path meets, not through the plane of the camera ray's entry face as the planar model of slab.py).
+"""Exact single scattering of a directional light along a segment inside a convex polyhedron filled
+with a homogeneous medium: the light enters through whichever face its path meets, not through the
+plane of the camera ray's entry face as the planar model of slab.py.
 
 Geometry: the segment p(t) = o + t w, t in [0, T] (w unit), inside {x : n_f·x <= c_f, f = 1..F}
 (n_f outward unit normals); u = -d_light the unit direction toward the light. The light's path
@@ -27,6 +27,10 @@ from 0 to far beyond 745 (exp underflows to 0, never NaN). A last piece of infin
 (T = inf: g' >= 1 there) is exp(-kt g0) / (kt g'). kt = 0 gives ks Phi T (a vacuum transmits
 over any length, also where no face faces the light); kt > 0 with no face toward the light gives
 0 (an infinite path).
+
+Through a refractive boundary the light makes one beam per face it meets (bounded.refracted_beams),
+each with its own direction inside; beam f lights a point only where the point's path back leaves
+through f, i.e. on the envelope's pieces on face f (`only` = f below).
 
 `MAX_FACES` bounds F: the envelope's sweep costs O(F x pieces) per segment, and a shape with
 more faces returns False (nothing computed) so that the caller integrates it otherwise.
