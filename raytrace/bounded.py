@@ -502,15 +502,19 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0). Where the light's path is not straight
     (a refractive interior: eq. 5's path through the entry plane) or not traced (a method without
-    exact paths: the note's planar model), the segments are unshadowed, counted (UNSHADOWED)."""
+    exact paths: the note's planar model), the segments are unshadowed, counted (UNSHADOWED), and
+    their bound is infinite if anything but the shape itself could stand on the light's path."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
     if medium.ior != 1.0 or not method.supports.interiors.exact_paths:
-        out = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
-        out[2][UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
-        return out
+        out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed,
+                                                   depth)
+        stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
+        if np.any(prep.shape_ids != sid):
+            bound = np.where(ell[:, None] > 0.0, np.inf, bound)
+        return out, var, stats, bound
     rays = np.tile(np.arange(n), n_lights)
     segs = Segments(points[rays], w[rays], ell[rays], np.repeat(np.arange(n_lights), n), rays, np.zeros(len(rays)),
                     keys[rays], np.zeros(len(rays), np.int64), seed, prep.accel.scale)

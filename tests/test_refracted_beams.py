@@ -154,3 +154,16 @@ def test_raymarch_and_montecarlo_follow_the_beams(twin):
     res = image("montecarlo", {"samples": 64}, seed=3)
     z2 = np.mean((res.image[lit] - twin[lit]) ** 2 / res.variance[lit])
     assert 0.3 < z2 < 3.5, z2
+
+
+def test_with_anything_that_could_shadow_the_beams_the_bound_is_infinite():
+    """Inside a refractive shape the beams are not shadowed (docs/bounded_media.md): with an opaque
+    plate in the scene the value is no longer known to be exact, and the bound says so."""
+    sc = {**SCENE, "shape": SCENE["shape"] + [{"primitive": "quad", "corners": [[-3, -3, -3], [-3, -3, 3], [-3, 3, 3],
+                                                                                 [-3, 3, -3]]}]}
+    res = render(prepare(scene_from_text(to_toml(sc), "cube_and_plate")), "analytic", {},
+                 RenderOptions(threads=1, volumetric_shadows=True))
+    alone = image("analytic")
+    inside = alone.image[..., 1] > 0
+    assert np.all(np.isinf(res.error_bound[inside])) and np.all(np.isfinite(alone.error_bound[inside]))
+    assert res.stats["inside: segments unshadowed (refractive or planar model)"] >= np.count_nonzero(inside)
