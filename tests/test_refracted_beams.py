@@ -35,34 +35,35 @@ SCENE = {"name": "cube_of_water",
 FACES = [np.eye(3)[a] * s for a in range(3) for s in (-1.0, 1.0)]
 
 
-def beams(eta):
-    """(outward normal, refracted direction, irradiance inside) for each face the sun meets."""
-    s = np.array(SUN["direction"], float)
+def beams(eta, sun=SUN):
+    """(outward normal, refracted direction, irradiance inside) for each face of a box the sun meets."""
+    s = np.array(sun["direction"], float)
     s /= np.linalg.norm(s)
     out = []
     for n in FACES:
         if float(s @ n) < 0.0:
             t, ti, tt = snell(s, n, eta)
-            out.append((n, t, SUN["irradiance"] * fresnel_t(ti, tt, eta) * math.cos(ti) / math.cos(tt)))
+            out.append((n, t, sun["irradiance"] * fresnel_t(ti, tt, eta) * math.cos(ti) / math.cos(tt)))
     return out
 
 
-def reaches(X, n, t):
-    """Whether the beam refracted through face n (direction t) reaches X: its path back leaves there."""
-    _, inward = oracle.box_exit(X, -t, LO, HI)
+def reaches(X, n, t, lo=LO, hi=HI):
+    """Whether the beam refracted through face n (direction t) of the box [lo, hi] reaches X: its
+    path back leaves there."""
+    _, inward = oracle.box_exit(X, -t, lo, hi)
     return np.allclose(-inward, n)
 
 
-def switches(p, w, ell, n, t, samples=400):
+def switches(p, w, ell, n, t, lo=LO, hi=HI, samples=400):
     """The x in (0, ell) where the beam starts or stops reaching p + x w, bisected to doubles."""
     xs = np.linspace(0.0, ell, samples + 1)
-    on = [reaches(p + x * w, n, t) for x in xs]
+    on = [reaches(p + x * w, n, t, lo, hi) for x in xs]
     out = []
     for i in np.nonzero(np.array(on[:-1]) != np.array(on[1:]))[0]:
         a, b = xs[i], xs[i + 1]
         while b - a > 4e-16 * ell:
             m = 0.5 * (a + b)
-            if reaches(p + m * w, n, t) == on[i]:
+            if reaches(p + m * w, n, t, lo, hi) == on[i]:
                 a = m
             else:
                 b = m
