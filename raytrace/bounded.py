@@ -6,8 +6,9 @@ outside. Here each ray is refracted into the shape (Snell, smooth dielectric; st
 ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
 segment gets the single scattering of every light (media/slab.py), the light entering through the
 plane of the entry face (the note's planar boundary): a directional light refracted through it
-(eq. 5; in index-matched convex shapes `analytic` takes its exact path through whichever face it
-meets instead, media/convex_directional.py), a point light along its straight path (index-matched,
+(eq. 5; in convex shapes every method but slab_approx takes its exact path instead, through
+whichever face it meets, and refracted through every face it meets if the shape is refractive:
+`refracted_beams`; `analytic` in closed form, media/convex_directional.py), a point light along its straight path (index-matched,
 eq. 7) or along its refracted path (Fermat's path through the plane, with the ray tube's
 irradiance: media/slab.py refracted_point); a
 spot light as a point light times its falloff on the direction in which the light leaves it. In
@@ -26,7 +27,8 @@ reflection at an exit ends the path.
 Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside segments
 and what it takes there: `quadrature` (adaptive, the reference), `analytic` (directional lights only: the
 exact closed form in convex index-matched shapes of at most MAX_FACES planes, with an error bound; the
-adaptive quadrature in other index-matched shapes, counted; eq. 5 through refractive boundaries),
+adaptive quadrature in other index-matched shapes, counted; the refracted beams in convex refractive
+shapes, bounded; eq. 5 through other refractive boundaries),
 `slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch` (its
 `steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
 segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
@@ -41,7 +43,7 @@ from .errors import UserError
 from .lights import DIRECTIONAL, Lights
 from .media.adaptive import CAPPED
 from .media.convex_directional import MAX_FACES, segments_bounded
-from .media.slab import CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
+from .media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
 from .methods import Segments, registry
 from .methods.geometry import segment_light_table
 from .scene.meshes import convex_planes as hull_of
@@ -210,22 +212,21 @@ def inside_of(prep, o, inner) -> int | None:
 
 
 def hull_planes(prep, sid):
-    """The face planes (P, 4) of shape sid if it is convex and index-matched (scene/meshes.py
-    convex_planes), else None; cached on `prep` (inside_paths.py reads the cache)."""
+    """The face planes (P, 4) of shape sid if it is convex (scene/meshes.py convex_planes), else
+    None; cached on `prep` (inside_paths.py reads the cache for index-matched shapes)."""
     cache = prep.interior_planes
     if sid not in cache:
-        cache[sid] = None
-        if prep.scene.shapes[sid].interior.ior == 1.0:
-            sel = prep.shape_ids == sid
-            cache[sid] = hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
+        sel = prep.shape_ids == sid
+        cache[sid] = hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
     return cache[sid]
 
 
 def convex_planes(prep, sid):
     """The face planes (P, 4: outward unit normal, offset) of shape `sid` for media/slab.py's convex
-    kernel, which tests every plane at every integrand evaluation: those of a convex index-matched
-    shape with at most KERNEL_PLANES of them, else an empty (0, 4) array (then the light's paths are
-    measured with Embree, inside_paths.py: batched exits for convex shapes, walks for others)."""
+    kernel, which tests every plane at every integrand evaluation: those of a convex shape with at
+    most KERNEL_PLANES of them, else an empty (0, 4) array (then an index-matched shape's light paths
+    are measured with Embree, inside_paths.py: batched exits for convex shapes, walks for others; a
+    refractive one keeps the entry plane)."""
     planes = hull_planes(prep, sid)
     return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
 
@@ -362,6 +363,21 @@ def _transmittance(cos_i, eta):
     return out
 
 
+def refracted_beams(planes, axis, eta):
+    """The beams a directional light (unit direction of travel `axis`) makes inside a convex
+    refractive shape (face planes P, 4): (faces, toward (B, 3) minus each beam's direction inside,
+    irradiance (B,) per unit irradiance outside) for the faces the light meets from outside without
+    total reflection, the irradiance T cos_i / cos_t of slab.beam_irradiance. A point inside is lit
+    by face f's beam where its path back along `toward` leaves through f (media/convex_directional.py
+    `only`)."""
+    cos_i = -(planes[:, :3] @ axis)
+    faces = np.nonzero(cos_i > 0.0)[0]
+    t, cos_t = _refract(np.broadcast_to(axis, (len(faces), 3)).copy(), planes[faces, :3], eta)
+    ok = cos_t > 0.0
+    faces, t, cos_i, cos_t = faces[ok], t[ok], cos_i[faces[ok]], cos_t[ok]
+    return faces, -t, _transmittance(cos_i, eta) * cos_i / cos_t
+
+
 def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, light=None, piece=0):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, its
@@ -372,12 +388,16 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights)
     in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
     media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
-    (`_traced`, rtol RTOL), counted (HANDED), unbounded; through a refractive boundary eq. 5 (the
-    note's entry plane), unbounded. `light`: that light only (else all); `piece`: the segments' rank
-    among their ray's lit pieces (`lit_single_scattering`), which numbers their random streams."""
+    (`_traced`, rtol RTOL), counted (HANDED), unbounded. Through a refractive boundary a directional
+    light enters a convex shape (`convex_planes`) through every face it meets, one beam each
+    (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
+    entry plane (eq. 5, unbounded), as does a point light (Fermat's path). `light`: that light only
+    (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
+    which numbers their random streams."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
-    traced = medium.ior == 1.0 and not len(planes)  # non-convex, index-matched: paths measured with Embree
+    refractive = medium.ior != 1.0
+    traced = not refractive and not len(planes)  # non-convex, index-matched: paths measured with Embree
     geo = np.zeros((len(points), GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
     lights = prep.lights
@@ -386,8 +406,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     var = np.zeros((n, 3))
     sup = method.supports.interiors
     mode = sup.mode
-    closed = mode == CLOSED and medium.ior == 1.0  # the exact closed form, or quadrature where there is none
-    kernel = closed and 0 < len(planes) <= MAX_FACES
+    closed = mode == CLOSED and not refractive  # the exact closed form, or quadrature where there is none
+    kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
+    beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
     bound = np.zeros((n, 3)) if kernel else np.full((n, 3), np.inf)
     rtol = params.get("rtol", RTOL)
     steps = int(params.get("steps", params.get("samples", 1)))
@@ -395,60 +416,83 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
-    for li in range(len(lights)) if light is None else [light]:
-        idx = np.full(n, li, dtype=np.int64)
-        distant = np.full(n, lights.kind[li] == DIRECTIONAL)
-        xh = h = hl = b = mu = wl = ll = np.zeros(n)
-        scale = 1.0
-        if lights.kind[li] == DIRECTIONAL:
-            axis = np.broadcast_to(lights.axis[li], (n, 3))
-            cos_l = -(normals @ lights.axis[li])
-            t_l, b = _refract(axis, normals, medium.ior)
-            b = np.where(cos_l > 0.0, b, 0.0)
-            mu = -np.einsum("ij,ij->i", t_l, w)
-            scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
-                             / np.maximum(b, 1e-300), 0.0) if medium.ior != 1.0 else 1.0
-            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14], geo[:, 17] = -lights.axis[li], 0.0, lights.cone[li, :2], lights.cone[li, 2]
-        else:  # a point or spot light (the spot's falloff toward the direction it leaves in: media/slab.py)
-            xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx,
-                                              prep.accel.scale)
-            geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
-            geo[:, 17] = lights.cone[li, 2]  # the spot's falloff curve
-            rel = lights.position[li] - points
-            hl = np.einsum("ij,ij->i", rel, normals)
-            if medium.ior != 1.0:  # horizontal parts, for the refracted path (media/slab.py refracted_point)
-                lh = rel - hl[:, None] * normals
-                wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
-                ll = np.einsum("ij,ij->i", lh, lh)
-        if kernel:
-            val, b = np.empty((n, 3)), np.empty((n, 3))
-            segments_bounded(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]),
-                             np.ascontiguousarray(points), np.ascontiguousarray(w), np.ascontiguousarray(ell),
-                             -lights.axis[li], medium.sigma_t, medium.sigma_s, medium.phase, medium.g, val, b)
-            out += val * lights.intensity[li]
-            bound += b * lights.intensity[li]
-            continue
-        if closed or (traced and sup.exact_paths):
-            if closed:
-                stats[HANDED] += np.count_nonzero(ell > 0.0)
-            _traced(prep, sid, medium, geo, lights.kind[li] == DIRECTIONAL, ell, lights.intensity[li] * scale,
-                    QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
-                    seed, out, var, stats)
-            continue
+
+    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
         for c in range(3):
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
             if ks == 0.0 or lights.intensity[li, c] == 0.0:
                 continue
             unit, unit_var = np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, planes, mode, rtol,
-                            steps, tau_max,
-                            keys,
-                            np.uint64(dims + (depth * len(lights) + li) * steps), np.uint64(seed), unit, unit_var,
-                            stats)
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, only, mode,
+                            rtol, steps, tau_max, keys,
+                            np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
+                            unit, unit_var, stats)
             f = scale * lights.intensity[li, c]
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
+
+    def closed_form(li, toward, scale, only):
+        val, b = np.empty((n, 3)), np.empty((n, 3))
+        segments_bounded(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]),
+                         np.ascontiguousarray(points), np.ascontiguousarray(w), np.ascontiguousarray(ell),
+                         np.ascontiguousarray(toward), medium.sigma_t, medium.sigma_s, medium.phase, medium.g, val, b,
+                         only)
+        out[:] += val * (lights.intensity[li] * scale)
+        bound[:] += b * (lights.intensity[li] * scale)
+
+    zero = np.zeros(n)
+    for li in range(len(lights)) if light is None else [light]:
+        idx = np.full(n, li, dtype=np.int64)
+        distant = np.full(n, lights.kind[li] == DIRECTIONAL)
+        if lights.kind[li] == DIRECTIONAL:
+            geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
+            if beams:
+                for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
+                    if kernel:
+                        closed_form(li, toward, irradiance, int(f))
+                        continue
+                    geo[:, 6:9] = toward
+                    integrate(li, distant, zero, zero, zero, zero, w @ toward, zero, zero, irradiance, planes, int(f))
+                continue
+            if kernel:
+                closed_form(li, -lights.axis[li], 1.0, -1)
+                continue
+            geo[:, 6:9] = -lights.axis[li]
+            axis = np.broadcast_to(lights.axis[li], (n, 3))
+            cos_l = -(normals @ lights.axis[li])
+            t_l, b = _refract(axis, normals, medium.ior)
+            b = np.where(cos_l > 0.0, b, 0.0)
+            mu = -np.einsum("ij,ij->i", t_l, w)
+            scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
+                             / np.maximum(b, 1e-300), 0.0) if refractive else 1.0
+            if closed or (traced and sup.exact_paths):
+                if closed:
+                    stats[HANDED] += np.count_nonzero(ell > 0.0)
+                _traced(prep, sid, medium, geo, True, ell, lights.intensity[li] * scale,
+                        QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
+                        seed, out, var, stats)
+                continue
+            integrate(li, distant, zero, zero, zero, b, mu, zero, zero, scale, planes if not refractive else np.zeros((0, 4)))
+            continue
+        # a point or spot light (the spot's falloff toward the direction it leaves in: media/slab.py)
+        xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx, prep.accel.scale)
+        geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
+        geo[:, 17] = lights.cone[li, 2]  # the spot's falloff curve
+        rel = lights.position[li] - points
+        hl = np.einsum("ij,ij->i", rel, normals)
+        wl = ll = zero
+        if refractive:  # horizontal parts, for the refracted path (media/slab.py refracted_point)
+            lh = rel - hl[:, None] * normals
+            wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
+            ll = np.einsum("ij,ij->i", lh, lh)
+        if closed or (traced and sup.exact_paths):
+            if closed:
+                stats[HANDED] += np.count_nonzero(ell > 0.0)
+            _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
+                    tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, stats)
+            continue
+        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0, planes if not refractive else np.zeros((0, 4)))
     return out, var, stats, bound
 
 
@@ -458,15 +502,19 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0). Where the light's path is not straight
     (a refractive interior: eq. 5's path through the entry plane) or not traced (a method without
-    exact paths: the note's planar model), the segments are unshadowed, counted (UNSHADOWED)."""
+    exact paths: the note's planar model), the segments are unshadowed, counted (UNSHADOWED), and
+    their bound is infinite if anything but the shape itself could stand on the light's path."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
     if medium.ior != 1.0 or not method.supports.interiors.exact_paths:
-        out = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
-        out[2][UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
-        return out
+        out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed,
+                                                   depth)
+        stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
+        if np.any(prep.shape_ids != sid):
+            bound = np.where(ell[:, None] > 0.0, np.inf, bound)
+        return out, var, stats, bound
     rays = np.tile(np.arange(n), n_lights)
     segs = Segments(points[rays], w[rays], ell[rays], np.repeat(np.arange(n_lights), n), rays, np.zeros(len(rays)),
                     keys[rays], np.zeros(len(rays), np.int64), seed, prep.accel.scale)

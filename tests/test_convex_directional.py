@@ -323,7 +323,7 @@ def test_agrees_with_the_existing_convex_quadrature(name):
         kt = 10.0 ** rng.uniform(-2, 1.5)
         geo = np.zeros(slab.GEO_COLUMNS)
         geo[:3], geo[3:6], geo[6:9] = o, w, toward
-        ref = slab.convex_quadrature(geo, planes, True, length, kt, 0.5 * kt, 0, 0.0, 0.0, 0.3, 1e-12, np.zeros(3))
+        ref = slab.convex_quadrature(geo, planes, True, length, kt, 0.5 * kt, 0, 0.0, 0.0, 0.3, -1, 1e-12, np.zeros(3))
         got = kernel(n, c, o, w, length, toward, np.array([kt]), np.array([0.5 * kt]), 0.3)[0]
         assert abs(got - ref) <= 1e-10 * ref
 

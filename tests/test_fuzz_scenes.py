@@ -754,6 +754,23 @@ def test_regression_camera_on_a_light_analytic_meets_its_law(light, sigma_s):
     assert np.max(np.abs(img - ref) / ref) <= law.tolerance
 
 
+def test_regression_a_planet_seen_from_beyond_float64_reach_renders():
+    """Was a ZeroDivisionError in the compiled atmosphere.ray_transmittance, found by the slow fuzz
+    run: a cylinder scaled by 1e30 beside a planet of radius 100; its shadow rays toward a light on
+    the ground start 7e29 away, straight at the centre, and their end rounds onto it (chapman._lift)."""
+    sc = {"camera": {"type": "perspective", "position": [0.0, 1e-07, 0.0], "look_at": [0.0, 1e-07, 100.0],
+                     "width": 4, "height": 3, "spp": 1},
+          "medium": {"type": "atmosphere", "center": [0.0, -100.0, 0.0], "radius": 100.0, "top_radius": 100.01,
+                     "layer": [{"sigma_s": 0.0, "scale_height": 0.001, "phase": "isotropic"}]},
+          "light": [{"type": "point", "position": [0.0, 1e-07, 0.0], "intensity": 1.0}],
+          "shape": [{"primitive": "cylinder", "radius": 1e-06, "segments": 3, "base": [0.0, 0.0, 1.0],
+                     "top": [1.0, 0.0, 0.0], "transform": {"scale": 1e30}}],
+          "background": {"radiance": 0.0}}
+    for method in ("quadrature", "raymarch", "montecarlo"):
+        with np.errstate(over="raise", invalid="raise", divide="raise", under="ignore"):
+            check(sc, method, {}, False)
+
+
 @pytest.mark.parametrize("shadow_test", ["intervals", "samples"])
 def test_regression_raymarch_in_a_subnormal_medium(shadow_test):
     """Was NaN pixels ("this is a bug", lit intervals) or numpy 'invalid value in divide' (shadow ray

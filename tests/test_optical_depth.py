@@ -152,6 +152,19 @@ def test_through_the_planet_is_inf_not_nan():
     assert ch.atmosphere_column(1e3, 0.0, 1e30, 1e300, R, H) == 0.0
 
 
+@pytest.mark.parametrize("t0, t1", [(0.0, 2.0), (2.0, 3.0)], ids=["ends at the centre", "starts at the centre"])
+def test_a_radial_ray_through_the_centre_is_finite(t0, t1):
+    """A ray straight down through the planet's centre (impact parameter 0) with a segment end on
+    the centre (s = r = 0 there): was 0/0 (ZeroDivisionError compiled, nan in Python), found by the
+    slow fuzz run (a planet of radius 100 seen from 1e30 away, where the segment's end rounds onto the
+    centre). Radially the column is int exp(-(r - R)/H) dr over the r the segment covers."""
+    R, H, h = 1.0, 0.5, 1.0  # from altitude 1 (r = 2) down: the centre is at t = 2
+    r_lo, r_hi = sorted((abs(2.0 - t0), abs(2.0 - t1)))
+    ref = mp.quad(lambda r: mp.exp(-(r - R) / H), [r_lo, r_hi])
+    got = ch.atmosphere_column(h, -1.0, t0, t1, R, H)
+    assert got == pytest.approx(float(ref), rel=RTOL)
+
+
 def test_ground_distance():
     for R, H in PLANETS:
         for hh in (0.0, 0.5 * H, 10 * H, R):

@@ -98,6 +98,14 @@ def _altitude(h, r0, s0, b, t):
 
 
 @njit
+def _lift(s, r, b, H):
+    """|s| / sqrt((r + b) H), the root of a point's height above the periapsis in scale heights
+    ((r - b) / H, as s^2 = r^2 - b^2); 0 at the periapsis itself, where r + b may round to 0 (a ray
+    through the centre of a planet far smaller than its distance)."""
+    return abs(s) / math.sqrt((r + b) * H) if s != 0.0 else 0.0
+
+
+@njit
 def ground_distance(h, mu, radius):
     """Distance to the first hit of the planet (the sphere of the given radius) from a point at
     altitude h >= 0 looking at mu; inf if the ray misses it (or grazes it from h = 0 upward)."""
@@ -135,10 +143,10 @@ def atmosphere_column(h, mu, t0, t1, radius, scale_height):
         hb, rb = _altitude(h, r0, s0, b, t1)
     if sa >= 0.0:  # going away from the periapsis: rise from t0 to t1
         rise = math.inf if t1 == math.inf else (t1 - t0) * ((sa + sb) / (ra + rb)) / H
-        col = math.exp(-ha / H) * rise_integral(sa / math.sqrt((ra + b) * H), beta, rise)
+        col = math.exp(-ha / H) * rise_integral(_lift(sa, ra, b, H), beta, rise)
     elif sb <= 0.0:  # coming toward it: the same piece read from t1 back to t0
         rise = (t1 - t0) * (-(sa + sb) / (ra + rb)) / H
-        col = math.exp(-hb / H) * rise_integral(-sb / math.sqrt((rb + b) * H), beta, rise)
+        col = math.exp(-hb / H) * rise_integral(_lift(sb, rb, b, H), beta, rise)
     else:  # through the periapsis: two pieces rising from it (eq. 48, split)
         hp = h * sin_chi - radius * mu * mu / (1.0 + sin_chi)
         rise_a = sa * sa / (ra + b) / H

@@ -1,6 +1,6 @@
-"""Exact single scattering of a directional light along a segment inside a convex, index-matched
-polyhedron filled with a homogeneous medium (issue 22: the light enters through whichever face its
-path meets, not through the plane of the camera ray's entry face as the planar model of slab.py).
+"""Exact single scattering of a directional light along a segment inside a convex polyhedron filled
+with a homogeneous medium: the light enters through whichever face its path meets, not through the
+plane of the camera ray's entry face as the planar model of slab.py.
 
 Geometry: the segment p(t) = o + t w, t in [0, T] (w unit), inside {x : n_f·x <= c_f, f = 1..F}
 (n_f outward unit normals); u = -d_light the unit direction toward the light. The light's path
@@ -27,6 +27,10 @@ from 0 to far beyond 745 (exp underflows to 0, never NaN). A last piece of infin
 (T = inf: g' >= 1 there) is exp(-kt g0) / (kt g'). kt = 0 gives ks Phi T (a vacuum transmits
 over any length, also where no face faces the light); kt > 0 with no face toward the light gives
 0 (an infinite path).
+
+Through a refractive boundary the light makes one beam per face it meets (bounded.refracted_beams),
+each with its own direction inside; beam f lights a point only where the point's path back leaves
+through f, i.e. on the envelope's pieces on face f (`only` = f below).
 
 `MAX_FACES` bounds F: the envelope's sweep costs O(F x pieces) per segment, and a shape with
 more faces returns False (nothing computed) so that the caller integrates it otherwise.
@@ -131,38 +135,46 @@ def _accumulate(kt, ks, phase, t0, t1, a, b, out):
 
 
 @njit
-def _pieces(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, lines):
-    """Eq. (2) into out; returns the number of the envelope's pieces (left in cuts, lines)."""
+def _pieces(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, lines, only):
+    """Eq. (2) into out; returns the number of the envelope's pieces (left in cuts, lines). only >= 0:
+    the light reaches the segment only where its path leaves through face `only` (one refracted
+    beam, `refracted_beams`): the pieces on other faces are left out, also for kt = 0."""
     for ch in range(kt.shape[0]):
-        out[ch] = ks[ch] * phase * length if kt[ch] == 0.0 and length > 0.0 else 0.0
+        out[ch] = ks[ch] * phase * length if kt[ch] == 0.0 and length > 0.0 and only < 0 else 0.0
     m = envelope(n, c, o, w, toward, length, alpha, beta, cuts, lines)
     for i in range(m):
         f = lines[i]
+        if only >= 0 and f != only:
+            continue
         _accumulate(kt, ks, phase, cuts[i], cuts[i + 1], alpha[f], beta[f], out)
+        if only >= 0:
+            for ch in range(kt.shape[0]):
+                if kt[ch] == 0.0:
+                    out[ch] += ks[ch] * phase * (cuts[i + 1] - cuts[i])
     return m
 
 
 @njit
-def segment_radiance(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, lines):
+def segment_radiance(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, lines, only=-1):
     """Eq. (2) per unit irradiance for one segment (o, unit w, length T <= inf) and every channel
     (kt, ks, out: (C,)), the light toward `toward` (unit), Phi = `phase`; alpha, beta, cuts, lines:
-    `envelope`'s scratch. False (out untouched) for more than MAX_FACES faces."""
+    `envelope`'s scratch; `only`: see `_pieces`. False (out untouched) for more than MAX_FACES faces."""
     if n.shape[0] > MAX_FACES:
         return False
-    _pieces(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, lines)
+    _pieces(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, lines, only)
     return True
 
 
 @njit
-def segments_bounded(n, c, origins, dirs, lengths, toward, kt, ks, code, g, out, bound):
+def segments_bounded(n, c, origins, dirs, lengths, toward, kt, ks, code, g, out, bound, only=-1):
     """`segment_radiance` of N segments (origins, dirs (N, 3), lengths (N,)) into out (N, C), with the
     phase function (code, g) at each segment's scattering cosine
     toward·w, and a bound on each value's error (N, C): (KERNEL_FLOOR + 8 eps kt max_f (|c_f| + |o| +
     T) / q_f) x value, the maximum over the faces of the segment's envelope (the docstring's accuracy,
     1e-12 at worst, and the condition of eq. (2) in its inputs where a face the light grazes
     magnifies the rounding of c_f - n_f·p by 1 / q_f; tests/test_convex_directional.py); 0 where the
-    value is 0 (no light, or exp(-kt g) below the smallest double). False (nothing written) for more
-    than MAX_FACES faces."""
+    value is 0 (no light, or exp(-kt g) below the smallest double); `only`: see `_pieces`. False
+    (nothing written) for more than MAX_FACES faces."""
     if n.shape[0] > MAX_FACES:
         return False
     nf = n.shape[0]
@@ -172,11 +184,14 @@ def segments_bounded(n, c, origins, dirs, lengths, toward, kt, ks, code, g, out,
         o, w, length = origins[s], dirs[s], lengths[s]
         # the scattering cosine: the light travels along -toward, the eye is along -w
         mu = toward[0] * w[0] + toward[1] * w[1] + toward[2] * w[2]
-        m = _pieces(n, c, o, w, toward, length, kt, ks, phase_value(code, g, mu), out[s], alpha, beta, cuts, lines)
+        m = _pieces(n, c, o, w, toward, length, kt, ks, phase_value(code, g, mu), out[s], alpha, beta, cuts, lines,
+                    only)
         scale = 0.0
         norm_o = math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2])
         for i in range(m):
             f = lines[i]
+            if only >= 0 and f != only:
+                continue
             q = n[f, 0] * toward[0] + n[f, 1] * toward[1] + n[f, 2] * toward[2]
             scale = max(scale, (abs(c[f]) + norm_o + length) / q)
         for ch in range(kt.shape[0]):

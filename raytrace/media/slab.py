@@ -442,16 +442,24 @@ def distant_quadrature(kt, ks, phase, a, b, ell, rtol, stats):
 
 
 @njit
-def convex_exit(px, py, pz, ux, uy, uz, planes):
-    """Distance from the inside point p along the unit direction u to the boundary of the convex
-    polyhedron {q : n_i·q <= c_i} (rows n_x, n_y, n_z, c of `planes`, n outward)."""
-    best = math.inf
+def convex_exit_face(px, py, pz, ux, uy, uz, planes):
+    """(distance, face) from the inside point p along the unit direction u to the boundary of the
+    convex polyhedron {q : n_i·q <= c_i} (rows n_x, n_y, n_z, c of `planes`, n outward): the
+    nearest plane ahead, the first of equals (face -1 and inf when none is ahead)."""
+    best, face = math.inf, -1
     for i in range(planes.shape[0]):
         den = planes[i, 0] * ux + planes[i, 1] * uy + planes[i, 2] * uz
         if den > 0.0:
-            t = (planes[i, 3] - planes[i, 0] * px - planes[i, 1] * py - planes[i, 2] * pz) / den
-            best = min(best, max(t, 0.0))
-    return best
+            t = max((planes[i, 3] - planes[i, 0] * px - planes[i, 1] * py - planes[i, 2] * pz) / den, 0.0)
+            if t < best:
+                best, face = t, i
+    return best, face
+
+
+@njit
+def convex_exit(px, py, pz, ux, uy, uz, planes):
+    """The distance of `convex_exit_face`."""
+    return convex_exit_face(px, py, pz, ux, uy, uz, planes)[0]
 
 
 class ConvexIntegrand(NamedTuple):
@@ -465,18 +473,23 @@ class ConvexIntegrand(NamedTuple):
     g: float
     kt_out: float
     phase: float
+    only: int
 
 
 @njit
-def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase):
+def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase, only):
     """The single-scattering integrand at x along an inside segment of a convex index-matched shape,
     with the light's straight path inside measured exactly to the shape's boundary: geo = (entry
     point, segment direction w, the light's position or, for a directional light, minus its
     direction of travel); a directional light's value per unit irradiance (`phase` its phase
-    value), a point light's per unit intensity."""
+    value), a point light's per unit intensity. only >= 0 (a directional light's beam refracted
+    through face `only` of a refractive shape, geo holding minus its direction inside): 0 where the
+    path back toward the light leaves through another face."""
     X0, X1, X2 = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
     if directional:
-        k = convex_exit(X0, X1, X2, geo[6], geo[7], geo[8], planes)
+        k, face = convex_exit_face(X0, X1, X2, geo[6], geo[7], geo[8], planes)
+        if only >= 0 and face != only:
+            return 0.0
         return ks * phase * math.exp(-kt * (x + k))
     r0, r1, r2 = geo[6] - X0, geo[7] - X1, geo[8] - X2
     d2 = max(r0 * r0 + r1 * r1 + r2 * r2, 1e-250)
@@ -492,7 +505,7 @@ def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase
 @integrand_of(ConvexIntegrand)
 @njit
 def _convex_value(x, r):
-    return convex_integrand(x, r.geo, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase)
+    return convex_integrand(x, r.geo, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase, r.only)
 
 
 @njit
@@ -530,15 +543,15 @@ def straight_cuts(geo, end, out):
 
 
 @njit
-def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, rtol, stats):
+def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, stats):
     """∫_0^ell `convex_integrand` dx, adaptive (adaptive.piecewise) on the pieces between a spot's
     cone crossings (`straight_cuts`), or a directional light's kinks, where the face its path enters
     through changes (convex_directional.envelope: a kink the rules' nodes straddle, 1e-3 of the segment
-    from its end, was accepted 2e-7 off at any rtol)."""
+    from its end, was accepted 2e-7 off at any rtol; with `only`, the pieces on other faces are 0)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
-    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase)
+    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase, only)
     if directional:
         nf = planes.shape[0]
         cuts = np.empty(nf + 1)
@@ -620,8 +633,8 @@ def _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
 
 
 @njit
-def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, mode,
-                    rtol, steps, tau_max, keys, dim0, seed, out, var, stats):
+def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, only,
+                    mode, rtol, steps, tau_max, keys, dim0, seed, out, var, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
@@ -635,7 +648,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per segment (a spot's axis and cone
     there; NO_CONE for other lights). With `planes` (a convex index-matched shape, rows
     of `convex_exit`; else an empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand`
-    (geo: its per-segment rows) instead: the exact straight path to every light outside."""
+    (geo: its per-segment rows) instead: the exact straight path to every light outside, or with
+    only >= 0 a directional light's beam refracted through that face (`convex_integrand`)."""
     convex = planes.shape[0] > 0
     for s in range(xh.shape[0]):
         out[s] = 0.0
@@ -653,15 +667,15 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
-                out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, rtol,
-                                           stats)
+                out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, only,
+                                           rtol, stats)
                 continue
         elif (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
             continue
         if mode == MARCH or mode == SAMPLE:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
             if convex:
-                rec = ConvexIntegrand(geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph)
+                rec = ConvexIntegrand(geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph, only)
                 out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
             else:
                 rec2 = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out,
