@@ -63,10 +63,10 @@ def chords_into(points, dirs, dist, planes, out):
 def _airlight(x, d, mu, f, e0, e1, e2, kt0, kt1, kt2, ks0, ks1, ks2, i0, i1, i2, code, g):
     """(1) per channel from the distance d to the light, the cosine mu, the falloff f and the
     exponents e_c = sum_j (kt_j - kt) k_j."""
-    ph = phase_value(code, g, mu)
-    return (ks0 * ph * math.exp(-kt0 * x - kt0 * d) / (d * d) * (f * math.exp(-e0) * i0),
-            ks1 * ph * math.exp(-kt1 * x - kt1 * d) / (d * d) * (f * math.exp(-e1) * i1),
-            ks2 * ph * math.exp(-kt2 * x - kt2 * d) / (d * d) * (f * math.exp(-e2) * i2))
+    ph = phase_value(code, g, mu) * f / (d * d)
+    return (ks0 * ph * math.exp(-kt0 * x - kt0 * d - e0) * i0,
+            ks1 * ph * math.exp(-kt1 * x - kt1 * d - e1) * i1,
+            ks2 * ph * math.exp(-kt2 * x - kt2 * d - e2) * i2)
 
 
 @njit
