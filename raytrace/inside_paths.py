@@ -10,8 +10,10 @@ segment from the light's end (outside every shape, where the parity is known) to
 `segment_quadrature`, `segment_march` and `segment_samples` integrate the inside single
 scattering of camera-ray segments with these lengths (quadrature, raymarch and montecarlo of
 bounded.py for non-convex index-matched shapes; convex ones use the exact numba kernel of
-media/slab.py instead). `shadow_transmittance` is the shadow test of surfaces: a shadow ray
-through an index-matched interior is attenuated, not blocked.
+media/slab.py instead). `through_quadrature` integrates the outside medium where its light crosses
+index-matched shapes (media/convex_chords.py's kernel when they are all convex). The shadow rays of
+surfaces use `inside_lengths` too (bounded.shadow_through): through an index-matched interior they are
+attenuated, not blocked.
 """
 from __future__ import annotations
 
@@ -278,6 +280,15 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
                        _N10, _W10, _N20, _W20, out, stats)
         return out
     seg = np.nonzero(end > 0.0)[0]
+    return adaptive(through_integrand(prep, segs, medium, sids, dk), end, 3, seg, np.zeros(len(seg)), end[seg], rtol,
+                    stats)
+
+
+def through_integrand(prep, segs, medium, sids, dk):
+    """`through_quadrature`'s integrand for `adaptive`, in NumPy (`chords` for the lengths; dk (S, 3): the
+    shapes' sigma_t minus the medium's)."""
+    lights = prep.lights
+    kt, ks = medium.sigma_t, medium.sigma_s
 
     def integrand(ss, x):
         li = segs.light[ss]
@@ -299,7 +310,7 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
             out[:, c] = col * att[:, c]
         return out
 
-    return adaptive(integrand, end, 3, seg, np.zeros(len(seg)), end[seg], rtol, stats)
+    return integrand
 
 
 def chords(prep, sids, points, dirs, dist):

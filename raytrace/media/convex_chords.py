@@ -6,8 +6,8 @@ segment p + s u, 0 <= s <= dist (u unit), lies inside for s in [lo, hi] with
 
     lo = max(0, max_{n_f·u < 0} s_f),  hi = min(dist, min_{n_f·u > 0} s_f),  s_f = (c_f - n_f·p) / (n_f·u),
 
-and none of it where a face parallel to u has p outside it; its chord is max(hi - lo, 0) (`clip` per
-face; `chords_into` for arrays of segments).
+and none of it where a face parallel to u has p outside it; its chord is max(hi - lo, 0) (`chord`, `clip`
+per face; `chords_into` for arrays of segments).
 
 `through_pieces` integrates, per piece o + x w, x in [0, end], lit by a point or spot light at l,
 
@@ -46,17 +46,23 @@ def clip(lo, hi, num, den):
     return lo, hi
 
 
+@njit(inline="always")
+def chord(planes, first, stop, px, py, pz, ux, uy, uz, dist):
+    """The length of the segment p + s u, 0 <= s <= dist (u unit, dist <= inf), inside the convex
+    shape of the face planes planes[first:stop]."""
+    lo, hi = 0.0, math.inf
+    for f in range(first, stop):
+        nx, ny, nz = planes[f, 0], planes[f, 1], planes[f, 2]
+        lo, hi = clip(lo, hi, planes[f, 3] - (nx * px + ny * py + nz * pz), nx * ux + ny * uy + nz * uz)
+    return max(min(hi, dist) - lo, 0.0)
+
+
 @njit
 def chords_into(points, dirs, dist, planes, out):
-    """out[i] = the length of the segment from points[i] along the unit dirs[i] over dist[i] (<= inf)
-    inside the convex shape of `planes`."""
+    """out[i] = `chord` of the segments from points[i] along dirs[i] over dist[i] (all of `planes`)."""
     for i in range(points.shape[0]):
-        lo, hi = 0.0, math.inf
-        for f in range(planes.shape[0]):
-            num = planes[f, 3] - (planes[f, 0] * points[i, 0] + planes[f, 1] * points[i, 1] + planes[f, 2] * points[i, 2])
-            den = planes[f, 0] * dirs[i, 0] + planes[f, 1] * dirs[i, 1] + planes[f, 2] * dirs[i, 2]
-            lo, hi = clip(lo, hi, num, den)
-        out[i] = max(min(hi, dist[i]) - lo, 0.0)
+        out[i] = chord(planes, 0, planes.shape[0], points[i, 0], points[i, 1], points[i, 2], dirs[i, 0], dirs[i, 1],
+                       dirs[i, 2], dist[i])
 
 
 @njit(inline="always")
@@ -110,11 +116,7 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                     continue
                 e0 = e1 = e2 = 0.0
                 for j in range(dk.shape[0]):
-                    lo, hi = 0.0, math.inf
-                    for r in range(offsets[j], offsets[j + 1]):
-                        num = planes[r, 3] - (planes[r, 0] * px + planes[r, 1] * py + planes[r, 2] * pz)
-                        lo, hi = clip(lo, hi, num, planes[r, 0] * tx + planes[r, 1] * ty + planes[r, 2] * tz)
-                    k = max(min(hi, d) - lo, 0.0)
+                    k = chord(planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
                     e0 += k * dk[j, 0]
                     e1 += k * dk[j, 1]
                     e2 += k * dk[j, 2]
