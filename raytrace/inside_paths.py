@@ -10,8 +10,10 @@ segment from the light's end (outside every shape, where the parity is known) to
 `segment_quadrature`, `segment_march` and `segment_samples` integrate the inside single
 scattering of camera-ray segments with these lengths (quadrature, raymarch and montecarlo of
 bounded.py for non-convex index-matched shapes; convex ones use the exact numba kernel of
-media/slab.py instead). `shadow_transmittance` is the shadow test of surfaces: a shadow ray
-through an index-matched interior is attenuated, not blocked.
+media/slab.py instead). `through_quadrature` integrates the outside medium where its light crosses
+index-matched shapes (media/convex_chords.py's kernel when they are all convex). The shadow rays of
+surfaces use `inside_lengths` too (bounded.shadow_through): through an index-matched interior they are
+attenuated, not blocked.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ import numpy as np
 from .jit import njit
 from .lights import NO_CONE, SMOOTHSTEP, falloff_array
 from .media.phase import phase_value
+from .media.convex_chords import chords_into, through_pieces
 from .media.slab import straight_cuts
 from .rng import uniform
 
@@ -261,12 +264,31 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
     whose light crosses the index-matched shapes `sids` (interior sigma_t `kt_in`, (S, 3)) on its
     straight path: the integrand ks Phi(mu) F exp(-kt (x + d)) / d^2 of the unshadowed air-light
     times exp(-(kt_in - kt) . k) over the lengths k inside each shape (`chords`), by `adaptive`
-    from the whole segments (cone crossings were cut before: visibility.cone_segments)."""
+    from the whole segments (cone crossings were cut before: visibility.cone_segments); when every
+    shape is convex, by media/convex_chords.py's kernel of the same rule, chords and integrand."""
     lights = prep.lights
     kt, ks = medium.sigma_t, medium.sigma_s
     end = np.minimum(segs.length, 745.0 / max(float(np.min(kt)), 1e-300))
-    seg = np.nonzero(end > 0.0)[0]
     dk = kt_in - kt[None, :]
+    planes = [prep.interior_planes.get(sid) for sid in sids]
+    if all(p is not None for p in planes):  # convex: the whole rule in one kernel (media/convex_chords.py)
+        out = np.empty((len(end), 3))
+        through_pieces(segs.origins, segs.dirs, end, segs.light, lights.position, lights.axis, lights.cone,
+                       lights.intensity, np.concatenate([np.zeros((0, 4)), *planes]),
+                       np.cumsum([0] + [len(p) for p in planes]),
+                       np.ascontiguousarray(dk), kt, ks, medium.phase, medium.g, rtol, MAX_LEVELS, MAX_OPEN,
+                       _N10, _W10, _N20, _W20, out, stats)
+        return out
+    seg = np.nonzero(end > 0.0)[0]
+    return adaptive(through_integrand(prep, segs, medium, sids, dk), end, 3, seg, np.zeros(len(seg)), end[seg], rtol,
+                    stats)
+
+
+def through_integrand(prep, segs, medium, sids, dk):
+    """`through_quadrature`'s integrand for `adaptive`, in NumPy (`chords` for the lengths; dk (S, 3): the
+    shapes' sigma_t minus the medium's)."""
+    lights = prep.lights
+    kt, ks = medium.sigma_t, medium.sigma_s
 
     def integrand(ss, x):
         li = segs.light[ss]
@@ -288,7 +310,7 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
             out[:, c] = col * att[:, c]
         return out
 
-    return adaptive(integrand, end, 3, seg, np.zeros(len(seg)), end[seg], rtol, stats)
+    return integrand
 
 
 def chords(prep, sids, points, dirs, dist):
@@ -302,13 +324,9 @@ def chords(prep, sids, points, dirs, dist):
         if planes is None:
             walked.append(j)
             continue
-        num = planes[:, 3][None, :] - points @ planes[:, :3].T  # >= 0 inside each half-space
-        den = dirs @ planes[:, :3].T
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = num / den
-        lo = np.max(np.where(den < 0.0, t, np.where((den == 0.0) & (num < 0.0), np.inf, 0.0)), axis=1)
-        hi = np.min(np.where(den > 0.0, t, np.where((den == 0.0) & (num < 0.0), -np.inf, np.inf)), axis=1)
-        out[:, j] = np.maximum(np.minimum(hi, dist) - np.maximum(lo, 0.0), 0.0)
+        col = np.empty(len(points))
+        chords_into(np.ascontiguousarray(points), np.ascontiguousarray(dirs), np.ascontiguousarray(dist), planes, col)
+        out[:, j] = col
     if walked:
         out[:, walked] = inside_lengths(prep, points, dirs, dist, [sids[j] for j in walked],
                                         end_inside=np.zeros((len(points), len(walked)), dtype=bool))[0]

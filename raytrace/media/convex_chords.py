@@ -1,0 +1,151 @@
+"""Straight light paths through convex index-matched shapes, in float64 from their face planes, and
+the outside medium's single scattering behind them (inside_paths.through_quadrature's kernel).
+
+A convex shape is {q : n_f·q <= c_f} (rows n_x, n_y, n_z, c of `planes`, n outward and unit). The
+segment p + s u, 0 <= s <= dist (u unit), lies inside for s in [lo, hi] with
+
+    lo = max(0, max_{n_f·u < 0} s_f),  hi = min(dist, min_{n_f·u > 0} s_f),  s_f = (c_f - n_f·p) / (n_f·u),
+
+and none of it where a face parallel to u has p outside it; its chord is max(hi - lo, 0) (`chord`, `clip`
+per face; `chords_into` for arrays of segments).
+
+`through_pieces` integrates, per piece o + x w, x in [0, end], lit by a point or spot light at l,
+
+    ks Phi(mu) F exp(-kt (x + d)) / d^2 · I exp(-sum_j (kt_j - kt) k_j),                       (1)
+
+d = |l - p|, mu the cosine between w and l - p, F a spot's falloff, k_j the chord toward the light
+of shape j: the unshadowed air-light attenuated by each shape's denser (or thinner) medium. Its
+rule is inside_paths.adaptive's, per piece: panels halved until their 10- and 20-point
+Gauss-Legendre values agree to rtol in every channel, or to rtol/10 of the first 20-point value of
+the whole per unit length; a panel still open after max_levels halvings is dropped and counted.
+The batched driver's memory bound (inside_paths.MAX_OPEN open panels per level) becomes a bound of
+max_panels panels per piece here, past which panels are accepted at their 20-point value, counted.
+Verified (tests/test_convex_chords.py): chords against a brute-force ray-triangle parity twin on a
+rotated box and two prisms, 1e-12; integrals against inside_paths.adaptive over through_integrand
+(NumPy) on a render's pieces, 1e-12; images against the scipy twin of tests/test_interior_shadows.py.
+"""
+import math
+
+import numpy as np
+
+from ..jit import njit
+from ..lights import falloff
+from .phase import phase_value
+
+
+@njit(inline="always")
+def clip(lo, hi, num, den):
+    """The parameter range [lo, hi] of a segment p + s u cut by one face: num = c - n·p (>= 0 inside),
+    den = n·u; empty (inf, -inf) where the segment is parallel to the face and outside it."""
+    if den < 0.0:
+        return max(lo, num / den), hi
+    if den > 0.0:
+        return lo, min(hi, num / den)
+    if num < 0.0:
+        return math.inf, -math.inf
+    return lo, hi
+
+
+@njit(inline="always")
+def chord(planes, first, stop, px, py, pz, ux, uy, uz, dist):
+    """The length of the segment p + s u, 0 <= s <= dist (u unit, dist <= inf), inside the convex
+    shape of the face planes planes[first:stop]."""
+    lo, hi = 0.0, math.inf
+    for f in range(first, stop):
+        nx, ny, nz = planes[f, 0], planes[f, 1], planes[f, 2]
+        lo, hi = clip(lo, hi, planes[f, 3] - (nx * px + ny * py + nz * pz), nx * ux + ny * uy + nz * uz)
+    return max(min(hi, dist) - lo, 0.0)
+
+
+@njit
+def chords_into(points, dirs, dist, planes, out):
+    """out[i] = `chord` of the segments from points[i] along dirs[i] over dist[i] (all of `planes`)."""
+    for i in range(points.shape[0]):
+        out[i] = chord(planes, 0, planes.shape[0], points[i, 0], points[i, 1], points[i, 2], dirs[i, 0], dirs[i, 1],
+                       dirs[i, 2], dist[i])
+
+
+@njit(inline="always")
+def _airlight(x, d, mu, f, e0, e1, e2, kt0, kt1, kt2, ks0, ks1, ks2, i0, i1, i2, code, g):
+    """(1) per channel from the distance d to the light, the cosine mu, the falloff f and the
+    exponents e_c = sum_j (kt_j - kt) k_j."""
+    ph = phase_value(code, g, mu) * f / (d * d)
+    return (ks0 * ph * math.exp(-kt0 * x - kt0 * d - e0) * i0,
+            ks1 * ph * math.exp(-kt1 * x - kt1 * d - e1) * i1,
+            ks2 * ph * math.exp(-kt2 * x - kt2 * d - e2) * i2)
+
+
+@njit
+def through_pieces(origins, dirs, end, light, positions, axes, cones, intensities, planes, offsets, dk, kt, ks,
+                   code, g, rtol, max_levels, max_panels, n10, w10, n20, w20, out, stats):
+    """out[i] (3,) = ∫_0^end[i] of (1) along piece i (origins, dirs; light[i] indexes the lights'
+    positions, axes, cones (cos_end, cos_start, curve) and intensities) through the convex shapes
+    whose face planes are planes[offsets[j]:offsets[j + 1]] (dk[j] = their sigma_t minus kt);
+    stats[0] += the panels dropped at max_levels or accepted at max_panels, short of their tolerance.
+    One loop with its helpers inlined: helpers called per evaluation with arrays and tuples (their
+    reference counts) took half of the kernel's time."""
+    lo_stack = np.empty(max_levels + 1)
+    hi_stack = np.empty(max_levels + 1)
+    depth = np.empty(max_levels + 1, dtype=np.int64)
+    n_nodes = n10.shape[0] + n20.shape[0]
+    for i in range(origins.shape[0]):
+        out[i, 0] = out[i, 1] = out[i, 2] = 0.0
+        if not end[i] > 0.0:
+            continue
+        li = light[i]
+        ox, oy, oz, wx, wy, wz = origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        lx, ly, lz = positions[li, 0], positions[li, 1], positions[li, 2]
+        floor0 = floor1 = floor2 = 0.0
+        lo_stack[0], hi_stack[0], depth[0] = 0.0, end[i], 0
+        top, panels = 1, 0
+        while top > 0:
+            top -= 1
+            a, b, level = lo_stack[top], hi_stack[top], depth[top]
+            half, mid = 0.5 * (b - a), 0.5 * (a + b)
+            c0 = c1 = c2 = f0 = f1 = f2 = 0.0  # the 10- and 20-point sums
+            for q in range(n_nodes):
+                coarse = q < n10.shape[0]
+                node, weight = (n10[q], w10[q]) if coarse else (n20[q - n10.shape[0]], w20[q - n10.shape[0]])
+                x = mid + half * node
+                px, py, pz = ox + x * wx, oy + x * wy, oz + x * wz
+                rx, ry, rz = lx - px, ly - py, lz - pz
+                d = max(math.sqrt(rx * rx + ry * ry + rz * rz), 1e-125)
+                tx, ty, tz = rx / d, ry / d, rz / d
+                f = falloff(-(tx * axes[li, 0] + ty * axes[li, 1] + tz * axes[li, 2]), cones[li, 0], cones[li, 1],
+                            cones[li, 2])
+                if f == 0.0:  # outside a spot's cone: no chords measured
+                    continue
+                e0 = e1 = e2 = 0.0
+                for j in range(dk.shape[0]):
+                    k = chord(planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
+                    e0 += k * dk[j, 0]
+                    e1 += k * dk[j, 1]
+                    e2 += k * dk[j, 2]
+                v0, v1, v2 = _airlight(x, d, tx * wx + ty * wy + tz * wz, f, e0, e1, e2, kt[0], kt[1], kt[2],
+                                       ks[0], ks[1], ks[2], intensities[li, 0], intensities[li, 1],
+                                       intensities[li, 2], code, g)
+                if coarse:
+                    c0, c1, c2 = c0 + weight * v0, c1 + weight * v1, c2 + weight * v2
+                else:
+                    f0, f1, f2 = f0 + weight * v0, f1 + weight * v1, f2 + weight * v2
+            c0, c1, c2, f0, f1, f2 = c0 * half, c1 * half, c2 * half, f0 * half, f1 * half, f2 * half
+            panels += 1
+            if panels == 1:  # the floor: rtol/10 of the first 20-point value per unit length
+                scale = 0.1 * rtol / end[i]
+                floor0, floor1, floor2 = abs(f0) * scale, abs(f1) * scale, abs(f2) * scale
+            width = b - a
+            ok = (abs(f0 - c0) <= max(rtol * abs(f0), floor0 * width)
+                  and abs(f1 - c1) <= max(rtol * abs(f1), floor1 * width)
+                  and abs(f2 - c2) <= max(rtol * abs(f2), floor2 * width))
+            if ok or panels >= max_panels:
+                if not ok:
+                    stats[0] += 1.0
+                out[i, 0] += f0
+                out[i, 1] += f1
+                out[i, 2] += f2
+            elif level + 1 >= max_levels:  # dropped, as inside_paths.adaptive drops it
+                stats[0] += 1.0
+            else:
+                lo_stack[top], hi_stack[top], depth[top] = mid, b, level + 1
+                lo_stack[top + 1], hi_stack[top + 1], depth[top + 1] = a, mid, level + 1
+                top += 2
