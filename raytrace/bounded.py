@@ -500,15 +500,19 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
     that each light reaches past the blockers (shadow_frusta.py's exact lit intervals of `blockers`;
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
-    start and carried back to the entry by exp(-sigma_t t0). Where the light's path is not straight
-    (a refractive interior: eq. 5's path through the entry plane) or not traced (a method without
-    exact paths: the note's planar model), the segments are unshadowed, counted (UNSHADOWED), and
-    their bound is infinite if anything but the shape itself could stand on the light's path."""
+    start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
+    and its quadrature fallback take the exact path from any start). Where the light's path is not
+    straight (a refractive interior) or not traced (slab_approx: the note's planar model), the
+    segments are unshadowed, counted (UNSHADOWED), and
+    their bound is infinite if anything but the shape itself could stand on the light's path. Inside
+    an index-matched shape the light is not attenuated by the other index-matched interiors on its
+    path: with any other, the bound is infinite."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
-    if medium.ior != 1.0 or not method.supports.interiors.exact_paths:
+    sup = method.supports.interiors
+    if medium.ior != 1.0 or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights
         out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed,
                                                    depth)
         stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
@@ -535,6 +539,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
         np.add.at(out, r, tr * val)
         np.add.at(var, r, tr * tr * v)
         np.add.at(bound, r, scaled(b, tr))
+    if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
+        bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 
 

@@ -244,3 +244,85 @@ def test_shadow_rays_per_sample_are_refused_with_interiors(tmp_path):
     with pytest.raises(raytrace.UserError, match="shadow-test samples.*inside shapes") as err:
         raytrace.render(tmp_path / "s.toml", "raymarch", shadow_test="samples", threads=1)
     assert "\n" not in str(err.value)
+
+
+def test_another_index_matched_interior_makes_the_inside_bound_infinite(tmp_path):
+    """Inside an index-matched shape the light is not attenuated by another index-matched interior on
+    its way in (docs/bounded_media.md, volumetric shadows): analytic's closed form is then no longer
+    the scene's answer, and its bound says so; alone, the box keeps its finite bound."""
+    sun = {"type": "directional", "direction": [0.2, -1.0, -0.1], "irradiance": 2.0}
+    box = {"primitive": "box", "min": IN_LO.tolist(), "max": IN_HI.tolist(),
+           "interior": {"sigma_a": IN_KA.tolist(), "sigma_s": IN_KS.tolist()}}
+    above = {"primitive": "box", "min": [-0.6, 1.5, -0.6], "max": [0.6, 1.8, 0.6], "interior": {"sigma_a": 2.0}}
+    base = {"name": "two boxes", "camera": IN_CAMERA, "light": [sun]}
+    alone = render(write(tmp_path, base | {"shape": [box]}), "analytic", {}, SHADOWED)
+    both = render(write(tmp_path, base | {"shape": [box, above]}), "analytic", {}, SHADOWED)
+    inside = alone.image[..., 1] > 0
+    assert inside.sum() >= 40
+    assert np.all(np.isfinite(alone.error_bound[inside])) and np.all(np.isinf(both.error_bound[inside]))
+
+
+SUN = np.array([0.3, -1.0, -0.2]) / np.linalg.norm([0.3, -1.0, -0.2])
+IRRADIANCE = 2.0
+
+
+def sun_inside_twin(i, j):
+    """inside_twin under the sun: lit where the ray from the point toward the sun misses the plate
+    (its crossing of the plate's plane is linear in x), the light's path inside to the box's wall by
+    the slab test (kinks where two walls' distances meet, linear in x too)."""
+    o, d = oracle.camera_ray(IN_CAMERA, i, j)
+    hit = box_clip(o, d, IN_LO, IN_HI)
+    if hit is None:
+        return np.zeros(3), False
+    t_in, t_out = hit
+    y0, (x_lo, x_hi), (z_lo, z_hi) = PLATE
+    r = SUN / SUN[1]
+    breaks = [(e - o[a] - (y0 - o[1]) * r[a]) / (d[a] - d[1] * r[a])
+              for a, edges in ((0, (x_lo, x_hi)), (2, (z_lo, z_hi))) for e in edges]
+    walls = [((IN_HI if -SUN[a] > 0 else IN_LO)[a], a) for a in range(3)]  # the walls the path back may meet
+    for (b1, a1), (b2, a2) in [(walls[0], walls[1]), (walls[0], walls[2]), (walls[1], walls[2])]:
+        # (b1 - o_a1 - x d_a1) / -s_a1 = (b2 - o_a2 - x d_a2) / -s_a2
+        den = d[a1] * SUN[a2] - d[a2] * SUN[a1]
+        if den != 0.0:
+            breaks.append(((b1 - o[a1]) * SUN[a2] - (b2 - o[a2]) * SUN[a1]) / den)
+
+    def blocked(x):
+        p = o + x * d
+        q = p + (y0 - p[1]) * r
+        return x_lo < q[0] < x_hi and z_lo < q[2] < z_hi
+
+    out = np.zeros(3)
+    for c in range(3):
+        kt = IN_KS[c] + IN_KA[c]
+
+        def f(x):
+            if blocked(x):
+                return 0.0
+            k = slab(o + x * d, -SUN, IN_LO, IN_HI)[1]
+            return IN_KS[c] * IRRADIANCE / (4 * math.pi) * math.exp(-kt * (x - t_in) - kt * k)
+        out[c] = quad(f, t_in, t_out, breaks)
+    return out, True
+
+
+def test_analytic_shadows_the_sun_inside_an_index_matched_box(tmp_path):
+    """analytic's closed form over the lit pieces: within 1e-9 of the twin on every pixel whose ray
+    meets the box, the error within its bound; unshadowed, the plate's shadow is missing."""
+    prep = write(tmp_path, {"name": "sun shadow in a box", "camera": IN_CAMERA,
+                            "light": [{"type": "directional", "direction": SUN.tolist(), "irradiance": IRRADIANCE}],
+                            "shape": [{"primitive": "box", "min": IN_LO.tolist(), "max": IN_HI.tolist(),
+                                       "interior": {"sigma_a": IN_KA.tolist(), "sigma_s": IN_KS.tolist()}},
+                                      {"primitive": "quad", "reflectance": 0.5,
+                                       "corners": [[0.1, 2.0, -1.5], [1.5, 2.0, -1.5], [1.5, 2.0, 1.5],
+                                                   [0.1, 2.0, 1.5]]}]})
+    twin = [[sun_inside_twin(i, j) for i in range(IN_CAMERA["width"])] for j in range(IN_CAMERA["height"])]
+    ref = np.array([[v for v, _ in row] for row in twin])
+    seen = np.array([[s for _, s in row] for row in twin])
+    assert seen.sum() >= 40
+    res = render(prep, "analytic", {}, SHADOWED)
+    rel = relative(res.image, ref)[seen]
+    print(f"analytic, sun shadow inside: worst relative error {rel.max():.2e}")
+    assert rel.max() <= 1e-9
+    assert res.stats["inside: lit pieces"] > 0 and res.stats["inside: segments unshadowed (refractive or planar model)"] == 0
+    assert np.all(np.abs(res.image - ref)[seen] <= res.error_bound[seen])
+    off = render(prep, "analytic", {}, UNSHADOWED).image
+    assert np.max(relative(off, ref)[seen]) > 0.2

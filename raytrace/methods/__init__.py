@@ -139,8 +139,8 @@ class Supports:
             shapes = "no media inside shapes"
         else:
             model = ("exact straight light paths" if inside.exact_paths else
-                     "closed forms: exact in convex index-matched shapes, the entry face's plane through refractive "
-                     "boundaries" if inside.mode == CLOSED else
+                     "closed forms: exact in convex shapes (refractive: the beam of every face the light meets), the "
+                     "entry face's plane in other refractive shapes" if inside.mode == CLOSED else
                      "the slab note's separable approximation")
             through = "" if inside.refracted == inside.lights else \
                 f"; through refractive boundaries: {', '.join(inside.refracted)}"
