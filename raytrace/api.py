@@ -242,8 +242,8 @@ def render_options(scene: Scene | None, source: str = "render", **given) -> Rend
     lo, hi = SPACING_RANGE
     if not lo <= spacing <= hi:
         raise UserError(f"{source}: shadow_spacing (--shadow-spacing, render.shadow_spacing): must be within "
-                        f"[{lo:g}, {hi:g}] radians, got {spacing!r}; e.g. 0.01 (finer finds thinner occluders, costs "
-                        "more shadow rays)")
+                        f"[{lo:g}, {hi:g}] radians, got {spacing!r}; it is not read (the lit intervals are exact): "
+                        "leave it out")
     if "checkpoint" in given:
         given["checkpoint"] = Path(given["checkpoint"])
     options = RenderOptions(**given)
