@@ -45,6 +45,7 @@ from .media.adaptive import CAPPED
 from .media.convex_directional import MAX_FACES, segments_bounded
 from .media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
 from .methods import Segments, registry
+from .beam_shadows import lit_pieces_of_beam
 from .methods.geometry import segment_light_table
 from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
@@ -378,7 +379,8 @@ def refracted_beams(planes, axis, eta):
     return faces, -t, _transmittance(cos_i, eta) * cos_i / cos_t
 
 
-def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, light=None, piece=0):
+def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, light=None, piece=0,
+                      beam=None):
     """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
     summed over the lights, for the interior `medium` with outward entry normals `normals`, its
     variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
@@ -393,7 +395,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
     entry plane (eq. 5, unbounded), as does a point light (Fermat's path). `light`: that light only
     (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
-    which numbers their random streams."""
+    which numbers their random streams; `beam`: of a directional light's refracted beams, only the
+    one through that face (`lit_single_scattering`)."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     refractive = medium.ior != 1.0
@@ -449,6 +452,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
             if beams:
                 for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
+                    if beam is not None and f != beam:
+                        continue
                     if kernel:
                         closed_form(li, toward, irradiance, int(f))
                         continue
@@ -512,6 +517,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
     sup = method.supports.interiors
+    if medium.ior != 1.0 and len(convex_planes(prep, sid)) and sup.mode != APPROX:
+        return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
     if medium.ior != 1.0 or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights
         out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed,
                                                    depth)
@@ -540,6 +547,54 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
         np.add.at(var, r, tr * tr * v)
         np.add.at(bound, r, scaled(b, tr))
     if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
+        bound[ell > 0.0] = np.inf
+    return out, var, stats, bound
+
+
+def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
+    """`lit_single_scattering` in a convex refractive shape: each directional light's refracted beams
+    over the pieces they reach past the blockers (beam_shadows.py: the leg inside the shape and the
+    entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
+    spot lights unshadowed (their refracted path is the entry plane's), counted, with an infinite bound
+    if anything else stands in the scene. The other index-matched interiors on the light's way are not
+    applied: with any, the bound is infinite."""
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    planes, mask = convex_planes(prep, sid), blockers(prep)
+    n = len(points)
+    out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    stats = np.zeros(STATS_SIZE)
+    kt = medium.sigma_t[None, :]
+
+    def add(r, t0, val, v, b):
+        with np.errstate(over="ignore", invalid="ignore"):
+            tr = np.where(kt == 0.0, 1.0, np.exp(-kt * t0[:, None]))
+        np.add.at(out, r, tr * val)
+        np.add.at(var, r, tr * tr * v)
+        np.add.at(bound, r, scaled(b, tr))
+
+    for li in range(len(lights)):
+        if lights.kind[li] != DIRECTIONAL:
+            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, li)
+            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
+            if np.any(prep.shape_ids != sid):
+                b = np.where(ell[:, None] > 0.0, np.inf, b)
+            stats += st
+            add(np.arange(n), np.zeros(n), val, v, b)
+            continue
+        faces, towards, _ = refracted_beams(planes, lights.axis[li], medium.ior)
+        for f, toward in zip(faces.tolist(), towards):
+            src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
+            stats[LIT_PIECES] += len(src)
+            rank = np.arange(len(src)) - np.searchsorted(src, src)
+            for piece in np.unique(rank).tolist():
+                at = np.nonzero(rank == piece)[0]
+                r = src[at]
+                val, v, st, b = single_scattering(prep, method, params, sid, points[r] + x0[at, None] * w[r],
+                                                  normals[r], w[r], x1[at] - x0[at], keys[r], seed, depth, li, piece,
+                                                  f)
+                stats += st
+                add(r, x0[at], val, v, b)
+    if matched(prep):
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 

@@ -51,6 +51,15 @@ class Prepared:
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
+    _memo: dict = field(default_factory=dict)
+    _memo_lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def memo(self, key, build):
+        """`build()`, computed once per `key` for this scene (tiles run in threads: under a lock)."""
+        with self._memo_lock:
+            if key not in self._memo:
+                self._memo[key] = build()
+            return self._memo[key]
 
     def frusta(self) -> list:
         """The lights' texel lists of the shadow frusta of the triangles that stop light

@@ -96,17 +96,25 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     res = resolution or default_resolution(len(tris))
     out = []
     for li in range(len(lights)):
-        sun = lights.kind[li] == DIRECTIONAL
-        if sun:
-            d = lights.axis[li] / np.linalg.norm(lights.axis[li])  # direction of travel
-            a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-            u = np.cross(d, a)
-            u /= np.linalg.norm(u)
-            frame = np.array([np.zeros(3), u, np.cross(d, u), d])
+        if lights.kind[li] == DIRECTIONAL:
+            out.append(sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res))
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
-        out.append(_light_bins(tris, frame, sun, res, accel.epsilon, REL * accel.scale))
+            out.append(_light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale))
     return out
+
+
+def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None) -> LightBins:
+    """The frusta and texel lists of the triangles `tris` (T, 3, 3) under a directional light whose
+    direction of travel is `axis` (any length), for a scene of size `scale` and shadow-ray
+    `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (bounded.py
+    builds them for the light refracted into a shape, from the triangles inside it)."""
+    d = axis / np.linalg.norm(axis)
+    a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(d, a)
+    u /= np.linalg.norm(u)
+    frame = np.array([np.zeros(3), u, np.cross(d, u), d])
+    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale)
 
 
 def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
@@ -626,7 +634,7 @@ def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list
     (STATS_NAMES). `bins`: `build(accel, lights)`, built here if None (build it once per scene)."""
     bins = build(accel, lights) if bins is None else bins
     stats = np.zeros(len(STATS_NAMES))
-    src, x0, x1 = _lit_pieces(accel, segs, bins, stats)
+    src, x0, x1 = lit_pieces(segs, bins, accel.scale, stats)
     piece = np.arange(len(src)) - np.searchsorted(src, src)
     return _take(segs, src, x0, x1, segs.stream[src] + n_lights * piece), stats
 
@@ -638,7 +646,7 @@ def split_lit(accel, segs: Segments, n_lights: int, bins: list[LightBins]):
     over the clear pieces (light + n_lights x rank, as whole rays number them); the behind pieces
     keep their segment's (bounded.py integrates them without random numbers)."""
     stats = np.zeros(len(STATS_NAMES))
-    src, x0, x1 = _lit_pieces(accel, segs, bins, stats)
+    src, x0, x1 = lit_pieces(segs, bins, accel.scale, stats)
     clear = _take(segs, src, x0, x1, np.zeros(len(src), np.int64))
     order = np.lexsort((clear.t0, clear.light, clear.ray))
     clear = clear.take(order)
@@ -661,8 +669,9 @@ def split_lit(accel, segs: Segments, n_lights: int, bins: list[LightBins]):
     return clear, behind, stats
 
 
-def _lit_pieces(accel, segs, bins, stats):
-    """(segment, x0, x1) of the lit pieces of `segs` under `bins`, in segment order."""
+def lit_pieces(segs: Segments, bins: list[LightBins], scale: float, stats):
+    """(segment, x0, x1) of the lit pieces of `segs` under `bins` (indexed by segs.light) in a scene
+    of size `scale`, in segment order and, per segment, in x; the statistics add to `stats`."""
     stats[ST_SEGMENTS] += len(segs)
     srcs, a, b = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)]
     for li in np.unique(segs.light):
@@ -671,7 +680,7 @@ def _lit_pieces(accel, segs, bins, stats):
         src, x0, x1 = _lit(np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
                            np.ascontiguousarray(segs.length[idx]), lb_.kind, lb_.grid, lb_.frame, lb_.start, lb_.tri,
                            lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
-                           GAP_REL * accel.scale, stats)
+                           GAP_REL * scale, stats)
         srcs.append(idx[src])
         a.append(x0)
         b.append(x1)

@@ -121,7 +121,7 @@ def beam_event(sc, j, i, lifts):
         p = o + t0 * d
         w, _, _ = snell(d, n_in, 1.5)
         ell, _ = oracle.box_exit(p, w, lo, hi)
-        seen.add(tuple((len(switches(p, w, ell, n, t, lo, hi)), reaches(p + ell * w, n, t, lo, hi))
+        seen.add(tuple((len(switches(p, w, ell, lambda X: reaches(X, n, t, lo, hi))), reaches(p + ell * w, n, t, lo, hi))
                        for n, t, _ in beams(1.5, sc["light"][0])))
     return len(seen) > 1
 
