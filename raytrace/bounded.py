@@ -541,14 +541,20 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
         val, v, st, b = single_scattering(prep, method, params, sid, lit.origins[at], normals[r], lit.dirs[at],
                                           lit.length[at], keys[r], seed, depth, li, rank)
         stats += st
-        with np.errstate(over="ignore", invalid="ignore"):
-            tr = np.where(kt == 0.0, 1.0, np.exp(-kt * lit.t0[at, None]))
-        np.add.at(out, r, tr * val)
-        np.add.at(var, r, tr * tr * v)
-        np.add.at(bound, r, scaled(b, tr))
+        _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
     if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
+
+
+def _carry(out, var, bound, r, kt, t0, val, v, b):
+    """Add pieces' values, variances and bounds to their rays r, carried back to the entry by
+    exp(-kt t0) (kt (1, 3))."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        tr = np.where(kt == 0.0, 1.0, np.exp(-kt * t0[:, None]))
+    np.add.at(out, r, tr * val)
+    np.add.at(var, r, tr * tr * v)
+    np.add.at(bound, r, scaled(b, tr))
 
 
 def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
@@ -565,13 +571,6 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, d
     stats = np.zeros(STATS_SIZE)
     kt = medium.sigma_t[None, :]
 
-    def add(r, t0, val, v, b):
-        with np.errstate(over="ignore", invalid="ignore"):
-            tr = np.where(kt == 0.0, 1.0, np.exp(-kt * t0[:, None]))
-        np.add.at(out, r, tr * val)
-        np.add.at(var, r, tr * tr * v)
-        np.add.at(bound, r, scaled(b, tr))
-
     for li in range(len(lights)):
         if lights.kind[li] != DIRECTIONAL:
             val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, li)
@@ -579,7 +578,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, d
             if np.any(prep.shape_ids != sid):
                 b = np.where(ell[:, None] > 0.0, np.inf, b)
             stats += st
-            add(np.arange(n), np.zeros(n), val, v, b)
+            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
             continue
         faces, towards, _ = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward in zip(faces.tolist(), towards):
@@ -593,7 +592,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, d
                                                   normals[r], w[r], x1[at] - x0[at], keys[r], seed, depth, li, piece,
                                                   f)
                 stats += st
-                add(r, x0[at], val, v, b)
+                _carry(out, var, bound, r, kt, x0[at], val, v, b)
     if matched(prep):
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
