@@ -141,6 +141,20 @@ def load(scene=None, overrides=(), camera: str | None = None) -> Scene:
     return scene_from_dict(raw, source, path)
 
 
+
+def _plain(value):
+    """A copy of a scene dict with numpy arrays and scalars as the lists and numbers of TOML (and
+    tuples as lists), so that `render({"camera": {"position": np.array(...)}})` reads as TOML would."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return copy.deepcopy(value)
+
 def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dict, str, Path | None]:
     """(raw, source, path): the scene dict (the TOML structure) of a path, a bundled scene's name, a
     dict or None (the built-in default), with the overrides applied; not yet validated. `camera`
@@ -155,7 +169,7 @@ def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dic
     if scene is None:
         raw, source, path = tomllib.loads(DEFAULT_TOML), "default scene", None
     elif isinstance(scene, dict):
-        raw, source, path = copy.deepcopy(scene), "scene dict", None
+        raw, source, path = _plain(scene), "scene dict", None
     else:
         path = Path(scene)
         if not path.exists() and path.suffix == "":

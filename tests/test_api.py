@@ -122,3 +122,21 @@ def test_methods_says_what_each_method_takes(capsys):
                                "intensity": 1.0, "cone_angle": 30.0}])
     with pytest.raises(UserError, match="does not take spot lights"):
         raytrace.render(refused, method="lecocq", width=4, height=3)
+
+
+def test_a_scene_dict_takes_numpy_vectors_and_scalars():
+    """numpy arrays, numpy scalars and tuples read as the TOML lists and numbers they hold: the same
+    image as the plain dict, bit for bit; a numpy vector of the wrong length is refused by key."""
+    plain = {"camera": {"position": [0.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0], "width": 16, "height": 12},
+             "medium": {"sigma_s": 0.05},
+             "light": [{"type": "point", "position": [0.0, 2.0, 0.0], "intensity": 5.0}],
+             "shape": [{"primitive": "quad", "corners": [[-3, 0, -3], [3, 0, -3], [3, 0, 3], [-3, 0, 3]]}]}
+    numpy = {"camera": {"position": np.array([0.0, 1.0, 4.0]), "look_at": (0.0, 1.0, 0.0), "width": np.int64(16),
+                        "height": 12},
+             "medium": {"sigma_s": np.float64(0.05)},
+             "light": [{"type": "point", "position": np.array([0.0, 2.0, 0.0]), "intensity": np.float64(5.0)}],
+             "shape": [{"primitive": "quad", "corners": np.array(plain["shape"][0]["corners"], float)}]}
+    a, b = raytrace.render(plain), raytrace.render(numpy)
+    assert a.array.max() > 0 and np.array_equal(a.array, b.array)
+    with pytest.raises(raytrace.UserError, match=r"camera\.position: expected a vector"):
+        raytrace.render({**numpy, "camera": {**numpy["camera"], "position": np.zeros(2)}})
