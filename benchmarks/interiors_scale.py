@@ -1,23 +1,26 @@
 """Media inside finely tessellated shapes: load and render time and peak memory against triangle count.
 
-    python benchmarks/interiors_scale.py [--segments 32 100 320] [--width 12 --height 8]
+    python benchmarks/interiors_scale.py [--segments 32 100 320] [--width 12 --height 8] [--repeat 5]
     python benchmarks/interiors_scale.py --blender 4 7        # Blender's icospheres (1,280 and 81,920 triangles)
 
 A sphere primitive of radius 1 holding a scattering medium, 2 x segments x (segments / 2 - 1)
 triangles (32, 100, 320 segments: about 1k, 10k and 100k), a point light beside it, the camera
 outside in a thin absorbing medium, one thread. `load` is `renderer.prepare` plus the convexity
 check of the interior (scene/meshes.py convex_planes, Qhull and a k-d tree) with its peak of traced
-allocations (tracemalloc: numpy's arrays included); `render` is the timed part of `renderer.render`
-(compilation excluded) for `quadrature` (adaptive to its rtol, so its evaluations grow with the
-kinks of the integrand, one wherever the light path's exit crosses a face edge), `raymarch` (64
-steps) and `montecarlo` (64 samples), whose evaluations are fixed; `evals` counts the light-path
-exits queried (Embree, batched). The last column is the peak resident memory of the process.
+allocations (tracemalloc: numpy's arrays included); `render` is the median over `--repeat` renders
+of the timed part of `renderer.render` (compilation excluded) for `quadrature` (adaptive to its
+rtol from the pieces of the facet walk, so its evaluations grow with the kinks of the integrand,
+one wherever the light path's exit crosses a face edge), `raymarch` (64 steps) and `montecarlo`
+(64 samples), whose evaluations are fixed; `evals` counts the points where a light path's exit is
+measured (on the walk's facet planes, or by Embree, batched). The last column is the peak resident
+memory of the process.
 With `--blender LEVELS`, the shapes are instead unit icospheres made by Blender itself
 (tests/data/blender/make_icospheres.py, run headless; Blender's level n has 20 * 4^(n - 1) triangles),
 read as PLY meshes.
 """
 import argparse
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -59,14 +62,14 @@ METHODS = {"quadrature": {}, "raymarch": {"steps": 64}, "montecarlo": {"samples"
 
 
 def counted_exits():
-    """Wrap inside_paths.convex_exits to count the points it is asked for."""
+    """Wrap inside_paths._geometry to count the points where a light path's exit is measured."""
     count = [0]
-    exits = inside_paths.convex_exits
+    geometry = inside_paths._geometry
 
-    def wrapped(prep, sid, points, dirs, dist):
-        count[0] += len(points)
-        return exits(prep, sid, points, dirs, dist)
-    inside_paths.convex_exits = wrapped
+    def wrapped(prep, sid, geo, directional, seg, x, *rest):
+        count[0] += len(x)
+        return geometry(prep, sid, geo, directional, seg, x, *rest)
+    inside_paths._geometry = wrapped
     return count
 
 
@@ -85,6 +88,7 @@ def main():
     ap.add_argument("--segments", type=int, nargs="+", default=[32, 100, 320])
     ap.add_argument("--width", type=int, default=12)
     ap.add_argument("--height", type=int, default=8)
+    ap.add_argument("--repeat", type=int, default=5, help="renders per method; the median is printed")
     ap.add_argument("--blender", type=int, nargs="+", metavar="LEVEL",
                     help="Blender's icospheres of these subdivision levels instead of sphere primitives")
     args = ap.parse_args()
@@ -105,10 +109,12 @@ def main():
         tracemalloc.stop()
         kernel = "kernel" if len(bounded.convex_planes(prep, 0)) else "Embree"
         for name, params in METHODS.items():
-            count[0] = 0
-            r = render(prep, name, params, RenderOptions(threads=1))
+            seconds = []
+            for _ in range(args.repeat):
+                count[0] = 0
+                seconds.append(render(prep, name, params, RenderOptions(threads=1)).seconds)
             print(f"| {len(prep.accel.triangles)} | {load:.2f} | {peak:.0f} | {convex} ({kernel}) | {name} | "
-                  f"{r.seconds:.3f} | {count[0]} |", flush=True)
+                  f"{statistics.median(seconds):.3f} | {count[0]} |", flush=True)
     print(f"peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
 
 

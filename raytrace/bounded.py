@@ -468,7 +468,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             cos_l = -(normals @ lights.axis[li])
             t_l, b = _refract(axis, normals, medium.ior)
             b = np.where(cos_l > 0.0, b, 0.0)
-            mu = -np.einsum("ij,ij->i", t_l, w)
+            mu = -np.einsum("ij,ij->i", t_l if refractive else axis, w)  # index-matched: not bent (_refract
+            # would mirror the light off an entry face it meets from behind)
             scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
                              / np.maximum(b, 1e-300), 0.0) if refractive else 1.0
             if closed or (traced and sup.exact_paths):

@@ -18,9 +18,11 @@ attenuated, not blocked.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
+from . import facet_walk
 from .jit import njit
 from .lights import NO_CONE, SMOOTHSTEP, falloff_array
 from .media.phase import phase_value
@@ -154,11 +156,12 @@ def convex_exits(prep, sid, points, dirs, dist):
     return np.minimum(t, dist)
 
 
-def _geometry(prep, sid, geo, directional, seg, x):
+def _geometry(prep, sid, geo, directional, seg, x, facets=None):
     """At the points x along segments `seg` (geo rows of media/slab.py's inside_radiance: entry point,
     direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
-    light's distance d (inf for a directional light), its path's length k inside shape sid, the
-    scattering cosine mu and a spot's falloff toward the direction it leaves in (1 for other lights)."""
+    light's distance d (inf for a directional light), its path's length k inside shape sid (on the
+    exit facets of `exit_facets` where the walk holds them), the scattering cosine mu and a spot's
+    falloff toward the direction it leaves in (1 for other lights)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
     if directional:
         to = np.ascontiguousarray(geo[seg, 6:9])
@@ -172,6 +175,13 @@ def _geometry(prep, sid, geo, directional, seg, x):
         f = falloff_array(np.ascontiguousarray(-np.einsum("ij,ij->i", to, geo[seg, 9:12])), *cone)
     lit = np.nonzero(f > 0.0)[0]  # no rays traced outside a spot's cone
     k = np.zeros(len(x))
+    if facets is not None:
+        walked = lit[facets.counts[seg[lit]] >= 0]
+        col = np.empty(len(walked))
+        facet_walk.exit_lengths(seg[walked], x[walked], p[walked], np.ascontiguousarray(to[walked]), d[walked], facets.offsets,
+                     facets.counts, facets.bt, facets.bf, facets.planes, col)
+        k[walked] = col
+        lit = lit[facets.counts[seg[lit]] < 0]
     if prep.interior_planes.get(sid) is not None:  # convex (bounded.hull_planes, filled before integrating)
         k[lit] = convex_exits(prep, sid, p[lit], to[lit], d[lit])
     else:
@@ -200,9 +210,9 @@ def _uniforms(keys, seg, dims, seed, out):
         out[i] = uniform(keys[seg[i]], dims[i], seed)
 
 
-def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs):
+def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs, facets=None):
     """The integrand at (seg, x) for the channels (M, C)."""
-    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x)
+    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x, facets)
     out = np.empty((len(x), len(kts)))
     col = np.empty(len(x))
     for c in range(len(kts)):
@@ -217,19 +227,66 @@ _N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rtol, stats):
     """∫_0^ell of the integrand per segment and channel (N, C), by `adaptive`; the first panels end at
-    a spot's cone crossings (media/slab.py straight_cuts)."""
+    a spot's cone crossings (media/slab.py straight_cuts) and, in a convex shape, where the light's
+    exit facet changes (`exit_facets`): the integrand is smooth on each panel."""
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    seg, a, b = _first_panels(geo, directional, end)
-    return adaptive(lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs),
+    facets = exit_facets(prep, sid, geo, directional, end) if prep.interior_planes.get(sid) is not None else None
+    seg, a, b = _first_panels(geo, directional, end, facets)
+    return adaptive(lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets),
                     end, len(kts), seg, a, b, rtol, stats)
+
+
+class Facets(NamedTuple):
+    """facet_walk.walk's pieces of each segment: breakpoints bt from offsets[s] (counts[s] of them; -1:
+    not walked), the facets bf of the pieces from offsets[s] + s, and the facets' planes (T, 4)."""
+    offsets: np.ndarray
+    counts: np.ndarray
+    bt: np.ndarray
+    bf: np.ndarray
+    planes: np.ndarray
+
+
+def exit_facets(prep, sid, geo, directional, end):
+    """The exit facets of the light paths along each segment of the convex shape sid (facet_walk.py),
+    walked from the facet Embree finds at the segment's middle; None if its mesh is not a closed
+    2-manifold."""
+    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
+    links = prep.memo(("facet links", sid), lambda: facet_walk.mesh_links(own.triangles, own.normals))
+    if links is None:
+        return None
+    tm = 0.5 * end
+    p = geo[:, :3] + tm[:, None] * geo[:, 3:6]
+    if directional:
+        to = np.ascontiguousarray(geo[:, 6:9])
+    else:
+        rel = geo[:, 6:9] - p
+        to = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-125)[:, None]
+    start = own.first_hit(p, to)[1] if len(end) else np.zeros(0, dtype=np.int64)
+    offsets, counts, bt, bf = facet_walk.pieces(links, geo, directional, end, start)
+    return Facets(offsets, counts, bt, bf, links[0])
 
 
 def adaptive(integrand, end, nc, seg, a, b, rtol, stats):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
-    panels (seg, a, b), adaptive: panels are halved until their 10- and 20-point Gauss-Legendre values
-    agree to rtol, or to rtol/10 of a first estimate of the whole per unit length (media/slab.py's
-    rule, vectorised over segments because every evaluation traces rays); panels still open after
-    MAX_LEVELS halvings, or beyond the MAX_OPEN bound, count in stats[0]."""
+    panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
+    Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
+    length (media/slab.py's rule, vectorised over segments because every evaluation traces rays);
+    panels still open after MAX_LEVELS halvings, or beyond the MAX_OPEN bound, count in stats[0].
+    The first panels go in groups of whole segments of about MAX_OPEN panels (the facet walk gives
+    a segment of a fine mesh hundreds), so that memory stays bounded whatever their number."""
+    total = np.zeros((len(end), nc))
+    bounds = np.flatnonzero(np.diff(seg)) + 1  # where a segment's first panels begin
+    lo = 0
+    while lo < len(seg):
+        k = np.searchsorted(bounds, lo + MAX_OPEN)
+        hi = bounds[k] if k < len(bounds) else len(seg)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats)
+        lo = hi
+    return total
+
+
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats):
+    """`adaptive` from one group of first panels."""
     n = len(end)
     total = np.zeros((n, nc))
     floor = None
@@ -333,18 +390,25 @@ def chords(prep, sids, points, dirs, dist):
     return out
 
 
-def _first_panels(geo, directional, end):
+def _first_panels(geo, directional, end, facets=None):
     """(segment, start, end) of the first panels of `segment_quadrature`: [0, end] of every segment
-    with end > 0, cut at its spot's cone crossings."""
-    seg, a, b = [], [], []
+    with end > 0, cut at its spot's cone crossings and at the breakpoints of `facets`."""
+    live = np.nonzero(end > 0.0)[0]
+    seg, at = [live, live], [np.zeros(len(live)), end[live]]
     cuts = np.empty(4)
-    for s in np.nonzero(end > 0.0)[0]:
-        m = 0 if directional else straight_cuts(geo[s], end[s], cuts)
-        edges = [0.0, *cuts[:m], end[s]]
-        seg += [s] * (m + 1)
-        a += edges[:-1]
-        b += edges[1:]
-    return np.array(seg, dtype=np.int64), np.array(a), np.array(b)
+    for s in ([] if directional else live):
+        m = straight_cuts(geo[s], end[s], cuts)
+        seg.append(np.full(m, s))
+        at.append(cuts[:m].copy())
+    if facets is not None:
+        m = np.maximum(facets.counts, 0)
+        seg.append(np.repeat(np.arange(len(end)), m))
+        at.append(facets.bt)
+    seg, at = np.concatenate(seg).astype(np.int64), np.concatenate(at)
+    order = np.lexsort((at, seg))
+    seg, at = seg[order], at[order]
+    keep = (seg[1:] == seg[:-1]) & (at[1:] > at[:-1])
+    return seg[:-1][keep], at[:-1][keep], at[1:][keep]
 
 
 def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, tau_max):

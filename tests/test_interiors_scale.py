@@ -106,8 +106,9 @@ def test_batched_exits_match_the_face_planes():
 
 
 def test_a_fine_sphere_through_embree_exits_matches_the_plane_kernel(monkeypatch):
-    """24 segments: 300 face planes, beyond bounded.KERNEL_PLANES (Embree's exits); the same shape
-    through media/slab.py's convex kernel (every plane at every evaluation) to the quadrature's 1e-9."""
+    """24 segments: 300 face planes, beyond bounded.KERNEL_PLANES (quadrature's exits from the facet
+    walk, started from Embree's facet); the same shape through media/slab.py's convex kernel (every
+    plane at every evaluation) to the quadrature's 1e-9."""
     sc, prep = sphere_prep(24)
     assert not len(bounded.convex_planes(prep, 0)) and bounded.hull_planes(prep, 0) is not None
     img = render(prep, "quadrature", {}, RenderOptions(threads=1)).image

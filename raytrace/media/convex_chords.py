@@ -65,6 +65,100 @@ def chords_into(points, dirs, dist, planes, out):
                        dirs[i, 2], dist[i])
 
 
+@njit
+def section_kinks(planes, first, stop, o, w, light, end, out):
+    """The parameters in (0, end) along the line o + x w (w unit) where the straight path toward the
+    point light at `light` passes through a vertex of the polygon that the plane through the line and
+    the light cuts from the convex shape of planes[first:stop]; ascending in out (>= stop - first + 4
+    long); returns their count. Every path from the line toward the light lies in that plane, so
+    its chord through the shape, and the face it leaves or enters by, change only there: these are
+    the kinks of the integrands. The polygon is a square around the shape clipped by each face's
+    line (Sutherland-Hodgman), each vertex solved from its two lines; 0 when the light lies on the
+    line."""
+    vx, vy, vz = light[0] - o[0], light[1] - o[1], light[2] - o[2]
+    lx = vx * w[0] + vy * w[1] + vz * w[2]  # the light in the plane's frame: (lx, ly), the line is y = 0
+    px, py, pz = vx - lx * w[0], vy - lx * w[1], vz - lx * w[2]
+    ly = math.sqrt(px * px + py * py + pz * pz)
+    if not ly > 1e-12 * math.sqrt(vx * vx + vy * vy + vz * vz):
+        return 0
+    ex, ey, ez = px / ly, py / ly, pz / ly
+    nf = stop - first
+    cap = nf + 4
+    # face f's line a x + b y <= c in the frame; the square's four lines are -1 .. -4
+    la, lb, lc = np.empty(nf + 4), np.empty(nf + 4), np.empty(nf + 4)
+    size = 4.0 * (end + abs(lx) + ly + 1.0)
+    for f in range(nf):
+        row = first + f
+        la[f] = planes[row, 0] * w[0] + planes[row, 1] * w[1] + planes[row, 2] * w[2]
+        lb[f] = planes[row, 0] * ex + planes[row, 1] * ey + planes[row, 2] * ez
+        lc[f] = planes[row, 3] - (planes[row, 0] * o[0] + planes[row, 1] * o[1] + planes[row, 2] * o[2])
+        size = max(size, 4.0 * abs(lc[f]))
+    for k in range(4):
+        la[nf + k] = (1.0, 0.0, -1.0, 0.0)[k]
+        lb[nf + k] = (0.0, 1.0, 0.0, -1.0)[k]
+        lc[nf + k] = size
+    # polygon vertices (x, y) with the lines of the edges before and after them
+    xs, ys, before, after = np.empty(cap), np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64)
+    nx_, ny_, nb, na = np.empty(cap), np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64)
+    m = 4  # the square's corners, counter-clockwise from (size, size)
+    before[0], after[0] = nf + 0, nf + 1
+    before[1], after[1] = nf + 1, nf + 2
+    before[2], after[2] = nf + 2, nf + 3
+    before[3], after[3] = nf + 3, nf + 0
+    for k in range(4):
+        xs[k], ys[k] = _meet(la, lb, lc, before[k], after[k])
+    for f in range(nf):
+        if la[f] == 0.0 and lb[f] == 0.0:
+            if lc[f] < 0.0:
+                return 0  # the plane misses the shape
+            continue
+        count = 0
+        for k in range(m):
+            j = (k + 1) % m
+            inside_k = la[f] * xs[k] + lb[f] * ys[k] <= lc[f]
+            inside_j = la[f] * xs[j] + lb[f] * ys[j] <= lc[f]
+            edge = after[k]
+            if inside_k and inside_j:
+                nx_[count], ny_[count], nb[count], na[count] = xs[j], ys[j], before[j], after[j]
+                count += 1
+            elif inside_k:
+                nx_[count], ny_[count] = _meet(la, lb, lc, edge, f)
+                nb[count], na[count] = edge, f
+                count += 1
+            elif inside_j:
+                nx_[count], ny_[count] = _meet(la, lb, lc, f, edge)
+                nb[count], na[count] = f, edge
+                nx_[count + 1], ny_[count + 1], nb[count + 1], na[count + 1] = xs[j], ys[j], before[j], after[j]
+                count += 2
+        m = count
+        if m == 0:
+            return 0
+        for k in range(m):
+            xs[k], ys[k], before[k], after[k] = nx_[k], ny_[k], nb[k], na[k]
+    count = 0
+    for k in range(m):
+        if before[k] >= nf or after[k] >= nf:
+            continue  # a corner of the square: the shape is open there
+        dy = ys[k] - ly
+        if dy == 0.0:
+            continue  # the path through this vertex runs parallel to the line
+        x = lx - (xs[k] - lx) * ly / dy
+        if 0.0 < x < end:
+            out[count] = x
+            count += 1
+    out[:count].sort()
+    return count
+
+
+@njit(inline="always")
+def _meet(la, lb, lc, i, j):
+    """The point where lines i and j of a x + b y = c meet (their Cramer solution)."""
+    det = la[i] * lb[j] - la[j] * lb[i]
+    if det == 0.0:
+        return math.inf, math.inf
+    return (lc[i] * lb[j] - lc[j] * lb[i]) / det, (la[i] * lc[j] - la[j] * lc[i]) / det
+
+
 @njit(inline="always")
 def _airlight(x, d, mu, f, e0, e1, e2, kt0, kt1, kt2, ks0, ks1, ks2, i0, i1, i2, code, g):
     """(1) per channel from the distance d to the light, the cosine mu, the falloff f and the
