@@ -3,8 +3,9 @@
 `analytic`'s bound holds against the independent twins (tests/oracle.py: scipy quad of eq. 4, exact
 box and plate geometry) on box rooms with isotropic, Rayleigh and HG media, spot lights, a thick
 medium, an environment camera, volumetric shadows, and rays nearly tangent to the floor or passing
-within 1e-9 of a light; it is not vacuous; it is infinite where nothing is known (the other
-deterministic methods' air-light, the Taylor series, interiors); it survives the float32 EXR and
+within 1e-9 of a light; it is not vacuous; so is `quadrature`'s (homogeneous media), against the
+same twins and against `analytic` on fuzzed rooms; it is infinite where nothing is known (the other
+deterministic methods' air-light, quadrature in fog and atmospheres, the Taylor series, interiors); it survives the float32 EXR and
 progressive checkpoints; `render.py diff --bounds` passes renders that agree within their bounds
 and fails a perturbed one.
 """
@@ -21,7 +22,9 @@ from raytrace.cli import main
 
 from . import oracle
 from .conftest import box_room
+from .test_atmosphere import GROUND
 from .test_bounded_media import CUBES
+from .test_height_fog import CASES as FOG_CASES
 from .test_fuzz_scenes import fuzz_settings, lit_scene
 from .test_light_shafts import PLATES, scene as shaft_scene, twin as shaft_twin
 from .test_methods import oracle_image
@@ -91,12 +94,46 @@ def test_the_bound_is_not_met_by_a_wrong_image():
     assert np.max(np.abs(img.array * (1.0 + 3e-6) - ref) / img.error_bound) > 1.0
 
 
-@pytest.mark.parametrize("method", ["quadrature", "raymarch", "lecocq", "sun"])
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+@pytest.mark.parametrize("name", TWIN_CASES + ["grazing"])
+def test_quadrature_bound_holds_against_the_twin(name, rtol):
+    """quadrature's bound (2 rtol x value, methods/quadrature.py) against the twins: it holds on every
+    pixel with a margin of 20 or more (worst: the narrow spot at 1e-10, where the twin's own 1.8e-13
+    counts), and its median is about 2 rtol of the value."""
+    scene = GRAZING if name == "grazing" else CASES[name]
+    img = raytrace.render(scene, "quadrature", rtol=rtol, threads=1)
+    worst, median = check_bound(img, twin(name), rtol)
+    assert worst < 0.05 and median <= 3.0 * rtol
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+def test_quadrature_bound_holds_in_light_shafts(rtol):
+    img = raytrace.render(shaft_scene(), "quadrature", rtol=rtol, volumetric_shadows=True, threads=1)
+    assert img.stats["shadows: shadow intervals"] > 0
+    check_bound(img, shaft_twin(shaft_scene(), PLATES), rtol)
+
+
+def test_the_quadrature_bound_is_not_met_by_a_wrong_image():
+    img = raytrace.render(CASES["isotropic"], "quadrature", rtol=1e-6, threads=1)
+    ref = twin("isotropic")
+    assert np.max(np.abs(img.array * (1.0 + 3e-6) - ref) / img.error_bound) > 1.0
+
+
+@pytest.mark.parametrize("method", ["raymarch", "lecocq", "sun"])
 def test_methods_without_a_bound_are_infinite_and_counted(method):
     scene = CASES["isotropic"]
     img = raytrace.render(scene, method, threads=1)
     assert np.all(np.isinf(img.error_bound))
     assert img.stats[error_bounds.INFINITE_STAT] == scene["camera"]["width"] * scene["camera"]["height"]
+
+
+@pytest.mark.parametrize("medium", ["fog", "atmosphere"])
+def test_quadrature_in_height_fog_and_atmospheres_is_infinite_and_counted(medium):
+    """Their closed-form transmittances carry no bound of their own yet."""
+    scene = FOG_CASES["exponential_hg_rgb_point_and_spot"][0] if medium == "fog" else GROUND
+    img = raytrace.render(scene, "quadrature", threads=1)
+    inf = np.isinf(img.error_bound).any(axis=2)
+    assert inf.any() and img.stats[error_bounds.INFINITE_STAT] == inf.sum()
 
 
 def test_taylor_series_is_infinite_and_isotropic_taylor_is_not():
@@ -208,6 +245,28 @@ def test_diff_bounds_needs_the_channels(tmp_path, capsys):
     film.write_exr(plain, image, header)
     assert main(["diff", str(plain), fine, "--bounds", "1"]) == 2
     assert "no error_bound.R/G/B channels" in capsys.readouterr().err
+
+
+@fuzz_settings(8)
+@given(lit_scene(), st.sampled_from([1e-6, 1e-10]), st.booleans())
+def test_quadrature_bound_holds_on_fuzzed_lit_rooms(sc, rtol, shadows):
+    """The fuzzer's lit rooms against analytic at precision 1e-10 of the same rays, an independent
+    method with its own bound: wherever both bounds are finite, |quadrature - analytic| is within
+    their sum."""
+    shadows = shadows and not any("interior" in x for x in sc["shape"])
+    try:
+        ref = raytrace.render(sc, "analytic", precision=1e-10, volumetric_shadows=shadows, threads=1)
+    except raytrace.UserError as exc:  # a light or interior analytic does not take
+        assert "--method" in str(exc), str(exc)
+        return
+    img = raytrace.render(sc, "quadrature", rtol=rtol, volumetric_shadows=shadows, threads=1)
+    finite = np.isfinite(img.error_bound) & np.isfinite(ref.error_bound)
+    assert np.all(img.error_bound >= 0.0)
+    if not any("interior" in x for x in sc["shape"]):
+        assert finite.all()
+    err = np.abs(img.array - ref.array)[finite]
+    room = (img.error_bound + ref.error_bound)[finite]
+    assert np.all(err <= room), f"max |err| / bounds {np.max(err / np.maximum(room, 1e-300)):.3g} on {sc}"
 
 
 @fuzz_settings(16)

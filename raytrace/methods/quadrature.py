@@ -17,6 +17,13 @@ to rtol/10 of a first estimate of the whole integral per unit angle (so that neg
 the essential singularity of exp(-kt h cot(psi/2)) at psi = 0 on rays to infinity, are not chased);
 all contributions are positive, so the total meets `rtol` (the 20-point value is far more accurate
 than the test).
+
+The bound (homogeneous media; docs/error_bounds.md): each accepted interval's 20-point value is
+taken to be within |G20 - G10| of its integral, which the test keeps below rtol |G20| or the floor
+times its width; over a segment that sums to rtol (value + estimate / 10), and BOUND_FACTOR x rtol x
+value covers it while the first estimate is within 10x of the value (the positive integrands' 20-point
+sums). An integral with an interval accepted at a cap is infinite. Height fog and atmospheres report
+no bound yet (their closed-form transmittances carry no error bound of their own).
 """
 from __future__ import annotations
 
@@ -25,6 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import error_bounds
 from ..jit import njit
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (COSD, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_inscatter,
@@ -39,6 +47,7 @@ from ..media.phase import phase_split, phase_value
 from ..media.slab import QUAD
 
 
+BOUND_FACTOR = 2.0
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
 _N20, _W20 = np.polynomial.legendre.leggauss(20)
 
@@ -145,10 +154,13 @@ def airlight_one(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w20, st
 
 
 @njit
-def evaluate_segments(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w20, out, stats):
-    """Unit-intensity air-light of every segment for one channel's coefficients."""
+def evaluate_segments(xh, h, ell, kt, ks, code, g, cone, rtol, n10, w10, n20, w20, out, met, stats):
+    """Unit-intensity air-light of every segment for one channel's coefficients, and whether every
+    interval of each met its tolerance (`met`)."""
     for s in range(xh.shape[0]):
+        capped = stats[CAPPED]
         out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, code, g, cone[s], rtol, n10, w10, n20, w20, stats)
+        met[s] = stats[CAPPED] == capped
 
 
 def _airlight(segs, medium, lights, params):
@@ -181,15 +193,20 @@ def _fog(segs, medium, lights, params):
 
 
 def _homogeneous(segs, medium, lights, params):
+    """The air-light, its stats and its bound (`BOUND_FACTOR` x rtol, module docstring)."""
     stats = np.zeros(3)
+    met = {}  # (kt, ks) -> whether each segment's integral converged
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
+        met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
         evaluate_segments(xh, h, ell, kt, ks, medium.phase, medium.g, cone, params["rtol"], _N10, _W10, _N20, _W20,
-                          out, stats)
+                          out, met[(kt, ks)], stats)
         return out
 
-    return by_channel(segs, medium, lights, evaluate), stats
+    radiance = by_channel(segs, medium, lights, evaluate)
+    return radiance, stats, error_bounds.relative_bound(radiance, BOUND_FACTOR * params["rtol"], met, medium,
+                                                        lights.cone[segs.light, 0])
 
 
 def _summarize(stats):
