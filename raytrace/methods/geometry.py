@@ -138,17 +138,31 @@ def by_channel(segs, medium, lights, evaluate):
     """Air-light (S, 3) of a segment batch. `evaluate(xh, h, da, length, kt, ks, cone)` returns the
     unit-intensity air-light (S,) for one channel's coefficients; channels with equal (kt, ks) share
     one call, channels that do not scatter are 0."""
+    return _by_channel(segs, medium, lights, evaluate, False)[0]
+
+
+def by_channel_estimated(segs, medium, lights, evaluate):
+    """(air-light (S, 3), its error estimate (S, 3)) of a segment batch, as `by_channel` with
+    `evaluate(xh, h, da, length, kt, ks, cone, est)` also filling each segment's unit estimate."""
+    return _by_channel(segs, medium, lights, evaluate, True)
+
+
+def _by_channel(segs, medium, lights, evaluate, estimated):
     xh, h, da, cone = segment_geometry(segs, lights)
     out = np.zeros((len(segs), 3))
+    err = np.zeros((len(segs), 3))
     done = {}
     for c in range(3):
         key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
         if key[1] == 0.0:
             continue
         if key not in done:
-            done[key] = evaluate(xh, h, da, segs.length, *key, cone)
-        _scale_into(out, c, done[key], lights.intensity, segs.light)
-    return out
+            est = np.empty(len(segs))
+            done[key] = (evaluate(xh, h, da, segs.length, *key, cone, *([est] if estimated else [])), est)
+        _scale_into(out, c, done[key][0], lights.intensity, segs.light)
+        if estimated:
+            _scale_into(err, c, done[key][1], lights.intensity, segs.light)
+    return out, err
 
 
 @njit

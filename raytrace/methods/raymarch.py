@@ -41,13 +41,13 @@ import numpy as np
 from ..jit import njit
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel, cone_row,
-                       eq4_integrand, fog_rows, segment_geometry, spot_factor)
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel,
+                       by_channel_estimated, cone_row, eq4_integrand, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance
-from ..media.march import march
+from ..media.march import coarse_steps, march, march_error
 from ..media.slab import MARCH
 
 MAX_STEPS = 1 << 20
@@ -80,6 +80,21 @@ def evaluate_segments(xh, h, ell, keys, seed, kt, ks, code, g, cone, steps, step
     for s in range(xh.shape[0]):
         xi = uniform(keys[s], DIM_JITTER, seed) if jitter else 0.5
         out[s] = airlight_one(xh[s], h[s], ell[s], kt, ks, code, g, cone[s], steps, step, tau_max, xi, stats)
+
+
+@njit
+def estimate_segments(xh, h, ell, keys, seed, kt, ks, code, g, cone, steps, step, tau_max, jitter, fine, est):
+    """The error estimate of each segment's march `fine` (`evaluate_segments`) from the march over
+    the same cells in media/march.py's `coarse_steps` (`march_error`); a kernel of its own, since a
+    second march beside the first in one kernel slows both loops 2x."""
+    for s in range(xh.shape[0]):
+        est[s] = 0.0
+        if ks == 0.0 or not ell[s] > 0.0:
+            continue
+        xi = uniform(keys[s], DIM_JITTER, seed) if jitter else 0.5
+        n, delta, _ = _count(ell[s], kt, steps, step, tau_max)
+        m, coarse = coarse_steps(n, delta)
+        est[s] = march_error(fine[s], march(Eq4(xh[s], h[s], kt, ks, code, g, cone_row(cone[s])), 0.0, m, coarse, xi), n)
 
 
 MAX_END = 1e150  # the farthest march: squared distances to its points stay finite
@@ -190,13 +205,16 @@ def _homogeneous(segs, medium, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(xh, h, da, ell, kt, ks, cone):
+    def evaluate(xh, h, da, ell, kt, ks, cone, est):
         out = np.empty_like(xh)
-        evaluate_segments(xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone, *_march(params),
-                          bool(params["jitter"]), out, stats)
+        args = (xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone, *_march(params),
+                bool(params["jitter"]))
+        evaluate_segments(*args, out, stats)
+        estimate_segments(*args, out, est)
         return out
 
-    return by_channel(segs, medium, lights, evaluate), stats
+    radiance, est = by_channel_estimated(segs, medium, lights, evaluate)
+    return radiance, stats, est
 
 
 def _check(medium, params):
