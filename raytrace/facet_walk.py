@@ -68,11 +68,16 @@ def pieces(links, geo, directional, end, start):
     start = np.where(end > 0.0, start, -1).astype(np.int64)
     counts = np.empty(n, dtype=np.int64)
     offsets = np.zeros(n + 1, dtype=np.int64)
-    walk(verts, tv, nbr, planes, rows, directional, end, start, tm, offsets, False, np.empty(0), np.empty(0, np.int64), counts)
+    inside = np.zeros(n, dtype=np.bool_)  # whether each segment's point light lies inside the shape: per
+    if not directional and n:  # light, against every face plane (Embree's facet may be a neighbour's)
+        lights, which = np.unique(rows[:, 6:9], axis=0, return_inverse=True)
+        inside = np.all(lights @ planes[:, :3].T <= planes[:, 3], axis=1)[which.ravel()]
+    walk(verts, tv, nbr, planes, rows, directional, end, start, tm, inside, offsets, False, np.empty(0),
+         np.empty(0, np.int64), counts)
     offsets[1:] = np.cumsum(np.maximum(counts, 0))
     bt = np.empty(offsets[-1])
     bf = np.empty(offsets[-1] + n, dtype=np.int64)
-    walk(verts, tv, nbr, planes, rows, directional, end, start, tm, offsets, True, bt, bf, counts)
+    walk(verts, tv, nbr, planes, rows, directional, end, start, tm, inside, offsets, True, bt, bf, counts)
     return offsets, counts, bt, bf
 
 
@@ -115,7 +120,10 @@ def _place(q, frame, directional):
         return t, t
     # l + s (q - l) = o + t w: t = ((l - o) x u) . n / ((w x u) . n), u = q - l
     u = (q[0] - light[0], q[1] - light[1], q[2] - light[2])
-    t = _dot(_cross((light[0] - o[0], light[1] - o[1], light[2] - o[2]), u), n) / _dot(_cross(w, u), n)
+    den = _dot(_cross(w, u), n)
+    if den == 0.0 or _dot(u, u) == 0.0:  # the light on the polygon, or the path parallel to the line
+        return math.nan, math.nan  # the walk is not sound there (`_step`)
+    t = _dot(_cross((light[0] - o[0], light[1] - o[1], light[2] - o[2]), u), n) / den
     return math.atan2(_dot(_cross(a, u), n) / math.sqrt(_dot(n, n)), _dot(a, u)), t
 
 
@@ -129,12 +137,17 @@ def _sides(verts, tv, tri, frame, side):
 
 
 @njit
+def _faces(planes, tri, light, directional):
+    """Whether facet tri faces the light: every exit toward it lies on such a facet."""
+    n = (planes[tri, 0], planes[tri, 1], planes[tri, 2])
+    return _dot(n, light) > 0.0 if directional else _dot(n, light) > planes[tri, 3]
+
+
+@njit
 def _is_cut(verts, tv, planes, tri, frame, directional, side):
     """Whether the cutting plane cuts tri, and tri faces the light (the exits lie on that side of
     the cut polygon; the other side is where paths from the light would leave)."""
-    light = frame[2]
-    n = (planes[tri, 0], planes[tri, 1], planes[tri, 2])
-    if not (_dot(n, light) > 0.0 if directional else _dot(n, light) > planes[tri, 3]):
+    if not _faces(planes, tri, frame[2], directional):
         return False
     _sides(verts, tv, tri, frame, side)
     return not (side[tv[tri, 0]] == side[tv[tri, 1]] == side[tv[tri, 2]])
@@ -177,6 +190,8 @@ def _step(verts, tv, nbr, tri, came, direction, frame, directional, side):
         q = (verts[i, 0] + f * (verts[j, 0] - verts[i, 0]), verts[i, 1] + f * (verts[j, 1] - verts[i, 1]),
              verts[i, 2] + f * (verts[j, 2] - verts[i, 2]))
         key, t = _place(q, frame, directional)
+        if not math.isfinite(key):
+            return math.nan, math.nan, -1
         if edge < 0 or direction * key > direction * best:
             best, best_t, edge = key, t, k
     return best, best_t, edge
@@ -187,11 +202,13 @@ SEEK = 64  # steps along the cut polygon from the facet found to the one that ho
 
 
 @njit
-def _locate(verts, tv, nbr, tri, target, frame, directional, side):
+def _locate(verts, tv, nbr, planes, tri, target, frame, directional, side):
     """The facet of the cut polygon whose stretch of keys holds `target` (the key of the middle's
     exit point), walked to from the cut facet tri (Embree's facet may be a neighbour, or the coplanar
     twin cut elsewhere); -1 if not reached within SEEK steps."""
     for _ in range(SEEK):
+        if not _faces(planes, tri, frame[2], directional):
+            return -1  # stepped off the arc of exits (keys tie where the plane touches a vertex)
         lo, _, e_lo = _step(verts, tv, nbr, tri, -1, -1.0, frame, directional, side)
         hi, _, e_hi = _step(verts, tv, nbr, tri, -1, 1.0, frame, directional, side)
         if e_lo < 0:
@@ -203,15 +220,16 @@ def _locate(verts, tv, nbr, tri, target, frame, directional, side):
 
 
 @njit
-def walk(verts, tv, nbr, planes, geo, directional, ell, start, tm, offsets, fill, bt, bf, counts):
+def walk(verts, tv, nbr, planes, geo, directional, ell, start, tm, inside, offsets, fill, bt, bf, counts):
     """The exit facets along each camera segment s of `geo` (rows: entry point, direction w, the
     light's position or, with `directional`, the unit direction toward it) over [0, ell[s]], from
-    the facet start[s] met at tm[s]: the ascending breakpoints in (0, ell) go to bt and the facets
-    of the pieces between them to bf, from offsets[s] (bf holds one more per segment, at
-    offsets[s] + s), when `fill`; counts[s] gets the number of breakpoints, or -1 where the walk is
-    not sound (no facet cut by the plane near the start, no neighbour, breakpoints out of order):
-    that segment keeps its exits from Embree. Called twice: to count (not `fill`), then, with the
-    offsets of those counts, to fill the segments counted."""
+    the facet start[s] met at tm[s] (inside[s]: the point light lies inside the shape): the
+    ascending breakpoints in (0, ell) go to bt and the facets of the pieces between them to bf, from
+    offsets[s] (bf holds one more per segment, at offsets[s] + s), when `fill`; counts[s] gets the
+    number of breakpoints, or -1 where the walk is not sound (no facet cut by the plane near the
+    start, no neighbour, breakpoints out of order, a facet that does not face the light, the light
+    on the cut polygon): that segment keeps its exits from Embree. Called twice: to count (not
+    `fill`), then, with the offsets of those counts, to fill the segments counted."""
     side = np.zeros(verts.shape[0], dtype=np.bool_)
     for s in range(geo.shape[0]):
         if fill and counts[s] < 0:
@@ -230,15 +248,14 @@ def walk(verts, tv, nbr, planes, geo, directional, ell, start, tm, offsets, fill
         k1 = _place((o[0] + ell[s] * w[0], o[1] + ell[s] * w[1], o[2] + ell[s] * w[2]), frame, directional)[0]
         sense = 1.0 if k1 >= k0 else -1.0  # the key's direction toward the segment's end
         st = start[s]
-        if not directional and planes[st, 0] * frame[2][0] + planes[st, 1] * frame[2][1] + \
-                planes[st, 2] * frame[2][2] <= planes[st, 3]:
-            counts[s] = 0  # the exit toward the light lies beyond it: the light is inside, no path leaves
+        if inside[s]:
+            counts[s] = 0  # the light is inside: no path leaves, any facet's plane lies beyond it
             if fill:
                 bf[offsets[s] + s] = st
             continue
         first = _cut_near(verts, tv, nbr, planes, st, frame, directional, side)
         if first >= 0:
-            first = _locate(verts, tv, nbr, first, tm[s] if directional else 0.0, frame, directional, side)
+            first = _locate(verts, tv, nbr, planes, first, tm[s] if directional else 0.0, frame, directional, side)
         if first < 0:
             continue
         n_back, n_fwd = 0, 0
@@ -254,8 +271,8 @@ def walk(verts, tv, nbr, planes, geo, directional, ell, start, tm, offsets, fill
                 if direction * sense * (key - stop) >= 0.0 or (t <= END * ell[s] if direction < 0.0
                                                                else t >= (1.0 - END) * ell[s]):
                     break  # past the end, or on it within rounding (an edge through the entry point)
-                if direction * sense * (key - last) < 0.0:  # breakpoints out of order
-                    sound = False
+                if direction * sense * (key - last) < 0.0 or not _faces(planes, nbr[tri, edge], frame[2], directional):
+                    sound = False  # breakpoints out of order, or off the arc of exits
                     break
                 if direction > 0.0:
                     if fill:

@@ -283,3 +283,84 @@ def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
         assert len(seen) == len(np.unique(seen))  # no segment split between groups
         assert max(len(g) - np.count_nonzero(g == g[-1]) for g in groups) < 40  # full before its last segment
     assert np.array_equal(got, want)
+
+
+def walked_exits_are_right(links, geo, directional, end, start):
+    """For every segment the walk calls sound (counts >= 0), its exit lengths at 9 points agree
+    with the nearest face plane ahead to 1e-12; returns the counts."""
+    planes = links[0]
+    offsets, counts, bt, bf = facet_walk.pieces(links, geo, directional, end, start)
+    for s in np.flatnonzero(counts >= 0):
+        x = np.linspace(0.0, end[s], 11)[1:-1]
+        p = geo[s, :3] + x[:, None] * geo[s, 3:6]
+        to = np.array([toward(geo[s, 6:9], directional, q)[0] for q in p])
+        dist = np.array([toward(geo[s, 6:9], directional, q)[1] for q in p])
+        got = np.empty(len(x))
+        facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, offsets, counts, bt, bf, planes, got)
+        want = np.array([nearest_plane(planes, q, u, d)[0] for q, u, d in zip(p, to, dist)])
+        assert np.max(np.abs(got - want)) < 1e-12, (s, got, want)
+    return counts
+
+
+def prism_triangles(n=80, radius=0.1, half=25.0):
+    a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    ring = np.column_stack([radius * np.cos(a), radius * np.sin(a)])
+    pts = np.concatenate([np.column_stack([ring, np.full(n, -half)]), np.column_stack([ring, np.full(n, half)])])
+    return pts[ConvexHull(pts).simplices]
+
+
+def test_a_point_light_on_a_vertex_or_an_edge():
+    """The cut polygon passes through the light: the walk hands the segment back to Embree (it
+    divided by zero); every segment it keeps is right."""
+    tris = real(sphere_triangles(np.zeros(3), 1.0, 24))
+    links = facet_walk.mesh_links(tris, normals_of(tris))
+    planes, verts, tv, _ = links
+    rng = np.random.default_rng(5)
+    segs = chords(planes, rng, 30)
+    for light in (verts[tv[40, 0]], 0.5 * (verts[tv[77, 0]] + verts[tv[77, 1]])):
+        geo = np.array([[*o, *w, *light] for o, w, _ in segs])
+        end = np.array([ell for _, _, ell in segs])
+        start = [int(np.flatnonzero((planes == nearest_plane(planes, q, *toward(light, False, q))[1]).all(axis=1))[0])
+                 for q in geo[:, :3] + 0.5 * end[:, None] * geo[:, 3:6]]
+        walked_exits_are_right(links, geo, False, end, np.array(start))
+
+
+def test_a_segment_entering_at_a_corner_stays_on_the_facets_facing_the_light():
+    """A box corner on two faces toward the light: the cutting plane touches the start facet at that
+    corner only, its crossings tie, and the walk stepped onto the faces turned away (exits 2.7
+    where they are 0.01); now every facet it steps onto must face the light."""
+    tris = MESHES["box"]()
+    links = facet_walk.mesh_links(tris, normals_of(tris))
+    planes = links[0]
+    light = np.array([2.5, 1.8, -1.2])
+    o = np.array([1.2, 0.6, 0.9])
+    w = np.array([-0.8400716254429781, -0.4406833739768666, -0.31635079899686974])
+    ell = nearest_plane(planes, o + 1e-9 * w, w, np.inf)[0] + 1e-9
+    q = o + 0.5 * ell * w
+    start = int(np.flatnonzero((planes == nearest_plane(planes, q, *toward(light, False, q))[1]).all(axis=1))[0])
+    walked_exits_are_right(links, np.array([[*o, *w, *light]]), False, np.array([ell]), np.array([start]))
+
+
+def test_embree_s_neighbour_facet_does_not_put_the_light_inside():
+    """A thin 80-gon prism, the light outside a side facet but inside the cap's plane, and the start
+    facet the cap across the rim edge (Embree's float32 hit 1e-9 from that edge): the walk took the
+    light for inside (exits 0.55 where they are 0.05); whether it is inside is now asked of every
+    face plane."""
+    tris = prism_triangles()
+    links = facet_walk.mesh_links(tris, normals_of(tris))
+    planes, verts, tv, nbr = links
+    side = next(f for f in range(len(tv)) if abs(planes[f, 2]) < 1e-9 and np.sum(np.isclose(verts[tv[f], 2], 25.0)) == 2)
+    k = next(k for k in range(3) if np.isclose(verts[tv[side, k], 2], 25.0)
+             and np.isclose(verts[tv[side, (k + 1) % 3], 2], 25.0))
+    cap = nbr[side, k]
+    exit_point = 0.5 * (verts[tv[side, k]] + verts[tv[side, (k + 1) % 3]]) - np.array([0.0, 0.0, 1e-9])
+    u = planes[side, :3] - np.array([0.0, 0.0, 0.3])
+    u /= np.linalg.norm(u)
+    light = exit_point + 0.5 * u
+    assert planes[cap, :3] @ light < planes[cap, 3]  # inside the cap's plane, outside the side's
+    middle = exit_point - 0.05 * u
+    w = np.cross(u, [0.0, 0.0, 1.0])
+    w /= np.linalg.norm(w)
+    back, ahead = nearest_plane(planes, middle, -w, np.inf)[0], nearest_plane(planes, middle, w, np.inf)[0]
+    geo = np.array([[*(middle - back * w), *w, *light]])
+    walked_exits_are_right(links, geo, False, np.array([back + ahead]), np.array([cap]))
