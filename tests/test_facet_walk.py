@@ -69,6 +69,18 @@ def toward(light, directional, q):
     return rel / d, d
 
 
+def assert_exits(planes, walked, s, o, w, x, source, directional):
+    """The exit lengths of `walked` (facet_walk.pieces' arrays) at the points x of segment s (entry o,
+    direction w) agree with the nearest face plane ahead to 1e-12."""
+    p = o + x[:, None] * w
+    to = np.array([toward(source, directional, q)[0] for q in p])
+    dist = np.array([toward(source, directional, q)[1] for q in p])
+    got = np.empty(len(x))
+    facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, *walked, planes, got)
+    want = np.array([nearest_plane(planes, q, u, d)[0] for q, u, d in zip(p, to, dist)])
+    assert np.max(np.abs(got - want)) < 1e-12, (s, got, want)
+
+
 @pytest.mark.parametrize("mesh", sorted(MESHES))
 @pytest.mark.parametrize("light", ["point", "inside", "directional"])
 def test_the_walk_finds_every_change_of_exit_facet(mesh, light):
@@ -94,13 +106,7 @@ def test_the_walk_finds_every_change_of_exit_facet(mesh, light):
     changes = 0
     for s, (o, w, ell) in enumerate(segs):
         x = np.linspace(0.0, ell, 801)[1:-1]
-        p = o + x[:, None] * w
-        to = np.array([toward(source, directional, q)[0] for q in p])
-        dist = np.array([toward(source, directional, q)[1] for q in p])
-        got = np.empty(len(x))
-        facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, offsets, counts, bt, bf, planes, got)
-        want = np.array([nearest_plane(planes, q, u, d)[0] for q, u, d in zip(p, to, dist)])
-        assert np.max(np.abs(got - want)) < 1e-12
+        assert_exits(planes, (offsets, counts, bt, bf), s, o, w, x, source, directional)
         if light == "inside":
             continue
         br = bt[offsets[s]:offsets[s + 1]]
@@ -246,14 +252,8 @@ def test_segments_entering_on_an_edge_toward_the_light_are_walked(mesh, light):
     offsets, counts, bt, bf = facet_walk.pieces(links, geo, directional, end, np.array(starts))
     assert len(counts) > 15 and np.all(counts >= 0), np.sum(counts < 0)
     for s in range(0, len(end), max(1, len(end) // 40)):
-        x = np.linspace(0.0, end[s], 41)[1:-1]
-        p = geo[s, :3] + x[:, None] * geo[s, 3:6]
-        to = np.array([toward(source, directional, q)[0] for q in p])
-        dist = np.array([toward(source, directional, q)[1] for q in p])
-        got = np.empty(len(x))
-        facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, offsets, counts, bt, bf, planes, got)
-        want = np.array([nearest_plane(planes, q, u, d)[0] for q, u, d in zip(p, to, dist)])
-        assert np.max(np.abs(got - want)) < 1e-12
+        assert_exits(planes, (offsets, counts, bt, bf), s, geo[s, :3], geo[s, 3:6], np.linspace(0.0, end[s], 41)[1:-1],
+                     source, directional)
 
 
 def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
@@ -288,18 +288,11 @@ def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
 def walked_exits_are_right(links, geo, directional, end, start):
     """For every segment the walk calls sound (counts >= 0), its exit lengths at 9 points agree
     with the nearest face plane ahead to 1e-12; returns the counts."""
-    planes = links[0]
-    offsets, counts, bt, bf = facet_walk.pieces(links, geo, directional, end, start)
-    for s in np.flatnonzero(counts >= 0):
-        x = np.linspace(0.0, end[s], 11)[1:-1]
-        p = geo[s, :3] + x[:, None] * geo[s, 3:6]
-        to = np.array([toward(geo[s, 6:9], directional, q)[0] for q in p])
-        dist = np.array([toward(geo[s, 6:9], directional, q)[1] for q in p])
-        got = np.empty(len(x))
-        facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, offsets, counts, bt, bf, planes, got)
-        want = np.array([nearest_plane(planes, q, u, d)[0] for q, u, d in zip(p, to, dist)])
-        assert np.max(np.abs(got - want)) < 1e-12, (s, got, want)
-    return counts
+    walked = facet_walk.pieces(links, geo, directional, end, start)
+    for s in np.flatnonzero(walked[1] >= 0):
+        assert_exits(links[0], walked, s, geo[s, :3], geo[s, 3:6], np.linspace(0.0, end[s], 11)[1:-1], geo[s, 6:9],
+                     directional)
+    return walked[1]
 
 
 def prism_triangles(n=80, radius=0.1, half=25.0):
