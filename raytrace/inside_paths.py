@@ -178,8 +178,8 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None):
     if facets is not None:
         walked = lit[facets.counts[seg[lit]] >= 0]
         col = np.empty(len(walked))
-        facet_walk.exit_lengths(seg[walked], x[walked], p[walked], np.ascontiguousarray(to[walked]), d[walked], facets.offsets,
-                     facets.counts, facets.bt, facets.bf, facets.planes, col)
+        facet_walk.exit_lengths(seg[walked], x[walked], p[walked], np.ascontiguousarray(to[walked]), d[walked],
+                                facets.offsets, facets.counts, facets.bt, facets.bf, facets.planes, col)
         k[walked] = col
         lit = lit[facets.counts[seg[lit]] < 0]
     if prep.interior_planes.get(sid) is not None:  # convex (bounded.hull_planes, filled before integrating)

@@ -16,9 +16,6 @@ def march(rec, a, n, delta, xi):
     return acc * delta
 
 
-
-
-
 COARSE = 8  # the error estimate's second march takes steps COARSE times as long: 1/COARSE more samples
 SAFETY = 8.0  # the estimate is SAFETY times the fine march's asymptotic error
 
@@ -39,5 +36,5 @@ def march_error(fine, coarse, n):
     alarm, not a bound); inf below 2 steps (nothing to compare)."""
     if n < 2:
         return math.inf
-    r = n / max(1, n // COARSE)
+    r = n / coarse_steps(n, 1.0)[0]
     return SAFETY / (r * r - 1.0) * abs(coarse - fine)

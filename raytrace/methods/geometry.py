@@ -134,35 +134,26 @@ def _eq4_value(x, r):
     return eq4_integrand(x, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone)
 
 
-def by_channel(segs, medium, lights, evaluate):
+def by_channel(segs, medium, lights, evaluate, estimated=False):
     """Air-light (S, 3) of a segment batch. `evaluate(xh, h, da, length, kt, ks, cone)` returns the
     unit-intensity air-light (S,) for one channel's coefficients; channels with equal (kt, ks) share
-    one call, channels that do not scatter are 0."""
-    return _by_channel(segs, medium, lights, evaluate, False)[0]
-
-
-def by_channel_estimated(segs, medium, lights, evaluate):
-    """(air-light (S, 3), its error estimate (S, 3)) of a segment batch, as `by_channel` with
-    `evaluate(xh, h, da, length, kt, ks, cone, est)` also filling each segment's unit estimate."""
-    return _by_channel(segs, medium, lights, evaluate, True)
-
-
-def _by_channel(segs, medium, lights, evaluate, estimated):
+    one call, channels that do not scatter are 0. With `estimated`, evaluate returns (air-light,
+    its error estimate) and so does this, (S, 3) each."""
     xh, h, da, cone = segment_geometry(segs, lights)
     out = np.zeros((len(segs), 3))
-    err = np.zeros((len(segs), 3))
+    err = np.zeros((len(segs), 3)) if estimated else None
     done = {}
     for c in range(3):
         key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
         if key[1] == 0.0:
             continue
         if key not in done:
-            est = np.empty(len(segs))
-            done[key] = (evaluate(xh, h, da, segs.length, *key, cone, *([est] if estimated else [])), est)
-        _scale_into(out, c, done[key][0], lights.intensity, segs.light)
+            done[key] = evaluate(xh, h, da, segs.length, *key, cone)
+        unit, est = done[key] if estimated else (done[key], None)
+        _scale_into(out, c, unit, lights.intensity, segs.light)
         if estimated:
-            _scale_into(err, c, done[key][1], lights.intensity, segs.light)
-    return out, err
+            _scale_into(err, c, est, lights.intensity, segs.light)
+    return (out, err) if estimated else out
 
 
 @njit

@@ -41,8 +41,8 @@ import numpy as np
 from ..jit import njit
 from ..rng import uniform
 from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel,
-                       by_channel_estimated, cone_row, eq4_integrand, fog_rows, segment_geometry, spot_factor)
+from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel, cone_row,
+                       eq4_integrand, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
@@ -205,15 +205,15 @@ def _homogeneous(segs, medium, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
-    def evaluate(xh, h, da, ell, kt, ks, cone, est):
-        out = np.empty_like(xh)
+    def evaluate(xh, h, da, ell, kt, ks, cone):
+        out, est = np.empty_like(xh), np.empty_like(xh)
         args = (xh, h, ell, keys, int(segs.seed), kt, ks, medium.phase, medium.g, cone, *_march(params),
                 bool(params["jitter"]))
         evaluate_segments(*args, out, stats)
         estimate_segments(*args, out, est)
-        return out
+        return out, est
 
-    radiance, est = by_channel_estimated(segs, medium, lights, evaluate)
+    radiance, est = by_channel(segs, medium, lights, evaluate, estimated=True)
     return radiance, stats, est
 
 
