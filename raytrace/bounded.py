@@ -1,40 +1,32 @@
-"""Media inside shapes (after the analytic note on single scattering in homogeneous slabs): camera rays
-that enter a shape holding an `interior` medium.
+"""Media inside shapes (after the analytic note on single scattering in homogeneous slabs): the
+boundary crossing. Camera rays whose first hit is a shape holding an `interior` medium are taken
+across its boundary (`cross`; a camera inside an index-matched shape: `start_inside`): refracted in
+(Snell, smooth dielectric; straight when ior = 1) with Fresnel's transmittance T, followed inside to
+their exit (Embree; `_inside_hits`), refracted out, and mirrored by a refractive boundary with 1 - T.
+What comes of it is a `Crossing`: one inside `Segments` row per ray, which carries its medium (the
+shape) and how light reaches it (`STRAIGHT` to a convex index-matched shape's faces, `TRACED` through
+a non-convex one, `REFRACTED` through a refractive boundary), the rays that go on beyond the exit or
+the mirror, which the renderer shades like camera rays (up to MAX_DEPTH boundaries deep; deeper ones
+are black), and the factors that carry what they see back (`combine`). The rows are integrated by
+the method's inside rule (inside_rows.py); a plain surface met inside is shaded here
+(`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`).
+Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2 (the
+invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); reflections inside a shape are not
+followed: total internal reflection at an exit ends the path.
 
-The renderer (`renderer.shade_rays`) hands over the rays whose first hit is such a shape, from
-outside. Here each ray is refracted into the shape (Snell, smooth dielectric; straight when
-ior = 1) with the Fresnel transmittance T, followed inside to its exit (Embree), and its inside
-segment gets the single scattering of every light (media/slab.py), the light entering through the
-plane of the entry face (the note's planar boundary): a directional light refracted through it
-(eq. 5; in convex shapes every method but slab_approx takes its exact path instead, through
-whichever face it meets, and refracted through every face it meets if the shape is refractive:
-`refracted_beams`; `analytic` in closed form, media/convex_directional.py), a point light along its straight path (index-matched,
-eq. 7) or along its refracted path (Fermat's path through the plane, with the ray tube's
-irradiance: media/slab.py refracted_point); a
-spot light as a point light times its falloff on the direction in which the light leaves it. In
-index-matched shapes quadrature, raymarch and montecarlo use the light's exact straight path instead:
-to the boundary of a convex shape (`convex_planes`, numba, when it has few faces; Embree's batched
-exits when it has many) or through every crossing of a non-convex one (inside_paths.py, Embree). At the exit the ray is refracted out and the renderer shades what lies
-behind (recursively, up to MAX_DEPTH boundaries); a plain surface met inside is shaded there
-(`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`). A camera
-inside an index-matched medium starts its rays' first stretch there (`from_inside`).
-Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2
-(the invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it). Where a camera path meets a
-refractive boundary from outside, the boundary also mirrors what the reflected ray sees, times
-Fresnel's reflectance 1 - T (`radiance`); reflections inside a shape are not followed: total internal
-reflection at an exit ends the path.
-
-Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside segments
-and what it takes there: `quadrature` (adaptive, the reference), `analytic` (directional lights only: the
-exact closed form in convex index-matched shapes of at most MAX_FACES planes, with an error bound; the
-adaptive quadrature in other index-matched shapes, counted; the refracted beams in convex refractive
-shapes, bounded; eq. 5 through other refractive boundaries),
-`slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch` (its
-`steps` midpoints per inside segment) and `montecarlo` (`samples` free-path samples per inside
-segment and light, whatever its --sampling; variance kept) integrate the inside segments; `lecocq`
-and `sun` are refused for scenes with interiors, in one line.
+Each method's `Supports.interiors` (methods/__init__.py) says how it integrates the inside rows and
+what it takes there (`check` refuses the rest in one line): `quadrature` (adaptive, the reference),
+`analytic` (directional lights only: the exact closed form in convex index-matched shapes of at most
+MAX_FACES planes, with an error bound; the adaptive quadrature in other index-matched shapes, counted;
+the refracted beams in convex refractive shapes, bounded; eq. 5 through other refractive boundaries),
+`slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch`
+(its `steps` midpoints per inside row) and `montecarlo` (`samples` free-path samples per inside row
+and light, whatever its --sampling; variance kept); `lecocq` and `sun` are refused for scenes with
+interiors, in one line.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -42,15 +34,10 @@ from . import inside_paths
 from .errors import UserError
 from .lights import DIRECTIONAL, Lights
 from .media.adaptive import CAPPED
-from .media.convex_directional import MAX_FACES, segments_bounded
-from .media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance, refract_rays, transmittances
-from .methods import Segments, registry
-from .beam_shadows import lit_pieces_of_beam
-from .methods.geometry import segment_light_table
+from .media.slab import CLOSED, QUAD, refract_rays, transmittances
+from .methods import INSIDE_RTOL, Segments, registry
 from .scene.meshes import convex_planes as hull_of
 from .shading import facing_normals, surface_radiance
-from .shadow_frusta import exact_lit_intervals
-from .visibility import gather
 
 # the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
@@ -60,7 +47,8 @@ from .visibility import gather
 STATS_SIZE = 8
 HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
-RTOL = 1e-10  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
+RTOL = INSIDE_RTOL  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
+STRAIGHT, TRACED, REFRACTED = range(3)  # how light reaches an inside row (`Segments.reach`)
 # face planes of a convex shape up to which media/slab.py's kernel (every plane at every evaluation) is
 # used; beyond, Embree's batched exits are faster (equal at ~120 planes: benchmarks/interiors_scale.py)
 KERNEL_PLANES = 64
@@ -84,7 +72,8 @@ def summarize(prep, method, stats, shadows: bool = False) -> dict:
     if shadows:
         out.update({"inside: segments unshadowed (refractive or planar model)": int(stats[UNSHADOWED]),
                     "inside: lit pieces": int(stats[LIT_PIECES]),
-                    "shadows: pieces through interiors (quadrature)": int(stats[THROUGH]),
+                    f"shadows: pieces through interiors ({'quadrature' if sup.through == 'quadrature' else method.name})":
+                        int(stats[THROUGH]),
                     "shadows: through-interior integrals not converged": int(stats[THROUGH_CAPPED])})
     return out
 
@@ -147,7 +136,7 @@ def check(prep, method, method_params, source: str):
     for kind in sorted(kinds - set(sup.lights)):
         raise UserError(f"{source}: --method {method.name}: {kind} lights into a bounded medium ({key}): {sup.limits}; "
                         f"use --method {', '.join(_takers(lambda s: kind in s.lights))}")
-    if method_params.get("shadow_test") == "samples":
+    if method.samples_shadows(method_params):
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented with media inside "
                         f"shapes ({key}); use --shadow-test intervals (the default)")
     medium = prep.scene.medium
@@ -379,267 +368,6 @@ def refracted_beams(planes, axis, eta):
     return faces, -t, _transmittance(cos_i, eta) * cos_i / cos_t
 
 
-def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, light=None, piece=0,
-                      beam=None):
-    """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
-    summed over the lights, for the interior `medium` with outward entry normals `normals`, its
-    variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
-    (N, 3) on its error (inf where none is known). The method's inside integrator is its
-    `Supports.interiors.mode`; in an index-matched shape the light's path inside is its exact
-    straight path (convex: `convex_planes`; else traced, `_traced`) for the methods with
-    `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights)
-    in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
-    media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
-    (`_traced`, rtol RTOL), counted (HANDED), unbounded. Through a refractive boundary a directional
-    light enters a convex shape (`convex_planes`) through every face it meets, one beam each
-    (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
-    entry plane (eq. 5, unbounded), as does a point light (Fermat's path). `light`: that light only
-    (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
-    which numbers their random streams; `beam`: of a directional light's refracted beams, only the
-    one through that face (`lit_single_scattering`)."""
-    medium = prep.scene.shapes[sid].interior
-    planes = convex_planes(prep, sid)
-    refractive = medium.ior != 1.0
-    traced = not refractive and not len(planes)  # non-convex, index-matched: paths measured with Embree
-    geo = np.zeros((len(points), GEO_COLUMNS))
-    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
-    lights = prep.lights
-    n = len(points)
-    out = np.zeros((n, 3))
-    var = np.zeros((n, 3))
-    sup = method.supports.interiors
-    mode = sup.mode
-    closed = mode == CLOSED and not refractive  # the exact closed form, or quadrature where there is none
-    kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
-    beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
-    bound = np.zeros((n, 3)) if kernel else np.full((n, 3), np.inf)
-    rtol = params.get("rtol", RTOL)
-    steps = int(params.get("steps", params.get("samples", 1)))
-    tau_max = float(params.get("tau_max", 745.0))  # raymarch's cut of long segments
-    stats = np.zeros(STATS_SIZE)
-    a = -np.einsum("ij,ij->i", w, normals)
-    dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
-
-    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
-        for c in range(3):
-            kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
-            if ks == 0.0 or lights.intensity[li, c] == 0.0:
-                continue
-            unit, unit_var = np.empty(n), np.empty(n)
-            inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, only, mode,
-                            rtol, steps, tau_max, keys,
-                            np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
-                            unit, unit_var, stats)
-            f = scale * lights.intensity[li, c]
-            out[:, c] += unit * f
-            var[:, c] += unit_var * f * f
-
-    def closed_form(li, toward, scale, only):
-        val, b = np.empty((n, 3)), np.empty((n, 3))
-        segments_bounded(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]),
-                         np.ascontiguousarray(points), np.ascontiguousarray(w), np.ascontiguousarray(ell),
-                         np.ascontiguousarray(toward), medium.sigma_t, medium.sigma_s, medium.phase, medium.g, val, b,
-                         only)
-        out[:] += val * (lights.intensity[li] * scale)
-        bound[:] += b * (lights.intensity[li] * scale)
-
-    zero = np.zeros(n)
-    for li in range(len(lights)) if light is None else [light]:
-        idx = np.full(n, li, dtype=np.int64)
-        distant = np.full(n, lights.kind[li] == DIRECTIONAL)
-        if lights.kind[li] == DIRECTIONAL:
-            geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
-            if beams:
-                for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
-                    if beam is not None and f != beam:
-                        continue
-                    if kernel:
-                        closed_form(li, toward, irradiance, int(f))
-                        continue
-                    geo[:, 6:9] = toward
-                    integrate(li, distant, zero, zero, zero, zero, w @ toward, zero, zero, irradiance, planes, int(f))
-                continue
-            if kernel:
-                closed_form(li, -lights.axis[li], 1.0, -1)
-                continue
-            geo[:, 6:9] = -lights.axis[li]
-            axis = np.broadcast_to(lights.axis[li], (n, 3))
-            cos_l = -(normals @ lights.axis[li])
-            t_l, b = _refract(axis, normals, medium.ior)
-            b = np.where(cos_l > 0.0, b, 0.0)
-            mu = -np.einsum("ij,ij->i", t_l if refractive else axis, w)  # index-matched: not bent (_refract
-            # would mirror the light off an entry face it meets from behind)
-            scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
-                             / np.maximum(b, 1e-300), 0.0) if refractive else 1.0
-            if closed or (traced and sup.exact_paths):
-                if closed:
-                    stats[HANDED] += np.count_nonzero(ell > 0.0)
-                _traced(prep, sid, medium, geo, True, ell, lights.intensity[li] * scale,
-                        QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
-                        seed, out, var, stats)
-                continue
-            integrate(li, distant, zero, zero, zero, b, mu, zero, zero, scale, planes if not refractive else np.zeros((0, 4)))
-            continue
-        # a point or spot light (the spot's falloff toward the direction it leaves in: media/slab.py)
-        xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx, prep.accel.scale)
-        geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
-        geo[:, 17] = lights.cone[li, 2]  # the spot's falloff curve
-        rel = lights.position[li] - points
-        hl = np.einsum("ij,ij->i", rel, normals)
-        wl = ll = zero
-        if refractive:  # horizontal parts, for the refracted path (media/slab.py refracted_point)
-            lh = rel - hl[:, None] * normals
-            wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
-            ll = np.einsum("ij,ij->i", lh, lh)
-        if closed or (traced and sup.exact_paths):
-            if closed:
-                stats[HANDED] += np.count_nonzero(ell > 0.0)
-            _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
-                    tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, stats)
-            continue
-        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0, planes if not refractive else np.zeros((0, 4)))
-    return out, var, stats, bound
-
-
-def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, shadows: bool):
-    """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
-    that each light reaches past the blockers (shadow_frusta.py's exact lit intervals of `blockers`;
-    the shape's own boundary attenuates, it does not block), each piece integrated from its own
-    start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
-    and its quadrature fallback take the exact path from any start). Where the light's path is not
-    straight (a refractive interior) or not traced (slab_approx: the note's planar model), the
-    segments are unshadowed, counted (UNSHADOWED), and
-    their bound is infinite if anything but the shape itself could stand on the light's path. Inside
-    an index-matched shape the light is not attenuated by the other index-matched interiors on its
-    path: with any other, the bound is infinite."""
-    medium = prep.scene.shapes[sid].interior
-    n, n_lights = len(points), len(prep.lights)
-    if not shadows or not n or not n_lights:
-        return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
-    sup = method.supports.interiors
-    if medium.ior != 1.0 and len(convex_planes(prep, sid)) and sup.mode != APPROX:
-        return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, depth)
-    if medium.ior != 1.0 or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights
-        out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed,
-                                                   depth)
-        stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
-        if np.any(prep.shape_ids != sid):
-            bound = np.where(ell[:, None] > 0.0, np.inf, bound)
-        return out, var, stats, bound
-    rays = np.tile(np.arange(n), n_lights)
-    segs = Segments(points[rays], w[rays], ell[rays], np.repeat(np.arange(n_lights), n), rays, np.zeros(len(rays)),
-                    keys[rays], np.zeros(len(rays), np.int64), seed, prep.accel.scale)
-    lit, _ = exact_lit_intervals(prep.accel, segs, prep.lights, n_lights, prep.frusta())
-    out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
-    stats = np.zeros(STATS_SIZE)
-    stats[LIT_PIECES] += len(lit)
-    piece = lit.stream // n_lights
-    kt = medium.sigma_t[None, :]
-    for li, rank in sorted(set(zip(lit.light.tolist(), piece.tolist()))):
-        at = np.nonzero((lit.light == li) & (piece == rank))[0]
-        r = lit.ray[at]
-        val, v, st, b = single_scattering(prep, method, params, sid, lit.origins[at], normals[r], lit.dirs[at],
-                                          lit.length[at], keys[r], seed, depth, li, rank)
-        stats += st
-        _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
-    if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
-        bound[ell > 0.0] = np.inf
-    return out, var, stats, bound
-
-
-def _carry(out, var, bound, r, kt, t0, val, v, b):
-    """Add pieces' values, variances and bounds to their rays r, carried back to the entry by
-    exp(-kt t0) (kt (1, 3))."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        tr = np.where(kt == 0.0, 1.0, np.exp(-kt * t0[:, None]))
-    np.add.at(out, r, tr * val)
-    np.add.at(var, r, tr * tr * v)
-    np.add.at(bound, r, scaled(b, tr))
-
-
-def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, seed, depth):
-    """`lit_single_scattering` in a convex refractive shape: each directional light's refracted beams
-    over the pieces they reach past the blockers (beam_shadows.py: the leg inside the shape and the
-    entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
-    spot lights unshadowed (their refracted path is the entry plane's), counted, with an infinite bound
-    if anything else stands in the scene. The other index-matched interiors on the light's way are not
-    applied: with any, the bound is infinite."""
-    medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, mask = convex_planes(prep, sid), blockers(prep)
-    n = len(points)
-    out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
-    stats = np.zeros(STATS_SIZE)
-    kt = medium.sigma_t[None, :]
-
-    for li in range(len(lights)):
-        if lights.kind[li] != DIRECTIONAL:
-            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, seed, depth, li)
-            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
-            if np.any(prep.shape_ids != sid):
-                b = np.where(ell[:, None] > 0.0, np.inf, b)
-            stats += st
-            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
-            continue
-        faces, towards, _ = refracted_beams(planes, lights.axis[li], medium.ior)
-        for f, toward in zip(faces.tolist(), towards):
-            src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
-            stats[LIT_PIECES] += len(src)
-            rank = np.arange(len(src)) - np.searchsorted(src, src)
-            for piece in np.unique(rank).tolist():
-                at = np.nonzero(rank == piece)[0]
-                r = src[at]
-                val, v, st, b = single_scattering(prep, method, params, sid, points[r] + x0[at, None] * w[r],
-                                                  normals[r], w[r], x1[at] - x0[at], keys[r], seed, depth, li, piece,
-                                                  f)
-                stats += st
-                _carry(out, var, bound, r, kt, x0[at], val, v, b)
-    if matched(prep):
-        bound[ell > 0.0] = np.inf
-    return out, var, stats, bound
-
-
-def through_airlight(prep, segs: Segments, n_rays: int, stats):
-    """The outside medium's air-light (N, 3) of the pieces `segs` whose light crosses index-matched
-    interiors (shadow_frusta.split_lit's `behind`): the light attenuated by exp(-(sigma_t inside -
-    sigma_t outside) x length inside) of each interior on its straight path, integrated by the
-    traced adaptive quadrature (inside_paths.through_quadrature, rtol RTOL) whatever the method,
-    counted (THROUGH; integrals short of their tolerance: THROUGH_CAPPED), carried to the camera
-    by the outside's transmittance over t0."""
-    inner = matched(prep)
-    for sid in inner:
-        hull_planes(prep, sid)  # fills the convex shapes' planes, which through_quadrature reads
-    medium = prep.scene.medium
-    kt_in = np.array([prep.scene.shapes[i].interior.sigma_t for i in inner])
-    capped = np.zeros(1)
-    values = inside_paths.through_quadrature(prep, segs, medium, inner, kt_in, RTOL, capped)
-    stats[THROUGH] += len(segs)
-    stats[THROUGH_CAPPED] += capped[0]
-    return gather(segs, values, n_rays, medium)
-
-
-def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
-            stats):
-    """out, var += one light's single scattering over the segments of an index-matched shape (non-convex,
-    or handed over by CLOSED), the light's straight paths measured with Embree (inside_paths.py)."""
-    ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
-    if not len(ch):
-        return
-    kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
-    args = (prep, sid, geo, distant, ell, kts, kss, medium.phase, medium.g, kt_outs)
-    v = np.zeros((len(ell), len(ch)))
-    if mode == QUAD:
-        capped = np.zeros(1)
-        val = inside_paths.segment_quadrature(*args, rtol, capped)
-        stats[CAPPED] += capped[0]
-    elif mode == MARCH:
-        val = inside_paths.segment_march(*args, steps, tau_max)
-    else:
-        val, v = inside_paths.segment_samples(*args, steps, keys, dim0, seed)
-    out[:, ch] += val * intensity[ch]
-    var[:, ch] += v * intensity[ch] ** 2
-
-
 def _surface_inside(prep, p, n, w, prim, ell, medium):
     """Radiance (M, 3) toward the entry points p (outward entry normals n) from the surface points
     q = p + ell w (triangles prim) inside the medium, times exp(-sigma_t ell) along the camera's path.
@@ -678,110 +406,166 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
         return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
 
 
-def from_inside(prep, method, params, origins, dirs, t, prim, keys, seed, shade, shadows=False):
-    """Radiance (N, 3), variance and inside statistics (STATS_SIZE) of camera rays that start inside
-    the index-matched shape prep.camera_inside and first meet its boundary or a surface at t (triangle prim): the inside
-    single scattering over [0, t] (the light's exact straight paths), then what lies beyond the
-    boundary (`shade(origins, dirs, keys, depth)`), or the surface met inside, times exp(-sigma_t t)."""
+@dataclass
+class Crossing:
+    """N rays taken across the boundary of shapes that hold a medium: one inside row each (`rows`,
+    ell = 0 where nothing is inside: total reflection, a clipped edge, the depth cap), what their
+    integrals are multiplied by at the entry (`entry` (N,): Fresnel's T / eta^2, the invariance of
+    L / n^2), the radiance already known behind each row (`direct` (N, 3): a surface met inside the
+    medium, or met at once where the ray leaves it), and the rays that go on (`origins`, `dirs`,
+    `keys`): through the exit face (`parent`, with the factor `weight` (M, 3) that carries what they
+    see to the row's end and back to its start, under `entry`) or mirrored by a refractive boundary
+    (`mirrored`: `weight` is Fresnel's 1 - T, outside `entry`)."""
+    rows: Segments
+    entry: np.ndarray
+    direct: np.ndarray
+    origins: np.ndarray
+    dirs: np.ndarray
+    keys: np.ndarray
+    parent: np.ndarray
+    weight: np.ndarray
+    mirrored: np.ndarray
+
+
+def _rows(prep, sid, points, normals, w, ell, keys) -> Segments:
+    """Inside rows of shape sid from `points` along `w` for `ell` (every light: light -1), with how light
+    reaches them: refracted through the boundary, straight to a convex shape's planes, or traced."""
+    n = len(points)
+    reach = (REFRACTED if prep.scene.shapes[sid].interior.ior != 1.0 else
+             STRAIGHT if len(convex_planes(prep, sid)) else TRACED)
+    return Segments(points, w, ell, np.full(n, -1, np.int64), np.arange(n), np.zeros(n), keys, np.zeros(n, np.int64),
+                    scale=prep.accel.scale, medium=np.full(n, sid, np.int64), normals=normals,
+                    reach=np.full(n, reach, np.int8))
+
+
+def _joined(parts: list, n: int) -> Crossing:
+    """One Crossing of N rays from the per-shape parts (index arrays into the N rays, Crossing)."""
+    rows = [c.rows for _, c in parts]
+    order = np.argsort(np.concatenate([sel for sel, _ in parts]), kind="stable")
+    cat = lambda get: np.concatenate([get(r) for r in rows])[order]
+    joined = Segments(cat(lambda r: r.origins), cat(lambda r: r.dirs), cat(lambda r: r.length),
+                      np.full(n, -1, np.int64), np.arange(n), np.zeros(n), cat(lambda r: r.keys),
+                      np.zeros(n, np.int64), scale=rows[0].scale, medium=cat(lambda r: r.medium),
+                      normals=cat(lambda r: r.normals), reach=cat(lambda r: r.reach))
+    grab = lambda get: np.concatenate([get(c) for _, c in parts])
+    return Crossing(joined, grab(lambda c: c.entry)[order], grab(lambda c: c.direct)[order],
+                    grab(lambda c: c.origins), grab(lambda c: c.dirs), grab(lambda c: c.keys),
+                    np.concatenate([sel[c.parent] for sel, c in parts]), grab(lambda c: c.weight),
+                    grab(lambda c: c.mirrored))
+
+
+def cross(prep, origins, dirs, t, prim, keys, depth) -> Crossing | None:
+    """Rays that meet a shape holding a medium from outside at t (triangle prim), taken across its
+    boundary: refracted in (Snell, smooth dielectric; straight when ior = 1) with Fresnel's T, followed
+    inside to what they meet first (`_inside_hits`), refracted out at the exit, and mirrored by a
+    refractive boundary with 1 - T (1 on total reflection). None at MAX_DEPTH boundaries deep: black by
+    the model."""
+    if depth >= MAX_DEPTH:
+        return None
+    points = origins + t[:, None] * dirs
+    normals = facing_normals(prep.accel.normals[prim], dirs)
+    shape = prep.shape_ids[prim]
+    parts = []
+    for sid in np.unique(shape).tolist():
+        sel = np.nonzero(shape == sid)[0]
+        parts.append((sel, _across(prep, sid, points[sel], dirs[sel], normals[sel], keys[sel], prim[sel])))
+    return _joined(parts, len(origins))
+
+
+def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
+    """`cross` for the rays entering shape sid at p along d (facing entry normals nf; triangles prim)."""
+    accel = prep.accel
+    n = len(p)
+    none = np.zeros(0, np.int64)
+    medium = prep.scene.shapes[sid].interior
+    eta = medium.ior
+    w, cos_t = _refract(d, nf, eta)
+    t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
+    ell, prim2, touch = _inside_hits(prep, p, w, cos_t, prim)
+    direct = np.zeros((n, 3))
+    exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
+    go = [(none, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), False)]  # (parent, origins, dirs, weight, mirrored)
+    if len(exits):
+        q = p[exits] + ell[exits, None] * w[exits]
+        m = facing_normals(accel.normals[prim2[exits]], w[exits])
+        w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
+        t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
+        start, gap = _leave(prep, q, w_out, cos_o)
+        on, at = _met_at_once(prep, q, w_out, cos_o, touch[exits])
+        rest = on >= 0
+        gap[rest] = 1.0
+        kt = medium.sigma_t[None, :]
+        with np.errstate(over="ignore", invalid="ignore"):
+            tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
+        f = (t_out * eta * eta)[:, None] * tr * gap
+        if rest.any():  # a surface met at once where the ray leaves
+            on = on[rest]
+            direct[exits[rest]] = f[rest] * surface_radiance(
+                accel, at[rest], facing_normals(accel.normals[on], w_out[rest]), prep.reflectance[on], prep.lights,
+                prep.scene.medium, shadow_through(prep))
+        go.append((exits[~rest], start[~rest], w_out[~rest], f[~rest], False))
+    walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
+    if len(walls):
+        direct[walls] = _surface_inside(prep, p[walls], nf[walls], w[walls], prim2[walls], ell[walls], medium)
+    if eta != 1.0:  # the boundary's mirror reflection, Fresnel's 1 - T (1 on total reflection)
+        cos = -np.einsum("ij,ij->i", d, nf)
+        mirrored = d + 2.0 * cos[:, None] * nf
+        start, gap = _leave(prep, p, mirrored, cos)
+        go.append((np.arange(n), start, mirrored, (1.0 - t_in)[:, None] * gap, True))
+    parent = np.concatenate([g[0] for g in go])
+    return Crossing(_rows(prep, sid, p, nf, w, ell, keys), t_in / (eta * eta), direct,
+                    np.concatenate([g[1] for g in go]), np.concatenate([g[2] for g in go]), keys[parent], parent,
+                    np.concatenate([g[3] for g in go]), np.concatenate([np.full(len(g[0]), g[4]) for g in go]))
+
+
+def start_inside(prep, origins, dirs, t, prim, keys) -> Crossing:
+    """Camera rays that start inside the index-matched shape prep.camera_inside and first meet its
+    boundary or a surface at t (triangle prim): their inside rows over [0, t] (normals -dirs), the
+    surface met inside, and the rays going on beyond the boundary, times exp(-sigma_t t)."""
     sid = prep.camera_inside
     medium = prep.scene.shapes[sid].interior
     accel = prep.accel
-    out, var, stats, _ = lit_single_scattering(prep, method, params, sid, origins, -dirs, dirs, t, keys, seed, 0,
-                                               shadows)
+    n = len(origins)
+    direct = np.zeros((n, 3))
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
-    if len(exits):
-        cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
-        q = origins[exits] + t[exits, None] * dirs[exits]
-        start, gap = _leave(prep, q, dirs[exits], cos)
-        seen, seen_var, _ = shade(start, dirs[exits], keys[exits], 1)
-        with np.errstate(over="ignore", invalid="ignore"):
-            tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0,
-                          np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap
-        out[exits] += tr * seen
-        if seen_var is not None:
-            var[exits] += tr * tr * seen_var
+    cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
+    q = origins[exits] + t[exits, None] * dirs[exits]
+    start, gap = _leave(prep, q, dirs[exits], cos)
+    with np.errstate(over="ignore", invalid="ignore"):
+        tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0, np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap
     walls = np.nonzero((prim >= 0) & ~enters(prep, prim))[0]
     if len(walls):
-        out[walls] += _surface_inside(prep, origins[walls], -dirs[walls], dirs[walls], prim[walls], t[walls], medium)
-    return out, var, stats
+        direct[walls] = _surface_inside(prep, origins[walls], -dirs[walls], dirs[walls], prim[walls], t[walls], medium)
+    return Crossing(_rows(prep, sid, origins, -dirs, dirs, t, keys), np.ones(n), direct, start, dirs[exits],
+                    keys[exits], exits, tr, np.zeros(len(exits), bool))
 
 
-def radiance(prep, method, params, origins, dirs, t, prim, keys, seed, depth, shade, shadows=False):
-    """Radiance (N, 3) arriving back along rays that enter a shape with a medium at t (triangle prim):
-    what the inside scatters toward them and what comes through from behind the exit, through the
-    boundaries, its variance (N, 3), the inside integrals' statistics (STATS_SIZE; those of the
-    rays `shade` follows are the renderer's) and a bound (N, 3) on its error (error_bounds.py: the
-    inside's, `single_scattering`, plus what lies behind's; the float64 rounding of the closed forms
-    here is the renderer's allowance on the whole). `shade(origins, dirs, keys, depth)` is the
-    renderer's radiance, variance (or None) and bound of rays leaving a shape."""
-    out = np.zeros((len(origins), 3))
-    out_var = np.zeros_like(out)
-    out_bound = np.zeros_like(out)
-    stats = np.zeros(STATS_SIZE)
-    if depth >= MAX_DEPTH:  # black by the model
-        return out, out_var, stats, out_bound
-    accel = prep.accel
-    points = origins + t[:, None] * dirs
-    normals = facing_normals(accel.normals[prim], dirs)
-    shape = prep.shape_ids[prim]
-    for sid in np.unique(shape):
-        sel = np.nonzero(shape == sid)[0]
-        medium = prep.scene.shapes[sid].interior
-        eta = medium.ior
-        d, nf, p = dirs[sel], normals[sel], points[sel]
-        w, cos_t = _refract(d, nf, eta)
-        t_in = _transmittance(-np.einsum("ij,ij->i", d, nf), eta) * (cos_t > 0.0)  # T, 0 on total reflection
-        ell, prim2, touch = _inside_hits(prep, p, w, cos_t, prim[sel])
-        inner, inner_var, inner_stats, bound = lit_single_scattering(prep, method, params, sid, p, nf, w, ell,
-                                                                     keys[sel], seed, depth, shadows)
-        stats += inner_stats
-        exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
-        behind = np.zeros_like(inner)
-        behind_var = np.zeros_like(inner)
-        if len(exits):
-            q = p[exits] + ell[exits, None] * w[exits]
-            m = facing_normals(accel.normals[prim2[exits]], w[exits])
-            w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
-            t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
-            start, gap = _leave(prep, q, w_out, cos_o)
-            seen, seen_var, seen_bound = shade(start, w_out, keys[sel][exits], depth + 1)
-            on, at = _met_at_once(prep, q, w_out, cos_o, touch[exits])
-            rest = np.nonzero(on >= 0)[0]
-            if len(rest):
-                on = on[rest]
-                seen[rest] = surface_radiance(accel, at[rest], facing_normals(accel.normals[on], w_out[rest]),
-                                              prep.reflectance[on], prep.lights, prep.scene.medium,
-                                              shadow_through(prep))
-                gap[rest] = 1.0
-                seen_bound[rest] = 0.0  # a float64 closed form
-                if seen_var is not None:
-                    seen_var[rest] = 0.0
-            kt = medium.sigma_t[None, :]
-            with np.errstate(over="ignore", invalid="ignore"):
-                tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
-            f = (t_out * eta * eta)[:, None] * tr * gap
-            behind[exits] = f * seen
-            bound[exits] += scaled(seen_bound, f)
-            if seen_var is not None:
-                behind_var[exits] = f * f * seen_var
-        walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
-        if len(walls):
-            behind[walls] = _surface_inside(prep, p[walls], nf[walls], w[walls], prim2[walls], ell[walls], medium)
-        f = (t_in / (eta * eta))[:, None]
-        out[sel] = f * (inner + behind)
-        out_var[sel] = f * f * (inner_var + behind_var)
-        out_bound[sel] = scaled(bound, f)
-        if eta != 1.0:  # the boundary's mirror reflection, Fresnel's 1 - T (1 on total reflection)
-            cos = -np.einsum("ij,ij->i", d, nf)
-            mirrored = d + 2.0 * cos[:, None] * nf
-            start, gap = _leave(prep, p, mirrored, cos)
-            seen, seen_var, seen_bound = shade(start, mirrored, keys[sel], depth + 1)
-            r = (1.0 - t_in)[:, None] * gap
-            out[sel] += r * seen
-            out_bound[sel] += scaled(seen_bound, r)
-            if seen_var is not None:
-                out_var[sel] += r * r * seen_var
-    return out, out_var, stats, out_bound
+def combine(crossing: Crossing, inner, inner_var, inner_bound, seen, seen_var, seen_bound):
+    """Radiance (N, 3), variance (N, 3) and error bound (N, 3) arriving back along the crossing's rays:
+    entry x (the inside rows' integrals `inner` + what comes through from behind: `direct`, or the
+    rays going on through the exit, `seen`, times their weights), plus the mirrored rays' radiance
+    times 1 - T. Variances scale with the factors squared, bounds with `scaled`."""
+    ex = np.nonzero(~crossing.mirrored)[0]
+    on = crossing.parent[ex]
+    w = crossing.weight[ex]
+    behind = crossing.direct.copy()
+    behind[on] = w * seen[ex]
+    bound = inner_bound.copy()
+    bound[on] += scaled(seen_bound[ex], w)
+    behind_var = np.zeros_like(behind)
+    if seen_var is not None:
+        behind_var[on] = w * w * seen_var[ex]
+    f = crossing.entry[:, None]
+    out = f * (inner + behind)
+    out_var = f * f * (inner_var + behind_var)
+    out_bound = scaled(bound, f)
+    mi = np.nonzero(crossing.mirrored)[0]
+    on, r = crossing.parent[mi], crossing.weight[mi]
+    out[on] += r * seen[mi]
+    out_bound[on] += scaled(seen_bound[mi], r)
+    if seen_var is not None:
+        out_var[on] += r * r * seen_var[mi]
+    return out, out_var, out_bound
 
 
 def scaled(bound, f):

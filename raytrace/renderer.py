@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bounded, error_bounds
+from . import bounded, error_bounds, inside_rows
 from .accel import Accelerator
 from .camera import generate_rays
 from .errors import UserError
@@ -131,8 +131,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     ray's radiance (error_bounds.py). `shadows`: None for the paper's unshadowed air-light, else the
     air-light over the exact lit intervals
     (shadow_frusta.py; its value, a former search spacing, is not read).
-    Rays entering a shape that holds a medium go on inside (bounded.py; `depth` boundaries deep),
-    with the bound bounded.radiance gives them (infinite where the interior's integrator has none)."""
+    Rays entering a shape that holds a medium are taken across its boundary (bounded.cross; `depth`
+    boundaries deep): their inside rows are integrated by the method's inside rule (inside_rows.py)
+    and the rays going on beyond are shaded here (`_across`)."""
     scene = prep.scene
     medium = scene.medium
     t, prim = prep.accel.first_hit(origins, dirs)
@@ -140,15 +141,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     prim[ground] = -1
 
     deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
-
-    def behind(o, d, k, dep):
-        rad, s, var, b = shade_rays(prep, method, params, o, d, k, seed, shadows, dep)
-        deeper[:] += s
-        return rad, var, b
-
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
-        rad, var, deeper[-bounded.STATS_SIZE:] = bounded.from_inside(prep, method, params, origins, dirs, t, prim,
-                                                                      keys, seed, behind, shadows is not None)
+        crossing = bounded.start_inside(prep, origins, dirs, t, prim, keys)
+        rad, var, _ = _across(prep, method, params, crossing, seed, shadows, 0, deeper)
         return rad, deeper, var if method.stochastic else None, np.full_like(rad, np.inf)
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
@@ -162,10 +157,12 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
-        radiance[into], into_var, inside, into_bound = bounded.radiance(prep, method, params, origins[into],
-                                                                        dirs[into], t[into], prim[into], keys[into],
-                                                                        seed, depth, behind, shadows is not None)
-        deeper[-bounded.STATS_SIZE:] += inside
+        crossing = bounded.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
+        if crossing is None:  # black by the model (bounded.MAX_DEPTH)
+            into_var = into_bound = np.zeros((np.count_nonzero(into), 3))
+        else:
+            radiance[into], into_var, into_bound = _across(prep, method, params, crossing, seed, shadows, depth,
+                                                           deeper)
     radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
@@ -179,7 +176,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)
-        if shadows is not None and params.get("shadow_test") == "samples":
+        if shadows is not None and method.samples_shadows(params):
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
                 bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
@@ -194,7 +191,11 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                                                       len(origins))
             bound += air_bound
             if through is not None and len(through):
-                air = air + bounded.through_airlight(prep, through, len(origins), stats[-bounded.STATS_SIZE:])
+                through_air, through_var = inside_rows.through_airlight(prep, method, params, through, len(origins),
+                                                                        stats[-bounded.STATS_SIZE:])
+                air = air + through_air
+                if method.stochastic:
+                    var = var + through_var
                 bound[error_bounds.rays_with(through.ray, len(origins))] = np.inf
         radiance += air
         if method.stochastic:
@@ -206,6 +207,23 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         bound[np.any(glints != 0.0, axis=1)] = np.inf
     bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
     return radiance, stats + deeper, variance, bound
+
+
+def _across(prep: Prepared, method, params, crossing, seed, shadows, depth, stats):
+    """Radiance, variance and error bound (N, 3) back along the rays of a boundary crossing
+    (bounded.py): its inside rows integrated (inside_rows.py), the rays going on beyond shaded one
+    boundary deeper, combined (bounded.combine); their statistics added to `stats`."""
+    inner, inner_var, inner_bound, inside = inside_rows.integrate(prep, method, params, crossing.rows, seed, depth,
+                                                                  shadows is not None)
+    stats[-bounded.STATS_SIZE:] += inside
+    if len(crossing.origins):
+        seen, seen_stats, seen_var, seen_bound = shade_rays(prep, method, params, crossing.origins, crossing.dirs,
+                                                            crossing.keys, seed, shadows, depth + 1)
+        stats += seen_stats
+    else:
+        seen = seen_bound = np.zeros((0, 3))
+        seen_var = seen if method.stochastic else None
+    return bounded.combine(crossing, inner, inner_var, inner_bound, seen, seen_var, seen_bound)
 
 
 def stats_size(method) -> int:
@@ -223,10 +241,10 @@ def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
 
 
 def check_options(method, params, volumetric_shadows, source, lights, medium):
-    if params.get("shadow_test") == "samples" and not volumetric_shadows:
+    if method.samples_shadows(params) and not volumetric_shadows:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): only acts with volumetric shadows, "
                         "which are off in this render; remove it")
-    if params.get("shadow_test") == "samples" and not medium.homogeneous:
+    if method.samples_shadows(params) and not medium.homogeneous:
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented in {medium.type_name} "
                         "media; use --shadow-test intervals (the default)")
 

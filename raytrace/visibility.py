@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import math
 
+import functools
+
 import numpy as np
 
 from .jit import njit
@@ -660,18 +662,20 @@ def _visible(accel, lights, segs, pos, weight):
     return visible
 
 
-def shadowed_airlight(accel, method, medium, lights, params, segs: Segments, n_rays: int):
+def shadowed_airlight(accel, method, medium, lights, params, segs: Segments, n_rays: int, visible=None):
     """Air-light (N, 3) with volumetric shadows from the method's medium points and the variance
     (N, 3) of each ray's estimate: the sum over its segments (independent random numbers) of the
     variance of each segment's mean over iterations (zero for one iteration or a deterministic
-    method)."""
+    method). `visible(segs, pos, weight)`: the factor (same shape as weight) of each point's light,
+    by default its shadow ray's visibility."""
+    visible = visible or functools.partial(_visible, accel, lights)
     counts = method.point_count(segs, medium, params)
     air = np.zeros((n_rays, 3))
     var = np.zeros((n_rays, 3))
     for part in chunks(counts, POINTS_PER_CHUNK):
         seg = segs.take(part)
         pos, weight = method.points(seg, medium, lights, params)
-        est = (weight * _visible(accel, lights, seg, pos, weight)).sum(axis=2)  # (S, n, 3) per iteration
+        est = (weight * visible(seg, pos, weight)).sum(axis=2)  # (S, n, 3) per iteration
         air += gather(seg, est.mean(axis=1), n_rays, medium)
         n = est.shape[1]
         if method.stochastic and n > 1:

@@ -1,4 +1,4 @@
-"""The mirror reflection of a refractive interior's boundary (bounded.radiance): a camera ray that
+"""The mirror reflection of a refractive interior's boundary (bounded.cross, bounded.combine): a camera ray that
 meets the boundary from outside also brings what the mirrored ray sees, times Fresnel's
 reflectance for unpolarised light, here written from the Fresnel equations: a slab of black glass
 (ior 1.5, absorbing so strongly that nothing comes back through it) under a uniform sky shows the

@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from raytrace import bounded, inside_paths
-from raytrace.media.convex_chords import chords_into
+from raytrace.media.convex_chords import chords_into, section_kinks
 from raytrace.options import RenderOptions
 from raytrace.renderer import render
 
@@ -118,10 +118,31 @@ def scene(tmp_path):
                    "interior": {"sigma_a": [0.1, 0.1, 0.1], "sigma_s": [0.02, 0.03, 0.04]}}]})
 
 
+def first_panels(prep, segs, sids, end):
+    """(piece, start, end) of the panels between the pieces' kinks (section_kinks of every shape)."""
+    seg, lo, hi = [], [], []
+    for i in np.nonzero(end > 0.0)[0]:
+        cuts = []
+        for sid in sids:
+            planes = prep.interior_planes[sid]
+            found = np.empty(len(planes) + 4)
+            n = section_kinks(planes, 0, len(planes), segs.origins[i], segs.dirs[i],
+                              prep.lights.position[segs.light[i]], end[i], found)
+            cuts += found[:n].tolist()
+        edges = np.unique([0.0, *cuts, end[i]])
+        seg += [i] * (len(edges) - 1)
+        lo += edges[:-1].tolist()
+        hi += edges[1:].tolist()
+    return np.array(seg), np.array(lo), np.array(hi)
+
+
 def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
     """On the pieces behind the boxes of a render (both lights, both boxes), through_quadrature's
-    kernel equals inside_paths.adaptive over through_integrand (chords by chords_into) to 1e-12
-    relative per piece and channel, with the same count of unconverged panels (none)."""
+    kernel equals inside_paths.adaptive over through_integrand (chords by chords_into), started from
+    the same first panels (cut at each shape's section_kinks), to 1e-12 relative per piece and
+    channel, with the same count of unconverged panels (none). (Started from whole pieces, as both
+    were before the kernel cut them, the rule missed a kink of piece 99: 5.4e-6 off at rtol 1e-10,
+    against 3e-10 from the kinks, measured against 4000 equal 20-point panels.)"""
     prep = scene(tmp_path)
     seen = []
     real = inside_paths.through_quadrature
@@ -141,9 +162,9 @@ def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
         cap_k, cap_n = np.zeros(1), np.zeros(1)
         got = real(prep, segs, medium, sids, kt_in, rtol, cap_k)
         end = np.minimum(segs.length, 745.0 / float(np.min(medium.sigma_t)))
-        seg = np.nonzero(end > 0.0)[0]
+        seg, lo, hi = first_panels(prep, segs, sids, end)
         ref = inside_paths.adaptive(inside_paths.through_integrand(prep, segs, medium, sids, kt_in - medium.sigma_t),
-                                    end, 3, seg, np.zeros(len(seg)), end[seg], rtol, cap_n)
+                                    end, 3, seg, lo, hi, rtol, cap_n)
         assert np.all(ref > 0.0)
         rel = np.abs(got - ref) / ref
         print(f"{len(segs)} pieces: worst relative difference {rel.max():.1e}")

@@ -1,7 +1,7 @@
 """The statistics of the integrals inside shapes (bounded.py) reach the render's, as quadrature's own
 do outside.
 
-Before the fix, `bounded.single_scattering` filled its statistics and dropped them: a render with
+Before the fix, `single_scattering` (now inside_rows.py) filled its statistics and dropped them: a render with
 media inside shapes never said that inside integrals had stopped short of their tolerance (the U
 prism under a directional light, tests/test_inside_paths.py, has 15 such panels at the default
 rtol: Embree's float32 length decisions jump at the U's edges).

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..media import Homogeneous
 from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
-from ..media.slab import CLOSED
+from ..media.slab import CLOSED, QUAD
 
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
@@ -75,14 +75,22 @@ class Segments:
     seed: int = 0
     scale: float = 1.0  # the scene's size (point lights' regularisation, geometry.py)
     per_ray: int = 0  # k when segment r k + j is ray r's j-th and every t0 is 0 (whole rays), else 0
+    # rows inside shapes that hold a medium (bounded.py's crossing; None: every row lies in the camera's
+    # medium): the shape whose interior holds each row, the outward normal (S, 3) of the boundary face its
+    # camera ray entered by (the slab note's plane), and how light reaches it (bounded.STRAIGHT, ...)
+    medium: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    reach: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.length)
 
     def take(self, idx) -> "Segments":
         """The segments at `idx` (an index array or slice; the result has no per-ray layout)."""
+        pick = lambda a: None if a is None else a[idx]
         return Segments(self.origins[idx], self.dirs[idx], self.length[idx], self.light[idx], self.ray[idx],
-                        self.t0[idx], self.keys[idx], self.stream[idx], self.seed, self.scale)
+                        self.t0[idx], self.keys[idx], self.stream[idx], self.seed, self.scale,
+                        medium=pick(self.medium), normals=pick(self.normals), reach=pick(self.reach))
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,11 @@ class ErrorLaw:
 
 
 LIGHTS = ("point", "spot", "directional")  # lights.NAMES
+INSIDE_RTOL = 1e-10  # the relative accuracy of the inside quadrature of methods without an `rtol` of their own
+
+
+def _inside_defaults(params: dict) -> tuple:
+    return INSIDE_RTOL, 1, 745.0
 
 
 @dataclass(frozen=True)
@@ -110,13 +123,20 @@ class Interiors:
     path (and a camera inside such a shape is taken), else the entry face's plane (the note's model;
     CLOSED as above, a camera inside refused).
     `fixed`: its parameters not implemented inside (they must keep their defaults). `limits`: what
-    its refusal of a light says."""
+    its refusal of a light says. `settings(params)`: the inside integrator's (rtol, steps or samples
+    per segment, optical depth at which a march stops) from the method's own parameters. `through`: how
+    the outside air-light whose light crosses index-matched interiors is integrated: "points" (the
+    method's own medium points, `Method.points`, each point's light attenuated) or "quadrature" (the
+    traced adaptive quadrature at the inside rtol: quadrature's own rule, a fallback of the others,
+    counted)."""
     mode: int
     lights: tuple = LIGHTS
     refracted: tuple = LIGHTS
     exact_paths: bool = False
     fixed: tuple = ()
     limits: str = ""
+    settings: Callable[[dict], tuple] = _inside_defaults
+    through: str = "quadrature"
 
 
 @dataclass(frozen=True)
@@ -144,7 +164,9 @@ class Supports:
                      "the slab note's separable approximation")
             through = "" if inside.refracted == inside.lights else \
                 f"; through refractive boundaries: {', '.join(inside.refracted)}"
-            shapes = f"media inside shapes ({', '.join(inside.lights)} lights{through}; {model})"
+            fallback = "; light through them: adaptive quadrature" if inside.through == "quadrature" and \
+                inside.mode != QUAD else ""
+            shapes = f"media inside shapes ({', '.join(inside.lights)} lights{through}; {model}{fallback})"
         return (f"takes {', '.join(self.lights)} lights; {', '.join(m.type_name for m in self.media)} media; "
                 f"{', '.join(PHASE_NAMES[p] for p in self.phases)} phases; {shapes}")
 
@@ -178,6 +200,11 @@ class Method:
         samples = "samples" in self.supports.shadow_tests
         assert samples == (self.points is not None) == ("shadow_test" in self.params), self.name
         assert not samples or self.params["shadow_test"].choices == self.supports.shadow_tests, self.name
+
+    def samples_shadows(self, params: dict) -> bool:
+        """Whether this render tests volumetric shadows with a shadow ray per medium point (the method's
+        `shadow_test = "samples"`) rather than over the exact lit intervals."""
+        return params.get("shadow_test") == "samples"
 
     def check_lights(self, lights, source: str):
         """Refuse lights of a kind this method does not integrate, naming the methods that do."""

@@ -40,7 +40,7 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
+from . import INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel, cone_row,
                        eq4_integrand, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
@@ -253,7 +253,9 @@ METHOD = Method(
     points=_points,
     point_count=_point_count,
     supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
-                      interiors=Interiors(MARCH, exact_paths=True, fixed=("step", "jitter")),
+                      interiors=Interiors(MARCH, exact_paths=True, fixed=("step", "jitter"),
+                                          settings=lambda params: (INSIDE_RTOL, params["steps"], params["tau_max"]),
+                                          through="points"),
                       shadow_tests=("intervals", "samples")),
 )
 _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}

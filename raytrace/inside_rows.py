@@ -1,0 +1,353 @@
+"""The single scattering of inside rows: the `Segments` rows that the boundary crossing (bounded.py)
+makes of camera rays inside shapes that hold a medium, integrated by the method's inside rule
+(`Supports.interiors`: media/slab.py's inside integrator `mode`, with the settings the method gives
+it), with volumetric shadows over each light's exact lit pieces, and the outside air-light whose
+light crosses index-matched interiors (`through_airlight`).
+
+Each inside row starts at its entry point (the boundary, or the camera inside the shape) and runs
+along the refracted ray for its length; its `medium` is the shape whose interior holds it, its
+`normals` the outward normal of the face it entered by (the analytic note's planar boundary), its
+`reach` how light reaches it (`bounded.STRAIGHT`: the light's straight path to a convex index-matched
+shape's faces; `TRACED`: straight through a non-convex one, measured with Embree; `REFRACTED`:
+through the refracting boundary). A row integrates every light (`light` = -1).
+
+In an index-matched shape the light's path inside is its exact straight path for the methods with
+`exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights) in an
+index-matched shape: convex, at most MAX_FACES planes, the closed form of media/convex_directional.py
+with its bound; else the segments go to the adaptive quadrature (`_traced`, rtol bounded.RTOL),
+counted (HANDED), unbounded. Through a refractive boundary a directional light enters a convex shape
+through every face it meets, one beam each (`bounded.refracted_beams`: the exact refracted path;
+CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded), as does a point
+light (Fermat's path).
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from . import inside_paths
+from .beam_shadows import lit_pieces_of_beam
+from .bounded import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, RTOL, STATS_SIZE, THROUGH, THROUGH_CAPPED,
+                      TRACED, UNSHADOWED, blockers, convex_planes, hull_planes, matched, refracted_beams, scaled,
+                      _refract, _transmittance)
+from .lights import DIRECTIONAL
+from .media.convex_directional import MAX_FACES, segments_bounded
+from .media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
+from .methods import Segments
+from .methods.geometry import segment_light_table
+from .shadow_frusta import exact_lit_intervals
+from .visibility import gather, shadowed_airlight
+
+
+def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
+    """Each inside row's single scattering (R, 3) at its start, its variance (R, 3) (0 but for the
+    sampling integrator), a bound (R, 3) on its error (inf where none is known) and the statistics
+    (STATS_SIZE), the rows of each interior integrated together (`lit_single_scattering`)."""
+    n = len(rows)
+    val, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    stats = np.zeros(STATS_SIZE)
+    for sid in np.unique(rows.medium).tolist():
+        sel = np.nonzero(rows.medium == sid)[0]
+        val[sel], var[sel], st, bound[sel] = lit_single_scattering(
+            prep, method, params, sid, rows.origins[sel], rows.normals[sel], rows.dirs[sel], rows.length[sel],
+            rows.keys[sel], rows.reach[sel[0]] if len(sel) else 0, seed, depth, shadows)
+        stats += st
+    return val, var, bound, stats
+
+
+def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth, light=None,
+                      piece=0, beam=None):
+    """Inside single scattering (N, 3) at the entry points along the refracted rays w, over [0, ell],
+    summed over the lights, for the interior `medium` with outward entry normals `normals`, its
+    variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
+    (N, 3) on its error (inf where none is known). `reach`: how light reaches the rows (the crossing's
+    bounded.STRAIGHT, TRACED or REFRACTED). The method's inside integrator is its
+    `Supports.interiors.mode` with its `settings`; in an index-matched shape the light's path inside is its exact
+    straight path (convex: `convex_planes`; else traced, `_traced`) for the methods with
+    `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights)
+    in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
+    media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
+    (`_traced`, rtol RTOL), counted (HANDED), unbounded. Through a refractive boundary a directional
+    light enters a convex shape (`convex_planes`) through every face it meets, one beam each
+    (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
+    entry plane (eq. 5, unbounded), as does a point light (Fermat's path). `light`: that light only
+    (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
+    which numbers their random streams; `beam`: of a directional light's refracted beams, only the
+    one through that face (`lit_single_scattering`)."""
+    medium = prep.scene.shapes[sid].interior
+    planes = convex_planes(prep, sid)
+    refractive = reach == REFRACTED
+    traced = reach == TRACED  # non-convex, index-matched: paths measured with Embree
+    geo = np.zeros((len(points), GEO_COLUMNS))
+    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
+    lights = prep.lights
+    n = len(points)
+    out = np.zeros((n, 3))
+    var = np.zeros((n, 3))
+    sup = method.supports.interiors
+    mode = sup.mode
+    closed = mode == CLOSED and not refractive  # the exact closed form, or quadrature where there is none
+    kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
+    beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
+    bound = np.zeros((n, 3)) if kernel else np.full((n, 3), np.inf)
+    rtol, steps, tau_max = sup.settings(params)
+    stats = np.zeros(STATS_SIZE)
+    a = -np.einsum("ij,ij->i", w, normals)
+    dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
+
+    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
+        for c in range(3):
+            kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
+            if ks == 0.0 or lights.intensity[li, c] == 0.0:
+                continue
+            unit, unit_var = np.empty(n), np.empty(n)
+            inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, only, mode,
+                            rtol, steps, tau_max, keys,
+                            np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
+                            unit, unit_var, stats)
+            f = scale * lights.intensity[li, c]
+            out[:, c] += unit * f
+            var[:, c] += unit_var * f * f
+
+    def closed_form(li, toward, scale, only):
+        val, b = np.empty((n, 3)), np.empty((n, 3))
+        segments_bounded(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]),
+                         np.ascontiguousarray(points), np.ascontiguousarray(w), np.ascontiguousarray(ell),
+                         np.ascontiguousarray(toward), medium.sigma_t, medium.sigma_s, medium.phase, medium.g, val, b,
+                         only)
+        out[:] += val * (lights.intensity[li] * scale)
+        bound[:] += b * (lights.intensity[li] * scale)
+
+    zero = np.zeros(n)
+    for li in range(len(lights)) if light is None else [light]:
+        idx = np.full(n, li, dtype=np.int64)
+        distant = np.full(n, lights.kind[li] == DIRECTIONAL)
+        if lights.kind[li] == DIRECTIONAL:
+            geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
+            if beams:
+                for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
+                    if beam is not None and f != beam:
+                        continue
+                    if kernel:
+                        closed_form(li, toward, irradiance, int(f))
+                        continue
+                    geo[:, 6:9] = toward
+                    integrate(li, distant, zero, zero, zero, zero, w @ toward, zero, zero, irradiance, planes, int(f))
+                continue
+            if kernel:
+                closed_form(li, -lights.axis[li], 1.0, -1)
+                continue
+            geo[:, 6:9] = -lights.axis[li]
+            axis = np.broadcast_to(lights.axis[li], (n, 3))
+            cos_l = -(normals @ lights.axis[li])
+            t_l, b = _refract(axis, normals, medium.ior)
+            b = np.where(cos_l > 0.0, b, 0.0)
+            mu = -np.einsum("ij,ij->i", t_l if refractive else axis, w)  # index-matched: not bent (_refract
+            # would mirror the light off an entry face it meets from behind)
+            scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
+                             / np.maximum(b, 1e-300), 0.0) if refractive else 1.0
+            if closed or (traced and sup.exact_paths):
+                if closed:
+                    stats[HANDED] += np.count_nonzero(ell > 0.0)
+                _traced(prep, sid, medium, geo, True, ell, lights.intensity[li] * scale,
+                        QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
+                        seed, out, var, stats)
+                continue
+            integrate(li, distant, zero, zero, zero, b, mu, zero, zero, scale, planes if not refractive else np.zeros((0, 4)))
+            continue
+        # a point or spot light (the spot's falloff toward the direction it leaves in: media/slab.py)
+        xh, h, _, _ = segment_light_table(points, w, lights.position, lights.axis, lights.cone, idx, prep.accel.scale)
+        geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
+        geo[:, 17] = lights.cone[li, 2]  # the spot's falloff curve
+        rel = lights.position[li] - points
+        hl = np.einsum("ij,ij->i", rel, normals)
+        wl = ll = zero
+        if refractive:  # horizontal parts, for the refracted path (media/slab.py refracted_point)
+            lh = rel - hl[:, None] * normals
+            wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
+            ll = np.einsum("ij,ij->i", lh, lh)
+        if closed or (traced and sup.exact_paths):
+            if closed:
+                stats[HANDED] += np.count_nonzero(ell > 0.0)
+            _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
+                    tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, stats)
+            continue
+        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0, planes if not refractive else np.zeros((0, 4)))
+    return out, var, stats, bound
+
+
+def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth, shadows: bool):
+    """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
+    that each light reaches past the blockers (shadow_frusta.py's exact lit intervals of `blockers`;
+    the shape's own boundary attenuates, it does not block), each piece integrated from its own
+    start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
+    and its quadrature fallback take the exact path from any start). Where the light's path is not
+    straight (a refractive interior) or not traced (slab_approx: the note's planar model), the
+    segments are unshadowed, counted (UNSHADOWED), and
+    their bound is infinite if anything but the shape itself could stand on the light's path. Inside
+    an index-matched shape the light is not attenuated by the other index-matched interiors on its
+    path: with any other, the bound is infinite."""
+    medium = prep.scene.shapes[sid].interior
+    n, n_lights = len(points), len(prep.lights)
+    if not shadows or not n or not n_lights:
+        return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
+    sup = method.supports.interiors
+    if reach == REFRACTED and len(convex_planes(prep, sid)) and sup.mode != APPROX:
+        return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
+    if reach == REFRACTED or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights
+        out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
+                                                   depth)
+        stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
+        if np.any(prep.shape_ids != sid):
+            bound = np.where(ell[:, None] > 0.0, np.inf, bound)
+        return out, var, stats, bound
+    rays = np.tile(np.arange(n), n_lights)
+    segs = Segments(points[rays], w[rays], ell[rays], np.repeat(np.arange(n_lights), n), rays, np.zeros(len(rays)),
+                    keys[rays], np.zeros(len(rays), np.int64), seed, prep.accel.scale)
+    lit, _ = exact_lit_intervals(prep.accel, segs, prep.lights, n_lights, prep.frusta())
+    out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    stats = np.zeros(STATS_SIZE)
+    stats[LIT_PIECES] += len(lit)
+    piece = lit.stream // n_lights
+    kt = medium.sigma_t[None, :]
+    for li, rank in sorted(set(zip(lit.light.tolist(), piece.tolist()))):
+        at = np.nonzero((lit.light == li) & (piece == rank))[0]
+        r = lit.ray[at]
+        val, v, st, b = single_scattering(prep, method, params, sid, lit.origins[at], normals[r], lit.dirs[at],
+                                          lit.length[at], keys[r], reach, seed, depth, li, rank)
+        stats += st
+        _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
+    if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
+        bound[ell > 0.0] = np.inf
+    return out, var, stats, bound
+
+
+def _carry(out, var, bound, r, kt, t0, val, v, b):
+    """Add pieces' values, variances and bounds to their rays r, carried back to the entry by
+    exp(-kt t0) (kt (1, 3))."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        tr = np.where(kt == 0.0, 1.0, np.exp(-kt * t0[:, None]))
+    np.add.at(out, r, tr * val)
+    np.add.at(var, r, tr * tr * v)
+    np.add.at(bound, r, scaled(b, tr))
+
+
+def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth):
+    """`lit_single_scattering` in a convex refractive shape: each directional light's refracted beams
+    over the pieces they reach past the blockers (beam_shadows.py: the leg inside the shape and the
+    entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
+    spot lights unshadowed (their refracted path is the entry plane's), counted, with an infinite bound
+    if anything else stands in the scene. The other index-matched interiors on the light's way are not
+    applied: with any, the bound is infinite."""
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    planes, mask = convex_planes(prep, sid), blockers(prep)
+    n = len(points)
+    out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    stats = np.zeros(STATS_SIZE)
+    kt = medium.sigma_t[None, :]
+
+    for li in range(len(lights)):
+        if lights.kind[li] != DIRECTIONAL:
+            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
+                                              depth, li)
+            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
+            if np.any(prep.shape_ids != sid):
+                b = np.where(ell[:, None] > 0.0, np.inf, b)
+            stats += st
+            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
+            continue
+        faces, towards, _ = refracted_beams(planes, lights.axis[li], medium.ior)
+        for f, toward in zip(faces.tolist(), towards):
+            src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
+            stats[LIT_PIECES] += len(src)
+            rank = np.arange(len(src)) - np.searchsorted(src, src)
+            for piece in np.unique(rank).tolist():
+                at = np.nonzero(rank == piece)[0]
+                r = src[at]
+                val, v, st, b = single_scattering(prep, method, params, sid, points[r] + x0[at, None] * w[r],
+                                                  normals[r], w[r], x1[at] - x0[at], keys[r], reach, seed, depth, li,
+                                                  piece, f)
+                stats += st
+                _carry(out, var, bound, r, kt, x0[at], val, v, b)
+    if matched(prep):
+        bound[ell > 0.0] = np.inf
+    return out, var, stats, bound
+
+
+def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
+    """The outside medium's air-light (N, 3) of the pieces `segs` whose light crosses index-matched
+    interiors (shadow_frusta.split_lit's `behind`) and its variance (N, 3): the light attenuated by
+    exp(-(sigma_t inside - sigma_t outside) x length inside) of each interior on its straight path,
+    integrated by the method's own rule where it has medium points (`Method.points`: raymarch's
+    midpoints, Monte Carlo's samples, each point's light attenuated), else by the traced adaptive
+    quadrature (inside_paths.through_quadrature at the method's inside rtol: quadrature's own, or the
+    fallback a method declares with `Supports.interiors.through`), counted (THROUGH; integrals short
+    of their tolerance: THROUGH_CAPPED), carried to the camera by the outside's transmittance over t0."""
+    inner = matched(prep)
+    for sid in inner:
+        hull_planes(prep, sid)  # fills the convex shapes' planes, which through_quadrature reads
+    medium = prep.scene.medium
+    kt_in = np.array([prep.scene.shapes[i].interior.sigma_t for i in inner])
+    dk = kt_in - medium.sigma_t[None, :]
+    stats[THROUGH] += len(segs)
+    if method.supports.interiors.through == "points":
+        return shadowed_airlight(prep.accel, method, medium, prep.lights, params, _own_streams(segs, len(prep.lights)),
+                                 n_rays, functools.partial(_attenuation, prep, inner, dk))
+    capped = np.zeros(1)
+    values = inside_paths.through_quadrature(prep, segs, medium, inner, kt_in,
+                                             method.supports.interiors.settings(params)[0], capped)
+    stats[THROUGH_CAPPED] += capped[0]
+    return gather(segs, values, n_rays, medium), np.zeros((n_rays, 3))
+
+
+THROUGH_STREAMS = 1 << 20  # random streams of the pieces behind interiors start past any ray's clear pieces'
+
+
+def _own_streams(segs: Segments, n_lights: int) -> Segments:
+    """The pieces numbered per camera ray and light past the clear pieces' streams (split_lit keeps
+    their segment's, which a clear piece of it also draws from)."""
+    segs = segs.take(np.lexsort((segs.t0, segs.light, segs.ray)))
+    group = segs.ray * n_lights + segs.light
+    segs.stream = segs.light + n_lights * (THROUGH_STREAMS + np.arange(len(group)) - np.searchsorted(group, group))
+    return segs
+
+
+def _attenuation(prep, inner, dk, segs, pos, weight):
+    """exp(-dk . lengths) (same shape as weight) of each medium point's straight path to its light
+    through the index-matched interiors `inner` (dk (S, 3): their sigma_t minus the outside's)."""
+    out = np.zeros(weight.shape)
+    lp = prep.lights.position[segs.light]
+    for c in range(3):
+        p, m = pos[..., c, :], weight[..., c] != 0.0
+        rel = np.broadcast_to(lp[:, None, None, :], p.shape)[m] - p[m]
+        dist = np.linalg.norm(rel, axis=1)
+        lengths, _ = inside_paths.inside_lengths(prep, p[m], rel / np.where(dist > 0.0, dist, 1.0)[:, None], dist,
+                                                 inner, margin=prep.accel.epsilon)
+        f = out[..., c]
+        f[m] = np.exp(-lengths @ dk[:, c])
+        out[..., c] = f
+    return out
+
+
+def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
+            stats):
+    """out, var += one light's single scattering over the segments of an index-matched shape (non-convex,
+    or handed over by CLOSED), the light's straight paths measured with Embree (inside_paths.py)."""
+    ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
+    if not len(ch):
+        return
+    kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
+    args = (prep, sid, geo, distant, ell, kts, kss, medium.phase, medium.g, kt_outs)
+    v = np.zeros((len(ell), len(ch)))
+    if mode == QUAD:
+        capped = np.zeros(1)
+        val = inside_paths.segment_quadrature(*args, rtol, capped)
+        stats[CAPPED] += capped[0]
+    elif mode == MARCH:
+        val = inside_paths.segment_march(*args, steps, tau_max)
+    else:
+        val, v = inside_paths.segment_samples(*args, steps, keys, dim0, seed)
+    out[:, ch] += val * intensity[ch]
+    var[:, ch] += v * intensity[ch] ** 2
