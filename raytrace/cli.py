@@ -255,7 +255,7 @@ def cmd_assets(args):
         print("\n".join(describe(args.folder)))
         return 0
     files = assets(args.names, folder=args.folder, mirror=args.mirror, trust_unpinned=args.trust_unpinned,
-                   note=lambda line: print(line, flush=True))
+                   progress=sys.stderr.isatty(), note=lambda line: print(line, flush=True))
     print(f"{counted(len(files), 'mesh file')} ready in {files[0].parents[1]}")
     return 0
 

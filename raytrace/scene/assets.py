@@ -44,7 +44,7 @@ def _paper_mesh_fix(name: str) -> str | None:
     for archive in ARCHIVES.values():
         if key in archive.files:
             return (f"it is one of the paper's meshes: `render.py assets {archive.name}` downloads it into "
-                    f"{asset_folders()[0]} (the first {ENV} folder, else the user's data folder; docs/assets.md)")
+                    f"{asset_folders()[0]}, the first {ENV} folder or else the user's data folder (docs/assets.md)")
     if key in NOT_DOWNLOADED:
         return f"{NOT_DOWNLOADED[key]}; put a mesh of your own by that name in one of those folders or in {ENV}"
     return None
