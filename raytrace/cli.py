@@ -256,7 +256,7 @@ def cmd_assets(args):
         return 0
     files = assets(args.names, folder=args.folder, mirror=args.mirror, trust_unpinned=args.trust_unpinned,
                    progress=sys.stderr.isatty(), note=lambda line: print(line, flush=True))
-    print(f"{counted(len(files), 'mesh file')} ready in {files[0].parents[1]}")
+    print(f"{counted(len(files), 'file')} for the bundled scenes ready in {files[0].parents[1]}")
     return 0
 
 

@@ -124,6 +124,8 @@ def sibenik_zip(path: Path, obj: str = SIBENIK_OBJ, top: str = "") -> Path:
         z.writestr(f"{top}sibenik.mtl", SIBENIK_MTL)
         z.writestr(f"{top}copyright.txt", "Sibenik by Marko Dabrovic\n")
         z.writestr(f"{top}kamen.png", b"\x89PNG not really")
+        if top:  # what macOS's zip tool adds beside the folder
+            z.writestr(f"__MACOSX/{top}._sibenik.obj", b"resource fork")
     return path
 
 
@@ -273,6 +275,13 @@ def test_unpinned_archive_only_on_request(served, tmp_path, capsys):
     assert (target / "sibenik" / "sibenik_staklo.obj").is_file()
 
 
+def test_folder_that_cannot_be_made(tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    assert main(["assets", "conference", "--folder", str(tmp_path / "file" / "assets")]) == 2
+    check_one_line(capsys.readouterr().err, str(tmp_path / "file" / "assets"), "cannot write there", "--folder")
+    assert sorted(tmp_path.iterdir()) == [tmp_path / "file"]
+
+
 def test_unknown_name(tmp_path, capsys):
     assert main(["assets", "sponza", "--folder", str(tmp_path / "a")]) == 2
     check_one_line(capsys.readouterr().err, "'sponza'", "sibenik", "conference")
@@ -280,17 +289,23 @@ def test_unknown_name(tmp_path, capsys):
 
 # --- the conversions ----------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("top", ["", "sibenik/"])
-def test_sibenik_split_keeps_every_face_with_its_material(tmp_path, top):
-    """sibenik.obj keeps every face but the staklo panes, sibenik_staklo.obj holds those, as trimesh
-    reads the archive's file; textures and copyright.txt are kept; the mtllib line names the .mtl
-    beside them, including when the archive wraps everything in one folder."""
-    zipped = sibenik_zip(tmp_path / "sibenik.zip", top=top)
+def convert_sibenik(tmp_path: Path, obj: str = SIBENIK_OBJ, top: str = "") -> Path:
+    """A fixture zip put by hand in <tmp_path>/assets/archives, converted (its own sum pinned)."""
+    zipped = sibenik_zip(tmp_path / "sibenik.zip", obj=obj, top=top)
     target = tmp_path / "assets"
     (target / "archives").mkdir(parents=True)
     (target / "archives" / "sibenik.zip").write_bytes(zipped.read_bytes())
     raytrace.assets(["sibenik"], folder=target, archives=[replace(ARCHIVES["sibenik"], sha256=sha256(zipped))],
                     progress=False, note=lambda _: None)
+    return target
+
+
+@pytest.mark.parametrize("top", ["", "sibenik/"])
+def test_sibenik_split_keeps_every_face_with_its_material(tmp_path, top):
+    """sibenik.obj keeps every face but the staklo panes, sibenik_staklo.obj holds those, as trimesh
+    reads the archive's file; textures and copyright.txt are kept; the mtllib line names the .mtl
+    beside them, including when the archive wraps everything in one folder (and macOS's __MACOSX)."""
+    target = convert_sibenik(tmp_path, top=top)
     out = target / "sibenik"
     assert sorted(p.name for p in out.iterdir()) == ["CREDITS.txt", "copyright.txt", "kamen.png", "sibenik.mtl",
                                                      "sibenik.obj", "sibenik_staklo.obj"]
@@ -309,23 +324,14 @@ def test_sibenik_split_keeps_every_face_with_its_material(tmp_path, top):
 
 def test_sibenik_mtllib_of_an_exporter_is_pointed_at_the_mtl_beside_it(tmp_path):
     obj = SIBENIK_OBJ.replace("mtllib sibenik.mtl", "mtllib untitled.mtl")
-    zipped = sibenik_zip(tmp_path / "sibenik.zip", obj=obj)
-    target = tmp_path / "assets"
-    (target / "archives").mkdir(parents=True)
-    (target / "archives" / "sibenik.zip").write_bytes(zipped.read_bytes())
-    raytrace.assets(["sibenik"], folder=target, archives=[replace(ARCHIVES["sibenik"], sha256=sha256(zipped))],
-                    progress=False, note=lambda _: None)
+    target = convert_sibenik(tmp_path, obj=obj)
     assert "mtllib sibenik.mtl" in (target / "sibenik" / "sibenik.obj").read_text().splitlines()
 
 
 def test_sibenik_without_panes_is_refused_leaving_the_archive_only(tmp_path):
-    zipped = sibenik_zip(tmp_path / "sibenik.zip", obj=SIBENIK_OBJ.replace("usemtl staklo", "usemtl kamen_zid"))
-    target = tmp_path / "assets"
-    (target / "archives").mkdir(parents=True)
-    (target / "archives" / "sibenik.zip").write_bytes(zipped.read_bytes())
     with pytest.raises(UserError, match="no faces with `usemtl staklo`"):
-        raytrace.assets(["sibenik"], folder=target, archives=[replace(ARCHIVES["sibenik"], sha256=sha256(zipped))],
-                        progress=False, note=lambda _: None)
+        convert_sibenik(tmp_path, obj=SIBENIK_OBJ.replace("usemtl staklo", "usemtl kamen_zid"))
+    target = tmp_path / "assets"
     assert files_under(target) == [target / "archives" / "sibenik.zip"]
 
 

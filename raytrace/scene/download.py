@@ -91,8 +91,12 @@ def _new_folders(path: Path) -> list[Path]:
 
 def _install(a: Archive, target: Path, mirror: str | None, progress: bool, note) -> None:
     created = _new_folders(target / "archives")
-    (target / "archives").mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{a.name}-", dir=target))
+    try:
+        (target / "archives").mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{a.name}-", dir=target))
+    except OSError as exc:
+        raise UserError(f"{target}: cannot write there ({exc.strerror or exc}); choose another folder with --folder "
+                        "(or RAYTRACE_ASSETS)") from None
     try:
         archive = _archive(a, target, stage, mirror, progress, note)
         out = stage / "out"
@@ -156,10 +160,11 @@ def _unzip(archive: Path, dest: Path) -> None:
             z.extractall(unpacked)
     except zipfile.BadZipFile as exc:
         raise UserError(f"{archive}: not a zip archive ({exc}); delete it and run `render.py assets` again") from None
-    entries = list(unpacked.iterdir())
+    entries = [e for e in unpacked.iterdir() if e.name != "__MACOSX"]  # a macOS zip tool's resource forks
     root = entries[0] if len(entries) == 1 and entries[0].is_dir() else unpacked
     for entry in root.iterdir():
-        os.replace(entry, dest / entry.name)
+        if entry.name != "__MACOSX":
+            os.replace(entry, dest / entry.name)
     shutil.rmtree(unpacked)
 
 
