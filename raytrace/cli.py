@@ -236,10 +236,10 @@ def build_parser():
                         "(docs/error_bounds.md)")
     a = _command(sub, "assets", "download the paper's meshes (Sibenik, the conference room) from their public "
                                 "archives, check their SHA-256 sums and convert them for the bundled scenes",
-                 "Into the first RAYTRACE_ASSETS folder, else the user's data folder; prints each archive's credit "
-                 "and licence (docs/assets.md).")
+                 "The files go into the first RAYTRACE_ASSETS folder, else the user's data folder, and each "
+                 "archive's credit and licence is printed (docs/assets.md).")
     a.add_argument("names", nargs="*", metavar="NAME", help="archives to fetch: sibenik, conference (default: both)")
-    a.add_argument("--folder", help="download into this folder instead (then add it to RAYTRACE_ASSETS)")
+    a.add_argument("--folder", metavar="DIR", help="download into this folder instead (then add it to RAYTRACE_ASSETS)")
     a.add_argument("--mirror", metavar="URL", help="fetch the archives from this base URL, by their file names "
                                                    "(default: their public sources, or $RAYTRACE_ASSETS_MIRROR)")
     a.add_argument("--trust-unpinned", action="store_true",
