@@ -39,7 +39,7 @@ def assets(names: Iterable[str] | None = None, *, folder: str | Path | None = No
     sum: a mirror, a test); `note` receives the progress lines."""
     catalogue = {**ARCHIVES, **{a.name: a for a in archives or ()}}
     chosen = _select(names, catalogue)
-    target = Path(folder).expanduser() if folder is not None else asset_folders()[0]
+    target = _target(folder)
     mirror = mirror or os.environ.get(MIRROR_ENV) or None
     todo = [a for a in chosen if not all((target / f).is_file() for f in a.files)]
     for a in chosen:
@@ -47,10 +47,10 @@ def assets(names: Iterable[str] | None = None, *, folder: str | Path | None = No
             note(f"{a.name}: already in {target} (delete {target / a.folder} to fetch it again)")
     unpinned = [a.name for a in todo if a.sha256 is None]
     if unpinned and not trust_unpinned:
+        pinned = [a.name for a in todo if a.sha256 is not None]
         raise UserError(f"{', '.join(unpinned)}: no pinned SHA-256 sum for the archive (docs/assets.md says why); "
-                        f"`render.py assets --trust-unpinned` downloads it unchecked and prints its sum, or "
-                        f"`render.py assets {' '.join(sorted(set(a.name for a in chosen) - set(unpinned))) or 'NAME'}`"
-                        " fetches only pinned ones")
+                        "`render.py assets --trust-unpinned` (trust_unpinned=True) downloads it unchecked and prints "
+                        "its sum" + (f", `render.py assets {' '.join(pinned)}` only the pinned ones" if pinned else ""))
     for a in todo:
         _install(a, target, mirror, progress, note)
         note(f"{a.name}: {a.credit}. Licence: {a.licence}")
@@ -59,7 +59,7 @@ def assets(names: Iterable[str] | None = None, *, folder: str | Path | None = No
 
 def describe(folder: str | Path | None = None) -> list[str]:
     """One paragraph per archive: files, source, sum, credit, licence and whether it is installed."""
-    target = Path(folder).expanduser() if folder is not None else asset_folders()[0]
+    target = _target(folder)
     lines = []
     for a in ARCHIVES.values():
         state = "installed" if all((target / f).is_file() for f in a.files) else "not installed"
@@ -69,6 +69,10 @@ def describe(folder: str | Path | None = None) -> list[str]:
                   f"    {a.credit}", f"    Licence: {a.licence}"]
     lines += [f"{name}: not downloaded: {why}" for name, why in NOT_DOWNLOADED.items()]
     return lines
+
+
+def _target(folder) -> Path:
+    return Path(folder).expanduser() if folder is not None else asset_folders()[0]
 
 
 def _select(names, catalogue: dict) -> list[Archive]:
