@@ -386,14 +386,53 @@ def test_conference_conversion_against_the_analytic_shapes(served, tmp_path):
     assert "newmtl chrome\n# pbrt type: mirror\nKd 0 0 0\nKs 0.7 0.7 0.7\nillum 3\n" in mtl
 
 
+def shared_folder(name: str, needs: str) -> Path:
+    """<RAYTRACE_ASSETS folder>/name holding `needs` (../shared/scenes), or skip."""
+    found = next((Path(p) / name for p in os.environ.get("RAYTRACE_ASSETS", "").split(os.pathsep)
+                  if p and (Path(p) / name / needs).is_file()), None)
+    if found is None:
+        pytest.skip(f"needs RAYTRACE_ASSETS=../shared/scenes ({name}/{needs})")
+    return found
+
+
+def test_sibenik_split_of_the_whole_cathedral(tmp_path):
+    """The files the scene was made with (../shared/scenes/sibenik: the cathedral without its panes,
+    an exporter's `mtllib untitled.mtl` line, and the panes), joined into one OBJ as McGuire's holds
+    the model, split back by `render.py assets`: each file's triangles come back, as trimesh reads
+    them, and both name sibenik.mtl."""
+    shared = shared_folder("sibenik", "sibenik_staklo.obj")
+    cathedral = (shared / "sibenik.obj").read_text(encoding="utf-8")
+    counts = {tag: sum(1 for line in cathedral.splitlines() if line.startswith(tag + " ")) for tag in ("v", "vt", "vn")}
+    panes = []
+    for line in (shared / "sibenik_staklo.obj").read_text(encoding="utf-8").splitlines():
+        if line.startswith("f "):
+            line = "f " + " ".join("/".join(str(int(i) + counts[t]) if i else "" for t, i in zip(("v", "vt", "vn"),
+                                                                                                  c.split("/")))
+                                   for c in line.split()[1:])
+        if not line.startswith(("#", "mtllib")):
+            panes.append(line)
+    joined = cathedral.replace("mtllib sibenik.mtl", "mtllib untitled.mtl") + "\n".join(panes) + "\n"
+    with zipfile.ZipFile(tmp_path / "sibenik.zip", "w") as z:
+        z.writestr("sibenik.obj", joined)
+        z.write(shared / "sibenik.mtl", "sibenik.mtl")
+    target = tmp_path / "assets"
+    (target / "archives").mkdir(parents=True)
+    (target / "archives" / "sibenik.zip").write_bytes((tmp_path / "sibenik.zip").read_bytes())
+    raytrace.assets(["sibenik"], folder=target, progress=False, note=lambda _: None,
+                    archives=[replace(ARCHIVES["sibenik"], sha256=sha256(tmp_path / "sibenik.zip"))])
+    for name in ("sibenik.obj", "sibenik_staklo.obj"):
+        made, reference = by_material(target / "sibenik" / name), by_material(shared / name)
+        assert made.keys() == reference.keys()
+        for material in reference:
+            np.testing.assert_array_equal(made[material], reference[material])
+        assert "mtllib sibenik.mtl" in (target / "sibenik" / name).read_text(encoding="utf-8").splitlines()
+
+
 def test_conference_conversion_reproduces_the_shared_files(tmp_path):
     """The real archive (its copy beside the repository, verified against the pinned sum) converts to
     the very files the bundled scene was made with (../shared/scenes/conference_lbl, converted by a
     separate helper): byte for byte after the header."""
-    shared = next((Path(p) / "conference_lbl" for p in os.environ.get("RAYTRACE_ASSETS", "").split(os.pathsep)
-                   if p and (Path(p) / "conference_lbl" / "conference_room.pbrt.gz").is_file()), None)
-    if shared is None:
-        pytest.skip("needs RAYTRACE_ASSETS=../shared/scenes (the LBL archive and its converted files)")
+    shared = shared_folder("conference_lbl", "conference_room.pbrt.gz")
     archive = shared / "conference_room.pbrt.gz"
     assert sha256(archive) == ARCHIVES["conference"].sha256
     target = tmp_path / "assets"
