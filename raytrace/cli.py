@@ -20,7 +20,8 @@ from .film import VIEWS
 PAPER = '"An Analytical Solution to Single Scattering in Homogeneous Participating Media" (Pegoraro & Parker)'
 DESCRIPTION = ("Render single scattering in participating media (fog, atmospheres, media inside shapes) to EXR and "
                f"PNG: the closed-form air-light of {PAPER}, and ray marching, quadrature and Monte Carlo to check it.")
-COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export", "gallery")
+COMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export", "gallery",
+            "assets")
 
 
 def _method_param_flags():
@@ -233,7 +234,30 @@ def build_parser():
     f.add_argument("--bounds", type=float, metavar="K",
                    help="exit 1 unless |TEST - REF| <= K x (the sum of their error_bound channels) at every pixel "
                         "(docs/error_bounds.md)")
+    a = _command(sub, "assets", "download the paper's meshes (Sibenik, the conference room) from their public "
+                                "archives, check their SHA-256 sums and convert them for the bundled scenes",
+                 "The files go into the first RAYTRACE_ASSETS folder, else the user's data folder, and each "
+                 "archive's credit and licence is printed (docs/assets.md).")
+    a.add_argument("names", nargs="*", metavar="NAME", help="archives to fetch: sibenik, conference (default: both)")
+    a.add_argument("--folder", metavar="DIR", help="download into this folder instead (then add it to RAYTRACE_ASSETS)")
+    a.add_argument("--mirror", metavar="URL", help="fetch the archives from this base URL, by their file names "
+                                                   "(default: their public sources, or $RAYTRACE_ASSETS_MIRROR)")
+    a.add_argument("--trust-unpinned", action="store_true",
+                   help="also fetch an archive whose SHA-256 sum is not pinned (its sum is printed)")
+    a.add_argument("--list", action="store_true", help="list the archives, their sources, sums, credits and licences")
     return parser
+
+
+def cmd_assets(args):
+    from .scene.download import assets, describe
+
+    if args.list:
+        print("\n".join(describe(args.folder)))
+        return 0
+    files = assets(args.names, folder=args.folder, mirror=args.mirror, trust_unpinned=args.trust_unpinned,
+                   progress=sys.stderr.isatty(), note=lambda line: print(line, flush=True))
+    print(f"{counted(len(files), 'file')} for the bundled scenes ready in {files[0].parents[1]}")
+    return 0
 
 
 def load(args):
@@ -552,7 +576,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     handlers = {"render": cmd_render, "describe": cmd_describe, "methods": cmd_methods, "diff": cmd_diff,
                 "compare": cmd_compare, "sweep": cmd_sweep, "table1": cmd_table1,
-                "seed002": cmd_seed002, "export": cmd_export, "gallery": cmd_gallery}
+                "seed002": cmd_seed002, "export": cmd_export, "gallery": cmd_gallery, "assets": cmd_assets}
     try:
         with _one_line_warnings():
             return handlers[args.command](args)

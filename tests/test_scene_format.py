@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -298,9 +299,14 @@ def test_absolute_mesh_path(folders, tmp_path):
         assets.find_asset(str(tmp_path / "nope.obj"), scene, "k")
 
 
-def test_no_env_means_scene_folder_only(tmp_path, monkeypatch):
+def test_no_env_means_scene_folder_then_user_data_folder(tmp_path, monkeypatch):
+    """Without RAYTRACE_ASSETS, the folder `render.py assets` downloads into is searched after the
+    scene's own (docs/assets.md); on Linux it follows XDG_DATA_HOME."""
     monkeypatch.delenv("RAYTRACE_ASSETS", raising=False)
-    assert assets.search_folders(tmp_path / "s.toml") == [tmp_path]
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    assert assets.search_folders(tmp_path / "s.toml") == [tmp_path, assets.data_folder()]
+    if sys.platform.startswith("linux"):
+        assert assets.data_folder() == tmp_path / "xdg" / "raytrace-media"
 
 
 # --- meshes through trimesh -------------------------------------------------------------------------------
