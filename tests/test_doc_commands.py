@@ -90,7 +90,9 @@ def clone(tmp_path):
     os.symlink(ROOT / "scenes", tmp_path / "scenes")
     bin_dir = tmp_path / ".venv" / "bin"
     bin_dir.mkdir(parents=True)
-    os.symlink(sys.executable, bin_dir / "python")
+    python = bin_dir / "python"  # a script, not a link: a link to a venv's python loses the venv
+    python.write_text(f'#!/bin/sh\nexec {shlex.quote(sys.executable)} "$@"\n')
+    python.chmod(0o755)
     env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}", "PYTHONPATH": str(ROOT)}
     return tmp_path, env
 
