@@ -437,47 +437,54 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
                  bound, auto, unbounded, unbounded_reason(prep, m, result) if unbounded else "")
 
 
-AUTO = "auto"  # the default method (SCENE_FORMAT.md): analytic where it takes the scene, else quadrature
-ACCURACY = {"analytic": "precision", "quadrature": "rtol"}  # auto's choices and the key of each one's accuracy
+AUTO = "auto"  # the default method (SCENE_FORMAT.md): the first of AUTO_METHODS whose checks accept the scene
+AUTO_METHODS = ("analytic", "quadrature")  # tried in this order; the last renders or refuses
+ACCURACY = ("precision", "rtol")  # the keys of a requested relative accuracy: each of AUTO_METHODS reads one
 
 
 def choose_method(prep, explicit: dict, options: RenderOptions, source: str):
-    """method = "auto": `analytic` where the checks renderer.render makes before rendering accept the
-    scene (experiments.compare.check_method, their UserError caught), else `quadrature`. The requested
-    accuracy (`precision` or `rtol`, given explicitly or in [render]; default analytic's precision)
-    goes to the picked method under its own key; every other parameter is analytic's, checked as
-    such. Returns (method, parameters, the choice in words: "analytic" or "quadrature (analytic: why
-    not)")."""
+    """method = "auto": the first of AUTO_METHODS (analytic) whose checks, those renderer.render
+    makes before rendering (experiments.compare.check_method), accept the scene, their UserError
+    caught; else the last (quadrature). The requested accuracy (a key of ACCURACY, given explicitly or
+    in [render]; default the first method's) goes to the picked method under its own key; every other
+    parameter is the first method's, checked as such. Returns (method, parameters, the choice in
+    words: "analytic" or "quadrature (analytic: why not)")."""
     from .experiments.compare import check_method
     from .methods import resolve_params
 
+    methods = [get_method(name, source) for name in AUTO_METHODS]
+    key = {m.name: next(k for k in ACCURACY if k in m.params) for m in methods}  # each method's accuracy key
     table = table_params(prep.scene)
-    analytic = get_method("analytic", source)
-    value = analytic.params[ACCURACY["analytic"]].default
+    value = methods[0].params[key[methods[0].name]].default
     for where, given in (("[render]", table), ("given", explicit)):  # explicit keywords win
-        keys = [k for k in ACCURACY.values() if k in given]
+        keys = [k for k in ACCURACY if k in given]
         if len(keys) > 1:
-            raise UserError(f"{source}: {where} precision and rtol: with method auto both name the accuracy (analytic's "
-                            "precision, quadrature's rtol); give one")
+            raise UserError(f"{source}: {where} {' and '.join(keys)}: with method auto each names the accuracy (for "
+                            f"{', '.join(f'{m.name} {key[m.name]}' for m in methods)}); give one")
         value = given[keys[0]] if keys else value
-    others = {k: v for k, v in explicit.items() if k not in ACCURACY.values()}
-    defaults = {k: v for k, v in table.items() if k not in ACCURACY.values()}
-    params = {**{k: v for k, v in defaults.items() if k in analytic.params}, **others, ACCURACY["analytic"]: value}
-    resolve_params(analytic, params, source)  # a parameter analytic refuses is an error, not a reason to switch
-    try:
-        check_method(prep, analytic.name, params, options, source)
-        picked, choice = analytic, analytic.name
-    except UserError as exc:
-        picked = get_method("quadrature", source)
-        choice = f"{picked.name} (analytic: {_refusal(exc, source)})"
-    return picked, {**scene_defaults(defaults, picked, source), **others, ACCURACY[picked.name]: value}, choice
+    others = {k: v for k, v in explicit.items() if k not in ACCURACY}
+    defaults = {k: v for k, v in table.items() if k not in ACCURACY}
+    refused = []
+    for m in methods[:-1]:
+        params = {**{k: v for k, v in defaults.items() if k in m.params}, **others, key[m.name]: value}
+        resolve_params(m, params, source)  # a parameter it refuses is an error, not a reason to switch
+        try:
+            check_method(prep, m.name, params, options, source)
+            picked = m
+            break
+        except UserError as exc:
+            refused.append(f"{m.name}: {_refusal(exc, m, source)}")
+    else:
+        picked = methods[-1]
+    choice = picked.name + (f" ({'; '.join(refused)})" if refused else "")
+    return picked, {**scene_defaults(defaults, picked, source), **others, key[picked.name]: value}, choice
 
 
-def _refusal(exc: UserError, source: str) -> str:
-    """A method's refusal in a few words: its message without the source and the method's flag, up to
+def _refusal(exc: UserError, method, source: str) -> str:
+    """`method`'s refusal in a few words: its message without the source and the method's flag, up to
     the fix (what follows the first "; ")."""
     text = " ".join(str(exc).split())
-    for prefix in (f"{source}: ", "--method analytic: ", "it "):
+    for prefix in (f"{source}: ", f"--method {method.name}: ", "it "):
         text = text.removeprefix(prefix)
     return text.split("; ")[0]
 

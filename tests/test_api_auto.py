@@ -49,7 +49,8 @@ def test_without_an_accuracy_auto_passes_analytics_default_precision_to_quadratu
 
 
 def test_precision_and_rtol_together_are_refused():
-    with pytest.raises(raytrace.UserError, match="precision and rtol: with method auto both name the accuracy"):
+    says = r"given precision and rtol: with method auto each names the accuracy \(for analytic precision, quadrature rtol\)"
+    with pytest.raises(raytrace.UserError, match=says):
         raytrace.render("box_room", "auto", precision=1e-4, rtol=1e-4, **TINY)
 
 
