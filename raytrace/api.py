@@ -57,6 +57,26 @@ class Image:
     # bound is known; for a stochastic method its standard error instead (statistical, not a bound):
     # docs/error_bounds.md
     error_bound: np.ndarray | None = None
+    auto: str | None = None  # method = "auto": its choice in words ("analytic", "quadrature (analytic: why not)")
+    unbounded: float = 0.0  # the share of pixels whose error_bound is infinite in some channel (0 to 1)
+    unbounded_reason: str = ""  # why, in a few words, where the render knows it (`unbounded_reason`)
+
+    @property
+    def method_label(self) -> str:
+        """The method as summaries name it: "analytic", or "auto → quadrature (analytic: ...)"."""
+        return self.method if self.auto is None else f"auto → {self.auto}"
+
+    def bound_note(self, always: bool = False) -> str:
+        """The share of pixels without a finite error bound, with its reason: "1.5 % of pixels
+        unbounded: ..."; "" when every pixel is bounded (unless `always`)."""
+        if not self.unbounded:
+            return "every pixel bounded" if always else ""
+        return f"{_percent(self.unbounded)} of pixels unbounded" + (f": {self.unbounded_reason}" if self.unbounded_reason else "")
+
+    def __repr__(self) -> str:
+        height, width = self.array.shape[:2]
+        return (f"Image({self.scene}: {width}x{height}, method {self.method_label}, {self.seconds:.2f} s, "
+                f"{self.bound_note(always=True)})")
 
     def header(self) -> dict:
         """EXR header attributes: scene, method, parameters, options, times and statistics."""
@@ -65,7 +85,11 @@ class Image:
                "volumetric_shadows": str(self.volumetric_shadows).lower(),
                "render_seconds": f"{self.seconds:.3f}", "compile_seconds": f"{self.compile_seconds:.3f}",
                "params": " ".join(f"{k}={v}" for k, v in self.params.items()),
-               "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+               "created": time.strftime("%Y-%m-%dT%H:%M:%S"), "unbounded_pixels": f"{self.unbounded:.6g}"}
+        if self.unbounded_reason:
+            out["unbounded_reason"] = self.unbounded_reason
+        if self.auto is not None:
+            out["method_choice"] = self.method_label
         out.update({f"stats.{k}": v for k, v in self.stats.items()})
         out.update(self.extra_header)
         return out
@@ -92,8 +116,8 @@ class Image:
         import html
 
         height, width = self.array.shape[:2]
-        caption = (f"{self.scene}: {width}x{height}, method {self.method}, {self.spp} spp, {self.seconds:.2f} s "
-                   f"(+{self.compile_seconds:.2f} s compile)")
+        caption = (f"{self.scene}: {width}x{height}, method {self.method_label}, {self.spp} spp, {self.seconds:.2f} s "
+                   f"(+{self.compile_seconds:.2f} s compile)" + (f", {self.bound_note()}" if self.unbounded else ""))
         data = base64.b64encode(self._repr_png_()).decode("ascii")
         return (f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(caption)}">'
                 f"<figcaption>{html.escape(caption)}</figcaption></figure>")
@@ -125,6 +149,16 @@ class Image:
             else:
                 raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
         film.write_together(jobs)
+
+
+def _percent(share: float) -> str:
+    """A share (0 to 1) as a percentage to a tenth: "1.5 %", "< 0.1 %" and "> 99.9 %" at the ends."""
+    pct = 100.0 * share
+    if share == 1.0:
+        return "100 %"
+    if pct < 0.1:
+        return "< 0.1 %"
+    return "> 99.9 %" if pct > 99.9 and share < 1.0 else f"{pct:.1f} %"
 
 
 def load(scene=None, overrides=(), camera: str | None = None) -> Scene:
@@ -324,14 +358,17 @@ class SceneDefaultNote(UserWarning):
     """A scene's [render] parameter that the chosen method does not read was left out."""
 
 
-def scene_defaults(scene: Scene, method, source: str) -> dict:
-    """The method parameters of the scene's [render] table (the file's, with --set render.X edits)
-    that `method` reads. The ones it does not read (e.g. a quadrature scene's rtol when rendering
-    with raymarch, or a stray rtol beside method = "analytic") are left out with one
-    SceneDefaultNote, never refused: only a keyword or flag given explicitly is (resolve_params)."""
+def table_params(scene: Scene) -> dict:
+    """The method parameters of the scene's [render] table (the file's, with --set render.X edits)."""
     from .scene.format import RENDER_OPTIONS
 
-    params = {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+    return {k: v for k, v in scene.render.items() if k not in RENDER_OPTIONS}
+
+
+def scene_defaults(params: dict, method, source: str) -> dict:
+    """The parameters among a scene's [render] `params` (`table_params`) that `method` reads. The ones it does not read (e.g. a quadrature scene's rtol when rendering
+    with raymarch, or a stray rtol beside method = "analytic") are left out with one
+    SceneDefaultNote, never refused: only a keyword or flag given explicitly is (resolve_params)."""
     unread = [k for k in params if k not in method.params]
     if unread:
         warnings.warn(f"{source}: [render] {', '.join(f'{k} = {params[k]!r}' for k in unread)}: not read by method "
@@ -341,7 +378,8 @@ def scene_defaults(scene: Scene, method, source: str) -> dict:
 
 def render(scene=None, method: str | None = None, *, overrides=(), camera: str | None = None, prepared=None,
            client=None, **kwargs) -> Image:
-    """Render `scene` with `method` (default: the scene's [render] method, else analytic).
+    """Render `scene` with `method` (default: the scene's [render] method, else "auto": analytic
+    where it takes the scene, else quadrature, `choose_method`).
 
     Keywords named as `RenderOptions`' fields are render options (raytrace/options.py: spp, width,
     height, seed, threads, crop, volumetric_shadows, shadow_spacing, the progressive passes,
@@ -361,16 +399,21 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
         given_options["volumetric_shadows"] = True
     options = render_options(scene, source, **given_options)
     cam = scene.camera
-    m = get_method(method or scene.render.get("method", "analytic"), source)
-    given = scene_defaults(scene, m, source)
-    given.update({k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None})
-    if options.progressive and not m.stochastic:
-        raise UserError(f"{source}: method {m.name} is deterministic; the progressive options passes, time_budget, "
+    name = method or scene.render.get("method", AUTO)
+    m = None if name == AUTO else get_method(name, source)
+    explicit = {k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None}
+    if options.progressive and (m is None or not m.stochastic):
+        raise UserError(f"{source}: method {name} is deterministic; the progressive options passes, time_budget, "
                         "target_error and checkpoint (--passes, --time-budget, --target-error, --checkpoint) need "
                         "a stochastic method such as montecarlo")
-    check_memory(cam, options.crop, m.stochastic, source, options.max_memory)
+    check_memory(cam, options.crop, m is not None and m.stochastic, source, options.max_memory)
     run_on = executor(options, client, source)
     prep = prepared if prepared is not None else renderer.prepare(scene)
+    auto = None
+    if m is None:
+        m, given, auto = choose_method(prep, explicit, options, source)
+    else:
+        given = {**scene_defaults(table_params(scene), m, source), **explicit}
     if m.stochastic:
         from .progressive import render_progressive
 
@@ -387,7 +430,83 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     bound = result.error_bound
     if result.variance is not None:
         bound = error_bounds.with_standard_error(bound, result.variance)
+    unbounded = float(np.isinf(bound).any(axis=-1).mean()) if bound is not None and bound.size else 0.0
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
                  result.compile_seconds, cam.spp, options.seed, options.crop, options.volumetric_shadows,
                  result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {},
-                 bound)
+                 bound, auto, unbounded, unbounded_reason(prep, m, result) if unbounded else "")
+
+
+AUTO = "auto"  # the default method (SCENE_FORMAT.md): the first of AUTO_METHODS whose checks accept the scene
+AUTO_METHODS = ("analytic", "quadrature")  # tried in this order; the last renders or refuses
+ACCURACY = ("precision", "rtol")  # the keys of a requested relative accuracy: each of AUTO_METHODS reads one
+
+
+def choose_method(prep, explicit: dict, options: RenderOptions, source: str):
+    """method = "auto": the first of AUTO_METHODS (analytic) whose checks, those renderer.render
+    makes before rendering (experiments.compare.check_method), accept the scene, their UserError
+    caught; else the last (quadrature). The requested accuracy (a key of ACCURACY, given explicitly or
+    in [render]; default the first method's) goes to the picked method under its own key; every other
+    parameter is the first method's, checked as such. Returns (method, parameters, the choice in
+    words: "analytic" or "quadrature (analytic: why not)")."""
+    from .experiments.compare import check_method
+    from .methods import resolve_params
+
+    methods = [get_method(name, source) for name in AUTO_METHODS]
+    key = {m.name: next(k for k in ACCURACY if k in m.params) for m in methods}  # each method's accuracy key
+    table = table_params(prep.scene)
+    value = methods[0].params[key[methods[0].name]].default
+    for where, given in (("[render]", table), ("given", explicit)):  # explicit keywords win
+        keys = [k for k in ACCURACY if k in given]
+        if len(keys) > 1:
+            raise UserError(f"{source}: {where} {' and '.join(keys)}: with method auto each names the accuracy (for "
+                            f"{', '.join(f'{m.name} {key[m.name]}' for m in methods)}); give one")
+        value = given[keys[0]] if keys else value
+    others = {k: v for k, v in explicit.items() if k not in ACCURACY}
+    defaults = {k: v for k, v in table.items() if k not in ACCURACY}
+    refused = []
+    for m in methods[:-1]:
+        params = {**{k: v for k, v in defaults.items() if k in m.params}, **others, key[m.name]: value}
+        resolve_params(m, params, source)  # a parameter it refuses is an error, not a reason to switch
+        try:
+            check_method(prep, m.name, params, options, source)
+            picked = m
+            break
+        except UserError as exc:
+            refused.append(f"{m.name}: {_refusal(exc, m, source)}")
+    else:
+        picked = methods[-1]
+    choice = picked.name + (f" ({'; '.join(refused)})" if refused else "")
+    return picked, {**scene_defaults(defaults, picked, source), **others, key[picked.name]: value}, choice
+
+
+def _refusal(exc: UserError, method, source: str) -> str:
+    """`method`'s refusal in a few words: its message without the source and the method's flag, up to
+    the fix (what follows the first "; ")."""
+    text = " ".join(str(exc).split())
+    for prefix in (f"{source}: ", f"--method {method.name}: ", "it "):
+        text = text.removeprefix(prefix)
+    return text.split("; ")[0]
+
+
+def unbounded_reason(prep, method, result) -> str:
+    """Why pixels of a render have no finite error bound, in a few words, from what the render knows
+    (docs/error_bounds.md lists the sources): the method's air-light gives no bound in this medium
+    (asked of it: its airlight's third value on an empty batch), media inside shapes, the particle
+    layer's glints. "" where none of these applies."""
+    from .methods import Segments
+
+    medium, why = prep.scene.medium, []
+    if not method.stochastic:
+        none = np.zeros((0, 3))
+        empty = Segments(none, none, np.zeros(0), *(np.zeros(0, dtype=np.int64),) * 2, np.zeros(0),
+                         np.zeros(0, dtype=np.uint64), np.zeros(0, dtype=np.int64))
+        if len(method.airlight(empty, medium, prep.lights, result.params)) < 3:
+            why.append(f"{method.name} gives no bound in {medium.type_name} media")
+    if prep.interior_shapes is not None and len(prep.interior_shapes):
+        handed = result.stats.get("inside: segments handed to quadrature", 0)
+        why.append(f"media inside shapes ({counted(handed, 'segment')} handed to quadrature)" if handed else
+                   "media inside shapes")
+    if medium.particles is not None:
+        why.append("particle glints")
+    return ", ".join(why)

@@ -108,7 +108,8 @@ def build_parser():
                  "A linear float32 EXR (with per-pixel error bounds) and an 8-bit PNG preview, with one air-light "
                  "method; every output path is checked before rendering and the files are written together.")
     _add_scene_args(r)
-    r.add_argument("--method", help="air-light method (see `methods`; default: the scene's render.method, else analytic)")
+    r.add_argument("--method", help="air-light method (see `methods`), or auto: analytic where it takes the scene, else "
+                                    "quadrature (default: the scene's render.method, else auto)")
     r.add_argument("--spp", type=int, help="samples per pixel (1 = the pixel centre)")
     r.add_argument("--width", type=int, help=OPTION_HELP["width"])
     r.add_argument("--height", type=int, help=OPTION_HELP["height"])
@@ -338,15 +339,32 @@ def cmd_render(args):
     with film.folders_for(outputs):  # missing folders are created now, and removed again if the save fails
         img.save(*outputs, exposure=args.exposure, view=args.view)  # both or neither
     if not args.quiet:
-        cam = scene.camera
-        size = f"{cam.width}x{cam.height}" + (f" (crop {args.crop})" if rows else "")
-        print(f"{scene.name}: {size}, {cam.spp} spp, method {img.method} "
-              f"in {img.seconds:.2f} s (+{img.compile_seconds:.2f} s compile) → {out}"
-              + (f", {png}" if png else ""))
+        print(_summary(scene, img, args.crop if rows else None, [out] + ([png] if png else [])))
+    if rows is not None and img.array.shape[:2] == (1, 1):
+        print(_pixel(img, rows))
     if args.stats:
         for k, v in img.stats.items():
             print(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
     return 0
+
+
+def _summary(scene, img, crop, outputs) -> str:
+    """The render's one line: scene, size, spp, method (auto's choice), times, outputs, and the share of
+    pixels without a finite error bound where there are any."""
+    cam = scene.camera
+    size = f"{cam.width}x{cam.height}" + (f" (crop {crop})" if crop else "")
+    note = img.bound_note()
+    return (f"{scene.name}: {size}, {cam.spp} spp, method {img.method_label} in {img.seconds:.2f} s "
+            f"(+{img.compile_seconds:.2f} s compile) → {', '.join(map(str, outputs))}" + (f"; {note}" if note else ""))
+
+
+def _pixel(img, crop) -> str:
+    """The value of a one-pixel --crop and its error bound (for a stochastic method: the standard
+    error, plus any bound), as stdout prints it."""
+    value, bound = img.array[0, 0], img.error_bound[0, 0]
+    what = "standard error" if img.variance is not None else "error bound"
+    return (f"pixel ({crop[0]}, {crop[1]}): RGB {' '.join(f'{v:.9g}' for v in value)}, "
+            f"{what} {' '.join(f'{b:.9g}' for b in bound)}")
 
 
 def _display(args, scene, name):

@@ -44,34 +44,39 @@ def _png_writer(rgb8):
 def render_gallery(out: Path, width: int = 960, names=(), note=print, threads: int | None = None) -> list[Path]:
     """Render `names` (default: every bundled scene) into `out`/NAME.png, one `note` line per scene
     (its size, method, spp and time; a scene skipped is a GalleryNote warning instead); returns the
-    files written. Every name and output path is checked before the first render."""
+    files written. Every name, the width, the thread count and the output paths are checked before
+    anything is created or rendered."""
     scenes = bundled_scenes()
     names = list(names) or sorted(scenes)
     for name in names:
         if name not in scenes:
             raise UserError(f"gallery: {name}: not a bundled scene; {api._did_you_mean(name, scenes)}"
                             f"choose from: {', '.join(sorted(scenes))}")
+    api.render_options(None, width=width, threads=threads)  # a size or thread count that is not positive
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder; choose a folder path")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"--out {out}: cannot create the folder ({exc.strerror}); choose a writable folder") from None
     for name in names:
         film.check_writable(out / f"{name}.png", "--out")
+    with film.folders_for([out / "gallery.png"]):  # created now; removed again if nothing is written
+        return _render_all(out, names, width, note, threads)
+
+
+def _render_all(out: Path, names, width: int, note, threads) -> list[Path]:
+    """The renders of `render_gallery`, its arguments checked, into the folder `out`."""
     written = []
     for name in names:
         scene = api.load(name)
         why = missing_asset(scene)
         if why is not None:
-            warnings.warn(f"gallery: skipped {name}: {why}", GalleryNote, stacklevel=2)
+            warnings.warn(f"gallery: skipped {name}: {why}", GalleryNote, stacklevel=3)
             continue
         image = api.render(scene, width=width, threads=threads)  # the height keeps the camera's aspect
         h, w = image.array.shape[:2]
         path = out / f"{name}.png"
         film.write_together([(path, _png_writer(film.tonemap(image.array)))])
-        note(f"gallery: {name}: {w}x{h}, method {image.method}, {image.spp} spp, {image.seconds:.1f} s "
-             f"(+{image.compile_seconds:.1f} s compile) -> {path}")
+        bounds = image.bound_note()
+        note(f"gallery: {name}: {w}x{h}, method {image.method_label}, {image.spp} spp, {image.seconds:.1f} s "
+             f"(+{image.compile_seconds:.1f} s compile) -> {path}" + (f"; {bounds}" if bounds else ""))
         written.append(path)
     return written

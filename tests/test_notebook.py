@@ -43,3 +43,13 @@ def test_the_example_notebook_runs_and_shows_its_images(monkeypatch):
     printed = "".join(o.text for c in cells for o in _outputs(c, "stream") if o.name == "stdout")
     assert "100% of pixel channels bounded" in printed
     assert "['box_room.exr', 'box_room.png'] analytic box_room" in printed
+
+
+def test_the_committed_notebook_carries_its_outputs():
+    """Saved executed (where it is browsed, the images show): every code cell ran, in order, without an
+    error, and the two previews are there as PNG."""
+    cells = [c for c in nbformat.read(NOTEBOOK, as_version=4).cells if c.cell_type == "code"]
+    assert [c.execution_count for c in cells] == list(range(1, len(cells) + 1))
+    assert all(c.outputs for c in cells) and not [o for c in cells for o in _outputs(c, "error")]
+    shown = [o.data for c in cells for o in _outputs(c, "execute_result") if "image/png" in o.data]
+    assert len(shown) == 2 and all(d["text/plain"].startswith("Image(box_room: 192x96, method ") for d in shown)

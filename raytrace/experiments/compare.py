@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import film, metrics
+from .. import bounded, film, metrics
 from ..errors import UserError
-from ..methods import get_method
+from ..methods import get_method, resolve_params
 from ..options import RenderOptions
 from ..progressive import render_progressive
-from ..renderer import Prepared, RenderResult, render
+from ..renderer import Prepared, RenderResult, check_options, render
 from ..scene.format import parse_override
 
 
@@ -44,6 +44,28 @@ def parse_spec(text: str) -> MethodSpec:
     return MethodSpec(text.strip(), name, params)
 
 
+def check_method(prep: Prepared, name: str, params: dict, options: RenderOptions, source: str) -> dict:
+    """The checks renderer.render makes before its first tile, made without rendering: the method
+    `name`'s parameters `params` (resolved, returned), its medium, lights, options and media inside
+    shapes on the prepared scene; UserError naming the first refusal."""
+    method = get_method(name)
+    resolved = resolve_params(method, params, source)
+    method.check_medium(prep.scene.medium, source)
+    method.check(prep.scene.medium, resolved)
+    method.check_lights(bounded.outside_lights(prep), source)
+    check_options(method, resolved, options.volumetric_shadows, source, prep.lights, prep.scene.medium)
+    bounded.check(prep, method, resolved, source)
+    return resolved
+
+
+def check_specs(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, options: RenderOptions):
+    """The reference and every method checked on the scene (`check_method`, each named by its flag),
+    so that bad input is refused before anything is rendered or written."""
+    check_method(prep, reference.name, reference.params, options, f"--reference {reference.label}")
+    for spec in specs:
+        check_method(prep, spec.name, spec.params, options, f"--methods {spec.label}")
+
+
 def render_spec(prep: Prepared, spec: MethodSpec, options: RenderOptions = RenderOptions(),
                 executor=None) -> RenderResult:
     """One render of `spec` with `options` (one pass for a stochastic method) on `executor`
@@ -60,7 +82,9 @@ def safe_name(label: str) -> str:
 def compare(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, out: Path,
             options: RenderOptions = RenderOptions(), executor=None, exposure=None, log=print) -> list[dict]:
     """Render the reference and every method with `options` on `executor` (renderer.render's);
-    write images, error maps and compare.md/.json in `out`."""
+    write images, error maps and compare.md/.json in `out`. Every method and parameter is checked
+    on the scene first (`check_specs`): bad input writes nothing."""
+    check_specs(prep, specs, reference, options)
     out.mkdir(parents=True, exist_ok=True)
     ref = render_spec(prep, reference, options, executor)
     header = {"scene": prep.scene.name, "spp": prep.scene.camera.spp, "seed": options.seed}
@@ -82,12 +106,19 @@ def compare(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, out:
         row = {"method": spec.label, "seconds": r.seconds, "compile_seconds": r.compile_seconds, **e,
                "negative_pixels": int(np.sum(r.image < 0)), "stats": {k: v for k, v in r.stats.items()}}
         rows.append(row)
-        log(f"{spec.label}: {r.seconds:.3f} s, mean abs {e['mean_abs']:.3e}, mean rel {e['mean_rel']:.3e}")
+        log(f"{spec.label}: {r.seconds:.3f} s, {summary(e)}")
     table = {"scene": prep.scene.name, "reference": reference.label, "reference_seconds": ref.seconds,
              "error_map_scale": vmax, "methods": rows}
     (out / "compare.json").write_text(json.dumps(table, indent=2, default=float))
     (out / "compare.md").write_text(markdown_table(table))
     return rows
+
+
+def summary(e: dict) -> str:
+    """A method's errors as the log line gives them: the means beside the maximum and the RMS (a
+    mean alone can hide a few very wrong pixels), as the table's columns."""
+    return (f"mean abs {e['mean_abs']:.3e}, mean rel {e['mean_rel']:.3e}, max rel {e['max_rel']:.3e}, "
+            f"RMS {e['rms']:.3e}")
 
 
 def markdown_table(table: dict) -> str:

@@ -22,7 +22,7 @@ from ..errors import UserError
 from ..options import RenderOptions
 from ..renderer import prepare
 from ..scene.format import Scene, parse_override
-from .compare import MethodSpec, render_spec, safe_name
+from .compare import MethodSpec, check_specs, render_spec, safe_name, summary
 
 FIELDS = ("method", "seconds", "compile_seconds", "mean_abs", "mean_rel", "max_rel", "rms")
 
@@ -91,12 +91,15 @@ def sweep(points: list[tuple[dict, Scene, RenderOptions]], specs: list[MethodSpe
     """Render every grid point (its values as given, its parsed scene and its render options) with
     the reference and every method on `executor` (renderer.render's); write p<i>_<method>.exr and
     .png (`exposure` in stops, None: automatic) per point, sweep.csv and sweep.json. Returns the
-    JSON's rows."""
+    JSON's rows. Every point's scene is prepared and every method checked on it first
+    (compare.check_specs): bad input writes nothing."""
     keys = list(points[0][0]) if points else []
+    preps = [prepare(scene) for _, scene, _ in points]  # kept for the renders: each point is prepared once
+    for prep, (_, _, options) in zip(preps, points):
+        check_specs(prep, specs, reference, options)
     out.mkdir(parents=True, exist_ok=True)
     rows, lines = [], []
-    for i, (where, scene, options) in enumerate(points):
-        prep = prepare(scene)
+    for i, (prep, (where, scene, options)) in enumerate(zip(preps, points)):
         ref = render_spec(prep, reference, options, executor)
         header = {"scene": scene.name, "spp": scene.camera.spp, "seed": options.seed,
                   "grid": " ".join(f"{k}={v}" for k, v in where.items())}
@@ -111,7 +114,7 @@ def sweep(points: list[tuple[dict, Scene, RenderOptions]], specs: list[MethodSpe
                          **numbers})
             lines.append({"point": i, **{k: plain(k, v) for k, v in where.items()}, "method": spec.label,
                           **{k: f"{v:.6g}" for k, v in numbers.items()}})
-            log(f"p{i:03d} {header['grid']} {spec.label}: {r.seconds:.3f} s, mean rel {e['mean_rel']:.3e}")
+            log(f"p{i:03d} {header['grid']} {spec.label}: {r.seconds:.3f} s, {summary(e)}")
     buf = io.StringIO()
     writer = csv.DictWriter(buf, ["point", *keys, *FIELDS], lineterminator="\n")
     writer.writeheader()

@@ -413,7 +413,7 @@ def _render(ctx, raw):
     if "method" in out:
         from ..methods import registry
 
-        _string(ctx, "render.method", out["method"], tuple(registry()))
+        _string(ctx, "render.method", out["method"], ("auto", *registry()))  # auto: api.choose_method
     if "seed" in out:
         _number(ctx, "render.seed", out["seed"], integer=True, minimum=0)
     if "volumetric_shadows" in out and not isinstance(out["volumetric_shadows"], bool):
