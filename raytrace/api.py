@@ -444,13 +444,13 @@ ACCURACY = ("precision", "rtol")  # the keys of a requested relative accuracy: e
 
 def choose_method(prep, explicit: dict, options: RenderOptions, source: str):
     """method = "auto": the first of AUTO_METHODS (analytic) whose checks, those renderer.render
-    makes before rendering (experiments.compare.check_method), accept the scene, their UserError
+    makes before rendering (renderer.check), accept the scene, their UserError
     caught; else the last (quadrature). The requested accuracy (a key of ACCURACY, given explicitly or
     in [render]; default the first method's) goes to the picked method under its own key; every other
     parameter is the first method's, checked as such. Returns (method, parameters, the choice in
     words: "analytic" or "quadrature (analytic: why not)")."""
-    from .experiments.compare import check_method
     from .methods import resolve_params
+    from .renderer import check
 
     methods = [get_method(name, source) for name in AUTO_METHODS]
     key = {m.name: next(k for k in ACCURACY if k in m.params) for m in methods}  # each method's accuracy key
@@ -469,7 +469,7 @@ def choose_method(prep, explicit: dict, options: RenderOptions, source: str):
         params = {**{k: v for k, v in defaults.items() if k in m.params}, **others, key[m.name]: value}
         resolve_params(m, params, source)  # a parameter it refuses is an error, not a reason to switch
         try:
-            check_method(prep, m.name, params, options, source)
+            check(prep, m.name, params, options, source)
             picked = m
             break
         except UserError as exc:

@@ -375,6 +375,20 @@ class Accumulator:
         return totals
 
 
+def check(prep: Prepared, method_name: str, given_params: dict, options: RenderOptions, source: str) -> dict:
+    """What `render` checks before its first tile, without rendering: the method's parameters
+    (resolved and returned), its medium, lights and options and the media inside shapes on the
+    prepared scene; UserError naming the first refusal."""
+    method = get_method(method_name)
+    params = resolve_params(method, given_params, source)
+    method.check_medium(prep.scene.medium, source)
+    method.check(prep.scene.medium, params)
+    method.check_lights(bounded.outside_lights(prep), source)
+    check_options(method, params, options.volumetric_shadows, source, prep.lights, prep.scene.medium)
+    bounded.check(prep, method, params, source)
+    return params
+
+
 def render(prep: Prepared, method_name: str, given_params: dict | None = None,
            options: RenderOptions = RenderOptions(), executor=None, source: str = "render") -> RenderResult:
     """Render the image, or the pixel block `options.crop` of it (the same samples and random numbers
@@ -385,12 +399,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     The result does not depend on the executor, its threads or workers."""
     scene = prep.scene
     method = get_method(method_name)
-    params = resolve_params(method, given_params or {}, source)
-    method.check_medium(scene.medium, source)
-    method.check(scene.medium, params)
-    method.check_lights(bounded.outside_lights(prep), source)
-    check_options(method, params, options.volumetric_shadows, source, prep.lights, scene.medium)
-    bounded.check(prep, method, params, source)
+    params = check(prep, method_name, given_params or {}, options, source)
     cam = scene.camera
     options.apply_camera(cam)
     box = options.crop or (0, 0, cam.width, cam.height)

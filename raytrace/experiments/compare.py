@@ -17,7 +17,7 @@ from ..errors import UserError
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
 from ..progressive import render_progressive
-from ..renderer import Prepared, RenderResult, check_options, render
+from ..renderer import Prepared, RenderResult, check, render
 from ..scene.format import parse_override
 
 
@@ -44,26 +44,12 @@ def parse_spec(text: str) -> MethodSpec:
     return MethodSpec(text.strip(), name, params)
 
 
-def check_method(prep: Prepared, name: str, params: dict, options: RenderOptions, source: str) -> dict:
-    """The checks renderer.render makes before its first tile, made without rendering: the method
-    `name`'s parameters `params` (resolved, returned), its medium, lights, options and media inside
-    shapes on the prepared scene; UserError naming the first refusal."""
-    method = get_method(name)
-    resolved = resolve_params(method, params, source)
-    method.check_medium(prep.scene.medium, source)
-    method.check(prep.scene.medium, resolved)
-    method.check_lights(bounded.outside_lights(prep), source)
-    check_options(method, resolved, options.volumetric_shadows, source, prep.lights, prep.scene.medium)
-    bounded.check(prep, method, resolved, source)
-    return resolved
-
-
 def check_specs(prep: Prepared, specs: list[MethodSpec], reference: MethodSpec, options: RenderOptions):
-    """The reference and every method checked on the scene (`check_method`, each named by its flag),
+    """The reference and every method checked on the scene (`renderer.check`, each named by its flag),
     so that bad input is refused before anything is rendered or written."""
-    check_method(prep, reference.name, reference.params, options, f"--reference {reference.label}")
+    check(prep, reference.name, reference.params, options, f"--reference {reference.label}")
     for spec in specs:
-        check_method(prep, spec.name, spec.params, options, f"--methods {spec.label}")
+        check(prep, spec.name, spec.params, options, f"--methods {spec.label}")
 
 
 def render_spec(prep: Prepared, spec: MethodSpec, options: RenderOptions = RenderOptions(),
