@@ -246,6 +246,9 @@ def _shape(ctx, i, raw):
         if kind == "box" and np.any(params["max"] <= params["min"]):
             ctx.fail(f"{key}.max", "must exceed min in every coordinate", "swap or fix min and max")
     refl = raw.get("reflectance")
+    if refl is not None and "interior" in raw:
+        ctx.fail(f"{key}.reflectance", "is not read on a shape that holds a medium (light crosses its boundary, a "
+                 "smooth dielectric or index-matched)", "remove reflectance, or the interior for an opaque surface")
     refl = None if refl is None else _rgb(ctx, f"{key}.reflectance", refl)
     if refl is not None and np.any(refl > 1.0):
         ctx.fail(f"{key}.reflectance", "exceeds 1 (surfaces would create energy)", "use values in [0, 1]")
