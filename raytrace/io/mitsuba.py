@@ -49,6 +49,16 @@ class _Doc:
         self.params: dict[str, str] = {}
         self.ids: dict[str, ET.Element] = {}
         self.stack: list[Path] = []
+        self.folders: list[Path] = []  # Mitsuba's FileResolver: the folders a relative file name is looked up in
+
+    def resolve(self, name: str) -> Path | None:
+        """The first of `folders` that holds `name` (mitsuba3 src/core/fresolver.cpp `resolve`), or None."""
+        if Path(name).is_absolute():
+            return Path(name) if Path(name).exists() else None
+        return next((folder / name for folder in self.folders if (folder / name).exists()), None)
+
+    def searched(self) -> str:
+        return ", ".join(str(f) for f in dict.fromkeys(self.folders))
 
     def fail(self, el, problem: str, fix: str):
         file, line = self.where.get(el, ("?", 0))
@@ -89,6 +99,8 @@ class _Doc:
     def load(self, path: Path) -> list[ET.Element]:
         """The scene's top-level elements with includes spliced in and `$name` substituted."""
         path = path.resolve()
+        if not self.stack:  # mitsuba3 src/core/python/parser.cpp load_file: the main file's folder first
+            self.folders = [path.parent]
         if path in self.stack:
             chain = " -> ".join(p.name for p in [*self.stack, path])
             raise UserError(f"{self.stack[-1]}: <include> loop ({chain}); remove the include that closes the loop")
@@ -97,11 +109,11 @@ class _Doc:
         if root.tag != "scene":
             self.fail(root, "the root element must be <scene>", 'write <scene version="3.0.0"> ... </scene>')
         self._substitute(root)
-        children = self._expand(root, path)
+        children = self._expand(root, path, top=True)
         self.stack.pop()
         return children
 
-    def _expand(self, el, path) -> list[ET.Element]:
+    def _expand(self, el, path, top=False) -> list[ET.Element]:
         out = []
         for child in list(el):
             self._substitute(child)
@@ -114,15 +126,37 @@ class _Doc:
                 name = child.get("filename")
                 if not name:
                     self.fail(child, "needs a filename", '<include filename="other.xml"/>')
-                target = path.parent / name
-                if not target.is_file():
-                    self.fail(child, f"included file {str(target)!r} not found", "fix the filename (relative to "
-                              "the including file)")
+                # parser.cpp TagType::Include: the including file's folder, then the resolver's folders
+                outer = self.folders
+                self.folders = [path.parent, *outer]
+                target = self.resolve(name)
+                if target is None or not target.is_file():
+                    self.fail(child, f"included file {name!r} not found in {self.searched()}", "fix the filename "
+                              "(relative to the including file, the main file or a <path>)")
                 out += self.load(target)
+                self.folders = outer
+            elif child.tag == "path":
+                self.add_folder(child, path, top)
             else:
                 child[:] = self._expand(child, path)
                 out.append(child)
         return out
+
+    def add_folder(self, el, path, top):
+        """<path value="..."/>: a folder searched first from now on (parser.cpp TagType::Resource: relative
+        to the file's folder, else through the resolver)."""
+        if not top:
+            self.fail(el, "<path> can only be a child of <scene>", "move it to the top level of the file")
+        value = el.get("value")
+        if not value:
+            self.fail(el, "needs a value", '<path value="meshes"/>')
+        folder = path.parent / value
+        if not folder.exists():
+            folder = self.resolve(value)
+        if folder is None or not folder.is_dir():
+            self.fail(el, f"folder {value!r} not found (relative to {path.parent} or in {self.searched()})",
+                      "fix the folder name")
+        self.folders.insert(0, folder)
 
     def _substitute(self, el):
         for key, value in el.attrib.items():
@@ -406,9 +440,13 @@ class _Reader:
 
     def camera(self, el) -> dict:
         doc = self.doc
-        if el.get("type") != "perspective":
-            doc.fail(el, "only the perspective sensor is read", 'use <sensor type="perspective">')
+        if el.get("type") not in ("perspective", "thinlens"):
+            doc.fail(el, "only the perspective sensor (and thinlens with aperture_radius 0) is read",
+                     'use <sensor type="perspective">')
         p = _Props(doc, el)
+        if el.get("type") == "thinlens" and p.number("aperture_radius", math.nan) != 0.0:
+            doc.fail(p.values.get("aperture_radius", el), "a thinlens sensor's aperture_radius > 0 (depth of field) "
+                     "is not read", 'use <sensor type="perspective"> (a pinhole) or aperture_radius 0')
         films = p.nested("film")
         W, H = 768, 576
         if films:
@@ -471,7 +509,9 @@ class _Reader:
         for k in ("principal_point_offset_x", "principal_point_offset_y"):
             if p.number(k, 0.0):
                 doc.fail(p.values[k], "an off-centre principal point is not read", f"remove {k}")
-        p.done(ignored=("near_clip", "far_clip", "shutter_open", "shutter_close"))
+        # focus_distance: every projective camera reads it (src/render/sensor.cpp ProjectiveCamera); no effect
+        # without a lens (a thinlens of aperture_radius 0 is a pinhole: thinlens.cpp sets it to epsilon)
+        p.done(ignored=("near_clip", "far_clip", "shutter_open", "shutter_close", "focus_distance"))
         fwd, up = fwd / n[2], up / n[1]
         return {"type": "perspective", "position": pos.tolist(), "look_at": (pos + fwd).tolist(), "up": up.tolist(),
                 "fov": math.degrees(2.0 * math.atan(tan_y)), "width": W, "height": H, "spp": spp}
@@ -648,9 +688,10 @@ class _Reader:
         name = p.string("filename")
         if not name:
             self.doc.fail(el, "has no filename", '<string name="filename" value="mesh.obj"/>')
-        file = Path(self.doc.where[el][0]).parent / name
-        if not file.is_file():
-            self.doc.fail(el, f"mesh file {str(file)!r} not found", "fix the filename (relative to the XML file)")
+        file = self.doc.resolve(name)  # mesh.cpp: through the resolver as it stands after parsing
+        if file is None or not file.is_file():
+            self.doc.fail(el, f"mesh file {name!r} not found in {self.doc.searched()}", "fix the filename (relative "
+                          "to the main file or a <path>)")
         try:
             mesh = trimesh.load(str(file), file_type=el.get("type"), force="mesh", process=False)
             v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
