@@ -22,6 +22,7 @@ import io as _io
 import math
 import re
 import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,7 +33,14 @@ from ..errors import UserError, counted
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
+ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted
 HG_MAX = 0.99  # pbrt-v4 clamps HG's g to [-0.99, 0.99] (util/scattering.h HenyeyGreenstein)
+
+
+
+class PbrtNote(UserWarning):
+    """What a pbrt-v4 import reads approximately or converts, one line each."""
+
 
 # ---------------------------------------------------------------------------------------------- tokens
 
@@ -268,6 +276,8 @@ class _Reader:
         self.materials: dict[str, tuple] = {}
         self.media: dict[str, tuple] = {}  # name -> (dict of our medium keys, file, line)
         self.camera = None
+        self.screen, self.exposure, self.iso = (None, None), 1.0, 100.0
+        self.notes: list[str] = []  # what is read approximately, said once each (`read_scene` warns)
         self.film = (1280, 720)
         self.spp = 16
         self.shapes: list[dict] = []  # pbrt world coordinates; their "_material", "_media" resolved at the end
@@ -463,11 +473,21 @@ class _Reader:
                 w.fail(line, 'Camera "spherical": only "string mapping" "equirectangular" is read',
                        "use the equirectangular mapping (ours); equalarea has no counterpart")
             fov = None
-        if p.one("lensradius", 0.0) != 0.0:
+        # cameras.cpp PerspectiveCamera::Create: the screen window (default: the shorter image axis spans
+        # [-1, 1], frameaspectratio the film's) is where the image lies on the plane at tan(fov / 2)
+        window = p.floats("screenwindow", ("float",), 4)
+        frame = p.one("frameaspectratio", None)
+        if kind == "perspective" and p.one("lensradius", 0.0) != 0.0:
             w.fail(line, f'{p.directive}: "lensradius" > 0 (depth of field) is not read', "remove it (a pinhole camera)")
-        p.ignore("focaldistance")  # no effect without a lens
+        p.ignore("focaldistance", "lensradius")  # no effect without a lens (the spherical camera reads none of these)
+        # scene.cpp: the film's exposure time is shutterclose - shutteropen (a scale of the image: `scene`)
+        exposure = p.one("shutterclose", 1.0) - p.one("shutteropen", 0.0)
+        if not exposure > 0.0:
+            w.fail(line, f"{p.directive}: shutterclose - shutteropen = {exposure:g}: the shutter does not open (pbrt "
+                   "stops here too)", "give shutterclose > shutteropen, or leave both out (0 and 1)")
         p.done()
         self.camera = (kind, m, fov, self.state.outside, w.path, line)
+        self.screen, self.exposure = (window, frame) if kind == "perspective" else (None, None), exposure
 
     def _Film(self, kind, p, w, line):
         if kind not in ("rgb", "gbuffer", "spectral"):
@@ -475,9 +495,22 @@ class _Reader:
         x, y = p.ints("xresolution", [1280]), p.ints("yresolution", [720])
         if len(x) != 1 or len(y) != 1 or x[0] < 1 or y[0] < 1:
             w.fail(line, "Film: xresolution and yresolution must be one positive integer each", "e.g. [ 640 ] and [ 480 ]")
+        # film.cpp PixelSensor::Create: imagingRatio = exposureTime * iso / 100 scales the image; the default
+        # sensor "cie1931" with whitebalance 0 passes the scene's RGB through unchanged
+        iso = p.one("iso", 100.0)
+        if not iso > 0.0:
+            w.fail(line, f'{p.directive}: "iso" {iso:g} must be positive', "give the ISO speed, e.g. 100 (pbrt's default)")
+        sensor = p.string("sensor", "cie1931")
+        balance = p.one("whitebalance", 0.0)
+        if sensor != "cie1931":
+            w.fail(line, f'{p.directive}: sensor "{sensor}": a camera\'s spectral response (and its white balance, 6500 K '
+                   "by default) changes the colours, which is not modelled", 'remove it (pbrt\'s default "cie1931")')
+        if balance != 0.0:
+            w.fail(line, f'{p.directive}: whitebalance {balance:g}: a von Kries adaptation from a {balance:g} K daylight '
+                   "white changes the colours, which is not modelled", "remove it (0, pbrt's default: no white balance)")
         p.ignore("filename", "savefp16")
         p.done()
-        self.film = (x[0], y[0])
+        self.film, self.iso = (x[0], y[0]), iso
 
     def _Sampler(self, kind, p, w, line):
         if kind == "stratified":
@@ -652,9 +685,16 @@ class _Reader:
         camera_medium = self._medium(medium, _Where(cpath), cline)
         lin = wfc[:3, :3]
         x, y, z = (lin[:, k] / np.linalg.norm(lin[:, k]) for k in range(3))
-        if not (abs(x @ y) < 1e-6 and abs(y @ z) < 1e-6 and abs(x @ z) < 1e-6):
-            raise UserError(f"{cpath}:{cline}: Camera: its transform shears the image; place the camera with LookAt, "
-                            "rotations and translations")
+        # exporters write rotations with a few decimals (Houdini's: 4, axes off by ~4e-5): orthonormal to a
+        # relative ORTHO_REFUSE is read with its view direction and up, a note above ORTHO_NOTE
+        norms = [np.linalg.norm(lin[:, k]) for k in range(3)]
+        off = max(abs(x @ y), abs(y @ z), abs(x @ z), (max(norms) - min(norms)) / max(norms))
+        if off > ORTHO_REFUSE:
+            raise UserError(f"{cpath}:{cline}: Camera: its transform scales unevenly or shears the image (axes off "
+                            f"orthonormal by {off:.2g}); place the camera with LookAt, rotations and translations")
+        if off > ORTHO_NOTE:
+            self.notes.append(f"{cpath}:{cline}: Camera: its transform is orthonormal to {off:.2g} (a rotation written "
+                              "with few decimals); read with its view direction and its up made orthogonal to it")
         # pbrt's perspective raster x runs along camera x, ours along forward x up: mirrored when det > 0
         # (a plain LookAt); its equirectangular image matches ours when det > 0 (cameras.cpp GenerateRay)
         det = np.linalg.det(lin)
@@ -666,13 +706,20 @@ class _Reader:
         cam = {"type": "perspective" if kind == "perspective" else "environment", "position": pos,
                "look_at": pos + forward, "up": y * s + 0.0, "width": W, "height": H, "spp": self.spp}
         if kind == "perspective":
-            # fov spans the shorter axis (cameras.cpp: the screen window's shorter side is [-1, 1]); ours is vertical
-            cam["fov"] = fov if W > H else math.degrees(2.0 * math.atan(math.tan(math.radians(fov) / 2.0) * H / W))
+            cam["fov"] = self._vertical_fov(fov, W, H, _Where(cpath), cline)
         out = {"name": self.main.stem.removesuffix(".pbrt"), "camera": cam, "shape": [], "light": []}
         if camera_medium is not None and (any(camera_medium["sigma_a"]) or any(camera_medium["sigma_s"])):
             out["medium"] = camera_medium
+        ratio = self.exposure * self.iso / 100.0  # film.cpp: imagingRatio
+        if ratio != 1.0:
+            self.notes.append(f"{self.main}: Film: pbrt-v4 scales the image by exposure time x iso / 100 = "
+                              f"{self.exposure:g} x {self.iso:g} / 100 = {ratio:g} (film.cpp imagingRatio); the lights' "
+                              "power is scaled by it instead (the same image: it is linear in the lights)")
         for light in self.lights:
             light = dict(light)
+            for k in ("intensity", "irradiance"):
+                if k in light:
+                    light[k] = [ratio * v for v in light[k]]
             for k in ("position", "direction"):
                 if k in light:
                     light[k] = light[k] * s + 0.0
@@ -686,6 +733,25 @@ class _Reader:
                     shape[k] = shape[k] * s + 0.0
             out["shape"].append(shape)
         return _plain(out)
+
+    def _vertical_fov(self, fov, W, H, w, line) -> float:
+        """Our vertical fov from pbrt's `fov` and screen window (cameras.cpp PerspectiveCamera::Create and
+        CameraBase: the window [x0, x1] x [y0, y1] on the plane where tan(fov / 2) = 1 spans the image)."""
+        window, frame = self.screen
+        frame = W / H if frame is None else frame
+        x0, x1, y0, y1 = window or ([-frame, frame, -1.0, 1.0] if frame > 1.0 else [-1.0, 1.0, -1.0 / frame, 1.0 / frame])
+        key = '"float screenwindow"' if window else '"float frameaspectratio"'
+        if not (x1 > x0 and y1 > y0):
+            w.fail(line, f"Camera: {key} [{x0:g} {x1:g} {y0:g} {y1:g}] is empty or flipped", "give x0 < x1 and y0 < y1")
+        size = max(x1 - x0, y1 - y0)
+        if abs(x0 + x1) > 1e-6 * size or abs(y0 + y1) > 1e-6 * size:
+            w.fail(line, f"Camera: {key} [{x0:g} {x1:g} {y0:g} {y1:g}] is off-centre (a lens shift), which is not read",
+                   "use a window symmetric about 0 (ours looks through the image centre)")
+        if abs((x1 - x0) / (y1 - y0) - W / H) > 1e-3 * W / H:
+            w.fail(line, f"Camera: {key}: the window's aspect {(x1 - x0) / (y1 - y0):.6g} differs from the film's "
+                   f"{W}/{H} = {W / H:.6g}, so pbrt stretches the image (non-square pixels), which is not read",
+                   f"give the window the film's aspect, e.g. [-{x1:g} {x1:g} -{x1 * H / W:.6g} {x1 * H / W:.6g}]")
+        return math.degrees(2.0 * math.atan(y1 * math.tan(math.radians(fov) / 2.0)))
 
     def _medium(self, name, w, line):
         if name == "":
@@ -771,7 +837,10 @@ def read_scene(path: Path) -> dict:
     """The scene dict of a pbrt-v4 file, or UserError naming the file, the line and the fix."""
     reader = _Reader(Path(path))
     reader.run(Path(path))
-    return reader.scene()
+    out = reader.scene()
+    for note in reader.notes:
+        warnings.warn(note, PbrtNote, stacklevel=2)
+    return out
 
 
 # --------------------------------------------------------------------------------------------- writing
