@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
+from .report import ImportNote
 
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
 MAX_INCLUDE_DEPTH = 32
@@ -38,7 +39,7 @@ HG_MAX = 0.99  # pbrt-v4 clamps HG's g to [-0.99, 0.99] (util/scattering.h Henye
 
 
 
-class PbrtNote(UserWarning):
+class PbrtNote(ImportNote):
     """What a pbrt-v4 import reads approximately or converts, one line each."""
 
 
