@@ -585,3 +585,19 @@ def test_scene_without_lights_warns_and_says_how_to_add_one(tmp_path, capsys):
     from raytrace.film import read_exr
 
     assert np.max(read_exr(out)[0]) > 0.0
+
+
+def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
+    """An unknown required extension and two primitives that cannot be read: three lines after the
+    count, each naming its key (glTF's wording: keys, not TOML tables)."""
+    doc = {"extensionsRequired": ["EXT_unknown"], "nodes": [{"mesh": 0}, {"mesh": 1}],
+           "meshes": [{"primitives": [{"attributes": {}}]},
+                      {"primitives": [{"attributes": {"POSITION": 0}, "extensions": {"KHR_draco_mesh_compression": {}}}]}]}
+    with pytest.raises(UserError) as err:
+        gltf.read_scene(write_gltf(tmp_path, doc))
+    lines = str(err.value).splitlines()
+    assert lines[0] == f"{tmp_path / 't.gltf'}: 3 problems, one a line with its fix"
+    for line, part in zip(lines[1:], ["extensionsRequired: EXT_unknown: this extension is not read",
+                                      "meshes[0].primitives[0].attributes.POSITION: missing",
+                                      "meshes[1].primitives[0]: Draco-compressed meshes are not decoded"]):
+        assert part in line and "[camera]" not in line, (line, part)

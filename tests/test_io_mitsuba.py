@@ -9,6 +9,7 @@ exported bundled scene, which agree with ours within Mitsuba's noise, and loads 
 from __future__ import annotations
 
 import math
+import re
 import sys
 import warnings
 import xml.etree.ElementTree as ET
@@ -532,3 +533,28 @@ def test_shape_geometry_matches_mitsuba(mi, tmp_path):
         tol = 2e-3 if name in ("ball", "disk", "tube") else 1e-5
         assert np.allclose(tris.min(0), np.ravel(box.min), atol=tol), name
         assert np.allclose(tris.max(0), np.ravel(box.max), atol=tol), name
+
+
+def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
+    """Every unsupported element and parameter at once, after a line that counts them (a Cornell box:
+    an area emitter on a shape, a plastic bsdf, an envmap, two parameters not read)."""
+    body = (SENSOR.format(axis="x").replace("<transform", '<float name="lens" value="1"/><transform')
+            + '<shape type="cube"><emitter type="area"/><bsdf type="plastic"/></shape>'
+            '<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>'
+            '<shape type="sphere"><float name="radiuss" value="1"/><float name="radiusss" value="1"/></shape>'
+            '<emitter type="point"><point name="position" value="0, 1, 0"/></emitter>')
+    with pytest.raises(UserError) as err:
+        mitsuba.read_scene(write(tmp_path, body))
+    lines = str(err.value).splitlines()
+    assert lines[0] == f"{tmp_path / 'scene.xml'}: 6 problems, one a line with its fix"
+    for line, part in zip(lines[1:], ["parameter 'lens'", "area emitters are not read", "plastic bsdfs are not read",
+                                      "envmap emitters are not read", "parameter 'radiuss'", "parameter 'radiusss'"]):
+        assert re.match(re.escape(str(tmp_path / 'scene.xml')) + r":\d+: <", line) and part in line and "; " in line, (line, part)
+    assert len(lines) == 7
+
+
+def test_export_refusal_mentions_approximate(tmp_path):
+    raw = round_trip_scene()
+    raw["render"] = {"volumetric_shadows": False}
+    with pytest.raises(UserError, match=r"or pass --approximate to write shadowed"):
+        exported(tmp_path, raw)

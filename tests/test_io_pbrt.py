@@ -556,3 +556,46 @@ def test_film_defaults_are_silent_and_other_sensors_refused(tmp_path):
                           ('"float whitebalance" 5000', "a von Kries adaptation from a 5000 K daylight white")]:
         with pytest.raises(UserError, match=needle):
             pbrt.read_scene(houdini(tmp_path, square, film + extra))
+
+
+def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
+    """pbrt-v4-scenes' explosion.pbrt took four edits, one refusal each, before its real limit: now one
+    run lists every unsupported feature, one line each after a line that counts them."""
+    p = tmp_path / "many.pbrt"
+    p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective" "float lensradius" 0.1\n'
+                 'Film "rgb" "string sensor" "canon_eos_100d" "float iso" 100\nWorldBegin\n'
+                 'AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]\nShape "sphere"\n'
+                 'MakeNamedMedium "smoke" "string type" "nanovdb" "string filename" "smoke.nvdb"\n'
+                 'Texture "t" "spectrum" "imagemap" "string filename" "a.png"\n'
+                 'Material "conductor"\nShape "sphere" "float radius" 2 "float alpha" 0 "float beta" 1\n'
+                 'MediumInterface "smoke" ""\nMaterial "interface"\nShape "sphere"\n')
+    assert main(["describe", str(p)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == f"error: {p}: 8 problems, one a line with its fix"
+    wanted = [':2: Camera "perspective": "lensradius" > 0', ':3: Film "rgb": sensor "canon_eos_100d"',
+              ":5: AreaLightSource (area lights) is not read", ':7: MakeNamedMedium "smoke": medium type "nanovdb"',
+              ":8: Texture (textures) is not read", ':9: Material "conductor" is not read',
+              ':10: Shape "sphere": parameter "float alpha" is not read', ':10: Shape "sphere": parameter "float beta"']
+    assert len(err) == 1 + len(wanted)
+    for line, part in zip(err[1:], wanted):
+        assert line.startswith(f"  {p}:") and part in line and "; " in line, (line, part)
+
+
+def test_at_most_20_problems_are_listed(tmp_path):
+    p = tmp_path / "many.pbrt"
+    p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective"\nWorldBegin\n' + 'Shape "disk"\n' * 25)
+    with pytest.raises(UserError) as err:
+        pbrt.read_scene(p)
+    lines = str(err.value).splitlines()
+    assert lines[0] == f"{p}: 25 problems, one a line with its fix (the first 20 shown)" and len(lines) == 21
+
+
+def test_a_fatal_problem_comes_first(tmp_path):
+    """Reading stops at malformed input; what was found before it is listed after it."""
+    p = tmp_path / "bad.pbrt"
+    p.write_text(BASE + 'Shape "disk"\nInclude "missing.pbrt"\nShape "cone"\n')
+    with pytest.raises(UserError) as err:
+        pbrt.read_scene(p)
+    lines = str(err.value).splitlines()
+    assert "2 problems" in lines[0] and "reading stopped at the first" in lines[0]
+    assert 'included file' in lines[1] and 'Shape "disk" is not read' in lines[2] and len(lines) == 3

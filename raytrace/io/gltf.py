@@ -28,7 +28,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..errors import UserError, counted
-from .report import ImportNote, default_camera, grouped, warn
+from .report import ImportNote, Problems, default_camera, grouped, warn
 
 LUMENS_PER_WATT = 683.0  # candela = 683 W/sr, lux = 683 W/m^2 (KHR_lights_punctual; Blender's exporter)
 DEFAULT_HEIGHT = 512  # image rows for a camera without our `extras`; the width keeps its aspectRatio
@@ -111,15 +111,19 @@ def read_scene(path: Path, camera: str | None = None) -> dict:
     """The scene dict of a .gltf / .glb file: meshes as inline triangles in world space, materials as
     reflectances or interiors, KHR_lights_punctual lights, and the first perspective camera (or the
     one whose node or camera is named `camera`)."""
+    problems = Problems(str(path))
     try:
-        reader = _Reader(Path(path))
+        reader = _Reader(Path(path), problems)
         raw = reader.scene(camera)
-        warn([f"{path}: {line}" for line in grouped(reader.notes)], GltfNote)
-        return raw
+    except UserError as exc:
+        problems.check(fatal=exc)
     except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as exc:
         # a value of the wrong type or range that the checks above did not name
-        raise UserError(f"{path}: malformed glTF ({type(exc).__name__}: {exc}); fix the file or export it "
-                        "again") from None
+        problems.check(fatal=UserError(f"{path}: malformed glTF ({type(exc).__name__}: {exc}); fix the file or "
+                                       "export it again"))
+    problems.check()
+    warn([f"{path}: {line}" for line in grouped(reader.notes)], GltfNote)
+    return raw
 
 
 def _json(text: str, source: str) -> dict:
@@ -150,8 +154,8 @@ def _json(text: str, source: str) -> dict:
 
 
 class _Reader:
-    def __init__(self, path: Path):
-        self.path, self.source = path, str(path)
+    def __init__(self, path: Path, problems: Problems):
+        self.path, self.source, self.problems = path, str(path), problems
         try:
             data = path.read_bytes()
         except OSError as exc:
@@ -316,7 +320,8 @@ class _Reader:
         for ext in self._get(self.doc, "extensionsRequired", list, []):
             if not isinstance(ext, str) or ext not in READ_EXTENSIONS:
                 what = "compressed meshes are not decoded" if ext in COMPRESSION else "this extension is not read"
-                self.fail("extensionsRequired", f"{ext}: {what}", "export the scene without it")
+                with self.problems.each():  # the file's other problems are listed too
+                    self.fail("extensionsRequired", f"{ext}: {what}", "export the scene without it")
         nodes = self._get(self.doc, "nodes", list, [])
         scenes = self._get(self.doc, "scenes", list, [])
         if scenes:
@@ -341,13 +346,11 @@ class _Reader:
         cam = self.camera(camera_name)
         if cam is None:
             cam = default_camera(raw, DEFAULT_FOV, DEFAULT_HEIGHT)
-            if cam is not None:
-                self.note("cameras", f"the file has no perspective camera: a default one looks at the centre "
-                          f"{_short(cam['look_at'])} of the shapes' bounding sphere from +z of it, the sphere in view "
-                          f"(fov {DEFAULT_FOV:g}, {DEFAULT_HEIGHT} x {DEFAULT_HEIGHT}); change it with --set "
-                          "camera.position=[x, y, z] --set camera.look_at=[x, y, z]")
-        if cam is not None:
-            raw["camera"] = cam
+            self.note("cameras", f"the file has no perspective camera: a default one looks at the centre "
+                      f"{_short(cam['look_at'])} of the shapes' bounding sphere from +z of it, the sphere in view "
+                      f"(fov {DEFAULT_FOV:g}, {DEFAULT_HEIGHT} x {DEFAULT_HEIGHT}); change it with --set "
+                      "camera.position=[x, y, z] --set camera.look_at=[x, y, z]")
+        raw["camera"] = cam
         extras = self.item("scenes", self.doc.get("scene", 0)).get("extras", {}) if scenes else {}
         for table in ("medium", "background", "render"):  # our own tables, written by `export`
             if isinstance(extras, dict) and isinstance(extras.get(table), dict):
@@ -370,12 +373,14 @@ class _Reader:
         if "mesh" in node:
             mesh_key = f"meshes[{node['mesh']}]"
             for j, prim in enumerate(self._get(self.item("meshes", node["mesh"]), "primitives", list, [], f"{mesh_key}.")):
-                self.primitive(prim, f"{mesh_key}.primitives[{j}]", world)
+                with self.problems.each():  # a primitive that cannot be read is listed and left out
+                    self.primitive(prim, f"{mesh_key}.primitives[{j}]", world)
         if "camera" in node:
             self.cameras.append((node.get("name"), node["camera"], world, key))
         light = self._get(node, "extensions", dict, {}).get("KHR_lights_punctual")
         if isinstance(light, dict) and "light" in light:
-            self.lights.append(self.light(light["light"], world, key))
+            with self.problems.each():
+                self.lights.append(self.light(light["light"], world, key))
 
     def primitive(self, prim, key, world):
         if not isinstance(prim, dict):

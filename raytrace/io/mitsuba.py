@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .report import Problems, every
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h: Hecht, Optics, at ~589 nm)
 IOR = {"vacuum": 1.0, "helium": 1.000036, "hydrogen": 1.000132, "air": 1.000277, "carbon dioxide": 1.00045,
@@ -60,9 +61,12 @@ class _Doc:
     def searched(self) -> str:
         return ", ".join(str(f) for f in dict.fromkeys(self.folders))
 
-    def fail(self, el, problem: str, fix: str):
+    def message(self, el, problem: str, fix: str) -> str:
         file, line = self.where.get(el, ("?", 0))
-        raise UserError(f"{file}:{line}: {_describe(el)}: {problem}; {fix}")
+        return f"{file}:{line}: {_describe(el)}: {problem}; {fix}"
+
+    def fail(self, el, problem: str, fix: str):
+        raise UserError(self.message(el, problem, fix))
 
     def parse(self, path: Path) -> ET.Element:
         """The root element of `path`, every element's line recorded; malformed XML and entity
@@ -286,11 +290,11 @@ class _Props:
         return [obj for oname, obj in self.objects if obj.tag == tag and (name is None or oname == name)]
 
     def done(self, ignored=()):
-        """Refuse parameters nobody read (`ignored`: accepted and documented as having no effect here)."""
-        for name, child in self.values.items():
-            if name not in self.read and name not in ignored:
-                self.doc.fail(child, f"parameter {name!r} of {_describe(self.el)} is not read",
-                              "remove it (docs/formats/mitsuba.md lists what is read)")
+        """Refuse parameters nobody read, all of them at once (`ignored`: accepted and documented as
+        having no effect here)."""
+        every([self.doc.message(child, f"parameter {name!r} of {_describe(self.el)} is not read",
+                                "remove it (docs/formats/mitsuba.md lists what is read)")
+               for name, child in self.values.items() if name not in self.read and name not in ignored])
 
 
 def _tokens(text: str) -> list[str]:
@@ -401,34 +405,40 @@ def _similarity(M):
 
 
 class _Reader:
-    def __init__(self, path: Path):
-        self.path = path
+    def __init__(self, path: Path, problems: Problems):
+        self.path, self.problems = path, problems
         self.doc = _Doc()
         self.top = self.doc.load(path)
         self.doc.collect_ids(self.top)
         self.fog = None  # the sensor's medium element
 
     def scene(self) -> dict:
-        doc = self.doc
+        """The scene dict; each element that cannot be read is recorded in `problems` and left out."""
+        doc, each = self.doc, self.problems.each
         sensors = [el for el in self.top if el.tag == "sensor"]
-        if len(sensors) != 1:
-            raise UserError(f"{self.path}: <sensor>: the scene has {len(sensors)} sensors; keep exactly one "
-                            "perspective sensor")
-        out = {"name": self.path.stem, "camera": self.camera(sensors[0])}
-        self.cam = out["camera"]
+        # a stand-in while the sensor is refused: shapes are still read for their own problems
+        self.cam = {"position": [0.0, 0.0, 0.0], "fov": 45.0, "height": 512}
+        out = {"name": self.path.stem}
+        with each():
+            if len(sensors) != 1:
+                raise UserError(f"{self.path}: <sensor>: the scene has {len(sensors)} sensors; keep exactly one "
+                                "perspective sensor")
+            out["camera"] = self.cam = self.camera(sensors[0])
         if self.fog is not None:
-            out["medium"] = self.medium(self.fog)
+            with each():
+                out["medium"] = self.medium(self.fog)
         shapes, lights = [], []
         for el in self.top:
-            if el.tag == "shape":
-                shape = self.shape(el)
-                if shape is not None:
-                    shapes.append(shape)
-            elif el.tag == "emitter":
-                lights.append(self.emitter(el))
-            elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
-                # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
-                doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
+            with each():
+                if el.tag == "shape":
+                    shape = self.shape(el)
+                    if shape is not None:
+                        shapes.append(shape)
+                elif el.tag == "emitter":
+                    lights.append(self.emitter(el))
+                elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
+                    # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
+                    doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
         if shapes:
             out["shape"] = shapes
         if lights:
@@ -608,9 +618,10 @@ class _Reader:
         if kind not in ("obj", "ply", "rectangle", "cube", "sphere", "disk", "cylinder"):
             doc.fail(el, f"{kind} shapes are not read", "use obj, ply, rectangle, cube, sphere, disk or cylinder")
         p = _Props(doc, el)
-        if p.nested("emitter"):
-            doc.fail(p.nested("emitter")[0], "area emitters are not read (lights are points, spots or directional)",
-                     "remove the area emitter or replace it by a point light")
+        if p.nested("emitter"):  # listed, and the shape read on for its other problems
+            with self.problems.each():
+                doc.fail(p.nested("emitter")[0], "area emitters are not read (lights are points, spots or "
+                         "directional)", "remove the area emitter or replace it by a point light")
         self.same_fog(p, el, "exterior")
         interiors = p.nested("medium", "interior")
         bsdfs = p.nested("bsdf")
@@ -770,8 +781,13 @@ def _triangles(v, f, M) -> dict:
 
 def read_scene(path: Path) -> dict:
     """The scene dict of a Mitsuba 3 XML file (docs/formats/mitsuba.md); UserError on what is not read."""
-    reader = _Reader(Path(path))
-    return reader.scene()
+    problems = Problems(str(path))
+    try:
+        out = _Reader(Path(path), problems).scene()
+    except UserError as exc:  # malformed XML, a missing include: reading stops there
+        problems.check(fatal=exc)
+    problems.check()
+    return out
 
 
 # ------------------------------------------------------------------------------------------- writing
@@ -819,7 +835,8 @@ class _Writer:
 
     def refuse(self, key, problem, fix, closest):
         if not self.approximate:
-            raise UserError(f"{self.source}: {key}: {problem}, which Mitsuba 3 cannot express; {fix}")
+            raise UserError(f"{self.source}: {key}: {problem}, which Mitsuba 3 cannot express; {fix}, or pass "
+                            f"--approximate to write {closest}")
         warnings.warn(f"{self.source}: {key}: {problem}; written as {closest} (--approximate)", stacklevel=3)
 
     def xml(self, raw) -> ET.Element:

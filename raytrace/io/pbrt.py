@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from .report import ImportNote
+from .report import ImportNote, Problems, every
 
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
 MAX_INCLUDE_DEPTH = 32
@@ -115,8 +115,11 @@ class _Where:
     def __init__(self, path: Path):
         self.path = path
 
+    def message(self, line: int, what: str, fix: str) -> str:
+        return f"{self.path}:{line}: {what}; {fix}"
+
     def fail(self, line: int, what: str, fix: str):
-        raise UserError(f"{self.path}:{line}: {what}; {fix}")
+        raise UserError(self.message(line, what, fix))
 
     def number(self, tok: Token, what: str) -> float:
         if tok.kind != "word" or not _NUMBER.fullmatch(tok.value):
@@ -201,9 +204,10 @@ class Params:
             self.params.pop(n, None)
 
     def done(self):
-        for p in self.params.values():
-            self.where.fail(p.line, f'{self.directive}: parameter "{p.type} {p.name}" is not read by this importer',
-                            "remove it (docs/formats/pbrt.md lists what is read)")
+        """Refuse the parameters not taken, all of them at once."""
+        every([self.where.message(p.line, f'{self.directive}: parameter "{p.type} {p.name}" is not read by this '
+                                  "importer", "remove it (docs/formats/pbrt.md lists what is read)")
+               for p in self.params.values()])
 
 
 # --------------------------------------------------------------------------------------------- reading
@@ -268,8 +272,8 @@ REFUSED = {"Texture": "textures", "AreaLightSource": "area lights", "ObjectBegin
 
 
 class _Reader:
-    def __init__(self, main: Path):
-        self.main = main
+    def __init__(self, main: Path, problems: Problems):
+        self.main, self.problems = main, problems
         self.state = _State()
         self.stack: list[tuple[_State, int, Path]] = []
         self.world = False
@@ -337,6 +341,12 @@ class _Reader:
                 w.fail(t.line, f"{d}: expected a quoted name, got {_show(t)}", f'write {d} "name"')
             return t.value
 
+        def skip():
+            """Past a refused directive's arguments, to the next directive (pbrt's are capitalised)."""
+            nonlocal i
+            while i < n and not (toks[i].kind == "word" and toks[i].value[:1].isupper()):
+                i += 1
+
         def params(d, line):
             nonlocal i
             out = {}
@@ -369,12 +379,15 @@ class _Reader:
             d, line = tok.value, tok.line
             if tok.kind != "word" or not d[:1].isalpha():
                 w.fail(line, f"expected a directive, got {_show(tok)}", "check the previous directive's parameters")
-            if d in REFUSED:
-                w.fail(line, f"{d} ({REFUSED[d]}) is not read", "remove it (docs/formats/pbrt.md lists what is read)")
-            if d in OPTION_DIRECTIVES and self.world:
-                w.fail(line, f"{d} after WorldBegin", "move it before WorldBegin")
-            if d in WORLD_DIRECTIVES and not self.world:
-                w.fail(line, f"{d} before WorldBegin", "move it after WorldBegin")
+            misplaced = (d in OPTION_DIRECTIVES and self.world and (f"{d} after WorldBegin", "move it before WorldBegin")
+                         or d in WORLD_DIRECTIVES and not self.world and (f"{d} before WorldBegin",
+                                                                          "move it after WorldBegin"))
+            if d in REFUSED or misplaced:  # listed; reading goes on at the next directive
+                with self.problems.each():
+                    w.fail(line, *(misplaced or (f"{d} ({REFUSED[d]}) is not read",
+                                                 "remove it (docs/formats/pbrt.md lists what is read)")))
+                skip()
+                continue
             st = self.state
             if d == "LookAt":
                 v = numbers(d, 9)
@@ -423,7 +436,7 @@ class _Reader:
             elif d == "WorldBegin":
                 if self.world:
                     w.fail(line, "a second WorldBegin", "remove it")
-                if self.camera is None:
+                if self.camera is None and not self.problems.items:  # (else the Camera was refused: listed)
                     w.fail(line, "WorldBegin before any Camera", 'add LookAt ... and Camera "perspective" before it')
                 self.world = True
                 st.set(np.eye(4), np.eye(4))
@@ -454,7 +467,16 @@ class _Reader:
                 if d == "Option":
                     take(d)  # render options (pixel jitter, wavelengths, ...) do not change the scene
                     continue
-                getattr(self, "_" + d)(name, params(f'{d} "{name}"', line), w, line)
+                given = params(f'{d} "{name}"', line)
+                with self.problems.each():  # a directive that cannot be read is listed and left out
+                    try:
+                        getattr(self, "_" + d)(name, given, w, line)
+                    except UserError:
+                        if d == "MakeNamedMaterial":  # stand-ins, so that what names them adds no problem
+                            self.materials.setdefault(name, ("diffuse", [0.5] * 3))
+                        elif d == "MakeNamedMedium":
+                            self.media.setdefault(name, (None, w.path, line))
+                        raise
             else:
                 w.fail(line, f"unknown directive {d}", "check its spelling (pbrt-v4 directives are case-sensitive)")
 
@@ -677,16 +699,52 @@ class _Reader:
 
     # --- the scene dict
     def scene(self) -> dict:
+        """The scene dict; a shape that cannot be read is recorded in `problems` and left out."""
         if self.stack:
             _, line, path = self.stack[-1]
-            raise UserError(f"{path}:{line}: AttributeBegin without AttributeEnd; close it")
+            with self.problems.each():
+                raise UserError(f"{path}:{line}: AttributeBegin without AttributeEnd; close it")
         if self.camera is None:
+            if self.problems.items:  # the Camera was refused: listed
+                return {}
             raise UserError(f'{self.main}: no Camera; add LookAt ... and Camera "perspective" before WorldBegin')
+        out = {"name": self.main.stem.removesuffix(".pbrt"), "shape": [], "light": []}
+        s, camera_medium = np.ones(3), None  # stand-ins while the camera is refused: shapes are read on
+        with self.problems.each():
+            out["camera"], s, camera_medium = self._camera()
+        if camera_medium is not None and (any(camera_medium["sigma_a"]) or any(camera_medium["sigma_s"])):
+            out["medium"] = camera_medium
+        ratio = self.exposure * self.iso / 100.0  # film.cpp: imagingRatio
+        if ratio != 1.0:
+            self.notes.append(f"{self.main}: Film: pbrt-v4 scales the image by exposure time x iso / 100 = "
+                              f"{self.exposure:g} x {self.iso:g} / 100 = {ratio:g} (film.cpp imagingRatio); the lights' "
+                              "power is scaled by it instead (the same image: it is linear in the lights)")
+        for light in self.lights:
+            light = dict(light)
+            for k in ("intensity", "irradiance"):
+                if k in light:
+                    light[k] = [ratio * v for v in light[k]]
+            for k in ("position", "direction"):
+                if k in light:
+                    light[k] = light[k] * s + 0.0
+            out["light"].append(light)
+        for shape in self.shapes:
+            with self.problems.each():
+                shape = self._surface(dict(shape), self.camera[3], camera_medium)
+                if shape is not None:
+                    for k in ("vertices", "center"):
+                        if k in shape:
+                            shape[k] = shape[k] * s + 0.0
+                    out["shape"].append(shape)
+        return _plain(out)
+
+    def _camera(self):
+        """(our camera, the world's x factors (-1 in x: mirrored), the camera's medium)."""
         kind, wfc, fov, medium, cpath, cline = self.camera
         camera_medium = self._medium(medium, _Where(cpath), cline)
         lin = wfc[:3, :3]
         x, y, z = (lin[:, k] / np.linalg.norm(lin[:, k]) for k in range(3))
-        # exporters write rotations with a few decimals (Houdini's: 4, axes off by ~4e-5): orthonormal to a
+        # exporters write rotations with a few decimals (Houdini's: 4, axes off by ~1e-4): orthonormal to a
         # relative ORTHO_REFUSE is read with its view direction and up, a note above ORTHO_NOTE
         norms = [np.linalg.norm(lin[:, k]) for k in range(3)]
         off = max(abs(x @ y), abs(y @ z), abs(x @ z), (max(norms) - min(norms)) / max(norms))
@@ -708,32 +766,7 @@ class _Reader:
                "look_at": pos + forward, "up": y * s + 0.0, "width": W, "height": H, "spp": self.spp}
         if kind == "perspective":
             cam["fov"] = self._vertical_fov(fov, W, H, _Where(cpath), cline)
-        out = {"name": self.main.stem.removesuffix(".pbrt"), "camera": cam, "shape": [], "light": []}
-        if camera_medium is not None and (any(camera_medium["sigma_a"]) or any(camera_medium["sigma_s"])):
-            out["medium"] = camera_medium
-        ratio = self.exposure * self.iso / 100.0  # film.cpp: imagingRatio
-        if ratio != 1.0:
-            self.notes.append(f"{self.main}: Film: pbrt-v4 scales the image by exposure time x iso / 100 = "
-                              f"{self.exposure:g} x {self.iso:g} / 100 = {ratio:g} (film.cpp imagingRatio); the lights' "
-                              "power is scaled by it instead (the same image: it is linear in the lights)")
-        for light in self.lights:
-            light = dict(light)
-            for k in ("intensity", "irradiance"):
-                if k in light:
-                    light[k] = [ratio * v for v in light[k]]
-            for k in ("position", "direction"):
-                if k in light:
-                    light[k] = light[k] * s + 0.0
-            out["light"].append(light)
-        for shape in self.shapes:
-            shape = self._surface(dict(shape), medium, camera_medium)
-            if shape is None:
-                continue
-            for k in ("vertices", "center"):
-                if k in shape:
-                    shape[k] = shape[k] * s + 0.0
-            out["shape"].append(shape)
-        return _plain(out)
+        return cam, s, camera_medium
 
     def _vertical_fov(self, fov, W, H, w, line) -> float:
         """Our vertical fov from pbrt's `fov` and screen window (cameras.cpp PerspectiveCamera::Create and
@@ -759,7 +792,7 @@ class _Reader:
             return None
         if name not in self.media:
             w.fail(line, f'medium "{name}" is not defined', f'define it with MakeNamedMedium "{name}" ...')
-        return self.media[name][0]
+        return self.media[name][0] or {"sigma_a": [0.0] * 3, "sigma_s": [0.0] * 3}  # (a refused medium: listed)
 
     def _surface(self, shape, camera_name, camera_medium):
         """The shape's reflectance or interior from its material and medium interface (pbrt: a shape whose
@@ -836,9 +869,14 @@ def _plain(x):
 
 def read_scene(path: Path) -> dict:
     """The scene dict of a pbrt-v4 file, or UserError naming the file, the line and the fix."""
-    reader = _Reader(Path(path))
-    reader.run(Path(path))
-    out = reader.scene()
+    problems = Problems(str(path))
+    reader = _Reader(Path(path), problems)
+    try:
+        reader.run(Path(path))
+        out = reader.scene()
+    except UserError as exc:  # malformed input, a missing include: reading stops there
+        problems.check(fatal=exc)
+    problems.check()
     for note in reader.notes:
         warnings.warn(note, PbrtNote, stacklevel=2)
     return out

@@ -75,13 +75,10 @@ def bounding_sphere(raw: dict) -> tuple[np.ndarray, float] | None:
     return (lo + hi) / 2.0, float(np.linalg.norm(hi - lo)) / 2.0
 
 
-def default_camera(raw: dict, fov: float, height: int) -> dict | None:
-    """A square perspective camera of vertical `fov` degrees framing the shapes' bounding sphere,
-    looking at its centre down -z from +z of it, +y up (a glTF's up); None without shapes."""
-    sphere = bounding_sphere(raw)
-    if sphere is None:
-        return None
-    centre, radius = sphere
+def default_camera(raw: dict, fov: float, height: int) -> dict:
+    """A square perspective camera of vertical `fov` degrees framing the shapes' bounding sphere (the
+    unit sphere without shapes), looking at its centre down -z from +z of it, +y up (a glTF's up)."""
+    centre, radius = bounding_sphere(raw) or (np.zeros(3), 1.0)
     radius = radius if radius > 0.0 else 1.0
     distance = radius / np.sin(np.radians(fov) / 2.0)  # the sphere touches the edges of the view
     position = centre + [0.0, 0.0, distance]
@@ -113,6 +110,14 @@ def no_lights(raw: dict, source: str) -> str | None:
     return f"{source}: the scene has no lights; it renders black;" + (lamp or " add a light with --set 'light=[...]'")
 
 
+def every(problems: list[str]):
+    """Raise the problems of one element: one line, or UserError.several; return when there are none."""
+    if len(problems) == 1:
+        raise UserError(problems[0])
+    if problems:
+        raise UserError.several(f"{counted(len(problems), 'problem')}, one a line with its fix", problems, MAX_PROBLEMS)
+
+
 class Problems:
     """The problems of one file, collected so that a refused file names them all in one run.
 
@@ -131,14 +136,15 @@ class Problems:
             self.add(exc)
 
     def add(self, exc: UserError):
-        lines = getattr(exc, "lines", None) or [str(exc)]
-        self.items += [line for line in lines if line not in self.items]
+        """Record `exc`'s problem (or problems: `UserError.several`'s lines after the first)."""
+        self.items += [line for line in (exc.lines[1:] if exc.lines else [str(exc)]) if line not in self.items]
 
     def check(self, fatal: UserError | None = None):
         """Raise the problems found (a fatal one first), or return when there are none."""
         items = self.items
         if fatal is not None:
-            items = [str(fatal), *[i for i in items if i != str(fatal)]]
+            first = fatal.lines[1:] if fatal.lines else [str(fatal)]
+            items = [*first, *[i for i in items if i not in first]]
         if len(items) == 1:
             raise UserError(items[0])
         if items:
