@@ -599,3 +599,15 @@ def test_a_fatal_problem_comes_first(tmp_path):
     lines = str(err.value).splitlines()
     assert "2 problems" in lines[0] and "reading stopped at the first" in lines[0]
     assert 'included file' in lines[1] and 'Shape "disk" is not read' in lines[2] and len(lines) == 3
+
+
+def test_shape_alpha(tmp_path):
+    """scene.cpp getAlphaTexture: "float alpha" 1 is opaque (read), 0 lets every ray through (the shape
+    is left out, with a note), in between a stochastic alpha test (refused)."""
+    base = 'Shape "sphere" "float alpha" {}\nShape "sphere" "float radius" 2\n'
+    assert len(pbrt.read_scene(houdini(tmp_path, world=base.format(1)))["shape"]) == 2
+    with pytest.warns(pbrt.PbrtNote, match=r'"float alpha" 0: invisible to every ray in pbrt; left out'):
+        shapes = pbrt.read_scene(houdini(tmp_path, world=base.format(0)))["shape"]
+    assert [s["radius"] for s in shapes] == [2.0]
+    with pytest.raises(UserError, match=r'"float alpha" 0.5 \(a partly transparent surface\) is not read'):
+        pbrt.read_scene(houdini(tmp_path, world=base.format(0.5)))

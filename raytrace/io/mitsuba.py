@@ -435,7 +435,8 @@ class _Reader:
                     if shape is not None:
                         shapes.append(shape)
                 elif el.tag == "emitter":
-                    lights.append(self.emitter(el))
+                    if not (el.get("type") == "area" and el.get("id")):  # (else a shape's by <ref>: listed there)
+                        lights.append(self.emitter(el))
                 elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
                     # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
                     doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")

@@ -650,6 +650,16 @@ class _Reader:
 
     def _Shape(self, kind, p, w, line):
         m = self._affine(w, line, p.directive)
+        # scene.cpp getAlphaTexture: alpha < 1 is a stochastic alpha test; 0 lets every ray through
+        alpha = p.one("alpha", 1.0)
+        if alpha == 0.0:
+            p.params.clear()
+            self.notes.append(f"{w.path}:{line}: {p.directive}: \"float alpha\" 0: invisible to every ray in pbrt; "
+                              "left out")
+            return
+        if alpha != 1.0:
+            w.fail(line, f'{p.directive}: "float alpha" {alpha:g} (a partly transparent surface) is not read',
+                   "remove it (1, opaque) or set it to 0 (invisible)")
         if kind == "sphere":
             r = p.one("radius", 1.0)
             if not r > 0.0:
