@@ -567,7 +567,7 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
                  'AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]\nShape "sphere"\n'
                  'MakeNamedMedium "smoke" "string type" "nanovdb" "string filename" "smoke.nvdb"\n'
                  'Texture "t" "spectrum" "imagemap" "string filename" "a.png"\n'
-                 'Material "conductor"\nShape "sphere" "float radius" 2 "float alpha" 0 "float beta" 1\n'
+                 'Material "conductor"\nShape "sphere" "float radius" 2 "float gamma" 0 "float beta" 1\n'
                  'MediumInterface "smoke" ""\nMaterial "interface"\nShape "sphere"\n')
     assert main(["describe", str(p)]) == 2
     err = capsys.readouterr().err.splitlines()
@@ -575,7 +575,7 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
     wanted = [':2: Camera "perspective": "lensradius" > 0', ':3: Film "rgb": sensor "canon_eos_100d"',
               ":5: AreaLightSource (area lights) is not read", ':7: MakeNamedMedium "smoke": medium type "nanovdb"',
               ":8: Texture (textures) is not read", ':9: Material "conductor" is not read',
-              ':10: Shape "sphere": parameter "float alpha" is not read', ':10: Shape "sphere": parameter "float beta"']
+              ':10: Shape "sphere": parameter "float gamma" is not read', ':10: Shape "sphere": parameter "float beta"']
     assert len(err) == 1 + len(wanted)
     for line, part in zip(err[1:], wanted):
         assert line.startswith(f"  {p}:") and part in line and "; " in line, (line, part)

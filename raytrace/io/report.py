@@ -88,8 +88,9 @@ def default_camera(raw: dict, fov: float, height: int) -> dict:
 
 def no_lights(raw: dict, source: str) -> str | None:
     """The warning for a scene without lights, with a point lamp to add by --set: above and behind
-    the camera (never at it: the air-light of a point light at the camera diverges), its intensity
-    lighting the scene's centre with about 1 W/m²; None when the scene has lights."""
+    the camera (never at it: the air-light of a point light at the camera diverges) by a quarter of
+    the distance s to the scene's centre, so sqrt(1.25² + 0.25²) s = sqrt(1.625) s from a centre on the
+    view axis: intensity 1.625 s² lights it with 1 W/m²; None when the scene has lights."""
     if raw.get("light"):
         return None
     cam = raw.get("camera")
@@ -105,7 +106,7 @@ def no_lights(raw: dict, source: str) -> str | None:
         up = up / np.linalg.norm(up) if np.linalg.norm(up) > 0 else up
         where = pos + 0.25 * scale * (up - forward)
         lamp = (f" add a lamp above and behind the camera with --set 'light=[{{type = \"point\", position = "
-                f"[{', '.join(f'{x:.4g}' for x in where)}], intensity = {1.5625 * scale * scale:.4g}}}]'"
+                f"[{', '.join(f'{x:.4g}' for x in where)}], intensity = {1.625 * scale * scale:.4g}}}]'"
                 " (docs/formats/README.md)")
     return f"{source}: the scene has no lights; it renders black;" + (lamp or " add a light with --set 'light=[...]'")
 
