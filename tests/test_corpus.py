@@ -41,7 +41,7 @@ AREA_PBRT = "AreaLightSource (area lights) is not read"
 AREA_XML = "area emitters are not read"
 ENVMAP = "envmap emitters are not read"
 CHECKER = "textured reflectance"
-# file -> what its refusal names, in order (the first line counts them)
+# file -> what its refusal names, in order (a fatal problem first, then by file and line; the first line counts them)
 REFUSES = {
     "houdini-pbrt-v4/TestCamera/test_camera_ortho.pbrt": ['Camera "orthographic" is not read'],
     "houdini-pbrt-v4/TestCamera/test_camera_persp_crop.pbrt": [
@@ -55,24 +55,24 @@ REFUSES = {
     "houdini-pbrt-v4/TestMediums/test_interior_cloud.pbrt": [AREA_PBRT, 'medium type "cloud" is not read'],
     "houdini-pbrt-v4/TestMediums/test_interior_nanovdb.pbrt": [AREA_PBRT, 'medium type "nanovdb" is not read'],
     "pbrt-v4-scenes/killeroo-simple.pbrt": ['included file "', AREA_PBRT, 'Material "coateddiffuse" is not read'],
-    "mitsuba-data/scenes/cbox/cbox.xml": [AREA_XML] + ["a spectrum sampled at wavelengths is not read"] * 5,
+    "mitsuba-data/scenes/cbox/cbox.xml": ["a spectrum sampled at wavelengths is not read"] * 5 + [AREA_XML],
     "mitsuba-data/scenes/cbox/cbox-rgb.xml": [AREA_XML],
-    "mitsuba-tutorials/cbox.xml": [AREA_XML, "conductor bsdfs are not read"],
-    MEDIA + "test_hetero_sigmat_albedo_volpath.xml": [ENVMAP, CHECKER, "only homogeneous media", "sphere_base.obj"],
-    MEDIA + "test_hetero_sigmat_volpath.xml": [ENVMAP, CHECKER, "only homogeneous media", "sphere_base.obj"],
-    MEDIA + "test_hetero_spectral_sigmat_no_scattering_volpath.xml": [ENVMAP, CHECKER, "only homogeneous media",
+    "mitsuba-tutorials/cbox.xml": ["conductor bsdfs are not read", AREA_XML],
+    MEDIA + "test_hetero_sigmat_albedo_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
+    MEDIA + "test_hetero_sigmat_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
+    MEDIA + "test_hetero_spectral_sigmat_no_scattering_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media",
                                                                       "sphere_base.obj"],
-    MEDIA + "test_hetero_spectral_sigmat_volpathmis.xml": [ENVMAP, CHECKER, "only homogeneous media", "sphere_base.obj"],
+    MEDIA + "test_hetero_spectral_sigmat_volpathmis.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
     MEDIA + "test_homo_area_light_volpath.xml": [CHECKER, "sphere_tiny.obj", "thindielectric", AREA_XML],
     MEDIA + "test_homo_dielectric_envmap_volpath.xml": [ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
-    MEDIA + "test_homo_emitter_inside_medium_volpath.xml": [ENVMAP, CHECKER, "thindielectric", "thindielectric",
-                                                            AREA_XML, "torus1.obj", "roughplastic"],
-    MEDIA + "test_homo_null_envmap_volpath.xml": [ENVMAP, CHECKER, "sphere_tiny.obj", "sphere_base.obj"],
-    MEDIA + "test_homo_obj_inside_medium_volpath.xml": [ENVMAP, CHECKER, "thindielectric", "thindielectric",
+    MEDIA + "test_homo_emitter_inside_medium_volpath.xml": [CHECKER, ENVMAP, "thindielectric", "thindielectric",
+                                                            "torus1.obj", AREA_XML, "roughplastic"],
+    MEDIA + "test_homo_null_envmap_volpath.xml": [CHECKER, ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
+    MEDIA + "test_homo_obj_inside_medium_volpath.xml": [CHECKER, ENVMAP, "thindielectric", "thindielectric",
                                                         "roughplastic", "torus2.obj"],
     MEDIA + "test_homo_roughdielectric_spot_volpath.xml": ["roughdielectric bsdfs"] * 2,
-    MEDIA + "test_homo_spectral_sigmat_volpathmis.xml": [ENVMAP, CHECKER, "sphere_tiny.obj", "sphere_base.obj"],
-    MEDIA + "test_surf_area_light_volpath.xml": [ENVMAP, CHECKER, "plastic bsdfs", "roughplastic", AREA_XML],
+    MEDIA + "test_homo_spectral_sigmat_volpathmis.xml": [CHECKER, ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
+    MEDIA + "test_surf_area_light_volpath.xml": [CHECKER, ENVMAP, "plastic bsdfs", "roughplastic", AREA_XML],
 }
 
 

@@ -111,6 +111,12 @@ def no_lights(raw: dict, source: str) -> str | None:
     return f"{source}: the scene has no lights; it renders black;" + (lamp or " add a light with --set 'light=[...]'")
 
 
+def _location(message: str) -> tuple[str, int]:
+    """(file, line) of a `file:line: ...` message; ("", 0) for others (glTF's keys), which keep their order."""
+    m = re.match(r"(.+?):(\d+): ", message)
+    return (m.group(1), int(m.group(2))) if m else ("", 0)
+
+
 def every(problems: list[str]):
     """Raise the problems of one element: one line, or UserError.several; return when there are none."""
     if len(problems) == 1:
@@ -142,7 +148,7 @@ class Problems:
 
     def check(self, fatal: UserError | None = None):
         """Raise the problems found (a fatal one first), or return when there are none."""
-        items = self.items
+        items = sorted(self.items, key=_location)  # by file and line where messages give them (stable)
         if fatal is not None:
             first = fatal.lines[1:] if fatal.lines else [str(fatal)]
             items = [*first, *[i for i in items if i not in first]]
