@@ -1,10 +1,12 @@
 """Mitsuba 3 XML scenes in and out (docs/formats/mitsuba.md).
 
 `read_scene` reads the subset a fog scene uses into the scene dict: `<default>` / `$name`,
-`<include>`, ids and `<ref>`, transforms, the shapes obj, ply, rectangle, cube, sphere, disk and
-cylinder, the bsdfs diffuse, twosided, null and dielectric, the emitters point, spot and directional,
-homogeneous media on the sensor and inside shapes, the perspective sensor with its film and sampler.
-Everything else is refused in one line naming the file, the line and the element. The file is parsed
+`<include>` and `<path>` (files looked up as mitsuba3's file resolver does), ids and `<ref>`,
+transforms, the shapes obj, ply, rectangle, cube, sphere, disk and cylinder, the bsdfs diffuse,
+twosided, null and dielectric, the emitters point, spot and directional, homogeneous media on the
+sensor and inside shapes, the perspective sensor (or a pinhole thinlens) with its film and sampler.
+Everything else is refused, one line naming the file, the line and the element for each element the
+file holds that is not read (all of them in one run: report.Problems). The file is parsed
 with defusedxml (no entity expansion); meshes are read with trimesh and travel inline.
 
 `export` writes a scene for Mitsuba's `volpath` with max_depth = 2 (single scattering with shadowed

@@ -1,9 +1,10 @@
 """What an import says about a file: notes grouped by kind, the warning for a scene without lights,
-and every problem of a refused file at once (docs/formats/*.md, "Messages").
+and every problem of a refused file at once (docs/formats/README.md).
 
 Notes are Python warnings (category `ImportNote`), one line each; notes of one kind (the same text for
 keys that differ only in their indices, e.g. `materials[3].doubleSided`) are one line with a count.
-A refused file raises `Problems` (a UserError): its first line counts them, then one line each.
+A refused file's problems are collected by `Problems` and raised as one UserError: one line, or
+(`UserError.several`) a first line that counts them, then one line each.
 """
 from __future__ import annotations
 
@@ -47,6 +48,7 @@ def _merged(keys: list[str]) -> str:
 
 
 def warn(lines, category=ImportNote):
+    """Each line as a warning of `category`."""
     for line in lines:
         warnings.warn(line, category, stacklevel=3)
 
