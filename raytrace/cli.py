@@ -599,7 +599,8 @@ def main(argv=None) -> int:
         with _one_line_warnings():
             return handlers[args.command](args)
     except UserError as exc:
-        print("error: " + " ".join(str(exc).split("\n")), file=sys.stderr)  # always one line
+        lines = exc.lines or [" ".join(str(exc).split("\n"))]  # one line, or a file's problems one a line
+        print("\n  ".join(["error: " + lines[0], *lines[1:]]), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

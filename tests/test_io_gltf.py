@@ -9,6 +9,7 @@ import base64
 import copy
 import json
 import math
+import re
 import shutil
 import struct
 import subprocess
@@ -503,7 +504,8 @@ def test_the_glb_container_is_read_like_the_gltf(tmp_path):
 
 def test_any_value_of_the_wrong_type_is_a_one_line_refusal(tmp_path):
     """Every key of the Blender room set in turn to a value of another type or range: the import and
-    the scene's validation end in a UserError (or succeed), never in a traceback."""
+    the scene's validation end in a UserError (or succeed), never in a traceback; its problems are one
+    line each."""
     base = json.loads((DATA / "room.gltf").read_text())
     base["buffers"][0]["uri"] = str(DATA / "room.bin")
     paths = []
@@ -526,5 +528,78 @@ def test_any_value_of_the_wrong_type_is_a_one_line_refusal(tmp_path):
         try:
             raw = gltf.read_scene(path)
             scene_from_dict(raw, str(path), path)
-        except UserError as exc:
-            assert "\n" not in str(exc) and "malformed glTF (" not in str(exc), (at, exc)
+        except UserError as exc:  # one line, or a file's several problems one a line (exc.lines)
+            lines = exc.lines or [str(exc)]
+            assert str(exc) == "\n".join(lines) and "malformed glTF (" not in str(exc), (at, exc)
+
+
+def test_file_without_camera_gets_one_framing_the_scene(tmp_path):
+    """A default perspective camera (said in one note) looks at the centre of the shapes' bounding box
+    with every corner of the box in view; --set moves it."""
+    cube = (trimesh.creation.box(extents=[2.0, 1.0, 4.0]).triangles + [10.0, -3.0, 1.0]).astype(np.float32)
+    path = write_gltf(tmp_path, {"nodes": [{"mesh": 0}]}, cube.reshape(-1, 3).tobytes())
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        cam = scene_from_dict(gltf.read_scene(path), "t").camera
+    said = [str(n.message) for n in notes if "no perspective camera" in str(n.message)]
+    assert len(said) == 1 and "--set camera.position=" in said[0]
+    np.testing.assert_allclose(cam.look_at, [10.0, -3.0, 1.0], atol=1e-6)
+    forward = unit(cam.look_at - cam.position)
+    assert forward == pytest.approx([0.0, 0.0, -1.0])  # from +z of the centre
+    corners = np.array([[x, y, z] for x in (9, 11) for y in (-3.5, -2.5) for z in (-1, 3)], dtype=np.float64)
+    to = corners - cam.position
+    half = math.radians(cam.fov) / 2.0  # a square image: the same half-angle across and up
+    assert np.all(np.abs(to[:, 0] / -to[:, 2]) <= math.tan(half)) and np.all(np.abs(to[:, 1] / -to[:, 2]) <= math.tan(half))
+    moved = raytrace.load(path, overrides=["camera.position=[10, -3, 20]"]).camera
+    assert moved.position.tolist() == [10.0, -3.0, 20.0]
+
+
+def test_notes_of_one_kind_are_one_line(tmp_path):
+    """16 single-sided materials: one note naming them and their count, not 16."""
+    doc = {"nodes": [{"mesh": i} for i in range(16)], "materials": [{} for _ in range(16)],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": i}]} for i in range(16)]}
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        gltf.read_scene(write_gltf(tmp_path, doc))
+    sided = [str(n.message) for n in notes if "doubleSided" in str(n.message)]
+    assert sided == [f"{tmp_path / 't.gltf'}: materials[0, 1, 2, 3, 4, 5, 6, 7, ...].doubleSided (16 materials): "
+                     "single-sided in glTF; rendered two-sided (both faces reflect)"]
+
+
+def test_scene_without_lights_warns_and_says_how_to_add_one(tmp_path, capsys):
+    """The warning names a point lamp above and behind the camera (never at it); added with --set as
+    it says, the image is no longer black."""
+    cube = trimesh.creation.box().triangles.astype(np.float32)
+    path = write_gltf(tmp_path, {"nodes": [{"mesh": 0}]}, cube.reshape(-1, 3).tobytes())
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        assert main(["describe", str(path)]) == 0
+    line = next(str(n.message) for n in notes if "no lights" in str(n.message))
+    assert "the scene has no lights; it renders black" in line
+    lamp = re.search(r"--set '(light=\[\{.*\}\])'", line).group(1)
+    cam = gltf.read_scene(path)["camera"]
+    pos = np.array([float(x) for x in re.search(r"position = \[(.*?)\]", lamp).group(1).split(",")])
+    offset = pos - cam["position"]
+    assert offset[1] > 0.1 and offset[2] > 0.1  # above (+y) and behind (the camera looks down -z)
+    out = tmp_path / "lit.exr"
+    assert main(["render", str(path), "--set", lamp, "--width", "8", "--height", "8", "--spp", "1",
+                 "--out", str(out)]) == 0
+    from raytrace.film import read_exr
+
+    assert np.max(read_exr(out)[0]) > 0.0
+
+
+def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
+    """An unknown required extension and two primitives that cannot be read: three lines after the
+    count, each naming its key (glTF's wording: keys, not TOML tables)."""
+    doc = {"extensionsRequired": ["EXT_unknown"], "nodes": [{"mesh": 0}, {"mesh": 1}],
+           "meshes": [{"primitives": [{"attributes": {}}]},
+                      {"primitives": [{"attributes": {"POSITION": 0}, "extensions": {"KHR_draco_mesh_compression": {}}}]}]}
+    with pytest.raises(UserError) as err:
+        gltf.read_scene(write_gltf(tmp_path, doc))
+    lines = str(err.value).splitlines()
+    assert lines[0] == f"{tmp_path / 't.gltf'}: 3 problems, one a line with its fix"
+    for line, part in zip(lines[1:], ["extensionsRequired: EXT_unknown: this extension is not read",
+                                      "meshes[0].primitives[0].attributes.POSITION: missing",
+                                      "meshes[1].primitives[0]: Draco-compressed meshes are not decoded"]):
+        assert part in line and "[camera]" not in line, (line, part)

@@ -9,6 +9,7 @@ exported bundled scene, which agree with ours within Mitsuba's noise, and loads 
 from __future__ import annotations
 
 import math
+import re
 import sys
 import warnings
 import xml.etree.ElementTree as ET
@@ -131,6 +132,55 @@ def test_meshes_transforms_and_interiors(tmp_path):
     assert disk["reflectance"] == 0.5  # Mitsuba's default bsdf: diffuse 0.5
     v = np.asarray(tube["vertices"])  # an open tube: every vertex on the radius, none on the axis
     assert np.allclose(np.hypot(v[:, 0], v[:, 1]), 0.5) and set(np.round(v[:, 2], 12)) == {0.0, 3.0}
+
+
+def test_focus_distance_and_thinlens_of_aperture_zero_read_as_pinhole(tmp_path):
+    """Mitsuba reads focus_distance on every projective camera (src/render/sensor.cpp ProjectiveCamera);
+    a thinlens of aperture_radius 0 is a pinhole (thinlens.cpp: epsilon); a real aperture is refused."""
+    plain = mitsuba.read_scene(write(tmp_path, SENSOR.format(axis="x"), "a.xml"))["camera"]
+    focus = SENSOR.format(axis="x").replace("<transform", '<float name="focus_distance" value="1000"/><transform')
+    assert mitsuba.read_scene(write(tmp_path, focus, "b.xml"))["camera"] == plain
+    thin = focus.replace('type="perspective">', 'type="thinlens"><float name="aperture_radius" value="0"/>')
+    assert mitsuba.read_scene(write(tmp_path, thin, "c.xml"))["camera"] == plain
+    with pytest.raises(UserError, match=r"aperture_radius > 0 \(depth of field\)"):
+        mitsuba.read_scene(write(tmp_path, thin.replace('name="aperture_radius" value="0"',
+                                                        'name="aperture_radius" value="0.1"'), "d.xml"))
+
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def test_include_and_meshes_found_as_mitsuba_finds_them(tmp_path):
+    """mitsuba-data's participating_media layout: main.xml includes include/base.xml, which includes
+    "include/preamble.xml" (beside main.xml, not beside base.xml) and a mesh "meshes/m.obj" beside
+    main.xml (parser.cpp TagType::Include: the including file's folder, then the main file's)."""
+    for d in ("include", "meshes"):
+        (tmp_path / d).mkdir()
+    (tmp_path / "meshes" / "m.obj").write_text(TRI)
+    write(tmp_path, '<default name="res" value="20"/>', "include/preamble.xml")
+    write(tmp_path, '<include filename="include/preamble.xml"/>' + SENSOR.format(axis="x").replace('"40"', '"$res"')
+          + '<shape type="obj"><string name="filename" value="meshes/m.obj"/></shape>', "include/base.xml")
+    raw = mitsuba.read_scene(write(tmp_path, '<include filename="include/base.xml"/>', "main.xml"))
+    assert raw["camera"]["width"] == 20 and raw["shape"][0]["vertices"] == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+
+
+def test_path_element_adds_a_folder_searched_first(tmp_path):
+    """<path value=.../> (parser.cpp TagType::Resource): a folder relative to the file, searched before
+    the main file's folder; a folder that does not exist is refused naming it."""
+    for d in ("a", "b"):
+        (tmp_path / d).mkdir()
+    (tmp_path / "a" / "m.obj").write_text(TRI)
+    (tmp_path / "b" / "m.obj").write_text(TRI.replace("v 1 0 0", "v 2 0 0"))
+    (tmp_path / "m.obj").write_text(TRI.replace("v 1 0 0", "v 3 0 0"))
+    shape = '<shape type="obj"><string name="filename" value="m.obj"/></shape>'
+    first = lambda raw: raw["shape"][0]["vertices"][1][0]  # noqa: E731
+    assert first(mitsuba.read_scene(write(tmp_path, SENSOR.format(axis="x") + shape, "s0.xml"))) == 3
+    assert first(mitsuba.read_scene(write(tmp_path, '<path value="a"/>' + SENSOR.format(axis="x") + shape,
+                                          "s1.xml"))) == 1
+    assert first(mitsuba.read_scene(write(tmp_path, '<path value="a"/><path value="b"/>' + SENSOR.format(axis="x")
+                                          + shape, "s2.xml"))) == 2  # the later <path> is searched first
+    with pytest.raises(UserError, match=r"s3.xml:2: <path>: folder 'nowhere' not found"):
+        mitsuba.read_scene(write(tmp_path, '<path value="nowhere"/>' + SENSOR.format(axis="x"), "s3.xml"))
 
 
 # ------------------------------------------------------------------------------------------- round trip
@@ -483,3 +533,28 @@ def test_shape_geometry_matches_mitsuba(mi, tmp_path):
         tol = 2e-3 if name in ("ball", "disk", "tube") else 1e-5
         assert np.allclose(tris.min(0), np.ravel(box.min), atol=tol), name
         assert np.allclose(tris.max(0), np.ravel(box.max), atol=tol), name
+
+
+def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
+    """Every unsupported element and parameter at once, after a line that counts them (a Cornell box:
+    an area emitter on a shape, a plastic bsdf, an envmap, two parameters not read)."""
+    body = (SENSOR.format(axis="x").replace("<transform", '<float name="lens" value="1"/><transform')
+            + '<shape type="cube"><emitter type="area"/><bsdf type="plastic"/></shape>'
+            '<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>'
+            '<shape type="sphere"><float name="radiuss" value="1"/><float name="radiusss" value="1"/></shape>'
+            '<emitter type="point"><point name="position" value="0, 1, 0"/></emitter>')
+    with pytest.raises(UserError) as err:
+        mitsuba.read_scene(write(tmp_path, body))
+    lines = str(err.value).splitlines()
+    assert lines[0] == f"{tmp_path / 'scene.xml'}: 6 problems, one a line with its fix"
+    for line, part in zip(lines[1:], ["parameter 'lens'", "area emitters are not read", "plastic bsdfs are not read",
+                                      "envmap emitters are not read", "parameter 'radiuss'", "parameter 'radiusss'"]):
+        assert re.match(re.escape(str(tmp_path / 'scene.xml')) + r":\d+: <", line) and part in line and "; " in line, (line, part)
+    assert len(lines) == 7
+
+
+def test_export_refusal_mentions_approximate(tmp_path):
+    raw = round_trip_scene()
+    raw["render"] = {"volumetric_shadows": False}
+    with pytest.raises(UserError, match=r"or pass --approximate to write shadowed"):
+        exported(tmp_path, raw)

@@ -10,6 +10,7 @@ import math
 import os
 import re
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,7 @@ def pbrt_look_at(eye, look, up):
     return m
 
 
-def pbrt_directions(world_from_camera, fov, W, H, xs, ys):
+def pbrt_directions(world_from_camera, fov, W, H, xs, ys, window=None):
     """World directions of pbrt-v4's perspective camera rays through raster points (xs, ys): cameras.cpp
     lines 495-509 (the screen window: the shorter axis spans [-1, 1]), cameras.h lines 263-272
     (rasterFromScreen = Scale(W, -H, 1) Scale(1 / (max.x - min.x), 1 / (max.y - min.y), 1)
@@ -67,6 +68,8 @@ def pbrt_directions(world_from_camera, fov, W, H, xs, ys):
     after the projective divide); PerspectiveCamera::GenerateRay: dir = normalize(cameraFromRaster(p))."""
     frame = W / H
     (x0, x1), (y0, y1) = ((-frame, frame), (-1.0, 1.0)) if frame > 1 else ((-1.0, 1.0), (-1.0 / frame, 1.0 / frame))
+    if window is not None:  # "float screenwindow" [x0 x1 y0 y1] replaces the default (cameras.cpp lines 510-523)
+        (x0, x1), (y0, y1) = window[:2], window[2:]
     sx, sy = x0 + np.asarray(xs) / W * (x1 - x0), y1 - np.asarray(ys) / H * (y1 - y0)  # raster -> screen
     t = math.tan(math.radians(fov) / 2.0)
     d = np.stack([sx * t, sy * t, np.ones_like(sx)], axis=-1)  # screen -> camera at z = 1
@@ -478,3 +481,133 @@ def test_tokens_and_options(tmp_path):
     d = pbrt.read_scene(p)
     assert d["camera"]["spp"] == 6 and (d["camera"]["width"], d["camera"]["height"]) == (1280, 720)
     assert d["medium"] == {"sigma_a": [0.0] * 3, "sigma_s": [0.5] * 3, "phase": "isotropic"}
+
+
+# Houdini's pbrt-v4 exporter (shadeops/houdini-pbrt-v4 tests/scenes/TestLights/test_pointlight.pbrt): a camera
+# rotation written with 4 decimals and a screen window that sets the horizontal field of view
+HOUDINI_CAMERA = ("Transform [ 0.6691 -0.4263 -0.6087 0 0 0.8192 -0.5736 0 -0.7431 -0.3838 -0.5481 0 0.5921 -0.07283 "
+                  '13.84 1 ]\nCamera "perspective" "float fov" [ 45 ] "float screenwindow" [ -1 1 -0.75 0.75 ]\n')
+
+
+def houdini(tmp_path, camera=HOUDINI_CAMERA, film='"integer xresolution" [ 32 ] "integer yresolution" [ 24 ]',
+            world='LightSource "point" "rgb I" [ 0.5 0.75 1 ] "float scale" [ 5 ]\n'):
+    p = tmp_path / "houdini.pbrt"
+    p.write_text(f'Film "rgb" {film}\n{camera}WorldBegin\n{world}')
+    return p
+
+
+def test_screenwindow_sets_the_field_of_view(tmp_path):
+    """Every pixel's ray is pbrt's through the window [-1 1 -0.75 0.75]: fov 45 spans the width (the
+    default window would give the height fov 45, a third wider); the 4-decimal rotation (its axes'
+    lengths differ by 1.2e-4) is read with a note, to the precision it was written."""
+    with pytest.warns(pbrt.PbrtNote, match=r"orthonormal to 0\.00012 \(a rotation written with few decimals\)"):
+        scene = scene_from_dict(pbrt.read_scene(houdini(tmp_path)), "houdini")
+    cam = scene.camera
+    cam.spp = 1
+    _, d = generate_rays(cam)
+    j, i = np.meshgrid(np.arange(cam.height) + 0.5, np.arange(cam.width) + 0.5, indexing="ij")
+    m = np.array([float(t) for t in HOUDINI_CAMERA.split("[")[1].split("]")[0].split()]).reshape(4, 4).T
+    want = pbrt_directions(np.linalg.inv(m), 45.0, 32, 24, i.ravel(), j.ravel(), window=(-1, 1, -0.75, 0.75))
+    # Houdini writes a camera transform of det -1 (its handedness flip), so pbrt's image is not mirrored
+    assert np.linalg.det(m[:3, :3]) < 0
+    np.testing.assert_allclose(d, want, atol=2e-4)  # the file's axes are orthonormal to 4e-5
+    assert cam.fov == pytest.approx(math.degrees(2 * math.atan(0.75 * math.tan(math.radians(22.5)))), rel=1e-12)
+
+
+@pytest.mark.parametrize("window, needle", [
+    ("-1 1 -0.5 1", "is off-centre (a lens shift)"),
+    ("-1 1 -1 1", "the window's aspect 1 differs from the film's 32/24 = 1.33333"),
+])
+def test_screenwindow_that_is_not_read_is_refused_with_the_reason(tmp_path, window, needle):
+    camera = HOUDINI_CAMERA.replace("-1 1 -0.75 0.75", window)
+    with pytest.raises(UserError, match=re.escape(needle)):
+        pbrt.read_scene(houdini(tmp_path, camera))
+
+
+def test_camera_transform_orthonormal_to_1e3_or_refused(tmp_path):
+    skewed = "Transform [ 1 0 0 0 0.01 1 0 0 0 0 1 0 0 0 5 1 ]\nCamera \"perspective\"\n"
+    with pytest.raises(UserError, match=r"scales unevenly or shears the image \(axes off orthonormal by 0\.01\)"):
+        pbrt.read_scene(houdini(tmp_path, skewed))
+    stretched = "Scale 1 1.01 1\nCamera \"perspective\"\n"
+    with pytest.raises(UserError, match="scales unevenly or shears"):
+        pbrt.read_scene(houdini(tmp_path, stretched))
+
+
+def test_film_iso_and_exposure_scale_the_lights(tmp_path):
+    """film.cpp PixelSensor::Create: imagingRatio = exposureTime * ISO / 100, exposureTime = shutterclose -
+    shutteropen (scene.cpp); the image is linear in the lights, so their power carries the factor."""
+    plain = pbrt.read_scene(houdini(tmp_path))["light"][0]["intensity"]
+    camera = HOUDINI_CAMERA.replace("[ -1 1 -0.75 0.75 ]", '[ -1 1 -0.75 0.75 ] "float shutteropen" 0.25 '
+                                    '"float shutterclose" 0.75')
+    with pytest.warns(pbrt.PbrtNote, match=r"0\.5 x 400 / 100 = 2 .*lights' power is scaled"):
+        raw = pbrt.read_scene(houdini(tmp_path, camera, film='"integer xresolution" 32 "integer yresolution" 24 '
+                                      '"float iso" 400 "float whitebalance" 0 "string sensor" "cie1931"'))
+    assert raw["light"][0]["intensity"] == [2.0 * v for v in plain] == [5.0, 7.5, 10.0]
+
+
+def test_film_defaults_are_silent_and_other_sensors_refused(tmp_path):
+    square = HOUDINI_CAMERA.replace("0.6691 -0.4263 -0.6087 0 0 0.8192 -0.5736 0 -0.7431 -0.3838 -0.5481",
+                                    "1 0 0 0 0 1 0 0 0 0 1")
+    film = '"integer xresolution" 32 "integer yresolution" 24 '
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pbrt.read_scene(houdini(tmp_path, square, film + '"float iso" 100 "float whitebalance" 0 "string sensor" "cie1931"'))
+    for extra, needle in [('"string sensor" "canon_eos_100d"', "a camera's spectral response"),
+                          ('"float whitebalance" 5000', "a von Kries adaptation from a 5000 K daylight white")]:
+        with pytest.raises(UserError, match=needle):
+            pbrt.read_scene(houdini(tmp_path, square, film + extra))
+
+
+def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
+    """pbrt-v4-scenes' explosion.pbrt took four edits, one refusal each, before its real limit: now one
+    run lists every unsupported feature, one line each after a line that counts them."""
+    p = tmp_path / "many.pbrt"
+    p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective" "float lensradius" 0.1\n'
+                 'Film "rgb" "string sensor" "canon_eos_100d" "float iso" 100\nWorldBegin\n'
+                 'AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]\nShape "sphere"\n'
+                 'MakeNamedMedium "smoke" "string type" "nanovdb" "string filename" "smoke.nvdb"\n'
+                 'Texture "t" "spectrum" "imagemap" "string filename" "a.png"\n'
+                 'Material "conductor"\nShape "sphere" "float radius" 2 "float gamma" 0 "float beta" 1\n'
+                 'MediumInterface "smoke" ""\nMaterial "interface"\nShape "sphere"\n')
+    assert main(["describe", str(p)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == f"error: {p}: 8 problems, one a line with its fix"
+    wanted = [':2: Camera "perspective": "lensradius" > 0', ':3: Film "rgb": sensor "canon_eos_100d"',
+              ":5: AreaLightSource (area lights) is not read", ':7: MakeNamedMedium "smoke": medium type "nanovdb"',
+              ":8: Texture (textures) is not read", ':9: Material "conductor" is not read',
+              ':10: Shape "sphere": parameter "float gamma" is not read', ':10: Shape "sphere": parameter "float beta"']
+    assert len(err) == 1 + len(wanted)
+    for line, part in zip(err[1:], wanted):
+        assert line.startswith(f"  {p}:") and part in line and "; " in line, (line, part)
+
+
+def test_at_most_20_problems_are_listed(tmp_path):
+    p = tmp_path / "many.pbrt"
+    p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective"\nWorldBegin\n' + 'Shape "disk"\n' * 25)
+    with pytest.raises(UserError) as err:
+        pbrt.read_scene(p)
+    lines = str(err.value).splitlines()
+    assert lines[0] == f"{p}: 25 problems, one a line with its fix (the first 20 shown)" and len(lines) == 21
+
+
+def test_a_fatal_problem_comes_first(tmp_path):
+    """Reading stops at malformed input; what was found before it is listed after it."""
+    p = tmp_path / "bad.pbrt"
+    p.write_text(BASE + 'Shape "disk"\nInclude "missing.pbrt"\nShape "cone"\n')
+    with pytest.raises(UserError) as err:
+        pbrt.read_scene(p)
+    lines = str(err.value).splitlines()
+    assert "2 problems" in lines[0] and "reading stopped at the first" in lines[0]
+    assert 'included file' in lines[1] and 'Shape "disk" is not read' in lines[2] and len(lines) == 3
+
+
+def test_shape_alpha(tmp_path):
+    """scene.cpp getAlphaTexture: "float alpha" 1 is opaque (read), 0 lets every ray through (the shape
+    is left out, with a note), in between a stochastic alpha test (refused)."""
+    base = 'Shape "sphere" "float alpha" {}\nShape "sphere" "float radius" 2\n'
+    assert len(pbrt.read_scene(houdini(tmp_path, world=base.format(1)))["shape"]) == 2
+    with pytest.warns(pbrt.PbrtNote, match=r'"float alpha" 0: invisible to every ray in pbrt; left out'):
+        shapes = pbrt.read_scene(houdini(tmp_path, world=base.format(0)))["shape"]
+    assert [s["radius"] for s in shapes] == [2.0]
+    with pytest.raises(UserError, match=r'"float alpha" 0.5 \(a partly transparent surface\) is not read'):
+        pbrt.read_scene(houdini(tmp_path, world=base.format(0.5)))

@@ -9,7 +9,9 @@ Each format module has
     export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]
                                             the files written (the scene and what it references)
 
-Triangle meshes travel inline as `primitive = "triangles"` shapes (`vertices`, `faces`).
+Triangle meshes travel inline as `primitive = "triangles"` shapes (`vertices`, `faces`). What an
+importer approximates is said in notes (`report.ImportNote` warnings, grouped by kind); a scene read
+without lights gets a warning with a lamp to add; a refused file names all its problems (`report`).
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ import inspect
 from pathlib import Path
 
 from ..errors import UserError
+from . import report
 
 IMPORTERS = {".gltf": "gltf", ".glb": "gltf", ".xml": "mitsuba", ".pbrt": "pbrt", ".pbrt.gz": "pbrt"}  # suffix -> module
 FORMATS = ("gltf", "mitsuba", "pbrt")  # `render.py export --format`
@@ -41,12 +44,15 @@ def read_scene(path: Path, camera: str | None = None) -> dict:
         raise UserError(f"{path}: no such scene file; check the path")
     module = _module(importer(path))
     if camera is None:
-        return module.read_scene(path)
-    if "camera" not in inspect.signature(module.read_scene).parameters:
+        raw = module.read_scene(path)
+    elif "camera" not in inspect.signature(module.read_scene).parameters:
         raise UserError(f"{path}: camera {camera!r} (--camera): this format's importer reads one camera and does "
                         "not choose by name; leave --camera out and set the view with --set camera.position=... "
                         "--set camera.look_at=...")
-    return module.read_scene(path, camera=camera)
+    else:
+        raw = module.read_scene(path, camera=camera)
+    report.warn(filter(None, [report.no_lights(raw, str(path))]))
+    return raw
 
 
 def export(raw: dict, fmt: str, out: Path, source: str, approximate: bool = False) -> list[Path]:

@@ -28,9 +28,11 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..errors import UserError, counted
+from .report import ImportNote, Problems, default_camera, grouped, warn
 
 LUMENS_PER_WATT = 683.0  # candela = 683 W/sr, lux = 683 W/m^2 (KHR_lights_punctual; Blender's exporter)
 DEFAULT_HEIGHT = 512  # image rows for a camera without our `extras`; the width keeps its aspectRatio
+DEFAULT_FOV = 45.0  # degrees: the vertical fov of the camera made for a file without one
 GLB_MAGIC, JSON_CHUNK, BIN_CHUNK = b"glTF", 0x4E4F534A, 0x004E4942
 COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -41,7 +43,7 @@ READ_EXTENSIONS = {"KHR_lights_punctual", "KHR_materials_volume", "KHR_materials
 COMPRESSION = ("KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_meshopt_compression")
 
 
-class GltfNote(UserWarning):
+class GltfNote(ImportNote):
     """What a glTF import or export approximates or leaves out, one line each."""
 
 
@@ -109,12 +111,19 @@ def read_scene(path: Path, camera: str | None = None) -> dict:
     """The scene dict of a .gltf / .glb file: meshes as inline triangles in world space, materials as
     reflectances or interiors, KHR_lights_punctual lights, and the first perspective camera (or the
     one whose node or camera is named `camera`)."""
+    problems = Problems(str(path))
     try:
-        return _Reader(Path(path)).scene(camera)
+        reader = _Reader(Path(path), problems)
+        raw = reader.scene(camera)
+    except UserError as exc:
+        problems.check(fatal=exc)
     except (TypeError, AttributeError, KeyError, IndexError, ValueError, OverflowError) as exc:
         # a value of the wrong type or range that the checks above did not name
-        raise UserError(f"{path}: malformed glTF ({type(exc).__name__}: {exc}); fix the file or export it "
-                        "again") from None
+        problems.check(fatal=UserError(f"{path}: malformed glTF ({type(exc).__name__}: {exc}); fix the file or "
+                                       "export it again"))
+    problems.check()
+    warn([f"{path}: {line}" for line in grouped(reader.notes)], GltfNote)
+    return raw
 
 
 def _json(text: str, source: str) -> dict:
@@ -145,8 +154,8 @@ def _json(text: str, source: str) -> dict:
 
 
 class _Reader:
-    def __init__(self, path: Path):
-        self.path, self.source = path, str(path)
+    def __init__(self, path: Path, problems: Problems):
+        self.path, self.source, self.problems = path, str(path), problems
         try:
             data = path.read_bytes()
         except OSError as exc:
@@ -167,16 +176,14 @@ class _Reader:
         from ..options import MEMORY_SHARE, physical_memory
 
         self.budget = MEMORY_SHARE * physical_memory()  # bytes the decoded accessors may take in all
-        self.noted = set()
+        self.notes: list[tuple[str, str]] = []  # (key, text), said grouped by kind once the file is read
 
     # messages
     def fail(self, key: str, problem: str, fix: str):
         raise UserError(f"{self.source}: {key + ': ' if key else ''}{problem}; {fix}")
 
     def note(self, key: str, text: str):
-        if (key, text) not in self.noted:
-            self.noted.add((key, text))
-            warnings.warn(f"{self.source}: {key}: {text}", GltfNote, stacklevel=4)
+        self.notes.append((key, text))
 
     def _glb(self, data: bytes) -> str:
         if len(data) < 20:
@@ -313,7 +320,8 @@ class _Reader:
         for ext in self._get(self.doc, "extensionsRequired", list, []):
             if not isinstance(ext, str) or ext not in READ_EXTENSIONS:
                 what = "compressed meshes are not decoded" if ext in COMPRESSION else "this extension is not read"
-                self.fail("extensionsRequired", f"{ext}: {what}", "export the scene without it")
+                with self.problems.each():  # the file's other problems are listed too
+                    self.fail("extensionsRequired", f"{ext}: {what}", "export the scene without it")
         nodes = self._get(self.doc, "nodes", list, [])
         scenes = self._get(self.doc, "scenes", list, [])
         if scenes:
@@ -336,8 +344,13 @@ class _Reader:
             stack += [(c, world, path + (i,)) for c in reversed(self._get(node, "children", list, [], f"nodes[{i}]."))]
         raw = {"shape": self.shapes, "light": self.lights}
         cam = self.camera(camera_name)
-        if cam is not None:
-            raw["camera"] = cam
+        if cam is None:
+            cam = default_camera(raw, DEFAULT_FOV, DEFAULT_HEIGHT)
+            self.note("cameras", f"the file has no perspective camera: a default one looks at the centre "
+                      f"{_short(cam['look_at'])} of the shapes' bounding sphere from +z of it, the sphere in view "
+                      f"(fov {DEFAULT_FOV:g}, {DEFAULT_HEIGHT} x {DEFAULT_HEIGHT}); change it with --set "
+                      "camera.position=[x, y, z] --set camera.look_at=[x, y, z]")
+        raw["camera"] = cam
         extras = self.item("scenes", self.doc.get("scene", 0)).get("extras", {}) if scenes else {}
         for table in ("medium", "background", "render"):  # our own tables, written by `export`
             if isinstance(extras, dict) and isinstance(extras.get(table), dict):
@@ -360,12 +373,14 @@ class _Reader:
         if "mesh" in node:
             mesh_key = f"meshes[{node['mesh']}]"
             for j, prim in enumerate(self._get(self.item("meshes", node["mesh"]), "primitives", list, [], f"{mesh_key}.")):
-                self.primitive(prim, f"{mesh_key}.primitives[{j}]", world)
+                with self.problems.each():  # a primitive that cannot be read is listed and left out
+                    self.primitive(prim, f"{mesh_key}.primitives[{j}]", world)
         if "camera" in node:
             self.cameras.append((node.get("name"), node["camera"], world, key))
         light = self._get(node, "extensions", dict, {}).get("KHR_lights_punctual")
         if isinstance(light, dict) and "light" in light:
-            self.lights.append(self.light(light["light"], world, key))
+            with self.problems.each():
+                self.lights.append(self.light(light["light"], world, key))
 
     def primitive(self, prim, key, world):
         if not isinstance(prim, dict):
@@ -554,10 +569,11 @@ class _Reader:
                    "width": max(1, round(DEFAULT_HEIGHT * aspect)), "height": DEFAULT_HEIGHT}
             out.update({k: extras[k] for k in ("width", "height", "spp") if k in extras})  # ours, from `export`
             return out
-        if not self.cameras or name is None:
-            self.note("cameras", "no perspective camera: give one with --set camera.position=[x, y, z] "
-                      "--set camera.look_at=[x, y, z]")
         return None
+
+
+def _short(v) -> str:
+    return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
 
 
 # -- writing -----------------------------------------------------------------------------------------

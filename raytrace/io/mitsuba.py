@@ -1,10 +1,12 @@
 """Mitsuba 3 XML scenes in and out (docs/formats/mitsuba.md).
 
 `read_scene` reads the subset a fog scene uses into the scene dict: `<default>` / `$name`,
-`<include>`, ids and `<ref>`, transforms, the shapes obj, ply, rectangle, cube, sphere, disk and
-cylinder, the bsdfs diffuse, twosided, null and dielectric, the emitters point, spot and directional,
-homogeneous media on the sensor and inside shapes, the perspective sensor with its film and sampler.
-Everything else is refused in one line naming the file, the line and the element. The file is parsed
+`<include>` and `<path>` (files looked up as mitsuba3's file resolver does), ids and `<ref>`,
+transforms, the shapes obj, ply, rectangle, cube, sphere, disk and cylinder, the bsdfs diffuse,
+twosided, null and dielectric, the emitters point, spot and directional, homogeneous media on the
+sensor and inside shapes, the perspective sensor (or a pinhole thinlens) with its film and sampler.
+Everything else is refused, one line naming the file, the line and the element for each element the
+file holds that is not read (all of them in one run: report.Problems). The file is parsed
 with defusedxml (no entity expansion); meshes are read with trimesh and travel inline.
 
 `export` writes a scene for Mitsuba's `volpath` with max_depth = 2 (single scattering with shadowed
@@ -24,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .report import Problems, every
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h: Hecht, Optics, at ~589 nm)
 IOR = {"vacuum": 1.0, "helium": 1.000036, "hydrogen": 1.000132, "air": 1.000277, "carbon dioxide": 1.00045,
@@ -49,10 +52,23 @@ class _Doc:
         self.params: dict[str, str] = {}
         self.ids: dict[str, ET.Element] = {}
         self.stack: list[Path] = []
+        self.folders: list[Path] = []  # Mitsuba's FileResolver: the folders a relative file name is looked up in
+
+    def resolve(self, name: str) -> Path | None:
+        """The first of `folders` that holds `name` (mitsuba3 src/core/fresolver.cpp `resolve`), or None."""
+        if Path(name).is_absolute():
+            return Path(name) if Path(name).exists() else None
+        return next((folder / name for folder in self.folders if (folder / name).exists()), None)
+
+    def searched(self) -> str:
+        return ", ".join(str(f) for f in dict.fromkeys(self.folders))
+
+    def message(self, el, problem: str, fix: str) -> str:
+        file, line = self.where.get(el, ("?", 0))
+        return f"{file}:{line}: {_describe(el)}: {problem}; {fix}"
 
     def fail(self, el, problem: str, fix: str):
-        file, line = self.where.get(el, ("?", 0))
-        raise UserError(f"{file}:{line}: {_describe(el)}: {problem}; {fix}")
+        raise UserError(self.message(el, problem, fix))
 
     def parse(self, path: Path) -> ET.Element:
         """The root element of `path`, every element's line recorded; malformed XML and entity
@@ -89,6 +105,8 @@ class _Doc:
     def load(self, path: Path) -> list[ET.Element]:
         """The scene's top-level elements with includes spliced in and `$name` substituted."""
         path = path.resolve()
+        if not self.stack:  # mitsuba3 src/core/python/parser.cpp load_file: the main file's folder first
+            self.folders = [path.parent]
         if path in self.stack:
             chain = " -> ".join(p.name for p in [*self.stack, path])
             raise UserError(f"{self.stack[-1]}: <include> loop ({chain}); remove the include that closes the loop")
@@ -97,11 +115,11 @@ class _Doc:
         if root.tag != "scene":
             self.fail(root, "the root element must be <scene>", 'write <scene version="3.0.0"> ... </scene>')
         self._substitute(root)
-        children = self._expand(root, path)
+        children = self._expand(root, path, top=True)
         self.stack.pop()
         return children
 
-    def _expand(self, el, path) -> list[ET.Element]:
+    def _expand(self, el, path, top=False) -> list[ET.Element]:
         out = []
         for child in list(el):
             self._substitute(child)
@@ -114,15 +132,37 @@ class _Doc:
                 name = child.get("filename")
                 if not name:
                     self.fail(child, "needs a filename", '<include filename="other.xml"/>')
-                target = path.parent / name
-                if not target.is_file():
-                    self.fail(child, f"included file {str(target)!r} not found", "fix the filename (relative to "
-                              "the including file)")
+                # parser.cpp TagType::Include: the including file's folder, then the resolver's folders
+                outer = self.folders
+                self.folders = [path.parent, *outer]
+                target = self.resolve(name)
+                if target is None or not target.is_file():
+                    self.fail(child, f"included file {name!r} not found in {self.searched()}", "fix the filename "
+                              "(relative to the including file, the main file or a <path>)")
                 out += self.load(target)
+                self.folders = outer
+            elif child.tag == "path":
+                self.add_folder(child, path, top)
             else:
                 child[:] = self._expand(child, path)
                 out.append(child)
         return out
+
+    def add_folder(self, el, path, top):
+        """<path value="..."/>: a folder searched first from now on (parser.cpp TagType::Resource: relative
+        to the file's folder, else through the resolver)."""
+        if not top:
+            self.fail(el, "<path> can only be a child of <scene>", "move it to the top level of the file")
+        value = el.get("value")
+        if not value:
+            self.fail(el, "needs a value", '<path value="meshes"/>')
+        folder = path.parent / value
+        if not folder.exists():
+            folder = self.resolve(value)
+        if folder is None or not folder.is_dir():
+            self.fail(el, f"folder {value!r} not found (relative to {path.parent} or in {self.searched()})",
+                      "fix the folder name")
+        self.folders.insert(0, folder)
 
     def _substitute(self, el):
         for key, value in el.attrib.items():
@@ -252,11 +292,11 @@ class _Props:
         return [obj for oname, obj in self.objects if obj.tag == tag and (name is None or oname == name)]
 
     def done(self, ignored=()):
-        """Refuse parameters nobody read (`ignored`: accepted and documented as having no effect here)."""
-        for name, child in self.values.items():
-            if name not in self.read and name not in ignored:
-                self.doc.fail(child, f"parameter {name!r} of {_describe(self.el)} is not read",
-                              "remove it (docs/formats/mitsuba.md lists what is read)")
+        """Refuse parameters nobody read, all of them at once (`ignored`: accepted and documented as
+        having no effect here)."""
+        every([self.doc.message(child, f"parameter {name!r} of {_describe(self.el)} is not read",
+                                "remove it (docs/formats/mitsuba.md lists what is read)")
+               for name, child in self.values.items() if name not in self.read and name not in ignored])
 
 
 def _tokens(text: str) -> list[str]:
@@ -367,34 +407,41 @@ def _similarity(M):
 
 
 class _Reader:
-    def __init__(self, path: Path):
-        self.path = path
+    def __init__(self, path: Path, problems: Problems):
+        self.path, self.problems = path, problems
         self.doc = _Doc()
         self.top = self.doc.load(path)
         self.doc.collect_ids(self.top)
         self.fog = None  # the sensor's medium element
 
     def scene(self) -> dict:
-        doc = self.doc
+        """The scene dict; each element that cannot be read is recorded in `problems` and left out."""
+        doc, each = self.doc, self.problems.each
         sensors = [el for el in self.top if el.tag == "sensor"]
-        if len(sensors) != 1:
-            raise UserError(f"{self.path}: <sensor>: the scene has {len(sensors)} sensors; keep exactly one "
-                            "perspective sensor")
-        out = {"name": self.path.stem, "camera": self.camera(sensors[0])}
-        self.cam = out["camera"]
+        # a stand-in while the sensor is refused: shapes are still read for their own problems
+        self.cam = {"position": [0.0, 0.0, 0.0], "fov": 45.0, "height": 512}
+        out = {"name": self.path.stem}
+        with each():
+            if len(sensors) != 1:
+                raise UserError(f"{self.path}: <sensor>: the scene has {len(sensors)} sensors; keep exactly one "
+                                "perspective sensor")
+            out["camera"] = self.cam = self.camera(sensors[0])
         if self.fog is not None:
-            out["medium"] = self.medium(self.fog)
+            with each():
+                out["medium"] = self.medium(self.fog)
         shapes, lights = [], []
         for el in self.top:
-            if el.tag == "shape":
-                shape = self.shape(el)
-                if shape is not None:
-                    shapes.append(shape)
-            elif el.tag == "emitter":
-                lights.append(self.emitter(el))
-            elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
-                # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
-                doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
+            with each():
+                if el.tag == "shape":
+                    shape = self.shape(el)
+                    if shape is not None:
+                        shapes.append(shape)
+                elif el.tag == "emitter":
+                    if not (el.get("type") == "area" and el.get("id")):  # (else a shape's by <ref>: listed there)
+                        lights.append(self.emitter(el))
+                elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
+                    # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
+                    doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
         if shapes:
             out["shape"] = shapes
         if lights:
@@ -406,9 +453,13 @@ class _Reader:
 
     def camera(self, el) -> dict:
         doc = self.doc
-        if el.get("type") != "perspective":
-            doc.fail(el, "only the perspective sensor is read", 'use <sensor type="perspective">')
+        if el.get("type") not in ("perspective", "thinlens"):
+            doc.fail(el, "only the perspective sensor (and thinlens with aperture_radius 0) is read",
+                     'use <sensor type="perspective">')
         p = _Props(doc, el)
+        if el.get("type") == "thinlens" and p.number("aperture_radius", math.nan) != 0.0:
+            doc.fail(p.values.get("aperture_radius", el), "a thinlens sensor's aperture_radius > 0 (depth of field) "
+                     "is not read", 'use <sensor type="perspective"> (a pinhole) or aperture_radius 0')
         films = p.nested("film")
         W, H = 768, 576
         if films:
@@ -471,7 +522,9 @@ class _Reader:
         for k in ("principal_point_offset_x", "principal_point_offset_y"):
             if p.number(k, 0.0):
                 doc.fail(p.values[k], "an off-centre principal point is not read", f"remove {k}")
-        p.done(ignored=("near_clip", "far_clip", "shutter_open", "shutter_close"))
+        # focus_distance: every projective camera reads it (src/render/sensor.cpp ProjectiveCamera); no effect
+        # without a lens (a thinlens of aperture_radius 0 is a pinhole: thinlens.cpp sets it to epsilon)
+        p.done(ignored=("near_clip", "far_clip", "shutter_open", "shutter_close", "focus_distance"))
         fwd, up = fwd / n[2], up / n[1]
         return {"type": "perspective", "position": pos.tolist(), "look_at": (pos + fwd).tolist(), "up": up.tolist(),
                 "fov": math.degrees(2.0 * math.atan(tan_y)), "width": W, "height": H, "spp": spp}
@@ -568,9 +621,10 @@ class _Reader:
         if kind not in ("obj", "ply", "rectangle", "cube", "sphere", "disk", "cylinder"):
             doc.fail(el, f"{kind} shapes are not read", "use obj, ply, rectangle, cube, sphere, disk or cylinder")
         p = _Props(doc, el)
-        if p.nested("emitter"):
-            doc.fail(p.nested("emitter")[0], "area emitters are not read (lights are points, spots or directional)",
-                     "remove the area emitter or replace it by a point light")
+        if p.nested("emitter"):  # listed, and the shape read on for its other problems
+            with self.problems.each():
+                doc.fail(p.nested("emitter")[0], "area emitters are not read (lights are points, spots or "
+                         "directional)", "remove the area emitter or replace it by a point light")
         self.same_fog(p, el, "exterior")
         interiors = p.nested("medium", "interior")
         bsdfs = p.nested("bsdf")
@@ -648,9 +702,10 @@ class _Reader:
         name = p.string("filename")
         if not name:
             self.doc.fail(el, "has no filename", '<string name="filename" value="mesh.obj"/>')
-        file = Path(self.doc.where[el][0]).parent / name
-        if not file.is_file():
-            self.doc.fail(el, f"mesh file {str(file)!r} not found", "fix the filename (relative to the XML file)")
+        file = self.doc.resolve(name)  # mesh.cpp: through the resolver as it stands after parsing
+        if file is None or not file.is_file():
+            self.doc.fail(el, f"mesh file {name!r} not found in {self.doc.searched()}", "fix the filename (relative "
+                          "to the main file or a <path>)")
         try:
             mesh = trimesh.load(str(file), file_type=el.get("type"), force="mesh", process=False)
             v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
@@ -729,8 +784,13 @@ def _triangles(v, f, M) -> dict:
 
 def read_scene(path: Path) -> dict:
     """The scene dict of a Mitsuba 3 XML file (docs/formats/mitsuba.md); UserError on what is not read."""
-    reader = _Reader(Path(path))
-    return reader.scene()
+    problems = Problems(str(path))
+    try:
+        out = _Reader(Path(path), problems).scene()
+    except UserError as exc:  # malformed XML, a missing include: reading stops there
+        problems.check(fatal=exc)
+    problems.check()
+    return out
 
 
 # ------------------------------------------------------------------------------------------- writing
@@ -778,7 +838,8 @@ class _Writer:
 
     def refuse(self, key, problem, fix, closest):
         if not self.approximate:
-            raise UserError(f"{self.source}: {key}: {problem}, which Mitsuba 3 cannot express; {fix}")
+            raise UserError(f"{self.source}: {key}: {problem}, which Mitsuba 3 cannot express; {fix}, or pass "
+                            f"--approximate to write {closest}")
         warnings.warn(f"{self.source}: {key}: {problem}; written as {closest} (--approximate)", stacklevel=3)
 
     def xml(self, raw) -> ET.Element:

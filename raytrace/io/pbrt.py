@@ -22,17 +22,26 @@ import io as _io
 import math
 import re
 import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError, counted
+from .report import ImportNote, Problems, every
 
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
+ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted
 HG_MAX = 0.99  # pbrt-v4 clamps HG's g to [-0.99, 0.99] (util/scattering.h HenyeyGreenstein)
+
+
+
+class PbrtNote(ImportNote):
+    """What a pbrt-v4 import reads approximately or converts, one line each."""
+
 
 # ---------------------------------------------------------------------------------------------- tokens
 
@@ -106,8 +115,11 @@ class _Where:
     def __init__(self, path: Path):
         self.path = path
 
+    def message(self, line: int, what: str, fix: str) -> str:
+        return f"{self.path}:{line}: {what}; {fix}"
+
     def fail(self, line: int, what: str, fix: str):
-        raise UserError(f"{self.path}:{line}: {what}; {fix}")
+        raise UserError(self.message(line, what, fix))
 
     def number(self, tok: Token, what: str) -> float:
         if tok.kind != "word" or not _NUMBER.fullmatch(tok.value):
@@ -192,9 +204,10 @@ class Params:
             self.params.pop(n, None)
 
     def done(self):
-        for p in self.params.values():
-            self.where.fail(p.line, f'{self.directive}: parameter "{p.type} {p.name}" is not read by this importer',
-                            "remove it (docs/formats/pbrt.md lists what is read)")
+        """Refuse the parameters not taken, all of them at once."""
+        every([self.where.message(p.line, f'{self.directive}: parameter "{p.type} {p.name}" is not read by this '
+                                  "importer", "remove it (docs/formats/pbrt.md lists what is read)")
+               for p in self.params.values()])
 
 
 # --------------------------------------------------------------------------------------------- reading
@@ -259,8 +272,8 @@ REFUSED = {"Texture": "textures", "AreaLightSource": "area lights", "ObjectBegin
 
 
 class _Reader:
-    def __init__(self, main: Path):
-        self.main = main
+    def __init__(self, main: Path, problems: Problems):
+        self.main, self.problems = main, problems
         self.state = _State()
         self.stack: list[tuple[_State, int, Path]] = []
         self.world = False
@@ -268,6 +281,8 @@ class _Reader:
         self.materials: dict[str, tuple] = {}
         self.media: dict[str, tuple] = {}  # name -> (dict of our medium keys, file, line)
         self.camera = None
+        self.screen, self.exposure, self.iso = (None, None), 1.0, 100.0
+        self.notes: list[str] = []  # what is read approximately, said once each (`read_scene` warns)
         self.film = (1280, 720)
         self.spp = 16
         self.shapes: list[dict] = []  # pbrt world coordinates; their "_material", "_media" resolved at the end
@@ -326,6 +341,12 @@ class _Reader:
                 w.fail(t.line, f"{d}: expected a quoted name, got {_show(t)}", f'write {d} "name"')
             return t.value
 
+        def skip():
+            """Past a refused directive's arguments, to the next directive (pbrt's are capitalised)."""
+            nonlocal i
+            while i < n and not (toks[i].kind == "word" and toks[i].value[:1].isupper()):
+                i += 1
+
         def params(d, line):
             nonlocal i
             out = {}
@@ -358,12 +379,15 @@ class _Reader:
             d, line = tok.value, tok.line
             if tok.kind != "word" or not d[:1].isalpha():
                 w.fail(line, f"expected a directive, got {_show(tok)}", "check the previous directive's parameters")
-            if d in REFUSED:
-                w.fail(line, f"{d} ({REFUSED[d]}) is not read", "remove it (docs/formats/pbrt.md lists what is read)")
-            if d in OPTION_DIRECTIVES and self.world:
-                w.fail(line, f"{d} after WorldBegin", "move it before WorldBegin")
-            if d in WORLD_DIRECTIVES and not self.world:
-                w.fail(line, f"{d} before WorldBegin", "move it after WorldBegin")
+            misplaced = (d in OPTION_DIRECTIVES and self.world and (f"{d} after WorldBegin", "move it before WorldBegin")
+                         or d in WORLD_DIRECTIVES and not self.world and (f"{d} before WorldBegin",
+                                                                          "move it after WorldBegin"))
+            if d in REFUSED or misplaced:  # listed; reading goes on at the next directive
+                with self.problems.each():
+                    w.fail(line, *(misplaced or (f"{d} ({REFUSED[d]}) is not read",
+                                                 "remove it (docs/formats/pbrt.md lists what is read)")))
+                skip()
+                continue
             st = self.state
             if d == "LookAt":
                 v = numbers(d, 9)
@@ -412,7 +436,7 @@ class _Reader:
             elif d == "WorldBegin":
                 if self.world:
                     w.fail(line, "a second WorldBegin", "remove it")
-                if self.camera is None:
+                if self.camera is None and not self.problems.items:  # (else the Camera was refused: listed)
                     w.fail(line, "WorldBegin before any Camera", 'add LookAt ... and Camera "perspective" before it')
                 self.world = True
                 st.set(np.eye(4), np.eye(4))
@@ -443,7 +467,16 @@ class _Reader:
                 if d == "Option":
                     take(d)  # render options (pixel jitter, wavelengths, ...) do not change the scene
                     continue
-                getattr(self, "_" + d)(name, params(f'{d} "{name}"', line), w, line)
+                given = params(f'{d} "{name}"', line)
+                with self.problems.each():  # a directive that cannot be read is listed and left out
+                    try:
+                        getattr(self, "_" + d)(name, given, w, line)
+                    except UserError:
+                        if d == "MakeNamedMaterial":  # stand-ins, so that what names them adds no problem
+                            self.materials.setdefault(name, ("diffuse", [0.5] * 3))
+                        elif d == "MakeNamedMedium":
+                            self.media.setdefault(name, (None, w.path, line))
+                        raise
             else:
                 w.fail(line, f"unknown directive {d}", "check its spelling (pbrt-v4 directives are case-sensitive)")
 
@@ -463,11 +496,21 @@ class _Reader:
                 w.fail(line, 'Camera "spherical": only "string mapping" "equirectangular" is read',
                        "use the equirectangular mapping (ours); equalarea has no counterpart")
             fov = None
-        if p.one("lensradius", 0.0) != 0.0:
+        # cameras.cpp PerspectiveCamera::Create: the screen window (default: the shorter image axis spans
+        # [-1, 1], frameaspectratio the film's) is where the image lies on the plane at tan(fov / 2)
+        window = p.floats("screenwindow", ("float",), 4)
+        frame = p.one("frameaspectratio", None)
+        if kind == "perspective" and p.one("lensradius", 0.0) != 0.0:
             w.fail(line, f'{p.directive}: "lensradius" > 0 (depth of field) is not read', "remove it (a pinhole camera)")
-        p.ignore("focaldistance")  # no effect without a lens
+        p.ignore("focaldistance", "lensradius")  # no effect without a lens (the spherical camera reads none of these)
+        # scene.cpp: the film's exposure time is shutterclose - shutteropen (a scale of the image: `scene`)
+        exposure = p.one("shutterclose", 1.0) - p.one("shutteropen", 0.0)
+        if not exposure > 0.0:
+            w.fail(line, f"{p.directive}: shutterclose - shutteropen = {exposure:g}: the shutter does not open (pbrt "
+                   "stops here too)", "give shutterclose > shutteropen, or leave both out (0 and 1)")
         p.done()
         self.camera = (kind, m, fov, self.state.outside, w.path, line)
+        self.screen, self.exposure = (window, frame) if kind == "perspective" else (None, None), exposure
 
     def _Film(self, kind, p, w, line):
         if kind not in ("rgb", "gbuffer", "spectral"):
@@ -475,9 +518,22 @@ class _Reader:
         x, y = p.ints("xresolution", [1280]), p.ints("yresolution", [720])
         if len(x) != 1 or len(y) != 1 or x[0] < 1 or y[0] < 1:
             w.fail(line, "Film: xresolution and yresolution must be one positive integer each", "e.g. [ 640 ] and [ 480 ]")
+        # film.cpp PixelSensor::Create: imagingRatio = exposureTime * iso / 100 scales the image; the default
+        # sensor "cie1931" with whitebalance 0 passes the scene's RGB through unchanged
+        iso = p.one("iso", 100.0)
+        if not iso > 0.0:
+            w.fail(line, f'{p.directive}: "iso" {iso:g} must be positive', "give the ISO speed, e.g. 100 (pbrt's default)")
+        sensor = p.string("sensor", "cie1931")
+        balance = p.one("whitebalance", 0.0)
+        if sensor != "cie1931":
+            w.fail(line, f'{p.directive}: sensor "{sensor}": a camera\'s spectral response (and its white balance, 6500 K '
+                   "by default) changes the colours, which is not modelled", 'remove it (pbrt\'s default "cie1931")')
+        if balance != 0.0:
+            w.fail(line, f'{p.directive}: whitebalance {balance:g}: a von Kries adaptation from a {balance:g} K daylight '
+                   "white changes the colours, which is not modelled", "remove it (0, pbrt's default: no white balance)")
         p.ignore("filename", "savefp16")
         p.done()
-        self.film = (x[0], y[0])
+        self.film, self.iso = (x[0], y[0]), iso
 
     def _Sampler(self, kind, p, w, line):
         if kind == "stratified":
@@ -594,6 +650,16 @@ class _Reader:
 
     def _Shape(self, kind, p, w, line):
         m = self._affine(w, line, p.directive)
+        # scene.cpp getAlphaTexture: alpha < 1 is a stochastic alpha test; 0 lets every ray through
+        alpha = p.one("alpha", 1.0)
+        if alpha == 0.0:
+            p.params.clear()
+            self.notes.append(f"{w.path}:{line}: {p.directive}: \"float alpha\" 0: invisible to every ray in pbrt; "
+                              "left out")
+            return
+        if alpha != 1.0:
+            w.fail(line, f'{p.directive}: "float alpha" {alpha:g} (a partly transparent surface) is not read',
+                   "remove it (1, opaque) or set it to 0 (invisible)")
         if kind == "sphere":
             r = p.one("radius", 1.0)
             if not r > 0.0:
@@ -643,18 +709,61 @@ class _Reader:
 
     # --- the scene dict
     def scene(self) -> dict:
+        """The scene dict; a shape that cannot be read is recorded in `problems` and left out."""
         if self.stack:
             _, line, path = self.stack[-1]
-            raise UserError(f"{path}:{line}: AttributeBegin without AttributeEnd; close it")
+            with self.problems.each():
+                raise UserError(f"{path}:{line}: AttributeBegin without AttributeEnd; close it")
         if self.camera is None:
+            if self.problems.items:  # the Camera was refused: listed
+                return {}
             raise UserError(f'{self.main}: no Camera; add LookAt ... and Camera "perspective" before WorldBegin')
+        out = {"name": self.main.stem.removesuffix(".pbrt"), "shape": [], "light": []}
+        s, camera_medium = np.ones(3), None  # stand-ins while the camera is refused: shapes are read on
+        with self.problems.each():
+            out["camera"], s, camera_medium = self._camera()
+        if camera_medium is not None and (any(camera_medium["sigma_a"]) or any(camera_medium["sigma_s"])):
+            out["medium"] = camera_medium
+        ratio = self.exposure * self.iso / 100.0  # film.cpp: imagingRatio
+        if ratio != 1.0:
+            self.notes.append(f"{self.main}: Film: pbrt-v4 scales the image by exposure time x iso / 100 = "
+                              f"{self.exposure:g} x {self.iso:g} / 100 = {ratio:g} (film.cpp imagingRatio); the lights' "
+                              "power is scaled by it instead (the same image: it is linear in the lights)")
+        for light in self.lights:
+            light = dict(light)
+            for k in ("intensity", "irradiance"):
+                if k in light:
+                    light[k] = [ratio * v for v in light[k]]
+            for k in ("position", "direction"):
+                if k in light:
+                    light[k] = light[k] * s + 0.0
+            out["light"].append(light)
+        for shape in self.shapes:
+            with self.problems.each():
+                shape = self._surface(dict(shape), self.camera[3], camera_medium)
+                if shape is not None:
+                    for k in ("vertices", "center"):
+                        if k in shape:
+                            shape[k] = shape[k] * s + 0.0
+                    out["shape"].append(shape)
+        return _plain(out)
+
+    def _camera(self):
+        """(our camera, the world's x factors (-1 in x: mirrored), the camera's medium)."""
         kind, wfc, fov, medium, cpath, cline = self.camera
         camera_medium = self._medium(medium, _Where(cpath), cline)
         lin = wfc[:3, :3]
         x, y, z = (lin[:, k] / np.linalg.norm(lin[:, k]) for k in range(3))
-        if not (abs(x @ y) < 1e-6 and abs(y @ z) < 1e-6 and abs(x @ z) < 1e-6):
-            raise UserError(f"{cpath}:{cline}: Camera: its transform shears the image; place the camera with LookAt, "
-                            "rotations and translations")
+        # exporters write rotations with a few decimals (Houdini's: 4, axes off by ~1e-4): orthonormal to a
+        # relative ORTHO_REFUSE is read with its view direction and up, a note above ORTHO_NOTE
+        norms = [np.linalg.norm(lin[:, k]) for k in range(3)]
+        off = max(abs(x @ y), abs(y @ z), abs(x @ z), (max(norms) - min(norms)) / max(norms))
+        if off > ORTHO_REFUSE:
+            raise UserError(f"{cpath}:{cline}: Camera: its transform scales unevenly or shears the image (axes off "
+                            f"orthonormal by {off:.2g}); place the camera with LookAt, rotations and translations")
+        if off > ORTHO_NOTE:
+            self.notes.append(f"{cpath}:{cline}: Camera: its transform is orthonormal to {off:.2g} (a rotation written "
+                              "with few decimals); read with its view direction and its up made orthogonal to it")
         # pbrt's perspective raster x runs along camera x, ours along forward x up: mirrored when det > 0
         # (a plain LookAt); its equirectangular image matches ours when det > 0 (cameras.cpp GenerateRay)
         det = np.linalg.det(lin)
@@ -666,33 +775,34 @@ class _Reader:
         cam = {"type": "perspective" if kind == "perspective" else "environment", "position": pos,
                "look_at": pos + forward, "up": y * s + 0.0, "width": W, "height": H, "spp": self.spp}
         if kind == "perspective":
-            # fov spans the shorter axis (cameras.cpp: the screen window's shorter side is [-1, 1]); ours is vertical
-            cam["fov"] = fov if W > H else math.degrees(2.0 * math.atan(math.tan(math.radians(fov) / 2.0) * H / W))
-        out = {"name": self.main.stem.removesuffix(".pbrt"), "camera": cam, "shape": [], "light": []}
-        if camera_medium is not None and (any(camera_medium["sigma_a"]) or any(camera_medium["sigma_s"])):
-            out["medium"] = camera_medium
-        for light in self.lights:
-            light = dict(light)
-            for k in ("position", "direction"):
-                if k in light:
-                    light[k] = light[k] * s + 0.0
-            out["light"].append(light)
-        for shape in self.shapes:
-            shape = self._surface(dict(shape), medium, camera_medium)
-            if shape is None:
-                continue
-            for k in ("vertices", "center"):
-                if k in shape:
-                    shape[k] = shape[k] * s + 0.0
-            out["shape"].append(shape)
-        return _plain(out)
+            cam["fov"] = self._vertical_fov(fov, W, H, _Where(cpath), cline)
+        return cam, s, camera_medium
+
+    def _vertical_fov(self, fov, W, H, w, line) -> float:
+        """Our vertical fov from pbrt's `fov` and screen window (cameras.cpp PerspectiveCamera::Create and
+        CameraBase: the window [x0, x1] x [y0, y1] on the plane where tan(fov / 2) = 1 spans the image)."""
+        window, frame = self.screen
+        frame = W / H if frame is None else frame
+        x0, x1, y0, y1 = window or ([-frame, frame, -1.0, 1.0] if frame > 1.0 else [-1.0, 1.0, -1.0 / frame, 1.0 / frame])
+        key = '"float screenwindow"' if window else '"float frameaspectratio"'
+        if not (x1 > x0 and y1 > y0):
+            w.fail(line, f"Camera: {key} [{x0:g} {x1:g} {y0:g} {y1:g}] is empty or flipped", "give x0 < x1 and y0 < y1")
+        size = max(x1 - x0, y1 - y0)
+        if abs(x0 + x1) > 1e-6 * size or abs(y0 + y1) > 1e-6 * size:
+            w.fail(line, f"Camera: {key} [{x0:g} {x1:g} {y0:g} {y1:g}] is off-centre (a lens shift), which is not read",
+                   "use a window symmetric about 0 (ours looks through the image centre)")
+        if abs((x1 - x0) / (y1 - y0) - W / H) > 1e-3 * W / H:
+            w.fail(line, f"Camera: {key}: the window's aspect {(x1 - x0) / (y1 - y0):.6g} differs from the film's "
+                   f"{W}/{H} = {W / H:.6g}, so pbrt stretches the image (non-square pixels), which is not read",
+                   f"give the window the film's aspect, e.g. [-{x1:g} {x1:g} -{x1 * H / W:.6g} {x1 * H / W:.6g}]")
+        return math.degrees(2.0 * math.atan(y1 * math.tan(math.radians(fov) / 2.0)))
 
     def _medium(self, name, w, line):
         if name == "":
             return None
         if name not in self.media:
             w.fail(line, f'medium "{name}" is not defined', f'define it with MakeNamedMedium "{name}" ...')
-        return self.media[name][0]
+        return self.media[name][0] or {"sigma_a": [0.0] * 3, "sigma_s": [0.0] * 3}  # (a refused medium: listed)
 
     def _surface(self, shape, camera_name, camera_medium):
         """The shape's reflectance or interior from its material and medium interface (pbrt: a shape whose
@@ -769,9 +879,17 @@ def _plain(x):
 
 def read_scene(path: Path) -> dict:
     """The scene dict of a pbrt-v4 file, or UserError naming the file, the line and the fix."""
-    reader = _Reader(Path(path))
-    reader.run(Path(path))
-    return reader.scene()
+    problems = Problems(str(path))
+    reader = _Reader(Path(path), problems)
+    try:
+        reader.run(Path(path))
+        out = reader.scene()
+    except UserError as exc:  # malformed input, a missing include: reading stops there
+        problems.check(fatal=exc)
+    problems.check()
+    for note in reader.notes:
+        warnings.warn(note, PbrtNote, stacklevel=2)
+    return out
 
 
 # --------------------------------------------------------------------------------------------- writing
