@@ -95,7 +95,7 @@ class Image:
         return out
 
     def _repr_png_(self) -> bytes:
-        """A notebook's preview: the PNG (ACES view, automatic exposure) at most PREVIEW_WIDTH wide."""
+        """A notebook's preview: the PNG (neutral view, automatic exposure) at most PREVIEW_WIDTH wide."""
         from io import BytesIO
 
         from PIL import Image as Picture
@@ -122,14 +122,15 @@ class Image:
         return (f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(caption)}">'
                 f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
-    def save(self, *paths, exposure: float | None = None, view: str = "aces"):
+    def save(self, *paths, exposure: float | None = None, view: str = "neutral"):
         """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
         written): linear float32 EXR (.exr, with error_bound.R/G/B channels, the bound of the float32
         values, error_bounds.stored, and variance channels for stochastic methods) or an 8-bit
-        PNG preview (.png) through `view`: "aces" (ACES 2.0's SDR view, highlights roll off without
-        clipping colours) or "standard" (the exact sRGB encode, clipping at 1). `exposure` is in stops
-        (each doubles the radiance); None is automatic: the log-average luminance at middle grey for
-        "aces", the 99.5th percentile of luminance at white for "standard"."""
+        PNG preview (.png) through `view`: "neutral" (Khronos PBR Neutral, highlights roll off
+        and lamps keep their hue), "aces" (ACES 2.0's SDR view, which greys coloured lamps) or "standard"
+        (the exact sRGB encode, clipping at 1). `exposure` is in stops (each doubles the radiance); None
+        is automatic: the log-average luminance at middle grey for "neutral" and "aces", the 99.5th
+        percentile of luminance at white for "standard"."""
         from . import film
         from .view import check_exposure
 

@@ -118,9 +118,10 @@ def build_parser():
     r.add_argument("--png", help="also write an 8-bit PNG preview here")
     r.add_argument("--exposure", type=float, help="PNG exposure in stops, each doubling the radiance (default: "
                                                   "automatic, the log-average luminance at middle grey)")
-    r.add_argument("--view", choices=VIEWS, default="aces",
-                   help="PNG view: aces (ACES 2.0 SDR, highlights roll off, colours do not clip; default) or "
-                        "standard (the exact sRGB encode, clipped at 1)")
+    r.add_argument("--view", choices=VIEWS, default="neutral",
+                   help="PNG view: neutral (Khronos PBR Neutral, highlights roll off, lamps keep their hue; "
+                        "default), aces (ACES 2.0 SDR, greys coloured lamps) or standard (the exact sRGB encode, "
+                        "clipped at 1)")
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")

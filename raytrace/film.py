@@ -1,5 +1,5 @@
 """Image files: linear float32 RGB EXR (with metadata in the header) and PNG previews (through
-view.py's ACES 2.0 view, or a plain sRGB encode).
+view.py's PBR Neutral or ACES 2.0 view, or a plain sRGB encode).
 
 Files are written to a temporary name beside the target and renamed, so a failed or interrupted
 write never leaves a partial image behind. Several files written together (an EXR and its PNG) are
@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import view as views
 from .errors import UserError
 
 _UMASK = threading.Lock()
@@ -197,25 +198,23 @@ def read_exr_channels(path, prefix: str) -> np.ndarray | None:
 
 
 TONEMAP_VALUES = 1 << 20  # float64 values per band of `srgb_encode` (a few 8 MB temporaries)
-VIEWS = ("aces", "standard")  # preview views: ACES 2.0's SDR output transform (view.py), or a plain sRGB encode
+VIEWS = ("neutral", "aces", "standard")  # preview views: view.py's PBR Neutral and ACES 2.0, or a plain sRGB encode
 
 
 def check_view(name, what: str = "view") -> str:
     """`name` if it is one of VIEWS; UserError naming `what` otherwise."""
     if name not in VIEWS:
-        raise UserError(f"{what}: unknown view {name!r}; choose one of: {', '.join(VIEWS)} (aces rolls highlights "
-                        "off without clipping colours, standard is the exact sRGB encode that clips at 1)")
+        raise UserError(f"{what}: unknown view {name!r}; choose one of: {', '.join(VIEWS)} (neutral keeps "
+                        "lamps' hues, aces greys them, standard is the exact sRGB encode that clips at 1)")
     return name
 
 
-def tonemap(image: np.ndarray, exposure: float | None = None, view: str = "aces") -> np.ndarray:
+def tonemap(image: np.ndarray, exposure: float | None = None, view: str = "neutral") -> np.ndarray:
     """8-bit sRGB preview of linear radiance through `view` (VIEWS), `exposure` in stops (None:
-    automatic): "aces" is `view.to_display`; "standard" is `srgb_encode`."""
-    from . import view as views
-
+    automatic): "neutral" and "aces" are `view.to_display`; "standard" is `srgb_encode`."""
     check_view(view)
     exposure = views.check_exposure(exposure)
-    return views.to_display(image, exposure) if view == "aces" else srgb_encode(image, exposure)
+    return srgb_encode(image, exposure) if view == "standard" else views.to_display(image, exposure, view)
 
 
 def srgb_encode(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
@@ -230,9 +229,7 @@ def srgb_encode(image: np.ndarray, exposure: float | None = None) -> np.ndarray:
     out = np.empty(image.shape, np.uint8)
     rows = max(1, TONEMAP_VALUES // max(1, image[0].size)) if image.ndim == 3 and len(image) else 1
     for r in range(0, len(image), rows):  # in bands: the temporaries stay small
-        x = np.clip(np.nan_to_num(image[r:r + rows] * scale, nan=0.0, posinf=1.0), 0.0, 1.0)
-        srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-        out[r:r + rows] = srgb * 255.0 + 0.5
+        out[r:r + rows] = views.srgb8(np.nan_to_num(image[r:r + rows] * scale, nan=0.0, posinf=1.0))
     return out
 
 

@@ -3,7 +3,7 @@
     RAYTRACE_ASSETS=../shared/scenes python render.py gallery --out docs/gallery [--width 960] [SCENE ...]
 
 Each scene keeps its camera's aspect at `width` pixels (960x480 for a 2:1 camera) and its [render]
-method and spp; the PNG is `render --png`'s preview (ACES view, automatic exposure), written with
+method and spp; the PNG is `render --png`'s preview (neutral view, automatic exposure), written with
 film.write_together (a temporary file renamed into place) and compressed with PNG's optimize pass.
 A scene whose meshes are not on the asset path (RAYTRACE_ASSETS) is skipped with a `GalleryNote`
 warning (one `warning:` line on the command line, like every other note). README.md's

@@ -1,5 +1,6 @@
-"""PNG previews through the view (raytrace/view.py) from the API and the command line: the ACES view
-by default, the plain sRGB encode as the "standard" view, exposure checked before anything is written."""
+"""PNG previews through the view (raytrace/view.py) from the API and the command line: the neutral view
+(Khronos PBR Neutral) by default, ACES 2.0 as "aces", the plain sRGB encode as "standard", exposure checked
+before anything is written."""
 from __future__ import annotations
 
 import math
@@ -28,9 +29,11 @@ def img():
 
 def test_save_png_goes_through_the_view(tmp_path, img):
     img.save(tmp_path / "a.png")
-    np.testing.assert_array_equal(_png(tmp_path / "a.png"), view.to_display(img.array))
+    np.testing.assert_array_equal(_png(tmp_path / "a.png"), view.to_display(img.array, None, "neutral"))
     img.save(tmp_path / "b.png", exposure=-1.5)
-    np.testing.assert_array_equal(_png(tmp_path / "b.png"), view.to_display(img.array, -1.5))
+    np.testing.assert_array_equal(_png(tmp_path / "b.png"), view.to_display(img.array, -1.5, "neutral"))
+    img.save(tmp_path / "d.png", view="aces")
+    np.testing.assert_array_equal(_png(tmp_path / "d.png"), view.to_display(img.array, None, "aces"))
     img.save(tmp_path / "c.png", exposure=0.0, view="standard")
     np.testing.assert_array_equal(_png(tmp_path / "c.png"), film.srgb_encode(img.array, 0.0))
 
@@ -43,7 +46,7 @@ def test_save_refuses_a_non_finite_exposure_naming_it(tmp_path, img, bad):
 
 
 def test_save_refuses_an_unknown_view(tmp_path, img):
-    with pytest.raises(raytrace.UserError, match=r"^view: unknown view 'filmic'; choose one of: aces, standard"):
+    with pytest.raises(raytrace.UserError, match=r"^view: unknown view 'filmic'; choose one of: neutral, aces, standard"):
         img.save(tmp_path / "a.png", view="filmic")
 
 
@@ -55,12 +58,13 @@ def _scene(tmp_path):
 
 def test_cli_png_views(tmp_path):
     scene = _scene(tmp_path)
-    for name, extra in (("aces", []), ("standard", ["--view", "standard", "--exposure", "1"])):
+    for name, extra in (("neutral", []), ("aces", ["--view", "aces"]),
+                        ("standard", ["--view", "standard", "--exposure", "1"])):
         out, png = tmp_path / f"{name}.exr", tmp_path / f"{name}.png"
         assert main([scene, "--width", "8", "--height", "6", "--out", str(out), "--png", str(png), "--quiet",
                      *extra]) == 0
         array, _ = film.read_exr(out)
-        want = (view.to_display(array) if name == "aces" else film.srgb_encode(array, 1.0))
+        want = view.to_display(array, None, name) if name != "standard" else film.srgb_encode(array, 1.0)
         # the PNG is made from the float64 image, the EXR holds float32: allow one code of rounding
         assert np.abs(_png(png).astype(int) - want).max() <= 1
 
