@@ -221,6 +221,8 @@ def scene_dict(scene=None, overrides=(), camera: str | None = None) -> tuple[dic
                         "(--set camera.position=[x, y, z])")
     for item in overrides:
         apply_override(raw, *parse_override(item, source), source)
+    if path is not None and io.importer(path):  # after --set, which may add the lights a file lacks
+        io.warn_no_lights(raw, source)
     return raw, source, path
 
 

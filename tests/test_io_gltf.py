@@ -568,7 +568,8 @@ def test_notes_of_one_kind_are_one_line(tmp_path):
 
 def test_scene_without_lights_warns_and_says_how_to_add_one(tmp_path, capsys):
     """The warning names a point lamp above and behind the camera (never at it); added with --set as
-    it says, the image is no longer black."""
+    it says, the image is no longer black and the warning is not given (it is given after the
+    overrides)."""
     cube = trimesh.creation.box().triangles.astype(np.float32)
     path = write_gltf(tmp_path, {"nodes": [{"mesh": 0}]}, cube.reshape(-1, 3).tobytes())
     with warnings.catch_warnings(record=True) as notes:
@@ -582,8 +583,11 @@ def test_scene_without_lights_warns_and_says_how_to_add_one(tmp_path, capsys):
     offset = pos - cam["position"]
     assert offset[1] > 0.1 and offset[2] > 0.1  # above (+y) and behind (the camera looks down -z)
     out = tmp_path / "lit.exr"
-    assert main(["render", str(path), "--set", lamp, "--width", "8", "--height", "8", "--spp", "1",
-                 "--out", str(out)]) == 0
+    with warnings.catch_warnings(record=True) as notes:  # the lamp given, the warning goes
+        warnings.simplefilter("always")
+        assert main(["render", str(path), "--set", lamp, "--width", "8", "--height", "8", "--spp", "1",
+                     "--out", str(out)]) == 0
+    assert not [n for n in notes if "no lights" in str(n.message)]
     from raytrace.film import read_exr
 
     assert np.max(read_exr(out)[0]) > 0.0

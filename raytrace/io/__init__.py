@@ -51,7 +51,6 @@ def read_scene(path: Path, camera: str | None = None) -> dict:
                         "--set camera.look_at=...")
     else:
         raw = module.read_scene(path, camera=camera)
-    report.warn(filter(None, [report.no_lights(raw, str(path))]))
     return raw
 
 
@@ -60,3 +59,8 @@ def export(raw: dict, fmt: str, out: Path, source: str, approximate: bool = Fals
     if fmt not in FORMATS:
         raise UserError(f"{source}: --format {fmt}: unknown format; use one of {', '.join(FORMATS)}")
     return _module(fmt).export(raw, Path(out), source, approximate)
+
+
+def warn_no_lights(raw: dict, source: str):
+    """Warn, with a lamp to add by --set, when an imported scene (after its overrides) has no lights."""
+    report.warn(filter(None, [report.no_lights(raw, source)]))
