@@ -71,6 +71,8 @@ def kind(command: str) -> tuple[str, list[str] | None]:
         return "unknown", None
     args = words[words.index("render.py") + 1:]
     sub = args[0] if args and not args[0].startswith("-") and args[0] in SUBCOMMANDS else "render"
+    if sub == "assets" and "--list" not in args:
+        return "skip", ["downloads the paper's meshes (tests/test_assets.py serves fixture archives locally)"]
     if (sub in ("gallery", "table1") or any(w in MESH_SCENES for w in args) or "--time-budget" in args
             or "--scheduler" in args):
         return "slow", None
@@ -79,7 +81,8 @@ def kind(command: str) -> tuple[str, list[str] | None]:
     return "run", SHRINK.get(sub, [])
 
 
-SUBCOMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export", "gallery")
+SUBCOMMANDS = ("render", "describe", "methods", "diff", "compare", "sweep", "table1", "seed002", "export", "gallery",
+               "assets")
 
 
 @pytest.fixture
