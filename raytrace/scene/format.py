@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import CURVES, DIRECTIONAL, SPOT, Light
+from ..lights import Light, parse_light
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -269,83 +269,8 @@ def _interior(ctx, key, raw):
     return Interior(sa, ss, *_phase(ctx, raw.get("phase", "isotropic"), f"{key}.phase"), float(ior))
 
 
-LIGHT_KEYS = {"point": {"type", "position", "intensity"},
-              "spot": {"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start",
-                       "falloff"},
-              "directional": {"type", "direction", "irradiance"}}
-
-
-MAX_POWER = 1e150  # a light's intensity or irradiance: its square (a Monte Carlo variance) must stay finite
-
-
-def _power(ctx, key, value):
-    if np.any(value > MAX_POWER):
-        ctx.fail(key, f"{value.max():g} exceeds {MAX_POWER:g} (the variance of an estimate, its square, would "
-                 "overflow doubles)", "scale the scene's units of power down")
-    return value
-
-
-def _light(ctx, i, raw):
-    key = f"light[{i}]"
-    raw = _table(ctx, key, raw)
-    kind = _string(ctx, f"{key}.type", raw.get("type", "point"), tuple(LIGHT_KEYS))
-    ctx.unknown(key, raw, LIGHT_KEYS[kind])
-    if kind == "directional":
-        return _directional(ctx, key, raw)
-    for k in ("position", "intensity"):
-        if k not in raw:
-            ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k}")
-    pos = _vec3(ctx, f"{key}.position", raw["position"])
-    intensity = _power(ctx, f"{key}.intensity", _rgb(ctx, f"{key}.intensity", raw["intensity"]))
-    if kind == "point":
-        return Light(pos, intensity)
-    return _spot(ctx, key, raw, pos, intensity)
-
-
-def _directional(ctx, key, raw):
-    """The sun: unit direction of travel, irradiance per channel on a surface facing it."""
-    for k, example in (("direction", "[0.3, -1.0, 0.2] (the way the light travels)"), ("irradiance", "3.0")):
-        if k not in raw:
-            ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k} = {example}")
-    axis = _vec3(ctx, f"{key}.direction", raw["direction"])
-    norm = float(np.linalg.norm(axis))
-    if not norm > 0.0:
-        ctx.fail(f"{key}.direction", "is zero", "give the direction the light travels, e.g. [0.3, -1.0, 0.2]")
-    return Light(np.zeros(3), _power(ctx, f"{key}.irradiance", _rgb(ctx, f"{key}.irradiance", raw["irradiance"])),
-                 DIRECTIONAL, axis / norm)
-
-
-def _spot(ctx, key, raw, pos, intensity):
-    """A spot light: its axis from look_at or direction, cone and falloff angles in degrees
-    (0 <= falloff_start <= cone_angle < 180; pbrt-v4's defaults: 30 and 25) and the falloff curve
-    between them (lights.CURVES; default pbrt-v4's smoothstep)."""
-    if ("look_at" in raw) == ("direction" in raw):
-        ctx.fail(key, "a spot light needs exactly one of look_at or direction",
-                 "write look_at = [x, y, z] (a point on the axis) or direction = [x, y, z]")
-    if "look_at" in raw:
-        axis = _vec3(ctx, f"{key}.look_at", raw["look_at"]) - pos
-        what = "look_at equals position"
-    else:
-        axis = _vec3(ctx, f"{key}.direction", raw["direction"])
-        what = "direction is zero"
-    norm = float(np.linalg.norm(axis))
-    if not norm > 1e-12 * max(1.0, float(np.linalg.norm(pos))):
-        ctx.fail(f"{key}.{'look_at' if 'look_at' in raw else 'direction'}", what,
-                 "give the axis a length (a point away from the light, or a non-zero direction)")
-    cone = float(_number(ctx, f"{key}.cone_angle", raw.get("cone_angle", 30.0)))
-    if not 0.0 < cone < 180.0:
-        ctx.fail(f"{key}.cone_angle", f"must be in (0, 180) degrees, got {cone!r}", "use e.g. cone_angle = 30")
-    start = float(_number(ctx, f"{key}.falloff_start", raw.get("falloff_start", max(cone - 5.0, 0.0))))
-    if not 0.0 <= start <= cone:
-        ctx.fail(f"{key}.falloff_start", f"must be in [0, cone_angle = {cone:g}] degrees, got {start!r}",
-                 "use a value at most cone_angle (equal: a hard edge)")
-    curve = CURVES[_string(ctx, f"{key}.falloff", raw.get("falloff", "smoothstep"), tuple(CURVES))]
-    return Light(pos, intensity, SPOT, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)),
-                 curve)
-
-
 class _Reader:
-    """The parsing helpers bound to the file, for the media kinds' own parsers (media/medium.py)."""
+    """The parsing helpers bound to the file, for the media and light kinds' own parsers (media/medium.py)."""
 
     def __init__(self, ctx):
         self.fail, self.unknown = ctx.fail, ctx.unknown
@@ -450,8 +375,8 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     if not isinstance(name, str):
         ctx.fail("name", f"expected a string, got {name!r}", 'write name = "my scene"')
     shapes = [_shape(ctx, i, s) for i, s in enumerate(shapes_raw)]
-    lights = [_light(ctx, i, s) for i, s in enumerate(lights_raw)]
     read = _Reader(ctx)
+    lights = [parse_light(read, i, s) for i, s in enumerate(lights_raw)]
     medium = parse_medium(read, raw.get("medium"))
     medium.check_scene(read, camera, lights)
     return Scene(

@@ -1,13 +1,8 @@
-"""Lights: what the scene file describes (`Light`) and the arrays kernels read (`Lights`).
-
-Point lights are isotropic: radiant intensity I per channel, so the irradiance at distance d,
-before the medium's attenuation, is I / d^2 (the paper's eqs. 4 and 5). A spot light emits I F(cos)
-toward a direction at cosine `cos` from its axis, with the falloff F = 1 within `falloff_start`, 0
-beyond `cone_angle`, and between them one of three curves (`falloff`, docs/spot_lights.md): pbrt-v4's
-SpotLight, smoothstep in the cosine (SMOOTHSTEP); Mitsuba 3's spot, linear in the angle (MITSUBA);
-KHR_lights_punctual's, the linear ramp in the cosine squared (GLTF).
-A directional light (the sun) has no position: `axis` is its direction of travel and `intensity`
-its irradiance E per channel on a surface facing it, outside any medium.
+"""The spot light: a point light (point.py) that emits I F(cos) toward a direction at cosine `cos`
+from its axis, with the falloff F = 1 within `falloff_start`, 0 beyond `cone_angle`, and between
+them one of three curves (`falloff`, docs/spot_lights.md): pbrt-v4's SpotLight, smoothstep in the
+cosine (SMOOTHSTEP); Mitsuba 3's spot, linear in the angle (MITSUBA); KHR_lights_punctual's, the
+linear ramp in the cosine squared (GLTF).
 
 Along a ray segment seen from a light (geometry.py: foot point distance h, x - x_h = h tan(theta)),
 the direction from the light is cos(theta) n + sin(theta) w, with n the unit vector from the light
@@ -21,78 +16,75 @@ c crosses a given cosine, in the paper's variable v = tan(phi / 2).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from .jit import njit
+from ..jit import njit
+from . import point
+from .light import Light
 
-POINT = 0
-SPOT = 1
-DIRECTIONAL = 2
-NAMES = {POINT: "point", SPOT: "spot", DIRECTIONAL: "directional"}
+NAME = "spot"
+CODE = 1
+KEYS = frozenset({"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start", "falloff"})
 
-SMOOTHSTEP = 0  # the spot falloff curves (`falloff`); the scene file's names:
+SMOOTHSTEP = 0  # the falloff curves (`falloff`; Light's default curve); the scene file's names:
 MITSUBA = 1
 GLTF = 2
 CURVES = {"smoothstep": SMOOTHSTEP, "mitsuba": MITSUBA, "gltf": GLTF}
 
-# the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1
-NO_CONE = (-3.0, -2.0)
 CUT_TOL = 1e-12  # relative: cone crossings this close to a segment's end are that end
 
 
-@dataclass
-class Light:
-    """One light of the scene file; spot lights also have a unit `axis` and the cosines of their
-    cone (`cos_end`, zero beyond) and of their full-intensity core (`cos_start`) and the `curve`
-    between (SMOOTHSTEP, MITSUBA or GLTF); directional lights a unit `axis` (direction of travel) and
-    no position (zero)."""
-    position: np.ndarray
-    intensity: np.ndarray  # W/sr per channel (spot: on the axis; directional: irradiance W/m^2)
-    kind: int = POINT
-    axis: np.ndarray | None = None
-    cos_end: float = NO_CONE[0]
-    cos_start: float = NO_CONE[1]
-    curve: int = SMOOTHSTEP
+def parse(read, key, raw) -> Light:
+    """A spot light: its position and intensity (point.py), its axis from look_at or direction, cone
+    and falloff angles in degrees (0 <= falloff_start <= cone_angle < 180; pbrt-v4's defaults: 30
+    and 25) and the falloff curve between them (CURVES; default pbrt-v4's smoothstep)."""
+    pos, intensity = point.position_intensity(read, key, raw)
+    if ("look_at" in raw) == ("direction" in raw):
+        read.fail(key, "a spot light needs exactly one of look_at or direction",
+                  "write look_at = [x, y, z] (a point on the axis) or direction = [x, y, z]")
+    if "look_at" in raw:
+        axis = read.vec3(f"{key}.look_at", raw["look_at"]) - pos
+        what = "look_at equals position"
+    else:
+        axis = read.vec3(f"{key}.direction", raw["direction"])
+        what = "direction is zero"
+    norm = float(np.linalg.norm(axis))
+    if not norm > 1e-12 * max(1.0, float(np.linalg.norm(pos))):
+        read.fail(f"{key}.{'look_at' if 'look_at' in raw else 'direction'}", what,
+                  "give the axis a length (a point away from the light, or a non-zero direction)")
+    cone = float(read.number(f"{key}.cone_angle", raw.get("cone_angle", 30.0)))
+    if not 0.0 < cone < 180.0:
+        read.fail(f"{key}.cone_angle", f"must be in (0, 180) degrees, got {cone!r}", "use e.g. cone_angle = 30")
+    start = float(read.number(f"{key}.falloff_start", raw.get("falloff_start", max(cone - 5.0, 0.0))))
+    if not 0.0 <= start <= cone:
+        read.fail(f"{key}.falloff_start", f"must be in [0, cone_angle = {cone:g}] degrees, got {start!r}",
+                  "use a value at most cone_angle (equal: a hard edge)")
+    curve = CURVES[read.string(f"{key}.falloff", raw.get("falloff", "smoothstep"), tuple(CURVES))]
+    return Light(pos, intensity, CODE, axis / norm, math.cos(math.radians(cone)), math.cos(math.radians(start)),
+                 curve)
 
 
-@dataclass(frozen=True)
-class Lights:
-    """All lights as float64 arrays: `kind` (L,), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3)
-    (zero for point lights), `cone` (L, 3): (cos_end, cos_start, curve), NO_CONE for point and
-    directional lights (their curve: SMOOTHSTEP, unused)."""
-    kind: np.ndarray
-    position: np.ndarray
-    intensity: np.ndarray
-    axis: np.ndarray
-    cone: np.ndarray
+def describe(light) -> str:
+    return (f"{NAME} {point.at(light)}, axis {light.axis.round(6).tolist()}, cone "
+            f"{math.degrees(math.acos(light.cos_end)):g} deg, falloff from {math.degrees(math.acos(light.cos_start)):g} deg")
 
-    @classmethod
-    def of(cls, lights: list[Light]) -> "Lights":
-        axis = [np.zeros(3) if l.axis is None else l.axis for l in lights]
-        return cls(np.array([l.kind for l in lights], dtype=np.int64),
-                   np.array([l.position for l in lights], dtype=float).reshape(-1, 3),
-                   np.array([l.intensity for l in lights], dtype=float).reshape(-1, 3),
-                   np.array(axis, dtype=float).reshape(-1, 3),
-                   np.array([(l.cos_end, l.cos_start, l.curve) for l in lights], dtype=float).reshape(-1, 3))
 
-    def __len__(self) -> int:
-        return len(self.kind)
+def irradiance(lights, index, to_points, dist):
+    """The point light's I / d^2 times the falloff toward each point."""
+    cos = (to_points @ lights.axis[index]) / dist
+    return point.irradiance(lights, index, to_points, dist) * falloff_array(cos, *lights.cone[index])[:, None]
 
-    def kinds(self) -> set[str]:
-        return {NAMES[int(k)] for k in self.kind}
 
-    def irradiance(self, index: int, to_points: np.ndarray, dist: np.ndarray) -> np.ndarray:
-        """Unattenuated irradiance (N, 3) from light `index` on surfaces facing it at the points
-        light + to_points (N, 3), at distances `dist` (N,) > 0 (a directional light's: its own)."""
-        if self.kind[index] == DIRECTIONAL:
-            return np.broadcast_to(self.intensity[index], (len(dist), 3))
-        e = self.intensity[index][None, :] / (dist * dist)[:, None]
-        if self.kind[index] == SPOT:
-            cos = (to_points @ self.axis[index]) / dist
-            e = e * falloff_array(cos, *self.cone[index])[:, None]
-        return e
+@njit
+def sample(position, axis, cone, li, px, py, pz):
+    """The point light's sample with the falloff toward p as its weight."""
+    ux, uy, uz, dist, f = point.sample(position, axis, cone, li, px, py, pz)
+    if f == 0.0:
+        return ux, uy, uz, dist, f
+    # the light leaves along -u
+    f = falloff(-(ux * axis[li, 0] + uy * axis[li, 1] + uz * axis[li, 2]), cone[li, 0], cone[li, 1], cone[li, 2])
+    return ux, uy, uz, dist, f
 
 
 @njit
@@ -100,26 +92,6 @@ def is_spot(cos_start):
     """Whether a light whose core has the cosine `cos_start` (`Light.cos_start`, column 1 of
     `Lights.cone`, column 3 of a segment's cone row) has a cone: NO_CONE's is below -1."""
     return cos_start > -1.0
-
-
-@njit
-def light_sample(kind, position, axis, cone, li, px, py, pz):
-    """(ux, uy, uz, dist, f) of light li (the `Lights` arrays `kind`, `position`, `axis`, `cone`) seen
-    from the point p: the unit direction toward the light, its distance (inf for a directional
-    light) and its emission factor toward p (a spot light's falloff, else 1). The unattenuated
-    irradiance at p on a surface facing the light is intensity f / dist^2, a directional light's
-    intensity f; (0, 0, 0, 0, 0) at a point or spot light's own position."""
-    if kind[li] == DIRECTIONAL:
-        return -axis[li, 0], -axis[li, 1], -axis[li, 2], math.inf, 1.0
-    tx, ty, tz = position[li, 0] - px, position[li, 1] - py, position[li, 2] - pz
-    dist = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if not dist > 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0
-    ux, uy, uz = tx / dist, ty / dist, tz / dist
-    f = 1.0
-    if is_spot(cone[li, 1]):  # the light leaves along -u
-        f = falloff(-(ux * axis[li, 0] + uy * axis[li, 1] + uz * axis[li, 2]), cone[li, 0], cone[li, 1], cone[li, 2])
-    return ux, uy, uz, dist, f
 
 
 @njit

@@ -1,0 +1,49 @@
+"""What every light kind is: the record it fills from the scene file (`Light`) and the interface
+the rest of the package reads instead of naming kinds (ARCHITECTURE.md).
+
+A kind is a module (point.py, spot.py, directional.py) that declares
+- `NAME`, its scene `type`; `CODE`, its entry in `Lights.kind`; `KEYS`, the keys of its table;
+- `parse(read, key, raw) -> Light`, its [[light]] table whose keys are already checked against
+  `KEYS`, through scene/format.py's `read` (media/medium.py lists its methods);
+- `describe(light) -> str`, what `render.py describe` prints after "light[i]: ";
+- `irradiance(lights, index, to_points, dist)`, the unattenuated irradiance on surfaces facing it;
+- `sample(position, axis, cone, li, px, py, pz)`, a numba hook: the light seen from the point p as
+  (ux, uy, uz, dist, weight): the unit direction toward the light, its distance (inf: a distant
+  sample, a direction only) and the weight of its emission toward p: the light's `intensity` row
+  times `weight` is the radiant intensity (W/sr) toward p of a positional sample, whose irradiance
+  on a surface facing it is that over dist^2, and the irradiance itself of a distant one. A point
+  light is the kind with one deterministic sample, of weight 1.
+lights/__init__.py holds the registry and `light_sample`, the kernels' one entry to the samples.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1 (spot.is_spot)
+NO_CONE = (-3.0, -2.0)
+MAX_POWER = 1e150  # a light's intensity or irradiance: its square (a Monte Carlo variance) must stay finite
+
+
+@dataclass
+class Light:
+    """One light of the scene file: `kind` is its kind's CODE (0: point.py's); spot lights also have
+    a unit `axis` and the cosines of their cone (`cos_end`, zero beyond) and of their
+    full-intensity core (`cos_start`) and the falloff `curve` between (spot.CURVES; 0: smoothstep);
+    directional lights a unit `axis` (direction of travel) and no position (zero)."""
+    position: np.ndarray
+    intensity: np.ndarray  # W/sr per channel (spot: on the axis; directional: irradiance W/m^2)
+    kind: int = 0
+    axis: np.ndarray | None = None
+    cos_end: float = NO_CONE[0]
+    cos_start: float = NO_CONE[1]
+    curve: int = 0
+
+
+def power(read, key, value):
+    """`value`, a light's intensity or irradiance per channel, refused above MAX_POWER."""
+    if np.any(value > MAX_POWER):
+        read.fail(key, f"{value.max():g} exceeds {MAX_POWER:g} (the variance of an estimate, its square, would "
+                  "overflow doubles)", "scale the scene's units of power down")
+    return value
