@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import copy
 import contextlib
-import math
 import sys
 import warnings
 from pathlib import Path
@@ -462,7 +461,7 @@ def cmd_seed002(args):
 
 
 def cmd_describe(args):
-    from .lights import DIRECTIONAL, NAMES as NAMES_L
+    from .lights import describe as light_text
     from .media.phase import NAMES
     from .scene.meshes import scene_triangles
 
@@ -485,14 +484,8 @@ def cmd_describe(args):
             m = s.interior
             print(f"shape[{i}].interior: sigma_a {m.sigma_a.tolist()}, sigma_s {m.sigma_s.tolist()}, phase "
                   f"{NAMES[m.phase]}{f' g={m.g}' if NAMES[m.phase] == 'hg' else ''}, ior {m.ior:g}")
-    for i, l in enumerate(scene.lights):
-        if l.kind == DIRECTIONAL:
-            print(f"light[{i}]: directional, travelling along {l.axis.round(6).tolist()}, irradiance "
-                  f"{l.intensity.tolist()}")
-            continue
-        cone = "" if l.axis is None else (f", axis {l.axis.round(6).tolist()}, cone {math.degrees(math.acos(l.cos_end)):g} deg, "
-                                          f"falloff from {math.degrees(math.acos(l.cos_start)):g} deg")
-        print(f"light[{i}]: {NAMES_L[l.kind]} at {l.position.tolist()}, intensity {l.intensity.tolist()}{cone}")
+    for i, light in enumerate(scene.lights):
+        print(f"light[{i}]: {light_text(light)}")
     for line in scene.medium.describe():
         print(line)
     print(f"background: {scene.background.tolist()}")
