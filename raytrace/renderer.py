@@ -37,7 +37,8 @@ from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_interva
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
 RAYS_PER_TILE = 1 << 12  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
-PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn)
+PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
+MIN_TILE_RAYS = 128  # ... or fewer, of at least this many rays each (a tiny render is not 128 tiles of overhead)
 SUM_RAYS = 1 << 14  # rays a row of the image may have before a pixel's samples are summed in ranges
 
 
@@ -267,18 +268,20 @@ def sample_ranges(cam) -> list[slice]:
 
 def tiles(cam, box) -> list[Tile]:
     """The tasks of a render of the pixel block `box` = (x0, y0, x1, y1): bands of rows of about
-    PHASES x RAYS_PER_TILE rays, each cut into PHASES tiles (fewer when it has fewer pixels) that
-    take every PHASES-th pixel of its raster order, per sample range. A tile is a sample of the
-    whole band, so no tile holds much more than 1/PHASES of a band's work even where it lies in a
-    few rows or pixels (the horizon of a height fog); nothing depends on the thread or worker count."""
+    PHASES x RAYS_PER_TILE rays, each cut into PHASES tiles (fewer in a band of fewer than
+    PHASES x MIN_TILE_RAYS rays) that take every PHASES-th pixel of its raster order, per sample
+    range. A tile is a sample of the whole band, so no tile holds much more than 1/PHASES of a
+    band's work even where it lies in a few rows (the horizon of a height fog: 2/3 of the work in
+    one row); nothing depends on the thread or worker count."""
     x0, y0, x1, y1 = box
     ranges = sample_ranges(cam)
-    band = max(1, PHASES * RAYS_PER_TILE // ((x1 - x0) * (ranges[0].stop - ranges[0].start)))
+    n = ranges[0].stop - ranges[0].start
+    band = max(1, PHASES * RAYS_PER_TILE // ((x1 - x0) * n))
     work = []
     for r in range(y0, y1, band):
         rows = slice(r, min(r + band, y1))
         pixels = (rows.stop - rows.start) * (x1 - x0)
-        stride = min(PHASES, pixels)
+        stride = max(1, min(PHASES, pixels, pixels * n // MIN_TILE_RAYS))
         work += [Tile(rows, slice(k, pixels, stride), s) for k in range(stride) for s in ranges]
     return work
 

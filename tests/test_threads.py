@@ -63,7 +63,7 @@ def test_a_tiles_error_is_raised_without_waiting_for_the_others(monkeypatch):
     monkeypatch.setattr(renderer, "render_tile", one_fails_one_sticks)
     start = time.perf_counter()
     with pytest.raises(ValueError, match="tile 1 failed"):
-        renderer.render(prep, "analytic", {}, RenderOptions(width=8, height=6, threads=2))
+        renderer.render(prep, "analytic", {}, RenderOptions(width=64, height=32, threads=2))  # 16 tiles
     assert time.perf_counter() - start < SLOW / 4
 
 

@@ -32,8 +32,11 @@ def test_every_pixel_sample_once_and_tiles_small(size):
             q = np.arange(t.pixels.start, t.pixels.stop, t.pixels.step)
             seen[t.rows.start - y0 + q // (x1 - x0), q % (x1 - x0), t.samples] += 1
             band = (t.rows.stop - t.rows.start) * (x1 - x0)
-            assert len(q) <= -(-band // renderer.PHASES)  # at most one pixel more than its share
-            assert len(q) * (t.samples.stop - t.samples.start) <= 2 * renderer.RAYS_PER_TILE
+            n = t.samples.stop - t.samples.start
+            assert len(q) * n <= 2 * renderer.RAYS_PER_TILE
+            # a PHASES-th of the band, or in a small band tiles of at least MIN_TILE_RAYS rays, or one
+            assert len(q) <= -(-band // renderer.PHASES) or len(q) * n >= renderer.MIN_TILE_RAYS or len(q) == band
+            assert len(q) >= band // renderer.PHASES  # dealt out evenly
         assert np.all(seen == 1)
 
 
@@ -64,6 +67,7 @@ def test_small_tiles_change_nothing(monkeypatch, stored):
     """Tiles of a few rays each, many bands: the same bytes."""
     monkeypatch.setattr(renderer, "RAYS_PER_TILE", 3)
     monkeypatch.setattr(renderer, "PHASES", 5)
+    monkeypatch.setattr(renderer, "MIN_TILE_RAYS", 1)
     image, _, bound, _ = render_case(raytrace, "analytic_shadows", threads=2)
     assert image.tobytes() == stored["analytic_shadows/image"].tobytes()
     assert bound.tobytes() == stored["analytic_shadows/bound"].tobytes()
