@@ -296,7 +296,7 @@ def cmd_render(args):
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                          progress=tile_done if bar is not None else None, on_pass=report, max_memory=args.max_memory,
-                         notice=None if args.quiet else _notices(bar),
+                         notice=_notices(bar) if bar is not None else None,
                          **_given_params(args))
     except KeyboardInterrupt:
         if bar is not None:
@@ -327,14 +327,9 @@ def cmd_render(args):
 
 
 def _notices(bar):
-    """Where a render's one-line notes (the kernels' compile) go: stderr, above the progress bar
-    when one is shown."""
-    def say(line):
-        if bar is not None:
-            bar.write(line, file=sys.stderr)
-        else:
-            print(line, file=sys.stderr, flush=True)
-    return say
+    """Where a render's one-line notes (the kernels' compile) go: stderr above the progress bar,
+    so only on a terminal and without --quiet, as the bar (the summary line gives the compile time)."""
+    return lambda line: bar.write(line, file=sys.stderr)
 
 
 def _display(args, scene, name):

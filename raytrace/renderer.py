@@ -36,7 +36,7 @@ from .shading import facing_normals, ground_radiance, planet_hits, surface_radia
 from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
-RAYS_PER_TILE = 1 << 12  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
+RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
 PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
 MIN_TILE_RAYS = 128  # ... or fewer, of at least this many rays each (a tiny render is not 128 tiles of overhead)
 SUM_RAYS = 1 << 14  # rays a row of the image may have before a pixel's samples are summed in ranges

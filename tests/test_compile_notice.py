@@ -1,8 +1,10 @@
 """The compile notice: one line when preparing a render (the kernels' compile) takes longer than
 COMPILE_NOTICE seconds and one with the time when it is done; nothing when it is quick or when no
-`notice` is given (library use), nothing with --quiet. The slow compile is a fake: a sleep."""
+`notice` is given (library use); the command line says it above its progress bar (a terminal, no
+--quiet). The slow compile is a fake: a sleep."""
 from __future__ import annotations
 
+import sys
 import time
 
 import pytest
@@ -63,8 +65,9 @@ def test_an_interrupted_compile_says_it_started_only(quick_notice):
     assert lines == [START]
 
 
-@pytest.mark.parametrize("quiet", [False, True])
-def test_the_command_line_prints_it_on_stderr(tmp_path, quick_notice, monkeypatch, capsys, quiet):
+@pytest.mark.parametrize("terminal, quiet", [(True, False), (True, True), (False, False)])
+def test_the_command_line_prints_it_on_a_terminal_above_the_bar(tmp_path, quick_notice, monkeypatch, capsys,
+                                                                  terminal, quiet):
     prepare = renderer.Threads.prepare
 
     def slow(self, prep, task):
@@ -72,10 +75,12 @@ def test_the_command_line_prints_it_on_stderr(tmp_path, quick_notice, monkeypatc
         return prepare(self, prep, task)
 
     monkeypatch.setattr(renderer.Threads, "prepare", slow)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
     (tmp_path / "s.toml").write_text(to_toml(box_room()))
     assert main([str(tmp_path / "s.toml"), "--out", str(tmp_path / "a.exr")] + (["--quiet"] if quiet else [])) == 0
-    err = capsys.readouterr().err.splitlines()
-    if quiet:
-        assert err == []
+    lines = [line.rpartition("\r")[2] for line in capsys.readouterr().err.split("\n")]  # the bar's redraws cut
+    said = [line for line in lines if "compil" in line]
+    if terminal and not quiet:
+        assert said[0] == START and said[1].startswith("compiled in ") and len(said) == 2
     else:
-        assert err[0] == START and err[1].startswith("compiled in ") and len(err) == 2
+        assert said == []
