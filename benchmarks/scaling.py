@@ -107,9 +107,9 @@ def profiled(row_name: str, rows: dict) -> tuple[np.ndarray, np.ndarray]:
     with tempfile.TemporaryDirectory() as tmp:
         raw, out = Path(tmp) / "raw.txt", Path(tmp) / "times.json"
         start = time.monotonic()
+        child = [sys.executable, __file__, "--child", row_name, str(out)] + (["--quick"] if rows is QUICK else [])
         run = subprocess.run([spy, "record", "--gil", "--rate", str(RATE), "--format", "raw", "--output", str(raw),
-                              "--", sys.executable, __file__, "--child", row_name, str(out)] + (["--quick"] if rows is QUICK else []),
-                             capture_output=True, text=True)
+                              "--", *child], capture_output=True, text=True)
         wall = time.monotonic() - start
         if run.returncode:
             raise SystemExit(f"{row_name}: the profiled child failed:\n{run.stderr}")
@@ -165,7 +165,8 @@ def balance():
     print(f"{'scene':<20} {'tiles':>6} {'CPU s':>8} {'largest tile':>13}")
     for path in sorted((ROOT / "scenes").glob("*.toml")):
         scene = api.load(str(path))
-        row = (str(path), [], scene.render.get("method", "analytic"), bool(scene.render.get("volumetric_shadows", True)))
+        method = scene.render.get("method", "analytic")
+        row = (str(path), [], method, bool(scene.render.get("volumetric_shadows", True)))
         try:
             cpu = np.array([t["cpu"] for t in tile_times(row)])
         except raytrace.errors.UserError as exc:  # a scene whose meshes RAYTRACE_ASSETS does not find

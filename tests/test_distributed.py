@@ -20,7 +20,7 @@ from raytrace.cli import main
 from .conftest import box_room, to_toml
 
 ROOT = Path(__file__).resolve().parents[1]
-SMALL_TILES = 64  # rays per tile and per summed row in these tests: many tasks, and sample ranges (a row has 24 x 4 rays)
+SMALL_TILES = 64  # rays per tile and per summed row here: many tasks, and sample ranges (a row has 24 x 4 rays)
 
 
 def room(**camera):
