@@ -8,6 +8,7 @@ import argparse
 import copy
 import contextlib
 import math
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -571,3 +572,16 @@ def main(argv=None) -> int:
         return 130
     except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)
         return 0
+
+
+def run() -> int:
+    """The process's entry point (render.py, the `raytrace` script): `main`'s exit status; after
+    Ctrl-C (130) the process ends at once, its streams flushed, without finalizing the interpreter
+    around the tiles still running in the renderer's daemon threads (that took ~1 s on the larger
+    scenes). Nothing is pending then: an interrupted render has written nothing but its checkpoint."""
+    status = main()
+    if status == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    return status

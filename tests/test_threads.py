@@ -27,14 +27,15 @@ def test_ctrl_c_exits_without_waiting_for_a_long_tile(tmp_path):
     child = textwrap.dedent(f"""
         import sys, time
         from raytrace import renderer
-        from raytrace.cli import main
+        from raytrace.cli import run
 
         def stuck(prep, task, tile):
             print("started", flush=True)
             time.sleep({SLOW})
 
         renderer.render_tile = stuck
-        sys.exit(main([{str(tmp_path / 's.toml')!r}, "--out", {str(tmp_path / 'out' / 'a.exr')!r}, "--threads", "2"]))
+        sys.argv[1:] = [{str(tmp_path / 's.toml')!r}, "--out", {str(tmp_path / 'out' / 'a.exr')!r}, "--threads", "2"]
+        sys.exit(run())
     """)
     proc = subprocess.Popen([sys.executable, "-c", child], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
