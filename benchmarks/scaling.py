@@ -17,7 +17,8 @@ is an upper bound: a row must reach 0.85 for 16 threads to have a chance. Beside
 median wall times), on this machine however busy it is (the load average is printed).
 
 --balance prints, for every bundled scene at its own size and method, the largest tile's share of
-the render's CPU time (issue 37's target: at most 1/64).
+the render's CPU time (issue 37's target: at most 1/64); --rows, for each row of the table, the
+largest image row's share (what a tile of whole rows would at least hold).
 """
 import argparse
 import heapq
@@ -73,6 +74,24 @@ def task_of(scene, method_name: str, shadows: bool):
     params = resolve_params(m, api.scene_defaults(scene, m, "scaling"), "scaling")
     cam = scene.camera
     return renderer.Task(m.name, params, 0, 1.0 if shadows else None, (0, 0, cam.width, cam.height))
+
+
+def row_shares(row) -> np.ndarray:
+    """Each image row's share of the render's CPU time: the row rendered as one tile, on this
+    thread (the first row once more before, untimed)."""
+    scene, method, shadows = load(row)
+    prep = renderer.prepare(scene)
+    task = task_of(scene, method, shadows)
+    renderer.prepare_task(prep, task)
+    cam = scene.camera
+    rows = [renderer.Tile(slice(r, r + 1), slice(0, cam.width), slice(0, cam.spp)) for r in range(cam.height)]
+    renderer.render_tile(prep, task, rows[0])
+    cpu = []
+    for tile in rows:
+        start = time.thread_time()
+        renderer.render_tile(prep, task, tile)
+        cpu.append(time.thread_time() - start)
+    return np.array(cpu) / sum(cpu)
 
 
 def tile_times(row) -> list[dict]:
@@ -179,6 +198,7 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="small Sibenik and the 160x120 fog: minutes")
     p.add_argument("--balance", action="store_true", help="the largest tile's share on every bundled scene")
+    p.add_argument("--rows", action="store_true", help="the largest image row's share of each row's render")
     p.add_argument("--child", nargs=2, metavar=("ROW", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args()
     rows = QUICK if args.quick else ROWS
@@ -187,6 +207,11 @@ def main():
         return
     if args.balance:
         balance()
+        return
+    if args.rows:
+        for name, row in rows.items():
+            shares = row_shares(row)
+            print(f"{name}: the largest row (of {len(shares)}) holds {shares.max():.3f} of the CPU time", flush=True)
         return
     info = machine()
     print(f"# {info['cpu']}, {info['cores']} cores, load {info['load']}; commit {info['commit']}; "
