@@ -1,6 +1,7 @@
 """The render loop: tiles (a band's pixels dealt out in turn x pixel-sample ranges) run by an
-executor, a thread pool of this process (`Threads`: Embree and the numba kernels release the GIL)
-or any object with the same two methods (api.py plugs in distributed.py's Dask cluster; this module does not import it).
+executor, threads of this process (`Threads`: Embree and the numba kernels release the GIL) or any
+object with the same two methods (api.py plugs in distributed.py's Dask cluster; this module does
+not import it).
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
 L = T(0, t) Lb + sum of air-lights (T the medium's transmittance from the camera, exp(-kt t) when
@@ -260,8 +261,8 @@ class Task:
 
 def sample_ranges(cam) -> list[slice]:
     """The ranges a pixel's samples are summed in, each in sample order, then added in range order:
-    all of them, or SUM_RAYS // width at a time when a row of the whole image has more rays (9596215's
-    tiles; kept so that every pixel is the same sum of the same numbers in the same order)."""
+    all of them, or SUM_RAYS // width at a time when a row of the whole image has more rays (the
+    earlier tiles of whole rows; kept so that every pixel is the same sum in the same order)."""
     n = cam.spp if cam.width * cam.spp <= SUM_RAYS else max(1, SUM_RAYS // cam.width)
     return [slice(s, min(s + n, cam.spp)) for s in range(0, cam.spp, n)]
 
@@ -271,8 +272,8 @@ def tiles(cam, box) -> list[Tile]:
     PHASES x RAYS_PER_TILE rays, each cut into PHASES tiles (fewer in a band of fewer than
     PHASES x MIN_TILE_RAYS rays) that take every PHASES-th pixel of its raster order, per sample
     range. A tile is a sample of the whole band, so no tile holds much more than 1/PHASES of a
-    band's work even where it lies in a few rows (the horizon of a height fog: 2/3 of the work in
-    one row); nothing depends on the thread or worker count."""
+    band's work even where it lies in a few rows (benchmarks/scenes/sun_over_height_fog.toml: 79 %
+    in its horizon row); nothing depends on the thread or worker count."""
     x0, y0, x1, y1 = box
     ranges = sample_ranges(cam)
     n = ranges[0].stop - ranges[0].start
@@ -288,7 +289,7 @@ def tiles(cam, box) -> list[Tile]:
 
 def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     """(pixels, 3) sums of (pixels x samples, 3) per-ray values: each pixel's samples added in sample
-    order (as 9596215's numpy sum over them)."""
+    order (as the earlier tiles' numpy sum over them did)."""
     per = values.reshape(-1, samples, 3)
     total = per[:, 0].copy()
     for k in range(1, samples):
@@ -369,8 +370,8 @@ class Threads:
 class Accumulator:
     """Tile results reduced in one fixed order whatever order they arrive in: a band's pixel sums of
     each sample range are gathered, then its ranges added in sample order (each pixel the same sum
-    as in 9596215's tiles), the statistics in tile order; the error bound is the mean of the
-    samples' bounds."""
+    as in the earlier tiles of whole rows), the statistics in tile order; the error bound is the
+    mean of the samples' bounds."""
 
     def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int):
         x0, self.y0, x1, y1 = box
@@ -450,7 +451,8 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     tiles finished and `options.observer(y0, y1, x0, x1, block)` every block of rows as soon as it is
     final, each pixel once; `options.notice(line)` gets a line when compiling the kernels takes
     longer than COMPILE_NOTICE seconds, and one when it is done. `given_params` are the method's own
-    parameters (any other key is refused). The result does not depend on the executor, its threads or workers."""
+    parameters (any other key is refused). The result does not depend on the executor, its threads
+    or workers."""
     scene = prep.scene
     method = get_method(method_name)
     params = resolve_params(method, given_params or {}, source)
