@@ -2,7 +2,7 @@
 """Entry point: `python render.py [command] ...` (see README.md and `python render.py --help`)."""
 import sys
 
-from raytrace.cli import main
+from raytrace.cli import run
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run())

@@ -5,8 +5,10 @@ refined in float64: the hit distance is recomputed exactly on the hit triangle's
 points, normals and every radiometric quantity after them are float64. Shadow rays are offset by
 an epsilon proportional to the scene's size. Embree treats coordinates beyond ~1.8e18 as infinite:
 a scene larger than 2^40 (or smaller than 2^-40) crosses the boundary divided by a power of two
-(`unit`, exact), so 1e30-metre scenes intersect as 1-metre ones. Embree releases the GIL, so `threads > 1` splits a
-batch over a thread pool. Every scene of a process shares one Embree device (`_device`).
+(`unit`, exact), so 1e30-metre scenes intersect as 1-metre ones. embreex releases the GIL in its
+batch loop from 4.4 on (pyproject requires it; 2.17's holds it), so the renderer's tile threads
+query Embree at once and `threads > 1` splits a batch over a thread pool. Every scene of a process
+shares one Embree device (`_device`).
 """
 from __future__ import annotations
 

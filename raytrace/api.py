@@ -387,7 +387,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     Keywords named as `RenderOptions`' fields are render options (raytrace/options.py: spp, width,
     height, seed, threads, crop, volumetric_shadows, shadow_spacing, the progressive passes,
     time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
-    progress, on_pass and observer); every other keyword is a parameter of the method. The scene's
+    progress, on_pass, observer and notice); every other keyword is a parameter of the method. The scene's
     [render] table supplies defaults for both. Volumetric shadows are on unless volumetric_shadows=False
     or the scene's [render] turns them off. `overrides` are "key=value" strings as --set;
     `camera` names the camera of a glTF file (as --camera);

@@ -51,6 +51,18 @@ def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = N
     off = sample_offsets(cam.spp)[samples or slice(None)]
     x = (i[None, :, None] + off[None, None, :, 0]) * np.ones((len(j), 1, 1))
     y = (j[:, None, None] + off[None, None, :, 1]) * np.ones((1, len(i), 1))
+    return _rays(cam, x, y)
+
+
+def pixel_rays(cam: Camera, ys: np.ndarray, xs: np.ndarray, samples: slice | None = None):
+    """Rays of the pixels (ys[k], xs[k]) (the pixel samples `samples`, default all), every sample
+    of a pixel consecutive: each ray the same as generate_rays gives it."""
+    off = sample_offsets(cam.spp)[samples or slice(None)]
+    return _rays(cam, xs[:, None] + off[None, :, 0], ys[:, None] + off[None, :, 1])
+
+
+def _rays(cam: Camera, x: np.ndarray, y: np.ndarray):
+    """Origins and unit directions through the image points (x, y) (pixel units), in their order."""
     forward, right, up = basis(cam)
     W, H = cam.width, cam.height
     if cam.type == "perspective":

@@ -7,6 +7,10 @@ from __future__ import annotations
 import argparse
 import copy
 import contextlib
+
+
+import math
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -321,6 +325,7 @@ def cmd_render(args):
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                          progress=tile_done if bar is not None else None, on_pass=report, max_memory=args.max_memory,
+                         notice=_notices(bar) if bar is not None else None,
                          **_given_params(args))
     except KeyboardInterrupt:
         if bar is not None:
@@ -365,6 +370,12 @@ def _pixel(img, crop) -> str:
     what = "standard error" if img.variance is not None else "error bound"
     return (f"pixel ({crop[0]}, {crop[1]}): RGB {' '.join(f'{v:.9g}' for v in value)}, "
             f"{what} {' '.join(f'{b:.9g}' for b in bound)}")
+
+
+def _notices(bar):
+    """Where a render's one-line notes (the kernels' compile) go: stderr above the progress bar,
+    so only on a terminal and without --quiet, as the bar (the summary line gives the compile time)."""
+    return lambda line: bar.write(line, file=sys.stderr)
 
 
 def _display(args, scene, name):
@@ -601,3 +612,16 @@ def main(argv=None) -> int:
         return 130
     except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)
         return 0
+
+
+def run() -> int:
+    """The process's entry point (render.py, the `raytrace` script): `main`'s exit status; after
+    Ctrl-C (130) the process ends at once, its streams flushed, without finalizing the interpreter
+    around the tiles still running in the renderer's daemon threads (that took ~1 s on the larger
+    scenes). Nothing is pending then: an interrupted render has written nothing but its checkpoint."""
+    status = main()
+    if status == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    return status

@@ -1,7 +1,7 @@
 """Rendering on a Dask distributed cluster (the optional extra `distributed`; imported only when used).
 
 `Cluster(client)` is an executor of renderer.render (api.py plugs it in for `client=`): the tiles of
-renderer.py (rows x pixel-sample ranges) become tasks; the client adds their results
+renderer.py (a band's pixels dealt out in turn x pixel-sample ranges) become tasks; the client adds their results
 in renderer.Accumulator's fixed order, so the image is the single machine's bit for bit whatever
 the number of workers. A task carries the parsed scene, not its meshes: each worker process loads
 the meshes (through its own RAYTRACE_ASSETS), builds the Embree accelerator and compiles the

@@ -1,6 +1,7 @@
-"""The render loop: tiles (rows x pixel-sample ranges) run by an executor, a thread pool of this
-process (`Threads`: Embree and the numba kernels release the GIL) or any object with the same two
-methods (api.py plugs in distributed.py's Dask cluster; this module does not import it).
+"""The render loop: tiles (a band's pixels dealt out in turn x pixel-sample ranges) run by an
+executor, threads of this process (`Threads`: Embree and the numba kernels release the GIL) or any
+object with the same two methods (api.py plugs in distributed.py's Dask cluster; this module does
+not import it).
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
 L = T(0, t) Lb + sum of air-lights (T the medium's transmittance from the camera, exp(-kt t) when
@@ -11,19 +12,20 @@ wherever it runs.
 """
 from __future__ import annotations
 
+import collections
 import contextlib
 import functools
 import os
+import queue
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import bounded, error_bounds, inside_rows
 from .accel import Accelerator
-from .camera import generate_rays
+from .camera import generate_rays, pixel_rays
 from .errors import UserError
 from .lights import DIRECTIONAL, Lights
 from .media.particles import particle_radiance
@@ -35,7 +37,10 @@ from .shading import facing_normals, ground_radiance, planet_hits, surface_radia
 from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
-RAYS_PER_TILE = 1 << 14
+RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
+PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
+MIN_TILE_RAYS = 128  # ... or fewer, of at least this many rays each (a tiny render is not 128 tiles of overhead)
+SUM_RAYS = 1 << 14  # rays a row of the image may have before a pixel's samples are summed in ranges
 
 
 @dataclass
@@ -251,8 +256,11 @@ def check_options(method, params, volumetric_shadows, source, lights, medium):
 
 @dataclass(frozen=True)
 class Tile:
-    """One task of a render: the image rows `rows` (of the render's columns) x the pixel samples `samples`."""
+    """One task of a render: of the band of image rows `rows` (of the render's columns), the pixels
+    `pixels` of its raster order (phase::stride: spread evenly over the band) x the pixel samples
+    `samples`."""
     rows: slice
+    pixels: slice
     samples: slice
 
 
@@ -269,34 +277,59 @@ class Task:
     box: tuple
 
 
+def sample_ranges(cam) -> list[slice]:
+    """The ranges a pixel's samples are summed in, each in sample order, then added in range order:
+    all of them, or SUM_RAYS // width at a time when a row of the whole image has more rays (the
+    earlier tiles of whole rows; kept so that every pixel is the same sum in the same order)."""
+    n = cam.spp if cam.width * cam.spp <= SUM_RAYS else max(1, SUM_RAYS // cam.width)
+    return [slice(s, min(s + n, cam.spp)) for s in range(0, cam.spp, n)]
+
+
 def tiles(cam, box) -> list[Tile]:
-    """The tasks of a render of the pixel block `box` = (x0, y0, x1, y1): at most about RAYS_PER_TILE
-    rays each, rows of all samples, or one row and a range of samples when a row of the whole image
-    has more rays. The sample ranges follow the image's width, not the block's, so a crop adds a
-    pixel's samples as the whole image does; nothing depends on the thread or worker count."""
+    """The tasks of a render of the pixel block `box` = (x0, y0, x1, y1): bands of rows of about
+    PHASES x RAYS_PER_TILE rays, each cut into PHASES tiles (fewer in a band of fewer than
+    PHASES x MIN_TILE_RAYS rays) that take every PHASES-th pixel of its raster order, per sample
+    range. A tile is a sample of the whole band, so no tile holds much more than 1/PHASES of a
+    band's work even where it lies in a few rows (benchmarks/scenes/sun_over_height_fog.toml: 79 %
+    in its horizon row); nothing depends on the thread or worker count."""
     x0, y0, x1, y1 = box
-    n = cam.spp if cam.width * cam.spp <= RAYS_PER_TILE else max(1, RAYS_PER_TILE // cam.width)
-    ranges = [slice(s, min(s + n, cam.spp)) for s in range(0, cam.spp, n)]
-    rows_per_tile = max(1, RAYS_PER_TILE // ((x1 - x0) * n))
-    return [Tile(slice(r, min(r + rows_per_tile, y1)), s) for r in range(y0, y1, rows_per_tile) for s in ranges]
+    ranges = sample_ranges(cam)
+    n = ranges[0].stop - ranges[0].start
+    band = max(1, PHASES * RAYS_PER_TILE // ((x1 - x0) * n))
+    work = []
+    for r in range(y0, y1, band):
+        rows = slice(r, min(r + band, y1))
+        pixels = (rows.stop - rows.start) * (x1 - x0)
+        stride = max(1, min(PHASES, pixels, pixels * n // MIN_TILE_RAYS))
+        work += [Tile(rows, slice(k, pixels, stride), s) for k in range(stride) for s in ranges]
+    return work
+
+
+def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
+    """(pixels, 3) sums of (pixels x samples, 3) per-ray values: each pixel's samples added in sample
+    order (as the earlier tiles' numpy sum over them did)."""
+    per = values.reshape(-1, samples, 3)
+    total = per[:, 0].copy()
+    for k in range(1, samples):
+        total += per[:, k]
+    return total
 
 
 def render_tile(prep: Prepared, task: Task, tile: Tile):
-    """The tile's radiance summed over its samples (rows, columns, 3), its statistics, for a
-    stochastic method its summed variance (else None), and its summed error bound: a function of
-    the arguments alone, the same whichever thread or cluster worker computes it."""
+    """The tile's radiance summed over its samples (pixels, 3), its statistics, for a stochastic
+    method its summed variance (else None), and its summed error bound: a function of the arguments
+    alone, the same whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
-    rows, samples = tile.rows, tile.samples
-    o, d = generate_rays(cam, rows, slice(x0, x1), samples)
-    pix = (np.arange(rows.start, rows.stop)[:, None] * cam.width + np.arange(x0, x1)[None, :]).ravel()
-    keys = (pix[:, None].astype(np.uint64) * np.uint64(cam.spp)
-            + np.arange(samples.start, samples.stop, dtype=np.uint64)).ravel()
+    q = np.arange(tile.pixels.start, tile.pixels.stop, tile.pixels.step)
+    ys, xs = tile.rows.start + q // (x1 - x0), x0 + q % (x1 - x0)
+    o, d = pixel_rays(cam, ys, xs, tile.samples)
+    keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
+            + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
     rad, stats, var, bound = shade_rays(prep, get_method(task.method), task.params, o, d, keys, task.seed,
                                         task.shadows)
-    shape = (rows.stop - rows.start, x1 - x0, samples.stop - samples.start, 3)
-    return (rad.reshape(shape).sum(axis=2), stats, None if var is None else var.reshape(shape).sum(axis=2),
-            bound.reshape(shape).sum(axis=2))
+    n = tile.samples.stop - tile.samples.start
+    return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n)
 
 
 def prepare_task(prep: Prepared, task: Task) -> float:
@@ -308,11 +341,15 @@ def prepare_task(prep: Prepared, task: Task) -> float:
 
 
 class Threads:
-    """The executor of one machine: the tiles on a pool of `threads` threads (default: every core).
-    An executor has `prepare(prep, task)` (returns the compile seconds, before the timed render) and
-    `map(prep, task, work)`, a generator of (index in `work`, render_tile's result) in any order;
-    `render` closes it when it stops early (Ctrl-C, a callback's exception), and it then stops
-    its tiles."""
+    """The executor of one machine: the tiles on `threads` threads (default: every core), each taking
+    the next tile not yet taken. An executor has `prepare(prep, task)` (returns the compile seconds,
+    before the timed render) and `map(prep, task, work)`, a generator of (index in `work`,
+    render_tile's result) in any order; `render` closes it when it stops early (Ctrl-C, a callback's
+    or a tile's exception), and then no further tile starts.
+
+    The threads are daemon threads and a closed map does not wait for the tiles in flight (a tile
+    may run for seconds): Ctrl-C returns at once, and the process may exit meanwhile. Their results
+    go nowhere but the abandoned queue; nothing is written outside it."""
 
     def __init__(self, threads: int | None = None):
         self.threads = threads
@@ -321,47 +358,68 @@ class Threads:
         return prepare_task(prep, task)
 
     def map(self, prep: Prepared, task: Task, work: list[Tile]):
-        cancelled = threading.Event()  # checked by each tile before it starts
+        todo = iter(range(len(work)))  # shared: next() under `taking`
+        taking, stop, finished = threading.Lock(), threading.Event(), queue.SimpleQueue()
 
-        def run(tile):
-            return None if cancelled.is_set() else render_tile(prep, task, tile)
+        def run():
+            while not stop.is_set():
+                with taking:
+                    i = next(todo, None)
+                if i is None:
+                    return
+                try:
+                    finished.put((i, render_tile(prep, task, work[i]), None))
+                except BaseException as exc:  # handed to the consumer, which raises it
+                    finished.put((i, None, exc))
+                    return
 
-        with ThreadPoolExecutor(self.threads or default_threads()) as pool:
-            try:
-                yield from enumerate(pool.map(run, work))
-            except BaseException:  # Ctrl-C, the generator closed (GeneratorExit) or a tile's error:
-                cancelled.set()  # no further tile starts, and only the tiles running are waited for
-                pool.shutdown(cancel_futures=True)
-                raise
+        for k in range(min(self.threads or default_threads(), len(work))):
+            threading.Thread(target=run, name=f"tile-{k}", daemon=True).start()
+        try:
+            for _ in work:
+                i, result, exc = finished.get()
+                if exc is not None:
+                    raise exc
+                yield i, result
+        finally:  # done, Ctrl-C, the generator closed (GeneratorExit) or a tile's error
+            stop.set()
 
 
 class Accumulator:
-    """Tile results reduced in one fixed order whatever order they arrive in: a pixel's sample
-    ranges are added in sample order, the statistics in tile order; the error bound is the mean of
-    the samples' bounds."""
+    """Tile results reduced in one fixed order whatever order they arrive in: a band's pixel sums of
+    each sample range are gathered, then its ranges added in sample order (each pixel the same sum
+    as in the earlier tiles of whole rows), the statistics in tile order; the error bound is the
+    mean of the samples' bounds."""
 
     def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int):
         x0, self.y0, x1, y1 = box
-        self.work, self.spp = work, spp
+        self.work, self.spp, self.width = work, spp, x1 - x0
         self.image = np.zeros((y1 - self.y0, x1 - x0, 3))
         self.variance = np.zeros_like(self.image) if stochastic else None
         self.bound = np.zeros(self.image.shape, dtype=np.float32)  # rounded up: still a bound, half the memory
-        self.ranges = len({t.samples.start for t in work})
-        self._pending = {}  # first row of a tile -> {first sample: (radiance, variance, bound sums)}
+        self._left = collections.Counter(t.rows.start for t in work)  # first row of a band -> tiles to come
+        self._pending = {}  # first row of a band -> {first sample: [radiance, variance, bound] (pixels, 3) sums}
         self._stats = [np.zeros(stats_size)] * len(work)
 
     def add(self, i: int, result) -> slice | None:
         """Add tile `i`'s result; returns the rows of the image (relative to the block) that it
-        finished, or None while some of their sample ranges are still to come."""
+        finished, or None while some of their tiles are still to come."""
         tile = self.work[i]
         rad, self._stats[i], var, bound = result
-        parts = self._pending.setdefault(tile.rows.start, {})
-        parts[tile.samples.start] = rad, var, bound
-        if len(parts) < self.ranges:
+        band = tile.rows.start
+        parts = self._pending.setdefault(band, {})
+        if tile.samples.start not in parts:
+            shape = ((tile.rows.stop - band) * self.width, 3)
+            parts[tile.samples.start] = [np.zeros(shape), None if var is None else np.zeros(shape), np.zeros(shape)]
+        for total, value in zip(parts[tile.samples.start], (rad, var, bound)):
+            if value is not None:
+                total[tile.pixels] = value
+        self._left[band] -= 1
+        if self._left[band]:
             return None
-        del self._pending[tile.rows.start]
-        order = [parts[k] for k in sorted(parts)]
-        block = slice(tile.rows.start - self.y0, tile.rows.stop - self.y0)
+        del self._pending[band]
+        order = [[a.reshape(-1, self.width, 3) if a is not None else None for a in parts[k]] for k in sorted(parts)]
+        block = slice(band - self.y0, tile.rows.stop - self.y0)
         self.image[block] = functools.reduce(np.add, [r for r, _, _ in order]) / self.spp
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
             self.variance[block] = functools.reduce(np.add, [v for _, v, _ in order]) / self.spp**2
@@ -389,14 +447,44 @@ def check(prep: Prepared, method_name: str, given_params: dict, options: RenderO
     return params
 
 
+COMPILE_NOTICE = 1.0  # seconds of compiling before it is announced
+
+
+def prepare_noticed(executor, prep: Prepared, task: Task, notice=None) -> float:
+    """`executor.prepare(prep, task)` (it compiles the kernels of the scene's kinds on first use),
+    telling `notice` when it takes longer than COMPILE_NOTICE seconds and then how long it took."""
+    if notice is None:
+        return executor.prepare(prep, task)
+    said = threading.Event()
+
+    def say():
+        said.set()
+        notice("compiling kernels (first use of this scene's kinds)...")
+
+    timer = threading.Timer(COMPILE_NOTICE, say)
+    timer.daemon = True
+    start = time.perf_counter()
+    timer.start()
+    try:
+        compile_s = executor.prepare(prep, task)
+    finally:
+        timer.cancel()
+        timer.join()  # a notice being said is finished first
+    if said.is_set():
+        notice(f"compiled in {time.perf_counter() - start:.1f} s")
+    return compile_s
+
+
 def render(prep: Prepared, method_name: str, given_params: dict | None = None,
            options: RenderOptions = RenderOptions(), executor=None, source: str = "render") -> RenderResult:
     """Render the image, or the pixel block `options.crop` of it (the same samples and random numbers
     as in the whole image), with `options`' seed, spp and size and volumetric shadows. The tiles run
     on `executor` (default: `Threads(options.threads)`); `options.progress(done, total)` gets the
     tiles finished and `options.observer(y0, y1, x0, x1, block)` every block of rows as soon as it is
-    final, each pixel once. `given_params` are the method's own parameters (any other key is refused).
-    The result does not depend on the executor, its threads or workers."""
+    final, each pixel once; `options.notice(line)` gets a line when compiling the kernels takes
+    longer than COMPILE_NOTICE seconds, and one when it is done. `given_params` are the method's own
+    parameters (any other key is refused). The result does not depend on the executor, its threads
+    or workers."""
     scene = prep.scene
     method = get_method(method_name)
     params = check(prep, method_name, given_params or {}, options, source)
@@ -407,7 +495,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     work = tiles(cam, box)
     acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method))
     executor = executor if executor is not None else Threads(options.threads)
-    compile_s = executor.prepare(prep, task)
+    compile_s = prepare_noticed(executor, prep, task, options.notice)
     start = time.perf_counter()
     with contextlib.closing(executor.map(prep, task, work)) as results:  # an exception here stops the tiles
         for n, (i, result) in enumerate(results, 1):

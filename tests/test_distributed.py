@@ -20,7 +20,7 @@ from raytrace.cli import main
 from .conftest import box_room, to_toml
 
 ROOT = Path(__file__).resolve().parents[1]
-SMALL_TILES = 64  # rays per tile in these tests: many tasks, and sample ranges (a row has 24 x 4 rays)
+SMALL_TILES = 64  # rays per tile and per summed row here: many tasks, and sample ranges (a row has 24 x 4 rays)
 
 
 def room(**camera):
@@ -40,6 +40,7 @@ def client():
 @pytest.fixture
 def small_tiles(monkeypatch):
     monkeypatch.setattr(renderer, "RAYS_PER_TILE", SMALL_TILES)
+    monkeypatch.setattr(renderer, "SUM_RAYS", SMALL_TILES)
 
 
 def exr_channels(path):
@@ -61,16 +62,17 @@ def test_dask_is_not_imported_without_the_option(tmp_path):
     subprocess.run([sys.executable, "-c", code], check=True, cwd=tmp_path)
 
 
-@pytest.mark.parametrize("per_tile, ranges", [(SMALL_TILES, 4), (1 << 14, 1)])
-def test_the_tiles_cover_every_ray_once_and_split_samples_when_a_row_is_long(monkeypatch, per_tile, ranges):
-    monkeypatch.setattr(renderer, "RAYS_PER_TILE", per_tile)
-    cam = raytrace.load(room(spp=7)).camera  # 64 rays a tile: ranges of 64 // 24 = 2 samples, 7 = 2+2+2+1
+@pytest.mark.parametrize("per_row, ranges", [(SMALL_TILES, 4), (1 << 14, 1)])
+def test_the_tiles_cover_every_ray_once_and_split_samples_when_a_row_is_long(monkeypatch, per_row, ranges):
+    monkeypatch.setattr(renderer, "SUM_RAYS", per_row)
+    cam = raytrace.load(room(spp=7)).camera  # 64 rays a row: ranges of 64 // 24 = 2 samples, 7 = 2+2+2+1
     for box in ((0, 0, 24, 18), (3, 2, 9, 5)):
         x0, y0, x1, y1 = box
-        hits = np.zeros((y1 - y0, cam.spp), dtype=int)
+        hits = np.zeros((y1 - y0, x1 - x0, cam.spp), dtype=int)
         work = renderer.tiles(cam, box)
         for t in work:
-            hits[t.rows.start - y0:t.rows.stop - y0, t.samples] += 1
+            q = np.arange(t.pixels.start, t.pixels.stop, t.pixels.step)
+            hits[t.rows.start - y0 + q // (x1 - x0), q % (x1 - x0), t.samples] += 1
         assert np.all(hits == 1) and len({(t.samples.start, t.samples.stop) for t in work}) == ranges
 
 

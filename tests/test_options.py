@@ -33,7 +33,10 @@ class Recorder:
 
 @pytest.fixture
 def small_tiles(monkeypatch):
-    monkeypatch.setattr(renderer, "RAYS_PER_TILE", 16)  # 12 x 3 rays a row: each row in two sample ranges
+    monkeypatch.setattr(renderer, "SUM_RAYS", 16)  # 12 x 3 rays a row: a pixel's samples in three ranges,
+    monkeypatch.setattr(renderer, "RAYS_PER_TILE", 4)  # bands of 4 x 4 // 12 = 1 row,
+    monkeypatch.setattr(renderer, "PHASES", 4)  # each in 4 tiles of 3 pixels
+    monkeypatch.setattr(renderer, "MIN_TILE_RAYS", 1)
 
 
 @pytest.mark.parametrize("crop", [None, (2, 1, 9, 7)])

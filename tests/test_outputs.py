@@ -107,7 +107,7 @@ def test_one_summary_line_and_the_statistics_with_stats(tmp_path, scene, capsys)
 def test_an_exception_in_the_consumer_stops_the_tiles(monkeypatch):
     """The progress callback raising closes the tile stream: the tiles running finish, no other
     starts (a pool shut down while something still holds its result iterator runs all 48)."""
-    monkeypatch.setattr(renderer, "RAYS_PER_TILE", 16)  # 64 x 48 pixels: 48 tiles of one row
+    monkeypatch.setattr(renderer, "RAYS_PER_TILE", 16)  # 64 x 48 pixels: 24 tiles of 128 pixels
     started, tile = [], renderer.render_tile
 
     def slow_tile(prep, task, t):

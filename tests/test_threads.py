@@ -1,0 +1,75 @@
+"""The thread pool (renderer.Threads): Ctrl-C and a tile's error return at once, without waiting
+for the tiles in flight, and nothing is written."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+import raytrace
+from raytrace import renderer
+from raytrace.options import RenderOptions
+
+from .conftest import ROOT, box_room, to_toml
+
+SLOW = 120.0  # seconds a stuck tile sleeps: far longer than any exit the tests allow
+
+
+def test_ctrl_c_exits_without_waiting_for_a_long_tile(tmp_path):
+    """The command line gets SIGINT while a tile runs for minutes: it exits with 130 within seconds
+    (a pool that joined its threads would wait SLOW), with nothing on disk."""
+    (tmp_path / "s.toml").write_text(to_toml(box_room()))
+    child = textwrap.dedent(f"""
+        import sys, time
+        from raytrace import renderer
+        from raytrace.cli import run
+
+        def stuck(prep, task, tile):
+            print("started", flush=True)
+            time.sleep({SLOW})
+
+        renderer.render_tile = stuck
+        sys.argv[1:] = [{str(tmp_path / 's.toml')!r}, "--out", {str(tmp_path / 'out' / 'a.exr')!r}, "--threads", "2"]
+        sys.exit(run())
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", child], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.stdout.readline() == "started\n"
+    start = time.perf_counter()
+    proc.send_signal(signal.SIGINT)
+    status = proc.wait(timeout=SLOW / 2)
+    seconds = time.perf_counter() - start
+    assert status == 130, proc.stderr.read()
+    assert seconds < 10.0, seconds
+    assert "interrupted" in proc.stderr.read()
+    assert sorted(os.listdir(tmp_path)) == ["s.toml"]
+
+
+def test_a_tiles_error_is_raised_without_waiting_for_the_others(monkeypatch):
+    tile = renderer.render_tile
+
+    def one_fails_one_sticks(prep, task, t):
+        if t.pixels.start == 0:
+            time.sleep(SLOW)
+        if t.pixels.start == 1:
+            raise ValueError("tile 1 failed")
+        return tile(prep, task, t)
+
+    prep = renderer.prepare(raytrace.load(box_room()))
+    monkeypatch.setattr(renderer, "render_tile", one_fails_one_sticks)
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match="tile 1 failed"):
+        renderer.render(prep, "analytic", {}, RenderOptions(width=64, height=32, threads=2))  # 16 tiles
+    assert time.perf_counter() - start < SLOW / 4
+
+
+def test_more_threads_than_tiles():
+    prep = renderer.prepare(raytrace.load(box_room()))
+    one = renderer.render(prep, "analytic", {}, RenderOptions(width=2, height=1, threads=1))
+    many = renderer.render(prep, "analytic", {}, RenderOptions(width=2, height=1, threads=7))
+    assert one.image.tobytes() == many.image.tobytes()
