@@ -175,7 +175,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
                     tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, stats)
             continue
-        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0, planes if not refractive else np.zeros((0, 4)))
+        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0, planes if beams or not refractive else np.zeros((0, 4)))
     return out, var, stats, bound
 
 
