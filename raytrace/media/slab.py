@@ -266,14 +266,16 @@ def refracting_faces(geo, planes, a, hl, wl, ll, out):
     in out; returns their count. Face f's plane is the refractive plane of `refracted_at` with
     z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f. The row's entry face
     (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the entry plane's
-    a, hl, wl, ll as given (those of `refracted_point`)."""
+    a, hl, wl, ll as given (those of `refracted_point`). With no planes (a shape that is not convex),
+    the entry plane alone, face -1 (the note's planar boundary)."""
+    nf = planes.shape[0]
     entry, best = -1, 1.0 - 1e-9
-    for f in range(planes.shape[0]):
+    for f in range(nf):
         dot = planes[f, 0] * geo[14] + planes[f, 1] * geo[15] + planes[f, 2] * geo[16]
         if dot > best:
             entry, best = f, dot
     m = 0
-    for f in range(planes.shape[0]):
+    for f in range(nf) if nf > 0 else range(-1, 0):
         if f == entry:
             n0, n1, n2 = geo[14], geo[15], geo[16]
             z0, af, hf, wlf, llf = 0.0, a, hl, wl, ll
@@ -427,22 +429,6 @@ class DistantSlab(NamedTuple):
     b: float
 
 
-class RefractedPoint(NamedTuple):
-    """`refracted_point` in x: a point or spot light (`spot`: its terms, NO_SPOT for a point light)
-    through a refractive plane."""
-    wl: float
-    ll: float
-    a: float
-    hl: float
-    eta: float
-    kt: float
-    ks: float
-    code: int
-    g: float
-    kt_out: float
-    spot: tuple
-
-
 class FacesPoint(NamedTuple):
     """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve))."""
     faces: np.ndarray
@@ -505,14 +491,6 @@ def _distant_slab(x, r):
     return r.ks * r.phase * math.exp(-r.kt * (x + r.a * x / r.b))
 
 
-@integrand_of(RefractedPoint)
-@njit
-def _refracted(x, r):
-    sp = r.spot
-    return refracted_point(x, r.wl, r.ll, r.a, r.hl, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2],
-                           sp[3], sp[4], sp[5])
-
-
 @njit
 def _one_piece(rec, lo, hi, rtol, stats):
     """The adaptive rule (adaptive.piecewise) over [lo, hi]: tails below rtol/10 of a first 20-point
@@ -521,33 +499,13 @@ def _one_piece(rec, lo, hi, rtol, stats):
 
 
 @njit
-def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, spot, rtol, stats):
-    """Single scattering over [0, ell] for a unit point or spot light (`spot`: refracted_point's
-    (wa, la, na, cos_end, cos_start, curve), NO_SPOT for a point light) through a refractive plane,
-    adaptive on the pieces between the cone's crossings (`refracted_cuts`); an infinite segment is
-    cut where exp(-kt x) underflows."""
-    if ks == 0.0 or not ell > 0.0:
-        return 0.0
-    end = min(ell, 745.0 / kt)
-    rec = RefractedPoint(wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot)
-    cuts = np.empty(MAX_CUTS)
-    m = refracted_cuts(0.0, wl, ll, a, hl, eta, spot[0], spot[1], spot[2], spot[3], spot[4], end, cuts)
-    total, lo = 0.0, 0.0
-    for i in range(m + 1):
-        hi = cuts[i] if i < m else end
-        total += _one_piece(rec, lo, hi, rtol, stats)
-        lo = hi
-    return total
-
-
-@njit
 def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rtol, stats):
     """∫_0^ell `faces_point` dx for a unit point or spot light (`spot`: (cos_end, cos_start, curve)) in a
     convex refractive shape, adaptive (`_one_piece`) on the pieces between the breaks of the integrand:
     where a face's refraction point crosses one of its edges (`edge_breaks`) and where a spot's cone
     levels are crossed on a face's refracted path (`refracted_cuts`); an infinite segment is cut where
-    exp(-kt x) underflows. With only the entry face lit and no edge crossed, the pieces are
-    `point_refracted`'s."""
+    exp(-kt x) underflows. With no planes (`refracting_faces`' entry plane alone), the pieces between
+    the cone's crossings."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
@@ -844,14 +802,14 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
     (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD)."""
     convex = planes.shape[0] > 0
-    faces = np.empty((planes.shape[0], FACE_COLUMNS))
+    faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
     for s in range(xh.shape[0]):
         out[s] = 0.0
         var[s] = 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        if convex and eta != 1.0 and not directional[s] and (mode == QUAD or mode == MARCH or mode == SAMPLE):
-            # a point or spot light through every face of a convex refractive shape
+        if eta != 1.0 and not directional[s] and (mode == QUAD or (convex and (mode == MARCH or mode == SAMPLE))):
+            # a point or spot light through every face of a convex refractive shape, else the entry plane
             m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], faces)
             spot = (geo[s, 12], geo[s, 13], geo[s, 17])
             if m == 0:
@@ -893,8 +851,6 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
             else:
                 out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
-        elif mode == QUAD and eta != 1.0:
-            out[s] = point_refracted(wl[s], ll[s], ell[s], kt, ks, code, g, a[s], hl[s], eta, kt_out, spot, rtol, stats)
         elif mode == QUAD:
             out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
         elif mode == APPROX:
