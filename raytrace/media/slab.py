@@ -802,7 +802,6 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
     (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD)."""
     convex = planes.shape[0] > 0
-    faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
     for s in range(xh.shape[0]):
         out[s] = 0.0
         var[s] = 0.0
@@ -810,6 +809,7 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             continue
         if eta != 1.0 and not directional[s] and (mode == QUAD or (convex and (mode == MARCH or mode == SAMPLE))):
             # a point or spot light through every face of a convex refractive shape, else the entry plane
+            faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
             m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], faces)
             spot = (geo[s, 12], geo[s, 13], geo[s, 17])
             if m == 0:
@@ -818,7 +818,7 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
                 out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot, rtol, stats)
             else:
                 length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-                rec3 = FacesPoint(faces[:m].copy(), planes, eta, kt, ks, code, g, kt_out, spot)
+                rec3 = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot)
                 out[s], var[s] = _march_or_sample(rec3, mode, length, kt, steps, keys[s], dim0, seed)
             continue
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
