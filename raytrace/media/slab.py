@@ -260,13 +260,13 @@ EDGE_TOL = 1e-12  # relative tolerance of the test that a refraction point lies 
 
 
 @njit
-def refracting_faces(geo, planes, a, hl, wl, ll, out):
+def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
     """The faces of the convex refractive shape {q : n_f·q <= c_f} (`planes`) that the point or spot light
     of the geo row (media/slab.py GEO_COLUMNS) is outside of (n_f·L > c_f), one row of FACE_COLUMNS each
     in out; returns their count. Face f's plane is the refractive plane of `refracted_at` with
     z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f. The row's entry face
     (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the entry plane's
-    a, hl, wl, ll as given (those of `refracted_point`). With no planes (a shape that is not convex),
+    a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no planes (a shape that is not convex),
     the entry plane alone, face -1 (the note's planar boundary)."""
     nf = planes.shape[0]
     entry, best = -1, 1.0 - 1e-9
@@ -296,8 +296,8 @@ def refracting_faces(geo, planes, a, hl, wl, ll, out):
             wlf = row[11] * row[14] + row[12] * row[15] + row[13] * row[16]
             llf = row[14] * row[14] + row[15] * row[15] + row[16] * row[16]
         row[0], row[1], row[2], row[3], row[4] = z0, af, hf, wlf, llf
-        row[5] = row[6] = row[7] = 0.0
-        if is_spot(geo[13]):  # the spot's terms, as refracted_point's
+        row[5], row[6], row[7] = spot[0], spot[1], spot[2]
+        if f != entry and is_spot(geo[13]):  # the spot's terms, as refracted_point's
             na = n0 * geo[9] + n1 * geo[10] + n2 * geo[11]
             row[5] = geo[3] * geo[9] + geo[4] * geo[10] + geo[5] * geo[11] + af * na
             row[6] = rel0 * geo[9] + rel1 * geo[10] + rel2 * geo[11] - up * na
@@ -807,20 +807,6 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
         var[s] = 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        if eta != 1.0 and not directional[s] and (mode == QUAD or (convex and (mode == MARCH or mode == SAMPLE))):
-            # a point or spot light through every face of a convex refractive shape, else the entry plane
-            faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
-            m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], faces)
-            spot = (geo[s, 12], geo[s, 13], geo[s, 17])
-            if m == 0:
-                continue
-            if mode == QUAD:
-                out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot, rtol, stats)
-            else:
-                length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-                rec3 = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot)
-                out[s], var[s] = _march_or_sample(rec3, mode, length, kt, steps, keys[s], dim0, seed)
-            continue
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         spot = NO_SPOT
         if eta != 1.0 and not directional[s] and is_spot(geo[s, 13]):  # refracted_point's terms of a spot light
@@ -830,6 +816,20 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             la = ((geo[s, 6] - geo[s, 0]) * geo[s, 9] + (geo[s, 7] - geo[s, 1]) * geo[s, 10]
                   + (geo[s, 8] - geo[s, 2]) * geo[s, 11] - hl[s] * na)
             spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
+        if eta != 1.0 and not directional[s] and (mode == QUAD or (convex and (mode == MARCH or mode == SAMPLE))):
+            # a point or spot light through every face of a convex refractive shape, else the entry plane
+            faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
+            m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
+            if m == 0:
+                continue
+            if mode == QUAD:
+                out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
+                                          stats)
+            else:
+                length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+                rec3 = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:])
+                out[s], var[s] = _march_or_sample(rec3, mode, length, kt, steps, keys[s], dim0, seed)
+            continue
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
                 out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, only,
