@@ -233,3 +233,35 @@ def test_analytic_and_slab_approx_refuse(case, method):
     scene, _ = case
     with pytest.raises(UserError, match="quadrature, raymarch, montecarlo"):
         image(scene, method)
+
+
+@pytest.mark.parametrize("spot", [False, True])
+def test_only_the_entry_face_lit_is_the_entry_plane(spot):
+    """A lamp (or spot) above the top of a box, a segment entering through the top: the light is
+    outside that plane only, every refraction point lies on the top face, and the integrand is the
+    entry plane's (`refracted_point`) bit for bit, at entry points within float32 of the plane."""
+    from raytrace.media import slab
+    planes = np.array([[-1, 0, 0, 1], [0, -1, 0, 1], [0, 0, -1, 1], [0, 0, 1, 1], [0, 1, 0, 1], [1, 0, 0, 1.0]])
+    rng = np.random.default_rng(1)
+    L, n = np.array([0.1, 2.6, -0.2]), np.array([0.0, 1.0, 0.0])
+    axis = (np.array([0.3, 0.0, 0.2]) - L) / np.linalg.norm(np.array([0.3, 0.0, 0.2]) - L)
+    ce, cs = (math.cos(math.radians(25)), math.cos(math.radians(15))) if spot else (-3.0, -2.0)
+    for _ in range(4):
+        p = np.array([rng.uniform(-1, 1), 1.0 - rng.uniform(-1e-7, 1e-7), rng.uniform(-1, 1)])
+        w = np.array([rng.uniform(-0.3, 0.3), -0.9, rng.uniform(-0.3, 0.3)])
+        w /= np.linalg.norm(w)
+        geo = np.zeros(slab.GEO_COLUMNS)
+        geo[:3], geo[3:6], geo[6:9], geo[14:17], geo[12:14] = p, w, L, n, (ce, cs)
+        geo[9:12] = axis if spot else 0.0
+        a, hl = -w @ n, (L - p) @ n
+        lh = (L - p) - hl * n
+        wl, ll = (w + a * n) @ lh, lh @ lh
+        na = n @ geo[9:12]
+        terms = (w @ geo[9:12] + a * na, (L - p) @ geo[9:12] - hl * na, na) if spot else (0.0, 0.0, 0.0)
+        faces = np.empty((6, slab.FACE_COLUMNS))
+        m = slab.refracting_faces(geo, planes, a, hl, wl, ll, (*terms, ce, cs, 0.0), faces)
+        assert m == 1 and faces[0, 17] == 4
+        for x in rng.uniform(0.0, 2.0, 200):
+            old = slab.refracted_point(x, wl, ll, a, hl, 1.33, 0.7, 0.4, 1, 0.4, 0.01, *terms, ce, cs, 0)
+            new = slab.faces_point(x, faces[:1], planes, 1.33, 0.7, 0.4, 1, 0.4, 0.01, ce, cs, 0)
+            assert new == old
