@@ -22,6 +22,10 @@ are its projection coordinate and distance to the ray line, d(x) = sqrt(h^2 + (x
   (media/adaptive.py) in the angle theta = atan((x - x_h) / h) seen from the light
   (dx / d^2 = dtheta / h: a bounded, smooth integrand). With the light in the plane (H_L = 0),
   k = d and this is the air-light of eq. 4 (the note's eq. 8).
+* Point or spot light in a convex refractive shape (`faces_point`): Fermat's path (`refracted_at`) through
+  each face whose plane the light is outside of, the segment's start at depth z0 below that plane,
+  counted where the refraction point lies on the face; `faces_quadrature` starts its adaptive rule
+  where a refraction point crosses a face's edge (`edge_breaks`) and at a spot's cone crossings.
 * The note's separable approximation (its sec. 4.2, for thin media): the exponential part replaced
   by its average under the distant-light limit, c taken at the entry point,
       L_approx = I ks Phi(cos_a) (1 - exp(-kt (1 + c) ell)) / (kt (1 + c) ell) ∫_0^ell d(x)^-2 dx,
@@ -266,8 +270,8 @@ def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
     in out; returns their count. Face f's plane is the refractive plane of `refracted_at` with
     z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f. The row's entry face
     (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the entry plane's
-    a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no planes (a shape that is not convex),
-    the entry plane alone, face -1 (the note's planar boundary)."""
+    a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no
+    planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar boundary)."""
     nf = planes.shape[0]
     entry, best = -1, 1.0 - 1e-9
     for f in range(nf):
@@ -351,6 +355,7 @@ def faces_point(x, faces, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_sta
 
 @njit
 def _edge_value(x, row, planes, g, eta):
+    """`_edge_distance` at x, the refraction point found by `_fermat`."""
     z0, a = row[0], row[1]
     rho, r = _fermat(x, max(z0, 0.0), row[3], row[4], a, row[2], eta)
     return _edge_distance(x, row, r, rho, planes, g)
