@@ -17,8 +17,9 @@ index-matched shape: convex, at most MAX_FACES planes, the closed form of media/
 with its bound; else the segments go to the adaptive quadrature (`_traced`, rtol bounded.RTOL),
 counted (HANDED), unbounded. Through a refractive boundary a directional light enters a convex shape
 through every face it meets, one beam each (`bounded.refracted_beams`: the exact refracted path;
-CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded), as does a point
-light (Fermat's path).
+CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded); a point or spot
+light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
+path per face), other shapes through the entry plane (Fermat's path).
 """
 from __future__ import annotations
 
@@ -72,7 +73,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     (`_traced`, rtol RTOL), counted (HANDED), unbounded. Through a refractive boundary a directional
     light enters a convex shape (`convex_planes`) through every face it meets, one beam each
     (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
-    entry plane (eq. 5, unbounded), as does a point light (Fermat's path). `light`: that light only
+    entry plane (eq. 5, unbounded); a point or spot light a convex one through every face it is outside of
+    (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path). `light`: that light only
     (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
     which numbers their random streams; `beam`: of a directional light's refracted beams, only the
     one through that face (`lit_single_scattering`)."""
@@ -175,7 +177,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
                     tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, stats)
             continue
-        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0, planes if not refractive else np.zeros((0, 4)))
+        integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
+                  planes if beams or not refractive else np.zeros((0, 4)))  # beams: faces_point's faces
     return out, var, stats, bound
 
 
@@ -239,7 +242,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     """`lit_single_scattering` in a convex refractive shape: each directional light's refracted beams
     over the pieces they reach past the blockers (beam_shadows.py: the leg inside the shape and the
     entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
-    spot lights unshadowed (their refracted path is the entry plane's), counted, with an infinite bound
+    spot lights unshadowed (their refracted paths, media/slab.py `faces_point`), counted, with an infinite bound
     if anything else stands in the scene. The other index-matched interiors on the light's way are not
     applied: with any, the bound is infinite."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights

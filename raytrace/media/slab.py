@@ -22,6 +22,10 @@ are its projection coordinate and distance to the ray line, d(x) = sqrt(h^2 + (x
   (media/adaptive.py) in the angle theta = atan((x - x_h) / h) seen from the light
   (dx / d^2 = dtheta / h: a bounded, smooth integrand). With the light in the plane (H_L = 0),
   k = d and this is the air-light of eq. 4 (the note's eq. 8).
+* Point or spot light in a convex refractive shape (`faces_point`): Fermat's path (`refracted_at`) through
+  each face whose plane the light is outside of, the segment's start at depth z0 below that plane,
+  counted where the refraction point lies on the face; `faces_quadrature` starts its adaptive rule
+  where a refraction point crosses a face's edge (`edge_breaks`) and at a spot's cone crossings.
 * The note's separable approximation (its sec. 4.2, for thin media): the exponential part replaced
   by its average under the distant-light limit, c taken at the entry point,
       L_approx = I ks Phi(cos_a) (1 - exp(-kt (1 + c) ell)) / (kt (1 + c) ell) ∫_0^ell d(x)^-2 dx,
@@ -145,11 +149,11 @@ def refraction_point(rho, z, hl, eta):
 
 
 @njit
-def _fermat(x, wl, ll, a, hl, eta):
-    """(rho, r) of `refracted_point` at depth x: the horizontal distance between the light and the
-    point, and the refraction point's distance from the point's foot."""
+def _fermat(x, z0, wl, ll, a, hl, eta):
+    """(rho, r) of `refracted_at` at x: the horizontal distance between the light and the point, and
+    the refraction point's distance from the point's foot."""
     rho = math.sqrt(max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0))
-    return rho, refraction_point(rho, a * x, hl, eta)
+    return rho, refraction_point(rho, z0 + a * x, hl, eta)
 
 
 @njit
@@ -160,10 +164,10 @@ def _leaving_cosine(x, rho, r, o, hl, wa, la, na):
 
 
 @njit
-def refracted_cosine(x, wl, ll, a, hl, eta, wa, la, na):
-    """`_leaving_cosine` at depth x > 0 (-na straight below the light)."""
-    rho, r = _fermat(x, wl, ll, a, hl, eta)
-    if not rho > 1e-12 * (hl + a * x):
+def refracted_cosine(x, z0, wl, ll, a, hl, eta, wa, la, na):
+    """`_leaving_cosine` at x, depth z0 + a x > 0 (-na straight below the light)."""
+    rho, r = _fermat(x, z0, wl, ll, a, hl, eta)
+    if not rho > 1e-12 * (hl + z0 + a * x):
         return -na
     return _leaving_cosine(x, rho, r, math.sqrt((rho - r) * (rho - r) + hl * hl), hl, wa, la, na)
 
@@ -173,7 +177,7 @@ MAX_CUTS = 8
 
 
 @njit
-def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out):
+def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out):
     """The depths in (0, end) where the cosine of the refracted path's leaving direction crosses the
     cone's levels (kinks of the falloff, its jumps for a hard edge), bracketed on SCAN samples and
     bisected to the resolution of doubles, ascending in out; returns their count (<= MAX_CUTS).
@@ -181,10 +185,10 @@ def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out)
     if not is_spot(cos_start):
         return 0
     m = 0
-    prev = refracted_cosine(end * 0.5 / SCAN, wl, ll, a, hl, eta, wa, la, na)
+    prev = refracted_cosine(end * 0.5 / SCAN, z0, wl, ll, a, hl, eta, wa, la, na)
     for i in range(1, SCAN):
         x1 = end * (i + 0.5) / SCAN
-        c1 = refracted_cosine(x1, wl, ll, a, hl, eta, wa, la, na)
+        c1 = refracted_cosine(x1, z0, wl, ll, a, hl, eta, wa, la, na)
         for level in (cos_end, cos_start):
             if (prev - level) * (c1 - level) < 0.0 and m < MAX_CUTS:
                 lo, hi = end * (i - 0.5) / SCAN, x1
@@ -193,7 +197,7 @@ def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out)
                     mid = 0.5 * (lo + hi)
                     if not lo < mid < hi:
                         break
-                    if (refracted_cosine(mid, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
+                    if (refracted_cosine(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
                         lo = mid
                     else:
                         hi = mid
@@ -208,22 +212,30 @@ def refracted_cuts(wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out)
 
 @njit
 def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start, curve):
-    """The single-scattering integrand at depth x along an inside segment for a unit point or spot light at
-    height hl above a refractive plane (eta = n_inside / n_outside): ks Phi(mu) E exp(-kt (x + k) -
-    kt_out o), k and o the path's lengths inside and outside (Fermat's path, `refraction_point`) and E
-    the irradiance across the refracted beam of a point source through a plane,
+    """`refracted_at` through the plane of the segment's start (z0 = 0)."""
+    if not a * x > 0.0:
+        return 0.0
+    rho, r = _fermat(x, 0.0, wl, ll, a, hl, eta)
+    return refracted_at(x, 0.0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start,
+                        curve)
+
+
+@njit
+def refracted_at(x, z0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start, curve):
+    """The single-scattering integrand at x along an inside segment, at depth z = z0 + a x > 0 below a
+    refractive plane, for a unit point or spot light at height hl above it (eta = n_inside / n_outside):
+    ks Phi(mu) E exp(-kt (x + k) - kt_out o), k and o the path's lengths inside and outside (Fermat's
+    path: rho, r of `_fermat`) and E the irradiance across the refracted beam of a point source
+    through a plane,
         E = T(cos1) sin1 / (rho cos2 (hl / cos1^2 + z cos1 / (eta cos2^3))),
     (the ray tube: sagittal width rho dphi, meridional d(rho) cos2 with rho = hl tan1 + z tan2 and
     d2 / d1 = cos1 / (eta cos2); its limit I T / (hl + z / eta)^2 below the light, and I / d^2 for
     eta = 1). The segment's horizontal direction w_h = w + a n and the light's horizontal offset L_h
-    from the entry point enter as wl = w_h·L_h and ll = |L_h|^2 (|w_h|^2 = 1 - a^2). A spot light
-    (axis A, cone cos_end, cos_start, its curve; NO_SPOT for a point light) emits toward the refraction point R:
-    the light leaves along ((rho - r) u - hl n) / o, whose cosine to A is
+    from the foot of the segment's start enter as wl = w_h·L_h and ll = |L_h|^2 (|w_h|^2 = 1 - a^2). A
+    spot light (axis A, cone cos_end, cos_start, its curve; NO_SPOT for a point light) emits toward the
+    refraction point R: the light leaves along ((rho - r) u - hl n) / o, whose cosine to A is
     ((rho - r)(x wa - la) / rho - hl na) / o with wa = w_h·A, la = L_h·A, na = n·A."""
-    z = a * x
-    if z <= 0.0:
-        return 0.0
-    rho, r = _fermat(x, wl, ll, a, hl, eta)
+    z = z0 + a * x
     k = math.sqrt(r * r + z * z)
     o = math.sqrt((rho - r) * (rho - r) + hl * hl)
     cos1, cos2 = hl / o, z / k
@@ -243,6 +255,138 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, 
     if f == 0.0:
         return 0.0
     return ks * phase_value(code, g, mu) * e * f * math.exp(-kt * (x + k) - kt_out * o)
+
+
+# rows of `refracting_faces`: z0, a, hl, wl, ll, wa, la, na of `refracted_at` for one face, the foot of the
+# segment's start on its plane (3), w_h (3), L_h (3), the face's row in `planes`
+FACE_COLUMNS = 18
+EDGE_TOL = 1e-12  # relative tolerance of the test that a refraction point lies on its face
+
+
+@njit
+def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
+    """The faces of the convex refractive shape {q : n_f·q <= c_f} (`planes`) that the point or spot light
+    of the geo row (media/slab.py GEO_COLUMNS) is outside of (n_f·L > c_f), one row of FACE_COLUMNS each
+    in out; returns their count. Face f's plane is the refractive plane of `refracted_at` with
+    z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f. The row's entry face
+    (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the entry plane's
+    a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no
+    planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar boundary)."""
+    nf = planes.shape[0]
+    entry, best = -1, 1.0 - 1e-9
+    for f in range(nf):
+        dot = planes[f, 0] * geo[14] + planes[f, 1] * geo[15] + planes[f, 2] * geo[16]
+        if dot > best:
+            entry, best = f, dot
+    m = 0
+    for f in range(nf) if nf > 0 else range(-1, 0):
+        if f == entry:
+            n0, n1, n2 = geo[14], geo[15], geo[16]
+            z0, af, hf, wlf, llf = 0.0, a, hl, wl, ll
+        else:
+            n0, n1, n2 = planes[f, 0], planes[f, 1], planes[f, 2]
+            z0 = max(planes[f, 3] - (n0 * geo[0] + n1 * geo[1] + n2 * geo[2]), 0.0)
+            af = -(n0 * geo[3] + n1 * geo[4] + n2 * geo[5])
+            hf = n0 * geo[6] + n1 * geo[7] + n2 * geo[8] - planes[f, 3]
+        if not hf > 0.0:
+            continue
+        row = out[m]
+        rel0, rel1, rel2 = geo[6] - geo[0], geo[7] - geo[1], geo[8] - geo[2]
+        up = hf + z0  # (L - p)·n
+        row[8], row[9], row[10] = geo[0] + z0 * n0, geo[1] + z0 * n1, geo[2] + z0 * n2
+        row[11], row[12], row[13] = geo[3] + af * n0, geo[4] + af * n1, geo[5] + af * n2
+        row[14], row[15], row[16] = rel0 - up * n0, rel1 - up * n1, rel2 - up * n2
+        if f != entry:
+            wlf = row[11] * row[14] + row[12] * row[15] + row[13] * row[16]
+            llf = row[14] * row[14] + row[15] * row[15] + row[16] * row[16]
+        row[0], row[1], row[2], row[3], row[4] = z0, af, hf, wlf, llf
+        row[5], row[6], row[7] = spot[0], spot[1], spot[2]
+        if f != entry and is_spot(geo[13]):  # the spot's terms, as refracted_point's
+            na = n0 * geo[9] + n1 * geo[10] + n2 * geo[11]
+            row[5] = geo[3] * geo[9] + geo[4] * geo[10] + geo[5] * geo[11] + af * na
+            row[6] = rel0 * geo[9] + rel1 * geo[10] + rel2 * geo[11] - up * na
+            row[7] = na
+        row[17] = f
+        m += 1
+    return m
+
+
+@njit
+def _edge_distance(x, row, r, rho, planes, g):
+    """n_g·R - c_g for the refraction point R = p_f + x w_h + (r / rho)(L_h - x w_h) on face row's plane
+    (`refracting_faces`), with the relative tolerance EDGE_TOL subtracted."""
+    t = r / rho if rho > 0.0 else 0.0
+    q0 = row[8] + x * row[11] + t * (row[14] - x * row[11])
+    q1 = row[9] + x * row[12] + t * (row[15] - x * row[12])
+    q2 = row[10] + x * row[13] + t * (row[16] - x * row[13])
+    dist = planes[g, 0] * q0 + planes[g, 1] * q1 + planes[g, 2] * q2 - planes[g, 3]
+    return dist - EDGE_TOL * (abs(planes[g, 3]) + abs(q0) + abs(q1) + abs(q2))
+
+
+@njit
+def _on_face(x, row, r, rho, planes):
+    """Whether the refraction point through face row's plane lies on that face (every other plane
+    g: n_g·R <= c_g, to EDGE_TOL)."""
+    f = int(row[17])
+    for g in range(planes.shape[0]):
+        if g != f and _edge_distance(x, row, r, rho, planes, g) > 0.0:
+            return False
+    return True
+
+
+@njit
+def faces_point(x, faces, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_start, curve):
+    """The single-scattering integrand at x along an inside segment of a convex refractive shape for a
+    unit point or spot light: `refracted_at` through each face of `faces` (rows of `refracting_faces`)
+    whose refraction point lies on that face, summed."""
+    total = 0.0
+    for j in range(faces.shape[0]):
+        row = faces[j]
+        z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+        if not z0 + a * x > 0.0:
+            continue
+        rho, r = _fermat(x, z0, wl, ll, a, hl, eta)
+        if not _on_face(x, row, r, rho, planes):
+            continue
+        total += refracted_at(x, z0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, row[5], row[6], row[7],
+                              cos_end, cos_start, curve)
+    return total
+
+
+@njit
+def _edge_value(x, row, planes, g, eta):
+    """`_edge_distance` at x, the refraction point found by `_fermat`."""
+    z0, a = row[0], row[1]
+    rho, r = _fermat(x, max(z0, 0.0), row[3], row[4], a, row[2], eta)
+    return _edge_distance(x, row, r, rho, planes, g)
+
+
+@njit
+def edge_breaks(row, planes, eta, end, out):
+    """The x in (0, end) where face row's refraction point R(x) (`refracting_faces`) crosses the line of
+    another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on
+    or off), each by bisection to the resolution of doubles between the segment's ends where the sign
+    of n_g·R - c_g differs there; into out, returns their count (<= planes rows - 1)."""
+    f = int(row[17])
+    m = 0
+    for g in range(planes.shape[0]):
+        if g == f:
+            continue
+        lo, hi = 0.0, end
+        s_lo = _edge_value(lo, row, planes, g, eta)
+        if s_lo * _edge_value(hi, row, planes, g, eta) >= 0.0:
+            continue
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if not lo < mid < hi:
+                break
+            if _edge_value(mid, row, planes, g, eta) * s_lo > 0.0:
+                lo = mid
+            else:
+                hi = mid
+        out[m] = 0.5 * (lo + hi)
+        m += 1
+    return m
 
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
@@ -290,13 +434,10 @@ class DistantSlab(NamedTuple):
     b: float
 
 
-class RefractedPoint(NamedTuple):
-    """`refracted_point` in x: a point or spot light (`spot`: its terms, NO_SPOT for a point light)
-    through a refractive plane."""
-    wl: float
-    ll: float
-    a: float
-    hl: float
+class FacesPoint(NamedTuple):
+    """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve))."""
+    faces: np.ndarray
+    planes: np.ndarray
     eta: float
     kt: float
     ks: float
@@ -304,6 +445,13 @@ class RefractedPoint(NamedTuple):
     g: float
     kt_out: float
     spot: tuple
+
+
+@integrand_of(FacesPoint)
+@njit
+def _faces_value(x, r):
+    sp = r.spot
+    return faces_point(x, r.faces, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
 
 
 @integrand_of(PlanarTheta)
@@ -348,14 +496,6 @@ def _distant_slab(x, r):
     return r.ks * r.phase * math.exp(-r.kt * (x + r.a * x / r.b))
 
 
-@integrand_of(RefractedPoint)
-@njit
-def _refracted(x, r):
-    sp = r.spot
-    return refracted_point(x, r.wl, r.ll, r.a, r.hl, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2],
-                           sp[3], sp[4], sp[5])
-
-
 @njit
 def _one_piece(rec, lo, hi, rtol, stats):
     """The adaptive rule (adaptive.piecewise) over [lo, hi]: tails below rtol/10 of a first 20-point
@@ -364,21 +504,31 @@ def _one_piece(rec, lo, hi, rtol, stats):
 
 
 @njit
-def point_refracted(wl, ll, ell, kt, ks, code, g, a, hl, eta, kt_out, spot, rtol, stats):
-    """Single scattering over [0, ell] for a unit point or spot light (`spot`: refracted_point's
-    (wa, la, na, cos_end, cos_start, curve), NO_SPOT for a point light) through a refractive plane,
-    adaptive on the pieces between the cone's crossings (`refracted_cuts`); an infinite segment is
-    cut where exp(-kt x) underflows."""
+def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rtol, stats):
+    """∫_0^ell `faces_point` dx for a unit point or spot light (`spot`: (cos_end, cos_start, curve)) in a
+    convex refractive shape, adaptive (`_one_piece`) on the pieces between the breaks of the integrand:
+    where a face's refraction point crosses one of its edges (`edge_breaks`) and where a spot's cone
+    levels are crossed on a face's refracted path (`refracted_cuts`); an infinite segment is cut where
+    exp(-kt x) underflows. With no planes (`refracting_faces`' entry plane alone), the pieces between
+    the cone's crossings."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0
     end = min(ell, 745.0 / kt)
-    rec = RefractedPoint(wl, ll, a, hl, eta, kt, ks, code, g, kt_out, spot)
-    cuts = np.empty(MAX_CUTS)
-    m = refracted_cuts(wl, ll, a, hl, eta, spot[0], spot[1], spot[2], spot[3], spot[4], end, cuts)
+    nf = faces.shape[0]
+    cuts = np.empty(nf * (planes.shape[0] + MAX_CUTS))
+    m = 0
+    for j in range(nf):
+        row = faces[j]
+        m += refracted_cuts(row[0], row[3], row[4], row[1], row[2], eta, row[5], row[6], row[7], spot[0], spot[1],
+                            end, cuts[m:])
+        m += edge_breaks(row, planes, eta, end, cuts[m:])
+    cuts[:m].sort()
+    rec = FacesPoint(faces, planes, eta, kt, ks, code, g, kt_out, spot)
     total, lo = 0.0, 0.0
     for i in range(m + 1):
         hi = cuts[i] if i < m else end
-        total += _one_piece(rec, lo, hi, rtol, stats)
+        if hi > lo:
+            total += _one_piece(rec, lo, hi, rtol, stats)
         lo = hi
     return total
 
@@ -651,10 +801,11 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
     free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
     dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per segment (a spot's axis and cone
-    there; NO_CONE for other lights). With `planes` (a convex index-matched shape, rows
-    of `convex_exit`; else an empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand`
-    (geo: its per-segment rows) instead: the exact straight path to every light outside, or with
-    only >= 0 a directional light's beam refracted through that face (`convex_integrand`)."""
+    there; NO_CONE for other lights). With `planes` (a convex shape, rows of `convex_exit`; else an
+    empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
+    instead: the exact straight path to every light outside, or with only >= 0 a directional light's
+    beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
+    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD)."""
     convex = planes.shape[0] > 0
     for s in range(xh.shape[0]):
         out[s] = 0.0
@@ -670,6 +821,20 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             la = ((geo[s, 6] - geo[s, 0]) * geo[s, 9] + (geo[s, 7] - geo[s, 1]) * geo[s, 10]
                   + (geo[s, 8] - geo[s, 2]) * geo[s, 11] - hl[s] * na)
             spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
+        if eta != 1.0 and not directional[s] and (mode == QUAD or (convex and (mode == MARCH or mode == SAMPLE))):
+            # a point or spot light through every face of a convex refractive shape, else the entry plane
+            faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
+            m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
+            if m == 0:
+                continue
+            if mode == QUAD:
+                out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
+                                          stats)
+            else:
+                length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+                rec3 = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:])
+                out[s], var[s] = _march_or_sample(rec3, mode, length, kt, steps, keys[s], dim0, seed)
+            continue
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
                 out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, only,
@@ -691,8 +856,6 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
             else:
                 out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
-        elif mode == QUAD and eta != 1.0:
-            out[s] = point_refracted(wl[s], ll[s], ell[s], kt, ks, code, g, a[s], hl[s], eta, kt_out, spot, rtol, stats)
         elif mode == QUAD:
             out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
         elif mode == APPROX:
