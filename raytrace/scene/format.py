@@ -63,6 +63,7 @@ class Shape:
     reflectance: np.ndarray | None
     transform: Transform
     interior: Interior | None = None
+    smooth: bool = True  # interpolated shading normals (scene/meshes.py); False: flat facets
 
 
 @dataclass
@@ -186,7 +187,7 @@ PRIMITIVE_KEYS = {
     "cylinder": {"base", "top", "radius", "segments"},
     "triangles": {"vertices", "faces"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
-SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior"}
+SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
 MAX_SEGMENTS = 2048  # a sphere of 2048 segments: 4.2 million triangles, ~0.3 GB (segments = 1e9 hung)
 
@@ -253,7 +254,10 @@ def _shape(ctx, i, raw):
     if refl is not None and np.any(refl > 1.0):
         ctx.fail(f"{key}.reflectance", "exceeds 1 (surfaces would create energy)", "use values in [0, 1]")
     interior = _interior(ctx, f"{key}.interior", raw["interior"]) if "interior" in raw else None
-    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior)
+    smooth = raw.get("smooth", True)
+    if not isinstance(smooth, bool):
+        ctx.fail(f"{key}.smooth", f"expected true or false, got {smooth!r}", "write smooth = false for flat facets")
+    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth)
 
 
 def _interior(ctx, key, raw):
