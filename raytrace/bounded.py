@@ -392,8 +392,9 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
             axis = np.broadcast_to(lights.axis[li], q.shape)
             cos_i = -(n @ lights.axis[li])
             t, cos_t = _refract(axis, n, medium.ior)
-            cos_s = -np.einsum("ij,ij->i", shading, t)  # and the terminator: the geometric side must face the beam
-            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0) & (np.einsum("ij,ij->i", normals, t) < 0.0))[0]
+            cos_s = -np.einsum("ij,ij->i", shading, t)
+            facing = np.einsum("ij,ij->i", normals, t) < 0.0  # the terminator: the geometric side faces the beam
+            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0) & facing)[0]
             k = np.einsum("ij,ij->i", p[ok] - q[ok], n[ok]) / cos_t[ok]
             o = q[ok] + accel.epsilon * normals[ok]
             tb, hit = accel.first_hit(o, -t[ok])

@@ -43,12 +43,13 @@ def shading_normals(accel, corners, prim, points, facing):
     e1, e2, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
     d00, d01, d11 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
     d20, d21 = np.einsum("ij,ij->i", v, e1), np.einsum("ij,ij->i", v, e2)
-    den = d00 * d11 - d01 * d01  # > 0: degenerate triangles are not in the scene
-    b = np.clip(np.stack([np.zeros_like(den), (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den], axis=1),
-                0.0, 1.0)
-    b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
-    n = np.einsum("ij,ijk->ik", b, c)
-    length = np.linalg.norm(n, axis=1)
+    den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.clip(np.stack([np.zeros_like(den), (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den],
+                             axis=1), 0.0, 1.0)
+        b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
+        n = np.einsum("ij,ijk->ik", b, c)
+        length = np.linalg.norm(n, axis=1)
     flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0)
     n = np.where(flat[:, None], facing, n / np.where(flat, 1.0, length)[:, None])
     flipped = np.einsum("ij,ij->i", accel.normals[prim], facing) < 0.0
@@ -69,7 +70,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         dist = np.linalg.norm(to_light, axis=1)
         cos = np.einsum("ij,ij->i", normals, to_light) / np.where(dist > 0.0, dist, 1.0)
         lit = (cos > 0.0) & (dist > 0.0)
-        if shading is not None and shading is not normals:  # the terminator: both sides must face the light, the factor is the shading one
+        if shading is not None and shading is not normals:  # the terminator: both must face the light
             cos = np.einsum("ij,ij->i", shading, to_light) / np.where(dist > 0.0, dist, 1.0)
             lit &= cos > 0.0
         if not lit.any():

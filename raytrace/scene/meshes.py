@@ -108,7 +108,8 @@ def _merged_ids(tris):
 def crease_normals(tris, degrees: float = CREASE_DEGREES):
     """Corner normals (T, 3, 3) of a triangle soup smoothed as Blender's auto smooth: at each corner
     the area-weighted mean of the normals of the triangles that share its vertex (coordinates merged,
-    `_merged_ids`) and whose normal is within `degrees` of the corner's own triangle's."""
+    `_merged_ids`) and whose normal is within `degrees` of the corner's own triangle's; a unit vector,
+    the triangle's own normal exactly where that mean is it to rounding (flat parts stay flat)."""
     area_n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     unit = flat_normals(tris)
     ids = _merged_ids(tris)
@@ -124,6 +125,10 @@ def crease_normals(tris, degrees: float = CREASE_DEGREES):
     acc = np.zeros((len(ids), 3))
     for k in range(3):
         acc[:, k] = np.bincount(order[corner], weights=np.where(keep, area_n[g, k], 0.0), minlength=len(ids))
+    acc /= np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), np.finfo(float).tiny)
+    own = np.repeat(unit, 3, axis=0)
+    flat = np.linalg.norm(acc - own, axis=1) < 1e-12  # a corner amid coplanar triangles: exactly its facet's
+    acc[flat] = own[flat]
     return acc.reshape(-1, 3, 3)
 
 
