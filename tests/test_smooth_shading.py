@@ -178,3 +178,26 @@ def test_smooth_must_be_a_boolean():
     sc["shape"][0]["smooth"] = "yes"
     with pytest.raises(UserError, match=r"shape\[0\]\.smooth: expected true or false"):
         scene_from_text(to_toml(sc), "smooth")
+
+
+def test_triangles_normals_and_pbrt_n(tmp_path):
+    """`triangles` take a normal per vertex (pbrt's "N", read by the pbrt importer through the
+    object's transform by its inverse transpose); a wrong count is refused in one line."""
+    from raytrace.io import pbrt
+
+    verts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    normals = [[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, 0.6, 0.8]]
+    sc = sphere_scene(8)
+    sc["shape"] = [{"primitive": "triangles", "vertices": verts, "faces": [[0, 1, 2]], "normals": normals}]
+    corners = scene_triangles(scene_from_text(to_toml(sc), "t"), normals=True)[2]
+    assert np.allclose(corners[0], normals)
+    sc["shape"][0]["normals"] = normals[:2]
+    with pytest.raises(UserError, match=r"shape\[0\]\.normals: needs one normal per vertex \(3\), got 2"):
+        scene_from_text(to_toml(sc), "t")
+    (tmp_path / "n.pbrt").write_text(
+        'LookAt 0 0 5  0 0 0  0 1 0\nCamera "perspective"\nWorldBegin\nLightSource "point" "point3 from" [0 0 5]\n'
+        'Scale 2 1 1\nShape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0] "integer indices" [0 1 2] '
+        '"normal N" [0 0 1 0.6 0 0.8 0 0.6 0.8]\n')
+    shape = pbrt.read_scene(tmp_path / "n.pbrt")["shape"][0]
+    expect = np.array(normals) / np.array([2.0, 1.0, 1.0])  # the inverse transpose of diag(2, 1, 1)
+    assert np.allclose(shape["normals"], expect)

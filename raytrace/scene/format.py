@@ -185,7 +185,7 @@ PRIMITIVE_KEYS = {
     "quad": {"corners"},
     "sphere": {"center", "radius", "segments"},
     "cylinder": {"base", "top", "radius", "segments"},
-    "triangles": {"vertices", "faces"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
+    "triangles": {"vertices", "faces", "normals"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
 SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
@@ -231,6 +231,8 @@ def _shape(ctx, i, raw):
                 params[k] = float(_number(ctx, f"{key}.radius", raw[k], positive=True))
             elif k in ("vertices", "faces"):
                 params[k] = _array(ctx, f"{key}.{k}", raw.get(k), integer=k == "faces")
+            elif k == "normals" and k in raw:  # optional: a shading normal per vertex (smooth shading)
+                params[k] = _array(ctx, f"{key}.normals", raw[k])
             elif k == "corners":
                 c = raw.get(k)
                 if not isinstance(c, list) or len(c) != 4:
@@ -241,6 +243,9 @@ def _shape(ctx, i, raw):
                 if k not in raw:
                     ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k} = [x, y, z]")
                 params[k] = _vec3(ctx, f"{key}.{k}", raw[k])
+        if kind == "triangles" and "normals" in params and len(params["normals"]) != len(params["vertices"]):
+            ctx.fail(f"{key}.normals", f"needs one normal per vertex ({len(params['vertices'])}), got "
+                     f"{len(params['normals'])}", "give as many normals as vertices, or remove normals")
         if kind == "triangles" and (params["faces"].size == 0 or params["faces"].max() >= len(params["vertices"])):
             ctx.fail(f"{key}.faces", f"index vertices 0..{len(params['vertices']) - 1} and hold at least one triangle",
                      "write faces = [[0, 1, 2], ...] with indices into vertices")

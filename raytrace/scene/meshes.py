@@ -6,8 +6,8 @@ triangle (T, 3). MTL diffuse colours (Kd) and glTF base colours become reflectan
 side of its winding (the geometric normal's), or None when every shape is flat: a shape's `smooth`
 (default true) gives spheres their exact normals (corner - centre) / radius, cylinder sides the radial
 direction, meshes the file's vertex normals or, where the file has none, normals smoothed across edges
-sharper than CREASE_DEGREES (`crease_normals`); boxes, quads, cylinder caps and `triangles` (no normals
-given: flat, as pbrt without "N") stay flat.
+sharper than CREASE_DEGREES (`crease_normals`), `triangles` their `normals` (pbrt's "N"); boxes, quads,
+cylinder caps and `triangles` without normals (as pbrt renders a mesh without "N") stay flat.
 """
 from __future__ import annotations
 
@@ -284,6 +284,7 @@ def scene_triangles(scene: Scene, shape_ids: bool = False, normals: bool = False
                 tris = quad_triangles(p["corners"])
             elif shape.kind == "triangles":
                 tris = p["vertices"][p["faces"]]
+                corners = p["normals"][p["faces"]] if "normals" in p else None
             elif shape.kind == "sphere":
                 tris = sphere_triangles(p["center"], p["radius"], p["segments"])
                 corners = sphere_normals(tris, p["center"], p["radius"])
@@ -323,6 +324,7 @@ def scene_triangles(scene: Scene, shape_ids: bool = False, normals: bool = False
     keep = area2 > 0.0  # degenerate (zero-area) triangles have no normal and are never hit
     out = (tris[keep], refl[keep]) + ((np.concatenate(all_ids)[keep],) if shape_ids else ())
     if normals:
-        smooth = any(s.smooth and s.kind in ("mesh", "sphere", "cylinder") for s in scene.shapes)
+        smooth = any(s.smooth and (s.kind in ("mesh", "sphere", "cylinder") or "normals" in s.params)
+                     for s in scene.shapes)
         out += (np.ascontiguousarray(np.concatenate(all_normals)[keep]) if smooth else None,)
     return out
