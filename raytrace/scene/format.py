@@ -231,8 +231,9 @@ def _shape(ctx, i, raw):
                 params[k] = float(_number(ctx, f"{key}.radius", raw[k], positive=True))
             elif k in ("vertices", "faces"):
                 params[k] = _array(ctx, f"{key}.{k}", raw.get(k), integer=k == "faces")
-            elif k == "normals" and k in raw:  # optional: a shading normal per vertex (smooth shading)
-                params[k] = _array(ctx, f"{key}.normals", raw[k])
+            elif k == "normals":  # optional: a shading normal per vertex (smooth shading)
+                if k in raw:
+                    params[k] = _array(ctx, f"{key}.normals", raw[k])
             elif k == "corners":
                 c = raw.get(k)
                 if not isinstance(c, list) or len(c) != 4:
