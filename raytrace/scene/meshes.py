@@ -102,7 +102,8 @@ def _merged_ids(tris):
     """An id per corner (T * 3,): equal where the corners' coordinates agree to 1e-9 of the soup's size."""
     pts = tris.reshape(-1, 3)
     size = float(np.max(np.abs(pts))) or 1.0
-    return np.unique(np.round(pts / (1e-9 * size)), axis=0, return_inverse=True)[1].ravel()
+    keys = np.ascontiguousarray(np.round(pts / (1e-9 * size)) + 0.0)  # + 0.0: -0.0 becomes 0.0
+    return np.unique(keys.view(np.dtype((np.void, 24))).ravel(), return_inverse=True)[1].ravel()  # rows as bytes
 
 
 def crease_normals(tris, degrees: float = CREASE_DEGREES):
@@ -180,10 +181,11 @@ def _first_bad_vertex(path) -> str:
     return ""
 
 
-def load_mesh(shape: Shape, scene: Scene, key: str):
-    """The mesh's triangles (T, 3, 3), reflectances (T, 3) and corner normals (T, 3, 3): the file's
-    vertex normals (OBJ `vn`, PLY nx/ny/nz, glTF NORMAL: trimesh keeps them when the file has them),
-    else `crease_normals`; each geometry's node transform applied (normals by its inverse transpose)."""
+def load_mesh(shape: Shape, scene: Scene, key: str, normals: bool = True):
+    """The mesh's triangles (T, 3, 3), reflectances (T, 3) and corner normals (T, 3, 3; None unless
+    `normals`): the file's vertex normals (OBJ `vn`, PLY nx/ny/nz, glTF NORMAL: trimesh keeps them when
+    the file has them), else `crease_normals`; each geometry's node transform applied (normals by its
+    inverse transpose)."""
     import trimesh
 
     path = find_asset(shape.params["mesh"], scene.path, f"{key}.mesh")
@@ -192,7 +194,7 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise UserError(f"{path}: {key}.mesh: cannot read mesh ({type(exc).__name__}: {exc}); "
                         "export it as OBJ, PLY or GLB") from None
-    tris, refl, normals = [], [], []
+    tris, refl, corners = [], [], []
     for node in loaded.graph.nodes_geometry:
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
@@ -206,25 +208,22 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
         v = v @ transform[:3, :3].T + transform[:3, 3]
         t = v[np.asarray(geom.faces)]
         tris.append(t)
-        if "vertex_normals" in geom._cache:  # read from the file (trimesh computes them lazily otherwise)
+        if normals and "vertex_normals" in geom._cache:  # from the file (else trimesh computes them lazily)
             vn = np.asarray(geom.vertex_normals, dtype=np.float64) @ np.linalg.pinv(transform[:3, :3])
-            normals.append(vn[np.asarray(geom.faces)])
-        else:
-            normals.append(crease_normals(t))
+            corners.append(vn[np.asarray(geom.faces)])
+        elif normals:
+            corners.append(crease_normals(t))
         colour = _mesh_colour(geom)
         refl.append(np.broadcast_to(colour if colour is not None else DEFAULT_REFLECTANCE, (len(t), 3)))
     if not tris:
         raise UserError(f"{path}: the mesh holds no triangles; check the file or {key}.mesh")
-    return np.concatenate(tris), np.concatenate(refl), np.concatenate(normals)
+    return np.concatenate(tris), np.concatenate(refl), np.concatenate(corners) if normals else None
 
 
 def boundary_edges(tris: np.ndarray) -> int:
     """The edges of a triangle soup used by an odd number of triangles (vertices merged where their
     coordinates agree to 1e-9 of the soup's size): 0 for a closed surface."""
-    pts = tris.reshape(-1, 3)
-    size = float(np.max(np.abs(pts))) or 1.0
-    _, ids = np.unique(np.round(pts / (1e-9 * size)), axis=0, return_inverse=True)
-    ids = ids.reshape(-1, 3)
+    ids = _merged_ids(tris).reshape(-1, 3)
     edges = np.sort(np.concatenate([ids[:, [0, 1]], ids[:, [1, 2]], ids[:, [2, 0]]]), axis=1)
     edges = edges[edges[:, 0] != edges[:, 1]]  # collapsed edges of degenerate triangles (a sphere's poles)
     _, counts = np.unique(edges, axis=0, return_counts=True)
@@ -276,7 +275,7 @@ def scene_triangles(scene: Scene, shape_ids: bool = False, normals: bool = False
         p = shape.params
         corners = None  # flat
         if shape.kind == "mesh":
-            tris, refl, corners = load_mesh(shape, scene, key)
+            tris, refl, corners = load_mesh(shape, scene, key, normals and shape.smooth)
         else:
             if shape.kind == "box":
                 tris = box_triangles(p["min"], p["max"])
@@ -311,9 +310,10 @@ def scene_triangles(scene: Scene, shape_ids: bool = False, normals: bool = False
         all_tris.append(tris)
         all_refl.append(np.clip(refl, 0.0, 1.0))
         all_ids.append(np.full(len(tris), i, dtype=np.int64))
-        smooth = shape.smooth and corners is not None
-        all_normals.append(_oriented(corners @ _normal_matrix(shape.transform), tris) if smooth else
-                           np.repeat(flat_normals(tris)[:, None, :], 3, axis=1))
+        if normals:
+            smooth = shape.smooth and corners is not None
+            all_normals.append(_oriented(corners @ _normal_matrix(shape.transform), tris) if smooth else
+                               np.repeat(flat_normals(tris)[:, None, :], 3, axis=1))
     if not all_tris:
         empty = np.zeros((0, 3, 3)), np.zeros((0, 3))
         out = (*empty, np.zeros(0, dtype=np.int64)) if shape_ids else empty
