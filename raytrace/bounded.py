@@ -37,7 +37,7 @@ from .media.adaptive import CAPPED
 from .media.slab import CLOSED, QUAD, refract_rays, transmittances
 from .methods import INSIDE_RTOL, Segments, registry
 from .scene.meshes import convex_planes as hull_of
-from .shading import facing_normals, surface_radiance
+from .shading import facing_normals, shading_normals, surface_radiance
 
 # the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
@@ -380,10 +380,11 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
     accel = prep.accel
     q = p + ell[:, None] * w
     normals = facing_normals(accel.normals[prim], w)
+    shading = shading_normals(accel, prep.corner_normals, prim, q, normals)
     refl = prep.reflectance[prim]
     kt = medium.sigma_t[None, :]
     if medium.ior == 1.0:
-        lb = surface_radiance(accel, q, normals, refl, prep.lights, prep.scene.medium, shadow_through(prep))
+        lb = surface_radiance(accel, q, normals, refl, prep.lights, prep.scene.medium, shadow_through(prep), shading)
     else:
         lb = np.zeros((len(q), 3))
         lights = prep.lights
@@ -391,8 +392,9 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
             axis = np.broadcast_to(lights.axis[li], q.shape)
             cos_i = -(n @ lights.axis[li])
             t, cos_t = _refract(axis, n, medium.ior)
-            cos_s = -np.einsum("ij,ij->i", normals, t)
-            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0))[0]
+            cos_s = -np.einsum("ij,ij->i", shading, t)
+            facing = np.einsum("ij,ij->i", normals, t) < 0.0  # the terminator: the geometric side faces the beam
+            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0) & facing)[0]
             k = np.einsum("ij,ij->i", p[ok] - q[ok], n[ok]) / cos_t[ok]
             o = q[ok] + accel.epsilon * normals[ok]
             tb, hit = accel.first_hit(o, -t[ok])
@@ -500,9 +502,10 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
         f = (t_out * eta * eta)[:, None] * tr * gap
         if rest.any():  # a surface met at once where the ray leaves
             on = on[rest]
+            geometric = facing_normals(accel.normals[on], w_out[rest])
             direct[exits[rest]] = f[rest] * surface_radiance(
-                accel, at[rest], facing_normals(accel.normals[on], w_out[rest]), prep.reflectance[on], prep.lights,
-                prep.scene.medium, shadow_through(prep))
+                accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
+                shading_normals(accel, prep.corner_normals, on, at[rest], geometric))
         go.append((exits[~rest], start[~rest], w_out[~rest], f[~rest], False))
     walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
     if len(walls):

@@ -53,13 +53,15 @@ def _feed(h, obj):
 
 def fingerprint(prep: Prepared, method: str, params: dict, seed: int) -> str:
     """What a checkpoint must match to be resumed: the camera, every light and medium (the shapes'
-    interiors too) by content, the triangles and reflectances, the method, its parameters, the seed."""
+    interiors too) by content, the triangles, reflectances and shading normals, the method, its
+    parameters, the seed."""
     h = hashlib.sha256()
     scene = prep.scene
     _feed(h, {"method": method, "params": params, "seed": seed})
     _feed(h, [scene.camera, scene.lights, scene.medium, [s.interior for s in scene.shapes], scene.background])
-    for a in (prep.accel.triangles, prep.reflectance):
-        _feed(h, a)
+    for a in (prep.accel.triangles, prep.reflectance, prep.corner_normals):
+        if a is not None:  # no shading normals: all flat
+            _feed(h, a)
     return h.hexdigest()
 
 

@@ -33,7 +33,7 @@ from .methods import get_method, resolve_params
 from .options import RenderOptions
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
-from .shading import facing_normals, ground_radiance, planet_hits, surface_radiance
+from .shading import facing_normals, ground_radiance, planet_hits, shading_normals, surface_radiance
 from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
@@ -50,6 +50,7 @@ class Prepared:
     accel: Accelerator
     reflectance: np.ndarray
     lights: Lights
+    corner_normals: np.ndarray | None = None  # shading normals at the triangles' corners (None: all flat)
     _frusta: list | None = None
     _through: list | None = None
     shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
@@ -98,11 +99,11 @@ class RenderResult:
 
 
 def prepare(scene: Scene) -> Prepared:
-    tris, refl, ids = scene_triangles(scene, shape_ids=True)
+    tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
     lights = Lights.of(scene.lights)
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
-    prep = Prepared(scene, Accelerator(tris, extent), refl, lights, shape_ids=ids, interior_shapes=inner)
+    prep = Prepared(scene, Accelerator(tris, extent), refl, lights, corners, shape_ids=ids, interior_shapes=inner)
     if len(inner):
         prep.camera_inside = bounded.inside_of(prep, scene.camera.position, inner)
     return prep
@@ -157,8 +158,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if surf.any():
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
+        shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium, bounded.shadow_through(prep))
+                                          medium, bounded.shadow_through(prep), shading)
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():

@@ -1,7 +1,11 @@
 """The surface term (paper eq. 5) with shadow-ray visibility, summed over lights.
 
-Lb = sum_lights V (rho / pi) I F T / d^2 max(0, n·wi), with the geometric normal flipped to face
-the incoming ray (two-sided Lambertian surfaces), F a spot light's falloff toward the point
+Lb = sum_lights V (rho / pi) I F T / d^2 max(0, n·wi), with n the shading normal flipped to face
+the incoming ray (two-sided Lambertian surfaces): the geometric normal of a flat surface, else
+`shading_normals`' interpolation of the triangle's corner normals (a shape's `smooth`). The geometric
+normal keeps the visibility: shadow rays leave on its side, and a light on the far side of the
+geometric plane gives nothing even where the shading cosine is positive (the terminator: both cosines
+must be positive, the factor is the shading one), F a spot light's falloff toward the point
 (lights.py, 1 for point lights) and T the medium's transmittance from the point to the light
 (exp(-kt d) when homogeneous, the closed-form optical depth in a height fog). A directional light
 gives V (rho / pi) E T max(0, n·wi) with wi against its direction of travel and T the
@@ -26,19 +30,49 @@ def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     return np.where(flip[:, None], -normals, normals)
 
 
-def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None):
-    """Reflected radiance (N, 3) at surface points with ray-facing unit normals. `through(li, points)`,
+def shading_normals(accel, corners, prim, points, facing):
+    """Unit shading normals (N, 3) at `points` on triangles `prim`: n_s = normalise(sum b_i n_i) with
+    b the barycentric coordinates of the point (clipped to the triangle) and n_i the triangle's corner
+    normals (`corners` (T, 3, 3), on the side of its winding), flipped where the geometric normal was
+    flipped to give `facing` (`facing_normals`). The geometric normal itself (`facing`) on flat
+    triangles (equal corners), where the sum vanishes, and everywhere when `corners` is None."""
+    if corners is None:
+        return facing
+    c = corners[prim]
+    tri = accel.triangles[prim]
+    e1, e2, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
+    d00, d01, d11 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
+    d20, d21 = np.einsum("ij,ij->i", v, e1), np.einsum("ij,ij->i", v, e2)
+    den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.clip(np.stack([np.zeros_like(den), (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den],
+                             axis=1), 0.0, 1.0)
+        b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
+        n = np.einsum("ij,ijk->ik", b, c)
+        length = np.linalg.norm(n, axis=1)
+    flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0)
+    n = np.where(flat[:, None], facing, n / np.where(flat, 1.0, length)[:, None])
+    flipped = np.einsum("ij,ij->i", accel.normals[prim], facing) < 0.0
+    return np.where((flipped & ~flat)[:, None], -n, n)
+
+
+def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None):
+    """Reflected radiance (N, 3) at surface points with ray-facing unit geometric normals `normals`
+    and shading normals `shading` (`shading_normals`; None: the geometric ones). `through(li, points)`,
     if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
     where truly blocked; bounded.py's shadows through index-matched interiors)."""
     out = np.zeros((len(points), 3))
     for li, lp in enumerate(lights.position):
         if lights.kind[li] == DIRECTIONAL:
-            _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through)
+            _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
         to_light = lp[None, :] - points
         dist = np.linalg.norm(to_light, axis=1)
         cos = np.einsum("ij,ij->i", normals, to_light) / np.where(dist > 0.0, dist, 1.0)
         lit = (cos > 0.0) & (dist > 0.0)
+        if shading is not None and shading is not normals:  # the terminator: both must face the light
+            cos = np.einsum("ij,ij->i", shading, to_light) / np.where(dist > 0.0, dist, 1.0)
+            lit &= cos > 0.0
         if not lit.any():
             continue
         idx = np.nonzero(lit)[0]
@@ -62,11 +96,15 @@ def _unblocked(accel, o, d, tmax, idx, points, li, through):
     return idx[~occ], part[~occ]
 
 
-def _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through=None):
+def _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through=None, shading=None):
     """out += the directional light li's reflected radiance (shadow rays to infinity toward it)."""
     wi = -lights.axis[li]
     cos = normals @ wi
-    idx = np.nonzero(cos > 0.0)[0]
+    lit = cos > 0.0
+    if shading is not None and shading is not normals:  # the terminator, as in surface_radiance
+        cos = shading @ wi
+        lit &= cos > 0.0
+    idx = np.nonzero(lit)[0]
     if not len(idx):
         return
     o = points[idx] + accel.epsilon * normals[idx]

@@ -687,11 +687,14 @@ class _Reader:
             if len(pts) == 0 or idx.size == 0 or idx.size % per or idx.min() < 0 or idx.max() >= len(pts):
                 w.fail(line, f'{p.directive}: needs points "P" and {per} indices per element into them',
                        f"check the counts (P has {counted(len(pts), 'point')})")
-            p.ignore("uv", "N", "S", "faceIndices")  # shading attributes: our surfaces use geometric normals
+            normals = np.array(p.floats("N", ("normal", "normal3")) or [], float).reshape(-1, 3) if per == 3 else []
+            p.ignore("uv", "N", "S", "faceIndices")  # a bilinear patch's N: its triangles are flat
             p.done()
             pts = pts @ m[:3, :3].T + m[:3, 3]
             if per == 3:
                 shape = {"primitive": "triangles", "vertices": pts, "faces": idx.reshape(-1, 3)}
+                if len(normals) == len(pts):  # per-vertex shading normals: smooth (by the inverse transpose)
+                    shape["normals"] = normals @ np.linalg.inv(m[:3, :3])
             else:
                 shape = _triangles(np.concatenate([_patch(pts[q]) for q in idx.reshape(-1, 4)]))
         elif kind == "plymesh":
@@ -995,7 +998,7 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     lines.append("WorldBegin")
     lines += [_light_line(light, lraw) for light, lraw in zip(scene.lights, raw.get("light", []))]
     files = {}
-    tris, refl, ids = scene_triangles(scene, shape_ids=True)
+    tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
     for i, shape in enumerate(scene.shapes):
         mine = ids == i
         lines.append("AttributeBegin")
@@ -1019,6 +1022,10 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
                 name = f"{stem}_shape{i}" + (f"_{k}" if len(groups) > 1 else "") + ".ply"
                 files[out.parent / name] = _ply_bytes(v, f)
                 lines.append(f'Shape "plymesh" "string filename" [ "{name}" ]')
+            elif corners is not None and shape.smooth:  # corner by corner, with pbrt's shading normals "N"
+                sel = np.nonzero(mine)[0] if r is None else np.nonzero(mine & np.all(refl == r, axis=1))[0]
+                lines.append(f'Shape "trianglemesh" "point3 P" {_list(tris[sel].ravel())} "integer indices" '
+                             f'{_list(np.arange(3 * len(sel)))} "normal N" {_list(corners[sel].ravel())}')
             else:
                 lines.append(f'Shape "trianglemesh" "point3 P" {_list(v.ravel())} "integer indices" {_list(f.ravel())}')
         lines.append("AttributeEnd")

@@ -63,6 +63,7 @@ class Shape:
     reflectance: np.ndarray | None
     transform: Transform
     interior: Interior | None = None
+    smooth: bool = True  # interpolated shading normals (scene/meshes.py); False: flat facets
 
 
 @dataclass
@@ -184,9 +185,9 @@ PRIMITIVE_KEYS = {
     "quad": {"corners"},
     "sphere": {"center", "radius", "segments"},
     "cylinder": {"base", "top", "radius", "segments"},
-    "triangles": {"vertices", "faces"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
+    "triangles": {"vertices", "faces", "normals"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
-SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior"}
+SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
 MAX_SEGMENTS = 2048  # a sphere of 2048 segments: 4.2 million triangles, ~0.3 GB (segments = 1e9 hung)
 
@@ -230,6 +231,9 @@ def _shape(ctx, i, raw):
                 params[k] = float(_number(ctx, f"{key}.radius", raw[k], positive=True))
             elif k in ("vertices", "faces"):
                 params[k] = _array(ctx, f"{key}.{k}", raw.get(k), integer=k == "faces")
+            elif k == "normals":  # optional: a shading normal per vertex (smooth shading)
+                if k in raw:
+                    params[k] = _array(ctx, f"{key}.normals", raw[k])
             elif k == "corners":
                 c = raw.get(k)
                 if not isinstance(c, list) or len(c) != 4:
@@ -240,6 +244,9 @@ def _shape(ctx, i, raw):
                 if k not in raw:
                     ctx.fail(f"{key}.{k}", "missing", f"add {key}.{k} = [x, y, z]")
                 params[k] = _vec3(ctx, f"{key}.{k}", raw[k])
+        if kind == "triangles" and "normals" in params and len(params["normals"]) != len(params["vertices"]):
+            ctx.fail(f"{key}.normals", f"needs one normal per vertex ({len(params['vertices'])}), got "
+                     f"{len(params['normals'])}", "give as many normals as vertices, or remove normals")
         if kind == "triangles" and (params["faces"].size == 0 or params["faces"].max() >= len(params["vertices"])):
             ctx.fail(f"{key}.faces", f"index vertices 0..{len(params['vertices']) - 1} and hold at least one triangle",
                      "write faces = [[0, 1, 2], ...] with indices into vertices")
@@ -253,7 +260,10 @@ def _shape(ctx, i, raw):
     if refl is not None and np.any(refl > 1.0):
         ctx.fail(f"{key}.reflectance", "exceeds 1 (surfaces would create energy)", "use values in [0, 1]")
     interior = _interior(ctx, f"{key}.interior", raw["interior"]) if "interior" in raw else None
-    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior)
+    smooth = raw.get("smooth", True)
+    if not isinstance(smooth, bool):
+        ctx.fail(f"{key}.smooth", f"expected true or false, got {smooth!r}", "write smooth = false for flat facets")
+    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth)
 
 
 def _interior(ctx, key, raw):

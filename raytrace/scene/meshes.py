@@ -1,7 +1,13 @@
 """Triangles for a scene: meshes through trimesh (OBJ/MTL, PLY, GLB) and procedural primitives.
 
 Everything ends as float64 arrays: triangle corners (T, 3, 3) and a diffuse reflectance per
-triangle (T, 3). MTL diffuse colours (Kd) and glTF base colours become reflectances.
+triangle (T, 3). MTL diffuse colours (Kd) and glTF base colours become reflectances. With
+`normals=True`, `scene_triangles` also gives each triangle's corner shading normals (T, 3, 3), on the
+side of its winding (the geometric normal's), or None when every shape is flat: a shape's `smooth`
+(default true) gives spheres their exact normals (corner - centre) / radius, cylinder sides the radial
+direction, meshes the file's vertex normals or, where the file has none, normals smoothed across edges
+sharper than CREASE_DEGREES (`crease_normals`), `triangles` their `normals` (pbrt's "N"); boxes, quads,
+cylinder caps and `triangles` without normals (as pbrt renders a mesh without "N") stay flat.
 """
 from __future__ import annotations
 
@@ -14,6 +20,7 @@ from .assets import find_asset
 from .format import Scene, Shape, Transform
 
 DEFAULT_REFLECTANCE = 0.5
+CREASE_DEGREES = 30.0  # a mesh without normals is smoothed across edges flatter than this (Blender's auto smooth)
 
 
 def box_triangles(lo, hi):
@@ -68,6 +75,64 @@ def cylinder_triangles(base, top, radius, segments):
     return np.array(tris)
 
 
+def sphere_normals(tris, center, radius):
+    """The exact sphere's unit normals (corner - centre) / radius at the corners (T, 3, 3)."""
+    return (tris - center) / radius
+
+
+def cylinder_normals(tris, base, top):
+    """Corner normals of `cylinder_triangles`: the radial direction on the sides, the caps flat."""
+    a = (top - base) / np.linalg.norm(top - base)
+    rel = tris - base
+    out = rel - (rel @ a)[..., None] * a
+    caps = np.arange(len(tris)) % 4 >= 2  # (base, p1, p0), (top, q0, q1) of each segment
+    out[~caps] /= np.linalg.norm(out[~caps], axis=-1, keepdims=True)
+    out[caps] = flat_normals(tris[caps])[:, None, :]
+    return out
+
+
+def flat_normals(tris):
+    """Each triangle's unit geometric normal (T, 3) (its winding's; zero for a degenerate one)."""
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(length > 0.0, length, 1.0)
+
+
+def _merged_ids(tris):
+    """An id per corner (T * 3,): equal where the corners' coordinates agree to 1e-9 of the soup's size."""
+    pts = tris.reshape(-1, 3)
+    size = float(np.max(np.abs(pts))) or 1.0
+    keys = np.ascontiguousarray(np.round(pts / (1e-9 * size)) + 0.0)  # + 0.0: -0.0 becomes 0.0
+    return np.unique(keys.view(np.dtype((np.void, 24))).ravel(), return_inverse=True)[1].ravel()  # rows as bytes
+
+
+def crease_normals(tris, degrees: float = CREASE_DEGREES):
+    """Corner normals (T, 3, 3) of a triangle soup smoothed as Blender's auto smooth: at each corner
+    the area-weighted mean of the normals of the triangles that share its vertex (coordinates merged,
+    `_merged_ids`) and whose normal is within `degrees` of the corner's own triangle's; a unit vector,
+    the triangle's own normal exactly where that mean is it to rounding (flat parts stay flat)."""
+    area_n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    unit = flat_normals(tris)
+    ids = _merged_ids(tris)
+    order = np.argsort(ids, kind="stable")
+    _, start, count = np.unique(ids[order], return_index=True, return_counts=True)
+    group = np.repeat(np.arange(len(start)), count)  # the vertex of each sorted corner
+    per = count[group]  # pairs per sorted corner: every corner of its vertex
+    corner = np.repeat(np.arange(len(order)), per)
+    first = np.repeat(np.cumsum(per) - per, per)
+    partner = start[group][np.repeat(np.arange(len(order)), per)] + np.arange(len(corner)) - first
+    f, g = order[corner] // 3, order[partner] // 3
+    keep = np.einsum("ij,ij->i", unit[f], unit[g]) >= math.cos(math.radians(degrees))
+    acc = np.zeros((len(ids), 3))
+    for k in range(3):
+        acc[:, k] = np.bincount(order[corner], weights=np.where(keep, area_n[g, k], 0.0), minlength=len(ids))
+    acc /= np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), np.finfo(float).tiny)
+    own = np.repeat(unit, 3, axis=0)
+    flat = np.linalg.norm(acc - own, axis=1) < 1e-12  # a corner amid coplanar triangles: exactly its facet's
+    acc[flat] = own[flat]
+    return acc.reshape(-1, 3, 3)
+
+
 def rotation_matrix(degrees):
     rx, ry, rz = np.radians(degrees)
     cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
@@ -81,6 +146,12 @@ def apply_transform(tris, t: Transform):
     """Scale, then rotate about x, y, z (degrees), then translate."""
     m = rotation_matrix(t.rotate) * t.scale[None, :]
     return tris @ m.T + t.translate
+
+
+def _normal_matrix(t: Transform):
+    """What normals (as rows) are multiplied by under `apply_transform`: the inverse transpose of its
+    linear part (the scale is never 0: format.py refuses it), up to a positive factor."""
+    return (rotation_matrix(t.rotate) / t.scale[None, :]).T
 
 
 def _mesh_colour(geom) -> np.ndarray | None:
@@ -110,7 +181,11 @@ def _first_bad_vertex(path) -> str:
     return ""
 
 
-def load_mesh(shape: Shape, scene: Scene, key: str):
+def load_mesh(shape: Shape, scene: Scene, key: str, normals: bool = True):
+    """The mesh's triangles (T, 3, 3), reflectances (T, 3) and corner normals (T, 3, 3; None unless
+    `normals`): the file's vertex normals (OBJ `vn`, PLY nx/ny/nz, glTF NORMAL: trimesh keeps them when
+    the file has them), else `crease_normals`; each geometry's node transform applied (normals by its
+    inverse transpose)."""
     import trimesh
 
     path = find_asset(shape.params["mesh"], scene.path, f"{key}.mesh")
@@ -119,7 +194,7 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise UserError(f"{path}: {key}.mesh: cannot read mesh ({type(exc).__name__}: {exc}); "
                         "export it as OBJ, PLY or GLB") from None
-    tris, refl = [], []
+    tris, refl, corners = [], [], []
     for node in loaded.graph.nodes_geometry:
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
@@ -133,20 +208,22 @@ def load_mesh(shape: Shape, scene: Scene, key: str):
         v = v @ transform[:3, :3].T + transform[:3, 3]
         t = v[np.asarray(geom.faces)]
         tris.append(t)
+        if normals and "vertex_normals" in geom._cache:  # from the file (else trimesh computes them lazily)
+            vn = np.asarray(geom.vertex_normals, dtype=np.float64) @ np.linalg.pinv(transform[:3, :3])
+            corners.append(vn[np.asarray(geom.faces)])
+        elif normals:
+            corners.append(crease_normals(t))
         colour = _mesh_colour(geom)
         refl.append(np.broadcast_to(colour if colour is not None else DEFAULT_REFLECTANCE, (len(t), 3)))
     if not tris:
         raise UserError(f"{path}: the mesh holds no triangles; check the file or {key}.mesh")
-    return np.concatenate(tris), np.concatenate(refl)
+    return np.concatenate(tris), np.concatenate(refl), np.concatenate(corners) if normals else None
 
 
 def boundary_edges(tris: np.ndarray) -> int:
     """The edges of a triangle soup used by an odd number of triangles (vertices merged where their
     coordinates agree to 1e-9 of the soup's size): 0 for a closed surface."""
-    pts = tris.reshape(-1, 3)
-    size = float(np.max(np.abs(pts))) or 1.0
-    _, ids = np.unique(np.round(pts / (1e-9 * size)), axis=0, return_inverse=True)
-    ids = ids.reshape(-1, 3)
+    ids = _merged_ids(tris).reshape(-1, 3)
     edges = np.sort(np.concatenate([ids[:, [0, 1]], ids[:, [1, 2]], ids[:, [2, 0]]]), axis=1)
     edges = edges[edges[:, 0] != edges[:, 1]]  # collapsed edges of degenerate triangles (a sphere's poles)
     _, counts = np.unique(edges, axis=0, return_counts=True)
@@ -178,16 +255,27 @@ def convex_planes(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9) -> n
     return np.ascontiguousarray(planes)
 
 
-def scene_triangles(scene: Scene, shape_ids: bool = False):
+def _oriented(corners, tris):
+    """Unit corner normals (T, 3, 3) turned, per triangle, to the side of its winding (where their sum
+    points); zero where a corner's normal is zero (then the shading uses the geometric normal)."""
+    length = np.linalg.norm(corners, axis=-1, keepdims=True)
+    unit = corners / np.where(length > 0.0, length, 1.0)
+    side = np.einsum("ij,ij->i", unit.sum(axis=1), np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]))
+    return unit * np.where(side < 0.0, -1.0, 1.0)[:, None, None]
+
+
+def scene_triangles(scene: Scene, shape_ids: bool = False, normals: bool = False):
     """All triangles (T, 3, 3) and reflectances (T, 3) of the scene, in float64 world space; with
-    `shape_ids` also each triangle's shape index (T,). A shape holding an interior medium must be
-    closed (`boundary_edges`)."""
-    all_tris, all_refl, all_ids = [], [], []
+    `shape_ids` also each triangle's shape index (T,); with `normals` also the corner shading
+    normals (T, 3, 3), or None when no shape is smooth (module docstring). A shape holding an
+    interior medium must be closed (`boundary_edges`)."""
+    all_tris, all_refl, all_ids, all_normals = [], [], [], []
     for i, shape in enumerate(scene.shapes):
         key = f"shape[{i}]"
         p = shape.params
+        corners = None  # flat
         if shape.kind == "mesh":
-            tris, refl = load_mesh(shape, scene, key)
+            tris, refl, corners = load_mesh(shape, scene, key, normals and shape.smooth)
         else:
             if shape.kind == "box":
                 tris = box_triangles(p["min"], p["max"])
@@ -195,12 +283,15 @@ def scene_triangles(scene: Scene, shape_ids: bool = False):
                 tris = quad_triangles(p["corners"])
             elif shape.kind == "triangles":
                 tris = p["vertices"][p["faces"]]
+                corners = p["normals"][p["faces"]] if "normals" in p else None
             elif shape.kind == "sphere":
                 tris = sphere_triangles(p["center"], p["radius"], p["segments"])
+                corners = sphere_normals(tris, p["center"], p["radius"])
             else:
                 if np.allclose(p["base"], p["top"]):
                     raise UserError(f"{scene.path or 'scene'}: {key}.top: equals base; give the cylinder a length")
                 tris = cylinder_triangles(p["base"], p["top"], p["radius"], p["segments"])
+                corners = cylinder_normals(tris, p["base"], p["top"])
             refl = np.full((len(tris), 3), DEFAULT_REFLECTANCE)
         if shape.reflectance is not None:
             refl = np.broadcast_to(shape.reflectance, (len(tris), 3))
@@ -219,13 +310,21 @@ def scene_triangles(scene: Scene, shape_ids: bool = False):
         all_tris.append(tris)
         all_refl.append(np.clip(refl, 0.0, 1.0))
         all_ids.append(np.full(len(tris), i, dtype=np.int64))
+        if normals:
+            smooth = shape.smooth and corners is not None
+            all_normals.append(_oriented(corners @ _normal_matrix(shape.transform), tris) if smooth else
+                               np.repeat(flat_normals(tris)[:, None, :], 3, axis=1))
     if not all_tris:
         empty = np.zeros((0, 3, 3)), np.zeros((0, 3))
-        return (*empty, np.zeros(0, dtype=np.int64)) if shape_ids else empty
+        out = (*empty, np.zeros(0, dtype=np.int64)) if shape_ids else empty
+        return (*out, None) if normals else out
     tris = np.ascontiguousarray(np.concatenate(all_tris))
     refl = np.ascontiguousarray(np.concatenate(all_refl))
     area2 = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
     keep = area2 > 0.0  # degenerate (zero-area) triangles have no normal and are never hit
-    if shape_ids:
-        return tris[keep], refl[keep], np.concatenate(all_ids)[keep]
-    return tris[keep], refl[keep]
+    out = (tris[keep], refl[keep]) + ((np.concatenate(all_ids)[keep],) if shape_ids else ())
+    if normals:
+        smooth = any(s.smooth and (s.kind in ("mesh", "sphere", "cylinder") or "normals" in s.params)
+                     for s in scene.shapes)
+        out += (np.ascontiguousarray(np.concatenate(all_normals)[keep]) if smooth else None,)
+    return out
