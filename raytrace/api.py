@@ -60,6 +60,9 @@ class Image:
     auto: str | None = None  # method = "auto": its choice in words ("analytic", "quadrature (analytic: why not)")
     unbounded: float = 0.0  # the share of pixels whose error_bound is infinite in some channel (0 to 1)
     unbounded_reason: str = ""  # why, in a few words, where the render knows it (`unbounded_reason`)
+    # the output layers asked for (aov.py): "depth" (H, W, 1), "normal", "albedo", "light0", ...,
+    # "emission" (H, W, 3); the light layers and emission sum to `array`
+    layers: dict = field(default_factory=dict)
 
     @property
     def method_label(self) -> str:
@@ -94,6 +97,17 @@ class Image:
         out.update(self.extra_header)
         return out
 
+    def layer(self, name: str) -> "Image":
+        """The output layer `name` (a key of `layers`) as an Image of its own, to show or save (a
+        depth layer in all three channels)."""
+        if name not in self.layers:
+            raise UserError(f"layer {name!r}: not in this render; it has {', '.join(self.layers) or 'no layers'} "
+                            "(render with aov=[...] or --aov)")
+        array = self.layers[name]
+        return replace(self, array=np.repeat(array, 3, axis=-1) if array.shape[-1] == 1 else array,
+                                   scene=f"{self.scene} ({name})", variance=None, error_bound=None, layers={},
+                                   unbounded=0.0, unbounded_reason="")
+
     def _repr_png_(self) -> bytes:
         """A notebook's preview: the PNG (neutral view, automatic exposure) at most PREVIEW_WIDTH wide."""
         from io import BytesIO
@@ -125,7 +139,8 @@ class Image:
     def save(self, *paths, exposure: float | None = None, view: str = "neutral"):
         """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
         written): linear float32 EXR (.exr, with error_bound.R/G/B channels, the bound of the float32
-        values, error_bounds.stored, and variance channels for stochastic methods) or an 8-bit
+        values, error_bounds.stored, variance channels for stochastic methods and the output layers'
+        channels, aov.py: depth.Z, normal.X/Y/Z, albedo.R/G/B, light0.R/G/B, ..., emission.R/G/B) or an 8-bit
         PNG preview (.png) through `view`: "neutral" (Khronos PBR Neutral, highlights roll off
         and lamps keep their hue), "aces" (ACES 2.0's SDR view, which greys coloured lamps) or "standard"
         (the exact sRGB encode, clipping at 1). `exposure` is in stops (each doubles the radiance); None
@@ -146,6 +161,10 @@ class Image:
                     extra = {f"error_bound.{c}": stored[i] for i, c in enumerate("RGB")}
                 if self.variance is not None:
                     extra.update({f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")})
+                if self.layers:
+                    from .aov import exr_channels
+
+                    extra.update(exr_channels(self.layers))
                 jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
             else:
                 raise UserError(f"{path}: unknown image type; save to a .exr (linear float32) or .png (preview) path")
@@ -297,6 +316,15 @@ def render_options(scene: Scene | None, source: str = "render", **given) -> Rend
                         "leave it out")
     if "checkpoint" in given:
         given["checkpoint"] = Path(given["checkpoint"])
+    if "aov" in given or "aov" in table:
+        from . import aov
+
+        named = _named("aov", given["aov"]) if "aov" in given else f"{source}: render.aov"
+        given["aov"] = aov.check(given.get("aov", table.get("aov")), named)
+        if given["aov"] and (given.get("passes") or given.get("time_budget") or given.get("target_error")
+                             or given.get("checkpoint")):
+            raise UserError(f"{named}: output layers are not kept across progressive passes; render them in one pass "
+                            "(--spp) without --passes, --time-budget, --target-error or --checkpoint")
     options = RenderOptions(**given)
     if scene is not None:
         options.apply_camera(scene.camera)
@@ -437,7 +465,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
                  result.compile_seconds, cam.spp, options.seed, options.crop, options.volumetric_shadows,
                  result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {},
-                 bound, auto, unbounded, unbounded_reason(prep, m, result) if unbounded else "")
+                 bound, auto, unbounded, unbounded_reason(prep, m, result) if unbounded else "", result.layers)
 
 
 AUTO = "auto"  # the default method (SCENE_FORMAT.md): the first of AUTO_METHODS whose checks accept the scene

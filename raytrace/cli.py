@@ -128,6 +128,10 @@ def build_parser():
     r.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     r.add_argument("--crop", metavar="X0,Y0,X1,Y1",
                    help="render only this block of pixels (end exclusive), e.g. 100,50,101,51 for one pixel")
+    r.add_argument("--aov", metavar="LAYERS",
+                   help="extra EXR layers, comma-separated: depth (depth.Z, distance to the first hit), normal "
+                        "(normal.X/Y/Z), albedo (albedo.R/G/B), lights (light0.R/G/B, ... one per light, and "
+                        "emission.R/G/B: they sum to the image; the render takes about twice as long)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary line")
     r.add_argument("--stats", action="store_true",
                    help="after the summary line, the method's statistics (also in the EXR header, stats.*)")
@@ -233,6 +237,9 @@ def build_parser():
                  "images' error_bound channels.")
     f.add_argument("test", help="the EXR to check")
     f.add_argument("ref", help="the reference EXR, of the same size")
+    f.add_argument("--layer", metavar="NAME",
+                   help="compare this output layer of both files instead of the image (depth, normal, albedo, "
+                        "light0, ..., emission: render.py render --aov)")
     f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
     f.add_argument("--map-exr", help="absolute error per pixel as EXR")
     f.add_argument("--max", type=float, help="top of the error map's scale (default: the largest error)")
@@ -325,7 +332,7 @@ def cmd_render(args):
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                          progress=tile_done if bar is not None else None, on_pass=report, max_memory=args.max_memory,
-                         notice=_notices(bar) if bar is not None else None,
+                         notice=_notices(bar) if bar is not None else None, aov=args.aov,
                          **_given_params(args))
     except KeyboardInterrupt:
         if bar is not None:
@@ -545,6 +552,11 @@ def cmd_diff(args):
 
     test, _ = film.read_exr(args.test)
     ref, _ = film.read_exr(args.ref)
+    if args.layer is not None:
+        if args.bounds is not None:
+            raise UserError(f"--bounds with --layer {args.layer}: the error_bound channels bound the image, not its "
+                            "layers; leave one out")
+        test, ref = (film.read_exr_layer(p, args.layer) for p in (args.test, args.ref))
     if test.shape != ref.shape:
         raise UserError(f"{args.test} is {test.shape[1]}x{test.shape[0]} but {args.ref} is "
                         f"{ref.shape[1]}x{ref.shape[0]}; render both at the same --width and --height")

@@ -197,6 +197,21 @@ def read_exr_channels(path, prefix: str) -> np.ndarray | None:
         return np.stack([np.asarray(ch[f"{prefix}.{c}"].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
+def read_exr_layer(path, name: str) -> np.ndarray:
+    """(H, W, 3) float64 of the output layer `name` of an EXR (aov.py's channels: name.R/G/B, name.X/Y/Z,
+    or name.Z repeated in all three); UserError naming the layers it has when it lacks that one."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        ch = f.channels()
+        for suffixes in ("RGB", "XYZ", "Z"):
+            if all(f"{name}.{c}" in ch for c in suffixes):
+                planes = [np.asarray(ch[f"{name}.{c}"].pixels, dtype=np.float64) for c in suffixes]
+                return np.stack(planes * (3 // len(planes)), axis=-1)
+        have = sorted({k.split(".")[0] for k in ch if "." in k} - {"error_bound", "variance"})
+    raise UserError(f"{path}: no layer {name!r}; it has {', '.join(have) or 'none'} (render with --aov to write them)")
+
+
 TONEMAP_VALUES = 1 << 20  # float64 values per band of `srgb_encode` (a few 8 MB temporaries)
 VIEWS = ("neutral", "aces", "standard")  # preview views: view.py's PBR Neutral and ACES 2.0, or a plain sRGB encode
 

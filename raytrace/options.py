@@ -37,6 +37,7 @@ class RenderOptions:
     progress: Callable[[int, int], None] | None = None  # (tiles done, tiles) of the render or pass in flight
     on_pass: Callable[[int, float], None] | None = None  # (passes done, estimated mean relative error)
     observer: Callable | None = None  # (y0, y1, x0, x1, radiance (y1-y0, x1-x0, 3)) of every finished block
+    aov: tuple = ()  # output layers beside the image (aov.NAMES, checked by aov.check)
     notice: Callable[[str], None] | None = None  # one-line notes (the kernels' compile when it is slow)
 
     @property

@@ -134,6 +134,8 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
     elapsed = float(state["elapsed"])
     last_save = time.perf_counter()
     result = None
+    layers, layer_passes = {}, 0  # the output layers' sums over this call's passes (not checkpointed: api.py
+    # refuses layers with the progressive options)
 
     def finished():
         if done == 0:
@@ -162,6 +164,9 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
             state["total"] += result.image  # in place, and the pass's arrays let go: the memory estimate
             state["var_total"] += result.variance  # (api.check_memory) counts three image-sized sums
             error_bounds.add_up(state["bound_total"], result.error_bound)
+            for name, array in result.layers.items():
+                layers[name] = layers[name] + array if name in layers else array
+            layer_passes += 1
             result.image = result.variance = result.error_bound = None
             done += 1
             elapsed += result.seconds
@@ -188,4 +193,4 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
         stats.update(result.stats)
     stats.update(error_bounds.summary(bound))
     return RenderResult(image, method_name, result.params if result else params, elapsed, float(state["compile"]),
-                        stats, variance, done, bound)
+                        stats, variance, done, bound, {k: v / layer_passes for k, v in layers.items()})

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import copy
+import dataclasses
 import functools
 import os
 import queue
@@ -23,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bounded, error_bounds, inside_rows
+from . import aov, bounded, error_bounds, inside_rows
 from .accel import Accelerator
 from .camera import generate_rays, pixel_rays
 from .errors import UserError
@@ -57,6 +59,7 @@ class Prepared:
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
+    lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
     _memo: dict = field(default_factory=dict)
     _memo_lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -82,6 +85,18 @@ class Prepared:
             self._through = build_frusta(self.accel, self.lights, select=mask)
         return None if mask is None else self._through
 
+    def only(self, keep: np.ndarray) -> "Prepared":
+        """This scene lit by the lights `keep` (a boolean mask over `lights`) only, for the output
+        layers (aov.py): the other lights' intensities are zero (their contributions exact zeros, so
+        each light's layer holds the very numbers the image adds up) and their segments of the
+        camera's medium are dropped; the background is seen only where no light is kept (the emission
+        layer); everything else, the shadow frusta included, is shared."""
+        self.through()
+        view = copy.copy(self)
+        view.lights = dataclasses.replace(self.lights, intensity=np.where(keep[:, None], self.lights.intensity, 0.0))
+        view.lights_on = keep
+        return view
+
 
 @dataclass
 class RenderResult:
@@ -96,6 +111,7 @@ class RenderResult:
     # (H, W, 3) float32 |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic
     # method the bound of all but its estimator's noise, whose standard error is sqrt(variance)
     error_bound: np.ndarray | None = None
+    layers: dict = field(default_factory=dict)  # output layers (aov.py): name -> (H, W, channels)
 
 
 def prepare(scene: Scene) -> Prepared:
@@ -170,7 +186,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         else:
             radiance[into], into_var, into_bound = _across(prep, method, params, crossing, seed, shadows, depth,
                                                            deeper)
-    radiance[~hit & ~ground] = scene.background
+    if prep.lights_on is None or not prep.lights_on.any():  # a light layer's pass sees no background
+        radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
     stats = np.zeros(stats_size(method))
@@ -183,6 +200,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)
+        if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
+            segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
         if shadows is not None and method.samples_shadows(params):
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
@@ -270,13 +289,14 @@ class Tile:
 class Task:
     """What every tile of one render shares besides the prepared scene (small and picklable: a
     cluster's tasks carry it): the method, its resolved parameters, the seed, `shadows` (None without
-    volumetric shadows, else a number that is no longer read: the lit intervals are exact) and the
-    pixel block `box` = (x0, y0, x1, y1)."""
+    volumetric shadows, else a number that is no longer read: the lit intervals are exact), the
+    pixel block `box` = (x0, y0, x1, y1) and the output layers `aov` (aov.NAMES) beside the image."""
     method: str
     params: dict
     seed: int
     shadows: float | None
     box: tuple
+    aov: tuple = ()
 
 
 def sample_ranges(cam) -> list[slice]:
@@ -308,9 +328,9 @@ def tiles(cam, box) -> list[Tile]:
 
 
 def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
-    """(pixels, 3) sums of (pixels x samples, 3) per-ray values: each pixel's samples added in sample
+    """(pixels, k) sums of (pixels x samples, k) per-ray values: each pixel's samples added in sample
     order (as the earlier tiles' numpy sum over them did)."""
-    per = values.reshape(-1, samples, 3)
+    per = values.reshape(-1, samples, values.shape[1])
     total = per[:, 0].copy()
     for k in range(1, samples):
         total += per[:, k]
@@ -319,8 +339,9 @@ def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
 
 def render_tile(prep: Prepared, task: Task, tile: Tile):
     """The tile's radiance summed over its samples (pixels, 3), its statistics, for a stochastic
-    method its summed variance (else None), and its summed error bound: a function of the arguments
-    alone, the same whichever thread or cluster worker computes it."""
+    method its summed variance (else None), its summed error bound and its output layers' summed
+    columns (pixels, aov.width; None without layers): a function of the arguments alone, the same
+    whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
     q = np.arange(tile.pixels.start, tile.pixels.stop, tile.pixels.step)
@@ -328,10 +349,23 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     o, d = pixel_rays(cam, ys, xs, tile.samples)
     keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
-    rad, stats, var, bound = shade_rays(prep, get_method(task.method), task.params, o, d, keys, task.seed,
-                                        task.shadows)
+    method = get_method(task.method)
+    rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows)
     n = tile.samples.stop - tile.samples.start
-    return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n)
+    layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys), n)
+    return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
+
+
+def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys) -> np.ndarray:
+    """The output layers' columns (N, aov.width) of camera rays: their first hits' depth, normal and
+    albedo, and each light's radiance and the emission (the rays shaded again by `Prepared.only`,
+    the views made once per scene)."""
+    cols = [aov.first_hits(prep, task.aov, origins, dirs)]
+    if "lights" in task.aov:
+        for keep in aov.light_masks(len(prep.lights)):
+            view = prep.memo(("only", keep.tobytes()), functools.partial(prep.only, keep))
+            cols.append(shade_rays(view, method, task.params, origins, dirs, keys, task.seed, task.shadows)[0])
+    return np.concatenate(cols, axis=1)
 
 
 def prepare_task(prep: Prepared, task: Task) -> float:
@@ -393,39 +427,44 @@ class Accumulator:
     as in the earlier tiles of whole rows), the statistics in tile order; the error bound is the
     mean of the samples' bounds."""
 
-    def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int):
+    def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int, layers: int = 0):
         x0, self.y0, x1, y1 = box
         self.work, self.spp, self.width = work, spp, x1 - x0
         self.image = np.zeros((y1 - self.y0, x1 - x0, 3))
+        self.layers = np.zeros((y1 - self.y0, x1 - x0, layers)) if layers else None  # output layers' columns
         self.variance = np.zeros_like(self.image) if stochastic else None
         self.bound = np.zeros(self.image.shape, dtype=np.float32)  # rounded up: still a bound, half the memory
         self._left = collections.Counter(t.rows.start for t in work)  # first row of a band -> tiles to come
-        self._pending = {}  # first row of a band -> {first sample: [radiance, variance, bound] (pixels, 3) sums}
+        self._pending = {}  # first row of a band -> {first sample: [radiance, variance, bound, layers] sums}
         self._stats = [np.zeros(stats_size)] * len(work)
 
     def add(self, i: int, result) -> slice | None:
         """Add tile `i`'s result; returns the rows of the image (relative to the block) that it
         finished, or None while some of their tiles are still to come."""
         tile = self.work[i]
-        rad, self._stats[i], var, bound = result
+        rad, self._stats[i], var, bound, layers = result
         band = tile.rows.start
         parts = self._pending.setdefault(band, {})
         if tile.samples.start not in parts:
             shape = ((tile.rows.stop - band) * self.width, 3)
-            parts[tile.samples.start] = [np.zeros(shape), None if var is None else np.zeros(shape), np.zeros(shape)]
-        for total, value in zip(parts[tile.samples.start], (rad, var, bound)):
+            parts[tile.samples.start] = [np.zeros(shape), None if var is None else np.zeros(shape), np.zeros(shape),
+                                         None if layers is None else np.zeros((shape[0], layers.shape[1]))]
+        for total, value in zip(parts[tile.samples.start], (rad, var, bound, layers)):
             if value is not None:
                 total[tile.pixels] = value
         self._left[band] -= 1
         if self._left[band]:
             return None
         del self._pending[band]
-        order = [[a.reshape(-1, self.width, 3) if a is not None else None for a in parts[k]] for k in sorted(parts)]
+        order = [[a.reshape(-1, self.width, a.shape[1]) if a is not None else None for a in parts[k]]
+                 for k in sorted(parts)]
         block = slice(band - self.y0, tile.rows.stop - self.y0)
-        self.image[block] = functools.reduce(np.add, [r for r, _, _ in order]) / self.spp
+        self.image[block] = functools.reduce(np.add, [r for r, _, _, _ in order]) / self.spp
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            self.variance[block] = functools.reduce(np.add, [v for _, v, _ in order]) / self.spp**2
-        error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b in order]), self.spp)
+            self.variance[block] = functools.reduce(np.add, [v for _, v, _, _ in order]) / self.spp**2
+        error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b, _ in order]), self.spp)
+        if self.layers is not None:
+            self.layers[block] = functools.reduce(np.add, [a for _, _, _, a in order]) / self.spp
         return block
 
     def totals(self) -> np.ndarray:
@@ -493,9 +532,9 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     cam = scene.camera
     options.apply_camera(cam)
     box = options.crop or (0, 0, cam.width, cam.height)
-    task = Task(method.name, params, options.seed, options.shadows, box)
+    task = Task(method.name, params, options.seed, options.shadows, box, options.aov)
     work = tiles(cam, box)
-    acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method))
+    acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method), aov.width(task.aov, len(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
     compile_s = prepare_noticed(executor, prep, task, options.notice)
     start = time.perf_counter()
@@ -513,5 +552,6 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:], task.shadows is not None))
     summary.update(error_bounds.summary(acc.bound))
+    layers = {} if acc.layers is None else aov.split(task.aov, len(prep.lights), acc.layers)
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,
-                        error_bound=acc.bound)
+                        error_bound=acc.bound, layers=layers)

@@ -63,6 +63,8 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     where truly blocked; bounded.py's shadows through index-matched interiors)."""
     out = np.zeros((len(points), 3))
     for li, lp in enumerate(lights.position):
+        if not lights.intensity[li].any():  # nothing to add (a light layer's other lights, renderer.Prepared.only)
+            continue
         if lights.kind[li] == DIRECTIONAL:
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue

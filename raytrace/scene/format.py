@@ -328,7 +328,7 @@ def _phase(ctx, phase, key="medium.phase"):
     return HG, g
 
 
-RENDER_OPTIONS = ("method", "seed", "volumetric_shadows", "shadow_spacing")  # [render] keys that are not method parameters
+RENDER_OPTIONS = ("method", "seed", "volumetric_shadows", "shadow_spacing", "aov")  # [render] keys that are not method parameters
 
 
 def render_keys():
