@@ -239,7 +239,7 @@ def build_parser():
     f.add_argument("ref", help="the reference EXR, of the same size")
     f.add_argument("--layer", metavar="NAME",
                    help="compare this output layer of both files instead of the image (depth, normal, albedo, "
-                        "light0, ..., emission: render.py render --aov)")
+                        "light0, ..., emission: written by render's output layers)")
     f.add_argument("--map", help="error map PNG (hue blue → red, scale on the image)")
     f.add_argument("--map-exr", help="absolute error per pixel as EXR")
     f.add_argument("--max", type=float, help="top of the error map's scale (default: the largest error)")
