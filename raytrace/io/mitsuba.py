@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from . import emitters
 from .report import Problems, every
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h: Hecht, Optics, at ~589 nm)
@@ -413,6 +414,7 @@ class _Reader:
         self.top = self.doc.load(path)
         self.doc.collect_ids(self.top)
         self.fog = None  # the sensor's medium element
+        self.area_lights: list[dict] = []  # rectangles, disks and spheres with an area emitter
 
     def scene(self) -> dict:
         """The scene dict; each element that cannot be read is recorded in `problems` and left out."""
@@ -437,11 +439,12 @@ class _Reader:
                     if shape is not None:
                         shapes.append(shape)
                 elif el.tag == "emitter":
-                    if not (el.get("type") == "area" and el.get("id")):  # (else a shape's by <ref>: listed there)
+                    if not (el.get("type") == "area" and el.get("id")):  # (else a shape's by <ref>: read there)
                         lights.append(self.emitter(el))
                 elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
                     # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
                     doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
+        lights += self.area_lights
         if shapes:
             out["shape"] = shapes
         if lights:
@@ -570,9 +573,11 @@ class _Reader:
     def emitter(self, el) -> dict:
         doc = self.doc
         kind = el.get("type")
+        if kind in ("constant", "envmap"):
+            return self.environment(el, kind)
         if kind not in ("point", "spot", "directional"):
-            doc.fail(el, f"{kind} emitters are not read (only point, spot and directional lights)",
-                     "replace it by point, spot or directional lights")
+            doc.fail(el, f"{kind} emitters are not read", "use point, spot, directional, constant, envmap or an area "
+                     "emitter inside a shape")
         p = _Props(doc, el)
         self.same_fog(p, el, "medium")
         if kind == "directional":
@@ -606,6 +611,42 @@ class _Reader:
         p.done()
         return light
 
+    def environment(self, el, kind) -> dict:
+        """A constant emitter's radiance, or an envmap (equirectangular; mitsuba3 src/emitters/envmap.cpp
+        looks up u = atan2(x, -z) / 2 pi, v = acos(y) / pi in its to_world frame: u = 0 along -z, where
+        ours has the map's centre column (our u = 1/2): its frame turned half a turn about y)."""
+        doc, p = self.doc, _Props(self.doc, el)
+        self.same_fog(p, el, "medium")
+        if kind == "constant":
+            light = {"type": "environment", "radiance": _channels(p.colour("radiance", 1.0))}
+            p.done()
+            return light
+        name = p.string("filename")
+        if not name:
+            doc.fail(el, "an envmap without a filename (a bitmap given from Python) is not read",
+                     '<string name="filename" value="sky.exr"/>')
+        file = doc.resolve(name)
+        if file is None or not file.is_file():
+            doc.fail(p.values["filename"], f"envmap file {name!r} not found in {doc.searched()}",
+                     "fix the filename (relative to the main file or a <path>)")
+        if file.suffix.lower() != ".exr":
+            doc.fail(p.values["filename"], f"envmap {file.name}: only OpenEXR maps are read (linear RGB, "
+                     "equirectangular)", "convert it to .exr")
+        scale = p.number("scale", 1.0)
+        M = p.transform()
+        L = M[:3, :3]
+        if not np.allclose(L.T @ L, np.eye(3), rtol=0, atol=1e-9) or np.linalg.det(L) < 0:
+            doc.fail(p.values.get("to_world", el), "an envmap's to_world must be a rotation (no scale, shear "
+                     "or mirroring)", "keep the rotation alone")
+        from scipy.spatial.transform import Rotation
+
+        turn = Rotation.from_matrix(L @ np.diag([-1.0, 1.0, -1.0]))  # Mitsuba's frame x ours turned about y
+        p.done(ignored=("filter_type", "wrap_mode", "raw", "mis_compensation"))
+        light = {"type": "environment", "map": str(file), "scale": scale}
+        angles = turn.as_euler("xyz", degrees=True) + 0.0  # extrinsic x, y, z: a shape's `rotate` (Rz Ry Rx)
+        light["rotate"] = [0.0 if abs(a) < 1e-12 else float(a) for a in angles]
+        return light
+
     def same_fog(self, p, el, name):
         """A nested medium must be the sensor's (ours has one medium filling space)."""
         for m in p.nested("medium", name):
@@ -621,10 +662,10 @@ class _Reader:
         if kind not in ("obj", "ply", "rectangle", "cube", "sphere", "disk", "cylinder"):
             doc.fail(el, f"{kind} shapes are not read", "use obj, ply, rectangle, cube, sphere, disk or cylinder")
         p = _Props(doc, el)
-        if p.nested("emitter"):  # listed, and the shape read on for its other problems
+        radiance = None
+        if p.nested("emitter"):  # (a refused emitter is listed, and the shape read on for its other problems)
             with self.problems.each():
-                doc.fail(p.nested("emitter")[0], "area emitters are not read (lights are points, spots or "
-                         "directional)", "remove the area emitter or replace it by a point light")
+                radiance = self.area(p.nested("emitter"), el)
         self.same_fog(p, el, "exterior")
         interiors = p.nested("medium", "interior")
         bsdfs = p.nested("bsdf")
@@ -634,24 +675,78 @@ class _Reader:
                 doc.fail(el, "a diffuse shape's interior is never reached (the surface is opaque)",
                          'give it <bsdf type="null"/> (index-matched) or "dielectric", or remove the interior')
             interior = {**self.medium(interiors[0]), **(interior or {})}
-        elif interior is not None and interior.get("ior", 1.0) == 1.0:
+        elif interior is not None and interior.get("ior", 1.0) == 1.0 and radiance is None:
             p.done(ignored=("filename", "face_normals", "flip_normals", "flip_tex_coords", "center", "radius", "p0",
                             "p1", "to_world"))
             return None  # a null bsdf and no interior: invisible in Mitsuba
         elif interior is not None:
             interior = {"sigma_a": 0.0, "sigma_s": 0.0, **interior}  # clear glass
+        if radiance is not None and interior is not None:
+            doc.fail(el, "an emitter that holds a medium or refracts is not read", "give the emitting shape a "
+                     "diffuse bsdf, or put the medium in a shape of its own")
+        flip = p.boolean("flip_normals", False)
+        if radiance is not None and kind in ("rectangle", "disk", "sphere"):
+            light = self.area_light(el, p, kind, flip)
+            light["radiance"] = radiance
+            p.done(ignored=("flip_tex_coords",))
+            self.area_lights.append(light)  # it occludes like the shape (its reflectance: not read)
+            return None
+        if radiance is not None and kind not in ("obj", "ply"):
+            doc.fail(el, f"an emitting {kind} is not read", "use a rectangle, disk, sphere, obj or ply shape")
         out = self.geometry(el, p, kind, interior is not None)
+        if radiance is not None:  # emitting towards Mitsuba's shading normal (area.cpp: cos_theta(si.wi) > 0)
+            faces = emitters.oriented(out["faces"], out["vertices"], out["normals"]) if "normals" in out else \
+                np.asarray(out["faces"])
+            out["faces"] = (faces[:, ::-1] if flip else faces).tolist()
+            out["emission"] = radiance
         if reflectance is not None:
             out["reflectance"] = reflectance
         if interior is not None:
             out["interior"] = interior
-        p.done(ignored=("face_normals", "flip_normals", "flip_tex_coords"))
+        p.done(ignored=("face_normals", "flip_tex_coords"))
         return out
+
+    def area(self, nested, shape) -> float | list[float]:
+        """The radiance of a shape's area emitter (mitsuba3 src/emitters/area.cpp: `radiance`, default 1)."""
+        doc = self.doc
+        if len(nested) > 1:
+            doc.fail(shape, "has more than one emitter", "keep one area emitter")
+        el = nested[0]
+        if el.get("type") != "area":
+            doc.fail(el, f"a {el.get('type')} emitter inside a shape is not read", 'use <emitter type="area">')
+        q = _Props(doc, el)
+        self.same_fog(q, el, "medium")
+        radiance = _channels(q.colour("radiance", 1.0))
+        q.done()
+        return radiance
+
+    def area_light(self, el, p, kind, flip) -> dict:
+        """A rectangle, disk or sphere with an area emitter as our quad, disk or sphere light: Mitsuba's
+        rectangle spans [-1, 1]^2 at z = 0 and a disk the unit disk there, both emitting towards their normal
+        to_world^-T (0, 0, 1) (flip_normals: the other side); a sphere emits outward."""
+        M = p.transform()
+        n = np.linalg.inv(M[:3, :3]).T @ [0.0, 0.0, 1.0]
+        n = (-1.0 if flip else 1.0) * n / np.linalg.norm(n)
+        if kind == "rectangle":
+            c = _apply(M, [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
+            if np.cross(c[1] - c[0], c[3] - c[0]) @ n < 0.0:
+                c = c[[0, 3, 2, 1]]  # wound towards the emitting side
+            return {"type": "quad", "corners": c.tolist()}
+        if kind == "disk":
+            x, y = M[:3, 0], M[:3, 1]
+            if not math.isclose(x @ x, y @ y, rel_tol=1e-9) or abs(x @ y) > 1e-9 * (x @ x):
+                self.doc.fail(el, "an emitting disk's to_world stretches it into an ellipse", "scale it uniformly "
+                              "in its plane, or use a mesh")
+            return {"type": "disk", "center": M[:3, 3].tolist(), "normal": n.tolist(), "radius": float(np.linalg.norm(x))}
+        if flip:
+            self.doc.fail(p.values["flip_normals"], "a sphere emitting inward is not read", "remove flip_normals")
+        sphere = self.geometry(el, p, kind, False)
+        return {"type": "sphere", "center": sphere["center"], "radius": sphere["radius"]}
 
     def geometry(self, el, p, kind, holds_medium) -> dict:
         M = p.transform()
         if kind in ("obj", "ply"):
-            return _triangles(*self.mesh(el, p), M)
+            return self.triangles(el, p, M)
         if kind == "rectangle":
             return {"primitive": "quad", "corners": _apply(M, [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]).tolist()}
         if kind == "cube":
@@ -696,7 +791,27 @@ class _Reader:
         n = min(max(n + n % 2, SEGMENTS[0]), SEGMENTS[1])
         return min(n, INTERIOR_SEGMENTS) if holds_medium else n
 
+    def triangles(self, el, p, M) -> dict:
+        """An obj or ply mesh under M with Mitsuba's shading normals (src/render/mesh.cpp): the file's vertex
+        normals (by M's inverse transpose), else recomputed from the triangles in world space, angle-weighted
+        (Thuermer and Wuethrich 1998, as mesh.cpp `recompute_vertex_normals`); none with face_normals."""
+        import trimesh
+
+        v, f, vn = self.mesh(el, p)
+        out = _triangles(v, f, M)
+        if p.boolean("face_normals", False):
+            return out
+        if vn is None:
+            vn = trimesh.Trimesh(np.asarray(out["vertices"]), f, process=False).vertex_normals
+        else:
+            vn = vn @ np.linalg.inv(M[:3, :3])
+        length = np.linalg.norm(vn, axis=1, keepdims=True)
+        if np.all(length > 0.0):
+            out["normals"] = (vn / length).tolist()
+        return out
+
     def mesh(self, el, p):
+        """(vertices, faces, the file's vertex normals or None) of an obj or ply shape."""
         import trimesh
 
         name = p.string("filename")
@@ -709,11 +824,13 @@ class _Reader:
         try:
             mesh = trimesh.load(str(file), file_type=el.get("type"), force="mesh", process=False)
             v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+            # the file's normals (OBJ vn, PLY nx ny nz): trimesh caches them on loading, else computes them later
+            vn = np.asarray(mesh.vertex_normals, float) if "vertex_normals" in mesh._cache else None
         except Exception as exc:  # trimesh raises many types for unreadable files
             self.doc.fail(el, f"cannot read {file} ({type(exc).__name__}: {exc})", "export it again as OBJ or PLY")
         if len(f) == 0 or not np.all(np.isfinite(v)):
             self.doc.fail(el, f"{file} holds no triangles or non-finite vertices", "fix the mesh file")
-        return v, f
+        return v, f, vn if vn is not None and vn.shape == v.shape and np.all(np.isfinite(vn)) else None
 
     def bsdf(self, el, shape):
         """(reflectance or None, interior fields or None) of a shape's bsdf; Mitsuba's default is a
