@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import UserError
 from . import emitters
+from .meshfile import read_mesh
 from .report import Problems, every
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h: Hecht, Optics, at ~589 nm)
@@ -691,13 +692,16 @@ class _Reader:
             p.done(ignored=("flip_tex_coords",))
             self.area_lights.append(light)  # it occludes like the shape (its reflectance: not read)
             return None
-        if radiance is not None and kind not in ("obj", "ply"):
-            doc.fail(el, f"an emitting {kind} is not read", "use a rectangle, disk, sphere, obj or ply shape")
+        if radiance is not None and kind not in ("obj", "ply", "cube"):
+            doc.fail(el, f"an emitting {kind} is not read", "use a rectangle, disk, sphere, cube, obj or ply shape")
         out = self.geometry(el, p, kind, interior is not None)
         if radiance is not None:  # emitting towards Mitsuba's shading normal (area.cpp: cos_theta(si.wi) > 0)
-            faces = emitters.oriented(out["faces"], out["vertices"], out["normals"]) if "normals" in out else \
-                np.asarray(out["faces"])
-            out["faces"] = (faces[:, ::-1] if flip else faces).tolist()
+            if "faces" in out:  # (a box primitive's triangles face outward, as Mitsuba's cube)
+                faces = emitters.oriented(out["faces"], out["vertices"], out["normals"]) if "normals" in out else \
+                    np.asarray(out["faces"])
+                out["faces"] = (faces[:, ::-1] if flip else faces).tolist()
+            elif flip:
+                doc.fail(p.values["flip_normals"], "a cube emitting inward is not read", "remove flip_normals")
             out["emission"] = radiance
         if reflectance is not None:
             out["reflectance"] = reflectance
@@ -756,7 +760,9 @@ class _Reader:
                 return {"primitive": "box", "min": np.minimum(lo, hi).tolist(), "max": np.maximum(lo, hi).tolist()}
             from ..scene.meshes import box_triangles
 
-            return _soup(box_triangles(-np.ones(3), np.ones(3)), M)
+            out = _soup(box_triangles(-np.ones(3), np.ones(3)), M)  # wound outward (a mirroring M: turned back)
+            out["faces"] = np.asarray(out["faces"])[:, ::-1 if np.linalg.det(L) < 0 else 1].tolist()
+            return out
         if kind == "sphere":
             c = M @ np.array([*p.point("center", [0.0, 0.0, 0.0]), 1.0])
             r = p.number("radius", 1.0)
@@ -812,8 +818,6 @@ class _Reader:
 
     def mesh(self, el, p):
         """(vertices, faces, the file's vertex normals or None) of an obj or ply shape."""
-        import trimesh
-
         name = p.string("filename")
         if not name:
             self.doc.fail(el, "has no filename", '<string name="filename" value="mesh.obj"/>')
@@ -822,15 +826,12 @@ class _Reader:
             self.doc.fail(el, f"mesh file {name!r} not found in {self.doc.searched()}", "fix the filename (relative "
                           "to the main file or a <path>)")
         try:
-            mesh = trimesh.load(str(file), file_type=el.get("type"), force="mesh", process=False)
-            v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
-            # the file's normals (OBJ vn, PLY nx ny nz): trimesh caches them on loading, else computes them later
-            vn = np.asarray(mesh.vertex_normals, float) if "vertex_normals" in mesh._cache else None
+            v, f, vn = read_mesh(str(file), el.get("type"))
         except Exception as exc:  # trimesh raises many types for unreadable files
             self.doc.fail(el, f"cannot read {file} ({type(exc).__name__}: {exc})", "export it again as OBJ or PLY")
         if len(f) == 0 or not np.all(np.isfinite(v)):
             self.doc.fail(el, f"{file} holds no triangles or non-finite vertices", "fix the mesh file")
-        return v, f, vn if vn is not None and vn.shape == v.shape and np.all(np.isfinite(vn)) else None
+        return v, f, vn
 
     def bsdf(self, el, shape):
         """(reflectance or None, interior fields or None) of a shape's bsdf; Mitsuba's default is a
@@ -885,8 +886,9 @@ def _channels(v):
 
 
 def _merged(tris):
-    """(vertices (V, 3), faces (T, 3)) of a (T, 3, 3) triangle soup, equal corners merged."""
-    v, f = np.unique(np.reshape(tris, (-1, 3)), axis=0, return_inverse=True)
+    """(vertices (V, k), faces (T, 3)) of a (T, 3, k) triangle soup (k = 3, or 6 with normals), equal corners
+    merged."""
+    v, f = np.unique(np.reshape(tris, (-1, np.shape(tris)[-1])), axis=0, return_inverse=True)
     return v, f.reshape(-1, 3)
 
 
@@ -949,9 +951,10 @@ def _medium(parent, medium, **attrs):
 class _Writer:
     """The XML tree and the meshes of one export; `refuse` raises or, with `approximate`, warns."""
 
-    def __init__(self, scene, out: Path, source: str, approximate: bool):
+    def __init__(self, scene, out: Path, source: str, approximate: bool, emission: dict):
         self.scene, self.out, self.source, self.approximate = scene, out, source, approximate
-        self.meshes: list[tuple[str, np.ndarray]] = []  # (file name, triangles (T, 3, 3))
+        self.emission = emission  # shape index -> {"emission", "two_sided"} (emitters.split)
+        self.meshes: list[tuple[str, np.ndarray, np.ndarray | None]] = []  # (file name, triangles, corner normals)
 
     def refuse(self, key, problem, fix, closest):
         if not self.approximate:
@@ -987,7 +990,7 @@ class _Writer:
             self.refuse("medium.particles", "a particle layer", "remove [medium.particles]", "the medium without it")
         from ..scene.meshes import scene_triangles
 
-        self.tris, self.refl, self.ids = scene_triangles(sc, shape_ids=True)
+        self.tris, self.refl, self.ids, self.normals = scene_triangles(sc, shape_ids=True, normals=True)
         fog = bool(np.any(med.sigma_a + med.sigma_s > 0.0))
         if fog:
             _medium(root, med, id="fog")
@@ -1056,7 +1059,13 @@ class _Writer:
             affine[:3, :3] = rotation_matrix(t.rotate) * t.scale[None, :]
             affine[:3, 3] = t.translate
             tris, refl = self.tris[self.ids == i], self.refl[self.ids == i]
+            smooth = shape.smooth and self.normals is not None and (shape.kind in ("mesh", "sphere", "cylinder")
+                                                                    or "normals" in shape.params)
+            normals = self.normals[self.ids == i] if smooth else None  # (as scene/meshes.py shades them)
             inner = shape.interior
+            if inner is not None and i in self.emission:
+                raise UserError(f"{self.source}: shape[{i}].emission: an emitting shape that holds a medium cannot "
+                                "be exported; put the medium in a shape of its own")
             if inner is not None:
                 el = _add(root, "shape", type="ply")
                 self.ply(el, f"{self.out.stem}-{i}.ply", tris)
@@ -1083,9 +1092,65 @@ class _Writer:
                 if el is None:
                     el = _add(root, "shape", type="ply")
                     part = f"-{k}" if len(groups) > 1 else ""
-                    self.ply(el, f"{self.out.stem}-{i}{part}.ply", tris[np.all(refl == rho, axis=1)])
+                    mine = np.all(refl == rho, axis=1)
+                    self.ply(el, f"{self.out.stem}-{i}{part}.ply", tris[mine], None if normals is None else normals[mine])
                 diffuse = _add(_add(el, "bsdf", type="twosided"), "bsdf", type="diffuse")
                 _rgb(diffuse, "reflectance", rho)
+                if i in self.emission:  # towards each triangle's winding: the PLY's face normals, a cube's outside
+                    self.emitter(el, f"shape[{i}]", self.emission[i]["emission"], self.emission[i]["two_sided"])
+
+    def emitter(self, el, key, radiance, two_sided):
+        """A one-sided area emitter in the shape `el` (mitsuba3 src/emitters/area.cpp)."""
+        if two_sided:
+            self.refuse(f"{key}.two_sided", "a two-sided emitter (Mitsuba's area emitter is one-sided)",
+                        "set two_sided = false", "one-sided")
+        _rgb(_add(el, "emitter", type="area"), "radiance", emitters.colour(radiance, f"{key}.radiance", self.source))
+
+    def area_lights(self, root, lights):
+        """Quad, disk and sphere lights as black diffuse rectangles, disks and spheres with an area emitter;
+        the environment as a constant or envmap emitter (the inverse of `_Reader.area_light`, `environment`)."""
+        src = self.source
+        for i, light in lights:
+            key, kind = f"light[{i}]", light.get("type")
+            if kind == "environment":
+                self.environment(root, key, light)
+                continue
+            el = _add(root, "shape", type={"quad": "rectangle"}.get(kind, kind))
+            M = np.eye(4)
+            if kind == "quad":
+                M[:3, 3], M[:3, 0], M[:3, 1], M[:3, 2] = emitters.quad_frame(light.get("corners"), f"{key}.corners", src)
+                _matrix(el, M)
+            elif kind == "disk":
+                n = emitters.vector(light.get("normal"), f"{key}.normal", src)
+                if not np.linalg.norm(n) > 0.0:
+                    raise UserError(f"{src}: {key}.normal: the normal is zero; give the side the disk emits to")
+                n = n / np.linalg.norm(n)
+                u = _perpendicular(n)
+                r = emitters.positive(light.get("radius"), f"{key}.radius", src)
+                M[:3, 0], M[:3, 1], M[:3, 2] = r * u, r * np.cross(n, u), n
+                M[:3, 3] = emitters.vector(light.get("center"), f"{key}.center", src)
+                _matrix(el, M)
+            else:
+                _add(el, "point", name="center", value=_vec(emitters.vector(light.get("center"), f"{key}.center", src)))
+                _add(el, "float", name="radius", value=_num(emitters.positive(light.get("radius"), f"{key}.radius", src)))
+            _rgb(_add(el, "bsdf", type="diffuse"), "reflectance", 0.0)  # the emitter is black where it does not emit
+            self.emitter(el, key, light.get("radiance"), light.get("two_sided", False))
+
+    def environment(self, root, key, light):
+        src = self.source
+        if "map" not in light:
+            _rgb(_add(root, "emitter", type="constant"), "radiance", emitters.colour(light.get("radiance"),
+                                                                                    f"{key}.radiance", src))
+            return
+        from ..scene.meshes import rotation_matrix
+
+        el = _add(root, "emitter", type="envmap")
+        _add(el, "string", name="filename", value=str(Path(light["map"]).resolve()))
+        _add(el, "float", name="scale", value=_num(emitters.positive(light.get("scale", 1.0), f"{key}.scale", src)))
+        M = np.eye(4)
+        M[:3, :3] = rotation_matrix(emitters.vector(light.get("rotate", [0.0, 0.0, 0.0]), f"{key}.rotate", src)) @ \
+            np.diag([-1.0, 1.0, -1.0])  # Mitsuba's u = 0 is our map's centre column (`_Reader.environment`)
+        _matrix(el, M)
 
     @staticmethod
     def rectangle(root, tris):
@@ -1102,17 +1167,24 @@ class _Writer:
         _matrix(el, M)
         return el
 
-    def ply(self, el, name, tris):
+    def ply(self, el, name, tris, normals=None):
         _add(el, "string", name="filename", value=name)
-        _add(el, "boolean", name="face_normals", value="true")  # flat, as ours
-        self.meshes.append((name, tris))
+        if normals is None:
+            _add(el, "boolean", name="face_normals", value="true")  # flat, as ours
+        self.meshes.append((name, tris, normals))
 
 
-def _ply_bytes(tris) -> bytes:
-    """A binary little-endian PLY of a triangle soup (equal corners merged): float32 vertices."""
-    v, f = _merged(tris)
+def _ply_bytes(tris, normals=None) -> bytes:
+    """A binary little-endian PLY of a triangle soup (equal corners merged): float32 vertices, and the
+    corners' shading normals (T, 3, 3) as nx, ny, nz when given."""
+    if normals is None:
+        v, f = _merged(tris)
+    else:
+        v, f = _merged(np.concatenate([tris, normals], axis=2))
     head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
-            f"property float z\nelement face {len(f)}\nproperty list uchar uint vertex_indices\nend_header\n")
+            f"property float z\n" + ("property float nx\nproperty float ny\nproperty float nz\n" if normals is not None
+                                     else "") + f"element face {len(f)}\nproperty list uchar uint vertex_indices\n"
+            "end_header\n")
     faces = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<u4", 3)])
     faces["n"], faces["i"] = 3, f
     return head.encode() + v.astype("<f4").tobytes() + faces.tobytes()
@@ -1127,11 +1199,13 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     if out.suffix.lower() != ".xml":
         raise UserError(f"{source}: --out {out}: a Mitsuba scene is an .xml file; name it scene.xml")
     path = Path(source) if Path(source).is_file() else None
-    writer = _Writer(scene_from_dict(copy.deepcopy(raw), source, path), out, source, approximate)
-    root = writer.xml(raw)
+    rest, lights, emission = emitters.split(raw)
+    writer = _Writer(scene_from_dict(copy.deepcopy(rest), source, path), out, source, approximate, emission)
+    root = writer.xml(rest)
+    writer.area_lights(root, lights)
     ET.indent(root)
     files = [(out, ET.tostring(root, encoding="unicode").encode() + b"\n")]
-    files += [(out.parent / name, _ply_bytes(tris)) for name, tris in writer.meshes]
+    files += [(out.parent / name, _ply_bytes(tris, normals)) for name, tris, normals in writer.meshes]
     temps = []
     try:
         for target, data in files:
