@@ -951,9 +951,9 @@ def _medium(parent, medium, **attrs):
 class _Writer:
     """The XML tree and the meshes of one export; `refuse` raises or, with `approximate`, warns."""
 
-    def __init__(self, scene, out: Path, source: str, approximate: bool, emission: dict):
+    def __init__(self, scene, out: Path, source: str, approximate: bool, emission: dict | None = None):
         self.scene, self.out, self.source, self.approximate = scene, out, source, approximate
-        self.emission = emission  # shape index -> {"emission", "two_sided"} (emitters.split)
+        self.emission = emission or {}  # shape index -> {"emission", "two_sided"} (emitters.split)
         self.meshes: list[tuple[str, np.ndarray, np.ndarray | None]] = []  # (file name, triangles, corner normals)
 
     def refuse(self, key, problem, fix, closest):
