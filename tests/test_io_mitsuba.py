@@ -300,7 +300,7 @@ BOMB = """<?xml version="1.0"?>
     ('<emitter type="point"><point name="position" value="1, inf, 0"/></emitter>', "'inf' is not finite"),
     ('<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>', "envmap file 'sky.exr' not found"),
     ('<emitter type="sunsky"/>', "sunsky emitters are not read"),
-    ('<shape type="cube"><emitter type="area"/></shape>', "an emitting cube is not read"),
+    ('<shape type="cylinder"><emitter type="area"/></shape>', "an emitting cylinder is not read"),
     ('<shape type="sphere"><emitter type="spot"/></shape>', "a spot emitter inside a shape is not read"),
     ('<shape type="sphere"><boolean name="flip_normals" value="true"/><emitter type="area"/></shape>',
      "a sphere emitting inward is not read"),
