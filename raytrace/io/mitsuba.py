@@ -415,7 +415,7 @@ class _Reader:
         self.top = self.doc.load(path)
         self.doc.collect_ids(self.top)
         self.fog = None  # the sensor's medium element
-        self.area_lights: list[dict] = []  # rectangles, disks and spheres with an area emitter
+        self.lights: list[dict] = []  # in the file's order (rectangles, disks and spheres with an area emitter too)
 
     def scene(self) -> dict:
         """The scene dict; each element that cannot be read is recorded in `problems` and left out."""
@@ -432,7 +432,7 @@ class _Reader:
         if self.fog is not None:
             with each():
                 out["medium"] = self.medium(self.fog)
-        shapes, lights = [], []
+        shapes, lights = [], self.lights
         for el in self.top:
             with each():
                 if el.tag == "shape":
@@ -445,7 +445,6 @@ class _Reader:
                 elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
                     # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
                     doc.fail(el, "is not read", "remove it (docs/formats/mitsuba.md lists what is read)")
-        lights += self.area_lights
         if shapes:
             out["shape"] = shapes
         if lights:
@@ -690,7 +689,7 @@ class _Reader:
             light = self.area_light(el, p, kind, flip)
             light["radiance"] = radiance
             p.done(ignored=("flip_tex_coords",))
-            self.area_lights.append(light)  # it occludes like the shape (its reflectance: not read)
+            self.lights.append(light)  # it occludes like the shape (its reflectance: not read)
             return None
         if radiance is not None and kind not in ("obj", "ply", "cube"):
             doc.fail(el, f"an emitting {kind} is not read", "use a rectangle, disk, sphere, cube, obj or ply shape")

@@ -1097,13 +1097,16 @@ def _medium_line(name, sa, ss, g) -> str:
             f'{_list(ss)} "float scale" [ 1.0 ] "float g" [ {_f(g)} ]')
 
 
-def _ply_bytes(vertices, faces) -> bytes:
+def _ply_bytes(vertices, faces, normals=None) -> bytes:
+    """A binary PLY: double vertices (and normals nx ny nz, pbrt's "N", when given), int faces."""
+    extra = "property double nx\nproperty double ny\nproperty double nz\n" if normals is not None else ""
     head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\nproperty double x\n"
-            f"property double y\nproperty double z\nelement face {len(faces)}\nproperty list uchar int vertex_indices\n"
-            "end_header\n").encode()
+            f"property double y\nproperty double z\n{extra}element face {len(faces)}\n"
+            "property list uchar int vertex_indices\nend_header\n").encode()
     rows = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", 3)])
     rows["n"], rows["i"] = 3, faces
-    return head + np.ascontiguousarray(vertices, dtype="<f8").tobytes() + rows.tobytes()
+    table = vertices if normals is None else np.concatenate([vertices, normals], axis=1)
+    return head + np.ascontiguousarray(table, dtype="<f8").tobytes() + rows.tobytes()
 
 
 def _groups(tris, refl):
@@ -1121,7 +1124,7 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     from ..scene.format import scene_from_dict
     from ..scene.meshes import scene_triangles
 
-    raw = copy.deepcopy(raw)
+    raw, area_lights, emission = emitters.split(raw)
     for i, light in enumerate(raw.get("light", [])):
         if light.get("falloff", "smoothstep") != "smoothstep":
             _refuse(source, f"light[{i}].falloff", f'pbrt-v4\'s spot has only the smoothstep falloff, not '
@@ -1163,11 +1166,18 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
                   f"{' '.join(map(_f, up))}", 'Camera "spherical" "string mapping" "equirectangular"']
     lines.append("WorldBegin")
     lines += [_light_line(light, lraw) for light, lraw in zip(scene.lights, raw.get("light", []))]
+    for i, light in area_lights:
+        lines += _area_light_lines(light, f"light[{i}]", source)
     files = {}
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
     for i, shape in enumerate(scene.shapes):
         mine = ids == i
         lines.append("AttributeBegin")
+        if i in emission:  # emitting towards each triangle's winding (or its N: oriented to the winding)
+            if shape.interior is not None:
+                raise UserError(f"{source}: shape[{i}].emission: an emitting shape that holds a medium cannot be "
+                                "exported; put the medium in a shape of its own")
+            lines.append(_area_line(*emitters.emission_of(emission[i], f"shape[{i}]", source)))
         if shape.interior is not None:
             it = shape.interior
             if it.ior != 1.0:
@@ -1184,12 +1194,17 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
         for k, (v, f, r) in enumerate(groups):
             if r is not None:
                 lines.append(f'Material "diffuse" "rgb reflectance" {_list(r)}')
+            sel = np.nonzero(mine)[0] if r is None else np.nonzero(mine & np.all(refl == r, axis=1))[0]
             if shape.kind == "mesh":
                 name = f"{stem}_shape{i}" + (f"_{k}" if len(groups) > 1 else "") + ".ply"
-                files[out.parent / name] = _ply_bytes(v, f)
+                if corners is not None and shape.smooth:  # the mesh's shading normals as the PLY's nx ny nz
+                    rows, f = np.unique(np.concatenate([tris[sel], corners[sel]], axis=2).reshape(-1, 6), axis=0,
+                                        return_inverse=True)
+                    files[out.parent / name] = _ply_bytes(rows[:, :3], f.reshape(-1, 3), rows[:, 3:])
+                else:
+                    files[out.parent / name] = _ply_bytes(v, f)
                 lines.append(f'Shape "plymesh" "string filename" [ "{name}" ]')
             elif corners is not None and shape.smooth:  # corner by corner, with pbrt's shading normals "N"
-                sel = np.nonzero(mine)[0] if r is None else np.nonzero(mine & np.all(refl == r, axis=1))[0]
                 lines.append(f'Shape "trianglemesh" "point3 P" {_list(tris[sel].ravel())} "integer indices" '
                              f'{_list(np.arange(3 * len(sel)))} "normal N" {_list(corners[sel].ravel())}')
             else:
@@ -1209,6 +1224,48 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
             p.unlink(missing_ok=True)
         raise UserError(f"{out}: cannot write ({exc}); choose a writable --out") from None
     return list(files)
+
+
+def _area_line(radiance, two_sided) -> str:
+    """An AreaLightSource of this radiance (no "power", "scale" 1: L is the radiance, `_radiance`)."""
+    return f'AreaLightSource "diffuse" "rgb L" {_list(radiance)}' + (' "bool twosided" true' if two_sided else "")
+
+
+def _area_light_lines(light, key, source) -> list[str]:
+    """A quad, disk or sphere light as a black emitting bilinear patch, disk or sphere (the inverse of
+    `_Reader._Shape`), or the constant environment as an infinite light."""
+    kind = light.get("type")
+    if kind == "environment":
+        if "map" in light:
+            raise UserError(f"{source}: {key}.map: pbrt-v4's environment maps are equal-area octahedral squares and "
+                            "this exporter does not convert an equirectangular map; export a constant environment "
+                            "(radiance) or use Mitsuba")
+        return [f'LightSource "infinite" "rgb L" {_list(emitters.colour(light.get("radiance"), f"{key}.radiance", source))}']
+    radiance = emitters.colour(light.get("radiance"), f"{key}.radiance", source)
+    two = light.get("two_sided", False)
+    lines = ["AttributeBegin", _area_line(radiance, two is True), 'Material "diffuse" "rgb reflectance" [ 0 0 0 ]']
+    if kind == "quad":
+        c = emitters.vector(light.get("corners"), f"{key}.corners", source, rows=4)
+        emitters.quad_frame(c, f"{key}.corners", source)
+        lines.append(f'Shape "bilinearmesh" "point3 P" {_list(c[[0, 1, 3, 2]].ravel())}')  # p00 p10 p01 p11
+    elif kind == "disk":
+        from .mitsuba import _perpendicular
+
+        n = emitters.vector(light.get("normal"), f"{key}.normal", source)
+        if not np.linalg.norm(n) > 0.0:
+            raise UserError(f"{source}: {key}.normal: the normal is zero; give the side the disk emits to")
+        n = n / np.linalg.norm(n)
+        u = _perpendicular(n)
+        m = np.eye(4)  # object +z (the disk's normal) -> n, a rotation: no handedness swap
+        m[:3, 0], m[:3, 1], m[:3, 2] = u, np.cross(n, u), n
+        m[:3, 3] = emitters.vector(light.get("center"), f"{key}.center", source)
+        r = emitters.positive(light.get("radius"), f"{key}.radius", source)
+        lines += [f"ConcatTransform {_list(m.T.ravel())}", f'Shape "disk" "float radius" [ {_f(r)} ]']
+    else:
+        c = emitters.vector(light.get("center"), f"{key}.center", source)
+        r = emitters.positive(light.get("radius"), f"{key}.radius", source)
+        lines += [f"Translate {' '.join(map(_f, c))}", f'Shape "sphere" "float radius" [ {_f(r)} ]']
+    return lines + ["AttributeEnd"]
 
 
 def _light_line(light, lraw) -> str:
