@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from . import emitters
+from . import emitters, report
 from .meshfile import read_mesh
 from .report import Problems, every
 
@@ -641,9 +641,14 @@ class _Reader:
         from scipy.spatial.transform import Rotation
 
         turn = Rotation.from_matrix(L @ np.diag([-1.0, 1.0, -1.0]))  # Mitsuba's frame x ours turned about y
-        p.done(ignored=("filter_type", "wrap_mode", "raw", "mis_compensation"))
+        p.done(ignored=("mis_compensation",))  # (sampling only)
         light = {"type": "environment", "map": str(file), "scale": scale}
-        angles = turn.as_euler("xyz", degrees=True) + 0.0  # extrinsic x, y, z: a shape's `rotate` (Rz Ry Rx)
+        report.warn([doc.message(p.values["filename"], "Mitsuba centres the map's first and last rows on the poles "
+                                 "(row r at theta = pi r / (H - 1)), ours spreads the rows over [0, pi] (centres at "
+                                 "pi (r + 1/2) / H)", "read as ours: up to half a row apart")])
+        with warnings.catch_warnings():  # gimbal lock: scipy still returns angles of the same rotation
+            warnings.simplefilter("ignore", UserWarning)
+            angles = turn.as_euler("xyz", degrees=True) + 0.0  # extrinsic x, y, z: a shape's `rotate` (Rz Ry Rx)
         light["rotate"] = [0.0 if abs(a) < 1e-12 else float(a) for a in angles]
         return light
 
