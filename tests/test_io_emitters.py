@@ -289,14 +289,14 @@ def gltf_file(tmp_path, material, matrix=None) -> Path:
 
 
 def test_gltf_emission_normals_and_a_mirroring_node(tmp_path):
-    """emissiveFactor x emissiveStrength / pi (gltf.EMISSION_PER_RADIANCE), one-sided unless doubleSided;
+    """emissiveFactor x emissiveStrength (Blender's convention), one-sided unless doubleSided;
     NORMAL by the node's inverse transpose; a mirroring node turns the winding (glTF 2.0, 3.7.4)."""
     material = {"emissiveFactor": [1.0, 0.5, 0.25], "extensions": {"KHR_materials_emissive_strength": {
         "emissiveStrength": 8.0}}, "pbrMetallicRoughness": {"metallicFactor": 0.0}}
     mirror = [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
     with pytest.warns(gltf.GltfNote, match="emitting from its front face"):
         plain = gltf.read_scene(gltf_file(tmp_path, material))["shape"][0]
-    np.testing.assert_allclose(plain["emission"], [8.0 / math.pi, 4.0 / math.pi, 2.0 / math.pi], rtol=1e-15)
+    assert plain["emission"] == [8.0, 4.0, 2.0]
     assert plain["two_sided"] is False
     np.testing.assert_allclose(winding(plain), [[0.0, 0.0, 1.0]], atol=1e-15)
     np.testing.assert_allclose(plain["normals"], [[0, 0, 1], [0.6, 0, 0.8], [0, 0.6, 0.8]], atol=1e-7)
@@ -305,6 +305,31 @@ def test_gltf_emission_normals_and_a_mirroring_node(tmp_path):
     assert turned["two_sided"] is True
     np.testing.assert_allclose(winding(turned), [[0.0, 0.0, 1.0]], atol=1e-15)  # the front face: still +z
     np.testing.assert_allclose(turned["normals"], [[0, 0, 1], [-0.6, 0, 0.8], [0, 0.6, 0.8]], atol=1e-7)
+
+
+def test_blender_emitter_and_lamp_light_as_in_cycles():
+    """tests/data/gltf/emitter.gltf, made and exported by Blender 3.4 (make_emitter.py): a square of
+    Emission Strength 50, colour (1, 0.8, 0.6), area 0.04, facing down at height 1, and a point lamp of
+    4 x 50 x 0.04 = 8 W there. Cycles, each alone (`make_emitter.py -- OUT --render`, 1024 spp), lights
+    the floor point below them 3.0835 times as much from the square as from the lamp (the 2 x 2 pixels
+    about it). Read here: the square's radiance S x colour, the lamp P / 4 pi W/sr; the square's
+    irradiance at the point below (its exact integral, scipy) over the lamp's I / h^2 must be Cycles'
+    ratio (a radiance of S / pi would give 0.98)."""
+    from scipy.integrate import dblquad
+
+    raw = gltf.read_scene(Path(__file__).resolve().parent / "data" / "gltf" / "emitter.gltf")
+    (square,) = [s for s in raw["shape"] if "emission" in s]
+    np.testing.assert_allclose(square["emission"], [50.0, 40.0, 30.0], rtol=1e-6)  # float32 colour
+    assert square["two_sided"] is True  # Blender's default material: doubleSided
+    (lamp,) = raw["light"]
+    np.testing.assert_allclose(lamp["intensity"], np.array([1.0, 0.8, 0.6]) * 8.0 / (4.0 * math.pi), rtol=1e-6)
+    v = np.asarray(square["vertices"])
+    h = float(v[:, 1].mean())
+    assert np.allclose(v[:, 1], 1.0, atol=1e-6) and np.allclose(lamp["position"], [0.0, 1.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(winding(square), [[0.0, -1.0, 0.0]] * 2, atol=1e-6)  # facing the floor
+    (x0, x1), (z0, z1) = (v[:, 0].min(), v[:, 0].max()), (v[:, 2].min(), v[:, 2].max())
+    square_e = square["emission"][0] * dblquad(lambda z, x: h * h / (h * h + x * x + z * z) ** 2, x0, x1, z0, z1)[0]
+    assert square_e / (lamp["intensity"][0] / h ** 2) == pytest.approx(3.0835, rel=0.01)
 
 
 # ---------------------------------------------------------------------------------------------- round trips

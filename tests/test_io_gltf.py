@@ -404,8 +404,8 @@ def test_material_notes_and_texture_mean(tmp_path):
         assert part in text, text
     # sRGB 0 and 255 are linear 0 and 1 under any transfer curve: mean (0.5, 0.5, 1)
     np.testing.assert_allclose(shape["reflectance"], [0.25, 0.25, 1.0], rtol=1e-15)
-    # emission (read since the lights issue): emissiveFactor / pi, one-sided as the material
-    assert shape["emission"] == [1.0 / math.pi, 0.0, 0.0] and shape["two_sided"] is False
+    # emission (read since the lights issue): emissiveFactor (x emissiveStrength, 1), one-sided as the material
+    assert shape["emission"] == [1.0, 0.0, 0.0] and shape["two_sided"] is False
 
 
 def test_volume_with_scatter_draft_and_default_ior(tmp_path):

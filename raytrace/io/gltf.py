@@ -32,10 +32,6 @@ from . import emitters
 from .report import ImportNote, Problems, default_camera, grouped, warn
 
 LUMENS_PER_WATT = 683.0  # candela = 683 W/sr, lux = 683 W/m^2 (KHR_lights_punctual; Blender's exporter)
-# emissiveFactor x emissiveStrength per unit of our radiance: Blender's exporter writes its Emission Strength
-# (W/m^2 leaving the surface, Cycles' convention) unscaled, and its lights' watts as candela x 4 pi / 683;
-# so that a Blender emitter and a Blender lamp of equal power render equally here, L = strength / pi
-EMISSION_PER_RADIANCE = math.pi
 MESH_SEGMENTS = 64  # a disk or sphere light exported as a mesh (--approximate)
 DEFAULT_HEIGHT = 512  # image rows for a camera without our `extras`; the width keeps its aspectRatio
 DEFAULT_FOV = 45.0  # degrees: the vertical fov of the camera made for a file without one
@@ -477,9 +473,15 @@ class _Reader:
         return {"reflectance": rgb.tolist(), **emission}
 
     def emission(self, m, ext, key) -> dict:
-        """{"emission": radiance, "two_sided": doubleSided} of an emissive material, else {}: emissiveFactor
-        (times the emissive texture's mean) x KHR_materials_emissive_strength's emissiveStrength / pi
-        (EMISSION_PER_RADIANCE: docs/formats/gltf.md)."""
+        """{"emission": radiance, "two_sided": doubleSided} of an emissive material, else {}: the radiance is
+        emissiveFactor (times the emissive texture's mean) x KHR_materials_emissive_strength's emissiveStrength.
+
+        Blender's exporter writes a material's Emission x Emission Strength S unscaled
+        (gltf2_blender_gather_materials_emission.py) and a lamp of P watts as P / 4 pi x 683 candela
+        (gltf2_blender_gather_lights.py: read here as P / 4 pi W/sr). In Cycles a square of strength S and
+        area A lights the point below it pi times as much as a lamp of 4 S A watts
+        (tests/data/gltf/make_emitter.py), as a radiance S does beside P / 4 pi W/sr: S is our radiance
+        (docs/formats/gltf.md)."""
         rgb = self.vector(m, "emissiveFactor", key, 3, [0.0, 0.0, 0.0], 0.0)
         strength = self.number(self._get(ext, "KHR_materials_emissive_strength", dict, {}, f"{key}.extensions."),
                                "emissiveStrength", f"{key}.extensions.KHR_materials_emissive_strength", 1.0, 0.0)
@@ -491,8 +493,7 @@ class _Reader:
             rgb = rgb * mean
         if not np.any(rgb * strength):
             return {}
-        return {"emission": (rgb * strength / EMISSION_PER_RADIANCE).tolist(), "two_sided": bool(m.get("doubleSided",
-                                                                                                        False))}
+        return {"emission": (rgb * strength).tolist(), "two_sided": bool(m.get("doubleSided", False))}
 
     def texture_mean(self, index) -> np.ndarray:
         """The mean linear RGB of a base-colour texture (sRGB-decoded, IEC 61966-2-1)."""
@@ -746,16 +747,15 @@ class _Writer:
 
     def material(self, i, shape, colour, tris, emission=None) -> int:
         """A material: `colour` (diffuse) or `shape`'s interior; emitting where `emission` ({"emission",
-        "two_sided"}: emissiveFactor x emissiveStrength = EMISSION_PER_RADIANCE x radiance, doubleSided =
+        "two_sided"}: emissiveFactor x emissiveStrength = the radiance (`_Reader.emission`), doubleSided =
         two_sided: the emitting side is the front face)."""
         name = i if isinstance(i, str) else f"shape[{i}]"
         m = {"name": name, "doubleSided": True}
         interior = None if shape is None else shape.interior
         if emission is not None:
             radiance, m["doubleSided"] = emitters.emission_of(emission, name, self.source)
-            e = EMISSION_PER_RADIANCE * radiance
-            peak = float(e.max())
-            m["emissiveFactor"] = (e / peak if peak > 1.0 else e).tolist()
+            peak = float(radiance.max())
+            m["emissiveFactor"] = (radiance / peak if peak > 1.0 else radiance).tolist()
             if peak > 1.0:  # as Blender's exporter: the factor normalised, its peak as the strength
                 m["extensions"] = {"KHR_materials_emissive_strength": {"emissiveStrength": peak}}
                 self.used.add("KHR_materials_emissive_strength")
