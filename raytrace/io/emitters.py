@@ -45,6 +45,28 @@ def quad_frame(corners, key: str, source: str):
     return (c[0] + c[2]) / 2.0, x, y, n / np.linalg.norm(n)
 
 
+def perpendicular(n) -> np.ndarray:
+    """A unit vector perpendicular to the unit vector n: the first axis of the orthonormal basis of Duff
+    et al., "Building an Orthonormal Basis, Revisited" (JCGT 6(1), 2017), Mitsuba's coordinate_system(n)."""
+    sign = 1.0 if n[2] >= 0.0 else -1.0
+    a = -1.0 / (sign + n[2])
+    return np.array([1.0 + sign * n[0] * n[0] * a, sign * n[0] * n[1] * a, -sign * n[0]])
+
+
+def disk_frame(light: dict, key: str, source: str) -> tuple[np.ndarray, float]:
+    """(a 4 x 4 rotation and translation taking +z to a disk light's unit normal and the origin to its
+    centre, its radius)."""
+    n = vector(light.get("normal"), f"{key}.normal", source)
+    if not np.linalg.norm(n) > 0.0:
+        raise UserError(f"{source}: {key}.normal: the normal is zero; give the side the disk emits to")
+    n = n / np.linalg.norm(n)
+    u = perpendicular(n)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = u, np.cross(n, u), n
+    m[:3, 3] = vector(light.get("center"), f"{key}.center", source)
+    return m, positive(light.get("radius"), f"{key}.radius", source)
+
+
 def vector(value, key: str, source: str, rows: int | None = None) -> np.ndarray:
     """A finite [x, y, z] (or `rows` of them) from the dict; UserError naming the key otherwise."""
     try:

@@ -731,16 +731,10 @@ class _Writer:
                 r = emitters.positive(light.get("radius"), f"{key}.radius", src)
                 if kind == "sphere":
                     tris = sphere_triangles(centre, r, MESH_SEGMENTS)
-                else:
-                    from .mitsuba import _perpendicular
-
-                    n = emitters.vector(light.get("normal"), f"{key}.normal", src)
-                    if not np.linalg.norm(n) > 0.0:
-                        self.fail(f"{key}.normal", "the normal is zero", "give the side the disk emits to")
-                    n = n / np.linalg.norm(n)
-                    u = _perpendicular(n)
+                else:  # a fan about the centre, wound towards the normal (+z of its frame)
+                    m, r = emitters.disk_frame(light, key, src)
                     a = np.linspace(0.0, 2.0 * math.pi, MESH_SEGMENTS + 1)
-                    ring = centre + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * np.cross(n, u))
+                    ring = centre + r * (np.cos(a)[:, None] * m[:3, 0] + np.sin(a)[:, None] * m[:3, 1])
                     tris = np.stack([np.broadcast_to(centre, (MESH_SEGMENTS, 3)), ring[:-1], ring[1:]], axis=1)
             emission = {"emission": light.get("radiance"), "two_sided": light.get("two_sided", False)}
             self.mesh(key, [self.primitive(key, tris, None, self.material(key, None, np.zeros(3), tris, emission))])

@@ -336,14 +336,6 @@ def _rotation(axis, degrees):
     return R
 
 
-def _perpendicular(n):
-    """Mitsuba's up vector for a lookat without one: the first axis of its coordinate_system(n), the
-    orthonormal basis of Duff et al., "Building an Orthonormal Basis, Revisited" (JCGT 6(1), 2017)."""
-    sign = 1.0 if n[2] >= 0.0 else -1.0
-    a = -1.0 / (sign + n[2])
-    return np.array([1.0 + sign * n[0] * n[0] * a, sign * n[0] * n[1] * a, -sign * n[0]])
-
-
 def _look_at(origin, target, up):
     """Mitsuba's look_at: columns left = up x dir, up' = dir x left, dir, origin."""
     d = target - origin
@@ -380,7 +372,7 @@ def _transform(doc, el) -> np.ndarray:
             origin, target = (np.array([_finite(doc, op, t) for t in _tokens(op.get(k, ""))]) for k in ("origin", "target"))
             up = np.array([_finite(doc, op, t) for t in _tokens(op.get("up", "0 0 0"))])
             if len(origin) == 3 and len(target) == 3 and len(up) == 3 and not np.any(up) and np.any(target - origin):
-                up = _perpendicular((target - origin) / np.linalg.norm(target - origin))
+                up = emitters.perpendicular((target - origin) / np.linalg.norm(target - origin))
             if len(origin) != 3 or len(target) != 3 or len(up) != 3:
                 doc.fail(op, "origin, target and up need three numbers each", 'write origin="x, y, z"')
             d = target - origin
@@ -1125,14 +1117,8 @@ class _Writer:
                 M[:3, 3], M[:3, 0], M[:3, 1], M[:3, 2] = emitters.quad_frame(light.get("corners"), f"{key}.corners", src)
                 _matrix(el, M)
             elif kind == "disk":
-                n = emitters.vector(light.get("normal"), f"{key}.normal", src)
-                if not np.linalg.norm(n) > 0.0:
-                    raise UserError(f"{src}: {key}.normal: the normal is zero; give the side the disk emits to")
-                n = n / np.linalg.norm(n)
-                u = _perpendicular(n)
-                r = emitters.positive(light.get("radius"), f"{key}.radius", src)
-                M[:3, 0], M[:3, 1], M[:3, 2] = r * u, r * np.cross(n, u), n
-                M[:3, 3] = emitters.vector(light.get("center"), f"{key}.center", src)
+                M, r = emitters.disk_frame(light, key, src)
+                M[:3, :2] *= r
                 _matrix(el, M)
             else:
                 _add(el, "point", name="center", value=_vec(emitters.vector(light.get("center"), f"{key}.center", src)))

@@ -1249,17 +1249,7 @@ def _area_light_lines(light, key, source) -> list[str]:
         emitters.quad_frame(c, f"{key}.corners", source)
         lines.append(f'Shape "bilinearmesh" "point3 P" {_list(c[[0, 1, 3, 2]].ravel())}')  # p00 p10 p01 p11
     elif kind == "disk":
-        from .mitsuba import _perpendicular
-
-        n = emitters.vector(light.get("normal"), f"{key}.normal", source)
-        if not np.linalg.norm(n) > 0.0:
-            raise UserError(f"{source}: {key}.normal: the normal is zero; give the side the disk emits to")
-        n = n / np.linalg.norm(n)
-        u = _perpendicular(n)
-        m = np.eye(4)  # object +z (the disk's normal) -> n, a rotation: no handedness swap
-        m[:3, 0], m[:3, 1], m[:3, 2] = u, np.cross(n, u), n
-        m[:3, 3] = emitters.vector(light.get("center"), f"{key}.center", source)
-        r = emitters.positive(light.get("radius"), f"{key}.radius", source)
+        m, r = emitters.disk_frame(light, key, source)  # a rotation: no handedness swap
         lines += [f"ConcatTransform {_list(m.T.ravel())}", f'Shape "disk" "float radius" [ {_f(r)} ]']
     else:
         c = emitters.vector(light.get("center"), f"{key}.center", source)

@@ -27,28 +27,24 @@ COLOUR = (1.0, 0.8, 0.6)
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
 
-bpy.ops.mesh.primitive_plane_add(size=20, location=(0, 0, 0))
-floor = bpy.context.object
-floor.name = "floor"
-mat = bpy.data.materials.new("floor")
-mat.use_nodes = True
-bsdf = mat.node_tree.nodes["Principled BSDF"]
-bsdf.inputs["Base Color"].default_value = (1, 1, 1, 1)
-bsdf.inputs["Specular"].default_value = 0.0
-bsdf.inputs["Roughness"].default_value = 1.0
-floor.data.materials.append(mat)
 
-bpy.ops.mesh.primitive_plane_add(size=SIDE, location=(0, 0, 1), rotation=(math.pi, 0, 0))
-square = bpy.context.object
-square.name = "emitter"
-em = bpy.data.materials.new("emitter")
-em.use_nodes = True
-bsdf = em.node_tree.nodes["Principled BSDF"]
-bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
-bsdf.inputs["Specular"].default_value = 0.0
-bsdf.inputs["Emission"].default_value = (*COLOUR, 1)
-bsdf.inputs["Emission Strength"].default_value = S
-square.data.materials.append(em)
+def plane(name, size, location, rotation, **inputs):
+    """A plane with a Principled BSDF of these inputs (specular 0)."""
+    bpy.ops.mesh.primitive_plane_add(size=size, location=location, rotation=rotation)
+    ob = bpy.context.object
+    ob.name = name
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    for key, value in {"Specular": 0.0, **inputs}.items():
+        bsdf.inputs[key].default_value = value
+    ob.data.materials.append(mat)
+    return ob
+
+
+plane("floor", 20, (0, 0, 0), (0, 0, 0), **{"Base Color": (1, 1, 1, 1), "Roughness": 1.0})
+square = plane("emitter", SIDE, (0, 0, 1), (math.pi, 0, 0),
+               **{"Base Color": (0, 0, 0, 1), "Emission": (*COLOUR, 1), "Emission Strength": S})
 
 light = bpy.data.lights.new("lamp", type="POINT")
 light.energy, light.shadow_soft_size, light.color = 4.0 * S * SIDE * SIDE, 0.0, COLOUR
