@@ -255,6 +255,27 @@ def test_pbrt_infinite_illuminance_and_refusals(tmp_path):
             pbrt.read_scene(pbrt_file(tmp_path, world))
 
 
+def test_pbrt_plymesh_normals_and_emitting_side(tmp_path):
+    """A PLY's nx ny nz are pbrt's N: read by the inverse transpose, and an area light on it emits
+    towards them (the winding turned where it disagrees)."""
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # wound towards -y
+    n = np.array([[0.0, 1.0, 0.0], [0.6, 0.8, 0.0], [0.0, 0.8, 0.6]])
+    (tmp_path / "m.ply").write_bytes(pbrt._ply_bytes(v, np.array([[0, 1, 2]]), n))
+    world = 'AreaLightSource "diffuse"\nScale 2 1 1\nShape "plymesh" "string filename" "m.ply"\n'
+    (shape,) = pbrt.read_scene(pbrt_file(tmp_path, world))["shape"]
+    np.testing.assert_allclose(shape["normals"], n / [2.0, 1.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(winding(shape), [[0.0, 1.0, 0.0]], atol=1e-15)
+
+
+def test_mitsuba_emitting_cube_faces_out_under_a_mirror(tmp_path):
+    body = ('<shape type="cube"><transform name="to_world"><scale x="-1" y="2" z="1"/><rotate y="1" angle="30"/>'
+            '</transform><emitter type="area"/></shape>')
+    (cube,) = mitsuba.read_scene(mitsuba_file(tmp_path, body))["shape"]
+    t = np.asarray(cube["vertices"])[np.asarray(cube["faces"])]
+    assert len(t) == 12 and cube["emission"] == 1.0
+    assert np.all(np.einsum("ij,ij->i", winding(cube), t.mean(axis=1)) > 0.0)  # outward about the centre 0
+
+
 def test_pbrt_area_light_scope_and_interface(tmp_path):
     """The area light holds for the shapes after it in its attribute scope; an "interface" shape drops it
     (scene.cpp), said in a note."""
