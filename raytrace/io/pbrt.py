@@ -16,7 +16,6 @@ cameras.cpp `PerspectiveCamera::Create`, `SphericalCamera::GenerateRay`; util/tr
 """
 from __future__ import annotations
 
-import copy
 import gzip
 import io as _io
 import math
