@@ -398,11 +398,14 @@ def test_material_notes_and_texture_mean(tmp_path):
     with pytest.warns(gltf.GltfNote) as notes:
         shape = gltf.read_scene(write_gltf(tmp_path, doc))["shape"][0]
     text = " | ".join(str(n.message) for n in notes)
-    for part in ("metallicFactor: metals are rendered as diffuse", "emissiveFactor: emission is not rendered",
-                 "doubleSided: single-sided in glTF; rendered two-sided", "baseColorTexture: replaced by its mean"):
+    for part in ("metallicFactor: metals are rendered as diffuse",
+                 "doubleSided: single-sided in glTF; rendered two-sided (both faces reflect), emitting from its front",
+                 "baseColorTexture: replaced by its mean"):
         assert part in text, text
     # sRGB 0 and 255 are linear 0 and 1 under any transfer curve: mean (0.5, 0.5, 1)
     np.testing.assert_allclose(shape["reflectance"], [0.25, 0.25, 1.0], rtol=1e-15)
+    # emission (read since the lights issue): emissiveFactor (x emissiveStrength, 1), one-sided as the material
+    assert shape["emission"] == [1.0, 0.0, 0.0] and shape["two_sided"] is False
 
 
 def test_volume_with_scatter_draft_and_default_ior(tmp_path):
@@ -496,6 +499,7 @@ def test_the_glb_container_is_read_like_the_gltf(tmp_path):
     for sa, sb in zip(a.pop("shape"), b.pop("shape")):
         np.testing.assert_array_equal(sa.pop("vertices"), sb.pop("vertices"))
         np.testing.assert_array_equal(sa.pop("faces"), sb.pop("faces"))
+        np.testing.assert_array_equal(sa.pop("normals"), sb.pop("normals"))  # Blender writes NORMAL
         assert sa == sb
     assert a == b
     header = struct.unpack_from("<4sII", (DATA / "room.glb").read_bytes())

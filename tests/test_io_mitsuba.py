@@ -298,9 +298,12 @@ BOMB = """<?xml version="1.0"?>
     ('<shape type="sphere">\n<float name="radius" value="1"/>\n</shap>', ":4: malformed XML"),
     ('<shape type="sphere"><float name="radius" value="nan"/></shape>', "'nan' is not finite"),
     ('<emitter type="point"><point name="position" value="1, inf, 0"/></emitter>', "'inf' is not finite"),
-    ('<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>', "envmap emitters are not read"),
-    ('<emitter type="constant"/>', "constant emitters are not read"),
-    ('<shape type="sphere"><emitter type="area"/></shape>', "area emitters are not read"),
+    ('<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>', "envmap file 'sky.exr' not found"),
+    ('<emitter type="sunsky"/>', "sunsky emitters are not read"),
+    ('<shape type="cylinder"><emitter type="area"/></shape>', "an emitting cylinder is not read"),
+    ('<shape type="sphere"><emitter type="spot"/></shape>', "a spot emitter inside a shape is not read"),
+    ('<shape type="sphere"><boolean name="flip_normals" value="true"/><emitter type="area"/></shape>',
+     "a sphere emitting inward is not read"),
     ('<shape type="serialized"/>', "serialized shapes are not read"),
     ('<shape type="cube"><bsdf type="plastic"/></shape>', "plastic bsdfs are not read"),
     ('<shape type="cube"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"/></bsdf></shape>',
@@ -339,7 +342,7 @@ def test_cli_render_bad_xml_exits_2(tmp_path, capsys):
     p = write(tmp_path, SENSOR.format(axis="x") + '<emitter type="envmap"/>')
     assert main(["render", str(p), "--out", str(tmp_path / "x.exr")]) == 2
     err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "envmap emitters are not read" in err
+    assert len(err.strip().splitlines()) == 1 and "an envmap without a filename" in err
     assert not (tmp_path / "x.exr").exists()
 
 
@@ -537,9 +540,9 @@ def test_shape_geometry_matches_mitsuba(mi, tmp_path):
 
 def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
     """Every unsupported element and parameter at once, after a line that counts them (a Cornell box:
-    an area emitter on a shape, a plastic bsdf, an envmap, two parameters not read)."""
+    a spot emitter in a shape, a plastic bsdf, an envmap whose file is missing, two parameters not read)."""
     body = (SENSOR.format(axis="x").replace("<transform", '<float name="lens" value="1"/><transform')
-            + '<shape type="cube"><emitter type="area"/><bsdf type="plastic"/></shape>'
+            + '<shape type="cube"><emitter type="spot"/><bsdf type="plastic"/></shape>'
             '<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>'
             '<shape type="sphere"><float name="radiuss" value="1"/><float name="radiusss" value="1"/></shape>'
             '<emitter type="point"><point name="position" value="0, 1, 0"/></emitter>')
@@ -547,8 +550,9 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
         mitsuba.read_scene(write(tmp_path, body))
     lines = str(err.value).splitlines()
     assert lines[0] == f"{tmp_path / 'scene.xml'}: 6 problems, one a line with its fix"
-    for line, part in zip(lines[1:], ["parameter 'lens'", "area emitters are not read", "plastic bsdfs are not read",
-                                      "envmap emitters are not read", "parameter 'radiuss'", "parameter 'radiusss'"]):
+    for line, part in zip(lines[1:], ["parameter 'lens'", "a spot emitter inside a shape is not read",
+                                      "plastic bsdfs are not read", "envmap file 'sky.exr' not found",
+                                      "parameter 'radiuss'", "parameter 'radiusss'"]):
         assert re.match(re.escape(str(tmp_path / 'scene.xml')) + r":\d+: <", line) and part in line and "; " in line, (line, part)
     assert len(lines) == 7
 

@@ -272,9 +272,15 @@ BASE = 'LookAt 0 0 0 0 0 1 0 1 0\nCamera "perspective"\nWorldBegin\n'
     (BASE + 'Translate nan 0 0\n', [":4:", "nan is not a finite number"]),
     (BASE + 'LightSource "point" "rgb I" [ 1 inf 1 ]\n', [":4:", "inf is not a finite number"]),
     (BASE + 'Shape "plymesh" "string filename" "missing.ply"\n', [":4:", "missing.ply", "not found"]),
-    (BASE + 'Shape "disk"\n', [":4:", 'Shape "disk" is not read']),
+    (BASE + 'Shape "disk" "float innerradius" 0.5\n', [":4:", "only a whole disk"]),
+    (BASE + 'Shape "cylinder"\n', [":4:", 'Shape "cylinder" is not read']),
     (BASE + 'Material "conductor"\n', [":4:", 'Material "conductor" is not read']),
-    (BASE + 'LightSource "infinite"\n', [":4:", 'LightSource "infinite" is not read']),
+    (BASE + 'LightSource "infinite" "string filename" "sky.exr"\n', [":4:", '"string filename"',
+                                                                     "equal-area octahedral"]),
+    (BASE + 'LightSource "infinite" "point3 portal" [ 0 0 0 1 0 0 1 1 0 0 1 0 ]\n', [":4:", "portal"]),
+    (BASE + 'LightSource "goniometric"\n', [":4:", 'LightSource "goniometric" is not read']),
+    (BASE + 'AreaLightSource "diffuse" "bool twosided" 3\n', [":4:", '"bool twosided" needs true or false']),
+    (BASE + 'ReverseOrientation\nAreaLightSource "diffuse"\nShape "sphere"\n', [":6:", "emits inward"]),
     (BASE + 'LightSource "point" "blackbody I" 3000\n', [":4:", '"blackbody I" is a non-RGB spectrum']),
     (BASE + 'Texture "t" "spectrum" "imagemap"\n', [":4:", "Texture (textures) is not read"]),
     (BASE + 'Material "diffuse" "texture reflectance" "t"\n', [":4:", '"texture reflectance" is type texture']),
@@ -564,7 +570,7 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
     p = tmp_path / "many.pbrt"
     p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective" "float lensradius" 0.1\n'
                  'Film "rgb" "string sensor" "canon_eos_100d" "float iso" 100\nWorldBegin\n'
-                 'AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]\nShape "sphere"\n'
+                 'AreaLightSource "diffuse" "string filename" "e.png"\nShape "sphere"\n'
                  'MakeNamedMedium "smoke" "string type" "nanovdb" "string filename" "smoke.nvdb"\n'
                  'Texture "t" "spectrum" "imagemap" "string filename" "a.png"\n'
                  'Material "conductor"\nShape "sphere" "float radius" 2 "float gamma" 0 "float beta" 1\n'
@@ -573,7 +579,7 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
     err = capsys.readouterr().err.splitlines()
     assert err[0] == f"error: {p}: 8 problems, one a line with its fix"
     wanted = [':2: Camera "perspective": "lensradius" > 0', ':3: Film "rgb": sensor "canon_eos_100d"',
-              ":5: AreaLightSource (area lights) is not read", ':7: MakeNamedMedium "smoke": medium type "nanovdb"',
+              ':5: AreaLightSource "diffuse": "string filename" (an image on the emitter) is not read', ':7: MakeNamedMedium "smoke": medium type "nanovdb"',
               ":8: Texture (textures) is not read", ':9: Material "conductor" is not read',
               ':10: Shape "sphere": parameter "float gamma" is not read', ':10: Shape "sphere": parameter "float beta"']
     assert len(err) == 1 + len(wanted)
@@ -583,7 +589,7 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path, capsys):
 
 def test_at_most_20_problems_are_listed(tmp_path):
     p = tmp_path / "many.pbrt"
-    p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective"\nWorldBegin\n' + 'Shape "disk"\n' * 25)
+    p.write_text('LookAt 0 0 5 0 0 0 0 1 0\nCamera "perspective"\nWorldBegin\n' + 'Shape "cone"\n' * 25)
     with pytest.raises(UserError) as err:
         pbrt.read_scene(p)
     lines = str(err.value).splitlines()
@@ -593,12 +599,12 @@ def test_at_most_20_problems_are_listed(tmp_path):
 def test_a_fatal_problem_comes_first(tmp_path):
     """Reading stops at malformed input; what was found before it is listed after it."""
     p = tmp_path / "bad.pbrt"
-    p.write_text(BASE + 'Shape "disk"\nInclude "missing.pbrt"\nShape "cone"\n')
+    p.write_text(BASE + 'Shape "cylinder"\nInclude "missing.pbrt"\nShape "cone"\n')
     with pytest.raises(UserError) as err:
         pbrt.read_scene(p)
     lines = str(err.value).splitlines()
     assert "2 problems" in lines[0] and "reading stopped at the first" in lines[0]
-    assert 'included file' in lines[1] and 'Shape "disk" is not read' in lines[2] and len(lines) == 3
+    assert 'included file' in lines[1] and 'Shape "cylinder" is not read' in lines[2] and len(lines) == 3
 
 
 def test_shape_alpha(tmp_path):

@@ -28,9 +28,11 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..errors import UserError, counted
+from . import emitters
 from .report import ImportNote, Problems, default_camera, grouped, warn
 
 LUMENS_PER_WATT = 683.0  # candela = 683 W/sr, lux = 683 W/m^2 (KHR_lights_punctual; Blender's exporter)
+MESH_SEGMENTS = 64  # a disk or sphere light exported as a mesh (--approximate)
 DEFAULT_HEIGHT = 512  # image rows for a camera without our `extras`; the width keeps its aspectRatio
 DEFAULT_FOV = 45.0  # degrees: the vertical fov of the camera made for a file without one
 GLB_MAGIC, JSON_CHUNK, BIN_CHUNK = b"glTF", 0x4E4F534A, 0x004E4942
@@ -416,9 +418,25 @@ class _Reader:
             vertices = pos @ world[:3, :3].T + world[:3, 3]
         if not np.all(np.isfinite(vertices)):
             self.fail(key, "its node transform makes vertices overflow", "use smaller scales or translations")
+        if np.linalg.det(world[:3, :3]) < 0.0:  # the spec: a mirroring node turns the front face's winding
+            faces = faces[:, ::-1]
         shape = {"primitive": "triangles", "vertices": vertices, "faces": faces}
+        if "NORMAL" in attributes:  # else flat, as the spec asks (meshes.py: `triangles` without normals)
+            shape["normals"] = self.normals(attributes["NORMAL"], len(pos), world, f"{key}.attributes.NORMAL")
         shape.update(self.material(prim.get("material"), key))
         self.shapes.append(shape)
+
+    def normals(self, index, count, world, key) -> np.ndarray:
+        """A NORMAL accessor's unit vectors, by the node's inverse transpose."""
+        n = self.accessor(index)
+        if n.shape != (count, 3):
+            self.fail(key, f"expected {count} VEC3 normals, got {n.shape[0]} of width {n.shape[1]}",
+                      "export the mesh again with its normals")
+        n = n @ np.linalg.inv(world[:3, :3])
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        if not np.all(length > 0.0):
+            self.fail(key, "a zero normal", "export the mesh again with its normals (or without them: flat)")
+        return n / length
 
     # materials
     def material(self, index, prim_key) -> dict:
@@ -432,12 +450,15 @@ class _Reader:
         if self.number(pbr, "metallicFactor", f"{key}.pbrMetallicRoughness", 1.0, 0.0, 1.0) > 0.0:
             self.note(f"{key}.pbrMetallicRoughness.metallicFactor", "metals are rendered as diffuse surfaces of their "
                       "base colour (the default metallicFactor is 1)")
-        if np.any(self.vector(m, "emissiveFactor", key, 3, [0.0, 0.0, 0.0], 0.0)) or "emissiveTexture" in m:
-            self.note(f"{key}.emissiveFactor", "emission is not rendered (only KHR_lights_punctual lights emit)")
+        emission = self.emission(m, ext, key)
         if not m.get("doubleSided", False):
-            self.note(f"{key}.doubleSided", "single-sided in glTF; rendered two-sided (both faces reflect)")
+            self.note(f"{key}.doubleSided", "single-sided in glTF; rendered two-sided (both faces reflect)"
+                      + (", emitting from its front face" if emission else ""))
         volume = self.volume(ext, key)
         if volume is not None:
+            if emission:
+                self.note(f"{key}.emissiveFactor", "emission on a volume material (KHR_materials_volume) is not "
+                          "rendered")
             return {"interior": volume}
         if self._get(ext, "KHR_materials_transmission", dict, {}).get("transmissionFactor", 0.0):
             self.note(f"{key}.extensions.KHR_materials_transmission", "transmission without a volume "
@@ -449,7 +470,30 @@ class _Reader:
             self.note(f"{key}.pbrMetallicRoughness.baseColorTexture", "replaced by its mean colour "
                       f"{np.round(mean, 4).tolist()} (linear) times baseColorFactor")
             rgb = rgb * mean
-        return {"reflectance": rgb.tolist()}
+        return {"reflectance": rgb.tolist(), **emission}
+
+    def emission(self, m, ext, key) -> dict:
+        """{"emission": radiance, "two_sided": doubleSided} of an emissive material, else {}: the radiance is
+        emissiveFactor (times the emissive texture's mean) x KHR_materials_emissive_strength's emissiveStrength.
+
+        Blender's exporter writes a material's Emission x Emission Strength S unscaled
+        (gltf2_blender_gather_materials_emission.py) and a lamp of P watts as P / 4 pi x 683 candela
+        (gltf2_blender_gather_lights.py: read here as P / 4 pi W/sr). In Cycles a square of strength S and
+        area A lights the point below it pi times as much as a lamp of 4 S A watts
+        (tests/data/gltf/make_emitter.py), as a radiance S does beside P / 4 pi W/sr: S is our radiance
+        (docs/formats/gltf.md)."""
+        rgb = self.vector(m, "emissiveFactor", key, 3, [0.0, 0.0, 0.0], 0.0)
+        strength = self.number(self._get(ext, "KHR_materials_emissive_strength", dict, {}, f"{key}.extensions."),
+                               "emissiveStrength", f"{key}.extensions.KHR_materials_emissive_strength", 1.0, 0.0)
+        texture = m.get("emissiveTexture")
+        if isinstance(texture, dict) and "index" in texture and np.any(rgb):
+            mean = self.texture_mean(texture["index"])
+            self.note(f"{key}.emissiveTexture", f"replaced by its mean colour {np.round(mean, 4).tolist()} (linear) "
+                      "times emissiveFactor")
+            rgb = rgb * mean
+        if not np.any(rgb * strength):
+            return {}
+        return {"emission": (rgb * strength).tolist(), "two_sided": bool(m.get("doubleSided", False))}
 
     def texture_mean(self, index) -> np.ndarray:
         """The mean linear RGB of a base-colour texture (sRGB-decoded, IEC 61966-2-1)."""
@@ -586,7 +630,8 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
 
 class _Writer:
     def __init__(self, raw: dict, out: Path, source: str, approximate: bool):
-        self.raw, self.out, self.source, self.approximate = raw, out, source, approximate
+        self.out, self.source, self.approximate = out, source, approximate
+        self.raw, self.area, self.emission = emitters.split(raw)  # the emitters: `area_lights`, `material`
         if out.suffix.lower() not in (".glb", ".gltf"):
             self.fail("--out", f"{out.name} is neither .glb nor .gltf", "name the file scene.glb or scene.gltf")
         self.doc = {"asset": {"version": "2.0", "generator": "raytrace-media"}, "scene": 0, "nodes": [],
@@ -619,6 +664,7 @@ class _Writer:
             self.fail("camera.type", f"{scene.camera.type!r}: glTF cameras are perspective or orthographic",
                       'use type = "perspective"')
         self.meshes(scene)
+        self.area_lights()
         for i, light in enumerate(scene.lights):
             self.light(i, light)
         self.camera(scene)
@@ -633,27 +679,80 @@ class _Writer:
     def meshes(self, scene):
         from ..scene.meshes import scene_triangles
 
-        tris, refl, ids = scene_triangles(scene, shape_ids=True)
+        tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
         for i, shape in enumerate(scene.shapes):
             mine = ids == i
             if not np.any(mine):
                 continue
+            smooth = shape.smooth and corners is not None and (shape.kind in ("mesh", "sphere", "cylinder")
+                                                               or "normals" in shape.params)
             groups = [(None, mine)] if shape.interior is not None else [
                 (c, mine & np.all(refl == c, axis=1)) for c in np.unique(refl[mine], axis=0)]
-            prims = []
-            for colour, sel in groups:
-                t = tris[sel].astype(np.float32)
-                vertices, faces = np.unique(t.reshape(-1, 3), axis=0, return_inverse=True)
-                material = self.material(i, shape, colour, t)
-                prims.append({"attributes": {"POSITION": self.accessor(vertices, "VEC3", minmax=True)},
-                              "indices": self.accessor(faces.reshape(-1).astype(np.uint32), "SCALAR"),
-                              "material": material})
-            self.doc["meshes"].append({"name": f"shape[{i}]", "primitives": prims})
-            self.doc["nodes"].append({"name": f"shape[{i}]", "mesh": len(self.doc["meshes"]) - 1})
+            emission = self.emission.get(i)
+            if emission is not None and shape.interior is not None:
+                self.fail(f"shape[{i}].emission", "an emitting shape that holds a medium cannot be exported",
+                          "put the medium in a shape of its own")
+            prims = [self.primitive(f"shape[{i}]", tris[sel], corners[sel] if smooth else None,
+                                    self.material(i, shape, colour, tris[sel], emission)) for colour, sel in groups]
+            self.mesh(f"shape[{i}]", prims)
 
-    def material(self, i, shape, colour, tris) -> int:
-        m = {"name": f"shape[{i}]", "doubleSided": True}
-        interior = shape.interior
+    def mesh(self, name, prims):
+        self.doc["meshes"].append({"name": name, "primitives": prims})
+        self.doc["nodes"].append({"name": name, "mesh": len(self.doc["meshes"]) - 1})
+
+    def primitive(self, key, tris, normals, material) -> dict:
+        """A triangle list (corners merged by position, and normal when given: NORMAL) of `material`."""
+        rows = tris if normals is None else np.concatenate([tris, normals], axis=2)
+        table, faces = np.unique(rows.astype(np.float32).reshape(-1, rows.shape[2]), axis=0, return_inverse=True)
+        attributes = {"POSITION": self.accessor(np.ascontiguousarray(table[:, :3]), "VEC3", minmax=True)}
+        if normals is not None:
+            attributes["NORMAL"] = self.accessor(np.ascontiguousarray(table[:, 3:]), "VEC3")
+        return {"attributes": attributes, "indices": self.accessor(faces.reshape(-1).astype(np.uint32), "SCALAR"),
+                "material": material}
+
+    def area_lights(self):
+        """Quad lights as two emitting triangles; disks and spheres as emitting meshes (--approximate); the
+        environment: glTF has none (--approximate: left out)."""
+        from ..scene.meshes import sphere_triangles
+
+        for i, light in self.area:
+            key, kind, src = f"light[{i}]", light.get("type"), self.source
+            if kind == "environment":
+                self.approximated(key, "an environment light", "remove it", "nothing (the light is left out)")
+                continue
+            if kind == "quad":
+                c = emitters.vector(light.get("corners"), f"{key}.corners", src, rows=4)
+                emitters.quad_frame(c, f"{key}.corners", src)
+                tris = c[[[0, 1, 2], [0, 2, 3]]]
+            else:
+                self.approximated(key, f"a {kind} light", "use a quad light", f"an emitting mesh of {MESH_SEGMENTS} "
+                                  "segments")
+                centre = emitters.vector(light.get("center"), f"{key}.center", src)
+                r = emitters.positive(light.get("radius"), f"{key}.radius", src)
+                if kind == "sphere":
+                    tris = sphere_triangles(centre, r, MESH_SEGMENTS)
+                else:  # a fan about the centre, wound towards the normal (+z of its frame)
+                    m, r = emitters.disk_frame(light, key, src)
+                    a = np.linspace(0.0, 2.0 * math.pi, MESH_SEGMENTS + 1)
+                    ring = centre + r * (np.cos(a)[:, None] * m[:3, 0] + np.sin(a)[:, None] * m[:3, 1])
+                    tris = np.stack([np.broadcast_to(centre, (MESH_SEGMENTS, 3)), ring[:-1], ring[1:]], axis=1)
+            emission = {"emission": light.get("radiance"), "two_sided": light.get("two_sided", False)}
+            self.mesh(key, [self.primitive(key, tris, None, self.material(key, None, np.zeros(3), tris, emission))])
+
+    def material(self, i, shape, colour, tris, emission=None) -> int:
+        """A material: `colour` (diffuse) or `shape`'s interior; emitting where `emission` ({"emission",
+        "two_sided"}: emissiveFactor x emissiveStrength = the radiance (`_Reader.emission`), doubleSided =
+        two_sided: the emitting side is the front face)."""
+        name = i if isinstance(i, str) else f"shape[{i}]"
+        m = {"name": name, "doubleSided": True}
+        interior = None if shape is None else shape.interior
+        if emission is not None:
+            radiance, m["doubleSided"] = emitters.emission_of(emission, name, self.source)
+            peak = float(radiance.max())
+            m["emissiveFactor"] = (radiance / peak if peak > 1.0 else radiance).tolist()
+            if peak > 1.0:  # as Blender's exporter: the factor normalised, its peak as the strength
+                m["extensions"] = {"KHR_materials_emissive_strength": {"emissiveStrength": peak}}
+                self.used.add("KHR_materials_emissive_strength")
         if interior is None:
             m["pbrMetallicRoughness"] = {"baseColorFactor": [*map(float, colour), 1.0], "metallicFactor": 0.0,
                                          "roughnessFactor": 1.0}

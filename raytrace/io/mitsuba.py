@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from . import emitters, report
+from .meshfile import read_mesh
 from .report import Problems, every
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h: Hecht, Optics, at ~589 nm)
@@ -334,14 +336,6 @@ def _rotation(axis, degrees):
     return R
 
 
-def _perpendicular(n):
-    """Mitsuba's up vector for a lookat without one: the first axis of its coordinate_system(n), the
-    orthonormal basis of Duff et al., "Building an Orthonormal Basis, Revisited" (JCGT 6(1), 2017)."""
-    sign = 1.0 if n[2] >= 0.0 else -1.0
-    a = -1.0 / (sign + n[2])
-    return np.array([1.0 + sign * n[0] * n[0] * a, sign * n[0] * n[1] * a, -sign * n[0]])
-
-
 def _look_at(origin, target, up):
     """Mitsuba's look_at: columns left = up x dir, up' = dir x left, dir, origin."""
     d = target - origin
@@ -378,7 +372,7 @@ def _transform(doc, el) -> np.ndarray:
             origin, target = (np.array([_finite(doc, op, t) for t in _tokens(op.get(k, ""))]) for k in ("origin", "target"))
             up = np.array([_finite(doc, op, t) for t in _tokens(op.get("up", "0 0 0"))])
             if len(origin) == 3 and len(target) == 3 and len(up) == 3 and not np.any(up) and np.any(target - origin):
-                up = _perpendicular((target - origin) / np.linalg.norm(target - origin))
+                up = emitters.perpendicular((target - origin) / np.linalg.norm(target - origin))
             if len(origin) != 3 or len(target) != 3 or len(up) != 3:
                 doc.fail(op, "origin, target and up need three numbers each", 'write origin="x, y, z"')
             d = target - origin
@@ -413,6 +407,7 @@ class _Reader:
         self.top = self.doc.load(path)
         self.doc.collect_ids(self.top)
         self.fog = None  # the sensor's medium element
+        self.lights: list[dict] = []  # in the file's order (rectangles, disks and spheres with an area emitter too)
 
     def scene(self) -> dict:
         """The scene dict; each element that cannot be read is recorded in `problems` and left out."""
@@ -429,7 +424,7 @@ class _Reader:
         if self.fog is not None:
             with each():
                 out["medium"] = self.medium(self.fog)
-        shapes, lights = [], []
+        shapes, lights = [], self.lights
         for el in self.top:
             with each():
                 if el.tag == "shape":
@@ -437,7 +432,7 @@ class _Reader:
                     if shape is not None:
                         shapes.append(shape)
                 elif el.tag == "emitter":
-                    if not (el.get("type") == "area" and el.get("id")):  # (else a shape's by <ref>: listed there)
+                    if not (el.get("type") == "area" and el.get("id")):  # (else a shape's by <ref>: read there)
                         lights.append(self.emitter(el))
                 elif el.tag not in ("sensor", "bsdf", "medium", "texture", "phase", "integrator"):
                     # objects declared for <ref> are read where referenced; the integrator: ours is single scattering
@@ -570,9 +565,11 @@ class _Reader:
     def emitter(self, el) -> dict:
         doc = self.doc
         kind = el.get("type")
+        if kind in ("constant", "envmap"):
+            return self.environment(el, kind)
         if kind not in ("point", "spot", "directional"):
-            doc.fail(el, f"{kind} emitters are not read (only point, spot and directional lights)",
-                     "replace it by point, spot or directional lights")
+            doc.fail(el, f"{kind} emitters are not read", "use point, spot, directional, constant, envmap or an area "
+                     "emitter inside a shape")
         p = _Props(doc, el)
         self.same_fog(p, el, "medium")
         if kind == "directional":
@@ -606,6 +603,47 @@ class _Reader:
         p.done()
         return light
 
+    def environment(self, el, kind) -> dict:
+        """A constant emitter's radiance, or an envmap (equirectangular; mitsuba3 src/emitters/envmap.cpp
+        looks up u = atan2(x, -z) / 2 pi, v = acos(y) / pi in its to_world frame: u = 0 along -z, where
+        ours has the map's centre column (our u = 1/2): its frame turned half a turn about y)."""
+        doc, p = self.doc, _Props(self.doc, el)
+        self.same_fog(p, el, "medium")
+        if kind == "constant":
+            light = {"type": "environment", "radiance": _channels(p.colour("radiance", 1.0))}
+            p.done()
+            return light
+        name = p.string("filename")
+        if not name:
+            doc.fail(el, "an envmap without a filename (a bitmap given from Python) is not read",
+                     '<string name="filename" value="sky.exr"/>')
+        file = doc.resolve(name)
+        if file is None or not file.is_file():
+            doc.fail(p.values["filename"], f"envmap file {name!r} not found in {doc.searched()}",
+                     "fix the filename (relative to the main file or a <path>)")
+        if file.suffix.lower() != ".exr":
+            doc.fail(p.values["filename"], f"envmap {file.name}: only OpenEXR maps are read (linear RGB, "
+                     "equirectangular)", "convert it to .exr")
+        scale = p.number("scale", 1.0)
+        M = p.transform()
+        L = M[:3, :3]
+        if not np.allclose(L.T @ L, np.eye(3), rtol=0, atol=1e-9) or np.linalg.det(L) < 0:
+            doc.fail(p.values.get("to_world", el), "an envmap's to_world must be a rotation (no scale, shear "
+                     "or mirroring)", "keep the rotation alone")
+        from scipy.spatial.transform import Rotation
+
+        turn = Rotation.from_matrix(L @ np.diag([-1.0, 1.0, -1.0]))  # Mitsuba's frame x ours turned about y
+        p.done(ignored=("mis_compensation",))  # (sampling only)
+        light = {"type": "environment", "map": str(file), "scale": scale}
+        report.warn([doc.message(p.values["filename"], "Mitsuba centres the map's first and last rows on the poles "
+                                 "(row r at theta = pi r / (H - 1)), ours spreads the rows over [0, pi] (centres at "
+                                 "pi (r + 1/2) / H)", "read as ours: up to half a row apart")])
+        with warnings.catch_warnings():  # gimbal lock: scipy still returns angles of the same rotation
+            warnings.simplefilter("ignore", UserWarning)
+            angles = turn.as_euler("xyz", degrees=True) + 0.0  # extrinsic x, y, z: a shape's `rotate` (Rz Ry Rx)
+        light["rotate"] = [0.0 if abs(a) < 1e-12 else float(a) for a in angles]
+        return light
+
     def same_fog(self, p, el, name):
         """A nested medium must be the sensor's (ours has one medium filling space)."""
         for m in p.nested("medium", name):
@@ -621,10 +659,10 @@ class _Reader:
         if kind not in ("obj", "ply", "rectangle", "cube", "sphere", "disk", "cylinder"):
             doc.fail(el, f"{kind} shapes are not read", "use obj, ply, rectangle, cube, sphere, disk or cylinder")
         p = _Props(doc, el)
-        if p.nested("emitter"):  # listed, and the shape read on for its other problems
+        radiance = None
+        if p.nested("emitter"):  # (a refused emitter is listed, and the shape read on for its other problems)
             with self.problems.each():
-                doc.fail(p.nested("emitter")[0], "area emitters are not read (lights are points, spots or "
-                         "directional)", "remove the area emitter or replace it by a point light")
+                radiance = self.area(p.nested("emitter"), el)
         self.same_fog(p, el, "exterior")
         interiors = p.nested("medium", "interior")
         bsdfs = p.nested("bsdf")
@@ -634,24 +672,81 @@ class _Reader:
                 doc.fail(el, "a diffuse shape's interior is never reached (the surface is opaque)",
                          'give it <bsdf type="null"/> (index-matched) or "dielectric", or remove the interior')
             interior = {**self.medium(interiors[0]), **(interior or {})}
-        elif interior is not None and interior.get("ior", 1.0) == 1.0:
+        elif interior is not None and interior.get("ior", 1.0) == 1.0 and radiance is None:
             p.done(ignored=("filename", "face_normals", "flip_normals", "flip_tex_coords", "center", "radius", "p0",
                             "p1", "to_world"))
             return None  # a null bsdf and no interior: invisible in Mitsuba
         elif interior is not None:
             interior = {"sigma_a": 0.0, "sigma_s": 0.0, **interior}  # clear glass
+        if radiance is not None and interior is not None:
+            doc.fail(el, "an emitter that holds a medium or refracts is not read", "give the emitting shape a "
+                     "diffuse bsdf, or put the medium in a shape of its own")
+        flip = p.boolean("flip_normals", False)
+        if radiance is not None and kind in ("rectangle", "disk", "sphere"):
+            light = self.area_light(el, p, kind, flip)
+            light["radiance"] = radiance
+            p.done(ignored=("flip_tex_coords",))
+            self.lights.append(light)  # it occludes like the shape (its reflectance: not read)
+            return None
+        if radiance is not None and kind not in ("obj", "ply", "cube"):
+            doc.fail(el, f"an emitting {kind} is not read", "use a rectangle, disk, sphere, cube, obj or ply shape")
         out = self.geometry(el, p, kind, interior is not None)
+        if radiance is not None:  # emitting towards Mitsuba's shading normal (area.cpp: cos_theta(si.wi) > 0)
+            if "faces" in out:  # (a box primitive's triangles face outward, as Mitsuba's cube)
+                faces = emitters.oriented(out["faces"], out["vertices"], out["normals"]) if "normals" in out else \
+                    np.asarray(out["faces"])
+                out["faces"] = (faces[:, ::-1] if flip else faces).tolist()
+            elif flip:
+                doc.fail(p.values["flip_normals"], "a cube emitting inward is not read", "remove flip_normals")
+            out["emission"] = radiance
         if reflectance is not None:
             out["reflectance"] = reflectance
         if interior is not None:
             out["interior"] = interior
-        p.done(ignored=("face_normals", "flip_normals", "flip_tex_coords"))
+        p.done(ignored=("face_normals", "flip_tex_coords"))
         return out
+
+    def area(self, nested, shape) -> float | list[float]:
+        """The radiance of a shape's area emitter (mitsuba3 src/emitters/area.cpp: `radiance`, default 1)."""
+        doc = self.doc
+        if len(nested) > 1:
+            doc.fail(shape, "has more than one emitter", "keep one area emitter")
+        el = nested[0]
+        if el.get("type") != "area":
+            doc.fail(el, f"a {el.get('type')} emitter inside a shape is not read", 'use <emitter type="area">')
+        q = _Props(doc, el)
+        self.same_fog(q, el, "medium")
+        radiance = _channels(q.colour("radiance", 1.0))
+        q.done()
+        return radiance
+
+    def area_light(self, el, p, kind, flip) -> dict:
+        """A rectangle, disk or sphere with an area emitter as our quad, disk or sphere light: Mitsuba's
+        rectangle spans [-1, 1]^2 at z = 0 and a disk the unit disk there, both emitting towards their normal
+        to_world^-T (0, 0, 1) (flip_normals: the other side); a sphere emits outward."""
+        M = p.transform()
+        n = np.linalg.inv(M[:3, :3]).T @ [0.0, 0.0, 1.0]
+        n = (-1.0 if flip else 1.0) * n / np.linalg.norm(n)
+        if kind == "rectangle":
+            c = _apply(M, [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
+            if np.cross(c[1] - c[0], c[3] - c[0]) @ n < 0.0:
+                c = c[[0, 3, 2, 1]]  # wound towards the emitting side
+            return {"type": "quad", "corners": c.tolist()}
+        if kind == "disk":
+            x, y = M[:3, 0], M[:3, 1]
+            if not math.isclose(x @ x, y @ y, rel_tol=1e-9) or abs(x @ y) > 1e-9 * (x @ x):
+                self.doc.fail(el, "an emitting disk's to_world stretches it into an ellipse", "scale it uniformly "
+                              "in its plane, or use a mesh")
+            return {"type": "disk", "center": M[:3, 3].tolist(), "normal": n.tolist(), "radius": float(np.linalg.norm(x))}
+        if flip:
+            self.doc.fail(p.values["flip_normals"], "a sphere emitting inward is not read", "remove flip_normals")
+        sphere = self.geometry(el, p, kind, False)
+        return {"type": "sphere", "center": sphere["center"], "radius": sphere["radius"]}
 
     def geometry(self, el, p, kind, holds_medium) -> dict:
         M = p.transform()
         if kind in ("obj", "ply"):
-            return _triangles(*self.mesh(el, p), M)
+            return self.triangles(el, p, M)
         if kind == "rectangle":
             return {"primitive": "quad", "corners": _apply(M, [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]).tolist()}
         if kind == "cube":
@@ -661,7 +756,9 @@ class _Reader:
                 return {"primitive": "box", "min": np.minimum(lo, hi).tolist(), "max": np.maximum(lo, hi).tolist()}
             from ..scene.meshes import box_triangles
 
-            return _soup(box_triangles(-np.ones(3), np.ones(3)), M)
+            out = _soup(box_triangles(-np.ones(3), np.ones(3)), M)  # wound outward (a mirroring M: turned back)
+            out["faces"] = np.asarray(out["faces"])[:, ::-1 if np.linalg.det(L) < 0 else 1].tolist()
+            return out
         if kind == "sphere":
             c = M @ np.array([*p.point("center", [0.0, 0.0, 0.0]), 1.0])
             r = p.number("radius", 1.0)
@@ -696,9 +793,27 @@ class _Reader:
         n = min(max(n + n % 2, SEGMENTS[0]), SEGMENTS[1])
         return min(n, INTERIOR_SEGMENTS) if holds_medium else n
 
-    def mesh(self, el, p):
+    def triangles(self, el, p, M) -> dict:
+        """An obj or ply mesh under M with Mitsuba's shading normals (src/render/mesh.cpp): the file's vertex
+        normals (by M's inverse transpose), else recomputed from the triangles in world space, angle-weighted
+        (Thuermer and Wuethrich 1998, as mesh.cpp `recompute_vertex_normals`); none with face_normals."""
         import trimesh
 
+        v, f, vn = self.mesh(el, p)
+        out = _triangles(v, f, M)
+        if p.boolean("face_normals", False):
+            return out
+        if vn is None:
+            vn = trimesh.Trimesh(np.asarray(out["vertices"]), f, process=False).vertex_normals
+        else:
+            vn = vn @ np.linalg.inv(M[:3, :3])
+        length = np.linalg.norm(vn, axis=1, keepdims=True)
+        if np.all(length > 0.0):
+            out["normals"] = (vn / length).tolist()
+        return out
+
+    def mesh(self, el, p):
+        """(vertices, faces, the file's vertex normals or None) of an obj or ply shape."""
         name = p.string("filename")
         if not name:
             self.doc.fail(el, "has no filename", '<string name="filename" value="mesh.obj"/>')
@@ -707,13 +822,12 @@ class _Reader:
             self.doc.fail(el, f"mesh file {name!r} not found in {self.doc.searched()}", "fix the filename (relative "
                           "to the main file or a <path>)")
         try:
-            mesh = trimesh.load(str(file), file_type=el.get("type"), force="mesh", process=False)
-            v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+            v, f, vn = read_mesh(str(file), el.get("type"))
         except Exception as exc:  # trimesh raises many types for unreadable files
             self.doc.fail(el, f"cannot read {file} ({type(exc).__name__}: {exc})", "export it again as OBJ or PLY")
         if len(f) == 0 or not np.all(np.isfinite(v)):
             self.doc.fail(el, f"{file} holds no triangles or non-finite vertices", "fix the mesh file")
-        return v, f
+        return v, f, vn
 
     def bsdf(self, el, shape):
         """(reflectance or None, interior fields or None) of a shape's bsdf; Mitsuba's default is a
@@ -768,8 +882,9 @@ def _channels(v):
 
 
 def _merged(tris):
-    """(vertices (V, 3), faces (T, 3)) of a (T, 3, 3) triangle soup, equal corners merged."""
-    v, f = np.unique(np.reshape(tris, (-1, 3)), axis=0, return_inverse=True)
+    """(vertices (V, k), faces (T, 3)) of a (T, 3, k) triangle soup (k = 3, or 6 with normals), equal corners
+    merged."""
+    v, f = np.unique(np.reshape(tris, (-1, np.shape(tris)[-1])), axis=0, return_inverse=True)
     return v, f.reshape(-1, 3)
 
 
@@ -832,9 +947,10 @@ def _medium(parent, medium, **attrs):
 class _Writer:
     """The XML tree and the meshes of one export; `refuse` raises or, with `approximate`, warns."""
 
-    def __init__(self, scene, out: Path, source: str, approximate: bool):
+    def __init__(self, scene, out: Path, source: str, approximate: bool, emission: dict | None = None):
         self.scene, self.out, self.source, self.approximate = scene, out, source, approximate
-        self.meshes: list[tuple[str, np.ndarray]] = []  # (file name, triangles (T, 3, 3))
+        self.emission = emission or {}  # shape index -> {"emission", "two_sided"} (emitters.split)
+        self.meshes: list[tuple[str, np.ndarray, np.ndarray | None]] = []  # (file name, triangles, corner normals)
 
     def refuse(self, key, problem, fix, closest):
         if not self.approximate:
@@ -870,7 +986,7 @@ class _Writer:
             self.refuse("medium.particles", "a particle layer", "remove [medium.particles]", "the medium without it")
         from ..scene.meshes import scene_triangles
 
-        self.tris, self.refl, self.ids = scene_triangles(sc, shape_ids=True)
+        self.tris, self.refl, self.ids, self.normals = scene_triangles(sc, shape_ids=True, normals=True)
         fog = bool(np.any(med.sigma_a + med.sigma_s > 0.0))
         if fog:
             _medium(root, med, id="fog")
@@ -939,7 +1055,13 @@ class _Writer:
             affine[:3, :3] = rotation_matrix(t.rotate) * t.scale[None, :]
             affine[:3, 3] = t.translate
             tris, refl = self.tris[self.ids == i], self.refl[self.ids == i]
+            smooth = shape.smooth and self.normals is not None and (shape.kind in ("mesh", "sphere", "cylinder")
+                                                                    or "normals" in shape.params)
+            normals = self.normals[self.ids == i] if smooth else None  # (as scene/meshes.py shades them)
             inner = shape.interior
+            if inner is not None and i in self.emission:
+                raise UserError(f"{self.source}: shape[{i}].emission: an emitting shape that holds a medium cannot "
+                                "be exported; put the medium in a shape of its own")
             if inner is not None:
                 el = _add(root, "shape", type="ply")
                 self.ply(el, f"{self.out.stem}-{i}.ply", tris)
@@ -966,9 +1088,59 @@ class _Writer:
                 if el is None:
                     el = _add(root, "shape", type="ply")
                     part = f"-{k}" if len(groups) > 1 else ""
-                    self.ply(el, f"{self.out.stem}-{i}{part}.ply", tris[np.all(refl == rho, axis=1)])
+                    mine = np.all(refl == rho, axis=1)
+                    self.ply(el, f"{self.out.stem}-{i}{part}.ply", tris[mine], None if normals is None else normals[mine])
                 diffuse = _add(_add(el, "bsdf", type="twosided"), "bsdf", type="diffuse")
                 _rgb(diffuse, "reflectance", rho)
+                if i in self.emission:  # towards each triangle's winding: the PLY's face normals, a cube's outside
+                    self.emitter(el, f"shape[{i}]", self.emission[i]["emission"], self.emission[i]["two_sided"])
+
+    def emitter(self, el, key, radiance, two_sided):
+        """A one-sided area emitter in the shape `el` (mitsuba3 src/emitters/area.cpp)."""
+        if two_sided:
+            self.refuse(f"{key}.two_sided", "a two-sided emitter (Mitsuba's area emitter is one-sided)",
+                        "set two_sided = false", "one-sided")
+        _rgb(_add(el, "emitter", type="area"), "radiance", emitters.colour(radiance, f"{key}.radiance", self.source))
+
+    def area_lights(self, root, lights):
+        """Quad, disk and sphere lights as black diffuse rectangles, disks and spheres with an area emitter;
+        the environment as a constant or envmap emitter (the inverse of `_Reader.area_light`, `environment`)."""
+        src = self.source
+        for i, light in lights:
+            key, kind = f"light[{i}]", light.get("type")
+            if kind == "environment":
+                self.environment(root, key, light)
+                continue
+            el = _add(root, "shape", type={"quad": "rectangle"}.get(kind, kind))
+            M = np.eye(4)
+            if kind == "quad":
+                M[:3, 3], M[:3, 0], M[:3, 1], M[:3, 2] = emitters.quad_frame(light.get("corners"), f"{key}.corners", src)
+                _matrix(el, M)
+            elif kind == "disk":
+                M, r = emitters.disk_frame(light, key, src)
+                M[:3, :2] *= r
+                _matrix(el, M)
+            else:
+                _add(el, "point", name="center", value=_vec(emitters.vector(light.get("center"), f"{key}.center", src)))
+                _add(el, "float", name="radius", value=_num(emitters.positive(light.get("radius"), f"{key}.radius", src)))
+            _rgb(_add(el, "bsdf", type="diffuse"), "reflectance", 0.0)  # the emitter is black where it does not emit
+            self.emitter(el, key, light.get("radiance"), light.get("two_sided", False))
+
+    def environment(self, root, key, light):
+        src = self.source
+        if "map" not in light:
+            _rgb(_add(root, "emitter", type="constant"), "radiance", emitters.colour(light.get("radiance"),
+                                                                                    f"{key}.radiance", src))
+            return
+        from ..scene.meshes import rotation_matrix
+
+        el = _add(root, "emitter", type="envmap")
+        _add(el, "string", name="filename", value=str(Path(light["map"]).resolve()))
+        _add(el, "float", name="scale", value=_num(emitters.positive(light.get("scale", 1.0), f"{key}.scale", src)))
+        M = np.eye(4)
+        M[:3, :3] = rotation_matrix(emitters.vector(light.get("rotate", [0.0, 0.0, 0.0]), f"{key}.rotate", src)) @ \
+            np.diag([-1.0, 1.0, -1.0])  # Mitsuba's u = 0 is our map's centre column (`_Reader.environment`)
+        _matrix(el, M)
 
     @staticmethod
     def rectangle(root, tris):
@@ -985,17 +1157,24 @@ class _Writer:
         _matrix(el, M)
         return el
 
-    def ply(self, el, name, tris):
+    def ply(self, el, name, tris, normals=None):
         _add(el, "string", name="filename", value=name)
-        _add(el, "boolean", name="face_normals", value="true")  # flat, as ours
-        self.meshes.append((name, tris))
+        if normals is None:
+            _add(el, "boolean", name="face_normals", value="true")  # flat, as ours
+        self.meshes.append((name, tris, normals))
 
 
-def _ply_bytes(tris) -> bytes:
-    """A binary little-endian PLY of a triangle soup (equal corners merged): float32 vertices."""
-    v, f = _merged(tris)
+def _ply_bytes(tris, normals=None) -> bytes:
+    """A binary little-endian PLY of a triangle soup (equal corners merged): float32 vertices, and the
+    corners' shading normals (T, 3, 3) as nx, ny, nz when given."""
+    if normals is None:
+        v, f = _merged(tris)
+    else:
+        v, f = _merged(np.concatenate([tris, normals], axis=2))
     head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
-            f"property float z\nelement face {len(f)}\nproperty list uchar uint vertex_indices\nend_header\n")
+            f"property float z\n" + ("property float nx\nproperty float ny\nproperty float nz\n" if normals is not None
+                                     else "") + f"element face {len(f)}\nproperty list uchar uint vertex_indices\n"
+            "end_header\n")
     faces = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<u4", 3)])
     faces["n"], faces["i"] = 3, f
     return head.encode() + v.astype("<f4").tobytes() + faces.tobytes()
@@ -1010,11 +1189,13 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     if out.suffix.lower() != ".xml":
         raise UserError(f"{source}: --out {out}: a Mitsuba scene is an .xml file; name it scene.xml")
     path = Path(source) if Path(source).is_file() else None
-    writer = _Writer(scene_from_dict(copy.deepcopy(raw), source, path), out, source, approximate)
-    root = writer.xml(raw)
+    rest, lights, emission = emitters.split(raw)
+    writer = _Writer(scene_from_dict(copy.deepcopy(rest), source, path), out, source, approximate, emission)
+    root = writer.xml(rest)
+    writer.area_lights(root, lights)
     ET.indent(root)
     files = [(out, ET.tostring(root, encoding="unicode").encode() + b"\n")]
-    files += [(out.parent / name, _ply_bytes(tris)) for name, tris in writer.meshes]
+    files += [(out.parent / name, _ply_bytes(tris, normals)) for name, tris, normals in writer.meshes]
     temps = []
     try:
         for target, data in files:

@@ -16,7 +16,6 @@ cameras.cpp `PerspectiveCamera::Create`, `SphericalCamera::GenerateRay`; util/tr
 """
 from __future__ import annotations
 
-import copy
 import gzip
 import io as _io
 import math
@@ -29,6 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
+from . import emitters
+from .meshfile import read_mesh
 from .report import ImportNote, Problems, every
 
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
@@ -36,6 +37,7 @@ MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
 ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted
 HG_MAX = 0.99  # pbrt-v4 clamps HG's g to [-0.99, 0.99] (util/scattering.h HenyeyGreenstein)
+MAX_POWER_PARTS = 4096  # an area light's "power" on a mesh of unequal triangles: at most this many shapes
 
 
 
@@ -199,6 +201,15 @@ class Params:
                             "use non-negative values" + (" at most 1" if albedo else ""))
         return v
 
+    def boolean(self, name, default=False):
+        """A "bool" parameter: true or false, bare or quoted (parser.cpp)."""
+        p = self._take(name, ("bool",))
+        if p is None:
+            return default
+        if len(p.values) != 1 or p.values[0].value not in ("true", "false"):
+            self.where.fail(p.line, f'{self.directive}: "bool {name}" needs true or false', f'write "bool {name}" true')
+        return p.values[0].value == "true"
+
     def ignore(self, *names):
         for n in names:
             self.params.pop(n, None)
@@ -248,9 +259,12 @@ class _State:
     material: tuple = ("diffuse", [0.5, 0.5, 0.5])
     inside: str = ""
     outside: str = ""
+    area: dict | None = None  # the AreaLightSource for the shapes that follow (`_Reader._AreaLightSource`)
+    reverse: bool = False  # ReverseOrientation: the emitting side turned
 
     def copy(self):
-        return _State(self.ctm.copy(), self.inv.copy(), self.material, self.inside, self.outside)
+        return _State(self.ctm.copy(), self.inv.copy(), self.material, self.inside, self.outside, self.area,
+                      self.reverse)
 
     def concat(self, m, inv):
         self.ctm, self.inv = self.ctm @ m, inv @ self.inv
@@ -264,8 +278,9 @@ class _State:
 
 OPTION_DIRECTIVES = {"Camera", "Film", "Sampler", "Integrator", "PixelFilter", "Accelerator", "ColorSpace", "Option"}
 WORLD_DIRECTIVES = {"AttributeBegin", "AttributeEnd", "TransformBegin", "TransformEnd", "Shape", "Material",
-                    "MakeNamedMaterial", "NamedMaterial", "LightSource", "ReverseOrientation", "Import"}
-REFUSED = {"Texture": "textures", "AreaLightSource": "area lights", "ObjectBegin": "object instancing",
+                    "MakeNamedMaterial", "NamedMaterial", "LightSource", "AreaLightSource", "ReverseOrientation",
+                    "Import"}
+REFUSED = {"Texture": "textures", "ObjectBegin": "object instancing",
            "ObjectEnd": "object instancing", "ObjectInstance": "object instancing", "Attribute": "attribute defaults",
            "TransformTimes": "motion blur", "ActiveTransform": "motion blur",
            "WorldEnd": "pbrt-v3 syntax (run `pbrt --upgrade`)"}
@@ -432,7 +447,7 @@ class _Reader:
                     w.fail(line, f"{d} without a matching AttributeBegin", "remove it or add the AttributeBegin")
                 self.state = self.stack.pop()[0]
             elif d == "ReverseOrientation":
-                pass  # our surfaces are two-sided
+                st.reverse = not st.reverse  # the side an area light emits to (our surfaces reflect on both)
             elif d == "WorldBegin":
                 if self.world:
                     w.fail(line, "a second WorldBegin", "remove it")
@@ -458,7 +473,8 @@ class _Reader:
                     w.fail(line, f'NamedMaterial: no material "{name}"', f'define it with MakeNamedMaterial "{name}" first')
                 self.state.material = self.materials[name]
             elif d in ("Camera", "Film", "Sampler", "Integrator", "PixelFilter", "Accelerator", "ColorSpace",
-                       "Shape", "Material", "LightSource", "MakeNamedMaterial", "MakeNamedMedium", "Option"):
+                       "Shape", "Material", "LightSource", "AreaLightSource", "MakeNamedMaterial", "MakeNamedMedium",
+                       "Option"):
                 name = quoted(d)
                 if d == "ColorSpace":
                     if name != "srgb":
@@ -638,10 +654,27 @@ class _Reader:
                 w.fail(line, f"{p.directive}: from equals to", "give the direction the light travels, from -> to")
             light = {"type": "directional", "direction": travel / np.linalg.norm(travel),
                      "irradiance": [scale * (e_v if e_v > 0 else 1.0) * v for v in rgb]}  # DistantLight::Create
+        elif kind == "infinite":
+            light = self._infinite(p, w, line, scale)
         else:
-            w.fail(line, f'LightSource "{kind}" is not read', 'use "point", "spot" or "distant"')
+            w.fail(line, f'LightSource "{kind}" is not read', 'use "point", "spot", "distant" or "infinite"')
         p.done()
         self.lights.append(light)
+
+    @staticmethod
+    def _infinite(p, w, line, scale) -> dict:
+        """lights.cpp Light::Create "infinite" with "L" or nothing (UniformInfiniteLight): L (the illuminant's
+        white: 1) x scale, and with "illuminance" E_v > 0 x E_v / pi (the illuminance of L = 1 from above)."""
+        if p.has("portal"):
+            w.fail(line, f'{p.directive}: "point3 portal" (a portal light) is not read', "remove the portal (a constant "
+                   '"rgb L" environment is read)')
+        if p.has("filename"):
+            w.fail(line, f'{p.directive}: "string filename": pbrt-v4\'s environment maps are equal-area octahedral '
+                   "squares, which are not read (ours are equirectangular)", 'give a constant "rgb L", or an '
+                   'equirectangular map as environment.map in a TOML scene')
+        rgb = p.rgb("L", [1.0, 1.0, 1.0])
+        e_v = p.one("illuminance", -1.0)
+        return {"type": "environment", "radiance": [scale * (e_v / math.pi if e_v > 0 else 1.0) * v for v in rgb]}
 
     @staticmethod
     def _similarity(m):
@@ -650,16 +683,28 @@ class _Reader:
 
     def _Shape(self, kind, p, w, line):
         m = self._affine(w, line, p.directive)
+        area = self.state.area  # the AreaLightSource of this attribute scope (`_AreaLightSource`), or None
         # scene.cpp getAlphaTexture: alpha < 1 is a stochastic alpha test; 0 lets every ray through
         alpha = p.one("alpha", 1.0)
-        if alpha == 0.0:
+        if alpha == 0.0 and area is None:
             p.params.clear()
             self.notes.append(f"{w.path}:{line}: {p.directive}: \"float alpha\" 0: invisible to every ray in pbrt; "
                               "left out")
             return
-        if alpha != 1.0:
+        if alpha not in (0.0, 1.0):
             w.fail(line, f'{p.directive}: "float alpha" {alpha:g} (a partly transparent surface) is not read',
                    "remove it (1, opaque) or set it to 0 (invisible)")
+        if area is not None and self.state.material[0] == "interface":
+            self.notes.append(f"{w.path}:{line}: {p.directive}: an area light on a shape with the \"interface\" "
+                              "material: pbrt-v4 ignores the light (scene.cpp), so is it here")
+            area = None
+        if area is not None and alpha == 0.0:
+            self.notes.append(f"{w.path}:{line}: {p.directive}: \"float alpha\" 0 with an area light: pbrt-v4 makes "
+                              "it an invisible light (lights.cpp DiffuseAreaLight); read as an emitter that is seen "
+                              "and occludes")
+        # the emitting side (shapes.h: the surface normal, flipped by ReverseOrientation; a triangle's faces
+        # its shading normals N where given): a mesh's winding is turned to it (emitters.oriented)
+        flip = self.state.reverse ^ (np.linalg.det(m[:3, :3]) < 0.0)
         if kind == "sphere":
             r = p.one("radius", 1.0)
             if not r > 0.0:
@@ -671,9 +716,41 @@ class _Reader:
             if self._similarity(m):
                 shape = {"primitive": "sphere", "center": m[:3, 3], "radius": r * math.sqrt((m[:3, 0] @ m[:3, 0])),
                          "segments": SPHERE_SEGMENTS}
+                if area is not None:
+                    if self.state.reverse:
+                        w.fail(line, f"{p.directive}: an area light on a sphere under ReverseOrientation emits "
+                               "inward, which is not read", "remove ReverseOrientation")
+                    # a sphere emits outward (twosided: also inward, unseen from outside)
+                    self._area_light({"type": "sphere", "center": shape["center"], "radius": shape["radius"]},
+                                     area, [4.0 * math.pi * r * r], w, line)  # Sphere::Area: object space
+                    return
             else:
+                if area is not None:
+                    w.fail(line, f"{p.directive}: an area light on a sphere scaled unevenly (an ellipsoid) is not "
+                           "read", "scale it uniformly")
                 from ..scene.meshes import sphere_triangles
                 shape = _triangles(sphere_triangles(np.zeros(3), r, SPHERE_SEGMENTS) @ m[:3, :3].T + m[:3, 3])
+        elif kind == "disk":
+            h, r = p.one("height", 0.0), p.one("radius", 1.0)
+            if not r > 0.0 or p.one("innerradius", 0.0) != 0.0 or p.one("phimax", 360.0) != 360.0:
+                w.fail(line, f"{p.directive}: only a whole disk (radius > 0, innerradius 0, phimax 360) is read",
+                       "remove innerradius and phimax")
+            p.done()
+            x, y = m[:3, 0], m[:3, 1]
+            centre = m[:3, :3] @ [0.0, 0.0, h] + m[:3, 3]
+            if area is not None:
+                if not math.isclose(x @ x, y @ y, rel_tol=1e-9) or abs(x @ y) > 1e-9 * (x @ x):
+                    w.fail(line, f"{p.directive}: an area light on a disk stretched into an ellipse is not read",
+                           "scale the disk uniformly in its plane")
+                n = np.linalg.inv(m[:3, :3]).T @ [0.0, 0.0, 1.0]  # Disk: +z as a normal, flipped by ReverseOrientation
+                n = (-1.0 if self.state.reverse else 1.0) * n / np.linalg.norm(n)
+                self._area_light({"type": "disk", "center": centre, "normal": n, "radius": r * math.sqrt(x @ x)},
+                                 area, [math.pi * r * r], w, line)  # Disk::Area: object space
+                return
+            ang = np.linspace(0.0, 2.0 * math.pi, SPHERE_SEGMENTS + 1)
+            ring = r * np.stack([np.cos(ang), np.sin(ang), np.full_like(ang, h)], axis=1)
+            fan = np.stack([np.broadcast_to([0.0, 0.0, h], (SPHERE_SEGMENTS, 3)), ring[:-1], ring[1:]], axis=1)
+            shape = _triangles(fan @ m[:3, :3].T + m[:3, 3])
         elif kind in ("trianglemesh", "bilinearmesh"):
             pts = np.array(p.floats("P", ("point3",)) or [], float).reshape(-1, 3)
             per = 3 if kind == "trianglemesh" else 4
@@ -696,19 +773,83 @@ class _Reader:
                 if len(normals) == len(pts):  # per-vertex shading normals: smooth (by the inverse transpose)
                     shape["normals"] = normals @ np.linalg.inv(m[:3, :3])
             else:
-                shape = _triangles(np.concatenate([_patch(pts[q]) for q in idx.reshape(-1, 4)]))
+                patches = [pts[q] for q in idx.reshape(-1, 4)]
+                if area is not None and len(patches) == 1 and _parallelogram(patches[0]):
+                    c = patches[0][[0, 1, 3, 2]]  # p00 p10 p11 p01: normal dpdu x dpdv, as pbrt's
+                    self._area_light({"type": "quad", "corners": c[[0, 3, 2, 1]] if flip else c}, area,
+                                     [float(np.linalg.norm(np.cross(c[1] - c[0], c[3] - c[0])))], w, line)
+                    return
+                grids = [_patch(q) for q in patches]
+                shape = _triangles(np.concatenate(grids))
+                if area is not None:  # BilinearPatch::Area, per patch (`_emitting`)
+                    shape["_areas"] = [(len(g), float(_area(g).sum())) for g in grids]
         elif kind == "plymesh":
             name = p.string("filename")
             if name is None:
                 w.fail(line, f'{p.directive}: no "string filename"', 'add "string filename" "mesh.ply"')
             p.done()
-            v, f = _read_ply(self.resolve(name), w, line)
+            v, f, vn = _read_ply(self.resolve(name), w, line)
             shape = {"primitive": "triangles", "vertices": v @ m[:3, :3].T + m[:3, 3], "faces": f}
+            if vn is not None:  # the PLY's nx ny nz: pbrt's N
+                shape["normals"] = vn @ np.linalg.inv(m[:3, :3])
         else:
-            w.fail(line, f'Shape "{kind}" is not read', 'use "trianglemesh", "plymesh", "sphere" or "bilinearmesh"')
+            w.fail(line, f'Shape "{kind}" is not read', 'use "trianglemesh", "plymesh", "sphere", "disk" or '
+                   '"bilinearmesh"')
+        if area is not None:
+            shape = self._emitting(shape, area, flip, w, line)
         shape["_material"], shape["_media"], shape["_where"] = self.state.material, (self.state.inside,
                                                                                       self.state.outside), (w, line)
         self.shapes.append(shape)
+
+    def _area_light(self, light, area, areas, w, line):
+        """A quad, disk or sphere light of the area light in scope (its radiance for the shape's area)."""
+        light["radiance"] = _radiance(area, areas[0])
+        if area["twosided"] and light["type"] != "sphere":
+            light["two_sided"] = True
+        self.lights.append(light)
+
+    def _emitting(self, shape, area, flip, w, line) -> dict:
+        """A triangle mesh with the area light in scope: faces wound towards pbrt's emitting side, its
+        `emission` (pbrt-v4 gives each triangle or patch its own light: with "power", one of that power
+        each, so elements of different areas become shapes of their own, `_areas`)."""
+        faces = np.asarray(shape["faces"])
+        if "normals" in shape:
+            faces = emitters.oriented(faces, shape["vertices"], shape["normals"])
+        elif flip:
+            faces = faces[:, ::-1]
+        shape["faces"] = faces
+        # (triangles, area) of each element: a triangle, or a patch's triangles (BilinearPatch::Area)
+        elements = shape.pop("_areas", None) or [(1, a) for a in _area(np.asarray(shape["vertices"])[faces])]
+        areas = [a for _, a in elements]
+        if area["twosided"]:
+            shape["two_sided"] = True
+        if area["power"] <= 0.0 or np.allclose(areas, areas[0], rtol=1e-12, atol=0.0):
+            shape["emission"] = _radiance(area, areas[0])
+            return shape
+        if len(elements) > MAX_POWER_PARTS:
+            w.fail(line, f'AreaLightSource "diffuse": "power" on a mesh of {len(elements)} elements of different '
+                   f"areas (pbrt-v4 gives each its own light of that power) is read for at most {MAX_POWER_PARTS}",
+                   'give "rgb L" instead of "power"')
+        ends = np.cumsum([0] + [n for n, _ in elements])
+        parts = [{**shape, "faces": faces[a:b], "emission": _radiance(area, e)} for a, b, e in zip(ends, ends[1:], areas)]
+        for part in parts[:-1]:
+            part["_material"], part["_media"], part["_where"] = self.state.material, (self.state.inside,
+                                                                                       self.state.outside), (w, line)
+            self.shapes.append(part)
+        return parts[-1]
+
+    def _AreaLightSource(self, kind, p, w, line):
+        """lights.cpp DiffuseAreaLight::Create: L (the illuminant's white: 1) x scale, and with "power" P > 0
+        x P / k_e, k_e = (2 if twosided else 1) pi A for each shape's own area A (`_radiance`)."""
+        if kind != "diffuse":
+            w.fail(line, f'AreaLightSource "{kind}" is not read', 'use "diffuse"')
+        if p.has("filename"):
+            w.fail(line, f'{p.directive}: "string filename" (an image on the emitter) is not read',
+                   'give a constant "rgb L"')
+        area = {"L": np.array(p.rgb("L", [1.0, 1.0, 1.0])) * p.one("scale", 1.0), "twosided": p.boolean("twosided"),
+                "power": p.one("power", -1.0)}
+        p.done()
+        self.state.area = area
 
     # --- the scene dict
     def scene(self) -> dict:
@@ -732,22 +873,29 @@ class _Reader:
             self.notes.append(f"{self.main}: Film: pbrt-v4 scales the image by exposure time x iso / 100 = "
                               f"{self.exposure:g} x {self.iso:g} / 100 = {ratio:g} (film.cpp imagingRatio); the lights' "
                               "power is scaled by it instead (the same image: it is linear in the lights)")
+        mirrored = s[0] < 0.0  # (a mirror turns windings: quads and faces are turned back)
         for light in self.lights:
             light = dict(light)
-            for k in ("intensity", "irradiance"):
+            for k in ("intensity", "irradiance", "radiance"):
                 if k in light:
                     light[k] = [ratio * v for v in light[k]]
-            for k in ("position", "direction"):
+            for k in ("position", "direction", "center", "normal", "corners"):
                 if k in light:
-                    light[k] = light[k] * s + 0.0
+                    light[k] = np.asarray(light[k]) * s + 0.0
+            if mirrored and "corners" in light:
+                light["corners"] = light["corners"][[0, 3, 2, 1]]
             out["light"].append(light)
         for shape in self.shapes:
             with self.problems.each():
                 shape = self._surface(dict(shape), self.camera[3], camera_medium)
                 if shape is not None:
-                    for k in ("vertices", "center"):
+                    for k in ("vertices", "center", "normals"):
                         if k in shape:
                             shape[k] = shape[k] * s + 0.0
+                    if mirrored and "faces" in shape:
+                        shape["faces"] = np.asarray(shape["faces"])[:, ::-1]
+                    if "emission" in shape:
+                        shape["emission"] = [ratio * v for v in shape["emission"]]
                     out["shape"].append(shape)
         return _plain(out)
 
@@ -843,6 +991,26 @@ def _patch(q):
     return np.concatenate([np.stack([a, b, c], -2).reshape(-1, 3, 3), np.stack([a, c, d], -2).reshape(-1, 3, 3)])
 
 
+def _parallelogram(q) -> bool:
+    """Whether a bilinear patch (p00, p10, p01, p11) is a parallelogram of non-zero area (a quad light)."""
+    p00, p10, p01, p11 = q
+    size = max(float(np.abs(q).max()), 1e-300)
+    return bool(np.allclose(p00 + p11, p10 + p01, rtol=0.0, atol=1e-12 * size)
+                and np.linalg.norm(np.cross(p10 - p00, p01 - p00)) > 0.0)
+
+
+def _area(tris) -> np.ndarray:
+    """Each triangle's area (T,)."""
+    return 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+
+
+def _radiance(area: dict, size: float) -> list[float]:
+    """The radiance of an area light (`_Reader._AreaLightSource`) on a shape of area `size`."""
+    power = area["power"]
+    k_e = (2.0 if area["twosided"] else 1.0) * math.pi * size
+    return (area["L"] * (power / k_e if power > 0.0 else 1.0)).tolist()
+
+
 def _triangles(tris):
     """An inline mesh from a triangle soup (T, 3, 3), shared corners merged."""
     v, f = np.unique(tris.reshape(-1, 3), axis=0, return_inverse=True)
@@ -850,21 +1018,18 @@ def _triangles(tris):
 
 
 def _read_ply(path: Path, w: _Where, line: int):
-    import trimesh
-
     if not path.is_file():
         w.fail(line, f'plymesh: file "{path}" not found', "check the file name (relative to the main pbrt file)")
     try:
         data = path.read_bytes()
         if path.suffix == ".gz":
             data = gzip.decompress(data)
-        mesh = trimesh.load(_io.BytesIO(data), file_type="ply", process=False, force="mesh")
+        v, f, vn = read_mesh(_io.BytesIO(data), "ply")
     except Exception as exc:  # trimesh raises many types for unreadable files
         w.fail(line, f'plymesh: cannot read "{path}" ({type(exc).__name__}: {exc})', "write it as a PLY mesh")
-    v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
     if len(f) == 0 or not np.all(np.isfinite(v)):
         w.fail(line, f'plymesh: "{path}" has no faces or non-finite vertices', "fix the mesh")
-    return v, f
+    return v, f, vn
 
 
 def _plain(x):
@@ -931,13 +1096,16 @@ def _medium_line(name, sa, ss, g) -> str:
             f'{_list(ss)} "float scale" [ 1.0 ] "float g" [ {_f(g)} ]')
 
 
-def _ply_bytes(vertices, faces) -> bytes:
+def _ply_bytes(vertices, faces, normals=None) -> bytes:
+    """A binary PLY: double vertices (and normals nx ny nz, pbrt's "N", when given), int faces."""
+    extra = "property double nx\nproperty double ny\nproperty double nz\n" if normals is not None else ""
     head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\nproperty double x\n"
-            f"property double y\nproperty double z\nelement face {len(faces)}\nproperty list uchar int vertex_indices\n"
-            "end_header\n").encode()
+            f"property double y\nproperty double z\n{extra}element face {len(faces)}\n"
+            "property list uchar int vertex_indices\nend_header\n").encode()
     rows = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", 3)])
     rows["n"], rows["i"] = 3, faces
-    return head + np.ascontiguousarray(vertices, dtype="<f8").tobytes() + rows.tobytes()
+    table = vertices if normals is None else np.concatenate([vertices, normals], axis=1)
+    return head + np.ascontiguousarray(table, dtype="<f8").tobytes() + rows.tobytes()
 
 
 def _groups(tris, refl):
@@ -955,7 +1123,7 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     from ..scene.format import scene_from_dict
     from ..scene.meshes import scene_triangles
 
-    raw = copy.deepcopy(raw)
+    raw, area_lights, emission = emitters.split(raw)
     for i, light in enumerate(raw.get("light", [])):
         if light.get("falloff", "smoothstep") != "smoothstep":
             _refuse(source, f"light[{i}].falloff", f'pbrt-v4\'s spot has only the smoothstep falloff, not '
@@ -997,11 +1165,18 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
                   f"{' '.join(map(_f, up))}", 'Camera "spherical" "string mapping" "equirectangular"']
     lines.append("WorldBegin")
     lines += [_light_line(light, lraw) for light, lraw in zip(scene.lights, raw.get("light", []))]
+    for i, light in area_lights:
+        lines += _area_light_lines(light, f"light[{i}]", source)
     files = {}
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
     for i, shape in enumerate(scene.shapes):
         mine = ids == i
         lines.append("AttributeBegin")
+        if i in emission:  # emitting towards each triangle's winding (or its N: oriented to the winding)
+            if shape.interior is not None:
+                raise UserError(f"{source}: shape[{i}].emission: an emitting shape that holds a medium cannot be "
+                                "exported; put the medium in a shape of its own")
+            lines.append(_area_line(*emitters.emission_of(emission[i], f"shape[{i}]", source)))
         if shape.interior is not None:
             it = shape.interior
             if it.ior != 1.0:
@@ -1018,12 +1193,17 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
         for k, (v, f, r) in enumerate(groups):
             if r is not None:
                 lines.append(f'Material "diffuse" "rgb reflectance" {_list(r)}')
+            sel = np.nonzero(mine)[0] if r is None else np.nonzero(mine & np.all(refl == r, axis=1))[0]
             if shape.kind == "mesh":
                 name = f"{stem}_shape{i}" + (f"_{k}" if len(groups) > 1 else "") + ".ply"
-                files[out.parent / name] = _ply_bytes(v, f)
+                if corners is not None and shape.smooth:  # the mesh's shading normals as the PLY's nx ny nz
+                    rows, f = np.unique(np.concatenate([tris[sel], corners[sel]], axis=2).reshape(-1, 6), axis=0,
+                                        return_inverse=True)
+                    files[out.parent / name] = _ply_bytes(rows[:, :3], f.reshape(-1, 3), rows[:, 3:])
+                else:
+                    files[out.parent / name] = _ply_bytes(v, f)
                 lines.append(f'Shape "plymesh" "string filename" [ "{name}" ]')
             elif corners is not None and shape.smooth:  # corner by corner, with pbrt's shading normals "N"
-                sel = np.nonzero(mine)[0] if r is None else np.nonzero(mine & np.all(refl == r, axis=1))[0]
                 lines.append(f'Shape "trianglemesh" "point3 P" {_list(tris[sel].ravel())} "integer indices" '
                              f'{_list(np.arange(3 * len(sel)))} "normal N" {_list(corners[sel].ravel())}')
             else:
@@ -1043,6 +1223,38 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
             p.unlink(missing_ok=True)
         raise UserError(f"{out}: cannot write ({exc}); choose a writable --out") from None
     return list(files)
+
+
+def _area_line(radiance, two_sided) -> str:
+    """An AreaLightSource of this radiance (no "power", "scale" 1: L is the radiance, `_radiance`)."""
+    return f'AreaLightSource "diffuse" "rgb L" {_list(radiance)}' + (' "bool twosided" true' if two_sided else "")
+
+
+def _area_light_lines(light, key, source) -> list[str]:
+    """A quad, disk or sphere light as a black emitting bilinear patch, disk or sphere (the inverse of
+    `_Reader._Shape`), or the constant environment as an infinite light."""
+    kind = light.get("type")
+    if kind == "environment":
+        if "map" in light:
+            raise UserError(f"{source}: {key}.map: pbrt-v4's environment maps are equal-area octahedral squares and "
+                            "this exporter does not convert an equirectangular map; export a constant environment "
+                            "(radiance) or use Mitsuba")
+        return [f'LightSource "infinite" "rgb L" {_list(emitters.colour(light.get("radiance"), f"{key}.radiance", source))}']
+    radiance = emitters.colour(light.get("radiance"), f"{key}.radiance", source)
+    two = light.get("two_sided", False)
+    lines = ["AttributeBegin", _area_line(radiance, two is True), 'Material "diffuse" "rgb reflectance" [ 0 0 0 ]']
+    if kind == "quad":
+        c = emitters.vector(light.get("corners"), f"{key}.corners", source, rows=4)
+        emitters.quad_frame(c, f"{key}.corners", source)
+        lines.append(f'Shape "bilinearmesh" "point3 P" {_list(c[[0, 1, 3, 2]].ravel())}')  # p00 p10 p01 p11
+    elif kind == "disk":
+        m, r = emitters.disk_frame(light, key, source)  # a rotation: no handedness swap
+        lines += [f"ConcatTransform {_list(m.T.ravel())}", f'Shape "disk" "float radius" [ {_f(r)} ]']
+    else:
+        c = emitters.vector(light.get("center"), f"{key}.center", source)
+        r = emitters.positive(light.get("radius"), f"{key}.radius", source)
+        lines += [f"Translate {' '.join(map(_f, c))}", f'Shape "sphere" "float radius" [ {_f(r)} ]']
+    return lines + ["AttributeEnd"]
 
 
 def _light_line(light, lraw) -> str:

@@ -92,8 +92,8 @@ def no_lights(raw: dict, source: str) -> str | None:
     """The warning for a scene without lights, with a point lamp to add by --set: above and behind
     the camera (never at it: the air-light of a point light at the camera diverges) by a quarter of
     the distance s to the scene's centre, so sqrt(1.25² + 0.25²) s = sqrt(1.625) s from a centre on the
-    view axis: intensity 1.625 s² lights it with 1 W/m²; None when the scene has lights."""
-    if raw.get("light"):
+    view axis: intensity 1.625 s² lights it with 1 W/m²; None when the scene has lights or emitting shapes."""
+    if raw.get("light") or any(isinstance(s, dict) and "emission" in s for s in raw.get("shape", [])):
         return None
     cam = raw.get("camera")
     lamp = ""
