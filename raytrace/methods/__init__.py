@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..lights import AREA
 from ..media import Homogeneous
 from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
 from ..media.slab import CLOSED, QUAD
@@ -105,6 +106,7 @@ class ErrorLaw:
 
 
 LIGHTS = ("point", "spot", "directional")  # lights.NAMES
+AREA_LIGHTS = AREA  # quad, disk, sphere: spot rows to the kernels (lights/area.py), for every method that takes spots
 INSIDE_RTOL = 1e-10  # the relative accuracy of the inside quadrature of methods without an `rtol` of their own
 
 

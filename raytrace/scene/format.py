@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import Light, parse_light
+from ..lights import Light, emitter_shape, parse_light
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -64,6 +64,11 @@ class Shape:
     transform: Transform
     interior: Interior | None = None
     smooth: bool = True  # interpolated shading normals (scene/meshes.py); False: flat facets
+    # radiance (W / (m^2 sr)) a camera ray sees on the front of its triangles (their winding's side; both
+    # sides if two_sided): an area light's emitter (`light`: its index in Scene.lights; added by the reader)
+    emission: np.ndarray | None = None
+    two_sided: bool = False
+    light: int | None = None
 
 
 @dataclass
@@ -266,6 +271,18 @@ def _shape(ctx, i, raw):
     return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth)
 
 
+def _emitters(lights) -> list[Shape]:
+    """The area lights' emitters as black shapes of their radiance (lights.emitter_shape): seen by the
+    camera, occluding like shapes; after the file's own shapes."""
+    out = []
+    for i, light in enumerate(lights):
+        made = emitter_shape(light)
+        if made is not None:
+            out.append(Shape(made[0], made[1], np.zeros(3), Transform(np.ones(3), np.zeros(3), np.zeros(3)),
+                             smooth=False, emission=light.intensity, two_sided=light.two_sided, light=i))
+    return out
+
+
 def _interior(ctx, key, raw):
     """shape.interior = { sigma_a, sigma_s, phase, ior }: a homogeneous medium inside a closed shape."""
     raw = _table(ctx, key, raw)
@@ -387,6 +404,7 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     shapes = [_shape(ctx, i, s) for i, s in enumerate(shapes_raw)]
     read = _Reader(ctx)
     lights = [parse_light(read, i, s) for i, s in enumerate(lights_raw)]
+    shapes += _emitters(lights)
     medium = parse_medium(read, raw.get("medium"))
     medium.check_scene(read, camera, lights)
     return Scene(
