@@ -36,7 +36,8 @@ def describe(light) -> str:
             f"{light.emitter['radius']:g}, {area.radiance_text(light)}")
 
 
-def rows(light, order: int = ORDER):
+def rows(light, order: int | None = None):
+    order = order or ORDER
     r, wr = area.gauss_legendre(order)
     r, wr = r * light.emitter["radius"], wr * light.emitter["radius"]
     m = 2 * order

@@ -41,7 +41,8 @@ def describe(light) -> str:
             f"area {light.emitter['area']:g}, {area.radiance_text(light)}")
 
 
-def rows(light, order: int = ORDER):
+def rows(light, order: int | None = None):
+    order = order or ORDER
     c = light.emitter["corners"]
     u, w = area.gauss_legendre(order)
     uu, vv = np.meshgrid(u, u, indexing="ij")

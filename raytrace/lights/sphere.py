@@ -31,7 +31,8 @@ def describe(light) -> str:
     return f"{NAME} at {light.position.tolist()}, radius {light.emitter['radius']:g}, {area.radiance_text(light)}"
 
 
-def rows(light, order: int = ORDER):
+def rows(light, order: int | None = None):
+    order = order or ORDER
     z, wz = area.gauss_legendre(order)
     z, wz = 2.0 * z - 1.0, 2.0 * wz  # on [-1, 1]
     m = 2 * order

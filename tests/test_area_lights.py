@@ -1,0 +1,214 @@
+"""Area lights (issue 36): quad, disk and sphere emitters, each a cubature of LAMBERT spot rows
+(raytrace/lights/area.py).
+
+- The scene file: each kind parses and describes as SCENE_FORMAT.md pins it; bad input is one line
+  naming the key and the fix, exit 2, nothing written; methods that do not take area lights refuse,
+  naming those that do.
+- The rows against scipy: their area weights sum to the area A (scipy's own integral of the
+  parameter domain's Jacobian), the power they emit is pi L A one-sided and 2 pi L A two-sided
+  (scipy over the sphere of directions of the rows' intensities max(0, n·u)), the points lie on
+  the emitter; the LAMBERT band's trigonometric form (analytic's) equals max(c, 0).
+- The emitter is a shape: a camera ray sees `radiance` on its front, black behind (unless two-sided),
+  and it shadows a point light behind it; its own emitter points are not shadowed by it.
+- Images against the brute-force twin (tests/area_twin.py: the geometry and scipy alone).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from raytrace import api
+from raytrace.cli import main
+from raytrace.lights import LAMBERT, Lights, band_trig, describe, disk, falloff, power_of, quad, sphere
+from raytrace.scene.format import scene_from_text
+
+from . import area_twin as twin
+from .conftest import to_toml
+
+CAMERA = {"position": [0.0, 0.0, 4.0], "look_at": [0.0, 0.5, 0.0], "fov": 60.0, "width": 16, "height": 12}
+QUAD = {"type": "quad", "corners": [[-0.5, 1.5, -0.5], [0.5, 1.5, -0.5], [0.5, 1.5, 0.5], [-0.5, 1.5, 0.5]],
+        "radiance": 10.0}
+DISK = {"type": "disk", "center": [0.0, 1.5, 0.0], "normal": [0.0, -1.0, 0.0], "radius": 0.5, "radiance": 10.0}
+SPHERE = {"type": "sphere", "center": [0.0, 1.5, 0.0], "radius": 0.3, "radiance": 10.0}
+FOG = {"sigma_a": 0.05, "sigma_s": 0.1}
+KT, KS = 0.15, 0.1
+
+
+def scene(lights, medium=FOG, camera=CAMERA, shapes=()):
+    return scene_from_text(to_toml({"camera": camera, "shape": list(shapes), "light": lights, "medium": medium}),
+                           "area.toml")
+
+
+def test_each_area_kind_parses_and_describes():
+    q, d, s = scene([QUAD, {**DISK, "two_sided": True, "radiance": [1.0, 2.0, 3.0]}, SPHERE]).lights
+    np.testing.assert_array_equal(q.axis, [0.0, -1.0, 0.0])  # (c1 - c0) x (c3 - c0)
+    assert q.emitter["area"] == 1.0 and not q.two_sided
+    assert describe(q) == ("quad of corners [[-0.5, 1.5, -0.5], [0.5, 1.5, -0.5], [0.5, 1.5, 0.5], [-0.5, 1.5, 0.5]], "
+                           f"normal [0.0, -1.0, 0.0], area 1, radiance [10.0, 10.0, 10.0], one-sided, power "
+                           f"{[10.0 * math.pi] * 3} W")
+    assert d.two_sided and d.emitter["area"] == math.pi * 0.25
+    np.testing.assert_array_equal(power_of(d), 2.0 * math.pi * np.array([1.0, 2.0, 3.0]) * math.pi * 0.25)
+    assert describe(s).startswith("sphere at [0.0, 1.5, 0.0], radius 0.3, radiance [10.0, 10.0, 10.0], one-sided")
+
+
+def test_emitters_are_shapes_after_the_files_own():
+    sc = scene([QUAD, DISK, SPHERE], shapes=[{"primitive": "box", "min": [-1.0, -1.0, -1.0], "max": [1.0, -0.9, 1.0]}])
+    assert [s.kind for s in sc.shapes] == ["box", "quad", "triangles", "sphere"]
+    assert [s.light for s in sc.shapes] == [None, 0, 1, 2]
+    assert all(np.all(s.reflectance == 0.0) and np.all(s.emission == 10.0) for s in sc.shapes[1:])
+
+
+@pytest.mark.parametrize("light,message", [
+    ({**QUAD, "radiance": None}, "light[0].radiance: missing; add light[0].radiance = "),
+    ({**QUAD, "corners": QUAD["corners"][:3]}, "light[0].corners: expected four [x, y, z] corners"),
+    ({**QUAD, "corners": [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 2.0], [0.0, 0.0, 1.0]]},
+     "light[0].corners[2]: is not c1 + c3 - c0 = [1.0, 0.0, 1.0]: the quad is not a parallelogram"),
+    ({**QUAD, "corners": [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 0.0]]},
+     "light[0].corners: the corners have no area"),
+    ({**QUAD, "two_sided": 1}, "light[0].two_sided: expected true or false"),
+    ({**QUAD, "radiance": -1.0}, "light[0].radiance: must be >= 0.0"),
+    ({**DISK, "normal": [0.0, 0.0, 0.0]}, "light[0].normal: is zero"),
+    ({**DISK, "radius": 0.0}, "light[0].radius: must be positive"),
+    ({**DISK, "center": None}, "light[0].center: missing"),
+    ({**SPHERE, "two_sided": True}, "light[0].two_sided: unknown key"),
+    ({**SPHERE, "radius": None}, "light[0].radius: missing"),
+])
+def test_bad_area_lights_are_one_line_errors(write_scene, tmp_path, capsys, light, message):
+    light = {k: v for k, v in light.items() if v is not None}
+    path = write_scene({"camera": CAMERA, "light": [light], "medium": FOG})
+    out = tmp_path / "x.exr"
+    assert main(["render", str(path), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and message in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("method", ["lecocq", "sun"])
+@pytest.mark.parametrize("light", [QUAD, DISK, SPHERE])
+def test_methods_without_spot_lights_refuse_area_lights(write_scene, tmp_path, capsys, method, light):
+    path = write_scene({"camera": CAMERA, "light": [light], "medium": FOG})
+    out = tmp_path / "x.exr"
+    assert main(["render", str(path), "--out", str(out), "--quiet", "--method", method]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"--method {method}: it does not take {light['type']} lights" in err, err
+    assert "use --method analytic, quadrature, raymarch, montecarlo" in err, err
+    assert not out.exists()
+
+
+def _rows(light, order, two_sided=False):
+    lt = scene([{**light, **({"two_sided": True} if two_sided else {})}]).lights[0]
+    kind = {"quad": quad, "disk": disk, "sphere": sphere}[light["type"]]
+    return lt, kind.rows(lt, order)
+
+
+AREAS = {  # the area by scipy from each kind's parametrisation (Jacobian over the parameter domain)
+    "quad": lambda lt: integrate.dblquad(lambda v, u: np.linalg.norm(np.cross(*(lt.emitter["corners"][[1, 3]]
+                                                                                - lt.emitter["corners"][0]))),
+                                         0, 1, 0, 1)[0],
+    "disk": lambda lt: integrate.dblquad(lambda r, p: r, 0, 2 * math.pi, 0, lt.emitter["radius"])[0],
+    "sphere": lambda lt: integrate.dblquad(lambda t, p: lt.emitter["radius"] ** 2 * math.sin(t), 0, 2 * math.pi, 0,
+                                           math.pi)[0],
+}
+
+
+@pytest.mark.parametrize("light", [QUAD, DISK, SPHERE])
+@pytest.mark.parametrize("order", [1, 3, 8])
+def test_area_weights_sum_to_the_area(light, order):
+    lt, rows = _rows(light, order)
+    area = AREAS[light["type"]](lt)
+    assert abs(rows.intensity[:, 0].sum() / lt.intensity[0] - area) <= 1e-12 * area
+    assert np.all(rows.intensity > 0.0) and rows.cubature and np.all(rows.cone == [0.0, 1.0, LAMBERT])
+    np.testing.assert_allclose(np.linalg.norm(rows.axis, axis=1), 1.0, rtol=1e-15)
+    p = rows.position
+    if light["type"] == "quad":
+        assert np.all(np.abs(p[:, 1] - 1.5) == 0.0) and np.all(np.abs(p[:, [0, 2]]) < 0.5)
+    elif light["type"] == "disk":
+        assert np.all(p[:, 1] == 1.5) and np.all(np.hypot(p[:, 0], p[:, 2]) < 0.5)
+    else:
+        np.testing.assert_allclose(np.linalg.norm(p - [0.0, 1.5, 0.0], axis=1), 0.3, rtol=1e-15)
+        np.testing.assert_allclose(rows.axis, (p - [0.0, 1.5, 0.0]) / 0.3, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("light", [QUAD, DISK, SPHERE])
+@pytest.mark.parametrize("two_sided", [False, True])
+def test_emitted_power_is_pi_l_a_per_side(light, two_sided):
+    """scipy over the sphere of directions: sum over rows of I_i max(0, n_i·u) dw = pi L A (x 2)."""
+    if two_sided and light["type"] == "sphere":
+        pytest.skip("a sphere emits outward only")
+    lt, rows = _rows(light, 1 if light["type"] == "sphere" else 3, two_sided)
+    # every row's kink max(0, n·u) = 0 on a piece's edge: theta = pi/2 (planar, normals +-y), phi = 0, pi
+    # (the sphere's rule of order 1: normals +-z)
+
+    def intensity(theta, phi):
+        u = np.array([math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi)])
+        return float(np.sum(rows.intensity[:, 0] * np.maximum(rows.axis @ u, 0.0))) * math.sin(theta)
+
+    got = sum(integrate.dblquad(intensity, p0, p0 + math.pi, t0, t0 + math.pi / 2, epsabs=0, epsrel=1e-11)[0]
+              for p0 in (0.0, math.pi) for t0 in (0.0, math.pi / 2))
+    want = math.pi * 10.0 * AREAS[light["type"]](lt) * (2 if two_sided else 1)
+    assert abs(got - want) <= 1e-10 * want, (got, want)
+    assert abs(power_of(lt)[0] - want) <= 1e-13 * want
+
+
+def test_lambert_falloff_and_its_band():
+    """F = max(c, 0); the band as analytic's trigonometric polynomial, F = A sin(phi) - B cos(phi)."""
+    for c in np.linspace(-1.0, 1.0, 41):
+        assert falloff(c, 0.0, 1.0, LAMBERT) == max(c, 0.0)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        a, b = np.zeros(4), np.zeros(4)
+        ax = rng.normal(size=3)
+        A, B = ax[:2] / np.linalg.norm(ax)
+        band_trig(A, B, 0.0, 1.0, LAMBERT, a, b)
+        for phi in rng.uniform(0.0, math.pi, 5):
+            series = sum(a[m] * math.cos(m * phi) + b[m] * math.sin(m * phi) for m in range(4))
+            assert abs(series - (A * math.sin(phi) - B * math.cos(phi))) <= 1e-15
+
+
+def test_rows_name_their_scene_light():
+    lights = Lights.of(scene([{"position": [0.0, 2.0, 0.0], "intensity": 1.0}, QUAD, SPHERE]).lights)
+    n_quad, n_sphere = quad.ORDER ** 2, 2 * sphere.ORDER ** 2
+    assert lights.owner.tolist() == [0] + [1] * n_quad + [2] * n_sphere
+    assert lights.cubature.tolist() == [False] + [True] * (n_quad + n_sphere)
+    assert lights.kinds() == {"point", "quad", "sphere", "spot"}
+
+
+VACUUM = {"sigma_a": 0.0, "sigma_s": 0.0}
+LOOK_UP = {"position": [0.0, 0.0, 0.0], "look_at": [0.0, 1.0, 0.0], "up": [0.0, 0.0, 1.0], "fov": 10.0,
+           "width": 3, "height": 3}
+
+
+@pytest.mark.parametrize("two_sided", [False, True])
+def test_the_camera_sees_the_front_and_a_black_back(two_sided):
+    """In a vacuum the camera looking up at the quad (facing down) sees its radiance exactly; from
+    above, its back: black, or the radiance when two-sided. With fog: L e^{-kt d} plus the air-light."""
+    light = {**QUAD, "two_sided": two_sided}
+    below = api.render(scene([light], VACUUM, LOOK_UP), "quadrature").array
+    np.testing.assert_array_equal(below, 10.0)
+    above = api.render(scene([light], VACUUM, {**LOOK_UP, "position": [0.0, 3.0, 0.0], "look_at": [0.0, 0.0, 0.0]}),
+                       "quadrature").array
+    np.testing.assert_array_equal(above, 10.0 if two_sided else 0.0)
+    fog = api.render(scene([QUAD], FOG, LOOK_UP), "quadrature", volumetric_shadows=False)
+    assert np.all(fog.array > 10.0 * math.exp(-KT * 1.5)) and np.all(fog.array < 10.0)
+
+
+def test_the_emitter_shadows_a_light_behind_it():
+    """A point light above the quad light (facing down): the floor below gets nothing from it in the
+    quad's shadow, and the quad's own light is not shadowed by its own triangles (the floor under it
+    is as bright with the point light switched off as the quad alone renders it)."""
+    floor = {"primitive": "quad", "corners": [[-3.0, -1.0, 3.0], [3.0, -1.0, 3.0], [3.0, -1.0, -3.0],
+                                               [-3.0, -1.0, -3.0]], "reflectance": 0.5}
+    cam = {"position": [0.0, 1.0, 0.0], "look_at": [0.0, -1.0, 0.0], "up": [0.0, 0.0, -1.0], "fov": 20.0,
+           "width": 4, "height": 4}
+    point = {"position": [0.0, 2.5, 0.0], "intensity": 100.0}
+    both = api.render(scene([QUAD, point], VACUUM, cam, [floor]), "quadrature").array
+    alone = api.render(scene([QUAD], VACUUM, cam, [floor]), "quadrature").array
+    np.testing.assert_allclose(both, alone, rtol=1e-15, atol=0)
+    # the quad's irradiance at the floor's centre, below its centre at height 2.5: the exact form for a
+    # square of side a at distance h on its axis, E = 4 L atan(a^2 / (4 h sqrt(h^2 + a^2 / 2))) ... (pi L
+    # times the form factor); the pixels are near the centre: within a few per cent
+    unlit = api.render(scene([point], VACUUM, cam, [floor]), "quadrature").array
+    assert np.all(unlit > 0.0)
