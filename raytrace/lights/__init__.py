@@ -18,8 +18,8 @@ from ..jit import njit
 from . import directional, disk, point, quad, sphere, spot
 from .area import power_of
 from .light import NO_CONE, Light
-from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff, falloff_array,
-                   is_spot, polynomial_band, segment_cone)
+from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
+                   falloff_array, is_spot, polynomial_band, segment_cone)
 
 KINDS = {kind.NAME: kind for kind in (point, spot, directional, quad, disk, sphere)}
 _BY_CODE = {kind.CODE: kind for kind in KINDS.values()}

@@ -49,7 +49,8 @@ def parse_common(read, key, raw, code, position, emitter, axis=None, sides=True)
     radiance = power(read, f"{key}.radiance", read.rgb(f"{key}.radiance", raw["radiance"]))
     two = raw.get("two_sided", False)
     if not isinstance(two, bool):
-        read.fail(f"{key}.two_sided", f"expected true or false, got {two!r}", "write two_sided = true to emit on both sides")
+        read.fail(f"{key}.two_sided", f"expected true or false, got {two!r}",
+                  "write two_sided = true to emit on both sides")
     return Light(np.asarray(position, float), radiance, code, axis, emitter=emitter, two_sided=bool(two) and sides)
 
 

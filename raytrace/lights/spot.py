@@ -239,12 +239,17 @@ def band_trig(A, B, cos_end, cos_start, curve, a, b):
     """A polynomial curve's band (`polynomial_band`) as a trigonometric polynomial in phi:
     F = sum_{m=0}^{3} a_m cos(m phi) + b_m sin(m phi) (a, b of length 4), for
     t = (c - cos_end) / (cos_start - cos_end) and F = 3 t^2 - 2 t^3 (SMOOTHSTEP), t^2 (GLTF:
-    a_3 = b_3 = 0) or t (LAMBERT: a_2 = b_2 = a_3 = b_3 = 0). With z = e^{i phi}, c - cos_end = alpha z + u0 + conj(alpha) / z,
+    a_3 = b_3 = 0) or t (LAMBERT: a_2 = b_2 = a_3 = b_3 = 0). With z = e^{i phi},
+    c - cos_end = alpha z + u0 + conj(alpha) / z,
     alpha = -(B + iA) / 2, u0 = -cos_end; its square and cube are Laurent polynomials whose
     coefficient P_m of z^m gives a_m = 2 Re P_m, b_m = -2 Im P_m (a_0 = P_0)."""
     d = cos_start - cos_end
     al = complex(-0.5 * B, -0.5 * A)
     u0 = -cos_end
+    if curve == LAMBERT:  # F = t: u / d alone
+        a[0], b[0], a[1], b[1] = u0 / d, 0.0, 2.0 * al.real / d, -2.0 * al.imag / d
+        a[2] = b[2] = a[3] = b[3] = 0.0
+        return
     s0 = u0 * u0 + 2.0 * (al.real * al.real + al.imag * al.imag)  # u^2 coefficients: z^0, z^1, z^2
     s1 = 2.0 * u0 * al
     s2 = al * al
@@ -252,15 +257,12 @@ def band_trig(A, B, cos_end, cos_start, curve, a, b):
     c1 = s0 * al + s1 * u0 + s2 * al.conjugate()
     c2 = s1 * al + s2 * u0
     c3 = s2 * al
-    p1, p2, p3 = 0.0, 3.0 / (d * d), 2.0 / (d * d * d)
+    p2, p3 = 3.0 / (d * d), 2.0 / (d * d * d)
     if curve == GLTF:
         p2, p3 = 1.0 / (d * d), 0.0
-    elif curve == LAMBERT:
-        p1, p2, p3 = 1.0 / d, 0.0, 0.0
-    a[0] = p1 * u0 + p2 * s0 - p3 * c0
+    a[0] = p2 * s0 - p3 * c0
     b[0] = 0.0
-    for m, (li, sq, cu) in enumerate(((al, s1, c1), (complex(0.0, 0.0), s2, c2),
-                                      (complex(0.0, 0.0), complex(0.0, 0.0), c3))):
-        P = p1 * li + p2 * sq - p3 * cu
+    for m, (sq, cu) in enumerate(((s1, c1), (s2, c2), (complex(0.0, 0.0), c3))):
+        P = p2 * sq - p3 * cu
         a[m + 1] = 2.0 * P.real
         b[m + 1] = -2.0 * P.imag
