@@ -100,7 +100,8 @@ class RenderResult:
 
 def prepare(scene: Scene) -> Prepared:
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
-    lights = Lights.of(scene.lights)
+    lights = Lights.of(scene.lights, [(tris[ids == i], s.emission, s.two_sided, f"{scene.path or 'scene'}: shape[{i}]")
+                                      for i, s in enumerate(scene.shapes) if s.emission is not None and s.light is None])
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
     prep = Prepared(scene, Accelerator(tris, extent), refl, lights, corners, shape_ids=ids, interior_shapes=inner)

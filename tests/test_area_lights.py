@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace import api
+from raytrace import api, errors as raytrace_errors
 from raytrace.cli import main
 from raytrace.lights import LAMBERT, Lights, band_trig, describe, disk, falloff, power_of, quad, sphere
 from raytrace.scene.format import scene_from_text
@@ -280,3 +280,72 @@ def test_area_lights_into_media_inside_shapes_are_refused(write_scene, tmp_path,
     assert main(["render", str(path), "--out", str(tmp_path / "x.exr"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "quad lights into a bounded medium (shape[0].interior)" in err, err
+
+
+EMISSIVE_QUAD = {"primitive": "quad", "corners": QUAD["corners"], "emission": 10.0}
+
+
+def test_the_triangle_rule_is_exact_to_degree_5():
+    """The emissive triangles' 7-point rule against scipy on a triangle, for every monomial x^a y^b, a + b <= 5."""
+    from raytrace.lights import emissive
+
+    tri = np.array([[0.2, -0.1, 0.0], [1.3, 0.4, 0.0], [0.1, 0.9, 0.0]])
+    nodes = emissive.BARY @ tri
+    area = 0.5 * abs(np.cross(tri[1] - tri[0], tri[2] - tri[0])[2])
+    for a in range(6):
+        for b in range(6 - a):
+            def f(t, s):  # (s, t) barycentric over the reference triangle, Jacobian 2 area
+                p = tri[0] + s * (tri[1] - tri[0]) + t * (tri[2] - tri[0])
+                return p[0] ** a * p[1] ** b * 2 * area
+            want = integrate.dblquad(f, 0, 1, 0, lambda s: 1 - s, epsabs=0, epsrel=1e-13)[0]
+            got = area * np.sum(emissive.WEIGHTS * nodes[:, 0] ** a * nodes[:, 1] ** b)
+            assert abs(got - want) <= 1e-13 * max(1.0, abs(want)), (a, b, got, want)
+
+
+def test_an_emissive_shape_is_an_area_light():
+    """`emission` on a [[shape]]: its triangles' rows weigh its area, face its winding, name the shape after
+    the lights; the camera sees it; it lights the fog as the quad light of the same corners does (within
+    the cubature's error: 14 rows against 64; the pixel whose ray grazes the edge differs by 5 %), and is
+    refused above MAX_TRIANGLES and by methods without spot lights."""
+    from raytrace.lights import emissive
+    from raytrace.renderer import prepare
+
+    prep = prepare(scene([{"position": [0.0, 3.0, 0.0], "intensity": 1.0}], shapes=[EMISSIVE_QUAD]))
+    lights = prep.lights
+    assert len(lights) == 1 + 14 and lights.owner.tolist() == [0] + [1] * 14
+    assert lights.kinds() == {"point", "spot", "emission"} and lights.cubature.sum() == 14
+    assert abs(lights.intensity[1:, 0].sum() - 10.0) <= 1e-13 * 10.0
+    np.testing.assert_array_equal(lights.axis[1:], np.tile([0.0, -1.0, 0.0], (14, 1)))
+    below = api.render(scene([], VACUUM, LOOK_UP, [EMISSIVE_QUAD]), "quadrature").array
+    np.testing.assert_array_equal(below, 10.0)
+    shape = api.render(scene([], camera=SMALL, shapes=[EMISSIVE_QUAD]), "analytic", volumetric_shadows=True).array
+    light = api.render(scene([QUAD], camera=SMALL), "analytic", volumetric_shadows=True).array
+    rel = np.abs(shape / light - 1)
+    assert np.median(rel) < 1e-5 and rel.max() < 0.1, (np.median(rel), rel.max())  # max: the ray by its edge
+    many = {"primitive": "sphere", "center": [0.0, 1.0, 0.0], "radius": 0.2, "emission": 1.0}
+    with pytest.raises(raytrace_errors.UserError, match=rf"^scene: shape\[0\].emission: the shape has \d+ "
+                                                        rf"triangles; emissive shapes of more than "
+                                                        rf"{emissive.MAX_TRIANGLES} are not implemented yet"):
+        prepare(scene([], shapes=[many]))
+
+
+@pytest.mark.parametrize("shape,message", [
+    ({**EMISSIVE_QUAD, "emission": -1.0}, "shape[0].emission: must be >= 0.0"),
+    ({**EMISSIVE_QUAD, "two_sided": "yes"}, "shape[0].two_sided: expected true or false"),
+    ({"primitive": "quad", "corners": QUAD["corners"], "two_sided": True}, "shape[0].two_sided: is read only with "
+                                                                            "emission"),
+    ({"primitive": "box", "min": [-1.0, -1.0, -1.0], "max": [1.0, 0.0, 1.0], "interior": {"sigma_s": 0.1},
+      "emission": 1.0}, "shape[0].emission: a shape that holds a medium cannot emit yet"),
+])
+def test_bad_emission_is_one_line(write_scene, tmp_path, capsys, shape, message):
+    path = write_scene({"camera": CAMERA, "shape": [shape], "medium": FOG})
+    assert main(["render", str(path), "--out", str(tmp_path / "x.exr"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and message in err, err
+
+
+def test_methods_without_spot_lights_refuse_emissive_shapes(write_scene, tmp_path, capsys):
+    path = write_scene({"camera": CAMERA, "shape": [EMISSIVE_QUAD], "medium": FOG})
+    assert main(["render", str(path), "--out", str(tmp_path / "x.exr"), "--quiet", "--method", "lecocq"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--method lecocq: it does not take emissive shapes (shape.emission); use --method analytic" in err, err

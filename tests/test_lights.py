@@ -10,7 +10,7 @@ import pytest
 from raytrace.cli import main
 from raytrace.errors import UserError
 from raytrace.lights import AREA, KINDS, Light, Lights, describe, light_sample, point, spot
-from raytrace.scene.format import CAMERA_KEYS, PRIMITIVE_KEYS, load_scene, scene_from_text
+from raytrace.scene.format import CAMERA_KEYS, PRIMITIVE_KEYS, SHAPE_COMMON, load_scene, scene_from_text
 
 from .conftest import to_toml
 
@@ -96,8 +96,9 @@ def test_the_scene_parser_names_no_light_kind():
     """scene/format.py asks the registry (ARCHITECTURE.md: "it names no medium kind itself"), so a new
     kind lands in raytrace/lights/ alone."""
     text = (ROOT / "raytrace" / "scene" / "format.py").read_text(encoding="utf-8")
-    # the words other tables share with light kinds: primitives (quad, sphere, corners, ...), [background] radiance
-    shapes = set(PRIMITIVE_KEYS).union(*PRIMITIVE_KEYS.values(), {"radiance"})
+    # the words other tables share with light kinds: primitives (quad, sphere, corners, ...), shapes' two_sided,
+    # [background] radiance
+    shapes = set(PRIMITIVE_KEYS).union(*PRIMITIVE_KEYS.values(), SHAPE_COMMON, {"radiance"})
     named = [name for name in set(KINDS) - shapes if re.search(rf'["\']{name}["\']', text)]
     named += [key for kind in KINDS.values() for key in kind.KEYS - CAMERA_KEYS - shapes
               if re.search(rf'["\']{key}["\']', text)]

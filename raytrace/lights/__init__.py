@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
-from . import directional, disk, point, quad, sphere, spot
+from . import directional, disk, emissive, point, quad, sphere, spot
 from .area import power_of
-from .light import NO_CONE, Light
+from .light import MAX_POWER, NO_CONE, Light
 from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
                    falloff_array, is_spot, polynomial_band, segment_cone)
 
@@ -26,6 +26,7 @@ _BY_CODE = {kind.CODE: kind for kind in KINDS.values()}
 NAMES = {code: kind.NAME for code, kind in _BY_CODE.items()}
 POINT, SPOT, DIRECTIONAL = point.CODE, spot.CODE, directional.CODE
 AREA = (quad.NAME, disk.NAME, sphere.NAME)  # the kinds whose rows are a cubature of an emitter (area.py)
+EMISSION = emissive.NAME  # emissive shapes among the kinds (`Lights.kinds`)
 
 
 def parse_light(read, i, raw) -> Light:
@@ -62,8 +63,10 @@ class Lights:
     points: light.py `rows`) as float64 arrays: `kind` (L,) the row's kind (point, spot or directional),
     `position` (L, 3), `intensity` (L, 3), `axis` (L, 3) (zero for point lights), `cone` (L, 3):
     (cos_end, cos_start, curve), NO_CONE for point and directional lights (their curve: SMOOTHSTEP,
-    unused); `owner` (L,) the scene light of each row (its index in the scene's lights), `cubature`
-    (L,) whether the row is a node of an emitter's cubature, and `scene_kinds` the scene lights' kinds."""
+    unused); `owner` (L,) the scene light of each row (its index in the scene's lights; an emissive
+    shape's rows: the number of lights plus its index among the emissive shapes), `cubature` (L,) whether
+    the row is a node of an emitter's cubature, and `scene_kinds` the scene lights' kinds (then
+    "emission" per emissive shape)."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray
@@ -74,14 +77,16 @@ class Lights:
     scene_kinds: tuple = ()
 
     @classmethod
-    def of(cls, lights: list[Light]) -> "Lights":
-        rows = [_BY_CODE[l.kind].rows(l) for l in lights]
+    def of(cls, lights: list[Light], emitters=()) -> "Lights":
+        """The rows of the scene's `lights`, then of its emissive shapes: `emitters`, a list of
+        (world triangles (T, 3, 3), emission, two_sided, the shape's key for a refusal)."""
+        rows = [_BY_CODE[l.kind].rows(l) for l in lights] + [emissive.rows(*e) for e in emitters]
         counts = [len(r.kind) for r in rows]
         return cls(_stack(rows, "kind", 0, np.int64), *(_stack(rows, k, 3) for k in ("position", "intensity", "axis",
                                                                                      "cone")),
-                   np.repeat(np.arange(len(lights), dtype=np.int64), counts),
+                   np.repeat(np.arange(len(rows), dtype=np.int64), counts),
                    np.repeat(np.array([r.cubature for r in rows], dtype=bool), counts),
-                   tuple(NAMES[l.kind] for l in lights))
+                   tuple(NAMES[l.kind] for l in lights) + (EMISSION,) * len(emitters))
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -111,7 +116,7 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
     return point.sample(position, axis, cone, li, px, py, pz)
 
 
-__all__ = ["AREA", "CURVES", "DIRECTIONAL", "GLTF", "KINDS", "LAMBERT", "Light", "Lights", "MITSUBA", "NAMES",
-           "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks", "describe",
-           "emitter_shape", "falloff", "falloff_array", "is_spot", "light_sample", "parse_light", "polynomial_band",
-           "power_of", "segment_cone"]
+__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "GLTF", "KINDS", "LAMBERT", "Light", "Lights", "MAX_POWER",
+           "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks",
+           "describe", "emitter_shape", "falloff", "falloff_array", "is_spot", "light_sample", "parse_light",
+           "polynomial_band", "power_of", "segment_cone"]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import Light, emitter_shape, parse_light
+from ..lights import MAX_POWER, Light, emitter_shape, parse_light
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -192,7 +192,7 @@ PRIMITIVE_KEYS = {
     "cylinder": {"base", "top", "radius", "segments"},
     "triangles": {"vertices", "faces", "normals"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
-SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth"}
+SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth", "emission", "two_sided"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
 MAX_SEGMENTS = 2048  # a sphere of 2048 segments: 4.2 million triangles, ~0.3 GB (segments = 1e9 hung)
 
@@ -268,7 +268,26 @@ def _shape(ctx, i, raw):
     smooth = raw.get("smooth", True)
     if not isinstance(smooth, bool):
         ctx.fail(f"{key}.smooth", f"expected true or false, got {smooth!r}", "write smooth = false for flat facets")
-    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth)
+    emission, two_sided = _emission(ctx, key, raw)
+    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth,
+                 emission, two_sided)
+
+
+def _emission(ctx, key, raw):
+    """(emission, two_sided) of a shape: the radiance its triangles emit (lights/emissive.py), or None."""
+    if "emission" not in raw:
+        if "two_sided" in raw:
+            ctx.fail(f"{key}.two_sided", "is read only with emission", "remove it, or add emission = [r, g, b]")
+        return None, False
+    if "interior" in raw:
+        ctx.fail(f"{key}.emission", "a shape that holds a medium cannot emit yet", "remove emission or the interior")
+    emission = _rgb(ctx, f"{key}.emission", raw["emission"])
+    if np.any(emission > MAX_POWER):
+        ctx.fail(f"{key}.emission", f"{emission.max():g} exceeds {MAX_POWER:g}", "scale the scene's units of power down")
+    two = raw.get("two_sided", False)
+    if not isinstance(two, bool):
+        ctx.fail(f"{key}.two_sided", f"expected true or false, got {two!r}", "write two_sided = true to emit on both sides")
+    return emission, two
 
 
 def _emitters(lights) -> list[Shape]:
