@@ -16,8 +16,8 @@ import numpy as np
 
 from ..jit import njit
 from . import directional, disk, emissive, point, quad, sphere, spot
-from .area import power_of
-from .light import MAX_POWER, NO_CONE, Light
+from .area import power_of, two_sided
+from .light import NO_CONE, Light, power
 from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
                    falloff_array, is_spot, polynomial_band, segment_cone)
 
@@ -116,7 +116,7 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
     return point.sample(position, axis, cone, li, px, py, pz)
 
 
-__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "GLTF", "KINDS", "LAMBERT", "Light", "Lights", "MAX_POWER",
-           "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks",
-           "describe", "emitter_shape", "falloff", "falloff_array", "is_spot", "light_sample", "parse_light",
-           "polynomial_band", "power_of", "segment_cone"]
+__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "GLTF", "KINDS", "LAMBERT", "Light", "Lights", "MITSUBA",
+           "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks", "describe",
+           "emitter_shape", "falloff", "falloff_array", "is_spot", "light_sample", "parse_light", "polynomial_band",
+           "power", "power_of", "segment_cone", "two_sided"]

@@ -47,11 +47,17 @@ def parse_common(read, key, raw, code, position, emitter, axis=None, sides=True)
     sphere emits outward only: `sides` false) read here, its geometry in `emitter`."""
     required(read, key, raw, (("radiance", "[10.0, 10.0, 10.0] (W / (m^2 sr))"),))
     radiance = power(read, f"{key}.radiance", read.rgb(f"{key}.radiance", raw["radiance"]))
+    return Light(np.asarray(position, float), radiance, code, axis, emitter=emitter,
+                 two_sided=sides and two_sided(read, key, raw))
+
+
+def two_sided(read, key, raw) -> bool:
+    """The table's `two_sided` (an area light's or an emissive shape's), default false."""
     two = raw.get("two_sided", False)
     if not isinstance(two, bool):
         read.fail(f"{key}.two_sided", f"expected true or false, got {two!r}",
                   "write two_sided = true to emit on both sides")
-    return Light(np.asarray(position, float), radiance, code, axis, emitter=emitter, two_sided=bool(two) and sides)
+    return two
 
 
 def emitter_rows(light: Light, points, normals, weights) -> Rows:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import MAX_POWER, Light, emitter_shape, parse_light
+from ..lights import Light, emitter_shape, parse_light, power, two_sided
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -281,13 +281,8 @@ def _emission(ctx, key, raw):
         return None, False
     if "interior" in raw:
         ctx.fail(f"{key}.emission", "a shape that holds a medium cannot emit yet", "remove emission or the interior")
-    emission = _rgb(ctx, f"{key}.emission", raw["emission"])
-    if np.any(emission > MAX_POWER):
-        ctx.fail(f"{key}.emission", f"{emission.max():g} exceeds {MAX_POWER:g}", "scale the scene's units of power down")
-    two = raw.get("two_sided", False)
-    if not isinstance(two, bool):
-        ctx.fail(f"{key}.two_sided", f"expected true or false, got {two!r}", "write two_sided = true to emit on both sides")
-    return emission, two
+    read = _Reader(ctx)
+    return power(read, f"{key}.emission", _rgb(ctx, f"{key}.emission", raw["emission"])), two_sided(read, key, raw)
 
 
 def _emitters(lights) -> list[Shape]:
