@@ -33,7 +33,8 @@ from .methods import get_method, resolve_params
 from .options import RenderOptions
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
-from .shading import emitted_radiance, facing_normals, ground_radiance, planet_hits, shading_normals, surface_radiance
+from .shading import (emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits, shading_normals,
+                      surface_radiance)
 from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
@@ -100,8 +101,7 @@ class RenderResult:
 
 def prepare(scene: Scene) -> Prepared:
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
-    lights = Lights.of(scene.lights, [(tris[ids == i], s.emission, s.two_sided, f"{scene.path or 'scene'}: shape[{i}]")
-                                      for i, s in enumerate(scene.shapes) if s.emission is not None and s.light is None])
+    lights = Lights.of(scene.lights, emissive_shapes(scene, tris, ids))
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
     prep = Prepared(scene, Accelerator(tris, extent), refl, lights, corners, shape_ids=ids, interior_shapes=inner)

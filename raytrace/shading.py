@@ -126,6 +126,13 @@ def emitted_radiance(shapes, shape_ids, winding_normals, dirs):
     return emission[shape_ids] * (front | both[shape_ids])[:, None]
 
 
+def emissive_shapes(scene, triangles, shape_ids) -> list:
+    """The `emitters` of `Lights.of`: (world triangles, emission, two_sided, key) of each shape of the
+    file with `emission` (an area light's own emitter shape is that light's rows already)."""
+    return [(triangles[shape_ids == i], s.emission, s.two_sided, f"{scene.path or 'scene'}: shape[{i}]")
+            for i, s in enumerate(scene.shapes) if s.emission is not None and s.light is None]
+
+
 def planet_hits(medium, origins, dirs, t):
     """(ground, t): where rays meet the medium's own ground (an atmosphere's planet) before the mesh
     hit at t, and t with those distances (float64, the numbers the transmittance compares with)."""
