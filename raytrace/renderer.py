@@ -35,7 +35,8 @@ from .methods import get_method, resolve_params
 from .options import RenderOptions
 from .scene.format import Scene
 from .scene.meshes import scene_triangles
-from .shading import facing_normals, ground_radiance, planet_hits, shading_normals, surface_radiance
+from .shading import (emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits, shading_normals,
+                      surface_radiance)
 from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
 
@@ -116,7 +117,7 @@ class RenderResult:
 
 def prepare(scene: Scene) -> Prepared:
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
-    lights = Lights.of(scene.lights)
+    lights = Lights.of(scene.lights, emissive_shapes(scene, tris, ids))
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
     prep = Prepared(scene, Accelerator(tris, extent), refl, lights, corners, shape_ids=ids, interior_shapes=inner)
@@ -143,6 +144,7 @@ def airlight(method, medium, lights, params, segs, n_rays: int):
         bound = gather(segs, res[2], n_rays, medium)
     else:
         bound = np.where(error_bounds.rays_with(segs.ray, n_rays)[:, None], np.inf, np.zeros((n_rays, 3)))
+    bound[error_bounds.rays_with(segs.ray[lights.cubature[segs.light]], n_rays)] = np.inf  # area lights' cubature
     return gather(segs, res[0], n_rays, medium), res[1], var, bound
 
 
@@ -177,6 +179,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium, bounded.shadow_through(prep), shading)
+        radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]], prep.accel.normals[prim[surf]],
+                                           dirs[surf])
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
@@ -195,6 +199,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if into.any() and variance is not None:
         variance[into] = into_var * tr[into] ** 2
     bound = np.zeros_like(radiance)
+    bound[surf & prep.lights.cubature.any()] = np.inf  # an area light's cubature on surfaces: no bound
     if into.any():
         bound[into] = bounded.scaled(into_bound, tr[into])
     if len(prep.lights) and medium.scatters:

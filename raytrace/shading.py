@@ -13,7 +13,9 @@ transmittance to infinity toward it (seed 004, eq. 34 with t1 = inf). The camera
 attenuated by its own transmittance; that factor is applied by the renderer. An atmosphere's
 planet (media/atmosphere.py) is a sphere the medium intersects in float64 (`planet_hits`), a diffuse
 ground of the medium's reflectance (`ground_radiance`); its shadow is in the transmittance (0 to a
-light behind it).
+light behind it). An area light's emitter (a shape with `emission`, scene/format.py) adds its radiance
+where a ray meets its front (`emitted_radiance`; an area light lights surfaces through its emitter
+points, spot rows of lights/area.py, like any spot light).
 """
 from __future__ import annotations
 
@@ -114,6 +116,23 @@ def _add_directional(out, accel, points, normals, reflectance, lights, li, mediu
     idx, part = _unblocked(accel, o, d, np.full(len(idx), np.inf), idx, points, li, through)
     tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf) * part
     out[idx] += reflectance[idx] / math.pi * lights.intensity[li] * tr * cos[idx, None]
+
+
+def emitted_radiance(shapes, shape_ids, winding_normals, dirs):
+    """Radiance (N, 3) the rays `dirs` see emitted where they hit triangles of the shapes `shape_ids`
+    with unit winding normals `winding_normals`: the shape's `emission` on the side its winding's
+    normal points to (the ray travels against it), on both if `two_sided`; 0 elsewhere."""
+    emission = np.array([np.zeros(3) if s.emission is None else s.emission for s in shapes]).reshape(-1, 3)
+    both = np.array([s.two_sided for s in shapes], dtype=bool)
+    front = np.einsum("ij,ij->i", winding_normals, dirs) < 0.0
+    return emission[shape_ids] * (front | both[shape_ids])[:, None]
+
+
+def emissive_shapes(scene, triangles, shape_ids) -> list:
+    """The `emitters` of `Lights.of`: (world triangles, emission, two_sided, key) of each shape of the
+    file with `emission` (an area light's own emitter shape is that light's rows already)."""
+    return [(triangles[shape_ids == i], s.emission, s.two_sided, f"{scene.path or 'scene'}: shape[{i}]")
+            for i, s in enumerate(scene.shapes) if s.emission is not None and s.light is None]
 
 
 def planet_hits(medium, origins, dirs, t):

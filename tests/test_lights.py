@@ -9,8 +9,8 @@ import pytest
 
 from raytrace.cli import main
 from raytrace.errors import UserError
-from raytrace.lights import KINDS, Light, Lights, describe, light_sample, point, spot
-from raytrace.scene.format import CAMERA_KEYS, load_scene, scene_from_text
+from raytrace.lights import AREA, KINDS, Light, Lights, describe, light_sample, point, spot
+from raytrace.scene.format import CAMERA_KEYS, PRIMITIVE_KEYS, SHAPE_COMMON, load_scene, scene_from_text
 
 from .conftest import to_toml
 
@@ -23,11 +23,13 @@ LIGHTS = [{"position": [1.0, 2.0, 3.0], "intensity": [1.0, 2.0, 3.0]},
 
 
 def test_every_kind_declares_the_interface():
-    """lights/light.py's list: a name, a code, its keys, parse, describe, irradiance and the numba sample."""
-    assert list(KINDS) == ["point", "spot", "directional"]
+    """lights/light.py's list: a name, a code, its keys, parse, describe and rows; the kinds that are
+    their own rows irradiance and the numba sample, the area kinds their emitter's shape."""
+    assert list(KINDS) == ["point", "spot", "directional", "quad", "disk", "sphere"]
     for name, kind in KINDS.items():
         assert kind.NAME == name and "type" in kind.KEYS
-        assert all(callable(getattr(kind, hook)) for hook in ("parse", "describe", "irradiance", "sample"))
+        hooks = ("shape",) if name in AREA else ("irradiance", "sample")
+        assert all(callable(getattr(kind, hook)) for hook in ("parse", "describe", "rows") + hooks)
     assert len({kind.CODE for kind in KINDS.values()}) == len(KINDS)
     default = Light(np.zeros(3), np.ones(3))  # a light of no kind is a point light; a spot's default curve
     assert default.kind == point.CODE and default.curve == spot.CURVES["smoothstep"]
@@ -36,14 +38,15 @@ def test_every_kind_declares_the_interface():
 def test_an_unknown_kind_is_refused_naming_the_kinds():
     with pytest.raises(UserError) as err:
         scene_from_text(to_toml({"camera": CAMERA, "light": [{"type": "area", "position": [0.0, 0.0, 0.0]}]}), "bad.toml")
-    assert str(err.value).startswith("bad.toml: light[0].type: 'area' is not one of point, spot, directional; ")
+    assert str(err.value).startswith("bad.toml: light[0].type: 'area' is not one of point, spot, directional, quad, "
+                                     "disk, sphere; ")
 
 
 def test_each_kind_parses_its_own_table():
     """The scene file's numbers, as each kind reads them: the spot's axis and cone from degrees."""
     scene = scene_from_text(to_toml({"camera": CAMERA, "light": LIGHTS}), "lights.toml")
     p, s, d = scene.lights
-    assert (p.kind, s.kind, d.kind) == tuple(KINDS[k].CODE for k in KINDS)
+    assert (p.kind, s.kind, d.kind) == tuple(KINDS[k].CODE for k in ("point", "spot", "directional"))
     np.testing.assert_array_equal(p.intensity, [1.0, 2.0, 3.0])
     assert p.axis is None and (p.cos_end, p.cos_start) == (-3.0, -2.0)  # no cone
     np.testing.assert_array_equal(s.axis, [0.0, -1.0, 0.0])
@@ -78,7 +81,7 @@ def test_light_sample_is_each_kinds_sample():
     lights = Lights.of(scene_from_text(to_toml({"camera": CAMERA, "light": LIGHTS}), "lights.toml").lights)
     args = lights.position, lights.axis, lights.cone
     for p in np.random.default_rng(3).uniform(-2.0, 2.0, (100, 3)):
-        for li, kind in enumerate(KINDS.values()):
+        for li, kind in enumerate(k for k in KINDS.values() if k.NAME not in AREA):  # area lights: spot rows
             got = light_sample(lights.kind, *args, li, *p)
             assert got == kind.sample(*args, li, *p)
             ux, uy, uz, dist, weight = got
@@ -93,6 +96,10 @@ def test_the_scene_parser_names_no_light_kind():
     """scene/format.py asks the registry (ARCHITECTURE.md: "it names no medium kind itself"), so a new
     kind lands in raytrace/lights/ alone."""
     text = (ROOT / "raytrace" / "scene" / "format.py").read_text(encoding="utf-8")
-    named = [name for name in KINDS if re.search(rf'["\']{name}["\']', text)]
-    named += [key for kind in KINDS.values() for key in kind.KEYS - CAMERA_KEYS if re.search(rf'["\']{key}["\']', text)]
+    # the words other tables share with light kinds: primitives (quad, sphere, corners, ...), shapes' two_sided,
+    # [background] radiance
+    shapes = set(PRIMITIVE_KEYS).union(*PRIMITIVE_KEYS.values(), SHAPE_COMMON, {"radiance"})
+    named = [name for name in set(KINDS) - shapes if re.search(rf'["\']{name}["\']', text)]
+    named += [key for kind in KINDS.values() for key in kind.KEYS - CAMERA_KEYS - shapes
+              if re.search(rf'["\']{key}["\']', text)]
     assert not named, f"scene/format.py names light kinds or their keys: {named}"

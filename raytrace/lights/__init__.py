@@ -1,5 +1,7 @@
 """What a light is: one module per kind (point.py, spot.py with its falloff curves and cone
-mathematics, directional.py) behind the interface of light.py, and the arrays kernels read (`Lights`).
+mathematics, directional.py; the area lights quad.py, disk.py, sphere.py, area.py) behind the
+interface of light.py, and the arrays kernels read (`Lights`: each scene light's rows, an area
+light's emitter points being spot rows).
 
 `KINDS` maps the scene files' `light.type` to the kind; `parse_light` reads a [[light]] table,
 `describe` says what a light is; `light_sample` is the kernels' one entry to the kinds' samples
@@ -13,15 +15,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
-from . import directional, point, spot
-from .light import NO_CONE, Light
-from .spot import (CURVES, GLTF, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff, falloff_array,
-                   is_spot, polynomial_band, segment_cone)
+from . import directional, disk, emissive, point, quad, sphere, spot
+from .area import power_of, two_sided
+from .light import NO_CONE, Light, power
+from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
+                   falloff_array, is_spot, polynomial_band, segment_cone)
 
-KINDS = {kind.NAME: kind for kind in (point, spot, directional)}
+KINDS = {kind.NAME: kind for kind in (point, spot, directional, quad, disk, sphere)}
 _BY_CODE = {kind.CODE: kind for kind in KINDS.values()}
 NAMES = {code: kind.NAME for code, kind in _BY_CODE.items()}
 POINT, SPOT, DIRECTIONAL = point.CODE, spot.CODE, directional.CODE
+AREA = (quad.NAME, disk.NAME, sphere.NAME)  # the kinds whose rows are a cubature of an emitter (area.py)
+EMISSION = emissive.NAME  # emissive shapes among the kinds (`Lights.kinds`)
 
 
 def parse_light(read, i, raw) -> Light:
@@ -39,31 +44,56 @@ def describe(light: Light) -> str:
     return _BY_CODE[light.kind].describe(light)
 
 
+def emitter_shape(light: Light):
+    """(primitive, params) of an area light's emitter as a [[shape]] (scene/format.py adds it), else None."""
+    kind = _BY_CODE[light.kind]
+    return kind.shape(light) if hasattr(kind, "shape") else None
+
+
+def _stack(rows, name, width, dtype=float):
+    """The `name` arrays of light.Rows stacked: (L, width), or (L,) for width 0."""
+    shape = (-1, width) if width else (-1,)
+    return np.concatenate([np.asarray(getattr(r, name), dtype).reshape(shape) for r in rows] +
+                          [np.zeros((0, width) if width else (0,), dtype)])
+
+
 @dataclass(frozen=True)
 class Lights:
-    """All lights as float64 arrays: `kind` (L,), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3)
-    (zero for point lights), `cone` (L, 3): (cos_end, cos_start, curve), NO_CONE for point and
-    directional lights (their curve: SMOOTHSTEP, unused)."""
+    """The rows the kernels see (one per point, spot or directional light, an area light's emitter
+    points: light.py `rows`) as float64 arrays: `kind` (L,) the row's kind (point, spot or directional),
+    `position` (L, 3), `intensity` (L, 3), `axis` (L, 3) (zero for point lights), `cone` (L, 3):
+    (cos_end, cos_start, curve), NO_CONE for point and directional lights (their curve: SMOOTHSTEP,
+    unused); `owner` (L,) the scene light of each row (its index in the scene's lights; an emissive
+    shape's rows: the number of lights plus its index among the emissive shapes), `cubature` (L,) whether
+    the row is a node of an emitter's cubature, and `scene_kinds` the scene lights' kinds (then
+    "emission" per emissive shape)."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray
     axis: np.ndarray
     cone: np.ndarray
+    owner: np.ndarray
+    cubature: np.ndarray
+    scene_kinds: tuple = ()
 
     @classmethod
-    def of(cls, lights: list[Light]) -> "Lights":
-        axis = [np.zeros(3) if l.axis is None else l.axis for l in lights]
-        return cls(np.array([l.kind for l in lights], dtype=np.int64),
-                   np.array([l.position for l in lights], dtype=float).reshape(-1, 3),
-                   np.array([l.intensity for l in lights], dtype=float).reshape(-1, 3),
-                   np.array(axis, dtype=float).reshape(-1, 3),
-                   np.array([(l.cos_end, l.cos_start, l.curve) for l in lights], dtype=float).reshape(-1, 3))
+    def of(cls, lights: list[Light], emitters=()) -> "Lights":
+        """The rows of the scene's `lights`, then of its emissive shapes: `emitters`, a list of
+        (world triangles (T, 3, 3), emission, two_sided, the shape's key for a refusal)."""
+        rows = [_BY_CODE[l.kind].rows(l) for l in lights] + [emissive.rows(*e) for e in emitters]
+        counts = [len(r.kind) for r in rows]
+        return cls(_stack(rows, "kind", 0, np.int64), *(_stack(rows, k, 3) for k in ("position", "intensity", "axis",
+                                                                                     "cone")),
+                   np.repeat(np.arange(len(rows), dtype=np.int64), counts),
+                   np.repeat(np.array([r.cubature for r in rows], dtype=bool), counts),
+                   tuple(NAMES[l.kind] for l in lights) + (EMISSION,) * len(emitters))
 
     def __len__(self) -> int:
         return len(self.kind)
 
     def kinds(self) -> set[str]:
-        return {NAMES[int(k)] for k in self.kind}
+        """The kinds of the scene's lights and of the rows they give (an area light's: spot)."""
+        return {NAMES[int(k)] for k in self.kind} | set(self.scene_kinds)
 
     def irradiance(self, index: int, to_points: np.ndarray, dist: np.ndarray) -> np.ndarray:
         """Unattenuated irradiance (N, 3) from light `index` on surfaces facing it at the points
@@ -86,6 +116,7 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
     return point.sample(position, axis, cone, li, px, py, pz)
 
 
-__all__ = ["CURVES", "DIRECTIONAL", "GLTF", "KINDS", "Light", "Lights", "MITSUBA", "NAMES", "NO_CONE", "POINT",
-           "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks", "describe", "falloff", "falloff_array",
-           "is_spot", "light_sample", "parse_light", "polynomial_band", "segment_cone"]
+__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "GLTF", "KINDS", "LAMBERT", "Light", "Lights", "MITSUBA",
+           "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks", "describe",
+           "emitter_shape", "falloff", "falloff_array", "is_spot", "light_sample", "parse_light", "polynomial_band",
+           "power", "power_of", "segment_cone", "two_sided"]

@@ -8,11 +8,12 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .light import Light, power
+from .light import Light, one_row, power
 
 NAME = "directional"
 CODE = 2
 KEYS = frozenset({"type", "direction", "irradiance"})
+rows = one_row  # its own one sample
 
 
 def parse(read, key, raw) -> Light:

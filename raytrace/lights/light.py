@@ -1,11 +1,17 @@
 """What every light kind is: the record it fills from the scene file (`Light`) and the interface
 the rest of the package reads instead of naming kinds (ARCHITECTURE.md).
 
-A kind is a module (point.py, spot.py, directional.py) that declares
-- `NAME`, its scene `type`; `CODE`, its entry in `Lights.kind`; `KEYS`, the keys of its table;
+A kind is a module (point.py, spot.py, directional.py; the area lights quad.py, disk.py,
+sphere.py) that declares
+- `NAME`, its scene `type`; `CODE`, its entry in `Light.kind`; `KEYS`, the keys of its table;
 - `parse(read, key, raw) -> Light`, its [[light]] table whose keys are already checked against
   `KEYS`, through scene/format.py's `read` (media/medium.py lists its methods);
 - `describe(light) -> str`, what `render.py describe` prints after "light[i]: ";
+- `rows(light) -> Rows`, what it is to the kernels: rows of `Lights` (`one_row` for the kinds that
+  are their own sample; an area light's emitter points, area.py, are spot rows);
+- area kinds: `shape(light) -> (primitive, params)`, the emitter as a [[shape]] primitive (scene/format.py
+  adds it: the camera sees it, it occludes);
+and the kinds that are their own rows (point, spot, directional) also
 - `irradiance(lights, index, to_points, dist)`, the unattenuated irradiance on surfaces facing it;
 - `sample(position, axis, cone, li, px, py, pz)`, a numba hook: the light seen from the point p as
   (ux, uy, uz, dist, weight): the unit direction toward the light, its distance (inf: a distant
@@ -39,6 +45,29 @@ class Light:
     cos_end: float = NO_CONE[0]
     cos_start: float = NO_CONE[1]
     curve: int = 0
+    emitter: dict | None = None  # an area light's geometry (area.py); `intensity` is then its radiance
+    two_sided: bool = False
+
+
+@dataclass(frozen=True)
+class Rows:
+    """What one scene light is to the kernels: rows of `Lights` (position, intensity, row kind,
+    axis, cone (cos_end, cos_start, curve)), (n, 3) arrays but `kind` (n,), and whether they are
+    a cubature of an emitter (`cubature`: the light's value is approximated, error_bounds.py)."""
+    position: np.ndarray
+    intensity: np.ndarray
+    kind: np.ndarray
+    axis: np.ndarray
+    cone: np.ndarray
+    cubature: bool = False
+
+
+def one_row(light: Light) -> Rows:
+    """The one row of a light that is its own sample (point, spot, directional)."""
+    axis = np.zeros(3) if light.axis is None else light.axis
+    return Rows(np.reshape(light.position, (1, 3)), np.reshape(light.intensity, (1, 3)),
+                np.array([light.kind], dtype=np.int64), np.reshape(axis, (1, 3)),
+                np.array([[light.cos_end, light.cos_start, light.curve]], dtype=float))
 
 
 def power(read, key, value):

@@ -6,11 +6,12 @@ from __future__ import annotations
 import math
 
 from ..jit import njit
-from .light import Light, power
+from .light import Light, one_row, power
 
 NAME = "point"
 CODE = 0  # Light's default kind
 KEYS = frozenset({"type", "position", "intensity"})
+rows = one_row  # its own one sample
 
 
 def position_intensity(read, key, raw):

@@ -21,16 +21,20 @@ import numpy as np
 
 from ..jit import njit
 from . import point
-from .light import Light
+from .light import Light, one_row
 
 NAME = "spot"
 CODE = 1
 KEYS = frozenset({"type", "position", "intensity", "look_at", "direction", "cone_angle", "falloff_start", "falloff"})
+rows = one_row  # its own one sample
 
 SMOOTHSTEP = 0  # the falloff curves (`falloff`; Light's default curve); the scene file's names:
 MITSUBA = 1
 GLTF = 2
 CURVES = {"smoothstep": SMOOTHSTEP, "mitsuba": MITSUBA, "gltf": GLTF}
+# not a scene file's curve: an area light's emitter point (area.py), a Lambertian emitter whose
+# intensity toward a direction at cosine c to its normal is I max(c, 0): cone 90 deg, core 0 deg, F = t
+LAMBERT = 3
 
 CUT_TOL = 1e-12  # relative: cone crossings this close to a segment's end are that end
 
@@ -101,7 +105,8 @@ def falloff(c, cos_end, cos_start, curve):
     SMOOTHSTEP: 3t^2 - 2t^3 (pbrt-v4's SpotLight, smoothstep(cos_end, cos_start, c));
     MITSUBA: (acos(cos_end) - acos(c)) / (acos(cos_end) - acos(cos_start)), linear in the angle
     (Mitsuba 3's spot emitter, src/emitters/spot.cpp `falloff_curve`);
-    GLTF: t^2 (KHR_lights_punctual's recommended implementation)."""
+    GLTF: t^2 (KHR_lights_punctual's recommended implementation);
+    LAMBERT: t (with cos_end = 0, cos_start = 1: F = max(c, 0), an area light's emitter point)."""
     if c >= cos_start:
         return 1.0
     if c <= cos_end:
@@ -112,6 +117,8 @@ def falloff(c, cos_end, cos_start, curve):
     t = (c - cos_end) / (cos_start - cos_end)
     if curve == GLTF:
         return t * t
+    if curve == LAMBERT:
+        return t
     return t * t * (3.0 - 2.0 * t)
 
 
@@ -132,13 +139,15 @@ def polynomial_band(curve):
 @njit
 def band_slope(cos_end, cos_start, curve):
     """(cos_start - cos_end) times the largest slope dF/dc of the curve over its band: 1.5
-    (smoothstep), 2 (gltf), (cos_start - cos_end) / ((acos(cos_end) - acos(cos_start)) sin(acos(cos_start)))
+    (smoothstep), 2 (gltf), 1 (lambert), (cos_start - cos_end) / ((acos(cos_end) - acos(cos_start)) sin(acos(cos_start)))
     (mitsuba, dF/dc = 1 / ((cutoff - beam) sin(theta)) is largest at the core's edge; inf at a core
     of 0 degrees)."""
     if curve == SMOOTHSTEP:
         return 1.5
     if curve == GLTF:
         return 2.0
+    if curve == LAMBERT:
+        return 1.0
     s = math.sqrt(max(0.0, 1.0 - cos_start * cos_start))
     den = (math.acos(cos_end) - math.acos(cos_start)) * s
     return (cos_start - cos_end) / den if den > 0.0 else math.inf
@@ -229,13 +238,18 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
 def band_trig(A, B, cos_end, cos_start, curve, a, b):
     """A polynomial curve's band (`polynomial_band`) as a trigonometric polynomial in phi:
     F = sum_{m=0}^{3} a_m cos(m phi) + b_m sin(m phi) (a, b of length 4), for
-    t = (c - cos_end) / (cos_start - cos_end) and F = 3 t^2 - 2 t^3 (SMOOTHSTEP) or t^2 (GLTF:
-    a_3 = b_3 = 0). With z = e^{i phi}, c - cos_end = alpha z + u0 + conj(alpha) / z,
+    t = (c - cos_end) / (cos_start - cos_end) and F = 3 t^2 - 2 t^3 (SMOOTHSTEP), t^2 (GLTF:
+    a_3 = b_3 = 0) or t (LAMBERT: a_2 = b_2 = a_3 = b_3 = 0). With z = e^{i phi},
+    c - cos_end = alpha z + u0 + conj(alpha) / z,
     alpha = -(B + iA) / 2, u0 = -cos_end; its square and cube are Laurent polynomials whose
     coefficient P_m of z^m gives a_m = 2 Re P_m, b_m = -2 Im P_m (a_0 = P_0)."""
     d = cos_start - cos_end
     al = complex(-0.5 * B, -0.5 * A)
     u0 = -cos_end
+    if curve == LAMBERT:  # F = t: u / d alone
+        a[0], b[0], a[1], b[1] = u0 / d, 0.0, 2.0 * al.real / d, -2.0 * al.imag / d
+        a[2] = b[2] = a[3] = b[3] = 0.0
+        return
     s0 = u0 * u0 + 2.0 * (al.real * al.real + al.imag * al.imag)  # u^2 coefficients: z^0, z^1, z^2
     s1 = 2.0 * u0 * al
     s2 = al * al

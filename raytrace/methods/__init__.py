@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..lights import AREA, EMISSION
 from ..media import Homogeneous
 from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
 from ..media.slab import CLOSED, QUAD
@@ -105,6 +106,9 @@ class ErrorLaw:
 
 
 LIGHTS = ("point", "spot", "directional")  # lights.NAMES
+# quad, disk, sphere lights and emissive shapes: spot rows to the kernels (lights/area.py), for every method
+# that takes spot lights
+AREA_LIGHTS = AREA + (EMISSION,)
 INSIDE_RTOL = 1e-10  # the relative accuracy of the inside quadrature of methods without an `rtol` of their own
 
 
@@ -212,8 +216,9 @@ class Method:
 
         for kind in sorted(lights.kinds() - set(self.supports.lights)):
             takers = [m.name for m in registry().values() if kind in m.supports.lights]
-            raise UserError(f"{source}: --method {self.name}: it does not take {kind} lights (light.type = "
-                            f"\"{kind}\"); use --method {', '.join(takers)}, or make the lights point lights")
+            what = "emissive shapes (shape.emission)" if kind == EMISSION else f"{kind} lights (light.type = \"{kind}\")"
+            raise UserError(f"{source}: --method {self.name}: it does not take {what}; use --method "
+                            f"{', '.join(takers)}, or make the lights point lights")
 
     def check_medium(self, medium, source: str):
         """Refuse a medium type or phase function this method does not integrate, naming the methods

@@ -40,7 +40,7 @@ import numpy as np
 
 from .. import error_bounds
 from ..jit import njit
-from . import ErrorLaw, Interiors, Method, Param, Supports
+from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
@@ -796,7 +796,7 @@ METHOD = Method(
     error_law=ErrorLaw({"precision": 1e-6}, "max", 3e-7),  # measured worst 7.2e-8 (isotropic), tests/test_methods.py
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
-    supports=Supports(lights=("point", "spot"), interiors=Interiors(
+    supports=Supports(lights=("point", "spot") + AREA_LIGHTS, interiors=Interiors(
         CLOSED, lights=("directional",), refracted=("directional",),
         limits="no closed form (eq. 7 of the analytic note on single scattering in homogeneous slabs)")),
 )

@@ -35,7 +35,7 @@ import numpy as np
 from ..jit import njit
 from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
-from . import INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
+from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        cone_row, fog_rows, segment_geometry, spot_factor)
@@ -691,7 +691,7 @@ METHOD = Method(
     points=_points,
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
     check=_check,
-    supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
+    supports=Supports(lights=LIGHTS + AREA_LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
                       interiors=Interiors(SAMPLE, exact_paths=True,
                                           settings=lambda params: (INSIDE_RTOL, params["samples"], 745.0), through="points"),
                       shadow_tests=("intervals", "samples")),

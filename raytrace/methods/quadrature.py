@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import error_bounds
 from ..jit import njit
-from . import LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
+from . import AREA_LIGHTS, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (COSD, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_inscatter,
                        atmosphere_row, by_channel, cone_row, fog_inscatter, fog_rows, spot_factor)
 from ..lights import cone_breaks, falloff, is_spot
@@ -223,7 +223,7 @@ METHOD = Method(
     error_law=ErrorLaw({"rtol": 1e-10}, "max", 3e-13),  # measured worst 1.8e-13 (spot_hg_narrow_through_view)
     stats_size=3,
     summarize=_summarize,
-    supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
+    supports=Supports(lights=LIGHTS + AREA_LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
                       interiors=Interiors(QUAD, exact_paths=True,
                                           settings=lambda params: (params["rtol"], 1, 745.0))),
 )

@@ -40,7 +40,7 @@ import numpy as np
 
 from ..jit import njit
 from ..rng import uniform
-from . import INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
+from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel, cone_row,
                        eq4_integrand, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
@@ -252,7 +252,7 @@ METHOD = Method(
     summarize=_summarize,
     points=_points,
     point_count=_point_count,
-    supports=Supports(lights=LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
+    supports=Supports(lights=LIGHTS + AREA_LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
                       interiors=Interiors(MARCH, exact_paths=True, fixed=("step", "jitter"),
                                           settings=lambda params: (INSIDE_RTOL, params["steps"], params["tau_max"]),
                                           through="points"),

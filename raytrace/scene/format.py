@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import Light, parse_light
+from ..lights import Light, emitter_shape, parse_light, power, two_sided
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 
@@ -64,6 +64,11 @@ class Shape:
     transform: Transform
     interior: Interior | None = None
     smooth: bool = True  # interpolated shading normals (scene/meshes.py); False: flat facets
+    # radiance (W / (m^2 sr)) a camera ray sees on the front of its triangles (their winding's side; both
+    # sides if two_sided): an area light's emitter (`light`: its index in Scene.lights; added by the reader)
+    emission: np.ndarray | None = None
+    two_sided: bool = False
+    light: int | None = None
 
 
 @dataclass
@@ -187,7 +192,7 @@ PRIMITIVE_KEYS = {
     "cylinder": {"base", "top", "radius", "segments"},
     "triangles": {"vertices", "faces", "normals"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
-SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth"}
+SHAPE_COMMON = {"mesh", "primitive", "reflectance", "transform", "interior", "smooth", "emission", "two_sided"}
 INTERIOR_KEYS = {"sigma_a", "sigma_s", "phase", "ior"}
 MAX_SEGMENTS = 2048  # a sphere of 2048 segments: 4.2 million triangles, ~0.3 GB (segments = 1e9 hung)
 
@@ -263,7 +268,33 @@ def _shape(ctx, i, raw):
     smooth = raw.get("smooth", True)
     if not isinstance(smooth, bool):
         ctx.fail(f"{key}.smooth", f"expected true or false, got {smooth!r}", "write smooth = false for flat facets")
-    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth)
+    emission, two_sided = _emission(ctx, key, raw)
+    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth,
+                 emission, two_sided)
+
+
+def _emission(ctx, key, raw):
+    """(emission, two_sided) of a shape: the radiance its triangles emit (lights/emissive.py), or None."""
+    if "emission" not in raw:
+        if "two_sided" in raw:
+            ctx.fail(f"{key}.two_sided", "is read only with emission", "remove it, or add emission = [r, g, b]")
+        return None, False
+    if "interior" in raw:
+        ctx.fail(f"{key}.emission", "a shape that holds a medium cannot emit yet", "remove emission or the interior")
+    read = _Reader(ctx)
+    return power(read, f"{key}.emission", _rgb(ctx, f"{key}.emission", raw["emission"])), two_sided(read, key, raw)
+
+
+def _emitters(lights) -> list[Shape]:
+    """The area lights' emitters as black shapes of their radiance (lights.emitter_shape): seen by the
+    camera, occluding like shapes; after the file's own shapes."""
+    out = []
+    for i, light in enumerate(lights):
+        made = emitter_shape(light)
+        if made is not None:
+            out.append(Shape(made[0], made[1], np.zeros(3), Transform(np.ones(3), np.zeros(3), np.zeros(3)),
+                             smooth=False, emission=light.intensity, two_sided=light.two_sided, light=i))
+    return out
 
 
 def _interior(ctx, key, raw):
@@ -387,6 +418,7 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     shapes = [_shape(ctx, i, s) for i, s in enumerate(shapes_raw)]
     read = _Reader(ctx)
     lights = [parse_light(read, i, s) for i, s in enumerate(lights_raw)]
+    shapes += _emitters(lights)
     medium = parse_medium(read, raw.get("medium"))
     medium.check_scene(read, camera, lights)
     return Scene(

@@ -1,0 +1,83 @@
+"""What the area lights (quad.py, disk.py, sphere.py) share: a Lambertian emitter of radiance L
+(W / (m^2 sr) per channel, the same toward every direction of its emitting side).
+
+An element dA of the emitter at y, of unit normal n, sends toward the direction u the radiant
+intensity L dA max(0, n·u): a spot light at y of axis n whose falloff is the cosine itself (spot.py's
+LAMBERT curve, a cone of 90 degrees). So an area light is, to the kernels, the rows of a cubature
+rule over the emitter's parameter domain: nodes y_i with weights w_i (their sum is the area A), each
+a spot row of intensity L w_i, axis n_i; a two-sided emitter has the same nodes once more with
+axis -n_i. Every method that takes spot lights integrates each row exactly along the ray as
+it integrates a spot light (the air-light's closed form is per point of the light); the cubature
+over the emitter is the one approximation (Rows.cubature: no error bound, error_bounds.py), its
+order measured in docs/area_lights.md.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .light import Light, Rows, power
+from .spot import CODE as SPOT, LAMBERT
+
+COMMON_KEYS = frozenset({"type", "radiance", "two_sided"})
+
+
+def gauss_legendre(n: int):
+    """Gauss–Legendre nodes and weights on [0, 1] (weights sum to 1; exact for degree 2n - 1)."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def frame(normal):
+    """Two unit vectors that make (t1, t2, normal) a right-handed orthonormal frame."""
+    alt = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(alt, normal)
+    t1 /= np.linalg.norm(t1)
+    return t1, np.cross(normal, t1)
+
+
+def required(read, key, raw, names):
+    """Fail naming the first of `names` missing from the table, with an example."""
+    for k, example in names:
+        if k not in raw:
+            read.fail(f"{key}.{k}", "missing", f"add {key}.{k} = {example}")
+
+
+def parse_common(read, key, raw, code, position, emitter, axis=None, sides=True) -> Light:
+    """The Light of an area kind: its `radiance` (required) and `two_sided` (default false; a
+    sphere emits outward only: `sides` false) read here, its geometry in `emitter`."""
+    required(read, key, raw, (("radiance", "[10.0, 10.0, 10.0] (W / (m^2 sr))"),))
+    radiance = power(read, f"{key}.radiance", read.rgb(f"{key}.radiance", raw["radiance"]))
+    return Light(np.asarray(position, float), radiance, code, axis, emitter=emitter,
+                 two_sided=sides and two_sided(read, key, raw))
+
+
+def two_sided(read, key, raw) -> bool:
+    """The table's `two_sided` (an area light's or an emissive shape's), default false."""
+    two = raw.get("two_sided", False)
+    if not isinstance(two, bool):
+        read.fail(f"{key}.two_sided", f"expected true or false, got {two!r}",
+                  "write two_sided = true to emit on both sides")
+    return two
+
+
+def emitter_rows(light: Light, points, normals, weights) -> Rows:
+    """The spot rows (LAMBERT) of a cubature rule: emitter points (n, 3), unit normals (n, 3) and
+    area weights (n,); a two-sided light's nodes again facing the other way."""
+    if light.two_sided:
+        points, normals, weights = (np.concatenate([points, points]), np.concatenate([normals, -normals]),
+                                    np.concatenate([weights, weights]))
+    n = len(weights)
+    return Rows(np.ascontiguousarray(points, dtype=float), weights[:, None] * light.intensity[None, :],
+                np.full(n, SPOT, dtype=np.int64), np.ascontiguousarray(normals, dtype=float),
+                np.tile([0.0, 1.0, float(LAMBERT)], (n, 1)), cubature=True)
+
+
+def radiance_text(light: Light) -> str:
+    """The end of an area light's `describe`: radiance, sides, power."""
+    sides = "two-sided" if light.two_sided else "one-sided"
+    return f"radiance {light.intensity.tolist()}, {sides}, power {power_of(light).tolist()} W"
+
+
+def power_of(light: Light) -> np.ndarray:
+    """The emitted power per channel: pi L A one-sided, 2 pi L A two-sided (a Lambertian emitter)."""
+    return np.pi * light.intensity * light.emitter["area"] * (2.0 if light.two_sided else 1.0)

@@ -1,0 +1,49 @@
+"""The sphere area light: a Lambertian sphere (area.py) of `center` and `radius` emitting outward;
+its emitter points are the product rule of ORDER Gauss–Legendre nodes in z = cos(theta) times 2 ORDER
+equally spaced azimuths. Each point's LAMBERT falloff max(0, n·u) is its own visibility over the
+sphere (a point of a convex emitter sees the receiver exactly when the receiver is in front of it).
+Its shape is the tessellated sphere of SEGMENTS segments (scene/meshes.py), inside the exact one.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import area
+
+NAME = "sphere"
+CODE = 5
+KEYS = (area.COMMON_KEYS - {"two_sided"}) | {"center", "radius"}
+ORDER = 8  # nodes in cos(theta) (docs/area_lights.md)
+SEGMENTS = 64
+
+
+def parse(read, key, raw):
+    area.required(read, key, raw, (("center", "[1.0, 1.0, 0.0]"), ("radius", "0.1")))
+    center = read.vec3(f"{key}.center", raw["center"])
+    radius = float(read.number(f"{key}.radius", raw["radius"], positive=True))
+    return area.parse_common(read, key, raw, CODE, center, {"radius": radius, "area": 4.0 * math.pi * radius * radius},
+                             sides=False)
+
+
+def describe(light) -> str:
+    return f"{NAME} at {light.position.tolist()}, radius {light.emitter['radius']:g}, {area.radiance_text(light)}"
+
+
+def rows(light, order: int | None = None):
+    order = order or ORDER
+    z, wz = area.gauss_legendre(order)
+    z, wz = 2.0 * z - 1.0, 2.0 * wz  # on [-1, 1]
+    m = 2 * order
+    phi = 2.0 * math.pi * (np.arange(m) + 0.5) / m
+    s = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    normals = np.stack([np.outer(s, np.cos(phi)), np.repeat(z[:, None], m, axis=1), np.outer(s, np.sin(phi))],
+                       axis=-1).reshape(-1, 3)
+    radius = light.emitter["radius"]
+    weights = np.repeat(wz * radius * radius * 2.0 * math.pi / m, m)
+    return area.emitter_rows(light, light.position + radius * normals, normals, weights)
+
+
+def shape(light):
+    return "sphere", {"center": light.position, "radius": light.emitter["radius"], "segments": SEGMENTS}

@@ -1,0 +1,143 @@
+"""A brute-force twin of the single scattering from an area light in a homogeneous isotropic medium
+with nothing else in the scene, built from the geometry alone (numpy and scipy, no project code):
+
+    L(ray) = int_0^T e^{-kt t} ks / (4 pi) E(o + t w) dt + [front hit] L e^{-kt T},
+    E(x) = int_emitter L max(0, n(y)·(x - y)) e^{-kt r} / r^3 dA(y),   r = |x - y|,
+
+T the distance to the emitter (inf if the ray misses it). E by composite Gauss–Legendre over the
+emitter's parameter domain (`panels` x `panels` cells of NODES x NODES nodes; the sphere by its
+visible cap, a 1-D integral in the angle from the cap's axis, scipy quad), the distance integral by
+scipy quad. Camera rays per SCENE_FORMAT.md's convention.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import integrate
+
+NODES = 16
+
+
+def camera_rays(position, look_at, up, fov, width, height):
+    """(H, W, 3) unit directions through the pixel centres (SCENE_FORMAT.md)."""
+    f = np.asarray(look_at, float) - position
+    f /= np.linalg.norm(f)
+    r = np.cross(f, up)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    tan = math.tan(math.radians(fov) / 2)
+    i, j = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    d = f + ((2 * i / width - 1) * tan * width / height)[..., None] * r + ((1 - 2 * j / height) * tan)[..., None] * u
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def _composite(panels):
+    x, w = np.polynomial.legendre.leggauss(NODES)
+    edges = np.linspace(0.0, 1.0, panels + 1)
+    h = np.diff(edges)
+    nodes = (edges[:-1, None] + 0.5 * h[:, None] * (x[None, :] + 1.0)).ravel()
+    return nodes, (0.5 * h[:, None] * w[None, :]).ravel()
+
+
+class Quad:
+    """c0 + u e1 + v e3, normal e1 x e3 normalised; one-sided unless two_sided."""
+
+    def __init__(self, corners, radiance, two_sided=False, panels=4):
+        c = np.asarray(corners, float)
+        self.c0, self.e1, self.e3 = c[0], c[1] - c[0], c[3] - c[0]
+        cross = np.cross(self.e1, self.e3)
+        self.area, self.n = np.linalg.norm(cross), cross / np.linalg.norm(cross)
+        self.L, self.two = radiance, two_sided
+        s, ws = _composite(panels)
+        uu, vv = np.meshgrid(s, s, indexing="ij")
+        self.y = self.c0 + uu.reshape(-1, 1) * self.e1 + vv.reshape(-1, 1) * self.e3
+        self.w = np.outer(ws, ws).ravel() * self.area
+
+    def centre(self):
+        return self.c0 + 0.5 * (self.e1 + self.e3)
+
+    def hit(self, o, w):
+        """(T, front): distance along the ray to the quad (inf if missed) and whether it is the emitting side."""
+        den = w @ self.n
+        if den == 0.0:
+            return math.inf, False
+        t = (self.c0 - o) @ self.n / den
+        if t <= 0.0:
+            return math.inf, False
+        p = o + t * w - self.c0
+        g = np.array([[self.e1 @ self.e1, self.e1 @ self.e3], [self.e1 @ self.e3, self.e3 @ self.e3]])
+        a, b = np.linalg.solve(g, [p @ self.e1, p @ self.e3])
+        if not (0.0 <= a <= 1.0 and 0.0 <= b <= 1.0):
+            return math.inf, False
+        return t, den < 0.0 or self.two
+
+    def irradiance(self, x, kt):
+        d = x[None, :] - self.y
+        r = np.linalg.norm(d, axis=1)
+        c = d @ self.n
+        c = np.abs(c) if self.two else np.maximum(c, 0.0)
+        return self.L * np.sum(self.w * c * np.exp(-kt * r) / r**3)
+
+
+class Disk(Quad):
+    def __init__(self, center, normal, radius, radiance, two_sided=False, panels=4):
+        self.c, self.n, self.R = np.asarray(center, float), np.asarray(normal, float) / np.linalg.norm(normal), radius
+        self.L, self.two, self.area = radiance, two_sided, math.pi * radius**2
+        alt = np.array([1.0, 0, 0]) if abs(self.n[0]) < 0.9 else np.array([0, 1.0, 0])
+        t1 = np.cross(alt, self.n)
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(self.n, t1)
+        s, ws = _composite(panels)
+        rr, pp = np.meshgrid(s * radius, s * 2 * math.pi, indexing="ij")
+        self.y = self.c + rr.reshape(-1, 1) * (np.cos(pp).reshape(-1, 1) * t1 + np.sin(pp).reshape(-1, 1) * t2)
+        self.w = (np.outer(ws * radius, ws * 2 * math.pi) * rr).ravel()
+
+    def centre(self):
+        return self.c
+
+    def hit(self, o, w):
+        den = w @ self.n
+        if den == 0.0:
+            return math.inf, False
+        t = (self.c - o) @ self.n / den
+        if t <= 0.0 or np.linalg.norm(o + t * w - self.c) > self.R:
+            return math.inf, False
+        return t, den < 0.0 or self.two
+
+
+class Sphere:
+    def __init__(self, center, radius, radiance):
+        self.c, self.R, self.L = np.asarray(center, float), radius, radiance
+
+    def centre(self):
+        return self.c
+
+    def hit(self, o, w):
+        oc = o - self.c
+        b = oc @ w
+        disc = b * b - (oc @ oc - self.R**2)
+        if disc < 0.0 or -b - math.sqrt(disc) <= 0.0:
+            return math.inf, False
+        return -b - math.sqrt(disc), True
+
+    def irradiance(self, x, kt):
+        """The visible cap (cos beta >= R / d about the axis toward x), integrated in beta."""
+        d = np.linalg.norm(x - self.c)
+        R = self.R
+
+        def f(beta):
+            r = math.sqrt(d * d + R * R - 2 * d * R * math.cos(beta))
+            return (d * math.cos(beta) - R) / r * math.exp(-kt * r) / r**2 * 2 * math.pi * R * R * math.sin(beta)
+
+        return self.L * integrate.quad(f, 0.0, math.acos(R / d), epsabs=0.0, epsrel=1e-12, limit=200)[0]
+
+
+def radiance(emitter, o, w, kt, ks):
+    """The twin's radiance of the camera ray o + t w (isotropic phase 1 / (4 pi))."""
+    T, front = emitter.hit(o, w)
+    f = lambda t: math.exp(-kt * t) * ks / (4 * math.pi) * emitter.irradiance(o + t * w, kt)  # noqa: E731
+    tc = max(0.0, (emitter.centre() - o) @ w)  # split where the ray passes the emitter
+    cuts = [0.0] + [c for c in (tc, 2 * tc + 10.0) if c < T] + [T]
+    air = sum(integrate.quad(f, a, b, epsabs=0.0, epsrel=1e-11, limit=400)[0] for a, b in zip(cuts, cuts[1:]))
+    return air + (emitter.L * math.exp(-kt * T) if front else 0.0)
