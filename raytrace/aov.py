@@ -8,9 +8,10 @@
   where nothing is hit;
 - `lights`: `light0.R/G/B`, ... the radiance each light of the scene alone gives the pixel (its rays
   shaded again with the other lights' intensities zero, renderer.Prepared.only: air-light, surface
-  term and media inside shapes), and `emission.R/G/B`, what no light gives: the background seen
-  directly, through shapes that hold a medium and in their Fresnel mirrors. The light layers and
-  emission sum to the image (to rounding: the same terms added in another order).
+  term and media inside shapes), the [[light]] tables in order, then the shapes with `emission`
+  (lights/: `Lights.owner`), and `emission.R/G/B`, what no light gives: the background and the
+  emitters seen directly, through shapes that hold a medium and in their Fresnel mirrors. The light
+  layers and emission sum to the image (to rounding: the same terms added in another order).
 """
 from __future__ import annotations
 
@@ -76,9 +77,15 @@ def first_hits(prep, names, origins, dirs) -> np.ndarray:
     return np.concatenate([columns[n] for n in wanted], axis=1) if wanted else np.zeros((len(t), 0))
 
 
-def light_masks(n_lights: int) -> list[np.ndarray]:
-    """The lights of each light layer (boolean masks over the `Lights` rows), then none (emission)."""
-    return [np.arange(n_lights) == i for i in range(n_lights)] + [np.zeros(n_lights, dtype=bool)]
+def sources(lights) -> int:
+    """The number of light layers of `lights` (lights.Lights): its scene lights and emissive shapes."""
+    return int(lights.owner.max()) + 1 if len(lights) else 0
+
+
+def light_masks(lights) -> list[np.ndarray]:
+    """The rows of each light layer (boolean masks over the `Lights` rows: one scene light's, an area
+    light's emitter points together), then none (emission)."""
+    return [lights.owner == i for i in range(sources(lights))] + [np.zeros(len(lights), dtype=bool)]
 
 
 def split(names, n_lights: int, columns: np.ndarray) -> dict[str, np.ndarray]:

@@ -148,6 +148,12 @@ def airlight(method, medium, lights, params, segs, n_rays: int):
     return gather(segs, res[0], n_rays, medium), res[1], var, bound
 
 
+def sees_emission(prep: Prepared) -> bool:
+    """Whether camera rays see the background and the emitters themselves: in every pass but a light
+    layer's (`Prepared.only`), whose rays see only that light's light."""
+    return prep.lights_on is None or not prep.lights_on.any()
+
+
 def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None, depth=0):
     """Radiance (N, 3) of camera rays, the statistics array (`stats_size`: the method's, the lit
     intervals', the inside integrals', summed over the rays followed behind shapes), for a stochastic
@@ -179,8 +185,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium, bounded.shadow_through(prep), shading)
-        radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]], prep.accel.normals[prim[surf]],
-                                           dirs[surf])
+        if sees_emission(prep):
+            radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
+                                               prep.accel.normals[prim[surf]], dirs[surf])
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
@@ -190,7 +197,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         else:
             radiance[into], into_var, into_bound = _across(prep, method, params, crossing, seed, shadows, depth,
                                                            deeper)
-    if prep.lights_on is None or not prep.lights_on.any():  # a light layer's pass sees no background
+    if sees_emission(prep):
         radiance[~hit & ~ground] = scene.background
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
@@ -367,7 +374,7 @@ def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys) -> np
     the views made once per scene)."""
     cols = [aov.first_hits(prep, task.aov, origins, dirs)]
     if "lights" in task.aov:
-        for keep in aov.light_masks(len(prep.lights)):
+        for keep in aov.light_masks(prep.lights):
             view = prep.memo(("only", keep.tobytes()), functools.partial(prep.only, keep))
             cols.append(shade_rays(view, method, task.params, origins, dirs, keys, task.seed, task.shadows)[0])
     return np.concatenate(cols, axis=1)
@@ -539,7 +546,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     box = options.crop or (0, 0, cam.width, cam.height)
     task = Task(method.name, params, options.seed, options.shadows, box, options.aov)
     work = tiles(cam, box)
-    acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method), aov.width(task.aov, len(prep.lights)))
+    acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
     compile_s = prepare_noticed(executor, prep, task, options.notice)
     start = time.perf_counter()
@@ -557,6 +564,6 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:], task.shadows is not None))
     summary.update(error_bounds.summary(acc.bound))
-    layers = {} if acc.layers is None else aov.split(task.aov, len(prep.lights), acc.layers)
+    layers = {} if acc.layers is None else aov.split(task.aov, aov.sources(prep.lights), acc.layers)
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,
                         error_bound=acc.bound, layers=layers)

@@ -168,3 +168,28 @@ def test_bad_layers_are_refused_in_one_line(tmp_path):
                          capture_output=True, text=True)
     assert cli.returncode == 2 and "--aov" in cli.stderr and "'speed'" in cli.stderr
     assert len(cli.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_area_lights_and_emitters_seen_directly():
+    """A quad light facing the camera over a floor, a disk lamp and an emissive box, in fog and in
+    vacuum: one layer per scene light (an area light's emitter points together, the emissive shape
+    last), the emitters' own radiance in `emission`, the layers summing to the image."""
+    quad = {"type": "quad", "corners": [[-0.5, 0.6, -1.0], [0.5, 0.6, -1.0], [0.5, 1.4, -1.0], [-0.5, 1.4, -1.0]],
+            "radiance": [2.0, 3.0, 4.0]}
+    disk = {"type": "disk", "center": [1.5, 2.0, 0.0], "normal": [-1.0, -1.0, 0.0], "radius": 0.2, "radiance": 5.0}
+    glow = {"primitive": "box", "min": [-1.6, 0.0, -0.3], "max": [-1.2, 0.4, 0.1], "emission": [0.5, 0.2, 0.1]}
+    for medium in ({"sigma_a": 0.0, "sigma_s": 0.0}, FOG):
+        scene = {"camera": {"position": [0.0, 1.0, 2.0], "look_at": [0.0, 1.0, -1.0], "fov": 70.0, "width": 15,
+                            "height": 11, "spp": 1},
+                 "shape": [FLOOR, glow], "light": [quad, disk], "medium": medium}
+        img = raytrace.render(copy.deepcopy(scene), "quadrature", aov=["lights"])
+        assert list(img.layers) == ["light0", "light1", "light2", "emission"]
+        total = sum(img.layers.values())
+        assert np.all(np.abs(total - img.array) <= 1e-12 * np.abs(img.array))
+        for name in ("light0", "light1", "light2"):
+            assert np.count_nonzero(img.layers[name]) > 0
+        centre = img.layers["emission"][5, 7]  # the ray through the quad's centre sees its front
+        if medium is FOG:
+            assert np.all(img.layers["light0"][5, 7] > 0.0) and np.all(centre < [2.0, 3.0, 4.0])
+        else:
+            assert np.array_equal(centre, [2.0, 3.0, 4.0]) and np.all(img.layers["light0"][5, 7] == 0.0)
