@@ -134,8 +134,11 @@ def check(prep, method, method_params, source: str):
                         f"({', '.join('render.' + k for k in fixed)}): not implemented inside bounded media ({key}) "
                         f"yet; remove {'it' if len(fixed) == 1 else 'them'}")
     for kind in sorted(kinds - set(sup.lights)):
-        raise UserError(f"{source}: --method {method.name}: {kind} lights into a bounded medium ({key}): {sup.limits}; "
-                        f"use --method {', '.join(_takers(lambda s: kind in s.lights))}")
+        takers = _takers(lambda s: kind in s.lights)
+        why = f"{kind} lights into a bounded medium ({key})" + (f": {sup.limits}" if sup.limits else "")
+        raise UserError(f"{source}: --method {method.name}: {why}; " + (
+            f"use --method {', '.join(takers)}" if takers else
+            "no method renders them yet (remove the shape's interior, or use point, spot or directional lights)"))
     if method.samples_shadows(method_params):
         raise UserError(f"{source}: --shadow-test samples (render.shadow_test): not implemented with media inside "
                         f"shapes ({key}); use --shadow-test intervals (the default)")
