@@ -7,9 +7,11 @@ bounds add by the triangle inequality, over a ray's lit segments and lights and 
 samples):
 * a method whose air-light returns a bound (`Method.airlight`'s third value for a deterministic
   method; `analytic`: the requested precision times the value, `quadrature` in homogeneous media:
-  twice its rtol, `relative_bound`; `raymarch` in homogeneous media: an estimate, media/march.py
-  `march_error`) adds it; one that does not (quadrature and raymarch in fog and atmospheres,
-  lecocq, sun, the Taylor series) makes the rays it integrated infinite; a stochastic method's
+  twice its rtol, `relative_bound`; `quadrature` in height fog and atmospheres: its rule's bound
+  plus the rounding of their closed-form transmittances, methods/quadrature.py; `raymarch` in
+  homogeneous media: an estimate, media/march.py `march_error`) adds it; one that does not
+  (raymarch in fog and atmospheres, lecocq, sun, the Taylor series) makes the rays it integrated
+  infinite; a stochastic method's
   air-light adds nothing here: its pixels carry their standard error instead
   (`with_standard_error`, a statistical measure, not a bound);
 * closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;

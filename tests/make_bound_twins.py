@@ -1,6 +1,7 @@
 """Regenerate tests/data/bound_twins.json, the 30-digit twins of tests/test_bound_twins.py.
 
-    python tests/make_bound_twins.py            # about 10 minutes on one core
+    python tests/make_bound_twins.py            # about 15 minutes on one core
+    python tests/make_bound_twins.py earth_     # redo the cases whose names contain earth_ (keeps the rest)
 
 Each twin is the single-scattering air-light of one ray segment o + t w, t in [0, length], lit by one
 light, written from the formulas alone (no project code): the integral over the ray of
@@ -222,16 +223,17 @@ def _atm_density(layers, r, R):
     return [mp.exp(-(r - R) / mp.mpf(l["scale_height"])) for l in layers]
 
 
-def _atm_columns(med, p, w, length):
+def _atm_columns(med, p, w, length, blocked=True):
     """Unit columns (per layer) from p along unit w over [0, length] inside the top sphere (length
-    may be inf); None where the path meets the ground."""
+    may be inf); None where the path meets the ground (if `blocked`: not the camera ray's own, which
+    ends there)."""
     c = [mp.mpf(x) for x in med["center"]]
     R, top = mp.mpf(med["radius"]), mp.mpf(med["top_radius"])
     q = [p[i] - c[i] for i in range(3)]
     b = mp.fsum(q[i] * w[i] for i in range(3))
     qq = mp.fsum(x * x for x in q)
     disc_g = b * b - (qq - R * R)
-    if disc_g > 0 and -b - mp.sqrt(disc_g) > 0 and -b - mp.sqrt(disc_g) < length * (1 - mp.mpf(10) ** -20):
+    if blocked and disc_g > 0 and 0 < -b - mp.sqrt(disc_g) < length:
         return None
     disc = b * b - (qq - top * top)
     if disc <= 0:
@@ -273,7 +275,7 @@ def atmosphere_twin(ray):
     def f(t):
         p = [o[i] + t * w[i] for i in range(3)]
         r = mp.sqrt(mp.fsum((p[i] - c[i]) ** 2 for i in range(3)))
-        cam = _atm_columns(med, o, w, t)
+        cam = _atm_columns(med, o, w, t, blocked=False)
         sun = _atm_columns(med, p, toward, mp.inf)
         if sun is None:
             return mp.mpf(0)
@@ -291,15 +293,16 @@ def main():
     only = sys.argv[1:]
     old = {r["case"]: r for r in json.loads(OUT.read_text())["rays"]} if OUT.exists() else {}
     out = []
-    for ray in rays:
-        if only and not any(s in ray["case"] for s in only) and ray["case"] in old:
+    for ray in rays:  # written after each ray; cases named on the command line (substrings) are redone
+        if ray["case"] in old and not any(s in ray["case"] for s in only):
             out.append(old[ray["case"]])
             continue
         twin = fog_twin(ray) if ray["medium"]["type"] == "height_fog" else atmosphere_twin(ray)
         print(f"{ray['case']}: {mp.nstr(twin, 20)}", flush=True)
         out.append({**ray, "length": None if ray["length"] == math.inf else ray["length"],
                     "twin": mp.nstr(twin, 30)})
-    OUT.write_text(json.dumps({"generator": "tests/make_bound_twins.py", "digits": 30, "rays": out}, indent=1) + "\n")
+        OUT.write_text(json.dumps({"generator": "tests/make_bound_twins.py", "digits": 30, "rays": out}, indent=1)
+                       + "\n")
 
 
 if __name__ == "__main__":

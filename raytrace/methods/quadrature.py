@@ -22,8 +22,10 @@ The bound (homogeneous media; docs/error_bounds.md): each accepted interval's 20
 taken to be within |G20 - G10| of its integral, which the test keeps below rtol |G20| or the floor
 times its width; over a segment that sums to rtol (value + estimate / 10), and BOUND_FACTOR x rtol x
 value covers it while the first estimate is within 10x of the value (the positive integrands' 20-point
-sums). An integral with an interval accepted at a cap is infinite. Height fog and atmospheres report
-no bound yet (their closed-form transmittances carry no error bound of their own).
+sums). An integral with an interval accepted at a cap is infinite. Height fog and atmospheres: the
+same rule's rtol (value + estimate / 10) per segment (`adaptive.bounded_piecewise`), plus the
+rounding of their closed-form transmittances, a first-order bound computed at every evaluation and
+kept over them (`_track`, `_tracked`; docs/error_bounds.md "Height fog and atmospheres").
 """
 from __future__ import annotations
 
@@ -40,10 +42,10 @@ from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels
 from ..lights import DIRECTIONAL, cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.chapman import relative_error as chapman_error
-from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, refine, rule
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
 from ..media.integrand import integrand_of
 from ..media import Atmosphere, HeightFog, Homogeneous
-from ..media.fog import LINEAR, attenuated_density, column, column_distance, column_error, top_distance
+from ..media.fog import LINEAR, column, column_distance, column_error, top_distance
 from ..media.phase import HG, phase_split, phase_value
 from ..media.slab import QUAD
 
@@ -322,6 +324,8 @@ class FogIntegrand(NamedTuple):
     profile: int
     directional: bool
     phase_cond: float  # `phase_condition`
+    da: float  # the light's distance from the segment's start, hypot(x_h, h)
+    spot_width: float  # 1 / (1 - cos_end) of a spot's cone
 
 
 # a fog row's columns past geometry.fog_rows's: the absolute rounding of the segment's start height
@@ -388,7 +392,8 @@ def _fog_point(s, r):
     """The point or spot light's integrand fog_inscatter(x(theta)) at theta = s (the 1/h outside), and
     its relative rounding (docs/error_bounds.md, "Height fog"), first order, doubled: x = x_h + h tan
     theta is off by dx (the node's, tan's and x_h's and h's own rounding, ~eps of the light's distance
-    d_a), which moves the camera's column's end (its density kt rho(x)), the height at x, the light
+    d_a), which moves the camera's column's end (its density kt rho(x); for the exponential profile
+    rho(x) x <= tc (1 + |MU| x / H), no exp to evaluate), the height at x, the light
     path's length (relative dd/d) and the scattering cosine (2 (dx + dd)/d, times the phase's
     condition); the heights carry their rows' rounding, the columns their `column_error`; a spot's
     cosine to its axis moves by as much over its cone's width; 1/h is off by eps d_a / h."""
@@ -398,20 +403,24 @@ def _fog_point(s, r):
     value, hp, tc, tl, mul, d = fog_inscatter_parts(x, row, xh, h, r.kt, r.ks, r.code, r.g, r.cone, H, profile, False)
     if not value > 0.0:
         return value, 0.0
-    da = math.hypot(xh, h)
-    dh = C_OPS * ULP * da
+    inv_d = 1.0 / d
+    dh = C_OPS * ULP * r.da
     dx = C_OPS * ULP * (abs(xh) + abs(x - xh) + d * d / h * abs(s)) + dh * (1.0 + abs(t))
     dd = dx + dh + 2.0 * ULP * d
-    dhp = row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU] * x)) + 3.0 * ULP * abs(x) + abs(row[MU]) * dx
-    d_cam = column_error(row[HO], row[MU], 0.0, x, H, profile, tc, row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU] * x)),
-                         3.0 * ULP)
-    dm_l = (row[ZL] + dhp + 2.0 * ULP * abs(row[HL] - hp) + abs(mul) * dd) / d + 3.0 * ULP * abs(mul)
+    z_cam = row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU] * x))
+    dhp = z_cam + 3.0 * ULP * abs(x) + abs(row[MU]) * dx
+    d_cam = column_error(row[HO], row[MU], 0.0, x, H, profile, tc, z_cam, 3.0 * ULP)
+    dm_l = (row[ZL] + dhp + 2.0 * ULP * abs(row[HL] - hp) + abs(mul) * dd) * inv_d + 3.0 * ULP * abs(mul)
     d_light = column_error(hp, mul, 0.0, d, H, profile, tl, dhp + 2.0 * ULP * (abs(hp) + abs(row[HL])), dm_l)
-    rho = attenuated_density(hp, 0.0, H, profile)
-    dens = (dhp / H + 2.0 * ULP * abs(hp) / H) / (rho if profile == LINEAR else 1.0)
-    moved = 2.0 * (dx + dd) / d + 4.0 * ULP
-    spot = moved / max(1.0 - r.cone[2], 1e-300) if is_spot(r.cone[3]) else 0.0
-    eps = (dens + r.kt * (d_cam + d_light + 2.0 * ULP * (tc + tl) + rho * dx + tl * dd / d) + r.phase_cond * moved
+    dens = (dhp + 2.0 * ULP * abs(hp)) / H
+    if profile == LINEAR:
+        rho = max(0.0, 1.0 - hp / H)
+        dens /= rho
+    else:  # rho(x) x <= tc (1 + |MU| x / H) (the density changes by e^{MU t / H} along the ray): no exp
+        rho = tc * (1.0 / x + abs(row[MU]) / H) if x > 0.0 else math.exp(-row[HO] / H)
+    moved = 2.0 * (dx + dd) * inv_d + 4.0 * ULP
+    spot = moved * r.spot_width if is_spot(r.cone[3]) else 0.0
+    eps = (dens + r.kt * (d_cam + d_light + 2.0 * ULP * (tc + tl) + rho * dx + tl * dd * inv_d) + r.phase_cond * moved
            + spot + dh / h + C_OPS * ULP)
     return value, 2.0 * eps
 
@@ -493,24 +502,10 @@ def _fog_ends(row, xh, h, ell, kt, H, profile, directional):
 
 
 @njit
-def bounded_piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats):
-    """`adaptive.piecewise` with the bound of its rule (module docstring): the integral and
-    rtol (value + first estimate / 10), or inf where an interval was accepted at a cap."""
-    width = br[m - 1] - br[0]
-    estimate = first_estimate(rec, br, m, n20, w20, 0.0)
-    floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-    total, ok = refine(rec, br, m, rtol, floor, n10, w10, n20, w20, stats, 0.0)
-    if not ok:
-        stats[CAPPED] += 1.0
-        return total, math.inf
-    return total, rtol * (abs(total) + 0.1 * estimate)
-
-
-@njit
 def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, phase_cond, cone, H, profile, rtol, n10, w10, n20,
                  w20, out, bound, stats):
     """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0, and
-    its bound: the rule's (`bounded_piecewise`) plus the rounding `_track` kept (its largest relative
+    its bound: the rule's (`adaptive.bounded_piecewise`) plus the rounding `_track` kept (its largest relative
     rounding where the integrand is significant times the value, the largest anywhere over the rest,
     whose values are below SIGNIFICANT of the largest, and the ends' rounding times the largest value),
     plus the factor's few ulps (the sun's phase, by its condition)."""
@@ -524,7 +519,7 @@ def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, phase_cond, con
         row[TRACK:] = 0.0
         m = _fog_breaks(row, xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
         rec = FogIntegrand(row, xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s],
-                           phase_cond)
+                           phase_cond, math.hypot(xh[s], h[s]), 1.0 / max(1.0 - cone[s, 2], 1e-300))
         scale = ks / kt * phase_value(code, g, row[COSD]) if directional[s] else 1.0 / h[s]
         total, rule_bound = bounded_piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)
         rounding = (_tracked(row, TRACK, total, br[m - 1] - br[0])
@@ -640,7 +635,7 @@ def _atm_ends(f, cols, K):
 def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, dz, phase_cond, rtol, n10,
                         w10, n20, w20, out, bound, stats):
     """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients, and
-    its bound: the rule's (`bounded_piecewise`), the rounding `_track` kept over the evaluations
+    its bound: the rule's (`adaptive.bounded_piecewise`), the rounding `_track` kept over the evaluations
     (`_tracked`), the ends' (`_atm_ends`) and the sum's."""
     br = np.empty(11 + atmo.max_density_breaks(Hs))
     K = Hs.shape[0]
