@@ -399,9 +399,11 @@ def _fog_point(s, r):
     theta is off by dx (the node's, tan's and x_h's and h's own rounding, ~eps of the light's distance
     d_a), which moves the camera's column's end (its density kt rho(x); for the exponential profile
     rho(x) x <= tc (1 + |MU| x / H), no exp to evaluate), the height at x, the light
-    path's length (relative dd/d) and the scattering cosine (2 (dx + dd)/d, times the phase's
-    condition); the heights carry their rows' rounding, the columns their `column_error`; a spot's
-    cosine to its axis moves by as much over its cone's width; 1/h is off by eps d_a / h."""
+    path's length (relative dd/d) and the scattering cosine (h dx / d^2 for a point moved along
+    the ray, as cos = -(x - x_h)/d has derivative h^2/d^3, plus d's own rounding 2 (dh + 2 eps d)/d;
+    times the phase's condition); the heights carry their rows' rounding, the columns their
+    `column_error`; a spot's cosine to its axis moves by as much over its cone's width (its
+    derivative along the ray is below h / d^2 too); 1/h is off by eps d_a / h."""
     row, H, profile, xh, h = r.row, r.H, r.profile, r.xh, r.h
     t = math.tan(s)
     x = xh + h * t
@@ -423,7 +425,7 @@ def _fog_point(s, r):
         dens /= rho
     else:  # rho(x) x <= tc (1 + |MU| x / H) (the density changes by e^{MU t / H} along the ray): no exp
         rho = tc * (1.0 / x + abs(row[MU]) / H) if x > 0.0 else math.exp(-row[HO] / H)
-    moved = 2.0 * (dx + dd) * inv_d + 4.0 * ULP
+    moved = (h * inv_d * dx + 2.0 * (dh + 2.0 * ULP * d)) * inv_d + 4.0 * ULP
     spot = moved * row[SPOT_WIDTH] if is_spot(r.cone[3]) else 0.0
     eps = (dens + r.kt * (d_cam + d_light + 2.0 * ULP * (tc + tl) + rho * dx + tl * dd * inv_d) + row[PHASE_COND] * moved
            + spot + dh / h + C_OPS * ULP)
@@ -562,7 +564,8 @@ def _atm_node(s, r):
     the centre (~eps of the planet's radius and top, of x, of the light path) plus dx; the optical
     depth by `atmosphere.depth_error` (Chapman's remainder and the densities' condition), the
     scattering density by its `density_condition`, the camera's column's end by its extinction
-    times dx, the scattering cosine and a spot's cosine by 2 (dx + dd) / d; 1/h by eps d_a / h."""
+    times dx, the scattering cosine and a spot's cosine by h dx / d^2 + 2 (dh + 2 eps d) / d (as in
+    the fog); 1/h by eps d_a / h."""
     f = r.f
     if f.directional:
         x, dx, dh, h, t = s, 2.0 * ULP * abs(s), 0.0, 1.0, 0.0
@@ -580,7 +583,7 @@ def _atm_node(s, r):
         u = x - f.xh
         d = math.sqrt(max(h * h + u * u, 1e-250))
         value *= spot_factor(u, d, h, f.cone) / h
-        moved = 2.0 * (2.0 * dx + dh) / d + 4.0 * ULP
+        moved = (h / d * dx + 2.0 * (dh + 2.0 * ULP * d)) / d + 4.0 * ULP
     if not value > 0.0:
         return value, 0.0
     spot = moved / max(1.0 - r.cos_end, 1e-300) if r.cos_end > -1.0 else 0.0
