@@ -549,11 +549,12 @@ def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, phase_cond, con
 class AtmosphereIntegrand(NamedTuple):
     """An atmosphere segment's air-light (above), one channel's layers: in x for the sun, in theta
     for a point or spot light, of the segment's `geometry.AtmosphereInX` f, whose scratch `cols`
-    holds past the layers' columns the slots `_track` writes (FMAX - FMAX, ... from index K)."""
+    holds past the layers' columns the slots `_track` writes (FMAX, ESIG, EALL from index K; a
+    record whose scratch holds the columns alone gives the value only)."""
     f: AtmosphereInX
-    dz: float  # the absolute rounding of the segment's and its light's positions about the centre
-    phase_cond: float  # the largest of the layers' `phase_condition`
-    cos_end: float  # the spot's cone (<= -1 without one)
+    dz: float = 0.0  # the absolute rounding of the segment's and its light's positions about the centre
+    phase_cond: float = 1.0  # the largest of the layers' `phase_condition`
+    cos_end: float = -2.0  # the spot's cone (<= -1 without one)
 
 
 @njit
@@ -596,7 +597,8 @@ def _atm_node(s, r):
 @njit
 def _atm_value(s, r):
     value, eps = _atm_node(s, r)
-    _track(r.f.cols, r.f.kt.shape[0], value, eps)
+    if r.f.cols.shape[0] >= r.f.kt.shape[0] + 3:  # scratch without the slots: the value alone
+        _track(r.f.cols, r.f.kt.shape[0], value, eps)
     return value
 
 
