@@ -495,10 +495,10 @@ def _fog_ends(row, xh, h, ell, kt, H, profile, directional):
     the camera's transmittance over the segment, 1 - T_cam(ell), off by T_cam kt column_error; for
     a point light the angles atan2 of x_h, h and ell - x_h, each off by ~eps of the light's distance."""
     if directional:
-        if ell == math.inf:
-            return 0.0
         col = column(row[HO], row[MU], 0.0, ell, H, profile)
-        dz = row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU] * ell))
+        if col == math.inf:  # the end is 1 exactly
+            return 0.0
+        dz = row[ZO] + 2.0 * ULP * abs(row[HO]) + (2.0 * ULP * abs(row[MU] * ell) if ell < math.inf else 0.0)
         return math.exp(-kt * col) * kt * (column_error(row[HO], row[MU], 0.0, ell, H, profile, col, dz, 3.0 * ULP)
                                            + 8.0 * ULP * col) + 4.0 * ULP
     da = math.hypot(xh, h)
