@@ -7,9 +7,11 @@ bounds add by the triangle inequality, over a ray's lit segments and lights and 
 samples):
 * a method whose air-light returns a bound (`Method.airlight`'s third value for a deterministic
   method; `analytic`: the requested precision times the value, `quadrature` in homogeneous media:
-  twice its rtol, `relative_bound`; `raymarch` in homogeneous media: an estimate, media/march.py
-  `march_error`) adds it; one that does not (quadrature and raymarch in fog and atmospheres,
-  lecocq, sun, the Taylor series) makes the rays it integrated infinite; a stochastic method's
+  twice its rtol, `relative_bound`; `quadrature` in height fog and atmospheres: its rule's bound
+  plus the rounding of their closed-form transmittances, methods/quadrature.py; `raymarch` in
+  homogeneous media: an estimate, media/march.py `march_error`) adds it; one that does not
+  (raymarch in fog and atmospheres, lecocq, sun, the Taylor series) makes the rays it integrated
+  infinite; a stochastic method's
   air-light adds nothing here: its pixels carry their standard error instead
   (`with_standard_error`, a statistical measure, not a bound);
 * closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;
@@ -47,13 +49,18 @@ def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium, co
     the cosine of each segment's light's cone, <= -1 without one), infinite where the evaluation did
     not meet it. `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's
     keys); channels that do not scatter are exactly 0."""
-    spot = np.where(cos_end > -1.0, SPOT_ROUNDING / np.maximum(1.0 - cos_end, 1e-300), 0.0)
-    bound = (max(precision, KERNEL_FLOOR) + ROUNDING + spot[:, None]) * np.abs(radiance)
+    bound = (max(precision, KERNEL_FLOOR) + ROUNDING + spot_rounding(cos_end)[:, None]) * np.abs(radiance)
     for c in range(3):
         key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
         if key in met:
             bound[~met[key], c] = np.inf
     return bound
+
+
+def spot_rounding(cos_end: np.ndarray) -> np.ndarray:
+    """(S,) relative allowance of a spot's falloff on its air-light, SPOT_ROUNDING / (1 - cos_end) (0
+    for lights without a cone, cos_end <= -1)."""
+    return np.where(cos_end > -1.0, SPOT_ROUNDING / np.maximum(1.0 - cos_end, 1e-300), 0.0)
 
 
 def rays_with(ray_index: np.ndarray, n_rays: int) -> np.ndarray:

@@ -25,7 +25,7 @@ from numba.extending import overload
 
 from ..jit import njit
 from ..lights import DIRECTIONAL
-from .chapman import atmosphere_column, ground_distance
+from .chapman import atmosphere_column, ground_distance, relative_error
 from .medium import Medium
 from .phase import HG, NAMES as PHASE_NAMES, phase_value
 from .tent import tent_breaks, tent_column, tent_density
@@ -34,6 +34,7 @@ EXPONENTIAL, TENT = 0, 1  # layer profiles: codes in column 0 of the layers tabl
 PROFILES = {"exponential": EXPONENTIAL, "tent": TENT}
 PROFILE_KEYS = {EXPONENTIAL: {"scale_height"}, TENT: {"peak_altitude", "half_width"}}
 LAYER_KEYS = {"name", "sigma_a", "sigma_s", "phase", "profile"} | set().union(*PROFILE_KEYS.values())
+ULP = 2.0 ** -53
 MIN_RADIUS_OVER_H = 3.0  # radius / scale_height below this is outside the Chapman kernels' measured range
 
 
@@ -410,16 +411,59 @@ def inscatter(x, row, directional, kt, ks, codes, gs, layers, radius, top, cols,
     Phi_i(cos), T_cam from the segment's start (`tau_cam`: its optical depth if the caller has it,
     else negative), T_light to the light or, for the sun, out of the atmosphere (0 behind the
     planet). kt, ks: (K,) of the channel."""
+    return inscatter_parts(x, row, directional, kt, ks, codes, gs, layers, radius, top, cols, tau_cam, 0.0)[0]
+
+
+@njit
+def inscatter_parts(x, row, directional, kt, ks, codes, gs, layers, radius, top, cols, tau_cam, dz):
+    """`inscatter` and what its rounding depends on (methods/quadrature.py's bound): (value, the
+    optical depth T_cam T_light stands for, a bound on that depth's error when every altitude is off
+    by at most dz (`depth_error`; the camera's part only where this computed tau_cam), the altitude
+    of x, the distance d to the light)."""
     hx, _, _, _, _, _, _, d, cos, mul = light_frame(x, row, directional, radius)
     if not d > 0.0:
-        return 0.0
+        return 0.0, 0.0, 0.0, hx, d
     if not columns(hx, mul, 0.0, d, radius, top, layers, cols):
-        return 0.0
+        return 0.0, math.inf, 0.0, hx, d
     tau = optical_depth(cols, kt)
+    err = depth_error(cols, kt, layers, radius, dz, min(d, 2.0 * top))
     if tau_cam < 0.0:
         columns(row[H0], row[MU0], 0.0, x, radius, top, layers, cols)
         tau_cam = optical_depth(cols, kt)
-    return scattering(hx, cos, ks, codes, gs, layers) * math.exp(-tau - tau_cam)
+        err += depth_error(cols, kt, layers, radius, dz, x)
+    return scattering(hx, cos, ks, codes, gs, layers) * math.exp(-tau - tau_cam), tau + tau_cam, err, hx, d
+
+
+@njit
+def depth_error(cols, kt, layers, radius, dz, length):
+    """A bound on the error of `optical_depth`(cols, kt) of a path of `length` whose altitudes are
+    off by at most dz (docs/error_bounds.md, "Atmospheres"): an exponential layer's column by
+    dz / H relative (its density's) plus Chapman's rule's `relative_error` and 8 ulp; a tent's by
+    dz / W absolutely over the path (its density 1 - |a - P| / W) plus 8 ulp; layers table (K, 3)."""
+    err = 0.0
+    for i in range(kt.shape[0]):
+        if kt[i] != 0.0 and cols[i] > 0.0:
+            if layers[i, 0] == TENT:
+                err += kt[i] * (length * dz / layers[i, 2] + 8.0 * ULP * cols[i])
+            else:
+                H = layers[i, 1]
+                err += kt[i] * cols[i] * (dz / H + relative_error(radius / H) + 8.0 * ULP)
+    return err
+
+
+@njit
+def density_condition(hx, layers, ks):
+    """max over the scattering layers (ks_i != 0) of |d log rho_i / d altitude| at hx: 1/H, or
+    1 / (W rho) for a tent (inf where its density is 0 but for the rounding of hx)."""
+    out = 0.0
+    for i in range(ks.shape[0]):
+        if ks[i] != 0.0:
+            if layers[i, 0] == TENT:
+                rho = tent_density(hx, layers[i, 1], layers[i, 2])
+                out = max(out, 1.0 / (layers[i, 2] * rho) if rho > 0.0 else 0.0)
+            else:
+                out = max(out, 1.0 / layers[i, 1])
+    return out
 
 
 @njit

@@ -22,6 +22,16 @@ segment at the periapsis into two such pieces, both with a_p = 0 (the C_h of eq.
 The rise is cut at u = 40 (the neglected tail is below e^{-40} f-weighted, < 1e-17 relative) and
 integrated with 16-point Gauss-Legendre on u in [0, 10] and [10, 40] (mapped to y); measured
 worst relative error 2e-15 for z >= 3 (docs/optical_depth.md §2.3).
+
+Its error is bounded, not only measured (`remainder_bound`, docs/error_bounds.md "Atmospheres"):
+the integrand is analytic inside Bernstein ellipses about each panel (entire but for the branch
+points w = ±i sqrt(2 beta) of f), so the n-point rule is within (64/15) M rho^{-2n} / (rho^2 - 1)
+times the half-width of the integral (Trefethen, Approximation Theory and Approximation Practice,
+Thm 19.3), M the largest |integrand| on the ellipse of parameter rho, bounded in closed form; the
+tail beyond u = 40 is below 2 e^{-40} (sqrt(beta) / (2 sqrt(a^2 + 40)) + 1/2). Over a grid of the
+whole domain (scripts/bound_twins.py chapman) the relative bound is at most 8.9e-13 (at z = 3, the
+smallest radius / scale height the atmosphere accepts) and 9.5e-16 for z >= 8.77; `REMAINDER`
+holds 10 times those, for the columns' points (z >= radius / H), plus the rule's own rounding.
 """
 import math
 
@@ -74,6 +84,64 @@ def rise_integral(a, beta, u):
     if u > U_SPLIT:
         acc += _panel(a, beta, y1, _y_of_rise(a, u))
     return 2.0 * acc
+
+
+# relative bound on `rise_integral`'s remainder for points at z >= Z (radius / scale height), with
+# the rule's rounding (16 positive terms, exponents up to 40 off by 3 ulp: 160 ulp)
+REMAINDER = ((3.0, 1e-11), (10.0, 1e-14))
+RULE_ROUNDING = 160.0 * 2.0 ** -53
+
+
+@njit
+def relative_error(z_min):
+    """A bound on the relative error of `rise_integral` (remainder and rounding) for columns whose
+    points lie at z >= z_min (radius / scale height, >= 3 for every accepted layer)."""
+    out = math.inf
+    for z, bound in REMAINDER:
+        if z_min >= z:
+            out = bound
+    return out + RULE_ROUNDING
+
+
+_RHOS = (1.25, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 32.0, 64.0, 128.0, 1e3, 1e4, 1e6)
+
+
+def panel_bound(a, beta, y0, y1, n=16):
+    """A bound on |n-point Gauss-Legendre - exact| of int_{y0}^{y1} e^{-y(2a+y)} f(a+y) dy (module
+    docstring): the least over the ellipses in _RHOS that keep f's branch points outside (their box
+    does) of half-width (64/15) M rho^{-2n} / (rho^2 - 1), with |e^{-y(2a+y)}| = e^{a^2 - Re w^2}
+    minimised over the ellipse in closed form (w = a + y), |beta + w^2| <= beta + max |w|^2 and
+    |2 beta + w^2| >= the squared distance from ±i sqrt(2 beta) to the ellipse's box."""
+    half, mid = 0.5 * (y1 - y0), 0.5 * (y0 + y1)
+    if not half > 0.0:
+        return 0.0
+    s, p = math.sqrt(2.0 * beta), mid + a
+    best = math.inf
+    for rho in _RHOS:
+        A, B = half * (rho + 1.0 / rho) / 2.0, half * (rho - 1.0 / rho) / 2.0
+        dist = math.hypot(max(p - A, 0.0), max(s - B, 0.0))
+        if not dist > 0.0:
+            continue
+        cs = (-1.0, 1.0, min(1.0, max(-1.0, -A * p / (A * A + B * B))))
+        re_w2 = min((p + A * c) ** 2 - B * B * (1.0 - c * c) for c in cs)
+        log_m = a * a - re_w2 + math.log(beta + (abs(p) + A) ** 2 + B * B) - math.log(dist)
+        best = min(best, math.log(half * 64.0 / 15.0) + log_m - 2 * n * math.log(rho) - math.log(rho * rho - 1.0))
+    return math.exp(best) if best < 700.0 else math.inf
+
+
+def remainder_bound(a, beta, u):
+    """A bound on |rise_integral(a, beta, u) - W(a, beta, u)| / W: both panels' `panel_bound` and the
+    tail beyond U_CUT, over the rule's value less them (inf where that is not positive)."""
+    value = rise_integral(a, beta, u)
+    cut = min(u, U_CUT)
+    y1 = _y_of_rise(a, min(cut, U_SPLIT))
+    err = panel_bound(a, beta, 0.0, y1)
+    if cut > U_SPLIT:
+        err += panel_bound(a, beta, y1, _y_of_rise(a, cut))
+    err *= 2.0
+    if u > U_CUT:
+        err += 2.0 * math.exp(-U_CUT) * (math.sqrt(beta) / (2.0 * math.sqrt(a * a + U_CUT)) + 0.5)
+    return err / (value - err) if value > err else math.inf
 
 
 @njit

@@ -247,6 +247,31 @@ def column(h, mu, t0, t1, H, profile):
     return linear_optical_depth(1.0, h, mu, t0, t1, H)
 
 
+ULP = 2.0 ** -53  # unit roundoff of float64
+
+
+@njit
+def column_error(h, mu, t0, t1, H, profile, col, dz, dm):
+    """An upper bound on |computed - exact| of `column` (its computed value col) over [t0, t1],
+    to first order, when the ray's heights carry absolute errors up to dz and its up-cosine mu up to
+    dm (docs/error_bounds.md, "Height fog"): a height at t is off by at most dz + t dm. Exponential:
+    the density's relative error is that over H, and the closed form's own dozen operations add
+    8 ulp (their condition is at most 1: (1 - e^-y)/y has |y d log/dy| <= 1); to infinity the
+    column is H e^{-h/H}/mu, of relative condition 1 in mu (dm/|mu|). Linear: the density
+    1 - height/H is off absolutely by (dz + t dm)/H over the support's length (where it ends at the
+    top the column's derivative is 0: second order). The ends t0, t1 are taken exact here."""
+    if not (col > 0.0 and t1 > t0):
+        return 0.0
+    if profile == EXPONENTIAL:
+        if t1 == math.inf:
+            return col * ((dz + t0 * dm) / H + dm / abs(mu) + 8.0 * ULP)
+        return col * ((dz + t1 * dm) / H + 8.0 * ULP)
+    lo, hi, _, _ = _linear_support(h, mu, t0, t1, H)
+    if not hi > lo or hi == math.inf:
+        return 0.0 if not hi > lo else math.inf
+    return (hi - lo) * (dz + hi * dm) / H + 8.0 * ULP * col
+
+
 @njit
 def column_distance(h, mu, t0, tau, H, profile):
     """The t >= t0 where `column` from t0 reaches tau (inf if never): eq. 35 or eq. 31."""

@@ -191,20 +191,31 @@ def fog_inscatter(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional)
     light, without a point light's 1/d^2: ks rho(x) Phi(cos) F T_cam(x) T_light(x), both
     transmittances exp(-kt tau) with tau the closed-form column (media/medium.py, seed 004 eq. 34
     or 30); T_cam from the segment's start, T_light to the light or, for the sun, to infinity."""
+    return fog_inscatter_parts(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional)[0]
+
+
+@njit
+def fog_inscatter_parts(x, row, xh, h, kt, ks, code, g, cone, H, profile, directional):
+    """`fog_inscatter` and what its rounding depends on (methods/quadrature.py's bound): (value,
+    height of x above h0, the camera's and the light's unit columns, the light path's up-cosine,
+    its length d; inf for the sun)."""
     hp = row[HO] + row[MU] * x
     if above_top(hp, H, profile):
-        return 0.0
+        return 0.0, hp, 0.0, 0.0, 0.0, 0.0
     tau = column(row[HO], row[MU], 0.0, x, H, profile)
     if directional:
-        tau += column(hp, row[MUS], 0.0, math.inf, H, profile)
-        return ks * phase_value(code, g, row[COSD]) * attenuated_density(hp, kt * tau, H, profile)
+        tl = column(hp, row[MUS], 0.0, math.inf, H, profile)
+        value = ks * phase_value(code, g, row[COSD]) * attenuated_density(hp, kt * (tau + tl), H, profile)
+        return value, hp, tau, tl, row[MUS], math.inf
     dx = x - xh
     d = math.sqrt(max(h * h + dx * dx, 1e-250))
     f = spot_factor(dx, d, h, cone)
     if f == 0.0:
-        return 0.0
-    tau += column(hp, (row[HL] - hp) / d, 0.0, d, H, profile)
-    return ks * f * phase_value(code, g, -dx / d) * attenuated_density(hp, kt * tau, H, profile)
+        return 0.0, hp, tau, 0.0, 0.0, d
+    mul = (row[HL] - hp) / d
+    tl = column(hp, mul, 0.0, d, H, profile)
+    return ks * f * phase_value(code, g, -dx / d) * attenuated_density(hp, kt * (tau + tl), H, profile), hp, tau, tl, \
+        mul, d
 
 
 class FogInX(NamedTuple):

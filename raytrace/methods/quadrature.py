@@ -22,8 +22,10 @@ The bound (homogeneous media; docs/error_bounds.md): each accepted interval's 20
 taken to be within |G20 - G10| of its integral, which the test keeps below rtol |G20| or the floor
 times its width; over a segment that sums to rtol (value + estimate / 10), and BOUND_FACTOR x rtol x
 value covers it while the first estimate is within 10x of the value (the positive integrands' 20-point
-sums). An integral with an interval accepted at a cap is infinite. Height fog and atmospheres report
-no bound yet (their closed-form transmittances carry no error bound of their own).
+sums). An integral with an interval accepted at a cap is infinite. Height fog and atmospheres: the
+same rule's rtol (value + estimate / 10) per segment (`adaptive.bounded_piecewise`), plus the
+rounding of their closed-form transmittances, a first-order bound computed at every evaluation and
+kept over them (`_track`, `_tracked`; docs/error_bounds.md "Height fog and atmospheres").
 """
 from __future__ import annotations
 
@@ -35,15 +37,16 @@ import numpy as np
 from .. import error_bounds
 from ..jit import njit
 from . import AREA_LIGHTS, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
-from .geometry import (COSD, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_inscatter,
-                       atmosphere_row, by_channel, cone_row, fog_inscatter, fog_rows, spot_factor)
-from ..lights import cone_breaks, falloff, is_spot
+from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
+                       by_channel, cone_row, fog_inscatter_parts, fog_rows, spot_factor)
+from ..lights import DIRECTIONAL, cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
-from ..media.adaptive import CAPPED, EVALS, INTERVALS, first_estimate, piecewise, refine, rule
+from ..media.chapman import relative_error as chapman_error
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
 from ..media.integrand import integrand_of
 from ..media import Atmosphere, HeightFog, Homogeneous
-from ..media.fog import column, column_distance, top_distance
-from ..media.phase import phase_split, phase_value
+from ..media.fog import LINEAR, column, column_distance, column_error, top_distance
+from ..media.phase import HG, phase_split, phase_value
 from ..media.slab import QUAD
 
 
@@ -168,28 +171,100 @@ def _airlight(segs, medium, lights, params):
 
 
 def _atmosphere(segs, atm, lights, params):
+    """The air-light, its stats and its bound (`atmosphere_segments`, the spot's rounding and the
+    camera ray's transmittance to a piece's start: `_atmosphere_prefix`)."""
     stats = np.zeros(3)
+    dz = 4.0 * ULP * (np.linalg.norm(segs.origins, axis=1) + np.linalg.norm(atm.center)
+                      + np.where(lights.kind[segs.light] == DIRECTIONAL, 0.0,
+                                 np.linalg.norm(lights.position[segs.light], axis=1)))
+    phase_cond = max(phase_condition(int(c), float(g)) for c, g in zip(atm.phases, atm.gs))
+    unit_bounds = {}
 
     def evaluate(rows, directional, xh, h, cone, kt, ks):
-        out = np.empty_like(xh)
+        out, bound = np.empty_like(xh), np.empty_like(xh)
         atmosphere_segments(rows, directional, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
-                            float(atm.top), params["rtol"], _N10, _W10, _N20, _W20, out, stats)
+                            float(atm.top), dz, phase_cond, params["rtol"], _N10, _W10, _N20, _W20, out, bound, stats)
+        unit_bounds[kt.tobytes() + ks.tobytes()] = bound
         return out
 
-    return atmosphere_channels(segs, atm, lights, evaluate), stats
+    radiance = atmosphere_channels(segs, atm, lights, evaluate)
+    bound = np.zeros_like(radiance)
+    for c in range(3):
+        key = atm.layer_sigma_t[:, c].tobytes() + atm.layer_sigma_s[:, c].tobytes()
+        if key in unit_bounds:
+            i = lights.intensity[segs.light, c]
+            bound[:, c] = np.where(i != 0.0, unit_bounds[key] * i, 0.0)
+    spot = error_bounds.spot_rounding(lights.cone[segs.light, 0])
+    rel = error_bounds.ROUNDING + spot[:, None] + _atmosphere_prefix(segs, atm)
+    return radiance, stats, bound + rel * np.abs(radiance)
+
+
+def _atmosphere_prefix(segs, atm):
+    """(S, 3): the relative rounding of the atmosphere's transmittance from each camera ray's origin to
+    its piece's start (0 for whole rays): its optical depth times the exponential layers' largest
+    dz / H + Chapman's `relative_error` + 8 ulp, plus each tent layer's kt t0 dz / W (`depth_error`),
+    dz ~eps of the positions about the centre."""
+    out = np.zeros((len(segs), 3))
+    if not np.any(segs.t0):
+        return out
+    t0 = np.asarray(segs.t0, float)
+    start = segs.origins - t0[:, None] * segs.dirs
+    depth = -np.log(np.maximum(atm.transmittance_on(start, segs.dirs, 0.0, t0), 1e-300))
+    dz = 4.0 * ULP * (np.linalg.norm(segs.origins, axis=1) + np.linalg.norm(atm.center)) + C_OPS * ULP * (
+        atm.radius + atm.top + t0)
+    tent = atm.layers[:, 0] == atmo.TENT
+    H = atm.layers[~tent, 1]
+    rel = (dz[:, None] / H.min() if len(H) else 0.0) + (chapman_error(atm.radius / H.max()) if len(H) else 0.0)
+    out += depth * (rel + 8.0 * ULP)
+    for i in np.flatnonzero(tent):
+        out += atm.layer_sigma_t[i][None, :] * (t0 * dz / atm.layers[i, 2])[:, None]
+    return np.where(segs.t0[:, None] > 0.0, out, 0.0)
 
 
 def _fog(segs, medium, lights, params):
+    """The air-light, its stats and its bound (`fog_segments`), plus the rounding of the camera ray's
+    transmittance to a piece's start (t0 > 0: kt column_error of that column, relative)."""
     stats = np.zeros(3)
-    rows, directional = fog_rows(segs, medium, lights)
+    geo, directional = fog_rows(segs, medium, lights)
+    rows = np.zeros((len(segs), FOG_ROW))
+    rows[:, :geo.shape[1]] = geo
+    up, h0 = np.abs(np.asarray(medium.up, float)), abs(float(medium.h0))
+    rows[:, ZO] = 4.0 * ULP * (np.abs(segs.origins) @ up + h0)
+    rows[:, ZL] = np.where(directional, 0.0, 4.0 * ULP * (np.abs(lights.position[segs.light]) @ up + h0))
+    phase_cond = phase_condition(medium.phase, medium.g)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
-        out = np.empty_like(xh)
-        fog_segments(rows, directional, xh, h, ell, kt, ks, medium.phase, medium.g, cone, medium.scale_height,
-                     medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, stats)
-        return out
+        out, bound = np.empty_like(xh), np.empty_like(xh)
+        fog_segments(rows, directional, xh, h, ell, kt, ks, medium.phase, medium.g, phase_cond, cone,
+                     medium.scale_height, medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, bound, stats)
+        return out, bound
 
-    return by_channel(segs, medium, lights, evaluate), stats
+    radiance, bound = by_channel(segs, medium, lights, evaluate, estimated=True)
+    before = _prefix_rounding(segs, rows, medium)
+    spot = error_bounds.spot_rounding(lights.cone[segs.light, 0])
+    return radiance, stats, bound + (error_bounds.ROUNDING + spot[:, None] + before) * np.abs(radiance)
+
+
+def _prefix_rounding(segs, rows, medium):
+    """(S, 3): the relative rounding of the fog's transmittance from each camera ray's origin to its
+    piece's start, kt column_error of the column over [-t0, 0] (0 for whole rays)."""
+    if not np.any(segs.t0):
+        return np.zeros((len(segs), 3))
+    err = np.empty(len(segs))
+    _prefix_errors(rows, np.asarray(segs.t0, float), medium.scale_height, medium.profile, err)
+    return err[:, None] * np.asarray(medium.sigma_t, float)[None, :]
+
+
+@njit
+def _prefix_errors(rows, t0, H, profile, out):
+    """out[s] = column_error (+ 8 ulp) of the unit column over [-t0[s], 0] of segment s's row."""
+    for s in range(t0.shape[0]):
+        row = rows[s]
+        out[s] = 0.0
+        if t0[s] > 0.0:
+            col = column(row[HO], row[MU], -t0[s], 0.0, H, profile)
+            dz = row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU]) * t0[s])
+            out[s] = column_error(row[HO], row[MU], -t0[s], 0.0, H, profile, col, dz, 3.0 * ULP) + 8.0 * ULP * col
 
 
 def _homogeneous(segs, medium, lights, params):
@@ -241,7 +316,8 @@ _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 
 class FogIntegrand(NamedTuple):
     """A height-fog segment's air-light (above): in theta for a point or spot light (the fog's
-    `fog_inscatter`), in u = 1 - T_cam for a directional light."""
+    `fog_inscatter`), in u = 1 - T_cam for a directional light. `row` is the segment's bounded row
+    (`_fog`): the geometry row, its heights' rounding and the slots `_track` writes."""
     row: np.ndarray
     xh: float
     h: float
@@ -255,17 +331,113 @@ class FogIntegrand(NamedTuple):
     directional: bool
 
 
+# a fog row's columns past geometry.fog_rows's: the absolute rounding of the segment's start height
+# and of its light's, the three that `_track` keeps (TRACK + FMAX, + ESIG, + EALL), the light's
+# distance hypot(x_h, h), 1 / (1 - cos_end) of a spot's cone and the phase's `phase_condition`
+# (in the row, not the record: a larger record slowed the rule ~5 %)
+ZO, ZL, TRACK, DA, SPOT_WIDTH, PHASE_COND = 5, 6, 7, 10, 11, 12
+FOG_ROW = 13
+FMAX, ESIG, EALL = 0, 1, 2
+SIGNIFICANT = 1e-6
+ULP = 2.0 ** -53
+C_OPS = 16.0  # ulps allowed for a few dozen operations each of whose results a term covers
+
+
+def phase_condition(code, g):
+    """1 + max |d log Phi / d mu|: 1 + 3|g| / (1 - |g|)^2 for Henyey-Greenstein, 2 otherwise (Rayleigh's
+    2|mu| / (1 + mu^2) <= 1)."""
+    return 1.0 + (3.0 * abs(g) / (1.0 - abs(g)) ** 2 if code == HG else 1.0)
+
+
+@njit
+def _track(a, i, value, eps):
+    """Keep in a[i:i + 3] the largest value of the integrand's evaluations, the largest relative
+    rounding `eps` where the value is at least SIGNIFICANT of the largest so far, and anywhere."""
+    if value > a[i]:
+        a[i] = value
+    if value >= SIGNIFICANT * a[i] and eps > a[i + 1]:
+        a[i + 1] = eps
+    if eps > a[i + 2]:
+        a[i + 2] = eps
+
+
+@njit
+def _tracked(a, i, total, width):
+    """The rounding of a rule's sum `total` over `width` from what `_track` kept in a[i:i + 3]: the
+    significant evaluations' largest relative rounding times the total, the largest anywhere times
+    the rest's values (each below SIGNIFICANT of the largest) times the width (the positive weights'
+    sum)."""
+    return a[i + ESIG] * total + a[i + EALL] * SIGNIFICANT * a[i + FMAX] * width
+
+
+@njit
+def _fog_sun(s, r):
+    """The directional integrand T_sun(x(u)) at u = s, and its relative rounding (docs/error_bounds.md,
+    "Height fog"): the computed x is the exact point of a column off by its `column_error` (plus the
+    inverse's and log1p's few ulps), which moves u, and T_sun(x) changes with x at |MU / MUS| times the
+    camera's extinction; T_sun's own column off by its `column_error`."""
+    row, H, profile = r.row, r.H, r.profile
+    target = -math.log1p(-s) / r.kt
+    x = column_distance(row[HO], row[MU], 0.0, target, H, profile)
+    if x == math.inf:
+        return 0.0, 0.0
+    hp = row[HO] + row[MU] * x
+    tl = column(hp, row[MUS], 0.0, math.inf, H, profile)
+    value = math.exp(-r.kt * tl)
+    if not value > 0.0:
+        return value, 0.0
+    dz = row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU] * x)) + 3.0 * ULP * x
+    d_cam = column_error(row[HO], row[MU], 0.0, x, H, profile, target, dz, 3.0 * ULP) + 8.0 * ULP * target
+    d_sun = column_error(hp, row[MUS], 0.0, math.inf, H, profile, tl, dz + 2.0 * ULP * abs(hp), 3.0 * ULP)
+    return value, 2.0 * (r.kt * (d_sun + 2.0 * ULP * tl) + abs(row[MU] / row[MUS]) * r.kt * d_cam + C_OPS * ULP)
+
+
+@njit
+def _fog_point(s, r):
+    """The point or spot light's integrand fog_inscatter(x(theta)) at theta = s (the 1/h outside), and
+    its relative rounding (docs/error_bounds.md, "Height fog"), first order, doubled: x = x_h + h tan
+    theta is off by dx (the node's, tan's and x_h's and h's own rounding, ~eps of the light's distance
+    d_a), which moves the camera's column's end (its density kt rho(x); for the exponential profile
+    rho(x) x <= tc (1 + |MU| x / H), no exp to evaluate), the height at x, the light
+    path's length (relative dd/d) and the scattering cosine (h dx / d^2 for a point moved along
+    the ray, as cos = -(x - x_h)/d has derivative h^2/d^3, plus d's own rounding 2 (dh + 2 eps d)/d;
+    times the phase's condition); the heights carry their rows' rounding, the columns their
+    `column_error`; a spot's cosine to its axis moves by as much over its cone's width (its
+    derivative along the ray is below h / d^2 too); 1/h is off by eps d_a / h."""
+    row, H, profile, xh, h = r.row, r.H, r.profile, r.xh, r.h
+    t = math.tan(s)
+    x = xh + h * t
+    value, hp, tc, tl, mul, d = fog_inscatter_parts(x, row, xh, h, r.kt, r.ks, r.code, r.g, r.cone, H, profile, False)
+    if not value > 0.0:
+        return value, 0.0
+    inv_d = 1.0 / d
+    dh = C_OPS * ULP * row[DA]
+    dx = C_OPS * ULP * (abs(xh) + abs(x - xh) + d * d / h * abs(s)) + dh * (1.0 + abs(t))
+    dd = dx + dh + 2.0 * ULP * d
+    z_cam = row[ZO] + 2.0 * ULP * (abs(row[HO]) + abs(row[MU] * x))
+    dhp = z_cam + 3.0 * ULP * abs(x) + abs(row[MU]) * dx
+    d_cam = column_error(row[HO], row[MU], 0.0, x, H, profile, tc, z_cam, 3.0 * ULP)
+    dm_l = (row[ZL] + dhp + 2.0 * ULP * abs(row[HL] - hp) + abs(mul) * dd) * inv_d + 3.0 * ULP * abs(mul)
+    d_light = column_error(hp, mul, 0.0, d, H, profile, tl, dhp + 2.0 * ULP * (abs(hp) + abs(row[HL])), dm_l)
+    dens = (dhp + 2.0 * ULP * abs(hp)) / H
+    if profile == LINEAR:
+        rho = max(0.0, 1.0 - hp / H)
+        dens /= rho
+    else:  # rho(x) x <= tc (1 + |MU| x / H) (the density changes by e^{MU t / H} along the ray): no exp
+        rho = tc * (1.0 / x + abs(row[MU]) / H) if x > 0.0 else math.exp(-row[HO] / H)
+    moved = (h * inv_d * dx + 2.0 * (dh + 2.0 * ULP * d)) * inv_d + 4.0 * ULP
+    spot = moved * row[SPOT_WIDTH] if is_spot(r.cone[3]) else 0.0
+    eps = (dens + r.kt * (d_cam + d_light + 2.0 * ULP * (tc + tl) + rho * dx + tl * dd * inv_d) + row[PHASE_COND] * moved
+           + spot + dh / h + C_OPS * ULP)
+    return value, 2.0 * eps
+
+
 @integrand_of(FogIntegrand)
 @njit
 def _fog_value(s, r):
-    row, H, profile = r.row, r.H, r.profile
-    if r.directional:
-        x = column_distance(row[HO], row[MU], 0.0, -math.log1p(-s) / r.kt, H, profile)
-        if x == math.inf:
-            return 0.0
-        hp = row[HO] + row[MU] * x
-        return math.exp(-r.kt * column(hp, row[MUS], 0.0, math.inf, H, profile))
-    return fog_inscatter(r.xh + r.h * math.tan(s), row, r.xh, r.h, r.kt, r.ks, r.code, r.g, r.cone, H, profile, False)
+    value, eps = _fog_sun(s, r) if r.directional else _fog_point(s, r)
+    _track(r.row, TRACK, value, eps)
+    return value
 
 
 @njit
@@ -318,19 +490,52 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
 
 
 @njit
-def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, cone, H, profile, rtol, n10, w10, n20, w20, out,
-                 stats):
-    """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0."""
+def _fog_ends(row, xh, h, ell, kt, H, profile, directional):
+    """A bound on the rounding of the integration variable's two ends (`_fog_breaks`): for the sun
+    the camera's transmittance over the segment, 1 - T_cam(ell), off by T_cam kt column_error; for
+    a point light the angles atan2 of x_h, h and ell - x_h, each off by ~eps of the light's distance."""
+    if directional:
+        col = column(row[HO], row[MU], 0.0, ell, H, profile)
+        if col == math.inf:  # the end is 1 exactly
+            return 0.0
+        dz = row[ZO] + 2.0 * ULP * abs(row[HO]) + (2.0 * ULP * abs(row[MU] * ell) if ell < math.inf else 0.0)
+        return math.exp(-kt * col) * kt * (column_error(row[HO], row[MU], 0.0, ell, H, profile, col, dz, 3.0 * ULP)
+                                           + 8.0 * ULP * col) + 4.0 * ULP
+    da = math.hypot(xh, h)
+    lo = C_OPS * ULP * (1.0 + abs(math.atan2(-xh, h)))
+    if ell == math.inf:
+        return lo
+    return lo + C_OPS * ULP * ((da + ell) / math.hypot(ell - xh, h) + 1.0)
+
+
+@njit
+def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, phase_cond, cone, H, profile, rtol, n10, w10, n20,
+                 w20, out, bound, stats):
+    """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0, and
+    its bound: the rule's (`adaptive.bounded_piecewise`) plus the rounding `_track` kept (its largest relative
+    rounding where the integrand is significant times the value, the largest anywhere over the rest,
+    whose values are below SIGNIFICANT of the largest, and the ends' rounding times the largest value),
+    plus the factor's few ulps (the sun's phase, by its condition)."""
     br = np.empty(9)
     for s in range(xh.shape[0]):
-        out[s] = 0.0
+        out[s] = bound[s] = 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
         stats[EVALS] += 1.0
-        m = _fog_breaks(rows[s], xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
-        rec = FogIntegrand(rows[s], xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s])
-        scale = ks / kt * phase_value(code, g, rows[s, COSD]) if directional[s] else 1.0 / h[s]
-        out[s] = piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats) * scale
+        row = rows[s]
+        row[TRACK:TRACK + 3] = 0.0
+        row[DA] = math.hypot(xh[s], h[s])
+        row[SPOT_WIDTH] = 1.0 / max(1.0 - cone[s, 2], 1e-300)
+        row[PHASE_COND] = phase_cond
+        m = _fog_breaks(row, xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
+        rec = FogIntegrand(row, xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s])
+        scale = ks / kt * phase_value(code, g, row[COSD]) if directional[s] else 1.0 / h[s]
+        total, rule_bound = bounded_piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)
+        rounding = (_tracked(row, TRACK, total, br[m - 1] - br[0])
+                    + row[TRACK + FMAX] * _fog_ends(row, xh[s], h[s], ell[s], kt, H, profile, directional[s])
+                    + (phase_cond * 3.0 + C_OPS) * ULP * total)
+        out[s] = total * scale
+        bound[s] = (rule_bound + rounding) * scale
 
 
 # --- atmosphere (seed 004, media/atmosphere.py): the same adaptive rule, one channel at a time -------
@@ -343,23 +548,58 @@ def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, cone, H, profil
 
 class AtmosphereIntegrand(NamedTuple):
     """An atmosphere segment's air-light (above), one channel's layers: in x for the sun, in theta
-    for a point or spot light, of the segment's `geometry.AtmosphereInX` f."""
+    for a point or spot light, of the segment's `geometry.AtmosphereInX` f, whose scratch `cols`
+    holds past the layers' columns the slots `_track` writes (FMAX, ESIG, EALL from index K; a
+    record whose scratch holds the columns alone gives the value only)."""
     f: AtmosphereInX
+    dz: float = 0.0  # the absolute rounding of the segment's and its light's positions about the centre
+    phase_cond: float = 1.0  # the largest of the layers' `phase_condition`
+    cos_end: float = -2.0  # the spot's cone (<= -1 without one)
+
+
+@njit
+def _atm_node(s, r):
+    """The integrand at s and its relative rounding (docs/error_bounds.md, "Atmospheres"), first
+    order, doubled: the node's x is off by dx (for a point light as in the fog: x = x_h + h tan s,
+    x_h and h ~eps of the light's distance d_a off); every altitude by the positions' rounding about
+    the centre (~eps of the planet's radius and top, of x, of the light path) plus dx; the optical
+    depth by `atmosphere.depth_error` (Chapman's remainder and the densities' condition), the
+    scattering density by its `density_condition`, the camera's column's end by its extinction
+    times dx, the scattering cosine and a spot's cosine by h dx / d^2 + 2 (dh + 2 eps d) / d (as in
+    the fog); 1/h by eps d_a / h."""
+    f = r.f
+    if f.directional:
+        x, dx, dh, h, t = s, 2.0 * ULP * abs(s), 0.0, 1.0, 0.0
+    else:
+        h = f.h
+        t = math.tan(s)
+        x = f.xh + h * t
+        dh = C_OPS * ULP * math.hypot(f.xh, h)
+        dx = C_OPS * ULP * (abs(f.xh) + abs(x - f.xh) + (h * h + (x - f.xh) ** 2) / h * abs(s)) + dh * (1.0 + abs(t))
+    dz = r.dz + C_OPS * ULP * (f.R + f.top + abs(x)) + dx
+    value, depth, err, hx, d = atmo.inscatter_parts(x, f.row, f.directional, f.kt, f.ks, f.codes, f.gs, f.Hs, f.R,
+                                                    f.top, f.cols, -1.0, dz)
+    moved = 0.0
+    if not f.directional:
+        u = x - f.xh
+        d = math.sqrt(max(h * h + u * u, 1e-250))
+        value *= spot_factor(u, d, h, f.cone) / h
+        moved = (h / d * dx + 2.0 * (dh + 2.0 * ULP * d)) / d + 4.0 * ULP
+    if not value > 0.0:
+        return value, 0.0
+    spot = moved / max(1.0 - r.cos_end, 1e-300) if r.cos_end > -1.0 else 0.0
+    eps = (err + 2.0 * ULP * depth + dz * atmo.density_condition(hx, f.Hs, f.ks) + dx * atmo.extinction_at(
+        x, f.row, f.kt, f.Hs, f.R) + r.phase_cond * moved + spot + dh / h + C_OPS * ULP)
+    return value, 2.0 * eps
 
 
 @integrand_of(AtmosphereIntegrand)
 @njit
 def _atm_value(s, r):
-    f = r.f
-    if f.directional:
-        return atmosphere_inscatter(s, f, -1.0)
-    h = f.h
-    dx = h * math.tan(s)
-    d = math.sqrt(h * h + dx * dx)
-    spot = spot_factor(dx, d, h, f.cone)
-    if spot == 0.0:
-        return 0.0
-    return spot * atmosphere_inscatter(f.xh + dx, f, -1.0) / h
+    value, eps = _atm_node(s, r)
+    if r.f.cols.shape[0] >= r.f.kt.shape[0] + 3:  # scratch without the slots: the value alone
+        _track(r.f.cols, r.f.kt.shape[0], value, eps)
+    return value
 
 
 @njit
@@ -379,17 +619,49 @@ def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
 
 
 @njit
-def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, rtol, n10, w10, n20, w20, out,
-                        stats):
-    """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients."""
+def _atm_ends(f, cols, K):
+    """The rounding of the segment's ends in the air (`atmosphere.shell`'s distances: its top sphere's
+    crossings, off by eps (top + r0)(1 + (top + r0) / sqrt(disc)), disc that of the crossing) times
+    the integrand there in x, and of the sun's planet-shadow crossings (off by eps of the radius
+    over the sine between the ray and the sun) times the largest value."""
+    row = f.row
+    r0 = f.R + row[atmo.H0]
+    s0 = r0 * row[atmo.MU0]
+    disc = (f.top - r0) * (f.top + r0) + s0 * s0
+    moved = C_OPS * ULP * (f.top + r0) * (1.0 + (f.top + r0) / math.sqrt(max(disc, 1e-300)))
+    out = 0.0
+    a, b = row[atmo.A], row[atmo.B]
+    if a > 0.0:
+        out += abs(atmosphere_in_x(a, f, -1.0)) * (moved + C_OPS * ULP * a)
+    a0, b0 = atmo.shell(row[atmo.H0], row[atmo.MU0], f.R, f.top)
+    if b == b0:
+        out += abs(atmosphere_in_x(b, f, -1.0)) * (moved + C_OPS * ULP * b)
+    if f.directional:
+        ws = row[atmo.WX] * row[atmo.LX] + row[atmo.WY] * row[atmo.LY] + row[atmo.WZ] * row[atmo.LZ]
+        n = atmo.planet_shadow(row, f.R, cols[K + 3:])
+        out += n * cols[K + FMAX] * C_OPS * ULP * (f.R + f.top + b) / math.sqrt(max(1.0 - ws * ws, 1e-300))
+    return out
+
+
+@njit
+def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, dz, phase_cond, rtol, n10,
+                        w10, n20, w20, out, bound, stats):
+    """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients, and
+    its bound: the rule's (`adaptive.bounded_piecewise`), the rounding `_track` kept over the evaluations
+    (`_tracked`), the ends' (`_atm_ends`) and the sum's."""
     br = np.empty(11 + atmo.max_density_breaks(Hs))
-    cols = np.empty(Hs.shape[0])
+    K = Hs.shape[0]
+    cols = np.empty(K + 5)  # the layers' columns, the slots `_track` writes, scratch for the shadow's crossings
     for s in range(xh.shape[0]):
-        out[s] = 0.0
+        out[s] = bound[s] = 0.0
         if not rows[s, atmo.B] > rows[s, atmo.A]:
             continue
         stats[EVALS] += 1.0
         row = atmosphere_row(rows[s])
         m = _atm_breaks(row, directional[s], xh[s], h[s], cone[s], Hs, R, br)
+        cols[K:K + 3] = 0.0
         f = AtmosphereInX(row, directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
-        out[s] = piecewise(AtmosphereIntegrand(f), br, m, rtol, n10, w10, n20, w20, stats)
+        total, rule_bound = bounded_piecewise(AtmosphereIntegrand(f, dz[s], phase_cond, cone[s, 2]), br, m, rtol, n10,
+                                              w10, n20, w20, stats)
+        out[s] = total
+        bound[s] = rule_bound + _tracked(cols, K, total, br[m - 1] - br[0]) + _atm_ends(f, cols, K) + C_OPS * ULP * total
