@@ -524,7 +524,8 @@ def unbounded_reason(prep, method, result) -> str:
     """Why pixels of a render have no finite error bound, in a few words, from what the render knows
     (docs/error_bounds.md lists the sources): the method's air-light gives no bound in this medium
     (asked of it: its airlight's third value on an empty batch), media inside shapes, the particle
-    layer's glints. "" where none of these applies."""
+    layer's glints, area lights (their emitter points are a cubature without a bound). "" where none of
+    these applies."""
     from .methods import Segments
 
     medium, why = prep.scene.medium, []
@@ -540,4 +541,6 @@ def unbounded_reason(prep, method, result) -> str:
                    "media inside shapes")
     if medium.particles is not None:
         why.append("particle glints")
+    if prep.lights.cubature.any():
+        why.append("area lights' cubature")
     return ", ".join(why)

@@ -173,7 +173,7 @@ def check(prep, method, method_params, source: str):
     for li in np.nonzero(prep.lights.kind != DIRECTIONAL)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
-            raise UserError(f"{source}: light[{li}].position: inside shape[{inside}], which holds a medium; lights "
+            raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a medium; lights "
                             "inside bounded media are not supported yet, move the light out of the shape")
 
 

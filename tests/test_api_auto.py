@@ -73,12 +73,16 @@ def test_the_summary_line_names_the_choice_and_the_unbounded_share(tmp_path, cap
     line = capsys.readouterr().out
     assert line.count("\n") == 1
     assert 'method auto → quadrature (analytic: does not take height_fog media (medium.type = "height_fog"))' in line
-    # quadrature gives no bound in fog (docs/error_bounds.md): every pixel of the EXR's bound is infinite
+    # quadrature bounds its fog integrals (docs/error_bounds.md): every pixel of the EXR's bound is finite
     bound = read_exr_channels(out, "error_bound")
-    assert np.isinf(bound).any(axis=-1).all()
-    assert line.rstrip().endswith("; 100 % of pixels unbounded: quadrature gives no bound in height_fog media")
+    assert np.isfinite(bound).all() and "unbounded" not in line
     header = read_exr(out)[1]
-    assert header["unbounded_pixels"] == "1" and header["method_choice"].startswith("auto → quadrature")
+    assert header["unbounded_pixels"] == "0" and header["method_choice"].startswith("auto → quadrature")
+    # area lights' emitter points are a cubature without a bound: every pixel the haze glows in is unbounded
+    assert main(["render", "studio", "--width", "16", "--height", "10", "--spp", "1", "--out", str(out)]) == 0
+    line = capsys.readouterr().out
+    assert line.rstrip().endswith("; 100 % of pixels unbounded: area lights' cubature")
+    assert read_exr(out)[1]["unbounded_pixels"] == "1"
 
 
 def test_a_partly_unbounded_render_counts_the_pixels_of_its_bound_channels(tmp_path):
@@ -104,8 +108,8 @@ def test_repr_is_one_line_with_size_method_time_and_bound_share():
     text = repr(img)
     assert "\n" not in text and len(text) < 200
     assert text.startswith("Image(box_room: 16x12, method analytic, ") and text.endswith(" s, every pixel bounded)")
-    fog = raytrace.render("valley_fog", **TINY)
-    assert repr(fog).endswith("100 % of pixels unbounded: quadrature gives no bound in height_fog media)")
+    studio = raytrace.render("studio", **TINY)
+    assert repr(studio).endswith("100 % of pixels unbounded: area lights' cubature)")
 
 
 @pytest.mark.parametrize(("share", "text"), [(0.0148, "1.5 %"), (1e-5, "< 0.1 %"), (0.99999, "> 99.9 %"),
