@@ -33,6 +33,13 @@ def adaptive(rec, a, b, rtol, density, n10, w10, n20, w20, stats):
     relative or to `density` times its width."""
     if not b > a:
         return 0.0, True
+    return seeded(rec, a, b, rule(a, b, rec, n20, w20), rtol, density, n10, w10, n20, w20, stats)
+
+
+@njit
+def seeded(rec, a, b, first, rtol, density, n10, w10, n20, w20, stats):
+    """`adaptive` over [a, b] (b > a) given its 20-point value `first` (the caller's, e.g. a first
+    estimate's: not evaluated again)."""
     converged = True
     lo = np.empty(STACK)
     hi = np.empty(STACK)
@@ -44,7 +51,7 @@ def adaptive(rec, a, b, rtol, density, n10, w10, n20, w20, stats):
         top -= 1
         x0, x1 = lo[top], hi[top]
         coarse = rule(x0, x1, rec, n10, w10)
-        fine = rule(x0, x1, rec, n20, w20)
+        fine = first if count == 0 else rule(x0, x1, rec, n20, w20)
         count += 1
         mid = 0.5 * (x0 + x1)
         tol = max(rtol * abs(fine), density * (x1 - x0))
@@ -95,11 +102,22 @@ def bounded_piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats):
     """`piecewise` and the bound of its rule: each accepted interval's 20-point value taken to be
     within |G20 - G10| of its integral, which the test keeps below rtol |G20| or the floor times its
     width, so rtol (|total| + first estimate / 10) for a positive integrand; inf where an interval
-    was accepted at a cap."""
+    was accepted at a cap. Each piece's first 20-point rule is evaluated once, for the estimate and
+    as the refinement's first (`seeded`)."""
     width = br[m - 1] - br[0]
-    estimate = first_estimate(rec, br, m, n20, w20, 0.0)
+    first = np.empty(max(m - 1, 1))  # each piece's 20-point value: the estimate's, the rule's first
+    estimate = 0.0
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            first[i] = rule(br[i], br[i + 1], rec, n20, w20)
+            estimate += abs(first[i])
     floor = 0.1 * rtol * estimate / width if width > 0.0 else 0.0
-    total, ok = refine(rec, br, m, rtol, floor, n10, w10, n20, w20, stats, 0.0)
+    total, ok = 0.0, True
+    for i in range(m - 1):
+        if br[i + 1] > br[i]:
+            val, good = seeded(rec, br[i], br[i + 1], first[i], rtol, floor, n10, w10, n20, w20, stats)
+            total += val
+            ok = ok and good
     if not ok:
         stats[CAPPED] += 1.0
         return total, math.inf
