@@ -26,7 +26,7 @@ from numba.extending import overload
 from ..jit import njit
 from ..lights import DIRECTIONAL
 from .chapman import atmosphere_column, ground_distance, relative_error
-from .medium import Medium
+from .medium import Medium, kernel_arrays
 from .phase import HG, NAMES as PHASE_NAMES, phase_value
 from .tent import tent_breaks, tent_column, tent_density
 
@@ -126,10 +126,7 @@ class Atmosphere(Medium):
     def transmittance_on(self, origins, dirs, a, b):
         n = len(origins)
         out = np.empty((n, 3))
-        ray_transmittance(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float),
-                          np.ascontiguousarray(np.broadcast_to(np.asarray(a, float), n)),
-                          np.ascontiguousarray(np.broadcast_to(np.asarray(b, float), n)),
-                          *(float(v) for v in self.center), float(self.radius), float(self.top), self.layers,
+        ray_transmittance(*kernel_arrays(n, origins, dirs, a, b), *(float(v) for v in self.center), float(self.radius), float(self.top), self.layers,
                           self.layer_sigma_t, out)
         return out
 

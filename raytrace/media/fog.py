@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
-from .medium import Medium, exp_transmittance
+from .medium import Medium, exp_transmittance, kernel_arrays
 
 EXPONENTIAL, LINEAR = 0, 1  # profiles
 PROFILES = {"exponential": EXPONENTIAL, "linear": LINEAR}
@@ -70,12 +70,9 @@ class HeightFog(Medium):
 
     def transmittance_on(self, origins, dirs, a, b):
         n = len(origins)
-        a = np.broadcast_to(np.asarray(a, float), n)
-        b = np.broadcast_to(np.asarray(b, float), n)
         tau = np.empty(n)
-        ray_columns(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float), np.ascontiguousarray(a),
-                    np.ascontiguousarray(b), *(float(u) for u in self.up), float(self.h0), float(self.scale_height),
-                    int(self.profile), tau)
+        ray_columns(*kernel_arrays(n, origins, dirs, a, b), *(float(u) for u in self.up), float(self.h0),
+                    float(self.scale_height), int(self.profile), tau)
         return exp_transmittance(self.sigma_t, tau)
 
 

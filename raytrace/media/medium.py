@@ -81,6 +81,15 @@ class Medium:
         return h.hexdigest()
 
 
+def kernel_arrays(n: int, origins, dirs, a, b) -> tuple:
+    """`transmittance_on`'s arguments as the kernels take them: origins and dirs (n, 3), a and b (n,)
+    (numbers broadcast), float64, C-contiguous and writable, so that one compiled signature serves every
+    call (numba types a read-only array apart, and a broadcast array of one ray is contiguous but
+    read-only: the warm-up's single rays would otherwise compile a signature no tile uses)."""
+    return tuple(np.require(np.broadcast_to(np.asarray(v, float), shape), float, ("C", "W"))
+                 for v, shape in ((origins, (n, 3)), (dirs, (n, 3)), (a, (n,)), (b, (n,))))
+
+
 def exp_transmittance(kt: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """exp(-kt tau) per channel (N, 3) for unit optical depths tau (N,), exactly 1 in vacuum channels
     even for tau = inf, 0 where kt tau overflows."""
