@@ -26,9 +26,9 @@ from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH  # noqa: E402
-from raytrace.renderer import prepare, shade_rays  # noqa: E402
+from raytrace.rendering.renderer import prepare, shade_rays  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
-from raytrace.visibility import unshadowed_airlight  # noqa: E402
+from raytrace.segments import unshadowed_airlight  # noqa: E402
 
 PHASES = [("isotropic", ISOTROPIC, 0.0), ("rayleigh", RAYLEIGH, 0.0), ("hg g=0.5", HG, 0.5),
           ("hg g=-0.5", HG, -0.5), ("hg g=0.9", HG, 0.9), ("hg g=0.95", HG, 0.95)]

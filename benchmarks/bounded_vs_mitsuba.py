@@ -77,7 +77,7 @@ def write_u(path):
 
 
 def ours(sc, folder, spp_side=8):
-    from raytrace.renderer import prepare, render
+    from raytrace.rendering.renderer import prepare, render
     from raytrace.scene.format import scene_from_dict
 
     inner = {"interior": {"sigma_a": KA, "sigma_s": KS}}

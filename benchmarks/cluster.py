@@ -1,4 +1,4 @@
-"""A local Dask cluster against the threaded renderer on the same image (raytrace/distributed.py).
+"""A local Dask cluster against the threaded renderer on the same image (raytrace/rendering/distributed.py).
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/cluster.py [--workers 2] [--repeats 3] [--quick]
 
@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import raytrace  # noqa: E402
-from raytrace import distributed, renderer  # noqa: E402
+from raytrace.rendering import distributed, renderer  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
 from raytrace.options import RenderOptions  # noqa: E402
 

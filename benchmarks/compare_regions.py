@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.camera import generate_rays  # noqa: E402
-from raytrace.film import read_exr  # noqa: E402
+from raytrace.output.film import read_exr  # noqa: E402
 from raytrace.scene.format import load_scene  # noqa: E402
 
 

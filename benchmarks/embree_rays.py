@@ -4,7 +4,7 @@
 
 First-hit rays are the camera rays of an environment camera in the nave (coherent, as in the
 paper's fig. 3) and random directions (incoherent); shadow rays go from the first-hit points to a
-light. Times are medians of 3 runs, measured through `raytrace.accel.Accelerator`, so they include
+light. Times are medians of 3 runs, measured through `raytrace.geometry.accel.Accelerator`, so they include
 the float64 refinement of hit distances.
 """
 import argparse
@@ -17,10 +17,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from raytrace.accel import Accelerator  # noqa: E402
+from raytrace.geometry.accel import Accelerator  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.media import Homogeneous  # noqa: E402
-from raytrace.renderer import default_threads  # noqa: E402
+from raytrace.rendering.renderer import default_threads  # noqa: E402
 from raytrace.scene.format import Camera  # noqa: E402
 from raytrace.scene.meshes import load_mesh  # noqa: E402
 from raytrace.scene.format import Shape, Transform, Scene  # noqa: E402

@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from raytrace.film import read_exr  # noqa: E402
+from raytrace.output.film import read_exr  # noqa: E402
 
 
 def run(checkout: Path, scene: str, extra: list[str]):

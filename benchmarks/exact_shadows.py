@@ -1,4 +1,5 @@
-"""Exact lit intervals (raytrace/shadow_frusta.py) against the sampled search (visibility.lit_intervals).
+"""Exact lit intervals (raytrace/shadows/frusta.py) against the sampled search that preceded them
+(benchmarks/sampled_search.py).
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/exact_shadows.py [--quick] [--rounds N]
 
@@ -26,12 +27,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import raytrace  # noqa: E402
-import raytrace.renderer as renderer  # noqa: E402
-from raytrace import shadow_maps  # noqa: E402
+import raytrace.rendering.renderer as renderer  # noqa: E402
+from benchmarks import shadow_maps  # noqa: E402
+from benchmarks.sampled_search import lit_intervals  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
-from raytrace.renderer import prepare, tiles  # noqa: E402
-from raytrace.shadow_frusta import STATS_NAMES, build, exact_lit_intervals  # noqa: E402
-from raytrace.visibility import cone_segments, lit_intervals, whole_rays  # noqa: E402
+from raytrace.rendering.renderer import prepare, tiles  # noqa: E402
+from raytrace.segments import cone_segments, whole_rays  # noqa: E402
+from raytrace.shadows.frusta import STATS_NAMES, build, exact_lit_intervals  # noqa: E402
 
 SUBSAMPLE = 512
 

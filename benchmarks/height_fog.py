@@ -105,7 +105,7 @@ def raymarch_at_equal_error():
     depths (the camera's summed along the march, the light's by a march of as many steps), error
     against quadrature (rtol 1e-9); then the time ratio at which each first reaches a max error."""
     from raytrace.options import RenderOptions
-    from raytrace.renderer import prepare, render
+    from raytrace.rendering.renderer import prepare, render
 
     prep = prepare(_sunrise(64, 40))
     one = RenderOptions(threads=1)
@@ -296,9 +296,9 @@ def fog_freepath_variance_at_equal_time(samples=16, steps=(16, 64)):
     the sky are marched to optical depth 20, or through 99.9 % of a rising ray's finite column, so
     the marched sampler is slightly truncated there)."""
     from raytrace.methods.geometry import fog_rows
-    from raytrace.renderer import prepare
+    from raytrace.rendering.renderer import prepare
     from raytrace.scene.format import load_scene
-    from raytrace.visibility import whole_rays
+    from raytrace.segments import whole_rays
     from raytrace.camera import generate_rays
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "valley_fog.toml")

@@ -30,9 +30,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from raytrace import bounded, inside_paths  # noqa: E402
+from raytrace.interiors import crossing, paths  # noqa: E402
 from raytrace.options import RenderOptions  # noqa: E402
-from raytrace.renderer import prepare, render  # noqa: E402
+from raytrace.rendering.renderer import prepare, render  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
 
 SCENE = """
@@ -62,14 +62,14 @@ METHODS = {"quadrature": {}, "raymarch": {"steps": 64}, "montecarlo": {"samples"
 
 
 def counted_exits():
-    """Wrap inside_paths._geometry to count the points where a light path's exit is measured."""
+    """Wrap paths._geometry to count the points where a light path's exit is measured."""
     count = [0]
-    geometry = inside_paths._geometry
+    geometry = paths._geometry
 
     def wrapped(prep, sid, geo, directional, seg, x, *rest):
         count[0] += len(x)
         return geometry(prep, sid, geo, directional, seg, x, *rest)
-    inside_paths._geometry = wrapped
+    paths._geometry = wrapped
     return count
 
 
@@ -103,11 +103,11 @@ def main():
         tracemalloc.start()
         t0 = time.perf_counter()
         prep = prepare(scene_from_text(text, "interiors_scale"))
-        convex = bounded.hull_planes(prep, 0) is not None
+        convex = crossing.hull_planes(prep, 0) is not None
         load = time.perf_counter() - t0
         peak = tracemalloc.get_traced_memory()[1] / 2**20
         tracemalloc.stop()
-        kernel = "kernel" if len(bounded.convex_planes(prep, 0)) else "Embree"
+        kernel = "kernel" if len(crossing.convex_planes(prep, 0)) else "Embree"
         for name, params in METHODS.items():
             seconds = []
             for _ in range(args.repeat):

@@ -1,15 +1,13 @@
-"""Light shafts (volumetric shadows over lit intervals): accuracy, resolution, speed, equal time.
+"""Light shafts (volumetric shadows over exact lit intervals): accuracy, speed, equal time.
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/light_shafts.py [--quick]
 
 1. Accuracy: `analytic` with shadows against shadowed `quadrature` (the same lit intervals,
    adaptive Gauss-Legendre on each) on box rooms with occluders (plates, a grid of bars, a sphere)
    and on the paper's scenes: the largest per-pixel relative error, against 10 x precision.
-2. Resolution: the error of the search at angular spacing s against a search 8 times finer (same
-   method), and the share of camera rays whose lit intervals changed.
-3. Speed: a shadowed analytic render over the unshadowed one (interleaved rounds, median), and
-   the search's shadow rays per segment.
-4. Equal time: ray marching with a shadow ray per sample (`shadow_test = samples`, the classic),
+2. Speed: a shadowed analytic render over the unshadowed one (interleaved rounds, median), and
+   the lit intervals and occluder frusta per segment.
+3. Equal time: ray marching with a shadow ray per sample (`shadow_test = samples`, the classic),
    its step count matched to the shadowed analytic render's time, and both errors.
 """
 import argparse
@@ -22,7 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import raytrace  # noqa: E402
-from raytrace.renderer import prepare  # noqa: E402
+from raytrace.rendering.renderer import prepare  # noqa: E402
 
 
 def box(shapes, w, h):
@@ -64,35 +62,20 @@ def render(prep, method, **kw):
     return raytrace.render(prepared=prep, method=method, **kw)
 
 
-def accuracy(all_scenes, spacing):
+def accuracy(all_scenes):
     print("\n## Accuracy: analytic with shadows against shadowed quadrature (rtol 1e-10)\n")
     print("| scene | precision | max rel. error | mean rel. error | fallback share |")
     print("|---|---|---|---|---|")
     refs = {}
     for name, sc in all_scenes.items():
         prep = prepare(sc)
-        refs[name] = (prep, render(prep, "quadrature", rtol=1e-10, volumetric_shadows=True,
-                                   shadow_spacing=spacing).array)
+        refs[name] = (prep, render(prep, "quadrature", rtol=1e-10, volumetric_shadows=True).array)
         for p in (1e-3, 1e-6):
-            img = render(prep, "analytic", precision=p, volumetric_shadows=True, shadow_spacing=spacing)
+            img = render(prep, "analytic", precision=p, volumetric_shadows=True)
             mx, mean = rel_error(img.array, refs[name][1])
             print(f"| {name} | {p:g} | {mx:.2e} ({'ok' if mx <= 10 * p else 'ABOVE 10 P'}) | {mean:.2e} | "
                   f"{img.stats['fallback_fraction']:.2%} |")
     return refs
-
-
-def resolution(all_scenes, spacings):
-    print("\n## Resolution: the search at spacing s against one 8 times finer (analytic, precision 1e-6)\n")
-    print("| scene | spacing (rad) | rays with other lit intervals | max rel. error | mean rel. error |")
-    print("|---|---|---|---|---|")
-    for name, sc in all_scenes.items():
-        prep = prepare(sc)
-        for s in spacings:
-            a = render(prep, "analytic", precision=1e-6, volumetric_shadows=True, shadow_spacing=s)
-            b = render(prep, "analytic", precision=1e-6, volumetric_shadows=True, shadow_spacing=s / 8)
-            changed = float(np.mean(np.any(np.abs(a.array - b.array) > 1e-5 * b.array, axis=2)))
-            mx, mean = rel_error(a.array, b.array)
-            print(f"| {name} | {s:g} | {changed:.2%} | {mx:.2e} | {mean:.2e} |")
 
 
 def speed(sc, rounds, label):
@@ -108,17 +91,16 @@ def speed(sc, rounds, label):
             stats = img.stats if vs else stats
     t0, t1 = np.median(times[False]), np.median(times[True])
     segs = stats["shadows: segments searched"]
-    print("| unshadowed (s) | shadowed (s) | ratio | samples / segment | shadow rays / segment | boundaries / segment |")
-    print("|---|---|---|---|---|---|")
-    print(f"| {t0:.2f} | {t1:.2f} | {t1 / t0:.1f}x | {stats['shadows: visibility samples'] / segs:.1f} | "
-          f"{stats['shadows: shadow rays traced'] / segs:.1f} | {stats['shadows: shadow boundaries'] / segs:.2f} |")
+    print("| unshadowed (s) | shadowed (s) | ratio | lit intervals / segment | frusta intersected / segment |")
+    print("|---|---|---|---|---|")
+    print(f"| {t0:.2f} | {t1:.2f} | {t1 / t0:.1f}x | {stats['shadows: lit intervals'] / segs:.2f} | "
+          f"{stats['shadows: frusta intersected'] / segs:.1f} |")
 
 
 def equal_time(refs):
     print("\n## Equal time: analytic against ray marching with a shadow ray per sample (the classic)\n")
     print("Ray marching's step count is doubled until its render takes at least as long as analytic's at "
-          "precision 1e-6 (the search for lit intervals dominates analytic's time, so its precision is "
-          "almost free); errors are mean relative errors against shadowed quadrature.\n")
+          "precision 1e-6; errors are mean relative errors against shadowed quadrature.\n")
     print("| scene | analytic 1e-3: time (s), error | analytic 1e-6: time (s), error | raymarch steps | "
           "raymarch time (s) | raymarch error | error ratio (raymarch / analytic 1e-6) |")
     print("|---|---|---|---|---|---|---|")
@@ -144,9 +126,7 @@ def main():
     start = time.perf_counter()
     print(f"# Light shafts benchmark ({'quick' if args.quick else 'full'})")
     all_scenes = scenes(args.quick)
-    refs = accuracy(all_scenes, 0.01)
-    resolution({k: v for k, v in all_scenes.items() if k in ("box: grid of bars", "sibenik")},
-               (0.04, 0.02, 0.01) if args.quick else (0.04, 0.02, 0.01, 0.005))
+    refs = accuracy(all_scenes)
     equal_time(refs)
     if "sibenik" in all_scenes:
         full = raytrace.load("sibenik", overrides=["camera.width=256", "camera.height=128", "camera.spp=1"]) \

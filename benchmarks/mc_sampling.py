@@ -29,7 +29,7 @@ import raytrace  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.methods import montecarlo as mc  # noqa: E402
 from raytrace.methods.geometry import segment_geometry  # noqa: E402
-from raytrace.visibility import whole_rays  # noqa: E402
+from raytrace.segments import whole_rays  # noqa: E402
 from tests.conftest import plate_room  # noqa: E402
 
 PHASES = {"isotropic": "isotropic", "hg 0.9": {"type": "hg", "g": 0.9}}

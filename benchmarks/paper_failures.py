@@ -27,9 +27,9 @@ from raytrace.methods import get_method, resolve_params  # noqa: E402
 from raytrace.methods.analytic import ST_EVALS, ST_TAYLOR_OUT  # noqa: E402
 from raytrace.media.expint import i01_series, i0i1_stable  # noqa: E402
 from raytrace.media.phase import HG, RAYLEIGH  # noqa: E402
-from raytrace.renderer import prepare  # noqa: E402
+from raytrace.rendering.renderer import prepare  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
-from raytrace.visibility import unshadowed_airlight  # noqa: E402
+from raytrace.segments import unshadowed_airlight  # noqa: E402
 
 
 def i0_mpmath(H, va, vb):

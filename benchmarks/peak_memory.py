@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from raytrace.film import read_exr  # noqa: E402
+from raytrace.output.film import read_exr  # noqa: E402
 from raytrace.scene.format import load_scene  # noqa: E402
 
 SCENES = ("sibenik", "bridge", "conference")

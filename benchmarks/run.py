@@ -56,9 +56,9 @@ from raytrace.jit import njit  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
 from raytrace.methods.geometry import by_channel  # noqa: E402
 from raytrace.methods.quadrature import _rule as quad_rule  # noqa: E402
-from raytrace.metrics import errors  # noqa: E402
-from raytrace.renderer import prepare  # noqa: E402
-from raytrace.visibility import whole_rays  # noqa: E402
+from raytrace.output.metrics import errors  # noqa: E402
+from raytrace.rendering.renderer import prepare  # noqa: E402
+from raytrace.segments import whole_rays  # noqa: E402
 from tests.conftest import box_room, plate_room  # noqa: E402
 
 PHASES = {"isotropic": "isotropic", "rayleigh": "rayleigh", "hg g=0.5": {"type": "hg", "g": 0.5},
@@ -302,7 +302,7 @@ def cluster_rows(quick, rounds):
     """benchmarks/cluster.py's efficiency: threaded render time / the same render on a local Dask
     cluster of 2 single-threaded workers (`cluster.cluster_render`), median of interleaved rounds."""
     import cluster
-    from raytrace import distributed, renderer
+    from raytrace.rendering import distributed, renderer
 
     size, samples = ((256, 128), 16) if quick else ((512, 256), 48)
     name = "sibenik"

@@ -23,7 +23,6 @@ largest image row's share (what a tile of whole rows would at least hold).
 import argparse
 import heapq
 import json
-import os
 import re
 import shutil
 import statistics
@@ -39,7 +38,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import raytrace  # noqa: E402
-from raytrace import api, renderer  # noqa: E402
+from raytrace import api  # noqa: E402
+from raytrace.rendering import renderer  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
 
 from run import machine  # noqa: E402
@@ -170,7 +170,7 @@ def makespan(cpu: np.ndarray, gil: np.ndarray, threads: int) -> float:
 def speedup(row) -> tuple[float, float]:
     """Median wall seconds of one-thread and two-thread renders taking turns, ROUNDS each."""
     scene, method, shadows = load(row)
-    prep = raytrace.renderer.prepare(scene)
+    prep = raytrace.rendering.renderer.prepare(scene)
     opts = {"method": method, "volumetric_shadows": shadows, "prepared": prep}
     raytrace.render(**opts, threads=1)  # compile
     one, two = [], []

@@ -18,9 +18,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
-from raytrace.metrics import errors  # noqa: E402
+from raytrace.output.metrics import errors  # noqa: E402
 from raytrace.options import RenderOptions  # noqa: E402
-from raytrace.renderer import prepare, render  # noqa: E402
+from raytrace.rendering.renderer import prepare, render  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
 
 LADDERS = {

@@ -450,7 +450,7 @@ def checks(mi_mod, dr, quick, vectorised):
 
 def bench_scene(mi_mod, dr, index, name, scene, shadows, quick, vectorised):
     import raytrace
-    from raytrace.renderer import prepare
+    from raytrace.rendering.renderer import prepare
 
     prep = prepare(scene)
     t0 = time.perf_counter()

@@ -29,8 +29,8 @@ from . import error_bounds, io
 from .errors import UserError, counted
 from .options import MEMORY_SHARE, RenderOptions, physical_memory  # noqa: F401  (api.MEMORY_SHARE for callers)
 from .scene.format import Scene
-from .visibility import SHADOW_SPACING, SPACING_RANGE
 
+IGNORED = frozenset({"shadow_spacing"})  # accepted so that older scripts run; not read (the lit intervals are exact)
 OPTION_NAMES = frozenset(f.name for f in fields(RenderOptions))
 
 
@@ -52,7 +52,6 @@ class Image:
     crop: tuple | None = None
     volumetric_shadows: bool = False
     variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
-    extra_header: dict = field(default_factory=dict)
     # (H, W, 3) float32 (rounded up): |array - exact| <= error_bound per pixel and channel, inf where no
     # bound is known; for a stochastic method its standard error instead (statistical, not a bound):
     # docs/error_bounds.md
@@ -60,7 +59,7 @@ class Image:
     auto: str | None = None  # method = "auto": its choice in words ("analytic", "quadrature (analytic: why not)")
     unbounded: float = 0.0  # the share of pixels whose error_bound is infinite in some channel (0 to 1)
     unbounded_reason: str = ""  # why, in a few words, where the render knows it (`unbounded_reason`)
-    # the output layers asked for (aov.py): "depth" (H, W, 1), "normal", "albedo", "light0", ...,
+    # the output layers asked for (rendering/aov.py): "depth" (H, W, 1), "normal", "albedo", "light0", ...,
     # "emission" (H, W, 3); the light layers and emission sum to `array`
     layers: dict = field(default_factory=dict)
 
@@ -94,7 +93,6 @@ class Image:
         if self.auto is not None:
             out["method_choice"] = self.method_label
         out.update({f"stats.{k}": v for k, v in self.stats.items()})
-        out.update(self.extra_header)
         return out
 
     def layer(self, name: str) -> "Image":
@@ -114,7 +112,7 @@ class Image:
 
         from PIL import Image as Picture
 
-        from . import film
+        from .output import film
 
         picture = Picture.fromarray(film.tonemap(self.array), "RGB")
         if picture.width > PREVIEW_WIDTH:
@@ -140,14 +138,14 @@ class Image:
         """Write every path, all or nothing (each to a temporary file beside it, renamed once all are
         written): linear float32 EXR (.exr, with error_bound.R/G/B channels, the bound of the float32
         values, error_bounds.stored, variance channels for stochastic methods and the output layers'
-        channels, aov.py: depth.Z, normal.X/Y/Z, albedo.R/G/B, light0.R/G/B, ..., emission.R/G/B) or an 8-bit
+        channels, rendering/aov.py: depth.Z, normal.X/Y/Z, albedo.R/G/B, light0.R/G/B, ..., emission.R/G/B) or an 8-bit
         PNG preview (.png) through `view`: "neutral" (Khronos PBR Neutral, highlights roll off
         and lamps keep their hue), "aces" (ACES 2.0's SDR view, which greys coloured lamps) or "standard"
         (the exact sRGB encode, clipping at 1). `exposure` is in stops (each doubles the radiance); None
         is automatic: the log-average luminance at middle grey for "neutral" and "aces", the 99.5th
         percentile of luminance at white for "standard"."""
-        from . import film
-        from .view import check_exposure
+        from .output import film
+        from .output.view import check_exposure
 
         exposure, view = check_exposure(exposure), film.check_view(view)
         jobs = []
@@ -162,7 +160,7 @@ class Image:
                 if self.variance is not None:
                     extra.update({f"variance.{c}": self.variance[..., i] for i, c in enumerate("RGB")})
                 if self.layers:
-                    from .aov import exr_channels
+                    from .rendering.aov import exr_channels
 
                     extra.update(exr_channels(self.layers))
                 jobs.append((path, film.exr_writer(self.array, self.header(), extra)))
@@ -308,16 +306,10 @@ def render_options(scene: Scene | None, source: str = "render", **given) -> Rend
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise UserError(f"{_named('seed', seed)}: must be >= 0; give a non-negative integer")
     given["volumetric_shadows"] = bool(given.get("volumetric_shadows", table.get("volumetric_shadows", False)))
-    spacing = given["shadow_spacing"] = float(given.get("shadow_spacing", table.get("shadow_spacing", SHADOW_SPACING)))
-    lo, hi = SPACING_RANGE
-    if not lo <= spacing <= hi:
-        raise UserError(f"{source}: shadow_spacing (--shadow-spacing, render.shadow_spacing): must be within "
-                        f"[{lo:g}, {hi:g}] radians, got {spacing!r}; it is not read (the lit intervals are exact): "
-                        "leave it out")
     if "checkpoint" in given:
         given["checkpoint"] = Path(given["checkpoint"])
     if "aov" in given or "aov" in table:
-        from . import aov
+        from .rendering import aov
 
         named = _named("aov", given["aov"]) if "aov" in given else f"{source}: render.aov"
         given["aov"] = aov.check(given.get("aov", table.get("aov")), named)
@@ -342,16 +334,16 @@ def _check_crop(crop, cam):
 
 
 def executor(options: RenderOptions, client=None, source: str = "render"):
-    """Where the tiles run: on the cluster of a `dask.distributed.Client` (distributed.py, imported
+    """Where the tiles run: on the cluster of a `dask.distributed.Client` (rendering/distributed.py, imported
     only then), else on a pool of `options.threads` threads (renderer.Threads)."""
-    from . import renderer
+    from .rendering import renderer
 
     if client is None:
         return renderer.Threads(options.threads)
     if options.threads is not None:
         raise UserError(f"{source}: {_named('threads', options.threads)} applies to one machine; on a cluster "
                         "(client, --scheduler) every worker runs as many tiles as it has threads: remove it")
-    from .distributed import Cluster
+    from .rendering.distributed import Cluster
 
     return Cluster(client)
 
@@ -413,7 +405,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     where it takes the scene, else quadrature, `choose_method`).
 
     Keywords named as `RenderOptions`' fields are render options (raytrace/options.py: spp, width,
-    height, seed, threads, crop, volumetric_shadows, shadow_spacing, the progressive passes,
+    height, seed, threads, crop, volumetric_shadows, the progressive passes,
     time_budget, target_error, checkpoint and checkpoint_interval, max_memory, and the callbacks
     progress, on_pass, observer and notice); every other keyword is a parameter of the method. The scene's
     [render] table supplies defaults for both. Volumetric shadows are on unless volumetric_shadows=False
@@ -421,7 +413,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     `camera` names the camera of a glTF file (as --camera);
     `prepared` reuses a `renderer.prepare`d scene (geometry and accelerator) for repeated renders;
     `client`, a `dask.distributed.Client`, renders the tiles on its cluster (the same image)."""
-    from . import renderer
+    from .rendering import renderer
 
     scene = prepared.scene if prepared is not None else load(scene, overrides, camera)
     source = str(scene.path or ("default scene" if scene.name == "default" else scene.name))
@@ -432,7 +424,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     cam = scene.camera
     name = method or scene.render.get("method", AUTO)
     m = None if name == AUTO else get_method(name, source)
-    explicit = {k: v for k, v in kwargs.items() if k not in OPTION_NAMES and v is not None}
+    explicit = {k: v for k, v in kwargs.items() if k not in OPTION_NAMES | IGNORED and v is not None}
     if options.progressive and (m is None or not m.stochastic):
         raise UserError(f"{source}: method {name} is deterministic; the progressive options passes, time_budget, "
                         "target_error and checkpoint (--passes, --time-budget, --target-error, --checkpoint) need "
@@ -446,7 +438,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     else:
         given = {**scene_defaults(table_params(scene), m, source), **explicit}
     if m.stochastic:
-        from .progressive import render_progressive
+        from .rendering.progressive import render_progressive
 
         result = render_progressive(prep, m.name, given, options, run_on, source)
     else:
@@ -464,7 +456,7 @@ def render(scene=None, method: str | None = None, *, overrides=(), camera: str |
     unbounded = float(np.isinf(bound).any(axis=-1).mean()) if bound is not None and bound.size else 0.0
     return Image(result.image, scene.name, result.method, result.params, result.stats, result.seconds,
                  result.compile_seconds, cam.spp, options.seed, options.crop, options.volumetric_shadows,
-                 result.variance, {"shadow_spacing": options.shadow_spacing} if options.volumetric_shadows else {},
+                 result.variance,
                  bound, auto, unbounded, unbounded_reason(prep, m, result) if unbounded else "", result.layers)
 
 
@@ -481,7 +473,7 @@ def choose_method(prep, explicit: dict, options: RenderOptions, source: str):
     parameter is the first method's, checked as such. Returns (method, parameters, the choice in
     words: "analytic" or "quadrature (analytic: why not)")."""
     from .methods import resolve_params
-    from .renderer import check
+    from .rendering.renderer import check
 
     methods = [get_method(name, source) for name in AUTO_METHODS]
     key = {m.name: next(k for k in ACCURACY if k in m.params) for m in methods}  # each method's accuracy key

@@ -9,7 +9,6 @@ import copy
 import contextlib
 
 
-import math
 import os
 import sys
 import warnings
@@ -18,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError, counted
-from .film import VIEWS
+from .output.film import VIEWS
 
 PAPER = '"An Analytical Solution to Single Scattering in Homogeneous Participating Media" (Pegoraro & Parker)'
 DESCRIPTION = ("Render single scattering in participating media (fog, atmospheres, media inside shapes) to EXR and "
@@ -75,7 +74,7 @@ def _cluster(args):
     if not args.scheduler:
         return contextlib.nullcontext()
     try:
-        from .distributed import connect
+        from .rendering.distributed import connect
     except ImportError:
         raise UserError(f"--scheduler {args.scheduler}: needs Dask; install the extra: "
                         "pip install -e '.[distributed]'") from None
@@ -284,9 +283,9 @@ def _given_params(args):
 
 
 def cmd_render(args):
-    from . import film
+    from .output import film
     from .api import render
-    from .view import check_exposure
+    from .output.view import check_exposure
 
     check_exposure(args.exposure, "--exposure")
     scene = load(args)
@@ -328,7 +327,7 @@ def cmd_render(args):
     try:
         with _cluster(args) as client:
             img = render(scene, args.method, client=client, **_option_args(args), crop=rows, observer=display,
-                         volumetric_shadows=args.volumetric_shadows, shadow_spacing=args.shadow_spacing,
+                         volumetric_shadows=args.volumetric_shadows,
                          passes=args.passes, time_budget=args.time_budget, target_error=args.target_error,
                          checkpoint=ckpt, checkpoint_interval=args.checkpoint_interval,
                          progress=tile_done if bar is not None else None, on_pass=report, max_memory=args.max_memory,
@@ -390,7 +389,7 @@ def _display(args, scene, name):
     if not args.display_server:
         return None
     from .api import image_size, render_options
-    from .tev import TevDisplay, parse_address
+    from .output.tev import TevDisplay, parse_address
 
     parse_address(args.display_server)  # a badly formed address is refused before --width is looked at
     render_options(None, width=args.width, height=args.height)  # refuses a size that is not positive
@@ -411,10 +410,10 @@ def _option_args(args):
 
 
 def cmd_compare(args):
-    from . import renderer
+    from .rendering import renderer
     from .api import executor, render_options
     from .experiments.compare import compare, parse_spec
-    from .view import check_exposure
+    from .output.view import check_exposure
 
     check_exposure(args.exposure, "--exposure")
     scene = load(args)
@@ -439,7 +438,7 @@ def cmd_sweep(args):
     from .api import executor, load as load_scene, render_options
     from .experiments.compare import parse_spec
     from .experiments.sweep import grid_points, parse_axis, sweep
-    from .view import check_exposure
+    from .output.view import check_exposure
 
     check_exposure(args.exposure, "--exposure")
     axes = [parse_axis(g) for g in args.grid]
@@ -548,7 +547,7 @@ def cmd_methods(args):
 
 
 def cmd_diff(args):
-    from . import film, metrics
+    from .output import film, metrics
 
     test, _ = film.read_exr(args.test)
     ref, _ = film.read_exr(args.ref)

@@ -2,7 +2,7 @@
 |pixel - exact| <= B, the exact value being the single scattering of the scene as modelled (the
 same camera rays, float64 geometry, lit intervals and light model) averaged over the pixel's samples.
 
-Built from what each part of a render knows (renderer.py adds them up; all radiances are >= 0, so
+Built from what each part of a render knows (rendering/renderer.py adds them up; all radiances are >= 0, so
 bounds add by the triangle inequality, over a ray's lit segments and lights and over a pixel's
 samples):
 * a method whose air-light returns a bound (`Method.airlight`'s third value for a deterministic
@@ -15,7 +15,7 @@ samples):
   air-light adds nothing here: its pixels carry their standard error instead
   (`with_standard_error`, a statistical measure, not a bound);
 * closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;
-* rays that enter a shape holding a medium: the inside's bound and what lies behind's (bounded.py),
+* rays that enter a shape holding a medium: the inside's bound and what lies behind's (interiors/crossing.py),
   finite only where `analytic` integrates a convex index-matched shape under directional lights in
   closed form (media/convex_directional.py `segments_bounded`: KERNEL_FLOOR plus the condition of
   the light's path in its inputs, times the value); infinite for every other inside integrator, for

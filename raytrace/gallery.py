@@ -14,7 +14,8 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
-from . import api, film
+from . import api
+from .output import film
 from .errors import UserError
 from .scene.assets import bundled_scenes, find_asset
 

@@ -3,7 +3,7 @@ and the renderer, its progressive passes and the experiments read.
 
 The method's own parameters (precision, steps, shadow_test, ...) are not render options: each method
 declares and checks them (raytrace/methods). Where the tiles run is not an option either: it is the
-executor given beside the options (`renderer.Threads`, or the Dask cluster of raytrace/distributed.py).
+executor given beside the options (`renderer.Threads`, or the Dask cluster of raytrace/rendering/distributed.py).
 """
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .visibility import SHADOW_SPACING
 
 
 @dataclass(frozen=True)
@@ -25,10 +24,9 @@ class RenderOptions:
     seed: int = 0  # of the stochastic methods' random numbers
     threads: int | None = None  # of the thread pool (None: every core this process may use)
     crop: tuple[int, int, int, int] | None = None  # (x0, y0, x1, y1), end exclusive: the same samples
-    volumetric_shadows: bool = False  # the air-light over each light's lit intervals (shadow_frusta.py);
+    volumetric_shadows: bool = False  # the air-light over each light's lit intervals (shadows/frusta.py);
     # off in this record (the renderer's and experiments' own calls), on by default in api.render
-    shadow_spacing: float = SHADOW_SPACING  # radians between the lit-interval search's visibility samples
-    passes: int | None = None  # stochastic methods' progressive rendering (progressive.py): stop after
+    passes: int | None = None  # stochastic methods' progressive rendering (rendering/progressive.py): stop after
     time_budget: float | None = None  # this many passes, seconds of rendering, or at this estimated
     target_error: float | None = None  # mean relative standard error, whichever comes first
     checkpoint: Path | None = None  # resumed when it exists, written after passes
@@ -41,9 +39,9 @@ class RenderOptions:
     notice: Callable[[str], None] | None = None  # one-line notes (the kernels' compile when it is slow)
 
     @property
-    def shadows(self) -> float | None:
-        """The lit-interval search's spacing, or None without volumetric shadows."""
-        return float(self.shadow_spacing) if self.volumetric_shadows else None
+    def shadows(self) -> bool:
+        """Whether the air-light is shadowed (volumetric shadows)."""
+        return bool(self.volumetric_shadows)
 
     @property
     def progressive(self) -> bool:

@@ -1,6 +1,6 @@
 """Counter-based random numbers keyed by (ray key, dimension, seed), as pbrt's IndependentSampler.
 
-The ray key is pixel * spp + sample (see renderer.py). The same key, dimension and seed always
+The ray key is pixel * spp + sample (see rendering/renderer.py). The same key, dimension and seed always
 give the same number, whatever thread computes it, so images do not depend on the thread count.
 The hash is SplitMix64's finaliser applied to a combination of the three counters.
 """

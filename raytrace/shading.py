@@ -62,7 +62,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     """Reflected radiance (N, 3) at surface points with ray-facing unit geometric normals `normals`
     and shading normals `shading` (`shading_normals`; None: the geometric ones). `through(li, points)`,
     if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
-    where truly blocked; bounded.py's shadows through index-matched interiors)."""
+    where truly blocked; interiors/crossing.py's shadows through index-matched interiors)."""
     out = np.zeros((len(points), 3))
     for li, lp in enumerate(lights.position):
         if not lights.intensity[li].any():  # nothing to add (a light layer's other lights, renderer.Prepared.only)

@@ -80,7 +80,7 @@ def plate_room(phase, plate=True, width=16, height=12):
     """A prepared box room with black walls (the image is the air-light) and, if `plate`, a black
     plate just below its one light."""
     import raytrace
-    from raytrace.renderer import prepare
+    from raytrace.rendering.renderer import prepare
 
     s = box_room(camera={"position": [0.0, 0.0, 3.5], "look_at": [0.0, 0.0, -1.0], "fov": 80.0, "width": width,
                          "height": height, "spp": 1},

@@ -14,8 +14,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from raytrace.film import write_exr  # noqa: E402
-from raytrace.renderer import prepare, render  # noqa: E402
+from raytrace.output.film import write_exr
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene  # noqa: E402
 
 SIZES = {"sibenik": (48, 24), "bridge": (40, 40), "conference": (40, 40)}

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from .conftest import box_room, to_toml
@@ -110,7 +110,7 @@ def test_float32_images_agree_at_precision_1e_8(name, tmp_path):
     float32 ulp (1.2e-7 near 1), so the two renders must round to the same float32 values; the
     analytic kernels work 1000 times finer than requested there (`working_precision`)."""
     from raytrace.cli import main
-    from raytrace.film import read_exr
+    from raytrace.output.film import read_exr
 
     scene = box_room(camera={**CAMERA, "width": 64, "height": 48}, medium=MEDIA[name], light=LIGHTS)
     path = tmp_path / "s.toml"

@@ -1,4 +1,4 @@
-"""Output layers (aov.py): depth, normal and albedo of the camera rays' first hits against a pinhole
+"""Output layers (rendering/aov.py): depth, normal and albedo of the camera rays' first hits against a pinhole
 twin built from SCENE_FORMAT.md's camera convention (numpy only); the light layers and emission sum
 to the image, and each light's layer is the render of the scene with that light alone, minus its
 emission; the image itself is unchanged by asking for layers; the EXR channels, `diff --layer` and

@@ -6,10 +6,10 @@ import pytest
 import raytrace
 from raytrace.cli import main
 from raytrace.errors import UserError
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 from raytrace.methods import registry
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render as render_prepared
+from raytrace.rendering.renderer import prepare, render as render_prepared
 from raytrace.scene.format import scene_from_text
 
 from .conftest import box_room, to_toml

@@ -9,7 +9,7 @@ import pytest
 
 import raytrace
 from raytrace.cli import main
-from raytrace.film import read_exr, read_exr_channels
+from raytrace.output.film import read_exr, read_exr_channels
 
 from .conftest import box_room
 

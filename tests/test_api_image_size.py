@@ -10,7 +10,7 @@ import pytest
 import raytrace
 from raytrace.api import image_size
 from raytrace.cli import main
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 from .conftest import box_room
 

@@ -11,7 +11,7 @@ import pytest
 import raytrace
 from raytrace.api import SceneDefaultNote
 from raytrace.cli import main
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 from .conftest import box_room, to_toml
 

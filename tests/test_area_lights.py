@@ -309,7 +309,7 @@ def test_an_emissive_shape_is_an_area_light():
     the cubature's error: 14 rows against 64; the pixel whose ray grazes the edge differs by 5 %), and is
     refused above MAX_TRIANGLES and by methods without spot lights."""
     from raytrace.lights import emissive
-    from raytrace.renderer import prepare
+    from raytrace.rendering.renderer import prepare
 
     prep = prepare(scene([{"position": [0.0, 3.0, 0.0], "intensity": 1.0}], shapes=[EMISSIVE_QUAD]))
     lights = prep.lights

@@ -17,7 +17,7 @@ from scipy import integrate, optimize
 
 import raytrace
 from raytrace.cli import main
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 from . import oracle
 from .conftest import ROOT

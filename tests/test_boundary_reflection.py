@@ -13,7 +13,7 @@ import numpy as np
 
 from raytrace.camera import generate_rays
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
 from .conftest import to_toml

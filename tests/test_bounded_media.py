@@ -1,4 +1,4 @@
-"""Media inside shapes (raytrace/bounded.py, seed 002) against an independent per-pixel twin.
+"""Media inside shapes (raytrace/interiors/crossing.py, seed 002) against an independent per-pixel twin.
 
 The twin re-derives everything from SCENE_FORMAT.md and the seed: the camera ray (tests/oracle.py),
 its entry into an axis-aligned box by the slab test, refraction by Snell's law in angles, the
@@ -17,7 +17,7 @@ from scipy import integrate
 from raytrace.cli import main
 from raytrace.errors import UserError
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from . import oracle

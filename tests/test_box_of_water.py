@@ -1,5 +1,5 @@
 """`analytic` inside convex index-matched shapes under a directional light (issue 22): the light enters
-through whichever face its path meets (raytrace/media/convex_directional.py, wired in by bounded.py),
+through whichever face its path meets (raytrace/media/convex_directional.py, wired in by crossing.py),
 not through the plane of the face the camera ray entered (the planar model, kept as `slab_approx`).
 
 The twin knows only the scene: the camera ray (tests/oracle.py), the shape's half-spaces written from
@@ -21,7 +21,7 @@ import pytest
 
 from raytrace import error_bounds
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene, scene_from_text
 
 from . import oracle
@@ -205,12 +205,12 @@ def fallback_cases(tmp_path):
 def test_shapes_without_the_closed_form_go_to_quadrature_counted(tmp_path):
     """Their segments are integrated by the adaptive quadrature (the same as `quadrature`'s image),
     counted in `inside: segments handed to quadrature`, and their pixels' bounds are infinite, counted."""
-    from raytrace import bounded
+    from raytrace.interiors import crossing
     from raytrace.media.convex_directional import MAX_FACES
 
     for name, prep in fallback_cases(tmp_path).items():
         if name == "sphere":
-            assert len(bounded.hull_planes(prep, 0)) > MAX_FACES
+            assert len(crossing.hull_planes(prep, 0)) > MAX_FACES
         res = render(prep, "analytic", {}, RenderOptions(threads=1))
         ref = render(prep, "quadrature", {}, RenderOptions(threads=1))
         handed = res.stats["inside: segments handed to quadrature"]

@@ -381,7 +381,7 @@ def test_a_refused_render_creates_no_folder(work, capsys):
 
 
 def test_a_failed_save_removes_the_folders_it_made(work, capsys, monkeypatch):
-    from raytrace import film
+    from raytrace.output import film
 
     def png_writer(rgb8):
         def write(tmp):
@@ -442,7 +442,7 @@ def test_output_folder_read_only(work, capsys):
 # --- diff ----------------------------------------------------------------------------------------------------
 
 def _exr(path, h, w, value=0.5):
-    from raytrace import film
+    from raytrace.output import film
 
     film.write_exr(path, np.full((h, w, 3), value, dtype=np.float32))
     return path

@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 import raytrace
-from raytrace import film
+from raytrace.output import film
 from raytrace.cli import main
 
 from .conftest import PLATE, PLATE_LIGHT, box_room, to_toml

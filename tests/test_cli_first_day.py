@@ -8,7 +8,7 @@ import pytest
 
 import raytrace
 from raytrace.cli import main
-from raytrace.metrics import errors
+from raytrace.output.metrics import errors
 
 SIZE = ["--width", "16", "--height", "8", "--spp", "1"]
 
@@ -73,7 +73,7 @@ def test_compare_prints_max_and_rms_beside_the_means(tmp_path, capsys):
         assert (f"mean abs {r['mean_abs']:.3e}, mean rel {r['mean_rel']:.3e}, max rel {r['max_rel']:.3e}, "
                 f"RMS {r['rms']:.3e}") in line, line
     # the figures are metrics.errors of the images written (the march's error is far above float32's rounding)
-    from raytrace.film import read_exr
+    from raytrace.output.film import read_exr
 
     test, ref = read_exr(out / "raymarch_steps_4.exr")[0], read_exr(out / "reference.exr")[0]
     for key in ("rms", "max_rel"):

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import pytest
 
-import raytrace.progressive
+import raytrace.rendering.progressive
 from raytrace.cli import main
 
 from .conftest import box_room, to_toml
 
-RENDER = raytrace.progressive.render  # one pass, unpatched
+RENDER = raytrace.rendering.progressive.render  # one pass, unpatched
 
 
 def _interrupt_pass(monkeypatch, after: int):
@@ -24,7 +24,7 @@ def _interrupt_pass(monkeypatch, after: int):
         if len(calls) > after:
             raise KeyboardInterrupt
         return RENDER(*args, **kwargs)
-    monkeypatch.setattr(raytrace.progressive, "render", interrupted)
+    monkeypatch.setattr(raytrace.rendering.progressive, "render", interrupted)
 
 
 @pytest.fixture

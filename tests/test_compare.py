@@ -6,7 +6,7 @@ import json
 import pytest
 
 from raytrace.cli import main
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 from .conftest import box_room
 

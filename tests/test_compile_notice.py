@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from raytrace import renderer
+from raytrace.rendering import renderer
 from raytrace.cli import main
 
 from .conftest import box_room, to_toml

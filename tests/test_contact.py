@@ -1,4 +1,4 @@
-"""Objects resting on others (bounded.py `_inside_hits`): a block holding an absorbing, weakly
+"""Objects resting on others (interiors/crossing.py `_inside_hits`): a block holding an absorbing, weakly
 scattering medium standing on a floor renders as the limit of a small gap. Twins: the same scene with
 the block lifted 0.1 mm (beyond the shadow-ray offset, 2.5e-5 here, so nothing coincides) on every
 pixel; before the interior boundaries and the opaque surfaces were asked apart, gaps of 1 and 10 um
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene, scene_from_text
 
 from . import oracle
@@ -133,7 +133,7 @@ def test_a_ray_clipping_an_edge_of_a_block_sees_what_a_ray_beside_it_sees():
     than the step off the entry face (accel.epsilon / cos) lost its exit and took the floor or the sky
     beyond for the rest of the inside: 548 of 2,000 rays off by 1e3 to 5e5 times that."""
     from raytrace.methods import registry
-    from raytrace.renderer import shade_rays
+    from raytrace.rendering.renderer import shade_rays
 
     lift = 1e-3
     prep = prepare(scene_from_text(to_toml(block_on_floor(lift)), "contact"))

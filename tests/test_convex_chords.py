@@ -1,8 +1,8 @@
 """media/convex_chords.py: the chords of segments through convex shapes against trimesh's float64
 ray-triangle crossings (a parity twin that knows nothing of face planes: brute-force Moller-Trumbore
 on trimesh's meshes), and its kernel of
-inside_paths.through_quadrature against the NumPy driver it replaces (inside_paths.adaptive with
-inside_paths.through_integrand) on the pieces of a render: the same rule, so the same numbers to
+paths.through_quadrature against the NumPy driver it replaces (paths.adaptive with
+paths.through_integrand) on the pieces of a render: the same rule, so the same numbers to
 rounding."""
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from raytrace import bounded, inside_paths
+from raytrace.interiors import crossing, paths
 from raytrace.media.convex_chords import chords_into, section_kinks
 from raytrace.options import RenderOptions
-from raytrace.renderer import render
+from raytrace.rendering.renderer import render
 
 from .test_interior_shadows import FOG_KA, FOG_KS, OUT_CAMERA, OUT_KA, OUT_KS, write
 
@@ -138,20 +138,20 @@ def first_panels(prep, segs, sids, end):
 
 def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
     """On the pieces behind the boxes of a render (both lights, both boxes), through_quadrature's
-    kernel equals inside_paths.adaptive over through_integrand (chords by chords_into), started from
+    kernel equals paths.adaptive over through_integrand (chords by chords_into), started from
     the same first panels (cut at each shape's section_kinks), to 1e-12 relative per piece and
     channel, with the same count of unconverged panels (none). (Started from whole pieces, as both
     were before the kernel cut them, the rule missed a kink of piece 99: 5.4e-6 off at rtol 1e-10,
     against 3e-10 from the kinks, measured against 4000 equal 20-point panels.)"""
     prep = scene(tmp_path)
     seen = []
-    real = inside_paths.through_quadrature
+    real = paths.through_quadrature
 
     def spy(prep, segs, medium, sids, kt_in, rtol, stats):
         seen.append((segs, sids, kt_in, rtol))
         return real(prep, segs, medium, sids, kt_in, rtol, stats)
 
-    monkeypatch.setattr(inside_paths, "through_quadrature", spy)
+    monkeypatch.setattr(paths, "through_quadrature", spy)
     render(prep, "quadrature", {}, RenderOptions(threads=1, volumetric_shadows=True))
     assert seen and all(len(sids) == 2 and all(prep.interior_planes[s] is not None for s in sids)
                         for _, sids, _, _ in seen)
@@ -163,7 +163,7 @@ def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
         got = real(prep, segs, medium, sids, kt_in, rtol, cap_k)
         end = np.minimum(segs.length, 745.0 / float(np.min(medium.sigma_t)))
         seg, lo, hi = first_panels(prep, segs, sids, end)
-        ref = inside_paths.adaptive(inside_paths.through_integrand(prep, segs, medium, sids, kt_in - medium.sigma_t),
+        ref = paths.adaptive(paths.through_integrand(prep, segs, medium, sids, kt_in - medium.sigma_t),
                                     end, 3, seg, lo, hi, rtol, cap_n)
         assert np.all(ref > 0.0)
         rel = np.abs(got - ref) / ref
@@ -171,4 +171,4 @@ def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
         assert rel.max() <= 1e-12
         assert cap_k[0] == cap_n[0] == 0.0
     assert lights == {0, 1}
-    assert bounded.matched(prep) == list(seen[0][1])
+    assert crossing.matched(prep) == list(seen[0][1])

@@ -23,7 +23,7 @@ from raytrace import io
 from raytrace.api import scene_dict
 from raytrace.cli import main
 from raytrace.errors import UserError
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 CORPUS = Path(__file__).resolve().parent / "data" / "corpus"
 HOUDINI_FOV = math.degrees(2.0 * math.atan(0.75 * math.tan(math.radians(22.5))))  # fov 45 across [-1 1 -0.75 0.75]

@@ -1,6 +1,6 @@
 """Every module the package imports at run time is the standard library, the package itself, or a
 declared dependency of pyproject.toml (a plain `pip install .` must be able to run every method);
-raytrace/distributed.py alone imports its optional extra's Dask."""
+raytrace/rendering/distributed.py alone imports its optional extra's Dask."""
 import ast
 import re
 import sys
@@ -33,7 +33,7 @@ def imported_modules():
 def test_every_runtime_import_is_a_declared_dependency():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     declared = {_name(r) for r in project["dependencies"]}
-    optional = {"raytrace/distributed.py": {"dask", "distributed"},  # the extra dask[distributed] installs both
+    optional = {"raytrace/rendering/distributed.py": {"dask", "distributed"},  # the extra dask[distributed] installs both
                 "raytrace/experiments/seed002.py": {"matplotlib"}}  # the `plots` extra
     assert any(_name(r) == "matplotlib" for r in project["optional-dependencies"]["plots"])
     assert any(_name(r) == "dask" for r in project["optional-dependencies"]["distributed"])

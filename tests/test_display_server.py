@@ -1,4 +1,4 @@
-"""`render --display-server HOST:PORT`: the image shown in tev as it renders (raytrace/tev.py), against
+"""`render --display-server HOST:PORT`: the image shown in tev as it renders (raytrace/output/tev.py), against
 the stand-in tev of tests/test_tev.py on the loopback; an unreachable viewer is one warning line."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace import film
+from raytrace.output import film
 from raytrace.cli import main
 
 from .conftest import box_room, to_toml

@@ -1,4 +1,4 @@
-"""Rendering on a Dask cluster (raytrace/distributed.py, issue 13), on real local clusters of worker
+"""Rendering on a Dask cluster (raytrace/rendering/distributed.py, issue 13), on real local clusters of worker
 processes: the same image bit for bit as the threaded renderer whatever the number of workers,
 a killed worker changes nothing, checkpoints resume across machine and cluster, bad input is one
 line and exit status 2, and without --scheduler Dask is never imported."""
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace import renderer
+from raytrace.rendering import renderer
 from raytrace.cli import main
 
 from .conftest import box_room, to_toml
@@ -31,7 +31,7 @@ def room(**camera):
 @pytest.fixture(scope="module")
 def client():
     pytest.importorskip("distributed")
-    from raytrace.distributed import connect
+    from raytrace.rendering.distributed import connect
 
     with connect("local:2") as c:
         yield c
@@ -165,7 +165,7 @@ def _refused(args, tmp_path, capsys, limit):
 
 def test_an_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
-    from raytrace import distributed
+    from raytrace.rendering import distributed
 
     monkeypatch.setattr(distributed, "CONNECT_TIMEOUT", 2.0)
     err = _refused(["--scheduler", f"tcp://127.0.0.1:{_free_port()}"], tmp_path, capsys, 15)
@@ -175,7 +175,7 @@ def test_an_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsy
 
 def test_a_scheduler_without_workers_is_one_line(tmp_path, capsys, monkeypatch):
     distributed = pytest.importorskip("distributed")
-    from raytrace import distributed as ours
+    from raytrace.rendering import distributed as ours
 
     monkeypatch.setattr(ours, "WORKER_TIMEOUT", 2.0)
     with distributed.LocalCluster(n_workers=0, processes=False, protocol="tcp://", dashboard_address=None) as c:

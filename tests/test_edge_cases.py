@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from raytrace.cli import main
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 from .conftest import box_room
 

@@ -18,7 +18,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import raytrace
-from raytrace import error_bounds, film
+from raytrace import error_bounds
+from raytrace.output import film
 from raytrace.cli import main
 
 from . import oracle

@@ -1,4 +1,4 @@
-"""Exact lit intervals (raytrace/shadow_frusta.py) against independent twins (tests/oracle_shadows.py:
+"""Exact lit intervals (raytrace/shadows/frusta.py) against independent twins (tests/oracle_shadows.py:
 closed-form shadow boundaries of axis-aligned plates and boxes, slab tests, scipy air-light) with
 occluders far thinner than the sampled search's default spacing (0.01 rad seen from the light)."""
 import math
@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace.accel import Accelerator
+from raytrace.geometry.accel import Accelerator
 from raytrace.camera import generate_rays
 from raytrace.lights import DIRECTIONAL, Light, Lights
 from raytrace.methods import get_method, resolve_params
-from raytrace.renderer import prepare
-from raytrace.shadow_frusta import ST_FRUSTA, ST_NEAR, ST_RUNS, build, default_resolution, exact_lit_intervals
-from raytrace.visibility import cone_segments, segment_airlight, whole_rays
+from raytrace.rendering.renderer import prepare
+from raytrace.shadows.frusta import ST_FRUSTA, ST_NEAR, ST_RUNS, build, default_resolution, exact_lit_intervals
+from raytrace.segments import cone_segments, segment_airlight, whole_rays
 
 from . import oracle, oracle_shadows
 
@@ -124,8 +124,8 @@ def test_thin_occluders_under_the_sun(name):
 
 def test_the_sampled_search_misses_what_the_exact_intervals_find():
     """The reason for this module: at its default spacing the sampled search loses the slit's sheet
-    of light on some rays (visibility.lit_intervals), the exact intervals do not."""
-    from raytrace.visibility import lit_intervals
+    of light on some rays (benchmarks/sampled_search.py), the exact intervals do not."""
+    from benchmarks.sampled_search import lit_intervals
 
     prep, segs, _ = segments(room_scene(SLIT))
     exact, _ = exact_lit_intervals(prep.accel, segs, prep.lights, 1)
@@ -402,13 +402,13 @@ def angle(lights, o, d, li, x):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["sibenik", "bridge", "conference"])
 def test_the_papers_scenes_agree_with_the_sampled_search_at_1e_5(name):
-    """The sampled search (visibility.lit_intervals) at spacing 1e-5 rad, its finest, misses only
+    """The sampled search that preceded the exact intervals (benchmarks/sampled_search.py) at spacing 1e-5 rad, its finest, misses only
     what is narrower than that and places what it finds to its float32 resolution: boundaries
     bisected to 3e-8 rad in float32 directions (6e-8), shadow rays stopped 4e-7 of their length
     short. Every piece it finds is an exact piece whose ends lie within 1e-6 rad seen from the light
     or 1e-6 of the scene's size along the ray, and analytic's air-light on the two sets of pieces
     agrees to 1e-5 per pixel. (Measured: see docs/exact_shadows.md.)"""
-    from raytrace.visibility import lit_intervals
+    from benchmarks.sampled_search import lit_intervals
 
     prep, segs, ends, n_rays = crop_segments(name)
     n = len(prep.lights)

@@ -1,4 +1,4 @@
-"""facet_walk.py: the facets through which light paths from a camera segment leave a convex mesh.
+"""geometry/facet_walk.py: the facets through which light paths from a camera segment leave a convex mesh.
 
 Against brute force in NumPy that knows nothing of the walk: the nearest face plane ahead of each of
 dense points along random chords of a sphere, a convex hull of random points and a box (whose faces
@@ -7,16 +7,16 @@ the changes of that plane bisected to 1e-13. Then images of a tessellated sphere
 (Embree's exits) and through media/slab.py's plane kernel, against a twin that integrates the
 same faceted sphere with scipy between the bisected changes.
 """
-import math
 
 import numpy as np
 import pytest
 from scipy import integrate
 from scipy.spatial import ConvexHull
 
-from raytrace import bounded, facet_walk, inside_paths
+from raytrace.interiors import crossing, paths
+from raytrace.geometry import facet_walk
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 from raytrace.scene.meshes import box_triangles, sphere_triangles
 
@@ -196,7 +196,7 @@ def faceted_pixel(sc, planes, i, j):
 @pytest.mark.parametrize("route", ["walk", "kernel"])
 def test_a_tessellated_sphere_matches_the_faceted_twin(light, route):
     """quadrature (rtol 1e-10) within 1e-9 of the twin on every lit pixel, the light's exits found by
-    the walk (24 segments: 300 face planes, beyond bounded.KERNEL_PLANES; Embree's facet to start
+    the walk (24 segments: 300 face planes, beyond crossing.KERNEL_PLANES; Embree's facet to start
     from) or by media/slab.py's kernel (8 segments: 32 planes, each tested at every evaluation, the
     kinks from convex_directional.envelope and convex_chords.section_kinks). Before, the kernel was
     3e-9 off under the point light (its kinks inside panels) and 24 % under the directional one
@@ -204,8 +204,8 @@ def test_a_tessellated_sphere_matches_the_faceted_twin(light, route):
     segments = 24 if route == "walk" else 8
     sc = {**SCENE, **LIGHTS[light], "shape": [SCENE["shape"][0] | {"segments": segments}]}
     prep = prepare(scene_from_text(to_toml(sc), "sphere"))
-    planes = bounded.hull_planes(prep, 0)
-    assert (len(bounded.convex_planes(prep, 0)) > 0) == (route == "kernel")
+    planes = crossing.hull_planes(prep, 0)
+    assert (len(crossing.convex_planes(prep, 0)) > 0) == (route == "kernel")
     img = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
     worst, lit = 0.0, 0
     for j in range(sc["camera"]["height"]):
@@ -264,7 +264,7 @@ def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
     prep = prepare(scene_from_text(to_toml(sc), "sphere"))
     want = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
     calls = []  # per call of `adaptive`, the segments of each group
-    outer, whole = inside_paths.adaptive, inside_paths._adaptive
+    outer, whole = paths.adaptive, paths._adaptive
 
     def spy_outer(*args):
         calls.append([])
@@ -273,9 +273,9 @@ def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
     def spy(integrand, end, nc, seg, a, b, rtol, stats):
         calls[-1].append(seg.copy())
         return whole(integrand, end, nc, seg, a, b, rtol, stats)
-    monkeypatch.setattr(inside_paths, "adaptive", spy_outer)
-    monkeypatch.setattr(inside_paths, "_adaptive", spy)
-    monkeypatch.setattr(inside_paths, "MAX_OPEN", 40)
+    monkeypatch.setattr(paths, "adaptive", spy_outer)
+    monkeypatch.setattr(paths, "_adaptive", spy)
+    monkeypatch.setattr(paths, "MAX_OPEN", 40)
     got = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
     assert max(len(groups) for groups in calls) > 5
     for groups in calls:

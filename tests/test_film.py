@@ -1,4 +1,4 @@
-"""Image files (film.py), tone mapping, error-map colours and the `diff` command's numbers."""
+"""Image files (output/film.py), tone mapping, error-map colours and the `diff` command's numbers."""
 from __future__ import annotations
 
 import os
@@ -6,13 +6,13 @@ import os
 import numpy as np
 import pytest
 
-from raytrace import film, metrics
+from raytrace.output import film, metrics
 from raytrace.cli import main
 from raytrace.errors import UserError
 
 
 def srgb8(x):
-    """The sRGB transfer function (IEC 61966-2-1) to 8 bits, written out independently of film.py."""
+    """The sRGB transfer function (IEC 61966-2-1) to 8 bits, written out independently of output/film.py."""
     x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
     v = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
     return np.floor(v * 255 + 0.5).astype(int)

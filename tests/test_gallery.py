@@ -7,7 +7,7 @@ import pytest
 from PIL import Image as Picture
 
 import raytrace
-from raytrace import film
+from raytrace.output import film
 from raytrace.cli import main
 from raytrace.gallery import GalleryNote
 

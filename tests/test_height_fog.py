@@ -15,7 +15,7 @@ import pytest
 
 import raytrace
 from raytrace.cli import main
-from raytrace.film import read_exr
+from raytrace.output.film import read_exr
 
 from . import oracle
 from .conftest import box_room
@@ -184,7 +184,7 @@ def test_refusals_are_one_line_exit_2(scene, args, message, write_scene, tmp_pat
 
 def test_sun_volumetric_shadows_without_occluders_change_nothing():
     """The valley's ground does not shadow the fog above it: with --volumetric-shadows the sun's
-    segments stay whole (shadow_frusta.py) and the image is the unshadowed one."""
+    segments stay whole (shadows/frusta.py) and the image is the unshadowed one."""
     a = raytrace.render(VALLEY, method="quadrature", threads=1, volumetric_shadows=False).array
     b = raytrace.render(VALLEY, method="quadrature", threads=1, volumetric_shadows=True)
     assert np.max(np.abs(a - b.array) / a) < 1e-9
@@ -213,7 +213,7 @@ def test_gather_attenuates_each_segment_from_the_camera_ray_origin():
     ray (scipy quad of the density), not exp(-kt t0) and not from its own start."""
     from raytrace.methods import Segments
     from raytrace.scene.format import scene_from_dict
-    from raytrace.visibility import gather
+    from raytrace.segments import gather
 
     medium = scene_from_dict(box_room(medium={**FOG, "up": [0.3, 1.0, 0.2]}), "test").medium
     rng = np.random.default_rng(3)

@@ -1,4 +1,4 @@
-"""Non-convex index-matched shapes (raytrace/inside_paths.py) against an independent twin.
+"""Non-convex index-matched shapes (raytrace/interiors/paths.py) against an independent twin.
 
 The shape is a U-shaped prism (a closed OBJ mesh written here), the union of three boxes. The twin
 knows only the boxes: a segment's length inside the U is the sum of its slab-test lengths in the
@@ -13,7 +13,7 @@ import pytest
 from scipy import integrate
 
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
 from . import oracle
@@ -153,7 +153,7 @@ def test_non_convex_shape_traces_paths_that_leave_and_reenter(tmp_path, name):
     twin's own quad reports its limit and Embree's float32 decisions near the U's edges move lengths
     by ~1e-7), ray marching converging (at least O(h)), Monte Carlo unbiased (mean squared z). The
     spot's (smooth and hard-edged) beam edge crosses the U: some pixels are dark, some partly lit."""
-    from raytrace.bounded import convex_planes
+    from raytrace.interiors.crossing import convex_planes
 
     sc, prep = setup(tmp_path, LIGHTS.get(name, HARD))
     assert not len(convex_planes(prep, 0))  # the traced path, not the convex kernel

@@ -1,14 +1,14 @@
-"""The statistics of the integrals inside shapes (bounded.py) reach the render's, as quadrature's own
+"""The statistics of the integrals inside shapes (interiors/crossing.py) reach the render's, as quadrature's own
 do outside.
 
-Before the fix, `single_scattering` (now inside_rows.py) filled its statistics and dropped them: a render with
+Before the fix, `single_scattering` (now interiors/rows.py) filled its statistics and dropped them: a render with
 media inside shapes never said that inside integrals had stopped short of their tolerance (the U
 prism under a directional light, tests/test_inside_paths.py, has 15 such panels at the default
 rtol: Embree's float32 length decisions jump at the U's edges).
 """
 import raytrace
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene, scene_from_text
 
 from . import test_bounded_media as bounded_media
@@ -28,7 +28,7 @@ def u_render(tmp_path, light, params, camera=None):
 
 
 def test_inside_integrals_that_stop_short_are_reported(tmp_path):
-    """The traced path (a non-convex shape, inside_paths.py), from outside and from a camera inside,
+    """The traced path (a non-convex shape, interiors/paths.py), from outside and from a camera inside,
     and the convex kernel (media/slab.py) at the finest rtol: each counts what did not converge, and a
     lamp whose integrals all converge reports 0."""
     _, res = u_render(tmp_path, u_prism.SUN, {"rtol": 1e-10})
@@ -41,7 +41,7 @@ def test_inside_integrals_that_stop_short_are_reported(tmp_path):
     sc = dict(bounded_media.SPOTS["spot_beside_cube"])
     sc.pop("any_face", None)
     prep = prepare(scene_from_text(to_toml(sc), "cube"))
-    assert len(raytrace.bounded.convex_planes(prep, 0))  # the kernel's convex path
+    assert len(raytrace.interiors.crossing.convex_planes(prep, 0))  # the kernel's convex path
     res = render(prep, "quadrature", {"rtol": 1e-14}, RenderOptions(threads=1))
     assert res.stats[NOT_CONVERGED] > 0, res.stats
     assert NOT_CONVERGED not in render(prep, "raymarch", {"steps": 4}, RenderOptions(threads=1)).stats

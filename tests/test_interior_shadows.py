@@ -1,4 +1,4 @@
-"""Volumetric shadows with media inside shapes (bounded.py, shadow_frusta.py, inside_paths.py).
+"""Volumetric shadows with media inside shapes (crossing.py, shadows/frusta.py, interiors/paths.py).
 
 Two twins, written from the scene alone (tests/oracle.py's camera rays, plate tests and shadow
 boundaries, a ray-box clip here), scipy quad between the analytic shadow boundaries:
@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace import bounded
+from raytrace.interiors import crossing
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
 from . import oracle
@@ -218,9 +218,9 @@ def test_fog_below_a_denser_box_gets_the_light_through_it(tmp_path, method="quad
 def test_refractive_interiors_block_and_stay_unshadowed_inside(tmp_path):
     """A refractive box stops the fog's light (its boundary is a blocker: the refracted light would be
     a caustic) and renders its inside unshadowed, counted; index-matched boundaries are not blockers."""
-    assert not bounded.blockers(outside_scene(tmp_path)).any()
+    assert not crossing.blockers(outside_scene(tmp_path)).any()
     prep = outside_scene(tmp_path, 1.33)
-    assert bounded.blockers(prep) is None and bounded.attenuators(prep) is None
+    assert crossing.blockers(prep) is None and crossing.attenuators(prep) is None
     o, d = oracle.camera_ray(OUT_CAMERA, 5, 7)  # beside the box, below it
     assert box_clip(o, d, OUT_LO, OUT_HI) is None
     column = dict(threads=1, crop=(5, 0, 6, 8))  # its top pixels see the box

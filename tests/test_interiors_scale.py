@@ -1,4 +1,4 @@
-"""Media inside finely tessellated shapes (bounded.py, inside_paths.py, scene/meshes.py convex_planes).
+"""Media inside finely tessellated shapes (crossing.py, paths.py, scene/meshes.py convex_planes).
 
 The convexity test (Qhull facets matched by a k-d tree) against known shapes and in memory linear in
 the triangle count; Embree's batched exits from inside a convex mesh against a brute-force minimum
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace import bounded, inside_paths
+from raytrace.interiors import crossing, paths
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 from raytrace.scene.meshes import box_triangles, convex_planes, sphere_triangles
 
@@ -101,20 +101,20 @@ def test_batched_exits_match_the_face_planes():
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(den > 0.0, (c[None, :] - p @ n.T) / den, np.inf)
     want = np.minimum(t.min(axis=1), dist)
-    got = inside_paths.convex_exits(prep, 0, p, d, dist)
+    got = paths.convex_exits(prep, 0, p, d, dist)
     assert np.max(np.abs(got - want)) < 1e-12
 
 
 def test_a_fine_sphere_through_embree_exits_matches_the_plane_kernel(monkeypatch):
-    """24 segments: 300 face planes, beyond bounded.KERNEL_PLANES (quadrature's exits from the facet
+    """24 segments: 300 face planes, beyond crossing.KERNEL_PLANES (quadrature's exits from the facet
     walk, started from Embree's facet); the same shape through media/slab.py's convex kernel (every
     plane at every evaluation) to the quadrature's 1e-9."""
     sc, prep = sphere_prep(24)
-    assert not len(bounded.convex_planes(prep, 0)) and bounded.hull_planes(prep, 0) is not None
+    assert not len(crossing.convex_planes(prep, 0)) and crossing.hull_planes(prep, 0) is not None
     img = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
-    monkeypatch.setattr(bounded, "KERNEL_PLANES", 10**6)
+    monkeypatch.setattr(crossing, "KERNEL_PLANES", 10**6)
     _, prep = sphere_prep(24)
-    assert len(bounded.convex_planes(prep, 0)) == len(bounded.hull_planes(prep, 0))
+    assert len(crossing.convex_planes(prep, 0)) == len(crossing.hull_planes(prep, 0))
     ref = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
     lit = ref > 0
     assert lit.sum() > 100 and np.all(img[~lit] == 0)

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from raytrace.errors import UserError
-from raytrace.film import write_exr
+from raytrace.output.film import write_exr
 from raytrace.io import gltf, mitsuba, pbrt
 from raytrace.scene.meshes import rotation_matrix
 

@@ -592,7 +592,7 @@ def test_scene_without_lights_warns_and_says_how_to_add_one(tmp_path, capsys):
         assert main(["render", str(path), "--set", lamp, "--width", "8", "--height", "8", "--spp", "1",
                      "--out", str(out)]) == 0
     assert not [n for n in notes if "no lights" in str(n.message)]
-    from raytrace.film import read_exr
+    from raytrace.output.film import read_exr
 
     assert np.max(read_exr(out)[0]) > 0.0
 

@@ -12,7 +12,7 @@ from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Homogeneous as Medium
 from raytrace.methods import lecocq as lc, quadrature as q
-from raytrace.visibility import unshadowed_airlight
+from raytrace.segments import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 

@@ -1,17 +1,11 @@
 """Volumetric shadows (light shafts): every method integrates the lit intervals that
-raytrace/visibility.py finds, checked against an independent twin (tests/oracle.py: analytic shadow
+raytrace/shadows/frusta.py finds, checked against an independent twin (tests/oracle.py: analytic shadow
 boundaries of rectangular plates, scipy quadrature of eq. 4 on each lit piece)."""
-import math
-
 import numpy as np
 import pytest
 
 import raytrace
-from raytrace import shadow_maps
-from raytrace.camera import generate_rays
 from raytrace.methods import registry
-from raytrace.renderer import prepare
-from raytrace.visibility import LI_BISECTIONS, LI_BOUNDARIES, LI_EDGES, LI_RAYS, LI_SAMPLES, lit_intervals, whole_rays
 
 from . import oracle
 from .conftest import box_room
@@ -117,95 +111,19 @@ def test_the_classic_shadow_rays_per_sample_converge_to_the_same_image(reference
     assert _errors(exact.array, reference)[0] < 0.1 * rel  # the lit intervals remove the boundary error
 
 
-def test_a_thin_occluder_is_found_once_the_spacing_resolves_it():
-    """A bar 0.002 wide, about 0.0015 rad seen from the light: missed by some rays at spacing 0.01,
-    found by all at 0.0005 (the spacing bounds what can be missed)."""
-    bar = (0.8, (-2.5, 2.5), (-1.001, -0.999))
-    s = scene(plates=[bar], camera={**CAMERA, "width": 24, "height": 18})
-    sc = raytrace.load(s)
-    prep = prepare(sc)
-    o, d = generate_rays(sc.camera, slice(0, 18), slice(0, 24))
-    t, prim = prep.accel.first_hit(o, d)
-    segs = whole_rays(o, d, t, np.zeros(len(o), np.uint64), 1, 0, prep.accel.scale)
-    def shadowed_somewhere(r):
-        breaks = [0.0] + oracle.plate_shadow_breaks(o[r], d[r], t[r], LIGHT, bar) + [t[r]]
-        return any(oracle.plate_blocks(o[r], d[r], 0.5 * (a + b), LIGHT, bar) for a, b in zip(breaks, breaks[1:]))
+def test_the_old_shadow_spacing_is_accepted_and_not_read():
+    """`shadow_spacing` set the sampled search's spacing, now gone (the lit intervals are exact):
+    older scripts and scenes still run, and the image is the same whatever its value."""
+    a = raytrace.render(scene(), method="analytic", volumetric_shadows=True, width=12, height=9, threads=1)
+    b = raytrace.render(scene(), method="analytic", volumetric_shadows=True, width=12, height=9, threads=1,
+                        shadow_spacing=0.6)
+    assert np.array_equal(a.array, b.array)
 
-    truth = [shadowed_somewhere(r) for r in range(len(o))]
-    found = {}
-    for spacing in (0.01, 0.0005):
-        lit, stats = lit_intervals(prep.accel, segs, prep.lights, 1, spacing)
-        pieces = np.bincount(lit.ray, minlength=len(o))
-        found[spacing] = pieces >= 2
-    assert sum(truth) > 20
-    assert found[0.0005].tolist() == truth
-    assert found[0.01].sum() < sum(truth)
-
-
-@pytest.mark.parametrize("spacing", [0.0, -0.1, 0.6, math.nan])
-def test_a_spacing_out_of_range_is_refused(spacing):
-    with pytest.raises(raytrace.UserError, match=r"shadow-spacing.*\[1e-05, 0.5\]"):
-        raytrace.render(scene(), method="analytic", volumetric_shadows=True, shadow_spacing=spacing)
 
 
 def test_shadow_test_samples_needs_shadows():
     with pytest.raises(raytrace.UserError, match="only acts with volumetric shadows"):
         raytrace.render(scene(), method="raymarch", shadow_test="samples", volumetric_shadows=False)
-
-
-def _segments(s, width=24, height=18):
-    sc = raytrace.load(s)
-    sc.camera.width, sc.camera.height = width, height
-    prep = prepare(sc)
-    o, d = generate_rays(sc.camera, slice(0, height), slice(0, width))
-    t, prim = prep.accel.first_hit(o, d)
-    normals = np.where((prim >= 0)[:, None], prep.accel.normals[np.maximum(prim, 0)], 0.0)
-    return prep, whole_rays(o, d, t, np.zeros(len(o), np.uint64), 1, 0, prep.accel.scale), normals
-
-
-def test_the_depth_maps_decide_most_samples_and_change_no_interval():
-    """shadow_maps.py only skips shadow rays whose answer its corners already give: the lit
-    intervals are the same as with a shadow ray for every sample."""
-    sphere = {"primitive": "sphere", "center": [0.6, 0.6, -0.5], "radius": 0.3, "reflectance": 0.0}
-    s = scene()
-    s["shape"].append(sphere)
-    prep, segs, normals = _segments(s)
-    a, sa = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, edges=False)
-    b, sb = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, shadow_maps.build(prep.accel, prep.lights, 0.01), edges=False)
-    assert len(a) == len(b) and np.array_equal(a.ray, b.ray)
-    np.testing.assert_allclose(b.t0, a.t0, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(b.length, a.length, rtol=1e-9, atol=1e-12)
-    rays_a, rays_b = sa[LI_RAYS], sb[LI_RAYS]
-    assert rays_a == sa[LI_SAMPLES] + sa[LI_BISECTIONS]
-    assert rays_b < 0.3 * rays_a, (rays_b, rays_a)
-
-
-def _boundary_errors(segs, lit):
-    """Distance of every lit interval's ends from the nearest analytic shadow boundary of the plates
-    (or the segment's own ends)."""
-    out = []
-    for q in range(len(lit)):
-        r = lit.ray[q]
-        o, d, t = segs.origins[r], segs.dirs[r], segs.length[r]
-        breaks = [0.0, t] + [b for p in PLATES for b in oracle.plate_shadow_breaks(o, d, t, LIGHT, p)]
-        out += [min(abs(x - b) for b in breaks) for x in (lit.t0[q], lit.t0[q] + lit.length[q])]
-    return np.array(out)
-
-
-def test_boundaries_at_occluder_edges_are_exact():
-    """A boundary taken from the occluder's own edge (its cross-section with the plane of the light
-    and the ray, in float64) is exact; bisection with float32 shadow rays stops at their resolution.
-    Both against the twin's analytic plate boundaries."""
-    prep, segs, normals = _segments(scene(), 32, 24)
-    maps = shadow_maps.build(prep.accel, prep.lights, 0.01)
-    a, sa = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, maps, edges=False)
-    b, sb = lit_intervals(prep.accel, segs, prep.lights, 1, 0.01, normals, maps)
-    assert len(a) == len(b) and np.array_equal(a.ray, b.ray)
-    ea, eb = _boundary_errors(segs, a), _boundary_errors(segs, b)
-    assert np.median(eb) < 1e-12 and np.median(ea) < 1e-6  # bisection: float32 resolution
-    assert eb.max() < 1e-5 and ea.max() < 1e-5  # within 1e-5 of the scene's size (the float32 margins)
-    assert sb[LI_EDGES] > 0.8 * sb[LI_BOUNDARIES]  # most boundaries found at an edge
-    assert sb[LI_RAYS] < 0.6 * sa[LI_RAYS]
 
 
 def test_a_light_on_a_surface_lights_the_side_it_faces():

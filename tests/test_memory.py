@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
-from raytrace.visibility import POINTS_PER_CHUNK
+from raytrace.shadows.shadow_rays import POINTS_PER_CHUNK
 
 from .conftest import box_room, to_toml
 

@@ -21,7 +21,7 @@ import pytest
 from raytrace.errors import UserError
 from raytrace.methods import ErrorLaw, registry, resolve_params
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from . import oracle

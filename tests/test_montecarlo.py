@@ -9,12 +9,12 @@ import pytest
 from scipy import stats
 
 from raytrace.methods.geometry import POINT_ROW
-from raytrace import progressive
+from raytrace.rendering import progressive
 from raytrace.methods import montecarlo as mc
 from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from .conftest import box_room, to_toml

@@ -9,7 +9,7 @@ import pytest
 from PIL import Image as Picture
 
 import raytrace
-from raytrace import view
+from raytrace.output import view
 from raytrace.api import PREVIEW_WIDTH
 from raytrace.cli import main
 

@@ -17,7 +17,8 @@ import pytest
 
 import raytrace
 import raytrace.api
-from raytrace import film, renderer
+from raytrace.output import film
+from raytrace.rendering import renderer
 from raytrace.cli import main
 from raytrace.options import RenderOptions
 

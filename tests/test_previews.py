@@ -1,4 +1,4 @@
-"""PNG previews through the view (raytrace/view.py) from the API and the command line: the neutral view
+"""PNG previews through the view (raytrace/output/view.py) from the API and the command line: the neutral view
 (Khronos PBR Neutral) by default, ACES 2.0 as "aces", the plain sRGB encode as "standard", exposure checked
 before anything is written."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from PIL import Image as PILImage
 
 import raytrace
-from raytrace import film, view
+from raytrace.output import film, view
 from raytrace.cli import main
 
 from .conftest import box_room, to_toml

@@ -17,7 +17,7 @@ import pytest
 from scipy import integrate
 
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from . import oracle
@@ -226,7 +226,7 @@ def test_the_plates_shadow_the_beams(shadowed_twin, twin):
 
 @pytest.mark.parametrize("method", ["quadrature", "analytic"])
 def test_the_beams_take_volumetric_shadows(shadowed_twin, method):
-    """Shadows inside a refractive shape (beam_shadows.py): the beams' legs inside the cube past the
+    """Shadows inside a refractive shape (shadows/beams.py): the beams' legs inside the cube past the
     plate inside it, and their entry points' paths to the sun past the plate beside it, within 1e-9
     of the twin on every pixel; analytic's bound holds and stays finite; unshadowed is far off."""
     res = shadowed(method)

@@ -25,7 +25,7 @@ from scipy import integrate, optimize
 
 from raytrace.errors import UserError
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from . import oracle

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from raytrace.errors import UserError
-from raytrace.film import read_exr, write_exr
-from raytrace.renderer import prepare, render
+from raytrace.output.film import read_exr, write_exr
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
 from . import make_refs

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import raytrace
-from raytrace import film
+from raytrace.output import film
 from raytrace.cli import main
 
 SMALL = dict(width=6, height=4, threads=1)

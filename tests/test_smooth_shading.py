@@ -18,7 +18,7 @@ import pytest
 from raytrace.camera import generate_rays
 from raytrace.errors import UserError
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene, scene_from_text
 from raytrace.scene.meshes import box_triangles, crease_normals, flat_normals, scene_triangles, sphere_triangles
 

@@ -15,7 +15,7 @@ from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Homogeneous as Medium
 from raytrace.methods import quadrature as q, sun
-from raytrace.visibility import unshadowed_airlight
+from raytrace.segments import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
 
 U_MAX = 10.0

@@ -11,7 +11,7 @@ from raytrace.errors import UserError
 from raytrace.media.slab import APPROX, CLOSED
 from raytrace.methods import Method, Param, Supports, get_method, registry
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from . import test_bounded_media as bounded_media

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from raytrace.errors import UserError
-from raytrace.tev import DisplayWarning, TevDisplay, parse_address
+from raytrace.output.tev import DisplayWarning, TevDisplay, parse_address
 
 TEV_RECEIVE_BUFFER = 1024 * 1024  # tev's initial per-connection buffer (src/Ipc.cpp, SocketConnection)
 

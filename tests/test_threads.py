@@ -12,7 +12,7 @@ import time
 import pytest
 
 import raytrace
-from raytrace import renderer
+from raytrace.rendering import renderer
 from raytrace.options import RenderOptions
 
 from .conftest import ROOT, box_room, to_toml

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace import renderer
+from raytrace.rendering import renderer
 
 from .make_tile_refs import CASES, DATA, render_case
 

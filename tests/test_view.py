@@ -1,4 +1,4 @@
-"""Previews (raytrace/view.py): Khronos PBR Neutral (the default view) and ACES 2.0's SDR view
+"""Previews (raytrace/output/view.py): Khronos PBR Neutral (the default view) and ACES 2.0's SDR view
 through OpenColorIO, exposure in stops."""
 import colorsys
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace import film, view
+from raytrace.output import film, view
 from raytrace.default_scene import DEFAULT_TOML
 from raytrace.errors import UserError
 

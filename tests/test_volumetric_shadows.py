@@ -4,7 +4,7 @@ import pytest
 
 from raytrace.methods import registry
 from raytrace.options import RenderOptions
-from raytrace.renderer import prepare, render
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 
 from .conftest import box_room, to_toml

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import bounded, film, metrics
+from ..output import film, metrics
 from ..errors import UserError
-from ..methods import get_method, resolve_params
+from ..methods import get_method
 from ..options import RenderOptions
-from ..progressive import render_progressive
-from ..renderer import Prepared, RenderResult, check, render
+from ..rendering.progressive import render_progressive
+from ..rendering.renderer import Prepared, RenderResult, check, render
 from ..scene.format import parse_override
 
 

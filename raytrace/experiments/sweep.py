@@ -17,10 +17,10 @@ import itertools
 import json
 from pathlib import Path
 
-from .. import film, metrics
+from ..output import film, metrics
 from ..errors import UserError
 from ..options import RenderOptions
-from ..renderer import prepare
+from ..rendering.renderer import prepare
 from ..scene.format import Scene, parse_override
 from .compare import MethodSpec, check_specs, render_spec, safe_name, summary
 

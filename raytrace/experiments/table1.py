@@ -11,7 +11,7 @@ reference radiance. The report (Markdown and a self-contained HTML page) puts th
 next to ours.
 
 A second table repeats every scene with volumetric shadows (light shafts: the renderer finds the
-pieces of each (ray, light) segment that the light illuminates, visibility.py, and every method
+pieces of each (ray, light) segment that the light illuminates, shadows/frusta.py, and every method
 integrates them). Its reference is `quadrature` with volumetric shadows; its rows are the same
 methods with volumetric shadows, ray marching the classic way (a shadow ray per step,
 `shadow_test = samples`) with its steps matched to the shadowed analytic render's time, and, for
@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import film, metrics
+from ..output import film, metrics
 from ..errors import UserError
 from ..media.phase import ISOTROPIC
 from ..options import RenderOptions
-from ..renderer import prepare
+from ..rendering.renderer import prepare
 from ..scene.assets import bundled_scenes
 from ..scene.format import load_scene
 from .compare import MethodSpec, render_spec, safe_name
@@ -341,7 +341,7 @@ def shadowed_report(scenes: list[dict], quick: bool) -> list[str]:
     md = ["# With volumetric shadows", "",
           f"Every scene again, with light shafts, at {size}. The renderer finds the pieces of every (camera ray, "
           "light) segment that the light illuminates, exactly (the complement of the union of the triangles' shadow "
-          "frusta, raytrace/shadow_frusta.py), and every method integrates those lit intervals. The reference is `quadrature` (relative 1e-10) on the same lit "
+          "frusta, raytrace/shadows/frusta.py), and every method integrates those lit intervals. The reference is `quadrature` (relative 1e-10) on the same lit "
           "intervals and camera samples; errors as above, *rel.* divided by the mean shadowed reference radiance, "
           "*max rel.* the largest per-pixel relative error. *raymarch (shadow rays)* is ray marching the classic way, "
           "a shadow ray from every step to the light instead of the lit intervals, its steps matched to the time of the shadowed analytic render; *raymarch (lit "

@@ -203,7 +203,7 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
         k, r1, r2 = cone_breaks(A, B, C)
         for i in range(k):
             r = r1 if i == 0 else r2
-            # crossings within rounding of the ends (a segment cut at the cone, visibility.py) are the ends
+            # crossings within rounding of the ends (a segment cut at the cone, segments.py) are the ends
             if va * (1.0 + CUT_TOL) < r < vb * (1.0 - CUT_TOL):
                 j = m  # insertion sort into the scratch column out[:, 2]
                 while j > 0 and out[j - 1, 2] > r:

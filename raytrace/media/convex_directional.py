@@ -48,7 +48,7 @@ from ..error_bounds import KERNEL_FLOOR
 from ..jit import njit
 from .phase import phase_value
 
-MAX_FACES = 64  # beyond, bounded.py hands the segments to quadrature (counted)
+MAX_FACES = 64  # beyond, interiors/crossing.py hands the segments to quadrature (counted)
 EPS = 2.0 ** -52
 
 

@@ -52,7 +52,7 @@ from .march import march
 from .phase import phase_value
 
 # how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only (CLOSED; in convex index-matched
-# shapes bounded.py takes media/convex_directional.py's exact closed form instead), the note's approximation,
+# shapes interiors/crossing.py takes media/convex_directional.py's exact closed form instead), the note's approximation,
 # the midpoint rule (ray marching), free-path sampling (Monte Carlo)
 QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
@@ -728,7 +728,7 @@ def inside_integrand(directional, x, xh, h, hl, a, b, phase, kt, ks, code, g, kt
     directional light's ks Phi exp(-kt (x + a x / b)) per unit beam irradiance (`phase` its phase
     value), or a point light's eq. 7 integrand per unit intensity (`refracted_point` when eta != 1,
     with a spot's terms `spot`; the index-matched planar branch is for point lights only: spot lights
-    in index-matched shapes take `convex_integrand` or inside_paths.py)."""
+    in index-matched shapes take `convex_integrand` or interiors/paths.py)."""
     if directional:
         return ks * phase * math.exp(-kt * (x + a * x / b))
     if eta != 1.0:

@@ -76,7 +76,7 @@ class Segments:
     seed: int = 0
     scale: float = 1.0  # the scene's size (point lights' regularisation, geometry.py)
     per_ray: int = 0  # k when segment r k + j is ray r's j-th and every t0 is 0 (whole rays), else 0
-    # rows inside shapes that hold a medium (bounded.py's crossing; None: every row lies in the camera's
+    # rows inside shapes that hold a medium (interiors/crossing.py's crossing; None: every row lies in the camera's
     # medium): the shape whose interior holds each row, the outward normal (S, 3) of the boundary face its
     # camera ray entered by (the slab note's plane), and how light reaches it (bounded.STRAIGHT, ...)
     medium: np.ndarray | None = None
@@ -118,7 +118,7 @@ def _inside_defaults(params: dict) -> tuple:
 
 @dataclass(frozen=True)
 class Interiors:
-    """How a method integrates media inside shapes (bounded.py): media/slab.py's inside integrator
+    """How a method integrates media inside shapes (interiors/crossing.py): media/slab.py's inside integrator
     `mode` (QUAD adaptive, CLOSED closed forms: a directional light's exact path in convex index-matched
     shapes, media/convex_directional.py, quadrature in other index-matched ones, counted, eq. 5 through
     refractive boundaries; APPROX the slab note's separable approximation, MARCH midpoints, SAMPLE free

@@ -1,7 +1,7 @@
 """`slab_approx`: the separable approximation of the analytic note on single scattering in
 homogeneous slabs (its sec. 4.2), inside bounded media.
 
-Inside a shape's medium (bounded.py) a point light's single scattering, eq. 7, is replaced by the
+Inside a shape's medium (interiors/crossing.py) a point light's single scattering, eq. 7, is replaced by the
 distant-light average of its exponential part (eq. 5 divided by the segment's length, c taken at
 the entry point) times the closed-form integral of 1/d^2 (media/slab.py `point_approx`); a
 directional light gets eq. 5, which is exact for the planar boundary. The approximation is the

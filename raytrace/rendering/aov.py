@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import bounded
-from .errors import UserError
-from .shading import facing_normals, planet_hits, shading_normals
+from ..interiors import crossing
+from ..errors import UserError
+from ..shading import facing_normals, planet_hits, shading_normals
 
 NAMES = ("depth", "normal", "albedo", "lights")
 HITS = {"depth": ("Z",), "normal": ("X", "Y", "Z"), "albedo": ("R", "G", "B")}  # from the first hits
@@ -69,7 +69,7 @@ def first_hits(prep, names, origins, dirs) -> np.ndarray:
         points = origins[hit] + t[hit, None] * dirs[hit]
         normal[hit] = shading_normals(prep.accel, prep.corner_normals, p, points,
                                       facing_normals(prep.accel.normals[p], dirs[hit]))
-        albedo[hit] = np.where(bounded.enters(prep, p)[:, None], 0.0, prep.reflectance[p])
+        albedo[hit] = np.where(crossing.enters(prep, p)[:, None], 0.0, prep.reflectance[p])
     if ground.any() and {"normal", "albedo"} & set(wanted):
         normals, refl = medium.ground_surface(origins[ground] + t[ground, None] * dirs[ground])
         normal[ground], albedo[ground] = facing_normals(normals, dirs[ground]), refl

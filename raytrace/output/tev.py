@@ -31,7 +31,7 @@ import warnings
 
 import numpy as np
 
-from .errors import UserError
+from ..errors import UserError
 
 CREATE_IMAGE = 4
 UPDATE_IMAGE_V3 = 6

@@ -1,6 +1,6 @@
 """The render loop: tiles (a band's pixels dealt out in turn x pixel-sample ranges) run by an
 executor, threads of this process (`Threads`: Embree and the numba kernels release the GIL) or any
-object with the same two methods (api.py plugs in distributed.py's Dask cluster; this module does
+object with the same two methods (api.py plugs in rendering/distributed.py's Dask cluster; this module does
 not import it).
 
 Per tile: camera rays → first hits → surface term (eq. 5) → air-light of the chosen method →
@@ -25,20 +25,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import aov, bounded, error_bounds, inside_rows
-from .accel import Accelerator
-from .camera import generate_rays, pixel_rays
-from .errors import UserError
-from .lights import DIRECTIONAL, Lights
-from .media.particles import particle_radiance
-from .methods import get_method, resolve_params
-from .options import RenderOptions
-from .scene.format import Scene
-from .scene.meshes import scene_triangles
-from .shading import (emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits, shading_normals,
-                      surface_radiance)
-from .shadow_frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
-from .visibility import cone_segments, gather, shadowed_airlight, whole_rays
+from . import aov
+from ..interiors import crossing, rows
+from .. import error_bounds
+from ..geometry.accel import Accelerator
+from ..camera import generate_rays, pixel_rays
+from ..errors import UserError
+from ..lights import DIRECTIONAL, Lights
+from ..media.particles import particle_radiance
+from ..methods import get_method, resolve_params
+from ..options import RenderOptions
+from ..scene.format import Scene
+from ..scene.meshes import scene_triangles
+from ..shading import (
+    emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits, shading_normals,
+    surface_radiance)
+from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
+from ..segments import cone_segments, gather, whole_rays
+from ..shadows.shadow_rays import shadowed_airlight
 
 RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
 PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
@@ -56,9 +60,9 @@ class Prepared:
     corner_normals: np.ndarray | None = None  # shading normals at the triangles' corners (None: all flat)
     _frusta: list | None = None
     _through: list | None = None
-    shape_ids: np.ndarray | None = None  # each triangle's shape (bounded.py)
+    shape_ids: np.ndarray | None = None  # each triangle's shape (crossing.py)
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
-    interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (bounded.py)
+    interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (crossing.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
     lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
     _memo: dict = field(default_factory=dict)
@@ -73,22 +77,22 @@ class Prepared:
 
     def frusta(self) -> list:
         """The lights' texel lists of the shadow frusta of the triangles that stop light
-        (bounded.blockers), for the exact lit intervals, built once (shadow_frusta.py)."""
+        (crossing.blockers), for the exact lit intervals, built once (shadows/frusta.py)."""
         if self._frusta is None:
-            self._frusta = build_frusta(self.accel, self.lights, select=bounded.blockers(self))
+            self._frusta = build_frusta(self.accel, self.lights, select=crossing.blockers(self))
         return self._frusta
 
     def through(self) -> list | None:
         """The same of the index-matched interiors' triangles, which attenuate the outside air-light's
-        light (bounded.attenuators; None where none need it), built once."""
-        mask = bounded.attenuators(self)
+        light (crossing.attenuators; None where none need it), built once."""
+        mask = crossing.attenuators(self)
         if mask is not None and self._through is None:
             self._through = build_frusta(self.accel, self.lights, select=mask)
         return None if mask is None else self._through
 
     def only(self, keep: np.ndarray) -> "Prepared":
         """This scene lit by the lights `keep` (a boolean mask over `lights`) only, for the output
-        layers (aov.py): the other lights' intensities are zero (their contributions exact zeros, so
+        layers (rendering/aov.py): the other lights' intensities are zero (their contributions exact zeros, so
         each light's layer holds the very numbers the image adds up) and their segments of the
         camera's medium are dropped; the background is seen only where no light is kept (the emission
         layer); everything else, the shadow frusta included, is shared."""
@@ -112,7 +116,7 @@ class RenderResult:
     # (H, W, 3) float32 |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic
     # method the bound of all but its estimator's noise, whose standard error is sqrt(variance)
     error_bound: np.ndarray | None = None
-    layers: dict = field(default_factory=dict)  # output layers (aov.py): name -> (H, W, channels)
+    layers: dict = field(default_factory=dict)  # output layers (rendering/aov.py): name -> (H, W, channels)
 
 
 def prepare(scene: Scene) -> Prepared:
@@ -122,7 +126,7 @@ def prepare(scene: Scene) -> Prepared:
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
     prep = Prepared(scene, Accelerator(tris, extent), refl, lights, corners, shape_ids=ids, interior_shapes=inner)
     if len(inner):
-        prep.camera_inside = bounded.inside_of(prep, scene.camera.position, inner)
+        prep.camera_inside = crossing.inside_of(prep, scene.camera.position, inner)
     return prep
 
 
@@ -154,15 +158,14 @@ def sees_emission(prep: Prepared) -> bool:
     return prep.lights_on is None or not prep.lights_on.any()
 
 
-def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: float | None = None, depth=0):
+def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: bool = False, depth=0):
     """Radiance (N, 3) of camera rays, the statistics array (`stats_size`: the method's, the lit
     intervals', the inside integrals', summed over the rays followed behind shapes), for a stochastic
     method the variance (N, 3) of each ray's estimate (else None), and the error bound (N, 3) of each
-    ray's radiance (error_bounds.py). `shadows`: None for the paper's unshadowed air-light, else the
-    air-light over the exact lit intervals
-    (shadow_frusta.py; its value, a former search spacing, is not read).
-    Rays entering a shape that holds a medium are taken across its boundary (bounded.cross; `depth`
-    boundaries deep): their inside rows are integrated by the method's inside rule (inside_rows.py)
+    ray's radiance (error_bounds.py). `shadows`: False for the paper's unshadowed air-light, True for the
+    air-light over the exact lit intervals (shadows/frusta.py).
+    Rays entering a shape that holds a medium are taken across its boundary (crossing.cross; `depth`
+    boundaries deep): their inside rows are integrated by the method's inside rule (rows.py)
     and the rays going on beyond are shaded here (`_across`)."""
     scene = prep.scene
     medium = scene.medium
@@ -171,31 +174,31 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     prim[ground] = -1
 
     deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
-    if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (bounded.py)
-        crossing = bounded.start_inside(prep, origins, dirs, t, prim, keys)
-        rad, var, _ = _across(prep, method, params, crossing, seed, shadows, 0, deeper)
+    if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (crossing.py)
+        boundary = crossing.start_inside(prep, origins, dirs, t, prim, keys)
+        rad, var, _ = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
         return rad, deeper, var if method.stochastic else None, np.full_like(rad, np.inf)
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
-    into = bounded.enters(prep, prim)
+    into = crossing.enters(prep, prim)
     surf = hit & ~into
     if surf.any():
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium, bounded.shadow_through(prep), shading)
+                                          medium, crossing.shadow_through(prep), shading)
         if sees_emission(prep):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
                                                prep.accel.normals[prim[surf]], dirs[surf])
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():
-        crossing = bounded.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
-        if crossing is None:  # black by the model (bounded.MAX_DEPTH)
+        boundary = crossing.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
+        if boundary is None:  # black by the model (crossing.MAX_DEPTH)
             into_var = into_bound = np.zeros((np.count_nonzero(into), 3))
         else:
-            radiance[into], into_var, into_bound = _across(prep, method, params, crossing, seed, shadows, depth,
+            radiance[into], into_var, into_bound = _across(prep, method, params, boundary, seed, shadows, depth,
                                                            deeper)
     if sees_emission(prep):
         radiance[~hit & ~ground] = scene.background
@@ -208,20 +211,20 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     bound = np.zeros_like(radiance)
     bound[surf & prep.lights.cubature.any()] = np.inf  # an area light's cubature on surfaces: no bound
     if into.any():
-        bound[into] = bounded.scaled(into_bound, tr[into])
+        bound[into] = crossing.scaled(into_bound, tr[into])
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
             segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
-        if shadows is not None and method.samples_shadows(params):
+        if shadows and method.samples_shadows(params):
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
                 bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
         else:
             through = None
-            if shadows is not None:
-                segs, stats[method.stats_size:-bounded.STATS_SIZE] = exact_lit_intervals(
+            if shadows:
+                segs, stats[method.stats_size:-crossing.STATS_SIZE] = exact_lit_intervals(
                     prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
                 if prep.through() is not None:  # pieces whose light crosses index-matched interiors
                     segs, through, _ = split_lit(prep.accel, segs, len(prep.lights), prep.through())
@@ -229,8 +232,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                                                       len(origins))
             bound += air_bound
             if through is not None and len(through):
-                through_air, through_var = inside_rows.through_airlight(prep, method, params, through, len(origins),
-                                                                        stats[-bounded.STATS_SIZE:])
+                through_air, through_var = rows.through_airlight(prep, method, params, through, len(origins),
+                                                                        stats[-crossing.STATS_SIZE:])
                 air = air + through_air
                 if method.stochastic:
                     var = var + through_var
@@ -240,40 +243,40 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             variance = variance + var
     if medium.particles is not None:  # seed 003's particle layer on top of the air-light (no bound)
         glints = particle_radiance(medium.particles, medium, prep.lights, prep.accel, origins, dirs, t, keys,
-                                   shadows is not None)
+                                   shadows)
         radiance += glints
         bound[np.any(glints != 0.0, axis=1)] = np.inf
     bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
     return radiance, stats + deeper, variance, bound
 
 
-def _across(prep: Prepared, method, params, crossing, seed, shadows, depth, stats):
+def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stats):
     """Radiance, variance and error bound (N, 3) back along the rays of a boundary crossing
-    (bounded.py): its inside rows integrated (inside_rows.py), the rays going on beyond shaded one
-    boundary deeper, combined (bounded.combine); their statistics added to `stats`."""
-    inner, inner_var, inner_bound, inside = inside_rows.integrate(prep, method, params, crossing.rows, seed, depth,
-                                                                  shadows is not None)
-    stats[-bounded.STATS_SIZE:] += inside
-    if len(crossing.origins):
-        seen, seen_stats, seen_var, seen_bound = shade_rays(prep, method, params, crossing.origins, crossing.dirs,
-                                                            crossing.keys, seed, shadows, depth + 1)
+    (crossing.py): its inside rows integrated (rows.py), the rays going on beyond shaded one
+    boundary deeper, combined (crossing.combine); their statistics added to `stats`."""
+    inner, inner_var, inner_bound, inside = rows.integrate(prep, method, params, boundary.rows, seed, depth,
+                                                         shadows)
+    stats[-crossing.STATS_SIZE:] += inside
+    if len(boundary.origins):
+        seen, seen_stats, seen_var, seen_bound = shade_rays(prep, method, params, boundary.origins, boundary.dirs,
+                                                            boundary.keys, seed, shadows, depth + 1)
         stats += seen_stats
     else:
         seen = seen_bound = np.zeros((0, 3))
         seen_var = seen if method.stochastic else None
-    return bounded.combine(crossing, inner, inner_var, inner_bound, seen, seen_var, seen_bound)
+    return crossing.combine(boundary, inner, inner_var, inner_bound, seen, seen_var, seen_bound)
 
 
 def stats_size(method) -> int:
     """The length of a render's statistics array: the method's, the lit intervals', the inside integrals'."""
-    return method.stats_size + len(STATS_NAMES) + bounded.STATS_SIZE
+    return method.stats_size + len(STATS_NAMES) + crossing.STATS_SIZE
 
 
-def warm_up(prep: Prepared, method, params, seed, shadows=None) -> float:
+def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
     """Compile the method's kernels on a few rays; returns the seconds it took."""
     start = time.perf_counter()
     o, d = generate_rays(prep.scene.camera, slice(0, 1), slice(0, 1))
-    o, d = bounded.warm_up_rays(prep, o[:1], d[:1])  # and one at each shape holding a medium
+    o, d = crossing.warm_up_rays(prep, o[:1], d[:1])  # and one at each shape holding a medium
     shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed, shadows)
     return time.perf_counter() - start
 
@@ -300,13 +303,13 @@ class Tile:
 @dataclass(frozen=True)
 class Task:
     """What every tile of one render shares besides the prepared scene (small and picklable: a
-    cluster's tasks carry it): the method, its resolved parameters, the seed, `shadows` (None without
-    volumetric shadows, else a number that is no longer read: the lit intervals are exact), the
+    cluster's tasks carry it): the method, its resolved parameters, the seed, `shadows` (whether the
+    air-light is shadowed: volumetric shadows), the
     pixel block `box` = (x0, y0, x1, y1) and the output layers `aov` (aov.NAMES) beside the image."""
     method: str
     params: dict
     seed: int
-    shadows: float | None
+    shadows: bool
     box: tuple
     aov: tuple = ()
 
@@ -383,7 +386,7 @@ def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys) -> np
 def prepare_task(prep: Prepared, task: Task) -> float:
     """Build what the tiles of `task` share (the lights' shadow maps) and compile the method's
     kernels; returns the seconds the compilation took."""
-    if task.shadows is not None:
+    if task.shadows:
         prep.frusta()  # before the tiles' threads share it
     return warm_up(prep, get_method(task.method), task.params, task.seed, task.shadows)
 
@@ -494,9 +497,9 @@ def check(prep: Prepared, method_name: str, given_params: dict, options: RenderO
     params = resolve_params(method, given_params, source)
     method.check_medium(prep.scene.medium, source)
     method.check(prep.scene.medium, params)
-    method.check_lights(bounded.outside_lights(prep), source)
+    method.check_lights(crossing.outside_lights(prep), source)
     check_options(method, params, options.volumetric_shadows, source, prep.lights, prep.scene.medium)
-    bounded.check(prep, method, params, source)
+    crossing.check(prep, method, params, source)
     return params
 
 
@@ -560,9 +563,9 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     seconds = time.perf_counter() - start
     totals = acc.totals()
     summary = method.summarize(totals[:method.stats_size])
-    if task.shadows is not None:
+    if task.shadows:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
-    summary.update(bounded.summarize(prep, method, totals[-bounded.STATS_SIZE:], task.shadows is not None))
+    summary.update(crossing.summarize(prep, method, totals[-crossing.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
     layers = {} if acc.layers is None else aov.split(task.aov, aov.sources(prep.lights), acc.layers)
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,

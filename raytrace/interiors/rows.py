@@ -1,4 +1,4 @@
-"""The single scattering of inside rows: the `Segments` rows that the boundary crossing (bounded.py)
+"""The single scattering of inside rows: the `Segments` rows that the boundary crossing (interiors/crossing.py)
 makes of camera rays inside shapes that hold a medium, integrated by the method's inside rule
 (`Supports.interiors`: media/slab.py's inside integrator `mode`, with the settings the method gives
 it), with volumetric shadows over each light's exact lit pieces, and the outside air-light whose
@@ -27,19 +27,20 @@ import functools
 
 import numpy as np
 
-from . import inside_paths
-from .beam_shadows import lit_pieces_of_beam
-from .bounded import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, RTOL, STATS_SIZE, THROUGH, THROUGH_CAPPED,
-                      TRACED, UNSHADOWED, blockers, convex_planes, hull_planes, matched, refracted_beams, scaled,
-                      _refract, _transmittance)
-from .lights import DIRECTIONAL
-from .media.convex_chords import chords_into
-from .media.convex_directional import MAX_FACES, segments_bounded
-from .media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
-from .methods import Segments
-from .methods.geometry import segment_light_table
-from .shadow_frusta import exact_lit_intervals
-from .visibility import gather, shadowed_airlight
+from . import paths
+from ..shadows.beams import lit_pieces_of_beam
+from .crossing import (
+    CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED, UNSHADOWED,
+    blockers, convex_planes, hull_planes, matched, refracted_beams, scaled, _refract, _transmittance)
+from ..lights import DIRECTIONAL
+from ..media.convex_chords import chords_into
+from ..media.convex_directional import MAX_FACES, segments_bounded
+from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
+from ..methods import Segments
+from ..methods.geometry import segment_light_table
+from ..shadows.frusta import exact_lit_intervals
+from ..segments import gather
+from ..shadows.shadow_rays import shadowed_airlight
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
@@ -184,7 +185,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
 
 def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth, shadows: bool):
     """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
-    that each light reaches past the blockers (shadow_frusta.py's exact lit intervals of `blockers`;
+    that each light reaches past the blockers (shadows/frusta.py's exact lit intervals of `blockers`;
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
     and its quadrature fallback take the exact path from any start). Where the light's path is not
@@ -240,7 +241,7 @@ def _carry(out, var, bound, r, kt, t0, val, v, b):
 
 def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth):
     """`lit_single_scattering` in a convex refractive shape: each directional light's refracted beams
-    over the pieces they reach past the blockers (beam_shadows.py: the leg inside the shape and the
+    over the pieces they reach past the blockers (shadows/beams.py: the leg inside the shape and the
     entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
     spot lights unshadowed (their refracted paths, media/slab.py `faces_point`), counted, with an infinite bound
     if anything else stands in the scene. The other index-matched interiors on the light's way are not
@@ -286,7 +287,7 @@ def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
     exp(-(sigma_t inside - sigma_t outside) x length inside) of each interior on its straight path,
     integrated by the method's own rule where it has medium points (`Method.points`: raymarch's
     midpoints, Monte Carlo's samples, each point's light attenuated), else by the traced adaptive
-    quadrature (inside_paths.through_quadrature at the method's inside rtol: quadrature's own, or the
+    quadrature (paths.through_quadrature at the method's inside rtol: quadrature's own, or the
     fallback a method declares with `Supports.interiors.through`), counted (THROUGH; integrals short
     of their tolerance: THROUGH_CAPPED), carried to the camera by the outside's transmittance over t0."""
     inner = matched(prep)
@@ -300,7 +301,7 @@ def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
         return shadowed_airlight(prep.accel, method, medium, prep.lights, params, _own_streams(segs, len(prep.lights)),
                                  n_rays, functools.partial(_attenuation, prep, inner, dk))
     capped = np.zeros(1)
-    values = inside_paths.through_quadrature(prep, segs, medium, inner, kt_in,
+    values = paths.through_quadrature(prep, segs, medium, inner, kt_in,
                                              method.supports.interiors.settings(params)[0], capped)
     stats[THROUGH_CAPPED] += capped[0]
     return gather(segs, values, n_rays, medium), np.zeros((n_rays, 3))
@@ -322,7 +323,7 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
     """exp(-dk . lengths) (same shape as weight) of each medium point's straight path to its light
     through the index-matched interiors `inner` (dk (S, 3): their sigma_t minus the outside's), the
     lengths by the face planes in float64 when every shape is convex (media/convex_chords.py), else
-    by Embree walks (inside_paths.inside_lengths)."""
+    by Embree walks (paths.inside_lengths)."""
     out = np.zeros(weight.shape)
     lp = prep.lights.position[segs.light]
     planes = [prep.interior_planes.get(sid) for sid in inner]
@@ -337,7 +338,7 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
                 chords_into(np.ascontiguousarray(p[m]), dirs, dist, q, per_shape[j])
             lengths = per_shape.T
         else:
-            lengths, _ = inside_paths.inside_lengths(prep, p[m], dirs, dist, inner, margin=prep.accel.epsilon)
+            lengths, _ = paths.inside_lengths(prep, p[m], dirs, dist, inner, margin=prep.accel.epsilon)
         f = out[..., c]
         f[m] = np.exp(-lengths @ dk[:, c])
         out[..., c] = f
@@ -347,7 +348,7 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
 def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
             stats):
     """out, var += one light's single scattering over the segments of an index-matched shape (non-convex,
-    or handed over by CLOSED), the light's straight paths measured with Embree (inside_paths.py)."""
+    or handed over by CLOSED), the light's straight paths measured with Embree (paths.py)."""
     ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
     if not len(ch):
         return
@@ -356,11 +357,11 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, 
     v = np.zeros((len(ell), len(ch)))
     if mode == QUAD:
         capped = np.zeros(1)
-        val = inside_paths.segment_quadrature(*args, rtol, capped)
+        val = paths.segment_quadrature(*args, rtol, capped)
         stats[CAPPED] += capped[0]
     elif mode == MARCH:
-        val = inside_paths.segment_march(*args, steps, tau_max)
+        val = paths.segment_march(*args, steps, tau_max)
     else:
-        val, v = inside_paths.segment_samples(*args, steps, keys, dim0, seed)
+        val, v = paths.segment_samples(*args, steps, keys, dim0, seed)
     out[:, ch] += val * intensity[ch]
     var[:, ch] += v * intensity[ch] ** 2

@@ -5,7 +5,7 @@ Face f's beam (bounded.refracted_beams: the light refracted through f, travellin
 reaches a point p inside along a straight leg from its entry point e(p) = p + s(p) u on f's plane,
 s(p) = (c - n.p) / (n.u), and e(p) is lit from outside along the light's own direction. On a camera
 segment p(x) = o + x w inside the shape, both legs are exact lit-interval problems of
-shadow_frusta.py, with no sampling:
+shadows/frusta.py, with no sampling:
 - outside: e(x) = e(0) + x v, v = w - (n.w / n.u) u, is a segment of f's plane. Its lit pieces
   under the light, past every blocker but the shape itself (convex: its other faces lie behind f),
   map back to x through |v|. Where the entry point hardly moves (|v| ell below DEGENERATE of the
@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jit import njit
-from .methods import Segments
-from .shadow_frusta import lit_pieces, sun_bins, STATS_NAMES
+from ..jit import njit
+from ..methods import Segments
+from .frusta import lit_pieces, sun_bins, STATS_NAMES
 
 DEGENERATE = 1e-9  # x the scene's size: an entry segment shorter than this is one point
 
@@ -64,7 +64,7 @@ def lit_pieces_of_beam(prep, sid: int, planes: np.ndarray, blockers, li: int, fa
     shape `sid` (face planes `planes`) that face `face`'s beam of directional light `li` (minus its
     direction inside: `toward`) reaches past the `blockers` (a mask over prep.accel.triangles, None:
     all), by segment and x; the frusta are built once per shape, light and beam (prep.memo)."""
-    accel, n = prep.accel, len(points)
+    accel = prep.accel
     others = prep.shape_ids != sid if blockers is None else blockers & (prep.shape_ids != sid)
     stats = np.zeros(len(STATS_NAMES))
     # outside: the entry points' segment on the face's plane, under the light itself

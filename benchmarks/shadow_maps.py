@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .jit import njit
+from raytrace.jit import njit
 
 MAX_RES = 1024
 MARGIN = 1e-3  # relative depth margin: a planar surface's depth between texel corners deviates by ~texel^2

@@ -1,12 +1,5 @@
-"""From camera rays to segments, and light visibility inside the medium (ARCHITECTURE.md).
-
-`whole_rays` makes the unshadowed segments: one [0, t_hit] per (ray, light). `lit_intervals` cuts
-them into the pieces each light illuminates (volumetric shadows; directional lights by
-`sun_intervals`, below), so that every method integrates
-the shadowed air-light exactly between shadow boundaries. `gather` adds segment air-lights to their
-camera rays with the medium's transmittance from the camera to each segment's start.
-`shadowed_airlight` is the classic alternative of the methods that expose their medium points
-(raymarch, montecarlo with `shadow_test = "samples"`): a shadow ray from every point to its light.
+"""The sampled lit-interval search that preceded the exact lit intervals (raytrace/shadows/frusta.py),
+kept for benchmarks/exact_shadows.py's comparison (not part of the renderer).
 
 Lit-interval search. Seen from the light L, the point of a segment at distance x is at the angle
 theta = atan((x - x_h) / h) from the foot point (the closed form's own variable, METHODS.md §1);
@@ -23,17 +16,14 @@ from __future__ import annotations
 
 import math
 
-import functools
-
 import numpy as np
 
-from .jit import njit
-from .lights import DIRECTIONAL, is_spot, segment_cone
-from .methods import Segments
-from .methods.geometry import segment_geometry, v_of
-from .shadow_maps import ShadowMaps, face_texel, verdict
+from raytrace.jit import njit
+from raytrace.lights import DIRECTIONAL
+from raytrace.methods import Segments
+from raytrace.shadows.shadow_rays import chunks
+from benchmarks.shadow_maps import ShadowMaps, face_texel, verdict
 
-POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
 SHADOW_SPACING = 0.01  # radians seen from the light between visibility samples (render.shadow_spacing)
 SPACING_RANGE = (1e-5, 0.5)
 EDGE_STEP = 1e-6  # radians: the probes either side of an occluder edge that confirm it as the boundary
@@ -45,92 +35,6 @@ SAMPLES_PER_CHUNK = 1 << 20  # visibility samples per batch of shadow rays (~100
 LI_SEGMENTS, LI_SAMPLES, LI_BOUNDARIES, LI_BISECTIONS, LI_INTERVALS, LI_SHADOWED, LI_RAYS, LI_EDGES = range(8)
 LI_NAMES = ("segments searched", "visibility samples", "shadow boundaries", "bisection steps",
             "lit intervals", "segments fully shadowed", "shadow rays traced", "boundaries at occluder edges")
-
-
-def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
-    """One segment [0, tmax] per (ray, light), ray-major (segment r L + l)."""
-    n = len(origins)
-    rep = (lambda a: a) if n_lights == 1 else (lambda a: np.repeat(a, n_lights, axis=0))  # noqa: E731
-    light = np.tile(np.arange(n_lights, dtype=np.int64), n)
-    return Segments(rep(origins), rep(dirs), rep(np.asarray(tmax, float)), light,
-                    rep(np.arange(n, dtype=np.int64)), np.zeros(n * n_lights), rep(np.asarray(keys, np.uint64)),
-                    light.copy(), int(seed), float(scale), per_ray=n_lights)
-
-
-CONE_STREAM = 1 << 20  # stream offset of a spot light's second lit piece (a cone cuts a line at most twice)
-
-
-def cone_segments(segs: Segments, lights, end_normals=None):
-    """The segments cut to where their spot lights shine (cosine to the axis above cos_end: at most
-    two pieces of a line, lights.segment_cone), dark ones dropped; point lights' segments unchanged.
-    `end_normals` (S, 3) or None follow the segments, zero for a piece that now ends in the air."""
-    if "spot" not in lights.kinds():
-        return segs, end_normals
-    xh, h, _, cone = segment_geometry(segs, lights)
-    src, x0, x1, piece = _cone_pieces(xh, h, segs.length, cone)
-    cut = Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
-                   segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src] + CONE_STREAM * len(lights) * piece,
-                   segs.seed, segs.scale)
-    if end_normals is not None:
-        end_normals = end_normals[src] * (x1 == segs.length[src])[:, None]
-    return cut, end_normals
-
-
-@njit
-def _cone_pieces(xh, h, length, cone):
-    """(source segment, x0, x1, piece number) of every lit piece: x = x_h + h (v - 1/v) / 2 at the
-    cone's crossings v, the segment's own ends exactly."""
-    n = xh.shape[0]
-    src = np.empty(2 * n, np.int64)
-    x0, x1, piece = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n, np.int64)
-    buf = np.empty((5, 3))
-    m = 0
-    for s in range(n):
-        ell = length[s]
-        if not is_spot(cone[s, 3]):
-            src[m], x0[m], x1[m], piece[m] = s, 0.0, ell, 0
-            m += 1
-            continue
-        va = v_of(-xh[s], h[s])
-        vb = v_of(ell - xh[s], h[s]) if ell < math.inf else math.inf
-        k = 0
-        for i in range(segment_cone(cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 2], va, vb, buf)):
-            if buf[i, 2] == 0.0:
-                continue
-            a = 0.0 if buf[i, 0] == va else xh[s] + 0.5 * h[s] * (buf[i, 0] - 1.0 / buf[i, 0])
-            b = ell if buf[i, 1] == vb else xh[s] + 0.5 * h[s] * (buf[i, 1] - 1.0 / buf[i, 1])
-            a = min(max(a, 0.0), ell)
-            b = min(max(b, a), ell)
-            if b > a:
-                src[m], x0[m], x1[m], piece[m] = s, a, b, k
-                m += 1
-                k += 1
-    return src[:m], x0[:m], x1[:m], piece[:m]
-
-
-def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
-    """Sum (N, 3) over each ray's segments of T^power * values (S, 3), T the transmittance from the
-    camera ray's origin to the segment's start (exp(-kt t0) when homogeneous: the t0 before the
-    segment's own origin); power 2 adds the variances of independent segment estimates. Whole rays
-    (all t0 = 0) need no transmittance."""
-    out = np.zeros((n_rays, 3))
-    whole = segs.per_ray != 0 or not np.any(segs.t0)
-    tr = np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
-    _add_by_ray(values, segs.ray, tr, out)
-    return out
-
-
-@njit
-def _add_by_ray(values, ray, tr, out):
-    """out[ray[s]] += values[s] (times tr[s] unless tr is empty; nothing where tr is 0, even if the
-    segment's own value overflowed: a light on the camera in a medium of sigma ~ 1e300)."""
-    for s in range(values.shape[0]):
-        r = ray[s]
-        for c in range(3):
-            if not tr.shape[0]:
-                out[r, c] += values[s, c]
-            elif tr[s, c] != 0.0:
-                out[r, c] += values[s, c] * tr[s, c]
 
 
 def _light_frame(segs: Segments, lights):
@@ -598,86 +502,10 @@ def _lit_runs(vis, first, count, u_end, cseg, bound):
     return np.array(src, dtype=np.int64), np.array(a), np.array(b)
 
 
+
 def concat(parts: list[Segments], like: Segments) -> Segments:
     if not parts:
         return like.take(slice(0, 0))
     cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
     return Segments(cat("origins"), cat("dirs"), cat("length"), cat("light"), cat("ray"), cat("t0"), cat("keys"),
                     cat("stream"), like.seed, like.scale)
-
-
-def segment_airlight(method, medium, lights, params, segs: Segments, n_rays: int):
-    """Air-light (N, 3) of the camera rays from their segments, the method's statistics, and the
-    variance (N, 3) of each ray's estimate (None for a deterministic method)."""
-    res = method.airlight(segs, medium, lights, params)
-    var = gather(segs, res[2], n_rays, medium, power=2) if method.stochastic else None
-    return gather(segs, res[0], n_rays, medium), res[1], var
-
-
-def unshadowed_airlight(method, medium, lights, params, origins, dirs, tmax, keys, seed=0, scale=1.0):
-    """`segment_airlight` of whole rays [0, tmax], one segment per light."""
-    segs = whole_rays(origins, dirs, tmax, keys, len(lights), seed, scale)
-    return segment_airlight(method, medium, lights, params, segs, len(origins))
-
-
-@njit
-def _chunk_ends(sizes, budget):
-    ends = []
-    start, biggest = 0, 0
-    for i in range(sizes.shape[0]):
-        biggest = max(biggest, sizes[i])
-        if i > start and (i + 1 - start) * biggest > budget:
-            ends.append(i)
-            start, biggest = i, sizes[i]
-    ends.append(sizes.shape[0])
-    return ends
-
-
-def chunks(sizes: np.ndarray, budget: int):
-    """Consecutive slices of items whose count times their largest size stays within `budget`
-    (a single item larger than the budget is a chunk of its own)."""
-    start = 0
-    for stop in (_chunk_ends(np.asarray(sizes, np.int64), int(budget)) if len(sizes) else []):
-        yield slice(start, stop)
-        start = stop
-
-
-def _visible(accel, lights, segs, pos, weight):
-    """Shadow-ray visibility (same shape as weight) of the medium points pos toward their lights."""
-    visible = np.zeros(weight.shape, dtype=bool)
-    eps = accel.epsilon
-    lp = lights.position[segs.light]
-    for c in range(3):
-        p, w = pos[..., c, :], weight[..., c]
-        if c > 0 and np.array_equal(p, pos[..., 0, :]):
-            visible[..., c] = visible[..., 0]
-            continue
-        m = w != 0.0
-        to_light = np.broadcast_to(lp[:, None, None, :], p.shape)[m] - p[m]
-        dist = np.linalg.norm(to_light, axis=1)
-        d = to_light / np.where(dist > 0.0, dist, 1.0)[:, None]
-        vis = visible[..., c]
-        vis[m] = ~accel.occluded(p[m] + eps * d, d, dist - 2.0 * eps)
-        visible[..., c] = vis
-    return visible
-
-
-def shadowed_airlight(accel, method, medium, lights, params, segs: Segments, n_rays: int, visible=None):
-    """Air-light (N, 3) with volumetric shadows from the method's medium points and the variance
-    (N, 3) of each ray's estimate: the sum over its segments (independent random numbers) of the
-    variance of each segment's mean over iterations (zero for one iteration or a deterministic
-    method). `visible(segs, pos, weight)`: the factor (same shape as weight) of each point's light,
-    by default its shadow ray's visibility."""
-    visible = visible or functools.partial(_visible, accel, lights)
-    counts = method.point_count(segs, medium, params)
-    air = np.zeros((n_rays, 3))
-    var = np.zeros((n_rays, 3))
-    for part in chunks(counts, POINTS_PER_CHUNK):
-        seg = segs.take(part)
-        pos, weight = method.points(seg, medium, lights, params)
-        est = (weight * visible(seg, pos, weight)).sum(axis=2)  # (S, n, 3) per iteration
-        air += gather(seg, est.mean(axis=1), n_rays, medium)
-        n = est.shape[1]
-        if method.stochastic and n > 1:
-            var += gather(seg, est.var(axis=1, ddof=1) / n, n_rays, medium, power=2)
-    return air, var

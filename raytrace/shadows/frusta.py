@@ -44,9 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .jit import njit
-from .lights import DIRECTIONAL
-from .methods import Segments
+from ..jit import njit
+from ..lights import DIRECTIONAL
+from ..methods import Segments
 
 DILATE = 1e-8  # texels are binned as if larger by this much (face units; grid size for the ortho grid)
 REL = 1e-12  # relative slack of the depth comparisons
@@ -107,7 +107,7 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
 def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None) -> LightBins:
     """The frusta and texel lists of the triangles `tris` (T, 3, 3) under a directional light whose
     direction of travel is `axis` (any length), for a scene of size `scale` and shadow-ray
-    `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (bounded.py
+    `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (interiors/crossing.py
     builds them for the light refracted into a shape, from the triangles inside it)."""
     d = axis / np.linalg.norm(axis)
     a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
@@ -630,7 +630,7 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
 
 def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list[LightBins] | None = None):
     """The lit pieces of `segs` as new segments (each from its own start point, t0 along the camera
-    ray, stream + n_lights x piece number, as visibility.lit_intervals), and the statistics
+    ray, stream + n_lights x piece number), and the statistics
     (STATS_NAMES). `bins`: `build(accel, lights)`, built here if None (build it once per scene)."""
     bins = build(accel, lights) if bins is None else bins
     stats = np.zeros(len(STATS_NAMES))
@@ -644,7 +644,7 @@ def split_lit(accel, segs: Segments, n_lights: int, bins: list[LightBins]):
     triangle of the bins: `clear`) and the pieces inside one (`behind`), as segments from their own
     start points, and the statistics (STATS_NAMES). Streams are renumbered per camera ray and light
     over the clear pieces (light + n_lights x rank, as whole rays number them); the behind pieces
-    keep their segment's (bounded.py integrates them without random numbers)."""
+    keep their segment's (interiors/crossing.py integrates them without random numbers)."""
     stats = np.zeros(len(STATS_NAMES))
     src, x0, x1 = lit_pieces(segs, bins, accel.scale, stats)
     clear = _take(segs, src, x0, x1, np.zeros(len(src), np.int64))

@@ -9,7 +9,7 @@ segment from the light's end (outside every shape, where the parity is known) to
 
 `segment_quadrature`, `segment_march` and `segment_samples` integrate the inside single
 scattering of camera-ray segments with these lengths (quadrature, raymarch and montecarlo of
-bounded.py for non-convex index-matched shapes; convex ones use the exact numba kernel of
+interiors/crossing.py for non-convex index-matched shapes; convex ones use the exact numba kernel of
 media/slab.py instead). `through_quadrature` integrates the outside medium where its light crosses
 index-matched shapes (media/convex_chords.py's kernel when they are all convex). The shadow rays of
 surfaces use `inside_lengths` too (bounded.shadow_through): through an index-matched interior they are
@@ -22,13 +22,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import facet_walk
-from .jit import njit
-from .lights import NO_CONE, SMOOTHSTEP, falloff_array
-from .media.phase import phase_value
-from .media.convex_chords import chords_into, through_pieces
-from .media.slab import straight_cuts
-from .rng import uniform
+from ..geometry import facet_walk
+from ..jit import njit
+from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
+from ..media.phase import phase_value
+from ..media.convex_chords import chords_into, through_pieces
+from ..media.slab import straight_cuts
+from ..rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
 FAR = 3.5  # x the scene's scale: from any scene point this far toward a directional light is outside every shape
@@ -247,7 +247,7 @@ class Facets(NamedTuple):
 
 
 def exit_facets(prep, sid, geo, directional, end):
-    """The exit facets of the light paths along each segment of the convex shape sid (facet_walk.py),
+    """The exit facets of the light paths along each segment of the convex shape sid (geometry/facet_walk.py),
     walked from the facet Embree finds at the segment's middle; None if its mesh is not a closed
     2-manifold."""
     own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
@@ -321,7 +321,7 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
     whose light crosses the index-matched shapes `sids` (interior sigma_t `kt_in`, (S, 3)) on its
     straight path: the integrand ks Phi(mu) F exp(-kt (x + d)) / d^2 of the unshadowed air-light
     times exp(-(kt_in - kt) . k) over the lengths k inside each shape (`chords`), by `adaptive`
-    from the whole segments (cone crossings were cut before: visibility.cone_segments); when every
+    from the whole segments (cone crossings were cut before: segments.cone_segments); when every
     shape is convex, by media/convex_chords.py's kernel of the same rule, chords and integrand."""
     lights = prep.lights
     kt, ks = medium.sigma_t, medium.sigma_s

@@ -1,6 +1,6 @@
 """Preview images: scene-linear Rec.709 radiance to 8-bit sRGB through a display view.
 
-Two views map a high dynamic range to the display (`to_display`); film.py adds the plain sRGB encode
+Two views map a high dynamic range to the display (`to_display`); output/film.py adds the plain sRGB encode
 ("standard") and chooses among them:
 - "neutral" (the default) is the Khronos PBR Neutral tone mapper (Khronos Group 2024,
   github.com/KhronosGroup/ToneMapping, PBR_Neutral/README.md, Apache-2.0): identity with a small toe
@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .errors import UserError
+from ..errors import UserError
 
 CONFIG = "cg-config-v4.0.0_aces-v2.0_ocio-v2.5"  # pinned, so previews do not change with OpenColorIO releases
 SCENE_LINEAR = "Linear Rec.709 (sRGB)"

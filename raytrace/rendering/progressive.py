@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import error_bounds
-from .errors import UserError
-from .options import RenderOptions
+from .. import error_bounds
+from ..errors import UserError
+from ..options import RenderOptions
 from .renderer import Prepared, RenderResult, render
 
 GOLDEN = 0x9E3779B97F4A7C15
@@ -118,8 +118,7 @@ def render_progressive(prep: Prepared, method_name: str, params: dict, options: 
     checkpoint, crop = options.checkpoint, options.crop
     if passes is None and time_budget is None and target_error is None:
         passes = 1
-    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": options.volumetric_shadows,
-                                               "shadow_spacing": options.shadow_spacing}, options.seed)
+    fp = fingerprint(prep, method_name, {**params, "crop": crop, "volumetric_shadows": options.volumetric_shadows}, options.seed)
     state = _load(checkpoint, fp) if checkpoint else None
     if state is None:
         cam = prep.scene.camera

@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .jit import njit
+from ..jit import njit
 
 CHUNK = 1 << 15
 UNIT_RANGE = 2.0 ** 40  # scenes whose size lies outside [1 / UNIT_RANGE, UNIT_RANGE] are rescaled for Embree

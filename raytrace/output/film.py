@@ -1,5 +1,5 @@
 """Image files: linear float32 RGB EXR (with metadata in the header) and PNG previews (through
-view.py's PBR Neutral or ACES 2.0 view, or a plain sRGB encode).
+output/view.py's PBR Neutral or ACES 2.0 view, or a plain sRGB encode).
 
 Files are written to a temporary name beside the target and renamed, so a failed or interrupted
 write never leaves a partial image behind. Several files written together (an EXR and its PNG) are
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from . import view as views
-from .errors import UserError
+from ..errors import UserError
 
 _UMASK = threading.Lock()
 
@@ -198,7 +198,7 @@ def read_exr_channels(path, prefix: str) -> np.ndarray | None:
 
 
 def read_exr_layer(path, name: str) -> np.ndarray:
-    """(H, W, 3) float64 of the output layer `name` of an EXR (aov.py's channels: name.R/G/B, name.X/Y/Z,
+    """(H, W, 3) float64 of the output layer `name` of an EXR (rendering/aov.py's channels: name.R/G/B, name.X/Y/Z,
     or name.Z repeated in all three); UserError naming the layers it has when it lacks that one."""
     import OpenEXR
 
@@ -213,7 +213,7 @@ def read_exr_layer(path, name: str) -> np.ndarray:
 
 
 TONEMAP_VALUES = 1 << 20  # float64 values per band of `srgb_encode` (a few 8 MB temporaries)
-VIEWS = ("neutral", "aces", "standard")  # preview views: view.py's PBR Neutral and ACES 2.0, or a plain sRGB encode
+VIEWS = ("neutral", "aces", "standard")  # preview views: output/view.py's PBR Neutral and ACES 2.0, or a plain sRGB encode
 
 
 def check_view(name, what: str = "view") -> str:

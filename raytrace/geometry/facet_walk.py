@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .jit import njit
+from ..jit import njit
 
 
 def mesh_links(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9):

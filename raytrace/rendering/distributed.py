@@ -1,7 +1,7 @@
 """Rendering on a Dask distributed cluster (the optional extra `distributed`; imported only when used).
 
 `Cluster(client)` is an executor of renderer.render (api.py plugs it in for `client=`): the tiles of
-renderer.py (a band's pixels dealt out in turn x pixel-sample ranges) become tasks; the client adds their results
+rendering/renderer.py (a band's pixels dealt out in turn x pixel-sample ranges) become tasks; the client adds their results
 in renderer.Accumulator's fixed order, so the image is the single machine's bit for bit whatever
 the number of workers. A task carries the parsed scene, not its meshes: each worker process loads
 the meshes (through its own RAYTRACE_ASSETS), builds the Embree accelerator and compiles the
@@ -26,9 +26,9 @@ import dask
 from distributed import Client, LocalCluster, as_completed
 
 from . import renderer
-from .errors import UserError, counted
-from .methods import get_method
-from .scene.format import Scene
+from ..errors import UserError, counted
+from ..methods import get_method
+from ..scene.format import Scene
 
 CONNECT_TIMEOUT = 10.0  # seconds to reach a scheduler
 WORKER_TIMEOUT = 20.0  # seconds to wait for a scheduler's first worker
@@ -72,7 +72,7 @@ def _prepared(job: Job) -> tuple[renderer.Prepared, float, float]:
             load_s = time.perf_counter() - start
         _cache.move_to_end(job.scene_key)
         task = job.task
-        if task.shadows is not None:
+        if task.shadows:
             prep.frusta()
         warm = (job.scene_key, task.method, repr(task.params), task.shadows)
         if warm not in _warm:

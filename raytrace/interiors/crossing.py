@@ -8,7 +8,7 @@ shape) and how light reaches it (`STRAIGHT` to a convex index-matched shape's fa
 a non-convex one, `REFRACTED` through a refractive boundary), the rays that go on beyond the exit or
 the mirror, which the renderer shades like camera rays (up to MAX_DEPTH boundaries deep; deeper ones
 are black), and the factors that carry what they see back (`combine`). The rows are integrated by
-the method's inside rule (inside_rows.py); a plain surface met inside is shaded here
+the method's inside rule (interiors/rows.py); a plain surface met inside is shaded here
 (`_surface_inside`). Shadow rays pass through index-matched interiors (`shadow_through`).
 Radiance crossing into a denser medium is multiplied by T eta^2 and back out by T / eta^2 (the
 invariance of L / n^2, as pbrt-v4 and Mitsuba 3 scale it); reflections inside a shape are not
@@ -30,14 +30,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import inside_paths
-from .errors import UserError
-from .lights import DIRECTIONAL, Lights
-from .media.adaptive import CAPPED
-from .media.slab import CLOSED, QUAD, refract_rays, transmittances
-from .methods import INSIDE_RTOL, Segments, registry
-from .scene.meshes import convex_planes as hull_of
-from .shading import facing_normals, shading_normals, surface_radiance
+from . import paths
+from ..errors import UserError
+from ..lights import DIRECTIONAL, Lights
+from ..media.adaptive import CAPPED
+from ..media.slab import CLOSED, QUAD, refract_rays, transmittances
+from ..methods import INSIDE_RTOL, Segments, registry
+from ..scene.meshes import convex_planes as hull_of
+from ..shading import facing_normals, shading_normals, surface_radiance
 
 # the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
@@ -85,7 +85,7 @@ def interiors(scene) -> list:
 
 def outside_lights(prep):
     """The lights whose air-light outside the shapes a method must integrate: none when the scene has
-    interior media and the outside does not scatter (then only bounded.py's kernels see them)."""
+    interior media and the outside does not scatter (then only interiors/crossing.py's kernels see them)."""
     if len(prep.interior_shapes) and not prep.scene.medium.scatters:
         return Lights.of([])
     return prep.lights
@@ -206,7 +206,7 @@ def inside_of(prep, o, inner) -> int | None:
 
 def hull_planes(prep, sid):
     """The face planes (P, 4) of shape sid if it is convex (scene/meshes.py convex_planes), else
-    None; cached on `prep` (inside_paths.py reads the cache for index-matched shapes)."""
+    None; cached on `prep` (paths.py reads the cache for index-matched shapes)."""
     cache = prep.interior_planes
     if sid not in cache:
         sel = prep.shape_ids == sid
@@ -218,7 +218,7 @@ def convex_planes(prep, sid):
     """The face planes (P, 4: outward unit normal, offset) of shape `sid` for media/slab.py's convex
     kernel, which tests every plane at every integrand evaluation: those of a convex shape with at
     most KERNEL_PLANES of them, else an empty (0, 4) array (then an index-matched shape's light paths
-    are measured with Embree, inside_paths.py: batched exits for convex shapes, walks for others; a
+    are measured with Embree, paths.py: batched exits for convex shapes, walks for others; a
     refractive one keeps the entry plane)."""
     planes = hull_planes(prep, sid)
     return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
@@ -259,7 +259,7 @@ def shadow_through(prep):
             rel = lights.position[li] - points
             dist = np.linalg.norm(rel, axis=1)
             dirs = rel / dist[:, None]
-        lengths, blocked = inside_paths.inside_lengths(prep, points, dirs, dist, inner, block=True,
+        lengths, blocked = paths.inside_lengths(prep, points, dirs, dist, inner, block=True,
                                                        margin=prep.accel.epsilon)
         return np.where(blocked[:, None], 0.0, np.exp(-lengths @ kt))
     return through

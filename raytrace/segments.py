@@ -1,0 +1,116 @@
+"""From camera rays to segments (ARCHITECTURE.md): `whole_rays` makes the unshadowed segments, one
+[0, t_hit] per (ray, light); `cone_segments` cuts them to where spot lights shine; the lit intervals
+of shadows/frusta.py cut them further (volumetric shadows), so that every method integrates the
+shadowed air-light exactly between shadow boundaries. `gather` adds segment air-lights to their
+camera rays with the medium's transmittance from the camera to each segment's start.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .jit import njit
+from .lights import is_spot, segment_cone
+from .methods import Segments
+from .methods.geometry import segment_geometry, v_of
+
+
+def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
+    """One segment [0, tmax] per (ray, light), ray-major (segment r L + l)."""
+    n = len(origins)
+    rep = (lambda a: a) if n_lights == 1 else (lambda a: np.repeat(a, n_lights, axis=0))  # noqa: E731
+    light = np.tile(np.arange(n_lights, dtype=np.int64), n)
+    return Segments(rep(origins), rep(dirs), rep(np.asarray(tmax, float)), light,
+                    rep(np.arange(n, dtype=np.int64)), np.zeros(n * n_lights), rep(np.asarray(keys, np.uint64)),
+                    light.copy(), int(seed), float(scale), per_ray=n_lights)
+
+
+CONE_STREAM = 1 << 20  # stream offset of a spot light's second lit piece (a cone cuts a line at most twice)
+
+
+def cone_segments(segs: Segments, lights, end_normals=None):
+    """The segments cut to where their spot lights shine (cosine to the axis above cos_end: at most
+    two pieces of a line, lights.segment_cone), dark ones dropped; point lights' segments unchanged.
+    `end_normals` (S, 3) or None follow the segments, zero for a piece that now ends in the air."""
+    if "spot" not in lights.kinds():
+        return segs, end_normals
+    xh, h, _, cone = segment_geometry(segs, lights)
+    src, x0, x1, piece = _cone_pieces(xh, h, segs.length, cone)
+    cut = Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
+                   segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src] + CONE_STREAM * len(lights) * piece,
+                   segs.seed, segs.scale)
+    if end_normals is not None:
+        end_normals = end_normals[src] * (x1 == segs.length[src])[:, None]
+    return cut, end_normals
+
+
+@njit
+def _cone_pieces(xh, h, length, cone):
+    """(source segment, x0, x1, piece number) of every lit piece: x = x_h + h (v - 1/v) / 2 at the
+    cone's crossings v, the segment's own ends exactly."""
+    n = xh.shape[0]
+    src = np.empty(2 * n, np.int64)
+    x0, x1, piece = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n, np.int64)
+    buf = np.empty((5, 3))
+    m = 0
+    for s in range(n):
+        ell = length[s]
+        if not is_spot(cone[s, 3]):
+            src[m], x0[m], x1[m], piece[m] = s, 0.0, ell, 0
+            m += 1
+            continue
+        va = v_of(-xh[s], h[s])
+        vb = v_of(ell - xh[s], h[s]) if ell < math.inf else math.inf
+        k = 0
+        for i in range(segment_cone(cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 2], va, vb, buf)):
+            if buf[i, 2] == 0.0:
+                continue
+            a = 0.0 if buf[i, 0] == va else xh[s] + 0.5 * h[s] * (buf[i, 0] - 1.0 / buf[i, 0])
+            b = ell if buf[i, 1] == vb else xh[s] + 0.5 * h[s] * (buf[i, 1] - 1.0 / buf[i, 1])
+            a = min(max(a, 0.0), ell)
+            b = min(max(b, a), ell)
+            if b > a:
+                src[m], x0[m], x1[m], piece[m] = s, a, b, k
+                m += 1
+                k += 1
+    return src[:m], x0[:m], x1[:m], piece[:m]
+
+
+def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
+    """Sum (N, 3) over each ray's segments of T^power * values (S, 3), T the transmittance from the
+    camera ray's origin to the segment's start (exp(-kt t0) when homogeneous: the t0 before the
+    segment's own origin); power 2 adds the variances of independent segment estimates. Whole rays
+    (all t0 = 0) need no transmittance."""
+    out = np.zeros((n_rays, 3))
+    whole = segs.per_ray != 0 or not np.any(segs.t0)
+    tr = np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
+    _add_by_ray(values, segs.ray, tr, out)
+    return out
+
+
+@njit
+def _add_by_ray(values, ray, tr, out):
+    """out[ray[s]] += values[s] (times tr[s] unless tr is empty; nothing where tr is 0, even if the
+    segment's own value overflowed: a light on the camera in a medium of sigma ~ 1e300)."""
+    for s in range(values.shape[0]):
+        r = ray[s]
+        for c in range(3):
+            if not tr.shape[0]:
+                out[r, c] += values[s, c]
+            elif tr[s, c] != 0.0:
+                out[r, c] += values[s, c] * tr[s, c]
+
+
+def segment_airlight(method, medium, lights, params, segs: Segments, n_rays: int):
+    """Air-light (N, 3) of the camera rays from their segments, the method's statistics, and the
+    variance (N, 3) of each ray's estimate (None for a deterministic method)."""
+    res = method.airlight(segs, medium, lights, params)
+    var = gather(segs, res[2], n_rays, medium, power=2) if method.stochastic else None
+    return gather(segs, res[0], n_rays, medium), res[1], var
+
+
+def unshadowed_airlight(method, medium, lights, params, origins, dirs, tmax, keys, seed=0, scale=1.0):
+    """`segment_airlight` of whole rays [0, tmax], one segment per light."""
+    segs = whole_rays(origins, dirs, tmax, keys, len(lights), seed, scale)
+    return segment_airlight(method, medium, lights, params, segs, len(origins))
