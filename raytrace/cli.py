@@ -5,10 +5,8 @@ User errors print one line on stderr and exit with status 2; nothing half-writte
 from __future__ import annotations
 
 import argparse
-import copy
 import contextlib
-
-
+import copy
 import os
 import sys
 import warnings
@@ -283,8 +281,8 @@ def _given_params(args):
 
 
 def cmd_render(args):
-    from .output import film
     from .api import render
+    from .output import film
     from .output.view import check_exposure
 
     check_exposure(args.exposure, "--exposure")
@@ -410,10 +408,10 @@ def _option_args(args):
 
 
 def cmd_compare(args):
-    from .rendering import renderer
     from .api import executor, render_options
     from .experiments.compare import compare, parse_spec
     from .output.view import check_exposure
+    from .rendering import renderer
 
     check_exposure(args.exposure, "--exposure")
     scene = load(args)

@@ -15,8 +15,8 @@ import warnings
 from pathlib import Path
 
 from . import api
-from .output import film
 from .errors import UserError
+from .output import film
 from .scene.assets import bundled_scenes, find_asset
 
 

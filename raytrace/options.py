@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Callable
 
 
-
 @dataclass(frozen=True)
 class RenderOptions:
     """Every option of one render, with its value resolved (the scene's [render] table and the

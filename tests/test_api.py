@@ -6,9 +6,9 @@ import pytest
 import raytrace
 from raytrace.cli import main
 from raytrace.errors import UserError
-from raytrace.output.film import read_exr
 from raytrace.methods import registry
 from raytrace.options import RenderOptions
+from raytrace.output.film import read_exr
 from raytrace.rendering.renderer import prepare, render as render_prepared
 from raytrace.scene.format import scene_from_text
 

@@ -11,8 +11,8 @@ import pytest
 from PIL import Image
 
 import raytrace
-from raytrace.output import film
 from raytrace.cli import main
+from raytrace.output import film
 
 from .conftest import PLATE, PLATE_LIGHT, box_room, to_toml
 

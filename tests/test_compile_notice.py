@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from raytrace.rendering import renderer
 from raytrace.cli import main
+from raytrace.rendering import renderer
 
 from .conftest import box_room, to_toml
 

@@ -16,8 +16,8 @@ and the error bound interiors/crossing.py renders with (`segments_bounded`) agai
 import itertools
 import math
 
-import numpy as np
 import mpmath as mp
+import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace.output import film
 from raytrace.cli import main
+from raytrace.output import film
 
 from .conftest import box_room, to_toml
 from .test_tev import StandIn, assemble, free_port

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace.rendering import renderer
 from raytrace.cli import main
+from raytrace.rendering import renderer
 
 from .conftest import box_room, to_toml
 

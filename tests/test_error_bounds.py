@@ -14,20 +14,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from hypothesis import given, strategies as st
 
 import raytrace
 from raytrace import error_bounds
-from raytrace.output import film
 from raytrace.cli import main
+from raytrace.output import film
 
 from . import oracle
 from .conftest import box_room
 from .test_atmosphere import GROUND
 from .test_bounded_media import CUBES
-from .test_height_fog import CASES as FOG_CASES
 from .test_fuzz_scenes import fuzz_settings, lit_scene
+from .test_height_fog import CASES as FOG_CASES
 from .test_light_shafts import PLATES, scene as shaft_scene, twin as shaft_twin
 from .test_methods import oracle_image
 from .test_particles import ROOM, _room

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace.geometry.accel import Accelerator
 from raytrace.camera import generate_rays
+from raytrace.geometry.accel import Accelerator
 from raytrace.lights import DIRECTIONAL, Light, Lights
 from raytrace.methods import get_method, resolve_params
 from raytrace.rendering.renderer import prepare
-from raytrace.shadows.frusta import ST_FRUSTA, ST_NEAR, ST_RUNS, build, default_resolution, exact_lit_intervals
 from raytrace.segments import cone_segments, segment_airlight, whole_rays
+from raytrace.shadows.frusta import ST_FRUSTA, ST_NEAR, ST_RUNS, build, default_resolution, exact_lit_intervals
 
 from . import oracle, oracle_shadows
 

@@ -13,8 +13,8 @@ import pytest
 from scipy import integrate
 from scipy.spatial import ConvexHull
 
-from raytrace.interiors import crossing, paths
 from raytrace.geometry import facet_walk
+from raytrace.interiors import crossing, paths
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text

@@ -6,9 +6,9 @@ import os
 import numpy as np
 import pytest
 
-from raytrace.output import film, metrics
 from raytrace.cli import main
 from raytrace.errors import UserError
+from raytrace.output import film, metrics
 
 
 def srgb8(x):

@@ -7,9 +7,9 @@ import pytest
 from PIL import Image as Picture
 
 import raytrace
-from raytrace.output import film
 from raytrace.cli import main
 from raytrace.gallery import GalleryNote
+from raytrace.output import film
 
 
 def test_gallery_writes_the_preview_and_skips_a_scene_without_its_mesh(tmp_path, monkeypatch, capsys):

@@ -11,8 +11,7 @@ from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene, scene_from_text
 
-from . import test_bounded_media as bounded_media
-from . import test_inside_paths as u_prism
+from . import test_bounded_media as bounded_media, test_inside_paths as u_prism
 from .conftest import to_toml
 
 NOT_CONVERGED = "inside: integrals not converged"

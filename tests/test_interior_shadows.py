@@ -26,8 +26,8 @@ from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene
 
 from . import oracle
-from .test_bounded_media import slab
 from .conftest import to_toml
+from .test_bounded_media import slab
 
 LIGHT = np.array([0.0, 3.0, 0.0])
 INTENSITY = 10.0

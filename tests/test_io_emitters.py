@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from raytrace.errors import UserError
-from raytrace.output.film import write_exr
 from raytrace.io import gltf, mitsuba, pbrt
+from raytrace.output.film import write_exr
 from raytrace.scene.meshes import rotation_matrix
 
 

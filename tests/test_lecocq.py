@@ -7,13 +7,13 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from raytrace.methods.geometry import POINT_ROW
 from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Homogeneous as Medium
-from raytrace.methods import lecocq as lc, quadrature as q
-from raytrace.segments import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
+from raytrace.methods import lecocq as lc, quadrature as q
+from raytrace.methods.geometry import POINT_ROW
+from raytrace.segments import unshadowed_airlight
 
 
 def ref(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0):

@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from raytrace.methods.geometry import POINT_ROW
-from raytrace.rendering import progressive
-from raytrace.methods import montecarlo as mc
-from raytrace.methods import quadrature as q
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
+from raytrace.methods import montecarlo as mc, quadrature as q
+from raytrace.methods.geometry import POINT_ROW
 from raytrace.options import RenderOptions
+from raytrace.rendering import progressive
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
 

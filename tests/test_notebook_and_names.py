@@ -9,9 +9,9 @@ import pytest
 from PIL import Image as Picture
 
 import raytrace
-from raytrace.output import view
 from raytrace.api import PREVIEW_WIDTH
 from raytrace.cli import main
+from raytrace.output import view
 
 from .conftest import box_room
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace.rendering import renderer
 from raytrace.options import RenderOptions
+from raytrace.rendering import renderer
 from raytrace.rendering.renderer import prepare, render
 
 from .conftest import box_room

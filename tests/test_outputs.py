@@ -17,10 +17,10 @@ import pytest
 
 import raytrace
 import raytrace.api
-from raytrace.output import film
-from raytrace.rendering import renderer
 from raytrace.cli import main
 from raytrace.options import RenderOptions
+from raytrace.output import film
+from raytrace.rendering import renderer
 
 from .conftest import box_room, to_toml
 

@@ -11,8 +11,8 @@ import pytest
 from PIL import Image as PILImage
 
 import raytrace
-from raytrace.output import film, view
 from raytrace.cli import main
+from raytrace.output import film, view
 
 from .conftest import box_room, to_toml
 

@@ -6,13 +6,13 @@ import math
 import numpy as np
 import pytest
 
-from raytrace.methods.geometry import POINT_ROW
 from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Homogeneous as Medium
-from raytrace.methods import raymarch as rm, quadrature as q
-from raytrace.segments import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
+from raytrace.methods import quadrature as q, raymarch as rm
+from raytrace.methods.geometry import POINT_ROW
+from raytrace.segments import unshadowed_airlight
 
 
 def ref(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0):

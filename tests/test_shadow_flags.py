@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 import raytrace
-from raytrace.output import film
 from raytrace.cli import main
+from raytrace.output import film
 
 SMALL = dict(width=6, height=4, threads=1)
 

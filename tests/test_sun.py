@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from raytrace.methods.geometry import POINT_ROW
 from raytrace.errors import UserError
 from raytrace.lights import Light, Lights
 from raytrace.media import Homogeneous as Medium
-from raytrace.methods import quadrature as q, sun
-from raytrace.segments import unshadowed_airlight
 from raytrace.media.phase import HG, ISOTROPIC, RAYLEIGH
+from raytrace.methods import quadrature as q, sun
+from raytrace.methods.geometry import POINT_ROW
+from raytrace.segments import unshadowed_airlight
 
 U_MAX = 10.0
 

@@ -12,8 +12,8 @@ import time
 import pytest
 
 import raytrace
-from raytrace.rendering import renderer
 from raytrace.options import RenderOptions
+from raytrace.rendering import renderer
 
 from .conftest import ROOT, box_room, to_toml
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import raytrace
-from raytrace.output import film, view
 from raytrace.default_scene import DEFAULT_TOML
 from raytrace.errors import UserError
+from raytrace.output import film, view
 
 VIEWS = view.DISPLAY_VIEWS
 

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..output import film, metrics
 from ..errors import UserError
 from ..methods import get_method
 from ..options import RenderOptions
+from ..output import film, metrics
 from ..rendering.progressive import render_progressive
 from ..rendering.renderer import Prepared, RenderResult, check, render
 from ..scene.format import parse_override

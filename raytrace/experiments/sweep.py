@@ -17,9 +17,9 @@ import itertools
 import json
 from pathlib import Path
 
-from ..output import film, metrics
 from ..errors import UserError
 from ..options import RenderOptions
+from ..output import film, metrics
 from ..rendering.renderer import prepare
 from ..scene.format import Scene, parse_override
 from .compare import MethodSpec, check_specs, render_spec, safe_name, summary

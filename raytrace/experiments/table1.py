@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..output import film, metrics
 from ..errors import UserError
 from ..media.phase import ISOTROPIC
 from ..options import RenderOptions
+from ..output import film, metrics
 from ..rendering.renderer import prepare
 from ..scene.assets import bundled_scenes
 from ..scene.format import load_scene

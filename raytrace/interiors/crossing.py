@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import paths
 from ..errors import UserError
 from ..lights import DIRECTIONAL, Lights
 from ..media.adaptive import CAPPED
@@ -38,6 +37,7 @@ from ..media.slab import CLOSED, QUAD, refract_rays, transmittances
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
 from ..shading import facing_normals, shading_normals, surface_radiance
+from . import paths
 
 # the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments

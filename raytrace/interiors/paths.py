@@ -25,8 +25,8 @@ import numpy as np
 from ..geometry import facet_walk
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
-from ..media.phase import phase_value
 from ..media.convex_chords import chords_into, through_pieces
+from ..media.phase import phase_value
 from ..media.slab import straight_cuts
 from ..rng import uniform
 

@@ -27,20 +27,20 @@ import functools
 
 import numpy as np
 
-from . import paths
-from ..shadows.beams import lit_pieces_of_beam
-from .crossing import (
-    CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED, UNSHADOWED,
-    blockers, convex_planes, hull_planes, matched, refracted_beams, scaled, _refract, _transmittance)
 from ..lights import DIRECTIONAL
 from ..media.convex_chords import chords_into
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
-from ..shadows.frusta import exact_lit_intervals
 from ..segments import gather
+from ..shadows.beams import lit_pieces_of_beam
+from ..shadows.frusta import exact_lit_intervals
 from ..shadows.shadow_rays import shadowed_airlight
+from . import paths
+from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
+                       UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
+                       refracted_beams, scaled)
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):

@@ -12,8 +12,8 @@ method is `analytic` and declares analytic's error law.
 """
 from dataclasses import replace
 
-from .analytic import METHOD as ANALYTIC
 from ..media.slab import APPROX
+from .analytic import METHOD as ANALYTIC
 
 # analytic's parameters, kernels and error law (outside bounded media it is analytic: tests/test_methods.py)
 METHOD = replace(

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import view as views
 from ..errors import UserError
+from . import view as views
 
 _UMASK = threading.Lock()
 

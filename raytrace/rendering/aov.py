@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..interiors import crossing
 from ..errors import UserError
+from ..interiors import crossing
 from ..shading import facing_normals, planet_hits, shading_normals
 
 NAMES = ("depth", "normal", "albedo", "lights")

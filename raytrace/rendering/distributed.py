@@ -25,10 +25,10 @@ from dataclasses import dataclass, field
 import dask
 from distributed import Client, LocalCluster, as_completed
 
-from . import renderer
 from ..errors import UserError, counted
 from ..methods import get_method
 from ..scene.format import Scene
+from . import renderer
 
 CONNECT_TIMEOUT = 10.0  # seconds to reach a scheduler
 WORKER_TIMEOUT = 20.0  # seconds to wait for a scheduler's first worker

@@ -25,24 +25,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import aov
-from ..interiors import crossing, rows
 from .. import error_bounds
-from ..geometry.accel import Accelerator
 from ..camera import generate_rays, pixel_rays
 from ..errors import UserError
+from ..geometry.accel import Accelerator
+from ..interiors import crossing, rows
 from ..lights import DIRECTIONAL, Lights
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
 from ..scene.format import Scene
 from ..scene.meshes import scene_triangles
-from ..shading import (
-    emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits, shading_normals,
-    surface_radiance)
-from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from ..segments import cone_segments, gather, whole_rays
+from ..shading import (emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits,
+                       shading_normals, surface_radiance)
+from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from ..shadows.shadow_rays import shadowed_airlight
+from . import aov
 
 RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
 PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..jit import njit
 from ..methods import Segments
-from .frusta import lit_pieces, sun_bins, STATS_NAMES
+from .frusta import STATS_NAMES, lit_pieces, sun_bins
 
 DEGENERATE = 1e-9  # x the scene's size: an entry segment shorter than this is one point
 

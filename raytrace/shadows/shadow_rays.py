@@ -9,8 +9,8 @@ import functools
 import numpy as np
 
 from ..jit import njit
-from ..segments import gather
 from ..methods import Segments
+from ..segments import gather
 
 POINTS_PER_CHUNK = 1 << 19  # medium points (x 3 channels) per batch of shadow rays: ~60 MB of arrays
 
