@@ -98,9 +98,10 @@ def test_cornell_box_direct_light_against_scipy():
     """The imported Cornell box without Mitsuba: at every pixel whose ray (trimesh's, from our camera)
     ends on a flat surface (the floor, the back and green walls, the boxes: not the red wall, whose
     two triangles are not coplanar and get smoothed normals) that sees the whole luminaire (shadow
-    rays to a 9 x 9 grid on it reach it: 394 of the 1024 pixels), our radiance equals rho / pi * L * the form factor of the
-    luminaire's rectangle integrated by scipy from the geometry: within 1e-4 (the 7-point rule's
-    error nearer the light, measured 4.2e-5), the median pixel within 1e-5."""
+    rays to a 9 x 9 grid on it reach it: 394 of the 1024 pixels), our radiance equals
+    rho / pi * L * the form factor of the luminaire's rectangle integrated by scipy from the
+    geometry: within 1e-4 (the 7-point rule's error nearer the light, measured 4.2e-5), the median
+    pixel within 1e-5."""
     import trimesh
     from scipy import integrate
 
@@ -218,7 +219,8 @@ def test_a_finer_rule_brings_the_penumbra_to_mitsuba(occluded):
 @pytest.fixture(scope="module")
 def cbox(mi):
     """(Mitsuba's runs of cbox-rgb.xml with max_depth = 2 at CBOX_RES^2, our quadrature of the same
-    file imported, the same with the luminaire split, the converged pixels): ours at the pixel centres (spp = 1, not the file's 256)."""
+    file imported, the same with the luminaire split, the converged pixels): ours at the pixel
+    centres (spp = 1, not the file's 256)."""
     raw, source, path = cbox_dict()
     ours = raytrace.render(scene_from_dict(copy.deepcopy(raw), source, path), "quadrature").array
     finer = split_luminaire(raw, source, path)
@@ -249,8 +251,8 @@ def test_cornell_box_agrees_with_mitsuba_where_the_rule_converged(cbox):
 
 @pytest.mark.peers
 @pytest.mark.xfail(strict=True, reason="the luminaire's fixed rule (7 points a triangle, 14 in all) makes the boxes' "
-                                       "penumbrae 14 hard shadows (issue 36 asks for stratified emitter samples): up to 41 % from "
-                                       "Mitsuba")
+                                       "penumbrae 14 hard shadows (issue 36 asks for stratified emitter samples): "
+                                       "up to 41 % from Mitsuba")
 def test_cornell_box_penumbrae_agree_with_mitsuba(cbox):
     runs, ours, _, ok = cbox
     assert within_noise(z_scores(runs, ours)[~ok], RUNS - 1)
