@@ -54,7 +54,7 @@ def occluded_image(method, order=None, **params):
 
 def converged(image, finer):
     """Pixels lit by the finer rule where the default rule's image equals it to 1e-4 relative (all
-    channels; Mitsuba's relative standard error is 6e-5 to 1e-2 per pixel, most above 1e-3). Pixels dark
+    channels; Mitsuba's relative standard error here is 6e-5 to 1e-2 per pixel). Pixels dark
     under both rules are left out: neither rule's points may see the light there (a penumbra)."""
     return np.all((np.abs(finer - image) <= 1e-4 * finer) & (finer > 0.0), axis=-1)
 
