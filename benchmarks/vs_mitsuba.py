@@ -173,6 +173,18 @@ class Mitsuba:
         self.integrator = self.scene.integrator()
         self.vectorised = "llvm" in mi.variant() or "cuda" in mi.variant()
 
+    @classmethod
+    def from_file(cls, mi, dr, path, max_lanes=1 << 22, **params):
+        """A Mitsuba XML scene as Mitsuba loads it (its own sensor, integrator and emitters; `params` set
+        the file's <default> values, as `mi.load_file`)."""
+        self = cls.__new__(cls)
+        self.mi, self.dr, self.max_lanes = mi, dr, max_lanes
+        self.scene = mi.load_file(str(path), **params)
+        self.sensor, self.integrator = self.scene.sensors()[0], self.scene.integrator()
+        self.W, self.H = (int(n) for n in self.sensor.film().size())
+        self.vectorised = "llvm" in mi.variant() or "cuda" in mi.variant()
+        return self
+
     def rays(self):
         """Origins and directions (H*W, 3) of Mitsuba's sensor at our pixel centres (row 0 on top)."""
         mi, dr = self.mi, self.dr

@@ -1,0 +1,136 @@
+"""An occluded area light against Mitsuba 3 (issue 36, Speed): the time each needs to reach 1e-2 mean
+relative error on the same scene and machine (docs/area_lights.md, "Against Mitsuba 3").
+
+    pip install mitsuba                  # >= 3.5; exits 0 with a skip message without it
+    python benchmarks/area_peers.py [--quick] [--rounds N]
+
+The scene: tests/data/area_peers/occluded.toml (32 x 24 pixels: a 1 x 1 quad light over a plate, its
+penumbra on a floor, a homogeneous isotropic fog), exported by us to Mitsuba (`volpath`, max_depth 2).
+Mitsuba: `llvm_ad_rgb` where libLLVM >= 16 is found, else `scalar_rgb` (said in the output;
+benchmarks/vs_mitsuba.py's `choose_variant`), at our pixel centres (its integrator's `sample()` on the
+sensor's ray of each centre; with `scalar_rgb`, `mi.render` through its box-filtered film, which is
+not the same estimand at the plate's edges), climbing an spp ladder. Ours: `quadrature` and `analytic`
+(noise-free: one render each), `montecarlo` climbing a ladder of distance samples per ray.
+
+Reference: `quadrature` with the quad rule of order 64 (4096 emitter points; --quick: 32), whose
+penumbra agrees with Mitsuba within its noise (tests/test_area_peers.py). Error: mean relative error
+over pixels and channels where the reference exceeds 1e-3 of its max (vs_mitsuba.mre). Times: wall
+and process CPU seconds (all threads) of one render, compilation excluded by a warm-up of every
+setting; every setting runs once per round, the rounds interleaved, the median over rounds (the
+machine may be shared: its load average is printed before and after). The time to the target error
+is interpolated on a log-log line between the ladder's bracketing points, or extrapolated (~), or an
+upper bound (<=) when the cheapest setting already beats it (vs_mitsuba.time_to_error).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.vs_mitsuba import Mitsuba, choose_variant, machine, mre, time_to_error  # noqa: E402
+
+SCENE = ROOT / "tests" / "data" / "area_peers" / "occluded.toml"
+TARGET = 1e-2
+
+
+def timed(fn):
+    """(result, wall seconds, process CPU seconds) of fn()."""
+    w, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - w, time.process_time() - c
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a reference of order 32, one round, shorter ladders")
+    ap.add_argument("--rounds", type=int, default=3)
+    args = ap.parse_args(argv)
+    if importlib.util.find_spec("mitsuba") is None:
+        print("mitsuba is not installed (pip install mitsuba): skipped")
+        return 0
+    import drjit as dr
+    import mitsuba as mi
+
+    import raytrace
+    from raytrace.io import mitsuba as mitsuba_io
+    from raytrace.lights import quad
+
+    variant, why = choose_variant("auto")
+    mi.set_variant(variant)
+    rounds = 1 if args.quick else args.rounds
+    load_before = os.getloadavg()
+    info = machine()
+
+    default_order = quad.ORDER
+    quad.ORDER = 32 if args.quick else 64
+    ref, ref_wall, _ = timed(lambda: raytrace.render(str(SCENE), "quadrature", volumetric_shadows=True).array)
+    ref_order, quad.ORDER = quad.ORDER, default_order
+
+    raw, source, _ = raytrace.api.scene_dict(str(SCENE))
+    with tempfile.TemporaryDirectory() as tmp:
+        xml = Path(tmp) / "occluded.xml"
+        mitsuba_io.export(raw, xml, source, False)
+        theirs = Mitsuba.from_file(mi, dr, xml)
+
+        def ours(method, **params):
+            return lambda: raytrace.render(str(SCENE), method, volumetric_shadows=True, **params).array
+
+        settings = {("quadrature", 0): ours("quadrature"), ("analytic", 0): ours("analytic")}
+        for n in ((4, 16, 64) if args.quick else (4, 8, 16, 32, 64, 128)):
+            settings[("montecarlo", n)] = (lambda n=n: ours("montecarlo", samples=n, seed=7 + n)())
+        for spp in ((256, 1024, 4096) if args.quick else (256, 1024, 4096, 16384)):
+            settings[("mitsuba", spp)] = (lambda spp=spp: theirs.render(spp, spp))
+        for fn in settings.values():  # warm-up: numba and Dr.Jit kernels compiled
+            fn()
+        walls = {k: [] for k in settings}
+        cpus = {k: [] for k in settings}
+        errors = {k: [] for k in settings}
+        for r in range(rounds):
+            for key, fn in settings.items():
+                if key[0] == "mitsuba":  # a new seed each round
+                    fn = (lambda spp=key[1], r=r: theirs.render(spp, 1000 * r + spp + 1))
+                img, wall, cpu = timed(fn)
+                walls[key].append(wall)
+                cpus[key].append(cpu)
+                errors[key].append(mre(img, ref))
+    load_after = os.getloadavg()
+
+    print(f"# occluded quad light, 32 x 24 pixels, target mean relative error {TARGET:g}")
+    print(f"machine: {info['cpu']}, {info['usable_cores']} usable cores, raytrace {info['raytrace_commit']}, "
+          f"{info['date']}; load average before {load_before[0]:.2f} {load_before[1]:.2f}, after "
+          f"{load_after[0]:.2f} {load_after[1]:.2f} (1 and 5 min)")
+    print(f"Mitsuba {mi.__version__}: {why}; {'pixel centres' if theirs.vectorised else 'film (box filter)'}")
+    print(f"reference: quadrature, quad rule of order {ref_order} ({ref_order ** 2} points), {ref_wall:.1f} s; "
+          f"{rounds} round(s), medians")
+    print(f"{'method':<12} {'setting':>8} {'wall s':>8} {'cpu s':>8} {'error':>9}")
+    ladders = {}
+    for key in settings:
+        w, c, e = (statistics.median(x[key]) for x in (walls, cpus, errors))
+        print(f"{key[0]:<12} {key[1] or '-':>8} {w:8.3f} {c:8.3f} {e:9.2e}")
+        ladders.setdefault(key[0], []).append((key[1] or 1, w, c, e))
+    print(f"time to {TARGET:g}:")
+    reached = {}
+    for name, ladder in ladders.items():
+        wall, how = time_to_error([(n, w, e) for n, w, _, e in ladder], TARGET)
+        cpu, _ = time_to_error([(n, c, e) for n, _, c, e in ladder], TARGET)
+        reached[name] = (wall, cpu, how)
+        print(f"  {name:<12} " + ("not reached" if wall is None else f"{how:>6} {wall:8.3f} s wall, {cpu:8.3f} s cpu"))
+    mits = reached["mitsuba"]
+    for name in ("quadrature", "analytic", "montecarlo"):
+        w, c, _ = reached[name]
+        if w is not None and mits[0] is not None:
+            print(f"  Mitsuba / {name}: {mits[0] / w:.1f}x wall, {mits[1] / c:.1f}x cpu")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
