@@ -26,7 +26,7 @@ def test_ctrl_c_exits_without_waiting_for_a_long_tile(tmp_path):
     (tmp_path / "s.toml").write_text(to_toml(box_room()))
     child = textwrap.dedent(f"""
         import sys, time
-        from raytrace import renderer
+        from raytrace.rendering import renderer
         from raytrace.cli import run
 
         def stuck(prep, task, tile):
