@@ -56,7 +56,8 @@ def errors(counts):
         environment.COUNT = n
         f = raytrace.render(fog, "quadrature", rtol=1e-10).array.reshape(-1, 3)
         p = raytrace.render(plate, "quadrature").array[0, 0]
-        print(f"N = {n}: fog {np.abs(f / fog_ref - 1).max():.2g}, plate {np.abs(p / (0.5 * np.array(L) * (1 - F)) - 1).max():.2g}")
+        plate_error = np.abs(p / (0.5 * np.array(L) * (1 - F)) - 1).max()
+        print(f"N = {n}: fog {np.abs(f / fog_ref - 1).max():.2g}, plate {plate_error:.2g}")
 
 
 def main():

@@ -97,7 +97,8 @@ def test_it_parses_and_describes(tmp_path):
     ({**ENV, "scale": -1.0}, {}, "light[0].scale: must be >= 0.0"),
     ({**ENV, "rotate": [0.0, 1.0]}, {}, "light[0].rotate: expected"),
     ({**ENV, "radius": 1.0}, {}, "light[0].radius: unknown key"),
-    (ENV, {"background": {"radiance": 0.1}}, "background: given with an environment light (light[0]), which replaces it"),
+    (ENV, {"background": {"radiance": 0.1}},
+     "background: given with an environment light (light[0]), which replaces it"),
     (ENV, {"medium": {"sigma_a": 0.1, "sigma_s": 0.1}},
      "light[0].type: an environment light through a homogeneous medium filling all space arrives with zero"),
 ])
@@ -198,7 +199,8 @@ def test_the_environment_camera_sees_the_map(tmp_path, rotate, shift):
     np.testing.assert_array_equal(at_infinity(sc.lights, np.zeros(3), np.array([[0.0, 0.0, -1.0]])),
                                   np.roll(image, shift, axis=1)[4:5, 8])
     plain = scene([], camera=cam)
-    np.testing.assert_array_equal(at_infinity(plain.lights, np.array([0.1, 0.2, 0.3]), np.eye(3)), [[0.1, 0.2, 0.3]] * 3)
+    np.testing.assert_array_equal(at_infinity(plain.lights, np.array([0.1, 0.2, 0.3]), np.eye(3)),
+                                  [[0.1, 0.2, 0.3]] * 3)
 
 
 def shifted_renders(monkeypatch, sc, r, method="quadrature", **kw):
@@ -351,7 +353,8 @@ def test_exporters_write_a_scaled_constant_back(tmp_path):
     """A constant environment's `scale` is part of its radiance in Mitsuba's `constant` and pbrt's `infinite`."""
     from raytrace.io import mitsuba, pbrt
 
-    raw = {"camera": {**CAMERA, "spp": 1}, "light": [{"type": "environment", "radiance": [0.1, 0.2, 0.3], "scale": 2.0}]}
+    raw = {"camera": {**CAMERA, "spp": 1},
+           "light": [{"type": "environment", "radiance": [0.1, 0.2, 0.3], "scale": 2.0}]}
     for module, name in ((mitsuba, "scene.xml"), (pbrt, "scene.pbrt")):
         module.export(raw, tmp_path / name, "test", False)
         (env,) = module.read_scene(tmp_path / name)["light"]

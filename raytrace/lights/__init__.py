@@ -90,13 +90,14 @@ def _stack(rows, name, width, dtype=float):
 @dataclass(frozen=True)
 class Lights:
     """The rows the kernels see (one per point, spot or directional light, an area light's emitter
-    points, an environment light's directions: light.py `rows`) as float64 arrays: `kind` (L,) the row's kind (point, spot or directional),
-    `position` (L, 3), `intensity` (L, 3), `axis` (L, 3) (zero for point lights), `cone` (L, 3):
-    (cos_end, cos_start, curve), NO_CONE for point and directional lights (their curve: SMOOTHSTEP,
-    unused); `owner` (L,) the scene light of each row (its index in the scene's lights; an emissive
-    shape's rows: the number of lights plus its index among the emissive shapes), `cubature` (L,) whether
-    the row is a node of an emitter's cubature or an environment's direction (no error bound), and `scene_kinds` the scene lights' kinds (then
-    "emission" per emissive shape)."""
+    points, an environment light's directions: light.py `rows`) as float64 arrays: `kind` (L,) the
+    row's kind (point, spot or directional), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3) (zero
+    for point lights), `cone` (L, 3): (cos_end, cos_start, curve), NO_CONE for point and directional
+    lights (their curve: SMOOTHSTEP, unused); `owner` (L,) the scene light of each row (its index in the
+    scene's lights; an emissive shape's rows: the number of lights plus its index among the emissive
+    shapes), `cubature` (L,) whether the row is a node of an emitter's cubature or an environment's
+    direction (no error bound), and `scene_kinds` the scene lights' kinds (then "emission" per emissive
+    shape)."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray

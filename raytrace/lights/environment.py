@@ -37,7 +37,7 @@ GOLDEN = (1.0 + math.sqrt(5.0)) / 2.0
 
 
 def parse(read, key, raw) -> Light:
-    """A constant `radiance` or a `map` (file resolved like a mesh), `rotate`, `scale` (>= 0)."""
+    """A constant `radiance` or a `map` (an EXR read by the scene reader, `read.image`), `rotate`, `scale` (>= 0)."""
     if ("radiance" in raw) == ("map" in raw):
         read.fail(key, "give either radiance (a constant environment) or map (an equirectangular EXR)" if "map" in raw
                   else "missing radiance", f"add {key}.radiance = [0.2, 0.3, 0.5] or {key}.map = \"sky.exr\"")
@@ -48,8 +48,10 @@ def parse(read, key, raw) -> Light:
     else:
         if not isinstance(raw["map"], str):
             read.fail(f"{key}.map", f"expected a file name, got {raw['map']!r}", f'write {key}.map = "sky.exr"')
-        source = read.asset(f"{key}.map", raw["map"], "environment map")
-        image = read_map(read, f"{key}.map", source)
+        image, source = read.image(f"{key}.map", raw["map"], "environment map")
+        if not (np.all(np.isfinite(image)) and np.all(image >= 0.0)):
+            read.fail(f"{key}.map", f"{source} holds negative or non-finite values",
+                      "give a linear map of radiances >= 0")
     image = power(read, f"{key}.scale", image * scale)
     from scipy.spatial.transform import Rotation
 
@@ -57,16 +59,6 @@ def parse(read, key, raw) -> Light:
     digest = hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest()  # (checkpoints' fingerprint)
     return Light(np.zeros(3), integral(image) / (4.0 * math.pi), CODE,
                  emitter={"map": image, "rotation": rotation, "file": source and str(source), "digest": digest})
-
-
-def read_map(read, key, path) -> np.ndarray:
-    """The (H, W, 3) float64 image of an EXR file; refused unless finite and >= 0."""
-    from ..film import read_exr
-
-    image = read_exr(path)[0]
-    if not (np.all(np.isfinite(image)) and np.all(image >= 0.0)):
-        read.fail(key, f"{path} holds negative or non-finite values", "give a linear map of radiances >= 0")
-    return image
 
 
 def describe(light) -> str:

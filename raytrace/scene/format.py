@@ -318,9 +318,16 @@ class _Reader:
         self.fail, self.unknown = ctx.fail, ctx.unknown
         self.ctx, self.path = ctx, path
 
-    def asset(self, key, name, what):
-        """The file `name` (a `what`, e.g. "environment map") found as meshes are (scene/assets.py)."""
-        return find_asset(name, self.path, key, what)
+    def image(self, key, name, what):
+        """(the (H, W, 3) float64 RGB of the EXR file `name`, its path): a `what` (e.g. "environment map")
+        found as meshes are (scene/assets.py)."""
+        from ..film import read_exr
+
+        path = find_asset(name, self.path, key, what)
+        try:
+            return read_exr(path)[0], path
+        except UserError:
+            self.fail(key, f"{path} is not a readable RGB OpenEXR image", "give a linear RGB .exr file")
 
     def number(self, key, value, **kw):
         return _number(self.ctx, key, value, **kw)
