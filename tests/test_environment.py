@@ -122,6 +122,10 @@ def test_a_second_environment_and_a_bad_map_are_refused(write_scene, tmp_path, c
     assert main(["describe", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "light[0].map: " in err and "holds negative or non-finite values" in err, err
+    (tmp_path / "sky.exr").write_text("not an image")
+    assert main(["describe", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "light[0].map: " in err and "is not a readable RGB OpenEXR image; give a linear" in err, err
 
 
 @pytest.mark.parametrize("method", ["analytic", "lecocq", "sun"])

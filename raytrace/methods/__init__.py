@@ -214,7 +214,8 @@ class Method:
         """Refuse lights of a kind this method does not integrate, naming the methods that do."""
         from ..errors import UserError
 
-        for kind in sorted(lights.kinds() - set(self.supports.lights), key=lambda k: (k not in lights.scene_kinds, k)):
+        scene_first = lambda k: (k not in lights.scene_kinds, k)  # an environment before its directional rows
+        for kind in sorted(lights.kinds() - set(self.supports.lights), key=scene_first):
             takers = [m.name for m in registry().values() if kind in m.supports.lights]
             what = "emissive shapes (shape.emission)" if kind == EMISSION else f"{kind} lights (light.type = \"{kind}\")"
             raise UserError(f"{source}: --method {self.name}: it does not take {what}; use --method "
