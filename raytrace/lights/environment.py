@@ -52,7 +52,7 @@ def parse(read, key, raw) -> Light:
         if not (np.all(np.isfinite(image)) and np.all(image >= 0.0)):
             read.fail(f"{key}.map", f"{source} holds negative or non-finite values",
                       "give a linear map of radiances >= 0")
-    image = power(read, f"{key}.scale", image * scale)
+    image = power(read, f"{key}.{'radiance' if 'radiance' in raw else 'map'}", image * scale)
     from scipy.spatial.transform import Rotation
 
     rotation = Rotation.from_euler("xyz", rotate, degrees=True).as_matrix()  # extrinsic x, y, z: Rz Ry Rx
