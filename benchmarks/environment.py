@@ -49,7 +49,7 @@ def errors(counts):
     """The largest relative error over the fog twin's pixels and the plate twin's, per count."""
     fog = twins.scene([SKY], medium=twins.FOG, camera=twins.UP_CAMERA)
     origins, dirs = generate_rays(fog.camera)
-    fog_ref = np.array([twins.fog_twin(o, d, 1.0, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)])[:, None] * L
+    fog_ref = np.array([twins.fog_twin(o, d, L, L, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)])
     F = 4 * (2 / math.sqrt(2) * math.atan(1 / math.sqrt(2)) / (2 * math.pi))  # the plate's form factor
     plate = twins.scene([SKY], camera=twins.POINT_CAMERA, shapes=[twins.GROUND, twins.PLATE])
     for n in counts:

@@ -268,11 +268,12 @@ UP_CAMERA = {"position": [0.0, 0.5, 0.0], "look_at": [0.0, 1.5, -1.0], "fov": 30
              "spp": 1}
 
 
-def fog_twin(origin, direction, L, sigma_a, sigma_s, H):
-    """Radiance along an upward ray through the exponential fog (density e^{-h/H}, isotropic) under the
-    constant L: L T(inf) + int sigma_s(h) T(t) (L / 2) E_2(sigma_t H e^{-h/H}) dt, where
-    (1 / 4 pi) int L T_inf(w) dw = (L / 2) int_0^1 e^{-a / mu} dmu = (L / 2) E_2(a) (rays downward meet
-    infinite optical depth)."""
+def fog_twin(origin, direction, seen, lit, sigma_a, sigma_s, H):
+    """Radiance along an upward ray through the exponential fog (density e^{-h/H}, isotropic) under an
+    environment that is `seen` (rgb) along the ray and whose mean over the upper hemisphere is `lit`:
+    seen T(inf) + int sigma_s(h) T(t) (lit / 2) E_2(sigma_t H e^{-h/H}) dt, where for an environment
+    constant in theta over the upper hemisphere (1 / 4 pi) int L T_inf(w) dw = (lit / 2) int_0^1 e^{-a / mu}
+    dmu = (lit / 2) E_2(a) (rays downward meet infinite optical depth)."""
     kt = sigma_a + sigma_s
     h0, mu = origin[1], direction[1]
     assert mu > 0
@@ -280,7 +281,7 @@ def fog_twin(origin, direction, L, sigma_a, sigma_s, H):
     inscatter = lambda t: (sigma_s * math.exp(-(h0 + mu * t) / H) * math.exp(-depth(t)) * 0.5 *
                            special.expn(2, kt * H * math.exp(-(h0 + mu * t) / H)))
     air = integrate.quad(inscatter, 0.0, np.inf, epsabs=0.0, epsrel=1e-11, limit=200)[0]
-    return L * (math.exp(-kt * H * math.exp(-h0 / H) / mu) + air)
+    return np.asarray(seen) * math.exp(-kt * H * math.exp(-h0 / H) / mu) + np.asarray(lit) * air
 
 
 def test_the_direction_integral_is_e2():
@@ -302,7 +303,7 @@ def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
 
     origins, dirs = generate_rays(cam)
     L = np.array(ENV["radiance"])
-    twin = np.array([fog_twin(o, d, 1.0, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)]).reshape(2, 2, 1) * L
+    twin = np.array([fog_twin(o, d, L, L, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)]).reshape(2, 2, 3)
     kw = {"rtol": 1e-10} if method == "quadrature" else {"steps": 4096}
     values = np.array([img.array for img in shifted_renders(monkeypatch, sc, 16, method, **kw)])
     step = 0.0 if method == "quadrature" else 1e-3 * twin
@@ -312,6 +313,28 @@ def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
     default = api.render(sc, method, **kw)
     assert np.all(np.abs(default.array - twin) - step < 4.0 * values.std(axis=0, ddof=1)), (default.array, twin)
     assert np.all(np.isinf(default.error_bound))
+
+
+def test_a_map_over_height_fog_against_the_twin(tmp_path, monkeypatch):
+    """A 2 x 4 map: four colours over the upper hemisphere, a bright lower one (sampled, but light from below
+    meets infinite optical depth). The camera rays see their texel times T(inf); the fog is lit by the upper
+    mean (the twin's E_2): shifted lattices, z-test of 16 renders of quadrature; the default within 4 of their
+    standard deviations."""
+    image = np.array([[[0.1, 0.2, 0.4], [0.4, 0.3, 0.1], [0.9, 0.8, 0.7], [0.2, 0.6, 0.2]], [[3.0, 3.0, 3.0]] * 4])
+    write_exr(tmp_path / "sky.exr", image)
+    sc = scene([{"type": "environment", "map": "sky.exr"}], medium=FOG, camera=UP_CAMERA, path=tmp_path / "env.toml")
+    from raytrace.camera import generate_rays
+
+    origins, dirs = generate_rays(sc.camera)
+    r, c = texel_of(dirs, np.eye(3), 2, 4)
+    assert np.all(r == 0)
+    twin = np.array([fog_twin(o, d, image[0, k], image[0].mean(axis=0), 0.02, 0.1, 2.0)
+                     for o, d, k in zip(origins, dirs, c)]).reshape(2, 2, 3)
+    values = np.array([img.array for img in shifted_renders(monkeypatch, sc, 16, rtol=1e-10)])
+    sem = values.std(axis=0, ddof=1) / math.sqrt(len(values))
+    assert np.all(np.abs(values.mean(axis=0) - twin) < 4.0 * sem), (values.mean(axis=0), twin, sem)
+    default = api.render(sc, "quadrature", rtol=1e-10).array
+    assert np.all(np.abs(default - twin) < 4.0 * values.std(axis=0, ddof=1)), (default, twin)
 
 
 def test_montecarlo_integrates_the_same_rows():
