@@ -516,7 +516,8 @@ def unbounded_reason(prep, method, result) -> str:
     """Why pixels of a render have no finite error bound, in a few words, from what the render knows
     (docs/error_bounds.md lists the sources): the method's air-light gives no bound in this medium
     (asked of it: its airlight's third value on an empty batch), media inside shapes, the particle
-    layer's glints, area lights (their emitter points are a cubature without a bound). "" where none of
+    layer's glints, area lights (their emitter points are a cubature without a bound) and environment light (its
+    directions are sampled). "" where none of
     these applies."""
     from .methods import Segments
 
@@ -534,5 +535,5 @@ def unbounded_reason(prep, method, result) -> str:
     if medium.particles is not None:
         why.append("particle glints")
     if prep.lights.cubature.any():
-        why.append("area lights' cubature")
+        why += prep.lights.unbounded()
     return ", ".join(why)

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from raytrace import io
-from raytrace.api import scene_dict
+from raytrace.api import render, scene_dict
 from raytrace.cli import main
 from raytrace.errors import UserError
 from raytrace.output.film import read_exr
@@ -226,3 +226,21 @@ def test_emitters_read_as_the_files_mean(tmp_path):
     n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
     assert np.all(n[:, 1] < 0) and np.allclose(n[:, [0, 2]], 0.0)
     assert np.allclose(lamp["normals"], [0.0, -1.0, 0.0])  # Mitsuba's recomputed normals of a flat quad
+
+
+def test_an_environment_lit_file_renders_as_its_author_lit_it(tmp_path):
+    """Mitsuba's docs scene (its roughplastic cut): a constant environment of 0.1 and a sphere emitting 20 over a
+    diffuse ground (Mitsuba's default reflectance 0.5) filling the view, in vacuum: finite; the environment's layer
+    lights every pixel, at most the unoccluded rho L = 0.05 (the directions' cos theta are the midpoint rule in
+    cos theta, exact for a horizontal surface's cosine: to rounding); what the camera sees emitted is the sphere's 20
+    exactly."""
+    path = stripped(SPHERE_LIGHT, tmp_path, "", drop=[
+        '<bsdf type="roughplastic">\n            <rgb name="diffuse_reflectance" value="0.05, 0.05, 0.1"/>\n'
+        '            <float name="alpha" value="0.1"/>\n        </bsdf>\n'])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        img = render(path, "quadrature", width=16, height=12, spp=1, aov=["lights"])
+    assert list(img.layers) == ["light0", "light1", "emission"] and np.all(np.isfinite(img.array))
+    env, seen = img.layers["light0"], img.layers["emission"]
+    assert np.all(env[seen == 0.0] > 0.0) and np.all(env <= 0.05 * (1 + 1e-12))
+    assert set(np.unique(seen)) == {0.0, 20.0}

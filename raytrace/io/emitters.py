@@ -88,6 +88,14 @@ def colour(value, key: str, source: str) -> np.ndarray:
     return np.array(v, float)
 
 
+def constant_environment(light: dict, key: str, source: str) -> np.ndarray:
+    """The radiance of a constant environment light: its `radiance` times its `scale` (default 1)."""
+    scale = light.get("scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 <= scale < math.inf:
+        raise UserError(f"{source}: {key}.scale: expected a number >= 0, got {scale!r}")
+    return colour(light.get("radiance"), f"{key}.radiance", source) * scale
+
+
 def positive(value, key: str, source: str) -> float:
     v = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
     if not v > 0.0 or not math.isfinite(v):

@@ -1129,8 +1129,7 @@ class _Writer:
     def environment(self, root, key, light):
         src = self.source
         if "map" not in light:
-            _rgb(_add(root, "emitter", type="constant"), "radiance", emitters.colour(light.get("radiance"),
-                                                                                    f"{key}.radiance", src))
+            _rgb(_add(root, "emitter", type="constant"), "radiance", emitters.constant_environment(light, key, src))
             return
         from ..scene.meshes import rotation_matrix
 

@@ -1239,7 +1239,7 @@ def _area_light_lines(light, key, source) -> list[str]:
             raise UserError(f"{source}: {key}.map: pbrt-v4's environment maps are equal-area octahedral squares and "
                             "this exporter does not convert an equirectangular map; export a constant environment "
                             "(radiance) or use Mitsuba")
-        return [f'LightSource "infinite" "rgb L" {_list(emitters.colour(light.get("radiance"), f"{key}.radiance", source))}']
+        return [f'LightSource "infinite" "rgb L" {_list(emitters.constant_environment(light, key, source))}']
     radiance = emitters.colour(light.get("radiance"), f"{key}.radiance", source)
     two = light.get("two_sided", False)
     lines = ["AttributeBegin", _area_line(radiance, two is True), 'Material "diffuse" "rgb reflectance" [ 0 0 0 ]']

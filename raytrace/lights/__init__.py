@@ -1,12 +1,14 @@
 """What a light is: one module per kind (point.py, spot.py with its falloff curves and cone
-mathematics, directional.py; the area lights quad.py, disk.py, sphere.py, area.py) behind the
+mathematics, directional.py; the area lights quad.py, disk.py, sphere.py, area.py; the environment,
+environment.py, whose rows are directional) behind the
 interface of light.py, and the arrays kernels read (`Lights`: each scene light's rows, an area
 light's emitter points being spot rows).
 
 `KINDS` maps the scene files' `light.type` to the kind; `parse_light` reads a [[light]] table,
 `describe` says what a light is; `light_sample` is the kernels' one entry to the kinds' samples
 (light.py): kernels may tell a positional sample from a distant one (dist = inf), never one kind
-from another.
+from another. `at_infinity` is what a camera ray that leaves the scene sees (the environment light's
+radiance, else the [background]).
 """
 from __future__ import annotations
 
@@ -15,18 +17,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
-from . import directional, disk, emissive, point, quad, sphere, spot
+from . import directional, disk, emissive, environment, point, quad, sphere, spot
 from .area import power_of, two_sided
 from .light import NO_CONE, Light, power
 from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
                    falloff_array, is_spot, polynomial_band, segment_cone)
 
-KINDS = {kind.NAME: kind for kind in (point, spot, directional, quad, disk, sphere)}
+KINDS = {kind.NAME: kind for kind in (point, spot, directional, quad, disk, sphere, environment)}
 _BY_CODE = {kind.CODE: kind for kind in KINDS.values()}
 NAMES = {code: kind.NAME for code, kind in _BY_CODE.items()}
 POINT, SPOT, DIRECTIONAL = point.CODE, spot.CODE, directional.CODE
 AREA = (quad.NAME, disk.NAME, sphere.NAME)  # the kinds whose rows are a cubature of an emitter (area.py)
 EMISSION = emissive.NAME  # emissive shapes among the kinds (`Lights.kinds`)
+ENVIRONMENT = environment.NAME
+DISTANT = (directional.CODE, environment.CODE)  # the kinds of scene lights at infinity (no position)
 
 
 def parse_light(read, i, raw) -> Light:
@@ -42,6 +46,32 @@ def parse_light(read, i, raw) -> Light:
 def describe(light: Light) -> str:
     """What `render.py describe` prints for a light, after "light[i]: "."""
     return _BY_CODE[light.kind].describe(light)
+
+
+def distant(light: Light) -> bool:
+    """Whether a scene light is at infinity (a directional or environment light: no position)."""
+    return light.kind in DISTANT
+
+
+def at_infinity(lights: list[Light], background, dirs) -> np.ndarray:
+    """Radiance (N, 3) that camera rays of unit directions `dirs` (N, 3) see where they leave the
+    scene: the environment light's (`radiance` of its kind), else the constant `background`."""
+    for light in lights:
+        kind = _BY_CODE[light.kind]
+        if hasattr(kind, "radiance"):
+            return kind.radiance(light, dirs)
+    return np.broadcast_to(np.asarray(background, float), (len(dirs), 3))
+
+
+def check_at_infinity(read, lights: list[Light], background: bool):
+    """Refuse (read.fail) a second light seen at infinity, or one beside a [background] table."""
+    seen = [i for i, light in enumerate(lights) if hasattr(_BY_CODE[light.kind], "radiance")]
+    if len(seen) > 1:
+        read.fail(f"light[{seen[1]}].type", f"a second environment light (light[{seen[0]}] is one)",
+                  "keep one (scale it or merge the maps)")
+    if seen and background:
+        read.fail("background", f"given with an environment light (light[{seen[0]}]), which replaces it",
+                  "remove the [background] table")
 
 
 def emitter_shape(light: Light):
@@ -60,13 +90,14 @@ def _stack(rows, name, width, dtype=float):
 @dataclass(frozen=True)
 class Lights:
     """The rows the kernels see (one per point, spot or directional light, an area light's emitter
-    points: light.py `rows`) as float64 arrays: `kind` (L,) the row's kind (point, spot or directional),
-    `position` (L, 3), `intensity` (L, 3), `axis` (L, 3) (zero for point lights), `cone` (L, 3):
-    (cos_end, cos_start, curve), NO_CONE for point and directional lights (their curve: SMOOTHSTEP,
-    unused); `owner` (L,) the scene light of each row (its index in the scene's lights; an emissive
-    shape's rows: the number of lights plus its index among the emissive shapes), `cubature` (L,) whether
-    the row is a node of an emitter's cubature, and `scene_kinds` the scene lights' kinds (then
-    "emission" per emissive shape)."""
+    points, an environment light's directions: light.py `rows`) as float64 arrays: `kind` (L,) the
+    row's kind (point, spot or directional), `position` (L, 3), `intensity` (L, 3), `axis` (L, 3) (zero
+    for point lights), `cone` (L, 3): (cos_end, cos_start, curve), NO_CONE for point and directional
+    lights (their curve: SMOOTHSTEP, unused); `owner` (L,) the scene light of each row (its index in the
+    scene's lights; an emissive shape's rows: the number of lights plus its index among the emissive
+    shapes), `cubature` (L,) whether the row is a node of an emitter's cubature or an environment's
+    direction (no error bound), and `scene_kinds` the scene lights' kinds (then "emission" per emissive
+    shape)."""
     kind: np.ndarray
     position: np.ndarray
     intensity: np.ndarray
@@ -95,6 +126,13 @@ class Lights:
         """The kinds of the scene's lights and of the rows they give (an area light's: spot)."""
         return {NAMES[int(k)] for k in self.kind} | set(self.scene_kinds)
 
+    def unbounded(self) -> list[str]:
+        """Why the cubature rows give no error bound, once per reason: "area lights' cubature", "the
+        environment's directions"."""
+        kinds = [self.scene_kinds[o] for o in np.unique(self.owner[self.cubature])]
+        return list(dict.fromkeys("the environment's directions" if k == ENVIRONMENT else "area lights' cubature"
+                                  for k in kinds))
+
     def irradiance(self, index: int, to_points: np.ndarray, dist: np.ndarray) -> np.ndarray:
         """Unattenuated irradiance (N, 3) from light `index` on surfaces facing it at the points
         light + to_points (N, 3), at distances `dist` (N,) > 0 (a directional light's: its own)."""
@@ -116,7 +154,8 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
     return point.sample(position, axis, cone, li, px, py, pz)
 
 
-__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "GLTF", "KINDS", "LAMBERT", "Light", "Lights", "MITSUBA",
-           "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "band_slope", "band_trig", "cone_breaks", "describe",
-           "emitter_shape", "falloff", "falloff_array", "is_spot", "light_sample", "parse_light", "polynomial_band",
-           "power", "power_of", "segment_cone", "two_sided"]
+__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "ENVIRONMENT", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
+           "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "at_infinity", "band_slope", "band_trig",
+           "check_at_infinity", "cone_breaks", "describe", "distant", "emitter_shape", "falloff", "falloff_array",
+           "is_spot", "light_sample", "parse_light", "polynomial_band", "power", "power_of", "segment_cone",
+           "two_sided"]

@@ -2,7 +2,7 @@
 the rest of the package reads instead of naming kinds (ARCHITECTURE.md).
 
 A kind is a module (point.py, spot.py, directional.py; the area lights quad.py, disk.py,
-sphere.py) that declares
+sphere.py; environment.py) that declares
 - `NAME`, its scene `type`; `CODE`, its entry in `Light.kind`; `KEYS`, the keys of its table;
 - `parse(read, key, raw) -> Light`, its [[light]] table whose keys are already checked against
   `KEYS`, through scene/format.py's `read` (media/medium.py lists its methods);
@@ -11,6 +11,8 @@ sphere.py) that declares
   are their own sample; an area light's emitter points, area.py, are spot rows);
 - area kinds: `shape(light) -> (primitive, params)`, the emitter as a [[shape]] primitive (scene/format.py
   adds it: the camera sees it, it occludes);
+- the environment (environment.py): `radiance(light, dirs)`, what rays leaving the scene see (its rows
+  are directional rows);
 and the kinds that are their own rows (point, spot, directional) also
 - `irradiance(lights, index, to_points, dist)`, the unattenuated irradiance on surfaces facing it;
 - `sample(position, axis, cone, li, px, py, pz)`, a numba hook: the light seen from the point p as

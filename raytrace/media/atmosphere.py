@@ -24,7 +24,7 @@ import numpy as np
 from numba.extending import overload
 
 from ..jit import njit
-from ..lights import DIRECTIONAL
+from ..lights import distant
 from .chapman import atmosphere_column, ground_distance, relative_error
 from .medium import Medium, kernel_arrays
 from .phase import HG, NAMES as PHASE_NAMES, phase_value
@@ -106,7 +106,7 @@ class Atmosphere(Medium):
             read.fail("camera.position", f"{camera.position.tolist()} is inside the planet (medium.center "
                       f"{self.center.tolist()}, radius {self.radius:g})", "move the camera onto or above the ground")
         for i, light in enumerate(lights):
-            if light.kind != DIRECTIONAL and self.inside(light.position):
+            if not distant(light) and self.inside(light.position):
                 read.fail(f"light[{i}].position", f"{light.position.tolist()} is inside the planet (medium.center "
                           f"{self.center.tolist()}, radius {self.radius:g})", "move the light above the ground")
 

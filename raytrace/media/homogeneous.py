@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lights import DIRECTIONAL
+from ..lights import NAMES, distant
 from .medium import Medium, exp_transmittance
 from .particles import Particles
 
@@ -36,11 +36,13 @@ class Homogeneous(Medium):
         return cls(sa, ss, *read.phase(raw.get("phase", "isotropic"), "medium.phase"), particles)
 
     def check_scene(self, read, camera, lights):
-        """A directional light cannot shine through a homogeneous medium filling all space."""
+        """A directional or environment light cannot shine through a homogeneous medium filling all space."""
         if np.any(self.sigma_t > 0.0):
             for i, light in enumerate(lights):
-                if light.kind == DIRECTIONAL:
-                    read.fail(f"light[{i}].type", "a directional light through a homogeneous medium filling all "
+                if distant(light):
+                    name = NAMES[light.kind]
+                    read.fail(f"light[{i}].type", f"{'an' if name[0] in 'aeiou' else 'a'} {name} light through a "
+                              "homogeneous medium filling all "
                               "space arrives with zero transmittance", 'use medium.type = "height_fog", a vacuum '
                               "medium, or a point or spot light")
 

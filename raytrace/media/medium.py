@@ -9,7 +9,8 @@ holds the registry of kinds.
 Parsing goes through a `read` object (scene/format.py's, bound to the file): read.fail(key,
 problem, fix), read.unknown(table, keys, allowed), read.number(key, value, minimum=, positive=,
 integer=), read.vec3(key, value), read.rgb(key, value), read.string(key, value, choices),
-read.table(key, value), read.phase(value, key) -> (phase code, g); each failure raises UserError.
+read.table(key, value), read.phase(value, key) -> (phase code, g), read.image(key, name, what) -> (an EXR
+file's RGB, its path); each failure raises UserError.
 """
 from __future__ import annotations
 

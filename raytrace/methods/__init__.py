@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..lights import AREA, EMISSION
+from ..lights import AREA, EMISSION, ENVIRONMENT
 from ..media import Homogeneous
 from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
 from ..media.slab import CLOSED, QUAD
@@ -105,7 +105,7 @@ class ErrorLaw:
     tolerance: float
 
 
-LIGHTS = ("point", "spot", "directional")  # lights.NAMES
+LIGHTS = ("point", "spot", "directional", ENVIRONMENT)  # lights.NAMES (the environment's rows are directional)
 # quad, disk, sphere lights and emissive shapes: spot rows to the kernels (lights/area.py), for every method
 # that takes spot lights
 AREA_LIGHTS = AREA + (EMISSION,)
@@ -214,7 +214,8 @@ class Method:
         """Refuse lights of a kind this method does not integrate, naming the methods that do."""
         from ..errors import UserError
 
-        for kind in sorted(lights.kinds() - set(self.supports.lights)):
+        scene_first = lambda k: (k not in lights.scene_kinds, k)  # an environment before its directional rows
+        for kind in sorted(lights.kinds() - set(self.supports.lights), key=scene_first):
             takers = [m.name for m in registry().values() if kind in m.supports.lights]
             what = "emissive shapes (shape.emission)" if kind == EMISSION else f"{kind} lights (light.type = \"{kind}\")"
             raise UserError(f"{source}: --method {self.name}: it does not take {what}; use --method "

@@ -43,7 +43,7 @@ from ..jit import njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
-from ..lights import band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
+from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
                                legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
@@ -797,6 +797,6 @@ METHOD = Method(
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
     supports=Supports(lights=("point", "spot") + AREA_LIGHTS, interiors=Interiors(
-        CLOSED, lights=("directional",), refracted=("directional",),
+        CLOSED, lights=("directional", ENVIRONMENT), refracted=("directional", ENVIRONMENT),
         limits="no closed form (eq. 7 of the analytic note on single scattering in homogeneous slabs)")),
 )

@@ -9,8 +9,8 @@
 - `lights`: `light0.R/G/B`, ... the radiance each light of the scene alone gives the pixel (its rays
   shaded again with the other lights' intensities zero, renderer.Prepared.only: air-light, surface
   term and media inside shapes), the [[light]] tables in order, then the shapes with `emission`
-  (lights/: `Lights.owner`), and `emission.R/G/B`, what no light gives: the background and the
-  emitters seen directly, through shapes that hold a medium and in their Fresnel mirrors. The light
+  (lights/: `Lights.owner`), and `emission.R/G/B`, what no light gives: the background (or the
+  environment light's radiance, seen by rays that leave the scene) and the emitters seen directly, through shapes that hold a medium and in their Fresnel mirrors. The light
   layers and emission sum to the image (to rounding: the same terms added in another order).
 """
 from __future__ import annotations

@@ -30,7 +30,7 @@ from ..camera import generate_rays, pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
-from ..lights import DIRECTIONAL, Lights
+from ..lights import DIRECTIONAL, Lights, at_infinity
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
@@ -200,7 +200,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             radiance[into], into_var, into_bound = _across(prep, method, params, boundary, seed, shadows, depth,
                                                            deeper)
     if sees_emission(prep):
-        radiance[~hit & ~ground] = scene.background
+        radiance[~hit & ~ground] = at_infinity(scene.lights, scene.background, dirs[~hit & ~ground])
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
     stats = np.zeros(stats_size(method))

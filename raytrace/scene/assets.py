@@ -50,8 +50,8 @@ def _paper_mesh_fix(name: str) -> str | None:
     return None
 
 
-def find_asset(name: str, scene_path: Path | None, key: str) -> Path:
-    """Resolve a mesh file name, or raise a UserError listing every folder searched."""
+def find_asset(name: str, scene_path: Path | None, key: str, what: str = "mesh file") -> Path:
+    """Resolve a mesh file name (or another `what`), or raise a UserError listing every folder searched."""
     p = Path(name).expanduser()
     if p.is_absolute():
         if p.is_file():
@@ -66,4 +66,4 @@ def find_asset(name: str, scene_path: Path | None, key: str) -> Path:
     source = str(scene_path) if scene_path else "scene"
     fix = _paper_mesh_fix(name) or (f"put it in one of those folders or add its folder to {ENV} "
                                     f"(an {os.pathsep!r}-separated list)")
-    raise UserError(f"{source}: {key}: mesh file {name!r} not found in {', '.join(searched)}; {fix}")
+    raise UserError(f"{source}: {key}: {what} {name!r} not found in {', '.join(searched)}; {fix}")

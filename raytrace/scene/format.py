@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import Light, emitter_shape, parse_light, power, two_sided
+from ..lights import Light, check_at_infinity, emitter_shape, parse_light, power, two_sided
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
+from .assets import find_asset
 
 PRIMITIVES = ("box", "quad", "sphere", "cylinder", "triangles")
 
@@ -313,9 +314,20 @@ def _interior(ctx, key, raw):
 class _Reader:
     """The parsing helpers bound to the file, for the media and light kinds' own parsers (media/medium.py)."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, path: Path | None = None):
         self.fail, self.unknown = ctx.fail, ctx.unknown
-        self.ctx = ctx
+        self.ctx, self.path = ctx, path
+
+    def image(self, key, name, what):
+        """(the (H, W, 3) float64 RGB of the EXR file `name`, its path): a `what` (e.g. "environment map")
+        found as meshes are (scene/assets.py)."""
+        from ..output.film import read_exr
+
+        path = find_asset(name, self.path, key, what)
+        try:
+            return read_exr(path)[0], path
+        except UserError:
+            self.fail(key, f"{path} is not a readable RGB OpenEXR image", "give a linear RGB .exr file")
 
     def number(self, key, value, **kw):
         return _number(self.ctx, key, value, **kw)
@@ -416,8 +428,9 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     if not isinstance(name, str):
         ctx.fail("name", f"expected a string, got {name!r}", 'write name = "my scene"')
     shapes = [_shape(ctx, i, s) for i, s in enumerate(shapes_raw)]
-    read = _Reader(ctx)
+    read = _Reader(ctx, path)
     lights = [parse_light(read, i, s) for i, s in enumerate(lights_raw)]
+    check_at_infinity(read, lights, "background" in raw)
     shapes += _emitters(lights)
     medium = parse_medium(read, raw.get("medium"))
     medium.check_scene(read, camera, lights)

@@ -1,0 +1,152 @@
+"""The environment light: radiance L(w) arriving from every direction w at infinity, constant or an
+equirectangular linear image (the environment camera's mapping, camera.py: up +y, phi = 0 forward
+along -z, phi growing toward +x; row r spans theta in [pi r / H, pi (r + 1) / H] from up, column c
+phi in [2 pi (c / W - 1/2), 2 pi ((c + 1) / W - 1/2)]), turned by `rotate` (degrees about x, y, z,
+as a shape's transform: world = Rz Ry Rx local) and multiplied by `scale`. The map is piecewise
+constant: each texel's value over its whole solid angle (a constant is a 1 x 1 map).
+
+To the kernels it is COUNT directional rows. Directions are drawn by importance sampling of the map:
+a texel with probability proportional to its luminance times its solid angle
+(Omega_r = (2 pi / W)(cos theta_r - cos theta_r+1), the exact sin(theta) weight), marginal in the
+row then conditional in the column, and uniformly in solid angle inside it (uniform in cos theta and
+phi), so pdf(w) = P_texel / Omega_r (a constant environment: the uniform sphere, 1 / 4 pi). Row k
+travels along -w_k with irradiance L(w_k) / pdf(w_k) / COUNT: the rows' sum over any smooth f is the
+Monte Carlo estimate of the integral of L f over the sphere, so every method integrates each row as a
+directional light's air-light and surface term, with its visibility (shadow rays, exact lit intervals).
+The COUNT points are deterministic, the spherical Fibonacci lattice's ((k + 1/2) / COUNT, {k / golden})
+through that inverse distribution: the same directions for every pixel (no noise: the error is a
+smooth bias that has no bound, Rows.cubature). A grey map (and a constant) gives every row the same
+ratio L / pdf, so the rows' total irradiance is exact. Rays that leave the scene see L(w) (`radiance`).
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from .directional import CODE as DIRECTIONAL
+from .light import NO_CONE, Light, Rows, power
+
+NAME = "environment"
+CODE = 6
+KEYS = frozenset({"type", "radiance", "map", "rotate", "scale"})
+COUNT = 64  # directions (docs/environment.md: the error against the count)
+LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance: the texels' sampling weight
+GOLDEN = (1.0 + math.sqrt(5.0)) / 2.0
+
+
+def parse(read, key, raw) -> Light:
+    """A constant `radiance` or a `map` (an EXR read by the scene reader, `read.image`), `rotate`, `scale` (>= 0)."""
+    if ("radiance" in raw) == ("map" in raw):
+        read.fail(key, "give either radiance (a constant environment) or map (an equirectangular EXR)" if "map" in raw
+                  else "missing radiance", f"add {key}.radiance = [0.2, 0.3, 0.5] or {key}.map = \"sky.exr\"")
+    scale = float(read.number(f"{key}.scale", raw.get("scale", 1.0), minimum=0.0))
+    rotate = read.vec3(f"{key}.rotate", raw.get("rotate", [0.0, 0.0, 0.0]))
+    if "radiance" in raw:
+        image, source = read.rgb(f"{key}.radiance", raw["radiance"]).reshape(1, 1, 3), None
+    else:
+        if not isinstance(raw["map"], str):
+            read.fail(f"{key}.map", f"expected a file name, got {raw['map']!r}", f'write {key}.map = "sky.exr"')
+        image, source = read.image(f"{key}.map", raw["map"], "environment map")
+        if not (np.all(np.isfinite(image)) and np.all(image >= 0.0)):
+            read.fail(f"{key}.map", f"{source} holds negative or non-finite values",
+                      "give a linear map of radiances >= 0")
+    image = power(read, f"{key}.{'radiance' if 'radiance' in raw else 'map'}", image * scale)
+    from scipy.spatial.transform import Rotation
+
+    rotation = Rotation.from_euler("xyz", rotate, degrees=True).as_matrix()  # extrinsic x, y, z: Rz Ry Rx
+    digest = hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest()  # (checkpoints' fingerprint)
+    return Light(np.zeros(3), integral(image) / (4.0 * math.pi), CODE,
+                 emitter={"map": image, "rotation": rotation, "file": source and str(source), "digest": digest})
+
+
+def describe(light) -> str:
+    image = light.emitter["map"]
+    what = (f"map {light.emitter['file']} ({image.shape[1]} x {image.shape[0]})" if light.emitter["file"] else
+            f"constant radiance {image[0, 0].tolist()}")
+    turned = "" if np.allclose(light.emitter["rotation"], np.eye(3)) else ", rotated"
+    return (f"{NAME}, {what}{turned}, mean radiance {light.intensity.tolist()}; {COUNT} directions (importance-"
+            "sampled, the same for every pixel)")
+
+
+def solid_angles(height: int, width: int) -> np.ndarray:
+    """(H,) the solid angle of one texel of each row: (2 pi / W)(cos theta_r - cos theta_r+1)."""
+    c = np.cos(np.pi * np.arange(height + 1) / height)
+    return 2.0 * np.pi / width * (c[:-1] - c[1:])
+
+
+def integral(image) -> np.ndarray:
+    """The integral of L over the sphere per channel (exact for the piecewise-constant map)."""
+    return np.einsum("rcx,r->x", image, solid_angles(*image.shape[:2]))
+
+
+def _weights(image):
+    """(texel weights luminance x solid angle (H, W), solid angles (H,))."""
+    omega = solid_angles(*image.shape[:2])
+    return (image @ LUMA) * omega[:, None], omega
+
+
+def sample(light, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(world directions (n, 3), their pdf (n,) per steradian, L (n, 3) there) of the points u (n, 2) in [0, 1)^2
+    through the inverse distribution: u0 picks the row (marginal) and then cos theta inside it, u1 the
+    column (conditional) and then phi inside it. The map must not be black."""
+    image = light.emitter["map"]
+    w, omega = _weights(image)
+    H, W = w.shape
+    rows = np.cumsum(w.sum(axis=1))
+    total = rows[-1]
+    r = np.minimum(np.searchsorted(rows, u[:, 0] * total, side="right"), H - 1)
+    start = np.concatenate([[0.0], rows])[r]
+    v = np.clip((u[:, 0] * total - start) / np.maximum(rows[r] - start, 1e-300), 0.0, 1.0)
+    cols = np.cumsum(w[r], axis=1)
+    c = np.minimum((cols <= (u[:, 1] * cols[:, -1])[:, None]).sum(axis=1), W - 1)  # skips texels of weight 0
+    before = np.where(c > 0, cols[np.arange(len(c)), c - 1], 0.0)
+    s = np.clip((u[:, 1] * cols[:, -1] - before) / np.maximum(w[r, c], 1e-300), 0.0, 1.0)
+    edges = np.cos(np.pi * np.arange(H + 1) / H)
+    cos_t = edges[r] + v * (edges[r + 1] - edges[r])
+    phi = 2.0 * np.pi * ((c + s) / W - 0.5)
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    local = np.stack([sin_t * np.sin(phi), cos_t, -sin_t * np.cos(phi)], axis=1)
+    return local @ light.emitter["rotation"].T, w[r, c] / total / omega[r], image[r, c]
+
+
+def texels(light, dirs) -> tuple[np.ndarray, np.ndarray]:
+    """(row, column) of the texels the world directions (n, 3) fall in."""
+    local = np.asarray(dirs, float) @ light.emitter["rotation"]
+    H, W = light.emitter["map"].shape[:2]
+    theta = np.arccos(np.clip(local[:, 1], -1.0, 1.0))
+    phi = np.arctan2(local[:, 0], -local[:, 2])
+    return (np.minimum((theta / np.pi * H).astype(np.int64), H - 1),
+            np.floor((phi / (2.0 * np.pi) + 0.5) * W).astype(np.int64) % W)
+
+
+def pdf(light, dirs) -> np.ndarray:
+    """The sampling density (n,) per steradian of the world directions (n, 3)."""
+    w, omega = _weights(light.emitter["map"])
+    r, c = texels(light, dirs)
+    return w[r, c] / w.sum() / omega[r]
+
+
+def radiance(light, dirs) -> np.ndarray:
+    """L (n, 3) toward the world directions (n, 3): what a ray leaving the scene along them sees."""
+    r, c = texels(light, dirs)
+    return light.emitter["map"][r, c]
+
+
+def lattice(n: int) -> np.ndarray:
+    """The n points ((k + 1/2) / n, {k / golden}) of [0, 1)^2 (the spherical Fibonacci lattice's)."""
+    k = np.arange(n)
+    return np.stack([(k + 0.5) / n, np.mod(k / GOLDEN, 1.0)], axis=1)
+
+
+def rows(light, count: int | None = None) -> Rows:
+    """`count` (default COUNT) directional rows: axis -w_k, irradiance L(w_k) / pdf(w_k) / count; none
+    for a black environment."""
+    count = count or COUNT
+    if not integral(light.emitter["map"]) @ LUMA > 0.0:
+        count = 0
+    dirs, density, value = sample(light, lattice(count)) if count else (np.zeros((0, 3)), np.ones(0), np.zeros((0, 3)))
+    return Rows(np.zeros((count, 3)), value / (density * count)[:, None],
+                np.full(count, DIRECTIONAL, dtype=np.int64), np.ascontiguousarray(-dirs),
+                np.tile([*NO_CONE, 0.0], (count, 1)), cubature=True)
