@@ -10,8 +10,8 @@ pointed at a fresh empty folder, renders the scene through the command line at `
 busy machine inflates far less than wall time. Per scene: the compile CPU seconds (the outermost
 compilations summed), the number of compiled specialisations, those compiled after the warm-up
 (`renderer.prepare_task`: a compile during the tiles is late, it happens after the compile notice),
-the wall seconds of the warm-up and the process's whole CPU time. The target of issue 37: compile
-within 10 s per scene on the 2-core machine of docs/benchmarks.md.
+the wall seconds of the warm-up and the process's whole CPU time. The target: compile within 10 s
+per scene on the 2-core machine of docs/benchmarks.md.
 
 --profile adds, per scene, the dispatchers with the largest inclusive compile time (a dispatcher's
 compilation includes those of the functions it calls that were not compiled yet; a recursive one is
