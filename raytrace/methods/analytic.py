@@ -140,8 +140,11 @@ def _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, s
 
 
 @njit
-def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats):
-    """The whole segment by `_quadrature`, counted: (value, converged)."""
+def _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature):
+    """The whole segment by `_quadrature`, counted: (value, converged); (nan, False) where
+    `quadrature` is None (deferred, `checked_airlight`)."""
+    if quadrature is None:
+        return math.nan, False
     stats[ST_FALLBACK] += 1.0
     return _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
 
@@ -333,12 +336,12 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     """Air-light Lm of one light along one ray segment [0, ell] for one channel (`checked_airlight`'s
     value)."""
     return checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode,
-                            terms, coeffs, cone, stats)[0]
+                            terms, coeffs, cone, stats, True)[0]
 
 
 @njit
 def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-                     aniso_mode, terms, coeffs, cone, stats):
+                     aniso_mode, terms, coeffs, cone, stats, quadrature):
     """(Lm, met): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
     whether it is known to meet `precision` (error_bounds.py): False where a quadrature it fell back
     on did not converge (ST_FALLBACK_CAPPED) and in the Taylor mode of an anisotropic medium (the
@@ -353,14 +356,16 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     `make_coeffs` (Taylor: c_0..c_{N-1}; exact: coefficient blocks, see `exact_coeffs`; spot
     lights need the exact mode's); cone: the segment's cone row (geometry.py; a spot light's
     segment is cut where it crosses the cone's edge and core, `lights.segment_cone`); stats:
-    float64[STATS_SIZE] accumulator.
+    float64[STATS_SIZE] accumulator; quadrature: True, or None to defer the segments that need the
+    reference quadrature: they return (nan, False), and the quadrature's code is not compiled in
+    this specialisation (numba prunes the branches of an argument typed None).
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
         stats[ST_ZERO] += 1.0
         return 0.0, True
     if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
-        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
     if kt * da > UNDERFLOW_PATH:
         # optically so thick that the bound I ks max(Phi) pi / h e^{-kt d_a} (the optical path x + d is
         # least, d_a, at the segment's start; int dx / d^2 <= pi / h) underflows: 0, and no inf * 0
@@ -398,10 +403,10 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     pa = da
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
-        val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, False, cone, phase_code, g, aniso_mode, terms, coeffs,
+        val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, spot, cone, phase_code, g, aniso_mode, terms, coeffs,
                             precision, max_iter, coeffs[:0], stats)
         if not ok:
-            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats)
+            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
         return pref * (ks * val), not taylor
     work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
     pieces = work[:15].reshape((5, 3))
@@ -447,6 +452,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
                 if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
                     out += pref * (ks * fine) - old  # one 10/20-point Gauss-Legendre step suffices (smooth, short)
                     continue
+                if quadrature is None:
+                    return math.nan, False
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
                 part, converged = _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision,
@@ -730,12 +737,34 @@ def summarize_stats(stats):
 # ----------------------------------------------------------------------------------------------
 @njit
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats):
+                      met, stats, quadrature):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
-    met the precision (`checked_airlight`)."""
+    met the precision (`checked_airlight`). With `quadrature` None the segments that need the
+    reference quadrature are left nan, their statistics not counted (`evaluate_deferred`)."""
+    before = np.empty(stats.shape[0])
     for s in range(xh.shape[0]):
+        for k in range(stats.shape[0]):
+            before[k] = stats[k]
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                          aniso_mode, terms, coeffs, cone[s], stats)
+                                          aniso_mode, terms, coeffs, cone[s], stats, quadrature)
+        if quadrature is None and math.isnan(out[s]):
+            for k in range(stats.shape[0]):
+                stats[k] = before[k]
+
+
+def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
+                      met, stats):
+    """`evaluate_segments` with the quadrature's kernels compiled on first need only: every segment
+    without them, then again with them the few left nan (the quadrature fallback, or a nan of the
+    closed form, which the second pass reproduces), so the result is that of one pass with them."""
+    evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
+                      met, stats, None)
+    todo = np.flatnonzero(np.isnan(out))
+    if len(todo):
+        part, part_met = np.empty(len(todo)), np.empty(len(todo), dtype=np.bool_)
+        evaluate_segments(xh[todo], h[todo], da[todo], ell[todo], kt, ks, code, g, precision, max_iter, aniso_mode,
+                          terms, coeffs, cone[todo], part, part_met, stats, True)
+        out[todo], met[todo] = part, part_met
 
 
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
@@ -772,7 +801,7 @@ def _airlight(segs, medium, lights, params):
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
-        evaluate_segments(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
+        evaluate_deferred(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
                           params["terms"], coeffs, cone, out, met[(kt, ks)], stats)
         return out
 

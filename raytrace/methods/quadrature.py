@@ -247,9 +247,8 @@ def _fog(segs, medium, lights, params):
 
 def _prefix_rounding(segs, rows, medium):
     """(S, 3): the relative rounding of the fog's transmittance from each camera ray's origin to its
-    piece's start, kt column_error of the column over [-t0, 0] (0 for whole rays)."""
-    if not np.any(segs.t0):
-        return np.zeros((len(segs), 3))
+    piece's start, kt column_error of the column over [-t0, 0] (0 for whole rays; computed even when
+    every piece is whole, so that the renderer's warm-up, whose rays make whole pieces, compiles it)."""
     err = np.empty(len(segs))
     _prefix_errors(rows, np.asarray(segs.t0, float), medium.scale_height, medium.profile, err)
     return err[:, None] * np.asarray(medium.sigma_t, float)[None, :]

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import error_bounds
-from ..camera import generate_rays, pixel_rays
+from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
@@ -271,11 +271,18 @@ def stats_size(method) -> int:
     return method.stats_size + len(STATS_NAMES) + crossing.STATS_SIZE
 
 
+WARM_UP_GRID = 8  # the warm-up traces the first sample of the pixels of an 8 x 8 grid over the image
+
+
 def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
-    """Compile the method's kernels on a few rays; returns the seconds it took."""
+    """Compile the method's kernels on a few rays (spread over the image, so that rays into a spot's
+    cone or through a refracting surface are among them and the tiles compile nothing later);
+    returns the seconds it took."""
     start = time.perf_counter()
-    o, d = generate_rays(prep.scene.camera, slice(0, 1), slice(0, 1))
-    o, d = crossing.warm_up_rays(prep, o[:1], d[:1])  # and one at each shape holding a medium
+    cam, n = prep.scene.camera, WARM_UP_GRID
+    ys, xs = np.meshgrid(np.arange(n) * cam.height // n, np.arange(n) * cam.width // n, indexing="ij")
+    o, d = pixel_rays(cam, ys.ravel().astype(float), xs.ravel().astype(float), slice(0, 1))
+    o, d = crossing.warm_up_rays(prep, o, d)  # and one at each shape holding a medium
     shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed, shadows)
     return time.perf_counter() - start
 

@@ -292,15 +292,18 @@ def _face_bbox(rel, t, face, buf, buf2):
             f1 = buf[k, 0] * slack - sgn * buf[k, axis]
             f2 = buf[k2, 0] * slack - sgn * buf[k2, axis]
             if f1 >= 0.0:
-                buf2[m] = buf[k]
+                for e in range(3):  # element loops: row assignments compile numba's shape-error messages
+                    buf2[m, e] = buf[k, e]
                 m += 1
             if (f1 >= 0.0) != (f2 >= 0.0):
                 s = f1 / (f1 - f2)
-                buf2[m] = buf[k] + s * (buf[k2] - buf[k])
+                for e in range(3):
+                    buf2[m, e] = buf[k, e] + s * (buf[k2, e] - buf[k, e])
                 m += 1
         n = m
         for k in range(n):
-            buf[k] = buf2[k]
+            for e in range(3):
+                buf[k, e] = buf2[k, e]
         if n == 0:
             return 1.0, -1.0, 1.0, -1.0
     u0, u1, v0, v1 = 1.0, -1.0, 1.0, -1.0
@@ -460,7 +463,12 @@ def _pieces(q, w, ell, kind, grid, frame, out):
                     nr += 1
     roots[nr] = ell
     nr += 1
-    roots[:nr].sort()
+    for p in range(2, nr - 1):  # insertion sort of the few interior roots (np.sort compiles a quicksort)
+        r, k = roots[p], p
+        while k > 1 and roots[k - 1] > r:
+            roots[k] = roots[k - 1]
+            k -= 1
+        roots[k] = r
     n = 0
     for p in range(nr - 1):
         xa, xb = roots[p], roots[p + 1]
@@ -605,7 +613,8 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
         if m + k + 1 > cap:
             cap = 2 * (m + k + 1)
             src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
-            src2[:m], a2[:m], b2[:m] = src[:m], x0[:m], x1[:m]
+            for e in range(m):  # an element loop: slice assignments compile numba's shape-error messages
+                src2[e], a2[e], b2[e] = src[e], x0[e], x1[e]
             src, x0, x1 = src2, a2, b2
         before = m
         cur = 0.0

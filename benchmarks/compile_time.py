@@ -1,0 +1,161 @@
+"""Compile time of the first render of every bundled scene, with an empty kernel cache.
+
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/compile_time.py [--profile] [--scenes a,b] [--tree DIR]
+
+One subprocess per scene (and one for the built-in default scene), each with `RAYTRACE_CACHE`
+pointed at a fresh empty folder, renders the scene through the command line at `--width` pixels
+(one thread) with its own method, spp and shadows. numba announces every compilation as a
+`numba:compile` event (numba.core.event); a listener takes the compiling thread's CPU time
+(`time.thread_time`) at each start and end, so the figures are CPU seconds of compiling, which a
+busy machine inflates far less than wall time. Per scene: the compile CPU seconds (the outermost
+compilations summed), the number of compiled specialisations, those compiled after the warm-up
+(`renderer.prepare_task`: a compile during the tiles is late, it happens after the compile notice),
+the wall seconds of the warm-up and the process's whole CPU time. The target: compile within 10 s
+per scene on the 2-core machine of docs/benchmarks.md.
+
+--profile adds, per scene, the dispatchers with the largest inclusive compile time (a dispatcher's
+compilation includes those of the functions it calls that were not compiled yet; a recursive one is
+counted once). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
+e.g. an older commit's `git archive`, for before/after tables. Scenes whose meshes come from
+`render.py assets` (sibenik, conference) run only when RAYTRACE_ASSETS is set.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT = "(default)"  # the built-in default scene: render.py without a scene
+ASSET_SCENES = ("sibenik", "conference")  # scene.catalogue.ARCHIVES' scenes
+
+
+def scene_names(assets: bool) -> list[str]:
+    names = sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
+    return [DEFAULT] + [n for n in names if assets or n not in ASSET_SCENES]
+
+
+class Compiles:
+    """A numba:compile listener: per event its dispatcher's name, thread-CPU start and end, depth."""
+
+    def __init__(self):
+        self.events, self.stack, self.phase = [], [], "before"
+
+    def on(self, event):
+        from numba.core import event as ev
+
+        now = time.thread_time()
+        if event.status == ev.EventStatus.START:
+            d = event.data["dispatcher"]
+            name = f"{d.py_func.__module__}.{d.py_func.__qualname__}"
+            self.stack.append(len(self.events))
+            self.events.append({"name": name, "args": str(event.data["args"]), "start": now, "end": None, "depth": len(self.stack) - 1,
+                                "phase": self.phase, "outer": [self.events[i]["name"] for i in self.stack[:-1]]})
+        else:
+            self.events[self.stack.pop()]["end"] = now
+
+
+def worker(scene: str, width: int, out: Path) -> dict:
+    """Render `scene` in this process (an empty cache set by the caller) and return the figures."""
+    from numba.core import event as ev
+
+    try:
+        from raytrace.rendering import renderer
+    except ImportError:  # a tree from before the packages (--tree)
+        from raytrace import renderer
+    from raytrace.cli import main
+
+    rec = Compiles()
+
+    class Listener(ev.Listener):
+        def on_start(self, event):
+            rec.on(event)
+
+        def on_end(self, event):
+            rec.on(event)
+
+    prepare_task = renderer.prepare_task
+    warm = {}
+
+    def timed(prep, task):
+        rec.phase = "warm-up"
+        start = time.perf_counter()
+        try:
+            return prepare_task(prep, task)
+        finally:
+            warm["wall"] = time.perf_counter() - start
+            rec.phase = "late"
+
+    renderer.prepare_task = timed
+    args = ([] if scene == DEFAULT else [scene]) + ["--width", str(width), "--threads", "1", "--quiet",
+                                                   "--out", str(out / "image.exr")]
+    with ev.install_listener("numba:compile", Listener()):
+        status = main(args)
+    if status != 0:
+        raise SystemExit(f"{scene}: render.py exited with {status}")
+    top = [e for e in rec.events if e["depth"] == 0]
+    inclusive = {}
+    for e in rec.events:
+        if e["name"] not in e["outer"]:  # a recursive compile is inside its own outer one
+            inclusive[e["name"]] = inclusive.get(e["name"], 0.0) + e["end"] - e["start"]
+    usage = os.times()
+    return {"compile_cpu": sum(e["end"] - e["start"] for e in top), "compiled": len(rec.events),
+            "late": sorted({e["name"] for e in top if e["phase"] == "late"}),
+            "late_cpu": sum(e["end"] - e["start"] for e in top if e["phase"] == "late"),
+            "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system,
+            "inclusive": sorted(inclusive.items(), key=lambda kv: -kv[1]),
+            "events": [(e["name"], e["end"] - e["start"], e["depth"], e["outer"][-1] if e["outer"] else "", e["phase"],
+                        e["args"])
+                       for e in rec.events]}
+
+
+def measure(scene: str, width: int, tree: Path) -> dict:
+    with tempfile.TemporaryDirectory(prefix="compile_time_") as tmp:
+        env = dict(os.environ, RAYTRACE_CACHE=str(Path(tmp) / "cache"), PYTHONPATH=str(tree))
+        cmd = [sys.executable, __file__, "--worker", scene, "--width", str(width), "--out", tmp]
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise SystemExit(f"{scene}: worker failed\n{proc.stderr[-3000:]}")
+        return json.loads(proc.stdout.splitlines()[-1])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", help="comma-separated scene names (default: every bundled scene and the default)")
+    ap.add_argument("--width", type=int, default=24, help="image width in pixels (default 24)")
+    ap.add_argument("--profile", action="store_true", help="the top dispatchers by inclusive compile time")
+    ap.add_argument("--top", type=int, default=8, help="dispatchers listed per scene with --profile")
+    ap.add_argument("--tree", type=Path, default=ROOT, help="the checkout whose raytrace is measured")
+    ap.add_argument("--json", type=Path, help="also write the figures here")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        print(json.dumps(worker(args.worker, args.width, args.out)))
+        return
+    names = args.scenes.split(",") if args.scenes else scene_names(bool(os.environ.get("RAYTRACE_ASSETS")))
+    print(f"# tree {args.tree.resolve()}, width {args.width}, load {' '.join(f'{x:.1f}' for x in os.getloadavg())}, "
+          f"{os.cpu_count()} cores")
+    print(f"| scene | compile CPU s | compiled | late | warm-up wall s | process CPU s |")
+    print("|---|---|---|---|---|---|")
+    results = {}
+    for name in names:
+        r = results[name] = measure(name, args.width, args.tree)
+        late = f"{len(r['late'])} ({r['late_cpu']:.1f} s: {', '.join(r['late'])})" if r["late"] else "0"
+        print(f"| {name} | {r['compile_cpu']:.1f} | {r['compiled']} | {late} | {r['warm_wall']:.1f} | "
+              f"{r['process_cpu']:.1f} |", flush=True)
+    print(f"# load after {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
+    if args.profile:
+        for name, r in results.items():
+            print(f"\n{name}: top dispatchers by inclusive compile CPU s")
+            for fn, s in r["inclusive"][:args.top]:
+                print(f"  {s:6.2f}  {fn}")
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()

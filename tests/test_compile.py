@@ -1,0 +1,56 @@
+"""What keeps the first render's compile short changes no number.
+
+`analytic` compiles its quadrature fallback only when a segment needs it (`evaluate_deferred`: a
+first pass without it leaves those segments nan, a second pass with it does them): on random
+segments of point and spot lights, many of which need the fallback (precision 1e-8 in HG 0.9 smoke,
+segments short in angle, spot bands whose terms cancel), the values, the met flags and the
+statistics are bit for bit those of one pass with the quadrature compiled in."""
+import math
+
+import numpy as np
+
+from raytrace.lights import CURVES, NO_CONE
+from raytrace.media.phase import HG
+from raytrace.methods import analytic as A
+from raytrace.methods.geometry import segment_light_table
+
+
+def random_segments(n, seed):
+    """(xh, h, da, ell, cone rows) of `n` random segments, half of them lit by a random spot light."""
+    rng = np.random.default_rng(seed)
+    o = rng.normal(size=(n, 3)) * 2.0
+    w = rng.normal(size=(n, 3))
+    w /= np.linalg.norm(w, axis=1)[:, None]
+    lights = rng.normal(size=(2, 3)) * 2.0
+    axis = rng.normal(size=(2, 3))
+    axis /= np.linalg.norm(axis, axis=1)[:, None]
+    cone = np.array([[*NO_CONE, CURVES["smoothstep"]],  # a point light
+                     [math.cos(math.radians(35.0)), math.cos(math.radians(20.0)), CURVES["smoothstep"]]])
+    light = rng.integers(0, 2, n)
+    xh, h, da, rows = segment_light_table(o, w, lights, axis, cone, light, 1.0)
+    ell = 10.0 ** rng.uniform(-4, 2, n)
+    ell[rng.random(n) < 0.1] = math.inf
+    return xh, h, da, ell, rows
+
+
+def evaluate(fn, segs, kt, ks, precision, coeffs, *extra):
+    xh, h, da, ell, rows = segs
+    out, met, stats = np.empty(len(xh)), np.empty(len(xh), dtype=np.bool_), A.new_stats()
+    fn(xh, h, da, ell, kt, ks, HG, 0.9, precision, 1000, A.ANISO_EXACT, 6, coeffs, rows, out, met, stats, *extra)
+    return out, met, stats
+
+
+def test_the_deferred_fallback_changes_no_bit():
+    precision = A.working_precision(1e-8)
+    coeffs = A.make_coeffs(HG, 0.9, A.ANISO_EXACT, 6, precision)
+    segs = random_segments(400, 37)
+    spot = segs[4][:, 2] >= -1.0  # cos_end of a spot's cone
+    for kt, ks in ((0.05, 0.04), (2.0, 1.5)):
+        first, _, _ = evaluate(A.evaluate_segments, segs, kt, ks, precision, coeffs, None)
+        deferred = np.isnan(first)
+        assert 0 < np.sum(deferred & ~spot) and 0 < np.sum(deferred & spot) and np.mean(deferred) < 0.5
+        out, met, stats = evaluate(A.evaluate_deferred, segs, kt, ks, precision, coeffs)
+        ref_out, ref_met, ref_stats = evaluate(A.evaluate_segments, segs, kt, ks, precision, coeffs, True)
+        assert np.all(np.isfinite(out))
+        assert np.array_equal(out, ref_out) and np.array_equal(met, ref_met)
+        assert np.array_equal(stats, ref_stats) and stats[A.ST_FALLBACK] > 0
