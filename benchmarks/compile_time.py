@@ -139,7 +139,7 @@ def main():
     names = args.scenes.split(",") if args.scenes else scene_names(bool(os.environ.get("RAYTRACE_ASSETS")))
     print(f"# tree {args.tree.resolve()}, width {args.width}, load {' '.join(f'{x:.1f}' for x in os.getloadavg())}, "
           f"{os.cpu_count()} cores")
-    print(f"| scene | compile CPU s | compiled | late | warm-up wall s | process CPU s |")
+    print("| scene | compile CPU s | compiled | late | warm-up wall s | process CPU s |")
     print("|---|---|---|---|---|---|")
     results = {}
     for name in names:
