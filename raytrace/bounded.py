@@ -294,6 +294,8 @@ def _plane_distance(accel, points, dirs, prim):
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,ij->i", accel.triangles[prim[ok], 0] - points[ok], n) / np.einsum("ij,ij->i", dirs[ok], n)
     out[ok] = np.where(np.isfinite(t) & (t > 0.0), t, 0.0)
+    on_sphere = ok & (accel.sphere_of[np.maximum(prim, 0)] >= 0)  # an exact sphere's own distance
+    out[on_sphere] = accel.sphere_distance(points[on_sphere], dirs[on_sphere], prim[on_sphere])
     return out
 
 
@@ -337,7 +339,8 @@ def _inside_hits(prep, p, w, cos, prim):
         k[k >= 0] = part.ids[k[k >= 0]]
         hits.append((_plane_distance(accel, p, w, k), k))
     (tb, kb), (to, ko) = hits
-    tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.normals[np.maximum(ko, 0)], w)), 1e-2)
+    at = p + np.where(ko >= 0, to, 0.0)[:, None] * w
+    tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.hit_normals(np.maximum(ko, 0), at), w)), 1e-2)
     clip = kb < 0
     wall = (ko >= 0) & ~clip & (to < tb - tol)
     touch = np.where(~wall & (ko >= 0) & ~clip & (to <= tb + tol), ko, -1)
@@ -382,7 +385,7 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
     the plane is the model)."""
     accel = prep.accel
     q = p + ell[:, None] * w
-    normals = facing_normals(accel.normals[prim], w)
+    normals = facing_normals(accel.hit_normals(prim, q), w)
     shading = shading_normals(accel, prep.corner_normals, prim, q, normals)
     refl = prep.reflectance[prim]
     kt = medium.sigma_t[None, :]
@@ -505,7 +508,7 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
         f = (t_out * eta * eta)[:, None] * tr * gap
         if rest.any():  # a surface met at once where the ray leaves
             on = on[rest]
-            geometric = facing_normals(accel.normals[on], w_out[rest])
+            geometric = facing_normals(accel.hit_normals(on, at[rest]), w_out[rest])
             direct[exits[rest]] = f[rest] * surface_radiance(
                 accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
                 shading_normals(accel, prep.corner_normals, on, at[rest], geometric))

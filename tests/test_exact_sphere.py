@@ -1,0 +1,207 @@
+"""The exact sphere (`primitive = "sphere"`, `exact = true`; raytrace/sphere_kind.py, accel.py).
+
+Its float64 roots against 50-digit mpmath roots of the same float64 inputs (grazing rays, rays from
+inside, huge and tiny radii, far centres), within the rounding of the stable form (module docstring);
+hits merged with Embree's triangles (nearest wins, occlusion by either); a rendered sphere under a
+point light against Lambert's law at the pixel centres (an independent numpy twin); the refusals.
+"""
+import math
+
+import mpmath
+import numpy as np
+import pytest
+
+from raytrace.accel import Accelerator
+from raytrace.errors import UserError
+from raytrace.options import RenderOptions
+from raytrace.renderer import prepare, render
+from raytrace.scene.format import scene_from_text
+from raytrace.scene.meshes import quad_triangles, sphere_triangles
+from raytrace.sphere_kind import sphere_roots
+
+from . import oracle
+from .conftest import to_toml
+
+EPS = np.finfo(float).eps
+mpmath.mp.dps = 50
+
+
+def mp_roots(o, d, c, r):
+    """The roots of |o + t d - c| = r from the float64 inputs, in 50 digits (None on a miss)."""
+    f = [mpmath.mpf(float(a)) - mpmath.mpf(float(b)) for a, b in zip(o, c)]
+    dd = [mpmath.mpf(float(x)) for x in d]
+    a = sum(x * x for x in dd)
+    b = sum(x * y for x, y in zip(f, dd))
+    cc = sum(x * x for x in f) - mpmath.mpf(float(r)) ** 2
+    disc = b * b - a * cc
+    if disc < 0:
+        return None
+    return (-b - mpmath.sqrt(disc)) / a, (-b + mpmath.sqrt(disc)) / a
+
+
+def allowed_error(o, d, c, r, t):
+    """The rounding of the stable form: 8 eps (|t| + |f|) plus the discriminant's, whose offset h of the
+    line from the centre carries 8 eps |f|: sqrt(disc) moves by min(sqrt(2 r dh), r dh / sqrt(disc)).
+    Evaluated in units of max(|f|_inf, r), so that it neither underflows nor overflows."""
+    f = np.asarray(o, float) - c
+    s = max(np.max(np.abs(f)), r)
+    f, r, t = f / s, r / s, t / s
+    d = np.asarray(d, float) / np.linalg.norm(d)
+    h = np.linalg.norm(f - (f @ d) * d)
+    dh = 8 * EPS * np.linalg.norm(f)
+    disc = max((r - h) * (r + h), 0.0)
+    return s * (8 * EPS * (abs(t) + np.linalg.norm(f)) + min(math.sqrt(2 * r * dh), r * dh / math.sqrt(disc) if disc
+                                                          else np.inf))
+
+
+def ray_cases(rng):
+    """(o, d, c, r): random, grazing, from inside, near the surface, huge, tiny and far."""
+    cases = []
+    for scale in (1e-200, 1e-8, 1.0, 1e7, 1e200):
+        for _ in range(40):
+            c = rng.normal(size=3) * scale
+            r = scale * rng.uniform(0.1, 3.0)
+            d = rng.normal(size=3)
+            d /= np.linalg.norm(d)
+            kind = rng.integers(4)
+            if kind == 0:  # from outside, aimed near the centre
+                o = c - d * r * rng.uniform(1.5, 1e6) + rng.normal(size=3) * r * 0.3
+            elif kind == 1:  # grazing: the line passes within 1e-9 r of the surface
+                side = np.cross(d, rng.normal(size=3))
+                side /= np.linalg.norm(side)
+                o = c + side * r * (1.0 - rng.uniform(0.0, 1e-9)) - d * r * rng.uniform(2.0, 1e3)
+            elif kind == 2:  # from inside
+                o = c + rng.normal(size=3) * r * 0.3
+            else:  # from just off the surface (a shadow ray's start)
+                n = rng.normal(size=3)
+                o = c + n / np.linalg.norm(n) * r * (1.0 + rng.uniform(-1e-9, 1e-9))
+            cases.append((o, d * rng.uniform(0.5, 2.0), c, r))
+    far = rng.normal(size=3) * 1e12  # a unit sphere a trillion units from the origin
+    for _ in range(40):
+        d = rng.normal(size=3)
+        cases.append((far - d * 1e9 + rng.normal(size=3) * 0.5, d / np.linalg.norm(d), far + 0.0, 1.0))
+    return cases
+
+
+def test_roots_against_mpmath():
+    rng = np.random.default_rng(7)
+    hits = 0
+    for o, d, c, r in ray_cases(rng):
+        t0, t1 = sphere_roots(o, d, c, r)
+        assert not (math.isnan(t0) or math.isnan(t1))
+        want = mp_roots(o, d, c, r)
+        if want is None or t0 == np.inf:  # a miss on one side only at the rounding of a tangent line
+            if want is not None:
+                assert float(want[1] - want[0]) <= 4 * allowed_error(o, d, c, r, float(want[1])) / np.linalg.norm(d)
+            continue
+        hits += 1
+        for got, exact in zip((t0, t1), want):
+            err = abs(got - float(exact)) * np.linalg.norm(d)  # as a length
+            assert err <= allowed_error(o, d, c, r, float(exact) * np.linalg.norm(d)), (o, d, c, r, got, exact)
+    assert hits > 150
+
+
+def test_far_and_non_grazing_rays_are_exact_to_1e15():
+    """Away from tangency the root is accurate to ~1e-15 of the distance, whatever the scale."""
+    rng = np.random.default_rng(3)
+    for scale, offset in ((1.0, 0.0), (1e-150, 0.0), (1e150, 0.0), (1.0, 1e9)):
+        for _ in range(50):
+            c = rng.normal(size=3) * scale + offset
+            d = rng.normal(size=3)
+            d /= np.linalg.norm(d)
+            side = np.cross(d, rng.normal(size=3))
+            o = c - d * scale * rng.uniform(3.0, 100.0) + side / np.linalg.norm(side) * rng.uniform(0.0, 0.7) * scale
+            t0, t1 = sphere_roots(o, d, c, scale)
+            want = mp_roots(o, d, c, scale)
+            assert want is not None
+            for got, exact in zip((t0, t1), want):
+                assert abs(got - float(exact)) <= 2e-15 * abs(float(exact)) + 4e-15 * float(abs(want[1] - want[0]))
+
+
+def test_misses_and_degenerate_directions():
+    c = np.zeros(3)
+    assert sphere_roots(np.array([0.0, 2.0, -5.0]), np.array([0.0, 0.0, 1.0]), c, 1.0) == (np.inf, np.inf)
+    assert sphere_roots(np.array([0.0, 0.0, -5.0]), np.zeros(3), c, 1.0) == (np.inf, np.inf)
+    assert sphere_roots(c, np.array([0.0, 0.0, 1.0]), c, 0.0) == (np.inf, np.inf)  # nothing (format.py: radius > 0)
+    t0, t1 = sphere_roots(np.array([1.0, 0.0, -5.0]), np.array([0.0, 0.0, 1.0]), c, 1.0)  # exactly tangent
+    assert abs(t0 - 5.0) <= 4 * EPS * 5.0 and abs(t1 - 5.0) <= 4 * EPS * 5.0
+
+
+def accel_with_sphere(centre, radius, segments=16):
+    """An accelerator over a floor quad and an exact sphere whose mesh rows follow it."""
+    floor = quad_triangles([[-10, 0, -10], [10, 0, -10], [10, 0, 10], [-10, 0, 10]])
+    mesh = sphere_triangles(np.asarray(centre, float), radius, segments)
+    tris = np.concatenate([floor, mesh])
+    of = np.concatenate([np.full(len(floor), -1), np.zeros(len(mesh), dtype=int)])
+    return Accelerator(tris, None, np.array([[*centre, radius]]), of), len(floor)
+
+
+def test_hits_merge_with_embree():
+    accel, first = accel_with_sphere([0.0, 1.0, 0.0], 0.5)
+    o = np.array([[0.0, 5.0, 0.0], [0.0, 5.0, 3.0], [0.0, 1.0, 0.0], [0.0, 1.0, -5.0]])
+    d = np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
+    t, prim = accel.first_hit(o, d)
+    assert t.tolist() == [3.5, 5.0, 0.5, 4.5]  # sphere top; floor; from the centre; the sphere's side
+    assert prim.tolist() == [first, prim[1], first, first] and 0 <= prim[1] < first
+    assert accel.hit_distance32(o, d)[[0, 2, 3]].tolist() == [3.5, 0.5, 4.5]
+    assert accel.occluded(o, d, np.array([3.4, 10.0, 0.4, 4.6])).tolist() == [False, True, False, True]
+    n = accel.hit_normals(prim, o + t[:, None] * d)
+    assert np.allclose(n[[0, 2, 3]], [[0, 1, 0], [0, -1, 0], [0, 0, -1]], atol=0, rtol=0)
+    alone = accel.subset("sphere", lambda: np.arange(first, len(accel.triangles)))
+    ts, ps = alone.first_hit(o, d)
+    assert ts[1] == np.inf and ps[1] == -1 and ts[0] == 3.5 and alone.ids[ps[0]] == first
+    floor = accel.subset("floor", lambda: np.arange(first))
+    assert floor.first_hit(o[:1], d[:1])[0][0] == 5.0 and not floor.occluded(o[3:], d[3:], np.array([9.0]))[0]
+
+
+SCENE = {
+    "camera": {"position": [0.3, 1.2, 5.0], "look_at": [0.0, 1.0, 0.0], "fov": 35.0, "width": 40, "height": 30},
+    "shape": [{"primitive": "sphere", "center": [0.1, 1.0, -0.2], "radius": 0.9, "exact": True, "segments": 8,
+               "reflectance": [0.8, 0.5, 0.25]}],
+    "light": [{"position": [2.0, 3.0, 2.5], "intensity": [40.0, 30.0, 20.0]}],
+}
+
+
+def lambert_twin(scene):
+    """Each pixel centre's radiance: the sphere's Lambertian term, rho / pi I cos / d^2 (numpy)."""
+    s = scene["shape"][0]
+    c, r = np.array(s["center"]), s["radius"]
+    lp, inten = np.array(scene["light"][0]["position"]), np.array(scene["light"][0]["intensity"])
+    cam = scene["camera"]
+    out, sure = np.zeros((cam["height"], cam["width"], 3)), np.ones((cam["height"], cam["width"]), bool)
+    for j in range(cam["height"]):
+        for i in range(cam["width"]):
+            o, d = oracle.camera_ray(cam, i, j)
+            b = d @ (o - c)
+            disc = b * b - ((o - c) @ (o - c) - r * r)
+            sure[j, i] = abs(disc) > 1e-6  # not at the silhouette
+            if disc <= 0:
+                continue
+            p = o + (-b - math.sqrt(disc)) * d
+            n = (p - c) / r
+            to = lp - p
+            dist = np.linalg.norm(to)
+            out[j, i] = np.array(s["reflectance"]) / math.pi * inten * max(n @ to / dist, 0.0) / dist ** 2
+    return out, sure
+
+
+def test_image_against_lambert():
+    """A coarse mesh (8 segments) would be off by far more: the image is the exact sphere's."""
+    img = render(prepare(scene_from_text(to_toml(SCENE), "sphere.toml")), "analytic",
+                 options=RenderOptions(threads=1)).image
+    want, sure = lambert_twin(SCENE)
+    assert np.count_nonzero(want[sure].any(axis=1)) > 150
+    assert np.allclose(img[sure], want[sure], rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("extra, key", [
+    ({"interior": {"sigma_a": 0.1, "sigma_s": 0.1}}, "interior"),
+    ({"emission": [1.0, 1.0, 1.0]}, "emission"),
+    ({"transform": {"scale": [1.0, 2.0, 1.0]}}, "transform.scale"),
+    ({"exact": "yes"}, "exact"),
+])
+def test_refusals(extra, key):
+    scene = {**SCENE, "shape": [{**SCENE["shape"][0], **extra}]}
+    scene["shape"][0].pop("reflectance") if "interior" in extra else None
+    with pytest.raises(UserError, match=rf"shape\[0\]\.{key}"):
+        scene_from_text(to_toml(scene), "sphere.toml")
