@@ -205,3 +205,80 @@ def test_refusals(extra, key):
     scene["shape"][0].pop("reflectance") if "interior" in extra else None
     with pytest.raises(UserError, match=rf"shape\[0\]\.{key}"):
         scene_from_text(to_toml(scene), "sphere.toml")
+
+
+PBRT_SPHERES = """LookAt 0 1 6  0 1 0  0 1 0
+Camera "perspective" "float fov" [ 40 ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 12 ]
+WorldBegin
+LightSource "point" "point3 from" [ 2 4 2 ] "rgb I" [ 50 50 50 ]
+MakeNamedMedium "inner" "string type" "homogeneous" "rgb sigma_a" [ 0.5 0.5 0.5 ] "rgb sigma_s" [ 1 1 1 ]
+AttributeBegin
+Material "diffuse" "rgb reflectance" [ 0.5 0.25 0.125 ]
+Translate -1 1 0
+Scale 2 2 2
+Shape "sphere" "float radius" [ 0.25 ]
+AttributeEnd
+AttributeBegin
+MediumInterface "inner" ""
+Material "interface"
+Translate 1 1 0
+Shape "sphere" "float radius" [ 0.5 ]
+AttributeEnd
+"""
+
+
+def spheres_of(raw):
+    return [(s.get("exact"), s["center"], s["radius"], "interior" in s) for s in raw["shape"]]
+
+
+def test_pbrt_spheres_come_in_exact_and_go_back_as_spheres(tmp_path):
+    """An opaque pbrt sphere is read exact, one holding a medium as a mesh of 64 segments (exact
+    spheres do not hold media yet); both go out as pbrt spheres and come back the same (x mirrored on
+    the way in: pbrt's LookAt is left-handed)."""
+    from raytrace.io import pbrt
+
+    src = tmp_path / "spheres.pbrt"
+    src.write_text(PBRT_SPHERES)
+    raw = pbrt.read_scene(src)
+    assert [(e, list(c), r, i) for e, c, r, i in spheres_of(raw)] == [(True, [1.0, 1.0, 0.0], 0.5, False),
+                                                                      (None, [-1.0, 1.0, 0.0], 0.5, True)]
+    assert raw["shape"][1]["segments"] == pbrt.SPHERE_SEGMENTS
+    out = tmp_path / "back.pbrt"
+    pbrt.export(raw, out, str(src), False)
+    text = out.read_text()
+    assert text.count('Shape "sphere"') == 2 and "trianglemesh" not in text
+    back = pbrt.read_scene(out)
+    assert [(e, list(c), r, i) for e, c, r, i in spheres_of(back)] == \
+        [(e, list(c), r, i) for e, c, r, i in spheres_of(raw)]
+    assert back["shape"][1]["segments"] == pbrt.SPHERE_SEGMENTS
+
+
+MITSUBA_SPHERES = """<scene version="3.0.0">
+<sensor type="perspective"><float name="fov" value="40"/><string name="fov_axis" value="y"/>
+<transform name="to_world"><lookat origin="0, 1, 6" target="0, 1, 0" up="0, 1, 0"/></transform>
+<film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="12"/></film></sensor>
+<emitter type="point"><point name="position" value="2, 4, 2"/><rgb name="intensity" value="50"/></emitter>
+<shape type="sphere"><point name="center" value="-1, 1, 0"/><float name="radius" value="0.5"/>
+<bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.25, 0.125"/></bsdf></shape>
+<medium type="homogeneous" id="inner"><rgb name="sigma_t" value="1.5"/><rgb name="albedo" value="0.5"/></medium>
+<shape type="sphere"><point name="center" value="1, 1, 0"/><float name="radius" value="0.5"/>
+<bsdf type="null"/><ref name="interior" id="inner"/></shape>
+</scene>
+"""
+
+
+def test_mitsuba_spheres_come_in_exact_and_go_back_as_spheres(tmp_path):
+    from raytrace.io import mitsuba
+
+    src = tmp_path / "spheres.xml"
+    src.write_text(MITSUBA_SPHERES)
+    raw = mitsuba.read_scene(src)
+    assert [(e, i) for e, _, _, i in spheres_of(raw)] == [(True, False), (False, True)]
+    out = tmp_path / "back.xml"
+    mitsuba.export(raw, out, str(src), False)
+    assert out.read_text().count('<shape type="sphere"') == 2 and not list(tmp_path.glob("*.ply"))
+    back = mitsuba.read_scene(out)
+    for (e, c, r, i), (e2, c2, r2, i2) in zip(spheres_of(raw), spheres_of(back)):
+        assert (e, i) == (e2, i2) and np.allclose(c, c2, rtol=1e-15, atol=0) and r == pytest.approx(r2, rel=1e-15)
+    assert back["shape"][1]["segments"] == raw["shape"][1]["segments"] == mitsuba.INTERIOR_SEGMENTS
