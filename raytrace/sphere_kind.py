@@ -82,3 +82,129 @@ def sphere_blocks(origins, dirs, tmax, spheres, rows, occ):
             if (0.0 < t0 < tmax[i]) or (0.0 < t1 < tmax[i]):
                 occ[i] = True
                 break
+
+
+@exact_njit
+def _quadratic_roots(a, b, c, out, n):
+    """out[n:] <- the real roots of a x^2 + 2 b x + c = 0 (Numerical Recipes 5.6's stable form); the new n."""
+    if a == 0.0:
+        if b != 0.0:
+            out[n] = -c / (2.0 * b)
+            n += 1
+        return n
+    disc = b * b - a * c
+    if disc < 0.0:
+        return n
+    q = -(b + math.copysign(math.sqrt(disc), b))
+    out[n] = q / a
+    n += 1
+    if q != 0.0:
+        out[n] = c / q
+        n += 1
+    return n
+
+
+@exact_njit
+def _blocked(p, light, sun, c, r):
+    """Whether the surface of the sphere (c, r) crosses the segment from p to the point light (sun:
+    the ray from p toward the directional light, `light` its unit direction toward the light)."""
+    if sun:
+        t0, t1 = sphere_roots(p, light, c, r)
+        return t1 >= 0.0 and t1 < np.inf
+    v = np.empty(3)
+    for k in range(3):
+        v[k] = light[k] - p[k]
+    t0, t1 = sphere_roots(p, v, c, r)
+    return 0.0 <= t0 <= 1.0 or 0.0 <= t1 <= 1.0
+
+
+@exact_njit
+def shadow_breaks(o, w, light, sun, c, r, out):
+    """The points x (into out; returns their count, <= 4, unsorted) where p(x) = o + x w may enter or
+    leave the shadow of the sphere (c, r): where p crosses the sphere, and where the line from p to
+    the light turns tangent to it: on the cone from a point light L tangent to the sphere,
+    ((p - L)·e)^2 = cos^2(alpha) |p - L|^2 with e the unit axis toward c and sin(alpha) = r / |c - L|
+    (a quadratic in x), or on the cylinder of radius r about the axis through c along a directional
+    light's direction. Between consecutive breaks the shadow test is constant (`_blocked`)."""
+    t0, t1 = sphere_roots(o, w, c, r)
+    n = 0
+    if t0 < np.inf:
+        out[0], out[1] = t0, t1
+        n = 2
+    if sun:  # the cylinder: the components across the light's direction
+        fl = (o[0] - c[0]) * light[0] + (o[1] - c[1]) * light[1] + (o[2] - c[2]) * light[2]
+        wl = w[0] * light[0] + w[1] * light[1] + w[2] * light[2]
+        f, v = np.empty(3), np.empty(3)
+        for k in range(3):
+            f[k] = o[k] - c[k] - fl * light[k]
+            v[k] = w[k] - wl * light[k]
+        s0, s1 = sphere_roots(f, v, np.zeros(3), r)
+        if s0 < np.inf:
+            out[n], out[n + 1] = s0, s1
+            n += 2
+        return n
+    e = np.empty(3)
+    dist2 = 0.0
+    for k in range(3):
+        e[k] = c[k] - light[k]
+        dist2 += e[k] * e[k]
+    dist = math.sqrt(dist2)
+    if not dist > r:  # the light inside the sphere: the sphere's surface is the only break
+        return n
+    cos2 = (dist - r) * (dist + r) / dist2
+    ae = we = aw = aa = ww = 0.0
+    for k in range(3):
+        a = o[k] - light[k]
+        ae += a * e[k] / dist
+        we += w[k] * e[k] / dist
+        aw += a * w[k]
+        aa += a * a
+        ww += w[k] * w[k]
+    return _quadratic_roots(we * we - cos2 * ww, ae * we - cos2 * aw, ae * ae - cos2 * aa, out, n)
+
+
+@exact_njit
+def lit_parts(o, w, lo, hi, light, sun, spheres, gap, out):
+    """The parts of [lo, hi] of the segment o + x w that no sphere (rows of `spheres`: centre,
+    radius) shadows from the light (`shadow_breaks`), parts shorter than `gap` dropped: into out
+    (K, 2); returns K."""
+    n_s = spheres.shape[0]
+    breaks = np.empty(4 * n_s + 2)
+    nb = 0
+    buf = np.empty(4)
+    for s in range(n_s):
+        k = shadow_breaks(o, w, light, sun, spheres[s, :3], spheres[s, 3], buf)
+        for j in range(k):
+            if lo < buf[j] < hi:
+                breaks[nb] = buf[j]
+                nb += 1
+    breaks[nb] = lo
+    breaks[nb + 1] = hi
+    b = np.sort(breaks[:nb + 2])
+    m = 0
+    p = np.empty(3)
+    for j in range(nb + 1):
+        a, z = b[j], b[j + 1]
+        if not z > a:
+            continue
+        mid = 0.5 * (a + z) if z < np.inf else a + max(1.0, abs(a))
+        for k in range(3):
+            p[k] = o[k] + mid * w[k]
+        dark = False
+        for s in range(n_s):
+            if _blocked(p, light, sun, spheres[s, :3], spheres[s, 3]):
+                dark = True
+                break
+        if dark:
+            continue
+        if m > 0 and out[m - 1, 1] == a:  # joins the previous lit part
+            out[m - 1, 1] = z
+        else:
+            out[m, 0], out[m, 1] = a, z
+            m += 1
+    k = 0
+    for j in range(m):
+        if out[j, 1] - out[j, 0] > gap:
+            out[k, 0], out[k, 1] = out[j, 0], out[j, 1]
+            k += 1
+    return k

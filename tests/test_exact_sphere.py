@@ -282,3 +282,119 @@ def test_mitsuba_spheres_come_in_exact_and_go_back_as_spheres(tmp_path):
     for (e, c, r, i), (e2, c2, r2, i2) in zip(spheres_of(raw), spheres_of(back)):
         assert (e, i) == (e2, i2) and np.allclose(c, c2, rtol=1e-15, atol=0) and r == pytest.approx(r2, rel=1e-15)
     assert back["shape"][1]["segments"] == raw["shape"][1]["segments"] == mitsuba.INTERIOR_SEGMENTS
+
+
+def blocked_twin(p, light, sun, c, r):
+    """numpy: the closest point to c of the segment p -> L (sun: of the ray p + s l, s >= 0) lies within
+    r, and the segment does not lie wholly inside the sphere (a light inside lights its inside)."""
+    if sun:
+        s = max((c - p) @ light, 0.0)
+        q = p + s * light
+    else:
+        u = light - p
+        s = min(max((c - p) @ u / (u @ u), 0.0), 1.0)
+        q = p + s * u
+        if np.linalg.norm(p - c) < r and np.linalg.norm(light - c) < r:
+            return False
+    return np.linalg.norm(q - c) <= r
+
+
+def twin_breaks(o, w, length, light, sun, spheres, n=2000):
+    """Where the shadow of `spheres` along o + x w changes: a grid of n samples, each change bisected."""
+    def dark(x):
+        return any(blocked_twin(o + x * w, light, sun, s[:3], s[3]) for s in spheres)
+    xs = np.linspace(0.0, length, n)
+    state = [dark(x) for x in xs]
+    out = []
+    for k in range(n - 1):
+        if state[k] != state[k + 1]:
+            a, b = xs[k], xs[k + 1]
+            for _ in range(60):
+                m = 0.5 * (a + b)
+                a, b = (m, b) if dark(m) == state[k] else (a, m)
+            out.append(0.5 * (a + b))
+    return out, dark
+
+
+def shadow_cases(rng):
+    for _ in range(80):
+        sun = bool(rng.integers(2))
+        spheres = np.array([[*rng.normal(size=3) * 2.0, rng.uniform(0.3, 1.2)] for _ in range(rng.integers(1, 3))])
+        if sun:
+            light = rng.normal(size=3)
+            light /= np.linalg.norm(light)
+        else:
+            light = rng.normal(size=3) * 4.0
+        o = rng.normal(size=3) * 5.0
+        away = -light if sun else spheres[0, :3] - light  # aimed across the first sphere's shadow
+        target = spheres[0, :3] + away / np.linalg.norm(away) * rng.uniform(0.0, 3.0) + rng.normal(size=3) * 0.5
+        w = (target - o) / np.linalg.norm(target - o)
+        yield o, w, 15.0, light, sun, spheres
+
+
+def test_sphere_shadow_breaks_against_bisection():
+    """The lit parts of segments near one or two spheres under point and directional lights: every
+    end point is a change of the twin's shadow test (which changes nowhere else) to 1e-9."""
+    from raytrace.sphere_kind import lit_parts
+
+    rng = np.random.default_rng(11)
+    changes = 0
+    for o, w, length, light, sun, spheres in shadow_cases(rng):
+        out = np.empty((4 * len(spheres) + 1, 2))
+        k = lit_parts(o, w, 0.0, length, light, sun, spheres, 1e-14, out)
+        ends = sorted({x for x in out[:k].ravel() if 0.0 < x < length})
+        want, dark = twin_breaks(o, w, length, light, sun, spheres)
+        assert len(ends) == len(want), (ends, want)
+        assert np.allclose(ends, want, rtol=0, atol=1e-9)
+        for a, b in out[:k]:  # the parts are lit, what lies between them dark
+            assert not dark(0.5 * (a + b))
+        for (_, b), (a, _) in zip(out[:k - 1], out[1:k]):
+            assert dark(0.5 * (a + b))
+        changes += len(want)
+    assert changes > 100
+
+
+def test_light_inside_and_grazing_shadow_edges():
+    from raytrace.sphere_kind import lit_parts
+
+    out = np.empty((5, 2))
+    sphere = np.array([[0.0, 0.0, 0.0, 1.0]])
+    o, w = np.array([-5.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])
+    k = lit_parts(o, w, 0.0, 10.0, np.array([0.2, 0.1, 0.0]), False, sphere, 1e-14, out)  # light inside
+    assert k == 1 and np.allclose(out[0], [4.0, 6.0], rtol=0, atol=1e-15)
+    # a directional light straight down, a segment along x at height -1 below the sphere: dark on [-1, 1]
+    k = lit_parts(np.array([-5.0, -2.0, 0.0]), w, 0.0, 10.0, np.array([0.0, 1.0, 0.0]), True, sphere, 1e-14, out)
+    assert k == 2 and np.allclose(out[:2], [[0.0, 4.0], [6.0, 10.0]], rtol=0, atol=1e-15)
+
+
+def test_frusta_take_exact_sphere_occluders():
+    """exact_lit_intervals in a scene with a floor and an exact sphere: the pieces of camera-ray
+    segments are the twin's lit sets (the sphere shadows as a sphere, not as its 8-segment mesh)."""
+    from raytrace.shadow_frusta import exact_lit_intervals
+    from raytrace.visibility import whole_rays
+
+    scene = {**SCENE, "shape": [{**SCENE["shape"][0]},
+                                {"primitive": "quad", "corners": [[-9, -0.5, -9], [9, -0.5, -9], [9, -0.5, 9],
+                                                                  [-9, -0.5, 9]]}],
+             "medium": {"sigma_a": 0.01, "sigma_s": 0.05}}
+    prep = prepare(scene_from_text(to_toml(scene), "sphere.toml"))
+    s = scene["shape"][0]
+    sphere = np.array([[*s["center"], s["radius"]]])
+    light = np.array(scene["light"][0]["position"], float)
+    rng = np.random.default_rng(5)
+    o = np.array([[0.3, 1.2, 5.0]] * 40)
+    d = np.array([0.0, -0.3, -1.0]) + rng.normal(size=(40, 3)) * 0.25
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    t, _ = prep.accel.first_hit(o, d)
+    segs = whole_rays(o, d, np.minimum(t, 12.0), np.arange(40), 1)
+    pieces, _ = exact_lit_intervals(prep.accel, segs, prep.lights, 1, prep.frusta())
+    total = 0
+    for i in range(40):
+        mine = pieces.ray == i
+        ends = sorted({x for a, b in zip(pieces.t0[mine], pieces.t0[mine] + pieces.length[mine]) for x in (a, b)
+                       if 1e-9 < x < segs.length[i] - 1e-9})
+        want, _ = twin_breaks(o[i], d[i], segs.length[i], light, False, sphere)
+        want = [x for x in want if 1e-9 < x < segs.length[i] - 1e-9]
+        assert len(ends) == len(want) and np.allclose(ends, want, rtol=0, atol=1e-9), (i, ends, want)
+        total += len(want)
+    assert total > 10
