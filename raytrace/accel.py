@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .jit import njit
-from .sphere_kind import nearest_sphere_hits, sphere_blocks, sphere_roots
+from .sphere_kind import nearest_sphere_hits, sphere_blocks
 
 CHUNK = 1 << 15
 UNIT_RANGE = 2.0 ** 40  # scenes whose size lies outside [1 / UNIT_RANGE, UNIT_RANGE] are rescaled for Embree
@@ -177,16 +177,6 @@ class Accelerator:
                           np.ascontiguousarray(np.broadcast_to(tmax, (n,)), dtype=np.float64), self.spheres,
                           self.sphere_rows, occ)
         return occ
-
-    def sphere_distance(self, points: np.ndarray, dirs: np.ndarray, prim: np.ndarray) -> np.ndarray:
-        """Distance from each point along its direction to the exact sphere of row prim, its nearest
-        positive root (0 where there is none, or where the row is not a sphere's)."""
-        out = np.zeros(len(points))
-        k = self.sphere_of[prim]
-        for i in np.nonzero(k >= 0)[0]:
-            t0, t1 = sphere_roots(points[i], dirs[i], self.spheres[k[i], :3], self.spheres[k[i], 3])
-            out[i] = t0 if t0 > 0.0 else (t1 if 0.0 < t1 < np.inf else 0.0)
-        return out
 
     def hit_normals(self, prim: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Unit geometric normals (N, 3) at hit `points` on rows `prim`: the triangle's (its winding's

@@ -281,11 +281,10 @@ def _shape(ctx, i, raw):
 
 
 def _exact_sphere(ctx, key, raw, transform):
-    """Refuse what an exact sphere does not take yet: a medium inside, emission, a non-uniform scale."""
-    for k, what in (("interior", "holding a medium"), ("emission", "emitting")):
-        if k in raw:
-            ctx.fail(f"{key}.{k}", f"an exact sphere {what} is not built yet", f"set {key}.exact = false (a mesh of "
-                     "`segments`) or remove " + k)
+    """Refuse what an exact sphere does not take yet: emission, a non-uniform scale."""
+    if "emission" in raw:
+        ctx.fail(f"{key}.emission", "an exact sphere emitting is not built yet", f"set {key}.exact = false (a mesh "
+                 "of `segments`) or remove emission")
     if np.ptp(np.abs(transform.scale)) > 0.0:
         ctx.fail(f"{key}.transform.scale", "an exact sphere scaled unevenly is an ellipsoid, which is not read",
                  f"scale it uniformly, or set {key}.exact = false")
