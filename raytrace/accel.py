@@ -128,12 +128,15 @@ class Accelerator:
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
     def _first_hit_chunk(self, origins, dirs):
-        t, prim = np.full(len(origins), np.inf), np.full(len(origins), -1, dtype=np.int64)
-        if self._scene is not None:
+        if self._scene is None:
+            t, prim = np.full(len(origins), np.inf), np.full(len(origins), -1, dtype=np.int64)
+        else:
             o32 = self._to_embree(origins)
             d32 = np.ascontiguousarray(dirs, dtype=np.float32)
-            k = self._scene.run(o32, d32).astype(np.int64)
-            prim[k >= 0] = self._tri_rows[k[k >= 0]]
+            prim = self._scene.run(o32, d32).astype(np.int64)
+            if self._any_sphere:  # Embree's primitives are the rows that are triangles
+                prim[prim >= 0] = self._tri_rows[prim[prim >= 0]]
+            t = np.empty(len(prim))
             _refine(self.triangles, self.normals, origins, dirs, prim, t)
             bad = np.isnan(t)
             if bad.any():  # degenerate plane solve: fall back to Embree's float32 distance
