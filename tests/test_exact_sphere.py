@@ -439,18 +439,19 @@ def test_camera_inside_the_exact_fog_sphere():
     ks = np.array(inner["sigma_s"])
     kt = np.array(inner["sigma_a"]) + ks
     lp = np.array(sc["light"][0]["position"], float)
+    kt_out = sc["medium"]["sigma_a"]
     worst = 0.0
     for j, i in [(0, 0), (3, 5), (7, 11), (4, 2)]:
         o, d = oracle.camera_ray(cam, i, j)
-        t1 = sphere_chord(o, d)[1]
-        for c in range(3):
-            def f(t):
-                x = o + t * d
-                dist = np.linalg.norm(lp - x)
-                u = (lp - x) / dist
-                k = sphere_chord(x, u)[1]
-                tau = kt[c] * (t + k) + sc["medium"]["sigma_a"] * (dist - k)
-                return ks[c] * oracle.phase("hg", inner["phase"]["g"], float(u @ d)) * math.exp(-tau) / dist**2
-            ref = sc["light"][0]["intensity"] * integrate.quad(f, 0.0, t1, epsabs=0.0, epsrel=1e-11, limit=200)[0]
-            worst = max(worst, abs(img[j, i, c] - ref) / ref)
+
+        def radiance(t):  # all three channels at once: ks Phi exp(-kt (t + k) - kt_out (dist - k)) / dist^2
+            to = lp - (o + t * d)
+            dist = np.linalg.norm(to)
+            k = sphere_chord(o + t * d, to / dist)[1]
+            phase = oracle.phase("hg", inner["phase"]["g"], float(to @ d) / dist)
+            return ks * phase * np.exp(-kt * (t + k) - kt_out * (dist - k)) / dist**2
+
+        ref = sc["light"][0]["intensity"] * integrate.quad_vec(radiance, 0.0, sphere_chord(o, d)[1], epsabs=0.0,
+                                                               epsrel=1e-11, limit=200)[0]
+        worst = max(worst, float(np.max(np.abs(img[j, i] - ref) / ref)))
     assert worst < 2e-9, worst
