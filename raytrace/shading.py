@@ -37,7 +37,8 @@ def shading_normals(accel, corners, prim, points, facing):
     b the barycentric coordinates of the point (clipped to the triangle) and n_i the triangle's corner
     normals (`corners` (T, 3, 3), on the side of its winding), flipped where the geometric normal was
     flipped to give `facing` (`facing_normals`). The geometric normal itself (`facing`) on flat
-    triangles (equal corners), where the sum vanishes, and everywhere when `corners` is None."""
+    triangles (equal corners), where the sum vanishes, on exact spheres (whose geometric normal is
+    exact) and everywhere when `corners` is None."""
     if corners is None:
         return facing
     c = corners[prim]
@@ -52,7 +53,7 @@ def shading_normals(accel, corners, prim, points, facing):
         b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
         n = np.einsum("ij,ijk->ik", b, c)
         length = np.linalg.norm(n, axis=1)
-    flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0)
+    flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0) | (accel.sphere_of[prim] >= 0)
     n = np.where(flat[:, None], facing, n / np.where(flat, 1.0, length)[:, None])
     flipped = np.einsum("ij,ij->i", accel.normals[prim], facing) < 0.0
     return np.where((flipped & ~flat)[:, None], -n, n)

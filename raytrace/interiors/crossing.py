@@ -199,18 +199,26 @@ def inside_of(prep, o, inner) -> int | None:
     t = np.einsum("ij,ij->i", e2, qv) * inv
     cross = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
     for i in inner:
-        if np.count_nonzero(cross & (prep.shape_ids == i)) % 2:
+        k = prep.accel.sphere_of[prep.shape_ids == i]
+        if len(k) and k[0] >= 0:  # an exact sphere: by its own radius
+            c, r = prep.accel.spheres[k[0], :3], prep.accel.spheres[k[0], 3]
+            if np.linalg.norm(np.asarray(o, float) - c) < r:
+                return i
+        elif np.count_nonzero(cross & (prep.shape_ids == i)) % 2:
             return i
     return None
 
 
 def hull_planes(prep, sid):
     """The face planes (P, 4) of shape sid if it is convex (scene/meshes.py convex_planes), else
-    None; cached on `prep` (paths.py reads the cache for index-matched shapes)."""
+    None; cached on `prep` (paths.py reads the cache for index-matched shapes). An exact
+    sphere has none: its light paths are measured on the sphere itself (geometry/accel.py), as a traced
+    shape's are, and have no facet kinks."""
     cache = prep.interior_planes
     if sid not in cache:
         sel = prep.shape_ids == sid
-        cache[sid] = hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
+        exact = bool(np.any(prep.accel.sphere_of[sel] >= 0))
+        cache[sid] = None if exact else hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
     return cache[sid]
 
 
@@ -285,15 +293,18 @@ def _leave(prep, points, dirs, cos):
     return _nudge(prep.accel, points, dirs, cos), prep.scene.medium.transmittance_on(points, dirs, 0.0, step)
 
 
-def _plane_distance(accel, points, dirs, prim):
+def _plane_distance(accel, points, dirs, prim, hit):
     """Distance from each point along its direction to the plane of triangle prim (inf on a miss): the
-    inside segment measured from the entry point itself, not from the offset start of the Embree ray."""
+    inside segment measured from the entry point itself, not from the offset start of the Embree ray;
+    on an exact sphere, `hit`: the query's own float64 distance, measured from the point."""
     out = np.full(len(points), np.inf)
     ok = prim >= 0
     n = accel.normals[prim[ok]]
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,ij->i", accel.triangles[prim[ok], 0] - points[ok], n) / np.einsum("ij,ij->i", dirs[ok], n)
     out[ok] = np.where(np.isfinite(t) & (t > 0.0), t, 0.0)
+    on_sphere = ok & (accel.sphere_of[np.maximum(prim, 0)] >= 0)
+    out[on_sphere] = hit[on_sphere]
     return out
 
 
@@ -333,11 +344,12 @@ def _inside_hits(prep, p, w, cos, prim):
     start = _nudge(accel, p, w, cos)
     hits = []
     for part in _parts(prep):
-        _, k = part.first_hit(start, w)
+        t, k = part.first_hit(start, w)
         k[k >= 0] = part.ids[k[k >= 0]]
-        hits.append((_plane_distance(accel, p, w, k), k))
+        hits.append((_plane_distance(accel, p, w, k, np.einsum("ij,ij->i", start - p, w) + t), k))
     (tb, kb), (to, ko) = hits
-    tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.normals[np.maximum(ko, 0)], w)), 1e-2)
+    at = p + np.where(ko >= 0, to, 0.0)[:, None] * w
+    tol = accel.epsilon / np.maximum(np.abs(np.einsum("ij,ij->i", accel.hit_normals(np.maximum(ko, 0), at), w)), 1e-2)
     clip = kb < 0
     wall = (ko >= 0) & ~clip & (to < tb - tol)
     touch = np.where(~wall & (ko >= 0) & ~clip & (to <= tb + tol), ko, -1)
@@ -382,7 +394,7 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
     the plane is the model)."""
     accel = prep.accel
     q = p + ell[:, None] * w
-    normals = facing_normals(accel.normals[prim], w)
+    normals = facing_normals(accel.hit_normals(prim, q), w)
     shading = shading_normals(accel, prep.corner_normals, prim, q, normals)
     refl = prep.reflectance[prim]
     kt = medium.sigma_t[None, :]
@@ -468,7 +480,7 @@ def cross(prep, origins, dirs, t, prim, keys, depth) -> Crossing | None:
     if depth >= MAX_DEPTH:
         return None
     points = origins + t[:, None] * dirs
-    normals = facing_normals(prep.accel.normals[prim], dirs)
+    normals = facing_normals(prep.accel.hit_normals(prim, points), dirs)
     shape = prep.shape_ids[prim]
     parts = []
     for sid in np.unique(shape).tolist():
@@ -492,7 +504,7 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
     go = [(none, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), False)]  # (parent, origins, dirs, weight, mirrored)
     if len(exits):
         q = p[exits] + ell[exits, None] * w[exits]
-        m = facing_normals(accel.normals[prim2[exits]], w[exits])
+        m = facing_normals(accel.hit_normals(prim2[exits], q), w[exits])
         w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
         t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
         start, gap = _leave(prep, q, w_out, cos_o)
@@ -505,7 +517,7 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
         f = (t_out * eta * eta)[:, None] * tr * gap
         if rest.any():  # a surface met at once where the ray leaves
             on = on[rest]
-            geometric = facing_normals(accel.normals[on], w_out[rest])
+            geometric = facing_normals(accel.hit_normals(on, at[rest]), w_out[rest])
             direct[exits[rest]] = f[rest] * surface_radiance(
                 accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
                 shading_normals(accel, prep.corner_normals, on, at[rest], geometric))
@@ -534,8 +546,8 @@ def start_inside(prep, origins, dirs, t, prim, keys) -> Crossing:
     n = len(origins)
     direct = np.zeros((n, 3))
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
-    cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[exits]], dirs[exits]))
     q = origins[exits] + t[exits, None] * dirs[exits]
+    cos = np.abs(np.einsum("ij,ij->i", accel.hit_normals(prim[exits], q), dirs[exits]))
     start, gap = _leave(prep, q, dirs[exits], cos)
     with np.errstate(over="ignore", invalid="ignore"):
         tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0, np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap

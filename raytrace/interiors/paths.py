@@ -114,7 +114,7 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
         inside[r, c] = ~inside[r, c]
         go = np.nonzero(~done)[0]
         r = active[go]
-        cos = np.abs(np.einsum("ij,ij->i", accel.normals[prim[go]], back[r]))
+        cos = np.abs(np.einsum("ij,ij->i", accel.hit_normals(prim[go], start[r] + at[go, None] * back[r]), back[r]))
         skip = accel.epsilon / np.maximum(cos, 1e-2)
         s[r] = at[go] + skip
         # a second crossing within the skip (a corner clipped): found looking back from the new start

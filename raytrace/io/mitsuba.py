@@ -767,8 +767,8 @@ class _Reader:
                 self.doc.fail(el, "a sphere needs a positive radius and a to_world without non-uniform scale or "
                               "shear (Mitsuba's rule)", "scale it uniformly, or use a mesh for an ellipsoid")
             radius = float(r * s)
-            return {"primitive": "sphere", "center": c[:3].tolist(), "radius": radius,
-                    "segments": self.segments(c[:3], radius, holds_medium)}
+            return {"primitive": "sphere", "center": c[:3].tolist(), "radius": radius,  # exact unless it holds a
+                    "segments": self.segments(c[:3], radius, holds_medium), "exact": not holds_medium}  # medium
         from ..scene.meshes import cylinder_triangles
 
         n = self.segments(M[:3, 3], max(np.linalg.norm(M[:3, :2], axis=0)), holds_medium)
@@ -1047,7 +1047,7 @@ class _Writer:
         _add(el, "float", name="beam_width", value=_num(math.degrees(math.acos(light.cos_start))))
 
     def shapes(self, root, fog):
-        from ..scene.meshes import rotation_matrix
+        from ..scene.meshes import rotation_matrix, world_sphere
 
         for i, shape in enumerate(self.scene.shapes):
             t = shape.transform
@@ -1062,9 +1062,14 @@ class _Writer:
             if inner is not None and i in self.emission:
                 raise UserError(f"{self.source}: shape[{i}].emission: an emitting shape that holds a medium cannot "
                                 "be exported; put the medium in a shape of its own")
+            # a sphere goes out as Mitsuba's where it reads back the same (`_Reader.geometry`): exact, or holding
+            # a medium (then a mesh of INTERIOR_SEGMENTS, as read); other meshes of spheres as PLY
+            sphere = world_sphere(shape) if shape.kind == "sphere" and (shape.params["exact"] or (
+                inner is not None and shape.params["segments"] == INTERIOR_SEGMENTS)) else None
             if inner is not None:
-                el = _add(root, "shape", type="ply")
-                self.ply(el, f"{self.out.stem}-{i}.ply", tris)
+                el = _add(root, "shape", type="ply") if sphere is None else self.sphere(root, *sphere)
+                if sphere is None:
+                    self.ply(el, f"{self.out.stem}-{i}.ply", tris)
                 if inner.ior != 1.0:
                     self.refuse(f"shape[{i}].interior.ior", f"a refractive interior (ior {inner.ior:g}): volpath at "
                                 "max_depth 2 reaches no light and no surface through a refractive boundary",
@@ -1085,6 +1090,8 @@ class _Writer:
                     _matrix(el, affine @ M)
                 elif shape.kind == "quad":
                     el = self.rectangle(root, tris)
+                elif sphere is not None:
+                    el = self.sphere(root, *sphere)
                 if el is None:
                     el = _add(root, "shape", type="ply")
                     part = f"-{k}" if len(groups) > 1 else ""
@@ -1094,6 +1101,14 @@ class _Writer:
                 _rgb(diffuse, "reflectance", rho)
                 if i in self.emission:  # towards each triangle's winding: the PLY's face normals, a cube's outside
                     self.emitter(el, f"shape[{i}]", self.emission[i]["emission"], self.emission[i]["two_sided"])
+
+    @staticmethod
+    def sphere(root, centre, radius):
+        """Mitsuba's sphere of this centre and radius."""
+        el = _add(root, "shape", type="sphere")
+        _add(el, "point", name="center", value=_vec(centre))
+        _add(el, "float", name="radius", value=_num(radius))
+        return el
 
     def emitter(self, el, key, radiance, two_sided):
         """A one-sided area emitter in the shape `el` (mitsuba3 src/emitters/area.cpp)."""

@@ -32,7 +32,7 @@ from . import emitters
 from .meshfile import read_mesh
 from .report import ImportNote, Problems, every
 
-SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our sphere primitive with this many segments
+SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our exact sphere (a mesh of this many segments if it holds a medium)
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
 ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted
@@ -715,7 +715,7 @@ class _Reader:
             p.done()
             if self._similarity(m):
                 shape = {"primitive": "sphere", "center": m[:3, 3], "radius": r * math.sqrt((m[:3, 0] @ m[:3, 0])),
-                         "segments": SPHERE_SEGMENTS}
+                         "segments": SPHERE_SEGMENTS, "exact": True}
                 if area is not None:
                     if self.state.reverse:
                         w.fail(line, f"{p.directive}: an area light on a sphere under ReverseOrientation emits "
@@ -973,6 +973,7 @@ class _Reader:
         if mat[0] == "interface" and not transition:
             return None  # pbrt skips it: it changes nothing
         medium = inner or {"sigma_a": [0.0] * 3, "sigma_s": [0.0] * 3, "phase": "isotropic"}
+        shape.pop("exact", None)  # an exact sphere holding a medium is not built yet: its mesh of SPHERE_SEGMENTS
         shape["interior"] = {**medium, "ior": 1.0 if mat[0] == "interface" else mat[1]}
         return shape
 
@@ -1121,7 +1122,7 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     stops a path at its second scattering event), meshes of mesh files as PLY beside it; returns the files."""
     from ..camera import basis
     from ..scene.format import scene_from_dict
-    from ..scene.meshes import scene_triangles
+    from ..scene.meshes import scene_triangles, world_sphere
 
     raw, area_lights, emission = emitters.split(raw)
     for i, light in enumerate(raw.get("light", [])):
@@ -1172,6 +1173,10 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     for i, shape in enumerate(scene.shapes):
         mine = ids == i
         lines.append("AttributeBegin")
+        # a sphere goes out as pbrt's where it reads back the same: exact, or holding a medium (then a mesh of
+        # SPHERE_SEGMENTS, as read); an emitting one or another mesh of a sphere goes out as its triangles
+        sphere = world_sphere(shape) if shape.kind == "sphere" and i not in emission and (shape.params["exact"] or (
+            shape.interior is not None and shape.params["segments"] == SPHERE_SEGMENTS)) else None
         if i in emission:  # emitting towards each triangle's winding (or its N: oriented to the winding)
             if shape.interior is not None:
                 raise UserError(f"{source}: shape[{i}].emission: an emitting shape that holds a medium cannot be "
@@ -1190,6 +1195,12 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
             groups = [(mesh["vertices"], mesh["faces"], None)]
         else:
             groups = list(_groups(tris[mine], refl[mine]))
+        if sphere is not None:  # written back as pbrt's sphere (read as an exact one, `_Reader` above)
+            if shape.interior is None:
+                lines.append(f'Material "diffuse" "rgb reflectance" {_list(groups[0][2])}')
+            lines += [f"Translate {' '.join(map(_f, sphere[0]))}", f'Shape "sphere" "float radius" [ {_f(sphere[1])} ]',
+                      "AttributeEnd"]
+            continue
         for k, (v, f, r) in enumerate(groups):
             if r is not None:
                 lines.append(f'Material "diffuse" "rgb reflectance" {_list(r)}')

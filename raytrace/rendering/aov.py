@@ -68,7 +68,7 @@ def first_hits(prep, names, origins, dirs) -> np.ndarray:
         p = prim[hit]
         points = origins[hit] + t[hit, None] * dirs[hit]
         normal[hit] = shading_normals(prep.accel, prep.corner_normals, p, points,
-                                      facing_normals(prep.accel.normals[p], dirs[hit]))
+                                      facing_normals(prep.accel.hit_normals(p, points), dirs[hit]))
         albedo[hit] = np.where(crossing.enters(prep, p)[:, None], 0.0, prep.reflectance[p])
     if ground.any() and {"normal", "albedo"} & set(wanted):
         normals, refl = medium.ground_surface(origins[ground] + t[ground, None] * dirs[ground])

@@ -35,7 +35,7 @@ from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
 from ..scene.format import Scene
-from ..scene.meshes import scene_triangles
+from ..scene.meshes import exact_spheres, scene_triangles
 from ..segments import cone_segments, gather, whole_rays
 from ..shading import (emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits,
                        shading_normals, surface_radiance)
@@ -123,7 +123,8 @@ def prepare(scene: Scene) -> Prepared:
     lights = Lights.of(scene.lights, emissive_shapes(scene, tris, ids))
     extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
-    prep = Prepared(scene, Accelerator(tris, extent), refl, lights, corners, shape_ids=ids, interior_shapes=inner)
+    prep = Prepared(scene, Accelerator(tris, extent, *exact_spheres(scene, ids)), refl, lights, corners, shape_ids=ids,
+                    interior_shapes=inner)
     if len(inner):
         prep.camera_inside = crossing.inside_of(prep, scene.camera.position, inner)
     return prep
@@ -183,13 +184,13 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     surf = hit & ~into
     if surf.any():
         points = origins[surf] + t[surf, None] * dirs[surf]
-        normals = facing_normals(prep.accel.normals[prim[surf]], dirs[surf])
+        normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium, crossing.shadow_through(prep), shading)
         if sees_emission(prep):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
-                                               prep.accel.normals[prim[surf]], dirs[surf])
+                                               prep.accel.hit_normals(prim[surf], points), dirs[surf])
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if into.any():

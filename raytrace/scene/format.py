@@ -189,7 +189,7 @@ TRANSFORM_KEYS = {"scale", "rotate", "translate"}
 PRIMITIVE_KEYS = {
     "box": {"min", "max"},
     "quad": {"corners"},
-    "sphere": {"center", "radius", "segments"},
+    "sphere": {"center", "radius", "segments", "exact"},  # exact: intersected as a sphere (geometry/sphere.py)
     "cylinder": {"base", "top", "radius", "segments"},
     "triangles": {"vertices", "faces", "normals"},  # an inline mesh (what the glTF, Mitsuba and pbrt importers write)
 }
@@ -231,6 +231,11 @@ def _shape(ctx, i, raw):
                 if params[k] > MAX_SEGMENTS:
                     ctx.fail(f"{key}.segments", f"must be at most {MAX_SEGMENTS} (a sphere of n segments has about n^2 "
                              f"triangles), got {params[k]!r}", "use fewer segments")
+            elif k == "exact":
+                params[k] = raw.get(k, False)
+                if not isinstance(params[k], bool):
+                    ctx.fail(f"{key}.exact", f"expected true or false, got {params[k]!r}",
+                             "write exact = true for a sphere intersected exactly")
             elif k == "radius":
                 if k not in raw:
                     ctx.fail(f"{key}.radius", "missing", f"add {key}.radius = 1.0")
@@ -270,8 +275,20 @@ def _shape(ctx, i, raw):
     if not isinstance(smooth, bool):
         ctx.fail(f"{key}.smooth", f"expected true or false, got {smooth!r}", "write smooth = false for flat facets")
     emission, two_sided = _emission(ctx, key, raw)
-    return Shape(kind, params, refl, _transform(ctx, f"{key}.transform", raw.get("transform")), interior, smooth,
-                 emission, two_sided)
+    transform = _transform(ctx, f"{key}.transform", raw.get("transform"))
+    if kind == "sphere" and params["exact"]:
+        _exact_sphere(ctx, key, raw, transform)
+    return Shape(kind, params, refl, transform, interior, smooth, emission, two_sided)
+
+
+def _exact_sphere(ctx, key, raw, transform):
+    """Refuse what an exact sphere does not take yet: emission, a non-uniform scale."""
+    if "emission" in raw:
+        ctx.fail(f"{key}.emission", "an exact sphere emitting is not built yet", f"set {key}.exact = false (a mesh "
+                 "of `segments`) or remove emission")
+    if np.ptp(np.abs(transform.scale)) > 0.0:
+        ctx.fail(f"{key}.transform.scale", "an exact sphere scaled unevenly is an ellipsoid, which is not read",
+                 f"scale it uniformly, or set {key}.exact = false")
 
 
 def _emission(ctx, key, raw):

@@ -264,6 +264,29 @@ def _oriented(corners, tris):
     return unit * np.where(side < 0.0, -1.0, 1.0)[:, None, None]
 
 
+def world_sphere(shape: Shape) -> tuple[np.ndarray, float] | None:
+    """A sphere primitive's centre and radius in world space, or None where its transform scales it
+    unevenly (an ellipsoid)."""
+    t = shape.transform
+    if np.ptp(np.abs(t.scale)) > 0.0:
+        return None
+    return apply_transform(shape.params["center"][None, :], t)[0], shape.params["radius"] * abs(float(t.scale[0]))
+
+
+def exact_spheres(scene: Scene, shape_ids: np.ndarray):
+    """The scene's exact spheres (`exact = true`) in world space: (S, 4) centres and radii (format.py
+    admits only uniform scales) and each triangle's sphere (T,) given its shape (`shape_ids`), -1
+    where the triangle is intersected as one (accel.py)."""
+    which = np.full(len(scene.shapes), -1, dtype=np.int64)
+    spheres = []
+    for i, shape in enumerate(scene.shapes):
+        if shape.kind == "sphere" and shape.params.get("exact", False):
+            which[i] = len(spheres)
+            centre, radius = world_sphere(shape)
+            spheres.append([*centre, radius])
+    return np.array(spheres, dtype=np.float64).reshape(-1, 4), which[shape_ids]
+
+
 def scene_triangles(scene: Scene, shape_ids: bool = False, normals: bool = False):
     """All triangles (T, 3, 3) and reflectances (T, 3) of the scene, in float64 world space; with
     `shape_ids` also each triangle's shape index (T,); with `normals` also the corner shading

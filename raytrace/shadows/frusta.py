@@ -40,10 +40,11 @@ only: it can never change a result.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..geometry.sphere import lit_parts
 from ..jit import njit
 from ..lights import DIRECTIONAL
 from ..methods import Segments
@@ -81,6 +82,7 @@ class LightBins:
     grid: np.ndarray  # (u0, v0, du, dv, nu, nv)
     frame: np.ndarray
     slack: float  # absolute slack of depth comparisons (REL x the scene's size)
+    spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))  # exact sphere occluders (geometry/sphere.py)
 
 
 def default_resolution(n_triangles: int) -> int:
@@ -91,16 +93,20 @@ def default_resolution(n_triangles: int) -> int:
 
 def build(accel, lights, resolution: int | None = None, select: np.ndarray | None = None) -> list[LightBins]:
     """The frusta and texel lists of every light (a list indexed like `lights`) of the triangles
-    `select` (a boolean mask over accel.triangles; all if None)."""
-    tris = accel.triangles if select is None else accel.triangles[select]
+    `select` (a boolean mask over accel.triangles; all if None); the exact spheres among them
+    (accel.sphere_of) shadow as spheres (`LightBins.spheres`), not by their meshes."""
+    select = np.ones(len(accel.triangles), bool) if select is None else select
+    tris = accel.triangles[select & (accel.sphere_of < 0)]
+    spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
     res = resolution or default_resolution(len(tris))
     out = []
     for li in range(len(lights)):
         if lights.kind[li] == DIRECTIONAL:
-            out.append(sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res))
+            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res)
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
-            out.append(_light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale))
+            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale)
+        out.append(replace(bins, spheres=spheres) if len(spheres) else bins)
     return out
 
 
@@ -690,12 +696,32 @@ def lit_pieces(segs: Segments, bins: list[LightBins], scale: float, stats):
                            np.ascontiguousarray(segs.length[idx]), lb_.kind, lb_.grid, lb_.frame, lb_.start, lb_.tri,
                            lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
                            GAP_REL * scale, stats)
+        if len(lb_.spheres):
+            sun = lb_.kind == ORTHO
+            src, x0, x1 = _cut_by_spheres(src, x0, x1, segs.origins[idx], segs.dirs[idx],
+                                          -lb_.frame[3] if sun else lb_.frame[0], sun, lb_.spheres, GAP_REL * scale)
         srcs.append(idx[src])
         a.append(x0)
         b.append(x1)
     src, x0, x1 = np.concatenate(srcs), np.concatenate(a), np.concatenate(b)
     order = np.argsort(src, kind="stable")
     return src[order], x0[order], x1[order]
+
+
+@njit
+def _cut_by_spheres(src, x0, x1, origins, dirs, light, sun, spheres, gap):
+    """The lit pieces (src, x0, x1) less the shadows of the exact spheres (geometry/sphere.py, lit_parts):
+    `light` the point light's position, or (sun) the unit direction toward the light."""
+    per = 4 * spheres.shape[0] + 1
+    o_src, o0, o1 = np.empty(len(src) * per, np.int64), np.empty(len(src) * per), np.empty(len(src) * per)
+    buf = np.empty((per, 2))
+    m = 0
+    for i in range(len(src)):
+        k = lit_parts(origins[src[i]], dirs[src[i]], x0[i], x1[i], light, sun, spheres, gap, buf)
+        for j in range(k):
+            o_src[m], o0[m], o1[m] = src[i], buf[j, 0], buf[j, 1]
+            m += 1
+    return o_src[:m], o0[:m], o1[:m]
 
 
 def _take(segs, src, x0, x1, stream):
