@@ -149,7 +149,7 @@ def test_the_pdf_matches_a_histogram_of_its_samples(tmp_path):
     weight = (image @ [0.2126, 0.7152, 0.0722]) * omega[:, None]
     prob = weight / weight.sum()
     n = 200_000
-    dirs, pdf, value = environment.sample(light, np.random.default_rng(RNG_SEED).random((n, 2)))
+    dirs, pdf, value = environment.directions(light, np.random.default_rng(RNG_SEED).random((n, 2)))
     np.testing.assert_allclose(np.linalg.norm(dirs, axis=1), 1.0, rtol=0, atol=1e-14)
     r, c = texel_of(dirs, rotation_matrix([20.0, -35.0, 50.0]), H, W)
     counts = np.zeros((H, W))
@@ -180,7 +180,7 @@ def test_the_weights_integrate_the_map(tmp_path):
     image = a_map()
     light = map_light(tmp_path, image)
     exact = np.einsum("rcx,r->x", image, omega)
-    _, pdf, value = environment.sample(light, np.random.default_rng(RNG_SEED + 1).random((100_000, 2)))
+    _, pdf, value = environment.directions(light, np.random.default_rng(RNG_SEED + 1).random((100_000, 2)))
     ratio = value / pdf[:, None]
     z = (ratio.mean(axis=0) - exact) / (ratio.std(axis=0, ddof=1) / math.sqrt(len(ratio)))
     assert np.all(np.abs(z) < 4.0), z

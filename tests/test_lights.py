@@ -9,8 +9,9 @@ import pytest
 
 from raytrace.cli import main
 from raytrace.errors import UserError
-from raytrace.lights import AREA, KINDS, Light, Lights, describe, light_sample, point, spot
-from raytrace.scene.format import CAMERA_KEYS, PRIMITIVE_KEYS, SHAPE_COMMON, load_scene, scene_from_text
+from raytrace.lights import AREA, ENVIRONMENT, EXPANDED, KINDS, Light, Lights, describe, light_sample, point, spot
+from raytrace.scene.format import (CAMERA_KEYS, CAMERA_TYPES, PRIMITIVE_KEYS, SHAPE_COMMON, TRANSFORM_KEYS, load_scene,
+                                   scene_from_text)
 
 from .conftest import to_toml
 
@@ -24,11 +25,13 @@ LIGHTS = [{"position": [1.0, 2.0, 3.0], "intensity": [1.0, 2.0, 3.0]},
 
 def test_every_kind_declares_the_interface():
     """lights/light.py's list: a name, a code, its keys, parse, describe and rows; the kinds that are
-    their own rows irradiance and the numba sample, the area kinds their emitter's shape."""
-    assert list(KINDS) == ["point", "spot", "directional", "quad", "disk", "sphere"]
+    their own rows irradiance and the numba sample, the area kinds their emitter's shape, the
+    environment its radiance and importance sampling."""
+    assert list(KINDS) == ["point", "spot", "directional", "quad", "disk", "sphere", "environment"]
     for name, kind in KINDS.items():
         assert kind.NAME == name and "type" in kind.KEYS
-        hooks = ("shape",) if name in AREA else ("irradiance", "sample")
+        hooks = (("shape",) if name in AREA else ("radiance", "pdf", "directions") if name == ENVIRONMENT
+                 else ("irradiance", "sample"))
         assert all(callable(getattr(kind, hook)) for hook in ("parse", "describe", "rows") + hooks)
     assert len({kind.CODE for kind in KINDS.values()}) == len(KINDS)
     default = Light(np.zeros(3), np.ones(3))  # a light of no kind is a point light; a spot's default curve
@@ -39,7 +42,7 @@ def test_an_unknown_kind_is_refused_naming_the_kinds():
     with pytest.raises(UserError) as err:
         scene_from_text(to_toml({"camera": CAMERA, "light": [{"type": "area", "position": [0.0, 0.0, 0.0]}]}), "bad.toml")
     assert str(err.value).startswith("bad.toml: light[0].type: 'area' is not one of point, spot, directional, quad, "
-                                     "disk, sphere; ")
+                                     "disk, sphere, environment; ")
 
 
 def test_each_kind_parses_its_own_table():
@@ -81,7 +84,7 @@ def test_light_sample_is_each_kinds_sample():
     lights = Lights.of(scene_from_text(to_toml({"camera": CAMERA, "light": LIGHTS}), "lights.toml").lights)
     args = lights.position, lights.axis, lights.cone
     for p in np.random.default_rng(3).uniform(-2.0, 2.0, (100, 3)):
-        for li, kind in enumerate(k for k in KINDS.values() if k.NAME not in AREA):  # area lights: spot rows
+        for li, kind in enumerate(k for k in KINDS.values() if k.NAME not in EXPANDED):  # spot, directional rows
             got = light_sample(lights.kind, *args, li, *p)
             assert got == kind.sample(*args, li, *p)
             ux, uy, uz, dist, weight = got
@@ -97,8 +100,8 @@ def test_the_scene_parser_names_no_light_kind():
     kind lands in raytrace/lights/ alone."""
     text = (ROOT / "raytrace" / "scene" / "format.py").read_text(encoding="utf-8")
     # the words other tables share with light kinds: primitives (quad, sphere, corners, ...), shapes' two_sided,
-    # [background] radiance
-    shapes = set(PRIMITIVE_KEYS).union(*PRIMITIVE_KEYS.values(), SHAPE_COMMON, {"radiance"})
+    # [background] radiance, a transform's scale and rotate, the environment camera
+    shapes = set(PRIMITIVE_KEYS).union(*PRIMITIVE_KEYS.values(), SHAPE_COMMON, {"radiance"}, TRANSFORM_KEYS, CAMERA_TYPES)
     named = [name for name in set(KINDS) - shapes if re.search(rf'["\']{name}["\']', text)]
     named += [key for kind in KINDS.values() for key in kind.KEYS - CAMERA_KEYS - shapes
               if re.search(rf'["\']{key}["\']', text)]

@@ -28,6 +28,7 @@ _BY_CODE = {kind.CODE: kind for kind in KINDS.values()}
 NAMES = {code: kind.NAME for code, kind in _BY_CODE.items()}
 POINT, SPOT, DIRECTIONAL = point.CODE, spot.CODE, directional.CODE
 AREA = (quad.NAME, disk.NAME, sphere.NAME)  # the kinds whose rows are a cubature of an emitter (area.py)
+EXPANDED = AREA + (environment.NAME,)  # the kinds whose rows are other kinds' rows (emitter points, directions)
 EMISSION = emissive.NAME  # emissive shapes among the kinds (`Lights.kinds`)
 ENVIRONMENT = environment.NAME
 DISTANT = (directional.CODE, environment.CODE)  # the kinds of scene lights at infinity (no position)

@@ -87,7 +87,7 @@ def _weights(image):
     return (image @ LUMA) * omega[:, None], omega
 
 
-def sample(light, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def directions(light, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(world directions (n, 3), their pdf (n,) per steradian, L (n, 3) there) of the points u (n, 2) in [0, 1)^2
     through the inverse distribution: u0 picks the row (marginal) and then cos theta inside it, u1 the
     column (conditional) and then phi inside it. The map must not be black."""
@@ -146,7 +146,7 @@ def rows(light, count: int | None = None) -> Rows:
     count = count or COUNT
     if not integral(light.emitter["map"]) @ LUMA > 0.0:
         count = 0
-    dirs, density, value = sample(light, lattice(count)) if count else (np.zeros((0, 3)), np.ones(0), np.zeros((0, 3)))
+    dirs, density, value = directions(light, lattice(count)) if count else (np.zeros((0, 3)), np.ones(0), np.zeros((0, 3)))
     return Rows(np.zeros((count, 3)), value / (density * count)[:, None],
                 np.full(count, DIRECTIONAL, dtype=np.int64), np.ascontiguousarray(-dirs),
                 np.tile([*NO_CONE, 0.0], (count, 1)), cubature=True)

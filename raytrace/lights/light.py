@@ -11,8 +11,9 @@ sphere.py; environment.py) that declares
   are their own sample; an area light's emitter points, area.py, are spot rows);
 - area kinds: `shape(light) -> (primitive, params)`, the emitter as a [[shape]] primitive (scene/format.py
   adds it: the camera sees it, it occludes);
-- the environment (environment.py): `radiance(light, dirs)`, what rays leaving the scene see (its rows
-  are directional rows);
+- the environment (environment.py): `radiance(light, dirs)`, what rays leaving the scene see,
+  `pdf(light, dirs)` and `directions(light, u)`, its importance sampling (its rows are directional
+  rows);
 and the kinds that are their own rows (point, spot, directional) also
 - `irradiance(lights, index, to_points, dist)`, the unattenuated irradiance on surfaces facing it;
 - `sample(position, axis, cone, li, px, py, pz)`, a numba hook: the light seen from the point p as

@@ -164,7 +164,7 @@ CAMERA_KEYS = {"type", "position", "look_at", "up", "fov", "width", "height", "s
 def _camera(ctx, raw):
     raw = _table(ctx, "camera", raw)
     ctx.unknown("camera", raw, CAMERA_KEYS)
-    kind = _string(ctx, "camera.type", raw.get("type", "perspective"), ("perspective", "environment"))
+    kind = _string(ctx, "camera.type", raw.get("type", "perspective"), CAMERA_TYPES)
     for k in ("position", "look_at"):
         if k not in raw:
             ctx.fail(f"camera.{k}", "missing", f"add camera.{k} = [x, y, z]")
@@ -185,6 +185,7 @@ def _camera(ctx, raw):
     return Camera(kind, pos, look, up, float(fov), width, height, spp)
 
 
+CAMERA_TYPES = ("perspective", "environment")  # camera.type: a pinhole, or equirectangular 360 x 180
 TRANSFORM_KEYS = {"scale", "rotate", "translate"}
 PRIMITIVE_KEYS = {
     "box": {"min", "max"},
