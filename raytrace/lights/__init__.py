@@ -155,7 +155,7 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
     return point.sample(position, axis, cone, li, px, py, pz)
 
 
-__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "ENVIRONMENT", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
+__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "ENVIRONMENT", "EXPANDED", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
            "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "at_infinity", "band_slope", "band_trig",
            "check_at_infinity", "cone_breaks", "describe", "distant", "emitter_shape", "falloff", "falloff_array",
            "is_spot", "light_sample", "parse_light", "polynomial_band", "power", "power_of", "segment_cone",

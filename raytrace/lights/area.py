@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.vectors import perpendicular
 from .light import Light, Rows, power
 from .spot import CODE as SPOT, LAMBERT
 
@@ -29,9 +30,7 @@ def gauss_legendre(n: int):
 
 def frame(normal):
     """Two unit vectors that make (t1, t2, normal) a right-handed orthonormal frame."""
-    alt = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(alt, normal)
-    t1 /= np.linalg.norm(t1)
+    t1 = -perpendicular(normal)
     return t1, np.cross(normal, t1)
 
 

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ..errors import UserError, counted
+from ..geometry.vectors import perpendicular
 from .assets import find_asset
 from .format import Scene, Shape, Transform
 
@@ -61,9 +62,7 @@ def cylinder_triangles(base, top, radius, segments):
     if length == 0.0:
         raise ValueError("cylinder base equals top")
     a = axis / length
-    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(a, helper)
-    u /= np.linalg.norm(u)
+    u = perpendicular(a)
     w = np.cross(a, u)
     ang = np.linspace(0.0, 2.0 * math.pi, segments + 1)
     ring = radius * (np.cos(ang)[:, None] * u + np.sin(ang)[:, None] * w)

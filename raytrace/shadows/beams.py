@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.vectors import perpendicular
 from ..jit import njit
 from ..methods import Segments
 from .frusta import STATS_NAMES, lit_pieces, sun_bins
@@ -76,7 +77,7 @@ def lit_pieces_of_beam(prep, sid: int, planes: np.ndarray, blockers, li: int, fa
     v = w - ((w @ normal) / q)[:, None] * toward
     speed = np.linalg.norm(v, axis=1)
     moves = speed * ell > DEGENERATE * accel.scale
-    dirs = np.where(moves[:, None], v / np.where(moves, speed, 1.0)[:, None], _in_plane(normal))
+    dirs = np.where(moves[:, None], v / np.where(moves, speed, 1.0)[:, None], perpendicular(normal))
     start = np.where(moves[:, None], e0, e0 + 0.5 * ell[:, None] * v - 0.5 * DEGENERATE * accel.scale * dirs)
     length = np.where(moves, speed * ell, DEGENERATE * accel.scale)
     so, u0, u1 = lit_pieces(_segments(start, dirs, length, accel.scale), [outside], accel.scale, stats)
@@ -105,13 +106,6 @@ def _inside_bins(prep, sid, planes, others, toward):
     if not len(inner):
         return None
     return sun_bins(inner, -toward, prep.accel.epsilon, prep.accel.scale)
-
-
-def _in_plane(normal):
-    """A unit vector in the plane of `normal`."""
-    a = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(normal, a)
-    return u / np.linalg.norm(u)
 
 
 def _segments(origins, dirs, length, scale):

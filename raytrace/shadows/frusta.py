@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..geometry.sphere import lit_parts
+from ..geometry.vectors import perpendicular
 from ..jit import njit
 from ..lights import DIRECTIONAL
 from ..methods import Segments
@@ -116,9 +117,7 @@ def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = 
     `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (interiors/crossing.py
     builds them for the light refracted into a shape, from the triangles inside it)."""
     d = axis / np.linalg.norm(axis)
-    a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(d, a)
-    u /= np.linalg.norm(u)
+    u = perpendicular(d)
     frame = np.array([np.zeros(3), u, np.cross(d, u), d])
     return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale)
 
