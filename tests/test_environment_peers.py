@@ -40,6 +40,7 @@ from .test_area_peers import RUNS, converged, mi, mitsuba_runs, within_noise, z_
 
 FOG_BOX = ROOT / "tests" / "data" / "env_peers" / "fog_box.toml"
 FINE = 4096  # directions of the finer lattice
+FINEST = 16384  # the black plate's (at 4096 its mean z^2 is 1.63 of the bound 1.64: the lattice's error; here 1.18)
 REPEAT = 64  # Mitsuba's copy of the map: each texel repeated REPEAT x REPEAT
 
 
@@ -124,13 +125,11 @@ def test_the_export_carries_the_constant_emitter_and_the_interior(constant):
 
 @pytest.mark.peers
 def test_pixels_the_lattice_resolves_agree_with_mitsuba(constant):
-    """Where 64 directions give FINE's image to 1e-4 (the sky, the plate's top, the open ground: 47 % of
-    the pixels), quadrature and montecarlo (16 samples, its variance added) are within Mitsuba's noise."""
+    """Where 64 directions give FINE's image to 1e-4 (the sky and the plate's top, 47 % of the pixels:
+    every other one is in a shadow of the sky), quadrature is within Mitsuba's noise."""
     _, runs, default, _, ok = constant
     assert ok.mean() > 0.4, ok.mean()
     assert agree(runs, default, ok)
-    mc = ours(fog_box(), "montecarlo", samples=16, seed=5)
-    assert agree(runs, mc.array, ok, mc.variance)
 
 
 @pytest.mark.peers
@@ -160,10 +159,14 @@ def test_every_pixel_agrees_with_mitsuba_at_fine_directions(constant):
 
 @pytest.mark.peers
 def test_with_a_black_plate_every_pixel_agrees_with_mitsuba_at_fine_directions(mi, tmp_path):  # noqa: F811
-    """The same scene with a black plate (reflectance 0), FINE directions: every pixel within Mitsuba's noise."""
+    """The same scene with a black plate (reflectance 0), FINEST directions: every pixel of quadrature and
+    of montecarlo (4 samples, its variance added) within Mitsuba's noise."""
     scene = fog_box(plate=0.0)
     export(scene, tmp_path / "black.xml")
-    assert agree(mitsuba_runs(mi, tmp_path / "black.xml"), ours(scene, count=FINE).array)
+    runs = mitsuba_runs(mi, tmp_path / "black.xml")
+    assert agree(runs, ours(scene, count=FINEST).array)
+    mc = ours(scene, "montecarlo", count=FINEST, samples=4, seed=5)
+    assert agree(runs, mc.array, True, mc.variance)
 
 
 # ------------------------------------------------------------------- an equirectangular map, a black plate
@@ -212,7 +215,7 @@ def test_the_map_scene_agrees_with_mitsuba_at_fine_directions(sky):
 
 @pytest.mark.peers
 @pytest.mark.xfail(strict=True, reason="64 fixed directions make the sun's and the sky's shadows 64 hard shadows "
-                                       "(docs/environment.md): up to 9 % from Mitsuba")
+                                       "(docs/environment.md): up to 9.3 % from Mitsuba, mean z^2 123")
 def test_the_map_scene_agrees_with_mitsuba(sky):
     *_, runs, default, _, _ = sky
     assert agree(runs, default)
@@ -227,7 +230,7 @@ def test_more_directions_bring_the_map_scene_to_mitsuba(sky):
 
 @pytest.mark.peers
 @pytest.mark.xfail(strict=True, reason="Mitsuba's envmap interpolates the bitmap bilinearly, ours holds each texel "
-                                       "constant: the 16 x 8 map seen directly differs by up to 43 % (the sun texel "
+                                       "constant: the 16 x 8 map seen directly differs by up to 420 % (the sun texel "
                                        "spreads to the rows beside it)")
 def test_mitsuba_reads_our_map_as_we_do(mi, sky):  # noqa: F811 (the fixture)
     folder, *_, fine, fixed = sky
