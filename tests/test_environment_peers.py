@@ -15,8 +15,8 @@ samples, and ours must agree within that noise (tests/test_area_peers.py's z-tes
 Our 64 fixed directions make the shadows cast by the sky sums of 64 hard shadows: where the default
 image differs from FINE directions' it is outside Mitsuba's noise (xfail strict), and FINE directions
 come closer. Findings, each an xfail(strict): with a grey plate Mitsuba's volpath at max_depth 2 adds
-light reflected by the plate to the fog box's pixels (a black plate removes it); the exporter writes a
-map's path resolved against the working folder; Mitsuba does not read a map as we do (bilinear).
+light reflected by the plate to the fog box's pixels (a black plate removes it); Mitsuba does not read
+a map as we do (bilinear). The exporter finds the map beside the scene file from any working folder.
 
 Height fog is not compared: Mitsuba 3 has no exponential height fog, and a `heterogeneous` medium's grid
 is bounded by its shape while ours extends to infinity sideways and upward (docs/environment.md).
@@ -239,8 +239,6 @@ def test_mitsuba_reads_our_map_as_we_do(mi, sky):  # noqa: F811 (the fixture)
 
 
 @pytest.mark.peers
-@pytest.mark.xfail(strict=True, reason="raytrace/io/mitsuba.py writes the map's path resolved against the working "
-                                       "folder (Path(light['map']).resolve()), not the scene's: a file that does not exist")
 def test_an_export_from_another_folder_finds_its_map(sky, tmp_path):
     folder, scene = sky[:2]
     with contextlib.chdir(tmp_path):

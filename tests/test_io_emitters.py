@@ -25,6 +25,8 @@ from raytrace.io import gltf, mitsuba, pbrt
 from raytrace.output.film import write_exr
 from raytrace.scene.meshes import rotation_matrix
 
+from .conftest import to_toml
+
 
 def winding(shape) -> np.ndarray:
     """Unit winding normals (v1 - v0) x (v2 - v0) of a triangles shape, one per face."""
@@ -413,6 +415,21 @@ def test_mitsuba_round_trip(tmp_path):
     assert env["map"] == str(tmp_path / "sky.exr") and env["scale"] == 2.0
     np.testing.assert_allclose(rotation_matrix(env["rotate"]), rotation_matrix([0.0, 30.0, 0.0]), atol=1e-12)
     assert corner_normals(back) == corner_normals(raw)  # the PLY's normals, float32: 5 decimals
+
+
+def test_mitsuba_export_finds_the_map_beside_the_scene(tmp_path, monkeypatch):
+    """An environment map named relative to the scene file is written with its path as the scene
+    reader finds it, whatever the working folder (it was resolved against the working folder)."""
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    write_exr(folder / "sky.exr", np.full((4, 8, 3), 0.5, np.float32))
+    raw = {"camera": {"position": [0.0, 1.0, 4.0], "look_at": [0.0, 0.0, 0.0], "width": 8, "height": 6},
+           "shape": [{"primitive": "quad", "corners": [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]]}],
+           "light": [{"type": "environment", "map": "sky.exr"}]}
+    (folder / "s.toml").write_text(to_toml(raw))
+    monkeypatch.chdir(tmp_path)
+    mitsuba.export(raw, tmp_path / "out.xml", str(folder / "s.toml"), False)
+    assert f'name="filename" value="{(folder / "sky.exr").resolve()}"' in (tmp_path / "out.xml").read_text()
 
 
 def test_pbrt_round_trip(tmp_path):

@@ -1146,10 +1146,12 @@ class _Writer:
         if "map" not in light:
             _rgb(_add(root, "emitter", type="constant"), "radiance", emitters.constant_environment(light, key, src))
             return
+        from ..scene.assets import find_asset
         from ..scene.meshes import rotation_matrix
 
+        file = find_asset(str(light["map"]), self.scene.path, f"{key}.map", "environment map")  # as the reader finds it
         el = _add(root, "emitter", type="envmap")
-        _add(el, "string", name="filename", value=str(Path(light["map"]).resolve()))
+        _add(el, "string", name="filename", value=str(file.resolve()))
         _add(el, "float", name="scale", value=_num(emitters.positive(light.get("scale", 1.0), f"{key}.scale", src)))
         M = np.eye(4)
         M[:3, :3] = rotation_matrix(emitters.vector(light.get("rotate", [0.0, 0.0, 0.0]), f"{key}.rotate", src)) @ \
