@@ -146,6 +146,15 @@ def planet_hits(medium, origins, dirs, t):
     return ground, np.where(ground, tg, t)
 
 
+def first_hits(accel, medium, origins, dirs):
+    """(t, prim, ground) of camera rays: the nearest mesh hit (prim -1 where none) or the medium's own
+    ground (`planet_hits`: `ground`, prim -1 there), t inf where neither."""
+    t, prim = accel.first_hit(origins, dirs)
+    ground, t = planet_hits(medium, origins, dirs, t)
+    prim[ground] = -1
+    return t, prim, ground
+
+
 def ground_radiance(accel, origins, dirs, t, lights, medium):
     """Reflected radiance (N, 3) of the medium's ground where rays origins + t dirs meet it."""
     points = origins + t[:, None] * dirs

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..interiors import crossing
-from ..shading import facing_normals, planet_hits, shading_normals
+from ..shading import facing_normals, shading_normals
 
 NAMES = ("depth", "normal", "albedo", "lights")
 HITS = {"depth": ("Z",), "normal": ("X", "Y", "Z"), "albedo": ("R", "G", "B")}  # from the first hits
@@ -54,14 +54,12 @@ def width(names, n_lights: int) -> int:
     return sum(len(c) for _, c in layers(names, n_lights))
 
 
-def first_hits(prep, names, origins, dirs) -> np.ndarray:
+def hit_columns(prep, names, origins, dirs, hits) -> np.ndarray:
     """(N, k) columns of the first-hit layers among `names` (depth, normal, albedo, in that order) of
-    the camera rays origins + t dirs."""
+    the camera rays origins + t dirs, from their `hits` (shading.first_hits: the renderer's own)."""
     wanted = [n for n in names if n in HITS]
-    t, prim = prep.accel.first_hit(origins, dirs)
+    t, prim, ground = hits
     medium = prep.scene.medium
-    ground, t = planet_hits(medium, origins, dirs, t)  # an atmosphere's planet, as the renderer finds it
-    prim[ground] = -1
     normal, albedo = np.zeros((len(t), 3)), np.zeros((len(t), 3))
     hit = prim >= 0
     if hit.any() and {"normal", "albedo"} & set(wanted):

@@ -37,7 +37,7 @@ from ..options import RenderOptions
 from ..scene.format import Scene
 from ..scene.meshes import exact_spheres, scene_triangles
 from ..segments import cone_segments, gather, whole_rays
-from ..shading import (emissive_shapes, emitted_radiance, facing_normals, ground_radiance, planet_hits,
+from ..shading import (emissive_shapes, emitted_radiance, facing_normals, first_hits, ground_radiance,
                        shading_normals, surface_radiance)
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from ..shadows.shadow_rays import shadowed_airlight
@@ -158,7 +158,8 @@ def sees_emission(prep: Prepared) -> bool:
     return prep.lights_on is None or not prep.lights_on.any()
 
 
-def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: bool = False, depth=0):
+def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: bool = False, depth=0,
+               hits=None):
     """Radiance (N, 3) of camera rays, the statistics array (`stats_size`: the method's, the lit
     intervals', the inside integrals', summed over the rays followed behind shapes), for a stochastic
     method the variance (N, 3) of each ray's estimate (else None), and the error bound (N, 3) of each
@@ -166,12 +167,12 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     air-light over the exact lit intervals (shadows/frusta.py).
     Rays entering a shape that holds a medium are taken across its boundary (crossing.cross; `depth`
     boundaries deep): their inside rows are integrated by the method's inside rule (rows.py)
-    and the rays going on beyond are shaded here (`_across`)."""
+    and the rays going on beyond are shaded here (`_across`). `hits`: the rays' `first_hits`, when
+    the caller has them (not changed here)."""
     scene = prep.scene
     medium = scene.medium
-    t, prim = prep.accel.first_hit(origins, dirs)
-    ground, t = planet_hits(medium, origins, dirs, t)  # an atmosphere's planet, intersected in float64
-    prim[ground] = -1
+    t, prim, ground = (first_hits(prep.accel, medium, origins, dirs) if hits is None
+                       else (hits[0].copy(), hits[1].copy(), hits[2]))  # an atmosphere's planet in float64
 
     deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (crossing.py)
@@ -372,21 +373,23 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
     method = get_method(task.method)
-    rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows)
+    hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
+    rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start
-    layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys), n)
+    layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys, hits), n)
     return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
 
 
-def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys) -> np.ndarray:
+def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
     """The output layers' columns (N, aov.width) of camera rays: their first hits' depth, normal and
     albedo, and each light's radiance and the emission (the rays shaded again by `Prepared.only`,
-    the views made once per scene)."""
-    cols = [aov.first_hits(prep, task.aov, origins, dirs)]
+    the views made once per scene); `hits` the rays' `first_hits`."""
+    cols = [aov.hit_columns(prep, task.aov, origins, dirs, hits)]
     if "lights" in task.aov:
         for keep in aov.light_masks(prep.lights):
             view = prep.memo(("only", keep.tobytes()), functools.partial(prep.only, keep))
-            cols.append(shade_rays(view, method, task.params, origins, dirs, keys, task.seed, task.shadows)[0])
+            cols.append(shade_rays(view, method, task.params, origins, dirs, keys, task.seed, task.shadows,
+                                   hits=hits)[0])
     return np.concatenate(cols, axis=1)
 
 
