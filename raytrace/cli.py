@@ -331,7 +331,9 @@ def cmd_render(args):
                          progress=tile_done if bar is not None else None, on_pass=report, max_memory=args.max_memory,
                          notice=_notices(bar) if bar is not None else None, aov=args.aov,
                          **_given_params(args))
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not from_interrupt(exc):
+            raise
         if bar is not None:
             bar.close()  # before the line, which would otherwise follow the bar's
         # the checkpoint is named only once a pass (of this run or an earlier one) has written it
@@ -599,6 +601,19 @@ def _one_line_warnings():
         warnings.formatwarning = saved
 
 
+def from_interrupt(exc: BaseException) -> bool:
+    """Whether `exc` is Ctrl-C: a KeyboardInterrupt, or an exception raised because of one (numba
+    turns an interrupt that arrives while a cached kernel's constants are unpickled into a
+    SystemError whose cause is the KeyboardInterrupt)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:
@@ -616,7 +631,9 @@ def main(argv=None) -> int:
         lines = exc.lines or [" ".join(str(exc).split("\n"))]  # one line, or a file's problems one a line
         print("\n  ".join(["error: " + lines[0], *lines[1:]]), file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not from_interrupt(exc):
+            raise
         print("interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # output piped into a command that stopped reading (e.g. head)

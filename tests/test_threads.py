@@ -73,3 +73,27 @@ def test_more_threads_than_tiles():
     one = renderer.render(prep, "analytic", {}, RenderOptions(width=2, height=1, threads=1))
     many = renderer.render(prep, "analytic", {}, RenderOptions(width=2, height=1, threads=7))
     assert one.image.tobytes() == many.image.tobytes()
+
+
+def test_ctrl_c_inside_a_kernel_call_is_an_interrupt(monkeypatch, capsys):
+    """numba turns Ctrl-C that arrives while a cached kernel's constants are unpickled into a
+    SystemError caused by the KeyboardInterrupt: the command line still exits 130 ("interrupted");
+    any other SystemError is raised."""
+    from raytrace import cli
+
+    def interrupted_in_numba(args):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("<function _numba_unpickle> returned a result with an exception set") from exc
+
+    monkeypatch.setattr(cli, "cmd_describe", interrupted_in_numba)
+    assert cli.main(["describe", "box_room"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+
+    def broken(args):
+        raise SystemError("not an interrupt")
+
+    monkeypatch.setattr(cli, "cmd_describe", broken)
+    with pytest.raises(SystemError, match="not an interrupt"):
+        cli.main(["describe", "box_room"])
