@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from ..geometry.vectors import rotation_matrix
 from .directional import CODE as DIRECTIONAL
 from .light import NO_CONE, Light, Rows, power
 
@@ -53,9 +54,7 @@ def parse(read, key, raw) -> Light:
             read.fail(f"{key}.map", f"{source} holds negative or non-finite values",
                       "give a linear map of radiances >= 0")
     image = power(read, f"{key}.{'radiance' if 'radiance' in raw else 'map'}", image * scale)
-    from scipy.spatial.transform import Rotation
-
-    rotation = Rotation.from_euler("xyz", rotate, degrees=True).as_matrix()  # extrinsic x, y, z: Rz Ry Rx
+    rotation = rotation_matrix(rotate)  # as a shape's transform: Rz Ry Rx
     digest = hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest()  # (checkpoints' fingerprint)
     return Light(np.zeros(3), integral(image) / (4.0 * math.pi), CODE,
                  emitter={"map": image, "rotation": rotation, "file": source and str(source), "digest": digest})

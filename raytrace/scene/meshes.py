@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..errors import UserError, counted
-from ..geometry.vectors import perpendicular
+from ..geometry.vectors import perpendicular, rotation_matrix
 from .assets import find_asset
 from .format import Scene, Shape, Transform
 
@@ -130,15 +130,6 @@ def crease_normals(tris, degrees: float = CREASE_DEGREES):
     flat = np.linalg.norm(acc - own, axis=1) < 1e-12  # a corner amid coplanar triangles: exactly its facet's
     acc[flat] = own[flat]
     return acc.reshape(-1, 3, 3)
-
-
-def rotation_matrix(degrees):
-    rx, ry, rz = np.radians(degrees)
-    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
-    mx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    my = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    mz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return mz @ my @ mx
 
 
 def apply_transform(tris, t: Transform):
