@@ -72,12 +72,40 @@ class Quad:
             return math.inf, False
         return t, den < 0.0 or self.two
 
-    def irradiance(self, x, kt):
+    def irradiance(self, x, kt, box=None):
+        """At x: the emitter's light attenuated over its whole path, or (`box` = (lo, hi): x inside an
+        axis-aligned box holding the medium, vacuum outside) over the part of its path inside the box."""
         d = x[None, :] - self.y
         r = np.linalg.norm(d, axis=1)
         c = d @ self.n
         c = np.abs(c) if self.two else np.maximum(c, 0.0)
-        return self.L * np.sum(self.w * c * np.exp(-kt * r) / r**3)
+        depth = r if box is None else r * np.minimum(1.0, _exit_fraction(x, self.y, *box))
+        return self.L * np.sum(self.w * c * np.exp(-kt * depth) / r**3)
+
+
+def _exit_fraction(x, y, lo, hi):
+    """For x inside the box [lo, hi] and points y (n, 3): the fraction of each segment x -> y inside it."""
+    step = y - x[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ends = np.where(step > 0.0, (np.asarray(hi) - x) / step, np.where(step < 0.0, (np.asarray(lo) - x) / step, np.inf))
+    return ends.min(axis=1)
+
+
+def box_chord(lo, hi, o, w):
+    """(t0, t1): the ray o + t w inside the box [lo, hi] (t0 >= t1 where it misses)."""
+    with np.errstate(divide="ignore"):
+        a, b = (np.asarray(lo) - o) / w, (np.asarray(hi) - o) / w
+    return max(0.0, np.minimum(a, b).max()), np.maximum(a, b).min()
+
+
+def box_radiance(emitter, lo, hi, o, w, kt, ks):
+    """The twin's radiance of the camera ray o + t w in vacuum through an index-matched box [lo, hi]
+    holding a homogeneous isotropic medium, the emitter outside it (not seen by the ray)."""
+    t0, t1 = box_chord(lo, hi, o, w)
+    if t1 <= t0:
+        return 0.0
+    f = lambda t: math.exp(-kt * (t - t0)) * ks / (4 * math.pi) * emitter.irradiance(o + t * w, kt, (lo, hi))  # noqa: E731
+    return integrate.quad(f, t0, t1, epsabs=0.0, epsrel=1e-12, limit=400)[0]
 
 
 class Disk(Quad):

@@ -275,14 +275,6 @@ def test_raymarch_and_montecarlo_integrate_the_same_rows(light):
     assert np.abs(rm / ref - 1).max() < 1e-3
 
 
-def test_area_lights_into_media_inside_shapes_are_refused(write_scene, tmp_path, capsys):
-    box = {"primitive": "box", "min": [-1.0, -1.0, -1.0], "max": [1.0, 0.0, 1.0], "interior": {"sigma_s": 0.5}}
-    path = write_scene({"camera": CAMERA, "shape": [box], "light": [QUAD], "medium": FOG})
-    assert main(["render", str(path), "--out", str(tmp_path / "x.exr"), "--quiet"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "quad lights into a bounded medium (shape[0].interior)" in err, err
-
-
 EMISSIVE_QUAD = {"primitive": "quad", "corners": QUAD["corners"], "emission": 10.0}
 
 

@@ -109,17 +109,16 @@ def switches(p, w, ell, value, samples=400):
     return out
 
 
-def twin_pixel(scene, i, j, crossings=None):
+def twin_pixel(scene, i, j, crossings=None, emitters=None):
     """The pixel's inside single scattering (3,), from the geometry alone; `crossings` (a list) gets
-    the number of points where a refraction point crosses its face's edge, per lit face."""
+    the number of points where a refraction point crosses its face's edge, per lit face. `emitters`:
+    instead of the scene's light, points (position, intensity (3,), emitter normal) of Lambertian
+    emitters (intensity times the cosine to their normal, continuous where it is positive)."""
     inner, light = scene["shape"][0]["interior"], scene["light"][0]
     eta, g = inner["ior"], inner["phase"]["g"]
     ks = np.array(inner["sigma_s"], float)
     kt = np.array(inner["sigma_a"], float) + ks
     kt_out = scene["medium"]["sigma_a"] + scene["medium"]["sigma_s"]
-    L = np.array(light["position"], float)
-    inten = np.broadcast_to(np.array(light["intensity"], float), (3,))
-    spot = spot_terms(light)
     o_cam, d = oracle.camera_ray(scene["camera"], i, j)
     t0, n_in = box_entry(o_cam, d, LO, HI)
     if n_in is None:
@@ -127,6 +126,18 @@ def twin_pixel(scene, i, j, crossings=None):
     p = o_cam + t0 * d
     w, ti, tt = snell(d, n_in, eta)
     ell, _ = oracle.box_exit(p, w, LO, HI)
+    out = np.zeros(3)
+    if emitters is None:
+        emitters = [(np.array(light["position"], float), np.broadcast_to(np.array(light["intensity"], float), (3,)),
+                     None)]
+    spot = spot_terms(light) if emitters[0][2] is None else None
+    for L, inten, normal in emitters:
+        out += _from_light(L, inten, normal, spot, p, w, ell, eta, g, ks, kt, kt_out, crossings)
+    return math.exp(-kt_out * t0) * fresnel_t(ti, tt, eta) / eta**2 * out
+
+
+def _from_light(L, inten, normal, spot, p, w, ell, eta, g, ks, kt, kt_out, crossings):
+    """One light point's contribution to `twin_pixel` (before the camera ray's entry factors)."""
     out = np.zeros(3)
     for n in FACES:
         c = 1.0
@@ -155,6 +166,8 @@ def twin_pixel(scene, i, j, crossings=None):
             fall = 1.0
             if spot:
                 fall = smoothstep(float((R - L) @ spot[0]) / o, spot[1], spot[2])
+            if normal is not None:
+                fall = max(0.0, float((R - L) @ normal) / o)
             return ks[ch] * oracle.phase("hg", g, mu) * fall * e * math.exp(-kt[ch] * (x + k) - kt_out * o)
 
         edges = switches(p, w, ell, lit)
@@ -165,7 +178,7 @@ def twin_pixel(scene, i, j, crossings=None):
             val = integrate.quad(f, 0.0, ell, args=(ch,), points=sorted(cuts) or None, epsabs=0.0, epsrel=1e-12,
                                  limit=400)[0]
             out[ch] += val * inten[ch]
-    return math.exp(-kt_out * t0) * fresnel_t(ti, tt, eta) / eta**2 * out
+    return out
 
 
 def image(scene, method, params=None, seed=0):

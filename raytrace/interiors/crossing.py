@@ -150,9 +150,10 @@ def check(prep, method, method_params, source: str):
         m = prep.scene.shapes[i].interior
         method.check_phase(m, f"shape[{i}].interior.phase", source)
         for kind in sorted(kinds - set(sup.refracted) if m.ior != 1.0 else ()):
+            takers = _takers(lambda s: kind in s.refracted)
+            why = f": {sup.limits}" if kind in sup.lights and sup.limits else ""
             raise UserError(f"{source}: shape[{i}].interior.ior: --method {method.name}: {kind} lights through a "
-                            f"refractive boundary: {sup.limits}; use ior = 1, or --method "
-                            f"{', '.join(_takers(lambda s: kind in s.refracted))}")
+                            f"refractive boundary{why}; use ior = 1" + (f", or --method {', '.join(takers)}" if takers else ""))
     if near:
         for i in inner:
             if prep.scene.shapes[i].interior.ior == 1.0:

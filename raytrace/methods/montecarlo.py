@@ -692,7 +692,8 @@ METHOD = Method(
     point_count=lambda segs, medium, params: np.full(len(segs), _strategies(params) * params["samples"]),
     check=_check,
     supports=Supports(lights=LIGHTS + AREA_LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
-                      interiors=Interiors(SAMPLE, exact_paths=True,
+                      interiors=Interiors(SAMPLE, exact_paths=True, lights=LIGHTS + AREA_LIGHTS,
+                                          refracted=LIGHTS + AREA_LIGHTS,
                                           settings=lambda params: (INSIDE_RTOL, params["samples"], 745.0), through="points"),
                       shadow_tests=("intervals", "samples")),
 )

@@ -298,7 +298,8 @@ METHOD = Method(
     stats_size=3,
     summarize=_summarize,
     supports=Supports(lights=LIGHTS + AREA_LIGHTS, media=(Homogeneous, HeightFog, Atmosphere),
-                      interiors=Interiors(QUAD, exact_paths=True,
+                      interiors=Interiors(QUAD, exact_paths=True, lights=LIGHTS + AREA_LIGHTS,
+                                          refracted=LIGHTS + AREA_LIGHTS,
                                           settings=lambda params: (params["rtol"], 1, 745.0))),
 )
 _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
