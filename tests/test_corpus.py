@@ -79,14 +79,12 @@ REFUSES = {
     MEDIA + "test_surf_area_light_volpath.xml": [CHECKER, ENVMAP, "plastic bsdfs", "roughplastic"],
 }
 # read whole, with lights of the kinds the lights issue adds: file -> (camera's vertical fov, the notes expected)
-# file: (its fov, the importer's notes, whether it renders: area lights into media inside shapes are
-# refused by every method so far)
 AREA_LIGHTS = {
-    "houdini-pbrt-v4/TestLights/test_spherelight.pbrt": (HOUDINI_FOV, HOUDINI_NOTES, True),
-    "houdini-pbrt-v4/TestMediums/test_exterior_cam.pbrt": (HOUDINI_FOV, HOUDINI_NOTES, True),
-    "houdini-pbrt-v4/TestMediums/test_exterior_cam_interior_obj.pbrt": (HOUDINI_FOV, HOUDINI_NOTES, False),
-    "houdini-pbrt-v4/TestMediums/test_interior_homogeneous.pbrt": (HOUDINI_FOV, HOUDINI_NOTES, False),
-    "mitsuba-data/scenes/cbox/cbox-rgb.xml": (39.3077, [], True),
+    "houdini-pbrt-v4/TestLights/test_spherelight.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
+    "houdini-pbrt-v4/TestMediums/test_exterior_cam.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
+    "houdini-pbrt-v4/TestMediums/test_exterior_cam_interior_obj.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
+    "houdini-pbrt-v4/TestMediums/test_interior_homogeneous.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
+    "mitsuba-data/scenes/cbox/cbox-rgb.xml": (39.3077, []),
 }
 
 
@@ -143,11 +141,11 @@ def test_refuses_naming_its_features(name, capsys):
 
 
 @pytest.mark.parametrize("name", sorted(AREA_LIGHTS))
-def test_area_lights_render_once_the_renderer_takes_them(name, tmp_path, capsys):
-    """Imported whole with the notes expected; rendered (lit), or, with a sphere light into a shape's
-    medium, refused in one line saying no method renders that yet."""
+def test_area_lights_render_once_the_renderer_takes_them(name, tmp_path):
+    """Imported whole with the notes expected and rendered, lit (two Houdini files light a shape's
+    medium with a sphere light)."""
     path = CORPUS / name
-    fov, notes, renders = AREA_LIGHTS[name]
+    fov, notes = AREA_LIGHTS[name]
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         raw = scene_dict(path)[0]
@@ -160,13 +158,8 @@ def test_area_lights_render_once_the_renderer_takes_them(name, tmp_path, capsys)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         status = main(args)
-    if renders:
-        image = read_exr(out)[0]
-        assert status == 0 and np.all(np.isfinite(image)) and np.max(image) > 0.0
-    else:
-        err = capsys.readouterr().err.strip().splitlines()
-        assert status == 2 and len(err) == 1 and not out.exists(), err
-        assert "sphere lights into a bounded medium (shape[" in err[0] and "no method renders them yet" in err[0], err
+    image = read_exr(out)[0]
+    assert status == 0 and np.all(np.isfinite(image)) and np.max(image) > 0.0
 
 
 def stripped(name, tmp_path, cut: str, drop=()) -> Path:
