@@ -1,6 +1,6 @@
 """Media inside shapes (after the analytic note on single scattering in homogeneous slabs): the
 boundary crossing. Camera rays whose first hit is a shape holding an `interior` medium are taken
-across its boundary (`cross`; a camera inside an index-matched shape: `start_inside`): refracted in
+across its boundary (`cross`; a camera inside a shape: `start_inside`): refracted in
 (Snell, smooth dielectric; straight when ior = 1) with Fresnel's transmittance T, followed inside to
 their exit (Embree; `_inside_hits`), refracted out, and mirrored by a refractive boundary with 1 - T.
 What comes of it is a `Crossing`: one inside `Segments` row per ray, which carries its medium (the
@@ -167,10 +167,12 @@ def check(prep, method, method_params, source: str):
                                     "implemented yet); "
                                     "use ior = 1 or a directional light")
     inside = prep.camera_inside
-    if inside is not None and (prep.scene.shapes[inside].interior.ior != 1.0 or not sup.exact_paths):
+    if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
+                                                       and not len(convex_planes(prep, inside)))):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        "bounded medium needs an index-matched interior (ior = 1) and --method "
-                        f"{', '.join(_takers(lambda s: s.exact_paths))}; move the camera out of the shape or change them")
+                        "bounded medium needs an index-matched interior (ior = 1) or a convex shape of at most "
+                        f"{KERNEL_PLANES} faces, and --method {', '.join(_takers(lambda s: s.exact_paths))}; move the "
+                        "camera out of the shape or change them")
     for li in np.nonzero(prep.lights.kind != DIRECTIONAL)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
@@ -384,16 +386,19 @@ def refracted_beams(planes, axis, eta):
     return faces, -t, _transmittance(cos_i, eta) * cos_i / cos_t
 
 
-def _surface_inside(prep, p, n, w, prim, ell, medium):
-    """Radiance (M, 3) toward the entry points p (outward entry normals n) from the surface points
-    q = p + ell w (triangles prim) inside the medium, times exp(-sigma_t ell) along the camera's path.
-    Index-matched: the surface term, whose shadow rays leave through the medium with the interior's
-    transmittance (`shadow_through`). Refractive: the note's planar boundary, the entry face's plane,
-    for directional lights (point lights are refused by `check`): the beam refracted into t through
-    it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
-    k = depth / cos_t; an opaque surface on that path shadows (the shape's own boundary does not:
-    the plane is the model)."""
+def _surface_inside(prep, sid, p, n, w, prim, ell):
+    """Radiance (M, 3) toward the row starts p from the surface points q = p + ell w (triangles prim)
+    inside the medium of shape sid, times exp(-sigma_t ell) along the camera's path. Index-matched:
+    the surface term, whose shadow rays leave through the medium with the interior's transmittance
+    (`shadow_through`). Refractive, directional lights (point and spot lights are refused by `check`):
+    in a convex shape the beam refracted through every face the light meets (`refracted_beams`), where
+    q's path back along it leaves through that face (`_beams_on`); in another shape the note's planar
+    boundary, the entry face's plane (outward normals n), the beam refracted into t through it,
+    irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
+    k = depth / cos_t. An opaque surface on the path inside shadows (the shape's own boundary does
+    not); the light's outside leg is not tested for occluders."""
     accel = prep.accel
+    medium = prep.scene.shapes[sid].interior
     q = p + ell[:, None] * w
     normals = facing_normals(accel.hit_normals(prim, q), w)
     shading = shading_normals(accel, prep.corner_normals, prim, q, normals)
@@ -404,24 +409,51 @@ def _surface_inside(prep, p, n, w, prim, ell, medium):
     else:
         lb = np.zeros((len(q), 3))
         lights = prep.lights
+        planes = convex_planes(prep, sid)
         for li in np.nonzero(lights.kind == DIRECTIONAL)[0]:
-            axis = np.broadcast_to(lights.axis[li], q.shape)
-            cos_i = -(n @ lights.axis[li])
-            t, cos_t = _refract(axis, n, medium.ior)
-            cos_s = -np.einsum("ij,ij->i", shading, t)
-            facing = np.einsum("ij,ij->i", normals, t) < 0.0  # the terminator: the geometric side faces the beam
-            ok = np.nonzero((cos_i > 0.0) & (cos_t > 0.0) & (cos_s > 0.0) & facing)[0]
-            k = np.einsum("ij,ij->i", p[ok] - q[ok], n[ok]) / cos_t[ok]
-            o = q[ok] + accel.epsilon * normals[ok]
-            tb, hit = accel.first_hit(o, -t[ok])
-            blocked = (hit >= 0) & (tb < k) & ~enters(prep, hit)
-            ok, k = ok[~blocked], k[~blocked]
-            e_in = _transmittance(cos_i[ok], medium.ior) * cos_i[ok] / cos_t[ok]
-            with np.errstate(over="ignore", invalid="ignore"):
-                att = np.where(kt == 0.0, 1.0, np.exp(-kt * k[:, None]))
-            lb[ok] += refl[ok] / np.pi * lights.intensity[li] * (e_in * cos_s[ok])[:, None] * att
+            if len(planes):
+                beams = zip(*refracted_beams(planes, lights.axis[li], medium.ior))
+            else:
+                t, cos_t = _refract(np.broadcast_to(lights.axis[li], q.shape), n, medium.ior)
+                cos_i = -(n @ lights.axis[li])
+                k = np.einsum("ij,ij->i", p - q, n) / np.where(cos_t > 0.0, cos_t, 1.0)
+                e_in = np.where((cos_i > 0.0) & (cos_t > 0.0), _transmittance(np.maximum(cos_i, 0.0), medium.ior)
+                                * cos_i / np.where(cos_t > 0.0, cos_t, 1.0), 0.0)
+                beams = [(-1, -t, e_in, k)]
+            for beam in beams:
+                lb += _lit_by_beam(prep, q, normals, shading, refl, planes, lights.intensity[li], kt, *beam)
     with np.errstate(over="ignore", invalid="ignore"):
         return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
+
+
+def _lit_by_beam(prep, q, normals, shading, refl, planes, intensity, kt, face, toward, e_in, k=None):
+    """rho / pi E e_in cos_s exp(-sigma_t k) (M, 3) at surface points q inside a refractive shape from
+    one refracted beam of a directional light: `toward` (3,) or (M, 3) minus its direction inside,
+    `e_in` its irradiance per unit irradiance outside; a convex shape's face `face`: q lit where its
+    path back along `toward` leaves through that face (k: the distance to it), else the entry plane's
+    beam with its distances `k`. Opaque surfaces within k shadow."""
+    accel = prep.accel
+    toward = np.broadcast_to(toward, q.shape)
+    if face >= 0:
+        den = toward @ planes[:, :3].T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dist = np.where(den > 0.0, np.maximum((planes[None, :, 3] - q @ planes[:, :3].T) / den, 0.0), np.inf)
+        k = dist.min(axis=1)
+        through = dist.argmin(axis=1) == face
+    else:
+        through = np.ones(len(q), bool)
+    e_in = np.broadcast_to(e_in, (len(q),))
+    cos_s = np.einsum("ij,ij->i", shading, toward)
+    facing = np.einsum("ij,ij->i", normals, toward) > 0.0  # the terminator: the geometric side faces the beam
+    ok = np.nonzero(through & (e_in > 0.0) & (cos_s > 0.0) & facing)[0]
+    tb, hit = accel.first_hit(q[ok] + accel.epsilon * normals[ok], toward[ok])
+    blocked = (hit >= 0) & (tb < k[ok]) & ~enters(prep, hit)
+    ok = ok[~blocked]
+    out = np.zeros((len(q), 3))
+    with np.errstate(over="ignore", invalid="ignore"):
+        att = np.where(kt == 0.0, 1.0, np.exp(-kt * k[ok, None]))
+    out[ok] = refl[ok] / np.pi * intensity * (e_in[ok] * cos_s[ok])[:, None] * att
+    return out
 
 
 @dataclass
@@ -492,7 +524,6 @@ def cross(prep, origins, dirs, t, prim, keys, depth) -> Crossing | None:
 
 def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
     """`cross` for the rays entering shape sid at p along d (facing entry normals nf; triangles prim)."""
-    accel = prep.accel
     n = len(p)
     none = np.zeros(0, np.int64)
     medium = prep.scene.shapes[sid].interior
@@ -504,28 +535,11 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
     exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
     go = [(none, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), False)]  # (parent, origins, dirs, weight, mirrored)
     if len(exits):
-        q = p[exits] + ell[exits, None] * w[exits]
-        m = facing_normals(accel.hit_normals(prim2[exits], q), w[exits])
-        w_out, cos_o = _refract(w[exits], m, 1.0 / eta)
-        t_out = _transmittance(-np.einsum("ij,ij->i", w[exits], m), 1.0 / eta) * (cos_o > 0.0)
-        start, gap = _leave(prep, q, w_out, cos_o)
-        on, at = _met_at_once(prep, q, w_out, cos_o, touch[exits])
-        rest = on >= 0
-        gap[rest] = 1.0
-        kt = medium.sigma_t[None, :]
-        with np.errstate(over="ignore", invalid="ignore"):
-            tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[exits, None]))
-        f = (t_out * eta * eta)[:, None] * tr * gap
-        if rest.any():  # a surface met at once where the ray leaves
-            on = on[rest]
-            geometric = facing_normals(accel.hit_normals(on, at[rest]), w_out[rest])
-            direct[exits[rest]] = f[rest] * surface_radiance(
-                accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
-                shading_normals(accel, prep.corner_normals, on, at[rest], geometric))
-        go.append((exits[~rest], start[~rest], w_out[~rest], f[~rest], False))
+        go.append(_exit(prep, medium, exits, p[exits] + ell[exits, None] * w[exits], w[exits], prim2[exits],
+                         ell[exits], touch[exits], direct))
     walls = np.nonzero((prim2 >= 0) & ~enters(prep, prim2))[0]  # a plain surface inside the medium
     if len(walls):
-        direct[walls] = _surface_inside(prep, p[walls], nf[walls], w[walls], prim2[walls], ell[walls], medium)
+        direct[walls] = _surface_inside(prep, sid, p[walls], nf[walls], w[walls], prim2[walls], ell[walls])
     if eta != 1.0:  # the boundary's mirror reflection, Fresnel's 1 - T (1 on total reflection)
         cos = -np.einsum("ij,ij->i", d, nf)
         mirrored = d + 2.0 * cos[:, None] * nf
@@ -537,26 +551,55 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
                     np.concatenate([g[3] for g in go]), np.concatenate([np.full(len(g[0]), g[4]) for g in go]))
 
 
+def _exit(prep, medium, rows, q, w, prim, ell, touch, direct):
+    """The rays of inside rows `rows` leaving their shape (interior `medium`) at q (M, 3) along w through
+    its boundary's triangles prim after `ell` inside: refracted out (straight when ior = 1) with
+    Fresnel's T (0 on total reflection) times eta^2 and the inside transmittance; a surface met at
+    once where a ray leaves (`_met_at_once`; `touch` from `_inside_hits`, or -1) is shaded into
+    `direct` (N, 3) at once. Returns the rays going on as a Crossing's (parent, origins, dirs, weight,
+    mirrored)."""
+    accel = prep.accel
+    eta = medium.ior
+    m = facing_normals(accel.hit_normals(prim, q), w)
+    w_out, cos_o = _refract(w, m, 1.0 / eta)
+    t_out = _transmittance(-np.einsum("ij,ij->i", w, m), 1.0 / eta) * (cos_o > 0.0)
+    start, gap = _leave(prep, q, w_out, cos_o)
+    on, at = _met_at_once(prep, q, w_out, cos_o, touch)
+    rest = on >= 0
+    gap[rest] = 1.0
+    kt = medium.sigma_t[None, :]
+    with np.errstate(over="ignore", invalid="ignore"):
+        tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
+    f = (t_out * eta * eta)[:, None] * tr * gap
+    if rest.any():  # a surface met at once where the ray leaves
+        on = on[rest]
+        geometric = facing_normals(accel.hit_normals(on, at[rest]), w_out[rest])
+        direct[rows[rest]] = f[rest] * surface_radiance(
+            accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
+            shading_normals(accel, prep.corner_normals, on, at[rest], geometric))
+    return rows[~rest], start[~rest], w_out[~rest], f[~rest], False
+
+
 def start_inside(prep, origins, dirs, t, prim, keys) -> Crossing:
-    """Camera rays that start inside the index-matched shape prep.camera_inside and first meet its
-    boundary or a surface at t (triangle prim): their inside rows over [0, t] (normals -dirs), the
-    surface met inside, and the rays going on beyond the boundary, times exp(-sigma_t t)."""
+    """Camera rays that start inside the shape prep.camera_inside (index-matched, or convex and
+    refractive: an underwater camera) and first meet its boundary or a surface at t (triangle prim):
+    their inside rows over [0, t], the surface met inside, and the rays going on beyond the boundary
+    (`_exit`: refracted out, times T eta^2 exp(-sigma_t t)). The rows have no entry face: normals -dirs
+    in an index-matched shape, zero in a refractive one (media/slab.py `refracting_faces` then takes
+    every face alike)."""
     sid = prep.camera_inside
     medium = prep.scene.shapes[sid].interior
-    accel = prep.accel
     n = len(origins)
     direct = np.zeros((n, 3))
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
-    q = origins[exits] + t[exits, None] * dirs[exits]
-    cos = np.abs(np.einsum("ij,ij->i", accel.hit_normals(prim[exits], q), dirs[exits]))
-    start, gap = _leave(prep, q, dirs[exits], cos)
-    with np.errstate(over="ignore", invalid="ignore"):
-        tr = np.where(medium.sigma_t[None, :] == 0.0, 1.0, np.exp(-medium.sigma_t[None, :] * t[exits, None])) * gap
+    parent, start, w_out, f, _ = _exit(prep, medium, exits, origins[exits] + t[exits, None] * dirs[exits], dirs[exits],
+                                       prim[exits], t[exits], np.full(len(exits), -1), direct)
+    normals = -dirs if medium.ior == 1.0 else np.zeros_like(dirs)
     walls = np.nonzero((prim >= 0) & ~enters(prep, prim))[0]
     if len(walls):
-        direct[walls] = _surface_inside(prep, origins[walls], -dirs[walls], dirs[walls], prim[walls], t[walls], medium)
-    return Crossing(_rows(prep, sid, origins, -dirs, dirs, t, keys), np.ones(n), direct, start, dirs[exits],
-                    keys[exits], exits, tr, np.zeros(len(exits), bool))
+        direct[walls] = _surface_inside(prep, sid, origins[walls], normals[walls], dirs[walls], prim[walls], t[walls])
+    return Crossing(_rows(prep, sid, origins, normals, dirs, t, keys), np.ones(n), direct, start, w_out, keys[parent],
+                    parent, f, np.zeros(len(parent), bool))
 
 
 def combine(crossing: Crossing, inner, inner_var, inner_bound, seen, seen_var, seen_bound):
