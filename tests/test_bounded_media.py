@@ -450,10 +450,21 @@ ROCK_SPOT = {"type": "spot", "position": [1.0, 3.0, 0.5], "look_at": [-0.3, -0.6
              "cone_angle": 9.0, "falloff_start": 5.0}  # the beam's edge across the rock
 
 
-def water_beams(sun, X, n, ior, kt):
+LID_Y, LID_X = 2.5, (-3.0, -1.05)  # an opaque lid above the camera, x in LID_X, z in [-3, 3], over part of the tank
+
+
+def under_lid(R, s_dir):
+    """Whether the sun's path back from R (along -s_dir) meets the lid."""
+    t = (LID_Y - R[1]) / -s_dir[1]
+    x, z = R[0] - t * s_dir[0], R[2] - t * s_dir[2]
+    return LID_X[0] <= x <= LID_X[1] and -3.0 <= z <= 3.0
+
+
+def water_beams(sun, X, n, ior, kt, lid=False):
     """E_in cos exp(-kt k) (3,) at the point X (normal n) inside the water box from a directional light
     refracted through every face it meets: face f's beam (Snell by angles, Fresnel angle form,
-    E T cos_i / cos_t) where X's path back along it leaves the box through f, at distance k."""
+    E T cos_i / cos_t) where X's path back along it leaves the box through f, at distance k, and
+    (`lid`) the sun's leg outside from there misses the lid."""
     s_dir = np.array(sun["direction"], float) / np.linalg.norm(sun["direction"])
     faces = [(np.eye(3)[a] * sign, WATER_HI[a] if sign > 0 else -WATER_LO[a]) for a in range(3) for sign in (1.0, -1.0)]
     out = np.zeros(3)
@@ -464,21 +475,22 @@ def water_beams(sun, X, n, ior, kt):
         u = -ts
         dist = [((c - f @ X) / (f @ u), i) for i, (f, c) in enumerate(faces) if f @ u > 0.0]
         k, leaves = min(dist)
-        if faces[leaves][0] @ nf < 1.0:
+        if faces[leaves][0] @ nf < 1.0 or (lid and under_lid(X + k * u, s_dir)):
             continue
         e = sun["irradiance"] * fresnel_t(si, st, ior) * math.cos(si) / math.cos(st)
         out += e * max(float(n @ u), 0.0) * np.exp(-kt * k)
     return out
 
 
-@pytest.mark.parametrize("light,ior", [(LAMP, 1.0), (SUN_HIGH, 1.0), (SUN_HIGH, 1.33), (ROCK_SPOT, 1.0)])
-def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
+@pytest.mark.parametrize("light,ior,lid", [(LAMP, 1.0, False), (SUN_HIGH, 1.0, False), (SUN_HIGH, 1.33, False),
+                                           (SUN_HIGH, 1.33, True), (ROCK_SPOT, 1.0, False)])
+def test_a_surface_inside_a_medium_is_lit_through_it(light, ior, lid):
     """A rock (a plain box) inside an absorbing box of water seen through it. Index-matched: its shadow
     rays leave through the medium, rho / pi E cos exp(-sigma_t k - sigma_out (d - k)) exp(-sigma_t ell),
     the twin's lengths by the slab test. Refractive (ior 1.33): the sun refracted through every face
     of the box it meets (`water_beams`; until the underwater camera it was the entry face's plane
-    alone, which gave points lit through a side face the top's beam), the radiance x T / eta^2 out;
-    1e-9."""
+    alone, which gave points lit through a side face the top's beam; with a lid above the tank, the
+    beams whose leg outside it covers are shadowed), the radiance x T / eta^2 out; 1e-9."""
     kt, kt_out = np.array([0.3, 0.1, 0.05]), (0.02 if light["type"] != "directional" else 0.0)
     sc = {"camera": {"position": [0.3, 2.0, 3.0], "look_at": [0.0, -0.6, 0.0], "fov": 16.0, "width": 12,
                      "height": 9, "spp": 1},
@@ -487,6 +499,9 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
                      "interior": {"sigma_a": kt.tolist(), "sigma_s": 0.0, "ior": ior}},
                     {"primitive": "box", "min": ROCK_LO.tolist(), "max": ROCK_HI.tolist(), "reflectance": 0.7}],
           "light": [light]}
+    if lid:
+        sc["shape"].append({"primitive": "quad", "corners": [[LID_X[0], LID_Y, -3.0], [LID_X[1], LID_Y, -3.0],
+                                                             [LID_X[1], LID_Y, 3.0], [LID_X[0], LID_Y, 3.0]]})
     img = render(prepare(scene_from_text(to_toml(sc), "rock")), "quadrature", {}, RenderOptions(threads=1)).image
     rocks = partial = 0
     for j in range(9):
@@ -511,7 +526,7 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior):
                 u = -np.array(light["direction"], float) / np.linalg.norm(light["direction"])
                 e, att = light["irradiance"], np.exp(-kt * slab(X, u, WATER_LO, WATER_HI)[1])
             else:
-                e, att, u = 1.0, water_beams(light, X, n, ior, kt), n
+                e, att, u = 1.0, water_beams(light, X, n, ior, kt, lid), n
             want = (0.7 / math.pi * e * max(float(n @ u), 0.0) * att * np.exp(-kt * ell - kt_out * t_water)
                     * fresnel_t(ti, tt, ior) / ior**2)
             assert img[j, i] == pytest.approx(want, rel=1e-9, abs=1e-300), (i, j)

@@ -419,19 +419,24 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
                 k = np.einsum("ij,ij->i", p - q, n) / np.where(cos_t > 0.0, cos_t, 1.0)
                 e_in = np.where((cos_i > 0.0) & (cos_t > 0.0), _transmittance(np.maximum(cos_i, 0.0), medium.ior)
                                 * cos_i / np.where(cos_t > 0.0, cos_t, 1.0), 0.0)
-                beams = [(-1, -t, e_in, k)]
+                beams = [(-1, -t, e_in, k, n)]
             for beam in beams:
-                lb += _lit_by_beam(prep, q, normals, shading, refl, planes, lights.intensity[li], kt, *beam)
+                lb += _lit_by_beam(prep, sid, q, normals, shading, refl, planes, lights.intensity[li], kt,
+                                   lights.axis[li], *beam)
     with np.errstate(over="ignore", invalid="ignore"):
         return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
 
 
-def _lit_by_beam(prep, q, normals, shading, refl, planes, intensity, kt, face, toward, e_in, k=None):
-    """rho / pi E e_in cos_s exp(-sigma_t k) (M, 3) at surface points q inside a refractive shape from
-    one refracted beam of a directional light: `toward` (3,) or (M, 3) minus its direction inside,
-    `e_in` its irradiance per unit irradiance outside; a convex shape's face `face`: q lit where its
-    path back along `toward` leaves through that face (k: the distance to it), else the entry plane's
-    beam with its distances `k`. Opaque surfaces within k shadow."""
+def _lit_by_beam(prep, sid, q, normals, shading, refl, planes, intensity, kt, axis, face, toward, e_in, k=None,
+                 entry=None):
+    """rho / pi E e_in cos_s exp(-sigma_t k) (M, 3) at surface points q inside the refractive shape sid
+    from one refracted beam of a directional light (direction of travel `axis` outside): `toward` (3,)
+    or (M, 3) minus its direction inside, `e_in` its irradiance per unit irradiance outside; a convex
+    shape's face `face`: q lit where its path back along `toward` leaves through that face (k: the
+    distance to it), else the beam through the entry planes (normals `entry`, the note's model) with
+    its distances `k`. Opaque surfaces within k shadow, and so do opaque surfaces and other refractive
+    interiors on the light's straight leg outside, from the boundary toward the light (index-matched
+    interiors there do not attenuate it)."""
     accel = prep.accel
     toward = np.broadcast_to(toward, q.shape)
     if face >= 0:
@@ -449,6 +454,10 @@ def _lit_by_beam(prep, q, normals, shading, refl, planes, intensity, kt, face, t
     tb, hit = accel.first_hit(q[ok] + accel.epsilon * normals[ok], toward[ok])
     blocked = (hit >= 0) & (tb < k[ok]) & ~enters(prep, hit)
     ok = ok[~blocked]
+    boundary = q[ok] + k[ok, None] * toward[ok]  # where the light crossed into the shape
+    cos_i = np.abs(np.broadcast_to(planes[face, :3] if face >= 0 else entry, q.shape)[ok] @ axis)
+    _, hit = accel.first_hit(_nudge(accel, boundary, -axis[None, :], cos_i), np.broadcast_to(-axis, boundary.shape))
+    ok = ok[(hit < 0) | np.isin(prep.shape_ids[np.maximum(hit, 0)], matched(prep) + [sid])]
     out = np.zeros((len(q), 3))
     with np.errstate(over="ignore", invalid="ignore"):
         att = np.where(kt == 0.0, 1.0, np.exp(-kt * k[ok, None]))
