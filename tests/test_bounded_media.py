@@ -535,9 +535,20 @@ def test_a_surface_inside_a_medium_is_lit_through_it(light, ior, lid):
 
 
 def test_surfaces_inside_a_refractive_medium_with_a_point_light_are_refused():
-    sc = scene(LAMP, ior=1.33)
+    """In a refractive shape that is not convex or has more than 64 face planes (a 24-segment sphere)
+    there are no refracted paths of a point light to a surface but through the entry face's plane:
+    refused (in a convex one they are lit through every face: tests/test_refracted_point_light.py)."""
+    assert "shape[1]: lies inside shape[0], whose interior is refractive (ior 1.33) and not convex" in bad(
+        rock_in_sphere(LAMP))
+
+
+def rock_in_sphere(light):
+    """A rock inside a refractive 24-segment sphere (more face planes than the convex kernel takes)."""
+    sc = scene(light, ior=1.33)
+    sc["shape"][0] = {"primitive": "sphere", "center": [0.0, -0.6, 0.0], "radius": 1.2, "segments": 24,
+                      "interior": sc["shape"][0]["interior"]}
     sc["shape"].append({"primitive": "box", "min": [-0.3, -0.8, -0.3], "max": [0.3, -0.4, 0.3]})
-    assert "shape[1]: lies inside shape[0], whose interior is refractive" in bad(sc)
+    return sc
 
 
 def as_point(case):
@@ -594,8 +605,6 @@ def test_a_spot_aimed_away_leaves_the_medium_black():
 def test_spot_lights_without_a_method_for_them_are_refused():
     assert "no closed form" in bad(SPOTS["spot_index_matched"], "analytic")
     assert "not spot lights" in bad(SPOTS["spot_index_matched"], "slab_approx")
-    sc = scene(ABOVE, ior=1.33)
-    sc["shape"].append({"primitive": "box", "min": [-0.3, -0.8, -0.3], "max": [0.3, -0.4, 0.3]})
-    assert "shape[1]: lies inside shape[0], whose interior is refractive" in bad(sc)
+    assert "shape[1]: lies inside shape[0], whose interior is refractive" in bad(rock_in_sphere(ABOVE))
     inside = scene(spot([0.0, -1.0, 0.0], [0.0, -3.0, 0.0], 30.0, 20.0))
     assert "light[0].position: inside shape[0]" in bad(inside)

@@ -30,7 +30,7 @@ from raytrace.scene.format import scene_from_text
 
 from . import oracle
 from .conftest import to_toml
-from .test_bounded_media import box_entry, fresnel_t, snell
+from .test_bounded_media import box_entry, fresnel_t, slab, snell
 
 LO, HI = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0])
 FACES = [np.eye(3)[a] * s for a in range(3) for s in (-1.0, 1.0)]
@@ -285,3 +285,65 @@ def test_only_the_entry_face_lit_is_the_entry_plane(spot):
             old = slab.refracted_point(x, wl, ll, a, hl, 1.33, 0.7, 0.4, 1, 0.4, 0.01, *terms, ce, cs, 0)
             new = slab.faces_point(x, faces[:1], planes, 1.33, 0.7, 0.4, 1, 0.4, 0.01, ce, cs, 0)
             assert new == old
+
+
+# the rock: a face toward the camera's side of the box and toward the light's (the lamp is beyond +x,
+# the spot beyond -x)
+ROCKS = {"water_box": (np.array([-0.8, -0.6, -0.8]), np.array([-0.15, 0.3, -0.1])),
+         "glass_block": (np.array([0.15, -0.6, -0.8]), np.array([0.8, 0.3, -0.1]))}
+
+
+def rock_pixel(scene, rock, i, j):
+    """The radiance (3,) of pixel (i, j) seeing the rock inside the box (0 where it does not): the lamp
+    through every face it is outside of (Fermat's path on the face, Fresnel's T, the ray tube, the
+    spot's falloff on the direction it leaves in), rho / pi E cos exp(-kt k - kt_out o) at the rock,
+    carried out along the camera ray."""
+    inner, light = scene["shape"][0]["interior"], scene["light"][0]
+    eta, rho_s = inner["ior"], scene["shape"][1]["reflectance"]
+    kt = np.array(inner["sigma_a"], float)
+    kt_out = scene["medium"]["sigma_a"]
+    L = np.array(light["position"], float)
+    spot = spot_terms(light)
+    o_cam, d = oracle.camera_ray(scene["camera"], i, j)
+    t0, n_in = box_entry(o_cam, d, LO, HI)
+    if n_in is None:
+        return np.zeros(3)
+    p = o_cam + t0 * d
+    w, ti, tt = snell(d, n_in, eta)
+    hit = slab(p, w, *rock)
+    if hit is None or hit[0] <= 0.0:
+        return np.zeros(3)
+    ell, _, n = hit
+    X = p + ell * w
+    out = np.zeros(3)
+    for nf in FACES:
+        if nf @ L <= 1.0:
+            continue
+        R, o, k, cos1, cos2, rho, z = fermat(X, L, nf, 1.0, eta)
+        if not on_face(R, nf):
+            continue
+        e = fresnel_t(math.acos(cos1), math.asin(math.sqrt(1 - cos1**2) / eta), eta) * tube(nf @ L - 1.0, z, cos1,
+                                                                                               cos2, rho, eta)
+        fall = smoothstep(float((R - L) @ spot[0]) / o, spot[1], spot[2]) if spot else 1.0
+        u = (R - X) / k
+        out += np.array(light["intensity"], float) * e * fall * max(float(n @ u), 0.0) * np.exp(-kt * k - kt_out * o)
+    return rho_s / math.pi * out * np.exp(-kt * ell - kt_out * t0) * fresnel_t(ti, tt, eta) / eta**2
+
+
+@pytest.mark.parametrize("lit", [WATER, GLASS], ids=["water_lamp_above", "glass_spot_beside"])
+def test_a_surface_inside_is_lit_through_every_face(lit):
+    """A rock (an opaque box) inside the water box and the glass block, lit by the lamp above or the
+    spot beside through the faces the light is outside of, seen through the +z face (behind the light):
+    quadrature within 1e-9 of the twin (`rock_pixel`; the medium only absorbs, so that the pixel is
+    the surface term alone). Until this change such a scene was refused."""
+    inner = {**lit["shape"][0]["interior"], "sigma_s": 0.0}
+    rock = ROCKS[lit["name"]]
+    scene = {**lit, "name": "rock_" + lit["name"],
+             "shape": [{**lit["shape"][0], "interior": inner},
+                       {"primitive": "box", "min": rock[0].tolist(), "max": rock[1].tolist(), "reflectance": 0.6}]}
+    twin = np.array([[rock_pixel(scene, rock, i, j) for i in range(CAMERA["width"])] for j in range(CAMERA["height"])])
+    res = image(scene, "quadrature", {"rtol": 1e-11})
+    seen = twin[..., 1] > 0.0
+    assert seen.sum() >= 6, seen
+    assert np.all(res.image[~seen] == 0.0)
+    assert np.max(np.abs(res.image[seen] - twin[seen]) / twin[seen]) < 1e-9

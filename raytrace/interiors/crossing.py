@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import UserError
 from ..lights import DIRECTIONAL, Lights
 from ..media.adaptive import CAPPED
-from ..media.slab import CLOSED, QUAD, refract_rays, transmittances
+from ..media.slab import CLOSED, QUAD, refract_rays, surface_through_faces, transmittances
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
 from ..shading import facing_normals, shading_normals, surface_radiance
@@ -156,16 +156,15 @@ def check(prep, method, method_params, source: str):
                             f"refractive boundary{why}; use ior = 1" + (f", or --method {', '.join(takers)}" if takers else ""))
     if near:
         for i in inner:
-            if prep.scene.shapes[i].interior.ior == 1.0:
+            if prep.scene.shapes[i].interior.ior == 1.0 or len(convex_planes(prep, i)):
                 continue
             for j in range(len(prep.scene.shapes)):
                 first = prep.accel.triangles[prep.shape_ids == j]
                 if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
                     raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
-                                    f"(ior {prep.scene.shapes[i].interior.ior:g}); surfaces inside a refractive "
-                                    "medium are lit by directional lights only (point and spot lights: not "
-                                    "implemented yet); "
-                                    "use ior = 1 or a directional light")
+                                    f"(ior {prep.scene.shapes[i].interior.ior:g}) and not convex (or of more "
+                                    f"than {KERNEL_PLANES} face planes); surfaces inside such a medium are lit by "
+                                    "directional lights only; use ior = 1, a convex shape or a directional light")
     inside = prep.camera_inside
     if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
                                                        and not len(convex_planes(prep, inside)))):
@@ -410,6 +409,8 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
         lb = np.zeros((len(q), 3))
         lights = prep.lights
         planes = convex_planes(prep, sid)
+        for li in np.nonzero(lights.kind != DIRECTIONAL)[0] if len(planes) else ():
+            lb += _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt)
         for li in np.nonzero(lights.kind == DIRECTIONAL)[0]:
             if len(planes):
                 beams = zip(*refracted_beams(planes, lights.axis[li], medium.ior))
@@ -425,6 +426,45 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
                                    lights.axis[li], *beam)
     with np.errstate(over="ignore", invalid="ignore"):
         return lb * np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
+
+
+def _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt):
+    """rho / pi I E cos_s exp(-sigma_t k - sigma_out o) (M, 3) at surface points q inside the convex
+    refractive shape sid (face `planes`) from point or spot light li, through every face it is outside
+    of: Fermat's path, Fresnel's T and the ray tube's irradiance E with the spot's falloff
+    (media/slab.py `surface_through_faces`), k and o its lengths inside and outside. Opaque surfaces
+    on the path inside shadow, and opaque surfaces and other refractive interiors on its straight leg
+    outside (index-matched interiors there do not attenuate it)."""
+    accel, lights = prep.accel, prep.lights
+    m, nf = len(q), len(planes)
+    value, toward, inside, outside = np.zeros((m, nf)), np.zeros((m, nf, 3)), np.zeros((m, nf)), np.zeros((m, nf))
+    surface_through_faces(np.ascontiguousarray(q), planes, lights.position[li], lights.axis[li], lights.cone[li],
+                          float(prep.scene.shapes[sid].interior.ior), value, toward, inside, outside)
+    out = np.zeros((m, 3))
+    for f in range(nf):
+        u = toward[:, f]
+        cos_s = np.einsum("ij,ij->i", shading, u)
+        ok = np.nonzero((value[:, f] > 0.0) & (cos_s > 0.0) & (np.einsum("ij,ij->i", normals, u) > 0.0))[0]
+        tb, hit = accel.first_hit(q[ok] + accel.epsilon * normals[ok], u[ok])
+        ok = ok[~((hit >= 0) & (tb < inside[ok, f]) & ~enters(prep, hit))]
+        boundary = q[ok] + inside[ok, f, None] * u[ok]
+        leg = lights.position[li] - boundary
+        dist = np.linalg.norm(leg, axis=1)
+        leg /= np.maximum(dist, 1e-300)[:, None]
+        ok = ok[_outside_clear(prep, sid, boundary, leg, dist, leg @ planes[f, :3])]
+        with np.errstate(over="ignore", invalid="ignore"):
+            att = np.exp(-kt * inside[ok, f, None] - prep.scene.medium.sigma_t[None, :] * outside[ok, f, None])
+        out[ok] += refl[ok] / np.pi * lights.intensity[li] * (value[ok, f] * cos_s[ok])[:, None] * att
+    return out
+
+
+def _outside_clear(prep, sid, boundary, dirs, dist, cos):
+    """Whether the light's straight legs outside shape sid, from the points `boundary` (M, 3) where it
+    crosses in (cosine `cos` (M,) to the face) along the unit `dirs` (M, 3) toward the light for
+    `dist` (M,; inf for a directional light), meet no opaque surface and no refractive interior but
+    the shape's own (index-matched interiors let it through unattenuated)."""
+    t, hit = prep.accel.first_hit(_nudge(prep.accel, boundary, dirs, cos), dirs)
+    return (hit < 0) | (t >= dist) | np.isin(prep.shape_ids[np.maximum(hit, 0)], matched(prep) + [sid])
 
 
 def _lit_by_beam(prep, sid, q, normals, shading, refl, planes, intensity, kt, axis, face, toward, e_in, k=None,
@@ -456,8 +496,7 @@ def _lit_by_beam(prep, sid, q, normals, shading, refl, planes, intensity, kt, ax
     ok = ok[~blocked]
     boundary = q[ok] + k[ok, None] * toward[ok]  # where the light crossed into the shape
     cos_i = np.abs(np.broadcast_to(planes[face, :3] if face >= 0 else entry, q.shape)[ok] @ axis)
-    _, hit = accel.first_hit(_nudge(accel, boundary, -axis[None, :], cos_i), np.broadcast_to(-axis, boundary.shape))
-    ok = ok[(hit < 0) | np.isin(prep.shape_ids[np.maximum(hit, 0)], matched(prep) + [sid])]
+    ok = ok[_outside_clear(prep, sid, boundary, np.broadcast_to(-axis, boundary.shape), np.inf, cos_i)]
     out = np.zeros((len(q), 3))
     with np.errstate(over="ignore", invalid="ignore"):
         att = np.where(kt == 0.0, 1.0, np.exp(-kt * k[ok, None]))

@@ -49,7 +49,7 @@ from .convex_chords import section_kinks
 from .convex_directional import envelope
 from .integrand import integrand, integrand_of
 from .march import march
-from .phase import phase_value
+from .phase import ISOTROPIC, phase_value
 
 # how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only (CLOSED; in convex index-matched
 # shapes interiors/crossing.py takes media/convex_directional.py's exact closed form instead), the note's approximation,
@@ -875,3 +875,40 @@ def transmittances(cos_i, eta, out):
     """1 - `fresnel` of every cosine."""
     for i in range(cos_i.shape[0]):
         out[i] = 1.0 - fresnel(cos_i[i], eta)
+
+
+@njit
+def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, inside, outside):
+    """A unit point or spot light (position `light`, `axis`, cone = cos_end, cos_start, curve) at the
+    points q (M, 3) inside a convex refractive shape ({x : n_f·x <= c_f}, `planes` (F, 4)), through
+    each face f it is outside of (`refracting_faces`; Fermat's path with its refraction point on the
+    face, `_on_face`): the irradiance across the refracted beam times the spot's falloff on the
+    direction the light leaves in (`refracted_at` at x = 0 with its attenuation left out) in
+    value[:, f], 0 where no such path; the unit direction from q toward the refraction point in
+    toward[:, f], the path's lengths inside and outside in inside[:, f] and outside[:, f]."""
+    geo = np.zeros(GEO_COLUMNS)
+    geo[3] = 1.0  # a direction along which x = 0 is taken (the terms that depend on it drop out there)
+    geo[6:9], geo[9:12], geo[12:14], geo[17] = light, axis, cone[:2], cone[2]
+    faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
+    value[:] = 0.0
+    for i in range(q.shape[0]):
+        geo[0:3] = q[i]
+        for j in range(refracting_faces(geo, planes, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)):
+            row = faces[j]
+            rho, r = _fermat(0.0, row[0], row[3], row[4], row[1], row[2], eta)
+            if not _on_face(0.0, row, r, rho, planes):
+                continue
+            f = int(row[17])
+            t = r / rho if rho > 0.0 else 0.0
+            k = 0.0
+            for c in range(3):
+                toward[i, f, c] = row[8 + c] + t * row[14 + c] - q[i, c]
+                k += toward[i, f, c] * toward[i, f, c]
+            k = math.sqrt(k)
+            for c in range(3):  # on the face itself (k = 0): its outward normal
+                toward[i, f, c] = toward[i, f, c] / k if k > 0.0 else planes[f, c]
+            inside[i, f] = k
+            outside[i, f] = math.sqrt((rho - r) * (rho - r) + row[2] * row[2])
+            value[i, f] = 4.0 * math.pi * refracted_at(0.0, row[0], rho, r, row[3], row[1], row[2], eta, 0.0, 1.0,
+                                                       ISOTROPIC, 0.0, 0.0, row[5], row[6], row[7], cone[0], cone[1],
+                                                       cone[2])
