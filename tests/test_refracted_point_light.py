@@ -109,6 +109,17 @@ def switches(p, w, ell, value, samples=400):
     return out
 
 
+def camera_entry(scene, i, j, eta):
+    """(t0, entry point, refracted direction, incidence and refraction angles) of pixel (i, j)'s ray
+    into the box, None where it misses."""
+    o_cam, d = oracle.camera_ray(scene["camera"], i, j)
+    t0, n_in = box_entry(o_cam, d, LO, HI)
+    if n_in is None:
+        return None
+    w, ti, tt = snell(d, n_in, eta)
+    return t0, o_cam + t0 * d, w, ti, tt
+
+
 def twin_pixel(scene, i, j, crossings=None, emitters=None):
     """The pixel's inside single scattering (3,), from the geometry alone; `crossings` (a list) gets
     the number of points where a refraction point crosses its face's edge, per lit face. `emitters`:
@@ -119,12 +130,10 @@ def twin_pixel(scene, i, j, crossings=None, emitters=None):
     ks = np.array(inner["sigma_s"], float)
     kt = np.array(inner["sigma_a"], float) + ks
     kt_out = scene["medium"]["sigma_a"] + scene["medium"]["sigma_s"]
-    o_cam, d = oracle.camera_ray(scene["camera"], i, j)
-    t0, n_in = box_entry(o_cam, d, LO, HI)
-    if n_in is None:
+    entry = camera_entry(scene, i, j, eta)
+    if entry is None:
         return np.zeros(3)
-    p = o_cam + t0 * d
-    w, ti, tt = snell(d, n_in, eta)
+    t0, p, w, ti, tt = entry
     ell, _ = oracle.box_exit(p, w, LO, HI)
     out = np.zeros(3)
     if emitters is None:
@@ -304,12 +313,10 @@ def rock_pixel(scene, rock, i, j):
     kt_out = scene["medium"]["sigma_a"]
     L = np.array(light["position"], float)
     spot = spot_terms(light)
-    o_cam, d = oracle.camera_ray(scene["camera"], i, j)
-    t0, n_in = box_entry(o_cam, d, LO, HI)
-    if n_in is None:
+    entry = camera_entry(scene, i, j, eta)
+    if entry is None:
         return np.zeros(3)
-    p = o_cam + t0 * d
-    w, ti, tt = snell(d, n_in, eta)
+    t0, p, w, ti, tt = entry
     hit = slab(p, w, *rock)
     if hit is None or hit[0] <= 0.0:
         return np.zeros(3)
