@@ -93,8 +93,7 @@ def mitsuba_file(tmp_path, body=EMITTERS_XML) -> Path:
 
 
 def test_mitsuba_emitters_read_as_worked_out_by_hand(tmp_path):
-    with pytest.warns(UserWarning, match=r"centres the map's first and last rows on the poles"):
-        raw = mitsuba.read_scene(mitsuba_file(tmp_path))
+    raw = mitsuba.read_scene(mitsuba_file(tmp_path))
     quad, flipped, disk, sphere, constant, envmap = raw["light"]
     # [-1, 1]^2 scaled (0.5, 0.25), turned 90 degrees about x (y -> z, z -> -y), up 2: its +z emits down
     assert quad == {"type": "quad", "corners": [[-0.5, 2.0, -0.25], [0.5, 2.0, -0.25], [0.5, 2.0, 0.25],
@@ -111,7 +110,8 @@ def test_mitsuba_emitters_read_as_worked_out_by_hand(tmp_path):
     assert sphere == {"type": "sphere", "center": [0.0, 1.0, -1.0], "radius": 0.25, "radiance": [7.0, 8.0, 9.0]}
     assert constant == {"type": "environment", "radiance": [0.1, 0.2, 0.3]}
     # envmap.cpp: u = atan2(x, -z) / 2 pi in to_world's frame; ours has u = 1/2 along -z: R_y(90) R_y(180)
-    assert envmap["map"] == str(tmp_path / "sky.exr") and envmap["scale"] == 2.0
+    assert envmap["map"] == str(tmp_path / "sky.exr") and envmap["scale"] == 2.0 and envmap["filter"] == "mitsuba"
+    assert "mirror" not in envmap
     np.testing.assert_allclose(rotation_matrix(envmap["rotate"]), [[0, 0, -1], [0, 1, 0], [1, 0, 0]], atol=1e-12)
     (tri,) = raw["shape"]
     assert tri["emission"] == [3.0, 2.0, 1.0] and "two_sided" not in tri  # one-sided, as Mitsuba's
@@ -247,8 +247,8 @@ def test_pbrt_infinite_illuminance_and_refusals(tmp_path):
     raw = pbrt.read_scene(pbrt_file(tmp_path, 'LightSource "infinite" "float illuminance" [ 2 ]\n'))
     np.testing.assert_allclose(raw["light"][0]["radiance"], [2.0 / math.pi] * 3, rtol=1e-15)  # E_v / pi
     for world, needle in [
-            ('LightSource "infinite" "string filename" "sky.exr"\n', '"string filename": pbrt-v4\'s environment maps '
-             "are equal-area octahedral squares"),
+            ('LightSource "infinite" "string filename" "sky.exr" "point3 portal" [ 0 0 0  1 0 0  1 1 0  0 1 0 ]\n',
+             '"point3 portal" \\(a portal light\\) is not read'),
             ('AreaLightSource "diffuse"\nShape "sphere" "float radius" 1\n'
              'AttributeBegin\nScale 1 2 1\nShape "sphere"\nAttributeEnd\n', "an area light on a sphere scaled unevenly"),
             ('AreaLightSource "diffuse"\nScale 1 2 1\nShape "disk"\n', "a disk stretched into an ellipse"),
@@ -404,15 +404,16 @@ def corner_normals(raw) -> list:
 
 def test_mitsuba_round_trip(tmp_path):
     raw = emitting_scene(tmp_path)
-    raw["light"].append({"type": "environment", "map": str(sky(tmp_path)), "scale": 2.0, "rotate": [0.0, 30.0, 0.0]})
+    raw["light"].append({"type": "environment", "map": str(sky(tmp_path)), "scale": 2.0, "rotate": [0.0, 30.0, 0.0],
+                         "filter": "mitsuba", "mirror": True})
     out = tmp_path / "out" / "scene.xml"
     out.parent.mkdir()
     mitsuba.export(raw, out, "test", False)
-    with pytest.warns(UserWarning, match="poles"):
-        back = mitsuba.read_scene(out)
+    back = mitsuba.read_scene(out)
     assert emitters_of(back) == emitters_of(raw)
     env = [light for light in back["light"] if "map" in light][0]
     assert env["map"] == str(tmp_path / "sky.exr") and env["scale"] == 2.0
+    assert env["filter"] == "mitsuba" and env["mirror"] is True
     np.testing.assert_allclose(rotation_matrix(env["rotate"]), rotation_matrix([0.0, 30.0, 0.0]), atol=1e-12)
     assert corner_normals(back) == corner_normals(raw)  # the PLY's normals, float32: 5 decimals
 
@@ -425,7 +426,7 @@ def test_mitsuba_export_finds_the_map_beside_the_scene(tmp_path, monkeypatch):
     write_exr(folder / "sky.exr", np.full((4, 8, 3), 0.5, np.float32))
     raw = {"camera": {"position": [0.0, 1.0, 4.0], "look_at": [0.0, 0.0, 0.0], "width": 8, "height": 6},
            "shape": [{"primitive": "quad", "corners": [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]]}],
-           "light": [{"type": "environment", "map": "sky.exr"}]}
+           "light": [{"type": "environment", "map": "sky.exr", "filter": "mitsuba"}]}
     (folder / "s.toml").write_text(to_toml(raw))
     monkeypatch.chdir(tmp_path)
     mitsuba.export(raw, tmp_path / "out.xml", str(folder / "s.toml"), False)
@@ -486,9 +487,12 @@ def mi():
 
 @pytest.mark.peers
 def test_envmap_orientation_matches_mitsuba(mi, tmp_path):
-    """Mitsuba's envmap under a to_world of three rotations, evaluated where its rows are centred
-    (row r at theta = pi r / (H - 1): envmap.cpp) away from the poles, sees the texel our imported rotation
-    and the environment camera's mapping (phi = 2 pi (u - 1/2) from -z towards +x) put there."""
+    """Mitsuba's envmap under a to_world of three rotations, evaluated along 500 random directions and
+    the poles, equals the radiance of our import (filter "mitsuba": bilinear, columns at the texel
+    centres, the first and last rows on the poles) to float32's precision."""
+    from raytrace.lights import environment
+    from raytrace.scene.format import scene_from_text
+
     image = np.random.default_rng(1).uniform(0.1, 1.0, (8, 16, 3))
     write_exr(tmp_path / "sky.exr", image)
     body = ('<emitter type="envmap"><string name="filename" value="sky.exr"/><float name="scale" value="2.5"/>'
@@ -496,18 +500,18 @@ def test_envmap_orientation_matches_mitsuba(mi, tmp_path):
             'angle="-50"/></transform></emitter>')
     path = tmp_path / "scene.xml"
     path.write_text(f'<scene version="3.0.0">{SENSOR}{body}</scene>')
-    with pytest.warns(UserWarning):
-        env = mitsuba.read_scene(path)["light"][0]
+    env = mitsuba.read_scene(path)["light"][0]
+    light = scene_from_text(to_toml({"camera": camera(), "light": [env], "medium": {"sigma_a": 0.0, "sigma_s": 0.0}}),
+                            str(tmp_path / "s.toml"), tmp_path / "s.toml").lights[0]
     emitter = mi.load_file(str(path)).emitters()[0]
-    R = rotation_matrix(env["rotate"])
-    H, W = image.shape[:2]
-    for row in range(1, H - 1):
-        for col in range(W):
-            phi, theta = 2.0 * math.pi * ((col + 0.5) / W - 0.5), math.pi * row / (H - 1)
-            d = R @ [math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi)]
-            si = mi.SurfaceInteraction3f()
-            si.wi = mi.Vector3f(*(-d))
-            np.testing.assert_allclose(np.array(emitter.eval(si)), env["scale"] * image[row, col], rtol=1e-5)
+    dirs = np.random.default_rng(2).normal(size=(500, 3))
+    pole = rotation_matrix(env["rotate"]) @ [0.0, 1.0, 0.0]
+    dirs = np.concatenate([dirs / np.linalg.norm(dirs, axis=1)[:, None], [pole, -pole]])
+    ours = environment.radiance(light, dirs)
+    for d, expected in zip(dirs, ours):
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*(-d))
+        np.testing.assert_allclose(np.array(emitter.eval(si)), expected, rtol=2e-5)
 
 
 @pytest.mark.peers
