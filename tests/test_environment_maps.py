@@ -386,3 +386,81 @@ def test_a_pbrt_octahedral_map_imports_and_renders(tmp_path, mirror):
     z = clarberg_square_to_sphere(*np.meshgrid(cc, cc))[..., 2]  # rows: v
     k_e = 2 * math.pi / 64 * np.sum(np.where(z > 0, (image @ LUMA) * z, 0.0))
     assert env["scale"] == pytest.approx(2.0 / k_e, rel=1e-12)
+
+
+def test_a_pbrt_octahedral_map_round_trips(tmp_path):
+    """TOML (an octahedral map turned, mirrored, scaled) -> pbrt -> TOML: the same map, scale, mapping,
+    mirror and rotation (its matrix to 1e-12); the file names the map by its absolute path under a
+    ConcatTransform; the twice-read light sees the same radiance along random directions."""
+    write_exr(tmp_path / "octa.exr", a_map(8, 8))
+    light = {"type": "environment", "map": "octa.exr", "mapping": "octahedral", "rotate": ROTATE, "mirror": True,
+             "scale": 0.75}
+    raw = {"camera": {**CAMERA, "spp": 1}, "light": [light], "medium": VACUUM}
+    (tmp_path / "s.toml").write_text(to_toml(raw))
+    out = tmp_path / "out" / "s.pbrt"
+    out.parent.mkdir()
+    pbrt.export(raw, out, str(tmp_path / "s.toml"), False)
+    text = out.read_text()
+    assert f'LightSource "infinite" "string filename" [ "{tmp_path / "octa.exr"}" ] "float scale" [ 0.75 ]' in text
+    (back,) = pbrt.read_scene(out)["light"]
+    assert back["map"] == str(tmp_path / "octa.exr") and back["scale"] == 0.75 and back["mapping"] == "octahedral"
+    assert back["mirror"] is True
+    np.testing.assert_allclose(rotation_matrix(back["rotate"]), rotation_matrix(ROTATE), atol=1e-12)
+    first = scene([light], path=tmp_path / "s.toml").lights[0]
+    second = scene([back], path=tmp_path / "b.toml").lights[0]
+    d = unit(2000)
+    np.testing.assert_array_equal(environment.radiance(second, d), environment.radiance(first, d))
+
+
+@pytest.mark.parametrize("keys,shape,message", [
+    ({"mapping": "octahedral"}, (4, 8), "light[0].map: {path} is 8 x 4: an octahedral map is square; give a square"),
+    ({"mapping": "octahedral", "filter": "bilinear"}, (4, 4),
+     "light[0].filter: an octahedral map is looked up nearest (as pbrt-v4), not 'bilinear'; remove light[0].filter"),
+    ({"filter": "mitsuba"}, (1, 4), "light[0].map: {path} has one row: the mitsuba filter puts the first and last rows"),
+    ({"filter": "cubic"}, (4, 8), "light[0].filter"),
+    ({"mapping": "cube"}, (4, 8), "light[0].mapping"),
+    ({"mirror": 1}, (4, 8), "light[0].mirror: expected true or false, got 1; write light[0].mirror = true"),
+    ({"radiance": [1.0, 1.0, 1.0], "filter": "bilinear"}, None,
+     "light[0].filter: applies to a map, not a constant radiance; remove light[0].filter")])
+def test_bad_map_keys_are_one_line_errors(tmp_path, keys, shape, message):
+    light = {"type": "environment", **keys}
+    if shape:
+        write_exr(tmp_path / "sky.exr", np.ones((*shape, 3), np.float32))
+        light["map"] = "sky.exr"
+    with pytest.raises(UserError) as err:
+        scene([light], path=tmp_path / "env.toml")
+    text = str(err.value)
+    assert message.format(path=tmp_path / "sky.exr") in text and "\n" not in text, text
+
+
+def test_describe_names_the_mapping_and_filter(tmp_path):
+    light = map_light(tmp_path, a_map(8, 8), mapping="octahedral", mirror=True)
+    assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (8 x 8, octahedral), rotated, mean")
+    light = map_light(tmp_path, a_map(4, 8), filter="mitsuba")
+    assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (8 x 4, mitsuba), mean radiance")
+
+
+def test_pbrt_map_refusals(tmp_path):
+    """One line each, naming the file and line: a portal, "L" with "filename", a missing or non-EXR file,
+    a non-square map, a stretched light frame, an "illuminance" of a map black above the horizon."""
+    write_exr(tmp_path / "octa.exr", a_map(8, 8))
+    write_exr(tmp_path / "wide.exr", a_map(4, 8))
+    dark = a_map(8, 8)
+    c = (np.arange(8) + 0.5) / 8
+    dark[clarberg_square_to_sphere(*np.meshgrid(c, c))[..., 2] > 0] = 0.0
+    write_exr(tmp_path / "dark.exr", dark)
+    (tmp_path / "sky.png").write_bytes(b"")
+    head = 'LookAt 0 0 0  0 0 -1  0 1 0\nCamera "perspective"\nWorldBegin\n'
+    for world, needle in [
+            ('LightSource "infinite" "string filename" "octa.exr" "point3 portal" [ 0 0 0 1 0 0 1 1 0 0 1 0 ]',
+             '"point3 portal" (a portal light) is not read'),
+            ('LightSource "infinite" "string filename" "octa.exr" "rgb L" [ 1 1 1 ]', 'both "L" and "filename"'),
+            ('LightSource "infinite" "string filename" "none.exr"', "none.exr is not found"),
+            ('LightSource "infinite" "string filename" "sky.png"', "sky.png is not an OpenEXR file"),
+            ('LightSource "infinite" "string filename" "wide.exr"', "is 8 x 4: pbrt-v4's maps are square"),
+            ('Scale 1 2 1 LightSource "infinite" "string filename" "octa.exr"', "a non-uniform scale or shear"),
+            ('LightSource "infinite" "string filename" "dark.exr" "float illuminance" 3', "black above the horizon")]:
+        (tmp_path / "s.pbrt").write_text(head + world + "\n")
+        with pytest.raises(UserError) as err:
+            pbrt.read_scene(tmp_path / "s.pbrt")
+        assert needle in str(err.value) and "s.pbrt:4" in str(err.value) and "\n" not in str(err.value), str(err.value)

@@ -418,6 +418,70 @@ def test_mitsuba_round_trip(tmp_path):
     assert corner_normals(back) == corner_normals(raw)  # the PLY's normals, float32: 5 decimals
 
 
+def mitsuba_envmap_eval(image, to_world, dirs):
+    """A twin of mitsuba3 src/emitters/envmap.cpp `eval` in RGB: v = to_world^-1 w, u = atan2(v_x, -v_z) / 2 pi
+    wrapped into [0, 1), t = acos(v_y) / pi; bilinear over the bitmap at x = u W - 1/2 (periodic: a column
+    each side copied from the opposite edge), y = t (H - 1) (the first and last rows on the poles)."""
+    H, W = image.shape[:2]
+    v = dirs @ np.linalg.inv(to_world).T
+    u = np.arctan2(v[:, 0], -v[:, 2]) / (2 * math.pi)
+    u -= np.floor(u)
+    x, y = u * W - 0.5, np.arccos(np.clip(v[:, 1], -1, 1)) / math.pi * (H - 1)
+    x0, y0 = np.floor(x).astype(int), np.minimum(np.floor(y).astype(int), H - 2)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    a, b = x0 % W, (x0 + 1) % W
+    return ((1 - fy) * ((1 - fx) * image[y0, a] + fx * image[y0, b]) +
+            fy * ((1 - fx) * image[y0 + 1, a] + fx * image[y0 + 1, b]))
+
+
+@pytest.mark.parametrize("mirror", ["", '<scale x="-1"/>'])
+def test_mitsuba_envmap_renders_as_mitsuba_looks_it_up(tmp_path, mirror):
+    """An envmap under three rotations (and a mirror): the imported light's radiance along 5000 random
+    directions equals the twin of Mitsuba's lookup, to 1e-12."""
+    from raytrace.lights import environment
+    from raytrace.scene.format import scene_from_text
+
+    image = np.random.default_rng(1).uniform(0.1, 1.0, (8, 16, 3)).astype(np.float32).astype(float)
+    write_exr(tmp_path / "sky.exr", image)
+    body = ('<emitter type="envmap"><string name="filename" value="sky.exr"/><float name="scale" value="2.5"/>'
+            f'<transform name="to_world">{mirror}<rotate y="1" angle="30"/><rotate x="1" angle="20"/>'
+            '<rotate z="1" angle="-50"/></transform></emitter>')
+    path = tmp_path / "scene.xml"
+    path.write_text(f'<scene version="3.0.0">{SENSOR}{body}</scene>')
+    env = mitsuba.read_scene(path)["light"][0]
+    assert env["filter"] == "mitsuba" and env.get("mirror", False) == bool(mirror)
+    light = scene_from_text(to_toml({"camera": camera(), "light": [env], "medium": {"sigma_a": 0.0, "sigma_s": 0.0}}),
+                            str(tmp_path / "s.toml"), tmp_path / "s.toml").lights[0]
+    M = np.diag([-1.0 if mirror else 1.0, 1.0, 1.0])
+    for axis, angle in (("y", 30), ("x", 20), ("z", -50)):  # each <rotate> left-multiplies
+        M = rotation_matrix({"x": [angle, 0, 0], "y": [0, angle, 0], "z": [0, 0, angle]}[axis]) @ M
+    dirs = np.random.default_rng(2).normal(size=(5000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    np.testing.assert_allclose(environment.radiance(light, dirs), 2.5 * mitsuba_envmap_eval(image, M, dirs),
+                               rtol=1e-12, atol=1e-14)
+
+
+def test_mitsuba_export_of_other_maps(tmp_path):
+    """A map looked up "nearest" or "bilinear" is refused in one line naming its filter (Mitsuba interpolates
+    every map its own way), written with --approximate and a warning; an octahedral map is refused."""
+    sky(tmp_path)
+    for keys, needle in [({}, 'light[0].filter: a map looked up "nearest"'),
+                         ({"filter": "bilinear"}, 'light[0].filter: a map looked up "bilinear"')]:
+        raw = {"camera": camera(), "light": [{"type": "environment", "map": str(tmp_path / "sky.exr"), **keys}]}
+        with pytest.raises(UserError, match=needle.replace("[", r"\[").replace("]", r"\]")):
+            mitsuba.export(raw, tmp_path / "x.xml", "test", False)
+        assert not (tmp_path / "x.xml").exists()
+        with pytest.warns(UserWarning, match="--approximate"):
+            mitsuba.export(raw, tmp_path / "x.xml", "test", True)
+        assert '<emitter type="envmap">' in (tmp_path / "x.xml").read_text()
+        (tmp_path / "x.xml").unlink()
+    write_exr(tmp_path / "octa.exr", np.ones((4, 4, 3), np.float32))
+    raw = {"camera": camera(), "light": [{"type": "environment", "map": str(tmp_path / "octa.exr"),
+                                          "mapping": "octahedral"}]}
+    with pytest.raises(UserError, match=r"light\[0\].mapping: Mitsuba 3's envmap is equirectangular"):
+        mitsuba.export(raw, tmp_path / "x.xml", "test", True)
+
+
 def test_mitsuba_export_finds_the_map_beside_the_scene(tmp_path, monkeypatch):
     """An environment map named relative to the scene file is written with its path as the scene
     reader finds it, whatever the working folder (it was resolved against the working folder)."""
