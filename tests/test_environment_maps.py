@@ -404,7 +404,7 @@ def test_a_pbrt_octahedral_map_round_trips(tmp_path):
     ({"mapping": "octahedral"}, (4, 8), "light[0].map: {path} is 8 x 4: an octahedral map is square; give a square"),
     ({"mapping": "octahedral", "filter": "bilinear"}, (4, 4),
      "light[0].filter: an octahedral map is looked up nearest (as pbrt-v4), not 'bilinear'; remove light[0].filter"),
-    ({"filter": "mitsuba"}, (1, 4), "light[0].map: {path} has one row: the mitsuba filter puts the first and last rows"),
+    ({"filter": "mitsuba"}, (2, 4), "light[0].map: {path} has 2 rows: the mitsuba filter needs at least 3; give a"),
     ({"filter": "cubic"}, (4, 8), "light[0].filter"),
     ({"mapping": "cube"}, (4, 8), "light[0].mapping"),
     ({"mirror": 1}, (4, 8), "light[0].mirror: expected true or false, got 1; write light[0].mirror = true"),
@@ -423,7 +423,7 @@ def test_bad_map_keys_are_one_line_errors(tmp_path, keys, shape, message):
 
 def test_describe_names_the_mapping_and_filter(tmp_path):
     light = map_light(tmp_path, a_map(8, 8), mapping="octahedral", mirror=True)
-    assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (8 x 8, octahedral), rotated, mean")
+    assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (8 x 8, octahedral), mirrored, mean")
     light = map_light(tmp_path, a_map(4, 8), filter="mitsuba")
     assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (8 x 4, mitsuba), mean radiance")
 

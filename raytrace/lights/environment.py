@@ -94,9 +94,9 @@ def _check_shape(read, key, image, source, mapping, filt):
     if mapping == "octahedral" and filt != "nearest":
         read.fail(f"{key}.filter", f"an octahedral map is looked up nearest (as pbrt-v4), not {filt!r}",
                   f"remove {key}.filter")
-    if filt == "mitsuba" and H < 2:
-        read.fail(f"{key}.map", f"{source} has one row: the mitsuba filter puts the first and last rows on the poles",
-                  "give a map of at least 2 rows, or filter = \"bilinear\"")
+    if filt == "mitsuba" and H < 3:  # (Mitsuba pads such a map, repeating its last row: Bitmap::pad_to)
+        read.fail(f"{key}.map", f"{source} has {H} row{'s' * (H > 1)}: the mitsuba filter needs at least 3",
+                  "give a taller map, or filter = \"bilinear\"")
 
 
 def rotate_keys(matrix) -> dict:
@@ -118,7 +118,8 @@ def describe(light) -> str:
                     if em[k] != default)
     what = (f"map {em['file']} ({image.shape[1]} x {image.shape[0]}{kinds})" if em["file"] else
             f"constant radiance {image[0, 0].tolist()}")
-    turned = "" if np.allclose(em["rotation"], np.eye(3)) else ", rotated"
+    turned = ("" if np.allclose(em["rotation"], np.eye(3)) else
+              ", mirrored" if np.linalg.det(em["rotation"]) < 0.0 else ", rotated")
     return (f"{NAME}, {what}{turned}, mean radiance {light.intensity.tolist()}; {COUNT} directions (importance-"
             "sampled, the same for every pixel)")
 
