@@ -681,7 +681,7 @@ class _Reader:
         path = self.resolve(p.string("filename"))
         if path.suffix.lower() != ".exr" or not path.is_file():
             w.fail(line, f'{p.directive}: "string filename": {path} is ' + ("not found" if not path.is_file() else
-                   "not an OpenEXR file"), "give the octahedral map as a linear RGB .exr beside the file")
+                   "not an OpenEXR file"), "give the map (pbrt-v4's equal-area octahedral square) as a linear RGB .exr")
         try:
             image = read_exr(path)[0]
         except UserError:
