@@ -24,16 +24,12 @@ import numpy as np
 BISECTIONS = 64  # halvings of s in [0, 1]: to the last bit of a double
 
 
-def grid(image, filt: str) -> tuple[np.ndarray, np.ndarray]:
-    """(theta nodes (K + 1,), node values (K + 1, W + 1, 3): the map's rows at the nodes, its column 0
-    repeated after the last)."""
-    H, W = image.shape[:2]
+def nodes(height: int, filt: str) -> tuple[np.ndarray, np.ndarray]:
+    """(theta nodes (K + 1,), the map's row at each node (K + 1,))."""
     if filt == "mitsuba":
-        theta, rows = np.pi * np.arange(H) / (H - 1), np.arange(H)
-    else:
-        theta = np.concatenate([[0.0], np.pi * (np.arange(H) + 0.5) / H, [np.pi]])
-        rows = np.concatenate([[0], np.arange(H), [H - 1]])
-    return theta, image[rows][:, np.r_[np.arange(W), 0]]
+        return np.pi * np.arange(height) / (height - 1), np.arange(height)
+    return (np.concatenate([[0.0], np.pi * (np.arange(height) + 0.5) / height, [np.pi]]),
+            np.concatenate([[0], np.arange(height), [height - 1]]))
 
 
 def _moments(theta) -> tuple[np.ndarray, np.ndarray]:
@@ -43,34 +39,35 @@ def _moments(theta) -> tuple[np.ndarray, np.ndarray]:
     return np.cos(theta[:-1]) - np.cos(theta[1:]) - a1, a1
 
 
+def _rows(image, filt: str):
+    """(theta nodes, node rows, P (K + 1, ...): the exact phi-integral of each node row (the trapezoid rule
+    of a periodic piecewise linear function), the integral over each cell row (K, ...)) of `image`
+    (H, W, ...): RGB or luminance."""
+    theta, rows = nodes(image.shape[0], filt)
+    p = 2.0 * np.pi / image.shape[1] * image.sum(axis=1)[rows]
+    a0, a1 = _moments(theta)
+    return theta, rows, p, np.einsum("k,k...->k...", a0, p[:-1]) + np.einsum("k,k...->k...", a1, p[1:])
+
+
 def integral(image, filt: str) -> np.ndarray:
     """The integral of the interpolated L over the sphere per channel (exact)."""
-    theta, nodes = grid(image, filt)
-    p = 2.0 * np.pi / image.shape[1] * nodes[:, :-1].sum(axis=1)  # (K + 1, 3)
-    a0, a1 = _moments(theta)
-    return a0 @ p[:-1] + a1 @ p[1:]
+    return _rows(image, filt)[3].sum(axis=0)
 
 
-def _row_weights(theta, luma):
-    """(P (K + 1,), the integral of Y over each cell row (K,))."""
-    p = 2.0 * np.pi / (luma.shape[1] - 1) * luma[:, :-1].sum(axis=1)
-    a0, a1 = _moments(theta)
-    return p, a0 * p[:-1] + a1 * p[1:]
-
-
-def _value(nodes, i, s, c, t):
-    """The bilinear interpolation (n, ...) of the node values in cells (i, c) at (s, t)."""
+def _value(image, rows, i, s, c, t):
+    """The bilinear interpolation (n, 3) in cells (i, c) at (s, t): node rows rows[i], rows[i + 1], columns
+    c and c + 1 (periodic)."""
     s, t = s[:, None], t[:, None]
-    return ((1.0 - s) * ((1.0 - t) * nodes[i, c] + t * nodes[i, c + 1]) +
-            s * ((1.0 - t) * nodes[i + 1, c] + t * nodes[i + 1, c + 1]))
+    r0, r1, c1 = rows[i], rows[i + 1], (c + 1) % image.shape[1]
+    return ((1.0 - s) * ((1.0 - t) * image[r0, c] + t * image[r0, c1]) +
+            s * ((1.0 - t) * image[r1, c] + t * image[r1, c1]))
 
 
 def sample(image, filt: str, luma_weights, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(local directions (n, 3), pdf per steradian (n,), L (n, 3)) of the points u (n, 2) of [0, 1)^2."""
-    theta, nodes = grid(image, filt)
     W = image.shape[1]
-    luma = nodes @ luma_weights
-    p, row = _row_weights(theta, luma)
+    luma = image @ luma_weights
+    theta, rows, p, row = _rows(luma, filt)
     cum = np.cumsum(row)
     total = cum[-1]
     i = np.minimum(np.searchsorted(cum, u[:, 0] * total, side="right"), len(row) - 1)
@@ -84,7 +81,8 @@ def sample(image, filt: str, luma_weights, u) -> tuple[np.ndarray, np.ndarray, n
         below = p0 * (np.cos(t0) - np.cos(th)) + dp * ((np.sin(th) - np.sin(t0)) / delta - s * np.cos(th)) < target
         lo, hi = np.where(below, s, lo), np.where(below, hi, s)
     s = 0.5 * (lo + hi)
-    g = (1.0 - s)[:, None] * luma[i] + s[:, None] * luma[i + 1]  # (n, W + 1)
+    g = (1.0 - s)[:, None] * luma[rows[i]] + s[:, None] * luma[rows[i + 1]]  # (n, W): the row at theta
+    g = np.concatenate([g, g[:, :1]], axis=1)  # periodic
     cells = np.cumsum(0.5 * (g[:, :-1] + g[:, 1:]), axis=1)
     want = u[:, 1] * cells[:, -1]
     c = np.minimum((cells <= want[:, None]).sum(axis=1), W - 1)  # skips cells of weight 0
@@ -93,7 +91,7 @@ def sample(image, filt: str, luma_weights, u) -> tuple[np.ndarray, np.ndarray, n
     g0, g1 = g[n, c], g[n, c + 1]
     f = np.clip((want - before) / np.maximum(0.5 * (g0 + g1), 1e-300), 0.0, 1.0)
     t = f * (g0 + g1) / np.maximum(g0 + np.sqrt((1.0 - f) * g0 * g0 + f * g1 * g1), 1e-300)
-    value = _value(nodes, i, s, c, t)
+    value = _value(image, rows, i, s, c, t)
     return (_direction(t0 + s * delta, 2.0 * np.pi * ((c + 0.5 + t) / W - 0.5)), value @ luma_weights / total,
             value)
 
@@ -104,16 +102,19 @@ def _direction(theta, phi):
     return np.stack([st * np.sin(phi), np.cos(theta), -st * np.cos(phi)], axis=1)
 
 
-def lookup(image, filt: str, luma_weights, local) -> tuple[np.ndarray, np.ndarray]:
-    """(L (n, 3), pdf per steradian (n,)) toward the local directions (n, 3)."""
-    theta, nodes = grid(image, filt)
+def radiance(image, filt: str, local) -> np.ndarray:
+    """L (n, 3) toward the local directions (n, 3)."""
     W = image.shape[1]
+    theta, rows = nodes(image.shape[0], filt)
     x, y, z = np.asarray(local, float).T
     th = np.arctan2(np.hypot(x, z), y)
     i = np.clip(np.searchsorted(theta, th, side="right") - 1, 0, len(theta) - 2)
     s = np.clip((th - theta[i]) / np.diff(theta)[i], 0.0, 1.0)
     q = np.mod((np.arctan2(x, -z) / (2.0 * np.pi) + 0.5) * W - 0.5, W)  # in columns from column 0's centre
     c = np.minimum(q.astype(np.int64), W - 1)
-    value = _value(nodes, i, s, c, q - c)
-    _, row = _row_weights(theta, nodes @ luma_weights)
-    return value, value @ luma_weights / row.sum()
+    return _value(image, rows, i, s, c, q - c)
+
+
+def pdf(image, filt: str, luma_weights, local) -> np.ndarray:
+    """The sampling density (n,) per steradian of the local directions (n, 3): Y(w) / Z."""
+    return radiance(image, filt, local) @ luma_weights / integral(image @ luma_weights, filt)

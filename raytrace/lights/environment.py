@@ -190,16 +190,11 @@ def texels(light, dirs) -> tuple[np.ndarray, np.ndarray]:
             np.floor((phi / (2.0 * np.pi) + 0.5) * W).astype(np.int64) % W)
 
 
-def _interpolated(light, dirs):
-    """(L, pdf) of an interpolated map toward the world directions (n, 3)."""
-    em = light.emitter
-    return bilinear.lookup(em["map"], em["filter"], LUMA, np.asarray(dirs, float) @ em["rotation"])
-
-
 def pdf(light, dirs) -> np.ndarray:
     """The sampling density (n,) per steradian of the world directions (n, 3)."""
-    if light.emitter["filter"] != "nearest":
-        return _interpolated(light, dirs)[1]
+    em = light.emitter
+    if em["filter"] != "nearest":
+        return bilinear.pdf(em["map"], em["filter"], LUMA, np.asarray(dirs, float) @ em["rotation"])
     w, omega = _weights(light)
     r, c = texels(light, dirs)
     return w[r, c] / w.sum() / omega[r]
@@ -207,10 +202,11 @@ def pdf(light, dirs) -> np.ndarray:
 
 def radiance(light, dirs) -> np.ndarray:
     """L (n, 3) toward the world directions (n, 3): what a ray leaving the scene along them sees."""
-    if light.emitter["filter"] != "nearest":
-        return _interpolated(light, dirs)[0]
+    em = light.emitter
+    if em["filter"] != "nearest":
+        return bilinear.radiance(em["map"], em["filter"], np.asarray(dirs, float) @ em["rotation"])
     r, c = texels(light, dirs)
-    return light.emitter["map"][r, c]
+    return em["map"][r, c]
 
 
 def lattice(n: int) -> np.ndarray:
