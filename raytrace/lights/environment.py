@@ -55,7 +55,7 @@ def parse(read, key, raw) -> Light:
     """A constant `radiance` or a `map` (an EXR read by the scene reader, `read.image`) with its `mapping`
     and `filter`, `rotate`, `mirror`, `scale` (>= 0)."""
     if ("radiance" in raw) == ("map" in raw):
-        read.fail(key, "give either radiance (a constant environment) or map (an equirectangular EXR)" if "map" in raw
+        read.fail(key, "give either radiance (a constant environment) or map (an EXR)" if "map" in raw
                   else "missing radiance", f"add {key}.radiance = [0.2, 0.3, 0.5] or {key}.map = \"sky.exr\"")
     scale = float(read.number(f"{key}.scale", raw.get("scale", 1.0), minimum=0.0))
     rotate = read.vec3(f"{key}.rotate", raw.get("rotate", [0.0, 0.0, 0.0]))
