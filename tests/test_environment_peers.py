@@ -16,7 +16,8 @@ Our 64 fixed directions make the shadows cast by the sky sums of 64 hard shadows
 image differs from FINE directions' it is outside Mitsuba's noise (xfail strict), and FINE directions
 come closer. Findings, each an xfail(strict): with a grey plate Mitsuba's volpath at max_depth 2 adds
 light reflected by the plate to the fog box's pixels (a black plate removes it); Mitsuba does not read
-a map as we do (bilinear). The exporter finds the map beside the scene file from any working folder.
+a nearest map as we do (it interpolates; exported with --approximate). With filter = "mitsuba" (its own
+interpolation) the 16 x 8 map itself is exported exactly and every pixel agrees at FINE directions. The exporter finds the map beside the scene file from any working folder.
 
 Height fog is not compared: Mitsuba 3 has no exponential height fog, and a `heterogeneous` medium's grid
 is bounded by its shape while ours extends to infinity sideways and upward (docs/environment.md).
