@@ -16,7 +16,8 @@ Our 64 fixed directions make the shadows cast by the sky sums of 64 hard shadows
 image differs from FINE directions' it is outside Mitsuba's noise (xfail strict), and FINE directions
 come closer. Findings, each an xfail(strict): with a grey plate Mitsuba's volpath at max_depth 2 adds
 light reflected by the plate to the fog box's pixels (a black plate removes it); Mitsuba does not read
-a map as we do (bilinear). The exporter finds the map beside the scene file from any working folder.
+a nearest map as we do (it interpolates; exported with --approximate). With filter = "mitsuba" (its own
+interpolation) the 16 x 8 map itself is exported exactly and every pixel agrees at FINE directions. The exporter finds the map beside the scene file from any working folder.
 
 Height fog is not compared: Mitsuba 3 has no exponential height fog, and a `heterogeneous` medium's grid
 is bounded by its shape while ours extends to infinity sideways and upward (docs/environment.md).
@@ -67,11 +68,11 @@ def ours(scene, method="quadrature", count=None, **params):
         environment.COUNT = saved
 
 
-def export(scene, xml):
+def export(scene, xml, approximate=False):
     """Our Mitsuba export of (raw, source, path) to `xml`, run from the scene's folder (see
     test_an_export_from_another_folder_finds_its_map); its text."""
     with contextlib.chdir((scene[2] or FOG_BOX).parent):
-        mitsuba_io.export(copy.deepcopy(scene[0]), xml, scene[1], False)
+        mitsuba_io.export(copy.deepcopy(scene[0]), xml, scene[1], approximate)
     return xml.read_text()
 
 
@@ -190,7 +191,8 @@ def sky(mi, tmp_path_factory):  # noqa: F811 (the fixture)
     write_exr(folder / "sky.exr", sky_map())
     write_exr(folder / "fine.exr", np.repeat(np.repeat(sky_map(), REPEAT, 0), REPEAT, 1))
     scene = fog_box(plate=0.0, light={"type": "environment", "map": "sky.exr"}, folder=folder)
-    text = export(scene, folder / "scene.xml")
+    with pytest.warns(UserWarning, match='a map looked up "nearest"'):  # Mitsuba interpolates it: --approximate
+        text = export(scene, folder / "scene.xml", approximate=True)
     (folder / "fine.xml").write_text(text.replace(str(folder / "sky.exr"), str(folder / "fine.exr")))
     runs = mitsuba_runs(mi, folder / "fine.xml")
     return folder, scene, text, runs, ours(scene).array, ours(scene, count=FINE).array, deterministic(runs)
@@ -241,6 +243,37 @@ def test_mitsuba_reads_our_map_as_we_do(mi, sky):  # noqa: F811 (the fixture)
 @pytest.mark.peers
 def test_an_export_from_another_folder_finds_its_map(sky, tmp_path):
     folder, scene = sky[:2]
-    with contextlib.chdir(tmp_path):
-        mitsuba_io.export(copy.deepcopy(scene[0]), tmp_path / "elsewhere.xml", scene[1], False)
+    with contextlib.chdir(tmp_path), pytest.warns(UserWarning, match="--approximate"):
+        mitsuba_io.export(copy.deepcopy(scene[0]), tmp_path / "elsewhere.xml", scene[1], True)
     assert f'name="filename" value="{folder / "sky.exr"}"' in (tmp_path / "elsewhere.xml").read_text()
+
+
+# ------------------------------------------------------------------- the same map with filter = "mitsuba"
+
+@pytest.fixture(scope="module")
+def interpolated(mi, tmp_path_factory):  # noqa: F811 (the fixture)
+    """(Mitsuba's runs of the 16 x 8 map itself, our quadrature at FINE with filter = "mitsuba", the pixels
+    Mitsuba renders deterministically): the export is exact, no repeated copy of the map."""
+    folder = tmp_path_factory.mktemp("interpolated")
+    write_exr(folder / "sky.exr", sky_map())
+    scene = fog_box(plate=0.0, light={"type": "environment", "map": "sky.exr", "filter": "mitsuba"}, folder=folder)
+    export(scene, folder / "scene.xml")
+    runs = mitsuba_runs(mi, folder / "scene.xml")
+    return runs, ours(scene, count=FINE).array, deterministic(runs)
+
+
+@pytest.mark.peers
+def test_mitsuba_reads_a_mitsuba_filtered_map_as_we_do(interpolated):
+    """With filter = "mitsuba" (bilinear, the first and last rows on the poles: envmap.cpp) the 16 x 8 map
+    seen directly equals Mitsuba's to 1e-3 (the pixels it renders deterministically), where the nearest
+    map is up to 420 % off (test_mitsuba_reads_our_map_as_we_do)."""
+    runs, fine, fixed = interpolated
+    assert 0.2 < fixed.mean() < 0.8, fixed.mean()
+    np.testing.assert_allclose(runs[0].sum(-1)[fixed], fine.sum(-1)[fixed], rtol=1e-3, atol=1e-30)
+
+
+@pytest.mark.peers
+def test_the_mitsuba_filtered_map_scene_agrees_with_mitsuba_at_fine_directions(interpolated):
+    """FINE directions sampled in proportion to the interpolated luminance: every pixel agrees."""
+    runs, fine, _ = interpolated
+    assert agree(runs, fine)

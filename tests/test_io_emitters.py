@@ -93,8 +93,7 @@ def mitsuba_file(tmp_path, body=EMITTERS_XML) -> Path:
 
 
 def test_mitsuba_emitters_read_as_worked_out_by_hand(tmp_path):
-    with pytest.warns(UserWarning, match=r"centres the map's first and last rows on the poles"):
-        raw = mitsuba.read_scene(mitsuba_file(tmp_path))
+    raw = mitsuba.read_scene(mitsuba_file(tmp_path))
     quad, flipped, disk, sphere, constant, envmap = raw["light"]
     # [-1, 1]^2 scaled (0.5, 0.25), turned 90 degrees about x (y -> z, z -> -y), up 2: its +z emits down
     assert quad == {"type": "quad", "corners": [[-0.5, 2.0, -0.25], [0.5, 2.0, -0.25], [0.5, 2.0, 0.25],
@@ -111,7 +110,8 @@ def test_mitsuba_emitters_read_as_worked_out_by_hand(tmp_path):
     assert sphere == {"type": "sphere", "center": [0.0, 1.0, -1.0], "radius": 0.25, "radiance": [7.0, 8.0, 9.0]}
     assert constant == {"type": "environment", "radiance": [0.1, 0.2, 0.3]}
     # envmap.cpp: u = atan2(x, -z) / 2 pi in to_world's frame; ours has u = 1/2 along -z: R_y(90) R_y(180)
-    assert envmap["map"] == str(tmp_path / "sky.exr") and envmap["scale"] == 2.0
+    assert envmap["map"] == str(tmp_path / "sky.exr") and envmap["scale"] == 2.0 and envmap["filter"] == "mitsuba"
+    assert "mirror" not in envmap
     np.testing.assert_allclose(rotation_matrix(envmap["rotate"]), [[0, 0, -1], [0, 1, 0], [1, 0, 0]], atol=1e-12)
     (tri,) = raw["shape"]
     assert tri["emission"] == [3.0, 2.0, 1.0] and "two_sided" not in tri  # one-sided, as Mitsuba's
@@ -247,8 +247,8 @@ def test_pbrt_infinite_illuminance_and_refusals(tmp_path):
     raw = pbrt.read_scene(pbrt_file(tmp_path, 'LightSource "infinite" "float illuminance" [ 2 ]\n'))
     np.testing.assert_allclose(raw["light"][0]["radiance"], [2.0 / math.pi] * 3, rtol=1e-15)  # E_v / pi
     for world, needle in [
-            ('LightSource "infinite" "string filename" "sky.exr"\n', '"string filename": pbrt-v4\'s environment maps '
-             "are equal-area octahedral squares"),
+            ('LightSource "infinite" "string filename" "sky.exr" "point3 portal" [ 0 0 0  1 0 0  1 1 0  0 1 0 ]\n',
+             '"point3 portal" \\(a portal light\\) is not read'),
             ('AreaLightSource "diffuse"\nShape "sphere" "float radius" 1\n'
              'AttributeBegin\nScale 1 2 1\nShape "sphere"\nAttributeEnd\n', "an area light on a sphere scaled unevenly"),
             ('AreaLightSource "diffuse"\nScale 1 2 1\nShape "disk"\n', "a disk stretched into an ellipse"),
@@ -404,17 +404,82 @@ def corner_normals(raw) -> list:
 
 def test_mitsuba_round_trip(tmp_path):
     raw = emitting_scene(tmp_path)
-    raw["light"].append({"type": "environment", "map": str(sky(tmp_path)), "scale": 2.0, "rotate": [0.0, 30.0, 0.0]})
+    raw["light"].append({"type": "environment", "map": str(sky(tmp_path)), "scale": 2.0, "rotate": [0.0, 30.0, 0.0],
+                         "filter": "mitsuba", "mirror": True})
     out = tmp_path / "out" / "scene.xml"
     out.parent.mkdir()
     mitsuba.export(raw, out, "test", False)
-    with pytest.warns(UserWarning, match="poles"):
-        back = mitsuba.read_scene(out)
+    back = mitsuba.read_scene(out)
     assert emitters_of(back) == emitters_of(raw)
     env = [light for light in back["light"] if "map" in light][0]
     assert env["map"] == str(tmp_path / "sky.exr") and env["scale"] == 2.0
+    assert env["filter"] == "mitsuba" and env["mirror"] is True
     np.testing.assert_allclose(rotation_matrix(env["rotate"]), rotation_matrix([0.0, 30.0, 0.0]), atol=1e-12)
     assert corner_normals(back) == corner_normals(raw)  # the PLY's normals, float32: 5 decimals
+
+
+def mitsuba_envmap_eval(image, to_world, dirs):
+    """A twin of mitsuba3 src/emitters/envmap.cpp `eval` in RGB: v = to_world^-1 w, u = atan2(v_x, -v_z) / 2 pi
+    wrapped into [0, 1), t = acos(v_y) / pi; bilinear over the bitmap at x = u W - 1/2 (periodic: a column
+    each side copied from the opposite edge), y = t (H - 1) (the first and last rows on the poles)."""
+    H, W = image.shape[:2]
+    v = dirs @ np.linalg.inv(to_world).T
+    u = np.arctan2(v[:, 0], -v[:, 2]) / (2 * math.pi)
+    u -= np.floor(u)
+    x, y = u * W - 0.5, np.arccos(np.clip(v[:, 1], -1, 1)) / math.pi * (H - 1)
+    x0, y0 = np.floor(x).astype(int), np.minimum(np.floor(y).astype(int), H - 2)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    a, b = x0 % W, (x0 + 1) % W
+    return ((1 - fy) * ((1 - fx) * image[y0, a] + fx * image[y0, b]) +
+            fy * ((1 - fx) * image[y0 + 1, a] + fx * image[y0 + 1, b]))
+
+
+@pytest.mark.parametrize("mirror", ["", '<scale x="-1"/>'])
+def test_mitsuba_envmap_renders_as_mitsuba_looks_it_up(tmp_path, mirror):
+    """An envmap under three rotations (and a mirror): the imported light's radiance along 5000 random
+    directions equals the twin of Mitsuba's lookup, to 1e-12."""
+    from raytrace.lights import environment
+    from raytrace.scene.format import scene_from_text
+
+    image = np.random.default_rng(1).uniform(0.1, 1.0, (8, 16, 3)).astype(np.float32).astype(float)
+    write_exr(tmp_path / "sky.exr", image)
+    body = ('<emitter type="envmap"><string name="filename" value="sky.exr"/><float name="scale" value="2.5"/>'
+            f'<transform name="to_world">{mirror}<rotate y="1" angle="30"/><rotate x="1" angle="20"/>'
+            '<rotate z="1" angle="-50"/></transform></emitter>')
+    path = tmp_path / "scene.xml"
+    path.write_text(f'<scene version="3.0.0">{SENSOR}{body}</scene>')
+    env = mitsuba.read_scene(path)["light"][0]
+    assert env["filter"] == "mitsuba" and env.get("mirror", False) == bool(mirror)
+    light = scene_from_text(to_toml({"camera": camera(), "light": [env], "medium": {"sigma_a": 0.0, "sigma_s": 0.0}}),
+                            str(tmp_path / "s.toml"), tmp_path / "s.toml").lights[0]
+    M = np.diag([-1.0 if mirror else 1.0, 1.0, 1.0])
+    for axis, angle in (("y", 30), ("x", 20), ("z", -50)):  # each <rotate> left-multiplies
+        M = rotation_matrix({"x": [angle, 0, 0], "y": [0, angle, 0], "z": [0, 0, angle]}[axis]) @ M
+    dirs = np.random.default_rng(2).normal(size=(5000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    np.testing.assert_allclose(environment.radiance(light, dirs), 2.5 * mitsuba_envmap_eval(image, M, dirs),
+                               rtol=1e-12, atol=1e-14)
+
+
+def test_mitsuba_export_of_other_maps(tmp_path):
+    """A map looked up "nearest" or "bilinear" is refused in one line naming its filter (Mitsuba interpolates
+    every map its own way), written with --approximate and a warning; an octahedral map is refused."""
+    sky(tmp_path)
+    for keys, needle in [({}, 'light[0].filter: a map looked up "nearest"'),
+                         ({"filter": "bilinear"}, 'light[0].filter: a map looked up "bilinear"')]:
+        raw = {"camera": camera(), "light": [{"type": "environment", "map": str(tmp_path / "sky.exr"), **keys}]}
+        with pytest.raises(UserError, match=needle.replace("[", r"\[").replace("]", r"\]")):
+            mitsuba.export(raw, tmp_path / "x.xml", "test", False)
+        assert not (tmp_path / "x.xml").exists()
+        with pytest.warns(UserWarning, match="--approximate"):
+            mitsuba.export(raw, tmp_path / "x.xml", "test", True)
+        assert '<emitter type="envmap">' in (tmp_path / "x.xml").read_text()
+        (tmp_path / "x.xml").unlink()
+    write_exr(tmp_path / "octa.exr", np.ones((4, 4, 3), np.float32))
+    raw = {"camera": camera(), "light": [{"type": "environment", "map": str(tmp_path / "octa.exr"),
+                                          "mapping": "octahedral"}]}
+    with pytest.raises(UserError, match=r"light\[0\].mapping: Mitsuba 3's envmap is equirectangular"):
+        mitsuba.export(raw, tmp_path / "x.xml", "test", True)
 
 
 def test_mitsuba_export_finds_the_map_beside_the_scene(tmp_path, monkeypatch):
@@ -425,7 +490,7 @@ def test_mitsuba_export_finds_the_map_beside_the_scene(tmp_path, monkeypatch):
     write_exr(folder / "sky.exr", np.full((4, 8, 3), 0.5, np.float32))
     raw = {"camera": {"position": [0.0, 1.0, 4.0], "look_at": [0.0, 0.0, 0.0], "width": 8, "height": 6},
            "shape": [{"primitive": "quad", "corners": [[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]]}],
-           "light": [{"type": "environment", "map": "sky.exr"}]}
+           "light": [{"type": "environment", "map": "sky.exr", "filter": "mitsuba"}]}
     (folder / "s.toml").write_text(to_toml(raw))
     monkeypatch.chdir(tmp_path)
     mitsuba.export(raw, tmp_path / "out.xml", str(folder / "s.toml"), False)
@@ -486,9 +551,12 @@ def mi():
 
 @pytest.mark.peers
 def test_envmap_orientation_matches_mitsuba(mi, tmp_path):
-    """Mitsuba's envmap under a to_world of three rotations, evaluated where its rows are centred
-    (row r at theta = pi r / (H - 1): envmap.cpp) away from the poles, sees the texel our imported rotation
-    and the environment camera's mapping (phi = 2 pi (u - 1/2) from -z towards +x) put there."""
+    """Mitsuba's envmap under a to_world of three rotations, evaluated along 500 random directions, equals
+    the radiance of our import (filter "mitsuba": bilinear, columns at the texel
+    centres, the first and last rows on the poles) to float32's precision."""
+    from raytrace.lights import environment
+    from raytrace.scene.format import scene_from_text
+
     image = np.random.default_rng(1).uniform(0.1, 1.0, (8, 16, 3))
     write_exr(tmp_path / "sky.exr", image)
     body = ('<emitter type="envmap"><string name="filename" value="sky.exr"/><float name="scale" value="2.5"/>'
@@ -496,18 +564,17 @@ def test_envmap_orientation_matches_mitsuba(mi, tmp_path):
             'angle="-50"/></transform></emitter>')
     path = tmp_path / "scene.xml"
     path.write_text(f'<scene version="3.0.0">{SENSOR}{body}</scene>')
-    with pytest.warns(UserWarning):
-        env = mitsuba.read_scene(path)["light"][0]
+    env = mitsuba.read_scene(path)["light"][0]
+    light = scene_from_text(to_toml({"camera": camera(), "light": [env], "medium": {"sigma_a": 0.0, "sigma_s": 0.0}}),
+                            str(tmp_path / "s.toml"), tmp_path / "s.toml").lights[0]
     emitter = mi.load_file(str(path)).emitters()[0]
-    R = rotation_matrix(env["rotate"])
-    H, W = image.shape[:2]
-    for row in range(1, H - 1):
-        for col in range(W):
-            phi, theta = 2.0 * math.pi * ((col + 0.5) / W - 0.5), math.pi * row / (H - 1)
-            d = R @ [math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi)]
-            si = mi.SurfaceInteraction3f()
-            si.wi = mi.Vector3f(*(-d))
-            np.testing.assert_allclose(np.array(emitter.eval(si)), env["scale"] * image[row, col], rtol=1e-5)
+    dirs = np.random.default_rng(2).normal(size=(500, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    ours = environment.radiance(light, dirs)
+    for d, expected in zip(dirs, ours):
+        si = mi.SurfaceInteraction3f()
+        si.wi = mi.Vector3f(*(-d))
+        np.testing.assert_allclose(np.array(emitter.eval(si)), expected, rtol=2e-5)
 
 
 @pytest.mark.peers

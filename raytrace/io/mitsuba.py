@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from . import emitters, report
+from . import emitters
 from .meshfile import read_mesh
 from .report import Problems, every
 
@@ -604,9 +604,11 @@ class _Reader:
         return light
 
     def environment(self, el, kind) -> dict:
-        """A constant emitter's radiance, or an envmap (equirectangular; mitsuba3 src/emitters/envmap.cpp
-        looks up u = atan2(x, -z) / 2 pi, v = acos(y) / pi in its to_world frame: u = 0 along -z, where
-        ours has the map's centre column (our u = 1/2): its frame turned half a turn about y)."""
+        """A constant emitter's radiance, or an envmap: equirectangular with Mitsuba's own interpolation
+        (filter "mitsuba": mitsuba3 src/emitters/envmap.cpp, bilinear, columns at the texel centres, the
+        first and last rows on the poles) looked up at u = atan2(x, -z) / 2 pi, v = acos(y) / pi in its
+        to_world frame: u = 0 along -z, where ours has the map's centre column (our u = 1/2): its frame
+        turned half a turn about y."""
         doc, p = self.doc, _Props(self.doc, el)
         self.same_fog(p, el, "medium")
         if kind == "constant":
@@ -627,22 +629,14 @@ class _Reader:
         scale = p.number("scale", 1.0)
         M = p.transform()
         L = M[:3, :3]
-        if not np.allclose(L.T @ L, np.eye(3), rtol=0, atol=1e-9) or np.linalg.det(L) < 0:
-            doc.fail(p.values.get("to_world", el), "an envmap's to_world must be a rotation (no scale, shear "
-                     "or mirroring)", "keep the rotation alone")
-        from scipy.spatial.transform import Rotation
+        if not np.allclose(L.T @ L, np.eye(3), rtol=0, atol=1e-9):
+            doc.fail(p.values.get("to_world", el), "an envmap's to_world must be a rotation or a mirror (no scale "
+                     "or shear)", "keep the rotation alone")
+        from ..lights import environment
 
-        turn = Rotation.from_matrix(L @ np.diag([-1.0, 1.0, -1.0]))  # Mitsuba's frame x ours turned about y
         p.done(ignored=("mis_compensation",))  # (sampling only)
-        light = {"type": "environment", "map": str(file), "scale": scale}
-        report.warn([doc.message(p.values["filename"], "Mitsuba centres the map's first and last rows on the poles "
-                                 "(row r at theta = pi r / (H - 1)), ours spreads the rows over [0, pi] (centres at "
-                                 "pi (r + 1/2) / H)", "read as ours: up to half a row apart")])
-        with warnings.catch_warnings():  # gimbal lock: scipy still returns angles of the same rotation
-            warnings.simplefilter("ignore", UserWarning)
-            angles = turn.as_euler("xyz", degrees=True) + 0.0  # extrinsic x, y, z: a shape's `rotate` (Rz Ry Rx)
-        light["rotate"] = [0.0 if abs(a) < 1e-12 else float(a) for a in angles]
-        return light
+        return {"type": "environment", "map": str(file), "scale": scale, "filter": "mitsuba",
+                **environment.rotate_keys(L @ np.diag([-1.0, 1.0, -1.0]))}  # Mitsuba's frame x ours turned about y
 
     def same_fog(self, p, el, name):
         """A nested medium must be the sensor's (ours has one medium filling space)."""
@@ -1142,19 +1136,31 @@ class _Writer:
             self.emitter(el, key, light.get("radiance"), light.get("two_sided", False))
 
     def environment(self, root, key, light):
+        """A constant emitter, or an equirectangular map interpolated as Mitsuba's (filter "mitsuba") as an
+        envmap; other filters only with --approximate (Mitsuba interpolates every map its way), an
+        octahedral map not at all."""
         src = self.source
         if "map" not in light:
             _rgb(_add(root, "emitter", type="constant"), "radiance", emitters.constant_environment(light, key, src))
             return
+        from ..lights import environment
         from ..scene.assets import find_asset
         from ..scene.meshes import rotation_matrix
 
+        if light.get("mapping", "equirectangular") != "equirectangular":
+            raise UserError(f"{src}: {key}.mapping: Mitsuba 3's envmap is equirectangular, and resampling an "
+                            "octahedral map into one is not exact; export to pbrt-v4")
+        filt = light.get("filter", "nearest")
+        if filt != "mitsuba":
+            self.refuse(f"{key}.filter", f'a map looked up "{filt}" (Mitsuba interpolates it bilinearly, its first '
+                        "and last rows on the poles)", 'set filter = "mitsuba"', "Mitsuba's interpolation of the map")
         file = find_asset(str(light["map"]), self.scene.path, f"{key}.map", "environment map")  # as the reader finds it
         el = _add(root, "emitter", type="envmap")
         _add(el, "string", name="filename", value=str(file.resolve()))
         _add(el, "float", name="scale", value=_num(emitters.positive(light.get("scale", 1.0), f"{key}.scale", src)))
         M = np.eye(4)
         M[:3, :3] = rotation_matrix(emitters.vector(light.get("rotate", [0.0, 0.0, 0.0]), f"{key}.rotate", src)) @ \
+            (environment.MIRROR if light.get("mirror") is True else np.eye(3)) @ \
             np.diag([-1.0, 1.0, -1.0])  # Mitsuba's u = 0 is our map's centre column (`_Reader.environment`)
         _matrix(el, M)
 

@@ -655,26 +655,52 @@ class _Reader:
             light = {"type": "directional", "direction": travel / np.linalg.norm(travel),
                      "irradiance": [scale * (e_v if e_v > 0 else 1.0) * v for v in rgb]}  # DistantLight::Create
         elif kind == "infinite":
-            light = self._infinite(p, w, line, scale)
+            light = self._infinite(p, w, line, scale, m)
         else:
             w.fail(line, f'LightSource "{kind}" is not read', 'use "point", "spot", "distant" or "infinite"')
         p.done()
         self.lights.append(light)
 
-    @staticmethod
-    def _infinite(p, w, line, scale) -> dict:
-        """lights.cpp Light::Create "infinite" with "L" or nothing (UniformInfiniteLight): L (the illuminant's
-        white: 1) x scale, and with "illuminance" E_v > 0 x E_v / pi (the illuminance of L = 1 from above)."""
+    def _infinite(self, p, w, line, scale, m) -> dict:
+        """lights.cpp Light::Create "infinite": with "L" or nothing (UniformInfiniteLight) L (the illuminant's
+        white: 1) x scale, with "illuminance" E_v > 0 x E_v / pi (the illuminance of L = 1 from above); with
+        "filename" (ImageInfiniteLight) an equal-area octahedral map x scale, with "illuminance" x E_v / k_e,
+        k_e pbrt-v4's sum (`_map_illuminance`), seen in the light's frame (the CTM's inverse, normalised:
+        `_finish_environment`)."""
         if p.has("portal"):
             w.fail(line, f'{p.directive}: "point3 portal" (a portal light) is not read', "remove the portal (a constant "
-                   '"rgb L" environment is read)')
-        if p.has("filename"):
-            w.fail(line, f'{p.directive}: "string filename": pbrt-v4\'s environment maps are equal-area octahedral '
-                   "squares, which are not read (ours are equirectangular)", 'give a constant "rgb L", or an '
-                   'equirectangular map as environment.map in a TOML scene')
-        rgb = p.rgb("L", [1.0, 1.0, 1.0])
+                   '"rgb L" or a "filename" map without a portal is read)')
         e_v = p.one("illuminance", -1.0)
-        return {"type": "environment", "radiance": [scale * (e_v / math.pi if e_v > 0 else 1.0) * v for v in rgb]}
+        if not p.has("filename"):
+            rgb = p.rgb("L", [1.0, 1.0, 1.0])
+            return {"type": "environment", "radiance": [scale * (e_v / math.pi if e_v > 0 else 1.0) * v for v in rgb]}
+        if p.has("L"):
+            w.fail(line, f'{p.directive}: both "L" and "filename"', 'give one (pbrt-v4 refuses both)')
+        from ..output.film import read_exr
+
+        path = self.resolve(p.string("filename"))
+        if path.suffix.lower() != ".exr" or not path.is_file():
+            w.fail(line, f'{p.directive}: "string filename": {path} is ' + ("not found" if not path.is_file() else
+                   "not an OpenEXR file"), "give the map (pbrt-v4's equal-area octahedral square) as a linear RGB .exr")
+        try:
+            image = read_exr(path)[0]
+        except UserError:
+            w.fail(line, f"{p.directive}: {path} is not a readable RGB OpenEXR image", "give a linear RGB .exr file")
+        if image.shape[0] != image.shape[1]:
+            w.fail(line, f"{p.directive}: {path} is {image.shape[1]} x {image.shape[0]}: pbrt-v4's maps are square "
+                   "(equal-area octahedral)", "give a square map")
+        if not self._similarity(m):
+            w.fail(line, f"{p.directive}: a non-uniform scale or shear would distort the map", "turn the light "
+                   "with rotations (and uniform scales) alone")
+        if e_v > 0:
+            k_e = _map_illuminance(image)
+            if not k_e > 0:
+                w.fail(line, f'{p.directive}: "illuminance" of a map black above the horizon', "remove the "
+                       "illuminance or give a map that lights the upper hemisphere")
+            scale *= e_v / k_e
+        inv = np.linalg.inv(m[:3, :3])
+        return {"type": "environment", "map": str(path), "mapping": "octahedral", "scale": scale,
+                "_to_light": inv / abs(np.linalg.det(inv)) ** (1.0 / 3.0)}
 
     @staticmethod
     def _similarity(m):
@@ -875,7 +901,7 @@ class _Reader:
                               "power is scaled by it instead (the same image: it is linear in the lights)")
         mirrored = s[0] < 0.0  # (a mirror turns windings: quads and faces are turned back)
         for light in self.lights:
-            light = dict(light)
+            light = _finish_environment(dict(light), s, ratio)
             for k in ("intensity", "irradiance", "radiance"):
                 if k in light:
                     light[k] = [ratio * v for v in light[k]]
@@ -1003,6 +1029,32 @@ def _parallelogram(q) -> bool:
 def _area(tris) -> np.ndarray:
     """Each triangle's area (T,)."""
     return 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+
+
+def _map_illuminance(image) -> float:
+    """pbrt-v4's k_e for "illuminance" with a map (lights.cpp Light::Create "infinite"): 2 pi / N^2 x the sum
+    over the texels whose centre has z > 0 of luminance x z. The texels' solid angle is 4 pi / N^2, so k_e
+    is half the upper hemisphere's illuminance (pi / 2 for L = 1): pbrt-v4 scales a map to twice the
+    illuminance it is given, and so do we, to render as pbrt-v4 does."""
+    from ..lights import environment, octahedral
+
+    n = image.shape[0]
+    c = (np.arange(n) + 0.5) / n
+    z = octahedral.square_to_sphere(*np.meshgrid(c, c))[..., 2]  # rows: v, columns: u
+    return float(2.0 * np.pi / (n * n) * np.sum(np.where(z > 0.0, (image @ environment.LUMA) * z, 0.0)))
+
+
+def _finish_environment(light: dict, s, ratio) -> dict:
+    """An octahedral map's `rotate` (and `mirror`) once the world's x factors `s` are known: pbrt looks up
+    normalize(M^-1 w_pbrt), ours TO_PBRT R^T w with w = s w_pbrt, so R = diag(s) (M^-1 / c)^T TO_PBRT;
+    the image's `scale` x the film's `ratio`."""
+    if "_to_light" not in light:
+        return light
+    from ..lights import environment, octahedral
+
+    light.update(environment.rotate_keys(np.diag(s) @ light.pop("_to_light").T @ octahedral.TO_PBRT))
+    light["scale"] *= ratio
+    return light
 
 
 def _radiance(area: dict, size: float) -> list[float]:
@@ -1167,7 +1219,7 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     lines.append("WorldBegin")
     lines += [_light_line(light, lraw) for light, lraw in zip(scene.lights, raw.get("light", []))]
     for i, light in area_lights:
-        lines += _area_light_lines(light, f"light[{i}]", source)
+        lines += _area_light_lines(light, f"light[{i}]", source, path)
     files = {}
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
     for i, shape in enumerate(scene.shapes):
@@ -1241,16 +1293,12 @@ def _area_line(radiance, two_sided) -> str:
     return f'AreaLightSource "diffuse" "rgb L" {_list(radiance)}' + (' "bool twosided" true' if two_sided else "")
 
 
-def _area_light_lines(light, key, source) -> list[str]:
+def _area_light_lines(light, key, source, path=None) -> list[str]:
     """A quad, disk or sphere light as a black emitting bilinear patch, disk or sphere (the inverse of
-    `_Reader._Shape`), or the constant environment as an infinite light."""
+    `_Reader._Shape`), or the environment as an infinite light (`_environment_lines`)."""
     kind = light.get("type")
     if kind == "environment":
-        if "map" in light:
-            raise UserError(f"{source}: {key}.map: pbrt-v4's environment maps are equal-area octahedral squares and "
-                            "this exporter does not convert an equirectangular map; export a constant environment "
-                            "(radiance) or use Mitsuba")
-        return [f'LightSource "infinite" "rgb L" {_list(emitters.constant_environment(light, key, source))}']
+        return _environment_lines(light, key, source, path)
     radiance = emitters.colour(light.get("radiance"), f"{key}.radiance", source)
     two = light.get("two_sided", False)
     lines = ["AttributeBegin", _area_line(radiance, two is True), 'Material "diffuse" "rgb reflectance" [ 0 0 0 ]']
@@ -1266,6 +1314,31 @@ def _area_light_lines(light, key, source) -> list[str]:
         r = emitters.positive(light.get("radius"), f"{key}.radius", source)
         lines += [f"Translate {' '.join(map(_f, c))}", f'Shape "sphere" "float radius" [ {_f(r)} ]']
     return lines + ["AttributeEnd"]
+
+
+def _environment_lines(light, key, source, path) -> list[str]:
+    """A constant environment as an "rgb L" infinite light; an octahedral map as a "filename" one under
+    the ConcatTransform M = R TO_PBRT^T (the inverse of `_finish_environment`: our world is pbrt's here)
+    with its "scale". An equirectangular map is refused: pbrt-v4 reads octahedral maps only, and
+    resampling one into the other is not exact."""
+    if "map" not in light:
+        return [f'LightSource "infinite" "rgb L" {_list(emitters.constant_environment(light, key, source))}']
+    if light.get("mapping", "equirectangular") != "octahedral":
+        raise UserError(f"{source}: {key}.map: pbrt-v4's environment maps are equal-area octahedral squares and "
+                        "this exporter does not resample an equirectangular map (not exactly); export a constant "
+                        "environment (radiance), an octahedral map, or use Mitsuba")
+    from ..lights import environment, octahedral
+    from ..scene.assets import find_asset
+    from ..scene.meshes import rotation_matrix
+
+    file = find_asset(str(light["map"]), path, f"{key}.map", "environment map")  # as the reader finds it
+    scale = emitters.constant_environment({"radiance": 1.0, "scale": light.get("scale", 1.0)}, key, source)[0]
+    m = np.eye(4)
+    m[:3, :3] = rotation_matrix(emitters.vector(light.get("rotate", [0.0, 0.0, 0.0]), f"{key}.rotate", source)) @ \
+        (environment.MIRROR if light.get("mirror") is True else np.eye(3)) @ octahedral.TO_PBRT.T
+    return ["AttributeBegin", f"ConcatTransform {_list(m.T.ravel())}",
+            f'LightSource "infinite" "string filename" [ "{file.resolve()}" ] "float scale" [ {_f(scale)} ]',
+            "AttributeEnd"]
 
 
 def _light_line(light, lraw) -> str:
