@@ -371,7 +371,9 @@ def _spoil(draw, sc, args):
         if table == "interior":  # a shape's medium
             if not sc.get("shape"):
                 return sc, args, None
-            target = draw(st.sampled_from(sc["shape"])).setdefault("interior", {})
+            shape = draw(st.sampled_from(sc["shape"]))
+            shape.pop("reflectance", None)  # a shape that holds a medium has none (refused first otherwise)
+            target = shape.setdefault("interior", {})
         elif table == "layer":  # an atmosphere's
             if "layer" not in sc["medium"]:
                 return sc, args, None
