@@ -176,24 +176,38 @@ def crossing_errors(accel, origins, dirs, t, prim, off, far):
     triangle by more than Embree's float32 reach FLOAT32_SLACK (t + scale) from every edge, the ray
     crosses that triangle there, and t is its plane's float64 solve, off by 16u (|o| + t + |A|) / cos
     (A a vertex, cos the ray's cosine to the normal) plus 8u far for the walk's sums; elsewhere (near
-    an edge Embree may report a neighbour's plane, or its float32 distance was kept) 2 FLOAT32_SLACK
-    (t + scale): the refined and Embree's distances agree to FLOAT32_SLACK (t + scale) (the walk's
-    guard) and Embree's is taken to be that close to the exact one."""
-    tri = accel.triangles[prim]
-    n = accel.normals[prim]
-    q = origins + t[:, None] * dirs
-    reach = FLOAT32_SLACK * (t + accel.scale)
-    inner = np.full(len(t), np.inf)
-    for i in range(3):
-        a, b = tri[:, i], tri[:, (i + 1) % 3]
-        e = b - a
-        side = np.einsum("ij,ij->i", np.cross(e, q - a), n) / np.maximum(np.linalg.norm(e, axis=1), 1e-300)
-        inner = np.minimum(inner, side)
-    cos = np.abs(np.einsum("ij,ij->i", n, dirs))
-    plane = (16.0 * U * (np.linalg.norm(origins, axis=1) + t + np.linalg.norm(tri[:, 0], axis=1))
-             / np.maximum(cos, 1e-300) + 8.0 * U * far)
-    robust = (inner > reach) & ~off & (accel.sphere_of[prim] < 0)
-    return np.where(robust, plane, 2.0 * reach)
+    an edge Embree may report a neighbour's plane, or its float32 distance was kept; an exact sphere)
+    2 FLOAT32_SLACK (t + scale): the refined and Embree's distances agree to FLOAT32_SLACK (t + scale)
+    (the walk's guard) and Embree's is taken to be that close to the exact one."""
+    out = np.empty(len(t))
+    _crossing_errors(accel.triangles, accel.normals, accel.sphere_of, origins, dirs, t, prim, off, far,
+                     float(accel.scale), out)
+    return out
+
+
+@njit
+def _crossing_errors(triangles, normals, sphere_of, origins, dirs, t, prim, off, far, scale, out):
+    for i in range(t.shape[0]):
+        k = prim[i]
+        reach = FLOAT32_SLACK * (t[i] + scale)
+        out[i] = 2.0 * reach
+        if off[i] or sphere_of[k] >= 0:
+            continue
+        q = origins[i] + t[i] * dirs[i]
+        n = normals[k]
+        inner = math.inf
+        for e in range(3):
+            a, b = triangles[k, e], triangles[k, (e + 1) % 3]
+            ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+            qx, qy, qz = q[0] - a[0], q[1] - a[1], q[2] - a[2]
+            side = (ey * qz - ez * qy) * n[0] + (ez * qx - ex * qz) * n[1] + (ex * qy - ey * qx) * n[2]
+            inner = min(inner, side / max(math.sqrt(ex * ex + ey * ey + ez * ez), 1e-300))
+        if inner > reach:
+            o, v = origins[i], triangles[k, 0]
+            cos = abs(n[0] * dirs[i, 0] + n[1] * dirs[i, 1] + n[2] * dirs[i, 2])
+            out[i] = (16.0 * U * (math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) + t[i]
+                                  + math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])) / max(cos, 1e-300)
+                      + 8.0 * U * far[i])
 
 
 def convex_exits(prep, sid, points, dirs, dist):
@@ -220,9 +234,9 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=Non
     direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
     light's distance d (inf for a directional light), its path's length k inside shape sid (on the
     exit facets of `exit_facets` where the walk holds them), the scattering cosine mu and a spot's
-    falloff toward the direction it leaves in (1 for other lights). `dk` (M,), where given, receives a
-    bound on k's error: a traced walk's (`walk`), inf for a convex shape's exits (not analysed); `sig`
-    (M,) the walk's signature (0 outside a spot's cone and in convex shapes)."""
+    falloff toward the direction it leaves in (1 for other lights). `dk` (M,), where given (a non-convex
+    shape's), receives a bound on k's error (`walk`'s) and `sig` (M,) the walk's signature (both 0
+    outside a spot's cone, where k is not measured)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
     if directional:
         to = np.ascontiguousarray(geo[seg, 6:9])
@@ -244,8 +258,7 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=Non
         k[walked] = col
         lit = lit[facets.counts[seg[lit]] < 0]
     if dk is not None:
-        dk[:] = np.inf
-        sig[:] = 0
+        dk[:], sig[:] = 0.0, 0
     if prep.interior_planes.get(sid) is not None:  # convex (bounded.hull_planes, filled before integrating)
         k[lit] = convex_exits(prep, sid, p[lit], to[lit], d[lit])
     else:
@@ -325,13 +338,17 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     `adaptive`; the first panels end at a spot's cone crossings (media/slab.py straight_cuts) and, in a
     convex shape, where the light's exit facet changes (`exit_facets`): the integrand is smooth on each
     panel. The bound is the rule's and the integrand's rounding with the walks' length errors
-    (`_rounding`); inf in a convex shape (its exits' rounding is not analysed) and where a panel was
-    left open."""
+    (`_rounding`), inf where a panel was left open; inf in a convex shape (here: more than MAX_FACES
+    planes; its facet walk's and Embree exits' rounding is not analysed), integrated as before."""
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    facets = exit_facets(prep, sid, geo, directional, end) if prep.interior_planes.get(sid) is not None else None
+    convex = prep.interior_planes.get(sid) is not None
+    facets = exit_facets(prep, sid, geo, directional, end) if convex else None
     seg, a, b = _first_panels(geo, directional, end, facets)
-    return adaptive(lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
-                                             True), end, len(kts), seg, a, b, rtol, stats, bounded=True)
+    integrand = lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
+                                         not convex)
+    if convex:
+        return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats), np.full((len(ell), len(kts)), np.inf)
+    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True)
 
 
 class Facets(NamedTuple):
@@ -454,7 +471,7 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
     return total
 
 
-BISECTIONS = 60  # halvings of a bracket of a walk's signature change (to the resolution of doubles)
+KINK_TOL = 1e-12  # a kink is bisected to this fraction of its panel: the rules then meet only its sliver, O(tol^2)
 
 
 def _probes(a, b):
@@ -473,14 +490,15 @@ def _by_panel(v, m):
 def _kinks(integrand, seg, a, b, x, h):
     """(segment, start, end) of the pieces of the panels [a, b] of segments seg cut where the walks'
     signatures h at the points x (rows of `_by_panel`) change between the points in order, each change
-    bisected to the resolution of doubles (walks at single points)."""
+    bisected to KINK_TOL of its panel (walks at single points)."""
     order = np.argsort(x, axis=1)
     x, h = np.take_along_axis(x, order, 1), np.take_along_axis(h, order, 1)
     p, j = np.nonzero(h[:, 1:] != h[:, :-1])
     lo, hi, left = x[p, j], x[p, j + 1], h[p, j]
-    for _ in range(BISECTIONS):
+    tol = KINK_TOL * (b - a)[p]
+    while True:
         mid = 0.5 * (lo + hi)
-        live = (lo < mid) & (mid < hi)
+        live = (lo < mid) & (mid < hi) & (hi - lo > tol)
         if not live.any():
             break
         same = np.zeros(len(mid), dtype=bool)
