@@ -5,7 +5,8 @@ tests/data/inside_bound_twins.json): inside segments of a box lit by a point lig
 U-shaped prism (non-convex: Embree-traced paths, interiors/paths.py, whose float32 crossings are in
 the bound) lit by a point light and a spot. On every segment |value - twin| <= bound at rtol 1e-6
 and 1e-10, and the bound is not vacuous: its median is at most 10 rtol of the value; a value 3 rtol
-off its twin fails. A render of a scene with an interior has no pixel with an infinite bound.
+off its twin fails. The bound is finite on every segment but, for the U, one per case, where a walk
+was repeated from a moved end (a parity contradiction near an edge: another path, unbounded). A render of a scene with an interior has no pixel with an infinite bound.
 """
 import json
 import math
@@ -61,11 +62,12 @@ def test_bound_holds_and_is_not_vacuous(case, rtol):
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_an_error_beyond_the_bound_fails(case):
-    """The check can fail: a value 3 rtol off its twin is outside its (finite) bound at rtol 1e-6."""
-    value, bound, twin = _evaluate(case, 1e-6)
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+def test_an_error_beyond_the_bound_fails(case, rtol):
+    """The check can fail: a value 3 rtol off its twin is outside its (finite) bound."""
+    value, bound, twin = _evaluate(case, rtol)
     finite = np.isfinite(bound)
-    assert np.all(np.abs(value * (1.0 + 3e-6) - twin)[finite] > bound[finite])
+    assert np.all(np.abs(value * (1.0 + 3.0 * rtol) - twin)[finite] > bound[finite])
 
 
 @pytest.mark.parametrize("case", ["box_spot", "icosahedron_lamp"])
