@@ -6,10 +6,10 @@ U-shaped prism (non-convex: Embree-traced paths, interiors/paths.py, whose float
 the bound) lit by a point light and a spot. On every segment |value - twin| <= bound at rtol 1e-6
 and 1e-10, and the bound is not vacuous: its median is at most 10 rtol of the value; a value 3 rtol
 off its twin fails. The bound is finite on every segment but, for the U, one per case, where a walk
-was repeated from a moved end (a parity contradiction near an edge: another path, unbounded). A render of a scene with an interior has no pixel with an infinite bound.
+was repeated from a moved end (a parity contradiction near an edge: another path, unbounded). Renders
+of the convex shapes have no pixel with an infinite bound.
 """
 import json
-import math
 from pathlib import Path
 
 import mpmath as mp

@@ -27,7 +27,7 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
 from ..media.convex_chords import chords_into, through_pieces
 from ..media.phase import phase_value
-from ..media.slab import phase_condition, straight_cuts
+from ..media.slab import U, phase_condition, straight_cuts
 from ..rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
@@ -166,7 +166,6 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
     return lengths, blocked, inside
 
 
-U = 2.0 ** -53  # unit roundoff of doubles
 HASH = 1000003  # a walk's signature: its triangles in order, base HASH (wrapping in int64)
 
 
@@ -409,8 +408,8 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
 
 def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
     """`adaptive` from one group of first panels (`bound` += their bounds, where given). With a bound,
-    a panel whose nodes' walks, or those just inside its ends, crossed different triangles (their signatures differ: the light's path
-    passed an edge, a kink of the inside length the rules' agreement can miss, 1.7e-6 off at any rtol
+    a panel whose nodes' walks, or those just inside its ends, crossed different triangles (their
+    signatures differ: the light's path passed an edge, a kink of the inside length the rules' agreement can miss, 1.7e-6 off at any rtol
     on a path grazing the U's inner corner) is not accepted: it is cut where the signature changes
     (`_kinks`), and its pieces are integrated on."""
     n = len(end)
@@ -484,7 +483,8 @@ def _probes(a, b):
 
 def _by_panel(v, m):
     """(m, 32) of a level's evaluations v: each panel's 10 nodes, 20 nodes and two `_probes`."""
-    return np.concatenate([v[:10 * m].reshape(m, 10), v[10 * m:30 * m].reshape(m, 20), v[30 * m:].reshape(2, m).T], axis=1)
+    return np.concatenate([v[:10 * m].reshape(m, 10), v[10 * m:30 * m].reshape(m, 20), v[30 * m:].reshape(2, m).T],
+                          axis=1)
 
 
 def _kinks(integrand, seg, a, b, x, h):

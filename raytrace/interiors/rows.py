@@ -111,8 +111,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 continue
             unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, dplanes, only, mode,
-                            rtol, steps, tau_max, keys,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, dplanes, only,
+                            mode, rtol, steps, tau_max, keys,
                             np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
                             unit, unit_var, unit_err, stats)
             f = scale * lights.intensity[li, c]

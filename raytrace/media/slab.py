@@ -937,8 +937,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             continue
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
-                out[s], bound = convex_bounded(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, only,
-                                               rtol, dplanes, stats)
+                out[s], bound = convex_bounded(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph,
+                                               only, rtol, dplanes, stats)
                 if eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are not analysed
                     err[s] = bound
                 continue
