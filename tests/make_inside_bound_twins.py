@@ -302,7 +302,8 @@ def main():
     lights = {f"{name}_{lname}": light for name, _, _, _, _, _, _, ls in cases() for lname, light in ls}
     medium = {"interior": {"sigma_a": SIGMA_A, "sigma_s": SIGMA_S, "phase": {"type": "hg", "g": G}},
               "outside": {"sigma_a": KT_OUT}}
-    OUT.write_text(json.dumps({"media": medium, "shapes": shapes, "lights": lights, "rays": rays}, indent=0) + "\n")
+    head = json.dumps({"media": medium, "shapes": shapes, "lights": lights})[:-1]
+    OUT.write_text(head + ', "rays": [\n' + ",\n".join(json.dumps(r) for r in rays) + "\n]}\n")
 
 
 if __name__ == "__main__":
