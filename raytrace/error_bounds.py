@@ -16,10 +16,13 @@ samples):
   (`with_standard_error`, a statistical measure, not a bound);
 * closed forms evaluated in float64 (surface term, transmittances, sums): ROUNDING x |value|;
 * rays that enter a shape holding a medium: the inside's bound and what lies behind's (interiors/crossing.py),
-  finite only where `analytic` integrates a convex index-matched shape under directional lights in
+  finite where `analytic` integrates a convex index-matched shape under directional lights in
   closed form (media/convex_directional.py `segments_bounded`: KERNEL_FLOOR plus the condition of
-  the light's path in its inputs, times the value); infinite for every other inside integrator, for
-  the segments it hands to quadrature and through refractive boundaries (the note's entry plane);
+  the light's path in its inputs, times the value) and where `quadrature` (or analytic's hand-over to
+  it) integrates an index-matched shape, convex of at most 64 planes or not convex (its rule's bound,
+  the integrand's rounding and the errors of the light path's length: media/slab.py convex_bounded,
+  interiors/paths.py segment_quadrature); infinite for every other inside integrator, in convex shapes
+  of more than 64 planes and through refractive boundaries;
 * the particle layer's glints: infinite;
 * a float32 EXR adds its own rounding (`stored`).
 """

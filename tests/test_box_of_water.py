@@ -204,7 +204,9 @@ def fallback_cases(tmp_path):
 
 def test_shapes_without_the_closed_form_go_to_quadrature_counted(tmp_path):
     """Their segments are integrated by the adaptive quadrature (the same as `quadrature`'s image),
-    counted in `inside: segments handed to quadrature`, and their pixels' bounds are infinite, counted."""
+    counted in `inside: segments handed to quadrature`; the sphere's pixels' bounds are infinite,
+    counted, the U's carry the traced quadrature's bound (issue 35: finite but where a walk was repeated
+    from a moved end), the same as `quadrature`'s."""
     from raytrace.interiors import crossing
     from raytrace.media.convex_directional import MAX_FACES
 
@@ -215,7 +217,11 @@ def test_shapes_without_the_closed_form_go_to_quadrature_counted(tmp_path):
         ref = render(prep, "quadrature", {}, RenderOptions(threads=1))
         handed = res.stats["inside: segments handed to quadrature"]
         inf = np.isinf(res.error_bound).any(axis=2)
-        assert handed == inf.sum() > 0 and res.stats[error_bounds.INFINITE_STAT] == inf.sum(), (name, handed)
+        if name == "sphere":
+            assert handed == inf.sum() > 0 and res.stats[error_bounds.INFINITE_STAT] == inf.sum(), (name, handed)
+        else:
+            assert handed > 0 and res.stats[error_bounds.INFINITE_STAT] == inf.sum() <= 0.05 * handed, (name, inf.sum())
+            np.testing.assert_array_equal(inf, np.isinf(ref.error_bound).any(axis=2))
         np.testing.assert_array_equal(res.image, ref.image)
 
 

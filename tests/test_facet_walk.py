@@ -270,9 +270,9 @@ def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
         calls.append([])
         return outer(*args)
 
-    def spy(integrand, end, nc, seg, a, b, rtol, stats):
+    def spy(integrand, end, nc, seg, a, b, rtol, stats, *bound):
         calls[-1].append(seg.copy())
-        return whole(integrand, end, nc, seg, a, b, rtol, stats)
+        return whole(integrand, end, nc, seg, a, b, rtol, stats, *bound)
     monkeypatch.setattr(paths, "adaptive", spy_outer)
     monkeypatch.setattr(paths, "_adaptive", spy)
     monkeypatch.setattr(paths, "MAX_OPEN", 40)

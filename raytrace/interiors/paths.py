@@ -27,7 +27,7 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
 from ..media.convex_chords import chords_into, through_pieces
 from ..media.phase import phase_value
-from ..media.slab import straight_cuts
+from ..media.slab import U, phase_condition, straight_cuts
 from ..rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
@@ -40,12 +40,15 @@ MAX_OPEN_PER_SEGMENT, MAX_OPEN = 4, 1 << 16
 FLOAT32_SLACK = 1e-6  # relative: how far Embree's float32 distance may be from the exact one
 
 
-def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None):
+def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None, errors=None,
+                   signature=None):
     """`walk`, and again from a far end moved sideways by RETRY_SHIFT x the scene's scale for the
     segments whose parity at the point contradicts `end_inside` (N, len(sids)) where given: Embree's
     float32 decisions for two rays near a shape's edge can disagree and lose one crossing of a short
-    chord (a path grazing a corner), which would count the rest of the path on the wrong side."""
-    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin)
+    chord (a path grazing a corner), which would count the rest of the path on the wrong side.
+    `errors` (N, len(sids)), where given, receives a bound on each length's error (`walk`'s; inf for a
+    walk moved sideways: another path), `signature` (N,) the walk's."""
+    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin, errors, signature)
     if end_inside is None:
         return lengths, blocked
     for attempt in range(1, RETRIES + 1):
@@ -58,7 +61,13 @@ def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_
         end = points[bad] + far[:, None] * dirs[bad] + RETRY_SHIFT * attempt * prep.accel.scale * side
         rel = end - points[bad]
         d2 = np.linalg.norm(rel, axis=1)
-        lengths[bad], blocked[bad], inside[bad] = walk(prep, points[bad], rel / d2[:, None], d2, sids, block, margin)
+        again = np.zeros(len(bad), np.int64)
+        lengths[bad], blocked[bad], inside[bad] = walk(prep, points[bad], rel / d2[:, None], d2, sids, block, margin,
+                                                       signature=again)
+        if errors is not None:
+            errors[bad] = np.inf
+        if signature is not None:
+            signature[bad] = again
     return lengths, blocked
 
 
@@ -67,13 +76,18 @@ RETRY_SHIFT = 1e-5
 SIDEWAYS = np.array([[0.6, 0.0, 0.8], [0.0, 0.8, 0.6], [0.8, 0.6, 0.0]])
 
 
-def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
+def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, signature=None):
     """Lengths (N, len(sids)) inside each shape of `sids` of the segments from `points` along the
     unit `dirs` over `dist` (inf: toward a directional light), and (N,) whether another shape lies on
     the segment (only looked for with `block`; then the walk stops there). The segment is walked from
     its far end, which must lie outside every shape of `sids`, back to the point (crossings closer to it
     than `margin` are not counted: a surface point's own face); and
-    (N, len(sids)) whether the walk ends inside each shape."""
+    (N, len(sids)) whether the walk ends inside each shape. `errors` (N, len(sids)), where given, is
+    set to a bound on each length's error: the sum of its crossings' `crossing_errors` (a crossing
+    found looking back over a skip: Embree's float32 reach), plus, where the last skip passes the point,
+    the distance from the last crossing to it (a crossing in it would go unseen). `signature` (N,), where
+    given, is set to a hash of the triangles crossed, in order: where it changes along a camera ray the
+    light's path has passed an edge (a kink of the inside length)."""
     accel = prep.accel
     n = len(points)
     sids = np.asarray(sids, dtype=np.int64)
@@ -89,6 +103,10 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
     active = np.nonzero(stop > 0.0)[0]
     lookup = np.full(len(prep.scene.shapes), -1, dtype=np.int64)
     lookup[sids] = np.arange(len(sids))
+    if errors is not None:
+        errors[:] = 0.0
+    if signature is not None:
+        signature[:] = 0
     for _ in range(MAX_CROSSINGS):
         if not len(active):
             break
@@ -112,11 +130,18 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
         lengths[r, c] += np.where(inside[r, c], at[cross] - since[r, c], 0.0)
         since[r, c] = at[cross]
         inside[r, c] = ~inside[r, c]
+        if errors is not None:
+            errors[r, c] += crossing_errors(accel, o[cross], back[r], t[cross], prim[cross], off[cross], far[r])
+        if signature is not None:
+            signature[r] = signature[r] * HASH + prim[cross] + 1
         go = np.nonzero(~done)[0]
         r = active[go]
         cos = np.abs(np.einsum("ij,ij->i", accel.hit_normals(prim[go], start[r] + at[go, None] * back[r]), back[r]))
         skip = accel.epsilon / np.maximum(cos, 1e-2)
         s[r] = at[go] + skip
+        if errors is not None:  # crossings within a skip past the point's end are not looked for: all of it
+            over = s[r] >= stop[r]
+            errors[r[over]] += (far[r[over]] - at[go][over])[:, None]
         # a second crossing within the skip (a corner clipped): found looking back from the new start
         tb, pb = accel.first_hit(start[r] + s[r, None] * back[r], dirs[r])
         extra = (pb >= 0) & (pb != prim[go]) & (tb < (1.0 - 1e-9) * skip) & (s[r] - tb < stop[r])
@@ -131,10 +156,57 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0):
         lengths[q, c] += np.where(inside[q, c], atb - since[q, c], 0.0)
         since[q, c] = atb
         inside[q, c] = ~inside[q, c]
+        if errors is not None:
+            errors[q, c] += 2.0 * FLOAT32_SLACK * (atb + accel.scale)
+        if signature is not None:
+            signature[q] = signature[q] * HASH + pb[extra] + 1
         active = r[s[r] < stop[r]]
         fin = r[s[r] >= stop[r]]
         lengths[fin] += np.where(inside[fin] & np.isfinite(s[fin, None]), far[fin, None] - since[fin], 0.0)
     return lengths, blocked, inside
+
+
+HASH = 1000003  # a walk's signature: its triangles in order, base HASH (wrapping in int64)
+
+
+def crossing_errors(accel, origins, dirs, t, prim, off, far):
+    """A bound on the error of each crossing distance t that a walk adds up (origins + t dirs on
+    triangle prim; `off`: Embree's float32 distance kept): where the refined point lies inside its
+    triangle by more than Embree's float32 reach FLOAT32_SLACK (t + scale) from every edge, the ray
+    crosses that triangle there, and t is its plane's float64 solve, off by 16u (|o| + t + |A|) / cos
+    (A a vertex, cos the ray's cosine to the normal) plus 8u far for the walk's sums; elsewhere (near
+    an edge Embree may report a neighbour's plane, or its float32 distance was kept; an exact sphere)
+    2 FLOAT32_SLACK (t + scale): the refined and Embree's distances agree to FLOAT32_SLACK (t + scale)
+    (the walk's guard) and Embree's is taken to be that close to the exact one."""
+    out = np.empty(len(t))
+    _crossing_errors(accel.triangles, accel.normals, accel.sphere_of, origins, dirs, t, prim, off, far,
+                     float(accel.scale), out)
+    return out
+
+
+@njit
+def _crossing_errors(triangles, normals, sphere_of, origins, dirs, t, prim, off, far, scale, out):
+    for i in range(t.shape[0]):
+        k = prim[i]
+        reach = FLOAT32_SLACK * (t[i] + scale)
+        out[i] = 2.0 * reach
+        if off[i] or sphere_of[k] >= 0:
+            continue
+        q = origins[i] + t[i] * dirs[i]
+        n = normals[k]
+        inner = math.inf
+        for e in range(3):
+            a, b = triangles[k, e], triangles[k, (e + 1) % 3]
+            ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+            qx, qy, qz = q[0] - a[0], q[1] - a[1], q[2] - a[2]
+            side = (ey * qz - ez * qy) * n[0] + (ez * qx - ex * qz) * n[1] + (ex * qy - ey * qx) * n[2]
+            inner = min(inner, side / max(math.sqrt(ex * ex + ey * ey + ez * ez), 1e-300))
+        if inner > reach:
+            o, v = origins[i], triangles[k, 0]
+            cos = abs(n[0] * dirs[i, 0] + n[1] * dirs[i, 1] + n[2] * dirs[i, 2])
+            out[i] = (16.0 * U * (math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) + t[i]
+                                  + math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])) / max(cos, 1e-300)
+                      + 8.0 * U * far[i])
 
 
 def convex_exits(prep, sid, points, dirs, dist):
@@ -156,12 +228,14 @@ def convex_exits(prep, sid, points, dirs, dist):
     return np.minimum(t, dist)
 
 
-def _geometry(prep, sid, geo, directional, seg, x, facets=None):
+def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=None):
     """At the points x along segments `seg` (geo rows of media/slab.py's inside_radiance: entry point,
     direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
     light's distance d (inf for a directional light), its path's length k inside shape sid (on the
     exit facets of `exit_facets` where the walk holds them), the scattering cosine mu and a spot's
-    falloff toward the direction it leaves in (1 for other lights)."""
+    falloff toward the direction it leaves in (1 for other lights). `dk` (M,), where given (a non-convex
+    shape's), receives a bound on k's error (`walk`'s) and `sig` (M,) the walk's signature (both 0
+    outside a spot's cone, where k is not measured)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
     if directional:
         to = np.ascontiguousarray(geo[seg, 6:9])
@@ -182,11 +256,18 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None):
                                 facets.offsets, facets.counts, facets.bt, facets.bf, facets.planes, col)
         k[walked] = col
         lit = lit[facets.counts[seg[lit]] < 0]
+    if dk is not None:
+        dk[:], sig[:] = 0.0, 0
     if prep.interior_planes.get(sid) is not None:  # convex (bounded.hull_planes, filled before integrating)
         k[lit] = convex_exits(prep, sid, p[lit], to[lit], d[lit])
     else:
-        k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid],
-                                end_inside=np.ones((len(lit), 1), dtype=bool))[0][:, 0]
+        err, hashes = (np.zeros((len(lit), 1)), np.zeros(len(lit), np.int64)) if dk is not None else (None, None)
+        k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool),
+                                errors=err, signature=hashes)[0][:, 0]
+        if dk is not None:
+            dk[lit], sig[lit] = err[:, 0], hashes
+    if dk is not None:
+        dk[f == 0.0] = 0.0  # outside a spot's cone: exactly 0
     mu = np.einsum("ij,ij->i", to, geo[seg, 3:6])  # the light travels along -to; the eye is along -w
     return d, np.minimum(k, d), mu, f
 
@@ -210,15 +291,41 @@ def _uniforms(keys, seg, dims, seed, out):
         out[i] = uniform(keys[seg[i]], dims[i], seed)
 
 
-def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs, facets=None):
-    """The integrand at (seg, x) for the channels (M, C)."""
-    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x, facets)
+def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs, facets=None, bounded=False):
+    """The integrand at (seg, x) for the channels (M, C); with `bounded`, also its value times a bound
+    on its relative rounding (M, C) (`_rounding`) and the walks' signatures (M,)."""
+    dk, sig = (np.empty(len(x)), np.empty(len(x), np.int64)) if bounded else (None, None)
+    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x, facets, dk, sig)
     out = np.empty((len(x), len(kts)))
     col = np.empty(len(x))
     for c in range(len(kts)):
         _values(x, d, k, mu, float(kts[c]), float(kss[c]), code, g, float(kt_outs[c]), col)
         out[:, c] = col * f
-    return out
+    if not bounded:
+        return out
+    eps = _rounding(geo, seg, x, d, k, dk, kts, kt_outs, code, g)
+    with np.errstate(invalid="ignore"):
+        return out, np.where(out == 0.0, 0.0, out * eps), sig
+
+
+def _rounding(geo, seg, x, d, k, dk, kts, kt_outs, code, g):
+    """(M, C) bounds on the integrand's relative rounding at (seg, x) (first order in u = 2^-53, doubled
+    and more for the second-order terms; media/slab.py point_rounding's terms, with k's error dk (M,)
+    from the walk): the exponent kt (x + k) + kt_out (d - k) rounded to 32u of its size and moved by
+    (kt + kt_out) dk, kt 16u |X| (the node's rounding along the ray) and kt_out dd, dd = 8u (|p| + |X|)
+    d's rounding, which moves 1 / d^2 and the scattering cosine by dd / d times 2 + the phase's
+    condition; a directional light's phase value 8u times its condition."""
+    X = np.linalg.norm(geo[seg, :3] + x[:, None] * geo[seg, 3:6], axis=1)
+    cond = phase_condition(code, g)
+    point = np.isfinite(d)
+    dd = np.where(point, 8.0 * U * (np.linalg.norm(geo[seg, 6:9], axis=1) + X), 0.0)
+    dist = np.where(point, d, 0.0)
+    shape = np.where(point, (2.0 + cond) * dd / np.where(point, d, 1.0), 8.0 * U * cond)
+    kt, kt_out = kts[None, :], np.where(point[:, None], kt_outs[None, :], 0.0)
+    with np.errstate(invalid="ignore"):
+        eps = (32.0 * U * (1.0 + kt * (x + k)[:, None] + kt_out * dist[:, None]) + (kt + kt_out) * dk[:, None]
+               + kt * 16.0 * U * X[:, None] + kt_out * dd[:, None] + shape[:, None])
+    return np.where(np.isnan(eps), np.inf, eps)
 
 
 _N10, _W10 = np.polynomial.legendre.leggauss(10)
@@ -226,14 +333,21 @@ _N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
 def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rtol, stats):
-    """∫_0^ell of the integrand per segment and channel (N, C), by `adaptive`; the first panels end at
-    a spot's cone crossings (media/slab.py straight_cuts) and, in a convex shape, where the light's
-    exit facet changes (`exit_facets`): the integrand is smooth on each panel."""
+    """∫_0^ell of the integrand per segment and channel (N, C) and a bound on its error (N, C), by
+    `adaptive`; the first panels end at a spot's cone crossings (media/slab.py straight_cuts) and, in a
+    convex shape, where the light's exit facet changes (`exit_facets`): the integrand is smooth on each
+    panel. The bound is the rule's and the integrand's rounding with the walks' length errors
+    (`_rounding`), inf where a panel was left open; inf in a convex shape (here: more than MAX_FACES
+    planes; its facet walk's and Embree exits' rounding is not analysed), integrated as before."""
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    facets = exit_facets(prep, sid, geo, directional, end) if prep.interior_planes.get(sid) is not None else None
+    convex = prep.interior_planes.get(sid) is not None
+    facets = exit_facets(prep, sid, geo, directional, end) if convex else None
     seg, a, b = _first_panels(geo, directional, end, facets)
-    return adaptive(lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets),
-                    end, len(kts), seg, a, b, rtol, stats)
+    integrand = lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
+                                         not convex)
+    if convex:
+        return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats), np.full((len(ell), len(kts)), np.inf)
+    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True)
 
 
 class Facets(NamedTuple):
@@ -266,54 +380,146 @@ def exit_facets(prep, sid, geo, directional, end):
     return Facets(offsets, counts, bt, bf, links[0])
 
 
-def adaptive(integrand, end, nc, seg, a, b, rtol, stats):
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
     panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
     Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
     length (media/slab.py's rule, vectorised over segments because every evaluation traces rays);
     panels still open after MAX_LEVELS halvings, or beyond the MAX_OPEN bound, count in stats[0].
     The first panels go in groups of whole segments of about MAX_OPEN panels (the facet walk gives
-    a segment of a fine mesh hundreds), so that memory stays bounded whatever their number."""
+    a segment of a fine mesh hundreds), so that memory stays bounded whatever their number.
+    `bounded`: the integrand returns (values, values x their relative rounding bound), and the result
+    is (integral, bound): the rule's contract, each accepted panel's 20-point value within |G20 - G10|
+    of its integral, which the test keeps below rtol |G20| or the floor times its width, so rtol
+    (sum |G20| + estimate / 10) (adaptive.bounded_piecewise's), plus the rounding of the 20-point sums
+    (twice: their own and the test's) and of the 10-point sums, and u per panel for the sums; inf for a
+    segment with a panel left open."""
     total = np.zeros((len(end), nc))
+    bound = np.zeros((len(end), nc)) if bounded else None
     bounds = np.flatnonzero(np.diff(seg)) + 1  # where a segment's first panels begin
     lo = 0
     while lo < len(seg):
         k = np.searchsorted(bounds, lo + MAX_OPEN)
         hi = bounds[k] if k < len(bounds) else len(seg)
-        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound)
         lo = hi
-    return total
+    return (total, bound) if bounded else total
 
 
-def _adaptive(integrand, end, nc, seg, a, b, rtol, stats):
-    """`adaptive` from one group of first panels."""
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
+    """`adaptive` from one group of first panels (`bound` += their bounds, where given). With a bound,
+    a panel whose nodes' walks, or those just inside its ends, crossed different triangles (their
+    signatures differ: the light's path passed an edge, a kink of the inside length the rules' agreement can miss, 1.7e-6 off at any rtol
+    on a path grazing the U's inner corner) is not accepted: it is cut where the signature changes
+    (`_kinks`), and its pieces are integrated on."""
     n = len(end)
     total = np.zeros((n, nc))
     floor = None
+    if bound is not None:
+        absum, rounding, panels = np.zeros((n, nc)), np.zeros((n, nc)), np.zeros(n)
+        live = np.unique(seg)
     for _ in range(MAX_LEVELS):
         if not len(seg):
-            return total
+            break
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
-        xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()])
-        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
+        xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()]
+                            + (list(_probes(a, b)) if bound is not None else []))  # signatures near the ends
+        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)] + ([seg, seg] if bound is not None else []))
         f = integrand(ss, xs)
+        if bound is not None:
+            f, fe, sig = f
         m = len(seg)
         g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
-        g20 = np.einsum("pkc,k->pc", f[10 * m:].reshape(m, 20, nc), _W20) * half[:, None]
+        g20 = np.einsum("pkc,k->pc", f[10 * m:30 * m].reshape(m, 20, nc), _W20) * half[:, None]
         if floor is None:
             floor = np.zeros((n, nc))
             np.add.at(floor, seg, np.abs(g20))
+            estimate = floor.copy()
             floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
+        kinked = np.zeros(m, dtype=bool)
+        if bound is not None:
+            nodes = _by_panel(sig, m)
+            kinked = np.any(nodes != nodes[:, :1], axis=1)
+            ok &= ~kinked
         if 2 * np.count_nonzero(~ok) > max(MAX_OPEN_PER_SEGMENT * n, MAX_OPEN):  # a memory bound, not a tolerance
             np.add.at(total, seg, g20)
             stats[0] += np.count_nonzero(~ok)
-            return total
+            if bound is not None:
+                bound[np.unique(seg[~ok])] = np.inf
+                ok[:] = True
+                _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc)
+                seg = seg[:0]
+            break
         np.add.at(total, seg[ok], g20[ok])
-        seg, a, b, mid = seg[~ok], a[~ok], b[~ok], mid[~ok]
+        if bound is not None:
+            _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc)
+        cut = ~ok & kinked
+        pieces = _kinks(integrand, seg[cut], a[cut], b[cut], _by_panel(xs, m)[cut], nodes[cut]) if cut.any() else None
+        keep = ~ok & ~kinked
+        seg, a, b, mid = seg[keep], a[keep], b[keep], mid[keep]
         seg, a, b = np.concatenate([seg, seg]), np.concatenate([a, mid]), np.concatenate([mid, b])
-    stats[0] += len(seg) // 2
+        if pieces is not None:
+            seg, a, b = np.concatenate([seg, pieces[0]]), np.concatenate([a, pieces[1]]), np.concatenate([b, pieces[2]])
+    else:
+        stats[0] += len(seg) // 2
+    if bound is not None and floor is not None:
+        rule = rtol * (absum + 0.1 * estimate) + rounding + U * panels[:, None] * absum
+        rule[np.unique(seg)] = np.inf  # panels left open at MAX_LEVELS
+        bound[live] += rule[live]
     return total
+
+
+KINK_TOL = 1e-12  # a kink is bisected to this fraction of its panel: the rules then meet only its sliver, O(tol^2)
+
+
+def _probes(a, b):
+    """Points just inside each panel's ends, where `_adaptive` compares the walks' signatures: a
+    segment's ends lie on the boundary (the walk's parity is unsure there), and a kink found by `_kinks`
+    ends a piece within a few ulps."""
+    delta = np.minimum(1e-9 * (b - a) + 1e-14 * (np.abs(a) + np.abs(b)), 0.25 * (b - a))
+    return a + delta, b - delta
+
+
+def _by_panel(v, m):
+    """(m, 32) of a level's evaluations v: each panel's 10 nodes, 20 nodes and two `_probes`."""
+    return np.concatenate([v[:10 * m].reshape(m, 10), v[10 * m:30 * m].reshape(m, 20), v[30 * m:].reshape(2, m).T],
+                          axis=1)
+
+
+def _kinks(integrand, seg, a, b, x, h):
+    """(segment, start, end) of the pieces of the panels [a, b] of segments seg cut where the walks'
+    signatures h at the points x (rows of `_by_panel`) change between the points in order, each change
+    bisected to KINK_TOL of its panel (walks at single points)."""
+    order = np.argsort(x, axis=1)
+    x, h = np.take_along_axis(x, order, 1), np.take_along_axis(h, order, 1)
+    p, j = np.nonzero(h[:, 1:] != h[:, :-1])
+    lo, hi, left = x[p, j], x[p, j + 1], h[p, j]
+    tol = KINK_TOL * (b - a)[p]
+    while True:
+        mid = 0.5 * (lo + hi)
+        live = (lo < mid) & (mid < hi) & (hi - lo > tol)
+        if not live.any():
+            break
+        same = np.zeros(len(mid), dtype=bool)
+        same[live] = integrand(seg[p[live]], mid[live])[2] == left[live]
+        lo, hi = np.where(live & same, mid, lo), np.where(live & ~same, mid, hi)
+    at = np.concatenate([a, b, hi])
+    owner = np.concatenate([np.arange(len(seg)), np.arange(len(seg)), p])
+    order = np.lexsort((at, owner))
+    at, owner = at[order], owner[order]
+    piece = (owner[1:] == owner[:-1]) & (at[1:] > at[:-1])
+    return seg[owner[:-1][piece]], at[:-1][piece], at[1:][piece]
+
+
+def _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc):
+    """Add the accepted panels' |G20|, the rounding of their 10- and 20-point sums (2 G20 + G10 of the
+    values' rounding bounds fe: the sum's own and the test's) and their count to their segments."""
+    r10 = np.einsum("pkc,k->pc", fe[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
+    r20 = np.einsum("pkc,k->pc", fe[10 * m:30 * m].reshape(m, 20, nc), _W20) * half[:, None]
+    np.add.at(absum, seg[ok], np.abs(g20[ok]))
+    np.add.at(rounding, seg[ok], 2.0 * r20[ok] + r10[ok])
+    np.add.at(panels, seg[ok], 1.0)
 
 
 def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):

@@ -15,24 +15,32 @@ In an index-matched shape the light's path inside is its exact straight path for
 `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights) in an
 index-matched shape: convex, at most MAX_FACES planes, the closed form of media/convex_directional.py
 with its bound; else the segments go to the adaptive quadrature (`_traced`, rtol bounded.RTOL),
-counted (HANDED), unbounded. Through a refractive boundary a directional light enters a convex shape
+counted (HANDED), with its bound (non-convex shapes) or none (more than MAX_FACES planes). Through a refractive boundary a directional light enters a convex shape
 through every face it meets, one beam each (`bounded.refracted_beams`: the exact refracted path;
 CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through the entry plane (Fermat's path).
+
+QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bounds.md, "Inside shapes"):
+convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
+planes are from the faces), non-convex ones on traced walks (paths.segment_quadrature); elsewhere,
+and for the other rules but CLOSED's closed form, the bound is infinite.
 """
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
+from ..error_bounds import spot_rounding
 from ..lights import DIRECTIONAL
 from ..media.convex_chords import chords_into
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
+from ..scene.meshes import PLANE_DECIMALS
 from ..segments import gather
 from ..shadows.beams import lit_pieces_of_beam
 from ..shadows.frusta import exact_lit_intervals
@@ -71,7 +79,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights)
     in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
     media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
-    (`_traced`, rtol RTOL), counted (HANDED), unbounded. Through a refractive boundary a directional
+    (`_traced`, rtol RTOL), counted (HANDED), bounded as QUAD's. Through a refractive boundary a directional
     light enters a convex shape (`convex_planes`) through every face it meets, one beam each
     (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
     entry plane (eq. 5, unbounded); a point or spot light a convex one through every face it is outside of
@@ -94,10 +102,11 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     closed = mode == CLOSED and not refractive  # the exact closed form, or quadrature where there is none
     kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
     beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
-    bound = np.zeros((n, 3)) if kernel else np.full((n, 3), np.inf)
+    bound = np.zeros((n, 3))
     rtol, steps, tau_max = sup.settings(params)
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
+    dplanes = plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
 
     def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
@@ -105,15 +114,16 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
             if ks == 0.0 or lights.intensity[li, c] == 0.0:
                 continue
-            unit, unit_var = np.empty(n), np.empty(n)
+            unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, only, mode,
-                            rtol, steps, tau_max, keys,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, dplanes, only,
+                            mode, rtol, steps, tau_max, keys,
                             np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
-                            unit, unit_var, stats)
+                            unit, unit_var, unit_err, stats)
             f = scale * lights.intensity[li, c]
             out[:, c] += unit * f
             var[:, c] += unit_var * f * f
+            bound[:, c] += _light_bound(unit_err, unit * f, f, lights.cone[li, 0])
 
     def closed_form(li, toward, scale, only):
         val, b = np.empty((n, 3)), np.empty((n, 3))
@@ -157,7 +167,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                     stats[HANDED] += np.count_nonzero(ell > 0.0)
                 _traced(prep, sid, medium, geo, True, ell, lights.intensity[li] * scale,
                         QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
-                        seed, out, var, stats)
+                        seed, out, var, bound, stats)
                 continue
             integrate(li, distant, zero, zero, zero, b, mu, zero, zero, scale, planes if not refractive else np.zeros((0, 4)))
             continue
@@ -176,7 +186,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             if closed:
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
-                    tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, stats)
+                    tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, bound, stats,
+                    lights.cone[li, 0])
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
                   planes if beams or not refractive else np.zeros((0, 4)))  # beams: faces_point's faces
@@ -345,19 +356,39 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
     return out
 
 
+def plane_errors(prep, sid):
+    """(dn, dc): how far the convex planes of shape sid (scene/meshes.py convex_planes: normals and
+    offsets / size rounded to PLANE_DECIMALS, size the largest coordinate) may be from its faces' own
+    planes, on the normals (each of three components) and on the offsets, with a few ulps more."""
+    half = 0.5 * 10.0 ** -PLANE_DECIMALS
+    size = float(np.max(np.abs(prep.accel.triangles[prep.shape_ids == sid]), initial=0.0))
+    return np.array([math.sqrt(3.0) * half + 1e-15, (half + 1e-15) * size])
+
+
+def _light_bound(err, value, f, cos_end):
+    """The bound of one light's values (N,) = unit values x f (f >= 0) with the unit values' bound err
+    (N,): err f (0 where f = 0: the value is exactly 0) plus a spot's rounding (error_bounds.spot_rounding
+    of its `cos_end`) on the value."""
+    with np.errstate(invalid="ignore"):
+        b = np.where(f == 0.0, 0.0, err * f)
+    return b + spot_rounding(np.array([cos_end]))[0] * np.abs(value)
+
+
 def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
-            stats):
-    """out, var += one light's single scattering over the segments of an index-matched shape (non-convex,
-    or handed over by CLOSED), the light's straight paths measured with Embree (paths.py)."""
+            bound, stats, cos_end=-2.0):
+    """out, var, bound += one light's single scattering over the segments of an index-matched shape
+    (non-convex, or handed over by CLOSED), the light's straight paths measured with Embree (paths.py),
+    its bound (`paths.segment_quadrature`'s; inf for the other rules) with a spot's rounding (`cos_end`)."""
     ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
     if not len(ch):
         return
     kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
     args = (prep, sid, geo, distant, ell, kts, kss, medium.phase, medium.g, kt_outs)
     v = np.zeros((len(ell), len(ch)))
+    err = np.full((len(ell), len(ch)), np.inf)
     if mode == QUAD:
         capped = np.zeros(1)
-        val = paths.segment_quadrature(*args, rtol, capped)
+        val, err = paths.segment_quadrature(*args, rtol, capped)
         stats[CAPPED] += capped[0]
     elif mode == MARCH:
         val = paths.segment_march(*args, steps, tau_max)
@@ -365,3 +396,5 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, 
         val, v = paths.segment_samples(*args, steps, keys, dim0, seed)
     out[:, ch] += val * intensity[ch]
     var[:, ch] += v * intensity[ch] ** 2
+    for j, c in enumerate(ch.tolist()):
+        bound[:, c] += _light_bound(err[:, j], val[:, j] * intensity[c], intensity[c], cos_end)

@@ -44,7 +44,7 @@ import numpy as np
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
 from ..rng import uniform
-from .adaptive import piecewise
+from .adaptive import INTERVALS, bounded_piecewise, piecewise
 from .convex_chords import section_kinks
 from .convex_directional import envelope
 from .integrand import integrand, integrand_of
@@ -695,31 +695,126 @@ def straight_cuts(geo, end, out):
 
 @njit
 def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, stats):
-    """∫_0^ell `convex_integrand` dx, adaptive (adaptive.piecewise) on the pieces between the kinks
-    of the light's path inside, where the face it leaves through changes: a directional light's
-    (convex_directional.envelope; with `only`, the pieces on other faces are 0), a point or spot
-    light's (convex_chords.section_kinks), and a spot's cone crossings (`straight_cuts`). A kink
-    inside a panel can fool the rules' agreement: one 1e-3 of the segment from its end was accepted
-    2e-7 off at any rtol, and a point light's kinks inside a 32-face sphere left 3e-9 at rtol 1e-10."""
+    """The value of `convex_bounded`."""
+    return convex_bounded(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, NO_PLANE_ERROR,
+                          stats)[0]
+
+
+NO_PLANE_ERROR = np.zeros(2)
+
+
+@njit
+def convex_bounded(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats):
+    """(∫_0^ell `convex_integrand` dx, a bound on its error): adaptive (adaptive.bounded_piecewise) on
+    the pieces between the kinks of the light's path inside, where the face it leaves through changes:
+    a directional light's (convex_directional.envelope; with `only`, the pieces on other faces are 0),
+    a point or spot light's (convex_chords.section_kinks), and a spot's cone crossings (`straight_cuts`).
+    A kink inside a panel can fool the rules' agreement: one 1e-3 of the segment from its end was
+    accepted 2e-7 off at any rtol, and a point light's kinks inside a 32-face sphere left 3e-9 at rtol
+    1e-10. The bound is the rule's (inf where a panel was accepted at a cap) plus the integrand's
+    rounding (`directional_rounding`, `point_rounding`, with `dplanes` = (dn, dc) the planes' own errors
+    against the shape's faces, on the normals and the offsets: eps relative at every node, so eps (value + rule)
+    over each of the rule's 20-point sums and the 10-point sums of its test; the integrand is positive),
+    and the sum over the rule's intervals (u per interval)."""
     if ks == 0.0 or not ell > 0.0:
-        return 0.0
+        return 0.0, 0.0
     end = min(ell, 745.0 / kt)
     rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase, only)
     if directional:
         nf = planes.shape[0]
-        cuts = np.empty(nf + 1)
-        m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, np.empty(nf), np.empty(nf),
-                     cuts, np.empty(nf, dtype=np.int64))
-        if m > 0:
-            return piecewise(rec, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
-        return 0.0  # no face toward the light: an infinite path inside (kt > 0)
+        cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
+        m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, alpha, beta, cuts, lines)
+        if m == 0:
+            return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
+        before = stats[INTERVALS]
+        value, rule = bounded_piecewise(rec, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
+        eps = directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta, m, dplanes)
+        return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
     br = np.empty(planes.shape[0] + 10)
     br[0] = 0.0
     m = straight_cuts(geo, end, br[1:])
     m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
     br[1:m + 1].sort()
     br[m + 1] = end
-    return piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    before = stats[INTERVALS]
+    value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    eps = point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes)
+    return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
+
+
+U = 2.0 ** -53  # unit roundoff of doubles
+
+
+@njit
+def phase_condition(code, g):
+    """1 + max |d log Phi / d mu|: 1 + 3|g| / (1 - |g|)^2 bounds Henyey-Greenstein's, 2 the others
+    (Rayleigh's 2|mu| / (1 + mu^2) <= 1)."""
+    return 1.0 + (3.0 * abs(g) / (1.0 - abs(g)) ** 2 if g != 0.0 else 1.0)
+
+
+@njit
+def _size(geo, planes, end):
+    """The size R of the coordinates along a segment (|o| + end) and the largest |c_f| of the planes."""
+    r = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2]) + end
+    cmax = 0.0
+    for f in range(planes.shape[0]):
+        cmax = max(cmax, abs(planes[f, 3]))
+    return r, cmax
+
+
+@njit
+def directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta, m, dplanes):
+    """A bound on the relative rounding of `convex_integrand` for a directional light at every node of
+    [0, end] (first order in u = 2^-53, doubled and more for the second-order terms), R = |o| + end:
+    the light's path inside, k = (c_f - n_f·X) / q_f on the exit face f, off by 16u (|c_f| + R) / q_f (q_f
+    its cosine to the face's normal, over the faces of the envelope's m pieces: cuts, lines, alpha, beta
+    of convex_directional.envelope), and by (dc + dn (R + k)) / q_f where the planes themselves are
+    dn, dc off the faces (`dplanes`), times kt; the exponent kt (x + k) rounded to 32u of its size and
+    moved by the node's own rounding (16u R); the phase value (its cosine is fixed per segment) 8u times
+    its condition."""
+    r, _ = _size(geo, planes, end)
+    dk, kmax = 0.0, 0.0
+    for i in range(m):
+        f = lines[i]
+        q = planes[f, 0] * geo[6] + planes[f, 1] * geo[7] + planes[f, 2] * geo[8]
+        kmax = max(kmax, alpha[f] + beta[f] * cuts[i], alpha[f] + beta[f] * cuts[i + 1])
+        dk = max(dk, (16.0 * U * (abs(planes[f, 3]) + r) + dplanes[1] + dplanes[0] * (r + kmax)) / q)
+    return 32.0 * U * (1.0 + kt * (end + kmax)) + kt * (dk + 16.0 * U * r) + 8.0 * U * phase_condition(code, g)
+
+
+@njit
+def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
+    """`directional_rounding` for a point or spot light at p: the exit k = (c_f - n_f·X) / q_f with
+    q_f = (h_f + s_f) / d >= h_f / D (h_f = n_f·p - c_f > 0 the light's height above the plane of a face
+    it is outside of, s_f >= 0 the point's depth below it, D the light's largest distance from the
+    segment) is off by 16u ((|c_f| + |p| + 2R) D / h_f + D) (the cosine's own rounding included), and by
+    (dc + dn (R + D)) D / h_f where the planes are dn, dc off the faces (`dplanes`); the
+    exponent kt (x + k) + kt_out (d - k) by 32u of its size and kt dk + kt_out (dk + dd) + kt 16u R; d
+    by dd = 8u (|p| + R), which moves 1 / d^2 and the scattering cosine r·w / d relatively by dd / d_min
+    times 2 + the phase's condition (d_min the light's least distance from the segment). inf where the
+    light is inside every face plane or on the segment."""
+    r, cmax = _size(geo, planes, end)
+    px, py, pz = geo[6], geo[7], geo[8]
+    p = math.sqrt(px * px + py * py + pz * pz)
+    hmin = math.inf
+    for f in range(planes.shape[0]):
+        hf = planes[f, 0] * px + planes[f, 1] * py + planes[f, 2] * pz - planes[f, 3]
+        if hf > 0.0:
+            hmin = min(hmin, hf)
+    d0x, d0y, d0z = px - geo[0], py - geo[1], pz - geo[2]
+    d0 = math.sqrt(d0x * d0x + d0y * d0y + d0z * d0z)
+    d1x, d1y, d1z = d0x - end * geo[3], d0y - end * geo[4], d0z - end * geo[5]
+    d1 = math.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
+    xh = d0x * geo[3] + d0y * geo[4] + d0z * geo[5]
+    dmax, dmin = max(d0, d1), min(d0, d1)
+    if 0.0 < xh < end:
+        dmin = math.sqrt(max(d0 * d0 - xh * xh, 0.0))
+    if not (hmin < math.inf and dmin > 0.0):
+        return math.inf
+    dk = 16.0 * U * ((cmax + p + 2.0 * r) * dmax / hmin + dmax) + (dplanes[1] + dplanes[0] * (r + dmax)) * dmax / hmin
+    dd = 8.0 * U * (p + r)
+    return (32.0 * U * (1.0 + kt * (end + dmax) + kt_out * dmax) + kt * (dk + 16.0 * U * r) + kt_out * (dk + dd)
+            + (2.0 + phase_condition(code, g)) * dd / dmin)
 
 
 @njit
@@ -788,8 +883,8 @@ def _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
 
 
 @njit
-def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, only,
-                    mode, rtol, steps, tau_max, keys, dim0, seed, out, var, stats):
+def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, dplanes,
+                    only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
@@ -805,13 +900,18 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
-    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD)."""
+    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD).
+    err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
+    `dplanes` the planes' own errors against the shape's faces)
+    and where the value is exactly 0 (no light, nothing to scatter); inf elsewhere."""
     convex = planes.shape[0] > 0
     for s in range(xh.shape[0]):
         out[s] = 0.0
         var[s] = 0.0
+        err[s] = 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
+        err[s] = math.inf
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         spot = NO_SPOT
         if eta != 1.0 and not directional[s] and is_spot(geo[s, 13]):  # refracted_point's terms of a spot light
@@ -837,8 +937,10 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             continue
         if convex and mode != CLOSED and mode != APPROX:
             if mode == QUAD:
-                out[s] = convex_quadrature(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph, only,
-                                           rtol, stats)
+                out[s], bound = convex_bounded(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph,
+                                               only, rtol, dplanes, stats)
+                if eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are not analysed
+                    err[s] = bound
                 continue
         elif (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
             continue

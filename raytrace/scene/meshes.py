@@ -220,6 +220,9 @@ def boundary_edges(tris: np.ndarray) -> int:
     return int(np.sum(counts % 2))
 
 
+PLANE_DECIMALS = 12  # convex_planes rounds normals and offsets / size to these decimals (so that equal planes merge)
+
+
 def convex_planes(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9) -> np.ndarray | None:
     """The distinct face planes (P, 4: outward unit normal, offset) of a closed triangle soup (unit
     `normals`, either orientation) if it bounds a convex solid, else None. Convex means every
@@ -240,7 +243,7 @@ def convex_planes(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9) -> n
     facets = np.column_stack([hull.equations[:, :3], -hull.equations[:, 3] / size])
     if np.max(cKDTree(facets).query(faces, distance_upper_bound=2.0 * tol)[0]) > tol:
         return None
-    planes = np.unique(np.round(faces, 12), axis=0)
+    planes = np.unique(np.round(faces, PLANE_DECIMALS), axis=0)
     planes[:, 3] *= size
     return np.ascontiguousarray(planes)
 
