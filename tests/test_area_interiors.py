@@ -143,3 +143,16 @@ def test_analytic_refuses_area_lights_inside_naming_the_methods(write_scene, tmp
     assert "\n" not in err and "quad lights into a bounded medium (shape[0].interior)" in err, err
     assert "use --method quadrature, raymarch, montecarlo" in err, err
     assert not (tmp_path / "x.exr").exists()
+
+
+@pytest.mark.parametrize("method", ["analytic", "quadrature"])
+def test_the_environment_inside_a_shape_has_no_bound(method):
+    """The environment's directions are a cubature of the sky as an emitter's nodes are of its area:
+    the box's pixels have an infinite bound also where each direction's integral is bounded
+    (analytic's closed form, quadrature's rule in a convex index-matched shape)."""
+    sc = scene_from_text(to_toml({"camera": CAMERA, "shape": [BOX],
+                                  "light": [{"type": "environment", "radiance": [0.2, 0.3, 0.5]}]}), "sky_box.toml")
+    res = api.render(sc, method)
+    box = twin_image("quad") > 0.0  # the pixels that see the box
+    assert box.sum() >= 12 and np.all(np.isinf(res.error_bound[box]))
+    assert np.all(np.isfinite(res.error_bound[~box]))  # the sky seen directly

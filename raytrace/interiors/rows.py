@@ -191,6 +191,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
                   planes if beams or not refractive else np.zeros((0, 4)))  # beams: faces_point's faces
+    used = np.arange(len(lights)) if light is None else [light]
+    if np.any(lights.cubature[used]):  # an emitter's cubature or the environment's directions: no bound
+        bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 
 
