@@ -417,10 +417,11 @@ def _sort_and_prune(start, tri, lb, cover_depth):
     return new_start, out_t[:m].copy(), out_lb[:m].copy()
 
 
-@njit(inline="always")
+@njit
 def _crossing(a_x, b_x, a_m, b_m, c, x):
     """Where the coordinate (a_x + b_x x) / (a_m + b_m x) reaches c, ahead of x on the same branch
-    (m > 0); inf if never. Scalars only: an inlined helper taking arrays costs reference counts."""
+    (m > 0); inf if never. Scalars only (a helper taking arrays costs reference counts); LLVM inlines
+    it, as numba's inline="always" did, which typed it again at each of its four call sites."""
     den = b_x - c * b_m
     if den == 0.0:
         return math.inf
