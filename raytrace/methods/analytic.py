@@ -224,25 +224,27 @@ def _spot_nearline(xh, h, dmin, cone, precision):
 
 @njit
 def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, terms, coeffs, precision,
-           max_iter, work, stats):
+           max_iter, work, stats, spots, aniso):
     """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
     Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
     the Taylor mode's PP-19 sum approximates it),
     F = 1, or a spot's polynomial band if `band` (smoothstep or gltf, docs/spot_lights.md); err bounds the band's
     rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature).
-    `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values."""
+    `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values; `spots` None: never a
+    band, `aniso` None: an isotropic phase function, and their code is not compiled (`checked_airlight`;
+    an anisotropic piece is then not ok)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     moments = exact or band
     block = coeffs
     at = B_HMAX_BAND if band else B_HMAX
-    if moments:
+    if (spots is not None or aniso is not None) and moments:
         block = _block_for(coeffs, v1, v2, H, at)
         if H > block[at]:  # the moment recurrence would lose digits: quadrature
             return 0.0, 0.0, False
     # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
     # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
     # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
-    if band:
+    if spots is not None and band:
         # F Phi as a trigonometric series of order L + 3 (gc, gs); its terms' size bounds the
         # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
         stats[ST_BANDS] += 1.0
@@ -256,9 +258,9 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         size = times_trig(c, a, b, gc, gs)  # sum of |coefficients|
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     prec_i = precision
-    if moments:
+    if (spots is not None or aniso is not None) and moments:
         prec_i = max(1e-15, precision * block[B_RATIO] / _loss(block, H, at))
-    if band:
+    if spots is not None and band:
         prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
     rel = prec_i  # relative accuracy of K1 and L1
     # (a band's K1, L1 are wanted finer than the series' rounding on a piece short in angle allows:
@@ -298,7 +300,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         if K1 != 0.0:
             rel = G_REL_ERR * ends / abs(K1)
 
-    if band:
+    if spots is not None and band:
         # its moments' rounding (relative `rel` from K1, L1, times the recurrence's loss) is bounded
         # by |E_k| <= E_0 = 2 K1
         val = 0.5 * trig_moments_forward(H, v1, v2, K1, L1, E1, E2, gc, gs)
@@ -307,6 +309,8 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
 
     if phase_code == ISOTROPIC:
         return INV_4PI * K1, 0.0, True
+    if aniso is None:
+        return 0.0, 0.0, False
 
     if aniso_mode == ANISO_TAYLOR:
         # PP-19 with N = terms coefficients c_n of Phi in v
@@ -336,12 +340,12 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     """Air-light Lm of one light along one ray segment [0, ell] for one channel (`checked_airlight`'s
     value)."""
     return checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode,
-                            terms, coeffs, cone, stats, True)[0]
+                            terms, coeffs, cone, stats, True, True, True)[0]
 
 
 @njit
 def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-                     aniso_mode, terms, coeffs, cone, stats, quadrature):
+                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso):
     """(Lm, met): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
     whether it is known to meet `precision` (error_bounds.py): False where a quadrature it fell back
     on did not converge (ST_FALLBACK_CAPPED) and in the Taylor mode of an anisotropic medium (the
@@ -358,7 +362,9 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     segment is cut where it crosses the cone's edge and core, `lights.segment_cone`); stats:
     float64[STATS_SIZE] accumulator; quadrature: True, or None to defer the segments that need the
     reference quadrature: they return (nan, False), and the quadrature's code is not compiled in
-    this specialisation (numba prunes the branches of an argument typed None).
+    this specialisation (numba prunes the branches of an argument typed None); spots: True, or None
+    to defer the segments of a light with a cone likewise (the spot code is then not compiled);
+    aniso: True, or None to defer those in an anisotropic medium (its phase function's code).
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
@@ -385,6 +391,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
         if h < NEARLINE_TOL * dmin:
             val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
             if spot:
+                if spots is None:
+                    return math.nan, False
                 f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
                 val *= f
                 ok = ok and ok_f
@@ -404,10 +412,12 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
         val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, spot, cone, phase_code, g, aniso_mode, terms, coeffs,
-                            precision, max_iter, coeffs[:0], stats)
+                            precision, max_iter, coeffs[:0], stats, spots, aniso)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
         return pref * (ks * val), not taylor
+    if spots is None:
+        return math.nan, False
     work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
     pieces = work[:15].reshape((5, 3))
     vals = work[15:20]
@@ -429,7 +439,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
         p1 = pa if v1 == va else xh + h * v1
         p2 = pb if v2 == vb else xh + h * v2
         vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, pieces[i, 2] == 2.0, cone, phase_code, g,
-                                      aniso_mode, terms, coeffs, precision, max_iter, work[25:], stats)
+                                      aniso_mode, terms, coeffs, precision, max_iter, work[25:], stats, spots,
+                                      aniso)
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
     met = True
@@ -737,33 +748,37 @@ def summarize_stats(stats):
 # ----------------------------------------------------------------------------------------------
 @njit
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, quadrature):
+                      met, stats, quadrature, spots, aniso):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
-    met the precision (`checked_airlight`). With `quadrature` None the segments that need the
-    reference quadrature are left nan, their statistics not counted (`evaluate_deferred`)."""
+    met the precision (`checked_airlight`). With `quadrature` None (and `spots` or `aniso`) the
+    segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
+    left nan, their statistics not counted (`evaluate_deferred`)."""
     before = np.empty(stats.shape[0])
     for s in range(xh.shape[0]):
         for k in range(stats.shape[0]):
             before[k] = stats[k]
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                          aniso_mode, terms, coeffs, cone[s], stats, quadrature)
+                                          aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso)
         if quadrature is None and math.isnan(out[s]):
             for k in range(stats.shape[0]):
                 stats[k] = before[k]
 
 
 def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats):
+                      met, stats, spots=True, aniso=True):
     """`evaluate_segments` with the quadrature's kernels compiled on first need only: every segment
     without them, then again with them the few left nan (the quadrature fallback, or a nan of the
-    closed form, which the second pass reproduces), so the result is that of one pass with them."""
+    closed form, which the second pass reproduces), so the result is that of one pass with them.
+    `spots` False: the scene has no light with a cone (`Lights.kinds`), `aniso` False: its medium is
+    isotropic; the first pass is then compiled without their code too (such segments, were there
+    any, would be left to the second pass)."""
     evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, None)
+                      met, stats, None, True if spots else None, True if aniso else None)
     todo = np.flatnonzero(np.isnan(out))
     if len(todo):
         part, part_met = np.empty(len(todo)), np.empty(len(todo), dtype=np.bool_)
         evaluate_segments(xh[todo], h[todo], da[todo], ell[todo], kt, ks, code, g, precision, max_iter, aniso_mode,
-                          terms, coeffs, cone[todo], part, part_met, stats, True)
+                          terms, coeffs, cone[todo], part, part_met, stats, True, True, True)
         out[todo], met[todo] = part, part_met
 
 
@@ -796,13 +811,14 @@ def _airlight(segs, medium, lights, params):
     precision = working_precision(params["precision"])
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], precision)
     stats = new_stats()
+    spots, aniso = "spot" in lights.kinds(), medium.phase != ISOTROPIC
     met = {}  # (kt, ks) -> whether each segment's evaluation met the precision
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
         evaluate_deferred(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
-                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats)
+                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats, spots, aniso)
         return out
 
     radiance = by_channel(segs, medium, lights, evaluate)
