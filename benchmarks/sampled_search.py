@@ -19,7 +19,6 @@ import math
 import numpy as np
 
 from raytrace.jit import njit
-from raytrace.lights import DIRECTIONAL
 from raytrace.methods import Segments
 from raytrace.shadows.shadow_rays import chunks
 from benchmarks.shadow_maps import ShadowMaps, face_texel, verdict
@@ -353,7 +352,7 @@ def lit_intervals(accel, segs: Segments, lights, n_lights: int, spacing: float =
     (shadow_maps.build; None: an exact shadow ray for every sample). `edges`: locate boundaries at
     the occluders' edges where possible (else bisection alone)."""
     maps = ShadowMaps.empty() if maps is None else maps
-    directional = lights.kind[segs.light] == DIRECTIONAL
+    directional = lights.distant[segs.light]
     if directional.any():  # directional lights: their own search (`sun_intervals`), the rest as below
         rest = np.nonzero(~directional)[0]
         others, stats = segs.take(rest), np.zeros(len(LI_NAMES))

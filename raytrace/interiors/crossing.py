@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..lights import DIRECTIONAL, Lights
+from ..lights import Lights
 from ..media.adaptive import CAPPED
 from ..media.slab import CLOSED, QUAD, refract_rays, surface_through_faces, transmittances
 from ..methods import INSIDE_RTOL, Segments, registry
@@ -172,7 +172,7 @@ def check(prep, method, method_params, source: str):
                         "bounded medium needs an index-matched interior (ior = 1) or a convex shape of at most "
                         f"{KERNEL_PLANES} faces, and --method {', '.join(_takers(lambda s: s.exact_paths))}; move the "
                         "camera out of the shape or change them")
-    for li in np.nonzero(prep.lights.kind != DIRECTIONAL)[0]:
+    for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a medium; lights "
@@ -262,7 +262,7 @@ def shadow_through(prep):
     lights = prep.lights
 
     def through(li, points):
-        if lights.kind[li] == DIRECTIONAL:
+        if lights.distant[li]:
             dirs = np.broadcast_to(-lights.axis[li], points.shape)
             dist = np.full(len(points), np.inf)
         else:
@@ -409,9 +409,9 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
         lb = np.zeros((len(q), 3))
         lights = prep.lights
         planes = convex_planes(prep, sid)
-        for li in np.nonzero(lights.kind != DIRECTIONAL)[0] if len(planes) else ():
+        for li in np.nonzero(~lights.distant)[0] if len(planes) else ():
             lb += _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt)
-        for li in np.nonzero(lights.kind == DIRECTIONAL)[0]:
+        for li in np.nonzero(lights.distant)[0]:
             if len(planes):
                 beams = zip(*refracted_beams(planes, lights.axis[li], medium.ior))
             else:

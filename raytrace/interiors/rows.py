@@ -34,7 +34,6 @@ import math
 import numpy as np
 
 from ..error_bounds import spot_rounding
-from ..lights import DIRECTIONAL
 from ..media.convex_chords import chords_into
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
@@ -137,8 +136,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     zero = np.zeros(n)
     for li in range(len(lights)) if light is None else [light]:
         idx = np.full(n, li, dtype=np.int64)
-        distant = np.full(n, lights.kind[li] == DIRECTIONAL)
-        if lights.kind[li] == DIRECTIONAL:
+        distant = np.full(n, lights.distant[li])
+        if lights.distant[li]:
             geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
             if beams:
                 for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
@@ -268,7 +267,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     kt = medium.sigma_t[None, :]
 
     for li in range(len(lights)):
-        if lights.kind[li] != DIRECTIONAL:
+        if not lights.distant[li]:
             val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
                                               depth, li)
             st[UNSHADOWED] += np.count_nonzero(ell > 0.0)

@@ -13,6 +13,7 @@ radiance, else the [background]).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -122,6 +123,13 @@ class Lights:
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    @cached_property
+    def distant(self) -> np.ndarray:
+        """(L,) whether each row is a distant sample (a direction, no position: a directional light's,
+        an environment's); the rest are positional (a point, a spot, an emitter's node). Code outside
+        this package tells rows apart by this, never by their kind."""
+        return self.kind == directional.CODE
 
     def kinds(self) -> set[str]:
         """The kinds of the scene's lights and of the rows they give (an area light's: spot)."""

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit
-from ..lights import DIRECTIONAL, NO_CONE, SMOOTHSTEP, falloff, is_spot
+from ..lights import NO_CONE, SMOOTHSTEP, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.atmosphere import ROW, segment_rows
 from ..media.fog import above_top, attenuated_density, column
@@ -177,7 +177,7 @@ def fog_rows(segs, medium, lights):
     rows = np.zeros((len(segs), 5))
     rows[:, HO] = segs.origins @ up - medium.h0
     rows[:, MU] = segs.dirs @ up
-    directional = lights.kind[segs.light] == DIRECTIONAL
+    directional = lights.distant[segs.light]
     rows[:, HL] = np.where(directional, 0.0, lights.position[segs.light] @ up - medium.h0)
     axis = lights.axis[segs.light]
     rows[:, MUS] = np.where(directional, -(axis @ up), 0.0)
@@ -302,7 +302,7 @@ def atmosphere_channels(segs, medium, lights, evaluate, variance=False):
     layers' coefficients kt, ks (K,); rows are `atmosphere.segment_rows`, channels that do not
     scatter are 0. With `variance`, evaluate returns (mean, variance) and so does this, (S, 3) each."""
     xh, h, _, cone = segment_geometry(segs, lights)
-    directional = lights.kind[segs.light] == DIRECTIONAL
+    directional = lights.distant[segs.light]
     rows = np.empty((len(segs), ROW))
     segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
                  directional, *(float(v) for v in medium.center), float(medium.radius), float(medium.top), rows)

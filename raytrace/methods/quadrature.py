@@ -39,7 +39,7 @@ from ..jit import njit
 from . import AREA_LIGHTS, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        by_channel, cone_row, fog_inscatter_parts, fog_rows, spot_factor)
-from ..lights import DIRECTIONAL, cone_breaks, falloff, is_spot
+from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.chapman import relative_error as chapman_error
 from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
@@ -187,7 +187,7 @@ def _atmosphere(segs, atm, lights, params):
     camera ray's transmittance to a piece's start: `_atmosphere_prefix`)."""
     stats = np.zeros(3)
     dz = 4.0 * ULP * (np.linalg.norm(segs.origins, axis=1) + np.linalg.norm(atm.center)
-                      + np.where(lights.kind[segs.light] == DIRECTIONAL, 0.0,
+                      + np.where(lights.distant[segs.light], 0.0,
                                  np.linalg.norm(lights.position[segs.light], axis=1)))
     phase_cond = max(phase_condition(int(c), float(g)) for c, g in zip(atm.phases, atm.gs))
     unit_bounds = {}

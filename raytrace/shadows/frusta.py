@@ -47,7 +47,6 @@ import numpy as np
 from ..geometry.sphere import lit_parts
 from ..geometry.vectors import perpendicular
 from ..jit import njit
-from ..lights import DIRECTIONAL
 from ..methods import Segments
 
 DILATE = 1e-8  # texels are binned as if larger by this much (face units; grid size for the ortho grid)
@@ -102,7 +101,7 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     res = resolution or default_resolution(len(tris))
     out = []
     for li in range(len(lights)):
-        if lights.kind[li] == DIRECTIONAL:
+        if lights.distant[li]:
             bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res)
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
