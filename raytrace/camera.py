@@ -7,6 +7,7 @@ phi = 2 pi ((i+s)/W - 0.5) from forward towards right, theta = pi (j+t)/H from u
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -14,9 +15,20 @@ import numpy as np
 from .scene.format import Camera
 
 
+@functools.lru_cache(maxsize=16)
 def sample_offsets(spp: int) -> np.ndarray:
     """(spp, 2) offsets in [0, 1)^2: the pixel centre for spp = 1, a stratified grid of cell centres
-    when spp is a square, otherwise the R2 low-discrepancy sequence (deterministic)."""
+    when spp is a square, otherwise the R2 low-discrepancy sequence (deterministic). Computed once
+    per spp (every tile asks): read-only."""
+    return _read_only(_offsets(spp))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+def _offsets(spp: int) -> np.ndarray:
     if spp == 1:
         return np.array([[0.5, 0.5]])
     n = math.isqrt(spp)
@@ -30,12 +42,19 @@ def sample_offsets(spp: int) -> np.ndarray:
 
 
 def basis(cam: Camera):
-    forward = cam.look_at - cam.position
+    """(forward, right, up) unit vectors of the camera (read-only, computed once per placement)."""
+    return _basis(tuple(map(float, cam.position)), tuple(map(float, cam.look_at)), tuple(map(float, cam.up)))
+
+
+@functools.lru_cache(maxsize=16)
+def _basis(position: tuple, look_at: tuple, cam_up: tuple):
+    position, look_at, cam_up = np.array(position), np.array(look_at), np.array(cam_up)
+    forward = look_at - position
     forward = forward / np.linalg.norm(forward)
-    right = np.cross(forward, cam.up)
+    right = np.cross(forward, cam_up)
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
-    return forward, right, up
+    return tuple(_read_only(v) for v in (forward, right, up))
 
 
 def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = None, samples: slice | None = None):

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from .jit import exact_njit
 from .lights import DIRECTIONAL
 
 
@@ -41,22 +42,64 @@ def shading_normals(accel, corners, prim, points, facing):
     exact) and everywhere when `corners` is None."""
     if corners is None:
         return facing
-    c = corners[prim]
-    tri = accel.triangles[prim]
-    e1, e2, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
-    d00, d01, d11 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
-    d20, d21 = np.einsum("ij,ij->i", v, e1), np.einsum("ij,ij->i", v, e2)
-    den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b = np.clip(np.stack([np.zeros_like(den), (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den],
-                             axis=1), 0.0, 1.0)
-        b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
-        n = np.einsum("ij,ijk->ik", b, c)
-        length = np.linalg.norm(n, axis=1)
-    flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0) | (accel.sphere_of[prim] >= 0)
-    n = np.where(flat[:, None], facing, n / np.where(flat, 1.0, length)[:, None])
-    flipped = np.einsum("ij,ij->i", accel.normals[prim], facing) < 0.0
-    return np.where((flipped & ~flat)[:, None], -n, n)
+    out = np.empty_like(facing)
+    _shading_normals(corners, accel.triangles, accel.normals, accel.sphere_of, prim, points, facing, out)
+    return out
+
+
+@exact_njit
+def _dot(a, i, b, j):
+    """a[i] . b[j] of (N, 3) rows, summed as NumPy's einsum("ij,ij->i") sums three terms."""
+    return (a[i, 0] * b[j, 0] + a[i, 2] * b[j, 2]) + a[i, 1] * b[j, 1]
+
+
+@exact_njit
+def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facing, out):
+    """`shading_normals` into `out`, one point at a time (the NumPy expressions it replaced, each
+    rounded the same way)."""
+    e = np.empty((3, 3))  # e1, e2, v
+    b = np.empty(3)
+    n = np.empty(3)
+    for i in range(prim.shape[0]):
+        k = prim[i]
+        for a in range(3):
+            e[0, a] = triangles[k, 1, a] - triangles[k, 0, a]
+            e[1, a] = triangles[k, 2, a] - triangles[k, 0, a]
+            e[2, a] = points[i, a] - triangles[k, 0, a]
+        d00, d01, d11, d20, d21 = _dot(e, 0, e, 0), _dot(e, 0, e, 1), _dot(e, 1, e, 1), _dot(e, 2, e, 0), _dot(e, 2, e, 1)
+        den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
+        b[1] = _clip01((d11 * d20 - d01 * d21) / den)
+        b[2] = _clip01((d00 * d21 - d01 * d20) / den)
+        b[0] = _max0(1.0 - b[1] - b[2])
+        for a in range(3):
+            n[a] = b[0] * corners[k, 0, a] + b[1] * corners[k, 1, a] + b[2] * corners[k, 2, a]
+        length = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        flat = _flat(corners, k) or not (length > 0.0) or sphere_of[k] >= 0
+        flip = -1.0 if _dot(normals, k, facing, i) < 0.0 and not flat else 1.0
+        for a in range(3):
+            out[i, a] = facing[i, a] if flat else flip * (n[a] / length)
+
+
+@exact_njit
+def _flat(corners, k):
+    """Whether triangle k's corner normals are all equal."""
+    for c in range(1, 3):
+        for a in range(3):
+            if corners[k, c, a] != corners[k, 0, a]:
+                return False
+    return True
+
+
+@exact_njit
+def _clip01(x):
+    """np.clip(x, 0, 1), nan kept."""
+    return x if math.isnan(x) else min(max(x, 0.0), 1.0)
+
+
+@exact_njit
+def _max0(x):
+    """np.maximum(x, 0), nan kept."""
+    return x if math.isnan(x) else max(x, 0.0)
 
 
 def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None):

@@ -360,6 +360,9 @@ def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     return total
 
 
+_method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
+
+
 def render_tile(prep: Prepared, task: Task, tile: Tile):
     """The tile's radiance summed over its samples (pixels, 3), its statistics, for a stochastic
     method its summed variance (else None), its summed error bound and its output layers' summed
@@ -372,7 +375,7 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     o, d = pixel_rays(cam, ys, xs, tile.samples)
     keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
-    method = get_method(task.method)
+    method = _method(task.method)
     hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
     rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start
