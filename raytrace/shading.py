@@ -48,6 +48,24 @@ def shading_normals(accel, corners, prim, points, facing):
 
 
 @exact_njit
+def _toward_light(points, normals, shading, terminator, lp, to_light, dist, cos, lit):
+    """Per point: to_light = lp - p, its length `dist`, the cosine `cos` of the (shading, with
+    `terminator`) normal to it (0 at the light) and `lit`, where the geometric normal, and with
+    `terminator` the shading one too, faces the light."""
+    for i in range(points.shape[0]):
+        for a in range(3):
+            to_light[i, a] = lp[a] - points[i, a]
+        x, y, z = to_light[i, 0], to_light[i, 1], to_light[i, 2]
+        dist[i] = math.sqrt(x * x + y * y + z * z)
+        over = dist[i] if dist[i] > 0.0 else 1.0
+        cos[i] = _dot(normals, i, to_light, i) / over
+        lit[i] = cos[i] > 0.0 and dist[i] > 0.0
+        if terminator:
+            cos[i] = _dot(shading, i, to_light, i) / over
+            lit[i] = lit[i] and cos[i] > 0.0
+
+
+@exact_njit
 def _dot(a, i, b, j):
     """a[i] . b[j] of (N, 3) rows, summed as NumPy's einsum("ij,ij->i") sums three terms."""
     return (a[i, 0] * b[j, 0] + a[i, 2] * b[j, 2]) + a[i, 1] * b[j, 1]
@@ -114,18 +132,15 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         if lights.kind[li] == DIRECTIONAL:
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
-        to_light = lp[None, :] - points
-        dist = np.linalg.norm(to_light, axis=1)
-        cos = np.einsum("ij,ij->i", normals, to_light) / np.where(dist > 0.0, dist, 1.0)
-        lit = (cos > 0.0) & (dist > 0.0)
-        if shading is not None and shading is not normals:  # the terminator: both must face the light
-            cos = np.einsum("ij,ij->i", shading, to_light) / np.where(dist > 0.0, dist, 1.0)
-            lit &= cos > 0.0
-        if not lit.any():
+        to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
+        lit = np.empty(len(points), dtype=np.bool_)
+        terminator = shading is not None and shading is not normals  # both must face the light
+        _toward_light(points, normals, shading if terminator else normals, terminator, lp, to_light, dist, cos, lit)
+        idx = np.flatnonzero(lit)
+        if not len(idx):
             continue
-        idx = np.nonzero(lit)[0]
-        o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
-        idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through)
+        o, d, tmax, as32 = accel.shadow_rays(points[idx], normals[idx], lp)
+        idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through, as32)
         dl, cl = dist[idx], cos[idx]
         tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
         irradiance = lights.irradiance(li, -to_light[idx], dl) * tr * cl[:, None]
@@ -133,10 +148,11 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     return out
 
 
-def _unblocked(accel, o, d, tmax, idx, points, li, through):
+def _unblocked(accel, o, d, tmax, idx, points, li, through, as32=None):
     """The points idx whose shadow rays (o, d, tmax) reach light li, and the transmittance (M, 3) of the
-    shapes they pass through (1 unless `through` lets an occluded ray through)."""
-    occ = accel.occluded(o, d, tmax)
+    shapes they pass through (1 unless `through` lets an occluded ray through); `as32`: the rays'
+    float32 copies for Embree where `Accelerator.shadow_rays` made them."""
+    occ = accel.occluded(o, d, tmax, as32=as32)
     part = np.ones((len(idx), 3))
     if through is not None and occ.any():
         part[occ] = through(li, points[idx[occ]])
