@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from .jit import exact_njit
 from .scene.format import Camera
 
 
@@ -83,18 +84,32 @@ def pixel_rays(cam: Camera, ys: np.ndarray, xs: np.ndarray, samples: slice | Non
 def _rays(cam: Camera, x: np.ndarray, y: np.ndarray):
     """Origins and unit directions through the image points (x, y) (pixel units), in their order."""
     forward, right, up = basis(cam)
-    W, H = cam.width, cam.height
-    if cam.type == "perspective":
-        tan = math.tan(math.radians(cam.fov) / 2.0)
-        a = (2.0 * x / W - 1.0) * tan * (W / H)
-        b = (1.0 - 2.0 * y / H) * tan
-        d = forward + a[..., None] * right + b[..., None] * up
-    else:
-        phi = 2.0 * math.pi * (x / W - 0.5)
-        theta = math.pi * y / H
-        st = np.sin(theta)[..., None]
-        d = st * (np.cos(phi)[..., None] * forward + np.sin(phi)[..., None] * right) + np.cos(theta)[..., None] * up
-    d = d.reshape(-1, 3)
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    o = np.broadcast_to(cam.position, d.shape).copy()
+    x, y = np.ravel(np.asarray(x, np.float64)), np.ravel(np.asarray(y, np.float64))
+    o, d = np.empty((len(x), 3)), np.empty((len(x), 3))
+    perspective = cam.type == "perspective"
+    tan = math.tan(math.radians(cam.fov) / 2.0) if perspective else 0.0
+    _ray_kernel(x, y, float(cam.width), float(cam.height), perspective, tan, cam.width / cam.height, forward, right, up,
+                np.asarray(cam.position, np.float64), o, d)
     return o, d
+
+
+@exact_njit
+def _ray_kernel(x, y, W, H, perspective, tan, aspect, forward, right, up, position, o, d):
+    """The rays of the module's formulas (`perspective`, else environment) into o and d, each number
+    rounded as the NumPy expressions this kernel replaced round it."""
+    for i in range(x.shape[0]):
+        if perspective:
+            a = (2.0 * x[i] / W - 1.0) * tan * aspect
+            b = (1.0 - 2.0 * y[i] / H) * tan
+            for k in range(3):
+                d[i, k] = forward[k] + a * right[k] + b * up[k]
+        else:
+            phi = (2.0 * math.pi) * (x[i] / W - 0.5)
+            theta = math.pi * y[i] / H
+            st, cp, sp, ct = math.sin(theta), math.cos(phi), math.sin(phi), math.cos(theta)
+            for k in range(3):
+                d[i, k] = st * (cp * forward[k] + sp * right[k]) + ct * up[k]
+        length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
+        for k in range(3):
+            d[i, k] = d[i, k] / length
+            o[i, k] = position[k]
