@@ -143,9 +143,17 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through, as32)
         dl, cl = dist[idx], cos[idx]
         tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
-        irradiance = lights.irradiance(li, -to_light[idx], dl) * tr * cl[:, None]
-        out[idx] += reflectance[idx] / math.pi * irradiance
+        _add_reflected(out, idx, reflectance, lights.irradiance(li, -to_light[idx], dl), tr, cl)
     return out
+
+
+@exact_njit
+def _add_reflected(out, idx, reflectance, irradiance, tr, cos):
+    """out[idx] += reflectance[idx] / pi * (irradiance tr cos), rounded as that NumPy expression."""
+    for i in range(idx.shape[0]):
+        k = idx[i]
+        for c in range(3):
+            out[k, c] = out[k, c] + reflectance[k, c] / math.pi * (irradiance[i, c] * tr[i, c] * cos[i])
 
 
 def _unblocked(accel, o, d, tmax, idx, points, li, through, as32=None):
