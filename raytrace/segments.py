@@ -77,16 +77,20 @@ def _cone_pieces(xh, h, length, cone):
     return src[:m], x0[:m], x1[:m], piece[:m]
 
 
-def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
+def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1, tr=None) -> np.ndarray:
     """Sum (N, 3) over each ray's segments of T^power * values (S, 3), T the transmittance from the
     camera ray's origin to the segment's start (exp(-kt t0) when homogeneous: the t0 before the
-    segment's own origin); power 2 adds the variances of independent segment estimates. Whole rays
-    (all t0 = 0) need no transmittance."""
+    segment's own origin); power 2 adds the variances of independent segment estimates. `tr`:
+    `gather_weights(segs, medium, power)` where the caller gathers several values of one batch."""
     out = np.zeros((n_rays, 3))
-    whole = segs.per_ray != 0 or not np.any(segs.t0)
-    tr = np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
-    _add_by_ray(values, segs.ray, tr, out)
+    _add_by_ray(values, segs.ray, gather_weights(segs, medium, power) if tr is None else tr, out)
     return out
+
+
+def gather_weights(segs: Segments, medium, power: int = 1) -> np.ndarray:
+    """T^power (S, 3) of `gather`, empty for whole rays (all t0 = 0), which need no transmittance."""
+    whole = segs.per_ray != 0 or not np.any(segs.t0)
+    return np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
 
 
 @njit

@@ -36,7 +36,7 @@ from ..methods import get_method, resolve_params
 from ..options import RenderOptions
 from ..scene.format import Scene
 from ..scene.meshes import exact_spheres, scene_triangles
-from ..segments import cone_segments, gather, whole_rays
+from ..segments import cone_segments, gather, gather_weights, whole_rays
 from ..shading import (emissive_shapes, emitted_radiance, facing_normals, first_hits, ground_radiance,
                        shading_normals, surface_radiance)
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
@@ -142,14 +142,16 @@ def airlight(method, medium, lights, params, segs, n_rays: int):
     whose error is its variance."""
     res = method.airlight(segs, medium, lights, params)
     var = gather(segs, res[2], n_rays, medium, power=2) if method.stochastic else None
+    tr = gather_weights(segs, medium)  # once for the air-light and its bound
     if method.stochastic:
         bound = np.zeros((n_rays, 3))
     elif len(res) > 2:
-        bound = gather(segs, res[2], n_rays, medium)
+        bound = gather(segs, res[2], n_rays, medium, tr=tr)
     else:
         bound = np.where(error_bounds.rays_with(segs.ray, n_rays)[:, None], np.inf, np.zeros((n_rays, 3)))
-    bound[error_bounds.rays_with(segs.ray[lights.cubature[segs.light]], n_rays)] = np.inf  # area lights' cubature
-    return gather(segs, res[0], n_rays, medium), res[1], var, bound
+    if lights.cubature.any():  # area lights' cubature
+        bound[error_bounds.rays_with(segs.ray[lights.cubature[segs.light]], n_rays)] = np.inf
+    return gather(segs, res[0], n_rays, medium, tr=tr), res[1], var, bound
 
 
 def sees_emission(prep: Prepared) -> bool:
@@ -189,7 +191,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium, crossing.shadow_through(prep), shading)
-        if sees_emission(prep):
+        if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
                                                prep.accel.hit_normals(prim[surf], points), dirs[surf])
     if ground.any():
