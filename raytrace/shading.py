@@ -29,8 +29,17 @@ from .lights import DIRECTIONAL
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """Flip each normal to the side the ray comes from."""
-    flip = np.einsum("ij,ij->i", normals, dirs) > 0.0
-    return np.where(flip[:, None], -normals, normals)
+    out = np.empty((len(normals), 3))
+    _facing(normals, dirs, out)
+    return out
+
+
+@exact_njit
+def _facing(normals, dirs, out):
+    for i in range(normals.shape[0]):
+        flip = _dot(normals, i, dirs, i) > 0.0
+        for a in range(3):
+            out[i, a] = -normals[i, a] if flip else normals[i, a]
 
 
 def shading_normals(accel, corners, prim, points, facing):

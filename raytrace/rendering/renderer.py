@@ -185,6 +185,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
     surf = hit & ~into
+    entering = into.any()
     if surf.any():
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
@@ -196,7 +197,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                                prep.accel.hit_normals(prim[surf], points), dirs[surf])
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
-    if into.any():
+    if entering:
         boundary = crossing.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
         if boundary is None:  # black by the model (crossing.MAX_DEPTH)
             into_var = into_bound = np.zeros((np.count_nonzero(into), 3))
@@ -209,11 +210,11 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance *= tr
     stats = np.zeros(stats_size(method))
     variance = np.zeros_like(radiance) if method.stochastic else None
-    if into.any() and variance is not None:
+    if entering and variance is not None:
         variance[into] = into_var * tr[into] ** 2
     bound = np.zeros_like(radiance)
     bound[surf & prep.lights.cubature.any()] = np.inf  # an area light's cubature on surfaces: no bound
-    if into.any():
+    if entering:
         bound[into] = crossing.scaled(into_bound, tr[into])
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
