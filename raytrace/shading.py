@@ -95,38 +95,23 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
             e[2, a] = points[i, a] - triangles[k, 0, a]
         d00, d01, d11, d20, d21 = _dot(e, 0, e, 0), _dot(e, 0, e, 1), _dot(e, 1, e, 1), _dot(e, 2, e, 0), _dot(e, 2, e, 1)
         den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
-        b[1] = _clip01((d11 * d20 - d01 * d21) / den)
-        b[2] = _clip01((d00 * d21 - d01 * d20) / den)
-        b[0] = _max0(1.0 - b[1] - b[2])
+        b[1] = (d11 * d20 - d01 * d21) / den
+        b[2] = (d00 * d21 - d01 * d20) / den
+        for a in range(1, 3):  # np.clip(b, 0, 1), nan kept
+            b[a] = b[a] if math.isnan(b[a]) else min(max(b[a], 0.0), 1.0)
+        b[0] = 1.0 - b[1] - b[2]
+        b[0] = b[0] if math.isnan(b[0]) else max(b[0], 0.0)  # np.maximum(b0, 0)
         for a in range(3):
             n[a] = b[0] * corners[k, 0, a] + b[1] * corners[k, 1, a] + b[2] * corners[k, 2, a]
         length = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-        flat = _flat(corners, k) or not (length > 0.0) or sphere_of[k] >= 0
+        same = True  # every corner normal equal to the first
+        for c in range(1, 3):
+            for a in range(3):
+                same = same and corners[k, c, a] == corners[k, 0, a]
+        flat = same or not (length > 0.0) or sphere_of[k] >= 0
         flip = -1.0 if _dot(normals, k, facing, i) < 0.0 and not flat else 1.0
         for a in range(3):
             out[i, a] = facing[i, a] if flat else flip * (n[a] / length)
-
-
-@exact_njit
-def _flat(corners, k):
-    """Whether triangle k's corner normals are all equal."""
-    for c in range(1, 3):
-        for a in range(3):
-            if corners[k, c, a] != corners[k, 0, a]:
-                return False
-    return True
-
-
-@exact_njit
-def _clip01(x):
-    """np.clip(x, 0, 1), nan kept."""
-    return x if math.isnan(x) else min(max(x, 0.0), 1.0)
-
-
-@exact_njit
-def _max0(x):
-    """np.maximum(x, 0), nan kept."""
-    return x if math.isnan(x) else max(x, 0.0)
 
 
 def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None):
