@@ -6,9 +6,11 @@ numba issues #2919 and #9383) and keeps libm accuracy (no ``afn``). The cache of
 kernels lives in `cache.kernel_cache_dir()`, keyed on all of the package's sources (a locator
 placed first in numba's list); numba's own locators serve everything else.
 
-``exact_njit`` is the one exception: kernels that take over a tile's NumPy expressions (shading.py)
-without fastmath and with NumPy's error model (x / 0 is inf or nan), so that every operation rounds
-as NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy code gave.
+``exact_njit`` is the one exception: kernels that take over a tile's NumPy expressions (camera
+rays, shading normals, the surface term's shadow rays, the exponential transmittance), without
+fastmath and with NumPy's error model (x / 0 is inf or nan), so that every operation rounds as
+NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy code gave
+(tests/test_exact_kernels.py).
 """
 import functools
 import os

@@ -93,7 +93,8 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
             e[0, a] = triangles[k, 1, a] - triangles[k, 0, a]
             e[1, a] = triangles[k, 2, a] - triangles[k, 0, a]
             e[2, a] = points[i, a] - triangles[k, 0, a]
-        d00, d01, d11, d20, d21 = _dot(e, 0, e, 0), _dot(e, 0, e, 1), _dot(e, 1, e, 1), _dot(e, 2, e, 0), _dot(e, 2, e, 1)
+        d00, d01, d11 = _dot(e, 0, e, 0), _dot(e, 0, e, 1), _dot(e, 1, e, 1)
+        d20, d21 = _dot(e, 2, e, 0), _dot(e, 2, e, 1)
         den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
         b[1] = (d11 * d20 - d01 * d21) / den
         b[2] = (d00 * d21 - d01 * d20) / den

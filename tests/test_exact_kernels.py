@@ -127,7 +127,8 @@ def reference_rays(cam, x, y):
     W, H = cam.width, cam.height
     if cam.type == "perspective":
         tan = math.tan(math.radians(cam.fov) / 2.0)
-        d = forward + ((2.0 * x / W - 1.0) * tan * (W / H))[..., None] * right + ((1.0 - 2.0 * y / H) * tan)[..., None] * up
+        a, b = (2.0 * x / W - 1.0) * tan * (W / H), (1.0 - 2.0 * y / H) * tan
+        d = forward + a[..., None] * right + b[..., None] * up
     else:
         phi, theta = 2.0 * math.pi * (x / W - 0.5), math.pi * y / H
         d = np.sin(theta)[..., None] * (np.cos(phi)[..., None] * forward + np.sin(phi)[..., None] * right) \
