@@ -53,7 +53,7 @@ def main():
     t, prim = accel.first_hit(o, d)
     hit = prim >= 0
     pts = o[hit] + t[hit, None] * d[hit]
-    so, sd, stmax = accel.shadow_rays(pts, accel.normals[prim[hit]], light)
+    so, sd, stmax, _ = accel.shadow_rays(pts, accel.normals[prim[hit]], light)
     n = len(o)
     print(f"Sibenik: {len(tris)} triangles, {n} rays per batch, {os.cpu_count()} CPUs")
     print(f"{'query':34s} {'threads':>7s} {'Mrays/s':>9s}")

@@ -71,7 +71,7 @@ def load(row):
 
 def task_of(scene, method_name: str, shadows: bool):
     m = get_method(method_name)
-    params = resolve_params(m, api.scene_defaults(scene, m, "scaling"), "scaling")
+    params = resolve_params(m, api.scene_defaults(api.table_params(scene), m, "scaling"), "scaling")
     cam = scene.camera
     return renderer.Task(m.name, params, 0, 1.0 if shadows else None, (0, 0, cam.width, cam.height))
 
@@ -130,7 +130,7 @@ def profiled(row_name: str, rows: dict) -> tuple[np.ndarray, np.ndarray]:
         run = subprocess.run([spy, "record", "--gil", "--rate", str(RATE), "--format", "raw", "--output", str(raw),
                               "--", *child], capture_output=True, text=True)
         wall = time.monotonic() - start
-        if run.returncode:
+        if run.returncode or not out.exists():  # py-spy exits 0 when its child fails
             raise SystemExit(f"{row_name}: the profiled child failed:\n{run.stderr}")
         taken = int(re.search(r"Samples: (\d+)", run.stdout + run.stderr).group(1))
         times = json.loads(out.read_text())

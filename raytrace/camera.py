@@ -7,16 +7,29 @@ phi = 2 pi ((i+s)/W - 0.5) from forward towards right, theta = pi (j+t)/H from u
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from .jit import exact_njit
 from .scene.format import Camera
 
 
+@functools.lru_cache(maxsize=16)
 def sample_offsets(spp: int) -> np.ndarray:
     """(spp, 2) offsets in [0, 1)^2: the pixel centre for spp = 1, a stratified grid of cell centres
-    when spp is a square, otherwise the R2 low-discrepancy sequence (deterministic)."""
+    when spp is a square, otherwise the R2 low-discrepancy sequence (deterministic). Computed once
+    per spp (every tile asks): read-only."""
+    return _read_only(_offsets(spp))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+def _offsets(spp: int) -> np.ndarray:
     if spp == 1:
         return np.array([[0.5, 0.5]])
     n = math.isqrt(spp)
@@ -30,12 +43,19 @@ def sample_offsets(spp: int) -> np.ndarray:
 
 
 def basis(cam: Camera):
-    forward = cam.look_at - cam.position
+    """(forward, right, up) unit vectors of the camera (read-only, computed once per placement)."""
+    return _basis(tuple(map(float, cam.position)), tuple(map(float, cam.look_at)), tuple(map(float, cam.up)))
+
+
+@functools.lru_cache(maxsize=16)
+def _basis(position: tuple, look_at: tuple, cam_up: tuple):
+    position, look_at, cam_up = np.array(position), np.array(look_at), np.array(cam_up)
+    forward = look_at - position
     forward = forward / np.linalg.norm(forward)
-    right = np.cross(forward, cam.up)
+    right = np.cross(forward, cam_up)
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
-    return forward, right, up
+    return tuple(_read_only(v) for v in (forward, right, up))
 
 
 def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = None, samples: slice | None = None):
@@ -64,18 +84,32 @@ def pixel_rays(cam: Camera, ys: np.ndarray, xs: np.ndarray, samples: slice | Non
 def _rays(cam: Camera, x: np.ndarray, y: np.ndarray):
     """Origins and unit directions through the image points (x, y) (pixel units), in their order."""
     forward, right, up = basis(cam)
-    W, H = cam.width, cam.height
-    if cam.type == "perspective":
-        tan = math.tan(math.radians(cam.fov) / 2.0)
-        a = (2.0 * x / W - 1.0) * tan * (W / H)
-        b = (1.0 - 2.0 * y / H) * tan
-        d = forward + a[..., None] * right + b[..., None] * up
-    else:
-        phi = 2.0 * math.pi * (x / W - 0.5)
-        theta = math.pi * y / H
-        st = np.sin(theta)[..., None]
-        d = st * (np.cos(phi)[..., None] * forward + np.sin(phi)[..., None] * right) + np.cos(theta)[..., None] * up
-    d = d.reshape(-1, 3)
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    o = np.broadcast_to(cam.position, d.shape).copy()
+    x, y = np.ravel(np.asarray(x, np.float64)), np.ravel(np.asarray(y, np.float64))
+    o, d = np.empty((len(x), 3)), np.empty((len(x), 3))
+    perspective = cam.type == "perspective"
+    tan = math.tan(math.radians(cam.fov) / 2.0) if perspective else 0.0
+    _ray_kernel(x, y, float(cam.width), float(cam.height), perspective, tan, cam.width / cam.height, forward, right, up,
+                np.asarray(cam.position, np.float64), o, d)
     return o, d
+
+
+@exact_njit
+def _ray_kernel(x, y, W, H, perspective, tan, aspect, forward, right, up, position, o, d):
+    """The rays of the module's formulas (`perspective`, else environment) into o and d, each number
+    rounded as the NumPy expressions this kernel replaced round it."""
+    for i in range(x.shape[0]):
+        if perspective:
+            a = (2.0 * x[i] / W - 1.0) * tan * aspect
+            b = (1.0 - 2.0 * y[i] / H) * tan
+            for k in range(3):
+                d[i, k] = forward[k] + a * right[k] + b * up[k]
+        else:
+            phi = (2.0 * math.pi) * (x[i] / W - 0.5)
+            theta = math.pi * y[i] / H
+            st, cp, sp, ct = math.sin(theta), math.cos(phi), math.sin(phi), math.cos(theta)
+            for k in range(3):
+                d[i, k] = st * (cp * forward[k] + sp * right[k]) + ct * up[k]
+        length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
+        for k in range(3):
+            d[i, k] = d[i, k] / length
+            o[i, k] = position[k]

@@ -5,6 +5,12 @@ uses every core) and with a fastmath subset that keeps NaN/Inf semantics (no ``n
 numba issues #2919 and #9383) and keeps libm accuracy (no ``afn``). The cache of the package's
 kernels lives in `cache.kernel_cache_dir()`, keyed on all of the package's sources (a locator
 placed first in numba's list); numba's own locators serve everything else.
+
+``exact_njit`` is the one exception: kernels that take over a tile's NumPy expressions (camera
+rays, shading normals, the surface term's shadow rays, the exponential transmittance), without
+fastmath and with NumPy's error model (x / 0 is inf or nan), so that every operation rounds as
+NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy code gave
+(tests/test_exact_kernels.py).
 """
 import functools
 import os
@@ -47,3 +53,4 @@ if SourceKeyedLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, SourceKeyedLocator)
 
 njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMATH))
+exact_njit = functools.partial(numba.njit, cache=True, nogil=True, error_model="numpy")

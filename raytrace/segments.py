@@ -18,12 +18,22 @@ from .methods.geometry import segment_geometry, v_of
 
 def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
     """One segment [0, tmax] per (ray, light), ray-major (segment r L + l)."""
-    n = len(origins)
-    rep = (lambda a: a) if n_lights == 1 else (lambda a: np.repeat(a, n_lights, axis=0))  # noqa: E731
-    light = np.tile(np.arange(n_lights, dtype=np.int64), n)
-    return Segments(rep(origins), rep(dirs), rep(np.asarray(tmax, float)), light,
-                    rep(np.arange(n, dtype=np.int64)), np.zeros(n * n_lights), rep(np.asarray(keys, np.uint64)),
-                    light.copy(), int(seed), float(scale), per_ray=n_lights)
+    s = len(origins) * n_lights
+    o, d, length = np.empty((s, 3)), np.empty((s, 3)), np.empty(s)
+    light, ray, k = np.empty(s, np.int64), np.empty(s, np.int64), np.empty(s, np.uint64)
+    _whole_rays(origins, dirs, np.asarray(tmax, np.float64), np.asarray(keys, np.uint64), o, d, length, light, ray, k)
+    return Segments(o, d, length, light, ray, np.zeros(s), k, light.copy(), int(seed), float(scale), per_ray=n_lights)
+
+
+@njit
+def _whole_rays(origins, dirs, tmax, keys, o, d, length, light, ray, k):
+    """Each ray's row copied to its segments r L + l (L = len(o) / len(origins)), light l."""
+    per = o.shape[0] // max(origins.shape[0], 1)
+    for s in range(o.shape[0]):
+        r = s // per
+        for a in range(3):
+            o[s, a], d[s, a] = origins[r, a], dirs[r, a]
+        length[s], light[s], ray[s], k[s] = tmax[r], s - r * per, r, keys[r]
 
 
 CONE_STREAM = 1 << 20  # stream offset of a spot light's second lit piece (a cone cuts a line at most twice)
@@ -77,16 +87,20 @@ def _cone_pieces(xh, h, length, cone):
     return src[:m], x0[:m], x1[:m], piece[:m]
 
 
-def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1) -> np.ndarray:
+def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int = 1, tr=None) -> np.ndarray:
     """Sum (N, 3) over each ray's segments of T^power * values (S, 3), T the transmittance from the
     camera ray's origin to the segment's start (exp(-kt t0) when homogeneous: the t0 before the
-    segment's own origin); power 2 adds the variances of independent segment estimates. Whole rays
-    (all t0 = 0) need no transmittance."""
+    segment's own origin); power 2 adds the variances of independent segment estimates. `tr`:
+    `gather_weights(segs, medium, power)` where the caller gathers several values of one batch."""
     out = np.zeros((n_rays, 3))
-    whole = segs.per_ray != 0 or not np.any(segs.t0)
-    tr = np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
-    _add_by_ray(values, segs.ray, tr, out)
+    _add_by_ray(values, segs.ray, gather_weights(segs, medium, power) if tr is None else tr, out)
     return out
+
+
+def gather_weights(segs: Segments, medium, power: int = 1) -> np.ndarray:
+    """T^power (S, 3) of `gather`, empty for whole rays (all t0 = 0), which need no transmittance."""
+    whole = segs.per_ray != 0 or not np.any(segs.t0)
+    return np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
 
 
 @njit

@@ -23,13 +23,23 @@ import math
 
 import numpy as np
 
+from .jit import exact_njit
 from .lights import DIRECTIONAL
 
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """Flip each normal to the side the ray comes from."""
-    flip = np.einsum("ij,ij->i", normals, dirs) > 0.0
-    return np.where(flip[:, None], -normals, normals)
+    out = np.empty((len(normals), 3))
+    _facing(normals, dirs, out)
+    return out
+
+
+@exact_njit
+def _facing(normals, dirs, out):
+    for i in range(normals.shape[0]):
+        flip = _dot(normals, i, dirs, i) > 0.0
+        for a in range(3):
+            out[i, a] = -normals[i, a] if flip else normals[i, a]
 
 
 def shading_normals(accel, corners, prim, points, facing):
@@ -41,22 +51,68 @@ def shading_normals(accel, corners, prim, points, facing):
     exact) and everywhere when `corners` is None."""
     if corners is None:
         return facing
-    c = corners[prim]
-    tri = accel.triangles[prim]
-    e1, e2, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
-    d00, d01, d11 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
-    d20, d21 = np.einsum("ij,ij->i", v, e1), np.einsum("ij,ij->i", v, e2)
-    den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b = np.clip(np.stack([np.zeros_like(den), (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den],
-                             axis=1), 0.0, 1.0)
-        b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
-        n = np.einsum("ij,ijk->ik", b, c)
-        length = np.linalg.norm(n, axis=1)
-    flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0) | (accel.sphere_of[prim] >= 0)
-    n = np.where(flat[:, None], facing, n / np.where(flat, 1.0, length)[:, None])
-    flipped = np.einsum("ij,ij->i", accel.normals[prim], facing) < 0.0
-    return np.where((flipped & ~flat)[:, None], -n, n)
+    out = np.empty_like(facing)
+    _shading_normals(corners, accel.triangles, accel.normals, accel.sphere_of, prim, points, facing, out)
+    return out
+
+
+@exact_njit
+def _toward_light(points, normals, shading, terminator, lp, to_light, dist, cos, lit):
+    """Per point: to_light = lp - p, its length `dist`, the cosine `cos` of the (shading, with
+    `terminator`) normal to it (0 at the light) and `lit`, where the geometric normal, and with
+    `terminator` the shading one too, faces the light."""
+    for i in range(points.shape[0]):
+        for a in range(3):
+            to_light[i, a] = lp[a] - points[i, a]
+        x, y, z = to_light[i, 0], to_light[i, 1], to_light[i, 2]
+        dist[i] = math.sqrt(x * x + y * y + z * z)
+        over = dist[i] if dist[i] > 0.0 else 1.0
+        cos[i] = _dot(normals, i, to_light, i) / over
+        lit[i] = cos[i] > 0.0 and dist[i] > 0.0
+        if terminator:
+            cos[i] = _dot(shading, i, to_light, i) / over
+            lit[i] = lit[i] and cos[i] > 0.0
+
+
+@exact_njit
+def _dot(a, i, b, j):
+    """a[i] . b[j] of (N, 3) rows, summed as NumPy's einsum("ij,ij->i") sums three terms."""
+    return (a[i, 0] * b[j, 0] + a[i, 2] * b[j, 2]) + a[i, 1] * b[j, 1]
+
+
+@exact_njit
+def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facing, out):
+    """`shading_normals` into `out`, one point at a time (the NumPy expressions it replaced, each
+    rounded the same way)."""
+    e = np.empty((3, 3))  # e1, e2, v
+    b = np.empty(3)
+    n = np.empty(3)
+    for i in range(prim.shape[0]):
+        k = prim[i]
+        for a in range(3):
+            e[0, a] = triangles[k, 1, a] - triangles[k, 0, a]
+            e[1, a] = triangles[k, 2, a] - triangles[k, 0, a]
+            e[2, a] = points[i, a] - triangles[k, 0, a]
+        d00, d01, d11 = _dot(e, 0, e, 0), _dot(e, 0, e, 1), _dot(e, 1, e, 1)
+        d20, d21 = _dot(e, 2, e, 0), _dot(e, 2, e, 1)
+        den = d00 * d11 - d01 * d01  # > 0 but for slivers (then nan: flat below)
+        b[1] = (d11 * d20 - d01 * d21) / den
+        b[2] = (d00 * d21 - d01 * d20) / den
+        for a in range(1, 3):  # np.clip(b, 0, 1), nan kept
+            b[a] = b[a] if math.isnan(b[a]) else min(max(b[a], 0.0), 1.0)
+        b[0] = 1.0 - b[1] - b[2]
+        b[0] = b[0] if math.isnan(b[0]) else max(b[0], 0.0)  # np.maximum(b0, 0)
+        for a in range(3):
+            n[a] = b[0] * corners[k, 0, a] + b[1] * corners[k, 1, a] + b[2] * corners[k, 2, a]
+        length = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        same = True  # every corner normal equal to the first
+        for c in range(1, 3):
+            for a in range(3):
+                same = same and corners[k, c, a] == corners[k, 0, a]
+        flat = same or not (length > 0.0) or sphere_of[k] >= 0
+        flip = -1.0 if _dot(normals, k, facing, i) < 0.0 and not flat else 1.0
+        for a in range(3):
+            out[i, a] = facing[i, a] if flat else flip * (n[a] / length)
 
 
 def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None):
@@ -71,29 +127,35 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         if lights.kind[li] == DIRECTIONAL:
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
-        to_light = lp[None, :] - points
-        dist = np.linalg.norm(to_light, axis=1)
-        cos = np.einsum("ij,ij->i", normals, to_light) / np.where(dist > 0.0, dist, 1.0)
-        lit = (cos > 0.0) & (dist > 0.0)
-        if shading is not None and shading is not normals:  # the terminator: both must face the light
-            cos = np.einsum("ij,ij->i", shading, to_light) / np.where(dist > 0.0, dist, 1.0)
-            lit &= cos > 0.0
-        if not lit.any():
+        to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
+        lit = np.empty(len(points), dtype=np.bool_)
+        terminator = shading is not None and shading is not normals  # both must face the light
+        _toward_light(points, normals, shading if terminator else normals, terminator, lp, to_light, dist, cos, lit)
+        idx = np.flatnonzero(lit)
+        if not len(idx):
             continue
-        idx = np.nonzero(lit)[0]
-        o, d, tmax = accel.shadow_rays(points[idx], normals[idx], lp)
-        idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through)
+        o, d, tmax, as32 = accel.shadow_rays(points[idx], normals[idx], lp)
+        idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through, as32)
         dl, cl = dist[idx], cos[idx]
         tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
-        irradiance = lights.irradiance(li, -to_light[idx], dl) * tr * cl[:, None]
-        out[idx] += reflectance[idx] / math.pi * irradiance
+        _add_reflected(out, idx, reflectance, lights.irradiance(li, -to_light[idx], dl), tr, cl)
     return out
 
 
-def _unblocked(accel, o, d, tmax, idx, points, li, through):
+@exact_njit
+def _add_reflected(out, idx, reflectance, irradiance, tr, cos):
+    """out[idx] += reflectance[idx] / pi * (irradiance tr cos), rounded as that NumPy expression."""
+    for i in range(idx.shape[0]):
+        k = idx[i]
+        for c in range(3):
+            out[k, c] = out[k, c] + reflectance[k, c] / math.pi * (irradiance[i, c] * tr[i, c] * cos[i])
+
+
+def _unblocked(accel, o, d, tmax, idx, points, li, through, as32=None):
     """The points idx whose shadow rays (o, d, tmax) reach light li, and the transmittance (M, 3) of the
-    shapes they pass through (1 unless `through` lets an occluded ray through)."""
-    occ = accel.occluded(o, d, tmax)
+    shapes they pass through (1 unless `through` lets an occluded ray through); `as32`: the rays'
+    float32 copies for Embree where `Accelerator.shadow_rays` made them."""
+    occ = accel.occluded(o, d, tmax, as32=as32)
     part = np.ones((len(idx), 3))
     if through is not None and occ.any():
         part[occ] = through(li, points[idx[occ]])

@@ -20,7 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import exact_njit, njit
 from .sphere import nearest_sphere_hits, sphere_blocks
 
 CHUNK = 1 << 15
@@ -162,16 +162,17 @@ class Accelerator:
         self._sphere_hits(origins, dirs, t, np.zeros(len(origins), dtype=np.int64))
         return t
 
-    def occluded(self, origins: np.ndarray, dirs: np.ndarray, tmax: np.ndarray, threads: int = 1):
-        """True where something lies between origin and origin + tmax * dir."""
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray, tmax: np.ndarray, threads: int = 1, as32=None):
+        """True where something lies between origin and origin + tmax * dir. `as32`: the rays as
+        Embree takes them (`shadow_rays` makes them), else made here."""
         n = len(origins)
         occ = np.zeros(n, dtype=bool)
         if n == 0:
             return occ
         if self._scene is not None:
-            o32 = self._to_embree(origins)
-            d32 = np.ascontiguousarray(dirs, dtype=np.float32)
-            t32 = self._to_embree(np.maximum(tmax, 0.0))
+            o32, d32, t32 = as32 if as32 is not None else (
+                self._to_embree(origins), np.ascontiguousarray(dirs, dtype=np.float32),
+                self._to_embree(np.maximum(tmax, 0.0)))
             res = self._map(lambda o, d, t: self._scene.run(o, d, dists=t, query="OCCLUDED"), n, threads, o32, d32,
                             t32)
             occ = np.concatenate(res) >= 0
@@ -194,13 +195,13 @@ class Accelerator:
 
     def shadow_rays(self, points: np.ndarray, normals: np.ndarray, light: np.ndarray):
         """Rays from surface points (offset along the normal facing the light) towards `light`:
-        (origins, unit directions, distances to stop at)."""
-        side = np.sign(np.einsum("ij,ij->i", normals, light[None, :] - points))[:, None]
-        origins = points + side * self.epsilon * normals
-        seg = light[None, :] - origins
-        seg_len = np.linalg.norm(seg, axis=1)
-        dirs = seg / np.where(seg_len > 0, seg_len, 1.0)[:, None]
-        return origins, dirs, seg_len - self.epsilon
+        (origins, unit directions, distances to stop at, and these three as Embree takes them,
+        `occluded`'s `as32`), in one GIL-free pass."""
+        n = len(points)
+        o, d, t = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+        as32 = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32))
+        _shadow_rays(points, normals, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
+        return o, d, t, as32
 
 
 @njit
@@ -218,3 +219,26 @@ def _refine(triangles, normals, origins, dirs, prim, t):
             num += normals[k, a] * (triangles[k, 0, a] - origins[i, a])
             den += normals[k, a] * dirs[i, a]
         t[i] = num / den if den != 0.0 and num / den > 0.0 else np.nan
+
+
+@exact_njit
+def _shadow_rays(points, normals, light, eps, unit, o, d, t, o32, d32, t32):
+    """`Accelerator.shadow_rays` into o, d, t and their float32 copies in units of `unit`, each number
+    rounded as the NumPy expressions it replaced round them: side = sign(n . (light - p)) (summed as
+    einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|, t = |light - o| - eps."""
+    for i in range(points.shape[0]):
+        dot = (normals[i, 0] * (light[0] - points[i, 0]) + normals[i, 2] * (light[2] - points[i, 2])) \
+            + normals[i, 1] * (light[1] - points[i, 1])
+        side = (1.0 if dot > 0.0 else -1.0 if dot < 0.0 else 0.0 if dot == 0.0 else dot) * eps  # np.sign
+        for a in range(3):
+            o[i, a] = points[i, a] + side * normals[i, a]
+            d[i, a] = light[a] - o[i, a]
+        length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
+        over = length if length > 0 else 1.0
+        for a in range(3):
+            d[i, a] = d[i, a] / over
+            o32[i, a] = np.float32(o[i, a] if unit == 1.0 else o[i, a] / unit)
+            d32[i, a] = np.float32(d[i, a])
+        t[i] = length - eps
+        clamped = t[i] if t[i] >= 0.0 or math.isnan(t[i]) else 0.0  # np.maximum(t, 0)
+        t32[i] = np.float32(clamped if unit == 1.0 else clamped / unit)

@@ -52,8 +52,8 @@ class Homogeneous(Medium):
         return exp_transmittance(self.sigma_t, t)
 
     def transmittance_on(self, origins, dirs, a, b) -> np.ndarray:
-        n = len(origins)
-        return self.transmittance(np.broadcast_to(np.asarray(b, float), n) - np.broadcast_to(np.asarray(a, float), n))
+        t = np.subtract(b, a, dtype=np.float64)
+        return self.transmittance(t if t.ndim else np.full(len(origins), t))
 
 
 def _particles(read, raw, scatters):

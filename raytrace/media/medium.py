@@ -15,11 +15,13 @@ file's RGB, its path); each failure raises UserError.
 from __future__ import annotations
 
 import hashlib
+import math
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
 
+from ..jit import exact_njit
 from .phase import ISOTROPIC, NAMES as PHASE_NAMES
 
 
@@ -93,7 +95,15 @@ def kernel_arrays(n: int, origins, dirs, a, b) -> tuple:
 
 def exp_transmittance(kt: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """exp(-kt tau) per channel (N, 3) for unit optical depths tau (N,), exactly 1 in vacuum channels
-    even for tau = inf, 0 where kt tau overflows."""
-    with np.errstate(invalid="ignore", over="ignore"):  # kt tau = inf (sigma 1e300, H 1e-300): exp(-inf) = 0
-        tr = np.exp(-kt[None, :] * np.asarray(tau, float)[:, None])
-    return np.where(kt[None, :] == 0.0, 1.0, tr)
+    even for tau = inf, 0 where kt tau overflows (a GIL-free kernel, rounding as np.exp does)."""
+    tau = np.require(tau, np.float64, ("C", "W"))
+    out = np.empty((len(tau), len(kt)))
+    _exp_transmittance(np.require(kt, np.float64, ("C", "W")), tau, out)
+    return out
+
+
+@exact_njit
+def _exp_transmittance(kt, tau, out):
+    for i in range(tau.shape[0]):
+        for c in range(kt.shape[0]):
+            out[i, c] = 1.0 if kt[c] == 0.0 else math.exp(-kt[c] * tau[i])

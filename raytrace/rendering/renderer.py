@@ -36,7 +36,7 @@ from ..methods import get_method, resolve_params
 from ..options import RenderOptions
 from ..scene.format import Scene
 from ..scene.meshes import exact_spheres, scene_triangles
-from ..segments import cone_segments, gather, whole_rays
+from ..segments import cone_segments, gather, gather_weights, whole_rays
 from ..shading import (emissive_shapes, emitted_radiance, facing_normals, first_hits, ground_radiance,
                        shading_normals, surface_radiance)
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
@@ -142,14 +142,16 @@ def airlight(method, medium, lights, params, segs, n_rays: int):
     whose error is its variance."""
     res = method.airlight(segs, medium, lights, params)
     var = gather(segs, res[2], n_rays, medium, power=2) if method.stochastic else None
+    tr = gather_weights(segs, medium)  # once for the air-light and its bound
     if method.stochastic:
         bound = np.zeros((n_rays, 3))
     elif len(res) > 2:
-        bound = gather(segs, res[2], n_rays, medium)
+        bound = gather(segs, res[2], n_rays, medium, tr=tr)
     else:
         bound = np.where(error_bounds.rays_with(segs.ray, n_rays)[:, None], np.inf, np.zeros((n_rays, 3)))
-    bound[error_bounds.rays_with(segs.ray[lights.cubature[segs.light]], n_rays)] = np.inf  # area lights' cubature
-    return gather(segs, res[0], n_rays, medium), res[1], var, bound
+    if lights.cubature.any():  # area lights' cubature
+        bound[error_bounds.rays_with(segs.ray[lights.cubature[segs.light]], n_rays)] = np.inf
+    return gather(segs, res[0], n_rays, medium, tr=tr), res[1], var, bound
 
 
 def sees_emission(prep: Prepared) -> bool:
@@ -183,18 +185,19 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
     surf = hit & ~into
+    entering = into.any()
     if surf.any():
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium, crossing.shadow_through(prep), shading)
-        if sees_emission(prep):
+        if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
                                                prep.accel.hit_normals(prim[surf], points), dirs[surf])
     if ground.any():
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
-    if into.any():
+    if entering:
         boundary = crossing.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
         if boundary is None:  # black by the model (crossing.MAX_DEPTH)
             into_var = into_bound = np.zeros((np.count_nonzero(into), 3))
@@ -207,11 +210,11 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance *= tr
     stats = np.zeros(stats_size(method))
     variance = np.zeros_like(radiance) if method.stochastic else None
-    if into.any() and variance is not None:
+    if entering and variance is not None:
         variance[into] = into_var * tr[into] ** 2
     bound = np.zeros_like(radiance)
     bound[surf & prep.lights.cubature.any()] = np.inf  # an area light's cubature on surfaces: no bound
-    if into.any():
+    if entering:
         bound[into] = crossing.scaled(into_bound, tr[into])
     if len(prep.lights) and medium.scatters:
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
@@ -360,6 +363,9 @@ def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     return total
 
 
+_method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
+
+
 def render_tile(prep: Prepared, task: Task, tile: Tile):
     """The tile's radiance summed over its samples (pixels, 3), its statistics, for a stochastic
     method its summed variance (else None), its summed error bound and its output layers' summed
@@ -372,7 +378,7 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     o, d = pixel_rays(cam, ys, xs, tile.samples)
     keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
-    method = get_method(task.method)
+    method = _method(task.method)
     hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
     rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start

@@ -1,0 +1,161 @@
+"""The GIL-free kernels that took over a tile's NumPy expressions (jit.exact_njit) give those
+expressions' numbers bit for bit: each is compared here with the NumPy expression it replaced,
+written out below, on random inputs with the edge cases (slivers, points on a light, vacuum
+channels, infinite depths). Transcendental functions (exp, sin, cos) are libm's in the kernels and
+NumPy's own loops in the references, which may differ by an ulp on some CPUs: within 1 ulp there."""
+import math
+
+import numpy as np
+import pytest
+
+from raytrace import camera, shading
+from raytrace.geometry.accel import Accelerator
+from raytrace.media.medium import exp_transmittance
+from raytrace.scene.format import Camera
+
+RNG = np.random.default_rng(37)
+
+
+def dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def mesh(n=400):
+    """Random triangles, a tenth of them slivers (collinear corners), and their corner normals:
+    random, equal on a fifth (flat), opposite on a few (their sum vanishes at the centroid)."""
+    tri = RNG.normal(size=(n, 3, 3)) * 10.0 ** RNG.uniform(-2, 2, size=(n, 1, 1))
+    tri[::10, 2] = tri[::10, 0] + 0.5 * (tri[::10, 1] - tri[::10, 0])
+    corners = RNG.normal(size=(n, 3, 3))
+    corners /= np.linalg.norm(corners, axis=2, keepdims=True)
+    corners[::5] = corners[::5, :1]
+    corners[1::17] = np.stack([corners[1::17, 0], -corners[1::17, 0], corners[1::17, 2] * 0.0], axis=1)
+    return Accelerator(tri), corners
+
+
+def reference_shading_normals(accel, corners, prim, points, facing):
+    """shading.shading_normals as NumPy computed it (before the kernel)."""
+    c = corners[prim]
+    tri = accel.triangles[prim]
+    e1, e2, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
+    d00, d01, d11 = (dot(a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
+    d20, d21 = dot(v, e1), dot(v, e2)
+    den = d00 * d11 - d01 * d01
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.clip(np.stack([np.zeros_like(den), (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den],
+                             axis=1), 0.0, 1.0)
+        b[:, 0] = np.maximum(1.0 - b[:, 1] - b[:, 2], 0.0)
+        n = np.einsum("ij,ijk->ik", b, c)
+        length = np.linalg.norm(n, axis=1)
+    flat = np.all(c == c[:, :1], axis=(1, 2)) | ~(length > 0.0) | (accel.sphere_of[prim] >= 0)
+    n = np.where(flat[:, None], facing, n / np.where(flat, 1.0, length)[:, None])
+    flipped = dot(accel.normals[prim], facing) < 0.0
+    return np.where((flipped & ~flat)[:, None], -n, n)
+
+
+def test_shading_and_facing_normals_are_numpys():
+    accel, corners = mesh()
+    prim = RNG.integers(0, len(accel.triangles), 20000)
+    w = RNG.dirichlet(np.ones(3), size=len(prim))
+    points = np.einsum("ij,ijk->ik", w, accel.triangles[prim]) + RNG.normal(size=(len(prim), 3)) * 0.1
+    points[:100] = accel.triangles[prim[:100]].mean(axis=1)  # centroids: the opposite corners' sums vanish
+    dirs = RNG.normal(size=(len(prim), 3))
+    facing = shading.facing_normals(accel.normals[prim], dirs)
+    assert np.array_equal(facing, np.where((dot(accel.normals[prim], dirs) > 0.0)[:, None],
+                                           -accel.normals[prim], accel.normals[prim]))
+    got = shading.shading_normals(accel, corners, prim, points, facing)
+    assert np.array_equal(got, reference_shading_normals(accel, corners, prim, points, facing), equal_nan=True)
+    assert shading.shading_normals(accel, None, prim, points, facing) is facing
+
+
+def test_toward_light_is_numpys():
+    n = 5000
+    points, lp = RNG.normal(size=(n, 3)), RNG.normal(size=3)
+    points[:10] = lp  # on the light: no direction, unlit
+    normals, shade = (RNG.normal(size=(n, 3)) for _ in range(2))
+    for terminator in (False, True):
+        to_light, dist, cos, lit = np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n, dtype=bool)
+        shading._toward_light(points, normals, shade if terminator else normals, terminator, lp, to_light, dist,
+                              cos, lit)
+        ref_to = lp[None, :] - points
+        ref_dist = np.linalg.norm(ref_to, axis=1)
+        ref_cos = dot(normals, ref_to) / np.where(ref_dist > 0.0, ref_dist, 1.0)
+        ref_lit = (ref_cos > 0.0) & (ref_dist > 0.0)
+        if terminator:
+            ref_cos = dot(shade, ref_to) / np.where(ref_dist > 0.0, ref_dist, 1.0)
+            ref_lit &= ref_cos > 0.0
+        for a, b in ((to_light, ref_to), (dist, ref_dist), (cos, ref_cos), (lit, ref_lit)):
+            assert np.array_equal(a, b)
+        assert not lit[:10].any()
+
+
+def test_reflected_radiance_is_numpys():
+    n, m = 3000, 2000
+    out = RNG.uniform(size=(n, 3))
+    idx = np.sort(RNG.choice(n, m, replace=False))
+    refl, irr, tr, cos = RNG.uniform(size=(n, 3)), RNG.uniform(size=(m, 3)) * 1e3, RNG.uniform(size=(m, 3)), \
+        RNG.uniform(size=m)
+    ref = out.copy()
+    ref[idx] += refl[idx] / math.pi * (irr * tr * cos[:, None])
+    shading._add_reflected(out, idx, refl, irr, tr, cos)
+    assert np.array_equal(out, ref)
+
+
+@pytest.mark.parametrize("size", [1.0, 1e30])  # 1e30: Embree's coordinates in units of `unit`
+def test_shadow_rays_and_their_float32_copies_are_numpys(size):
+    accel, _ = mesh()
+    accel.scale, accel.epsilon = size, 1e-5 * size
+    accel.unit = 1.0 if size == 1.0 else 2.0 ** round(math.log2(size))
+    n = 5000
+    points, normals, light = RNG.normal(size=(n, 3)) * size, RNG.normal(size=(n, 3)), RNG.normal(size=3) * size
+    points[:5] = light  # on the light: zero length, no direction
+    normals[5:10] = 0.0  # no side
+    o, d, t, (o32, d32, t32) = accel.shadow_rays(points, normals, light)
+    side = np.sign(dot(normals, light[None, :] - points))[:, None]
+    ref_o = points + side * accel.epsilon * normals
+    seg = light[None, :] - ref_o
+    seg_len = np.linalg.norm(seg, axis=1)
+    ref_d = seg / np.where(seg_len > 0, seg_len, 1.0)[:, None]
+    ref_t = seg_len - accel.epsilon
+    for a, b in ((o, ref_o), (d, ref_d), (t, ref_t), (o32, accel._to_embree(ref_o)),
+                 (d32, ref_d.astype(np.float32)), (t32, accel._to_embree(np.maximum(ref_t, 0.0)))):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
+def reference_rays(cam, x, y):
+    """camera._rays as NumPy computed it (before the kernel)."""
+    forward, right, up = camera.basis(cam)
+    W, H = cam.width, cam.height
+    if cam.type == "perspective":
+        tan = math.tan(math.radians(cam.fov) / 2.0)
+        a, b = (2.0 * x / W - 1.0) * tan * (W / H), (1.0 - 2.0 * y / H) * tan
+        d = forward + a[..., None] * right + b[..., None] * up
+    else:
+        phi, theta = 2.0 * math.pi * (x / W - 0.5), math.pi * y / H
+        d = np.sin(theta)[..., None] * (np.cos(phi)[..., None] * forward + np.sin(phi)[..., None] * right) \
+            + np.cos(theta)[..., None] * up
+    d = d.reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    return np.broadcast_to(cam.position, d.shape), d
+
+
+@pytest.mark.parametrize("kind", ["perspective", "environment"])
+def test_camera_rays_are_numpys(kind):
+    cam = Camera(kind, np.array([1.0, 2.0, 3.0]), np.array([0.3, 1.0, -2.0]), np.array([0.0, 1.0, 0.0]), 50.0, 640, 360,
+                 4)
+    x, y = RNG.uniform(0, 640, size=(3000, 4)), RNG.uniform(0, 360, size=(3000, 4))
+    (o, d), (ref_o, ref_d) = camera._rays(cam, x, y), reference_rays(cam, x, y)
+    assert np.array_equal(o, ref_o)
+    if kind == "perspective":
+        assert np.array_equal(d, ref_d)
+    else:  # libm's sin and cos against NumPy's
+        np.testing.assert_array_max_ulp(d, ref_d, maxulp=1)
+
+
+def test_exp_transmittance_is_numpys():
+    kt = np.array([0.0, 0.3, 1e300])  # a vacuum channel, an ordinary one, one that overflows
+    tau = np.concatenate([RNG.exponential(10.0, size=5000), [0.0, np.inf, 1e-300]])
+    with np.errstate(invalid="ignore", over="ignore"):
+        ref = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * tau[:, None]))
+    got = exp_transmittance(kt, tau)
+    assert np.all(got[:, 0] == 1.0) and got[-2, 1] == 0.0 and got[-1, 2] == math.exp(-1.0)
+    np.testing.assert_array_max_ulp(got, ref, maxulp=1)
