@@ -24,7 +24,6 @@ import math
 import numpy as np
 
 from .jit import exact_njit
-from .lights import DIRECTIONAL
 
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -124,7 +123,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     for li, lp in enumerate(lights.position):
         if not lights.intensity[li].any():  # nothing to add (a light layer's other lights, renderer.Prepared.only)
             continue
-        if lights.kind[li] == DIRECTIONAL:
+        if lights.distant[li]:
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
         to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))

@@ -30,7 +30,7 @@ from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
-from ..lights import DIRECTIONAL, Lights, at_infinity
+from ..lights import Lights, at_infinity
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
@@ -121,7 +121,7 @@ class RenderResult:
 def prepare(scene: Scene) -> Prepared:
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
     lights = Lights.of(scene.lights, emissive_shapes(scene, tris, ids))
-    extent = np.concatenate([lights.position[lights.kind != DIRECTIONAL], scene.camera.position[None, :]])
+    extent = np.concatenate([lights.position[~lights.distant], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
     prep = Prepared(scene, Accelerator(tris, extent, *exact_spheres(scene, ids)), refl, lights, corners, shape_ids=ids,
                     interior_shapes=inner)
