@@ -66,6 +66,17 @@ def spot_rounding(cos_end: np.ndarray) -> np.ndarray:
     return np.where(cos_end > -1.0, SPOT_ROUNDING / np.maximum(1.0 - cos_end, 1e-300), 0.0)
 
 
+def product(bound: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    """bound x factor (broadcast), 0 where the factor is 0: a value multiplied by an exact 0 (a light
+    of zero intensity, a channel without extinction) has no error, however large the bound of what it
+    multiplied (inf x 0 would be NaN); inf where the product overflows."""
+    bound, factor = np.broadcast_arrays(bound, factor)
+    out = np.zeros(bound.shape)
+    with np.errstate(over="ignore"):
+        np.multiply(bound, factor, out=out, where=factor != 0.0)
+    return out
+
+
 def rays_with(ray_index: np.ndarray, n_rays: int) -> np.ndarray:
     """(N,) bool: the rays that own at least one of the segments whose ray indices are given."""
     out = np.zeros(n_rays, dtype=bool)

@@ -341,3 +341,30 @@ def test_a_bound_beyond_float32_is_refused_as_the_image_is():
                          "light": [{"position": [0.0, 0.0, 0.0], "intensity": 1e150}],
                          "medium": {"sigma_a": 0.0, "sigma_s": 0.0}},
                         method="analytic", threads=1, volumetric_shadows=False)
+
+
+ZERO_LAMP = {"type": "point", "position": [0.0, 0.0, 0.0], "intensity": 0.0}
+
+
+def test_lights_of_zero_power_in_extreme_media_give_zero_bounds(tmp_path):
+    """The slow fuzz run's cases: a sun of zero irradiance and a lamp of zero intensity on the camera in
+    an atmosphere 10 m thick of 1 mm scale height; lamps of zero intensity in a fog of sigma_s 1e30 and
+    scale height 1e-300 around the U (its shadows cut the camera rays into pieces that start past 0).
+    The image and its bound are exactly 0, never NaN (inf x 0 was) nor an overflow."""
+    from .test_inside_paths import u_obj
+
+    (tmp_path / "u.obj").write_text(u_obj())
+    air = {"camera": {"position": [0.0, 1.0101, 0.0], "look_at": [0.0, 1.0101, 101.0101], "width": 4, "height": 3,
+                      "spp": 1},
+           "medium": {"type": "atmosphere", "center": [0.0, -100.0, 0.0], "radius": 100.0, "top_radius": 100.01,
+                      "layer": [{"sigma_s": 1.0, "scale_height": 0.001, "phase": "isotropic"}]},
+           "light": [{"type": "directional", "direction": [0.0, 0.0, 1.0], "irradiance": 0.0},
+                     {**ZERO_LAMP, "position": [0.0, 1.0101, 0.0]}]}
+    fog = {"camera": {"position": [0.0, 0.0, 2.0], "look_at": [1.0, 0.0, 0.0], "width": 4, "height": 3, "spp": 1},
+           "shape": [{"mesh": str(tmp_path / "u.obj")}], "light": [ZERO_LAMP, ZERO_LAMP],
+           "medium": {"type": "height_fog", "sigma_a": 0.0, "sigma_s": 1e30, "scale_height": 1e-300,
+                      "profile": "linear"}}
+    for sc in (air, fog):
+        with np.errstate(all="raise"):
+            img = raytrace.render(sc, method="quadrature", threads=1, volumetric_shadows=True)
+        assert np.all(img.array == 0.0) and np.all(img.error_bound == 0.0)

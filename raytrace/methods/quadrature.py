@@ -205,10 +205,10 @@ def _atmosphere(segs, atm, lights, params):
         key = atm.layer_sigma_t[:, c].tobytes() + atm.layer_sigma_s[:, c].tobytes()
         if key in unit_bounds:
             i = lights.intensity[segs.light, c]
-            bound[:, c] = np.where(i != 0.0, unit_bounds[key] * i, 0.0)
+            bound[:, c] = error_bounds.product(unit_bounds[key], i)
     spot = error_bounds.spot_rounding(lights.cone[segs.light, 0])
     rel = error_bounds.ROUNDING + spot[:, None] + _atmosphere_prefix(segs, atm)
-    return radiance, stats, bound + rel * np.abs(radiance)
+    return radiance, stats, bound + error_bounds.product(rel, np.abs(radiance))
 
 
 def _atmosphere_prefix(segs, atm):
@@ -254,7 +254,8 @@ def _fog(segs, medium, lights, params):
     radiance, bound = by_channel(segs, medium, lights, evaluate, estimated=True)
     before = _prefix_rounding(segs, rows, medium)
     spot = error_bounds.spot_rounding(lights.cone[segs.light, 0])
-    return radiance, stats, bound + (error_bounds.ROUNDING + spot[:, None] + before) * np.abs(radiance)
+    rel = error_bounds.ROUNDING + spot[:, None] + before
+    return radiance, stats, bound + error_bounds.product(rel, np.abs(radiance))
 
 
 def _prefix_rounding(segs, rows, medium):
@@ -263,7 +264,7 @@ def _prefix_rounding(segs, rows, medium):
     every piece is whole, so that the renderer's warm-up, whose rays make whole pieces, compiles it)."""
     err = np.empty(len(segs))
     _prefix_errors(rows, np.asarray(segs.t0, float), medium.scale_height, medium.profile, err)
-    return err[:, None] * np.asarray(medium.sigma_t, float)[None, :]
+    return error_bounds.product(err[:, None], np.asarray(medium.sigma_t, float)[None, :])
 
 
 @njit
