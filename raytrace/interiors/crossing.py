@@ -389,13 +389,14 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     """Radiance (M, 3) toward the row starts p from the surface points q = p + ell w (triangles prim)
     inside the medium of shape sid, times exp(-sigma_t ell) along the camera's path. Index-matched:
     the surface term, whose shadow rays leave through the medium with the interior's transmittance
-    (`shadow_through`). Refractive, directional lights (point and spot lights are refused by `check`):
-    in a convex shape the beam refracted through every face the light meets (`refracted_beams`), where
-    q's path back along it leaves through that face (`_beams_on`); in another shape the note's planar
-    boundary, the entry face's plane (outward normals n), the beam refracted into t through it,
-    irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
-    k = depth / cos_t. An opaque surface on the path inside shadows (the shape's own boundary does
-    not); the light's outside leg is not tested for occluders."""
+    (`shadow_through`). Refractive, in a convex shape of at most KERNEL_PLANES planes: point and spot
+    lights through every face they are outside of (`_lit_through_faces`), directional ones by the beam
+    refracted through every face they meet, where q's path back along it leaves through that face
+    (`refracted_beams`, `_lit_by_beam`); in another shape directional lights only (`check` refuses the
+    rest) by the note's planar boundary, the entry face's plane (outward normals n): the beam refracted
+    into t through it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t
+    back to the plane, k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's
+    leg outside (`_outside_clear`)."""
     accel = prep.accel
     medium = prep.scene.shapes[sid].interior
     q = p + ell[:, None] * w

@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from ..error_bounds import spot_rounding
+from ..error_bounds import product, spot_rounding
 from ..media.convex_chords import chords_into
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
@@ -371,9 +371,7 @@ def _light_bound(err, value, f, cos_end):
     """The bound of one light's values (N,) = unit values x f (f >= 0) with the unit values' bound err
     (N,): err f (0 where f = 0: the value is exactly 0) plus a spot's rounding (error_bounds.spot_rounding
     of its `cos_end`) on the value."""
-    with np.errstate(invalid="ignore"):
-        b = np.where(f == 0.0, 0.0, err * f)
-    return b + spot_rounding(np.array([cos_end]))[0] * np.abs(value)
+    return product(err, f) + spot_rounding(np.array([cos_end]))[0] * np.abs(value)
 
 
 def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,

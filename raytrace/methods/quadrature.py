@@ -42,7 +42,7 @@ from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels
 from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.chapman import relative_error as chapman_error
-from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule, sort_few
 from ..media.integrand import integrand_of
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import LINEAR, column, column_distance, column_error, top_distance
@@ -98,18 +98,6 @@ def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
 
 
 @njit
-def _sort_few(a, lo, hi):
-    """Sort the few breakpoints a[lo:hi] (no nan) in place by insertion, ascending as ndarray.sort,
-    which would compile numba's quicksort (1.5 s) for a handful of numbers."""
-    for p in range(lo + 1, hi):
-        r, k = a[p], p
-        while k > lo and a[k - 1] > r:
-            a[k] = a[k - 1]
-            k -= 1
-        a[k] = r
-
-
-@njit
 def _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, out0, out1):
     """A spot light's cone crossings (lights.cone_breaks) as breakpoints of the two pieces: out0 the
     angles phi in (phi_a, phi_b), out1 the angles psi in (psi_end, psi_start), each ascending, between
@@ -131,8 +119,8 @@ def _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, out0, out1):
                     if psi_end < psi < psi_start:
                         out1[n1] = psi
                         n1 += 1
-        _sort_few(out0, 1, n0)
-        _sort_few(out1, 1, n1)
+        sort_few(out0, 1, n0)
+        sort_few(out1, 1, n1)
     out0[n0], out1[n1] = phi_b, psi_start
     return n0 + 1, n1 + 1
 
@@ -475,7 +463,7 @@ def _ends_and_inside(out, n):
         if lo <= out[i] <= hi and (i < 2 or lo < out[i] < hi):
             out[m] = out[i]
             m += 1
-    _sort_few(out, 0, m)
+    sort_few(out, 0, m)
     return m
 
 

@@ -47,6 +47,7 @@ import numpy as np
 from ..geometry.sphere import lit_parts
 from ..geometry.vectors import perpendicular
 from ..jit import njit
+from ..media.adaptive import sort_few
 from ..methods import Segments
 
 DILATE = 1e-8  # texels are binned as if larger by this much (face units; grid size for the ortho grid)
@@ -468,12 +469,7 @@ def _pieces(q, w, ell, kind, grid, frame, out):
                     nr += 1
     roots[nr] = ell
     nr += 1
-    for p in range(2, nr - 1):  # insertion sort of the few interior roots (np.sort compiles a quicksort)
-        r, k = roots[p], p
-        while k > 1 and roots[k - 1] > r:
-            roots[k] = roots[k - 1]
-            k -= 1
-        roots[k] = r
+    sort_few(roots, 1, nr - 1)  # the few interior roots
     n = 0
     for p in range(nr - 1):
         xa, xb = roots[p], roots[p + 1]
