@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..geometry import facet_walk
+from ..geometry import facet_walk, sections
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
 from ..media.convex_chords import chords_into, through_pieces
@@ -107,15 +107,18 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         errors[:] = 0.0
     if signature is not None:
         signature[:] = 0
+    neighbours = prep.memo("edge neighbours", lambda: sections.edge_neighbours(accel.triangles))
     for _ in range(MAX_CROSSINGS):
         if not len(active):
             break
         o = start[active] + s[active, None] * back[active]
         t, prim = accel.first_hit(o, back[active])
+        held = np.zeros(len(t), dtype=bool)
+        _settle(accel.triangles, accel.normals, neighbours, accel.sphere_of, o, back[active], t, prim, held)
         t32 = accel.hit_distance32(o, back[active])
         with np.errstate(invalid="ignore"):  # inf - inf on a miss
-            off = (prim >= 0) & (np.abs(t - t32) > FLOAT32_SLACK * (t32 + accel.scale))
-        t[off] = t32[off]  # the refinement took a neighbour's plane (a ray grazing an edge): keep Embree's
+            off = (prim >= 0) & ~held & (np.abs(t - t32) > FLOAT32_SLACK * (t32 + accel.scale))
+        t[off] = t32[off]  # no triangle holds the refined point (an edge not shared): keep Embree's
         at = s[active] + t
         done = (prim < 0) | (at >= stop[active])
         j = np.where(done, -1, lookup[prep.shape_ids[np.maximum(prim, 0)]])
@@ -164,6 +167,47 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         fin = r[s[r] >= stop[r]]
         lengths[fin] += np.where(inside[fin] & np.isfinite(s[fin, None]), far[fin, None] - since[fin], 0.0)
     return lengths, blocked, inside
+
+
+@njit
+def _settle(triangles, normals, neighbours, sphere_of, origins, dirs, t, prim, held):
+    """Move each hit (t, prim) to the triangle that holds it in float64: Embree decides in float32
+    which triangle a ray grazing an edge meets, and its neighbour's plane puts the crossing up to
+    ~1e-7 of the scene's size off the surface (a kink of the inside length smeared over that reach,
+    which no adaptive rule resolves at rtol 1e-10). From the reported triangle, step across the edge
+    the refined point lies farthest beyond (`sections.edge_neighbours`), solving each plane again,
+    until the point lies inside a triangle (at most 8 steps: `held`); if none, the hit stays as reported.
+    A held hit is the plane solve of a triangle that holds its point in float64, however grazing the
+    ray (Embree's float32 distance is then off by ~1e-7 / cos)."""
+    for i in range(prim.shape[0]):
+        k = prim[i]
+        if k < 0 or sphere_of[k] >= 0:
+            continue
+        for _ in range(8):
+            num, den = 0.0, 0.0
+            for a in range(3):
+                num += normals[k, a] * (triangles[k, 0, a] - origins[i, a])
+                den += normals[k, a] * dirs[i, a]
+            if den == 0.0 or not num / den > 0.0:
+                break
+            tk = num / den
+            q = origins[i] + tk * dirs[i]
+            e1, e2 = triangles[k, 1] - triangles[k, 0], triangles[k, 2] - triangles[k, 0]
+            nx, ny, nz = e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]
+            worst, side = 0.0, -1
+            for e in range(3):
+                a, b = triangles[k, e], triangles[k, (e + 1) % 3]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                qx, qy, qz = q[0] - a[0], q[1] - a[1], q[2] - a[2]
+                d = (ey * qz - ez * qy) * nx + (ez * qx - ex * qz) * ny + (ex * qy - ey * qx) * nz
+                if d < worst:
+                    worst, side = d, e
+            if side < 0:
+                t[i], prim[i], held[i] = tk, k, True
+                break
+            k = neighbours[k, side]
+            if k < 0:
+                break
 
 
 HASH = 1000003  # a walk's signature: its triangles in order, base HASH (wrapping in int64)
@@ -342,12 +386,13 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     convex = prep.interior_planes.get(sid) is not None
     facets = exit_facets(prep, sid, geo, directional, end) if convex else None
-    seg, a, b = _first_panels(geo, directional, end, facets)
+    kinks = None if convex else section_kinks(prep, sid, geo, directional, end)
+    seg, a, b = _first_panels(geo, directional, end, facets, kinks)
     integrand = lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
                                          not convex)
     if convex:
         return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats), np.full((len(ell), len(kts)), np.inf)
-    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True)
+    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True, signatures=kinks is None)
 
 
 class Facets(NamedTuple):
@@ -380,7 +425,7 @@ def exit_facets(prep, sid, geo, directional, end):
     return Facets(offsets, counts, bt, bf, links[0])
 
 
-def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, signatures=True):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
     panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
     Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
@@ -401,18 +446,20 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     while lo < len(seg):
         k = np.searchsorted(bounds, lo + MAX_OPEN)
         hi = bounds[k] if k < len(bounds) else len(seg)
-        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound, signatures)
         lo = hi
     return (total, bound) if bounded else total
 
 
-def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, signatures=True):
     """`adaptive` from one group of first panels (`bound` += their bounds, where given). With a bound,
     a panel whose nodes' walks, or those just inside its ends, crossed different triangles (their
     signatures differ: the light's path passed an edge, a kink of the inside length the rules' agreement can miss, 1.7e-6 off at any rtol
     on a path grazing the U's inner corner) is not accepted: it is cut where the signature changes
-    (`_kinks`), and its pieces are integrated on."""
+    (`_kinks`), and its pieces are integrated on; not with `signatures` False (the first panels end at
+    every kink: `section_kinks`)."""
     n = len(end)
+    probe = bound is not None and signatures
     total = np.zeros((n, nc))
     floor = None
     if bound is not None:
@@ -423,8 +470,8 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
             break
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
         xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()]
-                            + (list(_probes(a, b)) if bound is not None else []))  # signatures near the ends
-        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)] + ([seg, seg] if bound is not None else []))
+                            + (list(_probes(a, b)) if probe else []))  # signatures near the ends
+        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)] + ([seg, seg] if probe else []))
         f = integrand(ss, xs)
         if bound is not None:
             f, fe, sig = f
@@ -438,7 +485,7 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
             floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
         kinked = np.zeros(m, dtype=bool)
-        if bound is not None:
+        if probe:
             nodes = _by_panel(sig, m)
             kinked = np.any(nodes != nodes[:, :1], axis=1)
             ok &= ~kinked
@@ -596,9 +643,20 @@ def chords(prep, sids, points, dirs, dist):
     return out
 
 
-def _first_panels(geo, directional, end, facets=None):
+def section_kinks(prep, sid, geo, directional, end):
+    """geometry/sections.py's breaks (offsets, breaks) of the segments in shape sid, a closed mesh (an
+    exact sphere has no kinks: None)."""
+    sel = prep.shape_ids == sid
+    if np.any(prep.accel.sphere_of[sel] >= 0):
+        return None
+    edges = prep.memo(("section edges", sid), lambda: sections.mesh_edges(prep.accel.triangles[sel]))
+    return sections.section_breaks(edges, np.ascontiguousarray(geo), directional, end)
+
+
+def _first_panels(geo, directional, end, facets=None, kinks=None):
     """(segment, start, end) of the first panels of `segment_quadrature`: [0, end] of every segment
-    with end > 0, cut at its spot's cone crossings and at the breakpoints of `facets`."""
+    with end > 0, cut at its spot's cone crossings, at the breakpoints of `facets` (a convex shape) and
+    at `kinks` (`section_kinks`: a shape that is not convex)."""
     live = np.nonzero(end > 0.0)[0]
     seg, at = [live, live], [np.zeros(len(live)), end[live]]
     cuts = np.empty(4)
@@ -610,6 +668,9 @@ def _first_panels(geo, directional, end, facets=None):
         m = np.maximum(facets.counts, 0)
         seg.append(np.repeat(np.arange(len(end)), m))
         at.append(facets.bt)
+    if kinks is not None:
+        seg.append(np.repeat(np.arange(len(end)), np.diff(kinks[0])))
+        at.append(kinks[1])
     seg, at = np.concatenate(seg).astype(np.int64), np.concatenate(at)
     order = np.lexsort((at, seg))
     seg, at = seg[order], at[order]
