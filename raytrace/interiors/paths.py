@@ -146,7 +146,9 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
             over = s[r] >= stop[r]
             errors[r[over]] += (far[r[over]] - at[go][over])[:, None]
         # a second crossing within the skip (a corner clipped): found looking back from the new start
-        tb, pb = accel.first_hit(start[r] + s[r, None] * back[r], dirs[r])
+        ob = start[r] + s[r, None] * back[r]
+        tb, pb = accel.first_hit(ob, dirs[r])
+        _settle(accel.triangles, accel.normals, neighbours, accel.sphere_of, ob, dirs[r], tb, pb, np.zeros(len(r), bool))
         extra = (pb >= 0) & (pb != prim[go]) & (tb < (1.0 - 1e-9) * skip) & (s[r] - tb < stop[r])
         jb = np.where(extra, lookup[prep.shape_ids[np.maximum(pb, 0)]], -1)
         if block:
