@@ -83,9 +83,10 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
     its far end, which must lie outside every shape of `sids`, back to the point (crossings closer to it
     than `margin` are not counted: a surface point's own face); and
     (N, len(sids)) whether the walk ends inside each shape. `errors` (N, len(sids)), where given, is
-    set to a bound on each length's error: the sum of its crossings' `crossing_errors` (a crossing
-    found looking back over a skip: Embree's float32 reach), plus, where the last skip passes the point,
-    the distance from the last crossing to it (a crossing in it would go unseen). `signature` (N,), where
+    set to a bound on each length's error: the sum of its crossings' `crossing_errors`, plus, where the last skip passes the point
+    and the look back from its end meets a crossing beyond the point, the distance from the last
+    crossing to the point (a crossing between them would be hidden; where the look back meets the last
+    crossing itself, there is none). `signature` (N,), where
     given, is set to a hash of the triangles crossed, in order: where it changes along a camera ray the
     light's path has passed an edge (a kink of the inside length)."""
     accel = prep.accel
@@ -134,7 +135,8 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         since[r, c] = at[cross]
         inside[r, c] = ~inside[r, c]
         if errors is not None:
-            errors[r, c] += crossing_errors(accel, o[cross], back[r], t[cross], prim[cross], off[cross], far[r])
+            errors[r, c] += crossing_errors(accel, o[cross], back[r], t[cross], prim[cross], off[cross], far[r],
+                                            held[cross])
         if signature is not None:
             signature[r] = signature[r] * HASH + prim[cross] + 1
         go = np.nonzero(~done)[0]
@@ -142,14 +144,16 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         cos = np.abs(np.einsum("ij,ij->i", accel.hit_normals(prim[go], start[r] + at[go, None] * back[r]), back[r]))
         skip = accel.epsilon / np.maximum(cos, 1e-2)
         s[r] = at[go] + skip
-        if errors is not None:  # crossings within a skip past the point's end are not looked for: all of it
-            over = s[r] >= stop[r]
-            errors[r[over]] += (far[r[over]] - at[go][over])[:, None]
         # a second crossing within the skip (a corner clipped): found looking back from the new start
         ob = start[r] + s[r, None] * back[r]
         tb, pb = accel.first_hit(ob, dirs[r])
-        _settle(accel.triangles, accel.normals, neighbours, accel.sphere_of, ob, dirs[r], tb, pb, np.zeros(len(r), bool))
-        extra = (pb >= 0) & (pb != prim[go]) & (tb < (1.0 - 1e-9) * skip) & (s[r] - tb < stop[r])
+        held_b = np.zeros(len(r), dtype=bool)
+        _settle(accel.triangles, accel.normals, neighbours, accel.sphere_of, ob, dirs[r], tb, pb, held_b)
+        other = (pb >= 0) & (pb != prim[go]) & (tb < (1.0 - 1e-9) * skip)
+        extra = other & (s[r] - tb < stop[r])
+        if errors is not None:  # a crossing past the point's end, within the skip, hides any between: all of it
+            hidden = other & ~extra
+            errors[r[hidden]] += (far[r[hidden]] - at[go][hidden])[:, None]
         jb = np.where(extra, lookup[prep.shape_ids[np.maximum(pb, 0)]], -1)
         if block:
             stopped = extra & (jb < 0)
@@ -162,7 +166,8 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         since[q, c] = atb
         inside[q, c] = ~inside[q, c]
         if errors is not None:
-            errors[q, c] += 2.0 * FLOAT32_SLACK * (atb + accel.scale)
+            errors[q, c] += crossing_errors(accel, ob[extra], dirs[q], tb[extra], pb[extra], ~held_b[extra], far[q],
+                                            held_b[extra])
         if signature is not None:
             signature[q] = signature[q] * HASH + pb[extra] + 1
         active = r[s[r] < stop[r]]
@@ -215,23 +220,25 @@ def _settle(triangles, normals, neighbours, sphere_of, origins, dirs, t, prim, h
 HASH = 1000003  # a walk's signature: its triangles in order, base HASH (wrapping in int64)
 
 
-def crossing_errors(accel, origins, dirs, t, prim, off, far):
+def crossing_errors(accel, origins, dirs, t, prim, off, far, held):
     """A bound on the error of each crossing distance t that a walk adds up (origins + t dirs on
     triangle prim; `off`: Embree's float32 distance kept): where the refined point lies inside its
-    triangle by more than Embree's float32 reach FLOAT32_SLACK (t + scale) from every edge, the ray
-    crosses that triangle there, and t is its plane's float64 solve, off by 16u (|o| + t + |A|) / cos
-    (A a vertex, cos the ray's cosine to the normal) plus 8u far for the walk's sums; elsewhere (near
+    triangle by more than Embree's float32 reach FLOAT32_SLACK (t + scale) from every edge (`held`: the
+    walk settled it on that triangle in float64, `_settle`: by more than 4 times the point's own error),
+    the ray crosses that triangle there, and t is its plane's float64 solve, off by
+    e = 16u (|o| + t + |A|) / cos (A a vertex, cos the ray's cosine to the normal) plus 8u far for the
+    walk's sums; elsewhere (near
     an edge Embree may report a neighbour's plane, or its float32 distance was kept; an exact sphere)
     2 FLOAT32_SLACK (t + scale): the refined and Embree's distances agree to FLOAT32_SLACK (t + scale)
     (the walk's guard) and Embree's is taken to be that close to the exact one."""
     out = np.empty(len(t))
     _crossing_errors(accel.triangles, accel.normals, accel.sphere_of, origins, dirs, t, prim, off, far,
-                     float(accel.scale), out)
+                     float(accel.scale), held, out)
     return out
 
 
 @njit
-def _crossing_errors(triangles, normals, sphere_of, origins, dirs, t, prim, off, far, scale, out):
+def _crossing_errors(triangles, normals, sphere_of, origins, dirs, t, prim, off, far, scale, held, out):
     for i in range(t.shape[0]):
         k = prim[i]
         reach = FLOAT32_SLACK * (t[i] + scale)
@@ -247,12 +254,12 @@ def _crossing_errors(triangles, normals, sphere_of, origins, dirs, t, prim, off,
             qx, qy, qz = q[0] - a[0], q[1] - a[1], q[2] - a[2]
             side = (ey * qz - ez * qy) * n[0] + (ez * qx - ex * qz) * n[1] + (ex * qy - ey * qx) * n[2]
             inner = min(inner, side / max(math.sqrt(ex * ex + ey * ey + ez * ez), 1e-300))
-        if inner > reach:
-            o, v = origins[i], triangles[k, 0]
-            cos = abs(n[0] * dirs[i, 0] + n[1] * dirs[i, 1] + n[2] * dirs[i, 2])
-            out[i] = (16.0 * U * (math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) + t[i]
-                                  + math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])) / max(cos, 1e-300)
-                      + 8.0 * U * far[i])
+        o, v = origins[i], triangles[k, 0]
+        cos = abs(n[0] * dirs[i, 0] + n[1] * dirs[i, 1] + n[2] * dirs[i, 2])
+        e = 16.0 * U * (math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) + t[i]
+                        + math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])) / max(cos, 1e-300)
+        if inner > (4.0 * e if held[i] else reach):
+            out[i] = e + 8.0 * U * far[i]
 
 
 def convex_exits(prep, sid, points, dirs, dist):
