@@ -5,8 +5,8 @@ Before the fix, `single_scattering` (now interiors/rows.py) filled its statistic
 media inside shapes never said that inside integrals had stopped short of their tolerance (the U
 prism under a directional light, tests/test_inside_paths.py, had 15 such panels at the default
 rtol: the kinks of its inside lengths where the light's paths pass the U's edges; since the traced
-quadrature cuts its panels there (issue 35) they converge, and the traced path's count is exercised
-with its halvings capped, paths.MAX_LEVELS = 2).
+quadrature starts its panels at them (geometry/sections.py) they converge at once, and the traced path's
+count is exercised with its panels not cut there and its halvings capped, paths.MAX_LEVELS = 2).
 """
 import raytrace
 from raytrace.interiors import paths
@@ -35,6 +35,7 @@ def test_inside_integrals_that_stop_short_are_reported(tmp_path, monkeypatch):
     not converge, and a lamp whose integrals all converge reports 0."""
     with monkeypatch.context() as m:
         m.setattr(paths, "MAX_LEVELS", 2)
+        m.setattr(paths, "section_kinks", lambda *args: None)  # panels not cut at the kinks
         _, res = u_render(tmp_path, u_prism.SUN, {"rtol": 1e-10})
         assert res.stats[NOT_CONVERGED] > 0, res.stats
         assert (res.error_bound == float("inf")).any()  # an integral left open has no bound
@@ -55,6 +56,7 @@ def test_inside_integrals_that_stop_short_are_reported(tmp_path, monkeypatch):
 def test_the_count_does_not_depend_on_the_tiles(tmp_path, monkeypatch):
     """The inside statistics travel with each tile's and are reduced like the method's own."""
     monkeypatch.setattr(paths, "MAX_LEVELS", 2)
+    monkeypatch.setattr(paths, "section_kinks", lambda *args: None)
     (tmp_path / "u.obj").write_text(u_prism.u_obj())
     (tmp_path / "u.toml").write_text(to_toml(u_prism.u_scene(u_prism.SUN)))
     prep = prepare(load_scene(tmp_path / "u.toml"))
