@@ -232,16 +232,16 @@ def spheres_of(raw):
 
 
 def test_pbrt_spheres_come_in_exact_and_go_back_as_spheres(tmp_path):
-    """An opaque pbrt sphere is read exact, one holding a medium as a mesh of 64 segments (exact
-    spheres do not hold media yet); both go out as pbrt spheres and come back the same (x mirrored on
-    the way in: pbrt's LookAt is left-handed)."""
+    """pbrt spheres are read exact, opaque or holding a medium (its light paths inside and through it in
+    closed form: media/convex_chords.py); both go out as pbrt spheres and come back the same (x mirrored
+    on the way in: pbrt's LookAt is left-handed)."""
     from raytrace.io import pbrt
 
     src = tmp_path / "spheres.pbrt"
     src.write_text(PBRT_SPHERES)
     raw = pbrt.read_scene(src)
     assert [(e, list(c), r, i) for e, c, r, i in spheres_of(raw)] == [(True, [1.0, 1.0, 0.0], 0.5, False),
-                                                                      (None, [-1.0, 1.0, 0.0], 0.5, True)]
+                                                                      (True, [-1.0, 1.0, 0.0], 0.5, True)]
     assert raw["shape"][1]["segments"] == pbrt.SPHERE_SEGMENTS
     out = tmp_path / "back.pbrt"
     pbrt.export(raw, out, str(src), False)
@@ -273,7 +273,7 @@ def test_mitsuba_spheres_come_in_exact_and_go_back_as_spheres(tmp_path):
     src = tmp_path / "spheres.xml"
     src.write_text(MITSUBA_SPHERES)
     raw = mitsuba.read_scene(src)
-    assert [(e, i) for e, _, _, i in spheres_of(raw)] == [(True, False), (False, True)]
+    assert [(e, i) for e, _, _, i in spheres_of(raw)] == [(True, False), (True, True)]
     out = tmp_path / "back.xml"
     mitsuba.export(raw, out, str(src), False)
     assert out.read_text().count('<shape type="sphere"') == 2 and not list(tmp_path.glob("*.ply"))
