@@ -41,7 +41,7 @@ OBJECT_TAGS = {"shape", "bsdf", "emitter", "medium", "phase", "sensor", "film", 
                "texture", "volume"}
 FACET_PIXELS = 0.25  # a tessellated sphere's facets span at most this many pixels seen from the camera
 SEGMENTS = (64, 256)  # the clamp on a curved shape's segments (spheres, disks, cylinders)
-INTERIOR_SEGMENTS = 64  # a curved shape holding a medium: its mesh (disk, cylinder; an exact sphere's rows) at most this fine
+INTERIOR_SEGMENTS = 64  # the mesh of a curved shape holding a medium (an exact sphere's rows) at most this fine
 
 
 # ------------------------------------------------------------------------------------------- reading

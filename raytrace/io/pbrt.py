@@ -32,7 +32,7 @@ from . import emitters
 from .meshfile import read_mesh
 from .report import ImportNote, Problems, every
 
-SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our exact sphere (its mesh rows: this many segments), also one holding a medium
+SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our exact sphere (its mesh rows: this many segments)
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
 ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted

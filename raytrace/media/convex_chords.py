@@ -346,5 +346,6 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
             else:  # halves in x, or in u: the quarter beside the kink (warped) and the rest (plain)
                 cut = mid if wp == 0 else (a + 0.25 * (b - a) if wp == 1 else b - 0.25 * (b - a))
                 lo_stack[top], hi_stack[top], depth[top], warp[top] = cut, b, level + 1, 2 if wp == 2 else 0
-                lo_stack[top + 1], hi_stack[top + 1], depth[top + 1], warp[top + 1] = a, cut, level + 1, 1 if wp == 1 else 0
+                lo_stack[top + 1], hi_stack[top + 1], depth[top + 1] = a, cut, level + 1
+                warp[top + 1] = 1 if wp == 1 else 0
                 top += 2

@@ -1061,8 +1061,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
         if convex and mode != CLOSED and mode != APPROX:
             out[s], var[s], bound = _straight(PLANES, planes, geo[s], directional[s], ell[s], kt, ks, code, g, kt_out,
                                               ph, only, dplanes, mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
-            if mode == QUAD and eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are not analysed
-                err[s] = bound
+            if mode == QUAD and eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are
+                err[s] = bound  # not analysed
             continue
         if (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
             continue
