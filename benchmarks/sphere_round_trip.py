@@ -4,7 +4,7 @@ scene exported to pbrt-v4 and read back, rendered with quadrature, with and with
 shadows, one thread: the CPU seconds of each render, the best of `--rounds` interleaved runs after one
 run of each to compile the kernels.
 
-    python benchmarks/sphere_round_trip.py [--rounds 3] [--width 64 --height 48]
+    python benchmarks/sphere_round_trip.py [--rounds 3]     # at the scene's 64 x 48
 """
 import argparse
 import pathlib
@@ -38,19 +38,16 @@ def variants(folder: pathlib.Path) -> dict:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--width", type=int, default=64)
-    ap.add_argument("--height", type=int, default=48)
-    args = ap.parse_args()
+    rounds = ap.parse_args().rounds
     with tempfile.TemporaryDirectory() as tmp:
         scenes = variants(pathlib.Path(tmp))
         best = {}
-        for rounds in range(args.rounds + 1):
+        for run in range(rounds + 1):
             for name, path in scenes.items():
                 for shadows in (False, True):
                     start = time.process_time()
-                    raytrace.render(str(path), "quadrature", volumetric_shadows=shadows, threads=1, width=args.width,
-                                    height=args.height)
-                    if rounds:  # the first round compiles
+                    raytrace.render(str(path), "quadrature", volumetric_shadows=shadows, threads=1)
+                    if run:  # the first round compiles
                         best[name, shadows] = min(best.get((name, shadows), float("inf")), time.process_time() - start)
     print(f"{'sphere':16s} {'unshadowed':>11s} {'shadowed':>9s}")
     for name in scenes:
