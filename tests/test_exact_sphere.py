@@ -591,7 +591,7 @@ def fog_shadow_twin(o, d, light, kt, ks, dk):
         chord = 0.0 if c is None else max(min(c[1], dist) - max(c[0], 0.0), 0.0)
         return ks / (4 * math.pi) * math.exp(-kt * (x + dist) - dk * chord) / dist**2
 
-    xs = np.linspace(0.0, 60.0, 6001)
+    xs = np.linspace(0.0, 60.0, 1201)
     v = np.array([offset(x) for x in xs])
     cuts = [optimize.brentq(offset, xs[k], xs[k + 1], xtol=1e-15, rtol=1e-15)
             for k in np.nonzero(np.sign(v[:-1]) != np.sign(v[1:]))[0]]
