@@ -1,6 +1,6 @@
 """Regenerate tests/data/inside_bound_twins.json, the 30-digit twins of tests/test_inside_bounds.py.
 
-    python tests/make_inside_bound_twins.py          # about 30 s on one core
+    python tests/make_inside_bound_twins.py          # about a minute on one core
 
 Each twin is the single scattering, at its start, of one segment o + x w, x in [0, length], inside a
 closed shape holding a homogeneous index-matched medium (sigma_t, sigma_s, Henyey-Greenstein g) in
@@ -14,7 +14,7 @@ X = o + x w, d = |p - X|, u = (p - X) / d, k(x) the length of the straight segme
 inside the shape. Shapes: a box (slab tests), a convex icosahedron (its twenty face planes from the
 stored vertices, the segment clipped by each half-space), a U-shaped prism that is the union of
 three boxes with disjoint interiors (k = the sum of the three slab lengths: a path may leave one arm
-and enter the other). The segments are the first inside stretches of camera rays from outside, on a
+and enter the other), an exact sphere (k between the roots of |X + t u - c| = r). The segments are the first inside stretches of camera rays from outside, on a
 grid of directions toward the shape (entry and exit found here in mpmath, then rounded to float64:
 the twin integrates the stored float64 segment exactly). The integrand's kinks and the cone's
 edges (where the face a path leaves by, a box's slab faces, or the falloff's piece change) are
@@ -44,6 +44,7 @@ SPOT = {"type": "spot", "position": [1.6, 0.9, 0.45], "look_at": [0.2, -0.1, 0.0
         "cone_angle": 25.0, "falloff_start": 14.0}
 U_LAMP = {"type": "point", "position": [1.6, 0.25, 0.1], "intensity": 3.0}
 U_SPOT = U_LAMP | {"type": "spot", "look_at": [-0.3, -0.35, 0.0], "cone_angle": 22.0, "falloff_start": 14.0}
+SPHERE = ((0.1, 0.05, -0.1), 0.9)
 
 
 def icosahedron():
@@ -153,6 +154,21 @@ def polytope_shape(verts, faces):
     return chord, planes
 
 
+def sphere_shape(centre, radius):
+    """The chord function of the sphere: between the roots of |X + t u - c| = r, clipped to [0, dist]."""
+    c, r = _vec(centre), mp.mpf(radius)
+
+    def chord(X, u, dist):
+        f = X - c
+        b = _dot(f, u)
+        q = b * b - (_dot(f, f) - r * r)
+        if q <= 0:
+            return mp.mpf(0), ("miss",)
+        lo, hi = max(-b - mp.sqrt(q), mp.mpf(0)), min(-b + mp.sqrt(q), dist)
+        return max(hi - lo, mp.mpf(0)), ("sphere",)
+    return chord, (c, r)
+
+
 def spot_terms(light):
     """(axis, cos_end, cos_start) in float64 as a scene file gives them (None for a point light)."""
     if light["type"] != "spot":
@@ -234,7 +250,16 @@ def first_stretch(boxes_or_planes, kind, cam, target):
     d = t - c
     d = d / mp.sqrt(_dot(d, d))
     big = mp.mpf(100)
-    if kind == "polytope":
+    if kind == "sphere":
+        centre, r = boxes_or_planes
+        f = c - centre
+        b = _dot(f, d)
+        q = b * b - (_dot(f, f) - r * r)
+        if q <= 0:
+            return None
+        t0, t1 = -b - mp.sqrt(q), -b + mp.sqrt(q)
+        normal = [float(v) for v in (c + t0 * d - centre) / r]
+    elif kind == "polytope":
         t0, t1, face = mp.mpf(0), big, None
         for n, cc in boxes_or_planes:
             den, num = _dot(n, d), cc - _dot(n, c)
@@ -272,12 +297,16 @@ def cases():
     ico_chord, ico_planes = polytope_shape(verts, faces)
     uv, uf = u_mesh()
     u_chord, u_boxes = u_shape()
+    sphere_chord, sphere_geom = sphere_shape(*SPHERE)
     yield ("box", {"primitive": "box", "min": list(BOX[0]), "max": list(BOX[1])}, box_chord, box_boxes, "boxes",
            [-0.7, 1.3, 3.2], [[a, 0.3 * b, 0.8 * b] for a, b in grid], [("lamp", LAMP), ("spot", SPOT)])
     yield ("icosahedron", {"primitive": "triangles", "vertices": verts, "faces": faces}, ico_chord, ico_planes,
            "polytope", [-0.9, 1.1, 3.0], [[0.1 + 0.7 * a, 0.05 + 0.6 * b, -0.1] for a, b in grid], [("lamp", LAMP)])
     yield ("u", {"primitive": "triangles", "vertices": uv, "faces": uf}, u_chord, u_boxes, "boxes",
            [0.3, 1.4, 3.0], [[0.9 * a, 0.7 * b - 0.2, 0.0] for a, b in grid], [("lamp", U_LAMP), ("spot", U_SPOT)])
+    yield ("sphere", {"primitive": "sphere", "center": list(SPHERE[0]), "radius": SPHERE[1], "exact": True},
+           sphere_chord, sphere_geom, "sphere", [-0.9, 1.1, 3.0],
+           [[0.1 + 0.8 * a, 0.05 + 0.7 * b, -0.1] for a, b in grid], [("lamp", LAMP), ("spot", SPOT)])
 
 
 def main():

@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from raytrace.interiors import crossing, paths
-from raytrace.media.convex_chords import chords_into, section_kinks
+from raytrace.media.convex_chords import PLANES, boundary_chords, section_kinks
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import render
 
@@ -71,7 +71,7 @@ def parity_chord(mesh, p, u, dist):
 
 @pytest.mark.parametrize("name", SHAPES)
 def test_chords_equal_trimesh_ray_tests(name):
-    """chords_into on every triangle's plane (float64 from the vertices) against the parity
+    """boundary_chords on every triangle's plane (float64 from the vertices) against the parity
     twin to 1e-12 on 400 random segments from points around the shape and a quarter inside it, half
     aimed at it, finite and infinite."""
     mesh = SHAPES[name]
@@ -86,7 +86,7 @@ def test_chords_equal_trimesh_ray_tests(name):
     normals = mesh.face_normals
     planes = np.column_stack([normals, np.einsum("ij,ij->i", normals, mesh.triangles[:, 0])])
     got = np.empty(n)
-    chords_into(p, u, dist, planes, got)
+    boundary_chords(p, u, dist, PLANES, planes, got)
     ref, inside = parity_chord(mesh, p, u, dist)
     assert np.count_nonzero(ref > 0.0) >= 100 and inside[::4].all()
     print(f"{name}: worst |chord - twin| {np.max(np.abs(got - ref)):.1e}")
@@ -98,8 +98,8 @@ def test_a_segment_along_a_face_outside_it_has_no_chord():
     planes = np.array([[1.0, 0.0, 0.0, 1.0], [-1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0], [0.0, -1.0, 0.0, 1.0],
                        [0.0, 0.0, 1.0, 1.0], [0.0, 0.0, -1.0, 1.0]])
     out = np.empty(2)
-    chords_into(np.array([[2.0, 0.0, -3.0], [0.5, 0.0, -3.0]]), np.array([[0.0, 0.0, 1.0]] * 2),
-                np.array([np.inf, 10.0]), planes, out)
+    boundary_chords(np.array([[2.0, 0.0, -3.0], [0.5, 0.0, -3.0]]), np.array([[0.0, 0.0, 1.0]] * 2),
+                    np.array([np.inf, 10.0]), PLANES, planes, out)
     assert out.tolist() == [0.0, 2.0]
 
 
@@ -138,7 +138,7 @@ def first_panels(prep, segs, sids, end):
 
 def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
     """On the pieces behind the boxes of a render (both lights, both boxes), through_quadrature's
-    kernel equals paths.adaptive over through_integrand (chords by chords_into), started from
+    kernel equals paths.adaptive over through_integrand (chords by boundary_chords), started from
     the same first panels (cut at each shape's section_kinks), to 1e-12 relative per piece and
     channel, with the same count of unconverged panels (none). (Started from whole pieces, as both
     were before the kernel cut them, the rule missed a kink of piece 99: 5.4e-6 off at rtol 1e-10,

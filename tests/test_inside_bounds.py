@@ -3,7 +3,8 @@
 tests/data/inside_bound_twins.json): inside segments of a box lit by a point light and a spot
 (convex: media/slab.py convex_bounded), of an icosahedron (a convex mesh of 20 faces) and of a
 U-shaped prism (non-convex: Embree-traced paths, interiors/paths.py, whose float32 crossings are in
-the bound) lit by a point light and a spot. On every segment |value - twin| <= bound at rtol 1e-6
+the bound) and of an exact sphere (media/slab.py's kernel on its closed-form chords, sphere_rounding)
+lit by a point light and a spot. On every segment |value - twin| <= bound at rtol 1e-6
 and 1e-10, and the bound is not vacuous: its median is at most 10 rtol of the value; a value 3 rtol
 off its twin fails. The bound is finite on every segment but, for the U, one per case, where a walk
 was repeated from a moved end (a parity contradiction near an edge: another path, unbounded). Renders
@@ -70,7 +71,7 @@ def test_an_error_beyond_the_bound_fails(case, rtol):
     assert np.all(np.abs(value * (1.0 + 3.0 * rtol) - twin)[finite] > bound[finite])
 
 
-@pytest.mark.parametrize("case", ["box_spot", "icosahedron_lamp"])
+@pytest.mark.parametrize("case", ["box_spot", "icosahedron_lamp", "sphere_spot"])
 def test_renders_with_interiors_are_bounded(case):
     """Every pixel of a quadrature render of a convex shape (its boundary crossed, the inside rows, what
     lies behind) has a finite bound; it was infinite on every pixel that sees the shape."""

@@ -131,24 +131,33 @@ def sphere_chord(o, d, r=1.0):
 
 
 def exact_pixel(sc, i, j):
-    """The single scattering of the exact unit sphere along the pixel's centre ray (scipy quad)."""
+    """The single scattering of the exact unit sphere along the pixel's centre ray (scipy quad) from
+    its one light: a point or spot light (the spot's falloff toward each point, the ray cut at its cone
+    crossings, oracle.cone_crossings) or a directional one (its irradiance, k along its direction)."""
     o, d = oracle.camera_ray(sc["camera"], i, j)
     t0, t1 = sphere_chord(o, d)
     inner = sc["shape"][0]["interior"]
     ks = np.array(inner["sigma_s"])
     kt = np.array(inner["sigma_a"]) + ks
     kt_out = sc["medium"]["sigma_a"]
-    lp = np.array(sc["light"][0]["position"], float)
+    light = sc["light"][0]
+    sun = light.get("type") == "directional"
+    breaks = [] if sun else oracle.cone_crossings(o, d, t1, np.array(light["position"], float), oracle.spot_of(light))
+    edges = [t0] + sorted(x for x in breaks if t0 < x < t1) + [t1]
     out = np.zeros(3)
     for c in range(3):
         def f(t):
             X = o + t * d
-            dist = np.linalg.norm(lp - X)
-            u = (lp - X) / dist
-            k = sphere_chord(X, u)[1]
-            tau = kt_out * t0 + kt[c] * (t - t0 + k) + kt_out * (dist - k)
-            return ks[c] * oracle.phase("hg", inner["phase"]["g"], float(u @ d)) * math.exp(-tau) / dist**2
-        out[c] = sc["light"][0]["intensity"] * integrate.quad(f, t0, t1, epsabs=0.0, epsrel=1e-11, limit=200)[0]
+            if sun:
+                u = -np.array(light["direction"], float) / np.linalg.norm(light["direction"])
+                k = sphere_chord(X, u)[1]
+                tau, e = kt_out * t0 + kt[c] * (t - t0 + k), light["irradiance"]
+            else:
+                u, dist, e, _ = oracle.lamp_at(light, X)
+                k = sphere_chord(X, u)[1]
+                tau = kt_out * t0 + kt[c] * (t - t0 + k) + kt_out * (dist - k)
+            return ks[c] * oracle.phase("hg", inner["phase"]["g"], float(u @ d)) * math.exp(-tau) * e
+        out[c] = sum(integrate.quad(f, a, b, epsabs=0.0, epsrel=1e-11, limit=200)[0] for a, b in zip(edges, edges[1:]))
     return out
 
 

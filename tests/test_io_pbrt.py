@@ -188,7 +188,7 @@ def test_fog_room_imports_pbrts_units():
     assert floor["reflectance"] == wall["reflectance"] == [0.6, 0.55, 0.5] and plate["reflectance"] == [0.8] * 3
     assert triangles(plate) == square([0.25, 1.2, -0.75], [1.75, 1.2, -0.75], [1.75, 1.2, 0.75], [0.25, 1.2, 0.75])
     assert sphere == {"primitive": "sphere", "center": [-1.5, 1.0, 0.0], "radius": 0.75, "segments": 64,
-                      "interior": {"sigma_a": [0.5] * 3, "sigma_s": [1.0, 2.0, 3.0], "phase": "isotropic", "ior": 1.0}}
+                      "exact": True, "interior": {"sigma_a": [0.5] * 3, "sigma_s": [1.0, 2.0, 3.0], "phase": "isotropic", "ior": 1.0}}
     scene_from_dict(d, "fog_room.pbrt")  # a valid scene
 
 

@@ -5,7 +5,8 @@ across its boundary (`cross`; a camera inside a shape: `start_inside`): refracte
 their exit (Embree; `_inside_hits`), refracted out, and mirrored by a refractive boundary with 1 - T.
 What comes of it is a `Crossing`: one inside `Segments` row per ray, which carries its medium (the
 shape) and how light reaches it (`STRAIGHT` to a convex index-matched shape's faces, `TRACED` through
-a non-convex one, `REFRACTED` through a refractive boundary), the rays that go on beyond the exit or
+a non-convex one or an exact sphere (paths.py: Embree walks, or the sphere's closed-form chords in
+media/slab.py's kernel), `REFRACTED` through a refractive boundary), the rays that go on beyond the exit or
 the mirror, which the renderer shades like camera rays (up to MAX_DEPTH boundaries deep; deeper ones
 are black), and the factors that carry what they see back (`combine`). The rows are integrated by
 the method's inside rule (interiors/rows.py); a plain surface met inside is shaded here
@@ -201,10 +202,9 @@ def inside_of(prep, o, inner) -> int | None:
     t = np.einsum("ij,ij->i", e2, qv) * inv
     cross = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
     for i in inner:
-        k = prep.accel.sphere_of[prep.shape_ids == i]
-        if len(k) and k[0] >= 0:  # an exact sphere: by its own radius
-            c, r = prep.accel.spheres[k[0], :3], prep.accel.spheres[k[0], 3]
-            if np.linalg.norm(np.asarray(o, float) - c) < r:
+        sphere = paths.exact_sphere(prep, i)
+        if sphere is not None:  # an exact sphere: by its own radius
+            if np.linalg.norm(np.asarray(o, float) - sphere[:3]) < sphere[3]:
                 return i
         elif np.count_nonzero(cross & (prep.shape_ids == i)) % 2:
             return i
@@ -214,12 +214,12 @@ def inside_of(prep, o, inner) -> int | None:
 def hull_planes(prep, sid):
     """The face planes (P, 4) of shape sid if it is convex (scene/meshes.py convex_planes), else
     None; cached on `prep` (paths.py reads the cache for index-matched shapes). An exact
-    sphere has none: its light paths are measured on the sphere itself (geometry/accel.py), as a traced
-    shape's are, and have no facet kinks."""
+    sphere has none: its light paths are its closed-form chords (paths.boundary, media/convex_chords.py),
+    without facet kinks."""
     cache = prep.interior_planes
     if sid not in cache:
         sel = prep.shape_ids == sid
-        exact = bool(np.any(prep.accel.sphere_of[sel] >= 0))
+        exact = paths.exact_sphere(prep, sid) is not None
         cache[sid] = None if exact else hull_of(prep.accel.triangles[sel], prep.accel.normals[sel])
     return cache[sid]
 

@@ -10,8 +10,10 @@ segment from the light's end (outside every shape, where the parity is known) to
 `segment_quadrature`, `segment_march` and `segment_samples` integrate the inside single
 scattering of camera-ray segments with these lengths (quadrature, raymarch and montecarlo of
 interiors/crossing.py for non-convex index-matched shapes; convex ones use the exact numba kernel of
-media/slab.py instead). `through_quadrature` integrates the outside medium where its light crosses
-index-matched shapes (media/convex_chords.py's kernel when they are all convex). The shadow rays of
+media/slab.py instead, and so does an exact sphere here: its light paths are the closed-form chords of
+media/convex_chords.py, `sphere_radiance`). `through_quadrature` integrates the outside medium where
+its light crosses index-matched shapes (media/convex_chords.py's kernel when they are all convex or
+exact spheres: `boundary`). The shadow rays of
 surfaces use `inside_lengths` too (bounded.shadow_through): through an index-matched interior they are
 attenuated, not blocked.
 """
@@ -25,9 +27,10 @@ import numpy as np
 from ..geometry import facet_walk, sections
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
-from ..media.convex_chords import chords_into, through_pieces
+from ..media.adaptive import CAPPED
+from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
-from ..media.slab import U, phase_condition, straight_cuts
+from ..media.slab import MARCH, QUAD, SAMPLE, U, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
@@ -391,7 +394,12 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     convex shape, where the light's exit facet changes (`exit_facets`): the integrand is smooth on each
     panel. The bound is the rule's and the integrand's rounding with the walks' length errors
     (`_rounding`), inf where a panel was left open; inf in a convex shape (here: more than MAX_FACES
-    planes; its facet walk's and Embree exits' rounding is not analysed), integrated as before."""
+    planes; its facet walk's and Embree exits' rounding is not analysed), integrated as before. An exact
+    sphere: media/slab.py's kernel (`_on_sphere`), bounded."""
+    sphere = exact_sphere(prep, sid)
+    if sphere is not None:
+        val, _, err = _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, QUAD, stats, rtol=rtol)
+        return val, err
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     convex = prep.interior_planes.get(sid) is not None
     facets = exit_facets(prep, sid, geo, directional, end) if convex else None
@@ -584,17 +592,18 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
     straight path: the integrand ks Phi(mu) F exp(-kt (x + d)) / d^2 of the unshadowed air-light
     times exp(-(kt_in - kt) . k) over the lengths k inside each shape (`chords`), by `adaptive`
     from the whole segments (cone crossings were cut before: segments.cone_segments); when every
-    shape is convex, by media/convex_chords.py's kernel of the same rule, chords and integrand."""
+    shape is convex or an exact sphere (`boundary`), by media/convex_chords.py's kernel of the same
+    rule, chords and integrand."""
     lights = prep.lights
     kt, ks = medium.sigma_t, medium.sigma_s
     end = np.minimum(segs.length, 745.0 / max(float(np.min(kt)), 1e-300))
     dk = kt_in - kt[None, :]
-    planes = [prep.interior_planes.get(sid) for sid in sids]
-    if all(p is not None for p in planes):  # convex: the whole rule in one kernel (media/convex_chords.py)
+    bounds = [boundary(prep, sid) for sid in sids]
+    if all(b is not None for b in bounds):  # the whole rule in one kernel (media/convex_chords.py)
         out = np.empty((len(end), 3))
         through_pieces(segs.origins, segs.dirs, end, segs.light, lights.position, lights.axis, lights.cone,
-                       lights.intensity, np.concatenate([np.zeros((0, 4)), *planes]),
-                       np.cumsum([0] + [len(p) for p in planes]),
+                       lights.intensity, np.concatenate([np.zeros((0, 4))] + [b[1] for b in bounds]),
+                       np.cumsum([0] + [len(b[1]) for b in bounds]), np.array([b[0] for b in bounds], np.int64),
                        np.ascontiguousarray(dk), kt, ks, medium.phase, medium.g, rtol, MAX_LEVELS, MAX_OPEN,
                        _N10, _W10, _N20, _W20, out, stats)
         return out
@@ -634,17 +643,17 @@ def through_integrand(prep, segs, medium, sids, dk):
 
 def chords(prep, sids, points, dirs, dist):
     """Lengths (M, len(sids)) inside each index-matched shape of the segments from `points` outside
-    every shape along the unit `dirs` over `dist`: a convex shape's by its face planes in float64
-    (bounded.hull_planes' cache), another's walked with Embree (`inside_lengths`)."""
+    every shape along the unit `dirs` over `dist`: a convex shape's by its face planes, an exact
+    sphere's by its roots, in float64 (`boundary`), another's walked with Embree (`inside_lengths`)."""
     out = np.zeros((len(points), len(sids)))
     walked = []
     for j, sid in enumerate(sids):
-        planes = prep.interior_planes.get(sid)
-        if planes is None:
+        b = boundary(prep, sid)
+        if b is None:
             walked.append(j)
             continue
         col = np.empty(len(points))
-        chords_into(np.ascontiguousarray(points), np.ascontiguousarray(dirs), np.ascontiguousarray(dist), planes, col)
+        boundary_chords(np.ascontiguousarray(points), np.ascontiguousarray(dirs), np.ascontiguousarray(dist), *b, col)
         out[:, j] = col
     if walked:
         out[:, walked] = inside_lengths(prep, points, dirs, dist, [sids[j] for j in walked],
@@ -689,7 +698,11 @@ def _first_panels(geo, directional, end, facets=None, kinks=None):
 
 def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, tau_max):
     """The midpoint rule with `steps` points per segment and channel, the segment cut where its optical
-    depth reaches tau_max (media/slab.py's MARCH)."""
+    depth reaches tau_max (media/slab.py's MARCH; an exact sphere's in its kernel, `_on_sphere`)."""
+    sphere = exact_sphere(prep, sid)
+    if sphere is not None:
+        return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, MARCH, steps=steps,
+                          tau_max=tau_max)[0]
     out = np.zeros((len(ell), len(kts)))
     seg = np.repeat(np.arange(len(ell)), steps)
     j = np.tile(np.arange(steps) + 0.5, len(ell))
@@ -703,7 +716,12 @@ def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, 
 
 def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, keys, dim0, seed):
     """Free-path sampling (media/slab.py's SAMPLE): `steps` samples per segment and channel, the same
-    random numbers for every channel; the mean and the variance of the mean (N, C) each."""
+    random numbers for every channel (an exact sphere's in media/slab.py's kernel, `_on_sphere`); the
+    mean and the variance of the mean (N, C) each."""
+    sphere = exact_sphere(prep, sid)
+    if sphere is not None:
+        return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, SAMPLE, steps=steps, keys=keys,
+                          dim0=dim0, seed=seed)[:2]
     n = len(ell)
     out, var = np.zeros((n, len(kts))), np.zeros((n, len(kts)))
     seg = np.repeat(np.arange(n), steps)
@@ -718,3 +736,41 @@ def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs
         out[:, c] = f.mean(axis=1)
         var[:, c] = np.maximum((f * f).mean(axis=1) - out[:, c] ** 2, 0.0) / max(steps - 1, 1)
     return out, var
+
+
+def exact_sphere(prep, sid):
+    """(centre, radius) (4,) of shape sid if it is an exact sphere (geometry/sphere.py), else None."""
+    k = prep.accel.sphere_of[prep.shape_ids == sid]
+    return prep.accel.spheres[k[0]] if len(k) and k[0] >= 0 else None
+
+
+def boundary(prep, sid):
+    """(kind, rows) of shape sid's boundary for the float64 kernels of media/convex_chords.py: PLANES
+    and its face planes (convex: crossing.hull_planes' cache, filled before), SPHERE and an exact
+    sphere's (centre, radius); None for a shape walked with Embree."""
+    planes = prep.interior_planes.get(sid)
+    if planes is not None:
+        return PLANES, planes
+    sphere = exact_sphere(prep, sid)
+    return None if sphere is None else (SPHERE, sphere.reshape(1, 4))
+
+
+def _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, mode, stats=None, rtol=0.0, steps=1,
+               tau_max=0.0, keys=None, dim0=0, seed=0):
+    """The `segment_quadrature` (QUAD), `segment_march` (MARCH) or `segment_samples` (SAMPLE) of the
+    segments inside the exact sphere (centre, radius), per channel: (value, variance, bound) (N, C) each,
+    by media/slab.py `sphere_radiance`; stats[0] += its integrals short of their tolerance."""
+    n, nc = len(ell), len(kts)
+    out, var, err = np.zeros((n, nc)), np.zeros((n, nc)), np.zeros((n, nc))
+    col, col_var, col_err = np.empty(n), np.empty(n), np.empty(n)
+    slots = np.zeros(3)  # media/adaptive.py's statistics
+    keys = np.zeros(n, np.uint64) if keys is None else keys
+    geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
+    for c in range(nc):
+        sphere_radiance(np.ascontiguousarray(sphere, dtype=np.float64), geo, bool(directional), ell, float(kts[c]),
+                        float(kss[c]), code, g, float(kt_outs[c]), mode, rtol, steps, tau_max, keys, np.uint64(dim0),
+                        np.uint64(seed), col, col_var, col_err, slots)
+        out[:, c], var[:, c], err[:, c] = col, col_var, col_err
+    if stats is not None:
+        stats[0] += slots[CAPPED]
+    return out, var, err

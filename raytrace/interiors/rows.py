@@ -34,7 +34,6 @@ import math
 import numpy as np
 
 from ..error_bounds import product, spot_rounding
-from ..media.convex_chords import chords_into
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
 from ..methods import Segments
@@ -335,21 +334,18 @@ def _own_streams(segs: Segments, n_lights: int) -> Segments:
 def _attenuation(prep, inner, dk, segs, pos, weight):
     """exp(-dk . lengths) (same shape as weight) of each medium point's straight path to its light
     through the index-matched interiors `inner` (dk (S, 3): their sigma_t minus the outside's), the
-    lengths by the face planes in float64 when every shape is convex (media/convex_chords.py), else
-    by Embree walks (paths.inside_lengths)."""
+    lengths in float64 when every shape is convex or an exact sphere (paths.chords), else by Embree
+    walks (paths.inside_lengths)."""
     out = np.zeros(weight.shape)
     lp = prep.lights.position[segs.light]
-    planes = [prep.interior_planes.get(sid) for sid in inner]
+    exact = all(paths.boundary(prep, sid) is not None for sid in inner)
     for c in range(3):
         p, m = pos[..., c, :], weight[..., c] != 0.0
         rel = np.broadcast_to(lp[:, None, None, :], p.shape)[m] - p[m]
         dist = np.linalg.norm(rel, axis=1)
         dirs = rel / np.where(dist > 0.0, dist, 1.0)[:, None]
-        if all(q is not None for q in planes):
-            per_shape = np.empty((len(inner), len(dist)))
-            for j, q in enumerate(planes):
-                chords_into(np.ascontiguousarray(p[m]), dirs, dist, q, per_shape[j])
-            lengths = per_shape.T
+        if exact:
+            lengths = paths.chords(prep, inner, p[m], dirs, dist)
         else:
             lengths, _ = paths.inside_lengths(prep, p[m], dirs, dist, inner, margin=prep.accel.epsilon)
         f = out[..., c]

@@ -41,7 +41,7 @@ OBJECT_TAGS = {"shape", "bsdf", "emitter", "medium", "phase", "sensor", "film", 
                "texture", "volume"}
 FACET_PIXELS = 0.25  # a tessellated sphere's facets span at most this many pixels seen from the camera
 SEGMENTS = (64, 256)  # the clamp on a curved shape's segments (spheres, disks, cylinders)
-INTERIOR_SEGMENTS = 64  # a sphere holding a medium: every convex face plane is tested per evaluation today
+INTERIOR_SEGMENTS = 64  # the mesh of a curved shape holding a medium (an exact sphere's rows) at most this fine
 
 
 # ------------------------------------------------------------------------------------------- reading
@@ -761,8 +761,8 @@ class _Reader:
                 self.doc.fail(el, "a sphere needs a positive radius and a to_world without non-uniform scale or "
                               "shear (Mitsuba's rule)", "scale it uniformly, or use a mesh for an ellipsoid")
             radius = float(r * s)
-            return {"primitive": "sphere", "center": c[:3].tolist(), "radius": radius,  # exact unless it holds a
-                    "segments": self.segments(c[:3], radius, holds_medium), "exact": not holds_medium}  # medium
+            return {"primitive": "sphere", "center": c[:3].tolist(), "radius": radius,
+                    "segments": self.segments(c[:3], radius, holds_medium), "exact": True}
         from ..scene.meshes import cylinder_triangles
 
         n = self.segments(M[:3, 3], max(np.linalg.norm(M[:3, :2], axis=0)), holds_medium)
@@ -1056,10 +1056,9 @@ class _Writer:
             if inner is not None and i in self.emission:
                 raise UserError(f"{self.source}: shape[{i}].emission: an emitting shape that holds a medium cannot "
                                 "be exported; put the medium in a shape of its own")
-            # a sphere goes out as Mitsuba's where it reads back the same (`_Reader.geometry`): exact, or holding
-            # a medium (then a mesh of INTERIOR_SEGMENTS, as read); other meshes of spheres as PLY
-            sphere = world_sphere(shape) if shape.kind == "sphere" and (shape.params["exact"] or (
-                inner is not None and shape.params["segments"] == INTERIOR_SEGMENTS)) else None
+            # a sphere goes out as Mitsuba's where it reads back the same (`_Reader.geometry`): exact (also
+            # holding a medium); meshes of spheres as PLY
+            sphere = world_sphere(shape) if shape.kind == "sphere" and shape.params["exact"] else None
             if inner is not None:
                 el = _add(root, "shape", type="ply") if sphere is None else self.sphere(root, *sphere)
                 if sphere is None:

@@ -32,7 +32,7 @@ from . import emitters
 from .meshfile import read_mesh
 from .report import ImportNote, Problems, every
 
-SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our exact sphere (a mesh of this many segments if it holds a medium)
+SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our exact sphere (its mesh rows: this many segments)
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
 ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted
@@ -999,7 +999,6 @@ class _Reader:
         if mat[0] == "interface" and not transition:
             return None  # pbrt skips it: it changes nothing
         medium = inner or {"sigma_a": [0.0] * 3, "sigma_s": [0.0] * 3, "phase": "isotropic"}
-        shape.pop("exact", None)  # an exact sphere holding a medium is not built yet: its mesh of SPHERE_SEGMENTS
         shape["interior"] = {**medium, "ior": 1.0 if mat[0] == "interface" else mat[1]}
         return shape
 
@@ -1225,10 +1224,9 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     for i, shape in enumerate(scene.shapes):
         mine = ids == i
         lines.append("AttributeBegin")
-        # a sphere goes out as pbrt's where it reads back the same: exact, or holding a medium (then a mesh of
-        # SPHERE_SEGMENTS, as read); an emitting one or another mesh of a sphere goes out as its triangles
-        sphere = world_sphere(shape) if shape.kind == "sphere" and i not in emission and (shape.params["exact"] or (
-            shape.interior is not None and shape.params["segments"] == SPHERE_SEGMENTS)) else None
+        # a sphere goes out as pbrt's where it reads back the same: exact (also holding a medium); an emitting
+        # one or a mesh of a sphere goes out as its triangles
+        sphere = world_sphere(shape) if shape.kind == "sphere" and i not in emission and shape.params["exact"] else None
         if i in emission:  # emitting towards each triangle's winding (or its N: oriented to the winding)
             if shape.interior is not None:
                 raise UserError(f"{source}: shape[{i}].emission: an emitting shape that holds a medium cannot be "

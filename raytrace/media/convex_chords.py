@@ -7,7 +7,15 @@ segment p + s u, 0 <= s <= dist (u unit), lies inside for s in [lo, hi] with
     lo = max(0, max_{n_f·u < 0} s_f),  hi = min(dist, min_{n_f·u > 0} s_f),  s_f = (c_f - n_f·p) / (n_f·u),
 
 and none of it where a face parallel to u has p outside it; its chord is max(hi - lo, 0) (`chord`, `clip`
-per face; `chords_into` for arrays of segments).
+per face; `boundary_chords` for arrays of segments).
+
+An exact sphere (`primitive = "sphere"`, `exact = true`) is the other boundary kind: one row (centre,
+radius) of kind SPHERE beside the planes' PLANES. Its chord is max(min(t1, dist) - max(t0, 0), 0) from
+the stable roots t0 <= t1 of geometry/sphere.py `sphere_roots` (`sphere_chord`), and the exit from a
+point inside it is the far root t1 (`sphere_exit`). The chord toward a point light of the points of a
+line outside the sphere has a square-root kink where the path to the light turns tangent to the sphere
+(the light's tangent cone, a quadratic in x: sphere.py `shadow_breaks`); those are its kinks
+(`boundary_kinks`), as the polygon's vertices are a convex shape's.
 
 `through_pieces` integrates, per piece o + x w, x in [0, end], lit by a point or spot light at l,
 
@@ -28,6 +36,7 @@ import math
 
 import numpy as np
 
+from ..geometry.sphere import shadow_breaks, sphere_roots
 from ..jit import njit
 from ..lights import falloff
 from .phase import phase_value
@@ -57,12 +66,66 @@ def chord(planes, first, stop, px, py, pz, ux, uy, uz, dist):
     return max(min(hi, dist) - lo, 0.0)
 
 
+PLANES, SPHERE = 0, 1  # boundary kinds: rows of face planes (n_x, n_y, n_z, c), or one row (centre, radius)
+END_SNAP = 1e-12  # relative: a sphere's kink this close to a piece's end is taken to lie on it
+
+
+@njit(inline="always")
+def sphere_chord(row, px, py, pz, ux, uy, uz, dist):
+    """The length of the segment p + s u, 0 <= s <= dist (u unit, dist <= inf), inside the sphere
+    row = (centre, radius): between the stable roots of `sphere_roots`, 0 where the line misses it."""
+    t0, t1 = sphere_roots((px, py, pz), (ux, uy, uz), (row[0], row[1], row[2]), row[3])
+    if t1 == math.inf:
+        return 0.0
+    return max(min(t1, dist) - max(t0, 0.0), 0.0)
+
+
+@njit(inline="always")
+def sphere_exit(row, px, py, pz, ux, uy, uz):
+    """The distance from p inside the sphere row = (centre, radius) along the unit u to its surface:
+    the far root of `sphere_roots`; 0 where rounding puts p off the sphere with the line missing it
+    or the root behind p (the exact distance is then within the rounding, sphere_rounding)."""
+    t0, t1 = sphere_roots((px, py, pz), (ux, uy, uz), (row[0], row[1], row[2]), row[3])
+    return max(t1, 0.0) if t1 < math.inf else 0.0
+
+
+@njit(inline="always")
+def boundary_chord(kind, rows, first, stop, px, py, pz, ux, uy, uz, dist):
+    """`chord` of the convex shape of rows[first:stop] (PLANES) or `sphere_chord` of the sphere
+    rows[first] (SPHERE)."""
+    if kind == SPHERE:
+        return sphere_chord(rows[first], px, py, pz, ux, uy, uz, dist)
+    return chord(rows, first, stop, px, py, pz, ux, uy, uz, dist)
+
+
 @njit
-def chords_into(points, dirs, dist, planes, out):
-    """out[i] = `chord` of the segments from points[i] along dirs[i] over dist[i] (all of `planes`)."""
+def boundary_chords(points, dirs, dist, kind, rows, out):
+    """out[i] = `boundary_chord` of the segments from points[i] along dirs[i] over dist[i]."""
     for i in range(points.shape[0]):
-        out[i] = chord(planes, 0, planes.shape[0], points[i, 0], points[i, 1], points[i, 2], dirs[i, 0], dirs[i, 1],
-                       dirs[i, 2], dist[i])
+        out[i] = boundary_chord(kind, rows, 0, rows.shape[0], points[i, 0], points[i, 1], points[i, 2], dirs[i, 0],
+                                dirs[i, 1], dirs[i, 2], dist[i])
+
+
+@njit
+def boundary_kinks(kind, rows, first, stop, o, w, light, end, out):
+    """The kinks in (0, end) of the chords toward the point light along the line o + x w (into out,
+    ascending; >= stop - first + 4 long; returns their count): `section_kinks` of a convex shape, a
+    sphere's tangent-cone crossings (`shadow_breaks`, which also gives where the line itself crosses
+    the sphere: the ends of a piece outside it) in [0, end], those within END_SNAP of an end at that
+    end (a piece that the frusta end at the sphere's shadow ends on its tangent cone: a square-root
+    kink at the end, which the rule must know of as well)."""
+    if kind != SPHERE:
+        return section_kinks(rows, first, stop, o, w, light, end, out)
+    buf = np.empty(4)
+    n = shadow_breaks(o, w, light, False, rows[first, :3], rows[first, 3], buf)
+    m = 0
+    tol = END_SNAP * end
+    for j in range(n):
+        if -tol <= buf[j] <= end + tol:
+            out[m] = min(max(buf[j], 0.0), end)
+            m += 1
+    out[:m].sort()
+    return m
 
 
 @njit
@@ -170,23 +233,28 @@ def _airlight(x, d, mu, f, e0, e1, e2, kt0, kt1, kt2, ks0, ks1, ks2, i0, i1, i2,
 
 
 @njit
-def through_pieces(origins, dirs, end, light, positions, axes, cones, intensities, planes, offsets, dk, kt, ks,
-                   code, g, rtol, max_levels, max_panels, n10, w10, n20, w20, out, stats):
+def through_pieces(origins, dirs, end, light, positions, axes, cones, intensities, planes, offsets, kinds, dk, kt,
+                   ks, code, g, rtol, max_levels, max_panels, n10, w10, n20, w20, out, stats):
     """out[i] (3,) = ∫_0^end[i] of (1) along piece i (origins, dirs; light[i] indexes the lights'
-    positions, axes, cones (cos_end, cos_start, curve) and intensities) through the convex shapes
-    whose face planes are planes[offsets[j]:offsets[j + 1]] (dk[j] = their sigma_t minus kt);
-    stats[0] += the panels dropped at max_levels or accepted at max_panels, short of their tolerance.
-    The first panels are cut at the kinks of the chords (`section_kinks` of every shape), so that the
-    adaptive rule meets only smooth panels (a finely tessellated sphere: one kink per facet edge the
-    light's paths sweep). One loop with its helpers inlined: helpers called per evaluation with arrays
-    and tuples (their reference counts) took half of the kernel's time."""
+    positions, axes, cones (cos_end, cos_start, curve) and intensities) through the shapes whose
+    boundaries (of kind kinds[j]: face planes or an exact sphere) are planes[offsets[j]:offsets[j + 1]]
+    (dk[j] = their sigma_t minus kt); stats[0] += the panels dropped at max_levels or accepted at
+    max_panels, short of their tolerance. The first panels are cut at the kinks of the chords
+    (`boundary_kinks` of every shape), so that the adaptive rule meets only smooth panels (a finely
+    tessellated sphere: one kink per facet edge the light's paths sweep). An exact sphere's kinks are
+    square-root ones (the chord grows as sqrt(x - x_b) past the tangent cone), which Gauss-Legendre
+    meets at h^1.5 on a panel of width h beside them: a first panel that ends at one is integrated in
+    u with x = x_b + (x_other - x_b) u^2 (smooth in u), its halves in u the quarter beside x_b (warped
+    again) and the rest (plain); a panel with such a kink at both ends is halved first. One loop with
+    its helpers inlined: helpers called per evaluation with arrays and tuples (their reference counts)
+    took half of the kernel's time."""
     n_kinks = 0
     for j in range(offsets.shape[0] - 1):
         n_kinks += offsets[j + 1] - offsets[j] + 4
-    lo_stack = np.empty(n_kinks + max_levels + 2)
-    hi_stack = np.empty(n_kinks + max_levels + 2)
-    depth = np.empty(n_kinks + max_levels + 2, dtype=np.int64)
+    size = 2 * n_kinks + max_levels + 4
+    lo_stack, hi_stack, depth, warp = np.empty(size), np.empty(size), np.empty(size, np.int64), np.empty(size, np.int64)
     kinks = np.empty(n_kinks + 1)
+    rooted = np.zeros(n_kinks + 1, dtype=np.bool_)  # a square-root kink (an exact sphere's)
     found = np.empty(n_kinks + 1)
     n_nodes = n10.shape[0] + n20.shape[0]
     for i in range(origins.shape[0]):
@@ -199,29 +267,44 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
         floor0 = floor1 = floor2 = 0.0
         m = 0
         for j in range(offsets.shape[0] - 1):
-            c = section_kinks(planes, offsets[j], offsets[j + 1], origins[i], dirs[i], positions[li], end[i], found)
+            c = boundary_kinks(kinds[j], planes, offsets[j], offsets[j + 1], origins[i], dirs[i], positions[li], end[i],
+                               found)
             kinks[m:m + c] = found[:c]
+            rooted[m:m + c] = kinds[j] == SPHERE
             m += c
-        cuts = np.sort(kinks[:m])
-        top = 0  # the first panels, the lowest on top
-        b = end[i]
-        for k in range(m - 1, -1, -1):
-            if cuts[k] < b:
-                lo_stack[top], hi_stack[top], depth[top] = cuts[k], b, 0
+        order = np.argsort(kinks[:m])
+        cuts, roots = kinks[:m][order], rooted[:m][order]
+        top = 0  # the first panels, the lowest on top; warp 1 (2): a square-root kink at the start (end)
+        b, at_b = end[i], False
+        for k in range(m, -1, -1):
+            a, at_a = (cuts[k - 1], roots[k - 1]) if k > 0 else (0.0, False)
+            if not a < b:
+                at_b = at_b or at_a
+                continue
+            if at_a and at_b:
+                mid = 0.5 * (a + b)
+                lo_stack[top], hi_stack[top], depth[top], warp[top] = mid, b, 0, 2
+                lo_stack[top + 1], hi_stack[top + 1], depth[top + 1], warp[top + 1] = a, mid, 0, 1
+                top += 2
+            else:
+                lo_stack[top], hi_stack[top], depth[top], warp[top] = a, b, 0, 1 if at_a else (2 if at_b else 0)
                 top += 1
-                b = cuts[k]
-        lo_stack[top], hi_stack[top], depth[top] = 0.0, b, 0
-        top += 1
+            b, at_b = a, at_a
         panels = 0
         while top > 0:
             top -= 1
-            a, b, level = lo_stack[top], hi_stack[top], depth[top]
+            a, b, level, wp = lo_stack[top], hi_stack[top], depth[top], warp[top]
             half, mid = 0.5 * (b - a), 0.5 * (a + b)
             c0 = c1 = c2 = f0 = f1 = f2 = 0.0  # the 10- and 20-point sums
             for q in range(n_nodes):
                 coarse = q < n10.shape[0]
                 node, weight = (n10[q], w10[q]) if coarse else (n20[q - n10.shape[0]], w20[q - n10.shape[0]])
-                x = mid + half * node
+                if wp == 0:
+                    x = mid + half * node
+                else:  # x = x_b ± (b - a) u^2, u = (1 + node) / 2: dx = half 2u dnode
+                    u = 0.5 * (1.0 + node)
+                    x = a + (b - a) * u * u if wp == 1 else b - (b - a) * u * u
+                    weight *= 2.0 * u
                 px, py, pz = ox + x * wx, oy + x * wy, oz + x * wz
                 rx, ry, rz = lx - px, ly - py, lz - pz
                 d = max(math.sqrt(rx * rx + ry * ry + rz * rz), 1e-125)
@@ -232,7 +315,7 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                     continue
                 e0 = e1 = e2 = 0.0
                 for j in range(dk.shape[0]):
-                    k = chord(planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
+                    k = boundary_chord(kinds[j], planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
                     e0 += k * dk[j, 0]
                     e1 += k * dk[j, 1]
                     e2 += k * dk[j, 2]
@@ -260,7 +343,9 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                 out[i, 2] += f2
             elif level + 1 >= max_levels:  # dropped, as inside_paths.adaptive drops it
                 stats[0] += 1.0
-            else:
-                lo_stack[top], hi_stack[top], depth[top] = mid, b, level + 1
-                lo_stack[top + 1], hi_stack[top + 1], depth[top + 1] = a, mid, level + 1
+            else:  # halves in x, or in u: the quarter beside the kink (warped) and the rest (plain)
+                cut = mid if wp == 0 else (a + 0.25 * (b - a) if wp == 1 else b - 0.25 * (b - a))
+                lo_stack[top], hi_stack[top], depth[top], warp[top] = cut, b, level + 1, 2 if wp == 2 else 0
+                lo_stack[top + 1], hi_stack[top + 1], depth[top + 1] = a, cut, level + 1
+                warp[top + 1] = 1 if wp == 1 else 0
                 top += 2

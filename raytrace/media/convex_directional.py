@@ -11,7 +11,7 @@ inside from p(t) to the boundary has length
 
 the lower envelope of the faces the light crosses (q_f > 0; faces parallel to the light, q_f = 0,
 are never crossed): concave and piecewise linear, with at most F pieces (`envelope`). The
-clamp at 0 (slab.convex_exit's) matters only for points off the shape by rounding. Per unit
+clamp at 0 (slab.convex_exit_face's) matters only for points off the shape by rounding. Per unit
 irradiance, with Phi the phase value at the scattering cosine u·w (constant along the segment),
 
     L = ks Phi ∫_0^T exp(-kt (t + s(t))) dt,                                                      (2)

@@ -45,7 +45,7 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
 from ..rng import uniform
 from .adaptive import INTERVALS, bounded_piecewise, piecewise
-from .convex_chords import section_kinks
+from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
 from .integrand import integrand, integrand_of
 from .march import march
@@ -607,15 +607,10 @@ def convex_exit_face(px, py, pz, ux, uy, uz, planes):
     return best, face
 
 
-@njit
-def convex_exit(px, py, pz, ux, uy, uz, planes):
-    """The distance of `convex_exit_face`."""
-    return convex_exit_face(px, py, pz, ux, uy, uz, planes)[0]
-
-
 class ConvexIntegrand(NamedTuple):
     """`convex_integrand` in x along an inside segment of a convex index-matched shape."""
     geo: np.ndarray
+    kind: int
     planes: np.ndarray
     directional: bool
     kt: float
@@ -627,10 +622,20 @@ class ConvexIntegrand(NamedTuple):
     only: int
 
 
+@njit(inline="always")
+def exit_face(kind, planes, px, py, pz, ux, uy, uz):
+    """`convex_exit_face` of the face planes (PLANES), or (convex_chords.sphere_exit, -1) of the exact
+    sphere planes[0] = (centre, radius) (SPHERE)."""
+    if kind == SPHERE:
+        return sphere_exit(planes[0], px, py, pz, ux, uy, uz), -1
+    return convex_exit_face(px, py, pz, ux, uy, uz, planes)
+
+
 @njit
-def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase, only):
-    """The single-scattering integrand at x along an inside segment of a convex index-matched shape,
-    with the light's straight path inside measured exactly to the shape's boundary: geo = (entry
+def convex_integrand(x, geo, kind, planes, directional, kt, ks, code, g, kt_out, phase, only):
+    """The single-scattering integrand at x along an inside segment of a convex index-matched shape
+    (its boundary of `kind`: face planes, or an exact sphere, convex_chords.py), with the light's
+    straight path inside measured exactly to the shape's boundary: geo = (entry
     point, segment direction w, the light's position or, for a directional light, minus its
     direction of travel); a directional light's value per unit irradiance (`phase` its phase
     value), a point light's per unit intensity. only >= 0 (a directional light's beam refracted
@@ -638,7 +643,7 @@ def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase
     path back toward the light leaves through another face."""
     X0, X1, X2 = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
     if directional:
-        k, face = convex_exit_face(X0, X1, X2, geo[6], geo[7], geo[8], planes)
+        k, face = exit_face(kind, planes, X0, X1, X2, geo[6], geo[7], geo[8])
         if only >= 0 and face != only:
             return 0.0
         return ks * phase * math.exp(-kt * (x + k))
@@ -648,7 +653,7 @@ def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase
     f = falloff(-(r0 * geo[9] + r1 * geo[10] + r2 * geo[11]) / d, geo[12], geo[13], geo[17])  # leaving the light along -r
     if f == 0.0:
         return 0.0
-    k = min(convex_exit(X0, X1, X2, r0 / d, r1 / d, r2 / d, planes), d)
+    k = min(exit_face(kind, planes, X0, X1, X2, r0 / d, r1 / d, r2 / d)[0], d)
     mu = (r0 * geo[3] + r1 * geo[4] + r2 * geo[5]) / d  # the light travels along -r; the eye is along -w
     return ks * phase_value(code, g, mu) * f * math.exp(-kt * (x + k) - kt_out * (d - k)) / d2
 
@@ -656,7 +661,8 @@ def convex_integrand(x, geo, planes, directional, kt, ks, code, g, kt_out, phase
 @integrand_of(ConvexIntegrand)
 @njit
 def _convex_value(x, r):
-    return convex_integrand(x, r.geo, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase, r.only)
+    return convex_integrand(x, r.geo, r.kind, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, r.phase,
+                            r.only)
 
 
 @njit
@@ -696,50 +702,89 @@ def straight_cuts(geo, end, out):
 @njit
 def convex_quadrature(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, stats):
     """The value of `convex_bounded`."""
-    return convex_bounded(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, NO_PLANE_ERROR,
-                          stats)[0]
+    return convex_bounded(geo, PLANES, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol,
+                          NO_PLANE_ERROR, stats)[0]
 
 
 NO_PLANE_ERROR = np.zeros(2)
 
 
 @njit
-def convex_bounded(geo, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats):
+def convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats):
     """(∫_0^ell `convex_integrand` dx, a bound on its error): adaptive (adaptive.bounded_piecewise) on
     the pieces between the kinks of the light's path inside, where the face it leaves through changes:
     a directional light's (convex_directional.envelope; with `only`, the pieces on other faces are 0),
     a point or spot light's (convex_chords.section_kinks), and a spot's cone crossings (`straight_cuts`).
     A kink inside a panel can fool the rules' agreement: one 1e-3 of the segment from its end was
     accepted 2e-7 off at any rtol, and a point light's kinks inside a 32-face sphere left 3e-9 at rtol
-    1e-10. The bound is the rule's (inf where a panel was accepted at a cap) plus the integrand's
-    rounding (`directional_rounding`, `point_rounding`, with `dplanes` = (dn, dc) the planes' own errors
-    against the shape's faces, on the normals and the offsets: eps relative at every node, so eps (value + rule)
-    over each of the rule's 20-point sums and the 10-point sums of its test; the integrand is positive),
-    and the sum over the rule's intervals (u per interval)."""
+    1e-10. Inside an exact sphere (kind SPHERE, planes[0] its centre and radius) the path is smooth:
+    only a spot's cone crossings cut it. The bound is the rule's (inf where a panel was accepted at a
+    cap) plus the integrand's rounding (`directional_rounding`, `point_rounding`, with `dplanes` = (dn,
+    dc) the planes' own errors against the shape's faces, on the normals and the offsets;
+    `sphere_rounding`: eps relative at every node, so eps (value + rule) over each of the rule's
+    20-point sums and the 10-point sums of its test; the integrand is positive), and the sum over the
+    rule's intervals (u per interval)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
     end = min(ell, 745.0 / kt)
-    rec = ConvexIntegrand(geo, planes, directional, kt, ks, code, g, kt_out, phase, only)
-    if directional:
+    rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, phase, only)
+    before = stats[INTERVALS]
+    if kind == SPHERE:
+        br = np.empty(6)
+        br[0] = 0.0
+        m = 0 if directional else straight_cuts(geo, end, br[1:])
+        br[m + 1] = end
+        value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+        eps = sphere_rounding(geo, planes[0], directional, end, kt, kt_out, code, g)
+    elif directional:
         nf = planes.shape[0]
         cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
         m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, alpha, beta, cuts, lines)
         if m == 0:
             return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
-        before = stats[INTERVALS]
         value, rule = bounded_piecewise(rec, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
         eps = directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta, m, dplanes)
-        return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
-    br = np.empty(planes.shape[0] + 10)
-    br[0] = 0.0
-    m = straight_cuts(geo, end, br[1:])
-    m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
-    br[1:m + 1].sort()
-    br[m + 1] = end
-    before = stats[INTERVALS]
-    value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
-    eps = point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes)
+    else:
+        br = np.empty(planes.shape[0] + 10)
+        br[0] = 0.0
+        m = straight_cuts(geo, end, br[1:])
+        m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
+        br[1:m + 1].sort()
+        br[m + 1] = end
+        value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+        eps = point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes)
     return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
+
+
+@njit
+def _straight(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, dplanes, mode, rtol, steps,
+              tau_max, key, dim0, seed, stats):
+    """(value, variance, bound) of one inside segment of a convex index-matched shape (its boundary of
+    `kind`): QUAD `convex_bounded`, MARCH or SAMPLE `_march_or_sample` of `convex_integrand` (bound inf)."""
+    if mode == QUAD:
+        value, bound = convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, ph, only, rtol,
+                                      dplanes, stats)
+        return value, 0.0, bound
+    length = min(ell, (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
+    rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, ph, only)
+    value, var = _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed)
+    return value, var, math.inf
+
+
+@njit
+def sphere_radiance(sphere, geo, directional, ell, kt, ks, code, g, kt_out, mode, rtol, steps, tau_max, keys, dim0,
+                    seed, out, var, err, stats):
+    """`inside_radiance` inside an index-matched exact sphere (centre, radius) for one light and
+    channel (QUAD, MARCH or SAMPLE: `_straight`): out, var and err per segment (geo: GEO_COLUMNS rows;
+    a directional light's phase at the cosine between w and the direction toward it, geo[6:9])."""
+    rows = sphere.reshape(1, 4)
+    for s in range(ell.shape[0]):
+        out[s], var[s], err[s] = 0.0, 0.0, 0.0
+        if ks == 0.0 or not ell[s] > 0.0:
+            continue
+        ph = phase_value(code, g, geo[s, 3] * geo[s, 6] + geo[s, 4] * geo[s, 7] + geo[s, 5] * geo[s, 8])
+        out[s], var[s], err[s] = _straight(SPHERE, rows, geo[s], directional, ell[s], kt, ks, code, g, kt_out, ph, -1,
+                                           NO_PLANE_ERROR, mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
 
 
 U = 2.0 ** -53  # unit roundoff of doubles
@@ -779,6 +824,12 @@ def directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta
         q = planes[f, 0] * geo[6] + planes[f, 1] * geo[7] + planes[f, 2] * geo[8]
         kmax = max(kmax, alpha[f] + beta[f] * cuts[i], alpha[f] + beta[f] * cuts[i + 1])
         dk = max(dk, (16.0 * U * (abs(planes[f, 3]) + r) + dplanes[1] + dplanes[0] * (r + kmax)) / q)
+    return _directional_eps(r, end, kmax, dk, kt, code, g)
+
+
+@njit
+def _directional_eps(r, end, kmax, dk, kt, code, g):
+    """`directional_rounding` from the light path's largest length kmax and its error dk."""
     return 32.0 * U * (1.0 + kt * (end + kmax)) + kt * (dk + 16.0 * U * r) + 8.0 * U * phase_condition(code, g)
 
 
@@ -794,13 +845,23 @@ def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
     times 2 + the phase's condition (d_min the light's least distance from the segment). inf where the
     light is inside every face plane or on the segment."""
     r, cmax = _size(geo, planes, end)
-    px, py, pz = geo[6], geo[7], geo[8]
-    p = math.sqrt(px * px + py * py + pz * pz)
+    p, dmax, dmin = _light_span(geo, end)
     hmin = math.inf
     for f in range(planes.shape[0]):
-        hf = planes[f, 0] * px + planes[f, 1] * py + planes[f, 2] * pz - planes[f, 3]
+        hf = planes[f, 0] * geo[6] + planes[f, 1] * geo[7] + planes[f, 2] * geo[8] - planes[f, 3]
         if hf > 0.0:
             hmin = min(hmin, hf)
+    if not (hmin < math.inf and dmin > 0.0):
+        return math.inf
+    dk = 16.0 * U * ((cmax + p + 2.0 * r) * dmax / hmin + dmax) + (dplanes[1] + dplanes[0] * (r + dmax)) * dmax / hmin
+    return _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g)
+
+
+@njit
+def _light_span(geo, end):
+    """(|p|, D, d_min) of a point light p: its norm and its largest and least distance from the segment."""
+    px, py, pz = geo[6], geo[7], geo[8]
+    p = math.sqrt(px * px + py * py + pz * pz)
     d0x, d0y, d0z = px - geo[0], py - geo[1], pz - geo[2]
     d0 = math.sqrt(d0x * d0x + d0y * d0y + d0z * d0z)
     d1x, d1y, d1z = d0x - end * geo[3], d0y - end * geo[4], d0z - end * geo[5]
@@ -809,12 +870,74 @@ def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
     dmax, dmin = max(d0, d1), min(d0, d1)
     if 0.0 < xh < end:
         dmin = math.sqrt(max(d0 * d0 - xh * xh, 0.0))
-    if not (hmin < math.inf and dmin > 0.0):
-        return math.inf
-    dk = 16.0 * U * ((cmax + p + 2.0 * r) * dmax / hmin + dmax) + (dplanes[1] + dplanes[0] * (r + dmax)) * dmax / hmin
+    return p, dmax, dmin
+
+
+@njit
+def _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g):
+    """`point_rounding` from the light's span (`_light_span`) and the error dk of the path inside."""
     dd = 8.0 * U * (p + r)
     return (32.0 * U * (1.0 + kt * (end + dmax) + kt_out * dmax) + kt * (dk + 16.0 * U * r) + kt_out * (dk + dd)
             + (2.0 + phase_condition(code, g)) * dd / dmin)
+
+
+@njit
+def _offset(cx, cy, cz, ox, oy, oz, ux, uy, uz):
+    """|(o - c) x u| / |u|: the distance from c of the line through o along u."""
+    fx, fy, fz = ox - cx, oy - cy, oz - cz
+    ax, ay, az = fy * uz - fz * uy, fz * ux - fx * uz, fx * uy - fy * ux
+    return math.sqrt(ax * ax + ay * ay + az * az) / math.sqrt(ux * ux + uy * uy + uz * uz)
+
+
+@njit
+def sphere_rounding(geo, sphere, directional, end, kt, kt_out, code, g):
+    """`directional_rounding` and `point_rounding` inside the exact sphere (centre c, radius rho):
+    the light's path inside is the far root k = -b + sqrt(b^2 + rho^2 - |f|^2) of sphere_roots from
+    X = o + x w (f = X - c, b = f·u), whose inputs f, b and the line's offset h from c are off by
+    delta = 16u (R + |c| + rho) (R = |o| + end) and whose discriminant (rho - h)(rho + h) and
+    (|f| - rho)(|f| + rho) by e = 4 rho delta + 4 delta^2; the square root sqrt(rho^2 - h^2) (half
+    the line's chord) then moves by e / s for s >= sqrt(e), and by at most sqrt(e) (where the line
+    grazes the sphere, k <= 2 s), so k is off by dk = min(4 e / s_min, 10 sqrt(e)) + 4 delta + 32u rho,
+    s_min^2 = rho^2 - h_max^2 - 2e with h_max the largest offset over the segment's light lines: a
+    directional light's are parallel, |(f0 + x w) x l| convex in x, largest at an end; a point light
+    L's pass through L, h = |c - L| sin(theta) with theta the angle at L between c and X, whose cosine
+    (A + B x) / sqrt(C + 2 D x + x^2) (A = e·(o - L), B = e·w for the unit e toward c, C = |o - L|^2,
+    D = (o - L)·w) is stationary only at x* = (A D - B C) / (B D - A): the largest at an end or x*.
+    inf for a light inside the sphere or on the segment."""
+    cx, cy, cz, rho = sphere[0], sphere[1], sphere[2], sphere[3]
+    r = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2]) + end
+    delta = 16.0 * U * (r + math.sqrt(cx * cx + cy * cy + cz * cz) + rho)
+    e = 4.0 * rho * delta + 4.0 * delta * delta
+    ends = (0.0, end, -1.0)
+    lx, ly, lz = geo[6], geo[7], geo[8]
+    if not directional:
+        ex, ey, ez = cx - geo[6], cy - geo[7], cz - geo[8]
+        dist = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if not dist > rho:
+            return math.inf
+        vx, vy, vz = geo[0] - geo[6], geo[1] - geo[7], geo[2] - geo[8]
+        a = (ex * vx + ey * vy + ez * vz) / dist
+        b = (ex * geo[3] + ey * geo[4] + ez * geo[5]) / dist
+        c = vx * vx + vy * vy + vz * vz
+        d = vx * geo[3] + vy * geo[4] + vz * geo[5]
+        if b * d - a != 0.0:
+            ends = (0.0, end, (a * d - b * c) / (b * d - a))
+    hmax = 0.0
+    for x in ends:
+        if not 0.0 <= x <= end:
+            continue
+        px, py, pz = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
+        if not directional:
+            lx, ly, lz = px - geo[6], py - geo[7], pz - geo[8]
+        hmax = max(hmax, _offset(cx, cy, cz, px, py, pz, lx, ly, lz))
+    s2 = (rho - hmax) * (rho + hmax) - 2.0 * e
+    dk = min(4.0 * e / math.sqrt(s2) if s2 > 0.0 else math.inf, 10.0 * math.sqrt(e)) + 4.0 * delta + 32.0 * U * rho
+    if directional:
+        return _directional_eps(r, end, 2.0 * rho, dk, kt, code, g)
+    p, dmax, dmin = _light_span(geo, end)
+    if not dmin > 0.0:
+        return math.inf
+    return _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g)
 
 
 @njit
@@ -896,7 +1019,7 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
     free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
     dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per segment (a spot's axis and cone
-    there; NO_CONE for other lights). With `planes` (a convex shape, rows of `convex_exit`; else an
+    there; NO_CONE for other lights). With `planes` (a convex shape, rows of `convex_exit_face`; else an
     empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
@@ -936,23 +1059,18 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
                 out[s], var[s] = _march_or_sample(rec3, mode, length, kt, steps, keys[s], dim0, seed)
             continue
         if convex and mode != CLOSED and mode != APPROX:
-            if mode == QUAD:
-                out[s], bound = convex_bounded(geo[s], planes, directional[s], ell[s], kt, ks, code, g, kt_out, ph,
-                                               only, rtol, dplanes, stats)
-                if eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are not analysed
-                    err[s] = bound
-                continue
-        elif (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
+            out[s], var[s], bound = _straight(PLANES, planes, geo[s], directional[s], ell[s], kt, ks, code, g, kt_out,
+                                              ph, only, dplanes, mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
+            if mode == QUAD and eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are
+                err[s] = bound  # not analysed
+            continue
+        if (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
             continue
         if mode == MARCH or mode == SAMPLE:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
-            if convex:
-                rec = ConvexIntegrand(geo[s], planes, directional[s], kt, ks, code, g, kt_out, ph, only)
-                out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
-            else:
-                rec2 = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out,
-                                       wl[s], ll[s], eta, spot)
-                out[s], var[s] = _march_or_sample(rec2, mode, length, kt, steps, keys[s], dim0, seed)
+            rec2 = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out,
+                                   wl[s], ll[s], eta, spot)
+            out[s], var[s] = _march_or_sample(rec2, mode, length, kt, steps, keys[s], dim0, seed)
         elif directional[s]:
             if mode == QUAD:
                 out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
