@@ -26,7 +26,7 @@ import numpy as np
 from .jit import exact_njit, njit
 from .rng import uniform
 
-STRATA = 8  # a penumbra's samples: STRATA x STRATA strata of the emitter's (u, v) square, two in each
+STRATA = 8  # a penumbra's samples: STRATA x STRATA (even) strata of the emitter's (u, v) square, two in each
 DIM_PENUMBRA = 1 << 48  # the first random-number dimension (rng.py) of the penumbrae's samples
 SAMPLES_PER_CHUNK = 1 << 16  # emitter samples (points x samples per point) per batch of shadow rays
 
@@ -222,8 +222,11 @@ def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys
     each, keyed by the points' `keys`, `seed` and the emitter's index `owner`: rng.py), each with its
     shadow ray: with y a sample, n_y its normal, w = (y - x) / d, p_A its area density,
     g = rho / pi L T(x, y) V(x, y) cos_x max(0, n_y . -w) / (d^2 p_A) (|n_y . w| two-sided), the
-    estimate is the mean of the g, the variance sum_s (g_s1 - g_s2)^2 / (4 S^2) (unbiased: each
-    stratum's two samples are independent)."""
+    estimate is the mean of the g. Its variance sum_s sigma_s^2 / (2 S^2) is estimated with the
+    strata collapsed in blocks of 2 x 2 (Cochran, Sampling Techniques, 5A.12): 2 sum_B s_B^2 / S^2,
+    s_B^2 the sample variance of block B's 8 values; it exceeds the variance on average by the
+    spread of the strata's means within a block (conservative), and unlike the pairs within one
+    stratum it does not vanish where a shadow edge crosses strata whose two samples happen to agree."""
     per = 2 * STRATA * STRATA
     value, var = np.zeros((len(points), 3)), np.zeros((len(points), 3))
     step = max(1, SAMPLES_PER_CHUNK // per)
@@ -231,9 +234,10 @@ def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys
         at = slice(lo, lo + step)
         g = _emitter_samples(accel, points[at], normals[at], None if shading is None else shading[at],
                              reflectance[at], emitter, medium, keys[at], seed, owner, per)
-        g = g.reshape(-1, STRATA * STRATA, 2, 3)
-        value[at] = g.mean(axis=(1, 2))
-        var[at] = ((g[:, :, 0] - g[:, :, 1]) ** 2).sum(axis=1) / (4.0 * (STRATA * STRATA) ** 2)
+        half = STRATA // 2
+        blocks = g.reshape(-1, half, 2, half, 2, 2, 3).transpose(0, 1, 3, 2, 4, 5, 6).reshape(-1, half * half, 8, 3)
+        value[at] = blocks.mean(axis=(1, 2))
+        var[at] = 2.0 * blocks.var(axis=2, ddof=1).sum(axis=1) / (STRATA * STRATA) ** 2
     return value, var
 
 
