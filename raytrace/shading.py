@@ -226,23 +226,32 @@ def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys
     strata collapsed in blocks of 2 x 2 (Cochran, Sampling Techniques, 5A.12): 2 sum_B s_B^2 / S^2,
     s_B^2 the sample variance of block B's 8 values; it exceeds the variance on average by the
     spread of the strata's means within a block (conservative), and unlike the pairs within one
-    stratum it does not vanish where a shadow edge crosses strata whose two samples happen to agree."""
+    stratum it does not vanish where a shadow edge crosses strata whose two samples happen to agree.
+    Where every sample's shadow ray agrees (all reach the emitter, or none: the rows or probes saw a
+    sliver the samples missed), the variance is at least that of one sample's share, (G / 2 S)^2, G
+    the mean of the g without visibility (V = 1): the estimator's resolution."""
     per = 2 * STRATA * STRATA
     value, var = np.zeros((len(points), 3)), np.zeros((len(points), 3))
     step = max(1, SAMPLES_PER_CHUNK // per)
+    half = STRATA // 2
     for lo in range(0, len(points), step):
         at = slice(lo, lo + step)
-        g = _emitter_samples(accel, points[at], normals[at], None if shading is None else shading[at],
-                             reflectance[at], emitter, medium, keys[at], seed, owner, per)
-        half = STRATA // 2
+        g, free, seen = _emitter_samples(accel, points[at], normals[at], None if shading is None else shading[at],
+                                         reflectance[at], emitter, medium, keys[at], seed, owner, per)
         blocks = g.reshape(-1, half, 2, half, 2, 2, 3).transpose(0, 1, 3, 2, 4, 5, 6).reshape(-1, half * half, 8, 3)
         value[at] = blocks.mean(axis=(1, 2))
         var[at] = 2.0 * blocks.var(axis=2, ddof=1).sum(axis=1) / (STRATA * STRATA) ** 2
+        seen, gives = seen.reshape(-1, per), np.any(free > 0.0, axis=1).reshape(-1, per)
+        agree = np.all(seen | ~gives, axis=1) | ~np.any(seen, axis=1)
+        floor = (free.reshape(-1, per, 3).mean(axis=1) / per) ** 2
+        var[at] = np.where(agree[:, None], np.maximum(var[at], floor), var[at])
     return value, var
 
 
 def _emitter_samples(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner, per):
-    """The `penumbra` values g (M x per, 3) of `per` samples of the emitter at each point."""
+    """The `penumbra` values g (M x per, 3) of `per` samples of the emitter at each point, the same
+    without visibility (V = 1) and whether each sample's shadow ray reached it (M x per,; False
+    where the sample gives nothing anyway: behind the point or the emitter)."""
     u, v = np.empty((len(points), per)), np.empty((len(points), per))
     _jitter(keys, seed, DIM_PENUMBRA + 2 * per * owner, STRATA, u, v)
     y, ny, density = emitter.sample(u.ravel(), v.ravel())
@@ -261,12 +270,13 @@ def _emitter_samples(accel, points, normals, shading, reflectance, emitter, medi
     o = p[idx] + accel.epsilon * n[idx]  # as Accelerator.shadow_rays: off the surface, toward the light
     d = y[idx] - o
     length = np.linalg.norm(d, axis=1)
-    idx = idx[~accel.occluded(o, d / length[:, None], length - accel.epsilon)]
-    g = np.zeros((len(p), 3))
+    seen = np.zeros(len(p), dtype=bool)
+    seen[idx] = ~accel.occluded(o, d / length[:, None], length - accel.epsilon)
+    free = np.zeros((len(p), 3))
     tr = medium.transmittance_on(p[idx], w[idx], 0.0, dist[idx])
     weight = cos[idx] * cos_y[idx] / (dist[idx] ** 2 * density[idx])
-    g[idx] = np.repeat(reflectance, per, axis=0)[idx] / math.pi * emitter.radiance * tr * weight[:, None]
-    return g
+    free[idx] = np.repeat(reflectance, per, axis=0)[idx] / math.pi * emitter.radiance * tr * weight[:, None]
+    return free * seen[:, None], free, seen
 
 
 @njit
