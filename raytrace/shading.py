@@ -271,7 +271,7 @@ def _emitter_samples(accel, points, normals, shading, reflectance, emitter, medi
     d = y[idx] - o
     length = np.linalg.norm(d, axis=1)
     seen = np.zeros(len(p), dtype=bool)
-    seen[idx] = ~accel.occluded(o, d / length[:, None], length - accel.epsilon)
+    seen[idx] = ~accel.occluded(o, d / np.where(length > 0.0, length, 1.0)[:, None], length - accel.epsilon)
     free = np.zeros((len(p), 3))
     tr = medium.transmittance_on(p[idx], w[idx], 0.0, dist[idx])
     weight = cos[idx] * cos_y[idx] / (dist[idx] ** 2 * density[idx])

@@ -86,7 +86,9 @@ def _emitter(light: Light):
     """The `area.Emitter` of a scene light whose kind samples its emitter (`sample_emitter`, with the
     parameters of its corners `CORNERS` where it has them), else None."""
     kind = _BY_CODE[light.kind]
-    return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None)) if hasattr(kind, "sample_emitter") else None
+    if not hasattr(kind, "sample_emitter"):
+        return None
+    return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None))
 
 
 def _stack(rows, name, width, dtype=float):

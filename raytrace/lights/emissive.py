@@ -52,8 +52,9 @@ def emitter(triangles, radiance, two_sided: bool, where: str = "") -> Emitter:
     triangles, cross, area = _nonzero(triangles)
     normals = cross / (2.0 * area)[:, None]
     corners = (1.0 - PROBE_INSET) * triangles + PROBE_INSET * triangles.mean(axis=1, keepdims=True)  # the probes
-    return Emitter(np.asarray(radiance, float), two_sided, functools.partial(_sample, triangles, normals, np.cumsum(area)),
-                   (corners.reshape(-1, 3), np.repeat(normals, 3, axis=0)))
+    sample = functools.partial(_sample, triangles, normals, np.cumsum(area))
+    probes = (corners.reshape(-1, 3), np.repeat(normals, 3, axis=0))
+    return Emitter(np.asarray(radiance, float), two_sided, sample, probes)
 
 
 def _sample(triangles, normals, cumulative, u, v):

@@ -14,7 +14,7 @@ CODE = 3
 KEYS = area.COMMON_KEYS | {"corners"}
 ORDER = 8  # nodes per side (docs/area_lights.md: the twin's error against the order)
 _IN = (area.PROBE_INSET, 1.0 - area.PROBE_INSET)
-CORNERS = (np.array([_IN[0], _IN[1], _IN[1], _IN[0]]), np.array([_IN[0], _IN[0], _IN[1], _IN[1]]))  # (u, v) of the probes
+CORNERS = (np.array([_IN[0], _IN[1], _IN[1], _IN[0]]), np.array([_IN[0], _IN[0], _IN[1], _IN[1]]))  # the probes' (u, v)
 FLAT_TOL = 1e-9  # relative to the quad's size: how far c2 may lie from c1 + c3 - c0
 
 
