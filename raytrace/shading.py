@@ -152,8 +152,8 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
         irradiance = lights.irradiance(li, -to_light[idx], dl)
         _add_reflected(out, idx, reflectance, irradiance, tr, cl)
-        owner = lights.owner[li]
-        if sampled and lights.emitters[owner] is not None:
+        owner = lights.owner[li] if sampled else -1
+        if owner >= 0 and lights.emitters[owner] is not None:
             value, reached, blocked = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
                                                               np.zeros(len(out), np.int64)))
             _add_reflected(value, idx, reflectance, irradiance, tr, cl)

@@ -190,7 +190,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
-        surf_var = np.zeros((len(points), 3))  # of the penumbrae's emitter samples (shading.penumbra)
+        surf_var = np.zeros((len(points), 3)) if has_variance(prep, method) else None  # shading.penumbra's
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
                                           medium, crossing.shadow_through(prep), shading, keys[surf], seed, surf_var)
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
