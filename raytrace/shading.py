@@ -15,7 +15,8 @@ planet (media/atmosphere.py) is a sphere the medium intersects in float64 (`plan
 ground of the medium's reflectance (`ground_radiance`); its shadow is in the transmittance (0 to a
 light behind it). An area light's emitter (a shape with `emission`, scene/format.py) adds its radiance
 where a ray meets its front (`emitted_radiance`; an area light lights surfaces through its emitter
-points, spot rows of lights/area.py, like any spot light).
+points, spot rows of lights/area.py, like any spot light, except in penumbrae: where occluders cut
+the emitter, `penumbra` samples it instead, its variance for the variance layer).
 """
 from __future__ import annotations
 

@@ -110,7 +110,9 @@ class RenderResult:
     seconds: float  # wall time of the render, compile time excluded
     compile_seconds: float
     stats: dict = field(default_factory=dict)
-    variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
+    # (H, W, 3) variance of each pixel's estimate (stochastic methods; any method where area lights'
+    # penumbrae are sampled: has_variance)
+    variance: np.ndarray | None = None
     passes: int = 1
     # (H, W, 3) float32 |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic
     # method the bound of all but its estimator's noise, whose standard error is sqrt(variance)
