@@ -15,7 +15,8 @@ planet (media/atmosphere.py) is a sphere the medium intersects in float64 (`plan
 ground of the medium's reflectance (`ground_radiance`); its shadow is in the transmittance (0 to a
 light behind it). An area light's emitter (a shape with `emission`, scene/format.py) adds its radiance
 where a ray meets its front (`emitted_radiance`; an area light lights surfaces through its emitter
-points, spot rows of lights/area.py, like any spot light).
+points, spot rows of lights/area.py, like any spot light, except in penumbrae: where occluders cut
+the emitter, `penumbra` samples it instead, its variance for the variance layer).
 """
 from __future__ import annotations
 
@@ -23,7 +24,12 @@ import math
 
 import numpy as np
 
-from .jit import exact_njit
+from .jit import exact_njit, njit
+from .rng import uniform
+
+STRATA = 8  # a penumbra's samples: STRATA x STRATA (even) strata of the emitter's (u, v) square, two in each
+DIM_PENUMBRA = 1 << 48  # the first random-number dimension (rng.py) of the penumbrae's samples
+SAMPLES_PER_CHUNK = 1 << 16  # emitter samples (points x samples per point) per batch of shadow rays
 
 
 def facing_normals(normals: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -114,12 +120,20 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
             out[i, a] = facing[i, a] if flat else flip * (n[a] / length)
 
 
-def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None):
+def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None, keys=None,
+                     seed=0, variance=None):
     """Reflected radiance (N, 3) at surface points with ray-facing unit geometric normals `normals`
     and shading normals `shading` (`shading_normals`; None: the geometric ones). `through(li, points)`,
     if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
-    where truly blocked; interiors/crossing.py's shadows through index-matched interiors)."""
+    where truly blocked; interiors/crossing.py's shadows through index-matched interiors).
+    `keys` (N,), the points' pixel-sample keys (rng.py), with `seed`: an emitter's rows whose shadow
+    rays disagree at a point (a penumbra) are replaced there by stratified samples of the emitter
+    (`penumbra`), whose variance is added to `variance` (N, 3) if given; without keys (or with
+    `through`) the rows alone, everywhere."""
     out = np.zeros((len(points), 3))
+    sampled = keys is not None and through is None and any(e is not None for e in lights.emitters)
+    terminator = shading is not None and shading is not normals  # both must face the light
+    rows = {}  # per sampled emitter: its rows' radiance (N, 3) and how many reached, were blocked (N,) each
     for li, lp in enumerate(lights.position):
         if not lights.intensity[li].any():  # nothing to add (a light layer's other lights, renderer.Prepared.only)
             continue
@@ -128,16 +142,34 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
             continue
         to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
         lit = np.empty(len(points), dtype=np.bool_)
-        terminator = shading is not None and shading is not normals  # both must face the light
         _toward_light(points, normals, shading if terminator else normals, terminator, lp, to_light, dist, cos, lit)
         idx = np.flatnonzero(lit)
         if not len(idx):
             continue
         o, d, tmax, as32 = accel.shadow_rays(points[idx], normals[idx], lp)
-        idx, part = _unblocked(accel, o, d, tmax, idx, points, li, through, as32)
+        reach, part = _unblocked(accel, o, d, tmax, idx, points, li, through, as32)
+        seen, idx = idx, idx[reach]
         dl, cl = dist[idx], cos[idx]
         tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
-        _add_reflected(out, idx, reflectance, lights.irradiance(li, -to_light[idx], dl), tr, cl)
+        irradiance = lights.irradiance(li, -to_light[idx], dl)
+        _add_reflected(out, idx, reflectance, irradiance, tr, cl)
+        owner = lights.owner[li] if sampled else -1
+        if owner >= 0 and lights.emitters[owner] is not None:
+            value, reached, blocked = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
+                                                              np.zeros(len(out), np.int64)))
+            _add_reflected(value, idx, reflectance, irradiance, tr, cl)
+            emits = to_light[seen] @ lights.axis[li] < 0.0  # the row's LAMBERT falloff is not zero there
+            np.add.at(reached, seen[emits & reach], 1)
+            np.add.at(blocked, seen[emits & ~reach], 1)
+    for owner, (value, reached, blocked) in rows.items():
+        at = np.flatnonzero(_cut(accel, points, normals, shading if terminator else None, lights.emitters[owner],
+                                 reached, blocked))
+        if len(at):
+            est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
+                                reflectance[at], lights.emitters[owner], medium, keys[at], seed, owner)
+            out[at] += est - value[at]
+            if variance is not None:
+                variance[at] += var
     return out
 
 
@@ -151,15 +183,114 @@ def _add_reflected(out, idx, reflectance, irradiance, tr, cos):
 
 
 def _unblocked(accel, o, d, tmax, idx, points, li, through, as32=None):
-    """The points idx whose shadow rays (o, d, tmax) reach light li, and the transmittance (M, 3) of the
-    shapes they pass through (1 unless `through` lets an occluded ray through); `as32`: the rays'
-    float32 copies for Embree where `Accelerator.shadow_rays` made them."""
+    """Which of the points idx have shadow rays (o, d, tmax) that reach light li (a mask over idx), and
+    the transmittance (M, 3) of the shapes those pass through (1 unless `through` lets an occluded ray
+    through); `as32`: the rays' float32 copies for Embree where `Accelerator.shadow_rays` made them."""
     occ = accel.occluded(o, d, tmax, as32=as32)
     part = np.ones((len(idx), 3))
     if through is not None and occ.any():
         part[occ] = through(li, points[idx[occ]])
         occ = ~np.any(part > 0.0, axis=1)
-    return idx[~occ], part[~occ]
+    return ~occ, part[~occ]
+
+
+def _cut(accel, points, normals, shading, emitter, reached, blocked):
+    """(N,) where occluders cut the emitter (`lights.Emitter`) seen from the points: the shadow rays of
+    its rows that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree,
+    or, where they agree, those to its probes (corners) that emit toward the point disagree with them."""
+    cut = (reached > 0) & (blocked > 0)
+    if emitter.probes is None:
+        return cut
+    agree = np.flatnonzero((reached > 0) ^ (blocked > 0))
+    p, n = points[agree], normals[agree]
+    terminator = shading is not None
+    for y, ny in zip(*emitter.probes):
+        to_light, dist, cos = np.empty_like(p), np.empty(len(p)), np.empty(len(p))
+        lit = np.empty(len(p), dtype=np.bool_)
+        _toward_light(p, n, shading[agree] if terminator else n, terminator, y, to_light, dist, cos, lit)
+        facing = to_light @ ny
+        idx = np.flatnonzero(lit & ((facing != 0.0) if emitter.two_sided else (facing < 0.0)))
+        o, d, tmax, as32 = accel.shadow_rays(p[idx], n[idx], y)
+        reach = ~accel.occluded(o, d, tmax, as32=as32)
+        cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
+    return cut
+
+
+def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner):
+    """(radiance, variance), each (M, 3): eq. 5 for one emitter (`lights.Emitter`) at M surface
+    points (normals, shading normals or None, reflectance as in `surface_radiance`), estimated from
+    2 S stratified samples of its (u, v) square (S = STRATA^2 strata, two independent uniform points in
+    each, keyed by the points' `keys`, `seed` and the emitter's index `owner`: rng.py), each with its
+    shadow ray: with y a sample, n_y its normal, w = (y - x) / d, p_A its area density,
+    g = rho / pi L T(x, y) V(x, y) cos_x max(0, n_y . -w) / (d^2 p_A) (|n_y . w| two-sided), the
+    estimate is the mean of the g. Its variance sum_s sigma_s^2 / (2 S^2) is estimated with the
+    strata collapsed in blocks of 2 x 2 (Cochran, Sampling Techniques, 5A.12): 2 sum_B s_B^2 / S^2,
+    s_B^2 the sample variance of block B's 8 values; it exceeds the variance on average by the
+    spread of the strata's means within a block (conservative), and unlike the pairs within one
+    stratum it does not vanish where a shadow edge crosses strata whose two samples happen to agree.
+    Where every sample's shadow ray agrees (all reach the emitter, or none: the rows or probes saw a
+    sliver the samples missed), the variance is at least that of one sample's share, (G / 2 S)^2, G
+    the mean of the g without visibility (V = 1): the estimator's resolution."""
+    per = 2 * STRATA * STRATA
+    value, var = np.zeros((len(points), 3)), np.zeros((len(points), 3))
+    step = max(1, SAMPLES_PER_CHUNK // per)
+    half = STRATA // 2
+    for lo in range(0, len(points), step):
+        at = slice(lo, lo + step)
+        g, free, seen = _emitter_samples(accel, points[at], normals[at], None if shading is None else shading[at],
+                                         reflectance[at], emitter, medium, keys[at], seed, owner, per)
+        blocks = g.reshape(-1, half, 2, half, 2, 2, 3).transpose(0, 1, 3, 2, 4, 5, 6).reshape(-1, half * half, 8, 3)
+        value[at] = blocks.mean(axis=(1, 2))
+        var[at] = 2.0 * blocks.var(axis=2, ddof=1).sum(axis=1) / (STRATA * STRATA) ** 2
+        seen, gives = seen.reshape(-1, per), np.any(free > 0.0, axis=1).reshape(-1, per)
+        agree = np.all(seen | ~gives, axis=1) | ~np.any(seen, axis=1)
+        floor = (free.reshape(-1, per, 3).mean(axis=1) / per) ** 2
+        var[at] = np.where(agree[:, None], np.maximum(var[at], floor), var[at])
+    return value, var
+
+
+def _emitter_samples(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner, per):
+    """The `penumbra` values g (M x per, 3) of `per` samples of the emitter at each point, the same
+    without visibility (V = 1) and whether each sample's shadow ray reached it (M x per,; False
+    where the sample gives nothing anyway: behind the point or the emitter)."""
+    u, v = np.empty((len(points), per)), np.empty((len(points), per))
+    _jitter(keys, seed, DIM_PENUMBRA + 2 * per * owner, STRATA, u, v)
+    y, ny, density = emitter.sample(u.ravel(), v.ravel())
+    p, n = np.repeat(points, per, axis=0), np.repeat(normals, per, axis=0)
+    to = y - p
+    dist = np.linalg.norm(to, axis=1)
+    w = to / np.where(dist > 0.0, dist, 1.0)[:, None]
+    cos = np.einsum("ij,ij->i", n, w)
+    lit = (cos > 0.0) & (dist > 0.0)
+    if shading is not None:  # the terminator, as in surface_radiance
+        cos = np.einsum("ij,ij->i", np.repeat(shading, per, axis=0), w)
+        lit &= cos > 0.0
+    cos_y = -np.einsum("ij,ij->i", ny, w)
+    cos_y = np.abs(cos_y) if emitter.two_sided else cos_y
+    idx = np.flatnonzero(lit & (cos_y > 0.0))
+    o = p[idx] + accel.epsilon * n[idx]  # as Accelerator.shadow_rays: off the surface, toward the light
+    d = y[idx] - o
+    length = np.linalg.norm(d, axis=1)
+    seen = np.zeros(len(p), dtype=bool)
+    seen[idx] = ~accel.occluded(o, d / np.where(length > 0.0, length, 1.0)[:, None], length - accel.epsilon)
+    free = np.zeros((len(p), 3))
+    tr = medium.transmittance_on(p[idx], w[idx], 0.0, dist[idx])
+    weight = cos[idx] * cos_y[idx] / (dist[idx] ** 2 * density[idx])
+    free[idx] = np.repeat(reflectance, per, axis=0)[idx] / math.pi * emitter.radiance * tr * weight[:, None]
+    return free * seen[:, None], free, seen
+
+
+@njit
+def _jitter(keys, seed, dim, strata, u, v):
+    """u, v (M, 2 strata^2): two uniform points in each stratum (a, b) of the unit square, sample
+    j = 2 (a strata + b) + s at dimensions dim + 2 j, dim + 2 j + 1 of its point's key (rng.py)."""
+    for i in range(u.shape[0]):
+        for a in range(strata):
+            for b in range(strata):
+                for s in range(2):
+                    j = 2 * (a * strata + b) + s
+                    u[i, j] = (a + uniform(keys[i], dim + 2 * j, seed)) / strata
+                    v[i, j] = (b + uniform(keys[i], dim + 2 * j + 1, seed)) / strata
 
 
 def _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through=None, shading=None):
@@ -175,7 +306,8 @@ def _add_directional(out, accel, points, normals, reflectance, lights, li, mediu
         return
     o = points[idx] + accel.epsilon * normals[idx]
     d = np.broadcast_to(wi, o.shape)
-    idx, part = _unblocked(accel, o, d, np.full(len(idx), np.inf), idx, points, li, through)
+    reach, part = _unblocked(accel, o, d, np.full(len(idx), np.inf), idx, points, li, through)
+    idx = idx[reach]
     tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf) * part
     out[idx] += reflectance[idx] / math.pi * lights.intensity[li] * tr * cos[idx, None]
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..jit import njit
 from . import directional, disk, emissive, environment, point, quad, sphere, spot
-from .area import power_of, two_sided
+from .area import Emitter, emitter, power_of, two_sided
 from .light import NO_CONE, Light, power
 from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
                    falloff_array, is_spot, polynomial_band, segment_cone)
@@ -82,6 +82,15 @@ def emitter_shape(light: Light):
     return kind.shape(light) if hasattr(kind, "shape") else None
 
 
+def _emitter(light: Light):
+    """The `area.Emitter` of a scene light whose kind samples its emitter (`sample_emitter`, with the
+    parameters of its corners `CORNERS` where it has them), else None."""
+    kind = _BY_CODE[light.kind]
+    if not hasattr(kind, "sample_emitter"):
+        return None
+    return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None))
+
+
 def _stack(rows, name, width, dtype=float):
     """The `name` arrays of light.Rows stacked: (L, width), or (L,) for width 0."""
     shape = (-1, width) if width else (-1,)
@@ -108,6 +117,7 @@ class Lights:
     owner: np.ndarray
     cubature: np.ndarray
     scene_kinds: tuple = ()
+    emitters: tuple = ()
 
     @classmethod
     def of(cls, lights: list[Light], emitters=()) -> "Lights":
@@ -119,7 +129,8 @@ class Lights:
                                                                                      "cone")),
                    np.repeat(np.arange(len(rows), dtype=np.int64), counts),
                    np.repeat(np.array([r.cubature for r in rows], dtype=bool), counts),
-                   tuple(NAMES[l.kind] for l in lights) + (EMISSION,) * len(emitters))
+                   tuple(NAMES[l.kind] for l in lights) + (EMISSION,) * len(emitters),
+                   tuple(_emitter(l) for l in lights) + tuple(emissive.emitter(*e) for e in emitters))
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -163,7 +174,7 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
     return point.sample(position, axis, cone, li, px, py, pz)
 
 
-__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "ENVIRONMENT", "EXPANDED", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
+__all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "Emitter", "ENVIRONMENT", "EXPANDED", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
            "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "at_infinity", "band_slope", "band_trig",
            "check_at_infinity", "cone_breaks", "describe", "distant", "emitter_shape", "falloff", "falloff_array",
            "is_spot", "light_sample", "parse_light", "polynomial_band", "power", "power_of", "segment_cone",

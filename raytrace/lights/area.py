@@ -10,8 +10,16 @@ axis -n_i. Every method that takes spot lights integrates each row exactly along
 it integrates a spot light (the air-light's closed form is per point of the light); the cubature
 over the emitter is the one approximation (Rows.cubature: no error bound, error_bounds.py), its
 order measured in docs/area_lights.md.
+
+Where occluders cut the emitter (penumbrae) the surface term samples it instead: each kind maps
+(u, v) in [0, 1]^2 onto its emitter (`sample_emitter(light, u, v)`, uniform in area: density 1 / A),
+and `Emitter` is what the surface term needs of one emitter (shading.py).
 """
 from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -20,6 +28,7 @@ from .light import Light, Rows, power
 from .spot import CODE as SPOT, LAMBERT
 
 COMMON_KEYS = frozenset({"type", "radiance", "two_sided"})
+PROBE_INSET = 1e-6  # how far inside the outline (of the parameter range) the corner probes lie
 
 
 def gauss_legendre(n: int):
@@ -80,3 +89,31 @@ def radiance_text(light: Light) -> str:
 def power_of(light: Light) -> np.ndarray:
     """The emitted power per channel: pi L A one-sided, 2 pi L A two-sided (a Lambertian emitter)."""
     return np.pi * light.intensity * light.emitter["area"] * (2.0 if light.two_sided else 1.0)
+
+
+@dataclass(frozen=True)
+class Emitter:
+    """One emitter as the surface term samples it: its `radiance` (3,), `two_sided`, and `sample(u, v)`
+    mapping (u, v) (n,) each in [0, 1) to (points (n, 3) on the emitter, unit normals (n, 3) of its
+    emitting side, area density (n,) of the map); the samples of a uniform (u, v) are uniform in area.
+    `probes`: (points (K, 3), normals (K, 3)) at the emitter's corners, PROBE_INSET inside its outline
+    (None: a sphere, which has none): a straight shadow edge that leaves every cubature node on one side leaves
+    a corner on the other, so shadow rays to them find the penumbrae the rows miss."""
+    radiance: np.ndarray
+    two_sided: bool
+    sample: Callable
+    probes: tuple | None = None
+
+
+def uniform_density(n: int, area: float) -> np.ndarray:
+    """The area density 1 / A of a map that is uniform in area, for n samples."""
+    return np.full(n, 1.0 / area)
+
+
+def emitter(light: Light, sample_emitter, corners=None) -> Emitter:
+    """The `Emitter` of an area light whose kind maps (u, v) by `sample_emitter(light, u, v)`, its
+    probes at the parameters `corners` ((u, v), each (K,); None: no probes)."""
+    sample = functools.partial(sample_emitter, light)
+    if corners is None:
+        return Emitter(light.intensity, light.two_sided, sample)
+    return Emitter(light.intensity, light.two_sided, sample, sample(*corners)[:2])

@@ -1,6 +1,7 @@
 """The disk area light: a Lambertian disk (area.py) of `center`, unit `normal` (its emitting side) and
 `radius`; its emitter points are a polar rule, Gauss–Legendre of ORDER nodes in the radius r (weight
 r dr) times 2 ORDER equally spaced angles (exact for trigonometric polynomials of degree < 2 ORDER).
+Penumbrae sample it uniformly in area (`sample_emitter`).
 Its shape is a fan of SEGMENTS triangles inscribed in the circle.
 """
 from __future__ import annotations
@@ -15,6 +16,8 @@ NAME = "disk"
 CODE = 4
 KEYS = area.COMMON_KEYS | {"center", "normal", "radius"}
 ORDER = 6  # radial nodes: 72 rows (docs/area_lights.md)
+# (u, v) of the probes: 16 points of the rim, PROBE_INSET of the radius inside it
+CORNERS = (np.full(16, (1.0 - area.PROBE_INSET) ** 2), np.arange(16) / 16.0)
 SEGMENTS = 128  # the emitter shape's triangles: its area is within 0.04 % of pi r^2
 
 
@@ -47,6 +50,14 @@ def rows(light, order: int | None = None):
     points = light.position + (r[:, None, None] * ring[None, :, :]).reshape(-1, 3)
     weights = np.repeat(r * wr * 2.0 * math.pi / m, m)
     return area.emitter_rows(light, points, np.tile(light.axis, (len(weights), 1)), weights)
+
+
+def sample_emitter(light, u, v):
+    """`area.Emitter.sample`: radius R sqrt(u), angle 2 pi v (uniform in area)."""
+    t1, t2 = area.frame(light.axis)
+    r, phi = light.emitter["radius"] * np.sqrt(u), 2.0 * math.pi * v
+    points = light.position + r[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)
+    return points, np.tile(light.axis, (len(u), 1)), area.uniform_density(len(u), light.emitter["area"])
 
 
 def shape(light):

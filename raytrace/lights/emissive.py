@@ -1,16 +1,18 @@
 """Emissive shapes: `emission` on a [[shape]] makes every triangle of it a Lambertian emitter (area.py)
 of that radiance on its winding's side (both with `two_sided`). Each triangle is the 7 emitter points of
 the degree-5 rule of Radon (Stroud T2:5-1; Dunavant's 7-point rule), a spot row each (LAMBERT); a shape
-of more than MAX_TRIANGLES triangles is refused until triangles are grouped.
+of more than MAX_TRIANGLES triangles is refused until triangles are grouped. Penumbrae sample the
+shape uniformly in area (`emitter`).
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from ..errors import UserError
-from .area import emitter_rows
+from .area import PROBE_INSET, Emitter, emitter_rows, uniform_density
 from .light import Light
 
 NAME = "emission"  # its name among a scene's light kinds (`Lights.kinds`), for the methods' refusals
@@ -30,11 +32,40 @@ def rows(triangles, radiance, two_sided: bool, where: str):
         raise UserError(f"{where}.emission: the shape has {len(triangles)} triangles; emissive shapes of more than "
                         f"{MAX_TRIANGLES} are not implemented yet (each triangle is 7 emitter points); use a quad, "
                         "disk or sphere light, or a coarser mesh")
-    cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    area = 0.5 * np.linalg.norm(cross, axis=1)
-    keep = area > 0.0
-    triangles, cross, area = triangles[keep], cross[keep], area[keep]
+    triangles, cross, area = _nonzero(triangles)
     points = np.einsum("kj,tjc->tkc", BARY, triangles).reshape(-1, 3)
     normals = np.repeat(cross / (2.0 * area)[:, None], len(WEIGHTS), axis=0)
     light = Light(np.zeros(3), np.asarray(radiance, float), two_sided=two_sided)
     return emitter_rows(light, points, normals, (area[:, None] * WEIGHTS[None, :]).ravel())
+
+
+def _nonzero(triangles):
+    """The triangles (T, 3, 3) of nonzero area, their winding's cross products (T, 3) and areas (T,)."""
+    cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    keep = area > 0.0
+    return triangles[keep], cross[keep], area[keep]
+
+
+def emitter(triangles, radiance, two_sided: bool, where: str = "") -> Emitter:
+    """The `Emitter` of one emissive shape (`rows`' arguments; `where` unused: the rows refuse)."""
+    triangles, cross, area = _nonzero(triangles)
+    normals = cross / (2.0 * area)[:, None]
+    corners = (1.0 - PROBE_INSET) * triangles + PROBE_INSET * triangles.mean(axis=1, keepdims=True)  # the probes
+    sample = functools.partial(_sample, triangles, normals, np.cumsum(area))
+    probes = (corners.reshape(-1, 3), np.repeat(normals, 3, axis=0))
+    return Emitter(np.asarray(radiance, float), two_sided, sample, probes)
+
+
+def _sample(triangles, normals, cumulative, u, v):
+    """`Emitter.sample` of a triangle mesh: u picks the triangle by area (the cumulative areas) and,
+    rescaled within its share, with v the point by the square-to-triangle map
+    y = (1 - s) a + s (1 - v) b + s v c, s = sqrt(u') (uniform in area: density 1 / A)."""
+    total = cumulative[-1]
+    x = u * total
+    k = np.minimum(np.searchsorted(cumulative, x, side="right"), len(cumulative) - 1)
+    lo = np.where(k > 0, cumulative[np.maximum(k - 1, 0)], 0.0)
+    s = np.sqrt(np.clip((x - lo) / (cumulative[k] - lo), 0.0, 1.0))
+    t = triangles[k]
+    points = ((1.0 - s)[:, None] * t[:, 0] + (s * (1.0 - v))[:, None] * t[:, 1] + (s * v)[:, None] * t[:, 2])
+    return points, normals[k], uniform_density(len(u), total)

@@ -1,6 +1,7 @@
 """The quad area light: a Lambertian parallelogram (area.py) of corners c0..c3, emitting toward the
 side of its normal (c1 - c0) x (c3 - c0); its emitter points are the tensor Gauss–Legendre rule of
-ORDER x ORDER nodes over y = c0 + u (c1 - c0) + v (c3 - c0), (u, v) in [0, 1]^2.
+ORDER x ORDER nodes over y = c0 + u (c1 - c0) + v (c3 - c0), (u, v) in [0, 1]^2 (the same map samples
+it in penumbrae: `sample_emitter`).
 """
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ NAME = "quad"
 CODE = 3
 KEYS = area.COMMON_KEYS | {"corners"}
 ORDER = 8  # nodes per side (docs/area_lights.md: the twin's error against the order)
+_IN = (area.PROBE_INSET, 1.0 - area.PROBE_INSET)
+CORNERS = (np.array([_IN[0], _IN[1], _IN[1], _IN[0]]), np.array([_IN[0], _IN[0], _IN[1], _IN[1]]))  # the probes' (u, v)
 FLAT_TOL = 1e-9  # relative to the quad's size: how far c2 may lie from c1 + c3 - c0
 
 
@@ -49,6 +52,13 @@ def rows(light, order: int | None = None):
     points = c[0] + uu.reshape(-1, 1) * (c[1] - c[0]) + vv.reshape(-1, 1) * (c[3] - c[0])
     weights = np.outer(w, w).ravel() * light.emitter["area"]
     return area.emitter_rows(light, points, np.tile(light.axis, (len(weights), 1)), weights)
+
+
+def sample_emitter(light, u, v):
+    """`area.Emitter.sample`: y = c0 + u (c1 - c0) + v (c3 - c0), uniform in area."""
+    c = light.emitter["corners"]
+    points = c[0] + u[:, None] * (c[1] - c[0]) + v[:, None] * (c[3] - c[0])
+    return points, np.tile(light.axis, (len(u), 1)), area.uniform_density(len(u), light.emitter["area"])
 
 
 def shape(light):

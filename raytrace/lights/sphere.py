@@ -2,7 +2,8 @@
 its emitter points are the product rule of ORDER Gauss–Legendre nodes in z = cos(theta) times 2 ORDER
 equally spaced azimuths. Each point's LAMBERT falloff max(0, n·u) is its own visibility over the
 sphere (a point of a convex emitter sees the receiver exactly when the receiver is in front of it).
-Its shape is the tessellated sphere of SEGMENTS segments (scene/meshes.py), inside the exact one.
+Penumbrae sample it uniformly in area (`sample_emitter`). Its shape is the tessellated sphere of
+SEGMENTS segments (scene/meshes.py), inside the exact one.
 """
 from __future__ import annotations
 
@@ -43,6 +44,15 @@ def rows(light, order: int | None = None):
     radius = light.emitter["radius"]
     weights = np.repeat(wz * radius * radius * 2.0 * math.pi / m, m)
     return area.emitter_rows(light, light.position + radius * normals, normals, weights)
+
+
+def sample_emitter(light, u, v):
+    """`area.Emitter.sample`: z = 1 - 2 u, azimuth 2 pi v (Archimedes: uniform in area)."""
+    z, phi = 1.0 - 2.0 * u, 2.0 * math.pi * v
+    s = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    normals = np.stack([s * np.cos(phi), z, s * np.sin(phi)], axis=1)
+    points = light.position + light.emitter["radius"] * normals
+    return points, normals, area.uniform_density(len(u), light.emitter["area"])
 
 
 def shape(light):

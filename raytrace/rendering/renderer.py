@@ -110,7 +110,9 @@ class RenderResult:
     seconds: float  # wall time of the render, compile time excluded
     compile_seconds: float
     stats: dict = field(default_factory=dict)
-    variance: np.ndarray | None = None  # (H, W, 3) variance of each pixel's estimate (stochastic methods)
+    # (H, W, 3) variance of each pixel's estimate (stochastic methods; any method where area lights'
+    # penumbrae are sampled: has_variance)
+    variance: np.ndarray | None = None
     passes: int = 1
     # (H, W, 3) float32 |image - exact| <= error_bound (error_bounds.py; inf: unknown); for a stochastic
     # method the bound of all but its estimator's noise, whose standard error is sqrt(variance)
@@ -180,7 +182,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (crossing.py)
         boundary = crossing.start_inside(prep, origins, dirs, t, prim, keys)
         rad, var, _ = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
-        return rad, deeper, var if method.stochastic else None, np.full_like(rad, np.inf)
+        return rad, deeper, var if has_variance(prep, method) else None, np.full_like(rad, np.inf)
     hit = prim >= 0
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
@@ -190,8 +192,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         points = origins[surf] + t[surf, None] * dirs[surf]
         normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
+        surf_var = np.zeros((len(points), 3)) if has_variance(prep, method) else None  # shading.penumbra's
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium, crossing.shadow_through(prep), shading)
+                                          medium, crossing.shadow_through(prep), shading, keys[surf], seed, surf_var)
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
                                                prep.accel.hit_normals(prim[surf], points), dirs[surf])
@@ -209,7 +212,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
     stats = np.zeros(stats_size(method))
-    variance = np.zeros_like(radiance) if method.stochastic else None
+    variance = np.zeros_like(radiance) if has_variance(prep, method) else None
+    if surf.any() and variance is not None:
+        variance[surf] = surf_var * tr[surf] ** 2
     if entering and variance is not None:
         variance[into] = into_var * tr[into] ** 2
     bound = np.zeros_like(radiance)
@@ -269,6 +274,12 @@ def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stat
         seen = seen_bound = np.zeros((0, 3))
         seen_var = seen if method.stochastic else None
     return crossing.combine(boundary, inner, inner_var, inner_bound, seen, seen_var, seen_bound)
+
+
+def has_variance(prep: Prepared, method) -> bool:
+    """Whether a render has a variance layer: a stochastic method's, or the surface term's samples of
+    area lights' emitters in penumbrae (shading.penumbra)."""
+    return method.stochastic or any(e is not None for e in prep.lights.emitters)
 
 
 def stats_size(method) -> int:
@@ -565,7 +576,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     box = options.crop or (0, 0, cam.width, cam.height)
     task = Task(method.name, params, options.seed, options.shadows, box, options.aov)
     work = tiles(cam, box)
-    acc = Accumulator(work, box, cam.spp, method.stochastic, stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
+    acc = Accumulator(work, box, cam.spp, has_variance(prep, method), stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
     compile_s = prepare_noticed(executor, prep, task, options.notice)
     start = time.perf_counter()
