@@ -40,7 +40,7 @@ CAM = {**CAMERA, "width": 7, "height": 6}
 
 def shadowed_scene(scene):
     outer, inner = PLATES[scene["name"]]
-    return {**scene, "camera": CAM, "name": scene["name"] + "_plates",
+    return {**scene, "camera": CAM,
             "shape": scene["shape"] + [plate_shape(outer), plate_shape(inner)]}
 
 
@@ -122,8 +122,11 @@ def twin_pixel(scene, i, j):
 
         cuts = switches(p, w, ell, lit, samples=300) + (switches(p, w, ell, cone, samples=300) if spot else [])
         edges = [0.0, *sorted(cuts), ell]
+        def dark(x):  # outside the spot's cone (its falloff 0 on the whole piece)
+            return bool(spot) and not cone(x)[0]
+
         for a, b in zip(edges, edges[1:]):
-            if b > a and lit(0.5 * (a + b)):  # lit on the whole piece
+            if b > a and lit(0.5 * (a + b)) and not dark(0.5 * (a + b)):  # lit on the whole piece
                 out += integrate.quad_vec(f, a, b, epsabs=0.0, epsrel=1e-12, norm="max", limit=400)[0]
     return math.exp(-kt_out * t0) * fresnel_t(ti, tt, eta) / eta**2 * out
 

@@ -34,9 +34,10 @@ rho <= max(rho(x0), rho(x1)) and z >= min(z(x0), z(x1)): K_R, a bound on |R'| th
 |g'| <= |(E1 - E0) x (L - E0)| K_R for the outside leg and |e| (K_R max|X - E0| + max|R - E0|) for
 the inside one (|X - E0| convex, |R - E0| <= |R(x0) - E0| + K_R (x - x0)). An interval with
 |g(x0)| + |g(x1)| > K (x1 - x0) + rounding has no root (a root would need both terms below K times its
-distance to the ends); others are halved until they are excluded or reach the resolution of doubles,
-where their midpoint is a break. A function identically near zero (a leg sliding along an edge's
-plane) is cut off after MAX_EVALS evaluations, its undecided intervals' ends taken as breaks.
+distance to the ends); others are halved until they are excluded or shorter than RESOLUTION of the
+scene's size, where a sign change is bisected to the resolution of doubles (two roots closer than
+that, a sliver, are not resolved). A function near zero over a stretch (a leg sliding along an
+edge's plane) is cut off after MAX_EVALS evaluations, its undecided intervals' ends taken as breaks.
 Beyond the depth where X rises above f's plane face f gives no light, and there the segment is
 reported lit (the integrator's face test makes it 0).
 """
@@ -262,29 +263,17 @@ def _segment_breaks(p, w, end, n, c, light, eta, flo, fhi, outside, inside, scal
         ilo[k], ihi[k] = min(lo[k], p[k], x_end[k]), max(hi[k], p[k], x_end[k])
     tol, width = ROUNDING * scale, RESOLUTION * scale
     for i in range(outside.shape[0]):
-        tri = outside[i]
-        keep_out[i] = _box_overlap(tri, olo, ohi, pad)
-        if not keep_out[i]:
-            continue
-        for j in range(3):
-            e0 = tri[j]
-            vec = _cross(tri[(j + 1) % 3] - e0, light - e0)
-            if _norm(vec) > 0.0:
-                out, m = _roots(_OUT_EDGE, e0, vec, p, w, pf, wh, z0, a, lf, hl, eta, end, tol * _norm(vec), width,
-                                out, m)
-        out, m = _plane_roots(tri, n, c, p, w, pf, wh, z0, a, lf, hl, eta, end, tol, width, pad, out, m)
+        keep_out[i] = _box_overlap(outside[i], olo, ohi, pad)
+        if keep_out[i]:
+            out, m = _occluder_roots(_OUT_EDGE, outside[i], light, p, w, pf, wh, z0, a, lf, hl, eta, end, n, c,
+                                     tol, 1.0, width, pad, out, m)
     for i in range(inside.shape[0]):
         tri = inside[i]
         keep_in[i] = _box_overlap(tri, ilo, ihi, pad)
         if not keep_in[i]:
             continue
-        for j in range(3):
-            e0 = tri[j]
-            e = tri[(j + 1) % 3] - e0
-            if _norm(e) > 0.0:
-                out, m = _roots(_IN_EDGE, e0, e, p, w, pf, wh, z0, a, lf, hl, eta, end, tol * scale * _norm(e),
-                                width, out, m)
-        out, m = _plane_roots(tri, n, c, p, w, pf, wh, z0, a, lf, hl, eta, end, tol, width, pad, out, m)
+        out, m = _occluder_roots(_IN_EDGE, tri, light, p, w, pf, wh, z0, a, lf, hl, eta, end, n, c, tol, scale,
+                                 width, pad, out, m)
         nt = _cross(tri[1] - tri[0], tri[2] - tri[0])
         den = nt @ w
         if den != 0.0:  # X through the occluder's plane
@@ -298,8 +287,17 @@ def _segment_breaks(p, w, end, n, c, light, eta, flo, fhi, outside, inside, scal
 
 
 @njit
-def _plane_roots(tri, n, c, p, w, pf, wh, z0, a, lf, hl, eta, end, tol, width, pad, out, m):
-    """`_roots` of R through the plane of an occluder that reaches the face's plane (`_R_PLANE`)."""
+def _occluder_roots(kind, tri, light, p, w, pf, wh, z0, a, lf, hl, eta, end, n, c, tol, size, width, pad, out, m):
+    """`_roots` of one occluder's edges for one leg (`_OUT_EDGE` or `_IN_EDGE`) and, where it reaches
+    the face's plane, of R through its plane (`_R_PLANE`); tol: the rounding of R's position, size:
+    the other length an edge function multiplies (the scene's size inside, 1 outside)."""
+    for j in range(3):
+        e0 = tri[j]
+        e = tri[(j + 1) % 3] - e0
+        vec = _cross(e, light - e0) if kind == _OUT_EDGE else e
+        if _norm(vec) > 0.0:
+            out, m = _roots(kind, e0, vec, p, w, pf, wh, z0, a, lf, hl, eta, end, tol * size * _norm(vec), width,
+                            out, m)
     d0, d1, d2 = n @ tri[0] - c, n @ tri[1] - c, n @ tri[2] - c
     nt = _cross(tri[1] - tri[0], tri[2] - tri[0])
     if min(d0, d1, d2) > pad or max(d0, d1, d2) < -pad or _norm(nt) == 0.0:
