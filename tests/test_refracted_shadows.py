@@ -202,3 +202,34 @@ def test_raymarch_and_montecarlo_take_the_shadows(case):
     assert res.stats["inside: segments unshadowed (refractive or planar model)"] == 0
     z2 = np.mean((res.image[lit] - twin[lit]) ** 2 / res.variance[lit])
     assert 0.3 < z2 < 3.5, z2
+
+
+@pytest.mark.parametrize("eta", [1.33, 1.5, 0.75])
+def test_the_refraction_points_speed_bound(eta):
+    """The Lipschitz bound that lets the break search exclude intervals (fermat_legs `_speed`, derived
+    in its docstring) holds: on random faces, lights and segments below the face, the refraction
+    point (the twin's own minimisation) moves by at most K_R times the step over sub-intervals, and
+    the bound is not loose (somewhere over half of it is reached)."""
+    from raytrace.shadows import fermat_legs as fl
+    rng = np.random.default_rng(7)
+    ratios = []
+    for _ in range(30):
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        c = rng.uniform(-1.0, 1.0)
+        L = rng.normal(size=3)
+        L = L + (c + rng.uniform(0.2, 3.0) - n @ L) * n  # above the plane
+        p = rng.normal(size=3)
+        p = p + (c - rng.uniform(0.05, 2.0) - n @ p) * n  # below it
+        w = rng.normal(size=3)
+        w /= np.linalg.norm(w)
+        a, z0, hl = -(n @ w), c - n @ p, n @ L - c
+        end = 3.0 if a >= 0.0 else min(3.0, 0.999 * z0 / -a)
+        pf, wh, lf = p + z0 * n, w + a * n, L - hl * n
+        xs = np.linspace(0.0, end, 41)
+        R = np.array([fermat(p + x * w, L, n, c, eta)[0] for x in xs])
+        for i in range(0, 40, 4):
+            k = fl._speed(xs[i], xs[i + 4], a, lf, pf, wh, z0, eta)
+            for j in range(i, i + 4):
+                ratios.append(np.linalg.norm(R[j + 1] - R[j]) / (k * (xs[j + 1] - xs[j])))
+    assert max(ratios) <= 1.0 + 1e-9 and max(ratios) > 0.5, max(ratios)
