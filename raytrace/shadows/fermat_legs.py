@@ -31,8 +31,9 @@ and |s u'| = (s / rho) |w_h, across u| <= |w_h, across u|, rho' = w_h.u; hence
     |R'(x)| <= |w_h| + |a| T(s) <= sqrt(1 - a^2) + |a| min(1 / sqrt(eta^2 - 1) [eta > 1], rho / z),
 since sin t2 <= 1 / eta and T = r / z <= rho / z. On [x0, x1], rho is convex in x and z linear, so
 rho <= max(rho(x0), rho(x1)) and z >= min(z(x0), z(x1)): K_R, a bound on |R'| there. Then
-|g'| <= |(E1 - E0) x (L - E0)| K_R for the outside leg and |e| (K_R max|X - E0| + max|R - E0|) for
-the inside one (|X - E0| convex, |R - E0| <= |R(x0) - E0| + K_R (x - x0)). An interval with
+|g'| <= |(E1 - E0) x (L - E0)| K_R for the outside leg and, writing the inside one as
+g = m(x) . (R - E0) with m = e x (X - E0) linear in x, |g'| <= |e x w| max|R - E0| + max|m| K_R
+(|m| convex, |R - E0| <= |R(x0) - E0| + K_R (x - x0)). An interval with
 |g(x0)| + |g(x1)| > K (x1 - x0) + rounding has no root (a root would need both terms below K times its
 distance to the ends); others are halved until they are excluded or shorter than RESOLUTION of the
 scene's size, where a sign change is bisected to the resolution of doubles (two roots closer than
@@ -48,7 +49,6 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..media.slab import refraction_point
 from .beams import clip_to_solid
 
 MAX_EVALS = 20000  # evaluations of one break function on one segment
@@ -109,8 +109,36 @@ def _refraction(x, pf, wh, z0, a, lf, hl, eta):
     rho = _norm(d)
     if rho == 0.0:
         return xf, 0.0, z
-    r = refraction_point(rho, z, hl, eta)
+    r = _refraction_distance(rho, z, hl, eta)
     return xf + (r / rho) * d, rho, z
+
+
+@njit
+def _refraction_distance(rho, z, hl, eta):
+    """media/slab.py `refraction_point` by Newton's method kept inside the bracket (bisection where a
+    step leaves it): the root of f(r) = (rho - r) / o - eta r / k, which falls from f(0) >= 0 to
+    f(rho) <= 0 with f' = -hl^2 / o^3 - eta z^2 / k^3, to the resolution of doubles."""
+    if not z > 0.0:
+        return 0.0
+    lo, hi = 0.0, rho
+    r = rho * z / (eta * hl + z)  # the paraxial guess, in the bracket
+    for _ in range(100):
+        o, k = math.sqrt((rho - r) * (rho - r) + hl * hl), math.sqrt(r * r + z * z)
+        f = (rho - r) / o - eta * r / k
+        if f > 0.0:
+            lo = r
+        else:
+            hi = r
+        step = f / (hl * hl / (o * o * o) + eta * z * z / (k * k * k))
+        if abs(step) <= 4e-16 * rho:
+            return min(max(r + step, 0.0), rho)
+        nxt = r + step
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+            if not lo < nxt < hi:
+                return r
+        r = nxt
+    return r
 
 
 @njit
@@ -189,10 +217,10 @@ def _roots(kind, e0, vec, p, w, pf, wh, z0, a, lf, hl, eta, end, tol, width, out
         top -= 1
         lo, hi, glo, ghi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         k = _speed(lo, hi, a, lf, pf, wh, z0, eta)
-        if kind == _IN_EDGE:
-            ex = max(_norm(p + lo * w - e0), _norm(p + hi * w - e0))
+        if kind == _IN_EDGE:  # g = m(x) . (R - E0), m = e x (X - E0) linear in x
+            mx = max(_norm(_cross(vec, p + lo * w - e0)), _norm(_cross(vec, p + hi * w - e0)))
             rl, _, _ = _refraction(lo, pf, wh, z0, a, lf, hl, eta)
-            k = size * (k * ex + _norm(rl - e0) + k * (hi - lo))
+            k = _norm(_cross(vec, w)) * (_norm(rl - e0) + k * (hi - lo)) + mx * k
         else:
             k = size * k
         if abs(glo) + abs(ghi) > k * (hi - lo) + 2.0 * tol:
