@@ -5,7 +5,7 @@ Face f (outward unit normal n, plane n.q = c) refracts the light at L (height hl
 point X(x) = p + x w inside along Fermat's path (media/slab.py `refraction_point`): the outside leg
 from L to the refraction point R(x) on f's plane and the inside leg from R(x) to X(x). X is lit
 through f where neither leg meets an occluder: the outside leg none of the blockers but the shape
-itself, the inside leg none of the blockers clipped to the shape (shadows/beams.py `clip_to_solid`).
+itself, the inside leg none of the blockers clipped to the shape (shadows/beams.py `blockers_inside`).
 R(x) moves on a curve of f's plane, not a line, so the frusta's linear exact intervals do not apply;
 the breaks of the lit set are found as roots, not sampled.
 
@@ -49,7 +49,7 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .beams import clip_to_solid
+from .beams import blockers_inside
 
 MAX_EVALS = 20000  # evaluations of one break function on one segment
 ROUNDING = 1e-14  # rounding allowed in a break function's value, relative (x the scene's size)
@@ -67,7 +67,7 @@ def lit_pieces_of_point(prep, sid: int, planes: np.ndarray, blockers, li: int, f
     accel = prep.accel
     others = prep.shape_ids != sid if blockers is None else blockers & (prep.shape_ids != sid)
     outside = accel.triangles[others]
-    inside = prep.memo(("point inside", sid), lambda: _inside_triangles(prep, sid, planes, others))
+    inside = prep.memo(("point inside", sid), lambda: blockers_inside(prep, sid, planes, others))
     own = accel.triangles[prep.shape_ids == sid].reshape(-1, 3)
     n, c = planes[face, :3], planes[face, 3]
     on = own[np.abs(own @ n - c) <= 1e-9 * accel.scale]
@@ -78,15 +78,6 @@ def lit_pieces_of_point(prep, sid: int, planes: np.ndarray, blockers, li: int, f
                    np.ascontiguousarray(prep.lights.position[li], dtype=np.float64), eta, lo, hi,
                    np.ascontiguousarray(outside, dtype=np.float64), np.ascontiguousarray(inside, dtype=np.float64),
                    float(accel.scale))
-
-
-def _inside_triangles(prep, sid, planes, others):
-    """The blockers' parts inside shape sid (clipped fans), (U, 3, 3)."""
-    own = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3)
-    lo, hi = own.min(axis=0), own.max(axis=0)
-    tris = prep.accel.triangles[others]
-    near = np.all((tris.max(axis=1) >= lo) & (tris.min(axis=1) <= hi), axis=1)
-    return clip_to_solid(tris[near], planes)
 
 
 @njit
