@@ -36,7 +36,7 @@ import numpy as np
 from ..error_bounds import product, spot_rounding
 from ..media.convex_chords import chords_into
 from ..media.convex_directional import MAX_FACES, segments_bounded
-from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
+from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
 from ..scene.meshes import PLANE_DECIMALS
@@ -44,6 +44,7 @@ from ..segments import gather
 from ..shadows.beams import lit_pieces_of_beam
 from ..shadows.fermat_legs import lit_pieces_of_point
 from ..shadows.frusta import exact_lit_intervals
+from ..shadows.through_others import attenuated_radiance
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
@@ -233,16 +234,65 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     stats[LIT_PIECES] += len(lit)
     piece = lit.stream // n_lights
     kt = medium.sigma_t[None, :]
+    others = _other_interiors(prep, sid, sup)
     for li, rank in sorted(set(zip(lit.light.tolist(), piece.tolist()))):
         at = np.nonzero((lit.light == li) & (piece == rank))[0]
         r = lit.ray[at]
-        val, v, st, b = single_scattering(prep, method, params, sid, lit.origins[at], normals[r], lit.dirs[at],
-                                          lit.length[at], keys[r], reach, seed, depth, li, rank)
+        rows = (lit.origins[at], normals[r], lit.dirs[at], lit.length[at], keys[r])
+        if others is not None and not prep.lights.distant[li]:
+            val, v, st, b = _through_others(prep, method, params, sid, others, li, rank, rows, seed, depth)
+        else:
+            val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, rank)
         stats += st
         _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
-    if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
-        bound[ell > 0.0] = np.inf
+    if len(matched(prep)) > 1:  # other index-matched interiors: not applied (directional lights, a shape not
+        bound[ell > 0.0] = np.inf  # convex) or applied without an error analysis (`_through_others`)
     return out, var, stats, bound
+
+
+def _other_interiors(prep, sid, sup):
+    """(planes stacked, first, stop, sigma_t (S, 3)) of the index-matched interiors but shape sid, for
+    `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
+    method's inside rule is QUAD, MARCH or SAMPLE; else None (their attenuation is not applied)."""
+    inner = [i for i in matched(prep) if i != sid]
+    planes = [convex_planes(prep, i) for i in inner]
+    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE) or not len(convex_planes(prep, sid)) \
+            or any(not len(q) for q in planes):
+        return None
+    stop = np.cumsum([len(q) for q in planes])
+    return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
+            np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]))
+
+
+def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth):
+    """`single_scattering` of point or spot light li over the rows (points, normals, w, ell, keys) of
+    convex index-matched shape sid, the light attenuated by the other interiors `others`
+    (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
+    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use). No error analysis:
+    the bound is infinite."""
+    points, normals, w, ell, keys = rows
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    planes, (oplanes, first, stop, kt_other) = convex_planes(prep, sid), others
+    n = len(points)
+    geo = np.zeros((n, GEO_COLUMNS))
+    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
+    geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
+    geo[:, 17] = lights.cone[li, 2]
+    sup = method.supports.interiors
+    rtol, steps, tau_max = sup.settings(params)
+    dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
+    out, var, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
+    unit, unit_var = np.empty(n), np.empty(n)
+    for c in range(3):
+        kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
+        if ks == 0.0 or lights.intensity[li, c] == 0.0:
+            continue
+        attenuated_radiance(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
+                            np.ascontiguousarray(kt_other[:, c] - kt_out), sup.mode, rtol, steps, tau_max, keys,
+                            np.uint64(dim0), np.uint64(seed), unit, unit_var, stats)
+        out[:, c] = unit * lights.intensity[li, c]
+        var[:, c] = unit_var * lights.intensity[li, c] ** 2
+    return out, var, stats, np.where(ell[:, None] > 0.0, np.inf, 0.0)
 
 
 def _carry(out, var, bound, r, kt, t0, val, v, b):
