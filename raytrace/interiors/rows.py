@@ -209,8 +209,9 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     (a refractive interior that is not convex) or not traced (slab_approx: the note's planar model),
     the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
-    an index-matched shape the light is not attenuated by the other index-matched interiors on its
-    path: with any other, the bound is infinite."""
+    a convex index-matched shape a point or spot light is attenuated by the other index-matched
+    interiors on its path where all are convex (`_through_others`), else not; with any other, the
+    bound is infinite."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
