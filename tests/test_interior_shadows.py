@@ -215,9 +215,10 @@ def test_fog_below_a_denser_box_gets_the_light_through_it(tmp_path, method="quad
     assert np.max(relative(off, ref)[beside]) > 0.05
 
 
-def test_refractive_interiors_block_and_stay_unshadowed_inside(tmp_path):
+def test_refractive_interiors_block_and_are_shadowed_inside(tmp_path):
     """A refractive box stops the fog's light (its boundary is a blocker: the refracted light would be
-    a caustic) and renders its inside unshadowed, counted; index-matched boundaries are not blockers."""
+    a caustic) and its inside takes the lamp's refracted paths' shadows (lit pieces, none counted
+    unshadowed: a convex box); index-matched boundaries are not blockers."""
     assert not crossing.blockers(outside_scene(tmp_path)).any()
     prep = outside_scene(tmp_path, 1.33)
     assert crossing.blockers(prep) is None and crossing.attenuators(prep) is None
@@ -226,7 +227,8 @@ def test_refractive_interiors_block_and_stay_unshadowed_inside(tmp_path):
     column = dict(threads=1, crop=(5, 0, 6, 8))  # its top pixels see the box
     on = render(prep, "quadrature", {}, RenderOptions(volumetric_shadows=True, **column))
     off = render(prep, "quadrature", {}, RenderOptions(**column))
-    assert on.stats["inside: segments unshadowed (refractive or planar model)"] > 0
+    assert on.stats["inside: segments unshadowed (refractive or planar model)"] == 0
+    assert on.stats["inside: lit pieces"] > 0
     assert np.all(on.image[7, 0] < 0.9 * off.image[7, 0])
 
 

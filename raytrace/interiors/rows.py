@@ -35,13 +35,15 @@ import numpy as np
 
 from ..error_bounds import product, spot_rounding
 from ..media.convex_directional import MAX_FACES, segments_bounded
-from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, STREAM, inside_radiance
+from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
 from ..scene.meshes import PLANE_DECIMALS
 from ..segments import gather
 from ..shadows.beams import lit_pieces_of_beam
+from ..shadows.fermat_legs import lit_pieces_of_point
 from ..shadows.frusta import exact_lit_intervals
+from ..shadows.through_others import attenuated_radiance
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
@@ -83,8 +85,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     entry plane (eq. 5, unbounded); a point or spot light a convex one through every face it is outside of
     (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path). `light`: that light only
     (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
-    which numbers their random streams; `beam`: of a directional light's refracted beams, only the
-    one through that face (`lit_single_scattering`)."""
+    which numbers their random streams; `beam`: of a directional light's refracted beams, or of a
+    point or spot light's refracted paths, only the one through that face (`_lit_beams`)."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     refractive = reach == REFRACTED
@@ -188,7 +190,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                     lights.cone[li, 0])
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
-                  planes if beams or not refractive else np.zeros((0, 4)))  # beams: faces_point's faces
+                  planes if beams or not refractive else np.zeros((0, 4)),  # beams: faces_point's faces
+                  -1 if beam is None else int(beam))
     used = np.arange(len(lights)) if light is None else [light]
     if np.any(lights.cubature[used]):  # an emitter's cubature or the environment's directions: no bound
         bound[ell > 0.0] = np.inf
@@ -200,12 +203,14 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     that each light reaches past the blockers (shadows/frusta.py's exact lit intervals of `blockers`;
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
-    and its quadrature fallback take the exact path from any start). Where the light's path is not
-    straight (a refractive interior) or not traced (slab_approx: the note's planar model), the
-    segments are unshadowed, counted (UNSHADOWED), and
+    and its quadrature fallback take the exact path from any start); in a convex refractive shape,
+    `_lit_beams`. Where the light's path is neither straight nor a convex shape's refracted paths
+    (a refractive interior that is not convex) or not traced (slab_approx: the note's planar model),
+    the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
-    an index-matched shape the light is not attenuated by the other index-matched interiors on its
-    path: with any other, the bound is infinite."""
+    a convex index-matched shape a point or spot light is attenuated by the other index-matched
+    interiors on its path where all are convex (`_through_others`), else not; with any other, the
+    bound is infinite."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
@@ -229,16 +234,65 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     stats[LIT_PIECES] += len(lit)
     piece = lit.stream // n_lights
     kt = medium.sigma_t[None, :]
+    others = _other_interiors(prep, sid, sup)
     for li, rank in sorted(set(zip(lit.light.tolist(), piece.tolist()))):
         at = np.nonzero((lit.light == li) & (piece == rank))[0]
         r = lit.ray[at]
-        val, v, st, b = single_scattering(prep, method, params, sid, lit.origins[at], normals[r], lit.dirs[at],
-                                          lit.length[at], keys[r], reach, seed, depth, li, rank)
+        rows = (lit.origins[at], normals[r], lit.dirs[at], lit.length[at], keys[r])
+        if others is not None and not prep.lights.distant[li]:
+            val, v, st, b = _through_others(prep, method, params, sid, others, li, rank, rows, seed, depth)
+        else:
+            val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, rank)
         stats += st
         _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
-    if len(matched(prep)) > 1:  # another index-matched interior may attenuate the light on its way in: not applied
-        bound[ell > 0.0] = np.inf
+    if len(matched(prep)) > 1:  # other index-matched interiors: not applied (directional lights, a shape not
+        bound[ell > 0.0] = np.inf  # convex) or applied without an error analysis (`_through_others`)
     return out, var, stats, bound
+
+
+def _other_interiors(prep, sid, sup):
+    """(planes stacked, first, stop, sigma_t (S, 3)) of the index-matched interiors but shape sid, for
+    `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
+    method's inside rule is QUAD, MARCH or SAMPLE; else None (their attenuation is not applied)."""
+    inner = [i for i in matched(prep) if i != sid]
+    planes = [convex_planes(prep, i) for i in inner]
+    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE) or not len(convex_planes(prep, sid)) \
+            or any(not len(q) for q in planes):
+        return None
+    stop = np.cumsum([len(q) for q in planes])
+    return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
+            np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]))
+
+
+def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth):
+    """`single_scattering` of point or spot light li over the rows (points, normals, w, ell, keys) of
+    convex index-matched shape sid, the light attenuated by the other interiors `others`
+    (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
+    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use). No error analysis:
+    the bound is infinite."""
+    points, normals, w, ell, keys = rows
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    planes, (oplanes, first, stop, kt_other) = convex_planes(prep, sid), others
+    n = len(points)
+    geo = np.zeros((n, GEO_COLUMNS))
+    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
+    geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
+    geo[:, 17] = lights.cone[li, 2]
+    sup = method.supports.interiors
+    rtol, steps, tau_max = sup.settings(params)
+    dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
+    out, var, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
+    unit, unit_var = np.empty(n), np.empty(n)
+    for c in range(3):
+        kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
+        if ks == 0.0 or lights.intensity[li, c] == 0.0:
+            continue
+        attenuated_radiance(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
+                            np.ascontiguousarray(kt_other[:, c] - kt_out), sup.mode, rtol, steps, tau_max, keys,
+                            np.uint64(dim0), np.uint64(seed), unit, unit_var, stats)
+        out[:, c] = unit * lights.intensity[li, c]
+        var[:, c] = unit_var * lights.intensity[li, c] ** 2
+    return out, var, stats, np.where(ell[:, None] > 0.0, np.inf, 0.0)
 
 
 def _carry(out, var, bound, r, kt, t0, val, v, b):
@@ -255,9 +309,9 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     """`lit_single_scattering` in a convex refractive shape: each directional light's refracted beams
     over the pieces they reach past the blockers (shadows/beams.py: the leg inside the shape and the
     entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
-    spot lights unshadowed (their refracted paths, media/slab.py `faces_point`), counted, with an infinite bound
-    if anything else stands in the scene. The other index-matched interiors on the light's way are not
-    applied: with any, the bound is infinite."""
+    spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
+    The other index-matched interiors on the light's way are not applied: with any, the bound is
+    infinite."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = convex_planes(prep, sid), blockers(prep)
     n = len(points)
@@ -267,13 +321,8 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
 
     for li in range(len(lights)):
         if not lights.distant[li]:
-            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
-                                              depth, li)
-            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
-            if np.any(prep.shape_ids != sid):
-                b = np.where(ell[:, None] > 0.0, np.inf, b)
-            stats += st
-            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
+            _lit_point(prep, method, params, sid, planes, mask, li, (points, normals, w, ell, keys), reach, seed, depth,
+                       (out, var, bound, stats))
             continue
         faces, towards, _ = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward in zip(faces.tolist(), towards):
@@ -291,6 +340,42 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     if matched(prep):
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
+
+
+def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, depth, acc):
+    """acc = (out, var, bound, stats) += point or spot light li's single scattering over the rows
+    (points, normals, w, ell, keys) of convex refractive shape sid: through each face it is outside of,
+    over the pieces where both legs of its Fermat path clear the blockers (shadows/fermat_legs.py),
+    each piece integrated along that face's path alone (`single_scattering(..., beam=f)`) from its
+    start, carried back by exp(-sigma_t t0); a piece that starts inside has no entry face (zero
+    normals). Rows lit whole through every face take the light's integral over all faces at once,
+    as without shadows."""
+    points, normals, w, ell, keys = rows
+    out, var, bound, stats = acc
+    kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
+    position = prep.lights.position[li]
+    faces = np.nonzero(planes[:, :3] @ position - planes[:, 3] > 0.0)[0].tolist()
+    found = [(f, *lit_pieces_of_point(prep, sid, planes, mask, li, f, points, w, ell)) for f in faces]
+    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0)
+    clear = np.nonzero(whole)[0]
+    if len(clear):
+        val, v, st, b = single_scattering(prep, method, params, sid, points[clear], normals[clear], w[clear], ell[clear],
+                                          keys[clear], reach, seed, depth, li)
+        stats += st
+        _carry(out, var, bound, clear, kt, np.zeros(len(clear)), val, v, b)
+    for f, src, x0, x1, _ in found:
+        stats[LIT_PIECES] += len(src)
+        keep = ~whole[src]
+        src, x0, x1 = src[keep], x0[keep], x1[keep]
+        rank = np.arange(len(src)) - np.searchsorted(src, src)
+        for piece in np.unique(rank).tolist():
+            at = np.nonzero(rank == piece)[0]
+            r = src[at]
+            entry = np.where((x0[at] == 0.0)[:, None], normals[r], 0.0)
+            val, v, st, b = single_scattering(prep, method, params, sid, points[r] + x0[at, None] * w[r], entry, w[r],
+                                              x1[at] - x0[at], keys[r], reach, seed, depth, li, piece, f)
+            stats += st
+            _carry(out, var, bound, r, kt, x0[at], val, v, b)
 
 
 def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):

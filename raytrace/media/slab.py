@@ -1023,7 +1023,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
-    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD).
+    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD),
+    with only >= 0 through that face alone.
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces)
     and where the value is exactly 0 (no light, nothing to scatter); inf elsewhere."""
@@ -1048,6 +1049,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
             # a point or spot light through every face of a convex refractive shape, else the entry plane
             faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
             m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
+            if only >= 0:  # the path through face `only` alone
+                m = _only_face(faces, m, only)
             if m == 0:
                 continue
             if mode == QUAD:
@@ -1081,6 +1084,16 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
         elif mode == APPROX:
             da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
             out[s] = point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da) * math.exp(-kt_out * da)
+
+
+@njit
+def _only_face(faces, m, f):
+    """Keep the row of face f among the first m rows of `refracting_faces` (moved first); their count."""
+    for j in range(m):
+        if faces[j, 17] == f:
+            faces[0] = faces[j]
+            return 1
+    return 0
 
 
 @njit

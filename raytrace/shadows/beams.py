@@ -98,14 +98,20 @@ def lit_pieces_of_beam(prep, sid: int, planes: np.ndarray, blockers, li: int, fa
 
 def _inside_bins(prep, sid, planes, others, toward):
     """The frusta of the blockers inside shape sid under the beam travelling along -toward, or None."""
+    inner = blockers_inside(prep, sid, planes, others)
+    if not len(inner):
+        return None
+    return sun_bins(inner, -toward, prep.accel.epsilon, prep.accel.scale)
+
+
+def blockers_inside(prep, sid, planes, others):
+    """The parts inside convex shape sid (face planes `planes`) of the triangles `others` (a mask over
+    prep.accel.triangles), as triangles (U, 3, 3): `clip_to_solid` of those near its bounding box."""
     own = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3)
     lo, hi = own.min(axis=0), own.max(axis=0)
     tris = prep.accel.triangles[others]
     near = np.all((tris.max(axis=1) >= lo) & (tris.min(axis=1) <= hi), axis=1)
-    inner = clip_to_solid(tris[near], planes)
-    if not len(inner):
-        return None
-    return sun_bins(inner, -toward, prep.accel.epsilon, prep.accel.scale)
+    return clip_to_solid(tris[near], planes)
 
 
 def _segments(origins, dirs, length, scale):

@@ -1,0 +1,89 @@
+"""The light of a point or spot light inside a convex index-matched shape, attenuated by the other
+index-matched interiors its straight path crosses on the way out.
+
+Inside shape A the single-scattering integrand of media/slab.py `convex_integrand` carries the
+outside's extinction kt_out over the light's path outside A. Where that path crosses another
+index-matched convex shape B_j (chord c_j, media/convex_chords.py `chord`), the light is attenuated
+by B_j's extinction instead over c_j: the integrand times exp(-sum_j (kt_j - kt_out) c_j) (A and the
+B_j do not overlap, so c_j is B_j's chord of the whole path from the point to the light). The
+chords change slope where the path toward the light passes a vertex of the polygon the plane through
+the segment and the light cuts from B_j (`section_kinks`), so `quadrature` starts its adaptive rule
+from those points as well as A's own kinks and a spot's cone crossings; `raymarch` and `montecarlo`
+evaluate the same integrand with their own rules (media/slab.py `_march_or_sample`).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..jit import njit
+from ..media.convex_chords import chord, section_kinks
+from ..media.integrand import integrand_of
+from ..media.slab import _N10, _N20, _W10, _W20, MARCH, QUAD, _march_or_sample, convex_integrand, straight_cuts
+from ..media.adaptive import piecewise
+
+
+class AttenuatedConvex(NamedTuple):
+    """`convex_integrand` of a point or spot light (geo row, the shape's planes, one channel) times
+    exp(-sum_j dk[j] chord_j), chord_j through the planes others[first[j]:stop[j]]."""
+    geo: np.ndarray
+    planes: np.ndarray
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    others: np.ndarray
+    first: np.ndarray
+    stop: np.ndarray
+    dk: np.ndarray
+
+
+@integrand_of(AttenuatedConvex)
+@njit
+def _attenuated(x, r):
+    v = convex_integrand(x, r.geo, r.planes, False, r.kt, r.ks, r.code, r.g, r.kt_out, 0.0, -1)
+    if v == 0.0:
+        return 0.0
+    geo = r.geo
+    px, py, pz = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
+    ux, uy, uz = geo[6] - px, geo[7] - py, geo[8] - pz
+    dist = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if not dist > 0.0:
+        return v
+    ux, uy, uz = ux / dist, uy / dist, uz / dist
+    tau = 0.0
+    for j in range(r.first.shape[0]):
+        if r.dk[j] != 0.0:
+            tau += r.dk[j] * chord(r.others, r.first[j], r.stop[j], px, py, pz, ux, uy, uz, dist)
+    return v * math.exp(-tau)
+
+
+@njit
+def attenuated_radiance(geo, planes, ell, kt, ks, code, g, kt_out, others, first, stop, dk, mode, rtol, steps,
+                        tau_max, keys, dim0, seed, out, var, stats):
+    """out, var (N,) = the attenuated single scattering (`AttenuatedConvex`) of each segment (geo rows,
+    unit light, one channel) over [0, ell] and its variance: QUAD adaptive between the kinks of A's
+    and every B_j's chords and a spot's cone crossings; MARCH, SAMPLE as media/slab.py's
+    `_march_or_sample` (keys, dim0, seed: SAMPLE's random streams)."""
+    for s in range(geo.shape[0]):
+        out[s], var[s] = 0.0, 0.0
+        if ks == 0.0 or not ell[s] > 0.0:
+            continue
+        rec = AttenuatedConvex(geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk)
+        if mode == QUAD:
+            end = min(ell[s], 745.0 / kt)
+            br = np.empty(planes.shape[0] + others.shape[0] + 4 * first.shape[0] + 10)
+            br[0] = 0.0
+            m = straight_cuts(geo[s], end, br[1:])
+            m += section_kinks(planes, 0, planes.shape[0], geo[s, 0:3], geo[s, 3:6], geo[s, 6:9], end, br[1 + m:])
+            for j in range(first.shape[0]):
+                m += section_kinks(others, first[j], stop[j], geo[s, 0:3], geo[s, 3:6], geo[s, 6:9], end, br[1 + m:])
+            br[1:m + 1].sort()
+            br[m + 1] = end
+            out[s] = piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+        else:
+            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+            out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
