@@ -66,6 +66,29 @@ def icosahedron():
     return verts, faces
 
 
+def icosphere():
+    """The icosahedron with each face cut in four at its edges' midpoints, pushed out to its sphere
+    (radius 0.9 about (0.1, 0.05, -0.1)): a convex mesh of 80 faces, more than the 64 planes of
+    media/slab.py's kernel (its paths are measured on the facet walk's planes)."""
+    verts, faces = icosahedron()
+    centre = (0.1, 0.05, -0.1)
+    verts = [list(v) for v in verts]
+    mids = {}
+
+    def mid(i, j):
+        if (min(i, j), max(i, j)) not in mids:
+            m = [0.5 * (verts[i][k] + verts[j][k]) - centre[k] for k in range(3)]
+            scale = 0.9 / math.sqrt(sum(x * x for x in m))
+            verts.append([centre[k] + scale * m[k] for k in range(3)])
+            mids[(min(i, j), max(i, j))] = len(verts) - 1
+        return mids[(min(i, j), max(i, j))]
+    out = []
+    for a, b, c in faces:
+        ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+        out += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+    return verts, out
+
+
 def u_mesh():
     """The U prism's vertices and faces (the outline extruded from z = -0.5 to 0.5)."""
     verts = [[float(x), float(y), z] for z in (-0.5, 0.5) for x, y in U_OUTLINE]
@@ -295,6 +318,8 @@ def cases():
     box_chord, box_boxes = box_shape(*BOX)
     verts, faces = icosahedron()
     ico_chord, ico_planes = polytope_shape(verts, faces)
+    sv, sf = icosphere()
+    fine_chord, fine_planes = polytope_shape(sv, sf)
     uv, uf = u_mesh()
     u_chord, u_boxes = u_shape()
     sphere_chord, sphere_geom = sphere_shape(*SPHERE)
@@ -302,6 +327,9 @@ def cases():
            [-0.7, 1.3, 3.2], [[a, 0.3 * b, 0.8 * b] for a, b in grid], [("lamp", LAMP), ("spot", SPOT)])
     yield ("icosahedron", {"primitive": "triangles", "vertices": verts, "faces": faces}, ico_chord, ico_planes,
            "polytope", [-0.9, 1.1, 3.0], [[0.1 + 0.7 * a, 0.05 + 0.6 * b, -0.1] for a, b in grid], [("lamp", LAMP)])
+    yield ("icosphere", {"primitive": "triangles", "vertices": sv, "faces": sf}, fine_chord, fine_planes,
+           "polytope", [-0.9, 1.1, 3.0], [[0.1 + 0.7 * a, 0.05 + 0.6 * b, -0.1] for a, b in grid],
+           [("lamp", LAMP)])
     yield ("u", {"primitive": "triangles", "vertices": uv, "faces": uf}, u_chord, u_boxes, "boxes",
            [0.3, 1.4, 3.0], [[0.9 * a, 0.7 * b - 0.2, 0.0] for a, b in grid], [("lamp", U_LAMP), ("spot", U_SPOT)])
     yield ("sphere", {"primitive": "sphere", "center": list(SPHERE[0]), "radius": SPHERE[1], "exact": True},

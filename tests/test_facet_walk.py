@@ -76,7 +76,7 @@ def assert_exits(planes, walked, s, o, w, x, source, directional):
     to = np.array([toward(source, directional, q)[0] for q in p])
     dist = np.array([toward(source, directional, q)[1] for q in p])
     got = np.empty(len(x))
-    facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, *walked, planes, got)
+    facet_walk.exit_lengths(np.full(len(x), s), x, p, to, dist, *walked, planes, 0.0, got, np.empty(len(x)))
     want = np.array([nearest_plane(planes, q, u, d)[0] for q, u, d in zip(p, to, dist)])
     assert np.max(np.abs(got - want)) < 1e-12, (s, got, want)
 
@@ -266,9 +266,9 @@ def test_first_panels_go_in_groups_of_whole_segments(monkeypatch):
     calls = []  # per call of `adaptive`, the segments of each group
     outer, whole = paths.adaptive, paths._adaptive
 
-    def spy_outer(*args):
+    def spy_outer(*args, **kwargs):
         calls.append([])
-        return outer(*args)
+        return outer(*args, **kwargs)
 
     def spy(integrand, end, nc, seg, a, b, rtol, stats, *bound):
         calls[-1].append(seg.copy())

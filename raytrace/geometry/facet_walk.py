@@ -20,6 +20,8 @@ import numpy as np
 
 from ..jit import njit
 
+U = 2.0 ** -53  # unit roundoff of doubles
+
 
 def mesh_links(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9):
     """(planes (T, 4): each triangle's outward unit normal and offset, vertices (V, 3), the
@@ -299,20 +301,28 @@ def walk(verts, tv, nbr, planes, geo, directional, ell, start, tm, inside, offse
 
 
 @njit
-def exit_lengths(seg, x, p, to, dist, offsets, counts, bt, bf, planes, out):
+def exit_lengths(seg, x, p, to, dist, offsets, counts, bt, bf, planes, reach, out, err):
     """out[i] = the length of the path from p[i] (at x[i] on segment seg[i]) along the unit to[i]
     to where it leaves the convex mesh, at most dist[i]: the least distance to the planes of the
     facet of the piece holding x[i] and of its neighbours in the walk (`walk`'s bt, bf), which
-    contain the exit plane (a convex shape's exit is the nearest plane ahead)."""
+    contain the exit plane (a convex shape's exit is the nearest plane ahead; a node a rounding
+    away from a breakpoint finds it among the neighbours). err[i] bounds its rounding: the plane's
+    offset and the dot products, and the plane's normal (a few u off its triangle's) tilted about a
+    vertex within `reach` (the largest vertex norm) of the origin, 16u (|p| + k + reach) / cos with
+    cos the exit plane's cosine to the path (0 where the path ends at dist first)."""
     for i in range(seg.shape[0]):
         s = seg[i]
         lo, m = offsets[s], counts[s]
         j = np.searchsorted(bt[lo:lo + m], x[i])
         k = dist[i]
+        at = 0.0
         for c in range(max(j - 1, 0), min(j + 2, m + 1)):
             f = bf[lo + s + c]
             cos = planes[f, 0] * to[i, 0] + planes[f, 1] * to[i, 1] + planes[f, 2] * to[i, 2]
             if cos > 0.0:
                 h = planes[f, 3] - planes[f, 0] * p[i, 0] - planes[f, 1] * p[i, 1] - planes[f, 2] * p[i, 2]
-                k = min(k, max(h, 0.0) / cos)
+                if max(h, 0.0) / cos < k:
+                    k, at = max(h, 0.0) / cos, cos
         out[i] = k
+        norm = math.sqrt(p[i, 0] * p[i, 0] + p[i, 1] * p[i, 1] + p[i, 2] * p[i, 2])
+        err[i] = 16.0 * U * (norm + k + reach) / at if at > 0.0 else 0.0

@@ -289,9 +289,9 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=Non
     direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
     light's distance d (inf for a directional light), its path's length k inside shape sid (on the
     exit facets of `exit_facets` where the walk holds them), the scattering cosine mu and a spot's
-    falloff toward the direction it leaves in (1 for other lights). `dk` (M,), where given (a non-convex
-    shape's), receives a bound on k's error (`walk`'s) and `sig` (M,) the walk's signature (both 0
-    outside a spot's cone, where k is not measured)."""
+    falloff toward the direction it leaves in (1 for other lights). `dk` (M,), where given, receives a
+    bound on k's error (`walk`'s, or the exit facets' `exit_lengths`; inf for Embree's exits) and
+    `sig` (M,) the walk's signature (both 0 outside a spot's cone, where k is not measured)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
     if directional:
         to = np.ascontiguousarray(geo[seg, 6:9])
@@ -305,17 +305,22 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=Non
         f = falloff_array(np.ascontiguousarray(-np.einsum("ij,ij->i", to, geo[seg, 9:12])), *cone)
     lit = np.nonzero(f > 0.0)[0]  # no rays traced outside a spot's cone
     k = np.zeros(len(x))
-    if facets is not None:
-        walked = lit[facets.counts[seg[lit]] >= 0]
-        col = np.empty(len(walked))
-        facet_walk.exit_lengths(seg[walked], x[walked], p[walked], np.ascontiguousarray(to[walked]), d[walked],
-                                facets.offsets, facets.counts, facets.bt, facets.bf, facets.planes, col)
-        k[walked] = col
-        lit = lit[facets.counts[seg[lit]] < 0]
     if dk is not None:
         dk[:], sig[:] = 0.0, 0
+    if facets is not None:
+        walked = lit[facets.counts[seg[lit]] >= 0]
+        col, err = np.empty(len(walked)), np.empty(len(walked))
+        facet_walk.exit_lengths(seg[walked], x[walked], p[walked], np.ascontiguousarray(to[walked]), d[walked],
+                                facets.offsets, facets.counts, facets.bt, facets.bf, facets.planes, facets.reach,
+                                col, err)
+        k[walked] = col
+        if dk is not None:
+            dk[walked] = err
+        lit = lit[facets.counts[seg[lit]] < 0]
     if prep.interior_planes.get(sid) is not None:  # convex (bounded.hull_planes, filled before integrating)
         k[lit] = convex_exits(prep, sid, p[lit], to[lit], d[lit])
+        if dk is not None:
+            dk[lit] = np.inf  # Embree's exits: their float32 reach is not analysed
     else:
         err, hashes = (np.zeros((len(lit), 1)), np.zeros(len(lit), np.int64)) if dk is not None else (None, None)
         k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool),
@@ -392,10 +397,11 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     """∫_0^ell of the integrand per segment and channel (N, C) and a bound on its error (N, C), by
     `adaptive`; the first panels end at a spot's cone crossings (media/slab.py straight_cuts) and, in a
     convex shape, where the light's exit facet changes (`exit_facets`): the integrand is smooth on each
-    panel. The bound is the rule's and the integrand's rounding with the walks' length errors
-    (`_rounding`), inf where a panel was left open; inf in a convex shape (here: more than MAX_FACES
-    planes; its facet walk's and Embree exits' rounding is not analysed), integrated as before. An exact
-    sphere: media/slab.py's kernel (`_on_sphere`), bounded."""
+    panel. The bound is the rule's and the integrand's rounding with the length errors of the walks or,
+    in a convex shape (here: more than MAX_FACES planes), of the exit facets' planes
+    (`facet_walk.exit_lengths`; inf for a segment the facet walk could not follow, measured by Embree's
+    exits) (`_rounding`), inf where a panel was left open. An exact sphere: media/slab.py's kernel
+    (`_on_sphere`), bounded."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
         val, _, err = _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, QUAD, stats, rtol=rtol)
@@ -406,20 +412,21 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     kinks = None if convex else section_kinks(prep, sid, geo, directional, end)
     seg, a, b = _first_panels(geo, directional, end, facets, kinks)
     integrand = lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
-                                         not convex)
-    if convex:
-        return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats), np.full((len(ell), len(kts)), np.inf)
-    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True, signatures=kinks is None)
+                                         True)
+    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True,
+                    signatures=not convex and kinks is None)
 
 
 class Facets(NamedTuple):
     """facet_walk.walk's pieces of each segment: breakpoints bt from offsets[s] (counts[s] of them; -1:
-    not walked), the facets bf of the pieces from offsets[s] + s, and the facets' planes (T, 4)."""
+    not walked), the facets bf of the pieces from offsets[s] + s, the facets' planes (T, 4) and the
+    largest norm of the mesh's vertices (`facet_walk.exit_lengths`' rounding)."""
     offsets: np.ndarray
     counts: np.ndarray
     bt: np.ndarray
     bf: np.ndarray
     planes: np.ndarray
+    reach: float
 
 
 def exit_facets(prep, sid, geo, directional, end):
@@ -439,7 +446,7 @@ def exit_facets(prep, sid, geo, directional, end):
         to = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-125)[:, None]
     start = own.first_hit(p, to)[1] if len(end) else np.zeros(0, dtype=np.int64)
     offsets, counts, bt, bf = facet_walk.pieces(links, geo, directional, end, start)
-    return Facets(offsets, counts, bt, bf, links[0])
+    return Facets(offsets, counts, bt, bf, links[0], float(np.max(np.linalg.norm(links[1], axis=1))))
 
 
 def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, signatures=True):

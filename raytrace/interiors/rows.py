@@ -15,7 +15,7 @@ In an index-matched shape the light's path inside is its exact straight path for
 `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights) in an
 index-matched shape: convex, at most MAX_FACES planes, the closed form of media/convex_directional.py
 with its bound; else the segments go to the adaptive quadrature (`_traced`, rtol bounded.RTOL),
-counted (HANDED), with its bound (non-convex shapes) or none (more than MAX_FACES planes). Through a refractive boundary a directional light enters a convex shape
+counted (HANDED), with its bound. Through a refractive boundary a directional light enters a convex shape
 through every face it meets, one beam each (`bounded.refracted_beams`: the exact refracted path;
 CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
@@ -23,8 +23,9 @@ path per face), other shapes through the entry plane (Fermat's path).
 
 QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bounds.md, "Inside shapes"):
 convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
-planes are from the faces), non-convex ones on traced walks (paths.segment_quadrature); elsewhere,
-and for the other rules but CLOSED's closed form, the bound is infinite.
+planes are from the faces), others on the facet walk's exit planes or on traced walks
+(paths.segment_quadrature); elsewhere, and for the other rules but CLOSED's closed form, the bound is
+infinite.
 """
 from __future__ import annotations
 
