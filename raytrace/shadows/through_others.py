@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit
-from ..media.convex_chords import chord, section_kinks
+from ..media.convex_chords import PLANES, chord, section_kinks
 from ..media.integrand import integrand_of
 from ..media.slab import _N10, _N20, _W10, _W20, MARCH, QUAD, _march_or_sample, convex_integrand, straight_cuts
 from ..media.adaptive import piecewise
@@ -44,7 +44,7 @@ class AttenuatedConvex(NamedTuple):
 @integrand_of(AttenuatedConvex)
 @njit
 def _attenuated(x, r):
-    v = convex_integrand(x, r.geo, r.planes, False, r.kt, r.ks, r.code, r.g, r.kt_out, 0.0, -1)
+    v = convex_integrand(x, r.geo, PLANES, r.planes, False, r.kt, r.ks, r.code, r.g, r.kt_out, 0.0, -1)
     if v == 0.0:
         return 0.0
     geo = r.geo
