@@ -1,6 +1,7 @@
 """Compile time of the first render of every bundled scene, with an empty kernel cache.
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/compile_time.py [--profile] [--scenes a,b] [--tree DIR]
+                                                                       [--before DIR] [--runs N]
 
 One subprocess per scene (and one for the built-in default scene), each with `RAYTRACE_CACHE`
 pointed at a fresh empty folder, renders the scene through the command line at `--width` pixels
@@ -16,8 +17,10 @@ per scene on the 2-core machine of docs/benchmarks.md.
 --profile adds, per scene, the dispatchers with the largest inclusive compile time (a dispatcher's
 compilation includes those of the functions it calls that were not compiled yet; a recursive one is
 counted once). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
-e.g. an older commit's `git archive`, for before/after tables. Scenes whose meshes come from
-`render.py assets` (sibenik, conference) run only when RAYTRACE_ASSETS is set.
+e.g. an older commit's `git archive`, for before/after tables; --before DIR measures that checkout
+too, alternating with --tree's, scene by scene (paired runs: both see the same load), and --runs N
+repeats each measurement N times, giving every run's compile CPU seconds and their median. Scenes
+whose meshes come from `render.py assets` (sibenik, conference) run only when RAYTRACE_ASSETS is set.
 """
 import argparse
 import json
@@ -129,6 +132,8 @@ def main():
     ap.add_argument("--profile", action="store_true", help="the top dispatchers by inclusive compile time")
     ap.add_argument("--top", type=int, default=8, help="dispatchers listed per scene with --profile")
     ap.add_argument("--tree", type=Path, default=ROOT, help="the checkout whose raytrace is measured")
+    ap.add_argument("--before", type=Path, help="also measure this checkout, alternating with --tree (paired)")
+    ap.add_argument("--runs", type=int, default=1, help="measurements per scene and checkout (default 1)")
     ap.add_argument("--json", type=Path, help="also write the figures here")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
@@ -137,6 +142,8 @@ def main():
         print(json.dumps(worker(args.worker, args.width, args.out)))
         return
     names = args.scenes.split(",") if args.scenes else scene_names(bool(os.environ.get("RAYTRACE_ASSETS")))
+    if args.before or args.runs > 1:
+        return paired(names, args)
     print(f"# tree {args.tree.resolve()}, width {args.width}, load {' '.join(f'{x:.1f}' for x in os.getloadavg())}, "
           f"{os.cpu_count()} cores")
     print("| scene | compile CPU s | compiled | late | warm-up wall s | process CPU s |")
@@ -153,6 +160,32 @@ def main():
             print(f"\n{name}: top dispatchers by inclusive compile CPU s")
             for fn, s in r["inclusive"][:args.top]:
                 print(f"  {s:6.2f}  {fn}")
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+
+
+def paired(names: list[str], args):
+    """Per scene, `args.runs` rounds of (before, then tree): every run's compile CPU seconds, their
+    median and the compiled specialisations."""
+    trees = ([("before", args.before)] if args.before else []) + [("now", args.tree)]
+    print(f"# {', '.join(f'{k} {t.resolve()}' for k, t in trees)}; width {args.width}, {args.runs} runs each, "
+          f"{os.cpu_count()} cores")
+    head = " | ".join(f"compile CPU s, {k} (runs) | median | compiled" for k, _ in trees)
+    print(f"| scene | {head} |")
+    print("|---" * (1 + 3 * len(trees)) + "|")
+    results = {}
+    for name in names:
+        runs = {k: [] for k, _ in trees}
+        for _ in range(args.runs):
+            for k, tree in trees:
+                runs[k].append(measure(name, args.width, tree))
+        results[name] = runs
+        cells = []
+        for k, _ in trees:
+            cpu = sorted(r["compile_cpu"] for r in runs[k])
+            each = ", ".join(f"{r['compile_cpu']:.1f}" for r in runs[k])
+            cells.append(f"{each} | {cpu[len(cpu) // 2]:.1f} | {runs[k][0]['compiled']}")
+        print(f"| {name} | {' | '.join(cells)} |", flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
 

@@ -52,5 +52,7 @@ class SourceKeyedLocator(_Base):
 if SourceKeyedLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, SourceKeyedLocator)
 
-njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMATH))
-exact_njit = functools.partial(numba.njit, cache=True, nogil=True, error_model="numpy")
+# no_cfunc_wrapper: no C-callable wrapper per compiled function (it serves only first-class function
+# arguments, which no kernel takes): about 10 ms less compile per function, the kernels' code unchanged
+njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMATH), no_cfunc_wrapper=True)
+exact_njit = functools.partial(numba.njit, cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)

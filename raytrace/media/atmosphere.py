@@ -126,8 +126,8 @@ class Atmosphere(Medium):
     def transmittance_on(self, origins, dirs, a, b):
         n = len(origins)
         out = np.empty((n, 3))
-        ray_transmittance(*kernel_arrays(n, origins, dirs, a, b), *(float(v) for v in self.center), float(self.radius), float(self.top), self.layers,
-                          self.layer_sigma_t, out)
+        ray_transmittance(*kernel_arrays(n, origins, dirs, a, b), *(float(v) for v in self.center), float(self.radius),
+                          float(self.top), self.layers, np.ascontiguousarray(self.layer_sigma_t.T), out)
         return out
 
     def ground_hits(self, origins, dirs) -> np.ndarray:
@@ -306,7 +306,8 @@ def optical_depth(cols, kt):
 @njit
 def ray_transmittance(origins, dirs, a, b, cx, cy, cz, radius, top, layers, kt, out):
     """out[n, c] = transmittance over [a[n], b[n]] of ray n (a may be negative: counted from the
-    point origin + a dir; b may be inf) in channel c; kt (K, 3)."""
+    point origin + a dir; b may be inf) in channel c; kt (3, K): a channel's row is contiguous, as
+    the kt of the other kernels' `optical_depth` (one specialisation)."""
     cols = np.empty(layers.shape[0])
     for n in range(origins.shape[0]):
         s = a[n]
@@ -319,7 +320,7 @@ def ray_transmittance(origins, dirs, a, b, cx, cy, cz, radius, top, layers, kt, 
                 out[n, c] = 0.0
             continue
         for c in range(3):
-            out[n, c] = math.exp(-optical_depth(cols, kt[:, c]))
+            out[n, c] = math.exp(-optical_depth(cols, kt[c]))
 
 
 @njit

@@ -123,7 +123,9 @@ def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = 
 
 
 def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
-    planes, signs, lb, keep = _frusta(tris, frame[0], frame[3], sun, epsilon)
+    n_t = len(tris)
+    planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, bool)
+    _frusta(tris, frame[0], frame[3], sun, epsilon, planes, signs, lb, keep)
     planes, signs, lb = planes[keep], signs[keep], lb[keep]
     if sun:
         pu = np.einsum("tvk,k->tv", tris[keep], frame[1]) if len(lb) else np.zeros((0, 3))
@@ -141,15 +143,19 @@ def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
         kind, n_tex = CUBE, 6 * res * res
     rel = tris[keep] - (0.0 if sun else frame[0])
     count = np.zeros(n_tex + 1, np.int64)
-    dummy = np.zeros(0, np.int64)
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
-    _bin(planes, signs, rel, kind, res, grid, frame, True, count, dummy, dummy, cover, cover_depth)
+    _bin(planes, signs, rel, kind, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover,
+         cover_depth)
+    # the lists, filled in ascending depth lower bound (so each texel's is in order), less what its cover hides
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
-    tri = np.empty(int(start[-1]), np.int64)
-    _bin(planes, signs, rel, kind, res, grid, frame, False, start, np.zeros(n_tex, np.int64), tri, cover, cover_depth)
-    start, tri, tlb = _sort_and_prune(start, tri, lb, cover_depth)
-    return LightBins(planes, signs, start, tri, tlb, cover, cover_depth, kind, res, grid, frame, slack)
+    tri, tlb, fill = np.empty(int(start[-1]), np.int64), np.empty(int(start[-1])), np.zeros(n_tex, np.int64)
+    _bin(planes, signs, rel, kind, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb,
+         cover, cover_depth)
+    slot = np.arange(len(tri)) - np.repeat(start[:-1], count[:-1])
+    kept = slot < np.repeat(fill, count[:-1])
+    start = np.concatenate([[0], np.cumsum(fill)]).astype(np.int64)
+    return LightBins(planes, signs, start, tri[kept], tlb[kept], cover, cover_depth, kind, res, grid, frame, slack)
 
 
 @njit
@@ -201,16 +207,11 @@ def _less(a, b):
 
 
 @njit
-def _frusta(tris, L, d, sun, epsilon):
-    """Per triangle: its four planes and their signs (LightBins), a lower bound on its depth from
-    the light, and whether it is kept (not edge-on within rounding; for a point light, its plane
-    not within epsilon of the light)."""
-    n_t = tris.shape[0]
-    planes = np.zeros((n_t, 4, 4))
-    signs = np.zeros((n_t, 4))
-    lb = np.zeros(n_t)
-    keep = np.zeros(n_t, np.bool_)
-    for t in range(n_t):
+def _frusta(tris, L, d, sun, epsilon, planes, signs, lb, keep):
+    """Per triangle, into the zeroed arrays planes, signs, lb and keep: its four planes and their
+    signs (LightBins), a lower bound on its depth from the light, and whether it is kept (not
+    edge-on within rounding; for a point light, its plane not within epsilon of the light)."""
+    for t in range(tris.shape[0]):
         v = tris[t]
         e1 = v[1] - v[0]
         e2 = v[2] - v[0]
@@ -253,7 +254,6 @@ def _frusta(tris, L, d, sun, epsilon):
         planes[t, 3, 0], planes[t, 3, 1], planes[t, 3, 2] = nx, ny, nz
         planes[t, 3, 3] = D if not sun else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
         signs[t, 3] = s
-    return planes, signs, lb, keep
 
 
 @njit(inline="always")
@@ -321,9 +321,11 @@ def _face_bbox(rel, t, face, buf, buf2):
 
 
 @njit
-def _bin(planes, signs, rel, kind, res, grid, frame, counting, start, fill, tri, cover, cover_depth):
-    """Conservative rasterisation: count (counting) or list each triangle in every texel it may
-    meet, and (when counting) each texel's covering triangle of least largest depth."""
+def _bin(planes, signs, rel, kind, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth):
+    """Conservative rasterisation, the triangles taken in `order`: count (counting) each triangle in
+    every texel it may meet into start[texel], and each texel's covering triangle of least largest
+    depth (the first in `order` of equal ones); or list it, at start + fill of the texel, with its
+    depth lower bound lb less REL (tlb), unless the texel's cover hides it (lb beyond cover_depth)."""
     u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
     faces = 6 if kind == CUBE else 1
     buf, buf2 = np.empty((8, 3)), np.empty((8, 3))
@@ -331,7 +333,8 @@ def _bin(planes, signs, rel, kind, res, grid, frame, counting, start, fill, tri,
     du_d, dv_d = DILATE * (du * nu if kind == ORTHO else 1.0), DILATE * (dv * nv if kind == ORTHO else 1.0)
     dd = frame[3]
     cn, pn = np.empty(4), np.empty(3)
-    for t in range(planes.shape[0]):
+    for it in range(order.shape[0]):
+        t = order[it]
         for p in range(3):
             pn[p] = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
         for face in range(faces):
@@ -390,31 +393,10 @@ def _bin(planes, signs, rel, kind, res, grid, frame, counting, start, fill, tri,
                             if depth < cover_depth[tex]:
                                 cover_depth[tex] = depth
                                 cover[tex] = t
-                    else:
+                    elif not lb[t] > cover_depth[tex]:
                         tri[start[tex] + fill[tex]] = t
+                        tlb[start[tex] + fill[tex]] = lb[t] - REL * abs(lb[t])
                         fill[tex] += 1
-
-
-@njit
-def _sort_and_prune(start, tri, lb, cover_depth):
-    """Each texel's list sorted by depth lower bound, without triangles wholly behind its cover."""
-    n_tex = start.shape[0] - 1
-    new_start = np.zeros(n_tex + 1, np.int64)
-    out_t = np.empty(tri.shape[0], np.int64)
-    out_lb = np.empty(tri.shape[0])
-    m = 0
-    for k in range(n_tex):
-        seg = tri[start[k]:start[k + 1]]
-        depth = lb[seg]
-        order = np.argsort(depth)
-        for q in order:
-            if depth[q] > cover_depth[k]:
-                break
-            out_t[m] = seg[q]
-            out_lb[m] = depth[q] - REL * abs(depth[q])
-            m += 1
-        new_start[k + 1] = m
-    return new_start, out_t[:m].copy(), out_lb[:m].copy()
 
 
 @njit
@@ -469,7 +451,7 @@ def _pieces(q, w, ell, kind, grid, frame, out):
                     nr += 1
     roots[nr] = ell
     nr += 1
-    sort_few(roots, 1, nr - 1)  # the few interior roots
+    sort_few(roots, 0, nr - 1)  # the few interior roots (roots[0] = 0 is below them: it stays first)
     n = 0
     for p in range(nr - 1):
         xa, xb = roots[p], roots[p + 1]
@@ -491,6 +473,32 @@ def _pieces(q, w, ell, kind, grid, frame, out):
 
 
 @njit
+def _heapsort_pairs(a, b):
+    """Sort a (no nan) ascending in place and b alongside, by heapsort (one sift loop, for the heap's
+    construction and then its extraction): np.argsort would compile numba's quicksort (about
+    1.5 s) for the shadow intervals of a segment. The order of equal a is arbitrary: the union of
+    the intervals (a, b) does not depend on it."""
+    start, end = a.shape[0] // 2, a.shape[0]
+    while end > 1:
+        if start > 0:
+            start -= 1
+        else:
+            end -= 1
+            a[0], a[end] = a[end], a[0]
+            b[0], b[end] = b[end], b[0]
+        root = start
+        while 2 * root + 1 < end:
+            child = 2 * root + 1
+            if child + 1 < end and a[child] < a[child + 1]:
+                child += 1
+            if not a[root] < a[child]:
+                break
+            a[root], a[child] = a[child], a[root]
+            b[root], b[child] = b[child], b[root]
+            root = child
+
+
+@njit
 def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap,
          stats):
     """(segment, x0, x1) of every lit piece of every segment, in segment order. Per segment: each
@@ -499,7 +507,9 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
     frustum intervals are computed once per segment; the lit pieces are the complement of their
     union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call."""
     n_t = planes.shape[0]
-    stamp = np.full(n_t, -1, np.int64)
+    stamp = np.empty(n_t, np.int64)
+    for t in range(n_t):
+        stamp[t] = -1
     c_lo, c_hi = np.empty(n_t + 1), np.empty(n_t + 1)
     cap = 2 * origins.shape[0] + 16
     src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
@@ -620,7 +630,8 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
         before = m
         cur = 0.0
         if k:
-            for e in np.argsort(c_lo[:k]):
+            _heapsort_pairs(c_lo[:k], c_hi[:k])
+            for e in range(k):
                 if c_lo[e] - cur > gap:
                     src[m], x0[m], x1[m] = s, cur, c_lo[e]
                     m += 1
