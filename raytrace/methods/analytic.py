@@ -479,17 +479,19 @@ def _block_for(coeffs, v1, v2, H, at):
     """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h: the shortest block whose
     range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
     full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
-    ones after it from the widest range to the narrowest)."""
-    n = int(coeffs[0])
-    best = coeffs[1:1 + n]
+    ones after it from the widest range to the narrowest, each range inside the one before, so the
+    scan stops at the first range that does not hold the piece). Offsets, not slices, in the scan:
+    a slice costs numba a reference count."""
+    start, n = 1, int(coeffs[0])
     pos = 1 + n
     while pos < coeffs.shape[0]:
-        n = int(coeffs[pos])
-        b = coeffs[pos + 1:pos + 1 + n]
-        if b[B_VLO] <= v1 and v2 <= b[B_VHI] and H <= b[at]:
-            best = b
-        pos += 1 + n
-    return best
+        b = pos + 1
+        if not (coeffs[b + B_VLO] <= v1 and v2 <= coeffs[b + B_VHI]):
+            break
+        if H <= coeffs[b + at]:
+            start, n = b, int(coeffs[pos])
+        pos = b + int(coeffs[pos])
+    return coeffs[start:start + n]
 
 
 @njit
