@@ -75,6 +75,7 @@ STATS_SIZE = 13
 # series loses ~log10(e^rho) digits: use it while 30*eps*e^rho <= precision, and (cost: the
 # loop needs ~2.5*rho+5 iterations of 4 trig calls, more than 2 scaled-E1 evaluations) rho <= 8
 RHO_SWITCH_CAP = 8.0
+CAP_PRECISION = 1e-10  # log(1e-10 / (30 eps)) = 9.6 > RHO_SWITCH_CAP: from here on rho_switch is the cap
 # a-posteriori: series accepted if its rounding-error estimate <= SERIES_SAFETY*precision*I0
 SERIES_SAFETY = 0.1
 # relative accuracy of g_scaled (measured against mpmath: <= 2.3e-14), for the cancellation guard
@@ -89,7 +90,10 @@ UNDERFLOW_PATH = 745.0  # e^{-745} is the smallest positive double
 
 @njit
 def rho_switch(precision):
-    """Largest rho for which the Fig. 2 series meets `precision` (loss ~ 1e-16 e^rho * 30)."""
+    """Largest rho for which the Fig. 2 series meets `precision` (loss ~ 1e-16 e^rho * 30), at most
+    RHO_SWITCH_CAP (reached from CAP_PRECISION on, where the logarithm is skipped)."""
+    if precision >= CAP_PRECISION:
+        return RHO_SWITCH_CAP
     r = math.log(precision / (30.0 * _EPS))
     if r > RHO_SWITCH_CAP:
         r = RHO_SWITCH_CAP
