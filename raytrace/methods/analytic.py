@@ -586,10 +586,11 @@ def hg_legendre_degree(g, precision):
 
 
 # radians from the peak: HG is also fitted on each range of scattering angles at least this far from its
-# peak, a ladder of ever shorter series (g = 0.9 at 1e-6: 224 Legendre terms for the whole sphere, 58
-# beyond 0.3 rad, 29 beyond 0.6, 17 beyond 1.0); a ray uses the shortest whose range holds all its angles
-FAR_ANGLES = (0.15, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3)
-FAR_GAIN = 0.8  # a rung is kept if its series has at most this fraction of the terms of the last one kept
+# peak, a ladder of ever shorter series (g = 0.9 at 1e-6: 224 Legendre terms for the whole sphere, 186
+# beyond 0.05 rad, 65 beyond 0.3, 33 beyond 0.6, 19 beyond 1.0); a ray uses the shortest whose range holds
+# all its angles
+FAR_ANGLES = (0.05, 0.075, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.375, 0.45, 0.6, 0.8, 1.0, 1.3)
+FAR_GAIN = 0.85  # a rung is kept if its series has at most this fraction of the terms of the last one kept
 
 
 def _usable(precision, ratio):
@@ -646,11 +647,27 @@ def _far_cosine_series(g, precision, phi_lo, phi_hi):
     exact = phase(mu)
     if not _usable(precision, 0.1 * np.min(exact) / np.max(exact)):
         return None, exact
-    for degree in range(2, MAX_FAR_DEGREE):
+    def fit(degree):
         p = chebyshev.Chebyshev.interpolate(phase, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
-        if np.max(np.abs(p(mu) - exact) / exact) <= 0.05 * precision:
-            return p.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
-    return None, exact
+        return p if np.max(np.abs(p(mu) - exact) / exact) <= 0.05 * precision else None
+
+    # the least degree that fits, by doubling and bisection (the interpolant's error falls with the
+    # degree); the degree returned is always one checked to fit
+    lo, hi = 1, 2
+    best = fit(hi)
+    while best is None:
+        if hi >= MAX_FAR_DEGREE - 1:
+            return None, exact
+        lo, hi = hi, min(2 * hi, MAX_FAR_DEGREE - 1)
+        best = fit(hi)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        p = fit(mid)
+        if p is None:
+            lo = mid
+        else:
+            hi, best = mid, p
+    return best.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
 
 
 def fitted_range(g, angle):
