@@ -647,6 +647,7 @@ def _far_cosine_series(g, precision, phi_lo, phi_hi):
     exact = phase(mu)
     if not _usable(precision, 0.1 * np.min(exact) / np.max(exact)):
         return None, exact
+
     def fit(degree):
         p = chebyshev.Chebyshev.interpolate(phase, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
         return p if np.max(np.abs(p(mu) - exact) / exact) <= 0.05 * precision else None
