@@ -11,6 +11,14 @@ Times are single-thread CPU seconds of the air-light of whole rays alone
 onto the rays; least of 5 rounds in which the compared runs take turns), so figures are ratios
 measured in one run on one machine. The last table compares a whole render of the same rays
 (first hits, surface term, shadow rays) without any air-light term and with `analytic`.
+
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/airlight.py --scene conference [--spp 4 --rounds 5]
+
+prints only the cost of the air-light in whole renders of a bundled scene (the conference room at
+512 x 512: one light): `analytic` at its default precision, unshadowed, one thread, over the same
+render without air-light (sigma_s = 0, the same sigma_t), per phase function (the scene's medium
+with its phase function replaced); the two take turns in each round, CPU seconds, medians of the
+rounds and of the per-round ratios.
 """
 import argparse
 import dataclasses
@@ -22,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import raytrace  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.default_scene import DEFAULT_TOML  # noqa: E402
 from raytrace.methods import get_method, resolve_params  # noqa: E402
@@ -61,12 +70,47 @@ def rel_errors(test, ref):
     return float(rel.max()), float(np.percentile(rel, 99.9))
 
 
+def render_cost(name, spp, rounds):
+    """The air-light's share of whole renders of bundled scene `name` (its medium's sigma_t kept, its
+    phase function replaced), `analytic` at its default precision, unshadowed, one thread."""
+    prep = prepare(raytrace.load(name))
+    medium = prep.scene.medium
+
+    def render(**changes):
+        p = dataclasses.replace(prep, scene=dataclasses.replace(prep.scene,
+                                                                medium=dataclasses.replace(medium, **changes)))
+        return lambda: raytrace.render(prepared=p, method="analytic", threads=1, volumetric_shadows=False, spp=spp)
+
+    none = render(sigma_a=medium.sigma_a + medium.sigma_s, sigma_s=np.zeros(3))
+    print(f"{name}, {spp or prep.scene.camera.spp} spp, analytic at its default precision, unshadowed, one "
+          f"thread; CPU s, medians of {rounds} rounds\n")
+    print("| phase | no air-light s | analytic s | ratio (median of per-round ratios) |")
+    print("|---|---|---|---|")
+    for label, code, g in PHASES:
+        air = render(phase=code, g=g)
+        air(), none()  # compile, build the coefficient blocks
+        times = [[], []]
+        for _ in range(rounds):
+            for i, fn in enumerate((none, air)):
+                t0 = time.process_time()
+                fn()
+                times[i].append(time.process_time() - t0)
+        t0, t1 = np.array(times[0]), np.array(times[1])
+        print(f"| {label} | {np.median(t0):.3f} | {np.median(t1):.3f} | {np.median(t1 / t0):.2f}x |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--width", type=int, default=240)
     ap.add_argument("--height", type=int, default=160)
     ap.add_argument("--precisions", default="1e-3,1e-6,1e-8")
+    ap.add_argument("--scene", help="only the air-light's cost in whole renders of this bundled scene")
+    ap.add_argument("--spp", type=int, help="samples per pixel of --scene (default: the scene's)")
+    ap.add_argument("--rounds", type=int, default=5, help="interleaved rounds of --scene")
     args = ap.parse_args()
+    if args.scene:
+        render_cost(args.scene, args.spp, args.rounds)
+        return
     precisions = [float(p) for p in args.precisions.split(",")]
     scene = scene_from_text(DEFAULT_TOML, "default scene",
                             overrides=[f"camera.width={args.width}", f"camera.height={args.height}", "camera.spp=1"])

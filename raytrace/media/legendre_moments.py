@@ -118,12 +118,17 @@ def trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, s):
     zar, zai, zbr, zbi = za.real, za.imag, zb.real, zb.imag
     mr, mi = E0.real, E0.imag
     er, ei = E1.real, E1.imag
+    h2 = 2.0 * H
     for k in range(1, n - 1):
-        qr, qi = br - ar, bi - ai
-        # (k+1) E_{k+1} = -4i q - 2 (k + iH) E_k - (k-1) E_{k-1}
+        # (k+1) E_{k+1} = -4i q - 2 (k + iH) E_k - (k-1) E_{k-1}, grouped so that E_k enters last
+        # (two fused multiply-adds from E_k to E_{k+1}; the rest is off that dependency chain)
         inv = 1.0 / (k + 1.0)
-        nr = (4.0 * qi - 2.0 * (k * er - H * ei) - (k - 1.0) * mr) * inv
-        ni = (-4.0 * qr - 2.0 * (k * ei + H * er) - (k - 1.0) * mi) * inv
+        tr = (4.0 * (bi - ai) - (k - 1.0) * mr) * inv
+        ti = (4.0 * (ar - br) - (k - 1.0) * mi) * inv
+        a = -2.0 * k * inv
+        b = h2 * inv
+        nr = a * er + (b * ei + tr)
+        ni = a * ei + (ti - b * er)
         mr, mi, er, ei = er, ei, nr, ni
         if k + 1 < nc:
             acc += c[k + 1] * nr

@@ -75,6 +75,7 @@ STATS_SIZE = 13
 # series loses ~log10(e^rho) digits: use it while 30*eps*e^rho <= precision, and (cost: the
 # loop needs ~2.5*rho+5 iterations of 4 trig calls, more than 2 scaled-E1 evaluations) rho <= 8
 RHO_SWITCH_CAP = 8.0
+CAP_PRECISION = 1e-10  # log(1e-10 / (30 eps)) = 9.6 > RHO_SWITCH_CAP: from here on rho_switch is the cap
 # a-posteriori: series accepted if its rounding-error estimate <= SERIES_SAFETY*precision*I0
 SERIES_SAFETY = 0.1
 # relative accuracy of g_scaled (measured against mpmath: <= 2.3e-14), for the cancellation guard
@@ -89,7 +90,10 @@ UNDERFLOW_PATH = 745.0  # e^{-745} is the smallest positive double
 
 @njit
 def rho_switch(precision):
-    """Largest rho for which the Fig. 2 series meets `precision` (loss ~ 1e-16 e^rho * 30)."""
+    """Largest rho for which the Fig. 2 series meets `precision` (loss ~ 1e-16 e^rho * 30), at most
+    RHO_SWITCH_CAP (reached from CAP_PRECISION on, where the logarithm is skipped)."""
+    if precision >= CAP_PRECISION:
+        return RHO_SWITCH_CAP
     r = math.log(precision / (30.0 * _EPS))
     if r > RHO_SWITCH_CAP:
         r = RHO_SWITCH_CAP
@@ -479,17 +483,19 @@ def _block_for(coeffs, v1, v2, H, at):
     """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h: the shortest block whose
     range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
     full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
-    ones after it from the widest range to the narrowest)."""
-    n = int(coeffs[0])
-    best = coeffs[1:1 + n]
+    ones after it from the widest range to the narrowest, each range inside the one before, so the
+    scan stops at the first range that does not hold the piece). Offsets, not slices, in the scan:
+    a slice costs numba a reference count."""
+    start, n = 1, int(coeffs[0])
     pos = 1 + n
     while pos < coeffs.shape[0]:
-        n = int(coeffs[pos])
-        b = coeffs[pos + 1:pos + 1 + n]
-        if b[B_VLO] <= v1 and v2 <= b[B_VHI] and H <= b[at]:
-            best = b
-        pos += 1 + n
-    return best
+        b = pos + 1
+        if not (coeffs[b + B_VLO] <= v1 and v2 <= coeffs[b + B_VHI]):
+            break
+        if H <= coeffs[b + at]:
+            start, n = b, int(coeffs[pos])
+        pos = b + int(coeffs[pos])
+    return coeffs[start:start + n]
 
 
 @njit
@@ -580,10 +586,11 @@ def hg_legendre_degree(g, precision):
 
 
 # radians from the peak: HG is also fitted on each range of scattering angles at least this far from its
-# peak, a ladder of ever shorter series (g = 0.9 at 1e-6: 224 Legendre terms for the whole sphere, 58
-# beyond 0.3 rad, 29 beyond 0.6, 17 beyond 1.0); a ray uses the shortest whose range holds all its angles
-FAR_ANGLES = (0.15, 0.3, 0.45, 0.6, 0.8, 1.0, 1.3)
-FAR_GAIN = 0.8  # a rung is kept if its series has at most this fraction of the terms of the last one kept
+# peak, a ladder of ever shorter series (g = 0.9 at 1e-6: 224 Legendre terms for the whole sphere, 186
+# beyond 0.05 rad, 65 beyond 0.3, 33 beyond 0.6, 19 beyond 1.0); a ray uses the shortest whose range holds
+# all its angles
+FAR_ANGLES = (0.05, 0.075, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.375, 0.45, 0.6, 0.8, 1.0, 1.3)
+FAR_GAIN = 0.85  # a rung is kept if its series has at most this fraction of the terms of the last one kept
 
 
 def _usable(precision, ratio):
@@ -640,11 +647,28 @@ def _far_cosine_series(g, precision, phi_lo, phi_hi):
     exact = phase(mu)
     if not _usable(precision, 0.1 * np.min(exact) / np.max(exact)):
         return None, exact
-    for degree in range(2, MAX_FAR_DEGREE):
+
+    def fit(degree):
         p = chebyshev.Chebyshev.interpolate(phase, degree, domain=[math.cos(phi_hi), math.cos(phi_lo)])
-        if np.max(np.abs(p(mu) - exact) / exact) <= 0.05 * precision:
-            return p.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
-    return None, exact
+        return p if np.max(np.abs(p(mu) - exact) / exact) <= 0.05 * precision else None
+
+    # the least degree that fits, by doubling and bisection (the interpolant's error falls with the
+    # degree); the degree returned is always one checked to fit
+    lo, hi = 1, 2
+    best = fit(hi)
+    while best is None:
+        if hi >= MAX_FAR_DEGREE - 1:
+            return None, exact
+        lo, hi = hi, min(2 * hi, MAX_FAR_DEGREE - 1)
+        best = fit(hi)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        p = fit(mid)
+        if p is None:
+            lo = mid
+        else:
+            hi, best = mid, p
+    return best.convert(domain=[-1.0, 1.0], kind=chebyshev.Chebyshev).coef, exact
 
 
 def fitted_range(g, angle):
