@@ -372,8 +372,11 @@ def _summary(scene, img, crop, outputs) -> str:
 def _pixel(img, crop) -> str:
     """The value of a one-pixel --crop and its error bound (for a stochastic method: the standard
     error, plus any bound), as stdout prints it."""
+    from .methods import registry
+
     value, bound = img.array[0, 0], img.error_bound[0, 0]
-    what = "standard error" if img.variance is not None else "error bound"
+    # a deterministic method's area-lit penumbrae carry a variance too; its error_bound is still a bound
+    what = "standard error" if registry()[img.method].stochastic else "error bound"
     return (f"pixel ({crop[0]}, {crop[1]}): RGB {' '.join(f'{v:.9g}' for v in value)}, "
             f"{what} {' '.join(f'{b:.9g}' for b in bound)}")
 

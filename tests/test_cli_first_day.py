@@ -95,6 +95,16 @@ def test_a_one_pixel_crop_prints_its_value_and_a_bound_that_holds(tmp_path, caps
     assert (np.abs(value - ref.array[0, 0]) <= bound).all() and (bound > 0).all()
 
 
+@pytest.mark.parametrize("method, what", [("quadrature", "error bound"), ("montecarlo", "standard error")])
+def test_a_one_pixel_crop_names_a_bound_or_a_standard_error_by_the_method(tmp_path, capsys, method, what):
+    """studio's area lights give a deterministic method's render a variance layer (sampled penumbrae);
+    its printed figure is still the error bound, a stochastic method's the standard error."""
+    assert main(["render", "studio", "--method", method, "--width", "16", "--height", "12", "--crop", "8,6,9,7",
+                 "--out", str(tmp_path / "px.exr"), "--quiet"]) == 0
+    line = capsys.readouterr().out
+    assert line.startswith("pixel (8, 6): RGB ") and f", {what} " in line
+
+
 def test_a_larger_crop_prints_no_pixel(tmp_path, capsys):
     assert main(["render", "box_room", "--width", "32", "--height", "16", "--crop", "10,5,12,6", "--out",
                  str(tmp_path / "a.exr"), "--quiet"]) == 0
