@@ -244,15 +244,16 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
             val, v, st, b = _through_others(prep, method, params, sid, others, li, rank, rows, seed, depth)
         else:
             val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, rank)
+            if len(matched(prep)) > 1:  # other index-matched interiors, not applied (a shape not convex)
+                b = np.full_like(b, np.inf)
         stats += st
         _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
-    if len(matched(prep)) > 1:  # other index-matched interiors: not applied (directional lights, a shape not
-        bound[ell > 0.0] = np.inf  # convex) or applied without an error analysis (`_through_others`)
     return out, var, stats, bound
 
 
 def _other_interiors(prep, sid, sup):
-    """(planes stacked, first, stop, sigma_t (S, 3)) of the index-matched interiors but shape sid, for
+    """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2)) of the index-matched interiors
+    but shape sid, for
     `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
     method's inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not
     applied)."""
@@ -263,7 +264,8 @@ def _other_interiors(prep, sid, sup):
         return None
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
-            np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]))
+            np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]),
+            np.array([plane_errors(prep, i) for i in inner]))
 
 
 def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth):
@@ -273,10 +275,11 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, a
     directional light's, by QUAD at its rtol, counted HANDED). A directional light is attenuated by
     each interior's whole sigma_t (the outside medium does not attenuate it), a point or spot light
-    by its excess over the outside's. No error analysis: the bound is infinite."""
+    by its excess over the outside's. QUAD bounds a directional light's integrals (with the planes'
+    errors `plane_errors`); otherwise the bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, (oplanes, first, stop, kt_other) = convex_planes(prep, sid), others
+    planes, (oplanes, first, stop, kt_other, dothers) = convex_planes(prep, sid), others
     n = len(points)
     distant = bool(lights.distant[li])
     geo = np.zeros((n, GEO_COLUMNS))
@@ -288,20 +291,23 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     rtol, steps, tau_max = sup.settings(params)
     mode = QUAD if sup.mode == CLOSED else sup.mode
     dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
-    out, var, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
+    out, var, bound, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
     if sup.mode == CLOSED:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
-    unit, unit_var = np.empty(n), np.empty(n)
+    unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
+    dplanes = plane_errors(prep, sid)
     for c in range(3):
         kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
         if ks == 0.0 or lights.intensity[li, c] == 0.0:
             continue
         attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
                             np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out)), mode, rtol, steps,
-                            tau_max, keys, np.uint64(dim0), np.uint64(seed), unit, unit_var, stats)
+                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, unit, unit_var,
+                            unit_err, stats)
         out[:, c] = unit * lights.intensity[li, c]
         var[:, c] = unit_var * lights.intensity[li, c] ** 2
-    return out, var, stats, np.where(ell[:, None] > 0.0, np.inf, 0.0)
+        bound[:, c] = _light_bound(unit_err, out[:, c], lights.intensity[li, c], lights.cone[li, 0])
+    return out, var, stats, bound
 
 
 def _carry(out, var, bound, r, kt, t0, val, v, b):
