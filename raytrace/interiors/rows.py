@@ -210,8 +210,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
     a convex index-matched shape every light is attenuated by the other index-matched interiors on
-    its path where all are convex (`_through_others`; CLOSED hands those segments to QUAD, counted),
-    else not; with any other, the bound is infinite."""
+    its path where all are convex (`_through_others`, its bound; CLOSED hands those segments to
+    QUAD, counted), else not, and the bound is infinite."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
