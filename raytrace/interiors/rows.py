@@ -209,9 +209,9 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     (a refractive interior that is not convex) or not traced (slab_approx: the note's planar model),
     the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
-    a convex index-matched shape a point or spot light is attenuated by the other index-matched
-    interiors on its path where all are convex (`_through_others`), else not; with any other, the
-    bound is infinite."""
+    a convex index-matched shape every light is attenuated by the other index-matched interiors on
+    its path where all are convex (`_through_others`, its bound; CLOSED hands those segments to
+    QUAD, counted), else not, and the bound is infinite."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
@@ -240,60 +240,74 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
         at = np.nonzero((lit.light == li) & (piece == rank))[0]
         r = lit.ray[at]
         rows = (lit.origins[at], normals[r], lit.dirs[at], lit.length[at], keys[r])
-        if others is not None and not prep.lights.distant[li]:
+        if others is not None and (sup.mode != CLOSED or prep.lights.distant[li]):
             val, v, st, b = _through_others(prep, method, params, sid, others, li, rank, rows, seed, depth)
         else:
             val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, rank)
+            if len(matched(prep)) > 1:  # other index-matched interiors, not applied (a shape not convex)
+                b = np.full_like(b, np.inf)
         stats += st
         _carry(out, var, bound, r, kt, lit.t0[at], val, v, b)
-    if len(matched(prep)) > 1:  # other index-matched interiors: not applied (directional lights, a shape not
-        bound[ell > 0.0] = np.inf  # convex) or applied without an error analysis (`_through_others`)
     return out, var, stats, bound
 
 
 def _other_interiors(prep, sid, sup):
-    """(planes stacked, first, stop, sigma_t (S, 3)) of the index-matched interiors but shape sid, for
+    """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2)) of the index-matched interiors
+    but shape sid, for
     `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
-    method's inside rule is QUAD, MARCH or SAMPLE; else None (their attenuation is not applied)."""
+    method's inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not
+    applied)."""
     inner = [i for i in matched(prep) if i != sid]
     planes = [convex_planes(prep, i) for i in inner]
-    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE) or not len(convex_planes(prep, sid)) \
+    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE, CLOSED) or not len(convex_planes(prep, sid)) \
             or any(not len(q) for q in planes):
         return None
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
-            np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]))
+            np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]),
+            np.array([plane_errors(prep, i) for i in inner]))
 
 
 def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth):
-    """`single_scattering` of point or spot light li over the rows (points, normals, w, ell, keys) of
-    convex index-matched shape sid, the light attenuated by the other interiors `others`
+    """`single_scattering` of light li over the rows (points, normals, w, ell, keys) of convex
+    index-matched shape sid, the light attenuated by the other interiors `others`
     (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
-    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use). No error analysis:
-    the bound is infinite."""
+    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, a
+    directional light's, by QUAD at its rtol, counted HANDED). A directional light is attenuated by
+    each interior's whole sigma_t (the outside medium does not attenuate it), a point or spot light
+    by its excess over the outside's. QUAD bounds a directional light's integrals (with the planes'
+    errors `plane_errors`); otherwise the bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, (oplanes, first, stop, kt_other) = convex_planes(prep, sid), others
+    planes, (oplanes, first, stop, kt_other, dothers) = convex_planes(prep, sid), others
     n = len(points)
+    distant = bool(lights.distant[li])
     geo = np.zeros((n, GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
-    geo[:, 6:9], geo[:, 9:12], geo[:, 12:14] = lights.position[li], lights.axis[li], lights.cone[li, :2]
+    geo[:, 6:9] = -lights.axis[li] if distant else lights.position[li]
+    geo[:, 9:12], geo[:, 12:14] = 0.0 if distant else lights.axis[li], lights.cone[li, :2]
     geo[:, 17] = lights.cone[li, 2]
     sup = method.supports.interiors
     rtol, steps, tau_max = sup.settings(params)
+    mode = QUAD if sup.mode == CLOSED else sup.mode
     dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
-    out, var, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
-    unit, unit_var = np.empty(n), np.empty(n)
+    out, var, bound, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
+    if sup.mode == CLOSED:
+        stats[HANDED] += np.count_nonzero(ell > 0.0)
+    unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
+    dplanes = plane_errors(prep, sid)
     for c in range(3):
         kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
         if ks == 0.0 or lights.intensity[li, c] == 0.0:
             continue
-        attenuated_radiance(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
-                            np.ascontiguousarray(kt_other[:, c] - kt_out), sup.mode, rtol, steps, tau_max, keys,
-                            np.uint64(dim0), np.uint64(seed), unit, unit_var, stats)
+        attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
+                            np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out)), mode, rtol, steps,
+                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, unit, unit_var,
+                            unit_err, stats)
         out[:, c] = unit * lights.intensity[li, c]
         var[:, c] = unit_var * lights.intensity[li, c] ** 2
-    return out, var, stats, np.where(ell[:, None] > 0.0, np.inf, 0.0)
+        bound[:, c] = _light_bound(unit_err, out[:, c], lights.intensity[li, c], lights.cone[li, 0])
+    return out, var, stats, bound
 
 
 def _carry(out, var, bound, r, kt, t0, val, v, b):

@@ -129,7 +129,7 @@ def boundary_kinks(kind, rows, first, stop, o, w, light, end, out):
 
 
 @njit
-def section_kinks(planes, first, stop, o, w, light, end, out):
+def section_kinks(planes, first, stop, o, w, light, end, out, directional=False):
     """The parameters in (0, end) along the line o + x w (w unit) where the straight path toward the
     point light at `light` passes through a vertex of the polygon that the plane through the line and
     the light cuts from the convex shape of planes[first:stop]; ascending in out (>= stop - first + 4
@@ -137,8 +137,10 @@ def section_kinks(planes, first, stop, o, w, light, end, out):
     its chord through the shape, and the face it leaves or enters by, change only there: these are
     the kinks of the integrands. The polygon is a square around the shape clipped by each face's
     line (Sutherland-Hodgman), each vertex solved from its two lines; 0 when the light lies on the
-    line."""
-    vx, vy, vz = light[0] - o[0], light[1] - o[1], light[2] - o[2]
+    line. `directional`: `light` is the unit direction toward a directional light, the plane the
+    one through the line along it, and the path through a vertex (v_x, v_y) (in the frame of the
+    line and the light's direction (l_x, l_y) across it) starts at x = v_x - v_y l_x / l_y."""
+    vx, vy, vz = (light[0], light[1], light[2]) if directional else (light[0] - o[0], light[1] - o[1], light[2] - o[2])
     lx = vx * w[0] + vy * w[1] + vz * w[2]  # the light in the plane's frame: (lx, ly), the line is y = 0
     px, py, pz = vx - lx * w[0], vy - lx * w[1], vz - lx * w[2]
     ly = math.sqrt(px * px + py * py + pz * pz)
@@ -203,9 +205,9 @@ def section_kinks(planes, first, stop, o, w, light, end, out):
         if before[k] >= nf or after[k] >= nf:
             continue  # a corner of the square: the shape is open there
         dy = ys[k] - ly
-        if dy == 0.0:
+        if dy == 0.0 and not directional:
             continue  # the path through this vertex runs parallel to the line
-        x = lx - (xs[k] - lx) * ly / dy
+        x = xs[k] - ys[k] * lx / ly if directional else lx - (xs[k] - lx) * ly / dy
         if 0.0 < x < end:
             out[count] = x
             count += 1

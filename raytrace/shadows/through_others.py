@@ -1,5 +1,5 @@
-"""The light of a point or spot light inside a convex index-matched shape, attenuated by the other
-index-matched interiors its straight path crosses on the way out.
+"""The light of a point, spot or directional light inside a convex index-matched shape, attenuated by
+the other index-matched interiors its straight path crosses on the way out.
 
 Inside shape A the single-scattering integrand of media/slab.py `convex_integrand` carries the
 outside's extinction kt_out over the light's path outside A. Where that path crosses another
@@ -10,6 +10,19 @@ chords change slope where the path toward the light passes a vertex of the polyg
 the segment and the light cuts from B_j (`section_kinks`), so `quadrature` starts its adaptive rule
 from those points as well as A's own kinks and a spot's cone crossings; `raymarch` and `montecarlo`
 evaluate the same integrand with their own rules (media/slab.py `_march_or_sample`).
+
+A directional light (geo's light columns: the unit direction u toward it) takes the path X + s u,
+s >= 0, and the integrand ks Phi(w·u) exp(-kt (x + k)) (the outside medium does not attenuate it:
+media/slab.py) times exp(-sum_j kt_j c_j) (dk[j] = kt_j: the light crosses B_j instead of nothing).
+All its paths lie in the plane through the segment along u, and c_j changes slope where the path
+passes a vertex of the polygon that plane cuts from B_j (`section_kinks(..., directional=True)`),
+A's own path where it passes one of A's.
+
+QUAD bounds a directional light's integrals (docs/error_bounds.md): its rule's bound plus the
+integrand's relative rounding over its sums, as media/slab.py `convex_bounded`, that rounding
+media/slab.py `directional_rounding` of A's path plus sum_j |dk_j| (dc_j + 16u C_j) + 4u
+(`chord_rounding`: c_j off by dc_j, at most C_j; the exponent's sum and exp). Point and spot
+lights, and MARCH and SAMPLE, are not bounded (inf).
 """
 from __future__ import annotations
 
@@ -21,13 +34,18 @@ import numpy as np
 from ..jit import njit
 from ..media.convex_chords import PLANES, chord, section_kinks
 from ..media.integrand import integrand_of
-from ..media.slab import _N10, _N20, _W10, _W20, MARCH, QUAD, _march_or_sample, convex_integrand, straight_cuts
-from ..media.adaptive import piecewise
+from ..media.phase import phase_value
+from ..media.adaptive import INTERVALS, bounded_piecewise
+from ..media.convex_directional import envelope
+from ..media.slab import (_N10, _N20, _W10, _W20, MARCH, QUAD, U, _march_or_sample, _size, convex_integrand,
+                          directional_rounding, straight_cuts)
 
 
 class AttenuatedConvex(NamedTuple):
-    """`convex_integrand` of a point or spot light (geo row, the shape's planes, one channel) times
-    exp(-sum_j dk[j] chord_j), chord_j through the planes others[first[j]:stop[j]]."""
+    """`convex_integrand` of a point or spot light, or a `directional` one (geo row, the shape's
+    planes, one channel) times exp(-sum_j dk[j] chord_j), chord_j through the planes
+    others[first[j]:stop[j]]."""
+    directional: bool
     geo: np.ndarray
     planes: np.ndarray
     kt: float
@@ -39,21 +57,26 @@ class AttenuatedConvex(NamedTuple):
     first: np.ndarray
     stop: np.ndarray
     dk: np.ndarray
+    rtol: float
 
 
 @integrand_of(AttenuatedConvex)
 @njit
 def _attenuated(x, r):
-    v = convex_integrand(x, r.geo, PLANES, r.planes, False, r.kt, r.ks, r.code, r.g, r.kt_out, 0.0, -1)
+    geo = r.geo
+    phase = phase_value(r.code, r.g, geo[3] * geo[6] + geo[4] * geo[7] + geo[5] * geo[8]) if r.directional else 0.0
+    v = convex_integrand(x, geo, PLANES, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, phase, -1)
     if v == 0.0:
         return 0.0
-    geo = r.geo
     px, py, pz = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
-    ux, uy, uz = geo[6] - px, geo[7] - py, geo[8] - pz
-    dist = math.sqrt(ux * ux + uy * uy + uz * uz)
-    if not dist > 0.0:
-        return v
-    ux, uy, uz = ux / dist, uy / dist, uz / dist
+    if r.directional:
+        ux, uy, uz, dist = geo[6], geo[7], geo[8], math.inf
+    else:
+        ux, uy, uz = geo[6] - px, geo[7] - py, geo[8] - pz
+        dist = math.sqrt(ux * ux + uy * uy + uz * uz)
+        if not dist > 0.0:
+            return v
+        ux, uy, uz = ux / dist, uy / dist, uz / dist
     tau = 0.0
     for j in range(r.first.shape[0]):
         if r.dk[j] != 0.0:
@@ -62,18 +85,73 @@ def _attenuated(x, r):
 
 
 @njit
-def attenuated_radiance(geo, planes, ell, kt, ks, code, g, kt_out, others, first, stop, dk, mode, rtol, steps,
-                        tau_max, keys, dim0, seed, out, var, stats):
-    """out, var (N,) = the attenuated single scattering (`AttenuatedConvex`) of each segment (geo rows,
-    unit light, one channel) over [0, ell] and its variance: QUAD adaptive between the kinks of A's
-    and every B_j's chords and a spot's cone crossings; MARCH, SAMPLE as media/slab.py's
-    `_march_or_sample` (keys, dim0, seed: SAMPLE's random streams)."""
+def chord_rounding(planes, first, stop, u, r, dplanes):
+    """(dc, C): a bound dc on the rounding of `chord` along the unit u from any point X with |X| <= r
+    through the planes planes[first:stop] (themselves dplanes = (dn, dc) off the shape's faces), and
+    C >= the chord. Each end is 0 or s_f = (c_f - n_f·X) / q_f (q_f = n_f·u), |s_f| <= S = max_f
+    (|c_f| + r) / |q_f|, off by (16u (|c_f| + r) + dc + dn (r + S)) / |q_f| as media/slab.py
+    `directional_rounding`'s exit; the chord, max(hi - lo, 0), by twice the largest of those, and
+    C = S. inf where a face is within its own error of parallel to u (the clip's side undecided)."""
+    smax = 0.0
+    for f in range(first, stop):
+        q = abs(planes[f, 0] * u[0] + planes[f, 1] * u[1] + planes[f, 2] * u[2])
+        if not q > 16.0 * U + dplanes[0]:
+            return math.inf, math.inf
+        smax = max(smax, (abs(planes[f, 3]) + r) / q)
+    ds = 0.0
+    for f in range(first, stop):
+        q = abs(planes[f, 0] * u[0] + planes[f, 1] * u[1] + planes[f, 2] * u[2])
+        ds = max(ds, (16.0 * U * (abs(planes[f, 3]) + r) + dplanes[1] + dplanes[0] * (r + smax)) / q)
+    return 2.0 * ds, smax
+
+
+@njit
+def _bounded_directional(rec, planes, end, dplanes, dothers, stats):
+    """(value, bound) of a directional light's `AttenuatedConvex` over [0, end] by QUAD (`piecewise`
+    between the kinks of A's and every B_j's chords), the bound as the module's docstring says."""
+    geo, others, first, stop = rec.geo, rec.others, rec.first, rec.stop
+    o, w, toward = geo[0:3], geo[3:6], geo[6:9]
+    nf = planes.shape[0]
+    cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
+    n_env = envelope(planes[:, :3], planes[:, 3], o, w, toward, end, alpha, beta, cuts, lines)
+    if n_env == 0:
+        return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
+    br = np.empty(nf + others.shape[0] + 4 * first.shape[0] + 10)
+    br[0] = 0.0
+    m = section_kinks(planes, 0, nf, o, w, toward, end, br[1:], True)
+    for j in range(first.shape[0]):
+        m += section_kinks(others, first[j], stop[j], o, w, toward, end, br[1 + m:], True)
+    br[1:m + 1].sort()
+    br[m + 1] = end
+    before = stats[INTERVALS]
+    value, rule = bounded_piecewise(rec, br, m + 2, rec.rtol, _N10, _W10, _N20, _W20, stats)
+    eps = directional_rounding(geo, planes, end, rec.kt, rec.code, rec.g, cuts, lines, alpha, beta, n_env, dplanes)
+    r = _size(geo, planes, end)[0]
+    for j in range(first.shape[0]):
+        if rec.dk[j] != 0.0:
+            dc, cmax = chord_rounding(others, first[j], stop[j], toward, r, dothers[j])
+            eps += abs(rec.dk[j]) * (dc + 16.0 * U * cmax)
+    eps += 4.0 * U
+    return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
+
+
+@njit
+def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, others, first, stop, dk, mode, rtol,
+                        steps, tau_max, keys, dim0, seed, dplanes, dothers, out, var, err, stats):
+    """out, var, err (N,) = the attenuated single scattering (`AttenuatedConvex`) of each segment (geo
+    rows, unit light, one channel) over [0, ell], its variance and a bound on its error: QUAD adaptive
+    between the kinks of A's and every B_j's chords and a spot's cone crossings, bounded for a
+    directional light (`_bounded_directional`; dplanes, dothers[j]: the planes' (dn, dc) of A and
+    B_j); MARCH, SAMPLE as media/slab.py's `_march_or_sample` (keys, dim0, seed: SAMPLE's random
+    streams). err is inf but for QUAD under a directional light."""
     for s in range(geo.shape[0]):
-        out[s], var[s] = 0.0, 0.0
+        out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        rec = AttenuatedConvex(geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk)
-        if mode == QUAD:
+        rec = AttenuatedConvex(directional, geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk, rtol)
+        if mode == QUAD and directional:
+            out[s], err[s] = _bounded_directional(rec, planes, min(ell[s], 745.0 / kt), dplanes, dothers, stats)
+        elif mode == QUAD:
             end = min(ell[s], 745.0 / kt)
             br = np.empty(planes.shape[0] + others.shape[0] + 4 * first.shape[0] + 10)
             br[0] = 0.0
@@ -83,7 +161,8 @@ def attenuated_radiance(geo, planes, ell, kt, ks, code, g, kt_out, others, first
                 m += section_kinks(others, first[j], stop[j], geo[s, 0:3], geo[s, 3:6], geo[s, 6:9], end, br[1 + m:])
             br[1:m + 1].sort()
             br[m + 1] = end
-            out[s] = piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+            out[s], err[s] = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)[0], math.inf
         else:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            err[s] = math.inf
