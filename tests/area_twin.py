@@ -4,14 +4,15 @@ with nothing else in the scene, built from the geometry alone (numpy and scipy, 
     L(ray) = int_0^T e^{-kt t} ks / (4 pi) E(o + t w) dt + [front hit] L e^{-kt T},
     E(x) = int_emitter L max(0, n(y)·(x - y)) e^{-kt r} / r^3 dA(y),   r = |x - y|,
 
-T the distance to the emitter (inf if the ray misses it). E of a planar emitter in polar coordinates
+T the distance to the emitter (inf if the ray misses it). E of a planar emitter (`exact=True`) in polar coordinates
 about x's foot point p on its plane (h the distance to the plane, r^2 = h^2 + rho^2, rho d rho = r dr):
 the integral in rho is closed, int_h^R h e^{-kt r} / r^2 dr = E2(kt h) - h E2(kt R) / R (E2 the
 exponential integral), which leaves a 1-D integral (scipy quad) over the emitter's outline seen from p:
 no 1/r singularity about the foot point, so rays that pass near or end on the emitter are as exact as
-the rest. The sphere by its visible cap, a 1-D integral in the angle from the cap's axis. The
-distance integral by scipy quad. `box_radiance` (media inside a box) keeps a composite Gauss–Legendre
-rule over the emitter's parameter domain (`panels` x `panels` cells of NODES x NODES nodes).
+the rest (about a second a ray); else (faster, exact to rounding away from the emitter, to about 1e-4
+on rays that end on it) and in `box_radiance` (media inside a box) by a composite Gauss–Legendre rule
+over the emitter's parameter domain (`panels` x `panels` cells of NODES x NODES nodes). The sphere by
+its visible cap, a 1-D integral in the angle from the cap's axis. The distance integral by scipy quad.
 Camera rays per SCENE_FORMAT.md's convention.
 """
 from __future__ import annotations
@@ -48,7 +49,8 @@ def _composite(panels):
 class Quad:
     """c0 + u e1 + v e3, normal e1 x e3 normalised; one-sided unless two_sided."""
 
-    def __init__(self, corners, radiance, two_sided=False, panels=4):
+    def __init__(self, corners, radiance, two_sided=False, panels=4, exact=False):
+        self.exact = exact
         c = np.asarray(corners, float)
         self.c0, self.e1, self.e3 = c[0], c[1] - c[0], c[3] - c[0]
         cross = np.cross(self.e1, self.e3)
@@ -94,14 +96,14 @@ class Quad:
                 return _G(math.sqrt(q @ q), h, kt) * (np.cross(q, e) @ self.n) / (q @ q)
 
             pts = [s0] if 0.0 < s0 < 1.0 else None
-            total += integrate.quad(f, 0.0, 1.0, points=pts, epsabs=0.0, epsrel=1e-13, limit=200)[0]
+            total += integrate.quad(f, 0.0, 1.0, points=pts, epsabs=0.0, epsrel=1e-12, limit=200)[0]
         return total
 
     def irradiance(self, x, kt, box=None):
-        """At x: the emitter's light attenuated over its whole path (`polar`), or (`box` = (lo, hi): x
-        inside an axis-aligned box holding the medium, vacuum outside) over the part of its path inside
-        the box (the composite rule)."""
-        if box is None:
+        """At x: the emitter's light attenuated over its whole path (`polar` where exact, else the
+        composite rule), or (`box` = (lo, hi): x inside an axis-aligned box holding the medium, vacuum
+        outside) over the part of its path inside the box (the composite rule)."""
+        if box is None and self.exact:
             h = (x - self.centre()) @ self.n
             h = abs(h) if self.two else h
             return 0.0 if h <= 0.0 else self.L * self.polar(x - h * np.sign((x - self.centre()) @ self.n) * self.n,
@@ -146,7 +148,8 @@ def box_radiance(emitter, lo, hi, o, w, kt, ks):
 
 
 class Disk(Quad):
-    def __init__(self, center, normal, radius, radiance, two_sided=False, panels=4):
+    def __init__(self, center, normal, radius, radiance, two_sided=False, panels=4, exact=False):
+        self.exact = exact
         self.c, self.n, self.R = np.asarray(center, float), np.asarray(normal, float) / np.linalg.norm(normal), radius
         self.L, self.two, self.area = radiance, two_sided, math.pi * radius**2
         alt = np.array([1.0, 0, 0]) if abs(self.n[0]) < 0.9 else np.array([0, 1.0, 0])
@@ -179,10 +182,10 @@ class Disk(Quad):
             return _G(r2, h, kt) - _G(r1, h, kt)
 
         if dq < self.R:
-            return integrate.quad(f, 0.0, 2 * math.pi, epsabs=0.0, epsrel=1e-13, limit=200)[0]
+            return integrate.quad(f, 0.0, 2 * math.pi, epsabs=0.0, epsrel=1e-12, limit=200)[0]
         toward = math.atan2(-q @ self.t2, -q @ self.t1)
         half = math.asin(self.R / dq)
-        return integrate.quad(f, toward - half, toward + half, epsabs=0.0, epsrel=1e-13, limit=200)[0]
+        return integrate.quad(f, toward - half, toward + half, epsabs=0.0, epsrel=1e-12, limit=200)[0]
 
     def hit(self, o, w):
         den = w @ self.n
