@@ -26,7 +26,7 @@ SHARE = 0.25  # the share of the method's precision the two orders must agree to
 MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light costs)
 NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
 FLOOR = 1e-13  # agreement relative to the largest pilot radiance below which rays are not told apart
-AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64)  # orders of the area lights' rules
+AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
 LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
 
 
@@ -73,10 +73,10 @@ def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
     return pixels, near
 
 
-def distances(samples, origins, dirs) -> np.ndarray:
-    """(N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
+def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
+    """((N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
     of an emitter's `samples(u, v)` on a PROBES x PROBES grid of [0, 1]^2 (its outline included), and
-    the largest distance between two of those points (the emitter's diameter)."""
+    the largest distance from a few of those points to the others (about the emitter's diameter))."""
     g = np.linspace(0.0, 1.0 - 1e-12, PROBES)
     u, v = np.meshgrid(g, g, indexing="ij")
     points = samples(u.ravel(), v.ravel())[0]
