@@ -164,7 +164,9 @@ def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict
 
     orders, capped, n_near, stray = cubature.choose(ladders, counts, near, shade, tol)
     adapted = with_orders(orders)
-    return adapted, {"cubature: rows": int(np.count_nonzero(adapted.lights.cubature)), "cubature: pilot rays": len(o),
+    emitters = [s for s, ladder in enumerate(ladders) if ladder is not None]
+    n_rows = int(np.count_nonzero(np.isin(adapted.lights.owner, emitters)))
+    return adapted, {"cubature: rows": n_rows, "cubature: pilot rays": len(o),
                      "cubature: emitters capped": capped, "cubature: pilot rays near an emitter": n_near,
                      "cubature: pilot rays not converged": stray}, compile_s
 
