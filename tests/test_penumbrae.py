@@ -20,7 +20,7 @@ import pytest
 from scipy import integrate
 
 from raytrace import api, shading
-from raytrace.lights import Lights, emissive
+from raytrace.lights import Lights, cubature, emissive
 from raytrace.scene.format import scene_from_text
 
 from . import area_twin as twin
@@ -63,6 +63,16 @@ def twin_radiance(x, z):
     assert PLATE_Y == H / 2
     hidden = [(max(-0.5, 2 * lo - c), min(0.5, 2 * hi - c)) for (lo, hi), c in ((PLATE_X, x), (PLATE_Z, z))]
     return RHO / math.pi * L * (_rectangle(x, z, (-0.5, 0.5), (-0.5, 0.5)) - _rectangle(x, z, *hidden))
+
+
+@pytest.fixture(autouse=True, scope="module")
+def fixed_rule():
+    """The emitters' former fixed rules (quad 8 x 8, each triangle's 7 points): the pilot's ladder
+    narrowed to them, as the checks here are of the sampling, bit for bit against the rule's image."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cubature, "AREA_LADDER", (8,))
+        mp.setattr(cubature, "LEVELS", 1)
+        yield
 
 
 @pytest.fixture(scope="module")

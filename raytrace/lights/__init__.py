@@ -18,7 +18,7 @@ from functools import cached_property
 import numpy as np
 
 from ..jit import njit
-from . import directional, disk, emissive, environment, point, quad, sphere, spot
+from . import cubature, directional, disk, emissive, environment, point, quad, sphere, spot
 from .area import Emitter, emitter, power_of, two_sided
 from .light import NO_CONE, Light, power
 from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
@@ -91,6 +91,22 @@ def _emitter(light: Light):
     return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None))
 
 
+def cubature_ladders(lights: list[Light], emitters=()):
+    """(ladders, counts) of `Lights.of`'s sources for the pilot (cubature.py): per source its orders
+    (None: not a cubature of an emitter) and the function order -> its rows."""
+    ladders, counts = [], []
+    for l in lights:
+        kind = _BY_CODE[l.kind]
+        count = (lambda o, kind=kind, l=l: len(kind.rows(l, o).kind)) if kind.NAME in AREA else None
+        ladders.append(None if count is None else cubature.ladder(cubature.AREA_LADDER, count))
+        counts.append(count)
+    for tris, _, two, _ in emitters:
+        count = lambda o, tris=tris, two=two: emissive.count(tris, two, o)  # noqa: E731
+        ladders.append(cubature.ladder(range(cubature.LEVELS), count))
+        counts.append(count)
+    return ladders, counts
+
+
 def _stack(rows, name, width, dtype=float):
     """The `name` arrays of light.Rows stacked: (L, width), or (L,) for width 0."""
     shape = (-1, width) if width else (-1,)
@@ -120,10 +136,15 @@ class Lights:
     emitters: tuple = ()
 
     @classmethod
-    def of(cls, lights: list[Light], emitters=()) -> "Lights":
+    def of(cls, lights: list[Light], emitters=(), orders=None) -> "Lights":
         """The rows of the scene's `lights`, then of its emissive shapes: `emitters`, a list of
-        (world triangles (T, 3, 3), emission, two_sided, the shape's key for a refusal)."""
-        rows = [_BY_CODE[l.kind].rows(l) for l in lights] + [emissive.rows(*e) for e in emitters]
+        (world triangles (T, 3, 3), emission, two_sided, the shape's key for a refusal); `orders`:
+        per source (the lights, then the emitters) its rule's order (`cubature_ladders`; None: the
+        kind's default)."""
+        orders = orders or (None,) * (len(lights) + len(emitters))
+        rows = ([_BY_CODE[l.kind].rows(l, o) if o is not None else _BY_CODE[l.kind].rows(l)
+                 for l, o in zip(lights, orders)] +
+                [emissive.rows(*e, o) for e, o in zip(emitters, orders[len(lights):])])
         counts = [len(r.kind) for r in rows]
         return cls(_stack(rows, "kind", 0, np.int64), *(_stack(rows, k, 3) for k in ("position", "intensity", "axis",
                                                                                      "cone")),
@@ -176,6 +197,6 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
 
 __all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "Emitter", "ENVIRONMENT", "EXPANDED", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
            "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "at_infinity", "band_slope", "band_trig",
-           "check_at_infinity", "cone_breaks", "describe", "distant", "emitter_shape", "falloff", "falloff_array",
+           "check_at_infinity", "cone_breaks", "cubature", "cubature_ladders", "describe", "distant", "emitter_shape", "falloff", "falloff_array",
            "is_spot", "light_sample", "parse_light", "polynomial_band", "power", "power_of", "segment_cone",
            "two_sided"]

@@ -1,7 +1,8 @@
 """Emissive shapes: `emission` on a [[shape]] makes every triangle of it a Lambertian emitter (area.py)
 of that radiance on its winding's side (both with `two_sided`). Each triangle is the 7 emitter points of
 the degree-5 rule of Radon (Stroud T2:5-1; Dunavant's 7-point rule), a spot row each (LAMBERT); a shape
-of more than MAX_TRIANGLES triangles is refused until triangles are grouped. Penumbrae sample the
+of more than MAX_TRIANGLES triangles is refused until triangles are grouped; the pilot
+(cubature.py) may split each triangle in 4^level (`subdivide`). Penumbrae sample the
 shape uniformly in area (`emitter`).
 """
 from __future__ import annotations
@@ -25,18 +26,34 @@ BARY = np.array([[1 / 3, 1 / 3, 1 / 3], [_A, _A, 1 - 2 * _A], [_A, 1 - 2 * _A, _
 WEIGHTS = np.array([9 / 40] + [(155 - math.sqrt(15.0)) / 1200] * 3 + [(155 + math.sqrt(15.0)) / 1200] * 3)
 
 
-def rows(triangles, radiance, two_sided: bool, where: str):
+def rows(triangles, radiance, two_sided: bool, where: str, level: int | None = None):
     """The spot rows of the triangles (T, 3, 3) of one emissive shape (`where`: its key and file, for the
-    refusal); zero-area triangles give none."""
+    refusal), each triangle split in 4^level (`subdivide`; None: 0) before its 7-point rule; zero-area
+    triangles give none."""
     if len(triangles) > MAX_TRIANGLES:
         raise UserError(f"{where}.emission: the shape has {len(triangles)} triangles; emissive shapes of more than "
                         f"{MAX_TRIANGLES} are not implemented yet (each triangle is 7 emitter points); use a quad, "
                         "disk or sphere light, or a coarser mesh")
-    triangles, cross, area = _nonzero(triangles)
+    triangles, cross, area = _nonzero(subdivide(triangles, level or 0))
     points = np.einsum("kj,tjc->tkc", BARY, triangles).reshape(-1, 3)
     normals = np.repeat(cross / (2.0 * area)[:, None], len(WEIGHTS), axis=0)
     light = Light(np.zeros(3), np.asarray(radiance, float), two_sided=two_sided)
     return emitter_rows(light, points, normals, (area[:, None] * WEIGHTS[None, :]).ravel())
+
+
+def subdivide(triangles, level: int):
+    """The triangles (T, 3, 3) each split 'level' times at its edges' midpoints: (4^level T, 3, 3)."""
+    for _ in range(level):
+        a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+        ab, bc, ca = 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)
+        triangles = np.stack([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))],
+                             axis=1).reshape(-1, 3, 3)
+    return triangles
+
+
+def count(triangles, two_sided: bool, level) -> int:
+    """The rows of `rows` at `level`: 7 per nonzero triangle and per side."""
+    return len(WEIGHTS) * len(_nonzero(triangles)[2]) * 4 ** level * (2 if two_sided else 1)
 
 
 def _nonzero(triangles):

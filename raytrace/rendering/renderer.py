@@ -30,7 +30,7 @@ from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
-from ..lights import Lights, at_infinity
+from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
@@ -64,6 +64,7 @@ class Prepared:
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (crossing.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
     lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
+    emissive: list = field(default_factory=list)  # the emissive shapes (`Lights.of`'s emitters)
     _memo: dict = field(default_factory=dict)
     _memo_lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -122,14 +123,52 @@ class RenderResult:
 
 def prepare(scene: Scene) -> Prepared:
     tris, refl, ids, corners = scene_triangles(scene, shape_ids=True, normals=True)
-    lights = Lights.of(scene.lights, emissive_shapes(scene, tris, ids))
+    emissive = emissive_shapes(scene, tris, ids)
+    lights = Lights.of(scene.lights, emissive)
     extent = np.concatenate([lights.position[~lights.distant], scene.camera.position[None, :]])
     inner = np.array([i for i, s in enumerate(scene.shapes) if s.interior is not None], dtype=np.int64)
     prep = Prepared(scene, Accelerator(tris, extent, *exact_spheres(scene, ids)), refl, lights, corners, shape_ids=ids,
-                    interior_shapes=inner)
+                    interior_shapes=inner, emissive=emissive)
     if len(inner):
         prep.camera_inside = crossing.inside_of(prep, scene.camera.position, inner)
     return prep
+
+
+PILOT_TOLERANCES = ("precision", "rtol")  # the methods' parameters the pilot's orders must meet
+
+
+def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict, float]:
+    """The scene with each emitter's cubature order chosen by the pilot (lights/cubature.py) for a
+    method with a precision (PILOT_TOLERANCES), the pilot's statistics and the seconds its kernels
+    took to compile (`warm_up`, before it); else `prep`, {} and 0."""
+    tol = next((params[k] for k in PILOT_TOLERANCES if k in params), None)
+    scene, cam = prep.scene, prep.scene.camera
+    ladders, counts = cubature_ladders(scene.lights, prep.emissive)
+    if tol is None or all(l is None for l in ladders):
+        return prep, {}, 0.0
+    compile_s = warm_up(prep, method, params, seed)
+
+    def rays_of(pixels):
+        return pixel_rays(cam, pixels[:, 0].astype(float), pixels[:, 1].astype(float), slice(0, 1))
+
+    pixels, near = cubature.pilot_pixels(prep.lights.emitters, ladders, rays_of, cam.width, cam.height)
+    o, d = rays_of(pixels)
+    keys = (pixels[:, 0] * cam.width + pixels[:, 1]).astype(np.uint64) * np.uint64(cam.spp)
+
+    def with_orders(orders):
+        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders), _frusta=None,
+                                   _through=None, _memo={}, _memo_lock=threading.Lock())
+
+    def shade(orders):
+        return shade_rays(with_orders(orders), method, params, o, d, keys, seed)[0]
+
+    orders, capped, n_near, stray = cubature.choose(ladders, counts, near, shade, tol)
+    adapted = with_orders(orders)
+    emitters = [s for s, ladder in enumerate(ladders) if ladder is not None]
+    n_rows = int(np.count_nonzero(np.isin(adapted.lights.owner, emitters)))
+    return adapted, {"cubature: rows": n_rows, "cubature: pilot rays": len(o),
+                     "cubature: emitters capped": capped, "cubature: pilot rays near an emitter": n_near,
+                     "cubature: pilot rays not converged": stray}, compile_s
 
 
 def default_threads() -> int:
@@ -578,8 +617,11 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     work = tiles(cam, box)
     acc = Accumulator(work, box, cam.spp, has_variance(prep, method), stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
-    compile_s = prepare_noticed(executor, prep, task, options.notice)
-    start = time.perf_counter()
+    pilot_start = time.perf_counter()
+    prep, pilot, compile_s = adapt_cubature(prep, method, params, options.seed)
+    pilot_s = time.perf_counter() - pilot_start - compile_s  # counted in the render's seconds
+    compile_s += prepare_noticed(executor, prep, task, options.notice)
+    start = time.perf_counter() - pilot_s
     with contextlib.closing(executor.map(prep, task, work)) as results:  # an exception here stops the tiles
         for n, (i, result) in enumerate(results, 1):
             rows = acc.add(i, result)
@@ -594,6 +636,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     summary.update(crossing.summarize(prep, method, totals[-crossing.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
+    summary.update(pilot)
     layers = {} if acc.layers is None else aov.split(task.aov, aov.sources(prep.lights), acc.layers)
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,
                         error_bound=acc.bound, layers=layers)

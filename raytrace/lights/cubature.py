@@ -1,0 +1,129 @@
+"""Each emitter's cubature order, chosen per render by a pilot (docs/area_lights.md, "The order").
+
+An area light's or emissive shape's rows are the nodes of a rule over its emitter (area.py), fixed for
+the whole render. The pilot shades a sample of the render's camera rays with the render's own method
+at two orders of one emitter, n and the next with at least 4 x the rows (about 2n per dimension;
+an emissive shape's triangles split in 4), the other emitters at their coarsest rule, and grows n
+until the two agree to SHARE x the method's precision (`precision`, `rtol`) on every pilot ray and
+channel, relative to the ray's radiance; it keeps the coarser order of the agreeing pair. An emitter
+whose pair still disagrees at MAX_ROWS rows is capped: it keeps its finest rule, and the render's
+statistics count it and the pilot rays that disagree.
+
+The pilot rays are the pixel centres of a GRID x GRID grid over the image and, per emitter, the NEAR
+pixel rays (of a sample of the image's) that pass closest to its points: where a ray passes near or
+ends on an emitter each node's air-light behaves like w_i / rho_i about the ray's foot point, the
+slowest place for the rule to converge.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+GRID = 6  # the pilot's pixel grid
+NEAR = 8  # the pilot's rays nearest to each emitter
+CANDIDATES = 96  # the near rays are chosen among the pixel centres of a CANDIDATES x CANDIDATES grid
+PROBES = 17  # ... by their distance to PROBES x PROBES points of the emitter, its outline included
+SHARE = 0.25  # the share of the method's precision the two orders must agree to
+MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light costs)
+NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
+FLOOR = 1e-13  # agreement relative to the largest pilot radiance below which rays are not told apart
+AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
+LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
+
+
+def ladder(steps, count) -> tuple:
+    """The orders of `steps` (AREA_LADDER, or range(LEVELS) for an emissive shape) whose rows,
+    `count(order)`, are at most MAX_ROWS; the coarsest is kept even if above (a shape of many triangles)."""
+    return tuple(o for o in steps if count(o) <= MAX_ROWS) or (steps[0],)
+
+
+def pairs(orders, count) -> list:
+    """(coarse, fine) pairs of the ladder: each order with the first of at least 4 x its rows."""
+    out = []
+    for i, o in enumerate(orders):
+        finer = [f for f in orders[i + 1:] if count(f) >= 4 * count(o)]
+        if finer:
+            out.append((o, finer[0]))
+    return out
+
+
+def grid(n: int, width: int, height: int) -> np.ndarray:
+    """(n^2, 2) pixels (row, column) of an n x n grid spread over the image (repeats where it is smaller)."""
+    ys, xs = np.meshgrid((np.arange(n) + 0.5) * height // n, (np.arange(n) + 0.5) * width // n, indexing="ij")
+    return np.stack([ys.ravel(), xs.ravel()], axis=1).astype(np.int64)
+
+
+def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
+    """(pixels (N, 2), near): the pilot's pixels (row, column), the GRID grid's and the NEAR pixels of
+    the CANDIDATES grid nearest to each emitter, and per source (None where `ladders[s]` is None) whether
+    each of their rays passes within NEAR_FRACTION of its diameter of the emitter. `emitters[s]`: its
+    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions)."""
+    sources = [s for s, l in enumerate(ladders) if l is not None]
+    cand = grid(CANDIDATES, width, height)
+    o, d = rays_of(cand)
+    picks = [grid(GRID, width, height)]
+    for s in sources:
+        dist = distances(emitters[s].sample, o, d)[0]
+        picks.append(cand[np.argsort(dist, kind="stable")[:NEAR]])
+    pixels = np.unique(np.concatenate(picks), axis=0)
+    o, d = rays_of(pixels)
+    near = [None] * len(ladders)
+    for s in sources:
+        dist, diameter = distances(emitters[s].sample, o, d)
+        near[s] = dist < NEAR_FRACTION * diameter
+    return pixels, near
+
+
+def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
+    """((N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
+    of an emitter's `samples(u, v)` on a PROBES x PROBES grid of [0, 1]^2 (its outline included), and
+    the largest distance from a few of those points to the others (about the emitter's diameter))."""
+    g = np.linspace(0.0, 1.0 - 1e-12, PROBES)
+    u, v = np.meshgrid(g, g, indexing="ij")
+    points = samples(u.ravel(), v.ravel())[0]
+    best = np.full(len(origins), np.inf)
+    for p in points:
+        rel = p[None, :] - origins
+        t = np.maximum(np.einsum("ij,ij->i", rel, dirs), 0.0)
+        best = np.minimum(best, np.linalg.norm(rel - t[:, None] * dirs, axis=1))
+    diameter = max(np.linalg.norm(points - p, axis=1).max() for p in points[:: PROBES + 1])
+    return best, diameter
+
+
+def agree(coarse, fine, tol) -> np.ndarray:
+    """(N,) whether two pilot radiances (N, 3) agree to tol relative to each ray's radiance."""
+    scale = np.maximum(np.abs(fine), FLOOR * np.abs(fine).max(initial=0.0))
+    return np.all(np.abs(coarse - fine) <= tol * scale, axis=1)
+
+
+def choose(ladders, counts, near, shade, tol):
+    """(the order of each source, emitters capped, near rays, rays whose last pair disagrees). Per source
+    (scene lights, then emissive shapes): `ladders[s]` its orders (`ladder`; None: not a cubature of
+    an emitter), `counts[s](order)` its rows, `near[s]` (N,) whether each pilot ray passes within
+    NEAR_FRACTION of the emitter's diameter of it; `shade(orders)` the pilot rays' radiance (N, 3) with
+    each source at its order (None where not a cubature); `tol` the method's precision. The other
+    rays choose the order (all of them where all are near); the rays where the chosen pair (the
+    finest, where capped) disagrees are counted as not converged, summed over the sources."""
+    base = tuple(None if l is None else l[0] for l in ladders)
+    chosen, capped, n_near, stray = list(base), 0, 0, 0
+    for s, orders in enumerate(ladders):
+        if orders is None:
+            continue
+        memo = {}
+
+        def at(order):
+            if order not in memo:
+                memo[order] = shade(base[:s] + (order,) + base[s + 1:])
+            return memo[order]
+
+        ok, decide = None, ~near[s] if not near[s].all() else near[s]  # all near: they decide
+        for coarse, fine in pairs(orders, counts[s]):
+            ok = agree(at(coarse), at(fine), SHARE * tol)
+            if ok[decide].all():
+                chosen[s] = coarse
+                break
+        else:
+            chosen[s] = orders[-1]
+            capped += 1
+        n_near += int(np.count_nonzero(near[s]))
+        stray += 0 if ok is None else int(np.count_nonzero(~ok))
+    return tuple(chosen), capped, n_near, stray
