@@ -43,15 +43,14 @@ MAX_OPEN_PER_SEGMENT, MAX_OPEN = 4, 1 << 16
 FLOAT32_SLACK = 1e-6  # relative: how far Embree's float32 distance may be from the exact one
 
 
-def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None, errors=None,
-                   signature=None):
+def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None, errors=None):
     """`walk`, and again from a far end moved sideways by RETRY_SHIFT x the scene's scale for the
     segments whose parity at the point contradicts `end_inside` (N, len(sids)) where given: Embree's
     float32 decisions for two rays near a shape's edge can disagree and lose one crossing of a short
     chord (a path grazing a corner), which would count the rest of the path on the wrong side.
     `errors` (N, len(sids)), where given, receives a bound on each length's error (`walk`'s; inf for a
-    walk moved sideways: another path), `signature` (N,) the walk's."""
-    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin, errors, signature)
+    walk moved sideways: another path)."""
+    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin, errors)
     if end_inside is None:
         return lengths, blocked
     for attempt in range(1, RETRIES + 1):
@@ -64,13 +63,9 @@ def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_
         end = points[bad] + far[:, None] * dirs[bad] + RETRY_SHIFT * attempt * prep.accel.scale * side
         rel = end - points[bad]
         d2 = np.linalg.norm(rel, axis=1)
-        again = np.zeros(len(bad), np.int64)
-        lengths[bad], blocked[bad], inside[bad] = walk(prep, points[bad], rel / d2[:, None], d2, sids, block, margin,
-                                                       signature=again)
+        lengths[bad], blocked[bad], inside[bad] = walk(prep, points[bad], rel / d2[:, None], d2, sids, block, margin)
         if errors is not None:
             errors[bad] = np.inf
-        if signature is not None:
-            signature[bad] = again
     return lengths, blocked
 
 
@@ -79,19 +74,17 @@ RETRY_SHIFT = 1e-5
 SIDEWAYS = np.array([[0.6, 0.0, 0.8], [0.0, 0.8, 0.6], [0.8, 0.6, 0.0]])
 
 
-def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, signature=None):
+def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None):
     """Lengths (N, len(sids)) inside each shape of `sids` of the segments from `points` along the
     unit `dirs` over `dist` (inf: toward a directional light), and (N,) whether another shape lies on
     the segment (only looked for with `block`; then the walk stops there). The segment is walked from
     its far end, which must lie outside every shape of `sids`, back to the point (crossings closer to it
     than `margin` are not counted: a surface point's own face); and
     (N, len(sids)) whether the walk ends inside each shape. `errors` (N, len(sids)), where given, is
-    set to a bound on each length's error: the sum of its crossings' `crossing_errors`, plus, where the last skip passes the point
-    and the look back from its end meets a crossing beyond the point, the distance from the last
-    crossing to the point (a crossing between them would be hidden; where the look back meets the last
-    crossing itself, there is none). `signature` (N,), where
-    given, is set to a hash of the triangles crossed, in order: where it changes along a camera ray the
-    light's path has passed an edge (a kink of the inside length)."""
+    set to a bound on each length's error: the sum of its crossings' `crossing_errors`, plus, where the
+    last skip passes the point and the look back from its end meets a crossing beyond the point, the
+    distance from the last crossing to the point (a crossing between them would be hidden; where the
+    look back meets the last crossing itself, there is none)."""
     accel = prep.accel
     n = len(points)
     sids = np.asarray(sids, dtype=np.int64)
@@ -109,8 +102,6 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
     lookup[sids] = np.arange(len(sids))
     if errors is not None:
         errors[:] = 0.0
-    if signature is not None:
-        signature[:] = 0
     neighbours = prep.memo("edge neighbours", lambda: sections.edge_neighbours(accel.triangles))
     for _ in range(MAX_CROSSINGS):
         if not len(active):
@@ -140,8 +131,6 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         if errors is not None:
             errors[r, c] += crossing_errors(accel, o[cross], back[r], t[cross], prim[cross], off[cross], far[r],
                                             held[cross])
-        if signature is not None:
-            signature[r] = signature[r] * HASH + prim[cross] + 1
         go = np.nonzero(~done)[0]
         r = active[go]
         cos = np.abs(np.einsum("ij,ij->i", accel.hit_normals(prim[go], start[r] + at[go, None] * back[r]), back[r]))
@@ -171,8 +160,6 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, s
         if errors is not None:
             errors[q, c] += crossing_errors(accel, ob[extra], dirs[q], tb[extra], pb[extra], ~held_b[extra], far[q],
                                             held_b[extra])
-        if signature is not None:
-            signature[q] = signature[q] * HASH + pb[extra] + 1
         active = r[s[r] < stop[r]]
         fin = r[s[r] >= stop[r]]
         lengths[fin] += np.where(inside[fin] & np.isfinite(s[fin, None]), far[fin, None] - since[fin], 0.0)
@@ -218,9 +205,6 @@ def _settle(triangles, normals, neighbours, sphere_of, origins, dirs, t, prim, h
             k = neighbours[k, side]
             if k < 0:
                 break
-
-
-HASH = 1000003  # a walk's signature: its triangles in order, base HASH (wrapping in int64)
 
 
 def crossing_errors(accel, origins, dirs, t, prim, off, far, held):
@@ -284,14 +268,14 @@ def convex_exits(prep, sid, points, dirs, dist):
     return np.minimum(t, dist)
 
 
-def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=None):
+def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None):
     """At the points x along segments `seg` (geo rows of media/slab.py's inside_radiance: entry point,
     direction w, the light's position or minus its direction of travel, a spot's axis and cone): the
     light's distance d (inf for a directional light), its path's length k inside shape sid (on the
     exit facets of `exit_facets` where the walk holds them), the scattering cosine mu and a spot's
     falloff toward the direction it leaves in (1 for other lights). `dk` (M,), where given, receives a
-    bound on k's error (`walk`'s, or the exit facets' `exit_lengths`; inf for Embree's exits) and
-    `sig` (M,) the walk's signature (both 0 outside a spot's cone, where k is not measured)."""
+    bound on k's error (`walk`'s, or the exit facets' `exit_lengths`; inf for Embree's exits; 0 outside
+    a spot's cone, where k is not measured)."""
     p = geo[seg, :3] + x[:, None] * geo[seg, 3:6]
     if directional:
         to = np.ascontiguousarray(geo[seg, 6:9])
@@ -306,7 +290,7 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=Non
     lit = np.nonzero(f > 0.0)[0]  # no rays traced outside a spot's cone
     k = np.zeros(len(x))
     if dk is not None:
-        dk[:], sig[:] = 0.0, 0
+        dk[:] = 0.0
     if facets is not None:
         walked = lit[facets.counts[seg[lit]] >= 0]
         col, err = np.empty(len(walked)), np.empty(len(walked))
@@ -322,11 +306,11 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None, sig=Non
         if dk is not None:
             dk[lit] = np.inf  # Embree's exits: their float32 reach is not analysed
     else:
-        err, hashes = (np.zeros((len(lit), 1)), np.zeros(len(lit), np.int64)) if dk is not None else (None, None)
+        err = np.zeros((len(lit), 1)) if dk is not None else None
         k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool),
-                                errors=err, signature=hashes)[0][:, 0]
+                                errors=err)[0][:, 0]
         if dk is not None:
-            dk[lit], sig[lit] = err[:, 0], hashes
+            dk[lit] = err[:, 0]
     if dk is not None:
         dk[f == 0.0] = 0.0  # outside a spot's cone: exactly 0
     mu = np.einsum("ij,ij->i", to, geo[seg, 3:6])  # the light travels along -to; the eye is along -w
@@ -354,9 +338,9 @@ def _uniforms(keys, seg, dims, seed, out):
 
 def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs, facets=None, bounded=False):
     """The integrand at (seg, x) for the channels (M, C); with `bounded`, also its value times a bound
-    on its relative rounding (M, C) (`_rounding`) and the walks' signatures (M,)."""
-    dk, sig = (np.empty(len(x)), np.empty(len(x), np.int64)) if bounded else (None, None)
-    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x, facets, dk, sig)
+    on its relative rounding (M, C) (`_rounding`)."""
+    dk = np.empty(len(x)) if bounded else None
+    d, k, mu, f = _geometry(prep, sid, geo, directional, seg, x, facets, dk)
     out = np.empty((len(x), len(kts)))
     col = np.empty(len(x))
     for c in range(len(kts)):
@@ -366,7 +350,7 @@ def _channels(prep, sid, geo, directional, seg, x, kts, kss, code, g, kt_outs, f
         return out
     eps = _rounding(geo, seg, x, d, k, dk, kts, kt_outs, code, g)
     with np.errstate(invalid="ignore"):
-        return out, np.where(out == 0.0, 0.0, out * eps), sig
+        return out, np.where(out == 0.0, 0.0, out * eps)
 
 
 def _rounding(geo, seg, x, d, k, dk, kts, kt_outs, code, g):
@@ -413,8 +397,7 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     seg, a, b = _first_panels(geo, directional, end, facets, kinks)
     integrand = lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
                                          True)
-    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True,
-                    signatures=not convex and kinks is None)
+    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True)
 
 
 class Facets(NamedTuple):
@@ -449,7 +432,7 @@ def exit_facets(prep, sid, geo, directional, end):
     return Facets(offsets, counts, bt, bf, links[0], float(np.max(np.linalg.norm(links[1], axis=1))))
 
 
-def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, signatures=True):
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
     panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
     Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
@@ -470,20 +453,15 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, signatur
     while lo < len(seg):
         k = np.searchsorted(bounds, lo + MAX_OPEN)
         hi = bounds[k] if k < len(bounds) else len(seg)
-        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound, signatures)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound)
         lo = hi
     return (total, bound) if bounded else total
 
 
-def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, signatures=True):
-    """`adaptive` from one group of first panels (`bound` += their bounds, where given). With a bound,
-    a panel whose nodes' walks, or those just inside its ends, crossed different triangles (their
-    signatures differ: the light's path passed an edge, a kink of the inside length the rules' agreement can miss, 1.7e-6 off at any rtol
-    on a path grazing the U's inner corner) is not accepted: it is cut where the signature changes
-    (`_kinks`), and its pieces are integrated on; not with `signatures` False (the first panels end at
-    every kink: `section_kinks`)."""
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
+    """`adaptive` from one group of first panels (`bound` += their bounds, where given); the first
+    panels end at every kink of the integrand (`_first_panels`)."""
     n = len(end)
-    probe = bound is not None and signatures
     total = np.zeros((n, nc))
     floor = None
     if bound is not None:
@@ -493,12 +471,11 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, signatures
         if not len(seg):
             break
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
-        xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()]
-                            + (list(_probes(a, b)) if probe else []))  # signatures near the ends
-        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)] + ([seg, seg] if probe else []))
+        xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()])
+        ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
         f = integrand(ss, xs)
         if bound is not None:
-            f, fe, sig = f
+            f, fe = f
         m = len(seg)
         g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
         g20 = np.einsum("pkc,k->pc", f[10 * m:30 * m].reshape(m, 20, nc), _W20) * half[:, None]
@@ -508,11 +485,6 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, signatures
             estimate = floor.copy()
             floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
-        kinked = np.zeros(m, dtype=bool)
-        if probe:
-            nodes = _by_panel(sig, m)
-            kinked = np.any(nodes != nodes[:, :1], axis=1)
-            ok &= ~kinked
         if 2 * np.count_nonzero(~ok) > max(MAX_OPEN_PER_SEGMENT * n, MAX_OPEN):  # a memory bound, not a tolerance
             np.add.at(total, seg, g20)
             stats[0] += np.count_nonzero(~ok)
@@ -525,13 +497,8 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, signatures
         np.add.at(total, seg[ok], g20[ok])
         if bound is not None:
             _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc)
-        cut = ~ok & kinked
-        pieces = _kinks(integrand, seg[cut], a[cut], b[cut], _by_panel(xs, m)[cut], nodes[cut]) if cut.any() else None
-        keep = ~ok & ~kinked
-        seg, a, b, mid = seg[keep], a[keep], b[keep], mid[keep]
+        seg, a, b, mid = seg[~ok], a[~ok], b[~ok], mid[~ok]
         seg, a, b = np.concatenate([seg, seg]), np.concatenate([a, mid]), np.concatenate([mid, b])
-        if pieces is not None:
-            seg, a, b = np.concatenate([seg, pieces[0]]), np.concatenate([a, pieces[1]]), np.concatenate([b, pieces[2]])
     else:
         stats[0] += len(seg) // 2
     if bound is not None and floor is not None:
@@ -539,48 +506,6 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, signatures
         rule[np.unique(seg)] = np.inf  # panels left open at MAX_LEVELS
         bound[live] += rule[live]
     return total
-
-
-KINK_TOL = 1e-12  # a kink is bisected to this fraction of its panel: the rules then meet only its sliver, O(tol^2)
-
-
-def _probes(a, b):
-    """Points just inside each panel's ends, where `_adaptive` compares the walks' signatures: a
-    segment's ends lie on the boundary (the walk's parity is unsure there), and a kink found by `_kinks`
-    ends a piece within a few ulps."""
-    delta = np.minimum(1e-9 * (b - a) + 1e-14 * (np.abs(a) + np.abs(b)), 0.25 * (b - a))
-    return a + delta, b - delta
-
-
-def _by_panel(v, m):
-    """(m, 32) of a level's evaluations v: each panel's 10 nodes, 20 nodes and two `_probes`."""
-    return np.concatenate([v[:10 * m].reshape(m, 10), v[10 * m:30 * m].reshape(m, 20), v[30 * m:].reshape(2, m).T],
-                          axis=1)
-
-
-def _kinks(integrand, seg, a, b, x, h):
-    """(segment, start, end) of the pieces of the panels [a, b] of segments seg cut where the walks'
-    signatures h at the points x (rows of `_by_panel`) change between the points in order, each change
-    bisected to KINK_TOL of its panel (walks at single points)."""
-    order = np.argsort(x, axis=1)
-    x, h = np.take_along_axis(x, order, 1), np.take_along_axis(h, order, 1)
-    p, j = np.nonzero(h[:, 1:] != h[:, :-1])
-    lo, hi, left = x[p, j], x[p, j + 1], h[p, j]
-    tol = KINK_TOL * (b - a)[p]
-    while True:
-        mid = 0.5 * (lo + hi)
-        live = (lo < mid) & (mid < hi) & (hi - lo > tol)
-        if not live.any():
-            break
-        same = np.zeros(len(mid), dtype=bool)
-        same[live] = integrand(seg[p[live]], mid[live])[2] == left[live]
-        lo, hi = np.where(live & same, mid, lo), np.where(live & ~same, mid, hi)
-    at = np.concatenate([a, b, hi])
-    owner = np.concatenate([np.arange(len(seg)), np.arange(len(seg)), p])
-    order = np.lexsort((at, owner))
-    at, owner = at[order], owner[order]
-    piece = (owner[1:] == owner[:-1]) & (at[1:] > at[:-1])
-    return seg[owner[:-1][piece]], at[:-1][piece], at[1:][piece]
 
 
 def _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc):
@@ -669,11 +594,8 @@ def chords(prep, sids, points, dirs, dist):
 
 
 def section_kinks(prep, sid, geo, directional, end):
-    """geometry/sections.py's breaks (offsets, breaks) of the segments in shape sid, a closed mesh (an
-    exact sphere has no kinks: None)."""
+    """geometry/sections.py's breaks (offsets, breaks) of the segments in shape sid, a closed mesh."""
     sel = prep.shape_ids == sid
-    if np.any(prep.accel.sphere_of[sel] >= 0):
-        return None
     edges = prep.memo(("section edges", sid), lambda: sections.mesh_edges(prep.accel.triangles[sel]))
     return sections.section_breaks(edges, np.ascontiguousarray(geo), directional, end)
 
