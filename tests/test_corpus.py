@@ -85,6 +85,8 @@ AREA_LIGHTS = {
     "houdini-pbrt-v4/TestMediums/test_exterior_cam_interior_obj.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
     "houdini-pbrt-v4/TestMediums/test_interior_homogeneous.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
     "mitsuba-data/scenes/cbox/cbox-rgb.xml": (39.3077, []),
+    "houdini-pbrt-v4/TestShapes/test_loopsubdiv.pbrt": (HOUDINI_FOV, ["orthonormal to 0.00012"]),
+    "houdini-pbrt-v4/TestShapes/test_loopsubdiv_levels.pbrt": (HOUDINI_FOV, ["orthonormal to 0.00012"]),
 }
 
 

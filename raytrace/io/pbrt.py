@@ -28,13 +28,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
-from . import emitters
+from . import emitters, loop
 from .meshfile import read_mesh
 from .report import ImportNote, Problems, every
 
 SPHERE_SEGMENTS = 64  # a pbrt sphere becomes our exact sphere (its mesh rows: this many segments)
 MAX_INCLUDE_DEPTH = 32
 PATCH_GRID = 16  # a non-planar bilinear patch is tessellated into PATCH_GRID^2 quads
+MAX_SUBDIVIDED = 1 << 24  # the most triangles a "loopsubdiv" may make (each 4^levels of its control mesh)
 ORTHO_REFUSE, ORTHO_NOTE = 1e-3, 1e-6  # the camera transform's axes: orthonormal to this (relative), else refused / noted
 HG_MAX = 0.99  # pbrt-v4 clamps HG's g to [-0.99, 0.99] (util/scattering.h HenyeyGreenstein)
 MAX_POWER_PARTS = 4096  # an area light's "power" on a mesh of unequal triangles: at most this many shapes
@@ -809,6 +810,24 @@ class _Reader:
                 shape = _triangles(np.concatenate(grids))
                 if area is not None:  # BilinearPatch::Area, per patch (`_emitting`)
                     shape["_areas"] = [(len(g), float(_area(g).sum())) for g in grids]
+        elif kind == "loopsubdiv":
+            pts = np.array(p.floats("P", ("point3",)) or [], float).reshape(-1, 3)
+            idx = np.array(p.ints("indices") or [], dtype=np.int64)
+            levels = int(p.one("levels", 3, ("integer",)))
+            if len(pts) == 0 or idx.size == 0 or idx.size % 3 or idx.min() < 0 or idx.max() >= len(pts):
+                w.fail(line, f'{p.directive}: needs points "P" and 3 "integer indices" per triangle into them',
+                       f"check the counts (P has {counted(len(pts), 'point')})")
+            if not 0 <= levels or idx.size // 3 * 4 ** levels > MAX_SUBDIVIDED:
+                w.fail(line, f'{p.directive}: "integer levels" {levels} would make {idx.size // 3} x 4^{levels} '
+                       "triangles", f"give 0 to {_most_levels(idx.size // 3)} levels")
+            p.done()
+            try:
+                v, f, vn = loop.surface(pts, idx.reshape(-1, 3), levels)
+            except loop.NotManifold as exc:
+                w.fail(line, f"{p.directive}: the control mesh is not a consistently wound manifold ({exc}), which "
+                       "Loop subdivision needs", 'fix the mesh, or read it as a "trianglemesh"')
+            shape = {"primitive": "triangles", "vertices": v @ m[:3, :3].T + m[:3, 3], "faces": f,
+                     "normals": vn @ np.linalg.inv(m[:3, :3])}
         elif kind == "plymesh":
             name = p.string("filename")
             if name is None:
@@ -819,8 +838,8 @@ class _Reader:
             if vn is not None:  # the PLY's nx ny nz: pbrt's N
                 shape["normals"] = vn @ np.linalg.inv(m[:3, :3])
         else:
-            w.fail(line, f'Shape "{kind}" is not read', 'use "trianglemesh", "plymesh", "sphere", "disk" or '
-                   '"bilinearmesh"')
+            w.fail(line, f'Shape "{kind}" is not read', 'use "trianglemesh", "plymesh", "sphere", "disk", '
+                   '"bilinearmesh" or "loopsubdiv"')
         if area is not None:
             shape = self._emitting(shape, area, flip, w, line)
         shape["_material"], shape["_media"], shape["_where"] = self.state.material, (self.state.inside,
@@ -1061,6 +1080,11 @@ def _radiance(area: dict, size: float) -> list[float]:
     power = area["power"]
     k_e = (2.0 if area["twosided"] else 1.0) * math.pi * size
     return (area["L"] * (power / k_e if power > 0.0 else 1.0)).tolist()
+
+
+def _most_levels(faces: int) -> int:
+    """The most Loop subdivision levels of `faces` triangles within MAX_SUBDIVIDED."""
+    return max(0, int(math.log(MAX_SUBDIVIDED / faces, 4)))
 
 
 def _triangles(tris):
