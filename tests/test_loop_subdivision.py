@@ -9,8 +9,8 @@ import trimesh
 from scipy.interpolate import BSpline
 from scipy.spatial import cKDTree
 
-from raytrace.cli import main
 from raytrace.api import scene_dict
+from raytrace.cli import main
 from raytrace.io import loop
 
 # Houdini's test cube (tests/data/corpus/houdini-pbrt-v4/TestShapes/test_loopsubdiv.pbrt): valences 4 to 6
