@@ -102,7 +102,7 @@ def cubature_ladders(lights: list[Light], emitters=()):
         counts.append(count)
     for tris, _, two, _ in emitters:
         count = lambda o, tris=tris, two=two: emissive.count(tris, two, o)  # noqa: E731
-        ladders.append(cubature.ladder(range(cubature.LEVELS), count))
+        ladders.append(cubature.ladder(emissive.levels(len(tris), cubature.LEVELS), count))
         counts.append(count)
     return ladders, counts
 

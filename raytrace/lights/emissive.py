@@ -1,8 +1,12 @@
 """Emissive shapes: `emission` on a [[shape]] makes every triangle of it a Lambertian emitter (area.py)
-of that radiance on its winding's side (both with `two_sided`). Each triangle is the 7 emitter points of
-the degree-5 rule of Radon (Stroud T2:5-1; Dunavant's 7-point rule), a spot row each (LAMBERT); a shape
-of more than MAX_TRIANGLES triangles is refused until triangles are grouped; the pilot
-(cubature.py) may split each triangle in 4^level (`subdivide`). Penumbrae sample the
+of that radiance on its winding's side (both with `two_sided`). A rule's `level` is its place on one
+ladder: level >= 0 splits each triangle in 4^level (`subdivide`) and takes the 7 emitter points of the
+degree-5 rule of Radon (Stroud T2:5-1; Dunavant's 7-point rule) on each, a spot row each (LAMBERT);
+level -1 is one row per triangle (its centroid, weight its area), and each level below groups 4 times
+as many triangles into one row (`groups`): the group's area-weighted centroid with its vector area
+sum(A n), which sends the group's sum(A max(0, n.u)) toward a far point in direction u while no
+triangle of the group faces away. The pilot (cubature.py) climbs the ladder (`levels`); other methods
+take `default_level`. A shape of more than MAX_TRIANGLES triangles is refused. Penumbrae sample the
 shape uniformly in area (`emitter`).
 """
 from __future__ import annotations
@@ -17,7 +21,9 @@ from .area import PROBE_INSET, Emitter, emitter_rows, uniform_density
 from .light import Light
 
 NAME = "emission"  # its name among a scene's light kinds (`Lights.kinds`), for the methods' refusals
-MAX_TRIANGLES = 64  # 448 rows: each row costs what a spot light costs (docs/area_lights.md)
+MAX_TRIANGLES = 1 << 22  # an emissive shape's triangles at most
+FIXED = 448  # the rows of `default_level` at most (64 triangles' 7-point rules): each costs a spot light
+COARSE = 64  # the rows of the pilot's coarsest level at most
 
 _A, _B = (6.0 - math.sqrt(15.0)) / 21.0, (6.0 + math.sqrt(15.0)) / 21.0
 # barycentric nodes and weights (summing to 1) of the 7-point rule, exact for polynomials of degree 5
@@ -28,17 +34,54 @@ WEIGHTS = np.array([9 / 40] + [(155 - math.sqrt(15.0)) / 1200] * 3 + [(155 + mat
 
 def rows(triangles, radiance, two_sided: bool, where: str, level: int | None = None):
     """The spot rows of the triangles (T, 3, 3) of one emissive shape (`where`: its key and file, for the
-    refusal), each triangle split in 4^level (`subdivide`; None: 0) before its 7-point rule; zero-area
-    triangles give none."""
+    refusal) at `level` (the module's ladder; None: `default_level`); zero-area triangles give none."""
     if len(triangles) > MAX_TRIANGLES:
         raise UserError(f"{where}.emission: the shape has {len(triangles)} triangles; emissive shapes of more than "
-                        f"{MAX_TRIANGLES} are not implemented yet (each triangle is 7 emitter points); use a quad, "
-                        "disk or sphere light, or a coarser mesh")
-    triangles, cross, area = _nonzero(subdivide(triangles, level or 0))
+                        f"{MAX_TRIANGLES} are not read; use a coarser mesh")
+    triangles, cross, area = _nonzero(triangles)
+    light = Light(np.zeros(3), np.asarray(radiance, float), two_sided=two_sided)
+    level = default_level(len(triangles)) if level is None else level
+    if level < 0:
+        points, vector = groups(triangles, cross, area, level)
+        weight = np.linalg.norm(vector, axis=1)
+        return emitter_rows(light, points, vector / weight[:, None], weight)
+    triangles, cross, area = _nonzero(subdivide(triangles, level))
     points = np.einsum("kj,tjc->tkc", BARY, triangles).reshape(-1, 3)
     normals = np.repeat(cross / (2.0 * area)[:, None], len(WEIGHTS), axis=0)
-    light = Light(np.zeros(3), np.asarray(radiance, float), two_sided=two_sided)
     return emitter_rows(light, points, normals, (area[:, None] * WEIGHTS[None, :]).ravel())
+
+
+def groups(triangles, cross, area, level: int):
+    """(points (G, 3), vector areas (G, 3)) of level < 0: groups of 4^(-1 - level) triangles, each
+    triangle's normal class (the sign of its largest component, six classes: no group holds triangles
+    facing opposite ways) in Morton order of the centroids, cut in runs; each group's area-weighted
+    centroid and sum(A n). The groups of a level are unions of the level above's."""
+    size = 4 ** (-1 - level)
+    centroid = triangles.mean(axis=1)
+    axis = np.argmax(np.abs(cross), axis=1)
+    normal_class = 2 * axis + (cross[np.arange(len(cross)), axis] < 0.0)
+    order = np.lexsort((_morton(centroid), normal_class))
+    cls = normal_class[order]
+    rank = np.arange(len(order)) - np.searchsorted(cls, cls)  # the place within its class
+    group = np.unique(np.stack([cls, rank // size], axis=1), axis=0, return_inverse=True)[1].ravel()
+    weight = np.zeros((group.max() + 1,))
+    np.add.at(weight, group, area[order])
+    points = np.zeros((len(weight), 3))
+    np.add.at(points, group, area[order, None] * centroid[order])
+    vector = np.zeros((len(weight), 3))
+    np.add.at(vector, group, 0.5 * cross[order])
+    return points / weight[:, None], vector
+
+
+def _morton(points, bits: int = 21):
+    """Each point's Morton code (Z order) in the points' bounding box, `bits` per axis."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    cell = np.floor((points - lo) / np.where(hi > lo, hi - lo, 1.0) * ((1 << bits) - 1)).astype(np.uint64)
+    code = np.zeros(len(points), np.uint64)
+    for b in range(bits):
+        for a in range(3):
+            code |= ((cell[:, a] >> np.uint64(b)) & np.uint64(1)) << np.uint64(3 * b + a)
+    return code
 
 
 def subdivide(triangles, level: int):
@@ -51,9 +94,36 @@ def subdivide(triangles, level: int):
     return triangles
 
 
+def default_level(n_triangles: int) -> int:
+    """The level of a fixed rule (methods without the pilot): the 7-point rule where it has at most FIXED
+    rows, else the finest grouping within FIXED rows a side."""
+    return 0 if _rows_a_side(n_triangles, 0) <= FIXED else _finest_within(n_triangles, FIXED)
+
+
+def levels(n_triangles: int, finest: int) -> range:
+    """The pilot's ladder up to `finest` (exclusive): from 0 where the 7-point rule has at most FIXED rows
+    a side, else from the finest grouping within COARSE rows a side."""
+    return range(0 if _rows_a_side(n_triangles, 0) <= FIXED else _finest_within(n_triangles, COARSE), finest)
+
+
+def _finest_within(n_triangles: int, most: int) -> int:
+    """The finest level below 0 whose groups number at most `most` a side (up to one more per normal class)."""
+    level = -1
+    while _rows_a_side(n_triangles, level) > most:
+        level -= 1
+    return level
+
+
+def _rows_a_side(n_triangles: int, level: int) -> int:
+    """The rows of one side at `level` but for the classes' partial groups."""
+    return len(WEIGHTS) * n_triangles * 4 ** level if level >= 0 else -(-n_triangles // 4 ** (-1 - level))
+
+
 def count(triangles, two_sided: bool, level) -> int:
-    """The rows of `rows` at `level`: 7 per nonzero triangle and per side."""
-    return len(WEIGHTS) * len(_nonzero(triangles)[2]) * 4 ** level * (2 if two_sided else 1)
+    """The rows of `rows` at `level`."""
+    triangles, cross, area = _nonzero(triangles)
+    one = (_rows_a_side(len(triangles), level) if level >= 0 else len(groups(triangles, cross, area, level)[0]))
+    return one * (2 if two_sided else 1)
 
 
 def _nonzero(triangles):
