@@ -195,25 +195,35 @@ def _unblocked(accel, o, d, tmax, idx, points, li, through, as32=None):
 
 
 def _cut(accel, points, normals, shading, emitter, reached, blocked):
-    """(N,) where occluders cut the emitter (`lights.Emitter`) seen from the points: the shadow rays of
-    its rows that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree,
-    or, where they agree, those to its probes (corners) that emit toward the point disagree with them."""
+    """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its
+    rows that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; or
+    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between the
+    emitter's probes (corners); or, where the rows agree, the shadow rays to the probes that emit
+    toward the point disagree with them."""
     cut = (reached > 0) & (blocked > 0)
     if emitter.probes is None:
         return cut
-    agree = np.flatnonzero((reached > 0) ^ (blocked > 0))
-    p, n = points[agree], normals[agree]
     terminator = shading is not None
-    for y, ny in zip(*emitter.probes):
-        to_light, dist, cos = np.empty_like(p), np.empty(len(p)), np.empty(len(p))
-        lit = np.empty(len(p), dtype=np.bool_)
-        _toward_light(p, n, shading[agree] if terminator else n, terminator, y, to_light, dist, cos, lit)
+    lits = []
+    for y in emitter.probes[0]:
+        to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
+        lit = np.empty(len(points), dtype=np.bool_)
+        _toward_light(points, normals, shading if terminator else normals, terminator, y, to_light, dist, cos, lit)
+        lits.append((lit, to_light))
+    cut |= _horizon_cuts(np.sum([lit for lit, _ in lits], axis=0), len(lits))
+    agree = ((reached > 0) ^ (blocked > 0)) & ~cut
+    for (lit, to_light), y, ny in zip(lits, *emitter.probes):
         facing = to_light @ ny
-        idx = np.flatnonzero(lit & ((facing != 0.0) if emitter.two_sided else (facing < 0.0)))
-        o, d, tmax, as32 = accel.shadow_rays(p[idx], n[idx], y)
+        idx = np.flatnonzero(agree & lit & ((facing != 0.0) if emitter.two_sided else (facing < 0.0)))
+        o, d, tmax, as32 = accel.shadow_rays(points[idx], normals[idx], y)
         reach = ~accel.occluded(o, d, tmax, as32=as32)
-        cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
+        cut[idx] |= reach != (reached[idx] > 0)
     return cut
+
+
+def _horizon_cuts(above, probes: int):
+    """(N,) where a point's horizon passes between an emitter's `probes`: some, not all, `above` it."""
+    return (above > 0) & (above < probes)
 
 
 def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner):
