@@ -240,7 +240,7 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
         at = np.nonzero((lit.light == li) & (piece == rank))[0]
         r = lit.ray[at]
         rows = (lit.origins[at], normals[r], lit.dirs[at], lit.length[at], keys[r])
-        if others is not None and (sup.mode != CLOSED or prep.lights.distant[li]):
+        if others is not None:
             val, v, st, b = _through_others(prep, method, params, sid, others, li, rank, rows, seed, depth)
         else:
             val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, rank)
@@ -252,8 +252,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
 
 
 def _other_interiors(prep, sid, sup):
-    """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2)) of the index-matched interiors
-    but shape sid, for
+    """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2), balls (S, 4): centre and radius
+    holding each) of the index-matched interiors but shape sid, for
     `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
     method's inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not
     applied)."""
@@ -265,21 +265,30 @@ def _other_interiors(prep, sid, sup):
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
             np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]),
-            np.array([plane_errors(prep, i) for i in inner]))
+            np.array([plane_errors(prep, i) for i in inner]), np.array([_ball(prep, i) for i in inner]))
+
+
+def _ball(prep, sid):
+    """(centre, radius) of a ball that holds shape sid's triangles: their box's centre, and the largest
+    distance from it with a few ulps of its size more."""
+    pts = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3)
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    size = float(np.max(np.abs(pts)))
+    return np.array([*centre, float(np.max(np.linalg.norm(pts - centre, axis=1))) + 1e-14 * size])
 
 
 def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth):
     """`single_scattering` of light li over the rows (points, normals, w, ell, keys) of convex
     index-matched shape sid, the light attenuated by the other interiors `others`
     (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
-    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, a
-    directional light's, by QUAD at its rtol, counted HANDED). A directional light is attenuated by
-    each interior's whole sigma_t (the outside medium does not attenuate it), a point or spot light
-    by its excess over the outside's. QUAD bounds a directional light's integrals (with the planes'
-    errors `plane_errors`); otherwise the bound is infinite."""
+    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, which has
+    no closed form with the chords, by QUAD at its rtol, counted HANDED). A directional light is
+    attenuated by each interior's whole sigma_t (the outside medium does not attenuate it), a point
+    or spot light by its excess over the outside's. QUAD bounds its integrals (with the planes'
+    errors `plane_errors`); the other rules' bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, (oplanes, first, stop, kt_other, dothers) = convex_planes(prep, sid), others
+    planes, (oplanes, first, stop, kt_other, dothers, balls) = convex_planes(prep, sid), others
     n = len(points)
     distant = bool(lights.distant[li])
     geo = np.zeros((n, GEO_COLUMNS))
@@ -302,7 +311,7 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
             continue
         attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
                             np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out)), mode, rtol, steps,
-                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, unit, unit_var,
+                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, balls, unit, unit_var,
                             unit_err, stats)
         out[:, c] = unit * lights.intensity[li, c]
         var[:, c] = unit_var * lights.intensity[li, c] ** 2
