@@ -258,8 +258,8 @@ def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, 
     between the kinks of A's and every B_j's chords and a spot's cone crossings, bounded (`_bounded`;
     dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j]: a ball (centre, radius)
     holding B_j; only, sun: a refracted beam's face and the direction toward the sun, only -1
-    otherwise); MARCH, SAMPLE as media/slab.py's
-    `_march_or_sample` (keys, dim0, seed: SAMPLE's random streams), err inf."""
+    otherwise); MARCH, SAMPLE as media/slab.py's `_march_or_sample` (keys, dim0, seed: SAMPLE's
+    random streams), err inf."""
     for s in range(geo.shape[0]):
         out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
