@@ -10,7 +10,6 @@ ks Phi E exp(-kt (x + k)) exp(-kt_B c_B); scipy `quad` between the points where 
 stops reaching the segment or the faces its path crosses the dense box by change (bisected on those
 indicators), and where that path meets an edge of the dense box (solved from the entry point's line).
 """
-import math
 
 import numpy as np
 import pytest
