@@ -240,7 +240,7 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
         at = np.nonzero((lit.light == li) & (piece == rank))[0]
         r = lit.ray[at]
         rows = (lit.origins[at], normals[r], lit.dirs[at], lit.length[at], keys[r])
-        if others is not None and (sup.mode != CLOSED or prep.lights.distant[li]):
+        if others is not None:
             val, v, st, b = _through_others(prep, method, params, sid, others, li, rank, rows, seed, depth)
         else:
             val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, rank)
@@ -252,8 +252,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
 
 
 def _other_interiors(prep, sid, sup):
-    """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2)) of the index-matched interiors
-    but shape sid, for
+    """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2), balls (S, 4): centre and radius
+    holding each) of the index-matched interiors but shape sid, for
     `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
     method's inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not
     applied)."""
@@ -265,32 +265,46 @@ def _other_interiors(prep, sid, sup):
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
             np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]),
-            np.array([plane_errors(prep, i) for i in inner]))
+            np.array([plane_errors(prep, i) for i in inner]), np.array([_ball(prep, i) for i in inner]))
 
 
-def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth):
+def _ball(prep, sid):
+    """(centre, radius) of a ball that holds shape sid's triangles: their box's centre, and the largest
+    distance from it with a few ulps of its size more."""
+    pts = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3)
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    size = float(np.max(np.abs(pts)))
+    return np.array([*centre, float(np.max(np.linalg.norm(pts - centre, axis=1))) + 1e-14 * size])
+
+
+def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth, beam=None):
     """`single_scattering` of light li over the rows (points, normals, w, ell, keys) of convex
     index-matched shape sid, the light attenuated by the other interiors `others`
     (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
-    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, a
-    directional light's, by QUAD at its rtol, counted HANDED). A directional light is attenuated by
-    each interior's whole sigma_t (the outside medium does not attenuate it), a point or spot light
-    by its excess over the outside's. QUAD bounds a directional light's integrals (with the planes'
-    errors `plane_errors`); otherwise the bound is infinite."""
+    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, which has
+    no closed form with the chords, by QUAD at its rtol, counted HANDED). A directional light is
+    attenuated by each interior's whole sigma_t (the outside medium does not attenuate it), a point
+    or spot light by its excess over the outside's. `beam` = (face, toward, irradiance): in a convex
+    refractive shape, the directional light's beam refracted through that face (`_lit_beams`), the
+    chords taken from its entry point along the sun. QUAD bounds its integrals (with the planes'
+    errors `plane_errors`); the other rules' bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, (oplanes, first, stop, kt_other, dothers) = convex_planes(prep, sid), others
+    planes, (oplanes, first, stop, kt_other, dothers, balls) = convex_planes(prep, sid), others
     n = len(points)
     distant = bool(lights.distant[li])
     geo = np.zeros((n, GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
     geo[:, 6:9] = -lights.axis[li] if distant else lights.position[li]
+    only, scale = -1, 1.0
+    if beam is not None:
+        only, geo[:, 6:9], scale = beam
     geo[:, 9:12], geo[:, 12:14] = 0.0 if distant else lights.axis[li], lights.cone[li, :2]
     geo[:, 17] = lights.cone[li, 2]
     sup = method.supports.interiors
     rtol, steps, tau_max = sup.settings(params)
     mode = QUAD if sup.mode == CLOSED else sup.mode
-    dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
+    dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps + (only + 1) * STREAM
     out, var, bound, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
     if sup.mode == CLOSED:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
@@ -302,11 +316,12 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
             continue
         attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
                             np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out)), mode, rtol, steps,
-                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, unit, unit_var,
-                            unit_err, stats)
-        out[:, c] = unit * lights.intensity[li, c]
-        var[:, c] = unit_var * lights.intensity[li, c] ** 2
-        bound[:, c] = _light_bound(unit_err, out[:, c], lights.intensity[li, c], lights.cone[li, 0])
+                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, balls, only,
+                            -lights.axis[li], unit, unit_var, unit_err, stats)
+        f = scale * lights.intensity[li, c]
+        out[:, c] = unit * f
+        var[:, c] = unit_var * f * f
+        bound[:, c] = _light_bound(unit_err, out[:, c], f, lights.cone[li, 0])
     return out, var, stats, bound
 
 
@@ -325,34 +340,38 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     over the pieces they reach past the blockers (shadows/beams.py: the leg inside the shape and the
     entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
-    The other index-matched interiors on the light's way are not applied: with any, the bound is
-    infinite."""
+    A beam is attenuated by the other index-matched interiors on its entry point's path to the sun
+    where all are convex (`_through_others`); the point and spot lights' paths are not: with any such
+    interior, and with any that is not convex, the bound is infinite."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = convex_planes(prep, sid), blockers(prep)
     n = len(points)
     out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     stats = np.zeros(STATS_SIZE)
     kt = medium.sigma_t[None, :]
-
+    others = _other_interiors(prep, sid, method.supports.interiors)
     for li in range(len(lights)):
         if not lights.distant[li]:
             _lit_point(prep, method, params, sid, planes, mask, li, (points, normals, w, ell, keys), reach, seed, depth,
                        (out, var, bound, stats))
             continue
-        faces, towards, _ = refracted_beams(planes, lights.axis[li], medium.ior)
-        for f, toward in zip(faces.tolist(), towards):
+        faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)
+        for f, toward, irradiance in zip(faces.tolist(), towards, scales):
             src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
             stats[LIT_PIECES] += len(src)
             rank = np.arange(len(src)) - np.searchsorted(src, src)
             for piece in np.unique(rank).tolist():
                 at = np.nonzero(rank == piece)[0]
                 r = src[at]
-                val, v, st, b = single_scattering(prep, method, params, sid, points[r] + x0[at, None] * w[r],
-                                                  normals[r], w[r], x1[at] - x0[at], keys[r], reach, seed, depth, li,
-                                                  piece, f)
+                rows = (points[r] + x0[at, None] * w[r], normals[r], w[r], x1[at] - x0[at], keys[r])
+                if others is not None:
+                    val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth,
+                                                    (f, toward, irradiance))
+                else:
+                    val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, piece, f)
                 stats += st
                 _carry(out, var, bound, r, kt, x0[at], val, v, b)
-    if matched(prep):
+    if matched(prep) and (others is None or not np.all(lights.distant)):
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 

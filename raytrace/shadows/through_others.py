@@ -1,5 +1,6 @@
-"""The light of a point, spot or directional light inside a convex index-matched shape, attenuated by
-the other index-matched interiors its straight path crosses on the way out.
+"""The light of a point, spot or directional light inside a convex index-matched shape (and of the
+sun's refracted beams inside a convex refractive one), attenuated by the other index-matched
+interiors its straight path crosses on the way out.
 
 Inside shape A the single-scattering integrand of media/slab.py `convex_integrand` carries the
 outside's extinction kt_out over the light's path outside A. Where that path crosses another
@@ -18,11 +19,19 @@ All its paths lie in the plane through the segment along u, and c_j changes slop
 passes a vertex of the polygon that plane cuts from B_j (`section_kinks(..., directional=True)`),
 A's own path where it passes one of A's.
 
-QUAD bounds a directional light's integrals (docs/error_bounds.md): its rule's bound plus the
-integrand's relative rounding over its sums, as media/slab.py `convex_bounded`, that rounding
-media/slab.py `directional_rounding` of A's path plus sum_j |dk_j| (dc_j + 16u C_j) + 4u
-(`chord_rounding`: c_j off by dc_j, at most C_j; the exponent's sum and exp). Point and spot
-lights, and MARCH and SAMPLE, are not bounded (inf).
+Inside a convex refractive shape A, the directional light's beam refracted through face f (`only`,
+geo[6:9] minus its direction inside, `sun` the unit direction toward the sun outside) reaches X
+where X's path back leaves through f, at the entry point P = X + k toward; outside, the light runs
+from P along the sun's direction, so the chords are those of P + s sun. Where the path leaves
+through f, P runs along a line of f's plane as X runs along the segment (k is linear in x), so the
+chords' kinks are `section_kinks(..., directional=True)` of that line (`_beam_kinks`).
+
+QUAD bounds its integrals (docs/error_bounds.md): its rule's bound plus the integrand's relative
+rounding over its sums, as media/slab.py `convex_bounded`, that rounding media/slab.py
+`directional_rounding` or `point_rounding` of A's path plus sum_j |dk_j| (dc_j + 16u C_j) + 4u
+(`chord_rounding` along the sun, from a beam's entry point with its error dP added to the planes'
+offsets, `_entry_line`; `point_chord_rounding` toward a point or spot light: c_j off by dc_j, at
+most C_j; the exponent's sum and exp). MARCH and SAMPLE are not bounded (inf).
 """
 from __future__ import annotations
 
@@ -37,13 +46,14 @@ from ..media.integrand import integrand_of
 from ..media.phase import phase_value
 from ..media.adaptive import INTERVALS, bounded_piecewise
 from ..media.convex_directional import envelope
-from ..media.slab import (_N10, _N20, _W10, _W20, MARCH, QUAD, U, _march_or_sample, _size, convex_integrand,
-                          directional_rounding, straight_cuts)
+from ..media.slab import (_N10, _N20, _W10, _W20, MARCH, QUAD, U, _light_span, _march_or_sample, _size, convex_exit_face,
+                          convex_integrand, directional_rounding, point_rounding, straight_cuts)
 
 
 class AttenuatedConvex(NamedTuple):
     """`convex_integrand` of a point or spot light, or a `directional` one (geo row, the shape's
-    planes, one channel) times exp(-sum_j dk[j] chord_j), chord_j through the planes
+    planes, one channel; `only` >= 0: the beam refracted through that face, the chords from its
+    entry point along `sun`) times exp(-sum_j dk[j] chord_j), chord_j through the planes
     others[first[j]:stop[j]]."""
     directional: bool
     geo: np.ndarray
@@ -58,6 +68,8 @@ class AttenuatedConvex(NamedTuple):
     stop: np.ndarray
     dk: np.ndarray
     rtol: float
+    only: int
+    sun: np.ndarray
 
 
 @integrand_of(AttenuatedConvex)
@@ -65,11 +77,15 @@ class AttenuatedConvex(NamedTuple):
 def _attenuated(x, r):
     geo = r.geo
     phase = phase_value(r.code, r.g, geo[3] * geo[6] + geo[4] * geo[7] + geo[5] * geo[8]) if r.directional else 0.0
-    v = convex_integrand(x, geo, PLANES, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, phase, -1)
+    v = convex_integrand(x, geo, PLANES, r.planes, r.directional, r.kt, r.ks, r.code, r.g, r.kt_out, phase, r.only)
     if v == 0.0:
         return 0.0
     px, py, pz = geo[0] + x * geo[3], geo[1] + x * geo[4], geo[2] + x * geo[5]
-    if r.directional:
+    if r.only >= 0:  # a refracted beam: from its entry point on face `only`, toward the sun
+        k = convex_exit_face(px, py, pz, geo[6], geo[7], geo[8], r.planes)[0]
+        px, py, pz = px + k * geo[6], py + k * geo[7], pz + k * geo[8]
+        ux, uy, uz, dist = r.sun[0], r.sun[1], r.sun[2], math.inf
+    elif r.directional:
         ux, uy, uz, dist = geo[6], geo[7], geo[8], math.inf
     else:
         ux, uy, uz = geo[6] - px, geo[7] - py, geo[8] - pz
@@ -106,30 +122,129 @@ def chord_rounding(planes, first, stop, u, r, dplanes):
 
 
 @njit
-def _bounded_directional(rec, planes, end, dplanes, dothers, stats):
-    """(value, bound) of a directional light's `AttenuatedConvex` over [0, end] by QUAD (`piecewise`
-    between the kinks of A's and every B_j's chords), the bound as the module's docstring says."""
+def point_chord_rounding(planes, first, stop, light, sphere, r, dmax, dmin, dplanes):
+    """(dc, C): a bound dc on the rounding of `chord` toward the point light L = `light` from any point
+    X with |X| <= r (L at distances in [dmin, dmax] from X) through the convex shape of the planes
+    planes[first:stop] (themselves dplanes = (dn, dc) off its faces; inside the ball `sphere` =
+    (centre, radius)), and C = dmax >= the chord; inf where dmin is 0.
+
+    Face f's end s_f = num_f / q_f (num_f = c_f - n_f·X, q_f = n_f·u, u = (L - X) / d) is computed
+    as the exact end of a plane displaced, at the crossing Y = X + s_f u, by at most
+    e_f = dn |Y| + dc + D (du + 4u) + 16u (|c_f| + r) (|Y| <= |centre| + radius: only crossings at
+    the shape move the chord; du = 64u (|L| + r) / dmin + 4u bounds u's rounding), and q_f by dq = du
+    + dn + 4u. On the plane, n_f·(L - Y) = h_f (the light's height over it), so |q_f| = |h_f| / |L - Y|
+    >= |h_f| / G, G = min(D, |L - centre| + radius): s_f is off by at most e_f / (|h_f| / G - dq) <=
+    4 e_f G / (3 |h_f|) where |h_f| > 4 (e_f + G dq), and a crossing farther from the light than G,
+    exact or rounded, lies off the shape and leaves the chord as it is. The chord, max(min(hi, d) -
+    lo, 0), is then off by the sum of the two largest ends' errors (lo's face enters, hi's leaves: two
+    faces) plus d's own rounding 32u (|L| + r) + 4u D.
+    inf where the light lies within that margin of a face's plane (a path could graze the face)."""
+    if not dmin > 0.0:
+        return math.inf, math.inf  # the light on the segment
+    p = math.sqrt(light[0] * light[0] + light[1] * light[1] + light[2] * light[2])
+    cx, cy, cz = light[0] - sphere[0], light[1] - sphere[1], light[2] - sphere[2]
+    far = min(dmax, math.sqrt(cx * cx + cy * cy + cz * cz) + sphere[3])
+    at = math.sqrt(sphere[0] * sphere[0] + sphere[1] * sphere[1] + sphere[2] * sphere[2]) + sphere[3]
+    du = 64.0 * U * (p + r) / dmin + 4.0 * U
+    dq = du + dplanes[0] + 4.0 * U
+    ds, ds2 = 0.0, 0.0  # the two largest ends' errors
+    for f in range(first, stop):
+        c = planes[f, 3]
+        e = dplanes[0] * at + dplanes[1] + dmax * (du + 4.0 * U) + 16.0 * U * (abs(c) + r)
+        h = abs(planes[f, 0] * light[0] + planes[f, 1] * light[1] + planes[f, 2] * light[2] - c)
+        h -= 16.0 * U * (abs(c) + p) + dplanes[1] + dplanes[0] * p  # the height's own rounding
+        if not h > 4.0 * (e + far * dq):
+            return math.inf, math.inf
+        e = 4.0 * e * far / (3.0 * h)
+        ds, ds2 = max(ds, e), max(ds2, min(ds, e))
+    return ds + ds2 + 32.0 * U * (p + r) + 4.0 * U * dmax, dmax
+
+
+@njit
+def _entry_line(rec, end, r, dplanes):
+    """(o', w', kmax, dP) of a refracted beam through face f = rec.only: where a point X(x) = o + x w
+    leaves through f along `toward` (geo[6:9]), its entry point P = X + k toward with k = (c_f -
+    n_f·X) / q_f (q_f = n_f·toward > 0) runs along the line o' + x w', k at most kmax (k is linear
+    in x), and P is off by dP = dk + 16u (r + kmax), dk = (16u (|c_f| + r) + dc + dn (r + kmax)) / q_f
+    as media/slab.py `directional_rounding`'s exit (r >= |X|)."""
+    geo, f = rec.geo, rec.only
+    n, c = rec.planes[f, :3], rec.planes[f, 3]
+    q = n[0] * geo[6] + n[1] * geo[7] + n[2] * geo[8]
+    k0 = (c - (n[0] * geo[0] + n[1] * geo[1] + n[2] * geo[2])) / q
+    dkdx = -(n[0] * geo[3] + n[1] * geo[4] + n[2] * geo[5]) / q
+    kmax = max(k0, k0 + dkdx * end, 0.0)
+    dk = (16.0 * U * (abs(c) + r) + dplanes[1] + dplanes[0] * (r + kmax)) / q
+    return geo[0:3] + k0 * geo[6:9], geo[3:6] + dkdx * geo[6:9], kmax, dk + 16.0 * U * (r + kmax)
+
+
+@njit
+def _beam_kinks(rec, end, out):
+    """The kinks in (0, end) of the chords along the sun through every B_j from a refracted beam's
+    entry point (`_entry_line`): `section_kinks(..., directional=True)` of the line o' + x w' (in its
+    arc length, mapped back to x); none where the entry point stands still. Returns their count."""
+    o, w, _, _ = _entry_line(rec, end, 0.0, NO_ERROR)
+    speed = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    if not speed > 0.0:
+        return 0
+    w = w / speed
+    m = 0
+    for j in range(rec.first.shape[0]):
+        n = section_kinks(rec.others, rec.first[j], rec.stop[j], o, w, rec.sun, end * speed, out[m:], True)
+        out[m:m + n] /= speed
+        m += n
+    return m
+
+
+NO_ERROR = np.zeros(2)
+
+
+@njit
+def _bounded(rec, planes, end, dplanes, dothers, spheres, stats):
+    """(value, bound) of an `AttenuatedConvex` over [0, end] by QUAD (`bounded_piecewise` between the
+    kinks of A's and every B_j's chords, and a spot's cone crossings), the bound as the module's
+    docstring says."""
     geo, others, first, stop = rec.geo, rec.others, rec.first, rec.stop
     o, w, toward = geo[0:3], geo[3:6], geo[6:9]
     nf = planes.shape[0]
-    cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
-    n_env = envelope(planes[:, :3], planes[:, 3], o, w, toward, end, alpha, beta, cuts, lines)
-    if n_env == 0:
-        return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
     br = np.empty(nf + others.shape[0] + 4 * first.shape[0] + 10)
     br[0] = 0.0
-    m = section_kinks(planes, 0, nf, o, w, toward, end, br[1:], True)
-    for j in range(first.shape[0]):
-        m += section_kinks(others, first[j], stop[j], o, w, toward, end, br[1 + m:], True)
+    if rec.directional:
+        cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
+        n_env = envelope(planes[:, :3], planes[:, 3], o, w, toward, end, alpha, beta, cuts, lines)
+        if n_env == 0:
+            return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
+        m = 0
+    else:
+        m = straight_cuts(geo, end, br[1:])
+    m += section_kinks(planes, 0, nf, o, w, toward, end, br[1 + m:], rec.directional)
+    if rec.only >= 0:
+        m += _beam_kinks(rec, end, br[1 + m:])
+    else:
+        for j in range(first.shape[0]):
+            m += section_kinks(others, first[j], stop[j], o, w, toward, end, br[1 + m:], rec.directional)
     br[1:m + 1].sort()
     br[m + 1] = end
     before = stats[INTERVALS]
     value, rule = bounded_piecewise(rec, br, m + 2, rec.rtol, _N10, _W10, _N20, _W20, stats)
-    eps = directional_rounding(geo, planes, end, rec.kt, rec.code, rec.g, cuts, lines, alpha, beta, n_env, dplanes)
     r = _size(geo, planes, end)[0]
+    dshift = np.zeros(2)
+    if rec.only >= 0:  # the chords start at the entry point P = X + k toward, off by dP (`_entry_line`)
+        _, _, kmax, dp = _entry_line(rec, end, r, dplanes)
+        r += kmax
+        dshift[1] = dp
+    if rec.directional:
+        eps = directional_rounding(geo, planes, end, rec.kt, rec.code, rec.g, cuts, lines, alpha, beta, n_env,
+                                   dplanes)
+    else:
+        eps = point_rounding(geo, planes, end, rec.kt, rec.kt_out, rec.code, rec.g, dplanes)
+        _, dmax, dmin = _light_span(geo, end)
     for j in range(first.shape[0]):
         if rec.dk[j] != 0.0:
-            dc, cmax = chord_rounding(others, first[j], stop[j], toward, r, dothers[j])
+            if rec.directional:
+                dc, cmax = chord_rounding(others, first[j], stop[j], rec.sun, r, dothers[j] + dshift)
+            else:
+                dc, cmax = point_chord_rounding(others, first[j], stop[j], toward, spheres[j], r, dmax, dmin,
+                                                dothers[j])
             eps += abs(rec.dk[j]) * (dc + 16.0 * U * cmax)
     eps += 4.0 * U
     return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
@@ -137,31 +252,22 @@ def _bounded_directional(rec, planes, end, dplanes, dothers, stats):
 
 @njit
 def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, others, first, stop, dk, mode, rtol,
-                        steps, tau_max, keys, dim0, seed, dplanes, dothers, out, var, err, stats):
+                        steps, tau_max, keys, dim0, seed, dplanes, dothers, spheres, only, sun, out, var, err, stats):
     """out, var, err (N,) = the attenuated single scattering (`AttenuatedConvex`) of each segment (geo
     rows, unit light, one channel) over [0, ell], its variance and a bound on its error: QUAD adaptive
-    between the kinks of A's and every B_j's chords and a spot's cone crossings, bounded for a
-    directional light (`_bounded_directional`; dplanes, dothers[j]: the planes' (dn, dc) of A and
-    B_j); MARCH, SAMPLE as media/slab.py's `_march_or_sample` (keys, dim0, seed: SAMPLE's random
-    streams). err is inf but for QUAD under a directional light."""
+    between the kinks of A's and every B_j's chords and a spot's cone crossings, bounded (`_bounded`;
+    dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j]: a ball (centre, radius)
+    holding B_j; only, sun: a refracted beam's face and the direction toward the sun, only -1
+    otherwise); MARCH, SAMPLE as media/slab.py's `_march_or_sample` (keys, dim0, seed: SAMPLE's
+    random streams), err inf."""
     for s in range(geo.shape[0]):
         out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        rec = AttenuatedConvex(directional, geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk, rtol)
-        if mode == QUAD and directional:
-            out[s], err[s] = _bounded_directional(rec, planes, min(ell[s], 745.0 / kt), dplanes, dothers, stats)
-        elif mode == QUAD:
-            end = min(ell[s], 745.0 / kt)
-            br = np.empty(planes.shape[0] + others.shape[0] + 4 * first.shape[0] + 10)
-            br[0] = 0.0
-            m = straight_cuts(geo[s], end, br[1:])
-            m += section_kinks(planes, 0, planes.shape[0], geo[s, 0:3], geo[s, 3:6], geo[s, 6:9], end, br[1 + m:])
-            for j in range(first.shape[0]):
-                m += section_kinks(others, first[j], stop[j], geo[s, 0:3], geo[s, 3:6], geo[s, 6:9], end, br[1 + m:])
-            br[1:m + 1].sort()
-            br[m + 1] = end
-            out[s], err[s] = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)[0], math.inf
+        rec = AttenuatedConvex(directional, geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk, rtol,
+                               only, sun)
+        if mode == QUAD:
+            out[s], err[s] = _bounded(rec, planes, min(ell[s], 745.0 / kt), dplanes, dothers, spheres, stats)
         else:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
