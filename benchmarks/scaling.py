@@ -2,21 +2,22 @@
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/scaling.py [--quick] [--balance]
 
-Per row (a scene, size and method): every tile of the render is run once on one thread under
-`py-spy record --gil` (py-spy samples the stack only while the thread holds the GIL; NumPy's large
+Per row (a scene, size and method): every tile of the render is run once on one thread under `py-spy
+record --gil` (py-spy samples the stack only while the thread holds the GIL; NumPy's large
 operations, Embree's batches and the numba kernels release it). A tile's CPU time is its thread
 time; its GIL share is its GIL-holding samples (the tile's call is named tile_<index> so py-spy's
-stacks tell the tiles apart) over the samples py-spy took while it ran. py-spy's sampling rate is measured in the same run:
-with --gil it records (and counts) only the samples that find a thread holding the GIL, so its
-count over the run's wall time is not the rate; the child first spins in Python for CALIBRATE
-seconds (holding the GIL throughout), and that call's samples over its wall time are. From these figures a schedule of 16 and of 64
-threads is simulated: each thread takes the next tile as renderer.Threads does; a tile is ten
-alternating pieces, its GIL-holding share in pieces that wait for the one GIL (first come first
-served) and the rest in pieces that run freely. The simulated efficiency is the CPU time over
-threads x makespan. It ignores the GIL's hand-off latency, memory bandwidth and clock drop, so it
-is an upper bound: a row must reach 0.85 for 16 threads to have a chance. Beside it, the measured
-2-thread speedup: one-thread and two-thread renders of the row taking turns (ROUNDS each, the
-median wall times), on this machine however busy it is (the load average is printed).
+stacks tell the tiles apart) over the samples py-spy took while it ran. py-spy's sampling rate is
+measured in the same run: with --gil it records (and counts) only the samples that find a thread
+holding the GIL, so its count over the run's wall time is not the rate; the child first spins in
+Python for CALIBRATE seconds (holding the GIL throughout), and that call's samples over its wall
+time are. From these figures a schedule of 16 and of 64 threads is simulated: each thread takes the
+next tile as renderer.Threads does; a tile is ten alternating pieces, its GIL-holding share in
+pieces that wait for the one GIL (first come first served) and the rest in pieces that run freely.
+The simulated efficiency is the CPU time over threads x makespan. It ignores the GIL's hand-off
+latency, memory bandwidth and clock drop, so it is an upper bound: a row must reach 0.85 for 16
+threads to have a chance. Beside it, the measured 2-thread speedup: one-thread and two-thread
+renders of the row taking turns (ROUNDS each, the median wall times), on this machine however busy
+it is (the load average is printed).
 
 --balance prints, for every bundled scene at its own size and method, the largest tile's share of
 the render's CPU time (issue 37's target: at most 1/64); --rows, for each row of the table, the
