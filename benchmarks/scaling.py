@@ -2,19 +2,22 @@
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/scaling.py [--quick] [--balance]
 
-Per row (a scene, size and method): every tile of the render is run once on one thread under
-`py-spy record --gil` (py-spy samples the stack only while the thread holds the GIL; NumPy's large
+Per row (a scene, size and method): every tile of the render is run once on one thread under `py-spy
+record --gil` (py-spy samples the stack only while the thread holds the GIL; NumPy's large
 operations, Embree's batches and the numba kernels release it). A tile's CPU time is its thread
 time; its GIL share is its GIL-holding samples (the tile's call is named tile_<index> so py-spy's
-stacks tell the tiles apart) over the samples py-spy took while it ran (py-spy's count of all its
-samples over the run's wall time gives the rate). From these figures a schedule of 16 and of 64
-threads is simulated: each thread takes the next tile as renderer.Threads does; a tile is ten
-alternating pieces, its GIL-holding share in pieces that wait for the one GIL (first come first
-served) and the rest in pieces that run freely. The simulated efficiency is the CPU time over
-threads x makespan. It ignores the GIL's hand-off latency, memory bandwidth and clock drop, so it
-is an upper bound: a row must reach 0.85 for 16 threads to have a chance. Beside it, the measured
-2-thread speedup: one-thread and two-thread renders of the row taking turns (ROUNDS each, the
-median wall times), on this machine however busy it is (the load average is printed).
+stacks tell the tiles apart) over the samples py-spy took while it ran. py-spy's sampling rate is
+measured in the same run: with --gil it records (and counts) only the samples that find a thread
+holding the GIL, so its count over the run's wall time is not the rate; the child first spins in
+Python for CALIBRATE seconds (holding the GIL throughout), and that call's samples over its wall
+time are. From these figures a schedule of 16 and of 64 threads is simulated: each thread takes the
+next tile as renderer.Threads does; a tile is ten alternating pieces, its GIL-holding share in
+pieces that wait for the one GIL (first come first served) and the rest in pieces that run freely.
+The simulated efficiency is the CPU time over threads x makespan. It ignores the GIL's hand-off
+latency, memory bandwidth and clock drop, so it is an upper bound: a row must reach 0.85 for 16
+threads to have a chance. Beside it, the measured 2-thread speedup: one-thread and two-thread
+renders of the row taking turns (ROUNDS each, the median wall times), on this machine however busy
+it is (the load average is printed).
 
 --balance prints, for every bundled scene at its own size and method, the largest tile's share of
 the render's CPU time (issue 37's target: at most 1/64); --rows, for each row of the table, the
@@ -62,6 +65,7 @@ QUICK = {
 RATE = 250  # py-spy's samples a second
 ROUNDS = 3  # of the timed one- and two-thread renders
 PIECES = 10  # a simulated tile's alternating GIL-holding and free pieces
+CALIBRATE = 1.0  # seconds of the child's GIL-holding spin that measures py-spy's sampling rate
 
 
 def load(row):
@@ -118,6 +122,14 @@ def tile_times(row) -> list[dict]:
     return times
 
 
+def gil_calibration() -> float:
+    """Spin in Python, holding the GIL, for CALIBRATE seconds; returns the wall seconds spun."""
+    start = now = time.monotonic()
+    while now - start < CALIBRATE:
+        now = time.monotonic()
+    return now - start
+
+
 def profiled(row_name: str, rows: dict) -> tuple[np.ndarray, np.ndarray]:
     """(CPU seconds, GIL share) of every tile of the row, from a child process under py-spy."""
     spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
@@ -125,24 +137,24 @@ def profiled(row_name: str, rows: dict) -> tuple[np.ndarray, np.ndarray]:
         raise SystemExit("py-spy is needed for the GIL shares: pip install py-spy")
     with tempfile.TemporaryDirectory() as tmp:
         raw, out = Path(tmp) / "raw.txt", Path(tmp) / "times.json"
-        start = time.monotonic()
         child = [sys.executable, __file__, "--child", row_name, str(out)] + (["--quick"] if rows is QUICK else [])
         run = subprocess.run([spy, "record", "--gil", "--rate", str(RATE), "--format", "raw", "--output", str(raw),
                               "--", *child], capture_output=True, text=True)
-        wall = time.monotonic() - start
         if run.returncode or not out.exists():  # py-spy exits 0 when its child fails
             raise SystemExit(f"{row_name}: the profiled child failed:\n{run.stderr}")
-        taken = int(re.search(r"Samples: (\d+)", run.stdout + run.stderr).group(1))
-        times = json.loads(out.read_text())
-        gil = np.zeros(len(times))
+        child_out = json.loads(out.read_text())
+        times = child_out["tiles"]
+        gil, spin = np.zeros(len(times)), 0
         for line in raw.read_text().splitlines():
             stack, _, count = line.rpartition(" ")
             found = re.search(r"\btile_(\d+) ", stack)
             if found:
                 gil[int(found.group(1))] += int(count)
+            elif re.search(r"\bgil_calibration ", stack):
+                spin += int(count)
     cpu = np.array([t["cpu"] for t in times])
     tile_wall = np.array([t["end"] - t["start"] for t in times])
-    rate = taken / wall  # py-spy's actual samples a second over the child's life
+    rate = spin / child_out["calibration"]  # py-spy's actual samples a second
     return cpu, np.clip(gil / rate / np.maximum(tile_wall, 1e-9), 0.0, 1.0)
 
 
@@ -203,7 +215,8 @@ def main():
     args = p.parse_args()
     rows = QUICK if args.quick else ROWS
     if args.child:
-        Path(args.child[1]).write_text(json.dumps(tile_times(rows[args.child[0]])))
+        spun = gil_calibration()
+        Path(args.child[1]).write_text(json.dumps({"calibration": spun, "tiles": tile_times(rows[args.child[0]])}))
         return
     if args.balance:
         balance()

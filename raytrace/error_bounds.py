@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .jit import exact_njit
+
 # relative allowance for float64 closed forms and sums (surface term, exp(-kt t), the 1/spp mean):
 # each is a few dozen operations of relative error 2^-53 ~ 1.1e-16 with condition numbers up to the
 # optical path kt t (< 745 where exp does not underflow): below 1e-13, so 1e-12 is an upper bound
@@ -52,12 +54,29 @@ def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium, co
     the cosine of each segment's light's cone, <= -1 without one), infinite where the evaluation did
     not meet it. `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's
     keys); channels that do not scatter are exactly 0."""
-    bound = (max(precision, KERNEL_FLOOR) + ROUNDING + spot_rounding(cos_end)[:, None]) * np.abs(radiance)
+    bound = np.empty(radiance.shape)
+    _relative(radiance, max(precision, KERNEL_FLOOR) + ROUNDING, cos_end, bound)
     for c in range(3):
         key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
         if key in met:
             bound[~met[key], c] = np.inf
     return bound
+
+
+@exact_njit
+def _relative(radiance, rel, cos_end, out):
+    """out = (rel + spot_rounding(cos_end)[:, None]) |radiance| (a GIL-free kernel, the NumPy
+    expression's bits: tests/test_exact_kernels.py)."""
+    for s in range(radiance.shape[0]):
+        spot = spot_allowance(cos_end[s])
+        for c in range(radiance.shape[1]):
+            out[s, c] = (rel + spot) * abs(radiance[s, c])
+
+
+@exact_njit
+def spot_allowance(cos_end):
+    """`spot_rounding` of one cosine, for kernels (the same operations)."""
+    return SPOT_ROUNDING / max(1.0 - cos_end, 1e-300) if cos_end > -1.0 else 0.0
 
 
 def spot_rounding(cos_end: np.ndarray) -> np.ndarray:

@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from raytrace import camera, shading
+from raytrace import camera, error_bounds, shading
 from raytrace.geometry.accel import Accelerator
 from raytrace.media.medium import exp_transmittance
+from raytrace.methods import quadrature
 from raytrace.scene.format import Camera
 
 RNG = np.random.default_rng(37)
@@ -159,3 +160,44 @@ def test_exp_transmittance_is_numpys():
     got = exp_transmittance(kt, tau)
     assert np.all(got[:, 0] == 1.0) and got[-2, 1] == 0.0 and got[-1, 2] == math.exp(-1.0)
     np.testing.assert_array_max_ulp(got, ref, maxulp=1)
+
+
+def edge_values(n, scale):
+    """n random magnitudes over many decades, with 0, inf and the largest double among them."""
+    v = scale * 10.0 ** RNG.uniform(-20, 20, size=n)
+    v[:: 7] = 0.0
+    v[3:: 53] = np.inf
+    v[5:: 61] = np.finfo(float).max
+    return v
+
+
+def test_fog_bound_rounding_is_numpys():
+    """quadrature._add_rounding against `_fog`'s NumPy expression for its bound's rounding terms."""
+    n = 6000
+    prefix = edge_values(n, 1e-14)
+    cos_end = np.where(RNG.uniform(size=n) < 0.3, -2.0, RNG.uniform(-1.0, 1.0, size=n))  # a third without cones
+    cos_end[:20] = [1.0, -1.0, np.nextafter(1.0, 0.0), np.nextafter(-1.0, 0.0)] * 5  # cones of no width, the edges
+    radiance = np.stack([edge_values(n, 1.0) for _ in range(3)], axis=1)
+    bound = np.stack([edge_values(n, 1e-10) for _ in range(3)], axis=1)
+    for kt in (np.array([0.0, 0.06, 1e300]), np.array([0.5, 0.5, 0.5])):  # a vacuum channel, an overflow
+        with np.errstate(over="ignore"):
+            rel = (error_bounds.ROUNDING + error_bounds.spot_rounding(cos_end)[:, None]
+                   + error_bounds.product(prefix[:, None], kt[None, :]))
+            ref = bound + error_bounds.product(rel, np.abs(radiance))
+        got = bound.copy()
+        quadrature._add_rounding(prefix, kt, cos_end, radiance, got)
+        assert np.array_equal(got, ref) and np.isinf(got).any() and not np.isnan(got).any()
+
+
+def test_relative_bound_is_numpys():
+    """error_bounds.relative_bound's kernel against its NumPy expression (analytic's bound, and
+    quadrature's in homogeneous media)."""
+    n = 6000
+    cos_end = np.where(RNG.uniform(size=n) < 0.3, -2.0, RNG.uniform(-1.0, 1.0, size=n))
+    cos_end[:20] = [1.0, -1.0, np.nextafter(1.0, 0.0), np.nextafter(-1.0, 0.0)] * 5
+    radiance = np.stack([edge_values(n, 1.0) for _ in range(3)], axis=1)
+    for rel in (1e-3 + error_bounds.ROUNDING, error_bounds.KERNEL_FLOOR + error_bounds.ROUNDING):
+        ref = (rel + error_bounds.spot_rounding(cos_end)[:, None]) * np.abs(radiance)
+        got = np.empty_like(radiance)
+        error_bounds._relative(radiance, rel, cos_end, got)
+        assert np.array_equal(got, ref) and np.isinf(got).any()

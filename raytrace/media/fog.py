@@ -71,7 +71,7 @@ class HeightFog(Medium):
     def transmittance_on(self, origins, dirs, a, b):
         n = len(origins)
         tau = np.empty(n)
-        ray_columns(*kernel_arrays(n, origins, dirs, a, b), *(float(u) for u in self.up), float(self.h0),
+        ray_columns(*kernel_arrays(n, origins, dirs, a, b), *np.asarray(self.up, float).tolist(), float(self.h0),
                     float(self.scale_height), int(self.profile), tau)
         return exp_transmittance(self.sigma_t, tau)
 

@@ -89,8 +89,18 @@ def kernel_arrays(n: int, origins, dirs, a, b) -> tuple:
     (numbers broadcast), float64, C-contiguous and writable, so that one compiled signature serves every
     call (numba types a read-only array apart, and a broadcast array of one ray is contiguous but
     read-only: the warm-up's single rays would otherwise compile a signature no tile uses)."""
-    return tuple(np.require(np.broadcast_to(np.asarray(v, float), shape), float, ("C", "W"))
-                 for v, shape in ((origins, (n, 3)), (dirs, (n, 3)), (a, (n,)), (b, (n,))))
+    return tuple(_kernel_array(v, shape) for v, shape in ((origins, (n, 3)), (dirs, (n, 3)), (a, (n,)), (b, (n,))))
+
+
+def _kernel_array(v, shape):
+    """v as `kernel_arrays` gives it: itself when it is one already, a number filled in (the same values
+    as broadcasting, without NumPy's Python-level calls)."""
+    if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == shape and v.flags.c_contiguous \
+            and v.flags.writeable:
+        return v
+    if isinstance(v, (int, float)):
+        return np.full(shape, float(v))
+    return np.require(np.broadcast_to(np.asarray(v, float), shape), float, ("C", "W"))
 
 
 def exp_transmittance(kt: np.ndarray, tau: np.ndarray) -> np.ndarray:

@@ -776,16 +776,19 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`). With `quadrature` None (and `spots` or `aniso`) the
     segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
-    left nan, their statistics not counted (`evaluate_deferred`)."""
+    left nan, their statistics not counted (`evaluate_deferred`); returns how many."""
     before = np.empty(stats.shape[0])
+    left = 0
     for s in range(xh.shape[0]):
         for k in range(stats.shape[0]):
             before[k] = stats[k]
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
                                           aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso)
         if quadrature is None and math.isnan(out[s]):
+            left += 1
             for k in range(stats.shape[0]):
                 stats[k] = before[k]
+    return left
 
 
 def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
@@ -796,10 +799,9 @@ def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     `spots` False: the scene has no light with a cone (`Lights.kinds`), `aniso` False: its medium is
     isotropic; the first pass is then compiled without their code too (such segments, were there
     any, would be left to the second pass)."""
-    evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, None, True if spots else None, True if aniso else None)
-    todo = np.flatnonzero(np.isnan(out))
-    if len(todo):
+    if evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
+                         met, stats, None, True if spots else None, True if aniso else None):
+        todo = np.flatnonzero(np.isnan(out))
         part, part_met = np.empty(len(todo)), np.empty(len(todo), dtype=np.bool_)
         evaluate_segments(xh[todo], h[todo], da[todo], ell[todo], kt, ks, code, g, precision, max_iter, aniso_mode,
                           terms, coeffs, cone[todo], part, part_met, stats, True, True, True)

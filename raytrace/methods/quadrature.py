@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import error_bounds
-from ..jit import njit
+from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        by_channel, cone_row, fog_inscatter_parts, fog_rows, spot_factor)
@@ -240,19 +240,28 @@ def _fog(segs, medium, lights, params):
         return out, bound
 
     radiance, bound = by_channel(segs, medium, lights, evaluate, estimated=True)
-    before = _prefix_rounding(segs, rows, medium)
-    spot = error_bounds.spot_rounding(lights.cone[segs.light, 0])
-    rel = error_bounds.ROUNDING + spot[:, None] + before
-    return radiance, stats, bound + error_bounds.product(rel, np.abs(radiance))
+    # the prefix's rounding (kt column_error of the camera ray's column over [-t0, 0], 0 for whole
+    # rays) is computed even when every piece is whole, so that the renderer's warm-up, whose rays
+    # make whole pieces, compiles it
+    prefix = np.empty(len(segs))
+    _prefix_errors(rows, np.asarray(segs.t0, float), medium.scale_height, medium.profile, prefix)
+    _add_rounding(prefix, np.asarray(medium.sigma_t, float), lights.cone[segs.light, 0], radiance, bound)
+    return radiance, stats, bound
 
 
-def _prefix_rounding(segs, rows, medium):
-    """(S, 3): the relative rounding of the fog's transmittance from each camera ray's origin to its
-    piece's start, kt column_error of the column over [-t0, 0] (0 for whole rays; computed even when
-    every piece is whole, so that the renderer's warm-up, whose rays make whole pieces, compiles it)."""
-    err = np.empty(len(segs))
-    _prefix_errors(rows, np.asarray(segs.t0, float), medium.scale_height, medium.profile, err)
-    return error_bounds.product(err[:, None], np.asarray(medium.sigma_t, float)[None, :])
+@exact_njit
+def _add_rounding(prefix, kt, cos_end, radiance, bound):
+    """bound[s, c] += (ROUNDING + spot_rounding(cos_end[s]) + kt[c] prefix[s]) |radiance[s, c]|, in
+    place: the relative rounding of the sum, of a spot's falloff and of the camera ray's
+    transmittance to the piece's start (`_prefix_errors`' unit column error times the channel's
+    extinction), each product 0 where a factor is (error_bounds.product and spot_rounding's
+    operations in their order: their NumPy expression's bound bit for bit)."""
+    for s in range(radiance.shape[0]):
+        spot = error_bounds.spot_allowance(cos_end[s])
+        for c in range(radiance.shape[1]):
+            before = prefix[s] * kt[c] if kt[c] != 0.0 else 0.0
+            value = abs(radiance[s, c])
+            bound[s, c] += (error_bounds.ROUNDING + spot + before) * value if value != 0.0 else 0.0
 
 
 @njit
