@@ -726,68 +726,61 @@ def convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out,
     rule's intervals (u per interval)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
-    if kind == SPHERE:
-        return _sphere_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes,
-                               stats)
-    if directional:
-        return _distant_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol,
-                                dplanes, stats)
-    return _point_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats)
-
-
-@njit
-def _bounded(value, rule, eps, intervals):
-    """`convex_bounded`'s (value, bound) from the rule's bound, the integrand's relative rounding eps
-    and the count of the rule's intervals."""
-    return value, rule + (3.0 * eps + intervals * U) * (value + rule)
-
-
-@njit
-def _sphere_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats):
-    """`convex_bounded` in an exact sphere (ell > 0)."""
-    end = min(ell, 745.0 / kt)
     rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, phase, only)
+    end = min(ell, 745.0 / kt)
     before = stats[INTERVALS]
+    if kind == SPHERE:
+        value, rule, eps = _sphere_rule(rec, end, rtol, stats)
+    elif directional:
+        value, rule, eps = _distant_rule(rec, end, rtol, dplanes, stats)
+    else:
+        value, rule, eps = _point_rule(rec, end, rtol, dplanes, stats)
+    return _bounded(value, rule, eps, before, stats)
+
+
+@njit
+def _bounded(value, rule, eps, before, stats):
+    """`convex_bounded`'s (value, bound) from the rule's bound, the integrand's relative rounding eps
+    and the count of the rule's intervals since `before`."""
+    return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
+
+
+@njit
+def _sphere_rule(r, end, rtol, stats):
+    """(value, the rule's bound, the integrand's rounding) of `convex_bounded` in an exact sphere."""
     br = np.empty(6)
     br[0] = 0.0
-    m = 0 if directional else straight_cuts(geo, end, br[1:])
+    m = 0 if r.directional else straight_cuts(r.geo, end, br[1:])
     br[m + 1] = end
-    value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
-    eps = sphere_rounding(geo, planes[0], directional, end, kt, kt_out, code, g)
-    return _bounded(value, rule, eps, stats[INTERVALS] - before)
+    value, rule = bounded_piecewise(r, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    return value, rule, sphere_rounding(r.geo, r.planes[0], r.directional, end, r.kt, r.kt_out, r.code, r.g)
 
 
 @njit
-def _distant_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats):
-    """`convex_bounded` for a directional light in a convex polyhedron (ell > 0)."""
-    end = min(ell, 745.0 / kt)
-    rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, phase, only)
-    before = stats[INTERVALS]
+def _distant_rule(r, end, rtol, dplanes, stats):
+    """The same for a directional light in a convex polyhedron."""
+    geo, planes = r.geo, r.planes
     nf = planes.shape[0]
     cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
     m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, alpha, beta, cuts, lines)
     if m == 0:
-        return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
-    value, rule = bounded_piecewise(rec, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
-    eps = directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta, m, dplanes)
-    return _bounded(value, rule, eps, stats[INTERVALS] - before)
+        return 0.0, 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
+    value, rule = bounded_piecewise(r, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
+    return value, rule, directional_rounding(geo, planes, end, r.kt, r.code, r.g, cuts, lines, alpha, beta, m, dplanes)
 
 
 @njit
-def _point_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, phase, only, rtol, dplanes, stats):
-    """`convex_bounded` for a point or spot light in a convex polyhedron (ell > 0)."""
-    end = min(ell, 745.0 / kt)
-    rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, phase, only)
-    before = stats[INTERVALS]
+def _point_rule(r, end, rtol, dplanes, stats):
+    """The same for a point or spot light in a convex polyhedron."""
+    geo, planes = r.geo, r.planes
     br = np.empty(planes.shape[0] + 10)
     br[0] = 0.0
     m = straight_cuts(geo, end, br[1:])
     m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
     sort_few(br, 1, m + 1)
     br[m + 1] = end
-    value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
-    eps = point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes)
-    return _bounded(value, rule, eps, stats[INTERVALS] - before)
+    value, rule = bounded_piecewise(r, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    return value, rule, point_rounding(geo, planes, end, r.kt, r.kt_out, r.code, r.g, dplanes)
 
 
 @njit
@@ -1160,24 +1153,37 @@ def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, 
 @njit
 def _convex_quad(sel, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only, rtol, out, err,
                  stats):
-    """`inside_radiance` in a convex shape along the light's exact straight path, QUAD: `convex_bounded`
-    (its bound where the shape is index-matched) for the point or spot lights of `sel`."""
+    """`inside_radiance` in a convex polyhedron along a point or spot light's exact straight path, QUAD:
+    `convex_bounded` (its bound where the shape is index-matched)."""
     for s in sel:
-        out[s], bound = _point_bounded(geo[s], PLANES, planes, directional[s], ell[s], kt, ks, code, g, kt_out, 0.0,
-                                       only, rtol, dplanes, stats)
-        if eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are not analysed
-            err[s] = bound
+        rec, end, before = _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, stats)
+        _convex_store(s, _point_rule(rec, end, rtol, dplanes, stats), eta, before, out, err, stats)
 
 
 @njit
 def _convex_distant_quad(sel, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only, rtol, out,
                          err, stats):
-    """The same for the directional lights of `sel`."""
+    """The same for a directional light."""
     for s in sel:
-        out[s], bound = _distant_bounded(geo[s], PLANES, planes, directional[s], ell[s], kt, ks, code, g, kt_out,
-                                         phase_value(code, g, mu[s]), only, rtol, dplanes, stats)
-        if eta == 1.0:
-            err[s] = bound
+        rec, end, before = _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, stats)
+        _convex_store(s, _distant_rule(rec, end, rtol, dplanes, stats), eta, before, out, err, stats)
+
+
+@njit
+def _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, stats):
+    """Segment s's `convex_bounded` record, the end of its integral and the rule's intervals so far."""
+    ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
+    return (ConvexIntegrand(geo[s], PLANES, planes, directional[s], kt, ks, code, g, kt_out, ph, only),
+            min(ell[s], 745.0 / kt), stats[INTERVALS])
+
+
+@njit
+def _convex_store(s, found, eta, before, out, err, stats):
+    """Segment s's value and, in an index-matched shape, its bound from a rule's (value, bound, rounding)
+    (refracted beams: the irradiance's and the face test's rounding are not analysed)."""
+    out[s], bound = _bounded(found[0], found[1], found[2], before, stats)
+    if eta == 1.0:
+        err[s] = bound
 
 
 @njit
