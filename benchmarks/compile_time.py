@@ -16,7 +16,9 @@ per scene on the 2-core machine of docs/benchmarks.md.
 
 --profile adds, per scene, the dispatchers with the largest inclusive compile time (a dispatcher's
 compilation includes those of the functions it calls that were not compiled yet; a recursive one is
-counted once). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
+counted once) and those with the largest exclusive time (without those nested compilations: typing
+and lowering its own code, and optimising and emitting its module, which holds a copy of every
+function it calls, so a deep chain of calls over one integrand pays for the integrand at each level). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
 e.g. an older commit's `git archive`, for before/after tables; --before DIR measures that checkout
 too, alternating with --tree's, scene by scene (paired runs: both see the same load), and --runs N
 repeats each measurement N times, giving every run's compile CPU seconds and their median. Scenes
@@ -104,12 +106,18 @@ def worker(scene: str, width: int, out: Path) -> dict:
     for e in rec.events:
         if e["name"] not in e["outer"]:  # a recursive compile is inside its own outer one
             inclusive[e["name"]] = inclusive.get(e["name"], 0.0) + e["end"] - e["start"]
+    exclusive = {}  # without the compilations nested in it: what compiling the dispatcher's own code cost
+    for i, e in enumerate(rec.events):
+        nested = sum(c["end"] - c["start"] for c in rec.events[i + 1:] if c["depth"] == e["depth"] + 1
+                     and c["start"] >= e["start"] and c["end"] <= e["end"])
+        exclusive[e["name"]] = exclusive.get(e["name"], 0.0) + e["end"] - e["start"] - nested
     usage = os.times()
     return {"compile_cpu": sum(e["end"] - e["start"] for e in top), "compiled": len(rec.events),
             "late": sorted({e["name"] for e in top if e["phase"] == "late"}),
             "late_cpu": sum(e["end"] - e["start"] for e in top if e["phase"] == "late"),
             "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system,
             "inclusive": sorted(inclusive.items(), key=lambda kv: -kv[1]),
+            "exclusive": sorted(exclusive.items(), key=lambda kv: -kv[1]),
             "events": [(e["name"], e["end"] - e["start"], e["depth"], e["outer"][-1] if e["outer"] else "", e["phase"],
                         e["args"])
                        for e in rec.events]}
@@ -157,9 +165,9 @@ def main():
     print(f"# load after {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
     if args.profile:
         for name, r in results.items():
-            print(f"\n{name}: top dispatchers by inclusive compile CPU s")
-            for fn, s in r["inclusive"][:args.top]:
-                print(f"  {s:6.2f}  {fn}")
+            print(f"\n{name}: top dispatchers by compile CPU s, inclusive | exclusive")
+            for (fn, s), (fx, x) in zip(r["inclusive"][:args.top], r["exclusive"][:args.top]):
+                print(f"  {s:6.2f}  {fn:60s} | {x:6.2f}  {fx}")
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
 

@@ -39,6 +39,7 @@ import numpy as np
 from ..geometry.sphere import shadow_breaks, sphere_roots
 from ..jit import njit
 from ..lights import falloff
+from .adaptive import sort_few
 from .phase import phase_value
 
 
@@ -124,7 +125,7 @@ def boundary_kinks(kind, rows, first, stop, o, w, light, end, out):
         if -tol <= buf[j] <= end + tol:
             out[m] = min(max(buf[j], 0.0), end)
             m += 1
-    out[:m].sort()
+    sort_few(out, 0, m)
     return m
 
 
@@ -211,7 +212,7 @@ def section_kinks(planes, first, stop, o, w, light, end, out, directional=False)
         if 0.0 < x < end:
             out[count] = x
             count += 1
-    out[:count].sort()
+    sort_few(out, 0, count)
     return count
 
 

@@ -44,7 +44,7 @@ import numpy as np
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
 from ..rng import uniform
-from .adaptive import INTERVALS, bounded_piecewise, piecewise
+from .adaptive import INTERVALS, bounded_piecewise, piecewise, sort_few
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
 from .integrand import integrand, integrand_of
@@ -206,7 +206,7 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
             if cos_start == cos_end:
                 break
         prev = c1
-    out[:m].sort()
+    sort_few(out, 0, m)
     return m
 
 
@@ -695,7 +695,7 @@ def straight_cuts(geo, end, out):
                 m += 1
         if geo[12] == geo[13]:
             break
-    out[:m].sort()
+    sort_few(out, 0, m)
     return m
 
 
@@ -726,34 +726,61 @@ def convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out,
     rule's intervals (u per interval)."""
     if ks == 0.0 or not ell > 0.0:
         return 0.0, 0.0
-    end = min(ell, 745.0 / kt)
     rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, phase, only)
+    end = min(ell, 745.0 / kt)
     before = stats[INTERVALS]
     if kind == SPHERE:
-        br = np.empty(6)
-        br[0] = 0.0
-        m = 0 if directional else straight_cuts(geo, end, br[1:])
-        br[m + 1] = end
-        value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
-        eps = sphere_rounding(geo, planes[0], directional, end, kt, kt_out, code, g)
+        value, rule, eps = _sphere_rule(rec, end, rtol, stats)
     elif directional:
-        nf = planes.shape[0]
-        cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
-        m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, alpha, beta, cuts, lines)
-        if m == 0:
-            return 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
-        value, rule = bounded_piecewise(rec, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
-        eps = directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta, m, dplanes)
+        value, rule, eps = _distant_rule(rec, end, rtol, dplanes, stats)
     else:
-        br = np.empty(planes.shape[0] + 10)
-        br[0] = 0.0
-        m = straight_cuts(geo, end, br[1:])
-        m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
-        br[1:m + 1].sort()
-        br[m + 1] = end
-        value, rule = bounded_piecewise(rec, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
-        eps = point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes)
+        value, rule, eps = _point_rule(rec, end, rtol, dplanes, stats)
+    return _bounded(value, rule, eps, before, stats)
+
+
+@njit
+def _bounded(value, rule, eps, before, stats):
+    """`convex_bounded`'s (value, bound) from the rule's bound, the integrand's relative rounding eps
+    and the count of the rule's intervals since `before`."""
     return value, rule + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
+
+
+@njit
+def _sphere_rule(r, end, rtol, stats):
+    """(value, the rule's bound, the integrand's rounding) of `convex_bounded` in an exact sphere."""
+    br = np.empty(6)
+    br[0] = 0.0
+    m = 0 if r.directional else straight_cuts(r.geo, end, br[1:])
+    br[m + 1] = end
+    value, rule = bounded_piecewise(r, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    return value, rule, sphere_rounding(r.geo, r.planes[0], r.directional, end, r.kt, r.kt_out, r.code, r.g)
+
+
+@njit
+def _distant_rule(r, end, rtol, dplanes, stats):
+    """The same for a directional light in a convex polyhedron."""
+    geo, planes = r.geo, r.planes
+    nf = planes.shape[0]
+    cuts, lines, alpha, beta = np.empty(nf + 1), np.empty(nf, dtype=np.int64), np.empty(nf), np.empty(nf)
+    m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, alpha, beta, cuts, lines)
+    if m == 0:
+        return 0.0, 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
+    value, rule = bounded_piecewise(r, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
+    return value, rule, directional_rounding(geo, planes, end, r.kt, r.code, r.g, cuts, lines, alpha, beta, m, dplanes)
+
+
+@njit
+def _point_rule(r, end, rtol, dplanes, stats):
+    """The same for a point or spot light in a convex polyhedron."""
+    geo, planes = r.geo, r.planes
+    br = np.empty(planes.shape[0] + 10)
+    br[0] = 0.0
+    m = straight_cuts(geo, end, br[1:])
+    m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
+    sort_few(br, 1, m + 1)
+    br[m + 1] = end
+    value, rule = bounded_piecewise(r, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    return value, rule, point_rounding(geo, planes, end, r.kt, r.kt_out, r.code, r.g, dplanes)
 
 
 @njit
@@ -765,10 +792,18 @@ def _straight(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, 
         value, bound = convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, ph, only, rtol,
                                       dplanes, stats)
         return value, 0.0, bound
+    value, var = _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, mode, steps,
+                                   tau_max, key, dim0, seed)
+    return value, var, math.inf
+
+
+@njit
+def _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, mode, steps, tau_max, key,
+                      dim0, seed):
+    """(value, variance) of `_straight`'s MARCH or SAMPLE."""
     length = min(ell, (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
     rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, ph, only)
-    value, var = _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed)
-    return value, var, math.inf
+    return _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed)
 
 
 @njit
@@ -1005,7 +1040,6 @@ def _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
     return mean, max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
 
 
-@njit
 def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, dplanes,
                     only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
@@ -1027,63 +1061,181 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     with only >= 0 through that face alone.
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces)
-    and where the value is exactly 0 (no light, nothing to scatter); inf elsewhere."""
-    convex = planes.shape[0] > 0
-    for s in range(xh.shape[0]):
-        out[s] = 0.0
-        var[s] = 0.0
-        err[s] = 0.0
-        if ks == 0.0 or not ell[s] > 0.0:
-            continue
-        err[s] = math.inf
+    and where the value is exactly 0 (no light, nothing to scatter); inf elsewhere.
+    Each kind of segment has its own kernel below, compiled on first use: a scene compiles the
+    integrands of the kinds it meets only."""
+    out[:], var[:] = 0.0, 0.0
+    live = ell > 0.0 if ks != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
+    err[:] = np.where(live, math.inf, 0.0)
+    directional = np.asarray(directional, dtype=np.bool_)
+    convex, sampled = planes.shape[0] > 0, mode == MARCH or mode == SAMPLE
+
+    def each(kernel, which, *args):  # `kernel` over the segments `which` selects, where there are any
+        if np.any(which):
+            kernel(np.flatnonzero(which), *args)
+
+    if eta != 1.0 and (mode == QUAD or (convex and sampled)):
+        # a point or spot light through every face of a convex refractive shape, else the entry plane
+        if mode == QUAD:
+            each(_faces_quad, live & ~directional, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta,
+                 rtol, out, stats)
+        else:
+            each(_faces_sampled, live & ~directional, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
+                 eta, mode, steps, tau_max, keys, dim0, seed, out, var)
+        live &= directional
+    if convex and mode != CLOSED and mode != APPROX:
+        if mode == QUAD:
+            for kernel, which in ((_convex_quad, live & ~directional), (_convex_distant_quad, live & directional)):
+                each(kernel, which, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only, rtol,
+                     out, err, stats)
+        else:
+            each(_convex_sampled, live, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, mode, steps,
+                 tau_max, keys, dim0, seed, out, var)
+        return
+    live &= np.where(directional, ~(b <= 0.0), ~(hl <= 0.0))  # a light below the entry plane gives 0
+    if sampled:
+        each(_plane_sampled, live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo,
+             mode, steps, tau_max, keys, dim0, seed, out, var)
+    elif mode == QUAD:
+        each(_distant_quad, live & directional, mu, a, b, ell, kt, ks, code, g, rtol, out, stats)
+        each(_point_quad, live & ~directional, xh, h, hl, a, ell, kt, ks, code, g, kt_out, rtol, out, stats)
+    else:  # CLOSED or APPROX (a point light: APPROX only)
+        each(_distant_closed, live & directional, mu, a, b, ell, kt, ks, code, g, out)
+        if mode == APPROX:
+            each(_point_approx, live & ~directional, xh, h, hl, a, ell, kt, ks, code, g, kt_out, out)
+
+
+@njit
+def _spot_terms(geo, a, hl):
+    """`refracted_point`'s spot terms of a segment's geo row (NO_SPOT for a light without a cone)."""
+    if not is_spot(geo[13]):
+        return NO_SPOT
+    n0, n1, n2 = geo[14], geo[15], geo[16]
+    na = n0 * geo[9] + n1 * geo[10] + n2 * geo[11]
+    wa = geo[3] * geo[9] + geo[4] * geo[10] + geo[5] * geo[11] + a * na
+    la = (geo[6] - geo[0]) * geo[9] + (geo[7] - geo[1]) * geo[10] + (geo[8] - geo[2]) * geo[11] - hl * na
+    return (wa, la, na, geo[12], geo[13], geo[17])
+
+
+@njit
+def _faces(s, geo, planes, a, hl, wl, ll, only):
+    """A point or spot light's `refracting_faces` rows for segment s (with only >= 0, that face's alone),
+    their count and the spot's terms."""
+    spot = _spot_terms(geo[s], a[s], hl[s])
+    faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
+    m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
+    if only >= 0:  # the path through face `only` alone
+        m = _only_face(faces, m, only)
+    return faces, m, spot
+
+
+@njit
+def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, out, stats):
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`."""
+    for s in sel:
+        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        if m > 0:
+            out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, stats)
+
+
+@njit
+def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, mode, steps, tau_max,
+                   keys, dim0, seed, out, var):
+    """The same, MARCH or SAMPLE: `_march_or_sample` of `faces_point`."""
+    for s in sel:
+        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        if m > 0:
+            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:])
+            out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+
+
+@njit
+def _convex_quad(sel, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only, rtol, out, err,
+                 stats):
+    """`inside_radiance` in a convex polyhedron along a point or spot light's exact straight path, QUAD:
+    `convex_bounded` (its bound where the shape is index-matched)."""
+    for s in sel:
+        rec, end, before = _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, stats)
+        _convex_store(s, _point_rule(rec, end, rtol, dplanes, stats), eta, before, out, err, stats)
+
+
+@njit
+def _convex_distant_quad(sel, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only, rtol, out,
+                         err, stats):
+    """The same for a directional light."""
+    for s in sel:
+        rec, end, before = _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, stats)
+        _convex_store(s, _distant_rule(rec, end, rtol, dplanes, stats), eta, before, out, err, stats)
+
+
+@njit
+def _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, stats):
+    """Segment s's `convex_bounded` record, the end of its integral and the rule's intervals so far."""
+    ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
+    return (ConvexIntegrand(geo[s], PLANES, planes, directional[s], kt, ks, code, g, kt_out, ph, only),
+            min(ell[s], 745.0 / kt), stats[INTERVALS])
+
+
+@njit
+def _convex_store(s, found, eta, before, out, err, stats):
+    """Segment s's value and, in an index-matched shape, its bound from a rule's (value, bound, rounding)
+    (refracted beams: the irradiance's and the face test's rounding are not analysed)."""
+    out[s], bound = _bounded(found[0], found[1], found[2], before, stats)
+    if eta == 1.0:
+        err[s] = bound
+
+
+@njit
+def _convex_sampled(sel, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, mode, steps, tau_max, keys,
+                    dim0, seed, out, var):
+    """The same, MARCH or SAMPLE: `_march_or_sample` of `convex_integrand`."""
+    for s in sel:
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
-        spot = NO_SPOT
-        if eta != 1.0 and not directional[s] and is_spot(geo[s, 13]):  # refracted_point's terms of a spot light
-            n0, n1, n2 = geo[s, 14], geo[s, 15], geo[s, 16]
-            na = n0 * geo[s, 9] + n1 * geo[s, 10] + n2 * geo[s, 11]
-            wa = geo[s, 3] * geo[s, 9] + geo[s, 4] * geo[s, 10] + geo[s, 5] * geo[s, 11] + a[s] * na
-            la = ((geo[s, 6] - geo[s, 0]) * geo[s, 9] + (geo[s, 7] - geo[s, 1]) * geo[s, 10]
-                  + (geo[s, 8] - geo[s, 2]) * geo[s, 11] - hl[s] * na)
-            spot = (wa, la, na, geo[s, 12], geo[s, 13], geo[s, 17])
-        if eta != 1.0 and not directional[s] and (mode == QUAD or (convex and (mode == MARCH or mode == SAMPLE))):
-            # a point or spot light through every face of a convex refractive shape, else the entry plane
-            faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
-            m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
-            if only >= 0:  # the path through face `only` alone
-                m = _only_face(faces, m, only)
-            if m == 0:
-                continue
-            if mode == QUAD:
-                out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
-                                          stats)
-            else:
-                length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-                rec3 = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:])
-                out[s], var[s] = _march_or_sample(rec3, mode, length, kt, steps, keys[s], dim0, seed)
-            continue
-        if convex and mode != CLOSED and mode != APPROX:
-            out[s], var[s], bound = _straight(PLANES, planes, geo[s], directional[s], ell[s], kt, ks, code, g, kt_out,
-                                              ph, only, dplanes, mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
-            if mode == QUAD and eta == 1.0:  # refracted beams: the irradiance's and the face test's rounding are
-                err[s] = bound  # not analysed
-            continue
-        if (directional[s] and b[s] <= 0.0) or (not directional[s] and hl[s] <= 0.0):
-            continue
-        if mode == MARCH or mode == SAMPLE:
-            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
-            rec2 = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out,
-                                   wl[s], ll[s], eta, spot)
-            out[s], var[s] = _march_or_sample(rec2, mode, length, kt, steps, keys[s], dim0, seed)
-        elif directional[s]:
-            if mode == QUAD:
-                out[s] = distant_quadrature(kt, ks, ph, a[s], b[s], ell[s], rtol, stats)
-            else:
-                out[s] = slab_distant(kt, ks, ph, a[s] / b[s], ell[s])
-        elif mode == QUAD:
-            out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
-        elif mode == APPROX:
-            da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
-            out[s] = point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da) * math.exp(-kt_out * da)
+        out[s], var[s] = _straight_sampled(PLANES, planes, geo[s], directional[s], ell[s], kt, ks, code, g, kt_out, ph,
+                                           only, mode, steps, tau_max, keys[s], dim0, seed)
+
+
+@njit
+def _plane_sampled(sel, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, mode, steps,
+                   tau_max, keys, dim0, seed, out, var):
+    """`inside_radiance` through the entry plane, MARCH or SAMPLE: `_march_or_sample` of `inside_integrand`."""
+    for s in sel:
+        ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
+        spot = _spot_terms(geo[s], a[s], hl[s]) if eta != 1.0 and not directional[s] else NO_SPOT
+        length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
+        rec = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out, wl[s],
+                              ll[s], eta, spot)
+        out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+
+
+@njit
+def _distant_quad(sel, mu, a, b, ell, kt, ks, code, g, rtol, out, stats):
+    """`inside_radiance`'s directional light through the entry plane, QUAD: `distant_quadrature`."""
+    for s in sel:
+        out[s] = distant_quadrature(kt, ks, phase_value(code, g, mu[s]), a[s], b[s], ell[s], rtol, stats)
+
+
+@njit
+def _distant_closed(sel, mu, a, b, ell, kt, ks, code, g, out):
+    """The same, CLOSED or APPROX: eq. 5 (`slab_distant`)."""
+    for s in sel:
+        out[s] = slab_distant(kt, ks, phase_value(code, g, mu[s]), a[s] / b[s], ell[s])
+
+
+@njit
+def _point_quad(sel, xh, h, hl, a, ell, kt, ks, code, g, kt_out, rtol, out, stats):
+    """`inside_radiance`'s point light through an index-matched entry plane, QUAD: `point_exact`."""
+    for s in sel:
+        out[s] = point_exact(xh[s], h[s], ell[s], kt, ks, code, g, 0.0, a[s], hl[s], kt_out, rtol, stats)
+
+
+@njit
+def _point_approx(sel, xh, h, hl, a, ell, kt, ks, code, g, kt_out, out):
+    """The same, APPROX: the note's approximation (`point_approx`) with the outside attenuation at the entry point."""
+    for s in sel:
+        da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
+        out[s] = point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da) * math.exp(-kt_out * da)
 
 
 @njit
@@ -1091,7 +1243,8 @@ def _only_face(faces, m, f):
     """Keep the row of face f among the first m rows of `refracting_faces` (moved first); their count."""
     for j in range(m):
         if faces[j, 17] == f:
-            faces[0] = faces[j]
+            for k in range(FACE_COLUMNS):  # by element: a row assignment compiles numba's shape-mismatch message (2 s)
+                faces[0, k] = faces[j, k]
             return 1
     return 0
 
