@@ -734,3 +734,100 @@ def _take(segs, src, x0, x1, stream):
     """Pieces [x0, x1] of segments `src` as segments from their own start points."""
     return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
                     segs.ray[src], segs.t0[src] + x0, segs.keys[src], stream, segs.seed, segs.scale)
+
+
+def point_lit_pieces(accel, segs: Segments, points, group, box_of, select: np.ndarray | None):
+    """(segment, x0, x1) of the lit pieces of `segs` each under its own point light `points` (S, 3)
+    (an emitter's samples: no texel lists, which are per fixed light), in segment order and per
+    segment in x, by the same exact frusta as `lit_pieces`: the candidates of segment s are the
+    triangles of `select` (a mask over accel.triangles; None: all) whose bounding boxes meet the box
+    of its `group` (S,) (box_of: (G, 3) lows, (G, 3) highs; it must hold the group's points and
+    segments; recomputed where the group changes from one segment to the next), the exact spheres
+    among them shadowing as spheres."""
+    select = np.ones(len(accel.triangles), bool) if select is None else select
+    tris = np.ascontiguousarray(accel.triangles[select & (accel.sphere_of < 0)])
+    spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
+    return _point_lit(tris, tris.min(axis=1), tris.max(axis=1), np.ascontiguousarray(segs.origins),
+                      np.ascontiguousarray(segs.dirs), np.ascontiguousarray(segs.length), np.ascontiguousarray(points),
+                      np.asarray(group, np.int64), box_of[0], box_of[1], accel.epsilon, GAP_REL * accel.scale,
+                      np.ascontiguousarray(spheres, dtype=np.float64).reshape(-1, 4))
+
+
+@njit
+def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, gap, spheres):
+    """`point_lit_pieces`' kernel: per group its candidate triangles (bounding boxes overlapping), per
+    segment their frusta from its point (`_frusta`) and each one's interval as `_lit` computes it,
+    the complement of their union, then the spheres' shadows (`lit_parts`)."""
+    n_t = tris.shape[0]
+    cand = np.empty(n_t, np.int64)
+    ctris = np.empty((n_t, 3, 3))
+    planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, np.bool_)
+    c_lo, c_hi = np.empty(n_t + 1), np.empty(n_t + 1)
+    per = 4 * spheres.shape[0] + 1
+    cap = 2 * origins.shape[0] + 16
+    src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+    buf = np.empty((per, 2))
+    zero = np.zeros(3)
+    m, nc, current = 0, 0, -1
+    for s in range(origins.shape[0]):
+        g = group[s]
+        if g != current:
+            current, nc = g, 0
+            for t in range(n_t):
+                inside = True
+                for a in range(3):
+                    if t_hi[t, a] < g_lo[g, a] or t_lo[t, a] > g_hi[g, a]:
+                        inside = False
+                if inside:
+                    ctris[nc] = tris[t]
+                    nc += 1
+        ell = length[s]
+        w = dirs[s]
+        q = origins[s] - points[s]
+        for t in range(nc):
+            keep[t] = False
+        _frusta(ctris[:nc], points[s], zero, False, epsilon, planes, signs, lb, keep)
+        k = 0
+        for t in range(nc):
+            if not keep[t]:
+                continue
+            lo, hi = 0.0, ell
+            for pl in range(4):  # sign * (a + b x) > 0 for every plane (as in `_lit`)
+                av = planes[t, pl, 0] * q[0] + planes[t, pl, 1] * q[1] + planes[t, pl, 2] * q[2] - planes[t, pl, 3]
+                bv = planes[t, pl, 0] * w[0] + planes[t, pl, 1] * w[1] + planes[t, pl, 2] * w[2]
+                sg = signs[t, pl]
+                if bv == 0.0:
+                    if not sg * av > 0.0:
+                        hi = -math.inf
+                elif sg * bv > 0.0:
+                    lo = max(lo, -av / bv)
+                else:
+                    hi = min(hi, -av / bv)
+                if not lo < hi:
+                    break
+            if lo < hi:
+                c_lo[k], c_hi[k] = lo, hi
+                k += 1
+        if m + (k + 1) * per > cap:
+            cap = 2 * (m + (k + 1) * per)
+            src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+            for e in range(m):
+                src2[e], a2[e], b2[e] = src[e], x0[e], x1[e]
+            src, x0, x1 = src2, a2, b2
+        cur = 0.0
+        if k:
+            _heapsort_pairs(c_lo[:k], c_hi[:k])
+        for e in range(k + 1):
+            end = c_lo[e] if e < k else ell
+            if end - cur > gap:
+                if spheres.shape[0]:
+                    n = lit_parts(origins[s], w, cur, end, points[s], False, spheres, gap, buf)
+                    for j in range(n):
+                        src[m], x0[m], x1[m] = s, buf[j, 0], buf[j, 1]
+                        m += 1
+                else:
+                    src[m], x0[m], x1[m] = s, cur, end
+                    m += 1
+            if e < k:
+                cur = max(cur, c_hi[e])
+    return src[:m].copy(), x0[:m].copy(), x1[:m].copy()
