@@ -11,7 +11,8 @@ it integrates a spot light (the air-light's closed form is per point of the ligh
 over the emitter is the one approximation (Rows.cubature: no error bound, error_bounds.py), its
 order measured in docs/area_lights.md.
 
-Where occluders cut the emitter (penumbrae) the surface term samples it instead: each kind maps
+Where occluders cut the emitter (penumbrae) the surface term (shading.py) and, with volumetric
+shadows, the air-light (shadows/penumbra_airlight.py) sample it instead: each kind maps
 (u, v) in [0, 1]^2 onto its emitter (`sample_emitter(light, u, v)`, uniform in area: density 1 / A),
 and `Emitter` is what the surface term needs of one emitter (shading.py).
 """

@@ -138,17 +138,19 @@ def emitter_rows(lights) -> np.ndarray:
 def _states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> np.ndarray:
     """(size,) per key (`cone_key`, `lit_key`: of each segment and lit piece) LIT where its lit pieces
     cover its cone segments, DARK where there are none, MIXED between, NONE where it has no cone
-    segment (the row does not shine on the ray). Segments to infinity are measured to a common far
-    end beyond every finite one."""
-    ends = cone.t0 + cone.length
-    far = max(np.max(ends[np.isfinite(ends)], initial=0.0), np.max(cone.t0, initial=0.0)) + cone.scale
+    segment (the row does not shine on the ray). A key's segments and pieces to infinity are measured
+    to its own far end, beyond their last start (so a key's state does not depend on the others')."""
+    far = np.zeros(size)
+    np.maximum.at(far, cone_key, cone.t0)
+    np.maximum.at(far, lit_key, lit.t0)
+    far += cone.scale
 
-    def measure(segs):
-        return np.where(np.isinf(segs.length), far - segs.t0, segs.length)
+    def measure(segs, key):
+        return np.where(np.isinf(segs.length), far[key] - segs.t0, segs.length)
 
     count = np.bincount(cone_key, minlength=size)
-    total = np.bincount(cone_key, weights=measure(cone), minlength=size)
-    covered = np.bincount(lit_key, weights=measure(lit), minlength=size)
+    total = np.bincount(cone_key, weights=measure(cone, cone_key), minlength=size)
+    covered = np.bincount(lit_key, weights=measure(lit, lit_key), minlength=size)
     tol = 2.0 * GAP_REL * far * count
     return np.where(count == 0, NONE, np.where(covered >= total - tol, LIT, np.where(covered <= tol, DARK, MIXED)))
 
