@@ -37,8 +37,9 @@ LIT, DARK, MIXED, NONE = 1, -1, 0, 2  # what a row (or the rows of an emitter) s
 
 
 def applies(lights, method, shadows: bool) -> bool:
-    """Whether a render samples penumbrae in the air-light: volumetric shadows, a deterministic
-    method (the stochastic ones sample their own way) and an emitter that can be sampled."""
+    """Whether a render samples penumbrae in the air-light: volumetric shadows by exact lit intervals
+    (the renderer's branch that calls this), a deterministic method (analytic, quadrature, raymarch:
+    montecarlo samples the rows its own way) and an emitter that can be sampled."""
     return shadows and not method.stochastic and any(e is not None for e in lights.emitters)
 
 
