@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from .jit import exact_njit, njit
+from .lights.area import collapsed_variance
 from .rng import uniform
 
 STRATA = 8  # a penumbra's samples: STRATA x STRATA (even) strata of the emitter's (u, v) square, two in each
@@ -251,7 +252,7 @@ def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys
                                          reflectance[at], emitter, medium, keys[at], seed, owner, per)
         blocks = g.reshape(-1, half, 2, half, 2, 2, 3).transpose(0, 1, 3, 2, 4, 5, 6).reshape(-1, half * half, 8, 3)
         value[at] = blocks.mean(axis=(1, 2))
-        var[at] = 2.0 * blocks.var(axis=2, ddof=1).sum(axis=1) / (STRATA * STRATA) ** 2
+        var[at] = collapsed_variance(g.reshape(-1, per, 3), STRATA)
         seen, gives = seen.reshape(-1, per), np.any(free > 0.0, axis=1).reshape(-1, per)
         agree = np.all(seen | ~gives, axis=1) | ~np.any(seen, axis=1)
         floor = (free.reshape(-1, per, 3).mean(axis=1) / per) ** 2

@@ -234,3 +234,77 @@ def radiance(emitter, o, w, kt, ks):
     cuts = [0.0] + sorted(c for c in (tc, 2 * tc + 10.0, tp) if 0.0 < c < T) + [T]
     air = sum(integrate.quad(f, a, b, epsabs=0.0, epsrel=1e-11, limit=400)[0] for a, b in zip(cuts, cuts[1:]))
     return air + (emitter.L * math.exp(-kt * T) if front else 0.0)
+
+
+class PlateShadow:
+    """A one-sided quad emitter facing down, [ax0, ax1] x [bz0, bz1] at height `height` (radiance L), over
+    an opaque horizontal plate [px0, px1] x [pz0, pz1] at height `plate` < `height`, and a black floor
+    [-floor, floor]^2 at y = 0, in a homogeneous isotropic medium everywhere. From x below the plate, the emitter points
+    y whose segment to x crosses the plate's height inside it are hidden: with s = (plate - x_y) /
+    (height - x_y) the fraction of the way to the emitter where it does, the hidden points form the
+    rectangle x + ([px0, px1] - x) / s (in x and z) clipped to the emitter, so the visible part's
+    irradiance is the emitter's less that rectangle's, each by a composite Gauss–Legendre rule."""
+
+    def __init__(self, emitter_x, emitter_z, height, radiance, plate_x, plate_z, plate, floor, panels=2):
+        self.ex, self.ez, self.H, self.L, self.floor = emitter_x, emitter_z, height, radiance, (-floor, floor)
+        self.px, self.pz, self.P = plate_x, plate_z, plate
+        self.s, self.ws = _composite(panels)
+
+    def _rect(self, x, a, b, kt):
+        """int over [a0, a1] x [b0, b1] at the emitter's height of L h e^{-kt r} / r^3 (h = H - x_y)."""
+        if a[1] <= a[0] or b[1] <= b[0]:
+            return 0.0
+        h = self.H - x[1]
+        aa = a[0] + (a[1] - a[0]) * self.s
+        bb = b[0] + (b[1] - b[0]) * self.s
+        r = np.sqrt((aa[:, None] - x[0]) ** 2 + h * h + (bb[None, :] - x[2]) ** 2)
+        w = np.outer(self.ws * (a[1] - a[0]), self.ws * (b[1] - b[0]))
+        return self.L * h * np.sum(w * np.exp(-kt * r) / r**3)
+
+    def hidden(self, x):
+        """The hidden rectangle ((a0, a1), (b0, b1)) of the emitter seen from x (empty above the plate)."""
+        if x[1] >= self.P:
+            return (0.0, 0.0), (0.0, 0.0)
+        s = (self.P - x[1]) / (self.H - x[1])
+        return tuple((max(e[0], c + (p[0] - c) / s), min(e[1], c + (p[1] - c) / s))
+                     for e, p, c in ((self.ex, self.px, x[0]), (self.ez, self.pz, x[2])))
+
+    def irradiance(self, x, kt):
+        if x[1] >= self.H:
+            return 0.0
+        return self._rect(x, self.ex, self.ez, kt) - self._rect(x, *self.hidden(x), kt)
+
+    def end(self, o, w):
+        """The distance to the floor or the plate along the ray (inf: neither)."""
+        ends = [math.inf]
+        for y, xs, zs in ((0.0, self.floor, self.floor), (self.P, self.px, self.pz)):
+            if w[1] != 0.0 and (y - o[1]) / w[1] > 0.0:
+                t = (y - o[1]) / w[1]
+                p = o + t * w
+                if xs[0] <= p[0] <= xs[1] and zs[0] <= p[2] <= zs[1]:
+                    ends.append(t)
+        return min(ends)
+
+    def kinks(self, o, w, T):
+        """The distances along the ray where the hidden rectangle's edges meet the emitter's edges or
+        the ray crosses the plate's height (the integrand's kinks): roots of quadratics in t."""
+        out = []
+        if w[1] != 0.0:
+            out.append((self.P - o[1]) / w[1])
+        for k, e, p in ((0, self.ex, self.px), (2, self.ez, self.pz)):
+            for c in e:
+                for q in p:  # (x_k - c)(P - x_y) + (q - x_k)(H - x_y) = 0, x = o + t w
+                    a0, a1 = o[k] - c, w[k]
+                    b0, b1 = self.P - o[1], -w[1]
+                    c0, c1 = q - o[k], -w[k]
+                    d0, d1 = self.H - o[1], -w[1]
+                    coeffs = [a1 * b1 + c1 * d1, a0 * b1 + a1 * b0 + c0 * d1 + c1 * d0, a0 * b0 + c0 * d0]
+                    out += [r.real for r in np.roots(coeffs) if abs(r.imag) < 1e-12]
+        return sorted(t for t in out if 0.0 < t < T)
+
+    def radiance(self, o, w, kt, ks):
+        """The air-light of the camera ray o + t w up to the floor or the plate (both black)."""
+        T = self.end(o, w)
+        f = lambda t: math.exp(-kt * t) * ks / (4 * math.pi) * self.irradiance(o + t * w, kt)  # noqa: E731
+        cuts = [0.0] + self.kinks(o, w, T if T < math.inf else 1e3) + [T]
+        return sum(integrate.quad(f, a, b, epsabs=0.0, epsrel=1e-10, limit=400)[0] for a, b in zip(cuts, cuts[1:]))

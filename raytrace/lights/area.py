@@ -11,7 +11,8 @@ it integrates a spot light (the air-light's closed form is per point of the ligh
 over the emitter is the one approximation (Rows.cubature: no error bound, error_bounds.py), its
 order measured in docs/area_lights.md.
 
-Where occluders cut the emitter (penumbrae) the surface term samples it instead: each kind maps
+Where occluders cut the emitter (penumbrae) the surface term (shading.py) and, with volumetric
+shadows, the air-light (shadows/penumbra_airlight.py) sample it instead: each kind maps
 (u, v) in [0, 1]^2 onto its emitter (`sample_emitter(light, u, v)`, uniform in area: density 1 / A),
 and `Emitter` is what the surface term needs of one emitter (shading.py).
 """
@@ -117,3 +118,15 @@ def emitter(light: Light, sample_emitter, corners=None) -> Emitter:
     if corners is None:
         return Emitter(light.intensity, light.two_sided, sample)
     return Emitter(light.intensity, light.two_sided, sample, sample(*corners)[:2])
+
+
+def collapsed_variance(g, strata: int) -> np.ndarray:
+    """(M, 3) the variance of the mean of g (M, 2 strata^2, 3): two samples in each of strata x strata
+    strata, sample j = 2 (a strata + b) + s in stratum (a, b), estimated with the strata collapsed in
+    blocks of 2 x 2 (Cochran, Sampling Techniques, 5A.12): 2 sum_B s_B^2 / strata^4, s_B^2 the sample
+    variance of block B's 8 values; conservative (it adds the spread of the strata's means within a
+    block), and unlike the pairs within one stratum it does not vanish where a shadow edge crosses
+    strata whose two samples happen to agree."""
+    half = strata // 2
+    blocks = g.reshape(-1, half, 2, half, 2, 2, 3).transpose(0, 1, 3, 2, 4, 5, 6).reshape(-1, half * half, 8, 3)
+    return 2.0 * blocks.var(axis=2, ddof=1).sum(axis=1) / (strata * strata) ** 2

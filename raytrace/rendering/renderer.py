@@ -40,6 +40,7 @@ from ..segments import cone_segments, gather, gather_weights, whole_rays
 from ..shading import (emissive_shapes, emitted_radiance, facing_normals, first_hits, ground_radiance,
                        shading_normals, surface_radiance)
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
+from ..shadows import penumbra_airlight
 from ..shadows.shadow_rays import shadowed_airlight
 from . import aov
 
@@ -270,15 +271,23 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
                 bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
         else:
-            through = None
+            through = sampled = None
             if shadows:
+                cone = segs
                 segs, stats[method.stats_size:-crossing.STATS_SIZE] = exact_lit_intervals(
                     prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
                 if prep.through() is not None:  # pieces whose light crosses index-matched interiors
                     segs, through, _ = split_lit(prep.accel, segs, len(prep.lights), prep.through())
+                elif penumbra_airlight.applies(prep.lights, method, shadows):  # emitters cut by occluders
+                    segs, *sampled = penumbra_airlight.sampled((prep.accel, prep.lights), method, medium, params,
+                                                               cone, segs, (origins, dirs, t, keys, seed),
+                                                               crossing.blockers(prep))
             air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
                                                                       len(origins))
             bound += air_bound
+            if sampled is not None:
+                air, variance = air + sampled[0], variance + sampled[1]
+                bound[sampled[2]] = np.inf
             if through is not None and len(through):
                 through_air, through_var = rows.through_airlight(prep, method, params, through, len(origins),
                                                                         stats[-crossing.STATS_SIZE:])

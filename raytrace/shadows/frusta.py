@@ -734,3 +734,105 @@ def _take(segs, src, x0, x1, stream):
     """Pieces [x0, x1] of segments `src` as segments from their own start points."""
     return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
                     segs.ray[src], segs.t0[src] + x0, segs.keys[src], stream, segs.seed, segs.scale)
+
+
+def point_lit_pieces(accel, segs: Segments, points, group, box_of, select: np.ndarray | None):
+    """(segment, x0, x1) of the lit pieces of `segs` each under its own point light `points` (S, 3)
+    (an emitter's samples: no texel lists, which are per fixed light), in segment order and per
+    segment in x, by the same exact frusta as `lit_pieces`: the candidates of segment s are the
+    triangles of `select` (a mask over accel.triangles; None: all) whose bounding boxes meet the box
+    of its `group` (S,) (box_of: (G, 3) lows, (G, 3) highs; it must hold the group's points and
+    segments; recomputed where the group changes from one segment to the next), the exact spheres
+    among them shadowing as spheres."""
+    select = np.ones(len(accel.triangles), bool) if select is None else select
+    tris = np.ascontiguousarray(accel.triangles[select & (accel.sphere_of < 0)])
+    spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
+    return _point_lit(tris, tris.min(axis=1), tris.max(axis=1), np.ascontiguousarray(segs.origins),
+                      np.ascontiguousarray(segs.dirs), np.ascontiguousarray(segs.length), np.ascontiguousarray(points),
+                      np.asarray(group, np.int64), box_of[0], box_of[1], accel.epsilon, REL * accel.scale,
+                      GAP_REL * accel.scale, np.ascontiguousarray(spheres, dtype=np.float64).reshape(-1, 4))
+
+
+@njit
+def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, slack, gap, spheres):
+    """`point_lit_pieces`' kernel: per group its candidate triangles (bounding boxes overlapping); per
+    segment those that meet the plane through its point and its line (within rounding), their frusta
+    from the point (`_frusta`) in the lists of a cube map of one texel a face, walked by `_lit`
+    itself; then the spheres' shadows (`lit_parts`)."""
+    n_t = tris.shape[0]
+    ctris, straddle = np.empty((n_t, 3, 3)), np.empty((n_t, 3, 3))
+    planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, np.bool_)
+    k_planes, k_signs, k_lb, order = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t)
+    tri, tlb, start = np.empty(6 * n_t, np.int64), np.empty(6 * n_t), np.empty(7, np.int64)
+    cover, cover_depth = np.full(6, -1, np.int64), np.full(6, np.inf)
+    grid = np.array([-1.0, -1.0, 2.0, 2.0, 1.0, 1.0])
+    frame = np.eye(4, 3, -1)  # the light's position (row 0), then the axes
+    stats = np.zeros(len(STATS_NAMES))
+    per = 4 * spheres.shape[0] + 1
+    cap = 2 * origins.shape[0] + 16
+    src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+    buf = np.empty((per, 2))
+    zero = np.zeros(3)
+    m, nc, current = 0, 0, -1
+    for s in range(origins.shape[0]):
+        g = group[s]
+        if g != current:
+            current, nc = g, 0
+            for t in range(n_t):
+                inside = True
+                for a in range(3):
+                    if t_hi[t, a] < g_lo[g, a] or t_lo[t, a] > g_hi[g, a]:
+                        inside = False
+                if inside:
+                    ctris[nc] = tris[t]
+                    nc += 1
+        w = dirs[s]
+        q = origins[s] - points[s]
+        # only triangles that meet the plane through the light and the ray can block the segment
+        nx, ny, nz = q[1] * w[2] - q[2] * w[1], q[2] * w[0] - q[0] * w[2], q[0] * w[1] - q[1] * w[0]
+        tol = gap * math.sqrt(nx * nx + ny * ny + nz * nz)
+        ns = 0
+        for t in range(nc):
+            above = below = 0
+            for v in range(3):
+                side = (nx * (ctris[t, v, 0] - points[s, 0]) + ny * (ctris[t, v, 1] - points[s, 1])
+                        + nz * (ctris[t, v, 2] - points[s, 2]))
+                above += side > -tol
+                below += side < tol
+            if above and below:
+                straddle[ns] = ctris[t]
+                ns += 1
+        for t in range(ns):
+            keep[t] = False
+        _frusta(straddle[:ns], points[s], zero, False, epsilon, planes, signs, lb, keep)
+        nk = 0
+        for t in range(ns):
+            if keep[t]:
+                k_planes[nk], k_signs[nk], k_lb[nk], order[nk] = planes[t], signs[t], lb[t], nk
+                nk += 1
+        _heapsort_pairs(k_lb[:nk], order[:nk])  # each face's list in ascending depth lower bound
+        for f in range(6):
+            start[f] = f * nk
+            for e in range(nk):
+                tri[f * nk + e], tlb[f * nk + e] = int(order[e]), k_lb[e]
+        start[6] = 6 * nk
+        frame[0] = points[s]
+        lit_src, lo, hi = _lit(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], CUBE, grid, frame, start,
+                               tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk], slack,
+                               gap, stats)
+        if m + len(lit_src) * per > cap:
+            cap = 2 * (m + len(lit_src) * per)
+            src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+            for e in range(m):
+                src2[e], a2[e], b2[e] = src[e], x0[e], x1[e]
+            src, x0, x1 = src2, a2, b2
+        for j in range(len(lit_src)):
+            if spheres.shape[0]:
+                n = lit_parts(origins[s], w, lo[j], hi[j], points[s], False, spheres, gap, buf)
+                for i in range(n):
+                    src[m], x0[m], x1[m] = s, buf[i, 0], buf[i, 1]
+                    m += 1
+            else:
+                src[m], x0[m], x1[m] = s, lo[j], hi[j]
+                m += 1
+    return src[:m].copy(), x0[:m].copy(), x1[:m].copy()

@@ -1,0 +1,221 @@
+"""The air-light of area lights in penumbrae: stratified samples of the emitter where occluders cut it
+(docs/area_lights.md, "Penumbrae").
+
+With volumetric shadows each cubature row of an emitter (lights/area.py) is a point light whose lit
+intervals along the camera ray are exact (frusta.py), but between the rows the rule sees nothing of
+an occluder's edge: where a shadow cuts the emitter the rows' sum can miss the penumbra by far more
+than the method's precision. A camera ray and an emitter are taken as cut where the rows disagree
+(a row partly lit along the ray, or some rows lit and some dark) or, where they agree, where the
+emitter's corner probes (`area.Emitter.probes`: a straight shadow edge that leaves every node on one
+side leaves a corner on the other), each a point light with its exact intervals, disagree with them.
+
+There the rows are replaced by 2 S stratified samples of the emitter's (u, v) square (S = STRATA^2
+strata, two jittered points in each, keyed by the camera ray's key, the seed and the emitter as the
+surface term's are: shading.py, rng.py), each a LAMBERT spot row of intensity L / (2 S p_A) at its
+point y (p_A the area density; a two-sided emitter's point twice, facing both ways), cut to its
+front half-space and to the exact lit intervals of y itself (frusta.point_lit_pieces), and
+integrated by the method, its closed form or rule, per lit interval. The estimate is the sum over
+the samples, its variance the surface term's estimator's (area.collapsed_variance: strata collapsed
+2 x 2, conservative), with the same floor where all samples agree (all lit or all dark, though the
+rows or probes saw a cut): one sample's share of the unshadowed sum, squared. Sampled rays have no
+error bound (the renderer makes it infinite).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..lights import LAMBERT, SPOT, Lights
+from ..lights.area import collapsed_variance
+from ..methods import Segments
+from ..segments import cone_segments, gather
+from ..shading import STRATA, _jitter as jitter
+from .frusta import GAP_REL, point_lit_pieces
+
+DIM_AIRLIGHT = 1 << 49  # the first random-number dimension (rng.py) of the air-light's emitter samples
+PER = 2 * STRATA * STRATA  # samples per cut (camera ray, emitter)
+LIT, DARK, MIXED, NONE = 1, -1, 0, 2  # what a row (or the rows of an emitter) sees along a camera ray
+
+
+def applies(lights, method, shadows: bool) -> bool:
+    """Whether a render samples penumbrae in the air-light: volumetric shadows by exact lit intervals
+    (the renderer's branch that calls this), a deterministic method (analytic, quadrature, raymarch:
+    montecarlo samples the rows its own way) and an emitter that can be sampled."""
+    return shadows and not method.stochastic and any(e is not None for e in lights.emitters)
+
+
+def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, select):
+    """(the lit segments `lit` less those of the cut (ray, emitter) pairs, air-light (N, 3) of their
+    samples, variance (N, 3), (N,) whether each camera ray was sampled). `cone`: the segments before
+    the lit intervals; `rays` = (origins, dirs, tmax, keys, seed) of the N camera rays; `ctx`: the
+    accelerator and the scene's lights (`accel`, `lights`); `select` the triangles that stop light."""
+    accel, lights = ctx
+    origins, dirs, tmax, keys, seed = rays
+    n = len(origins)
+    air, var = np.zeros((n, 3)), np.zeros((n, 3))
+    cut = cut_pairs(accel, lights, cone, lit, rays, select)
+    if not cut.any():
+        return lit, air, var, np.zeros(n, bool)
+    ray_e, owner_e = np.nonzero(cut)
+    drop = cut[lit.ray, np.where(lights.cubature, lights.owner, 0)[lit.light]] & lights.cubature[lit.light]
+    kept = lit.take(np.nonzero(~drop)[0]) if drop.any() else lit
+    for e in np.unique(owner_e):
+        rs = ray_e[owner_e == e]
+        value, v = _estimate(accel, method, medium, params, lights.emitters[e], e, rs, rays, select)
+        np.add.at(air, rs, value)
+        np.add.at(var, rs, v)
+    return kept, air, var, cut.any(axis=1)
+
+
+def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
+    """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`."""
+    origins, dirs, tmax, keys, seed = rays
+    u, v = np.empty((len(rs), PER)), np.empty((len(rs), PER))
+    jitter(keys[rs], seed, DIM_AIRLIGHT + 2 * PER * e, STRATA, u, v)
+    y, normals, density = emitter.sample(u.ravel(), v.ravel())
+    samples = spot_rows(y, normals, emitter.radiance[None, :] / (PER * density[:, None]), emitter.two_sided)
+    sides = 2 if emitter.two_sided else 1
+    segs = point_segments(samples, sides, (origins, dirs, tmax, keys, seed), np.repeat(rs, PER), accel.scale)
+    lit = lit_pieces(accel, samples, segs, sides * PER, select)
+    g = PER * _per_group(method, medium, params, samples, lit, len(rs) * PER)  # one sample's estimate
+    value = g.reshape(len(rs), PER, 3).mean(axis=1)
+    var = collapsed_variance(g.reshape(len(rs), PER, 3), STRATA)
+    states = _group_states(segs, lit, len(rs) * PER).reshape(len(rs), PER)
+    agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
+    if agree.any():  # the floor: one sample's share of the unshadowed sum
+        at = np.nonzero(np.repeat(agree, PER))[0]
+        free = _per_group(method, medium, params, samples, segs.take(np.nonzero(np.isin(segs.ray, at))[0]),
+                          len(rs) * PER)
+        floor = free.reshape(len(rs), PER, 3).sum(axis=1)[agree] ** 2 / PER**2
+        var[agree] = np.maximum(var[agree], floor)
+    return value, var
+
+
+def _per_group(method, medium, params, lights, segs: Segments, groups: int) -> np.ndarray:
+    """(groups, 3) the air-light of the segments per group (segs.ray), by the method, with the
+    medium's transmittance from the camera to each segment's start."""
+    if not len(segs):
+        return np.zeros((groups, 3))
+    return gather(segs, method.airlight(segs, medium, lights, params)[0], groups, medium)
+
+
+def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.ndarray:
+    """(N, E) whether the camera ray's segments of emitter e are cut (module docstring): its rows'
+    states (`_group_states` per row, LIT, DARK or MIXED) are mixed, or agree but the probes' differ."""
+    n, n_e = len(rays[0]), len(lights.emitters)
+    rows = emitter_rows(lights)
+    on = np.nonzero(rows[cone.light])[0]
+    if not len(on):
+        return np.zeros((n, n_e), bool)
+    n_l = len(lights)
+    mine = cone.take(on), lit.take(np.nonzero(rows[lit.light])[0])
+    row_state = _states(*mine, *(s.ray * n_l + s.light for s in mine), n * n_l)
+    state = _combine(row_state.reshape(n, n_l), lights.owner, rows, n_e)  # (N, E)
+    agreed = np.nonzero((state == LIT) | (state == DARK))
+    cut = state == MIXED
+    for e in np.unique(agreed[1]):
+        emitter = lights.emitters[e]
+        if emitter.probes is None:
+            continue
+        rs = agreed[0][agreed[1] == e]
+        probes = spot_rows(*emitter.probes, np.ones((len(emitter.probes[0]), 3)), emitter.two_sided)
+        per = len(probes)
+        tiled = Lights(*(np.tile(a, (len(rs),) + (1,) * (a.ndim - 1)) for a in
+                         (probes.kind, probes.position, probes.intensity, probes.axis, probes.cone, probes.owner,
+                          probes.cubature)))
+        segs = point_segments(tiled, per, rays, rs, accel.scale, whole=True)
+        lit_p = lit_pieces(accel, tiled, segs, per, select)
+        p_state = _states(segs, lit_p, segs.light, lit_p.light, len(tiled)).reshape(len(rs), per)
+        probe = _combine(p_state, np.zeros(per, np.int64), np.ones(per, bool), 1)[:, 0]
+        cut[rs, e] = (probe != NONE) & (probe != state[rs, e])
+    return cut
+
+
+def emitter_rows(lights) -> np.ndarray:
+    """(L,) whether each row is a node of an emitter that can be sampled (`Lights.emitters`)."""
+    sampled_ = np.array([e is not None for e in lights.emitters] + [False], dtype=bool)
+    return sampled_[np.where(lights.cubature, lights.owner, len(lights.emitters))]
+
+
+def _states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> np.ndarray:
+    """(size,) per key (`cone_key`, `lit_key`: of each segment and lit piece) LIT where its lit pieces
+    cover its cone segments, DARK where there are none, MIXED between, NONE where it has no cone
+    segment (the row does not shine on the ray). A key's segments and pieces to infinity are measured
+    to its own far end, beyond their last start (so a key's state does not depend on the others')."""
+    far = np.zeros(size)
+    np.maximum.at(far, cone_key, cone.t0)
+    np.maximum.at(far, lit_key, lit.t0)
+    far += cone.scale
+
+    def measure(segs, key):
+        return np.where(np.isinf(segs.length), far[key] - segs.t0, segs.length)
+
+    count = np.bincount(cone_key, minlength=size)
+    total = np.bincount(cone_key, weights=measure(cone, cone_key), minlength=size)
+    covered = np.bincount(lit_key, weights=measure(lit, lit_key), minlength=size)
+    tol = 2.0 * GAP_REL * far * count
+    return np.where(count == 0, NONE, np.where(covered >= total - tol, LIT, np.where(covered <= tol, DARK, MIXED)))
+
+
+def _combine(state, owner, rows, n_e) -> np.ndarray:
+    """(N, E) from per-row states (N, L): LIT or DARK where all the emitter's rows that shine on the
+    ray say so, NONE where none does, else MIXED."""
+    out = np.full((state.shape[0], n_e), NONE)
+    for e in range(n_e):
+        mine = state[:, rows & (owner == e)]
+        says = mine != NONE
+        lit_all = np.all((mine == LIT) | ~says, axis=1)
+        dark_all = np.all((mine == DARK) | ~says, axis=1)
+        out[:, e] = np.where(~says.any(axis=1), NONE, np.where(lit_all, LIT, np.where(dark_all, DARK, MIXED)))
+    return out
+
+
+def _group_states(cone: Segments, lit: Segments, groups: int) -> np.ndarray:
+    """(groups,) LIT, DARK, MIXED or NONE of each group's segments (segs.ray: one sample's)."""
+    return _states(cone, lit, cone.ray, lit.ray, groups)
+
+
+def spot_rows(points, normals, weight, two_sided: bool) -> Lights:
+    """LAMBERT spot rows at `points` (n, 3) facing `normals` of intensity `weight` (n, 3): rows 2 i and
+    2 i + 1 facing both ways where two-sided, else row i."""
+    if two_sided:
+        points, weight = np.repeat(points, 2, axis=0), np.repeat(weight, 2, axis=0)
+        normals = np.repeat(normals, 2, axis=0) * np.tile([[1.0], [-1.0]], (len(normals), 1))
+    n = len(points)
+    return Lights(np.full(n, SPOT, np.int64), np.ascontiguousarray(points, float), np.ascontiguousarray(weight, float),
+                  np.ascontiguousarray(normals, float), np.tile([0.0, 1.0, float(LAMBERT)], (n, 1)),
+                  np.zeros(n, np.int64), np.ones(n, bool))
+
+
+def point_segments(lights: Lights, per: int, rays, ray_of, scale, whole: bool = False) -> Segments:
+    """Per group g of `per` rows (rows g per ... g per + per - 1) one segment [0, tmax] of the camera
+    ray ray_of[g] per row, its `ray` the group (`whole`: the row), cut to the rows' front half-spaces."""
+    origins, dirs, tmax, keys, seed = rays
+    light = np.arange(len(lights), dtype=np.int64)
+    r = ray_of[light // per]
+    segs = Segments(origins[r], dirs[r], np.asarray(tmax, float)[r], light, light if whole else light // per,
+                    np.zeros(len(light)), keys[r], light, int(seed), float(scale))
+    return cone_segments(segs, lights)[0]
+
+
+def lit_pieces(accel, lights: Lights, segs: Segments, per_box: int, select) -> Segments:
+    """The exact lit pieces of `segs` each under its own row (frusta.point_lit_pieces) as segments
+    from their own start points, the candidate triangles per box of `per_box` rows (one camera ray's)."""
+    box = light_boxes(lights.position, segs, per_box)
+    src, x0, x1 = point_lit_pieces(accel, segs, lights.position[segs.light], segs.light // per_box, box, select)
+    return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
+                    segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src], segs.seed, segs.scale)
+
+
+def light_boxes(points, segs: Segments, per_box: int):
+    """((B, 3) lows, (B, 3) highs): per box b the bounding box of rows b per_box ... (their points and
+    segments; infinite where a segment does not end)."""
+    pts = points.reshape(-1, per_box, 3)
+    lo, hi = pts.min(axis=1), pts.max(axis=1)
+    b = segs.light // per_box
+    finite = np.isfinite(segs.length)
+    end = segs.origins + np.where(finite, segs.length, 0.0)[:, None] * segs.dirs
+    end = np.where(finite[:, None], end, np.where(segs.dirs > 0.0, np.inf, np.where(segs.dirs < 0.0, -np.inf, end)))
+    for p in (segs.origins, end):
+        np.minimum.at(lo, b, p)
+        np.maximum.at(hi, b, p)
+    return lo, hi
