@@ -336,8 +336,8 @@ def test_an_emissive_shape_is_an_area_light(monkeypatch):
     prepare(scene([], shapes=[many]))  # more than 64 triangles: grouped (tests/test_emissive_groups.py)
     monkeypatch.setattr(emissive, "MAX_TRIANGLES", 64)
     with pytest.raises(raytrace_errors.UserError, match=rf"^scene: shape\[0\].emission: the shape has \d+ "
-                                                        rf"triangles; emissive shapes of more than 64 are not "
-                                                        rf"read; use a coarser mesh"):
+                                                        r"triangles; emissive shapes of more than 64 are not "
+                                                        r"read; use a coarser mesh"):
         prepare(scene([], shapes=[many]))
 
 
