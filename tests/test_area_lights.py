@@ -335,7 +335,7 @@ def test_an_emissive_shape_is_an_area_light(monkeypatch):
     many = {"primitive": "sphere", "center": [0.0, 1.0, 0.0], "radius": 0.2, "emission": 1.0}
     prepare(scene([], shapes=[many]))  # more than 64 triangles: grouped (tests/test_emissive_groups.py)
     monkeypatch.setattr(emissive, "MAX_TRIANGLES", 64)
-    with pytest.raises(raytrace_errors.UserError, match=rf"^scene: shape\[0\].emission: the shape has \d+ "
+    with pytest.raises(raytrace_errors.UserError, match=r"^scene: shape\[0\].emission: the shape has \d+ "
                                                         r"triangles; emissive shapes of more than 64 are not "
                                                         r"read; use a coarser mesh"):
         prepare(scene([], shapes=[many]))
