@@ -205,21 +205,30 @@ def _cut(accel, points, normals, shading, emitter, reached, blocked):
     if emitter.probes is None:
         return cut
     terminator = shading is not None
-    lits = []
+    above = np.zeros(len(points), np.int64)
     for y in emitter.probes[0]:
-        to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
-        lit = np.empty(len(points), dtype=np.bool_)
-        _toward_light(points, normals, shading if terminator else normals, terminator, y, to_light, dist, cos, lit)
-        lits.append((lit, to_light))
-    cut |= _horizon_cuts(np.sum([lit for lit, _ in lits], axis=0), len(lits))
-    agree = ((reached > 0) ^ (blocked > 0)) & ~cut
-    for (lit, to_light), y, ny in zip(lits, *emitter.probes):
+        above += _toward_probe(points, normals, shading, y)[0]
+    cut |= _horizon_cuts(above, len(emitter.probes[0]))
+    agree = np.flatnonzero(((reached > 0) ^ (blocked > 0)) & ~cut)
+    p, n = points[agree], normals[agree]
+    for y, ny in zip(*emitter.probes):
+        lit, to_light = _toward_probe(p, n, shading[agree] if terminator else None, y)
         facing = to_light @ ny
-        idx = np.flatnonzero(agree & lit & ((facing != 0.0) if emitter.two_sided else (facing < 0.0)))
-        o, d, tmax, as32 = accel.shadow_rays(points[idx], normals[idx], y)
+        idx = np.flatnonzero(lit & ((facing != 0.0) if emitter.two_sided else (facing < 0.0)))
+        o, d, tmax, as32 = accel.shadow_rays(p[idx], n[idx], y)
         reach = ~accel.occluded(o, d, tmax, as32=as32)
-        cut[idx] |= reach != (reached[idx] > 0)
+        cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
     return cut
+
+
+def _toward_probe(points, normals, shading, y):
+    """(lit (N,), to_light (N, 3)): `_toward_light` of the points (their shading normals' terminator too
+    where `shading` is given) toward the probe y."""
+    to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
+    lit = np.empty(len(points), dtype=np.bool_)
+    _toward_light(points, normals, normals if shading is None else shading, shading is not None, y, to_light, dist,
+                  cos, lit)
+    return lit, to_light
 
 
 def _horizon_cuts(above, probes: int):
