@@ -135,14 +135,15 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     sampled = keys is not None and through is None and any(e is not None for e in lights.emitters)
     terminator = shading is not None and shading is not normals  # both must face the light
     rows = {}  # per sampled emitter: its rows' radiance (N, 3) and how many reached, were blocked (N,) each
+    dark = ~lights.intensity.any(axis=1)  # nothing to add (a light layer's other lights, renderer.Prepared.only)
+    to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))  # each light's
+    lit = np.empty(len(points), dtype=np.bool_)
     for li, lp in enumerate(lights.position):
-        if not lights.intensity[li].any():  # nothing to add (a light layer's other lights, renderer.Prepared.only)
+        if dark[li]:
             continue
         if lights.distant[li]:
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
-        to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
-        lit = np.empty(len(points), dtype=np.bool_)
         _toward_light(points, normals, shading if terminator else normals, terminator, lp, to_light, dist, cos, lit)
         seen = np.flatnonzero(lit)
         if not len(seen):
