@@ -135,36 +135,38 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     sampled = keys is not None and through is None and any(e is not None for e in lights.emitters)
     terminator = shading is not None and shading is not normals  # both must face the light
     rows = {}  # per sampled emitter: its rows' radiance (N, 3) and how many reached, were blocked (N,) each
+    dark = ~lights.intensity.any(axis=1)  # nothing to add (a light layer's other lights, renderer.Prepared.only)
+    to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))  # each light's
+    lit = np.empty(len(points), dtype=np.bool_)
     for li, lp in enumerate(lights.position):
-        if not lights.intensity[li].any():  # nothing to add (a light layer's other lights, renderer.Prepared.only)
+        if dark[li]:
             continue
         if lights.distant[li]:
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
-        to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))
-        lit = np.empty(len(points), dtype=np.bool_)
         _toward_light(points, normals, shading if terminator else normals, terminator, lp, to_light, dist, cos, lit)
-        idx = np.flatnonzero(lit)
-        if not len(idx):
+        seen = np.flatnonzero(lit)
+        if not len(seen):
             continue
-        o, d, tmax, as32 = accel.shadow_rays(points[idx], normals[idx], lp)
-        reach, part = _unblocked(accel, o, d, tmax, idx, points, li, through, as32)
-        seen, idx = idx, idx[reach]
-        dl, cl = dist[idx], cos[idx]
-        tr = medium.transmittance_on(points[idx], to_light[idx] / dl[:, None], 0.0, dl) * part
-        irradiance = lights.irradiance(li, -to_light[idx], dl)
+        o, d, tmax, as32 = accel.shadow_rays(points, normals, lp, seen)
+        blocked, part = _blocked(accel, o, d, tmax, seen, points, li, through, as32)
+        idx, at, wi, back, dl, cl = _reached(seen, blocked, points, to_light, dist, cos)
+        tr = medium.transmittance_on(at, wi, 0.0, dl)
+        if part is not None:
+            tr = tr * part
+        irradiance = lights.irradiance(li, back, dl)
         _add_reflected(out, idx, reflectance, irradiance, tr, cl)
         owner = lights.owner[li] if sampled else -1
         if owner >= 0 and lights.emitters[owner] is not None:
-            value, reached, blocked = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
-                                                              np.zeros(len(out), np.int64)))
+            value, reached, missed = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
+                                                             np.zeros(len(out), np.int64)))
             _add_reflected(value, idx, reflectance, irradiance, tr, cl)
             emits = to_light[seen] @ lights.axis[li] < 0.0  # the row's LAMBERT falloff is not zero there
-            np.add.at(reached, seen[emits & reach], 1)
-            np.add.at(blocked, seen[emits & ~reach], 1)
-    for owner, (value, reached, blocked) in rows.items():
+            np.add.at(reached, seen[emits & ~blocked], 1)
+            np.add.at(missed, seen[emits & blocked], 1)
+    for owner, (value, reached, missed) in rows.items():
         at = np.flatnonzero(_cut(accel, points, normals, shading if terminator else None, lights.emitters[owner],
-                                 reached, blocked))
+                                 reached, missed))
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
                                 reflectance[at], lights.emitters[owner], medium, keys[at], seed, owner)
@@ -183,16 +185,46 @@ def _add_reflected(out, idx, reflectance, irradiance, tr, cos):
             out[k, c] = out[k, c] + reflectance[k, c] / math.pi * (irradiance[i, c] * tr[i, c] * cos[i])
 
 
-def _unblocked(accel, o, d, tmax, idx, points, li, through, as32=None):
-    """Which of the points idx have shadow rays (o, d, tmax) that reach light li (a mask over idx), and
-    the transmittance (M, 3) of the shapes those pass through (1 unless `through` lets an occluded ray
-    through); `as32`: the rays' float32 copies for Embree where `Accelerator.shadow_rays` made them."""
+def _blocked(accel, o, d, tmax, idx, points, li, through, as32=None):
+    """Which of the points idx have shadow rays (o, d, tmax) that do not reach light li (a mask over
+    idx), and the transmittance (M, 3) of the shapes the M others pass through (`through` lets an
+    occluded ray through; None where every factor is 1: no ray was let through); `as32`: the rays'
+    float32 copies for Embree where `Accelerator.shadow_rays` made them."""
     occ = accel.occluded(o, d, tmax, as32=as32)
+    if through is None or not occ.any():
+        return occ, None
     part = np.ones((len(idx), 3))
-    if through is not None and occ.any():
-        part[occ] = through(li, points[idx[occ]])
-        occ = ~np.any(part > 0.0, axis=1)
-    return ~occ, part[~occ]
+    part[occ] = through(li, points[idx[occ]])
+    occ = ~np.any(part > 0.0, axis=1)
+    return occ, part[~occ]
+
+
+def _reached(seen, blocked, points, to_light, dist, cos):
+    """(idx, points, unit directions to the light, the light's vector to the points, distances,
+    cosines) of the points `seen` whose shadow rays are not `blocked`: points[idx], to_light[idx] /
+    dist[idx], -to_light[idx], dist[idx], cos[idx] in one GIL-free pass."""
+    n = len(seen)
+    idx, at, wi, back, dl, cl = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
+                                 np.empty(n), np.empty(n))
+    m = _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl)
+    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m]
+
+
+@exact_njit
+def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl):
+    """`_reached` into its arrays; returns how many reached."""
+    m = 0
+    for i in range(seen.shape[0]):
+        if blocked[i]:
+            continue
+        k = seen[i]
+        idx[m], dl[m], cl[m] = k, dist[k], cos[k]
+        for a in range(3):
+            at[m, a] = points[k, a]
+            wi[m, a] = to_light[k, a] / dist[k]
+            back[m, a] = -to_light[k, a]
+        m += 1
+    return m
 
 
 def _cut(accel, points, normals, shading, emitter, reached, blocked):
@@ -215,7 +247,7 @@ def _cut(accel, points, normals, shading, emitter, reached, blocked):
         lit, to_light = _toward_probe(p, n, shading[agree] if terminator else None, y)
         facing = to_light @ ny
         idx = np.flatnonzero(lit & ((facing != 0.0) if emitter.two_sided else (facing < 0.0)))
-        o, d, tmax, as32 = accel.shadow_rays(p[idx], n[idx], y)
+        o, d, tmax, as32 = accel.shadow_rays(p, n, y, idx)
         reach = ~accel.occluded(o, d, tmax, as32=as32)
         cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
     return cut
@@ -326,9 +358,11 @@ def _add_directional(out, accel, points, normals, reflectance, lights, li, mediu
         return
     o = points[idx] + accel.epsilon * normals[idx]
     d = np.broadcast_to(wi, o.shape)
-    reach, part = _unblocked(accel, o, d, np.full(len(idx), np.inf), idx, points, li, through)
-    idx = idx[reach]
-    tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf) * part
+    blocked, part = _blocked(accel, o, d, np.full(len(idx), np.inf), idx, points, li, through)
+    idx = idx[~blocked]
+    tr = medium.transmittance_on(points[idx], np.broadcast_to(wi, (len(idx), 3)), 0.0, np.inf)
+    if part is not None:
+        tr = tr * part
     out[idx] += reflectance[idx] / math.pi * lights.intensity[li] * tr * cos[idx, None]
 
 

@@ -101,6 +101,25 @@ def test_reflected_radiance_is_numpys():
     assert np.array_equal(out, ref)
 
 
+def test_reached_points_are_numpys():
+    """shading._reached against the fancy indexing it replaced (the lit points whose shadow rays are
+    not blocked), with points on the light (distance 0: inf and nan directions, as NumPy divides)."""
+    n = 5000
+    points, to_light, cos = RNG.normal(size=(n, 3)), RNG.normal(size=(n, 3)), RNG.normal(size=n)
+    to_light[:7] = 0.0
+    dist = np.linalg.norm(to_light, axis=1)
+    seen = np.flatnonzero(RNG.uniform(size=n) < 0.7)
+    seen[:3] = [0, 1, 2]
+    for blocked in (RNG.uniform(size=len(seen)) < 0.4, np.zeros(len(seen), bool), np.ones(len(seen), bool)):
+        idx = seen[~blocked]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ref = (idx, points[idx], to_light[idx] / dist[idx][:, None], -to_light[idx], dist[idx], cos[idx])
+        got = shading._reached(seen, blocked, points, to_light, dist, cos)
+        for a, b in zip(got, ref):
+            assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
+        assert np.all(got[3][idx < 7] == 0.0) and np.signbit(got[3][idx < 7]).all()  # -0.0 as NumPy negates
+
+
 @pytest.mark.parametrize("size", [1.0, 1e30])  # 1e30: Embree's coordinates in units of `unit`
 def test_shadow_rays_and_their_float32_copies_are_numpys(size):
     accel, _ = mesh()
@@ -111,6 +130,9 @@ def test_shadow_rays_and_their_float32_copies_are_numpys(size):
     points[:5] = light  # on the light: zero length, no direction
     normals[5:10] = 0.0  # no side
     o, d, t, (o32, d32, t32) = accel.shadow_rays(points, normals, light)
+    idx = np.sort(RNG.choice(n, n // 2, replace=False))  # the rays of some points, by index, are those points' rays
+    for a, b in zip((o, d, t), accel.shadow_rays(points, normals, light, idx)[:3]):
+        assert np.array_equal(a[idx], b)
     side = np.sign(dot(normals, light[None, :] - points))[:, None]
     ref_o = points + side * accel.epsilon * normals
     seg = light[None, :] - ref_o

@@ -124,6 +124,8 @@ class Accelerator:
         n = len(origins)
         if (self._scene is None and not self._any_sphere) or n == 0:
             return np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+        if n <= CHUNK:  # a tile's rays: one batch, no pool
+            return self._first_hit_chunk(origins, dirs)
         parts = self._map(self._first_hit_chunk, n, threads, origins, dirs)
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
@@ -173,9 +175,12 @@ class Accelerator:
             o32, d32, t32 = as32 if as32 is not None else (
                 self._to_embree(origins), np.ascontiguousarray(dirs, dtype=np.float32),
                 self._to_embree(np.maximum(tmax, 0.0)))
-            res = self._map(lambda o, d, t: self._scene.run(o, d, dists=t, query="OCCLUDED"), n, threads, o32, d32,
-                            t32)
-            occ = np.concatenate(res) >= 0
+            if n <= CHUNK:  # a tile's rays: one batch, no pool
+                occ = self._scene.run(o32, d32, dists=t32, query="OCCLUDED") >= 0
+            else:
+                res = self._map(lambda o, d, t: self._scene.run(o, d, dists=t, query="OCCLUDED"), n, threads, o32,
+                                d32, t32)
+                occ = np.concatenate(res) >= 0
         if self._any_sphere:
             sphere_blocks(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(dirs, dtype=np.float64),
                           np.ascontiguousarray(np.broadcast_to(tmax, (n,)), dtype=np.float64), self.spheres,
@@ -193,14 +198,16 @@ class Accelerator:
             out[on] = rel / np.linalg.norm(rel, axis=1, keepdims=True)
         return out
 
-    def shadow_rays(self, points: np.ndarray, normals: np.ndarray, light: np.ndarray):
+    def shadow_rays(self, points: np.ndarray, normals: np.ndarray, light: np.ndarray, idx: np.ndarray | None = None):
         """Rays from surface points (offset along the normal facing the light) towards `light`:
         (origins, unit directions, distances to stop at, and these three as Embree takes them,
-        `occluded`'s `as32`), in one GIL-free pass."""
-        n = len(points)
+        `occluded`'s `as32`), in one GIL-free pass; from the points `idx` (int64) alone if given (the
+        rays of points[idx], normals[idx], without those copies)."""
+        idx = np.arange(len(points)) if idx is None else idx
+        n = len(idx)
         o, d, t = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
         as32 = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32))
-        _shadow_rays(points, normals, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
+        _shadow_rays(points, normals, idx, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
         return o, d, t, as32
 
 
@@ -222,16 +229,18 @@ def _refine(triangles, normals, origins, dirs, prim, t):
 
 
 @exact_njit
-def _shadow_rays(points, normals, light, eps, unit, o, d, t, o32, d32, t32):
-    """`Accelerator.shadow_rays` into o, d, t and their float32 copies in units of `unit`, each number
-    rounded as the NumPy expressions it replaced round them: side = sign(n . (light - p)) (summed as
-    einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|, t = |light - o| - eps."""
-    for i in range(points.shape[0]):
-        dot = (normals[i, 0] * (light[0] - points[i, 0]) + normals[i, 2] * (light[2] - points[i, 2])) \
-            + normals[i, 1] * (light[1] - points[i, 1])
+def _shadow_rays(points, normals, idx, light, eps, unit, o, d, t, o32, d32, t32):
+    """`Accelerator.shadow_rays` of the points idx into o, d, t and their float32 copies in units of
+    `unit`, each number rounded as the NumPy expressions it replaced round them: side = sign(n . (light
+    - p)) (summed as einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|,
+    t = |light - o| - eps."""
+    for i in range(idx.shape[0]):
+        k = idx[i]
+        dot = (normals[k, 0] * (light[0] - points[k, 0]) + normals[k, 2] * (light[2] - points[k, 2])) \
+            + normals[k, 1] * (light[1] - points[k, 1])
         side = (1.0 if dot > 0.0 else -1.0 if dot < 0.0 else 0.0 if dot == 0.0 else dot) * eps  # np.sign
         for a in range(3):
-            o[i, a] = points[i, a] + side * normals[i, a]
+            o[i, a] = points[k, a] + side * normals[k, a]
             d[i, a] = light[a] - o[i, a]
         length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
         over = length if length > 0 else 1.0
