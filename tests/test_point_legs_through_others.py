@@ -114,8 +114,17 @@ def twin_pixel(i, j, dense=True):
     return math.exp(-kt_out * t0) * fresnel_t(ti, tt, eta) / eta**2 * out
 
 
+# pixels (i, j) compared: two whose legs cross the dense box, two whose legs do not (the twin's
+# scipy root per evaluation is too slow for the whole image)
+PIXELS = [(2, 2), (2, 1), (3, 1), (3, 2)]
+
+
 def twin_image(dense=True):
-    return np.array([[twin_pixel(i, j, dense) for i in range(CAMERA["width"])] for j in range(CAMERA["height"])])
+    return np.array([twin_pixel(i, j, dense) for i, j in PIXELS])
+
+
+def at_pixels(img):
+    return np.array([img[j, i] for i, j in PIXELS])
 
 
 @pytest.fixture(scope="module")
@@ -136,17 +145,16 @@ def test_the_dense_box_shades_part_of_the_legs(twin):
             o, d = oracle.camera_ray(CAMERA, i, j)
             hit = slab(o, d, LO_B, HI_B)
             assert hit is None or hit[1] < 0.0
-    assert np.all(twin[..., 1] > 0)
+    assert np.all(twin > 0)
     bare = twin_image(dense=False)
     off = (bare - twin) / twin
-    assert np.count_nonzero(off[..., 0] > 0.05) >= 5, np.sort(off[..., 0].ravel())
-    assert np.all(off >= -1e-9)
+    assert np.all(off[:2, 0] > 0.05) and np.all(np.abs(off[2:]) < 1e-12), off
 
 
 def test_quadrature_takes_the_dense_box(twin):
     """quadrature matches the twin; its bound stays infinite (refracted point light is not bounded)."""
     res = image("quadrature", {"rtol": 1e-10})
-    rel = np.abs(res.image - twin) / twin
+    rel = np.abs(at_pixels(res.image) - twin) / twin
     assert np.max(rel) < 1e-8, np.max(rel)
     assert res.stats["inside: integrals not converged"] == 0
     assert np.all(np.isinf(res.error_bound))
@@ -154,8 +162,8 @@ def test_quadrature_takes_the_dense_box(twin):
 
 def test_raymarch_and_montecarlo_take_the_dense_box(twin):
     """raymarch converges to the twin, montecarlo passes a z-test (their own rules, no bound)."""
-    rel = {n: np.max(np.abs(image("raymarch", {"steps": n}).image - twin) / twin) for n in (128, 512)}
+    rel = {n: np.max(np.abs(at_pixels(image("raymarch", {"steps": n}).image) - twin) / twin) for n in (128, 512)}
     assert rel[512] < 5e-3 and rel[512] < rel[128] / 2.5, rel
     res = image("montecarlo", {"samples": 64}, seed=3)
-    z2 = np.mean((res.image - twin) ** 2 / res.variance)
+    z2 = np.mean((at_pixels(res.image) - twin) ** 2 / at_pixels(res.variance))
     assert 0.3 < z2 < 3.5, z2
