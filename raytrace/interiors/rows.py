@@ -44,7 +44,7 @@ from ..segments import gather
 from ..shadows.beams import lit_pieces_of_beam
 from ..shadows.fermat_legs import lit_pieces_of_point
 from ..shadows.frusta import exact_lit_intervals
-from ..shadows.through_others import attenuated_radiance
+from ..shadows.through_others import attenuated_radiance, refracted_attenuated
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
@@ -277,7 +277,7 @@ def _ball(prep, sid):
     return np.array([*centre, float(np.max(np.linalg.norm(pts - centre, axis=1))) + 1e-14 * size])
 
 
-def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth, beam=None):
+def _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth, beam=None, face=None):
     """`single_scattering` of light li over the rows (points, normals, w, ell, keys) of convex
     index-matched shape sid, the light attenuated by the other interiors `others`
     (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
@@ -286,17 +286,19 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     attenuated by each interior's whole sigma_t (the outside medium does not attenuate it), a point
     or spot light by its excess over the outside's. `beam` = (face, toward, irradiance): in a convex
     refractive shape, the directional light's beam refracted through that face (`_lit_beams`), the
-    chords taken from its entry point along the sun. QUAD bounds its integrals (with the planes'
-    errors `plane_errors`); the other rules' bound is infinite."""
+    chords taken from its entry point along the sun. `face`: in a convex refractive shape, a point or
+    spot light's Fermat path through that face (`_lit_point`), the chords those of its outside leg
+    (`refracted_attenuated`, unbounded: inf). QUAD bounds its integrals (with the planes' errors
+    `plane_errors`); the other rules' bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, (oplanes, first, stop, kt_other, dothers, balls) = convex_planes(prep, sid), others
     n = len(points)
     distant = bool(lights.distant[li])
     geo = np.zeros((n, GEO_COLUMNS))
-    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, normals
+    geo[:, :3], geo[:, 3:6], geo[:, 14:17] = points, w, 0.0 if face is not None else normals
     geo[:, 6:9] = -lights.axis[li] if distant else lights.position[li]
-    only, scale = -1, 1.0
+    only, scale = -1 if face is None else face, 1.0
     if beam is not None:
         only, geo[:, 6:9], scale = beam
     geo[:, 9:12], geo[:, 12:14] = 0.0 if distant else lights.axis[li], lights.cone[li, :2]
@@ -314,10 +316,16 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
         kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
         if ks == 0.0 or lights.intensity[li, c] == 0.0:
             continue
-        attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first, stop,
-                            np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out)), mode, rtol, steps,
-                            tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes, dothers, balls, only,
-                            -lights.axis[li], unit, unit_var, unit_err, stats)
+        dk = np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out))
+        if face is not None:
+            refracted_attenuated(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior), face,
+                                 oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
+                                 np.uint64(seed), unit, unit_var, stats)
+            unit_err[:] = np.where(ell > 0.0, np.inf, 0.0)
+        else:
+            attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first,
+                                stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes,
+                                dothers, balls, only, -lights.axis[li], unit, unit_var, unit_err, stats)
         f = scale * lights.intensity[li, c]
         out[:, c] = unit * f
         var[:, c] = unit_var * f * f
@@ -340,9 +348,11 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     over the pieces they reach past the blockers (shadows/beams.py: the leg inside the shape and the
     entry point's path outside), each from its own start, carried back by exp(-sigma_t t0); point and
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
-    A beam is attenuated by the other index-matched interiors on its entry point's path to the sun
-    where all are convex (`_through_others`); the point and spot lights' paths are not: with any such
-    interior, and with any that is not convex, the bound is infinite."""
+    Where all index-matched interiors are convex (`_other_interiors`), a beam is attenuated by the others
+    on its entry point's path to the sun and a point or spot light's path by those on its outside leg
+    (`_through_others`); else they are not applied. With any such interior the point and spot lights'
+    bound is infinite (their refracted paths are not bounded), and with any that is not convex every
+    light's."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = convex_planes(prep, sid), blockers(prep)
     n = len(points)
@@ -353,7 +363,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     for li in range(len(lights)):
         if not lights.distant[li]:
             _lit_point(prep, method, params, sid, planes, mask, li, (points, normals, w, ell, keys), reach, seed, depth,
-                       (out, var, bound, stats))
+                       (out, var, bound, stats), others)
             continue
         faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward, irradiance in zip(faces.tolist(), towards, scales):
@@ -376,21 +386,22 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     return out, var, stats, bound
 
 
-def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, depth, acc):
+def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, depth, acc, others=None):
     """acc = (out, var, bound, stats) += point or spot light li's single scattering over the rows
     (points, normals, w, ell, keys) of convex refractive shape sid: through each face it is outside of,
     over the pieces where both legs of its Fermat path clear the blockers (shadows/fermat_legs.py),
     each piece integrated along that face's path alone (`single_scattering(..., beam=f)`) from its
     start, carried back by exp(-sigma_t t0); a piece that starts inside has no entry face (zero
     normals). Rows lit whole through every face take the light's integral over all faces at once,
-    as without shadows."""
+    as without shadows, unless `others` (`_other_interiors`) attenuate the outside legs: then every
+    piece takes its face's path attenuated by them (`_through_others(..., face=f)`)."""
     points, normals, w, ell, keys = rows
     out, var, bound, stats = acc
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
     position = prep.lights.position[li]
     faces = np.nonzero(planes[:, :3] @ position - planes[:, 3] > 0.0)[0].tolist()
     found = [(f, *lit_pieces_of_point(prep, sid, planes, mask, li, f, points, w, ell)) for f in faces]
-    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0)
+    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None)
     clear = np.nonzero(whole)[0]
     if len(clear):
         val, v, st, b = single_scattering(prep, method, params, sid, points[clear], normals[clear], w[clear], ell[clear],
@@ -406,8 +417,11 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
             at = np.nonzero(rank == piece)[0]
             r = src[at]
             entry = np.where((x0[at] == 0.0)[:, None], normals[r], 0.0)
-            val, v, st, b = single_scattering(prep, method, params, sid, points[r] + x0[at, None] * w[r], entry, w[r],
-                                              x1[at] - x0[at], keys[r], reach, seed, depth, li, piece, f)
+            sub = (points[r] + x0[at, None] * w[r], entry, w[r], x1[at] - x0[at], keys[r])
+            if others is not None:
+                val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, sub, seed, depth, face=f)
+            else:
+                val, v, st, b = single_scattering(prep, method, params, sid, *sub, reach, seed, depth, li, piece, f)
             stats += st
             _carry(out, var, bound, r, kt, x0[at], val, v, b)
 

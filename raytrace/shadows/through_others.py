@@ -44,10 +44,13 @@ from ..jit import njit
 from ..media.convex_chords import PLANES, chord, section_kinks
 from ..media.integrand import integrand_of
 from ..media.phase import phase_value
-from ..media.adaptive import INTERVALS, bounded_piecewise
+from ..media.adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..media.convex_directional import envelope
-from ..media.slab import (_N10, _N20, _W10, _W20, MARCH, QUAD, U, _light_span, _march_or_sample, _size, convex_exit_face,
-                          convex_integrand, directional_rounding, point_rounding, straight_cuts)
+from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
+from ..media.slab import (_N10, _N20, _W10, _W20, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, _fermat, _light_span,
+                          _march_or_sample, _on_face, _only_face, _size, _spot_terms, convex_exit_face,
+                          convex_integrand, directional_rounding, edge_breaks, point_rounding, refracted_at,
+                          refracted_cuts, refracting_faces, straight_cuts)
 
 
 class AttenuatedConvex(NamedTuple):
@@ -272,3 +275,157 @@ def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, 
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
             err[s] = math.inf
+
+
+class RefractedAttenuated(NamedTuple):
+    """A point or spot light's refracted path through one face of a convex refractive shape A (`row`, a
+    media/slab.py `refracting_faces` row; `spot` its (cos_end, cos_start, curve)): `refracted_at` where
+    the refraction point R lies on the face, times exp(-sum_j dk[j] chord_j) of the outside leg from R
+    to the light, chord_j through the planes others[first[j]:stop[j]]."""
+    row: np.ndarray
+    planes: np.ndarray
+    eta: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    spot: tuple
+    light: np.ndarray
+    others: np.ndarray
+    first: np.ndarray
+    stop: np.ndarray
+    dk: np.ndarray
+
+
+@njit
+def _leg(x, row, eta):
+    """(rho, r, R) of face row's Fermat path at x (media/slab.py `_fermat`): R = p_f + x w_h +
+    (r / rho)(L_h - x w_h), the refraction point on the face's plane (as `_edge_distance`)."""
+    rho, r = _fermat(x, max(row[0], 0.0), row[3], row[4], row[1], row[2], eta)
+    t = r / rho if rho > 0.0 else 0.0
+    return rho, r, (row[8] + x * row[11] + t * (row[14] - x * row[11]), row[9] + x * row[12] + t * (row[15] - x * row[12]),
+                    row[10] + x * row[13] + t * (row[16] - x * row[13]))
+
+
+@njit(inline="always")
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(inline="always")
+def _minus(a, b):
+    return a[0] - b[0], a[1] - b[1], a[2] - b[2]
+
+
+@integrand_of(RefractedAttenuated)
+@njit
+def _refracted_attenuated(x, r):
+    row = r.row
+    z0, a = row[0], row[1]
+    if not z0 + a * x > 0.0:
+        return 0.0
+    rho, rr, p = _leg(x, row, r.eta)
+    if not _on_face(x, row, rr, rho, r.planes):
+        return 0.0
+    sp = r.spot
+    v = refracted_at(x, z0, rho, rr, row[3], a, row[2], r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, row[5], row[6],
+                     row[7], sp[0], sp[1], sp[2])
+    if v == 0.0:
+        return 0.0
+    u = _minus(r.light, p)
+    dist = math.sqrt(_dot(u, u))
+    if not dist > 0.0:
+        return v
+    tau = 0.0
+    for j in range(r.first.shape[0]):
+        if r.dk[j] != 0.0:
+            tau += r.dk[j] * chord(r.others, r.first[j], r.stop[j], p[0], p[1], p[2], u[0] / dist, u[1] / dist,
+                                   u[2] / dist, dist)
+    return v * math.exp(-tau)
+
+
+@njit
+def leg_kinks(row, n, p, w, eta, light, others, first, stop, end, out):
+    """The x in (0, end) where the outside leg from face row's refraction point R(x) to the light
+    crosses an edge of a shape B_j (planes others[first[j]:stop[j]]): the kinks of its chord. Each
+    pair of B_j's planes meets on a line (through q, along e); the leg meets it where R(x) crosses
+    the plane through the light and that line, the roots of g = (e x (L - q))·(R - q), isolated
+    with shadows/fermat_legs.py's Lipschitz bound on R (`_roots`: none missed, no grid) and kept
+    where the crossing lies on B_j (every other plane, to 1e-9 of its size) between R and the light.
+    n: the face's outward normal, p + x w the segment. Returns (out, count)."""
+    z0, a, hl = row[0], row[1], row[2]
+    lf = light - hl * n
+    scale = max(np.abs(light).max(), np.abs(p).max(), np.abs(p + end * w).max())
+    tol, width = ROUNDING * scale, RESOLUTION * scale
+    roots = np.empty(16)
+    m = 0
+    for j in range(first.shape[0]):
+        for g in range(first[j], stop[j]):
+            for h in range(g + 1, stop[j]):
+                e = _cross(others[g, :3], others[h, :3])
+                ee = e @ e
+                if not ee > 1e-24:
+                    continue
+                q = (others[g, 3] * _cross(others[h, :3], e) + others[h, 3] * _cross(e, others[g, :3])) / ee
+                vec = _cross(e, light - q)
+                size = _norm(vec)
+                if not size > 0.0:
+                    continue
+                roots, k = _roots(_OUT_EDGE, q, vec, p, w, row[8:11], row[11:14], z0, a, lf, hl, eta, end,
+                                  tol * size, width, roots, 0)
+                for i in range(k):
+                    d = _refraction(roots[i], row[8:11], row[11:14], z0, a, lf, hl, eta)[0] - light
+                    c1 = _cross(d, e)
+                    cc = c1 @ c1
+                    if not cc > 0.0:
+                        continue
+                    s = (_cross(q - light, e) @ c1) / cc  # the leg's line L + s d meets the edge line
+                    y = light + s * d
+                    slack = 1e-9 * (np.abs(y).max() + abs(others[g, 3]))
+                    on = 0.0 < s < 1.0
+                    for f in range(first[j], stop[j]):
+                        if f != g and f != h and others[f, :3] @ y - others[f, 3] > slack:
+                            on = False
+                    if on:
+                        out = _push(out, m, roots[i])
+                        m += 1
+    return out, m
+
+
+@njit
+def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, others, first, stop, dk, mode, rtol,
+                         steps, tau_max, keys, dim0, seed, out, var, stats):
+    """out, var (N,) = a unit point or spot light's single scattering over each segment (geo rows with
+    zero entry normals: every face's terms from `planes`) of a convex refractive shape through face
+    `only` (`RefractedAttenuated`), the outside leg attenuated by the B_j: QUAD adaptive between A's
+    edge breaks and cone crossings (media/slab.py `faces_quadrature`'s) and the leg's chord kinks
+    (`leg_kinks`); MARCH, SAMPLE as media/slab.py's `_march_or_sample`."""
+    nf = planes.shape[0]
+    faces = np.empty((max(nf, 1), FACE_COLUMNS))
+    br = np.empty(nf + MAX_CUTS + 1)
+    for s in range(geo.shape[0]):
+        out[s], var[s] = 0.0, 0.0
+        if ks == 0.0 or not ell[s] > 0.0:
+            continue
+        spot = _spot_terms(geo[s], 0.0, 0.0)
+        m = _only_face(faces, refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, spot, faces), only)
+        if m == 0:
+            continue
+        row = faces[0]
+        rec = RefractedAttenuated(row.copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], geo[s, 6:9].copy(),
+                                  others, first, stop, dk)
+        if mode != QUAD:
+            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+            out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            continue
+        end = min(ell[s], 745.0 / kt)
+        br[0] = 0.0
+        k = 1 + refracted_cuts(row[0], row[3], row[4], row[1], row[2], eta, row[5], row[6], row[7], spot[3], spot[4],
+                               end, br[1:])
+        k += edge_breaks(row, planes, eta, end, br[k:])
+        legs, n_legs = leg_kinks(row, planes[only, :3].copy(), geo[s, 0:3].copy(), geo[s, 3:6].copy(), eta, rec.light,
+                                 others, first, stop, end, np.empty(16))
+        cuts = np.concatenate((br[:k], legs[:n_legs], np.array([end])))
+        cuts[1:-1].sort()
+        out[s] = piecewise(rec, cuts, cuts.shape[0], rtol, _N10, _W10, _N20, _W20, stats)
