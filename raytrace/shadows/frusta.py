@@ -768,6 +768,7 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
     grid = np.array([-1.0, -1.0, 2.0, 2.0, 1.0, 1.0])
     frame = np.eye(4, 3, -1)  # the light's position (row 0), then the axes
     stats = np.zeros(len(STATS_NAMES))
+    cube = np.int64(CUBE)  # a typed int: the constant would compile _lit a second time, for Literal[int](0)
     per = 4 * spheres.shape[0] + 1
     cap = 2 * origins.shape[0] + 16
     src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
@@ -817,7 +818,7 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
                 tri[f * nk + e], tlb[f * nk + e] = int(order[e]), k_lb[e]
         start[6] = 6 * nk
         frame[0] = points[s]
-        lit_src, lo, hi = _lit(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], CUBE, grid, frame, start,
+        lit_src, lo, hi = _lit(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], cube, grid, frame, start,
                                tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk], slack,
                                gap, stats)
         if m + len(lit_src) * per > cap:
