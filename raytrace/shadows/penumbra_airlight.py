@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..lights import LAMBERT, SPOT, Lights
+from ..lights import EMISSION, LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..methods import Segments
 from ..segments import cone_segments, gather
@@ -53,6 +53,8 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     n = len(origins)
     air, var = np.zeros((n, 3)), np.zeros((n, 3))
     cut = cut_pairs(accel, lights, cone, lit, rays, select)
+    # emissive shapes keep their rows: a sample on one of its triangles is shadowed by the shape itself
+    cut[:, [kind == EMISSION for kind in lights.scene_kinds]] = False
     if not cut.any():
         return lit, air, var, np.zeros(n, bool)
     ray_e, owner_e = np.nonzero(cut)
