@@ -39,8 +39,16 @@ LIT, DARK, MIXED, NONE = 1, -1, 0, 2  # what a row (or the rows of an emitter) s
 def applies(lights, method, shadows: bool) -> bool:
     """Whether a render samples penumbrae in the air-light: volumetric shadows by exact lit intervals
     (the renderer's branch that calls this), a deterministic method (analytic, quadrature, raymarch:
-    montecarlo samples the rows its own way) and an emitter that can be sampled."""
-    return shadows and not method.stochastic and any(e is not None for e in lights.emitters)
+    montecarlo samples the rows its own way) and an emitter that can be sampled (`sampled_emitters`)."""
+    return shadows and not method.stochastic and bool(sampled_emitters(lights).any())
+
+
+def sampled_emitters(lights) -> np.ndarray:
+    """(E,) whether each emitter's penumbrae are sampled: one that can be sampled (`Lights.emitters`) and
+    is not an emissive shape (a sample on one of its triangles is shadowed by the shape itself: those
+    keep their rows)."""
+    return np.array([e is not None and kind != EMISSION for e, kind in zip(lights.emitters, lights.scene_kinds)],
+                    dtype=bool)
 
 
 def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, select):
@@ -53,8 +61,6 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     n = len(origins)
     air, var = np.zeros((n, 3)), np.zeros((n, 3))
     cut = cut_pairs(accel, lights, cone, lit, rays, select)
-    # emissive shapes keep their rows: a sample on one of its triangles is shadowed by the shape itself
-    cut[:, [kind == EMISSION for kind in lights.scene_kinds]] = False
     if not cut.any():
         return lit, air, var, np.zeros(n, bool)
     ray_e, owner_e = np.nonzero(cut)
@@ -133,8 +139,8 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
 
 
 def emitter_rows(lights) -> np.ndarray:
-    """(L,) whether each row is a node of an emitter that can be sampled (`Lights.emitters`)."""
-    sampled_ = np.array([e is not None for e in lights.emitters] + [False], dtype=bool)
+    """(L,) whether each row is a node of an emitter whose penumbrae are sampled (`sampled_emitters`)."""
+    sampled_ = np.append(sampled_emitters(lights), False)
     return sampled_[np.where(lights.cubature, lights.owner, len(lights.emitters))]
 
 
