@@ -32,6 +32,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -40,6 +42,39 @@ from benchmarks.vs_mitsuba import Mitsuba, choose_variant, machine, mre, time_to
 
 SCENE = ROOT / "tests" / "data" / "area_peers" / "occluded.toml"
 TARGET = 1e-2
+CACHE = Path(tempfile.gettempdir()) / "raytrace-area-peers"  # the Mitsuba reference, outside the repository
+BATCH = 8192  # reference spp per independent batch
+
+
+def reference(theirs, mi, xml: Path, spp: int):
+    """(image (H, W, 3), its per-pixel standard error, spp, seconds): Mitsuba's estimate at our pixel
+    centres, the mean of independent batches of BATCH spp (seeds 10^6 + k, none of the timed runs'),
+    its standard error from their spread. Cached under CACHE, keyed by the exported scene and Mitsuba's
+    version and variant; a larger `spp` adds batches to the cache."""
+    import hashlib
+
+    key = hashlib.sha256(xml.read_bytes() + f"{mi.__version__} {mi.variant()}".encode()).hexdigest()[:16]
+    path = CACHE / f"mitsuba-{key}.npz"
+    batches, seconds = [], 0.0
+    if path.exists():
+        with np.load(path) as f:
+            batches, seconds = list(f["batches"]), float(f["seconds"])
+    while len(batches) * BATCH < spp:
+        img, wall, _ = timed(lambda: theirs.render(BATCH, 10**6 + len(batches)))
+        batches.append(img)
+        seconds += wall
+        CACHE.mkdir(parents=True, exist_ok=True)
+        np.savez(path.with_suffix(".tmp.npz"), batches=np.array(batches), seconds=seconds)
+        os.replace(path.with_suffix(".tmp.npz"), path)
+        print(f"  reference: {len(batches) * BATCH} spp, {seconds:.0f} s", flush=True)
+    b = np.array(batches[:-(-spp // BATCH)])
+    return b.mean(axis=0), b.std(axis=0, ddof=1) / np.sqrt(len(b)), len(b) * BATCH, seconds
+
+
+def reference_error(ref, se):
+    """The reference's own expected mean relative error (vs_mitsuba.mre's mask): E|N(0, se)| / ref."""
+    mask = ref > 1e-3 * ref.max()
+    return float(np.mean(np.sqrt(2.0 / np.pi) * se[mask] / ref[mask]))
 
 
 def timed(fn):
