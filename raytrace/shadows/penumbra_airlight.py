@@ -9,9 +9,10 @@ than the method's precision. A camera ray and an emitter are taken as cut where 
 emitter's corner probes (`area.Emitter.probes`: a straight shadow edge that leaves every node on one
 side leaves a corner on the other), each a point light with its exact intervals, disagree with them.
 
-There the rows are replaced by 2 S stratified samples of the emitter's (u, v) square (S = STRATA^2
-strata, two jittered points in each, keyed by the camera ray's key, the seed and the emitter as the
-surface term's are: shading.py, rng.py), each a LAMBERT spot row of intensity L / (2 S p_A) at its
+There the rows are replaced by 2 S stratified samples of the emitter's (u, v) square (S = k^2
+strata, two jittered points in each, keyed by the camera ray's key, the seed, the emitter and k as
+the surface term's are: shading.py, rng.py; k per cut pair from LADDER, chosen by a pilot to meet the
+method's tolerance: `_estimate`, `choose_strata`), each a LAMBERT spot row of intensity L / (2 S p_A) at its
 point y (p_A the area density; a two-sided emitter's point twice, facing both ways), cut to its
 front half-space and to the exact lit intervals of y itself (frusta.point_lit_pieces), and
 integrated by the method, its closed form or rule, per lit interval. The estimate is the sum over
@@ -107,7 +108,8 @@ def choose_strata(value, var, tol) -> np.ndarray:
     across the emitter: about strata of the 2 strata^2 samples' strata are cut, each of variance
     ~ 1 / strata^4, so the mean's variance is ~ strata^-3); LADDER's last (the cap) where the pilot
     estimate is 0 but its variance is not."""
-    ratio = np.sqrt(var) / np.where(value > 0.0, tol * value, 0.0)
+    ratio = np.full(var.shape, np.inf)
+    np.divide(np.sqrt(var), tol * value, out=ratio, where=value > 0.0)
     ratio = np.where(var > 0.0, ratio, 0.0).max(axis=1)  # var 0: nothing to gain (value exact or 0)
     need = PILOT * ratio ** (2.0 / 3.0)
     rung = np.searchsorted(np.array(LADDER, float), need, side="left")
