@@ -2,7 +2,7 @@
 relative error on the same scene and machine (docs/area_lights.md, "Against Mitsuba 3").
 
     pip install mitsuba                  # >= 3.5; exits 0 with a skip message without it
-    python benchmarks/area_peers.py [--quick] [--rounds N]
+    python benchmarks/area_peers.py [--quick] [--rounds N] [--reference-spp N]
 
 The scene: tests/data/area_peers/occluded.toml (32 x 24 pixels: a 1 x 1 quad light over a plate, its
 penumbra on a floor, a homogeneous isotropic fog), exported by us to Mitsuba (`volpath`, max_depth 2).
@@ -15,7 +15,7 @@ strata follow them), `montecarlo` climbing a ladder of distance samples per ray.
 
 Reference, sharing no sample with any measured render: Mitsuba at our pixel centres, --reference-spp
 (default 2^20) in independent batches of BATCH spp (seeds none of the timed runs use), cached under
-CACHE (about 8 minutes on 2 cores; a later run reuses it); its own mean relative error, from the
+CACHE (about 9 minutes on 2 cores; a later run reuses it); its own mean relative error, from the
 batches' spread, is printed, and every measured error includes it. Error: mean relative error over
 pixels and channels where the reference exceeds 1e-3 of its max (vs_mitsuba.mre). Times: wall
 and process CPU seconds (all threads) of one render, compilation excluded by a warm-up of every
@@ -51,7 +51,7 @@ BATCH = 8192  # reference spp per independent batch
 
 
 def reference(theirs, mi, xml: Path, spp: int):
-    """(image (H, W, 3), its per-pixel standard error, spp, seconds): Mitsuba's estimate at our pixel
+    """(image (H, W, 3), its per-pixel standard error, spp, wall seconds of its batches): Mitsuba's estimate at our pixel
     centres, the mean of independent batches of BATCH spp (seeds 10^6 + k, none of the timed runs'),
     its standard error from their spread. Cached under CACHE, keyed by the exported scene and Mitsuba's
     version and variant; a larger `spp` adds batches to the cache."""
@@ -72,7 +72,7 @@ def reference(theirs, mi, xml: Path, spp: int):
         os.replace(path.with_suffix(".tmp.npz"), path)
         print(f"  reference: {len(batches) * BATCH} spp, {seconds:.0f} s", flush=True)
     b = np.array(batches[:-(-spp // BATCH)])
-    return b.mean(axis=0), b.std(axis=0, ddof=1) / np.sqrt(len(b)), len(b) * BATCH, seconds
+    return b.mean(axis=0), b.std(axis=0, ddof=1) / np.sqrt(len(b)), len(b) * BATCH, seconds * len(b) / len(batches)
 
 
 def reference_error(ref, se):
@@ -90,7 +90,7 @@ def timed(fn):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="a reference of order 32, one round, shorter ladders")
+    ap.add_argument("--quick", action="store_true", help="one round, shorter ladders")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--reference-spp", type=int, default=1 << 20, help="Mitsuba's spp for the reference")
     args = ap.parse_args(argv)
