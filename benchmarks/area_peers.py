@@ -51,10 +51,10 @@ BATCH = 8192  # reference spp per independent batch
 
 
 def reference(theirs, mi, xml: Path, spp: int):
-    """(image (H, W, 3), its per-pixel standard error, spp, wall seconds of its batches): Mitsuba's estimate at our pixel
-    centres, the mean of independent batches of BATCH spp (seeds 10^6 + k, none of the timed runs'),
-    its standard error from their spread. Cached under CACHE, keyed by the exported scene and Mitsuba's
-    version and variant; a larger `spp` adds batches to the cache."""
+    """(image (H, W, 3), its per-pixel standard error, spp, wall seconds of its batches): Mitsuba's
+    estimate at our pixel centres, the mean of independent batches of BATCH spp (seeds 10^6 + k, none
+    of the timed runs'), its standard error from their spread. Cached under CACHE, keyed by the
+    exported scene and Mitsuba's version and variant; a larger `spp` adds batches to the cache."""
     import hashlib
 
     key = hashlib.sha256(xml.read_bytes() + f"{mi.__version__} {mi.variant()}".encode()).hexdigest()[:16]

@@ -83,16 +83,19 @@ def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
     tolerance (`tolerance`), a pilot of PILOT x PILOT strata per ray chooses its strata (`choose_strata`)
     and an estimate from fresh samples at those strata is returned (the pilot's samples are not reused:
     the estimate is independent of the choice, so unbiased); without one, FIXED x FIXED strata."""
+
+    def estimate(rows, strata, stage):
+        return _stratified(accel, method, medium, params, emitter, rows, rays, select, strata, _dim(e, stage))
+
     tol = tolerance(params)
     if tol is None:
-        return _stratified(accel, method, medium, params, emitter, rs, rays, select, FIXED, _dim(e, len(LADDER)))
-    pilot = _stratified(accel, method, medium, params, emitter, rs, rays, select, PILOT, _dim(e, len(LADDER)))
-    strata = choose_strata(*pilot, tol)
+        return estimate(rs, FIXED, len(LADDER))
+    strata = choose_strata(*estimate(rs, PILOT, len(LADDER)), tol)
     value, var = np.empty((len(rs), 3)), np.empty((len(rs), 3))
     for k, s in enumerate(LADDER):
         at = np.nonzero(strata == s)[0]
         if len(at):
-            value[at], var[at] = _stratified(accel, method, medium, params, emitter, rs[at], rays, select, s, _dim(e, k))
+            value[at], var[at] = estimate(rs[at], s, k)
     return value, var
 
 
