@@ -22,9 +22,9 @@ there ours, its variance added to Mitsuba's, must agree within noise too, and th
 fixed rule's staircase of hard shadows) must be beyond Mitsuba's noise there (on the occluded quad
 light, at least 4 times farther than the samples), which shows that the difference Mitsuba sees there
 is the rule's. `analytic` at precision 1e-1 (the cheapest setting benchmarks/area_peers.py times) must
-be within 1e-2 mean relative error of Mitsuba's mean on the occluded scene. In the Cornell box the faces whose own plane cuts the
-luminaire (its horizon, not an occluder) are sampled as penumbrae; the pixels left to the rule agree
-within noise.
+be within 1e-2 mean relative error of Mitsuba's mean on the occluded scene. In the Cornell box the
+faces whose own plane cuts the luminaire (its horizon, not an occluder) are sampled as penumbrae; the
+pixels left to the rule agree within noise.
 """
 from __future__ import annotations
 

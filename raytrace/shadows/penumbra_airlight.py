@@ -107,10 +107,9 @@ def tolerance(params) -> float | None:
 def choose_strata(value, var, tol) -> np.ndarray:
     """(M,) the strata per side for each of M (ray, emitter) pairs from a pilot of PILOT x PILOT strata
     (its estimate and variance, (M, 3) each): the smallest of LADDER at which the standard error would
-    be at most tol x the estimate in every channel, taking it to fall as strata^(-3/2) (a shadow edge
-    across the emitter: about strata of the 2 strata^2 samples' strata are cut, each of variance
-    ~ 1 / strata^4, so the mean's variance is ~ strata^-3); LADDER's last (the cap) where the pilot
-    estimate is 0 but its variance is not."""
+    be at most tol x the estimate in every channel, taking it to fall as k^(-3/2) with k strata a side
+    (a shadow edge crosses about k of the k^2 strata, each adding a variance ~ 1 / k^4 to the mean's);
+    LADDER's last (the cap) where the pilot's estimate is 0 but its variance is not."""
     ratio = np.full(var.shape, np.inf)
     np.divide(np.sqrt(var), tol * value, out=ratio, where=value > 0.0)
     ratio = np.where(var > 0.0, ratio, 0.0).max(axis=1)  # var 0: nothing to gain (value exact or 0)
@@ -121,7 +120,7 @@ def choose_strata(value, var, tol) -> np.ndarray:
 
 def _dim(e: int, stage: int) -> int:
     """The first random-number dimension of emitter e's samples at LADDER[stage] strata (the pilot's,
-    and FIXED's, at stage len(LADDER)): disjoint blocks of 2 per samples each."""
+    and FIXED's, at stage len(LADDER)): disjoint blocks, each of two dimensions per sample of the cap."""
     return DIM_AIRLIGHT + (e * (len(LADDER) + 1) + stage) * 4 * LADDER[-1] ** 2
 
 
