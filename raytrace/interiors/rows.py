@@ -107,7 +107,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     rtol, steps, tau_max = sup.settings(params)
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
-    dplanes = plane_errors(prep, sid)
+    dplanes = measured_plane_errors(prep, sid) if refractive else plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
 
     def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
@@ -394,7 +394,9 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     start, carried back by exp(-sigma_t t0); a piece that starts inside has no entry face (zero
     normals). Rows lit whole through every face take the light's integral over all faces at once,
     as without shadows, unless `others` (`_other_interiors`) attenuate the outside legs: then every
-    piece takes its face's path attenuated by them (`_through_others(..., face=f)`)."""
+    piece takes its face's path attenuated by them (`_through_others(..., face=f)`). A piece cut by an
+    occluder's break (shadows/fermat_legs.py: where a leg meets an occluder's edge) has an infinite
+    bound (the break's location error is not analysed); the others keep their integrals' bound."""
     points, normals, w, ell, keys = rows
     out, var, bound, stats = acc
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
@@ -422,6 +424,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
                 val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, sub, seed, depth, face=f)
             else:
                 val, v, st, b = single_scattering(prep, method, params, sid, *sub, reach, seed, depth, li, piece, f)
+            b[(x0[at] > 0.0) | (x1[at] < ell[r])] = np.inf  # an occluder's break: its location is not analysed
             stats += st
             _carry(out, var, bound, r, kt, x0[at], val, v, b)
 
@@ -494,6 +497,36 @@ def plane_errors(prep, sid):
     half = 0.5 * 10.0 ** -PLANE_DECIMALS
     size = float(np.max(np.abs(prep.accel.triangles[prep.shape_ids == sid]), initial=0.0))
     return np.array([math.sqrt(3.0) * half + 1e-15, (half + 1e-15) * size])
+
+
+def measured_plane_errors(prep, sid):
+    """(dn, dc) as `plane_errors`, measured on the shape's triangles (for the refracted point and spot
+    lights' bound, media/fermat_rounding.py): each triangle's unit normal (its cross product's, a few
+    ulps off: + 8u) and vertices against the plane of `convex_planes` it lies in (the nearest by
+    normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
+    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|). `plane_errors` where
+    the shape has no convex planes or a triangle lies in none of them (to its bound)."""
+    def measure():
+        planes = convex_planes(prep, sid)
+        tris = prep.accel.triangles[prep.shape_ids == sid].astype(np.float64)
+        bound = plane_errors(prep, sid)
+        cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        area = np.linalg.norm(cross, axis=1)
+        tris, n = tris[area > 0.0], cross[area > 0.0] / area[area > 0.0, None]
+        if not len(planes) or not len(tris):
+            return bound
+        off = np.abs(np.einsum("tvk,pk->tpv", tris, planes[:, :3]) - planes[None, :, 3, None]).max(axis=2)
+        dn = np.abs(n[:, None, :] - planes[None, :, :3]).max(axis=2)
+        best = np.argmin(dn + off / max(float(np.abs(tris).max()), 1e-300), axis=1)
+        rows = np.arange(len(tris))
+        u = 2.0 ** -53
+        dn_f = dn[rows, best] + 8.0 * u
+        norms = np.linalg.norm(tris, axis=2).max(axis=1)
+        dc_f = off[rows, best] + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
+        if dn_f.max() > bound[0] or dc_f.max() > bound[1]:
+            return bound
+        return np.array([dn_f.max(), dc_f.max()])
+    return prep.memo(("measured plane errors", sid), measure)
 
 
 def _light_bound(err, value, f, cos_end):

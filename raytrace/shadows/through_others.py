@@ -47,7 +47,7 @@ from ..media.phase import phase_value
 from ..media.adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..media.convex_directional import envelope
 from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
-from ..media.slab import (_N10, _N20, _W10, _W20, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, _fermat, _light_span,
+from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, _fermat, _light_span,
                           _march_or_sample, _on_face, _only_face, _size, _spot_terms, convex_exit_face,
                           convex_integrand, directional_rounding, edge_breaks, point_rounding, refracted_at,
                           refracted_cuts, refracting_faces, straight_cuts)
@@ -403,7 +403,7 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
     (`leg_kinks`); MARCH, SAMPLE as media/slab.py's `_march_or_sample`."""
     nf = planes.shape[0]
     faces = np.empty((max(nf, 1), FACE_COLUMNS))
-    br = np.empty(nf + MAX_CUTS + 1)
+    br = np.empty(EDGE_CUTS * nf + MAX_CUTS + 1)
     for s in range(geo.shape[0]):
         out[s], var[s] = 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
