@@ -32,7 +32,8 @@ The integrand ks Phi(mu) T(cos t1) E F(c) exp(-kt (x + k) - kt_out o), relative,
   s / (o rho) with s >= rho hl / (hl + z) (tan t1 >= tan t2), so (drho + dr) (hl + z) / (rho hl) +
   do / hl + drho / rho; cos t2 = z / k: (dz + dk) / (k cos t2); Q >= hl: dhl / hl + 2 (cos t1's) +
   (dz + z (cos t1's) + 3 (dz + dk) / cos t2) / (eta cos^3 t2 hl);
-- the scattering cosine mu (t2 moves by (dr cos t2 + dz sin t2) / k): (dr + dz) / k + 2 (drho + 16u (x + sqrt(ll))) / rho + da, times
+- the scattering cosine mu (t2 moves by (dr cos t2 + dz sin t2) / k): (dr + dz) / k +
+  2 (drho + 16u (x + sqrt(ll))) / rho + da, times
   the phase's condition (`phase_condition`);
 - a spot's cosine c to its axis: (2 drho + 2 dr + dhl + do + 32u (x + sqrt(ll) + |la|)) / hl +
   2 sqrt(3) dn + 8u, times the falloff's slope (absolute: lights `band_slope` / (cos_start - cos_end));
@@ -129,7 +130,8 @@ def cosine_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry):
     (`leg_errors`' arguments; module docstring)."""
     _, dh, drho, dr, da = leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry)
     do = drho + dr + dh + 4.0 * U * math.sqrt(s * s + hl * hl)
-    return 2.0 * ((2.0 * drho + 2.0 * dr + dh + do + 32.0 * U * (x + math.sqrt(ll) + mags[3])) / hl + 2.0 * da + 8.0 * U)
+    turn = (2.0 * drho + 2.0 * dr + dh + do + 32.0 * U * (x + math.sqrt(ll) + mags[3])) / hl
+    return 2.0 * (turn + 2.0 * da + 8.0 * U)
 
 
 @njit

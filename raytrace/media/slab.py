@@ -788,7 +788,7 @@ def _break_errors(rec, end, cuts):
             tol = cosine_error(*args) + 8.0 * U * rho_max / hl
             s_min = rho_min * hl / (hl + z_max)  # s / rho >= hl / (hl + z): tan t1 >= tan t2
             for level in (sp[0], sp[1]):
-                total += _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.sqrt(s_min * s_min + hl * hl))
+                total += _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl))
                 if sp[1] == sp[0]:
                     break
         if total == math.inf:
@@ -1433,7 +1433,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     with only >= 0 through that face alone.
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces), for QUAD's point and spot lights in
-    convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to scatter); inf elsewhere.
+    convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to
+    scatter); inf elsewhere.
     Each kind of segment has its own kernel below, compiled on first use: a scene compiles the
     integrands of the kinds it meets only."""
     out[:], var[:] = 0.0, 0.0

@@ -47,8 +47,8 @@ from ..media.phase import phase_value
 from ..media.adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..media.convex_directional import envelope
 from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
-from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, _fermat, _light_span,
-                          _march_or_sample, _on_face, _only_face, _size, _spot_terms, convex_exit_face,
+from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, _fermat,
+                          _light_span, _march_or_sample, _on_face, _only_face, _size, _spot_terms, convex_exit_face,
                           convex_integrand, directional_rounding, edge_breaks, point_rounding, refracted_at,
                           refracted_cuts, refracting_faces, straight_cuts)
 
