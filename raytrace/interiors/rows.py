@@ -288,8 +288,8 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     refractive shape, the directional light's beam refracted through that face (`_lit_beams`), the
     chords taken from its entry point along the sun. `face`: in a convex refractive shape, a point or
     spot light's Fermat path through that face (`_lit_point`), the chords those of its outside leg
-    (`refracted_attenuated`, unbounded: inf). QUAD bounds its integrals (with the planes' errors
-    `plane_errors`); the other rules' bound is infinite."""
+    (`refracted_attenuated`). QUAD bounds its integrals (with the planes' errors `plane_errors`,
+    `measured_plane_errors` on refracted paths); the other rules' bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, (oplanes, first, stop, kt_other, dothers, balls) = convex_planes(prep, sid), others
@@ -311,7 +311,7 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     if sup.mode == CLOSED:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
     unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
-    dplanes = plane_errors(prep, sid)
+    dplanes = plane_errors(prep, sid) if face is None else measured_plane_errors(prep, sid)
     for c in range(3):
         kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
         if ks == 0.0 or lights.intensity[li, c] == 0.0:
@@ -320,8 +320,7 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
         if face is not None:
             refracted_attenuated(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior), face,
                                  oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
-                                 np.uint64(seed), unit, unit_var, stats)
-            unit_err[:] = np.where(ell > 0.0, np.inf, 0.0)
+                                 np.uint64(seed), dplanes, dothers, balls, unit, unit_var, unit_err, stats)
         else:
             attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first,
                                 stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes,
@@ -350,9 +349,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
     Where all index-matched interiors are convex (`_other_interiors`), a beam is attenuated by the others
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
-    (`_through_others`); else they are not applied. With any such interior the point and spot lights'
-    bound is infinite (their refracted paths are not bounded), and with any that is not convex every
-    light's."""
+    (`_through_others`); else they are not applied, and every light's bound is infinite."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = convex_planes(prep, sid), blockers(prep)
     n = len(points)
@@ -381,7 +378,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
                     val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, piece, f)
                 stats += st
                 _carry(out, var, bound, r, kt, x0[at], val, v, b)
-    if matched(prep) and (others is None or not np.all(lights.distant)):
+    if matched(prep) and others is None:
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 
