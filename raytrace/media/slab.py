@@ -193,17 +193,8 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
         c1 = refracted_cosine(x1, z0, wl, ll, a, hl, eta, wa, la, na)
         for level in (cos_end, cos_start):
             if (prev - level) * (c1 - level) < 0.0 and m < MAX_CUTS:
-                lo, hi = end * (i - 0.5) / SCAN, x1
-                s_lo = prev - level
-                for _ in range(100):
-                    mid = 0.5 * (lo + hi)
-                    if not lo < mid < hi:
-                        break
-                    if (refracted_cosine(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
-                        lo = mid
-                    else:
-                        hi = mid
-                out[m] = 0.5 * (lo + hi)
+                out[m] = _bisect_cosine(end * (i - 0.5) / SCAN, x1, prev - level, z0, wl, ll, a, hl, eta, wa, la, na,
+                                        level)
                 m += 1
             if cos_start == cos_end:
                 break
@@ -214,6 +205,21 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
             break
     sort_few(out, 0, m)
     return m
+
+
+@njit
+def _bisect_cosine(lo, hi, s_lo, z0, wl, ll, a, hl, eta, wa, la, na, level):
+    """The crossing of `refracted_cosine` with level in [lo, hi] (s_lo: its sign at lo, the other at
+    hi) to the resolution of doubles."""
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if (refracted_cosine(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 @njit
@@ -246,16 +252,7 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
             c_lo = refracted_cosine(lo, z0, wl, ll, a, hl, eta, wa, la, na) - level
             c_hi = refracted_cosine(hi, z0, wl, ll, a, hl, eta, wa, la, na) - level
             if c_lo * c_hi < 0.0 and not _near(out[:m], lo, hi, 0.0):
-                s_lo = c_lo
-                for _ in range(100):
-                    mid = 0.5 * (lo + hi)
-                    if not lo < mid < hi:
-                        break
-                    if (refracted_cosine(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
-                        lo = mid
-                    else:
-                        hi = mid
-                out[m] = 0.5 * (lo + hi)
+                out[m] = _bisect_cosine(lo, hi, c_lo, z0, wl, ll, a, hl, eta, wa, la, na, level)
                 m += 1
             continue
         mid = 0.5 * (lo + hi)
@@ -574,7 +571,10 @@ class DistantSlab(NamedTuple):
 
 
 class FacesPoint(NamedTuple):
-    """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve))."""
+    """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve)). With a track (QUAD), its
+    evaluations keep in track[0] the largest bound on their rounding (the sum over the faces of
+    `_term_error`): ph the phase's `phase_condition`, dn, dc the planes' errors, mags and entry as
+    `faces_quadrature`'s (else an empty track)."""
     faces: np.ndarray
     planes: np.ndarray
     eta: float
@@ -584,13 +584,30 @@ class FacesPoint(NamedTuple):
     g: float
     kt_out: float
     spot: tuple
+    ph: float
+    dn: float
+    dc: float
+    mags: tuple
+    entry: int
+    track: np.ndarray
 
 
 @integrand_of(FacesPoint)
 @njit
 def _faces_value(x, r):
     sp = r.spot
-    return faces_point(x, r.faces, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+    if r.track.shape[0] == 0:
+        return faces_point(x, r.faces, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+    total, err = 0.0, 0.0
+    for j in range(r.faces.shape[0]):
+        row = r.faces[j]
+        term, rho, rr, on = _face_term(x, row, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+        total += term
+        if on:
+            err += _term_error(x, row, term, rho, rr, r)
+    if err > r.track[0]:
+        r.track[0] = err
+    return total
 
 
 @integrand_of(PlanarTheta)
@@ -652,7 +669,7 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
     (`refracting_faces`' entry plane alone), the pieces between the cone's crossings. The bound
     (docs/error_bounds.md, "Point and spot light in refractive shapes") is the rule's (inf where a
     panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
-    (`FacesTracked`) times its width (the positive weights' sum, over the rule's 20-point sums and
+    (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
     the 10-point sums of its test), plus the breaks' location error (`_break_errors`), plus u per
     interval; inf with no planes or eta <= 1. dplanes: the planes' errors (interiors/rows.py
     `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
@@ -670,8 +687,8 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
         m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
     track = np.zeros(1)
-    rec = FacesTracked(faces, planes, eta, kt, ks, code, g, kt_out, spot, phase_condition(code, g), dplanes[0],
-                       dplanes[1], mags, entry, track)
+    rec = FacesPoint(faces, planes, eta, kt, ks, code, g, kt_out, spot, phase_condition(code, g), dplanes[0],
+                     dplanes[1], mags, entry, track)
     before = stats[INTERVALS]
     total, rule, rounding, lo = 0.0, 0.0, 0.0, 0.0
     for i in range(m + 1):
@@ -687,43 +704,6 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
         return total, math.inf
     located = _break_errors(rec, end, cuts[:m])
     return total, rule + rounding + located + (stats[INTERVALS] - before) * U * (total + rule)
-
-
-class FacesTracked(NamedTuple):
-    """`FacesPoint` whose evaluations keep in track[0] the largest bound on their rounding (the sum
-    over the faces of `_term_error`): ph the phase's `phase_condition`, dn, dc the planes' errors,
-    mags and entry as `faces_quadrature`'s."""
-    faces: np.ndarray
-    planes: np.ndarray
-    eta: float
-    kt: float
-    ks: float
-    code: int
-    g: float
-    kt_out: float
-    spot: tuple
-    ph: float
-    dn: float
-    dc: float
-    mags: tuple
-    entry: int
-    track: np.ndarray
-
-
-@integrand_of(FacesTracked)
-@njit
-def _faces_tracked(x, r):
-    sp = r.spot
-    total, err = 0.0, 0.0
-    for j in range(r.faces.shape[0]):
-        row = r.faces[j]
-        term, rho, rr, on = _face_term(x, row, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
-        total += term
-        if on:
-            err += _term_error(x, row, term, rho, rr, r)
-    if err > r.track[0]:
-        r.track[0] = err
-    return total
 
 
 @njit
@@ -1533,7 +1513,8 @@ def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, 
         faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
         if m > 0:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:])
+            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
+                             (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
 
 

@@ -48,7 +48,7 @@ from ..media.adaptive import INTERVALS, bounded_piecewise
 from ..media.convex_directional import envelope
 from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
 from ..media.fermat_rounding import point_error
-from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesTracked,
+from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesPoint,
                           _break_errors, _fermat, _light_span, _march_or_sample, _norms, _on_face, _only_face,
                           _rho_range, _size, _spot_terms, _term_error, convex_exit_face, convex_integrand,
                           directional_rounding, edge_breaks, phase_condition, point_rounding, refracted_at,
@@ -285,22 +285,15 @@ class RefractedAttenuated(NamedTuple):
     the refraction point R lies on the face, times exp(-sum_j dk[j] chord_j) of the outside leg from R
     to the light, chord_j through the planes others[first[j]:stop[j]]. With a track (QUAD), each
     evaluation's rounding, the face's term's (media/slab.py `_term_error`, `faces` the row alone)
-    times the attenuation, is kept as `FacesTracked` keeps it."""
+    times the attenuation, is kept as `FacesPoint` keeps it. The shape's planes, eta, the medium's
+    and the spot's terms are those of `faces`."""
     row: np.ndarray
-    planes: np.ndarray
-    eta: float
-    kt: float
-    ks: float
-    code: int
-    g: float
-    kt_out: float
-    spot: tuple
     light: np.ndarray
     others: np.ndarray
     first: np.ndarray
     stop: np.ndarray
     dk: np.ndarray
-    faces: FacesTracked
+    faces: FacesPoint
 
 
 @njit
@@ -326,18 +319,18 @@ def _minus(a, b):
 @integrand_of(RefractedAttenuated)
 @njit
 def _refracted_attenuated(x, r):
-    row = r.row
+    row, f = r.row, r.faces
     z0, a = row[0], row[1]
     if not z0 + a * x > 0.0:
         return 0.0
-    rho, rr, p = _leg(x, row, r.eta)
-    if not _on_face(x, row, rr, rho, r.planes):
+    rho, rr, p = _leg(x, row, f.eta)
+    if not _on_face(x, row, rr, rho, f.planes):
         return 0.0
-    sp = r.spot
-    v = refracted_at(x, z0, rho, rr, row[3], a, row[2], r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, row[5], row[6],
+    sp = f.spot
+    v = refracted_at(x, z0, rho, rr, row[3], a, row[2], f.eta, f.kt, f.ks, f.code, f.g, f.kt_out, row[5], row[6],
                      row[7], sp[0], sp[1], sp[2])
-    track = r.faces.track
-    err = _term_error(x, row, v, rho, rr, r.faces) if track.shape[0] > 0 else 0.0
+    track = f.track
+    err = _term_error(x, row, v, rho, rr, f) if track.shape[0] > 0 else 0.0
     if v == 0.0 and err == 0.0:
         return 0.0
     u = _minus(r.light, p)
@@ -429,10 +422,9 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
         end = min(ell[s], 745.0 / kt)
         r, cmax = _size(geo[s], planes, end)
         pn, ln, lp = _norms(geo[s])
-        tracked = FacesTracked(faces[:1].copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
+        tracked = FacesPoint(faces[:1].copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
                                dplanes[1], (pn, ln, lp, r + ln + cmax), -1, np.zeros(1 if mode == QUAD else 0))
-        rec = RefractedAttenuated(row.copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], geo[s, 6:9].copy(),
-                                  others, first, stop, dk, tracked)
+        rec = RefractedAttenuated(row.copy(), geo[s, 6:9].copy(), others, first, stop, dk, tracked)
         if mode != QUAD:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
@@ -468,7 +460,7 @@ def _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats):
     before = stats[INTERVALS]
     tracked.track[0] = 0.0
     value, rule = bounded_piecewise(rec, cuts, cuts.shape[0], rtol, _N10, _W10, _N20, _W20, stats)
-    if not rec.eta > 1.0:
+    if not tracked.eta > 1.0:
         return value, math.inf
     z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
     rho_min, rho_max = _rho_range(0.0, end, wl, ll, a)
@@ -476,7 +468,7 @@ def _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats):
         return value, math.inf
     z_max = max(z0, z0 + a * end)
     pn, ln = tracked.mags[0], tracked.mags[1]
-    dr = point_error(end, math.sqrt(rho_max * rho_max + z_max * z_max), rho_max, hl, ll, rho_min, rec.eta,
+    dr = point_error(end, math.sqrt(rho_max * rho_max + z_max * z_max), rho_max, hl, ll, rho_min, tracked.eta,
                      tracked.dn, tracked.dc, tracked.mags, False)
     o_max = math.sqrt(rho_max * rho_max + hl * hl)
     r_max = max(pn + end + z_max, ln + hl)
