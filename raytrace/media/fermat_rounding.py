@@ -140,7 +140,7 @@ def term_rounding(x, z0, a, hl, ll, rho, r, eta, kt, kt_out, ph, dn, dc, mags, e
     falloff, and the absolute error of the spot's cosine to its axis (module docstring). ph: the phase's
     condition (media/slab.py `phase_condition`); dn, dc, mags, entry: as `leg_errors`'."""
     z = z0 + a * x
-    if not (hl > 0.0 and z > 0.0):
+    if not (hl > 0.0 and z > 0.0 and eta > 1.0):
         return math.inf, math.inf
     lh = math.sqrt(ll)
     if not rho > 1e-12 * (hl + z):

@@ -182,8 +182,8 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
     """The depths in (0, end) where the cosine of the refracted path's leaving direction crosses the
     cone's levels (kinks of the falloff, its jumps for a hard edge), bracketed on SCAN samples and
     bisected to the resolution of doubles, then those the samples missed (two in one cell, or in
-    the half cells at the ends) isolated with a bound on the cosine's derivative (`_cone_crossings`),
-    ascending in out; returns their count (<= MAX_CUTS)."""
+    the half cells at the ends; for eta > 1) isolated with a bound on the cosine's derivative
+    (`_cone_crossings`), ascending in out; returns their count (<= MAX_CUTS)."""
     if not is_spot(cos_start):
         return 0
     m = 0
@@ -200,6 +200,8 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
                 break
         prev = c1
     for level in (cos_end, cos_start):
+        if not eta > 1.0:  # no speed bound (fermat_speed)
+            break
         m = _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m)
         if cos_start == cos_end:
             break
@@ -467,7 +469,8 @@ def edge_breaks(row, planes, eta, end, out):
     |phi(lo)| + |phi(hi)| > K (hi - lo) + 2e-14 S holds none, S the scene's size about the segment; the
     others are halved down to 1e-13 S, at most MAX_ISOLATE evaluations: none missed, no grid) and
     bisected to the resolution of doubles; one sign change between the segment's ends is bisected
-    from them. Into out, returns their count (at most out's length)."""
+    from them (for eta <= 1, which has no such bound, only that one). Into out, returns their count
+    (at most out's length)."""
     f = int(row[17])
     m = 0
     scale = math.sqrt(row[8] ** 2 + row[9] ** 2 + row[10] ** 2) + end + math.sqrt(row[4])
@@ -475,8 +478,12 @@ def edge_breaks(row, planes, eta, end, out):
         if g == f or m == out.shape[0]:
             continue
         size = scale + abs(planes[g, 3])
-        found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-13 * size, out, m)
-        if found == m + 1 and _edge_value(0.0, row, planes, g, eta) * _edge_value(end, row, planes, g, eta) < 0.0:
+        ends = _edge_value(0.0, row, planes, g, eta) * _edge_value(end, row, planes, g, eta) < 0.0
+        if eta > 1.0:
+            found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-13 * size, out, m)
+        else:  # no speed bound (fermat_speed): the crossing between the ends only
+            found = m + 1 if ends else m
+        if found == m + 1 and ends:
             out[m] = _bisect(row, planes, g, eta, 0.0, end)  # the one crossing, bisected from the ends
         m = found
     return m
@@ -743,6 +750,8 @@ def _break_errors(rec, end, cuts):
     rule would have met an unfound jump or kink), else the sum over the undecided intervals of their
     width times twice the face's term at their ends (the jumps: an edge's, a hard cone edge's)."""
     faces, planes, eta, sp = rec.faces, rec.planes, rec.eta, rec.spot
+    if not eta > 1.0:
+        return math.inf
     total = 0.0
     width = 1e-13 * rec.mags[3]
     for j in range(faces.shape[0]):
