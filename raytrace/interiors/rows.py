@@ -107,7 +107,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     rtol, steps, tau_max = sup.settings(params)
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
-    dplanes = plane_errors(prep, sid)
+    dplanes = measured_plane_errors(prep, sid) if refractive else plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
 
     def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
@@ -288,8 +288,8 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     refractive shape, the directional light's beam refracted through that face (`_lit_beams`), the
     chords taken from its entry point along the sun. `face`: in a convex refractive shape, a point or
     spot light's Fermat path through that face (`_lit_point`), the chords those of its outside leg
-    (`refracted_attenuated`, unbounded: inf). QUAD bounds its integrals (with the planes' errors
-    `plane_errors`); the other rules' bound is infinite."""
+    (`refracted_attenuated`). QUAD bounds its integrals (with the planes' errors `plane_errors`,
+    `measured_plane_errors` on refracted paths); the other rules' bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, (oplanes, first, stop, kt_other, dothers, balls) = convex_planes(prep, sid), others
@@ -311,7 +311,7 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     if sup.mode == CLOSED:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
     unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
-    dplanes = plane_errors(prep, sid)
+    dplanes = plane_errors(prep, sid) if face is None else measured_plane_errors(prep, sid)
     for c in range(3):
         kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
         if ks == 0.0 or lights.intensity[li, c] == 0.0:
@@ -320,8 +320,7 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
         if face is not None:
             refracted_attenuated(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior), face,
                                  oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
-                                 np.uint64(seed), unit, unit_var, stats)
-            unit_err[:] = np.where(ell > 0.0, np.inf, 0.0)
+                                 np.uint64(seed), dplanes, dothers, balls, unit, unit_var, unit_err, stats)
         else:
             attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first,
                                 stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes,
@@ -350,9 +349,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
     Where all index-matched interiors are convex (`_other_interiors`), a beam is attenuated by the others
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
-    (`_through_others`); else they are not applied. With any such interior the point and spot lights'
-    bound is infinite (their refracted paths are not bounded), and with any that is not convex every
-    light's."""
+    (`_through_others`); else they are not applied, and every light's bound is infinite."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = convex_planes(prep, sid), blockers(prep)
     n = len(points)
@@ -381,7 +378,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
                     val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, piece, f)
                 stats += st
                 _carry(out, var, bound, r, kt, x0[at], val, v, b)
-    if matched(prep) and (others is None or not np.all(lights.distant)):
+    if matched(prep) and others is None:
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 
@@ -394,7 +391,9 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     start, carried back by exp(-sigma_t t0); a piece that starts inside has no entry face (zero
     normals). Rows lit whole through every face take the light's integral over all faces at once,
     as without shadows, unless `others` (`_other_interiors`) attenuate the outside legs: then every
-    piece takes its face's path attenuated by them (`_through_others(..., face=f)`)."""
+    piece takes its face's path attenuated by them (`_through_others(..., face=f)`). A piece cut by an
+    occluder's break (shadows/fermat_legs.py: where a leg meets an occluder's edge) has an infinite
+    bound (the break's location error is not analysed); the others keep their integrals' bound."""
     points, normals, w, ell, keys = rows
     out, var, bound, stats = acc
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
@@ -422,6 +421,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
                 val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, sub, seed, depth, face=f)
             else:
                 val, v, st, b = single_scattering(prep, method, params, sid, *sub, reach, seed, depth, li, piece, f)
+            b[(x0[at] > 0.0) | (x1[at] < ell[r])] = np.inf  # an occluder's break: its location is not analysed
             stats += st
             _carry(out, var, bound, r, kt, x0[at], val, v, b)
 
@@ -494,6 +494,36 @@ def plane_errors(prep, sid):
     half = 0.5 * 10.0 ** -PLANE_DECIMALS
     size = float(np.max(np.abs(prep.accel.triangles[prep.shape_ids == sid]), initial=0.0))
     return np.array([math.sqrt(3.0) * half + 1e-15, (half + 1e-15) * size])
+
+
+def measured_plane_errors(prep, sid):
+    """(dn, dc) as `plane_errors`, measured on the shape's triangles (for the refracted point and spot
+    lights' bound, media/fermat_rounding.py): each triangle's unit normal (its cross product's, a few
+    ulps off: + 8u) and vertices against the plane of `convex_planes` it lies in (the nearest by
+    normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
+    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|). `plane_errors` where
+    the shape has no convex planes or a triangle lies in none of them (to its bound)."""
+    def measure():
+        planes = convex_planes(prep, sid)
+        tris = prep.accel.triangles[prep.shape_ids == sid].astype(np.float64)
+        bound = plane_errors(prep, sid)
+        cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        area = np.linalg.norm(cross, axis=1)
+        tris, n = tris[area > 0.0], cross[area > 0.0] / area[area > 0.0, None]
+        if not len(planes) or not len(tris):
+            return bound
+        off = np.abs(np.einsum("tvk,pk->tpv", tris, planes[:, :3]) - planes[None, :, 3, None]).max(axis=2)
+        dn = np.abs(n[:, None, :] - planes[None, :, :3]).max(axis=2)
+        best = np.argmin(dn + off / max(float(np.abs(tris).max()), 1e-300), axis=1)
+        rows = np.arange(len(tris))
+        u = 2.0 ** -53
+        dn_f = dn[rows, best] + 8.0 * u
+        norms = np.linalg.norm(tris, axis=2).max(axis=1)
+        dc_f = off[rows, best] + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
+        if dn_f.max() > bound[0] or dc_f.max() > bound[1]:
+            return bound
+        return np.array([dn_f.max(), dc_f.max()])
+    return prep.memo(("measured plane errors", sid), measure)
 
 
 def _light_bound(err, value, f, cos_end):

@@ -42,9 +42,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit
-from ..lights import NO_CONE, SMOOTHSTEP, cone_breaks, falloff, is_spot
+from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
 from ..rng import uniform
 from .adaptive import INTERVALS, bounded_piecewise, piecewise, sort_few
+from .fermat_rounding import SQ3, cosine_error, fermat_speed, point_error, refraction_newton, term_rounding
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
 from .integrand import integrand, integrand_of
@@ -152,7 +153,7 @@ def refraction_point(rho, z, hl, eta):
 def _fermat(x, z0, wl, ll, a, hl, eta):
     """(rho, r) of `refracted_at` at x: the horizontal distance between the light and the point, and
     the refraction point's distance from the point's foot."""
-    rho = math.sqrt(max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0))
+    rho = _rho(x, wl, ll, a)
     return rho, refraction_point(rho, z0 + a * x, hl, eta)
 
 
@@ -180,8 +181,9 @@ MAX_CUTS = 8
 def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, out):
     """The depths in (0, end) where the cosine of the refracted path's leaving direction crosses the
     cone's levels (kinks of the falloff, its jumps for a hard edge), bracketed on SCAN samples and
-    bisected to the resolution of doubles, ascending in out; returns their count (<= MAX_CUTS).
-    Crossings closer together than end / SCAN can be missed (the adaptive rule then meets them)."""
+    bisected to the resolution of doubles, then those the samples missed (two in one cell, or in
+    the half cells at the ends; for eta > 1) isolated with a bound on the cosine's derivative
+    (`_cone_crossings`), ascending in out; returns their count (<= MAX_CUTS)."""
     if not is_spot(cos_start):
         return 0
     m = 0
@@ -191,23 +193,98 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
         c1 = refracted_cosine(x1, z0, wl, ll, a, hl, eta, wa, la, na)
         for level in (cos_end, cos_start):
             if (prev - level) * (c1 - level) < 0.0 and m < MAX_CUTS:
-                lo, hi = end * (i - 0.5) / SCAN, x1
-                s_lo = prev - level
-                for _ in range(100):
-                    mid = 0.5 * (lo + hi)
-                    if not lo < mid < hi:
-                        break
-                    if (refracted_cosine(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
-                        lo = mid
-                    else:
-                        hi = mid
-                out[m] = 0.5 * (lo + hi)
+                out[m] = _bisect_cosine(end * (i - 0.5) / SCAN, x1, prev - level, z0, wl, ll, a, hl, eta, wa, la, na,
+                                        level)
                 m += 1
             if cos_start == cos_end:
                 break
         prev = c1
+    for level in (cos_end, cos_start):
+        if not eta > 1.0:  # no speed bound (fermat_speed)
+            break
+        m = _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m)
+        if cos_start == cos_end:
+            break
     sort_few(out, 0, m)
     return m
+
+
+@njit
+def _bisect_cosine(lo, hi, s_lo, z0, wl, ll, a, hl, eta, wa, la, na, level):
+    """The crossing of `refracted_cosine` with level in [lo, hi] (s_lo: its sign at lo, the other at
+    hi) to the resolution of doubles."""
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if (refracted_cosine(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level) * s_lo > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit
+def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
+    """`refracted_cuts`' crossings of one level that out[:m] lacks, appended (up to MAX_CUTS); returns
+    the new count. c(x) - level with the refraction point by Newton's method (media/fermat_rounding.py
+    `refraction_newton`), whose derivative is at most K_R / o_min (K_R `fermat_speed`, the refraction
+    point's speed; the leaving direction's turn is at most |R'| / o, o >= sqrt(s^2 + hl^2) with
+    s >= rho hl / (hl + z): tan t1 >= tan t2): an interval [lo, hi] with |c(lo) - level| +
+    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing; the others are halved down to 1e-13 of
+    the segment's scale (at most MAX_ISOLATE evaluations), and a sign change there of
+    `refracted_cosine` with no cut in it bisected to the resolution of doubles."""
+    scale = end + math.sqrt(ll) + hl + z0
+    width = 1e-13 * scale
+    stack = np.empty((128, 4))
+    stack[0, 0], stack[0, 1] = 0.0, end
+    stack[0, 2] = _cone_psi(0.0, z0, wl, ll, a, hl, eta, wa, la, na) - level
+    stack[0, 3] = _cone_psi(end, z0, wl, ll, a, hl, eta, wa, la, na) - level
+    top, evals = 1, 2
+    while top > 0 and m < MAX_CUTS:
+        top -= 1
+        lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        rmin, rmax = _rho_range(lo, hi, wl, ll, a)
+        zlo, zhi = min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi)
+        smin = rmin * hl / (hl + zhi)
+        k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / math.sqrt(smin * smin + hl * hl)
+        if abs(vlo) + abs(vhi) > k * (hi - lo) + 2e-13:
+            continue
+        if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
+            c_lo = refracted_cosine(lo, z0, wl, ll, a, hl, eta, wa, la, na) - level
+            c_hi = refracted_cosine(hi, z0, wl, ll, a, hl, eta, wa, la, na) - level
+            if c_lo * c_hi < 0.0 and not _near(out[:m], lo, hi, 0.0):
+                out[m] = _bisect_cosine(lo, hi, c_lo, z0, wl, ll, a, hl, eta, wa, la, na, level)
+                m += 1
+            continue
+        mid = 0.5 * (lo + hi)
+        vm = _cone_psi(mid, z0, wl, ll, a, hl, eta, wa, la, na) - level
+        evals += 1
+        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
+        top += 2
+    return m
+
+
+@njit
+def _cone_psi(x, z0, wl, ll, a, hl, eta, wa, la, na):
+    """`refracted_cosine` with the refraction point by Newton's method (`refraction_newton`)."""
+    rho = _rho(x, wl, ll, a)
+    z = z0 + a * x
+    if not rho > 1e-12 * (hl + z):
+        return -na
+    r = refraction_newton(rho, z, hl, eta)
+    return _leaving_cosine(x, rho, r, math.sqrt((rho - r) * (rho - r) + hl * hl), hl, wa, la, na)
+
+
+@njit
+def _rho_range(lo, hi, wl, ll, a):
+    """The least and largest horizontal distance `_rho` over [lo, hi] (a convex function of x)."""
+    r0, r1 = _rho(lo, wl, ll, a), _rho(hi, wl, ll, a)
+    rmin = min(r0, r1)
+    if a * a < 1.0 and lo < wl / (1.0 - a * a) < hi:
+        rmin = _rho(wl / (1.0 - a * a), wl, ll, a)
+    return rmin, max(r0, r1)
 
 
 @njit
@@ -261,6 +338,19 @@ def refracted_at(x, z0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, wa, la,
 # segment's start on its plane (3), w_h (3), L_h (3), the face's row in `planes`
 FACE_COLUMNS = 18
 EDGE_TOL = 1e-12  # relative tolerance of the test that a refraction point lies on its face
+EDGE_CUTS = 4  # room for a face's crossings of each other plane's line in `edge_breaks`
+MAX_ISOLATE = 20000  # evaluations of one function in `_sign_changes` and `_isolate`
+
+
+@njit
+def entry_face(geo, planes):
+    """The row of `planes` whose normal is the geo row's entry normal geo[14:17] (-1: none)."""
+    entry, best = -1, 1.0 - 1e-9
+    for f in range(planes.shape[0]):
+        dot = planes[f, 0] * geo[14] + planes[f, 1] * geo[15] + planes[f, 2] * geo[16]
+        if dot > best:
+            entry, best = f, dot
+    return entry
 
 
 @njit
@@ -273,11 +363,7 @@ def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
     a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no
     planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar boundary)."""
     nf = planes.shape[0]
-    entry, best = -1, 1.0 - 1e-9
-    for f in range(nf):
-        dot = planes[f, 0] * geo[14] + planes[f, 1] * geo[15] + planes[f, 2] * geo[16]
-        if dot > best:
-            entry, best = f, dot
+    entry = entry_face(geo, planes)
     m = 0
     for f in range(nf) if nf > 0 else range(-1, 0):
         if f == entry:
@@ -314,13 +400,20 @@ def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
 @njit
 def _edge_distance(x, row, r, rho, planes, g):
     """n_g·R - c_g for the refraction point R = p_f + x w_h + (r / rho)(L_h - x w_h) on face row's plane
-    (`refracting_faces`), with the relative tolerance EDGE_TOL subtracted."""
+    (`refracting_faces`), with the relative tolerance EDGE_TOL subtracted (`_edge_parts`)."""
+    dist, slack = _edge_parts(x, row, r, rho, planes, g)
+    return dist - slack
+
+
+@njit
+def _edge_parts(x, row, r, rho, planes, g):
+    """`_edge_distance`'s n_g·R - c_g and the tolerance it subtracts."""
     t = r / rho if rho > 0.0 else 0.0
     q0 = row[8] + x * row[11] + t * (row[14] - x * row[11])
     q1 = row[9] + x * row[12] + t * (row[15] - x * row[12])
     q2 = row[10] + x * row[13] + t * (row[16] - x * row[13])
     dist = planes[g, 0] * q0 + planes[g, 1] * q1 + planes[g, 2] * q2 - planes[g, 3]
-    return dist - EDGE_TOL * (abs(planes[g, 3]) + abs(q0) + abs(q1) + abs(q2))
+    return dist, EDGE_TOL * (abs(planes[g, 3]) + abs(q0) + abs(q1) + abs(q2))
 
 
 @njit
@@ -341,16 +434,22 @@ def faces_point(x, faces, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_sta
     whose refraction point lies on that face, summed."""
     total = 0.0
     for j in range(faces.shape[0]):
-        row = faces[j]
-        z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
-        if not z0 + a * x > 0.0:
-            continue
-        rho, r = _fermat(x, z0, wl, ll, a, hl, eta)
-        if not _on_face(x, row, r, rho, planes):
-            continue
-        total += refracted_at(x, z0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, row[5], row[6], row[7],
-                              cos_end, cos_start, curve)
+        total += _face_term(x, faces[j], planes, eta, kt, ks, code, g, kt_out, cos_end, cos_start, curve)[0]
     return total
+
+
+@njit
+def _face_term(x, row, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_start, curve):
+    """(term, rho, r, on) of face row at x in `faces_point`: `refracted_at` where the refraction point
+    lies on the face (`_on_face`: on), else 0; rho, r of `_fermat` (0 where X is above the face's plane)."""
+    z0, a = row[0], row[1]
+    if not z0 + a * x > 0.0:
+        return 0.0, 0.0, 0.0, False
+    rho, r = _fermat(x, z0, row[3], row[4], a, row[2], eta)
+    if not _on_face(x, row, r, rho, planes):
+        return 0.0, rho, r, False
+    return (refracted_at(x, z0, rho, r, row[3], a, row[2], eta, kt, ks, code, g, kt_out, row[5], row[6], row[7],
+                         cos_end, cos_start, curve), rho, r, True)
 
 
 @njit
@@ -365,27 +464,71 @@ def _edge_value(x, row, planes, g, eta):
 def edge_breaks(row, planes, eta, end, out):
     """The x in (0, end) where face row's refraction point R(x) (`refracting_faces`) crosses the line of
     another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on
-    or off), each by bisection to the resolution of doubles between the segment's ends where the sign
-    of n_g·R - c_g differs there; into out, returns their count (<= planes rows - 1)."""
+    or off): every sign change of `_edge_value`, isolated with a bound K on its derivative (K_R of
+    media/fermat_rounding.py `fermat_speed`, the refraction point's speed: an interval [lo, hi] with
+    |phi(lo)| + |phi(hi)| > K (hi - lo) + 2e-14 S holds none, S the scene's size about the segment; the
+    others are halved down to 1e-13 S, at most MAX_ISOLATE evaluations: none missed, no grid) and
+    bisected to the resolution of doubles; one sign change between the segment's ends is bisected
+    from them (for eta <= 1, which has no such bound, only that one). Into out, returns their count
+    (at most out's length)."""
     f = int(row[17])
     m = 0
+    scale = math.sqrt(row[8] ** 2 + row[9] ** 2 + row[10] ** 2) + end + math.sqrt(row[4])
     for g in range(planes.shape[0]):
-        if g == f:
+        if g == f or m == out.shape[0]:
             continue
-        lo, hi = 0.0, end
-        s_lo = _edge_value(lo, row, planes, g, eta)
-        if s_lo * _edge_value(hi, row, planes, g, eta) >= 0.0:
+        size = scale + abs(planes[g, 3])
+        ends = _edge_value(0.0, row, planes, g, eta) * _edge_value(end, row, planes, g, eta) < 0.0
+        if eta > 1.0:
+            found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-13 * size, out, m)
+        else:  # no speed bound (fermat_speed): the crossing between the ends only
+            found = m + 1 if ends else m
+        if found == m + 1 and ends:
+            out[m] = _bisect(row, planes, g, eta, 0.0, end)  # the one crossing, bisected from the ends
+        m = found
+    return m
+
+
+@njit
+def _bisect(row, planes, g, eta, lo, hi):
+    """The sign change of `_edge_value` in [lo, hi] (signs differ at its ends) to the resolution of doubles."""
+    s_lo = _edge_value(lo, row, planes, g, eta)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if _edge_value(mid, row, planes, g, eta) * s_lo > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit
+def _sign_changes(row, planes, g, eta, end, tol, width, out, m):
+    """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count."""
+    z0, a, wl, ll = row[0], row[1], row[3], row[4]
+    stack = np.empty((128, 4))
+    stack[0, 0], stack[0, 1] = 0.0, end
+    stack[0, 2], stack[0, 3] = _edge_value(0.0, row, planes, g, eta), _edge_value(end, row, planes, g, eta)
+    top, evals = 1, 2
+    while top > 0 and m < out.shape[0]:
+        top -= 1
+        lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
+        if abs(vlo) + abs(vhi) > k * (1.0 + 1e-11) * (hi - lo) + 2.0 * tol:
             continue
-        for _ in range(200):
-            mid = 0.5 * (lo + hi)
-            if not lo < mid < hi:
-                break
-            if _edge_value(mid, row, planes, g, eta) * s_lo > 0.0:
-                lo = mid
-            else:
-                hi = mid
-        out[m] = 0.5 * (lo + hi)
-        m += 1
+        if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
+            if vlo * vhi < 0.0:
+                out[m] = _bisect(row, planes, g, eta, lo, hi)
+                m += 1
+            continue
+        mid = 0.5 * (lo + hi)
+        vm = _edge_value(mid, row, planes, g, eta)
+        evals += 1
+        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
+        top += 2
     return m
 
 
@@ -435,7 +578,10 @@ class DistantSlab(NamedTuple):
 
 
 class FacesPoint(NamedTuple):
-    """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve))."""
+    """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve)). With a track (QUAD), its
+    evaluations keep in track[0] the largest bound on their rounding (the sum over the faces of
+    `_term_error`): ph the phase's `phase_condition`, dn, dc the planes' errors, mags and entry as
+    `faces_quadrature`'s (else an empty track)."""
     faces: np.ndarray
     planes: np.ndarray
     eta: float
@@ -445,13 +591,30 @@ class FacesPoint(NamedTuple):
     g: float
     kt_out: float
     spot: tuple
+    ph: float
+    dn: float
+    dc: float
+    mags: tuple
+    entry: int
+    track: np.ndarray
 
 
 @integrand_of(FacesPoint)
 @njit
 def _faces_value(x, r):
     sp = r.spot
-    return faces_point(x, r.faces, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+    if r.track.shape[0] == 0:
+        return faces_point(x, r.faces, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+    total, err = 0.0, 0.0
+    for j in range(r.faces.shape[0]):
+        row = r.faces[j]
+        term, rho, rr, on = _face_term(x, row, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+        total += term
+        if on:
+            err += _term_error(x, row, term, rho, rr, r)
+    if err > r.track[0]:
+        r.track[0] = err
+    return total
 
 
 @integrand_of(PlanarTheta)
@@ -504,33 +667,231 @@ def _one_piece(rec, lo, hi, rtol, stats):
 
 
 @njit
-def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rtol, stats):
-    """∫_0^ell `faces_point` dx for a unit point or spot light (`spot`: (cos_end, cos_start, curve)) in a
-    convex refractive shape, adaptive (`_one_piece`) on the pieces between the breaks of the integrand:
-    where a face's refraction point crosses one of its edges (`edge_breaks`) and where a spot's cone
-    levels are crossed on a face's refracted path (`refracted_cuts`); an infinite segment is cut where
-    exp(-kt x) underflows. With no planes (`refracting_faces`' entry plane alone), the pieces between
-    the cone's crossings."""
+def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rtol, dplanes, mags, entry, stats):
+    """(∫_0^ell `faces_point` dx, a bound on its error) for a unit point or spot light (`spot`: (cos_end,
+    cos_start, curve)) in a convex refractive shape, adaptive (`_one_piece`'s rule) on the pieces
+    between the breaks of the integrand: where a face's refraction point crosses one of its edges
+    (`edge_breaks`) and where a spot's cone levels are crossed on a face's refracted path
+    (`refracted_cuts`); an infinite segment is cut where exp(-kt x) underflows. With no planes
+    (`refracting_faces`' entry plane alone), the pieces between the cone's crossings. The bound
+    (docs/error_bounds.md, "Point and spot light in refractive shapes") is the rule's (inf where a
+    panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
+    (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
+    the 10-point sums of its test), plus the breaks' location error (`_break_errors`), plus u per
+    interval; inf with no planes or eta <= 1. dplanes: the planes' errors (interiors/rows.py
+    `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
+    `leg_errors`); entry: the entry face's row in planes."""
     if ks == 0.0 or not ell > 0.0:
-        return 0.0
+        return 0.0, 0.0
     end = min(ell, 745.0 / kt)
     nf = faces.shape[0]
-    cuts = np.empty(nf * (planes.shape[0] + MAX_CUTS))
+    cuts = np.empty(nf * (EDGE_CUTS * planes.shape[0] + MAX_CUTS))
     m = 0
     for j in range(nf):
         row = faces[j]
         m += refracted_cuts(row[0], row[3], row[4], row[1], row[2], eta, row[5], row[6], row[7], spot[0], spot[1],
                             end, cuts[m:])
-        m += edge_breaks(row, planes, eta, end, cuts[m:])
+        m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
-    rec = FacesPoint(faces, planes, eta, kt, ks, code, g, kt_out, spot)
-    total, lo = 0.0, 0.0
+    track = np.zeros(1)
+    rec = FacesPoint(faces, planes, eta, kt, ks, code, g, kt_out, spot, phase_condition(code, g), dplanes[0],
+                     dplanes[1], mags, entry, track)
+    before = stats[INTERVALS]
+    total, rule, rounding, lo = 0.0, 0.0, 0.0, 0.0
     for i in range(m + 1):
         hi = cuts[i] if i < m else end
         if hi > lo:
-            total += _one_piece(rec, lo, hi, rtol, stats)
+            track[0] = 0.0
+            value, err = bounded_piecewise(rec, (lo, hi), 2, rtol, _N10, _W10, _N20, _W20, stats)
+            total += value
+            rule += err
+            rounding += 3.0 * track[0] * (hi - lo)
         lo = hi
+    if planes.shape[0] == 0 or not eta > 1.0:
+        return total, math.inf
+    located = _break_errors(rec, end, cuts[:m])
+    return total, rule + rounding + located + (stats[INTERVALS] - before) * U * (total + rule)
+
+
+@njit
+def _term_error(x, row, term, rho, r, rec):
+    """A bound on the rounding of face row's term `term` at x (lit through the face): its relative
+    rounding (media/fermat_rounding.py `term_rounding`) times it, and where the spot's cosine c lies
+    within its error dcos of the falloff's band, the falloff's slope times dcos times the term without
+    the falloff (a hard edge's jump is a break, `_break_errors`)."""
+    sp = rec.spot
+    z0, a, hl = row[0], row[1], row[2]
+    eps, dcos = term_rounding(x, z0, a, hl, row[4], rho, r, rec.eta, rec.kt, rec.kt_out, rec.ph, rec.dn, rec.dc,
+                              rec.mags, row[17] == rec.entry)
+    err = eps * term
+    if is_spot(sp[1]) and sp[1] > sp[0]:
+        z = z0 + a * x
+        c = -row[7]
+        if rho > 1e-12 * (hl + z):
+            c = _leaving_cosine(x, rho, r, math.sqrt((rho - r) * (rho - r) + hl * hl), hl, row[5], row[6], row[7])
+        if sp[0] - dcos < c < sp[1] + dcos:
+            bare = refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, rec.kt, rec.ks, rec.code, rec.g, rec.kt_out,
+                                row[5], row[6], row[7], NO_CONE[0], NO_CONE[1], SMOOTHSTEP)
+            err += band_slope(sp[0], sp[1], int(sp[2])) / (sp[1] - sp[0]) * dcos * bare * (1.0 + eps)
+    return err
+
+
+_EDGE, _CONE = 0, 1
+
+
+@njit
+def _break_errors(rec, end, cuts):
+    """The breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it took): for
+    every face row f and every other plane g, the roots of n_g·R(x) - c_g (R(x) face f's refraction
+    point, whose computed value is within E of the exact one, E the refraction point's error
+    `point_error` at the segment's worst (largest x, k, s, least rho) plus the planes' errors; the
+    face test's tolerance EDGE_TOL apart) and, for a spot, of its cosine minus each cone level (within
+    the cosine's error `cosine_error`) are isolated by `_isolate`; inf where one may lie away from every cut (the
+    rule would have met an unfound jump or kink), else the sum over the undecided intervals of their
+    width times twice the face's term at their ends (the jumps: an edge's, a hard cone edge's)."""
+    faces, planes, eta, sp = rec.faces, rec.planes, rec.eta, rec.spot
+    if not eta > 1.0:
+        return math.inf
+    total = 0.0
+    width = 1e-13 * rec.mags[3]
+    for j in range(faces.shape[0]):
+        row = faces[j]
+        z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+        if not hl > 1e-9 * rec.mags[3]:
+            return math.inf  # a light within a few roundings of the face's plane
+        rho_min, rho_max = _rho_range(0.0, end, wl, ll, a)
+        if not rho_min > 0.0:
+            return math.inf
+        z_max = max(z0, z0 + a * end)
+        k_max = math.sqrt(rho_max * rho_max + z_max * z_max)
+        entry = row[17] == rec.entry
+        args = (end, k_max, rho_max, hl, ll, rho_min, eta, rec.dn, rec.dc, rec.mags, entry)
+        e_point = point_error(*args)
+        q = SQ3 * max(rec.mags[0] + end + z_max, rec.mags[1] + hl)  # |R|_1, R between the feet of X and L
+        for g in range(planes.shape[0]):
+            if g == int(row[17]):
+                continue
+            tol = e_point + 8.0 * U * rho_max + rec.dc + SQ3 * rec.dn * q + 16.0 * U * (abs(planes[g, 3]) + q)
+            total += _isolate(_EDGE, rec, row, g, 0.0, end, tol, EDGE_TOL * (abs(planes[g, 3]) + q), cuts, width, hl)
+        if is_spot(sp[1]):
+            tol = cosine_error(*args) + 8.0 * U * rho_max / hl
+            s_min = rho_min * hl / (hl + z_max)  # s / rho >= hl / (hl + z): tan t1 >= tan t2
+            for level in (sp[0], sp[1]):
+                total += _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl))
+                if sp[1] == sp[0]:
+                    break
+        if total == math.inf:
+            return total
     return total
+
+
+@njit
+def _rho(x, wl, ll, a):
+    """The horizontal distance between the light and the point at x (`_fermat`'s rho)."""
+    return math.sqrt(max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0))
+
+
+@njit
+def _psi(kind, x, rec, row, g, level):
+    """_EDGE: n_g·R - c_g of plane g; _CONE: the leaving cosine minus level; with the refraction point
+    by Newton's method (media/fermat_rounding.py `refraction_newton`: within 4e-16 rho of the
+    bisection's resolution, covered by `_break_errors`' tolerance)."""
+    z0, a, hl = row[0], row[1], row[2]
+    rho = _rho(x, row[3], row[4], a)
+    z = max(z0, 0.0) + a * x
+    r = refraction_newton(rho, z, hl, rec.eta)
+    if kind == _EDGE:
+        return _edge_parts(x, row, r, rho, rec.planes, g)[0]
+    if not rho > 1e-12 * (hl + z):
+        return -row[7] - level
+    return _leaving_cosine(x, rho, r, math.sqrt((rho - r) * (rho - r) + hl * hl), hl, row[5], row[6], row[7]) - level
+
+
+@njit
+def _phi(kind, x, rec, row, g, level):
+    """What the integrand's switches take: _EDGE `_edge_value` of plane g (its tolerance subtracted),
+    _CONE `refracted_cosine` minus level."""
+    if kind == _EDGE:
+        return _edge_value(x, row, rec.planes, g, rec.eta)
+    return refracted_cosine(x, row[0], row[3], row[4], row[1], row[2], rec.eta, row[5], row[6], row[7]) - level
+
+
+@njit
+def _jump(kind, x, rec, row):
+    """The face's term at x without its face test (_EDGE) or without the falloff (_CONE): at least
+    its jump there."""
+    z0, a, hl = row[0], row[1], row[2]
+    if not z0 + a * x > 0.0:
+        return 0.0
+    rho, r = _fermat(x, z0, row[3], row[4], a, hl, rec.eta)
+    cone = rec.spot if kind == _EDGE else (NO_CONE[0], NO_CONE[1], float(SMOOTHSTEP))
+    return refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, rec.kt, rec.ks, rec.code, rec.g, rec.kt_out, row[5],
+                        row[6], row[7], cone[0], cone[1], cone[2])
+
+
+@njit
+def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
+    """The location error of one break over [0, end]: the exact switch is a root of psi_exact, the
+    computed one a sign change of phi (`_phi`: psi - t, 0 <= t <= slack, the face test's tolerance),
+    and the computed psi (`_psi`) is within tol of psi_exact, so the two may differ only where psi
+    lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
+    K_R, times 1 + 1e-11 for an edge plane's normal; over the outside leg's least length o_min for a
+    cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi]
+    with psi(lo) + psi(hi) > K (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol
+    lies outside the band; the others are halved until shorter than `width`, or than 1e4 `width` with
+    both ends in twice the band: these undecided intervals come out from left to right, and runs of
+    adjacent ones form clusters. A cluster where phi changes sign with no cut within `width` of it (a
+    jump or kink the rule did not break at): inf; else, for an edge or a hard cone edge, each
+    undecided interval's width times twice the larger `_jump` at its ends (the term varies by far less
+    than that over 1e4 `width` = 1e-9 of the scene's size: its log-derivative is at most a few over
+    the light's height, which is above 1e-9 of it). inf after MAX_ISOLATE evaluations."""
+    z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+    eta = rec.eta
+    hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
+    stack = np.empty((128, 4))
+    stack[0, 0], stack[0, 1] = 0.0, end
+    stack[0, 2], stack[0, 3] = _psi(kind, 0.0, rec, row, g, level), _psi(kind, end, rec, row, g, level)
+    top, evals, err = 1, 2, 0.0
+    run_lo, run_hi, change = -1.0, -1.0, False
+    while top > 0:
+        top -= 1
+        lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
+        k = k * (1.0 + 1e-11) if kind == _EDGE else k / o_min
+        if vlo + vhi > k * (hi - lo) + 4.0 * tol + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * tol:
+            continue
+        inside = -2.0 * tol <= vlo <= slack + 2.0 * tol and -2.0 * tol <= vhi <= slack + 2.0 * tol
+        if hi - lo <= width or (inside and hi - lo <= 1e4 * width):
+            if lo != run_hi:  # a new cluster: close the last
+                if change and not _near(cuts, run_lo, run_hi, width):
+                    return math.inf
+                run_lo, change = lo, False
+            run_hi = hi
+            change = change or _phi(kind, lo, rec, row, g, level) * _phi(kind, hi, rec, row, g, level) <= 0.0
+            evals += 2
+            if hard:
+                err += 2.0 * max(_jump(kind, lo, rec, row), _jump(kind, hi, rec, row)) * (hi - lo)
+            continue
+        if evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
+            return math.inf
+        mid = 0.5 * (lo + hi)
+        vm = _psi(kind, mid, rec, row, g, level)
+        evals += 1
+        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
+        top += 2
+    if change and not _near(cuts, run_lo, run_hi, width):
+        return math.inf
+    return err
+
+
+@njit
+def _near(cuts, lo, hi, width):
+    """Whether a cut lies within width of [lo, hi]."""
+    for c in cuts:
+        if lo - width <= c <= hi + width:
+            return True
+    return False
 
 
 @njit
@@ -1060,8 +1421,9 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD),
     with only >= 0 through that face alone.
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
-    `dplanes` the planes' own errors against the shape's faces)
-    and where the value is exactly 0 (no light, nothing to scatter); inf elsewhere.
+    `dplanes` the planes' own errors against the shape's faces), for QUAD's point and spot lights in
+    convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to
+    scatter); inf elsewhere.
     Each kind of segment has its own kernel below, compiled on first use: a scene compiles the
     integrands of the kinds it meets only."""
     out[:], var[:] = 0.0, 0.0
@@ -1078,7 +1440,7 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
         # a point or spot light through every face of a convex refractive shape, else the entry plane
         if mode == QUAD:
             each(_faces_quad, live & ~directional, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta,
-                 rtol, out, stats)
+                 rtol, dplanes, out, err, stats)
         else:
             each(_faces_sampled, live & ~directional, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
                  eta, mode, steps, tau_max, keys, dim0, seed, out, var)
@@ -1130,12 +1492,26 @@ def _faces(s, geo, planes, a, hl, wl, ll, only):
 
 
 @njit
-def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, out, stats):
-    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`."""
+def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out, err,
+                stats):
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound."""
     for s in sel:
         faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        err[s] = 0.0
         if m > 0:
-            out[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, stats)
+            r, cmax = _size(geo[s], planes, min(ell[s], 745.0 / kt))
+            p, ln, lp = _norms(geo[s])
+            out[s], err[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
+                                              dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], planes), stats)
+
+
+@njit
+def _norms(geo):
+    """|p|, |L| and |L - p| of a point or spot light's geo row."""
+    p = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2])
+    ln = math.sqrt(geo[6] * geo[6] + geo[7] * geo[7] + geo[8] * geo[8])
+    lp = math.sqrt((geo[6] - geo[0]) ** 2 + (geo[7] - geo[1]) ** 2 + (geo[8] - geo[2]) ** 2)
+    return p, ln, lp
 
 
 @njit
@@ -1146,7 +1522,8 @@ def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, 
         faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
         if m > 0:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:])
+            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
+                             (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
 
 

@@ -49,6 +49,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..media.fermat_rounding import fermat_speed, refraction_newton
 from .beams import blockers_inside
 
 MAX_EVALS = 20000  # evaluations of one break function on one segment
@@ -100,36 +101,8 @@ def _refraction(x, pf, wh, z0, a, lf, hl, eta):
     rho = _norm(d)
     if rho == 0.0:
         return xf, 0.0, z
-    r = _refraction_distance(rho, z, hl, eta)
+    r = refraction_newton(rho, z, hl, eta)
     return xf + (r / rho) * d, rho, z
-
-
-@njit
-def _refraction_distance(rho, z, hl, eta):
-    """media/slab.py `refraction_point` by Newton's method kept inside the bracket (bisection where a
-    step leaves it): the root of f(r) = (rho - r) / o - eta r / k, which falls from f(0) >= 0 to
-    f(rho) <= 0 with f' = -hl^2 / o^3 - eta z^2 / k^3, to the resolution of doubles."""
-    if not z > 0.0:
-        return 0.0
-    lo, hi = 0.0, rho
-    r = rho * z / (eta * hl + z)  # the paraxial guess, in the bracket
-    for _ in range(100):
-        o, k = math.sqrt((rho - r) * (rho - r) + hl * hl), math.sqrt(r * r + z * z)
-        f = (rho - r) / o - eta * r / k
-        if f > 0.0:
-            lo = r
-        else:
-            hi = r
-        step = f / (hl * hl / (o * o * o) + eta * z * z / (k * k * k))
-        if abs(step) <= 4e-16 * rho:
-            return min(max(r + step, 0.0), rho)
-        nxt = r + step
-        if not lo < nxt < hi:
-            nxt = 0.5 * (lo + hi)
-            if not lo < nxt < hi:
-                return r
-        r = nxt
-    return r
 
 
 @njit
@@ -185,12 +158,7 @@ def _value(kind, x, e0, vec, p, w, pf, wh, z0, a, lf, hl, eta):
 @njit
 def _speed(x0, x1, a, lf, pf, wh, z0, eta):
     """K_R: a bound on |R'| over [x0, x1] (module docstring)."""
-    r0, r1 = _norm(pf + x0 * wh - lf), _norm(pf + x1 * wh - lf)
-    zmin = min(z0 + a * x0, z0 + a * x1)
-    t = 1.0 / math.sqrt(eta * eta - 1.0) if eta > 1.0 else math.inf
-    if zmin > 0.0:
-        t = min(t, max(r0, r1) / zmin)
-    return math.sqrt(max(1.0 - a * a, 0.0)) + abs(a) * t
+    return fermat_speed(_norm(pf + x0 * wh - lf), _norm(pf + x1 * wh - lf), min(z0 + a * x0, z0 + a * x1), a, eta)
 
 
 @njit

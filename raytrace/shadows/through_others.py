@@ -44,12 +44,14 @@ from ..jit import njit
 from ..media.convex_chords import PLANES, chord, section_kinks
 from ..media.integrand import integrand_of
 from ..media.phase import phase_value
-from ..media.adaptive import INTERVALS, bounded_piecewise, piecewise
+from ..media.adaptive import INTERVALS, bounded_piecewise
 from ..media.convex_directional import envelope
 from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
-from ..media.slab import (_N10, _N20, _W10, _W20, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, _fermat, _light_span,
-                          _march_or_sample, _on_face, _only_face, _size, _spot_terms, convex_exit_face,
-                          convex_integrand, directional_rounding, edge_breaks, point_rounding, refracted_at,
+from ..media.fermat_rounding import point_error
+from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesPoint,
+                          _break_errors, _fermat, _light_span, _march_or_sample, _norms, _on_face, _only_face,
+                          _rho_range, _size, _spot_terms, _term_error, convex_exit_face, convex_integrand,
+                          directional_rounding, edge_breaks, phase_condition, point_rounding, refracted_at,
                           refracted_cuts, refracting_faces, straight_cuts)
 
 
@@ -281,21 +283,17 @@ class RefractedAttenuated(NamedTuple):
     """A point or spot light's refracted path through one face of a convex refractive shape A (`row`, a
     media/slab.py `refracting_faces` row; `spot` its (cos_end, cos_start, curve)): `refracted_at` where
     the refraction point R lies on the face, times exp(-sum_j dk[j] chord_j) of the outside leg from R
-    to the light, chord_j through the planes others[first[j]:stop[j]]."""
+    to the light, chord_j through the planes others[first[j]:stop[j]]. With a track (QUAD), each
+    evaluation's rounding, the face's term's (media/slab.py `_term_error`, `faces` the row alone)
+    times the attenuation, is kept as `FacesPoint` keeps it. The shape's planes, eta, the medium's
+    and the spot's terms are those of `faces`."""
     row: np.ndarray
-    planes: np.ndarray
-    eta: float
-    kt: float
-    ks: float
-    code: int
-    g: float
-    kt_out: float
-    spot: tuple
     light: np.ndarray
     others: np.ndarray
     first: np.ndarray
     stop: np.ndarray
     dk: np.ndarray
+    faces: FacesPoint
 
 
 @njit
@@ -321,27 +319,32 @@ def _minus(a, b):
 @integrand_of(RefractedAttenuated)
 @njit
 def _refracted_attenuated(x, r):
-    row = r.row
+    row, f = r.row, r.faces
     z0, a = row[0], row[1]
     if not z0 + a * x > 0.0:
         return 0.0
-    rho, rr, p = _leg(x, row, r.eta)
-    if not _on_face(x, row, rr, rho, r.planes):
+    rho, rr, p = _leg(x, row, f.eta)
+    if not _on_face(x, row, rr, rho, f.planes):
         return 0.0
-    sp = r.spot
-    v = refracted_at(x, z0, rho, rr, row[3], a, row[2], r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, row[5], row[6],
+    sp = f.spot
+    v = refracted_at(x, z0, rho, rr, row[3], a, row[2], f.eta, f.kt, f.ks, f.code, f.g, f.kt_out, row[5], row[6],
                      row[7], sp[0], sp[1], sp[2])
-    if v == 0.0:
+    track = f.track
+    err = _term_error(x, row, v, rho, rr, f) if track.shape[0] > 0 else 0.0
+    if v == 0.0 and err == 0.0:
         return 0.0
     u = _minus(r.light, p)
     dist = math.sqrt(_dot(u, u))
+    tau = 0.0
+    if dist > 0.0:
+        for j in range(r.first.shape[0]):
+            if r.dk[j] != 0.0:
+                tau += r.dk[j] * chord(r.others, r.first[j], r.stop[j], p[0], p[1], p[2], u[0] / dist, u[1] / dist,
+                                       u[2] / dist, dist)
+    if track.shape[0] > 0 and err * math.exp(-tau) > track[0]:
+        track[0] = err * math.exp(-tau)
     if not dist > 0.0:
         return v
-    tau = 0.0
-    for j in range(r.first.shape[0]):
-        if r.dk[j] != 0.0:
-            tau += r.dk[j] * chord(r.others, r.first[j], r.stop[j], p[0], p[1], p[2], u[0] / dist, u[1] / dist,
-                                   u[2] / dist, dist)
     return v * math.exp(-tau)
 
 
@@ -395,17 +398,20 @@ def leg_kinks(row, n, p, w, eta, light, others, first, stop, end, out):
 
 @njit
 def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, others, first, stop, dk, mode, rtol,
-                         steps, tau_max, keys, dim0, seed, out, var, stats):
-    """out, var (N,) = a unit point or spot light's single scattering over each segment (geo rows with
-    zero entry normals: every face's terms from `planes`) of a convex refractive shape through face
-    `only` (`RefractedAttenuated`), the outside leg attenuated by the B_j: QUAD adaptive between A's
-    edge breaks and cone crossings (media/slab.py `faces_quadrature`'s) and the leg's chord kinks
-    (`leg_kinks`); MARCH, SAMPLE as media/slab.py's `_march_or_sample`."""
+                         steps, tau_max, keys, dim0, seed, dplanes, dothers, spheres, out, var, err, stats):
+    """out, var, err (N,) = a unit point or spot light's single scattering over each segment (geo rows
+    with zero entry normals: every face's terms from `planes`) of a convex refractive shape through
+    face `only` (`RefractedAttenuated`), the outside leg attenuated by the B_j, its variance and a
+    bound on its error: QUAD adaptive between A's edge breaks and cone crossings (media/slab.py
+    `faces_quadrature`'s) and the leg's chord kinks (`leg_kinks`), bounded (`_refracted_bound`;
+    dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j] a ball holding B_j); MARCH,
+    SAMPLE as media/slab.py's `_march_or_sample`, err inf."""
     nf = planes.shape[0]
     faces = np.empty((max(nf, 1), FACE_COLUMNS))
-    br = np.empty(nf + MAX_CUTS + 1)
+    br = np.empty(EDGE_CUTS * nf + MAX_CUTS + 1)
+    ph = phase_condition(code, g)
     for s in range(geo.shape[0]):
-        out[s], var[s] = 0.0, 0.0
+        out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
         spot = _spot_terms(geo[s], 0.0, 0.0)
@@ -413,13 +419,17 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
         if m == 0:
             continue
         row = faces[0]
-        rec = RefractedAttenuated(row.copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], geo[s, 6:9].copy(),
-                                  others, first, stop, dk)
+        end = min(ell[s], 745.0 / kt)
+        r, cmax = _size(geo[s], planes, end)
+        pn, ln, lp = _norms(geo[s])
+        tracked = FacesPoint(faces[:1].copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
+                               dplanes[1], (pn, ln, lp, r + ln + cmax), -1, np.zeros(1 if mode == QUAD else 0))
+        rec = RefractedAttenuated(row.copy(), geo[s, 6:9].copy(), others, first, stop, dk, tracked)
         if mode != QUAD:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
             out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            err[s] = math.inf
             continue
-        end = min(ell[s], 745.0 / kt)
         br[0] = 0.0
         k = 1 + refracted_cuts(row[0], row[3], row[4], row[1], row[2], eta, row[5], row[6], row[7], spot[3], spot[4],
                                end, br[1:])
@@ -428,4 +438,47 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
                                  others, first, stop, end, np.empty(16))
         cuts = np.concatenate((br[:k], legs[:n_legs], np.array([end])))
         cuts[1:-1].sort()
-        out[s] = piecewise(rec, cuts, cuts.shape[0], rtol, _N10, _W10, _N20, _W20, stats)
+        out[s], err[s] = _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats)
+
+
+@njit
+def _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats):
+    """(value, bound) of a `RefractedAttenuated` over the pieces between `cuts` (0 and end included):
+    the rule's bound (`bounded_piecewise`) + 3 times the evaluations' largest rounding (the face's
+    term's, kept in the track) times the width + 3 times the chords' relative rounding eps times
+    (value + rule) + the breaks' location error of A's face (media/slab.py `_break_errors`, times the
+    largest attenuation exp(sum_j max(-dk_j, 0) o_max)) + u per interval. eps = sum_j |dk_j| (dc_j +
+    16u C_j) + 4u, dc_j, C_j of B_j's `point_chord_rounding` toward the light from the refraction
+    point R, whose own error dR (media/fermat_rounding.py `point_error`) moves a crossing of the leg
+    at most as much (the leg turns about the light), so it adds to B_j's offset error; |R| <= R_max
+    (R lies between the feet of X and of the light on the face's plane), the leg between the
+    light's height hl and o_max = sqrt(rho_max^2 + hl^2). The leg's chord kinks are continuous (no
+    location error) and none is missed (`leg_kinks`). inf where the face's bound is (media/slab.py
+    `faces_quadrature`)."""
+    tracked = rec.faces
+    row = rec.row
+    before = stats[INTERVALS]
+    tracked.track[0] = 0.0
+    value, rule = bounded_piecewise(rec, cuts, cuts.shape[0], rtol, _N10, _W10, _N20, _W20, stats)
+    if not tracked.eta > 1.0:
+        return value, math.inf
+    z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+    rho_min, rho_max = _rho_range(0.0, end, wl, ll, a)
+    if not (rho_min > 0.0 and hl > 0.0):
+        return value, math.inf
+    z_max = max(z0, z0 + a * end)
+    pn, ln = tracked.mags[0], tracked.mags[1]
+    dr = point_error(end, math.sqrt(rho_max * rho_max + z_max * z_max), rho_max, hl, ll, rho_min, tracked.eta,
+                     tracked.dn, tracked.dc, tracked.mags, False)
+    o_max = math.sqrt(rho_max * rho_max + hl * hl)
+    r_max = max(pn + end + z_max, ln + hl)
+    eps, grow = 4.0 * U, 0.0
+    for j in range(rec.first.shape[0]):
+        if rec.dk[j] != 0.0:
+            dc, cmax = point_chord_rounding(rec.others, rec.first[j], rec.stop[j], rec.light, spheres[j], r_max,
+                                            o_max, hl, dothers[j] + np.array([0.0, dr]))
+            eps += abs(rec.dk[j]) * (dc + 16.0 * U * cmax)
+            grow += max(-rec.dk[j], 0.0) * o_max
+    located = _break_errors(tracked, end, cuts[1:-1]) * math.exp(grow)
+    rounding = 3.0 * tracked.track[0] * (cuts[-1] - cuts[0])
+    return value, rule + rounding + located + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
