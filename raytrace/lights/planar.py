@@ -11,7 +11,10 @@ Jacobian vanishes like |y - f| makes that integrand smooth in its parameters:
   Gauss–Legendre in u (panels of at most SPAN) and `graded` in r (sinh: 1 / rho = 1 / (r |h| cosh u) times the Jacobian is smooth however near
   f lies to the edge's line);
 - a disk: polar coordinates (rho, phi) about f, dA = rho drho dphi, Gauss–Legendre in rho between the
-  rim's crossings (`graded` from f where f lies inside); f inside: equally spaced phi (periodic), f outside: phi = phi_c + delta sin theta over
+  rim's crossings (`graded` from f where f lies inside); f inside: phi = psi + (a / 2) sin(2 psi) from the
+  direction of f off the centre, psi equally spaced (periodic; the chord to the rim is nearly singular
+  at right angles to that direction when f lies near the rim, which a = 1 - sqrt(R^2 - D^2) / D, D the
+  distance of f from the centre, crowds the nodes toward); f outside: phi = phi_c + delta sin theta over
   the rim's tangent cone (theta Gauss–Legendre: the chord's square root at the tangents is smooth in theta).
 """
 from __future__ import annotations
@@ -124,9 +127,14 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
         theta, wt = 0.5 * np.pi * theta, 0.5 * np.pi * wt
         delta = np.arcsin(np.minimum(radius / np.maximum(dist, 1e-300), 1.0))
         phi_c = np.arctan2(-py, -px)
-        even = 2.0 * np.pi * (np.arange(m) + 0.5) / m
-        phi = np.where(inside[:, None], even[None], phi_c[:, None] + delta[:, None] * np.sin(theta)[None])
-        dphi = np.where(inside[:, None], 2.0 * np.pi / m, delta[:, None] * np.cos(theta)[None] * wt[None])
+        # inside: psi equally spaced, phi = psi + (a / 2) sin(2 psi) from f's direction off the centre
+        psi = 2.0 * np.pi * (np.arange(m) + 0.5) / m
+        with np.errstate(divide="ignore"):
+            a = np.clip(1.0 - np.sqrt(np.maximum(radius * radius - dist * dist, 0.0)) / dist, 0.0, 1.0)[:, None]
+        graded_phi = np.arctan2(py, px)[:, None] + psi[None] + 0.5 * a * np.sin(2.0 * psi)[None]
+        phi = np.where(inside[:, None], graded_phi, phi_c[:, None] + delta[:, None] * np.sin(theta)[None])
+        dphi = np.where(inside[:, None], 2.0 * np.pi / m * (1.0 + a * np.cos(2.0 * psi)[None]),
+                        delta[:, None] * np.cos(theta)[None] * wt[None])
         ux, uy = np.cos(phi), np.sin(phi)  # (P, m)
         along = ux * px[:, None] + uy * py[:, None]
         root = np.sqrt(np.maximum(along * along - (dist * dist - radius * radius)[:, None], 0.0))
