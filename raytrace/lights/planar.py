@@ -43,8 +43,9 @@ def graded(n: int):
 class Planar:
     """A flat emitter as near_emitters.py needs it: a point `centre` (3,) of its plane, the plane's unit
     `normal` (3,), its `diameter`, `outside(f)` the distance (P,) from points f (P, 3) of the plane to the
-    emitter (0 on it), and `rule(f, order)` (points (P, K, 3), signed area weights (P, K)) a rule over the
-    emitter singular at f (module docstring) whose weights sum to the emitter's area for every f."""
+    emitter (0 on it), and `rule(f, order)` (points (M, 3), signed area weights (M,), owner (M,): the f of
+    each node) a rule over the emitter singular at each f (module docstring) whose weights sum to the
+    emitter's area for every f."""
     centre: np.ndarray
     normal: np.ndarray
     diameter: float
@@ -85,25 +86,25 @@ def polygon(corners, normal) -> Planar:
     def rule(f, order):
         r, wr = graded(order)
         x, wx = gauss_legendre(order)
-        points, weights = [], []
+        parts = []
         for a, b in zip(corners, np.roll(corners, -1, axis=0)):
             along = (b - a) / np.linalg.norm(b - a)
             foot = a + ((f - a) @ along)[:, None] * along  # f's perpendicular foot on the edge's line
             h = np.cross(a - f, b - f) @ normal / np.linalg.norm(b - a)  # signed: > 0 on the inner side
-            m = np.cross(normal, along)  # the edge's inward normal: f + |h| sign(h) m' ... toward the edge
-            toward = np.where(h[:, None] >= 0.0, -m, m)
+            toward = np.where(h[:, None] >= 0.0, -1.0, 1.0) * np.cross(normal, along)  # from f to the edge
             scale = np.maximum(np.abs(h), TINY * np.linalg.norm(b - a))  # h ~ 0: a triangle of no area
             lo, hi = np.arcsinh((a - foot) @ along / scale), np.arcsinh((b - foot) @ along / scale)
-            panels = max(1, int(np.ceil((hi - lo).max(initial=0.0) / SPAN)))
-            t = ((np.arange(panels)[:, None] + x[None]) / panels).ravel()  # (panels x order,) in [0, 1]
-            u = lo[:, None] + (hi - lo)[:, None] * t[None]  # q = |h| sinh(u) along the edge
-            arm = scale[:, None, None] * (toward[:, None, :] + np.sinh(u)[..., None] * along)  # f to the edge
-            points.append(f[:, None, None, :] + r[None, :, None, None] * arm[:, None, :, :])
-            jac = (h * scale)[:, None] * (hi - lo)[:, None] * np.tile(wx, panels)[None] / panels * np.cosh(u)
-            weights.append((r * wr)[None, :, None] * jac[:, None, :])
-        n = len(f)
-        return (np.concatenate([p.reshape(n, -1, 3) for p in points], axis=1),
-                np.concatenate([w.reshape(n, -1) for w in weights], axis=1))
+            panels = np.maximum(np.ceil((hi - lo) / SPAN), 1).astype(np.int64)
+            for p in np.unique(panels):
+                at = np.nonzero(panels == p)[0]
+                t = ((np.arange(p)[:, None] + x[None]) / p).ravel()  # (p x order,) in [0, 1]
+                u = lo[at, None] + (hi - lo)[at, None] * t[None]  # q = |h| sinh(u) along the edge
+                arm = scale[at, None, None] * (toward[at, None, :] + np.sinh(u)[..., None] * along)  # f to the edge
+                points = f[at, None, None, :] + r[None, :, None, None] * arm[:, None, :, :]
+                jac = (h * scale)[at, None] * (hi - lo)[at, None] * np.tile(wx, p)[None] / p * np.cosh(u)
+                weights = (r * wr)[None, :, None] * jac[:, None, :]
+                parts.append((points.reshape(-1, 3), weights.ravel(), np.repeat(at, weights[0].size)))
+        return tuple(np.concatenate(c) for c in zip(*parts))
 
     return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule)
 
@@ -122,7 +123,7 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
         inside = dist < radius
         (rg, wg), (rl, wl) = graded(order), gauss_legendre(order)
         r, wr = np.where(inside[:, None], rg, rl), np.where(inside[:, None], wg, wl)  # (P, order)
-        # inside: phi equally spaced; outside: phi_c + delta sin(theta) over the tangent cone
+        # outside: phi_c + delta sin(theta) over the tangent cone
         theta, wt = np.polynomial.legendre.leggauss(m)
         theta, wt = 0.5 * np.pi * theta, 0.5 * np.pi * wt
         delta = np.arcsin(np.minimum(radius / np.maximum(dist, 1e-300), 1.0))
@@ -144,6 +145,6 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
         u = ux[..., None] * t1 + uy[..., None] * t2  # (P, m, 3)
         points = f[:, None, None, :] + rho[..., None] * u[:, :, None, :]
         weights = dphi[:, :, None] * chord[:, :, None] * rho * wr[:, None, :]
-        return points.reshape(len(f), -1, 3), weights.reshape(len(f), -1)
+        return points.reshape(-1, 3), weights.ravel(), np.repeat(np.arange(len(f)), weights[0].size)
 
     return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule)

@@ -94,11 +94,11 @@ def _ladder(emitter, method, medium, params, tol, feet, rs, rays, scale, seen):
 
 def _value(emitter, method, medium, params, feet, rs, rays, scale, order):
     """(P, 3) the air-light of `emitter` along camera rays `rs` by its rule of `order` about `feet`."""
-    points, weights = emitter.planar.rule(feet, order)
-    per = points.shape[1]
-    normals = np.broadcast_to(emitter.planar.normal, (len(feet) * per, 3))
-    rows = spot_rows(points.reshape(-1, 3), normals, weights.reshape(-1, 1) * emitter.radiance[None, :],
-                     emitter.two_sided)
-    sides = 2 if emitter.two_sided else 1
-    segs = point_segments(rows, sides * per, rays, rs, scale)
-    return _per_group(method, medium, params, rows, segs, len(rs))
+    points, weights, owner = emitter.planar.rule(feet, order)
+    normals = np.broadcast_to(emitter.planar.normal, points.shape)
+    rows = spot_rows(points, normals, weights[:, None] * emitter.radiance[None, :], emitter.two_sided)
+    group = np.repeat(owner, 2) if emitter.two_sided else owner  # spot_rows: a two-sided node twice
+    each = _per_group(method, medium, params, rows, point_segments(rows, 1, rays, rs[group], scale), len(rows))
+    out = np.zeros((len(rs), 3))
+    np.add.at(out, group, each)
+    return out
