@@ -50,11 +50,14 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
         near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
         feet[e] = foot
+    owner = np.where(lights.cubature, lights.owner, 0)
+    shines = np.zeros((n, n_e), bool)  # the emitter's rows reach the ray (none in another light's layer)
+    shines[cone.ray[lights.cubature[cone.light]], owner[cone.light[lights.cubature[cone.light]]]] = True
+    near &= shines
     if shadows and near.any():
         near &= _all_lit(lights, cone, segs, n)
     if not near.any():
         return segs, air, stats, near.any(axis=1)
-    owner = np.where(lights.cubature, lights.owner, 0)
     drop = near[segs.ray, owner[segs.light]] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(near)[1]):
