@@ -10,7 +10,8 @@ its exact lit intervals, integrated by the method itself; their variance in the 
   the rows alone miss the penumbra by far more than the precision and say nothing of it (variance 0);
   with the sampling, pixels left alone equal the rows' image bit for bit and the twin to the
   precision, the sampled ones pass a z-test with the reported variance over 8 seeds, and their
-  error falls with the strata.
+  error falls with the strata; the strata follow the requested precision (a pilot per cut pair), and
+  the variance stays honest at a loose and a fine precision.
 """
 from __future__ import annotations
 
@@ -110,8 +111,9 @@ def test_penumbrae_in_the_airlight_against_the_twin(reference, monkeypatch, meth
     """16 x 12 pixels, 8 seeds: the pixels the sampling left alone (variance 0 in every seed) are the
     same in every seed, equal the rows' image bit for bit and the twin to the precision; the sampled
     ones (at least 60; the bound infinite there) pass a z-test against the twin with the reported
-    variance: conservative (mean z^2 of the seeds between 0.1 and 1.5), none beyond 4; with 16 x 16
-    strata their rms error is at least 2 x smaller and the z-test holds."""
+    variance: conservative (mean z^2 of the seeds between 0.1 and 1.5), none beyond 4; every cut pair
+    at 8 x 8 strata instead (the precision asks for the cap, 16 x 16, of most) the z-test holds and
+    their rms error is at least 2 x larger."""
     images, variances, bounds = renders(method)
     sampled = np.any(variances > 0.0, axis=0)
     assert np.count_nonzero(sampled) >= 60 and np.all(np.isinf(bounds[:, sampled]))
@@ -125,13 +127,42 @@ def test_penumbrae_in_the_airlight_against_the_twin(reference, monkeypatch, meth
     z = z_scores(images, variances, reference, sampled)
     assert 0.1 < np.mean(z**2) < 1.5 and np.abs(z).max() < 4.0, (np.mean(z**2), np.abs(z).max())
     rms = np.sqrt(np.mean((images - reference)[:, sampled] ** 2))
-    monkeypatch.setattr(penumbra_airlight, "STRATA", 16)
-    monkeypatch.setattr(penumbra_airlight, "PER", 2 * 16 * 16)
-    fine, fine_var, _ = renders(method)
-    z = z_scores(fine, fine_var, reference, sampled)
+    monkeypatch.setattr(penumbra_airlight, "LADDER", (8,))  # every cut pair at 8 x 8 strata
+    coarse, coarse_var, _ = renders(method)
+    z = z_scores(coarse, coarse_var, reference, sampled)
     assert 0.1 < np.mean(z**2) < 1.5 and np.abs(z).max() < 4.0, (np.mean(z**2), np.abs(z).max())
-    fine_rms = np.sqrt(np.mean((fine - reference)[:, sampled] ** 2))
-    assert fine_rms < rms / 2, (rms, fine_rms)
+    coarse_rms = np.sqrt(np.mean((coarse - reference)[:, sampled] ** 2))
+    assert rms < coarse_rms / 2, (coarse_rms, rms)
+
+
+def test_the_sampling_effort_follows_the_precision(reference, monkeypatch):
+    """`analytic` at precision 3e-2 and 1e-3, 8 seeds each: the pilot gives the cut pairs more strata
+    at the finer precision (on average at least 1.5 x per side; some pairs at the floor at 3e-2, most at
+    the cap at 1e-3); the reported variance stays honest at both (z-test against the twin as above) and
+    the rms error of the sampled pixels falls at least 2 x."""
+    chosen = {}
+
+    def spy(value, var, tol):
+        strata = choose(value, var, tol)
+        chosen.setdefault(tol, []).extend(strata.tolist())
+        return strata
+
+    choose = penumbra_airlight.choose_strata
+    monkeypatch.setattr(penumbra_airlight, "choose_strata", spy)
+    rms = {}
+    for precision in (3e-2, 1e-3):
+        runs = [api.render(plate_scene(), "analytic", volumetric_shadows=True, seed=s, precision=precision)
+                for s in range(1, SEEDS + 1)]
+        images, variances = np.array([r.array[..., 0] for r in runs]), np.array([r.variance[..., 0] for r in runs])
+        sampled = np.any(variances > 0.0, axis=0)
+        assert np.count_nonzero(sampled) >= 60
+        z = z_scores(images, variances, reference, sampled)
+        assert 0.1 < np.mean(z**2) < 1.5 and np.abs(z).max() < 4.0, (precision, np.mean(z**2), np.abs(z).max())
+        rms[precision] = np.sqrt(np.mean((images - reference)[:, sampled] ** 2))
+    loose, fine = (np.array(chosen[p]) for p in (3e-2, 1e-3))
+    assert fine.mean() >= 1.5 * loose.mean(), (loose.mean(), fine.mean())
+    assert np.any(loose == penumbra_airlight.LADDER[0]) and np.mean(fine == penumbra_airlight.LADDER[-1]) > 0.5
+    assert rms[1e-3] < rms[3e-2] / 2, rms
 
 
 def test_scenes_with_nothing_cut_are_untouched(monkeypatch):

@@ -9,9 +9,10 @@ than the method's precision. A camera ray and an emitter are taken as cut where 
 emitter's corner probes (`area.Emitter.probes`: a straight shadow edge that leaves every node on one
 side leaves a corner on the other), each a point light with its exact intervals, disagree with them.
 
-There the rows are replaced by 2 S stratified samples of the emitter's (u, v) square (S = STRATA^2
-strata, two jittered points in each, keyed by the camera ray's key, the seed and the emitter as the
-surface term's are: shading.py, rng.py), each a LAMBERT spot row of intensity L / (2 S p_A) at its
+There the rows are replaced by 2 S stratified samples of the emitter's (u, v) square (S = k^2
+strata, two jittered points in each, keyed by the camera ray's key, the seed, the emitter and k as
+the surface term's are: shading.py, rng.py; k per cut pair from LADDER, chosen by a pilot to meet the
+method's tolerance: `_estimate`, `choose_strata`), each a LAMBERT spot row of intensity L / (2 S p_A) at its
 point y (p_A the area density; a two-sided emitter's point twice, facing both ways), cut to its
 front half-space and to the exact lit intervals of y itself (frusta.point_lit_pieces), and
 integrated by the method, its closed form or rule, per lit interval. The estimate is the sum over
@@ -32,7 +33,10 @@ from ..shading import STRATA, _jitter as jitter
 from .frusta import GAP_REL, point_lit_pieces
 
 DIM_AIRLIGHT = 1 << 49  # the first random-number dimension (rng.py) of the air-light's emitter samples
-PER = 2 * STRATA * STRATA  # samples per cut (camera ray, emitter)
+TOLERANCES = ("precision", "rtol")  # the methods' relative tolerances, which the sampling effort follows
+PILOT = 4  # strata per side of the pilot that chooses a cut pair's strata
+LADDER = (4, 8, 16)  # the strata per side a cut pair may get: the floor first, the cap last
+FIXED = STRATA  # strata per side for a method without a tolerance
 LIT, DARK, MIXED, NONE = 1, -1, 0, 2  # what a row (or the rows of an emitter) sees along a camera ray
 
 
@@ -75,25 +79,73 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
 
 
 def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
-    """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`."""
+    """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`: with a
+    tolerance (`tolerance`), a pilot of PILOT x PILOT strata per ray chooses its strata (`choose_strata`)
+    and an estimate from fresh samples at those strata is returned (the pilot's samples are not reused:
+    the estimate is independent of the choice, so unbiased); without one, FIXED x FIXED strata."""
+
+    def estimate(rows, strata, stage):
+        return _stratified(accel, method, medium, params, emitter, rows, rays, select, strata, _dim(e, stage))
+
+    tol = tolerance(params)
+    if tol is None:
+        return estimate(rs, FIXED, len(LADDER))
+    strata = choose_strata(*estimate(rs, PILOT, len(LADDER)), tol)
+    value, var = np.empty((len(rs), 3)), np.empty((len(rs), 3))
+    for k, s in enumerate(LADDER):
+        at = np.nonzero(strata == s)[0]
+        if len(at):
+            value[at], var[at] = estimate(rs[at], s, k)
+    return value, var
+
+
+def tolerance(params) -> float | None:
+    """The method's requested relative tolerance (TOLERANCES), None if it has none."""
+    return next((float(params[k]) for k in TOLERANCES if k in params), None)
+
+
+def choose_strata(value, var, tol) -> np.ndarray:
+    """(M,) the strata per side for each of M (ray, emitter) pairs from a pilot of PILOT x PILOT strata
+    (its estimate and variance, (M, 3) each): the smallest of LADDER at which the standard error would
+    be at most tol x the estimate in every channel, taking it to fall as k^(-3/2) with k strata a side
+    (a shadow edge crosses about k of the k^2 strata, each adding a variance ~ 1 / k^4 to the mean's);
+    LADDER's last (the cap) where the pilot's estimate is 0 but its variance is not."""
+    ratio = np.full(var.shape, np.inf)
+    np.divide(np.sqrt(var), tol * value, out=ratio, where=value > 0.0)
+    ratio = np.where(var > 0.0, ratio, 0.0).max(axis=1)  # var 0: nothing to gain (value exact or 0)
+    need = PILOT * ratio ** (2.0 / 3.0)
+    rung = np.searchsorted(np.array(LADDER, float), need, side="left")
+    return np.array(LADDER)[np.minimum(rung, len(LADDER) - 1)]
+
+
+def _dim(e: int, stage: int) -> int:
+    """The first random-number dimension of emitter e's samples at LADDER[stage] strata (the pilot's,
+    and FIXED's, at stage len(LADDER)): disjoint blocks, each of two dimensions per sample of the cap."""
+    return DIM_AIRLIGHT + (e * (len(LADDER) + 1) + stage) * 4 * LADDER[-1] ** 2
+
+
+def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata: int, dim: int):
+    """(estimate, variance), each (len(rs), 3): 2 strata^2 stratified samples of the emitter along each
+    camera ray rs (module docstring), at random-number dimensions from `dim`."""
     origins, dirs, tmax, keys, seed = rays
-    u, v = np.empty((len(rs), PER)), np.empty((len(rs), PER))
-    jitter(keys[rs], seed, DIM_AIRLIGHT + 2 * PER * e, STRATA, u, v)
+    per = 2 * strata * strata
+    u, v = np.empty((len(rs), per)), np.empty((len(rs), per))
+    jitter(keys[rs], seed, dim, strata, u, v)
     y, normals, density = emitter.sample(u.ravel(), v.ravel())
-    samples = spot_rows(y, normals, emitter.radiance[None, :] / (PER * density[:, None]), emitter.two_sided)
+    samples = spot_rows(y, normals, emitter.radiance[None, :] / (per * density[:, None]), emitter.two_sided)
     sides = 2 if emitter.two_sided else 1
-    segs = point_segments(samples, sides, (origins, dirs, tmax, keys, seed), np.repeat(rs, PER), accel.scale)
-    lit = lit_pieces(accel, samples, segs, sides * PER, select)
-    g = PER * _per_group(method, medium, params, samples, lit, len(rs) * PER)  # one sample's estimate
-    value = g.reshape(len(rs), PER, 3).mean(axis=1)
-    var = collapsed_variance(g.reshape(len(rs), PER, 3), STRATA)
-    states = _group_states(segs, lit, len(rs) * PER).reshape(len(rs), PER)
+    segs = point_segments(samples, sides, rays, np.repeat(rs, per), accel.scale)
+    lit = lit_pieces(accel, samples, segs, sides * per, select)
+    g = per * _per_group(method, medium, params, samples, lit, len(rs) * per)  # one sample's estimate
+    value = g.reshape(len(rs), per, 3).mean(axis=1)
+    var = collapsed_variance(g.reshape(len(rs), per, 3), strata)
+    states = _group_states(segs, lit, len(rs) * per).reshape(len(rs), per)
     agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
     if agree.any():  # the floor: one sample's share of the unshadowed sum
-        at = np.nonzero(np.repeat(agree, PER))[0]
+        at = np.nonzero(np.repeat(agree, per))[0]
         free = _per_group(method, medium, params, samples, segs.take(np.nonzero(np.isin(segs.ray, at))[0]),
-                          len(rs) * PER)
-        floor = free.reshape(len(rs), PER, 3).sum(axis=1)[agree] ** 2 / PER**2
+                          len(rs) * per)
+        floor = free.reshape(len(rs), per, 3).sum(axis=1)[agree] ** 2 / per**2
         var[agree] = np.maximum(var[agree], floor)
     return value, var
 
