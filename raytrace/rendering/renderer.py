@@ -135,19 +135,13 @@ def prepare(scene: Scene) -> Prepared:
     return prep
 
 
-PILOT_TOLERANCES = ("precision", "rtol")  # the methods' parameters the pilot's orders must meet
-
-
-def precision_of(params) -> float | None:
-    """The method's precision (PILOT_TOLERANCES), None for a method without one."""
-    return next((params[k] for k in PILOT_TOLERANCES if k in params), None)
 
 
 def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict, float]:
     """The scene with each emitter's cubature order chosen by the pilot (lights/cubature.py) for a
-    method with a precision (PILOT_TOLERANCES), the pilot's statistics and the seconds its kernels
+    method with a tolerance (`Method.tolerance`), the pilot's statistics and the seconds its kernels
     took to compile (`warm_up`, before it); else `prep`, {} and 0."""
-    tol = precision_of(params)
+    tol = method.tolerance(params)
     scene, cam = prep.scene, prep.scene.camera
     ladders, counts = cubature_ladders(scene.lights, prep.emissive)
     if tol is None or all(l is None for l in ladders):
@@ -289,7 +283,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                                                crossing.blockers(prep))
             near = None
             if near_emitters.applies(prep.lights, method) and (through is None or not len(through)):
-                segs, *near = near_emitters.replaced(prep.lights, method, medium, params, precision_of(params),
+                segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
                                                      cone if shadows else segs, segs,
                                                      (origins, dirs, t, keys, seed), shadows, radiance)
                 stats[-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES):-crossing.STATS_SIZE] = near[1]
