@@ -222,11 +222,8 @@ TWINS = {"quad": (QUAD, lambda **k: twin.Quad(QUAD["corners"], 10.0, **k)),
          "disk": (DISK, lambda **k: twin.Disk(DISK["center"], DISK["normal"], 0.5, 10.0, **k)),
          "sphere": (SPHERE, lambda **k: twin.Sphere(SPHERE["center"], 0.3, 10.0))}
 SMALL = {**CAMERA, "width": 8, "height": 6}
-# rays that pass within 1/8 of the emitter's diameter of it (the per-point air-light's 1/r about the
-# ray's foot point: the pilot's "near" rays, lights/cubature.py): their largest relative error against
-# the exact twin, measured (docs/area_lights.md), as limits; the sphere's rule is capped at 1e-6 (its
-# nodes' max(0, n·u) kinks at the horizon: it converges as about n^-2.5) and its error everywhere is limited so
-NEAR_LIMITS = {"quad": 3e-2, "two-sided quad": 1e-1, "disk": 3e-2}
+# the sphere's rule is capped at 1e-6 (its nodes' max(0, n·u) kinks at the horizon: it converges as about
+# n^-2.5) and its error everywhere is limited so
 SPHERE_LIMIT = 3e-4
 
 
@@ -245,10 +242,11 @@ def test_unoccluded_area_light_in_fog_against_the_twin(kind):
     """An area light alone in a homogeneous isotropic fog, 8 x 6 pixels, its order chosen by the pilot:
     quadrature (rtol 1e-6, with and without volumetric shadows: the emitter does not shadow its own
     points) and analytic (precision 1e-6) within 1e-6 of the twin on every pixel whose ray passes farther
-    than 1/8 of the emitter's diameter from it (the twin's composite rule, exact to rounding there);
-    the rays nearer, against the exact twin (polar about the foot point), within NEAR_LIMITS, and the
-    pilot reports near rays that did not converge; the sphere's rule capped (reported) and within
-    SPHERE_LIMIT everywhere. Every error bound is infinite (the cubature has none)."""
+    than 1/8 of the emitter's diameter from it (the twin's composite rule, exact to rounding there),
+    and the rays nearer (each by the rule about its foot point, rendering/near_emitters.py) against the
+    exact twin (polar about the foot point: another rule) within 1e-6 too, reported as near and
+    converged; the sphere's rule capped (reported) and within SPHERE_LIMIT everywhere. Every error bound
+    is infinite (the cubature has none)."""
     light, make = TWINS[kind]
     em = make()
     o = np.array(SMALL["position"])
@@ -270,8 +268,9 @@ def test_unoccluded_area_light_in_fog_against_the_twin(kind):
             continue
         assert img.stats["cubature: emitters capped"] == 0, img.stats
         assert near.any() and not near.all() and rel[~near].max() <= 1e-6, (img.method, rel[~near].max())
-        assert rel[near].max() <= NEAR_LIMITS[kind], (img.method, rel[near].max())
-        assert img.stats["cubature: pilot rays near an emitter"] >= 1 and img.stats["cubature: pilot rays not converged"] >= 1
+        assert rel[near].max() <= 1e-6, (img.method, rel[near].max())
+        assert img.stats["cubature: rays near an emitter"] == near.sum(), img.stats
+        assert img.stats["cubature: rays near an emitter not converged"] == 0, img.stats
 
 
 @pytest.mark.parametrize("light", [QUAD, SPHERE])

@@ -84,11 +84,11 @@ def emitter_shape(light: Light):
 
 def _emitter(light: Light):
     """The `area.Emitter` of a scene light whose kind samples its emitter (`sample_emitter`, with the
-    parameters of its corners `CORNERS` where it has them), else None."""
+    parameters of its corners `CORNERS` and its `planar` geometry where it has them), else None."""
     kind = _BY_CODE[light.kind]
     if not hasattr(kind, "sample_emitter"):
         return None
-    return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None))
+    return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None), getattr(kind, "planar", None))
 
 
 def cubature_ladders(lights: list[Light], emitters=()):
@@ -165,7 +165,7 @@ class Lights:
 
     def kinds(self) -> set[str]:
         """The kinds of the scene's lights and of the rows they give (an area light's: spot)."""
-        return {NAMES[int(k)] for k in self.kind} | set(self.scene_kinds)
+        return {NAMES[int(k)] for k in np.unique(self.kind)} | set(self.scene_kinds)
 
     def unbounded(self) -> list[str]:
         """Why the cubature rows give no error bound, once per reason: "area lights' cubature", "the

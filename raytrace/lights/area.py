@@ -104,6 +104,7 @@ class Emitter:
     two_sided: bool
     sample: Callable
     probes: tuple | None = None
+    planar: object = None  # a flat emitter's planar.Planar (the rule about a camera ray's foot point)
 
 
 def uniform_density(n: int, area: float) -> np.ndarray:
@@ -111,13 +112,13 @@ def uniform_density(n: int, area: float) -> np.ndarray:
     return np.full(n, 1.0 / area)
 
 
-def emitter(light: Light, sample_emitter, corners=None) -> Emitter:
+def emitter(light: Light, sample_emitter, corners=None, planar=None) -> Emitter:
     """The `Emitter` of an area light whose kind maps (u, v) by `sample_emitter(light, u, v)`, its
-    probes at the parameters `corners` ((u, v), each (K,); None: no probes)."""
+    probes at the parameters `corners` ((u, v), each (K,); None: no probes), `planar(light)` its
+    `Planar` where the kind is flat (None: not)."""
     sample = functools.partial(sample_emitter, light)
-    if corners is None:
-        return Emitter(light.intensity, light.two_sided, sample)
-    return Emitter(light.intensity, light.two_sided, sample, sample(*corners)[:2])
+    probes = None if corners is None else sample(*corners)[:2]
+    return Emitter(light.intensity, light.two_sided, sample, probes, None if planar is None else planar(light))
 
 
 def collapsed_variance(g, strata: int) -> np.ndarray:

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from . import area
+from .planar import disk as planar_disk
 
 NAME = "disk"
 CODE = 4
@@ -68,3 +69,8 @@ def shape(light):
     k = np.arange(SEGMENTS)
     faces = np.stack([np.zeros(SEGMENTS, dtype=np.int64), 1 + k, 1 + (k + 1) % SEGMENTS], axis=1)
     return "triangles", {"vertices": np.concatenate([light.position[None, :], rim]), "faces": faces}
+
+
+def planar(light):
+    """The emitter as a flat disk (planar.py): the rule about a camera ray's foot point."""
+    return planar_disk(light.position, light.axis, *area.frame(light.axis), light.emitter["radius"])

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import area
+from .planar import polygon
 
 NAME = "quad"
 CODE = 3
@@ -64,3 +65,8 @@ def sample_emitter(light, u, v):
 def shape(light):
     """The emitter as a `quad` primitive (scene/meshes.py: its triangles wind like the corners)."""
     return "quad", {"corners": light.emitter["corners"]}
+
+
+def planar(light):
+    """The emitter as a flat polygon (planar.py): the rule about a camera ray's foot point."""
+    return polygon(light.emitter["corners"], light.axis)

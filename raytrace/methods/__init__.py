@@ -199,11 +199,21 @@ class Method:
     # segment, so that the renderer can cut the work into chunks of bounded memory
     point_count: Callable | None = None
     supports: Supports = Supports()
+    # the parameter holding the method's requested relative tolerance, which the renderer's adaptive
+    # rules follow (an emitter's order, a penumbra's strata, the rule near a flat emitter); None: none
+    tolerance_key: str | None = None
 
     def __post_init__(self):
         samples = "samples" in self.supports.shadow_tests
         assert samples == (self.points is not None) == ("shadow_test" in self.params), self.name
         assert not samples or self.params["shadow_test"].choices == self.supports.shadow_tests, self.name
+        assert self.tolerance_key is None or self.tolerance_key in self.params, self.name
+
+    def tolerance(self, params: dict) -> float | None:
+        """The requested relative tolerance (`tolerance_key`), None for a method without one."""
+        if self.tolerance_key is None:
+            return None
+        return float(params.get(self.tolerance_key, self.params[self.tolerance_key].default))
 
     def samples_shadows(self, params: dict) -> bool:
         """Whether this render tests volumetric shadows with a shadow ray per medium point (the method's

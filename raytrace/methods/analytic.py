@@ -870,4 +870,5 @@ METHOD = Method(
     supports=Supports(lights=("point", "spot") + AREA_LIGHTS, interiors=Interiors(
         CLOSED, lights=("directional", ENVIRONMENT), refracted=("directional", ENVIRONMENT),
         limits="no closed form (eq. 7 of the analytic note on single scattering in homogeneous slabs)")),
+    tolerance_key="precision",
 )

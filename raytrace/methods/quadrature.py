@@ -311,6 +311,7 @@ METHOD = Method(
                       interiors=Interiors(QUAD, exact_paths=True, lights=LIGHTS + AREA_LIGHTS,
                                           refracted=LIGHTS + AREA_LIGHTS,
                                           settings=lambda params: (params["rtol"], 1, 745.0))),
+    tolerance_key="rtol",
 )
 _BY_KIND = {Homogeneous: _homogeneous, HeightFog: _fog, Atmosphere: _atmosphere}
 

@@ -42,7 +42,7 @@ from ..shading import (emissive_shapes, emitted_radiance, facing_normals, first_
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from ..shadows import penumbra_airlight
 from ..shadows.shadow_rays import shadowed_airlight
-from . import aov
+from . import aov, near_emitters
 
 RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
 PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
@@ -135,14 +135,13 @@ def prepare(scene: Scene) -> Prepared:
     return prep
 
 
-PILOT_TOLERANCES = ("precision", "rtol")  # the methods' parameters the pilot's orders must meet
 
 
 def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict, float]:
     """The scene with each emitter's cubature order chosen by the pilot (lights/cubature.py) for a
-    method with a precision (PILOT_TOLERANCES), the pilot's statistics and the seconds its kernels
+    method with a tolerance (`Method.tolerance`), the pilot's statistics and the seconds its kernels
     took to compile (`warm_up`, before it); else `prep`, {} and 0."""
-    tol = next((params[k] for k in PILOT_TOLERANCES if k in params), None)
+    tol = method.tolerance(params)
     scene, cam = prep.scene, prep.scene.camera
     ladders, counts = cubature_ladders(scene.lights, prep.emissive)
     if tol is None or all(l is None for l in ladders):
@@ -274,7 +273,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             through = sampled = None
             if shadows:
                 cone = segs
-                segs, stats[method.stats_size:-crossing.STATS_SIZE] = exact_lit_intervals(
+                segs, stats[method.stats_size:method.stats_size + len(STATS_NAMES)] = exact_lit_intervals(
                     prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
                 if prep.through() is not None:  # pieces whose light crosses index-matched interiors
                     segs, through, _ = split_lit(prep.accel, segs, len(prep.lights), prep.through())
@@ -282,9 +281,18 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                     segs, *sampled = penumbra_airlight.sampled((prep.accel, prep.lights), method, medium, params,
                                                                cone, segs, (origins, dirs, t, keys, seed),
                                                                crossing.blockers(prep))
+            near = None
+            if near_emitters.applies(prep.lights, method) and (through is None or not len(through)):
+                segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
+                                                     cone if shadows else segs, segs,
+                                                     (origins, dirs, t, keys, seed), shadows, radiance)
+                stats[-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES):-crossing.STATS_SIZE] = near[1]
             air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
                                                                       len(origins))
             bound += air_bound
+            if near is not None:
+                air = air + near[0]
+                bound[near[2]] = np.inf  # the rule about the foot point: no bound, as the rows'
             if sampled is not None:
                 air, variance = air + sampled[0], variance + sampled[1]
                 bound[sampled[2]] = np.inf
@@ -331,8 +339,9 @@ def has_variance(prep: Prepared, method) -> bool:
 
 
 def stats_size(method) -> int:
-    """The length of a render's statistics array: the method's, the lit intervals', the inside integrals'."""
-    return method.stats_size + len(STATS_NAMES) + crossing.STATS_SIZE
+    """The length of a render's statistics array: the method's, the lit intervals', the rays near flat
+    emitters', the inside integrals'."""
+    return method.stats_size + len(STATS_NAMES) + len(near_emitters.STATS_NAMES) + crossing.STATS_SIZE
 
 
 WARM_UP_GRID = 8  # the warm-up traces the first sample of the pixels of an 8 x 8 grid over the image
@@ -643,6 +652,9 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     summary = method.summarize(totals[:method.stats_size])
     if task.shadows:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
+    if near_emitters.applies(prep.lights, method):
+        summary.update({f"cubature: {k}": int(v) for k, v in
+                        zip(near_emitters.STATS_NAMES, totals[-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES):])})
     summary.update(crossing.summarize(prep, method, totals[-crossing.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
     summary.update(pilot)

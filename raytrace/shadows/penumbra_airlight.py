@@ -33,7 +33,6 @@ from ..shading import STRATA, _jitter as jitter
 from .frusta import GAP_REL, point_lit_pieces
 
 DIM_AIRLIGHT = 1 << 49  # the first random-number dimension (rng.py) of the air-light's emitter samples
-TOLERANCES = ("precision", "rtol")  # the methods' relative tolerances, which the sampling effort follows
 PILOT = 4  # strata per side of the pilot that chooses a cut pair's strata
 LADDER = (4, 8, 16)  # the strata per side a cut pair may get: the floor first, the cap last
 FIXED = STRATA  # strata per side for a method without a tolerance
@@ -80,14 +79,14 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
 
 def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
     """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`: with a
-    tolerance (`tolerance`), a pilot of PILOT x PILOT strata per ray chooses its strata (`choose_strata`)
+    tolerance (`Method.tolerance`), a pilot of PILOT x PILOT strata per ray chooses its strata (`choose_strata`)
     and an estimate from fresh samples at those strata is returned (the pilot's samples are not reused:
     the estimate is independent of the choice, so unbiased); without one, FIXED x FIXED strata."""
 
     def estimate(rows, strata, stage):
         return _stratified(accel, method, medium, params, emitter, rows, rays, select, strata, _dim(e, stage))
 
-    tol = tolerance(params)
+    tol = method.tolerance(params)
     if tol is None:
         return estimate(rs, FIXED, len(LADDER))
     strata = choose_strata(*estimate(rs, PILOT, len(LADDER)), tol)
@@ -97,11 +96,6 @@ def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
         if len(at):
             value[at], var[at] = estimate(rs[at], s, k)
     return value, var
-
-
-def tolerance(params) -> float | None:
-    """The method's requested relative tolerance (TOLERANCES), None if it has none."""
-    return next((float(params[k]) for k in TOLERANCES if k in params), None)
 
 
 def choose_strata(value, var, tol) -> np.ndarray:

@@ -1,0 +1,150 @@
+"""Flat emitters (quad, disk) about a point of their plane: the rules that the air-light of a camera ray
+passing near or ending on the emitter needs (rendering/near_emitters.py, docs/area_lights.md, "Rays
+near an emitter").
+
+Along a camera ray the air-light of one emitter point y behaves like 1 / rho(y), rho the distance from
+y to the ray, which vanishes at the ray's foot point f on the plane (where it crosses it). A rule whose
+Jacobian vanishes like |y - f| makes that integrand smooth in its parameters:
+- a convex polygon: the triangles (f, a, b) over its edges, the edge at signed distance h from f
+  (perpendicular m, direction e): y = f + r |h| (m + sinh(u) e), r in [0, 1], dA = r h^2 cosh(u) dr du,
+  signed by the side of the edge f lies on (f outside the polygon: the triangles beyond it subtract);
+  Gauss–Legendre in u (panels of at most SPAN) and `graded` in r (sinh: 1 / rho = 1 / (r |h| cosh u) times the Jacobian is smooth however near
+  f lies to the edge's line);
+- a disk: polar coordinates (rho, phi) about f, dA = rho drho dphi, Gauss–Legendre in rho between the
+  rim's crossings (`graded` from f where f lies inside); f inside: phi = psi + (a / 2) sin(2 psi) from the
+  direction of f off the centre, psi equally spaced (periodic; the chord to the rim is nearly singular
+  at right angles to that direction when f lies near the rim, which a = 1 - sqrt(R^2 - D^2) / D, D the
+  distance of f from the centre, crowds the nodes toward); f outside: phi = phi_c + delta sin theta over
+  the rim's tangent cone (theta Gauss–Legendre: the chord's square root at the tangents is smooth in theta).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .area import gauss_legendre
+
+
+SPAN = 2.0  # the longest stretch of u one Gauss–Legendre panel takes (a foot point near an edge's line: longer)
+TINY = 1e-9  # of an edge's length: nearer its line a foot point's triangle counts as of no area
+
+
+def graded(n: int):
+    """Gauss–Legendre nodes and weights of r = xi^2 on [0, 1] (xi Gauss–Legendre): the per-point air-light
+    about the foot point is c / r + sigma c' log r + smooth, so r times it has an r log r term, which
+    the grading makes 4 xi^3 log xi (Gauss–Legendre then converges as for a smooth function of order 3)."""
+    xi, w = gauss_legendre(n)
+    return xi * xi, 2.0 * xi * w
+
+
+@dataclass(frozen=True)
+class Planar:
+    """A flat emitter as near_emitters.py needs it: a point `centre` (3,) of its plane, the plane's unit
+    `normal` (3,), its `diameter`, `outside(f)` the distance (P,) from points f (P, 3) of the plane to the
+    emitter (0 on it), and `rule(f, order)` (points (M, 3), signed area weights (M,), owner (M,): the f of
+    each node) a rule over the emitter singular at each f (module docstring) whose weights sum to the
+    emitter's area for every f."""
+    centre: np.ndarray
+    normal: np.ndarray
+    diameter: float
+    outside: Callable
+    rule: Callable
+
+
+def plane_feet(centre, normal, origins, dirs, tmax):
+    """((N, 3) feet, (N,) heights): per segment o + t d, 0 <= t <= tmax (unit d), the point of the plane
+    (centre, normal) where it crosses it, else the projection of its end nearer the plane (its origin
+    where it runs away to infinity), and that end's distance to the plane (0 where it crosses)."""
+    h0 = (origins - centre) @ normal
+    dn = dirs @ normal
+    finite = np.isfinite(tmax)
+    end = np.where(finite, tmax, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tc = np.where(dn != 0.0, -h0 / dn, -1.0)
+    crosses = (tc >= 0.0) & (tc <= tmax)
+    t = np.where(crosses, tc, np.where(np.abs(h0 + end * dn) < np.abs(h0), end, 0.0))
+    height = np.where(crosses, 0.0, np.abs(h0 + t * dn))
+    points = origins + t[:, None] * dirs
+    return points - ((points - centre) @ normal)[:, None] * normal, height
+
+
+def polygon(corners, normal) -> Planar:
+    """The `Planar` of a convex polygon of `corners` (M, 3) in order about its `normal`."""
+    corners = np.asarray(corners, float)
+    edges = np.roll(corners, -1, axis=0) - corners
+    diameter = max(np.linalg.norm(corners - c, axis=1).max() for c in corners)
+
+    def outside(f):
+        rel = f[:, None, :] - corners[None]  # (P, M, 3)
+        inside = np.all(np.cross(edges[None], rel) @ normal >= 0.0, axis=1)
+        s = np.clip(np.einsum("pmk,mk->pm", rel, edges) / np.einsum("mk,mk->m", edges, edges), 0.0, 1.0)
+        gap = np.linalg.norm(rel - s[..., None] * edges[None], axis=2).min(axis=1)
+        return np.where(inside, 0.0, gap)
+
+    def rule(f, order):
+        r, wr = graded(order)
+        x, wx = gauss_legendre(order)
+        parts = []
+        for a, b in zip(corners, np.roll(corners, -1, axis=0)):
+            along = (b - a) / np.linalg.norm(b - a)
+            foot = a + ((f - a) @ along)[:, None] * along  # f's perpendicular foot on the edge's line
+            h = np.cross(a - f, b - f) @ normal / np.linalg.norm(b - a)  # signed: > 0 on the inner side
+            toward = np.where(h[:, None] >= 0.0, -1.0, 1.0) * np.cross(normal, along)  # from f to the edge
+            scale = np.maximum(np.abs(h), TINY * np.linalg.norm(b - a))  # h ~ 0: a triangle of no area
+            lo, hi = np.arcsinh((a - foot) @ along / scale), np.arcsinh((b - foot) @ along / scale)
+            panels = np.maximum(np.ceil((hi - lo) / SPAN), 1).astype(np.int64)
+            for p in np.unique(panels):
+                at = np.nonzero(panels == p)[0]
+                t = ((np.arange(p)[:, None] + x[None]) / p).ravel()  # (p x order,) in [0, 1]
+                u = lo[at, None] + (hi - lo)[at, None] * t[None]  # q = |h| sinh(u) along the edge
+                arm = scale[at, None, None] * (toward[at, None, :] + np.sinh(u)[..., None] * along)  # f to the edge
+                points = f[at, None, None, :] + r[None, :, None, None] * arm[:, None, :, :]
+                jac = (h * scale)[at, None] * (hi - lo)[at, None] * np.tile(wx, p)[None] / p * np.cosh(u)
+                weights = (r * wr)[None, :, None] * jac[:, None, :]
+                parts.append((points.reshape(-1, 3), weights.ravel(), np.repeat(at, weights[0].size)))
+        return tuple(np.concatenate(c) for c in zip(*parts))
+
+    return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule)
+
+
+def disk(centre, normal, t1, t2, radius: float) -> Planar:
+    """The `Planar` of the disk of `centre`, unit `normal` and `radius` (t1, t2: its plane's frame)."""
+    centre = np.asarray(centre, float)
+
+    def outside(f):
+        return np.maximum(np.linalg.norm(f - centre, axis=1) - radius, 0.0)
+
+    def rule(f, order):
+        px, py = (f - centre) @ t1, (f - centre) @ t2  # (P,)
+        dist = np.hypot(px, py)
+        m = 4 * order
+        inside = dist < radius
+        (rg, wg), (rl, wl) = graded(order), gauss_legendre(order)
+        r, wr = np.where(inside[:, None], rg, rl), np.where(inside[:, None], wg, wl)  # (P, order)
+        # outside: phi_c + delta sin(theta) over the tangent cone
+        theta, wt = np.polynomial.legendre.leggauss(m)
+        theta, wt = 0.5 * np.pi * theta, 0.5 * np.pi * wt
+        delta = np.arcsin(np.minimum(radius / np.maximum(dist, 1e-300), 1.0))
+        phi_c = np.arctan2(-py, -px)
+        # inside: psi equally spaced, phi = psi + (a / 2) sin(2 psi) from f's direction off the centre
+        psi = 2.0 * np.pi * (np.arange(m) + 0.5) / m
+        with np.errstate(divide="ignore"):
+            a = np.clip(1.0 - np.sqrt(np.maximum(radius * radius - dist * dist, 0.0)) / dist, 0.0, 1.0)[:, None]
+        graded_phi = np.arctan2(py, px)[:, None] + psi[None] + 0.5 * a * np.sin(2.0 * psi)[None]
+        phi = np.where(inside[:, None], graded_phi, phi_c[:, None] + delta[:, None] * np.sin(theta)[None])
+        dphi = np.where(inside[:, None], 2.0 * np.pi / m * (1.0 + a * np.cos(2.0 * psi)[None]),
+                        delta[:, None] * np.cos(theta)[None] * wt[None])
+        ux, uy = np.cos(phi), np.sin(phi)  # (P, m)
+        along = ux * px[:, None] + uy * py[:, None]
+        root = np.sqrt(np.maximum(along * along - (dist * dist - radius * radius)[:, None], 0.0))
+        near = np.where(inside[:, None], 0.0, -along - root)
+        chord = (-along + root) - near
+        rho = near[:, :, None] + r[:, None, :] * chord[:, :, None]  # (P, m, order)
+        u = ux[..., None] * t1 + uy[..., None] * t2  # (P, m, 3)
+        points = f[:, None, None, :] + rho[..., None] * u[:, :, None, :]
+        weights = dphi[:, :, None] * chord[:, :, None] * rho * wr[:, None, :]
+        return points.reshape(-1, 3), weights.ravel(), np.repeat(np.arange(len(f)), weights[0].size)
+
+    return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule)

@@ -1,0 +1,107 @@
+"""The air-light of flat emitters along camera rays that pass near them or end on them (docs/area_lights.md,
+"Rays near an emitter").
+
+An emitter's rows (lights/area.py) are one rule for the whole render. Along a camera ray each node's
+air-light behaves like w_i / rho_i, rho_i the node's distance to the ray, so where the ray crosses the
+emitter's plane on or near the emitter (within cubature.NEAR_FRACTION of its diameter, or ends on it)
+the rows meet a 1 / rho singularity they integrate poorly: up to a few per cent off, and an emitter seen
+face-on shows faint bright dots at its nodes. For such a (camera ray, emitter) pair the emitter's rows
+are replaced by a rule of the pair's own about the ray's foot point on the plane (`planar.Planar.rule`,
+whose Jacobian cancels the 1 / rho), its nodes LAMBERT spot rows integrated by the method itself, at
+the orders ORDERS in turn until two agree to SHARE x the method's precision (then the finer is kept;
+where none agree the finest, counted). Methods without a precision take DEFAULT_ORDER.
+
+With volumetric shadows the rule replaces the rows only where all of the emitter's rows are lit along
+the whole ray (`penumbra_airlight`'s states); where occluders shadow them the rows (or the penumbra's
+samples) stay. `montecarlo` keeps the rows (it samples them).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..lights.cubature import FLOOR, NEAR_FRACTION, SHARE
+from ..lights.planar import plane_feet
+from ..shadows.penumbra_airlight import LIT, _combine, _per_group, _states, point_segments, spot_rows
+
+ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
+DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
+STATS_NAMES = ("rays near an emitter", "rays near an emitter not converged")
+
+
+def applies(lights, method) -> bool:
+    """Whether a render has flat emitters whose near rays a deterministic method integrates so."""
+    return not method.stochastic and any(e is not None and e.planar is not None for e in lights.emitters)
+
+
+def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen):
+    """(`segs` less the rows of the near (camera ray, emitter) pairs, their air-light (N, 3), statistics
+    (STATS_NAMES), (N,) whether each camera ray has such a pair: no error bound there). `cone`: the segments before the lit intervals (`segs` itself without shadows);
+    `rays` = (origins, dirs, tmax, keys, seed) of the N camera rays; `tol` the method's precision
+    (None: DEFAULT_ORDER), relative to the larger of the pair's air-light and `seen` (N, 3), the
+    radiance the ray brings from where it ends (an emitter's own, seen through the medium)."""
+    origins, dirs, tmax = rays[:3]
+    n, n_e = len(origins), len(lights.emitters)
+    air, stats = np.zeros((n, 3)), np.zeros(len(STATS_NAMES))
+    near = np.zeros((n, n_e), bool)
+    feet = {}
+    for e, em in enumerate(lights.emitters):
+        if em is None or em.planar is None:
+            continue
+        foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
+        near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
+        feet[e] = foot
+    owner = np.where(lights.cubature, lights.owner, 0)
+    shines = np.zeros((n, n_e), bool)  # the emitter's rows reach the ray (none in another light's layer)
+    shines[cone.ray[lights.cubature[cone.light]], owner[cone.light[lights.cubature[cone.light]]]] = True
+    near &= shines
+    if shadows and near.any():
+        near &= _all_lit(lights, cone, segs, n)
+    if not near.any():
+        return segs, air, stats, near.any(axis=1)
+    drop = near[segs.ray, owner[segs.light]] & lights.cubature[segs.light]
+    kept = segs.take(np.nonzero(~drop)[0])
+    for e in np.unique(np.nonzero(near)[1]):
+        rs = np.nonzero(near[:, e])[0]
+        value, stray = _ladder(lights.emitters[e], method, medium, params, tol, feet[e][rs], rs, rays, segs.scale,
+                               np.abs(seen[rs]))
+        air[rs] += value
+        stats += (len(rs), stray)
+    return kept, air, stats, near.any(axis=1)
+
+
+def _all_lit(lights, cone, lit, n: int) -> np.ndarray:
+    """(N, E) whether every row of emitter e that shines on camera ray r is lit along all of it."""
+    n_l = len(lights)
+    row_state = _states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
+    return _combine(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters)) == LIT
+
+
+def _ladder(emitter, method, medium, params, tol, feet, rs, rays, scale, seen):
+    """((P, 3) the air-light of `emitter` along camera rays `rs` by its rule about their `feet`, the
+    number of rays whose last two orders disagree; `seen` (P, 3) the rays' other radiance)."""
+    if tol is None:
+        return _value(emitter, method, medium, params, feet, rs, rays, scale, DEFAULT_ORDER), 0
+    out = np.zeros((len(rs), 3))
+    todo = np.arange(len(rs))
+    coarse = _value(emitter, method, medium, params, feet, rs, rays, scale, ORDERS[0])
+    for order in ORDERS[1:]:
+        fine = _value(emitter, method, medium, params, feet[todo], rs[todo], rays, scale, order)
+        scale_ = np.maximum(np.maximum(np.abs(fine), seen[todo]), FLOOR * np.abs(fine).max(initial=0.0))
+        ok = np.all(np.abs(coarse - fine) <= SHARE * tol * scale_, axis=1)
+        out[todo] = fine
+        todo, coarse = todo[~ok], fine[~ok]
+        if not len(todo):
+            break
+    return out, len(todo)
+
+
+def _value(emitter, method, medium, params, feet, rs, rays, scale, order):
+    """(P, 3) the air-light of `emitter` along camera rays `rs` by its rule of `order` about `feet`."""
+    points, weights, owner = emitter.planar.rule(feet, order)
+    normals = np.broadcast_to(emitter.planar.normal, points.shape)
+    rows = spot_rows(points, normals, weights[:, None] * emitter.radiance[None, :], emitter.two_sided)
+    group = np.repeat(owner, 2) if emitter.two_sided else owner  # spot_rows: a two-sided node twice
+    each = _per_group(method, medium, params, rows, point_segments(rows, 1, rays, rs[group], scale), len(rows))
+    out = np.zeros((len(rs), 3))
+    np.add.at(out, group, each)
+    return out
