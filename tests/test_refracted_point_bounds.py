@@ -10,7 +10,6 @@ point crosses a face's edge were taken only where the sign differed at the segme
 spot's cone crossings only between 64 samples, so the glass block lost the +y face's switches
 where its refraction point leaves and re-enters the face, and a cone crossing in the last half
 sample (`test_every_switch_is_a_break`; quadrature at rtol 1e-6 was 7e-7 off there, now 3e-12)."""
-import math
 
 import numpy as np
 import pytest

@@ -845,7 +845,7 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
     undecided interval's width times twice the larger `_jump` at its ends (the term varies by far less
     than that over 1e4 `width` = 1e-9 of the scene's size: its log-derivative is at most a few over
     the light's height, which is above 1e-9 of it). inf after MAX_ISOLATE evaluations."""
-    z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+    z0, a, wl, ll = row[0], row[1], row[3], row[4]
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
     stack = np.empty((128, 4))
