@@ -100,32 +100,48 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     tris = accel.triangles[select & (accel.sphere_of < 0)]
     spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
     res = resolution or default_resolution(len(tris))
+    mixed = len(set(lights.distant.tolist())) > 1
     out = []
     for li in range(len(lights)):
         if lights.distant[li]:
-            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res)
+            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res, mixed)
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
-            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale)
+            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale, mixed)
         out.append(replace(bins, spheres=spheres) if len(spheres) else bins)
     return out
 
 
-def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None) -> LightBins:
+def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None, mixed: bool = False) -> LightBins:
     """The frusta and texel lists of the triangles `tris` (T, 3, 3) under a directional light whose
     direction of travel is `axis` (any length), for a scene of size `scale` and shadow-ray
     `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (interiors/crossing.py
-    builds them for the light refracted into a shape, from the triangles inside it)."""
+    builds them for the light refracted into a shape, from the triangles inside it). `mixed`: the
+    scene also has point lights (`_by_kind`)."""
     d = axis / np.linalg.norm(axis)
     u = perpendicular(d)
     frame = np.array([np.zeros(3), u, np.cross(d, u), d])
-    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale)
+    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale, mixed)
 
 
-def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
+def _by_kind(sun: bool, mixed: bool, point_kernel, sun_kernel, any_kernel):
+    """The kernel for a light of one kind: `point_kernel` (its `sun` argument left out: typed None, so
+    numba prunes the sun's branches) for a point light's cube map, `sun_kernel` (the same kernel
+    called with a literal True: the point light's branches pruned) for a sun's grid; so a scene
+    compiles the code of its lights' kinds only. In a scene with both (`mixed`), one specialisation
+    with both kinds' code, the kind known at run time (`any_kernel`: the kernel called with True or
+    None, typed Optional(bool)), costs less to compile than the two pruned ones, which share most of
+    their code (the texel walk)."""
+    if mixed:
+        return lambda *args: any_kernel(*args, sun)
+    return sun_kernel if sun else point_kernel
+
+
+def _light_bins(tris, frame, sun, res, epsilon, slack, mixed=False) -> LightBins:
     n_t = len(tris)
     planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, bool)
-    (_frusta_sun if sun else _frusta)(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep)
+    # the two pruned `_frusta` share little code: no kernel for both kinds
+    _by_kind(sun, False, _frusta, _frusta_sun, None)(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep)
     planes, signs, lb = planes[keep], signs[keep], lb[keep]
     if sun:
         pu = np.einsum("tvk,k->tv", tris[keep], frame[1]) if len(lb) else np.zeros((0, 3))
@@ -145,7 +161,7 @@ def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
     count = np.zeros(n_tex + 1, np.int64)
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
-    bin_ = _bin_sun if sun else _bin
+    bin_ = _by_kind(sun, mixed, _bin, _bin_sun, _bin_any)
     bin_(planes, signs, rel, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover, cover_depth)
     # the lists, filled in ascending depth lower bound (so each texel's is in order), less what its cover hides
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
@@ -673,6 +689,21 @@ def _lit_sun(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_de
                 True)
 
 
+@njit
+def _bin_any(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth, sun):
+    """`_bin` for either kind, `sun` (a bool) at run time."""
+    _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth,
+         True if sun else None)
+
+
+@njit
+def _lit_any(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
+             sun):
+    """`_lit` for either kind, `sun` (a bool) at run time."""
+    return _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
+                True if sun else None)
+
+
 def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list[LightBins] | None = None):
     """The lit pieces of `segs` as new segments (each from its own start point, t0 along the camera
     ray, stream + n_lights x piece number), and the statistics
@@ -719,10 +750,11 @@ def lit_pieces(segs: Segments, bins: list[LightBins], scale: float, stats):
     of size `scale`, in segment order and, per segment, in x; the statistics add to `stats`."""
     stats[ST_SEGMENTS] += len(segs)
     srcs, a, b = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)]
+    mixed = len({lb_.kind for lb_ in bins}) > 1
     for li in np.unique(segs.light):
         idx = np.nonzero(segs.light == li)[0]
         lb_ = bins[li]
-        src, x0, x1 = (_lit_sun if lb_.kind == ORTHO else _lit)(
+        src, x0, x1 = _by_kind(lb_.kind == ORTHO, mixed, _lit, _lit_sun, _lit_any)(
                            np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
                            np.ascontiguousarray(segs.length[idx]), lb_.grid, lb_.frame, lb_.start, lb_.tri,
                            lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
@@ -786,18 +818,26 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
     itself; then the spheres' shadows (`lit_parts`)."""
     n_t = tris.shape[0]
     ctris, straddle = np.empty((n_t, 3, 3)), np.empty((n_t, 3, 3))
-    planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, np.bool_)
+    # np.empty and element loops only: np.zeros, full, eye and array would each compile a function more
+    planes, signs, lb, keep = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t, np.bool_)
     k_planes, k_signs, k_lb, order = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t)
     tri, tlb, start = np.empty(6 * n_t, np.int64), np.empty(6 * n_t), np.empty(7, np.int64)
-    cover, cover_depth = np.full(6, -1, np.int64), np.full(6, np.inf)
-    grid = np.array([-1.0, -1.0, 2.0, 2.0, 1.0, 1.0])
-    frame = np.eye(4, 3, -1)  # the light's position (row 0), then the axes
-    stats = np.zeros(len(STATS_NAMES))
+    cover, cover_depth = np.empty(6, np.int64), np.empty(6)
+    grid, stats, zero = np.empty(6), np.empty(len(STATS_NAMES)), np.empty(3)
+    frame = np.empty((4, 3))  # the light's position (row 0), then the axes
+    grid[0], grid[1], grid[2], grid[3], grid[4], grid[5] = -1.0, -1.0, 2.0, 2.0, 1.0, 1.0  # one texel a face
+    for f in range(6):
+        cover[f], cover_depth[f] = -1, math.inf
+    for f in range(len(STATS_NAMES)):
+        stats[f] = 0.0
+    for a in range(3):
+        zero[a] = 0.0
+        for f in range(4):
+            frame[f, a] = 1.0 if f == a + 1 else 0.0
     per = 4 * spheres.shape[0] + 1
     cap = 2 * origins.shape[0] + 16
     src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
     buf = np.empty((per, 2))
-    zero = np.zeros(3)
     m, nc, current = 0, 0, -1
     for s in range(origins.shape[0]):
         g = group[s]
