@@ -100,48 +100,45 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     tris = accel.triangles[select & (accel.sphere_of < 0)]
     spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
     res = resolution or default_resolution(len(tris))
-    mixed = len(set(lights.distant.tolist())) > 1
+    suns = bool(lights.distant.any())
     out = []
     for li in range(len(lights)):
         if lights.distant[li]:
-            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res, mixed)
+            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res)
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
-            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale, mixed)
+            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale, suns)
         out.append(replace(bins, spheres=spheres) if len(spheres) else bins)
     return out
 
 
-def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None, mixed: bool = False) -> LightBins:
+def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None) -> LightBins:
     """The frusta and texel lists of the triangles `tris` (T, 3, 3) under a directional light whose
     direction of travel is `axis` (any length), for a scene of size `scale` and shadow-ray
     `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (interiors/crossing.py
-    builds them for the light refracted into a shape, from the triangles inside it). `mixed`: the
-    scene also has point lights (`_by_kind`)."""
+    builds them for the light refracted into a shape, from the triangles inside it)."""
     d = axis / np.linalg.norm(axis)
     u = perpendicular(d)
     frame = np.array([np.zeros(3), u, np.cross(d, u), d])
-    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale, mixed)
+    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale, True)
 
 
-def _by_kind(sun: bool, mixed: bool, point_kernel, sun_kernel, any_kernel):
-    """The kernel for a light of one kind: `point_kernel` (its `sun` argument left out: typed None, so
-    numba prunes the sun's branches) for a point light's cube map, `sun_kernel` (the same kernel
-    called with a literal True: the point light's branches pruned) for a sun's grid; so a scene
-    compiles the code of its lights' kinds only. In a scene with both (`mixed`), one specialisation
-    with both kinds' code, the kind known at run time (`any_kernel`: the kernel called with True or
-    None, typed Optional(bool)), costs less to compile than the two pruned ones, which share most of
-    their code (the texel walk)."""
-    if mixed:
-        return lambda *args: any_kernel(*args, sun)
-    return sun_kernel if sun else point_kernel
+def _kind(sun: bool, suns: bool) -> tuple:
+    """The trailing `sun` argument of `_frusta`, `_bin` and `_lit` for a light of a scene: none in a
+    scene without a directional light (it is then typed None, so numba prunes the sun's branches
+    before typing and the scene compiles the point lights' code only), else whether the light is a
+    sun, a bool at run time (one specialisation with both kinds' code: two pruned ones would
+    compile the texel walk they share twice, and a literal needs a jitted caller, whose module
+    optimises the whole kernel again)."""
+    return (bool(sun),) if suns else ()
 
 
-def _light_bins(tris, frame, sun, res, epsilon, slack, mixed=False) -> LightBins:
+def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
+    """`sun_bins`' and `build`'s: `suns` whether the scene has a directional light (`_kind`)."""
+    kind = _kind(sun, suns)
     n_t = len(tris)
     planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, bool)
-    # the two pruned `_frusta` share little code: no kernel for both kinds
-    _by_kind(sun, False, _frusta, _frusta_sun, None)(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep)
+    _frusta(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep, *kind)
     planes, signs, lb = planes[keep], signs[keep], lb[keep]
     if sun:
         pu = np.einsum("tvk,k->tv", tris[keep], frame[1]) if len(lb) else np.zeros((0, 3))
@@ -161,13 +158,13 @@ def _light_bins(tris, frame, sun, res, epsilon, slack, mixed=False) -> LightBins
     count = np.zeros(n_tex + 1, np.int64)
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
-    bin_ = _by_kind(sun, mixed, _bin, _bin_sun, _bin_any)
-    bin_(planes, signs, rel, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover, cover_depth)
+    _bin(planes, signs, rel, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover, cover_depth,
+         *kind)
     # the lists, filled in ascending depth lower bound (so each texel's is in order), less what its cover hides
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
     tri, tlb, fill = np.empty(int(start[-1]), np.int64), np.empty(int(start[-1])), np.zeros(n_tex, np.int64)
-    bin_(planes, signs, rel, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb, cover,
-         cover_depth)
+    _bin(planes, signs, rel, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb, cover,
+         cover_depth, *kind)
     slot = np.arange(len(tri)) - np.repeat(start[:-1], count[:-1])
     kept = slot < np.repeat(fill, count[:-1])
     start = np.concatenate([[0], np.cumsum(fill)]).astype(np.int64)
@@ -226,10 +223,10 @@ def _less(a, b):
 def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun=None):
     """Per triangle, into the zeroed arrays planes, signs, lb and keep: its four planes and their
     signs (LightBins), a lower bound on its depth from the light, and whether it is kept (not
-    edge-on within rounding; for a point light, its plane not within epsilon of the light). `sun`:
-    None for the point light L, True (a literal, from `_frusta_sun`) for the direction of travel d:
-    numba prunes the branches of the other kind (they are typed None or a literal), so a scene
-    compiles only its lights' kinds."""
+    edge-on within rounding; for a point light, its plane not within epsilon of the light). `sun`
+    (`_kind`): None (left out) for the point light L, numba then pruning the sun's branches before
+    typing; else a bool: the direction of travel d if true, the point light L if false. Every
+    test of the kind reads `sun` itself, as numba prunes only on an argument."""
     for t in range(tris.shape[0]):
         v = tris[t]
         e1 = v[1] - v[0]
@@ -238,7 +235,7 @@ def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun=None):
         ny = e1[2] * e2[0] - e1[0] * e2[2]
         nz = e1[0] * e2[1] - e1[1] * e2[0]
         size = math.sqrt(e1 @ e1) * math.sqrt(e2 @ e2)
-        if sun is not None:
+        if sun is not None and sun:
             D = nx * d[0] + ny * d[1] + nz * d[2]
             if not abs(D) > EDGE_ON * size:
                 continue
@@ -260,7 +257,7 @@ def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun=None):
                 flip = -1.0
             a, b = v[i], v[j]
             ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-            if sun is not None:  # d x (B - A), through A
+            if sun is not None and sun:  # d x (B - A), through A
                 px, py, pz = d[1] * ez - d[2] * ey, d[2] * ex - d[0] * ez, d[0] * ey - d[1] * ex
                 kappa = px * a[0] + py * a[1] + pz * a[2]
             else:  # (A - L) x (B - A), through L
@@ -271,7 +268,7 @@ def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun=None):
             signs[t, e] = s * flip
         # own plane: beyond it from the light. Point light: s (n . (P - L)) - |D| > 0; sun: s n . (P - A) > 0
         planes[t, 3, 0], planes[t, 3, 1], planes[t, 3, 2] = nx, ny, nz
-        planes[t, 3, 3] = D if sun is None else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
+        planes[t, 3, 3] = D if sun is None or not sun else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
         signs[t, 3] = s
 
 
@@ -285,7 +282,7 @@ def _side(planes, signs, t, p, x, y, z):
 def _corner(sun, frame, face, U, V, out):
     """Write into `out` the corner (U, V) of a texel: a direction from the light on cube face
     `face`, or (sun) a point of the ortho grid's plane."""
-    if sun is None:
+    if sun is None or not sun:
         a = face // 2
         out[a] = 1.0 - 2.0 * (face % 2)
         out[(a + 1) % 3] = U
@@ -345,12 +342,13 @@ def _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill,
     every texel it may meet into start[texel], and each texel's covering triangle of least largest
     depth (the first in `order` of equal ones); or list it, at start + fill of the texel, with its
     depth lower bound lb less REL (tlb), unless the texel's cover hides it (lb beyond cover_depth).
-    `sun`: None for a cube map (CUBE), True (from `_bin_sun`) for the ortho grid (ORTHO), as `_frusta`'s."""
+    `sun` as `_frusta`'s: None or false for a cube map (CUBE), true for the ortho grid (ORTHO)."""
     u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
-    faces = 6 if sun is None else 1
+    faces = 6 if sun is None or not sun else 1
     buf, buf2 = np.empty((8, 3)), np.empty((8, 3))
     cs = np.empty((4, 3))
-    du_d, dv_d = DILATE * (du * nu if sun is not None else 1.0), DILATE * (dv * nv if sun is not None else 1.0)
+    du_d = DILATE * (du * nu if sun is not None and sun else 1.0)
+    dv_d = DILATE * (dv * nv if sun is not None and sun else 1.0)
     dd = frame[3]
     cn, pn = np.empty(4), np.empty(3)
     for it in range(order.shape[0]):
@@ -358,7 +356,7 @@ def _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill,
         for p in range(3):
             pn[p] = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
         for face in range(faces):
-            if sun is None:
+            if sun is None or not sun:
                 U0, U1, V0, V1 = _face_bbox(rel, t, face, buf, buf2)
                 if U1 < U0 or V1 < V0:
                     continue
@@ -403,7 +401,7 @@ def _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill,
                             for c in range(4):
                                 x, y, z = cs[c, 0], cs[c, 1], cs[c, 2]
                                 nc = planes[t, 3, 0] * x + planes[t, 3, 1] * y + planes[t, 3, 2] * z
-                                if sun is None:  # the own plane n . X = D along X = s c
+                                if sun is None or not sun:  # the own plane n . X = D along X = s c
                                     s = planes[t, 3, 3] / nc if nc != 0.0 else math.inf
                                     depth = max(depth, s * cn[c] if s > 0 else math.inf)
                                 else:  # along c + s d
@@ -439,7 +437,7 @@ def _pieces(q, w, ell, sun, grid, frame, out):
     of `out` with face coordinates U = (a_u + b_u x) / (a_m + b_m x), V alike, monotone in x on
     the part; returns their count. Cube: split where the largest coordinate changes; ortho grid:
     the part over the grid (dilated), beyond which nothing casts a shadow. `sun`: as `_bin`'s."""
-    if sun is not None:
+    if sun is not None and sun:
         u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], grid[4], grid[5]
         a_u, b_u = q @ frame[1], w @ frame[1]
         a_v, b_v = q @ frame[2], w @ frame[2]
@@ -526,7 +524,7 @@ def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth,
     triangle), inside the cover's frustum, or gives candidates (module docstring), whose exact
     frustum intervals are computed once per segment; the lit pieces are the complement of their
     union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call. `sun`:
-    as `_bin`'s (True from `_lit_sun`)."""
+    as `_bin`'s."""
     n_t = planes.shape[0]
     stamp = np.empty(n_t, np.int64)
     for t in range(n_t):
@@ -544,7 +542,7 @@ def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth,
         ell = length[s]
         w = dirs[s]
         for a in range(3):
-            q[a] = origins[s, a] - (frame[0, a] if sun is None else 0.0)
+            q[a] = origins[s, a] - (frame[0, a] if sun is None or not sun else 0.0)
         k = 0
         n_parts = _pieces(q, w, ell, sun, grid, frame, parts) if n_t and ell > 0.0 else 0
         for p in range(n_parts):
@@ -579,7 +577,7 @@ def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth,
                 if first == last:
                     n_near += 1
                 else:
-                    if sun is None:
+                    if sun is None or not sun:
                         r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
                         r2 = math.inf
                         if xn < math.inf:
@@ -670,40 +668,6 @@ def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth,
     return src[:m].copy(), x0[:m].copy(), x1[:m].copy()
 
 
-@njit
-def _frusta_sun(tris, L, d, epsilon, planes, signs, lb, keep):
-    """`_frusta` for a directional light (compiled without the point light's code)."""
-    _frusta(tris, L, d, epsilon, planes, signs, lb, keep, True)
-
-
-@njit
-def _bin_sun(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth):
-    """`_bin` for a directional light's ortho grid (compiled without the cube map's code)."""
-    _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth, True)
-
-
-@njit
-def _lit_sun(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats):
-    """`_lit` for a directional light's ortho grid (compiled without the cube map's code)."""
-    return _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
-                True)
-
-
-@njit
-def _bin_any(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth, sun):
-    """`_bin` for either kind, `sun` (a bool) at run time."""
-    _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth,
-         True if sun else None)
-
-
-@njit
-def _lit_any(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
-             sun):
-    """`_lit` for either kind, `sun` (a bool) at run time."""
-    return _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
-                True if sun else None)
-
-
 def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list[LightBins] | None = None):
     """The lit pieces of `segs` as new segments (each from its own start point, t0 along the camera
     ray, stream + n_lights x piece number), and the statistics
@@ -750,15 +714,15 @@ def lit_pieces(segs: Segments, bins: list[LightBins], scale: float, stats):
     of size `scale`, in segment order and, per segment, in x; the statistics add to `stats`."""
     stats[ST_SEGMENTS] += len(segs)
     srcs, a, b = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)]
-    mixed = len({lb_.kind for lb_ in bins}) > 1
+    suns = any(lb_.kind == ORTHO for lb_ in bins)
     for li in np.unique(segs.light):
         idx = np.nonzero(segs.light == li)[0]
         lb_ = bins[li]
-        src, x0, x1 = _by_kind(lb_.kind == ORTHO, mixed, _lit, _lit_sun, _lit_any)(
+        src, x0, x1 = _lit(
                            np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
                            np.ascontiguousarray(segs.length[idx]), lb_.grid, lb_.frame, lb_.start, lb_.tri,
                            lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
-                           GAP_REL * scale, stats)
+                           GAP_REL * scale, stats, *_kind(lb_.kind == ORTHO, suns))
         if len(lb_.spheres):
             sun = lb_.kind == ORTHO
             src, x0, x1 = _cut_by_spheres(src, x0, x1, segs.origins[idx], segs.dirs[idx],
