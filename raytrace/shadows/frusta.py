@@ -135,10 +135,10 @@ def _kind(sun: bool, suns: bool) -> tuple:
 
 def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
     """`sun_bins`' and `build`'s: `suns` whether the scene has a directional light (`_kind`)."""
-    kind = _kind(sun, suns)
+    which = _kind(sun, suns)
     n_t = len(tris)
     planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, bool)
-    _frusta(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep, *kind)
+    _frusta(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep, *which)
     planes, signs, lb = planes[keep], signs[keep], lb[keep]
     if sun:
         pu = np.einsum("tvk,k->tv", tris[keep], frame[1]) if len(lb) else np.zeros((0, 3))
@@ -159,12 +159,12 @@ def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
     _bin(planes, signs, rel, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover, cover_depth,
-         *kind)
+         *which)
     # the lists, filled in ascending depth lower bound (so each texel's is in order), less what its cover hides
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
     tri, tlb, fill = np.empty(int(start[-1]), np.int64), np.empty(int(start[-1])), np.zeros(n_tex, np.int64)
     _bin(planes, signs, rel, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb, cover,
-         cover_depth, *kind)
+         cover_depth, *which)
     slot = np.arange(len(tri)) - np.repeat(start[:-1], count[:-1])
     kept = slot < np.repeat(fill, count[:-1])
     start = np.concatenate([[0], np.cumsum(fill)]).astype(np.int64)
