@@ -27,6 +27,7 @@ whose meshes come from `render.py assets` (sibenik, conference) run only when RA
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -190,9 +191,9 @@ def paired(names: list[str], args):
         results[name] = runs
         cells = []
         for k, _ in trees:
-            cpu = sorted(r["compile_cpu"] for r in runs[k])
+            cpu = statistics.median(r["compile_cpu"] for r in runs[k])
             each = ", ".join(f"{r['compile_cpu']:.1f}" for r in runs[k])
-            cells.append(f"{each} | {cpu[len(cpu) // 2]:.1f} | {runs[k][0]['compiled']}")
+            cells.append(f"{each} | {cpu:.1f} | {runs[k][0]['compiled']}")
         print(f"| {name} | {' | '.join(cells)} |", flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))

@@ -55,4 +55,7 @@ if SourceKeyedLocator not in _Impl._locator_classes:
 # no_cfunc_wrapper: no C-callable wrapper per compiled function (it serves only first-class function
 # arguments, which no kernel takes): about 10 ms less compile per function, the kernels' code unchanged
 njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMATH), no_cfunc_wrapper=True)
-exact_njit = functools.partial(numba.njit, cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
+# fastmath=False explicitly: a kernel whose flags leave fastmath unset inherits its caller's when a fastmath
+# kernel compiles it first (numba's ConfigStack), and keeps those flags for every later caller
+exact_njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=False, error_model="numpy",
+                               no_cfunc_wrapper=True)

@@ -100,13 +100,14 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     tris = accel.triangles[select & (accel.sphere_of < 0)]
     spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
     res = resolution or default_resolution(len(tris))
+    suns = bool(lights.distant.any())
     out = []
     for li in range(len(lights)):
         if lights.distant[li]:
             bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res)
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
-            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale)
+            bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale, suns)
         out.append(replace(bins, spheres=spheres) if len(spheres) else bins)
     return out
 
@@ -119,13 +120,25 @@ def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = 
     d = axis / np.linalg.norm(axis)
     u = perpendicular(d)
     frame = np.array([np.zeros(3), u, np.cross(d, u), d])
-    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale)
+    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale, True)
 
 
-def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
+def _kind(sun: bool, suns: bool) -> tuple:
+    """The trailing `sun` argument of `_frusta`, `_bin` and `_lit` for a light of a scene: none in a
+    scene without a directional light (it is then typed None, so numba prunes the sun's branches
+    before typing and the scene compiles the point lights' code only), else whether the light is a
+    sun, a bool at run time (one specialisation with both kinds' code: two pruned ones would
+    compile the texel walk they share twice, and a literal needs a jitted caller, whose module
+    optimises the whole kernel again)."""
+    return (bool(sun),) if suns else ()
+
+
+def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
+    """`sun_bins`' and `build`'s: `suns` whether the scene has a directional light (`_kind`)."""
+    which = _kind(sun, suns)
     n_t = len(tris)
     planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, bool)
-    _frusta(tris, frame[0], frame[3], sun, epsilon, planes, signs, lb, keep)
+    _frusta(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep, *which)
     planes, signs, lb = planes[keep], signs[keep], lb[keep]
     if sun:
         pu = np.einsum("tvk,k->tv", tris[keep], frame[1]) if len(lb) else np.zeros((0, 3))
@@ -145,13 +158,13 @@ def _light_bins(tris, frame, sun, res, epsilon, slack) -> LightBins:
     count = np.zeros(n_tex + 1, np.int64)
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
-    _bin(planes, signs, rel, kind, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover,
-         cover_depth)
+    _bin(planes, signs, rel, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover, cover_depth,
+         *which)
     # the lists, filled in ascending depth lower bound (so each texel's is in order), less what its cover hides
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
     tri, tlb, fill = np.empty(int(start[-1]), np.int64), np.empty(int(start[-1])), np.zeros(n_tex, np.int64)
-    _bin(planes, signs, rel, kind, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb,
-         cover, cover_depth)
+    _bin(planes, signs, rel, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb, cover,
+         cover_depth, *which)
     slot = np.arange(len(tri)) - np.repeat(start[:-1], count[:-1])
     kept = slot < np.repeat(fill, count[:-1])
     start = np.concatenate([[0], np.cumsum(fill)]).astype(np.int64)
@@ -207,10 +220,13 @@ def _less(a, b):
 
 
 @njit
-def _frusta(tris, L, d, sun, epsilon, planes, signs, lb, keep):
+def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun=None):
     """Per triangle, into the zeroed arrays planes, signs, lb and keep: its four planes and their
     signs (LightBins), a lower bound on its depth from the light, and whether it is kept (not
-    edge-on within rounding; for a point light, its plane not within epsilon of the light)."""
+    edge-on within rounding; for a point light, its plane not within epsilon of the light). `sun`
+    (`_kind`): None (left out) for the point light L, numba then pruning the sun's branches before
+    typing; else a bool: the direction of travel d if true, the point light L if false. Every
+    test of the kind reads `sun` itself, as numba prunes only on an argument."""
     for t in range(tris.shape[0]):
         v = tris[t]
         e1 = v[1] - v[0]
@@ -219,7 +235,7 @@ def _frusta(tris, L, d, sun, epsilon, planes, signs, lb, keep):
         ny = e1[2] * e2[0] - e1[0] * e2[2]
         nz = e1[0] * e2[1] - e1[1] * e2[0]
         size = math.sqrt(e1 @ e1) * math.sqrt(e2 @ e2)
-        if sun:
+        if sun is not None and sun:
             D = nx * d[0] + ny * d[1] + nz * d[2]
             if not abs(D) > EDGE_ON * size:
                 continue
@@ -241,7 +257,7 @@ def _frusta(tris, L, d, sun, epsilon, planes, signs, lb, keep):
                 flip = -1.0
             a, b = v[i], v[j]
             ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-            if sun:  # d x (B - A), through A
+            if sun is not None and sun:  # d x (B - A), through A
                 px, py, pz = d[1] * ez - d[2] * ey, d[2] * ex - d[0] * ez, d[0] * ey - d[1] * ex
                 kappa = px * a[0] + py * a[1] + pz * a[2]
             else:  # (A - L) x (B - A), through L
@@ -252,7 +268,7 @@ def _frusta(tris, L, d, sun, epsilon, planes, signs, lb, keep):
             signs[t, e] = s * flip
         # own plane: beyond it from the light. Point light: s (n . (P - L)) - |D| > 0; sun: s n . (P - A) > 0
         planes[t, 3, 0], planes[t, 3, 1], planes[t, 3, 2] = nx, ny, nz
-        planes[t, 3, 3] = D if not sun else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
+        planes[t, 3, 3] = D if sun is None or not sun else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
         signs[t, 3] = s
 
 
@@ -263,10 +279,10 @@ def _side(planes, signs, t, p, x, y, z):
 
 
 @njit(inline="always")
-def _corner(kind, frame, face, U, V, out):
+def _corner(sun, frame, face, U, V, out):
     """Write into `out` the corner (U, V) of a texel: a direction from the light on cube face
-    `face`, or a point of the ortho grid's plane."""
-    if kind == CUBE:
+    `face`, or (sun) a point of the ortho grid's plane."""
+    if sun is None or not sun:
         a = face // 2
         out[a] = 1.0 - 2.0 * (face % 2)
         out[(a + 1) % 3] = U
@@ -321,16 +337,18 @@ def _face_bbox(rel, t, face, buf, buf2):
 
 
 @njit
-def _bin(planes, signs, rel, kind, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth):
+def _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth, sun=None):
     """Conservative rasterisation, the triangles taken in `order`: count (counting) each triangle in
     every texel it may meet into start[texel], and each texel's covering triangle of least largest
     depth (the first in `order` of equal ones); or list it, at start + fill of the texel, with its
-    depth lower bound lb less REL (tlb), unless the texel's cover hides it (lb beyond cover_depth)."""
+    depth lower bound lb less REL (tlb), unless the texel's cover hides it (lb beyond cover_depth).
+    `sun` as `_frusta`'s: None or false for a cube map (CUBE), true for the ortho grid (ORTHO)."""
     u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
-    faces = 6 if kind == CUBE else 1
+    faces = 6 if sun is None or not sun else 1
     buf, buf2 = np.empty((8, 3)), np.empty((8, 3))
     cs = np.empty((4, 3))
-    du_d, dv_d = DILATE * (du * nu if kind == ORTHO else 1.0), DILATE * (dv * nv if kind == ORTHO else 1.0)
+    du_d = DILATE * (du * nu if sun is not None and sun else 1.0)
+    dv_d = DILATE * (dv * nv if sun is not None and sun else 1.0)
     dd = frame[3]
     cn, pn = np.empty(4), np.empty(3)
     for it in range(order.shape[0]):
@@ -338,7 +356,7 @@ def _bin(planes, signs, rel, kind, res, grid, frame, order, lb, counting, start,
         for p in range(3):
             pn[p] = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
         for face in range(faces):
-            if kind == CUBE:
+            if sun is None or not sun:
                 U0, U1, V0, V1 = _face_bbox(rel, t, face, buf, buf2)
                 if U1 < U0 or V1 < V0:
                     continue
@@ -356,7 +374,7 @@ def _bin(planes, signs, rel, kind, res, grid, frame, order, lb, counting, start,
                     for c in range(4):
                         U = u_0 + (i + c % 2) * du + (du_d if c % 2 else -du_d)
                         V = v_0 + (j + c // 2) * dv + (dv_d if c // 2 else -dv_d)
-                        _corner(kind, frame, face, U, V, cs[c])
+                        _corner(sun, frame, face, U, V, cs[c])
                     for c in range(4):
                         cn[c] = math.sqrt(cs[c, 0] ** 2 + cs[c, 1] ** 2 + cs[c, 2] ** 2)
                     inside_all = True
@@ -383,7 +401,7 @@ def _bin(planes, signs, rel, kind, res, grid, frame, order, lb, counting, start,
                             for c in range(4):
                                 x, y, z = cs[c, 0], cs[c, 1], cs[c, 2]
                                 nc = planes[t, 3, 0] * x + planes[t, 3, 1] * y + planes[t, 3, 2] * z
-                                if kind == CUBE:  # the own plane n . X = D along X = s c
+                                if sun is None or not sun:  # the own plane n . X = D along X = s c
                                     s = planes[t, 3, 3] / nc if nc != 0.0 else math.inf
                                     depth = max(depth, s * cn[c] if s > 0 else math.inf)
                                 else:  # along c + s d
@@ -414,12 +432,12 @@ def _crossing(a_x, b_x, a_m, b_m, c, x):
 
 
 @njit
-def _pieces(q, w, ell, kind, grid, frame, out):
+def _pieces(q, w, ell, sun, grid, frame, out):
     """The parts of a segment over one face each: rows (xa, xb, face, a_u, b_u, a_v, b_v, a_m, b_m)
     of `out` with face coordinates U = (a_u + b_u x) / (a_m + b_m x), V alike, monotone in x on
     the part; returns their count. Cube: split where the largest coordinate changes; ortho grid:
-    the part over the grid (dilated), beyond which nothing casts a shadow."""
-    if kind == ORTHO:
+    the part over the grid (dilated), beyond which nothing casts a shadow. `sun`: as `_bin`'s."""
+    if sun is not None and sun:
         u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], grid[4], grid[5]
         a_u, b_u = q @ frame[1], w @ frame[1]
         a_v, b_v = q @ frame[2], w @ frame[2]
@@ -499,13 +517,14 @@ def _heapsort_pairs(a, b):
 
 
 @njit
-def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap,
-         stats):
+def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
+         sun=None):
     """(segment, x0, x1) of every lit piece of every segment, in segment order. Per segment: each
     face part is walked texel by texel (a DDA); each texel run is lit (nearer than every listed
     triangle), inside the cover's frustum, or gives candidates (module docstring), whose exact
     frustum intervals are computed once per segment; the lit pieces are the complement of their
-    union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call."""
+    union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call. `sun`:
+    as `_bin`'s."""
     n_t = planes.shape[0]
     stamp = np.empty(n_t, np.int64)
     for t in range(n_t):
@@ -523,9 +542,9 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
         ell = length[s]
         w = dirs[s]
         for a in range(3):
-            q[a] = origins[s, a] - (frame[0, a] if kind == CUBE else 0.0)
+            q[a] = origins[s, a] - (frame[0, a] if sun is None or not sun else 0.0)
         k = 0
-        n_parts = _pieces(q, w, ell, kind, grid, frame, parts) if n_t and ell > 0.0 else 0
+        n_parts = _pieces(q, w, ell, sun, grid, frame, parts) if n_t and ell > 0.0 else 0
         for p in range(n_parts):
             xa, xb, face = parts[p, 0], parts[p, 1], int(parts[p, 2])
             a_u, b_u, a_v, b_v, a_m, b_m = parts[p, 3], parts[p, 4], parts[p, 5], parts[p, 6], parts[p, 7], parts[p, 8]
@@ -558,7 +577,7 @@ def _lit(origins, dirs, length, kind, grid, frame, start, tri, lb, cover, cover_
                 if first == last:
                     n_near += 1
                 else:
-                    if kind == CUBE:
+                    if sun is None or not sun:
                         r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
                         r2 = math.inf
                         if xn < math.inf:
@@ -695,13 +714,15 @@ def lit_pieces(segs: Segments, bins: list[LightBins], scale: float, stats):
     of size `scale`, in segment order and, per segment, in x; the statistics add to `stats`."""
     stats[ST_SEGMENTS] += len(segs)
     srcs, a, b = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)]
+    suns = any(lb_.kind == ORTHO for lb_ in bins)
     for li in np.unique(segs.light):
         idx = np.nonzero(segs.light == li)[0]
         lb_ = bins[li]
-        src, x0, x1 = _lit(np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
-                           np.ascontiguousarray(segs.length[idx]), lb_.kind, lb_.grid, lb_.frame, lb_.start, lb_.tri,
+        src, x0, x1 = _lit(
+                           np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
+                           np.ascontiguousarray(segs.length[idx]), lb_.grid, lb_.frame, lb_.start, lb_.tri,
                            lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
-                           GAP_REL * scale, stats)
+                           GAP_REL * scale, stats, *_kind(lb_.kind == ORTHO, suns))
         if len(lb_.spheres):
             sun = lb_.kind == ORTHO
             src, x0, x1 = _cut_by_spheres(src, x0, x1, segs.origins[idx], segs.dirs[idx],
@@ -761,19 +782,26 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
     itself; then the spheres' shadows (`lit_parts`)."""
     n_t = tris.shape[0]
     ctris, straddle = np.empty((n_t, 3, 3)), np.empty((n_t, 3, 3))
-    planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, np.bool_)
+    # np.empty and element loops only: np.zeros, full, eye and array would each compile a function more
+    planes, signs, lb, keep = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t, np.bool_)
     k_planes, k_signs, k_lb, order = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t)
     tri, tlb, start = np.empty(6 * n_t, np.int64), np.empty(6 * n_t), np.empty(7, np.int64)
-    cover, cover_depth = np.full(6, -1, np.int64), np.full(6, np.inf)
-    grid = np.array([-1.0, -1.0, 2.0, 2.0, 1.0, 1.0])
-    frame = np.eye(4, 3, -1)  # the light's position (row 0), then the axes
-    stats = np.zeros(len(STATS_NAMES))
-    cube = np.int64(CUBE)  # a typed int: the constant would compile _lit a second time, for Literal[int](0)
+    cover, cover_depth = np.empty(6, np.int64), np.empty(6)
+    grid, stats, zero = np.empty(6), np.empty(len(STATS_NAMES)), np.empty(3)
+    frame = np.empty((4, 3))  # the light's position (row 0), then the axes
+    grid[0], grid[1], grid[2], grid[3], grid[4], grid[5] = -1.0, -1.0, 2.0, 2.0, 1.0, 1.0  # one texel a face
+    for f in range(6):
+        cover[f], cover_depth[f] = -1, math.inf
+    for f in range(len(STATS_NAMES)):
+        stats[f] = 0.0
+    for a in range(3):
+        zero[a] = 0.0
+        for f in range(4):
+            frame[f, a] = 1.0 if f == a + 1 else 0.0
     per = 4 * spheres.shape[0] + 1
     cap = 2 * origins.shape[0] + 16
     src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
     buf = np.empty((per, 2))
-    zero = np.zeros(3)
     m, nc, current = 0, 0, -1
     for s in range(origins.shape[0]):
         g = group[s]
@@ -784,8 +812,10 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
                 for a in range(3):
                     if t_hi[t, a] < g_lo[g, a] or t_lo[t, a] > g_hi[g, a]:
                         inside = False
-                if inside:
-                    ctris[nc] = tris[t]
+                if inside:  # element loops here and below: row assignments compile numba's shape-error messages
+                    for v in range(3):
+                        for a in range(3):
+                            ctris[nc, v, a] = tris[t, v, a]
                     nc += 1
         w = dirs[s]
         q = origins[s] - points[s]
@@ -801,15 +831,21 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
                 above += side > -tol
                 below += side < tol
             if above and below:
-                straddle[ns] = ctris[t]
+                for v in range(3):
+                    for a in range(3):
+                        straddle[ns, v, a] = ctris[t, v, a]
                 ns += 1
         for t in range(ns):
             keep[t] = False
-        _frusta(straddle[:ns], points[s], zero, False, epsilon, planes, signs, lb, keep)
+        _frusta(straddle[:ns], points[s], zero, epsilon, planes, signs, lb, keep)
         nk = 0
         for t in range(ns):
             if keep[t]:
-                k_planes[nk], k_signs[nk], k_lb[nk], order[nk] = planes[t], signs[t], lb[t], nk
+                for p in range(4):
+                    for a in range(4):
+                        k_planes[nk, p, a] = planes[t, p, a]
+                    k_signs[nk, p] = signs[t, p]
+                k_lb[nk], order[nk] = lb[t], nk
                 nk += 1
         _heapsort_pairs(k_lb[:nk], order[:nk])  # each face's list in ascending depth lower bound
         for f in range(6):
@@ -817,8 +853,9 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
             for e in range(nk):
                 tri[f * nk + e], tlb[f * nk + e] = int(order[e]), k_lb[e]
         start[6] = 6 * nk
-        frame[0] = points[s]
-        lit_src, lo, hi = _lit(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], cube, grid, frame, start,
+        for a in range(3):
+            frame[0, a] = points[s, a]
+        lit_src, lo, hi = _lit(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], grid, frame, start,
                                tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk], slack,
                                gap, stats)
         if m + len(lit_src) * per > cap:
