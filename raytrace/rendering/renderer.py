@@ -135,8 +135,6 @@ def prepare(scene: Scene) -> Prepared:
     return prep
 
 
-
-
 def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict, float]:
     """The scene with each emitter's cubature order chosen by the pilot (lights/cubature.py) for a
     method with a tolerance (`Method.tolerance`), the pilot's statistics and the seconds its kernels
@@ -286,7 +284,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                 segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
                                                      cone if shadows else segs, segs,
                                                      (origins, dirs, t, keys, seed), shadows, radiance)
-                stats[-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES):-crossing.STATS_SIZE] = near[1]
+                stats[NEAR_STATS] = near[1]
             air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
                                                                       len(origins))
             bound += air_bound
@@ -336,6 +334,9 @@ def has_variance(prep: Prepared, method) -> bool:
     """Whether a render has a variance layer: a stochastic method's, or the surface term's samples of
     area lights' emitters in penumbrae (shading.penumbra)."""
     return method.stochastic or any(e is not None for e in prep.lights.emitters)
+
+
+NEAR_STATS = slice(-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES), -crossing.STATS_SIZE)  # their place in the stats
 
 
 def stats_size(method) -> int:
@@ -653,8 +654,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     if task.shadows:
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     if near_emitters.applies(prep.lights, method):
-        summary.update({f"cubature: {k}": int(v) for k, v in
-                        zip(near_emitters.STATS_NAMES, totals[-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES):])})
+        summary.update({f"cubature: {k}": int(v) for k, v in zip(near_emitters.STATS_NAMES, totals[NEAR_STATS])})
     summary.update(crossing.summarize(prep, method, totals[-crossing.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
     summary.update(pilot)
