@@ -232,7 +232,7 @@ def _spot_nearline(xh, h, dmin, cone, precision):
 
 @njit
 def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, terms, coeffs, precision,
-           max_iter, work, stats, spots, aniso, pending=None):
+           max_iter, work, stats, spots, aniso, pending=None, row=0):
     """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
     Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
     the Taylor mode's PP-19 sum approximates it),
@@ -240,9 +240,9 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature).
     `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values; `spots` None: never a
     band, `aniso` None: an isotropic phase function, and their code is not compiled (`checked_airlight`;
-    an anisotropic piece is then not ok). `pending`: None, or a row (P_* offsets) where the exact mode's
-    moment recurrence is left to `_pending_recurrences` instead of run here (S is then 0; the row's
-    P_BLOCK is set)."""
+    an anisotropic piece is then not ok). `pending`: None, or an array whose `row` (P_* offsets) takes
+    the exact mode's moment recurrence, left to `_pending_recurrences` instead of run here (S is then
+    0; the row's P_BLOCK is set; an index, not a row view: a view costs numba a reference count)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     moments = exact or band
     block = coeffs
@@ -344,8 +344,9 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
 
     # exact: Phi as a cosine series, its Fourier moments by the forward recurrence
     if pending is not None:
-        pending[P_H], pending[P_V1], pending[P_V2], pending[P_K1], pending[P_L1] = H, v1, v2, K1, L1
-        pending[P_E1], pending[P_E2], pending[P_BLOCK] = E1, E2, start
+        pending[row, P_H], pending[row, P_V1], pending[row, P_V2] = H, v1, v2
+        pending[row, P_K1], pending[row, P_L1], pending[row, P_E1], pending[row, P_E2] = K1, L1, E1, E2
+        pending[row, P_BLOCK] = start
         return 0.0, 0.0, True
     return 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, block[B_C:]), 0.0, True
 
@@ -361,7 +362,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
 @njit
 def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso, pending=None):
+                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso, pending=None, row=0):
     """(Lm, met): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
     whether it is known to meet `precision` (error_bounds.py): False where a quadrature it fell back
     on did not converge (ST_FALLBACK_CAPPED) and in the Taylor mode of an anisotropic medium (the
@@ -381,9 +382,9 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     this specialisation (numba prunes the branches of an argument typed None); spots: True, or None
     to defer the segments of a light with a cone likewise (the spot code is then not compiled);
     aniso: True, or None to defer those in an anisotropic medium (its phase function's code);
-    pending: None, or the segment's row of `evaluate_segments`' batch: a point light's moment
-    recurrence in the exact mode is then left to it (the value returned is 0, the row's P_BLOCK > 0,
-    its P_PREF the factor 2 I / h of the air-light).
+    pending, row: None, or `evaluate_segments`' batch and the segment's row in it: a point light's
+    moment recurrence in the exact mode is then left to it (the value returned is 0, the row's
+    P_BLOCK > 0, its P_PREF the factor 2 I / h of the air-light).
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
@@ -431,11 +432,11 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
         val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, spot, cone, phase_code, g, aniso_mode, terms, coeffs,
-                            precision, max_iter, coeffs[:0], stats, spots, aniso, pending)
+                            precision, max_iter, coeffs[:0], stats, spots, aniso, pending, row)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
-        if pending is not None:
-            pending[P_PREF] = pref
+        if pending is not None and aniso is not None:
+            pending[row, P_PREF] = pref
         return pref * (ks * val), not taylor
     if spots is None:
         return math.nan, False
@@ -803,12 +804,13 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
     left nan, their statistics not counted (`evaluate_deferred`); returns how many. The exact mode's
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`)."""
-    pending = np.empty((xh.shape[0], PENDING))
+    pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
     for s in range(xh.shape[0]):
-        pending[s, P_BLOCK] = 0.0
+        if aniso is not None:
+            pending[s, P_BLOCK] = 0.0
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
                                           aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso,
-                                          pending[s])
+                                          pending, s)
     if aniso is not None:
         _pending_recurrences(pending, coeffs, ks, out)
     left = 0
@@ -820,7 +822,7 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
                 left += 1
                 scratch[:] = 0.0
                 checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode,
-                                 terms, coeffs, cone[s], scratch, quadrature, spots, aniso, pending[s])
+                                 terms, coeffs, cone[s], scratch, quadrature, spots, aniso, pending, s)
                 for k in range(stats.shape[0]):
                     stats[k] -= scratch[k]
     return left
