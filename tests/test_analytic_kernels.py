@@ -125,6 +125,21 @@ def test_batched_kernel_vs_oracle_whatever_the_batch(code, g):
             assert np.array_equal(back[::-1], out)
 
 
+def test_batched_taylor_mode_is_one_call_per_segment():
+    """The Taylor mode through `evaluate_deferred` (its coefficients are no blocks: nothing is left
+    to the batched recurrence) gives what one call per segment gives."""
+    co = A.make_coeffs(HG, 0.9, A.ANISO_TAYLOR, 6, 1e-3)
+    assert co.min() < -1.0  # large negative coefficients, which read as block lengths would misguide a walk
+    for light, ell, kt in CASES:
+        xh, h, da = _geom(light)
+        out, met, stats = np.empty(1), np.empty(1, dtype=np.bool_), A.new_stats()
+        A.evaluate_deferred(np.array([xh]), np.array([h]), np.array([da]), np.array([ell]), kt, 0.8 * kt, HG, 0.9,
+                            1e-3, 1000, A.ANISO_TAYLOR, 6, co, POINT_ROW[None, :], out, met, stats, spots=False)
+        one = A.airlight(xh, h, da, ell, kt, 0.8 * kt, 1.0, HG, 0.9, 1e-3, 1000, A.ANISO_TAYLOR, 6, co, POINT_ROW,
+                         A.new_stats())
+        assert out[0] == one
+
+
 def test_paths_are_exercised():
     stats = A.new_stats()
     co = A.make_coeffs(ISOTROPIC, 0.0, A.ANISO_EXACT, 1, 1e-6)

@@ -811,7 +811,7 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
                                           aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso,
                                           pending, s)
-    if aniso is not None:
+    if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
         _pending_recurrences(pending, coeffs, ks, out)
     left = 0
     if quadrature is None:
@@ -833,6 +833,8 @@ def _pending_recurrences(pending, coeffs, ks, out):
     """out[s] = 2 I / h ks S of the segments whose moment recurrence `checked_airlight` left pending
     (P_BLOCK > 0), S = cosine_moments_forward / 2 of the row's arguments, each block's segments in one
     `cosine_moments_lanes` call (a segment's result does not depend on its batch)."""
+    if not np.any(pending[:, P_BLOCK] > 0.0):
+        return
     starts = np.empty(coeffs.shape[0], dtype=np.int64)  # the blocks' starts (`exact_coeffs`)
     nb, pos = 0, 0
     while pos < coeffs.shape[0]:
