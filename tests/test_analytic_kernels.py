@@ -94,8 +94,10 @@ def test_kernel_vs_oracle(code, g):
 @pytest.mark.parametrize("code,g", [(RAYLEIGH, 0.0), (HG, -0.5), (HG, 0.9)])
 def test_batched_kernel_vs_oracle_whatever_the_batch(code, g):
     """`evaluate_deferred` (a batch: the exact mode's recurrences run after the loop, block by block,
-    `cosine_moments_lanes`) against the oracle as test_kernel_vs_oracle, the statistics those of one
-    call per segment, and each segment's value bit for bit the same in a reversed batch and alone."""
+    `cosine_moments_lanes`) against the oracle as test_kernel_vs_oracle and within a hundredth of the
+    precision of one call per segment (the two recurrences round differently, and the thick cases'
+    loss amplifies that to 5e-12 relative), the statistics those of one call per segment, and each
+    segment's value bit for bit the same in a reversed batch and alone."""
     idx = np.arange(70) % len(CASES)  # more rows than one group of lanes
     geo = np.array([(*_geom(CASES[i][0]), CASES[i][1]) for i in idx])
     kts = {CASES[i][2] for i in idx}
@@ -116,7 +118,7 @@ def test_batched_kernel_vs_oracle_whatever_the_batch(code, g):
             for r, val in zip(rows, out):
                 xh, h, da, ell = geo[r]
                 assert val == pytest.approx(A.airlight(xh, h, da, ell, kt, 0.8 * kt, 1.0, code, g, prec, 1000,
-                                                       A.ANISO_EXACT, 6, co, POINT_ROW, one), rel=1e-12, abs=0.0)
+                                                       A.ANISO_EXACT, 6, co, POINT_ROW, one), rel=0.01 * prec, abs=0.0)
                 assert abs(val / (_ref(idx[r], code, g)) - 1.0) <= 10 * prec
                 alone = batch(np.array([r]))[0][0]
                 assert alone == val
