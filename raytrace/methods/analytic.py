@@ -802,8 +802,16 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`). With `quadrature` None (and `spots` or `aniso`) the
     segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
-    left nan, their statistics not counted (`evaluate_deferred`); returns how many. The exact mode's
-    moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`)."""
+    left nan, their statistics not counted (`evaluate_deferred`); returns how many. In that first
+    pass the exact mode's moment recurrences of point lights are run after the loop, batched
+    (`_pending_recurrences`)."""
+    if quadrature is not None:
+        # the second pass (the few segments the first left): one call per segment, the specialisation
+        # that `airlight` compiles too
+        for s in range(xh.shape[0]):
+            out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
+                                              aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso)
+        return 0
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
     for s in range(xh.shape[0]):
         if aniso is not None:
@@ -833,7 +841,7 @@ def _pending_recurrences(pending, coeffs, ks, out):
     """out[s] = 2 I / h ks S of the segments whose moment recurrence `checked_airlight` left pending
     (P_BLOCK > 0), S = cosine_moments_forward / 2 of the row's arguments, each block's segments in one
     `cosine_moments_lanes` call (a segment's result does not depend on its batch)."""
-    if not np.any(pending[:, P_BLOCK] > 0.0):
+    if pending.shape[0] == 0 or pending[:, P_BLOCK].max() <= 0.0:
         return
     starts = np.empty(coeffs.shape[0], dtype=np.int64)  # the blocks' starts (`exact_coeffs`)
     nb, pos = 0, 0
