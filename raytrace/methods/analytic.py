@@ -802,16 +802,9 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`). With `quadrature` None (and `spots` or `aniso`) the
     segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
-    left nan, their statistics not counted (`evaluate_deferred`); returns how many. In that first
-    pass the exact mode's moment recurrences of point lights are run after the loop, batched
-    (`_pending_recurrences`)."""
-    if quadrature is not None:
-        # the second pass (the few segments the first left): one call per segment, the specialisation
-        # that `airlight` compiles too
-        for s in range(xh.shape[0]):
-            out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                              aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso)
-        return 0
+    left nan, their statistics not counted (`evaluate_deferred`); returns how many. The exact mode's
+    moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
+    either pass, so that deferring changes no bit."""
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
     for s in range(xh.shape[0]):
         if aniso is not None:
