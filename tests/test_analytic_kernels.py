@@ -91,6 +91,57 @@ def test_kernel_vs_oracle(code, g):
             == pytest.approx(1.0)
 
 
+@pytest.mark.parametrize("code,g", [(RAYLEIGH, 0.0), (HG, -0.5), (HG, 0.9)])
+def test_batched_kernel_vs_oracle_whatever_the_batch(code, g):
+    """`evaluate_deferred` (a batch: the exact mode's recurrences run after the loop, block by block,
+    `cosine_moments_lanes`) against the oracle as test_kernel_vs_oracle and within a hundredth of the
+    precision of one call per segment (the two recurrences round differently, and the thick cases'
+    loss amplifies that to 5e-12 relative), the statistics those of one call per segment, and each
+    segment's value bit for bit the same in a reversed batch and alone."""
+    idx = np.arange(70) % len(CASES)  # more rows than one group of lanes
+    geo = np.array([(*_geom(CASES[i][0]), CASES[i][1]) for i in idx])
+    kts = {CASES[i][2] for i in idx}
+    for prec in (1e-3, 1e-8):
+        co = A.make_coeffs(code, g, A.ANISO_EXACT, 6, prec)
+        for kt in kts:
+            rows = [i for i in range(len(idx)) if CASES[idx[i]][2] == kt]
+
+            def batch(order):
+                xh, h, da, ell = (np.ascontiguousarray(geo[order, j]) for j in range(4))
+                out, met, stats = np.empty(len(order)), np.empty(len(order), dtype=np.bool_), A.new_stats()
+                A.evaluate_deferred(xh, h, da, ell, kt, 0.8 * kt, code, g, prec, 1000, A.ANISO_EXACT, 6, co,
+                                    np.tile(POINT_ROW, (len(order), 1)), out, met, stats, spots=False)
+                return out, met, stats
+
+            out, met, stats = batch(np.array(rows))
+            one = A.new_stats()
+            for r, val in zip(rows, out):
+                xh, h, da, ell = geo[r]
+                assert val == pytest.approx(A.airlight(xh, h, da, ell, kt, 0.8 * kt, 1.0, code, g, prec, 1000,
+                                                       A.ANISO_EXACT, 6, co, POINT_ROW, one), rel=0.01 * prec, abs=0.0)
+                assert abs(val / (_ref(idx[r], code, g)) - 1.0) <= 10 * prec
+                alone = batch(np.array([r]))[0][0]
+                assert alone == val
+            assert met.all() and np.array_equal(stats, one)
+            back = batch(np.array(rows[::-1]))[0]
+            assert np.array_equal(back[::-1], out)
+
+
+def test_batched_taylor_mode_is_one_call_per_segment():
+    """The Taylor mode through `evaluate_deferred` (its coefficients are no blocks: nothing is left
+    to the batched recurrence) gives what one call per segment gives."""
+    co = A.make_coeffs(HG, 0.9, A.ANISO_TAYLOR, 6, 1e-3)
+    assert co.min() < -1.0  # large negative coefficients, which read as block lengths would misguide a walk
+    for light, ell, kt in CASES:
+        xh, h, da = _geom(light)
+        out, met, stats = np.empty(1), np.empty(1, dtype=np.bool_), A.new_stats()
+        A.evaluate_deferred(np.array([xh]), np.array([h]), np.array([da]), np.array([ell]), kt, 0.8 * kt, HG, 0.9,
+                            1e-3, 1000, A.ANISO_TAYLOR, 6, co, POINT_ROW[None, :], out, met, stats, spots=False)
+        one = A.airlight(xh, h, da, ell, kt, 0.8 * kt, 1.0, HG, 0.9, 1e-3, 1000, A.ANISO_TAYLOR, 6, co, POINT_ROW,
+                         A.new_stats())
+        assert out[0] == one
+
+
 def test_paths_are_exercised():
     stats = A.new_stats()
     co = A.make_coeffs(ISOTROPIC, 0.0, A.ANISO_EXACT, 1, 1e-6)

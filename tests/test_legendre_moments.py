@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from raytrace.media.expint import g_scaled
-from raytrace.media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss,
-                                             hg_legendre, legendre_to_cosine, rayleigh_legendre)
+from raytrace.media.legendre_moments import (FORWARD_ERR_PER_LOSS, LANES, cosine_moments_forward,
+                                             cosine_moments_lanes, forward_loss, hg_legendre, legendre_to_cosine,
+                                             rayleigh_legendre)
 
 
 # Absolute cap on the error bounds below, which the code under test computes (its loss estimate
@@ -69,6 +70,30 @@ def test_hg_vs_mpmath(g, L, H, va, vb):
     bound = max(1e-12, 30 * FORWARD_ERR_PER_LOSS * forward_loss(H, c) * np.abs(c).sum() / abs(r))
     assert abs(s / r - 1.0) < min(bound, CAP)
     assert bound < 1e-5
+
+
+def test_lanes_vs_mpmath_whatever_the_batch():
+    """The batched recurrence (`cosine_moments_lanes`) against mpmath, within the bound of
+    test_hg_vs_mpmath, on rows that fill more than one group of LANES; each row's result is the same
+    bit for bit in any other batch (reversed, alone)."""
+    c = legendre_to_cosine(hg_legendre(0.9, 120))
+    cases = [(H, va, vb) for H in (1e-4, 0.05, 0.3) for va, vb in [(0.0, math.inf), (0.3, 2.0), (20.0, math.inf),
+                                                                     (0.01, 0.02)]]
+    args = np.array([(H, va, vb, *_inputs(H, va, vb)) for H, va, vb in cases])
+    rows = np.arange(LANES + 5) % len(cases)
+    out = np.empty(len(rows))
+    cosine_moments_lanes(args, rows, c, out)
+    for (H, va, vb), s in zip(cases, out):
+        r = _ref(H, va, vb, c)
+        bound = max(1e-12, 30 * FORWARD_ERR_PER_LOSS * forward_loss(H, c) * np.abs(c).sum() / abs(r))
+        assert abs(s / r - 1.0) < min(bound, CAP)
+    back = np.empty(len(rows))
+    cosine_moments_lanes(args, rows[::-1].copy(), c, back)
+    assert np.array_equal(back[::-1], out)
+    for i in range(len(cases)):
+        one = np.empty(1)
+        cosine_moments_lanes(args, np.array([i]), c, one)
+        assert one[0] == out[i] == out[i + len(cases)]
 
 
 def test_forward_loss_grows_with_H():

@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import exact_njit, njit
 from .phase import INV_4PI
 
 
@@ -146,6 +146,73 @@ _NO_SINES = np.zeros(0)
 def cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c):
     """S = sum_k c_k Re E_k by the forward recurrence (stable only for small H*L)."""
     return trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, _NO_SINES)
+
+
+LANES = 64  # segments whose recurrences `cosine_moments_lanes` advances side by side
+
+
+@exact_njit
+def cosine_moments_lanes(args, rows, c, out):
+    """out[i] = `cosine_moments_forward` of the arguments args[rows[i], 0:7] (H, va, vb, K1, L1, ea,
+    eb), all with the same coefficients c: the recurrences of LANES segments are advanced together,
+    one step k at a time, so that the loop over the segments inside a step, free of dependencies, runs
+    in SIMD registers (HG 0.9's 51 terms: about 3.5 times faster per segment than one call per
+    segment). No operation mixes two segments, and the function is compiled without fastmath (no
+    fused multiply-adds, no reassociation: every operation rounds as IEEE arithmetic says, in SIMD
+    registers or not), so a segment's result does not depend on the batch it came in or on its
+    place in it."""
+    n = c.shape[0]
+    state = np.empty((14, LANES))
+    acc, mr, mi, er, ei = state[0], state[1], state[2], state[3], state[4]
+    ar, ai, br, bi = state[5], state[6], state[7], state[8]
+    zar, zai, zbr, zbi, h2 = state[9], state[10], state[11], state[12], state[13]
+    for first in range(0, rows.shape[0], LANES):
+        w = min(LANES, rows.shape[0] - first)
+        for j in range(w):
+            H, va, vb, K1, L1, ea, eb = args[rows[first + j], 0:7]
+            # t and z = e^{i phi} at both ends (`_ends`, here without fastmath too)
+            ta = 1.0 / (1.0 + va * va)
+            zar[j], zai[j] = 2.0 * ta - 1.0, 2.0 * va * ta
+            fin = vb < math.inf
+            tb = 1.0 / (1.0 + vb * vb) if fin else 0.0
+            zbr[j], zbi[j] = (2.0 * tb - 1.0, 2.0 * vb * tb) if fin else (-1.0, 0.0)
+            ebt = eb * tb if fin else 0.0
+            eat = ea * ta
+            mr[j], mi[j] = 2.0 * K1, 0.0
+            acc[j] = c[0] * mr[j] if n > 0 else 0.0
+            # E_1 (module docstring, step 3)
+            er[j] = 2.0 * ((ebt * vb if fin else 0.0) - eat * va) + 2.0 * H * L1
+            ei[j] = -2.0 * (H * K1 + (ebt - eat))
+            if n > 1:
+                acc[j] += c[1] * er[j]
+            ar[j], ai[j], br[j], bi[j] = eat * zar[j], eat * zai[j], ebt * zbr[j], ebt * zbi[j]
+            h2[j] = 2.0 * H
+        for k in range(1, n - 1):
+            _lanes_step(w, k, c[k + 1], acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2)
+        for j in range(w):
+            out[first + j] = acc[j]
+
+
+@exact_njit(inline="always")
+def _lanes_step(w, k, ck, acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2):
+    """One step k -> k + 1 of `trig_moments_forward`'s recurrence for lanes 0 .. w - 1 (the same
+    grouping: E_k enters through two fused multiply-adds), and c_{k+1} Re E_{k+1} added."""
+    inv = 1.0 / (k + 1.0)
+    a = -2.0 * k * inv
+    km = k - 1.0
+    for j in range(w):
+        tr = (4.0 * (bi[j] - ai[j]) - km * mr[j]) * inv
+        ti = (4.0 * (ar[j] - br[j]) - km * mi[j]) * inv
+        b = h2[j] * inv
+        e_r, e_i = er[j], ei[j]
+        nr = a * e_r + (b * e_i + tr)
+        ni = a * e_i + (ti - b * e_r)
+        mr[j], mi[j], er[j], ei[j] = e_r, e_i, nr, ni
+        acc[j] += ck * nr
+        x, y = ar[j], ai[j]
+        ar[j], ai[j] = x * zar[j] - y * zai[j], x * zai[j] + y * zar[j]
+        x, y = br[j], bi[j]
+        br[j], bi[j] = x * zbr[j] - y * zbi[j], x * zbi[j] + y * zbr[j]
 
 
 @njit

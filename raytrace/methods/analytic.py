@@ -44,8 +44,8 @@ from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
-from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, forward_loss, hg_legendre,
-                               legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
+from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
+                               hg_legendre, legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
 from ..media.slab import CLOSED
 from .quadrature import CAPPED, _N10, _N20, _W10, _W20
@@ -115,6 +115,10 @@ BAND_ORDER = 3  # a polynomial band is at most cubic in the cosine to the spot a
 # bound on 10% of a box room's bands), and 30 integrand values cost less than 2 L + 7 L operations
 BAND_GAUSS_FIRST = 48
 BAND_MARGIN = 0.01  # a band's K1, L1 are computed this much finer than its polynomial's terms need
+# a row of `evaluate_segments`' batch of moment recurrences (`_piece`'s `pending`): the arguments of
+# cosine_moments_forward, the start of the block in coeffs (0: nothing pending) and the factor 2 I / h
+P_H, P_V1, P_V2, P_K1, P_L1, P_E1, P_E2, P_BLOCK, P_PREF = range(9)
+PENDING = 9
 
 
 @njit
@@ -228,7 +232,7 @@ def _spot_nearline(xh, h, dmin, cone, precision):
 
 @njit
 def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, terms, coeffs, precision,
-           max_iter, work, stats, spots, aniso):
+           max_iter, work, stats, spots, aniso, pending=None, row=0):
     """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
     Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
     the Taylor mode's PP-19 sum approximates it),
@@ -236,13 +240,17 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature).
     `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values; `spots` None: never a
     band, `aniso` None: an isotropic phase function, and their code is not compiled (`checked_airlight`;
-    an anisotropic piece is then not ok)."""
+    an anisotropic piece is then not ok). `pending`: None, or an array whose `row` (P_* offsets) takes
+    the exact mode's moment recurrence, left to `_pending_recurrences` instead of run here (S is then
+    0; the row's P_BLOCK is set; an index, not a row view: a view costs numba a reference count)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     moments = exact or band
     block = coeffs
+    start = 0
     at = B_HMAX_BAND if band else B_HMAX
     if (spots is not None or aniso is not None) and moments:
-        block = _block_for(coeffs, v1, v2, H, at)
+        start, n = _block_at(coeffs, v1, v2, H, at)
+        block = coeffs[start:start + n]
         if H > block[at]:  # the moment recurrence would lose digits: quadrature
             return 0.0, 0.0, False
     # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
@@ -335,6 +343,11 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         return acc, 0.0, True
 
     # exact: Phi as a cosine series, its Fourier moments by the forward recurrence
+    if pending is not None:
+        pending[row, P_H], pending[row, P_V1], pending[row, P_V2] = H, v1, v2
+        pending[row, P_K1], pending[row, P_L1], pending[row, P_E1], pending[row, P_E2] = K1, L1, E1, E2
+        pending[row, P_BLOCK] = start
+        return 0.0, 0.0, True
     return 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, block[B_C:]), 0.0, True
 
 
@@ -349,7 +362,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
 
 @njit
 def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso):
+                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso, pending=None, row=0):
     """(Lm, met): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
     whether it is known to meet `precision` (error_bounds.py): False where a quadrature it fell back
     on did not converge (ST_FALLBACK_CAPPED) and in the Taylor mode of an anisotropic medium (the
@@ -368,7 +381,10 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     reference quadrature: they return (nan, False), and the quadrature's code is not compiled in
     this specialisation (numba prunes the branches of an argument typed None); spots: True, or None
     to defer the segments of a light with a cone likewise (the spot code is then not compiled);
-    aniso: True, or None to defer those in an anisotropic medium (its phase function's code).
+    aniso: True, or None to defer those in an anisotropic medium (its phase function's code);
+    pending, row: None, or `evaluate_segments`' batch and the segment's row in it: a point light's
+    moment recurrence in the exact mode is then left to it (the value returned is 0, the row's
+    P_BLOCK > 0, its P_PREF the factor 2 I / h of the air-light).
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
@@ -416,9 +432,11 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
         val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, spot, cone, phase_code, g, aniso_mode, terms, coeffs,
-                            precision, max_iter, coeffs[:0], stats, spots, aniso)
+                            precision, max_iter, coeffs[:0], stats, spots, aniso, pending, row)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
+        if pending is not None and aniso is not None:
+            pending[row, P_PREF] = pref
         return pref * (ks * val), not taylor
     if spots is None:
         return math.nan, False
@@ -480,7 +498,15 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
 
 @njit
 def _block_for(coeffs, v1, v2, H, at):
-    """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h: the shortest block whose
+    """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h (`_block_at`)."""
+    start, n = _block_at(coeffs, v1, v2, H, at)
+    return coeffs[start:start + n]
+
+
+@njit
+def _block_at(coeffs, v1, v2, H, at):
+    """(start, length) in `coeffs` of the exact mode's coefficient block for a piece v1 < v < v2 at
+    H = kt h: the shortest block whose
     range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
     full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
     ones after it from the widest range to the narrowest, each range inside the one before, so the
@@ -495,7 +521,7 @@ def _block_for(coeffs, v1, v2, H, at):
         if H <= coeffs[b + at]:
             start, n = b, int(coeffs[pos])
         pos = b + int(coeffs[pos])
-    return coeffs[start:start + n]
+    return start, n
 
 
 @njit
@@ -776,19 +802,74 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`). With `quadrature` None (and `spots` or `aniso`) the
     segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
-    left nan, their statistics not counted (`evaluate_deferred`); returns how many."""
-    before = np.empty(stats.shape[0])
-    left = 0
+    left nan, their statistics not counted (`evaluate_deferred`); returns how many. The exact mode's
+    moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
+    either pass, so that deferring changes no bit."""
+    pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
     for s in range(xh.shape[0]):
-        for k in range(stats.shape[0]):
-            before[k] = stats[k]
+        if aniso is not None:
+            pending[s, P_BLOCK] = 0.0
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                          aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso)
-        if quadrature is None and math.isnan(out[s]):
-            left += 1
-            for k in range(stats.shape[0]):
-                stats[k] = before[k]
+                                          aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso,
+                                          pending, s)
+    if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
+        _pending_recurrences(pending, coeffs, ks, out)
+    left = 0
+    if quadrature is None:
+        scratch = np.zeros(stats.shape[0])
+        for s in range(xh.shape[0]):
+            if math.isnan(out[s]):
+                # left to the second pass: its statistics, counted again there, taken back
+                left += 1
+                scratch[:] = 0.0
+                checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode,
+                                 terms, coeffs, cone[s], scratch, quadrature, spots, aniso, pending, s)
+                for k in range(stats.shape[0]):
+                    stats[k] -= scratch[k]
     return left
+
+
+@njit
+def _pending_recurrences(pending, coeffs, ks, out):
+    """out[s] = 2 I / h ks S of the segments whose moment recurrence `checked_airlight` left pending
+    (P_BLOCK > 0), S = cosine_moments_forward / 2 of the row's arguments, each block's segments in one
+    `cosine_moments_lanes` call (a segment's result does not depend on its batch)."""
+    if pending.shape[0] == 0 or pending[:, P_BLOCK].max() <= 0.0:
+        return
+    starts = np.empty(coeffs.shape[0], dtype=np.int64)  # the blocks' starts (`exact_coeffs`)
+    nb, pos = 0, 0
+    while pos < coeffs.shape[0]:
+        starts[nb] = pos + 1
+        nb += 1
+        pos += 1 + int(coeffs[pos])
+    rank = np.empty(pending.shape[0], dtype=np.int64)
+    first = np.zeros(nb + 1, dtype=np.int64)
+    for s in range(pending.shape[0]):
+        rank[s] = -1
+        if pending[s, P_BLOCK] > 0.0:
+            r = 0
+            while starts[r] != pending[s, P_BLOCK]:
+                r += 1
+            rank[s] = r
+            first[r + 1] += 1
+    for r in range(nb):
+        first[r + 1] += first[r]
+    order = np.empty(first[nb], dtype=np.int64)  # the pending segments, block by block
+    fill = first[:nb].copy()
+    for s in range(pending.shape[0]):
+        if rank[s] >= 0:
+            order[fill[rank[s]]] = s
+            fill[rank[s]] += 1
+    acc = np.empty(order.shape[0])
+    for r in range(nb):
+        lo, hi = first[r], first[r + 1]
+        if hi > lo:
+            start = starts[r]
+            cosine_moments_lanes(pending, order[lo:hi], coeffs[start + B_C:start + int(coeffs[start - 1])],
+                                 acc[lo:hi])
+    for i in range(order.shape[0]):
+        s = order[i]
+        out[s] = pending[s, P_PREF] * (ks * (0.5 * acc[i]))
 
 
 def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
