@@ -788,6 +788,21 @@ def test_regression_raymarch_in_a_subnormal_medium(shadow_test):
     assert np.all(img.array < 1e-300)  # at most ks I pi / (4 pi h) ~ 1e-310 / h, h > 0.1 here
 
 
+def test_regression_montecarlo_shadow_samples_of_a_huge_light_on_the_camera():
+    """Was numpy's 'overflow encountered in square', found by the slow fuzz run: a light of 1e150 on the
+    camera gives shadow-tested estimates whose variance is beyond float64 (shadow_rays.py): inf there
+    (the estimator's spread is not representable), and the render is refused in one line, as every
+    image beyond float32's range is."""
+    sc = {"camera": {"type": "perspective", "position": [0.0, 0.0, 1.0], "look_at": [0.0, 0.0, 0.0], "width": 4,
+                     "height": 3},
+          "shape": [{"primitive": "box", "min": [0.0, 0.0, 0.0], "max": [1e-06, 1e-06, 1e-06]}],
+          "light": [{"position": [0.0, 0.0, 1.0], "intensity": 1e150}],
+          "medium": {"sigma_a": 0.0, "sigma_s": 1.0, "phase": "rayleigh"}}
+    with np.errstate(over="raise", invalid="raise", divide="raise", under="ignore"):
+        with pytest.raises(UserError, match="exceed float32's 3.4e38 .* move the camera off the light"):
+            raytrace.render(sc, method="montecarlo", threads=1, volumetric_shadows=True, shadow_test="samples")
+
+
 def test_regression_a_medium_in_a_shape_of_zero_area_is_refused():
     """Was a numpy 'Mean of empty slice' (bounded.warm_up_rays) and 'invalid value in divide', found by
     the fuzzer: a quad whose corners coincide holds an interior; its degenerate triangles cancel each

@@ -74,5 +74,6 @@ def shadowed_airlight(accel, method, medium, lights, params, segs: Segments, n_r
         air += gather(seg, est.mean(axis=1), n_rays, medium)
         n = est.shape[1]
         if method.stochastic and n > 1:
-            var += gather(seg, est.var(axis=1, ddof=1) / n, n_rays, medium, power=2)
+            with np.errstate(over="ignore"):  # estimates beyond ~1e154 (a light of 1e150 on the camera): inf
+                var += gather(seg, est.var(axis=1, ddof=1) / n, n_rays, medium, power=2)
     return air, var
