@@ -10,7 +10,8 @@ placed first in numba's list); numba's own locators serve everything else.
 rays, shading normals, the surface term's shadow rays, the exponential transmittance), without
 fastmath and with NumPy's error model (x / 0 is inf or nan), so that every operation rounds as
 NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy code gave
-(tests/test_exact_kernels.py).
+(tests/test_exact_kernels.py); and kernels whose result must not depend on how they are batched
+(analytic's moment recurrences run side by side over a tile's segments, `cosine_moments_lanes`).
 """
 import functools
 import os
