@@ -89,9 +89,10 @@ def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
     return best, diameter
 
 
-def agree(coarse, fine, tol) -> np.ndarray:
-    """(N,) whether two pilot radiances (N, 3) agree to tol relative to each ray's radiance."""
-    scale = np.maximum(np.abs(fine), FLOOR * np.abs(fine).max(initial=0.0))
+def agree(coarse, fine, tol, seen=0.0) -> np.ndarray:
+    """(N,) whether two pilot radiances (N, 3) agree to tol relative to each ray's radiance (or `seen`
+    (N, 3) where larger: radiance the two leave out)."""
+    scale = np.maximum(np.maximum(np.abs(fine), seen), FLOOR * np.abs(fine).max(initial=0.0))
     return np.all(np.abs(coarse - fine) <= tol * scale, axis=1)
 
 

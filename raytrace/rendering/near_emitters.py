@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..lights.cubature import FLOOR, NEAR_FRACTION, SHARE
+from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
-from ..shadows.penumbra_airlight import LIT, _combine, _per_group, _states, point_segments, spot_rows
+from ..shadows.penumbra_airlight import LIT, emitter_states, lit_states, per_group, point_segments, spot_rows
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
 DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
@@ -35,8 +35,8 @@ def applies(lights, method) -> bool:
 
 def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen):
     """(`segs` less the rows of the near (camera ray, emitter) pairs, their air-light (N, 3), statistics
-    (STATS_NAMES), (N,) whether each camera ray has such a pair: no error bound there). `cone`: the segments before the lit intervals (`segs` itself without shadows);
-    `rays` = (origins, dirs, tmax, keys, seed) of the N camera rays; `tol` the method's precision
+    (STATS_NAMES), (N,) whether each camera ray has such a pair: no error bound there). `cone`: the
+    segments before the lit intervals (`segs` itself without shadows); `rays` = (origins, dirs, tmax, keys, seed) of the N camera rays; `tol` the method's precision
     (None: DEFAULT_ORDER), relative to the larger of the pair's air-light and `seen` (N, 3), the
     radiance the ray brings from where it ends (an emitter's own, seen through the medium)."""
     origins, dirs, tmax = rays[:3]
@@ -50,15 +50,15 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
         near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
         feet[e] = foot
-    owner = np.where(lights.cubature, lights.owner, 0)
+    rows = lights.cubature[cone.light]
     shines = np.zeros((n, n_e), bool)  # the emitter's rows reach the ray (none in another light's layer)
-    shines[cone.ray[lights.cubature[cone.light]], owner[cone.light[lights.cubature[cone.light]]]] = True
+    shines[cone.ray[rows], lights.owner[cone.light[rows]]] = True
     near &= shines
     if shadows and near.any():
         near &= _all_lit(lights, cone, segs, n)
     if not near.any():
         return segs, air, stats, near.any(axis=1)
-    drop = near[segs.ray, owner[segs.light]] & lights.cubature[segs.light]
+    drop = near[segs.ray, np.where(lights.cubature, lights.owner, 0)[segs.light]] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
@@ -72,8 +72,8 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
 def _all_lit(lights, cone, lit, n: int) -> np.ndarray:
     """(N, E) whether every row of emitter e that shines on camera ray r is lit along all of it."""
     n_l = len(lights)
-    row_state = _states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
-    return _combine(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters)) == LIT
+    row_state = lit_states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
+    return emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters)) == LIT
 
 
 def _ladder(emitter, method, medium, params, tol, feet, rs, rays, scale, seen):
@@ -86,8 +86,7 @@ def _ladder(emitter, method, medium, params, tol, feet, rs, rays, scale, seen):
     coarse = _value(emitter, method, medium, params, feet, rs, rays, scale, ORDERS[0])
     for order in ORDERS[1:]:
         fine = _value(emitter, method, medium, params, feet[todo], rs[todo], rays, scale, order)
-        scale_ = np.maximum(np.maximum(np.abs(fine), seen[todo]), FLOOR * np.abs(fine).max(initial=0.0))
-        ok = np.all(np.abs(coarse - fine) <= SHARE * tol * scale_, axis=1)
+        ok = agree(coarse, fine, SHARE * tol, seen[todo])
         out[todo] = fine
         todo, coarse = todo[~ok], fine[~ok]
         if not len(todo):
@@ -101,7 +100,7 @@ def _value(emitter, method, medium, params, feet, rs, rays, scale, order):
     normals = np.broadcast_to(emitter.planar.normal, points.shape)
     rows = spot_rows(points, normals, weights[:, None] * emitter.radiance[None, :], emitter.two_sided)
     group = np.repeat(owner, 2) if emitter.two_sided else owner  # spot_rows: a two-sided node twice
-    each = _per_group(method, medium, params, rows, point_segments(rows, 1, rays, rs[group], scale), len(rows))
+    each = per_group(method, medium, params, rows, point_segments(rows, 1, rays, rs[group], scale), len(rows))
     out = np.zeros((len(rs), 3))
     np.add.at(out, group, each)
     return out

@@ -130,21 +130,21 @@ def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata
     sides = 2 if emitter.two_sided else 1
     segs = point_segments(samples, sides, rays, np.repeat(rs, per), accel.scale)
     lit = lit_pieces(accel, samples, segs, sides * per, select)
-    g = per * _per_group(method, medium, params, samples, lit, len(rs) * per)  # one sample's estimate
+    g = per * per_group(method, medium, params, samples, lit, len(rs) * per)  # one sample's estimate
     value = g.reshape(len(rs), per, 3).mean(axis=1)
     var = collapsed_variance(g.reshape(len(rs), per, 3), strata)
     states = _group_states(segs, lit, len(rs) * per).reshape(len(rs), per)
     agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
     if agree.any():  # the floor: one sample's share of the unshadowed sum
         at = np.nonzero(np.repeat(agree, per))[0]
-        free = _per_group(method, medium, params, samples, segs.take(np.nonzero(np.isin(segs.ray, at))[0]),
+        free = per_group(method, medium, params, samples, segs.take(np.nonzero(np.isin(segs.ray, at))[0]),
                           len(rs) * per)
         floor = free.reshape(len(rs), per, 3).sum(axis=1)[agree] ** 2 / per**2
         var[agree] = np.maximum(var[agree], floor)
     return value, var
 
 
-def _per_group(method, medium, params, lights, segs: Segments, groups: int) -> np.ndarray:
+def per_group(method, medium, params, lights, segs: Segments, groups: int) -> np.ndarray:
     """(groups, 3) the air-light of the segments per group (segs.ray), by the method, with the
     medium's transmittance from the camera to each segment's start."""
     if not len(segs):
@@ -162,8 +162,8 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
         return np.zeros((n, n_e), bool)
     n_l = len(lights)
     mine = cone.take(on), lit.take(np.nonzero(rows[lit.light])[0])
-    row_state = _states(*mine, *(s.ray * n_l + s.light for s in mine), n * n_l)
-    state = _combine(row_state.reshape(n, n_l), lights.owner, rows, n_e)  # (N, E)
+    row_state = lit_states(*mine, *(s.ray * n_l + s.light for s in mine), n * n_l)
+    state = emitter_states(row_state.reshape(n, n_l), lights.owner, rows, n_e)  # (N, E)
     agreed = np.nonzero((state == LIT) | (state == DARK))
     cut = state == MIXED
     for e in np.unique(agreed[1]):
@@ -178,8 +178,8 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
                           probes.cubature)))
         segs = point_segments(tiled, per, rays, rs, accel.scale, whole=True)
         lit_p = lit_pieces(accel, tiled, segs, per, select)
-        p_state = _states(segs, lit_p, segs.light, lit_p.light, len(tiled)).reshape(len(rs), per)
-        probe = _combine(p_state, np.zeros(per, np.int64), np.ones(per, bool), 1)[:, 0]
+        p_state = lit_states(segs, lit_p, segs.light, lit_p.light, len(tiled)).reshape(len(rs), per)
+        probe = emitter_states(p_state, np.zeros(per, np.int64), np.ones(per, bool), 1)[:, 0]
         cut[rs, e] = (probe != NONE) & (probe != state[rs, e])
     return cut
 
@@ -190,7 +190,7 @@ def emitter_rows(lights) -> np.ndarray:
     return sampled_[np.where(lights.cubature, lights.owner, len(lights.emitters))]
 
 
-def _states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> np.ndarray:
+def lit_states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> np.ndarray:
     """(size,) per key (`cone_key`, `lit_key`: of each segment and lit piece) LIT where its lit pieces
     cover its cone segments, DARK where there are none, MIXED between, NONE where it has no cone
     segment (the row does not shine on the ray). A key's segments and pieces to infinity are measured
@@ -210,7 +210,7 @@ def _states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> np.n
     return np.where(count == 0, NONE, np.where(covered >= total - tol, LIT, np.where(covered <= tol, DARK, MIXED)))
 
 
-def _combine(state, owner, rows, n_e) -> np.ndarray:
+def emitter_states(state, owner, rows, n_e) -> np.ndarray:
     """(N, E) from per-row states (N, L): LIT or DARK where all the emitter's rows that shine on the
     ray say so, NONE where none does, else MIXED."""
     out = np.full((state.shape[0], n_e), NONE)
@@ -225,7 +225,7 @@ def _combine(state, owner, rows, n_e) -> np.ndarray:
 
 def _group_states(cone: Segments, lit: Segments, groups: int) -> np.ndarray:
     """(groups,) LIT, DARK, MIXED or NONE of each group's segments (segs.ray: one sample's)."""
-    return _states(cone, lit, cone.ray, lit.ray, groups)
+    return lit_states(cone, lit, cone.ray, lit.ray, groups)
 
 
 def spot_rows(points, normals, weight, two_sided: bool) -> Lights:
