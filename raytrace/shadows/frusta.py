@@ -46,7 +46,7 @@ import numpy as np
 
 from ..geometry.sphere import lit_parts
 from ..geometry.vectors import perpendicular
-from ..jit import njit
+from ..jit import exact_njit, njit
 from ..media.adaptive import sort_few
 from ..methods import Segments
 
@@ -171,9 +171,11 @@ def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
     return LightBins(planes, signs, start, tri[kept], tlb[kept], cover, cover_depth, kind, res, grid, frame, slack)
 
 
-@njit
+@exact_njit
 def _closest_distance(px, py, pz, a, b, c):
-    """Distance from the point p to the triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
+    """Distance from the point p to the triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
+    Without fastmath: inlined into `_frusta`'s variants (with and without the sun's code) it rounds the
+    same in each, so a scene's texel lists do not depend on which variant built them."""
     abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
     apx, apy, apz = px - a[0], py - a[1], pz - a[2]
