@@ -399,18 +399,16 @@ def _segment_breaks(p, w, end, n, c, light, eta, flo, fhi, outside, inside, scal
         sure = sure and ok
         nt = _cross(tri[1] - tri[0], tri[2] - tri[0])
         den = nt @ w
-        if den != 0.0:  # X through the occluder's plane
-            x = (nt @ (tri[0] - p)) / den
-            if 0.0 < x < end:
-                out = _push(out, m, x)
-                m += 1
+        x = (nt @ (tri[0] - p)) / den if den != 0.0 else 0.0
+        if den != 0.0 and 0.0 < x < end:  # X through the occluder's plane
+            out = _push(out, m, x)
+            m += 1
         if err_r >= 0.0:  # where X may lie within the test's tolerance and rounding of the plane
             far, dm = _norm(tri[0] - p) + end, _reach(tri, light, ends, err_r)[4]
             band = _norm(nt) * (1e-12 * dm + 16.0 * U * far) + 64.0 * U * _longest(tri) ** 2 * (dm + far)
             if den != 0.0:
-                x = (nt @ (tri[0] - p)) / den
                 if x + band / abs(den) > 0.0 and x - band / abs(den) < end:
-                    spans, ns = _push_span(spans, ns, x - band / abs(den), x + band / abs(den))
+                    spans, ns = _push_span(spans, ns, max(x - band / abs(den), 0.0), min(x + band / abs(den), end))
             elif abs(nt @ (p - tri[0])) <= band:
                 sure = False
     res = out[:m].copy()
