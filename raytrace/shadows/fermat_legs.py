@@ -37,28 +37,32 @@ g = m(x) . (R - E0) with m = e x (X - E0) linear in x, |g'| <= |e x w| max|R - E
 |g(x0)| + |g(x1)| > K (x1 - x0) + rounding has no root (a root would need both terms below K times its
 distance to the ends); others are halved until they are excluded or shorter than RESOLUTION of the
 scene's size, where a sign change is bisected to the resolution of doubles (two roots closer than
-that, a sliver, are not resolved). A function near zero over a stretch (a leg sliding along an
-edge's plane) is cut off after MAX_EVALS evaluations, its undecided intervals' ends taken as breaks.
+that, a sliver, are not resolved: a span below holds them). A function near zero over a stretch (a
+leg sliding along an edge's plane) is cut off after MAX_EVALS evaluations, its undecided intervals'
+ends taken as breaks (the segment's spans then unknown).
 Beyond the depth where X rises above f's plane face f gives no light, and there the segment is
 reported lit (the integrator's face test makes it 0).
 
 Spans. Where the exact lit set may differ from the computed pieces (the breaks' location error of
 interiors/rows.py's bound). The computed refraction point is within E of the exact one through the
-face's mesh plane (media/fermat_rounding.py `point_error` at the segment's worst, with the planes'
-errors, plus 8u rho + 32u S for `_refraction`'s own arithmetic; S = sqrt(3) max(scene size, |L|,
-|p|, |p + end w|)_inf bounds every point, so that 4 S bounds every distance between the light, the
-legs' ends and the occluders' vertices). Each break function then stands within a band of its exact
-value, and so does the value whose sign the segment-triangle test (`_hits`, Moller-Trumbore) reads
-for the same edge or plane (the edge's triple product with the leg, the same function in exact
-arithmetic; u and v are read only where both lie in [0, 1], so u + v - 1 times det costs at most
-four times one triple product's rounding):
-- an edge (either leg), e_max the triangle's longest edge: 4 S e_max (E + 256u S) (E moves the
-  leg's end, 12u (4 S)^2 e_max bounds a triple product's rounding);
-- R through an occluder's plane (normal nt = e1 x e2): |nt| (E + 4e-12 S) + 64u S e_max^2, the test's
-  1e-12 of the leg's length (at most 4 S) its tolerance;
-- X through an inside occluder's plane (closed form, x = nt.(V0 - p) / nt.w): |nt| (40u S + 4e-12 S) +
-  64u S e_max^2, the span x -+ that / |nt.w|; a segment parallel to the plane within it: unknown;
-- the light within 64u S e_max^2 + 4e-12 |nt| S of an outside occluder's plane (the test's det
+face's mesh plane (`_point_error`: media/fermat_rounding.py `point_error` at the segment's worst,
+with the planes' errors, plus 8u (rho + |p_f| + end + |L_f|) for `_refraction`'s own arithmetic).
+For one occluder let D_L, D_R, D_X be the largest distances from its vertices to the light, to R (in
+the triangle of the light's foot and the segment's feet, within E) and to X, D the largest of these
+and of the legs' lengths, e_max its longest edge and nt = e1 x e2 its plane's normal. Each break
+function is then within a band of its exact value, and so is the value whose sign the
+segment-triangle test (`_hits`, Moller-Trumbore) reads for the same edge or plane (the edge's triple
+product with the leg: the same function in exact arithmetic, rounded to 12u of the product of its
+factors' lengths; u and v matter only where both lie in [0, 1], so u + v - 1 times det costs at most
+four such roundings):
+- an edge of an outside occluder: e_max D_L (E + 48u D); of an inside one: e_max (D_X E + D_R (2u
+  (|p| + end) + 48u D)) (X = p + x w rounded);
+- R through an occluder's plane: |nt| (E + 1e-12 D) + 48u e_max^2 D, the test's tolerance 1e-12 of
+  the leg's length;
+- X through an inside occluder's plane (closed form, x = nt.(V0 - p) / nt.w):
+  |nt| (1e-12 D + 16u F) + 64u e_max^2 (D + F), F = |V0 - p| + end, the span x -+ that / |nt.w|
+  (clipped to the segment); a segment parallel to the plane within that of it: unknown;
+- the light within 48u e_max^2 D + 1e-12 |nt| D of an outside occluder's plane (the test's det
   could take the wrong sign): unknown.
 The search goes on in every interval with |g(lo)| + |g(hi)| <= K (hi - lo) + 4 band (K enlarged by
 1e-9 of it, and inside by |e x w| E for R's error in its bound), down to RESOLUTION (the breaks are
@@ -71,9 +75,9 @@ right, unless the midpoint lies in a span that does not hold the whole piece (th
 a span the integrand through the face is between 0 and the face's term, which varies by far less
 than a factor 2 over SPAN_WIDTH (media/slab.py `_isolate`'s argument): the span's error is its width
 times twice the larger term at its ends (`span_errors`). Unknown (the bound inf): a span longer
-than SPAN_WIDTH, a search stopped undecided (MAX_EVALS), the segment within 1e-12 of its length
-straight below the light or the light within 1e-9 S of the face's plane (E unknown), and the cases
-above.
+than SPAN_WIDTH, a search stopped undecided (MAX_EVALS), E unknown (the segment within 1e-12 of its
+length straight below the light, the light within 1e-9 of the scene's size of the face's plane)
+where an occluder may meet the legs, and the cases above.
 """
 from __future__ import annotations
 
@@ -411,6 +415,8 @@ def _segment_breaks(p, w, end, n, c, light, eta, flo, fhi, outside, inside, scal
                     spans, ns = _push_span(spans, ns, max(x - band / abs(den), 0.0), min(x + band / abs(den), end))
             elif abs(nt @ (p - tri[0])) <= band:
                 sure = False
+    if err_r < 0.0 and (np.any(keep_out) or np.any(keep_in)):
+        sure = False  # R's error unknown: so are the spans
     res = out[:m].copy()
     res.sort()
     return res, spans, ns, sure
@@ -506,7 +512,6 @@ def _pieces(points, ws, ells, n, c, light, eta, flo, fhi, outside, inside, scale
             err_r = _point_error(p, end, light, hl, z0, a, pf, wh, lf, eta, dplanes, offset)
             breaks, spans, ns, sure[s] = _segment_breaks(p, w, end, n, c, light, eta, flo, fhi, outside, inside, scale,
                                                          keep_out, keep_in, err_r, spans)
-            sure[s] = sure[s] and err_r >= 0.0
             merged = _merge(spans[:ns])
             sure[s] = sure[s] and _widest(merged) <= SPAN_WIDTH * scale
             bounds = np.empty(breaks.shape[0] + 2)
