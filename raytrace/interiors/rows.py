@@ -42,7 +42,7 @@ from ..methods.geometry import segment_light_table
 from ..scene.meshes import PLANE_DECIMALS
 from ..segments import gather
 from ..shadows.beams import lit_pieces_of_beam
-from ..shadows.fermat_legs import lit_pieces_of_point
+from ..shadows.fermat_legs import lit_pieces_of_point, span_errors
 from ..shadows.frusta import exact_lit_intervals
 from ..shadows.through_others import attenuated_radiance, refracted_attenuated
 from ..shadows.shadow_rays import shadowed_airlight
@@ -392,14 +392,25 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     normals). Rows lit whole through every face take the light's integral over all faces at once,
     as without shadows, unless `others` (`_other_interiors`) attenuate the outside legs: then every
     piece takes its face's path attenuated by them (`_through_others(..., face=f)`). A piece cut by an
-    occluder's break (shadows/fermat_legs.py: where a leg meets an occluder's edge) has an infinite
-    bound (the break's location error is not analysed); the others keep their integrals' bound."""
+    occluder's break adds its location error: over each span where the exact lit set may differ from
+    the pieces (shadows/fermat_legs.py `span_errors`), times the largest attenuation of the outside
+    leg by `others` (exp(sum_j max(sigma_t outside - sigma_t_j, 0) 4 S), S bounding the scene's points);
+    inf on the segments whose spans are not known."""
     points, normals, w, ell, keys = rows
     out, var, bound, stats = acc
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
     position = prep.lights.position[li]
     faces = np.nonzero(planes[:, :3] @ position - planes[:, 3] > 0.0)[0].tolist()
-    found = [(f, *lit_pieces_of_point(prep, sid, planes, mask, li, f, points, w, ell)) for f in faces]
+    dplanes = measured_plane_errors(prep, sid)
+    found = [(f, *lit_pieces_of_point(prep, sid, planes, mask, li, f, points, w, ell, dplanes)) for f in faces]
+    gain = np.ones(3)
+    if others is not None:
+        big = 4.0 * math.sqrt(3.0) * max(prep.accel.scale, float(np.abs(position).max()))
+        gain = np.exp(np.maximum(prep.scene.medium.sigma_t[None, :] - others[3], 0.0).sum(axis=0) * big)
+    for f, _, _, _, _, spans in found:
+        np.add.at(bound, spans[0], span_errors(prep, sid, planes, li, f, points, w, spans) * prep.lights.intensity[li]
+                  * gain)
+        bound[~spans[3] & (ell > 0.0)] = np.inf
     whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None)
     clear = np.nonzero(whole)[0]
     if len(clear):
@@ -407,7 +418,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
                                           keys[clear], reach, seed, depth, li)
         stats += st
         _carry(out, var, bound, clear, kt, np.zeros(len(clear)), val, v, b)
-    for f, src, x0, x1, _ in found:
+    for f, src, x0, x1, _, _ in found:
         stats[LIT_PIECES] += len(src)
         keep = ~whole[src]
         src, x0, x1 = src[keep], x0[keep], x1[keep]
@@ -421,7 +432,6 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
                 val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, sub, seed, depth, face=f)
             else:
                 val, v, st, b = single_scattering(prep, method, params, sid, *sub, reach, seed, depth, li, piece, f)
-            b[(x0[at] > 0.0) | (x1[at] < ell[r])] = np.inf  # an occluder's break: its location is not analysed
             stats += st
             _carry(out, var, bound, r, kt, x0[at], val, v, b)
 
