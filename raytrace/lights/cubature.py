@@ -38,9 +38,10 @@ def ladder(steps, count) -> tuple:
 
 def pairs(orders, count) -> list:
     """(coarse, fine) pairs of the ladder: each order with the first of at least 4 x its rows."""
+    rows = [count(o) for o in orders]  # once each: a count builds the rule
     out = []
     for i, o in enumerate(orders):
-        finer = [f for f in orders[i + 1:] if count(f) >= 4 * count(o)]
+        finer = [f for f, r in zip(orders[i + 1:], rows[i + 1:]) if r >= 4 * rows[i]]
         if finer:
             out.append((o, finer[0]))
     return out
