@@ -28,7 +28,9 @@ from .jit import exact_njit, njit
 from .lights.area import collapsed_variance
 from .rng import uniform
 
-STRATA = 8  # a penumbra's samples: STRATA x STRATA (even) strata of the emitter's (u, v) square, two in each
+STRATA = 8  # a penumbra's strata per side for a method without a tolerance (even; two samples in each)
+PILOT = 4  # strata per side of the pilot that chooses a penumbra's strata (`stratified`)
+LADDER = (4, 8, 16)  # the strata per side a penumbra may get: the floor first, the cap last
 DIM_PENUMBRA = 1 << 48  # the first random-number dimension (rng.py) of the penumbrae's samples
 SAMPLES_PER_CHUNK = 1 << 16  # emitter samples (points x samples per point) per batch of shadow rays
 
@@ -122,15 +124,16 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
 
 
 def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None, keys=None,
-                     seed=0, variance=None):
+                     seed=0, variance=None, tol=None):
     """Reflected radiance (N, 3) at surface points with ray-facing unit geometric normals `normals`
     and shading normals `shading` (`shading_normals`; None: the geometric ones). `through(li, points)`,
     if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
     where truly blocked; interiors/crossing.py's shadows through index-matched interiors).
     `keys` (N,), the points' pixel-sample keys (rng.py), with `seed`: an emitter's rows whose shadow
     rays disagree at a point (a penumbra) are replaced there by stratified samples of the emitter
-    (`penumbra`), whose variance is added to `variance` (N, 3) if given; without keys (or with
-    `through`) the rows alone, everywhere."""
+    (`penumbra`, their strata following the method's relative tolerance `tol`: `Method.tolerance`;
+    black points are not sampled: they reflect nothing either way), whose variance is added to
+    `variance` (N, 3) if given; without keys (or with `through`) the rows alone, everywhere."""
     out = np.zeros((len(points), 3))
     sampled = keys is not None and through is None and any(e is not None for e in lights.emitters)
     terminator = shading is not None and shading is not normals  # both must face the light
@@ -166,10 +169,10 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
             np.add.at(missed, seen[emits & blocked], 1)
     for owner, (value, reached, missed) in rows.items():
         at = np.flatnonzero(_cut(accel, points, normals, shading if terminator else None, lights.emitters[owner],
-                                 reached, missed))
+                                 reached, missed) & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
-                                reflectance[at], lights.emitters[owner], medium, keys[at], seed, owner)
+                                reflectance[at], lights.emitters[owner], medium, keys[at], seed, owner, tol)
             out[at] += est - value[at]
             if variance is not None:
                 variance[at] += var
@@ -268,32 +271,83 @@ def _horizon_cuts(above, probes: int):
     return (above > 0) & (above < probes)
 
 
-def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner):
+def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner, tol=None):
     """(radiance, variance), each (M, 3): eq. 5 for one emitter (`lights.Emitter`) at M surface
     points (normals, shading normals or None, reflectance as in `surface_radiance`), estimated from
-    2 S stratified samples of its (u, v) square (S = STRATA^2 strata, two independent uniform points in
-    each, keyed by the points' `keys`, `seed` and the emitter's index `owner`: rng.py), each with its
-    shadow ray: with y a sample, n_y its normal, w = (y - x) / d, p_A its area density,
-    g = rho / pi L T(x, y) V(x, y) cos_x max(0, n_y . -w) / (d^2 p_A) (|n_y . w| two-sided), the
-    estimate is the mean of the g. Its variance sum_s sigma_s^2 / (2 S^2) is estimated with the
-    strata collapsed in blocks of 2 x 2 (Cochran, Sampling Techniques, 5A.12): 2 sum_B s_B^2 / S^2,
-    s_B^2 the sample variance of block B's 8 values; it exceeds the variance on average by the
-    spread of the strata's means within a block (conservative), and unlike the pairs within one
-    stratum it does not vanish where a shadow edge crosses strata whose two samples happen to agree.
-    Where every sample's shadow ray agrees (all reach the emitter, or none: the rows or probes saw a
-    sliver the samples missed), the variance is at least that of one sample's share, (G / 2 S)^2, G
-    the mean of the g without visibility (V = 1): the estimator's resolution."""
-    per = 2 * STRATA * STRATA
+    2 S stratified samples of its (u, v) square (S = k^2 strata, two independent uniform points in
+    each, keyed by the points' `keys`, `seed`, the emitter's index `owner` and k: rng.py, `block`;
+    k per point chosen by a pilot to meet the relative tolerance `tol`, STRATA without one:
+    `stratified`), each with its shadow ray: with y a sample, n_y its normal, w = (y - x) / d, p_A
+    its area density, g = rho / pi L T(x, y) V(x, y) cos_x max(0, n_y . -w) / (d^2 p_A) (|n_y . w|
+    two-sided), the estimate is the mean of the g. Its variance sum_s sigma_s^2 / (2 S^2) is
+    estimated with the strata collapsed in blocks of 2 x 2 (lights.area.collapsed_variance:
+    conservative, and unlike the pairs within one stratum it does not vanish where a shadow edge
+    crosses strata whose two samples happen to agree). Where every sample's shadow ray agrees (all
+    reach the emitter, or none: the rows or probes saw a sliver the samples missed), the variance is
+    at least that of one sample's share, (G / 2 S)^2, G the mean of the g without visibility (V = 1):
+    the estimator's resolution."""
+
+    def estimate(at, strata, stage):
+        return _penumbra_at(accel, points[at], normals[at], None if shading is None else shading[at], reflectance[at],
+                            emitter, medium, keys[at], seed, block(DIM_PENUMBRA, owner, stage), strata)
+
+    return stratified(estimate, len(points), tol)
+
+
+def stratified(estimate, count: int, tol):
+    """(estimate, variance), each (count, 3), of `count` stratified estimates (a penumbra's: of one
+    emitter at surface points, or along camera rays: shadows/penumbra_airlight.py): with a relative
+    tolerance `tol`, a pilot of PILOT x PILOT strata for each chooses its strata (`choose_strata`)
+    and the estimate is made from fresh samples at those strata (the pilot's are not reused: the
+    estimate is independent of the choice, so unbiased); without one (None), STRATA x STRATA.
+    `estimate(at, strata, stage)`: (value, variance) of the items `at` at `strata` per side, from the
+    random numbers of LADDER[stage] (stage len(LADDER): the pilot's and STRATA's; `block`)."""
+    everything = np.arange(count)
+    if tol is None:
+        return estimate(everything, STRATA, len(LADDER))
+    strata = choose_strata(*estimate(everything, PILOT, len(LADDER)), tol)
+    value, var = np.empty((count, 3)), np.empty((count, 3))
+    for stage, k in enumerate(LADDER):
+        at = np.flatnonzero(strata == k)
+        if len(at):
+            value[at], var[at] = estimate(at, k, stage)
+    return value, var
+
+
+def choose_strata(value, var, tol) -> np.ndarray:
+    """(M,) the strata per side for each of M estimates from a pilot of PILOT x PILOT strata (its
+    estimate and variance, (M, 3) each): the smallest of LADDER at which the standard error would be
+    at most tol x the estimate in every channel, taking it to fall as k^(-3/2) with k strata a side (a
+    shadow edge crosses about k of the k^2 strata, each adding a variance ~ 1 / k^4 to the mean's);
+    LADDER's last (the cap) where the pilot's estimate is 0 but its variance is not."""
+    ratio = np.full(var.shape, np.inf)
+    np.divide(np.sqrt(var), tol * value, out=ratio, where=value > 0.0)
+    ratio = np.where(var > 0.0, ratio, 0.0).max(axis=1)  # var 0: nothing to gain (value exact or 0)
+    need = PILOT * ratio ** (2.0 / 3.0)
+    rung = np.searchsorted(np.array(LADDER, float), need, side="left")
+    return np.array(LADDER)[np.minimum(rung, len(LADDER) - 1)]
+
+
+def block(base: int, owner: int, stage: int) -> int:
+    """The first random-number dimension of emitter `owner`'s samples at LADDER[stage] strata (the
+    pilot's and STRATA's at stage len(LADDER)), from `base`: disjoint blocks, each of two dimensions
+    per sample of the cap."""
+    return base + (owner * (len(LADDER) + 1) + stage) * 4 * LADDER[-1] ** 2
+
+
+def _penumbra_at(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, dim, strata):
+    """`penumbra`'s (estimate, variance) at `strata` per side, random numbers from dimension `dim`."""
+    per = 2 * strata * strata
     value, var = np.zeros((len(points), 3)), np.zeros((len(points), 3))
     step = max(1, SAMPLES_PER_CHUNK // per)
-    half = STRATA // 2
+    half = strata // 2
     for lo in range(0, len(points), step):
         at = slice(lo, lo + step)
         g, free, seen = _emitter_samples(accel, points[at], normals[at], None if shading is None else shading[at],
-                                         reflectance[at], emitter, medium, keys[at], seed, owner, per)
+                                         reflectance[at], emitter, medium, keys[at], seed, dim, strata)
         blocks = g.reshape(-1, half, 2, half, 2, 2, 3).transpose(0, 1, 3, 2, 4, 5, 6).reshape(-1, half * half, 8, 3)
         value[at] = blocks.mean(axis=(1, 2))
-        var[at] = collapsed_variance(g.reshape(-1, per, 3), STRATA)
+        var[at] = collapsed_variance(g.reshape(-1, per, 3), strata)
         seen, gives = seen.reshape(-1, per), np.any(free > 0.0, axis=1).reshape(-1, per)
         agree = np.all(seen | ~gives, axis=1) | ~np.any(seen, axis=1)
         floor = (free.reshape(-1, per, 3).mean(axis=1) / per) ** 2
@@ -301,12 +355,14 @@ def penumbra(accel, points, normals, shading, reflectance, emitter, medium, keys
     return value, var
 
 
-def _emitter_samples(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, owner, per):
-    """The `penumbra` values g (M x per, 3) of `per` samples of the emitter at each point, the same
-    without visibility (V = 1) and whether each sample's shadow ray reached it (M x per,; False
-    where the sample gives nothing anyway: behind the point or the emitter)."""
+def _emitter_samples(accel, points, normals, shading, reflectance, emitter, medium, keys, seed, dim, strata):
+    """The `penumbra` values g (M x per, 3) of per = 2 strata^2 samples of the emitter at each point
+    (random numbers from dimension `dim`), the same without visibility (V = 1) and whether each
+    sample's shadow ray reached it (M x per,; False where the sample gives nothing anyway: behind the
+    point or the emitter)."""
+    per = 2 * strata * strata
     u, v = np.empty((len(points), per)), np.empty((len(points), per))
-    _jitter(keys, seed, DIM_PENUMBRA + 2 * per * owner, STRATA, u, v)
+    _jitter(keys, seed, dim, strata, u, v)
     y, ny, density = emitter.sample(u.ravel(), v.ravel())
     p, n = np.repeat(points, per, axis=0), np.repeat(normals, per, axis=0)
     to = y - p

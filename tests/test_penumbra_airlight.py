@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from raytrace import api
+from raytrace import api, shading
 from raytrace.scene.format import scene_from_text
 from raytrace.shadows import penumbra_airlight
 from raytrace.shadows.frusta import point_lit_pieces
@@ -127,7 +127,7 @@ def test_penumbrae_in_the_airlight_against_the_twin(reference, monkeypatch, meth
     z = z_scores(images, variances, reference, sampled)
     assert 0.1 < np.mean(z**2) < 1.5 and np.abs(z).max() < 4.0, (np.mean(z**2), np.abs(z).max())
     rms = np.sqrt(np.mean((images - reference)[:, sampled] ** 2))
-    monkeypatch.setattr(penumbra_airlight, "LADDER", (8,))  # every cut pair at 8 x 8 strata
+    monkeypatch.setattr(shading, "LADDER", (8,))  # every cut pair at 8 x 8 strata
     coarse, coarse_var, _ = renders(method)
     z = z_scores(coarse, coarse_var, reference, sampled)
     assert 0.1 < np.mean(z**2) < 1.5 and np.abs(z).max() < 4.0, (np.mean(z**2), np.abs(z).max())
@@ -147,8 +147,8 @@ def test_the_sampling_effort_follows_the_precision(reference, monkeypatch):
         chosen.setdefault(tol, []).extend(strata.tolist())
         return strata
 
-    choose = penumbra_airlight.choose_strata
-    monkeypatch.setattr(penumbra_airlight, "choose_strata", spy)
+    choose = shading.choose_strata  # the surfaces' too, but the floor and plate are black: not sampled
+    monkeypatch.setattr(shading, "choose_strata", spy)
     rms = {}
     for precision in (3e-2, 1e-3):
         runs = [api.render(plate_scene(), "analytic", volumetric_shadows=True, seed=s, precision=precision)
@@ -161,7 +161,7 @@ def test_the_sampling_effort_follows_the_precision(reference, monkeypatch):
         rms[precision] = np.sqrt(np.mean((images - reference)[:, sampled] ** 2))
     loose, fine = (np.array(chosen[p]) for p in (3e-2, 1e-3))
     assert fine.mean() >= 1.5 * loose.mean(), (loose.mean(), fine.mean())
-    assert np.any(loose == penumbra_airlight.LADDER[0]) and np.mean(fine == penumbra_airlight.LADDER[-1]) > 0.5
+    assert np.any(loose == shading.LADDER[0]) and np.mean(fine == shading.LADDER[-1]) > 0.5
     assert rms[1e-3] < rms[3e-2] / 2, rms
 
 

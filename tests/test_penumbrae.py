@@ -89,9 +89,9 @@ def reference():
     return ref
 
 
-def renders(scene, seeds=SEEDS):
+def renders(scene, seeds=SEEDS, **params):
     """(images (seeds, H, W), variances) of quadrature's red channel with seeds 1..seeds."""
-    runs = [api.render(scene, "quadrature", seed=s) for s in range(1, seeds + 1)]
+    runs = [api.render(scene, "quadrature", seed=s, **params) for s in range(1, seeds + 1)]
     assert all(np.all(np.isinf(r.error_bound[r.array[..., 0] > 0])) for r in runs)  # the cubature's, as before
     return np.array([r.array[..., 0] for r in runs]), np.array([r.variance[..., 0] for r in runs])
 
@@ -157,29 +157,62 @@ def test_an_emissive_mesh_is_sampled_uniformly_in_area():
 
 @pytest.mark.parametrize("emissive, rule_tol", [(False, 1e-12), (True, 1e-4)], ids=["quad light", "emissive quad"])
 def test_penumbrae_against_the_twin(reference, monkeypatch, emissive, rule_tol):
-    """The floor's 32 x 24 pixels, quadrature, 8 seeds: pixels the sampling left alone (variance 0 in
-    every seed) are the same in every seed, equal the fixed rule's image bit for bit and the twin to
-    1e-12 (the quad light's 8 x 8 rule; the emissive quad's two 7-point rules: 1e-4); the sampled ones (the penumbra) pass a z-test of the seeds' mean against the twin with the
-    reported variance (conservative: mean z^2 between 0.3 and 1.5, at most 1 % beyond 4 sigma, none
-    beyond 8); with 16 x 16 strata the error shrinks (rms 2 x smaller at least) and the z-test holds."""
+    """The floor's 32 x 24 pixels, quadrature, 8 seeds, every sampled point at 8 x 8 strata (LADDER
+    narrowed to (8,)): pixels the sampling left alone (variance 0 in every seed) are the same in every
+    seed, equal the fixed rule's image bit for bit and the twin to 1e-12 (the quad light's 8 x 8 rule;
+    the emissive quad's two 7-point rules: 1e-4); the sampled ones (the penumbra) pass a z-test of the
+    seeds' mean against the twin with the reported variance (conservative: mean z^2 between 0.3 and
+    1.5, at most 1 % beyond 4 sigma, none beyond 8); with 16 x 16 strata the error shrinks (rms 2 x
+    smaller at least) and the z-test holds."""
     scene = floor_scene(emissive=emissive)
     floor = ~np.isnan(reference)
+    monkeypatch.setattr(shading, "LADDER", (8,))
     images, variances = renders(scene)
     sampled = np.any(variances > 0.0, axis=0)
     assert 60 <= np.count_nonzero(sampled & floor) and not np.any(sampled & ~floor)
     still = floor & ~sampled
     assert np.all(images[:, still] == images[0][still])
     np.testing.assert_allclose(images[0][still], reference[still], rtol=rule_tol, atol=0)
-    monkeypatch.setattr(shading, "_cut", lambda *a: np.zeros(len(a[1]), dtype=bool))  # the fixed rule everywhere
-    fixed = api.render(scene, "quadrature", seed=1).array[..., 0]
+    with monkeypatch.context() as mp:
+        mp.setattr(shading, "_cut", lambda *a: np.zeros(len(a[1]), dtype=bool))  # the fixed rule everywhere
+        fixed = api.render(scene, "quadrature", seed=1).array[..., 0]
     np.testing.assert_array_equal(images[0][~sampled], fixed[~sampled])
-    monkeypatch.undo()
     mean_z2, beyond, worst = z_test(images, variances, reference, sampled)
     assert 0.3 < mean_z2 < 1.5 and beyond <= 0.01 and worst < 8.0, (mean_z2, beyond, worst)
     rms = np.sqrt(np.mean((images.mean(0) - reference)[sampled] ** 2))
-    monkeypatch.setattr(shading, "STRATA", 16)
+    monkeypatch.setattr(shading, "LADDER", (16,))
     fine_images, fine_variances = renders(scene)
     mean_z2, beyond, worst = z_test(fine_images, fine_variances, reference, sampled)
     assert 0.3 < mean_z2 < 1.5 and beyond <= 0.01 and worst < 8.0, (mean_z2, beyond, worst)
     fine_rms = np.sqrt(np.mean((fine_images.mean(0) - reference)[sampled] ** 2))
     assert fine_rms < rms / 2, (rms, fine_rms)
+
+
+def test_the_sampling_effort_follows_the_precision(reference, monkeypatch):
+    """The quad light's floor at rtol 1e-1 and 1e-3, 8 seeds each: the pilot (4 x 4 strata per point)
+    gives the sampled points more strata at the finer tolerance (on average at least 1.5 x per side;
+    some at the floor, 4 x 4, at 1e-1, most at the cap, 16 x 16, at 1e-3); the reported variance stays
+    honest at both (the z-test above against the twin) and the rms error of the sampled pixels falls
+    at least 2 x."""
+    chosen = {}
+
+    def spy(value, var, tol):
+        strata = choose(value, var, tol)
+        chosen.setdefault(tol, []).extend(strata.tolist())
+        return strata
+
+    choose = shading.choose_strata
+    monkeypatch.setattr(shading, "choose_strata", spy)
+    scene = floor_scene()
+    rms = {}
+    for rtol in (1e-1, 1e-3):
+        images, variances = renders(scene, rtol=rtol)
+        sampled = np.any(variances > 0.0, axis=0)
+        assert np.count_nonzero(sampled) >= 60
+        mean_z2, beyond, worst = z_test(images, variances, reference, sampled)
+        assert 0.3 < mean_z2 < 1.5 and beyond <= 0.01 and worst < 8.0, (rtol, mean_z2, beyond, worst)
+        rms[rtol] = np.sqrt(np.mean((images.mean(0) - reference)[sampled] ** 2))
+    loose, fine = (np.array(chosen[t]) for t in (1e-1, 1e-3))
+    assert fine.mean() >= 1.5 * loose.mean(), (loose.mean(), fine.mean())
+    assert np.any(loose == shading.LADDER[0]) and np.mean(fine == shading.LADDER[-1]) > 0.5
+    assert rms[1e-3] < rms[1e-1] / 2, rms

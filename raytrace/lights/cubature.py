@@ -10,9 +10,9 @@ whose pair still disagrees at MAX_ROWS rows is capped: it keeps its finest rule,
 statistics count it and the pilot rays that disagree.
 
 The pilot rays are the pixel centres of a GRID x GRID grid over the image and, per emitter, the NEAR
-pixel rays (of a sample of the image's) that pass closest to its points: where a ray passes near or
-ends on an emitter each node's air-light behaves like w_i / rho_i about the ray's foot point, the
-slowest place for the rule to converge.
+pixel rays (of a CANDIDATES x CANDIDATES sample of the image's, every pixel of a smaller image, each
+once) that pass closest to its points: where a ray passes near or ends on an emitter each node's
+air-light behaves like w_i / rho_i about the ray's foot point, the slowest place for the rule to converge.
 """
 from __future__ import annotations
 
@@ -38,9 +38,10 @@ def ladder(steps, count) -> tuple:
 
 def pairs(orders, count) -> list:
     """(coarse, fine) pairs of the ladder: each order with the first of at least 4 x its rows."""
+    rows = [count(o) for o in orders]  # once each: a count builds the rule
     out = []
     for i, o in enumerate(orders):
-        finer = [f for f in orders[i + 1:] if count(f) >= 4 * count(o)]
+        finer = [f for f, r in zip(orders[i + 1:], rows[i + 1:]) if r >= 4 * rows[i]]
         if finer:
             out.append((o, finer[0]))
     return out
@@ -54,11 +55,11 @@ def grid(n: int, width: int, height: int) -> np.ndarray:
 
 def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
     """(pixels (N, 2), near): the pilot's pixels (row, column), the GRID grid's and the NEAR pixels of
-    the CANDIDATES grid nearest to each emitter, and per source (None where `ladders[s]` is None) whether
+    the CANDIDATES grid (each pixel once: all of an image smaller than it) nearest to each emitter, and per source (None where `ladders[s]` is None) whether
     each of their rays passes within NEAR_FRACTION of its diameter of the emitter. `emitters[s]`: its
     area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions)."""
     sources = [s for s, l in enumerate(ladders) if l is not None]
-    cand = grid(CANDIDATES, width, height)
+    cand = np.unique(grid(CANDIDATES, width, height), axis=0)  # an image smaller than the grid: each pixel once
     o, d = rays_of(cand)
     picks = [grid(GRID, width, height)]
     for s in sources:

@@ -231,7 +231,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
         surf_var = np.zeros((len(points), 3)) if has_variance(prep, method) else None  # shading.penumbra's
         radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium, crossing.shadow_through(prep), shading, keys[surf], seed, surf_var)
+                                          medium, crossing.shadow_through(prep), shading, keys[surf], seed, surf_var,
+                                          method.tolerance(params))
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
                                                prep.accel.hit_normals(prim[surf], points), dirs[surf])

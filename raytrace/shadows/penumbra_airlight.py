@@ -11,15 +11,15 @@ side leaves a corner on the other), each a point light with its exact intervals,
 
 There the rows are replaced by 2 S stratified samples of the emitter's (u, v) square (S = k^2
 strata, two jittered points in each, keyed by the camera ray's key, the seed, the emitter and k as
-the surface term's are: shading.py, rng.py; k per cut pair from LADDER, chosen by a pilot to meet the
-method's tolerance: `_estimate`, `choose_strata`), each a LAMBERT spot row of intensity L / (2 S p_A) at its
-point y (p_A the area density; a two-sided emitter's point twice, facing both ways), cut to its
-front half-space and to the exact lit intervals of y itself (frusta.point_lit_pieces), and
-integrated by the method, its closed form or rule, per lit interval. The estimate is the sum over
-the samples, its variance the surface term's estimator's (area.collapsed_variance: strata collapsed
-2 x 2, conservative), with the same floor where all samples agree (all lit or all dark, though the
-rows or probes saw a cut): one sample's share of the unshadowed sum, squared. Sampled rays have no
-error bound (the renderer makes it infinite).
+the surface term's are: shading.py, rng.py; k per cut pair from shading.LADDER, chosen by a pilot to
+meet the method's tolerance as on surfaces: shading.stratified), each a LAMBERT spot row of
+intensity L / (2 S p_A) at its point y (p_A the area density; a two-sided emitter's point twice,
+facing both ways), cut to its front half-space and to the exact lit intervals of y itself
+(frusta.point_lit_pieces), and integrated by the method, its closed form or rule, per lit interval.
+The estimate is the sum over the samples, its variance the surface term's estimator's
+(area.collapsed_variance: strata collapsed 2 x 2, conservative), with the same floor where all
+samples agree (all lit or all dark, though the rows or probes saw a cut): one sample's share of the
+unshadowed sum, squared. Sampled rays have no error bound (the renderer makes it infinite).
 """
 from __future__ import annotations
 
@@ -29,13 +29,10 @@ from ..lights import EMISSION, LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..methods import Segments
 from ..segments import cone_segments, gather
-from ..shading import STRATA, _jitter as jitter
+from ..shading import _jitter as jitter, block, stratified
 from .frusta import GAP_REL, point_lit_pieces
 
 DIM_AIRLIGHT = 1 << 49  # the first random-number dimension (rng.py) of the air-light's emitter samples
-PILOT = 4  # strata per side of the pilot that chooses a cut pair's strata
-LADDER = (4, 8, 16)  # the strata per side a cut pair may get: the floor first, the cap last
-FIXED = STRATA  # strata per side for a method without a tolerance
 LIT, DARK, MIXED, NONE = 1, -1, 0, 2  # what a row (or the rows of an emitter) sees along a camera ray
 
 
@@ -78,44 +75,15 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
 
 
 def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
-    """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`: with a
-    tolerance (`Method.tolerance`), a pilot of PILOT x PILOT strata per ray chooses its strata (`choose_strata`)
-    and an estimate from fresh samples at those strata is returned (the pilot's samples are not reused:
-    the estimate is independent of the choice, so unbiased); without one, FIXED x FIXED strata."""
+    """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`: stratified
+    samples whose strata follow the method's tolerance (`Method.tolerance`; shading.stratified: a
+    pilot per ray, then fresh samples), shading.STRATA a side without one."""
 
-    def estimate(rows, strata, stage):
-        return _stratified(accel, method, medium, params, emitter, rows, rays, select, strata, _dim(e, stage))
+    def estimate(at, strata, stage):
+        return _stratified(accel, method, medium, params, emitter, rs[at], rays, select, strata,
+                           block(DIM_AIRLIGHT, e, stage))
 
-    tol = method.tolerance(params)
-    if tol is None:
-        return estimate(rs, FIXED, len(LADDER))
-    strata = choose_strata(*estimate(rs, PILOT, len(LADDER)), tol)
-    value, var = np.empty((len(rs), 3)), np.empty((len(rs), 3))
-    for k, s in enumerate(LADDER):
-        at = np.nonzero(strata == s)[0]
-        if len(at):
-            value[at], var[at] = estimate(rs[at], s, k)
-    return value, var
-
-
-def choose_strata(value, var, tol) -> np.ndarray:
-    """(M,) the strata per side for each of M (ray, emitter) pairs from a pilot of PILOT x PILOT strata
-    (its estimate and variance, (M, 3) each): the smallest of LADDER at which the standard error would
-    be at most tol x the estimate in every channel, taking it to fall as k^(-3/2) with k strata a side
-    (a shadow edge crosses about k of the k^2 strata, each adding a variance ~ 1 / k^4 to the mean's);
-    LADDER's last (the cap) where the pilot's estimate is 0 but its variance is not."""
-    ratio = np.full(var.shape, np.inf)
-    np.divide(np.sqrt(var), tol * value, out=ratio, where=value > 0.0)
-    ratio = np.where(var > 0.0, ratio, 0.0).max(axis=1)  # var 0: nothing to gain (value exact or 0)
-    need = PILOT * ratio ** (2.0 / 3.0)
-    rung = np.searchsorted(np.array(LADDER, float), need, side="left")
-    return np.array(LADDER)[np.minimum(rung, len(LADDER) - 1)]
-
-
-def _dim(e: int, stage: int) -> int:
-    """The first random-number dimension of emitter e's samples at LADDER[stage] strata (the pilot's,
-    and FIXED's, at stage len(LADDER)): disjoint blocks, each of two dimensions per sample of the cap."""
-    return DIM_AIRLIGHT + (e * (len(LADDER) + 1) + stage) * 4 * LADDER[-1] ** 2
+    return stratified(estimate, len(rs), method.tolerance(params))
 
 
 def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata: int, dim: int):
