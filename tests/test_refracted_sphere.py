@@ -197,43 +197,58 @@ def image(scene, method, params=None, seed=0):
     return render(prep, method, params or {}, RenderOptions(threads=1, seed=seed))
 
 
-# pixels of the 8 x 6 image: through the front, grazing the ball's left rim, and two whose segments
-# cross the caustic near the back (the twin's cuts)
-FRONT, GRAZING, CAUSTIC, BACK = (3, 0), (1, 2), (2, 2), (5, 1)
+# pixels of the 8 x 6 image: grazing the ball's left rim, and crossing the caustic near the back
+GRAZING, CAUSTIC = (1, 2), (2, 2)
+# points where the number of paths changes on the twin's segments, at least, over the image
+CROSSINGS = {"water_lamp": 2, "glass_lamp": 2, "water_sun": 0, "glass_sun": 0, "glass_spot": 2}
 CASES = {"water_lamp": (1.33, LAMP), "glass_lamp": (1.5, LAMP), "water_sun": (1.33, SUN), "glass_sun": (1.5, SUN),
          "glass_spot": (1.5, SPOT)}
 
 
-def against_twin(scene, pixels):
-    """The quadrature image (rtol 1e-6) and its largest relative difference from the twin over `pixels`,
-    and the twin's caustic crossings over them."""
+# pixels whose segment crosses the marginal rays' cone and the caustic closer together than the twin's
+# scan of the number of paths resolves (4.5e-5 apart of a 1.94 segment): its quad misses the caustic
+# there (3e-4 off); scipy quad with the kernel's breaks agrees with quadrature to 3e-9
+UNRESOLVED = {"glass_lamp": [(4, 3)]}
+
+
+def against_twin(scene, pixels=None, skip=()):
+    """The quadrature image (rtol 1e-6), its largest relative difference from the twin over `pixels`
+    (all: None) where the twin is lit (0 where it is not), the twin's points where the number of paths
+    changes (caustic and marginal crossings) over them, and the lit pixels' count."""
     res = image(scene, "quadrature", {"rtol": 1e-6})
     twin = Twin(scene)
-    worst, crossings = 0.0, 0
-    for i, j in pixels:
+    worst, crossings, lit = 0.0, 0, 0
+    for i, j in pixels or [(i, j) for j in range(CAMERA["height"]) for i in range(CAMERA["width"])]:
+        if (i, j) in skip:
+            continue
         ref, cuts = twin.pixel(i, j)
-        assert ref.max() > 0.0
+        if not ref.max() > 0.0:
+            assert not res.image[j, i].any()
+            continue
+        lit += 1
         worst = max(worst, float(np.max(np.abs(res.image[j, i] - ref) / ref)))
         crossings += len(cuts)
-    return res, worst, crossings
+    return res, worst, crossings, lit
 
 
 def test_quadrature_matches_the_twin_under_a_lamp():
     """A water ball under a lamp above it: on the pixel grazing its rim and the one whose segment
     crosses the caustic (where two more paths appear), quadrature at rtol 1e-6 within 1e-6 of the twin;
     every integral converged, the bound declared infinite. The entry plane's model misses by far."""
-    res, worst, crossings = against_twin(ball(*CASES["water_lamp"]), [GRAZING, CAUSTIC])
-    assert worst < 1e-6 and crossings >= 2, (worst, crossings)
+    res, worst, crossings, lit = against_twin(ball(*CASES["water_lamp"]), [GRAZING, CAUSTIC])
+    assert worst < 1e-6 and crossings >= 2 and lit == 2, (worst, crossings, lit)
     assert res.stats["inside: integrals not converged"] == 0
     assert np.all(np.isinf(res.error_bound[res.image.max(axis=2) > 0.0]))
 
 
-@pytest.mark.slow  # ~3 min: python -m pytest -q -m slow tests/test_refracted_sphere.py
+@pytest.mark.slow  # ~5 min: python -m pytest -q -m slow tests/test_refracted_sphere.py
 @pytest.mark.parametrize("case", list(CASES))
 def test_quadrature_matches_the_twin(case):
-    """Water and glass balls under the lamp and the sun, four pixels each, within 1e-6 at rtol 1e-6."""
-    res, worst, crossings = against_twin(ball(*CASES[case]), [FRONT, GRAZING, CAUSTIC, BACK])
-    assert worst < 1e-6 and crossings >= 2, (worst, crossings)
+    """Water and glass balls under the lamp, the sun and a spot whose cone edges cross the ball, every
+    pixel but the twin's UNRESOLVED, within 1e-6 at rtol 1e-6 (0 where the twin is unlit)."""
+    res, worst, crossings, lit = against_twin(ball(*CASES[case]), skip=UNRESOLVED.get(case, ()))
+    assert worst < 1e-6 and lit >= 10, (worst, crossings, lit)
+    assert crossings >= CROSSINGS[case], crossings
     assert res.stats["inside: integrals not converged"] == 0
 
 
@@ -245,14 +260,17 @@ def reference():
 
 
 def test_raymarch_and_montecarlo_take_the_same_paths(reference):
-    """Against quadrature: raymarch converges as its steps grow (slowly where a segment crosses the
-    caustic, an integrable 1/sqrt peak); montecarlo's free-path samples are unbiased with their own
-    variance (mean squared z-score about 1)."""
+    """Against quadrature: raymarch converges as its steps grow, at second order on the median pixel,
+    slowly (about h^(1/2)) on the pixels whose segment crosses the caustic (an integrable 1/sqrt peak,
+    which its midpoints sample unevenly); montecarlo's free-path samples are unbiased with their own
+    variance (mean squared z-score about 1; its variance is infinite where a segment crosses the
+    caustic, so the estimate of it is heavy-tailed there)."""
     scene, ref = reference
     lit = ref > 0.0
-    errs = [float(np.max(np.abs(image(scene, "raymarch", {"steps": n}).image - ref)[lit] / ref[lit]))
-            for n in (64, 1024)]
-    assert errs[1] < 0.5 * errs[0] and errs[1] < 2e-2, errs
+    off = [np.abs(image(scene, "raymarch", {"steps": n}).image - ref)[lit] / ref[lit] for n in (64, 4096)]
+    assert np.median(off[1]) < 1e-3 * np.median(off[0]), [np.median(e) for e in off]
+    total = [float(np.sum(e * ref[lit]) / ref.sum()) for e in off]
+    assert total[1] < 0.5 * total[0], total
     res = image(scene, "montecarlo", {"samples": 64}, seed=5)
     z2 = float(np.mean((res.image - ref)[lit] ** 2 / res.variance[lit]))
     assert 0.3 < z2 < 3.0, z2

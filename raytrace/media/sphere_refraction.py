@@ -32,13 +32,17 @@ the caustic, where E has an integrable 1/sqrt singularity along a camera ray and
 changes by two; the sagittal one on the axis (the axial caustic, integrable across it).
 
 Along an inside segment o + x w the integrand breaks where the segment crosses the tangential
-caustic surface (the caustic points C(theta) = P + t / kappa_t turned about the axis) and peaks
-where it passes closest to the axis; `breaks` cuts it there: the closest approach in closed form and
-the caustic crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the
-segment's distance from the axis at the caustic point's height z_C), found like the paths. QUAD
-integrates the pieces with the project's adaptive Gauss-Legendre rule; its error bound is infinite
-(the rounding of the roots and the caustic's location are not analysed); MARCH and SAMPLE take
-media/slab.py's midpoint march and free-path samples of the same integrand.
+caustic surface (the caustic points C(theta) = P + t / kappa_t turned about the axis), falls to 0
+with a square-root kink where a path leaves through the lit arc's end (the segment crosses the cone
+of the marginal rays, refracted at grazing incidence, about the axis with its apex where they meet
+it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
+the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
+crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
+distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
+pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
+in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); its error bound is infinite (the rounding of the
+roots and the caustic's location are not analysed); MARCH and SAMPLE take media/slab.py's midpoint
+march and free-path samples of the same integrand.
 """
 from __future__ import annotations
 
