@@ -503,12 +503,12 @@ def test_every_method_takes_the_exact_sphere_in_its_kernel(monkeypatch, method, 
         assert result.stats["inside: segments handed to quadrature"] > 0
 
 
-def test_a_refractive_exact_sphere_is_lit_as_a_mesh_of_64_segments_is():
-    """A refractive sphere of fog (ior 1.33) under a point light: exact, or a mesh of 64 segments (more
-    face planes than media/slab.py's convex kernel takes), both lit through the plane of the face the
-    camera ray entered by (the note's planar boundary: no convex planes, rows REFRACTED); against a
-    mesh of 256 segments the exact sphere is the nearer (median 1.2 % against the 64-segment mesh's
-    4.3 %: its normals are exact)."""
+def test_a_refractive_exact_sphere_leaves_the_meshes_planar_boundary():
+    """A refractive sphere of fog (ior 1.33) under a point light: meshes of 64 and 256 segments (more
+    face planes than media/slab.py's convex kernel takes) are lit through the plane of the face the
+    camera ray entered by (the note's planar boundary: no convex planes, rows REFRACTED), and agree
+    (median 4.3 %); the exact sphere (rows REFRACTED too) takes its exact refracted paths
+    (media/sphere_refraction.py, verified in tests/test_refracted_sphere.py), far from that model."""
     from .test_interiors_scale import SPHERE
 
     images = {}
@@ -524,7 +524,7 @@ def test_a_refractive_exact_sphere_is_lit_as_a_mesh_of_64_segments_is():
     ref = images["256"]
     lit = ref > 0.0
     off = {k: float(np.median(np.abs(images[k] - ref)[lit] / ref[lit])) for k in ("exact", "64")}
-    assert lit.sum() > 60 and off["exact"] < 0.5 * off["64"], off
+    assert lit.sum() > 60 and off["64"] < 0.06 and off["exact"] > 0.2, off
 
 
 def test_camera_inside_the_exact_fog_sphere():

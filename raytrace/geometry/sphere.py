@@ -85,7 +85,7 @@ def sphere_blocks(origins, dirs, tmax, spheres, rows, occ):
 
 
 @exact_njit
-def _quadratic_roots(a, b, c, out, n):
+def quadratic_roots(a, b, c, out, n):
     """out[n:] <- the real roots of a x^2 + 2 b x + c = 0 (Numerical Recipes 5.6's stable form); the new n."""
     if a == 0.0:
         if b != 0.0:
@@ -160,7 +160,7 @@ def shadow_breaks(o, w, light, sun, c, r, out):
         aw += a * w[k]
         aa += a * a
         ww += w[k] * w[k]
-    return _quadratic_roots(we * we - cos2 * ww, ae * we - cos2 * aw, ae * ae - cos2 * aa, out, n)
+    return quadratic_roots(we * we - cos2 * ww, ae * we - cos2 * aw, ae * ae - cos2 * aa, out, n)
 
 
 @exact_njit

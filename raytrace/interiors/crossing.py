@@ -19,7 +19,8 @@ Each method's `Supports.interiors` (methods/__init__.py) says how it integrates 
 what it takes there (`check` refuses the rest in one line): `quadrature` (adaptive, the reference),
 `analytic` (directional lights only: the exact closed form in convex index-matched shapes of at most
 MAX_FACES planes, with an error bound; the adaptive quadrature in other index-matched shapes, counted;
-the refracted beams in convex refractive shapes, bounded; eq. 5 through other refractive boundaries),
+the refracted beams in convex refractive shapes, bounded; the adaptive quadrature in a refractive exact
+sphere, counted; eq. 5 through other refractive boundaries),
 `slab_approx` (eq. 5 and the note's separable approximation for point lights, not spots), `raymarch`
 (its `steps` midpoints per inside row) and `montecarlo` (`samples` free-path samples per inside row
 and light, whatever its --sampling; variance kept); `lecocq` and `sun` are refused for scenes with

@@ -19,7 +19,9 @@ counted (HANDED), with its bound. Through a refractive boundary a directional li
 through every face it meets, one beam each (`bounded.refracted_beams`: the exact refracted path;
 CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
-path per face), other shapes through the entry plane (Fermat's path).
+path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
+sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; CLOSED hands
+them to QUAD, counted; unbounded); slab_approx keeps the entry plane everywhere.
 
 QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bounds.md, "Inside shapes"):
 convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
@@ -35,8 +37,10 @@ import math
 import numpy as np
 
 from ..error_bounds import product, spot_rounding
+from ..errors import UserError
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance
+from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
 from ..scene.meshes import PLANE_DECIMALS
@@ -84,7 +88,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     light enters a convex shape (`convex_planes`) through every face it meets, one beam each
     (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
     entry plane (eq. 5, unbounded); a point or spot light a convex one through every face it is outside of
-    (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path). `light`: that light only
+    (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path); every light an
+    exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only
     (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
     which numbers their random streams; `beam`: of a directional light's refracted beams, or of a
     point or spot light's refracted paths, only the one through that face (`_lit_beams`)."""
@@ -136,11 +141,17 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
         bound[:] += b * (lights.intensity[li] * scale)
 
     zero = np.zeros(n)
+    sphere = paths.exact_sphere(prep, sid) if refractive and mode != APPROX else None
     for li in range(len(lights)) if light is None else [light]:
         idx = np.full(n, li, dtype=np.int64)
         distant = np.full(n, lights.distant[li])
         if lights.distant[li]:
             geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
+            if sphere is not None:
+                geo[:, 6:9] = -lights.axis[li]
+                _refracted_sphere(prep, sid, sphere, geo, True, ell, li, sup, params, keys,
+                                  dims + (depth * len(lights) + li) * steps, seed, out, var, bound, stats)
+                continue
             if beams:
                 for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
                     if beam is not None and f != beam:
@@ -183,6 +194,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             lh = rel - hl[:, None] * normals
             wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
             ll = np.einsum("ij,ij->i", lh, lh)
+        if sphere is not None:
+            _refracted_sphere(prep, sid, sphere, geo, False, ell, li, sup, params, keys,
+                              dims + (depth * len(lights) + li) * steps, seed, out, var, bound, stats)
+            continue
         if closed or (traced and sup.exact_paths):
             if closed:
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
@@ -199,13 +214,35 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     return out, var, stats, bound
 
 
+def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, keys, dim0, seed, out, var, bound, stats):
+    """out, var, bound += light li's single scattering over the rows (geo: GEO_COLUMNS) of the refractive
+    exact sphere sid (centre, radius): its exact refracted paths (media/sphere_refraction.py) by the
+    method's inside rule, CLOSED's handed to QUAD (counted, HANDED); the bound is infinite."""
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    rtol, steps, tau_max = sup.settings(params)
+    mode = QUAD if sup.mode == CLOSED else sup.mode
+    if sup.mode == CLOSED:
+        stats[HANDED] += np.count_nonzero(ell > 0.0)
+    for c in range(3):
+        if medium.sigma_s[c] == 0.0 or lights.intensity[li, c] == 0.0:
+            continue
+        val, v = sphere_refracted(sphere, geo, distant, ell, float(medium.sigma_t[c]), float(medium.sigma_s[c]),
+                                  medium.phase, medium.g, float(prep.scene.medium.sigma_t[c]), float(medium.ior), mode,
+                                  rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), stats)
+        out[:, c] += val * lights.intensity[li, c]
+        var[:, c] += v * lights.intensity[li, c] ** 2
+    bound[ell > 0.0] = np.inf
+
+
 def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth, shadows: bool):
     """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
     that each light reaches past the blockers (shadows/frusta.py's exact lit intervals of `blockers`;
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
     and its quadrature fallback take the exact path from any start); in a convex refractive shape,
-    `_lit_beams`. Where the light's path is neither straight nor a convex shape's refracted paths
+    `_lit_beams`. In a refractive exact sphere alone in the scene nothing blocks (`single_scattering`);
+    with other shapes, volumetric shadows are refused there (UserError). Where the light's path is
+    neither straight nor a convex shape's refracted paths
     (a refractive interior that is not convex) or not traced (slab_approx: the note's planar model),
     the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
@@ -217,6 +254,12 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     sup = method.supports.interiors
+    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and sup.mode != APPROX:
+        if np.any(prep.shape_ids != sid):  # what else stands on the refracted paths is not traced
+            raise UserError(f"shape[{sid}].interior.ior: volumetric shadows inside a refractive exact sphere in a "
+                            "scene with other shapes are not implemented; render with --no-volumetric-shadows "
+                            "(render.volumetric_shadows = false) or set ior = 1")
+        return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     if reach == REFRACTED and len(convex_planes(prep, sid)) and sup.mode != APPROX:
         return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     if reach == REFRACTED or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights

@@ -1,0 +1,432 @@
+"""Single scattering inside a refractive exact sphere (geometry/sphere.py) lit through the sphere:
+the exact refracted light at each inside point, for point, spot and directional lights.
+
+The plane of the light's paths: a ray from a point light L (or along a directional light) refracted
+at P on the sphere (centre c, radius R) stays in the plane through L, c and P (the normal at P lies in
+it), so the paths that reach an inside point X lie in the plane through the light's axis (the line
+through c toward L, or along the sun) and X. In that plane, with z along the axis toward the light
+and y toward X (X = (z_X, y_X), y_X >= 0), P(theta) = R (cos theta, sin theta) for theta in
+(-theta_a, theta_a), the lit arc: the incidence cosine cos_i falls with |theta| and theta_a is where
+it reaches 0 (or sqrt(1 - eta^2) for eta < 1, total reflection beyond). The ray refracted at
+P(theta) (Snell, media/slab.py `refract`) runs along t(theta); X lies on it where
+    h(theta) = t(theta) x (X - P(theta)) = 0
+(a 2-D cross product; X is then ahead of P, the chord being inside). Every root is a path (Fermat's
+stationary path); near the back of the ball refracted rays cross (a caustic) and X takes up to three.
+`paths` finds them on SCAN uniform nodes of the arc: each sign change of h bisected to the
+resolution of doubles, and each node where |h| dips without a sign change refined by golden
+section over its two cells, two roots bisected where the dip crosses zero.
+
+Each path contributes ks Phi(mu) E F exp(-kt (x + s) - kt_out o): mu the scattering cosine (the
+light travels along t, mu = -t.w), s the path inside from P to X, o the path outside (0 for a
+directional light, which the outside medium does not attenuate), F a spot's falloff toward the
+direction the light leaves in (P - L) / o, and E the irradiance of the ray tube at X: just inside P it
+is T cos_i / (o^2 cos_t) per unit intensity (T cos_i / cos_t per unit irradiance for a directional
+light; T = 1 - media/slab.py `fresnel`), and the refracted wavefront there has the principal
+curvatures of Coddington's equations (the tangential, in the plane, and the sagittal, across it),
+    kappa_t = ((eta cos_t - cos_i) / R - cos_i^2 / o) / (eta cos_t^2),
+    kappa_s = ((eta cos_t - cos_i) / R - 1 / o) / eta,
+so that each width of the tube scales by (1 - s kappa) along the ray:
+    E(s) = E(0) / |(1 - s kappa_t)(1 - s kappa_s)|.
+(For R -> inf this is media/slab.py `refracted_at`'s planar tube.) The tangential factor vanishes on
+the caustic, where E has an integrable 1/sqrt singularity along a camera ray and the number of paths
+changes by two; the sagittal one on the axis (the axial caustic, integrable across it).
+
+Along an inside segment o + x w the integrand breaks where the segment crosses the tangential
+caustic surface (the caustic points C(theta) = P + t / kappa_t turned about the axis), falls to 0
+with a square-root kink where a path leaves through the lit arc's end (the segment crosses the cone
+of the marginal rays, refracted at grazing incidence, about the axis with its apex where they meet
+it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
+the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
+crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
+distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
+pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
+in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); its error bound is infinite (the rounding of the
+roots and the caustic's location are not analysed); MARCH and SAMPLE take media/slab.py's midpoint
+march and free-path samples of the same integrand.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..geometry.sphere import quadratic_roots
+from ..jit import njit
+from ..lights import falloff
+from .adaptive import bounded_piecewise, sort_few
+from .integrand import integrand_of
+from .phase import phase_value
+from .slab import MARCH, QUAD, _N10, _N20, _W10, _W20, _march_or_sample, fresnel
+
+SCAN = 48  # uniform nodes of the lit arc on which `paths` brackets the roots of h
+MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
+GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
+
+
+class SphereRefracted(NamedTuple):
+    """One inside segment of a refractive exact sphere and one unit light (module docstring): the
+    segment's start o and direction w, the sphere's centre c and radius, the light's position (a
+    directional light: the unit direction toward it), its axis ez (the unit direction from c toward
+    the light), d = |L - c| (inf for a directional light), theta_a the lit arc's half-width, the
+    spot's axis and (cos_end, cos_start, curve)."""
+    o: np.ndarray
+    w: np.ndarray
+    c: np.ndarray
+    radius: float
+    light: np.ndarray
+    distant: bool
+    ez: np.ndarray
+    d: float
+    theta_a: float
+    eta: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    axis: np.ndarray
+    spot: tuple
+
+
+@njit
+def incidence(theta, radius, d, eta):
+    """(pz, py, tz, ty, cos_i, cos_t, o) of the ray from the light (at distance d from the centre on
+    the axis, inf: a directional light along -z) refracted at P = radius (cos theta, sin theta): its
+    unit direction inside (tz, ty), the incidence and refraction cosines and the path outside o (inf
+    for a directional light); cos_t = 0 where it does not enter (cos_i <= 0, total reflection)."""
+    cth, sth = math.cos(theta), math.sin(theta)
+    pz, py = radius * cth, radius * sth
+    if d == math.inf:
+        dz, dy, o = -1.0, 0.0, math.inf
+    else:
+        dz, dy = pz - d, py
+        o = math.sqrt(dz * dz + dy * dy)
+        dz, dy = dz / o, dy / o
+    cos_i = -(dz * cth + dy * sth)
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    if cos_i <= 0.0 or sin2_t >= 1.0:
+        return pz, py, dz, dy, cos_i, 0.0, o
+    cos_t = math.sqrt(1.0 - sin2_t)
+    f = cos_i / eta - cos_t
+    return pz, py, dz / eta + f * cth, dy / eta + f * sth, cos_i, cos_t, o
+
+
+@njit
+def lit_arc(radius, d, eta):
+    """theta_a: the lit arc's half-width, where the incidence cosine (falling with |theta|) reaches 0,
+    or sqrt(1 - eta^2) for eta < 1 (bisected to the resolution of doubles)."""
+    c_min = math.sqrt(1.0 - eta * eta) if eta < 1.0 else 0.0
+    hi = 0.5 * math.pi if d == math.inf else math.acos(min(radius / d, 1.0))
+    if c_min == 0.0:
+        return hi
+    lo = 0.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if incidence(mid, radius, d, eta)[4] > c_min:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit
+def _marginal(theta_a, radius, d, eta):
+    """(pz, py, tz, ty) of `incidence` at the lit arc's end theta_a: the ray refracted at grazing
+    incidence (or at the critical angle for eta < 1), its limit from inside the arc."""
+    cth, sth = math.cos(theta_a), math.sin(theta_a)
+    pz, py = radius * cth, radius * sth
+    if d == math.inf:
+        dz, dy = -1.0, 0.0
+    else:
+        dz, dy = pz - d, py
+        o = math.sqrt(dz * dz + dy * dy)
+        dz, dy = dz / o, dy / o
+    cos_i = max(-(dz * cth + dy * sth), 0.0)
+    cos_t = math.sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (eta * eta), 0.0))
+    f = cos_i / eta - cos_t
+    return pz, py, dz / eta + f * cth, dy / eta + f * sth
+
+
+@njit
+def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
+    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (0 where the ray does not enter);
+    kind 1: |rho_ray(z_C)|^2 - y_C^2 of the caustic point C(theta) (segment f + x v across the axis,
+    z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P."""
+    pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
+    if cos_t == 0.0:
+        return 0.0 if kind == 0 else math.nan
+    if kind == 0:
+        return tz * (yx - py) - ty * (zx - pz)
+    inv_o = 0.0 if d == math.inf else 1.0 / o
+    kappa = ((eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o) / (eta * cos_t * cos_t)
+    if not kappa > 0.0:
+        return math.nan
+    cz, cy = pz + tz / kappa, py + ty / kappa
+    x = (cz - z0) / wz
+    a0, a1, a2 = f0 + x * v0, f1 + x * v1, f2 + x * v2
+    return (a0 * a0 + a1 * a1 + a2 * a2) - cy * cy
+
+
+@njit
+def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
+    """The root of _h in [lo, hi] (h_lo its sign at lo, the other sign at hi) to the resolution of doubles."""
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if _h(mid, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta) * h_lo > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit
+def roots(lo, hi, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta, out):
+    """The roots of _h on [lo, hi] into out (returns their count, ascending): SCAN uniform nodes, each
+    sign change bisected, each node where |h| dips without a sign change refined by golden section
+    over its two cells and two roots bisected where the dip crosses zero (nan nodes break the scan)."""
+    m = 0
+    cap = out.shape[0]
+    step = (hi - lo) / SCAN
+    if not step > 0.0:
+        return 0
+    hs = np.empty(SCAN + 1)
+    for j in range(SCAN + 1):
+        hs[j] = _h(lo + j * step, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
+    for j in range(SCAN):
+        a, b = hs[j], hs[j + 1]
+        if m < cap and a == 0.0:
+            out[m] = lo + j * step
+            m += 1
+        elif m < cap and a * b < 0.0:
+            out[m] = _bisect(lo + j * step, lo + (j + 1) * step, a, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0,
+                             radius, d, eta)
+            m += 1
+    for j in range(1, SCAN):
+        a, b, c = hs[j - 1], hs[j], hs[j + 1]
+        if not (a * b > 0.0 and b * c > 0.0 and abs(b) < abs(a) and abs(b) <= abs(c)) or m + 2 > cap:
+            continue
+        sign = 1.0 if b > 0.0 else -1.0
+        x0, x3 = lo + (j - 1) * step, lo + (j + 1) * step  # golden section for the least sign * h
+        x1, x2 = x3 - GOLD * (x3 - x0), x0 + GOLD * (x3 - x0)
+        g1 = sign * _h(x1, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
+        g2 = sign * _h(x2, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
+        for _ in range(200):
+            if g1 <= 0.0 or g2 <= 0.0 or not x0 < x1 < x2 < x3:
+                break
+            if g1 < g2:
+                x3, x2, g2 = x2, x1, g1
+                x1 = x3 - GOLD * (x3 - x0)
+                g1 = sign * _h(x1, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
+            else:
+                x0, x1, g1 = x1, x2, g2
+                x2 = x0 + GOLD * (x3 - x0)
+                g2 = sign * _h(x2, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
+        xm = x1 if g1 <= g2 else x2
+        if min(g1, g2) < 0.0:
+            out[m] = _bisect(lo + (j - 1) * step, xm, b, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d,
+                             eta)
+            out[m + 1] = _bisect(xm, lo + (j + 1) * step, -b, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0,
+                                 radius, d, eta)
+            m += 2
+    sort_few(out, 0, m)
+    return m
+
+
+@njit
+def _plane(r, x):
+    """(z_X, y_X, e_y) of the point o + x w: its coordinates along the axis and across it from the
+    centre, and the unit direction across (any normal to the axis on the axis)."""
+    ez = r.ez
+    q = np.empty(3)
+    for k in range(3):
+        q[k] = r.o[k] + x * r.w[k] - r.c[k]
+    zx = q[0] * ez[0] + q[1] * ez[1] + q[2] * ez[2]
+    ey = q - zx * ez
+    yx = math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+    if yx > 0.0:
+        ey /= yx
+    else:  # on the axis: any normal to it
+        k = 0 if abs(ez[0]) < 0.9 else 1
+        ey[:] = -ez[k] * ez
+        ey[k] += 1.0
+        ey /= math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+    return zx, yx, ey
+
+
+@njit
+def refracted_value(x, r):
+    """The single-scattering integrand at o + x w for a unit light: the sum over the refracted paths
+    that reach the point (`roots` of h) of ks Phi(mu) E F exp(-kt (x + s) - kt_out o) (module docstring)."""
+    zx, yx, ey = _plane(r, x)
+    found = np.empty(MAX_PATHS)
+    m = roots(-r.theta_a, r.theta_a, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, r.radius, r.d, r.eta, found)
+    total = 0.0
+    eta, radius, ez = r.eta, r.radius, r.ez
+    for k in range(m):
+        pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, r.d, eta)
+        if cos_t == 0.0:
+            continue
+        s = tz * (zx - pz) + ty * (yx - py)
+        if not s >= 0.0:
+            continue
+        inv_o = 0.0 if r.distant else 1.0 / o
+        power = (eta * cos_t - cos_i) / radius
+        kappa_t = (power - cos_i * cos_i * inv_o) / (eta * cos_t * cos_t)
+        kappa_s = (power - inv_o) / eta
+        e = (1.0 - fresnel(cos_i, eta)) * cos_i * inv_o * inv_o / cos_t if not r.distant else \
+            (1.0 - fresnel(cos_i, eta)) * cos_i / cos_t
+        spread = abs((1.0 - s * kappa_t) * (1.0 - s * kappa_s))
+        if not spread > 0.0:
+            continue
+        mu, c_spot = 0.0, 1.0
+        for j in range(3):
+            t = tz * ez[j] + ty * ey[j]
+            mu -= t * r.w[j]
+        f = 1.0
+        if not r.distant:
+            c_spot = 0.0
+            for j in range(3):
+                c_spot += (r.c[j] + pz * ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
+            f = falloff(c_spot / o, r.spot[0], r.spot[1], r.spot[2])
+        if f == 0.0:
+            continue
+        path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
+        total += r.ks * phase_value(r.code, r.g, mu) * f * e / spread * math.exp(-path)
+    return total
+
+
+@integrand_of(SphereRefracted)
+@njit
+def _refracted_value(x, r):
+    return refracted_value(x, r)
+
+
+class NearCaustic(NamedTuple):
+    """`SphereRefracted`'s integrand on the piece from a caustic crossing xb to xb + span, in u in
+    [0, 1] with x = xb + span u^2: 2 |span| u f(x), smooth where f has its 1/sqrt(|x - xb|) singularity."""
+    r: SphereRefracted
+    xb: float
+    span: float
+
+
+@integrand_of(NearCaustic)
+@njit
+def _near_caustic(u, q):
+    return 2.0 * abs(q.span) * u * refracted_value(q.xb + q.span * u * u, q.r)
+
+
+@njit
+def breaks(r, end, out, caustic):
+    """The x in (0, end) where the segment passes closest to the axis and where it crosses the
+    tangential caustic surface (module docstring; caustic[k] = 1.0 for those), into out, ascending;
+    returns their count."""
+    ez = r.ez
+    f, v = np.empty(3), np.empty(3)
+    fz = wz = 0.0
+    for k in range(3):
+        fz += (r.o[k] - r.c[k]) * ez[k]
+        wz += r.w[k] * ez[k]
+    for k in range(3):
+        f[k] = r.o[k] - r.c[k] - fz * ez[k]
+        v[k] = r.w[k] - wz * ez[k]
+    m = 0
+    pz, py, tz, ty = _marginal(r.theta_a, r.radius, r.d, r.eta)
+    if ty != 0.0:  # the cone of the marginal rays, about the axis with its apex where they meet it
+        qz = fz - (pz - py * tz / ty)
+        qw = f[0] * r.w[0] + f[1] * r.w[1] + f[2] * r.w[2] + qz * wz  # q = o - apex: f + qz ez
+        qq = f[0] * f[0] + f[1] * f[1] + f[2] * f[2] + qz * qz
+        cone = np.empty(2)
+        for k in range(quadratic_roots(wz * wz - tz * tz, qz * wz - tz * tz * qw, qz * qz - tz * tz * qq, cone, 0)):
+            if 0.0 < cone[k] < end:
+                out[m] = cone[k]
+                caustic[m] = 1.0
+                m += 1
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    if vv > 0.0:
+        x = -(f[0] * v[0] + f[1] * v[1] + f[2] * v[2]) / vv
+        if 0.0 < x < end:
+            out[m] = x
+            caustic[m] = 0.0
+            m += 1
+    if wz != 0.0:
+        found = np.empty(MAX_PATHS)
+        n = roots(0.0, r.theta_a, 1, 0.0, 0.0, f[0], f[1], f[2], v[0], v[1], v[2], wz, fz, r.radius, r.d, r.eta,
+                  found)
+        for k in range(n):
+            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], r.radius, r.d, r.eta)
+            inv_o = 0.0 if r.distant else 1.0 / o
+            kappa = ((r.eta * cos_t - cos_i) / r.radius - cos_i * cos_i * inv_o) / (r.eta * cos_t * cos_t)
+            if not kappa > 0.0:
+                continue
+            cz, cy = pz + tz / kappa, py + ty / kappa
+            x = (cz - fz) / wz
+            if cz * cz + cy * cy <= r.radius * r.radius and 0.0 < x < end and m < out.shape[0]:
+                out[m] = x
+                caustic[m] = 1.0
+                m += 1
+    order = np.argsort(out[:m])
+    out[:m], caustic[:m] = out[:m][order], caustic[:m][order]
+    return m
+
+
+def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out):
+    """The `SphereRefracted` record of one segment (geo_row: media/slab.py's GEO_COLUMNS)."""
+    c, radius = np.ascontiguousarray(sphere[:3], dtype=np.float64), float(sphere[3])
+    light = np.ascontiguousarray(geo_row[6:9], dtype=np.float64)
+    if distant:
+        ez, d = light / np.linalg.norm(light), math.inf
+    else:
+        d = float(np.linalg.norm(light - c))
+        ez = (light - c) / d
+    return SphereRefracted(np.ascontiguousarray(geo_row[:3]), np.ascontiguousarray(geo_row[3:6]), c, radius, light,
+                           bool(distant), ez, d, lit_arc(radius, d, eta), eta, kt, ks, code, g, kt_out,
+                           np.ascontiguousarray(geo_row[9:12]), (float(geo_row[12]), float(geo_row[13]),
+                                                                 int(geo_row[17])))
+
+
+@njit
+def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
+    """(value, variance) of one segment: QUAD adaptive between `breaks`, MARCH or SAMPLE media/slab.py's."""
+    if mode == QUAD:
+        end = min(ell, 745.0 / r.kt)
+        br, caustic = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
+        m = breaks(r, end, br[1:MAX_PATHS + 2], caustic[1:MAX_PATHS + 2])
+        br[m + 1] = end
+        total = 0.0
+        for i in range(m + 1):
+            lo, hi = br[i], br[i + 1]
+            if not hi > lo:
+                continue
+            if caustic[i] == 0.0 and caustic[i + 1] == 0.0:
+                total += bounded_piecewise(r, (lo, hi), 2, rtol, _N10, _W10, _N20, _W20, stats)[0]
+                continue
+            mid = lo if caustic[i] == 0.0 else hi if caustic[i + 1] == 0.0 else 0.5 * (lo + hi)
+            if mid > lo:
+                total += bounded_piecewise(NearCaustic(r, lo, mid - lo), (0.0, 1.0), 2, rtol, _N10, _W10, _N20, _W20,
+                                           stats)[0]
+            if hi > mid:
+                total += bounded_piecewise(NearCaustic(r, hi, mid - hi), (0.0, 1.0), 2, rtol, _N10, _W10, _N20, _W20,
+                                           stats)[0]
+        return total, 0.0
+    length = min(ell, (tau_max if mode == MARCH else 745.0) / r.kt)
+    return _march_or_sample(r, mode, length, r.kt, steps, key, dim0, seed)
+
+
+def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, mode, rtol, steps, tau_max, keys,
+                     dim0, seed, stats):
+    """(value, variance) (N,) of the inside segments (geo: media/slab.py's GEO_COLUMNS rows; a
+    directional light's direction toward it in geo[6:9]) of the refractive exact sphere (centre,
+    radius) for one unit light and channel, by mode QUAD, MARCH or SAMPLE; stats: media/adaptive.py's slots."""
+    n = len(ell)
+    out, var = np.zeros(n), np.zeros(n)
+    if ks == 0.0:  # else kt >= ks > 0
+        return out, var
+    for s in np.nonzero(ell > 0.0)[0].tolist():
+        rec = record(sphere, geo[s], distant, eta, kt, ks, code, g, kt_out)
+        out[s], var[s] = _one(rec, float(ell[s]), mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
+    return out, var
