@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import error_bounds
-from ..jit import exact_njit, jitable, njit
+from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        by_channel, cone_row, fog_inscatter_parts, fog_rows, spot_factor)
@@ -68,7 +68,7 @@ class AngleIntegrand(NamedTuple):
     cone: tuple  # cone_row
 
 
-@jitable
+@njit
 def _integrand(piece, s, xh, h, kt, code, g, cone):
     t = math.tan(0.5 * s)
     t2 = t * t
@@ -98,7 +98,7 @@ def _rule(piece, a, b, xh, h, kt, code, g, cone, nodes, weights):
     return rule(a, b, AngleIntegrand(piece, xh, h, kt, code, g, cone_row(cone)), nodes, weights)
 
 
-@jitable
+@njit
 def _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, out0, out1):
     """A spot light's cone crossings (lights.cone_breaks) as breakpoints of the two pieces: out0 the
     angles phi in (phi_a, phi_b), out1 the angles psi in (psi_end, psi_start), each ascending, between
@@ -361,7 +361,7 @@ def phase_condition(code, g):
     return 1.0 + (3.0 * abs(g) / (1.0 - abs(g)) ** 2 if code == HG else 1.0)
 
 
-@jitable
+@njit
 def _track(a, i, value, eps):
     """Keep in a[i:i + 3] the largest value of the integrand's evaluations, the largest relative
     rounding `eps` where the value is at least SIGNIFICANT of the largest so far, and anywhere."""
@@ -373,7 +373,7 @@ def _track(a, i, value, eps):
         a[i + 2] = eps
 
 
-@jitable
+@njit
 def _tracked(a, i, total, width):
     """The rounding of a rule's sum `total` over `width` from what `_track` kept in a[i:i + 3]: the
     significant evaluations' largest relative rounding times the total, the largest anywhere times
@@ -382,7 +382,7 @@ def _tracked(a, i, total, width):
     return a[i + ESIG] * total + a[i + EALL] * SIGNIFICANT * a[i + FMAX] * width
 
 
-@jitable
+@njit
 def _fog_sun(s, r):
     """The directional integrand T_sun(x(u)) at u = s, and its relative rounding (docs/error_bounds.md,
     "Height fog"): the computed x is the exact point of a column off by its `column_error` (plus the
@@ -404,7 +404,7 @@ def _fog_sun(s, r):
     return value, 2.0 * (r.kt * (d_sun + 2.0 * ULP * tl) + abs(row[MU] / row[MUS]) * r.kt * d_cam + C_OPS * ULP)
 
 
-@jitable
+@njit
 def _fog_point(s, r):
     """The point or spot light's integrand fog_inscatter(x(theta)) at theta = s (the 1/h outside), and
     its relative rounding (docs/error_bounds.md, "Height fog"), first order, doubled: x = x_h + h tan
@@ -452,7 +452,7 @@ def _fog_value(s, r):
     return value
 
 
-@jitable
+@njit
 def _cone_thetas(cone, out, n):
     """Append a spot light's cone crossings as angles theta from the foot point (theta = phi -
     pi/2) to out[n:]; returns the new count."""
@@ -465,7 +465,7 @@ def _cone_thetas(cone, out, n):
     return n
 
 
-@jitable
+@njit
 def _ends_and_inside(out, n):
     """Keep of out[:n] the ends out[0], out[1] and the points strictly between them, sorted."""
     lo, hi = out[0], out[1]
@@ -478,7 +478,7 @@ def _ends_and_inside(out, n):
     return m
 
 
-@jitable
+@njit
 def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
     """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
     x_top = top_distance(row[HO], row[MU], H, profile)
@@ -501,7 +501,7 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
     return _ends_and_inside(out, n)
 
 
-@jitable
+@njit
 def _fog_ends(row, xh, h, ell, kt, H, profile, directional):
     """A bound on the rounding of the integration variable's two ends (`_fog_breaks`): for the sun
     the camera's transmittance over the segment, 1 - T_cam(ell), off by T_cam kt column_error; for
@@ -569,7 +569,7 @@ class AtmosphereIntegrand(NamedTuple):
     cos_end: float = -2.0  # the spot's cone (<= -1 without one)
 
 
-@jitable
+@njit
 def _atm_node(s, r):
     """The integrand at s and its relative rounding (docs/error_bounds.md, "Atmospheres"), first
     order, doubled: the node's x is off by dx (for a point light as in the fog: x = x_h + h tan s,
@@ -614,7 +614,7 @@ def _atm_value(s, r):
     return value
 
 
-@jitable
+@njit
 def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
     """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count."""
     if directional:
@@ -630,7 +630,7 @@ def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
     return _ends_and_inside(out, n)
 
 
-@jitable
+@njit
 def _atm_ends(f, cols, K):
     """The rounding of the segment's ends in the air (`atmosphere.shell`'s distances: its top sphere's
     crossings, off by eps (top + r0)(1 + (top + r0) / sqrt(disc)), disc that of the crossing) times

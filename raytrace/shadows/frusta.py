@@ -46,7 +46,7 @@ import numpy as np
 
 from ..geometry.sphere import lit_parts
 from ..geometry.vectors import perpendicular
-from ..jit import exact_jitable, jitable, njit
+from ..jit import exact_njit, njit
 from ..geometry.sorting import sort_few
 from ..methods import Segments
 
@@ -171,7 +171,7 @@ def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
     return LightBins(planes, signs, start, tri[kept], tlb[kept], cover, cover_depth, kind, res, grid, frame, slack)
 
 
-@exact_jitable
+@exact_njit
 def _closest_distance(px, py, pz, a, b, c):
     """Distance from the point p to the triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
     Without fastmath: inlined into `_frusta`'s variants (with and without the sun's code) it rounds the
@@ -212,7 +212,7 @@ def _closest_distance(px, py, pz, a, b, c):
     return math.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
 
 
-@jitable
+@njit
 def _less(a, b):
     """Lexicographic a < b of two points."""
     for k in range(3):
@@ -294,7 +294,7 @@ def _corner(sun, frame, face, U, V, out):
             out[k] = U * frame[1, k] + V * frame[2, k]
 
 
-@jitable
+@njit
 def _face_bbox(rel, t, face, buf, buf2):
     """Bounding box (U0, U1, V0, V1) of triangle t's projection clipped to cube face `face`
     (U1 < U0 when it misses the face). Sutherland-Hodgman against |u| <= m, |v| <= m."""
@@ -433,7 +433,7 @@ def _crossing(a_x, b_x, a_m, b_m, c, x):
     return max(r, x)
 
 
-@jitable
+@njit
 def _pieces(q, w, ell, sun, grid, frame, out):
     """The parts of a segment over one face each: rows (xa, xb, face, a_u, b_u, a_v, b_v, a_m, b_m)
     of `out` with face coordinates U = (a_u + b_u x) / (a_m + b_m x), V alike, monotone in x on
