@@ -12,6 +12,9 @@ fastmath and with NumPy's error model (x / 0 is inf or nan), so that every opera
 NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy code gave
 (tests/test_exact_kernels.py); and kernels whose result must not depend on how they are batched
 (analytic's moment recurrences run side by side over a tile's segments, `cosine_moments_lanes`).
+
+``jitable`` and ``exact_jitable``: the same flags for small helpers that kernels call with constant
+arguments, compiled once per argument type rather than once per constant.
 """
 import functools
 import os
@@ -19,6 +22,7 @@ from pathlib import Path
 
 import numba
 from numba.core import caching
+from numba.extending import register_jitable
 
 from .cache import PACKAGE_DIR, kernel_cache_dir
 
@@ -60,3 +64,9 @@ njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMA
 # kernel compiles it first (numba's ConfigStack), and keeps those flags for every later caller
 exact_njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=False, error_model="numpy",
                                no_cfunc_wrapper=True)
+# small helpers that kernels call with constant arguments (row indices, a range's start): an overload is
+# typed on its arguments' non-literal types first, so it compiles once per array type, where a dispatcher
+# compiles once per constant (numba types a constant argument as Literal[int]); it has no cache of its
+# own (it is compiled into its callers, which are cached)
+jitable = register_jitable(fastmath=set(FASTMATH), nogil=True, no_cfunc_wrapper=True)
+exact_jitable = register_jitable(fastmath=False, error_model="numpy", nogil=True, no_cfunc_wrapper=True)

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from .jit import exact_njit, njit
+from .jit import exact_jitable, exact_njit, njit
 from .lights.area import collapsed_variance
 from .rng import uniform
 
@@ -82,7 +82,7 @@ def _toward_light(points, normals, shading, terminator, lp, to_light, dist, cos,
             lit[i] = lit[i] and cos[i] > 0.0
 
 
-@exact_njit
+@exact_jitable  # called with constant rows: one compilation, not one per constant
 def _dot(a, i, b, j):
     """a[i] . b[j] of (N, 3) rows, summed as NumPy's einsum("ij,ij->i") sums three terms."""
     return (a[i, 0] * b[j, 0] + a[i, 2] * b[j, 2]) + a[i, 1] * b[j, 1]

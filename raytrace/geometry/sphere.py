@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from .sorting import sort_few
 from ..jit import njit
 
 # the stable forms above must be evaluated as written: no reassociation, no approximate reciprocals
@@ -180,7 +181,8 @@ def lit_parts(o, w, lo, hi, light, sun, spheres, gap, out):
                 nb += 1
     breaks[nb] = lo
     breaks[nb + 1] = hi
-    b = np.sort(breaks[:nb + 2])
+    b = breaks[:nb + 2]
+    sort_few(b, 0, nb + 2)  # not np.sort: numba's quicksort costs about 1.5 s of compile
     m = 0
     p = np.empty(3)
     for j in range(nb + 1):

@@ -15,18 +15,6 @@ STACK = 200
 EVALS, INTERVALS, CAPPED = 0, 1, 2
 
 @njit
-def sort_few(a, lo, hi):
-    """Sort the few breakpoints a[lo:hi] (no nan) in place by insertion, ascending as ndarray.sort,
-    which would compile numba's quicksort (about 1.5 s) for a handful of numbers."""
-    for p in range(lo + 1, hi):
-        r, k = a[p], p
-        while k > lo and a[k - 1] > r:
-            a[k] = a[k - 1]
-            k -= 1
-        a[k] = r
-
-
-@njit
 def rule(a, b, rec, nodes, weights):
     """The Gauss-Legendre rule (nodes, weights on [-1, 1]) over [a, b] of the integrand `rec` names."""
     half = 0.5 * (b - a)

@@ -209,7 +209,7 @@ def _layer_density(layers, i, hx):
                                   else math.exp(-hx / layers[i, 1]))
 
 
-@overload(layer_column)
+@overload(layer_column, inline="always")  # typed into `columns`: no compilation of its own
 def _layer_column(layers, i, h, mu, t0, t1, radius):
     if layers.ndim == 1:
         return lambda layers, i, h, mu, t0, t1, radius: atmosphere_column(h, mu, t0, t1, radius, layers[i])
@@ -402,7 +402,7 @@ def scattering(hx, cos, ks, codes, gs, layers):
     return acc
 
 
-@njit
+@njit(inline="always")  # a one-line wrapper: typed into its caller, no compilation of its own
 def inscatter(x, row, directional, kt, ks, codes, gs, layers, radius, top, cols, tau_cam):
     """In-scattered radiance per unit length at distance x of a segment, one channel, unit light,
     without a point light's 1/d^2 or spot falloff: T_cam(x) T_light(x) sum_i ks_i rho_i(x)

@@ -39,7 +39,7 @@ import numpy as np
 from ..geometry.sphere import shadow_breaks, sphere_roots
 from ..jit import njit
 from ..lights import falloff
-from .adaptive import sort_few
+from ..geometry.sorting import sort_few
 from .phase import phase_value
 
 

@@ -139,13 +139,10 @@ def trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, s):
     return acc
 
 
-_NO_SINES = np.zeros(0)
-
-
 @njit
 def cosine_moments_forward(H, va, vb, K1, L1, ea, eb, c):
     """S = sum_k c_k Re E_k by the forward recurrence (stable only for small H*L)."""
-    return trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, _NO_SINES)
+    return trig_moments_forward(H, va, vb, K1, L1, ea, eb, c, c[:0])  # no sines; c's type: one compilation
 
 
 LANES = 64  # segments whose recurrences `cosine_moments_lanes` advances side by side

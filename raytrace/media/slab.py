@@ -44,7 +44,8 @@ import numpy as np
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
 from ..rng import uniform
-from .adaptive import INTERVALS, bounded_piecewise, piecewise, sort_few
+from .adaptive import INTERVALS, bounded_piecewise, piecewise
+from ..geometry.sorting import sort_few
 from .fermat_rounding import SQ3, cosine_error, fermat_speed, point_error, refraction_newton, term_rounding
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope

@@ -242,7 +242,8 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     band, `aniso` None: an isotropic phase function, and their code is not compiled (`checked_airlight`;
     an anisotropic piece is then not ok). `pending`: None, or an array whose `row` (P_* offsets) takes
     the exact mode's moment recurrence, left to `_pending_recurrences` instead of run here (S is then
-    0; the row's P_BLOCK is set; an index, not a row view: a view costs numba a reference count)."""
+    0; the row's P_BLOCK is set; an index, not a row view: a view costs numba a reference count), unless
+    `row` is negative (a spot's pieces: their recurrences run here)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     moments = exact or band
     block = coeffs
@@ -343,7 +344,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         return acc, 0.0, True
 
     # exact: Phi as a cosine series, its Fourier moments by the forward recurrence
-    if pending is not None:
+    if pending is not None and row >= 0:
         pending[row, P_H], pending[row, P_V1], pending[row, P_V2] = H, v1, v2
         pending[row, P_K1], pending[row, P_L1], pending[row, P_E1], pending[row, P_E2] = K1, L1, E1, E2
         pending[row, P_BLOCK] = start
@@ -452,7 +453,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
             errs[i] = math.inf  # a band without a closed form (Mitsuba's curve): the band quadrature below
             continue
         v1, v2 = pieces[i, 0], pieces[i, 1]
-        if pieces[i, 2] == 2.0 and _block_for(coeffs, v1, v2, H, B_HMAX_BAND).shape[0] - B_C > BAND_GAUSS_FIRST:
+        band = pieces[i, 2] == 2.0  # (`at` chosen at run time: a constant would compile _block_at once more)
+        if band and _block_at(coeffs, v1, v2, H, B_HMAX_BAND if band else B_HMAX)[1] - B_C > BAND_GAUSS_FIRST:
             fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
             if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
                 stats[ST_PIECE_QUAD] += 1.0
@@ -460,9 +462,9 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
                 continue
         p1 = pa if v1 == va else xh + h * v1
         p2 = pb if v2 == vb else xh + h * v2
-        vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, pieces[i, 2] == 2.0, cone, phase_code, g,
+        vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g,
                                       aniso_mode, terms, coeffs, precision, max_iter, work[25:], stats, spots,
-                                      aniso)
+                                      aniso, pending, -1 - row)  # the types of the call above: one compilation
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
     met = True
@@ -497,13 +499,6 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
 
 
 @njit
-def _block_for(coeffs, v1, v2, H, at):
-    """The exact mode's coefficient block for a piece v1 < v < v2 at H = kt h (`_block_at`)."""
-    start, n = _block_at(coeffs, v1, v2, H, at)
-    return coeffs[start:start + n]
-
-
-@njit
 def _block_at(coeffs, v1, v2, H, at):
     """(start, length) in `coeffs` of the exact mode's coefficient block for a piece v1 < v < v2 at
     H = kt h: the shortest block whose
@@ -530,15 +525,18 @@ def _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2):
     over v1 < v < v2, in quadrature.py's variables: phi before the foot point (v < 1), psi = pi - phi
     after it, where the integrand is smooth in each."""
     fine = coarse = 0.0
-    if v1 < 1.0:
-        a, b = 2.0 * math.atan(v1), 2.0 * math.atan(min(v2, 1.0))
-        fine += quad_rule(0, a, b, xh, h, kt, phase_code, g, cone, _N20, _W20)
-        coarse += quad_rule(0, a, b, xh, h, kt, phase_code, g, cone, _N10, _W10)
-    if v2 > 1.0:
-        a = 0.0 if v2 == math.inf else 2.0 * math.atan(1.0 / v2)
-        b = 2.0 * math.atan(1.0 / max(v1, 1.0))
-        fine += quad_rule(1, a, b, xh, h, kt, phase_code, g, cone, _N20, _W20)
-        coarse += quad_rule(1, a, b, xh, h, kt, phase_code, g, cone, _N10, _W10)
+    for piece in range(2):  # a variable, not the constants 0 and 1: quad_rule compiles once, not per constant
+        if piece == 0:
+            if not v1 < 1.0:
+                continue
+            a, b = 2.0 * math.atan(v1), 2.0 * math.atan(min(v2, 1.0))
+        else:
+            if not v2 > 1.0:
+                continue
+            a = 0.0 if v2 == math.inf else 2.0 * math.atan(1.0 / v2)
+            b = 2.0 * math.atan(1.0 / max(v1, 1.0))
+        fine += quad_rule(piece, a, b, xh, h, kt, phase_code, g, cone, _N20, _W20)
+        coarse += quad_rule(piece, a, b, xh, h, kt, phase_code, g, cone, _N10, _W10)
     return 0.5 * fine, 0.5 * coarse
 
 

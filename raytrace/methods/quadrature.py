@@ -42,7 +42,8 @@ from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels
 from ..lights import cone_breaks, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.chapman import relative_error as chapman_error
-from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule, sort_few
+from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
+from ..geometry.sorting import sort_few
 from ..media.integrand import integrand_of
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import LINEAR, column, column_distance, column_error, top_distance

@@ -47,7 +47,7 @@ import numpy as np
 from ..geometry.sphere import lit_parts
 from ..geometry.vectors import perpendicular
 from ..jit import exact_njit, njit
-from ..media.adaptive import sort_few
+from ..geometry.sorting import sort_few
 from ..methods import Segments
 
 DILATE = 1e-8  # texels are binned as if larger by this much (face units; grid size for the ortho grid)
