@@ -37,7 +37,6 @@ import math
 import numpy as np
 
 from ..error_bounds import product, spot_rounding
-from ..errors import UserError
 from ..media.convex_directional import MAX_FACES, segments_bounded
 from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance
 from ..media.sphere_refraction import sphere_refracted
@@ -240,10 +239,10 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
     and its quadrature fallback take the exact path from any start); in a convex refractive shape,
-    `_lit_beams`. In a refractive exact sphere alone in the scene nothing blocks (`single_scattering`);
-    with other shapes, volumetric shadows are refused there (UserError). Where the light's path is
-    neither straight nor a convex shape's refracted paths
-    (a refractive interior that is not convex) or not traced (slab_approx: the note's planar model),
+    `_lit_beams`. In a refractive exact sphere alone in the scene nothing blocks (`single_scattering`).
+    Where the light's path is neither straight nor a convex shape's refracted paths (a refractive
+    interior that is not convex, an exact sphere beside other shapes) or not traced (slab_approx: the
+    note's planar model),
     the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
     a convex index-matched shape every light is attenuated by the other index-matched interiors on
@@ -254,11 +253,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     sup = method.supports.interiors
-    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and sup.mode != APPROX:
-        if np.any(prep.shape_ids != sid):  # what else stands on the refracted paths is not traced
-            raise UserError(f"shape[{sid}].interior.ior: volumetric shadows inside a refractive exact sphere in a "
-                            "scene with other shapes are not implemented; render with --no-volumetric-shadows "
-                            "(render.volumetric_shadows = false) or set ior = 1")
+    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and sup.mode != APPROX \
+            and not np.any(prep.shape_ids != sid):  # alone in the scene: nothing stands on its refracted paths
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     if reach == REFRACTED and len(convex_planes(prep, sid)) and sup.mode != APPROX:
         return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)

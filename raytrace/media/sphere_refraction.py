@@ -54,7 +54,8 @@ import numpy as np
 from ..geometry.sphere import quadratic_roots
 from ..jit import njit
 from ..lights import falloff
-from .adaptive import bounded_piecewise, sort_few
+from ..geometry.sorting import sort_few
+from .adaptive import bounded_piecewise
 from .integrand import integrand_of
 from .phase import phase_value
 from .slab import MARCH, QUAD, _N10, _N20, _W10, _W20, _march_or_sample, fresnel

@@ -163,8 +163,9 @@ class Supports:
             shapes = "no media inside shapes"
         else:
             model = ("exact straight light paths" if inside.exact_paths else
-                     "closed forms: exact in convex shapes (refractive: the beam of every face the light meets), the "
-                     "entry face's plane in other refractive shapes" if inside.mode == CLOSED else
+                     "closed forms: exact in convex shapes (refractive: the beam of every face the light meets; an "
+                     "exact sphere's refracted paths: adaptive quadrature), the entry face's plane in other "
+                     "refractive shapes" if inside.mode == CLOSED else
                      "the slab note's separable approximation")
             through = "" if inside.refracted == inside.lights else \
                 f"; through refractive boundaries: {', '.join(inside.refracted)}"
