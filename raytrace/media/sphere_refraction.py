@@ -91,19 +91,26 @@ class SphereRefracted(NamedTuple):
 
 
 @njit
+def _arriving(theta, radius, d):
+    """(cos theta, sin theta, pz, py, dz, dy, o): the point P = radius (cos theta, sin theta), the unit
+    direction (dz, dy) of the light arriving there from the light at distance d on the axis (inf: a
+    directional light along -z) and the path outside o (inf for a directional light)."""
+    cth, sth = math.cos(theta), math.sin(theta)
+    pz, py = radius * cth, radius * sth
+    if d == math.inf:
+        return cth, sth, pz, py, -1.0, 0.0, math.inf
+    dz, dy = pz - d, py
+    o = math.sqrt(dz * dz + dy * dy)
+    return cth, sth, pz, py, dz / o, dy / o, o
+
+
+@njit
 def incidence(theta, radius, d, eta):
     """(pz, py, tz, ty, cos_i, cos_t, o) of the ray from the light (at distance d from the centre on
     the axis, inf: a directional light along -z) refracted at P = radius (cos theta, sin theta): its
     unit direction inside (tz, ty), the incidence and refraction cosines and the path outside o (inf
     for a directional light); cos_t = 0 where it does not enter (cos_i <= 0, total reflection)."""
-    cth, sth = math.cos(theta), math.sin(theta)
-    pz, py = radius * cth, radius * sth
-    if d == math.inf:
-        dz, dy, o = -1.0, 0.0, math.inf
-    else:
-        dz, dy = pz - d, py
-        o = math.sqrt(dz * dz + dy * dy)
-        dz, dy = dz / o, dy / o
+    cth, sth, pz, py, dz, dy, o = _arriving(theta, radius, d)
     cos_i = -(dz * cth + dy * sth)
     sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
     if cos_i <= 0.0 or sin2_t >= 1.0:
@@ -134,17 +141,17 @@ def lit_arc(radius, d, eta):
 
 
 @njit
+def tangential_curvature(cos_i, cos_t, inv_o, radius, eta):
+    """kappa_t, the refracted wavefront's curvature in the plane of the path (Coddington's tangential
+    equation, module docstring); inv_o = 1 / the path outside (0 for a directional light)."""
+    return ((eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o) / (eta * cos_t * cos_t)
+
+
+@njit
 def _marginal(theta_a, radius, d, eta):
     """(pz, py, tz, ty) of `incidence` at the lit arc's end theta_a: the ray refracted at grazing
     incidence (or at the critical angle for eta < 1), its limit from inside the arc."""
-    cth, sth = math.cos(theta_a), math.sin(theta_a)
-    pz, py = radius * cth, radius * sth
-    if d == math.inf:
-        dz, dy = -1.0, 0.0
-    else:
-        dz, dy = pz - d, py
-        o = math.sqrt(dz * dz + dy * dy)
-        dz, dy = dz / o, dy / o
+    cth, sth, pz, py, dz, dy, _ = _arriving(theta_a, radius, d)
     cos_i = max(-(dz * cth + dy * sth), 0.0)
     cos_t = math.sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (eta * eta), 0.0))
     f = cos_i / eta - cos_t
@@ -162,7 +169,7 @@ def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
     if kind == 0:
         return tz * (yx - py) - ty * (zx - pz)
     inv_o = 0.0 if d == math.inf else 1.0 / o
-    kappa = ((eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o) / (eta * cos_t * cos_t)
+    kappa = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
     if not kappa > 0.0:
         return math.nan
     cz, cy = pz + tz / kappa, py + ty / kappa
@@ -276,9 +283,8 @@ def refracted_value(x, r):
         if not s >= 0.0:
             continue
         inv_o = 0.0 if r.distant else 1.0 / o
-        power = (eta * cos_t - cos_i) / radius
-        kappa_t = (power - cos_i * cos_i * inv_o) / (eta * cos_t * cos_t)
-        kappa_s = (power - inv_o) / eta
+        kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
+        kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
         e = (1.0 - fresnel(cos_i, eta)) * cos_i * inv_o * inv_o / cos_t if not r.distant else \
             (1.0 - fresnel(cos_i, eta)) * cos_i / cos_t
         spread = abs((1.0 - s * kappa_t) * (1.0 - s * kappa_s))
@@ -361,7 +367,7 @@ def breaks(r, end, out, caustic):
         for k in range(n):
             pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], r.radius, r.d, r.eta)
             inv_o = 0.0 if r.distant else 1.0 / o
-            kappa = ((r.eta * cos_t - cos_i) / r.radius - cos_i * cos_i * inv_o) / (r.eta * cos_t * cos_t)
+            kappa = tangential_curvature(cos_i, cos_t, inv_o, r.radius, r.eta)
             if not kappa > 0.0:
                 continue
             cz, cy = pz + tz / kappa, py + ty / kappa
