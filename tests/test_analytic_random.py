@@ -47,7 +47,7 @@ def test_random_geometries_meet_the_requested_precision():
         coeffs = A.make_coeffs(code, g, A.ANISO_EXACT, 6, wp)
         val = A.airlight(xh, h, math.hypot(xh, h), ell, kt, ks, 1.0, code, g, wp, 1000, A.ANISO_EXACT, 6, coeffs,
                          POINT_ROW, stats[(code, precision < 1e-7)])
-        ref = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-13, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+        ref = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-13, q.N10, q.W10, q.N20, q.W20, np.zeros(3))
         assert math.isfinite(val) and val >= 0.0
         if ref > 1e-280:
             worst = max(worst, abs(val - ref) / ref / precision)

@@ -17,7 +17,7 @@ from raytrace.segments import unshadowed_airlight
 
 
 def ref(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0):
-    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q.N10, q.W10, q.N20, q.W20, np.zeros(3))
 
 
 def lec(xh, h, ell, kt, ks, code=ISOTROPIC, g=0.0, terms=0, stats=None):

@@ -26,7 +26,7 @@ GEOMETRIES = [(2.0, 0.5, 6.0, 0.08, ISOTROPIC, 0.0), (2.0, 0.05, math.inf, 0.3, 
 @pytest.mark.parametrize("xh,h,ell,kt,code,g", GEOMETRIES)
 def test_each_sampling_mode_is_unbiased(mode, xh, h, ell, kt, code, g):
     ks = 0.7 * kt
-    ref = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    ref = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, 1e-12, q.N10, q.W10, q.N20, q.W20, np.zeros(3))
     n = 20000
     est = np.array([mc.estimate(xh, h, ell, kt, ks, code, g, POINT_ROW, mc.MODES[mode], 1, np.uint64(k), 0, np.uint64(7))[0]
                     for k in range(n)])

@@ -31,7 +31,7 @@ class _Medium:
 
 def quad(xh, h, ell, kt, ks, code, g, rtol=1e-12):
     st = np.zeros(3)
-    val = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q._N10, q._W10, q._N20, q._W20, st)
+    val = q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q.N10, q.W10, q.N20, q.W20, st)
     assert st[q.CAPPED] == 0
     return val
 

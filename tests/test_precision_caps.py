@@ -28,7 +28,7 @@ def _hg(g, mu):
 
 def _quad(xh, h, ell, kt, ks, code, g, rtol=1e-12):
     stats = np.zeros(3)
-    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q._N10, q._W10, q._N20, q._W20, stats), stats
+    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q.N10, q.W10, q.N20, q.W20, stats), stats
 
 
 def _oracle(xh, h, ell, kt, ks, code, g):

@@ -19,7 +19,7 @@ PHASES = [(ISOTROPIC, "isotropic", 0.0), (RAYLEIGH, "rayleigh", 0.0), (HG, "hg",
 
 def kernel(xh, h, ell, kt, ks, code, g, rtol=1e-10):
     stats = np.zeros(3)
-    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q._N10, q._W10, q._N20, q._W20, stats), stats
+    return q.airlight_one(xh, h, ell, kt, ks, code, g, POINT_ROW, rtol, q.N10, q.W10, q.N20, q.W20, stats), stats
 
 
 def reference(xh, h, ell, kt, ks, name, g):

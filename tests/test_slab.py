@@ -149,7 +149,7 @@ def test_eq8_light_in_the_plane_is_the_air_light(name, g):
     xh, h, hl = point_geometry(w, p)
     kt, ks, ell = 0.8, 0.5, 4.0
     got = slab.point_exact(xh, h, ell, kt, ks, CODES[name], g, 0.0, -w[2], hl, 0.0, 1e-12, np.zeros(3))
-    exact = q.airlight_one(xh, h, ell, kt, ks, CODES[name], g, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20,
+    exact = q.airlight_one(xh, h, ell, kt, ks, CODES[name], g, POINT_ROW, 1e-12, q.N10, q.W10, q.N20, q.W20,
                            np.zeros(3))
     assert got == pytest.approx(exact, rel=1e-11)
     segs = Segments(np.zeros((1, 3)), w[None, :], np.array([ell]), np.zeros(1, np.int64), np.zeros(1, np.int64),

@@ -48,7 +48,7 @@ def renderer_pair(o, w, ell, p, sp, kt, ks, code, g, precision=PRECISION, curve=
     coeffs = A.make_coeffs(code, g, A.ANISO_EXACT, 6, wp)
     st = A.new_stats()
     an = A.airlight(xh[0], h[0], da[0], ell, kt, ks, 1.0, code, g, wp, 1000, A.ANISO_EXACT, 6, coeffs, row[0], st)
-    qu = Q.airlight_one(xh[0], h[0], ell, kt, ks, code, g, row[0], 1e-12, Q._N10, Q._W10, Q._N20, Q._W20,
+    qu = Q.airlight_one(xh[0], h[0], ell, kt, ks, code, g, row[0], 1e-12, Q.N10, Q.W10, Q.N20, Q.W20,
                         np.zeros(3))
     return an, qu, st
 

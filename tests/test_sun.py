@@ -35,7 +35,7 @@ def table(tmp_path_factory):
 
 
 def ref(xh, h, ell, kt, ks):
-    return q.airlight_one(xh, h, ell, kt, ks, ISOTROPIC, 0.0, POINT_ROW, 1e-12, q._N10, q._W10, q._N20, q._W20, np.zeros(3))
+    return q.airlight_one(xh, h, ell, kt, ks, ISOTROPIC, 0.0, POINT_ROW, 1e-12, q.N10, q.W10, q.N20, q.W20, np.zeros(3))
 
 
 def lookup_many(tab, u, v, u_max=U_MAX):

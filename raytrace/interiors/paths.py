@@ -30,6 +30,7 @@ from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
 from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
+from ..media.gauss import N10, N20, W10, W20
 from ..media.slab import MARCH, QUAD, SAMPLE, U, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 
@@ -373,8 +374,6 @@ def _rounding(geo, seg, x, d, k, dk, kts, kt_outs, code, g):
     return np.where(np.isnan(eps), np.inf, eps)
 
 
-_N10, _W10 = np.polynomial.legendre.leggauss(10)
-_N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
 def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rtol, stats):
@@ -471,14 +470,14 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
         if not len(seg):
             break
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
-        xs = np.concatenate([(mid[:, None] + half[:, None] * _N10).ravel(), (mid[:, None] + half[:, None] * _N20).ravel()])
+        xs = np.concatenate([(mid[:, None] + half[:, None] * N10).ravel(), (mid[:, None] + half[:, None] * N20).ravel()])
         ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
         f = integrand(ss, xs)
         if bound is not None:
             f, fe = f
         m = len(seg)
-        g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
-        g20 = np.einsum("pkc,k->pc", f[10 * m:30 * m].reshape(m, 20, nc), _W20) * half[:, None]
+        g10 = np.einsum("pkc,k->pc", f[:10 * m].reshape(m, 10, nc), W10) * half[:, None]
+        g20 = np.einsum("pkc,k->pc", f[10 * m:30 * m].reshape(m, 20, nc), W20) * half[:, None]
         if floor is None:
             floor = np.zeros((n, nc))
             np.add.at(floor, seg, np.abs(g20))
@@ -511,8 +510,8 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
 def _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc):
     """Add the accepted panels' |G20|, the rounding of their 10- and 20-point sums (2 G20 + G10 of the
     values' rounding bounds fe: the sum's own and the test's) and their count to their segments."""
-    r10 = np.einsum("pkc,k->pc", fe[:10 * m].reshape(m, 10, nc), _W10) * half[:, None]
-    r20 = np.einsum("pkc,k->pc", fe[10 * m:30 * m].reshape(m, 20, nc), _W20) * half[:, None]
+    r10 = np.einsum("pkc,k->pc", fe[:10 * m].reshape(m, 10, nc), W10) * half[:, None]
+    r20 = np.einsum("pkc,k->pc", fe[10 * m:30 * m].reshape(m, 20, nc), W20) * half[:, None]
     np.add.at(absum, seg[ok], np.abs(g20[ok]))
     np.add.at(rounding, seg[ok], 2.0 * r20[ok] + r10[ok])
     np.add.at(panels, seg[ok], 1.0)
@@ -537,7 +536,7 @@ def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
                        lights.intensity, np.concatenate([np.zeros((0, 4))] + [b[1] for b in bounds]),
                        np.cumsum([0] + [len(b[1]) for b in bounds]), np.array([b[0] for b in bounds], np.int64),
                        np.ascontiguousarray(dk), kt, ks, medium.phase, medium.g, rtol, MAX_LEVELS, MAX_OPEN,
-                       _N10, _W10, _N20, _W20, out, stats)
+                       N10, W10, N20, W20, out, stats)
         return out
     seg = np.nonzero(end > 0.0)[0]
     return adaptive(through_integrand(prep, segs, medium, sids, dk), end, 3, seg, np.zeros(len(seg)), end[seg], rtol,

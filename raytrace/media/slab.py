@@ -50,6 +50,7 @@ from .fermat_rounding import SQ3, cosine_error, fermat_speed, point_error, refra
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
 from .integrand import integrand, integrand_of
+from .gauss import N10, N20, W10, W20
 from .march import march
 from .phase import ISOTROPIC, phase_value
 
@@ -151,7 +152,7 @@ def refraction_point(rho, z, hl, eta):
 
 
 @njit
-def _fermat(x, z0, wl, ll, a, hl, eta):
+def fermat(x, z0, wl, ll, a, hl, eta):
     """(rho, r) of `refracted_at` at x: the horizontal distance between the light and the point, and
     the refraction point's distance from the point's foot."""
     rho = _rho(x, wl, ll, a)
@@ -168,7 +169,7 @@ def _leaving_cosine(x, rho, r, o, hl, wa, la, na):
 @njit
 def refracted_cosine(x, z0, wl, ll, a, hl, eta, wa, la, na):
     """`_leaving_cosine` at x, depth z0 + a x > 0 (-na straight below the light)."""
-    rho, r = _fermat(x, z0, wl, ll, a, hl, eta)
+    rho, r = fermat(x, z0, wl, ll, a, hl, eta)
     if not rho > 1e-12 * (hl + z0 + a * x):
         return -na
     return _leaving_cosine(x, rho, r, math.sqrt((rho - r) * (rho - r) + hl * hl), hl, wa, la, na)
@@ -245,7 +246,7 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
     while top > 0 and m < MAX_CUTS:
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-        rmin, rmax = _rho_range(lo, hi, wl, ll, a)
+        rmin, rmax = rho_range(lo, hi, wl, ll, a)
         zlo, zhi = min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi)
         smin = rmin * hl / (hl + zhi)
         k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / math.sqrt(smin * smin + hl * hl)
@@ -279,7 +280,7 @@ def _cone_psi(x, z0, wl, ll, a, hl, eta, wa, la, na):
 
 
 @njit
-def _rho_range(lo, hi, wl, ll, a):
+def rho_range(lo, hi, wl, ll, a):
     """The least and largest horizontal distance `_rho` over [lo, hi] (a convex function of x)."""
     r0, r1 = _rho(lo, wl, ll, a), _rho(hi, wl, ll, a)
     rmin = min(r0, r1)
@@ -293,7 +294,7 @@ def refracted_point(x, wl, ll, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, 
     """`refracted_at` through the plane of the segment's start (z0 = 0)."""
     if not a * x > 0.0:
         return 0.0
-    rho, r = _fermat(x, 0.0, wl, ll, a, hl, eta)
+    rho, r = fermat(x, 0.0, wl, ll, a, hl, eta)
     return refracted_at(x, 0.0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, wa, la, na, cos_end, cos_start,
                         curve)
 
@@ -303,7 +304,7 @@ def refracted_at(x, z0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, wa, la,
     """The single-scattering integrand at x along an inside segment, at depth z = z0 + a x > 0 below a
     refractive plane, for a unit point or spot light at height hl above it (eta = n_inside / n_outside):
     ks Phi(mu) E exp(-kt (x + k) - kt_out o), k and o the path's lengths inside and outside (Fermat's
-    path: rho, r of `_fermat`) and E the irradiance across the refracted beam of a point source
+    path: rho, r of `fermat`) and E the irradiance across the refracted beam of a point source
     through a plane,
         E = T(cos1) sin1 / (rho cos2 (hl / cos1^2 + z cos1 / (eta cos2^3))),
     (the ray tube: sagittal width rho dphi, meridional d(rho) cos2 with rho = hl tan1 + z tan2 and
@@ -418,7 +419,7 @@ def _edge_parts(x, row, r, rho, planes, g):
 
 
 @njit
-def _on_face(x, row, r, rho, planes):
+def on_face(x, row, r, rho, planes):
     """Whether the refraction point through face row's plane lies on that face (every other plane
     g: n_g·R <= c_g, to EDGE_TOL)."""
     f = int(row[17])
@@ -442,12 +443,12 @@ def faces_point(x, faces, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_sta
 @njit
 def _face_term(x, row, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_start, curve):
     """(term, rho, r, on) of face row at x in `faces_point`: `refracted_at` where the refraction point
-    lies on the face (`_on_face`: on), else 0; rho, r of `_fermat` (0 where X is above the face's plane)."""
+    lies on the face (`on_face`: on), else 0; rho, r of `fermat` (0 where X is above the face's plane)."""
     z0, a = row[0], row[1]
     if not z0 + a * x > 0.0:
         return 0.0, 0.0, 0.0, False
-    rho, r = _fermat(x, z0, row[3], row[4], a, row[2], eta)
-    if not _on_face(x, row, r, rho, planes):
+    rho, r = fermat(x, z0, row[3], row[4], a, row[2], eta)
+    if not on_face(x, row, r, rho, planes):
         return 0.0, rho, r, False
     return (refracted_at(x, z0, rho, r, row[3], a, row[2], eta, kt, ks, code, g, kt_out, row[5], row[6], row[7],
                          cos_end, cos_start, curve), rho, r, True)
@@ -455,9 +456,9 @@ def _face_term(x, row, planes, eta, kt, ks, code, g, kt_out, cos_end, cos_start,
 
 @njit
 def _edge_value(x, row, planes, g, eta):
-    """`_edge_distance` at x, the refraction point found by `_fermat`."""
+    """`_edge_distance` at x, the refraction point found by `fermat`."""
     z0, a = row[0], row[1]
-    rho, r = _fermat(x, max(z0, 0.0), row[3], row[4], a, row[2], eta)
+    rho, r = fermat(x, max(z0, 0.0), row[3], row[4], a, row[2], eta)
     return _edge_distance(x, row, r, rho, planes, g)
 
 
@@ -533,8 +534,6 @@ def _sign_changes(row, planes, g, eta, end, tol, width, out, m):
     return m
 
 
-_N10, _W10 = np.polynomial.legendre.leggauss(10)
-_N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
 class PlanarTheta(NamedTuple):
@@ -581,7 +580,7 @@ class DistantSlab(NamedTuple):
 class FacesPoint(NamedTuple):
     """`faces_point` in x (`spot`: the light's (cos_end, cos_start, curve)). With a track (QUAD), its
     evaluations keep in track[0] the largest bound on their rounding (the sum over the faces of
-    `_term_error`): ph the phase's `phase_condition`, dn, dc the planes' errors, mags and entry as
+    `term_error`): ph the phase's `phase_condition`, dn, dc the planes' errors, mags and entry as
     `faces_quadrature`'s (else an empty track)."""
     faces: np.ndarray
     planes: np.ndarray
@@ -612,7 +611,7 @@ def _faces_value(x, r):
         term, rho, rr, on = _face_term(x, row, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
         total += term
         if on:
-            err += _term_error(x, row, term, rho, rr, r)
+            err += term_error(x, row, term, rho, rr, r)
     if err > r.track[0]:
         r.track[0] = err
     return total
@@ -664,7 +663,7 @@ def _distant_slab(x, r):
 def _one_piece(rec, lo, hi, rtol, stats):
     """The adaptive rule (adaptive.piecewise) over [lo, hi]: tails below rtol/10 of a first 20-point
     estimate per unit of the variable are not refined."""
-    return piecewise(rec, (lo, hi), 2, rtol, _N10, _W10, _N20, _W20, stats)
+    return piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
 
 
 @njit
@@ -678,7 +677,7 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
     (docs/error_bounds.md, "Point and spot light in refractive shapes") is the rule's (inf where a
     panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
     (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
-    the 10-point sums of its test), plus the breaks' location error (`_break_errors`), plus u per
+    the 10-point sums of its test), plus the breaks' location error (`break_errors`), plus u per
     interval; inf with no planes or eta <= 1. dplanes: the planes' errors (interiors/rows.py
     `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
     `leg_errors`); entry: the entry face's row in planes."""
@@ -703,23 +702,23 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
         hi = cuts[i] if i < m else end
         if hi > lo:
             track[0] = 0.0
-            value, err = bounded_piecewise(rec, (lo, hi), 2, rtol, _N10, _W10, _N20, _W20, stats)
+            value, err = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
             total += value
             rule += err
             rounding += 3.0 * track[0] * (hi - lo)
         lo = hi
     if planes.shape[0] == 0 or not eta > 1.0:
         return total, math.inf
-    located = _break_errors(rec, end, cuts[:m])
+    located = break_errors(rec, end, cuts[:m])
     return total, rule + rounding + located + (stats[INTERVALS] - before) * U * (total + rule)
 
 
 @njit
-def _term_error(x, row, term, rho, r, rec):
+def term_error(x, row, term, rho, r, rec):
     """A bound on the rounding of face row's term `term` at x (lit through the face): its relative
     rounding (media/fermat_rounding.py `term_rounding`) times it, and where the spot's cosine c lies
     within its error dcos of the falloff's band, the falloff's slope times dcos times the term without
-    the falloff (a hard edge's jump is a break, `_break_errors`)."""
+    the falloff (a hard edge's jump is a break, `break_errors`)."""
     sp = rec.spot
     z0, a, hl = row[0], row[1], row[2]
     eps, dcos = term_rounding(x, z0, a, hl, row[4], rho, r, rec.eta, rec.kt, rec.kt_out, rec.ph, rec.dn, rec.dc,
@@ -741,7 +740,7 @@ _EDGE, _CONE = 0, 1
 
 
 @njit
-def _break_errors(rec, end, cuts):
+def break_errors(rec, end, cuts):
     """The breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it took): for
     every face row f and every other plane g, the roots of n_g·R(x) - c_g (R(x) face f's refraction
     point, whose computed value is within E of the exact one, E the refraction point's error
@@ -760,7 +759,7 @@ def _break_errors(rec, end, cuts):
         z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
         if not hl > 1e-9 * rec.mags[3]:
             return math.inf  # a light within a few roundings of the face's plane
-        rho_min, rho_max = _rho_range(0.0, end, wl, ll, a)
+        rho_min, rho_max = rho_range(0.0, end, wl, ll, a)
         if not rho_min > 0.0:
             return math.inf
         z_max = max(z0, z0 + a * end)
@@ -788,7 +787,7 @@ def _break_errors(rec, end, cuts):
 
 @njit
 def _rho(x, wl, ll, a):
-    """The horizontal distance between the light and the point at x (`_fermat`'s rho)."""
+    """The horizontal distance between the light and the point at x (`fermat`'s rho)."""
     return math.sqrt(max(x * x * (1.0 - a * a) - 2.0 * x * wl + ll, 0.0))
 
 
@@ -796,7 +795,7 @@ def _rho(x, wl, ll, a):
 def _psi(kind, x, rec, row, g, level):
     """_EDGE: n_g·R - c_g of plane g; _CONE: the leaving cosine minus level; with the refraction point
     by Newton's method (media/fermat_rounding.py `refraction_newton`: within 4e-16 rho of the
-    bisection's resolution, covered by `_break_errors`' tolerance)."""
+    bisection's resolution, covered by `break_errors`' tolerance)."""
     z0, a, hl = row[0], row[1], row[2]
     rho = _rho(x, row[3], row[4], a)
     z = max(z0, 0.0) + a * x
@@ -824,7 +823,7 @@ def _jump(kind, x, rec, row):
     z0, a, hl = row[0], row[1], row[2]
     if not z0 + a * x > 0.0:
         return 0.0
-    rho, r = _fermat(x, z0, row[3], row[4], a, hl, rec.eta)
+    rho, r = fermat(x, z0, row[3], row[4], a, hl, rec.eta)
     cone = rec.spot if kind == _EDGE else (NO_CONE[0], NO_CONE[1], float(SMOOTHSTEP))
     return refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, rec.kt, rec.ks, rec.code, rec.g, rec.kt_out, row[5],
                         row[6], row[7], cone[0], cone[1], cone[2])
@@ -1114,7 +1113,7 @@ def _sphere_rule(r, end, rtol, stats):
     br[0] = 0.0
     m = 0 if r.directional else straight_cuts(r.geo, end, br[1:])
     br[m + 1] = end
-    value, rule = bounded_piecewise(r, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    value, rule = bounded_piecewise(r, br, m + 2, rtol, N10, W10, N20, W20, stats)
     return value, rule, sphere_rounding(r.geo, r.planes[0], r.directional, end, r.kt, r.kt_out, r.code, r.g)
 
 
@@ -1127,7 +1126,7 @@ def _distant_rule(r, end, rtol, dplanes, stats):
     m = envelope(planes[:, :3], planes[:, 3], geo[0:3], geo[3:6], geo[6:9], end, alpha, beta, cuts, lines)
     if m == 0:
         return 0.0, 0.0, 0.0  # no face toward the light: an infinite path inside (kt > 0)
-    value, rule = bounded_piecewise(r, cuts, m + 1, rtol, _N10, _W10, _N20, _W20, stats)
+    value, rule = bounded_piecewise(r, cuts, m + 1, rtol, N10, W10, N20, W20, stats)
     return value, rule, directional_rounding(geo, planes, end, r.kt, r.code, r.g, cuts, lines, alpha, beta, m, dplanes)
 
 
@@ -1141,7 +1140,7 @@ def _point_rule(r, end, rtol, dplanes, stats):
     m += section_kinks(planes, 0, planes.shape[0], geo[0:3], geo[3:6], geo[6:9], end, br[1 + m:])
     sort_few(br, 1, m + 1)
     br[m + 1] = end
-    value, rule = bounded_piecewise(r, br, m + 2, rtol, _N10, _W10, _N20, _W20, stats)
+    value, rule = bounded_piecewise(r, br, m + 2, rtol, N10, W10, N20, W20, stats)
     return value, rule, point_rounding(geo, planes, end, r.kt, r.kt_out, r.code, r.g, dplanes)
 
 
@@ -1149,7 +1148,7 @@ def _point_rule(r, end, rtol, dplanes, stats):
 def _straight(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, dplanes, mode, rtol, steps,
               tau_max, key, dim0, seed, stats):
     """(value, variance, bound) of one inside segment of a convex index-matched shape (its boundary of
-    `kind`): QUAD `convex_bounded`, MARCH or SAMPLE `_march_or_sample` of `convex_integrand` (bound inf)."""
+    `kind`): QUAD `convex_bounded`, MARCH or SAMPLE `march_or_sample` of `convex_integrand` (bound inf)."""
     if mode == QUAD:
         value, bound = convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, ph, only, rtol,
                                       dplanes, stats)
@@ -1165,7 +1164,7 @@ def _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_o
     """(value, variance) of `_straight`'s MARCH or SAMPLE."""
     length = min(ell, (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
     rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, ph, only)
-    return _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed)
+    return march_or_sample(rec, mode, length, kt, steps, key, dim0, seed)
 
 
 @njit
@@ -1195,7 +1194,7 @@ def phase_condition(code, g):
 
 
 @njit
-def _size(geo, planes, end):
+def coordinate_size(geo, planes, end):
     """The size R of the coordinates along a segment (|o| + end) and the largest |c_f| of the planes."""
     r = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2]) + end
     cmax = 0.0
@@ -1214,7 +1213,7 @@ def directional_rounding(geo, planes, end, kt, code, g, cuts, lines, alpha, beta
     dn, dc off the faces (`dplanes`), times kt; the exponent kt (x + k) rounded to 32u of its size and
     moved by the node's own rounding (16u R); the phase value (its cosine is fixed per segment) 8u times
     its condition."""
-    r, _ = _size(geo, planes, end)
+    r, _ = coordinate_size(geo, planes, end)
     dk, kmax = 0.0, 0.0
     for i in range(m):
         f = lines[i]
@@ -1241,8 +1240,8 @@ def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
     by dd = 8u (|p| + R), which moves 1 / d^2 and the scattering cosine r·w / d relatively by dd / d_min
     times 2 + the phase's condition (d_min the light's least distance from the segment). inf where the
     light is inside every face plane or on the segment."""
-    r, cmax = _size(geo, planes, end)
-    p, dmax, dmin = _light_span(geo, end)
+    r, cmax = coordinate_size(geo, planes, end)
+    p, dmax, dmin = light_span(geo, end)
     hmin = math.inf
     for f in range(planes.shape[0]):
         hf = planes[f, 0] * geo[6] + planes[f, 1] * geo[7] + planes[f, 2] * geo[8] - planes[f, 3]
@@ -1255,7 +1254,7 @@ def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
 
 
 @njit
-def _light_span(geo, end):
+def light_span(geo, end):
     """(|p|, D, d_min) of a point light p: its norm and its largest and least distance from the segment."""
     px, py, pz = geo[6], geo[7], geo[8]
     p = math.sqrt(px * px + py * py + pz * pz)
@@ -1272,7 +1271,7 @@ def _light_span(geo, end):
 
 @njit
 def _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g):
-    """`point_rounding` from the light's span (`_light_span`) and the error dk of the path inside."""
+    """`point_rounding` from the light's span (`light_span`) and the error dk of the path inside."""
     dd = 8.0 * U * (p + r)
     return (32.0 * U * (1.0 + kt * (end + dmax) + kt_out * dmax) + kt * (dk + 16.0 * U * r) + kt_out * (dk + dd)
             + (2.0 + phase_condition(code, g)) * dd / dmin)
@@ -1331,7 +1330,7 @@ def sphere_rounding(geo, sphere, directional, end, kt, kt_out, code, g):
     dk = min(4.0 * e / math.sqrt(s2) if s2 > 0.0 else math.inf, 10.0 * math.sqrt(e)) + 4.0 * delta + 32.0 * U * rho
     if directional:
         return _directional_eps(r, end, 2.0 * rho, dk, kt, code, g)
-    p, dmax, dmin = _light_span(geo, end)
+    p, dmax, dmin = light_span(geo, end)
     if not dmin > 0.0:
         return math.inf
     return _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g)
@@ -1384,7 +1383,7 @@ def _inside_value(x, r):
 
 
 @njit
-def _march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
+def march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
     """(value, variance of the mean) of an inside segment [0, length]: MARCH, the midpoint rule with
     `steps` cells (variance 0); SAMPLE, the mean of `steps` free-path samples
     x = -ln(1 - u (1 - e^{-kt length})) / kt, u from the ray's key at dimensions dim0 + j."""
@@ -1469,7 +1468,7 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
 
 
 @njit
-def _spot_terms(geo, a, hl):
+def spot_terms(geo, a, hl):
     """`refracted_point`'s spot terms of a segment's geo row (NO_SPOT for a light without a cone)."""
     if not is_spot(geo[13]):
         return NO_SPOT
@@ -1484,11 +1483,11 @@ def _spot_terms(geo, a, hl):
 def _faces(s, geo, planes, a, hl, wl, ll, only):
     """A point or spot light's `refracting_faces` rows for segment s (with only >= 0, that face's alone),
     their count and the spot's terms."""
-    spot = _spot_terms(geo[s], a[s], hl[s])
+    spot = spot_terms(geo[s], a[s], hl[s])
     faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
     m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
     if only >= 0:  # the path through face `only` alone
-        m = _only_face(faces, m, only)
+        m = only_face(faces, m, only)
     return faces, m, spot
 
 
@@ -1500,14 +1499,14 @@ def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_
         faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
         err[s] = 0.0
         if m > 0:
-            r, cmax = _size(geo[s], planes, min(ell[s], 745.0 / kt))
-            p, ln, lp = _norms(geo[s])
+            r, cmax = coordinate_size(geo[s], planes, min(ell[s], 745.0 / kt))
+            p, ln, lp = light_norms(geo[s])
             out[s], err[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
                                               dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], planes), stats)
 
 
 @njit
-def _norms(geo):
+def light_norms(geo):
     """|p|, |L| and |L - p| of a point or spot light's geo row."""
     p = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2])
     ln = math.sqrt(geo[6] * geo[6] + geo[7] * geo[7] + geo[8] * geo[8])
@@ -1518,14 +1517,14 @@ def _norms(geo):
 @njit
 def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, mode, steps, tau_max,
                    keys, dim0, seed, out, var):
-    """The same, MARCH or SAMPLE: `_march_or_sample` of `faces_point`."""
+    """The same, MARCH or SAMPLE: `march_or_sample` of `faces_point`."""
     for s in sel:
         faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
         if m > 0:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
             rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
                              (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
-            out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
 
 
 @njit
@@ -1567,7 +1566,7 @@ def _convex_store(s, found, eta, before, out, err, stats):
 @njit
 def _convex_sampled(sel, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, mode, steps, tau_max, keys,
                     dim0, seed, out, var):
-    """The same, MARCH or SAMPLE: `_march_or_sample` of `convex_integrand`."""
+    """The same, MARCH or SAMPLE: `march_or_sample` of `convex_integrand`."""
     for s in sel:
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         out[s], var[s] = _straight_sampled(PLANES, planes, geo[s], directional[s], ell[s], kt, ks, code, g, kt_out, ph,
@@ -1577,14 +1576,14 @@ def _convex_sampled(sel, directional, mu, ell, kt, ks, code, g, kt_out, geo, pla
 @njit
 def _plane_sampled(sel, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, mode, steps,
                    tau_max, keys, dim0, seed, out, var):
-    """`inside_radiance` through the entry plane, MARCH or SAMPLE: `_march_or_sample` of `inside_integrand`."""
+    """`inside_radiance` through the entry plane, MARCH or SAMPLE: `march_or_sample` of `inside_integrand`."""
     for s in sel:
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
-        spot = _spot_terms(geo[s], a[s], hl[s]) if eta != 1.0 and not directional[s] else NO_SPOT
+        spot = spot_terms(geo[s], a[s], hl[s]) if eta != 1.0 and not directional[s] else NO_SPOT
         length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
         rec = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out, wl[s],
                               ll[s], eta, spot)
-        out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+        out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
 
 
 @njit
@@ -1617,7 +1616,7 @@ def _point_approx(sel, xh, h, hl, a, ell, kt, ks, code, g, kt_out, out):
 
 
 @njit
-def _only_face(faces, m, f):
+def only_face(faces, m, f):
     """Keep the row of face f among the first m rows of `refracting_faces` (moved first); their count."""
     for j in range(m):
         if faces[j, 17] == f:
@@ -1646,7 +1645,7 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
     """A unit point or spot light (position `light`, `axis`, cone = cos_end, cos_start, curve) at the
     points q (M, 3) inside a convex refractive shape ({x : n_f·x <= c_f}, `planes` (F, 4)), through
     each face f it is outside of (`refracting_faces`; Fermat's path with its refraction point on the
-    face, `_on_face`): the irradiance across the refracted beam times the spot's falloff on the
+    face, `on_face`): the irradiance across the refracted beam times the spot's falloff on the
     direction the light leaves in (`refracted_at` at x = 0 with its attenuation left out) in
     value[:, f], 0 where no such path; the unit direction from q toward the refraction point in
     toward[:, f], the path's lengths inside and outside in inside[:, f] and outside[:, f]."""
@@ -1659,8 +1658,8 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
         geo[0:3] = q[i]
         for j in range(refracting_faces(geo, planes, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)):
             row = faces[j]
-            rho, r = _fermat(0.0, row[0], row[3], row[4], row[1], row[2], eta)
-            if not _on_face(0.0, row, r, rho, planes):
+            rho, r = fermat(0.0, row[0], row[3], row[4], row[1], row[2], eta)
+            if not on_face(0.0, row, r, rho, planes):
                 continue
             f = int(row[17])
             t = r / rho if rho > 0.0 else 0.0

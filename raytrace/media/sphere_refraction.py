@@ -58,7 +58,8 @@ from ..geometry.sorting import sort_few
 from .adaptive import bounded_piecewise
 from .integrand import integrand_of
 from .phase import phase_value
-from .slab import MARCH, QUAD, _N10, _N20, _W10, _W20, _march_or_sample, fresnel
+from .gauss import N10, N20, W10, W20
+from .slab import MARCH, QUAD, fresnel, march_or_sample
 
 SCAN = 48  # uniform nodes of the lit arc on which `paths` brackets the roots of h
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
@@ -410,18 +411,18 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
             if not hi > lo:
                 continue
             if caustic[i] == 0.0 and caustic[i + 1] == 0.0:
-                total += bounded_piecewise(r, (lo, hi), 2, rtol, _N10, _W10, _N20, _W20, stats)[0]
+                total += bounded_piecewise(r, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)[0]
                 continue
             mid = lo if caustic[i] == 0.0 else hi if caustic[i + 1] == 0.0 else 0.5 * (lo + hi)
             if mid > lo:
-                total += bounded_piecewise(NearCaustic(r, lo, mid - lo), (0.0, 1.0), 2, rtol, _N10, _W10, _N20, _W20,
+                total += bounded_piecewise(NearCaustic(r, lo, mid - lo), (0.0, 1.0), 2, rtol, N10, W10, N20, W20,
                                            stats)[0]
             if hi > mid:
-                total += bounded_piecewise(NearCaustic(r, hi, mid - hi), (0.0, 1.0), 2, rtol, _N10, _W10, _N20, _W20,
+                total += bounded_piecewise(NearCaustic(r, hi, mid - hi), (0.0, 1.0), 2, rtol, N10, W10, N20, W20,
                                            stats)[0]
         return total, 0.0
     length = min(ell, (tau_max if mode == MARCH else 745.0) / r.kt)
-    return _march_or_sample(r, mode, length, r.kt, steps, key, dim0, seed)
+    return march_or_sample(r, mode, length, r.kt, steps, key, dim0, seed)
 
 
 def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, mode, rtol, steps, tau_max, keys,

@@ -48,7 +48,8 @@ from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forwa
                                hg_legendre, legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
 from ..media.slab import CLOSED
-from .quadrature import CAPPED, _N10, _N20, _W10, _W20
+from ..media.gauss import N10, N20, W10, W20
+from .quadrature import CAPPED
 from .quadrature import _rule as quad_rule
 from .quadrature import airlight_one as quad_airlight
 
@@ -141,7 +142,7 @@ def _quadrature(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, s
     freezes them, and they never change)."""
     qstats = np.zeros(3)
     rtol = max(0.1 * precision, QUAD_RTOL_MIN)
-    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, cone, rtol, _N10, _W10, _N20, _W20, qstats)
+    val = quad_airlight(xh, h, ell, kt, ks, phase_code, g, cone, rtol, N10, W10, N20, W20, qstats)
     stats[ST_FALLBACK_FEVALS] += 30.0 * qstats[1]
     stats[ST_FALLBACK_CAPPED] += qstats[CAPPED]
     return intensity * val, qstats[CAPPED] == 0.0
@@ -535,8 +536,8 @@ def _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2):
                 continue
             a = 0.0 if v2 == math.inf else 2.0 * math.atan(1.0 / v2)
             b = 2.0 * math.atan(1.0 / max(v1, 1.0))
-        fine += quad_rule(piece, a, b, xh, h, kt, phase_code, g, cone, _N20, _W20)
-        coarse += quad_rule(piece, a, b, xh, h, kt, phase_code, g, cone, _N10, _W10)
+        fine += quad_rule(piece, a, b, xh, h, kt, phase_code, g, cone, N20, W20)
+        coarse += quad_rule(piece, a, b, xh, h, kt, phase_code, g, cone, N10, W10)
     return 0.5 * fine, 0.5 * coarse
 
 

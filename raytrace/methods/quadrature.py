@@ -45,6 +45,7 @@ from ..media.chapman import relative_error as chapman_error
 from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
 from ..geometry.sorting import sort_few
 from ..media.integrand import integrand_of
+from ..media.gauss import N10, N20, W10, W20
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import LINEAR, column, column_distance, column_error, top_distance
 from ..media.phase import HG, phase_split, phase_value
@@ -52,8 +53,6 @@ from ..media.slab import QUAD
 
 
 BOUND_FACTOR = 2.0
-_N10, _W10 = np.polynomial.legendre.leggauss(10)
-_N20, _W20 = np.polynomial.legendre.leggauss(20)
 
 
 class AngleIntegrand(NamedTuple):
@@ -184,7 +183,7 @@ def _atmosphere(segs, atm, lights, params):
     def evaluate(rows, directional, xh, h, cone, kt, ks):
         out, bound = np.empty_like(xh), np.empty_like(xh)
         atmosphere_segments(rows, directional, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
-                            float(atm.top), dz, phase_cond, params["rtol"], _N10, _W10, _N20, _W20, out, bound, stats)
+                            float(atm.top), dz, phase_cond, params["rtol"], N10, W10, N20, W20, out, bound, stats)
         unit_bounds[kt.tobytes() + ks.tobytes()] = bound
         return out
 
@@ -237,7 +236,7 @@ def _fog(segs, medium, lights, params):
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out, bound = np.empty_like(xh), np.empty_like(xh)
         fog_segments(rows, directional, xh, h, ell, kt, ks, medium.phase, medium.g, phase_cond, cone,
-                     medium.scale_height, medium.profile, params["rtol"], _N10, _W10, _N20, _W20, out, bound, stats)
+                     medium.scale_height, medium.profile, params["rtol"], N10, W10, N20, W20, out, bound, stats)
         return out, bound
 
     radiance, bound = by_channel(segs, medium, lights, evaluate, estimated=True)
@@ -285,7 +284,7 @@ def _homogeneous(segs, medium, lights, params):
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
-        evaluate_segments(xh, h, ell, kt, ks, medium.phase, medium.g, cone, params["rtol"], _N10, _W10, _N20, _W20,
+        evaluate_segments(xh, h, ell, kt, ks, medium.phase, medium.g, cone, params["rtol"], N10, W10, N20, W20,
                           out, met[(kt, ks)], stats)
         return out
 

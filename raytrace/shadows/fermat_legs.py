@@ -87,8 +87,7 @@ import numpy as np
 
 from ..jit import njit
 from ..media.fermat_rounding import U, fermat_speed, point_error, refraction_newton
-from ..media.slab import FACE_COLUMNS, GEO_COLUMNS, _fermat, _only_face, _spot_terms, refracted_at, \
-    refracting_faces
+from ..media.slab import FACE_COLUMNS, GEO_COLUMNS, fermat, only_face, refracted_at, refracting_faces, spot_terms
 from .beams import blockers_inside
 
 MAX_EVALS = 20000  # evaluations of one break function on one segment
@@ -151,15 +150,15 @@ def _span_terms(geo, planes, face, lo, hi, eta, kt, ks, code, g, kt_out, out):
     entry normals: the face's row from `planes`)."""
     faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
     for s in range(geo.shape[0]):
-        spot = _spot_terms(geo[s], 0.0, 0.0)
+        spot = spot_terms(geo[s], 0.0, 0.0)
         out[s] = 0.0
-        if _only_face(faces, refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, spot, faces), face) == 0:
+        if only_face(faces, refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, spot, faces), face) == 0:
             continue
         row = faces[0]
         z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
         for x in (lo[s], hi[s]):
             if z0 + a * x > 0.0:
-                rho, r = _fermat(x, z0, wl, ll, a, hl, eta)
+                rho, r = fermat(x, z0, wl, ll, a, hl, eta)
                 term = refracted_at(x, z0, rho, r, wl, a, hl, eta, kt, ks, code, g, kt_out, row[5], row[6], row[7],
                                     spot[3], spot[4], spot[5])
                 out[s] = max(out[s], 2.0 * term * (hi[s] - lo[s]))

@@ -10,7 +10,7 @@ B_j do not overlap, so c_j is B_j's chord of the whole path from the point to th
 chords change slope where the path toward the light passes a vertex of the polygon the plane through
 the segment and the light cuts from B_j (`section_kinks`), so `quadrature` starts its adaptive rule
 from those points as well as A's own kinks and a spot's cone crossings; `raymarch` and `montecarlo`
-evaluate the same integrand with their own rules (media/slab.py `_march_or_sample`).
+evaluate the same integrand with their own rules (media/slab.py `march_or_sample`).
 
 A directional light (geo's light columns: the unit direction u toward it) takes the path X + s u,
 s >= 0, and the integrand ks Phi(w·u) exp(-kt (x + k)) (the outside medium does not attenuate it:
@@ -48,11 +48,12 @@ from ..media.adaptive import INTERVALS, bounded_piecewise
 from ..media.convex_directional import envelope
 from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
 from ..media.fermat_rounding import point_error
-from ..media.slab import (_N10, _N20, _W10, _W20, EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesPoint,
-                          _break_errors, _fermat, _light_span, _march_or_sample, _norms, _on_face, _only_face,
-                          _rho_range, _size, _spot_terms, _term_error, convex_exit_face, convex_integrand,
-                          directional_rounding, edge_breaks, phase_condition, point_rounding, refracted_at,
-                          refracted_cuts, refracting_faces, straight_cuts)
+from ..media.gauss import N10, N20, W10, W20
+from ..media.slab import (EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesPoint, break_errors,
+                          convex_exit_face, convex_integrand, coordinate_size, directional_rounding, edge_breaks,
+                          fermat, light_norms, light_span, march_or_sample, on_face, only_face, phase_condition,
+                          point_rounding, refracted_at, refracted_cuts, refracting_faces, rho_range, spot_terms,
+                          straight_cuts, term_error)
 
 
 class AttenuatedConvex(NamedTuple):
@@ -230,8 +231,8 @@ def _bounded(rec, planes, end, dplanes, dothers, spheres, stats):
     br[1:m + 1].sort()
     br[m + 1] = end
     before = stats[INTERVALS]
-    value, rule = bounded_piecewise(rec, br, m + 2, rec.rtol, _N10, _W10, _N20, _W20, stats)
-    r = _size(geo, planes, end)[0]
+    value, rule = bounded_piecewise(rec, br, m + 2, rec.rtol, N10, W10, N20, W20, stats)
+    r = coordinate_size(geo, planes, end)[0]
     dshift = np.zeros(2)
     if rec.only >= 0:  # the chords start at the entry point P = X + k toward, off by dP (`_entry_line`)
         _, _, kmax, dp = _entry_line(rec, end, r, dplanes)
@@ -242,7 +243,7 @@ def _bounded(rec, planes, end, dplanes, dothers, spheres, stats):
                                    dplanes)
     else:
         eps = point_rounding(geo, planes, end, rec.kt, rec.kt_out, rec.code, rec.g, dplanes)
-        _, dmax, dmin = _light_span(geo, end)
+        _, dmax, dmin = light_span(geo, end)
     for j in range(first.shape[0]):
         if rec.dk[j] != 0.0:
             if rec.directional:
@@ -263,7 +264,7 @@ def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, 
     between the kinks of A's and every B_j's chords and a spot's cone crossings, bounded (`_bounded`;
     dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j]: a ball (centre, radius)
     holding B_j; only, sun: a refracted beam's face and the direction toward the sun, only -1
-    otherwise); MARCH, SAMPLE as media/slab.py's `_march_or_sample` (keys, dim0, seed: SAMPLE's
+    otherwise); MARCH, SAMPLE as media/slab.py's `march_or_sample` (keys, dim0, seed: SAMPLE's
     random streams), err inf."""
     for s in range(geo.shape[0]):
         out[s], var[s], err[s] = 0.0, 0.0, 0.0
@@ -275,7 +276,7 @@ def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, 
             out[s], err[s] = _bounded(rec, planes, min(ell[s], 745.0 / kt), dplanes, dothers, spheres, stats)
         else:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
             err[s] = math.inf
 
 
@@ -284,7 +285,7 @@ class RefractedAttenuated(NamedTuple):
     media/slab.py `refracting_faces` row; `spot` its (cos_end, cos_start, curve)): `refracted_at` where
     the refraction point R lies on the face, times exp(-sum_j dk[j] chord_j) of the outside leg from R
     to the light, chord_j through the planes others[first[j]:stop[j]]. With a track (QUAD), each
-    evaluation's rounding, the face's term's (media/slab.py `_term_error`, `faces` the row alone)
+    evaluation's rounding, the face's term's (media/slab.py `term_error`, `faces` the row alone)
     times the attenuation, is kept as `FacesPoint` keeps it. The shape's planes, eta, the medium's
     and the spot's terms are those of `faces`."""
     row: np.ndarray
@@ -298,9 +299,9 @@ class RefractedAttenuated(NamedTuple):
 
 @njit
 def _leg(x, row, eta):
-    """(rho, r, R) of face row's Fermat path at x (media/slab.py `_fermat`): R = p_f + x w_h +
+    """(rho, r, R) of face row's Fermat path at x (media/slab.py `fermat`): R = p_f + x w_h +
     (r / rho)(L_h - x w_h), the refraction point on the face's plane (as `_edge_distance`)."""
-    rho, r = _fermat(x, max(row[0], 0.0), row[3], row[4], row[1], row[2], eta)
+    rho, r = fermat(x, max(row[0], 0.0), row[3], row[4], row[1], row[2], eta)
     t = r / rho if rho > 0.0 else 0.0
     return rho, r, (row[8] + x * row[11] + t * (row[14] - x * row[11]), row[9] + x * row[12] + t * (row[15] - x * row[12]),
                     row[10] + x * row[13] + t * (row[16] - x * row[13]))
@@ -324,13 +325,13 @@ def _refracted_attenuated(x, r):
     if not z0 + a * x > 0.0:
         return 0.0
     rho, rr, p = _leg(x, row, f.eta)
-    if not _on_face(x, row, rr, rho, f.planes):
+    if not on_face(x, row, rr, rho, f.planes):
         return 0.0
     sp = f.spot
     v = refracted_at(x, z0, rho, rr, row[3], a, row[2], f.eta, f.kt, f.ks, f.code, f.g, f.kt_out, row[5], row[6],
                      row[7], sp[0], sp[1], sp[2])
     track = f.track
-    err = _term_error(x, row, v, rho, rr, f) if track.shape[0] > 0 else 0.0
+    err = term_error(x, row, v, rho, rr, f) if track.shape[0] > 0 else 0.0
     if v == 0.0 and err == 0.0:
         return 0.0
     u = _minus(r.light, p)
@@ -405,7 +406,7 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
     bound on its error: QUAD adaptive between A's edge breaks and cone crossings (media/slab.py
     `faces_quadrature`'s) and the leg's chord kinks (`leg_kinks`), bounded (`_refracted_bound`;
     dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j] a ball holding B_j); MARCH,
-    SAMPLE as media/slab.py's `_march_or_sample`, err inf."""
+    SAMPLE as media/slab.py's `march_or_sample`, err inf."""
     nf = planes.shape[0]
     faces = np.empty((max(nf, 1), FACE_COLUMNS))
     br = np.empty(EDGE_CUTS * nf + MAX_CUTS + 1)
@@ -414,20 +415,20 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
         out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        spot = _spot_terms(geo[s], 0.0, 0.0)
-        m = _only_face(faces, refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, spot, faces), only)
+        spot = spot_terms(geo[s], 0.0, 0.0)
+        m = only_face(faces, refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, spot, faces), only)
         if m == 0:
             continue
         row = faces[0]
         end = min(ell[s], 745.0 / kt)
-        r, cmax = _size(geo[s], planes, end)
-        pn, ln, lp = _norms(geo[s])
+        r, cmax = coordinate_size(geo[s], planes, end)
+        pn, ln, lp = light_norms(geo[s])
         tracked = FacesPoint(faces[:1].copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
                                dplanes[1], (pn, ln, lp, r + ln + cmax), -1, np.zeros(1 if mode == QUAD else 0))
         rec = RefractedAttenuated(row.copy(), geo[s, 6:9].copy(), others, first, stop, dk, tracked)
         if mode != QUAD:
             length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            out[s], var[s] = _march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
             err[s] = math.inf
             continue
         br[0] = 0.0
@@ -446,7 +447,7 @@ def _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats):
     """(value, bound) of a `RefractedAttenuated` over the pieces between `cuts` (0 and end included):
     the rule's bound (`bounded_piecewise`) + 3 times the evaluations' largest rounding (the face's
     term's, kept in the track) times the width + 3 times the chords' relative rounding eps times
-    (value + rule) + the breaks' location error of A's face (media/slab.py `_break_errors`, times the
+    (value + rule) + the breaks' location error of A's face (media/slab.py `break_errors`, times the
     largest attenuation exp(sum_j max(-dk_j, 0) o_max)) + u per interval. eps = sum_j |dk_j| (dc_j +
     16u C_j) + 4u, dc_j, C_j of B_j's `point_chord_rounding` toward the light from the refraction
     point R, whose own error dR (media/fermat_rounding.py `point_error`) moves a crossing of the leg
@@ -459,11 +460,11 @@ def _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats):
     row = rec.row
     before = stats[INTERVALS]
     tracked.track[0] = 0.0
-    value, rule = bounded_piecewise(rec, cuts, cuts.shape[0], rtol, _N10, _W10, _N20, _W20, stats)
+    value, rule = bounded_piecewise(rec, cuts, cuts.shape[0], rtol, N10, W10, N20, W20, stats)
     if not tracked.eta > 1.0:
         return value, math.inf
     z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
-    rho_min, rho_max = _rho_range(0.0, end, wl, ll, a)
+    rho_min, rho_max = rho_range(0.0, end, wl, ll, a)
     if not (rho_min > 0.0 and hl > 0.0):
         return value, math.inf
     z_max = max(z0, z0 + a * end)
@@ -479,6 +480,6 @@ def _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats):
                                             o_max, hl, dothers[j] + np.array([0.0, dr]))
             eps += abs(rec.dk[j]) * (dc + 16.0 * U * cmax)
             grow += max(-rec.dk[j], 0.0) * o_max
-    located = _break_errors(tracked, end, cuts[1:-1]) * math.exp(grow)
+    located = break_errors(tracked, end, cuts[1:-1]) * math.exp(grow)
     rounding = 3.0 * tracked.track[0] * (cuts[-1] - cuts[0])
     return value, rule + rounding + located + (3.0 * eps + (stats[INTERVALS] - before) * U) * (value + rule)
