@@ -19,7 +19,7 @@ from raytrace.shadows.fermat_legs import SPAN_WIDTH, lit_pieces_of_point
 
 from . import oracle
 from .conftest import to_toml
-from .test_refracted_beams import plate_hit
+from .test_refracted_beams import plate_hit, plate_shape
 from .test_refracted_point_bounds import assert_bound
 from .test_refracted_point_light import FACES, GLASS, WATER, camera_entry, switches
 from .test_refracted_shadows import BOX, CAM, PLATES, clear, fermat, image, on_face, shadowed_scene, twin_pixel
@@ -97,3 +97,18 @@ def test_every_shadow_switch_lies_in_a_span(scene):
     assert found >= 10, found
     assert max(widths) <= SPAN_WIDTH * prep.accel.scale and np.median(widths) < 1e-10, (max(widths),
                                                                                           np.median(widths))
+
+
+def test_segments_whose_breaks_are_not_located_are_counted():
+    """A plate in the lamp's own horizontal plane, beside it toward the water box: every leg starts on
+    the plate's plane (within the segment-triangle test's tolerance), so no segment's shadow breaks are
+    located and the bound is inf on every pixel; the statistics count the segments. Without the plate the
+    bound is finite and nothing is counted."""
+    small = {**WATER, "camera": {**WATER["camera"], "width": 3, "height": 3}}
+    key = "inside: segments with shadow breaks not located (bound inf)"
+    beside = image({**small, "shape": WATER["shape"] + [plate_shape((1, 2.2, (1.0, -1.3), (1.45, 1.1)))]}, "quadrature",
+                   {"rtol": 1e-6})
+    assert beside.image.min() > 0.0 and np.all(np.isinf(beside.error_bound))
+    assert beside.stats[key] == 9, beside.stats
+    clear = image(small, "quadrature", {"rtol": 1e-6})
+    assert np.all(np.isfinite(clear.error_bound)) and clear.stats[key] == 0, (clear.error_bound, clear.stats)

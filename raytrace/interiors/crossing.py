@@ -45,9 +45,10 @@ from . import paths
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
 # rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit pieces of
 # the others, and the outside air-light's pieces whose light crosses index-matched interiors
-# (`through_airlight`) and those of their integrals that fell short of their tolerance
-STATS_SIZE = 8
-HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
+# (`through_airlight`) and those of their integrals that fell short of their tolerance, and the refracted
+# point- and spot-light segments whose shadow breaks could not be located (their bound inf: rows.py `_lit_point`)
+STATS_SIZE = 9
+HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED, UNLOCATED = range(3, 9)
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = INSIDE_RTOL  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 STRAIGHT, TRACED, REFRACTED = range(3)  # how light reaches an inside row (`Segments.reach`)
@@ -62,7 +63,8 @@ def summarize(prep, method, stats, shadows: bool = False) -> dict:
     accepted at a cap), as quadrature reports its own outside; for a CLOSED-mode method also the
     segments (one per ray and light) it handed to quadrature; nothing for the other inside
     integrators, which have no caps. With volumetric shadows also the inside segments rendered
-    unshadowed, the lit pieces of the others, and the outside pieces integrated through interiors."""
+    unshadowed, the lit pieces of the others, the outside pieces integrated through interiors, and the
+    refracted segments whose shadow breaks were not located (shadows/fermat_legs.py: their bound is inf)."""
     sup = method.supports.interiors
     if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None:
         return {}
@@ -76,7 +78,8 @@ def summarize(prep, method, stats, shadows: bool = False) -> dict:
                     "inside: lit pieces": int(stats[LIT_PIECES]),
                     f"shadows: pieces through interiors ({'quadrature' if sup.through == 'quadrature' else method.name})":
                         int(stats[THROUGH]),
-                    "shadows: through-interior integrals not converged": int(stats[THROUGH_CAPPED])})
+                    "shadows: through-interior integrals not converged": int(stats[THROUGH_CAPPED]),
+                    "inside: segments with shadow breaks not located (bound inf)": int(stats[UNLOCATED])})
     return out
 
 

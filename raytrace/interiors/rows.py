@@ -51,7 +51,7 @@ from ..shadows.through_others import attenuated_radiance, refracted_attenuated
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
-                       UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
+                       UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
                        refracted_beams, scaled)
 
 
@@ -434,7 +434,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     occluder's break adds its location error: over each span where the exact lit set may differ from
     the pieces (shadows/fermat_legs.py `span_errors`), times the largest attenuation of the outside
     leg by `others` (exp(sum_j max(sigma_t outside - sigma_t_j, 0) 4 S), S bounding the scene's points);
-    inf on the segments whose spans are not known."""
+    inf on the segments whose spans are not known, counted (UNLOCATED)."""
     points, normals, w, ell, keys = rows
     out, var, bound, stats = acc
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
@@ -446,10 +446,13 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     if others is not None:
         big = 4.0 * math.sqrt(3.0) * max(prep.accel.scale, float(np.abs(position).max()))
         gain = np.exp(np.maximum(prep.scene.medium.sigma_t[None, :] - others[3], 0.0).sum(axis=0) * big)
+    unlocated = np.zeros(len(ell), bool)
     for f, _, _, _, _, spans in found:
         np.add.at(bound, spans[0], span_errors(prep, sid, planes, li, f, points, w, spans) * prep.lights.intensity[li]
                   * gain)
-        bound[~spans[3] & (ell > 0.0)] = np.inf
+        unlocated |= ~spans[3] & (ell > 0.0)
+    bound[unlocated] = np.inf
+    stats[UNLOCATED] += np.count_nonzero(unlocated)
     whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None)
     clear = np.nonzero(whole)[0]
     if len(clear):
