@@ -55,7 +55,7 @@ REFUSES = {
     "houdini-pbrt-v4/TestCamera/test_camera_spherical.pbrt": ['only "string mapping" "equirectangular" is read'],
     "houdini-pbrt-v4/TestMediums/test_interior_cloud.pbrt": ['medium type "cloud" is not read'],
     "houdini-pbrt-v4/TestMediums/test_interior_nanovdb.pbrt": ['medium type "nanovdb" is not read'],
-    "pbrt-v4-scenes/killeroo-simple.pbrt": ['included file "', 'Material "coateddiffuse" is not read'],
+    "pbrt-v4-scenes/killeroo-simple.pbrt": ['included file "'],
     GOLD: ['included file "', "Texture (textures) is not read", "Texture (textures) is not read",
            '"texture reflectance" is type texture', 'Material "conductor" is not read'],
     "mitsuba-data/scenes/cbox/cbox.xml": ["a spectrum sampled at wavelengths is not read"] * 6,  # (the 6th: radiance)
@@ -221,6 +221,34 @@ def test_emitters_read_as_the_files_mean(tmp_path):
     n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
     assert np.all(n[:, 1] < 0) and np.allclose(n[:, [0, 2]], 0.0)
     assert np.allclose(lamp["normals"], [0.0, -1.0, 0.0])  # Mitsuba's recomputed normals of a flat quad
+
+
+STAND_IN = """Shape "loopsubdiv" "integer levels" [ 1 ]
+    "point3 P" [ 0 0 60  50 0 -20  -25 43 -20  -25 -43 -20 ]
+    "integer indices" [ 0 1 2  0 2 3  0 3 1  1 3 2 ]
+"""
+
+
+def test_killeroo_simple_reads_whole_with_a_stand_in_model(tmp_path):
+    """pbrt-v4-scenes' killeroo-simple with a stand-in for its left-out model (a tetrahedron's Loop
+    subdivision in `geometry/killeroo.pbrt`): the file reads whole; its two `coateddiffuse` materials
+    become diffuse surfaces of their reflectances (0.4 0.2 0.2 and 0.4 0.5 0.4), each said in a note
+    naming its line; the floor and wall keep their 0.5 0.5 0.8; the sphere light renders them."""
+    copy = tmp_path / "pbrt-v4-scenes" / "killeroo-simple.pbrt"
+    (copy.parent / "geometry").mkdir(parents=True)
+    copy.write_text((CORPUS / "pbrt-v4-scenes/killeroo-simple.pbrt").read_text())
+    (copy.parent / "geometry" / "killeroo.pbrt").write_text(STAND_IN)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        raw = io.read_scene(copy)
+    notes = [str(w.message) for w in said if '"coateddiffuse" read as "diffuse"' in str(w.message)]
+    assert [n.split(":")[1] for n in notes] == ["51", "56"], notes
+    assert sorted({tuple(s["reflectance"]) for s in raw["shape"]}) == [(0.4, 0.2, 0.2), (0.4, 0.5, 0.4),
+                                                                        (0.5, 0.5, 0.8)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        img = render(copy, "analytic", width=16, height=16, spp=1)
+    assert np.all(np.isfinite(img.array)) and np.count_nonzero(img.array.max(axis=-1) > 0.0) > 100
 
 
 def test_an_environment_lit_file_renders_as_its_author_lit_it(tmp_path):

@@ -587,8 +587,15 @@ class _Reader:
                     w.fail(line, f'{p.directive}: "{r}" > 0 (a rough dielectric) is not read', "use a smooth one (0)")
             p.ignore("remaproughness")
             mat = ("dielectric", eta)
+        elif kind == "coateddiffuse":  # materials.cpp CoatedDiffuseMaterial::Create: a diffuse base under a coat
+            mat = ("diffuse", p.rgb("reflectance", [0.5, 0.5, 0.5], albedo=True))
+            p.ignore("roughness", "uroughness", "vroughness", "remaproughness", "thickness", "eta", "albedo", "g",
+                     "maxdepth", "nsamples")
+            self.notes.append(f'{w.path}:{line}: {p.directive}: "coateddiffuse" read as "diffuse" of its reflectance '
+                              "(surfaces here are Lambertian: its dielectric coat, a glossy highlight that also "
+                              "dims the base, is not rendered)")
         else:
-            w.fail(line, f'Material "{kind}" is not read', 'use "diffuse", "interface" or "dielectric"')
+            w.fail(line, f'Material "{kind}" is not read', 'use "diffuse", "coateddiffuse", "interface" or "dielectric"')
         p.done()
         return mat
 
