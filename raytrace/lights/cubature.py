@@ -25,7 +25,7 @@ PROBES = 17  # ... by their distance to PROBES x PROBES points of the emitter, i
 SHARE = 0.25  # the share of the method's precision the two orders must agree to
 MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light costs)
 NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
-FLOOR = 1e-13  # agreement relative to the largest pilot radiance below which rays are not told apart
+FLOOR = 1e-13  # agreement relative to the largest pilot radiance (`agree`) below which rays are not told apart
 AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
 LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
 
@@ -101,31 +101,41 @@ def choose(ladders, counts, near, shade, tol):
     """(the order of each source, emitters capped, near rays, rays whose last pair disagrees). Per source
     (scene lights, then emissive shapes): `ladders[s]` its orders (`ladder`; None: not a cubature of
     an emitter), `counts[s](order)` its rows, `near[s]` (N,) whether each pilot ray passes within
-    NEAR_FRACTION of the emitter's diameter of it; `shade(orders)` the pilot rays' radiance (N, 3) with
-    each source at its order (None where not a cubature); `tol` the method's precision. The other
-    rays choose the order (all of them where all are near); the rays where the chosen pair (the
-    finest, where capped) disagrees are counted as not converged, summed over the sources."""
+    NEAR_FRACTION of the emitter's diameter of it; `shade(orders, rays)` the radiance (len(rays), 3)
+    of the pilot rays `rays` (indices) with each source at its order (None where not a cubature); `tol`
+    the method's precision. The other rays choose the order (all of them where all are near), their
+    agreement floor relative to the largest of their own radiances; the near rays, which do not
+    choose, are shaded at the chosen pair only (the finest, where capped), where the rays that
+    disagree are counted as not converged (all pilot rays, the floor of their largest radiance),
+    summed over the sources."""
     base = tuple(None if l is None else l[0] for l in ladders)
     chosen, capped, n_near, stray = list(base), 0, 0, 0
     for s, orders in enumerate(ladders):
         if orders is None:
             continue
+        every = np.arange(len(near[s]))
+        decide = every[~near[s]] if not near[s].all() else every  # all near: they decide
+        rays = {"decide": decide, "rest": every[near[s]] if len(decide) < len(every) else every[:0]}
         memo = {}
 
-        def at(order):
-            if order not in memo:
-                memo[order] = shade(base[:s] + (order,) + base[s + 1:])
-            return memo[order]
+        def at(order, which):
+            if (order, which) not in memo:
+                memo[order, which] = shade(base[:s] + (order,) + base[s + 1:], rays[which])
+            return memo[order, which]
 
-        ok, decide = None, ~near[s] if not near[s].all() else near[s]  # all near: they decide
-        for coarse, fine in pairs(orders, counts[s]):
-            ok = agree(at(coarse), at(fine), SHARE * tol)
-            if ok[decide].all():
-                chosen[s] = coarse
+        last = None
+        for last in pairs(orders, counts[s]):
+            if agree(at(last[0], "decide"), at(last[1], "decide"), SHARE * tol).all():
+                chosen[s] = last[0]
                 break
         else:
             chosen[s] = orders[-1]
             capped += 1
         n_near += int(np.count_nonzero(near[s]))
-        stray += 0 if ok is None else int(np.count_nonzero(~ok))
+        if last is not None:
+            coarse, fine = (np.empty((len(every), 3)) for _ in range(2))
+            for out, order in zip((coarse, fine), last):
+                for which in ("decide", "rest") if len(rays["rest"]) else ("decide",):
+                    out[rays[which]] = at(order, which)
+            stray += int(np.count_nonzero(~agree(coarse, fine, SHARE * tol)))
     return tuple(chosen), capped, n_near, stray
