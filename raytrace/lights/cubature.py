@@ -57,21 +57,34 @@ def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
     """(pixels (N, 2), near): the pilot's pixels (row, column), the GRID grid's and the NEAR pixels of
     the CANDIDATES grid (each pixel once: all of an image smaller than it) nearest to each emitter, and per source (None where `ladders[s]` is None) whether
     each of their rays passes within NEAR_FRACTION of its diameter of the emitter. `emitters[s]`: its
-    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions)."""
+    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions). A pilot pixel among the
+    candidates takes its candidate ray's distance (the same number: each ray's is its own)."""
     sources = [s for s, l in enumerate(ladders) if l is not None]
-    cand = np.unique(grid(CANDIDATES, width, height), axis=0)  # an image smaller than the grid: each pixel once
+    cand = unique_pixels(grid(CANDIDATES, width, height), width)  # an image smaller than the grid: each pixel once
     o, d = rays_of(cand)
     picks = [grid(GRID, width, height)]
+    measured = {}
     for s in sources:
-        dist = distances(emitters[s].sample, o, d)[0]
-        picks.append(cand[np.argsort(dist, kind="stable")[:NEAR]])
-    pixels = np.unique(np.concatenate(picks), axis=0)
-    o, d = rays_of(pixels)
+        measured[s] = distances(emitters[s].sample, o, d)
+        picks.append(cand[np.argsort(measured[s][0], kind="stable")[:NEAR]])
+    pixels = unique_pixels(np.concatenate(picks), width)
+    key, cand_key = pixels @ [width, 1], cand @ [width, 1]  # both sorted
+    at = np.minimum(np.searchsorted(cand_key, key), len(cand) - 1)
+    if not np.array_equal(cand_key[at], key):  # a grid pixel off the candidates (an image larger than them)
+        o, d = rays_of(pixels)
+        measured = {s: distances(emitters[s].sample, o, d) for s in sources}
+        at = slice(None)
     near = [None] * len(ladders)
     for s in sources:
-        dist, diameter = distances(emitters[s].sample, o, d)
-        near[s] = dist < NEAR_FRACTION * diameter
+        dist, diameter = measured[s]
+        near[s] = dist[at] < NEAR_FRACTION * diameter
     return pixels, near
+
+
+def unique_pixels(pixels, width: int) -> np.ndarray:
+    """The pixels (row, column) each once, in raster order."""
+    key = np.unique(pixels[:, 0] * width + pixels[:, 1])
+    return np.stack([key // width, key % width], axis=1)
 
 
 def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
