@@ -3,7 +3,8 @@ raytrace/rendering/renderer.py):
 
 - `choose` shades the near rays, which do not choose the order, at the chosen pair only, and returns
   what the same rule with every pilot ray shaded at every order returns (a twin written here);
-- `pilot_pixels` reuses the candidates' distances for the pilot rays among them: the same pixels
+- `pilot_pixels` measures only the candidates that may be among the nearest (`nearest`: the same
+  distances and order as `distances` on all) and reuses them for the pilot rays: the same pixels
   and near rays as distances measured afresh on the pilot's own rays (and np.unique over rows), on
   images smaller and larger than the candidates' grid;
 - the warm-up runs once per scene file, method, parameters and shadows in a process: a second
@@ -105,3 +106,21 @@ def test_warm_up_once_per_scene_file(tmp_path):
     copy = tmp_path / "occluded.toml"
     copy.write_text(open(SCENE).read())
     assert api.render(str(copy), "analytic", **kw).compile_seconds > 0.0  # another file: warmed up
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_nearest_measures_every_ray_that_may_be_among_the_nearest(seed):
+    rng = np.random.default_rng(seed)
+    sc = load_scene(SCENE)
+    sample = Lights.of(sc.lights, []).emitters[0].sample
+    n = int(rng.integers(5, 2000))
+    o = rng.normal(size=(n, 3)) * rng.uniform(0.3, 5.0)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    every, diameter = cubature.distances(sample, o, d)
+    some, same_diameter = cubature.nearest(sample, o, d, cubature.NEAR)
+    measured = ~np.isnan(some)
+    assert same_diameter == diameter and measured.sum() >= min(n, cubature.NEAR)
+    np.testing.assert_array_equal(some[measured], every[measured])
+    np.testing.assert_array_equal(np.argsort(np.nan_to_num(some, nan=np.inf), kind="stable")[:cubature.NEAR],
+                                  np.argsort(every, kind="stable")[:cubature.NEAR])

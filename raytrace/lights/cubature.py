@@ -57,27 +57,27 @@ def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
     """(pixels (N, 2), near): the pilot's pixels (row, column), the GRID grid's and the NEAR pixels of
     the CANDIDATES grid (each pixel once: all of an image smaller than it) nearest to each emitter, and per source (None where `ladders[s]` is None) whether
     each of their rays passes within NEAR_FRACTION of its diameter of the emitter. `emitters[s]`: its
-    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions). A pilot pixel among the
-    candidates takes its candidate ray's distance (the same number: each ray's is its own)."""
+    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions). Only the candidates that
+    may be among the NEAR nearest are measured (`nearest`), and a pilot pixel among those takes its
+    candidate ray's distance (the same number: each ray's is its own)."""
     sources = [s for s, l in enumerate(ladders) if l is not None]
     cand = unique_pixels(grid(CANDIDATES, width, height), width)  # an image smaller than the grid: each pixel once
     o, d = rays_of(cand)
     picks = [grid(GRID, width, height)]
     measured = {}
     for s in sources:
-        measured[s] = distances(emitters[s].sample, o, d)
-        picks.append(cand[np.argsort(measured[s][0], kind="stable")[:NEAR]])
+        measured[s] = nearest(emitters[s].sample, o, d, NEAR)
+        picks.append(cand[np.argsort(np.nan_to_num(measured[s][0], nan=np.inf), kind="stable")[:NEAR]])
     pixels = unique_pixels(np.concatenate(picks), width)
     key, cand_key = pixels @ [width, 1], cand @ [width, 1]  # both sorted
     at = np.minimum(np.searchsorted(cand_key, key), len(cand) - 1)
-    if not np.array_equal(cand_key[at], key):  # a grid pixel off the candidates (an image larger than them)
-        o, d = rays_of(pixels)
-        measured = {s: distances(emitters[s].sample, o, d) for s in sources}
-        at = slice(None)
     near = [None] * len(ladders)
     for s in sources:
-        dist, diameter = measured[s]
-        near[s] = dist[at] < NEAR_FRACTION * diameter
+        dist = np.where(cand_key[at] == key, measured[s][0][at], np.nan)
+        afresh = np.isnan(dist)  # off the candidates (an image larger than them) or not measured there
+        if afresh.any():
+            dist[afresh] = half_line_distances(probe_points(emitters[s].sample), *rays_of(pixels[afresh]))
+        near[s] = dist < NEAR_FRACTION * measured[s][1]
     return pixels, near
 
 
@@ -87,20 +87,52 @@ def unique_pixels(pixels, width: int) -> np.ndarray:
     return np.stack([key // width, key % width], axis=1)
 
 
-def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
-    """((N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
-    of an emitter's `samples(u, v)` on a PROBES x PROBES grid of [0, 1]^2 (its outline included), and
-    the largest distance from a few of those points to the others (about the emitter's diameter))."""
+def probe_points(samples) -> np.ndarray:
+    """(PROBES^2, 3) an emitter's `samples(u, v)` on a PROBES x PROBES grid of [0, 1]^2 (its outline included)."""
     g = np.linspace(0.0, 1.0 - 1e-12, PROBES)
     u, v = np.meshgrid(g, g, indexing="ij")
-    points = samples(u.ravel(), v.ravel())[0]
+    return samples(u.ravel(), v.ravel())[0]
+
+
+def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
+    """((N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
+    of an emitter's `probe_points`, and the largest distance from a few of those points to the others
+    (about the emitter's diameter))."""
+    points = probe_points(samples)
+    return half_line_distances(points, origins, dirs), diameter(points)
+
+
+def nearest(samples, origins, dirs, k: int) -> tuple[np.ndarray, float]:
+    """`distances` of the half-lines that may be among the k nearest to the emitter's probe points, NaN
+    for the others: each of those is farther than k of them (its distance is within the radius r of
+    the points' bounding sphere of its distance to the sphere's centre, so one whose distance to the
+    centre less r is beyond the k-th smallest distance to the centre plus r is not among them)."""
+    points = probe_points(samples)
+    centre = points.mean(axis=0)
+    radius = np.linalg.norm(points - centre, axis=1).max()
+    to_centre = half_line_distances(centre[None], origins, dirs)
+    out = np.full(len(origins), np.nan)
+    maybe = np.arange(len(origins))
+    if len(origins) > k:
+        kth = np.partition(to_centre, k - 1)[k - 1] + radius
+        maybe = np.flatnonzero(to_centre - radius <= kth + 1e-9 * (kth + radius))  # a margin for rounding
+    out[maybe] = half_line_distances(points, origins[maybe], dirs[maybe])
+    return out, diameter(points)
+
+
+def half_line_distances(points, origins, dirs) -> np.ndarray:
+    """(N,) the distance from each half-line o + t d (t >= 0) to the nearest of `points` (P, 3)."""
     best = np.full(len(origins), np.inf)
     for p in points:
         rel = p[None, :] - origins
         t = np.maximum(np.einsum("ij,ij->i", rel, dirs), 0.0)
         best = np.minimum(best, np.linalg.norm(rel - t[:, None] * dirs, axis=1))
-    diameter = max(np.linalg.norm(points - p, axis=1).max() for p in points[:: PROBES + 1])
-    return best, diameter
+    return best
+
+
+def diameter(points) -> float:
+    """The largest distance from a few of `points` (every PROBES + 1-th) to the others."""
+    return max(np.linalg.norm(points - p, axis=1).max() for p in points[:: PROBES + 1])
 
 
 def agree(coarse, fine, tol, seen=0.0) -> np.ndarray:
