@@ -83,6 +83,33 @@ def reference_error(ref, se):
     return float(np.mean(np.sqrt(2.0 / np.pi) * se[mask] / ref[mask]))
 
 
+def mitsuba():
+    """(mi, dr, why) with Mitsuba's variant set (vs_mitsuba.choose_variant, `why` its reason), or None
+    (said) without mitsuba."""
+    if importlib.util.find_spec("mitsuba") is None:
+        print("mitsuba is not installed (pip install mitsuba): skipped")
+        return None
+    import drjit as dr
+    import mitsuba as mi
+
+    variant, why = choose_variant("auto")
+    mi.set_variant(variant)
+    return mi, dr, why
+
+
+def exported(mi, dr, folder: Path, width=None, height=None):
+    """(Mitsuba's scene, its XML file in `folder`): SCENE exported by us (at `width` x `height` where given)."""
+    import raytrace
+    from raytrace.io import mitsuba as mitsuba_io
+
+    raw, source, _ = raytrace.api.scene_dict(str(SCENE))
+    if width is not None:
+        raw["camera"].update(width=width, height=height)
+    xml = folder / "occluded.xml"
+    mitsuba_io.export(raw, xml, source, False)
+    return Mitsuba.from_file(mi, dr, xml), xml
+
+
 def size(text: str) -> tuple[int, int]:
     """(width, height) of "WxH"."""
     w, h = text.lower().split("x")
@@ -103,29 +130,19 @@ def main(argv=None):
     ap.add_argument("--reference-spp", type=int, default=1 << 20, help="Mitsuba's spp for the reference")
     ap.add_argument("--size", type=size, default=None, help="WxH: the image's width and height (default the scene's)")
     args = ap.parse_args(argv)
-    if importlib.util.find_spec("mitsuba") is None:
-        print("mitsuba is not installed (pip install mitsuba): skipped")
+    ready = mitsuba()
+    if ready is None:
         return 0
-    import drjit as dr
-    import mitsuba as mi
-
+    mi, dr, why = ready
     import raytrace
-    from raytrace.io import mitsuba as mitsuba_io
 
-    variant, why = choose_variant("auto")
-    mi.set_variant(variant)
     rounds = 1 if args.quick else args.rounds
     load_before = os.getloadavg()
     info = machine()
-
-    raw, source, _ = raytrace.api.scene_dict(str(SCENE))
-    if args.size is not None:
-        raw["camera"].update(width=args.size[0], height=args.size[1])
-    width, height = raw["camera"]["width"], raw["camera"]["height"]
+    width, height = args.size or (None, None)
     with tempfile.TemporaryDirectory() as tmp:
-        xml = Path(tmp) / "occluded.xml"
-        mitsuba_io.export(raw, xml, source, False)
-        theirs = Mitsuba.from_file(mi, dr, xml)
+        theirs, xml = exported(mi, dr, Path(tmp), width, height)
+        width, height = theirs.W, theirs.H
         ref, ref_se, ref_spp, ref_s = reference(theirs, mi, xml, args.reference_spp)
 
         def ours(method, **params):

@@ -24,7 +24,6 @@ over rounds; the machine's load average is printed before and after.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import statistics
 import sys
@@ -36,8 +35,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.area_peers import SCENE, TARGET, size, timed  # noqa: E402
-from benchmarks.vs_mitsuba import Mitsuba, choose_variant, machine, mre, time_to_error  # noqa: E402
+from benchmarks.area_peers import SCENE, TARGET, exported, mitsuba, size, timed  # noqa: E402
+from benchmarks.vs_mitsuba import machine, mre, time_to_error  # noqa: E402
 
 LADDER = (256, 1024, 4096)  # Mitsuba's spp
 OURS = (("analytic", {"precision": 1e-1}), ("quadrature", {"rtol": 1e-1}))
@@ -56,27 +55,18 @@ def main(argv=None):
     ap.add_argument("--sizes", type=size, nargs="+", default=[(32, 24), (64, 48), (128, 96)], help="WxH ...")
     ap.add_argument("--rounds", type=int, default=1)
     args = ap.parse_args(argv)
-    if importlib.util.find_spec("mitsuba") is None:
-        print("mitsuba is not installed (pip install mitsuba): skipped")
+    ready = mitsuba()
+    if ready is None:
         return 0
-    import drjit as dr
-    import mitsuba as mi
-
+    mi, dr, why = ready
     import raytrace
-    from raytrace.io import mitsuba as mitsuba_io
 
-    variant, why = choose_variant("auto")
-    mi.set_variant(variant)
     load_before = os.getloadavg()
     info = machine()
     rows = []
     for w, h in args.sizes:
-        raw, source, _ = raytrace.api.scene_dict(str(SCENE))
-        raw["camera"].update(width=w, height=h)
         with tempfile.TemporaryDirectory() as tmp:
-            xml = Path(tmp) / "occluded.xml"
-            mitsuba_io.export(raw, xml, source, False)
-            theirs = Mitsuba.from_file(mi, dr, xml)
+            theirs, _ = exported(mi, dr, Path(tmp), w, h)
 
         def ours(method, params, w=w, h=h):
             return raytrace.render(str(SCENE), method, volumetric_shadows=True, width=w, height=h, **params).array
