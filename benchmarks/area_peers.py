@@ -2,10 +2,12 @@
 relative error on the same scene and machine (docs/area_lights.md, "Against Mitsuba 3").
 
     pip install mitsuba                  # >= 3.5; exits 0 with a skip message without it
-    python benchmarks/area_peers.py [--quick] [--rounds N] [--reference-spp N]
+    python benchmarks/area_peers.py [--quick] [--rounds N] [--reference-spp N] [--size WxH]
 
-The scene: tests/data/area_peers/occluded.toml (32 x 24 pixels: a 1 x 1 quad light over a plate, its
-penumbra on a floor, a homogeneous isotropic fog), exported by us to Mitsuba (`volpath`, max_depth 2).
+The scene: tests/data/area_peers/occluded.toml (32 x 24 pixels, or --size: a 1 x 1 quad light over a
+plate, its penumbra on a floor, a homogeneous isotropic fog), exported by us to Mitsuba (`volpath`,
+max_depth 2). The reference's cost grows with the pixels (benchmarks/area_sizes.py compares sizes
+without it).
 Mitsuba: `llvm_ad_rgb` where libLLVM >= 16 is found, else `scalar_rgb` (said in the output;
 benchmarks/vs_mitsuba.py's `choose_variant`), at our pixel centres (its integrator's `sample()` on the
 sensor's ray of each centre; with `scalar_rgb`, `mi.render` through its box-filtered film, which is
@@ -81,6 +83,39 @@ def reference_error(ref, se):
     return float(np.mean(np.sqrt(2.0 / np.pi) * se[mask] / ref[mask]))
 
 
+def mitsuba():
+    """(mi, dr, why) with Mitsuba's variant set (vs_mitsuba.choose_variant, `why` its reason), or None
+    (said) without mitsuba."""
+    if importlib.util.find_spec("mitsuba") is None:
+        print("mitsuba is not installed (pip install mitsuba): skipped")
+        return None
+    import drjit as dr
+    import mitsuba as mi
+
+    variant, why = choose_variant("auto")
+    mi.set_variant(variant)
+    return mi, dr, why
+
+
+def exported(mi, dr, folder: Path, width=None, height=None):
+    """(Mitsuba's scene, its XML file in `folder`): SCENE exported by us (at `width` x `height` where given)."""
+    import raytrace
+    from raytrace.io import mitsuba as mitsuba_io
+
+    raw, source, _ = raytrace.api.scene_dict(str(SCENE))
+    if width is not None:
+        raw["camera"].update(width=width, height=height)
+    xml = folder / "occluded.xml"
+    mitsuba_io.export(raw, xml, source, False)
+    return Mitsuba.from_file(mi, dr, xml), xml
+
+
+def size(text: str) -> tuple[int, int]:
+    """(width, height) of "WxH"."""
+    w, h = text.lower().split("x")
+    return int(w), int(h)
+
+
 def timed(fn):
     """(result, wall seconds, process CPU seconds) of fn()."""
     w, c = time.perf_counter(), time.process_time()
@@ -93,31 +128,26 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="one round, shorter ladders")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--reference-spp", type=int, default=1 << 20, help="Mitsuba's spp for the reference")
+    ap.add_argument("--size", type=size, default=None, help="WxH: the image's width and height (default the scene's)")
     args = ap.parse_args(argv)
-    if importlib.util.find_spec("mitsuba") is None:
-        print("mitsuba is not installed (pip install mitsuba): skipped")
+    ready = mitsuba()
+    if ready is None:
         return 0
-    import drjit as dr
-    import mitsuba as mi
-
+    mi, dr, why = ready
     import raytrace
-    from raytrace.io import mitsuba as mitsuba_io
 
-    variant, why = choose_variant("auto")
-    mi.set_variant(variant)
     rounds = 1 if args.quick else args.rounds
     load_before = os.getloadavg()
     info = machine()
-
-    raw, source, _ = raytrace.api.scene_dict(str(SCENE))
+    width, height = args.size or (None, None)
     with tempfile.TemporaryDirectory() as tmp:
-        xml = Path(tmp) / "occluded.xml"
-        mitsuba_io.export(raw, xml, source, False)
-        theirs = Mitsuba.from_file(mi, dr, xml)
+        theirs, xml = exported(mi, dr, Path(tmp), width, height)
+        width, height = theirs.W, theirs.H
         ref, ref_se, ref_spp, ref_s = reference(theirs, mi, xml, args.reference_spp)
 
         def ours(method, **params):
-            return lambda: raytrace.render(str(SCENE), method, volumetric_shadows=True, **params).array
+            return lambda: raytrace.render(str(SCENE), method, volumetric_shadows=True, width=width, height=height,
+                                           **params).array
 
         settings = {}
         for tol in (1e-1, 1e-2, 1e-3):
@@ -142,7 +172,7 @@ def main(argv=None):
                 errors[key].append(mre(img, ref))
     load_after = os.getloadavg()
 
-    print(f"# occluded quad light, 32 x 24 pixels, target mean relative error {TARGET:g}")
+    print(f"# occluded quad light, {width} x {height} pixels, target mean relative error {TARGET:g}")
     print(f"machine: {info['cpu']}, {info['usable_cores']} usable cores, raytrace {info['raytrace_commit']}, "
           f"{info['date']}; load average before {load_before[0]:.2f} {load_before[1]:.2f}, after "
           f"{load_after[0]:.2f} {load_after[1]:.2f} (1 and 5 min)")

@@ -35,9 +35,9 @@ def test_ladder_and_pairs():
 
 def synthetic(exact, rates):
     """A pilot whose ray k's radiance at order n is exact_k (1 + n^-rates_k) (one cubature source)."""
-    def shade(orders):
+    def shade(orders, rays):
         n = orders[0]
-        return (exact * (1.0 + float(n) ** -rates))[:, None] * np.ones(3)
+        return (exact * (1.0 + float(n) ** -rates))[rays, None] * np.ones(3)
     return shade
 
 
@@ -59,9 +59,9 @@ def test_choose_stops_at_the_first_pair_that_agrees(tol):
 def test_choose_leaves_other_sources_alone():
     calls = []
 
-    def shade(orders):
+    def shade(orders, rays):
         calls.append(orders)
-        return np.ones((2, 3))
+        return np.ones((len(rays), 3))
 
     chosen, capped, _, _ = cubature.choose([None, (2, 4, 8)], [None, quad_rows], [None, np.zeros(2, bool)], shade, 1e-3)
     assert chosen == (None, 2) and capped == 0 and all(c[0] is None for c in calls)

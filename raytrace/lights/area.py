@@ -33,9 +33,15 @@ PROBE_INSET = 1e-6  # how far inside the outline (of the parameter range) the co
 
 
 def gauss_legendre(n: int):
-    """Gauss–Legendre nodes and weights on [0, 1] (weights sum to 1; exact for degree 2n - 1)."""
-    x, w = np.polynomial.legendre.leggauss(n)
+    """Gauss–Legendre nodes and weights on [0, 1] (weights sum to 1; exact for degree 2n - 1), new
+    arrays each call (numpy's on [-1, 1] computed once per n: an eigenvalue problem)."""
+    x, w = _leggauss(n)
     return 0.5 * (x + 1.0), 0.5 * w
+
+
+@functools.lru_cache(maxsize=None)
+def _leggauss(n: int):
+    return np.polynomial.legendre.leggauss(n)
 
 
 def frame(normal):

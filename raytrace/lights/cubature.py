@@ -25,7 +25,7 @@ PROBES = 17  # ... by their distance to PROBES x PROBES points of the emitter, i
 SHARE = 0.25  # the share of the method's precision the two orders must agree to
 MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light costs)
 NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
-FLOOR = 1e-13  # agreement relative to the largest pilot radiance below which rays are not told apart
+FLOOR = 1e-13  # agreement relative to the largest pilot radiance (`agree`) below which rays are not told apart
 AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
 LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
 
@@ -57,37 +57,82 @@ def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
     """(pixels (N, 2), near): the pilot's pixels (row, column), the GRID grid's and the NEAR pixels of
     the CANDIDATES grid (each pixel once: all of an image smaller than it) nearest to each emitter, and per source (None where `ladders[s]` is None) whether
     each of their rays passes within NEAR_FRACTION of its diameter of the emitter. `emitters[s]`: its
-    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions)."""
+    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions). Only the candidates that
+    may be among the NEAR nearest are measured (`nearest`), and a pilot pixel among those takes its
+    candidate ray's distance (the same number: each ray's is its own)."""
     sources = [s for s, l in enumerate(ladders) if l is not None]
-    cand = np.unique(grid(CANDIDATES, width, height), axis=0)  # an image smaller than the grid: each pixel once
+    cand = unique_pixels(grid(CANDIDATES, width, height), width)  # an image smaller than the grid: each pixel once
     o, d = rays_of(cand)
     picks = [grid(GRID, width, height)]
+    measured = {}
     for s in sources:
-        dist = distances(emitters[s].sample, o, d)[0]
-        picks.append(cand[np.argsort(dist, kind="stable")[:NEAR]])
-    pixels = np.unique(np.concatenate(picks), axis=0)
-    o, d = rays_of(pixels)
+        measured[s] = nearest(emitters[s].sample, o, d, NEAR)
+        picks.append(cand[np.argsort(np.nan_to_num(measured[s][0], nan=np.inf), kind="stable")[:NEAR]])
+    pixels = unique_pixels(np.concatenate(picks), width)
+    key, cand_key = pixels @ [width, 1], cand @ [width, 1]  # both sorted
+    at = np.minimum(np.searchsorted(cand_key, key), len(cand) - 1)
     near = [None] * len(ladders)
     for s in sources:
-        dist, diameter = distances(emitters[s].sample, o, d)
-        near[s] = dist < NEAR_FRACTION * diameter
+        dist = np.where(cand_key[at] == key, measured[s][0][at], np.nan)
+        afresh = np.isnan(dist)  # off the candidates (an image larger than them) or not measured there
+        if afresh.any():
+            dist[afresh] = half_line_distances(probe_points(emitters[s].sample), *rays_of(pixels[afresh]))
+        near[s] = dist < NEAR_FRACTION * measured[s][1]
     return pixels, near
+
+
+def unique_pixels(pixels, width: int) -> np.ndarray:
+    """The pixels (row, column) each once, in raster order."""
+    key = np.unique(pixels[:, 0] * width + pixels[:, 1])
+    return np.stack([key // width, key % width], axis=1)
+
+
+def probe_points(samples) -> np.ndarray:
+    """(PROBES^2, 3) an emitter's `samples(u, v)` on a PROBES x PROBES grid of [0, 1]^2 (its outline included)."""
+    g = np.linspace(0.0, 1.0 - 1e-12, PROBES)
+    u, v = np.meshgrid(g, g, indexing="ij")
+    return samples(u.ravel(), v.ravel())[0]
 
 
 def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
     """((N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
-    of an emitter's `samples(u, v)` on a PROBES x PROBES grid of [0, 1]^2 (its outline included), and
-    the largest distance from a few of those points to the others (about the emitter's diameter))."""
-    g = np.linspace(0.0, 1.0 - 1e-12, PROBES)
-    u, v = np.meshgrid(g, g, indexing="ij")
-    points = samples(u.ravel(), v.ravel())[0]
+    of an emitter's `probe_points`, and the largest distance from a few of those points to the others
+    (about the emitter's diameter))."""
+    points = probe_points(samples)
+    return half_line_distances(points, origins, dirs), diameter(points)
+
+
+def nearest(samples, origins, dirs, k: int) -> tuple[np.ndarray, float]:
+    """`distances` of the half-lines that may be among the k nearest to the emitter's probe points, NaN
+    for the others: each of those is farther than k of them (its distance is within the radius r of
+    the points' bounding sphere of its distance to the sphere's centre, so one whose distance to the
+    centre less r is beyond the k-th smallest distance to the centre plus r is not among them)."""
+    points = probe_points(samples)
+    centre = points.mean(axis=0)
+    radius = np.linalg.norm(points - centre, axis=1).max()
+    to_centre = half_line_distances(centre[None], origins, dirs)
+    out = np.full(len(origins), np.nan)
+    maybe = np.arange(len(origins))
+    if len(origins) > k:
+        kth = np.partition(to_centre, k - 1)[k - 1] + radius
+        maybe = np.flatnonzero(to_centre - radius <= kth + 1e-9 * (kth + radius))  # a margin for rounding
+    out[maybe] = half_line_distances(points, origins[maybe], dirs[maybe])
+    return out, diameter(points)
+
+
+def half_line_distances(points, origins, dirs) -> np.ndarray:
+    """(N,) the distance from each half-line o + t d (t >= 0) to the nearest of `points` (P, 3)."""
     best = np.full(len(origins), np.inf)
     for p in points:
         rel = p[None, :] - origins
         t = np.maximum(np.einsum("ij,ij->i", rel, dirs), 0.0)
         best = np.minimum(best, np.linalg.norm(rel - t[:, None] * dirs, axis=1))
-    diameter = max(np.linalg.norm(points - p, axis=1).max() for p in points[:: PROBES + 1])
-    return best, diameter
+    return best
+
+
+def diameter(points) -> float:
+    """The largest distance from a few of `points` (every PROBES + 1-th) to the others."""
+    return max(np.linalg.norm(points - p, axis=1).max() for p in points[:: PROBES + 1])
 
 
 def agree(coarse, fine, tol, seen=0.0) -> np.ndarray:
@@ -101,31 +146,41 @@ def choose(ladders, counts, near, shade, tol):
     """(the order of each source, emitters capped, near rays, rays whose last pair disagrees). Per source
     (scene lights, then emissive shapes): `ladders[s]` its orders (`ladder`; None: not a cubature of
     an emitter), `counts[s](order)` its rows, `near[s]` (N,) whether each pilot ray passes within
-    NEAR_FRACTION of the emitter's diameter of it; `shade(orders)` the pilot rays' radiance (N, 3) with
-    each source at its order (None where not a cubature); `tol` the method's precision. The other
-    rays choose the order (all of them where all are near); the rays where the chosen pair (the
-    finest, where capped) disagrees are counted as not converged, summed over the sources."""
+    NEAR_FRACTION of the emitter's diameter of it; `shade(orders, rays)` the radiance (len(rays), 3)
+    of the pilot rays `rays` (indices) with each source at its order (None where not a cubature); `tol`
+    the method's precision. The other rays choose the order (all of them where all are near), their
+    agreement floor relative to the largest of their own radiances; the near rays, which do not
+    choose, are shaded at the chosen pair only (the finest, where capped), where the rays that
+    disagree are counted as not converged (all pilot rays, the floor of their largest radiance),
+    summed over the sources."""
     base = tuple(None if l is None else l[0] for l in ladders)
     chosen, capped, n_near, stray = list(base), 0, 0, 0
     for s, orders in enumerate(ladders):
         if orders is None:
             continue
+        every = np.arange(len(near[s]))
+        decide = every[~near[s]] if not near[s].all() else every  # all near: they decide
+        rays = {"decide": decide, "rest": every[near[s]] if len(decide) < len(every) else every[:0]}
         memo = {}
 
-        def at(order):
-            if order not in memo:
-                memo[order] = shade(base[:s] + (order,) + base[s + 1:])
-            return memo[order]
+        def at(order, which):
+            if (order, which) not in memo:
+                memo[order, which] = shade(base[:s] + (order,) + base[s + 1:], rays[which])
+            return memo[order, which]
 
-        ok, decide = None, ~near[s] if not near[s].all() else near[s]  # all near: they decide
-        for coarse, fine in pairs(orders, counts[s]):
-            ok = agree(at(coarse), at(fine), SHARE * tol)
-            if ok[decide].all():
-                chosen[s] = coarse
+        last = None
+        for last in pairs(orders, counts[s]):
+            if agree(at(last[0], "decide"), at(last[1], "decide"), SHARE * tol).all():
+                chosen[s] = last[0]
                 break
         else:
             chosen[s] = orders[-1]
             capped += 1
         n_near += int(np.count_nonzero(near[s]))
-        stray += 0 if ok is None else int(np.count_nonzero(~ok))
+        if last is not None:
+            coarse, fine = (np.empty((len(every), 3)) for _ in range(2))
+            for out, order in zip((coarse, fine), last):
+                for which in ("decide", "rest") if len(rays["rest"]) else ("decide",):
+                    out[rays[which]] = at(order, which)
+            stray += int(np.count_nonzero(~agree(coarse, fine, SHARE * tol)))
     return tuple(chosen), capped, n_near, stray

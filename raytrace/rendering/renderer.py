@@ -153,12 +153,13 @@ def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict
     o, d = rays_of(pixels)
     keys = (pixels[:, 0] * cam.width + pixels[:, 1]).astype(np.uint64) * np.uint64(cam.spp)
 
+    @functools.lru_cache(maxsize=None)
     def with_orders(orders):
         return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders), _frusta=None,
                                    _through=None, _memo={}, _memo_lock=threading.Lock())
 
-    def shade(orders):
-        return shade_rays(with_orders(orders), method, params, o, d, keys, seed)[0]
+    def shade(orders, rays):
+        return shade_rays(with_orders(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
 
     orders, capped, n_near, stray = cubature.choose(ladders, counts, near, shade, tol)
     adapted = with_orders(orders)
@@ -349,16 +350,28 @@ def stats_size(method) -> int:
 WARM_UP_GRID = 8  # the warm-up traces the first sample of the pixels of an 8 x 8 grid over the image
 
 
+WARMED = set()  # (scene file, its size and time, method, parameters, shadows) warmed up in this process
+
+
 def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
     """Compile the method's kernels on a few rays (spread over the image, so that rays into a spot's
     cone or through a refracting surface are among them and the tiles compile nothing later);
-    returns the seconds it took."""
+    returns the seconds it took. Once per scene file (unchanged), method, parameters and `shadows` in
+    a process: a later render of the same compiles nothing."""
+    path = prep.scene.path
+    key = None if path is None or not os.path.isfile(path) else (
+        os.path.abspath(path), os.stat(path).st_size, os.stat(path).st_mtime_ns, method.name, repr(sorted(params.items())),
+        shadows)
+    if key in WARMED:
+        return 0.0
     start = time.perf_counter()
     cam, n = prep.scene.camera, WARM_UP_GRID
     ys, xs = np.meshgrid(np.arange(n) * cam.height // n, np.arange(n) * cam.width // n, indexing="ij")
     o, d = pixel_rays(cam, ys.ravel().astype(float), xs.ravel().astype(float), slice(0, 1))
     o, d = crossing.warm_up_rays(prep, o, d)  # and one at each shape holding a medium
     shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed, shadows)
+    if key is not None:
+        WARMED.add(key)
     return time.perf_counter() - start
 
 
