@@ -1,7 +1,8 @@
 """Compile time of the first render of every bundled scene, with an empty kernel cache.
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/compile_time.py [--profile] [--scenes a,b] [--tree DIR]
-                                                                       [--before DIR] [--runs N]
+                                                                       [--before DIR] [--runs N] [--cached W]
+                                                                       [--phases]
 
 One subprocess per scene (and one for the built-in default scene), each with `RAYTRACE_CACHE`
 pointed at a fresh empty folder, renders the scene through the command line at `--width` pixels
@@ -18,11 +19,19 @@ per scene on the 2-core machine of docs/benchmarks.md.
 compilation includes those of the functions it calls that were not compiled yet; a recursive one is
 counted once) and those with the largest exclusive time (without those nested compilations: typing
 and lowering its own code, and optimising and emitting its module, which holds a copy of every
-function it calls, so a deep chain of calls over one integrand pays for the integrand at each level). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
+function it calls, so a deep chain of calls over one integrand pays for the integrand at each level).
+--phases splits the compile CPU seconds, over all dispatchers, into numba's front end (type inference;
+lowering to LLVM IR; its other passes: bytecode, SSA, rewrites, inlining; dispatch) and LLVM's part
+(the IR printed and parsed, function passes, module passes over the module with its callees linked
+in, machine code), each without the phases nested in it (a callee compiled during its caller's type
+inference counts in its own phases). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
 e.g. an older commit's `git archive`, for before/after tables; --before DIR measures that checkout
 too, alternating with --tree's, scene by scene (paired runs: both see the same load), and --runs N
-repeats each measurement N times, giving every run's compile CPU seconds and their median. Scenes
-whose meshes come from `render.py assets` (sibenik, conference) run only when RAYTRACE_ASSETS is set.
+repeats each measurement N times, giving every run's compile CPU seconds and their median. --cached W
+then renders each scene again at W pixels wide in a second process on the same cache (its kernels all
+loaded from it): the CPU seconds of that render's `main` (warm render speed, to compare two checkouts
+like with like) and what it compiled (nothing, when the cache works). Scenes whose meshes come from
+`render.py assets` (sibenik, conference) run only when RAYTRACE_ASSETS is set.
 """
 import argparse
 import json
@@ -42,6 +51,41 @@ ASSET_SCENES = ("sibenik", "conference")  # scene.catalogue.ARCHIVES' scenes
 def scene_names(assets: bool) -> list[str]:
     names = sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
     return [DEFAULT] + [n for n in names if assets or n not in ASSET_SCENES]
+
+
+class Phases:
+    """Thread-CPU seconds per compile phase, each without the phases nested in it, by wrapping numba's
+    pass and code-library methods (this process only: a measurement, not a change to the kernels)."""
+    WRAPPED = (("core.codegen", "CPUCodeLibrary", "add_ir_module", "LLVM: IR printed and parsed"),
+               ("core.codegen", "CPUCodeLibrary", "_optimize_functions", "LLVM: function passes"),
+               ("core.codegen", "CPUCodeLibrary", "_optimize_final_module", "LLVM: module passes"),
+               ("core.codegen", "JITCodeLibrary", "_finalize_specific", "LLVM: machine code"),
+               ("core.typed_passes", "BaseTypeInference", "run_pass", "numba: type inference"),
+               ("core.typed_passes", "NativeLowering", "run_pass", "numba: lowering"),
+               ("core.compiler_machinery", "PassManager", "run", "numba: other passes"),
+               ("core.dispatcher", "_DispatcherBase", "_compile_for_args", "numba: dispatch"))
+
+    def __init__(self):
+        import importlib
+
+        self.seconds, self.stack = {}, []
+        for module, cls, attr, phase in self.WRAPPED:
+            owner = getattr(importlib.import_module(f"numba.{module}"), cls)
+            setattr(owner, attr, self._wrap(getattr(owner, attr), phase))
+
+    def _wrap(self, fn, phase):
+        def timed(*args, **kwargs):
+            start = time.thread_time()
+            self.stack.append(0.0)
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent = time.thread_time() - start
+                nested = self.stack.pop()
+                self.seconds[phase] = self.seconds.get(phase, 0.0) + spent - nested
+                if self.stack:
+                    self.stack[-1] += spent
+        return timed
 
 
 class Compiles:
@@ -64,9 +108,11 @@ class Compiles:
             self.events[self.stack.pop()]["end"] = now
 
 
-def worker(scene: str, width: int, out: Path) -> dict:
+def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
     """Render `scene` in this process (an empty cache set by the caller) and return the figures."""
     from numba.core import event as ev
+
+    split = Phases() if phases else None
 
     try:
         from raytrace.rendering import renderer
@@ -99,7 +145,9 @@ def worker(scene: str, width: int, out: Path) -> dict:
     args = ([] if scene == DEFAULT else [scene]) + ["--width", str(width), "--threads", "1", "--quiet",
                                                    "--out", str(out / "image.exr")]
     with ev.install_listener("numba:compile", Listener()):
+        main_cpu = time.process_time()
         status = main(args)
+        main_cpu = time.process_time() - main_cpu
     if status != 0:
         raise SystemExit(f"{scene}: render.py exited with {status}")
     top = [e for e in rec.events if e["depth"] == 0]
@@ -116,7 +164,8 @@ def worker(scene: str, width: int, out: Path) -> dict:
     return {"compile_cpu": sum(e["end"] - e["start"] for e in top), "compiled": len(rec.events),
             "late": sorted({e["name"] for e in top if e["phase"] == "late"}),
             "late_cpu": sum(e["end"] - e["start"] for e in top if e["phase"] == "late"),
-            "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system,
+            "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system, "main_cpu": main_cpu,
+            "phases": sorted(split.seconds.items(), key=lambda kv: -kv[1]) if split else [],
             "inclusive": sorted(inclusive.items(), key=lambda kv: -kv[1]),
             "exclusive": sorted(exclusive.items(), key=lambda kv: -kv[1]),
             "events": [(e["name"], e["end"] - e["start"], e["depth"], e["outer"][-1] if e["outer"] else "", e["phase"],
@@ -124,14 +173,22 @@ def worker(scene: str, width: int, out: Path) -> dict:
                        for e in rec.events]}
 
 
-def measure(scene: str, width: int, tree: Path) -> dict:
+def measure(scene: str, width: int, tree: Path, cached: int | None = None, phases: bool = False) -> dict:
+    """The worker's figures for `scene` on an empty cache; with `cached`, those of a second render at
+    `cached` pixels wide on the cache the first filled, under "cached"."""
     with tempfile.TemporaryDirectory(prefix="compile_time_") as tmp:
         env = dict(os.environ, RAYTRACE_CACHE=str(Path(tmp) / "cache"), PYTHONPATH=str(tree))
-        cmd = [sys.executable, __file__, "--worker", scene, "--width", str(width), "--out", tmp]
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SystemExit(f"{scene}: worker failed\n{proc.stderr[-3000:]}")
-        return json.loads(proc.stdout.splitlines()[-1])
+        runs = []
+        for w in [width] + ([cached] if cached else []):
+            cmd = [sys.executable, __file__, "--worker", scene, "--width", str(w), "--out", tmp] + \
+                (["--phases"] if phases and not runs else [])
+            proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise SystemExit(f"{scene}: worker failed\n{proc.stderr[-3000:]}")
+            runs.append(json.loads(proc.stdout.splitlines()[-1]))
+        if cached:
+            runs[0]["cached"] = {k: runs[1][k] for k in ("main_cpu", "compiled", "compile_cpu")}
+        return runs[0]
 
 
 def main():
@@ -143,15 +200,18 @@ def main():
     ap.add_argument("--tree", type=Path, default=ROOT, help="the checkout whose raytrace is measured")
     ap.add_argument("--before", type=Path, help="also measure this checkout, alternating with --tree (paired)")
     ap.add_argument("--runs", type=int, default=1, help="measurements per scene and checkout (default 1)")
+    ap.add_argument("--cached", type=int, metavar="W",
+                    help="then render each scene W pixels wide on the filled cache: its CPU s and compiles")
+    ap.add_argument("--phases", action="store_true", help="the compile CPU seconds per phase (numba, LLVM)")
     ap.add_argument("--json", type=Path, help="also write the figures here")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
-        print(json.dumps(worker(args.worker, args.width, args.out)))
+        print(json.dumps(worker(args.worker, args.width, args.out, args.phases)))
         return
     names = args.scenes.split(",") if args.scenes else scene_names(bool(os.environ.get("RAYTRACE_ASSETS")))
-    if args.before or args.runs > 1:
+    if args.before or args.runs > 1 or args.cached:
         return paired(names, args)
     print(f"# tree {args.tree.resolve()}, width {args.width}, load {' '.join(f'{x:.1f}' for x in os.getloadavg())}, "
           f"{os.cpu_count()} cores")
@@ -159,11 +219,16 @@ def main():
     print("|---|---|---|---|---|---|")
     results = {}
     for name in names:
-        r = results[name] = measure(name, args.width, args.tree)
+        r = results[name] = measure(name, args.width, args.tree, phases=args.phases)
         late = f"{len(r['late'])} ({r['late_cpu']:.1f} s: {', '.join(r['late'])})" if r["late"] else "0"
         print(f"| {name} | {r['compile_cpu']:.1f} | {r['compiled']} | {late} | {r['warm_wall']:.1f} | "
               f"{r['process_cpu']:.1f} |", flush=True)
     print(f"# load after {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
+    if args.phases:
+        for name, r in results.items():
+            print(f"\n{name}: compile CPU s per phase, {sum(s for _, s in r['phases']):.1f} in all")
+            for phase, sec in r["phases"]:
+                print(f"  {sec:6.2f}  {phase}")
     if args.profile:
         for name, r in results.items():
             print(f"\n{name}: top dispatchers by compile CPU s, inclusive | exclusive")
@@ -175,25 +240,30 @@ def main():
 
 def paired(names: list[str], args):
     """Per scene, `args.runs` rounds of (before, then tree): every run's compile CPU seconds, their
-    median and the compiled specialisations."""
+    median and the compiled specialisations; with --cached, every run's render CPU seconds on the
+    filled cache and what it compiled."""
     trees = ([("before", args.before)] if args.before else []) + [("now", args.tree)]
     print(f"# {', '.join(f'{k} {t.resolve()}' for k, t in trees)}; width {args.width}, {args.runs} runs each, "
           f"{os.cpu_count()} cores")
-    head = " | ".join(f"compile CPU s, {k} (runs) | median | compiled" for k, _ in trees)
+    cached = f" | cached render CPU s ({args.cached} px) | compiled" if args.cached else ""
+    head = " | ".join(f"compile CPU s, {k} (runs) | median | compiled{cached}" for k, _ in trees)
     print(f"| scene | {head} |")
-    print("|---" * (1 + 3 * len(trees)) + "|")
+    print("|---" * (1 + (5 if args.cached else 3) * len(trees)) + "|")
     results = {}
     for name in names:
         runs = {k: [] for k, _ in trees}
         for _ in range(args.runs):
             for k, tree in trees:
-                runs[k].append(measure(name, args.width, tree))
+                runs[k].append(measure(name, args.width, tree, args.cached))
         results[name] = runs
         cells = []
         for k, _ in trees:
             cpu = statistics.median(r["compile_cpu"] for r in runs[k])
             each = ", ".join(f"{r['compile_cpu']:.1f}" for r in runs[k])
             cells.append(f"{each} | {cpu:.1f} | {runs[k][0]['compiled']}")
+            if args.cached:
+                cells.append(", ".join(f"{r['cached']['main_cpu']:.2f}" for r in runs[k]) + " | "
+                             + ", ".join(str(r["cached"]["compiled"]) for r in runs[k]))
         print(f"| {name} | {' | '.join(cells)} |", flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))

@@ -14,7 +14,9 @@ NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy
 (analytic's moment recurrences run side by side over a tile's segments, `cosine_moments_lanes`).
 
 ``jitable`` and ``exact_jitable``: the same flags for small helpers that kernels call with constant
-arguments, compiled once per argument type rather than once per constant.
+arguments, compiled once per argument type rather than once per constant. ``OPTIONS``: ``njit``'s
+flags without its cache, for the overloads that compile a registered kernel's own code into its
+callers (media/integrand.py's record dispatch).
 """
 import functools
 import os
@@ -59,7 +61,8 @@ if SourceKeyedLocator not in _Impl._locator_classes:
 
 # no_cfunc_wrapper: no C-callable wrapper per compiled function (it serves only first-class function
 # arguments, which no kernel takes): about 10 ms less compile per function, the kernels' code unchanged
-njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=set(FASTMATH), no_cfunc_wrapper=True)
+OPTIONS = dict(nogil=True, fastmath=set(FASTMATH), no_cfunc_wrapper=True)  # njit's flags, less its cache
+njit = functools.partial(numba.njit, cache=True, **OPTIONS)
 # fastmath=False explicitly: a kernel whose flags leave fastmath unset inherits its caller's when a fastmath
 # kernel compiles it first (numba's ConfigStack), and keeps those flags for every later caller
 exact_njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=False, error_model="numpy",
@@ -68,5 +71,5 @@ exact_njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=Fals
 # typed on its arguments' non-literal types first, so it compiles once per array type, where a dispatcher
 # compiles once per constant (numba types a constant argument as Literal[int]); it has no cache of its
 # own (it is compiled into its callers, which are cached)
-jitable = register_jitable(fastmath=set(FASTMATH), nogil=True, no_cfunc_wrapper=True)
+jitable = register_jitable(**OPTIONS)
 exact_jitable = register_jitable(fastmath=False, error_model="numpy", nogil=True, no_cfunc_wrapper=True)

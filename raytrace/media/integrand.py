@@ -6,12 +6,17 @@ A record is a NamedTuple. `record_dispatch(stub, at)` makes numba dispatch the p
 the decorator that registers an njit implementation for one class. The integrators therefore import
 none of the modules that define records, numba caches them (no first-class function arguments),
 and a record class without an implementation is a compile-time error (a numba TypingError), never
-a fall-through to another record's code.
+a fall-through to another record's code. The overload's implementation is the registered function's
+own Python code, compiled with `jit.njit`'s flags (which a registered function must have) once per
+argument types, and a caller calls it directly: no forwarding function between them, which would be
+compiled too and whose module would optimise the integrand once more (tests/test_compile_specialisations.py).
 
 `integrand(x, rec)`: the value at x of the integrand a record names, registered with `integrand_of`.
 """
 from numba.core.errors import TypingError
 from numba.extending import overload
+
+from ..jit import OPTIONS
 
 
 def record_dispatch(stub, at):
@@ -19,16 +24,17 @@ def record_dispatch(stub, at):
     decorator that makes an njit function (with stub's arguments) the implementation for cls."""
     impls = {}
 
-    @overload(stub)
+    @overload(stub, jit_options=OPTIONS, strict=False)
     def _dispatch(*args):
         impl = impls.get(getattr(args[at], "instance_class", None))
         if impl is None:
             raise TypingError(f"{stub.__name__}: nothing is registered for {args[at]} (media/integrand.py)")
-        return lambda *args: impl(*args)
+        return impl.py_func
 
     def register(cls):
         def decorate(fn):
             assert cls not in impls, f"{stub.__name__} is already registered for {cls.__name__}"
+            assert all(fn.targetoptions.get(k) == v for k, v in OPTIONS.items()), f"{fn}: not jit.njit's flags"
             impls[cls] = fn
             return fn
         return decorate
