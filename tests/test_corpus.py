@@ -60,7 +60,6 @@ REFUSES = {
            '"texture reflectance" is type texture', 'Material "conductor" is not read'],
     "mitsuba-data/scenes/cbox/cbox.xml": ["a spectrum sampled at wavelengths is not read"] * 6,  # (the 6th: radiance)
     "mitsuba-tutorials/cbox.xml": ["conductor bsdfs are not read"],
-    SPHERE_LIGHT: ["roughplastic bsdfs are not read"],
     MEDIA + "test_hetero_sigmat_albedo_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
     MEDIA + "test_hetero_sigmat_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
     MEDIA + "test_hetero_spectral_sigmat_no_scattering_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media",
@@ -70,13 +69,13 @@ REFUSES = {
     MEDIA + "test_homo_dielectric_envmap_volpath.xml": [ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
     MEDIA + "test_homo_emitter_inside_medium_volpath.xml": [CHECKER, ENVMAP, "thindielectric", "thindielectric",
                                                             "torus1.obj", "a spectrum sampled at wavelengths",
-                                                            "roughplastic"],
+                                                            "torus2.obj"],
     MEDIA + "test_homo_null_envmap_volpath.xml": [CHECKER, ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
     MEDIA + "test_homo_obj_inside_medium_volpath.xml": [CHECKER, ENVMAP, "thindielectric", "thindielectric",
-                                                        "roughplastic", "torus2.obj"],
+                                                        "torus1.obj", "torus2.obj"],
     MEDIA + "test_homo_roughdielectric_spot_volpath.xml": ["roughdielectric bsdfs"] * 2,
     MEDIA + "test_homo_spectral_sigmat_volpathmis.xml": [CHECKER, ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
-    MEDIA + "test_surf_area_light_volpath.xml": [CHECKER, ENVMAP, "plastic bsdfs", "roughplastic"],
+    MEDIA + "test_surf_area_light_volpath.xml": [CHECKER, ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
 }
 # read whole, with lights of the kinds the lights issue adds: file -> (camera's vertical fov, the notes expected)
 AREA_LIGHTS = {
@@ -87,6 +86,7 @@ AREA_LIGHTS = {
     "mitsuba-data/scenes/cbox/cbox-rgb.xml": (39.3077, []),
     "houdini-pbrt-v4/TestShapes/test_loopsubdiv.pbrt": (HOUDINI_FOV, ["orthonormal to 0.00012"]),
     "houdini-pbrt-v4/TestShapes/test_loopsubdiv_levels.pbrt": (HOUDINI_FOV, ["orthonormal to 0.00012"]),
+    SPHERE_LIGHT: (26.0, ["roughplastic read as diffuse of its diffuse_reflectance"]),
 }
 
 

@@ -305,7 +305,7 @@ BOMB = """<?xml version="1.0"?>
     ('<shape type="sphere"><boolean name="flip_normals" value="true"/><emitter type="area"/></shape>',
      "a sphere emitting inward is not read"),
     ('<shape type="serialized"/>', "serialized shapes are not read"),
-    ('<shape type="cube"><bsdf type="plastic"/></shape>', "plastic bsdfs are not read"),
+    ('<shape type="cube"><bsdf type="roughconductor"/></shape>', "roughconductor bsdfs are not read"),
     ('<shape type="cube"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"/></bsdf></shape>',
      "textured reflectance"),
     ('<shape type="obj"><string name="filename" value="missing.obj"/></shape>', "missing.obj' not found"),
@@ -540,9 +540,9 @@ def test_shape_geometry_matches_mitsuba(mi, tmp_path):
 
 def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
     """Every unsupported element and parameter at once, after a line that counts them (a Cornell box:
-    a spot emitter in a shape, a plastic bsdf, an envmap whose file is missing, two parameters not read)."""
+    a spot emitter in a shape, a conductor bsdf, an envmap whose file is missing, two parameters not read)."""
     body = (SENSOR.format(axis="x").replace("<transform", '<float name="lens" value="1"/><transform')
-            + '<shape type="cube"><emitter type="spot"/><bsdf type="plastic"/></shape>'
+            + '<shape type="cube"><emitter type="spot"/><bsdf type="conductor"/></shape>'
             '<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>'
             '<shape type="sphere"><float name="radiuss" value="1"/><float name="radiusss" value="1"/></shape>'
             '<emitter type="point"><point name="position" value="0, 1, 0"/></emitter>')
@@ -551,7 +551,7 @@ def test_a_refused_file_lists_all_its_problems_in_one_run(tmp_path):
     lines = str(err.value).splitlines()
     assert lines[0] == f"{tmp_path / 'scene.xml'}: 6 problems, one a line with its fix"
     for line, part in zip(lines[1:], ["parameter 'lens'", "a spot emitter inside a shape is not read",
-                                      "plastic bsdfs are not read", "envmap file 'sky.exr' not found",
+                                      "conductor bsdfs are not read", "envmap file 'sky.exr' not found",
                                       "parameter 'radiuss'", "parameter 'radiusss'"]):
         assert re.match(re.escape(str(tmp_path / 'scene.xml')) + r":\d+: <", line) and part in line and "; " in line, (line, part)
     assert len(lines) == 7
@@ -562,3 +562,22 @@ def test_export_refusal_mentions_approximate(tmp_path):
     raw["render"] = {"volumetric_shadows": False}
     with pytest.raises(UserError, match=r"or pass --approximate to write shadowed"):
         exported(tmp_path, raw)
+
+
+@pytest.mark.parametrize("kind", ["plastic", "roughplastic"])
+def test_coated_bsdfs_are_read_as_their_diffuse_base(tmp_path, kind):
+    """Mitsuba's plastic and roughplastic (a diffuse base under a dielectric coat) become diffuse
+    surfaces of their diffuse_reflectance (default 0.5), inside twosided too, with a note naming the line
+    (the same note once); their coat's parameters are accepted and not rendered."""
+    body = (SENSOR.format(axis="x")
+            + f'<shape type="cube"><bsdf type="{kind}"><rgb name="diffuse_reflectance" value="0.2, 0.3, 0.4"/>'
+            '<float name="int_ior" value="1.9"/><rgb name="specular_reflectance" value="0.5"/></bsdf></shape>'
+            f'<shape type="sphere"><bsdf type="twosided"><bsdf type="{kind}"/></bsdf></shape>'
+            '<emitter type="point"><point name="position" value="0, 1, 0"/></emitter>')
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        raw = mitsuba.read_scene(write(tmp_path, body))
+    notes = [str(w.message) for w in said if issubclass(w.category, mitsuba.MitsubaNote)]
+    assert len(notes) == 1 and re.search(rf"scene.xml:\d+: <bsdf type=\"{kind}\">: {kind} read as diffuse of its "
+                                         "diffuse_reflectance; ", notes[0]), notes
+    assert [s["reflectance"] for s in raw["shape"]] == [[0.2, 0.3, 0.4], 0.5]

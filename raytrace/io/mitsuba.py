@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import UserError
 from . import emitters
 from .meshfile import read_mesh
-from .report import Problems, every
+from .report import ImportNote, Problems, every, warn
 
 # Mitsuba's named indices of refraction (include/mitsuba/render/ior.h: Hecht, Optics, at ~589 nm)
 IOR = {"vacuum": 1.0, "helium": 1.000036, "hydrogen": 1.000132, "air": 1.000277, "carbon dioxide": 1.00045,
@@ -45,6 +45,9 @@ INTERIOR_SEGMENTS = 64  # the mesh of a curved shape holding a medium (an exact 
 
 
 # ------------------------------------------------------------------------------------------- reading
+
+COATED = ("plastic", "roughplastic")  # read as their diffuse base, with a note
+
 
 class _Doc:
     """The parsed XML files: every element's file and line, ids, `$name` parameters, the include stack."""
@@ -400,9 +403,14 @@ def _similarity(M):
     return s, bool(np.allclose(L.T @ L, s * s * np.eye(3), rtol=0, atol=1e-9 * s * s))
 
 
+class MitsubaNote(ImportNote):
+    """What the Mitsuba reader approximates, one line each (docs/formats/mitsuba.md)."""
+
+
 class _Reader:
     def __init__(self, path: Path, problems: Problems):
         self.path, self.problems = path, problems
+        self.notes: list[str] = []  # what is read approximately (`read_scene` warns)
         self.doc = _Doc()
         self.top = self.doc.load(path)
         self.doc.collect_ids(self.top)
@@ -836,14 +844,25 @@ class _Reader:
             if len(inner) != 1:
                 doc.fail(el, "twosided with two different bsdfs is not read", "give twosided one diffuse bsdf")
             p.done()
-            if inner[0].get("type") != "diffuse":
-                doc.fail(inner[0], "twosided wraps a diffuse bsdf here", 'use <bsdf type="diffuse"> inside')
+            if inner[0].get("type") not in ("diffuse",) + COATED:
+                doc.fail(inner[0], "twosided wraps a diffuse, plastic or roughplastic bsdf here",
+                         'use <bsdf type="diffuse"> inside')
             return self.bsdf(inner[0], shape)
         if kind == "diffuse":
             rho = p.colour("reflectance", 0.5)
             p.done()
             if np.any(rho < 0) or np.any(rho > 1):
                 doc.fail(el, "reflectance must be in [0, 1]", "fix the reflectance")
+            return _channels(rho), None
+        if kind in COATED:  # a diffuse base under a dielectric coat (plastic.cpp, roughplastic.cpp)
+            rho = p.colour("diffuse_reflectance", 0.5)
+            p.done(ignored=("specular_reflectance", "int_ior", "ext_ior", "nonlinear", "distribution", "alpha",
+                            "sample_visible"))
+            if np.any(rho < 0) or np.any(rho > 1):
+                doc.fail(el, "diffuse_reflectance must be in [0, 1]", "fix the diffuse_reflectance")
+            self.notes.append(doc.message(el, f"{kind} read as diffuse of its diffuse_reflectance",
+                                          "surfaces here are Lambertian: its specular coat (a highlight that "
+                                          "also dims the base) is not rendered"))
             return _channels(rho), None
         if kind == "null":
             p.done()
@@ -852,7 +871,7 @@ class _Reader:
             ior = [self.ior(p, k, d) for k, d in (("int_ior", "bk7"), ("ext_ior", "air"))]
             p.done(ignored=("specular_reflectance", "specular_transmittance"))
             return None, {"ior": ior[0] / ior[1]}
-        doc.fail(el, f"{kind} bsdfs are not read", "use diffuse, twosided, null or dielectric")
+        doc.fail(el, f"{kind} bsdfs are not read", "use diffuse, plastic, roughplastic, twosided, null or dielectric")
 
     def ior(self, p, key, default):
         child = p.values.get(key)
@@ -894,11 +913,13 @@ def _triangles(v, f, M) -> dict:
 def read_scene(path: Path) -> dict:
     """The scene dict of a Mitsuba 3 XML file (docs/formats/mitsuba.md); UserError on what is not read."""
     problems = Problems(str(path))
+    reader = _Reader(Path(path), problems)
     try:
-        out = _Reader(Path(path), problems).scene()
+        out = reader.scene()
     except UserError as exc:  # malformed XML, a missing include: reading stops there
         problems.check(fatal=exc)
     problems.check()
+    warn(list(dict.fromkeys(reader.notes)), MitsubaNote)
     return out
 
 
