@@ -17,14 +17,20 @@ m' = (rho d - s e) / N, w = d x e), split where s(n) is a segment end, so F is s
   pass through the two corners where n_d = 0 and n·e = R / rho, which cut each circle into the arc
   where n_d > 0 (lit by the points beyond s(n)) and the arc where n_d < 0 (lit by those before); parts
   (gamma in [-pi/2, gamma0], [gamma0, gamma1] on the first arc, [gamma0, gamma1], [gamma1, pi/2] on the
-  second; gamma0, gamma1 of the segment's ends), Gauss–Legendre in gamma and along each arc;
+  second; gamma0, gamma1 of the segment's ends), Gauss–Legendre in gamma (`order` nodes) and along each
+  half of each arc ((order + 1) // 2 nodes);
 - the line meets the sphere (rho <= R): the circles are nested about the points where it enters and
   leaves the sphere (circles of angular radius beta: s = -+sqrt(h^2 + R^2 tan^2 beta), h =
   sqrt(R^2 - rho^2)); the side before the sphere (n_d < 0) is lit by the points of the segment before
   s(n), the side after it (n_d > 0) by those after; each side split at a segment end's beta,
   `planar.graded` in beta from the entry (exit) point, where a segment that ends on the sphere has a
-  1 / |n - n_end| singularity (the Jacobian ~ beta cancels it), psi equally spaced (periodic).
-Normals on no part are those that no point of the segment sees (F = 0 there).
+  1 / |n - n_end| singularity (the Jacobian ~ beta cancels it), Gauss–Legendre along each half of each
+  circle (`order` nodes: the circles' Jacobian varies faster along them near the silhouette).
+Normals on no part are those that no point of the segment sees (F = 0 there). Rays that pass or end
+near the silhouette concentrate their light near the normal e of the ray's closest approach, so the
+nodes along each circle crowd toward its point nearest e, psi_c: psi = psi_c +- a lam sinh(v asinh(1 /
+lam)) on each half (v Gauss–Legendre in [0, 1], a the half's length, lam the circle's distance from e
+plus |rho - R| / R, over its radius and a, at most 1).
 """
 from __future__ import annotations
 
@@ -53,14 +59,15 @@ class Ball:
     def rule(self, origins, dirs, tmax, order: int):
         """(points (M, 3), unit normals (M, 3), area weights (M,), owner (M,): the segment of each node)
         over the normals seen by the segments o + t d, 0 <= t <= tmax (origins outside the sphere,
-        unit dirs), `order` nodes in the circle's parameter by 2 `order` along each circle per part."""
+        unit dirs), of `order` (module docstring)."""
         R = self.radius
         q = origins - self.centre
         s0 = np.einsum("ij,ij->i", q, dirs)
         perp = q - s0[:, None] * dirs
         rho = np.linalg.norm(perp, axis=1)
-        e = np.where(rho[:, None] > 1e-12 * R, perp / np.maximum(rho, 1e-300)[:, None],
-                     np.array([-perpendicular(d) for d in dirs]).reshape(-1, 3))
+        e = perp / np.maximum(rho, 1e-300)[:, None]
+        for i in np.nonzero(rho <= 1e-12 * R)[0]:  # a ray through the centre: any e across it
+            e[i] = -perpendicular(dirs[i])
         w = np.cross(dirs, e)
         s1 = s0 + tmax
         parts = _pencil_parts(R, rho, s0, s1)  # (P, PARTS) each: kind, lo, hi, side
@@ -156,7 +163,7 @@ def _nodes(R, rho, lo, hi, side, elliptic: bool, order: int, d, e, w):
     half = np.where(side[:, None] > 0.0, psi_k, np.pi - psi_k) if elliptic else np.full_like(p, np.pi)
     half = half[..., None]  # (P, order, 1): half the arc (of the whole circle)
     lam = np.clip(width[..., None] / half, TINY, 1.0)
-    v, wv = gauss_legendre(order)
+    v, wv = gauss_legendre((order + 1) // 2 if elliptic else order)  # per half (module docstring)
     v, wv = np.concatenate([-v[::-1], v]), np.concatenate([wv[::-1], wv])  # the two halves
     stretch = np.arcsinh(1.0 / lam)
     psi = psi_c + np.sign(v) * half * lam * np.sinh(np.abs(v) * stretch)
