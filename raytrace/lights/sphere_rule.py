@@ -43,6 +43,7 @@ from .area import gauss_legendre
 from .planar import graded
 
 PARTS = 4  # a segment's parts at most (module docstring)
+FIRST = 4  # the coarsest order a render's ladder takes: below it two orders can agree and both be wrong
 TINY = 1e-9  # the narrowest crowding along a circle (of its arc)
 
 

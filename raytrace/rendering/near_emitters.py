@@ -19,7 +19,7 @@ A sphere emitter's rows meet a kink along the horizon of each of a segment's poi
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
 camera ray the sphere shines on from outside it, not only near ones, its rows are replaced the same
 way by a rule about the segment (`sphere_rule.Ball.rule`: the pencil of the segment's horizons, split
-at its ends), counted among the rays near an emitter.
+at its ends), its ladder from sphere_rule.FIRST, counted among the rays near an emitter.
 """
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ import numpy as np
 
 from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
+from ..lights.sphere_rule import FIRST
 from ..shadows.penumbra_airlight import LIT, emitter_states, lit_states, per_group, point_segments, spot_rows
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
@@ -73,8 +74,9 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
         em = lights.emitters[e]
-        rule = _ball_rule(em.ball, rays, rs) if em.ball is not None else _planar_rule(em.planar, feet[e][rs])
-        value, stray = _ladder(em, rule, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
+        rule, orders = ((_ball_rule(em.ball, rays, rs), ORDERS[ORDERS.index(FIRST):]) if em.ball is not None
+                        else (_planar_rule(em.planar, feet[e][rs]), ORDERS))
+        value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
     return kept, air, stats, near.any(axis=1)
@@ -105,16 +107,16 @@ def _ball_rule(ball, rays, rs):
     return rule
 
 
-def _ladder(emitter, rule, method, medium, params, tol, rs, rays, scale, seen):
+def _ladder(emitter, rule, orders, method, medium, params, tol, rs, rays, scale, seen):
     """((P, 3) the air-light of `emitter` along camera rays `rs` by its `rule` (`_planar_rule`,
-    `_ball_rule`), the number of rays whose last two orders disagree; `seen` (P, 3) the rays' other
-    radiance)."""
+    `_ball_rule`) at `orders` in turn, the number of rays whose last two orders disagree; `seen` (P, 3)
+    the rays' other radiance)."""
     if tol is None:
         return _value(emitter, rule, method, medium, params, np.arange(len(rs)), rs, rays, scale, DEFAULT_ORDER), 0
     out = np.zeros((len(rs), 3))
     todo = np.arange(len(rs))
-    coarse = _value(emitter, rule, method, medium, params, todo, rs, rays, scale, ORDERS[0])
-    for order in ORDERS[1:]:
+    coarse = _value(emitter, rule, method, medium, params, todo, rs, rays, scale, orders[0])
+    for order in orders[1:]:
         fine = _value(emitter, rule, method, medium, params, todo, rs[todo], rays, scale, order)
         ok = agree(coarse, fine, SHARE * tol, seen[todo])
         out[todo] = fine
