@@ -213,15 +213,23 @@ class Sphere:
         return -b - math.sqrt(disc), True
 
     def irradiance(self, x, kt):
-        """The visible cap (cos beta >= R / d about the axis toward x), integrated in beta."""
+        """The visible cap (cos beta >= R / d about the axis toward x), integrated in beta (the distance
+        and the falloff in their forms without cancellation near the surface, the cap split at beta ~
+        (d - R) / R where the integrand peaks there; 0 on the sphere and inside it)."""
         d = np.linalg.norm(x - self.c)
         R = self.R
+        if d <= R:
+            return 0.0
 
         def f(beta):
-            r = math.sqrt(d * d + R * R - 2 * d * R * math.cos(beta))
-            return (d * math.cos(beta) - R) / r * math.exp(-kt * r) / r**2 * 2 * math.pi * R * R * math.sin(beta)
+            half = math.sin(0.5 * beta) ** 2
+            r = math.sqrt((d - R) ** 2 + 4.0 * d * R * half)
+            return ((d - R) - 2.0 * d * half) / r * math.exp(-kt * r) / r**2 * 2 * math.pi * R * R * math.sin(beta)
 
-        return self.L * integrate.quad(f, 0.0, math.acos(R / d), epsabs=0.0, epsrel=1e-12, limit=200)[0]
+        top = math.acos(R / d)
+        cuts = [0.0] + [b for b in (10.0 * (d - R) / R,) if b < top] + [top]
+        return self.L * sum(integrate.quad(f, a, b, epsabs=0.0, epsrel=1e-12, limit=200)[0]
+                            for a, b in zip(cuts, cuts[1:]))
 
 
 def radiance(emitter, o, w, kt, ks):

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from . import area
+from .sphere_rule import Ball
 
 NAME = "sphere"
 CODE = 5
@@ -53,6 +54,11 @@ def sample_emitter(light, u, v):
     normals = np.stack([s * np.cos(phi), z, s * np.sin(phi)], axis=1)
     points = light.position + light.emitter["radius"] * normals
     return points, normals, area.uniform_density(len(u), light.emitter["area"])
+
+
+def ball(light) -> Ball:
+    """The emitter as the rule about a camera ray's segment needs it (sphere_rule.py)."""
+    return Ball(np.asarray(light.position, float), float(light.emitter["radius"]))
 
 
 def shape(light):

@@ -14,6 +14,12 @@ where none agree the finest, counted). Methods without a precision take DEFAULT_
 With volumetric shadows the rule replaces the rows only where all of the emitter's rows are lit along
 the whole ray (`penumbra_airlight`'s states); where occluders shadow them the rows (or the penumbra's
 samples) stay. `montecarlo` keeps the rows (it samples them).
+
+A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
+the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
+camera ray the sphere shines on from outside it, not only near ones, its rows are replaced the same
+way by a rule about the segment (`sphere_rule.Ball.rule`: the pencil of the segment's horizons, split
+at its ends), its ladder from sphere_rule.FIRST, counted among the rays near an emitter.
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ import numpy as np
 
 from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
+from ..lights.sphere_rule import FIRST
 from ..shadows.penumbra_airlight import LIT, emitter_states, lit_states, per_group, point_segments, spot_rows
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
@@ -29,8 +36,10 @@ STATS_NAMES = ("rays near an emitter", "rays near an emitter not converged")
 
 
 def applies(lights, method) -> bool:
-    """Whether a render has flat emitters whose near rays a deterministic method integrates so."""
-    return not method.stochastic and any(e is not None and e.planar is not None for e in lights.emitters)
+    """Whether a render has flat emitters whose near rays, or sphere emitters whose rays, a deterministic
+    method integrates so."""
+    return not method.stochastic and any(e is not None and (e.planar is not None or e.ball is not None)
+                                         for e in lights.emitters)
 
 
 def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen):
@@ -45,6 +54,8 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     near = np.zeros((n, n_e), bool)
     feet = {}
     for e, em in enumerate(lights.emitters):
+        if em is not None and em.ball is not None:
+            near[:, e] = em.ball.outside(origins)  # every ray (module docstring)
         if em is None or em.planar is None:
             continue
         foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
@@ -62,8 +73,10 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
-        value, stray = _ladder(lights.emitters[e], method, medium, params, tol, feet[e][rs], rs, rays, segs.scale,
-                               np.abs(seen[rs]))
+        em = lights.emitters[e]
+        rule, orders = ((_ball_rule(em.ball, rays, rs), ORDERS[ORDERS.index(FIRST):]) if em.ball is not None
+                        else (_planar_rule(em.planar, feet[e][rs]), ORDERS))
+        value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
     return kept, air, stats, near.any(axis=1)
@@ -76,16 +89,35 @@ def _all_lit(lights, cone, lit, n: int) -> np.ndarray:
     return emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters)) == LIT
 
 
-def _ladder(emitter, method, medium, params, tol, feet, rs, rays, scale, seen):
-    """((P, 3) the air-light of `emitter` along camera rays `rs` by its rule about their `feet`, the
-    number of rays whose last two orders disagree; `seen` (P, 3) the rays' other radiance)."""
+def _planar_rule(planar, feet):
+    """rule(at, order) -> (points, normals, weights, owner) of a flat emitter about the `feet` [at]."""
+    def rule(at, order):
+        points, weights, owner = planar.rule(feet[at], order)
+        return points, np.broadcast_to(planar.normal, points.shape), weights, owner
+    return rule
+
+
+def _ball_rule(ball, rays, rs):
+    """rule(at, order) -> (points, normals, weights, owner) of a sphere emitter about camera rays rs[at]."""
+    origins, dirs, tmax = rays[:3]
+
+    def rule(at, order):
+        r = rs[at]
+        return ball.rule(origins[r], dirs[r], np.asarray(tmax, float)[r], order)
+    return rule
+
+
+def _ladder(emitter, rule, orders, method, medium, params, tol, rs, rays, scale, seen):
+    """((P, 3) the air-light of `emitter` along camera rays `rs` by its `rule` (`_planar_rule`,
+    `_ball_rule`) at `orders` in turn, the number of rays whose last two orders disagree; `seen` (P, 3)
+    the rays' other radiance)."""
     if tol is None:
-        return _value(emitter, method, medium, params, feet, rs, rays, scale, DEFAULT_ORDER), 0
+        return _value(emitter, rule, method, medium, params, np.arange(len(rs)), rs, rays, scale, DEFAULT_ORDER), 0
     out = np.zeros((len(rs), 3))
     todo = np.arange(len(rs))
-    coarse = _value(emitter, method, medium, params, feet, rs, rays, scale, ORDERS[0])
-    for order in ORDERS[1:]:
-        fine = _value(emitter, method, medium, params, feet[todo], rs[todo], rays, scale, order)
+    coarse = _value(emitter, rule, method, medium, params, todo, rs, rays, scale, orders[0])
+    for order in orders[1:]:
+        fine = _value(emitter, rule, method, medium, params, todo, rs[todo], rays, scale, order)
         ok = agree(coarse, fine, SHARE * tol, seen[todo])
         out[todo] = fine
         todo, coarse = todo[~ok], fine[~ok]
@@ -94,10 +126,10 @@ def _ladder(emitter, method, medium, params, tol, feet, rs, rays, scale, seen):
     return out, len(todo)
 
 
-def _value(emitter, method, medium, params, feet, rs, rays, scale, order):
-    """(P, 3) the air-light of `emitter` along camera rays `rs` by its rule of `order` about `feet`."""
-    points, weights, owner = emitter.planar.rule(feet, order)
-    normals = np.broadcast_to(emitter.planar.normal, points.shape)
+def _value(emitter, rule, method, medium, params, at, rs, rays, scale, order):
+    """(P, 3) the air-light of `emitter` along camera rays `rs` (= the pairs `at` of its `rule`) by
+    the rule of `order`."""
+    points, normals, weights, owner = rule(at, order)
     rows = spot_rows(points, normals, weights[:, None] * emitter.radiance[None, :], emitter.two_sided)
     group = np.repeat(owner, 2) if emitter.two_sided else owner  # spot_rows: a two-sided node twice
     each = per_group(method, medium, params, rows, point_segments(rows, 1, rays, rs[group], scale), len(rows))
