@@ -12,9 +12,27 @@ P(theta) (Snell, media/slab.py `refract`) runs along t(theta); X lies on it wher
     h(theta) = t(theta) x (X - P(theta)) = 0
 (a 2-D cross product; X is then ahead of P, the chord being inside). Every root is a path (Fermat's
 stationary path); near the back of the ball refracted rays cross (a caustic) and X takes up to three.
-`paths` finds them on SCAN uniform nodes of the arc: each sign change of h bisected to the
-resolution of doubles, and each node where |h| dips without a sign change refined by golden
-section over its two cells, two roots bisected where the dip crosses zero.
+
+The paths, proven. `paths` starts from SCAN uniform cells of the arc and halves a cell until a bound
+K on |h''| over it decides it: no root where h keeps its sign and the least |h| at its ends exceeds
+K w^2 / 8 (h is within K (theta - a)(b - theta) / 2 of its chord), one where h changes sign and the
+secant's slope exceeds K w (h' then keeps its sign over the cell), bisected to the resolution of
+doubles; both tests less the values' rounding. With phi(theta) the angle of the unit direction t,
+P' and P'' of length R and |X - P| <= |X| + R:
+    h'' = t'' x (X - P) - 2 t' x P' - t x P'',  |h''| <= (|phi''| + phi'^2)(|X| + R) + 2 |phi'| R + R.
+phi = theta + pi + theta_t, sin theta_t = sin theta_i / eta, theta_i = alpha - theta - pi (alpha the
+arriving direction's angle: constant for the sun; for a lamp at distance d, alpha' =
+R (R - d cos theta) / o^2 and alpha'' = R d sin theta / o^2 - 2 R^2 d sin theta (R - d cos theta) / o^4),
+so with g' = cos_i / (eta cos_t) <= 1 / (eta cos_t) and |g''| <= (1 + 1 / (eta^2 cos_t)) / (eta cos_t^2)
+(the derivatives of theta_t in theta_i), |phi'| <= 1 + g' |theta_i'| and |phi''| <= |g''| theta_i'^2 +
+g' |alpha''|, each bounded over the cell by its extreme ends: cos_t least at the larger |theta| (the
+incidence grows with |theta|), o least and |R - d cos theta| largest at the smaller, |sin theta| largest
+at the larger (`angular_bounds`, per SCAN cell, valid for its halves; checked against mpmath's
+derivatives by tests/test_sphere_paths.py). The values' rounding: t's components are off by
+(e_d + 8u)(1 + 2 / eta + 2 / (eta^2 cos_t)) + 16u (e_d = 8u (R + d) / o + 4u the arriving direction's),
+h by twice 2 that (|X| + R) + 16u (|X| + 2R), doubled. A cell not decided after MAX_HALVINGS halvings
+(a point within rounding of the caustic, where a root is double; the end of the arc for eta < 1, where
+cos_t reaches 0 and K is infinite) leaves the scan unproven, counted by the record.
 
 Each path contributes ks Phi(mu) E F exp(-kt (x + s) - kt_out o): mu the scattering cosine (the
 light travels along t, mu = -t.w), s the path inside from P to X, o the path outside (0 for a
@@ -61,7 +79,10 @@ from .phase import phase_value
 from .gauss import N10, N20, W10, W20
 from .slab import MARCH, QUAD, fresnel, march_or_sample
 
-SCAN = 48  # uniform nodes of the lit arc on which `paths` brackets the roots of h
+SCAN = 48  # uniform cells of the lit arc on which `paths` starts (and `roots` brackets the caustic's crossings)
+MAX_HALVINGS = 40  # of a cell of `paths` before it is left unresolved
+CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
+U = 2.0 ** -53
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
 
@@ -89,6 +110,8 @@ class SphereRefracted(NamedTuple):
     kt_out: float
     axis: np.ndarray
     spot: tuple
+    cells: np.ndarray
+    unresolved: np.ndarray
 
 
 @njit
@@ -149,26 +172,66 @@ def tangential_curvature(cos_i, cos_t, inv_o, radius, eta):
 
 
 @njit
-def _marginal(theta_a, radius, d, eta):
-    """(pz, py, tz, ty) of `incidence` at the lit arc's end theta_a: the ray refracted at grazing
-    incidence (or at the critical angle for eta < 1), its limit from inside the arc."""
-    cth, sth, pz, py, dz, dy, _ = _arriving(theta_a, radius, d)
+def _clamped(theta, radius, d, eta):
+    """(pz, py, tz, ty, cos_t) of `incidence` with the incidence cosine clamped at 0 and the refraction
+    cosine's square at 0: continuous in theta, at the lit arc's ends (theta_a) the ray refracted at
+    grazing incidence (or at the critical angle for eta < 1), its limit from inside the arc; the
+    same numbers as `incidence` inside it."""
+    cth, sth, pz, py, dz, dy, _ = _arriving(theta, radius, d)
     cos_i = max(-(dz * cth + dy * sth), 0.0)
     cos_t = math.sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (eta * eta), 0.0))
     f = cos_i / eta - cos_t
-    return pz, py, dz / eta + f * cth, dy / eta + f * sth
+    return pz, py, dz / eta + f * cth, dy / eta + f * sth, cos_t
+
+
+@njit
+def angular_bounds(lo, hi, radius, d, eta):
+    """(p1, p2, et) over theta in [lo, hi] (within the lit arc): bounds on |phi'| and |phi''|, phi(theta)
+    the angle of the refracted direction t, and on the rounding of t's computed components (module
+    docstring, "The paths, proven"); inf where the refraction cosine reaches 0 (eta < 1 at the arc's end)."""
+    m_lo = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+    m_hi = max(abs(lo), abs(hi))
+    ct = _clamped(m_hi, radius, d, eta)[4] * (1.0 - 1e-9) - 4.0 * U  # the least refraction cosine
+    if not ct > 0.0:
+        return math.inf, math.inf, math.inf
+    a1 = a2 = ed = 0.0
+    if d != math.inf:  # alpha, the arriving direction's angle: its derivatives
+        half = math.sin(0.5 * m_lo)
+        o2 = ((d - radius) * (d - radius) + 4.0 * radius * d * half * half) * (1.0 - 1e-12)  # the least o^2
+        q = max(d * math.cos(m_lo) - radius, 0.0) + 4.0 * U * d  # the largest d cos(theta) - R
+        a1 = radius * q / o2
+        a2 = radius * d * math.sin(m_hi) / o2 * (1.0 + 2.0 * radius * q / o2)
+        ed = 8.0 * U * (radius + d) / math.sqrt(o2) + 4.0 * U
+    g1 = 1.0 / (eta * ct)
+    g2 = (1.0 + 1.0 / (eta * eta * ct)) / (eta * ct * ct)
+    p1 = 1.0 + g1 * (1.0 + a1)
+    p2 = g2 * (1.0 + a1) * (1.0 + a1) + g1 * a2
+    et = (ed + 8.0 * U) * (1.0 + 2.0 / eta + 2.0 / (eta * eta * ct)) + 16.0 * U
+    return p1 * (1.0 + 1e-9), p2 * (1.0 + 1e-9), et * 2.0
+
+
+@njit
+def cell_table(theta_a, radius, d, eta):
+    """`angular_bounds` (SCAN, 3) of the SCAN uniform cells of the lit arc (-theta_a, theta_a)."""
+    out = np.empty((SCAN, 3))
+    step = 2.0 * theta_a / SCAN
+    for j in range(SCAN):
+        out[j, 0], out[j, 1], out[j, 2] = angular_bounds(-theta_a + j * step, -theta_a + (j + 1) * step, radius, d,
+                                                         eta)
+    return out
 
 
 @njit
 def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
-    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (0 where the ray does not enter);
+    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
     kind 1: |rho_ray(z_C)|^2 - y_C^2 of the caustic point C(theta) (segment f + x v across the axis,
     z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P."""
+    if kind == 0:
+        pz, py, tz, ty, _ = _clamped(theta, radius, d, eta)
+        return tz * (yx - py) - ty * (zx - pz)
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
     if cos_t == 0.0:
-        return 0.0 if kind == 0 else math.nan
-    if kind == 0:
-        return tz * (yx - py) - ty * (zx - pz)
+        return math.nan
     inv_o = 0.0 if d == math.inf else 1.0 / o
     kappa = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
     if not kappa > 0.0:
@@ -247,6 +310,76 @@ def roots(lo, hi, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta, 
 
 
 @njit
+def paths(r, zx, yx, out):
+    """The roots of h (kind 0 of `_h`) of the point X = (zx, yx) on the lit arc into out, ascending;
+    returns (count, proven): SCAN uniform cells, each halved until the bound K on |h''| over it
+    (`angular_bounds` of its SCAN cell) shows that it holds no root (h keeps its sign: the least |h|
+    at its ends above K w^2 / 8 + their rounding) or one (a sign change and h monotone: the secant's
+    slope above K w + the rounding), that root bisected to the resolution of doubles (module
+    docstring, "The paths, proven"); not proven where a cell reached MAX_HALVINGS halvings or out
+    filled up (its sign changes are still bisected)."""
+    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
+    lo = -r.theta_a
+    step = 2.0 * r.theta_a / SCAN
+    reach = math.sqrt(zx * zx + yx * yx) + radius  # |X - P| at most
+    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    ha, hb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
+    m, top, proven = 0, 0, True
+    cap = out.shape[0]
+    right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+    if right == 0.0:
+        out[m] = lo + SCAN * step
+        m += 1
+    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
+        left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        if left == 0.0 and m < cap:
+            out[m] = lo + j * step
+            m += 1
+        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, j, 0
+        top += 1
+        right = left
+    while top > 0:
+        top -= 1
+        a, b, fa, fb, j = ca[top], cb[top], ha[top], hb[top], which[top]
+        w = b - a
+        p1, p2, et = cells[j, 0], cells[j, 1], cells[j, 2]
+        k = (p2 + p1 * p1) * reach + 2.0 * p1 * radius + radius
+        dh = 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
+        if fa * fb > 0.0:
+            if min(abs(fa), abs(fb)) - dh > 0.125 * k * w * w:
+                continue
+        elif abs(fb - fa) - 2.0 * dh > k * w * w:
+            if fa * fb < 0.0:
+                if m < cap:
+                    out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                    m += 1
+                else:
+                    proven = False
+            continue
+        mid = 0.5 * (a + b)
+        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or not a < mid < b:
+            proven = False
+            if fa * fb < 0.0 and m < cap:
+                out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                m += 1
+            continue
+        fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        if fm == 0.0:
+            if m < cap:
+                out[m] = mid
+                m += 1
+            else:
+                proven = False
+        level = depth[top] + 1
+        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = mid, b, fm, fb, j, level
+        ca[top + 1], cb[top + 1], ha[top + 1], hb[top + 1], which[top + 1], depth[top + 1] = a, mid, fa, fm, j, level
+        top += 2
+    sort_few(out, 0, m)
+    return m, proven
+
+
+@njit
 def _plane(r, x):
     """(z_X, y_X, e_y) of the point o + x w: its coordinates along the axis and across it from the
     centre, and the unit direction across (any normal to the axis on the axis)."""
@@ -273,7 +406,9 @@ def refracted_value(x, r):
     that reach the point (`roots` of h) of ks Phi(mu) E F exp(-kt (x + s) - kt_out o) (module docstring)."""
     zx, yx, ey = _plane(r, x)
     found = np.empty(MAX_PATHS)
-    m = roots(-r.theta_a, r.theta_a, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, r.radius, r.d, r.eta, found)
+    m, proven = paths(r, zx, yx, found)
+    if not proven:
+        r.unresolved[0] += 1.0
     total = 0.0
     eta, radius, ez = r.eta, r.radius, r.ez
     for k in range(m):
@@ -343,7 +478,7 @@ def breaks(r, end, out, caustic):
         f[k] = r.o[k] - r.c[k] - fz * ez[k]
         v[k] = r.w[k] - wz * ez[k]
     m = 0
-    pz, py, tz, ty = _marginal(r.theta_a, r.radius, r.d, r.eta)
+    pz, py, tz, ty, _ = _clamped(r.theta_a, r.radius, r.d, r.eta)
     if ty != 0.0:  # the cone of the marginal rays, about the axis with its apex where they meet it
         qz = fz - (pz - py * tz / ty)
         qw = f[0] * r.w[0] + f[1] * r.w[1] + f[2] * r.w[2] + qz * wz  # q = o - apex: f + qz ez
@@ -391,10 +526,12 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out):
     else:
         d = float(np.linalg.norm(light - c))
         ez = (light - c) / d
+    theta_a = lit_arc(radius, d, eta)
     return SphereRefracted(np.ascontiguousarray(geo_row[:3]), np.ascontiguousarray(geo_row[3:6]), c, radius, light,
-                           bool(distant), ez, d, lit_arc(radius, d, eta), eta, kt, ks, code, g, kt_out,
+                           bool(distant), ez, d, theta_a, eta, kt, ks, code, g, kt_out,
                            np.ascontiguousarray(geo_row[9:12]), (float(geo_row[12]), float(geo_row[13]),
-                                                                 int(geo_row[17])))
+                                                                 int(geo_row[17])),
+                           cell_table(theta_a, radius, d, eta), np.zeros(1))
 
 
 @njit
