@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from raytrace.media.sphere_refraction import angular_bounds, paths, record, roots
+from raytrace.media.sphere_refraction import angular_bounds, frame, paths, record, roots
 
 SPHERE = np.array([0.0, 0.0, 0.0, 1.0])
 
@@ -27,7 +27,8 @@ def rec(eta, d):
     geo = np.zeros(18)
     geo[6:9] = [0.0, 0.0, 1.0] if d == math.inf else [0.0, 0.0, d]
     geo[12:14], geo[17] = [-2.0, -1.0], 0
-    return record(SPHERE, geo, d == math.inf, eta, 1.0, 0.5, 0, 0.0, 0.0)
+    distant = d == math.inf
+    return record(SPHERE, geo, distant, eta, 1.0, 0.5, 0, 0.0, 0.0, frame(SPHERE, geo[6:9].copy(), distant, eta))
 
 
 def arc(eta, d):

@@ -45,9 +45,10 @@ from . import paths
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
 # rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit pieces of
 # the others, and the outside air-light's pieces whose light crosses index-matched interiors
-# (`through_airlight`) and those of their integrals that fell short of their tolerance
-STATS_SIZE = 8
-HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
+# (`through_airlight`) and those of their integrals that fell short of their tolerance; the segments of
+# refractive exact spheres whose quadrature bound is infinite (media/sphere_refraction.py UNBOUNDED)
+STATS_SIZE = 9
+HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED, SPHERE_UNBOUNDED = range(3, 9)
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = INSIDE_RTOL  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 STRAIGHT, TRACED, REFRACTED = range(3)  # how light reaches an inside row (`Segments.reach`)
@@ -69,6 +70,8 @@ def summarize(prep, method, stats, shadows: bool = False) -> dict:
     out = {}
     if sup.mode in (QUAD, CLOSED):
         out["inside: integrals not converged"] = int(stats[CAPPED])
+        if stats[SPHERE_UNBOUNDED]:
+            out["inside: refracted sphere segments unbounded"] = int(stats[SPHERE_UNBOUNDED])
     if sup.mode == CLOSED:
         out["inside: segments handed to quadrature"] = int(stats[HANDED])
     if shadows:

@@ -225,12 +225,14 @@ def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, key
     for c in range(3):
         if medium.sigma_s[c] == 0.0 or lights.intensity[li, c] == 0.0:
             continue
-        val, v = sphere_refracted(sphere, geo, distant, ell, float(medium.sigma_t[c]), float(medium.sigma_s[c]),
-                                  medium.phase, medium.g, float(prep.scene.medium.sigma_t[c]), float(medium.ior), mode,
-                                  rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), stats)
+        val, v, err = np.empty(len(ell)), np.empty(len(ell)), np.empty(len(ell))
+        sphere_refracted(np.asarray(sphere, dtype=np.float64), geo, bool(distant), ell, float(medium.sigma_t[c]),
+                         float(medium.sigma_s[c]), medium.phase, medium.g, float(prep.scene.medium.sigma_t[c]),
+                         float(medium.ior), mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), val, v,
+                         err, stats)
         out[:, c] += val * lights.intensity[li, c]
         var[:, c] += v * lights.intensity[li, c] ** 2
-    bound[ell > 0.0] = np.inf
+        bound[:, c] += _light_bound(err, val * lights.intensity[li, c], lights.intensity[li, c], lights.cone[li, 0])
 
 
 def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth, shadows: bool):
