@@ -60,9 +60,26 @@ the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in clos
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
 distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
-in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); its error bound is infinite (the rounding of the
-roots and the caustic's location are not analysed); MARCH and SAMPLE take media/slab.py's midpoint
-march and free-path samples of the same integrand.
+in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); MARCH and SAMPLE take media/slab.py's midpoint
+march and free-path samples of the same integrand (their bound is infinite).
+
+The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
+(media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
+rounding of an evaluation x (the value + the rule's bound) and the largest absolute one x the
+segment's length, plus each cone crossing's location error (a quadratic's: its rounding over its
+slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
+three evaluations around it. An evaluation's rounding is the sum over its paths of the value times,
+first order and doubled: the root off by dth = 2 (dh + dX) / s_min (`paths`' spread; dX the rounding
+of X's coordinates, s_min the least |h'| over the root's cell) plus t's own rounding, carried through
+|ds/dtheta| <= |phi'| (|X| + R) + R (the path inside; R for the path outside and 2 R / o for 1 / o^2),
+the cosines (|cos_i'|, |cos_t'| <= |theta_i'| (/ eta^2 cos_t); Fresnel's T at most twice cos_i's
+relative error, eta > 1), the scattering cosine (|phi'| and e_y's rounding 2 dX / y_X, times the
+phase's condition) and the tube factors 1 - s kappa (kappa's derivative through the cosines and o,
+over the factor; their own rounding over the factor too); a spot's falloff at its slope. Infinite,
+counted in stats[UNBOUNDED]: a segment that crosses the caustic (its crossings are found by `roots`,
+which is not proven, and their location is not analysed), an evaluation whose scan was unproven, a
+piece whose path count changed between its evaluations (the guard against a crossing the breaks
+missed), eta <= 1.
 """
 from __future__ import annotations
 
