@@ -143,7 +143,7 @@ def test_paths_are_every_root(eta, d):
     pts = points(rng, eta, d, 16)
     for z, y in pts:
         found = np.empty(8)
-        m, proven = paths(r, z, y, found)
+        m, proven = paths(r, z, y, found, np.empty((8, 2)))
         ref = reference((z, y), eta, d)
         assert proven, (z, y)
         assert m == len(ref) and np.allclose(found[:m], ref, rtol=0.0, atol=1e-9), (z, y, found[:m], ref)
@@ -164,7 +164,7 @@ def test_angular_bounds_hold(eta, d):
     worst = 0.0
     for _ in range(24):
         lo, hi = np.sort(rng.uniform(-a, a, 2))
-        p1, p2, _ = angular_bounds(lo, hi, 1.0, d, eta)
+        p1, p2, _, _ = angular_bounds(lo, hi, 1.0, d, eta)
         X = (rng.uniform(-0.7, 0.7), rng.uniform(0.0, 0.7))
         reach = math.hypot(*X) + 1.0
         k = (p2 + p1 * p1) * reach + 2.0 * p1 + 1.0
