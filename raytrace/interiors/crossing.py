@@ -36,6 +36,7 @@ from ..errors import UserError
 from ..lights import Lights
 from ..media.adaptive import CAPPED
 from ..media.slab import CLOSED, QUAD, refract_rays, surface_through_faces, transmittances
+from ..media.sphere_refraction import UNBOUNDED
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
 from ..shading import facing_normals, shading_normals, surface_radiance
@@ -45,10 +46,14 @@ from . import paths
 # CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
 # rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit pieces of
 # the others, and the outside air-light's pieces whose light crosses index-matched interiors
-# (`through_airlight`) and those of their integrals that fell short of their tolerance, and the refracted
-# point- and spot-light segments whose shadow breaks could not be located (their bound inf: rows.py `_lit_point`)
-STATS_SIZE = 9
-HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED, UNLOCATED = range(3, 9)
+# (`through_airlight`) and those of their integrals that fell short of their tolerance; the segments of
+# refractive exact spheres whose quadrature bound is infinite (media/sphere_refraction.py UNBOUNDED, which
+# writes that slot itself), and the refracted point- and spot-light segments whose shadow breaks could not
+# be located (their bound inf: rows.py `_lit_point`)
+HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
+SPHERE_UNBOUNDED = UNBOUNDED  # 8
+UNLOCATED = 9
+STATS_SIZE = 10
 MAX_DEPTH = 4  # boundaries a camera path crosses into bounded media; deeper ones are black
 RTOL = INSIDE_RTOL  # the inside quadrature's relative accuracy (`quadrature`: its own rtol)
 STRAIGHT, TRACED, REFRACTED = range(3)  # how light reaches an inside row (`Segments.reach`)
@@ -71,6 +76,8 @@ def summarize(prep, method, stats, shadows: bool = False) -> dict:
     out = {}
     if sup.mode in (QUAD, CLOSED):
         out["inside: integrals not converged"] = int(stats[CAPPED])
+        if stats[SPHERE_UNBOUNDED]:
+            out["inside: refracted sphere segments unbounded"] = int(stats[SPHERE_UNBOUNDED])
     if sup.mode == CLOSED:
         out["inside: segments handed to quadrature"] = int(stats[HANDED])
     if shadows:

@@ -21,12 +21,14 @@ CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
 sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; CLOSED hands
-them to QUAD, counted; unbounded); slab_approx keeps the entry plane everywhere.
+them to QUAD, counted; QUAD bounded but where a segment crosses the caustic); slab_approx keeps the
+entry plane everywhere.
 
 QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bounds.md, "Inside shapes"):
 convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
 planes are from the faces), others on the facet walk's exit planes or on traced walks
-(paths.segment_quadrature); elsewhere, and for the other rules but CLOSED's closed form, the bound is
+(paths.segment_quadrature), and in refractive exact spheres (`_refracted_sphere`, but where a segment
+crosses the caustic); elsewhere, and for the other rules but CLOSED's closed form, the bound is
 infinite.
 """
 from __future__ import annotations
@@ -216,7 +218,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, keys, dim0, seed, out, var, bound, stats):
     """out, var, bound += light li's single scattering over the rows (geo: GEO_COLUMNS) of the refractive
     exact sphere sid (centre, radius): its exact refracted paths (media/sphere_refraction.py) by the
-    method's inside rule, CLOSED's handed to QUAD (counted, HANDED); the bound is infinite."""
+    method's inside rule (one kernel call per channel), CLOSED's handed to QUAD (counted, HANDED); QUAD's
+    bound (inf on the segments that cross the caustic, counted) with a spot's rounding, inf for the others."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     rtol, steps, tau_max = sup.settings(params)
     mode = QUAD if sup.mode == CLOSED else sup.mode
@@ -225,12 +228,14 @@ def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, key
     for c in range(3):
         if medium.sigma_s[c] == 0.0 or lights.intensity[li, c] == 0.0:
             continue
-        val, v = sphere_refracted(sphere, geo, distant, ell, float(medium.sigma_t[c]), float(medium.sigma_s[c]),
-                                  medium.phase, medium.g, float(prep.scene.medium.sigma_t[c]), float(medium.ior), mode,
-                                  rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), stats)
+        val, v, err = np.empty(len(ell)), np.empty(len(ell)), np.empty(len(ell))
+        sphere_refracted(np.asarray(sphere, dtype=np.float64), geo, bool(distant), ell, float(medium.sigma_t[c]),
+                         float(medium.sigma_s[c]), medium.phase, medium.g, float(prep.scene.medium.sigma_t[c]),
+                         float(medium.ior), mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), val, v,
+                         err, stats)
         out[:, c] += val * lights.intensity[li, c]
         var[:, c] += v * lights.intensity[li, c] ** 2
-    bound[ell > 0.0] = np.inf
+        bound[:, c] += _light_bound(err, val * lights.intensity[li, c], lights.intensity[li, c], lights.cone[li, 0])
 
 
 def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth, shadows: bool):

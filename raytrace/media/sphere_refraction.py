@@ -12,9 +12,29 @@ P(theta) (Snell, media/slab.py `refract`) runs along t(theta); X lies on it wher
     h(theta) = t(theta) x (X - P(theta)) = 0
 (a 2-D cross product; X is then ahead of P, the chord being inside). Every root is a path (Fermat's
 stationary path); near the back of the ball refracted rays cross (a caustic) and X takes up to three.
-`paths` finds them on SCAN uniform nodes of the arc: each sign change of h bisected to the
-resolution of doubles, and each node where |h| dips without a sign change refined by golden
-section over its two cells, two roots bisected where the dip crosses zero.
+
+The paths, proven. `paths` starts from SCAN uniform cells of the arc and halves a cell until a bound
+K on |h''| over it decides it: no root where h keeps its sign and the least |h| at its ends exceeds
+K w^2 / 8 (h is within K (theta - a)(b - theta) / 2 of its chord) or where the secant's slope exceeds
+K w (h' then keeps its sign over the cell: monotone), one where h changes sign and is monotone,
+bisected to the resolution of doubles; each test less the values' rounding (the monotone test
+decides the cells beside a double root, where h is too small for the first). With phi(theta) the angle of the unit direction t,
+P' and P'' of length R and |X - P| <= |X| + R:
+    h'' = t'' x (X - P) - 2 t' x P' - t x P'',  |h''| <= (|phi''| + phi'^2)(|X| + R) + 2 |phi'| R + R.
+phi = theta + pi + theta_t, sin theta_t = sin theta_i / eta, theta_i = alpha - theta - pi (alpha the
+arriving direction's angle: constant for the sun; for a lamp at distance d, alpha' =
+R (R - d cos theta) / o^2 and alpha'' = R d sin theta / o^2 - 2 R^2 d sin theta (R - d cos theta) / o^4),
+so with g' = cos_i / (eta cos_t) <= 1 / (eta cos_t) and |g''| <= (1 + 1 / (eta^2 cos_t)) / (eta cos_t^2)
+(the derivatives of theta_t in theta_i), |phi'| <= 1 + g' |theta_i'| and |phi''| <= |g''| theta_i'^2 +
+g' |alpha''|, each bounded over the cell by its extreme ends: cos_t least at the larger |theta| (the
+incidence grows with |theta|), o least and |R - d cos theta| largest at the smaller, |sin theta| largest
+at the larger (`angular_bounds`, per SCAN cell, valid for its halves; checked against mpmath's
+derivatives by tests/test_sphere_paths.py). The values' rounding: t's components are off by
+(e_d + 8u)(1 + 2 / eta + 2 / (eta^2 cos_t)) + 16u (e_d = 8u (R + d) / o + 4u the arriving direction's),
+h by twice 2 that (|X| + R) + 16u (|X| + 2R), doubled. A cell not decided after MAX_HALVINGS halvings,
+or after MAX_EVALS in one scan (a point within rounding of the caustic, where a root is double, or
+near its cusp on the axis, where it is triple; the end of the arc for eta < 1, where cos_t reaches 0
+and K is infinite) leaves the scan unproven, counted by the record.
 
 Each path contributes ks Phi(mu) E F exp(-kt (x + s) - kt_out o): mu the scattering cosine (the
 light travels along t, mu = -t.w), s the path inside from P to X, o the path outside (0 for a
@@ -40,9 +60,26 @@ the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in clos
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
 distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
-in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); its error bound is infinite (the rounding of the
-roots and the caustic's location are not analysed); MARCH and SAMPLE take media/slab.py's midpoint
-march and free-path samples of the same integrand.
+in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); MARCH and SAMPLE take media/slab.py's midpoint
+march and free-path samples of the same integrand (their bound is infinite).
+
+The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
+(media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
+rounding of an evaluation x (the value + the rule's bound) and the largest absolute one x the
+segment's length, plus each cone crossing's location error (a quadratic's: its rounding over its
+slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
+three evaluations around it. An evaluation's rounding is the sum over its paths of the value times,
+first order and doubled: the root off by dth = 2 (dh + dX) / s_min (`paths`' spread; dX the rounding
+of X's coordinates, s_min the least |h'| over the root's cell) plus t's own rounding, carried through
+|ds/dtheta| <= |phi'| (|X| + R) + R (the path inside; R for the path outside and 2 R / o for 1 / o^2),
+the cosines (|cos_i'|, |cos_t'| <= |theta_i'| (/ eta^2 cos_t); Fresnel's T at most twice cos_i's
+relative error, eta > 1), the scattering cosine (|phi'| and e_y's rounding 2 dX / y_X, times the
+phase's condition) and the tube factors 1 - s kappa (kappa's derivative through the cosines and o,
+over the factor; their own rounding over the factor too); a spot's falloff at its slope. Infinite,
+counted in stats[UNBOUNDED]: a segment that crosses the caustic (its crossings are found by `roots`,
+which is not proven, and their location is not analysed), an evaluation whose scan was unproven, a
+piece whose path count changed between its evaluations (the guard against a crossing the breaks
+missed), eta <= 1.
 """
 from __future__ import annotations
 
@@ -54,15 +91,26 @@ import numpy as np
 from ..geometry.sphere import quadratic_roots
 from ..jit import njit
 from ..lights import falloff
+from ..lights.spot import band_slope
 from ..geometry.sorting import sort_few
 from .adaptive import bounded_piecewise
 from .integrand import integrand_of
 from .phase import phase_value
 from .gauss import N10, N20, W10, W20
-from .slab import MARCH, QUAD, fresnel, march_or_sample
+from .slab import MARCH, QUAD, fresnel, march_or_sample, phase_condition
 
-SCAN = 48  # uniform nodes of the lit arc on which `paths` brackets the roots of h
+SCAN = 48  # uniform cells of the lit arc on which `paths` starts (and `roots` brackets the caustic's crossings)
+MAX_HALVINGS = 40  # of a cell of `paths` before it is left unresolved
+MAX_EVALS = 1000  # halvings of one scan of `paths` before its undecided cells are left unresolved
+CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
+U = 2.0 ** -53
+# a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
+# largest relative and absolute rounding bounds, the path count of the piece's first evaluation (-1:
+# none yet) and the evaluations whose count differed from it
+UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED = range(5)
+TRACK = 5
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
+UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
 
 
@@ -89,6 +137,8 @@ class SphereRefracted(NamedTuple):
     kt_out: float
     axis: np.ndarray
     spot: tuple
+    cells: np.ndarray
+    track: np.ndarray
 
 
 @njit
@@ -149,26 +199,67 @@ def tangential_curvature(cos_i, cos_t, inv_o, radius, eta):
 
 
 @njit
-def _marginal(theta_a, radius, d, eta):
-    """(pz, py, tz, ty) of `incidence` at the lit arc's end theta_a: the ray refracted at grazing
-    incidence (or at the critical angle for eta < 1), its limit from inside the arc."""
-    cth, sth, pz, py, dz, dy, _ = _arriving(theta_a, radius, d)
+def _clamped(theta, radius, d, eta):
+    """(pz, py, tz, ty, cos_t) of `incidence` with the incidence cosine clamped at 0 and the refraction
+    cosine's square at 0: continuous in theta, at the lit arc's ends (theta_a) the ray refracted at
+    grazing incidence (or at the critical angle for eta < 1), its limit from inside the arc; the
+    same numbers as `incidence` inside it."""
+    cth, sth, pz, py, dz, dy, _ = _arriving(theta, radius, d)
     cos_i = max(-(dz * cth + dy * sth), 0.0)
     cos_t = math.sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (eta * eta), 0.0))
     f = cos_i / eta - cos_t
-    return pz, py, dz / eta + f * cth, dy / eta + f * sth
+    return pz, py, dz / eta + f * cth, dy / eta + f * sth, cos_t
+
+
+@njit
+def angular_bounds(lo, hi, radius, d, eta):
+    """(p1, p2, et, a1) over theta in [lo, hi] (within the lit arc): bounds on |phi'| and |phi''|, phi(theta)
+    the angle of the refracted direction t, on the rounding of t's computed components and on |theta_i'|,
+    theta_i the signed incidence angle (module
+    docstring, "The paths, proven"); inf where the refraction cosine reaches 0 (eta < 1 at the arc's end)."""
+    m_lo = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+    m_hi = max(abs(lo), abs(hi))
+    ct = _clamped(m_hi, radius, d, eta)[4] * (1.0 - 1e-9) - 4.0 * U  # the least refraction cosine
+    if not ct > 0.0:
+        return math.inf, math.inf, math.inf, math.inf
+    a1 = a2 = ed = 0.0
+    if d != math.inf:  # alpha, the arriving direction's angle: its derivatives
+        half = math.sin(0.5 * m_lo)
+        o2 = ((d - radius) * (d - radius) + 4.0 * radius * d * half * half) * (1.0 - 1e-12)  # the least o^2
+        q = max(d * math.cos(m_lo) - radius, 0.0) + 4.0 * U * d  # the largest d cos(theta) - R
+        a1 = radius * q / o2
+        a2 = radius * d * math.sin(m_hi) / o2 * (1.0 + 2.0 * radius * q / o2)
+        ed = 8.0 * U * (radius + d) / math.sqrt(o2) + 4.0 * U
+    g1 = 1.0 / (eta * ct)
+    g2 = (1.0 + 1.0 / (eta * eta * ct)) / (eta * ct * ct)
+    p1 = 1.0 + g1 * (1.0 + a1)
+    p2 = g2 * (1.0 + a1) * (1.0 + a1) + g1 * a2
+    et = (ed + 8.0 * U) * (1.0 + 2.0 / eta + 2.0 / (eta * eta * ct)) + 16.0 * U
+    return p1 * (1.0 + 1e-9), p2 * (1.0 + 1e-9), et * 2.0, (1.0 + a1) * (1.0 + 1e-9)
+
+
+@njit
+def cell_table(theta_a, radius, d, eta):
+    """`angular_bounds` (SCAN, 4) of the SCAN uniform cells of the lit arc (-theta_a, theta_a)."""
+    out = np.empty((SCAN, 4))
+    step = 2.0 * theta_a / SCAN
+    for j in range(SCAN):
+        out[j, 0], out[j, 1], out[j, 2], out[j, 3] = angular_bounds(-theta_a + j * step, -theta_a + (j + 1) * step, radius, d,
+                                                         eta)
+    return out
 
 
 @njit
 def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
-    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (0 where the ray does not enter);
+    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
     kind 1: |rho_ray(z_C)|^2 - y_C^2 of the caustic point C(theta) (segment f + x v across the axis,
     z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P."""
+    if kind == 0:
+        pz, py, tz, ty, _ = _clamped(theta, radius, d, eta)
+        return tz * (yx - py) - ty * (zx - pz)
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
     if cos_t == 0.0:
-        return 0.0 if kind == 0 else math.nan
-    if kind == 0:
-        return tz * (yx - py) - ty * (zx - pz)
+        return math.nan
     inv_o = 0.0 if d == math.inf else 1.0 / o
     kappa = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
     if not kappa > 0.0:
@@ -247,6 +338,91 @@ def roots(lo, hi, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta, 
 
 
 @njit
+def paths(r, zx, yx, out, spread):
+    """The roots of h (kind 0 of `_h`) of the point X = (zx, yx) on the lit arc into out, ascending,
+    and into spread[k] (2,) how far each may be from the exact root of the computed X: (a, b), the
+    error a + b dX for X off by dX (2 (the values' rounding + dX) / the least |h'| over its cell, the
+    secant's slope less K w; inf for a root at a node or in an unresolved cell); returns (count,
+    proven): SCAN uniform cells, each halved until the bound K on |h''| over it (`angular_bounds` of
+    its SCAN cell) shows that it holds no root (no sign change and either the least |h| at its ends
+    above K w^2 / 8 or h monotone: the secant's slope above K w, each less the values' rounding) or
+    one (a sign change and h monotone), that root bisected to the resolution of doubles (module
+    docstring, "The paths, proven"); not proven where a cell reached MAX_HALVINGS halvings, the scan
+    MAX_EVALS or out filled up (sign changes are still bisected)."""
+    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
+    lo = -r.theta_a
+    step = 2.0 * r.theta_a / SCAN
+    reach = math.sqrt(zx * zx + yx * yx) + radius  # |X - P| at most
+    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    ha, hb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
+    m, top, proven, evals = 0, 0, True, 0
+    cap = out.shape[0]
+    right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+    if right == 0.0:
+        out[m] = lo + SCAN * step
+        spread[m, 0] = spread[m, 1] = math.inf
+        m += 1
+    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
+        left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        if left == 0.0 and m < cap:
+            out[m] = lo + j * step
+            spread[m, 0] = spread[m, 1] = math.inf
+            m += 1
+        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, j, 0
+        top += 1
+        right = left
+    while top > 0:
+        top -= 1
+        a, b, fa, fb, j = ca[top], cb[top], ha[top], hb[top], which[top]
+        w = b - a
+        p1, p2, et = cells[j, 0], cells[j, 1], cells[j, 2]
+        k = (p2 + p1 * p1) * reach + 2.0 * p1 * radius + radius
+        dh = 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
+        if fa * fb > 0.0:
+            if min(abs(fa), abs(fb)) - dh > 0.125 * k * w * w or abs(fb - fa) - 2.0 * dh > k * w * w:
+                continue  # keeps its sign, or monotone
+        elif abs(fb - fa) - 2.0 * dh > k * w * w:
+            if fa * fb < 0.0:
+                if m < cap:
+                    out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                    slope = (abs(fb - fa) - 2.0 * dh) / w - k * w
+                    spread[m, 0], spread[m, 1] = 2.0 * dh / slope + 4.0 * U * r.theta_a, 2.0 / slope
+                    m += 1
+                else:
+                    proven = False
+            continue
+        mid = 0.5 * (a + b)
+        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
+            proven = False
+            if fa * fb < 0.0 and m < cap:
+                out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                spread[m, 0] = spread[m, 1] = math.inf
+                m += 1
+            continue
+        fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        evals += 1
+        if fm == 0.0:
+            if m < cap:
+                out[m] = mid
+                spread[m, 0] = spread[m, 1] = math.inf
+                m += 1
+            else:
+                proven = False
+        level = depth[top] + 1
+        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = mid, b, fm, fb, j, level
+        ca[top + 1], cb[top + 1], ha[top + 1], hb[top + 1], which[top + 1], depth[top + 1] = a, mid, fa, fm, j, level
+        top += 2
+    for p in range(1, m):  # insertion sort, the spreads alongside
+        x, s0, s1, q = out[p], spread[p, 0], spread[p, 1], p
+        while q > 0 and out[q - 1] > x:
+            out[q], spread[q, 0], spread[q, 1] = out[q - 1], spread[q - 1, 0], spread[q - 1, 1]
+            q -= 1
+        out[q], spread[q, 0], spread[q, 1] = x, s0, s1
+    return m, proven
+
+
+@njit
 def _plane(r, x):
     """(z_X, y_X, e_y) of the point o + x w: its coordinates along the axis and across it from the
     centre, and the unit direction across (any normal to the axis on the axis)."""
@@ -270,12 +446,30 @@ def _plane(r, x):
 @njit
 def refracted_value(x, r):
     """The single-scattering integrand at o + x w for a unit light: the sum over the refracted paths
-    that reach the point (`roots` of h) of ks Phi(mu) E F exp(-kt (x + s) - kt_out o) (module docstring)."""
+    that reach the point (`paths`) of ks Phi(mu) E F exp(-kt (x + s) - kt_out o) (module docstring);
+    its rounding bound (module docstring, "The bound") into the record's track (the largest relative
+    and absolute over the evaluations), with the evaluations whose scan was unproven and whose path count differs
+    from the piece's first."""
     zx, yx, ey = _plane(r, x)
     found = np.empty(MAX_PATHS)
-    m = roots(-r.theta_a, r.theta_a, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, r.radius, r.d, r.eta, found)
-    total = 0.0
+    spread = np.empty((MAX_PATHS, 2))
+    m, proven = paths(r, zx, yx, found, spread)
+    track = r.track
+    if not proven:
+        track[UNRESOLVED] += 1.0
+    if track[COUNT] < 0.0:
+        track[COUNT] = m
+    elif track[COUNT] != m:
+        track[COUNT_CHANGED] += 1.0
+    total = err = 0.0
     eta, radius, ez = r.eta, r.radius, r.ez
+    qn = math.sqrt(zx * zx + yx * yx)
+    reach = qn + radius
+    dx = 16.0 * U * (math.sqrt((r.o[0] - r.c[0]) ** 2 + (r.o[1] - r.c[1]) ** 2 + (r.o[2] - r.c[2]) ** 2) + x + radius)
+    dx += 8.0 * U * qn  # X's coordinates in the plane: the point's, the axis's rounding
+    dmu = 8.0 * U + 2.0 * dx / yx if yx > 0.0 else math.inf  # e_y's direction
+    cond = phase_condition(r.code, r.g)
+    step = 2.0 * r.theta_a / SCAN
     for k in range(m):
         pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, r.d, eta)
         if cos_t == 0.0:
@@ -288,8 +482,9 @@ def refracted_value(x, r):
         kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
         e = (1.0 - fresnel(cos_i, eta)) * cos_i * inv_o * inv_o / cos_t if not r.distant else \
             (1.0 - fresnel(cos_i, eta)) * cos_i / cos_t
-        spread = abs((1.0 - s * kappa_t) * (1.0 - s * kappa_s))
-        if not spread > 0.0:
+        tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
+        spread_ = abs(tang * sag)
+        if not spread_ > 0.0:
             continue
         mu, c_spot = 0.0, 1.0
         for j in range(3):
@@ -304,7 +499,39 @@ def refracted_value(x, r):
         if f == 0.0:
             continue
         path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
-        total += r.ks * phase_value(r.code, r.g, mu) * f * e / spread * math.exp(-path)
+        value = r.ks * phase_value(r.code, r.g, mu) * f * e / spread_ * math.exp(-path)
+        total += value
+        if value == 0.0:
+            continue
+        # the path's relative rounding: its root off by dth, the rest first order in u (module docstring)
+        cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
+        p1, a1 = cell[0], cell[3]
+        dth = spread[k, 0] + spread[k, 1] * dx + cell[2]  # and t's own rounding as an angle
+        ds = (p1 * reach + radius) * dth + dx
+        eps = r.kt * (ds + 4.0 * U * (x + s)) + 64.0 * U
+        if not r.distant:
+            eps += r.kt_out * (radius * dth + 4.0 * U * o) + 2.0 * radius * dth * inv_o
+        eps += 3.0 * a1 * dth / cos_i + a1 * dth / (eta * eta * cos_t * cos_t)  # T cos_i, cos_t
+        eps += cond * (p1 * dth + dmu)  # the phase
+        dci, dct = a1, a1 / (eta * eta * cos_t)  # |cos_i'|, |cos_t'|
+        nt = (eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o
+        dnt = (eta * dct + dci) / radius + 2.0 * cos_i * dci * inv_o + radius * inv_o * inv_o
+        dkt = dnt / (eta * cos_t * cos_t) + 2.0 * abs(nt) * dct / (eta * cos_t ** 3)
+        dks = ((eta * dct + dci) / radius + radius * inv_o * inv_o) / eta
+        dsd = p1 * reach + radius  # |ds / dtheta|
+        eps += ((dsd * abs(kappa_t) + s * dkt) * dth + 32.0 * U * (1.0 + s * (abs(kappa_t) + 1.0 / radius + inv_o)
+                                                                    / (cos_t * cos_t))) / abs(tang)
+        eps += ((dsd * abs(kappa_s) + s * dks) * dth + 16.0 * U * (1.0 + s * (abs(kappa_s) + 1.0 / radius + inv_o))) \
+            / abs(sag)
+        err += 2.0 * eps * value
+        if not r.distant and f < 1.0:  # the falloff, absolute, at the cosine's error
+            dc = 2.0 * radius * dth * inv_o + 32.0 * U * (1.0 + (reach + r.d) * inv_o)
+            err += 2.0 * value / f * band_slope(r.spot[0], r.spot[1], r.spot[2]) / (r.spot[1] - r.spot[0]) * dc
+    if eta <= 1.0:
+        err = math.inf if m else 0.0  # Fresnel's slope is not bounded at the critical angle
+    if err > 0.0:
+        rel = err / total if total > 0.0 else math.inf
+        track[ROUNDING], track[ROUNDING_ABS] = max(track[ROUNDING], rel), max(track[ROUNDING_ABS], err)
     return total
 
 
@@ -329,10 +556,11 @@ def _near_caustic(u, q):
 
 
 @njit
-def breaks(r, end, out, caustic):
+def breaks(r, end, out, caustic, spans):
     """The x in (0, end) where the segment passes closest to the axis and where it crosses the
     tangential caustic surface (module docstring; caustic[k] = 1.0 for those), into out, ascending;
-    returns their count."""
+    returns their count. caustic[k]: 0 for the closest approach, 1 for the cone's crossings (their
+    errors into spans[k], module docstring, "The bound"), 2 for the caustic's."""
     ez = r.ez
     f, v = np.empty(3), np.empty(3)
     fz = wz = 0.0
@@ -343,15 +571,24 @@ def breaks(r, end, out, caustic):
         f[k] = r.o[k] - r.c[k] - fz * ez[k]
         v[k] = r.w[k] - wz * ez[k]
     m = 0
-    pz, py, tz, ty = _marginal(r.theta_a, r.radius, r.d, r.eta)
+    pz, py, tz, ty, _ = _clamped(r.theta_a, r.radius, r.d, r.eta)
     if ty != 0.0:  # the cone of the marginal rays, about the axis with its apex where they meet it
         qz = fz - (pz - py * tz / ty)
         qw = f[0] * r.w[0] + f[1] * r.w[1] + f[2] * r.w[2] + qz * wz  # q = o - apex: f + qz ez
         qq = f[0] * f[0] + f[1] * f[1] + f[2] * f[2] + qz * qz
         cone = np.empty(2)
+        qn = math.sqrt(qq)
+        d_apex = 64.0 * U * (r.radius + abs(pz) + abs(py * tz / ty)) * (1.0 + 1.0 / abs(ty)) + 8.0 * U * abs(fz)
         for k in range(quadratic_roots(wz * wz - tz * tz, qz * wz - tz * tz * qw, qz * qz - tz * tz * qq, cone, 0)):
             if 0.0 < cone[k] < end:
-                out[m] = cone[k]
+                xb = cone[k]  # F(x) = (qz + x wz)^2 - tz^2 |q + x w|^2: its rounding and the apex's over |F'|
+                big = qn + xb + d_apex
+                num = 64.0 * U * big * big + 8.0 * big * (d_apex + 32.0 * U * (r.radius + qn))
+                slope = 2.0 * abs((wz * wz - tz * tz) * xb + qz * wz - tz * tz * qw)
+                curv = 2.0 * abs(wz * wz - tz * tz)
+                spans[m] = 2.0 * num / slope if slope * slope > 4.0 * num * curv else 2.0 * math.sqrt(num / max(curv,
+                                                                                                          1e-300))
+                out[m] = xb
                 caustic[m] = 1.0
                 m += 1
     vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
@@ -375,66 +612,115 @@ def breaks(r, end, out, caustic):
             x = (cz - fz) / wz
             if cz * cz + cy * cy <= r.radius * r.radius and 0.0 < x < end and m < out.shape[0]:
                 out[m] = x
-                caustic[m] = 1.0
+                caustic[m] = 2.0
                 m += 1
-    order = np.argsort(out[:m])
-    out[:m], caustic[:m] = out[:m][order], caustic[:m][order]
+    for p in range(1, m):  # insertion sort of the few breaks, their flags and spans alongside
+        x, flag, span, k = out[p], caustic[p], spans[p], p
+        while k > 0 and out[k - 1] > x:
+            out[k], caustic[k], spans[k] = out[k - 1], caustic[k - 1], spans[k - 1]
+            k -= 1
+        out[k], caustic[k], spans[k] = x, flag, span
     return m
 
 
-def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out):
-    """The `SphereRefracted` record of one segment (geo_row: media/slab.py's GEO_COLUMNS)."""
-    c, radius = np.ascontiguousarray(sphere[:3], dtype=np.float64), float(sphere[3])
-    light = np.ascontiguousarray(geo_row[6:9], dtype=np.float64)
+@njit
+def frame(sphere, light, distant, eta):
+    """(ez, d, theta_a, cells) of one light and the refractive exact sphere (centre, radius): the light's
+    axis, its distance from the centre (inf for a directional light, light its direction toward it),
+    the lit arc's half-width and its `cell_table`."""
+    radius = sphere[3]
     if distant:
-        ez, d = light / np.linalg.norm(light), math.inf
+        d = math.inf
+        ez = light / math.sqrt(light[0] * light[0] + light[1] * light[1] + light[2] * light[2])
     else:
-        d = float(np.linalg.norm(light - c))
-        ez = (light - c) / d
-    return SphereRefracted(np.ascontiguousarray(geo_row[:3]), np.ascontiguousarray(geo_row[3:6]), c, radius, light,
-                           bool(distant), ez, d, lit_arc(radius, d, eta), eta, kt, ks, code, g, kt_out,
-                           np.ascontiguousarray(geo_row[9:12]), (float(geo_row[12]), float(geo_row[13]),
-                                                                 int(geo_row[17])))
+        rel = light - sphere[:3]
+        d = math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2])
+        ez = rel / d
+    theta_a = lit_arc(radius, d, eta)
+    return ez, d, theta_a, cell_table(theta_a, radius, d, eta)
+
+
+@njit
+def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
+    """The `SphereRefracted` record of one segment (geo_row: media/slab.py's GEO_COLUMNS; light_frame: `frame`)."""
+    ez, d, theta_a, cells = light_frame
+    return SphereRefracted(geo_row[:3].copy(), geo_row[3:6].copy(), sphere[:3].copy(), sphere[3],
+                           geo_row[6:9].copy(), distant, ez, d, theta_a, eta, kt, ks, code, g, kt_out,
+                           geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK))
+
+
+@njit
+def _piece(rec, lo, hi, rtol, stats, track):
+    """`bounded_piecewise` over [lo, hi] of rec, a new piece for the path count's guard."""
+    track[COUNT] = -1.0
+    return bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
 
 
 @njit
 def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
-    """(value, variance) of one segment: QUAD adaptive between `breaks`, MARCH or SAMPLE media/slab.py's."""
+    """(value, variance, bound) of one segment: QUAD adaptive between `breaks` with its bound (module
+    docstring, "The bound"; inf where the segment crosses the caustic, a scan was unproven or a piece's
+    path count changed: counted in stats[UNBOUNDED]), MARCH or SAMPLE media/slab.py's (bound inf)."""
     if mode == QUAD:
         end = min(ell, 745.0 / r.kt)
-        br, caustic = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
-        m = breaks(r, end, br[1:MAX_PATHS + 2], caustic[1:MAX_PATHS + 2])
+        br, caustic, spans = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
+        m = breaks(r, end, br[1:MAX_PATHS + 2], caustic[1:MAX_PATHS + 2], spans[1:MAX_PATHS + 2])
         br[m + 1] = end
-        total = 0.0
+        total = rule = 0.0
+        track = r.track
         for i in range(m + 1):
             lo, hi = br[i], br[i + 1]
             if not hi > lo:
                 continue
             if caustic[i] == 0.0 and caustic[i + 1] == 0.0:
-                total += bounded_piecewise(r, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)[0]
+                val, b = _piece(r, lo, hi, rtol, stats, track)
+                total, rule = total + val, rule + b
                 continue
             mid = lo if caustic[i] == 0.0 else hi if caustic[i + 1] == 0.0 else 0.5 * (lo + hi)
             if mid > lo:
-                total += bounded_piecewise(NearCaustic(r, lo, mid - lo), (0.0, 1.0), 2, rtol, N10, W10, N20, W20,
-                                           stats)[0]
+                val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, rtol, stats, track)
+                total, rule = total + val, rule + b
             if hi > mid:
-                total += bounded_piecewise(NearCaustic(r, hi, mid - hi), (0.0, 1.0), 2, rtol, N10, W10, N20, W20,
-                                           stats)[0]
-        return total, 0.0
+                val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, rtol, stats, track)
+                total, rule = total + val, rule + b
+        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[ROUNDING_ABS] * end)
+        for i in range(1, m + 1):
+            if caustic[i] == 2.0:
+                bound = math.inf
+            elif caustic[i] == 1.0:  # the cone's crossing off by spans[i]: that span at twice the integrand's size
+                near = 0.0
+                for x in (br[i] - 2.0 * spans[i], br[i], br[i] + 2.0 * spans[i]):
+                    if 0.0 <= x <= end:
+                        track[COUNT] = -1.0  # not a piece's: no guard
+                        near = max(near, refracted_value(x, r))
+                bound += 8.0 * spans[i] * near
+        if track[UNRESOLVED] > 0.0 or track[COUNT_CHANGED] > 0.0 or not bound < math.inf:
+            bound = math.inf
+            stats[UNBOUNDED] += 1.0
+        return total, 0.0, bound
     length = min(ell, (tau_max if mode == MARCH else 745.0) / r.kt)
-    return march_or_sample(r, mode, length, r.kt, steps, key, dim0, seed)
+    value, var = march_or_sample(r, mode, length, r.kt, steps, key, dim0, seed)
+    return value, var, math.inf
 
 
-def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, mode, rtol, steps, tau_max, keys,
-                     dim0, seed, stats):
-    """(value, variance) (N,) of the inside segments (geo: media/slab.py's GEO_COLUMNS rows; a
-    directional light's direction toward it in geo[6:9]) of the refractive exact sphere (centre,
-    radius) for one unit light and channel, by mode QUAD, MARCH or SAMPLE; stats: media/adaptive.py's slots."""
-    n = len(ell)
-    out, var = np.zeros(n), np.zeros(n)
+@njit
+def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, mode, rtol, steps, tau_max, keys, dim0,
+                     seed, out, var, err, stats):
+    """out, var, err (N,) := (value, variance, bound) of the inside segments (geo: media/slab.py's GEO_COLUMNS rows;
+    a directional light's direction toward it in geo[6:9]) of the refractive exact sphere (centre,
+    radius) for one unit light and channel, by mode QUAD, MARCH or SAMPLE; stats: media/adaptive.py's
+    slots (stats[UNBOUNDED]: the QUAD segments whose bound is inf). One light's `frame` serves the rows
+    that share its geo[6:9]."""
+    out[:], var[:], err[:] = 0.0, 0.0, 0.0
     if ks == 0.0:  # else kt >= ks > 0
-        return out, var
-    for s in np.nonzero(ell > 0.0)[0].tolist():
-        rec = record(sphere, geo[s], distant, eta, kt, ks, code, g, kt_out)
-        out[s], var[s] = _one(rec, float(ell[s]), mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
-    return out, var
+        return
+    light_frame = frame(sphere, geo[0, 6:9].copy(), distant, eta)
+    last = geo[0, 6:9].copy()
+    for s in range(ell.shape[0]):
+        if not ell[s] > 0.0:
+            continue
+        if geo[s, 6] != last[0] or geo[s, 7] != last[1] or geo[s, 8] != last[2]:
+            last = geo[s, 6:9].copy()
+            light_frame = frame(sphere, last, distant, eta)
+        r = record(sphere, geo[s], distant, eta, kt, ks, code, g, kt_out, light_frame)
+        out[s], var[s], err[s] = _one(r, ell[s], mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
