@@ -1598,7 +1598,11 @@ def segment_reach(geo, planes, eta, ell, out):
 @njit
 def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out, err,
                 stats):
-    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound."""
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound;
+    with several faces (eta > 1), each face's integral over the planes it needs alone (`reachable_faces`
+    of its row: the same face test, breaks and bound as with every plane), summed, their bounds summed
+    with the sum's rounding (u per term)."""
+    row, ids = np.empty((1, FACE_COLUMNS)), np.empty(1, np.int64)
     for s in sel:
         end = min(ell[s], 745.0 / kt)
         faces, m, local, spot = _faces(s, geo, planes, a, hl, wl, ll, only, eta, end)
@@ -1606,8 +1610,21 @@ def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_
         if m > 0:
             r, cmax = coordinate_size(geo[s], planes, end)
             p, ln, lp = light_norms(geo[s])
-            out[s], err[s] = faces_quadrature(faces[:m], local, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
-                                              dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], local), stats)
+            if m == 1 or not eta > 1.0:
+                out[s], err[s] = faces_quadrature(faces[:m], local, ell[s], kt, ks, code, g, kt_out, eta, spot[3:],
+                                                  rtol, dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], local),
+                                                  stats)
+                continue
+            total, bound = 0.0, 0.0
+            for j in range(m):  # each face over its own planes: their sum is the integral over all
+                for c in range(FACE_COLUMNS):
+                    row[0, c] = faces[j, c]
+                own = reachable_faces(row, 1, local, eta, end, ids)[1]
+                value, e = faces_quadrature(row, own, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, dplanes,
+                                            (p, ln, lp, r + ln + cmax), entry_face(geo[s], own), stats)
+                total += value
+                bound += e
+            out[s], err[s] = total, bound + m * U * (total + bound)
 
 
 @njit
