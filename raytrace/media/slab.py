@@ -1480,15 +1480,22 @@ def spot_terms(geo, a, hl):
 
 
 @njit
-def _faces(s, geo, planes, a, hl, wl, ll, only, eta, end):
-    """A point or spot light's `refracting_faces` rows for segment s over [0, end] (with only >= 0, that
-    face's alone) culled to those that can light it (`reachable_faces`), their count, the planes they
-    refer to and the spot's terms."""
+def _faces(s, geo, planes, a, hl, wl, ll, only):
+    """A point or spot light's `refracting_faces` rows for segment s (with only >= 0, that face's alone),
+    their count and the spot's terms."""
     spot = spot_terms(geo[s], a[s], hl[s])
     faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
     m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces)
     if only >= 0:  # the path through face `only` alone
         m = only_face(faces, m, only)
+    return faces, m, spot
+
+
+@njit
+def _reached(s, geo, planes, a, hl, wl, ll, only, eta, end):
+    """`_faces` over [0, end] culled to the faces that can light segment s (`reachable_faces`): the
+    rows, their count, the planes they refer to and the spot's terms."""
+    faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
     m, local = reachable_faces(faces, m, planes, eta, end, np.empty(m, np.int64))
     return faces, m, local, spot
 
@@ -1605,7 +1612,7 @@ def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_
     row, ids = np.empty((1, FACE_COLUMNS)), np.empty(1, np.int64)
     for s in sel:
         end = min(ell[s], 745.0 / kt)
-        faces, m, local, spot = _faces(s, geo, planes, a, hl, wl, ll, only, eta, end)
+        faces, m, local, spot = _reached(s, geo, planes, a, hl, wl, ll, only, eta, end)
         err[s] = 0.0
         if m > 0:
             r, cmax = coordinate_size(geo[s], planes, end)
@@ -1642,7 +1649,7 @@ def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, 
     """The same, MARCH or SAMPLE: `march_or_sample` of `faces_point`."""
     for s in sel:
         length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-        faces, m, local, spot = _faces(s, geo, planes, a, hl, wl, ll, only, eta, length)
+        faces, m, local, spot = _reached(s, geo, planes, a, hl, wl, ll, only, eta, length)
         if m > 0:
             rec = FacesPoint(faces[:m], local, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
                              (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
