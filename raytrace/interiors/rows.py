@@ -455,10 +455,10 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     dplanes = measured_plane_errors(prep, sid)
     geo = np.zeros((len(ell), GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points, w, position
-    reach = np.zeros((len(ell), len(planes)), dtype=np.bool_)
+    reached = np.zeros((len(ell), len(planes)), dtype=np.bool_)
     segment_reach(geo, planes, float(prep.scene.shapes[sid].interior.ior), np.ascontiguousarray(ell, dtype=float),
-                  reach)
-    found = [(f, *_face_pieces(prep, sid, planes, mask, li, f, (points, w, ell), dplanes, reach[:, f]))
+                  reached)
+    found = [(f, *_face_pieces(prep, sid, planes, mask, li, f, (points, w, ell), dplanes, reached[:, f]))
              for f in faces]
     gain = np.ones(3)
     if others is not None:
