@@ -22,7 +22,7 @@ from raytrace.camera import pixel_rays
 from raytrace.lights import Lights, cubature, cubature_ladders
 from raytrace.scene.format import load_scene
 
-from .test_area_cubature import quad_rows
+from .test_area_cubature import distances, quad_rows
 
 SCENE = os.path.join(os.path.dirname(__file__), "data", "area_peers", "occluded.toml")
 
@@ -89,10 +89,10 @@ def test_pilot_pixels_as_measured_afresh(size):
     cand = np.unique(cubature.grid(cubature.CANDIDATES, *size), axis=0)
     o, d = rays_of(cand)
     sample = lights.emitters[0].sample
-    picks = [cubature.grid(cubature.GRID, *size), cand[np.argsort(cubature.distances(sample, o, d)[0], kind="stable")
+    picks = [cubature.grid(cubature.GRID, *size), cand[np.argsort(distances(sample, o, d)[0], kind="stable")
                                                       [:cubature.NEAR]]]
     want = np.unique(np.concatenate(picks), axis=0)
-    dist, diameter = cubature.distances(sample, *rays_of(want))
+    dist, diameter = distances(sample, *rays_of(want))
     np.testing.assert_array_equal(pixels, want)
     np.testing.assert_array_equal(near[0], dist < cubature.NEAR_FRACTION * diameter)
 
@@ -117,7 +117,7 @@ def test_nearest_measures_every_ray_that_may_be_among_the_nearest(seed):
     o = rng.normal(size=(n, 3)) * rng.uniform(0.3, 5.0)
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    every, diameter = cubature.distances(sample, o, d)
+    every, diameter = distances(sample, o, d)
     some, same_diameter = cubature.nearest(sample, o, d, cubature.NEAR)
     measured = ~np.isnan(some)
     assert same_diameter == diameter and measured.sum() >= min(n, cubature.NEAR)

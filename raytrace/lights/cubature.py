@@ -94,14 +94,6 @@ def probe_points(samples) -> np.ndarray:
     return samples(u.ravel(), v.ravel())[0]
 
 
-def distances(samples, origins, dirs) -> tuple[np.ndarray, float]:
-    """((N,) the distance from each half-line o + t d (t >= 0; origins, unit dirs (N, 3)) to the nearest
-    of an emitter's `probe_points`, and the largest distance from a few of those points to the others
-    (about the emitter's diameter))."""
-    points = probe_points(samples)
-    return half_line_distances(points, origins, dirs), diameter(points)
-
-
 def nearest(samples, origins, dirs, k: int) -> tuple[np.ndarray, float]:
     """`distances` of the half-lines that may be among the k nearest to the emitter's probe points, NaN
     for the others: each of those is farther than k of them (its distance is within the radius r of
