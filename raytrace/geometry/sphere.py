@@ -22,6 +22,8 @@ import numpy as np
 from .sorting import sort_few
 from ..jit import njit
 
+EPS = float(np.finfo(np.float64).eps)
+
 # the stable forms above must be evaluated as written: no reassociation, no approximate reciprocals
 exact_njit = njit(fastmath=False)
 
@@ -106,12 +108,30 @@ def quadratic_roots(a, b, c, out, n):
 
 
 @exact_njit
+def on_surface(light, c, r):
+    """Whether the point `light` lies on the sphere (c, r) to the rounding of c + r n (a sphere
+    light's own emitter points: lights/sphere.py): |(|light - c| - r)| <= 8 ulp (|c|_inf + r)."""
+    d2 = 0.0
+    scale = r
+    for k in range(3):
+        d2 += (light[k] - c[k]) ** 2
+        scale = max(scale, abs(c[k]) + r)
+    return abs(math.sqrt(d2) - r) <= 8.0 * EPS * scale
+
+
+@exact_njit
 def _blocked(p, light, sun, c, r):
     """Whether the surface of the sphere (c, r) crosses the segment from p to the point light (sun:
-    the ray from p toward the directional light, `light` its unit direction toward the light)."""
+    the ray from p toward the directional light, `light` its unit direction toward the light). A
+    point on the sphere (`on_surface`: a sphere light's own emitter points) is not shadowed by it:
+    its Lambert falloff vanishes wherever the sphere hides it (behind its tangent plane), the
+    penumbrae's probes test whole rays as for flat emitters, and rounding would put the point on
+    either side of the surface."""
     if sun:
         t0, t1 = sphere_roots(p, light, c, r)
         return t1 >= 0.0 and t1 < np.inf
+    if on_surface(light, c, r):
+        return False
     v = np.empty(3)
     for k in range(3):
         v[k] = light[k] - p[k]
@@ -150,8 +170,8 @@ def shadow_breaks(o, w, light, sun, c, r, out):
         e[k] = c[k] - light[k]
         dist2 += e[k] * e[k]
     dist = math.sqrt(dist2)
-    if not dist > r:  # the light inside the sphere: the sphere's surface is the only break
-        return n
+    if not dist > r or on_surface(light, c, r):  # the light inside the sphere, or on it (`_blocked`):
+        return n                                  # the sphere's surface is the only break
     cos2 = (dist - r) * (dist + r) / dist2
     ae = we = aw = aa = ww = 0.0
     for k in range(3):

@@ -2,8 +2,9 @@
 its emitter points are the product rule of ORDER Gauss–Legendre nodes in z = cos(theta) times 2 ORDER
 equally spaced azimuths. Each point's LAMBERT falloff max(0, n·u) is its own visibility over the
 sphere (a point of a convex emitter sees the receiver exactly when the receiver is in front of it).
-Penumbrae sample it uniformly in area (`sample_emitter`). Its shape is the tessellated sphere of
-SEGMENTS segments (scene/meshes.py), inside the exact one.
+Penumbrae sample it uniformly in area (`sample_emitter`). Its shape is the exact sphere
+(geometry/sphere.py: camera and shadow rays meet it in float64, and it does not shadow its own
+emitter points, which lie on it); its mesh of SEGMENTS segments is what exporters write.
 """
 from __future__ import annotations
 
@@ -62,4 +63,4 @@ def ball(light) -> Ball:
 
 
 def shape(light):
-    return "sphere", {"center": light.position, "radius": light.emitter["radius"], "segments": SEGMENTS}
+    return "sphere", {"center": light.position, "radius": light.emitter["radius"], "segments": SEGMENTS, "exact": True}

@@ -1,0 +1,60 @@
+"""A sphere light seen by the camera: its rays end on the exact sphere (geometry/sphere.py), not on a
+tessellation of it, so the emitter's radiance and the air-light in front of it are those of the
+sphere. Against tests/area_twin.py's twin (the ray's exact hit, scipy over the visible cap and the
+ray, built from the geometry alone)."""
+import numpy as np
+import pytest
+
+from raytrace import api
+from raytrace.geometry.sphere import on_surface
+
+from . import area_twin as twin
+from .test_area_lights import KS, KT, SPHERE, scene
+
+# aimed at the lamp: 8 of the 20 rays end on it, the rest pass beside it
+CAMERA = {"position": [0.0, 0.0, 4.0], "look_at": SPHERE["center"], "fov": 9.0, "width": 5, "height": 4}
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """The twin's radiance per pixel, which rays hit the lamp, and which pass within 1 % of its radius
+    outside it (grazing: the rule about the segment converges slowest there, tests/test_sphere_rule.py)."""
+    em = twin.Sphere(SPHERE["center"], SPHERE["radius"], SPHERE["radiance"])
+    o = np.array(CAMERA["position"])
+    dirs = twin.camera_rays(o, CAMERA["look_at"], [0.0, 1.0, 0.0], CAMERA["fov"], CAMERA["width"], CAMERA["height"])
+    hits = np.array([[em.hit(o, d)[1] for d in row] for row in dirs])
+    f = o - em.c
+    offset = np.linalg.norm(f - (dirs @ f)[..., None] * dirs, axis=-1) / em.R
+    return np.array([[twin.radiance(em, o, d, KT, KS) for d in row] for row in dirs]), hits, ~hits & (offset < 1.01)
+
+
+@pytest.mark.parametrize("method, params", [("quadrature", {"rtol": 1e-6, "volumetric_shadows": False}),
+                                            ("quadrature", {"rtol": 1e-6, "volumetric_shadows": True}),
+                                            ("analytic", {"precision": 1e-6, "volumetric_shadows": False})])
+def test_rays_ending_on_a_sphere_light_see_the_exact_sphere(reference, method, params):
+    """Within 1e-6 of the twin on every pixel but the 4 grazing ones (0.8 % of the radius outside,
+    counted as not converged, within 2e-5): the 8 hits to about 1e-8 (a tessellation of 64 segments
+    puts them up to 3.6e-4 nearer: 1.2e-4 off here); every ray by the rule about its segment;
+    the lamp does not shadow its own emitter points (with volumetric shadows: the same pixels)."""
+    ref, hits, grazing = reference
+    assert hits.sum() == 8 and grazing.sum() == 4
+    img = api.render(scene([SPHERE], camera=CAMERA), method, **params)
+    rel = np.abs(img.array[..., 0] / ref - 1)
+    assert rel[hits].max() <= 1e-7, rel[hits].max()
+    assert rel[~grazing].max() <= 1e-6 and rel[grazing].max() <= 2e-5, rel
+    assert img.stats["cubature: rays near an emitter"] == ref.size, img.stats
+    assert img.stats["cubature: rays near an emitter not converged"] == grazing.sum(), img.stats
+
+
+def test_the_lamps_points_lie_on_its_sphere_to_rounding():
+    """`on_surface` holds for the emitter's cubature nodes and its penumbra samples (so the sphere does
+    not shadow them, whichever side rounding puts them) and fails a relative 1e-13 off the sphere."""
+    from raytrace.lights import sphere
+
+    lamp = scene([SPHERE]).lights[0]
+    c, r = np.asarray(SPHERE["center"], float), SPHERE["radius"]
+    u = np.random.default_rng(1).random((2, 500))
+    points = np.concatenate([sphere.rows(lamp, 12).position, sphere.sample_emitter(lamp, *u)[0]])
+    assert all(on_surface(p, c, r) for p in points)
+    normals = (points - c) / r
+    assert not any(on_surface(c + r * (1.0 + s * 1e-13) * n, c, r) for n in normals[::50] for s in (-1.0, 1.0))
