@@ -1,11 +1,12 @@
 """A sphere light seen by the camera: its rays end on the exact sphere (geometry/sphere.py), not on a
 tessellation of it, so the emitter's radiance and the air-light in front of it are those of the
 sphere. Against tests/area_twin.py's twin (the ray's exact hit, scipy over the visible cap and the
-ray, built from the geometry alone)."""
+ray, built from the geometry alone). An exact `[[shape]]` sphere that emits is that sphere light."""
 import numpy as np
 import pytest
 
 from raytrace import api
+from raytrace.errors import UserError
 from raytrace.geometry.sphere import on_surface
 
 from . import area_twin as twin
@@ -58,3 +59,20 @@ def test_the_lamps_points_lie_on_its_sphere_to_rounding():
     assert all(on_surface(p, c, r) for p in points)
     normals = (points - c) / r
     assert not any(on_surface(c + r * (1.0 + s * 1e-13) * n, c, r) for n in normals[::50] for s in (-1.0, 1.0))
+
+
+def test_an_exact_sphere_that_emits_is_that_sphere_light():
+    """`[[shape]] primitive = "sphere", exact = true, emission = L` (here scaled into place by its
+    transform) renders as the `[[light]] type = "sphere"` of its world centre, radius and radiance L, bit
+    for bit; two_sided is refused in one line naming the key."""
+    shape = {"primitive": "sphere", "center": [0.0, 0.75, 0.0], "radius": 0.15, "exact": True,
+             "emission": SPHERE["radiance"], "transform": {"scale": [2.0, 2.0, 2.0]}}
+    emitting = scene([], camera=CAMERA, shapes=[shape])
+    light, = emitting.lights
+    np.testing.assert_array_equal(light.position, SPHERE["center"])
+    assert light.emitter["radius"] == SPHERE["radius"] and emitting.shapes[0].light == 0
+    for method, params in (("quadrature", {"rtol": 1e-6}), ("montecarlo", {"samples": 4})):
+        np.testing.assert_array_equal(api.render(emitting, method, **params).array,
+                                      api.render(scene([SPHERE], camera=CAMERA), method, **params).array)
+    with pytest.raises(UserError, match=r"shape\[0\]\.two_sided: an exact sphere that emits is a sphere light"):
+        scene([], camera=CAMERA, shapes=[{**shape, "two_sided": True}])

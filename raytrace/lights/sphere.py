@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from . import area
+from .light import Light
 from .sphere_rule import Ball
 
 NAME = "sphere"
@@ -26,8 +27,17 @@ def parse(read, key, raw):
     area.required(read, key, raw, (("center", "[1.0, 1.0, 0.0]"), ("radius", "0.1")))
     center = read.vec3(f"{key}.center", raw["center"])
     radius = float(read.number(f"{key}.radius", raw["radius"], positive=True))
-    return area.parse_common(read, key, raw, CODE, center, {"radius": radius, "area": 4.0 * math.pi * radius * radius},
-                             sides=False)
+    return area.parse_common(read, key, raw, CODE, center, _emitter(radius), sides=False)
+
+
+def _emitter(radius: float) -> dict:
+    return {"radius": radius, "area": 4.0 * math.pi * radius * radius}
+
+
+def of_shape(center, radius: float, emission) -> Light:
+    """The sphere light of an exact `[[shape]]` sphere that emits (scene/format.py): its centre and
+    radius in world space, its `emission` the radiance."""
+    return Light(np.asarray(center, float), np.asarray(emission, float), CODE, None, emitter=_emitter(float(radius)))
 
 
 def describe(light) -> str:

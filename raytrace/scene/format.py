@@ -9,13 +9,13 @@ import difflib
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError, counted
-from ..lights import Light, check_at_infinity, emitter_shape, parse_light, power, two_sided
+from ..lights import Light, check_at_infinity, emitter_shape, parse_light, power, sphere, two_sided
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
 from .assets import find_asset
@@ -283,10 +283,10 @@ def _shape(ctx, i, raw):
 
 
 def _exact_sphere(ctx, key, raw, transform):
-    """Refuse what an exact sphere does not take yet: emission, a non-uniform scale."""
-    if "emission" in raw:
-        ctx.fail(f"{key}.emission", "an exact sphere emitting is not built yet", f"set {key}.exact = false (a mesh "
-                 "of `segments`) or remove emission")
+    """Refuse what an exact sphere does not take: emission on both sides, a non-uniform scale."""
+    if "emission" in raw and raw.get("two_sided", False) is True:
+        ctx.fail(f"{key}.two_sided", "an exact sphere that emits is a sphere light, which emits outward only",
+                 f"remove two_sided, or set {key}.exact = false (a mesh of `segments`)")
     if np.ptp(np.abs(transform.scale)) > 0.0:
         ctx.fail(f"{key}.transform.scale", "an exact sphere scaled unevenly is an ellipsoid, which is not read",
                  f"scale it uniformly, or set {key}.exact = false")
@@ -302,6 +302,17 @@ def _emission(ctx, key, raw):
         ctx.fail(f"{key}.emission", "a shape that holds a medium cannot emit yet", "remove emission or the interior")
     read = _Reader(ctx)
     return power(read, f"{key}.emission", _rgb(ctx, f"{key}.emission", raw["emission"])), two_sided(read, key, raw)
+
+
+def _emitting_spheres(shapes: list[Shape], lights: list[Light]):
+    """Each exact sphere that emits becomes a sphere light (lights/sphere.py), appended to `lights`,
+    whose emitter is that shape (its `light`): drawn exactly, with the sphere light's rule along rays."""
+    from .meshes import world_sphere  # (meshes.py imports this module)
+
+    for i, shape in enumerate(shapes):
+        if shape.kind == "sphere" and shape.params["exact"] and shape.emission is not None and shape.light is None:
+            lights.append(sphere.of_shape(*world_sphere(shape), shape.emission))
+            shapes[i] = replace(shape, light=len(lights) - 1)
 
 
 def _emitters(lights) -> list[Shape]:
@@ -450,6 +461,7 @@ def scene_from_dict(raw: dict, source: str, path: Path | None = None) -> Scene:
     lights = [parse_light(read, i, s) for i, s in enumerate(lights_raw)]
     check_at_infinity(read, lights, "background" in raw)
     shapes += _emitters(lights)
+    _emitting_spheres(shapes, lights)
     medium = parse_medium(read, raw.get("medium"))
     medium.check_scene(read, camera, lights)
     return Scene(
