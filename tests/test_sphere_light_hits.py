@@ -76,3 +76,19 @@ def test_an_exact_sphere_that_emits_is_that_sphere_light():
                                       api.render(scene([SPHERE], camera=CAMERA), method, **params).array)
     with pytest.raises(UserError, match=r"shape\[0\]\.two_sided: an exact sphere that emits is a sphere light"):
         scene([], camera=CAMERA, shapes=[{**shape, "two_sided": True}])
+
+
+@pytest.mark.parametrize("fmt", ["mitsuba", "pbrt"])
+def test_an_emitting_exact_sphere_exports_as_an_emitting_sphere(tmp_path, fmt):
+    """Mitsuba and pbrt write it as their emitting sphere, which reads back as the same sphere light."""
+    from raytrace.io import mitsuba, pbrt
+    from raytrace.scene.format import scene_from_dict
+
+    module, out = {"mitsuba": (mitsuba, tmp_path / "s.xml"), "pbrt": (pbrt, tmp_path / "s.pbrt")}[fmt]
+    shape = {"primitive": "sphere", "center": [0.0, 1.5, 0.0], "radius": 0.3, "exact": True, "emission": 10.0}
+    module.export({"camera": CAMERA, "shape": [shape]}, out, "test", False)
+    back = scene_from_dict(module.read_scene(out), str(out))
+    light, = back.lights
+    assert light.kind == scene([SPHERE]).lights[0].kind and light.emitter["radius"] == SPHERE["radius"]
+    np.testing.assert_allclose(light.position, SPHERE["center"], atol=1e-15)
+    np.testing.assert_array_equal(light.intensity, [SPHERE["radiance"]] * 3)

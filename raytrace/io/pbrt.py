@@ -1255,9 +1255,9 @@ def export(raw: dict, out: Path, source: str, approximate: bool) -> list[Path]:
     for i, shape in enumerate(scene.shapes):
         mine = ids == i
         lines.append("AttributeBegin")
-        # a sphere goes out as pbrt's where it reads back the same: exact (also holding a medium); an emitting
-        # one or a mesh of a sphere goes out as its triangles
-        sphere = world_sphere(shape) if shape.kind == "sphere" and i not in emission and shape.params["exact"] else None
+        # a sphere goes out as pbrt's where it reads back the same: exact (also holding a medium, or emitting:
+        # read back as the sphere light it is); a mesh of a sphere goes out as its triangles
+        sphere = world_sphere(shape) if shape.kind == "sphere" and shape.params["exact"] else None
         if i in emission:  # emitting towards each triangle's winding (or its N: oriented to the winding)
             if shape.interior is not None:
                 raise UserError(f"{source}: shape[{i}].emission: an emitting shape that holds a medium cannot be "
