@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, counted
+from ..geometry.vectors import rotation_matrix
 from ..lights import Light, check_at_infinity, emitter_shape, parse_light, power, sphere, two_sided
 from ..media import Medium, parse_medium
 from ..media.phase import HG, ISOTROPIC, RAYLEIGH
@@ -40,6 +41,21 @@ class Transform:
     scale: np.ndarray
     rotate: np.ndarray  # degrees about x, then y, then z
     translate: np.ndarray
+
+
+def apply_transform(points, t: Transform):
+    """Scale, then rotate about x, y, z (degrees), then translate."""
+    m = rotation_matrix(t.rotate) * t.scale[None, :]
+    return points @ m.T + t.translate
+
+
+def world_sphere(shape: Shape) -> tuple[np.ndarray, float] | None:
+    """A sphere primitive's centre and radius in world space, or None where its transform scales it
+    unevenly (an ellipsoid)."""
+    t = shape.transform
+    if np.ptp(np.abs(t.scale)) > 0.0:
+        return None
+    return apply_transform(shape.params["center"][None, :], t)[0], shape.params["radius"] * abs(float(t.scale[0]))
 
 
 @dataclass
@@ -307,8 +323,6 @@ def _emission(ctx, key, raw):
 def _emitting_spheres(shapes: list[Shape], lights: list[Light]):
     """Each exact sphere that emits becomes a sphere light (lights/sphere.py), appended to `lights`,
     whose emitter is that shape (its `light`): drawn exactly, with the sphere light's rule along rays."""
-    from .meshes import world_sphere  # (meshes.py imports this module)
-
     for i, shape in enumerate(shapes):
         if shape.kind == "sphere" and shape.params["exact"] and shape.emission is not None and shape.light is None:
             lights.append(sphere.of_shape(*world_sphere(shape), shape.emission))

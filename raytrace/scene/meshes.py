@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import UserError, counted
 from ..geometry.vectors import perpendicular, rotation_matrix
 from .assets import find_asset
-from .format import Scene, Shape, Transform
+from .format import Scene, Shape, Transform, apply_transform, world_sphere
 
 DEFAULT_REFLECTANCE = 0.5
 CREASE_DEGREES = 30.0  # a mesh without normals is smoothed across edges flatter than this (Blender's auto smooth)
@@ -130,12 +130,6 @@ def crease_normals(tris, degrees: float = CREASE_DEGREES):
     flat = np.linalg.norm(acc - own, axis=1) < 1e-12  # a corner amid coplanar triangles: exactly its facet's
     acc[flat] = own[flat]
     return acc.reshape(-1, 3, 3)
-
-
-def apply_transform(tris, t: Transform):
-    """Scale, then rotate about x, y, z (degrees), then translate."""
-    m = rotation_matrix(t.rotate) * t.scale[None, :]
-    return tris @ m.T + t.translate
 
 
 def _normal_matrix(t: Transform):
@@ -255,15 +249,6 @@ def _oriented(corners, tris):
     unit = corners / np.where(length > 0.0, length, 1.0)
     side = np.einsum("ij,ij->i", unit.sum(axis=1), np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]))
     return unit * np.where(side < 0.0, -1.0, 1.0)[:, None, None]
-
-
-def world_sphere(shape: Shape) -> tuple[np.ndarray, float] | None:
-    """A sphere primitive's centre and radius in world space, or None where its transform scales it
-    unevenly (an ellipsoid)."""
-    t = shape.transform
-    if np.ptp(np.abs(t.scale)) > 0.0:
-        return None
-    return apply_transform(shape.params["center"][None, :], t)[0], shape.params["radius"] * abs(float(t.scale[0]))
 
 
 def exact_spheres(scene: Scene, shape_ids: np.ndarray):
