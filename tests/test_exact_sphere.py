@@ -196,7 +196,7 @@ def test_image_against_lambert():
 
 
 @pytest.mark.parametrize("extra, key", [
-    ({"emission": [1.0, 1.0, 1.0]}, "emission"),
+    ({"emission": [1.0, 1.0, 1.0], "two_sided": True}, "two_sided"),  # emitting: a sphere light (outward only)
     ({"transform": {"scale": [1.0, 2.0, 1.0]}}, "transform.scale"),
     ({"exact": "yes"}, "exact"),
 ])
