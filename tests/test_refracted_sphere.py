@@ -211,7 +211,7 @@ CASES = {"water_lamp": (1.33, LAMP), "glass_lamp": (1.5, LAMP), "water_sun": (1.
 UNRESOLVED = {"glass_lamp": [(4, 3)]}
 
 
-def against_twin(scene, pixels=None, skip=(), rtol=1e-6, off=3.0):
+def against_twin(scene, pixels=None, skip=(), rtol=1e-6):
     """The quadrature image (rtol 1e-6), its largest relative difference from the twin over `pixels`
     (all: None) where the twin is lit (0 where it is not), the twin's points where the number of paths
     changes (caustic and marginal crossings) over them, and the lit pixels' count. The error bound
@@ -231,21 +231,14 @@ def against_twin(scene, pixels=None, skip=(), rtol=1e-6, off=3.0):
         worst = max(worst, float(np.max(np.abs(res.image[j, i] - ref) / ref)))
         crossings += len(cuts)
         refs[i, j] = ref
-    check_bound(res, refs, rtol, off)
+    check_bound(res, refs, rtol)
     return res, worst, crossings, lit
 
 
-# the glass ball under the spot: 4 of its 11 bounded pixels (in the spot's band) have bounds of 3.1 to
-# 5.7 rtol at rtol 1e-6 (cause not analysed; the spot's own rounding term is 4e-14), so there an answer
-# 6 rtol off is what must fail
-LOOSE = {"glass_spot": 6.0}
-
-
-def check_bound(res, refs, rtol, off=3.0):
+def check_bound(res, refs, rtol):
     """Where the bound is finite: never exceeded by the difference from the twin, not vacuous (its
-    median within 10 rtol of the value) and tight enough that an answer `off` rtol off would exceed it
-    on at least 90 % of the pixels (3 but for the spot: LOOSE);
-    the pixels with an infinite bound are those of the segments counted unbounded (caustic crossed).
+    median within 10 rtol of the value) and tight enough that an answer 3 rtol off would exceed it
+    on at least 90 % of the pixels; the pixels with an infinite bound are those of the segments counted unbounded (caustic crossed).
     Below rtol 1e-6 only that it holds: the image's float32 rounding (6e-8, in the bound) dominates."""
     ratios, unbounded, loose = [], 0, 0
     for (i, j), ref in refs.items():
@@ -254,7 +247,7 @@ def check_bound(res, refs, rtol, off=3.0):
             unbounded += 1
             continue
         assert np.all(np.abs(value - ref) <= bound), ((i, j), value - ref, bound)
-        loose += not np.all(np.abs(value * (1.0 + off * rtol) - ref) > bound)
+        loose += not np.all(np.abs(value * (1.0 + 3.0 * rtol) - ref) > bound)
         ratios.append(float(np.max(bound / value)))
     assert ratios and (rtol < 1e-6 or np.median(ratios) < 10.0 * rtol), ratios
     assert rtol < 1e-6 or loose <= 0.1 * len(ratios), (loose, sorted(ratios)[-3:])
@@ -286,7 +279,7 @@ def test_quadrature_matches_the_twin(case):
     """Water and glass balls under the lamp, the sun and a spot whose cone edges cross the ball, every
     pixel but the twin's UNRESOLVED, within 1e-6 at rtol 1e-6 (0 where the twin is unlit); the bound
     holds where it is finite (`check_bound`)."""
-    res, worst, crossings, lit = against_twin(ball(*CASES[case]), skip=UNRESOLVED.get(case, ()), off=LOOSE.get(case, 3.0))
+    res, worst, crossings, lit = against_twin(ball(*CASES[case]), skip=UNRESOLVED.get(case, ()))
     assert worst < 1e-6 and lit >= 10, (worst, crossings, lit)
     assert crossings >= CROSSINGS[case], crossings
     assert res.stats["inside: integrals not converged"] == 0

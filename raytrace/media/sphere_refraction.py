@@ -70,7 +70,8 @@ segment's length, plus each cone crossing's location error (a quadratic's: its r
 slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
 three evaluations around it. An evaluation's rounding is the sum over its paths of the value times,
 first order and doubled: the root off by dth = 2 (dh + dX) / s_min (`paths`' spread; dX the rounding
-of X's coordinates, s_min the least |h'| over the root's cell) plus t's own rounding, carried through
+of X's coordinates, s_min the least |h'| about the root: over its cell, or where that is below half
+the cell's secant over narrower intervals about it, `_steepest`) plus t's own rounding, carried through
 |ds/dtheta| <= |phi'| (|X| + R) + R (the path inside; R for the path outside and 2 R / o for 1 / o^2),
 the cosines (|cos_i'|, |cos_t'| <= |theta_i'| (/ eta^2 cos_t); Fresnel's T at most twice cos_i's
 relative error, eta > 1), the scattering cosine (|phi'| and e_y's rounding 2 dX / y_X, times the
@@ -338,11 +339,37 @@ def roots(lo, hi, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta, 
 
 
 @njit
-def paths(r, zx, yx, out, spread):
+def _steepest(root, a, b, fa, fb, k, e, zx, yx, radius, d, eta):
+    """A lower bound on |h'| about the root of h in the monotone cell [a, b] (h(a) = fa, h(b) = fb, K = k
+    over it) within which the root of h off by e at most lies: the cell's secant's slope less K w,
+    and where that is below half the secant's, narrower intervals about the root, each quartered:
+    their secant less K w where h there differs from 0 by more than e at both ends (the root of h off
+    by e is then inside: |h| grows away from the root, h being monotone in the cell)."""
+    w = b - a
+    secant = abs(fb - fa) / w
+    best = secant - k * w - 2.0 * e / w  # the cell's: its ends' values off by e each
+    half = 0.25 * w
+    for _ in range(24):
+        if best >= 0.5 * secant:
+            break
+        lo, hi = max(a, root - half), min(b, root + half)
+        f1 = _h(lo, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        f2 = _h(hi, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        wn = hi - lo
+        if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
+            break
+        secant = abs(f2 - f1) / wn
+        best = max(best, secant - k * wn - 2.0 * e / wn)
+        half *= 0.25
+    return best
+
+
+@njit
+def paths(r, zx, yx, dx, out, spread):
     """The roots of h (kind 0 of `_h`) of the point X = (zx, yx) on the lit arc into out, ascending,
-    and into spread[k] (2,) how far each may be from the exact root of the computed X: (a, b), the
-    error a + b dX for X off by dX (2 (the values' rounding + dX) / the least |h'| over its cell, the
-    secant's slope less K w; inf for a root at a node or in an unresolved cell); returns (count,
+    and into spread[k] how far each may be from the exact root of X, whose computed coordinates are
+    off by dx at most: 2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`; inf
+    for a root at a node or in an unresolved cell); returns (count,
     proven): SCAN uniform cells, each halved until the bound K on |h''| over it (`angular_bounds` of
     its SCAN cell) shows that it holds no root (no sign change and either the least |h| at its ends
     above K w^2 / 8 or h monotone: the secant's slope above K w, each less the values' rounding) or
@@ -361,13 +388,13 @@ def paths(r, zx, yx, out, spread):
     right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
     if right == 0.0:
         out[m] = lo + SCAN * step
-        spread[m, 0] = spread[m, 1] = math.inf
+        spread[m] = math.inf
         m += 1
     for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
         left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
         if left == 0.0 and m < cap:
             out[m] = lo + j * step
-            spread[m, 0] = spread[m, 1] = math.inf
+            spread[m] = math.inf
             m += 1
         ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, j, 0
         top += 1
@@ -386,8 +413,8 @@ def paths(r, zx, yx, out, spread):
             if fa * fb < 0.0:
                 if m < cap:
                     out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-                    slope = (abs(fb - fa) - 2.0 * dh) / w - k * w
-                    spread[m, 0], spread[m, 1] = 2.0 * dh / slope + 4.0 * U * r.theta_a, 2.0 / slope
+                    slope = _steepest(out[m], a, b, fa, fb, k, dh + dx, zx, yx, radius, d, eta)
+                    spread[m] = 2.0 * (dh + dx) / slope + 4.0 * U * r.theta_a if slope > 0.0 else math.inf
                     m += 1
                 else:
                     proven = False
@@ -397,7 +424,7 @@ def paths(r, zx, yx, out, spread):
             proven = False
             if fa * fb < 0.0 and m < cap:
                 out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-                spread[m, 0] = spread[m, 1] = math.inf
+                spread[m] = math.inf
                 m += 1
             continue
         fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
@@ -405,7 +432,7 @@ def paths(r, zx, yx, out, spread):
         if fm == 0.0:
             if m < cap:
                 out[m] = mid
-                spread[m, 0] = spread[m, 1] = math.inf
+                spread[m] = math.inf
                 m += 1
             else:
                 proven = False
@@ -414,11 +441,11 @@ def paths(r, zx, yx, out, spread):
         ca[top + 1], cb[top + 1], ha[top + 1], hb[top + 1], which[top + 1], depth[top + 1] = a, mid, fa, fm, j, level
         top += 2
     for p in range(1, m):  # insertion sort, the spreads alongside
-        x, s0, s1, q = out[p], spread[p, 0], spread[p, 1], p
+        x, s0, q = out[p], spread[p], p
         while q > 0 and out[q - 1] > x:
-            out[q], spread[q, 0], spread[q, 1] = out[q - 1], spread[q - 1, 0], spread[q - 1, 1]
+            out[q], spread[q] = out[q - 1], spread[q - 1]
             q -= 1
-        out[q], spread[q, 0], spread[q, 1] = x, s0, s1
+        out[q], spread[q] = x, s0
     return m, proven
 
 
@@ -451,9 +478,12 @@ def refracted_value(x, r):
     and absolute over the evaluations), with the evaluations whose scan was unproven and whose path count differs
     from the piece's first."""
     zx, yx, ey = _plane(r, x)
+    qn = math.sqrt(zx * zx + yx * yx)
+    dx = 16.0 * U * (math.sqrt((r.o[0] - r.c[0]) ** 2 + (r.o[1] - r.c[1]) ** 2 + (r.o[2] - r.c[2]) ** 2) + x + r.radius)
+    dx += 8.0 * U * qn  # X's coordinates in the plane: the point's, the axis's rounding
     found = np.empty(MAX_PATHS)
-    spread = np.empty((MAX_PATHS, 2))
-    m, proven = paths(r, zx, yx, found, spread)
+    spread = np.empty(MAX_PATHS)
+    m, proven = paths(r, zx, yx, dx, found, spread)
     track = r.track
     if not proven:
         track[UNRESOLVED] += 1.0
@@ -463,10 +493,7 @@ def refracted_value(x, r):
         track[COUNT_CHANGED] += 1.0
     total = err = 0.0
     eta, radius, ez = r.eta, r.radius, r.ez
-    qn = math.sqrt(zx * zx + yx * yx)
     reach = qn + radius
-    dx = 16.0 * U * (math.sqrt((r.o[0] - r.c[0]) ** 2 + (r.o[1] - r.c[1]) ** 2 + (r.o[2] - r.c[2]) ** 2) + x + radius)
-    dx += 8.0 * U * qn  # X's coordinates in the plane: the point's, the axis's rounding
     dmu = 8.0 * U + 2.0 * dx / yx if yx > 0.0 else math.inf  # e_y's direction
     cond = phase_condition(r.code, r.g)
     step = 2.0 * r.theta_a / SCAN
@@ -506,7 +533,7 @@ def refracted_value(x, r):
         # the path's relative rounding: its root off by dth, the rest first order in u (module docstring)
         cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
         p1, a1 = cell[0], cell[3]
-        dth = spread[k, 0] + spread[k, 1] * dx + cell[2]  # and t's own rounding as an angle
+        dth = spread[k] + cell[2]  # and t's own rounding as an angle
         ds = (p1 * reach + radius) * dth + dx
         eps = r.kt * (ds + 4.0 * U * (x + s)) + 64.0 * U
         if not r.distant:
