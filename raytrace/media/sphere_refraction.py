@@ -60,15 +60,31 @@ the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in clos
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
 distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
-in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); MARCH and SAMPLE take media/slab.py's midpoint
-march and free-path samples of the same integrand (their bound is infinite).
+in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
+MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
+(their bound is infinite).
+
+The caustic (`_fold`). Where the segment crosses the caustic two paths (the fold pair) meet and
+vanish; along the segment each carries E's 1/sqrt singularity there, whose rounding (the pair's roots
+are nearly double: their spread and the tube factor's relative error grow without bound) defeats a
+bound in x. Over the pieces [a, b] on both sides of the crossing, with W = [theta_1, theta_2] the
+angles of the pair at the end with two paths more (both ends' scans proven; at a cone's crossing with
+one more, the outermost path and the lit arc's end, the pair's other path leaving there), the
+integral splits exactly, for any W, into the paths refracted outside W, in x (`refracted_value` with
+the record's window: a count of them that changes between evaluations is the guard's), and those
+inside W, in theta: by the area formula each point x of [a, b] that the ray refracted at theta
+reaches (h(theta; X(x)) = 0, a quadratic in x once squared) weighs in at |dx/dtheta| = |h_theta| /
+|h_x|, and |h_theta| = R cos_t |1 - s kappa_t| (the tube's width in the plane) cancels the tangential
+factor of E, so the integrand in theta (`fold_value`, `FoldPair`) is smooth through the caustic.
 
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
 rounding of an evaluation x (the value + the rule's bound) and the largest absolute one x the
 segment's length, plus each cone crossing's location error (a quadratic's: its rounding over its
 slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
-three evaluations around it. An evaluation's rounding is the sum over its paths of the value times,
+three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
+rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
+x 8 x `fold_value` there. An evaluation's rounding is the sum over its paths of the value times,
 first order and doubled: the root off by dth = 2 (dh + dX) / s_min (`paths`' spread; dX the rounding
 of X's coordinates, s_min the least |h'| about the root: over its cell, or where that is below half
 the cell's secant over narrower intervals about it, `_steepest`) plus t's own rounding, carried through
@@ -76,11 +92,14 @@ the cell's secant over narrower intervals about it, `_steepest`) plus t's own ro
 the cosines (|cos_i'|, |cos_t'| <= |theta_i'| (/ eta^2 cos_t); Fresnel's T at most twice cos_i's
 relative error, eta > 1), the scattering cosine (|phi'| and e_y's rounding 2 dX / y_X, times the
 phase's condition) and the tube factors 1 - s kappa (kappa's derivative through the cosines and o,
-over the factor; their own rounding over the factor too); a spot's falloff at its slope. Infinite,
-counted in stats[UNBOUNDED]: a segment that crosses the caustic (its crossings are found by `roots`,
-which is not proven, and their location is not analysed), an evaluation whose scan was unproven, a
-piece whose path count changed between its evaluations (the guard against a crossing the breaks
-missed), eta <= 1.
+over the factor; their own rounding over the factor too); a spot's falloff at its slope. In
+`fold_value` theta is exact (t's rounding only), the point's x is off by 2 (|h| + its rounding) / |h_x|
+at the computed root (through the path, the attenuation and X's coordinates) and h_x by its own
+rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, counted in stats[UNBOUNDED]:
+a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
+crossings in a row), an evaluation whose scan was unproven, a piece whose path count changed between
+its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
+`roots`, which is not proven), eta <= 1.
 """
 from __future__ import annotations
 
