@@ -892,9 +892,7 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
                 val, b, rounding, ends, ok = _fold(r, lo, br[i + 2], caustic[i], caustic[i + 2], spans[i + 1], rtol,
                                                    stats, track)
                 if ok:
-                    total, rule, folds = total + val, rule + b, folds + rounding
-                    track[UNRESOLVED] += 0.0 if ends < math.inf else 1.0
-                    rule += ends
+                    total, rule, folds = total + val, rule + b + ends, folds + rounding
                     caustic[i + 1] = 3.0  # crossed by `_fold`: bounded
                     i += 2
                     continue
