@@ -60,26 +60,46 @@ the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in clos
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
 distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
-in u with x = x_b + (x - x_b) u^2 (`NearCaustic`); MARCH and SAMPLE take media/slab.py's midpoint
-march and free-path samples of the same integrand (their bound is infinite).
+in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
+MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
+(their bound is infinite).
+
+The caustic (`_fold`). Where the segment crosses the caustic two paths (the fold pair) meet and
+vanish; along the segment each carries E's 1/sqrt singularity there, whose rounding (the pair's roots
+are nearly double: their spread and the tube factor's relative error grow without bound) defeats a
+bound in x. Over the pieces [a, b] on both sides of the crossing, with W = [theta_1, theta_2] the
+angles of the pair at the end with two paths more (both ends' scans proven; at a cone's crossing with
+one more, the outermost path and the lit arc's end, the pair's other path leaving there), the
+integral splits exactly, for any W, into the paths refracted outside W, in x (`refracted_value` with
+the record's window: a count of them that changes between evaluations is the guard's), and those
+inside W, in theta: by the area formula each point x of [a, b] that the ray refracted at theta
+reaches (h(theta; X(x)) = 0, a quadratic in x once squared) weighs in at |dx/dtheta| = |h_theta| /
+|h_x|, and |h_theta| = R cos_t |1 - s kappa_t| (the tube's width in the plane) cancels the tangential
+factor of E, so the integrand in theta (`fold_value`, `FoldPair`) is smooth through the caustic.
 
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
 rounding of an evaluation x (the value + the rule's bound) and the largest absolute one x the
 segment's length, plus each cone crossing's location error (a quadratic's: its rounding over its
 slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
-three evaluations around it. An evaluation's rounding is the sum over its paths of the value times,
+three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
+rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
+x 8 x `fold_value` there. An evaluation's rounding is the sum over its paths of the value times,
 first order and doubled: the root off by dth = 2 (dh + dX) / s_min (`paths`' spread; dX the rounding
-of X's coordinates, s_min the least |h'| over the root's cell) plus t's own rounding, carried through
+of X's coordinates, s_min the least |h'| about the root: over its cell, or where that is below half
+the cell's secant over narrower intervals about it, `_steepest`) plus t's own rounding, carried through
 |ds/dtheta| <= |phi'| (|X| + R) + R (the path inside; R for the path outside and 2 R / o for 1 / o^2),
 the cosines (|cos_i'|, |cos_t'| <= |theta_i'| (/ eta^2 cos_t); Fresnel's T at most twice cos_i's
 relative error, eta > 1), the scattering cosine (|phi'| and e_y's rounding 2 dX / y_X, times the
 phase's condition) and the tube factors 1 - s kappa (kappa's derivative through the cosines and o,
-over the factor; their own rounding over the factor too); a spot's falloff at its slope. Infinite,
-counted in stats[UNBOUNDED]: a segment that crosses the caustic (its crossings are found by `roots`,
-which is not proven, and their location is not analysed), an evaluation whose scan was unproven, a
-piece whose path count changed between its evaluations (the guard against a crossing the breaks
-missed), eta <= 1.
+over the factor; their own rounding over the factor too); a spot's falloff at its slope. In
+`fold_value` theta is exact (t's rounding only), the point's x is off by 2 (|h| + its rounding) / |h_x|
+at the computed root (through the path, the attenuation and X's coordinates) and h_x by its own
+rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, counted in stats[UNBOUNDED]:
+a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
+crossings in a row), an evaluation whose scan was unproven, a piece whose path count changed between
+its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
+`roots`, which is not proven), eta <= 1.
 """
 from __future__ import annotations
 
@@ -106,9 +126,10 @@ CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
 U = 2.0 ** -53
 # a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
 # largest relative and absolute rounding bounds, the path count of the piece's first evaluation (-1:
-# none yet) and the evaluations whose count differed from it
-UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED = range(5)
-TRACK = 5
+# none yet), the evaluations whose count differed from it and the largest absolute rounding of a fold
+# pair's integrand (per unit angle)
+UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED, FOLD_ABS = range(6)
+TRACK = 6
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
@@ -119,7 +140,8 @@ class SphereRefracted(NamedTuple):
     segment's start o and direction w, the sphere's centre c and radius, the light's position (a
     directional light: the unit direction toward it), its axis ez (the unit direction from c toward
     the light), d = |L - c| (inf for a directional light), theta_a the lit arc's half-width, the
-    spot's axis and (cos_end, cos_start, curve)."""
+    spot's axis and (cos_end, cos_start, curve), `cell_table`, the integrand's track and the window of
+    angles whose paths `refracted_value` leaves out (empty: (inf, -inf))."""
     o: np.ndarray
     w: np.ndarray
     c: np.ndarray
@@ -139,6 +161,7 @@ class SphereRefracted(NamedTuple):
     spot: tuple
     cells: np.ndarray
     track: np.ndarray
+    window: np.ndarray
 
 
 @njit
@@ -338,11 +361,37 @@ def roots(lo, hi, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta, 
 
 
 @njit
-def paths(r, zx, yx, out, spread):
+def _steepest(root, a, b, fa, fb, k, e, zx, yx, radius, d, eta):
+    """A lower bound on |h'| about the root of h in the monotone cell [a, b] (h(a) = fa, h(b) = fb, K = k
+    over it) within which the root of h off by e at most lies: the cell's secant's slope less K w,
+    and where that is below half the secant's, narrower intervals about the root, each quartered:
+    their secant less K w where h there differs from 0 by more than e at both ends (the root of h off
+    by e is then inside: |h| grows away from the root, h being monotone in the cell)."""
+    w = b - a
+    secant = abs(fb - fa) / w
+    best = secant - k * w - 2.0 * e / w  # the cell's: its ends' values off by e each
+    half = 0.25 * w
+    for _ in range(24):
+        if best >= 0.5 * secant:
+            break
+        lo, hi = max(a, root - half), min(b, root + half)
+        f1 = _h(lo, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        f2 = _h(hi, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        wn = hi - lo
+        if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
+            break
+        secant = abs(f2 - f1) / wn
+        best = max(best, secant - k * wn - 2.0 * e / wn)
+        half *= 0.25
+    return best
+
+
+@njit
+def paths(r, zx, yx, dx, out, spread):
     """The roots of h (kind 0 of `_h`) of the point X = (zx, yx) on the lit arc into out, ascending,
-    and into spread[k] (2,) how far each may be from the exact root of the computed X: (a, b), the
-    error a + b dX for X off by dX (2 (the values' rounding + dX) / the least |h'| over its cell, the
-    secant's slope less K w; inf for a root at a node or in an unresolved cell); returns (count,
+    and into spread[k] how far each may be from the exact root of X, whose computed coordinates are
+    off by dx at most: 2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`; inf
+    for a root at a node or in an unresolved cell); returns (count,
     proven): SCAN uniform cells, each halved until the bound K on |h''| over it (`angular_bounds` of
     its SCAN cell) shows that it holds no root (no sign change and either the least |h| at its ends
     above K w^2 / 8 or h monotone: the secant's slope above K w, each less the values' rounding) or
@@ -361,13 +410,13 @@ def paths(r, zx, yx, out, spread):
     right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
     if right == 0.0:
         out[m] = lo + SCAN * step
-        spread[m, 0] = spread[m, 1] = math.inf
+        spread[m] = math.inf
         m += 1
     for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
         left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
         if left == 0.0 and m < cap:
             out[m] = lo + j * step
-            spread[m, 0] = spread[m, 1] = math.inf
+            spread[m] = math.inf
             m += 1
         ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, j, 0
         top += 1
@@ -386,8 +435,8 @@ def paths(r, zx, yx, out, spread):
             if fa * fb < 0.0:
                 if m < cap:
                     out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-                    slope = (abs(fb - fa) - 2.0 * dh) / w - k * w
-                    spread[m, 0], spread[m, 1] = 2.0 * dh / slope + 4.0 * U * r.theta_a, 2.0 / slope
+                    slope = _steepest(out[m], a, b, fa, fb, k, dh + dx, zx, yx, radius, d, eta)
+                    spread[m] = 2.0 * (dh + dx) / slope + 4.0 * U * r.theta_a if slope > 0.0 else math.inf
                     m += 1
                 else:
                     proven = False
@@ -397,7 +446,7 @@ def paths(r, zx, yx, out, spread):
             proven = False
             if fa * fb < 0.0 and m < cap:
                 out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-                spread[m, 0] = spread[m, 1] = math.inf
+                spread[m] = math.inf
                 m += 1
             continue
         fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
@@ -405,7 +454,7 @@ def paths(r, zx, yx, out, spread):
         if fm == 0.0:
             if m < cap:
                 out[m] = mid
-                spread[m, 0] = spread[m, 1] = math.inf
+                spread[m] = math.inf
                 m += 1
             else:
                 proven = False
@@ -414,11 +463,11 @@ def paths(r, zx, yx, out, spread):
         ca[top + 1], cb[top + 1], ha[top + 1], hb[top + 1], which[top + 1], depth[top + 1] = a, mid, fa, fm, j, level
         top += 2
     for p in range(1, m):  # insertion sort, the spreads alongside
-        x, s0, s1, q = out[p], spread[p, 0], spread[p, 1], p
+        x, s0, q = out[p], spread[p], p
         while q > 0 and out[q - 1] > x:
-            out[q], spread[q, 0], spread[q, 1] = out[q - 1], spread[q - 1, 0], spread[q - 1, 1]
+            out[q], spread[q] = out[q - 1], spread[q - 1]
             q -= 1
-        out[q], spread[q, 0], spread[q, 1] = x, s0, s1
+        out[q], spread[q] = x, s0
     return m, proven
 
 
@@ -444,94 +493,191 @@ def _plane(r, x):
 
 
 @njit
-def refracted_value(x, r):
-    """The single-scattering integrand at o + x w for a unit light: the sum over the refracted paths
-    that reach the point (`paths`) of ks Phi(mu) E F exp(-kt (x + s) - kt_out o) (module docstring);
-    its rounding bound (module docstring, "The bound") into the record's track (the largest relative
-    and absolute over the evaluations), with the evaluations whose scan was unproven and whose path count differs
-    from the piece's first."""
-    zx, yx, ey = _plane(r, x)
-    found = np.empty(MAX_PATHS)
-    spread = np.empty((MAX_PATHS, 2))
-    m, proven = paths(r, zx, yx, found, spread)
-    track = r.track
-    if not proven:
-        track[UNRESOLVED] += 1.0
-    if track[COUNT] < 0.0:
-        track[COUNT] = m
-    elif track[COUNT] != m:
-        track[COUNT_CHANGED] += 1.0
-    total = err = 0.0
+def _rounding_of_x(r, x, qn):
+    """The rounding of the plane coordinates of o + x w (their distance qn from the centre): the
+    point's and the axis's."""
+    return 16.0 * U * (math.sqrt((r.o[0] - r.c[0]) ** 2 + (r.o[1] - r.c[1]) ** 2 + (r.o[2] - r.c[2]) ** 2) + x +
+                       r.radius) + 8.0 * U * qn
+
+
+@njit
+def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
+    """(value, err) of the path refracted at theta to the point o + x w, (zx, yx) in its plane (ey the
+    unit direction across the axis): ks Phi(mu) E F exp(-kt (x + s) - kt_out o) and its rounding bound
+    (module docstring, "The bound") for theta off by dth and X's coordinates by dx; fold: the value
+    times |1 - s kappa_t|, the tangential tube factor left out of both (`fold_value`); (0, 0) where the
+    path does not reach the point."""
     eta, radius, ez = r.eta, r.radius, r.ez
-    qn = math.sqrt(zx * zx + yx * yx)
-    reach = qn + radius
-    dx = 16.0 * U * (math.sqrt((r.o[0] - r.c[0]) ** 2 + (r.o[1] - r.c[1]) ** 2 + (r.o[2] - r.c[2]) ** 2) + x + radius)
-    dx += 8.0 * U * qn  # X's coordinates in the plane: the point's, the axis's rounding
-    dmu = 8.0 * U + 2.0 * dx / yx if yx > 0.0 else math.inf  # e_y's direction
-    cond = phase_condition(r.code, r.g)
-    step = 2.0 * r.theta_a / SCAN
-    for k in range(m):
-        pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, r.d, eta)
-        if cos_t == 0.0:
-            continue
-        s = tz * (zx - pz) + ty * (yx - py)
-        if not s >= 0.0:
-            continue
-        inv_o = 0.0 if r.distant else 1.0 / o
-        kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
-        kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
-        e = (1.0 - fresnel(cos_i, eta)) * cos_i * inv_o * inv_o / cos_t if not r.distant else \
-            (1.0 - fresnel(cos_i, eta)) * cos_i / cos_t
-        tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
-        spread_ = abs(tang * sag)
-        if not spread_ > 0.0:
-            continue
-        mu, c_spot = 0.0, 1.0
+    pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, r.d, eta)
+    if cos_t == 0.0:
+        return 0.0, 0.0
+    s = tz * (zx - pz) + ty * (yx - py)
+    if not s >= 0.0:
+        return 0.0, 0.0
+    inv_o = 0.0 if r.distant else 1.0 / o
+    kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
+    kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
+    e = (1.0 - fresnel(cos_i, eta)) * cos_i * inv_o * inv_o / cos_t if not r.distant else \
+        (1.0 - fresnel(cos_i, eta)) * cos_i / cos_t
+    tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
+    spread_ = abs(sag) if fold else abs(tang * sag)
+    if not spread_ > 0.0:
+        return 0.0, 0.0
+    mu, c_spot = 0.0, 1.0
+    for j in range(3):
+        t = tz * ez[j] + ty * ey[j]
+        mu -= t * r.w[j]
+    f = 1.0
+    if not r.distant:
+        c_spot = 0.0
         for j in range(3):
-            t = tz * ez[j] + ty * ey[j]
-            mu -= t * r.w[j]
-        f = 1.0
-        if not r.distant:
-            c_spot = 0.0
-            for j in range(3):
-                c_spot += (r.c[j] + pz * ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
-            f = falloff(c_spot / o, r.spot[0], r.spot[1], r.spot[2])
-        if f == 0.0:
-            continue
-        path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
-        value = r.ks * phase_value(r.code, r.g, mu) * f * e / spread_ * math.exp(-path)
-        total += value
-        if value == 0.0:
-            continue
-        # the path's relative rounding: its root off by dth, the rest first order in u (module docstring)
-        cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
-        p1, a1 = cell[0], cell[3]
-        dth = spread[k, 0] + spread[k, 1] * dx + cell[2]  # and t's own rounding as an angle
-        ds = (p1 * reach + radius) * dth + dx
-        eps = r.kt * (ds + 4.0 * U * (x + s)) + 64.0 * U
-        if not r.distant:
-            eps += r.kt_out * (radius * dth + 4.0 * U * o) + 2.0 * radius * dth * inv_o
-        eps += 3.0 * a1 * dth / cos_i + a1 * dth / (eta * eta * cos_t * cos_t)  # T cos_i, cos_t
-        eps += cond * (p1 * dth + dmu)  # the phase
-        dci, dct = a1, a1 / (eta * eta * cos_t)  # |cos_i'|, |cos_t'|
+            c_spot += (r.c[j] + pz * ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
+        f = falloff(c_spot / o, r.spot[0], r.spot[1], r.spot[2])
+    if f == 0.0:
+        return 0.0, 0.0
+    path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
+    value = r.ks * phase_value(r.code, r.g, mu) * f * e / spread_ * math.exp(-path)
+    if value == 0.0:
+        return 0.0, 0.0
+    # the path's relative rounding: theta off by dth, the rest first order in u (module docstring)
+    step = 2.0 * r.theta_a / SCAN
+    cell = r.cells[min(max(int((theta + r.theta_a) / step), 0), SCAN - 1)]
+    p1, a1 = cell[0], cell[3]
+    reach = math.sqrt(zx * zx + yx * yx) + radius
+    dmu = 8.0 * U + 2.0 * dx / yx if yx > 0.0 else math.inf  # e_y's direction
+    ds = (p1 * reach + radius) * dth + dx
+    eps = r.kt * (ds + 4.0 * U * (x + s)) + 64.0 * U
+    if not r.distant:
+        eps += r.kt_out * (radius * dth + 4.0 * U * o) + 2.0 * radius * dth * inv_o
+    eps += 3.0 * a1 * dth / cos_i + a1 * dth / (eta * eta * cos_t * cos_t)  # T cos_i, cos_t
+    eps += phase_condition(r.code, r.g) * (p1 * dth + dmu)  # the phase
+    dci, dct = a1, a1 / (eta * eta * cos_t)  # |cos_i'|, |cos_t'|
+    dsd = p1 * reach + radius  # |ds / dtheta|
+    if not fold:
         nt = (eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o
         dnt = (eta * dct + dci) / radius + 2.0 * cos_i * dci * inv_o + radius * inv_o * inv_o
         dkt = dnt / (eta * cos_t * cos_t) + 2.0 * abs(nt) * dct / (eta * cos_t ** 3)
-        dks = ((eta * dct + dci) / radius + radius * inv_o * inv_o) / eta
-        dsd = p1 * reach + radius  # |ds / dtheta|
         eps += ((dsd * abs(kappa_t) + s * dkt) * dth + 32.0 * U * (1.0 + s * (abs(kappa_t) + 1.0 / radius + inv_o)
                                                                     / (cos_t * cos_t))) / abs(tang)
-        eps += ((dsd * abs(kappa_s) + s * dks) * dth + 16.0 * U * (1.0 + s * (abs(kappa_s) + 1.0 / radius + inv_o))) \
-            / abs(sag)
-        err += 2.0 * eps * value
-        if not r.distant and f < 1.0:  # the falloff, absolute, at the cosine's error
-            dc = 2.0 * radius * dth * inv_o + 32.0 * U * (1.0 + (reach + r.d) * inv_o)
-            err += 2.0 * value / f * band_slope(r.spot[0], r.spot[1], r.spot[2]) / (r.spot[1] - r.spot[0]) * dc
-    if eta <= 1.0:
-        err = math.inf if m else 0.0  # Fresnel's slope is not bounded at the critical angle
+    dks = ((eta * dct + dci) / radius + radius * inv_o * inv_o) / eta
+    eps += ((dsd * abs(kappa_s) + s * dks) * dth + 16.0 * U * (1.0 + s * (abs(kappa_s) + 1.0 / radius + inv_o))) \
+        / abs(sag)
+    err = 2.0 * eps * value
+    if not r.distant and f < 1.0:  # the falloff, absolute, at the cosine's error
+        dc = 2.0 * radius * dth * inv_o + 32.0 * U * (1.0 + (reach + r.d) * inv_o)
+        err += 2.0 * value / f * band_slope(r.spot[0], r.spot[1], r.spot[2]) / (r.spot[1] - r.spot[0]) * dc
+    return value, err
+
+
+@njit
+def _track_rounding(track, total, err, slot):
+    """The largest relative rounding (err / total) into track[ROUNDING], the largest absolute into track[slot]."""
     if err > 0.0:
         rel = err / total if total > 0.0 else math.inf
-        track[ROUNDING], track[ROUNDING_ABS] = max(track[ROUNDING], rel), max(track[ROUNDING_ABS], err)
+        track[ROUNDING], track[slot] = max(track[ROUNDING], rel), max(track[slot], err)
+
+
+@njit
+def refracted_value(x, r):
+    """The single-scattering integrand at o + x w for a unit light: the sum over the refracted paths
+    that reach the point (`paths`) of ks Phi(mu) E F exp(-kt (x + s) - kt_out o) (module docstring),
+    but those refracted in the record's window (a fold pair's angles, `fold_value`'s); its rounding
+    bound (module docstring, "The bound") into the record's track (the largest relative and absolute
+    over the evaluations), with the evaluations whose scan was unproven and whose count of paths
+    outside the window differs from the piece's first."""
+    zx, yx, ey = _plane(r, x)
+    dx = _rounding_of_x(r, x, math.sqrt(zx * zx + yx * yx))
+    found = np.empty(MAX_PATHS)
+    spread = np.empty(MAX_PATHS)
+    m, proven = paths(r, zx, yx, dx, found, spread)
+    track = r.track
+    if not proven:
+        track[UNRESOLVED] += 1.0
+    step = 2.0 * r.theta_a / SCAN
+    total = err = 0.0
+    n = 0
+    for k in range(m):
+        if r.window[0] <= found[k] <= r.window[1]:
+            continue
+        n += 1
+        cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
+        value, e = _contribution(r, x, zx, yx, ey, found[k], spread[k] + cell[2], dx, False)  # t's rounding too
+        total += value
+        err += e
+    if track[COUNT] < 0.0:
+        track[COUNT] = n
+    elif track[COUNT] != n:
+        track[COUNT_CHANGED] += 1.0
+    if r.eta <= 1.0:
+        err = math.inf if m else 0.0  # Fresnel's slope is not bounded at the critical angle
+    _track_rounding(track, total, err, ROUNDING_ABS)
+    return total
+
+
+@njit
+def _segment(r):
+    """(f, v, fz, wz): the segment's start relative to the centre and its direction, across the light's
+    axis (3-vectors) and along it."""
+    ez = r.ez
+    f, v = np.empty(3), np.empty(3)
+    fz = wz = 0.0
+    for k in range(3):
+        fz += (r.o[k] - r.c[k]) * ez[k]
+        wz += r.w[k] * ez[k]
+    for k in range(3):
+        f[k] = r.o[k] - r.c[k] - fz * ez[k]
+        v[k] = r.w[k] - wz * ez[k]
+    return f, v, fz, wz
+
+
+@njit
+def fold_value(theta, r, a, b):
+    """The fold pair's integrand in theta (module docstring, "The caustic"): over the points o + x w,
+    x in [a, b], that the ray refracted at theta reaches (the roots of h(theta; X(x)) = 0 in x: a
+    quadratic once squared), the path's value times |dx/dtheta| = |h_theta| / |h_x| = R cos_t
+    |1 - s kappa_t| / |h_x|, the tangential tube factor cancelled; its rounding into the track (relative
+    into ROUNDING, absolute per unit theta into FOLD_ABS): theta exact, t's rounding as an angle, x off
+    by 2 (|h| + its rounding) / |h_x| at the computed root, and h_x's own rounding."""
+    radius, eta = r.radius, r.eta
+    pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, r.d, eta)
+    if cos_t == 0.0:
+        return 0.0
+    f, v, fz, wz = _segment(r)
+    ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+    fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    c0 = tz * py - ty * pz  # the ray's line in the plane: tz y - ty z = c0
+    e0 = c0 + ty * fz
+    xs = np.empty(2)
+    n = quadratic_roots(tz * tz * vv - ty * ty * wz * wz, tz * tz * fv - ty * wz * e0, tz * tz * ff - e0 * e0, xs, 0)
+    step = 2.0 * r.theta_a / SCAN
+    et = r.cells[min(max(int((theta + r.theta_a) / step), 0), SCAN - 1), 2]  # t's rounding as an angle
+    total = err = 0.0
+    for k in range(n):
+        x = xs[k]
+        if not a <= x <= b:
+            continue
+        zx = fz + x * wz
+        yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+        if not yx > 0.0 or abs(tz * yx - ty * zx - c0) > abs(tz * yx + ty * zx + c0):
+            continue  # the squared equation's other branch (the ray's mirror image across the axis)
+        dyx = (fv + x * vv) / yx
+        hx = tz * dyx - ty * wz
+        zp, yp, ey = _plane(r, x)
+        qn = math.sqrt(zp * zp + yp * yp)
+        dx = _rounding_of_x(r, x, qn)
+        big = yx + abs(zx) + 2.0 * radius
+        dg = et * big + 2.0 * dx + 16.0 * U * big  # h's rounding at the computed root
+        dxr = 2.0 * (abs(tz * yx - ty * zx - c0) + dg) / abs(hx)  # the root's error in x
+        value, e = _contribution(r, x, zp, yp, ey, theta, et, dx + dxr, True)
+        if value == 0.0:
+            continue
+        dhx = et * (abs(dyx) + abs(wz)) + abs(tz) * vv / yx * dxr + \
+            abs(tz) * (8.0 * U * (abs(fv) + x * vv) + abs(dyx) * (8.0 * U * yx + dx)) / yx + 8.0 * U * abs(wz)
+        jac = radius * cos_t / abs(hx)
+        total += value * jac
+        err += (e + 2.0 * value * (r.kt * dxr + (dhx + 8.0 * U * abs(hx)) / abs(hx) + 8.0 * U)) * jac
+    _track_rounding(r.track, total, err, FOLD_ABS)
     return total
 
 
@@ -555,21 +701,28 @@ def _near_caustic(u, q):
     return 2.0 * abs(q.span) * u * refracted_value(q.xb + q.span * u * u, q.r)
 
 
+class FoldPair(NamedTuple):
+    """The paths of a caustic's fold pair (refracted at theta in [theta_1, theta_2]) to the piece [a, b]
+    of r's segment, integrated in theta (`fold_value`)."""
+    r: SphereRefracted
+    a: float
+    b: float
+
+
+@integrand_of(FoldPair)
+@njit
+def _fold_pair(theta, q):
+    return fold_value(theta, q.r, q.a, q.b)
+
+
 @njit
 def breaks(r, end, out, caustic, spans):
     """The x in (0, end) where the segment passes closest to the axis and where it crosses the
     tangential caustic surface (module docstring; caustic[k] = 1.0 for those), into out, ascending;
     returns their count. caustic[k]: 0 for the closest approach, 1 for the cone's crossings (their
-    errors into spans[k], module docstring, "The bound"), 2 for the caustic's."""
-    ez = r.ez
-    f, v = np.empty(3), np.empty(3)
-    fz = wz = 0.0
-    for k in range(3):
-        fz += (r.o[k] - r.c[k]) * ez[k]
-        wz += r.w[k] * ez[k]
-    for k in range(3):
-        f[k] = r.o[k] - r.c[k] - fz * ez[k]
-        v[k] = r.w[k] - wz * ez[k]
+    errors into spans[k], module docstring, "The bound"), 2 for the caustic's (the angle of the caustic
+    point's ray into spans[k])."""
+    f, v, fz, wz = _segment(r)
     m = 0
     pz, py, tz, ty, _ = _clamped(r.theta_a, r.radius, r.d, r.eta)
     if ty != 0.0:  # the cone of the marginal rays, about the axis with its apex where they meet it
@@ -613,6 +766,7 @@ def breaks(r, end, out, caustic, spans):
             if cz * cz + cy * cy <= r.radius * r.radius and 0.0 < x < end and m < out.shape[0]:
                 out[m] = x
                 caustic[m] = 2.0
+                spans[m] = found[k]
                 m += 1
     for p in range(1, m):  # insertion sort of the few breaks, their flags and spans alongside
         x, flag, span, k = out[p], caustic[p], spans[p], p
@@ -646,7 +800,8 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
     ez, d, theta_a, cells = light_frame
     return SphereRefracted(geo_row[:3].copy(), geo_row[3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo_row[6:9].copy(), distant, ez, d, theta_a, eta, kt, ks, code, g, kt_out,
-                           geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK))
+                           geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK),
+                           np.array([math.inf, -math.inf]))
 
 
 @njit
@@ -657,33 +812,95 @@ def _piece(rec, lo, hi, rtol, stats, track):
 
 
 @njit
+def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
+    """(value, rule's bound) of `_piece` over [lo, hi] of r, in u beside an end that is a cone's or the
+    caustic's crossing (flag > 0: `NearCaustic`), split at the middle where both ends are."""
+    if flag_lo == 0.0 and flag_hi == 0.0:
+        return _piece(r, lo, hi, rtol, stats, track)
+    total = rule = 0.0
+    mid = lo if flag_lo == 0.0 else hi if flag_hi == 0.0 else 0.5 * (lo + hi)
+    if mid > lo:
+        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, rtol, stats, track)
+        total, rule = total + val, rule + b
+    if hi > mid:
+        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, rtol, stats, track)
+        total, rule = total + val, rule + b
+    return total, rule
+
+
+@njit
+def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
+    """(value, rule's bound, absolute rounding, ends' bound, ok) of [lo, hi] of r across one caustic
+    crossing, its caustic point's ray refracted at theta_c (module docstring, "The caustic"): the fold
+    pair's window [theta_1, theta_2], the adjacent paths that bracket theta_c at the end with two paths
+    more than the other (both scans proven), or at a cone's crossing with one more the outermost path
+    and the lit arc's end beyond theta_c (the pair's other path leaves there); the paths refracted
+    outside it by `_stretch` in x, those
+    inside by `fold_value` in theta, and each window end off by its root's spread at 8 x the fold
+    integrand there. ok False (nothing integrated) where there is no such pair or a spread is inf."""
+    found, spread = np.empty((2, MAX_PATHS)), np.empty((2, MAX_PATHS))
+    counts = np.zeros(2, dtype=np.int64)
+    for side in range(2):
+        x = lo if side == 0 else hi
+        zx, yx, _ = _plane(r, x)
+        counts[side], proven = paths(r, zx, yx, _rounding_of_x(r, x, math.sqrt(zx * zx + yx * yx)), found[side],
+                                     spread[side])
+        if not proven:
+            return 0.0, 0.0, 0.0, 0.0, False
+    side = 0 if counts[0] > counts[1] else 1
+    more, flag = counts[side] - counts[1 - side], flag_lo if side == 0 else flag_hi
+    t1 = t2 = e1 = e2 = math.inf
+    n = counts[side]
+    for k in range(n - 1):
+        if more == 2 and found[side, k] < theta_c < found[side, k + 1]:
+            t1, t2, e1, e2 = found[side, k], found[side, k + 1], spread[side, k], spread[side, k + 1]
+    if more == 1 and flag == 1.0 and n > 0:  # the pair's other path leaves through the lit arc's end there
+        if found[side, n - 1] < theta_c:
+            t1, t2, e1, e2 = found[side, n - 1], r.theta_a, spread[side, n - 1], 0.0
+        elif theta_c < found[side, 0]:
+            t1, t2, e1, e2 = -r.theta_a, found[side, 0], 0.0, spread[side, 0]
+    if not e1 + e2 < math.inf:
+        return 0.0, 0.0, 0.0, 0.0, False
+    r.window[0], r.window[1] = t1, t2
+    total, rule = _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track)
+    r.window[0], r.window[1] = math.inf, -math.inf
+    track[FOLD_ABS] = 0.0
+    val, b = _piece(FoldPair(r, lo, hi), t1, t2, rtol, stats, track)
+    rounding = track[FOLD_ABS] * (t2 - t1)
+    width = hi - lo  # the ends: the fold integrand of the branch near them, wherever on the line it meets
+    ends = 8.0 * (e1 * fold_value(t1, r, lo - width, hi + width) + e2 * fold_value(t2, r, lo - width, hi + width))
+    return total + val, rule + b, rounding, ends, True
+
+
+@njit
 def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
     """(value, variance, bound) of one segment: QUAD adaptive between `breaks` with its bound (module
-    docstring, "The bound"; inf where the segment crosses the caustic, a scan was unproven or a piece's
-    path count changed: counted in stats[UNBOUNDED]), MARCH or SAMPLE media/slab.py's (bound inf)."""
+    docstring, "The bound"; a piece across one caustic crossing by `_fold`; inf where that fails, a scan
+    was unproven or a piece's path count changed: counted in stats[UNBOUNDED]), MARCH or SAMPLE
+    media/slab.py's (bound inf)."""
     if mode == QUAD:
         end = min(ell, 745.0 / r.kt)
         br, caustic, spans = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
         m = breaks(r, end, br[1:MAX_PATHS + 2], caustic[1:MAX_PATHS + 2], spans[1:MAX_PATHS + 2])
         br[m + 1] = end
-        total = rule = 0.0
+        total = rule = folds = 0.0
         track = r.track
-        for i in range(m + 1):
+        i = 0
+        while i <= m:
             lo, hi = br[i], br[i + 1]
-            if not hi > lo:
-                continue
-            if caustic[i] == 0.0 and caustic[i + 1] == 0.0:
-                val, b = _piece(r, lo, hi, rtol, stats, track)
+            if caustic[i + 1] == 2.0 and caustic[i] != 2.0 and caustic[i + 2] != 2.0 and br[i + 2] > lo:
+                val, b, rounding, ends, ok = _fold(r, lo, br[i + 2], caustic[i], caustic[i + 2], spans[i + 1], rtol,
+                                                   stats, track)
+                if ok:
+                    total, rule, folds = total + val, rule + b + ends, folds + rounding
+                    caustic[i + 1] = 3.0  # crossed by `_fold`: bounded
+                    i += 2
+                    continue
+            if hi > lo:
+                val, b = _stretch(r, lo, hi, caustic[i], caustic[i + 1], rtol, stats, track)
                 total, rule = total + val, rule + b
-                continue
-            mid = lo if caustic[i] == 0.0 else hi if caustic[i + 1] == 0.0 else 0.5 * (lo + hi)
-            if mid > lo:
-                val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, rtol, stats, track)
-                total, rule = total + val, rule + b
-            if hi > mid:
-                val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, rtol, stats, track)
-                total, rule = total + val, rule + b
-        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[ROUNDING_ABS] * end)
+            i += 1
+        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[ROUNDING_ABS] * end + folds)
         for i in range(1, m + 1):
             if caustic[i] == 2.0:
                 bound = math.inf
