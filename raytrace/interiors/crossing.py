@@ -168,15 +168,15 @@ def check(prep, method, method_params, source: str):
                             f"refractive boundary{why}; use ior = 1" + (f", or --method {', '.join(takers)}" if takers else ""))
     if near:
         for i in inner:
-            if prep.scene.shapes[i].interior.ior == 1.0 or len(convex_planes(prep, i)):
+            if prep.scene.shapes[i].interior.ior == 1.0 or len(refracting_planes(prep, i)):
                 continue
             for j in range(len(prep.scene.shapes)):
                 first = prep.accel.triangles[prep.shape_ids == j]
                 if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
                     raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
-                                    f"(ior {prep.scene.shapes[i].interior.ior:g}) and not convex (or of more "
-                                    f"than {KERNEL_PLANES} face planes); surfaces inside such a medium are lit by "
-                                    "directional lights only; use ior = 1, a convex shape or a directional light")
+                                    f"(ior {prep.scene.shapes[i].interior.ior:g}) and not convex; surfaces inside "
+                                    "such a medium are lit by directional lights only; use ior = 1, a convex shape "
+                                    "or a directional light")
     inside = prep.camera_inside
     if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
                                                        and not len(convex_planes(prep, inside)))):
@@ -240,9 +240,20 @@ def convex_planes(prep, sid):
     kernel, which tests every plane at every integrand evaluation: those of a convex shape with at
     most KERNEL_PLANES of them, else an empty (0, 4) array (then an index-matched shape's light paths
     are measured with Embree, paths.py: batched exits for convex shapes, walks for others; a
-    refractive one keeps the entry plane)."""
+    refractive one's directional lights keep the entry plane, its point and spot lights take
+    `refracting_planes`)."""
     planes = hull_planes(prep, sid)
     return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
+
+
+def refracting_planes(prep, sid):
+    """The face planes of a convex refractive shape sid, any number of them, else an empty (0, 4)
+    array: point and spot lights reach its inside through every face they are outside of on Fermat's
+    paths (media/slab.py `faces_point`), each segment's faces culled to those whose refraction point
+    can lie on them (`reachable_faces`) and the planes those need."""
+    planes = hull_planes(prep, sid)
+    refractive = prep.scene.shapes[sid].interior.ior != 1.0
+    return planes if planes is not None and refractive else np.zeros((0, 4))
 
 
 def warm_up_rays(prep, origins, dirs):
@@ -400,11 +411,11 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     """Radiance (M, 3) toward the row starts p from the surface points q = p + ell w (triangles prim)
     inside the medium of shape sid, times exp(-sigma_t ell) along the camera's path. Index-matched:
     the surface term, whose shadow rays leave through the medium with the interior's transmittance
-    (`shadow_through`). Refractive, in a convex shape of at most KERNEL_PLANES planes: point and spot
-    lights through every face they are outside of (`_lit_through_faces`), directional ones by the beam
-    refracted through every face they meet, where q's path back along it leaves through that face
-    (`refracted_beams`, `_lit_by_beam`); in another shape directional lights only (`check` refuses the
-    rest) by the note's planar boundary, the entry face's plane (outward normals n): the beam refracted
+    (`shadow_through`). Refractive, in a convex shape: point and spot lights through every face they are
+    outside of (`_lit_through_faces`, `refracting_planes`); directional ones, in a convex shape of at
+    most KERNEL_PLANES planes, by the beam refracted through every face they meet, where q's path back
+    along it leaves through that face (`refracted_beams`, `_lit_by_beam`); in another shape directional
+    lights only (`check` refuses the rest) by the note's planar boundary, the entry face's plane (outward normals n): the beam refracted
     into t through it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t
     back to the plane, k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's
     leg outside (`_outside_clear`)."""
@@ -420,9 +431,10 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     else:
         lb = np.zeros((len(q), 3))
         lights = prep.lights
-        planes = convex_planes(prep, sid)
+        planes = refracting_planes(prep, sid)
         for li in np.nonzero(~lights.distant)[0] if len(planes) else ():
             lb += _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt)
+        planes = convex_planes(prep, sid)
         for li in np.nonzero(lights.distant)[0]:
             if len(planes):
                 beams = zip(*refracted_beams(planes, lights.axis[li], medium.ior))

@@ -1492,17 +1492,146 @@ def _faces(s, geo, planes, a, hl, wl, ll, only):
 
 
 @njit
+def _reached(s, geo, planes, a, hl, wl, ll, only, eta, end):
+    """`_faces` over [0, end] culled to the faces that can light segment s (`reachable_faces`): the
+    rows, their count, the planes they refer to and the spot's terms."""
+    faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+    m, local = reachable_faces(faces, m, planes, eta, end, np.empty(m, np.int64))
+    return faces, m, local, spot
+
+
+REACH_TOL = 1e-9  # relative margin of `reachable_faces`' plane tests (the face test's own is EDGE_TOL)
+REACH_DEPTH = 7  # `reachable_faces` halves a segment down to 2^-7 of it
+
+
+@njit
+def reachable_faces(faces, m, planes, eta, end, ids):
+    """The first m rows of `refracting_faces` culled, in place, to those whose refraction point can lie
+    on their face for some x in [0, end], and the planes (`planes`' rows) they need; the rows' face
+    numbers [17] renumbered into those planes: (count, planes). Over a piece [lo, hi] the refraction
+    point R(x) stays within K (hi - lo) / 2 of R at the middle (K media/fermat_rounding.py
+    `fermat_speed`, the bound on |R'| of `edge_breaks`): a piece whose disk lies beyond another plane g
+    (n_g·R - c_g > that radius + REACH_TOL of the scene's size at R, far beyond the face test's
+    EDGE_TOL and R's rounding) is unlit through the face (g is kept, so that the face test reads it
+    so), one whose disk lies inside every other plane
+    is lit and needs none of them (no switch of `on_face`, no root in `edge_breaks` or `break_errors`);
+    the others are halved, down to 2^-REACH_DEPTH of the segment, where the planes crossing their disk
+    are needed. A face with every piece unlit is 0 over the segment and dropped; the kept faces'
+    terms, breaks and bounds are those with every plane. For eta <= 1 (no speed bound) and without
+    planes: as given. ids[:count]: the kept rows' faces in `planes`."""
+    nf = planes.shape[0]
+    for j in range(m):
+        ids[j] = faces[j, 17]
+    if nf == 0 or m == 0 or not end < math.inf or not eta > 1.0:
+        return m, planes
+    need = np.zeros(nf, np.bool_)
+    stack = np.empty((REACH_DEPTH + 2, 3))
+    kept = 0
+    for j in range(m):
+        row = faces[j]
+        f = int(row[17])
+        z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+        lit = False
+        stack[0, 0], stack[0, 1], stack[0, 2] = 0.0, end, 0.0
+        top = 1
+        while top > 0:
+            top -= 1
+            lo, hi, depth = stack[top, 0], stack[top, 1], stack[top, 2]
+            x = 0.5 * (lo + hi)
+            rho, r = fermat(x, max(z0, 0.0), wl, ll, a, hl, eta)
+            t = r / rho if rho > 0.0 else 0.0
+            q0 = row[8] + x * row[11] + t * (row[14] - x * row[11])
+            q1 = row[9] + x * row[12] + t * (row[15] - x * row[12])
+            q2 = row[10] + x * row[13] + t * (row[16] - x * row[13])
+            k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a,
+                             eta)
+            radius = 0.5 * k * (1.0 + 1e-9) * (hi - lo)
+            size = abs(q0) + abs(q1) + abs(q2)
+            beyond, crossing = False, False
+            for g in range(nf):
+                if g == f:
+                    continue
+                d = planes[g, 0] * q0 + planes[g, 1] * q1 + planes[g, 2] * q2 - planes[g, 3]
+                margin = radius + REACH_TOL * (abs(planes[g, 3]) + size)
+                if d > margin:  # kept among the planes: the face test reads this piece unlit by it
+                    beyond, need[g] = True, True
+                    break
+                crossing = crossing or d >= -margin
+            if beyond:
+                continue
+            if crossing and depth < REACH_DEPTH:
+                stack[top, 0], stack[top, 1], stack[top, 2] = x, hi, depth + 1
+                stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = lo, x, depth + 1
+                top += 2
+                continue
+            lit = True
+            for g in range(nf if crossing else 0):  # an undecided piece: the planes crossing its disk
+                d = planes[g, 0] * q0 + planes[g, 1] * q1 + planes[g, 2] * q2 - planes[g, 3]
+                if abs(d) <= radius + REACH_TOL * (abs(planes[g, 3]) + size):
+                    need[g] = True
+        if not lit:
+            continue
+        need[f] = True
+        ids[kept] = f
+        if kept != j:
+            for c in range(FACE_COLUMNS):
+                faces[kept, c] = faces[j, c]
+        kept += 1
+    index = np.cumsum(need) - 1
+    local = np.empty((index[-1] + 1, 4))
+    for g in range(nf):
+        if need[g]:
+            for c in range(4):
+                local[index[g], c] = planes[g, c]
+    for j in range(kept):
+        faces[j, 17] = index[int(faces[j, 17])]
+    return kept, local
+
+
+@njit
+def segment_reach(geo, planes, eta, ell, out):
+    """out[s, f] = True where face f of a convex refractive shape may light segment s over [0, ell[s]]
+    (geo rows of GEO_COLUMNS without an entry normal: every face's row from `planes`), its refraction
+    point on the face (`reachable_faces`)."""
+    faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
+    ids = np.empty(planes.shape[0], np.int64)
+    for s in range(geo.shape[0]):
+        m = refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)
+        m, _ = reachable_faces(faces, m, planes, eta, ell[s], ids)
+        for j in range(m):
+            out[s, ids[j]] = True
+
+
+@njit
 def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out, err,
                 stats):
-    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound."""
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound;
+    with several faces (eta > 1), each face's integral over the planes it needs alone (`reachable_faces`
+    of its row: the same face test, breaks and bound as with every plane), summed, their bounds summed
+    with the sum's rounding (u per term)."""
+    row, ids = np.empty((1, FACE_COLUMNS)), np.empty(1, np.int64)
     for s in sel:
-        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        end = min(ell[s], 745.0 / kt)
+        faces, m, local, spot = _reached(s, geo, planes, a, hl, wl, ll, only, eta, end)
         err[s] = 0.0
         if m > 0:
-            r, cmax = coordinate_size(geo[s], planes, min(ell[s], 745.0 / kt))
+            r, cmax = coordinate_size(geo[s], planes, end)
             p, ln, lp = light_norms(geo[s])
-            out[s], err[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
-                                              dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], planes), stats)
+            if m == 1 or not eta > 1.0:
+                out[s], err[s] = faces_quadrature(faces[:m], local, ell[s], kt, ks, code, g, kt_out, eta, spot[3:],
+                                                  rtol, dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], local),
+                                                  stats)
+                continue
+            total, bound = 0.0, 0.0
+            for j in range(m):  # each face over its own planes: their sum is the integral over all
+                for c in range(FACE_COLUMNS):
+                    row[0, c] = faces[j, c]
+                own = reachable_faces(row, 1, local, eta, end, ids)[1]
+                value, e = faces_quadrature(row, own, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, dplanes,
+                                            (p, ln, lp, r + ln + cmax), entry_face(geo[s], own), stats)
+                total += value
+                bound += e
+            out[s], err[s] = total, bound + m * U * (total + bound)
 
 
 @njit
@@ -1519,10 +1648,10 @@ def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, 
                    keys, dim0, seed, out, var):
     """The same, MARCH or SAMPLE: `march_or_sample` of `faces_point`."""
     for s in sel:
-        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+        faces, m, local, spot = _reached(s, geo, planes, a, hl, wl, ll, only, eta, length)
         if m > 0:
-            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
+            rec = FacesPoint(faces[:m], local, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
                              (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
             out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
 
