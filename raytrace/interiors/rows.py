@@ -40,7 +40,8 @@ import numpy as np
 
 from ..error_bounds import product, spot_rounding
 from ..media.convex_directional import MAX_FACES, segments_bounded
-from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance, segment_reach
+from ..media.slab import (APPROX, CLOSED, EVERY, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance,
+                          segment_reach)
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
@@ -54,7 +55,7 @@ from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
                        UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
-                       refracted_beams, refracting_planes, scaled)
+                       plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
@@ -110,6 +111,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
     beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
     faces = refracting_planes(prep, sid) if refractive and mode != APPROX else np.zeros((0, 4))
+    near = plane_neighbours(prep, sid) if len(faces) else EVERY
     bound = np.zeros((n, 3))
     rtol, steps, tau_max = sup.settings(params)
     stats = np.zeros(STATS_SIZE)
@@ -124,7 +126,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 continue
             unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, dplanes, only,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used,
+                            near if used is faces else EVERY, dplanes, only,
                             mode, rtol, steps, tau_max, keys,
                             np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
                             unit, unit_var, unit_err, stats)
@@ -461,8 +464,9 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     geo = np.zeros((len(ell), GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points, w, position
     reached = np.zeros((len(ell), len(planes)), dtype=np.bool_)
-    segment_reach(geo, planes, float(prep.scene.shapes[sid].interior.ior), np.ascontiguousarray(ell, dtype=float),
-                  reached)
+    segment_reach(geo, planes, plane_neighbours(prep, sid), float(prep.scene.shapes[sid].interior.ior),
+                  np.ascontiguousarray(ell, dtype=float), reached)
+    faces = [f for f in faces if reached[:, f].any()]  # the others are unlit, whole, spans known (`_face_pieces`)
     found = [(f, *_face_pieces(prep, sid, planes, mask, li, f, (points, w, ell), dplanes, reached[:, f]))
              for f in faces]
     gain = np.ones(3)
@@ -592,25 +596,20 @@ def measured_plane_errors(prep, sid):
     lights' bound, media/fermat_rounding.py): each triangle's unit normal (its cross product's, a few
     ulps off: + 8u) and vertices against the plane of `convex_planes` it lies in (the nearest by
     normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
-    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|). `plane_errors` where
+    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|) (crossing.py
+    `triangle_planes`: the normal turned outward, as the planes'). `plane_errors` where
     the shape has no convex planes or a triangle lies in none of them (to its bound)."""
     def measure():
         planes = refracting_planes(prep, sid)
-        tris = prep.accel.triangles[prep.shape_ids == sid].astype(np.float64)
         bound = plane_errors(prep, sid)
-        cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-        area = np.linalg.norm(cross, axis=1)
-        tris, n = tris[area > 0.0], cross[area > 0.0] / area[area > 0.0, None]
+        tris, n, best = triangle_planes(prep.accel.triangles[prep.shape_ids == sid], planes)
         if not len(planes) or not len(tris):
             return bound
-        off = np.abs(np.einsum("tvk,pk->tpv", tris, planes[:, :3]) - planes[None, :, 3, None]).max(axis=2)
-        dn = np.abs(n[:, None, :] - planes[None, :, :3]).max(axis=2)
-        best = np.argmin(dn + off / max(float(np.abs(tris).max()), 1e-300), axis=1)
-        rows = np.arange(len(tris))
+        off = np.abs(np.einsum("tvk,tk->tv", tris, planes[best, :3]) - planes[best, 3, None]).max(axis=1)
         u = 2.0 ** -53
-        dn_f = dn[rows, best] + 8.0 * u
+        dn_f = np.abs(n - planes[best, :3]).max(axis=1) + 8.0 * u
         norms = np.linalg.norm(tris, axis=2).max(axis=1)
-        dc_f = off[rows, best] + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
+        dc_f = off + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
         if dn_f.max() > bound[0] or dc_f.max() > bound[1]:
             return bound
         return np.array([dn_f.max(), dc_f.max()])
