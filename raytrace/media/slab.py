@@ -496,10 +496,14 @@ def edge_breaks(row, planes, eta, end, out):
 def edge_tilt(row, planes, g):
     """A bound on |n_g·v| / |v| for v along face row's plane, in which its refraction point R moves:
     |d(n_g·R)/dx| <= it times |R'|. |n_g x n_f| (n_f the normal of plane row[17]) plus 1e-9 (the
-    normals are unit, and the row's vectors in the plane, to a few roundings), at most 1; 1 where
-    z0 = 0, as for the entry face's row (its plane the entry point's normal's, within 1e-9 of the
-    plane's in cosine: `entry_face`)."""
-    if not row[0] > 0.0:
+    normals are unit, and the row's vectors in the plane, to a few roundings: w_h's and L_h's normal
+    parts, at most 8u S with S = |L_h| + z0 + hl, move R off the plane by at most (K + 1) 8u S / rho,
+    below 1e-9 K where rho >= 1e-4 S), at most 1; 1 where z0 = 0, as for the entry face's row (its
+    plane the entry point's normal's, within 1e-9 of the plane's in cosine: `entry_face`), and where
+    the segment's line passes within 1e-4 S of straight below the light (rho < 1e-4 S)."""
+    a, wl, ll = row[1], row[3], row[4]
+    rho2 = ll - wl * wl / (1.0 - a * a) if 1.0 - a * a > 0.0 else ll
+    if not row[0] > 0.0 or not rho2 >= (1e-4 * (math.sqrt(ll) + row[0] + row[2])) ** 2:
         return 1.0
     f = int(row[17])
     c0 = planes[g, 1] * planes[f, 2] - planes[g, 2] * planes[f, 1]
