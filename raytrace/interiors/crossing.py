@@ -168,15 +168,15 @@ def check(prep, method, method_params, source: str):
                             f"refractive boundary{why}; use ior = 1" + (f", or --method {', '.join(takers)}" if takers else ""))
     if near:
         for i in inner:
-            if prep.scene.shapes[i].interior.ior == 1.0 or len(convex_planes(prep, i)):
+            if prep.scene.shapes[i].interior.ior == 1.0 or len(refracting_planes(prep, i)):
                 continue
             for j in range(len(prep.scene.shapes)):
                 first = prep.accel.triangles[prep.shape_ids == j]
                 if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
                     raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
-                                    f"(ior {prep.scene.shapes[i].interior.ior:g}) and not convex (or of more "
-                                    f"than {KERNEL_PLANES} face planes); surfaces inside such a medium are lit by "
-                                    "directional lights only; use ior = 1, a convex shape or a directional light")
+                                    f"(ior {prep.scene.shapes[i].interior.ior:g}) and not convex; surfaces inside "
+                                    "such a medium are lit by directional lights only; use ior = 1, a convex shape "
+                                    "or a directional light")
     inside = prep.camera_inside
     if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
                                                        and not len(convex_planes(prep, inside)))):
@@ -240,9 +240,82 @@ def convex_planes(prep, sid):
     kernel, which tests every plane at every integrand evaluation: those of a convex shape with at
     most KERNEL_PLANES of them, else an empty (0, 4) array (then an index-matched shape's light paths
     are measured with Embree, paths.py: batched exits for convex shapes, walks for others; a
-    refractive one keeps the entry plane)."""
+    refractive one's directional lights keep the entry plane, its point and spot lights take
+    `refracting_planes`)."""
     planes = hull_planes(prep, sid)
     return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
+
+
+def refracting_planes(prep, sid):
+    """The face planes of a convex refractive shape sid, any number of them, else an empty (0, 4)
+    array: point and spot lights reach its inside through every face they are outside of on Fermat's
+    paths (media/slab.py `faces_point`), each segment's faces culled to those whose refraction point
+    can lie on them (`reachable_faces`) and the planes those need."""
+    planes = hull_planes(prep, sid)
+    refractive = prep.scene.shapes[sid].interior.ior != 1.0
+    return planes if planes is not None and refractive else np.zeros((0, 4))
+
+
+def triangle_planes(tris, planes):
+    """The triangles (T, 3, 3) of nonzero area among `tris`, their unit normals turned outward (away
+    from the vertices' mean, inside a convex shape) and the row of `planes` (P, 4) each lies in: the
+    nearest by normal and offset / size (a k-d tree, as scene/meshes.py convex_planes finds them)."""
+    from scipy.spatial import cKDTree
+
+    tris = np.asarray(tris, dtype=np.float64)
+    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    area = np.linalg.norm(cross, axis=1)
+    tris, n = tris[area > 0.0], cross[area > 0.0] / area[area > 0.0, None]
+    size = max(float(np.abs(tris).max(initial=0.0)), 1e-300)
+    centre = tris.reshape(-1, 3).mean(axis=0) if len(tris) else np.zeros(3)
+    n *= np.where(np.einsum("ij,ij->i", n, tris[:, 0] - centre) < 0.0, -1.0, 1.0)[:, None]
+    if not len(tris) or not len(planes):
+        return tris, n, np.zeros(len(tris), np.int64)
+    keys = np.column_stack([n, np.einsum("ij,ij->i", n, tris[:, 0]) / size])
+    return tris, n, cKDTree(np.column_stack([planes[:, :3], planes[:, 3] / size])).query(keys)[1].astype(np.int64)
+
+
+def plane_neighbours(prep, sid):
+    """For each face plane f of the convex shape sid (`hull_planes`), the other planes through a corner
+    of its face, packed in one int64 array `near`: near[near[f]:near[f + 1]] (starts offset by P + 1);
+    empty where the shape has none. They are the planes of the triangles that share a vertex (within
+    1e-9 of the shape's size) with a triangle of plane f (a triangle lies in every plane within 1e-9 of
+    its normal and offset / size: planes that differ by rounding alone share its corners). The face is its plane's points inside the
+    planes of its edges, each through two of its corners: the face test needs these alone, and
+    media/slab.py `reachable_faces` reads no other plane (a plane with fewer than three of them, which
+    no face of a closed solid has, takes every plane)."""
+    def build():
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        from scipy.spatial import cKDTree
+
+        planes = hull_planes(prep, sid)
+        if planes is None or not len(planes):
+            return np.zeros(0, np.int64)
+        tris, n, _ = triangle_planes(prep.accel.triangles[prep.shape_ids == sid], planes)
+        pts = tris.reshape(-1, 3)
+        size = max(float(np.abs(pts).max(initial=0.0)), 1e-300)
+        keys = np.column_stack([n, np.einsum("ij,ij->i", n, tris[:, 0]) / size])
+        tree = cKDTree(np.column_stack([planes[:, :3], planes[:, 3] / size]))
+        lists = tree.query_ball_point(keys, 1e-9)  # every plane a triangle lies in (planes equal but for rounding)
+        tri = np.repeat(np.arange(len(tris)), [len(ids) for ids in lists])
+        plane = np.concatenate([np.asarray(ids, np.int64) for ids in lists] + [np.zeros(0, np.int64)])
+        pairs = cKDTree(pts).query_pairs(1e-9 * size, output_type="ndarray")
+        same = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
+        corner = connected_components(same, directed=False)[1].reshape(-1, 3)
+        touch = coo_matrix((np.ones(3 * len(tri)), (corner[tri].ravel(), np.repeat(plane, 3))),
+                           shape=(corner.max() + 1, len(planes))).tocsr()
+        touch.data[:] = 1.0
+        adj = (touch.T @ touch).tolil()
+        adj.setdiag(0.0)
+        adj = adj.tocsr()
+        adj.eliminate_zeros()
+        lists = [np.sort(adj.indices[adj.indptr[f]:adj.indptr[f + 1]]) for f in range(len(planes))]
+        every = np.arange(len(planes))
+        lists = [every[every != f] if len(ids) < 3 else ids for f, ids in enumerate(lists)]
+        starts = len(planes) + 1 + np.concatenate([[0], np.cumsum([len(ids) for ids in lists])])
+        return np.concatenate([starts] + lists).astype(np.int64)
+    return prep.memo(("plane neighbours", sid), build)
 
 
 def warm_up_rays(prep, origins, dirs):
@@ -400,11 +473,11 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     """Radiance (M, 3) toward the row starts p from the surface points q = p + ell w (triangles prim)
     inside the medium of shape sid, times exp(-sigma_t ell) along the camera's path. Index-matched:
     the surface term, whose shadow rays leave through the medium with the interior's transmittance
-    (`shadow_through`). Refractive, in a convex shape of at most KERNEL_PLANES planes: point and spot
-    lights through every face they are outside of (`_lit_through_faces`), directional ones by the beam
-    refracted through every face they meet, where q's path back along it leaves through that face
-    (`refracted_beams`, `_lit_by_beam`); in another shape directional lights only (`check` refuses the
-    rest) by the note's planar boundary, the entry face's plane (outward normals n): the beam refracted
+    (`shadow_through`). Refractive, in a convex shape: point and spot lights through every face they are
+    outside of (`_lit_through_faces`, `refracting_planes`); directional ones, in a convex shape of at
+    most KERNEL_PLANES planes, by the beam refracted through every face they meet, where q's path back
+    along it leaves through that face (`refracted_beams`, `_lit_by_beam`); in another shape directional
+    lights only (`check` refuses the rest) by the note's planar boundary, the entry face's plane (outward normals n): the beam refracted
     into t through it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t
     back to the plane, k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's
     leg outside (`_outside_clear`)."""
@@ -420,9 +493,10 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     else:
         lb = np.zeros((len(q), 3))
         lights = prep.lights
-        planes = convex_planes(prep, sid)
+        planes = refracting_planes(prep, sid)
         for li in np.nonzero(~lights.distant)[0] if len(planes) else ():
             lb += _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt)
+        planes = convex_planes(prep, sid)
         for li in np.nonzero(lights.distant)[0]:
             if len(planes):
                 beams = zip(*refracted_beams(planes, lights.axis[li], medium.ior))

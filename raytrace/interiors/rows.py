@@ -40,7 +40,8 @@ import numpy as np
 
 from ..error_bounds import product, spot_rounding
 from ..media.convex_directional import MAX_FACES, segments_bounded
-from ..media.slab import APPROX, CLOSED, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance
+from ..media.slab import (APPROX, CLOSED, EVERY, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance,
+                          segment_reach)
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
@@ -54,7 +55,7 @@ from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
                        UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
-                       refracted_beams, scaled)
+                       plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
@@ -109,6 +110,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     closed = mode == CLOSED and not refractive  # the exact closed form, or quadrature where there is none
     kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
     beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
+    faces = refracting_planes(prep, sid) if refractive and mode != APPROX else np.zeros((0, 4))
+    near = plane_neighbours(prep, sid) if len(faces) else EVERY
     bound = np.zeros((n, 3))
     rtol, steps, tau_max = sup.settings(params)
     stats = np.zeros(STATS_SIZE)
@@ -123,7 +126,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 continue
             unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used, dplanes, only,
+                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used,
+                            near if used is faces else EVERY, dplanes, only,
                             mode, rtol, steps, tau_max, keys,
                             np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
                             unit, unit_var, unit_err, stats)
@@ -207,7 +211,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                     lights.cone[li, 0])
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
-                  planes if beams or not refractive else np.zeros((0, 4)),  # beams: faces_point's faces
+                  planes if not refractive else faces,  # refractive: faces_point's faces
                   -1 if beam is None else int(beam))
     used = np.arange(len(lights)) if light is None else [light]
     if np.any(lights.cubature[used]):  # an emitter's cubature or the environment's directions: no bound
@@ -261,7 +265,7 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and sup.mode != APPROX \
             and not np.any(prep.shape_ids != sid):  # alone in the scene: nothing stands on its refracted paths
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
-    if reach == REFRACTED and len(convex_planes(prep, sid)) and sup.mode != APPROX:
+    if reach == REFRACTED and len(refracting_planes(prep, sid)) and sup.mode != APPROX:
         return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     if reach == REFRACTED or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights
         out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
@@ -393,7 +397,9 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
     Where all index-matched interiors are convex (`_other_interiors`), a beam is attenuated by the others
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
-    (`_through_others`); else they are not applied, and every light's bound is infinite."""
+    (`_through_others`); else they are not applied, and every light's bound is infinite. A shape of more
+    than KERNEL_PLANES planes (`convex_planes` empty) takes directional lights through the entry plane,
+    unshadowed (`single_scattering`), counted (UNSHADOWED), their bound infinite beside other shapes."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = convex_planes(prep, sid), blockers(prep)
     n = len(points)
@@ -403,8 +409,17 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     others = _other_interiors(prep, sid, method.supports.interiors)
     for li in range(len(lights)):
         if not lights.distant[li]:
-            _lit_point(prep, method, params, sid, planes, mask, li, (points, normals, w, ell, keys), reach, seed, depth,
-                       (out, var, bound, stats), others)
+            _lit_point(prep, method, params, sid, refracting_planes(prep, sid), mask, li,
+                       (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), others)
+            continue
+        if not len(planes):
+            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
+                                              depth, li)
+            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
+            stats += st
+            if np.any(prep.shape_ids != sid):
+                b = np.where(ell[:, None] > 0.0, np.inf, b)
+            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
             continue
         faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward, irradiance in zip(faces.tolist(), towards, scales):
@@ -446,7 +461,14 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     position = prep.lights.position[li]
     faces = np.nonzero(planes[:, :3] @ position - planes[:, 3] > 0.0)[0].tolist()
     dplanes = measured_plane_errors(prep, sid)
-    found = [(f, *lit_pieces_of_point(prep, sid, planes, mask, li, f, points, w, ell, dplanes)) for f in faces]
+    geo = np.zeros((len(ell), GEO_COLUMNS))
+    geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points, w, position
+    reached = np.zeros((len(ell), len(planes)), dtype=np.bool_)
+    segment_reach(geo, planes, plane_neighbours(prep, sid), float(prep.scene.shapes[sid].interior.ior),
+                  np.ascontiguousarray(ell, dtype=float), reached)
+    faces = [f for f in faces if reached[:, f].any()]  # the others are unlit, whole, spans known (`_face_pieces`)
+    found = [(f, *_face_pieces(prep, sid, planes, mask, li, f, (points, w, ell), dplanes, reached[:, f]))
+             for f in faces]
     gain = np.ones(3)
     if others is not None:
         big = 4.0 * math.sqrt(3.0) * max(prep.accel.scale, float(np.abs(position).max()))
@@ -481,6 +503,22 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
                 val, v, st, b = single_scattering(prep, method, params, sid, *sub, reach, seed, depth, li, piece, f)
             stats += st
             _carry(out, var, bound, r, kt, x0[at], val, v, b)
+
+
+def _face_pieces(prep, sid, planes, mask, li, f, rows, dplanes, reached):
+    """shadows/fermat_legs.py `lit_pieces_of_point` through face f for the segments rows = (points, w,
+    ell) whose refraction points may lie on it (`reached`: media/slab.py `segment_reach`); the others,
+    unlit through f, count as lit whole with their spans known and no pieces."""
+    points, w, ell = rows
+    sel = np.nonzero(reached)[0]
+    whole, sure = np.ones(len(ell), bool), np.ones(len(ell), bool)
+    if not len(sel):
+        none = np.zeros(0, np.int64)
+        return none, np.zeros(0), np.zeros(0), whole, (none, np.zeros(0), np.zeros(0), sure)
+    src, x0, x1, whole_sel, (sseg, slo, shi, sure_sel) = lit_pieces_of_point(prep, sid, planes, mask, li, f,
+                                                                             points[sel], w[sel], ell[sel], dplanes)
+    whole[sel], sure[sel] = whole_sel, sure_sel
+    return sel[src], x0, x1, whole, (sel[sseg], slo, shi, sure)
 
 
 def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
@@ -558,25 +596,20 @@ def measured_plane_errors(prep, sid):
     lights' bound, media/fermat_rounding.py): each triangle's unit normal (its cross product's, a few
     ulps off: + 8u) and vertices against the plane of `convex_planes` it lies in (the nearest by
     normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
-    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|). `plane_errors` where
+    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|) (crossing.py
+    `triangle_planes`: the normal turned outward, as the planes'). `plane_errors` where
     the shape has no convex planes or a triangle lies in none of them (to its bound)."""
     def measure():
-        planes = convex_planes(prep, sid)
-        tris = prep.accel.triangles[prep.shape_ids == sid].astype(np.float64)
+        planes = refracting_planes(prep, sid)
         bound = plane_errors(prep, sid)
-        cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-        area = np.linalg.norm(cross, axis=1)
-        tris, n = tris[area > 0.0], cross[area > 0.0] / area[area > 0.0, None]
+        tris, n, best = triangle_planes(prep.accel.triangles[prep.shape_ids == sid], planes)
         if not len(planes) or not len(tris):
             return bound
-        off = np.abs(np.einsum("tvk,pk->tpv", tris, planes[:, :3]) - planes[None, :, 3, None]).max(axis=2)
-        dn = np.abs(n[:, None, :] - planes[None, :, :3]).max(axis=2)
-        best = np.argmin(dn + off / max(float(np.abs(tris).max()), 1e-300), axis=1)
-        rows = np.arange(len(tris))
+        off = np.abs(np.einsum("tvk,tk->tv", tris, planes[best, :3]) - planes[best, 3, None]).max(axis=1)
         u = 2.0 ** -53
-        dn_f = dn[rows, best] + 8.0 * u
+        dn_f = np.abs(n - planes[best, :3]).max(axis=1) + 8.0 * u
         norms = np.linalg.norm(tris, axis=2).max(axis=1)
-        dc_f = off[rows, best] + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
+        dc_f = off + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
         if dn_f.max() > bound[0] or dc_f.max() > bound[1]:
             return bound
         return np.array([dn_f.max(), dc_f.max()])

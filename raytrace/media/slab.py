@@ -467,7 +467,8 @@ def edge_breaks(row, planes, eta, end, out):
     """The x in (0, end) where face row's refraction point R(x) (`refracting_faces`) crosses the line of
     another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on
     or off): every sign change of `_edge_value`, isolated with a bound K on its derivative (K_R of
-    media/fermat_rounding.py `fermat_speed`, the refraction point's speed: an interval [lo, hi] with
+    media/fermat_rounding.py `fermat_speed`, the refraction point's speed, times `edge_tilt`, the part
+    of n_g along the face's plane, in which R moves: an interval [lo, hi] with
     |phi(lo)| + |phi(hi)| > K (hi - lo) + 2e-14 S holds none, S the scene's size about the segment; the
     others are halved down to 1e-13 S, at most MAX_ISOLATE evaluations: none missed, no grid) and
     bisected to the resolution of doubles; one sign change between the segment's ends is bisected
@@ -492,6 +493,26 @@ def edge_breaks(row, planes, eta, end, out):
 
 
 @njit
+def edge_tilt(row, planes, g):
+    """A bound on |n_g·v| / |v| for v along face row's plane, in which its refraction point R moves:
+    |d(n_g·R)/dx| <= it times |R'|. |n_g x n_f| (n_f the normal of plane row[17]) plus 1e-9 (the
+    normals are unit, and the row's vectors in the plane, to a few roundings: w_h's and L_h's normal
+    parts, at most 8u S with S = |L_h| + z0 + hl, move R off the plane by at most (K + 1) 8u S / rho,
+    below 1e-9 K where rho >= 1e-4 S), at most 1; 1 where z0 = 0, as for the entry face's row (its
+    plane the entry point's normal's, within 1e-9 of the plane's in cosine: `entry_face`), and where
+    the segment's line passes within 1e-4 S of straight below the light (rho < 1e-4 S)."""
+    a, wl, ll = row[1], row[3], row[4]
+    rho2 = ll - wl * wl / (1.0 - a * a) if 1.0 - a * a > 0.0 else ll
+    if not row[0] > 0.0 or not rho2 >= (1e-4 * (math.sqrt(ll) + row[0] + row[2])) ** 2:
+        return 1.0
+    f = int(row[17])
+    c0 = planes[g, 1] * planes[f, 2] - planes[g, 2] * planes[f, 1]
+    c1 = planes[g, 2] * planes[f, 0] - planes[g, 0] * planes[f, 2]
+    c2 = planes[g, 0] * planes[f, 1] - planes[g, 1] * planes[f, 0]
+    return min(math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) * (1.0 + 1e-11) + 1e-9, 1.0)
+
+
+@njit
 def _bisect(row, planes, g, eta, lo, hi):
     """The sign change of `_edge_value` in [lo, hi] (signs differ at its ends) to the resolution of doubles."""
     s_lo = _edge_value(lo, row, planes, g, eta)
@@ -510,6 +531,7 @@ def _bisect(row, planes, g, eta, lo, hi):
 def _sign_changes(row, planes, g, eta, end, tol, width, out, m):
     """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
+    tilt = edge_tilt(row, planes, g) * (1.0 + 1e-11)
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _edge_value(0.0, row, planes, g, eta), _edge_value(end, row, planes, g, eta)
@@ -518,7 +540,7 @@ def _sign_changes(row, planes, g, eta, end, tol, width, out, m):
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
-        if abs(vlo) + abs(vhi) > k * (1.0 + 1e-11) * (hi - lo) + 2.0 * tol:
+        if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * tol:
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
             if vlo * vhi < 0.0:
@@ -835,7 +857,7 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
     computed one a sign change of phi (`_phi`: psi - t, 0 <= t <= slack, the face test's tolerance),
     and the computed psi (`_psi`) is within tol of psi_exact, so the two may differ only where psi
     lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
-    K_R, times 1 + 1e-11 for an edge plane's normal; over the outside leg's least length o_min for a
+    K_R times `edge_tilt` and 1 + 1e-11 for an edge plane; over the outside leg's least length o_min for a
     cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi]
     with psi(lo) + psi(hi) > K (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol
     lies outside the band; the others are halved until shorter than `width`, or than 1e4 `width` with
@@ -848,6 +870,7 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
+    tilt = edge_tilt(row, rec.planes, g) * (1.0 + 1e-11) if kind == _EDGE else 1.0
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _psi(kind, 0.0, rec, row, g, level), _psi(kind, end, rec, row, g, level)
@@ -857,7 +880,7 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
-        k = k * (1.0 + 1e-11) if kind == _EDGE else k / o_min
+        k = k * tilt if kind == _EDGE else k / o_min
         if vlo + vhi > k * (hi - lo) + 4.0 * tol + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * tol:
             continue
         inside = -2.0 * tol <= vlo <= slack + 2.0 * tol and -2.0 * tol <= vhi <= slack + 2.0 * tol
@@ -1401,8 +1424,8 @@ def march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
     return mean, max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
 
 
-def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, dplanes,
-                    only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
+def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, near,
+                    dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, one
     channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
     of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
@@ -1419,7 +1442,8 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
     (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD),
-    with only >= 0 through that face alone.
+    with only >= 0 through that face alone; `near` (int64): the planes' neighbours of
+    interiors/crossing.py `plane_neighbours` there (`reachable_faces`; empty: every plane is tested).
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces), for QUAD's point and spot lights in
     convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to
@@ -1439,10 +1463,10 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     if eta != 1.0 and (mode == QUAD or (convex and sampled)):
         # a point or spot light through every face of a convex refractive shape, else the entry plane
         if mode == QUAD:
-            each(_faces_quad, live & ~directional, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta,
+            each(_faces_quad, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta,
                  rtol, dplanes, out, err, stats)
         else:
-            each(_faces_sampled, live & ~directional, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
+            each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
                  eta, mode, steps, tau_max, keys, dim0, seed, out, var)
         live &= directional
     if convex and mode != CLOSED and mode != APPROX:
@@ -1492,17 +1516,197 @@ def _faces(s, geo, planes, a, hl, wl, ll, only):
 
 
 @njit
-def _faces_quad(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out, err,
-                stats):
-    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound."""
+def _reached(s, geo, planes, near, a, hl, wl, ll, only, eta, end):
+    """`_faces` over [0, end] culled to the faces that can light segment s (`reachable_faces`): the
+    rows, their count, the planes they refer to and the spot's terms."""
+    faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+    m, local = reachable_faces(faces, m, planes, near, eta, end, np.empty(m, np.int64))
+    return faces, m, local, spot
+
+
+EVERY = np.zeros(0, np.int64)  # `reachable_faces`' `near` that tests every plane (interiors/rows.py)
+REACH_TOL = 1e-9  # relative margin of `reachable_faces`' plane tests (the face test's own is EDGE_TOL)
+REACH_DEPTH = 7  # `reachable_faces` halves a segment down to 2^-7 of it
+
+
+@njit
+def _candidates(near, f, nf):
+    """The planes `reachable_faces` tests for face f: its neighbours in `near` (interiors/crossing.py
+    `plane_neighbours`), or every plane where `near` is empty."""
+    if near.shape[0] == 0:
+        return np.arange(nf)
+    return near[near[f]:near[f + 1]]
+
+
+@njit
+def _beyond_span(row, planes, cand, f, eta, end):
+    """Whether face row's refraction point lies beyond one of the planes `cand` for every x in [0, end]:
+    R(x) = X_f + t (L_f - X_f) with X_f the foot of the point at x, L_f the light's and 0 <= t <=
+    z / (z + eta hl) (sin t1 = eta sin t2 gives tan t1 >= eta tan t2, t1 the outside angle: (rho - r) / hl
+    >= eta r / z), z <= z_max the point's depth: R lies in the quadrilateral of the feet of the segment's
+    ends and their images at t = t_max, convex; beyond plane g by more than REACH_TOL of the scene's
+    size at all four corners, it is beyond it everywhere."""
+    z_max = max(row[0], row[0] + row[1] * end, 0.0)
+    t = min(z_max / (z_max + eta * row[2]) * (1.0 + 1e-9), 1.0) if z_max > 0.0 else 0.0
+    cx = np.empty((4, 3))
+    for c in range(3):
+        x0, x1 = row[8 + c], row[8 + c] + end * row[11 + c]
+        cx[0, c], cx[1, c] = x0, x1
+        cx[2, c], cx[3, c] = x0 + t * row[14 + c], x1 + t * (row[14 + c] - end * row[11 + c])
+    size = 0.0
+    for k in range(4):
+        size = max(size, abs(cx[k, 0]) + abs(cx[k, 1]) + abs(cx[k, 2]))
+    for g in cand:
+        if g == f:
+            continue
+        margin = REACH_TOL * (abs(planes[g, 3]) + size)
+        out = True
+        for k in range(4):
+            if planes[g, 0] * cx[k, 0] + planes[g, 1] * cx[k, 1] + planes[g, 2] * cx[k, 2] - planes[g, 3] <= margin:
+                out = False
+                break
+        if out:
+            return True
+    return False
+
+
+@njit
+def reachable_faces(faces, m, planes, near, eta, end, ids):
+    """The first m rows of `refracting_faces` culled, in place, to those whose refraction point can lie
+    on their face for some x in [0, end], and the planes (`planes`' rows) they need; the rows' face
+    numbers [17] renumbered into those planes: (count, planes). Face f's face is its plane's points
+    inside the planes `near` lists for it (interiors/crossing.py `plane_neighbours`; every plane where
+    `near` is empty): only these are read. A face whose refraction points all lie beyond one of them
+    (`_beyond_span`) is dropped at once. Else over a piece [lo, hi] the refraction
+    point R(x) stays within K (hi - lo) / 2 of R at the middle (K media/fermat_rounding.py
+    `fermat_speed`, the bound on |R'| of `edge_breaks`): a piece whose disk lies beyond another plane g
+    (n_g·R - c_g > that radius times `edge_tilt` + REACH_TOL of the scene's size at R, far beyond the face test's
+    EDGE_TOL and R's rounding) is unlit through the face (g is kept, so that the face test reads it
+    so), one whose disk lies inside every other plane
+    is lit and needs none of them (no switch of `on_face`, no root in `edge_breaks` or `break_errors`);
+    the others are halved, down to 2^-REACH_DEPTH of the segment, where the planes crossing their disk
+    are needed. A face with every piece unlit is 0 over the segment and dropped; the kept faces'
+    terms, breaks and bounds are those with every plane. For eta <= 1 (no speed bound) and without
+    planes: as given. ids[:count]: the kept rows' faces in `planes`."""
+    nf = planes.shape[0]
+    for j in range(m):
+        ids[j] = faces[j, 17]
+    if nf == 0 or m == 0 or not end < math.inf or not eta > 1.0:
+        return m, planes
+    need = np.zeros(nf, np.bool_)
+    stack = np.empty((REACH_DEPTH + 2, 3))
+    kept = 0
+    for j in range(m):
+        row = faces[j]
+        f = int(row[17])
+        cand = _candidates(near, f, nf)
+        if _beyond_span(row, planes, cand, f, eta, end):
+            continue
+        z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+        lit = False
+        stack[0, 0], stack[0, 1], stack[0, 2] = 0.0, end, 0.0
+        top = 1
+        while top > 0:
+            top -= 1
+            lo, hi, depth = stack[top, 0], stack[top, 1], stack[top, 2]
+            x = 0.5 * (lo + hi)
+            rho, r = fermat(x, max(z0, 0.0), wl, ll, a, hl, eta)
+            t = r / rho if rho > 0.0 else 0.0
+            q0 = row[8] + x * row[11] + t * (row[14] - x * row[11])
+            q1 = row[9] + x * row[12] + t * (row[15] - x * row[12])
+            q2 = row[10] + x * row[13] + t * (row[16] - x * row[13])
+            k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a,
+                             eta)
+            radius = 0.5 * k * (1.0 + 1e-9) * (hi - lo)
+            size = abs(q0) + abs(q1) + abs(q2)
+            beyond, crossing = False, False
+            for g in cand:
+                if g == f:
+                    continue
+                d = planes[g, 0] * q0 + planes[g, 1] * q1 + planes[g, 2] * q2 - planes[g, 3]
+                margin = radius * edge_tilt(row, planes, g) + REACH_TOL * (abs(planes[g, 3]) + size)
+                if d > margin:  # kept among the planes: the face test reads this piece unlit by it
+                    beyond, need[g] = True, True
+                    break
+                crossing = crossing or d >= -margin
+            if beyond:
+                continue
+            if crossing and depth < REACH_DEPTH:
+                stack[top, 0], stack[top, 1], stack[top, 2] = x, hi, depth + 1
+                stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = lo, x, depth + 1
+                top += 2
+                continue
+            lit = True
+            for g in cand if crossing else cand[:0]:  # an undecided piece: the planes crossing its disk
+                d = planes[g, 0] * q0 + planes[g, 1] * q1 + planes[g, 2] * q2 - planes[g, 3]
+                if g != f and abs(d) <= radius * edge_tilt(row, planes, g) + REACH_TOL * (abs(planes[g, 3]) + size):
+                    need[g] = True
+        if not lit:
+            continue
+        need[f] = True
+        ids[kept] = f
+        if kept != j:
+            for c in range(FACE_COLUMNS):
+                faces[kept, c] = faces[j, c]
+        kept += 1
+    index = np.cumsum(need) - 1
+    local = np.empty((index[-1] + 1, 4))
+    for g in range(nf):
+        if need[g]:
+            for c in range(4):
+                local[index[g], c] = planes[g, c]
+    for j in range(kept):
+        faces[j, 17] = index[int(faces[j, 17])]
+    return kept, local
+
+
+@njit
+def segment_reach(geo, planes, near, eta, ell, out):
+    """out[s, f] = True where face f of a convex refractive shape may light segment s over [0, ell[s]]
+    (geo rows of GEO_COLUMNS without an entry normal: every face's row from `planes`), its refraction
+    point on the face (`reachable_faces`, `near` its planes' neighbours)."""
+    faces = np.empty((max(planes.shape[0], 1), FACE_COLUMNS))
+    ids = np.empty(planes.shape[0], np.int64)
+    for s in range(geo.shape[0]):
+        m = refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)
+        m, _ = reachable_faces(faces, m, planes, near, eta, ell[s], ids)
+        for j in range(m):
+            out[s, ids[j]] = True
+
+
+@njit
+def _faces_quad(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out,
+                err, stats):
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound;
+    with several faces (eta > 1), each face's integral over the planes it needs alone (`reachable_faces`
+    of its row alone, the same decisions as with the others: the same face test, breaks and bound as
+    with every plane), summed, their bounds summed with the sum's rounding (u per term)."""
+    row, one = np.empty((1, FACE_COLUMNS)), np.empty(1, np.int64)
     for s in sel:
+        end = min(ell[s], 745.0 / kt)
         faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        ids = np.empty(m, np.int64)
+        m, local = reachable_faces(faces, m, planes, near, eta, end, ids)
         err[s] = 0.0
         if m > 0:
-            r, cmax = coordinate_size(geo[s], planes, min(ell[s], 745.0 / kt))
+            r, cmax = coordinate_size(geo[s], planes, end)
             p, ln, lp = light_norms(geo[s])
-            out[s], err[s] = faces_quadrature(faces[:m], planes, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol,
-                                              dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], planes), stats)
+            if m == 1 or not eta > 1.0:
+                out[s], err[s] = faces_quadrature(faces[:m], local, ell[s], kt, ks, code, g, kt_out, eta, spot[3:],
+                                                  rtol, dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], local),
+                                                  stats)
+                continue
+            total, bound = 0.0, 0.0
+            for j in range(m):  # each face over its own planes: their sum is the integral over all
+                for c in range(FACE_COLUMNS):
+                    row[0, c] = faces[j, c]
+                row[0, 17] = ids[j]  # the same cull of this row alone: the planes it needs
+                own = reachable_faces(row, 1, planes, near, eta, end, one)[1]
+                value, e = faces_quadrature(row, own, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, dplanes,
+                                            (p, ln, lp, r + ln + cmax), entry_face(geo[s], own), stats)
+                total += value
+                bound += e
+            out[s], err[s] = total, bound + m * U * (total + bound)
 
 
 @njit
@@ -1515,14 +1719,14 @@ def light_norms(geo):
 
 
 @njit
-def _faces_sampled(sel, geo, planes, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, mode, steps, tau_max,
+def _faces_sampled(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, mode, steps, tau_max,
                    keys, dim0, seed, out, var):
     """The same, MARCH or SAMPLE: `march_or_sample` of `faces_point`."""
     for s in sel:
-        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+        length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+        faces, m, local, spot = _reached(s, geo, planes, near, a, hl, wl, ll, only, eta, length)
         if m > 0:
-            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            rec = FacesPoint(faces[:m], planes, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
+            rec = FacesPoint(faces[:m], local, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
                              (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
             out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
 
