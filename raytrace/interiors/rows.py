@@ -21,14 +21,14 @@ CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
 sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; CLOSED hands
-them to QUAD, counted; QUAD bounded but where a segment crosses the caustic); slab_approx keeps the
+them to QUAD, counted; QUAD bounded but where a caustic crossing has no fold pair); slab_approx keeps the
 entry plane everywhere.
 
 QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bounds.md, "Inside shapes"):
 convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
 planes are from the faces), others on the facet walk's exit planes or on traced walks
-(paths.segment_quadrature), and in refractive exact spheres (`_refracted_sphere`, but where a segment
-crosses the caustic); elsewhere, and for the other rules but CLOSED's closed form, the bound is
+(paths.segment_quadrature), and in refractive exact spheres (`_refracted_sphere`, but where a caustic
+crossing has no fold pair); elsewhere, and for the other rules but CLOSED's closed form, the bound is
 infinite.
 """
 from __future__ import annotations
@@ -223,7 +223,7 @@ def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, key
     """out, var, bound += light li's single scattering over the rows (geo: GEO_COLUMNS) of the refractive
     exact sphere sid (centre, radius): its exact refracted paths (media/sphere_refraction.py) by the
     method's inside rule (one kernel call per channel), CLOSED's handed to QUAD (counted, HANDED); QUAD's
-    bound (inf on the segments that cross the caustic, counted) with a spot's rounding, inf for the others."""
+    bound (inf where a caustic crossing has no fold pair, counted) with a spot's rounding, inf for the others."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     rtol, steps, tau_max = sup.settings(params)
     mode = QUAD if sup.mode == CLOSED else sup.mode
