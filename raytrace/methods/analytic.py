@@ -41,7 +41,7 @@ import numpy as np
 from .. import error_bounds
 from ..jit import njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
-from .geometry import by_channel, cone_of, cone_row, v_of
+from .geometry import by_channel, cone_row, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
@@ -807,9 +807,9 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     for s in range(xh.shape[0]):
         if aniso is not None:
             pending[s, P_BLOCK] = 0.0
+        row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                          aniso_mode, terms, coeffs, cone_of(cone, s), stats, quadrature, spots, aniso,
-                                          pending, s)
+                                          aniso_mode, terms, coeffs, row, stats, quadrature, spots, aniso, pending, s)
     if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
         _pending_recurrences(pending, coeffs, ks, out)
     left = 0
@@ -820,8 +820,9 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
                 # left to the second pass: its statistics, counted again there, taken back
                 left += 1
                 scratch[:] = 0.0
+                row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])
                 checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode,
-                                 terms, coeffs, cone_of(cone, s), scratch, quadrature, spots, aniso, pending, s)
+                                 terms, coeffs, row, scratch, quadrature, spots, aniso, pending, s)
                 for k in range(stats.shape[0]):
                     stats[k] -= scratch[k]
     return left

@@ -117,13 +117,6 @@ def cone_row(cone):
     return cone[0], cone[1], cone[2], cone[3], cone[4]
 
 
-@njit
-def cone_of(cone, s):
-    """Row s of a cone table (S, 5) as `cone_row`'s tuple, read without a view of the row (a view
-    passed on to a kernel costs a reference count per segment)."""
-    return cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4]
-
-
 class Eq4(NamedTuple):
     """`eq4_integrand` in x: the homogeneous air-light of a unit light (x_h, h) with cone row `cone`."""
     xh: float
