@@ -56,7 +56,7 @@ def _terms(xh, h, ell, kt, coeffs):
         if not (ell[s] > 0.0) or not (kt * h[s] > 1e-200):
             continue
         vb = v_of(ell[s] - xh[s], h[s]) if ell[s] < np.inf else np.inf
-        total += analytic._block_for(coeffs, v_of(-xh[s], h[s]), vb, kt * h[s], analytic.B_HMAX).shape[0] - analytic.B_C
+        total += analytic._block_at(coeffs, v_of(-xh[s], h[s]), vb, kt * h[s], analytic.B_HMAX)[1] - analytic.B_C
     return total
 
 

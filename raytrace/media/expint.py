@@ -14,6 +14,8 @@ Written from the formulas of METHODS.md; no external code.
 import cmath
 import math
 
+import numpy as np
+
 from ..jit import njit
 
 EULER_GAMMA = 0.57721566490153286060651209
@@ -25,6 +27,22 @@ _FPMIN = 1e-300
 # ~2 digits lost), where it is cheaper than the continued fraction, which converges slowly near the
 # imaginary axis.
 G_SERIES_REACH = 5.0
+
+
+def _series_weights(n):
+    """1 / (k k!) for k = 0 .. n - 1 (entry 0 unused, 0), by the float operations the Fig. 2 loop
+    did in its own iterations (k! carried as a float, multiplied by k, then the reciprocal of k
+    times it), so that the table holds the same doubles; from k = 170 on k k! overflows and the
+    weight is 0, as is the table's last entry, which every larger k reads."""
+    w = np.zeros(n)
+    kfac = 1.0
+    for k in range(1, n - 1):
+        kfac *= k
+        w[k] = 1.0 / (k * kfac)
+    return w
+
+
+SERIES_WEIGHTS = _series_weights(172)
 
 
 @njit
@@ -162,17 +180,16 @@ def i01_series_est(a, va, vb, precision, max_iter):
     pa = complex(cosa, sina)
     pb = pa
     big = abs(i0) + abs(i1) + 1.0
-    kfac = 1.0
     rka = 1.0
     rkb = 1.0
     k = 0
+    last = SERIES_WEIGHTS.shape[0] - 1
     for k in range(1, max_iter + 1):
-        kfac *= k
         rka *= rva
         rkb *= rvb
         pa *= za
         pb *= zb
-        denom = 1.0 / (k * kfac)
+        denom = SERIES_WEIGHTS[min(k, last)]  # 1 / (k k!), tabulated: no division on the loop's path
         i0 += (pb.imag - pa.imag) * denom
         i1 += (pb.real - pa.real) * denom
         indicator = (rkb + rka) * denom

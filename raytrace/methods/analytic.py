@@ -41,7 +41,7 @@ import numpy as np
 from .. import error_bounds
 from ..jit import njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
-from .geometry import by_channel, v_of
+from .geometry import by_channel, cone_row, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
@@ -123,16 +123,17 @@ PENDING = 9
 
 
 @njit
-def _loss(block, H, at):
+def _loss(coeffs, start, H, at):
     """The forward recurrence's error amplification at H (0 <= H <= H_max), interpolated from the
-    block's table at `at` (B_HMAX or B_HMAX_BAND, the table follows at B_LOSS / B_LOSS_BAND; nodes
-    quadratic in H: the loss grows like exp(2 sqrt(H k)))."""
-    hmax = block[at]
-    table = B_LOSS if at == B_HMAX else B_LOSS_BAND
+    table of the block at `start` in `coeffs` at `at` (B_HMAX or B_HMAX_BAND, the table follows at
+    B_LOSS / B_LOSS_BAND; nodes quadratic in H: the loss grows like exp(2 sqrt(H k))). Offsets, not
+    a slice of the block (`_block_at`)."""
+    hmax = coeffs[start + at]
+    table = start + (B_LOSS if at == B_HMAX else B_LOSS_BAND)
     x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
     i = min(int(x), LOSS_TABLE - 2)
     f = x - i
-    return max(1.0, (1.0 - f) * block[table + i] + f * block[table + 1 + i])
+    return max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
 
 
 @njit
@@ -247,13 +248,11 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     `row` is negative (a spot's pieces: their recurrences run here)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     moments = exact or band
-    block = coeffs
-    start = 0
+    start, n = 0, 0  # the block in coeffs (offsets, not a slice: a slice costs numba a reference count)
     at = B_HMAX_BAND if band else B_HMAX
     if (spots is not None or aniso is not None) and moments:
         start, n = _block_at(coeffs, v1, v2, H, at)
-        block = coeffs[start:start + n]
-        if H > block[at]:  # the moment recurrence would lose digits: quadrature
+        if H > coeffs[start + at]:  # the moment recurrence would lose digits: quadrature
             return 0.0, 0.0, False
     # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
     # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
@@ -265,7 +264,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         a = work[:BAND_ORDER + 1]
         b = work[BAND_ORDER + 1:2 * BAND_ORDER + 2]
         band_trig(cone[0], cone[1], cone[2], cone[3], cone[4], a, b)
-        c = block[B_C:]
+        c = coeffs[start + B_C:start + n]
         m = c.shape[0] + BAND_ORDER
         gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
         gs = work[2 * BAND_ORDER + 2 + m:2 * BAND_ORDER + 2 + 2 * m]
@@ -273,7 +272,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     prec_i = precision
     if (spots is not None or aniso is not None) and moments:
-        prec_i = max(1e-15, precision * block[B_RATIO] / _loss(block, H, at))
+        prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / _loss(coeffs, start, H, at))
     if spots is not None and band:
         prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
     rel = prec_i  # relative accuracy of K1 and L1
@@ -318,7 +317,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         # its moments' rounding (relative `rel` from K1, L1, times the recurrence's loss) is bounded
         # by |E_k| <= E_0 = 2 K1
         val = 0.5 * trig_moments_forward(H, v1, v2, K1, L1, E1, E2, gc, gs)
-        err = (rel + FORWARD_ERR_PER_LOSS) * _loss(block, H, at) * abs(K1) * size
+        err = (rel + FORWARD_ERR_PER_LOSS) * _loss(coeffs, start, H, at) * abs(K1) * size
         return val, err, True
 
     if phase_code == ISOTROPIC:
@@ -350,7 +349,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         pending[row, P_K1], pending[row, P_L1], pending[row, P_E1], pending[row, P_E2] = K1, L1, E1, E2
         pending[row, P_BLOCK] = start
         return 0.0, 0.0, True
-    return 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, block[B_C:]), 0.0, True
+    return 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, coeffs[start + B_C:start + n]), 0.0, True
 
 
 @njit
@@ -359,7 +358,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     """Air-light Lm of one light along one ray segment [0, ell] for one channel (`checked_airlight`'s
     value)."""
     return checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode,
-                            terms, coeffs, cone, stats, True, True, True)[0]
+                            terms, coeffs, cone_row(cone), stats, True, True, True)[0]
 
 
 @njit
@@ -377,7 +376,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     max_iter: Fig. 2 loop control; aniso_mode: ANISO_TAYLOR / ANISO_EXACT (ignored for
     isotropic); terms: number N of Taylor coefficients; coeffs: float64 array from
     `make_coeffs` (Taylor: c_0..c_{N-1}; exact: coefficient blocks, see `exact_coeffs`; spot
-    lights need the exact mode's); cone: the segment's cone row (geometry.py; a spot light's
+    lights need the exact mode's); cone: the segment's cone row as a tuple (geometry.cone_row; a spot light's
     segment is cut where it crosses the cone's edge and core, `lights.segment_cone`); stats:
     float64[STATS_SIZE] accumulator; quadrature: True, or None to defer the segments that need the
     reference quadrature: they return (nan, False), and the quadrature's code is not compiled in
@@ -434,7 +433,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
         val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, spot, cone, phase_code, g, aniso_mode, terms, coeffs,
-                            precision, max_iter, coeffs[:0], stats, spots, aniso, pending, row)
+                            precision, max_iter, coeffs, stats, spots, aniso, pending, row)  # (no band: no work)
         if not ok:
             return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
         if pending is not None and aniso is not None:
@@ -808,9 +807,9 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     for s in range(xh.shape[0]):
         if aniso is not None:
             pending[s, P_BLOCK] = 0.0
+        row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
         out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                          aniso_mode, terms, coeffs, cone[s], stats, quadrature, spots, aniso,
-                                          pending, s)
+                                          aniso_mode, terms, coeffs, row, stats, quadrature, spots, aniso, pending, s)
     if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
         _pending_recurrences(pending, coeffs, ks, out)
     left = 0
@@ -821,8 +820,9 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
                 # left to the second pass: its statistics, counted again there, taken back
                 left += 1
                 scratch[:] = 0.0
+                row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])
                 checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode,
-                                 terms, coeffs, cone[s], scratch, quadrature, spots, aniso, pending, s)
+                                 terms, coeffs, row, scratch, quadrature, spots, aniso, pending, s)
                 for k in range(stats.shape[0]):
                     stats[k] -= scratch[k]
     return left
