@@ -140,3 +140,27 @@ def test_the_suns_shadow_kernels_without_the_cube_maps_code_give_the_same_pieces
                    np.zeros(len(tris)), keep)
     assert called(frusta.SUNS, 0, *frusta_args, True) == set()
     assert called(frusta.POINTS, 0, *frusta_args, False) == {"closest_distance"}
+
+
+@pytest.mark.parametrize("which", ["atmosphere", pytest.param("fog", marks=pytest.mark.slow)])
+def test_quadratures_kernels_without_the_lights_a_scene_lacks_give_the_same_image(which, monkeypatch):
+    """methods/quadrature.py `_kinds`: a scene with no point or spot light (the atmosphere under the
+    sun) or no spot light (height fog under a sun and a lamp) compiles its kernels without their code
+    (None arguments, pruned before typing) and renders the same image, bit for bit, as the kernels
+    with every kind's code. The fog's case is slow (two compilations of the fog's chain, ~40 s):
+    `pytest -m slow tests/test_compile_specialisations.py`."""
+    import raytrace
+    from raytrace.api import load
+    from raytrace.lights import Lights
+    from raytrace.methods import quadrature
+
+    if which == "atmosphere":
+        from .test_atmosphere import GROUND as scene
+        assert quadrature._kinds(Lights.of(load(scene).lights)) == (None, None)
+    else:
+        from .test_height_fog import VALLEY as scene
+        assert quadrature._kinds(Lights.of(load(scene).lights)) == (True, None)
+    pruned = raytrace.render(scene, method="quadrature", threads=1).array
+    monkeypatch.setattr(quadrature, "_kinds", lambda lights: (True, True))
+    full = raytrace.render(scene, method="quadrature", threads=1).array
+    assert np.array_equal(pruned, full)
