@@ -155,7 +155,7 @@ def test_quadratures_kernels_without_the_lights_a_scene_lacks_give_the_same_imag
     from raytrace.methods import quadrature
 
     if which == "atmosphere":
-        from .test_atmosphere import GROUND as scene
+        from .test_atmosphere import SPACE as scene
         assert quadrature._kinds(Lights.of(load(scene).lights)) == (None, None)
     else:
         from .test_height_fog import VALLEY as scene
