@@ -795,15 +795,17 @@ def point_lit_pieces(accel, segs: Segments, points, group, box_of, select: np.nd
     return _point_lit(tris, tris.min(axis=1), tris.max(axis=1), np.ascontiguousarray(segs.origins),
                       np.ascontiguousarray(segs.dirs), np.ascontiguousarray(segs.length), np.ascontiguousarray(points),
                       np.asarray(group, np.int64), box_of[0], box_of[1], accel.epsilon, REL * accel.scale,
-                      GAP_REL * accel.scale, np.ascontiguousarray(spheres, dtype=np.float64).reshape(-1, 4))
+                      GAP_REL * accel.scale, np.ascontiguousarray(spheres, dtype=np.float64).reshape(-1, 4), False)
 
 
 @njit
-def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, slack, gap, spheres):
+def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, slack, gap, spheres, sun):
     """`point_lit_pieces`' kernel: per group its candidate triangles (bounding boxes overlapping); per
     segment those that meet the plane through its point and its line (within rounding), their frusta
     from the point (`_frusta`) in the lists of a cube map of one texel a face, walked by `_lit`
-    itself; then the spheres' shadows (`lit_parts`)."""
+    itself; then the spheres' shadows (`lit_parts`). `sun`: False, passed from Python so that the
+    kernels get the bool `build` gives them (a constant here would be typed a literal, and compile
+    `_frusta` and `_lit` once more)."""
     n_t = tris.shape[0]
     ctris, straddle = np.empty((n_t, 3, 3)), np.empty((n_t, 3, 3))
     # np.empty and element loops only: np.zeros, full, eye and array would each compile a function more
@@ -861,7 +863,7 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
                 ns += 1
         for t in range(ns):
             keep[t] = False
-        _frusta_points(straddle[:ns], points[s], zero, epsilon, planes, signs, lb, keep, False)
+        _frusta_points(straddle[:ns], points[s], zero, epsilon, planes, signs, lb, keep, sun)
         nk = 0
         for t in range(ns):
             if keep[t]:
@@ -881,7 +883,7 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
             frame[0, a] = points[s, a]
         lit_src, lo, hi = _lit_points(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], grid, frame, start,
                                       tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk],
-                                      slack, gap, stats, False)
+                                      slack, gap, stats, sun)
         if m + len(lit_src) * per > cap:
             cap = 2 * (m + len(lit_src) * per)
             src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
