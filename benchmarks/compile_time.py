@@ -24,7 +24,8 @@ function it calls, so a deep chain of calls over one integrand pays for the inte
 lowering to LLVM IR; its other passes: bytecode, SSA, rewrites, inlining; dispatch) and LLVM's part
 (the IR printed and parsed, function passes, module passes over the module with its callees linked
 in, machine code), each without the phases nested in it (a callee compiled during its caller's type
-inference counts in its own phases). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
+inference counts in its own phases); with --profile, each exclusive figure split into numba's part
+and LLVM's. --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
 e.g. an older commit's `git archive`, for before/after tables; --before DIR measures that checkout
 too, alternating with --tree's, scene by scene (paired runs: both see the same load), and --runs N
 repeats each measurement N times, giving every run's compile CPU seconds and their median. --cached W
@@ -65,10 +66,10 @@ class Phases:
                ("core.compiler_machinery", "PassManager", "run", "numba: other passes"),
                ("core.dispatcher", "_DispatcherBase", "_compile_for_args", "numba: dispatch"))
 
-    def __init__(self):
+    def __init__(self, owner=lambda: ""):
         import importlib
 
-        self.seconds, self.stack = {}, []
+        self.seconds, self.stack, self.owner, self.by_owner = {}, [], owner, {}
         for module, cls, attr, phase in self.WRAPPED:
             owner = getattr(importlib.import_module(f"numba.{module}"), cls)
             setattr(owner, attr, self._wrap(getattr(owner, attr), phase))
@@ -83,6 +84,8 @@ class Phases:
                 spent = time.thread_time() - start
                 nested = self.stack.pop()
                 self.seconds[phase] = self.seconds.get(phase, 0.0) + spent - nested
+                side = self.by_owner.setdefault(self.owner(), {})
+                side[phase[:4]] = side.get(phase[:4], 0.0) + spent - nested
                 if self.stack:
                     self.stack[-1] += spent
         return timed
@@ -112,7 +115,8 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
     """Render `scene` in this process (an empty cache set by the caller) and return the figures."""
     from numba.core import event as ev
 
-    split = Phases() if phases else None
+    rec = Compiles()
+    split = Phases(lambda: rec.events[rec.stack[-1]]["name"] if rec.stack else "") if phases else None
 
     try:
         from raytrace.rendering import renderer
@@ -120,7 +124,6 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
         from raytrace import renderer
     from raytrace.cli import main
 
-    rec = Compiles()
 
     class Listener(ev.Listener):
         def on_start(self, event):
@@ -166,6 +169,7 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
             "late_cpu": sum(e["end"] - e["start"] for e in top if e["phase"] == "late"),
             "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system, "main_cpu": main_cpu,
             "phases": sorted(split.seconds.items(), key=lambda kv: -kv[1]) if split else [],
+            "phases_by_dispatcher": split.by_owner if split else {},
             "inclusive": sorted(inclusive.items(), key=lambda kv: -kv[1]),
             "exclusive": sorted(exclusive.items(), key=lambda kv: -kv[1]),
             "events": [(e["name"], e["end"] - e["start"], e["depth"], e["outer"][-1] if e["outer"] else "", e["phase"],
@@ -233,7 +237,9 @@ def main():
         for name, r in results.items():
             print(f"\n{name}: top dispatchers by compile CPU s, inclusive | exclusive")
             for (fn, s), (fx, x) in zip(r["inclusive"][:args.top], r["exclusive"][:args.top]):
-                print(f"  {s:6.2f}  {fn:60s} | {x:6.2f}  {fx}")
+                split = r.get("phases_by_dispatcher", {}).get(fx)
+                split = f"  (numba {split.get('numb', 0.0):.2f}, LLVM {split.get('LLVM', 0.0):.2f})" if split else ""
+                print(f"  {s:6.2f}  {fn:60s} | {x:6.2f}  {fx}{split}")
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
 

@@ -80,3 +80,87 @@ def test_a_records_integrand_compiles_once_and_is_called_directly():
         class _Other(NamedTuple):
             a: float
         integrand_of(_Other)(njit(fastmath=False)(lambda x, r: r.a))
+
+
+def _soup(rng, n=300):
+    return rng.uniform(-3, 3, (n, 1, 3)) + rng.normal(size=(n, 3, 3)) * 0.4
+
+
+def test_the_suns_shadow_kernels_without_the_cube_maps_code_give_the_same_pieces():
+    """shadows/frusta.py `_kernels`: the variant for a scene whose lights are all suns (SUNS: the cube
+    map's code pruned) gives the same texel lists and lit pieces, bit for bit, as the variant with both
+    kinds' code (BOTH, `sun` true at run time), on a random triangle soup under a sun, for segments from
+    random points in random directions (some unbounded); and it calls none of the cube map's helpers,
+    as the point lights' variant calls none of the ortho grid's."""
+    from raytrace.methods import Segments
+    from raytrace.shadows import frusta
+
+    rng = np.random.default_rng(5)
+    tris = _soup(rng)
+    sun = frusta.sun_bins(tris, np.array([0.3, -1.0, 0.2]), 1e-6, 10.0, 16)  # a scene of suns only
+    both = frusta.sun_bins(tris, np.array([0.3, -1.0, 0.2]), 1e-6, 10.0, 16, points=True)
+    assert (sun.kinds, both.kinds) == (frusta.SUNS, frusta.BOTH)
+    for name in ("planes", "signs", "start", "tri", "lb", "cover", "cover_depth", "grid", "frame"):
+        assert np.array_equal(getattr(sun, name), getattr(both, name)), name
+    n = 2000
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    length = rng.uniform(0.0, 8.0, n)
+    length[::7] = np.inf
+    zeros = np.zeros(n, np.int64)
+    segs = Segments(rng.uniform(-5, 5, (n, 3)), dirs, length, zeros, np.arange(n), np.zeros(n), zeros, zeros)
+    stats_sun, stats_both = np.zeros(len(frusta.STATS_NAMES)), np.zeros(len(frusta.STATS_NAMES))
+    got_sun = frusta.lit_pieces(segs, [sun], 10.0, stats_sun)
+    got_both = frusta.lit_pieces(segs, [both], 10.0, stats_both)
+    assert 0 < stats_sun[frusta.ST_FRUSTA] and 0 < stats_sun[frusta.ST_DARK]  # shadows were found
+    assert len(got_sun[0]) > n // 2
+    for x, y in zip(got_sun, got_both):
+        assert np.array_equal(x, y)
+    assert np.array_equal(stats_sun, stats_both)
+    # the helpers each variant's module calls (its LLVM IR names them): recompiled here without the cache
+    from raytrace.jit import OPTIONS
+    import numba
+
+    def called(kinds, which, *args):
+        fresh = numba.njit(**OPTIONS)(frusta._kernels(kinds)[which].py_func)
+        fresh(*args)
+        return set(re.findall(r"frusta\d+_(ortho_part|cube_parts|face_bbox|closest_distance)", fresh.inspect_llvm(
+            fresh.signatures[0])))
+
+    frame = np.array([[0.3, 0.2, 0.1], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
+    point = frusta._light_bins(tris, frame, False, 16, 1e-6, frusta.REL * 10, suns=False)
+
+    def lit_args(b):
+        return (segs.origins[:50], segs.dirs[:50], segs.length[:50], b.grid, b.frame, b.start, b.tri, b.lb, b.cover,
+                b.cover_depth, b.planes, b.signs, b.slack, 1e-12, np.zeros(len(frusta.STATS_NAMES)))
+    assert called(frusta.SUNS, 2, *lit_args(sun), True) == {"ortho_part"}
+    assert called(frusta.POINTS, 2, *lit_args(point), False) == {"cube_parts"}
+    keep = np.zeros(len(tris), bool)
+    frusta_args = (tris, np.zeros(3), sun.frame[3], 1e-6, np.zeros((len(tris), 4, 4)), np.zeros((len(tris), 4)),
+                   np.zeros(len(tris)), keep)
+    assert called(frusta.SUNS, 0, *frusta_args, True) == set()
+    assert called(frusta.POINTS, 0, *frusta_args, False) == {"closest_distance"}
+
+
+@pytest.mark.parametrize("which", ["atmosphere", pytest.param("fog", marks=pytest.mark.slow)])
+def test_quadratures_kernels_without_the_lights_a_scene_lacks_give_the_same_image(which, monkeypatch):
+    """methods/quadrature.py `_kinds`: a scene with no point or spot light (the atmosphere under the
+    sun) or no spot light (height fog under a sun and a lamp) compiles its kernels without their code
+    (None arguments, pruned before typing) and renders the same image, bit for bit, as the kernels
+    with every kind's code. The fog's case is slow (two compilations of the fog's chain, ~40 s):
+    `pytest -m slow tests/test_compile_specialisations.py`."""
+    import raytrace
+    from raytrace.api import load
+    from raytrace.lights import Lights
+    from raytrace.methods import quadrature
+
+    if which == "atmosphere":
+        from .test_atmosphere import SPACE as scene
+        assert quadrature._kinds(Lights.of(load(scene).lights)) == (None, None)
+    else:
+        from .test_height_fog import VALLEY as scene
+        assert quadrature._kinds(Lights.of(load(scene).lights)) == (True, None)
+    pruned = raytrace.render(scene, method="quadrature", threads=1).array
+    monkeypatch.setattr(quadrature, "_kinds", lambda lights: (True, True))
+    full = raytrace.render(scene, method="quadrature", threads=1).array
+    assert np.array_equal(pruned, full)

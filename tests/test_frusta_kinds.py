@@ -1,5 +1,5 @@
-"""The volumetric shadows' kernels of a scene without a directional light (shadows/frusta.py `_kind`:
-their `sun` argument left out, so numba prunes the sun's code) give the same texel lists and lit
+"""The volumetric shadows' kernels of a scene without a directional light (shadows/frusta.py `_kernels`:
+the POINTS variant, whose sun's code numba prunes) give the same texel lists and lit
 pieces, bit for bit, as the kernels with both kinds' code (`sun` a bool at run time, as in a scene
 with a sun), on a random triangle soup under a point light, for segments from random points in
 random directions (some unbounded)."""

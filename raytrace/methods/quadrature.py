@@ -170,6 +170,14 @@ def _airlight(segs, medium, lights, params):
     return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
 
 
+def _kinds(lights):
+    """(points, spots): the trailing arguments of `atmosphere_segments` and `fog_segments` for a
+    scene's `lights`: None where it has no light of that kind (no point, spot or area light; no spot
+    light), which numba then prunes the code of before typing, else True (the kind of each
+    segment's light read at run time)."""
+    return (None if lights.distant.all() else True), (True if np.any(lights.cone[:, 1] > -1.0) else None)
+
+
 def _atmosphere(segs, atm, lights, params):
     """The air-light, its stats and its bound (`atmosphere_segments`, the spot's rounding and the
     camera ray's transmittance to a piece's start: `_atmosphere_prefix`)."""
@@ -179,11 +187,13 @@ def _atmosphere(segs, atm, lights, params):
                                  np.linalg.norm(lights.position[segs.light], axis=1)))
     phase_cond = max(phase_condition(int(c), float(g)) for c, g in zip(atm.phases, atm.gs))
     unit_bounds = {}
+    kinds = _kinds(lights)
 
     def evaluate(rows, directional, xh, h, cone, kt, ks):
         out, bound = np.empty_like(xh), np.empty_like(xh)
         atmosphere_segments(rows, directional, xh, h, cone, kt, ks, atm.phases, atm.gs, atm.layers, float(atm.radius),
-                            float(atm.top), dz, phase_cond, params["rtol"], N10, W10, N20, W20, out, bound, stats)
+                            float(atm.top), dz, phase_cond, params["rtol"], N10, W10, N20, W20, out, bound, stats,
+                            *kinds)
         unit_bounds[kt.tobytes() + ks.tobytes()] = bound
         return out
 
@@ -232,11 +242,12 @@ def _fog(segs, medium, lights, params):
     rows[:, ZO] = 4.0 * ULP * (np.abs(segs.origins) @ up + h0)
     rows[:, ZL] = np.where(directional, 0.0, 4.0 * ULP * (np.abs(lights.position[segs.light]) @ up + h0))
     phase_cond = phase_condition(medium.phase, medium.g)
+    kinds = _kinds(lights)
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out, bound = np.empty_like(xh), np.empty_like(xh)
         fog_segments(rows, directional, xh, h, ell, kt, ks, medium.phase, medium.g, phase_cond, cone,
-                     medium.scale_height, medium.profile, params["rtol"], N10, W10, N20, W20, out, bound, stats)
+                     medium.scale_height, medium.profile, params["rtol"], N10, W10, N20, W20, out, bound, stats, *kinds)
         return out, bound
 
     radiance, bound = by_channel(segs, medium, lights, evaluate, estimated=True)
@@ -340,6 +351,7 @@ class FogIntegrand(NamedTuple):
     H: float
     profile: int
     directional: bool
+    spots: bool | None = True  # None: the scene has no spot light (`_kinds`)
 
 
 # a fog row's columns past geometry.fog_rows's: the absolute rounding of the segment's start height
@@ -404,7 +416,7 @@ def _fog_sun(s, r):
 
 
 @njit
-def _fog_point(s, r):
+def _fog_point(s, r, spots):
     """The point or spot light's integrand fog_inscatter(x(theta)) at theta = s (the 1/h outside), and
     its relative rounding (docs/error_bounds.md, "Height fog"), first order, doubled: x = x_h + h tan
     theta is off by dx (the node's, tan's and x_h's and h's own rounding, ~eps of the light's distance
@@ -437,7 +449,7 @@ def _fog_point(s, r):
     else:  # rho(x) x <= tc (1 + |MU| x / H) (the density changes by e^{MU t / H} along the ray): no exp
         rho = tc * (1.0 / x + abs(row[MU]) / H) if x > 0.0 else math.exp(-row[HO] / H)
     moved = (h * inv_d * dx + 2.0 * (dh + 2.0 * ULP * d)) * inv_d + 4.0 * ULP
-    spot = moved * row[SPOT_WIDTH] if is_spot(r.cone[3]) else 0.0
+    spot = moved * row[SPOT_WIDTH] if spots is not None and is_spot(r.cone[3]) else 0.0
     eps = (dens + r.kt * (d_cam + d_light + 2.0 * ULP * (tc + tl) + rho * dx + tl * dd * inv_d) + row[PHASE_COND] * moved
            + spot + dh / h + C_OPS * ULP)
     return value, 2.0 * eps
@@ -446,16 +458,16 @@ def _fog_point(s, r):
 @integrand_of(FogIntegrand)
 @njit
 def _fog_value(s, r):
-    value, eps = _fog_sun(s, r) if r.directional else _fog_point(s, r)
+    value, eps = _fog_sun(s, r) if r.directional else _fog_point(s, r, r.spots)
     _track(r.row, TRACK, value, eps)
     return value
 
 
 @njit
-def _cone_thetas(cone, out, n):
+def _cone_thetas(cone, out, n, spots):
     """Append a spot light's cone crossings as angles theta from the foot point (theta = phi -
-    pi/2) to out[n:]; returns the new count."""
-    if is_spot(cone[3]):
+    pi/2) to out[n:]; returns the new count. `spots`: None if the scene has no spot light (`_kinds`)."""
+    if spots is not None and is_spot(cone[3]):
         for C in (cone[2], cone[3]):
             k, r1, r2 = cone_breaks(cone[0], cone[1], C)
             for i in range(k):
@@ -478,10 +490,11 @@ def _ends_and_inside(out, n):
 
 
 @njit
-def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
-    """The integration variable's breakpoints of one segment, ascending, in out; returns their count."""
+def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out, points, spots):
+    """The integration variable's breakpoints of one segment, ascending, in out; returns their count.
+    `points`, `spots`: `fog_segments`'."""
     x_top = top_distance(row[HO], row[MU], H, profile)
-    if directional:
+    if points is None or directional:
         out[0] = 0.0
         out[1] = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
         n = 2
@@ -496,7 +509,7 @@ def _fog_breaks(row, xh, h, ell, kt, cone, H, profile, directional, out):
         if 0.0 < x_top < ell:
             out[n] = math.atan2(x_top - xh, h)
             n += 1
-        n = _cone_thetas(cone, out, n)
+        n = _cone_thetas(cone, out, n, spots)
     return _ends_and_inside(out, n)
 
 
@@ -521,12 +534,13 @@ def _fog_ends(row, xh, h, ell, kt, H, profile, directional):
 
 @njit
 def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, phase_cond, cone, H, profile, rtol, n10, w10, n20,
-                 w20, out, bound, stats):
+                 w20, out, bound, stats, points, spots):
     """Unit-intensity air-light of every height-fog segment for one channel's coefficients at h0, and
     its bound: the rule's (`adaptive.bounded_piecewise`) plus the rounding `_track` kept (its largest relative
     rounding where the integrand is significant times the value, the largest anywhere over the rest,
     whose values are below SIGNIFICANT of the largest, and the ends' rounding times the largest value),
-    plus the factor's few ulps (the sun's phase, by its condition)."""
+    plus the factor's few ulps (the sun's phase, by its condition). `points`, `spots` (`_kinds`): None
+    where the scene has no point or spot light, no spot light (their code is then pruned), else True."""
     br = np.empty(9)
     for s in range(xh.shape[0]):
         out[s] = bound[s] = 0.0
@@ -538,8 +552,8 @@ def fog_segments(rows, directional, xh, h, ell, kt, ks, code, g, phase_cond, con
         row[DA] = math.hypot(xh[s], h[s])
         row[SPOT_WIDTH] = 1.0 / max(1.0 - cone[s, 2], 1e-300)
         row[PHASE_COND] = phase_cond
-        m = _fog_breaks(row, xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br)
-        rec = FogIntegrand(row, xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s])
+        m = _fog_breaks(row, xh[s], h[s], ell[s], kt, cone[s], H, profile, directional[s], br, points, spots)
+        rec = FogIntegrand(row, xh[s], h[s], kt, ks, code, g, cone_row(cone[s]), H, profile, directional[s], spots)
         scale = ks / kt * phase_value(code, g, row[COSD]) if directional[s] else 1.0 / h[s]
         total, rule_bound = bounded_piecewise(rec, br, m, rtol, n10, w10, n20, w20, stats)
         rounding = (_tracked(row, TRACK, total, br[m - 1] - br[0])
@@ -566,10 +580,12 @@ class AtmosphereIntegrand(NamedTuple):
     dz: float = 0.0  # the absolute rounding of the segment's and its light's positions about the centre
     phase_cond: float = 1.0  # the largest of the layers' `phase_condition`
     cos_end: float = -2.0  # the spot's cone (<= -1 without one)
+    points: bool | None = True  # None: the scene has no point or spot light (`_kinds`)
+    spots: bool | None = True  # None: the scene has no spot light
 
 
 @njit
-def _atm_node(s, r):
+def _atm_node(s, r, points, spots):
     """The integrand at s and its relative rounding (docs/error_bounds.md, "Atmospheres"), first
     order, doubled: the node's x is off by dx (for a point light as in the fog: x = x_h + h tan s,
     x_h and h ~eps of the light's distance d_a off); every altitude by the positions' rounding about
@@ -577,9 +593,9 @@ def _atm_node(s, r):
     depth by `atmosphere.depth_error` (Chapman's remainder and the densities' condition), the
     scattering density by its `density_condition`, the camera's column's end by its extinction
     times dx, the scattering cosine and a spot's cosine by h dx / d^2 + 2 (dh + 2 eps d) / d (as in
-    the fog); 1/h by eps d_a / h."""
+    the fog); 1/h by eps d_a / h. `points`, `spots`: the record's (`_kinds`)."""
     f = r.f
-    if f.directional:
+    if points is None or f.directional:
         x, dx, dh, h, t = s, 2.0 * ULP * abs(s), 0.0, 1.0, 0.0
     else:
         h = f.h
@@ -591,14 +607,14 @@ def _atm_node(s, r):
     value, depth, err, hx, d = atmo.inscatter_parts(x, f.row, f.directional, f.kt, f.ks, f.codes, f.gs, f.Hs, f.R,
                                                     f.top, f.cols, -1.0, dz)
     moved = 0.0
-    if not f.directional:
+    if points is not None and not f.directional:
         u = x - f.xh
         d = math.sqrt(max(h * h + u * u, 1e-250))
-        value *= spot_factor(u, d, h, f.cone) / h
+        value *= (spot_factor(u, d, h, f.cone) if spots is not None else 1.0) / h
         moved = (h / d * dx + 2.0 * (dh + 2.0 * ULP * d)) / d + 4.0 * ULP
     if not value > 0.0:
         return value, 0.0
-    spot = moved / max(1.0 - r.cos_end, 1e-300) if r.cos_end > -1.0 else 0.0
+    spot = moved / max(1.0 - r.cos_end, 1e-300) if spots is not None and r.cos_end > -1.0 else 0.0
     eps = (err + 2.0 * ULP * depth + dz * atmo.density_condition(hx, f.Hs, f.ks) + dx * atmo.extinction_at(
         x, f.row, f.kt, f.Hs, f.R) + r.phase_cond * moved + spot + dh / h + C_OPS * ULP)
     return value, 2.0 * eps
@@ -607,16 +623,17 @@ def _atm_node(s, r):
 @integrand_of(AtmosphereIntegrand)
 @njit
 def _atm_value(s, r):
-    value, eps = _atm_node(s, r)
+    value, eps = _atm_node(s, r, r.points, r.spots)
     if r.f.cols.shape[0] >= r.f.kt.shape[0] + 3:  # scratch without the slots: the value alone
         _track(r.f.cols, r.f.kt.shape[0], value, eps)
     return value
 
 
 @njit
-def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
-    """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count."""
-    if directional:
+def _atm_breaks(row, directional, xh, h, cone, Hs, R, out, points, spots):
+    """The integration variable's breakpoints of one atmosphere segment, ascending; returns the count.
+    `points`, `spots`: `atmosphere_segments`'."""
+    if points is None or directional:
         out[0], out[1] = row[atmo.A], row[atmo.B]
         n = 2 + atmo.density_breaks(row, Hs, R, out[2:])
         n += atmo.planet_shadow(row, R, out[n:])
@@ -625,7 +642,7 @@ def _atm_breaks(row, directional, xh, h, cone, Hs, R, out):
         m = atmo.density_breaks(row, Hs, R, out[3:])
         for i in range(3, 3 + m):
             out[i] = math.atan2(out[i] - xh, h)
-        n = _cone_thetas(cone, out, 3 + m)
+        n = _cone_thetas(cone, out, 3 + m, spots)
     return _ends_and_inside(out, n)
 
 
@@ -656,10 +673,10 @@ def _atm_ends(f, cols, K):
 
 @njit
 def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, dz, phase_cond, rtol, n10,
-                        w10, n20, w20, out, bound, stats):
+                        w10, n20, w20, out, bound, stats, points, spots):
     """Unit-intensity air-light of every atmosphere segment for one channel's layer coefficients, and
     its bound: the rule's (`adaptive.bounded_piecewise`), the rounding `_track` kept over the evaluations
-    (`_tracked`), the ends' (`_atm_ends`) and the sum's."""
+    (`_tracked`), the ends' (`_atm_ends`) and the sum's. `points`, `spots`: `fog_segments`'."""
     br = np.empty(11 + atmo.max_density_breaks(Hs))
     K = Hs.shape[0]
     cols = np.empty(K + 5)  # the layers' columns, the slots `_track` writes, scratch for the shadow's crossings
@@ -669,10 +686,10 @@ def atmosphere_segments(rows, directional, xh, h, cone, kt, ks, codes, gs, Hs, R
             continue
         stats[EVALS] += 1.0
         row = atmosphere_row(rows[s])
-        m = _atm_breaks(row, directional[s], xh[s], h[s], cone[s], Hs, R, br)
+        m = _atm_breaks(row, directional[s], xh[s], h[s], cone[s], Hs, R, br, points, spots)
         cols[K:K + 3] = 0.0
         f = AtmosphereInX(row, directional[s], xh[s], h[s], cone_row(cone[s]), kt, ks, codes, gs, Hs, R, top, cols)
-        total, rule_bound = bounded_piecewise(AtmosphereIntegrand(f, dz[s], phase_cond, cone[s, 2]), br, m, rtol, n10,
-                                              w10, n20, w20, stats)
+        total, rule_bound = bounded_piecewise(AtmosphereIntegrand(f, dz[s], phase_cond, cone[s, 2], points, spots), br,
+                                              m, rtol, n10, w10, n20, w20, stats)
         out[s] = total
         bound[s] = rule_bound + _tracked(cols, K, total, br[m - 1] - br[0]) + _atm_ends(f, cols, K) + C_OPS * ULP * total

@@ -39,6 +39,7 @@ only: it can never change a result.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 
@@ -55,6 +56,7 @@ REL = 1e-12  # relative slack of the depth comparisons
 GAP_REL = 64 * 2.0**-52  # lit pieces shorter than this x the scene's size: rounding between frusta that meet
 EDGE_ON = 8.0 * 2.0**-52  # |D| below this x |AB| |AC| |A - L| (or |n . d| below this x |AB| |AC|): no volume
 CUBE, ORTHO = 0, 1
+POINTS, SUNS, BOTH = 0, 1, 2  # the kinds of light a variant of the kernels serves (`_kernels`)
 
 STATS_NAMES = ("segments searched", "texel runs", "runs nearer than every occluder", "runs behind a covering triangle",
                "frusta intersected", "shadow intervals", "lit intervals", "segments fully shadowed")
@@ -70,7 +72,8 @@ class LightBins:
     covering triangle (-1: none) and its largest depth in the texel. `kind`: CUBE (texel
     (face, i, j) at (face nu + i) nv + j) or ORTHO (one face); `grid`: the face coordinates of
     texel (0, 0) and the texel sizes and counts; `frame` (4, 3): the origin of the planes (the
-    light, or zero for the sun), the grid's axes u, v and the sun's direction of travel d."""
+    light, or zero for the sun), the grid's axes u, v and the sun's direction of travel d. `kinds`:
+    the variant of the kernels that built them (`_kernels`), which `lit_pieces` walks them with."""
     planes: np.ndarray
     signs: np.ndarray
     start: np.ndarray
@@ -84,6 +87,7 @@ class LightBins:
     frame: np.ndarray
     slack: float  # absolute slack of depth comparisons (REL x the scene's size)
     spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))  # exact sphere occluders (geometry/sphere.py)
+    kinds: int = BOTH
 
 
 def default_resolution(n_triangles: int) -> int:
@@ -100,11 +104,11 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     tris = accel.triangles[select & (accel.sphere_of < 0)]
     spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
     res = resolution or default_resolution(len(tris))
-    suns = bool(lights.distant.any())
+    suns, points = bool(lights.distant.any()), bool((~lights.distant).any())
     out = []
     for li in range(len(lights)):
         if lights.distant[li]:
-            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res)
+            bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res, points)
         else:
             frame = np.array([lights.position[li], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
             bins = _light_bins(tris, frame, False, res, accel.epsilon, REL * accel.scale, suns)
@@ -112,33 +116,34 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     return out
 
 
-def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None) -> LightBins:
+def sun_bins(tris, axis, epsilon: float, scale: float, resolution: int | None = None,
+             points: bool = False) -> LightBins:
     """The frusta and texel lists of the triangles `tris` (T, 3, 3) under a directional light whose
     direction of travel is `axis` (any length), for a scene of size `scale` and shadow-ray
     `epsilon`: `build`'s for one sun, for triangles that need not be the accelerator's (interiors/crossing.py
-    builds them for the light refracted into a shape, from the triangles inside it)."""
+    builds them for the light refracted into a shape, from the triangles inside it). `points`: whether
+    the scene has point lights too (`_variant`)."""
     d = axis / np.linalg.norm(axis)
     u = perpendicular(d)
     frame = np.array([np.zeros(3), u, np.cross(d, u), d])
-    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale, True)
+    return _light_bins(tris, frame, True, resolution or default_resolution(len(tris)), epsilon, REL * scale, True,
+                       points)
 
 
-def _kind(sun: bool, suns: bool) -> tuple:
-    """The trailing `sun` argument of `_frusta`, `_bin` and `_lit` for a light of a scene: none in a
-    scene without a directional light (it is then typed None, so numba prunes the sun's branches
-    before typing and the scene compiles the point lights' code only), else whether the light is a
-    sun, a bool at run time (one specialisation with both kinds' code: two pruned ones would
-    compile the texel walk they share twice, and a literal needs a jitted caller, whose module
-    optimises the whole kernel again)."""
-    return (bool(sun),) if suns else ()
+def _variant(points: bool, suns: bool) -> int:
+    """The variant of the kernels (`_kernels`) for a scene with point lights (`points`) and suns
+    (`suns`): each kind's code alone, or both in one specialisation."""
+    return BOTH if points and suns else (SUNS if suns else POINTS)
 
 
-def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
-    """`sun_bins`' and `build`'s: `suns` whether the scene has a directional light (`_kind`)."""
-    which = _kind(sun, suns)
+def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True, points=True) -> LightBins:
+    """`sun_bins`' and `build`'s: `suns`, `points` whether the scene has directional and point lights
+    (`_variant`)."""
+    kinds = _variant(points, suns)
+    _frusta, _bin, _ = _kernels(kinds)
     n_t = len(tris)
     planes, signs, lb, keep = np.zeros((n_t, 4, 4)), np.zeros((n_t, 4)), np.zeros(n_t), np.zeros(n_t, bool)
-    _frusta(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep, *which)
+    _frusta(tris, frame[0], frame[3], epsilon, planes, signs, lb, keep, sun)
     planes, signs, lb = planes[keep], signs[keep], lb[keep]
     if sun:
         pu = np.einsum("tvk,k->tv", tris[keep], frame[1]) if len(lb) else np.zeros((0, 3))
@@ -159,16 +164,17 @@ def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True) -> LightBins:
     cover = np.full(n_tex, -1, np.int64)
     cover_depth = np.full(n_tex, np.inf)
     _bin(planes, signs, rel, res, grid, frame, np.arange(len(lb)), lb, True, count, count, count, lb, cover, cover_depth,
-         *which)
+         sun)
     # the lists, filled in ascending depth lower bound (so each texel's is in order), less what its cover hides
     start = np.concatenate([[0], np.cumsum(count[:-1])]).astype(np.int64)
     tri, tlb, fill = np.empty(int(start[-1]), np.int64), np.empty(int(start[-1])), np.zeros(n_tex, np.int64)
     _bin(planes, signs, rel, res, grid, frame, np.argsort(lb, kind="stable"), lb, False, start, fill, tri, tlb, cover,
-         cover_depth, *which)
+         cover_depth, sun)
     slot = np.arange(len(tri)) - np.repeat(start[:-1], count[:-1])
     kept = slot < np.repeat(fill, count[:-1])
     start = np.concatenate([[0], np.cumsum(fill)]).astype(np.int64)
-    return LightBins(planes, signs, start, tri[kept], tlb[kept], cover, cover_depth, kind, res, grid, frame, slack)
+    return LightBins(planes, signs, start, tri[kept], tlb[kept], cover, cover_depth, kind, res, grid, frame, slack,
+                     kinds=kinds)
 
 
 @exact_njit
@@ -221,77 +227,10 @@ def _less(a, b):
     return False
 
 
-@njit
-def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun=None):
-    """Per triangle, into the zeroed arrays planes, signs, lb and keep: its four planes and their
-    signs (LightBins), a lower bound on its depth from the light, and whether it is kept (not
-    edge-on within rounding; for a point light, its plane not within epsilon of the light). `sun`
-    (`_kind`): None (left out) for the point light L, numba then pruning the sun's branches before
-    typing; else a bool: the direction of travel d if true, the point light L if false. Every
-    test of the kind reads `sun` itself, as numba prunes only on an argument."""
-    for t in range(tris.shape[0]):
-        v = tris[t]
-        e1 = v[1] - v[0]
-        e2 = v[2] - v[0]
-        nx = e1[1] * e2[2] - e1[2] * e2[1]
-        ny = e1[2] * e2[0] - e1[0] * e2[2]
-        nz = e1[0] * e2[1] - e1[1] * e2[0]
-        size = math.sqrt(e1 @ e1) * math.sqrt(e2 @ e2)
-        if sun is not None and sun:
-            D = nx * d[0] + ny * d[1] + nz * d[2]
-            if not abs(D) > EDGE_ON * size:
-                continue
-            lb[t] = min(v[0] @ d, v[1] @ d, v[2] @ d)
-        else:
-            r0 = v[0] - L
-            D = nx * r0[0] + ny * r0[1] + nz * r0[2]  # det(A - L, B - L, C - L)
-            area2 = math.sqrt(nx * nx + ny * ny + nz * nz)
-            if not (abs(D) > EDGE_ON * size * math.sqrt(r0 @ r0) and abs(D) > epsilon * area2):
-                continue
-            lb[t] = _closest_distance(L[0], L[1], L[2], v[0], v[1], v[2])
-        keep[t] = True
-        s = 1.0 if D > 0.0 else -1.0
-        for e in range(3):
-            i, j = e, (e + 1) % 3
-            flip = 1.0
-            if _less(v[j], v[i]):
-                i, j = j, i
-                flip = -1.0
-            a, b = v[i], v[j]
-            ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-            if sun is not None and sun:  # d x (B - A), through A
-                px, py, pz = d[1] * ez - d[2] * ey, d[2] * ex - d[0] * ez, d[0] * ey - d[1] * ex
-                kappa = px * a[0] + py * a[1] + pz * a[2]
-            else:  # (A - L) x (B - A), through L
-                rx, ry, rz = a[0] - L[0], a[1] - L[1], a[2] - L[2]
-                px, py, pz = ry * ez - rz * ey, rz * ex - rx * ez, rx * ey - ry * ex
-                kappa = 0.0
-            planes[t, e, 0], planes[t, e, 1], planes[t, e, 2], planes[t, e, 3] = px, py, pz, kappa
-            signs[t, e] = s * flip
-        # own plane: beyond it from the light. Point light: s (n . (P - L)) - |D| > 0; sun: s n . (P - A) > 0
-        planes[t, 3, 0], planes[t, 3, 1], planes[t, 3, 2] = nx, ny, nz
-        planes[t, 3, 3] = D if sun is None or not sun else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
-        signs[t, 3] = s
-
-
 @njit(inline="always")
 def _side(planes, signs, t, p, x, y, z):
     """sign * (n . X - kappa) of plane p of triangle t at X = (x, y, z)."""
     return signs[t, p] * (planes[t, p, 0] * x + planes[t, p, 1] * y + planes[t, p, 2] * z - planes[t, p, 3])
-
-
-@njit(inline="always")
-def _corner(sun, frame, face, U, V, out):
-    """Write into `out` the corner (U, V) of a texel: a direction from the light on cube face
-    `face`, or (sun) a point of the ortho grid's plane."""
-    if sun is None or not sun:
-        a = face // 2
-        out[a] = 1.0 - 2.0 * (face % 2)
-        out[(a + 1) % 3] = U
-        out[(a + 2) % 3] = V
-    else:
-        for k in range(3):
-            out[k] = U * frame[1, k] + V * frame[2, k]
 
 
 @njit
@@ -339,87 +278,6 @@ def _face_bbox(rel, t, face, buf, buf2):
 
 
 @njit
-def _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth, sun=None):
-    """Conservative rasterisation, the triangles taken in `order`: count (counting) each triangle in
-    every texel it may meet into start[texel], and each texel's covering triangle of least largest
-    depth (the first in `order` of equal ones); or list it, at start + fill of the texel, with its
-    depth lower bound lb less REL (tlb), unless the texel's cover hides it (lb beyond cover_depth).
-    `sun` as `_frusta`'s: None or false for a cube map (CUBE), true for the ortho grid (ORTHO)."""
-    u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
-    faces = 6 if sun is None or not sun else 1
-    buf, buf2 = np.empty((8, 3)), np.empty((8, 3))
-    cs = np.empty((4, 3))
-    du_d = DILATE * (du * nu if sun is not None and sun else 1.0)
-    dv_d = DILATE * (dv * nv if sun is not None and sun else 1.0)
-    dd = frame[3]
-    cn, pn = np.empty(4), np.empty(3)
-    for it in range(order.shape[0]):
-        t = order[it]
-        for p in range(3):
-            pn[p] = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
-        for face in range(faces):
-            if sun is None or not sun:
-                U0, U1, V0, V1 = _face_bbox(rel, t, face, buf, buf2)
-                if U1 < U0 or V1 < V0:
-                    continue
-            else:
-                U0, U1, V0, V1 = math.inf, -math.inf, math.inf, -math.inf
-                for k in range(3):
-                    pu, pv = rel[t, k] @ frame[1], rel[t, k] @ frame[2]
-                    U0, U1, V0, V1 = min(U0, pu), max(U1, pu), min(V0, pv), max(V1, pv)
-            i0 = max(int(math.floor((U0 - du_d - u_0) / du)), 0)
-            i1 = min(int(math.floor((U1 + du_d - u_0) / du)), nu - 1)
-            j0 = max(int(math.floor((V0 - dv_d - v_0) / dv)), 0)
-            j1 = min(int(math.floor((V1 + dv_d - v_0) / dv)), nv - 1)
-            for i in range(i0, i1 + 1):
-                for j in range(j0, j1 + 1):
-                    for c in range(4):
-                        U = u_0 + (i + c % 2) * du + (du_d if c % 2 else -du_d)
-                        V = v_0 + (j + c // 2) * dv + (dv_d if c // 2 else -dv_d)
-                        _corner(sun, frame, face, U, V, cs[c])
-                    for c in range(4):
-                        cn[c] = math.sqrt(cs[c, 0] ** 2 + cs[c, 1] ** 2 + cs[c, 2] ** 2)
-                    inside_all = True
-                    out = False
-                    for p in range(3):
-                        n_out = 0
-                        for c in range(4):
-                            tol = REL * (pn[p] * cn[c] + abs(planes[t, p, 3]))
-                            s = _side(planes, signs, t, p, cs[c, 0], cs[c, 1], cs[c, 2])
-                            if s < -tol:
-                                n_out += 1
-                            if not s > tol:
-                                inside_all = False
-                        if n_out == 4:
-                            out = True
-                            break
-                    if out:
-                        continue
-                    tex = (face * nu + i) * nv + j
-                    if counting:
-                        start[tex] += 1
-                        if inside_all:  # the texel lies inside the frustum's cone: the largest depth at a corner
-                            depth = 0.0
-                            for c in range(4):
-                                x, y, z = cs[c, 0], cs[c, 1], cs[c, 2]
-                                nc = planes[t, 3, 0] * x + planes[t, 3, 1] * y + planes[t, 3, 2] * z
-                                if sun is None or not sun:  # the own plane n . X = D along X = s c
-                                    s = planes[t, 3, 3] / nc if nc != 0.0 else math.inf
-                                    depth = max(depth, s * cn[c] if s > 0 else math.inf)
-                                else:  # along c + s d
-                                    nd = planes[t, 3, 0] * dd[0] + planes[t, 3, 1] * dd[1] + planes[t, 3, 2] * dd[2]
-                                    depth = max(depth, (planes[t, 3, 3] - nc) / nd)
-                            depth += REL * abs(depth)
-                            if depth < cover_depth[tex]:
-                                cover_depth[tex] = depth
-                                cover[tex] = t
-                    elif not lb[t] > cover_depth[tex]:
-                        tri[start[tex] + fill[tex]] = t
-                        tlb[start[tex] + fill[tex]] = lb[t] - REL * abs(lb[t])
-                        fill[tex] += 1
-
-
-@njit
 def _crossing(a_x, b_x, a_m, b_m, c, x):
     """Where the coordinate (a_x + b_x x) / (a_m + b_m x) reaches c, ahead of x on the same branch
     (m > 0); inf if never. Scalars only (a helper taking arrays costs reference counts); LLVM inlines
@@ -434,29 +292,34 @@ def _crossing(a_x, b_x, a_m, b_m, c, x):
 
 
 @njit
-def _pieces(q, w, ell, sun, grid, frame, out):
-    """The parts of a segment over one face each: rows (xa, xb, face, a_u, b_u, a_v, b_v, a_m, b_m)
-    of `out` with face coordinates U = (a_u + b_u x) / (a_m + b_m x), V alike, monotone in x on
-    the part; returns their count. Cube: split where the largest coordinate changes; ortho grid:
-    the part over the grid (dilated), beyond which nothing casts a shadow. `sun`: as `_bin`'s."""
-    if sun is not None and sun:
-        u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], grid[4], grid[5]
-        a_u, b_u = q @ frame[1], w @ frame[1]
-        a_v, b_v = q @ frame[2], w @ frame[2]
-        xa, xb = 0.0, ell
-        for a_, b_, lo, hi in ((a_u, b_u, u_0 - DILATE * du * nu, u_0 + du * nu * (1.0 + DILATE)),
-                               (a_v, b_v, v_0 - DILATE * dv * nv, v_0 + dv * nv * (1.0 + DILATE))):
-            if b_ == 0.0:
-                if not lo <= a_ <= hi:
-                    return 0
-            else:
-                r1, r2 = (lo - a_) / b_, (hi - a_) / b_
-                xa, xb = max(xa, min(r1, r2)), min(xb, max(r1, r2))
-        if not xa < xb:
-            return 0
-        out[0, 0], out[0, 1], out[0, 2] = xa, xb, 0.0
-        out[0, 3], out[0, 4], out[0, 5], out[0, 6], out[0, 7], out[0, 8] = a_u, b_u, a_v, b_v, 1.0, 0.0
-        return 1
+def _ortho_part(q, w, ell, grid, frame, out):
+    """The part of a segment over the ortho grid (dilated), beyond which nothing casts a shadow: row
+    (xa, xb, face, a_u, b_u, a_v, b_v, a_m, b_m) of `out` with grid coordinates U = (a_u + b_u x) /
+    (a_m + b_m x), V alike, face 0, a_m = 1 and b_m = 0; returns 1, or 0 if it misses the grid."""
+    u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], grid[4], grid[5]
+    a_u, b_u = q @ frame[1], w @ frame[1]
+    a_v, b_v = q @ frame[2], w @ frame[2]
+    xa, xb = 0.0, ell
+    for a_, b_, lo, hi in ((a_u, b_u, u_0 - DILATE * du * nu, u_0 + du * nu * (1.0 + DILATE)),
+                           (a_v, b_v, v_0 - DILATE * dv * nv, v_0 + dv * nv * (1.0 + DILATE))):
+        if b_ == 0.0:
+            if not lo <= a_ <= hi:
+                return 0
+        else:
+            r1, r2 = (lo - a_) / b_, (hi - a_) / b_
+            xa, xb = max(xa, min(r1, r2)), min(xb, max(r1, r2))
+    if not xa < xb:
+        return 0
+    out[0, 0], out[0, 1], out[0, 2] = xa, xb, 0.0
+    out[0, 3], out[0, 4], out[0, 5], out[0, 6], out[0, 7], out[0, 8] = a_u, b_u, a_v, b_v, 1.0, 0.0
+    return 1
+
+
+@njit
+def _cube_parts(q, w, ell, out):
+    """The parts of a segment over one cube face each, split where the largest coordinate changes:
+    rows of `out` as `_ortho_part`'s, with face coordinates U = (a_u + b_u x) / (a_m + b_m x), V
+    alike, monotone in x on the part; returns their count."""
     roots = np.empty(8)
     nr = 1
     roots[0] = 0.0
@@ -518,156 +381,316 @@ def _heapsort_pairs(a, b):
             root = child
 
 
-@njit
-def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
-         sun=None):
-    """(segment, x0, x1) of every lit piece of every segment, in segment order. Per segment: each
-    face part is walked texel by texel (a DDA); each texel run is lit (nearer than every listed
-    triangle), inside the cover's frustum, or gives candidates (module docstring), whose exact
-    frustum intervals are computed once per segment; the lit pieces are the complement of their
-    union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call. `sun`:
-    as `_bin`'s."""
-    n_t = planes.shape[0]
-    stamp = np.empty(n_t, np.int64)
-    for t in range(n_t):
-        stamp[t] = -1
-    c_lo, c_hi = np.empty(n_t + 1), np.empty(n_t + 1)
-    cap = 2 * origins.shape[0] + 16
-    src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
-    m = 0
-    parts = np.empty((8, 9))
-    q = np.empty(3)
-    d = frame[3]
-    u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
-    n_runs = n_near = n_cov = n_fr = 0
-    for s in range(origins.shape[0]):
-        ell = length[s]
-        w = dirs[s]
-        for a in range(3):
-            q[a] = origins[s, a] - (frame[0, a] if sun is None or not sun else 0.0)
-        k = 0
-        n_parts = _pieces(q, w, ell, sun, grid, frame, parts) if n_t and ell > 0.0 else 0
-        for p in range(n_parts):
-            xa, xb, face = parts[p, 0], parts[p, 1], int(parts[p, 2])
-            a_u, b_u, a_v, b_v, a_m, b_m = parts[p, 3], parts[p, 4], parts[p, 5], parts[p, 6], parts[p, 7], parts[p, 8]
-            den = a_m + b_m * xa
-            if den > 0.0:
-                U, V = (a_u + b_u * xa) / den, (a_v + b_v * xa) / den
-            else:  # the part starts at the light: the limit along the ray
-                U, V = b_u / b_m, b_v / b_m
-            i = min(max(int(math.floor((U - u_0) / du)), 0), nu - 1)
-            j = min(max(int(math.floor((V - v_0) / dv)), 0), nv - 1)
-            su = b_u * a_m - a_u * b_m
-            sv = b_v * a_m - a_v * b_m
-            x = xa
-            while True:
-                xu = math.inf
-                if su > 0.0 and i < nu - 1:
-                    xu = _crossing(a_u, b_u, a_m, b_m, u_0 + (i + 1) * du, x)
-                elif su < 0.0 and i > 0:
-                    xu = _crossing(a_u, b_u, a_m, b_m, u_0 + i * du, x)
-                xv = math.inf
-                if sv > 0.0 and j < nv - 1:
-                    xv = _crossing(a_v, b_v, a_m, b_m, v_0 + (j + 1) * dv, x)
-                elif sv < 0.0 and j > 0:
-                    xv = _crossing(a_v, b_v, a_m, b_m, v_0 + j * dv, x)
-                xn = min(xu, xv, xb)
-                # --- the run [x, xn] through texel tex
-                tex = (face * nu + i) * nv + j
-                n_runs += 1
-                first, last = start[tex], start[tex + 1]
-                if first == last:
-                    n_near += 1
+@functools.cache
+def _kernels(kinds: int):
+    """`_frusta`, `_bin` and `_lit` (module docstring) for the lights of `kinds` (`_variant`): every
+    test of a light's kind reads the closure's constant `kinds`, so numba prunes the branches it
+    makes dead before typing: POINTS compiles the cube map's code only, SUNS the ortho grid's only,
+    BOTH both (the trailing `sun`, a bool, then chooses at run time: one specialisation, as two
+    pruned ones would compile the texel walk they share twice). numba's cache keeps one entry per
+    variant (its index key holds the closure's values)."""
+
+    @njit
+    def _frusta(tris, L, d, epsilon, planes, signs, lb, keep, sun):
+        """Per triangle, into the zeroed arrays planes, signs, lb and keep: its four planes and their
+        signs (LightBins), a lower bound on its depth from the light, and whether it is kept (not
+        edge-on within rounding; for a point light, its plane not within epsilon of the light): under
+        the sun of direction of travel d if `sun`, else under the point light L."""
+        for t in range(tris.shape[0]):
+            v = tris[t]
+            e1 = v[1] - v[0]
+            e2 = v[2] - v[0]
+            nx = e1[1] * e2[2] - e1[2] * e2[1]
+            ny = e1[2] * e2[0] - e1[0] * e2[2]
+            nz = e1[0] * e2[1] - e1[1] * e2[0]
+            size = math.sqrt(e1 @ e1) * math.sqrt(e2 @ e2)
+            if kinds == SUNS or kinds == BOTH and sun:
+                D = nx * d[0] + ny * d[1] + nz * d[2]
+                if not abs(D) > EDGE_ON * size:
+                    continue
+                lb[t] = min(v[0] @ d, v[1] @ d, v[2] @ d)
+            else:
+                r0 = v[0] - L
+                D = nx * r0[0] + ny * r0[1] + nz * r0[2]  # det(A - L, B - L, C - L)
+                area2 = math.sqrt(nx * nx + ny * ny + nz * nz)
+                if not (abs(D) > EDGE_ON * size * math.sqrt(r0 @ r0) and abs(D) > epsilon * area2):
+                    continue
+                lb[t] = _closest_distance(L[0], L[1], L[2], v[0], v[1], v[2])
+            keep[t] = True
+            s = 1.0 if D > 0.0 else -1.0
+            for e in range(3):
+                i, j = e, (e + 1) % 3
+                flip = 1.0
+                if _less(v[j], v[i]):
+                    i, j = j, i
+                    flip = -1.0
+                a, b = v[i], v[j]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                if kinds == SUNS or kinds == BOTH and sun:  # d x (B - A), through A
+                    px, py, pz = d[1] * ez - d[2] * ey, d[2] * ex - d[0] * ez, d[0] * ey - d[1] * ex
+                    kappa = px * a[0] + py * a[1] + pz * a[2]
+                else:  # (A - L) x (B - A), through L
+                    rx, ry, rz = a[0] - L[0], a[1] - L[1], a[2] - L[2]
+                    px, py, pz = ry * ez - rz * ey, rz * ex - rx * ez, rx * ey - ry * ex
+                    kappa = 0.0
+                planes[t, e, 0], planes[t, e, 1], planes[t, e, 2], planes[t, e, 3] = px, py, pz, kappa
+                signs[t, e] = s * flip
+            # own plane: beyond it from the light. Point light: s (n . (P - L)) - |D| > 0; sun: s n . (P - A) > 0
+            planes[t, 3, 0], planes[t, 3, 1], planes[t, 3, 2] = nx, ny, nz
+            own = D if kinds == POINTS or kinds == BOTH and not sun else nx * v[0][0] + ny * v[0][1] + nz * v[0][2]
+            planes[t, 3, 3] = own
+            signs[t, 3] = s
+
+    @njit
+    def _bin(planes, signs, rel, res, grid, frame, order, lb, counting, start, fill, tri, tlb, cover, cover_depth,
+            sun):
+        """Conservative rasterisation, the triangles taken in `order`: count (counting) each triangle in
+        every texel it may meet into start[texel], and each texel's covering triangle of least largest
+        depth (the first in `order` of equal ones); or list it, at start + fill of the texel, with its
+        depth lower bound lb less REL (tlb), unless the texel's cover hides it (lb beyond cover_depth).
+        `sun`: the ortho grid (ORTHO) if true, else a cube map (CUBE)."""
+        u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
+        faces = 6 if kinds == POINTS or kinds == BOTH and not sun else 1
+        buf, buf2 = np.empty((8, 3)), np.empty((8, 3))
+        cs = np.empty((4, 3))
+        du_d = DILATE * (du * nu if kinds == SUNS or kinds == BOTH and sun else 1.0)
+        dv_d = DILATE * (dv * nv if kinds == SUNS or kinds == BOTH and sun else 1.0)
+        dd = frame[3]
+        cn, pn = np.empty(4), np.empty(3)
+        for it in range(order.shape[0]):
+            t = order[it]
+            for p in range(3):
+                pn[p] = math.sqrt(planes[t, p, 0] ** 2 + planes[t, p, 1] ** 2 + planes[t, p, 2] ** 2)
+            for face in range(faces):
+                if kinds == POINTS or kinds == BOTH and not sun:
+                    U0, U1, V0, V1 = _face_bbox(rel, t, face, buf, buf2)
+                    if U1 < U0 or V1 < V0:
+                        continue
                 else:
-                    if sun is None or not sun:
-                        r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
-                        r2 = math.inf
-                        if xn < math.inf:
-                            r2 = math.sqrt((q[0] + xn * w[0]) ** 2 + (q[1] + xn * w[1]) ** 2 + (q[2] + xn * w[2]) ** 2)
-                        rmax, rmin = max(r1, r2), min(r1, r2)
-                        xh = -(q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
-                        if x < xh < xn:  # the foot point: the nearest to the light
-                            rmin = math.sqrt((q[0] + xh * w[0]) ** 2 + (q[1] + xh * w[1]) ** 2
-                                             + (q[2] + xh * w[2]) ** 2)
-                    else:
-                        z0 = q[0] * d[0] + q[1] * d[1] + q[2] * d[2]
-                        dz = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]
-                        z1 = z0 + x * dz
-                        z2 = z0 + xn * dz if xn < math.inf else (z0 if dz == 0.0 else math.copysign(math.inf, dz))
-                        rmax, rmin = max(z1, z2), min(z1, z2)
-                    far = rmax + REL * abs(rmax) + slack
-                    near = rmin - REL * abs(rmin) - slack
-                    covered = near > cover_depth[tex]
-                    if far < lb[first]:
-                        n_near += 1
-                        last = first
-                    elif covered:  # the cover's frustum holds the whole run: the only candidate
-                        n_cov += 1
-                        last = first + 1
-                    for e in range(first, last):
-                        if covered:
-                            t = cover[tex]
-                        elif lb[e] >= far:
-                            break
-                        else:
-                            t = tri[e]
-                        if stamp[t] == s:
-                            continue
-                        stamp[t] = s
-                        n_fr += 1
-                        lo, hi = 0.0, ell
-                        for pl in range(4):  # sign * (a + b x) > 0 for every plane
-                            av = planes[t, pl, 0] * q[0] + planes[t, pl, 1] * q[1] + planes[t, pl, 2] * q[2] \
-                                - planes[t, pl, 3]
-                            bv = planes[t, pl, 0] * w[0] + planes[t, pl, 1] * w[1] + planes[t, pl, 2] * w[2]
-                            sg = signs[t, pl]
-                            if bv == 0.0:
-                                if not sg * av > 0.0:
-                                    hi = -math.inf
-                            elif sg * bv > 0.0:
-                                lo = max(lo, -av / bv)
-                            else:
-                                hi = min(hi, -av / bv)
-                            if not lo < hi:
+                    U0, U1, V0, V1 = math.inf, -math.inf, math.inf, -math.inf
+                    for k in range(3):
+                        pu, pv = rel[t, k] @ frame[1], rel[t, k] @ frame[2]
+                        U0, U1, V0, V1 = min(U0, pu), max(U1, pu), min(V0, pv), max(V1, pv)
+                i0 = max(int(math.floor((U0 - du_d - u_0) / du)), 0)
+                i1 = min(int(math.floor((U1 + du_d - u_0) / du)), nu - 1)
+                j0 = max(int(math.floor((V0 - dv_d - v_0) / dv)), 0)
+                j1 = min(int(math.floor((V1 + dv_d - v_0) / dv)), nv - 1)
+                for i in range(i0, i1 + 1):
+                    for j in range(j0, j1 + 1):
+                        for c in range(4):
+                            U = u_0 + (i + c % 2) * du + (du_d if c % 2 else -du_d)
+                            V = v_0 + (j + c // 2) * dv + (dv_d if c // 2 else -dv_d)
+                            if kinds == POINTS or kinds == BOTH and not sun:  # a direction from the light on `face`
+                                a = face // 2
+                                cs[c, a] = 1.0 - 2.0 * (face % 2)
+                                cs[c, (a + 1) % 3] = U
+                                cs[c, (a + 2) % 3] = V
+                            else:  # a point of the ortho grid's plane
+                                for k in range(3):
+                                    cs[c, k] = U * frame[1, k] + V * frame[2, k]
+                        for c in range(4):
+                            cn[c] = math.sqrt(cs[c, 0] ** 2 + cs[c, 1] ** 2 + cs[c, 2] ** 2)
+                        inside_all = True
+                        out = False
+                        for p in range(3):
+                            n_out = 0
+                            for c in range(4):
+                                tol = REL * (pn[p] * cn[c] + abs(planes[t, p, 3]))
+                                s = _side(planes, signs, t, p, cs[c, 0], cs[c, 1], cs[c, 2])
+                                if s < -tol:
+                                    n_out += 1
+                                if not s > tol:
+                                    inside_all = False
+                            if n_out == 4:
+                                out = True
                                 break
-                        if lo < hi:
-                            c_lo[k], c_hi[k] = lo, hi
-                            k += 1
-                # ---
-                if xn >= xb:
-                    break
-                if xu <= xv:
-                    i += 1 if su > 0.0 else -1
+                        if out:
+                            continue
+                        tex = (face * nu + i) * nv + j
+                        if counting:
+                            start[tex] += 1
+                            if inside_all:  # the texel lies inside the frustum's cone: the largest depth at a corner
+                                depth = 0.0
+                                for c in range(4):
+                                    x, y, z = cs[c, 0], cs[c, 1], cs[c, 2]
+                                    nc = planes[t, 3, 0] * x + planes[t, 3, 1] * y + planes[t, 3, 2] * z
+                                    if kinds == POINTS or kinds == BOTH and not sun:  # own plane n . X = D at X = s c
+                                        s = planes[t, 3, 3] / nc if nc != 0.0 else math.inf
+                                        depth = max(depth, s * cn[c] if s > 0 else math.inf)
+                                    else:  # along c + s d
+                                        nd = planes[t, 3, 0] * dd[0] + planes[t, 3, 1] * dd[1] + planes[t, 3, 2] * dd[2]
+                                        depth = max(depth, (planes[t, 3, 3] - nc) / nd)
+                                depth += REL * abs(depth)
+                                if depth < cover_depth[tex]:
+                                    cover_depth[tex] = depth
+                                    cover[tex] = t
+                        elif not lb[t] > cover_depth[tex]:
+                            tri[start[tex] + fill[tex]] = t
+                            tlb[start[tex] + fill[tex]] = lb[t] - REL * abs(lb[t])
+                            fill[tex] += 1
+
+    @njit
+    def _lit(origins, dirs, length, grid, frame, start, tri, lb, cover, cover_depth, planes, signs, slack, gap, stats,
+            sun):
+        """(segment, x0, x1) of every lit piece of every segment, in segment order. Per segment: each
+        face part is walked texel by texel (a DDA); each texel run is lit (nearer than every listed
+        triangle), inside the cover's frustum, or gives candidates (module docstring), whose exact
+        frustum intervals are computed once per segment; the lit pieces are the complement of their
+        union. One flat loop: helpers taking arrays, even inlined, cost reference counts per call. `sun`:
+        as `_bin`'s."""
+        n_t = planes.shape[0]
+        stamp = np.empty(n_t, np.int64)
+        for t in range(n_t):
+            stamp[t] = -1
+        c_lo, c_hi = np.empty(n_t + 1), np.empty(n_t + 1)
+        cap = 2 * origins.shape[0] + 16
+        src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+        m = 0
+        parts = np.empty((8, 9))
+        q = np.empty(3)
+        d = frame[3]
+        u_0, v_0, du, dv, nu, nv = grid[0], grid[1], grid[2], grid[3], int(grid[4]), int(grid[5])
+        n_runs = n_near = n_cov = n_fr = 0
+        for s in range(origins.shape[0]):
+            ell = length[s]
+            w = dirs[s]
+            for a in range(3):
+                q[a] = origins[s, a] - (frame[0, a] if kinds == POINTS or kinds == BOTH and not sun else 0.0)
+            k = 0
+            n_parts = 0
+            if n_t and ell > 0.0:
+                if kinds == SUNS or kinds == BOTH and sun:
+                    n_parts = _ortho_part(q, w, ell, grid, frame, parts)
                 else:
-                    j += 1 if sv > 0.0 else -1
-                x = xn
-        stats[ST_SHADOWS] += k
-        if m + k + 1 > cap:
-            cap = 2 * (m + k + 1)
-            src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
-            for e in range(m):  # an element loop: slice assignments compile numba's shape-error messages
-                src2[e], a2[e], b2[e] = src[e], x0[e], x1[e]
-            src, x0, x1 = src2, a2, b2
-        before = m
-        cur = 0.0
-        if k:
-            _heapsort_pairs(c_lo[:k], c_hi[:k])
-            for e in range(k):
-                if c_lo[e] - cur > gap:
-                    src[m], x0[m], x1[m] = s, cur, c_lo[e]
-                    m += 1
-                cur = max(cur, c_hi[e])
-        if ell - cur > gap:
-            src[m], x0[m], x1[m] = s, cur, ell
-            m += 1
-        if m == before:
-            stats[ST_DARK] += 1
-    stats[ST_RUNS] += n_runs
-    stats[ST_NEAR] += n_near
-    stats[ST_COVERED] += n_cov
-    stats[ST_FRUSTA] += n_fr
-    stats[ST_LIT] += m
-    return src[:m].copy(), x0[:m].copy(), x1[:m].copy()
+                    n_parts = _cube_parts(q, w, ell, parts)
+            for p in range(n_parts):
+                xa, xb, face = parts[p, 0], parts[p, 1], int(parts[p, 2])
+                a_u, b_u, a_v, b_v = parts[p, 3], parts[p, 4], parts[p, 5], parts[p, 6]
+                a_m, b_m = parts[p, 7], parts[p, 8]
+                den = a_m + b_m * xa
+                if den > 0.0:
+                    U, V = (a_u + b_u * xa) / den, (a_v + b_v * xa) / den
+                else:  # the part starts at the light: the limit along the ray
+                    U, V = b_u / b_m, b_v / b_m
+                i = min(max(int(math.floor((U - u_0) / du)), 0), nu - 1)
+                j = min(max(int(math.floor((V - v_0) / dv)), 0), nv - 1)
+                su = b_u * a_m - a_u * b_m
+                sv = b_v * a_m - a_v * b_m
+                x = xa
+                while True:
+                    xu = math.inf
+                    if su > 0.0 and i < nu - 1:
+                        xu = _crossing(a_u, b_u, a_m, b_m, u_0 + (i + 1) * du, x)
+                    elif su < 0.0 and i > 0:
+                        xu = _crossing(a_u, b_u, a_m, b_m, u_0 + i * du, x)
+                    xv = math.inf
+                    if sv > 0.0 and j < nv - 1:
+                        xv = _crossing(a_v, b_v, a_m, b_m, v_0 + (j + 1) * dv, x)
+                    elif sv < 0.0 and j > 0:
+                        xv = _crossing(a_v, b_v, a_m, b_m, v_0 + j * dv, x)
+                    xn = min(xu, xv, xb)
+                    # --- the run [x, xn] through texel tex
+                    tex = (face * nu + i) * nv + j
+                    n_runs += 1
+                    first, last = start[tex], start[tex + 1]
+                    if first == last:
+                        n_near += 1
+                    else:
+                        if kinds == POINTS or kinds == BOTH and not sun:
+                            r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
+                            r2 = math.inf
+                            if xn < math.inf:
+                                r2 = math.sqrt((q[0] + xn * w[0]) ** 2 + (q[1] + xn * w[1]) ** 2
+                                               + (q[2] + xn * w[2]) ** 2)
+                            rmax, rmin = max(r1, r2), min(r1, r2)
+                            xh = -(q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
+                            if x < xh < xn:  # the foot point: the nearest to the light
+                                rmin = math.sqrt((q[0] + xh * w[0]) ** 2 + (q[1] + xh * w[1]) ** 2
+                                                 + (q[2] + xh * w[2]) ** 2)
+                        else:
+                            z0 = q[0] * d[0] + q[1] * d[1] + q[2] * d[2]
+                            dz = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]
+                            z1 = z0 + x * dz
+                            z2 = z0 + xn * dz if xn < math.inf else (z0 if dz == 0.0 else math.copysign(math.inf, dz))
+                            rmax, rmin = max(z1, z2), min(z1, z2)
+                        far = rmax + REL * abs(rmax) + slack
+                        near = rmin - REL * abs(rmin) - slack
+                        covered = near > cover_depth[tex]
+                        if far < lb[first]:
+                            n_near += 1
+                            last = first
+                        elif covered:  # the cover's frustum holds the whole run: the only candidate
+                            n_cov += 1
+                            last = first + 1
+                        for e in range(first, last):
+                            if covered:
+                                t = cover[tex]
+                            elif lb[e] >= far:
+                                break
+                            else:
+                                t = tri[e]
+                            if stamp[t] == s:
+                                continue
+                            stamp[t] = s
+                            n_fr += 1
+                            lo, hi = 0.0, ell
+                            for pl in range(4):  # sign * (a + b x) > 0 for every plane
+                                av = planes[t, pl, 0] * q[0] + planes[t, pl, 1] * q[1] + planes[t, pl, 2] * q[2] \
+                                    - planes[t, pl, 3]
+                                bv = planes[t, pl, 0] * w[0] + planes[t, pl, 1] * w[1] + planes[t, pl, 2] * w[2]
+                                sg = signs[t, pl]
+                                if bv == 0.0:
+                                    if not sg * av > 0.0:
+                                        hi = -math.inf
+                                elif sg * bv > 0.0:
+                                    lo = max(lo, -av / bv)
+                                else:
+                                    hi = min(hi, -av / bv)
+                                if not lo < hi:
+                                    break
+                            if lo < hi:
+                                c_lo[k], c_hi[k] = lo, hi
+                                k += 1
+                    # ---
+                    if xn >= xb:
+                        break
+                    if xu <= xv:
+                        i += 1 if su > 0.0 else -1
+                    else:
+                        j += 1 if sv > 0.0 else -1
+                    x = xn
+            stats[ST_SHADOWS] += k
+            if m + k + 1 > cap:
+                cap = 2 * (m + k + 1)
+                src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+                for e in range(m):  # an element loop: slice assignments compile numba's shape-error messages
+                    src2[e], a2[e], b2[e] = src[e], x0[e], x1[e]
+                src, x0, x1 = src2, a2, b2
+            before = m
+            cur = 0.0
+            if k:
+                _heapsort_pairs(c_lo[:k], c_hi[:k])
+                for e in range(k):
+                    if c_lo[e] - cur > gap:
+                        src[m], x0[m], x1[m] = s, cur, c_lo[e]
+                        m += 1
+                    cur = max(cur, c_hi[e])
+            if ell - cur > gap:
+                src[m], x0[m], x1[m] = s, cur, ell
+                m += 1
+            if m == before:
+                stats[ST_DARK] += 1
+        stats[ST_RUNS] += n_runs
+        stats[ST_NEAR] += n_near
+        stats[ST_COVERED] += n_cov
+        stats[ST_FRUSTA] += n_fr
+        stats[ST_LIT] += m
+        return src[:m].copy(), x0[:m].copy(), x1[:m].copy()
+
+    return _frusta, _bin, _lit
+
+
+_frusta_points, _, _lit_points = _kernels(POINTS)  # `_point_lit`'s (its point lights)
 
 
 def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list[LightBins] | None = None):
@@ -716,15 +739,14 @@ def lit_pieces(segs: Segments, bins: list[LightBins], scale: float, stats):
     of size `scale`, in segment order and, per segment, in x; the statistics add to `stats`."""
     stats[ST_SEGMENTS] += len(segs)
     srcs, a, b = [np.zeros(0, np.int64)], [np.zeros(0)], [np.zeros(0)]
-    suns = any(lb_.kind == ORTHO for lb_ in bins)
     for li in np.unique(segs.light):
         idx = np.nonzero(segs.light == li)[0]
         lb_ = bins[li]
-        src, x0, x1 = _lit(
+        src, x0, x1 = _kernels(lb_.kinds)[2](
                            np.ascontiguousarray(segs.origins[idx]), np.ascontiguousarray(segs.dirs[idx]),
                            np.ascontiguousarray(segs.length[idx]), lb_.grid, lb_.frame, lb_.start, lb_.tri,
                            lb_.lb, lb_.cover, lb_.cover_depth, lb_.planes, lb_.signs, lb_.slack,
-                           GAP_REL * scale, stats, *_kind(lb_.kind == ORTHO, suns))
+                           GAP_REL * scale, stats, lb_.kind == ORTHO)
         if len(lb_.spheres):
             sun = lb_.kind == ORTHO
             src, x0, x1 = _cut_by_spheres(src, x0, x1, segs.origins[idx], segs.dirs[idx],
@@ -773,15 +795,17 @@ def point_lit_pieces(accel, segs: Segments, points, group, box_of, select: np.nd
     return _point_lit(tris, tris.min(axis=1), tris.max(axis=1), np.ascontiguousarray(segs.origins),
                       np.ascontiguousarray(segs.dirs), np.ascontiguousarray(segs.length), np.ascontiguousarray(points),
                       np.asarray(group, np.int64), box_of[0], box_of[1], accel.epsilon, REL * accel.scale,
-                      GAP_REL * accel.scale, np.ascontiguousarray(spheres, dtype=np.float64).reshape(-1, 4))
+                      GAP_REL * accel.scale, np.ascontiguousarray(spheres, dtype=np.float64).reshape(-1, 4), False)
 
 
 @njit
-def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, slack, gap, spheres):
+def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, slack, gap, spheres, sun):
     """`point_lit_pieces`' kernel: per group its candidate triangles (bounding boxes overlapping); per
     segment those that meet the plane through its point and its line (within rounding), their frusta
     from the point (`_frusta`) in the lists of a cube map of one texel a face, walked by `_lit`
-    itself; then the spheres' shadows (`lit_parts`)."""
+    itself; then the spheres' shadows (`lit_parts`). `sun`: False, passed from Python so that the
+    kernels get the bool `build` gives them (a constant here would be typed a literal, and compile
+    `_frusta` and `_lit` once more)."""
     n_t = tris.shape[0]
     ctris, straddle = np.empty((n_t, 3, 3)), np.empty((n_t, 3, 3))
     # np.empty and element loops only: np.zeros, full, eye and array would each compile a function more
@@ -839,7 +863,7 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
                 ns += 1
         for t in range(ns):
             keep[t] = False
-        _frusta(straddle[:ns], points[s], zero, epsilon, planes, signs, lb, keep)
+        _frusta_points(straddle[:ns], points[s], zero, epsilon, planes, signs, lb, keep, sun)
         nk = 0
         for t in range(ns):
             if keep[t]:
@@ -857,9 +881,9 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
         start[6] = 6 * nk
         for a in range(3):
             frame[0, a] = points[s, a]
-        lit_src, lo, hi = _lit(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], grid, frame, start,
-                               tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk], slack,
-                               gap, stats)
+        lit_src, lo, hi = _lit_points(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], grid, frame, start,
+                                      tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk],
+                                      slack, gap, stats, sun)
         if m + len(lit_src) * per > cap:
             cap = 2 * (m + len(lit_src) * per)
             src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
