@@ -28,6 +28,7 @@ from .jit import exact_jitable, exact_njit, njit
 from .lights.area import collapsed_variance
 from .rng import uniform
 
+SHADOW_BATCH = 1 << 15  # shadow rays (points x lights) the surface term traces in one batch at most
 STRATA = 8  # a penumbra's strata per side for a method without a tolerance (even; two samples in each)
 PILOT = 4  # strata per side of the pilot that chooses a penumbra's strata (`stratified`)
 LADDER = (4, 8, 16)  # the strata per side a penumbra may get: the floor first, the cap last
@@ -167,10 +168,19 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
 def _add_lights(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,
                 sampled):
     """out += the reflected radiance of the point-like lights `run` (in their order, each point's terms
-    added light by light), their shadow rays traced in one batch; per sampled emitter (`sampled`) its
-    rows' share and how many of them reached, were blocked at each point, into `rows`
-    (`surface_radiance`). `facing`: the normals whose terminator counts (the shading ones with
-    `terminator`)."""
+    added light by light), the shadow rays of up to SHADOW_BATCH points x lights traced in one batch;
+    per sampled emitter (`sampled`) its rows' share and how many of them reached, were blocked at each
+    point, into `rows` (`surface_radiance`). `facing`: the normals whose terminator counts (the shading
+    ones with `terminator`)."""
+    step = max(1, SHADOW_BATCH // max(len(points), 1))
+    for k in range(0, len(run), step):
+        _add_batch(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run[k:k + step],
+                   medium, through, sampled)
+
+
+def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,
+               sampled):
+    """`_add_lights` of one batch of lights."""
     n = len(points)
     to_light, dist, cos = np.empty((len(run), n, 3)), np.empty((len(run), n)), np.empty((len(run), n))
     lit = np.empty((len(run), n), dtype=np.bool_)
