@@ -28,6 +28,7 @@ from .jit import exact_jitable, exact_njit, njit
 from .lights.area import collapsed_variance
 from .rng import uniform
 
+SHADOW_BATCH = 1 << 15  # shadow rays (points x lights) the surface term traces in one batch at most
 STRATA = 8  # a penumbra's strata per side for a method without a tolerance (even; two samples in each)
 PILOT = 4  # strata per side of the pilot that chooses a penumbra's strata (`stratified`)
 LADDER = (4, 8, 16)  # the strata per side a penumbra may get: the floor first, the cap last
@@ -139,34 +140,19 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     terminator = shading is not None and shading is not normals  # both must face the light
     rows = {}  # per sampled emitter: its rows' radiance (N, 3) and how many reached, were blocked (N,) each
     dark = ~lights.intensity.any(axis=1)  # nothing to add (a light layer's other lights, renderer.Prepared.only)
-    to_light, dist, cos = np.empty_like(points), np.empty(len(points)), np.empty(len(points))  # each light's
-    lit = np.empty(len(points), dtype=np.bool_)
-    for li, lp in enumerate(lights.position):
+    run = []  # point-like lights since the last directional one: their shadow rays in one batch
+    for li in range(len(lights)):
         if dark[li]:
             continue
         if lights.distant[li]:
+            _add_lights(out, rows, accel, points, normals, shading if terminator else normals, terminator,
+                        reflectance, lights, run, medium, through, sampled)
+            run = []
             _add_directional(out, accel, points, normals, reflectance, lights, li, medium, through, shading)
             continue
-        _toward_light(points, normals, shading if terminator else normals, terminator, lp, to_light, dist, cos, lit)
-        seen = np.flatnonzero(lit)
-        if not len(seen):
-            continue
-        o, d, tmax, as32 = accel.shadow_rays(points, normals, lp, seen)
-        blocked, part = _blocked(accel, o, d, tmax, seen, points, li, through, as32)
-        idx, at, wi, back, dl, cl = _reached(seen, blocked, points, to_light, dist, cos)
-        tr = medium.transmittance_on(at, wi, 0.0, dl)
-        if part is not None:
-            tr = tr * part
-        irradiance = lights.irradiance(li, back, dl)
-        _add_reflected(out, idx, reflectance, irradiance, tr, cl)
-        owner = lights.owner[li] if sampled else -1
-        if owner >= 0 and lights.emitters[owner] is not None:
-            value, reached, missed = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
-                                                             np.zeros(len(out), np.int64)))
-            _add_reflected(value, idx, reflectance, irradiance, tr, cl)
-            emits = to_light[seen] @ lights.axis[li] < 0.0  # the row's LAMBERT falloff is not zero there
-            np.add.at(reached, seen[emits & ~blocked], 1)
-            np.add.at(missed, seen[emits & blocked], 1)
+        run.append(li)
+    _add_lights(out, rows, accel, points, normals, shading if terminator else normals, terminator, reflectance,
+                lights, run, medium, through, sampled)
     for owner, (value, reached, missed) in rows.items():
         at = np.flatnonzero(_cut(accel, points, normals, shading if terminator else None, lights.emitters[owner],
                                  reached, missed) & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
@@ -177,6 +163,67 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
             if variance is not None:
                 variance[at] += var
     return out
+
+
+def _add_lights(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,
+                sampled):
+    """out += the reflected radiance of the point-like lights `run` (in their order, each point's terms
+    added light by light), the shadow rays of up to SHADOW_BATCH points x lights traced in one batch;
+    per sampled emitter (`sampled`) its rows' share and how many of them reached, were blocked at each
+    point, into `rows` (`surface_radiance`). `facing`: the normals whose terminator counts (the shading
+    ones with `terminator`)."""
+    step = max(1, SHADOW_BATCH // max(len(points), 1))
+    for k in range(0, len(run), step):
+        _add_batch(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run[k:k + step],
+                   medium, through, sampled)
+
+
+def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,
+               sampled):
+    """`_add_lights` of one batch of lights."""
+    n = len(points)
+    to_light, dist, cos = np.empty((len(run), n, 3)), np.empty((len(run), n)), np.empty((len(run), n))
+    lit = np.empty((len(run), n), dtype=np.bool_)
+    shines = []  # (the light, its row of the arrays above, the points it lights)
+    for j, li in enumerate(run):
+        _toward_light(points, normals, facing, terminator, lights.position[li], to_light[j], dist[j], cos[j], lit[j])
+        seen = np.flatnonzero(lit[j])
+        if len(seen):
+            shines.append((li, j, seen))
+    if not shines:
+        return
+    rays = [accel.shadow_rays(points, normals, lights.position[li], seen) for li, _, seen in shines]
+    occ = accel.occluded(*(np.concatenate([r[k] for r in rays]) for k in range(3)),
+                         as32=tuple(np.concatenate([r[3][k] for r in rays]) for k in range(3)))
+    ends = np.cumsum([len(seen) for _, _, seen in shines])
+    parts = []  # per light: (li, blocked, part, and `_reached`'s six)
+    for (li, j, seen), end in zip(shines, ends):
+        blocked, part = _let_through(occ[end - len(seen):end], seen, points, li, through)
+        idx, at, wi, back, dl, cl = _reached(seen, blocked, points, to_light[j], dist[j], cos[j])
+        parts.append((li, blocked, part, idx, at, wi, back, dl, cl))
+    tr_all = medium.transmittance_on(*(np.concatenate([q[k] for q in parts]) for k in (4, 5)), 0.0,
+                                     np.concatenate([q[7] for q in parts]))
+    ends = np.cumsum([len(q[3]) for q in parts])
+    irradiance, tr = [], []
+    for (_, _, part, idx, _, _, back, dl, _), (li, _, _), end in zip(parts, shines, ends):
+        irradiance.append(lights.irradiance(li, back, dl))
+        tr.append(tr_all[end - len(idx):end] if part is None else tr_all[end - len(idx):end] * part)
+    idx, cl = (np.concatenate([q[k] for q in parts]) for k in (3, 8))
+    irradiance, tr = np.concatenate(irradiance), np.concatenate(tr)
+    _add_reflected(out, idx, reflectance, irradiance, tr, cl)  # light after light at each point
+    owners = lights.owner[[li for li, _, _ in shines]] if sampled else np.full(len(shines), -1)
+    for owner in dict.fromkeys(owners.tolist()):  # in the order the lights first name them
+        if owner < 0 or lights.emitters[owner] is None:
+            continue
+        value, reached, missed = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
+                                                         np.zeros(len(out), np.int64)))
+        mine = np.repeat(owners == owner, [len(q[3]) for q in parts])
+        _add_reflected(value, idx[mine], reflectance, irradiance[mine], tr[mine], cl[mine])
+        for (li, j, seen), (_, blocked, *_) in zip(shines, parts):
+            if lights.owner[li] == owner:
+                emits = to_light[j][seen] @ lights.axis[li] < 0.0  # the row's LAMBERT falloff is not zero there
+                reached += np.bincount(seen[emits & ~blocked], minlength=len(out))
+                missed += np.bincount(seen[emits & blocked], minlength=len(out))
 
 
 @exact_njit
@@ -190,10 +237,15 @@ def _add_reflected(out, idx, reflectance, irradiance, tr, cos):
 
 def _blocked(accel, o, d, tmax, idx, points, li, through, as32=None):
     """Which of the points idx have shadow rays (o, d, tmax) that do not reach light li (a mask over
-    idx), and the transmittance (M, 3) of the shapes the M others pass through (`through` lets an
-    occluded ray through; None where every factor is 1: no ray was let through); `as32`: the rays'
-    float32 copies for Embree where `Accelerator.shadow_rays` made them."""
-    occ = accel.occluded(o, d, tmax, as32=as32)
+    idx), and the transmittance (M, 3) of the shapes the M others pass through (`_let_through`);
+    `as32`: the rays' float32 copies for Embree where `Accelerator.shadow_rays` made them."""
+    return _let_through(accel.occluded(o, d, tmax, as32=as32), idx, points, li, through)
+
+
+def _let_through(occ, idx, points, li, through):
+    """(blocked, part): of the points idx whose shadow rays toward light li are occluded (`occ`) those
+    that stay blocked where `through` lets some through, and the transmittance (M, 3) of the shapes
+    the M others pass through (None where every factor is 1: no ray was let through)."""
     if through is None or not occ.any():
         return occ, None
     part = np.ones((len(idx), 3))

@@ -27,6 +27,7 @@ MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light c
 NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
 FLOOR = 1e-13  # agreement relative to the largest pilot radiance (`agree`) below which rays are not told apart
 AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
+BLOCK = 1 << 16  # (point, half-line) pairs `half_line_distances` measures at once
 LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
 
 
@@ -113,12 +114,18 @@ def nearest(samples, origins, dirs, k: int) -> tuple[np.ndarray, float]:
 
 
 def half_line_distances(points, origins, dirs) -> np.ndarray:
-    """(N,) the distance from each half-line o + t d (t >= 0) to the nearest of `points` (P, 3)."""
+    """(N,) the distance from each half-line o + t d (t >= 0) to the nearest of `points` (P, 3): per
+    point and half-line |rel - max(rel . d, 0) d|, rel = p - o, for a block of points at a time (every
+    number rounded as one point at a time rounds it: the same (3,) sums on every row)."""
     best = np.full(len(origins), np.inf)
-    for p in points:
-        rel = p[None, :] - origins
-        t = np.maximum(np.einsum("ij,ij->i", rel, dirs), 0.0)
-        best = np.minimum(best, np.linalg.norm(rel - t[:, None] * dirs, axis=1))
+    step = max(1, BLOCK // max(len(origins), 1))
+    for a in range(0, len(points), step):
+        block = points[a:a + step]
+        rel = (block[:, None, :] - origins[None]).reshape(-1, 3)
+        d = np.broadcast_to(dirs, (len(block),) + dirs.shape).reshape(-1, 3)
+        t = np.maximum(np.einsum("ij,ij->i", rel, d), 0.0)
+        dist = np.linalg.norm(rel - t[:, None] * d, axis=1).reshape(len(block), -1)
+        best = np.minimum(best, dist.min(axis=0))
     return best
 
 

@@ -39,6 +39,16 @@ def graded(n: int):
     return xi * xi, 2.0 * xi * w
 
 
+def cross(u, v):
+    """np.cross of (P, 3) rows u and v, each component rounded as np.cross rounds it (two products and
+    their difference), without its per-call overhead."""
+    out = np.empty_like(u)
+    out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+    out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+    out[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    return out
+
+
 @dataclass(frozen=True)
 class Planar:
     """A flat emitter as near_emitters.py needs it: a point `centre` (3,) of its plane, the plane's unit
@@ -83,16 +93,20 @@ def polygon(corners, normal) -> Planar:
         gap = np.linalg.norm(rel - s[..., None] * edges[None], axis=2).min(axis=1)
         return np.where(inside, 0.0, gap)
 
+    sides = []  # per edge: its ends, unit direction, length and the in-plane perpendicular normal x along
+    for a, b in zip(corners, np.roll(corners, -1, axis=0)):
+        along = (b - a) / np.linalg.norm(b - a)
+        sides.append((a, b, along, np.linalg.norm(b - a), np.cross(normal, along)))
+
     def rule(f, order):
         r, wr = graded(order)
         x, wx = gauss_legendre(order)
         parts = []
-        for a, b in zip(corners, np.roll(corners, -1, axis=0)):
-            along = (b - a) / np.linalg.norm(b - a)
+        for a, b, along, length, across in sides:
             foot = a + ((f - a) @ along)[:, None] * along  # f's perpendicular foot on the edge's line
-            h = np.cross(a - f, b - f) @ normal / np.linalg.norm(b - a)  # signed: > 0 on the inner side
-            toward = np.where(h[:, None] >= 0.0, -1.0, 1.0) * np.cross(normal, along)  # from f to the edge
-            scale = np.maximum(np.abs(h), TINY * np.linalg.norm(b - a))  # h ~ 0: a triangle of no area
+            h = cross(a - f, b - f) @ normal / length  # signed: > 0 on the inner side
+            toward = np.where(h[:, None] >= 0.0, -1.0, 1.0) * across  # from f to the edge
+            scale = np.maximum(np.abs(h), TINY * length)  # h ~ 0: a triangle of no area
             lo, hi = np.arcsinh((a - foot) @ along / scale), np.arcsinh((b - foot) @ along / scale)
             panels = np.maximum(np.ceil((hi - lo) / SPAN), 1).astype(np.int64)
             for p in np.unique(panels):

@@ -109,15 +109,18 @@ def _ball_rule(ball, rays, rs):
 
 def _ladder(emitter, rule, orders, method, medium, params, tol, rs, rays, scale, seen):
     """((P, 3) the air-light of `emitter` along camera rays `rs` by its `rule` (`_planar_rule`,
-    `_ball_rule`) at `orders` in turn, the number of rays whose last two orders disagree; `seen` (P, 3)
-    the rays' other radiance)."""
+    `_ball_rule`) at `orders` in turn (the first two, which every ray takes, in one batch), the number
+    of rays whose last two orders disagree; `seen` (P, 3) the rays' other radiance)."""
     if tol is None:
-        return _value(emitter, rule, method, medium, params, np.arange(len(rs)), rs, rays, scale, DEFAULT_ORDER), 0
+        return _values(emitter, rule, method, medium, params, np.arange(len(rs)), rs, rays, scale,
+                       (DEFAULT_ORDER,))[0], 0
     out = np.zeros((len(rs), 3))
     todo = np.arange(len(rs))
-    coarse = _value(emitter, rule, method, medium, params, todo, rs, rays, scale, orders[0])
-    for order in orders[1:]:
-        fine = _value(emitter, rule, method, medium, params, todo, rs[todo], rays, scale, order)
+    first = _values(emitter, rule, method, medium, params, todo, rs, rays, scale, orders[:2])
+    coarse = first[0]
+    for k, order in enumerate(orders[1:]):
+        fine = first[1] if k == 0 else _values(emitter, rule, method, medium, params, todo, rs[todo], rays, scale,
+                                               (order,))[0]
         ok = agree(coarse, fine, SHARE * tol, seen[todo])
         out[todo] = fine
         todo, coarse = todo[~ok], fine[~ok]
@@ -126,13 +129,15 @@ def _ladder(emitter, rule, orders, method, medium, params, tol, rs, rays, scale,
     return out, len(todo)
 
 
-def _value(emitter, rule, method, medium, params, at, rs, rays, scale, order):
-    """(P, 3) the air-light of `emitter` along camera rays `rs` (= the pairs `at` of its `rule`) by
-    the rule of `order`."""
-    points, normals, weights, owner = rule(at, order)
+def _values(emitter, rule, method, medium, params, at, rs, rays, scale, orders):
+    """[(P, 3) per order of `orders`]: the air-light of `emitter` along camera rays `rs` (= the pairs
+    `at` of its `rule`) by the rule of each order, their rows integrated in one batch."""
+    built = [rule(at, order) for order in orders]
+    points, normals, weights, owner = (np.concatenate(c) for c in zip(*built))
+    part = np.repeat(np.arange(len(orders)), [len(b[2]) for b in built])  # the order of each node
     rows = spot_rows(points, normals, weights[:, None] * emitter.radiance[None, :], emitter.two_sided)
-    group = np.repeat(owner, 2) if emitter.two_sided else owner  # spot_rows: a two-sided node twice
+    group, part = (np.repeat(owner, 2), np.repeat(part, 2)) if emitter.two_sided else (owner, part)  # a node twice
     each = per_group(method, medium, params, rows, point_segments(rows, 1, rays, rs[group], scale), len(rows))
-    out = np.zeros((len(rs), 3))
-    np.add.at(out, group, each)
-    return out
+    out = np.zeros((len(orders), len(rs), 3))
+    np.add.at(out, (part, group), each)
+    return list(out)

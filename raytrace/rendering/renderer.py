@@ -46,7 +46,7 @@ from . import aov, near_emitters
 
 RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
 PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
-MIN_TILE_RAYS = 128  # ... or fewer, of at least this many rays each (a tiny render is not 128 tiles of overhead)
+MIN_TILE_RAYS = 256  # ... or fewer, of at least this many rays each (a tiny render is not 128 tiles of overhead)
 SUM_RAYS = 1 << 14  # rays a row of the image may have before a pixel's samples are summed in ranges
 
 
