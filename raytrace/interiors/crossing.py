@@ -280,10 +280,10 @@ def plane_neighbours(prep, sid):
     of its face, packed in one int64 array `near`: near[near[f]:near[f + 1]] (starts offset by P + 1);
     empty where the shape has none. They are the planes of the triangles that share a vertex (within
     1e-9 of the shape's size) with a triangle of plane f (a triangle lies in every plane within 1e-9 of
-    its normal and offset / size: planes that differ by rounding alone share its corners). The face is its plane's points inside the
-    planes of its edges, each through two of its corners: the face test needs these alone, and
-    media/slab.py `reachable_faces` reads no other plane (a plane with fewer than three of them, which
-    no face of a closed solid has, takes every plane)."""
+    its normal and offset / size: planes that differ by rounding alone share its corners). The face is
+    its plane's points inside the planes of its edges, each through two of its corners: the face test
+    needs these alone, and media/slab.py `reachable_faces` reads no other plane (a plane with fewer
+    than three of them, which no face of a closed solid has, takes every plane)."""
     def build():
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
@@ -477,9 +477,9 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     outside of (`_lit_through_faces`, `refracting_planes`); directional ones, in a convex shape of at
     most KERNEL_PLANES planes, by the beam refracted through every face they meet, where q's path back
     along it leaves through that face (`refracted_beams`, `_lit_by_beam`); in another shape directional
-    lights only (`check` refuses the rest) by the note's planar boundary, the entry face's plane (outward normals n): the beam refracted
-    into t through it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t
-    back to the plane, k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's
+    lights only (`check` refuses the rest) by the note's planar boundary, the entry face's plane
+    (outward normals n): the beam refracted into t through it, irradiance E T cos_i / cos_t (eq. 5's
+    E_in), attenuated over the path q - k t back to the plane, k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's
     leg outside (`_outside_clear`)."""
     accel = prep.accel
     medium = prep.scene.shapes[sid].interior
