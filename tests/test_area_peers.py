@@ -62,9 +62,11 @@ def occluded_image(method, order=None, **params):
 def converged(image, finer, variance):
     """Pixels lit by the finer rule where the default rule's image equals it to 1e-4 relative (all
     channels; Mitsuba's relative standard error here is 6e-5 to 1e-2 per pixel) and nothing was
-    sampled (`variance` 0: no penumbra on the surface seen, shading.penumbra). Pixels dark under
-    both rules are left out: neither rule's points may see the light there (a penumbra)."""
-    return np.all((np.abs(finer - image) <= 1e-4 * finer) & (finer > 0.0) & (variance == 0.0), axis=-1)
+    sampled (`variance` 0: no penumbra on the surface seen, shading.penumbra; None: a render that
+    sampled nothing). Pixels dark under both rules are left out: neither rule's points may see the
+    light there (a penumbra)."""
+    unsampled = True if variance is None else variance == 0.0
+    return np.all((np.abs(finer - image) <= 1e-4 * finer) & (finer > 0.0) & unsampled, axis=-1)
 
 
 def z_scores(runs, ours, ours_variance=0.0):

@@ -108,8 +108,8 @@ def constant(mi, tmp_path_factory):  # noqa: F811 (the fixture)
     scene = fog_box()
     xml = tmp_path_factory.mktemp("constant") / "fog_box.xml"
     text = export(scene, xml)
-    default, fine = ours(scene).array, ours(scene, count=FINE).array
-    return text, mitsuba_runs(mi, xml), default, fine, converged(default, fine)
+    default, fine = ours(scene), ours(scene, count=FINE).array
+    return text, mitsuba_runs(mi, xml), default.array, fine, converged(default.array, fine, default.variance)
 
 
 @pytest.mark.peers
