@@ -84,12 +84,13 @@ def emitter_shape(light: Light):
 
 def _emitter(light: Light):
     """The `area.Emitter` of a scene light whose kind samples its emitter (`sample_emitter`, with the
-    parameters of its corners `CORNERS` and its `planar` or `ball` geometry where it has them), else None."""
+    parameters of its corners `CORNERS`, its `planar` or `ball` geometry and its `surface_irradiance`
+    where it has them), else None."""
     kind = _BY_CODE[light.kind]
     if not hasattr(kind, "sample_emitter"):
         return None
     return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None), getattr(kind, "planar", None),
-                   getattr(kind, "ball", None))
+                   getattr(kind, "ball", None), getattr(kind, "surface_irradiance", None))
 
 
 def cubature_ladders(lights: list[Light], emitters=()):
