@@ -174,6 +174,25 @@ def test_a_floor_under_a_sphere_lamp_against_the_twin(height, medium):
     floor = ~np.isnan(ref[..., 0])
     assert floor.sum() >= 40
     for method, params in (("quadrature", {"rtol": 1e-6}), ("analytic", {"precision": 1e-6})):
-        img = api.render(sc, method, **params).array
-        rel = np.abs(img[floor] / ref[floor] - 1.0)
+        img = api.render(sc, method, **params)
+        rel = np.abs(img.array[floor] / ref[floor] - 1.0)
         assert rel.max() <= 1e-6, (method, rel.max())
+        assert img.stats["cubature: emitters capped"] == 0, img.stats  # the rule's points do not drive the pilot
+
+
+def test_smooth_shading_takes_the_rule_where_the_geometric_plane_leaves_the_cap_whole():
+    """With a shading normal apart from the geometric one the rule (on the shading normal) applies where
+    the cap lies wholly above the geometric plane, not where that plane cuts it (it bounds what is lit
+    too); with equal normals everywhere."""
+    lamp = floor_scene(1.0, {}).lights[0]
+    from raytrace.lights import sphere
+
+    x = np.zeros((3, 3))
+    geometric = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    shading = np.array([[0.6, 0.8, 0.0], [0.6, 0.8, 0.0], [1.0, 0.0, 0.0]])
+    e, applies = sphere.surface_irradiance(lamp, x, geometric, shading, np.zeros(3), 1e-9)
+    assert applies.tolist() == [True, False, True]
+    theta = math.acos(0.8)
+    assert abs(e[0, 0] / (10.0 * snyder(theta, 1.0, R)) - 1.0) <= 1e-9
+    assert abs(e[2, 0] / (10.0 * snyder(math.pi / 2, 1.0, R)) - 1.0) <= 1e-9
+    assert not e[1].any()
