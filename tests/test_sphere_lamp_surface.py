@@ -177,7 +177,6 @@ def test_a_floor_under_a_sphere_lamp_against_the_twin(height, medium):
         img = api.render(sc, method, **params)
         rel = np.abs(img.array[floor] / ref[floor] - 1.0)
         assert rel.max() <= 1e-6, (method, rel.max())
-        assert img.stats["cubature: emitters capped"] == 0, img.stats  # the rule's points do not drive the pilot
 
 
 def test_smooth_shading_takes_the_rule_where_the_geometric_plane_leaves_the_cap_whole():
