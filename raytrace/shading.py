@@ -16,7 +16,9 @@ ground of the medium's reflectance (`ground_radiance`); its shadow is in the tra
 light behind it). An area light's emitter (a shape with `emission`, scene/format.py) adds its radiance
 where a ray meets its front (`emitted_radiance`; an area light lights surfaces through its emitter
 points, spot rows of lights/area.py, like any spot light, except in penumbrae: where occluders cut
-the emitter, `penumbra` samples it instead, its variance for the variance layer).
+the emitter, `penumbra` samples it instead, its variance for the variance layer; and where none of its
+rows is blocked, an emitter whose irradiance has a closed form about a centre (a sphere's) gives it
+instead of the rows in a homogeneous medium: `_unshadowed`).
 """
 from __future__ import annotations
 
@@ -134,7 +136,8 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     rays disagree at a point (a penumbra) are replaced there by stratified samples of the emitter
     (`penumbra`, their strata following the method's relative tolerance `tol`: `Method.tolerance`;
     black points are not sampled: they reflect nothing either way), whose variance is added to
-    `variance` (N, 3) if given; without keys (or with `through`) the rows alone, everywhere."""
+    `variance` (N, 3) if given, and where none is blocked by the emitter's closed form if it has one
+    (`_unshadowed`, to `tol`); without keys (or with `through`) the rows alone, everywhere."""
     out = np.zeros((len(points), 3))
     sampled = keys is not None and through is None and any(e is not None for e in lights.emitters)
     terminator = shading is not None and shading is not normals  # both must face the light
@@ -154,8 +157,10 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     _add_lights(out, rows, accel, points, normals, shading if terminator else normals, terminator, reflectance,
                 lights, run, medium, through, sampled)
     for owner, (value, reached, missed) in rows.items():
-        at = np.flatnonzero(_cut(accel, points, normals, shading if terminator else None, lights.emitters[owner],
-                                 reached, missed) & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
+        cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed)
+        _unshadowed(out, value, points, normals, shading if terminator else None, reflectance, lights.emitters[owner],
+                    medium, tol, ~cut & (reached > 0) & (missed == 0))
+        at = np.flatnonzero(cut & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
                                 reflectance[at], lights.emitters[owner], medium, keys[at], seed, owner, tol)
@@ -163,6 +168,22 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
             if variance is not None:
                 variance[at] += var
     return out
+
+
+def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear):
+    """out += at the points `clear` (every row of the emitter that emits toward the point reached it, some
+    did, and nothing cut it) the emitter's irradiance in closed form (`lights.Emitter.irradiance`, to the
+    relative tolerance `tol`) in place of its rows' share `value`, where the emitter has it and the medium
+    is homogeneous (the transmittance along each direction then depends on the distance alone)."""
+    if emitter.irradiance is None or not medium.homogeneous:
+        return
+    at = np.flatnonzero(clear & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
+    if not len(at):
+        return
+    e, applies = emitter.irradiance(points[at], normals[at], None if shading is None else shading[at],
+                                    medium.sigma_t, tol)
+    at, e = at[applies], e[applies]
+    out[at] += reflectance[at] / math.pi * e - value[at]
 
 
 def _add_lights(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,

@@ -12,6 +12,7 @@ radiance, else the [background]).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -84,12 +85,13 @@ def emitter_shape(light: Light):
 
 def _emitter(light: Light):
     """The `area.Emitter` of a scene light whose kind samples its emitter (`sample_emitter`, with the
-    parameters of its corners `CORNERS` and its `planar` or `ball` geometry where it has them), else None."""
+    parameters of its corners `CORNERS`, its `planar` or `ball` geometry and its `surface_irradiance`
+    where it has them), else None."""
     kind = _BY_CODE[light.kind]
     if not hasattr(kind, "sample_emitter"):
         return None
     return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None), getattr(kind, "planar", None),
-                   getattr(kind, "ball", None))
+                   getattr(kind, "ball", None), getattr(kind, "surface_irradiance", None))
 
 
 def cubature_ladders(lights: list[Light], emitters=()):
@@ -156,6 +158,14 @@ class Lights:
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    def rows_only(self) -> "Lights":
+        """These lights with no emitter's closed form (`area.Emitter.irradiance`): what the cubature's
+        pilot shades, so that the rows' order, which also sets how finely they probe the emitter for
+        occluders (the cut test, the air's rules near emitters), is chosen from the rows themselves."""
+        return dataclasses.replace(self, emitters=tuple(e if e is None or e.irradiance is None else
+                                                        dataclasses.replace(e, irradiance=None)
+                                                        for e in self.emitters))
 
     @cached_property
     def distant(self) -> np.ndarray:

@@ -112,6 +112,10 @@ class Emitter:
     probes: tuple | None = None
     planar: object = None  # a flat emitter's planar.Planar (the rule about a camera ray's foot point)
     ball: object = None  # a sphere emitter's sphere_rule.Ball (the rule about a camera ray's segment)
+    # irradiance(points, normals, shading, sigma_t, tol) -> (E (M, 3), applies (M,)): the unshadowed
+    # irradiance at surface points through a homogeneous medium to the relative tolerance tol, where the
+    # kind has it in closed form about a centre (None: not; the kind's `surface_irradiance`)
+    irradiance: Callable | None = None
 
 
 def uniform_density(n: int, area: float) -> np.ndarray:
@@ -119,14 +123,16 @@ def uniform_density(n: int, area: float) -> np.ndarray:
     return np.full(n, 1.0 / area)
 
 
-def emitter(light: Light, sample_emitter, corners=None, planar=None, ball=None) -> Emitter:
+def emitter(light: Light, sample_emitter, corners=None, planar=None, ball=None, irradiance=None) -> Emitter:
     """The `Emitter` of an area light whose kind maps (u, v) by `sample_emitter(light, u, v)`, its
     probes at the parameters `corners` ((u, v), each (K,); None: no probes), `planar(light)` its
-    `Planar` where the kind is flat, `ball(light)` its `Ball` where it is a sphere (None: not)."""
+    `Planar` where the kind is flat, `ball(light)` its `Ball` where it is a sphere (None: not),
+    `irradiance(light, ...)` its `Emitter.irradiance` where it has one."""
     sample = functools.partial(sample_emitter, light)
     probes = None if corners is None else sample(*corners)[:2]
     return Emitter(light.intensity, light.two_sided, sample, probes, None if planar is None else planar(light),
-                   None if ball is None else ball(light))
+                   None if ball is None else ball(light),
+                   None if irradiance is None else functools.partial(irradiance, light))
 
 
 def collapsed_variance(g, strata: int) -> np.ndarray:

@@ -4,7 +4,9 @@ equally spaced azimuths. Each point's LAMBERT falloff max(0, n·u) is its own vi
 sphere (a point of a convex emitter sees the receiver exactly when the receiver is in front of it).
 Penumbrae sample it uniformly in area (`sample_emitter`). Its shape is the exact sphere
 (geometry/sphere.py: camera and shadow rays meet it in float64, and it does not shadow its own
-emitter points, which lie on it); its mesh of SEGMENTS segments is what exporters write.
+emitter points, which lie on it); its mesh of SEGMENTS segments is what exporters write. Surfaces it
+lights unshadowed in a homogeneous medium take its irradiance about its centre instead of the rows
+(`surface_irradiance`, sphere_irradiance.py).
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import math
 
 import numpy as np
 
-from . import area
+from . import area, sphere_irradiance
 from .light import Light
 from .sphere_rule import Ball
 
@@ -70,6 +72,23 @@ def sample_emitter(light, u, v):
 def ball(light) -> Ball:
     """The emitter as the rule about a camera ray's segment needs it (sphere_rule.py)."""
     return Ball(np.asarray(light.position, float), float(light.emitter["radius"]))
+
+
+def surface_irradiance(light, points, normals, shading, sigma_t, tol):
+    """`area.Emitter.irradiance`: the sphere's unshadowed irradiance (sphere_irradiance.py) on the
+    shading normals `shading` (None: the geometric `normals` are the shading ones); it applies where
+    those are the geometric ones or the cap lies wholly above the geometric normal's plane (elsewhere
+    that plane, which also bounds what is lit, cuts the cap apart from the shading one's)."""
+    applies = np.ones(len(points), dtype=bool)
+    if shading is not None:
+        applies = np.all(shading == normals, axis=1) | (sphere_irradiance.cap_cosine(light.position,
+                                                                                     light.emitter["radius"], points,
+                                                                                     normals) >= 0.0)
+    e = sphere_irradiance.irradiance(light.position, light.emitter["radius"], light.intensity, points[applies],
+                                     (normals if shading is None else shading)[applies], sigma_t, tol)
+    out = np.zeros((len(points), 3))
+    out[applies] = e
+    return out, applies
 
 
 def shape(light):

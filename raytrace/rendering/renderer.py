@@ -154,15 +154,16 @@ def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict
     keys = (pixels[:, 0] * cam.width + pixels[:, 1]).astype(np.uint64) * np.uint64(cam.spp)
 
     @functools.lru_cache(maxsize=None)
-    def with_orders(orders):
-        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders), _frusta=None,
-                                   _through=None, _memo={}, _memo_lock=threading.Lock())
+    def rows_at(orders):  # the rows alone (`Lights.rows_only`): their order also sets how finely they probe
+        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders).rows_only(),
+                                   _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
 
     def shade(orders, rays):
-        return shade_rays(with_orders(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
+        return shade_rays(rows_at(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
 
     orders, capped, n_near, stray = cubature.choose(ladders, counts, near, shade, tol)
-    adapted = with_orders(orders)
+    adapted = dataclasses.replace(rows_at(orders), lights=Lights.of(scene.lights, prep.emissive, orders), _memo={},
+                                  _memo_lock=threading.Lock())  # the frusta of the same rows shared
     emitters = [s for s, ladder in enumerate(ladders) if ladder is not None]
     n_rows = int(np.count_nonzero(np.isin(adapted.lights.owner, emitters)))
     return adapted, {"cubature: rows": n_rows, "cubature: pilot rays": len(o),

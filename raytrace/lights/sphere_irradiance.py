@@ -1,0 +1,159 @@
+"""The unshadowed irradiance of a Lambertian sphere emitter at surface points in a homogeneous
+medium (or the vacuum): a 1-D rule in the cap's polar angle, the azimuth in closed form
+(docs/area_lights.md, "Surfaces lit by a sphere").
+
+From a point x at distance d > R of the centre c, the sphere fills the cap of half-angle alpha
+(sin alpha = R / d) about the axis a = (c - x) / d. A direction w at polar angle beta about a meets
+the sphere at the distance s(beta) = d cos beta - sqrt(R^2 - d^2 sin^2 beta), so the transmittance
+exp(-kt s) depends on beta alone and the radiance L is constant: with theta the angle between the
+normal n and a, A = cos theta cos beta, B = sin theta sin beta,
+
+    E = L int_0^alpha exp(-kt s(beta)) Phi(beta) sin beta dbeta,  Phi = int_0^2pi max(0, A + B cos phi) dphi,
+
+Phi = 2 pi max(A, 0) where |A| >= B (the circle of directions at beta wholly above or below the
+horizon), else 2 (psi A + sqrt(B^2 - A^2)), psi = acos(-A / B). Since B^2 - A^2 = sin^2 theta -
+cos^2 beta, psi = atan2(sqrt(sin^2 theta - cos^2 beta), -A): Phi has one branch point, where the
+horizon starts cutting the circles (cos beta = sin theta, beta* = |pi/2 - theta|).
+
+The variable is u, cos beta = cos alpha cosh u (u from 0 at the cap's edge to u0 = atanh(sin alpha)
+on the axis): then sin beta dbeta = cos alpha sinh u du and s = sqrt(d^2 - R^2) e^-u, entire in u,
+where in beta the square root of s has branch points at the cap's edge and at pi - alpha (which
+closes on it as d nears R). So the integrand is entire but for Phi's branch point u*: two pieces,
+[0, u*] (the circles the horizon cuts) with u = u* - w^2 (the square root's half powers become
+integer ones), and [u*, u0] (wholly above the horizon: 2 pi A, or below: 0), each Gauss–Legendre.
+The order climbs ORDERS until two consecutive orders agree to SHARE x the tolerance relative to the
+finer (kept) in every channel; the finest is kept where none agree.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import njit
+from .area import gauss_legendre
+
+ORDERS = (4, 6, 8, 12, 16, 24, 32, 48, 64)  # Gauss–Legendre nodes per piece, climbed in turn
+SHARE = 0.25  # the share of the tolerance two orders must agree to (as the emitters' cubature: cubature.py)
+TOL = 1e-10  # the tolerance where the method gives none
+SERIES, TERMS = 0.125, 9  # t - atan t by its series below t = SERIES (TERMS terms: the next, t^21 / 21, is below 1e-17 t^3 / 3)
+FLOOR = 1e-300  # agreement below this absolute irradiance / L counts as exact (a cap that vanishes)
+
+
+def _tables():
+    """(nodes, weights, offsets) of ORDERS' rules on [0, 1], concatenated; order i at offsets[i]:offsets[i + 1]."""
+    rules = [gauss_legendre(n) for n in ORDERS]
+    offsets = np.cumsum([0] + [len(x) for x, _ in rules]).astype(np.int64)
+    return np.concatenate([x for x, _ in rules]), np.concatenate([w for _, w in rules]), offsets
+
+
+NODES, WEIGHTS, OFFSETS = _tables()
+
+
+def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=None):
+    """(M, 3) the unshadowed irradiance L int max(0, n·w) T dw of the sphere (`centre`, `radius`,
+    radiance L (3,)) at points outside it with unit normals n, through a homogeneous medium of
+    extinction `sigma_t` (3,) (0: the vacuum), to the relative tolerance `tol` (None: TOL). Points on
+    or inside the sphere get 0 (not lit from outside)."""
+    out = np.zeros((len(points), 3))
+    _irradiance(np.asarray(centre, float), float(radius), np.ascontiguousarray(points, float),
+                np.ascontiguousarray(normals, float), np.ascontiguousarray(sigma_t, float),
+                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out)
+    return out * np.asarray(radiance, float)[None, :]
+
+
+def cap_cosine(centre, radius: float, points, normals):
+    """(M,) n·a - sin alpha: >= 0 where the whole cap the sphere fills lies above the plane of the
+    normal n at each point (the point outside the sphere); negative elsewhere."""
+    rel = np.asarray(centre, float)[None, :] - points
+    d = np.linalg.norm(rel, axis=1)
+    safe = np.where(d > radius, d, 1.0)
+    return np.where(d > radius, np.einsum("ij,ij->i", normals, rel) / safe - radius / safe, -np.inf)
+
+
+@njit
+def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out):
+    """`irradiance` / L into out (M, 3)."""
+    tmp, prev = np.empty(3), np.empty(3)
+    for i in range(points.shape[0]):
+        ax, ay, az = centre[0] - points[i, 0], centre[1] - points[i, 1], centre[2] - points[i, 2]
+        d = math.sqrt(ax * ax + ay * ay + az * az)
+        if not d > R:
+            continue
+        ax, ay, az = ax / d, ay / d, az / d
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        cos_t = nx * ax + ny * ay + nz * az
+        cx, cy, cz = ny * az - nz * ay, nz * ax - nx * az, nx * ay - ny * ax
+        sin_t = math.sqrt(cx * cx + cy * cy + cz * cz)  # |n x a|: accurate where theta is small
+        sin_a = R / d
+        if cos_t <= -sin_a:  # the cap wholly below the horizon
+            continue
+        root_k = math.sqrt((d - R) * (d + R))  # sqrt(d^2 - R^2)
+        cos_a = root_k / d
+        u0 = 0.5 * math.log1p(2.0 * R / (d - R))  # atanh(sin alpha), with cos alpha cosh u0 = 1 as root_k rounds
+        # u*: where cos beta = sin theta, cosh u* = 1 + eps (0 where the horizon cuts no circle of the
+        # cap); eps from sin^2 theta - cos^2 alpha = (sin alpha - cos theta)(sin alpha + cos theta), without
+        # the cancellation of sin theta / cos alpha - 1 where the horizon grazes the cap's edge
+        eps = (sin_a - cos_t) * (sin_a + cos_t) / ((sin_t + cos_a) * cos_a)
+        ustar = min(math.log1p(eps + math.sqrt(eps * (2.0 + eps))), u0) if eps > 0.0 else 0.0
+        for k in range(len(offsets) - 1):
+            for c in range(3):
+                tmp[c] = 0.0
+            lo, hi = offsets[k], offsets[k + 1]
+            _add_pieces(tmp, nodes[lo:hi], weights[lo:hi], kt, cos_t, sin_t, cos_a, root_k, ustar, u0)
+            if k > 0:
+                agree = True
+                for c in range(3):
+                    agree = agree and abs(tmp[c] - prev[c]) <= tol * abs(tmp[c]) + FLOOR
+                if agree:
+                    break
+            for c in range(3):
+                prev[c] = tmp[c]
+        for c in range(3):
+            out[i, c] = tmp[c]
+
+
+@njit
+def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0):
+    """acc (3,) += the two pieces of the integral in u (module docstring) with the Gauss–Legendre rule
+    (x, wx) on [0, 1] in each."""
+    if ustar > 0.0:  # [0, u*]: u = u* - w^2, w in [0, sqrt(u*)], du = 2 w dw
+        top = math.sqrt(ustar)
+        for j in range(x.shape[0]):
+            w = top * x[j]
+            u = ustar - w * w
+            c = cos_a * math.cosh(u)  # cos beta
+            # sin theta - cos beta = cos_a (cosh u* - cosh u), without the cancellation
+            gap = 2.0 * cos_a * math.sinh(0.5 * (ustar + u)) * math.sinh(0.5 * w * w)
+            root = math.sqrt(max(gap * (sin_t + c), 0.0))  # sqrt(B^2 - A^2)
+            phi = _azimuths(cos_t * c, root)
+            f = phi * cos_a * math.sinh(u) * 2.0 * w * top * wx[j]
+            _add_attenuated(acc, f, kt, root_k * math.exp(-u))
+    if cos_t > 0.0 and u0 > ustar:  # [u*, u0]: the circles wholly above the horizon, Phi = 2 pi A
+        span = u0 - ustar
+        for j in range(x.shape[0]):
+            u = ustar + span * x[j]
+            f = 2.0 * math.pi * cos_t * cos_a * cos_a * math.cosh(u) * math.sinh(u) * span * wx[j]
+            _add_attenuated(acc, f, kt, root_k * math.exp(-u))
+
+
+@njit
+def _azimuths(a, root):
+    """Phi = 2 (a psi + root), psi = atan2(root, -a), of a circle the horizon cuts (root = sqrt(B^2 - a^2)
+    > 0); where a < 0 as 2 |a| (t - atan t), t = root / |a|, by its series where t is small (the two terms
+    nearly cancel: the circle barely above the horizon)."""
+    if a < 0.0 and root < SERIES * -a:
+        t = root / -a
+        t2, term, total = t * t, t * t * t, 0.0
+        for k in range(1, TERMS + 1):
+            total += term / (2 * k + 1) if k % 2 == 1 else -term / (2 * k + 1)
+            term *= t2
+        return -2.0 * a * total
+    return 2.0 * (a * math.atan2(root, -a) + root)
+
+
+@njit
+def _add_attenuated(acc, f, kt, s):
+    """acc (3,) += f exp(-kt s) per channel (exactly f where kt is 0)."""
+    for c in range(3):
+        acc[c] += f if kt[c] == 0.0 else f * math.exp(-kt[c] * s)
