@@ -829,15 +829,16 @@ def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
 
 
 @njit
-def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
+def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, track):
     """(value, rule's bound, absolute rounding, ends' bound, ok) of [lo, hi] of r across one caustic
     crossing, its caustic point's ray refracted at theta_c (module docstring, "The caustic"): the fold
     pair's window [theta_1, theta_2], the adjacent paths that bracket theta_c at the end with two paths
-    more than the other (both scans proven), or at a cone's crossing with one more the outermost path
-    and the lit arc's end beyond theta_c (the pair's other path leaves there); the paths refracted
-    outside it by `_stretch` in x, those
-    inside by `fold_value` in theta, and each window end off by its root's spread at 8 x the fold
-    integrand there. ok False (nothing integrated) where there is no such pair or a spread is inf."""
+    more than the other (both scans proven), or at an end with one more that is a cone's crossing or
+    whose side of the caustic holds one (cone in (lo, hi), cone_side 0 for lo's, 1 for hi's, -1: none)
+    the outermost path and the lit arc's end beyond theta_c (the pair's other path leaves there); the
+    paths refracted outside it by `_stretch` in x (split at cone), those inside by `fold_value` in
+    theta, and each window end off by its root's spread at 8 x the fold integrand there. ok False
+    (nothing integrated) where there is no such pair or a spread is inf."""
     found, spread = np.empty((2, MAX_PATHS)), np.empty((2, MAX_PATHS))
     counts = np.zeros(2, dtype=np.int64)
     for side in range(2):
@@ -854,7 +855,8 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
     for k in range(n - 1):
         if more == 2 and found[side, k] < theta_c < found[side, k + 1]:
             t1, t2, e1, e2 = found[side, k], found[side, k + 1], spread[side, k], spread[side, k + 1]
-    if more == 1 and flag == 1.0 and n > 0:  # the pair's other path leaves through the lit arc's end there
+    if more == 1 and (flag == 1.0 or cone_side == side) and n > 0:  # the pair's other path leaves through the
+        # lit arc's end there, or at the cone's crossing between that end and the caustic
         if found[side, n - 1] < theta_c:
             t1, t2, e1, e2 = found[side, n - 1], r.theta_a, spread[side, n - 1], 0.0
         elif theta_c < found[side, 0]:
@@ -862,7 +864,12 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
     if not e1 + e2 < math.inf:
         return 0.0, 0.0, 0.0, 0.0, False
     r.window[0], r.window[1] = t1, t2
-    total, rule = _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track)
+    if cone_side < 0:
+        total, rule = _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track)
+    else:
+        total, rule = _stretch(r, lo, cone, flag_lo, 1.0, rtol, stats, track)
+        val, b = _stretch(r, cone, hi, 1.0, flag_hi, rtol, stats, track)
+        total, rule = total + val, rule + b
     r.window[0], r.window[1] = math.inf, -math.inf
     track[FOLD_ABS] = 0.0
     val, b = _piece(FoldPair(r, lo, hi), t1, t2, rtol, stats, track)
@@ -888,9 +895,27 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
         i = 0
         while i <= m:
             lo, hi = br[i], br[i + 1]
+            # a caustic crossing at i + 1 or i + 2 with a cone's crossing beside it (at i + 1 or i + 2):
+            # the fold's pieces extend across that cone's crossing to the middle of the piece beyond it
+            k = i + 2 if caustic[i + 1] == 1.0 else i + 1
+            if i + 3 <= m + 1 and caustic[k] == 2.0 and caustic[2 * i + 3 - k] == 1.0 and caustic[i] != 2.0 and \
+                    caustic[i + 3] != 2.0:
+                a, b = (0.5 * (lo + hi), br[i + 3]) if k == i + 2 else (lo, 0.5 * (br[i + 2] + br[i + 3]))
+                val, bnd, rounding, ends, ok = _fold(r, a, b, 0.0 if k == i + 2 else caustic[i],
+                                                     0.0 if k == i + 1 else caustic[i + 3], spans[k],
+                                                     br[2 * i + 3 - k], 0 if k == i + 2 else 1, rtol, stats, track)
+                if ok:
+                    total, rule, folds = total + val, rule + bnd + ends, folds + rounding
+                    for c, d, fc, fd in ((lo, a, caustic[i], 0.0), (b, br[i + 3], 0.0, caustic[i + 3])):
+                        if d > c:
+                            val, bnd = _stretch(r, c, d, fc, fd, rtol, stats, track)
+                            total, rule = total + val, rule + bnd
+                    caustic[k] = 3.0  # crossed by `_fold`: bounded
+                    i += 3
+                    continue
             if caustic[i + 1] == 2.0 and caustic[i] != 2.0 and caustic[i + 2] != 2.0 and br[i + 2] > lo:
-                val, b, rounding, ends, ok = _fold(r, lo, br[i + 2], caustic[i], caustic[i + 2], spans[i + 1], rtol,
-                                                   stats, track)
+                val, b, rounding, ends, ok = _fold(r, lo, br[i + 2], caustic[i], caustic[i + 2], spans[i + 1], 0.0,
+                                                   -1, rtol, stats, track)
                 if ok:
                     total, rule, folds = total + val, rule + b + ends, folds + rounding
                     caustic[i + 1] = 3.0  # crossed by `_fold`: bounded
