@@ -75,7 +75,12 @@ the record's window: a count of them that changes between evaluations is the gua
 inside W, in theta: by the area formula each point x of [a, b] that the ray refracted at theta
 reaches (h(theta; X(x)) = 0, a quadratic in x once squared) weighs in at |dx/dtheta| = |h_theta| /
 |h_x|, and |h_theta| = R cos_t |1 - s kappa_t| (the tube's width in the plane) cancels the tangential
-factor of E, so the integrand in theta (`fold_value`, `FoldPair`) is smooth through the caustic.
+factor of E, so the integrand in theta (`fold_value`, `FoldPair`) is smooth through the caustic. Where a cone's crossing
+is the break beside the caustic's, the pieces reach across it to the middle of the piece beyond (the
+end with one path more then lies on that side: W is the outermost path there and the lit arc's end,
+the pair's other path entering at the cone's crossing), so that no piece in x ends near the
+caustic, where its pair's rounding and the rule's nodes would meet the 1/sqrt; the paths outside W
+are integrated in x on both sides of the cone's crossing.
 
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
@@ -99,7 +104,9 @@ rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, count
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
 crossings in a row), an evaluation whose scan was unproven, a piece whose path count changed between
 its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
-`roots`, which is not proven), eta <= 1.
+`roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
+h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
+derivative of phi, which `angular_bounds` does not bound), eta <= 1.
 """
 from __future__ import annotations
 
@@ -882,8 +889,9 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, tr
 @njit
 def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
     """(value, variance, bound) of one segment: QUAD adaptive between `breaks` with its bound (module
-    docstring, "The bound"; a piece across one caustic crossing by `_fold`; inf where that fails, a scan
-    was unproven or a piece's path count changed: counted in stats[UNBOUNDED]), MARCH or SAMPLE
+    docstring, "The bound"; the pieces across one caustic crossing by `_fold`, across a cone's crossing
+    beside it too; inf where that fails, a scan was unproven or a piece's path count changed: counted in
+    stats[UNBOUNDED]), MARCH or SAMPLE
     media/slab.py's (bound inf)."""
     if mode == QUAD:
         end = min(ell, 745.0 / r.kt)
