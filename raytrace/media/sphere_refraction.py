@@ -140,6 +140,7 @@ TRACK = 6
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
+EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
 
 class SphereRefracted(NamedTuple):
@@ -147,8 +148,9 @@ class SphereRefracted(NamedTuple):
     segment's start o and direction w, the sphere's centre c and radius, the light's position (a
     directional light: the unit direction toward it), its axis ez (the unit direction from c toward
     the light), d = |L - c| (inf for a directional light), theta_a the lit arc's half-width, the
-    spot's axis and (cos_end, cos_start, curve), `cell_table`, the integrand's track and the window of
-    angles whose paths `refracted_value` leaves out (empty: (inf, -inf))."""
+    spot's axis and (cos_end, cos_start, curve), `cell_table`, the integrand's track, the window of
+    angles whose paths `refracted_value` leaves out (empty: (inf, -inf)) and the spot's band edges
+    (`spot_edges`: their count, then the x where a path crosses one, ascending; then the angles)."""
     o: np.ndarray
     w: np.ndarray
     c: np.ndarray
@@ -169,6 +171,7 @@ class SphereRefracted(NamedTuple):
     cells: np.ndarray
     track: np.ndarray
     window: np.ndarray
+    edges: np.ndarray
 
 
 @njit
@@ -638,6 +641,86 @@ def _segment(r):
 
 
 @njit
+def _ray_crossings(r, pz, py, tz, ty, a, b, xs):
+    """The x in [a, b] where the line of the ray from P = (pz, py) along t = (tz, ty), turned about the
+    axis, meets the segment's line, into xs (returns their count, at most 2): the roots of
+    h(theta; X(x)) = 0 (the ray's line tz y - ty z = c0, squared: a quadratic in x), less the squared
+    equation's other branch (the ray's mirror image across the axis)."""
+    f, v, fz, wz = _segment(r)
+    ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+    fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    c0 = tz * py - ty * pz
+    e0 = c0 + ty * fz
+    found = np.empty(2)
+    n = quadratic_roots(tz * tz * vv - ty * ty * wz * wz, tz * tz * fv - ty * wz * e0, tz * tz * ff - e0 * e0, found,
+                        0)
+    m = 0
+    for k in range(n):
+        x = found[k]
+        if not a <= x <= b:
+            continue
+        zx = fz + x * wz
+        yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+        if yx > 0.0 and abs(tz * yx - ty * zx - c0) <= abs(tz * yx + ty * zx + c0):
+            xs[m] = x
+            m += 1
+    return m
+
+
+@njit
+def spot_edges(r, end):
+    """Into r.edges: where the spot aims along the axis (at the centre), so that its cosine toward a
+    path's direction out of the light depends on theta alone, (d - R cos theta) / o, falling from 1 at
+    theta = 0: the angles theta_e in (0, theta_a) where it reaches cos_end and cos_start (bisected to
+    the resolution of doubles; edges[EDGES + 1:], nan for none) and the x in (0, end) where the rays
+    refracted at +-theta_e reach the segment ahead of P (edges[0] their count, edges[1:] ascending):
+    the falloff's kinks along the segment and in the fold pair's angle. None for other lights and
+    spots."""
+    edges = r.edges
+    edges[0] = 0.0
+    edges[EDGES + 1], edges[EDGES + 2] = math.nan, math.nan
+    ez, axis = r.ez, r.axis
+    cross = (ez[1] * axis[2] - ez[2] * axis[1]) ** 2 + (ez[2] * axis[0] - ez[0] * axis[2]) ** 2 + \
+        (ez[0] * axis[1] - ez[1] * axis[0]) ** 2
+    if r.distant or not cross <= 1e-18 or not ez[0] * axis[0] + ez[1] * axis[1] + ez[2] * axis[2] < 0.0:
+        return
+    xs = np.empty(2)
+    m = 0
+    for e in range(2):
+        ce = r.spot[0] if e == 0 else r.spot[1]
+        lo, hi = 0.0, r.theta_a
+        if e == 1 and r.spot[1] == r.spot[0]:
+            continue
+        c_hi = (r.d - r.radius * math.cos(hi)) / _arriving(hi, r.radius, r.d)[6]
+        if not c_hi < ce < 1.0:
+            continue
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if not lo < mid < hi:
+                break
+            if (r.d - r.radius * math.cos(mid)) / _arriving(mid, r.radius, r.d)[6] > ce:
+                lo = mid
+            else:
+                hi = mid
+        edges[EDGES + 1 + e] = lo
+        for theta in (lo, -lo):
+            pz, py, tz, ty, _, cos_t, _ = incidence(theta, r.radius, r.d, r.eta)
+            if cos_t == 0.0:
+                continue
+            f, v, fz, wz = _segment(r)
+            for k in range(_ray_crossings(r, pz, py, tz, ty, 0.0, end, xs)):
+                x = xs[k]
+                zx = fz + x * wz
+                yx = math.sqrt(max((f[0] + x * v[0]) ** 2 + (f[1] + x * v[1]) ** 2 + (f[2] + x * v[2]) ** 2, 0.0))
+                if 0.0 < x < end and tz * (zx - pz) + ty * (yx - py) >= 0.0 and m < EDGES:
+                    m += 1
+                    edges[m] = x
+    sort_few(edges, 1, m + 1)
+    edges[0] = m
+
+
+@njit
 def fold_value(theta, r, a, b):
     """The fold pair's integrand in theta (module docstring, "The caustic"): over the points o + x w,
     x in [a, b], that the ray refracted at theta reaches (the roots of h(theta; X(x)) = 0 in x: a
@@ -649,25 +732,20 @@ def fold_value(theta, r, a, b):
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, r.d, eta)
     if cos_t == 0.0:
         return 0.0
+    xs = np.empty(2)
+    n = _ray_crossings(r, pz, py, tz, ty, a, b, xs)
     f, v, fz, wz = _segment(r)
     ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
     fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
     vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-    c0 = tz * py - ty * pz  # the ray's line in the plane: tz y - ty z = c0
-    e0 = c0 + ty * fz
-    xs = np.empty(2)
-    n = quadratic_roots(tz * tz * vv - ty * ty * wz * wz, tz * tz * fv - ty * wz * e0, tz * tz * ff - e0 * e0, xs, 0)
+    c0 = tz * py - ty * pz
     step = 2.0 * r.theta_a / SCAN
     et = r.cells[min(max(int((theta + r.theta_a) / step), 0), SCAN - 1), 2]  # t's rounding as an angle
     total = err = 0.0
     for k in range(n):
         x = xs[k]
-        if not a <= x <= b:
-            continue
         zx = fz + x * wz
         yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
-        if not yx > 0.0 or abs(tz * yx - ty * zx - c0) > abs(tz * yx + ty * zx + c0):
-            continue  # the squared equation's other branch (the ray's mirror image across the axis)
         dyx = (fv + x * vv) / yx
         hx = tz * dyx - ty * wz
         zp, yp, ey = _plane(r, x)
@@ -808,7 +886,7 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
     return SphereRefracted(geo_row[:3].copy(), geo_row[3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo_row[6:9].copy(), distant, ez, d, theta_a, eta, kt, ks, code, g, kt_out,
                            geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK),
-                           np.array([math.inf, -math.inf]))
+                           np.array([math.inf, -math.inf]), np.zeros(EDGES + 3))
 
 
 @njit
@@ -820,6 +898,21 @@ def _piece(rec, lo, hi, rtol, stats, track):
 
 @njit
 def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
+    """(value, rule's bound) of `_beside` over [lo, hi] of r, split where a path crosses a spot's band
+    edge (r.edges)."""
+    total = rule = 0.0
+    a, fa = lo, flag_lo
+    for k in range(1, int(r.edges[0]) + 1):
+        x = r.edges[k]
+        if a < x < hi:
+            val, b = _beside(r, a, x, fa, 0.0, rtol, stats, track)
+            total, rule, a, fa = total + val, rule + b, x, 0.0
+    val, b = _beside(r, a, hi, fa, flag_hi, rtol, stats, track)
+    return total + val, rule + b
+
+
+@njit
+def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     """(value, rule's bound) of `_piece` over [lo, hi] of r, in u beside an end that is a cone's or the
     caustic's crossing (flag > 0: `NearCaustic`), split at the middle where both ends are."""
     if flag_lo == 0.0 and flag_hi == 0.0:
@@ -879,7 +972,16 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, tr
         total, rule = total + val, rule + b
     r.window[0], r.window[1] = math.inf, -math.inf
     track[FOLD_ABS] = 0.0
-    val, b = _piece(FoldPair(r, lo, hi), t1, t2, rtol, stats, track)
+    cuts = np.empty(6)  # W, cut where its rays cross a spot's band edge
+    cuts[0], n = t1, 1
+    for e in range(EDGES + 1, EDGES + 3):
+        for theta in (r.edges[e], -r.edges[e]):
+            if t1 < theta < t2:
+                cuts[n] = theta
+                n += 1
+    cuts[n] = t2
+    sort_few(cuts, 0, n + 1)
+    val, b = bounded_piecewise(FoldPair(r, lo, hi), cuts, n + 1, rtol, N10, W10, N20, W20, stats)
     rounding = track[FOLD_ABS] * (t2 - t1)
     width = hi - lo  # the ends: the fold integrand of the branch near them, wherever on the line it meets
     ends = 8.0 * (e1 * fold_value(t1, r, lo - width, hi + width) + e2 * fold_value(t2, r, lo - width, hi + width))
@@ -895,6 +997,7 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
     media/slab.py's (bound inf)."""
     if mode == QUAD:
         end = min(ell, 745.0 / r.kt)
+        spot_edges(r, end)
         br, caustic, spans = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
         m = breaks(r, end, br[1:MAX_PATHS + 2], caustic[1:MAX_PATHS + 2], spans[1:MAX_PATHS + 2])
         br[m + 1] = end
