@@ -58,7 +58,13 @@ of the marginal rays, refracted at grazing incidence, about the axis with its ap
 it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
 the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
-distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
+distance from the axis at the caustic point's height z_C), found like the paths. A spot aimed at the
+centre (its axis along the light's axis) has its falloff's kinks, its band edges, at fixed angles
++-theta_e (`spot_edges`): the pieces in x are cut where those rays reach the segment, and the fold
+pair's window in theta at +-theta_e (a kink left inside a piece fools the rule's error estimate;
+located to the resolution of doubles, a kink of a continuous falloff misplaced by dx changes the
+integral by its jump in slope x dx^2, far below the rounding; a hard edge's jump x dx is not in the
+bound; other spots' edges are not cut). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
 in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
 MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
