@@ -173,7 +173,8 @@ class Twin:
 
     def cuts(self, p, w, ell):
         """The points of the segment p + x w (0 < x < ell) where the number of paths changes, each with
-        the change: bisected between 120 samples of x."""
+        the change: bisected between 120 samples of x, and again beyond each cut whose new count is not
+        the next sample's (two changes between samples)."""
         def count(x):
             return len(self.paths(p + x * w))
 
@@ -181,11 +182,15 @@ class Twin:
         cs = [count(x) for x in xs]
         cuts = []
         for k in np.nonzero(np.array(cs[:-1]) != np.array(cs[1:]))[0]:
-            lo, hi = xs[k], xs[k + 1]
-            while hi - lo > 1e-13:
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if count(mid) == cs[k] else (lo, mid)
-            cuts.append((0.5 * (lo + hi), cs[k + 1] - cs[k]))
+            lo, c = xs[k], cs[k]
+            while c != cs[k + 1]:
+                hi = xs[k + 1]
+                while hi - lo > 1e-13:
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (mid, hi) if count(mid) == c else (lo, mid)
+                new = count(hi)
+                cuts.append((0.5 * (lo + hi), new - c))
+                lo, c = hi, new
         return cuts
 
     def pixel(self, i, j):
@@ -219,13 +224,12 @@ CASES = {"water_lamp": (1.33, LAMP), "glass_lamp": (1.5, LAMP), "water_sun": (1.
          "glass_spot": (1.5, SPOT)}
 
 
-# pixels whose segment crosses the marginal rays' cone and the caustic closer together than the twin's
-# scan of the number of paths resolves (4.5e-5 apart of a 1.94 segment): its quad misses the caustic
-# there (3e-4 off); scipy quad with the kernel's breaks agrees with quadrature to 3e-9
-UNRESOLVED = {"glass_lamp": [(4, 3)]}
+# the glass ball's pixel whose segment crosses the marginal rays' cone 4.5e-5 before the caustic (the
+# twin's cuts bisect both between two of its samples)
+CONE_FOLD = (4, 3)
 
 
-def against_twin(scene, pixels=None, skip=(), rtol=1e-6):
+def against_twin(scene, pixels=None, rtol=1e-6):
     """The quadrature image (rtol 1e-6), its largest relative difference from the twin over `pixels`
     (all: None) where the twin is lit (0 where it is not), the twin's points where the number of paths
     changes (caustic and marginal crossings) over them, and the lit pixels' count. The error bound
@@ -235,8 +239,6 @@ def against_twin(scene, pixels=None, skip=(), rtol=1e-6):
     worst, crossings, lit = 0.0, 0, 0
     refs = {}
     for i, j in pixels or [(i, j) for j in range(CAMERA["height"]) for i in range(CAMERA["width"])]:
-        if (i, j) in skip:
-            continue
         ref, cuts = twin.pixel(i, j)
         if not ref.max() > 0.0:
             assert not res.image[j, i].any()
@@ -251,9 +253,9 @@ def against_twin(scene, pixels=None, skip=(), rtol=1e-6):
 
 def check_bound(res, refs, rtol):
     """Where the bound is finite: never exceeded by the difference from the twin, not vacuous (its
-    median within 10 rtol of the value) and tight enough that an answer 3 rtol off would exceed it
-    on at least 90 % of the pixels; the pixels with an infinite bound are those of the segments counted
-    unbounded.
+    median within 10 rtol of the value, none beyond 3 rtol) and tight enough that an answer 3 rtol off
+    would exceed it on at least 90 % of the pixels; the pixels with an infinite bound are those of the
+    segments counted unbounded.
     Below rtol 1e-6 only that it holds: the image's float32 rounding (6e-8, in the bound) dominates."""
     ratios, unbounded, loose = [], 0, 0
     for (i, j), ref in refs.items():
@@ -264,7 +266,7 @@ def check_bound(res, refs, rtol):
         assert np.all(np.abs(value - ref) <= bound), ((i, j), value - ref, bound)
         loose += not np.all(np.abs(value * (1.0 + 3.0 * rtol) - ref) > bound)
         ratios.append(float(np.max(bound / value)))
-    assert ratios and (rtol < 1e-6 or np.median(ratios) < 10.0 * rtol), ratios
+    assert ratios and (rtol < 1e-6 or np.median(ratios) < 10.0 * rtol and max(ratios) < 3.0 * rtol), ratios
     assert rtol < 1e-6 or loose <= 0.1 * len(ratios), (loose, sorted(ratios)[-3:])
     assert (unbounded > 0) == (res.stats.get("inside: refracted sphere segments unbounded", 0) > 0) or \
         len(refs) < CAMERA["width"] * CAMERA["height"] // 4
@@ -288,16 +290,42 @@ def test_quadrature_matches_the_twin_under_a_lamp():
     against_twin(scene, [GRAZING, CAUSTIC, FOLD], rtol=1e-8)
 
 
+def test_a_fold_beside_the_marginal_cone_is_bounded_tightly():
+    """The glass ball under the lamp: on the pixel whose segment crosses the marginal rays' cone
+    4.5e-5 before the caustic the fold pair's window reaches across the cone's crossing, so that
+    the rule's pieces in x stay away from the caustic's 1/sqrt: every lit pixel's bound within
+    3 rtol of its value at rtol 1e-6 (the twin confirms it holds there: the slow test below)."""
+    res = image(ball(*CASES["glass_lamp"]), "quadrature", {"rtol": 1e-6})
+    lit = res.image.max(axis=2) > 0.0
+    ratio = res.error_bound / np.where(res.image > 0.0, res.image, 1.0)
+    assert lit[CONE_FOLD[1], CONE_FOLD[0]] and lit.sum() >= 10
+    assert np.all(ratio[lit] < 3e-6), ratio[CONE_FOLD[1], CONE_FOLD[0]]
+
+
 @pytest.mark.slow  # ~5 min: python -m pytest -q -m slow tests/test_refracted_sphere.py
 @pytest.mark.parametrize("case", list(CASES))
 def test_quadrature_matches_the_twin(case):
     """Water and glass balls under the lamp, the sun and a spot whose cone edges cross the ball, every
-    pixel but the twin's UNRESOLVED, within 1e-6 at rtol 1e-6 (0 where the twin is unlit); the bound
-    holds where it is finite (`check_bound`)."""
-    res, worst, crossings, lit = against_twin(ball(*CASES[case]), skip=UNRESOLVED.get(case, ()))
+    pixel within 1e-6 at rtol 1e-6 (0 where the twin is unlit); the bound holds where it is finite
+    (`check_bound`)."""
+    res, worst, crossings, lit = against_twin(ball(*CASES[case]))
     assert worst < 1e-6 and lit >= 10, (worst, crossings, lit)
     assert crossings >= CROSSINGS[case], crossings
     assert res.stats["inside: integrals not converged"] == 0
+
+
+@pytest.mark.slow  # ~3 min: python -m pytest -q -m slow tests/test_refracted_sphere.py
+def test_the_spots_band_edges_are_breaks():
+    """The glass ball under the spot aimed at its centre, at 32 x 24: on pixels whose paths cross the
+    spot's band edges (its falloff's kinks, which the rule's error estimate misses unless they are
+    breaks: its bound was exceeded 3 to 12 times there) the bound holds against the twin."""
+    scene = ball(*CASES["glass_spot"])
+    scene["camera"] = CAMERA | {"width": 32, "height": 24}
+    res = image(scene, "quadrature", {"rtol": 1e-6})
+    twin = Twin(scene)
+    refs = {(i, j): twin.pixel(i, j)[0] for i, j in [(20, 11), (22, 10), (13, 19)]}
+    assert all(ref.min() > 0.0 for ref in refs.values())
+    check_bound(res, refs, 1e-6)
 
 
 @pytest.fixture(scope="module")

@@ -58,7 +58,13 @@ of the marginal rays, refracted at grazing incidence, about the axis with its ap
 it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
 the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
-distance from the axis at the caustic point's height z_C), found like the paths. QUAD integrates the
+distance from the axis at the caustic point's height z_C), found like the paths. A spot aimed at the
+centre (its axis along the light's axis) has its falloff's kinks, its band edges, at fixed angles
++-theta_e (`spot_edges`): the pieces in x are cut where those rays reach the segment, and the fold
+pair's window in theta at +-theta_e (a kink left inside a piece fools the rule's error estimate;
+located to the resolution of doubles, a kink of a continuous falloff misplaced by dx changes the
+integral by its jump in slope x dx^2, far below the rounding; a hard edge's jump x dx is not in the
+bound; other spots' edges are not cut). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
 in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
 MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
@@ -75,7 +81,12 @@ the record's window: a count of them that changes between evaluations is the gua
 inside W, in theta: by the area formula each point x of [a, b] that the ray refracted at theta
 reaches (h(theta; X(x)) = 0, a quadratic in x once squared) weighs in at |dx/dtheta| = |h_theta| /
 |h_x|, and |h_theta| = R cos_t |1 - s kappa_t| (the tube's width in the plane) cancels the tangential
-factor of E, so the integrand in theta (`fold_value`, `FoldPair`) is smooth through the caustic.
+factor of E, so the integrand in theta (`fold_value`, `FoldPair`) is smooth through the caustic. Where a cone's crossing
+is the break beside the caustic's, the pieces reach across it to the middle of the piece beyond (the
+end with one path more then lies on that side: W is the outermost path there and the lit arc's end,
+the pair's other path entering at the cone's crossing), so that no piece in x ends near the
+caustic, where its pair's rounding and the rule's nodes would meet the 1/sqrt; the paths outside W
+are integrated in x on both sides of the cone's crossing.
 
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
@@ -99,7 +110,9 @@ rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, count
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
 crossings in a row), an evaluation whose scan was unproven, a piece whose path count changed between
 its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
-`roots`, which is not proven), eta <= 1.
+`roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
+h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
+derivative of phi, which `angular_bounds` does not bound), eta <= 1.
 """
 from __future__ import annotations
 
@@ -133,6 +146,7 @@ TRACK = 6
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
+EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
 
 class SphereRefracted(NamedTuple):
@@ -140,8 +154,9 @@ class SphereRefracted(NamedTuple):
     segment's start o and direction w, the sphere's centre c and radius, the light's position (a
     directional light: the unit direction toward it), its axis ez (the unit direction from c toward
     the light), d = |L - c| (inf for a directional light), theta_a the lit arc's half-width, the
-    spot's axis and (cos_end, cos_start, curve), `cell_table`, the integrand's track and the window of
-    angles whose paths `refracted_value` leaves out (empty: (inf, -inf))."""
+    spot's axis and (cos_end, cos_start, curve), `cell_table`, the integrand's track, the window of
+    angles whose paths `refracted_value` leaves out (empty: (inf, -inf)) and the spot's band edges
+    (`spot_edges`: their count, then the x where a path crosses one, ascending; then the angles)."""
     o: np.ndarray
     w: np.ndarray
     c: np.ndarray
@@ -162,6 +177,7 @@ class SphereRefracted(NamedTuple):
     cells: np.ndarray
     track: np.ndarray
     window: np.ndarray
+    edges: np.ndarray
 
 
 @njit
@@ -631,6 +647,86 @@ def _segment(r):
 
 
 @njit
+def _ray_crossings(r, pz, py, tz, ty, a, b, xs):
+    """The x in [a, b] where the line of the ray from P = (pz, py) along t = (tz, ty), turned about the
+    axis, meets the segment's line, into xs (returns their count, at most 2): the roots of
+    h(theta; X(x)) = 0 (the ray's line tz y - ty z = c0, squared: a quadratic in x), less the squared
+    equation's other branch (the ray's mirror image across the axis)."""
+    f, v, fz, wz = _segment(r)
+    ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+    fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    c0 = tz * py - ty * pz
+    e0 = c0 + ty * fz
+    found = np.empty(2)
+    n = quadratic_roots(tz * tz * vv - ty * ty * wz * wz, tz * tz * fv - ty * wz * e0, tz * tz * ff - e0 * e0, found,
+                        0)
+    m = 0
+    for k in range(n):
+        x = found[k]
+        if not a <= x <= b:
+            continue
+        zx = fz + x * wz
+        yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+        if yx > 0.0 and abs(tz * yx - ty * zx - c0) <= abs(tz * yx + ty * zx + c0):
+            xs[m] = x
+            m += 1
+    return m
+
+
+@njit
+def spot_edges(r, end):
+    """Into r.edges: where the spot aims along the axis (at the centre), so that its cosine toward a
+    path's direction out of the light depends on theta alone, (d - R cos theta) / o, falling from 1 at
+    theta = 0: the angles theta_e in (0, theta_a) where it reaches cos_end and cos_start (bisected to
+    the resolution of doubles; edges[EDGES + 1:], nan for none) and the x in (0, end) where the rays
+    refracted at +-theta_e reach the segment ahead of P (edges[0] their count, edges[1:] ascending):
+    the falloff's kinks along the segment and in the fold pair's angle. None for other lights and
+    spots."""
+    edges = r.edges
+    edges[0] = 0.0
+    edges[EDGES + 1], edges[EDGES + 2] = math.nan, math.nan
+    ez, axis = r.ez, r.axis
+    cross = (ez[1] * axis[2] - ez[2] * axis[1]) ** 2 + (ez[2] * axis[0] - ez[0] * axis[2]) ** 2 + \
+        (ez[0] * axis[1] - ez[1] * axis[0]) ** 2
+    if r.distant or not cross <= 1e-18 or not ez[0] * axis[0] + ez[1] * axis[1] + ez[2] * axis[2] < 0.0:
+        return
+    xs = np.empty(2)
+    m = 0
+    for e in range(2):
+        ce = r.spot[0] if e == 0 else r.spot[1]
+        lo, hi = 0.0, r.theta_a
+        if e == 1 and r.spot[1] == r.spot[0]:
+            continue
+        c_hi = (r.d - r.radius * math.cos(hi)) / _arriving(hi, r.radius, r.d)[6]
+        if not c_hi < ce < 1.0:
+            continue
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if not lo < mid < hi:
+                break
+            if (r.d - r.radius * math.cos(mid)) / _arriving(mid, r.radius, r.d)[6] > ce:
+                lo = mid
+            else:
+                hi = mid
+        edges[EDGES + 1 + e] = lo
+        for theta in (lo, -lo):
+            pz, py, tz, ty, _, cos_t, _ = incidence(theta, r.radius, r.d, r.eta)
+            if cos_t == 0.0:
+                continue
+            f, v, fz, wz = _segment(r)
+            for k in range(_ray_crossings(r, pz, py, tz, ty, 0.0, end, xs)):
+                x = xs[k]
+                zx = fz + x * wz
+                yx = math.sqrt(max((f[0] + x * v[0]) ** 2 + (f[1] + x * v[1]) ** 2 + (f[2] + x * v[2]) ** 2, 0.0))
+                if 0.0 < x < end and tz * (zx - pz) + ty * (yx - py) >= 0.0 and m < EDGES:
+                    m += 1
+                    edges[m] = x
+    sort_few(edges, 1, m + 1)
+    edges[0] = m
+
+
+@njit
 def fold_value(theta, r, a, b):
     """The fold pair's integrand in theta (module docstring, "The caustic"): over the points o + x w,
     x in [a, b], that the ray refracted at theta reaches (the roots of h(theta; X(x)) = 0 in x: a
@@ -642,25 +738,20 @@ def fold_value(theta, r, a, b):
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, r.d, eta)
     if cos_t == 0.0:
         return 0.0
+    xs = np.empty(2)
+    n = _ray_crossings(r, pz, py, tz, ty, a, b, xs)
     f, v, fz, wz = _segment(r)
     ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
     fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
     vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-    c0 = tz * py - ty * pz  # the ray's line in the plane: tz y - ty z = c0
-    e0 = c0 + ty * fz
-    xs = np.empty(2)
-    n = quadratic_roots(tz * tz * vv - ty * ty * wz * wz, tz * tz * fv - ty * wz * e0, tz * tz * ff - e0 * e0, xs, 0)
+    c0 = tz * py - ty * pz
     step = 2.0 * r.theta_a / SCAN
     et = r.cells[min(max(int((theta + r.theta_a) / step), 0), SCAN - 1), 2]  # t's rounding as an angle
     total = err = 0.0
     for k in range(n):
         x = xs[k]
-        if not a <= x <= b:
-            continue
         zx = fz + x * wz
         yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
-        if not yx > 0.0 or abs(tz * yx - ty * zx - c0) > abs(tz * yx + ty * zx + c0):
-            continue  # the squared equation's other branch (the ray's mirror image across the axis)
         dyx = (fv + x * vv) / yx
         hx = tz * dyx - ty * wz
         zp, yp, ey = _plane(r, x)
@@ -801,7 +892,7 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
     return SphereRefracted(geo_row[:3].copy(), geo_row[3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo_row[6:9].copy(), distant, ez, d, theta_a, eta, kt, ks, code, g, kt_out,
                            geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK),
-                           np.array([math.inf, -math.inf]))
+                           np.array([math.inf, -math.inf]), np.zeros(EDGES + 3))
 
 
 @njit
@@ -813,6 +904,21 @@ def _piece(rec, lo, hi, rtol, stats, track):
 
 @njit
 def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
+    """(value, rule's bound) of `_beside` over [lo, hi] of r, split where a path crosses a spot's band
+    edge (r.edges)."""
+    total = rule = 0.0
+    a, fa = lo, flag_lo
+    for k in range(1, int(r.edges[0]) + 1):
+        x = r.edges[k]
+        if a < x < hi:
+            val, b = _beside(r, a, x, fa, 0.0, rtol, stats, track)
+            total, rule, a, fa = total + val, rule + b, x, 0.0
+    val, b = _beside(r, a, hi, fa, flag_hi, rtol, stats, track)
+    return total + val, rule + b
+
+
+@njit
+def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     """(value, rule's bound) of `_piece` over [lo, hi] of r, in u beside an end that is a cone's or the
     caustic's crossing (flag > 0: `NearCaustic`), split at the middle where both ends are."""
     if flag_lo == 0.0 and flag_hi == 0.0:
@@ -829,15 +935,16 @@ def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
 
 
 @njit
-def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
+def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, track):
     """(value, rule's bound, absolute rounding, ends' bound, ok) of [lo, hi] of r across one caustic
     crossing, its caustic point's ray refracted at theta_c (module docstring, "The caustic"): the fold
     pair's window [theta_1, theta_2], the adjacent paths that bracket theta_c at the end with two paths
-    more than the other (both scans proven), or at a cone's crossing with one more the outermost path
-    and the lit arc's end beyond theta_c (the pair's other path leaves there); the paths refracted
-    outside it by `_stretch` in x, those
-    inside by `fold_value` in theta, and each window end off by its root's spread at 8 x the fold
-    integrand there. ok False (nothing integrated) where there is no such pair or a spread is inf."""
+    more than the other (both scans proven), or at an end with one more that is a cone's crossing or
+    whose side of the caustic holds one (cone in (lo, hi), cone_side 0 for lo's, 1 for hi's, -1: none)
+    the outermost path and the lit arc's end beyond theta_c (the pair's other path leaves there); the
+    paths refracted outside it by `_stretch` in x (split at cone), those inside by `fold_value` in
+    theta, and each window end off by its root's spread at 8 x the fold integrand there. ok False
+    (nothing integrated) where there is no such pair or a spread is inf."""
     found, spread = np.empty((2, MAX_PATHS)), np.empty((2, MAX_PATHS))
     counts = np.zeros(2, dtype=np.int64)
     for side in range(2):
@@ -854,7 +961,8 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
     for k in range(n - 1):
         if more == 2 and found[side, k] < theta_c < found[side, k + 1]:
             t1, t2, e1, e2 = found[side, k], found[side, k + 1], spread[side, k], spread[side, k + 1]
-    if more == 1 and flag == 1.0 and n > 0:  # the pair's other path leaves through the lit arc's end there
+    if more == 1 and (flag == 1.0 or cone_side == side) and n > 0:  # the pair's other path leaves through the
+        # lit arc's end there, or at the cone's crossing between that end and the caustic
         if found[side, n - 1] < theta_c:
             t1, t2, e1, e2 = found[side, n - 1], r.theta_a, spread[side, n - 1], 0.0
         elif theta_c < found[side, 0]:
@@ -862,10 +970,24 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
     if not e1 + e2 < math.inf:
         return 0.0, 0.0, 0.0, 0.0, False
     r.window[0], r.window[1] = t1, t2
-    total, rule = _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track)
+    if cone_side < 0:
+        total, rule = _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track)
+    else:
+        total, rule = _stretch(r, lo, cone, flag_lo, 1.0, rtol, stats, track)
+        val, b = _stretch(r, cone, hi, 1.0, flag_hi, rtol, stats, track)
+        total, rule = total + val, rule + b
     r.window[0], r.window[1] = math.inf, -math.inf
     track[FOLD_ABS] = 0.0
-    val, b = _piece(FoldPair(r, lo, hi), t1, t2, rtol, stats, track)
+    cuts = np.empty(6)  # W, cut where its rays cross a spot's band edge
+    cuts[0], n = t1, 1
+    for e in range(EDGES + 1, EDGES + 3):
+        for theta in (r.edges[e], -r.edges[e]):
+            if t1 < theta < t2:
+                cuts[n] = theta
+                n += 1
+    cuts[n] = t2
+    sort_few(cuts, 0, n + 1)
+    val, b = bounded_piecewise(FoldPair(r, lo, hi), cuts, n + 1, rtol, N10, W10, N20, W20, stats)
     rounding = track[FOLD_ABS] * (t2 - t1)
     width = hi - lo  # the ends: the fold integrand of the branch near them, wherever on the line it meets
     ends = 8.0 * (e1 * fold_value(t1, r, lo - width, hi + width) + e2 * fold_value(t2, r, lo - width, hi + width))
@@ -875,11 +997,13 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, rtol, stats, track):
 @njit
 def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
     """(value, variance, bound) of one segment: QUAD adaptive between `breaks` with its bound (module
-    docstring, "The bound"; a piece across one caustic crossing by `_fold`; inf where that fails, a scan
-    was unproven or a piece's path count changed: counted in stats[UNBOUNDED]), MARCH or SAMPLE
+    docstring, "The bound"; the pieces across one caustic crossing by `_fold`, across a cone's crossing
+    beside it too; inf where that fails, a scan was unproven or a piece's path count changed: counted in
+    stats[UNBOUNDED]), MARCH or SAMPLE
     media/slab.py's (bound inf)."""
     if mode == QUAD:
         end = min(ell, 745.0 / r.kt)
+        spot_edges(r, end)
         br, caustic, spans = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
         m = breaks(r, end, br[1:MAX_PATHS + 2], caustic[1:MAX_PATHS + 2], spans[1:MAX_PATHS + 2])
         br[m + 1] = end
@@ -888,9 +1012,27 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
         i = 0
         while i <= m:
             lo, hi = br[i], br[i + 1]
+            # a caustic crossing at i + 1 or i + 2 with a cone's crossing beside it (at i + 1 or i + 2):
+            # the fold's pieces extend across that cone's crossing to the middle of the piece beyond it
+            k = i + 2 if caustic[i + 1] == 1.0 else i + 1
+            if i + 3 <= m + 1 and caustic[k] == 2.0 and caustic[2 * i + 3 - k] == 1.0 and caustic[i] != 2.0 and \
+                    caustic[i + 3] != 2.0:
+                a, b = (0.5 * (lo + hi), br[i + 3]) if k == i + 2 else (lo, 0.5 * (br[i + 2] + br[i + 3]))
+                val, bnd, rounding, ends, ok = _fold(r, a, b, 0.0 if k == i + 2 else caustic[i],
+                                                     0.0 if k == i + 1 else caustic[i + 3], spans[k],
+                                                     br[2 * i + 3 - k], 0 if k == i + 2 else 1, rtol, stats, track)
+                if ok:
+                    total, rule, folds = total + val, rule + bnd + ends, folds + rounding
+                    for c, d, fc, fd in ((lo, a, caustic[i], 0.0), (b, br[i + 3], 0.0, caustic[i + 3])):
+                        if d > c:
+                            val, bnd = _stretch(r, c, d, fc, fd, rtol, stats, track)
+                            total, rule = total + val, rule + bnd
+                    caustic[k] = 3.0  # crossed by `_fold`: bounded
+                    i += 3
+                    continue
             if caustic[i + 1] == 2.0 and caustic[i] != 2.0 and caustic[i + 2] != 2.0 and br[i + 2] > lo:
-                val, b, rounding, ends, ok = _fold(r, lo, br[i + 2], caustic[i], caustic[i + 2], spans[i + 1], rtol,
-                                                   stats, track)
+                val, b, rounding, ends, ok = _fold(r, lo, br[i + 2], caustic[i], caustic[i + 2], spans[i + 1], 0.0,
+                                                   -1, rtol, stats, track)
                 if ok:
                     total, rule, folds = total + val, rule + b + ends, folds + rounding
                     caustic[i + 1] = 3.0  # crossed by `_fold`: bounded
