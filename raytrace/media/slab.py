@@ -689,13 +689,16 @@ def _one_piece(rec, lo, hi, rtol, stats):
 
 
 @njit
-def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rtol, dplanes, mags, entry, stats):
+def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot, rtol, dplanes, mags, entry, stats,
+                     value, bound):
     """(∫_0^ell `faces_point` dx, a bound on its error) for a unit point or spot light (`spot`: (cos_end,
-    cos_start, curve)) in a convex refractive shape, adaptive (`_one_piece`'s rule) on the pieces
-    between the breaks of the integrand: where a face's refraction point crosses one of its edges
-    (`edge_breaks`) and where a spot's cone levels are crossed on a face's refracted path
-    (`refracted_cuts`); an infinite segment is cut where exp(-kt x) underflows. With no planes
-    (`refracting_faces`' entry plane alone), the pieces between the cone's crossings. The bound
+    cos_start, curve)) in a convex refractive shape, per channel (kt, ks, kt_out: one each, every one's
+    integral ending at `end` = min(ell, 745 / kt), where exp(-kt x) underflows) into value and bound,
+    adaptive (`_one_piece`'s rule) on the pieces between the breaks of the integrand: where a face's
+    refraction point crosses one of its edges (`edge_breaks`) and where a spot's cone levels are
+    crossed on a face's refracted path (`refracted_cuts`). With no planes (`refracting_faces`' entry
+    plane alone), the pieces between the cone's crossings. The breaks and their isolation in the
+    bound read no channel's coefficients: found once for all the channels. The bound
     (docs/error_bounds.md, "Point and spot light in refractive shapes") is the rule's (inf where a
     panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
     (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
@@ -703,9 +706,10 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
     interval; inf with no planes or eta <= 1. dplanes: the planes' errors (interiors/rows.py
     `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
     `leg_errors`); entry: the entry face's row in planes."""
-    if ks == 0.0 or not ell > 0.0:
-        return 0.0, 0.0
-    end = min(ell, 745.0 / kt)
+    value[:] = 0.0
+    bound[:] = 0.0
+    if not ell > 0.0:
+        return
     nf = faces.shape[0]
     cuts = np.empty(nf * (EDGE_CUTS * planes.shape[0] + MAX_CUTS))
     m = 0
@@ -715,24 +719,30 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
                             end, cuts[m:])
         m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
+    bounded = planes.shape[0] > 0 and eta > 1.0
+    located = np.zeros(kt.shape[0])
     track = np.zeros(1)
-    rec = FacesPoint(faces, planes, eta, kt, ks, code, g, kt_out, spot, phase_condition(code, g), dplanes[0],
-                     dplanes[1], mags, entry, track)
-    before = stats[INTERVALS]
-    total, rule, rounding, lo = 0.0, 0.0, 0.0, 0.0
-    for i in range(m + 1):
-        hi = cuts[i] if i < m else end
-        if hi > lo:
-            track[0] = 0.0
-            value, err = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
-            total += value
-            rule += err
-            rounding += 3.0 * track[0] * (hi - lo)
-        lo = hi
-    if planes.shape[0] == 0 or not eta > 1.0:
-        return total, math.inf
-    located = break_errors(rec, end, cuts[:m])
-    return total, rule + rounding + located + (stats[INTERVALS] - before) * U * (total + rule)
+    for c in range(kt.shape[0]):
+        rec = FacesPoint(faces, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot, phase_condition(code, g),
+                         dplanes[0], dplanes[1], mags, entry, track)
+        if bounded and c == 0:  # the breaks' location errors of every channel
+            channel_break_errors(rec, end, cuts[:m], kt, ks, kt_out, located)
+        if ks[c] == 0.0:
+            continue
+        before = stats[INTERVALS]
+        total, rule, rounding, lo = 0.0, 0.0, 0.0, 0.0
+        for i in range(m + 1):
+            hi = cuts[i] if i < m else end
+            if hi > lo:
+                track[0] = 0.0
+                v, e = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
+                total += v
+                rule += e
+                rounding += 3.0 * track[0] * (hi - lo)
+            lo = hi
+        value[c] = total
+        bound[c] = (rule + rounding + located[c] + (stats[INTERVALS] - before) * U * (total + rule) if bounded
+                    else math.inf)
 
 
 @njit
@@ -763,27 +773,39 @@ _EDGE, _CONE = 0, 1
 
 @njit
 def break_errors(rec, end, cuts):
-    """The breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it took): for
+    """The breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it took) for
+    rec's channel (`channel_break_errors`)."""
+    out = np.zeros(1)
+    channel_break_errors(rec, end, cuts, np.array([rec.kt]), np.array([rec.ks]), np.array([rec.kt_out]), out)
+    return out[0]
+
+
+@njit
+def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
+    """out[c] = the breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it
+    took) for each channel (kt, ks, kt_out: one each; the rest of rec's integrand is theirs): for
     every face row f and every other plane g, the roots of n_g·R(x) - c_g (R(x) face f's refraction
     point, whose computed value is within E of the exact one, E the refraction point's error
     `point_error` at the segment's worst (largest x, k, s, least rho) plus the planes' errors; the
     face test's tolerance EDGE_TOL apart) and, for a spot, of its cosine minus each cone level (within
-    the cosine's error `cosine_error`) are isolated by `_isolate`; inf where one may lie away from every cut (the
-    rule would have met an unfound jump or kink), else the sum over the undecided intervals of their
-    width times twice the face's term at their ends (the jumps: an edge's, a hard cone edge's)."""
+    the cosine's error `cosine_error`) are isolated by `_isolate` (which reads no channel's
+    coefficients); inf where one may lie away from every cut (the rule would have met an unfound jump
+    or kink), else the sum over the undecided intervals of their width times twice the face's term at
+    their ends (the jumps: an edge's, a hard cone edge's)."""
     faces, planes, eta, sp = rec.faces, rec.planes, rec.eta, rec.spot
+    out[:] = 0.0
     if not eta > 1.0:
-        return math.inf
-    total = 0.0
+        out[:] = math.inf
+        return
     width = 1e-13 * rec.mags[3]
+    part = np.empty(kt.shape[0])
     for j in range(faces.shape[0]):
         row = faces[j]
         z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
-        if not hl > 1e-9 * rec.mags[3]:
-            return math.inf  # a light within a few roundings of the face's plane
         rho_min, rho_max = rho_range(0.0, end, wl, ll, a)
-        if not rho_min > 0.0:
-            return math.inf
+        if not hl > 1e-9 * rec.mags[3] or not rho_min > 0.0:  # a light within a few roundings of the face's plane
+            out[:] = math.inf
+            return
         z_max = max(z0, z0 + a * end)
         k_max = math.sqrt(rho_max * rho_max + z_max * z_max)
         entry = row[17] == rec.entry
@@ -794,17 +816,22 @@ def break_errors(rec, end, cuts):
             if g == int(row[17]):
                 continue
             tol = e_point + 8.0 * U * rho_max + rec.dc + SQ3 * rec.dn * q + 16.0 * U * (abs(planes[g, 3]) + q)
-            total += _isolate(_EDGE, rec, row, g, 0.0, end, tol, EDGE_TOL * (abs(planes[g, 3]) + q), cuts, width, hl)
+            if not _isolate(_EDGE, rec, row, g, 0.0, end, tol, EDGE_TOL * (abs(planes[g, 3]) + q), cuts, width, hl,
+                            kt, ks, kt_out, part):
+                out[:] = math.inf
+                return
+            out += part
         if is_spot(sp[1]):
             tol = cosine_error(*args) + 8.0 * U * rho_max / hl
             s_min = rho_min * hl / (hl + z_max)  # s / rho >= hl / (hl + z): tan t1 >= tan t2
             for level in (sp[0], sp[1]):
-                total += _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl))
+                if not _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl), kt,
+                                ks, kt_out, part):
+                    out[:] = math.inf
+                    return
+                out += part
                 if sp[1] == sp[0]:
                     break
-        if total == math.inf:
-            return total
-    return total
 
 
 @njit
@@ -839,34 +866,38 @@ def _phi(kind, x, rec, row, g, level):
 
 
 @njit
-def _jump(kind, x, rec, row):
-    """The face's term at x without its face test (_EDGE) or without the falloff (_CONE): at least
-    its jump there."""
+def _jump(kind, x, rec, row, kt, ks, kt_out, out):
+    """out[c] = the face's term at x without its face test (_EDGE) or without the falloff (_CONE) for
+    each channel (kt, ks, kt_out: one each): at least its jump there."""
+    out[:] = 0.0
     z0, a, hl = row[0], row[1], row[2]
     if not z0 + a * x > 0.0:
-        return 0.0
+        return
     rho, r = fermat(x, z0, row[3], row[4], a, hl, rec.eta)
     cone = rec.spot if kind == _EDGE else (NO_CONE[0], NO_CONE[1], float(SMOOTHSTEP))
-    return refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, rec.kt, rec.ks, rec.code, rec.g, rec.kt_out, row[5],
-                        row[6], row[7], cone[0], cone[1], cone[2])
+    for c in range(kt.shape[0]):
+        out[c] = refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, kt[c], ks[c], rec.code, rec.g, kt_out[c],
+                              row[5], row[6], row[7], cone[0], cone[1], cone[2])
 
 
 @njit
-def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
-    """The location error of one break over [0, end]: the exact switch is a root of psi_exact, the
-    computed one a sign change of phi (`_phi`: psi - t, 0 <= t <= slack, the face test's tolerance),
-    and the computed psi (`_psi`) is within tol of psi_exact, so the two may differ only where psi
-    lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
+def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, ks, kt_out, err):
+    """err[c] = the location error of one break over [0, end] for each channel (kt, ks, kt_out: one
+    each; the rest of rec's integrand is theirs); False where it is inf (err then unset): the exact
+    switch is a root of psi_exact, the computed one a sign change of phi (`_phi`: psi - t, 0 <= t <=
+    slack, the face test's tolerance), and the computed psi (`_psi`) is within tol of psi_exact, so
+    the two may differ only where psi lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
     K_R times `edge_tilt` and 1 + 1e-11 for an edge plane; over the outside leg's least length o_min for a
     cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi]
     with psi(lo) + psi(hi) > K (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol
     lies outside the band; the others are halved until shorter than `width`, or than 1e4 `width` with
     both ends in twice the band: these undecided intervals come out from left to right, and runs of
     adjacent ones form clusters. A cluster where phi changes sign with no cut within `width` of it (a
-    jump or kink the rule did not break at): inf; else, for an edge or a hard cone edge, each
+    jump or kink the rule did not break at): inf; else, for an edge or a hard cone edge, the sum of each
     undecided interval's width times twice the larger `_jump` at its ends (the term varies by far less
     than that over 1e4 `width` = 1e-9 of the scene's size: its log-derivative is at most a few over
-    the light's height, which is above 1e-9 of it). inf after MAX_ISOLATE evaluations."""
+    the light's height, which is above 1e-9 of it). inf after MAX_ISOLATE evaluations. The isolation
+    reads no channel's coefficients."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
@@ -874,7 +905,9 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _psi(kind, 0.0, rec, row, g, level), _psi(kind, end, rec, row, g, level)
-    top, evals, err = 1, 2, 0.0
+    top, evals = 1, 2
+    err[:] = 0.0
+    j_lo, j_hi = np.empty(kt.shape[0]), np.empty(kt.shape[0])
     run_lo, run_hi, change = -1.0, -1.0, False
     while top > 0:
         top -= 1
@@ -887,25 +920,26 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
         if hi - lo <= width or (inside and hi - lo <= 1e4 * width):
             if lo != run_hi:  # a new cluster: close the last
                 if change and not _near(cuts, run_lo, run_hi, width):
-                    return math.inf
+                    return False
                 run_lo, change = lo, False
             run_hi = hi
             change = change or _phi(kind, lo, rec, row, g, level) * _phi(kind, hi, rec, row, g, level) <= 0.0
             evals += 2
             if hard:
-                err += 2.0 * max(_jump(kind, lo, rec, row), _jump(kind, hi, rec, row)) * (hi - lo)
+                _jump(kind, lo, rec, row, kt, ks, kt_out, j_lo)
+                _jump(kind, hi, rec, row, kt, ks, kt_out, j_hi)
+                for c in range(kt.shape[0]):
+                    err[c] += 2.0 * max(j_lo[c], j_hi[c]) * (hi - lo)
             continue
         if evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
-            return math.inf
+            return False
         mid = 0.5 * (lo + hi)
         vm = _psi(kind, mid, rec, row, g, level)
         evals += 1
         stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
         top += 2
-    if change and not _near(cuts, run_lo, run_hi, width):
-        return math.inf
-    return err
+    return not (change and not _near(cuts, run_lo, run_hi, width))
 
 
 @njit
@@ -1426,12 +1460,13 @@ def march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
 
 def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, near,
                     dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
-    """Single scattering over inside segments (module docstring), one light each, unit light, one
-    channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
-    of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
-    at height hl above the entry plane, kt_out the extinction outside (through a refractive plane,
-    eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
-    below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
+    """Single scattering over inside segments (module docstring), one light each, unit light, per
+    channel (kt, ks, kt_out: one each; out, var, err: (N, C)): for a directional light (`directional`)
+    per unit beam irradiance inside, with b the cosine of its refracted direction to the normal and mu
+    the scattering cosine; for a point or spot light at height hl above the entry plane, kt_out the
+    extinction outside (through a refractive plane, eta != 1: wl, ll of `refracted_point`; not with
+    CLOSED or APPROX). A light below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter
+    through that plane).
     mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
     and the note's separable approximation, with the outside attenuation at the entry point), MARCH
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
@@ -1441,9 +1476,10 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
-    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD),
-    with only >= 0 through that face alone; `near` (int64): the planes' neighbours of
-    interiors/crossing.py `plane_neighbours` there (`reachable_faces`; empty: every plane is tested).
+    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD,
+    every channel at once: the faces' cull and breaks are the channels'), with only >= 0 through that
+    face alone; `near` (int64): the planes' neighbours of interiors/crossing.py `plane_neighbours`
+    there (`reachable_faces`; empty: every plane is tested).
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces), for QUAD's point and spot lights in
     convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to
@@ -1451,23 +1487,34 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     Each kind of segment has its own kernel below, compiled on first use: a scene compiles the
     integrands of the kinds it meets only."""
     out[:], var[:] = 0.0, 0.0
-    live = ell > 0.0 if ks != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
-    err[:] = np.where(live, math.inf, 0.0)
+    err[:] = np.where((ell[:, None] > 0.0) & (ks[None, :] != 0.0), math.inf, 0.0)
     directional = np.asarray(directional, dtype=np.bool_)
+    faces = eta != 1.0 and mode == QUAD
+    if faces and np.any((ell > 0.0) & ~directional):
+        _faces_quad(np.flatnonzero((ell > 0.0) & ~directional), geo, planes, near, a, hl, wl, ll, only, ell, kt, ks,
+                    code, g, kt_out, eta, rtol, dplanes, out, err, stats)
+    for c in range(kt.shape[0]):
+        column = out[:, c].copy(), var[:, c].copy(), err[:, c].copy()
+        live = ell > 0.0 if ks[c] != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
+        _channel_radiance(live & directional if faces else live, directional, xh, h, hl, a, b, mu, ell, float(kt[c]),
+                          float(ks[c]), code, g, float(kt_out[c]), wl, ll, eta, geo, planes, near, dplanes, only,
+                          mode, rtol, steps, tau_max, keys, dim0, seed, *column, stats)
+        out[:, c], var[:, c], err[:, c] = column
+
+
+def _channel_radiance(live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes,
+                      near, dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
+    """`inside_radiance` of one channel over the segments `live` (out, var, err: (N,))."""
     convex, sampled = planes.shape[0] > 0, mode == MARCH or mode == SAMPLE
 
     def each(kernel, which, *args):  # `kernel` over the segments `which` selects, where there are any
         if np.any(which):
             kernel(np.flatnonzero(which), *args)
 
-    if eta != 1.0 and (mode == QUAD or (convex and sampled)):
-        # a point or spot light through every face of a convex refractive shape, else the entry plane
-        if mode == QUAD:
-            each(_faces_quad, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta,
-                 rtol, dplanes, out, err, stats)
-        else:
-            each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
-                 eta, mode, steps, tau_max, keys, dim0, seed, out, var)
+    if eta != 1.0 and convex and sampled:
+        # a point or spot light through every face of a convex refractive shape
+        each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
+             eta, mode, steps, tau_max, keys, dim0, seed, out, var)
         live &= directional
     if convex and mode != CLOSED and mode != APPROX:
         if mode == QUAD:
@@ -1677,36 +1724,54 @@ def segment_reach(geo, planes, near, eta, ell, out):
 @njit
 def _faces_quad(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out,
                 err, stats):
-    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound;
-    with several faces (eta > 1), each face's integral over the planes it needs alone (`reachable_faces`
-    of its row alone, the same decisions as with the others: the same face test, breaks and bound as
-    with every plane), summed, their bounds summed with the sum's rounding (u per term)."""
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD, every channel at once (kt, ks,
+    kt_out: one each; out, err: (N, C)): `faces_quadrature`, its bound; with several faces (eta > 1),
+    each face's integral over the planes it needs alone (`reachable_faces` of its row alone, the same
+    decisions as with the others: the same face test, breaks and bound as with every plane), summed,
+    their bounds summed with the sum's rounding (u per term). The channels whose integrals end at the
+    same x (min(ell, 745 / kt)) share the faces, their cull and their breaks (none reads the channel's
+    coefficients); those with ks = 0 are 0, exactly."""
     row, one = np.empty((1, FACE_COLUMNS)), np.empty(1, np.int64)
+    nc = kt.shape[0]
+    ends = np.empty(nc)
     for s in sel:
-        end = min(ell[s], 745.0 / kt)
-        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
-        ids = np.empty(m, np.int64)
-        m, local = reachable_faces(faces, m, planes, near, eta, end, ids)
-        err[s] = 0.0
-        if m > 0:
+        for c in range(nc):
+            ends[c] = min(ell[s], 745.0 / kt[c]) if ks[c] != 0.0 else -1.0
+        for c0 in range(nc):
+            end = ends[c0]
+            if end < 0.0 or np.any(ends[:c0] == end):
+                continue
+            chans = np.flatnonzero(ends == end)
+            kts, kss, kos = kt[chans], ks[chans], kt_out[chans]
+            value, bound = np.empty(len(chans)), np.empty(len(chans))
+            faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+            ids = np.empty(m, np.int64)
+            m, local = reachable_faces(faces, m, planes, near, eta, end, ids)
+            for c in chans:
+                err[s, c] = 0.0
+            if m == 0:
+                continue
             r, cmax = coordinate_size(geo[s], planes, end)
             p, ln, lp = light_norms(geo[s])
+            mags = (p, ln, lp, r + ln + cmax)
             if m == 1 or not eta > 1.0:
-                out[s], err[s] = faces_quadrature(faces[:m], local, ell[s], kt, ks, code, g, kt_out, eta, spot[3:],
-                                                  rtol, dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], local),
-                                                  stats)
+                faces_quadrature(faces[:m], local, ell[s], end, kts, kss, code, g, kos, eta, spot[3:], rtol, dplanes,
+                                 mags, entry_face(geo[s], local), stats, value, bound)
+                for k, c in enumerate(chans):
+                    out[s, c], err[s, c] = value[k], bound[k]
                 continue
-            total, bound = 0.0, 0.0
+            total, bounds = np.zeros(len(chans)), np.zeros(len(chans))
             for j in range(m):  # each face over its own planes: their sum is the integral over all
                 for c in range(FACE_COLUMNS):
                     row[0, c] = faces[j, c]
                 row[0, 17] = ids[j]  # the same cull of this row alone: the planes it needs
                 own = reachable_faces(row, 1, planes, near, eta, end, one)[1]
-                value, e = faces_quadrature(row, own, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, dplanes,
-                                            (p, ln, lp, r + ln + cmax), entry_face(geo[s], own), stats)
+                faces_quadrature(row, own, ell[s], end, kts, kss, code, g, kos, eta, spot[3:], rtol, dplanes, mags,
+                                 entry_face(geo[s], own), stats, value, bound)
                 total += value
-                bound += e
-            out[s], err[s] = total, bound + m * U * (total + bound)
+                bounds += bound
+            for k, c in enumerate(chans):
+                out[s, c], err[s, c] = total[k], bounds[k] + m * U * (total[k] + bounds[k])
 
 
 @njit
