@@ -356,14 +356,15 @@ def entry_face(geo, planes):
 
 
 @njit
-def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
-    """The faces of the convex refractive shape {q : n_f·q <= c_f} (`planes`) that the point or spot light
-    of the geo row (media/slab.py GEO_COLUMNS) is outside of (n_f·L > c_f), one row of FACE_COLUMNS each
-    in out; returns their count. Face f's plane is the refractive plane of `refracted_at` with
-    z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f. The row's entry face
-    (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the entry plane's
-    a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no
-    planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar boundary)."""
+def refracting_faces(geo, planes, a, hl, wl, ll, spot, out, floor=0.0):
+    """The faces of the convex refractive shape {q : n_f·q <= c_f} (`planes`) that the point or spot light of
+    the geo row (media/slab.py GEO_COLUMNS) is outside of (n_f·L > c_f; with `floor` < 0, above c_f +
+    floor), one row of FACE_COLUMNS each in out; returns their count. Face f's plane is the refractive plane
+    of `refracted_at` with z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f.
+    The row's entry face (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the
+    entry plane's a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`).
+    With no planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar
+    boundary)."""
     nf = planes.shape[0]
     entry = entry_face(geo, planes)
     m = 0
@@ -376,7 +377,7 @@ def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
             z0 = max(planes[f, 3] - (n0 * geo[0] + n1 * geo[1] + n2 * geo[2]), 0.0)
             af = -(n0 * geo[3] + n1 * geo[4] + n2 * geo[5])
             hf = n0 * geo[6] + n1 * geo[7] + n2 * geo[8] - planes[f, 3]
-        if not hf > 0.0:
+        if not hf > floor:
             continue
         row = out[m]
         rel0, rel1, rel2 = geo[6] - geo[0], geo[7] - geo[1], geo[8] - geo[2]
@@ -720,12 +721,13 @@ def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot
         m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
     bounded = planes.shape[0] > 0 and eta > 1.0
+    graze = bounded and nf == 1 and not faces[0, 2] > GRAZING * mags[3]  # bounded whole (`grazing_bound`)
     located = np.zeros(kt.shape[0])
     track = np.zeros(1)
     for c in range(kt.shape[0]):
         rec = FacesPoint(faces, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot, phase_condition(code, g),
                          dplanes[0], dplanes[1], mags, entry, track)
-        if bounded and c == 0:  # the breaks' location errors of every channel
+        if bounded and not graze and c == 0:  # the breaks' location errors of every channel
             channel_break_errors(rec, end, cuts[:m], kt, ks, kt_out, located)
         if ks[c] == 0.0:
             continue
@@ -741,8 +743,41 @@ def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot
                 rounding += 3.0 * track[0] * (hi - lo)
             lo = hi
         value[c] = total
-        bound[c] = (rule + rounding + located[c] + (stats[INTERVALS] - before) * U * (total + rule) if bounded
-                    else math.inf)
+        if graze:  # both the value and the exact integral lie in [0, total + the bound on the exact]
+            row = faces[0]
+            bound[c] = total + grazing_bound(row[0], row[1], row[2], row[3], row[4], end, ks[c], code, g, eta, dplanes,
+                                             mags)
+        else:
+            bound[c] = (rule + rounding + located[c] + (stats[INTERVALS] - before) * U * (total + rule) if bounded
+                        else math.inf)
+
+
+GRAZING = 1e-9  # a light within this of the scene's size of a face's plane: the face bounded whole (`grazing_bound`)
+
+
+@njit
+def grazing_bound(z0, a, hl, wl, ll, end, ks, code, g, eta, dplanes, mags):
+    """A bound on ∫_0^end of a face's exact term of `faces_point` for a unit light, on the face or not
+    (z0, a, hl, wl, ll of its row, `refracting_faces`), for a light near the face's plane: its exact
+    height hl_e <= max(hl, 0) + dc + sqrt(3) dn |L| + 32u S (hl computed, dn, dc the planes' errors,
+    S = mags[3] >= |p|, |L|, |c_f|); no term where hl_e <= 0; else the tube's irradiance (`refracted_at`)
+    E <= T sin1 cos1^2 / (rho cos2 hl_e) (its denominator without the second term) = T sin1 hl_e /
+    (rho cos2 o^2) <= hl_e / (rho cos2 o^2), with cos2 >= sqrt(1 - 1 / eta^2) (sin2 = sin1 / eta) and
+    o >= rho - r >= rho - z / sqrt(eta^2 - 1) (r = z tan2); the falloff, T and the attenuation are at
+    most 1, Phi at most its value at mu = 1 or -1 (isotropic, Rayleigh, HG). rho's least value over
+    [0, end] (`rho_range`) less 1e-6 S and the depth's largest (z0 + a x at an end) plus 1e-6 S (the
+    exact ones differ by the rounding and the planes' errors, far less). inf where the bound on o or
+    rho is not positive, or for eta <= 1."""
+    if not eta > 1.0:
+        return math.inf
+    size = mags[3]
+    rho = rho_range(0.0, end, wl, ll, a)[0] - 1e-6 * size
+    o = rho - (max(z0, z0 + a * end, 0.0) + 1e-6 * size) / math.sqrt(eta * eta - 1.0)
+    if not (rho > 0.0 and o > 0.0):
+        return math.inf
+    h = max(hl, 0.0) + dplanes[1] + SQ3 * dplanes[0] * mags[1] + 32.0 * U * size
+    phi = max(phase_value(code, g, 1.0), phase_value(code, g, -1.0))
+    return end * ks * phi * h / (rho * math.sqrt(1.0 - 1.0 / (eta * eta)) * o * o) * (1.0 + 1e-9)
 
 
 @njit
@@ -803,7 +838,7 @@ def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
         row = faces[j]
         z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
         rho_min, rho_max = rho_range(0.0, end, wl, ll, a)
-        if not hl > 1e-9 * rec.mags[3] or not rho_min > 0.0:  # a light within a few roundings of the face's plane
+        if not hl > GRAZING * rec.mags[3] or not rho_min > 0.0:  # a light within a few roundings of the face's plane
             out[:] = math.inf
             return
         z_max = max(z0, z0 + a * end)
@@ -882,22 +917,21 @@ def _jump(kind, x, rec, row, kt, ks, kt_out, out):
 
 @njit
 def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, ks, kt_out, err):
-    """err[c] = the location error of one break over [0, end] for each channel (kt, ks, kt_out: one
-    each; the rest of rec's integrand is theirs); False where it is inf (err then unset): the exact
-    switch is a root of psi_exact, the computed one a sign change of phi (`_phi`: psi - t, 0 <= t <=
-    slack, the face test's tolerance), and the computed psi (`_psi`) is within tol of psi_exact, so
-    the two may differ only where psi lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
+    """err[c] = the location error of one break over [0, end] for each channel (kt, ks, kt_out: one each; the
+    rest of rec's integrand is theirs); False where it is inf (err then unset): the exact switch is a root
+    of psi_exact, the computed one a sign change of phi (`_phi`: psi - t, 0 <= t <= slack, the face test's
+    tolerance), and the computed psi (`_psi`) is within tol of psi_exact, so the two may differ only where
+    psi lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
     K_R times `edge_tilt` and 1 + 1e-11 for an edge plane; over the outside leg's least length o_min for a
-    cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi]
-    with psi(lo) + psi(hi) > K (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol
-    lies outside the band; the others are halved until shorter than `width`, or than 1e4 `width` with
-    both ends in twice the band: these undecided intervals come out from left to right, and runs of
-    adjacent ones form clusters. A cluster where phi changes sign with no cut within `width` of it (a
-    jump or kink the rule did not break at): inf; else, for an edge or a hard cone edge, the sum of each
-    undecided interval's width times twice the larger `_jump` at its ends (the term varies by far less
-    than that over 1e4 `width` = 1e-9 of the scene's size: its log-derivative is at most a few over
-    the light's height, which is above 1e-9 of it). inf after MAX_ISOLATE evaluations. The isolation
-    reads no channel's coefficients."""
+    cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi] with psi(lo) + psi(hi) > K
+    (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band; the
+    others are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
+    these undecided intervals come out from left to right, and runs of adjacent ones form clusters. A
+    cluster where phi changes sign with no cut within `width` of it (a jump or kink the rule did not break
+    at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
+    the larger `_jump` at its ends (the term varies by far less than that over 1e4 `width` = 1e-9 of the
+    scene's size: its log-derivative is at most a few over the light's height, which is above 1e-9 of it).
+    inf after MAX_ISOLATE evaluations. The isolation reads no channel's coefficients."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
@@ -1747,18 +1781,19 @@ def _faces_quad(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, 
             faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
             ids = np.empty(m, np.int64)
             m, local = reachable_faces(faces, m, planes, near, eta, end, ids)
-            for c in chans:
-                err[s, c] = 0.0
-            if m == 0:
-                continue
             r, cmax = coordinate_size(geo[s], planes, end)
             p, ln, lp = light_norms(geo[s])
             mags = (p, ln, lp, r + ln + cmax)
+            left = _left_out(s, geo, planes, a, hl, wl, ll, only, end, kss, code, g, eta, dplanes, mags)
+            for k, c in enumerate(chans):
+                err[s, c] = left[k]
+            if m == 0:
+                continue
             if m == 1 or not eta > 1.0:
                 faces_quadrature(faces[:m], local, ell[s], end, kts, kss, code, g, kos, eta, spot[3:], rtol, dplanes,
                                  mags, entry_face(geo[s], local), stats, value, bound)
                 for k, c in enumerate(chans):
-                    out[s, c], err[s, c] = value[k], bound[k]
+                    out[s, c], err[s, c] = value[k], bound[k] + left[k]
                 continue
             total, bounds = np.zeros(len(chans)), np.zeros(len(chans))
             for j in range(m):  # each face over its own planes: their sum is the integral over all
@@ -1771,7 +1806,36 @@ def _faces_quad(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, 
                 total += value
                 bounds += bound
             for k, c in enumerate(chans):
-                out[s, c], err[s, c] = total[k], bounds[k] + m * U * (total[k] + bounds[k])
+                out[s, c], err[s, c] = total[k], bounds[k] + m * U * (total[k] + bounds[k]) + left[k]
+
+
+@njit
+def _left_out(s, geo, planes, a, hl, wl, ll, only, end, ks, code, g, eta, dplanes, mags):
+    """Per channel (ks: one each), the sum of `grazing_bound` over the faces of segment s that
+    `refracting_faces` leaves out (the light's computed height above the face's plane hl <= 0) while
+    the exact height may be positive (hl > -(dc + sqrt(3) dn |L| + 32u S), `grazing_bound`'s error of
+    hl); with only >= 0, face `only` alone. 0 without planes (the entry plane alone: the light's height
+    above it is the row's own)."""
+    out = np.zeros(ks.shape[0])
+    floor = -(dplanes[1] + SQ3 * dplanes[0] * mags[1] + 32.0 * U * mags[3])
+    near = floor < hl[s] <= 0.0  # the entry face's (the others' rows below)
+    for f in range(planes.shape[0]):
+        hf = planes[f, 0] * geo[s, 6] + planes[f, 1] * geo[s, 7] + planes[f, 2] * geo[s, 8] - planes[f, 3]
+        near = near or floor < hf <= 0.0
+    if planes.shape[0] == 0 or not near:
+        return out
+    spot = spot_terms(geo[s], a[s], hl[s])
+    faces = np.empty((planes.shape[0], FACE_COLUMNS))
+    m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces, floor)
+    if only >= 0:
+        m = only_face(faces, m, only)
+    for j in range(m):
+        row = faces[j]
+        if not row[2] > 0.0:
+            for c in range(ks.shape[0]):
+                out[c] += grazing_bound(row[0], row[1], row[2], row[3], row[4], end, ks[c], code, g, eta, dplanes,
+                                        mags)
+    return out
 
 
 @njit
