@@ -82,3 +82,26 @@ def test_no_bound_where_the_refraction_point_may_reach_the_light():
     mags = (1.0, 0.5, 1.2, 3.0)
     assert slab.grazing_bound(row[0], row[1], row[2], row[3], row[4], 0.5, 1.0, HG, 0.3, 1.5, np.zeros(2),
                               mags) == math.inf
+
+
+def test_a_lamp_in_a_faces_plane_keeps_the_bound_finite():
+    """A 512-plane UV sphere of water under a lamp that lies in the plane of one of its faces (to
+    1e-15): that face is kept on some segments, whose bound was infinite before `grazing_bound`
+    (the breaks' isolation needs the lamp's height); quadrature's bound is finite on every pixel."""
+    from raytrace.interiors import crossing
+    from raytrace.options import RenderOptions
+    from raytrace.rendering.renderer import prepare, render
+    from raytrace.scene.format import scene_from_text
+
+    from .conftest import to_toml
+    from .test_interiors_scale import SPHERE
+
+    inner = SPHERE["shape"][0]["interior"] | {"ior": 1.33}
+    scene = {**SPHERE, "camera": SPHERE["camera"] | {"width": 8, "height": 6},
+             "shape": [SPHERE["shape"][0] | {"segments": 32, "interior": inner}]}
+    prep = prepare(scene_from_text(to_toml(scene), "uv32"))
+    planes = crossing.refracting_planes(prep, 0)
+    lamp = np.array(SPHERE["light"][0]["position"], float)
+    assert len(planes) == 512 and np.min(np.abs(planes[:, :3] @ lamp - planes[:, 3])) < 1e-15
+    res = render(prep, "quadrature", {}, RenderOptions(threads=1))
+    assert np.all(np.isfinite(res.error_bound))

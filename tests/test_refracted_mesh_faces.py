@@ -238,10 +238,9 @@ def test_raymarch_and_montecarlo_take_the_same_paths(case):
 
 
 def test_a_lamp_in_the_plane_of_a_face():
-    """The lamp in the plane of one face as the renderer holds it (its height above that plane within
-    1e-15; the triangles' own plane is 1e-12 off, either side): that face's term is bounded whole
-    (media/slab.py `grazing_bound`; its breaks' isolation needs the lamp's height), so the bound is
-    finite on every pixel, above the error, and quadrature matches the twin to 1e-6. The 80-face ball,
+    """The lamp in the plane of the face where the middle rays leave, as the renderer holds it (its
+    height above that plane within 1e-15; the triangles' own plane is 1e-12 off): the bound is finite
+    on every pixel and above the error, and quadrature matches the twin to 1e-6. The 80-face ball,
     4 x 3 pixels."""
     scene = ball(1)
     geometry = triangles(scene)
@@ -260,3 +259,21 @@ def test_a_lamp_in_the_plane_of_a_face():
     err = np.abs(res.image - twin)
     assert np.max(err[lit] / twin[lit]) < 1e-6 and np.all(err[~lit] == 0.0)
     assert np.all(np.isfinite(res.error_bound)) and np.all(err <= res.error_bound)
+
+
+def test_an_interior_of_lower_index():
+    """ior 0.75 (eta < 1: the light bends away from the normal going in, and reaches a point inside
+    through a face only within the critical angle, sin1 <= eta): every face the lamp is outside of is
+    kept (media/slab.py `reachable_faces` has no speed bound to cull by) and the face test decides;
+    quadrature matches the twin to 1e-6 (the camera's rays enter within the critical angle: fov 10);
+    its bound is infinite (no speed bound to isolate the edge breaks by). The 80-face ball, 4 x 3
+    pixels."""
+    scene = ball(1)
+    scene["shape"][0]["interior"]["ior"] = 0.75
+    scene["camera"] = CAMERA | {"width": 4, "height": 3, "fov": 10.0}
+    geometry = triangles(scene)
+    twin = np.array([[twin_pixel(scene, geometry, i, j)[0] for i in range(4)] for j in range(3)])
+    res = image(scene, "quadrature", {"rtol": 1e-6})
+    assert np.all(twin > 0.0)
+    assert np.max(np.abs(res.image - twin) / twin) < 1e-6
+    assert np.all(np.isinf(res.error_bound))
