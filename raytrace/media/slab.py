@@ -466,15 +466,16 @@ def _edge_value(x, row, planes, g, eta):
 @njit
 def edge_breaks(row, planes, eta, end, out):
     """The x in (0, end) where face row's refraction point R(x) (`refracting_faces`) crosses the line of
-    another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on
-    or off): every sign change of `_edge_value`, isolated with a bound K on its derivative (K_R of
-    media/fermat_rounding.py `fermat_speed`, the refraction point's speed, times `edge_tilt`, the part
-    of n_g along the face's plane, in which R moves: an interval [lo, hi] with
-    |phi(lo)| + |phi(hi)| > K (hi - lo) + 2e-14 S holds none, S the scene's size about the segment; the
-    others are halved down to 1e-13 S, at most MAX_ISOLATE evaluations: none missed, no grid) and
-    bisected to the resolution of doubles; one sign change between the segment's ends is bisected
-    from them (for eta <= 1, which has no such bound, only that one). Into out, returns their count
-    (at most out's length)."""
+    another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on or
+    off): every sign change of `_edge_value`, isolated with a bound K on its derivative (K_R of
+    media/fermat_rounding.py `fermat_speed`, the refraction point's speed, times `edge_tilt`, the part of
+    n_g along the face's plane, in which R moves: an interval [lo, hi] with |phi(lo)| + |phi(hi)| > K (hi -
+    lo) + 2e-14 S holds none, S the scene's size about the segment; the others are halved down to 1e-13 S,
+    at most MAX_ISOLATE evaluations: none missed, no grid) and bisected to the resolution of doubles. The
+    isolation reads phi with the refraction point by Newton's method (`_edge_newton`, far cheaper than the
+    bisection of `fermat`; within 1e-15 S of phi: its test takes 2e-14 S more), the sign changes and their
+    bisection phi itself; one sign change between the segment's ends is bisected from them (for eta <= 1,
+    which has no such bound, only that one). Into out, returns their count (at most out's length)."""
     f = int(row[17])
     m = 0
     scale = math.sqrt(row[8] ** 2 + row[9] ** 2 + row[10] ** 2) + end + math.sqrt(row[4])
@@ -484,7 +485,7 @@ def edge_breaks(row, planes, eta, end, out):
         size = scale + abs(planes[g, 3])
         ends = _edge_value(0.0, row, planes, g, eta) * _edge_value(end, row, planes, g, eta) < 0.0
         if eta > 1.0:
-            found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-13 * size, out, m)
+            found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-14 * size, 1e-13 * size, out, m)
         else:  # no speed bound (fermat_speed): the crossing between the ends only
             found = m + 1 if ends else m
         if found == m + 1 and ends:
@@ -529,27 +530,40 @@ def _bisect(row, planes, g, eta, lo, hi):
 
 
 @njit
-def _sign_changes(row, planes, g, eta, end, tol, width, out, m):
-    """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count."""
+def _edge_newton(x, row, planes, g, eta):
+    """`_edge_value` with the refraction point by Newton's method (media/fermat_rounding.py
+    `refraction_newton`: within 4e-16 rho of where the computed f changes sign, as the bisection of
+    `fermat`, which stops within an ulp of it), so within 1e-15 rho of `_edge_value` (R moves by
+    the difference in r, n_g is unit)."""
+    rho = _rho(x, row[3], row[4], row[1])
+    return _edge_distance(x, row, refraction_newton(rho, max(row[0], 0.0) + row[1] * x, row[2], eta), rho, planes, g)
+
+
+@njit
+def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
+    """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count.
+    newton: a bound on `_edge_newton`'s difference from `_edge_value` (a smallest interval whose Newton
+    values at its ends have one sign and exceed it there has `_edge_value`'s sign there too)."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     tilt = edge_tilt(row, planes, g) * (1.0 + 1e-11)
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
-    stack[0, 2], stack[0, 3] = _edge_value(0.0, row, planes, g, eta), _edge_value(end, row, planes, g, eta)
+    stack[0, 2], stack[0, 3] = _edge_newton(0.0, row, planes, g, eta), _edge_newton(end, row, planes, g, eta)
     top, evals = 1, 2
     while top > 0 and m < out.shape[0]:
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
-        if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * tol:
+        if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * (tol + newton):
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
-            if vlo * vhi < 0.0:
+            clear = vlo * vhi > 0.0 and min(abs(vlo), abs(vhi)) > newton  # `_edge_value`'s signs the same
+            if not clear and _edge_value(lo, row, planes, g, eta) * _edge_value(hi, row, planes, g, eta) < 0.0:
                 out[m] = _bisect(row, planes, g, eta, lo, hi)
                 m += 1
             continue
         mid = 0.5 * (lo + hi)
-        vm = _edge_value(mid, row, planes, g, eta)
+        vm = _edge_newton(mid, row, planes, g, eta)
         evals += 1
         stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
