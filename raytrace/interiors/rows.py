@@ -120,21 +120,22 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
 
     def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
-        for c in range(3):
-            kt, ks = float(medium.sigma_t[c]), float(medium.sigma_s[c])
-            if ks == 0.0 or lights.intensity[li, c] == 0.0:
-                continue
-            unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
-            inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                            float(prep.scene.medium.sigma_t[c]), wl, ll, float(medium.ior), geo, used,
-                            near if used is faces else EVERY, dplanes, only,
-                            mode, rtol, steps, tau_max, keys,
-                            np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
-                            unit, unit_var, unit_err, stats)
+        ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]  # the channels lit and scattering
+        if not len(ch):
+            return
+        unit, unit_var, unit_err = np.empty((n, len(ch))), np.empty((n, len(ch))), np.empty((n, len(ch)))
+        inside_radiance(distant, xh, h, hl, a, b, mu, ell, medium.sigma_t[ch].astype(float),
+                        medium.sigma_s[ch].astype(float), medium.phase, medium.g,
+                        prep.scene.medium.sigma_t[ch].astype(float), wl, ll, float(medium.ior), geo, used,
+                        near if used is faces else EVERY, dplanes, only,
+                        mode, rtol, steps, tau_max, keys,
+                        np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
+                        unit, unit_var, unit_err, stats)
+        for j, c in enumerate(ch.tolist()):
             f = scale * lights.intensity[li, c]
-            out[:, c] += unit * f
-            var[:, c] += unit_var * f * f
-            bound[:, c] += _light_bound(unit_err, unit * f, f, lights.cone[li, 0])
+            out[:, c] += unit[:, j] * f
+            var[:, c] += unit_var[:, j] * f * f
+            bound[:, c] += _light_bound(unit_err[:, j], unit[:, j] * f, f, lights.cone[li, 0])
 
     def closed_form(li, toward, scale, only):
         val, b = np.empty((n, 3)), np.empty((n, 3))

@@ -356,14 +356,15 @@ def entry_face(geo, planes):
 
 
 @njit
-def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
-    """The faces of the convex refractive shape {q : n_f·q <= c_f} (`planes`) that the point or spot light
-    of the geo row (media/slab.py GEO_COLUMNS) is outside of (n_f·L > c_f), one row of FACE_COLUMNS each
-    in out; returns their count. Face f's plane is the refractive plane of `refracted_at` with
-    z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f. The row's entry face
-    (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the entry plane's
-    a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`). With no
-    planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar boundary)."""
+def refracting_faces(geo, planes, a, hl, wl, ll, spot, out, floor=0.0):
+    """The faces of the convex refractive shape {q : n_f·q <= c_f} (`planes`) that the point or spot light of
+    the geo row (media/slab.py GEO_COLUMNS) is outside of (n_f·L > c_f; with `floor` < 0, above c_f +
+    floor), one row of FACE_COLUMNS each in out; returns their count. Face f's plane is the refractive plane
+    of `refracted_at` with z0 = c_f - n_f·p, a = -w·n_f, hl = n_f·L - c_f, L_h = (L - p) - (hl + z0) n_f.
+    The row's entry face (the plane whose normal is the row's entry normal geo[14:17]) takes z0 = 0 and the
+    entry plane's a, hl, wl, ll and spot terms (wa, la, na: spot[:3]) as given (those of `refracted_point`).
+    With no planes (a shape that is not convex), the entry plane alone, face -1 (the note's planar
+    boundary)."""
     nf = planes.shape[0]
     entry = entry_face(geo, planes)
     m = 0
@@ -376,7 +377,7 @@ def refracting_faces(geo, planes, a, hl, wl, ll, spot, out):
             z0 = max(planes[f, 3] - (n0 * geo[0] + n1 * geo[1] + n2 * geo[2]), 0.0)
             af = -(n0 * geo[3] + n1 * geo[4] + n2 * geo[5])
             hf = n0 * geo[6] + n1 * geo[7] + n2 * geo[8] - planes[f, 3]
-        if not hf > 0.0:
+        if not hf > floor:
             continue
         row = out[m]
         rel0, rel1, rel2 = geo[6] - geo[0], geo[7] - geo[1], geo[8] - geo[2]
@@ -465,15 +466,16 @@ def _edge_value(x, row, planes, g, eta):
 @njit
 def edge_breaks(row, planes, eta, end, out):
     """The x in (0, end) where face row's refraction point R(x) (`refracting_faces`) crosses the line of
-    another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on
-    or off): every sign change of `_edge_value`, isolated with a bound K on its derivative (K_R of
-    media/fermat_rounding.py `fermat_speed`, the refraction point's speed, times `edge_tilt`, the part
-    of n_g along the face's plane, in which R moves: an interval [lo, hi] with
-    |phi(lo)| + |phi(hi)| > K (hi - lo) + 2e-14 S holds none, S the scene's size about the segment; the
-    others are halved down to 1e-13 S, at most MAX_ISOLATE evaluations: none missed, no grid) and
-    bisected to the resolution of doubles; one sign change between the segment's ends is bisected
-    from them (for eta <= 1, which has no such bound, only that one). Into out, returns their count
-    (at most out's length)."""
+    another face plane g in its plane (n_g·R = c_g: where the face's term of `faces_point` switches on or
+    off): every sign change of `_edge_value`, isolated with a bound K on its derivative (K_R of
+    media/fermat_rounding.py `fermat_speed`, the refraction point's speed, times `edge_tilt`, the part of
+    n_g along the face's plane, in which R moves: an interval [lo, hi] with |phi(lo)| + |phi(hi)| > K (hi -
+    lo) + 2e-14 S holds none, S the scene's size about the segment; the others are halved down to 1e-13 S,
+    at most MAX_ISOLATE evaluations: none missed, no grid) and bisected to the resolution of doubles. The
+    isolation reads phi with the refraction point by Newton's method (`_edge_newton`, far cheaper than the
+    bisection of `fermat`; within 1e-15 S of phi: its test takes 2e-14 S more), the sign changes and their
+    bisection phi itself; one sign change between the segment's ends is bisected from them (for eta <= 1,
+    which has no such bound, only that one). Into out, returns their count (at most out's length)."""
     f = int(row[17])
     m = 0
     scale = math.sqrt(row[8] ** 2 + row[9] ** 2 + row[10] ** 2) + end + math.sqrt(row[4])
@@ -483,7 +485,7 @@ def edge_breaks(row, planes, eta, end, out):
         size = scale + abs(planes[g, 3])
         ends = _edge_value(0.0, row, planes, g, eta) * _edge_value(end, row, planes, g, eta) < 0.0
         if eta > 1.0:
-            found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-13 * size, out, m)
+            found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-14 * size, 1e-13 * size, out, m)
         else:  # no speed bound (fermat_speed): the crossing between the ends only
             found = m + 1 if ends else m
         if found == m + 1 and ends:
@@ -528,27 +530,40 @@ def _bisect(row, planes, g, eta, lo, hi):
 
 
 @njit
-def _sign_changes(row, planes, g, eta, end, tol, width, out, m):
-    """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count."""
+def _edge_newton(x, row, planes, g, eta):
+    """`_edge_value` with the refraction point by Newton's method (media/fermat_rounding.py
+    `refraction_newton`: within 4e-16 rho of where the computed f changes sign, as the bisection of
+    `fermat`, which stops within an ulp of it), so within 1e-15 rho of `_edge_value` (R moves by
+    the difference in r, n_g is unit)."""
+    rho = _rho(x, row[3], row[4], row[1])
+    return _edge_distance(x, row, refraction_newton(rho, max(row[0], 0.0) + row[1] * x, row[2], eta), rho, planes, g)
+
+
+@njit
+def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
+    """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count.
+    newton: a bound on `_edge_newton`'s difference from `_edge_value` (a smallest interval whose Newton
+    values at its ends have one sign and exceed it there has `_edge_value`'s sign there too)."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     tilt = edge_tilt(row, planes, g) * (1.0 + 1e-11)
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
-    stack[0, 2], stack[0, 3] = _edge_value(0.0, row, planes, g, eta), _edge_value(end, row, planes, g, eta)
+    stack[0, 2], stack[0, 3] = _edge_newton(0.0, row, planes, g, eta), _edge_newton(end, row, planes, g, eta)
     top, evals = 1, 2
     while top > 0 and m < out.shape[0]:
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
-        if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * tol:
+        if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * (tol + newton):
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
-            if vlo * vhi < 0.0:
+            clear = vlo * vhi > 0.0 and min(abs(vlo), abs(vhi)) > newton  # `_edge_value`'s signs the same
+            if not clear and _edge_value(lo, row, planes, g, eta) * _edge_value(hi, row, planes, g, eta) < 0.0:
                 out[m] = _bisect(row, planes, g, eta, lo, hi)
                 m += 1
             continue
         mid = 0.5 * (lo + hi)
-        vm = _edge_value(mid, row, planes, g, eta)
+        vm = _edge_newton(mid, row, planes, g, eta)
         evals += 1
         stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
@@ -689,13 +704,16 @@ def _one_piece(rec, lo, hi, rtol, stats):
 
 
 @njit
-def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rtol, dplanes, mags, entry, stats):
+def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot, rtol, dplanes, mags, entry, stats,
+                     value, bound):
     """(∫_0^ell `faces_point` dx, a bound on its error) for a unit point or spot light (`spot`: (cos_end,
-    cos_start, curve)) in a convex refractive shape, adaptive (`_one_piece`'s rule) on the pieces
-    between the breaks of the integrand: where a face's refraction point crosses one of its edges
-    (`edge_breaks`) and where a spot's cone levels are crossed on a face's refracted path
-    (`refracted_cuts`); an infinite segment is cut where exp(-kt x) underflows. With no planes
-    (`refracting_faces`' entry plane alone), the pieces between the cone's crossings. The bound
+    cos_start, curve)) in a convex refractive shape, per channel (kt, ks, kt_out: one each, every one's
+    integral ending at `end` = min(ell, 745 / kt), where exp(-kt x) underflows) into value and bound,
+    adaptive (`_one_piece`'s rule) on the pieces between the breaks of the integrand: where a face's
+    refraction point crosses one of its edges (`edge_breaks`) and where a spot's cone levels are
+    crossed on a face's refracted path (`refracted_cuts`). With no planes (`refracting_faces`' entry
+    plane alone), the pieces between the cone's crossings. The breaks and their isolation in the
+    bound read no channel's coefficients: found once for all the channels. The bound
     (docs/error_bounds.md, "Point and spot light in refractive shapes") is the rule's (inf where a
     panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
     (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
@@ -703,9 +721,10 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
     interval; inf with no planes or eta <= 1. dplanes: the planes' errors (interiors/rows.py
     `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
     `leg_errors`); entry: the entry face's row in planes."""
-    if ks == 0.0 or not ell > 0.0:
-        return 0.0, 0.0
-    end = min(ell, 745.0 / kt)
+    value[:] = 0.0
+    bound[:] = 0.0
+    if not ell > 0.0:
+        return
     nf = faces.shape[0]
     cuts = np.empty(nf * (EDGE_CUTS * planes.shape[0] + MAX_CUTS))
     m = 0
@@ -715,24 +734,64 @@ def faces_quadrature(faces, planes, ell, kt, ks, code, g, kt_out, eta, spot, rto
                             end, cuts[m:])
         m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
+    bounded = planes.shape[0] > 0 and eta > 1.0
+    graze = bounded and nf == 1 and not faces[0, 2] > GRAZING * mags[3]  # bounded whole (`grazing_bound`)
+    located = np.zeros(kt.shape[0])
     track = np.zeros(1)
-    rec = FacesPoint(faces, planes, eta, kt, ks, code, g, kt_out, spot, phase_condition(code, g), dplanes[0],
-                     dplanes[1], mags, entry, track)
-    before = stats[INTERVALS]
-    total, rule, rounding, lo = 0.0, 0.0, 0.0, 0.0
-    for i in range(m + 1):
-        hi = cuts[i] if i < m else end
-        if hi > lo:
-            track[0] = 0.0
-            value, err = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
-            total += value
-            rule += err
-            rounding += 3.0 * track[0] * (hi - lo)
-        lo = hi
-    if planes.shape[0] == 0 or not eta > 1.0:
-        return total, math.inf
-    located = break_errors(rec, end, cuts[:m])
-    return total, rule + rounding + located + (stats[INTERVALS] - before) * U * (total + rule)
+    for c in range(kt.shape[0]):
+        rec = FacesPoint(faces, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot, phase_condition(code, g),
+                         dplanes[0], dplanes[1], mags, entry, track)
+        if bounded and not graze and c == 0:  # the breaks' location errors of every channel
+            channel_break_errors(rec, end, cuts[:m], kt, ks, kt_out, located)
+        if ks[c] == 0.0:
+            continue
+        before = stats[INTERVALS]
+        total, rule, rounding, lo = 0.0, 0.0, 0.0, 0.0
+        for i in range(m + 1):
+            hi = cuts[i] if i < m else end
+            if hi > lo:
+                track[0] = 0.0
+                v, e = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
+                total += v
+                rule += e
+                rounding += 3.0 * track[0] * (hi - lo)
+            lo = hi
+        value[c] = total
+        if graze:  # both the value and the exact integral lie in [0, total + the bound on the exact]
+            row = faces[0]
+            bound[c] = total + grazing_bound(row[0], row[1], row[2], row[3], row[4], end, ks[c], code, g, eta, dplanes,
+                                             mags)
+        else:
+            bound[c] = (rule + rounding + located[c] + (stats[INTERVALS] - before) * U * (total + rule) if bounded
+                        else math.inf)
+
+
+GRAZING = 1e-9  # a light within this of the scene's size of a face's plane: the face bounded whole (`grazing_bound`)
+
+
+@njit
+def grazing_bound(z0, a, hl, wl, ll, end, ks, code, g, eta, dplanes, mags):
+    """A bound on ∫_0^end of a face's exact term of `faces_point` for a unit light, on the face or not
+    (z0, a, hl, wl, ll of its row, `refracting_faces`), for a light near the face's plane: its exact
+    height hl_e <= max(hl, 0) + dc + sqrt(3) dn |L| + 32u S (hl computed, dn, dc the planes' errors,
+    S = mags[3] >= |p|, |L|, |c_f|); no term where hl_e <= 0; else the tube's irradiance (`refracted_at`)
+    E <= T sin1 cos1^2 / (rho cos2 hl_e) (its denominator without the second term) = T sin1 hl_e /
+    (rho cos2 o^2) <= hl_e / (rho cos2 o^2), with cos2 >= sqrt(1 - 1 / eta^2) (sin2 = sin1 / eta) and
+    o >= rho - r >= rho - z / sqrt(eta^2 - 1) (r = z tan2); the falloff, T and the attenuation are at
+    most 1, Phi at most its value at mu = 1 or -1 (isotropic, Rayleigh, HG). rho's least value over
+    [0, end] (`rho_range`) less 1e-6 S and the depth's largest (z0 + a x at an end) plus 1e-6 S (the
+    exact ones differ by the rounding and the planes' errors, far less). inf where the bound on o or
+    rho is not positive, or for eta <= 1."""
+    if not eta > 1.0:
+        return math.inf
+    size = mags[3]
+    rho = rho_range(0.0, end, wl, ll, a)[0] - 1e-6 * size
+    o = rho - (max(z0, z0 + a * end, 0.0) + 1e-6 * size) / math.sqrt(eta * eta - 1.0)
+    if not (rho > 0.0 and o > 0.0):
+        return math.inf
+    h = max(hl, 0.0) + dplanes[1] + SQ3 * dplanes[0] * mags[1] + 32.0 * U * size
+    phi = max(phase_value(code, g, 1.0), phase_value(code, g, -1.0))
+    return end * ks * phi * h / (rho * math.sqrt(1.0 - 1.0 / (eta * eta)) * o * o) * (1.0 + 1e-9)
 
 
 @njit
@@ -763,27 +822,39 @@ _EDGE, _CONE = 0, 1
 
 @njit
 def break_errors(rec, end, cuts):
-    """The breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it took): for
+    """The breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it took) for
+    rec's channel (`channel_break_errors`)."""
+    out = np.zeros(1)
+    channel_break_errors(rec, end, cuts, np.array([rec.kt]), np.array([rec.ks]), np.array([rec.kt_out]), out)
+    return out[0]
+
+
+@njit
+def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
+    """out[c] = the breaks' location error of `faces_quadrature` over [0, end] (cuts: the breaks it
+    took) for each channel (kt, ks, kt_out: one each; the rest of rec's integrand is theirs): for
     every face row f and every other plane g, the roots of n_g·R(x) - c_g (R(x) face f's refraction
     point, whose computed value is within E of the exact one, E the refraction point's error
     `point_error` at the segment's worst (largest x, k, s, least rho) plus the planes' errors; the
     face test's tolerance EDGE_TOL apart) and, for a spot, of its cosine minus each cone level (within
-    the cosine's error `cosine_error`) are isolated by `_isolate`; inf where one may lie away from every cut (the
-    rule would have met an unfound jump or kink), else the sum over the undecided intervals of their
-    width times twice the face's term at their ends (the jumps: an edge's, a hard cone edge's)."""
+    the cosine's error `cosine_error`) are isolated by `_isolate` (which reads no channel's
+    coefficients); inf where one may lie away from every cut (the rule would have met an unfound jump
+    or kink), else the sum over the undecided intervals of their width times twice the face's term at
+    their ends (the jumps: an edge's, a hard cone edge's)."""
     faces, planes, eta, sp = rec.faces, rec.planes, rec.eta, rec.spot
+    out[:] = 0.0
     if not eta > 1.0:
-        return math.inf
-    total = 0.0
+        out[:] = math.inf
+        return
     width = 1e-13 * rec.mags[3]
+    part = np.empty(kt.shape[0])
     for j in range(faces.shape[0]):
         row = faces[j]
         z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
-        if not hl > 1e-9 * rec.mags[3]:
-            return math.inf  # a light within a few roundings of the face's plane
         rho_min, rho_max = rho_range(0.0, end, wl, ll, a)
-        if not rho_min > 0.0:
-            return math.inf
+        if not hl > GRAZING * rec.mags[3] or not rho_min > 0.0:  # a light within a few roundings of the face's plane
+            out[:] = math.inf
+            return
         z_max = max(z0, z0 + a * end)
         k_max = math.sqrt(rho_max * rho_max + z_max * z_max)
         entry = row[17] == rec.entry
@@ -794,17 +865,22 @@ def break_errors(rec, end, cuts):
             if g == int(row[17]):
                 continue
             tol = e_point + 8.0 * U * rho_max + rec.dc + SQ3 * rec.dn * q + 16.0 * U * (abs(planes[g, 3]) + q)
-            total += _isolate(_EDGE, rec, row, g, 0.0, end, tol, EDGE_TOL * (abs(planes[g, 3]) + q), cuts, width, hl)
+            if not _isolate(_EDGE, rec, row, g, 0.0, end, tol, EDGE_TOL * (abs(planes[g, 3]) + q), cuts, width, hl,
+                            kt, ks, kt_out, part):
+                out[:] = math.inf
+                return
+            out += part
         if is_spot(sp[1]):
             tol = cosine_error(*args) + 8.0 * U * rho_max / hl
             s_min = rho_min * hl / (hl + z_max)  # s / rho >= hl / (hl + z): tan t1 >= tan t2
             for level in (sp[0], sp[1]):
-                total += _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl))
+                if not _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl), kt,
+                                ks, kt_out, part):
+                    out[:] = math.inf
+                    return
+                out += part
                 if sp[1] == sp[0]:
                     break
-        if total == math.inf:
-            return total
-    return total
 
 
 @njit
@@ -839,34 +915,37 @@ def _phi(kind, x, rec, row, g, level):
 
 
 @njit
-def _jump(kind, x, rec, row):
-    """The face's term at x without its face test (_EDGE) or without the falloff (_CONE): at least
-    its jump there."""
+def _jump(kind, x, rec, row, kt, ks, kt_out, out):
+    """out[c] = the face's term at x without its face test (_EDGE) or without the falloff (_CONE) for
+    each channel (kt, ks, kt_out: one each): at least its jump there."""
+    out[:] = 0.0
     z0, a, hl = row[0], row[1], row[2]
     if not z0 + a * x > 0.0:
-        return 0.0
+        return
     rho, r = fermat(x, z0, row[3], row[4], a, hl, rec.eta)
     cone = rec.spot if kind == _EDGE else (NO_CONE[0], NO_CONE[1], float(SMOOTHSTEP))
-    return refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, rec.kt, rec.ks, rec.code, rec.g, rec.kt_out, row[5],
-                        row[6], row[7], cone[0], cone[1], cone[2])
+    for c in range(kt.shape[0]):
+        out[c] = refracted_at(x, z0, rho, r, row[3], a, hl, rec.eta, kt[c], ks[c], rec.code, rec.g, kt_out[c],
+                              row[5], row[6], row[7], cone[0], cone[1], cone[2])
 
 
 @njit
-def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
-    """The location error of one break over [0, end]: the exact switch is a root of psi_exact, the
-    computed one a sign change of phi (`_phi`: psi - t, 0 <= t <= slack, the face test's tolerance),
-    and the computed psi (`_psi`) is within tol of psi_exact, so the two may differ only where psi
-    lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
+def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, ks, kt_out, err):
+    """err[c] = the location error of one break over [0, end] for each channel (kt, ks, kt_out: one each; the
+    rest of rec's integrand is theirs); False where it is inf (err then unset): the exact switch is a root
+    of psi_exact, the computed one a sign change of phi (`_phi`: psi - t, 0 <= t <= slack, the face test's
+    tolerance), and the computed psi (`_psi`) is within tol of psi_exact, so the two may differ only where
+    psi lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
     K_R times `edge_tilt` and 1 + 1e-11 for an edge plane; over the outside leg's least length o_min for a
-    cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi]
-    with psi(lo) + psi(hi) > K (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol
-    lies outside the band; the others are halved until shorter than `width`, or than 1e4 `width` with
-    both ends in twice the band: these undecided intervals come out from left to right, and runs of
-    adjacent ones form clusters. A cluster where phi changes sign with no cut within `width` of it (a
-    jump or kink the rule did not break at): inf; else, for an edge or a hard cone edge, each
-    undecided interval's width times twice the larger `_jump` at its ends (the term varies by far less
-    than that over 1e4 `width` = 1e-9 of the scene's size: its log-derivative is at most a few over
-    the light's height, which is above 1e-9 of it). inf after MAX_ISOLATE evaluations."""
+    cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi] with psi(lo) + psi(hi) > K
+    (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band; the
+    others are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
+    these undecided intervals come out from left to right, and runs of adjacent ones form clusters. A
+    cluster where phi changes sign with no cut within `width` of it (a jump or kink the rule did not break
+    at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
+    the larger `_jump` at its ends (the term varies by far less than that over 1e4 `width` = 1e-9 of the
+    scene's size: its log-derivative is at most a few over the light's height, which is above 1e-9 of it).
+    inf after MAX_ISOLATE evaluations. The isolation reads no channel's coefficients."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
@@ -874,7 +953,9 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _psi(kind, 0.0, rec, row, g, level), _psi(kind, end, rec, row, g, level)
-    top, evals, err = 1, 2, 0.0
+    top, evals = 1, 2
+    err[:] = 0.0
+    j_lo, j_hi = np.empty(kt.shape[0]), np.empty(kt.shape[0])
     run_lo, run_hi, change = -1.0, -1.0, False
     while top > 0:
         top -= 1
@@ -887,25 +968,26 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min):
         if hi - lo <= width or (inside and hi - lo <= 1e4 * width):
             if lo != run_hi:  # a new cluster: close the last
                 if change and not _near(cuts, run_lo, run_hi, width):
-                    return math.inf
+                    return False
                 run_lo, change = lo, False
             run_hi = hi
             change = change or _phi(kind, lo, rec, row, g, level) * _phi(kind, hi, rec, row, g, level) <= 0.0
             evals += 2
             if hard:
-                err += 2.0 * max(_jump(kind, lo, rec, row), _jump(kind, hi, rec, row)) * (hi - lo)
+                _jump(kind, lo, rec, row, kt, ks, kt_out, j_lo)
+                _jump(kind, hi, rec, row, kt, ks, kt_out, j_hi)
+                for c in range(kt.shape[0]):
+                    err[c] += 2.0 * max(j_lo[c], j_hi[c]) * (hi - lo)
             continue
         if evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
-            return math.inf
+            return False
         mid = 0.5 * (lo + hi)
         vm = _psi(kind, mid, rec, row, g, level)
         evals += 1
         stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, hi, vm, vhi
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
         top += 2
-    if change and not _near(cuts, run_lo, run_hi, width):
-        return math.inf
-    return err
+    return not (change and not _near(cuts, run_lo, run_hi, width))
 
 
 @njit
@@ -1426,12 +1508,13 @@ def march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
 
 def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, near,
                     dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
-    """Single scattering over inside segments (module docstring), one light each, unit light, one
-    channel: for a directional light (`directional`) per unit beam irradiance inside, with b the cosine
-    of its refracted direction to the normal and mu the scattering cosine; for a point or spot light
-    at height hl above the entry plane, kt_out the extinction outside (through a refractive plane,
-    eta != 1: wl, ll of `refracted_point`; not with CLOSED or APPROX). A light
-    below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
+    """Single scattering over inside segments (module docstring), one light each, unit light, per
+    channel (kt, ks, kt_out: one each; out, var, err: (N, C)): for a directional light (`directional`)
+    per unit beam irradiance inside, with b the cosine of its refracted direction to the normal and mu
+    the scattering cosine; for a point or spot light at height hl above the entry plane, kt_out the
+    extinction outside (through a refractive plane, eta != 1: wl, ll of `refracted_point`; not with
+    CLOSED or APPROX). A light below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter
+    through that plane).
     mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
     and the note's separable approximation, with the outside attenuation at the entry point), MARCH
     (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
@@ -1441,9 +1524,10 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
-    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD),
-    with only >= 0 through that face alone; `near` (int64): the planes' neighbours of
-    interiors/crossing.py `plane_neighbours` there (`reachable_faces`; empty: every plane is tested).
+    (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD,
+    every channel at once: the faces' cull and breaks are the channels'), with only >= 0 through that
+    face alone; `near` (int64): the planes' neighbours of interiors/crossing.py `plane_neighbours`
+    there (`reachable_faces`; empty: every plane is tested).
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces), for QUAD's point and spot lights in
     convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to
@@ -1451,23 +1535,34 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     Each kind of segment has its own kernel below, compiled on first use: a scene compiles the
     integrands of the kinds it meets only."""
     out[:], var[:] = 0.0, 0.0
-    live = ell > 0.0 if ks != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
-    err[:] = np.where(live, math.inf, 0.0)
+    err[:] = np.where((ell[:, None] > 0.0) & (ks[None, :] != 0.0), math.inf, 0.0)
     directional = np.asarray(directional, dtype=np.bool_)
+    faces = eta != 1.0 and mode == QUAD
+    if faces and np.any((ell > 0.0) & ~directional):
+        _faces_quad(np.flatnonzero((ell > 0.0) & ~directional), geo, planes, near, a, hl, wl, ll, only, ell, kt, ks,
+                    code, g, kt_out, eta, rtol, dplanes, out, err, stats)
+    for c in range(kt.shape[0]):
+        column = out[:, c].copy(), var[:, c].copy(), err[:, c].copy()
+        live = ell > 0.0 if ks[c] != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
+        _channel_radiance(live & directional if faces else live, directional, xh, h, hl, a, b, mu, ell, float(kt[c]),
+                          float(ks[c]), code, g, float(kt_out[c]), wl, ll, eta, geo, planes, near, dplanes, only,
+                          mode, rtol, steps, tau_max, keys, dim0, seed, *column, stats)
+        out[:, c], var[:, c], err[:, c] = column
+
+
+def _channel_radiance(live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes,
+                      near, dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
+    """`inside_radiance` of one channel over the segments `live` (out, var, err: (N,))."""
     convex, sampled = planes.shape[0] > 0, mode == MARCH or mode == SAMPLE
 
     def each(kernel, which, *args):  # `kernel` over the segments `which` selects, where there are any
         if np.any(which):
             kernel(np.flatnonzero(which), *args)
 
-    if eta != 1.0 and (mode == QUAD or (convex and sampled)):
-        # a point or spot light through every face of a convex refractive shape, else the entry plane
-        if mode == QUAD:
-            each(_faces_quad, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta,
-                 rtol, dplanes, out, err, stats)
-        else:
-            each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
-                 eta, mode, steps, tau_max, keys, dim0, seed, out, var)
+    if eta != 1.0 and convex and sampled:
+        # a point or spot light through every face of a convex refractive shape
+        each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
+             eta, mode, steps, tau_max, keys, dim0, seed, out, var)
         live &= directional
     if convex and mode != CLOSED and mode != APPROX:
         if mode == QUAD:
@@ -1677,36 +1772,84 @@ def segment_reach(geo, planes, near, eta, ell, out):
 @njit
 def _faces_quad(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rtol, dplanes, out,
                 err, stats):
-    """`inside_radiance`'s point or spot light in a refractive shape, QUAD: `faces_quadrature`, its bound;
-    with several faces (eta > 1), each face's integral over the planes it needs alone (`reachable_faces`
-    of its row alone, the same decisions as with the others: the same face test, breaks and bound as
-    with every plane), summed, their bounds summed with the sum's rounding (u per term)."""
+    """`inside_radiance`'s point or spot light in a refractive shape, QUAD, every channel at once (kt, ks,
+    kt_out: one each; out, err: (N, C)): `faces_quadrature`, its bound; with several faces (eta > 1),
+    each face's integral over the planes it needs alone (`reachable_faces` of its row alone, the same
+    decisions as with the others: the same face test, breaks and bound as with every plane), summed,
+    their bounds summed with the sum's rounding (u per term). The channels whose integrals end at the
+    same x (min(ell, 745 / kt)) share the faces, their cull and their breaks (none reads the channel's
+    coefficients); those with ks = 0 are 0, exactly."""
     row, one = np.empty((1, FACE_COLUMNS)), np.empty(1, np.int64)
+    nc = kt.shape[0]
+    ends = np.empty(nc)
     for s in sel:
-        end = min(ell[s], 745.0 / kt)
-        faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
-        ids = np.empty(m, np.int64)
-        m, local = reachable_faces(faces, m, planes, near, eta, end, ids)
-        err[s] = 0.0
-        if m > 0:
+        for c in range(nc):
+            ends[c] = min(ell[s], 745.0 / kt[c]) if ks[c] != 0.0 else -1.0
+        for c0 in range(nc):
+            end = ends[c0]
+            if end < 0.0 or np.any(ends[:c0] == end):
+                continue
+            chans = np.flatnonzero(ends == end)
+            kts, kss, kos = kt[chans], ks[chans], kt_out[chans]
+            value, bound = np.empty(len(chans)), np.empty(len(chans))
+            faces, m, spot = _faces(s, geo, planes, a, hl, wl, ll, only)
+            ids = np.empty(m, np.int64)
+            m, local = reachable_faces(faces, m, planes, near, eta, end, ids)
             r, cmax = coordinate_size(geo[s], planes, end)
             p, ln, lp = light_norms(geo[s])
-            if m == 1 or not eta > 1.0:
-                out[s], err[s] = faces_quadrature(faces[:m], local, ell[s], kt, ks, code, g, kt_out, eta, spot[3:],
-                                                  rtol, dplanes, (p, ln, lp, r + ln + cmax), entry_face(geo[s], local),
-                                                  stats)
+            mags = (p, ln, lp, r + ln + cmax)
+            left = _left_out(s, geo, planes, a, hl, wl, ll, only, end, kss, code, g, eta, dplanes, mags)
+            for k, c in enumerate(chans):
+                err[s, c] = left[k]
+            if m == 0:
                 continue
-            total, bound = 0.0, 0.0
+            if m == 1 or not eta > 1.0:
+                faces_quadrature(faces[:m], local, ell[s], end, kts, kss, code, g, kos, eta, spot[3:], rtol, dplanes,
+                                 mags, entry_face(geo[s], local), stats, value, bound)
+                for k, c in enumerate(chans):
+                    out[s, c], err[s, c] = value[k], bound[k] + left[k]
+                continue
+            total, bounds = np.zeros(len(chans)), np.zeros(len(chans))
             for j in range(m):  # each face over its own planes: their sum is the integral over all
                 for c in range(FACE_COLUMNS):
                     row[0, c] = faces[j, c]
                 row[0, 17] = ids[j]  # the same cull of this row alone: the planes it needs
                 own = reachable_faces(row, 1, planes, near, eta, end, one)[1]
-                value, e = faces_quadrature(row, own, ell[s], kt, ks, code, g, kt_out, eta, spot[3:], rtol, dplanes,
-                                            (p, ln, lp, r + ln + cmax), entry_face(geo[s], own), stats)
+                faces_quadrature(row, own, ell[s], end, kts, kss, code, g, kos, eta, spot[3:], rtol, dplanes, mags,
+                                 entry_face(geo[s], own), stats, value, bound)
                 total += value
-                bound += e
-            out[s], err[s] = total, bound + m * U * (total + bound)
+                bounds += bound
+            for k, c in enumerate(chans):
+                out[s, c], err[s, c] = total[k], bounds[k] + m * U * (total[k] + bounds[k]) + left[k]
+
+
+@njit
+def _left_out(s, geo, planes, a, hl, wl, ll, only, end, ks, code, g, eta, dplanes, mags):
+    """Per channel (ks: one each), the sum of `grazing_bound` over the faces of segment s that
+    `refracting_faces` leaves out (the light's computed height above the face's plane hl <= 0) while
+    the exact height may be positive (hl > -(dc + sqrt(3) dn |L| + 32u S), `grazing_bound`'s error of
+    hl); with only >= 0, face `only` alone. 0 without planes (the entry plane alone: the light's height
+    above it is the row's own)."""
+    out = np.zeros(ks.shape[0])
+    floor = -(dplanes[1] + SQ3 * dplanes[0] * mags[1] + 32.0 * U * mags[3])
+    near = floor < hl[s] <= 0.0  # the entry face's (the others' rows below)
+    for f in range(planes.shape[0]):
+        hf = planes[f, 0] * geo[s, 6] + planes[f, 1] * geo[s, 7] + planes[f, 2] * geo[s, 8] - planes[f, 3]
+        near = near or floor < hf <= 0.0
+    if planes.shape[0] == 0 or not near:
+        return out
+    spot = spot_terms(geo[s], a[s], hl[s])
+    faces = np.empty((planes.shape[0], FACE_COLUMNS))
+    m = refracting_faces(geo[s], planes, a[s], hl[s], wl[s], ll[s], spot, faces, floor)
+    if only >= 0:
+        m = only_face(faces, m, only)
+    for j in range(m):
+        row = faces[j]
+        if not row[2] > 0.0:
+            for c in range(ks.shape[0]):
+                out[c] += grazing_bound(row[0], row[1], row[2], row[3], row[4], end, ks[c], code, g, eta, dplanes,
+                                        mags)
+    return out
 
 
 @njit
