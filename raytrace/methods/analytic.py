@@ -39,7 +39,7 @@ import math
 import numpy as np
 
 from .. import error_bounds
-from ..jit import jitable, njit
+from ..jit import njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, cone_row, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
@@ -121,20 +121,6 @@ BAND_MARGIN = 0.01  # a band's K1, L1 are computed this much finer than its poly
 P_H, P_V1, P_V2, P_K1, P_L1, P_E1, P_E2, P_BLOCK, P_PREF = range(9)
 PENDING = 9
 NOTHING_PENDING = (0.0,) * PENDING  # a row with P_BLOCK 0
-
-
-@jitable  # called with constant offsets (B_HMAX, B_HMAX_BAND): compiled once, not per constant
-def _loss(coeffs, start, H, at):
-    """The forward recurrence's error amplification at H (0 <= H <= H_max), interpolated from the
-    table of the block at `start` in `coeffs` at `at` (B_HMAX or B_HMAX_BAND, the table follows at
-    B_LOSS / B_LOSS_BAND; nodes quadratic in H: the loss grows like exp(2 sqrt(H k))). Offsets, not
-    a slice of the block (`_block_at`)."""
-    hmax = coeffs[start + at]
-    table = start + (B_LOSS if at == B_HMAX else B_LOSS_BAND)
-    x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
-    i = min(int(x), LOSS_TABLE - 2)
-    f = x - i
-    return max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
 
 
 @njit
@@ -293,10 +279,10 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
         # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
         # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
         # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
-        start, n = _block_at(coeffs, v1, v2, H, B_HMAX)
-        if H > coeffs[start + B_HMAX]:  # the moment recurrence would lose digits: quadrature
+        start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX)
+        if loss == math.inf:  # the moment recurrence would lose digits: quadrature
             return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
-        prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / _loss(coeffs, start, H, B_HMAX))
+        prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     iterations, flags = 0.0, 0
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
@@ -357,8 +343,8 @@ def _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work):
     band's polynomial; err bounds its rounding; not ok: a closed form here would miss the precision
     (quadrature); flags: the paths taken (F_*, `_count`). `work`: scratch for 2 (len(coeffs) +
     BAND_ORDER + 1) + 8 values."""
-    start, n = _block_at(coeffs, v1, v2, H, B_HMAX_BAND)
-    if H > coeffs[start + B_HMAX_BAND]:  # the moment recurrence would lose digits: quadrature
+    start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX_BAND)
+    if loss == math.inf:  # the moment recurrence would lose digits: quadrature
         return 0.0, 0.0, False, 0
     # F Phi as a trigonometric series of order L + 3 (gc, gs); its terms' size bounds the
     # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
@@ -370,7 +356,6 @@ def _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work):
     gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
     gs = work[2 * BAND_ORDER + 2 + m:2 * BAND_ORDER + 2 + 2 * m]
     size = times_trig(c, a, b, gc, gs)  # sum of |coefficients|
-    loss = _loss(coeffs, start, H, B_HMAX_BAND)
     prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
     prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
     # (a band's K1, L1 are wanted finer than the series' rounding on a piece short in angle allows:
@@ -540,15 +525,18 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     return out, met and not taylor, NOTHING_PENDING
 
 
-@jitable  # called with constant offsets (B_HMAX, B_HMAX_BAND): compiled once, not per constant
+@njit
 def _block_at(coeffs, v1, v2, H, at):
-    """(start, length) in `coeffs` of the exact mode's coefficient block for a piece v1 < v < v2 at
-    H = kt h: the shortest block whose
-    range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
-    full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
-    ones after it from the widest range to the narrowest, each range inside the one before, so the
-    scan stops at the first range that does not hold the piece). Offsets, not slices, in the scan:
-    a slice costs numba a reference count."""
+    """(start, length, loss): where in `coeffs` the exact mode's coefficient block for a piece
+    v1 < v < v2 at H = kt h starts, its length, and the forward recurrence's error amplification at
+    H, or inf where H is beyond the block's limit (the recurrence would lose digits: quadrature).
+    The block is the shortest whose range of v holds the piece and whose recurrence limit (block[at],
+    at = B_HMAX or B_HMAX_BAND, `_block`) admits H, else the full one (`exact_coeffs`: each block is
+    preceded by its length, the full one first, the fitted ones after it from the widest range to the
+    narrowest, each range inside the one before, so the scan stops at the first range that does not
+    hold the piece). The loss is interpolated from the block's table (B_LOSS or B_LOSS_BAND; nodes
+    quadratic in H: the loss grows like exp(2 sqrt(H k))). Offsets, not slices: a slice costs numba a
+    reference count, as does every array handed to a call (so the scan and the table are one call)."""
     start, n = 1, int(coeffs[0])
     pos = 1 + n
     while pos < coeffs.shape[0]:
@@ -558,7 +546,14 @@ def _block_at(coeffs, v1, v2, H, at):
         if H <= coeffs[b + at]:
             start, n = b, int(coeffs[pos])
         pos = b + int(coeffs[pos])
-    return start, n
+    hmax = coeffs[start + at]
+    if H > hmax:
+        return start, n, math.inf
+    table = start + (B_LOSS if at == B_HMAX else B_LOSS_BAND)
+    x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
+    i = min(int(x), LOSS_TABLE - 2)
+    f = x - i
+    return start, n, max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
 
 
 @njit
@@ -673,7 +668,7 @@ def _block(c, phase, v_lo, v_hi, precision):
     precision / 10 (larger H: quadrature; the bisection keeps lo within that accuracy, so H_max only
     errs low, 0 if not `_usable`); ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum
     where it cancels; the table holds the recurrence's error amplification at H = H_max (i /
-    (LOSS_TABLE - 1))^2 (`_loss`). The band's H_max and table are those of the series times a spot's
+    (LOSS_TABLE - 1))^2 (`_block_at`). The band's H_max and table are those of the series times a spot's
     smoothstep (order + 3: coefficient k of the product draws on c_{k-3} .. c_{k+3})."""
     ratio = 0.1 * float(np.min(phase)) / float(np.sum(np.abs(c)))
     tol = precision * ratio
