@@ -258,7 +258,7 @@ def _e1_ends(H, v1, v2, E1, E2, prec_i):
     return K1, L1, G_REL_ERR * ends / abs(K1) if K1 != 0.0 else prec_i, True
 
 
-@njit
+@njit(inline="always")
 def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, precision, max_iter, aniso, defer):
     """(S, ok, iterations, flags, K1, L1, E1, E2, start) for the piece v1 < v < v2 of a segment
     (0 <= v1 < v2 <= inf) at the light's full intensity: S = int w(phi) Phi(cos phi) dphi / 2 (w = e^{-H v},
