@@ -271,18 +271,17 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     start > 0 the start of the coefficient block in `coeffs`, and K1, L1, E1, E2 the recurrence's
     arguments with H, v1, v2 (start is 0 where nothing is left)."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
-    if aniso is None and phase_code != ISOTROPIC:
-        return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
     start, n = 0, 0  # the block in coeffs (offsets, not a slice: a slice costs numba a reference count)
     prec_i = precision
-    if exact:
-        # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
-        # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
-        # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
-        start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX)
-        if loss == math.inf:  # the moment recurrence would lose digits: quadrature
-            return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
-        prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
+    if aniso is not None:  # (numba prunes the branch where it is None: nothing of the blocks compiled)
+        if exact:
+            # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
+            # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
+            # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
+            start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX)
+            if loss == math.inf:  # the moment recurrence would lose digits: quadrature
+                return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
+            prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     iterations, flags = 0.0, 0
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
@@ -310,6 +309,8 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
         flags |= F_STABLE
     if phase_code == ISOTROPIC:
         return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+    if aniso is None:  # (numba prunes the code below where it is None)
+        return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
 
     if aniso_mode == ANISO_TAYLOR:
         # PP-19 with N = terms coefficients c_n of Phi in v
