@@ -264,8 +264,12 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     (0 <= v1 < v2 <= inf) at the light's full intensity: S = int w(phi) Phi(cos phi) dphi / 2 (w = e^{-H v},
     folded with the optical paths p1, p2 = x + d at the ends; the Taylor mode's PP-19 sum approximates
     it); not ok: a closed form here would miss the precision (quadrature). Its statistics (the Fig. 2
-    loop's iterations, the paths taken as F_* bits: `_count`) are returned, not written: an array handed
-    to a call costs numba a reference count, and `coeffs` is the only one. `aniso` None: an isotropic
+    loop's iterations, the paths taken as F_* bits: `_count`) and the batch's row are returned, not
+    written into arrays. Inlined into `checked_airlight` by numba (inline="always"): an array handed to
+    a call costs numba a reference count (an atomic increment and decrement), and the call itself and
+    its results passed through memory cost more (inlined, the kernel takes about 40 ns less per
+    segment; the default scene's compile barely changes, as its isotropic medium prunes most of this
+    function). `aniso` None: an isotropic
     phase function, and the anisotropic code is not compiled (such a piece is then not ok). `defer`:
     the exact mode's moment recurrence is left to the caller (`_pending_recurrences`): S is then 0,
     start > 0 the start of the coefficient block in `coeffs`, and K1, L1, E1, E2 the recurrence's
@@ -414,7 +418,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
         stats[ST_ZERO] += 1.0
         return 0.0, True, NOTHING_PENDING
     if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
-        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature) + (NOTHING_PENDING,)
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats,
+                         quadrature) + (NOTHING_PENDING,)
     if kt * da > UNDERFLOW_PATH:
         # optically so thick that the bound I ks max(Phi) pi / h e^{-kt d_a} (the optical path x + d is
         # least, d_a, at the segment's start; int dx / d^2 <= pi / h) underflows: 0, and no inf * 0
@@ -489,7 +494,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
         if band:
             vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work[25:])
             _count(stats, 0.0, flags)
-        else:  # (`not spot`: False, a variable; a constant would compile _piece once more)
+        else:  # (`not spot`: False: a spot's piece runs its moment recurrence here)
             vals[i], ok, iterations, flags, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode,
                                                                    terms, coeffs, precision, max_iter, aniso, not spot)
             _count(stats, iterations, flags)
