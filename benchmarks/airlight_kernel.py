@@ -50,7 +50,7 @@ def capture(prep, code, g, spp):
 
 @njit
 def _terms(xh, h, ell, kt, coeffs):
-    """Total length of the coefficient blocks (`analytic._block_for`) of these segments."""
+    """Total length of the coefficient blocks (`analytic._block_at`) of these segments."""
     total = 0
     for s in range(xh.shape[0]):
         if not (ell[s] > 0.0) or not (kt * h[s] > 1e-200):

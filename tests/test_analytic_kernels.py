@@ -212,7 +212,7 @@ def test_block_for_picks_the_shortest_block_that_holds_the_piece():
             v2 = math.inf if rng.random() < 0.2 else v1 + float(10 ** rng.uniform(-3, 1))
             H = float(10 ** rng.uniform(-3, 1))
             for at in (A.B_HMAX, A.B_HMAX_BAND):
-                start, n = A._block_at(co, v1, v2, H, at)
+                start, n, _ = A._block_at(co, v1, v2, H, at)
                 chosen = co[start:start + n]
                 holders = [b for b in blocks[1:] if b[A.B_VLO] <= v1 and v2 <= b[A.B_VHI] and H <= b[at]]
                 assert len(chosen) == min(len(b) for b in holders + [blocks[0]])

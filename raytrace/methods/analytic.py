@@ -116,24 +116,11 @@ BAND_ORDER = 3  # a polynomial band is at most cubic in the cosine to the spot a
 # bound on 10% of a box room's bands), and 30 integrand values cost less than 2 L + 7 L operations
 BAND_GAUSS_FIRST = 48
 BAND_MARGIN = 0.01  # a band's K1, L1 are computed this much finer than its polynomial's terms need
-# a row of `evaluate_segments`' batch of moment recurrences (`_piece`'s `pending`): the arguments of
+# a row of `evaluate_segments`' batch of moment recurrences (`checked_airlight`'s `pending`): the arguments of
 # cosine_moments_forward, the start of the block in coeffs (0: nothing pending) and the factor 2 I / h
 P_H, P_V1, P_V2, P_K1, P_L1, P_E1, P_E2, P_BLOCK, P_PREF = range(9)
 PENDING = 9
-
-
-@njit
-def _loss(coeffs, start, H, at):
-    """The forward recurrence's error amplification at H (0 <= H <= H_max), interpolated from the
-    table of the block at `start` in `coeffs` at `at` (B_HMAX or B_HMAX_BAND, the table follows at
-    B_LOSS / B_LOSS_BAND; nodes quadratic in H: the loss grows like exp(2 sqrt(H k))). Offsets, not
-    a slice of the block (`_block_at`)."""
-    hmax = coeffs[start + at]
-    table = start + (B_LOSS if at == B_HMAX else B_LOSS_BAND)
-    x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
-    i = min(int(x), LOSS_TABLE - 2)
-    f = x - i
-    return max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
+NOTHING_PENDING = (0.0,) * PENDING  # a row with P_BLOCK 0
 
 
 @njit
@@ -232,98 +219,102 @@ def _spot_nearline(xh, h, dmin, cone, precision):
     return f, band > 0.0 and band_slope(cone[2], cone[3], cone[4]) * dc <= SERIES_SAFETY * precision * f * band
 
 
-@njit
-def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, terms, coeffs, precision,
-           max_iter, work, stats, spots, aniso, pending=None, row=0):
-    """(S, err, ok) for the piece v1 < v < v2 of a segment (0 <= v1 < v2 <= inf): S = int w(phi)
-    Phi(cos phi) F dphi / 2 (w = e^{-H v}, folded with the optical paths p1, p2 = x + d at the ends;
-    the Taylor mode's PP-19 sum approximates it),
-    F = 1, or a spot's polynomial band if `band` (smoothstep or gltf, docs/spot_lights.md); err bounds the band's
-    rounding error (0 otherwise); not ok: a closed form here would miss the precision (quadrature).
-    `work`: scratch for a band, 2 (len(coeffs) + BAND_ORDER + 1) + 8 values; `spots` None: never a
-    band, `aniso` None: an isotropic phase function, and their code is not compiled (`checked_airlight`;
-    an anisotropic piece is then not ok). `pending`: None, or an array whose `row` (P_* offsets) takes
-    the exact mode's moment recurrence, left to `_pending_recurrences` instead of run here (S is then
-    0; the row's P_BLOCK is set; an index, not a row view: a view costs numba a reference count), unless
-    `row` is negative (a spot's pieces: their recurrences run here)."""
-    exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
-    moments = exact or band
-    start, n = 0, 0  # the block in coeffs (offsets, not a slice: a slice costs numba a reference count)
-    at = B_HMAX_BAND if band else B_HMAX
-    if (spots is not None or aniso is not None) and moments:
-        start, n = _block_at(coeffs, v1, v2, H, at)
-        if H > coeffs[start + at]:  # the moment recurrence would lose digits: quadrature
-            return 0.0, 0.0, False
-    # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
-    # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
-    # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
-    if spots is not None and band:
-        # F Phi as a trigonometric series of order L + 3 (gc, gs); its terms' size bounds the
-        # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
+# the paths a piece took (`_piece`, `_band_piece`), returned as bits of a number for `_count`
+F_SERIES, F_REJECTED, F_STABLE, F_TAYLOR_OUT, F_BAND = 1, 2, 4, 8, 16
+
+
+@njit(inline="always")
+def _count(stats, iterations, flags):
+    """A piece's statistics: the Fig. 2 loop's iterations and the paths in `flags` (F_*)."""
+    stats[ST_SERIES_ITERS] += iterations
+    if flags & F_SERIES:
+        stats[ST_SERIES] += 1.0
+    if flags & F_REJECTED:
+        stats[ST_SERIES_REJECTED] += 1.0
+    if flags & F_STABLE:
+        stats[ST_STABLE] += 1.0
+    if flags & F_TAYLOR_OUT:
+        stats[ST_TAYLOR_OUT] += 1.0
+    if flags & F_BAND:
         stats[ST_BANDS] += 1.0
-        a = work[:BAND_ORDER + 1]
-        b = work[BAND_ORDER + 1:2 * BAND_ORDER + 2]
-        band_trig(cone[0], cone[1], cone[2], cone[3], cone[4], a, b)
-        c = coeffs[start + B_C:start + n]
-        m = c.shape[0] + BAND_ORDER
-        gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
-        gs = work[2 * BAND_ORDER + 2 + m:2 * BAND_ORDER + 2 + 2 * m]
-        size = times_trig(c, a, b, gc, gs)  # sum of |coefficients|
-    rho_max = H * math.sqrt(1.0 + v2 * v2)
+
+
+@njit
+def _e1_ends(H, v1, v2, E1, E2, prec_i):
+    """(K1, L1, rel, ok): I0, I1 over v1 < v < v2 by the scaled-E1 form at both ends, folded with the
+    optical paths (E1, E2 = e^{-kt p} at the ends), and their relative accuracy rel; not ok where the
+    piece is so short in angle that the two ends' terms cancel beyond what g's accuracy resolves."""
+    ga = g_scaled(complex(H * v1, H))
+    K1 = -E1 * ga.imag
+    L1 = E1 * ga.real
+    ends = abs(K1)
+    if v2 < math.inf:
+        gb = g_scaled(complex(H * v2, H))
+        K1 += E2 * gb.imag
+        L1 -= E2 * gb.real
+        ends += E2 * abs(gb.imag)
+    if G_REL_ERR * ends > SERIES_SAFETY * max(prec_i, 1e-11) * abs(K1):
+        return K1, L1, 0.0, False
+    return K1, L1, G_REL_ERR * ends / abs(K1) if K1 != 0.0 else prec_i, True
+
+
+@njit(inline="always")
+def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, precision, max_iter, aniso, defer):
+    """(S, ok, iterations, flags, K1, L1, E1, E2, start) for the piece v1 < v < v2 of a segment
+    (0 <= v1 < v2 <= inf) at the light's full intensity: S = int w(phi) Phi(cos phi) dphi / 2 (w = e^{-H v},
+    folded with the optical paths p1, p2 = x + d at the ends; the Taylor mode's PP-19 sum approximates
+    it); not ok: a closed form here would miss the precision (quadrature). Its statistics (the Fig. 2
+    loop's iterations, the paths taken as F_* bits: `_count`) and the batch's row are returned, not
+    written into arrays. Inlined into `checked_airlight` by numba (inline="always"): an array handed to
+    a call costs numba a reference count (an atomic increment and decrement), and the call itself and
+    its results passed through memory cost more (inlined, the kernel takes about 40 ns less per
+    segment; the default scene's compile barely changes, as its isotropic medium prunes most of this
+    function). `aniso` None: an isotropic
+    phase function, and the anisotropic code is not compiled (such a piece is then not ok). `defer`:
+    the exact mode's moment recurrence is left to the caller (`_pending_recurrences`): S is then 0,
+    start > 0 the start of the coefficient block in `coeffs`, and K1, L1, E1, E2 the recurrence's
+    arguments with H, v1, v2 (start is 0 where nothing is left)."""
+    exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
+    start, n = 0, 0  # the block in coeffs (offsets, not a slice: a slice costs numba a reference count)
     prec_i = precision
-    if (spots is not None or aniso is not None) and moments:
-        prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / _loss(coeffs, start, H, at))
-    if spots is not None and band:
-        prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
-    rel = prec_i  # relative accuracy of K1 and L1
-    # (a band's K1, L1 are wanted finer than the series' rounding on a piece short in angle allows:
-    # the scaled-E1 ends at once)
-    use_series = not band and rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
+    if aniso is not None:  # (numba prunes the branch where it is None: nothing of the blocks compiled)
+        if exact:
+            # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
+            # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
+            # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
+            start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX)
+            if loss == math.inf:  # the moment recurrence would lose digits: quadrature
+                return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
+            prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
+    rho_max = H * math.sqrt(1.0 + v2 * v2)
+    iterations, flags = 0.0, 0
+    use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series:
         i0, i1, it, err = i01_series_est(-H, v1, v2, prec_i, max_iter)
-        stats[ST_SERIES_ITERS] += it
+        iterations = float(it)
         # a-posteriori guard: estimated rounding error vs the requested precision; a loop that
         # used all max_iter iterations may not have converged
         if it >= max_iter or not (err <= SERIES_SAFETY * prec_i * i0):
             use_series = False
-            stats[ST_SERIES_REJECTED] += 1.0
+            flags |= F_REJECTED
         else:
-            stats[ST_SERIES] += 1.0
+            flags |= F_SERIES
             f = math.exp(-kt * xh)
             K1 = f * i0
             L1 = f * i1
-            if phase_code == ISOTROPIC and not band:
-                return INV_4PI * K1, 0.0, True
+            if phase_code == ISOTROPIC:
+                return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
     E1 = math.exp(-kt * p1)
     E2 = math.exp(-kt * p2)
     if not use_series:
-        ga = g_scaled(complex(H * v1, H))
-        K1 = -E1 * ga.imag
-        L1 = E1 * ga.real
-        ends = abs(K1)
-        if v2 < math.inf:
-            gb = g_scaled(complex(H * v2, H))
-            K1 += E2 * gb.imag
-            L1 -= E2 * gb.real
-            ends += E2 * abs(gb.imag)
-        # a piece short in angle: the two ends' terms cancel beyond what g's accuracy resolves
-        if G_REL_ERR * ends > SERIES_SAFETY * max(prec_i, 1e-11) * abs(K1):
-            return 0.0, 0.0, False
-        stats[ST_STABLE] += 1.0
-        if K1 != 0.0:
-            rel = G_REL_ERR * ends / abs(K1)
-
-    if spots is not None and band:
-        # its moments' rounding (relative `rel` from K1, L1, times the recurrence's loss) is bounded
-        # by |E_k| <= E_0 = 2 K1
-        val = 0.5 * trig_moments_forward(H, v1, v2, K1, L1, E1, E2, gc, gs)
-        err = (rel + FORWARD_ERR_PER_LOSS) * _loss(coeffs, start, H, at) * abs(K1) * size
-        return val, err, True
-
+        K1, L1, _, ok = _e1_ends(H, v1, v2, E1, E2, prec_i)
+        if not ok:
+            return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+        flags |= F_STABLE
     if phase_code == ISOTROPIC:
-        return INV_4PI * K1, 0.0, True
-    if aniso is None:
-        return 0.0, 0.0, False
+        return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+    if aniso is None:  # (numba prunes the code below where it is None)
+        return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
 
     if aniso_mode == ANISO_TAYLOR:
         # PP-19 with N = terms coefficients c_n of Phi in v
@@ -331,7 +322,7 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
         if phase_code == HG and g > 0.0:
             R = (1.0 - g) / (1.0 + g)
         if v2 > R:
-            stats[ST_TAYLOR_OUT] += 1.0
+            flags |= F_TAYLOR_OUT
         acc = 0.0
         nmax = min(terms, coeffs.shape[0])
         for n in range(nmax):
@@ -341,15 +332,48 @@ def _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g, aniso_mode, 
             sg = -1.0 if ((n % 4) // 2) == 1 else 1.0
             base = K1 if n % 2 == 0 else L1
             acc += cn * (_taylor_poly_part(H, v1, v2, E1, E2, n) + sg * base)
-        return acc, 0.0, True
+        return acc, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
 
     # exact: Phi as a cosine series, its Fourier moments by the forward recurrence
-    if pending is not None and row >= 0:
-        pending[row, P_H], pending[row, P_V1], pending[row, P_V2] = H, v1, v2
-        pending[row, P_K1], pending[row, P_L1], pending[row, P_E1], pending[row, P_E2] = K1, L1, E1, E2
-        pending[row, P_BLOCK] = start
-        return 0.0, 0.0, True
-    return 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, coeffs[start + B_C:start + n]), 0.0, True
+    if defer:
+        return 0.0, True, iterations, flags, K1, L1, E1, E2, start
+    S = 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, coeffs[start + B_C:start + n])
+    return S, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+
+
+@njit
+def _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work):
+    """(S, err, ok, flags) for the piece v1 < v < v2 of a segment in a spot's polynomial band (smoothstep
+    or gltf, docs/spot_lights.md): S = int w(phi) Phi(cos phi) F dphi / 2 (folded as `_piece`'s), F the
+    band's polynomial; err bounds its rounding; not ok: a closed form here would miss the precision
+    (quadrature); flags: the paths taken (F_*, `_count`). `work`: scratch for 2 (len(coeffs) +
+    BAND_ORDER + 1) + 8 values."""
+    start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX_BAND)
+    if loss == math.inf:  # the moment recurrence would lose digits: quadrature
+        return 0.0, 0.0, False, 0
+    # F Phi as a trigonometric series of order L + 3 (gc, gs); its terms' size bounds the
+    # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
+    a = work[:BAND_ORDER + 1]
+    b = work[BAND_ORDER + 1:2 * BAND_ORDER + 2]
+    band_trig(cone[0], cone[1], cone[2], cone[3], cone[4], a, b)
+    c = coeffs[start + B_C:start + n]
+    m = c.shape[0] + BAND_ORDER
+    gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
+    gs = work[2 * BAND_ORDER + 2 + m:2 * BAND_ORDER + 2 + 2 * m]
+    size = times_trig(c, a, b, gc, gs)  # sum of |coefficients|
+    prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
+    prec_i = max(1e-15, prec_i * BAND_MARGIN / (np.sum(np.abs(a)) + np.sum(np.abs(b))))
+    # (a band's K1, L1 are wanted finer than the series' rounding on a piece short in angle allows:
+    # the scaled-E1 ends at once)
+    E1 = math.exp(-kt * p1)
+    E2 = math.exp(-kt * p2)
+    K1, L1, rel, ok = _e1_ends(H, v1, v2, E1, E2, prec_i)
+    if not ok:
+        return 0.0, 0.0, False, F_BAND
+    # its moments' rounding (relative `rel` from K1, L1, times the recurrence's loss) is bounded by
+    # |E_k| <= E_0 = 2 K1
+    val = 0.5 * trig_moments_forward(H, v1, v2, K1, L1, E1, E2, gc, gs)
+    return val, (rel + FORWARD_ERR_PER_LOSS) * loss * abs(K1) * size, True, F_BAND | F_STABLE
 
 
 @njit
@@ -358,13 +382,13 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
     """Air-light Lm of one light along one ray segment [0, ell] for one channel (`checked_airlight`'s
     value)."""
     return checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode,
-                            terms, coeffs, cone_row(cone), stats, True, True, True)[0]
+                            terms, coeffs, cone_row(cone), stats, True, True, True, False)[0]
 
 
 @njit
 def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso, pending=None, row=0):
-    """(Lm, met): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
+                     aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso, defer):
+    """(Lm, met, pending): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
     whether it is known to meet `precision` (error_bounds.py): False where a quadrature it fell back
     on did not converge (ST_FALLBACK_CAPPED) and in the Taylor mode of an anisotropic medium (the
     paper's series, an approximation with no bound); True on every other path, each of which is
@@ -383,23 +407,26 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     this specialisation (numba prunes the branches of an argument typed None); spots: True, or None
     to defer the segments of a light with a cone likewise (the spot code is then not compiled);
     aniso: True, or None to defer those in an anisotropic medium (its phase function's code);
-    pending, row: None, or `evaluate_segments`' batch and the segment's row in it: a point light's
-    moment recurrence in the exact mode is then left to it (the value returned is 0, the row's
-    P_BLOCK > 0, its P_PREF the factor 2 I / h of the air-light).
+    defer: whether a point light's moment recurrence in the exact mode is left to the caller
+    (`evaluate_segments`' batch): the value returned is then 0, and `pending` its row of the batch
+    (P_* offsets: P_BLOCK > 0, P_PREF the factor 2 I / h of the air-light); NOTHING_PENDING where
+    nothing is left. Returned, not written into the batch: an array handed to a call costs numba a
+    reference count.
     """
     stats[ST_EVALS] += 1.0
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
         stats[ST_ZERO] += 1.0
-        return 0.0, True
+        return 0.0, True, NOTHING_PENDING
     if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
-        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats,
+                         quadrature) + (NOTHING_PENDING,)
     if kt * da > UNDERFLOW_PATH:
         # optically so thick that the bound I ks max(Phi) pi / h e^{-kt d_a} (the optical path x + d is
         # least, d_a, at the segment's start; int dx / d^2 <= pi / h) underflows: 0, and no inf * 0
         peak = max(phase_value(phase_code, g, 1.0), phase_value(phase_code, g, -1.0))
         if math.log(intensity) + math.log(ks) + math.log(math.pi * peak / h) - kt * da < -UNDERFLOW_PATH:
             stats[ST_ZERO] += 1.0
-            return 0.0, True
+            return 0.0, True, NOTHING_PENDING
     spot = is_spot(cone[3])
     taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
 
@@ -413,7 +440,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
             val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
             if spot:
                 if spots is None:
-                    return math.nan, False
+                    return math.nan, False, NOTHING_PENDING
                 f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
                 val *= f
                 ok = ok and ok_f
@@ -422,7 +449,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
             # polynomial part grows like 1/H^(N-1) as h -> 0
             if ok or (phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR):
                 stats[ST_NEARLINE] += 1.0
-                return val, ok and not taylor
+                return val, ok and not taylor, NOTHING_PENDING
 
     H = kt * h
     va = v_of(-xh, h)
@@ -432,15 +459,17 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     pa = da
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
     if not spot:
-        val, _, ok = _piece(H, kt, xh, h, va, vb, pa, pb, spot, cone, phase_code, g, aniso_mode, terms, coeffs,
-                            precision, max_iter, coeffs, stats, spots, aniso, pending, row)  # (no band: no work)
+        val, ok, iterations, flags, K1, L1, E1, E2, start = _piece(H, kt, xh, va, vb, pa, pb, phase_code, g, aniso_mode,
+                                                                   terms, coeffs, precision, max_iter, aniso, defer)
+        _count(stats, iterations, flags)
         if not ok:
-            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
-        if pending is not None and aniso is not None:
-            pending[row, P_PREF] = pref
-        return pref * (ks * val), not taylor
+            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats,
+                             quadrature) + (NOTHING_PENDING,)
+        if start > 0:
+            return 0.0, not taylor, (H, va, vb, K1, L1, E1, E2, float(start), pref)
+        return pref * (ks * val), not taylor, NOTHING_PENDING
     if spots is None:
-        return math.nan, False
+        return math.nan, False, NOTHING_PENDING
     work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
     pieces = work[:15].reshape((5, 3))
     vals = work[15:20]
@@ -453,8 +482,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
             errs[i] = math.inf  # a band without a closed form (Mitsuba's curve): the band quadrature below
             continue
         v1, v2 = pieces[i, 0], pieces[i, 1]
-        band = pieces[i, 2] == 2.0  # (`at` chosen at run time: a constant would compile _block_at once more)
-        if band and _block_at(coeffs, v1, v2, H, B_HMAX_BAND if band else B_HMAX)[1] - B_C > BAND_GAUSS_FIRST:
+        band = pieces[i, 2] == 2.0
+        if band and _block_at(coeffs, v1, v2, H, B_HMAX_BAND)[1] - B_C > BAND_GAUSS_FIRST:
             fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
             if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
                 stats[ST_PIECE_QUAD] += 1.0
@@ -462,9 +491,13 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
                 continue
         p1 = pa if v1 == va else xh + h * v1
         p2 = pb if v2 == vb else xh + h * v2
-        vals[i], errs[i], ok = _piece(H, kt, xh, h, v1, v2, p1, p2, band, cone, phase_code, g,
-                                      aniso_mode, terms, coeffs, precision, max_iter, work[25:], stats, spots,
-                                      aniso, pending, -1 - row)  # the types of the call above: one compilation
+        if band:
+            vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work[25:])
+            _count(stats, 0.0, flags)
+        else:  # (`not spot`: False: a spot's piece runs its moment recurrence here)
+            vals[i], ok, iterations, flags, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode,
+                                                                   terms, coeffs, precision, max_iter, aniso, not spot)
+            _count(stats, iterations, flags)
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
     met = True
@@ -488,25 +521,28 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
                     out += pref * (ks * fine) - old  # one 10/20-point Gauss-Legendre step suffices (smooth, short)
                     continue
                 if quadrature is None:
-                    return math.nan, False
+                    return math.nan, False, NOTHING_PENDING
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
                 part, converged = _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision,
                                               stats)
                 out += part * math.exp(-kt * x1) - old
                 met = met and converged
-    return out, met and not taylor
+    return out, met and not taylor, NOTHING_PENDING
 
 
 @njit
 def _block_at(coeffs, v1, v2, H, at):
-    """(start, length) in `coeffs` of the exact mode's coefficient block for a piece v1 < v < v2 at
-    H = kt h: the shortest block whose
-    range of v holds the piece and whose recurrence limit (block[at], `_block`) admits H, else the
-    full one (`exact_coeffs`: each block is preceded by its length, the full one first, the fitted
-    ones after it from the widest range to the narrowest, each range inside the one before, so the
-    scan stops at the first range that does not hold the piece). Offsets, not slices, in the scan:
-    a slice costs numba a reference count."""
+    """(start, length, loss): where in `coeffs` the exact mode's coefficient block for a piece
+    v1 < v < v2 at H = kt h starts, its length, and the forward recurrence's error amplification at
+    H, or inf where H is beyond the block's limit (the recurrence would lose digits: quadrature).
+    The block is the shortest whose range of v holds the piece and whose recurrence limit (block[at],
+    at = B_HMAX or B_HMAX_BAND, `_block`) admits H, else the full one (`exact_coeffs`: each block is
+    preceded by its length, the full one first, the fitted ones after it from the widest range to the
+    narrowest, each range inside the one before, so the scan stops at the first range that does not
+    hold the piece). The loss is interpolated from the block's table (B_LOSS or B_LOSS_BAND; nodes
+    quadratic in H: the loss grows like exp(2 sqrt(H k))). Offsets, not slices: a slice costs numba a
+    reference count, as does every array handed to a call (so the scan and the table are one call)."""
     start, n = 1, int(coeffs[0])
     pos = 1 + n
     while pos < coeffs.shape[0]:
@@ -516,7 +552,14 @@ def _block_at(coeffs, v1, v2, H, at):
         if H <= coeffs[b + at]:
             start, n = b, int(coeffs[pos])
         pos = b + int(coeffs[pos])
-    return start, n
+    hmax = coeffs[start + at]
+    if H > hmax:
+        return start, n, math.inf
+    table = start + (B_LOSS if at == B_HMAX else B_LOSS_BAND)
+    x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
+    i = min(int(x), LOSS_TABLE - 2)
+    f = x - i
+    return start, n, max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
 
 
 @njit
@@ -631,7 +674,7 @@ def _block(c, phase, v_lo, v_hi, precision):
     precision / 10 (larger H: quadrature; the bisection keeps lo within that accuracy, so H_max only
     errs low, 0 if not `_usable`); ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum
     where it cancels; the table holds the recurrence's error amplification at H = H_max (i /
-    (LOSS_TABLE - 1))^2 (`_loss`). The band's H_max and table are those of the series times a spot's
+    (LOSS_TABLE - 1))^2 (`_block_at`). The band's H_max and table are those of the series times a spot's
     smoothstep (order + 3: coefficient k of the product draws on c_{k-3} .. c_{k+3})."""
     ratio = 0.1 * float(np.min(phase)) / float(np.sum(np.abs(c)))
     tol = precision * ratio
@@ -804,12 +847,14 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
     either pass, so that deferring changes no bit."""
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
+    defer = aniso is not None
     for s in range(xh.shape[0]):
-        if aniso is not None:
-            pending[s, P_BLOCK] = 0.0
         row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
-        out[s], met[s] = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                          aniso_mode, terms, coeffs, row, stats, quadrature, spots, aniso, pending, s)
+        out[s], met[s], p = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
+                                             aniso_mode, terms, coeffs, row, stats, quadrature, spots, aniso, defer)
+        if aniso is not None:
+            for k in range(PENDING):
+                pending[s, k] = p[k]
     if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
         _pending_recurrences(pending, coeffs, ks, out)
     left = 0
@@ -822,7 +867,7 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
                 scratch[:] = 0.0
                 row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])
                 checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode,
-                                 terms, coeffs, row, scratch, quadrature, spots, aniso, pending, s)
+                                 terms, coeffs, row, scratch, quadrature, spots, aniso, defer)
                 for k in range(stats.shape[0]):
                     stats[k] -= scratch[k]
     return left
