@@ -218,8 +218,143 @@ def test_relative_bound_is_numpys():
     cos_end = np.where(RNG.uniform(size=n) < 0.3, -2.0, RNG.uniform(-1.0, 1.0, size=n))
     cos_end[:20] = [1.0, -1.0, np.nextafter(1.0, 0.0), np.nextafter(-1.0, 0.0)] * 5
     radiance = np.stack([edge_values(n, 1.0) for _ in range(3)], axis=1)
+    met = [RNG.uniform(size=n) < 0.9, np.ones(n, bool), np.zeros(n, bool)]
     for rel in (1e-3 + error_bounds.ROUNDING, error_bounds.KERNEL_FLOOR + error_bounds.ROUNDING):
         ref = (rel + error_bounds.spot_rounding(cos_end)[:, None]) * np.abs(radiance)
+        for c in range(3):
+            ref[~met[c], c] = np.inf
         got = np.empty_like(radiance)
-        error_bounds._relative(radiance, rel, cos_end, got)
-        assert np.array_equal(got, ref) and np.isinf(got).any()
+        error_bounds._relative(radiance, rel, cos_end, tuple(met), got)
+        assert np.array_equal(got, ref) and np.isinf(got[:, 1]).any()
+
+
+def test_relative_bound_shares_channel_keys():
+    """relative_bound takes each channel's `met` by its (sigma_t, sigma_s) key; a channel without one
+    (it does not scatter) keeps its bound (rel |value|)."""
+    class Medium:
+        sigma_t, sigma_s = np.array([0.5, 0.5, 0.2]), np.array([0.3, 0.3, 0.0])
+
+    n = 500
+    radiance = RNG.uniform(size=(n, 3))
+    radiance[:, 2] = 0.0
+    met = {(0.5, 0.3): RNG.uniform(size=n) < 0.5}
+    got = error_bounds.relative_bound(radiance, 1e-3, met, Medium, np.full(n, -2.0))
+    ref = (1e-3 + error_bounds.ROUNDING) * radiance
+    ref[~met[(0.5, 0.3)], :2] = np.inf
+    assert np.array_equal(got, ref)
+
+
+def test_tile_pixels_and_sums_are_numpys():
+    """renderer._tile_pixels (a tile's pixels and keys) and the sums of its samples against the NumPy
+    expressions they replaced."""
+    from raytrace.rendering import renderer
+
+    for first, stop, step, row0, x0, box_w, width, spp, s0, s1 in ((3, 5000, 128, 7, 5, 300, 1024, 4, 0, 4),
+                                                                    (0, 77, 1, 0, 0, 77, 77, 9, 2, 7),
+                                                                    (5, 5, 3, 0, 0, 10, 10, 1, 0, 1)):
+        q = np.arange(first, stop, step)
+        ys, xs = row0 + q // box_w, x0 + q % box_w
+        keys = ((ys * width + xs)[:, None].astype(np.uint64) * np.uint64(spp)
+                + np.arange(s0, s1, dtype=np.uint64)).ravel()
+        got = renderer._tile_pixels(first, stop, step, row0, x0, box_w, width, spp, s0, s1)
+        for a, b in zip(got, (ys, xs, keys)):
+            assert a.dtype == b.dtype and np.array_equal(a, b)
+    for samples in (1, 4, 7):
+        values = [edge_values(300 * samples, 1.0).reshape(-1, 3) * RNG.uniform(size=(100 * samples, 3))
+                  for _ in range(3)]
+        ref = []
+        for v in values:
+            per = v.reshape(-1, samples, 3)
+            total = per[:, 0].copy()
+            for k in range(1, samples):
+                total += per[:, k]
+            ref.append(total)
+        for var in (values[1], None):
+            got = renderer.tile_sums(values[0], var, values[2], samples)
+            assert np.array_equal(got[0], ref[0]) and np.array_equal(got[2], ref[2])
+            assert got[1] is None if var is None else np.array_equal(got[1], ref[1])
+        assert np.array_equal(renderer.sum_samples(values[0], samples), ref[0])
+
+
+def test_surface_hits_are_numpys():
+    """renderer._surface_hits against the masks and fancy indexing it replaced in shade_rays."""
+    from raytrace.rendering import renderer
+
+    n = 4000
+    origins, dirs = RNG.normal(size=(n, 3)) * 100.0, RNG.normal(size=(n, 3))
+    t = RNG.exponential(10.0, size=n)
+    prim = RNG.integers(-1, 50, size=n)
+    keys = RNG.integers(0, 2**63, size=n).astype(np.uint64)
+    for into, ground in ((np.zeros(n, bool), np.zeros(n, bool)),
+                         (RNG.uniform(size=n) < 0.2, (prim < 0) & (RNG.uniform(size=n) < 0.5))):
+        t[prim < 0] = np.inf
+        surf = (prim >= 0) & ~into
+        got = renderer._surface_hits(origins, dirs, t, prim, keys, into & (prim >= 0), ground)
+        ref = (np.flatnonzero(surf), origins[surf] + t[surf, None] * dirs[surf], dirs[surf], prim[surf], keys[surf])
+        for a, b in zip(got[:5], ref):
+            assert a.dtype == b.dtype and np.array_equal(a, b)
+        assert got[5] == (into & (prim >= 0)).any()
+        assert got[6] == np.count_nonzero((prim < 0) & ~ground) and got[7] == np.count_nonzero(ground)
+
+
+def test_scaled_channels_are_numpys():
+    """geometry._scale_channels (by_channel's unit air-light times each light's intensity, 0 for a dark
+    light even where the unit value overflowed) against its NumPy expression."""
+    from raytrace.methods import geometry
+
+    n = 3000
+    intensity = np.array([[1.0, 0.0, 3.5], [2.0, 1e300, 0.0], [0.25, 7.0, 1.0]])
+    light = RNG.integers(0, 3, size=n)
+    u = [edge_values(n, 1.0), edge_values(n, 1e10), np.zeros(0)]
+    out = np.zeros((n, 3))
+    geometry._scale_channels(out, *u, intensity, light)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for c in range(2):
+            i = intensity[light, c]
+            assert np.array_equal(out[:, c], np.where(i != 0.0, u[c] * i, 0.0))
+    assert not out[:, 2].any()
+
+
+@pytest.mark.parametrize("size", [1.0, 1e30])
+def test_first_hit_rays_are_numpys(size):
+    """accel._embree_rays (the rays as Embree takes them) and _refined_hits (its hits as rows, their
+    exact distances and the count of NaNs) against the NumPy conversions and indexing they replaced."""
+    from raytrace.geometry import accel as accel_module
+
+    accel, _ = mesh()
+    accel.unit = 1.0 if size == 1.0 else 2.0 ** round(math.log2(size))
+    n = 3000
+    origins, dirs = RNG.normal(size=(n, 3)) * size, RNG.normal(size=(n, 3))
+    o32, d32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    accel_module._embree_rays(origins, dirs, accel.unit, o32, d32)
+    assert np.array_equal(o32, accel._to_embree(origins)) and np.array_equal(d32, dirs.astype(np.float32))
+    hits = RNG.integers(-1, 200, size=n).astype(np.int32)
+    rows = RNG.permutation(len(accel.triangles))[:200]
+    for mapped in (rows, accel_module._NO_ROWS):
+        prim = hits.astype(np.int64)
+        if len(mapped):
+            prim[prim >= 0] = mapped[prim[prim >= 0]]
+        ref_t = np.empty(n)
+        accel_module._refine(accel.triangles, accel.normals, origins, dirs, prim, ref_t)
+        got_prim, got_t = np.empty(n, np.int64), np.empty(n)
+        nan = accel_module._refined_hits(accel.triangles, accel.normals, origins, dirs, hits, mapped, got_prim, got_t)
+        assert np.array_equal(got_prim, prim) and np.array_equal(got_t, ref_t, equal_nan=True)
+        assert nan == np.count_nonzero(np.isnan(ref_t))
+
+
+def test_whole_rays_are_numpys():
+    """segments.whole_rays' arrays against their NumPy construction (each ray's row repeated per light)."""
+    from raytrace.segments import whole_rays
+
+    n, lights = 700, 3
+    origins, dirs, tmax = RNG.normal(size=(n, 3)), RNG.normal(size=(n, 3)), RNG.exponential(size=n)
+    keys = RNG.integers(0, 2**63, size=n).astype(np.uint64)
+    segs = whole_rays(origins, dirs, tmax, keys, lights, 5, 2.0)
+    ref = (np.repeat(origins, lights, axis=0), np.repeat(dirs, lights, axis=0), np.repeat(tmax, lights),
+           np.tile(np.arange(lights), n), np.repeat(np.arange(n), lights), np.zeros(n * lights),
+           np.repeat(keys, lights), np.tile(np.arange(lights), n))
+    for name, b in zip(("origins", "dirs", "length", "light", "ray", "t0", "keys", "stream"), ref):
+        a = getattr(segs, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b), name
+    assert segs.per_ray == lights and segs.seed == 5 and segs.scale == 2.0
+    assert len(whole_rays(origins[:0], dirs[:0], tmax[:0], keys[:0], lights)) == 0

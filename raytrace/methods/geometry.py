@@ -16,7 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..jit import njit
+from ..error_bounds import channel_keys
+from ..jit import jitable, njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.atmosphere import ROW, segment_rows
@@ -143,26 +144,45 @@ def by_channel(segs, medium, lights, evaluate, estimated=False):
     out = np.zeros((len(segs), 3))
     err = np.zeros((len(segs), 3)) if estimated else None
     done = {}
-    for c in range(3):
-        key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
+    dark = np.zeros(0)  # a channel that does not scatter: left 0
+    units, ests = [dark] * 3, [dark] * 3
+    for c, key in enumerate(channel_keys(medium)):
         if key[1] == 0.0:
             continue
         if key not in done:
             done[key] = evaluate(xh, h, da, segs.length, *key, cone)
-        unit, est = done[key] if estimated else (done[key], None)
-        _scale_into(out, c, unit, lights.intensity, segs.light)
-        if estimated:
-            _scale_into(err, c, est, lights.intensity, segs.light)
+        units[c], ests[c] = done[key] if estimated else (done[key], dark)
+    _scale_channels(out, *units, lights.intensity, segs.light)
+    if estimated:
+        _scale_channels(err, *ests, lights.intensity, segs.light)
     return (out, err) if estimated else out
 
 
 @njit
+def _scale_channels(out, u0, u1, u2, intensity, light):
+    """`_scale_into` of the channels 0, 1, 2 whose unit values u0, u1, u2 are not empty, in one call."""
+    for s in range(out.shape[0]):
+        li = light[s]
+        if u0.shape[0]:
+            out[s, 0] = _scaled(u0[s], intensity[li, 0])
+        if u1.shape[0]:
+            out[s, 1] = _scaled(u1[s], intensity[li, 1])
+        if u2.shape[0]:
+            out[s, 2] = _scaled(u2[s], intensity[li, 2])
+
+
+@jitable
+def _scaled(unit, intensity):
+    """unit x intensity, 0 for a dark light even where the unit value overflowed (a camera on a light
+    in a medium of sigma ~ 1e300)."""
+    return unit * intensity if intensity != 0.0 else 0.0
+
+
+@njit
 def _scale_into(out, c, unit, intensity, light):
-    """out[s, c] = unit[s] * intensity[light[s], c] (0 for a dark light, even where the unit value
-    overflowed: a camera on a light in a medium of sigma ~ 1e300)."""
+    """out[s, c] = unit[s] * intensity[light[s], c] (`_scaled`)."""
     for s in range(unit.shape[0]):
-        i = intensity[light[s], c]
-        out[s, c] = unit[s] * i if i != 0.0 else 0.0
+        out[s, c] = _scaled(unit[s], intensity[light[s], c])
 
 
 # a height-fog segment's row (`fog_rows`): heights above h0 and up-cosines of the ray and its light

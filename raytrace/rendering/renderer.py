@@ -30,6 +30,7 @@ from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
+from ..jit import exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
@@ -216,28 +217,28 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     t, prim, ground = (first_hits(prep.accel, medium, origins, dirs) if hits is None
                        else (hits[0].copy(), hits[1].copy(), hits[2]))  # an atmosphere's planet in float64
 
-    deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
+    n_stats, varies = stats_size(method), has_variance(prep, method)
+    deeper = np.zeros(n_stats)  # of the inside integrals and of the rays leaving shapes
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (crossing.py)
         boundary = crossing.start_inside(prep, origins, dirs, t, prim, keys)
         rad, var, _ = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
-        return rad, deeper, var if has_variance(prep, method) else None, np.full_like(rad, np.inf)
-    hit = prim >= 0
+        return rad, deeper, var if varies else None, np.full_like(rad, np.inf)
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
-    surf = hit & ~into
-    entering = into.any()
-    if surf.any():
-        points = origins[surf] + t[surf, None] * dirs[surf]
-        normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
-        shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
-        surf_var = np.zeros((len(points), 3)) if has_variance(prep, method) else None  # shading.penumbra's
-        radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium, crossing.shadow_through(prep), shading, keys[surf], seed, surf_var,
+    # the rays that hit a surface (not one holding a medium), their points, directions, rows and keys
+    surf, points, surf_dirs, surf_prim, surf_keys, entering, missed, grounded = _surface_hits(origins, dirs, t, prim,
+                                                                                             keys, into, ground)
+    if len(surf):
+        normals = facing_normals(prep.accel.hit_normals(surf_prim, points), surf_dirs)
+        shading = shading_normals(prep.accel, prep.corner_normals, surf_prim, points, normals)
+        surf_var = np.zeros((len(points), 3)) if varies else None  # shading.penumbra's
+        radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[surf_prim], prep.lights,
+                                          medium, crossing.shadow_through(prep), shading, surf_keys, seed, surf_var,
                                           method.tolerance(params))
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
-            radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
-                                               prep.accel.hit_normals(prim[surf], points), dirs[surf])
-    if ground.any():
+            radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[surf_prim],
+                                               prep.accel.hit_normals(surf_prim, points), surf_dirs)
+    if grounded:
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if entering:
         boundary = crossing.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
@@ -246,21 +247,23 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         else:
             radiance[into], into_var, into_bound = _across(prep, method, params, boundary, seed, shadows, depth,
                                                            deeper)
-    if sees_emission(prep):
-        radiance[~hit & ~ground] = at_infinity(scene.lights, scene.background, dirs[~hit & ~ground])
+    if missed and sees_emission(prep):
+        miss = (prim < 0) & ~ground
+        radiance[miss] = at_infinity(scene.lights, scene.background, dirs[miss])
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
-    stats = np.zeros(stats_size(method))
-    variance = np.zeros_like(radiance) if has_variance(prep, method) else None
-    if surf.any() and variance is not None:
+    stats = np.zeros(n_stats)
+    variance = np.zeros_like(radiance) if varies else None
+    if len(surf) and variance is not None:
         variance[surf] = surf_var * tr[surf] ** 2
     if entering and variance is not None:
         variance[into] = into_var * tr[into] ** 2
     bound = np.zeros_like(radiance)
-    bound[surf & prep.lights.cubature.any()] = np.inf  # an area light's cubature on surfaces: no bound
+    if len(surf) and prep.lights.cubature.any():  # an area light's cubature on surfaces: no bound
+        bound[surf] = np.inf
     if entering:
         bound[into] = crossing.scaled(into_bound, tr[into])
-    if len(prep.lights) and medium.scatters:
+    if len(prep.lights) and prep.memo("scatters", lambda: medium.scatters):
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
@@ -313,6 +316,36 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         bound[np.any(glints != 0.0, axis=1)] = np.inf
     bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
     return radiance, stats + deeper, variance, bound
+
+
+@exact_njit
+def _surface_hits(origins, dirs, t, prim, keys, into, ground):
+    """Of rays with first hits (t, prim; `into`: the hit's shape holds a medium, `ground`: the
+    medium's ground is hit): the indices of those that hit a surface (prim >= 0, not `into`), their
+    hit points origins + t dirs (rounded as NumPy's expression), directions, rows and keys; whether
+    any enters a shape, how many see the sky (prim < 0, not `ground`) and how many the ground."""
+    n = 0
+    entering, missed, grounded = False, 0, 0
+    for i in range(prim.shape[0]):
+        if prim[i] >= 0 and not into[i]:
+            n += 1
+        entering |= into[i]
+        if prim[i] < 0:
+            if ground[i]:
+                grounded += 1
+            else:
+                missed += 1
+    idx, points, d = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
+    rows, k = np.empty(n, np.int64), np.empty(n, keys.dtype)
+    j = 0
+    for i in range(prim.shape[0]):
+        if prim[i] >= 0 and not into[i]:
+            idx[j], rows[j], k[j] = i, prim[i], keys[i]
+            for a in range(3):
+                d[j, a] = dirs[i, a]
+                points[j, a] = origins[i, a] + t[i] * dirs[i, a]
+            j += 1
+    return idx, points, d, rows, k, entering, missed, grounded
 
 
 def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stats):
@@ -439,11 +472,54 @@ def tiles(cam, box) -> list[Tile]:
 def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     """(pixels, k) sums of (pixels x samples, k) per-ray values: each pixel's samples added in sample
     order (as the earlier tiles' numpy sum over them did)."""
-    per = values.reshape(-1, samples, values.shape[1])
-    total = per[:, 0].copy()
-    for k in range(1, samples):
-        total += per[:, k]
+    total = np.empty((len(values) // samples, values.shape[1]))
+    _sum_samples(values, samples, total)
     return total
+
+
+@exact_njit
+def _sum_samples(values, samples, out):
+    """out[p] = values[p S] + values[p S + 1] + ... (S = samples), added in that order: the bits of
+    the NumPy loop it replaced (a copy of the first sample, then += each next one)."""
+    for p in range(out.shape[0]):
+        for c in range(out.shape[1]):
+            total = values[p * samples, c]
+            for k in range(1, samples):
+                total += values[p * samples + k, c]
+            out[p, c] = total
+
+
+def tile_sums(rad, var, bound, samples: int):
+    """`sum_samples` of a tile's radiance, variance (None: none) and bound, in one GIL-free call."""
+    n = len(rad) // samples
+    outs = np.empty((n, 3)), np.empty((n if var is not None else 0, 3)), np.empty((n, 3))
+    _sum_samples3(rad, np.empty((0, 3)) if var is None else var, bound, samples, *outs)
+    return outs[0], None if var is None else outs[1], outs[2]
+
+
+@exact_njit
+def _sum_samples3(rad, var, bound, samples, rad_out, var_out, bound_out):
+    """`_sum_samples` of three arrays (var and var_out empty: no variance)."""
+    _sum_samples(rad, samples, rad_out)
+    _sum_samples(var, samples, var_out)
+    _sum_samples(bound, samples, bound_out)
+
+
+@exact_njit
+def _tile_pixels(first, stop, step, row0, x0, box_width, width, spp, s0, s1):
+    """The pixels (ys, xs) of a tile (positions first:stop:step of its band's raster order, the band
+    starting at image row `row0`, of the box's columns x0 ...) and their rays' keys (pixel index x
+    spp + sample, uint64, samples s0 ... s1 - 1 of each pixel consecutive)."""
+    n = len(range(first, stop, step))
+    ys, xs = np.empty(n, np.int64), np.empty(n, np.int64)
+    keys = np.empty(n * (s1 - s0), np.uint64)
+    for i in range(n):
+        q = first + i * step
+        ys[i], xs[i] = row0 + q // box_width, x0 + q % box_width
+        base = np.uint64(ys[i] * width + xs[i]) * np.uint64(spp)
+        for s in range(s0, s1):
+            keys[i * (s1 - s0) + s - s0] = base + np.uint64(s)
+    return ys, xs, keys
 
 
 _method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
@@ -456,17 +532,16 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
-    q = np.arange(tile.pixels.start, tile.pixels.stop, tile.pixels.step)
-    ys, xs = tile.rows.start + q // (x1 - x0), x0 + q % (x1 - x0)
+    ys, xs, keys = _tile_pixels(tile.pixels.start, tile.pixels.stop, tile.pixels.step, tile.rows.start, x0, x1 - x0,
+                                cam.width, cam.spp, tile.samples.start, tile.samples.stop)
     o, d = pixel_rays(cam, ys, xs, tile.samples)
-    keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
-            + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
     method = _method(task.method)
     hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
     rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start
     layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys, hits), n)
-    return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
+    rad, var, bound = tile_sums(rad, var, bound, n)
+    return rad, stats, var, bound, layers
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
