@@ -55,9 +55,11 @@ def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium, co
     not meet it. `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's
     keys); channels that do not scatter are exactly 0."""
     bound = np.empty(radiance.shape)
-    everywhere = np.ones(len(radiance), dtype=np.bool_)
-    _relative(radiance, max(precision, KERNEL_FLOOR) + ROUNDING, cos_end,
-              tuple(met.get(key, everywhere) for key in channel_keys(medium)), bound)
+    flags = [met.get(key) for key in channel_keys(medium)]
+    if any(f is None for f in flags):  # a channel that does not scatter: no evaluation to have missed
+        everywhere = np.ones(len(radiance), dtype=np.bool_)
+        flags = [everywhere if f is None else f for f in flags]
+    _relative(radiance, max(precision, KERNEL_FLOOR) + ROUNDING, cos_end, tuple(flags), bound)
     return bound
 
 

@@ -277,7 +277,8 @@ def test_tile_pixels_and_sums_are_numpys():
 
 
 def test_surface_hits_are_numpys():
-    """renderer._surface_hits against the masks and fancy indexing it replaced in shade_rays."""
+    """renderer._surface_hits and _add_rounding against the masks, fancy indexing and sum they replaced in
+    shade_rays."""
     from raytrace.rendering import renderer
 
     n = 4000
@@ -285,16 +286,22 @@ def test_surface_hits_are_numpys():
     t = RNG.exponential(10.0, size=n)
     prim = RNG.integers(-1, 50, size=n)
     keys = RNG.integers(0, 2**63, size=n).astype(np.uint64)
+    reflectance = RNG.uniform(size=(50, 3))
     for into, ground in ((np.zeros(n, bool), np.zeros(n, bool)),
                          (RNG.uniform(size=n) < 0.2, (prim < 0) & (RNG.uniform(size=n) < 0.5))):
         t[prim < 0] = np.inf
         surf = (prim >= 0) & ~into
-        got = renderer._surface_hits(origins, dirs, t, prim, keys, into & (prim >= 0), ground)
-        ref = (np.flatnonzero(surf), origins[surf] + t[surf, None] * dirs[surf], dirs[surf], prim[surf], keys[surf])
-        for a, b in zip(got[:5], ref):
+        got = renderer._surface_hits(origins, dirs, t, prim, keys, into & (prim >= 0), ground, reflectance)
+        ref = (np.flatnonzero(surf), origins[surf] + t[surf, None] * dirs[surf], dirs[surf], prim[surf], keys[surf],
+               reflectance[prim[surf]])
+        for a, b in zip(got[:6], ref):
             assert a.dtype == b.dtype and np.array_equal(a, b)
-        assert got[5] == (into & (prim >= 0)).any()
-        assert got[6] == np.count_nonzero((prim < 0) & ~ground) and got[7] == np.count_nonzero(ground)
+        assert got[6] == (into & (prim >= 0)).any()
+        assert got[7] == np.count_nonzero((prim < 0) & ~ground) and got[8] == np.count_nonzero(ground)
+    bound, radiance = RNG.uniform(size=(n, 3)), np.stack([edge_values(n, 1.0) for _ in range(3)], axis=1)
+    ref = bound + error_bounds.ROUNDING * np.abs(radiance)
+    renderer._add_rounding(bound, radiance)
+    assert np.array_equal(bound, ref)
 
 
 def test_scaled_channels_are_numpys():

@@ -226,13 +226,13 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
     # the rays that hit a surface (not one holding a medium), their points, directions, rows and keys
-    surf, points, surf_dirs, surf_prim, surf_keys, entering, missed, grounded = _surface_hits(origins, dirs, t, prim,
-                                                                                             keys, into, ground)
+    surf, points, surf_dirs, surf_prim, surf_keys, surf_refl, entering, missed, grounded = _surface_hits(
+        origins, dirs, t, prim, keys, into, ground, prep.reflectance)
     if len(surf):
         normals = facing_normals(prep.accel.hit_normals(surf_prim, points), surf_dirs)
         shading = shading_normals(prep.accel, prep.corner_normals, surf_prim, points, normals)
         surf_var = np.zeros((len(points), 3)) if varies else None  # shading.penumbra's
-        radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[surf_prim], prep.lights,
+        radiance[surf] = surface_radiance(prep.accel, points, normals, surf_refl, prep.lights,
                                           medium, crossing.shadow_through(prep), shading, surf_keys, seed, surf_var,
                                           method.tolerance(params))
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
@@ -314,16 +314,17 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                    shadows)
         radiance += glints
         bound[np.any(glints != 0.0, axis=1)] = np.inf
-    bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
+    _add_rounding(bound, radiance)  # the float64 closed forms and sums
     return radiance, stats + deeper, variance, bound
 
 
 @exact_njit
-def _surface_hits(origins, dirs, t, prim, keys, into, ground):
+def _surface_hits(origins, dirs, t, prim, keys, into, ground, reflectance):
     """Of rays with first hits (t, prim; `into`: the hit's shape holds a medium, `ground`: the
     medium's ground is hit): the indices of those that hit a surface (prim >= 0, not `into`), their
-    hit points origins + t dirs (rounded as NumPy's expression), directions, rows and keys; whether
-    any enters a shape, how many see the sky (prim < 0, not `ground`) and how many the ground."""
+    hit points origins + t dirs (rounded as NumPy's expression), directions, rows, keys and rows'
+    `reflectance`; whether any enters a shape, how many see the sky (prim < 0, not `ground`) and how
+    many the ground."""
     n = 0
     entering, missed, grounded = False, 0, 0
     for i in range(prim.shape[0]):
@@ -336,7 +337,7 @@ def _surface_hits(origins, dirs, t, prim, keys, into, ground):
             else:
                 missed += 1
     idx, points, d = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
-    rows, k = np.empty(n, np.int64), np.empty(n, keys.dtype)
+    rows, k, refl = np.empty(n, np.int64), np.empty(n, keys.dtype), np.empty((n, reflectance.shape[1]))
     j = 0
     for i in range(prim.shape[0]):
         if prim[i] >= 0 and not into[i]:
@@ -344,8 +345,18 @@ def _surface_hits(origins, dirs, t, prim, keys, into, ground):
             for a in range(3):
                 d[j, a] = dirs[i, a]
                 points[j, a] = origins[i, a] + t[i] * dirs[i, a]
+            for a in range(reflectance.shape[1]):
+                refl[j, a] = reflectance[prim[i], a]
             j += 1
-    return idx, points, d, rows, k, entering, missed, grounded
+    return idx, points, d, rows, k, refl, entering, missed, grounded
+
+
+@exact_njit
+def _add_rounding(bound, radiance):
+    """bound += ROUNDING |radiance| (the float64 closed forms and sums), rounded as NumPy's expression."""
+    for i in range(bound.shape[0]):
+        for c in range(bound.shape[1]):
+            bound[i, c] += error_bounds.ROUNDING * abs(radiance[i, c])
 
 
 def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stats):
