@@ -332,8 +332,7 @@ def test_first_hit_rays_are_numpys(size):
     accel.unit = 1.0 if size == 1.0 else 2.0 ** round(math.log2(size))
     n = 3000
     origins, dirs = RNG.normal(size=(n, 3)) * size, RNG.normal(size=(n, 3))
-    o32, d32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
-    accel_module._embree_rays(origins, dirs, accel.unit, o32, d32)
+    o32, d32 = accel_module._embree_rays(origins, dirs, accel.unit)
     assert np.array_equal(o32, accel._to_embree(origins)) and np.array_equal(d32, dirs.astype(np.float32))
     hits = RNG.integers(-1, 200, size=n).astype(np.int32)
     rows = RNG.permutation(len(accel.triangles))[:200]
@@ -343,8 +342,7 @@ def test_first_hit_rays_are_numpys(size):
             prim[prim >= 0] = mapped[prim[prim >= 0]]
         ref_t = np.empty(n)
         accel_module._refine(accel.triangles, accel.normals, origins, dirs, prim, ref_t)
-        got_prim, got_t = np.empty(n, np.int64), np.empty(n)
-        nan = accel_module._refined_hits(accel.triangles, accel.normals, origins, dirs, hits, mapped, got_prim, got_t)
+        got_prim, got_t, nan = accel_module._refined_hits(accel.triangles, accel.normals, origins, dirs, hits, mapped)
         assert np.array_equal(got_prim, prim) and np.array_equal(got_t, ref_t, equal_nan=True)
         assert nan == np.count_nonzero(np.isnan(ref_t))
 

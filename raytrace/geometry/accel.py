@@ -133,13 +133,11 @@ class Accelerator:
         if self._scene is None:
             t, prim = np.full(len(origins), np.inf), np.full(len(origins), -1, dtype=np.int64)
         else:
-            o32, d32 = np.empty((len(origins), 3), np.float32), np.empty((len(origins), 3), np.float32)
-            _embree_rays(origins, dirs, self.unit, o32, d32)
-            hits = self._scene.run(o32, d32)
-            prim, t = np.empty(len(hits), np.int64), np.empty(len(hits))
+            o32, d32 = _embree_rays(origins, dirs, self.unit)
             # Embree's primitives are the rows that are triangles
-            if _refined_hits(self.triangles, self.normals, origins, dirs, hits,
-                             self._tri_rows if self._any_sphere else _NO_ROWS, prim, t):
+            prim, t, nan = _refined_hits(self.triangles, self.normals, origins, dirs, self._scene.run(o32, d32),
+                                         self._tri_rows if self._any_sphere else _NO_ROWS)
+            if nan:
                 bad = np.isnan(t)  # degenerate plane solve: fall back to Embree's float32 distance
                 t[bad] = self._scene.run(o32[bad], d32[bad], query="DISTANCE").astype(np.float64) * self.unit
         self._sphere_hits(origins, dirs, t, prim)
@@ -214,26 +212,29 @@ _NO_ROWS = np.zeros(0, np.int64)  # `_refined_hits`: Embree's primitives are the
 
 
 @exact_njit
-def _embree_rays(origins, dirs, unit, o32, d32):
+def _embree_rays(origins, dirs, unit):
     """The rays as Embree takes them (`Accelerator._to_embree` of the origins, the directions as
     float32), rounded as the NumPy conversions it replaced."""
+    o32, d32 = np.empty((origins.shape[0], 3), np.float32), np.empty((origins.shape[0], 3), np.float32)
     for i in range(origins.shape[0]):
         for a in range(3):
             o32[i, a] = np.float32(origins[i, a] if unit == 1.0 else origins[i, a] / unit)
             d32[i, a] = np.float32(dirs[i, a])
+    return o32, d32
 
 
 @exact_njit
-def _refined_hits(triangles, normals, origins, dirs, hits, rows, prim, t):
-    """prim <- Embree's hits (-1: a miss) as int64, mapped to the scene's rows through `rows` unless
-    it is empty; t <- `_refine`'s distances. Returns how many of them are NaN."""
+def _refined_hits(triangles, normals, origins, dirs, hits, rows):
+    """(prim, t, NaNs): Embree's hits (-1: a miss) as int64, mapped to the scene's rows through
+    `rows` unless it is empty, `_refine`'s distances to them and how many of those are NaN."""
+    prim, t = np.empty(hits.shape[0], np.int64), np.empty(hits.shape[0])
     for i in range(hits.shape[0]):
         prim[i] = hits[i] if hits[i] < 0 or not rows.shape[0] else rows[hits[i]]
     _refine(triangles, normals, origins, dirs, prim, t)
     nan = 0
     for i in range(t.shape[0]):
         nan += math.isnan(t[i])
-    return nan
+    return prim, t, nan
 
 
 @njit

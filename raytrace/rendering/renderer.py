@@ -253,12 +253,12 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
     stats = np.zeros(n_stats)
-    variance = np.zeros_like(radiance) if varies else None
+    variance = np.zeros(radiance.shape) if varies else None
     if len(surf) and variance is not None:
         variance[surf] = surf_var * tr[surf] ** 2
     if entering and variance is not None:
         variance[into] = into_var * tr[into] ** 2
-    bound = np.zeros_like(radiance)
+    bound = np.zeros(radiance.shape)
     if len(surf) and prep.lights.cubature.any():  # an area light's cubature on surfaces: no bound
         bound[surf] = np.inf
     if entering:
