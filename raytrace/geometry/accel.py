@@ -133,7 +133,7 @@ class Accelerator:
         if self._scene is None:
             t, prim = np.full(len(origins), np.inf), np.full(len(origins), -1, dtype=np.int64)
         else:
-            o32, d32 = _embree_rays(origins, dirs, self.unit)
+            o32, d32 = self._to_embree(origins), np.ascontiguousarray(dirs, dtype=np.float32)
             # Embree's primitives are the rows that are triangles
             prim, t, nan = _refined_hits(self.triangles, self.normals, origins, dirs, self._scene.run(o32, d32),
                                          self._tri_rows if self._any_sphere else _NO_ROWS)
@@ -209,18 +209,6 @@ class Accelerator:
 
 
 _NO_ROWS = np.zeros(0, np.int64)  # `_refined_hits`: Embree's primitives are the rows
-
-
-@exact_njit
-def _embree_rays(origins, dirs, unit):
-    """The rays as Embree takes them (`Accelerator._to_embree` of the origins, the directions as
-    float32), rounded as the NumPy conversions it replaced."""
-    o32, d32 = np.empty((origins.shape[0], 3), np.float32), np.empty((origins.shape[0], 3), np.float32)
-    for i in range(origins.shape[0]):
-        for a in range(3):
-            o32[i, a] = np.float32(origins[i, a] if unit == 1.0 else origins[i, a] / unit)
-            d32[i, a] = np.float32(dirs[i, a])
-    return o32, d32
 
 
 @exact_njit

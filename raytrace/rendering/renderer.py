@@ -30,7 +30,7 @@ from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
-from ..jit import exact_njit
+from ..jit import exact_jitable, exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
@@ -314,7 +314,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                                    shadows)
         radiance += glints
         bound[np.any(glints != 0.0, axis=1)] = np.inf
-    _add_rounding(bound, radiance)  # the float64 closed forms and sums
+    bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
     return radiance, stats + deeper, variance, bound
 
 
@@ -349,14 +349,6 @@ def _surface_hits(origins, dirs, t, prim, keys, into, ground, reflectance):
                 refl[j, a] = reflectance[prim[i], a]
             j += 1
     return idx, points, d, rows, k, refl, entering, missed, grounded
-
-
-@exact_njit
-def _add_rounding(bound, radiance):
-    """bound += ROUNDING |radiance| (the float64 closed forms and sums), rounded as NumPy's expression."""
-    for i in range(bound.shape[0]):
-        for c in range(bound.shape[1]):
-            bound[i, c] += error_bounds.ROUNDING * abs(radiance[i, c])
 
 
 def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stats):
@@ -484,12 +476,31 @@ def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     """(pixels, k) sums of (pixels x samples, k) per-ray values: each pixel's samples added in sample
     order (as the earlier tiles' numpy sum over them did)."""
     total = np.empty((len(values) // samples, values.shape[1]))
-    _sum_samples(values, samples, total)
+    _sum_samples3(values, _NONE, _NONE, samples, total, _NONE, _NONE)
     return total
 
 
+_NONE = np.empty((0, 3))  # `_sum_samples3`'s absent arrays (nothing in them to change)
+
+
+def tile_sums(rad, var, bound, samples: int):
+    """`sum_samples` of a tile's radiance, variance (None: none) and bound, in one GIL-free call."""
+    n = len(rad) // samples
+    outs = np.empty((n, 3)), np.empty((n if var is not None else 0, 3)), np.empty((n, 3))
+    _sum_samples3(rad, _NONE if var is None else var, bound, samples, *outs)
+    return outs[0], None if var is None else outs[1], outs[2]
+
+
 @exact_njit
-def _sum_samples(values, samples, out):
+def _sum_samples3(a, b, c, samples, a_out, b_out, c_out):
+    """`_sum_into` of three arrays (an empty one and its empty sum: none)."""
+    _sum_into(a, samples, a_out)
+    _sum_into(b, samples, b_out)
+    _sum_into(c, samples, c_out)
+
+
+@exact_jitable
+def _sum_into(values, samples, out):
     """out[p] = values[p S] + values[p S + 1] + ... (S = samples), added in that order: the bits of
     the NumPy loop it replaced (a copy of the first sample, then += each next one)."""
     for p in range(out.shape[0]):
@@ -498,22 +509,6 @@ def _sum_samples(values, samples, out):
             for k in range(1, samples):
                 total += values[p * samples + k, c]
             out[p, c] = total
-
-
-def tile_sums(rad, var, bound, samples: int):
-    """`sum_samples` of a tile's radiance, variance (None: none) and bound, in one GIL-free call."""
-    n = len(rad) // samples
-    outs = np.empty((n, 3)), np.empty((n if var is not None else 0, 3)), np.empty((n, 3))
-    _sum_samples3(rad, np.empty((0, 3)) if var is None else var, bound, samples, *outs)
-    return outs[0], None if var is None else outs[1], outs[2]
-
-
-@exact_njit
-def _sum_samples3(rad, var, bound, samples, rad_out, var_out, bound_out):
-    """`_sum_samples` of three arrays (var and var_out empty: no variance)."""
-    _sum_samples(rad, samples, rad_out)
-    _sum_samples(var, samples, var_out)
-    _sum_samples(bound, samples, bound_out)
 
 
 @exact_njit
