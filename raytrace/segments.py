@@ -18,23 +18,22 @@ from .methods.geometry import segment_geometry, v_of
 
 def whole_rays(origins, dirs, tmax, keys, n_lights, seed=0, scale=1.0) -> Segments:
     """One segment [0, tmax] per (ray, light), ray-major (segment r L + l)."""
-    return Segments(*_whole_rays(origins, dirs, np.asarray(tmax, np.float64), np.asarray(keys, np.uint64), n_lights),
-                    int(seed), float(scale), per_ray=n_lights)
+    s = len(origins) * n_lights
+    o, d, length = np.empty((s, 3)), np.empty((s, 3)), np.empty(s)
+    light, ray, k = np.empty(s, np.int64), np.empty(s, np.int64), np.empty(s, np.uint64)
+    _whole_rays(origins, dirs, np.asarray(tmax, np.float64), np.asarray(keys, np.uint64), o, d, length, light, ray, k)
+    return Segments(o, d, length, light, ray, np.zeros(s), k, light.copy(), int(seed), float(scale), per_ray=n_lights)
 
 
 @njit
-def _whole_rays(origins, dirs, tmax, keys, per):
-    """`Segments`' arrays (origins, dirs, length, light, ray, t0, keys, stream) of each ray's row
-    copied to its segments r L + l (L = `per`), light l, t0 = 0, stream = light."""
-    n = origins.shape[0] * per
-    o, d, length = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-    light, ray, k = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.uint64)
-    for s in range(n):
+def _whole_rays(origins, dirs, tmax, keys, o, d, length, light, ray, k):
+    """Each ray's row copied to its segments r L + l (L = len(o) / len(origins)), light l."""
+    per = o.shape[0] // max(origins.shape[0], 1)
+    for s in range(o.shape[0]):
         r = s // per
         for a in range(3):
             o[s, a], d[s, a] = origins[r, a], dirs[r, a]
         length[s], light[s], ray[s], k[s] = tmax[r], s - r * per, r, keys[r]
-    return o, d, length, light, ray, np.zeros(n), k, light.copy()
 
 
 CONE_STREAM = 1 << 20  # stream offset of a spot light's second lit piece (a cone cuts a line at most twice)

@@ -256,24 +256,17 @@ def test_tile_pixels_and_sums_are_numpys():
         ys, xs = row0 + q // box_w, x0 + q % box_w
         keys = ((ys * width + xs)[:, None].astype(np.uint64) * np.uint64(spp)
                 + np.arange(s0, s1, dtype=np.uint64)).ravel()
-        got = renderer._tile_pixels(first, stop, step, row0, x0, box_w, width, spp, s0, s1)
+        got = np.empty(len(q), np.int64), np.empty(len(q), np.int64), np.empty(len(q) * (s1 - s0), np.uint64)
+        renderer._tile_pixels(first, step, row0, x0, box_w, width, spp, s0, *got)
         for a, b in zip(got, (ys, xs, keys)):
-            assert a.dtype == b.dtype and np.array_equal(a, b)
+            assert np.array_equal(a, b)
     for samples in (1, 4, 7):
-        values = [edge_values(300 * samples, 1.0).reshape(-1, 3) * RNG.uniform(size=(100 * samples, 3))
-                  for _ in range(3)]
-        ref = []
-        for v in values:
-            per = v.reshape(-1, samples, 3)
-            total = per[:, 0].copy()
-            for k in range(1, samples):
-                total += per[:, k]
-            ref.append(total)
-        for var in (values[1], None):
-            got = renderer.tile_sums(values[0], var, values[2], samples)
-            assert np.array_equal(got[0], ref[0]) and np.array_equal(got[2], ref[2])
-            assert got[1] is None if var is None else np.array_equal(got[1], ref[1])
-        assert np.array_equal(renderer.sum_samples(values[0], samples), ref[0])
+        values = edge_values(300 * samples, 1.0).reshape(-1, 3) * RNG.uniform(size=(100 * samples, 3))
+        per = values.reshape(-1, samples, 3)
+        total = per[:, 0].copy()
+        for k in range(1, samples):
+            total += per[:, k]
+        assert np.array_equal(renderer.sum_samples(values, samples), total)
 
 
 def test_surface_hits_are_numpys():
@@ -290,13 +283,16 @@ def test_surface_hits_are_numpys():
                          (RNG.uniform(size=n) < 0.2, (prim < 0) & (RNG.uniform(size=n) < 0.5))):
         t[prim < 0] = np.inf
         surf = (prim >= 0) & ~into
-        got = renderer._surface_hits(origins, dirs, t, prim, keys, into & (prim >= 0), ground, reflectance)
+        outs = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)), np.empty(n, np.int64),
+                np.empty(n, np.uint64), np.empty((n, 3)))
+        m, entering, missed, grounded = renderer._surface_hits(origins, dirs, t, prim, keys, into & (prim >= 0), ground,
+                                                               reflectance, *outs)
         ref = (np.flatnonzero(surf), origins[surf] + t[surf, None] * dirs[surf], dirs[surf], prim[surf], keys[surf],
                reflectance[prim[surf]])
-        for a, b in zip(got[:6], ref):
-            assert a.dtype == b.dtype and np.array_equal(a, b)
-        assert got[6] == (into & (prim >= 0)).any()
-        assert got[7] == np.count_nonzero((prim < 0) & ~ground) and got[8] == np.count_nonzero(ground)
+        for a, b in zip(outs, ref):
+            assert a.dtype == b.dtype and np.array_equal(a[:m], b)
+        assert entering == (into & (prim >= 0)).any()
+        assert missed == np.count_nonzero((prim < 0) & ~ground) and grounded == np.count_nonzero(ground)
 
 
 def test_scaled_channels_are_numpys():
@@ -315,43 +311,3 @@ def test_scaled_channels_are_numpys():
             i = intensity[light, c]
             assert np.array_equal(out[:, c], np.where(i != 0.0, u[c] * i, 0.0))
     assert not out[:, 2].any()
-
-
-@pytest.mark.parametrize("size", [1.0, 1e30])
-def test_refined_hits_are_numpys(size):
-    """accel._refined_hits (Embree's hits as rows, their exact distances and the count of NaNs) against
-    the NumPy conversion and indexing it replaced."""
-    from raytrace.geometry import accel as accel_module
-
-    accel, _ = mesh()
-    n = 3000
-    origins, dirs = RNG.normal(size=(n, 3)) * size, RNG.normal(size=(n, 3))
-    hits = RNG.integers(-1, 200, size=n).astype(np.int32)
-    rows = RNG.permutation(len(accel.triangles))[:200]
-    for mapped in (rows, accel_module._NO_ROWS):
-        prim = hits.astype(np.int64)
-        if len(mapped):
-            prim[prim >= 0] = mapped[prim[prim >= 0]]
-        ref_t = np.empty(n)
-        accel_module._refine(accel.triangles, accel.normals, origins, dirs, prim, ref_t)
-        got_prim, got_t, nan = accel_module._refined_hits(accel.triangles, accel.normals, origins, dirs, hits, mapped)
-        assert np.array_equal(got_prim, prim) and np.array_equal(got_t, ref_t, equal_nan=True)
-        assert nan == np.count_nonzero(np.isnan(ref_t))
-
-
-def test_whole_rays_are_numpys():
-    """segments.whole_rays' arrays against their NumPy construction (each ray's row repeated per light)."""
-    from raytrace.segments import whole_rays
-
-    n, lights = 700, 3
-    origins, dirs, tmax = RNG.normal(size=(n, 3)), RNG.normal(size=(n, 3)), RNG.exponential(size=n)
-    keys = RNG.integers(0, 2**63, size=n).astype(np.uint64)
-    segs = whole_rays(origins, dirs, tmax, keys, lights, 5, 2.0)
-    ref = (np.repeat(origins, lights, axis=0), np.repeat(dirs, lights, axis=0), np.repeat(tmax, lights),
-           np.tile(np.arange(lights), n), np.repeat(np.arange(n), lights), np.zeros(n * lights),
-           np.repeat(keys, lights), np.tile(np.arange(lights), n))
-    for name, b in zip(("origins", "dirs", "length", "light", "ray", "t0", "keys", "stream"), ref):
-        a = getattr(segs, name)
-        assert a.dtype == b.dtype and np.array_equal(a, b), name
-    assert segs.per_ray == lights and segs.seed == 5 and segs.scale == 2.0
-    assert len(whole_rays(origins[:0], dirs[:0], tmax[:0], keys[:0], lights)) == 0

@@ -133,12 +133,15 @@ class Accelerator:
         if self._scene is None:
             t, prim = np.full(len(origins), np.inf), np.full(len(origins), -1, dtype=np.int64)
         else:
-            o32, d32 = self._to_embree(origins), np.ascontiguousarray(dirs, dtype=np.float32)
-            # Embree's primitives are the rows that are triangles
-            prim, t, nan = _refined_hits(self.triangles, self.normals, origins, dirs, self._scene.run(o32, d32),
-                                         self._tri_rows if self._any_sphere else _NO_ROWS)
-            if nan:
-                bad = np.isnan(t)  # degenerate plane solve: fall back to Embree's float32 distance
+            o32 = self._to_embree(origins)
+            d32 = np.ascontiguousarray(dirs, dtype=np.float32)
+            prim = self._scene.run(o32, d32).astype(np.int64)
+            if self._any_sphere:  # Embree's primitives are the rows that are triangles
+                prim[prim >= 0] = self._tri_rows[prim[prim >= 0]]
+            t = np.empty(len(prim))
+            _refine(self.triangles, self.normals, origins, dirs, prim, t)
+            bad = np.isnan(t)
+            if bad.any():  # degenerate plane solve: fall back to Embree's float32 distance
                 t[bad] = self._scene.run(o32[bad], d32[bad], query="DISTANCE").astype(np.float64) * self.unit
         self._sphere_hits(origins, dirs, t, prim)
         return t, prim
@@ -206,23 +209,6 @@ class Accelerator:
         as32 = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32))
         _shadow_rays(points, normals, idx, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
         return o, d, t, as32
-
-
-_NO_ROWS = np.zeros(0, np.int64)  # `_refined_hits`: Embree's primitives are the rows
-
-
-@exact_njit
-def _refined_hits(triangles, normals, origins, dirs, hits, rows):
-    """(prim, t, NaNs): Embree's hits (-1: a miss) as int64, mapped to the scene's rows through
-    `rows` unless it is empty, `_refine`'s distances to them and how many of those are NaN."""
-    prim, t = np.empty(hits.shape[0], np.int64), np.empty(hits.shape[0])
-    for i in range(hits.shape[0]):
-        prim[i] = hits[i] if hits[i] < 0 or not rows.shape[0] else rows[hits[i]]
-    _refine(triangles, normals, origins, dirs, prim, t)
-    nan = 0
-    for i in range(t.shape[0]):
-        nan += math.isnan(t[i])
-    return prim, t, nan
 
 
 @njit

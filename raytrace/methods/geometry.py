@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..error_bounds import channel_keys
-from ..jit import jitable, njit
+from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff, is_spot
 from ..media import atmosphere as atmo
 from ..media.atmosphere import ROW, segment_rows
@@ -162,27 +162,22 @@ def by_channel(segs, medium, lights, evaluate, estimated=False):
 def _scale_channels(out, u0, u1, u2, intensity, light):
     """`_scale_into` of the channels 0, 1, 2 whose unit values u0, u1, u2 are not empty, in one call."""
     for s in range(out.shape[0]):
-        li = light[s]
+        i0, i1, i2 = intensity[light[s], 0], intensity[light[s], 1], intensity[light[s], 2]
         if u0.shape[0]:
-            out[s, 0] = _scaled(u0[s], intensity[li, 0])
+            out[s, 0] = u0[s] * i0 if i0 != 0.0 else 0.0
         if u1.shape[0]:
-            out[s, 1] = _scaled(u1[s], intensity[li, 1])
+            out[s, 1] = u1[s] * i1 if i1 != 0.0 else 0.0
         if u2.shape[0]:
-            out[s, 2] = _scaled(u2[s], intensity[li, 2])
-
-
-@jitable
-def _scaled(unit, intensity):
-    """unit x intensity, 0 for a dark light even where the unit value overflowed (a camera on a light
-    in a medium of sigma ~ 1e300)."""
-    return unit * intensity if intensity != 0.0 else 0.0
+            out[s, 2] = u2[s] * i2 if i2 != 0.0 else 0.0
 
 
 @njit
 def _scale_into(out, c, unit, intensity, light):
-    """out[s, c] = unit[s] * intensity[light[s], c] (`_scaled`)."""
+    """out[s, c] = unit[s] * intensity[light[s], c] (0 for a dark light, even where the unit value
+    overflowed: a camera on a light in a medium of sigma ~ 1e300)."""
     for s in range(unit.shape[0]):
-        out[s, c] = _scaled(unit[s], intensity[light[s], c])
+        i = intensity[light[s], c]
+        out[s, c] = unit[s] * i if i != 0.0 else 0.0
 
 
 # a height-fog segment's row (`fog_rows`): heights above h0 and up-cosines of the ray and its light

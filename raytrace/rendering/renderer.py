@@ -30,7 +30,7 @@ from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
-from ..jit import exact_jitable, exact_njit
+from ..jit import exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
@@ -226,8 +226,13 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
     # the rays that hit a surface (not one holding a medium), their points, directions, rows and keys
-    surf, points, surf_dirs, surf_prim, surf_keys, surf_refl, entering, missed, grounded = _surface_hits(
-        origins, dirs, t, prim, keys, into, ground, prep.reflectance)
+    n = len(origins)
+    surf, points, surf_dirs = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
+    surf_prim, surf_keys, surf_refl = np.empty(n, np.int64), np.empty(n, keys.dtype), np.empty((n, 3))
+    m, entering, missed, grounded = _surface_hits(origins, dirs, t, prim, keys, into, ground, prep.reflectance, surf,
+                                                  points, surf_dirs, surf_prim, surf_keys, surf_refl)
+    surf, points, surf_dirs, surf_prim, surf_keys, surf_refl = (a[:m] for a in (surf, points, surf_dirs, surf_prim,
+                                                                                surf_keys, surf_refl))
     if len(surf):
         normals = facing_normals(prep.accel.hit_normals(surf_prim, points), surf_dirs)
         shading = shading_normals(prep.accel, prep.corner_normals, surf_prim, points, normals)
@@ -319,36 +324,28 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
 
 
 @exact_njit
-def _surface_hits(origins, dirs, t, prim, keys, into, ground, reflectance):
+def _surface_hits(origins, dirs, t, prim, keys, into, ground, reflectance, idx, points, d, rows, k, refl):
     """Of rays with first hits (t, prim; `into`: the hit's shape holds a medium, `ground`: the
-    medium's ground is hit): the indices of those that hit a surface (prim >= 0, not `into`), their
-    hit points origins + t dirs (rounded as NumPy's expression), directions, rows, keys and rows'
-    `reflectance`; whether any enters a shape, how many see the sky (prim < 0, not `ground`) and how
-    many the ground."""
-    n = 0
-    entering, missed, grounded = False, 0, 0
+    medium's ground is hit), those that hit a surface (prim >= 0, not `into`), into the first m
+    places of the arrays idx ... refl: their indices, hit points origins + t dirs (rounded as NumPy's
+    expression), directions, rows, keys and rows' `reflectance`. Returns m, whether any ray enters a
+    shape, how many see the sky (prim < 0, not `ground`) and how many the ground."""
+    m, entering, missed, grounded = 0, False, 0, 0
     for i in range(prim.shape[0]):
-        if prim[i] >= 0 and not into[i]:
-            n += 1
         entering |= into[i]
         if prim[i] < 0:
             if ground[i]:
                 grounded += 1
             else:
                 missed += 1
-    idx, points, d = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
-    rows, k, refl = np.empty(n, np.int64), np.empty(n, keys.dtype), np.empty((n, reflectance.shape[1]))
-    j = 0
-    for i in range(prim.shape[0]):
-        if prim[i] >= 0 and not into[i]:
-            idx[j], rows[j], k[j] = i, prim[i], keys[i]
+        elif not into[i]:
+            idx[m], rows[m], k[m] = i, prim[i], keys[i]
             for a in range(3):
-                d[j, a] = dirs[i, a]
-                points[j, a] = origins[i, a] + t[i] * dirs[i, a]
-            for a in range(reflectance.shape[1]):
-                refl[j, a] = reflectance[prim[i], a]
-            j += 1
-    return idx, points, d, rows, k, refl, entering, missed, grounded
+                d[m, a] = dirs[i, a]
+                points[m, a] = origins[i, a] + t[i] * dirs[i, a]
+                refl[m, a] = reflectance[prim[i], a]
+            m += 1
+    return m, entering, missed, grounded
 
 
 def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stats):
@@ -476,31 +473,12 @@ def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     """(pixels, k) sums of (pixels x samples, k) per-ray values: each pixel's samples added in sample
     order (as the earlier tiles' numpy sum over them did)."""
     total = np.empty((len(values) // samples, values.shape[1]))
-    _sum_samples3(values, _NONE, _NONE, samples, total, _NONE, _NONE)
+    _sum_samples(values, samples, total)
     return total
 
 
-_NONE = np.empty((0, 3))  # `_sum_samples3`'s absent arrays (nothing in them to change)
-
-
-def tile_sums(rad, var, bound, samples: int):
-    """`sum_samples` of a tile's radiance, variance (None: none) and bound, in one GIL-free call."""
-    n = len(rad) // samples
-    outs = np.empty((n, 3)), np.empty((n if var is not None else 0, 3)), np.empty((n, 3))
-    _sum_samples3(rad, _NONE if var is None else var, bound, samples, *outs)
-    return outs[0], None if var is None else outs[1], outs[2]
-
-
 @exact_njit
-def _sum_samples3(a, b, c, samples, a_out, b_out, c_out):
-    """`_sum_into` of three arrays (an empty one and its empty sum: none)."""
-    _sum_into(a, samples, a_out)
-    _sum_into(b, samples, b_out)
-    _sum_into(c, samples, c_out)
-
-
-@exact_jitable
-def _sum_into(values, samples, out):
+def _sum_samples(values, samples, out):
     """out[p] = values[p S] + values[p S + 1] + ... (S = samples), added in that order: the bits of
     the NumPy loop it replaced (a copy of the first sample, then += each next one)."""
     for p in range(out.shape[0]):
@@ -512,20 +490,17 @@ def _sum_into(values, samples, out):
 
 
 @exact_njit
-def _tile_pixels(first, stop, step, row0, x0, box_width, width, spp, s0, s1):
-    """The pixels (ys, xs) of a tile (positions first:stop:step of its band's raster order, the band
-    starting at image row `row0`, of the box's columns x0 ...) and their rays' keys (pixel index x
-    spp + sample, uint64, samples s0 ... s1 - 1 of each pixel consecutive)."""
-    n = len(range(first, stop, step))
-    ys, xs = np.empty(n, np.int64), np.empty(n, np.int64)
-    keys = np.empty(n * (s1 - s0), np.uint64)
-    for i in range(n):
+def _tile_pixels(first, step, row0, x0, box_width, width, spp, s0, ys, xs, keys):
+    """ys, xs <- the pixels of a tile (positions first, first + step, ... of its band's raster order,
+    the band starting at image row `row0`, of the box's columns x0 ...); keys <- their rays' keys
+    (pixel index x spp + sample, uint64, samples s0, s0 + 1, ... of each pixel consecutive)."""
+    per = keys.shape[0] // max(ys.shape[0], 1)
+    for i in range(ys.shape[0]):
         q = first + i * step
         ys[i], xs[i] = row0 + q // box_width, x0 + q % box_width
         base = np.uint64(ys[i] * width + xs[i]) * np.uint64(spp)
-        for s in range(s0, s1):
-            keys[i * (s1 - s0) + s - s0] = base + np.uint64(s)
-    return ys, xs, keys
+        for s in range(per):
+            keys[i * per + s] = base + np.uint64(s0 + s)
 
 
 _method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
@@ -538,16 +513,18 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
-    ys, xs, keys = _tile_pixels(tile.pixels.start, tile.pixels.stop, tile.pixels.step, tile.rows.start, x0, x1 - x0,
-                                cam.width, cam.spp, tile.samples.start, tile.samples.stop)
+    n = len(range(tile.pixels.start, tile.pixels.stop, tile.pixels.step))
+    ys, xs = np.empty(n, np.int64), np.empty(n, np.int64)
+    keys = np.empty(n * (tile.samples.stop - tile.samples.start), np.uint64)
+    _tile_pixels(tile.pixels.start, tile.pixels.step, tile.rows.start, x0, x1 - x0, cam.width, cam.spp,
+                 tile.samples.start, ys, xs, keys)
     o, d = pixel_rays(cam, ys, xs, tile.samples)
     method = _method(task.method)
     hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
     rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start
     layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys, hits), n)
-    rad, var, bound = tile_sums(rad, var, bound, n)
-    return rad, stats, var, bound, layers
+    return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
