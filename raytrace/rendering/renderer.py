@@ -494,7 +494,7 @@ def _tile_pixels(first, step, row0, x0, box_width, width, spp, s0, ys, xs, keys)
     """ys, xs <- the pixels of a tile (positions first, first + step, ... of its band's raster order,
     the band starting at image row `row0`, of the box's columns x0 ...); keys <- their rays' keys
     (pixel index x spp + sample, uint64, samples s0, s0 + 1, ... of each pixel consecutive)."""
-    per = keys.shape[0] // max(ys.shape[0], 1)
+    per = keys.shape[0] // ys.shape[0] if ys.shape[0] else 0
     for i in range(ys.shape[0]):
         q = first + i * step
         ys[i], xs[i] = row0 + q // box_width, x0 + q % box_width
