@@ -244,22 +244,10 @@ def test_relative_bound_shares_channel_keys():
     assert np.array_equal(got, ref)
 
 
-def test_tile_pixels_and_sums_are_numpys():
-    """renderer._tile_pixels (a tile's pixels and keys) and the sums of its samples against the NumPy
-    expressions they replaced."""
+def test_sums_of_samples_are_numpys():
+    """renderer.sum_samples' kernel against the NumPy loop it replaced."""
     from raytrace.rendering import renderer
 
-    for first, stop, step, row0, x0, box_w, width, spp, s0, s1 in ((3, 5000, 128, 7, 5, 300, 1024, 4, 0, 4),
-                                                                    (0, 77, 1, 0, 0, 77, 77, 9, 2, 7),
-                                                                    (5, 5, 3, 0, 0, 10, 10, 1, 0, 1)):
-        q = np.arange(first, stop, step)
-        ys, xs = row0 + q // box_w, x0 + q % box_w
-        keys = ((ys * width + xs)[:, None].astype(np.uint64) * np.uint64(spp)
-                + np.arange(s0, s1, dtype=np.uint64)).ravel()
-        got = np.empty(len(q), np.int64), np.empty(len(q), np.int64), np.empty(len(q) * (s1 - s0), np.uint64)
-        renderer._tile_pixels(first, step, row0, x0, box_w, width, spp, s0, *got)
-        for a, b in zip(got, (ys, xs, keys)):
-            assert np.array_equal(a, b)
     for samples in (1, 4, 7):
         values = edge_values(300 * samples, 1.0).reshape(-1, 3) * RNG.uniform(size=(100 * samples, 3))
         per = values.reshape(-1, samples, 3)

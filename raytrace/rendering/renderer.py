@@ -489,20 +489,6 @@ def _sum_samples(values, samples, out):
             out[p, c] = total
 
 
-@exact_njit
-def _tile_pixels(first, step, row0, x0, box_width, width, spp, s0, ys, xs, keys):
-    """ys, xs <- the pixels of a tile (positions first, first + step, ... of its band's raster order,
-    the band starting at image row `row0`, of the box's columns x0 ...); keys <- their rays' keys
-    (pixel index x spp + sample, uint64, samples s0, s0 + 1, ... of each pixel consecutive)."""
-    per = keys.shape[0] // ys.shape[0] if ys.shape[0] else 0
-    for i in range(ys.shape[0]):
-        q = first + i * step
-        ys[i], xs[i] = row0 + q // box_width, x0 + q % box_width
-        base = np.uint64(ys[i] * width + xs[i]) * np.uint64(spp)
-        for s in range(per):
-            keys[i * per + s] = base + np.uint64(s0 + s)
-
-
 _method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
 
 
@@ -513,12 +499,11 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
-    n = len(range(tile.pixels.start, tile.pixels.stop, tile.pixels.step))
-    ys, xs = np.empty(n, np.int64), np.empty(n, np.int64)
-    keys = np.empty(n * (tile.samples.stop - tile.samples.start), np.uint64)
-    _tile_pixels(tile.pixels.start, tile.pixels.step, tile.rows.start, x0, x1 - x0, cam.width, cam.spp,
-                 tile.samples.start, ys, xs, keys)
+    q = np.arange(tile.pixels.start, tile.pixels.stop, tile.pixels.step)
+    ys, xs = tile.rows.start + q // (x1 - x0), x0 + q % (x1 - x0)
     o, d = pixel_rays(cam, ys, xs, tile.samples)
+    keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
+            + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
     method = _method(task.method)
     hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
     rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
