@@ -55,22 +55,28 @@ def relative_bound(radiance: np.ndarray, precision: float, met: dict, medium, co
     not meet it. `met[(kt, ks)]` (S,) bool per distinct channel coefficients (geometry.by_channel's
     keys); channels that do not scatter are exactly 0."""
     bound = np.empty(radiance.shape)
-    _relative(radiance, max(precision, KERNEL_FLOOR) + ROUNDING, cos_end, bound)
-    for c in range(3):
-        key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
-        if key in met:
-            bound[~met[key], c] = np.inf
+    flags = [met.get(key) for key in channel_keys(medium)]
+    if any(f is None for f in flags):  # a channel that does not scatter: no evaluation to have missed
+        everywhere = np.ones(len(radiance), dtype=np.bool_)
+        flags = [everywhere if f is None else f for f in flags]
+    _relative(radiance, max(precision, KERNEL_FLOOR) + ROUNDING, cos_end, tuple(flags), bound)
     return bound
 
 
+def channel_keys(medium) -> list[tuple[float, float]]:
+    """(sigma_t, sigma_s) of each of the medium's three channels, as Python floats: the keys under
+    which channels with equal coefficients share one evaluation (geometry.by_channel)."""
+    return list(zip(np.asarray(medium.sigma_t, np.float64).tolist(), np.asarray(medium.sigma_s, np.float64).tolist()))
+
+
 @exact_njit
-def _relative(radiance, rel, cos_end, out):
-    """out = (rel + spot_rounding(cos_end)[:, None]) |radiance| (a GIL-free kernel, the NumPy
-    expression's bits: tests/test_exact_kernels.py)."""
+def _relative(radiance, rel, cos_end, met, out):
+    """out = (rel + spot_rounding(cos_end)[:, None]) |radiance|, inf in channel c where met[c] (S,)
+    is False (a GIL-free kernel, the NumPy expressions' bits: tests/test_exact_kernels.py)."""
     for s in range(radiance.shape[0]):
         spot = spot_allowance(cos_end[s])
         for c in range(radiance.shape[1]):
-            out[s, c] = (rel + spot) * abs(radiance[s, c])
+            out[s, c] = (rel + spot) * abs(radiance[s, c]) if met[c][s] else np.inf
 
 
 @exact_njit

@@ -100,7 +100,10 @@ def gather(segs: Segments, values: np.ndarray, n_rays: int, medium, power: int =
 def gather_weights(segs: Segments, medium, power: int = 1) -> np.ndarray:
     """T^power (S, 3) of `gather`, empty for whole rays (all t0 = 0), which need no transmittance."""
     whole = segs.per_ray != 0 or not np.any(segs.t0)
-    return np.ones((0, 3)) if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
+    return _NO_WEIGHTS if whole else medium.transmittance_on(segs.origins, segs.dirs, -segs.t0, 0.0) ** power
+
+
+_NO_WEIGHTS = np.ones((0, 3))  # `gather_weights` of whole rays (shared: nothing in it to change)
 
 
 @njit

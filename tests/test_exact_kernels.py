@@ -218,8 +218,84 @@ def test_relative_bound_is_numpys():
     cos_end = np.where(RNG.uniform(size=n) < 0.3, -2.0, RNG.uniform(-1.0, 1.0, size=n))
     cos_end[:20] = [1.0, -1.0, np.nextafter(1.0, 0.0), np.nextafter(-1.0, 0.0)] * 5
     radiance = np.stack([edge_values(n, 1.0) for _ in range(3)], axis=1)
+    met = [RNG.uniform(size=n) < 0.9, np.ones(n, bool), np.zeros(n, bool)]
     for rel in (1e-3 + error_bounds.ROUNDING, error_bounds.KERNEL_FLOOR + error_bounds.ROUNDING):
         ref = (rel + error_bounds.spot_rounding(cos_end)[:, None]) * np.abs(radiance)
+        for c in range(3):
+            ref[~met[c], c] = np.inf
         got = np.empty_like(radiance)
-        error_bounds._relative(radiance, rel, cos_end, got)
-        assert np.array_equal(got, ref) and np.isinf(got).any()
+        error_bounds._relative(radiance, rel, cos_end, tuple(met), got)
+        assert np.array_equal(got, ref) and np.isinf(got[:, 1]).any()
+
+
+def test_relative_bound_shares_channel_keys():
+    """relative_bound takes each channel's `met` by its (sigma_t, sigma_s) key; a channel without one
+    (it does not scatter) keeps its bound (rel |value|)."""
+    class Medium:
+        sigma_t, sigma_s = np.array([0.5, 0.5, 0.2]), np.array([0.3, 0.3, 0.0])
+
+    n = 500
+    radiance = RNG.uniform(size=(n, 3))
+    radiance[:, 2] = 0.0
+    met = {(0.5, 0.3): RNG.uniform(size=n) < 0.5}
+    got = error_bounds.relative_bound(radiance, 1e-3, met, Medium, np.full(n, -2.0))
+    ref = (1e-3 + error_bounds.ROUNDING) * radiance
+    ref[~met[(0.5, 0.3)], :2] = np.inf
+    assert np.array_equal(got, ref)
+
+
+def test_sums_of_samples_are_numpys():
+    """renderer.sum_samples' kernel against the NumPy loop it replaced."""
+    from raytrace.rendering import renderer
+
+    for samples in (1, 4, 7):
+        values = edge_values(300 * samples, 1.0).reshape(-1, 3) * RNG.uniform(size=(100 * samples, 3))
+        per = values.reshape(-1, samples, 3)
+        total = per[:, 0].copy()
+        for k in range(1, samples):
+            total += per[:, k]
+        assert np.array_equal(renderer.sum_samples(values, samples), total)
+
+
+def test_surface_hits_are_numpys():
+    """renderer._surface_hits against the masks and fancy indexing it replaced in shade_rays."""
+    from raytrace.rendering import renderer
+
+    n = 4000
+    origins, dirs = RNG.normal(size=(n, 3)) * 100.0, RNG.normal(size=(n, 3))
+    t = RNG.exponential(10.0, size=n)
+    prim = RNG.integers(-1, 50, size=n)
+    keys = RNG.integers(0, 2**63, size=n).astype(np.uint64)
+    reflectance = RNG.uniform(size=(50, 3))
+    for into, ground in ((np.zeros(n, bool), np.zeros(n, bool)),
+                         (RNG.uniform(size=n) < 0.2, (prim < 0) & (RNG.uniform(size=n) < 0.5))):
+        t[prim < 0] = np.inf
+        surf = (prim >= 0) & ~into
+        outs = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)), np.empty(n, np.int64),
+                np.empty(n, np.uint64), np.empty((n, 3)))
+        m, entering, missed, grounded = renderer._surface_hits(origins, dirs, t, prim, keys, into & (prim >= 0), ground,
+                                                               reflectance, *outs)
+        ref = (np.flatnonzero(surf), origins[surf] + t[surf, None] * dirs[surf], dirs[surf], prim[surf], keys[surf],
+               reflectance[prim[surf]])
+        for a, b in zip(outs, ref):
+            assert a.dtype == b.dtype and np.array_equal(a[:m], b)
+        assert entering == (into & (prim >= 0)).any()
+        assert missed == np.count_nonzero((prim < 0) & ~ground) and grounded == np.count_nonzero(ground)
+
+
+def test_scaled_channels_are_numpys():
+    """geometry._scale_channels (by_channel's unit air-light times each light's intensity, 0 for a dark
+    light even where the unit value overflowed) against its NumPy expression."""
+    from raytrace.methods import geometry
+
+    n = 3000
+    intensity = np.array([[1.0, 0.0, 3.5], [2.0, 1e300, 0.0], [0.25, 7.0, 1.0]])
+    light = RNG.integers(0, 3, size=n)
+    u = [edge_values(n, 1.0), edge_values(n, 1e10), np.zeros(0)]
+    out = np.zeros((n, 3))
+    geometry._scale_channels(out, *u, intensity, light)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for c in range(2):
+            i = intensity[light, c]
+            assert np.array_equal(out[:, c], np.where(i != 0.0, u[c] * i, 0.0))
+    assert not out[:, 2].any()

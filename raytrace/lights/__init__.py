@@ -176,7 +176,11 @@ class Lights:
 
     def kinds(self) -> set[str]:
         """The kinds of the scene's lights and of the rows they give (an area light's: spot)."""
-        return {NAMES[int(k)] for k in np.unique(self.kind)} | set(self.scene_kinds)
+        return set(self._kinds)
+
+    @cached_property
+    def _kinds(self) -> frozenset[str]:
+        return frozenset({NAMES[int(k)] for k in np.unique(self.kind)} | set(self.scene_kinds))
 
     def unbounded(self) -> list[str]:
         """Why the cubature rows give no error bound, once per reason: "area lights' cubature", "the

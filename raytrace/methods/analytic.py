@@ -947,10 +947,10 @@ def working_precision(precision):
 def mode_for(medium, params, lights):
     """The kernels' anisotropic mode: isotropic media always use the exact mode's coefficients (a
     spot's band needs its moment blocks); the paper's Taylor mode takes no spot light (refused)."""
-    from ..errors import UserError
-
     if medium.phase == ISOTROPIC:
         return ANISO_EXACT
+    from ..errors import UserError
+
     if params["anisotropic"] == "taylor" and "spot" in lights.kinds():
         raise UserError("--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot light; "
                         "use --anisotropic exact")

@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..error_bounds import channel_keys
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff, is_spot
 from ..media import atmosphere as atmo
@@ -143,17 +144,31 @@ def by_channel(segs, medium, lights, evaluate, estimated=False):
     out = np.zeros((len(segs), 3))
     err = np.zeros((len(segs), 3)) if estimated else None
     done = {}
-    for c in range(3):
-        key = (float(medium.sigma_t[c]), float(medium.sigma_s[c]))
+    dark = np.zeros(0)  # a channel that does not scatter: left 0
+    units, ests = [dark] * 3, [dark] * 3
+    for c, key in enumerate(channel_keys(medium)):
         if key[1] == 0.0:
             continue
         if key not in done:
             done[key] = evaluate(xh, h, da, segs.length, *key, cone)
-        unit, est = done[key] if estimated else (done[key], None)
-        _scale_into(out, c, unit, lights.intensity, segs.light)
-        if estimated:
-            _scale_into(err, c, est, lights.intensity, segs.light)
+        units[c], ests[c] = done[key] if estimated else (done[key], dark)
+    _scale_channels(out, *units, lights.intensity, segs.light)
+    if estimated:
+        _scale_channels(err, *ests, lights.intensity, segs.light)
     return (out, err) if estimated else out
+
+
+@njit
+def _scale_channels(out, u0, u1, u2, intensity, light):
+    """`_scale_into` of the channels 0, 1, 2 whose unit values u0, u1, u2 are not empty, in one call."""
+    for s in range(out.shape[0]):
+        i0, i1, i2 = intensity[light[s], 0], intensity[light[s], 1], intensity[light[s], 2]
+        if u0.shape[0]:
+            out[s, 0] = u0[s] * i0 if i0 != 0.0 else 0.0
+        if u1.shape[0]:
+            out[s, 1] = u1[s] * i1 if i1 != 0.0 else 0.0
+        if u2.shape[0]:
+            out[s, 2] = u2[s] * i2 if i2 != 0.0 else 0.0
 
 
 @njit

@@ -30,6 +30,7 @@ from ..camera import pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
+from ..jit import exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
@@ -217,28 +218,33 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     t, prim, ground = (first_hits(prep.accel, medium, origins, dirs) if hits is None
                        else (hits[0].copy(), hits[1].copy(), hits[2]))  # an atmosphere's planet in float64
 
-    deeper = np.zeros(stats_size(method))  # of the inside integrals and of the rays leaving shapes
+    n_stats, varies = stats_size(method), has_variance(prep, method)
+    deeper = np.zeros(n_stats)  # of the inside integrals and of the rays leaving shapes
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (crossing.py)
         boundary = crossing.start_inside(prep, origins, dirs, t, prim, keys)
         rad, var, _ = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
-        return rad, deeper, var if has_variance(prep, method) else None, np.full_like(rad, np.inf)
-    hit = prim >= 0
+        return rad, deeper, var if varies else None, np.full_like(rad, np.inf)
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
-    surf = hit & ~into
-    entering = into.any()
-    if surf.any():
-        points = origins[surf] + t[surf, None] * dirs[surf]
-        normals = facing_normals(prep.accel.hit_normals(prim[surf], points), dirs[surf])
-        shading = shading_normals(prep.accel, prep.corner_normals, prim[surf], points, normals)
-        surf_var = np.zeros((len(points), 3)) if has_variance(prep, method) else None  # shading.penumbra's
-        radiance[surf] = surface_radiance(prep.accel, points, normals, prep.reflectance[prim[surf]], prep.lights,
-                                          medium, crossing.shadow_through(prep), shading, keys[surf], seed, surf_var,
+    # the rays that hit a surface (not one holding a medium), their points, directions, rows and keys
+    n = len(origins)
+    surf, points, surf_dirs = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
+    surf_prim, surf_keys, surf_refl = np.empty(n, np.int64), np.empty(n, keys.dtype), np.empty((n, 3))
+    m, entering, missed, grounded = _surface_hits(origins, dirs, t, prim, keys, into, ground, prep.reflectance, surf,
+                                                  points, surf_dirs, surf_prim, surf_keys, surf_refl)
+    surf, points, surf_dirs, surf_prim, surf_keys, surf_refl = (a[:m] for a in (surf, points, surf_dirs, surf_prim,
+                                                                                surf_keys, surf_refl))
+    if len(surf):
+        normals = facing_normals(prep.accel.hit_normals(surf_prim, points), surf_dirs)
+        shading = shading_normals(prep.accel, prep.corner_normals, surf_prim, points, normals)
+        surf_var = np.zeros((len(points), 3)) if varies else None  # shading.penumbra's
+        radiance[surf] = surface_radiance(prep.accel, points, normals, surf_refl, prep.lights,
+                                          medium, crossing.shadow_through(prep), shading, surf_keys, seed, surf_var,
                                           method.tolerance(params))
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
-            radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[prim[surf]],
-                                               prep.accel.hit_normals(prim[surf], points), dirs[surf])
-    if ground.any():
+            radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[surf_prim],
+                                               prep.accel.hit_normals(surf_prim, points), surf_dirs)
+    if grounded:
         radiance[ground] = ground_radiance(prep.accel, origins[ground], dirs[ground], t[ground], prep.lights, medium)
     if entering:
         boundary = crossing.cross(prep, origins[into], dirs[into], t[into], prim[into], keys[into], depth)
@@ -247,21 +253,23 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         else:
             radiance[into], into_var, into_bound = _across(prep, method, params, boundary, seed, shadows, depth,
                                                            deeper)
-    if sees_emission(prep):
-        radiance[~hit & ~ground] = at_infinity(scene.lights, scene.background, dirs[~hit & ~ground])
+    if missed and sees_emission(prep):
+        miss = (prim < 0) & ~ground
+        radiance[miss] = at_infinity(scene.lights, scene.background, dirs[miss])
     tr = medium.transmittance_on(origins, dirs, 0.0, t)
     radiance *= tr
-    stats = np.zeros(stats_size(method))
-    variance = np.zeros_like(radiance) if has_variance(prep, method) else None
-    if surf.any() and variance is not None:
+    stats = np.zeros(n_stats)
+    variance = np.zeros(radiance.shape) if varies else None
+    if len(surf) and variance is not None:
         variance[surf] = surf_var * tr[surf] ** 2
     if entering and variance is not None:
         variance[into] = into_var * tr[into] ** 2
-    bound = np.zeros_like(radiance)
-    bound[surf & prep.lights.cubature.any()] = np.inf  # an area light's cubature on surfaces: no bound
+    bound = np.zeros(radiance.shape)
+    if len(surf) and prep.lights.cubature.any():  # an area light's cubature on surfaces: no bound
+        bound[surf] = np.inf
     if entering:
         bound[into] = crossing.scaled(into_bound, tr[into])
-    if len(prep.lights) and medium.scatters:
+    if len(prep.lights) and prep.memo("scatters", lambda: medium.scatters):
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
@@ -314,6 +322,31 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         bound[np.any(glints != 0.0, axis=1)] = np.inf
     bound += error_bounds.ROUNDING * np.abs(radiance)  # the float64 closed forms and sums
     return radiance, stats + deeper, variance, bound
+
+
+@exact_njit
+def _surface_hits(origins, dirs, t, prim, keys, into, ground, reflectance, idx, points, d, rows, k, refl):
+    """Of rays with first hits (t, prim; `into`: the hit's shape holds a medium, `ground`: the
+    medium's ground is hit), those that hit a surface (prim >= 0, not `into`), into the first m
+    places of the arrays idx ... refl: their indices, hit points origins + t dirs (rounded as NumPy's
+    expression), directions, rows, keys and rows' `reflectance`. Returns m, whether any ray enters a
+    shape, how many see the sky (prim < 0, not `ground`) and how many the ground."""
+    m, entering, missed, grounded = 0, False, 0, 0
+    for i in range(prim.shape[0]):
+        entering |= into[i]
+        if prim[i] < 0:
+            if ground[i]:
+                grounded += 1
+            else:
+                missed += 1
+        elif not into[i]:
+            idx[m], rows[m], k[m] = i, prim[i], keys[i]
+            for a in range(3):
+                d[m, a] = dirs[i, a]
+                points[m, a] = origins[i, a] + t[i] * dirs[i, a]
+                refl[m, a] = reflectance[prim[i], a]
+            m += 1
+    return m, entering, missed, grounded
 
 
 def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stats):
@@ -440,11 +473,21 @@ def tiles(cam, box) -> list[Tile]:
 def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
     """(pixels, k) sums of (pixels x samples, k) per-ray values: each pixel's samples added in sample
     order (as the earlier tiles' numpy sum over them did)."""
-    per = values.reshape(-1, samples, values.shape[1])
-    total = per[:, 0].copy()
-    for k in range(1, samples):
-        total += per[:, k]
+    total = np.empty((len(values) // samples, values.shape[1]))
+    _sum_samples(values, samples, total)
     return total
+
+
+@exact_njit
+def _sum_samples(values, samples, out):
+    """out[p] = values[p S] + values[p S + 1] + ... (S = samples), added in that order: the bits of
+    the NumPy loop it replaced (a copy of the first sample, then += each next one)."""
+    for p in range(out.shape[0]):
+        for c in range(out.shape[1]):
+            total = values[p * samples, c]
+            for k in range(1, samples):
+                total += values[p * samples + k, c]
+            out[p, c] = total
 
 
 _method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
