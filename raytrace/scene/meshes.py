@@ -237,9 +237,24 @@ def convex_planes(tris: np.ndarray, normals: np.ndarray, tol: float = 1e-9) -> n
     facets = np.column_stack([hull.equations[:, :3], -hull.equations[:, 3] / size])
     if np.max(cKDTree(facets).query(faces, distance_upper_bound=2.0 * tol)[0]) > tol:
         return None
-    planes = np.unique(np.round(faces, PLANE_DECIMALS), axis=0)
+    planes, which = np.unique(np.round(faces, PLANE_DECIMALS), axis=0, return_inverse=True)
+    planes = planes[_first_of_groups(faces, which.ravel(), len(planes), tol)]
     planes[:, 3] *= size
     return np.ascontiguousarray(planes)
+
+
+def _first_of_groups(faces, which, count: int, tol: float) -> np.ndarray:
+    """The rounded planes (indices into `count` of them, `which` each face's) to keep: the first of
+    every group of faces joined by chains of faces within `tol` of each other, so that the faces of one
+    plane whose rounding falls either side of a last decimal make one plane, not two."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(faces).query_pairs(tol, output_type="ndarray")
+    links = coo_matrix((np.ones(len(pairs)), (which[pairs[:, 0]], which[pairs[:, 1]])), shape=(count, count))
+    _, group = connected_components(links, directed=False)
+    return np.sort(np.unique(group, return_index=True)[1])
 
 
 def _oriented(corners, tris):
