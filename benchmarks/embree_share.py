@@ -1,0 +1,71 @@
+"""A whole render against Embree alone for the same rays: the bundled Sibenik scene (two point lights,
+isotropic dust, `analytic` at its default precision, no volumetric shadows), one thread.
+
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/embree_share.py [--width 1024 --height 512 --rounds 3]
+
+Embree's time is that of the queries a render cannot do without, through
+`raytrace.geometry.accel.Accelerator` (so with the float64 refinement of hit distances): every camera
+ray's first hit, and from each hit point a shadow ray to each light, in tile-sized batches as the
+renderer makes them. The render's time is `api.render` with `threads=1`, after a render that compiles
+its kernels. Best of `--rounds` for each, taken in turn; the ratio of the two is the figure.
+"""
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from raytrace import api  # noqa: E402
+from raytrace.camera import generate_rays  # noqa: E402
+from raytrace.geometry.accel import CHUNK  # noqa: E402
+from raytrace.rendering import renderer  # noqa: E402
+
+
+def embree_alone(prep, origins, dirs) -> float:
+    """Seconds of Embree's queries for the camera rays' first hits and their hit points' shadow rays
+    to every light, in batches of CHUNK rays."""
+    accel, lights = prep.accel, prep.scene.lights
+    spent = 0.0
+    for start in range(0, len(origins), CHUNK):
+        o, d = origins[start:start + CHUNK], dirs[start:start + CHUNK]
+        t0 = time.perf_counter()
+        t, prim = accel.first_hit(o, d)
+        spent += time.perf_counter() - t0
+        hit = prim >= 0
+        points = o[hit] + t[hit, None] * d[hit]
+        for light in lights:
+            so, sd, stmax, as32 = accel.shadow_rays(points, accel.normals[prim[hit]], np.asarray(light.position, float))
+            t0 = time.perf_counter()
+            accel.occluded(so, sd, stmax, as32=as32)
+            spent += time.perf_counter() - t0
+    return spent
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--width", type=int, default=1024)
+    ap.add_argument("--height", type=int, default=512)
+    ap.add_argument("--rounds", type=int, default=3)
+    args = ap.parse_args()
+    scene = api.load("sibenik", [f"camera.width={args.width}", f"camera.height={args.height}"])
+    prep = renderer.prepare(scene)
+    api.render(scene, prepared=prep, threads=1, volumetric_shadows=False, crop=(0, 0, 16, 8))  # compiles
+    origins, dirs = generate_rays(scene.camera)
+    renders, embree = [], []
+    for _ in range(args.rounds):
+        t0 = time.perf_counter()
+        api.render(scene, prepared=prep, threads=1, volumetric_shadows=False)
+        renders.append(time.perf_counter() - t0)
+        embree.append(embree_alone(prep, origins, dirs))
+    render, alone = min(renders), min(embree)
+    cam = scene.camera
+    print(f"Sibenik {cam.width}x{cam.height}, {cam.spp} spp ({len(origins)} camera rays, {len(scene.lights)} lights), "
+          f"analytic, unshadowed, one thread, best of {args.rounds}")
+    print(f"render {render:.3f} s; Embree alone {alone:.3f} s; render / Embree {render / alone:.2f}x")
+
+
+if __name__ == "__main__":
+    main()
