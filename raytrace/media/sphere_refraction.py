@@ -289,13 +289,50 @@ def cell_table(theta_a, radius, d, eta):
 
 
 @njit
+def edge_gap(x, sign, ce, ff, fv, vv, fa, va, az, wz, fz, radius, d, eta):
+    """(h, theta) of the band edge of a spot not aimed at the centre in the plane of the point o + x w
+    (f + x v across the axis: ff = |f|^2, fv = f.v, vv = |v|^2, fa = f.a, va = v.a with a the spot's
+    axis; fz + x wz along it, az = ez.a): in that plane the direction from the light toward P(theta) is
+    (-cos beta, sin beta) (beta grows with theta over the lit arc), whose cosine to the axis is
+    -az cos beta + a_y sin beta = A cos(beta - beta_0) (a_y = e_y.a): the edge's cosine ce is reached
+    at beta = beta_0 + sign acos(ce / A) in closed form, theta where that ray from the light meets the
+    sphere first, and h = t x (X - P) of the ray refracted there (0 where the point lies on it); nan
+    where the plane holds no such ray on the lit arc."""
+    yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+    if not yx > 0.0:
+        return math.nan, math.nan
+    ay = (fa + x * va) / yx
+    amp = math.sqrt(az * az + ay * ay)
+    if not amp > abs(ce):
+        return math.nan, math.nan
+    beta = math.atan2(ay, -az) + sign * math.acos(ce / amp)
+    if beta > math.pi:
+        beta -= 2.0 * math.pi
+    elif beta < -math.pi:
+        beta += 2.0 * math.pi
+    cb, sb = math.cos(beta), math.sin(beta)
+    disc = radius * radius - d * d * sb * sb
+    if not cb > 0.0 or not disc >= 0.0:
+        return math.nan, math.nan
+    run = d * cb - math.sqrt(disc)  # from the light to the sphere along that direction
+    theta = math.atan2(run * sb, d - run * cb)
+    pz, py, tz, ty, _, cos_t, _ = incidence(theta, radius, d, eta)
+    if cos_t == 0.0:
+        return math.nan, math.nan
+    return tz * (yx - py) - ty * (fz + x * wz - pz), theta
+
+
+@njit
 def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
     """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
     kind 1: |rho_ray(z_C)|^2 - y_C^2 of the caustic point C(theta) (segment f + x v across the axis,
-    z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P."""
+    z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P; kinds 2 and 3: `edge_gap`
+    at x = theta, sign +1 and -1, of the cosine zx (f0, f1, f2 = ff, fv, vv; v0, v1, v2 = fa, va, az)."""
     if kind == 0:
         pz, py, tz, ty, _ = _clamped(theta, radius, d, eta)
         return tz * (yx - py) - ty * (zx - pz)
+    if kind >= 2:
+        return edge_gap(theta, 5.0 - 2.0 * kind, zx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)[0]
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
     if cos_t == 0.0:
         return math.nan
@@ -676,23 +713,60 @@ def _ray_crossings(r, pz, py, tz, ty, a, b, xs):
 
 @njit
 def spot_edges(r, end):
-    """Into r.edges: where the spot aims along the axis (at the centre), so that its cosine toward a
-    path's direction out of the light depends on theta alone, (d - R cos theta) / o, falling from 1 at
-    theta = 0: the angles theta_e in (0, theta_a) where it reaches cos_end and cos_start (bisected to
-    the resolution of doubles; edges[EDGES + 1:], nan for none) and the x in (0, end) where the rays
-    refracted at +-theta_e reach the segment ahead of P (edges[0] their count, edges[1:] ascending):
-    the falloff's kinks along the segment and in the fold pair's angle. None for other lights and
-    spots."""
+    """Into r.edges: the x in (0, end) where a path to the point o + x w crosses one of the spot's band
+    edges (its falloff's kinks along the segment; edges[0] their count, edges[1:EDGES + 1]
+    ascending) and the angles at which the fold pair's integrand crosses them. Where the spot aims
+    along the axis (at the centre) its cosine toward a path's direction out of the light depends on
+    theta alone, (d - R cos theta) / o, falling from 1 at theta = 0: the angles theta_e in
+    (0, theta_a) where it reaches cos_end and cos_start (bisected to the resolution of doubles;
+    edges[EDGES + 1:EDGES + 3], nan for none) and the x where the rays refracted at +-theta_e reach
+    the segment ahead of P. Another spot's edge moves with the plane of the point: the x are the roots
+    of `edge_gap` (kinds 2 and 3 of `roots`, in x over (0, end)) ahead of P, their angles in
+    edges[EDGES + 3:] (nan for none). A crossing beyond the room of EDGES is counted unresolved in the
+    track (the bound inf). None for other lights."""
     edges = r.edges
     edges[0] = 0.0
-    edges[EDGES + 1], edges[EDGES + 2] = math.nan, math.nan
+    edges[EDGES + 1:] = math.nan
+    if r.distant:
+        return
     ez, axis = r.ez, r.axis
     cross = (ez[1] * axis[2] - ez[2] * axis[1]) ** 2 + (ez[2] * axis[0] - ez[0] * axis[2]) ** 2 + \
         (ez[0] * axis[1] - ez[1] * axis[0]) ** 2
-    if r.distant or not cross <= 1e-18 or not ez[0] * axis[0] + ez[1] * axis[1] + ez[2] * axis[2] < 0.0:
-        return
-    xs = np.empty(2)
+    az = ez[0] * axis[0] + ez[1] * axis[1] + ez[2] * axis[2]
+    xs = np.empty(EDGES)
     m = 0
+    f, v, fz, wz = _segment(r)
+    if not cross <= 1e-18 or not az < 0.0:  # not aimed at the centre
+        ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+        fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+        vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+        fa = f[0] * axis[0] + f[1] * axis[1] + f[2] * axis[2]
+        va = v[0] * axis[0] + v[1] * axis[1] + v[2] * axis[2]
+        found = np.empty(2 * EDGES)
+        for e in range(2):
+            if e == 1 and r.spot[1] == r.spot[0]:
+                continue
+            ce = r.spot[0] if e == 0 else r.spot[1]
+            for kind in (2, 3):
+                n = roots(0.0, end, kind, ce, 0.0, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta, found)
+                if n == found.shape[0]:
+                    r.track[UNRESOLVED] += 1.0  # perhaps more than its room
+                for k in range(n):
+                    x = found[k]
+                    theta = edge_gap(x, 5.0 - 2.0 * kind, ce, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta)[1]
+                    pz, py, tz, ty, _, _, _ = incidence(theta, r.radius, r.d, r.eta)
+                    zx, yx = fz + x * wz, math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+                    if not (0.0 < x < end and tz * (zx - pz) + ty * (yx - py) >= 0.0):
+                        continue
+                    if m == EDGES:
+                        r.track[UNRESOLVED] += 1.0
+                        continue
+                    edges[EDGES + 3 + m] = theta
+                    m += 1
+                    edges[m] = x
+        sort_few(edges, 1, m + 1)
+        edges[0] = m
+        return
     for e in range(2):
         ce = r.spot[0] if e == 0 else r.spot[1]
         lo, hi = 0.0, r.theta_a
@@ -714,7 +788,6 @@ def spot_edges(r, end):
             pz, py, tz, ty, _, cos_t, _ = incidence(theta, r.radius, r.d, r.eta)
             if cos_t == 0.0:
                 continue
-            f, v, fz, wz = _segment(r)
             for k in range(_ray_crossings(r, pz, py, tz, ty, 0.0, end, xs)):
                 x = xs[k]
                 zx = fz + x * wz
@@ -892,7 +965,7 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
     return SphereRefracted(geo_row[:3].copy(), geo_row[3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo_row[6:9].copy(), distant, ez, d, theta_a, eta, kt, ks, code, g, kt_out,
                            geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK),
-                           np.array([math.inf, -math.inf]), np.zeros(EDGES + 3))
+                           np.array([math.inf, -math.inf]), np.zeros(2 * EDGES + 3))
 
 
 @njit
@@ -978,13 +1051,17 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, tr
         total, rule = total + val, rule + b
     r.window[0], r.window[1] = math.inf, -math.inf
     track[FOLD_ABS] = 0.0
-    cuts = np.empty(6)  # W, cut where its rays cross a spot's band edge
+    cuts = np.empty(EDGES + 6)  # W, cut where its rays cross a spot's band edge
     cuts[0], n = t1, 1
     for e in range(EDGES + 1, EDGES + 3):
         for theta in (r.edges[e], -r.edges[e]):
             if t1 < theta < t2:
                 cuts[n] = theta
                 n += 1
+    for e in range(EDGES + 3, 2 * EDGES + 3):
+        if t1 < r.edges[e] < t2:
+            cuts[n] = r.edges[e]
+            n += 1
     cuts[n] = t2
     sort_few(cuts, 0, n + 1)
     val, b = bounded_piecewise(FoldPair(r, lo, hi), cuts, n + 1, rtol, N10, W10, N20, W20, stats)
