@@ -58,13 +58,15 @@ of the marginal rays, refracted at grazing incidence, about the axis with its ap
 it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
 the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
-distance from the axis at the caustic point's height z_C), found like the paths. A spot aimed at the
-centre (its axis along the light's axis) has its falloff's kinks, its band edges, at fixed angles
-+-theta_e (`spot_edges`): the pieces in x are cut where those rays reach the segment, and the fold
-pair's window in theta at +-theta_e (a kink left inside a piece fools the rule's error estimate;
-located to the resolution of doubles, a kink of a continuous falloff misplaced by dx changes the
-integral by its jump in slope x dx^2, far below the rounding; a hard edge's jump x dx is not in the
-bound; other spots' edges are not cut). QUAD integrates the
+distance from the axis at the caustic point's height z_C), found like the paths. A spot's falloff has
+kinks, its band edges, which fool the rule's error estimate inside a piece (`spot_edges`): aimed at
+the centre (its axis along the light's axis) they lie at fixed angles +-theta_e, the pieces in x cut
+where those rays reach the segment and the fold pair's window in theta at +-theta_e; aimed elsewhere
+the edge's refraction point moves with the plane of the point, in closed form there (`edge_gap`),
+the pieces cut at the roots of h at that point along the segment (found like the caustic crossings,
+by `roots`: not proven) and the window at their angles (located to the resolution of doubles, a
+kink of a continuous falloff misplaced by dx changes the integral by its jump in slope x dx^2, far
+below the rounding; a hard edge's jump x dx is not in the bound). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
 in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
 MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
@@ -112,7 +114,11 @@ crossings in a row), an evaluation whose scan was unproven, a piece whose path c
 its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
 `roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
 h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
-derivative of phi, which `angular_bounds` does not bound), eta <= 1.
+derivative of phi, which `angular_bounds` does not bound), eta <= 1. The derivatives it would take,
+in closed form (s, c the sine and cosine of theta_i; checked against mpmath's differentiation of phi):
+g'' = s (1 - eta^2) / (eta^3 cos_t^3), g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5),
+alpha'' = R d sin(theta) (d^2 - R^2) / o^4, alpha''' = R d (d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2
+/ o^2) / o^4, phi''' = g''' theta_i'^3 + 3 g'' theta_i' alpha'' + g' alpha''' (theta_i' = alpha' - 1).
 """
 from __future__ import annotations
 
@@ -744,9 +750,9 @@ def spot_edges(r, end):
         va = v[0] * axis[0] + v[1] * axis[1] + v[2] * axis[2]
         found = np.empty(2 * EDGES)
         for e in range(2):
-            if e == 1 and r.spot[1] == r.spot[0]:
-                continue
             ce = r.spot[0] if e == 0 else r.spot[1]
+            if e == 1 and r.spot[1] == r.spot[0] or not -1.0 < ce < 1.0:  # no edge (a point light: none)
+                continue
             for kind in (2, 3):
                 n = roots(0.0, end, kind, ce, 0.0, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta, found)
                 if n == found.shape[0]:
