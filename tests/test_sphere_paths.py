@@ -190,3 +190,37 @@ def test_angular_bounds_hold(eta, d):
             worst = max(worst, float(d2 / p2), float(h2 / k))
     assert r.theta_a == pytest.approx(a, rel=1e-12)
     assert worst > 0.05, worst  # not vacuous
+
+
+@pytest.mark.parametrize("eta, d", CASES + [(0.75, 2.0)])
+def test_third_derivative_in_closed_form(eta, d):
+    """The closed forms of the module docstring that a proven scan of the caustic's crossings would
+    bound (phi''' through g'', g''' of the refraction angle in the incidence angle and alpha'', alpha'''
+    of the arriving direction's angle) against mpmath's derivatives of the refracted direction's angle."""
+    mpmath.mp.dps = 40
+    rng = np.random.default_rng(3)
+    a = arc(eta, d)
+
+    def phi(u):
+        t = ray(u, eta, d)[1]
+        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi  # continuous: t points back along the axis
+
+    for th in rng.uniform(-0.95, 0.95, 6) * a:
+        th = mpmath.mpf(th)
+        if d == math.inf:
+            alpha, a1, a2, a3 = mpmath.pi, 0, 0, 0
+        else:
+            o2 = 1 + d * d - 2 * d * mpmath.cos(th)
+            alpha = mpmath.atan2(mpmath.sin(th), mpmath.cos(th) - d)
+            a1 = (1 - d * mpmath.cos(th)) / o2
+            a2 = d * mpmath.sin(th) * (d * d - 1) / o2**2
+            a3 = d * (d * d - 1) / o2**2 * (mpmath.cos(th) - 4 * d * mpmath.sin(th) ** 2 / o2)
+        s, c = mpmath.sin(alpha - th - mpmath.pi), mpmath.cos(alpha - th - mpmath.pi)
+        ct = mpmath.sqrt(1 - s * s / eta**2)
+        g1, g2 = c / (eta * ct), s * (1 - eta**2) / (eta**3 * ct**3)
+        g3 = (1 - eta**2) * c * (eta**2 * ct**2 + 3 * s * s) / (eta**5 * ct**5)
+        i1 = a1 - 1
+        closed = (1 + g1 * i1, g2 * i1**2 + g1 * a2, g3 * i1**3 + 3 * g2 * i1 * a2 + g1 * a3)
+        for k in range(3):
+            want = mpmath.diff(phi, th, k + 1)
+            assert abs(closed[k] - want) <= 1e-12 * max(abs(want), 1), (k + 1, th, closed[k], want)
