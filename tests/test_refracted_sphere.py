@@ -24,7 +24,7 @@ import pytest
 from scipy import integrate, optimize
 
 from raytrace.errors import UserError
-from raytrace.media.sphere_refraction import EDGES, UNRESOLVED, frame, record, spot_edges
+from raytrace.media.sphere_refraction import COUNT_CHANGED, EDGES, UNRESOLVED, _stretch, frame, record, spot_edges
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -416,6 +416,18 @@ def band_crossings(twin, p, w, ell, samples=160):
     return found
 
 
+def aside_record(twin, eta, i, j):
+    """The kernel's record of pixel (i, j)'s segment (16 x 12) under ASIDE (an isotropic medium, kt 1,
+    ks 0.5) and the segment's (p, w, ell)."""
+    _, p, w, _, ell = twin.segment(i, j)
+    sphere = np.array([0.0, 0.0, 0.0, 1.0])
+    light = np.array(ASIDE["position"], float)
+    axis, ce, cs = twin.spot
+    geo = np.zeros(18)
+    geo[:3], geo[3:6], geo[6:9], geo[9:12], geo[12:14], geo[17] = p, w, light, axis, (ce, cs), 0
+    return record(sphere, geo, False, eta, 1.0, 0.5, 0, 0.0, 0.0, frame(sphere, light, False, eta)), p, w, ell
+
+
 @pytest.mark.parametrize("eta", [1.5, 1.33])
 def test_an_off_centre_spots_band_edges_are_found(eta):
     """A spot aimed beside the ball's centre: its band edges move with the plane of the point, and
@@ -425,19 +437,30 @@ def test_an_off_centre_spots_band_edges_are_found(eta):
     scene = ball(eta, ASIDE)
     scene["camera"] = CAMERA | {"width": 16, "height": 12}
     twin = Twin(scene)
-    sphere = np.array([0.0, 0.0, 0.0, 1.0])
-    light = np.array(ASIDE["position"], float)
-    axis, ce, cs = twin.spot
     for i, j in ASIDE_PIXELS[eta]:
-        _, p, w, _, ell = twin.segment(i, j)
-        geo = np.zeros(18)
-        geo[:3], geo[3:6], geo[6:9], geo[9:12], geo[12:14], geo[17] = p, w, light, axis, (ce, cs), 0
-        r = record(sphere, geo, False, eta, 1.0, 0.5, 0, 0.0, 0.0, frame(sphere, light, False, eta))
+        r, p, w, ell = aside_record(twin, eta, i, j)
         spot_edges(r, ell)
         got = r.edges[1:int(r.edges[0]) + 1]
         want = band_crossings(twin, p, w, ell)
         assert want and len(got) == len(want) and np.allclose(got, want, rtol=0.0, atol=1e-9), ((i, j), got, want)
         assert r.track[UNRESOLVED] == 0.0 and np.isfinite(r.edges[EDGES + 3:EDGES + 3 + len(got)]).all()
+
+
+def test_a_missed_band_edge_is_counted():
+    """The guard: a piece of the glass ball's segment under ASIDE across one of its band edges, not cut
+    there, changes the paths' sides of the edges between the rule's evaluations (counted: the bound
+    inf); cut there (`spot_edges`), it does not."""
+    twin = Twin(ball(1.5, ASIDE))
+    r, _, _, ell = aside_record(twin, 1.5, *ASIDE_PIXELS[1.5][0])
+    spot_edges(r, ell)
+    x = r.edges[1]
+    for cut in (False, True):
+        r, _, _, ell = aside_record(twin, 1.5, *ASIDE_PIXELS[1.5][0])
+        if cut:
+            spot_edges(r, ell)
+        stats = np.zeros(16)
+        _stretch(r, x - 0.01, x + 0.01, 0.0, 0.0, 1e-6, stats, r.track)
+        assert (r.track[COUNT_CHANGED] > 0.0) != cut, (cut, r.track)
 
 
 @pytest.mark.slow  # ~2 min: python -m pytest -q -m slow tests/test_refracted_sphere.py

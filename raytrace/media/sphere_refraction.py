@@ -110,8 +110,9 @@ over the factor; their own rounding over the factor too); a spot's falloff at it
 at the computed root (through the path, the attenuation and X's coordinates) and h_x by its own
 rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, counted in stats[UNBOUNDED]:
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
-crossings in a row), an evaluation whose scan was unproven, a piece whose path count changed between
-its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
+crossings in a row), an evaluation whose scan was unproven, a piece whose path count (or the count
+on each side of a spot's band edges) changed between its evaluations (the guard against a crossing
+the breaks missed: the caustic's crossings are found by
 `roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
 h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
 derivative of phi, which `angular_bounds` does not bound), eta <= 1. The derivatives it would take,
@@ -560,6 +561,16 @@ def _rounding_of_x(r, x, qn):
 
 
 @njit
+def _spot_cosine(r, pz, py, ey, o):
+    """The cosine to the spot's axis of the direction the light leaves in toward P = (pz, py) in the
+    plane of e_y (o: the path outside)."""
+    c_spot = 0.0
+    for j in range(3):
+        c_spot += (r.c[j] + pz * r.ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
+    return c_spot / o
+
+
+@njit
 def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
     """(value, err) of the path refracted at theta to the point o + x w, (zx, yx) in its plane (ey the
     unit direction across the axis): ks Phi(mu) E F exp(-kt (x + s) - kt_out o) and its rounding bound
@@ -582,16 +593,13 @@ def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
     spread_ = abs(sag) if fold else abs(tang * sag)
     if not spread_ > 0.0:
         return 0.0, 0.0
-    mu, c_spot = 0.0, 1.0
+    mu = 0.0
     for j in range(3):
         t = tz * ez[j] + ty * ey[j]
         mu -= t * r.w[j]
     f = 1.0
     if not r.distant:
-        c_spot = 0.0
-        for j in range(3):
-            c_spot += (r.c[j] + pz * ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
-        f = falloff(c_spot / o, r.spot[0], r.spot[1], r.spot[2])
+        f = falloff(_spot_cosine(r, pz, py, ey, o), r.spot[0], r.spot[1], r.spot[2])
     if f == 0.0:
         return 0.0, 0.0
     path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
@@ -643,7 +651,8 @@ def refracted_value(x, r):
     but those refracted in the record's window (a fold pair's angles, `fold_value`'s); its rounding
     bound (module docstring, "The bound") into the record's track (the largest relative and absolute
     over the evaluations), with the evaluations whose scan was unproven and whose count of paths
-    outside the window differs from the piece's first."""
+    outside the window (and of those on each side of a spot's band edges) differs from the piece's
+    first."""
     zx, yx, ey = _plane(r, x)
     dx = _rounding_of_x(r, x, math.sqrt(zx * zx + yx * yx))
     found = np.empty(MAX_PATHS)
@@ -659,6 +668,10 @@ def refracted_value(x, r):
         if r.window[0] <= found[k] <= r.window[1]:
             continue
         n += 1
+        if not r.distant:  # the path's side of the spot's band edges: a change inside a piece is a missed kink
+            pz, py, _, _, _, _, o = incidence(found[k], r.radius, r.d, r.eta)
+            c = _spot_cosine(r, pz, py, ey, o)
+            n += (MAX_PATHS + 1) * ((c > r.spot[0]) + (MAX_PATHS + 1) * (c >= r.spot[1]))
         cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
         value, e = _contribution(r, x, zx, yx, ey, found[k], spread[k] + cell[2], dx, False)  # t's rounding too
         total += value
