@@ -224,3 +224,41 @@ def test_third_derivative_in_closed_form(eta, d):
         for k in range(3):
             want = mpmath.diff(phi, th, k + 1)
             assert abs(closed[k] - want) <= 1e-12 * max(abs(want), 1), (k + 1, th, closed[k], want)
+
+
+@pytest.mark.parametrize("eta, d", CASES)
+def test_third_derivative_bound_holds(eta, d):
+    """|phi'''| (mpmath's) over random cells of the lit arc within the bound of the module docstring,
+    taken as `angular_bounds` takes its bounds at the cell's extreme ends: G3 (1 + a1)^3 + 3 G2 (1 + a1)
+    a2 + G1 a3 with G1 = 1 / (eta cos_t), G2 = |eta^2 - 1| / (eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2)
+    / (eta^5 cos_t^5) at the least cos_t, and a1, a2, a3 the bounds on |alpha'|, |alpha''|, |alpha'''|
+    (the least o^2 at the smaller |theta|, the largest sin(theta) at the larger); not vacuous."""
+    mpmath.mp.dps = 30
+    rng = np.random.default_rng(11)
+    a = arc(eta, d)
+
+    def phi(u):
+        t = ray(u, eta, d)[1]
+        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
+
+    worst = 0.0
+    for _ in range(16):
+        lo, hi = np.sort(rng.uniform(-a, a, 2))
+        m_lo = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+        m_hi = max(abs(lo), abs(hi))
+        P, t = ray(m_hi, eta, d)
+        ct = -(t[0] * P[0] + t[1] * P[1])  # the least refraction cosine (the incidence grows with |theta|)
+        a1 = a2 = a3 = 0.0
+        if d != math.inf:
+            o2 = 1.0 + d * d - 2.0 * d * math.cos(m_lo)
+            a1 = (d * math.cos(m_lo) - 1.0) / o2
+            a2 = d * math.sin(m_hi) * (d * d - 1.0) / o2**2
+            a3 = d * (d * d - 1.0) / o2**2 * (1.0 + 4.0 * d * math.sin(m_hi) ** 2 / o2)
+        g1, g2 = 1.0 / (eta * ct), abs(eta**2 - 1.0) / (eta**3 * ct**3)
+        g3 = abs(eta**2 - 1.0) * (eta**2 + 2.0) / (eta**5 * ct**5)
+        p3 = g3 * (1.0 + a1) ** 3 + 3.0 * g2 * (1.0 + a1) * a2 + g1 * a3
+        for th in np.linspace(lo, hi, 3):
+            d3 = float(abs(mpmath.diff(phi, mpmath.mpf(th), 3)))
+            assert d3 <= p3, (lo, hi, th, d3, p3)
+            worst = max(worst, d3 / p3)
+    assert worst > 0.05, worst
