@@ -450,7 +450,9 @@ def test_a_missed_band_edge_is_counted():
     """The guard: a piece of the glass ball's segment under ASIDE across one of its band edges, not cut
     there, changes the paths' sides of the edges between the rule's evaluations (counted: the bound
     inf); cut there (`spot_edges`), it does not."""
-    twin = Twin(ball(1.5, ASIDE))
+    scene = ball(1.5, ASIDE)
+    scene["camera"] = CAMERA | {"width": 16, "height": 12}
+    twin = Twin(scene)
     r, _, _, ell = aside_record(twin, 1.5, *ASIDE_PIXELS[1.5][0])
     spot_edges(r, ell)
     x = r.edges[1]
