@@ -561,29 +561,21 @@ def _rounding_of_x(r, x, qn):
 
 
 @njit
-def _spot_cosine(r, pz, py, ey, o):
-    """The cosine to the spot's axis of the direction the light leaves in toward P = (pz, py) in the
-    plane of e_y (o: the path outside)."""
-    c_spot = 0.0
-    for j in range(3):
-        c_spot += (r.c[j] + pz * r.ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
-    return c_spot / o
-
-
-@njit
 def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
-    """(value, err) of the path refracted at theta to the point o + x w, (zx, yx) in its plane (ey the
+    """(value, err, c) of the path refracted at theta to the point o + x w, (zx, yx) in its plane (ey the
     unit direction across the axis): ks Phi(mu) E F exp(-kt (x + s) - kt_out o) and its rounding bound
-    (module docstring, "The bound") for theta off by dth and X's coordinates by dx; fold: the value
-    times |1 - s kappa_t|, the tangential tube factor left out of both (`fold_value`); (0, 0) where the
-    path does not reach the point."""
+    (module docstring, "The bound") for theta off by dth and X's coordinates by dx, and the cosine to
+    the spot's axis of the direction the light leaves in (nan for a directional light or where it is
+    not reached); fold: the value times |1 - s kappa_t|, the tangential tube factor left out of both
+    (`fold_value`); value and err 0 where the path does not reach the point."""
+    c_spot = math.nan
     eta, radius, ez = r.eta, r.radius, r.ez
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, r.d, eta)
     if cos_t == 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     s = tz * (zx - pz) + ty * (yx - py)
     if not s >= 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     inv_o = 0.0 if r.distant else 1.0 / o
     kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
     kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
@@ -592,20 +584,24 @@ def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
     tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
     spread_ = abs(sag) if fold else abs(tang * sag)
     if not spread_ > 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     mu = 0.0
     for j in range(3):
         t = tz * ez[j] + ty * ey[j]
         mu -= t * r.w[j]
     f = 1.0
     if not r.distant:
-        f = falloff(_spot_cosine(r, pz, py, ey, o), r.spot[0], r.spot[1], r.spot[2])
+        c_spot = 0.0
+        for j in range(3):
+            c_spot += (r.c[j] + pz * ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
+        c_spot /= o
+        f = falloff(c_spot, r.spot[0], r.spot[1], r.spot[2])
     if f == 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
     value = r.ks * phase_value(r.code, r.g, mu) * f * e / spread_ * math.exp(-path)
     if value == 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     # the path's relative rounding: theta off by dth, the rest first order in u (module docstring)
     step = 2.0 * r.theta_a / SCAN
     cell = r.cells[min(max(int((theta + r.theta_a) / step), 0), SCAN - 1)]
@@ -633,7 +629,7 @@ def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
     if not r.distant and f < 1.0:  # the falloff, absolute, at the cosine's error
         dc = 2.0 * radius * dth * inv_o + 32.0 * U * (1.0 + (reach + r.d) * inv_o)
         err += 2.0 * value / f * band_slope(r.spot[0], r.spot[1], r.spot[2]) / (r.spot[1] - r.spot[0]) * dc
-    return value, err
+    return value, err, c_spot
 
 
 @njit
@@ -668,12 +664,10 @@ def refracted_value(x, r):
         if r.window[0] <= found[k] <= r.window[1]:
             continue
         n += 1
-        if not r.distant:  # the path's side of the spot's band edges: a change inside a piece is a missed kink
-            pz, py, _, _, _, _, o = incidence(found[k], r.radius, r.d, r.eta)
-            c = _spot_cosine(r, pz, py, ey, o)
-            n += (MAX_PATHS + 1) * ((c > r.spot[0]) + (MAX_PATHS + 1) * (c >= r.spot[1]))
         cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
-        value, e = _contribution(r, x, zx, yx, ey, found[k], spread[k] + cell[2], dx, False)  # t's rounding too
+        value, e, c = _contribution(r, x, zx, yx, ey, found[k], spread[k] + cell[2], dx, False)  # t's rounding too
+        # the path's side of the spot's band edges: a change inside a piece is a missed kink
+        n += (MAX_PATHS + 1) * ((c > r.spot[0]) + (MAX_PATHS + 1) * (c >= r.spot[1]))
         total += value
         err += e
     if track[COUNT] < 0.0:
@@ -852,7 +846,7 @@ def fold_value(theta, r, a, b):
         big = yx + abs(zx) + 2.0 * radius
         dg = et * big + 2.0 * dx + 16.0 * U * big  # h's rounding at the computed root
         dxr = 2.0 * (abs(tz * yx - ty * zx - c0) + dg) / abs(hx)  # the root's error in x
-        value, e = _contribution(r, x, zp, yp, ey, theta, et, dx + dxr, True)
+        value, e, _ = _contribution(r, x, zp, yp, ey, theta, et, dx + dxr, True)
         if value == 0.0:
             continue
         dhx = et * (abs(dyx) + abs(wz)) + abs(tz) * vv / yx * dxr + \
