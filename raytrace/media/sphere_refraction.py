@@ -119,7 +119,13 @@ derivative of phi, which `angular_bounds` does not bound), eta <= 1. The derivat
 in closed form (s, c the sine and cosine of theta_i; checked against mpmath's differentiation of phi):
 g'' = s (1 - eta^2) / (eta^3 cos_t^3), g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5),
 alpha'' = R d sin(theta) (d^2 - R^2) / o^4, alpha''' = R d (d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2
-/ o^2) / o^4, phi''' = g''' theta_i'^3 + 3 g'' theta_i' alpha'' + g' alpha''' (theta_i' = alpha' - 1).
+/ o^2) / o^4, phi''' = g''' theta_i'^3 + 3 g'' theta_i' alpha'' + g' alpha''' (theta_i' = alpha' - 1),
+bounded over a cell as `angular_bounds` bounds phi'' by G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3 (G1 =
+1 / (eta cos_t), G2 = |eta^2 - 1| / (eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the
+least cos_t; a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2) at the least o and the largest sin);
+tests/test_sphere_paths.py checks these. The caustic point is C = P + t R cos_t / phi' (inside the
+sphere iff phi' >= 1/2: the chord is 2 R cos_t) and C' = lambda t with lambda = -R sin(theta_t)
+(2 phi' - 1) / phi' - R cos_t phi'' / phi'^2, so C'' = lambda' t + lambda phi' n holds phi'''.
 """
 from __future__ import annotations
 
