@@ -24,6 +24,7 @@ import pytest
 from scipy import integrate, optimize
 
 from raytrace.errors import UserError
+from raytrace.media.sphere_refraction import COUNT_CHANGED, EDGES, UNRESOLVED, _stretch, frame, record, spot_edges
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -37,6 +38,7 @@ CAMERA = {"position": [0.0, 0.3, 3.2], "look_at": [0.0, -0.1, 0.0], "fov": 42.0,
 INTERIOR = {"sigma_a": [0.3, 0.2, 0.1], "sigma_s": [0.5, 0.4, 0.3], "phase": {"type": "hg", "g": 0.4}}
 LAMP = {"type": "point", "position": [0.3, 2.5, 0.2], "intensity": [5.0, 4.0, 3.0]}
 SPOT = LAMP | {"type": "spot", "look_at": [0.0, 0.0, 0.0], "cone_angle": 20.0, "falloff_start": 12.0}  # edges cross the ball
+ASIDE = SPOT | {"look_at": [0.35, 0.0, 0.25]}  # not aimed at the centre: its edges move with the plane
 SUN = {"type": "directional", "direction": [0.25, -1.0, -0.1], "irradiance": [3.0, 2.5, 2.0]}
 
 
@@ -380,3 +382,98 @@ def test_volumetric_shadows(reference):
     plain = render(prep, "quadrature", {}, RenderOptions(threads=1, volumetric_shadows=False))
     assert shadowed.stats["inside: segments unshadowed (refractive or planar model)"] > 0
     assert np.array_equal(shadowed.image, plain.image) and np.count_nonzero(plain.image) > 20
+
+
+# pixels of the 16 x 12 image under ASIDE whose bound was exceeded on main (glass 138 and 16 times,
+# water 1.5 times: the band edges were not breaks)
+ASIDE_PIXELS = {1.5: [(11, 4), (10, 5)], 1.33: [(11, 6)]}
+
+
+def band_crossings(twin, p, w, ell, samples=160):
+    """The x in (0, ell) where one of the twin's paths to p + x w crosses a band edge of its spot: the
+    signs of each path's cosine to the spot's axis less cos_end and cos_start change while the number
+    of paths does not (between samples of x), bisected to 1e-11."""
+    axis, ce, cs = twin.spot
+
+    def signs(x):
+        out = []
+        for th, X2, ey in twin.paths(p + x * w):
+            P3 = math.cos(th) * twin.ez + math.sin(th) * ey
+            c = float((P3 - twin.L) @ axis) / float(np.linalg.norm(P3 - twin.L))
+            out.append((c > ce, c > cs))
+        return out
+
+    xs = np.linspace(0.0, ell, samples + 1)[1:-1]
+    ss = [signs(x) for x in xs]
+    found = []
+    for k in range(len(xs) - 1):
+        if len(ss[k]) == len(ss[k + 1]) and ss[k] != ss[k + 1]:
+            lo, hi = xs[k], xs[k + 1]
+            while hi - lo > 1e-11:
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if signs(mid) == ss[k] else (lo, mid)
+            found.append(0.5 * (lo + hi))
+    return found
+
+
+def aside_record(twin, eta, i, j):
+    """The kernel's record of pixel (i, j)'s segment (16 x 12) under ASIDE (an isotropic medium, kt 1,
+    ks 0.5) and the segment's (p, w, ell)."""
+    _, p, w, _, ell = twin.segment(i, j)
+    sphere = np.array([0.0, 0.0, 0.0, 1.0])
+    light = np.array(ASIDE["position"], float)
+    axis, ce, cs = twin.spot
+    geo = np.zeros(18)
+    geo[:3], geo[3:6], geo[6:9], geo[9:12], geo[12:14], geo[17] = p, w, light, axis, (ce, cs), 0
+    return record(sphere, geo, False, eta, 1.0, 0.5, 0, 0.0, 0.0, frame(sphere, light, False, eta)), p, w, ell
+
+
+@pytest.mark.parametrize("eta", [1.5, 1.33])
+def test_an_off_centre_spots_band_edges_are_found(eta):
+    """A spot aimed beside the ball's centre: its band edges move with the plane of the point, and
+    `spot_edges` finds where the paths to the segments of the pixels above cross them (the kinks
+    of the falloff along the segment, breaks of the rule) within 1e-9 of the twin's bisection of the
+    paths' cosines to the spot's axis (none on main)."""
+    scene = ball(eta, ASIDE)
+    scene["camera"] = CAMERA | {"width": 16, "height": 12}
+    twin = Twin(scene)
+    for i, j in ASIDE_PIXELS[eta]:
+        r, p, w, ell = aside_record(twin, eta, i, j)
+        spot_edges(r, ell)
+        got = r.edges[1:int(r.edges[0]) + 1]
+        want = band_crossings(twin, p, w, ell)
+        assert want and len(got) == len(want) and np.allclose(got, want, rtol=0.0, atol=1e-9), ((i, j), got, want)
+        assert r.track[UNRESOLVED] == 0.0 and np.isfinite(r.edges[EDGES + 3:EDGES + 3 + len(got)]).all()
+
+
+def test_a_missed_band_edge_is_counted():
+    """The guard: a piece of the glass ball's segment under ASIDE across one of its band edges, not cut
+    there, changes the paths' sides of the edges between the rule's evaluations (counted: the bound
+    inf); cut there (`spot_edges`), it does not."""
+    scene = ball(1.5, ASIDE)
+    scene["camera"] = CAMERA | {"width": 16, "height": 12}
+    twin = Twin(scene)
+    r, _, _, ell = aside_record(twin, 1.5, *ASIDE_PIXELS[1.5][0])
+    spot_edges(r, ell)
+    x = r.edges[1]
+    for cut in (False, True):
+        r, _, _, ell = aside_record(twin, 1.5, *ASIDE_PIXELS[1.5][0])
+        if cut:
+            spot_edges(r, ell)
+        stats = np.zeros(16)
+        _stretch(r, x - 0.01, x + 0.01, 0.0, 0.0, 1e-6, stats, r.track)
+        assert (r.track[COUNT_CHANGED] > 0.0) != cut, (cut, r.track)
+
+
+@pytest.mark.slow  # ~2 min: python -m pytest -q -m slow tests/test_refracted_sphere.py
+@pytest.mark.parametrize("eta", [1.5, 1.33])
+def test_an_off_centre_spots_bound_holds(eta):
+    """The glass and water balls under the spot aimed beside the centre, at 16 x 12: the bound holds
+    against the twin on the pixels where main's was exceeded (by up to 138 times)."""
+    scene = ball(eta, ASIDE)
+    scene["camera"] = CAMERA | {"width": 16, "height": 12}
+    res = image(scene, "quadrature", {"rtol": 1e-6})
+    twin = Twin(scene)
+    refs = {(i, j): twin.pixel(i, j)[0] for i, j in ASIDE_PIXELS[eta]}
+    assert all(ref.min() > 0.0 for ref in refs.values())
+    check_bound(res, refs, 1e-6)

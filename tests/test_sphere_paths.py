@@ -190,3 +190,75 @@ def test_angular_bounds_hold(eta, d):
             worst = max(worst, float(d2 / p2), float(h2 / k))
     assert r.theta_a == pytest.approx(a, rel=1e-12)
     assert worst > 0.05, worst  # not vacuous
+
+
+@pytest.mark.parametrize("eta, d", CASES + [(0.75, 2.0)])
+def test_third_derivative_in_closed_form(eta, d):
+    """The closed forms of the module docstring that a proven scan of the caustic's crossings would
+    bound (phi''' through g'', g''' of the refraction angle in the incidence angle and alpha'', alpha'''
+    of the arriving direction's angle) against mpmath's derivatives of the refracted direction's angle."""
+    mpmath.mp.dps = 40
+    rng = np.random.default_rng(3)
+    a = arc(eta, d)
+
+    def phi(u):
+        t = ray(u, eta, d)[1]
+        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi  # continuous: t points back along the axis
+
+    for th in rng.uniform(-0.95, 0.95, 6) * a:
+        th = mpmath.mpf(th)
+        if d == math.inf:
+            alpha, a1, a2, a3 = mpmath.pi, 0, 0, 0
+        else:
+            o2 = 1 + d * d - 2 * d * mpmath.cos(th)
+            alpha = mpmath.atan2(mpmath.sin(th), mpmath.cos(th) - d)
+            a1 = (1 - d * mpmath.cos(th)) / o2
+            a2 = d * mpmath.sin(th) * (d * d - 1) / o2**2
+            a3 = d * (d * d - 1) / o2**2 * (mpmath.cos(th) - 4 * d * mpmath.sin(th) ** 2 / o2)
+        s, c = mpmath.sin(alpha - th - mpmath.pi), mpmath.cos(alpha - th - mpmath.pi)
+        ct = mpmath.sqrt(1 - s * s / eta**2)
+        g1, g2 = c / (eta * ct), s * (1 - eta**2) / (eta**3 * ct**3)
+        g3 = (1 - eta**2) * c * (eta**2 * ct**2 + 3 * s * s) / (eta**5 * ct**5)
+        i1 = a1 - 1
+        closed = (1 + g1 * i1, g2 * i1**2 + g1 * a2, g3 * i1**3 + 3 * g2 * i1 * a2 + g1 * a3)
+        for k in range(3):
+            want = mpmath.diff(phi, th, k + 1)
+            assert abs(closed[k] - want) <= 1e-12 * max(abs(want), 1), (k + 1, th, closed[k], want)
+
+
+@pytest.mark.parametrize("eta, d", CASES)
+def test_third_derivative_bound_holds(eta, d):
+    """|phi'''| (mpmath's) over random cells of the lit arc within the bound of the module docstring,
+    taken as `angular_bounds` takes its bounds at the cell's extreme ends: G3 (1 + a1)^3 + 3 G2 (1 + a1)
+    a2 + G1 a3 with G1 = 1 / (eta cos_t), G2 = |eta^2 - 1| / (eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2)
+    / (eta^5 cos_t^5) at the least cos_t, and a1, a2, a3 the bounds on |alpha'|, |alpha''|, |alpha'''|
+    (the least o^2 at the smaller |theta|, the largest sin(theta) at the larger); not vacuous."""
+    mpmath.mp.dps = 30
+    rng = np.random.default_rng(11)
+    a = arc(eta, d)
+
+    def phi(u):
+        t = ray(u, eta, d)[1]
+        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
+
+    worst = 0.0
+    for _ in range(16):
+        lo, hi = np.sort(rng.uniform(-a, a, 2))
+        m_lo = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+        m_hi = max(abs(lo), abs(hi))
+        P, t = ray(m_hi, eta, d)
+        ct = -(t[0] * P[0] + t[1] * P[1])  # the least refraction cosine (the incidence grows with |theta|)
+        a1 = a2 = a3 = 0.0
+        if d != math.inf:
+            o2 = 1.0 + d * d - 2.0 * d * math.cos(m_lo)
+            a1 = (d * math.cos(m_lo) - 1.0) / o2
+            a2 = d * math.sin(m_hi) * (d * d - 1.0) / o2**2
+            a3 = d * (d * d - 1.0) / o2**2 * (1.0 + 4.0 * d * math.sin(m_hi) ** 2 / o2)
+        g1, g2 = 1.0 / (eta * ct), abs(eta**2 - 1.0) / (eta**3 * ct**3)
+        g3 = abs(eta**2 - 1.0) * (eta**2 + 2.0) / (eta**5 * ct**5)
+        p3 = g3 * (1.0 + a1) ** 3 + 3.0 * g2 * (1.0 + a1) * a2 + g1 * a3
+        for th in np.linspace(lo, hi, 3):
+            d3 = float(abs(mpmath.diff(phi, mpmath.mpf(th), 3)))
+            assert d3 <= p3, (lo, hi, th, d3, p3)
+            worst = max(worst, d3 / p3)
+    assert worst > 0.05, worst

@@ -58,13 +58,15 @@ of the marginal rays, refracted at grazing incidence, about the axis with its ap
 it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
 the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
 crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
-distance from the axis at the caustic point's height z_C), found like the paths. A spot aimed at the
-centre (its axis along the light's axis) has its falloff's kinks, its band edges, at fixed angles
-+-theta_e (`spot_edges`): the pieces in x are cut where those rays reach the segment, and the fold
-pair's window in theta at +-theta_e (a kink left inside a piece fools the rule's error estimate;
-located to the resolution of doubles, a kink of a continuous falloff misplaced by dx changes the
-integral by its jump in slope x dx^2, far below the rounding; a hard edge's jump x dx is not in the
-bound; other spots' edges are not cut). QUAD integrates the
+distance from the axis at the caustic point's height z_C), found like the paths. A spot's falloff has
+kinks, its band edges, which fool the rule's error estimate inside a piece (`spot_edges`): aimed at
+the centre (its axis along the light's axis) they lie at fixed angles +-theta_e, the pieces in x cut
+where those rays reach the segment and the fold pair's window in theta at +-theta_e; aimed elsewhere
+the edge's refraction point moves with the plane of the point, in closed form there (`edge_gap`),
+the pieces cut at the roots of h at that point along the segment (found like the caustic crossings,
+by `roots`: not proven) and the window at their angles (located to the resolution of doubles, a
+kink of a continuous falloff misplaced by dx changes the integral by its jump in slope x dx^2, far
+below the rounding; a hard edge's jump x dx is not in the bound). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
 in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
 MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
@@ -108,11 +110,22 @@ over the factor; their own rounding over the factor too); a spot's falloff at it
 at the computed root (through the path, the attenuation and X's coordinates) and h_x by its own
 rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, counted in stats[UNBOUNDED]:
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
-crossings in a row), an evaluation whose scan was unproven, a piece whose path count changed between
-its evaluations (the guard against a crossing the breaks missed: the caustic's crossings are found by
+crossings in a row), an evaluation whose scan was unproven, a piece whose path count (or the count
+on each side of a spot's band edges) changed between its evaluations (the guard against a crossing
+the breaks missed: the caustic's crossings are found by
 `roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
 h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
-derivative of phi, which `angular_bounds` does not bound), eta <= 1.
+derivative of phi, which `angular_bounds` does not bound), eta <= 1. The derivatives it would take,
+in closed form (s, c the sine and cosine of theta_i; checked against mpmath's differentiation of phi):
+g'' = s (1 - eta^2) / (eta^3 cos_t^3), g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5),
+alpha'' = R d sin(theta) (d^2 - R^2) / o^4, alpha''' = R d (d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2
+/ o^2) / o^4, phi''' = g''' theta_i'^3 + 3 g'' theta_i' alpha'' + g' alpha''' (theta_i' = alpha' - 1),
+bounded over a cell as `angular_bounds` bounds phi'' by G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3 (G1 =
+1 / (eta cos_t), G2 = |eta^2 - 1| / (eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the
+least cos_t; a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2) at the least o and the largest sin);
+tests/test_sphere_paths.py checks these. The caustic point is C = P + t R cos_t / phi' (inside the
+sphere iff phi' >= 1/2: the chord is 2 R cos_t) and C' = lambda t with lambda = -R sin(theta_t)
+(2 phi' - 1) / phi' - R cos_t phi'' / phi'^2, so C'' = lambda' t + lambda phi' n holds phi'''.
 """
 from __future__ import annotations
 
@@ -289,13 +302,50 @@ def cell_table(theta_a, radius, d, eta):
 
 
 @njit
+def edge_gap(x, sign, ce, ff, fv, vv, fa, va, az, wz, fz, radius, d, eta):
+    """(h, theta) of the band edge of a spot not aimed at the centre in the plane of the point o + x w
+    (f + x v across the axis: ff = |f|^2, fv = f.v, vv = |v|^2, fa = f.a, va = v.a with a the spot's
+    axis; fz + x wz along it, az = ez.a): in that plane the direction from the light toward P(theta) is
+    (-cos beta, sin beta) (beta grows with theta over the lit arc), whose cosine to the axis is
+    -az cos beta + a_y sin beta = A cos(beta - beta_0) (a_y = e_y.a): the edge's cosine ce is reached
+    at beta = beta_0 + sign acos(ce / A) in closed form, theta where that ray from the light meets the
+    sphere first, and h = t x (X - P) of the ray refracted there (0 where the point lies on it); nan
+    where the plane holds no such ray on the lit arc."""
+    yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+    if not yx > 0.0:
+        return math.nan, math.nan
+    ay = (fa + x * va) / yx
+    amp = math.sqrt(az * az + ay * ay)
+    if not amp > abs(ce):
+        return math.nan, math.nan
+    beta = math.atan2(ay, -az) + sign * math.acos(ce / amp)
+    if beta > math.pi:
+        beta -= 2.0 * math.pi
+    elif beta < -math.pi:
+        beta += 2.0 * math.pi
+    cb, sb = math.cos(beta), math.sin(beta)
+    disc = radius * radius - d * d * sb * sb
+    if not cb > 0.0 or not disc >= 0.0:
+        return math.nan, math.nan
+    run = d * cb - math.sqrt(disc)  # from the light to the sphere along that direction
+    theta = math.atan2(run * sb, d - run * cb)
+    pz, py, tz, ty, _, cos_t, _ = incidence(theta, radius, d, eta)
+    if cos_t == 0.0:
+        return math.nan, math.nan
+    return tz * (yx - py) - ty * (fz + x * wz - pz), theta
+
+
+@njit
 def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
     """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
     kind 1: |rho_ray(z_C)|^2 - y_C^2 of the caustic point C(theta) (segment f + x v across the axis,
-    z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P."""
+    z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P; kinds 2 and 3: `edge_gap`
+    at x = theta, sign +1 and -1, of the cosine zx (f0, f1, f2 = ff, fv, vv; v0, v1, v2 = fa, va, az)."""
     if kind == 0:
         pz, py, tz, ty, _ = _clamped(theta, radius, d, eta)
         return tz * (yx - py) - ty * (zx - pz)
+    if kind >= 2:
+        return edge_gap(theta, 5.0 - 2.0 * kind, zx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)[0]
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
     if cos_t == 0.0:
         return math.nan
@@ -518,18 +568,20 @@ def _rounding_of_x(r, x, qn):
 
 @njit
 def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
-    """(value, err) of the path refracted at theta to the point o + x w, (zx, yx) in its plane (ey the
+    """(value, err, c) of the path refracted at theta to the point o + x w, (zx, yx) in its plane (ey the
     unit direction across the axis): ks Phi(mu) E F exp(-kt (x + s) - kt_out o) and its rounding bound
-    (module docstring, "The bound") for theta off by dth and X's coordinates by dx; fold: the value
-    times |1 - s kappa_t|, the tangential tube factor left out of both (`fold_value`); (0, 0) where the
-    path does not reach the point."""
+    (module docstring, "The bound") for theta off by dth and X's coordinates by dx, and the cosine to
+    the spot's axis of the direction the light leaves in (nan for a directional light or where it is
+    not reached); fold: the value times |1 - s kappa_t|, the tangential tube factor left out of both
+    (`fold_value`); value and err 0 where the path does not reach the point."""
+    c_spot = math.nan
     eta, radius, ez = r.eta, r.radius, r.ez
     pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, r.d, eta)
     if cos_t == 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     s = tz * (zx - pz) + ty * (yx - py)
     if not s >= 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     inv_o = 0.0 if r.distant else 1.0 / o
     kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
     kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
@@ -538,8 +590,8 @@ def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
     tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
     spread_ = abs(sag) if fold else abs(tang * sag)
     if not spread_ > 0.0:
-        return 0.0, 0.0
-    mu, c_spot = 0.0, 1.0
+        return 0.0, 0.0, c_spot
+    mu = 0.0
     for j in range(3):
         t = tz * ez[j] + ty * ey[j]
         mu -= t * r.w[j]
@@ -548,13 +600,14 @@ def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
         c_spot = 0.0
         for j in range(3):
             c_spot += (r.c[j] + pz * ez[j] + py * ey[j] - r.light[j]) * r.axis[j]
-        f = falloff(c_spot / o, r.spot[0], r.spot[1], r.spot[2])
+        c_spot /= o
+        f = falloff(c_spot, r.spot[0], r.spot[1], r.spot[2])
     if f == 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     path = r.kt * (x + s) + (r.kt_out * o if not r.distant and r.kt_out > 0.0 else 0.0)
     value = r.ks * phase_value(r.code, r.g, mu) * f * e / spread_ * math.exp(-path)
     if value == 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, c_spot
     # the path's relative rounding: theta off by dth, the rest first order in u (module docstring)
     step = 2.0 * r.theta_a / SCAN
     cell = r.cells[min(max(int((theta + r.theta_a) / step), 0), SCAN - 1)]
@@ -582,7 +635,7 @@ def _contribution(r, x, zx, yx, ey, theta, dth, dx, fold):
     if not r.distant and f < 1.0:  # the falloff, absolute, at the cosine's error
         dc = 2.0 * radius * dth * inv_o + 32.0 * U * (1.0 + (reach + r.d) * inv_o)
         err += 2.0 * value / f * band_slope(r.spot[0], r.spot[1], r.spot[2]) / (r.spot[1] - r.spot[0]) * dc
-    return value, err
+    return value, err, c_spot
 
 
 @njit
@@ -600,7 +653,8 @@ def refracted_value(x, r):
     but those refracted in the record's window (a fold pair's angles, `fold_value`'s); its rounding
     bound (module docstring, "The bound") into the record's track (the largest relative and absolute
     over the evaluations), with the evaluations whose scan was unproven and whose count of paths
-    outside the window differs from the piece's first."""
+    outside the window (and of those on each side of a spot's band edges) differs from the piece's
+    first."""
     zx, yx, ey = _plane(r, x)
     dx = _rounding_of_x(r, x, math.sqrt(zx * zx + yx * yx))
     found = np.empty(MAX_PATHS)
@@ -617,7 +671,9 @@ def refracted_value(x, r):
             continue
         n += 1
         cell = r.cells[min(max(int((found[k] + r.theta_a) / step), 0), SCAN - 1)]
-        value, e = _contribution(r, x, zx, yx, ey, found[k], spread[k] + cell[2], dx, False)  # t's rounding too
+        value, e, c = _contribution(r, x, zx, yx, ey, found[k], spread[k] + cell[2], dx, False)  # t's rounding too
+        # the path's side of the spot's band edges: a change inside a piece is a missed kink
+        n += (MAX_PATHS + 1) * ((c > r.spot[0]) + (MAX_PATHS + 1) * (c >= r.spot[1]))
         total += value
         err += e
     if track[COUNT] < 0.0:
@@ -676,23 +732,60 @@ def _ray_crossings(r, pz, py, tz, ty, a, b, xs):
 
 @njit
 def spot_edges(r, end):
-    """Into r.edges: where the spot aims along the axis (at the centre), so that its cosine toward a
-    path's direction out of the light depends on theta alone, (d - R cos theta) / o, falling from 1 at
-    theta = 0: the angles theta_e in (0, theta_a) where it reaches cos_end and cos_start (bisected to
-    the resolution of doubles; edges[EDGES + 1:], nan for none) and the x in (0, end) where the rays
-    refracted at +-theta_e reach the segment ahead of P (edges[0] their count, edges[1:] ascending):
-    the falloff's kinks along the segment and in the fold pair's angle. None for other lights and
-    spots."""
+    """Into r.edges: the x in (0, end) where a path to the point o + x w crosses one of the spot's band
+    edges (its falloff's kinks along the segment; edges[0] their count, edges[1:EDGES + 1]
+    ascending) and the angles at which the fold pair's integrand crosses them. Where the spot aims
+    along the axis (at the centre) its cosine toward a path's direction out of the light depends on
+    theta alone, (d - R cos theta) / o, falling from 1 at theta = 0: the angles theta_e in
+    (0, theta_a) where it reaches cos_end and cos_start (bisected to the resolution of doubles;
+    edges[EDGES + 1:EDGES + 3], nan for none) and the x where the rays refracted at +-theta_e reach
+    the segment ahead of P. Another spot's edge moves with the plane of the point: the x are the roots
+    of `edge_gap` (kinds 2 and 3 of `roots`, in x over (0, end)) ahead of P, their angles in
+    edges[EDGES + 3:] (nan for none). A crossing beyond the room of EDGES is counted unresolved in the
+    track (the bound inf). None for other lights."""
     edges = r.edges
     edges[0] = 0.0
-    edges[EDGES + 1], edges[EDGES + 2] = math.nan, math.nan
+    edges[EDGES + 1:] = math.nan
+    if r.distant:
+        return
     ez, axis = r.ez, r.axis
     cross = (ez[1] * axis[2] - ez[2] * axis[1]) ** 2 + (ez[2] * axis[0] - ez[0] * axis[2]) ** 2 + \
         (ez[0] * axis[1] - ez[1] * axis[0]) ** 2
-    if r.distant or not cross <= 1e-18 or not ez[0] * axis[0] + ez[1] * axis[1] + ez[2] * axis[2] < 0.0:
-        return
-    xs = np.empty(2)
+    az = ez[0] * axis[0] + ez[1] * axis[1] + ez[2] * axis[2]
+    xs = np.empty(EDGES)
     m = 0
+    f, v, fz, wz = _segment(r)
+    if not cross <= 1e-18 or not az < 0.0:  # not aimed at the centre
+        ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
+        fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+        vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+        fa = f[0] * axis[0] + f[1] * axis[1] + f[2] * axis[2]
+        va = v[0] * axis[0] + v[1] * axis[1] + v[2] * axis[2]
+        found = np.empty(2 * EDGES)
+        for e in range(2):
+            ce = r.spot[0] if e == 0 else r.spot[1]
+            if e == 1 and r.spot[1] == r.spot[0] or not -1.0 < ce < 1.0:  # no edge (a point light: none)
+                continue
+            for kind in (2, 3):
+                n = roots(0.0, end, kind, ce, 0.0, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta, found)
+                if n == found.shape[0]:
+                    r.track[UNRESOLVED] += 1.0  # perhaps more than its room
+                for k in range(n):
+                    x = found[k]
+                    theta = edge_gap(x, 5.0 - 2.0 * kind, ce, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta)[1]
+                    pz, py, tz, ty, _, _, _ = incidence(theta, r.radius, r.d, r.eta)
+                    zx, yx = fz + x * wz, math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
+                    if not (0.0 < x < end and tz * (zx - pz) + ty * (yx - py) >= 0.0):
+                        continue
+                    if m == EDGES:
+                        r.track[UNRESOLVED] += 1.0
+                        continue
+                    edges[EDGES + 3 + m] = theta
+                    m += 1
+                    edges[m] = x
+        sort_few(edges, 1, m + 1)
+        edges[0] = m
+        return
     for e in range(2):
         ce = r.spot[0] if e == 0 else r.spot[1]
         lo, hi = 0.0, r.theta_a
@@ -714,7 +807,6 @@ def spot_edges(r, end):
             pz, py, tz, ty, _, cos_t, _ = incidence(theta, r.radius, r.d, r.eta)
             if cos_t == 0.0:
                 continue
-            f, v, fz, wz = _segment(r)
             for k in range(_ray_crossings(r, pz, py, tz, ty, 0.0, end, xs)):
                 x = xs[k]
                 zx = fz + x * wz
@@ -760,7 +852,7 @@ def fold_value(theta, r, a, b):
         big = yx + abs(zx) + 2.0 * radius
         dg = et * big + 2.0 * dx + 16.0 * U * big  # h's rounding at the computed root
         dxr = 2.0 * (abs(tz * yx - ty * zx - c0) + dg) / abs(hx)  # the root's error in x
-        value, e = _contribution(r, x, zp, yp, ey, theta, et, dx + dxr, True)
+        value, e, _ = _contribution(r, x, zp, yp, ey, theta, et, dx + dxr, True)
         if value == 0.0:
             continue
         dhx = et * (abs(dyx) + abs(wz)) + abs(tz) * vv / yx * dxr + \
@@ -892,7 +984,7 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
     return SphereRefracted(geo_row[:3].copy(), geo_row[3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo_row[6:9].copy(), distant, ez, d, theta_a, eta, kt, ks, code, g, kt_out,
                            geo_row[9:12].copy(), (geo_row[12], geo_row[13], int(geo_row[17])), cells, np.zeros(TRACK),
-                           np.array([math.inf, -math.inf]), np.zeros(EDGES + 3))
+                           np.array([math.inf, -math.inf]), np.zeros(2 * EDGES + 3))
 
 
 @njit
@@ -978,13 +1070,17 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, tr
         total, rule = total + val, rule + b
     r.window[0], r.window[1] = math.inf, -math.inf
     track[FOLD_ABS] = 0.0
-    cuts = np.empty(6)  # W, cut where its rays cross a spot's band edge
+    cuts = np.empty(EDGES + 6)  # W, cut where its rays cross a spot's band edge
     cuts[0], n = t1, 1
     for e in range(EDGES + 1, EDGES + 3):
         for theta in (r.edges[e], -r.edges[e]):
             if t1 < theta < t2:
                 cuts[n] = theta
                 n += 1
+    for e in range(EDGES + 3, 2 * EDGES + 3):
+        if t1 < r.edges[e] < t2:
+            cuts[n] = r.edges[e]
+            n += 1
     cuts[n] = t2
     sort_few(cuts, 0, n + 1)
     val, b = bounded_piecewise(FoldPair(r, lo, hi), cuts, n + 1, rtol, N10, W10, N20, W20, stats)
