@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from .jit import exact_jitable, exact_njit, njit
+from .lights import sphere_occluders
 from .lights.area import collapsed_variance
 from .rng import uniform
 
@@ -156,10 +157,14 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         run.append(li)
     _add_lights(out, rows, accel, points, normals, shading if terminator else normals, terminator, reflectance,
                 lights, run, medium, through, sampled)
+    for owner in np.unique(lights.owner[~dark]) if sampled else ():  # spheres no row reaches: their probes may
+        if lights.emitters[owner] is not None and lights.emitters[owner].ball is not None:
+            rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64), np.zeros(len(out), np.int64)))
     for owner, (value, reached, missed) in rows.items():
-        cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed)
+        cut, free = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached,
+                         missed)
         _unshadowed(out, value, points, normals, shading if terminator else None, reflectance, lights.emitters[owner],
-                    medium, tol, ~cut & (reached > 0) & (missed == 0))
+                    medium, tol, ~cut & ((reached > 0) | free) & (missed == 0))
         at = np.flatnonzero(cut & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
@@ -304,14 +309,25 @@ def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, bac
 
 
 def _cut(accel, points, normals, shading, emitter, reached, blocked):
-    """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its
-    rows that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; or
-    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between the
-    emitter's probes (corners); or, where the rows agree, the shadow rays to the probes that emit
-    toward the point disagree with them."""
+    """((N,) where the emitter (`lights.Emitter`) seen from the points is cut, (N,) where nothing can hide
+    any of it): the shadow rays of its rows that emit toward a point (`reached`, `blocked`: how many
+    reached it, were blocked) disagree; for a sphere (`ball`), where the rows agree and the occluders'
+    geometry may hide part of it (`sphere_occluders.free`), wherever any of its rows or of the probes of
+    the part the point sees (`_ball_probes`, the same for every cubature order) reaches the point (all
+    blocked: hidden, 0); for an emitter with corner probes, where the point's horizon (its tangent
+    plane, or the terminator of its shading normal) passes between them, or, where the rows agree, the
+    shadow rays to those that emit toward the point disagree with them."""
     cut = (reached > 0) & (blocked > 0)
+    free = np.zeros(len(points), dtype=bool)
+    if emitter.ball is not None:
+        free = sphere_occluders.free(emitter.ball.centre, emitter.ball.radius, points, normals, accel.triangles,
+                                     accel.sphere_of, accel.spheres, accel.epsilon)
+        at = np.flatnonzero(~cut & ~free)
+        seen = _ball_probes(accel, points[at], normals[at], None if shading is None else shading[at], emitter.ball)
+        cut[at] = reached[at] + seen > 0
+        return cut, free
     if emitter.probes is None:
-        return cut
+        return cut, free
     terminator = shading is not None
     above = np.zeros(len(points), np.int64)
     for y in emitter.probes[0]:
@@ -326,7 +342,28 @@ def _cut(accel, points, normals, shading, emitter, reached, blocked):
         o, d, tmax, as32 = accel.shadow_rays(p, n, y, idx)
         reach = ~accel.occluded(o, d, tmax, as32=as32)
         cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
-    return cut
+    return cut, free
+
+
+def _ball_probes(accel, points, normals, shading, ball):
+    """(M,) how many of a sphere emitter's probes (`sphere_rule.Ball.probes`, the same for every cubature
+    order) above each point's horizon (its shading normal's terminator too, where given) reach the
+    point: shadow rays as `_emitter_samples` traces them (the exact sphere does not shadow its own
+    surface's near side)."""
+    y = ball.probes(points, [normals] if shading is None else [normals, shading])
+    per = y.shape[1]
+    y = y.reshape(-1, 3)
+    p, n = np.repeat(points, per, axis=0), np.repeat(normals, per, axis=0)
+    to = y - p
+    lit = np.einsum("ij,ij->i", n, to) > 0.0  # False where NaN (no probe)
+    if shading is not None:
+        lit &= np.einsum("ij,ij->i", np.repeat(shading, per, axis=0), to) > 0.0
+    idx = np.flatnonzero(lit & (np.einsum("ij,ij->i", y - ball.centre, to) < 0.0))  # the probe faces the point
+    o = p[idx] + accel.epsilon * n[idx]
+    d = y[idx] - o
+    length = np.linalg.norm(d, axis=1)
+    blocked = accel.occluded(o, d / np.where(length > 0.0, length, 1.0)[:, None], length - accel.epsilon)
+    return np.bincount(idx[~blocked] // per, minlength=len(points)).astype(np.int64)
 
 
 def _toward_probe(points, normals, shading, y):
