@@ -161,8 +161,9 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         if lights.emitters[owner] is not None and lights.emitters[owner].ball is not None:
             rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64), np.zeros(len(out), np.int64)))
     for owner, (value, reached, missed) in rows.items():
-        cut, free = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached,
-                         missed)
+        free = _free(accel, points, normals, lights.emitters[owner])
+        cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed,
+                   free)
         _unshadowed(out, value, points, normals, shading if terminator else None, reflectance, lights.emitters[owner],
                     medium, tol, ~cut & ((reached > 0) | free) & (missed == 0))
         at = np.flatnonzero(cut & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
@@ -308,26 +309,33 @@ def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, bac
     return m
 
 
-def _cut(accel, points, normals, shading, emitter, reached, blocked):
-    """((N,) where the emitter (`lights.Emitter`) seen from the points is cut, (N,) where nothing can hide
-    any of it): the shadow rays of its rows that emit toward a point (`reached`, `blocked`: how many
-    reached it, were blocked) disagree; for a sphere (`ball`), where the rows agree and the occluders'
-    geometry may hide part of it (`sphere_occluders.free`), wherever any of its rows or of the probes of
-    the part the point sees (`_ball_probes`, the same for every cubature order) reaches the point (all
-    blocked: hidden, 0); for an emitter with corner probes, where the point's horizon (its tangent
-    plane, or the terminator of its shading normal) passes between them, or, where the rows agree, the
-    shadow rays to those that emit toward the point disagree with them."""
+def _free(accel, points, normals, emitter):
+    """(N,) where nothing but the emitter can hide any of it from the points: for a sphere (`ball`), the
+    exact test of the occluders' geometry (`sphere_occluders.free`, the same for every cubature order);
+    nowhere for other emitters (their rows and probes tell)."""
+    if emitter.ball is None:
+        return np.zeros(len(points), dtype=bool)
+    return sphere_occluders.free(emitter.ball.centre, emitter.ball.radius, points, normals, accel.triangles,
+                                 accel.sphere_of, accel.spheres, accel.epsilon)
+
+
+def _cut(accel, points, normals, shading, emitter, reached, blocked, free):
+    """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its rows
+    that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; for a
+    sphere (`ball`), where the rows agree and the point is not `free` of occluders (`_free`), wherever
+    any of its rows or of the probes of the part the point sees (`_ball_probes`, the same for every
+    cubature order) reaches the point (all blocked: hidden, 0); for an emitter with corner probes, where
+    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between
+    them, or, where the rows agree, the shadow rays to those that emit toward the point disagree with
+    them."""
     cut = (reached > 0) & (blocked > 0)
-    free = np.zeros(len(points), dtype=bool)
     if emitter.ball is not None:
-        free = sphere_occluders.free(emitter.ball.centre, emitter.ball.radius, points, normals, accel.triangles,
-                                     accel.sphere_of, accel.spheres, accel.epsilon)
         at = np.flatnonzero(~cut & ~free)
         seen = _ball_probes(accel, points[at], normals[at], None if shading is None else shading[at], emitter.ball)
         cut[at] = reached[at] + seen > 0
-        return cut, free
+        return cut
     if emitter.probes is None:
-        return cut, free
+        return cut
     terminator = shading is not None
     above = np.zeros(len(points), np.int64)
     for y in emitter.probes[0]:
@@ -342,7 +350,7 @@ def _cut(accel, points, normals, shading, emitter, reached, blocked):
         o, d, tmax, as32 = accel.shadow_rays(p, n, y, idx)
         reach = ~accel.occluded(o, d, tmax, as32=as32)
         cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
-    return cut, free
+    return cut
 
 
 def _ball_probes(accel, points, normals, shading, ball):

@@ -20,8 +20,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace import api
-from raytrace.lights import sphere_occluders
+from raytrace import api, shading
 from raytrace.lights.sphere_rule import ARC, Ball
 from raytrace.scene.format import scene_from_text
 
@@ -180,7 +179,7 @@ def test_the_coarse_rows_alone_miss_the_plate(monkeypatch):
     unoccluded rule (no variance) and are too bright."""
     ref, share = twin(PLATE)
     part = ~np.isnan(ref) & (share > 0.0) & (share < 1.0)
-    monkeypatch.setattr(sphere_occluders, "free", lambda centre, radius, points, *rest: np.ones(len(points), bool))
+    monkeypatch.setattr(shading, "_free", lambda accel, points, normals, emitter: np.ones(len(points), bool))
     img = api.render(scene(PLATE), "quadrature", rtol=1e-6)
     missed = part & (img.variance[..., 0] == 0.0)
     assert missed.any()
