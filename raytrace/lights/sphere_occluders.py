@@ -42,14 +42,18 @@ def free(centre, radius: float, points, normals, triangles, sphere_of, spheres, 
     hi = np.maximum(points.max(axis=0), centre + radius)
     near = (sphere_of < 0) & np.all(triangles.max(axis=1) >= lo, axis=1) & np.all(triangles.min(axis=1) <= hi, axis=1)
     others = ~(np.all(spheres[:, :3] == centre, axis=1) & (spheres[:, 3] == radius))
-    _free(centre, float(radius), np.ascontiguousarray(points, float), np.ascontiguousarray(normals, float),
-          np.ascontiguousarray(triangles[near]), np.ascontiguousarray(spheres[others]), HEIGHT * epsilon, out)
+    tris = np.ascontiguousarray(triangles[near])
+    mid = tris.mean(axis=1)
+    bound = np.append(mid, np.linalg.norm(tris - mid[:, None, :], axis=2).max(axis=1, initial=0.0)[:, None], axis=1)
+    _free(centre, float(radius), np.ascontiguousarray(points, float), np.ascontiguousarray(normals, float), tris,
+          bound, np.ascontiguousarray(spheres[others]), HEIGHT * epsilon, out)
     return out
 
 
 @njit
-def _free(c, R, points, normals, tris, spheres, height, out):
-    """`free` into out (M,)."""
+def _free(c, R, points, normals, tris, bound, spheres, height, out):
+    """`free` into out (M,); `bound` (T, 4) a sphere about each triangle (centre, radius): those that
+    miss the region are passed over before the exact test."""
     poly, clipped = np.empty((5, 3)), np.empty((5, 3))
     u = np.empty((5, 3))
     f = np.empty(5)
@@ -66,17 +70,14 @@ def _free(c, R, points, normals, tris, spheres, height, out):
         cos_lim = cos_a * math.cos(MARGIN) - sin_a * math.sin(MARGIN)  # cos(alpha + MARGIN)
         clear = True
         for s in range(spheres.shape[0]):
-            q = spheres[s, :3] - x
-            r = spheres[s, 3]
-            dq = _norm(q)
-            if _dot(q, a) - r > depth or _dot(q, n) + r <= height:
-                continue
-            if dq <= r or _dot(q, a) / dq >= math.cos(min(math.pi, math.asin(sin_a) + math.asin(r / dq) + MARGIN)):
+            if _sphere_meets(x, n, a, sin_a, depth, height, spheres[s]):
                 clear = False
                 break
         for t in range(tris.shape[0]):
             if not clear:
                 break
+            if not _sphere_meets(x, n, a, sin_a, depth, height, bound[t]):
+                continue
             for k in range(3):
                 poly[k] = tris[t, k]
                 f[k] = _dot(tris[t, k] - x, n) - height  # above the tangent plane by more than `height`
@@ -86,6 +87,18 @@ def _free(c, R, points, normals, tris, spheres, height, out):
             m = _clip(clipped, f, m, poly)
             clear = not (m > 0 and _meets_cone(x, a, cos_lim, poly, m, u))
         out[i] = clear
+
+
+@njit
+def _sphere_meets(x, n, a, sin_a, depth, height, ball):
+    """Whether the ball (centre, radius) may meet the region (above `height` over the tangent plane of
+    normal n, before `depth` along a, within alpha + MARGIN of a seen from x): by its bounding cone."""
+    q = ball[:3] - x
+    r = ball[3]
+    if _dot(q, a) - r > depth or _dot(q, n) + r <= height:
+        return False
+    dq = _norm(q)
+    return dq <= r or _dot(q, a) / dq >= math.cos(min(math.pi, math.asin(sin_a) + math.asin(r / dq) + MARGIN))
 
 
 @njit
