@@ -21,6 +21,7 @@ import pytest
 from scipy import integrate
 
 from raytrace import api, shading
+from raytrace.lights import sphere_occluders
 from raytrace.lights.sphere_rule import ARC, Ball
 from raytrace.scene.format import scene_from_text
 
@@ -212,3 +213,62 @@ def test_probes_lie_on_the_part_of_the_sphere_each_point_sees():
         lift = np.einsum("mkj,mj->mk", w[:, cols], nn[outside]) / sin_a[:, None]
         assert np.nanmax(np.abs(lift - 1e-3)) <= 1e-9
         assert np.isfinite(lift).sum() >= 100
+
+
+def test_the_occluder_test_against_segments_to_the_sphere():
+    """`sphere_occluders.free` on random floor points and random small triangles near the line to the lamp
+    against brute force (numpy alone): where one of 2000 segments from the point to points of the sphere
+    it sees (spread over the cap) meets the triangle above the floor, or one of 45000 points of the
+    triangle lies in the test's region (the cone toward the sphere above the floor, up to the plane of
+    the tangent circle: the sphere's front too), the point is not free; where neither, it is free but
+    for triangles that graze the region between the samples."""
+    rng = np.random.default_rng(7)
+    centre = LAMP
+    k = np.arange(2000) + 0.5
+    cos_frac, phi = k / 2000, math.pi * (1 + 5 ** 0.5) * k  # a spiral over the cap, uniform in solid angle
+    agree = total = hidden = 0
+    g = np.linspace(0.0, 1.0, 300)
+    bary = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    bary = bary[bary.sum(axis=1) <= 1.0]
+    for _ in range(300):
+        x = np.array([rng.uniform(-2, 2), 0.0, rng.uniform(-2, 2)])
+        if np.linalg.norm(x - centre) <= R:
+            continue
+        mid = x + rng.uniform(0.1, 1.1) * (centre - x) + rng.normal(scale=0.3, size=3)  # about the line to the lamp
+        tri = mid + rng.normal(scale=0.1, size=(3, 3))
+        rel = centre - x
+        d = np.linalg.norm(rel)
+        a = rel / d
+        cos_b = 1.0 - cos_frac * (1.0 - math.sqrt(1.0 - (R / d) ** 2))
+        sin_b = np.sqrt(1.0 - cos_b ** 2)
+        u = np.cross(a, [1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(a, u)
+        w = cos_b[:, None] * a + sin_b[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
+        s = d * cos_b - np.sqrt(np.maximum(R * R - (d * sin_b) ** 2, 0.0))
+        up = w[:, 1] > 0.0
+        w, s = w[up], s[up]
+        e1, e2 = tri[1] - tri[0], tri[2] - tri[0]  # Moller-Trumbore
+        p = np.cross(w, e2)
+        det = p @ e1
+        tv = x - tri[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            b1 = (p @ tv) / det
+            q = np.cross(tv, e1)
+            b2 = (w @ q) / det
+            t = (e2 @ q) / det
+        hit = (b1 >= 0) & (b2 >= 0) & (b1 + b2 <= 1) & (t > 0) & (t < s) & ((x + t[:, None] * w)[:, 1] > 1e-9)
+        q = tri[0] + bary[:, :1] * e1 + bary[:, 1:] * e2 - x  # the triangle's points in the test's region
+        depth = q @ a
+        region = ((q[:, 1] > 1e-9) & (depth > 0.0) & (depth <= d - R * R / d) &
+                  (depth >= np.linalg.norm(q, axis=1) * math.sqrt(1.0 - (R / d) ** 2)))
+        free = sphere_occluders.free(centre, R, x[None], np.array([[0.0, 1.0, 0.0]]), tri[None], np.array([-1]),
+                                     np.zeros((0, 4)), 1e-5)[0]
+        if hit.any():
+            hidden += 1
+        if hit.any() or region.any():
+            assert not free, (x, tri)
+        else:
+            total += 1
+            agree += bool(free)
+    assert hidden >= 60 and total >= 150 and agree >= total - 3, (hidden, agree, total)
