@@ -55,49 +55,50 @@ def _free(c, R, points, normals, tris, bound, spheres, height, out):
     """`free` into out (M,); `bound` (T, 4) a sphere about each triangle (centre, radius): those that
     miss the region are passed over before the exact test."""
     poly, clipped = np.empty((5, 3)), np.empty((5, 3))
-    u = np.empty((5, 3))
     f = np.empty(5)
     for i in range(points.shape[0]):
-        x, n = points[i], normals[i]
-        a = c - x
-        d = _norm(a)
+        x = (points[i, 0], points[i, 1], points[i, 2])
+        n = (normals[i, 0], normals[i, 1], normals[i, 2])
+        a = _sub((c[0], c[1], c[2]), x)
+        d = math.sqrt(_dot(a, a))
         if not d > R:
             continue
-        a = a / d
+        a = (a[0] / d, a[1] / d, a[2] / d)
         sin_a = R / d
         cos_a = math.sqrt((d - R) * (d + R)) / d
         depth = (d - R * sin_a) * (1.0 + MARGIN)  # the tangent circle's plane along a, d - R^2 / d
         cos_lim = cos_a * math.cos(MARGIN) - sin_a * math.sin(MARGIN)  # cos(alpha + MARGIN)
         clear = True
         for s in range(spheres.shape[0]):
-            if _sphere_meets(x, n, a, sin_a, depth, height, spheres[s]):
+            if _ball_meets(x, n, a, sin_a, depth, height, spheres[s]):
                 clear = False
                 break
         for t in range(tris.shape[0]):
             if not clear:
                 break
-            if not _sphere_meets(x, n, a, sin_a, depth, height, bound[t]):
+            if not _ball_meets(x, n, a, sin_a, depth, height, bound[t]):
                 continue
             for k in range(3):
-                poly[k] = tris[t, k]
-                f[k] = _dot(tris[t, k] - x, n) - height  # above the tangent plane by more than `height`
+                for j in range(3):
+                    poly[k, j] = tris[t, k, j]
+                f[k] = _dot(_row(poly, k, x), n) - height  # above the tangent plane by more than `height`
             m = _clip(poly, f, 3, clipped)
             for k in range(m):
-                f[k] = depth - _dot(clipped[k] - x, a)  # before the tangent circle's plane
+                f[k] = depth - _dot(_row(clipped, k, x), a)  # before the tangent circle's plane
             m = _clip(clipped, f, m, poly)
-            clear = not (m > 0 and _meets_cone(x, a, cos_lim, poly, m, u))
+            clear = not (m > 0 and _meets_cone(x, a, cos_lim, poly, m))
         out[i] = clear
 
 
 @njit
-def _sphere_meets(x, n, a, sin_a, depth, height, ball):
+def _ball_meets(x, n, a, sin_a, depth, height, ball):
     """Whether the ball (centre, radius) may meet the region (above `height` over the tangent plane of
     normal n, before `depth` along a, within alpha + MARGIN of a seen from x): by its bounding cone."""
-    q = ball[:3] - x
+    q = (ball[0] - x[0], ball[1] - x[1], ball[2] - x[2])
     r = ball[3]
     if _dot(q, a) - r > depth or _dot(q, n) + r <= height:
         return False
-    dq = _norm(q)
+    dq = math.sqrt(_dot(q, q))
     return dq <= r or _dot(q, a) / dq >= math.cos(min(math.pi, math.asin(sin_a) + math.asin(r / dq) + MARGIN))
 
 
@@ -109,53 +110,63 @@ def _clip(poly, f, m, out):
     for k in range(m):
         j = (k + 1) % m
         if f[k] >= 0.0:
-            out[count] = poly[k]
+            for e in range(3):
+                out[count, e] = poly[k, e]
             count += 1
         if (f[k] >= 0.0) != (f[j] >= 0.0):
-            out[count] = poly[k] + f[k] / (f[k] - f[j]) * (poly[j] - poly[k])
+            w = f[k] / (f[k] - f[j])
+            for e in range(3):
+                out[count, e] = poly[k, e] + w * (poly[j, e] - poly[k, e])
             count += 1
     return count
 
 
 @njit
-def _meets_cone(x, a, cos_lim, poly, m, u):
+def _meets_cone(x, a, cos_lim, poly, m):
     """Whether the convex polygon poly[:m] meets the cone of apex x, unit axis a, cos(half-angle) cos_lim
     (a vertex at the apex counts as meeting it)."""
-    for k in range(m):
-        v = poly[k] - x
-        length = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        if not length > 0.0:
-            return True
-        u[k] = v / length
-        if u[k, 0] * a[0] + u[k, 1] * a[1] + u[k, 2] * a[2] >= cos_lim:
-            return True
     pos = neg = 0
     for k in range(m):
-        g = np.cross(u[k], u[(k + 1) % m])
-        side = g[0] * a[0] + g[1] * a[1] + g[2] * a[2]
+        u, v = _row(poly, k, x), _row(poly, (k + 1) % m, x)
+        lu, lv = math.sqrt(_dot(u, u)), math.sqrt(_dot(v, v))
+        if not (lu > 0.0 and lv > 0.0):
+            return True
+        if _dot(u, a) >= cos_lim * lu:
+            return True
+        g = _cross(u, v)
+        side = _dot(g, a)
         pos += side > 0.0
         neg += side < 0.0
-        gl = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+        gl = math.sqrt(_dot(g, g))
         if not gl > 0.0:
             continue
-        g = g / gl
-        ag = a[0] * g[0] + a[1] * g[1] + a[2] * g[2]
-        p = a - ag * g  # a projected on the edge's great circle
-        pl = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
-        if not pl > 0.0:
-            continue
-        within = _dot(np.cross(u[k], p), g) >= 0.0 and _dot(np.cross(p, u[(k + 1) % m]), g) >= 0.0
-        if within and pl >= cos_lim:  # cos of the angle from a to the arc's nearest point: |p|
+        ag = side / gl
+        p = (a[0] - ag * g[0] / gl, a[1] - ag * g[1] / gl, a[2] - ag * g[2] / gl)  # a on the edge's great circle
+        pl = math.sqrt(_dot(p, p))
+        # the arc's nearest point to a is p's direction where it lies between u and v; cos of the angle: |p|
+        if pl >= cos_lim and _dot(_cross(u, p), g) >= 0.0 and _dot(_cross(p, v), g) >= 0.0:
             return True
     if m < 3 or not (pos == m or neg == m):  # a, or -a, within the directions of the polygon
         return False
-    normal = np.cross(poly[1] - poly[0], poly[2] - poly[0])
-    return _dot(poly[0] - x, normal) * _dot(a, normal) > 0.0  # a's ray, not -a's, meets its plane
+    origin = _row(poly, 0, x)
+    normal = _cross(_sub(_row(poly, 1, x), origin), _sub(_row(poly, 2, x), origin))
+    return _dot(origin, normal) * _dot(a, normal) > 0.0  # a's ray, not -a's, meets its plane
 
 
 @njit
-def _norm(v):
-    return math.sqrt(_dot(v, v))
+def _row(poly, k, x):
+    """poly[k] - x as a tuple."""
+    return (poly[k, 0] - x[0], poly[k, 1] - x[1], poly[k, 2] - x[2])
+
+
+@njit
+def _sub(p, q):
+    return (p[0] - q[0], p[1] - q[1], p[2] - q[2])
+
+
+@njit
+def _cross(p, q):
+    return (p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0])
 
 
 @njit
