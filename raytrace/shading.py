@@ -16,9 +16,10 @@ ground of the medium's reflectance (`ground_radiance`); its shadow is in the tra
 light behind it). An area light's emitter (a shape with `emission`, scene/format.py) adds its radiance
 where a ray meets its front (`emitted_radiance`; an area light lights surfaces through its emitter
 points, spot rows of lights/area.py, like any spot light, except in penumbrae: where occluders cut
-the emitter, `penumbra` samples it instead, its variance for the variance layer; and where none of its
-rows is blocked, an emitter whose irradiance has a closed form about a centre (a sphere's) gives it
-instead of the rows in a homogeneous medium: `_unshadowed`).
+the emitter, `penumbra` samples it instead, its variance for the variance layer; and where nothing can
+hide any of it, an emitter whose irradiance has a closed form about a centre (a sphere's, whose
+occluders are tested against their geometry: `_free`) gives it instead of the rows in a homogeneous
+medium: `_unshadowed`).
 """
 from __future__ import annotations
 
@@ -178,7 +179,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
 
 def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear):
     """out += at the points `clear` (every row of the emitter that emits toward the point reached it, some
-    did, and nothing cut it) the emitter's irradiance in closed form (`lights.Emitter.irradiance`, to the
+    did or nothing can hide the emitter (`_free`), and nothing cut it) the emitter's irradiance in closed form (`lights.Emitter.irradiance`, to the
     relative tolerance `tol`) in place of its rows' share `value`, where the emitter has it and the medium
     is homogeneous (the transmittance along each direction then depends on the distance alone)."""
     if emitter.irradiance is None or not medium.homogeneous:
