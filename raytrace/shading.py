@@ -179,9 +179,10 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
 
 def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear):
     """out += at the points `clear` (every row of the emitter that emits toward the point reached it, some
-    did or nothing can hide the emitter (`_free`), and nothing cut it) the emitter's irradiance in closed form (`lights.Emitter.irradiance`, to the
-    relative tolerance `tol`) in place of its rows' share `value`, where the emitter has it and the medium
-    is homogeneous (the transmittance along each direction then depends on the distance alone)."""
+    did or nothing can hide the emitter (`_free`), and nothing cut it) the emitter's irradiance in closed
+    form (`lights.Emitter.irradiance`, to the relative tolerance `tol`) in place of its rows' share
+    `value`, where the emitter has it and the medium is homogeneous (the transmittance along each
+    direction then depends on the distance alone)."""
     if emitter.irradiance is None or not medium.homogeneous:
         return
     at = np.flatnonzero(clear & np.any(reflectance > 0.0, axis=1))  # black: 0 either way

@@ -53,7 +53,8 @@ ABOVE = 1e-3  # those probes' height above the horizon (a direction's cosine to 
 
 @dataclass(frozen=True)
 class Ball:
-    """A sphere emitter as near_emitters.py needs it: its `centre` (3,) and `radius`."""
+    """A sphere emitter as near_emitters.py (the rule) and shading.py (its probes) need it: its `centre`
+    (3,) and `radius`."""
     centre: np.ndarray
     radius: float
 
