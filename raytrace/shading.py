@@ -16,9 +16,10 @@ ground of the medium's reflectance (`ground_radiance`); its shadow is in the tra
 light behind it). An area light's emitter (a shape with `emission`, scene/format.py) adds its radiance
 where a ray meets its front (`emitted_radiance`; an area light lights surfaces through its emitter
 points, spot rows of lights/area.py, like any spot light, except in penumbrae: where occluders cut
-the emitter, `penumbra` samples it instead, its variance for the variance layer; and where none of its
-rows is blocked, an emitter whose irradiance has a closed form about a centre (a sphere's) gives it
-instead of the rows in a homogeneous medium: `_unshadowed`).
+the emitter, `penumbra` samples it instead, its variance for the variance layer; and where nothing can
+hide any of it, an emitter whose irradiance has a closed form about a centre (a sphere's, whose
+occluders are tested against their geometry: `_free`) gives it instead of the rows in a homogeneous
+medium: `_unshadowed`).
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ import math
 import numpy as np
 
 from .jit import exact_jitable, exact_njit, njit
+from .lights import sphere_occluders
 from .lights.area import collapsed_variance
 from .rng import uniform
 
@@ -156,10 +158,15 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         run.append(li)
     _add_lights(out, rows, accel, points, normals, shading if terminator else normals, terminator, reflectance,
                 lights, run, medium, through, sampled)
+    for owner in np.unique(lights.owner[~dark]) if sampled else ():  # spheres no row reaches: their probes may
+        if lights.emitters[owner] is not None and lights.emitters[owner].ball is not None:
+            rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64), np.zeros(len(out), np.int64)))
     for owner, (value, reached, missed) in rows.items():
-        cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed)
+        free = _free(accel, points, normals, lights.emitters[owner])
+        cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed,
+                   free)
         _unshadowed(out, value, points, normals, shading if terminator else None, reflectance, lights.emitters[owner],
-                    medium, tol, ~cut & (reached > 0) & (missed == 0))
+                    medium, tol, ~cut & ((reached > 0) | free) & (missed == 0))
         at = np.flatnonzero(cut & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
@@ -172,9 +179,10 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
 
 def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear):
     """out += at the points `clear` (every row of the emitter that emits toward the point reached it, some
-    did, and nothing cut it) the emitter's irradiance in closed form (`lights.Emitter.irradiance`, to the
-    relative tolerance `tol`) in place of its rows' share `value`, where the emitter has it and the medium
-    is homogeneous (the transmittance along each direction then depends on the distance alone)."""
+    did or nothing can hide the emitter (`_free`), and nothing cut it) the emitter's irradiance in closed
+    form (`lights.Emitter.irradiance`, to the relative tolerance `tol`) in place of its rows' share
+    `value`, where the emitter has it and the medium is homogeneous (the transmittance along each
+    direction then depends on the distance alone)."""
     if emitter.irradiance is None or not medium.homogeneous:
         return
     at = np.flatnonzero(clear & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
@@ -303,13 +311,31 @@ def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, bac
     return m
 
 
-def _cut(accel, points, normals, shading, emitter, reached, blocked):
-    """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its
-    rows that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; or
-    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between the
-    emitter's probes (corners); or, where the rows agree, the shadow rays to the probes that emit
-    toward the point disagree with them."""
+def _free(accel, points, normals, emitter):
+    """(N,) where nothing but the emitter can hide any of it from the points: for a sphere (`ball`), the
+    exact test of the occluders' geometry (`sphere_occluders.free`, the same for every cubature order);
+    nowhere for other emitters (their rows and probes tell)."""
+    if emitter.ball is None:
+        return np.zeros(len(points), dtype=bool)
+    return sphere_occluders.free(emitter.ball.centre, emitter.ball.radius, points, normals, accel.triangles,
+                                 accel.sphere_of, accel.spheres, accel.epsilon)
+
+
+def _cut(accel, points, normals, shading, emitter, reached, blocked, free):
+    """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its rows
+    that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; for a
+    sphere (`ball`), where the rows agree and the point is not `free` of occluders (`_free`), wherever
+    any of its rows or of the probes of the part the point sees (`_ball_probes`, the same for every
+    cubature order) reaches the point (all blocked: hidden, 0); for an emitter with corner probes, where
+    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between
+    them, or, where the rows agree, the shadow rays to those that emit toward the point disagree with
+    them."""
     cut = (reached > 0) & (blocked > 0)
+    if emitter.ball is not None:
+        at = np.flatnonzero(~cut & ~free)
+        seen = _ball_probes(accel, points[at], normals[at], None if shading is None else shading[at], emitter.ball)
+        cut[at] = reached[at] + seen > 0
+        return cut
     if emitter.probes is None:
         return cut
     terminator = shading is not None
@@ -327,6 +353,27 @@ def _cut(accel, points, normals, shading, emitter, reached, blocked):
         reach = ~accel.occluded(o, d, tmax, as32=as32)
         cut[agree[idx]] |= reach != (reached[agree[idx]] > 0)
     return cut
+
+
+def _ball_probes(accel, points, normals, shading, ball):
+    """(M,) how many of a sphere emitter's probes (`sphere_rule.Ball.probes`, the same for every cubature
+    order) above each point's horizon (its shading normal's terminator too, where given) reach the
+    point: shadow rays as `_emitter_samples` traces them (the exact sphere does not shadow its own
+    surface's near side)."""
+    y = ball.probes(points, [normals] if shading is None else [normals, shading])
+    per = y.shape[1]
+    y = y.reshape(-1, 3)
+    p, n = np.repeat(points, per, axis=0), np.repeat(normals, per, axis=0)
+    to = y - p
+    lit = np.einsum("ij,ij->i", n, to) > 0.0  # False where NaN (no probe)
+    if shading is not None:
+        lit &= np.einsum("ij,ij->i", np.repeat(shading, per, axis=0), to) > 0.0
+    idx = np.flatnonzero(lit & (np.einsum("ij,ij->i", y - ball.centre, to) < 0.0))  # the probe faces the point
+    o = p[idx] + accel.epsilon * n[idx]
+    d = y[idx] - o
+    length = np.linalg.norm(d, axis=1)
+    blocked = accel.occluded(o, d / np.where(length > 0.0, length, 1.0)[:, None], length - accel.epsilon)
+    return np.bincount(idx[~blocked] // per, minlength=len(points)).astype(np.int64)
 
 
 def _toward_probe(points, normals, shading, y):

@@ -129,36 +129,42 @@ def floor_scene(height: float, medium):
     return scene_from_text(to_toml({"camera": CAMERA, "shape": [FLOOR], "light": [lamp], "medium": medium}), "lamp.toml")
 
 
-def twin(height: float, kts):
-    """(H, W, 3) the floor's radiance per pixel (NaN where the ray meets the lamp first): rho / pi L E
-    exp(-kt t), E / L the closed form (kt 0) or scipy's cap integral, from the camera ray's hit on the
-    plane y = 0 (t its distance) and the lamp's geometry alone."""
-    o = np.array(CAMERA["position"])
-    c = np.array([0.0, height, 0.0])
-    f = np.array(CAMERA["look_at"]) - o
+def camera_rays(cam):
+    """(row, column, origin, unit direction) of each pixel centre's ray of the camera table `cam`
+    (`position`, `look_at`, vertical `fov` in degrees, `width`, `height`; +y up), row 0 at the top."""
+    o = np.array(cam["position"])
+    f = np.array(cam["look_at"]) - o
     f /= np.linalg.norm(f)
     right = np.cross(f, [0.0, 1.0, 0.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, f)
-    tan = math.tan(math.radians(CAMERA["fov"]) / 2)
-    w, h = CAMERA["width"], CAMERA["height"]
-    out = np.empty((h, w, 3))
+    tan = math.tan(math.radians(cam["fov"]) / 2)
+    w, h = cam["width"], cam["height"]
     for j in range(h):
         for i in range(w):
             d = f + (2 * (i + 0.5) / w - 1) * tan * w / h * right + (1 - 2 * (j + 0.5) / h) * tan * up
-            d /= np.linalg.norm(d)
-            t = -o[1] / d[1]
-            oc = o - c
-            disc = (d @ oc) ** 2 - (oc @ oc - R * R)
-            if disc >= 0.0 and -(d @ oc) - math.sqrt(disc) < t:  # the lamp first
-                out[j, i] = np.nan
-                continue
-            x = o + t * d
-            dist = np.linalg.norm(c - x)
-            theta = math.acos((c - x)[1] / dist)  # the floor's normal is +y
-            for ch, kt in enumerate(kts):
-                e = snyder(theta, dist, R) if kt == 0.0 else cap_integral(theta, dist, R, kt)
-                out[j, i, ch] = 0.5 / math.pi * 10.0 * e * math.exp(-kt * t)
+            yield j, i, o, d / np.linalg.norm(d)
+
+
+def twin(height: float, kts):
+    """(H, W, 3) the floor's radiance per pixel (NaN where the ray meets the lamp first): rho / pi L E
+    exp(-kt t), E / L the closed form (kt 0) or scipy's cap integral, from the camera ray's hit on the
+    plane y = 0 (t its distance) and the lamp's geometry alone."""
+    c = np.array([0.0, height, 0.0])
+    out = np.empty((CAMERA["height"], CAMERA["width"], 3))
+    for j, i, o, d in camera_rays(CAMERA):
+        t = -o[1] / d[1]
+        oc = o - c
+        disc = (d @ oc) ** 2 - (oc @ oc - R * R)
+        if disc >= 0.0 and -(d @ oc) - math.sqrt(disc) < t:  # the lamp first
+            out[j, i] = np.nan
+            continue
+        x = o + t * d
+        dist = np.linalg.norm(c - x)
+        theta = math.acos((c - x)[1] / dist)  # the floor's normal is +y
+        for ch, kt in enumerate(kts):
+            e = snyder(theta, dist, R) if kt == 0.0 else cap_integral(theta, dist, R, kt)
+            out[j, i, ch] = 0.5 / math.pi * 10.0 * e * math.exp(-kt * t)
     return out
 
 

@@ -45,11 +45,16 @@ from .planar import graded
 PARTS = 4  # a segment's parts at most (module docstring)
 FIRST = 4  # the coarsest order a render's ladder takes: below it two orders can agree and both be wrong
 TINY = 1e-9  # the narrowest crowding along a circle (of its arc)
+RINGS = (0.0, 0.25, 0.5, 0.75, 1.0 - 1e-3)  # the probes' circles of directions about the axis (of the cap's half-angle)
+SPOKES = (1, 8, 12, 16, 24)  # ... and their probes along each (the last just inside the outline)
+ARC = 16  # circles whose crossings with a horizon (the tangent plane) carry two probes each
+ABOVE = 1e-3  # those probes' height above the horizon (a direction's cosine to the normal, of sin alpha)
 
 
 @dataclass(frozen=True)
 class Ball:
-    """A sphere emitter as near_emitters.py needs it: its `centre` (3,) and `radius`."""
+    """A sphere emitter as near_emitters.py (the rule) and shading.py (its probes) need it: its `centre`
+    (3,) and `radius`."""
     centre: np.ndarray
     radius: float
 
@@ -90,6 +95,55 @@ class Ball:
         keep = weights > 0.0
         normals, weights, owner = normals[keep], weights[keep], owner[keep]
         return self.centre + R * normals, normals, weights, owner
+
+    def probes(self, points, normals):
+        """(M, K) probes of the part of the sphere each of M points outside it sees, the same K for every
+        cubature order (shading.py's penumbra test): (points (M, K, 3) on the sphere, NaN where unused),
+        along the directions w of the cap of half-angle alpha (sin alpha = R / d) about the axis a toward
+        the centre: its centre, circles at RINGS x alpha from a with SPOKES probes each (the last just
+        inside the outline), and where each of ARC circles crosses the horizon of the unit `normals`
+        (M, 3) or of each of a list of them (the shading normals' terminator too) two probes ABOVE sin
+        alpha over it. The point on the sphere along w is x + s w, s = d cos beta - sqrt(R^2 - d^2 sin^2
+        beta) (the nearer crossing); all NaN at points on or inside the sphere."""
+        R = self.radius
+        rel = self.centre - points
+        d = np.linalg.norm(rel, axis=1)
+        a = rel / d[:, None]
+        sin_a = np.minimum(R / d, 1.0)
+        alpha = np.arcsin(sin_a)
+        beta, phi = [], []
+        for ring, spokes in zip(RINGS, SPOKES):
+            beta.append(np.repeat(ring * alpha[:, None], spokes, axis=1))
+            phi.append(np.broadcast_to(2.0 * np.pi * (np.arange(spokes) + 0.5 * (spokes > 1)) / spokes,
+                                       (len(d), spokes)))
+        u, v = _across(a)
+        arcs = (np.arange(ARC) + 1.0) / ARC * (1.0 - 1e-3)  # of alpha
+        for n in normals if isinstance(normals, list) else [normals]:
+            # along the circle at beta: n.w = cos beta (n.a) + sin beta (cos phi n.u + sin phi n.v); with
+            # n.u = r cos phi0, n.v = r sin phi0: cos(phi - phi0) = (height - cos beta n.a) / (r sin beta)
+            na, nu, nv = (np.einsum("ij,ij->i", n, e) for e in (a, u, v))
+            r, phi0 = np.hypot(nu, nv), np.arctan2(nv, nu)
+            b = arcs[None, :] * alpha[:, None]
+            height = ABOVE * sin_a[:, None]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                c = (height - np.cos(b) * na[:, None]) / (r[:, None] * np.sin(b))
+            across = np.arccos(np.where(np.abs(c) < 1.0, c, np.nan))  # NaN: the circle does not cross it
+            beta += [b, b]
+            phi += [phi0[:, None] + across, phi0[:, None] - across]
+        beta, phi = np.concatenate(beta, axis=1), np.concatenate(phi, axis=1)
+        w = (np.cos(beta)[..., None] * a[:, None, :] + np.sin(beta)[..., None] *
+             (np.cos(phi)[..., None] * u[:, None, :] + np.sin(phi)[..., None] * v[:, None, :]))
+        s = d[:, None] * np.cos(beta) - np.sqrt(np.maximum(R * R - (d[:, None] * np.sin(beta)) ** 2, 0.0))
+        s[~(d > R)] = np.nan  # on or inside the sphere: nothing seen from outside
+        return points[:, None, :] + s[..., None] * w
+
+
+def _across(a):
+    """(u, v) (M, 3) each: unit vectors that make (u, v, a) orthonormal, per unit row of `a` (M, 3)."""
+    alt = np.where((np.abs(a[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    u = np.cross(a, alt)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    return u, np.cross(a, u)
 
 
 def _pencil_parts(R, rho, s0, s1):

@@ -154,10 +154,13 @@ def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict
     o, d = rays_of(pixels)
     keys = (pixels[:, 0] * cam.width + pixels[:, 1]).astype(np.uint64) * np.uint64(cam.spp)
 
+    probes = scene.medium.scatters  # the air's tests of sphere emitters' segments probe with their rows
+
     @functools.lru_cache(maxsize=None)
-    def rows_at(orders):  # the rows alone (`Lights.rows_only`): their order also sets how finely they probe
-        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders).rows_only(),
-                                   _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
+    def rows_at(orders):  # with `probes` the rows alone (`Lights.rows_only`): their order sets how finely they probe
+        lights = Lights.of(scene.lights, prep.emissive, orders)
+        return dataclasses.replace(prep, lights=lights.rows_only() if probes else lights, _frusta=None, _through=None,
+                                   _memo={}, _memo_lock=threading.Lock())
 
     def shade(orders, rays):
         return shade_rays(rows_at(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
