@@ -129,7 +129,7 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
     if not len(on):
         return np.zeros((n, n_e), bool)
     n_l = len(lights)
-    mine = cone.take(on), lit.take(np.nonzero(rows[lit.light])[0])
+    mine = (cone, lit) if rows.all() else (cone.take(on), lit.take(np.nonzero(rows[lit.light])[0]))
     row_state = lit_states(*mine, *(s.ray * n_l + s.light for s in mine), n * n_l)
     state = emitter_states(row_state.reshape(n, n_l), lights.owner, rows, n_e)  # (N, E)
     agreed = np.nonzero((state == LIT) | (state == DARK))
@@ -230,14 +230,21 @@ def lit_pieces(accel, lights: Lights, segs: Segments, per_box: int, select) -> S
 
 def light_boxes(points, segs: Segments, per_box: int):
     """((B, 3) lows, (B, 3) highs): per box b the bounding box of rows b per_box ... (their points and
-    segments; infinite where a segment does not end)."""
+    segments; infinite where a segment does not end). The segments in the order of their rows
+    (`point_segments`' are), so that each box's segments are one run."""
     pts = points.reshape(-1, per_box, 3)
     lo, hi = pts.min(axis=1), pts.max(axis=1)
+    if not len(segs):
+        return lo, hi
     b = segs.light // per_box
+    if np.any(b[1:] < b[:-1]):
+        raise ValueError("light_boxes: segments out of their rows' order")
     finite = np.isfinite(segs.length)
     end = segs.origins + np.where(finite, segs.length, 0.0)[:, None] * segs.dirs
     end = np.where(finite[:, None], end, np.where(segs.dirs > 0.0, np.inf, np.where(segs.dirs < 0.0, -np.inf, end)))
-    for p in (segs.origins, end):
-        np.minimum.at(lo, b, p)
-        np.maximum.at(hi, b, p)
+    starts = np.flatnonzero(np.r_[True, b[1:] != b[:-1]])
+    box = b[starts]
+    for p in (segs.origins, end):  # min and max are exact: the boxes do not depend on the order of reduction
+        lo[box] = np.minimum(lo[box], np.minimum.reduceat(p, starts, axis=0))
+        hi[box] = np.maximum(hi[box], np.maximum.reduceat(p, starts, axis=0))
     return lo, hi
