@@ -25,10 +25,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..jit import exact_jitable, exact_njit
 from ..lights import EMISSION, LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..methods import Segments
-from ..segments import cone_segments, gather
+from ..segments import cone_segments, gather, pieces
 from ..shading import _jitter as jitter, block, stratified
 from .frusta import GAP_REL, point_lit_pieces
 
@@ -163,19 +164,41 @@ def lit_states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> n
     cover its cone segments, DARK where there are none, MIXED between, NONE where it has no cone
     segment (the row does not shine on the ray). A key's segments and pieces to infinity are measured
     to its own far end, beyond their last start (so a key's state does not depend on the others')."""
-    far = np.zeros(size)
-    np.maximum.at(far, cone_key, cone.t0)
-    np.maximum.at(far, lit_key, lit.t0)
-    far += cone.scale
+    return _lit_states(cone.t0, cone.length, np.asarray(cone_key, np.int64), lit.t0, lit.length,
+                       np.asarray(lit_key, np.int64), float(cone.scale), size)
 
-    def measure(segs, key):
-        return np.where(np.isinf(segs.length), far[key] - segs.t0, segs.length)
 
-    count = np.bincount(cone_key, minlength=size)
-    total = np.bincount(cone_key, weights=measure(cone, cone_key), minlength=size)
-    covered = np.bincount(lit_key, weights=measure(lit, lit_key), minlength=size)
-    tol = 2.0 * GAP_REL * far * count
-    return np.where(count == 0, NONE, np.where(covered >= total - tol, LIT, np.where(covered <= tol, DARK, MIXED)))
+@exact_njit
+def _lit_states(c_t0, c_len, c_key, l_t0, l_len, l_key, scale, size):
+    """`lit_states`' kernel: the far ends (the largest start per key, plus the scene's scale), then the
+    cone segments' count and measure and the lit pieces' measure per key, each summed in the order of
+    the segments (as np.bincount sums), and the tolerance 2 GAP_REL far count."""
+    far, count, total, covered = np.zeros(size), np.zeros(size, np.int64), np.zeros(size), np.zeros(size)
+    for i in range(c_key.shape[0]):
+        far[c_key[i]] = _most(far[c_key[i]], c_t0[i])
+    for i in range(l_key.shape[0]):
+        far[l_key[i]] = _most(far[l_key[i]], l_t0[i])
+    for k in range(size):
+        far[k] += scale
+    for i in range(c_key.shape[0]):
+        k = c_key[i]
+        count[k] += 1
+        total[k] += far[k] - c_t0[i] if np.isinf(c_len[i]) else c_len[i]
+    for i in range(l_key.shape[0]):
+        k = l_key[i]
+        covered[k] += far[k] - l_t0[i] if np.isinf(l_len[i]) else l_len[i]
+    out = np.empty(size, np.int64)
+    for k in range(size):
+        tol = 2.0 * GAP_REL * far[k] * count[k]
+        if count[k] == 0:
+            out[k] = NONE
+        elif covered[k] >= total[k] - tol:
+            out[k] = LIT
+        elif covered[k] <= tol:
+            out[k] = DARK
+        else:
+            out[k] = MIXED
+    return out
 
 
 def emitter_states(state, owner, rows, n_e) -> np.ndarray:
@@ -224,27 +247,52 @@ def lit_pieces(accel, lights: Lights, segs: Segments, per_box: int, select) -> S
     from their own start points, the candidate triangles per box of `per_box` rows (one camera ray's)."""
     box = light_boxes(lights.position, segs, per_box)
     src, x0, x1 = point_lit_pieces(accel, segs, lights.position[segs.light], segs.light // per_box, box, select)
-    return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
-                    segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src], segs.seed, segs.scale)
+    return pieces(segs, src, x0, x1)
 
 
 def light_boxes(points, segs: Segments, per_box: int):
     """((B, 3) lows, (B, 3) highs): per box b the bounding box of rows b per_box ... (their points and
-    segments; infinite where a segment does not end). The segments in the order of their rows
-    (`point_segments`' are), so that each box's segments are one run."""
-    pts = points.reshape(-1, per_box, 3)
-    lo, hi = pts.min(axis=1), pts.max(axis=1)
-    if not len(segs):
-        return lo, hi
-    b = segs.light // per_box
-    if np.any(b[1:] < b[:-1]):
-        raise ValueError("light_boxes: segments out of their rows' order")
-    finite = np.isfinite(segs.length)
-    end = segs.origins + np.where(finite, segs.length, 0.0)[:, None] * segs.dirs
-    end = np.where(finite[:, None], end, np.where(segs.dirs > 0.0, np.inf, np.where(segs.dirs < 0.0, -np.inf, end)))
-    starts = np.flatnonzero(np.r_[True, b[1:] != b[:-1]])
-    box = b[starts]
-    for p in (segs.origins, end):  # min and max are exact: the boxes do not depend on the order of reduction
-        lo[box] = np.minimum(lo[box], np.minimum.reduceat(p, starts, axis=0))
-        hi[box] = np.maximum(hi[box], np.maximum.reduceat(p, starts, axis=0))
+    segments; infinite where a segment does not end)."""
+    return _light_boxes(np.ascontiguousarray(points, float), segs.origins, segs.dirs, segs.length, segs.light, per_box)
+
+
+@exact_njit
+def _light_boxes(points, origins, dirs, length, light, per_box):
+    """`light_boxes`' kernel (min and max are exact: the boxes do not depend on the order of the
+    segments); a segment to infinity reaches +-inf along each axis its direction has a component on."""
+    n_b = points.shape[0] // per_box
+    lo, hi = np.empty((n_b, 3)), np.empty((n_b, 3))
+    for b in range(n_b):
+        for a in range(3):
+            lo[b, a] = hi[b, a] = points[b * per_box, a]
+            for i in range(b * per_box + 1, b * per_box + per_box):
+                lo[b, a] = _least(lo[b, a], points[i, a])
+                hi[b, a] = _most(hi[b, a], points[i, a])
+    for s in range(light.shape[0]):
+        b = light[s] // per_box
+        finite = np.isfinite(length[s])
+        for a in range(3):
+            o = origins[s, a]
+            if finite:
+                e = o + length[s] * dirs[s, a]
+            elif dirs[s, a] > 0.0:
+                e = np.inf
+            elif dirs[s, a] < 0.0:
+                e = -np.inf
+            else:
+                e = o + 0.0 * dirs[s, a]
+            lo[b, a] = _least(_least(lo[b, a], o), e)
+            hi[b, a] = _most(_most(hi[b, a], o), e)
     return lo, hi
+
+
+@exact_jitable
+def _least(a, b):
+    """np.minimum's: NaN wins."""
+    return a if a < b or a != a else b
+
+
+@exact_jitable
+def _most(a, b):
+    """np.maximum's: NaN wins."""
+    return a if a > b or a != a else b
