@@ -70,8 +70,8 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     for e in np.unique(owner_e):
         rs = ray_e[owner_e == e]
         value, v = _estimate(accel, method, medium, params, lights.emitters[e], e, rs, rays, select)
-        np.add.at(air, rs, value)
-        np.add.at(var, rs, v)
+        air[rs] += value  # rs: each ray once (np.nonzero's)
+        var[rs] += v
     return kept, air, var, cut.any(axis=1)
 
 
@@ -105,9 +105,8 @@ def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata
     states = _group_states(segs, lit, len(rs) * per).reshape(len(rs), per)
     agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
     if agree.any():  # the floor: one sample's share of the unshadowed sum
-        at = np.nonzero(np.repeat(agree, per))[0]
-        free = per_group(method, medium, params, samples, segs.take(np.nonzero(np.isin(segs.ray, at))[0]),
-                          len(rs) * per)
+        free = per_group(method, medium, params, samples, segs.take(np.nonzero(np.repeat(agree, per)[segs.ray])[0]),
+                         len(rs) * per)
         floor = free.reshape(len(rs), per, 3).sum(axis=1)[agree] ** 2 / per**2
         var[agree] = np.maximum(var[agree], floor)
     return value, var
