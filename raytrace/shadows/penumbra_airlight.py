@@ -23,9 +23,11 @@ unshadowed sum, squared. Sampled rays have no error bound (the renderer makes it
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from ..jit import exact_jitable, exact_njit
+from ..jit import exact_njit
 from ..lights import EMISSION, LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..methods import Segments
@@ -171,29 +173,33 @@ def lit_states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> n
 def _lit_states(c_t0, c_len, c_key, l_t0, l_len, l_key, scale, size):
     """`lit_states`' kernel: the far ends (the largest start per key, plus the scene's scale), then the
     cone segments' count and measure and the lit pieces' measure per key, each summed in the order of
-    the segments (as np.bincount sums), and the tolerance 2 GAP_REL far count."""
-    far, count, total, covered = np.zeros(size), np.zeros(size, np.int64), np.zeros(size), np.zeros(size)
-    for i in range(c_key.shape[0]):
-        far[c_key[i]] = _most(far[c_key[i]], c_t0[i])
-    for i in range(l_key.shape[0]):
-        far[l_key[i]] = _most(far[l_key[i]], l_t0[i])
-    for k in range(size):
-        far[k] += scale
+    the segments (as np.bincount sums), and the tolerance 2 GAP_REL far count. The largest start as
+    np.maximum takes it (a NaN wins); plain loops and comparisons, which compile in half the time of
+    np.isinf and max()."""
+    far, sums = np.zeros(size), np.zeros((3, size))  # sums: count, total, covered
     for i in range(c_key.shape[0]):
         k = c_key[i]
-        count[k] += 1
-        total[k] += far[k] - c_t0[i] if np.isinf(c_len[i]) else c_len[i]
+        if not far[k] >= c_t0[i] and far[k] == far[k]:
+            far[k] = c_t0[i]
     for i in range(l_key.shape[0]):
         k = l_key[i]
-        covered[k] += far[k] - l_t0[i] if np.isinf(l_len[i]) else l_len[i]
+        if not far[k] >= l_t0[i] and far[k] == far[k]:
+            far[k] = l_t0[i]
+    for i in range(c_key.shape[0]):
+        k, x = c_key[i], c_len[i]
+        sums[0, k] += 1.0
+        sums[1, k] += (far[k] + scale) - c_t0[i] if x == math.inf or x == -math.inf else x
+    for i in range(l_key.shape[0]):
+        k, x = l_key[i], l_len[i]
+        sums[2, k] += (far[k] + scale) - l_t0[i] if x == math.inf or x == -math.inf else x
     out = np.empty(size, np.int64)
     for k in range(size):
-        tol = 2.0 * GAP_REL * far[k] * count[k]
-        if count[k] == 0:
+        tol = 2.0 * GAP_REL * (far[k] + scale) * sums[0, k]
+        if sums[0, k] == 0.0:
             out[k] = NONE
-        elif covered[k] >= total[k] - tol:
+        elif sums[2, k] >= sums[1, k] - tol:
             out[k] = LIT
-        elif covered[k] <= tol:
+        elif sums[2, k] <= tol:
             out[k] = DARK
         else:
             out[k] = MIXED
@@ -252,46 +258,32 @@ def lit_pieces(accel, lights: Lights, segs: Segments, per_box: int, select) -> S
 def light_boxes(points, segs: Segments, per_box: int):
     """((B, 3) lows, (B, 3) highs): per box b the bounding box of rows b per_box ... (their points and
     segments; infinite where a segment does not end)."""
-    return _light_boxes(np.ascontiguousarray(points, float), segs.origins, segs.dirs, segs.length, segs.light, per_box)
+    pts = points.reshape(-1, per_box, 3)
+    lo, hi = pts.min(axis=1), pts.max(axis=1)
+    _grow_boxes(lo, hi, segs.origins, segs.dirs, segs.length, segs.light, per_box)
+    return lo, hi
 
 
 @exact_njit
-def _light_boxes(points, origins, dirs, length, light, per_box):
-    """`light_boxes`' kernel (min and max are exact: the boxes do not depend on the order of the
-    segments); a segment to infinity reaches +-inf along each axis its direction has a component on."""
-    n_b = points.shape[0] // per_box
-    lo, hi = np.empty((n_b, 3)), np.empty((n_b, 3))
-    for b in range(n_b):
-        for a in range(3):
-            lo[b, a] = hi[b, a] = points[b * per_box, a]
-            for i in range(b * per_box + 1, b * per_box + per_box):
-                lo[b, a] = _least(lo[b, a], points[i, a])
-                hi[b, a] = _most(hi[b, a], points[i, a])
+def _grow_boxes(lo, hi, origins, dirs, length, light, per_box):
+    """`light_boxes`' kernel: each box grown to its segments' start and end points, as np.minimum and
+    np.maximum would (exact, so the order of the segments does not matter; a NaN wins); a segment to
+    infinity reaches +-inf along each axis its direction has a component on."""
     for s in range(light.shape[0]):
         b = light[s] // per_box
-        finite = np.isfinite(length[s])
+        finite = length[s] - length[s] == 0.0  # neither inf nor NaN
         for a in range(3):
             o = origins[s, a]
             if finite:
                 e = o + length[s] * dirs[s, a]
             elif dirs[s, a] > 0.0:
-                e = np.inf
+                e = math.inf
             elif dirs[s, a] < 0.0:
-                e = -np.inf
+                e = -math.inf
             else:
                 e = o + 0.0 * dirs[s, a]
-            lo[b, a] = _least(_least(lo[b, a], o), e)
-            hi[b, a] = _most(_most(hi[b, a], o), e)
-    return lo, hi
-
-
-@exact_jitable
-def _least(a, b):
-    """np.minimum's: NaN wins."""
-    return a if a < b or a != a else b
-
-
-@exact_jitable
-def _most(a, b):
-    """np.maximum's: NaN wins."""
-    return a if a > b or a != a else b
+            for x in (o, e):
+                if not lo[b, a] <= x and lo[b, a] == lo[b, a]:
+                    lo[b, a] = x
+                if not hi[b, a] >= x and hi[b, a] == hi[b, a]:
+                    hi[b, a] = x
