@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .jit import njit
+from .jit import exact_njit, njit
 from .lights import is_spot, segment_cone
 from .methods import Segments
 from .methods.geometry import segment_geometry, v_of
@@ -47,12 +47,36 @@ def cone_segments(segs: Segments, lights, end_normals=None):
         return segs, end_normals
     xh, h, _, cone = segment_geometry(segs, lights)
     src, x0, x1, piece = _cone_pieces(xh, h, segs.length, cone)
-    cut = Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
-                   segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src] + CONE_STREAM * len(lights) * piece,
-                   segs.seed, segs.scale)
+    cut = pieces(segs, src, x0, x1, piece, CONE_STREAM * len(lights))
     if end_normals is not None:
         end_normals = end_normals[src] * (x1 == segs.length[src])[:, None]
     return cut, end_normals
+
+
+def pieces(segs: Segments, src, x0, x1, piece=None, step: int = 0) -> Segments:
+    """The pieces [x0, x1] (along each segment from its own start) of the segments `src` as segments
+    from their own start points: origin o + x0 w, t0 + x0, length x1 - x0, stream + step piece (the
+    piece's number), the rest the source's; one kernel for what NumPy's indexing gave, bit for bit."""
+    src = np.asarray(src, np.int64)
+    piece = src if piece is None else np.asarray(piece, np.int64)
+    o, d, length, t0, stream = _pieces(segs.origins, segs.dirs, segs.t0, segs.stream, src, x0, x1, piece, step)
+    return Segments(o, d, length, segs.light[src], segs.ray[src], t0, segs.keys[src], stream, segs.seed, segs.scale)
+
+
+@exact_njit
+def _pieces(origins, dirs, t0, stream, src, x0, x1, piece, step):
+    """`pieces`' kernel: the start points, directions, lengths, starts and streams of the pieces."""
+    m = src.shape[0]
+    o, d, length, t, st = np.empty((m, 3)), np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
+    for j in range(m):
+        s = src[j]
+        for a in range(3):
+            o[j, a] = origins[s, a] + x0[j] * dirs[s, a]
+            d[j, a] = dirs[s, a]
+        length[j] = x1[j] - x0[j]
+        t[j] = t0[s] + x0[j]
+        st[j] = stream[s] + step * piece[j]
+    return o, d, length, t, st
 
 
 @njit

@@ -23,12 +23,15 @@ unshadowed sum, squared. Sampled rays have no error bound (the renderer makes it
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from ..jit import exact_njit
 from ..lights import EMISSION, LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..methods import Segments
-from ..segments import cone_segments, gather
+from ..segments import cone_segments, gather, pieces
 from ..shading import _jitter as jitter, block, stratified
 from .frusta import GAP_REL, point_lit_pieces
 
@@ -69,8 +72,8 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     for e in np.unique(owner_e):
         rs = ray_e[owner_e == e]
         value, v = _estimate(accel, method, medium, params, lights.emitters[e], e, rs, rays, select)
-        np.add.at(air, rs, value)
-        np.add.at(var, rs, v)
+        air[rs] += value  # rs: each ray once (np.nonzero's)
+        var[rs] += v
     return kept, air, var, cut.any(axis=1)
 
 
@@ -104,9 +107,8 @@ def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata
     states = _group_states(segs, lit, len(rs) * per).reshape(len(rs), per)
     agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
     if agree.any():  # the floor: one sample's share of the unshadowed sum
-        at = np.nonzero(np.repeat(agree, per))[0]
-        free = per_group(method, medium, params, samples, segs.take(np.nonzero(np.isin(segs.ray, at))[0]),
-                          len(rs) * per)
+        free = per_group(method, medium, params, samples, segs.take(np.nonzero(np.repeat(agree, per)[segs.ray])[0]),
+                         len(rs) * per)
         floor = free.reshape(len(rs), per, 3).sum(axis=1)[agree] ** 2 / per**2
         var[agree] = np.maximum(var[agree], floor)
     return value, var
@@ -129,7 +131,7 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
     if not len(on):
         return np.zeros((n, n_e), bool)
     n_l = len(lights)
-    mine = cone.take(on), lit.take(np.nonzero(rows[lit.light])[0])
+    mine = (cone, lit) if rows.all() else (cone.take(on), lit.take(np.nonzero(rows[lit.light])[0]))
     row_state = lit_states(*mine, *(s.ray * n_l + s.light for s in mine), n * n_l)
     state = emitter_states(row_state.reshape(n, n_l), lights.owner, rows, n_e)  # (N, E)
     agreed = np.nonzero((state == LIT) | (state == DARK))
@@ -163,19 +165,45 @@ def lit_states(cone: Segments, lit: Segments, cone_key, lit_key, size: int) -> n
     cover its cone segments, DARK where there are none, MIXED between, NONE where it has no cone
     segment (the row does not shine on the ray). A key's segments and pieces to infinity are measured
     to its own far end, beyond their last start (so a key's state does not depend on the others')."""
-    far = np.zeros(size)
-    np.maximum.at(far, cone_key, cone.t0)
-    np.maximum.at(far, lit_key, lit.t0)
-    far += cone.scale
+    return _lit_states(cone.t0, cone.length, np.asarray(cone_key, np.int64), lit.t0, lit.length,
+                       np.asarray(lit_key, np.int64), float(cone.scale), size)
 
-    def measure(segs, key):
-        return np.where(np.isinf(segs.length), far[key] - segs.t0, segs.length)
 
-    count = np.bincount(cone_key, minlength=size)
-    total = np.bincount(cone_key, weights=measure(cone, cone_key), minlength=size)
-    covered = np.bincount(lit_key, weights=measure(lit, lit_key), minlength=size)
-    tol = 2.0 * GAP_REL * far * count
-    return np.where(count == 0, NONE, np.where(covered >= total - tol, LIT, np.where(covered <= tol, DARK, MIXED)))
+@exact_njit
+def _lit_states(c_t0, c_len, c_key, l_t0, l_len, l_key, scale, size):
+    """`lit_states`' kernel: the far ends (the largest start per key, plus the scene's scale), then the
+    cone segments' count and measure and the lit pieces' measure per key, each summed in the order of
+    the segments (as np.bincount sums), and the tolerance 2 GAP_REL far count. The largest start as
+    np.maximum takes it (a NaN wins); plain loops and comparisons, which compile in half the time of
+    np.isinf and max()."""
+    far, sums = np.zeros(size), np.zeros((3, size))  # sums: count, total, covered
+    for i in range(c_key.shape[0]):
+        k = c_key[i]
+        if not far[k] >= c_t0[i] and far[k] == far[k]:
+            far[k] = c_t0[i]
+    for i in range(l_key.shape[0]):
+        k = l_key[i]
+        if not far[k] >= l_t0[i] and far[k] == far[k]:
+            far[k] = l_t0[i]
+    for i in range(c_key.shape[0]):
+        k, x = c_key[i], c_len[i]
+        sums[0, k] += 1.0
+        sums[1, k] += (far[k] + scale) - c_t0[i] if x == math.inf or x == -math.inf else x
+    for i in range(l_key.shape[0]):
+        k, x = l_key[i], l_len[i]
+        sums[2, k] += (far[k] + scale) - l_t0[i] if x == math.inf or x == -math.inf else x
+    out = np.empty(size, np.int64)
+    for k in range(size):
+        tol = 2.0 * GAP_REL * (far[k] + scale) * sums[0, k]
+        if sums[0, k] == 0.0:
+            out[k] = NONE
+        elif sums[2, k] >= sums[1, k] - tol:
+            out[k] = LIT
+        elif sums[2, k] <= tol:
+            out[k] = DARK
+        else:
+            out[k] = MIXED
+    return out
 
 
 def emitter_states(state, owner, rows, n_e) -> np.ndarray:
@@ -224,8 +252,7 @@ def lit_pieces(accel, lights: Lights, segs: Segments, per_box: int, select) -> S
     from their own start points, the candidate triangles per box of `per_box` rows (one camera ray's)."""
     box = light_boxes(lights.position, segs, per_box)
     src, x0, x1 = point_lit_pieces(accel, segs, lights.position[segs.light], segs.light // per_box, box, select)
-    return Segments(segs.origins[src] + x0[:, None] * segs.dirs[src], segs.dirs[src], x1 - x0, segs.light[src],
-                    segs.ray[src], segs.t0[src] + x0, segs.keys[src], segs.stream[src], segs.seed, segs.scale)
+    return pieces(segs, src, x0, x1)
 
 
 def light_boxes(points, segs: Segments, per_box: int):
@@ -233,11 +260,30 @@ def light_boxes(points, segs: Segments, per_box: int):
     segments; infinite where a segment does not end)."""
     pts = points.reshape(-1, per_box, 3)
     lo, hi = pts.min(axis=1), pts.max(axis=1)
-    b = segs.light // per_box
-    finite = np.isfinite(segs.length)
-    end = segs.origins + np.where(finite, segs.length, 0.0)[:, None] * segs.dirs
-    end = np.where(finite[:, None], end, np.where(segs.dirs > 0.0, np.inf, np.where(segs.dirs < 0.0, -np.inf, end)))
-    for p in (segs.origins, end):
-        np.minimum.at(lo, b, p)
-        np.maximum.at(hi, b, p)
+    _grow_boxes(lo, hi, segs.origins, segs.dirs, segs.length, segs.light, per_box)
     return lo, hi
+
+
+@exact_njit
+def _grow_boxes(lo, hi, origins, dirs, length, light, per_box):
+    """`light_boxes`' kernel: each box grown to its segments' start and end points, as np.minimum and
+    np.maximum would (exact, so the order of the segments does not matter; a NaN wins); a segment to
+    infinity reaches +-inf along each axis its direction has a component on."""
+    for s in range(light.shape[0]):
+        b = light[s] // per_box
+        finite = length[s] - length[s] == 0.0  # neither inf nor NaN
+        for a in range(3):
+            o = origins[s, a]
+            if finite:
+                e = o + length[s] * dirs[s, a]
+            elif dirs[s, a] > 0.0:
+                e = math.inf
+            elif dirs[s, a] < 0.0:
+                e = -math.inf
+            else:
+                e = o + 0.0 * dirs[s, a]
+            for x in (o, e):
+                if not lo[b, a] <= x and lo[b, a] == lo[b, a]:
+                    lo[b, a] = x
+                if not hi[b, a] >= x and hi[b, a] == hi[b, a]:
+                    hi[b, a] = x
