@@ -20,8 +20,9 @@ import trimesh
 from scipy import integrate
 
 from raytrace.interiors import crossing
+from raytrace.options import RenderOptions
+from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
-from raytrace.rendering.renderer import prepare
 
 from . import oracle
 from .conftest import to_toml
@@ -142,3 +143,34 @@ def test_a_camera_inside_a_320_face_ball_under_a_lamp():
     scene["medium"] = {"sigma_a": 0.01}
     ref = twin(scene, triangles(scene), point_segment)
     check(scene, ref, "quadrature", {"rtol": 1e-6}, 1e-6, 1e-5)
+
+
+@pytest.mark.parametrize("case", ["underwater lamp", "underwater sun", "index-matched U"])
+def test_a_camera_inside_keeps_its_bound(case, tmp_path):
+    """The renderer now keeps the crossing's error bound for a camera inside a shape (it was infinite
+    on every pixel): against the existing twins of a camera inside a convex refractive box
+    (tests/test_underwater_camera.py: quadrature's refracted beams and Fermat paths, rtol 1e-11) and
+    inside a non-convex index-matched U (tests/test_inside_paths.py, rtol 1e-10), the bound is above
+    the error on every pixel, and finite on every pixel of the U."""
+    from raytrace.scene.format import load_scene
+
+    from . import test_inside_paths as u
+    from . import test_underwater_camera as water
+
+    if case == "index-matched U":
+        (tmp_path / "u.obj").write_text(u.u_obj())
+        sc = u.u_scene(u.LIGHTS["lamp"])
+        sc["camera"].update(position=[-0.7, 0.1, 0.3], look_at=[1.0, -0.2, -0.2], fov=60.0, width=8, height=5)
+        (tmp_path / "u.toml").write_text(to_toml(sc))
+        prep = prepare(load_scene(tmp_path / "u.toml"))
+        assert prep.camera_inside == 0
+        ref = u.twin_image(sc)
+        res = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1))
+    else:
+        light = water.LAMP if case == "underwater lamp" else water.SUN
+        ref, _ = water.twin_image(light)
+        res = image({**water.SCENE, "light": [light]}, "quadrature", {"rtol": 1e-11})
+    err = np.abs(res.image - ref)
+    assert np.all(err <= res.error_bound), np.max(err / res.error_bound)
+    if case == "index-matched U":
+        assert np.all(np.isfinite(res.error_bound))
