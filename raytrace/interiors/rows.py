@@ -289,6 +289,20 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
         bound[np.ix_(ell > 0.0, ch)] = np.inf
 
 
+def _beam_span(prep, sid, planes, f, toward, axis, points, w, ell):
+    """(segments, lo, hi): the segments that the beam of directional light `axis` refracted through face f
+    (minus its direction inside: `toward`) of the convex refractive shape sid (its face `planes`) may
+    light, and the widest interval of each where it may (media/convex_directional.py `beam_intervals`:
+    from the lowest to the highest place its ends may lie)."""
+    dplanes = measured_plane_errors(prep, sid)
+    du, _ = _beam_errors(float(-(planes[f, :3] @ axis)), float(prep.scene.shapes[sid].interior.ior), dplanes[0])
+    ints = np.empty((len(ell), 9))
+    beam_intervals(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]), plane_neighbours(prep, sid),
+                   int(f), np.ascontiguousarray(toward), points, w, ell, dplanes, du, ints)
+    sel = np.nonzero(ints[:, 5] > ints[:, 2])[0]
+    return sel, ints[sel, 2], ints[sel, 5]
+
+
 def _beam_errors(cos_i, eta, dn):
     """(du, de) of a beam refracted through a face whose computed normal is dn (per component) and a few
     ulps off the true face's (first order): du bounds the error of its direction inside (Snell's vector
@@ -486,12 +500,12 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
     Where all index-matched interiors are convex (`_other_interiors`), a beam is attenuated by the others
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
-    (`_through_others`); else they are not applied, and every light's bound is infinite. A shape of more
-    than KERNEL_PLANES planes (`convex_planes` empty) takes directional lights by their beams
-    (`single_scattering`, `_face_beams`) unshadowed, counted (UNSHADOWED), their bound infinite beside
-    other shapes."""
+    (`_through_others`); else they are not applied, and every light's bound is infinite. In a shape of
+    more than KERNEL_PLANES planes (`convex_planes` empty: `_face_beams`) a beam's pieces are sought
+    only where it may light a segment (`_beam_span`), and the other interiors are not applied."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, mask = convex_planes(prep, sid), blockers(prep)
+    planes, mask = refracting_planes(prep, sid), blockers(prep)
+    many = not len(convex_planes(prep, sid))
     n = len(points)
     out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     stats = np.zeros(STATS_SIZE)
@@ -502,18 +516,15 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
             _lit_point(prep, method, params, sid, refracting_planes(prep, sid), mask, li,
                        (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), others)
             continue
-        if not len(planes):
-            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
-                                              depth, li)
-            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
-            stats += st
-            if np.any(prep.shape_ids != sid):
-                b = np.where(ell[:, None] > 0.0, np.inf, b)
-            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
-            continue
         faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward, irradiance in zip(faces.tolist(), towards, scales):
-            src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
+            if many:  # the segments the beam may reach, over the widest interval it may light
+                sel, lo, hi = _beam_span(prep, sid, planes, f, toward, lights.axis[li], points, w, ell)
+                src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points[sel] + lo[:, None] * w[sel],
+                                                 w[sel], hi - lo)
+                src, x0, x1 = sel[src], x0 + lo[src], x1 + lo[src]
+            else:
+                src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
             stats[LIT_PIECES] += len(src)
             rank = np.arange(len(src)) - np.searchsorted(src, src)
             for piece in np.unique(rank).tolist():
