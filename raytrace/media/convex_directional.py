@@ -195,11 +195,11 @@ def beam_intervals(n, c, near, f, toward, origins, dirs, lengths, dplanes, du, o
                 if abs(a) < e:
                     lo_b, hi_a = length, 0.0
                 continue
-            t0, t1, t2 = -a / b, (-e - a) / b, (e - a) / b
+            t0, t1, t2 = -a / b, (-e - a) / b, (e - a) / b  # the true root lies between t1 and t2
             if b > 0.0:  # h_g >= 0 from its root on
                 lo, lo_a, lo_b = max(lo, t0), max(lo_a, t1), max(lo_b, t2)
-            else:
-                hi, hi_a, hi_b = min(hi, t0), min(hi_a, t1), min(hi_b, t2)
+            else:  # up to its root (t2 < t1)
+                hi, hi_a, hi_b = min(hi, t0), min(hi_a, t2), min(hi_b, t1)
         r = out[s]
         r[0], r[1] = lo, max(hi, lo)
         r[2], r[3] = min(max(lo_a, 0.0), length), min(max(lo_b, 0.0), length)
