@@ -155,8 +155,8 @@ PLATE = (1, 1.625, (-1.5, -1.5), (-0.375, 1.5))  # y = 1.625, x in [-1.5, -0.375
 def test_a_plate_shadows_the_beams():
     """Volumetric shadows: a black plate above part of the ball cuts the beams where their
     entry points' paths to the sun meet it (rows.py `_lit_beams`, shadows/beams.py); quadrature
-    within 1e-6 and analytic within 1e-8 (3.6e-9 on a pixel the plate leaves 0.5 % lit, 1e-10 on
-    the others) of the twin with the plate on every lit pixel, their bounds finite and above the error, and not vacuous: the plate darkens some
+    within 1e-6 and analytic within 1e-9 (1.0e-10) of the twin with the plate on every lit pixel,
+    their bounds finite and above the error, and not vacuous: the plate darkens some
     pixels by more than 10 % and leaves at least half of them lit (before, these beams were
     unshadowed, the bound infinite)."""
     scene = ball(OUTSIDE, SUN)
@@ -167,7 +167,7 @@ def test_a_plate_shadows_the_beams():
     assert np.max(1.0 - ref[..., 1] / free[..., 1]) > 0.1 and np.count_nonzero(ref[..., 1] > 0.0) >= 6
     res = check(scene, ref, "quadrature", {"rtol": 1e-6}, 1e-6, 1e-5, shadows=True)
     assert res.stats["inside: lit pieces"] > 0
-    check(scene, ref, "analytic", {}, 1e-8, 1e-7, shadows=True)  # 3.6e-9 where the plate leaves 0.5 % lit
+    check(scene, ref, "analytic", {}, 1e-9, 1e-7, shadows=True)
 
 
 def test_a_camera_inside_a_320_face_ball_under_a_lamp():

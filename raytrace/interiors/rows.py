@@ -231,8 +231,10 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
     of each segment where the path back leaves through its face (media/convex_directional.py
     `beam_intervals`, from the face's neighbours alone), by the method's rule: CLOSED the closed form
     (`beams_closed`, bounded as `segments_bounded` with the planes' own errors), QUAD, MARCH or SAMPLE
-    over the interval from its start on the face's plane alone (the exit there is that face's),
-    carried back by exp(-sigma_t lo); CLOSED's and QUAD's bounds add what the interval's ends may
+    over the interval from its start on the face's plane alone (the exit there is that face's; the
+    kernel takes it as a straight path, eta 1, the beam's direction and irradiance given, so QUAD's
+    bound is `convex_bounded`'s), carried back by exp(-sigma_t lo); CLOSED's and QUAD's bounds add
+    the beam's direction and irradiance errors (`_beam_errors`) and what the interval's ends may
     change, misplaced within their spans."""
     points, w, ell, keys = rows
     out, var, bound, stats = acc
