@@ -136,13 +136,8 @@ def fermat_scalar(X, L, n, c, eta):
 
 
 def twin_pixel(scene, geometry, i, j, lit_faces=None):
-    tri, normals, offsets = geometry
-    inner, light = scene["shape"][0]["interior"], scene["light"][0]
-    eta, g = inner["ior"], inner["phase"]["g"]
-    ks = np.array(inner["sigma_s"], float)
-    kt = np.array(inner["sigma_a"], float) + ks
-    kt_out = scene["medium"]["sigma_a"]
-    L, inten = np.array(light["position"], float), np.array(light["intensity"], float)
+    _, normals, offsets = geometry
+    eta, kt_out = scene["shape"][0]["interior"]["ior"], scene["medium"]["sigma_a"]
     o_cam, d = oracle.camera_ray(scene["camera"], i, j)
     den = normals @ d
     t = (offsets - normals @ o_cam) / den
@@ -151,8 +146,27 @@ def twin_pixel(scene, geometry, i, j, lit_faces=None):
         return np.zeros(3), None
     p = o_cam + t_in * d
     w, ti, tt = snell(d, normals[f_in], eta)
+    out = point_segment(scene, geometry, p, w, exit_distance(p, w, normals, offsets), lit_faces)
+    return math.exp(-kt_out * t_in) * fresnel_t(ti, tt, eta) / eta**2 * out, f_in
+
+
+def exit_distance(p, w, normals, offsets):
+    """Distance from p inside the convex shape along w to its boundary (the slab test)."""
     dw = normals @ w
-    ell = float(np.min(np.where(dw > 0.0, (offsets - normals @ p) / np.where(dw > 0.0, dw, 1.0), np.inf)))
+    return float(np.min(np.where(dw > 0.0, (offsets - normals @ p) / np.where(dw > 0.0, dw, 1.0), np.inf)))
+
+
+def point_segment(scene, geometry, p, w, ell, lit_faces=None):
+    """The point light's single scattering (3,) over the inside segment p + x w, x in [0, ell]: each
+    triangle whose plane the light is outside of, on Fermat's path, where its refraction point lies in
+    the triangle."""
+    tri, normals, offsets = geometry
+    inner, light = scene["shape"][0]["interior"], scene["light"][0]
+    eta, g = inner["ior"], inner["phase"]["g"]
+    ks = np.array(inner["sigma_s"], float)
+    kt = np.array(inner["sigma_a"], float) + ks
+    kt_out = scene["medium"]["sigma_a"]
+    L, inten = np.array(light["position"], float), np.array(light["intensity"], float)
     out = np.zeros(3)
     for f in np.nonzero(normals @ L > offsets)[0]:
         n, c = normals[f], offsets[f]
@@ -170,7 +184,7 @@ def twin_pixel(scene, geometry, i, j, lit_faces=None):
 
         for lo, hi in pieces:
             out += inten * integrate.quad_vec(term, lo, hi, epsabs=0.0, epsrel=1e-11, limit=200)[0]
-    return math.exp(-kt_out * t_in) * fresnel_t(ti, tt, eta) / eta**2 * out, f_in
+    return out
 
 
 def image(scene, method, params=None, seed=0):

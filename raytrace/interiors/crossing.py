@@ -179,11 +179,11 @@ def check(prep, method, method_params, source: str):
                                     "or a directional light")
     inside = prep.camera_inside
     if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
-                                                       and not len(convex_planes(prep, inside)))):
+                                                       and not len(refracting_planes(prep, inside)))):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        "bounded medium needs an index-matched interior (ior = 1) or a convex shape of at most "
-                        f"{KERNEL_PLANES} faces, and --method {', '.join(_takers(lambda s: s.exact_paths))}; move the "
-                        "camera out of the shape or change them")
+                        "bounded medium needs an index-matched interior (ior = 1) or a convex shape, and --method "
+                        f"{', '.join(_takers(lambda s: s.exact_paths))}; move the camera out of the shape or change "
+                        "them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
@@ -240,8 +240,7 @@ def convex_planes(prep, sid):
     kernel, which tests every plane at every integrand evaluation: those of a convex shape with at
     most KERNEL_PLANES of them, else an empty (0, 4) array (then an index-matched shape's light paths
     are measured with Embree, paths.py: batched exits for convex shapes, walks for others; a
-    refractive one's directional lights keep the entry plane, its point and spot lights take
-    `refracting_planes`)."""
+    refractive one's lights take `refracting_planes`)."""
     planes = hull_planes(prep, sid)
     return planes if planes is not None and len(planes) <= KERNEL_PLANES else np.zeros((0, 4))
 
@@ -250,7 +249,9 @@ def refracting_planes(prep, sid):
     """The face planes of a convex refractive shape sid, any number of them, else an empty (0, 4)
     array: point and spot lights reach its inside through every face they are outside of on Fermat's
     paths (media/slab.py `faces_point`), each segment's faces culled to those whose refraction point
-    can lie on them (`reachable_faces`) and the planes those need."""
+    can lie on them (`reachable_faces`) and the planes those need; beyond KERNEL_PLANES planes a
+    directional light through every face it meets, each beam over the interval its face's neighbours
+    leave lit (interiors/rows.py `_face_beams`)."""
     planes = hull_planes(prep, sid)
     refractive = prep.scene.shapes[sid].interior.ior != 1.0
     return planes if planes is not None and refractive else np.zeros((0, 4))
@@ -474,8 +475,8 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
     inside the medium of shape sid, times exp(-sigma_t ell) along the camera's path. Index-matched:
     the surface term, whose shadow rays leave through the medium with the interior's transmittance
     (`shadow_through`). Refractive, in a convex shape: point and spot lights through every face they are
-    outside of (`_lit_through_faces`, `refracting_planes`); directional ones, in a convex shape of at
-    most KERNEL_PLANES planes, by the beam refracted through every face they meet, where q's path back
+    outside of (`_lit_through_faces`, `refracting_planes`); directional ones, in a convex shape (any
+    number of planes), by the beam refracted through every face they meet, where q's path back
     along it leaves through that face (`refracted_beams`, `_lit_by_beam`); in another shape directional
     lights only (`check` refuses the rest) by the note's planar boundary, the entry face's plane
     (outward normals n): the beam refracted into t through it, irradiance E T cos_i / cos_t (eq. 5's
@@ -496,7 +497,6 @@ def _surface_inside(prep, sid, p, n, w, prim, ell):
         planes = refracting_planes(prep, sid)
         for li in np.nonzero(~lights.distant)[0] if len(planes) else ():
             lb += _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt)
-        planes = convex_planes(prep, sid)
         for li in np.nonzero(lights.distant)[0]:
             if len(planes):
                 beams = zip(*refracted_beams(planes, lights.axis[li], medium.ior))

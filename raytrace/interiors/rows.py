@@ -38,10 +38,10 @@ import math
 
 import numpy as np
 
-from ..error_bounds import product, spot_rounding
-from ..media.convex_directional import MAX_FACES, segments_bounded
+from ..error_bounds import KERNEL_FLOOR, product, spot_rounding
+from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.slab import (APPROX, CLOSED, EVERY, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance,
-                          segment_reach)
+                          phase_condition, segment_reach)
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
@@ -168,6 +168,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                     geo[:, 6:9] = toward
                     integrate(li, distant, zero, zero, zero, zero, w @ toward, zero, zero, irradiance, planes, int(f))
                 continue
+            if len(faces):  # more than KERNEL_PLANES planes: each beam over its lit interval
+                _face_beams(prep, sid, faces, near, li, beam, (points, w, ell, keys), mode, (rtol, steps, tau_max),
+                            dims + (depth * len(lights) + li) * steps, seed, (out, var, bound, stats))
+                continue
             if kernel:
                 closed_form(li, -lights.axis[li], 1.0, -1)
                 continue
@@ -218,6 +222,106 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     if np.any(lights.cubature[used]):  # an emitter's cubature or the environment's directions: no bound
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
+
+
+def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, seed, acc):
+    """acc = (out, var, bound, stats) += directional light li's single scattering over the rows (points,
+    w, ell, keys) of the convex refractive shape sid of more than KERNEL_PLANES face `planes` (neighbours
+    `near`): each beam it makes (`refracted_beams`; with `beam`, that face's alone) over the interval
+    of each segment where the path back leaves through its face (media/convex_directional.py
+    `beam_intervals`, from the face's neighbours alone), by the method's rule: CLOSED the closed form
+    (`beams_closed`, bounded as `segments_bounded` with the planes' own errors), QUAD, MARCH or SAMPLE
+    over the interval from its start on the face's plane alone (the exit there is that face's; the
+    kernel takes it as a straight path, eta 1, the beam's direction and irradiance given, so QUAD's
+    bound is `convex_bounded`'s), carried back by exp(-sigma_t lo); CLOSED's and QUAD's bounds add
+    the beam's direction and irradiance errors (`_beam_errors`) and what the interval's ends may
+    change, misplaced within their spans."""
+    points, w, ell, keys = rows
+    out, var, bound, stats = acc
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]
+    if not len(ch):
+        return
+    kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
+    kt_out = prep.scene.medium.sigma_t[ch].astype(float)
+    rtol, steps, tau_max = settings
+    dplanes = measured_plane_errors(prep, sid)
+    normals, offsets = np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3])
+    n, eta = len(ell), float(medium.ior)
+    ints, val, edges = np.empty((n, 9)), np.empty((n, len(ch))), np.empty((n, len(ch)))
+    for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
+        if beam is not None and f != beam:
+            continue
+        toward = np.ascontiguousarray(toward)
+        du, de = _beam_errors(float(-(normals[f] @ lights.axis[li])), eta, dplanes[0])
+        beam_intervals(normals, offsets, near, int(f), toward, points, w, ell, dplanes, du, ints)
+        beams_closed(ints, toward, w, kt, ks, medium.phase, medium.g, val, edges)
+        f_li = irradiance * lights.intensity[li, ch]
+        rel = kt[None, :] * ints[:, 8, None] + du * (phase_condition(medium.phase, medium.g) - 1.0) + de
+        if mode == CLOSED:
+            q = float(normals[f] @ toward)
+            cond = 8.0 * EPS * (abs(offsets[f]) + np.linalg.norm(points, axis=1) + ell) / q
+            err = (KERNEL_FLOOR + kt[None, :] * cond[:, None] + rel) * val + edges
+            out[:, ch] += val * f_li
+            bound[:, ch] += product(err, f_li)
+            continue
+        sel = np.nonzero(ints[:, 1] > ints[:, 0])[0]
+        lo, m = ints[sel, 0], len(sel)
+        geo = np.zeros((m, GEO_COLUMNS))
+        geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points[sel] + lo[:, None] * w[sel], w[sel], toward
+        geo[:, 12:14], geo[:, 17] = lights.cone[li, :2], lights.cone[li, 2]
+        unit, unit_var, unit_err = np.empty((m, len(ch))), np.empty((m, len(ch))), np.empty((m, len(ch)))
+        zero = np.zeros(m)
+        inside_radiance(np.ones(m, np.bool_), zero, zero, zero, zero, zero, w[sel] @ toward, ints[sel, 1] - lo, kt, ks,
+                        medium.phase, medium.g, kt_out, zero, zero, 1.0, geo,
+                        np.ascontiguousarray(planes[f:f + 1]), EVERY, dplanes, -1, mode, rtol, steps, tau_max,
+                        keys[sel], np.uint64(dim0 + (f + 1) * STREAM), np.uint64(seed), unit, unit_var, unit_err, stats)
+        with np.errstate(over="ignore", invalid="ignore"):
+            tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
+        for j, c in enumerate(ch.tolist()):
+            out[sel, c] += unit[:, j] * tr[:, j] * f_li[j]
+            var[sel, c] += unit_var[:, j] * (tr[:, j] * f_li[j]) ** 2
+            bound[sel, c] += _light_bound(product(unit_err[:, j], tr[:, j]) + rel[sel, j] * unit[:, j] * tr[:, j],
+                                          unit[:, j] * tr[:, j] * f_li[j], f_li[j], lights.cone[li, 0])
+        if mode == QUAD:
+            bound[:, ch] += product(edges, f_li)
+        else:
+            bound[np.ix_(ell > 0.0, ch)] = np.inf
+    if eta < 1.0:  # the irradiance is not monotone in cos_i there (`_beam_errors`)
+        bound[np.ix_(ell > 0.0, ch)] = np.inf
+
+
+def _beam_span(prep, sid, planes, f, toward, axis, points, w, ell):
+    """(segments, lo, hi): the segments that the beam of directional light `axis` refracted through face f
+    (minus its direction inside: `toward`) of the convex refractive shape sid (its face `planes`) may
+    light, and the widest interval of each where it may (media/convex_directional.py `beam_intervals`:
+    from the lowest to the highest place its ends may lie)."""
+    dplanes = measured_plane_errors(prep, sid)
+    du, _ = _beam_errors(float(-(planes[f, :3] @ axis)), float(prep.scene.shapes[sid].interior.ior), dplanes[0])
+    ints = np.empty((len(ell), 9))
+    beam_intervals(np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3]), plane_neighbours(prep, sid),
+                   int(f), np.ascontiguousarray(toward), points, w, ell, dplanes, du, ints)
+    sel = np.nonzero(ints[:, 5] > ints[:, 2])[0]
+    return sel, ints[sel, 2], ints[sel, 5]
+
+
+def _beam_errors(cos_i, eta, dn):
+    """(du, de) of a beam refracted through a face whose computed normal is dn (per component) and a few
+    ulps off the true face's (first order): du bounds the error of its direction inside (Snell's vector
+    form t = d / eta + (cos_i / eta - cos_t) n: 2 sqrt(3) dn for the normal's terms, and the cosines'
+    errors dcos_i = sqrt(3) dn + 8u over eta and dcos_t = dcos_i cos_i / (eta^2 cos_t)), de the relative
+    error of its irradiance E = T cos_i / cos_t, which for eta > 1 increases with cos_i (T does, and
+    d(cos_i / cos_t) / dcos_i = (1 - eta^-2) / cos_t^3 > 0): its change over cos_i +- dcos_i, plus
+    16u. eta < 1: (0, 0), and `_face_beams` leaves the bound infinite."""
+    u = 2.0 ** -53
+    dcos = math.sqrt(3.0) * dn + 8.0 * u
+    if not eta > 1.0:
+        return 0.0, 0.0
+    cos = np.array([max(cos_i - dcos, 0.0), cos_i, min(cos_i + dcos, 1.0)])
+    cos_t = np.sqrt(1.0 - (1.0 - cos * cos) / (eta * eta))
+    e = _transmittance(cos, eta) * cos / cos_t
+    du = 2.0 * math.sqrt(3.0) * dn + dcos / eta + dcos * cos_i / (eta * eta * cos_t[1]) + 8.0 * u
+    return du, (max(e[2] - e[1], e[1] - e[0]) / e[1] if e[1] > 0.0 else 0.0) + 16.0 * u
 
 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, keys, dim0, seed, out, var, bound, stats):
@@ -398,11 +502,12 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     spot lights likewise over the pieces their Fermat path through each face reaches (`_lit_point`).
     Where all index-matched interiors are convex (`_other_interiors`), a beam is attenuated by the others
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
-    (`_through_others`); else they are not applied, and every light's bound is infinite. A shape of more
-    than KERNEL_PLANES planes (`convex_planes` empty) takes directional lights through the entry plane,
-    unshadowed (`single_scattering`), counted (UNSHADOWED), their bound infinite beside other shapes."""
+    (`_through_others`); else they are not applied, and every light's bound is infinite. In a shape of
+    more than KERNEL_PLANES planes (`convex_planes` empty: `_face_beams`) a beam's pieces are sought
+    only where it may light a segment (`_beam_span`), and the other interiors are not applied."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    planes, mask = convex_planes(prep, sid), blockers(prep)
+    planes, mask = refracting_planes(prep, sid), blockers(prep)
+    many = not len(convex_planes(prep, sid))
     n = len(points)
     out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     stats = np.zeros(STATS_SIZE)
@@ -413,18 +518,15 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
             _lit_point(prep, method, params, sid, refracting_planes(prep, sid), mask, li,
                        (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), others)
             continue
-        if not len(planes):
-            val, v, st, b = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
-                                              depth, li)
-            st[UNSHADOWED] += np.count_nonzero(ell > 0.0)
-            stats += st
-            if np.any(prep.shape_ids != sid):
-                b = np.where(ell[:, None] > 0.0, np.inf, b)
-            _carry(out, var, bound, np.arange(n), kt, np.zeros(n), val, v, b)
-            continue
         faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward, irradiance in zip(faces.tolist(), towards, scales):
-            src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
+            if many:  # the segments the beam may reach, over the widest interval it may light
+                sel, lo, hi = _beam_span(prep, sid, planes, f, toward, lights.axis[li], points, w, ell)
+                src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points[sel] + lo[:, None] * w[sel],
+                                                 w[sel], hi - lo)
+                src, x0, x1 = sel[src], x0 + lo[src], x1 + lo[src]
+            else:
+                src, x0, x1 = lit_pieces_of_beam(prep, sid, planes, mask, li, f, toward, points, w, ell)
             stats[LIT_PIECES] += len(src)
             rank = np.arange(len(src)) - np.searchsorted(src, src)
             for piece in np.unique(rank).tolist():

@@ -225,8 +225,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     deeper = np.zeros(n_stats)  # of the inside integrals and of the rays leaving shapes
     if depth == 0 and prep.camera_inside is not None:  # camera rays start inside a medium (crossing.py)
         boundary = crossing.start_inside(prep, origins, dirs, t, prim, keys)
-        rad, var, _ = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
-        return rad, deeper, var if varies else None, np.full_like(rad, np.inf)
+        rad, var, bound = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
+        return rad, deeper, var if varies else None, bound
     radiance = np.zeros((len(origins), 3))
     into = crossing.enters(prep, prim)
     # the rays that hit a surface (not one holding a medium), their points, directions, rows and keys
