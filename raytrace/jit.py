@@ -23,7 +23,7 @@ import os
 from pathlib import Path
 
 import numba
-from numba.core import caching
+from numba.core import caching, targetconfig
 from numba.extending import register_jitable
 
 from .cache import PACKAGE_DIR, kernel_cache_dir
@@ -58,6 +58,21 @@ class SourceKeyedLocator(_Base):
 
 if SourceKeyedLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, SourceKeyedLocator)
+
+
+def _config_values(self, _defaults={}):
+    """`TargetConfig.values` without a property call per option: the same dict (every option, in the
+    class's order, its set value or its default)."""
+    cls = type(self)
+    try:
+        values = _defaults[cls].copy()
+    except KeyError:
+        values = _defaults.setdefault(cls, {k: option.default for k, option in cls.options.items()}).copy()
+    values.update(self._values)
+    return values
+
+
+targetconfig.TargetConfig.values = _config_values
 
 # no_cfunc_wrapper: no C-callable wrapper per compiled function (it serves only first-class function
 # arguments, which no kernel takes): about 10 ms less compile per function, the kernels' code unchanged
