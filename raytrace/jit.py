@@ -140,11 +140,13 @@ class Kernel(CPUDispatcher):
 
 
 def _jit(**options):
-    def decorate(fn=None, **more):
+    """numba.njit with these flags (cached unless ``cache=False``), giving a `Kernel`."""
+    def decorate(fn=None, *, cache=True, **more):
         if fn is None:
-            return functools.partial(decorate, **more)
+            return functools.partial(decorate, cache=cache, **more)
         disp = Kernel(py_func=fn, locals={}, targetoptions={**options, **more, "nopython": True})
-        disp.enable_caching()
+        if cache:
+            disp.enable_caching()
         return disp
     return decorate
 
