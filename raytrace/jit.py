@@ -17,6 +17,11 @@ NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy
 arguments, compiled once per argument type rather than once per constant. ``OPTIONS``: ``njit``'s
 flags without its cache, for the overloads that compile a registered kernel's own code into its
 callers (media/integrand.py's record dispatch).
+
+Two cuts of numba's own cost per compilation, neither changing a kernel's code: ``njit`` and
+``exact_njit`` give a `Kernel`, numba's dispatcher less the Python wrapper of the functions that only
+compiled code calls; and `TargetConfig.values` builds its dict without a property call per option
+(numba hashes and compares the compile flags at every overload it tries while typing a call).
 """
 import functools
 import os
