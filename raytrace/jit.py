@@ -17,13 +17,19 @@ NumPy's does (no FMA contraction) and the images stay bit for bit what the NumPy
 arguments, compiled once per argument type rather than once per constant. ``OPTIONS``: ``njit``'s
 flags without its cache, for the overloads that compile a registered kernel's own code into its
 callers (media/integrand.py's record dispatch).
+
+Two cuts of numba's own cost per compilation, neither changing a kernel's code: ``njit`` and
+``exact_njit`` give a `Kernel`, numba's dispatcher less the Python wrapper of the functions that only
+compiled code calls; and `TargetConfig.values` builds its dict without a property call per option
+(numba hashes and compares the compile flags at every overload it tries while typing a call).
 """
 import functools
 import os
+import threading
 from pathlib import Path
 
-import numba
-from numba.core import caching
+from numba.core import caching, sigutils, targetconfig
+from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
 from .cache import PACKAGE_DIR, kernel_cache_dir
@@ -59,14 +65,104 @@ class SourceKeyedLocator(_Base):
 if SourceKeyedLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, SourceKeyedLocator)
 
+
+def _config_values(self, _defaults={}):
+    """`TargetConfig.values` without a property call per option: the same dict (every option, in the
+    class's order, its set value or its default)."""
+    cls = type(self)
+    try:
+        values = _defaults[cls].copy()
+    except KeyError:
+        values = _defaults.setdefault(cls, {k: option.default for k, option in cls.options.items()}).copy()
+    values.update(self._values)
+    return values
+
+
+targetconfig.TargetConfig.values = _config_values
+
+_nesting = threading.local()  # how many of this package's compilations the thread is inside
+
+
+def _has_python_wrapper(cres) -> bool:
+    return bool(cres.library.get_pointer_to_function(cres.fndesc.llvm_cpython_wrapper_name))
+
+
+class _Cache:
+    """A dispatcher's disk cache that stores only compilations with a Python wrapper."""
+
+    def __init__(self, cache):
+        self._cache = cache
+
+    def __getattr__(self, name):
+        return getattr(self._cache, name)
+
+    def save_overload(self, sig, cres):
+        if _has_python_wrapper(cres):
+            self._cache.save_overload(sig, cres)
+
+
+class Kernel(CPUDispatcher):
+    """numba's dispatcher, less the Python wrapper where only compiled code calls a function.
+
+    numba builds a wrapper that unboxes Python arguments for every compilation, also for the helpers
+    that only other kernels call (their callers link the helper's own code, never its wrapper): ~1 s of
+    the default scene's compile. A compilation nested in another one of the package is made without it,
+    is not inserted in the table Python calls look up and is not written to the disk cache (its code is
+    in its callers'); a call from Python with those argument types compiles it again, with its wrapper.
+    """
+
+    def _compile_core_flags(self, flags):
+        if getattr(_nesting, "depth", 0) > 1:
+            flags.no_cpython_wrapper = True
+        return flags
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._compiler._customize_flags = self._compile_core_flags
+
+    def enable_caching(self):
+        super().enable_caching()
+        self._cache = _Cache(self._cache)
+
+    def add_overload(self, cres):
+        if _has_python_wrapper(cres):
+            super().add_overload(cres)
+        else:
+            self.overloads[tuple(cres.signature.args)] = cres
+
+    def compile(self, sig):
+        depth = getattr(_nesting, "depth", 0)
+        if not depth:  # from Python: a compilation without the wrapper is made again with it
+            args, _ = sigutils.normalize_signature(sig)
+            existing = self.overloads.get(tuple(args))
+            if existing is not None and not _has_python_wrapper(existing):
+                del self.overloads[tuple(args)]
+        _nesting.depth = depth + 1
+        try:
+            return super().compile(sig)
+        finally:
+            _nesting.depth = depth
+
+
+def _jit(**options):
+    """numba.njit with these flags (cached unless ``cache=False``), giving a `Kernel`."""
+    def decorate(fn=None, *, cache=True, **more):
+        if fn is None:
+            return functools.partial(decorate, cache=cache, **more)
+        disp = Kernel(py_func=fn, locals={}, targetoptions={**options, **more, "nopython": True})
+        if cache:
+            disp.enable_caching()
+        return disp
+    return decorate
+
+
 # no_cfunc_wrapper: no C-callable wrapper per compiled function (it serves only first-class function
 # arguments, which no kernel takes): about 10 ms less compile per function, the kernels' code unchanged
 OPTIONS = dict(nogil=True, fastmath=set(FASTMATH), no_cfunc_wrapper=True)  # njit's flags, less its cache
-njit = functools.partial(numba.njit, cache=True, **OPTIONS)
+njit = _jit(**OPTIONS)
 # fastmath=False explicitly: a kernel whose flags leave fastmath unset inherits its caller's when a fastmath
 # kernel compiles it first (numba's ConfigStack), and keeps those flags for every later caller
-exact_njit = functools.partial(numba.njit, cache=True, nogil=True, fastmath=False, error_model="numpy",
-                               no_cfunc_wrapper=True)
+exact_njit = _jit(nogil=True, fastmath=False, error_model="numpy", no_cfunc_wrapper=True)
 # small helpers that kernels call with constant arguments (row indices, a range's start): an overload is
 # typed on its arguments' non-literal types first, so it compiles once per array type, where a dispatcher
 # compiles once per constant (numba types a constant argument as Literal[int]); it has no cache of its
