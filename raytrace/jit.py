@@ -21,14 +21,16 @@ callers (media/integrand.py's record dispatch).
 Two cuts of numba's own cost per compilation, neither changing a kernel's code: ``njit`` and
 ``exact_njit`` give a `Kernel`, numba's dispatcher less the Python wrapper of the functions that only
 compiled code calls; and `TargetConfig.values` builds its dict without a property call per option
-(numba hashes and compares the compile flags at every overload it tries while typing a call).
+(numba hashes and compares the compile flags at every overload it tries while typing a call). Both
+rely on numba's internals (0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
 """
 import functools
 import os
 import threading
 from pathlib import Path
 
-from numba.core import caching, sigutils, targetconfig
+import numba
+from numba.core import caching, compiler, dispatcher, sigutils, targetconfig
 from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
@@ -78,7 +80,11 @@ def _config_values(self, _defaults={}):
     return values
 
 
-targetconfig.TargetConfig.values = _config_values
+# the internals both cuts rely on (numba 0.68); where a numba release changes them, plain numba.njit
+CUTS = (hasattr(dispatcher._FunctionCompiler, "_customize_flags") and "no_cpython_wrapper" in compiler.Flags.options
+        and hasattr(CPUDispatcher, "add_overload") and "_values" in getattr(targetconfig.TargetConfig, "__slots__", ()))
+if CUTS:
+    targetconfig.TargetConfig.values = _config_values
 
 _nesting = threading.local()  # how many of this package's compilations the thread is inside
 
@@ -145,7 +151,10 @@ class Kernel(CPUDispatcher):
 
 
 def _jit(**options):
-    """numba.njit with these flags (cached unless ``cache=False``), giving a `Kernel`."""
+    """numba.njit with these flags (cached unless ``cache=False``), giving a `Kernel` (where `CUTS`)."""
+    if not CUTS:
+        return functools.partial(numba.njit, cache=True, **options)
+
     def decorate(fn=None, *, cache=True, **more):
         if fn is None:
             return functools.partial(decorate, cache=cache, **more)
