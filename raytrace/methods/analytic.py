@@ -390,7 +390,7 @@ def airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_it
                             terms, coeffs, cone_row(cone), stats, True, True, True, False)[0]
 
 
-@njit(inline="always")
+@njit
 def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
                      aniso_mode, terms, coeffs, cone, stats, quadrature, spots, aniso, defer):
     """(Lm, met, pending): the air-light Lm of one light along one ray segment [0, ell] for one channel, and
@@ -419,10 +419,11 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     reference count. With `quadrature` None a segment left nan is not counted in `stats` (the pass
     with the quadrature counts it).
 
-    Inlined into its callers by numba (inline="always"): a light without a cone takes `_point_airlight`,
-    itself inlined, so the loop over a tile's segments hands no array to a call (each costs numba a
-    reference count: an atomic increment and decrement); a spot light's segment calls `_spot_airlight`,
-    compiled once on its own, so the spot's bands add no code to the callers.
+    A light without a cone takes `_point_airlight` (inlined), a spot light's segment `_spot_airlight`
+    (compiled once on its own). `evaluate_segments` makes the same choice itself, with
+    `_point_airlight` inlined into its loop over the segments: that loop then hands no array to a call
+    for a point light's segment (each costs numba a reference count: an atomic increment and
+    decrement), and nothing of the spot's code is compiled into it.
     """
     if is_spot(cone[3]):
         if spots is None:
@@ -433,17 +434,24 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     val, met, pending, iterations, flags = _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g,
                                                            precision, max_iter, aniso_mode, terms, coeffs, cone,
                                                            stats, quadrature, aniso, defer)
+    _tally(stats, quadrature, val, iterations, flags)
+    return val, met, pending
+
+
+@njit(inline="always")
+def _tally(stats, quadrature, val, iterations, flags):
+    """Counts a point light's segment (`_point_airlight`'s iterations and flags) unless it is left nan to a
+    pass with the quadrature (`quadrature` None)."""
     if quadrature is not None or not math.isnan(val):
         stats[ST_EVALS] += 1.0
         _count(stats, iterations, flags)
-    return val, met, pending
 
 
 # what the ends of a segment decide before a closed form (`_front`)
 FRONT_ZERO, FRONT_VACUUM, FRONT_NEAR, FRONT_CLOSED = 0, 1, 2, 3
 
 
-@njit(inline="always")
+@njit
 def _front(xh, h, da, ell, kt, ks, intensity, phase_code, g):
     """(kind, dmin) of a segment: FRONT_ZERO: no air-light (ks = 0, no intensity, an empty segment, or
     so thick optically that its bound underflows); FRONT_VACUUM: vacuum, or so thin that H = kt h
@@ -470,7 +478,7 @@ def _front(xh, h, da, ell, kt, ks, intensity, phase_code, g):
     return FRONT_CLOSED, 0.0
 
 
-@njit(inline="always")
+@njit
 def _ends_of(xh, h, da, ell, kt, intensity):
     """(H, va, vb, pref, pa, pb) of a segment for the closed form: H = kt h, v = tan(phi / 2) at its ends,
     the factor 2 I / h and the optical paths x + d (light -> end -> camera) at its ends."""
@@ -934,9 +942,11 @@ def summarize_stats(stats):
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
                       met, stats, quadrature, spots, aniso):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
-    met the precision (`checked_airlight`, inlined here). With `quadrature` None (and `spots` or `aniso`)
-    the segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
-    left nan, their statistics not counted (`evaluate_deferred`); returns how many. The exact mode's
+    met the precision (`checked_airlight`'s choice, made here: a point light's path inlined, numba's
+    inlining one level deep only, as each level types its callee's code again). With `quadrature` None
+    (and `spots` or `aniso`) the segments that need the reference quadrature (a spot's code, an
+    anisotropic phase function's) are left nan, their statistics not counted (`evaluate_deferred`);
+    returns how many. The exact mode's
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
     either pass, so that deferring changes no bit."""
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
@@ -944,8 +954,18 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     left = 0
     for s in range(xh.shape[0]):
         row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
-        out[s], met[s], p = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                             aniso_mode, terms, coeffs, row, stats, quadrature, spots, aniso, defer)
+        p = NOTHING_PENDING
+        if is_spot(row[3]):
+            if spots is None:
+                out[s], met[s] = math.nan, False
+            else:
+                out[s], met[s] = _spot_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
+                                                aniso_mode, terms, coeffs, row, stats, quadrature, aniso)
+        else:
+            out[s], met[s], p, iterations, flags = _point_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g,
+                                                                   precision, max_iter, aniso_mode, terms, coeffs, row,
+                                                                   stats, quadrature, aniso, defer)
+            _tally(stats, quadrature, out[s], iterations, flags)
         if quadrature is None and math.isnan(out[s]):
             left += 1  # left to the second pass (its statistics counted there)
         if aniso is not None:
