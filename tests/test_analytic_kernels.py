@@ -216,3 +216,27 @@ def test_block_for_picks_the_shortest_block_that_holds_the_piece():
                 chosen = co[start:start + n]
                 holders = [b for b in blocks[1:] if b[A.B_VLO] <= v1 and v2 <= b[A.B_VHI] and H <= b[at]]
                 assert len(chosen) == min(len(b) for b in holders + [blocks[0]])
+
+
+def test_a_first_pass_counts_only_the_segments_it_evaluates():
+    """`evaluate_segments` without the quadrature (the first pass of `evaluate_deferred`) leaves the
+    segments that need it nan and counts nothing of them: its statistics are those of a pass with the
+    quadrature over the other segments alone, and it returns how many it left."""
+    from .test_compile import random_segments
+
+    precision = A.working_precision(1e-8)
+    coeffs = A.make_coeffs(HG, 0.9, A.ANISO_EXACT, 6, precision)
+    xh, h, da, ell, rows = random_segments(400, 37)
+
+    def run(sel, *extra):
+        out, met, stats = np.empty(sel.sum()), np.empty(sel.sum(), dtype=np.bool_), A.new_stats()
+        left = A.evaluate_segments(xh[sel], h[sel], da[sel], ell[sel], 2.0, 1.5, HG, 0.9, precision, 1000,
+                                   A.ANISO_EXACT, 6, coeffs, rows[sel], out, met, stats, *extra)
+        return out, stats, left
+
+    every = np.ones(len(xh), dtype=np.bool_)
+    first, stats, left = run(every, None, True, True)
+    done = ~np.isnan(first)
+    assert 0 < left == np.sum(~done)
+    out, ref_stats, _ = run(done, True, True, True)
+    assert np.array_equal(out, first[done]) and np.array_equal(stats, ref_stats)

@@ -39,7 +39,7 @@ import math
 import numpy as np
 
 from .. import error_bounds
-from ..jit import njit
+from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, cone_row, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
@@ -219,13 +219,14 @@ def _spot_nearline(xh, h, dmin, cone, precision):
     return f, band > 0.0 and band_slope(cone[2], cone[3], cone[4]) * dc <= SERIES_SAFETY * precision * f * band
 
 
-# the paths a piece took (`_piece`, `_band_piece`), returned as bits of a number for `_count`
-F_SERIES, F_REJECTED, F_STABLE, F_TAYLOR_OUT, F_BAND = 1, 2, 4, 8, 16
+# the paths a piece took (`_piece`, `_band_piece`) or a point light's segment (`_point_airlight`), returned as
+# bits of a number for `_count`
+F_SERIES, F_REJECTED, F_STABLE, F_TAYLOR_OUT, F_BAND, F_ZERO, F_NEARLINE = 1, 2, 4, 8, 16, 32, 64
 
 
 @njit(inline="always")
 def _count(stats, iterations, flags):
-    """A piece's statistics: the Fig. 2 loop's iterations and the paths in `flags` (F_*)."""
+    """A piece's or a segment's statistics: the Fig. 2 loop's iterations and the paths in `flags` (F_*)."""
     stats[ST_SERIES_ITERS] += iterations
     if flags & F_SERIES:
         stats[ST_SERIES] += 1.0
@@ -237,6 +238,10 @@ def _count(stats, iterations, flags):
         stats[ST_TAYLOR_OUT] += 1.0
     if flags & F_BAND:
         stats[ST_BANDS] += 1.0
+    if flags & F_ZERO:
+        stats[ST_ZERO] += 1.0
+    if flags & F_NEARLINE:
+        stats[ST_NEARLINE] += 1.0
 
 
 @njit
@@ -411,65 +416,161 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     (`evaluate_segments`' batch): the value returned is then 0, and `pending` its row of the batch
     (P_* offsets: P_BLOCK > 0, P_PREF the factor 2 I / h of the air-light); NOTHING_PENDING where
     nothing is left. Returned, not written into the batch: an array handed to a call costs numba a
-    reference count.
+    reference count. With `quadrature` None a segment left nan is not counted in `stats` (the pass
+    with the quadrature counts it).
+
+    A light without a cone takes `_point_airlight` (inlined), a spot light's segment `_spot_airlight`
+    (compiled once on its own). `evaluate_segments` makes the same choice itself, with
+    `_point_airlight` inlined into its loop over the segments: that loop then hands no array to a call
+    for a point light's segment (each costs numba a reference count: an atomic increment and
+    decrement), and nothing of the spot's code is compiled into it.
     """
-    stats[ST_EVALS] += 1.0
+    if is_spot(cone[3]):
+        if spots is None:
+            return math.nan, False, NOTHING_PENDING
+        val, met = _spot_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
+                                  aniso_mode, terms, coeffs, cone, stats, quadrature, aniso)
+        return val, met, NOTHING_PENDING
+    val, met, pending, iterations, flags = _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g,
+                                                           precision, max_iter, aniso_mode, terms, coeffs, cone,
+                                                           stats, quadrature, aniso, defer)
+    _tally(stats, quadrature, val, iterations, flags)
+    return val, met, pending
+
+
+@njit(inline="always")
+def _tally(stats, quadrature, val, iterations, flags):
+    """Counts a point light's segment (`_point_airlight`'s iterations and flags) unless it is left nan to a
+    pass with the quadrature (`quadrature` None)."""
+    if quadrature is not None or not math.isnan(val):
+        stats[ST_EVALS] += 1.0
+        _count(stats, iterations, flags)
+
+
+# what the ends of a segment decide before a closed form (`_front`)
+FRONT_ZERO, FRONT_VACUUM, FRONT_NEAR, FRONT_CLOSED = 0, 1, 2, 3
+
+
+@njit
+def _front(xh, h, da, ell, kt, ks, intensity, phase_code, g):
+    """(kind, dmin) of a segment: FRONT_ZERO: no air-light (ks = 0, no intensity, an empty segment, or
+    so thick optically that its bound underflows); FRONT_VACUUM: vacuum, or so thin that H = kt h
+    underflows the closed form's logarithms (the quadrature fallback); FRONT_NEAR: the light outside the
+    segment with the line passing within h << dmin of it, dmin its distance from the nearer end (the
+    near-line limit, `_nearline`, where it meets the precision); FRONT_CLOSED: the closed form."""
     if ks <= 0.0 or intensity == 0.0 or not (ell > 0.0):
-        stats[ST_ZERO] += 1.0
-        return 0.0, True, NOTHING_PENDING
-    if not (kt * h > 1e-200):  # vacuum, or so thin that H = kt h underflows the closed form's logarithms
-        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats,
-                         quadrature) + (NOTHING_PENDING,)
+        return FRONT_ZERO, 0.0
+    if not (kt * h > 1e-200):
+        return FRONT_VACUUM, 0.0
     if kt * da > UNDERFLOW_PATH:
         # optically so thick that the bound I ks max(Phi) pi / h e^{-kt d_a} (the optical path x + d is
         # least, d_a, at the segment's start; int dx / d^2 <= pi / h) underflows: 0, and no inf * 0
         peak = max(phase_value(phase_code, g, 1.0), phase_value(phase_code, g, -1.0))
         if math.log(intensity) + math.log(ks) + math.log(math.pi * peak / h) - kt * da < -UNDERFLOW_PATH:
-            stats[ST_ZERO] += 1.0
-            return 0.0, True, NOTHING_PENDING
-    spot = is_spot(cone[3])
-    taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
-
+            return FRONT_ZERO, 0.0
     finite = ell < math.inf
-    # near-line: light outside the segment and the line passes within h << distance of it
     if xh < 0.0 or (finite and xh > ell):
         dmin = abs(xh)
         if finite and abs(xh - ell) < dmin:
             dmin = abs(xh - ell)
         if h < NEARLINE_TOL * dmin:
-            val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
-            if spot:
-                if spots is None:
-                    return math.nan, False, NOTHING_PENDING
-                f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
-                val *= f
-                ok = ok and ok_f
-            # the limit where it meets the precision (else the closed form below, or the fallback
-            # where its ends cancel); always in the Taylor mode, an approximation anyway, whose
-            # polynomial part grows like 1/H^(N-1) as h -> 0
-            if ok or (phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR):
-                stats[ST_NEARLINE] += 1.0
-                return val, ok and not taylor, NOTHING_PENDING
+            return FRONT_NEAR, dmin
+    return FRONT_CLOSED, 0.0
 
-    H = kt * h
+
+@njit
+def _ends_of(xh, h, da, ell, kt, intensity):
+    """(H, va, vb, pref, pa, pb) of a segment for the closed form: H = kt h, v = tan(phi / 2) at its ends,
+    the factor 2 I / h and the optical paths x + d (light -> end -> camera) at its ends."""
+    finite = ell < math.inf
     va = v_of(-xh, h)
     vb = v_of(ell - xh, h) if finite else math.inf
-    pref = 2.0 * intensity / h  # times ks times folded integrals (ks first: ks up to 1.8e308 stays finite)
-    # optical paths x + d (light -> end -> camera) at both ends
-    pa = da
     pb = ell + math.sqrt(h * h + (ell - xh) * (ell - xh)) if finite else math.inf
-    if not spot:
-        val, ok, iterations, flags, K1, L1, E1, E2, start = _piece(H, kt, xh, va, vb, pa, pb, phase_code, g, aniso_mode,
-                                                                   terms, coeffs, precision, max_iter, aniso, defer)
-        _count(stats, iterations, flags)
-        if not ok:
-            return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats,
-                             quadrature) + (NOTHING_PENDING,)
-        if start > 0:
-            return 0.0, not taylor, (H, va, vb, K1, L1, E1, E2, float(start), pref)
-        return pref * (ks * val), not taylor, NOTHING_PENDING
-    if spots is None:
-        return math.nan, False, NOTHING_PENDING
+    # (ks first in pref * (ks * S): ks up to 1.8e308 stays finite)
+    return kt * h, va, vb, 2.0 * intensity / h, da, pb
+
+
+@exact_njit
+def _scaled(pref, ks, val):
+    """pref * (ks * val), compiled without fastmath and called, not inlined by numba: `_point_airlight`,
+    inlined into the loop over a tile's segments, would otherwise let the compiler reassociate the
+    product there (ks and the constants taken out of the loop) and round it otherwise than a single call
+    (`airlight`) does; as its own function (small: LLVM inlines it, keeping its exact arithmetic) a
+    segment's value is the same bits in a batch or alone."""
+    return pref * (ks * val)
+
+
+@njit(inline="always")
+def _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode, terms,
+                    coeffs, cone, stats, quadrature, aniso, defer):
+    """(Lm, met, pending, iterations, flags): `checked_airlight` of a light without a cone. Its statistics
+    but the fallback's (the Fig. 2 loop's iterations and the paths taken as F_* bits, `_count`) are
+    returned, not written, so that its caller counts a segment left nan (deferred) not at all."""
+    kind, dmin = _front(xh, h, da, ell, kt, ks, intensity, phase_code, g)
+    if kind == FRONT_ZERO:
+        return 0.0, True, NOTHING_PENDING, 0.0, F_ZERO
+    if kind == FRONT_VACUUM:
+        val, ok = _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
+        return val, ok, NOTHING_PENDING, 0.0, 0
+    taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
+    if kind == FRONT_NEAR:
+        val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
+        # the limit where it meets the precision (else the closed form below, or the fallback
+        # where its ends cancel); always in the Taylor mode, an approximation anyway, whose
+        # polynomial part grows like 1/H^(N-1) as h -> 0
+        if ok or taylor:
+            return val, ok and not taylor, NOTHING_PENDING, 0.0, F_NEARLINE
+    H, va, vb, pref, pa, pb = _ends_of(xh, h, da, ell, kt, intensity)
+    val, ok, iterations, flags, K1, L1, E1, E2, start = _piece(H, kt, xh, va, vb, pa, pb, phase_code, g, aniso_mode,
+                                                               terms, coeffs, precision, max_iter, aniso, defer)
+    if not ok:
+        val, ok = _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
+        return val, ok, NOTHING_PENDING, iterations, flags
+    if start > 0:
+        return 0.0, not taylor, (H, va, vb, K1, L1, E1, E2, float(start), pref), iterations, flags
+    return _scaled(pref, ks, val), not taylor, NOTHING_PENDING, iterations, flags
+
+
+@njit
+def _spot_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode, terms,
+                   coeffs, cone, stats, quadrature, aniso):
+    """(Lm, met): `checked_airlight` of a spot light's segment, counted in `stats` (with `quadrature`
+    None only where Lm is not nan: its statistics are gathered apart first)."""
+    if quadrature is None:
+        own = np.zeros(STATS_SIZE)
+        val, met = _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode,
+                              terms, coeffs, cone, own, quadrature, aniso)
+        if not math.isnan(val):
+            for k in range(STATS_SIZE):
+                stats[k] += own[k]
+        return val, met
+    return _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode, terms,
+                      coeffs, cone, stats, quadrature, aniso)
+
+
+@njit(inline="always")
+def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode, terms, coeffs,
+               cone, stats, quadrature, aniso):
+    """`_spot_airlight`, counting into `stats` whatever the result: the segment cut where it crosses the
+    cone's edge and core (`lights.segment_cone`), each piece in closed form (`_piece` at full intensity,
+    `_band_piece` in a polynomial band) or, where that misses the precision, by quadrature."""
+    stats[ST_EVALS] += 1.0
+    kind, dmin = _front(xh, h, da, ell, kt, ks, intensity, phase_code, g)
+    if kind == FRONT_ZERO:
+        stats[ST_ZERO] += 1.0
+        return 0.0, True
+    if kind == FRONT_VACUUM:
+        return _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
+    taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
+    if kind == FRONT_NEAR:
+        val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
+        f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
+        val *= f
+        ok = ok and ok_f
+        if ok or taylor:  # (as `_point_airlight`'s)
+            stats[ST_NEARLINE] += 1.0
+            return val, ok and not taylor
+    H, va, vb, pref, pa, pb = _ends_of(xh, h, da, ell, kt, intensity)
     work = np.zeros(25 + 2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)  # the one allocation of a spot segment
     pieces = work[:15].reshape((5, 3))
     vals = work[15:20]
@@ -494,9 +595,9 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
         if band:
             vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work[25:])
             _count(stats, 0.0, flags)
-        else:  # (`not spot`: False: a spot's piece runs its moment recurrence here)
+        else:  # (defer False: a spot's piece runs its moment recurrence here)
             vals[i], ok, iterations, flags, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode,
-                                                                   terms, coeffs, precision, max_iter, aniso, not spot)
+                                                                   terms, coeffs, precision, max_iter, aniso, False)
             _count(stats, iterations, flags)
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
@@ -521,14 +622,14 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
                     out += pref * (ks * fine) - old  # one 10/20-point Gauss-Legendre step suffices (smooth, short)
                     continue
                 if quadrature is None:
-                    return math.nan, False, NOTHING_PENDING
+                    return math.nan, False
                 x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
                 x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
                 part, converged = _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision,
                                               stats)
                 out += part * math.exp(-kt * x1) - old
                 met = met and converged
-    return out, met and not taylor, NOTHING_PENDING
+    return out, met and not taylor
 
 
 @njit
@@ -841,35 +942,37 @@ def summarize_stats(stats):
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
                       met, stats, quadrature, spots, aniso):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
-    met the precision (`checked_airlight`). With `quadrature` None (and `spots` or `aniso`) the
-    segments that need the reference quadrature (a spot's code, an anisotropic phase function's) are
-    left nan, their statistics not counted (`evaluate_deferred`); returns how many. The exact mode's
+    met the precision (`checked_airlight`'s choice, made here: a point light's path inlined, numba's
+    inlining one level deep only, as each level types its callee's code again). With `quadrature` None
+    (and `spots` or `aniso`) the segments that need the reference quadrature (a spot's code, an
+    anisotropic phase function's) are left nan, their statistics not counted (`evaluate_deferred`);
+    returns how many. The exact mode's
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
     either pass, so that deferring changes no bit."""
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
     defer = aniso is not None
+    left = 0
     for s in range(xh.shape[0]):
         row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
-        out[s], met[s], p = checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
-                                             aniso_mode, terms, coeffs, row, stats, quadrature, spots, aniso, defer)
+        p = NOTHING_PENDING
+        if is_spot(row[3]):
+            if spots is None:
+                out[s], met[s] = math.nan, False
+            else:
+                out[s], met[s] = _spot_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
+                                                aniso_mode, terms, coeffs, row, stats, quadrature, aniso)
+        else:
+            out[s], met[s], p, iterations, flags = _point_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g,
+                                                                   precision, max_iter, aniso_mode, terms, coeffs, row,
+                                                                   stats, quadrature, aniso, defer)
+            _tally(stats, quadrature, out[s], iterations, flags)
+        if quadrature is None and math.isnan(out[s]):
+            left += 1  # left to the second pass (its statistics counted there)
         if aniso is not None:
             for k in range(PENDING):
                 pending[s, k] = p[k]
     if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
         _pending_recurrences(pending, coeffs, ks, out)
-    left = 0
-    if quadrature is None:
-        scratch = np.zeros(stats.shape[0])
-        for s in range(xh.shape[0]):
-            if math.isnan(out[s]):
-                # left to the second pass: its statistics, counted again there, taken back
-                left += 1
-                scratch[:] = 0.0
-                row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])
-                checked_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter, aniso_mode,
-                                 terms, coeffs, row, scratch, quadrature, spots, aniso, defer)
-                for k in range(stats.shape[0]):
-                    stats[k] -= scratch[k]
     return left
 
 
