@@ -175,9 +175,9 @@ def test_every_face_refracts_its_own_beam(twin, method, tol):
     res = image(method)
     rel = np.abs(res.image[lit] - twin[lit]) / twin[lit]
     assert np.max(rel) < tol
-    if method == "analytic":  # exact and bounded, no longer eq. 5's infinite bound
-        assert np.all(np.isfinite(res.error_bound[lit]))
-        assert np.all(np.abs(res.image[lit] - twin[lit]) <= res.error_bound[lit] + 1e-15 * twin[lit])
+    # bounded, no longer eq. 5's infinite bound (quadrature: each beam against its closed form's bound)
+    assert np.all(np.isfinite(res.error_bound[lit]))
+    assert np.all(np.abs(res.image[lit] - twin[lit]) <= res.error_bound[lit] + 1e-15 * twin[lit])
 
 
 def test_the_entry_plane_model_is_far_off_here(twin):
@@ -228,15 +228,14 @@ def test_the_plates_shadow_the_beams(shadowed_twin, twin):
 def test_the_beams_take_volumetric_shadows(shadowed_twin, method):
     """Shadows inside a refractive shape (shadows/beams.py): the beams' legs inside the cube past the
     plate inside it, and their entry points' paths to the sun past the plate beside it, within 1e-9
-    of the twin on every pixel; analytic's bound holds and stays finite; unshadowed is far off."""
+    of the twin on every pixel; the bound holds and stays finite; unshadowed is far off."""
     res = shadowed(method)
     lit = shadowed_twin[..., 1] > 0
     scale = np.max(shadowed_twin)
     err = np.abs(res.image - shadowed_twin)
     assert np.max(err[lit] / shadowed_twin[lit]) < 1e-9 and np.max(err[~lit]) < 1e-12 * scale
-    if method == "analytic":
-        assert np.all(np.isfinite(res.error_bound[lit]))
-        assert np.all(err[lit] <= res.error_bound[lit] + 1e-15 * shadowed_twin[lit])
+    assert np.all(np.isfinite(res.error_bound[lit]))
+    assert np.all(err[lit] <= res.error_bound[lit] + 1e-15 * shadowed_twin[lit])
     assert res.stats.get("inside: segments unshadowed (refractive or planar model)", 0) == 0
     bare = shadowed(method, shadows=False).image
     assert np.max(np.abs(bare[lit] - shadowed_twin[lit]) / shadowed_twin[lit]) > 0.1

@@ -119,18 +119,22 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     dplanes = measured_plane_errors(prep, sid) if refractive else plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
 
-    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1):
+    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None):
         ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]  # the channels lit and scattering
         if not len(ch):
             return
         unit, unit_var, unit_err = np.empty((n, len(ch))), np.empty((n, len(ch))), np.empty((n, len(ch)))
-        inside_radiance(distant, xh, h, hl, a, b, mu, ell, medium.sigma_t[ch].astype(float),
-                        medium.sigma_s[ch].astype(float), medium.phase, medium.g,
+        kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
+        inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
                         prep.scene.medium.sigma_t[ch].astype(float), wl, ll, float(medium.ior), geo, used,
                         near if used is faces else EVERY, dplanes, only,
                         mode, rtol, steps, tau_max, keys,
                         np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
                         unit, unit_var, unit_err, stats)
+        if toward is not None and mode == QUAD and medium.ior > 1.0:  # beam `only`: against its closed form
+            _, val, _, _, err = _beam_terms(planes, near, only, toward, lights.axis[li], medium, dplanes,
+                                            (points, w, ell), kt, ks)
+            unit_err = (np.abs(unit - val) + err) * (1.0 + 2.0 * EPS)
         for j, c in enumerate(ch.tolist()):
             f = scale * lights.intensity[li, c]
             out[:, c] += unit[:, j] * f
@@ -166,7 +170,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                         closed_form(li, toward, irradiance, int(f))
                         continue
                     geo[:, 6:9] = toward
-                    integrate(li, distant, zero, zero, zero, zero, w @ toward, zero, zero, irradiance, planes, int(f))
+                    integrate(li, distant, zero, zero, zero, zero, w @ toward, zero, zero, irradiance, planes, int(f),
+                              np.ascontiguousarray(toward))
                 continue
             if len(faces):  # more than KERNEL_PLANES planes: each beam over its lit interval
                 _face_beams(prep, sid, faces, near, li, beam, (points, w, ell, keys), mode, (rtol, steps, tau_max),
@@ -246,22 +251,15 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
     kt_out = prep.scene.medium.sigma_t[ch].astype(float)
     rtol, steps, tau_max = settings
     dplanes = measured_plane_errors(prep, sid)
-    normals, offsets = np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3])
-    n, eta = len(ell), float(medium.ior)
-    ints, val, edges = np.empty((n, 9)), np.empty((n, len(ch))), np.empty((n, len(ch)))
+    eta = float(medium.ior)
     for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
         if beam is not None and f != beam:
             continue
         toward = np.ascontiguousarray(toward)
-        du, de = _beam_errors(float(-(normals[f] @ lights.axis[li])), eta, dplanes[0])
-        beam_intervals(normals, offsets, near, int(f), toward, points, w, ell, dplanes, du, ints)
-        beams_closed(ints, toward, w, kt, ks, medium.phase, medium.g, val, edges)
+        ints, val, edges, rel, err = _beam_terms(planes, near, int(f), toward, lights.axis[li], medium, dplanes,
+                                                (points, w, ell), kt, ks)
         f_li = irradiance * lights.intensity[li, ch]
-        rel = kt[None, :] * ints[:, 8, None] + du * (phase_condition(medium.phase, medium.g) - 1.0) + de
         if mode == CLOSED:
-            q = float(normals[f] @ toward)
-            cond = 8.0 * EPS * (abs(offsets[f]) + np.linalg.norm(points, axis=1) + ell) / q
-            err = (KERNEL_FLOOR + kt[None, :] * cond[:, None] + rel) * val + edges
             out[:, ch] += val * f_li
             bound[:, ch] += product(err, f_li)
             continue
@@ -289,6 +287,28 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
             bound[np.ix_(ell > 0.0, ch)] = np.inf
     if eta < 1.0:  # the irradiance is not monotone in cos_i there (`_beam_errors`)
         bound[np.ix_(ell > 0.0, ch)] = np.inf
+
+
+def _beam_terms(planes, near, f, toward, axis, medium, dplanes, rows, kt, ks):
+    """(ints, val, edges, rel, err) of the beam of directional light `axis` refracted through face f
+    (minus its direction inside: `toward`) of the convex refractive shape of face `planes` (neighbours
+    `near`; their measured errors `dplanes`) over the rows (points, w, ell), per channel (kt, ks):
+    media/convex_directional.py `beam_intervals`' ints, `beams_closed`'s value per unit irradiance val
+    and edges, rel the relative error of the beam's direction and irradiance (`_beam_errors`) and of
+    s_f's own error, and err a bound on val's error against the true beam's (`beams_closed`'s rounding,
+    `segments_bounded`'s form with the planes' own errors, plus rel and edges), eta > 1."""
+    points, w, ell = rows
+    normals, offsets = np.ascontiguousarray(planes[:, :3]), np.ascontiguousarray(planes[:, 3])
+    n = len(ell)
+    ints, val, edges = np.empty((n, 9)), np.empty((n, len(kt))), np.empty((n, len(kt)))
+    du, de = _beam_errors(float(-(normals[f] @ axis)), float(medium.ior), dplanes[0])
+    beam_intervals(normals, offsets, near, f, toward, points, w, ell, dplanes, du, ints)
+    beams_closed(ints, toward, w, kt, ks, medium.phase, medium.g, val, edges)
+    rel = kt[None, :] * ints[:, 8, None] + du * (phase_condition(medium.phase, medium.g) - 1.0) + de
+    q = float(normals[f] @ toward)
+    cond = 8.0 * EPS * (abs(offsets[f]) + np.linalg.norm(points, axis=1) + ell) / q
+    err = (KERNEL_FLOOR + kt[None, :] * cond[:, None] + rel) * val + edges
+    return ints, val, edges, rel, err
 
 
 def _beam_span(prep, sid, planes, f, toward, axis, points, w, ell):
