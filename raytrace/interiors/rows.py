@@ -28,8 +28,10 @@ QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bound
 convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
 planes are from the faces), others on the facet walk's exit planes or on traced walks
 (paths.segment_quadrature), and in refractive exact spheres (`_refracted_sphere`, but where a caustic
-crossing has no fold pair); elsewhere, and for the other rules but CLOSED's closed form, the bound is
-infinite.
+crossing has no fold pair); a directional light's refracted beams in convex refractive shapes (ior >
+1): of at most MAX_FACES planes by the distance of each beam's value from its closed form plus the
+closed form's bound (`_beam_terms`), of more by `_face_beams`; elsewhere, and for the other rules but
+CLOSED's closed form, the bound is infinite.
 """
 from __future__ import annotations
 
@@ -88,7 +90,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
     (`_traced`, rtol RTOL), counted (HANDED), bounded as QUAD's. Through a refractive boundary a directional
     light enters a convex shape (`convex_planes`) through every face it meets, one beam each
-    (`refracted_beams`: the exact refracted path; CLOSED bounded as above), other shapes through the
+    (`refracted_beams`: the exact refracted path; CLOSED bounded as above, QUAD by each beam's distance
+    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the
     entry plane (eq. 5, unbounded); a point or spot light a convex one through every face it is outside of
     (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path); every light an
     exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only

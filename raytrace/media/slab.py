@@ -1904,7 +1904,8 @@ def _convex_start(s, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes,
 @njit
 def _convex_store(s, found, eta, before, out, err, stats):
     """Segment s's value and, in an index-matched shape, its bound from a rule's (value, bound, rounding)
-    (refracted beams: the irradiance's and the face test's rounding are not analysed)."""
+    (a refracted beam's, err untouched: the irradiance's and the face test's rounding are not analysed
+    here; interiors/rows.py bounds it against the beam's closed form)."""
     out[s], bound = _bounded(found[0], found[1], found[2], before, stats)
     if eta == 1.0:
         err[s] = bound
