@@ -134,15 +134,23 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                         mode, rtol, steps, tau_max, keys,
                         np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
                         unit, unit_var, unit_err, stats)
-        if toward is not None and mode == QUAD and medium.ior > 1.0:  # beam `only`: against its closed form
-            _, val, _, _, err = _beam_terms(planes, near, only, toward, lights.axis[li], medium, dplanes,
-                                            (points, w, ell), kt, ks)
-            unit_err = (np.abs(unit - val) + err) * (1.0 + 2.0 * EPS)
+        if toward is not None and mode == QUAD:  # beam `only`: against its closed form
+            unit_err = against_beam(unit, li, only, toward, kt, ks)
         for j, c in enumerate(ch.tolist()):
             f = scale * lights.intensity[li, c]
             out[:, c] += unit[:, j] * f
             var[:, c] += unit_var[:, j] * f * f
             bound[:, c] += _light_bound(unit_err[:, j], unit[:, j] * f, f, lights.cone[li, 0])
+
+    def against_beam(value, li, f, toward, kt, ks):
+        """A bound on the error of `value` (N, C), beam f's per unit irradiance: its distance from the beam's
+        closed form plus that form's bound (`_beam_terms`, which has the beam's direction and irradiance
+        errors from the planes' own); inf where light enters through a lower index (ior < 1)."""
+        if not medium.ior > 1.0:
+            return np.where(ell[:, None] > 0.0, np.inf, 0.0) * np.ones(value.shape)
+        _, val, _, _, err = _beam_terms(planes, near, f, np.ascontiguousarray(toward), lights.axis[li], medium, dplanes,
+                                        (points, w, ell), kt, ks)
+        return (np.abs(value - val) + err) * (1.0 + 2.0 * EPS)
 
     def closed_form(li, toward, scale, only):
         val, b = np.empty((n, 3)), np.empty((n, 3))
@@ -150,6 +158,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                          np.ascontiguousarray(points), np.ascontiguousarray(w), np.ascontiguousarray(ell),
                          np.ascontiguousarray(toward), medium.sigma_t, medium.sigma_s, medium.phase, medium.g, val, b,
                          only)
+        if refractive:  # `toward` refracted through computed planes: bounded against the beam's closed form
+            b = against_beam(val, li, only, toward, medium.sigma_t.astype(float), medium.sigma_s.astype(float))
         out[:] += val * (lights.intensity[li] * scale)
         bound[:] += b * (lights.intensity[li] * scale)
 
