@@ -1,12 +1,18 @@
 """The penumbrae's glue kernels (shadows/penumbra_airlight.py `lit_states` and `light_boxes`,
 segments.py `pieces`) against the NumPy expressions they replace, written out here: bit for bit, on
-segments that end and segments to infinity, directions with zero components, keys without segments."""
+segments that end and segments to infinity, directions with zero components, keys without segments.
+The emitter samples' lit pieces (frusta.point_lit_pieces, each triangle's frustum clipped to the
+segment directly) against the walk they replace, written out here around frusta's own `_frusta` and
+`_lit` kernels (a cube map of one texel a face listing every candidate): bit for bit."""
 import numpy as np
 
 from raytrace.methods import Segments
 from raytrace.segments import CONE_STREAM, pieces
-from raytrace.shadows.frusta import GAP_REL
+from raytrace.shadows import frusta
+from raytrace.shadows.frusta import GAP_REL, point_lit_pieces
 from raytrace.shadows.penumbra_airlight import DARK, LIT, MIXED, NONE, light_boxes, lit_states
+
+from .test_exact_shadows import BARS, SLIT, room_scene, segments
 
 
 def _segments(rng, n, scale=3.0):
@@ -99,3 +105,67 @@ def test_pieces_are_numpys():
         for a, b in zip((got.origins, got.dirs, got.length, got.light, got.ray, got.t0, got.keys, got.stream), want):
             assert a.dtype == b.dtype and np.array_equal(a, b)
         assert (got.seed, got.scale) == (segs.seed, segs.scale)
+
+
+def _walked(accel, segs, points, group, box):
+    """The lit pieces (segment, x0, x1) as `point_lit_pieces` found them before its direct clip: per
+    segment the triangles whose bounding boxes meet its group's box and that meet the plane through
+    its point and its line (within GAP_REL), their frusta (`_frusta`), listed in ascending depth
+    lower bound in each face of a cube map of one texel a face, no cover, walked by `_lit`."""
+    frusta_, _, lit_ = frusta._kernels(frusta.POINTS)
+    tris = accel.triangles[accel.sphere_of < 0]
+    t_lo, t_hi = tris.min(axis=1), tris.max(axis=1)
+    gap, slack = GAP_REL * accel.scale, frusta.REL * accel.scale
+    grid = np.array([-1.0, -1.0, 2.0, 2.0, 1.0, 1.0])
+    out = [[], [], []]
+    for s in range(len(segs)):
+        g = group[s]
+        cand = tris[np.all((t_hi >= box[0][g]) & (t_lo <= box[1][g]), axis=1)]
+        L, w = points[s], segs.dirs[s]
+        q = segs.origins[s] - L
+        n = np.array([q[1] * w[2] - q[2] * w[1], q[2] * w[0] - q[0] * w[2], q[0] * w[1] - q[1] * w[0]])
+        tol = gap * np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        side = n[0] * (cand[..., 0] - L[0]) + n[1] * (cand[..., 1] - L[1]) + n[2] * (cand[..., 2] - L[2])
+        straddle = np.ascontiguousarray(cand[np.any(side > -tol, axis=1) & np.any(side < tol, axis=1)])
+        ns = len(straddle)
+        planes, signs, lb, keep = np.zeros((ns, 4, 4)), np.zeros((ns, 4)), np.zeros(ns), np.zeros(ns, bool)
+        frusta_(straddle, L, np.zeros(3), accel.epsilon, planes, signs, lb, keep, False)
+        nk = int(keep.sum())
+        order = np.argsort(lb[keep], kind="stable")
+        frame = np.vstack([L, np.eye(3)])
+        src, x0, x1 = lit_(segs.origins[s:s + 1], segs.dirs[s:s + 1], segs.length[s:s + 1], grid, frame,
+                           np.arange(7, dtype=np.int64) * nk, np.tile(order, 6).astype(np.int64),
+                           np.tile(lb[keep][order], 6), np.full(6, -1, np.int64), np.full(6, np.inf),
+                           np.ascontiguousarray(planes[keep]), np.ascontiguousarray(signs[keep]), slack, gap,
+                           np.zeros(len(frusta.STATS_NAMES)), False)
+        for a, b in zip(out, (src + s, x0, x1)):
+            a.append(b)
+    return tuple(np.concatenate(a) for a in out)
+
+
+def test_point_lit_pieces_are_the_walks():
+    """Camera rays of a room with a slit and bars (segments that end on the walls) and random segments
+    (some to infinity, some of length 0, some through their own light point), each under its own
+    point, four segments a group: the same pieces bit for bit, some segments cut into several."""
+    prep, cam, _ = segments(room_scene(SLIT + BARS))
+    rng = np.random.default_rng(4)
+    n = 3 * len(cam)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    length = rng.uniform(0.0, 6.0, n)
+    length[::7], length[1::11] = np.inf, 0.0
+    origins = rng.uniform(-2.5, 2.5, (n, 3))
+    both = Segments(np.concatenate([cam.origins, origins]), np.concatenate([cam.dirs, dirs]),
+                    np.concatenate([cam.length, length]), np.arange(len(cam) + n, dtype=np.int64),
+                    np.arange(len(cam) + n, dtype=np.int64), np.zeros(len(cam) + n), np.zeros(len(cam) + n, np.uint64),
+                    np.zeros(len(cam) + n, np.int64), 0, prep.accel.scale)
+    points = np.array([0.0, 1.5, -1.0]) + rng.uniform(-0.4, 0.4, (len(both), 3))
+    points[-5:] = both.origins[-5:] + 0.5 * both.dirs[-5:]  # segments through their light
+    group = both.light // 4
+    box = light_boxes(points, both, 4)
+    got = point_lit_pieces(prep.accel, both, points, group, box, None)
+    want = _walked(prep.accel, both, points, group, box)
+    for a, b in zip(got, want):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    counts = np.bincount(got[0], minlength=len(both))
+    assert (counts == 0).any() and (counts == 1).any() and (counts >= 3).any()

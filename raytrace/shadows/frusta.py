@@ -690,7 +690,7 @@ def _kernels(kinds: int):
     return _frusta, _bin, _lit
 
 
-_frusta_points, _, _lit_points = _kernels(POINTS)  # `_point_lit`'s (its point lights)
+_frusta_points = _kernels(POINTS)[0]  # `_point_lit`'s (its point lights)
 
 
 def exact_lit_intervals(accel, segs: Segments, lights, n_lights: int, bins: list[LightBins] | None = None):
@@ -802,28 +802,19 @@ def point_lit_pieces(accel, segs: Segments, points, group, box_of, select: np.nd
 def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_hi, epsilon, slack, gap, spheres, sun):
     """`point_lit_pieces`' kernel: per group its candidate triangles (bounding boxes overlapping); per
     segment those that meet the plane through its point and its line (within rounding), their frusta
-    from the point (`_frusta`) in the lists of a cube map of one texel a face, walked by `_lit`
-    itself; then the spheres' shadows (`lit_parts`). `sun`: False, passed from Python so that the
-    kernels get the bool `build` gives them (a constant here would be typed a literal, and compile
-    `_frusta` and `_lit` once more)."""
+    from the point (`_frusta`), each clipped to the segment directly where `_lit` would take it as a
+    candidate in a cube map of one texel a face (its depth lower bound below the far end, with the
+    same slack, of one of the segment's face parts: every triangle is listed in every face), so the
+    pieces are `_lit`'s bit for bit without its lists, walk and buffers per segment; then the
+    spheres' shadows (`lit_parts`). `sun`: False, passed from Python so that `_frusta` gets the bool
+    `build` gives it (a constant here would be typed a literal, and compile `_frusta` once more)."""
     n_t = tris.shape[0]
     ctris, straddle = np.empty((n_t, 3, 3)), np.empty((n_t, 3, 3))
     # np.empty and element loops only: np.zeros, full, eye and array would each compile a function more
     planes, signs, lb, keep = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t, np.bool_)
-    k_planes, k_signs, k_lb, order = np.empty((n_t, 4, 4)), np.empty((n_t, 4)), np.empty(n_t), np.empty(n_t)
-    tri, tlb, start = np.empty(6 * n_t, np.int64), np.empty(6 * n_t), np.empty(7, np.int64)
-    cover, cover_depth = np.empty(6, np.int64), np.empty(6)
-    grid, stats, zero = np.empty(6), np.empty(len(STATS_NAMES)), np.empty(3)
-    frame = np.empty((4, 3))  # the light's position (row 0), then the axes
-    grid[0], grid[1], grid[2], grid[3], grid[4], grid[5] = -1.0, -1.0, 2.0, 2.0, 1.0, 1.0  # one texel a face
-    for f in range(6):
-        cover[f], cover_depth[f] = -1, math.inf
-    for f in range(len(STATS_NAMES)):
-        stats[f] = 0.0
+    c_lo, c_hi, parts, q, zero = np.empty(n_t + 1), np.empty(n_t + 1), np.empty((8, 9)), np.empty(3), np.empty(3)
     for a in range(3):
         zero[a] = 0.0
-        for f in range(4):
-            frame[f, a] = 1.0 if f == a + 1 else 0.0
     per = 4 * spheres.shape[0] + 1
     cap = 2 * origins.shape[0] + 16
     src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
@@ -844,7 +835,8 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
                             ctris[nc, v, a] = tris[t, v, a]
                     nc += 1
         w = dirs[s]
-        q = origins[s] - points[s]
+        for a in range(3):
+            q[a] = origins[s, a] - points[s, a]
         # only triangles that meet the plane through the light and the ray can block the segment
         nx, ny, nz = q[1] * w[2] - q[2] * w[1], q[2] * w[0] - q[0] * w[2], q[0] * w[1] - q[1] * w[0]
         tol = gap * math.sqrt(nx * nx + ny * ny + nz * nz)
@@ -864,39 +856,60 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
         for t in range(ns):
             keep[t] = False
         _frusta_points(straddle[:ns], points[s], zero, epsilon, planes, signs, lb, keep, sun)
-        nk = 0
-        for t in range(ns):
-            if keep[t]:
-                for p in range(4):
-                    for a in range(4):
-                        k_planes[nk, p, a] = planes[t, p, a]
-                    k_signs[nk, p] = signs[t, p]
-                k_lb[nk], order[nk] = lb[t], nk
-                nk += 1
-        _heapsort_pairs(k_lb[:nk], order[:nk])  # each face's list in ascending depth lower bound
-        for f in range(6):
-            start[f] = f * nk
-            for e in range(nk):
-                tri[f * nk + e], tlb[f * nk + e] = int(order[e]), k_lb[e]
-        start[6] = 6 * nk
-        for a in range(3):
-            frame[0, a] = points[s, a]
-        lit_src, lo, hi = _lit_points(origins[s:s + 1], dirs[s:s + 1], length[s:s + 1], grid, frame, start,
-                                      tri[:6 * nk], tlb[:6 * nk], cover, cover_depth, k_planes[:nk], k_signs[:nk],
-                                      slack, gap, stats, sun)
-        if m + len(lit_src) * per > cap:
-            cap = 2 * (m + len(lit_src) * per)
+        ell = length[s]
+        k = 0
+        if ns and ell > 0.0:
+            # `_lit`'s runs are the face parts; one whose far end (with slack) is not beyond a
+            # triangle's depth bound skips it (a NaN end takes every triangle, as there)
+            far, every = -math.inf, False
+            for p in range(_cube_parts(q, w, ell, parts)):
+                x, xn = parts[p, 0], parts[p, 1]
+                r1 = math.sqrt((q[0] + x * w[0]) ** 2 + (q[1] + x * w[1]) ** 2 + (q[2] + x * w[2]) ** 2)
+                r2 = math.inf
+                if xn < math.inf:
+                    r2 = math.sqrt((q[0] + xn * w[0]) ** 2 + (q[1] + xn * w[1]) ** 2 + (q[2] + xn * w[2]) ** 2)
+                rmax = max(r1, r2)
+                f = rmax + REL * abs(rmax) + slack
+                every = every or f != f
+                far = max(far, f)
+            for t in range(ns):
+                if not keep[t] or not (every or lb[t] < far):
+                    continue
+                lo, hi = 0.0, ell
+                for pl in range(4):  # sign * (a + b x) > 0 for every plane, as `_lit` clips
+                    av = planes[t, pl, 0] * q[0] + planes[t, pl, 1] * q[1] + planes[t, pl, 2] * q[2] - planes[t, pl, 3]
+                    bv = planes[t, pl, 0] * w[0] + planes[t, pl, 1] * w[1] + planes[t, pl, 2] * w[2]
+                    sg = signs[t, pl]
+                    if bv == 0.0:
+                        if not sg * av > 0.0:
+                            hi = -math.inf
+                    elif sg * bv > 0.0:
+                        lo = max(lo, -av / bv)
+                    else:
+                        hi = min(hi, -av / bv)
+                    if not lo < hi:
+                        break
+                if lo < hi:
+                    c_lo[k], c_hi[k] = lo, hi
+                    k += 1
+        if m + (k + 1) * per > cap:
+            cap = 2 * (m + (k + 1) * per)
             src2, a2, b2 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
             for e in range(m):
                 src2[e], a2[e], b2[e] = src[e], x0[e], x1[e]
             src, x0, x1 = src2, a2, b2
-        for j in range(len(lit_src)):
-            if spheres.shape[0]:
-                n = lit_parts(origins[s], w, lo[j], hi[j], points[s], False, spheres, gap, buf)
-                for i in range(n):
-                    src[m], x0[m], x1[m] = s, buf[i, 0], buf[i, 1]
+        _heapsort_pairs(c_lo[:k], c_hi[:k])
+        cur = 0.0
+        for e in range(k + 1):  # the lit pieces: the gaps between the shadows' union, then its end to ell
+            lo, hi = (c_lo[e], c_hi[e]) if e < k else (ell, ell)
+            if lo - cur > gap:
+                if spheres.shape[0]:
+                    n = lit_parts(origins[s], w, cur, lo, points[s], False, spheres, gap, buf)
+                    for i in range(n):
+                        src[m], x0[m], x1[m] = s, buf[i, 0], buf[i, 1]
+                        m += 1
+                else:
+                    src[m], x0[m], x1[m] = s, cur, lo
                     m += 1
-            else:
-                src[m], x0[m], x1[m] = s, lo[j], hi[j]
-                m += 1
+            cur = max(cur, hi)
     return src[:m].copy(), x0[:m].copy(), x1[:m].copy()
