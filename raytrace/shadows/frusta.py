@@ -804,8 +804,9 @@ def _point_lit(tris, t_lo, t_hi, origins, dirs, length, points, group, g_lo, g_h
     segment those that meet the plane through its point and its line (within rounding), their frusta
     from the point (`_frusta`), each clipped to the segment directly where `_lit` would take it as a
     candidate in a cube map of one texel a face (its depth lower bound below the far end, with the
-    same slack, of one of the segment's face parts: every triangle is listed in every face), so the
-    pieces are `_lit`'s bit for bit without its lists, walk and buffers per segment; then the
+    same slack, of one of the segment's face parts: every triangle is listed in every face) and by
+    `_lit`'s expressions, without its lists, walk and buffers per segment (the pieces `_lit`'s bit for
+    bit under the same fastmath flags: tests/test_penumbra_glue.py); then the
     spheres' shadows (`lit_parts`). `sun`: False, passed from Python so that `_frusta` gets the bool
     `build` gives it (a constant here would be typed a literal, and compile `_frusta` once more)."""
     n_t = tris.shape[0]
