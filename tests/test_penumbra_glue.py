@@ -145,8 +145,11 @@ def _walked(accel, segs, points, group, box):
 
 def test_point_lit_pieces_are_the_walks():
     """Camera rays of a room with a slit and bars (segments that end on the walls) and random segments
-    (some to infinity, some of length 0, some through their own light point), each under its own
-    point, four segments a group: the same pieces bit for bit, some segments cut into several."""
+    (some to infinity, some of length 0), each under its own point, four segments a group: the same
+    pieces bit for bit, some segments cut into several. No segment's line passes through its point:
+    there the normal of the plane through them is 0 in NumPy's rounding but not always in the kernel's
+    (the package's fastmath subset contracts a product and a difference), so `_walked`'s candidates
+    could differ from the kernel's for reasons of its own."""
     prep, cam, _ = segments(room_scene(SLIT + BARS))
     rng = np.random.default_rng(4)
     n = 3 * len(cam)
@@ -160,7 +163,6 @@ def test_point_lit_pieces_are_the_walks():
                     np.arange(len(cam) + n, dtype=np.int64), np.zeros(len(cam) + n), np.zeros(len(cam) + n, np.uint64),
                     np.zeros(len(cam) + n, np.int64), 0, prep.accel.scale)
     points = np.array([0.0, 1.5, -1.0]) + rng.uniform(-0.4, 0.4, (len(both), 3))
-    points[-5:] = both.origins[-5:] + 0.5 * both.dirs[-5:]  # segments through their light
     group = both.light // 4
     box = light_boxes(points, both, 4)
     got = point_lit_pieces(prep.accel, both, points, group, box, None)
