@@ -98,8 +98,8 @@ def test_lanes_vs_mpmath_whatever_the_batch():
 
 @pytest.mark.parametrize("n", range(1, 10))
 def test_lanes_every_length_vs_mpmath(n):
-    """`cosine_moments_lanes` takes its steps two at a time: series of every length from 1 to 9 terms
-    (the last step alone or paired, none at all) against mpmath, as test_lanes_vs_mpmath_whatever_the_batch."""
+    """`cosine_moments_lanes` on series of every length from 1 to 9 terms (no step of the recurrence, one,
+    several) against mpmath, as test_lanes_vs_mpmath_whatever_the_batch."""
     c = legendre_to_cosine(hg_legendre(0.5, n - 1))
     cases = [(0.05, 0.3, 2.0), (0.3, 0.0, math.inf)]
     args = np.array([(H, va, vb, *_inputs(H, va, vb)) for H, va, vb in cases])
