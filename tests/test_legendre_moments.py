@@ -96,6 +96,21 @@ def test_lanes_vs_mpmath_whatever_the_batch():
         assert one[0] == out[i] == out[i + len(cases)]
 
 
+@pytest.mark.parametrize("n", range(1, 10))
+def test_lanes_every_length_vs_mpmath(n):
+    """`cosine_moments_lanes` on series of every length from 1 to 9 terms (no step of the recurrence, one,
+    several) against mpmath, as test_lanes_vs_mpmath_whatever_the_batch."""
+    c = legendre_to_cosine(hg_legendre(0.5, n - 1))
+    cases = [(0.05, 0.3, 2.0), (0.3, 0.0, math.inf)]
+    args = np.array([(H, va, vb, *_inputs(H, va, vb)) for H, va, vb in cases])
+    out = np.empty(len(cases))
+    cosine_moments_lanes(args, np.arange(len(cases)), c, out)
+    for (H, va, vb), s in zip(cases, out):
+        r = _ref(H, va, vb, c)
+        bound = max(1e-12, 30 * FORWARD_ERR_PER_LOSS * forward_loss(H, c) * np.abs(c).sum() / abs(r))
+        assert abs(s / r - 1.0) < min(bound, CAP), (n, H, va, vb, s, r)
+
+
 def test_forward_loss_grows_with_H():
     c = legendre_to_cosine(hg_legendre(0.7, 50))
     losses = [forward_loss(H, c) for H in (0.01, 0.1, 1.0, 10.0)]

@@ -984,9 +984,11 @@ def _pending_recurrences(pending, coeffs, ks, out):
     if pending.shape[0] == 0 or pending[:, P_BLOCK].max() <= 0.0:
         return
     starts = np.empty(coeffs.shape[0], dtype=np.int64)  # the blocks' starts (`exact_coeffs`)
+    rank_at = np.empty(coeffs.shape[0], dtype=np.int64)  # a block's rank by its start
     nb, pos = 0, 0
     while pos < coeffs.shape[0]:
         starts[nb] = pos + 1
+        rank_at[pos + 1] = nb
         nb += 1
         pos += 1 + int(coeffs[pos])
     rank = np.empty(pending.shape[0], dtype=np.int64)
@@ -994,9 +996,7 @@ def _pending_recurrences(pending, coeffs, ks, out):
     for s in range(pending.shape[0]):
         rank[s] = -1
         if pending[s, P_BLOCK] > 0.0:
-            r = 0
-            while starts[r] != pending[s, P_BLOCK]:
-                r += 1
+            r = rank_at[int(pending[s, P_BLOCK])]
             rank[s] = r
             first[r + 1] += 1
     for r in range(nb):
