@@ -33,12 +33,12 @@ DENSE_SCENE = {**SCENE, "name": "cube_of_water_beside_a_dense_box",
 TOWARD_SUN = -np.array(SUN["direction"], float) / np.linalg.norm(SUN["direction"])
 
 
-def dense_chord(P):
+def dense_chord(P, toward=TOWARD_SUN):
     """(chord, the faces it enters and leaves by) of the path from P toward the sun through the dense box."""
-    hit = slab(P, TOWARD_SUN, LO_B, HI_B)
+    hit = slab(P, toward, LO_B, HI_B)
     if hit is None or hit[1] <= 0.0:
         return 0.0, None
-    leave = [max((LO_B[a] - P[a]) / TOWARD_SUN[a], (HI_B[a] - P[a]) / TOWARD_SUN[a]) for a in range(3)]
+    leave = [max((LO_B[a] - P[a]) / toward[a], (HI_B[a] - P[a]) / toward[a]) for a in range(3)]
     return hit[1] - max(hit[0], 0.0), (tuple(hit[2]), int(np.argmin(leave)))
 
 

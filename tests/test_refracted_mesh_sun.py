@@ -44,10 +44,12 @@ def ball(camera, light, subdivisions=2):
             "light": [light]}
 
 
-def sun_segment(scene, geometry, p, w, ell, plates=()):
+def sun_segment(scene, geometry, p, w, ell, plates=(), through=None):
     """The sun's single scattering (3,) over the inside segment p + x w, x in [0, ell] (module docstring);
     `plates`: black plates outside (tests/test_refracted_beams.py's), each beam's interval cut where the
-    path from its entry point toward the sun meets one (bisected on that indicator)."""
+    path from its entry point toward the sun meets one (bisected on that indicator); `through` =
+    (attenuation (3,) of the entry point Y's path to the sun, the x in (0, d) where it kinks along
+    Y0 + x Y' (Y0, Y', d), Y affine in x)."""
     tri, normals, offsets = geometry
     inner, sun = scene["shape"][0]["interior"], scene["light"][0]
     eta, g = inner["ior"], inner["phase"]["g"]
@@ -84,10 +86,14 @@ def sun_segment(scene, geometry, p, w, ell, plates=()):
             return not any(plate_hit(X + depth(float((X - p) @ w)) * u, -s, q) < math.inf for q in plates)
 
         cuts = [lo] + [lo + x for x in switches(p + lo * w, w, hi - lo, clear)] + [hi]
+        entry = lambda x: p + x * w + depth(x) * u  # noqa: E731
+        attenuation = (lambda x: 1.0) if through is None else (lambda x: through[0](entry(x)))  # noqa: E731
+        if through is not None:
+            cuts = sorted(cuts + [lo + x for x in through[1](entry(lo), entry(lo + 1.0) - entry(lo), hi - lo)])
         for a, b in zip(cuts[:-1], cuts[1:]):
             if b > a and clear(p + 0.5 * (a + b) * w):
-                out += e * ks * ph * integrate.quad_vec(lambda x: np.exp(-kt * (x + depth(x))), a, b, epsabs=0.0,
-                                                        epsrel=1e-12)[0]
+                out += e * ks * ph * integrate.quad_vec(lambda x: np.exp(-kt * (x + depth(x))) * attenuation(x), a, b,
+                                                        epsabs=0.0, epsrel=1e-12)[0]
     return out
 
 

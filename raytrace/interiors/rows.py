@@ -242,7 +242,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     return out, var, stats, bound
 
 
-def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, seed, acc):
+def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, seed, acc, others=None):
     """acc = (out, var, bound, stats) += directional light li's single scattering over the rows (points,
     w, ell, keys) of the convex refractive shape sid of more than KERNEL_PLANES face `planes` (neighbours
     `near`): each beam it makes (`refracted_beams`; with `beam`, that face's alone) over the interval
@@ -253,7 +253,12 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
     kernel takes it as a straight path, eta 1, the beam's direction and irradiance given, so QUAD's
     bound is `convex_bounded`'s), carried back by exp(-sigma_t lo); CLOSED's and QUAD's bounds add
     the beam's direction and irradiance errors (`_beam_errors`) and what the interval's ends may
-    change, misplaced within their spans."""
+    change, misplaced within their spans. `others` (`_other_interiors`): the beam attenuated by the
+    other index-matched interiors on its entry point's path to the sun (shadows/through_others.py
+    `attenuated_radiance` on face f's plane alone, `only` that plane; CLOSED, which has no closed form
+    with the chords, by QUAD, counted HANDED), the kernel's bound with the planes' normal error widened
+    by twice the beam direction's error (the entry point X + k toward moves by at most 2 k du / q_f);
+    the ends' spans bounded as without them (the attenuation is at most 1)."""
     points, w, ell, keys = rows
     out, var, bound, stats = acc
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
@@ -272,7 +277,7 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
         ints, val, edges, rel, err = _beam_terms(planes, near, int(f), toward, lights.axis[li], medium, dplanes,
                                                 (points, w, ell), kt, ks)
         f_li = irradiance * lights.intensity[li, ch]
-        if mode == CLOSED:
+        if mode == CLOSED and others is None:
             out[:, ch] += val * f_li
             bound[:, ch] += product(err, f_li)
             continue
@@ -282,11 +287,26 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
         geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points[sel] + lo[:, None] * w[sel], w[sel], toward
         geo[:, 12:14], geo[:, 17] = lights.cone[li, :2], lights.cone[li, 2]
         unit, unit_var, unit_err = np.empty((m, len(ch))), np.empty((m, len(ch))), np.empty((m, len(ch)))
-        zero = np.zeros(m)
-        inside_radiance(np.ones(m, np.bool_), zero, zero, zero, zero, zero, w[sel] @ toward, ints[sel, 1] - lo, kt, ks,
-                        medium.phase, medium.g, kt_out, zero, zero, 1.0, geo,
-                        np.ascontiguousarray(planes[f:f + 1]), EVERY, dplanes, -1, mode, rtol, steps, tau_max,
-                        keys[sel], np.uint64(dim0 + (f + 1) * STREAM), np.uint64(seed), unit, unit_var, unit_err, stats)
+        face, dim = np.ascontiguousarray(planes[f:f + 1]), np.uint64(dim0 + (f + 1) * STREAM)
+        if others is None:
+            zero = np.zeros(m)
+            inside_radiance(np.ones(m, np.bool_), zero, zero, zero, zero, zero, w[sel] @ toward, ints[sel, 1] - lo, kt,
+                            ks, medium.phase, medium.g, kt_out, zero, zero, 1.0, geo, face, EVERY, dplanes, -1, mode,
+                            rtol, steps, tau_max, keys[sel], dim, np.uint64(seed), unit, unit_var, unit_err, stats)
+        else:
+            oplanes, first, stop, kt_other, dothers, balls = others
+            du, _ = _beam_errors(float(-(planes[f, :3] @ lights.axis[li])), eta, dplanes[0])
+            wide = np.array([dplanes[0] + 2.0 * du, dplanes[1]])
+            if mode == CLOSED:
+                stats[HANDED] += m
+            rule = QUAD if mode == CLOSED else mode
+            col, col_var, col_err = np.empty(m), np.empty(m), np.empty(m)
+            for j, c in enumerate(ch.tolist()):
+                attenuated_radiance(True, geo, face, ints[sel, 1] - lo, kt[j], ks[j], medium.phase, medium.g, kt_out[j],
+                                    oplanes, first, stop, np.ascontiguousarray(kt_other[:, c]), rule, rtol, steps,
+                                    tau_max, keys[sel], dim, np.uint64(seed), wide, dothers, balls, 0,
+                                    np.ascontiguousarray(-lights.axis[li]), col, col_var, col_err, stats)
+                unit[:, j], unit_var[:, j], unit_err[:, j] = col, col_var, col_err
         with np.errstate(over="ignore", invalid="ignore"):
             tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
         for j, c in enumerate(ch.tolist()):
@@ -294,7 +314,7 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
             var[sel, c] += unit_var[:, j] * (tr[:, j] * f_li[j]) ** 2
             bound[sel, c] += _light_bound(product(unit_err[:, j], tr[:, j]) + rel[sel, j] * unit[:, j] * tr[:, j],
                                           unit[:, j] * tr[:, j] * f_li[j], f_li[j], lights.cone[li, 0])
-        if mode == QUAD:
+        if mode in (QUAD, CLOSED):
             bound[:, ch] += product(edges, f_li)
         else:
             bound[np.ix_(ell > 0.0, ch)] = np.inf
@@ -437,16 +457,16 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     return out, var, stats, bound
 
 
-def _other_interiors(prep, sid, sup):
+def _other_interiors(prep, sid, sup, many=False):
     """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2), balls (S, 4): centre and radius
     holding each) of the index-matched interiors but shape sid, for
-    `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces) and the
-    method's inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not
-    applied)."""
+    `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces; `many`: sid
+    a convex refractive shape of more, for its directional beams, `_face_beams`) and the method's
+    inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not applied)."""
     inner = [i for i in matched(prep) if i != sid]
     planes = [convex_planes(prep, i) for i in inner]
-    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE, CLOSED) or not len(convex_planes(prep, sid)) \
-            or any(not len(q) for q in planes):
+    own = refracting_planes(prep, sid) if many else convex_planes(prep, sid)
+    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE, CLOSED) or not len(own) or any(not len(q) for q in planes):
         return None
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
@@ -537,7 +557,8 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
     (`_through_others`); else they are not applied, and every light's bound is infinite. In a shape of
     more than KERNEL_PLANES planes (`convex_planes` empty: `_face_beams`) a beam's pieces are sought
-    only where it may light a segment (`_beam_span`), and the other interiors are not applied."""
+    only where it may light a segment (`_beam_span`), the others applied by `_face_beams`; a point or
+    spot light's path there is not attenuated by them (bound infinite)."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = refracting_planes(prep, sid), blockers(prep)
     many = not len(convex_planes(prep, sid))
@@ -545,12 +566,17 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     stats = np.zeros(STATS_SIZE)
     kt = medium.sigma_t[None, :]
-    others = _other_interiors(prep, sid, method.supports.interiors)
+    sup = method.supports.interiors
+    others = _other_interiors(prep, sid, sup)
+    beam_others = _other_interiors(prep, sid, sup, many=True) if many else others
+    unapplied = False  # a light's path computed without the other index-matched interiors
     for li in range(len(lights)):
         if not lights.distant[li]:
             _lit_point(prep, method, params, sid, refracting_planes(prep, sid), mask, li,
                        (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), others)
+            unapplied = unapplied or others is None
             continue
+        unapplied = unapplied or beam_others is None
         faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)
         for f, toward, irradiance in zip(faces.tolist(), towards, scales):
             if many:  # the segments the beam may reach, over the widest interval it may light
@@ -566,14 +592,22 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
                 at = np.nonzero(rank == piece)[0]
                 r = src[at]
                 rows = (points[r] + x0[at, None] * w[r], normals[r], w[r], x1[at] - x0[at], keys[r])
-                if others is not None:
+                if many and beam_others is not None:
+                    val, v, b, st = np.zeros((len(r), 3)), np.zeros((len(r), 3)), np.zeros((len(r), 3)), \
+                        np.zeros(STATS_SIZE)
+                    rtol, steps, tau_max = sup.settings(params)
+                    dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
+                    _face_beams(prep, sid, planes, plane_neighbours(prep, sid), li, f,
+                                (rows[0], rows[2], rows[3], rows[4]), sup.mode, (rtol, steps, tau_max), dim0, seed,
+                                (val, v, b, st), beam_others)
+                elif others is not None:
                     val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth,
                                                     (f, toward, irradiance))
                 else:
                     val, v, st, b = single_scattering(prep, method, params, sid, *rows, reach, seed, depth, li, piece, f)
                 stats += st
                 _carry(out, var, bound, r, kt, x0[at], val, v, b)
-    if matched(prep) and others is None:
+    if matched(prep) and unapplied:
         bound[ell > 0.0] = np.inf
     return out, var, stats, bound
 
@@ -733,8 +767,10 @@ def measured_plane_errors(prep, sid):
     ulps off: + 8u) and vertices against the plane of `convex_planes` it lies in (the nearest by
     normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
     plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|) (crossing.py
-    `triangle_planes`: the normal turned outward, as the planes'). `plane_errors` where
-    the shape has no convex planes or a triangle lies in none of them (to its bound)."""
+    `triangle_planes`: the normal turned outward, as the planes'). `plane_errors` where the shape has no
+    convex planes. The measured errors may exceed `plane_errors` (which bounds the rounding of one
+    triangle's plane alone): `convex_planes` keeps one plane for faces within 1e-9 of each other (the two
+    triangles of a quad whose corners round off one plane: 1.2e-12 on a 256-segment UV sphere)."""
     def measure():
         planes = refracting_planes(prep, sid)
         bound = plane_errors(prep, sid)
@@ -746,8 +782,6 @@ def measured_plane_errors(prep, sid):
         dn_f = np.abs(n - planes[best, :3]).max(axis=1) + 8.0 * u
         norms = np.linalg.norm(tris, axis=2).max(axis=1)
         dc_f = off + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
-        if dn_f.max() > bound[0] or dc_f.max() > bound[1]:
-            return bound
         return np.array([dn_f.max(), dc_f.max()])
     return prep.memo(("measured plane errors", sid), measure)
 

@@ -226,7 +226,7 @@ def beams_closed(rows, toward, dirs, kt, ks, code, g, out, edges):
                     out[s, ch] += ks[ch] * ph * (r[1] - r[0])
         for ch in range(kt.shape[0]):
             e = 0.0
-            for a, b in ((r[2], r[3]), (r[4], r[5])):
+            for a, b in ((r[2], min(r[3], r[5])), (max(r[4], r[2]), r[5])):  # both intervals lie in [lo_a, hi_b]
                 if b > a:
                     g_min = max(a, min(a + r[6] + r[7] * a, b + r[6] + r[7] * b)) - r[8]
                     e += (b - a) * math.exp(-kt[ch] * max(g_min, 0.0))
