@@ -119,7 +119,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     rtol, steps, tau_max = sup.settings(params)
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
-    dplanes = measured_plane_errors(prep, sid) if refractive else plane_errors(prep, sid)
+    dplanes = measured_plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
 
     def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None):
@@ -471,7 +471,7 @@ def _other_interiors(prep, sid, sup, many=False):
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
             np.array([prep.scene.shapes[i].interior.sigma_t for i in inner]),
-            np.array([plane_errors(prep, i) for i in inner]), np.array([_ball(prep, i) for i in inner]))
+            np.array([measured_plane_errors(prep, i) for i in inner]), np.array([_ball(prep, i) for i in inner]))
 
 
 def _ball(prep, sid):
@@ -517,7 +517,7 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     if sup.mode == CLOSED:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
     unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
-    dplanes = plane_errors(prep, sid) if face is None else measured_plane_errors(prep, sid)
+    dplanes = measured_plane_errors(prep, sid)
     for c in range(3):
         kt, ks, kt_out = float(medium.sigma_t[c]), float(medium.sigma_s[c]), float(prep.scene.medium.sigma_t[c])
         if ks == 0.0 or lights.intensity[li, c] == 0.0:
@@ -762,18 +762,21 @@ def plane_errors(prep, sid):
 
 
 def measured_plane_errors(prep, sid):
-    """(dn, dc) as `plane_errors`, measured on the shape's triangles (for the refracted point and spot
-    lights' bound, media/fermat_rounding.py): each triangle's unit normal (its cross product's, a few
-    ulps off: + 8u) and vertices against the plane of `convex_planes` it lies in (the nearest by
+    """(dn, dc) as `plane_errors`, measured on the shape's triangles (the planes' errors in every convex
+    kernel's bound: media/slab.py, media/fermat_rounding.py, shadows/through_others.py): each triangle's unit normal (its cross product's, a few
+    ulps off: + 8u) and vertices against the plane of `hull_planes` it lies in (the nearest by
     normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
     plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|) (crossing.py
-    `triangle_planes`: the normal turned outward, as the planes'). `plane_errors` where the shape has no
-    convex planes. The measured errors may exceed `plane_errors` (which bounds the rounding of one
-    triangle's plane alone): `convex_planes` keeps one plane for faces within 1e-9 of each other (the two
-    triangles of a quad whose corners round off one plane: 1.2e-12 on a 256-segment UV sphere)."""
+    `triangle_planes`: the normal turned outward, as the planes'), for index-matched and refractive
+    shapes alike. `plane_errors` where the shape has no convex planes. The measured errors may exceed
+    `plane_errors` (which bounds the rounding of one triangle's plane alone): the hull keeps one plane for
+    faces within 1e-9 of each other (the two triangles of a quad whose corners round off one plane:
+    1.2e-12 on a 256-segment UV sphere, 1.7e-12 on a 320-face icosphere)."""
     def measure():
-        planes = refracting_planes(prep, sid)
+        planes = hull_planes(prep, sid)
         bound = plane_errors(prep, sid)
+        if planes is None:
+            return bound
         tris, n, best = triangle_planes(prep.accel.triangles[prep.shape_ids == sid], planes)
         if not len(planes) or not len(tris):
             return bound
