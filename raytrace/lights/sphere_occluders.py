@@ -16,6 +16,18 @@ leave the surface twice that far up (accel.py), and the sliver of the sphere low
 that width. Exact spheres other than the emitter are tested by their bounding cone (conservative).
 The test says "may be hidden" too often, never too seldom: where it does, the surface term falls back
 on the rows, the probes and the penumbra's samples (shading.py).
+
+Along a segment (`segments_free`: the air-light's rule about a camera ray's segment, rendering/
+near_emitters.py): the light reaches the points x of a segment from o to e along segments from x to
+points of the sphere, all inside the convex hull of the segment and the ball (the hull of the balls o
+and e of radius 0 and c of radius R). An occluder (a triangle, the hull of its vertices; an exact
+sphere) hides nothing if a plane separates it from that hull: the occluder on its far side, the emitter
+strictly on the near side by more than MARGIN of the distances involved, the segment's ends on the near
+side or beyond the plane by at most HEIGHT of the shadow rays' offset (an open segment from a point on
+the plane to a point of the emitter meets the occluder nowhere: a floor the ray ends on). The planes
+tried are a triangle's own (either way) and the directions of Frank-Wolfe's iterates toward the point
+of the difference of the two hulls nearest the origin (FW_STEPS), each checked exactly as it comes;
+where none separates, the segment may be hidden. Segments to infinity are never cleared.
 """
 from __future__ import annotations
 
@@ -94,7 +106,8 @@ def _free(c, R, points, normals, tris, bound, spheres, height, out):
 def segments_free(centre, radius: float, origins, ends, triangles, sphere_of, spheres, epsilon: float) -> np.ndarray:
     """(P,) whether nothing of `triangles` (as `free`'s) nor of the exact spheres other than the emitter
     can hide any part of the emitter from any point of the segments from `origins` (P, 3) to `ends`
-    (P, 3) (module docstring, "Along a segment"); False where an end is not finite."""
+    (P, 3) (module docstring, "Along a segment"); False where an end is not finite. `epsilon`: the
+    shadow rays' offset."""
     centre = np.asarray(centre, float)
     out = np.zeros(len(origins), dtype=np.bool_)
     ok = np.all(np.isfinite(origins), axis=1) & np.all(np.isfinite(ends), axis=1)
