@@ -12,7 +12,6 @@ radiance, else the [background]).
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
