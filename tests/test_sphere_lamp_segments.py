@@ -94,7 +94,7 @@ def test_a_floor_the_segments_end_on_hides_nothing():
     floor's plane leaves the lamp strictly above it and the segments on its side), also ending a
     rounding below it; a plate under the lamp makes those whose hull it meets "may be hidden" and
     clears all but 5 % of the rest; an exact sphere in the way (not the emitter's own) makes all hidden; a
-    segment to infinity is never clear."""
+    segment to infinity is clear only where nothing but the emitter is there (its own mesh left out)."""
     rng = np.random.default_rng(5)
     floor = np.array([[[-20, 0, 20], [20, 0, 20], [20, 0, -20]], [[-20, 0, 20], [20, 0, -20], [-20, 0, -20]]], float)
     plate = np.array([[[0.19, 0.45, 0.09], [0.31, 0.45, 0.09], [0.31, 0.45, 0.21]],
@@ -122,3 +122,4 @@ def test_a_floor_the_segments_end_on_hides_nothing():
     assert not blocked.any()
     far = ends[:5] + np.array([0.0, np.inf, 0.0])
     assert not sphere_occluders.segments_free(C, R, o[:5], far, floor, np.array([-1, -1]), none, EPS).any()
+    assert sphere_occluders.segments_free(C, R, o[:5], far, floor, np.array([0, 0]), own_and_other[:1], EPS).all()

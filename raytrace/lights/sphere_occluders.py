@@ -27,7 +27,8 @@ side or beyond the plane by at most HEIGHT of the shadow rays' offset (an open s
 the plane to a point of the emitter meets the occluder nowhere: a floor the ray ends on). The planes
 tried are a triangle's own (either way) and the directions of Frank-Wolfe's iterates toward the point
 of the difference of the two hulls nearest the origin (FW_STEPS), each checked exactly as it comes;
-where none separates, the segment may be hidden. Segments to infinity are never cleared.
+where none separates, the segment may be hidden. Segments to infinity are cleared only where the
+scene holds nothing but the emitter.
 """
 from __future__ import annotations
 
@@ -106,9 +107,13 @@ def _free(c, R, points, normals, tris, bound, spheres, height, out):
 def segments_free(centre, radius: float, origins, ends, triangles, sphere_of, spheres, epsilon: float) -> np.ndarray:
     """(P,) whether nothing of `triangles` (as `free`'s) nor of the exact spheres other than the emitter
     can hide any part of the emitter from any point of the segments from `origins` (P, 3) to `ends`
-    (P, 3) (module docstring, "Along a segment"); False where an end is not finite. `epsilon`: the
+    (P, 3) (module docstring, "Along a segment"); False where an end is not finite, unless the scene
+    holds nothing but the emitter. `epsilon`: the
     shadow rays' offset."""
     centre = np.asarray(centre, float)
+    others = ~(np.all(spheres[:, :3] == centre, axis=1) & (spheres[:, 3] == radius))
+    if not (np.any(sphere_of < 0) or others.any()):  # nothing but the emitter: every segment is clear
+        return np.ones(len(origins), dtype=np.bool_)
     out = np.zeros(len(origins), dtype=np.bool_)
     ok = np.all(np.isfinite(origins), axis=1) & np.all(np.isfinite(ends), axis=1)
     if not ok.any():
@@ -116,7 +121,6 @@ def segments_free(centre, radius: float, origins, ends, triangles, sphere_of, sp
     lo = np.minimum(np.minimum(origins[ok], ends[ok]).min(axis=0), centre - radius)
     hi = np.maximum(np.maximum(origins[ok], ends[ok]).max(axis=0), centre + radius)
     near = (sphere_of < 0) & np.all(triangles.max(axis=1) >= lo, axis=1) & np.all(triangles.min(axis=1) <= hi, axis=1)
-    others = ~(np.all(spheres[:, :3] == centre, axis=1) & (spheres[:, 3] == radius))
     _segments_free(centre, float(radius), np.ascontiguousarray(origins, float), np.ascontiguousarray(ends, float),
                    ok, np.ascontiguousarray(triangles[near], float), np.ascontiguousarray(spheres[others], float),
                    HEIGHT * epsilon, out)
