@@ -12,7 +12,6 @@ radiance, else the [background]).
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -158,15 +157,6 @@ class Lights:
 
     def __len__(self) -> int:
         return len(self.kind)
-
-    def rows_only(self) -> "Lights":
-        """These lights with no emitter's closed form (`area.Emitter.irradiance`): what the cubature's
-        pilot shades in a medium that scatters, so that the rows' order, which also sets how finely they
-        probe a sphere emitter for occluders in the air (whether the rule about a camera ray's segment
-        applies), is chosen from the rows themselves."""
-        return dataclasses.replace(self, emitters=tuple(e if e is None or e.irradiance is None else
-                                                        dataclasses.replace(e, irradiance=None)
-                                                        for e in self.emitters))
 
     @cached_property
     def distant(self) -> np.ndarray:

@@ -16,6 +16,19 @@ leave the surface twice that far up (accel.py), and the sliver of the sphere low
 that width. Exact spheres other than the emitter are tested by their bounding cone (conservative).
 The test says "may be hidden" too often, never too seldom: where it does, the surface term falls back
 on the rows, the probes and the penumbra's samples (shading.py).
+
+Along a segment (`segments_free`: the air-light's rule about a camera ray's segment, rendering/
+near_emitters.py): the light reaches the points x of a segment from o to e along segments from x to
+points of the sphere, all inside the convex hull of the segment and the ball (the hull of the balls o
+and e of radius 0 and c of radius R). An occluder (a triangle, the hull of its vertices; an exact
+sphere) hides nothing if a plane separates it from that hull: the occluder on its far side, the emitter
+strictly on the near side by more than MARGIN of the distances involved, the segment's ends on the near
+side or beyond the plane by at most HEIGHT of the shadow rays' offset (an open segment from a point on
+the plane to a point of the emitter meets the occluder nowhere: a floor the ray ends on). The planes
+tried are a triangle's own (either way) and the directions of Frank-Wolfe's iterates toward the point
+of the difference of the two hulls nearest the origin (FW_STEPS), each checked exactly as it comes;
+where none separates, the segment may be hidden. Segments to infinity are cleared only where the
+scene holds nothing but the emitter.
 """
 from __future__ import annotations
 
@@ -26,6 +39,7 @@ import numpy as np
 from ..jit import njit
 
 MARGIN = 1e-6  # the cone's half-angle (radians) and its depth (of it) widened by this
+FW_STEPS = 256  # Frank-Wolfe steps toward a separating plane per occluder and segment (`_apart`)
 HEIGHT = 0.5  # triangles' parts lower than this x the shadow rays' offset over the tangent plane are left out
 
 
@@ -90,6 +104,130 @@ def _free(c, R, points, normals, tris, bound, spheres, height, out):
         out[i] = clear
 
 
+def segments_free(centre, radius: float, origins, ends, triangles, sphere_of, spheres, epsilon: float) -> np.ndarray:
+    """(P,) whether nothing of `triangles` (as `free`'s) nor of the exact spheres other than the emitter
+    can hide any part of the emitter from any point of the segments from `origins` (P, 3) to `ends`
+    (P, 3) (module docstring, "Along a segment"); False where an end is not finite, unless the scene
+    holds nothing but the emitter. `epsilon`: the
+    shadow rays' offset."""
+    centre = np.asarray(centre, float)
+    others = ~(np.all(spheres[:, :3] == centre, axis=1) & (spheres[:, 3] == radius))
+    if not (np.any(sphere_of < 0) or others.any()):  # nothing but the emitter: every segment is clear
+        return np.ones(len(origins), dtype=np.bool_)
+    out = np.zeros(len(origins), dtype=np.bool_)
+    ok = np.all(np.isfinite(origins), axis=1) & np.all(np.isfinite(ends), axis=1)
+    if not ok.any():
+        return out
+    lo = np.minimum(np.minimum(origins[ok], ends[ok]).min(axis=0), centre - radius)
+    hi = np.maximum(np.maximum(origins[ok], ends[ok]).max(axis=0), centre + radius)
+    near = (sphere_of < 0) & np.all(triangles.max(axis=1) >= lo, axis=1) & np.all(triangles.min(axis=1) <= hi, axis=1)
+    _segments_free(centre, float(radius), np.ascontiguousarray(origins, float), np.ascontiguousarray(ends, float),
+                   ok, np.ascontiguousarray(triangles[near], float), np.ascontiguousarray(spheres[others], float),
+                   HEIGHT * epsilon, out)
+    return out
+
+
+@njit
+def _segments_free(c, R, origins, ends, ok, tris, spheres, height, out):
+    """`segments_free` into out (P,): each triangle, then each other sphere, as the hull of its balls
+    (radius 0 at a triangle's vertices) against the hull of the segment's ends and the emitter."""
+    hull = np.empty((3, 3))
+    hull_r = np.array([0.0, 0.0, R])
+    ball_r = np.zeros(3)
+    one_r = np.zeros(1)
+    for i in range(origins.shape[0]):
+        if not ok[i]:
+            continue
+        for e in range(3):
+            hull[0, e], hull[1, e], hull[2, e] = origins[i, e], ends[i, e], c[e]
+        lo0 = min(origins[i, 0], ends[i, 0], c[0] - R)
+        lo1 = min(origins[i, 1], ends[i, 1], c[1] - R)
+        lo2 = min(origins[i, 2], ends[i, 2], c[2] - R)
+        hi0 = max(origins[i, 0], ends[i, 0], c[0] + R)
+        hi1 = max(origins[i, 1], ends[i, 1], c[1] + R)
+        hi2 = max(origins[i, 2], ends[i, 2], c[2] + R)
+        clear = True
+        for t in range(tris.shape[0]):
+            tri = tris[t]
+            if (min(tri[0, 0], tri[1, 0], tri[2, 0]) > hi0 or max(tri[0, 0], tri[1, 0], tri[2, 0]) < lo0 or
+                    min(tri[0, 1], tri[1, 1], tri[2, 1]) > hi1 or max(tri[0, 1], tri[1, 1], tri[2, 1]) < lo1 or
+                    min(tri[0, 2], tri[1, 2], tri[2, 2]) > hi2 or max(tri[0, 2], tri[1, 2], tri[2, 2]) < lo2):
+                continue
+            if not _apart(tri, ball_r, hull, hull_r, height):
+                clear = False
+                break
+        for s in range(spheres.shape[0]):
+            if not clear:
+                break
+            clear = _apart(spheres[s:s + 1, :3], one_r + spheres[s, 3], hull, hull_r, height)
+        out[i] = clear
+
+
+@njit
+def _apart(p, pr, h, hr, height):
+    """Whether the hull of the balls (p[k], pr[k]) (an occluder) provably hides nothing: a plane of unit
+    normal u with the occluder on its far side by more than the emitter's margin, the emitter (h[2],
+    hr[2]) strictly on the near side and the segment (h[0], h[1]) on it within `height` (an open segment
+    from a point on the plane to a point of the emitter meets the occluder nowhere). The normals tried: a
+    triangle's own (either way), then Frank-Wolfe's iterates toward the point of the difference of the two
+    hulls nearest the origin (FW_STEPS), each direction a certificate checked exactly as it comes."""
+    if p.shape[0] == 3:
+        n = _cross(_sub(_pt(p, 1), _pt(p, 0)), _sub(_pt(p, 2), _pt(p, 0)))
+        nl = math.sqrt(_dot(n, n))
+        if nl > 0.0:
+            n = (n[0] / nl, n[1] / nl, n[2] / nl)
+            if _separates(n, p, pr, h, hr, height) or _separates((-n[0], -n[1], -n[2]), p, pr, h, hr, height):
+                return True
+    x = _sub(_pt(p, 0), _pt(h, 2))  # a point of the difference
+    tiny = 1e-12 * (math.sqrt(_dot(x, x)) + hr[2])  # the hulls touch or overlap: no plane
+    for _ in range(FW_STEPS):
+        xl = math.sqrt(_dot(x, x))
+        if not xl > tiny:
+            return False
+        u = (x[0] / xl, x[1] / xl, x[2] / xl)
+        if _separates(u, p, pr, h, hr, height):
+            return True
+        # the difference's point farthest along -u: the occluder's lowest minus the hull's highest along u
+        k, best = 0, _dot(_pt(p, 0), u) - pr[0]
+        for j in range(1, p.shape[0]):
+            v = _dot(_pt(p, j), u) - pr[j]
+            if v < best:
+                k, best = j, v
+        m, top = 0, _dot(_pt(h, 0), u) + hr[0]
+        for j in range(1, h.shape[0]):
+            v = _dot(_pt(h, j), u) + hr[j]
+            if v > top:
+                m, top = j, v
+        s = (p[k, 0] - pr[k] * u[0] - h[m, 0] - hr[m] * u[0], p[k, 1] - pr[k] * u[1] - h[m, 1] - hr[m] * u[1],
+             p[k, 2] - pr[k] * u[2] - h[m, 2] - hr[m] * u[2])
+        g = _sub(x, s)
+        gg = _dot(g, g)
+        if not gg > 0.0:
+            return False
+        w = min(1.0, max(0.0, _dot(x, g) / gg))
+        if w == 0.0:
+            return False
+        x = (x[0] - w * g[0], x[1] - w * g[1], x[2] - w * g[2])
+    return False
+
+
+@njit
+def _separates(u, p, pr, h, hr, height):
+    """Whether the plane of normal u (any length: its own is measured here) through the occluder's
+    lowest point along u certifies it (`_apart`): the emitter below it by more than MARGIN of the
+    distances involved, the segment's ends below it or above by at most `height`."""
+    ul = math.sqrt(_dot(u, u))
+    if not ul > 0.0:
+        return False
+    low = _dot(_pt(p, 0), u) - pr[0] * ul
+    for j in range(1, p.shape[0]):
+        low = min(low, _dot(_pt(p, j), u) - pr[j] * ul)
+    centre = _dot(_pt(h, 2), u)
+    if not low - (centre + hr[2] * ul) > MARGIN * (hr[2] * ul + abs(low - centre)):
+        return False
+    return _dot(_pt(h, 0), u) <= low + height * ul and _dot(_pt(h, 1), u) <= low + height * ul
+
+
 @njit
 def _ball_meets(x, n, a, sin_a, depth, height, ball):
     """Whether the ball (centre, radius) may meet the region (above `height` over the tangent plane of
@@ -151,6 +289,12 @@ def _meets_cone(x, a, cos_lim, poly, m):
     origin = _row(poly, 0, x)
     normal = _cross(_sub(_row(poly, 1, x), origin), _sub(_row(poly, 2, x), origin))
     return _dot(origin, normal) * _dot(a, normal) > 0.0  # a's ray, not -a's, meets its plane
+
+
+@njit
+def _pt(p, k):
+    """p[k] as a tuple."""
+    return (p[k, 0], p[k, 1], p[k, 2])
 
 
 @njit

@@ -13,7 +13,11 @@ where none agree the finest, counted). Methods without a precision take DEFAULT_
 
 With volumetric shadows the rule replaces the rows only where all of the emitter's rows are lit along
 the whole ray (`penumbra_airlight`'s states); where occluders shadow them the rows (or the penumbra's
-samples) stay. `montecarlo` keeps the rows (it samples them).
+samples) stay. A sphere's rows lit along the whole ray are no proof that nothing hides part of it:
+there the rule applies only where the occluders' geometry clears the segment
+(`sphere_occluders.segments_free`, the same for every cubature order); elsewhere the penumbra's
+stratified samples replace the rows (`penumbra_airlight`'s estimate). `montecarlo` keeps the rows (it
+samples them).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
@@ -27,8 +31,10 @@ import numpy as np
 
 from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
+from ..lights.sphere_occluders import segments_free
 from ..lights.sphere_rule import FIRST
-from ..shadows.penumbra_airlight import LIT, emitter_states, lit_states, per_group, point_segments, spot_rows
+from ..shadows.penumbra_airlight import (LIT, _estimate, emitter_states, lit_states, per_group, point_segments,
+                                         spot_rows)
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
 DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
@@ -42,15 +48,17 @@ def applies(lights, method) -> bool:
                                          for e in lights.emitters)
 
 
-def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen):
+def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen, ctx=None):
     """(`segs` less the rows of the near (camera ray, emitter) pairs, their air-light (N, 3), statistics
-    (STATS_NAMES), (N,) whether each camera ray has such a pair: no error bound there). `cone`: the
-    segments before the lit intervals (`segs` itself without shadows); `rays` = (origins, dirs, tmax, keys, seed) of the N camera rays; `tol` the method's precision
-    (None: DEFAULT_ORDER), relative to the larger of the pair's air-light and `seen` (N, 3), the
-    radiance the ray brings from where it ends (an emitter's own, seen through the medium)."""
+    (STATS_NAMES), (N,) whether each camera ray has such a pair: no error bound there, the variance
+    (N, 3) of the sphere pairs sampled instead). `cone`: the segments before the lit intervals (`segs`
+    itself without shadows); `rays` = (origins, dirs, tmax, keys, seed) of the N camera rays; `tol` the
+    method's precision (None: DEFAULT_ORDER), relative to the larger of the pair's air-light and `seen`
+    (N, 3), the radiance the ray brings from where it ends (an emitter's own, seen through the medium);
+    `ctx` = (accelerator, the triangles that stop light) with shadows."""
     origins, dirs, tmax = rays[:3]
     n, n_e = len(origins), len(lights.emitters)
-    air, stats = np.zeros((n, 3)), np.zeros(len(STATS_NAMES))
+    air, stats, var = np.zeros((n, 3)), np.zeros(len(STATS_NAMES)), np.zeros((n, 3))
     near = np.zeros((n, n_e), bool)
     feet = {}
     for e, em in enumerate(lights.emitters):
@@ -65,12 +73,20 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     shines = np.zeros((n, n_e), bool)  # the emitter's rows reach the ray (none in another light's layer)
     shines[cone.ray[rows], lights.owner[cone.light[rows]]] = True
     near &= shines
+    hidden = np.zeros((n, n_e), bool)
     if shadows and near.any():
         near &= _all_lit(lights, cone, segs, n)
-    if not near.any():
-        return segs, air, stats, near.any(axis=1)
-    drop = near[segs.ray, np.where(lights.cubature, lights.owner, 0)[segs.light]] & lights.cubature[segs.light]
+        hidden = _may_hide(ctx[0], lights, near, rays)
+        near &= ~hidden
+    if not (near | hidden).any():
+        return segs, air, stats, near.any(axis=1), var
+    drop = (near | hidden)[segs.ray, np.where(lights.cubature, lights.owner, 0)[segs.light]] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
+    for e in np.unique(np.nonzero(hidden)[1]):
+        rs = np.nonzero(hidden[:, e])[0]
+        value, v = _estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1])
+        air[rs] += value
+        var[rs] += v
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
         em = lights.emitters[e]
@@ -79,7 +95,23 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
-    return kept, air, stats, near.any(axis=1)
+    return kept, air, stats, (near | hidden).any(axis=1), var
+
+
+def _may_hide(accel, lights, near, rays) -> np.ndarray:
+    """(N, E) the near pairs of a sphere emitter whose camera ray's segment the occluders' geometry does
+    not clear (`sphere_occluders.segments_free`)."""
+    origins, dirs, tmax = rays[:3]
+    out = np.zeros(near.shape, bool)
+    for e in np.unique(np.nonzero(near)[1]):
+        ball = lights.emitters[e].ball
+        if ball is None:
+            continue
+        rs = np.nonzero(near[:, e])[0]
+        ends = origins[rs] + np.asarray(tmax, float)[rs, None] * dirs[rs]
+        out[rs, e] = ~segments_free(ball.centre, ball.radius, origins[rs], ends, accel.triangles, accel.sphere_of,
+                                    accel.spheres, accel.epsilon)
+    return out
 
 
 def _all_lit(lights, cone, lit, n: int) -> np.ndarray:

@@ -154,20 +154,16 @@ def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict
     o, d = rays_of(pixels)
     keys = (pixels[:, 0] * cam.width + pixels[:, 1]).astype(np.uint64) * np.uint64(cam.spp)
 
-    probes = scene.medium.scatters  # the air's tests of sphere emitters' segments probe with their rows
-
     @functools.lru_cache(maxsize=None)
-    def rows_at(orders):  # with `probes` the rows alone (`Lights.rows_only`): their order sets how finely they probe
-        lights = Lights.of(scene.lights, prep.emissive, orders)
-        return dataclasses.replace(prep, lights=lights.rows_only() if probes else lights, _frusta=None, _through=None,
-                                   _memo={}, _memo_lock=threading.Lock())
+    def rows_at(orders):
+        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders), _frusta=None,
+                                   _through=None, _memo={}, _memo_lock=threading.Lock())
 
     def shade(orders, rays):
         return shade_rays(rows_at(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
 
     orders, capped, n_near, stray = cubature.choose(ladders, counts, near, shade, tol)
-    adapted = dataclasses.replace(rows_at(orders), lights=Lights.of(scene.lights, prep.emissive, orders), _memo={},
-                                  _memo_lock=threading.Lock())  # the frusta of the same rows shared
+    adapted = dataclasses.replace(rows_at(orders), _memo={}, _memo_lock=threading.Lock())  # the frusta shared
     emitters = [s for s, ladder in enumerate(ladders) if ladder is not None]
     n_rows = int(np.count_nonzero(np.isin(adapted.lights.owner, emitters)))
     return adapted, {"cubature: rows": n_rows, "cubature: pilot rays": len(o),
@@ -297,13 +293,16 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             if near_emitters.applies(prep.lights, method) and (through is None or not len(through)):
                 segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
                                                      cone if shadows else segs, segs,
-                                                     (origins, dirs, t, keys, seed), shadows, radiance)
+                                                     (origins, dirs, t, keys, seed), shadows, radiance,
+                                                     (prep.accel, crossing.blockers(prep)))
                 stats[NEAR_STATS] = near[1]
             air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
                                                                       len(origins))
             bound += air_bound
             if near is not None:
                 air = air + near[0]
+                if variance is not None:  # a sphere's pairs sampled where occluders may hide part of it
+                    variance = variance + near[3]
                 bound[near[2]] = np.inf  # the rule about the foot point: no bound, as the rows'
             if sampled is not None:
                 air, variance = air + sampled[0], variance + sampled[1]
