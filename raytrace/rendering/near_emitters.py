@@ -33,7 +33,7 @@ from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
 from ..lights.sphere_occluders import segments_free
 from ..lights.sphere_rule import FIRST
-from ..shadows.penumbra_airlight import (LIT, _estimate, emitter_states, lit_states, per_group, point_segments,
+from ..shadows.penumbra_airlight import (LIT, emitter_estimate, emitter_states, lit_states, per_group, point_segments,
                                          spot_rows)
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
@@ -80,11 +80,12 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         near &= ~hidden
     if not (near | hidden).any():
         return segs, air, stats, near.any(axis=1), var
-    drop = (near | hidden)[segs.ray, np.where(lights.cubature, lights.owner, 0)[segs.light]] & lights.cubature[segs.light]
+    owner = np.where(lights.cubature, lights.owner, 0)[segs.light]
+    drop = (near | hidden)[segs.ray, owner] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(hidden)[1]):
         rs = np.nonzero(hidden[:, e])[0]
-        value, v = _estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1])
+        value, v = emitter_estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1])
         air[rs] += value
         var[rs] += v
     for e in np.unique(np.nonzero(near)[1]):

@@ -71,13 +71,13 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     kept = lit.take(np.nonzero(~drop)[0]) if drop.any() else lit
     for e in np.unique(owner_e):
         rs = ray_e[owner_e == e]
-        value, v = _estimate(accel, method, medium, params, lights.emitters[e], e, rs, rays, select)
+        value, v = emitter_estimate(accel, method, medium, params, lights.emitters[e], e, rs, rays, select)
         air[rs] += value  # rs: each ray once (np.nonzero's)
         var[rs] += v
     return kept, air, var, cut.any(axis=1)
 
 
-def _estimate(accel, method, medium, params, emitter, e, rs, rays, select):
+def emitter_estimate(accel, method, medium, params, emitter, e, rs, rays, select):
     """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`: stratified
     samples whose strata follow the method's tolerance (`Method.tolerance`; shading.stratified: a
     pilot per ray, then fresh samples), shading.STRATA a side without one."""
