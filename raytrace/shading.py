@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from .geometry.accel import shadow_rays_into
 from .jit import exact_jitable, exact_njit, njit
 from .lights import sphere_occluders
 from .lights.area import collapsed_variance
@@ -210,49 +211,66 @@ def _add_lights(out, rows, accel, points, normals, facing, terminator, reflectan
 def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,
                sampled):
     """`_add_lights` of one batch of lights."""
-    n = len(points)
-    to_light, dist, cos = np.empty((len(run), n, 3)), np.empty((len(run), n)), np.empty((len(run), n))
-    lit = np.empty((len(run), n), dtype=np.bool_)
-    shines = []  # (the light, its row of the arrays above, the points it lights)
-    for j, li in enumerate(run):
-        _toward_light(points, normals, facing, terminator, lights.position[li], to_light[j], dist[j], cos[j], lit[j])
-        seen = np.flatnonzero(lit[j])
-        if len(seen):
-            shines.append((li, j, seen))
+    to_light, dist, cos, seen, starts, o, d, t, as32 = _light_rays(points, normals, facing, terminator,
+                                                                   lights.position[run], accel.epsilon, accel.unit)
+    shines = [j for j in range(len(run)) if starts[j + 1] > starts[j]]  # the lights that light some points
     if not shines:
         return
-    rays = [accel.shadow_rays(points, normals, lights.position[li], seen) for li, _, seen in shines]
-    occ = accel.occluded(*(np.concatenate([r[k] for r in rays]) for k in range(3)),
-                         as32=tuple(np.concatenate([r[3][k] for r in rays]) for k in range(3)))
-    ends = np.cumsum([len(seen) for _, _, seen in shines])
-    parts = []  # per light: (li, blocked, part, and `_reached`'s six)
-    for (li, j, seen), end in zip(shines, ends):
-        blocked, part = _let_through(occ[end - len(seen):end], seen, points, li, through)
-        idx, at, wi, back, dl, cl = _reached(seen, blocked, points, to_light[j], dist[j], cos[j])
-        parts.append((li, blocked, part, idx, at, wi, back, dl, cl))
-    tr_all = medium.transmittance_on(*(np.concatenate([q[k] for q in parts]) for k in (4, 5)), 0.0,
-                                     np.concatenate([q[7] for q in parts]))
-    ends = np.cumsum([len(q[3]) for q in parts])
-    irradiance, tr = [], []
-    for (_, _, part, idx, _, _, back, dl, _), (li, _, _), end in zip(parts, shines, ends):
-        irradiance.append(lights.irradiance(li, back, dl))
-        tr.append(tr_all[end - len(idx):end] if part is None else tr_all[end - len(idx):end] * part)
-    idx, cl = (np.concatenate([q[k] for q in parts]) for k in (3, 8))
-    irradiance, tr = np.concatenate(irradiance), np.concatenate(tr)
+    occ = accel.occluded(o, d, t, as32=as32)
+    blocked, parts = occ, {}  # parts: per light, the transmittance of the shapes its let-through rays pass
+    if through is not None and occ.any():
+        blocked = occ.copy()
+        for j in shines:
+            at = slice(starts[j], starts[j + 1])
+            blocked[at], part = _let_through(occ[at], seen[at], points, run[j], through)
+            if part is not None:
+                parts[j] = part
+    idx, at, wi, back, dl, cl, ends = _reached_rays(seen, starts, blocked, points, to_light, dist, cos)
+    tr = medium.transmittance_on(at, wi, 0.0, dl)
+    irradiance = np.empty((len(idx), 3))
+    for j in shines:
+        got = slice(ends[j], ends[j + 1])
+        irradiance[got] = lights.irradiance(run[j], back[got], dl[got])
+        if j in parts:
+            tr[got] = tr[got] * parts[j]
     _add_reflected(out, idx, reflectance, irradiance, tr, cl)  # light after light at each point
-    owners = lights.owner[[li for li, _, _ in shines]] if sampled else np.full(len(shines), -1)
-    for owner in dict.fromkeys(owners.tolist()):  # in the order the lights first name them
+    owners = lights.owner[run]
+    for owner in dict.fromkeys(owners[shines].tolist()) if sampled else ():  # in the order the lights name them
         if owner < 0 or lights.emitters[owner] is None:
             continue
         value, reached, missed = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
                                                          np.zeros(len(out), np.int64)))
-        mine = np.repeat(owners == owner, [len(q[3]) for q in parts])
+        mine = np.repeat(owners == owner, np.diff(ends))
         _add_reflected(value, idx[mine], reflectance, irradiance[mine], tr[mine], cl[mine])
-        for (li, j, seen), (_, blocked, *_) in zip(shines, parts):
-            if lights.owner[li] == owner:
-                emits = to_light[j][seen] @ lights.axis[li] < 0.0  # the row's LAMBERT falloff is not zero there
-                reached += np.bincount(seen[emits & ~blocked], minlength=len(out))
-                missed += np.bincount(seen[emits & blocked], minlength=len(out))
+        for j in shines:
+            if owners[j] == owner:
+                mark, hit = seen[starts[j]:starts[j + 1]], blocked[starts[j]:starts[j + 1]]
+                emits = to_light[j][mark] @ lights.axis[run[j]] < 0.0  # the row's LAMBERT falloff is not zero there
+                reached += np.bincount(mark[emits & ~hit], minlength=len(out))
+                missed += np.bincount(mark[emits & hit], minlength=len(out))
+
+
+@exact_njit
+def _light_rays(points, normals, facing, terminator, positions, eps, unit):
+    """The shadow rays of the lights at `positions` (L, 3): per light j, `_toward_light`'s to_light (L, N, 3),
+    dist, cos (L, N), the points it lights, seen[starts[j]:starts[j + 1]], and their shadow rays in that
+    order (`Accelerator.shadow_rays`: o, d, t and their float32 copies for Embree), in one GIL-free pass."""
+    k, n, m = positions.shape[0], points.shape[0], 0
+    to_light, dist, cos, lit = np.empty((k, n, 3)), np.empty((k, n)), np.empty((k, n)), np.empty(n, np.bool_)
+    seen, starts = np.empty(k * n, np.int64), np.zeros(k + 1, np.int64)
+    o, d, t = np.empty((k * n, 3)), np.empty((k * n, 3)), np.empty(k * n)
+    o32, d32, t32 = np.empty((k * n, 3), np.float32), np.empty((k * n, 3), np.float32), np.empty(k * n, np.float32)
+    for j in range(k):
+        _toward_light(points, normals, facing, terminator, positions[j], to_light[j], dist[j], cos[j], lit)
+        for i in range(n):
+            if lit[i]:
+                seen[m] = i
+                m += 1
+        starts[j + 1] = m
+        a = starts[j]
+        shadow_rays_into(points, normals, seen[a:m], positions[j], eps, unit, o[a:m], d[a:m], t[a:m], o32[a:m],
+                         d32[a:m], t32[a:m])
+    return to_light, dist, cos, seen[:m], starts, o[:m], d[:m], t[:m], (o32[:m], d32[:m], t32[:m])
 
 
 @exact_njit
@@ -283,20 +301,28 @@ def _let_through(occ, idx, points, li, through):
     return occ, part[~occ]
 
 
-def _reached(seen, blocked, points, to_light, dist, cos):
+@exact_njit
+def _reached_rays(seen, starts, blocked, points, to_light, dist, cos):
     """(idx, points, unit directions to the light, the light's vector to the points, distances,
-    cosines) of the points `seen` whose shadow rays are not `blocked`: points[idx], to_light[idx] /
-    dist[idx], -to_light[idx], dist[idx], cos[idx] in one GIL-free pass."""
-    n = len(seen)
+    cosines, ends (L + 1,)) of the points seen[starts[j]:starts[j + 1]] whose shadow rays toward light j
+    (`_light_rays`) are not `blocked`, light after light (light j's at [ends[j], ends[j + 1])): per
+    light, points[idx], to_light[j, idx] / dist[j, idx], -to_light[j, idx], dist[j, idx], cos[j, idx]
+    in one GIL-free pass."""
+    n, m = seen.shape[0], 0
     idx, at, wi, back, dl, cl = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
                                  np.empty(n), np.empty(n))
-    m = _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl)
-    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m]
+    ends = np.zeros(len(starts), np.int64)
+    for j in range(len(starts) - 1):
+        a, b = starts[j], starts[j + 1]
+        m += _gather_reached(seen[a:b], blocked[a:b], points, to_light[j], dist[j], cos[j], idx[m:], at[m:], wi[m:],
+                             back[m:], dl[m:], cl[m:])
+        ends[j + 1] = m
+    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m], ends
 
 
 @exact_njit
 def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl):
-    """`_reached` into its arrays; returns how many reached."""
+    """`_reached_rays` of one light into its arrays; returns how many reached."""
     m = 0
     for i in range(seen.shape[0]):
         if blocked[i]:

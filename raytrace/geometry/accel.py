@@ -207,7 +207,7 @@ class Accelerator:
         n = len(idx)
         o, d, t = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
         as32 = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32))
-        _shadow_rays(points, normals, idx, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
+        shadow_rays_into(points, normals, idx, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
         return o, d, t, as32
 
 
@@ -229,10 +229,11 @@ def _refine(triangles, normals, origins, dirs, prim, t):
 
 
 @exact_njit
-def _shadow_rays(points, normals, idx, light, eps, unit, o, d, t, o32, d32, t32):
+def shadow_rays_into(points, normals, idx, light, eps, unit, o, d, t, o32, d32, t32):
     """`Accelerator.shadow_rays` of the points idx into o, d, t and their float32 copies in units of
-    `unit`, each number rounded as the NumPy expressions it replaced round them: side = sign(n . (light
-    - p)) (summed as einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|,
+    `unit` (also called by kernels that make the shadow rays of several lights: shading.py), each
+    number rounded as the NumPy expressions it replaced round them: side = sign(n . (light - p))
+    (summed as einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|,
     t = |light - o| - eps."""
     for i in range(idx.shape[0]):
         k = idx[i]
