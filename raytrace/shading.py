@@ -250,19 +250,30 @@ def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectanc
                 missed += np.bincount(mark[emits & hit], minlength=len(out))
 
 
-@exact_njit
 def _light_rays(points, normals, facing, terminator, positions, eps, unit):
     """The shadow rays of the lights at `positions` (L, 3): per light j, `_toward_light`'s to_light (L, N, 3),
     dist, cos (L, N), the points it lights, seen[starts[j]:starts[j + 1]], and their shadow rays in that
-    order (`Accelerator.shadow_rays`: o, d, t and their float32 copies for Embree), in one GIL-free pass."""
-    k, n, m = positions.shape[0], points.shape[0], 0
+    order (`Accelerator.shadow_rays`: o, d, t and their float32 copies for Embree), in one GIL-free pass
+    (`_light_rays_into`; the arrays made here: a kernel's own allocations compile numba's overloads of
+    np.empty once more)."""
+    k, n = len(positions), len(points)
     to_light, dist, cos, lit = np.empty((k, n, 3)), np.empty((k, n)), np.empty((k, n)), np.empty(n, np.bool_)
-    seen, starts = np.empty(k * n, np.int64), np.zeros(k + 1, np.int64)
+    seen, starts = np.empty(k * n, np.int64), np.empty(k + 1, np.int64)
     o, d, t = np.empty((k * n, 3)), np.empty((k * n, 3)), np.empty(k * n)
     o32, d32, t32 = np.empty((k * n, 3), np.float32), np.empty((k * n, 3), np.float32), np.empty(k * n, np.float32)
-    for j in range(k):
+    m = _light_rays_into(points, normals, facing, terminator, positions, eps, unit, to_light, dist, cos, lit, seen,
+                         starts, o, d, t, o32, d32, t32)
+    return to_light, dist, cos, seen[:m], starts, o[:m], d[:m], t[:m], (o32[:m], d32[:m], t32[:m])
+
+
+@exact_njit
+def _light_rays_into(points, normals, facing, terminator, positions, eps, unit, to_light, dist, cos, lit, seen,
+                     starts, o, d, t, o32, d32, t32):
+    """`_light_rays` into its arrays (`lit` (N,) scratch); returns how many rays."""
+    m = starts[0] = 0
+    for j in range(positions.shape[0]):
         _toward_light(points, normals, facing, terminator, positions[j], to_light[j], dist[j], cos[j], lit)
-        for i in range(n):
+        for i in range(points.shape[0]):
             if lit[i]:
                 seen[m] = i
                 m += 1
@@ -270,7 +281,7 @@ def _light_rays(points, normals, facing, terminator, positions, eps, unit):
         a = starts[j]
         shadow_rays_into(points, normals, seen[a:m], positions[j], eps, unit, o[a:m], d[a:m], t[a:m], o32[a:m],
                          d32[a:m], t32[a:m])
-    return to_light, dist, cos, seen[:m], starts, o[:m], d[:m], t[:m], (o32[:m], d32[:m], t32[:m])
+    return m
 
 
 @exact_njit
@@ -301,23 +312,30 @@ def _let_through(occ, idx, points, li, through):
     return occ, part[~occ]
 
 
-@exact_njit
 def _reached_rays(seen, starts, blocked, points, to_light, dist, cos):
     """(idx, points, unit directions to the light, the light's vector to the points, distances,
     cosines, ends (L + 1,)) of the points seen[starts[j]:starts[j + 1]] whose shadow rays toward light j
     (`_light_rays`) are not `blocked`, light after light (light j's at [ends[j], ends[j + 1])): per
     light, points[idx], to_light[j, idx] / dist[j, idx], -to_light[j, idx], dist[j, idx], cos[j, idx]
-    in one GIL-free pass."""
-    n, m = seen.shape[0], 0
+    in one GIL-free pass (`_reached_into`)."""
+    n = len(seen)
     idx, at, wi, back, dl, cl = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
                                  np.empty(n), np.empty(n))
-    ends = np.zeros(len(starts), np.int64)
-    for j in range(len(starts) - 1):
+    ends = np.empty(len(starts), np.int64)
+    m = _reached_into(seen, starts, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl, ends)
+    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m], ends
+
+
+@exact_njit
+def _reached_into(seen, starts, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl, ends):
+    """`_reached_rays` into its arrays; returns how many reached."""
+    m = ends[0] = 0
+    for j in range(starts.shape[0] - 1):
         a, b = starts[j], starts[j + 1]
         m += _gather_reached(seen[a:b], blocked[a:b], points, to_light[j], dist[j], cos[j], idx[m:], at[m:], wi[m:],
                              back[m:], dl[m:], cl[m:])
         ends[j + 1] = m
-    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m], ends
+    return m
 
 
 @exact_njit
