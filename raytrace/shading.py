@@ -278,9 +278,7 @@ def _light_rays_into(points, normals, facing, terminator, positions, eps, unit, 
                 seen[m] = i
                 m += 1
         starts[j + 1] = m
-        a = starts[j]
-        shadow_rays_into(points, normals, seen[a:m], positions[j], eps, unit, o[a:m], d[a:m], t[a:m], o32[a:m],
-                         d32[a:m], t32[a:m])
+        shadow_rays_into(points, normals, seen, starts[j], m, positions[j], eps, unit, o, d, t, o32, d32, t32)
     return m
 
 
@@ -331,27 +329,17 @@ def _reached_into(seen, starts, blocked, points, to_light, dist, cos, idx, at, w
     """`_reached_rays` into its arrays; returns how many reached."""
     m = ends[0] = 0
     for j in range(starts.shape[0] - 1):
-        a, b = starts[j], starts[j + 1]
-        m += _gather_reached(seen[a:b], blocked[a:b], points, to_light[j], dist[j], cos[j], idx[m:], at[m:], wi[m:],
-                             back[m:], dl[m:], cl[m:])
+        for r in range(starts[j], starts[j + 1]):
+            if blocked[r]:
+                continue
+            k = seen[r]
+            idx[m], dl[m], cl[m] = k, dist[j, k], cos[j, k]
+            for a in range(3):
+                at[m, a] = points[k, a]
+                wi[m, a] = to_light[j, k, a] / dist[j, k]
+                back[m, a] = -to_light[j, k, a]
+            m += 1
         ends[j + 1] = m
-    return m
-
-
-@exact_njit
-def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl):
-    """`_reached_rays` of one light into its arrays; returns how many reached."""
-    m = 0
-    for i in range(seen.shape[0]):
-        if blocked[i]:
-            continue
-        k = seen[i]
-        idx[m], dl[m], cl[m] = k, dist[k], cos[k]
-        for a in range(3):
-            at[m, a] = points[k, a]
-            wi[m, a] = to_light[k, a] / dist[k]
-            back[m, a] = -to_light[k, a]
-        m += 1
     return m
 
 

@@ -207,7 +207,8 @@ class Accelerator:
         n = len(idx)
         o, d, t = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
         as32 = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32))
-        shadow_rays_into(points, normals, idx, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
+        shadow_rays_into(points, normals, idx, 0, n, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t,
+                         *as32)
         return o, d, t, as32
 
 
@@ -229,13 +230,13 @@ def _refine(triangles, normals, origins, dirs, prim, t):
 
 
 @exact_njit
-def shadow_rays_into(points, normals, idx, light, eps, unit, o, d, t, o32, d32, t32):
-    """`Accelerator.shadow_rays` of the points idx into o, d, t and their float32 copies in units of
-    `unit` (also called by kernels that make the shadow rays of several lights: shading.py), each
+def shadow_rays_into(points, normals, idx, first, end, light, eps, unit, o, d, t, o32, d32, t32):
+    """`Accelerator.shadow_rays` of the points idx[first:end] into rows first:end of o, d, t and their
+    float32 copies in units of `unit` (rows of several lights' rays: shading.py), each
     number rounded as the NumPy expressions it replaced round them: side = sign(n . (light - p))
     (summed as einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|,
     t = |light - o| - eps."""
-    for i in range(idx.shape[0]):
+    for i in range(first, end):
         k = idx[i]
         dot = (normals[k, 0] * (light[0] - points[k, 0]) + normals[k, 2] * (light[2] - points[k, 2])) \
             + normals[k, 1] * (light[1] - points[k, 1])
