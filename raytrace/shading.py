@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from .geometry.accel import shadow_rays_into
+from .geometry.shadow_rays import shadow_rays_into
 from .jit import exact_jitable, exact_njit, njit
 from .lights import sphere_occluders
 from .lights.area import collapsed_variance
