@@ -221,8 +221,8 @@ def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectanc
     if through is not None and occ.any():
         blocked = occ.copy()
         for j in shines:
-            at = slice(starts[j], starts[j + 1])
-            blocked[at], part = _let_through(occ[at], seen[at], points, run[j], through)
+            span = slice(starts[j], starts[j + 1])
+            blocked[span], part = _let_through(occ[span], seen[span], points, run[j], through)
             if part is not None:
                 parts[j] = part
     idx, at, wi, back, dl, cl, ends = _reached_rays(seen, starts, blocked, points, to_light, dist, cos)
