@@ -2,6 +2,7 @@
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/gil_profile.py [--row unshadowed|shadowed|fog]
                                                                       [--passes N] [--tree DIR] [--top K]
+                                                                      [--lines FUNC,...]
 
 A child process renders every tile of one of `scaling.py --quick`'s rows once (untimed: kernels the
 warm-up leaves out load then), then N passes over all of them on one thread, each pass followed by
@@ -17,7 +18,8 @@ neither the rate nor the wall time: a thread descheduled by other processes is s
 by both samplers, so the load cancels (as far as it falls evenly on Python and on the kernels). The
 GIL-holding CPU time is that share times the tiles' thread CPU time. Then, per function of the
 tiles' stacks, its share of the GIL-holding samples (inclusive), and the lines of render_tile and
-shade_rays by what they call. Attaching to a process needs ptrace permission (root, or
+shade_rays (or of the functions `--lines` names, the innermost of them in each stack) by what they
+call. Attaching to a process needs ptrace permission (root, or
 kernel.yama.ptrace_scope = 0); py-spy: `pip install py-spy`.
 """
 import argparse
@@ -86,6 +88,8 @@ def main():
     ap.add_argument("--passes", type=int, default=15)
     ap.add_argument("--tree", type=Path, default=ROOT, help="the checkout whose raytrace is profiled")
     ap.add_argument("--top", type=int, default=25)
+    ap.add_argument("--lines", default="render_tile,shade_rays",
+                    help="the functions whose lines are listed by what they call (comma-separated)")
     ap.add_argument("--child", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -120,7 +124,7 @@ def main():
             total += n
             for key in {re.sub(r":\d+\)$", ")", f) for f in frames[names.index("tiles_pass") + 1:]}:
                 inclusive[key] += n
-            mine = [i for i, f in enumerate(names) if f in ("render_tile", "shade_rays")]
+            mine = [i for i, f in enumerate(names) if f in args.lines.split(",")]
             if mine:
                 i = mine[-1]
                 lines[frames[i] + (" -> " + frames[i + 1].split(" (")[0] if i + 1 < len(frames) else "")] += n
@@ -133,7 +137,7 @@ def main():
     print(f"functions (share of the tiles' {total} GIL-holding samples, inclusive):")
     for key, n in inclusive.most_common(args.top):
         print(f"  {n / total:6.1%}  {key}")
-    print("render_tile and shade_rays by line:")
+    print(f"{' and '.join(args.lines.split(','))} by line:")
     for key, n in lines.most_common(args.top):
         print(f"  {n / total:6.1%}  {key}")
 

@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from .geometry.shadow_rays import shadow_rays_into
 from .jit import exact_jitable, exact_njit, njit
 from .lights import sphere_occluders
 from .lights.area import collapsed_variance
@@ -210,49 +211,75 @@ def _add_lights(out, rows, accel, points, normals, facing, terminator, reflectan
 def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,
                sampled):
     """`_add_lights` of one batch of lights."""
-    n = len(points)
-    to_light, dist, cos = np.empty((len(run), n, 3)), np.empty((len(run), n)), np.empty((len(run), n))
-    lit = np.empty((len(run), n), dtype=np.bool_)
-    shines = []  # (the light, its row of the arrays above, the points it lights)
-    for j, li in enumerate(run):
-        _toward_light(points, normals, facing, terminator, lights.position[li], to_light[j], dist[j], cos[j], lit[j])
-        seen = np.flatnonzero(lit[j])
-        if len(seen):
-            shines.append((li, j, seen))
+    to_light, dist, cos, seen, starts, o, d, t, as32 = _light_rays(points, normals, facing, terminator,
+                                                                   lights.position[run], accel.epsilon, accel.unit)
+    shines = [j for j in range(len(run)) if starts[j + 1] > starts[j]]  # the lights that light some points
     if not shines:
         return
-    rays = [accel.shadow_rays(points, normals, lights.position[li], seen) for li, _, seen in shines]
-    occ = accel.occluded(*(np.concatenate([r[k] for r in rays]) for k in range(3)),
-                         as32=tuple(np.concatenate([r[3][k] for r in rays]) for k in range(3)))
-    ends = np.cumsum([len(seen) for _, _, seen in shines])
-    parts = []  # per light: (li, blocked, part, and `_reached`'s six)
-    for (li, j, seen), end in zip(shines, ends):
-        blocked, part = _let_through(occ[end - len(seen):end], seen, points, li, through)
-        idx, at, wi, back, dl, cl = _reached(seen, blocked, points, to_light[j], dist[j], cos[j])
-        parts.append((li, blocked, part, idx, at, wi, back, dl, cl))
-    tr_all = medium.transmittance_on(*(np.concatenate([q[k] for q in parts]) for k in (4, 5)), 0.0,
-                                     np.concatenate([q[7] for q in parts]))
-    ends = np.cumsum([len(q[3]) for q in parts])
-    irradiance, tr = [], []
-    for (_, _, part, idx, _, _, back, dl, _), (li, _, _), end in zip(parts, shines, ends):
-        irradiance.append(lights.irradiance(li, back, dl))
-        tr.append(tr_all[end - len(idx):end] if part is None else tr_all[end - len(idx):end] * part)
-    idx, cl = (np.concatenate([q[k] for q in parts]) for k in (3, 8))
-    irradiance, tr = np.concatenate(irradiance), np.concatenate(tr)
+    occ = accel.occluded(o, d, t, as32=as32)
+    blocked, parts = occ, {}  # parts: per light, the transmittance of the shapes its let-through rays pass
+    if through is not None and occ.any():
+        blocked = occ.copy()
+        for j in shines:
+            span = slice(starts[j], starts[j + 1])
+            blocked[span], part = _let_through(occ[span], seen[span], points, run[j], through)
+            if part is not None:
+                parts[j] = part
+    idx, at, wi, back, dl, cl, ends = _reached_rays(seen, starts, blocked, points, to_light, dist, cos)
+    tr = medium.transmittance_on(at, wi, 0.0, dl)
+    irradiance = np.empty((len(idx), 3))
+    for j in shines:
+        got = slice(ends[j], ends[j + 1])
+        irradiance[got] = lights.irradiance(run[j], back[got], dl[got])
+        if j in parts:
+            tr[got] = tr[got] * parts[j]
     _add_reflected(out, idx, reflectance, irradiance, tr, cl)  # light after light at each point
-    owners = lights.owner[[li for li, _, _ in shines]] if sampled else np.full(len(shines), -1)
-    for owner in dict.fromkeys(owners.tolist()):  # in the order the lights first name them
+    owners = lights.owner[run]
+    for owner in dict.fromkeys(owners[shines].tolist()) if sampled else ():  # in the order the lights name them
         if owner < 0 or lights.emitters[owner] is None:
             continue
         value, reached, missed = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
                                                          np.zeros(len(out), np.int64)))
-        mine = np.repeat(owners == owner, [len(q[3]) for q in parts])
+        mine = np.repeat(owners == owner, np.diff(ends))
         _add_reflected(value, idx[mine], reflectance, irradiance[mine], tr[mine], cl[mine])
-        for (li, j, seen), (_, blocked, *_) in zip(shines, parts):
-            if lights.owner[li] == owner:
-                emits = to_light[j][seen] @ lights.axis[li] < 0.0  # the row's LAMBERT falloff is not zero there
-                reached += np.bincount(seen[emits & ~blocked], minlength=len(out))
-                missed += np.bincount(seen[emits & blocked], minlength=len(out))
+        for j in shines:
+            if owners[j] == owner:
+                mark, hit = seen[starts[j]:starts[j + 1]], blocked[starts[j]:starts[j + 1]]
+                emits = to_light[j][mark] @ lights.axis[run[j]] < 0.0  # the row's LAMBERT falloff is not zero there
+                reached += np.bincount(mark[emits & ~hit], minlength=len(out))
+                missed += np.bincount(mark[emits & hit], minlength=len(out))
+
+
+def _light_rays(points, normals, facing, terminator, positions, eps, unit):
+    """The shadow rays of the lights at `positions` (L, 3): per light j, `_toward_light`'s to_light (L, N, 3),
+    dist, cos (L, N), the points it lights, seen[starts[j]:starts[j + 1]], and their shadow rays in that
+    order (`Accelerator.shadow_rays`: o, d, t and their float32 copies for Embree), in one GIL-free pass
+    (`_light_rays_into`; the arrays made here: a kernel's own allocations compile numba's overloads of
+    np.empty once more)."""
+    k, n = len(positions), len(points)
+    to_light, dist, cos, lit = np.empty((k, n, 3)), np.empty((k, n)), np.empty((k, n)), np.empty(n, np.bool_)
+    seen, starts = np.empty(k * n, np.int64), np.empty(k + 1, np.int64)
+    o, d, t = np.empty((k * n, 3)), np.empty((k * n, 3)), np.empty(k * n)
+    o32, d32, t32 = np.empty((k * n, 3), np.float32), np.empty((k * n, 3), np.float32), np.empty(k * n, np.float32)
+    m = _light_rays_into(points, normals, facing, terminator, positions, eps, unit, to_light, dist, cos, lit, seen,
+                         starts, o, d, t, o32, d32, t32)
+    return to_light, dist, cos, seen[:m], starts, o[:m], d[:m], t[:m], (o32[:m], d32[:m], t32[:m])
+
+
+@exact_njit
+def _light_rays_into(points, normals, facing, terminator, positions, eps, unit, to_light, dist, cos, lit, seen,
+                     starts, o, d, t, o32, d32, t32):
+    """`_light_rays` into its arrays (`lit` (N,) scratch); returns how many rays."""
+    m = starts[0] = 0
+    for j in range(positions.shape[0]):
+        _toward_light(points, normals, facing, terminator, positions[j], to_light[j], dist[j], cos[j], lit)
+        for i in range(points.shape[0]):
+            if lit[i]:
+                seen[m] = i
+                m += 1
+        starts[j + 1] = m
+        shadow_rays_into(points, normals, seen, starts[j], m, positions[j], eps, unit, o, d, t, o32, d32, t32)
+    return m
 
 
 @exact_njit
@@ -283,31 +310,36 @@ def _let_through(occ, idx, points, li, through):
     return occ, part[~occ]
 
 
-def _reached(seen, blocked, points, to_light, dist, cos):
+def _reached_rays(seen, starts, blocked, points, to_light, dist, cos):
     """(idx, points, unit directions to the light, the light's vector to the points, distances,
-    cosines) of the points `seen` whose shadow rays are not `blocked`: points[idx], to_light[idx] /
-    dist[idx], -to_light[idx], dist[idx], cos[idx] in one GIL-free pass."""
+    cosines, ends (L + 1,)) of the points seen[starts[j]:starts[j + 1]] whose shadow rays toward light j
+    (`_light_rays`) are not `blocked`, light after light (light j's at [ends[j], ends[j + 1])): per
+    light, points[idx], to_light[j, idx] / dist[j, idx], -to_light[j, idx], dist[j, idx], cos[j, idx]
+    in one GIL-free pass (`_reached_into`)."""
     n = len(seen)
     idx, at, wi, back, dl, cl = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
                                  np.empty(n), np.empty(n))
-    m = _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl)
-    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m]
+    ends = np.empty(len(starts), np.int64)
+    m = _reached_into(seen, starts, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl, ends)
+    return idx[:m], at[:m], wi[:m], back[:m], dl[:m], cl[:m], ends
 
 
 @exact_njit
-def _gather_reached(seen, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl):
-    """`_reached` into its arrays; returns how many reached."""
-    m = 0
-    for i in range(seen.shape[0]):
-        if blocked[i]:
-            continue
-        k = seen[i]
-        idx[m], dl[m], cl[m] = k, dist[k], cos[k]
-        for a in range(3):
-            at[m, a] = points[k, a]
-            wi[m, a] = to_light[k, a] / dist[k]
-            back[m, a] = -to_light[k, a]
-        m += 1
+def _reached_into(seen, starts, blocked, points, to_light, dist, cos, idx, at, wi, back, dl, cl, ends):
+    """`_reached_rays` into its arrays; returns how many reached."""
+    m = ends[0] = 0
+    for j in range(starts.shape[0] - 1):
+        for r in range(starts[j], starts[j + 1]):
+            if blocked[r]:
+                continue
+            k = seen[r]
+            idx[m], dl[m], cl[m] = k, dist[j, k], cos[j, k]
+            for a in range(3):
+                at[m, a] = points[k, a]
+                wi[m, a] = to_light[j, k, a] / dist[j, k]
+                back[m, a] = -to_light[j, k, a]
+            m += 1
+        ends[j + 1] = m
     return m
 
 

@@ -102,22 +102,61 @@ def test_reflected_radiance_is_numpys():
 
 
 def test_reached_points_are_numpys():
-    """shading._reached against the fancy indexing it replaced (the lit points whose shadow rays are
-    not blocked), with points on the light (distance 0: inf and nan directions, as NumPy divides)."""
-    n = 5000
-    points, to_light, cos = RNG.normal(size=(n, 3)), RNG.normal(size=(n, 3)), RNG.normal(size=n)
-    to_light[:7] = 0.0
-    dist = np.linalg.norm(to_light, axis=1)
-    seen = np.flatnonzero(RNG.uniform(size=n) < 0.7)
-    seen[:3] = [0, 1, 2]
+    """shading._reached_rays against the fancy indexing it replaced (per light, the lit points whose
+    shadow rays are not blocked, light after light), with points on the light (distance 0: inf and nan
+    directions, as NumPy divides) and a light that lights nothing."""
+    n, lights = 5000, 3
+    points, to_light, cos = RNG.normal(size=(n, 3)), RNG.normal(size=(lights, n, 3)), RNG.normal(size=(lights, n))
+    to_light[:, :7] = 0.0
+    dist = np.linalg.norm(to_light, axis=2)
+    seens = [np.flatnonzero(RNG.uniform(size=n) < 0.7), np.zeros(0, np.int64), np.flatnonzero(RNG.uniform(size=n) < 0.5)]
+    seens[0][:3] = [0, 1, 2]
+    seen, starts = np.concatenate(seens), np.cumsum([0] + [len(s) for s in seens])
     for blocked in (RNG.uniform(size=len(seen)) < 0.4, np.zeros(len(seen), bool), np.ones(len(seen), bool)):
-        idx = seen[~blocked]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ref = (idx, points[idx], to_light[idx] / dist[idx][:, None], -to_light[idx], dist[idx], cos[idx])
-        got = shading._reached(seen, blocked, points, to_light, dist, cos)
+        refs = []
+        for j, s in enumerate(seens):
+            idx = s[~blocked[starts[j]:starts[j + 1]]]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                refs.append((idx, points[idx], to_light[j, idx] / dist[j, idx][:, None], -to_light[j, idx],
+                             dist[j, idx], cos[j, idx]))
+        ref = [np.concatenate([r[k] for r in refs]) for k in range(6)]
+        *got, ends = shading._reached_rays(seen, starts, blocked, points, to_light, dist, cos)
         for a, b in zip(got, ref):
             assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
-        assert np.all(got[3][idx < 7] == 0.0) and np.signbit(got[3][idx < 7]).all()  # -0.0 as NumPy negates
+        assert np.array_equal(ends, np.cumsum([0] + [len(r[0]) for r in refs]))
+        near = np.concatenate([r[0] for r in refs]) < 7
+        assert np.all(got[3][near] == 0.0) and np.signbit(got[3][near]).all()  # -0.0 as NumPy negates
+
+
+def test_light_rays_are_numpys():
+    """shading._light_rays (the shadow rays of several lights in one pass) against what it replaced: per
+    light `_toward_light`, its lit points and `Accelerator.shadow_rays` of them, concatenated; with a
+    light that lights nothing and points on a light."""
+    accel, _ = mesh()
+    n = 4000
+    points, normals, shade = RNG.normal(size=(n, 3)), RNG.normal(size=(n, 3)), RNG.normal(size=(n, 3))
+    positions = RNG.normal(size=(3, 3)) * 2.0
+    points[:5] = positions[0]  # on light 0: unlit by it
+    away = np.where((dot(normals, positions[1][None, :] - points) > 0.0)[:, None], -normals, normals)
+    for terminator in (False, True):  # every point's geometric normal faces away from light 1: it lights none
+        facing = shade if terminator else away
+        got = shading._light_rays(points, away, facing, terminator, positions, accel.epsilon, accel.unit)
+        to_light, dist, cos, seen, starts, o, d, t, (o32, d32, t32) = got
+        ref = {k: [] for k in ("seen", "o", "d", "t", "o32", "d32", "t32")}
+        for j, lp in enumerate(positions):
+            rt, rd, rc, lit = np.empty((n, 3)), np.empty(n), np.empty(n), np.empty(n, dtype=bool)
+            shading._toward_light(points, away, facing, terminator, lp, rt, rd, rc, lit)
+            for a, b in ((to_light[j], rt), (dist[j], rd), (cos[j], rc)):
+                assert np.array_equal(a, b)
+            s = np.flatnonzero(lit)
+            assert starts[j + 1] - starts[j] == len(s)
+            ro, rdir, rtm, (r32o, r32d, r32t) = accel.shadow_rays(points, away, lp, s)
+            for k, v in zip(ref, (s, ro, rdir, rtm, r32o, r32d, r32t)):
+                ref[k].append(v)
+        assert starts[0] == 0 and starts[2] == starts[1] and starts[3] == len(seen)
+        for a, k in zip((seen, o, d, t, o32, d32, t32), ref):
+            b = np.concatenate(ref[k])
+            assert a.dtype == b.dtype and np.array_equal(a, b)
 
 
 @pytest.mark.parametrize("size", [1.0, 1e30])  # 1e30: Embree's coordinates in units of `unit`

@@ -20,7 +20,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..jit import exact_njit, njit
+from ..jit import njit
+from .shadow_rays import shadow_rays_into
 from .sphere import nearest_sphere_hits, sphere_blocks
 
 CHUNK = 1 << 15
@@ -207,7 +208,8 @@ class Accelerator:
         n = len(idx)
         o, d, t = np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
         as32 = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32))
-        _shadow_rays(points, normals, idx, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t, *as32)
+        shadow_rays_into(points, normals, idx, 0, n, np.asarray(light, np.float64), self.epsilon, self.unit, o, d, t,
+                         *as32)
         return o, d, t, as32
 
 
@@ -226,28 +228,3 @@ def _refine(triangles, normals, origins, dirs, prim, t):
             num += normals[k, a] * (triangles[k, 0, a] - origins[i, a])
             den += normals[k, a] * dirs[i, a]
         t[i] = num / den if den != 0.0 and num / den > 0.0 else np.nan
-
-
-@exact_njit
-def _shadow_rays(points, normals, idx, light, eps, unit, o, d, t, o32, d32, t32):
-    """`Accelerator.shadow_rays` of the points idx into o, d, t and their float32 copies in units of
-    `unit`, each number rounded as the NumPy expressions it replaced round them: side = sign(n . (light
-    - p)) (summed as einsum sums three terms), o = p + side eps n, d = (light - o) / |light - o|,
-    t = |light - o| - eps."""
-    for i in range(idx.shape[0]):
-        k = idx[i]
-        dot = (normals[k, 0] * (light[0] - points[k, 0]) + normals[k, 2] * (light[2] - points[k, 2])) \
-            + normals[k, 1] * (light[1] - points[k, 1])
-        side = (1.0 if dot > 0.0 else -1.0 if dot < 0.0 else 0.0 if dot == 0.0 else dot) * eps  # np.sign
-        for a in range(3):
-            o[i, a] = points[k, a] + side * normals[k, a]
-            d[i, a] = light[a] - o[i, a]
-        length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
-        over = length if length > 0 else 1.0
-        for a in range(3):
-            d[i, a] = d[i, a] / over
-            o32[i, a] = np.float32(o[i, a] if unit == 1.0 else o[i, a] / unit)
-            d32[i, a] = np.float32(d[i, a])
-        t[i] = length - eps
-        clamped = t[i] if t[i] >= 0.0 or math.isnan(t[i]) else 0.0  # np.maximum(t, 0)
-        t32[i] = np.float32(clamped if unit == 1.0 else clamped / unit)
