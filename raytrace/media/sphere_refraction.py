@@ -57,14 +57,13 @@ with a square-root kink where a path leaves through the lit arc's end (the segme
 of the marginal rays, refracted at grazing incidence, about the axis with its apex where they meet
 it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
 the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
-crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
-distance from the axis at the caustic point's height z_C), found like the paths. A spot's falloff has
+crossings by a proven scan in theta (below, "The caustic's crossings, proven"). A spot's falloff has
 kinks, its band edges, which fool the rule's error estimate inside a piece (`spot_edges`): aimed at
 the centre (its axis along the light's axis) they lie at fixed angles +-theta_e, the pieces in x cut
 where those rays reach the segment and the fold pair's window in theta at +-theta_e; aimed elsewhere
 the edge's refraction point moves with the plane of the point, in closed form there (`edge_gap`),
-the pieces cut at the roots of h at that point along the segment (found like the caustic crossings,
-by `roots`: not proven) and the window at their angles (located to the resolution of doubles, a
+the pieces cut at the roots of h at that point along the segment (found by `roots`, a scan of SCAN
+nodes and golden section at its dips: not proven) and the window at their angles (located to the resolution of doubles, a
 kink of a continuous falloff misplaced by dx changes the integral by its jump in slope x dx^2, far
 below the rounding; a hard edge's jump x dx is not in the bound). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
@@ -112,20 +111,42 @@ rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, count
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
 crossings in a row), an evaluation whose scan was unproven, a piece whose path count (or the count
 on each side of a spot's band edges) changed between its evaluations (the guard against a crossing
-the breaks missed: the caustic's crossings are found by
-`roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
-h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
-derivative of phi, which `angular_bounds` does not bound), eta <= 1. The derivatives it would take,
-in closed form (s, c the sine and cosine of theta_i; checked against mpmath's differentiation of phi):
-g'' = s (1 - eta^2) / (eta^3 cos_t^3), g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5),
-alpha'' = R d sin(theta) (d^2 - R^2) / o^4, alpha''' = R d (d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2
-/ o^2) / o^4, phi''' = g''' theta_i'^3 + 3 g'' theta_i' alpha'' + g' alpha''' (theta_i' = alpha' - 1),
-bounded over a cell as `angular_bounds` bounds phi'' by G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3 (G1 =
-1 / (eta cos_t), G2 = |eta^2 - 1| / (eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the
-least cos_t; a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2) at the least o and the largest sin);
-tests/test_sphere_paths.py checks these. The caustic point is C = P + t R cos_t / phi' (inside the
-sphere iff phi' >= 1/2: the chord is 2 R cos_t) and C' = lambda t with lambda = -R sin(theta_t)
-(2 phi' - 1) / phi' - R cos_t phi'' / phi'^2, so C'' = lambda' t + lambda phi' n holds phi'''.
+the breaks missed: an off-centre spot's band edges are found by `roots`, not proven), a caustic scan
+unproven, eta <= 1.
+
+The caustic's crossings, proven (`caustic_crossings`). The caustic point is C = P + t R cos_t / phi'
+(1 / kappa_t = R cos_t / phi'; inside the sphere iff phi' >= 1/2, the chord being 2 R cos_t; none ahead
+of P where phi' <= 0, as everywhere for eta <= 1: g' >= 1 / eta >= 1 there and theta_i' = alpha' - 1 <=
+-1 on the lit arc). Its derivative is C' = lambda t, lambda = -R sin(theta_t) (2 phi' - 1) / phi'
+- R cos_t phi'' / phi'^2 (theta_t' = phi' - 1), with phi'' = g'' theta_i'^2 + g' alpha'' in closed form
+(s, c the sine and cosine of theta_i: g'' = s (1 - eta^2) / (eta^3 cos_t^3), alpha'' = R d sin(theta)
+(d^2 - R^2) / o^4), and C'' = lambda' t + lambda phi' n holds phi''' = g''' theta_i'^3 + 3 g'' theta_i'
+alpha'' + g' alpha''' (g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5), alpha''' = R d
+(d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2 / o^2) / o^4). The segment f + x v across the axis, fz +
+x wz along it, meets C turned about the axis where H(theta) = |A|^2 - wz^2 y_C^2 = 0, A = F + z_C v,
+F = wz f - fz v (wz^2 (|f + x v|^2 - y_C^2) at x = (z_C - fz) / wz; H is even in theta: [0, theta_a]
+is scanned), with H' = 2 z_C' v.A - 2 wz^2 y_C y_C' and H'' = 2 z_C'' v.A + 2 z_C'^2 |v|^2 - 2 wz^2
+(y_C'^2 + y_C y_C''). Over a cell [a, b] (`third_bound`: |phi''| <= q2 = G2 (1 + a1)^2 + G1 a2 and
+|phi'''| <= p3 = G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3, G1 = 1 / (eta cos_t), G2 = |eta^2 - 1| /
+(eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the least cos_t, a1, a2 as in
+`angular_bounds`, a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2) at the least o and the largest
+sin; tests/test_sphere_paths.py checks these against mpmath's derivatives) phi' lies within
+(phi'(a) + phi'(b) -+ q2 w) / 2: the cell is dropped where that is below 1/2 throughout, else with m > 0
+the least, d1 = p1 - 1 >= |phi' - 1|: |C'| <= c1 = R (1 + d1 / m + q2 / m^2), |lambda'| <= R (d1 +
+d1^2 / m + (q2 (1 + d1) + p3) / m^2 + 2 q2^2 / m^3), |C''| <= c2 = that + c1 p1; c1 at most the larger
+|C'| at the ends + c2 w / 2 too, |A| and |y_C| at most their larger end values + c1 |v| w / 2 and
+c1 w / 2, and K = 2 c2 (|v| |A| + wz^2 |y_C|) + 2 c1^2 (|v|^2 + wz^2) bounds |H''|. The cell is then
+decided as `paths` decides h's: no root where H keeps its sign and the least |H| at the ends exceeds
+K w^2 / 8, or where it is monotone: the secant's slope above K w, or H' of one sign at both ends with
+|H'(a)| + |H'(b)| above K w (H' exceeds (|H'(a)| + |H'(b)| - K w) / 2 in size over the cell: this
+decides the cells about a nearly double root, where H is too small for the secant); one where H
+changes sign and is monotone, bisected; each test less the values' rounding (C off by 4u R + R / m
+(t's rounding + 2 x phi''s 64u p1 (1 + 1 / (eta^2 cos_t^2)) / m + 16u / cos_t^2), C' by that carried
+through lambda, H and H' by those at the ends' |A|, |y_C| and |C'|, doubled). Not proven (the
+segment's bound inf): a cell undecided after MAX_HALVINGS halvings or MAX_EVALS in one scan (a segment
+within rounding of tangent to the caustic surface: tests/test_caustic_crossings.py, against the
+envelope of the refracted rays from mpmath, finds every crossing and the scan proven on lines 1e-3 to
+1e-6 from tangent and beside the cusp, not always at 1e-9), or wz = 0.
 """
 from __future__ import annotations
 
@@ -145,9 +166,9 @@ from .phase import phase_value
 from .gauss import N10, N20, W10, W20
 from .slab import MARCH, QUAD, fresnel, march_or_sample, phase_condition
 
-SCAN = 48  # uniform cells of the lit arc on which `paths` starts (and `roots` brackets the caustic's crossings)
-MAX_HALVINGS = 40  # of a cell of `paths` before it is left unresolved
-MAX_EVALS = 1000  # halvings of one scan of `paths` before its undecided cells are left unresolved
+SCAN = 48  # uniform cells of the lit arc on which `paths` starts (`caustic_crossings` on its half [0, theta_a])
+MAX_HALVINGS = 40  # of a cell of `paths` (or `caustic_crossings`) before it is left unresolved
+MAX_EVALS = 1000  # halvings of one scan of `paths` (or `caustic_crossings`) before its undecided cells are left unresolved
 CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
 U = 2.0 ** -53
 # a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
