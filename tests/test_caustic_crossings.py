@@ -22,37 +22,14 @@ from scipy import optimize
 
 from raytrace.media.sphere_refraction import caustic_crossings, frame, record
 
-
-def arc(eta, d):
-    """The lit arc's half-width from the geometry: incidence cosine 0 (or the critical angle for eta < 1)."""
-    def cos_i(th):
-        if d == math.inf:
-            return math.cos(th)
-        return (d * math.cos(th) - 1.0) / math.hypot(math.cos(th) - d, math.sin(th))
-    c_min = math.sqrt(1.0 - eta * eta) if eta < 1.0 else 0.0
-    hi = 0.5 * math.pi if d == math.inf else math.acos(1.0 / d)
-    return hi if c_min == 0.0 else optimize.brentq(lambda t: cos_i(t) - c_min, 0.0, hi, xtol=1e-16)
-
-
-def ray(th, eta, d, lib):
-    """(P, t) of the ray refracted at P(theta) of the unit sphere (Snell's law in the plane); lib: numpy
-    (complex-safe) or mpmath."""
-    P = [lib.cos(th), lib.sin(th)]
-    if d == math.inf:
-        v = [-1.0 + 0.0 * th, 0.0 * th]
-    else:
-        o = lib.sqrt((P[0] - d) ** 2 + P[1] ** 2)
-        v = [(P[0] - d) / o, P[1] / o]
-    ci = -(v[0] * P[0] + v[1] * P[1])
-    ct = lib.sqrt(1 - (1 - ci * ci) / eta**2)
-    return P, [v[k] / eta + (ci / eta - ct) * P[k] for k in range(2)]
+from .test_sphere_paths import arc, ray
 
 
 def envelope(th, eta, d):
     """(C, s) on a numpy grid: the derivatives of P and t by the complex step."""
     step = 1e-30
-    P, t = ray(th + 0j, eta, d, np)
-    Pc, tc = ray(th + 1j * step, eta, d, np)
+    P, t = ray(th + 0j, eta, d)
+    Pc, tc = ray(th + 1j * step, eta, d)
     P, t = [p.real for p in P], [q.real for q in t]
     dP, dt = [p.imag / step for p in Pc], [q.imag / step for q in tc]
     s = -(dP[0] * t[1] - dP[1] * t[0]) / (dt[0] * t[1] - dt[1] * t[0])
@@ -60,9 +37,9 @@ def envelope(th, eta, d):
 
 
 def envelope_mp(th, eta, d):
-    P, t = ray(th, eta, d, mpmath)
-    dP = [mpmath.diff(lambda u: ray(u, eta, d, mpmath)[0][k], th) for k in range(2)]
-    dt = [mpmath.diff(lambda u: ray(u, eta, d, mpmath)[1][k], th) for k in range(2)]
+    P, t = ray(th, eta, d)
+    dP = [mpmath.diff(lambda u: ray(u, eta, d)[0][k], th) for k in range(2)]
+    dt = [mpmath.diff(lambda u: ray(u, eta, d)[1][k], th) for k in range(2)]
     s = -(dP[0] * t[1] - dP[1] * t[0]) / (dt[0] * t[1] - dt[1] * t[0])
     return [P[k] + s * t[k] for k in range(2)], s
 
@@ -139,7 +116,7 @@ def lines(rng, eta, d, n):
         C = np.array([C[0][0], C[1][0]])
         if not (s[0] > 0.0 and C @ C < 0.95):
             continue
-        _, t = ray(th, eta, d, np)
+        _, t = ray(th, eta, d)
         psi = rng.uniform(0.0, 2.0 * math.pi)  # the meridional plane's azimuth
         e_r = np.array([math.cos(psi), math.sin(psi), 0.0])
         e_psi = np.array([-math.sin(psi), math.cos(psi), 0.0])

@@ -86,6 +86,12 @@ def ray(th, eta, d):
     return P, [v[k] / eta + (ci / eta - ct) * P[k] for k in range(2)]
 
 
+def angle(th, eta, d):
+    """The refracted direction's angle phi, continuous over the lit arc (t points back along the axis; mpmath)."""
+    t = ray(th, eta, d)[1]
+    return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
+
+
 def caustic_point(th, eta, d):
     """The envelope of the refracted rays at theta: P + s t where d(P + s t)/dtheta is along t (mpmath)."""
     mpmath.mp.dps = 30
@@ -194,16 +200,15 @@ def test_angular_bounds_hold(eta, d):
 
 @pytest.mark.parametrize("eta, d", CASES + [(0.75, 2.0)])
 def test_third_derivative_in_closed_form(eta, d):
-    """The closed forms of the module docstring that a proven scan of the caustic's crossings would
-    bound (phi''' through g'', g''' of the refraction angle in the incidence angle and alpha'', alpha'''
+    """The closed forms of the module docstring that the proven scan of the caustic's crossings
+    bounds (phi''' through g'', g''' of the refraction angle in the incidence angle and alpha'', alpha'''
     of the arriving direction's angle) against mpmath's derivatives of the refracted direction's angle."""
     mpmath.mp.dps = 40
     rng = np.random.default_rng(3)
     a = arc(eta, d)
 
     def phi(u):
-        t = ray(u, eta, d)[1]
-        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi  # continuous: t points back along the axis
+        return angle(u, eta, d)
 
     for th in rng.uniform(-0.95, 0.95, 6) * a:
         th = mpmath.mpf(th)
@@ -238,8 +243,7 @@ def test_third_derivative_bound_holds(eta, d):
     a = arc(eta, d)
 
     def phi(u):
-        t = ray(u, eta, d)[1]
-        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
+        return angle(u, eta, d)
 
     worst = 0.0
     for _ in range(16):
@@ -274,8 +278,7 @@ def test_kernels_third_bound_holds(eta, d):
     a = arc(eta, d)
 
     def phi(u):
-        t = ray(u, eta, d)[1]
-        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
+        return angle(u, eta, d)
 
     worst = [0.0, 0.0]
     for _ in range(16):
