@@ -91,8 +91,10 @@ are integrated in x on both sides of the cone's crossing.
 
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
-rounding of an evaluation x (the value + the rule's bound) and the largest absolute one x the
-segment's length, plus each cone crossing's location error (a quadratic's: its rounding over its
+rounding of an evaluation x (the value + the rule's bound) and the sum over the pieces of their
+evaluations' largest absolute rounding x their length (the rule's weights are positive; a piece
+beside a crossing whose share exceeds rtol x its value is integrated again in pieces halving toward
+the crossing, `_toward`), plus each cone crossing's location error (a quadratic's: its rounding over its
 slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
 three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
 rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
@@ -172,14 +174,16 @@ MAX_EVALS = 1000  # halvings of one scan of `paths` (or `caustic_crossings`) bef
 CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
 U = 2.0 ** -53
 # a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
-# largest relative and absolute rounding bounds, the path count of the piece's first evaluation (-1:
-# none yet), the evaluations whose count differed from it and the largest absolute rounding of a fold
-# pair's integrand (per unit angle)
-UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED, FOLD_ABS = range(6)
-TRACK = 6
+# largest relative rounding bound and the largest absolute one (of the piece's evaluations), the path
+# count of the piece's first evaluation (-1: none yet), the evaluations whose count differed from it,
+# the largest absolute rounding of a fold pair's integrand (per unit angle) and the sum over the pieces
+# of their largest absolute rounding times their length
+UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED, FOLD_ABS, PIECES_ABS = range(7)
+TRACK = 7
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
+SPLITS = 12  # pieces toward a crossing where its piece's rounding dominates (`_toward`)
 GAP = 6  # `_gap`'s values
 EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
@@ -1183,10 +1187,16 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
 
 
 @njit
-def _piece(rec, lo, hi, rtol, stats, track):
-    """`bounded_piecewise` over [lo, hi] of rec, a new piece for the path count's guard."""
+def _piece(rec, lo, hi, length, rtol, stats, track):
+    """`bounded_piecewise` over [lo, hi] of rec, a new piece for the path count's guard; the largest
+    absolute rounding of its evaluations times its length in x into track[PIECES_ABS] (summed: the
+    rule's positive weights sum to the length, 2 |span| u integrating to the piece's length in x for
+    `NearCaustic`)."""
     track[COUNT] = -1.0
-    return bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
+    track[ROUNDING_ABS] = 0.0
+    val, b = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
+    track[PIECES_ABS] += track[ROUNDING_ABS] * length
+    return val, b
 
 
 @njit
@@ -1205,18 +1215,40 @@ def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
 
 
 @njit
+def _toward(q, rtol, stats, track):
+    """(value, rule's bound) of `_piece` over the `NearCaustic` piece q (u in [0, 1]); where its
+    rounding (its evaluations' largest times its length) exceeds rtol times its value (a crossing
+    where the tube factor or the incidence cosine is small beside it), again in SPLITS + 1 pieces
+    [2^-k-1, 2^-k] toward the crossing and [0, 2^-SPLITS], each with its own rounding."""
+    before = track[PIECES_ABS]
+    length = abs(q.span)
+    val, b = _piece(q, 0.0, 1.0, length, rtol, stats, track)
+    grown = track[PIECES_ABS] - before
+    if not rtol * abs(val) < grown < math.inf:
+        return val, b
+    track[PIECES_ABS] = before
+    total = rule = 0.0
+    hi = 1.0
+    for k in range(SPLITS + 1):
+        lo = 0.5 * hi if k < SPLITS else 0.0
+        val, b = _piece(q, lo, hi, length * (hi * hi - lo * lo), rtol, stats, track)
+        total, rule, hi = total + val, rule + b, lo
+    return total, rule
+
+
+@njit
 def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     """(value, rule's bound) of `_piece` over [lo, hi] of r, in u beside an end that is a cone's or the
     caustic's crossing (flag > 0: `NearCaustic`), split at the middle where both ends are."""
     if flag_lo == 0.0 and flag_hi == 0.0:
-        return _piece(r, lo, hi, rtol, stats, track)
+        return _piece(r, lo, hi, hi - lo, rtol, stats, track)
     total = rule = 0.0
     mid = lo if flag_lo == 0.0 else hi if flag_hi == 0.0 else 0.5 * (lo + hi)
     if mid > lo:
-        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, rtol, stats, track)
+        val, b = _toward(NearCaustic(r, lo, mid - lo), rtol, stats, track)
         total, rule = total + val, rule + b
     if hi > mid:
-        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, rtol, stats, track)
+        val, b = _toward(NearCaustic(r, hi, mid - hi), rtol, stats, track)
         total, rule = total + val, rule + b
     return total, rule
 
@@ -1333,7 +1365,7 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
                 val, b = _stretch(r, lo, hi, caustic[i], caustic[i + 1], rtol, stats, track)
                 total, rule = total + val, rule + b
             i += 1
-        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[ROUNDING_ABS] * end + folds)
+        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[PIECES_ABS] + folds)
         for i in range(1, m + 1):
             if caustic[i] == 2.0:
                 bound = math.inf
