@@ -130,9 +130,9 @@ F = wz f - fz v (wz^2 (|f + x v|^2 - y_C^2) at x = (z_C - fz) / wz; H is even in
 is scanned), with H' = 2 z_C' v.A - 2 wz^2 y_C y_C' and H'' = 2 z_C'' v.A + 2 z_C'^2 |v|^2 - 2 wz^2
 (y_C'^2 + y_C y_C''). Over a cell [a, b] (`third_bound`: |phi''| <= q2 = G2 (1 + a1)^2 + G1 a2 and
 |phi'''| <= p3 = G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3, G1 = 1 / (eta cos_t), G2 = |eta^2 - 1| /
-(eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the least cos_t, a1, a2 as in
-`angular_bounds`, a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2) at the least o and the largest
-sin; tests/test_sphere_paths.py checks these against mpmath's derivatives) phi' lies within
+(eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the least cos_t, a1 as in
+`angular_bounds`, a2 = R d (d^2 - R^2) sin / o^4 and a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2)
+at the least o and the largest sin; tests/test_sphere_paths.py checks these against mpmath's derivatives) phi' lies within
 (phi'(a) + phi'(b) -+ q2 w) / 2: the cell is dropped where that is below 1/2 throughout, else with m > 0
 the least, d1 = p1 - 1 >= |phi' - 1|: |C'| <= c1 = R (1 + d1 / m + q2 / m^2), |lambda'| <= R (d1 +
 d1^2 / m + (q2 (1 + d1) + p3) / m^2 + 2 q2^2 / m^3), |C''| <= c2 = that + c1 p1; c1 at most the larger
