@@ -92,9 +92,7 @@ are integrated in x on both sides of the cone's crossing.
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
 rounding of an evaluation x (the value + the rule's bound) and the sum over the pieces of their
-evaluations' largest absolute rounding x their length (the rule's weights are positive; a piece
-beside a crossing whose share exceeds rtol x its value is integrated again in pieces halving toward
-the crossing, `_toward`), plus each cone crossing's location error (a quadratic's: its rounding over its
+evaluations' largest absolute rounding x their length (the rule's weights are positive), plus each cone crossing's location error (a quadratic's: its rounding over its
 slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
 three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
 rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
@@ -183,7 +181,6 @@ TRACK = 7
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
-SPLITS = 12  # pieces toward a crossing where its piece's rounding dominates (`_toward`)
 GAP = 6  # `_gap`'s values
 EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
@@ -1215,28 +1212,6 @@ def _stretch(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
 
 
 @njit
-def _toward(q, rtol, stats, track):
-    """(value, rule's bound) of `_piece` over the `NearCaustic` piece q (u in [0, 1]); where its
-    rounding (its evaluations' largest times its length) exceeds rtol times its value (a crossing
-    where the tube factor or the incidence cosine is small beside it), again in SPLITS + 1 pieces
-    [2^-k-1, 2^-k] toward the crossing and [0, 2^-SPLITS], each with its own rounding."""
-    before = track[PIECES_ABS]
-    length = abs(q.span)
-    val, b = _piece(q, 0.0, 1.0, length, rtol, stats, track)
-    grown = track[PIECES_ABS] - before
-    if not rtol * abs(val) < grown < math.inf:
-        return val, b
-    track[PIECES_ABS] = before
-    total = rule = 0.0
-    hi = 1.0
-    for k in range(SPLITS + 1):
-        lo = 0.5 * hi if k < SPLITS else 0.0
-        val, b = _piece(q, lo, hi, length * (hi * hi - lo * lo), rtol, stats, track)
-        total, rule, hi = total + val, rule + b, lo
-    return total, rule
-
-
-@njit
 def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     """(value, rule's bound) of `_piece` over [lo, hi] of r, in u beside an end that is a cone's or the
     caustic's crossing (flag > 0: `NearCaustic`), split at the middle where both ends are."""
@@ -1245,10 +1220,10 @@ def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     total = rule = 0.0
     mid = lo if flag_lo == 0.0 else hi if flag_hi == 0.0 else 0.5 * (lo + hi)
     if mid > lo:
-        val, b = _toward(NearCaustic(r, lo, mid - lo), rtol, stats, track)
+        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, mid - lo, rtol, stats, track)
         total, rule = total + val, rule + b
     if hi > mid:
-        val, b = _toward(NearCaustic(r, hi, mid - hi), rtol, stats, track)
+        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, hi - mid, rtol, stats, track)
         total, rule = total + val, rule + b
     return total, rule
 
