@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from raytrace.media.sphere_refraction import angular_bounds, frame, paths, record, roots
+from raytrace.media.sphere_refraction import angular_bounds, frame, paths, record, roots, third_bound
 
 SPHERE = np.array([0.0, 0.0, 0.0, 1.0])
 
@@ -84,6 +84,12 @@ def ray(th, eta, d):
     ci = -(v[0] * P[0] + v[1] * P[1])
     ct = lib.sqrt(1 - (1 - ci * ci) / eta**2)
     return P, [v[k] / eta + (ci / eta - ct) * P[k] for k in range(2)]
+
+
+def angle(th, eta, d):
+    """The refracted direction's angle phi, continuous over the lit arc (t points back along the axis; mpmath)."""
+    t = ray(th, eta, d)[1]
+    return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
 
 
 def caustic_point(th, eta, d):
@@ -194,16 +200,15 @@ def test_angular_bounds_hold(eta, d):
 
 @pytest.mark.parametrize("eta, d", CASES + [(0.75, 2.0)])
 def test_third_derivative_in_closed_form(eta, d):
-    """The closed forms of the module docstring that a proven scan of the caustic's crossings would
-    bound (phi''' through g'', g''' of the refraction angle in the incidence angle and alpha'', alpha'''
+    """The closed forms of the module docstring that the proven scan of the caustic's crossings
+    bounds (phi''' through g'', g''' of the refraction angle in the incidence angle and alpha'', alpha'''
     of the arriving direction's angle) against mpmath's derivatives of the refracted direction's angle."""
     mpmath.mp.dps = 40
     rng = np.random.default_rng(3)
     a = arc(eta, d)
 
     def phi(u):
-        t = ray(u, eta, d)[1]
-        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi  # continuous: t points back along the axis
+        return angle(u, eta, d)
 
     for th in rng.uniform(-0.95, 0.95, 6) * a:
         th = mpmath.mpf(th)
@@ -238,8 +243,7 @@ def test_third_derivative_bound_holds(eta, d):
     a = arc(eta, d)
 
     def phi(u):
-        t = ray(u, eta, d)[1]
-        return mpmath.atan2(-t[1], -t[0]) + mpmath.pi
+        return angle(u, eta, d)
 
     worst = 0.0
     for _ in range(16):
@@ -262,3 +266,27 @@ def test_third_derivative_bound_holds(eta, d):
             assert d3 <= p3, (lo, hi, th, d3, p3)
             worst = max(worst, d3 / p3)
     assert worst > 0.05, worst
+
+
+@pytest.mark.parametrize("eta, d", CASES)
+def test_kernels_third_bound_holds(eta, d):
+    """`third_bound`'s bounds on |phi''| and |phi'''| (the caustic scan's, sphere_refraction.py
+    `caustic_crossings`) over random cells of the lit arc, also of a sphere of radius 1.7 with the
+    light at the same d in radii: mpmath's derivatives within them, not vacuous."""
+    mpmath.mp.dps = 30
+    rng = np.random.default_rng(13)
+    a = arc(eta, d)
+
+    def phi(u):
+        return angle(u, eta, d)
+
+    worst = [0.0, 0.0]
+    for _ in range(16):
+        lo, hi = np.sort(rng.uniform(-a, a, 2))
+        q2, p3, _ = third_bound(lo, hi, 1.0, d, eta)
+        assert third_bound(lo, hi, 1.7, 1.7 * d, eta)[:2] == pytest.approx((q2, p3), rel=1e-12)
+        for th in np.linspace(lo, hi, 3):
+            d2, d3 = (float(abs(mpmath.diff(phi, mpmath.mpf(th), k))) for k in (2, 3))
+            assert d2 <= q2 and d3 <= p3, (lo, hi, th, d2, q2, d3, p3)
+            worst = [max(worst[0], d2 / q2), max(worst[1], d3 / p3)]
+    assert min(worst) > 0.05, worst

@@ -57,14 +57,13 @@ with a square-root kink where a path leaves through the lit arc's end (the segme
 of the marginal rays, refracted at grazing incidence, about the axis with its apex where they meet
 it), and peaks where it passes closest to the axis; `breaks` cuts it there: the closest approach and
 the cone's crossings (a quadratic, geometry/sphere.py `quadratic_roots`) in closed form, the caustic
-crossings as the roots in theta of |rho_ray(z_C(theta))|^2 - y_C(theta)^2 (rho_ray the segment's
-distance from the axis at the caustic point's height z_C), found like the paths. A spot's falloff has
+crossings by a proven scan in theta (below, "The caustic's crossings, proven"). A spot's falloff has
 kinks, its band edges, which fool the rule's error estimate inside a piece (`spot_edges`): aimed at
 the centre (its axis along the light's axis) they lie at fixed angles +-theta_e, the pieces in x cut
 where those rays reach the segment and the fold pair's window in theta at +-theta_e; aimed elsewhere
 the edge's refraction point moves with the plane of the point, in closed form there (`edge_gap`),
-the pieces cut at the roots of h at that point along the segment (found like the caustic crossings,
-by `roots`: not proven) and the window at their angles (located to the resolution of doubles, a
+the pieces cut at the roots of h at that point along the segment (found by `roots`, a scan of SCAN
+nodes and golden section at its dips: not proven) and the window at their angles (located to the resolution of doubles, a
 kink of a continuous falloff misplaced by dx changes the integral by its jump in slope x dx^2, far
 below the rounding; a hard edge's jump x dx is not in the bound). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
@@ -92,8 +91,8 @@ are integrated in x on both sides of the cone's crossing.
 
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
-rounding of an evaluation x (the value + the rule's bound) and the largest absolute one x the
-segment's length, plus each cone crossing's location error (a quadratic's: its rounding over its
+rounding of an evaluation x (the value + the rule's bound) and the sum over the pieces of their
+evaluations' largest absolute rounding x their length (the rule's weights are positive), plus each cone crossing's location error (a quadratic's: its rounding over its
 slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
 three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
 rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
@@ -112,20 +111,42 @@ rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, count
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
 crossings in a row), an evaluation whose scan was unproven, a piece whose path count (or the count
 on each side of a spot's band edges) changed between its evaluations (the guard against a crossing
-the breaks missed: the caustic's crossings are found by
-`roots`, which is not proven: excluding a crossing from a cell next to a root needs the analogue of
-h's monotone test for |rho_ray(z_C)|^2 - y_C^2, whose second derivative involves C'' and so the third
-derivative of phi, which `angular_bounds` does not bound), eta <= 1. The derivatives it would take,
-in closed form (s, c the sine and cosine of theta_i; checked against mpmath's differentiation of phi):
-g'' = s (1 - eta^2) / (eta^3 cos_t^3), g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5),
-alpha'' = R d sin(theta) (d^2 - R^2) / o^4, alpha''' = R d (d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2
-/ o^2) / o^4, phi''' = g''' theta_i'^3 + 3 g'' theta_i' alpha'' + g' alpha''' (theta_i' = alpha' - 1),
-bounded over a cell as `angular_bounds` bounds phi'' by G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3 (G1 =
-1 / (eta cos_t), G2 = |eta^2 - 1| / (eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the
-least cos_t; a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2) at the least o and the largest sin);
-tests/test_sphere_paths.py checks these. The caustic point is C = P + t R cos_t / phi' (inside the
-sphere iff phi' >= 1/2: the chord is 2 R cos_t) and C' = lambda t with lambda = -R sin(theta_t)
-(2 phi' - 1) / phi' - R cos_t phi'' / phi'^2, so C'' = lambda' t + lambda phi' n holds phi'''.
+the breaks missed: an off-centre spot's band edges are found by `roots`, not proven), a caustic scan
+unproven, eta <= 1.
+
+The caustic's crossings, proven (`caustic_crossings`). The caustic point is C = P + t R cos_t / phi'
+(1 / kappa_t = R cos_t / phi'; inside the sphere iff phi' >= 1/2, the chord being 2 R cos_t; none ahead
+of P where phi' <= 0, as everywhere for eta <= 1: g' >= 1 / eta >= 1 there and theta_i' = alpha' - 1 <=
+-1 on the lit arc). Its derivative is C' = lambda t, lambda = -R sin(theta_t) (2 phi' - 1) / phi'
+- R cos_t phi'' / phi'^2 (theta_t' = phi' - 1), with phi'' = g'' theta_i'^2 + g' alpha'' in closed form
+(s, c the sine and cosine of theta_i: g'' = s (1 - eta^2) / (eta^3 cos_t^3), alpha'' = R d sin(theta)
+(d^2 - R^2) / o^4), and C'' = lambda' t + lambda phi' n holds phi''' = g''' theta_i'^3 + 3 g'' theta_i'
+alpha'' + g' alpha''' (g''' = (1 - eta^2) c (eta^2 cos_t^2 + 3 s^2) / (eta^5 cos_t^5), alpha''' = R d
+(d^2 - R^2) (cos(theta) - 4 R d sin(theta)^2 / o^2) / o^4). The segment f + x v across the axis, fz +
+x wz along it, meets C turned about the axis where H(theta) = |A|^2 - wz^2 y_C^2 = 0, A = F + z_C v,
+F = wz f - fz v (wz^2 (|f + x v|^2 - y_C^2) at x = (z_C - fz) / wz; H is even in theta: [0, theta_a]
+is scanned), with H' = 2 z_C' v.A - 2 wz^2 y_C y_C' and H'' = 2 z_C'' v.A + 2 z_C'^2 |v|^2 - 2 wz^2
+(y_C'^2 + y_C y_C''). Over a cell [a, b] (`third_bound`: |phi''| <= q2 = G2 (1 + a1)^2 + G1 a2 and
+|phi'''| <= p3 = G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3, G1 = 1 / (eta cos_t), G2 = |eta^2 - 1| /
+(eta^3 cos_t^3), G3 = |eta^2 - 1| (eta^2 + 2) / (eta^5 cos_t^5) at the least cos_t, a1 as in
+`angular_bounds`, a2 = R d (d^2 - R^2) sin / o^4 and a3 = R d (d^2 - R^2) / o^4 (1 + 4 R d sin^2 / o^2)
+at the least o and the largest sin; tests/test_sphere_paths.py checks these against mpmath's derivatives) phi' lies within
+(phi'(a) + phi'(b) -+ q2 w) / 2: the cell is dropped where that is below 1/2 throughout, else with m > 0
+the least, d1 = p1 - 1 >= |phi' - 1|: |C'| <= c1 = R (1 + d1 / m + q2 / m^2), |lambda'| <= R (d1 +
+d1^2 / m + (q2 (1 + d1) + p3) / m^2 + 2 q2^2 / m^3), |C''| <= c2 = that + c1 p1; c1 at most the larger
+|C'| at the ends + c2 w / 2 too, |A| and |y_C| at most their larger end values + c1 |v| w / 2 and
+c1 w / 2, and K = 2 c2 (|v| |A| + wz^2 |y_C|) + 2 c1^2 (|v|^2 + wz^2) bounds |H''|. The cell is then
+decided as `paths` decides h's: no root where H keeps its sign and the least |H| at the ends exceeds
+K w^2 / 8, or where it is monotone: the secant's slope above K w, or H' of one sign at both ends with
+|H'(a)| + |H'(b)| above K w (H' exceeds (|H'(a)| + |H'(b)| - K w) / 2 in size over the cell: this
+decides the cells about a nearly double root, where H is too small for the secant); one where H
+changes sign and is monotone, bisected; each test less the values' rounding (C off by 4u R + R / m
+(t's rounding + 2 x phi''s 64u p1 (1 + 1 / (eta^2 cos_t^2)) / m + 16u / cos_t^2), C' by that carried
+through lambda, H and H' by those at the ends' |A|, |y_C| and |C'|, doubled). Not proven (the
+segment's bound inf): a cell undecided after MAX_HALVINGS halvings or MAX_EVALS in one scan (a segment
+within rounding of tangent to the caustic surface: tests/test_caustic_crossings.py, against the
+envelope of the refracted rays from mpmath, finds every crossing and the scan proven on lines 1e-3 to
+1e-6 from tangent and beside the cusp, not always at 1e-9), or wz = 0.
 """
 from __future__ import annotations
 
@@ -145,20 +166,22 @@ from .phase import phase_value
 from .gauss import N10, N20, W10, W20
 from .slab import MARCH, QUAD, fresnel, march_or_sample, phase_condition
 
-SCAN = 48  # uniform cells of the lit arc on which `paths` starts (and `roots` brackets the caustic's crossings)
-MAX_HALVINGS = 40  # of a cell of `paths` before it is left unresolved
-MAX_EVALS = 1000  # halvings of one scan of `paths` before its undecided cells are left unresolved
+SCAN = 48  # uniform cells of the lit arc on which `paths` starts (`caustic_crossings` on its half [0, theta_a])
+MAX_HALVINGS = 40  # of a cell of `paths` (or `caustic_crossings`) before it is left unresolved
+MAX_EVALS = 1000  # halvings of one scan of `paths` (or `caustic_crossings`) before its undecided cells are left unresolved
 CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
 U = 2.0 ** -53
 # a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
-# largest relative and absolute rounding bounds, the path count of the piece's first evaluation (-1:
-# none yet), the evaluations whose count differed from it and the largest absolute rounding of a fold
-# pair's integrand (per unit angle)
-UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED, FOLD_ABS = range(6)
-TRACK = 6
+# largest relative rounding bound and the largest absolute one (of the piece's evaluations), the path
+# count of the piece's first evaluation (-1: none yet), the evaluations whose count differed from it,
+# the largest absolute rounding of a fold pair's integrand (per unit angle) and the sum over the pieces
+# of their largest absolute rounding times their length
+UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED, FOLD_ABS, PIECES_ABS = range(7)
+TRACK = 7
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
+GAP = 6  # `_gap`'s values
 EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
 
@@ -252,15 +275,15 @@ def tangential_curvature(cos_i, cos_t, inv_o, radius, eta):
 
 @njit
 def _clamped(theta, radius, d, eta):
-    """(pz, py, tz, ty, cos_t) of `incidence` with the incidence cosine clamped at 0 and the refraction
+    """(pz, py, tz, ty, cos_t, cos_i, o) of `incidence` with the incidence cosine clamped at 0 and the refraction
     cosine's square at 0: continuous in theta, at the lit arc's ends (theta_a) the ray refracted at
     grazing incidence (or at the critical angle for eta < 1), its limit from inside the arc; the
     same numbers as `incidence` inside it."""
-    cth, sth, pz, py, dz, dy, _ = _arriving(theta, radius, d)
+    cth, sth, pz, py, dz, dy, o = _arriving(theta, radius, d)
     cos_i = max(-(dz * cth + dy * sth), 0.0)
     cos_t = math.sqrt(max(1.0 - (1.0 - cos_i * cos_i) / (eta * eta), 0.0))
     f = cos_i / eta - cos_t
-    return pz, py, dz / eta + f * cth, dy / eta + f * sth, cos_t
+    return pz, py, dz / eta + f * cth, dy / eta + f * sth, cos_t, cos_i, o
 
 
 @njit
@@ -291,13 +314,43 @@ def angular_bounds(lo, hi, radius, d, eta):
 
 
 @njit
+def third_bound(lo, hi, radius, d, eta):
+    """(q2, p3, ct) over theta in [lo, hi] (within the lit arc): bounds on |phi''| and |phi'''| and the
+    least refraction cosine (module docstring, "The caustic's crossings, proven"): G2 (1 + a1)^2 + G1 a2
+    and G3 (1 + a1)^3 + 3 G2 (1 + a1) a2 + G1 a3, taken at the cell's extreme ends as `angular_bounds`
+    takes its bounds (q2 tighter than its p2: g'' in closed form); inf where the refraction cosine
+    reaches 0."""
+    m_lo = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+    m_hi = max(abs(lo), abs(hi))
+    ct = _clamped(m_hi, radius, d, eta)[4] * (1.0 - 1e-9) - 4.0 * U
+    if not ct > 0.0:
+        return math.inf, math.inf, 0.0
+    a1 = a2 = a3 = 0.0
+    if d != math.inf:
+        half = math.sin(0.5 * m_lo)
+        o2 = ((d - radius) * (d - radius) + 4.0 * radius * d * half * half) * (1.0 - 1e-12)  # the least o^2
+        q = max(d * math.cos(m_lo) - radius, 0.0) + 4.0 * U * d  # the largest d cos(theta) - R
+        sn = math.sin(m_hi)
+        k = radius * d * (d * d - radius * radius) / (o2 * o2)
+        a1, a2, a3 = radius * q / o2, k * sn, k * (1.0 + 4.0 * radius * d * sn * sn / o2)
+    e2 = abs(eta * eta - 1.0)
+    g1 = 1.0 / (eta * ct)
+    g2 = e2 * g1 * g1 * g1
+    g3 = e2 * (eta * eta + 2.0) * g1 ** 5
+    p = 1.0 + a1
+    return (g2 * p * p + g1 * a2) * (1.0 + 1e-9), (g3 * p * p * p + 3.0 * g2 * p * a2 + g1 * a3) * (1.0 + 1e-9), ct
+
+
+@njit
 def cell_table(theta_a, radius, d, eta):
-    """`angular_bounds` (SCAN, 4) of the SCAN uniform cells of the lit arc (-theta_a, theta_a)."""
-    out = np.empty((SCAN, 4))
+    """(SCAN, 7) of the SCAN uniform cells of the lit arc (-theta_a, theta_a): `angular_bounds`, then
+    `third_bound`."""
+    out = np.empty((SCAN, 7))
     step = 2.0 * theta_a / SCAN
     for j in range(SCAN):
-        out[j, 0], out[j, 1], out[j, 2], out[j, 3] = angular_bounds(-theta_a + j * step, -theta_a + (j + 1) * step, radius, d,
-                                                         eta)
+        lo, hi = -theta_a + j * step, -theta_a + (j + 1) * step
+        out[j, 0], out[j, 1], out[j, 2], out[j, 3] = angular_bounds(lo, hi, radius, d, eta)
+        out[j, 4], out[j, 5], out[j, 6] = third_bound(lo, hi, radius, d, eta)
     return out
 
 
@@ -336,27 +389,61 @@ def edge_gap(x, sign, ce, ff, fv, vv, fa, va, az, wz, fz, radius, d, eta):
 
 
 @njit
+def _caustic(theta, radius, d, eta):
+    """(phi', cz, cy, dcz, dcy) at theta (`_clamped`'s ray, continuous to the arc's ends): phi' = 1 + g'
+    theta_i' = 1 - cos_i (1 - alpha') / (eta cos_t), the caustic point C = P + t R cos_t / phi' and
+    its derivative C' = lambda t (module docstring, "The caustic's crossings, proven"; phi'' = g''
+    theta_i'^2 + g' alpha'' with sin(theta_i) = eta sin(theta_t)); C nan where the refraction cosine is
+    0 or phi' <= 0 (no caustic point ahead of P)."""
+    pz, py, tz, ty, cos_t, cos_i, o = _clamped(theta, radius, d, eta)
+    if not cos_t > 0.0:
+        return math.nan, math.nan, math.nan, math.nan, math.nan
+    a1 = a2 = 0.0
+    if d != math.inf:
+        o2 = o * o
+        a1 = radius * (radius - d * math.cos(theta)) / o2
+        a2 = radius * d * math.sin(theta) * (d * d - radius * radius) / (o2 * o2)
+    g1 = cos_i / (eta * cos_t)
+    phi1 = 1.0 - g1 * (1.0 - a1)
+    if not phi1 > 0.0:
+        return phi1, math.nan, math.nan, math.nan, math.nan
+    sin_t = (tz * py - ty * pz) / radius
+    phi2 = sin_t * (1.0 - eta * eta) / (eta * eta * cos_t ** 3) * (1.0 - a1) * (1.0 - a1) + g1 * a2
+    rho = radius * cos_t / phi1
+    lam = -radius * sin_t * (2.0 * phi1 - 1.0) / phi1 - rho * phi2 / phi1
+    return phi1, pz + tz * rho, py + ty * rho, lam * tz, lam * ty
+
+
+@njit
+def _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
+    """(phi', H, H', |A|, |y_C|, |C'|) at theta: H = |A|^2 - wz^2 y_C^2, A = F + z_C v, of the caustic
+    point C(theta) (`_caustic`; F = (f0, f1, f2) = wz f - z0 v, v = (v0, v1, v2) of the segment f + x v
+    across the axis, z0 + x wz along it: 0 where C turned about the axis meets the segment's line) and
+    its derivative."""
+    phi1, cz, cy, dcz, dcy = _caustic(theta, radius, d, eta)
+    a0, a1, a2 = f0 + cz * v0, f1 + cz * v1, f2 + cz * v2
+    aa = a0 * a0 + a1 * a1 + a2 * a2
+    return phi1, aa - wz * wz * cy * cy, 2.0 * dcz * (v0 * a0 + v1 * a1 + v2 * a2) - 2.0 * wz * wz * cy * dcy, \
+        math.sqrt(aa), abs(cy), math.sqrt(dcz * dcz + dcy * dcy)
+
+
+@njit
+def _gap_into(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, out):
+    """`_gap` into out (GAP,)."""
+    out[0], out[1], out[2], out[3], out[4], out[5] = _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
+
+
+@njit
 def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
     """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
-    kind 1: |rho_ray(z_C)|^2 - y_C^2 of the caustic point C(theta) (segment f + x v across the axis,
-    z0 + x wz along it; `breaks`), nan where there is no caustic point ahead of P; kinds 2 and 3: `edge_gap`
+    kind 1: `_gap`'s H (`caustic_crossings`), nan where there is no caustic point ahead of P; kinds 2 and 3: `edge_gap`
     at x = theta, sign +1 and -1, of the cosine zx (f0, f1, f2 = ff, fv, vv; v0, v1, v2 = fa, va, az)."""
     if kind == 0:
-        pz, py, tz, ty, _ = _clamped(theta, radius, d, eta)
+        pz, py, tz, ty, _, _, _ = _clamped(theta, radius, d, eta)
         return tz * (yx - py) - ty * (zx - pz)
     if kind >= 2:
         return edge_gap(theta, 5.0 - 2.0 * kind, zx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)[0]
-    pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
-    if cos_t == 0.0:
-        return math.nan
-    inv_o = 0.0 if d == math.inf else 1.0 / o
-    kappa = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
-    if not kappa > 0.0:
-        return math.nan
-    cz, cy = pz + tz / kappa, py + ty / kappa
-    x = (cz - z0) / wz
-    a0, a1, a2 = f0 + x * v0, f1 + x * v1, f2 + x * v2
-    return (a0 * a0 + a1 * a1 + a2 * a2) - cy * cy
+    return _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)[1]
 
 
 @njit
@@ -534,6 +621,120 @@ def paths(r, zx, yx, dx, out, spread):
             out[q], spread[q] = out[q - 1], spread[q - 1]
             q -= 1
         out[q], spread[q] = x, s0
+    return m, proven
+
+
+@njit
+def caustic_crossings(r, f, v, fz, wz, out):
+    """The angles theta in [0, theta_a] where the caustic point C(theta) turned about the axis meets the
+    line of the segment f + x v across the axis, fz + x wz along it: the roots of `_gap`'s H (F = wz f
+    - fz v) into out, ascending; returns (count, proven) (module docstring, "The caustic's crossings,
+    proven"): the SCAN / 2 cells of `cell_table` on [0, theta_a], each halved until it is decided: left
+    out where phi' < 1/2 over it (C beyond the sphere or behind P), else, where phi' >= m > 0 over it,
+    as `paths` decides a cell of h by the bound K on |H''| and H's rounding, and monotone too where H'
+    keeps its sign at both ends and |H'(a)| + |H'(b)| exceeds K w (each less its rounding); each root
+    bisected to the resolution of doubles. Not proven where a cell reached MAX_HALVINGS halvings, the
+    scan MAX_EVALS or out filled up (a segment within rounding of tangent to the caustic surface, where
+    a root is double), or where wz = 0 (the caustic point's height alone does not place it on the
+    segment); none for eta <= 1 (phi' < 0: no caustic point ahead of P)."""
+    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
+    if not eta > 1.0:
+        return 0, True
+    if wz == 0.0:
+        return 0, False
+    f0, f1, f2 = wz * f[0] - fz * v[0], wz * f[1] - fz * v[1], wz * f[2] - fz * v[2]
+    v0, v1, v2 = v[0], v[1], v[2]
+    vv = v0 * v0 + v1 * v1 + v2 * v2
+    vn, ww = math.sqrt(vv), wz * wz
+    e_f = 16.0 * U * (abs(wz) * math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) + abs(fz) * vn)  # F's rounding
+    lo = -r.theta_a
+    step = 2.0 * r.theta_a / SCAN
+    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    vals = np.empty((CELL_STACK, 2 * GAP))  # `_gap` at both ends
+    node = np.empty(GAP)
+    which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
+    m, top, proven, evals = 0, 0, True, 0
+    cap = out.shape[0]
+    _gap_into(lo + SCAN * step, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
+    if node[1] == 0.0:
+        out[m] = lo + SCAN * step
+        m += 1
+    for j in range(SCAN - 1, SCAN // 2 - 1, -1):  # pushed last to first: popped from the left
+        left = lo + j * step if j > SCAN // 2 else 0.0
+        vals[top, GAP:] = node
+        _gap_into(left, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
+        if node[1] == 0.0 and m < cap:
+            out[m] = left
+            m += 1
+        ca[top], cb[top], which[top], depth[top] = left, lo + (j + 1) * step, j, 0
+        vals[top, :GAP] = node
+        top += 1
+    while top > 0:
+        top -= 1
+        a, b, j = ca[top], cb[top], which[top]
+        e = vals[top]
+        qa, fa, sa, qb, fb, sb = e[0], e[1], e[2], e[GAP], e[GAP + 1], e[GAP + 2]
+        w = b - a
+        p1, et, p2, p3, ct = cells[j, 0], cells[j, 2], cells[j, 4], cells[j, 5], cells[j, 6]
+        g = 1.0 + 1.0 / (eta * eta * ct * ct)
+        slack = 64.0 * U * p1 * g  # phi''s rounding
+        if 0.5 * (qa + qb + p2 * w) + slack < 0.5:
+            continue  # phi' < 1/2 over the cell: C beyond the sphere or behind P
+        low = 0.5 * (qa + qb - p2 * w) - slack  # the least phi' over the cell
+        if low > 0.0 and fa == fa and fb == fb:
+            d1 = p1 - 1.0  # |phi' - 1| at most
+            c2 = radius * (d1 + d1 * d1 / low + (p2 * (1.0 + d1) + p3) / (low * low) + 2.0 * p2 * p2 / low ** 3)
+            c1 = radius * (1.0 + d1 / low + p2 / (low * low))  # |C'|
+            c2 += c1 * p1  # |C''|
+            c1 = min(c1, max(e[5], e[GAP + 5]) + 0.5 * c2 * w)
+            amax = max(e[3], e[GAP + 3]) + 0.5 * c1 * vn * w  # |F + z_C v|
+            ymax = max(e[4], e[GAP + 4]) + 0.5 * c1 * w  # |y_C|
+            k = 2.0 * c2 * (vn * amax + ww * ymax) + 2.0 * c1 * c1 * (vv + ww)
+            e_r = et + 2.0 * slack / low  # t's rounding and 1 / phi''s relative
+            e_c = 4.0 * U * radius + radius / low * (e_r + 16.0 * U / (ct * ct))  # C's
+            e_c1 = (c1 * (2.0 + eta) + radius * (2.0 + 1.0 / low)) * e_r + radius * p2 / (low * low) * 64.0 * U * g  # C''s
+            e_a = vn * e_c + e_f + 16.0 * U * (radius + radius / low) * vn  # A's
+            dha = 2.0 * (2.0 * (e[3] * e_a + ww * e[4] * e_c) + 8.0 * U * (e[3] * e[3] + ww * e[4] * e[4]))
+            dhb = 2.0 * (2.0 * (e[GAP + 3] * e_a + ww * e[GAP + 4] * e_c) + 8.0 * U * (e[GAP + 3] ** 2 + ww * e[GAP + 4] ** 2))
+            dsa = 4.0 * ((vn * e[3] + ww * e[4]) * (e_c1 + 8.0 * U * e[5]) + e[5] * (vn * e_a + ww * e_c))
+            dsb = 4.0 * ((vn * e[GAP + 3] + ww * e[GAP + 4]) * (e_c1 + 8.0 * U * e[GAP + 5]) +
+                         e[GAP + 5] * (vn * e_a + ww * e_c))
+            mono = sa * sb > 0.0 and abs(sa) + abs(sb) - 2.0 * (dsa + dsb) > k * w or \
+                abs(fb - fa) - 2.0 * (dha + dhb) > k * w * w
+            if fa * fb > 0.0:
+                if abs(fa) > dha and abs(fb) > dhb and (min(abs(fa) - dha, abs(fb) - dhb) > 0.125 * k * w * w or mono):
+                    continue  # keeps its sign, or monotone
+            elif mono:
+                if fa * fb < 0.0:
+                    if m < cap:
+                        out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, 0.0, radius, d, eta)
+                        m += 1
+                    else:
+                        proven = False
+                continue
+        mid = 0.5 * (a + b)
+        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
+            proven = False
+            if fa * fb < 0.0 and m < cap:
+                out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, 0.0, radius, d, eta)
+                m += 1
+            continue
+        _gap_into(mid, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
+        evals += 1
+        if node[1] == 0.0:
+            if m < cap:
+                out[m] = mid
+                m += 1
+            else:
+                proven = False
+        level = depth[top] + 1
+        ca[top + 1], cb[top + 1], which[top + 1], depth[top + 1] = a, mid, j, level
+        vals[top + 1, :GAP] = vals[top, :GAP]
+        vals[top + 1, GAP:] = node
+        ca[top], depth[top] = mid, level
+        vals[top, :GAP] = node
+        top += 2
+    sort_few(out, 0, m)
     return m, proven
 
 
@@ -907,7 +1108,7 @@ def breaks(r, end, out, caustic, spans):
     point's ray into spans[k])."""
     f, v, fz, wz = _segment(r)
     m = 0
-    pz, py, tz, ty, _ = _clamped(r.theta_a, r.radius, r.d, r.eta)
+    pz, py, tz, ty, _, _, _ = _clamped(r.theta_a, r.radius, r.d, r.eta)
     if ty != 0.0:  # the cone of the marginal rays, about the axis with its apex where they meet it
         qz = fz - (pz - py * tz / ty)
         qw = f[0] * r.w[0] + f[1] * r.w[1] + f[2] * r.w[2] + qz * wz  # q = o - apex: f + qz ez
@@ -934,23 +1135,18 @@ def breaks(r, end, out, caustic, spans):
             out[m] = x
             caustic[m] = 0.0
             m += 1
-    if wz != 0.0:
-        found = np.empty(MAX_PATHS)
-        n = roots(0.0, r.theta_a, 1, 0.0, 0.0, f[0], f[1], f[2], v[0], v[1], v[2], wz, fz, r.radius, r.d, r.eta,
-                  found)
-        for k in range(n):
-            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], r.radius, r.d, r.eta)
-            inv_o = 0.0 if r.distant else 1.0 / o
-            kappa = tangential_curvature(cos_i, cos_t, inv_o, r.radius, r.eta)
-            if not kappa > 0.0:
-                continue
-            cz, cy = pz + tz / kappa, py + ty / kappa
-            x = (cz - fz) / wz
-            if cz * cz + cy * cy <= r.radius * r.radius and 0.0 < x < end and m < out.shape[0]:
-                out[m] = x
-                caustic[m] = 2.0
-                spans[m] = found[k]
-                m += 1
+    found = np.empty(MAX_PATHS)
+    n, proven = caustic_crossings(r, f, v, fz, wz, found)
+    if not proven:
+        r.track[UNRESOLVED] += 1.0
+    for k in range(n):
+        _, cz, cy, _, _ = _caustic(found[k], r.radius, r.d, r.eta)
+        x = (cz - fz) / wz
+        if cz * cz + cy * cy <= r.radius * r.radius and 0.0 < x < end and m < out.shape[0]:
+            out[m] = x
+            caustic[m] = 2.0
+            spans[m] = found[k]
+            m += 1
     for p in range(1, m):  # insertion sort of the few breaks, their flags and spans alongside
         x, flag, span, k = out[p], caustic[p], spans[p], p
         while k > 0 and out[k - 1] > x:
@@ -988,10 +1184,16 @@ def record(sphere, geo_row, distant, eta, kt, ks, code, g, kt_out, light_frame):
 
 
 @njit
-def _piece(rec, lo, hi, rtol, stats, track):
-    """`bounded_piecewise` over [lo, hi] of rec, a new piece for the path count's guard."""
+def _piece(rec, lo, hi, length, rtol, stats, track):
+    """`bounded_piecewise` over [lo, hi] of rec, a new piece for the path count's guard; the largest
+    absolute rounding of its evaluations times its length in x into track[PIECES_ABS] (summed: the
+    rule's positive weights sum to the length, 2 |span| u integrating to the piece's length in x for
+    `NearCaustic`)."""
     track[COUNT] = -1.0
-    return bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
+    track[ROUNDING_ABS] = 0.0
+    val, b = bounded_piecewise(rec, (lo, hi), 2, rtol, N10, W10, N20, W20, stats)
+    track[PIECES_ABS] += track[ROUNDING_ABS] * length
+    return val, b
 
 
 @njit
@@ -1014,14 +1216,14 @@ def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     """(value, rule's bound) of `_piece` over [lo, hi] of r, in u beside an end that is a cone's or the
     caustic's crossing (flag > 0: `NearCaustic`), split at the middle where both ends are."""
     if flag_lo == 0.0 and flag_hi == 0.0:
-        return _piece(r, lo, hi, rtol, stats, track)
+        return _piece(r, lo, hi, hi - lo, rtol, stats, track)
     total = rule = 0.0
     mid = lo if flag_lo == 0.0 else hi if flag_hi == 0.0 else 0.5 * (lo + hi)
     if mid > lo:
-        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, rtol, stats, track)
+        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, mid - lo, rtol, stats, track)
         total, rule = total + val, rule + b
     if hi > mid:
-        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, rtol, stats, track)
+        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, hi - mid, rtol, stats, track)
         total, rule = total + val, rule + b
     return total, rule
 
@@ -1138,7 +1340,7 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
                 val, b = _stretch(r, lo, hi, caustic[i], caustic[i + 1], rtol, stats, track)
                 total, rule = total + val, rule + b
             i += 1
-        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[ROUNDING_ABS] * end + folds)
+        bound = rule + 3.0 * min(track[ROUNDING] * (abs(total) + rule), track[PIECES_ABS] + folds)
         for i in range(1, m + 1):
             if caustic[i] == 2.0:
                 bound = math.inf
