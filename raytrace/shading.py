@@ -166,9 +166,9 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         free = _free(accel, points, normals, lights.emitters[owner])
         cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed,
                    free)
-        _unshadowed(out, value, points, normals, shading if terminator else None, reflectance, lights.emitters[owner],
-                    medium, tol, ~cut & ((reached > 0) | free) & (missed == 0))
-        at = np.flatnonzero(cut & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
+        ruled = _unshadowed(out, value, points, normals, shading if terminator else None, reflectance,
+                            lights.emitters[owner], medium, tol, free | ~cut & (reached > 0) & (missed == 0))
+        at = np.flatnonzero(cut & ~ruled & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
                                 reflectance[at], lights.emitters[owner], medium, keys[at], seed, owner, tol)
@@ -179,20 +179,24 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
 
 
 def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear):
-    """out += at the points `clear` (every row of the emitter that emits toward the point reached it, some
-    did or nothing can hide the emitter (`_free`), and nothing cut it) the emitter's irradiance in closed
+    """out += at the points `clear` (nothing can hide the emitter from them (`_free`: rows blocked there
+    lie below the point's own horizon, which the closed form clips), or every row of the emitter that
+    emits toward the point reached it, some did, and nothing cut it) the emitter's irradiance in closed
     form (`lights.Emitter.irradiance`, to the relative tolerance `tol`) in place of its rows' share
     `value`, where the emitter has it and the medium is homogeneous (the transmittance along each
-    direction then depends on the distance alone)."""
+    direction then depends on the distance alone); (N,) where it did."""
+    ruled = np.zeros(len(points), dtype=bool)
     if emitter.irradiance is None or not medium.homogeneous:
-        return
+        return ruled
     at = np.flatnonzero(clear & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
     if not len(at):
-        return
+        return ruled
     e, applies = emitter.irradiance(points[at], normals[at], None if shading is None else shading[at],
                                     medium.sigma_t, tol)
     at, e = at[applies], e[applies]
     out[at] += reflectance[at] / math.pi * e - value[at]
+    ruled[at] = True
+    return ruled
 
 
 def _add_lights(out, rows, accel, points, normals, facing, terminator, reflectance, lights, run, medium, through,

@@ -12,6 +12,7 @@ of the emitter's rows, against references built from the geometry alone:
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import mpmath as mp
@@ -20,7 +21,11 @@ import pytest
 from scipy import integrate
 
 from raytrace import api
+from raytrace.lights import Lights
+from raytrace.lights.cubature import AREA_LADDER
 from raytrace.lights.sphere_irradiance import irradiance
+from raytrace.methods import registry
+from raytrace.rendering.renderer import prepare, shade_rays
 from raytrace.scene.format import scene_from_text
 
 from .conftest import to_toml
@@ -183,6 +188,27 @@ def test_a_floor_under_a_sphere_lamp_against_the_twin(height, medium):
         img = api.render(sc, method, **params)
         rel = np.abs(img.array[floor] / ref[floor] - 1.0)
         assert rel.max() <= 1e-6, (method, rel.max())
+
+
+@pytest.mark.parametrize("order", AREA_LADDER)
+def test_the_sunk_lamps_floor_at_every_cubature_order(monkeypatch, order):
+    """The floor under the lamp sunk to 0.2, 32x24, with the rows of every order the pilot may choose:
+    every floor pixel within 1e-6 of the twin. Where nothing can hide the lamp (`_free`) the closed form
+    applies even where the rows that emit toward a point are all blocked by the floor (they lie below its
+    horizon): before, at order 16 one pixel at the lamp's foot was dark and one sampled 5x too bright."""
+    cam = dict(CAMERA, width=32, height=24)
+    monkeypatch.setitem(globals(), "CAMERA", cam)
+    sc = floor_scene(0.2, {})
+    ref = twin(0.2, (0.0,) * 3)
+    floor = ~np.isnan(ref[..., 0])
+    rays = list(camera_rays(cam))
+    prep = prepare(sc)
+    prep = dataclasses.replace(prep, lights=Lights.of(sc.lights, prep.emissive, (order,)), _memo={})
+    rad = shade_rays(prep, registry()["quadrature"], {"rtol": 1e-6}, np.array([r[2] for r in rays]),
+                     np.array([r[3] for r in rays]), np.arange(len(rays), dtype=np.uint64), 0)[0]
+    img = rad.reshape(cam["height"], cam["width"], 3)
+    rel = np.abs(img[floor] / ref[floor] - 1.0)
+    assert rel.max() <= 1e-6, (order, np.argwhere(rel > 1e-6))
 
 
 def test_smooth_shading_takes_the_rule_where_the_geometric_plane_leaves_the_cap_whole():
