@@ -33,6 +33,7 @@ from .lights import sphere_occluders
 from .lights.area import collapsed_variance
 from .rng import uniform
 
+STATS_NAMES = ("closed form not converged",)  # surface_radiance's: points left at the finest order
 SHADOW_BATCH = 1 << 15  # shadow rays (points x lights) the surface term traces in one batch at most
 STRATA = 8  # a penumbra's strata per side for a method without a tolerance (even; two samples in each)
 PILOT = 4  # strata per side of the pilot that chooses a penumbra's strata (`stratified`)
@@ -130,7 +131,7 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
 
 
 def surface_radiance(accel, points, normals, reflectance, lights, medium, through=None, shading=None, keys=None,
-                     seed=0, variance=None, tol=None):
+                     seed=0, variance=None, tol=None, stats=None):
     """Reflected radiance (N, 3) at surface points with ray-facing unit geometric normals `normals`
     and shading normals `shading` (`shading_normals`; None: the geometric ones). `through(li, points)`,
     if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
@@ -140,7 +141,8 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     (`penumbra`, their strata following the method's relative tolerance `tol`: `Method.tolerance`;
     black points are not sampled: they reflect nothing either way), whose variance is added to
     `variance` (N, 3) if given, and where none is blocked by the emitter's closed form if it has one
-    (`_unshadowed`, to `tol`); without keys (or with `through`) the rows alone, everywhere."""
+    (`_unshadowed`, to `tol`); without keys (or with `through`) the rows alone, everywhere. `stats`
+    (STATS_NAMES), if given: += the points where that closed form did not converge."""
     out = np.zeros((len(points), 3))
     sampled = keys is not None and through is None and any(e is not None for e in lights.emitters)
     terminator = shading is not None and shading is not normals  # both must face the light
@@ -167,7 +169,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
         cut = _cut(accel, points, normals, shading if terminator else None, lights.emitters[owner], reached, missed,
                    free)
         ruled = _unshadowed(out, value, points, normals, shading if terminator else None, reflectance,
-                            lights.emitters[owner], medium, tol, free | ~cut & (reached > 0) & (missed == 0))
+                            lights.emitters[owner], medium, tol, free | ~cut & (reached > 0) & (missed == 0), stats)
         at = np.flatnonzero(cut & ~ruled & np.any(reflectance > 0.0, axis=1))  # black: 0 either way
         if len(at):
             est, var = penumbra(accel, points[at], normals[at], shading[at] if terminator else None,
@@ -178,13 +180,13 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     return out
 
 
-def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear):
+def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medium, tol, clear, stats):
     """out += at the points `clear` (nothing can hide the emitter from them (`_free`: rows blocked there
     lie below the point's own horizon, which the closed form clips), or every row of the emitter that
     emits toward the point reached it, some did, and nothing cut it) the emitter's irradiance in closed
     form (`lights.Emitter.irradiance`, to the relative tolerance `tol`) in place of its rows' share
     `value`, where the emitter has it and the medium is homogeneous (the transmittance along each
-    direction then depends on the distance alone); (N,) where it did."""
+    direction then depends on the distance alone); (N,) where it did. `stats` (STATS_NAMES) or None."""
     ruled = np.zeros(len(points), dtype=bool)
     if emitter.irradiance is None or not medium.homogeneous:
         return ruled
@@ -192,7 +194,7 @@ def _unshadowed(out, value, points, normals, shading, reflectance, emitter, medi
     if not len(at):
         return ruled
     e, applies = emitter.irradiance(points[at], normals[at], None if shading is None else shading[at],
-                                    medium.sigma_t, tol)
+                                    medium.sigma_t, tol, None if stats is None else stats[:1])
     at, e = at[applies], e[applies]
     out[at] += reflectance[at] / math.pi * e - value[at]
     ruled[at] = True

@@ -112,9 +112,10 @@ class Emitter:
     probes: tuple | None = None
     planar: object = None  # a flat emitter's planar.Planar (the rule about a camera ray's foot point)
     ball: object = None  # a sphere emitter's sphere_rule.Ball (the rule about a camera ray's segment)
-    # irradiance(points, normals, shading, sigma_t, tol) -> (E (M, 3), applies (M,)): the unshadowed
-    # irradiance at surface points through a homogeneous medium to the relative tolerance tol, where the
-    # kind has it in closed form about a centre (None: not; the kind's `surface_irradiance`)
+    # irradiance(points, normals, shading, sigma_t, tol, missed) -> (E (M, 3), applies (M,)): the
+    # unshadowed irradiance at surface points through a homogeneous medium to the relative tolerance tol,
+    # where the kind has it in closed form about a centre (None: not; the kind's `surface_irradiance`);
+    # missed (1,) += the points where it did not converge (the finest order kept)
     irradiance: Callable | None = None
 
 

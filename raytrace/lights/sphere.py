@@ -74,18 +74,19 @@ def ball(light) -> Ball:
     return Ball(np.asarray(light.position, float), float(light.emitter["radius"]))
 
 
-def surface_irradiance(light, points, normals, shading, sigma_t, tol):
+def surface_irradiance(light, points, normals, shading, sigma_t, tol, missed=None):
     """`area.Emitter.irradiance`: the sphere's unshadowed irradiance (sphere_irradiance.py) on the
     shading normals `shading` (None: the geometric `normals` are the shading ones); it applies where
     those are the geometric ones or the cap lies wholly above the geometric normal's plane (elsewhere
-    that plane, which also bounds what is lit, cuts the cap apart from the shading one's)."""
+    that plane, which also bounds what is lit, cuts the cap apart from the shading one's). `missed`:
+    as sphere_irradiance.irradiance's."""
     applies = np.ones(len(points), dtype=bool)
     if shading is not None:
         applies = np.all(shading == normals, axis=1) | (sphere_irradiance.cap_cosine(light.position,
                                                                                      light.emitter["radius"], points,
                                                                                      normals) >= 0.0)
     e = sphere_irradiance.irradiance(light.position, light.emitter["radius"], light.intensity, points[applies],
-                                     (normals if shading is None else shading)[applies], sigma_t, tol)
+                                     (normals if shading is None else shading)[applies], sigma_t, tol, missed)
     out = np.zeros((len(points), 3))
     out[applies] = e
     return out, applies

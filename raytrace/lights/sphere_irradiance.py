@@ -50,15 +50,17 @@ def _tables():
 NODES, WEIGHTS, OFFSETS = _tables()
 
 
-def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=None):
+def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=None, missed=None):
     """(M, 3) the unshadowed irradiance L int max(0, n·w) T dw of the sphere (`centre`, `radius`,
     radiance L (3,)) at points outside it with unit normals n, through a homogeneous medium of
     extinction `sigma_t` (3,) (0: the vacuum), to the relative tolerance `tol` (None: TOL). Points on
-    or inside the sphere get 0 (not lit from outside)."""
+    or inside the sphere get 0 (not lit from outside). `missed` (1,), if given: += the points where no
+    two orders of ORDERS agreed (the finest kept)."""
     out = np.zeros((len(points), 3))
+    missed = np.zeros(1) if missed is None else missed
     _irradiance(np.asarray(centre, float), float(radius), np.ascontiguousarray(points, float),
                 np.ascontiguousarray(normals, float), np.ascontiguousarray(sigma_t, float),
-                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out)
+                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out, missed)
     return out * np.asarray(radiance, float)[None, :]
 
 
@@ -72,8 +74,8 @@ def cap_cosine(centre, radius: float, points, normals):
 
 
 @njit
-def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out):
-    """`irradiance` / L into out (M, 3)."""
+def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out, missed):
+    """`irradiance` / L into out (M, 3); missed[0] += the points where no two orders agreed."""
     tmp, prev = np.empty(3), np.empty(3)
     for i in range(points.shape[0]):
         ax, ay, az = centre[0] - points[i, 0], centre[1] - points[i, 1], centre[2] - points[i, 2]
@@ -96,6 +98,7 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
         # the cancellation of sin theta / cos alpha - 1 where the horizon grazes the cap's edge
         eps = (sin_a - cos_t) * (sin_a + cos_t) / ((sin_t + cos_a) * cos_a)
         ustar = min(math.log1p(eps + math.sqrt(eps * (2.0 + eps))), u0) if eps > 0.0 else 0.0
+        agree = False
         for k in range(len(offsets) - 1):
             for c in range(3):
                 tmp[c] = 0.0
@@ -109,6 +112,8 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
                     break
             for c in range(3):
                 prev[c] = tmp[c]
+        if not agree:
+            missed[0] += 1.0
         for c in range(3):
             out[i, c] = tmp[c]
 

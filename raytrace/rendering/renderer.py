@@ -38,8 +38,8 @@ from ..options import RenderOptions
 from ..scene.format import Scene
 from ..scene.meshes import exact_spheres, scene_triangles
 from ..segments import cone_segments, gather, gather_weights, whole_rays
-from ..shading import (emissive_shapes, emitted_radiance, facing_normals, first_hits, ground_radiance,
-                       shading_normals, surface_radiance)
+from ..shading import (STATS_NAMES as SURFACE_NAMES, emissive_shapes, emitted_radiance, facing_normals, first_hits,
+                       ground_radiance, shading_normals, surface_radiance)
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from ..shadows import penumbra_airlight
 from ..shadows.shadow_rays import shadowed_airlight
@@ -239,7 +239,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         surf_var = np.zeros((len(points), 3)) if varies else None  # shading.penumbra's
         radiance[surf] = surface_radiance(prep.accel, points, normals, surf_refl, prep.lights,
                                           medium, crossing.shadow_through(prep), shading, surf_keys, seed, surf_var,
-                                          method.tolerance(params))
+                                          method.tolerance(params), deeper[SURFACE_STATS])
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[surf_prim],
                                                prep.accel.hit_normals(surf_prim, points), surf_dirs)
@@ -375,12 +375,14 @@ def has_variance(prep: Prepared, method) -> bool:
 
 
 NEAR_STATS = slice(-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES), -crossing.STATS_SIZE)  # their place in the stats
+SURFACE_STATS = slice(NEAR_STATS.start - len(SURFACE_NAMES), NEAR_STATS.start)  # the surface term's
 
 
 def stats_size(method) -> int:
-    """The length of a render's statistics array: the method's, the lit intervals', the rays near flat
-    emitters', the inside integrals'."""
-    return method.stats_size + len(STATS_NAMES) + len(near_emitters.STATS_NAMES) + crossing.STATS_SIZE
+    """The length of a render's statistics array: the method's, the lit intervals', the surface term's,
+    the rays near flat emitters', the inside integrals'."""
+    return (method.stats_size + len(STATS_NAMES) + len(SURFACE_NAMES) + len(near_emitters.STATS_NAMES)
+            + crossing.STATS_SIZE)
 
 
 WARM_UP_GRID = 8  # the warm-up traces the first sample of the pixels of an 8 x 8 grid over the image
@@ -715,6 +717,8 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
         summary.update({f"shadows: {k}": int(v) for k, v in zip(STATS_NAMES, totals[method.stats_size:])})
     if near_emitters.applies(prep.lights, method):
         summary.update({f"cubature: {k}": int(v) for k, v in zip(near_emitters.STATS_NAMES, totals[NEAR_STATS])})
+    if any(e is not None and e.irradiance is not None for e in prep.lights.emitters):
+        summary.update({f"surface: {k}": int(v) for k, v in zip(SURFACE_NAMES, totals[SURFACE_STATS])})
     summary.update(crossing.summarize(prep, method, totals[-crossing.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
     summary.update(pilot)
