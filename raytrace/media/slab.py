@@ -515,6 +515,46 @@ def edge_tilt(row, planes, g):
 
 
 @njit
+def fermat_bend(rmin, rmax, zlo, zhi, a, hl, eta, d):
+    """A bound on the refraction point's acceleration |R''(x)| on the face's plane over a piece of a
+    segment where the horizontal distance to the light lies in [rmin, rmax], the depth in [zlo, zhi]
+    and the light's height is hl, each range widened by d (the exact geometry's distance from the
+    computed one), a = -w.n and W by 1e-9; inf unless eta > 1 and rmin, zlo, hl > 0 after widening
+    (z > 0: the refraction point is a smooth function of x, R'' exists). In
+    shadows/fermat_legs.py's terms (R = L_f + s u, rho = s + z T(s), T = tan t2, W = |w_h| =
+    sqrt(1 - a^2)): R'' = s'' u + 2 s' u' + s u'', with u' = w_perp / rho (w_perp the part of w_h across
+    u: |u'| <= W / rho), u'' = -(rho'' u + 2 rho' u') / rho, rho'' = |w_perp|^2 / rho (so |u''| <=
+    (q^2 + 2 p q) / rho^2 <= 1.6181 W^2 / rho^2 with p = |rho'|, q = |w_perp|, p^2 + q^2 = W^2), and,
+    differentiating rho = s + z T(s) twice (z' = a), s' = (rho' - a T) / (1 + z T'),
+    s'' = (rho'' - 2 a T' s' - z T'' s'^2) / (1 + z T'), the denominators >= 1 (z, T' >= 0). In
+    sigma = sin t2 = s / (eta o), o = sqrt(s^2 + hl^2): sigma' = hl^2 / (eta o^3), sigma'' =
+    -3 s hl^2 / (eta o^5), T' = sigma' / (1 - sigma^2)^(3/2) and T'' = 3 sigma sigma'^2 / (1 -
+    sigma^2)^(5/2) + sigma'' / (1 - sigma^2)^(3/2), two terms of opposite signs (|T''| is at most the
+    larger). Over the piece s <= rho <= rmax, s >= rmin - zhi / sqrt(eta^2 - 1) (r = z T <= z / sqrt(eta^2
+    - 1)), sigma <= rmax / (eta sqrt(rmax^2 + hl^2)) (increasing in s), T <= min(1 / sqrt(eta^2 - 1),
+    rmax / zlo) and s / o = eta sigma; each factor is bounded by its value at the end of its range that
+    makes it largest. Returned times 1 + 1e-9 (this arithmetic's rounding)."""
+    rmin, rmax, zlo, zhi, h_lo, hl = rmin - d, rmax + d, zlo - d, zhi + d, hl - d, hl + d
+    if not (eta > 1.0 and rmin > 0.0 and zlo > 0.0 and h_lo > 0.0):
+        return math.inf
+    w = min(math.sqrt(max(1.0 - a * a, 0.0)) + 1e-9, 1.0)
+    aa = abs(a) + 1e-9
+    tmax = 1.0 / math.sqrt(eta * eta - 1.0)
+    t_hi = min(tmax, rmax / zlo)
+    smin = max(rmin - zhi * tmax, 0.0)
+    o2 = smin * smin + h_lo * h_lo
+    o_min = math.sqrt(o2)
+    sig = rmax / (eta * math.sqrt(rmax * rmax + h_lo * h_lo))
+    c2 = 1.0 - sig * sig
+    dsig = hl * hl / (eta * o2 * o_min)
+    t1 = dsig / (c2 * math.sqrt(c2))
+    t2 = max(3.0 * sig * dsig * dsig / (c2 * c2 * math.sqrt(c2)), 3.0 * sig * hl * hl / (o2 * o2 * c2 * math.sqrt(c2)))
+    s1 = w + aa * t_hi
+    s2 = w * w / rmin + 2.0 * aa * t1 * s1 + zhi * t2 * s1 * s1
+    return (s2 + 2.0 * s1 * w / rmin + 1.6181 * w * w / rmin) * (1.0 + 1e-9)
+
+
+@njit
 def _bisect(row, planes, g, eta, lo, hi):
     """The sign change of `_edge_value` in [lo, hi] (signs differ at its ends) to the resolution of doubles."""
     s_lo = _edge_value(lo, row, planes, g, eta)
@@ -938,8 +978,16 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     psi lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
     K_R times `edge_tilt` and 1 + 1e-11 for an edge plane; over the outside leg's least length o_min for a
     cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi] with psi(lo) + psi(hi) > K
-    (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band; the
-    others are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
+    (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band. For an
+    edge plane, where that fails, a second-order test: psi_exact is twice differentiable on the interval
+    (the point below the face's plane, away from straight below the light) with |psi''| <= M = tilt times
+    `fermat_bend`'s bound on |R''| over the interval (R'' lies along the face's plane, as R' does), so it
+    lies above its chord less M (x - lo)(hi - x) / 2 >= M (hi - lo)^2 / 8, and above min(psi(lo), psi(hi))
+    - tol - M (hi - lo)^2 / 8: an interval with min(psi(lo), psi(hi)) > M (hi - lo)^2 / 8 + 2 tol + slack
+    (or max(...) < -(M (hi - lo)^2 / 8 + 2 tol)) lies outside the band too. This closes a refraction point
+    that slides along an edge's line, close to it over a long stretch: there the first-order test, whose
+    K is the speed of R and not of its distance from the line, excludes only intervals below psi / K; the
+    second-order one those below sqrt(8 psi / M). The others are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
     these undecided intervals come out from left to right, and runs of adjacent ones form clusters. A
     cluster where phi changes sign with no cut within `width` of it (a jump or kink the rule did not break
     at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
@@ -950,6 +998,7 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
     tilt = edge_tilt(row, rec.planes, g) * (1.0 + 1e-11) if kind == _EDGE else 1.0
+    bend = 1e-9 * rec.mags[3] + 2.0 * (rec.dc + SQ3 * rec.dn * rec.mags[3])  # fermat_bend's widening
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _psi(kind, 0.0, rec, row, g, level), _psi(kind, end, rec, row, g, level)
@@ -964,6 +1013,12 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
         k = k * tilt if kind == _EDGE else k / o_min
         if vlo + vhi > k * (hi - lo) + 4.0 * tol + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * tol:
             continue
+        if kind == _EDGE and (min(vlo, vhi) > 2.0 * tol + slack or max(vlo, vhi) < -2.0 * tol):
+            rmin, rmax = rho_range(lo, hi, wl, ll, a)
+            bow = tilt * fermat_bend(rmin, rmax, min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi), a,
+                                   row[2], eta, bend) * (hi - lo) * (hi - lo) * 0.125 * (1.0 + 1e-12)
+            if min(vlo, vhi) > bow + 2.0 * tol + slack or max(vlo, vhi) < -(bow + 2.0 * tol):
+                continue
         inside = -2.0 * tol <= vlo <= slack + 2.0 * tol and -2.0 * tol <= vhi <= slack + 2.0 * tol
         if hi - lo <= width or (inside and hi - lo <= 1e4 * width):
             if lo != run_hi:  # a new cluster: close the last
