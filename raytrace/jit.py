@@ -4,7 +4,9 @@ Every kernel is compiled with ``njit`` from here: cached, GIL-free (so a thread 
 uses every core) and with a fastmath subset that keeps NaN/Inf semantics (no ``nnan``/``ninf``,
 numba issues #2919 and #9383) and keeps libm accuracy (no ``afn``). The cache of the package's
 kernels lives in `cache.kernel_cache_dir()`, keyed on all of the package's sources (a locator
-placed first in numba's list); numba's own locators serve everything else.
+placed first in numba's list); numba's own locators serve everything else. ``hold`` and ``release``
+keep this process off that cache (no loads, its saves kept back) while a worker process writes it
+(rendering/compile_ahead.py); ``CACHE_EMPTY``: whether it held no kernel when this process started.
 
 ``exact_njit`` is the one exception: kernels that take over a tile's NumPy expressions (camera
 rays, shading normals, the surface term's shadow rays, the exponential transmittance), without
