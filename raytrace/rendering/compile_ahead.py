@@ -37,12 +37,13 @@ class Ahead:
     cache held (`jit.hold`) until `wait`."""
 
     def __init__(self, fn, *args):
+        call = pickle.dumps((fn, args))
         code = f"import sys; sys.path[:] = {sys.path!r}; from {__name__} import serve; serve()"
         env = dict(os.environ, RAYTRACE_CACHE=str(Path(jit.SourceKeyedLocator.root).parents[1]))
         self._proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
         try:
-            self._proc.stdin.write(pickle.dumps((fn, args)))
+            self._proc.stdin.write(call)
             self._proc.stdin.close()
         except OSError:  # the worker died at once: it compiles nothing
             pass
@@ -58,13 +59,14 @@ class Ahead:
 
 
 def start(fn, *args) -> Ahead | None:
-    """`Ahead(fn, *args)` where `engaged`, else None (also where no process can be started)."""
+    """`Ahead(fn, *args)` where `engaged`, else None (also where no process can be started or the
+    arguments cannot be pickled)."""
     if not engaged():
         return None
     _started.append(fn)
     try:
         return Ahead(fn, *args)
-    except OSError:
+    except (OSError, pickle.PicklingError, AttributeError, TypeError):
         return None
 
 

@@ -406,7 +406,7 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
             prep.frusta()
         return 0.0
     start = time.perf_counter()
-    ahead = compile_ahead.start(compile_airlight, prep.scene, prep.lights, method.name, params, seed)
+    ahead = compile_ahead.start(compile_airlight, prep.scene, method.name, params, seed)
     try:
         if shadows:
             prep.frusta()  # before the tiles' threads share it
@@ -431,11 +431,11 @@ def warm_up_rays(prep: Prepared):
     return crossing.warm_up_rays(prep, o, d)
 
 
-def compile_airlight(scene: Scene, lights: Lights, method_name: str, params: dict, seed: int):
+def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
     """compile_ahead's worker: the air-light's kernels, on the warm-up's rays without shadows and
     shaded as if they hit nothing where the camera is outside every medium (so that it compiles
-    neither the frusta's kernels nor the surfaces')."""
-    prep = dataclasses.replace(prepare(scene), lights=lights)
+    neither the frusta's kernels nor the surfaces'); the area lights' cubature at its first orders."""
+    prep = prepare(scene)
     o, d = warm_up_rays(prep)
     t, prim, ground = first_hits(prep.accel, scene.medium, o, d)
     hits = None if prep.camera_inside is not None else (t, np.full_like(prim, -1), np.zeros_like(ground))
