@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,19 @@ class _Ahead:
 
     def wait(self):
         self.log.append("wait")
+
+
+def test_a_failed_warm_up_ends_the_worker_and_releases_the_cache(monkeypatch):
+    monkeypatch.setattr(compile_ahead, "_started", [])
+    monkeypatch.setattr(jit, "CACHE_EMPTY", True)
+    ahead = compile_ahead.start(time.sleep, 600.0)  # a worker that would run for ten minutes
+    if ahead is None:
+        pytest.skip("one core: no worker")
+    assert jit._held == []
+    start = time.perf_counter()
+    ahead.wait(stop=True)
+    assert time.perf_counter() - start < 60.0 and jit._held is None
+    ahead.wait()  # once only
 
 
 class _Method:

@@ -49,10 +49,12 @@ class Ahead:
             pass
         jit.hold()
 
-    def wait(self):
-        """Wait for the worker (once), then release the cache. A worker that failed leaves its kernels
-        to this process."""
+    def wait(self, stop: bool = False):
+        """Wait for the worker (once; `stop`: end it first, as when the warm-up failed or was
+        interrupted), then release the cache. A worker that failed leaves its kernels to this process."""
         if self._proc is not None:
+            if stop:
+                self._proc.kill()
             self._proc.wait()
             self._proc = None
             jit.release()

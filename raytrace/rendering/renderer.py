@@ -413,9 +413,12 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
         o, d = warm_up_rays(prep)
         shade_rays(prep, method if ahead is None else compile_ahead.Gated(method, ahead), params, o, d,
                    np.zeros(len(o), dtype=np.uint64), seed, shadows)
-    finally:
+    except BaseException:
         if ahead is not None:
-            ahead.wait()
+            ahead.wait(stop=True)
+        raise
+    if ahead is not None:
+        ahead.wait()
     if key is not None:
         WARMED.add(key)
     return time.perf_counter() - start
