@@ -305,8 +305,8 @@ def paired(names: list[str], args):
                 cells.append(", ".join(f"{r['cached']['main_cpu']:.2f}" for r in runs[k]) + " | "
                              + ", ".join(str(r["cached"]["compiled"]) for r in runs[k]))
         print(f"| {name} | {' | '.join(cells)} |", flush=True)
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
+        if args.json:  # after every scene: a long run's figures so far
+            args.json.write_text(json.dumps(results, indent=1))
 
 
 if __name__ == "__main__":
