@@ -1,6 +1,7 @@
 """The first render's compile split over two processes (rendering/compile_ahead.py): the main
 process's disk cache held (`jit.hold`: no loads, saves kept back) until the worker has finished, the
-air-light gated on the worker, engaged once per process that started on an empty cache; and, in
+air-light gated on the worker, engaged for the first warm-up (shadowed) of a process that started on
+an empty cache; and, in
 fresh processes on empty caches, the same image every time with the air-light's kernels loaded from
 what the worker compiled."""
 import json
@@ -53,7 +54,7 @@ class _Ahead:
 def test_a_failed_warm_up_ends_the_worker_and_releases_the_cache(monkeypatch):
     monkeypatch.setattr(compile_ahead, "_started", [])
     monkeypatch.setattr(jit, "CACHE_EMPTY", True)
-    ahead = compile_ahead.start(time.sleep, 600.0)  # a worker that would run for ten minutes
+    ahead = compile_ahead.start(True, time.sleep, 600.0)  # a worker that would run for ten minutes
     if ahead is None:
         pytest.skip("one core: no worker")
     assert jit._held == []
@@ -82,9 +83,8 @@ def test_the_gated_airlight_waits_for_the_worker_first():
     assert log == ["wait", ("airlight", (1, 2))]
 
 
-def test_engaged_only_once_in_a_process_that_started_on_an_empty_cache(monkeypatch):
+def test_engaged_for_a_first_shadowed_warm_up_in_a_process_that_started_on_an_empty_cache(monkeypatch):
     monkeypatch.delenv("RAYTRACE_COMPILE_AHEAD", raising=False)
-    monkeypatch.setattr(compile_ahead, "_started", [])
     monkeypatch.setattr(jit, "CACHE_EMPTY", False)
     assert not compile_ahead.engaged()
     monkeypatch.setattr(jit, "CACHE_EMPTY", True)
@@ -93,8 +93,10 @@ def test_engaged_only_once_in_a_process_that_started_on_an_empty_cache(monkeypat
     monkeypatch.setenv("RAYTRACE_COMPILE_AHEAD", "0")
     assert not compile_ahead.engaged()
     monkeypatch.delenv("RAYTRACE_COMPILE_AHEAD")
-    monkeypatch.setattr(compile_ahead, "_started", [print])
-    assert not compile_ahead.engaged()
+    monkeypatch.setattr(compile_ahead, "_started", [])
+    assert compile_ahead.start(False, print) is None  # an unshadowed first warm-up (a cubature pilot's) ...
+    assert compile_ahead.start(True, print) is None  # ... leaves the process's compile to itself
+    assert len(compile_ahead._started) == 2 and jit._held is None
 
 
 RENDER = """

@@ -6,8 +6,11 @@ a worker process started at its beginning compiles the air-light's kernels
 (renderer.compile_airlight) into the cache. Which process compiles what does not depend on timing:
 until the worker has finished, this process neither loads from the cache nor writes to it
 (`jit.hold`: it compiles whatever it calls itself), and its method's air-light (`Gated`) first waits
-for the worker, then loads what the worker compiled. Engaged once per process, in one that started
-with no kernel in the cache, on two cores or more; ``RAYTRACE_COMPILE_AHEAD=0`` turns it off. The
+for the worker, then loads what the worker compiled. Engaged for the first warm-up of a process
+that started with no kernel in the cache, on two cores or more, where that warm-up builds shadow
+frusta (the two groups: frusta and surfaces here, the air-light there; a scene whose area lights'
+cubature pilot warms up first, unshadowed, compiles in one process); ``RAYTRACE_COMPILE_AHEAD=0``
+turns it off. The
 worker is a fresh interpreter on this one's module path (not multiprocessing's spawn, which would
 run the caller's main script again where it has no ``if __name__ == "__main__"`` guard).
 """
@@ -21,13 +24,13 @@ from pathlib import Path
 
 from .. import jit
 
-_started = []  # the worker of this process, once started
+_started = []  # the warm-ups of this process that asked for a worker
 
 
 def engaged() -> bool:
-    """Whether a warm-up compiles ahead in a worker: the first of a process that started with no
-    kernel in the cache (`jit.CACHE_EMPTY`), on two cores or more."""
-    if _started or not (jit.CUTS and jit.CACHE_EMPTY) or os.environ.get("RAYTRACE_COMPILE_AHEAD") == "0":
+    """Whether this process may compile ahead in a worker: it started with no kernel in the cache
+    (`jit.CACHE_EMPTY`) and has two cores or more."""
+    if not (jit.CUTS and jit.CACHE_EMPTY) or os.environ.get("RAYTRACE_COMPILE_AHEAD") == "0":
         return False
     return (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1) > 1
 
@@ -60,12 +63,14 @@ class Ahead:
             jit.release()
 
 
-def start(fn, *args) -> Ahead | None:
-    """`Ahead(fn, *args)` where `engaged`, else None (also where no process can be started or the
-    arguments cannot be pickled)."""
-    if not engaged():
-        return None
+def start(split: bool, fn, *args) -> Ahead | None:
+    """`Ahead(fn, *args)` for the first warm-up of a process (`start`'s first call) where `split` (it
+    compiles a second group of kernels meanwhile) and `engaged`, else None (also where no process
+    can be started or the arguments cannot be pickled)."""
+    first = not _started
     _started.append(fn)
+    if not (split and first and engaged()):
+        return None
     try:
         return Ahead(fn, *args)
     except (OSError, pickle.PicklingError, AttributeError, TypeError):

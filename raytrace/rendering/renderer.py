@@ -406,7 +406,7 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
             prep.frusta()
         return 0.0
     start = time.perf_counter()
-    ahead = compile_ahead.start(compile_airlight, prep.scene, method.name, params, seed)
+    ahead = compile_ahead.start(shadows, compile_airlight, prep.scene, method.name, params, seed)
     try:
         if shadows:
             prep.frusta()  # before the tiles' threads share it
