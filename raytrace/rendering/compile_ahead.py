@@ -10,9 +10,9 @@ for the worker, then loads what the worker compiled. Engaged for the first warm-
 that started with no kernel in the cache, on two cores or more, where that warm-up builds shadow
 frusta (the two groups: frusta and surfaces here, the air-light there; a scene whose area lights'
 cubature pilot warms up first, unshadowed, compiles in one process); ``RAYTRACE_COMPILE_AHEAD=0``
-turns it off. The
-worker is a fresh interpreter on this one's module path (not multiprocessing's spawn, which would
-run the caller's main script again where it has no ``if __name__ == "__main__"`` guard).
+turns it off. The worker is a fresh interpreter on this one's module path (not multiprocessing's
+spawn, which would run the caller's main script again where it has no ``if __name__ ==
+"__main__"`` guard).
 """
 from __future__ import annotations
 
