@@ -178,12 +178,12 @@ def check(prep, method, method_params, source: str):
                                     "such a medium are lit by directional lights only; use ior = 1, a convex shape "
                                     "or a directional light")
     inside = prep.camera_inside
-    if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
-                                                       and not len(refracting_planes(prep, inside)))):
+    if inside is not None and (not sup.camera_inside or (prep.scene.shapes[inside].interior.ior != 1.0 and not len(
+            refracting_planes(prep, inside)) and paths.exact_sphere(prep, inside) is None)):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        "bounded medium needs an index-matched interior (ior = 1) or a convex shape, and --method "
-                        f"{', '.join(_takers(lambda s: s.exact_paths))}; move the camera out of the shape or change "
-                        "them")
+                        "bounded medium needs an index-matched interior (ior = 1), a convex shape or an exact sphere, "
+                        f"and --method {', '.join(_takers(lambda s: s.camera_inside))}; move the camera out of the "
+                        "shape or change them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
         if inside is not None:
