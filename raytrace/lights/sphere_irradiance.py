@@ -37,6 +37,7 @@ ORDERS = (4, 6, 8, 12, 16, 24, 32, 48, 64)  # Gauss–Legendre nodes per piece, 
 SHARE = 0.25  # the share of the tolerance two orders must agree to (as the emitters' cubature: cubature.py)
 TOL = 1e-10  # the tolerance where the method gives none
 SERIES, TERMS = 0.125, 9  # t - atan t by its series below t = SERIES (TERMS terms: the next, t^21 / 21, is below 1e-17 t^3 / 3)
+KAPPA = 1e-6
 FLOOR = 1e-300  # agreement below this absolute irradiance / L counts as exact (a cap that vanishes)
 
 
@@ -98,12 +99,16 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
         # the cancellation of sin theta / cos alpha - 1 where the horizon grazes the cap's edge
         eps = (sin_a - cos_t) * (sin_a + cos_t) / ((sin_t + cos_a) * cos_a)
         ustar = min(math.log1p(eps + math.sqrt(eps * (2.0 + eps))), u0) if eps > 0.0 else 0.0
+        # u0 - u*: sinh((u0 - u*) / 2) = (cosh u0 - cosh u*) / (2 sinh((u0 + u*) / 2)), cosh u0 - cosh u* =
+        # (1 - sin theta) / cos alpha = cos^2 theta / ((1 + sin theta) cos alpha)
+        near = cos_t * cos_t / ((1.0 + sin_t) * cos_a * 2.0 * math.sinh(0.5 * (u0 + ustar)))
+        eta = math.sqrt(2.0 * math.asinh(near)) if ustar > 0.0 else 0.0
         agree = False
         for k in range(len(offsets) - 1):
             for c in range(3):
                 tmp[c] = 0.0
             lo, hi = offsets[k], offsets[k + 1]
-            _add_pieces(tmp, nodes[lo:hi], weights[lo:hi], kt, cos_t, sin_t, cos_a, root_k, ustar, u0)
+            _add_pieces(tmp, nodes[lo:hi], weights[lo:hi], kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta)
             if k > 0:
                 agree = True
                 for c in range(3):
@@ -119,20 +124,25 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
 
 
 @njit
-def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0):
+def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta):
     """acc (3,) += the two pieces of the integral in u (module docstring) with the Gauss–Legendre rule
     (x, wx) on [0, 1] in each."""
     if ustar > 0.0:  # [0, u*]: u = u* - w^2, w in [0, sqrt(u*)], du = 2 w dw
         top = math.sqrt(ustar)
+        scale = max(eta, KAPPA * top)
+        span = math.asinh(top / scale) if scale < top else 0.0
         for j in range(x.shape[0]):
-            w = top * x[j]
+            if span > 0.0:
+                w, dw = scale * math.sinh(span * x[j]), scale * math.cosh(span * x[j]) * span
+            else:
+                w, dw = top * x[j], top
             u = ustar - w * w
             c = cos_a * math.cosh(u)  # cos beta
             # sin theta - cos beta = cos_a (cosh u* - cosh u), without the cancellation
             gap = 2.0 * cos_a * math.sinh(0.5 * (ustar + u)) * math.sinh(0.5 * w * w)
             root = math.sqrt(max(gap * (sin_t + c), 0.0))  # sqrt(B^2 - A^2)
             phi = _azimuths(cos_t * c, root)
-            f = phi * cos_a * math.sinh(u) * 2.0 * w * top * wx[j]
+            f = phi * cos_a * math.sinh(u) * 2.0 * w * dw * wx[j]
             _add_attenuated(acc, f, kt, root_k * math.exp(-u))
     if cos_t > 0.0 and u0 > ustar:  # [u*, u0]: the circles wholly above the horizon, Phi = 2 pi A
         span = u0 - ustar
