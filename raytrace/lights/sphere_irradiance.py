@@ -95,6 +95,7 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
     """`irradiance` / L into out (M, 3); missed[0] += the points where no RUN consecutive pairs of orders
     agreed."""
     prev = np.empty(3)
+    lossy = kt[0] != 0.0 or kt[1] != 0.0 or kt[2] != 0.0
     for i in range(points.shape[0]):
         cos_t, sin_t, sin_a, cos_a, root_k, u0, ustar, eta = _geometry(centre, R, points[i], normals[i])
         if not cos_t > -sin_a:  # on or inside the sphere, or the cap wholly below the horizon
@@ -103,22 +104,23 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
         exact = math.pi * cos_t * (cos_t * cos_t if ustar > 0.0 else sin_a * sin_a) if whole else 0.0
         for c in range(3):
             out[i, c] = exact if kt[c] == 0.0 else 0.0
-        if (ustar > 0.0 or (whole and np.any(kt != 0.0))) and not _ladder(
-                out[i], prev, exact, nodes, weights, offsets, tol, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta):
+        above = whole and lossy  # [u*, u0] by the rule
+        geometry = (cos_t, sin_t, cos_a, root_k, ustar, u0, eta, above)
+        if (ustar > 0.0 or above) and not _ladder(out[i], prev, exact, nodes, weights, offsets, tol, kt, geometry):
             missed[0] += 1.0
 
 
 @njit
-def _ladder(acc, prev, exact, nodes, weights, offsets, tol, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta):
-    """acc (3,) = `exact` (in the channels without extinction) + the pieces (`_add_pieces`) by ORDERS in
-    turn, until RUN consecutive pairs of orders agree to tol relative to the finer (True; the finest of
-    them kept) or the finest (False); prev (3,) scratch."""
+def _ladder(acc, prev, exact, nodes, weights, offsets, tol, kt, geometry):
+    """acc (3,) = `exact` (in the channels without extinction) + the pieces (`_add_pieces` of `geometry`)
+    by ORDERS in turn, until RUN consecutive pairs of orders agree to tol relative to the finer (True; the
+    finest of them kept) or the finest (False); prev (3,) scratch."""
     run = 0
     for k in range(len(offsets) - 1):
         for c in range(3):
             acc[c] = exact if kt[c] == 0.0 else 0.0
         lo, hi = offsets[k], offsets[k + 1]
-        _add_pieces(acc, nodes[lo:hi], weights[lo:hi], kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta)
+        _add_pieces(acc, nodes[lo:hi], weights[lo:hi], kt, *geometry)
         if k > 0:
             agree = True
             for c in range(3):
@@ -161,10 +163,10 @@ def _geometry(centre, R, x, n):
 
 
 @njit
-def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta):
+def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta, above):
     """acc (3,) += the integral in u (module docstring) by the Gauss–Legendre rule (x, wx) on [0, 1] in
-    each piece: the circles the horizon cuts, [0, u*] (in two where KAPPA < eta / sqrt(u*) < SPLIT), and in
-    the channels with extinction those wholly above it, [u*, u0] (in the others `exact`)."""
+    each piece: the circles the horizon cuts, [0, u*] (in two where KAPPA < eta / sqrt(u*) < SPLIT), and,
+    where `above`, in the channels with extinction those wholly above it, [u*, u0]."""
     if ustar > 0.0:  # [0, u*]: u = u* - w^2, w in [0, sqrt(u*)], du = 2 w dw
         top = math.sqrt(ustar)
         if KAPPA * top < eta < SPLIT * top:
@@ -172,7 +174,7 @@ def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta):
             _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, SPLIT * top, top, 0.0)
         else:
             _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, 0.0, top, 0.0)
-    if cos_t > 0.0 and u0 > ustar and np.any(kt != 0.0):  # [u*, u0]: Phi = 2 pi A
+    if above:  # [u*, u0]: Phi = 2 pi A
         span = u0 - ustar
         for j in range(x.shape[0]):
             u = ustar + span * x[j]
