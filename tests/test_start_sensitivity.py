@@ -38,8 +38,8 @@ def test_sensitivity_is_the_kernels_response_to_its_start_values(code, g, precis
 @pytest.mark.parametrize("g,precision", [(0.9, 1e-3), (0.9, 1e-6), (0.95, 1e-6), (-0.9, 1e-6), (0.5, 1e-9)])
 def test_tables_bound_the_sensitivity(g, precision):
     """`_block_at`'s value for a point light's piece (at = B_HMAX) is at least the sensitivity / (2 sum
-    |c_k|) at 2000 values of H per block, denser than the table's samples, and not more than 3 times it
-    where that is not small (a bound that errs far high would waste the series' iterations)."""
+    |c_k|) at 2000 values of H per block, denser than the table's samples, and at most twice it at half
+    of them (a bound that errs far high would waste the series' iterations)."""
     co = A.exact_coeffs(HG, g, precision)
     starts = co[-1 - int(co[-1]):-1].astype(int)
     for start, block in zip(starts, A.coefficient_blocks(co)):
@@ -52,5 +52,5 @@ def test_tables_bound_the_sensitivity(g, precision):
         mine = got[:, 0] == start  # the pieces this block serves (a later, narrower one may serve others)
         assert mine.any()
         assert np.all(got[mine, 2] >= true[mine]), (g, precision, len(c))
-        big = mine & (true > 0.01 * true.max())
-        assert np.all(got[big, 2] <= 3.0 * true[big]), (g, precision, len(c))
+        over = got[mine, 2] / true[mine]
+        assert np.median(over) <= 2.0, (g, precision, len(c))

@@ -807,15 +807,17 @@ def _block(c, phase, v_lo, v_hi, precision):
 
 
 SENS_SAMPLES = 8  # samples of the sensitivity in each interval of its table
+# the sampled maximum of a smooth peak between samples errs low: by up to 1e-4 relative (measured, HG 0.5 at 1e-9)
+SENS_MARGIN = 1.01
 
 
 def _sensitivity(c, hmax):
     """The sensitivity table of a block: at node i (H = hmax (i / (LOSS_TABLE - 1))^2) the largest
     `start_sensitivity` / (2 sum |c_k|) on the intervals on either side of the node (sampled SENS_SAMPLES
-    times each), so that its linear interpolation bounds it on every interval. S / 2 = sum_k c_k Re E_k / 2
+    times each, times SENS_MARGIN), so that its linear interpolation bounds it on every interval. S / 2 = sum_k c_k Re E_k / 2
     then moves by at most sens sum |c_k| prec K1 where K1 and L1 err by at most prec K1 (`_piece`)."""
     m = (LOSS_TABLE - 1) * SENS_SAMPLES
-    sens = start_sensitivity(hmax * (np.arange(m + 1) / m) ** 2, c) / (2.0 * np.sum(np.abs(c)))
+    sens = SENS_MARGIN * start_sensitivity(hmax * (np.arange(m + 1) / m) ** 2, c) / (2.0 * np.sum(np.abs(c)))
     return np.array([np.max(sens[max(0, (i - 1) * SENS_SAMPLES):(i + 1) * SENS_SAMPLES + 1])
                      for i in range(LOSS_TABLE)])
 
