@@ -646,8 +646,9 @@ def _block_at(coeffs, v1, v2, H, at):
     preceded by its length, the full one first, the fitted ones after it from the widest range to the
     narrowest, each range inside the one before, so the scan stops at the first range that does not
     hold the piece; the blocks' starts are read from the directory at the end of `coeffs`, so that no
-    block's address waits for the load of the length before it). The value is interpolated from the block's table
-    (B_SENS or B_LOSS_BAND; nodes quadratic in H: the loss grows like exp(2 sqrt(H k))), the loss at least 1. Offsets, not slices: a slice costs numba a
+    block's address waits for the load of the length before it). The value is read from the block's table (nodes
+    quadratic in H: the loss grows like exp(2 sqrt(H k))): B_SENS holds the sensitivity's bound on each
+    interval between two nodes, B_LOSS_BAND the loss at the nodes, interpolated (at least 1). Offsets, not slices: a slice costs numba a
     reference count, as does every array handed to a call (so the scan and the table are one call)."""
     last = coeffs.shape[0] - 1
     top = last - int(coeffs[last])  # the directory of the blocks' starts (`exact_coeffs`)
@@ -662,12 +663,13 @@ def _block_at(coeffs, v1, v2, H, at):
     hmax = coeffs[start + at]
     if H > hmax:
         return start, n, math.inf
-    table = start + (B_SENS if at == B_HMAX else B_LOSS_BAND)
     x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
     i = min(int(x), LOSS_TABLE - 2)
+    if at == B_HMAX:
+        return start, n, coeffs[start + B_SENS + i]  # (its bound on the interval)
+    table = start + B_LOSS_BAND
     f = x - i
-    value = (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i]
-    return start, n, value if at == B_HMAX else max(1.0, value)
+    return start, n, max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
 
 
 @njit
@@ -812,14 +814,15 @@ SENS_MARGIN = 1.01
 
 
 def _sensitivity(c, hmax):
-    """The sensitivity table of a block: at node i (H = hmax (i / (LOSS_TABLE - 1))^2) the largest
-    `start_sensitivity` / (2 sum |c_k|) on the intervals on either side of the node (sampled SENS_SAMPLES
-    times each, times SENS_MARGIN), so that its linear interpolation bounds it on every interval. S / 2 = sum_k c_k Re E_k / 2
-    then moves by at most sens sum |c_k| prec K1 where K1 and L1 err by at most prec K1 (`_piece`)."""
+    """The sensitivity table of a block: for the interval i between the nodes H = hmax (i / (LOSS_TABLE -
+    1))^2 and H = hmax ((i + 1) / (LOSS_TABLE - 1))^2 the largest `start_sensitivity` / (2 sum |c_k|) on it
+    (SENS_SAMPLES + 1 samples, times SENS_MARGIN); the last entry repeats the last interval's. S / 2 =
+    sum_k c_k Re E_k / 2 then moves by at most sens sum |c_k| prec K1 where K1 and L1 err by at most
+    prec K1 (`_piece`)."""
     m = (LOSS_TABLE - 1) * SENS_SAMPLES
     sens = SENS_MARGIN * start_sensitivity(hmax * (np.arange(m + 1) / m) ** 2, c) / (2.0 * np.sum(np.abs(c)))
-    return np.array([np.max(sens[max(0, (i - 1) * SENS_SAMPLES):(i + 1) * SENS_SAMPLES + 1])
-                     for i in range(LOSS_TABLE)])
+    table = [np.max(sens[i * SENS_SAMPLES:(i + 1) * SENS_SAMPLES + 1]) for i in range(LOSS_TABLE - 1)]
+    return np.array(table + table[-1:])
 
 
 def _far_cosine_series(g, precision, phi_lo, phi_hi):
