@@ -12,13 +12,13 @@ onto the rays; least of 5 rounds in which the compared runs take turns), so figu
 measured in one run on one machine. The last table compares a whole render of the same rays
 (first hits, surface term, shadow rays) without any air-light term and with `analytic`.
 
-    RAYTRACE_ASSETS=../shared/scenes python benchmarks/airlight.py --scene conference [--spp 4 --rounds 5 --phases "hg g=0.9"]
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/airlight.py --scene conference [--spp 4 --rounds 5]
 
 prints only the cost of the air-light in whole renders of a bundled scene (the conference room at
 512 x 512: one light): `analytic` at its default precision, unshadowed, one thread, over the same
 render without air-light (sigma_s = 0, the same sigma_t), per phase function (the scene's medium
-with its phase function replaced); the two take turns in each round, CPU seconds, medians of the
-rounds and of the per-round ratios.
+with its phase function replaced; `--phases "hg g=0.9"` for one); the two take turns in each round,
+CPU seconds, medians of the rounds and of the per-round ratios.
 """
 import argparse
 import dataclasses

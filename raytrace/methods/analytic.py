@@ -637,7 +637,7 @@ def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_
 
 @njit
 def _block_at(coeffs, v1, v2, H, at):
-    """(start, length, loss): where in `coeffs` the exact mode's coefficient block for a piece
+    """(start, length, value): where in `coeffs` the exact mode's coefficient block for a piece
     v1 < v < v2 at H = kt h starts, its length, and at H the sum's sensitivity to the start values
     (at = B_HMAX, `_sensitivity`) or the band's forward recurrence's error amplification (at = B_HMAX_BAND),
     or inf where H is beyond the block's limit (the recurrence would lose digits: quadrature).
@@ -646,10 +646,11 @@ def _block_at(coeffs, v1, v2, H, at):
     preceded by its length, the full one first, the fitted ones after it from the widest range to the
     narrowest, each range inside the one before, so the scan stops at the first range that does not
     hold the piece; the blocks' starts are read from the directory at the end of `coeffs`, so that no
-    block's address waits for the load of the length before it). The value is read from the block's table (nodes
-    quadratic in H: the loss grows like exp(2 sqrt(H k))): B_SENS holds the sensitivity's bound on each
-    interval between two nodes, B_LOSS_BAND the loss at the nodes, interpolated (at least 1). Offsets, not slices: a slice costs numba a
-    reference count, as does every array handed to a call (so the scan and the table are one call)."""
+    block's address waits for the load of the length before it). The value is read from the block's
+    table (nodes quadratic in H: the loss grows like exp(2 sqrt(H k))): B_SENS holds the sensitivity's
+    bound on each interval between two nodes, B_LOSS_BAND the loss at the nodes, interpolated (at least
+    1). Offsets, not slices: a slice costs numba a reference count, as does every array handed to a call
+    (so the scan and the table are one call)."""
     last = coeffs.shape[0] - 1
     top = last - int(coeffs[last])  # the directory of the blocks' starts (`exact_coeffs`)
     start = 1
