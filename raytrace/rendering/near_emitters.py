@@ -109,9 +109,8 @@ def _may_hide(accel, lights, near, rays) -> np.ndarray:
         if ball is None:
             continue
         rs = np.nonzero(near[:, e])[0]
-        ends = origins[rs] + np.asarray(tmax, float)[rs, None] * dirs[rs]
-        out[rs, e] = ~segments_free(ball.centre, ball.radius, origins[rs], ends, accel.triangles, accel.sphere_of,
-                                    accel.spheres, accel.epsilon)
+        out[rs, e] = ~segments_free(ball.centre, ball.radius, origins[rs], dirs[rs], np.asarray(tmax, float)[rs],
+                                    accel.triangles, accel.sphere_of, accel.spheres, accel.epsilon)
     return out
 
 
