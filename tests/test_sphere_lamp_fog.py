@@ -67,9 +67,9 @@ def _arc(lo, hi):
 
 
 def hidden(x) -> float:
-    """H(x) (module docstring); 0 above the plate."""
+    """H(x) (module docstring); 0 above the plate and on its plane."""
     h = Y - x[1]
-    if h <= 0.0:
+    if h <= 1e-12:  # above the plate, or on it to rounding (a ray that ends on it)
         return 0.0
     rel = LAMP - x
     d = float(np.linalg.norm(rel))

@@ -17,9 +17,9 @@ samples) stay. A sphere's rows lit along the whole ray are no proof that nothing
 there the rule applies only where the occluders' geometry clears the segment
 (`sphere_occluders.segments_free`, the same for every cubature order); elsewhere the penumbra's
 stratified samples replace the rows (`penumbra_airlight`'s estimate). Nor are a sphere's rows all dark
-along the whole ray a proof that all of it is hidden (a sliver of it above a floor, between the rows,
-lights the ray): those pairs take the penumbra's samples too, so no order of the rows decides that a
-segment is lit or dark. `montecarlo` keeps the rows (it samples them).
+along the whole ray a proof that all of it is hidden (a cap above a floor, between the rows, lights the
+ray): `penumbra_airlight.cut_pairs` samples those pairs, so no order of the rows decides that a segment
+is lit or dark. `montecarlo` keeps the rows (it samples them).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
@@ -35,8 +35,8 @@ from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
 from ..lights.sphere_occluders import segments_free
 from ..lights.sphere_rule import FIRST
-from ..shadows.penumbra_airlight import (DARK, LIT, emitter_estimate, emitter_states, lit_states, per_group,
-                                         point_segments, spot_rows)
+from ..shadows.penumbra_airlight import (LIT, emitter_estimate, emitter_states, lit_states, per_group, point_segments,
+                                         spot_rows)
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
 DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
@@ -77,10 +77,8 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     near &= shines
     hidden = np.zeros((n, n_e), bool)
     if shadows and near.any():
-        state = _states(lights, cone, segs, n)
-        dark = near & (state == DARK) & np.array([e is not None and e.ball is not None for e in lights.emitters])
-        near &= state == LIT
-        hidden = _may_hide(ctx[0], lights, near, rays) | dark
+        near &= _all_lit(lights, cone, segs, n)
+        hidden = _may_hide(ctx[0], lights, near, rays)
         near &= ~hidden
     if not (near | hidden).any():
         return segs, air, stats, near.any(axis=1), var
@@ -118,12 +116,11 @@ def _may_hide(accel, lights, near, rays) -> np.ndarray:
     return out
 
 
-def _states(lights, cone, lit, n: int) -> np.ndarray:
-    """(N, E) LIT where every row of emitter e that shines on camera ray r is lit along all of it, DARK
-    where every one is dark along all of it (`penumbra_airlight.emitter_states`)."""
+def _all_lit(lights, cone, lit, n: int) -> np.ndarray:
+    """(N, E) whether every row of emitter e that shines on camera ray r is lit along all of it."""
     n_l = len(lights)
     row_state = lit_states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
-    return emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters))
+    return emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters)) == LIT
 
 
 def _planar_rule(planar, feet):
