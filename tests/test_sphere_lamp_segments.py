@@ -104,8 +104,8 @@ def test_a_floor_the_segments_end_on_hides_nothing():
     """Segments from a camera to points of a floor under the lamp are clear of the floor's triangles (the
     floor's plane leaves the lamp strictly above it and the segments on its side), also ending a
     rounding below it; a plate under the lamp makes those whose hull it meets "may be hidden" and
-    clears all but 2 % of the rest (measured: all 116); an exact sphere in the way (not the emitter's own) makes all hidden; a
-    segment to infinity is clear only where nothing but the emitter is there (its own mesh left out)."""
+    clears all but 2 % of the rest (measured: all 116); an exact sphere in the way (not the emitter's own)
+    makes all hidden (the emitter's own sphere is left out)."""
     rng = np.random.default_rng(5)
     floor = np.array([[[-20, 0, 20], [20, 0, 20], [20, 0, -20]], [[-20, 0, 20], [20, 0, -20], [-20, 0, -20]]], float)
     plate = np.array([[[0.19, 0.45, 0.09], [0.31, 0.45, 0.09], [0.31, 0.45, 0.21]],
