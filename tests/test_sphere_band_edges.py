@@ -265,10 +265,10 @@ def twin(tau, k):
 @pytest.mark.parametrize("eta", ETAS)
 def test_edge_rays_and_bound(eta):
     """The kernel's edge rays (`edge_ray`, in closed form in the parameter) are the twin's (on the cone,
-    the sphere and Snell's law, mpmath) to 1e-12 (the direction to 1e-12 + 1e-14 / cos_t: a refraction
-    cosine near 0, eta < 1, moves as the root of the rounding of its square), `edge_gap` to 1e-12 too, and mpmath's second derivative of the
-    twin's G lies within `edge_bound` at random points of random cells, in both parametrisations (some
-    edge rays entering, all of them)."""
+    the sphere and Snell's law, mpmath) to 1e-12 (the direction and `edge_gap` to 1e-12 + 1e-14 /
+    cos_t: a refraction cosine near 0, eta < 1, moves as the root of the rounding of its square), and
+    mpmath's second derivative of the twin's G lies within `edge_bound` at random points of random
+    cells, in both parametrisations (some edge rays entering, all of them)."""
     mpmath.mp.dps = 30
     rng = np.random.default_rng(11 + int(eta * 10))
     modes, worst = set(), 0.0

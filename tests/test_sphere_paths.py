@@ -142,7 +142,7 @@ CASES = [(1.33, 2.5), (1.5, math.inf), (1.33, math.inf), (2.2, math.inf), (2.6, 
 def test_paths_are_every_root(eta, d):
     """Every path the reference finds, and no other, to 1e-9 in theta and within its spread (the bound
     on its distance from the exact root), on random inside points, points 1e-3 to 1e-6 from the
-    caustic, near its cusp and 1e-4 to 1e-6 from the marginal ray; every scan proven. The earlier scan (48 nodes, dips by golden section: `roots`) misses some near the caustic."""
+    caustic, near its cusp and 1e-4 to 1e-6 from the marginal ray; every scan proven."""
     rng = np.random.default_rng(int(eta * 100) + (0 if d == math.inf else int(d * 10)))
     r = rec(eta, d)
     pts = points(rng, eta, d, 16)
@@ -156,8 +156,7 @@ def test_paths_are_every_root(eta, d):
         assert np.all(np.abs(found[:m] - ref) <= spread[:m]), (z, y, found[:m] - ref, spread[:m])
         spreads += list(spread[:m])
     assert np.median(spreads) < 1e-10, np.median(spreads)  # about the root, not the cell's weakest slope
-    print(eta, d, len(pts), "points; spreads' median and largest",
-          np.median(spreads), max(spreads))
+    print(eta, d, len(pts), "points; spreads' median and largest", np.median(spreads), max(spreads))
 
 
 @pytest.mark.parametrize("eta, d", CASES + [(0.75, 2.0)])

@@ -61,11 +61,11 @@ crossings by a proven scan in theta (below, "The caustic's crossings, proven"). 
 kinks, its band edges, which fool the rule's error estimate inside a piece (`spot_edges`): aimed at
 the centre (its axis along the light's axis) they lie at fixed angles +-theta_e, the pieces in x cut
 where those rays reach the segment and the fold pair's window in theta at +-theta_e; aimed elsewhere
-the edge's refraction point moves with the plane of the point, in closed form there (`edge_gap`),
-the pieces cut at the roots of h at that point along the segment (found by `roots`, a scan of SCAN
-nodes and golden section at its dips: not proven) and the window at their angles (located to the resolution of doubles, a
-kink of a continuous falloff misplaced by dx changes the integral by its jump in slope x dx^2, far
-below the rounding; a hard edge's jump x dx is not in the bound). QUAD integrates the
+the edge's refraction point moves with the plane of the point: the pieces cut where the segment
+meets the refracted edge rays, found by a proven scan over them (below, "The band edges, proven"),
+and the window at their angles (located to the resolution of doubles, a kink of a continuous
+falloff misplaced by dx changes the integral by its jump in slope x dx^2, far below the rounding; a
+hard edge's jump x dx is not in the bound). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
 in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
 MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
@@ -111,8 +111,7 @@ rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, count
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
 crossings in a row), an evaluation whose scan was unproven, a piece whose path count (or the count
 on each side of a spot's band edges) changed between its evaluations (the guard against a crossing
-the breaks missed: an off-centre spot's band edges are found by `roots`, not proven), a caustic scan
-unproven, eta <= 1.
+the breaks missed), a caustic or band edge scan unproven, eta <= 1.
 
 The caustic's crossings, proven (`caustic_crossings`). The caustic point is C = P + t R cos_t / phi'
 (1 / kappa_t = R cos_t / phi'; inside the sphere iff phi' >= 1/2, the chord being 2 R cos_t; none ahead
@@ -147,6 +146,39 @@ segment's bound inf): a cell undecided after MAX_HALVINGS halvings or MAX_EVALS 
 within rounding of tangent to the caustic surface: tests/test_caustic_crossings.py, against the
 envelope of the refracted rays from mpmath, finds every crossing and the scan proven on lines 1e-3 to
 1e-6 from tangent and beside the cusp, not always at 1e-9), or wz = 0.
+
+The band edges, proven (`edge_crossings`). The edge's directions out of the light L, at cosine ce
+to the spot's unit axis a, are u(phi) = ce a - se (cos phi b1 + sin phi b2) (se = sqrt(1 - ce^2), b1
+the unit normal to a toward q = L - c, b2 = a x b1), b = q.u = A0 - A1 cos phi (A0 = ce q.a, A1 = se
+|q - (q.a) a|); u's ray enters the sphere where b <= -beta, beta = sqrt(d^2 - R^2) (sqrt(d^2 - R^2
+eta^2) for eta < 1, the critical angle), there with S = sqrt(b^2 - beta^2) = R cos_i (R eta cos_t
+for eta < 1), meeting it at P = L + r u, r = -b - R cos_i, and refracted along t = u / eta + (cos_i /
+eta - cos_t) n (n = (P - c) / R). The segment meets the edge ray's line where G = det(w, t, o - P)
+= 0 (x and the distance s along t from the two lines, kept for 0 < x < end and s >= 0). Where every
+ray enters (A0 + A1 < -beta: mode 2) phi runs over [-pi, pi], S' = b b' / S and S'' = (b'^2 + b b'' -
+S'^2) / S bounded with S above sqrt((A0 - A1 cos phi_max)^2 - beta^2); where some do (mode 1: the
+arc |phi| < Phi, cos Phi = c* = (A0 + beta) / A1), sin(phi / 2) = s sin(tau), s = sin(Phi / 2), tau
+in [-pi/2, pi/2] makes S = 2 s sqrt(A1) cos(tau) sqrt(beta + kappa cos^2 tau) and b = -beta - 2
+kappa cos^2 tau (kappa = A1 s^2) smooth through the ends (grazing, or the critical angle: in phi S
+has a square root there), with |phi'| <= 2 s min(1, cos / sqrt(1 - s^2 sin^2)), |phi''| <= 2 s (1 -
+s^2) |sin| / (1 - s^2 sin^2)^(3/2), |S'| <= 2 s sqrt(A1) |sin| H(cos^2), H(y) = (beta + 2 kappa y) /
+sqrt(beta + kappa y) (rising), |S''| <= 2 s sqrt(A1) cos (H + 3 kappa sin^2 / sqrt(beta)) (H' falls
+from 3 kappa / (2 sqrt(beta))), each at the cell's extreme cos and sin. P, t are smooth in (phi, S):
+|P_phi| <= sqrt(A1^2 + r_max^2 se^2) (r_max = sqrt(d^2 - R^2)), |P_phiphi| <= A1 (1 + 2 se) + r_max
+se, |P_S| <= 1, |P_phiS| <= se, |P_SS| <= 1 / (R c_min) for eta < 1 (c_min = sqrt(1 - eta^2), else
+0); with f = cos_i / eta - cos_t, |f| <= max(1, 1 / eta), |f_S| <= 1 / (R eta), |f_SS| <= (eta^2 -
+1) / (R^2 eta^4 cos_t^3) (1 / (eta R^2 c_min) for eta < 1), t_phi = u_phi / eta + f P_phi / R, t_S =
+f_S n + f P_S / R, t_phiphi = u_phiphi / eta + f P_phiphi / R, t_phiS = (f_S P_phi + f P_phiS) / R,
+t_SS = f_SS n + (2 f_S P_S + f P_SS) / R; the chain rule through (phi', S') gives |P'|, |t'|, |P''|,
+|t''| and K = |t''| (|o - c| + R) + 2 |t'| |P'| + |P''| bounds |G''| over the cell (`edge_bound`;
+tests/test_sphere_band_edges.py checks it against mpmath's derivatives). The cells are decided as
+`paths` decides h's, less G's rounding: 2 ((|o - c| + R)(e_t + 16u) + e_p), e_p = 64u (|L| + |c| +
+|o| + d + R + d cond) an edge point's distance from the exact edge rays (cond the parameter's
+conditioning: (|A0| + beta + A1) / (A1 s sqrt(1 - s^2)) in mode 1, d / S_min in mode 2), e_t its
+direction's. Not proven (the segment's bound inf): a cell undecided after MAX_HALVINGS halvings or
+MAX_EVALS in one scan (a segment within rounding of tangent to the edge's surface: the test, against
+a reference that solves Snell's law in mpmath along the segment, finds every crossing and the scan
+proven on random lines and lines 1e-3 and 1e-6 from tangent, not always at 1e-9).
 """
 from __future__ import annotations
 
@@ -806,7 +838,8 @@ def edge_bound(lo, hi, k):
     pp = math.sqrt(a1 * a1 + rmax * rmax * se * se)  # |P_phi|
     ppp = a1 * (1.0 + 2.0 * se) + rmax * se  # |P_phiphi|
     tp, ts = se / eta + fm * pp / radius, fs + fm / radius
-    tpp, tps, tss = se / eta + fm * ppp / radius, (fs * pp + fm * se) / radius, fss + 2.0 * fs / radius + fm * pss / radius
+    tpp, tps = se / eta + fm * ppp / radius, (fs * pp + fm * se) / radius
+    tss = fss + 2.0 * fs / radius + fm * pss / radius
     p_1 = p1 * pp + s1
     t_1 = p1 * tp + s1 * ts
     p_2 = p1 * p1 * ppp + 2.0 * p1 * s1 * se + s1 * s1 * pss + p2 * pp + s2
