@@ -92,8 +92,10 @@ are integrated in x on both sides of the cone's crossing.
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
 rounding of an evaluation x (the value + the rule's bound) and the sum over the pieces of their
-evaluations' largest absolute rounding x their length (the rule's weights are positive), plus each cone crossing's location error (a quadratic's: its rounding over its
-slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
+evaluations' largest absolute rounding x their length (the rule's weights are positive; a piece beside a
+crossing split where that exceeds its rule's bound, `_near`), plus each cone crossing's location error
+(a quadratic's: its rounding over its slope there, or the square root where the segment grazes the
+cone) x 8 x the integrand's largest of
 three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
 rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
 x 8 x `fold_value` there. An evaluation's rounding is the sum over its paths of the value times,
@@ -213,6 +215,7 @@ TRACK = 7
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
 GAP = 6  # `_gap`'s values
+SPLIT, SPLITS = 0.1, 3  # `_near`: where a piece beside a crossing is split (in u), and how many times at most
 EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
 
@@ -1424,12 +1427,35 @@ def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     total = rule = 0.0
     mid = lo if flag_lo == 0.0 else hi if flag_hi == 0.0 else 0.5 * (lo + hi)
     if mid > lo:
-        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, mid - lo, rtol, stats, track)
+        val, b = _near(NearCaustic(r, lo, mid - lo), rtol, stats, track)
         total, rule = total + val, rule + b
     if hi > mid:
-        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, hi - mid, rtol, stats, track)
+        val, b = _near(NearCaustic(r, hi, mid - hi), rtol, stats, track)
         total, rule = total + val, rule + b
     return total, rule
+
+
+@njit
+def _near(q, rtol, stats, track):
+    """(value, rule's bound) of `_piece` over the `NearCaustic` piece q, u in [0, 1]: where its rounding
+    (its evaluations' largest absolute x its length) exceeds the rule's bound, that is undone and the
+    piece split at u = SPLIT (x at SPLIT^2 of its span from the crossing, where the rounding of a path
+    near the lit arc's end or the caustic peaks), [SPLIT, 1] integrated with its own rounding and [0,
+    SPLIT] taken again the same way, at most SPLITS times."""
+    total = rule = 0.0
+    hi = 1.0
+    span = abs(q.span)
+    for _ in range(SPLITS):
+        before = track[PIECES_ABS]
+        val, b = _piece(q, 0.0, hi, span * hi * hi, rtol, stats, track)
+        if track[PIECES_ABS] - before <= b:
+            return total + val, rule + b
+        track[PIECES_ABS] = before
+        lo = SPLIT * hi
+        val, b = _piece(q, lo, hi, span * (hi - lo) * (hi + lo), rtol, stats, track)
+        total, rule, hi = total + val, rule + b, lo
+    val, b = _piece(q, 0.0, hi, span * hi * hi, rtol, stats, track)
+    return total + val, rule + b
 
 
 @njit
