@@ -186,7 +186,7 @@ def check(prep, method, method_params, source: str):
                         "shape or change them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
-        if inside is not None and not (prep.scene.shapes[inside].interior.ior == 1.0 and __import__("os").environ.get("LEAD_EXP")):
+        if inside is not None:
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a medium; lights "
                             "inside bounded media are not supported yet, move the light out of the shape")
 
