@@ -529,8 +529,8 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
             continue
         dk = np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out))
         if face is not None:
-            refracted_attenuated(geo, planes, near, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior), face,
-                                 oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
+            refracted_attenuated(geo, planes, near, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior),
+                                 face, oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
                                  np.uint64(seed), dplanes, dothers, balls, unit, unit_var, unit_err, stats)
         else:
             attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first,

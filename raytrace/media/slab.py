@@ -257,8 +257,8 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
         if abs(vlo) + abs(vhi) > k * (hi - lo) + 2e-13:
             continue
         if (min(vlo, vhi) > 2e-13 or max(vlo, vhi) < -2e-13) and _off_band(
-                vlo, vhi, 2e-13, 2e-13, cone_bend(fermat_bend(rmin, rmax, zlo, zhi, a, hl, eta, bend), k * o_min, o_min),
-                hi - lo):
+                vlo, vhi, 2e-13, 2e-13, cone_bend(fermat_bend(rmin, rmax, zlo, zhi, a, hl, eta, bend), k * o_min,
+                                                  o_min), hi - lo):
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
             c_lo = refracted_cosine(lo, z0, wl, ll, a, hl, eta, wa, la, na) - level
@@ -1030,9 +1030,10 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     cosine `cone_bend`'s, so it lies above its chord less M (x - lo)(hi - x) / 2 >= M (hi - lo)^2 / 8, and
     above min(psi(lo), psi(hi)) - tol - M (hi - lo)^2 / 8: an interval with min(psi(lo), psi(hi)) > M (hi -
     lo)^2 / 8 + 2 tol + slack (or max(...) < -(M (hi - lo)^2 / 8 + 2 tol)) lies outside the band too
-    (`_off_band`). This closes a refraction point that slides along an edge's line, close to it over a long
-    stretch: there the first-order test, whose K is the speed of R and not of its distance from the line,
-    excludes only intervals below psi / K; the second-order one those below sqrt(8 psi / M). The others are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
+    (`_off_band`). This closes a refraction point that slides along an edge's line (a cosine that stays
+    near a level), close to it over a long stretch: there the first-order test, whose K is the speed of R and not of its distance from the line,
+    excludes only intervals below psi / K; the second-order one those below sqrt(8 psi / M). The others
+    are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
     these undecided intervals come out from left to right, and runs of adjacent ones form clusters. A
     cluster where phi changes sign with no cut within `width` of it (a jump or kink the rule did not break
     at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
