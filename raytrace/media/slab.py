@@ -1031,9 +1031,10 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     above min(psi(lo), psi(hi)) - tol - M (hi - lo)^2 / 8: an interval with min(psi(lo), psi(hi)) > M (hi -
     lo)^2 / 8 + 2 tol + slack (or max(...) < -(M (hi - lo)^2 / 8 + 2 tol)) lies outside the band too
     (`_off_band`). This closes a refraction point that slides along an edge's line (a cosine that stays
-    near a level), close to it over a long stretch: there the first-order test, whose K is the speed of R and not of its distance from the line,
-    excludes only intervals below psi / K; the second-order one those below sqrt(8 psi / M). The others
-    are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
+    near a level), close to it over a long stretch: there the first-order test, whose K is the speed of R
+    and not of its distance from the line, excludes only intervals below psi / K; the second-order one
+    those below sqrt(8 psi / M). The others are halved until shorter than `width`, or than 1e4 `width`
+    with both ends in twice the band:
     these undecided intervals come out from left to right, and runs of adjacent ones form clusters. A
     cluster where phi changes sign with no cut within `width` of it (a jump or kink the rule did not break
     at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
