@@ -1,15 +1,14 @@
 """The second-order exclusion of the refracted point-light searches (media/slab.py): `edge_breaks`' own
-isolation (`_sign_changes`) and a spot's cone crossings (`_cone_crossings`), as `_isolate`'s for the
-bound, exclude an interval whose ends' values share a sign and exceed M (hi - lo)^2 / 8 (`_off_band`),
+isolation (`_sign_changes`), as `_isolate`'s for the bound (edges and a spot's cone levels), excludes an
+interval whose ends' values share a sign and exceed M (hi - lo)^2 / 8 (`_off_band`),
 M a bound on the searched function's second derivative: the edge distance's (`fermat_bend`, checked
 in tests/test_refracted_edge_isolation.py) or the leaving cosine's (`cone_bend`, checked here against
 Fermat's principle alone: mpmath's Fermat point differentiated twice).
 
-Where the refraction point slides along an edge's line, or the leaving cosine stays close to a cone
-level, over a long stretch, the first-order test (the point's speed) excludes only intervals shorter
-than the distance over the speed: the searches ran out of their MAX_ISOLATE evaluations there. The
+Where the refraction point slides along an edge's line over a long stretch, the first-order test (the point's speed) excludes only intervals shorter
+than the distance over the speed: the search ran out of its MAX_ISOLATE evaluations there. The
 tests count the evaluations of both (the first-order search alone: `_off_band` replaced by a refusal,
-on the searches' Python bodies) and check that they find the same breaks as a dense scan.
+on the search's Python body) and check that they find the same breaks as a dense scan.
 """
 import math
 
@@ -66,15 +65,12 @@ def test_the_cone_bend_bound_holds():
 
 
 class Counted:
-    """The searches' Python bodies with their function evaluations counted; `first`: with the
-    first-order test alone."""
+    """`_sign_changes`' Python body with its evaluations counted; `first`: with the first-order test alone."""
 
     def __init__(self, monkeypatch, first):
         self.n = 0
-        for name in ("_edge_newton", "_cone_psi"):
-            monkeypatch.setattr(slab, name, self.counting(getattr(slab, name)))
+        monkeypatch.setattr(slab, "_edge_newton", self.counting(slab._edge_newton))
         monkeypatch.setattr(slab, "_sign_changes", slab._sign_changes.py_func)
-        monkeypatch.setattr(slab, "_cone_crossings", slab._cone_crossings.py_func)
         if first:
             monkeypatch.setattr(slab, "_off_band", lambda *args: False)
 
@@ -142,34 +138,6 @@ def test_an_edge_line_the_point_slides_along(monkeypatch, slope, crossings):
     truth = scanned(lambda x: slab._edge_value(x, row, planes, 1, 1.5), end)
     assert len(truth) == crossings
     counts, found = searched(monkeypatch, lambda out: slab.edge_breaks.py_func(row, planes, 1.5, end, out))
-    if crossings:
-        assert counts[1] < 0.5 * counts[0], counts
-    else:
-        assert counts[0] >= slab.MAX_ISOLATE and counts[1] < 0.05 * slab.MAX_ISOLATE, counts
-    for cuts in found:
-        assert len(cuts) == len(truth) and np.all(np.abs(cuts - truth) < 1e-9), (cuts, truth)
-
-
-@pytest.mark.parametrize("tilt, crossings", [(1e-4, 0), (1e-2, 1)])
-def test_a_cone_level_the_cosine_runs_along(monkeypatch, tilt, crossings):
-    """The spot's axis across the plane of every path but for a tilt along it: the leaving cosine runs
-    from -0.96 tilt to -0.86 tilt over the segment; a cone level 1e-5 above its largest value (tilt 1e-4:
-    within 2e-5 of it all along, not crossed) or halfway (tilt 1e-2, crossed once). Without a crossing,
-    the first-order search takes its MAX_ISOLATE evaluations and the second-order one under 5 % of them;
-    with one, under half of the first order's; both find the scan's crossings to 1e-9."""
-    row, _ = sliding_edge(1.0, 0.0)
-    axis = np.array([tilt, 1.0, 0.0]) / math.hypot(tilt, 1.0)
-    wa, la, na = row[11:14] @ axis, row[14:17] @ axis, axis[2]
-    z0, a, hl, wl, ll, eta, end = row[0], row[1], row[2], row[3], row[4], 1.5, 2.0
-
-    def cosine(x):
-        return slab.refracted_cosine(x, z0, wl, ll, a, hl, eta, wa, la, na)
-    c = [cosine(x) for x in np.linspace(0.0, end, 20001)]
-    level = max(c) + 1e-5 if not crossings else 0.5 * (c[0] + c[-1])
-    truth = scanned(lambda x: cosine(x) - level, end)
-    assert len(truth) == crossings
-    counts, found = searched(monkeypatch, lambda out: slab._cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level,
-                                                                           end, out, 0))
     if crossings:
         assert counts[1] < 0.5 * counts[0], counts
     else:

@@ -233,14 +233,11 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
     `refraction_newton`), whose derivative is at most K_R / o_min (K_R `fermat_speed`, the refraction
     point's speed; the leaving direction's turn is at most |R'| / o, o >= sqrt(s^2 + hl^2) with
     s >= rho hl / (hl + z): tan t1 >= tan t2): an interval [lo, hi] with |c(lo) - level| +
-    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share a sign and
-    exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
-    point's acceleration, and K_R); the others are halved down to 1e-13 of the segment's scale (at most
-    MAX_ISOLATE evaluations), and a sign change there of `refracted_cosine` with no cut in it bisected
-    to the resolution of doubles."""
+    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing; the others are halved down to 1e-13 of
+    the segment's scale (at most MAX_ISOLATE evaluations), and a sign change there of
+    `refracted_cosine` with no cut in it bisected to the resolution of doubles."""
     scale = end + math.sqrt(ll) + hl + z0
     width = 1e-13 * scale
-    bend = 1e-9 * scale  # fermat_bend's widening: the rounding of the row's numbers
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2] = _cone_psi(0.0, z0, wl, ll, a, hl, eta, wa, la, na) - level
@@ -252,13 +249,8 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
         rmin, rmax = rho_range(lo, hi, wl, ll, a)
         zlo, zhi = min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi)
         smin = rmin * hl / (hl + zhi)
-        o_min = math.sqrt(smin * smin + hl * hl)
-        k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / o_min
+        k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / math.sqrt(smin * smin + hl * hl)
         if abs(vlo) + abs(vhi) > k * (hi - lo) + 2e-13:
-            continue
-        if (min(vlo, vhi) > 2e-13 or max(vlo, vhi) < -2e-13) and _off_band(
-                vlo, vhi, 2e-13, 2e-13, cone_bend(fermat_bend(rmin, rmax, zlo, zhi, a, hl, eta, bend), k * o_min,
-                                                  o_min), hi - lo):
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
             c_lo = refracted_cosine(lo, z0, wl, ll, a, hl, eta, wa, la, na) - level
