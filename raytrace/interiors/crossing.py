@@ -186,9 +186,12 @@ def check(prep, method, method_params, source: str):
                         "shape or change them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
-        if inside is not None:
-            raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a medium; lights "
-                            "inside bounded media are not supported yet, move the light out of the shape")
+        if inside is not None and (prep.lights.cubature[li] or prep.scene.shapes[inside].interior.ior != 1.0 or not (
+                len(convex_planes(prep, inside)) or paths.exact_sphere(prep, inside) is not None)):
+            raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
+                            "medium; a point or spot light inside a bounded medium needs an index-matched interior "
+                            "(ior = 1) in a convex shape or an exact sphere; move the light out of the shape or "
+                            "change it")
 
 
 def _takers(test=lambda interiors: True) -> list[str]:
@@ -339,7 +342,8 @@ def shadow_through(prep):
     transmittance toward light li of the interiors the straight shadow path crosses,
     exp(-(sigma_t inside - sigma_t outside) x length inside) each (the outside's own transmittance is
     the shading's); 0 where an opaque surface or a refractive interior blocks it (a refracted shadow
-    would be a caustic, beyond single scattering)."""
+    would be a caustic, beyond single scattering). A light inside an interior: the path's length in it
+    runs from the light."""
     inner = matched(prep)
     if not inner:
         return None
@@ -354,8 +358,10 @@ def shadow_through(prep):
             rel = lights.position[li] - points
             dist = np.linalg.norm(rel, axis=1)
             dirs = rel / dist[:, None]
-        lengths, blocked = paths.inside_lengths(prep, points, dirs, dist, inner, block=True,
-                                                       margin=prep.accel.epsilon)
+        holds = prep.memo(("holding light", li), lambda: np.array(
+            [not lights.distant[li] and inside_of(prep, lights.position[li], [sid]) is not None for sid in inner]))
+        lengths, blocked = paths.inside_lengths(prep, points, dirs, dist, inner, block=True, margin=prep.accel.epsilon,
+                                                far_inside=np.broadcast_to(holds, (len(points), len(inner))))
         return np.where(blocked[:, None], 0.0, np.exp(-lengths @ kt))
     return through
 
