@@ -17,8 +17,8 @@ measured in one run on one machine. The last table compares a whole render of th
 prints only the cost of the air-light in whole renders of a bundled scene (the conference room at
 512 x 512: one light): `analytic` at its default precision, unshadowed, one thread, over the same
 render without air-light (sigma_s = 0, the same sigma_t), per phase function (the scene's medium
-with its phase function replaced); the two take turns in each round, CPU seconds, medians of the
-rounds and of the per-round ratios.
+with its phase function replaced; `--phases "hg g=0.9"` for one); the two take turns in each round,
+CPU seconds, medians of the rounds and of the per-round ratios.
 """
 import argparse
 import dataclasses
@@ -70,7 +70,7 @@ def rel_errors(test, ref):
     return float(rel.max()), float(np.percentile(rel, 99.9))
 
 
-def render_cost(name, spp, rounds):
+def render_cost(name, spp, rounds, phases):
     """The air-light's share of whole renders of bundled scene `name` (its medium's sigma_t kept, its
     phase function replaced), `analytic` at its default precision, unshadowed, one thread."""
     prep = prepare(raytrace.load(name))
@@ -86,7 +86,7 @@ def render_cost(name, spp, rounds):
           f"thread; CPU s, medians of {rounds} rounds\n")
     print("| phase | no air-light s | analytic s | ratio (median of per-round ratios) |")
     print("|---|---|---|---|")
-    for label, code, g in PHASES:
+    for label, code, g in (p for p in PHASES if p[0] in phases):
         air = render(phase=code, g=g)
         air(), none()  # compile, build the coefficient blocks
         times = [[], []]
@@ -107,9 +107,11 @@ def main():
     ap.add_argument("--scene", help="only the air-light's cost in whole renders of this bundled scene")
     ap.add_argument("--spp", type=int, help="samples per pixel of --scene (default: the scene's)")
     ap.add_argument("--rounds", type=int, default=5, help="interleaved rounds of --scene")
+    ap.add_argument("--phases", default=",".join(label for label, _, _ in PHASES),
+                    help="comma-separated phase functions of --scene's table (default: all)")
     args = ap.parse_args()
     if args.scene:
-        render_cost(args.scene, args.spp, args.rounds)
+        render_cost(args.scene, args.spp, args.rounds, args.phases.split(","))
         return
     precisions = [float(p) for p in args.precisions.split(",")]
     scene = scene_from_text(DEFAULT_TOML, "default scene",

@@ -67,9 +67,9 @@ def _arc(lo, hi):
 
 
 def hidden(x) -> float:
-    """H(x) (module docstring); 0 above the plate."""
+    """H(x) (module docstring); 0 above the plate and on its plane."""
     h = Y - x[1]
-    if h <= 0.0:
+    if h <= 1e-12:  # above the plate, or on it to rounding (a ray that ends on it)
         return 0.0
     rel = LAMP - x
     d = float(np.linalg.norm(rel))
@@ -143,9 +143,9 @@ def twin():
 @pytest.mark.slow
 def test_the_air_light_under_a_plate_against_the_twin():
     """16 x 12 pixels (module docstring), `quadrature` rtol 1e-6; the twin takes about a minute (slow:
-    `python -m pytest -m slow tests/test_sphere_lamp_fog.py`). Measured: 47 of the 56 pixels the plate
-    never shadows unsampled, within 5.3e-10; the other 9 (segments the test could not clear) and the 136
-    shadowed ones sampled, |z| <= 1.6 against their standard error."""
+    `python -m pytest -m slow tests/test_sphere_lamp_fog.py`). Measured: all 56 pixels the plate never
+    shadows unsampled, within 5.3e-10; the 136 shadowed ones sampled, |z| <= 1.4 against their standard
+    error."""
     ref, shadowed = twin()
     img = api.render(scene(), "quadrature", rtol=1e-6)
     assert img.stats["cubature: rows"] == 8

@@ -67,7 +67,7 @@ def test_refusals_name_the_methods_that_take_it():
     assert "--jitter (render.jitter)" in refusal(lamp, "raymarch", {"jitter": True})
     inside = bounded_media.scene(bounded_media.SUN, ior=1.0)
     inside["camera"]["position"] = [0.0, -0.5, 2.0]
-    assert "--method quadrature, raymarch, montecarlo;" in refusal(inside, "slab_approx")
+    assert "--method analytic, quadrature, raymarch, montecarlo;" in refusal(inside, "slab_approx")
 
 
 def test_a_phase_function_a_method_lacks_is_refused():

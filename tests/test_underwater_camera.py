@@ -150,6 +150,55 @@ def test_an_underwater_camera_under_the_sun():
     assert np.max(np.abs(res.image - ref) / ref) < 1e-8
 
 
+@pytest.mark.parametrize("precision", [1e-3, 1e-9])
+def test_analytic_from_inside_under_the_sun(precision):
+    """`analytic` with the camera in the water: the sun's refracted beams by their closed forms, within
+    its precision of the twin on every pixel, and inside its own error bound."""
+    sc = {**SCENE, "light": [SUN]}
+    ref, _ = twin_image(SUN)
+    res = image(sc, "analytic", {"precision": precision})
+    err = np.abs(res.image - ref)
+    assert np.max(err / ref) < precision
+    assert np.all(err <= res.error_bound)
+    assert res.stats.get("inside: segments handed to quadrature", 0) == 0
+
+
+def test_analytic_from_inside_an_index_matched_box():
+    """The camera in a box of fog (ior 1) under the sun: `analytic`'s closed form of the straight path
+    (media/convex_directional.py) against the twin: the sun's path back to the boundary by the slab
+    test, scipy quad along the ray; within 1e-9 and inside its bound; the floor seen unrefracted, lit through
+    the fog's chord."""
+    fog = {**INSIDE, "ior": 1.0}
+    sc = {**SCENE, "light": [SUN], "shape": [{**SCENE["shape"][0], "interior": fog}, SCENE["shape"][1]]}
+    cam, g = SCENE["camera"], INSIDE["phase"]["g"]
+    ks = np.array(INSIDE["sigma_s"])
+    kt = np.array(INSIDE["sigma_a"]) + ks
+    u = -np.array(SUN["direction"], float) / np.linalg.norm(SUN["direction"])
+    ref = np.zeros((cam["height"], cam["width"], 3))
+    for j in range(cam["height"]):
+        for i in range(cam["width"]):
+            p, d = oracle.camera_ray(cam, i, j)
+            ell, _ = oracle.box_exit(p, d, LO, HI)
+            ph = oracle.phase("hg", g, float(u @ d))  # the light travels along -u
+            for c in range(3):
+                def f(x):
+                    return ks[c] * ph * SUN["irradiance"] * math.exp(-kt[c] * (x + oracle.box_exit(p + x * d, u, LO,
+                                                                                                     HI)[0]))
+                ref[j, i, c] = integrate.quad(f, 0.0, ell, epsabs=0.0, epsrel=1e-12, limit=200)[0]
+            E = p + ell * d
+            if d[1] < 0.0:  # leaves downward, unrefracted: the floor lit by the sun through the fog's chord
+                F = E + (FLOOR_Y - E[1]) / d[1] * d
+                hit = slab(F, u, LO, HI)
+                chord = 0.0 if hit is None or hit[1] <= 0.0 else hit[1] - max(hit[0], 0.0)
+                if max(abs(F[0]), abs(F[2])) <= FLOOR_HALF:
+                    ref[j, i] += np.exp(-kt * (ell + chord)) * RHO / math.pi * SUN["irradiance"] * u[1]
+    res = image(sc, "analytic", {"precision": 1e-9})
+    err = np.abs(res.image - ref)
+    assert np.all(ref[..., 1] > 0.0)
+    assert np.max(err / ref) < 1e-9
+    assert np.all(err <= res.error_bound)
+
+
 def test_a_camera_inside_a_refractive_shape_that_is_not_convex_is_refused(tmp_path):
     """The rows from the camera have no entry face, and a shape that is not convex has no refracted
     paths of the light but through the entry face's plane: refused in one line."""

@@ -178,17 +178,20 @@ def check(prep, method, method_params, source: str):
                                     "such a medium are lit by directional lights only; use ior = 1, a convex shape "
                                     "or a directional light")
     inside = prep.camera_inside
-    if inside is not None and (not sup.exact_paths or (prep.scene.shapes[inside].interior.ior != 1.0
-                                                       and not len(refracting_planes(prep, inside)))):
+    if inside is not None and (not sup.camera_inside or (prep.scene.shapes[inside].interior.ior != 1.0 and not len(
+            refracting_planes(prep, inside)) and paths.exact_sphere(prep, inside) is None)):
         raise UserError(f"{source}: camera.position: inside shape[{inside}], which holds a medium; a camera inside a "
-                        "bounded medium needs an index-matched interior (ior = 1) or a convex shape, and --method "
-                        f"{', '.join(_takers(lambda s: s.exact_paths))}; move the camera out of the shape or change "
-                        "them")
+                        "bounded medium needs an index-matched interior (ior = 1), a convex shape or an exact sphere, "
+                        f"and --method {', '.join(_takers(lambda s: s.camera_inside))}; move the camera out of the "
+                        "shape or change them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
-        if inside is not None:
-            raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a medium; lights "
-                            "inside bounded media are not supported yet, move the light out of the shape")
+        if inside is not None and (prep.lights.cubature[li] or prep.scene.shapes[inside].interior.ior != 1.0 or not (
+                len(convex_planes(prep, inside)) or paths.exact_sphere(prep, inside) is not None)):
+            raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
+                            "medium; a point or spot light inside a bounded medium needs an index-matched interior "
+                            "(ior = 1) in a convex shape or an exact sphere; move the light out of the shape or "
+                            "change it")
 
 
 def _takers(test=lambda interiors: True) -> list[str]:
@@ -339,7 +342,8 @@ def shadow_through(prep):
     transmittance toward light li of the interiors the straight shadow path crosses,
     exp(-(sigma_t inside - sigma_t outside) x length inside) each (the outside's own transmittance is
     the shading's); 0 where an opaque surface or a refractive interior blocks it (a refracted shadow
-    would be a caustic, beyond single scattering)."""
+    would be a caustic, beyond single scattering). A light inside an interior: the path's length in it
+    runs from the light."""
     inner = matched(prep)
     if not inner:
         return None
@@ -354,8 +358,10 @@ def shadow_through(prep):
             rel = lights.position[li] - points
             dist = np.linalg.norm(rel, axis=1)
             dirs = rel / dist[:, None]
-        lengths, blocked = paths.inside_lengths(prep, points, dirs, dist, inner, block=True,
-                                                       margin=prep.accel.epsilon)
+        holds = prep.memo(("holding light", li), lambda: np.array(
+            [not lights.distant[li] and inside_of(prep, lights.position[li], [sid]) is not None for sid in inner]))
+        lengths, blocked = paths.inside_lengths(prep, points, dirs, dist, inner, block=True, margin=prep.accel.epsilon,
+                                                far_inside=np.broadcast_to(holds, (len(points), len(inner))))
         return np.where(blocked[:, None], 0.0, np.exp(-lengths @ kt))
     return through
 
@@ -373,11 +379,11 @@ def _nudge(accel, points, dirs, cos):
     return points + (accel.epsilon / np.maximum(cos, 1e-2))[:, None] * dirs
 
 
-def _leave(prep, points, dirs, cos):
-    """Where a ray leaving a shape at `points` goes on (`_nudge`) and the outside's transmittance (N, 3)
-    over that short step, which the renderer's rays from the moved points no longer see."""
-    step = prep.accel.epsilon / np.maximum(cos, 1e-2)
-    return _nudge(prep.accel, points, dirs, cos), prep.scene.medium.transmittance_on(points, dirs, 0.0, step)
+def _skip(prep, cos):
+    """The step (N,) past which the first hit of a ray leaving a shape (cosine `cos` to the face it
+    leaves) is asked (`_nudge`'s), so that Embree does not report the face left; the ray itself goes on
+    from the face (its air-light and transmittance from there: renderer `_across`)."""
+    return prep.accel.epsilon / np.maximum(cos, 1e-2)
 
 
 def _plane_distance(accel, points, dirs, prim, hit):
@@ -404,7 +410,7 @@ def _parts(prep):
 
 def _met_at_once(prep, q, w, cos, touch):
     """The opaque triangle (or -1) a ray leaving a shape at q along w (cosine `cos` to the exit
-    face) meets within the step `_leave` would skip, and where: `touch` (`_inside_hits`: a
+    face) meets within the step `_skip` would skip, and where: `touch` (`_inside_hits`: a
     surface touching the exit face, met at q) or the first opaque surface from q itself (the
     interior's own faces are not in that scene), such as a floor beside the foot of a block that the
     ray leaves through a side face just above it."""
@@ -421,7 +427,7 @@ def _inside_hits(prep, p, w, cos, prim):
     -1). The interiors' boundaries and the opaque surfaces are asked of separate Embree scenes and
     their hits measured from p in float64 (`_plane_distance`), so which of two coincident faces
     Embree's float32 reports first does not matter: a surface is inside the medium only if it comes
-    more than accel.epsilon / cos (the step `_leave` takes) before the boundary; one within that of
+    more than accel.epsilon / cos (the step `_skip` takes) before the boundary; one within that of
     it, on either side, touches the boundary (a block standing on a floor), and the ray leaves the
     medium and meets it at once, the limit of a small gap. A ray that meets no boundary beyond the
     step left the closed shape within it (it clips an edge or a corner of the entry face `prim`): it
@@ -609,6 +615,7 @@ class Crossing:
     parent: np.ndarray
     weight: np.ndarray
     mirrored: np.ndarray
+    skip: np.ndarray  # (M,) the going-on rays' first hits are asked past this step from their origins
 
 
 def _rows(prep, sid, points, normals, w, ell, keys) -> Segments:
@@ -635,7 +642,7 @@ def _joined(parts: list, n: int) -> Crossing:
     return Crossing(joined, grab(lambda c: c.entry)[order], grab(lambda c: c.direct)[order],
                     grab(lambda c: c.origins), grab(lambda c: c.dirs), grab(lambda c: c.keys),
                     np.concatenate([sel[c.parent] for sel, c in parts]), grab(lambda c: c.weight),
-                    grab(lambda c: c.mirrored))
+                    grab(lambda c: c.mirrored), grab(lambda c: c.skip))
 
 
 def cross(prep, origins, dirs, t, prim, keys, depth) -> Crossing | None:
@@ -667,7 +674,8 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
     ell, prim2, touch = _inside_hits(prep, p, w, cos_t, prim)
     direct = np.zeros((n, 3))
     exits = np.nonzero((prim2 >= 0) & (prep.shape_ids[np.maximum(prim2, 0)] == sid))[0]
-    go = [(none, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), False)]  # (parent, origins, dirs, weight, mirrored)
+    go = [(none, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), False, np.zeros(0))]  # Crossing's parent,
+    # origins, dirs, weight, mirrored and skip
     if len(exits):
         go.append(_exit(prep, medium, exits, p[exits] + ell[exits, None] * w[exits], w[exits], prim2[exits],
                          ell[exits], touch[exits], direct))
@@ -677,12 +685,12 @@ def _across(prep, sid, p, d, nf, keys, prim) -> Crossing:
     if eta != 1.0:  # the boundary's mirror reflection, Fresnel's 1 - T (1 on total reflection)
         cos = -np.einsum("ij,ij->i", d, nf)
         mirrored = d + 2.0 * cos[:, None] * nf
-        start, gap = _leave(prep, p, mirrored, cos)
-        go.append((np.arange(n), start, mirrored, (1.0 - t_in)[:, None] * gap, True))
+        go.append((np.arange(n), p, mirrored, np.repeat((1.0 - t_in)[:, None], 3, axis=1), True, _skip(prep, cos)))
     parent = np.concatenate([g[0] for g in go])
     return Crossing(_rows(prep, sid, p, nf, w, ell, keys), t_in / (eta * eta), direct,
                     np.concatenate([g[1] for g in go]), np.concatenate([g[2] for g in go]), keys[parent], parent,
-                    np.concatenate([g[3] for g in go]), np.concatenate([np.full(len(g[0]), g[4]) for g in go]))
+                    np.concatenate([g[3] for g in go]), np.concatenate([np.full(len(g[0]), g[4]) for g in go]),
+                    np.concatenate([g[5] for g in go]))
 
 
 def _exit(prep, medium, rows, q, w, prim, ell, touch, direct):
@@ -690,28 +698,26 @@ def _exit(prep, medium, rows, q, w, prim, ell, touch, direct):
     its boundary's triangles prim after `ell` inside: refracted out (straight when ior = 1) with
     Fresnel's T (0 on total reflection) times eta^2 and the inside transmittance; a surface met at
     once where a ray leaves (`_met_at_once`; `touch` from `_inside_hits`, or -1) is shaded into
-    `direct` (N, 3) at once. Returns the rays going on as a Crossing's (parent, origins, dirs, weight,
-    mirrored)."""
+    `direct` (N, 3) at once. Returns the rays going on as a Crossing's (parent, origins (on the boundary),
+    dirs, weight, mirrored, skip)."""
     accel = prep.accel
     eta = medium.ior
     m = facing_normals(accel.hit_normals(prim, q), w)
     w_out, cos_o = _refract(w, m, 1.0 / eta)
     t_out = _transmittance(-np.einsum("ij,ij->i", w, m), 1.0 / eta) * (cos_o > 0.0)
-    start, gap = _leave(prep, q, w_out, cos_o)
     on, at = _met_at_once(prep, q, w_out, cos_o, touch)
     rest = on >= 0
-    gap[rest] = 1.0
     kt = medium.sigma_t[None, :]
     with np.errstate(over="ignore", invalid="ignore"):
         tr = np.where(kt == 0.0, 1.0, np.exp(-kt * ell[:, None]))
-    f = (t_out * eta * eta)[:, None] * tr * gap
+    f = (t_out * eta * eta)[:, None] * tr
     if rest.any():  # a surface met at once where the ray leaves
         on = on[rest]
         geometric = facing_normals(accel.hit_normals(on, at[rest]), w_out[rest])
         direct[rows[rest]] = f[rest] * surface_radiance(
             accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
             shading_normals(accel, prep.corner_normals, on, at[rest], geometric))
-    return rows[~rest], start[~rest], w_out[~rest], f[~rest], False
+    return rows[~rest], q[~rest], w_out[~rest], f[~rest], False, _skip(prep, cos_o[~rest])
 
 
 def start_inside(prep, origins, dirs, t, prim, keys) -> Crossing:
@@ -726,14 +732,14 @@ def start_inside(prep, origins, dirs, t, prim, keys) -> Crossing:
     n = len(origins)
     direct = np.zeros((n, 3))
     exits = np.nonzero((prim >= 0) & (prep.shape_ids[np.maximum(prim, 0)] == sid))[0]
-    parent, start, w_out, f, _ = _exit(prep, medium, exits, origins[exits] + t[exits, None] * dirs[exits], dirs[exits],
-                                       prim[exits], t[exits], np.full(len(exits), -1), direct)
+    parent, start, w_out, f, _, skip = _exit(prep, medium, exits, origins[exits] + t[exits, None] * dirs[exits],
+                                             dirs[exits], prim[exits], t[exits], np.full(len(exits), -1), direct)
     normals = -dirs if medium.ior == 1.0 else np.zeros_like(dirs)
     walls = np.nonzero((prim >= 0) & ~enters(prep, prim))[0]
     if len(walls):
         direct[walls] = _surface_inside(prep, sid, origins[walls], normals[walls], dirs[walls], prim[walls], t[walls])
     return Crossing(_rows(prep, sid, origins, normals, dirs, t, keys), np.ones(n), direct, start, w_out, keys[parent],
-                    parent, f, np.zeros(len(parent), bool))
+                    parent, f, np.zeros(len(parent), bool), skip)
 
 
 def combine(crossing: Crossing, inner, inner_var, inner_bound, seen, seen_var, seen_bound):

@@ -44,14 +44,15 @@ MAX_OPEN_PER_SEGMENT, MAX_OPEN = 4, 1 << 16
 FLOAT32_SLACK = 1e-6  # relative: how far Embree's float32 distance may be from the exact one
 
 
-def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None, errors=None):
+def inside_lengths(prep, points, dirs, dist, sids, block=False, margin=0.0, end_inside=None, errors=None,
+                   far_inside=None):
     """`walk`, and again from a far end moved sideways by RETRY_SHIFT x the scene's scale for the
     segments whose parity at the point contradicts `end_inside` (N, len(sids)) where given: Embree's
     float32 decisions for two rays near a shape's edge can disagree and lose one crossing of a short
     chord (a path grazing a corner), which would count the rest of the path on the wrong side.
     `errors` (N, len(sids)), where given, receives a bound on each length's error (`walk`'s; inf for a
-    walk moved sideways: another path)."""
-    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin, errors)
+    walk moved sideways: another path). `far_inside`: `walk`'s."""
+    lengths, blocked, inside = walk(prep, points, dirs, dist, sids, block, margin, errors, far_inside)
     if end_inside is None:
         return lengths, blocked
     for attempt in range(1, RETRIES + 1):
@@ -75,11 +76,12 @@ RETRY_SHIFT = 1e-5
 SIDEWAYS = np.array([[0.6, 0.0, 0.8], [0.0, 0.8, 0.6], [0.8, 0.6, 0.0]])
 
 
-def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None):
+def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None, far_inside=None):
     """Lengths (N, len(sids)) inside each shape of `sids` of the segments from `points` along the
     unit `dirs` over `dist` (inf: toward a directional light), and (N,) whether another shape lies on
     the segment (only looked for with `block`; then the walk stops there). The segment is walked from
-    its far end, which must lie outside every shape of `sids`, back to the point (crossings closer to it
+    its far end, which lies outside every shape of `sids` but where `far_inside` (N, len(sids)) says it
+    lies inside (a light inside a shape), back to the point (crossings closer to it
     than `margin` are not counted: a surface point's own face); and
     (N, len(sids)) whether the walk ends inside each shape. `errors` (N, len(sids)), where given, is
     set to a bound on each length's error: the sum of its crossings' `crossing_errors`, plus, where the
@@ -95,7 +97,7 @@ def walk(prep, points, dirs, dist, sids, block=False, margin=0.0, errors=None):
     start = points + far[:, None] * dirs
     back = -dirs
     stop = far - margin
-    inside = np.zeros((n, len(sids)), dtype=bool)
+    inside = np.zeros((n, len(sids)), dtype=bool) if far_inside is None else np.array(far_inside, dtype=bool)
     since = np.zeros((n, len(sids)))
     s = np.where(np.isinf(dist), 0.0, accel.epsilon)  # a point light on a surface: not that surface
     active = np.nonzero(stop > 0.0)[0]

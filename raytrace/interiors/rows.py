@@ -461,7 +461,8 @@ def _other_interiors(prep, sid, sup, many=False):
     """(planes stacked, first, stop, sigma_t (S, 3), plane_errors (S, 2), balls (S, 4): centre and radius
     holding each) of the index-matched interiors but shape sid, for
     `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces; `many`: sid
-    a convex refractive shape of more, for its directional beams, `_face_beams`) and the method's
+    a convex refractive shape of more, for its directional beams, `_face_beams`, and its point and spot
+    lights' paths, `_lit_point`) and the method's
     inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not applied)."""
     inner = [i for i in matched(prep) if i != sid]
     planes = [convex_planes(prep, i) for i in inner]
@@ -494,11 +495,15 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     refractive shape, the directional light's beam refracted through that face (`_lit_beams`), the
     chords taken from its entry point along the sun. `face`: in a convex refractive shape, a point or
     spot light's Fermat path through that face (`_lit_point`), the chords those of its outside leg
-    (`refracted_attenuated`). QUAD bounds its integrals (with the planes' errors `plane_errors`,
+    (`refracted_attenuated`; in a shape of more than KERNEL_PLANES planes over the planes the face
+    needs, `plane_neighbours`). QUAD bounds its integrals (with the planes' errors `plane_errors`,
     `measured_plane_errors` on refracted paths); the other rules' bound is infinite."""
     points, normals, w, ell, keys = rows
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, (oplanes, first, stop, kt_other, dothers, balls) = convex_planes(prep, sid), others
+    near = EVERY
+    if face is not None and not len(planes):  # beyond KERNEL_PLANES: each face's path over the planes it needs
+        planes, near = refracting_planes(prep, sid), plane_neighbours(prep, sid)
     n = len(points)
     distant = bool(lights.distant[li])
     geo = np.zeros((n, GEO_COLUMNS))
@@ -524,8 +529,8 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
             continue
         dk = np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out))
         if face is not None:
-            refracted_attenuated(geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior), face,
-                                 oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
+            refracted_attenuated(geo, planes, near, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior),
+                                 face, oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
                                  np.uint64(seed), dplanes, dothers, balls, unit, unit_var, unit_err, stats)
         else:
             attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first,
@@ -557,8 +562,8 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     on its entry point's path to the sun and a point or spot light's path by those on its outside leg
     (`_through_others`); else they are not applied, and every light's bound is infinite. In a shape of
     more than KERNEL_PLANES planes (`convex_planes` empty: `_face_beams`) a beam's pieces are sought
-    only where it may light a segment (`_beam_span`), the others applied by `_face_beams`; a point or
-    spot light's path there is not attenuated by them (bound infinite)."""
+    only where it may light a segment (`_beam_span`), the others applied by `_face_beams`, and a point
+    or spot light's path by `_through_others(..., face=f)` over the planes its face needs."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     planes, mask = refracting_planes(prep, sid), blockers(prep)
     many = not len(convex_planes(prep, sid))
@@ -573,8 +578,8 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     for li in range(len(lights)):
         if not lights.distant[li]:
             _lit_point(prep, method, params, sid, refracting_planes(prep, sid), mask, li,
-                       (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), others)
-            unapplied = unapplied or others is None
+                       (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), beam_others)
+            unapplied = unapplied or beam_others is None
             continue
         unapplied = unapplied or beam_others is None
         faces, towards, scales = refracted_beams(planes, lights.axis[li], medium.ior)

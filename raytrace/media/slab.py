@@ -555,6 +555,23 @@ def fermat_bend(rmin, rmax, zlo, zhi, a, hl, eta, d):
 
 
 @njit
+def _interval_bend(lo, hi, z0, a, wl, ll, hl, eta, d):
+    """`fermat_bend` over [lo, hi] of a face row's segment (depth z0 + a x, horizontal distance `_rho`)."""
+    rmin, rmax = rho_range(lo, hi, wl, ll, a)
+    z_lo, z_hi = z0 + a * lo, z0 + a * hi
+    return fermat_bend(rmin, rmax, min(z_lo, z_hi), max(z_lo, z_hi), a, hl, eta, d)
+
+
+@njit
+def _off_band(vlo, vhi, above, below, curve, h):
+    """Whether psi, with |psi''| <= curve on an interval of width h and values vlo, vhi at its ends, stays
+    above `above` or below -`below` on it: psi lies above its chord less curve (x - lo)(hi - x) / 2 >=
+    curve h^2 / 8, so above min(vlo, vhi) - curve h^2 / 8 (and below max(vlo, vhi) + curve h^2 / 8)."""
+    bow = curve * h * h * 0.125 * (1.0 + 1e-12)
+    return min(vlo, vhi) > bow + above or max(vlo, vhi) < -(bow + below)
+
+
+@njit
 def _bisect(row, planes, g, eta, lo, hi):
     """The sign change of `_edge_value` in [lo, hi] (signs differ at its ends) to the resolution of doubles."""
     s_lo = _edge_value(lo, row, planes, g, eta)
@@ -583,9 +600,16 @@ def _edge_newton(x, row, planes, g, eta):
 def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
     """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count.
     newton: a bound on `_edge_newton`'s difference from `_edge_value` (a smallest interval whose Newton
-    values at its ends have one sign and exceed it there has `_edge_value`'s sign there too)."""
+    values at its ends have one sign and exceed it there has `_edge_value`'s sign there too). Where the
+    first-order test fails, `_isolate`'s second-order one: n_g·R - c_g has |psi''| <= M = tilt times
+    `fermat_bend` (R'' along the face's plane), and the face test's tolerance that `_edge_distance`
+    subtracts (EDGE_TOL (|c_g| + |R|_1), not smooth) lies within EDGE_TOL sqrt(3) K_R (hi - lo) of its
+    chord (its slope is at most EDGE_TOL sqrt(3) |R'|), so an interval whose ends' values share a sign
+    and exceed M (hi - lo)^2 / 8 + 2 (tol + newton) + that holds no sign change."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     tilt = edge_tilt(row, planes, g) * (1.0 + 1e-11)
+    reach = math.sqrt(row[8] * row[8] + row[9] * row[9] + row[10] * row[10]) + end + math.sqrt(ll)
+    bend = 1e-9 * (reach + abs(z0) + row[2])  # fermat_bend's widening: the rounding of the row's numbers
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _edge_newton(0.0, row, planes, g, eta), _edge_newton(end, row, planes, g, eta)
@@ -595,6 +619,10 @@ def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
         if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * (tol + newton):
+            continue
+        margin = 2.0 * (tol + newton) + EDGE_TOL * SQ3 * (1.0 + 1e-12) * k * (hi - lo)
+        if (min(vlo, vhi) > margin or max(vlo, vhi) < -margin) and _off_band(
+                vlo, vhi, margin, margin, tilt * _interval_bend(lo, hi, z0, a, wl, ll, row[2], eta, bend), hi - lo):
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
             clear = vlo * vhi > 0.0 and min(abs(vlo), abs(vhi)) > newton  # `_edge_value`'s signs the same
@@ -978,16 +1006,19 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     psi lies in the band [-tol, slack + tol]. With K a bound on |psi'| (fermat_rounding.py `fermat_speed`
     K_R times `edge_tilt` and 1 + 1e-11 for an edge plane; over the outside leg's least length o_min for a
     cosine, whose unit direction turns at most |R'| / o), an interval [lo, hi] with psi(lo) + psi(hi) > K
-    (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band. For an
-    edge plane, where that fails, a second-order test: psi_exact is twice differentiable on the interval
-    (the point below the face's plane, away from straight below the light) with |psi''| <= M = tilt times
-    `fermat_bend`'s bound on |R''| over the interval (R'' lies along the face's plane, as R' does), so it
-    lies above its chord less M (x - lo)(hi - x) / 2 >= M (hi - lo)^2 / 8, and above min(psi(lo), psi(hi))
-    - tol - M (hi - lo)^2 / 8: an interval with min(psi(lo), psi(hi)) > M (hi - lo)^2 / 8 + 2 tol + slack
-    (or max(...) < -(M (hi - lo)^2 / 8 + 2 tol)) lies outside the band too. This closes a refraction point
-    that slides along an edge's line, close to it over a long stretch: there the first-order test, whose
-    K is the speed of R and not of its distance from the line, excludes only intervals below psi / K; the
-    second-order one those below sqrt(8 psi / M). The others are halved until shorter than `width`, or than 1e4 `width` with both ends in twice the band:
+    (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band. Where
+    that fails, a second-order test: psi_exact is twice differentiable on the interval (the point below the
+    face's plane, away from straight below the light) with |psi''| <= M, for an edge plane tilt times
+    `fermat_bend`'s bound on |R''| over the interval (R'' lies along the face's plane, as R' does; a cone
+    level keeps the first-order test: its second-order search lost a crossing of a glancing pair, not
+    understood), so it lies above its chord less M (x - lo)(hi - x) / 2 >= M (hi - lo)^2 / 8, and
+    above min(psi(lo), psi(hi)) - tol - M (hi - lo)^2 / 8: an interval with min(psi(lo), psi(hi)) > M (hi -
+    lo)^2 / 8 + 2 tol + slack (or max(...) < -(M (hi - lo)^2 / 8 + 2 tol)) lies outside the band too
+    (`_off_band`). This closes a refraction point that slides along an edge's line, close to it over a
+    long stretch: there the first-order test, whose K is the speed of R
+    and not of its distance from the line, excludes only intervals below psi / K; the second-order one
+    those below sqrt(8 psi / M). The others are halved until shorter than `width`, or than 1e4 `width`
+    with both ends in twice the band:
     these undecided intervals come out from left to right, and runs of adjacent ones form clusters. A
     cluster where phi changes sign with no cut within `width` of it (a jump or kink the rule did not break
     at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
@@ -1014,10 +1045,8 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
         if vlo + vhi > k * (hi - lo) + 4.0 * tol + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * tol:
             continue
         if kind == _EDGE and (min(vlo, vhi) > 2.0 * tol + slack or max(vlo, vhi) < -2.0 * tol):
-            rmin, rmax = rho_range(lo, hi, wl, ll, a)
-            bow = tilt * fermat_bend(rmin, rmax, min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi), a,
-                                   row[2], eta, bend) * (hi - lo) * (hi - lo) * 0.125 * (1.0 + 1e-12)
-            if min(vlo, vhi) > bow + 2.0 * tol + slack or max(vlo, vhi) < -(bow + 2.0 * tol):
+            curve = tilt * _interval_bend(lo, hi, z0, a, wl, ll, row[2], eta, bend)
+            if _off_band(vlo, vhi, 2.0 * tol + slack, 2.0 * tol, curve, hi - lo):
                 continue
         inside = -2.0 * tol <= vlo <= slack + 2.0 * tol and -2.0 * tol <= vhi <= slack + 2.0 * tol
         if hi - lo <= width or (inside and hi - lo <= 1e4 * width):

@@ -61,11 +61,11 @@ crossings by a proven scan in theta (below, "The caustic's crossings, proven"). 
 kinks, its band edges, which fool the rule's error estimate inside a piece (`spot_edges`): aimed at
 the centre (its axis along the light's axis) they lie at fixed angles +-theta_e, the pieces in x cut
 where those rays reach the segment and the fold pair's window in theta at +-theta_e; aimed elsewhere
-the edge's refraction point moves with the plane of the point, in closed form there (`edge_gap`),
-the pieces cut at the roots of h at that point along the segment (found by `roots`, a scan of SCAN
-nodes and golden section at its dips: not proven) and the window at their angles (located to the resolution of doubles, a
-kink of a continuous falloff misplaced by dx changes the integral by its jump in slope x dx^2, far
-below the rounding; a hard edge's jump x dx is not in the bound). QUAD integrates the
+the edge's refraction point moves with the plane of the point: the pieces cut where the segment
+meets the refracted edge rays, found by a proven scan over them (below, "The band edges, proven"),
+and the window at their angles (located to the resolution of doubles, a kink of a continuous
+falloff misplaced by dx changes the integral by its jump in slope x dx^2, far below the rounding; a
+hard edge's jump x dx is not in the bound). QUAD integrates the
 pieces with the project's adaptive Gauss-Legendre rule, a piece beside a cone or caustic crossing x_b
 in u with x = x_b + (x - x_b) u^2 (`NearCaustic`), the two pieces beside a caustic crossing as below;
 MARCH and SAMPLE take media/slab.py's midpoint march and free-path samples of the same integrand
@@ -92,8 +92,10 @@ are integrated in x on both sides of the cone's crossing.
 The bound (QUAD, `_one`; docs/error_bounds.md, "Refractive exact spheres"): the rule's
 (media/adaptive.py `bounded_piecewise`, per piece), plus 3 x the least of the largest relative
 rounding of an evaluation x (the value + the rule's bound) and the sum over the pieces of their
-evaluations' largest absolute rounding x their length (the rule's weights are positive), plus each cone crossing's location error (a quadratic's: its rounding over its
-slope there, or the square root where the segment grazes the cone) x 8 x the integrand's largest of
+evaluations' largest absolute rounding x their length (the rule's weights are positive; a piece beside a
+crossing split where that exceeds its rule's bound, `_near`), plus each cone crossing's location error
+(a quadratic's: its rounding over its slope there, or the square root where the segment grazes the
+cone) x 8 x the integrand's largest of
 three evaluations around it; beside a caustic crossing the rule's bounds of both integrals, the
 rounding of `fold_value` (its absolute largest x W's width) and each end of W off by its root's spread
 x 8 x `fold_value` there. An evaluation's rounding is the sum over its paths of the value times,
@@ -111,8 +113,7 @@ rounding and its slope (|h_xx| <= |t_z| |v|^2 / y_X) times that. Infinite, count
 a caustic crossing that `_fold` cannot take (no such pair at the ends, an end's scan unproven, two
 crossings in a row), an evaluation whose scan was unproven, a piece whose path count (or the count
 on each side of a spot's band edges) changed between its evaluations (the guard against a crossing
-the breaks missed: an off-centre spot's band edges are found by `roots`, not proven), a caustic scan
-unproven, eta <= 1.
+the breaks missed), a caustic or band edge scan unproven, eta <= 1.
 
 The caustic's crossings, proven (`caustic_crossings`). The caustic point is C = P + t R cos_t / phi'
 (1 / kappa_t = R cos_t / phi'; inside the sphere iff phi' >= 1/2, the chord being 2 R cos_t; none ahead
@@ -147,6 +148,39 @@ segment's bound inf): a cell undecided after MAX_HALVINGS halvings or MAX_EVALS 
 within rounding of tangent to the caustic surface: tests/test_caustic_crossings.py, against the
 envelope of the refracted rays from mpmath, finds every crossing and the scan proven on lines 1e-3 to
 1e-6 from tangent and beside the cusp, not always at 1e-9), or wz = 0.
+
+The band edges, proven (`edge_crossings`). The edge's directions out of the light L, at cosine ce
+to the spot's unit axis a, are u(phi) = ce a - se (cos phi b1 + sin phi b2) (se = sqrt(1 - ce^2), b1
+the unit normal to a toward q = L - c, b2 = a x b1), b = q.u = A0 - A1 cos phi (A0 = ce q.a, A1 = se
+|q - (q.a) a|); u's ray enters the sphere where b <= -beta, beta = sqrt(d^2 - R^2) (sqrt(d^2 - R^2
+eta^2) for eta < 1, the critical angle), there with S = sqrt(b^2 - beta^2) = R cos_i (R eta cos_t
+for eta < 1), meeting it at P = L + r u, r = -b - R cos_i, and refracted along t = u / eta + (cos_i /
+eta - cos_t) n (n = (P - c) / R). The segment meets the edge ray's line where G = det(w, t, o - P)
+= 0 (x and the distance s along t from the two lines, kept for 0 < x < end and s >= 0). Where every
+ray enters (A0 + A1 < -beta: mode 2) phi runs over [-pi, pi], S' = b b' / S and S'' = (b'^2 + b b'' -
+S'^2) / S bounded with S above sqrt((A0 - A1 cos phi_max)^2 - beta^2); where some do (mode 1: the
+arc |phi| < Phi, cos Phi = c* = (A0 + beta) / A1), sin(phi / 2) = s sin(tau), s = sin(Phi / 2), tau
+in [-pi/2, pi/2] makes S = 2 s sqrt(A1) cos(tau) sqrt(beta + kappa cos^2 tau) and b = -beta - 2
+kappa cos^2 tau (kappa = A1 s^2) smooth through the ends (grazing, or the critical angle: in phi S
+has a square root there), with |phi'| <= 2 s min(1, cos / sqrt(1 - s^2 sin^2)), |phi''| <= 2 s (1 -
+s^2) |sin| / (1 - s^2 sin^2)^(3/2), |S'| <= 2 s sqrt(A1) |sin| H(cos^2), H(y) = (beta + 2 kappa y) /
+sqrt(beta + kappa y) (rising), |S''| <= 2 s sqrt(A1) cos (H + 3 kappa sin^2 / sqrt(beta)) (H' falls
+from 3 kappa / (2 sqrt(beta))), each at the cell's extreme cos and sin. P, t are smooth in (phi, S):
+|P_phi| <= sqrt(A1^2 + r_max^2 se^2) (r_max = sqrt(d^2 - R^2)), |P_phiphi| <= A1 (1 + 2 se) + r_max
+se, |P_S| <= 1, |P_phiS| <= se, |P_SS| <= 1 / (R c_min) for eta < 1 (c_min = sqrt(1 - eta^2), else
+0); with f = cos_i / eta - cos_t, |f| <= max(1, 1 / eta), |f_S| <= 1 / (R eta), |f_SS| <= (eta^2 -
+1) / (R^2 eta^4 cos_t^3) (1 / (eta R^2 c_min) for eta < 1), t_phi = u_phi / eta + f P_phi / R, t_S =
+f_S n + f P_S / R, t_phiphi = u_phiphi / eta + f P_phiphi / R, t_phiS = (f_S P_phi + f P_phiS) / R,
+t_SS = f_SS n + (2 f_S P_S + f P_SS) / R; the chain rule through (phi', S') gives |P'|, |t'|, |P''|,
+|t''| and K = |t''| (|o - c| + R) + 2 |t'| |P'| + |P''| bounds |G''| over the cell (`edge_bound`;
+tests/test_sphere_band_edges.py checks it against mpmath's derivatives). The cells are decided as
+`paths` decides h's, less G's rounding: 2 ((|o - c| + R)(e_t + 16u) + e_p), e_p = 64u (|L| + |c| +
+|o| + d + R + d cond) an edge point's distance from the exact edge rays (cond the parameter's
+conditioning: (|A0| + beta + A1) / (A1 s sqrt(1 - s^2)) in mode 1, d / S_min in mode 2), e_t its
+direction's. Not proven (the segment's bound inf): a cell undecided after MAX_HALVINGS halvings or
+MAX_EVALS in one scan (a segment within rounding of tangent to the edge's surface: the test, against
+a reference that solves Snell's law in mpmath along the segment, finds every crossing and the scan
+proven on random lines and lines 1e-3 and 1e-6 from tangent, not always at 1e-9).
 """
 from __future__ import annotations
 
@@ -180,8 +214,8 @@ UNRESOLVED, ROUNDING, ROUNDING_ABS, COUNT, COUNT_CHANGED, FOLD_ABS, PIECES_ABS =
 TRACK = 7
 MAX_PATHS = 8  # room for an inside point's paths (at most three are found in practice)
 UNBOUNDED = 8  # the stats slot (interiors/crossing.py's) of the QUAD segments whose bound is inf
-GOLD = 0.5 * (math.sqrt(5.0) - 1.0)
 GAP = 6  # `_gap`'s values
+SPLIT, SPLITS = 0.1, 3  # `_near`: where a piece beside a crossing is split (in u), and how many times at most
 EDGES = 8  # room for the x where a path crosses a spot's band edge (two angles, two rays each, two points)
 
 
@@ -355,40 +389,6 @@ def cell_table(theta_a, radius, d, eta):
 
 
 @njit
-def edge_gap(x, sign, ce, ff, fv, vv, fa, va, az, wz, fz, radius, d, eta):
-    """(h, theta) of the band edge of a spot not aimed at the centre in the plane of the point o + x w
-    (f + x v across the axis: ff = |f|^2, fv = f.v, vv = |v|^2, fa = f.a, va = v.a with a the spot's
-    axis; fz + x wz along it, az = ez.a): in that plane the direction from the light toward P(theta) is
-    (-cos beta, sin beta) (beta grows with theta over the lit arc), whose cosine to the axis is
-    -az cos beta + a_y sin beta = A cos(beta - beta_0) (a_y = e_y.a): the edge's cosine ce is reached
-    at beta = beta_0 + sign acos(ce / A) in closed form, theta where that ray from the light meets the
-    sphere first, and h = t x (X - P) of the ray refracted there (0 where the point lies on it); nan
-    where the plane holds no such ray on the lit arc."""
-    yx = math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
-    if not yx > 0.0:
-        return math.nan, math.nan
-    ay = (fa + x * va) / yx
-    amp = math.sqrt(az * az + ay * ay)
-    if not amp > abs(ce):
-        return math.nan, math.nan
-    beta = math.atan2(ay, -az) + sign * math.acos(ce / amp)
-    if beta > math.pi:
-        beta -= 2.0 * math.pi
-    elif beta < -math.pi:
-        beta += 2.0 * math.pi
-    cb, sb = math.cos(beta), math.sin(beta)
-    disc = radius * radius - d * d * sb * sb
-    if not cb > 0.0 or not disc >= 0.0:
-        return math.nan, math.nan
-    run = d * cb - math.sqrt(disc)  # from the light to the sphere along that direction
-    theta = math.atan2(run * sb, d - run * cb)
-    pz, py, tz, ty, _, cos_t, _ = incidence(theta, radius, d, eta)
-    if cos_t == 0.0:
-        return math.nan, math.nan
-    return tz * (yx - py) - ty * (fz + x * wz - pz), theta
-
-
-@njit
 def _caustic(theta, radius, d, eta):
     """(phi', cz, cy, dcz, dcy) at theta (`_clamped`'s ray, continuous to the arc's ends): phi' = 1 + g'
     theta_i' = 1 - cos_i (1 - alpha') / (eta cos_t), the caustic point C = P + t R cos_t / phi' and
@@ -434,83 +434,27 @@ def _gap_into(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, out):
 
 
 @njit
-def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
+def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
     """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
-    kind 1: `_gap`'s H (`caustic_crossings`), nan where there is no caustic point ahead of P; kinds 2 and 3: `edge_gap`
-    at x = theta, sign +1 and -1, of the cosine zx (f0, f1, f2 = ff, fv, vv; v0, v1, v2 = fa, va, az)."""
+    kind 1: `_gap`'s H (`caustic_crossings`), nan where there is no caustic point ahead of P."""
     if kind == 0:
         pz, py, tz, ty, _, _, _ = _clamped(theta, radius, d, eta)
         return tz * (yx - py) - ty * (zx - pz)
-    if kind >= 2:
-        return edge_gap(theta, 5.0 - 2.0 * kind, zx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)[0]
     return _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)[1]
 
 
 @njit
-def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta):
+def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
     """The root of _h in [lo, hi] (h_lo its sign at lo, the other sign at hi) to the resolution of doubles."""
     for _ in range(200):
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:
             break
-        if _h(mid, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta) * h_lo > 0.0:
+        if _h(mid, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta) * h_lo > 0.0:
             lo = mid
         else:
             hi = mid
     return 0.5 * (lo + hi)
-
-
-@njit
-def roots(lo, hi, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta, out):
-    """The roots of _h on [lo, hi] into out (returns their count, ascending): SCAN uniform nodes, each
-    sign change bisected, each node where |h| dips without a sign change refined by golden section
-    over its two cells and two roots bisected where the dip crosses zero (nan nodes break the scan)."""
-    m = 0
-    cap = out.shape[0]
-    step = (hi - lo) / SCAN
-    if not step > 0.0:
-        return 0
-    hs = np.empty(SCAN + 1)
-    for j in range(SCAN + 1):
-        hs[j] = _h(lo + j * step, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
-    for j in range(SCAN):
-        a, b = hs[j], hs[j + 1]
-        if m < cap and a == 0.0:
-            out[m] = lo + j * step
-            m += 1
-        elif m < cap and a * b < 0.0:
-            out[m] = _bisect(lo + j * step, lo + (j + 1) * step, a, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0,
-                             radius, d, eta)
-            m += 1
-    for j in range(1, SCAN):
-        a, b, c = hs[j - 1], hs[j], hs[j + 1]
-        if not (a * b > 0.0 and b * c > 0.0 and abs(b) < abs(a) and abs(b) <= abs(c)) or m + 2 > cap:
-            continue
-        sign = 1.0 if b > 0.0 else -1.0
-        x0, x3 = lo + (j - 1) * step, lo + (j + 1) * step  # golden section for the least sign * h
-        x1, x2 = x3 - GOLD * (x3 - x0), x0 + GOLD * (x3 - x0)
-        g1 = sign * _h(x1, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
-        g2 = sign * _h(x2, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
-        for _ in range(200):
-            if g1 <= 0.0 or g2 <= 0.0 or not x0 < x1 < x2 < x3:
-                break
-            if g1 < g2:
-                x3, x2, g2 = x2, x1, g1
-                x1 = x3 - GOLD * (x3 - x0)
-                g1 = sign * _h(x1, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
-            else:
-                x0, x1, g1 = x1, x2, g2
-                x2 = x0 + GOLD * (x3 - x0)
-                g2 = sign * _h(x2, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d, eta)
-        xm = x1 if g1 <= g2 else x2
-        if min(g1, g2) < 0.0:
-            out[m] = _bisect(lo + (j - 1) * step, xm, b, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0, radius, d,
-                             eta)
-            out[m + 1] = _bisect(xm, lo + (j + 1) * step, -b, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, z0,
-                                 radius, d, eta)
-            m += 2
-    sort_few(out, 0, m)
-    return m
 
 
 @njit
@@ -528,8 +472,8 @@ def _steepest(root, a, b, fa, fb, k, e, zx, yx, radius, d, eta):
         if best >= 0.5 * secant:
             break
         lo, hi = max(a, root - half), min(b, root + half)
-        f1 = _h(lo, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        f2 = _h(hi, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        f1 = _h(lo, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        f2 = _h(hi, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
         wn = hi - lo
         if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
             break
@@ -560,13 +504,13 @@ def paths(r, zx, yx, dx, out, spread):
     which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
     m, top, proven, evals = 0, 0, True, 0
     cap = out.shape[0]
-    right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+    right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
     if right == 0.0:
         out[m] = lo + SCAN * step
         spread[m] = math.inf
         m += 1
     for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
-        left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
         if left == 0.0 and m < cap:
             out[m] = lo + j * step
             spread[m] = math.inf
@@ -587,7 +531,7 @@ def paths(r, zx, yx, dx, out, spread):
         elif abs(fb - fa) - 2.0 * dh > k * w * w:
             if fa * fb < 0.0:
                 if m < cap:
-                    out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                    out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
                     slope = _steepest(out[m], a, b, fa, fb, k, dh + dx, zx, yx, radius, d, eta)
                     spread[m] = 2.0 * (dh + dx) / slope + 4.0 * U * r.theta_a if slope > 0.0 else math.inf
                     m += 1
@@ -598,11 +542,11 @@ def paths(r, zx, yx, dx, out, spread):
         if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
             proven = False
             if fa * fb < 0.0 and m < cap:
-                out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
                 spread[m] = math.inf
                 m += 1
             continue
-        fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
         evals += 1
         if fm == 0.0:
             if m < cap:
@@ -707,7 +651,7 @@ def caustic_crossings(r, f, v, fz, wz, out):
             elif mono:
                 if fa * fb < 0.0:
                     if m < cap:
-                        out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, 0.0, radius, d, eta)
+                        out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
                         m += 1
                     else:
                         proven = False
@@ -716,7 +660,7 @@ def caustic_crossings(r, f, v, fz, wz, out):
         if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
             proven = False
             if fa * fb < 0.0 and m < cap:
-                out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, 0.0, radius, d, eta)
+                out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
                 m += 1
             continue
         _gap_into(mid, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
@@ -733,6 +677,258 @@ def caustic_crossings(r, f, v, fz, wz, out):
         vals[top + 1, GAP:] = node
         ca[top], depth[top] = mid, level
         vals[top, :GAP] = node
+        top += 2
+    sort_few(out, 0, m)
+    return m, proven
+
+
+class EdgeCone(NamedTuple):
+    """A spot's band edge, not aimed at the centre, and one segment (module docstring, "The band
+    edges, proven"): mode 0 (no edge ray enters), 1 (some: tau in [-pi/2, pi/2]) or 2 (all: phi in
+    [-pi, pi]); A0, A1 of b = q.u = A0 - A1 cos phi, beta (b <= -beta where the ray enters), s and kappa
+    = A1 s^2 of mode 1, the edge's cosine ce and sine se, the unit axis a and b1, b2 across it (b1
+    toward q), q = L - c, the segment's start oc relative to the centre and its direction w, the
+    radius, eta, d = |q|, reach (|oc| + R, at least |oc - P|) and dg (G's rounding)."""
+    mode: int
+    a0: float
+    a1: float
+    beta: float
+    s: float
+    kappa: float
+    ce: float
+    se: float
+    a: np.ndarray
+    b1: np.ndarray
+    b2: np.ndarray
+    q: np.ndarray
+    oc: np.ndarray
+    w: np.ndarray
+    radius: float
+    eta: float
+    d: float
+    reach: float
+    dg: float
+
+
+@njit
+def _norm(v):
+    """|v| of a 3-vector."""
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+@njit
+def edge_cone(r, ce):
+    """The `EdgeCone` of r's spot edge at cosine ce (module docstring, "The band edges, proven"): the
+    entering rays' parameter, and G's rounding dg = 2 (reach (e_t + 16u) + e_p), e_p = 64u (|L| + |c| +
+    |o| + d + R + d cond) the position error of an edge point (cond: the parameter's conditioning) and
+    e_t = e_p (1 / (eta (d - R)) + 3 max(1, 1 / eta) / R) + 32u (1 + 2 max(1, 1 / eta)) its direction's."""
+    radius, eta, d = r.radius, r.eta, r.d
+    a = r.axis / _norm(r.axis)
+    q = r.light - r.c
+    qa = q[0] * a[0] + q[1] * a[1] + q[2] * a[2]
+    b1 = q - qa * a
+    big = _norm(b1)
+    if not big > 1e-12 * d:  # q along the axis: any normal to it
+        k = 0 if abs(a[0]) < 0.9 else 1
+        b1[:] = -a[k] * a
+        b1[k] += 1.0
+        big = 0.0
+    b1 /= _norm(b1)
+    b2 = np.array([a[1] * b1[2] - a[2] * b1[1], a[2] * b1[0] - a[0] * b1[2], a[0] * b1[1] - a[1] * b1[0]])
+    se = math.sqrt((1.0 - ce) * (1.0 + ce))
+    a0, a1 = ce * qa, se * big
+    beta = math.sqrt(max((d - radius) * (d + radius), 0.0)) if eta >= 1.0 else \
+        math.sqrt(max((d - radius * eta) * (d + radius * eta), 0.0))
+    oc = r.o - r.c
+    mode, s, kappa, cond = 0, 0.0, 0.0, math.inf
+    if not d > radius or a0 - a1 >= -beta:
+        mode = 0
+    elif a0 + a1 < -beta:
+        mode = 2
+        cond = d / math.sqrt((-a0 - a1 - beta) * (beta - a0 - a1))
+    else:
+        mode = 1
+        s = math.sqrt(0.5 * (1.0 - (a0 + beta) / a1))
+        kappa = a1 * s * s
+        if s < 1.0:
+            cond = (abs(a0) + beta + a1) / (a1 * s * math.sqrt((1.0 - s) * (1.0 + s)))
+    fm = max(1.0, 1.0 / eta)
+    ep = 64.0 * U * (_norm(r.light) + _norm(r.c) + _norm(r.o) + d + radius + d * cond)
+    et = ep * (1.0 / (eta * (d - radius)) + 3.0 * fm / radius) + 32.0 * U * (1.0 + 2.0 * fm)
+    reach = _norm(oc) + radius
+    return EdgeCone(mode, a0, a1, beta, s, kappa, ce, se, a, b1, b2, q, oc, r.w.copy(), radius, eta, d, reach,
+                    2.0 * (reach * (et + 16.0 * U) + ep))
+
+
+@njit
+def _edge_cosines(sq, radius, eta):
+    """(cos_i, cos_t) of an edge ray from S (`edge_ray`): S = R cos_i for eta >= 1, R eta cos_t below."""
+    if eta >= 1.0:
+        ci = sq / radius
+        return ci, math.sqrt((eta - 1.0) * (eta + 1.0) + ci * ci) / eta
+    return math.sqrt((1.0 - eta) * (1.0 + eta) + (sq / radius) ** 2), sq / (radius * eta)
+
+
+@njit
+def edge_ray(tau, k):
+    """(P - c, t) of the edge ray at parameter tau of the `EdgeCone` k (module docstring): its
+    refraction point relative to the centre and its refracted unit direction."""
+    if k.mode == 1:
+        cs = max(math.cos(tau), 0.0)
+        phi = 2.0 * math.asin(k.s * math.sin(tau))
+        b = -k.beta - 2.0 * k.kappa * cs * cs
+        sq = 2.0 * k.s * math.sqrt(k.a1) * cs * math.sqrt(k.beta + k.kappa * cs * cs)
+    else:
+        phi = tau
+        b = k.a0 - k.a1 * math.cos(phi)
+        sq = math.sqrt(max((-b - k.beta) * (k.beta - b), 0.0))
+    cp, sp = math.cos(phi), math.sin(phi)
+    u = k.ce * k.a - k.se * (cp * k.b1 + sp * k.b2)
+    ci, ct = _edge_cosines(sq, k.radius, k.eta)
+    pc = k.q + (-b - k.radius * ci) * u
+    return pc, u / k.eta + (ci / k.eta - ct) / k.radius * pc
+
+
+@njit
+def edge_gap(tau, k):
+    """G(tau) = det(w, t, o - P) of the edge ray at tau (`edge_ray`): 0 where its line meets the segment's."""
+    pc, t = edge_ray(tau, k)
+    w = k.w
+    m0, m1, m2 = k.oc[0] - pc[0], k.oc[1] - pc[1], k.oc[2] - pc[2]
+    return w[0] * (t[1] * m2 - t[2] * m1) + w[1] * (t[2] * m0 - t[0] * m2) + w[2] * (t[0] * m1 - t[1] * m0)
+
+
+@njit
+def edge_bound(lo, hi, k):
+    """K >= |G''| over [lo, hi] of the `EdgeCone` k (module docstring, "The band edges, proven"): the
+    parameter's (phi', phi'', S', S'', the least S) then |P''|, |t''|, |P'|, |t'| through the partial
+    derivatives in phi and S; inf where S may reach 0 in mode 2 or s = 1 at the end of mode 1."""
+    radius, eta, a1, beta, kappa, s, se = k.radius, k.eta, k.a1, k.beta, k.kappa, k.s, k.se
+    far = max(abs(lo), abs(hi))
+    near = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+    if k.mode == 1:
+        cmax, cmin = min(math.cos(near) + 4.0 * U, 1.0), max(math.cos(far) - 4.0 * U, 0.0)
+        smax = min(math.sin(far) + 4.0 * U, 1.0)
+        den = (1.0 - s * smax) * (1.0 + s * smax)
+        if not den > 0.0:
+            return math.inf
+        p1 = 2.0 * s * min(1.0, cmax / math.sqrt(den))
+        p2 = 2.0 * s * (1.0 - s) * (1.0 + s) * smax / den ** 1.5
+        root = 2.0 * s * math.sqrt(a1)
+        hmax = (beta + 2.0 * kappa * cmax * cmax) / math.sqrt(beta + kappa * cmax * cmax)
+        s1 = root * smax * hmax
+        s2 = root * cmax * (hmax + 3.0 * kappa * smax * smax / math.sqrt(beta))
+        smin = root * cmin * math.sqrt(beta + kappa * cmin * cmin) * (1.0 - 1e-9)
+    else:
+        p1, p2 = 1.0, 0.0
+        bmax = a1 - k.a0  # the largest |b|
+        bb = a1 * math.cos(min(far, math.pi)) - k.a0  # the least |b| over the cell
+        smin = math.sqrt(max((bb - beta) * (bb + beta), 0.0)) * (1.0 - 1e-9)
+        if not smin > 0.0:
+            return math.inf
+        s1 = bmax * a1 / smin
+        s2 = (a1 * a1 + bmax * a1 + s1 * s1) / smin
+    fss = pss = 0.0
+    if eta >= 1.0:
+        ct = math.sqrt((eta - 1.0) * (eta + 1.0) + (smin / radius) ** 2) / eta * (1.0 - 1e-9)
+        if eta > 1.0:
+            fss = (eta - 1.0) * (eta + 1.0) / (radius * radius * eta ** 4 * ct ** 3)
+    else:
+        c_min = math.sqrt((1.0 - eta) * (1.0 + eta))
+        fss, pss = 1.0 / (eta * radius * radius * c_min), 1.0 / (radius * c_min)
+    rmax = math.sqrt((k.d - radius) * (k.d + radius))  # the distance from the light to a near refraction point
+    fm, fs = max(1.0, 1.0 / eta), 1.0 / (radius * eta)
+    pp = math.sqrt(a1 * a1 + rmax * rmax * se * se)  # |P_phi|
+    ppp = a1 * (1.0 + 2.0 * se) + rmax * se  # |P_phiphi|
+    tp, ts = se / eta + fm * pp / radius, fs + fm / radius
+    tpp, tps = se / eta + fm * ppp / radius, (fs * pp + fm * se) / radius
+    tss = fss + 2.0 * fs / radius + fm * pss / radius
+    p_1 = p1 * pp + s1
+    t_1 = p1 * tp + s1 * ts
+    p_2 = p1 * p1 * ppp + 2.0 * p1 * s1 * se + s1 * s1 * pss + p2 * pp + s2
+    t_2 = p1 * p1 * tpp + 2.0 * p1 * s1 * tps + s1 * s1 * tss + p2 * tp + s2 * ts
+    return (t_2 * k.reach + 2.0 * t_1 * p_1 + p_2) * (1.0 + 1e-9)
+
+
+@njit
+def _edge_bisect(lo, hi, g_lo, k):
+    """The root of `edge_gap` in [lo, hi] (g_lo its sign at lo, the other at hi) to the resolution of doubles."""
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if edge_gap(mid, k) * g_lo > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit
+def edge_crossings(k, out):
+    """The roots of `edge_gap` over the `EdgeCone` k's parameter range into out, ascending; returns
+    (count, proven) (module docstring, "The band edges, proven"): SCAN uniform cells, each halved until
+    `edge_bound`'s K decides it as `paths` decides a cell of h (no root: G keeps its sign and its least
+    |G| at the ends exceeds K w^2 / 8, or it is monotone, the secant's slope above K w; one root: a sign
+    change and monotone; each less G's rounding), each root bisected to the resolution of doubles. Not
+    proven where a cell reached MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (a segment
+    within rounding of tangent to the band edge's surface)."""
+    if k.mode == 0:
+        return 0, True
+    lo = -0.5 * math.pi if k.mode == 1 else -math.pi
+    step = -2.0 * lo / SCAN
+    dg = k.dg
+    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    ga, gb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    depth = np.empty(CELL_STACK, dtype=np.int64)
+    m, top, proven, evals = 0, 0, dg < math.inf, 0
+    cap = out.shape[0]
+    right = edge_gap(lo + SCAN * step, k)
+    if right == 0.0 and k.mode == 1:  # (mode 2's ends are one ray: counted at its start)
+        out[m] = lo + SCAN * step
+        m += 1
+    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
+        left = edge_gap(lo + j * step, k)
+        if left == 0.0 and m < cap:
+            out[m] = lo + j * step
+            m += 1
+        ca[top], cb[top], ga[top], gb[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, 0
+        top += 1
+        right = left
+    while top > 0:
+        top -= 1
+        a, b, fa, fb = ca[top], cb[top], ga[top], gb[top]
+        w = b - a
+        kk = edge_bound(a, b, k)
+        if fa * fb > 0.0:
+            if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or abs(fb - fa) - 2.0 * dg > kk * w * w:
+                continue  # keeps its sign, or monotone
+        elif abs(fb - fa) - 2.0 * dg > kk * w * w:
+            if fa * fb < 0.0:
+                if m < cap:
+                    out[m] = _edge_bisect(a, b, fa, k)
+                    m += 1
+                else:
+                    proven = False
+            continue
+        mid = 0.5 * (a + b)
+        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
+            proven = False
+            if fa * fb < 0.0 and m < cap:
+                out[m] = _edge_bisect(a, b, fa, k)
+                m += 1
+            continue
+        fm = edge_gap(mid, k)
+        evals += 1
+        if fm == 0.0:
+            if m < cap:
+                out[m] = mid
+                m += 1
+            else:
+                proven = False
+        level = depth[top] + 1
+        ca[top], cb[top], ga[top], gb[top], depth[top] = mid, b, fm, fb, level
+        ca[top + 1], cb[top + 1], ga[top + 1], gb[top + 1], depth[top + 1] = a, mid, fa, fm, level
         top += 2
     sort_few(out, 0, m)
     return m, proven
@@ -932,6 +1128,22 @@ def _ray_crossings(r, pz, py, tz, ty, a, b, xs):
 
 
 @njit
+def _edge_meets(k, pc, t):
+    """(x, s): where the edge ray P + s t (P = c + pc) meets the segment's line o + x w (their lines
+    coplanar), x = ((P - o) x t).(w x t) / |w x t|^2 and s = ((P - o) x w).(w x t) / |w x t|^2 (nan
+    where they are parallel)."""
+    w = k.w
+    m = pc - k.oc
+    c = np.array([w[1] * t[2] - w[2] * t[1], w[2] * t[0] - w[0] * t[2], w[0] * t[1] - w[1] * t[0]])
+    cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
+    if not cc > 0.0:
+        return math.nan, math.nan
+    mt = np.array([m[1] * t[2] - m[2] * t[1], m[2] * t[0] - m[0] * t[2], m[0] * t[1] - m[1] * t[0]])
+    mw = np.array([m[1] * w[2] - m[2] * w[1], m[2] * w[0] - m[0] * w[2], m[0] * w[1] - m[1] * w[0]])
+    return (mt[0] * c[0] + mt[1] * c[1] + mt[2] * c[2]) / cc, (mw[0] * c[0] + mw[1] * c[1] + mw[2] * c[2]) / cc
+
+
+@njit
 def spot_edges(r, end):
     """Into r.edges: the x in (0, end) where a path to the point o + x w crosses one of the spot's band
     edges (its falloff's kinks along the segment; edges[0] their count, edges[1:EDGES + 1]
@@ -940,10 +1152,10 @@ def spot_edges(r, end):
     theta alone, (d - R cos theta) / o, falling from 1 at theta = 0: the angles theta_e in
     (0, theta_a) where it reaches cos_end and cos_start (bisected to the resolution of doubles;
     edges[EDGES + 1:EDGES + 3], nan for none) and the x where the rays refracted at +-theta_e reach
-    the segment ahead of P. Another spot's edge moves with the plane of the point: the x are the roots
-    of `edge_gap` (kinds 2 and 3 of `roots`, in x over (0, end)) ahead of P, their angles in
-    edges[EDGES + 3:] (nan for none). A crossing beyond the room of EDGES is counted unresolved in the
-    track (the bound inf). None for other lights."""
+    the segment ahead of P. Another spot's edge rays are found by `edge_crossings` (proven, else counted
+    unresolved in the track: the bound inf), the x where they meet the segment ahead of P kept, the
+    angles of their refraction points in the plane of that point in edges[EDGES + 3:] (nan for none).
+    A crossing beyond the room of EDGES is counted unresolved too. None for other lights."""
     edges = r.edges
     edges[0] = 0.0
     edges[EDGES + 1:] = math.nan
@@ -957,33 +1169,28 @@ def spot_edges(r, end):
     m = 0
     f, v, fz, wz = _segment(r)
     if not cross <= 1e-18 or not az < 0.0:  # not aimed at the centre
-        ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
-        fv = f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
-        vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-        fa = f[0] * axis[0] + f[1] * axis[1] + f[2] * axis[2]
-        va = v[0] * axis[0] + v[1] * axis[1] + v[2] * axis[2]
         found = np.empty(2 * EDGES)
         for e in range(2):
             ce = r.spot[0] if e == 0 else r.spot[1]
             if e == 1 and r.spot[1] == r.spot[0] or not -1.0 < ce < 1.0:  # no edge (a point light: none)
                 continue
-            for kind in (2, 3):
-                n = roots(0.0, end, kind, ce, 0.0, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta, found)
-                if n == found.shape[0]:
-                    r.track[UNRESOLVED] += 1.0  # perhaps more than its room
-                for k in range(n):
-                    x = found[k]
-                    theta = edge_gap(x, 5.0 - 2.0 * kind, ce, ff, fv, vv, fa, va, az, wz, fz, r.radius, r.d, r.eta)[1]
-                    pz, py, tz, ty, _, _, _ = incidence(theta, r.radius, r.d, r.eta)
-                    zx, yx = fz + x * wz, math.sqrt(max(ff + x * (2.0 * fv + x * vv), 0.0))
-                    if not (0.0 < x < end and tz * (zx - pz) + ty * (yx - py) >= 0.0):
-                        continue
-                    if m == EDGES:
-                        r.track[UNRESOLVED] += 1.0
-                        continue
-                    edges[EDGES + 3 + m] = theta
-                    m += 1
-                    edges[m] = x
+            k = edge_cone(r, ce)
+            n, proven = edge_crossings(k, found)
+            if not proven:
+                r.track[UNRESOLVED] += 1.0
+            for j in range(n):
+                pc, t = edge_ray(found[j], k)
+                x, ahead = _edge_meets(k, pc, t)
+                if not (0.0 < x < end and ahead >= 0.0):
+                    continue
+                if m == EDGES:
+                    r.track[UNRESOLVED] += 1.0
+                    continue
+                _, _, ey = _plane(r, x)
+                edges[EDGES + 3 + m] = math.atan2(pc[0] * ey[0] + pc[1] * ey[1] + pc[2] * ey[2],
+                                                  pc[0] * ez[0] + pc[1] * ez[1] + pc[2] * ez[2])
+                m += 1
+                edges[m] = x
         sort_few(edges, 1, m + 1)
         edges[0] = m
         return
@@ -1220,12 +1427,35 @@ def _beside(r, lo, hi, flag_lo, flag_hi, rtol, stats, track):
     total = rule = 0.0
     mid = lo if flag_lo == 0.0 else hi if flag_hi == 0.0 else 0.5 * (lo + hi)
     if mid > lo:
-        val, b = _piece(NearCaustic(r, lo, mid - lo), 0.0, 1.0, mid - lo, rtol, stats, track)
+        val, b = _near(NearCaustic(r, lo, mid - lo), rtol, stats, track)
         total, rule = total + val, rule + b
     if hi > mid:
-        val, b = _piece(NearCaustic(r, hi, mid - hi), 0.0, 1.0, hi - mid, rtol, stats, track)
+        val, b = _near(NearCaustic(r, hi, mid - hi), rtol, stats, track)
         total, rule = total + val, rule + b
     return total, rule
+
+
+@njit
+def _near(q, rtol, stats, track):
+    """(value, rule's bound) of `_piece` over the `NearCaustic` piece q, u in [0, 1]: where its rounding
+    (its evaluations' largest absolute x its length) exceeds the rule's bound, that is undone and the
+    piece split at u = SPLIT (x at SPLIT^2 of its span from the crossing, where the rounding of a path
+    near the lit arc's end or the caustic peaks), [SPLIT, 1] integrated with its own rounding and [0,
+    SPLIT] taken again the same way, at most SPLITS times."""
+    total = rule = 0.0
+    hi = 1.0
+    span = abs(q.span)
+    for _ in range(SPLITS):
+        before = track[PIECES_ABS]
+        val, b = _piece(q, 0.0, hi, span * hi * hi, rtol, stats, track)
+        if track[PIECES_ABS] - before <= b:
+            return total + val, rule + b
+        track[PIECES_ABS] = before
+        lo = SPLIT * hi
+        val, b = _piece(q, lo, hi, span * (hi - lo) * (hi + lo), rtol, stats, track)
+        total, rule, hi = total + val, rule + b, lo
+    val, b = _piece(q, 0.0, hi, span * hi * hi, rtol, stats, track)
+    return total + val, rule + b
 
 
 @njit

@@ -124,8 +124,9 @@ class Interiors:
     refractive boundaries; APPROX the slab note's separable approximation, MARCH midpoints, SAMPLE free
     paths), for the light kinds `lights`, of which `refracted` also through a
     refractive boundary (ior != 1). `exact_paths`: in index-matched shapes the light's exact straight
-    path (and a camera inside such a shape is taken), else the entry face's plane (the note's model;
-    CLOSED as above, a camera inside refused).
+    path, else the entry face's plane (the note's model; CLOSED as above). `camera_inside`: the rule
+    takes rows without an entry face (a camera inside a shape: index-matched, convex or an exact
+    sphere; interiors/crossing.py `start_inside`); the entry plane's model has none to take.
     `fixed`: its parameters not implemented inside (they must keep their defaults). `limits`: what
     its refusal of a light says. `settings(params)`: the inside integrator's (rtol, steps or samples
     per segment, optical depth at which a march stops) from the method's own parameters. `through`: how
@@ -141,6 +142,7 @@ class Interiors:
     limits: str = ""
     settings: Callable[[dict], tuple] = _inside_defaults
     through: str = "quadrature"
+    camera_inside: bool = True
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,8 @@ from .geometry import by_channel, cone_row, v_of
 from ..media.expint import g_scaled, en_scaled, i01_series_est
 from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
-                               hg_legendre, legendre_to_cosine, rayleigh_legendre, times_trig, trig_moments_forward)
+                               hg_legendre, legendre_to_cosine, rayleigh_legendre, start_sensitivity, times_trig,
+                               trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
 from ..media.slab import CLOSED
 from ..media.gauss import N10, N20, W10, W20
@@ -102,12 +103,13 @@ def rho_switch(precision):
 
 
 QUAD_RTOL_MIN = 1e-13  # the quadrature cannot resolve finer differences of its 10- and 20-point rules
-LOSS_TABLE = 17  # points of the tabulated recurrence loss in the exact mode's coeffs
+LOSS_TABLE = 17  # points of the tables against H in the exact mode's coeffs
 # layout of a coefficient block of the exact mode (`_block`): its range of v, the largest H of the
-# forward recurrence and its loss table for the cosine series (point lights, full-intensity pieces)
-# and for the series times a spot's smoothstep band (3 orders more), the final sum's ratio, the series
-B_VLO, B_VHI, B_HMAX, B_RATIO, B_LOSS = 0, 1, 2, 3, 4
-B_HMAX_BAND = B_LOSS + LOSS_TABLE
+# forward recurrence and the final sum's ratio for the cosine series (point lights, full-intensity pieces),
+# the sum's sensitivity to the start values (`_sensitivity`), the largest H and loss table of the series
+# times a spot's smoothstep band (3 orders more), the series
+B_VLO, B_VHI, B_HMAX, B_RATIO, B_SENS = 0, 1, 2, 3, 4
+B_HMAX_BAND = B_SENS + LOSS_TABLE
 B_LOSS_BAND = B_HMAX_BAND + 1
 B_C = B_LOSS_BAND + LOSS_TABLE
 BAND_ORDER = 3  # a polynomial band is at most cubic in the cosine to the spot axis: a degree-3 trig polynomial
@@ -285,12 +287,13 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     if aniso is not None:  # (numba prunes the branch where it is None: nothing of the blocks compiled)
         if exact:
             # I0, I1 folded with e^{-kt xh}: K1 = e^{-kt xh} I0, L1 = e^{-kt xh} I1. The exact anisotropic
-            # mode amplifies their errors by the recurrence's loss (tabulated against H in the block) and by
-            # sum|c_k| / min(Phi) in the final sum (block[B_RATIO] = 0.1 min(Phi) / sum|c_k|)
-            start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX)
-            if loss == math.inf:  # the moment recurrence would lose digits: quadrature
+            # mode's sum S is linear in them: their errors, at most prec_i K1 each, move S by at most
+            # sens sum|c_k| prec_i K1 (sens tabulated against H in the block, `_sensitivity`), S >= min(Phi) K1,
+            # block[B_RATIO] = 0.1 min(Phi) / sum|c_k|: a tenth of the precision
+            start, n, sens = _block_at(coeffs, v1, v2, H, B_HMAX)
+            if sens == math.inf:  # the moment recurrence would lose digits: quadrature
                 return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
-            prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / loss)
+            prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / sens)
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     iterations, flags = 0.0, 0
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
@@ -634,31 +637,38 @@ def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_
 
 @njit
 def _block_at(coeffs, v1, v2, H, at):
-    """(start, length, loss): where in `coeffs` the exact mode's coefficient block for a piece
-    v1 < v < v2 at H = kt h starts, its length, and the forward recurrence's error amplification at
-    H, or inf where H is beyond the block's limit (the recurrence would lose digits: quadrature).
+    """(start, length, value): where in `coeffs` the exact mode's coefficient block for a piece
+    v1 < v < v2 at H = kt h starts, its length, and at H the sum's sensitivity to the start values
+    (at = B_HMAX, `_sensitivity`) or the band's forward recurrence's error amplification (at = B_HMAX_BAND),
+    or inf where H is beyond the block's limit (the recurrence would lose digits: quadrature).
     The block is the shortest whose range of v holds the piece and whose recurrence limit (block[at],
     at = B_HMAX or B_HMAX_BAND, `_block`) admits H, else the full one (`exact_coeffs`: each block is
     preceded by its length, the full one first, the fitted ones after it from the widest range to the
     narrowest, each range inside the one before, so the scan stops at the first range that does not
-    hold the piece). The loss is interpolated from the block's table (B_LOSS or B_LOSS_BAND; nodes
-    quadratic in H: the loss grows like exp(2 sqrt(H k))). Offsets, not slices: a slice costs numba a
-    reference count, as does every array handed to a call (so the scan and the table are one call)."""
-    start, n = 1, int(coeffs[0])
-    pos = 1 + n
-    while pos < coeffs.shape[0]:
-        b = pos + 1
+    hold the piece; the blocks' starts are read from the directory at the end of `coeffs`, so that no
+    block's address waits for the load of the length before it). The value is read from the block's
+    table (nodes quadratic in H: the loss grows like exp(2 sqrt(H k))): B_SENS holds the sensitivity's
+    bound on each interval between two nodes, B_LOSS_BAND the loss at the nodes, interpolated (at least
+    1). Offsets, not slices: a slice costs numba a reference count, as does every array handed to a call
+    (so the scan and the table are one call)."""
+    last = coeffs.shape[0] - 1
+    top = last - int(coeffs[last])  # the directory of the blocks' starts (`exact_coeffs`)
+    start = 1
+    for r in range(top + 1, last):  # the fitted blocks: their starts read at once, not block by block
+        b = int(coeffs[r])
         if not (coeffs[b + B_VLO] <= v1 and v2 <= coeffs[b + B_VHI]):
             break
         if H <= coeffs[b + at]:
-            start, n = b, int(coeffs[pos])
-        pos = b + int(coeffs[pos])
+            start = b
+    n = int(coeffs[start - 1])
     hmax = coeffs[start + at]
     if H > hmax:
         return start, n, math.inf
-    table = start + (B_LOSS if at == B_HMAX else B_LOSS_BAND)
     x = (LOSS_TABLE - 1) * math.sqrt(H / hmax) if hmax > 0.0 else 0.0
     i = min(int(x), LOSS_TABLE - 2)
+    if at == B_HMAX:
+        return start, n, coeffs[start + B_SENS + i]  # (its bound on the interval)
+    table = start + B_LOSS_BAND
     f = x - i
     return start, n, max(1.0, (1.0 - f) * coeffs[table + i] + f * coeffs[table + 1 + i])
 
@@ -774,9 +784,10 @@ def _block(c, phase, v_lo, v_hi, precision):
     largest H = kt h for which the forward moment recurrence keeps a relative accuracy of
     precision / 10 (larger H: quadrature; the bisection keeps lo within that accuracy, so H_max only
     errs low, 0 if not `_usable`); ratio = min(Phi) / (10 sum |c_k|) is the loss of the final sum
-    where it cancels; the table holds the recurrence's error amplification at H = H_max (i /
-    (LOSS_TABLE - 1))^2 (`_block_at`). The band's H_max and table are those of the series times a spot's
-    smoothstep (order + 3: coefficient k of the product draws on c_{k-3} .. c_{k+3})."""
+    where it cancels; the tables are indexed by H = H_max (i / (LOSS_TABLE - 1))^2 (`_block_at`). The
+    point's table holds `_sensitivity`. The band's H_max and table (the recurrence's error amplification)
+    are those of the series times a spot's smoothstep (order + 3: coefficient k of the product draws on
+    c_{k-3} .. c_{k+3})."""
     ratio = 0.1 * float(np.min(phase)) / float(np.sum(np.abs(c)))
     tol = precision * ratio
 
@@ -794,8 +805,25 @@ def _block(c, phase, v_lo, v_hi, precision):
 
     pad = np.pad(np.abs(c), (BAND_ORDER, 2 * BAND_ORDER))
     spread = np.max([pad[j:j + len(c) + BAND_ORDER] for j in range(2 * BAND_ORDER + 1)], axis=0)
-    point, band = limit(c), limit(spread)
-    return np.concatenate(([v_lo, v_hi, point[0], ratio], point[1:], band, c))
+    hmax, band = limit(c)[0], limit(spread)
+    return np.concatenate(([v_lo, v_hi, hmax, ratio], _sensitivity(c, hmax), band, c))
+
+
+SENS_SAMPLES = 8  # samples of the sensitivity in each interval of its table
+# the sampled maximum of a smooth peak between samples errs low: by up to 1e-4 relative (measured, HG 0.5 at 1e-9)
+SENS_MARGIN = 1.01
+
+
+def _sensitivity(c, hmax):
+    """The sensitivity table of a block: for the interval i between the nodes H = hmax (i / (LOSS_TABLE -
+    1))^2 and H = hmax ((i + 1) / (LOSS_TABLE - 1))^2 the largest `start_sensitivity` / (2 sum |c_k|) on it
+    (SENS_SAMPLES + 1 samples, times SENS_MARGIN); the last entry repeats the last interval's. S / 2 =
+    sum_k c_k Re E_k / 2 then moves by at most sens sum |c_k| prec K1 where K1 and L1 err by at most
+    prec K1 (`_piece`)."""
+    m = (LOSS_TABLE - 1) * SENS_SAMPLES
+    sens = SENS_MARGIN * start_sensitivity(hmax * (np.arange(m + 1) / m) ** 2, c) / (2.0 * np.sum(np.abs(c)))
+    table = [np.max(sens[i * SENS_SAMPLES:(i + 1) * SENS_SAMPLES + 1]) for i in range(LOSS_TABLE - 1)]
+    return np.array(table + table[-1:])
 
 
 def _far_cosine_series(g, precision, phi_lo, phi_hi):
@@ -849,7 +877,8 @@ def fitted_range(g, angle):
 
 def exact_coeffs(phase_code, g, precision):
     """`coeffs` of the exact mode: blocks, each preceded by its length: the block valid for all rays,
-    then for HG the fitted ones (`FAR_ANGLES`), from the widest range to the narrowest.
+    then for HG the fitted ones (`FAR_ANGLES`), from the widest range to the narrowest; then a
+    directory: the start of each block (the index of its first entry) and, last, the number of blocks.
 
     The phase function is a cosine series (exact for Rayleigh; HG truncated after L Legendre terms,
     L from `precision`). HG's series is long where it is peaked (its terms fall like |g|^l), so
@@ -886,17 +915,14 @@ def exact_coeffs(phase_code, g, precision):
             if far[B_HMAX] > 0.0:
                 blocks.append(far)
                 terms = len(c)
-    return np.concatenate([np.concatenate(([len(b)], b)) for b in blocks])
+    starts = np.cumsum([1] + [1 + len(b) for b in blocks[:-1]])
+    return np.concatenate([np.concatenate(([len(b)], b)) for b in blocks] + [starts, [len(blocks)]])
 
 
 def coefficient_blocks(coeffs):
     """The blocks of an exact mode's `coeffs` (`exact_coeffs`), full one first."""
-    out, pos = [], 0
-    while pos < len(coeffs):
-        n = int(coeffs[pos])
-        out.append(coeffs[pos + 1:pos + 1 + n])
-        pos += 1 + n
-    return out
+    nb = int(coeffs[-1])
+    return [coeffs[b:b + int(coeffs[b - 1])] for b in coeffs[-1 - nb:-1].astype(int)]
 
 
 @functools.lru_cache(maxsize=64)
@@ -983,14 +1009,12 @@ def _pending_recurrences(pending, coeffs, ks, out):
     `cosine_moments_lanes` call (a segment's result does not depend on its batch)."""
     if pending.shape[0] == 0 or pending[:, P_BLOCK].max() <= 0.0:
         return
-    starts = np.empty(coeffs.shape[0], dtype=np.int64)  # the blocks' starts (`exact_coeffs`)
+    nb = int(coeffs[-1])
+    starts = np.empty(nb, dtype=np.int64)  # the blocks' starts (the directory of `exact_coeffs`)
     rank_at = np.empty(coeffs.shape[0], dtype=np.int64)  # a block's rank by its start
-    nb, pos = 0, 0
-    while pos < coeffs.shape[0]:
-        starts[nb] = pos + 1
-        rank_at[pos + 1] = nb
-        nb += 1
-        pos += 1 + int(coeffs[pos])
+    for r in range(nb):
+        starts[r] = int(coeffs[coeffs.shape[0] - 1 - nb + r])
+        rank_at[starts[r]] = r
     rank = np.empty(pending.shape[0], dtype=np.int64)
     first = np.zeros(nb + 1, dtype=np.int64)
     for s in range(pending.shape[0]):

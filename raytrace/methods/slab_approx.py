@@ -22,7 +22,7 @@ METHOD = replace(
     summary="inside bounded media, the separable point-light approximation of the analytic note on single "
             "scattering in homogeneous slabs (its eq. 5 for directional lights); the analytic air-light outside",
     supports=replace(ANALYTIC.supports, interiors=replace(
-        ANALYTIC.supports.interiors, mode=APPROX, lights=("point", "directional"),
+        ANALYTIC.supports.interiors, mode=APPROX, lights=("point", "directional"), camera_inside=False,
         limits="the slab note's separable approximation is for index-matched boundaries with point lights, not "
                "spot lights")),
 )

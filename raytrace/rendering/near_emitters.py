@@ -16,8 +16,10 @@ the whole ray (`penumbra_airlight`'s states); where occluders shadow them the ro
 samples) stay. A sphere's rows lit along the whole ray are no proof that nothing hides part of it:
 there the rule applies only where the occluders' geometry clears the segment
 (`sphere_occluders.segments_free`, the same for every cubature order); elsewhere the penumbra's
-stratified samples replace the rows (`penumbra_airlight`'s estimate). `montecarlo` keeps the rows (it
-samples them).
+stratified samples replace the rows (`penumbra_airlight`'s estimate). Nor are a sphere's rows all dark
+along the whole ray a proof that all of it is hidden (a cap above a floor, between the rows, lights the
+ray): `penumbra_airlight.cut_pairs` samples those pairs, so no order of the rows decides that a segment
+is lit or dark. `montecarlo` keeps the rows (it samples them).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
@@ -109,9 +111,8 @@ def _may_hide(accel, lights, near, rays) -> np.ndarray:
         if ball is None:
             continue
         rs = np.nonzero(near[:, e])[0]
-        ends = origins[rs] + np.asarray(tmax, float)[rs, None] * dirs[rs]
-        out[rs, e] = ~segments_free(ball.centre, ball.radius, origins[rs], ends, accel.triangles, accel.sphere_of,
-                                    accel.spheres, accel.epsilon)
+        out[rs, e] = ~segments_free(ball.centre, ball.radius, origins[rs], dirs[rs], np.asarray(tmax, float)[rs],
+                                    accel.triangles, accel.sphere_of, accel.spheres, accel.epsilon)
     return out
 
 

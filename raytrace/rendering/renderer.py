@@ -358,9 +358,12 @@ def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stat
     inner, inner_var, inner_bound, inside = rows.integrate(prep, method, params, boundary.rows, seed, depth,
                                                          shadows)
     stats[-crossing.STATS_SIZE:] += inside
-    if len(boundary.origins):
+    if len(boundary.origins):  # from the boundary, their first hits asked past the face they leave
+        t, prim, ground = first_hits(prep.accel, prep.scene.medium, boundary.origins + boundary.skip[:, None]
+                                     * boundary.dirs, boundary.dirs)
         seen, seen_stats, seen_var, seen_bound = shade_rays(prep, method, params, boundary.origins, boundary.dirs,
-                                                            boundary.keys, seed, shadows, depth + 1)
+                                                            boundary.keys, seed, shadows, depth + 1,
+                                                            (t + boundary.skip, prim, ground))
         stats += seen_stats
     else:
         seen = seen_bound = np.zeros((0, 3))

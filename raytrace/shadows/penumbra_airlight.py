@@ -124,7 +124,8 @@ def per_group(method, medium, params, lights, segs: Segments, groups: int) -> np
 
 def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.ndarray:
     """(N, E) whether the camera ray's segments of emitter e are cut (module docstring): its rows'
-    states (`_group_states` per row, LIT, DARK or MIXED) are mixed, or agree but the probes' differ."""
+    states (`_group_states` per row, LIT, DARK or MIXED) are mixed, or agree but the probes' differ, or
+    are all DARK for a sphere (no order of its rows proves it hidden: rendering/near_emitters.py)."""
     n, n_e = len(rays[0]), len(lights.emitters)
     rows = emitter_rows(lights)
     on = np.nonzero(rows[cone.light])[0]
@@ -138,6 +139,8 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
     cut = state == MIXED
     for e in np.unique(agreed[1]):
         emitter = lights.emitters[e]
+        if emitter.ball is not None:  # a sphere's rows all dark prove nothing: a sliver between them may shine
+            cut[agreed[0][agreed[1] == e], e] = state[agreed[0][agreed[1] == e], e] == DARK
         if emitter.probes is None:
             continue
         rs = agreed[0][agreed[1] == e]

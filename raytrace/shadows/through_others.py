@@ -52,8 +52,8 @@ from ..media.gauss import N10, N20, W10, W20
 from ..media.slab import (EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesPoint, break_errors,
                           convex_exit_face, convex_integrand, coordinate_size, directional_rounding, edge_breaks,
                           fermat, light_norms, light_span, march_or_sample, on_face, only_face, phase_condition,
-                          point_rounding, refracted_at, refracted_cuts, refracting_faces, rho_range, spot_terms,
-                          straight_cuts, term_error)
+                          point_rounding, reachable_faces, refracted_at, refracted_cuts, refracting_faces, rho_range,
+                          spot_terms, straight_cuts, term_error)
 
 
 class AttenuatedConvex(NamedTuple):
@@ -398,32 +398,40 @@ def leg_kinks(row, n, p, w, eta, light, others, first, stop, end, out):
 
 
 @njit
-def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, others, first, stop, dk, mode, rtol,
-                         steps, tau_max, keys, dim0, seed, dplanes, dothers, spheres, out, var, err, stats):
+def refracted_attenuated(geo, planes, near, ell, kt, ks, code, g, kt_out, eta, only, others, first, stop, dk, mode,
+                         rtol, steps, tau_max, keys, dim0, seed, dplanes, dothers, spheres, out, var, err, stats):
     """out, var, err (N,) = a unit point or spot light's single scattering over each segment (geo rows
     with zero entry normals: every face's terms from `planes`) of a convex refractive shape through
     face `only` (`RefractedAttenuated`), the outside leg attenuated by the B_j, its variance and a
     bound on its error: QUAD adaptive between A's edge breaks and cone crossings (media/slab.py
     `faces_quadrature`'s) and the leg's chord kinks (`leg_kinks`), bounded (`_refracted_bound`;
     dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j] a ball holding B_j); MARCH,
-    SAMPLE as media/slab.py's `march_or_sample`, err inf."""
+    SAMPLE as media/slab.py's `march_or_sample`, err inf. `near` (interiors/crossing.py
+    `plane_neighbours`; given for a shape of more than KERNEL_PLANES planes): the face's path over the
+    planes it needs alone (media/slab.py `reachable_faces`, as `faces_quadrature`'s each face: its
+    face test, breaks and bound those with every plane; 0, exactly, where its refraction point
+    never lies on the face); empty: over every plane."""
     nf = planes.shape[0]
     faces = np.empty((max(nf, 1), FACE_COLUMNS))
     br = np.empty(EDGE_CUTS * nf + MAX_CUTS + 1)
     ph = phase_condition(code, g)
+    one = np.empty(1, np.int64)
     for s in range(geo.shape[0]):
         out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
         spot = spot_terms(geo[s], 0.0, 0.0)
         m = only_face(faces, refracting_faces(geo[s], planes, 0.0, 0.0, 0.0, 0.0, spot, faces), only)
+        end = min(ell[s], 745.0 / kt)
+        local = planes
+        if m == 1 and near.shape[0] > 0:
+            m, local = reachable_faces(faces, m, planes, near, eta, end, one)
         if m == 0:
             continue
         row = faces[0]
-        end = min(ell[s], 745.0 / kt)
         r, cmax = coordinate_size(geo[s], planes, end)
         pn, ln, lp = light_norms(geo[s])
-        tracked = FacesPoint(faces[:1].copy(), planes, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
+        tracked = FacesPoint(faces[:1].copy(), local, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
                                dplanes[1], (pn, ln, lp, r + ln + cmax), -1, np.zeros(1 if mode == QUAD else 0))
         rec = RefractedAttenuated(row.copy(), geo[s, 6:9].copy(), others, first, stop, dk, tracked)
         if mode != QUAD:
@@ -434,7 +442,7 @@ def refracted_attenuated(geo, planes, ell, kt, ks, code, g, kt_out, eta, only, o
         br[0] = 0.0
         k = 1 + refracted_cuts(row[0], row[3], row[4], row[1], row[2], eta, row[5], row[6], row[7], spot[3], spot[4],
                                end, br[1:])
-        k += edge_breaks(row, planes, eta, end, br[k:])
+        k += edge_breaks(row, local, eta, end, br[k:])
         legs, n_legs = leg_kinks(row, planes[only, :3].copy(), geo[s, 0:3].copy(), geo[s, 3:6].copy(), eta, rec.light,
                                  others, first, stop, end, np.empty(16))
         cuts = np.concatenate((br[:k], legs[:n_legs], np.array([end])))
