@@ -12,7 +12,11 @@ pointed at a fresh empty folder, renders the scene through the command line at `
 busy machine inflates far less than wall time. Per scene: the compile CPU seconds (the outermost
 compilations summed), the number of compiled specialisations, those compiled after the warm-up
 (`renderer.prepare_task`: a compile during the tiles is late, it happens after the compile notice),
-the wall seconds of the warm-up and the process's whole CPU time. The target: compile within 10 s
+the wall seconds of the warm-up and the process's whole CPU time (in --json: the CPU seconds when the
+warm-up reached the compile worker's gate and the wall seconds it waited there); from outside the process, the wall
+seconds to the first image (the command's whole run: start, imports, compile, render, writing) and
+the CPU seconds of the process and of its children (the compile worker of
+rendering/compile_ahead.py, whose compilations the listener does not see). The target: compile within 10 s
 per scene on the 2-core machine of docs/benchmarks.md.
 
 --profile adds, per scene, the dispatchers with the largest inclusive compile time (a dispatcher's
@@ -28,7 +32,8 @@ inference counts in its own phases); with --profile, each exclusive figure split
 and LLVM's. --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
 e.g. an older commit's `git archive`, for before/after tables; --before DIR measures that checkout
 too, alternating with --tree's, scene by scene (paired runs: both see the same load), and --runs N
-repeats each measurement N times, giving every run's compile CPU seconds and their median. --cached W
+repeats each measurement N times, giving every run's compile CPU seconds, wall seconds to the first
+image and total CPU seconds, and their medians. --cached W
 then renders each scene again at W pixels wide in a second process on the same cache (its kernels all
 loaded from it): the CPU seconds of that render's `main` (warm render speed, to compare two checkouts
 like with like) and what it compiled (nothing, when the cache works). Scenes whose meshes come from
@@ -36,6 +41,7 @@ like with like) and what it compiled (nothing, when the cache works). Scenes who
 """
 import argparse
 import json
+import resource
 import os
 import statistics
 import subprocess
@@ -145,6 +151,23 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
             rec.phase = "late"
 
     renderer.prepare_task = timed
+    gate = {}
+    try:
+        from raytrace.rendering import compile_ahead
+    except ImportError:  # a tree without it
+        compile_ahead = None
+    if compile_ahead is not None:
+        wait = compile_ahead.Ahead.wait
+
+        def waited(self):
+            gate.setdefault("cpu", time.process_time())  # this process's CPU seconds when it reached the gate
+            start = time.perf_counter()
+            try:
+                return wait(self)
+            finally:
+                gate["wall"] = gate.get("wall", 0.0) + time.perf_counter() - start
+
+        compile_ahead.Ahead.wait = waited
     args = ([] if scene == DEFAULT else [scene]) + ["--width", str(width), "--threads", "1", "--quiet",
                                                    "--out", str(out / "image.exr")]
     with ev.install_listener("numba:compile", Listener()):
@@ -168,6 +191,7 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
             "late": sorted({e["name"] for e in top if e["phase"] == "late"}),
             "late_cpu": sum(e["end"] - e["start"] for e in top if e["phase"] == "late"),
             "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system, "main_cpu": main_cpu,
+            "gate_cpu": gate.get("cpu"), "gate_wall": gate.get("wall"),
             "phases": sorted(split.seconds.items(), key=lambda kv: -kv[1]) if split else [],
             "phases_by_dispatcher": split.by_owner if split else {},
             "inclusive": sorted(inclusive.items(), key=lambda kv: -kv[1]),
@@ -186,10 +210,14 @@ def measure(scene: str, width: int, tree: Path, cached: int | None = None, phase
         for w in [width] + ([cached] if cached else []):
             cmd = [sys.executable, __file__, "--worker", scene, "--width", str(w), "--out", tmp] + \
                 (["--phases"] if phases and not runs else [])
+            before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
             proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+            wall, after = time.perf_counter() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
             if proc.returncode != 0:
                 raise SystemExit(f"{scene}: worker failed\n{proc.stderr[-3000:]}")
             runs.append(json.loads(proc.stdout.splitlines()[-1]))
+            runs[-1].update(first_image_wall=wall, total_cpu=after.ru_utime + after.ru_stime - before.ru_utime
+                            - before.ru_stime)
         if cached:
             runs[0]["cached"] = {k: runs[1][k] for k in ("main_cpu", "compiled", "compile_cpu")}
         return runs[0]
@@ -219,14 +247,15 @@ def main():
         return paired(names, args)
     print(f"# tree {args.tree.resolve()}, width {args.width}, load {' '.join(f'{x:.1f}' for x in os.getloadavg())}, "
           f"{os.cpu_count()} cores")
-    print("| scene | compile CPU s | compiled | late | warm-up wall s | process CPU s |")
-    print("|---|---|---|---|---|---|")
+    print("| scene | compile CPU s | compiled | late | warm-up wall s | process CPU s | first image wall s | "
+          "total CPU s |")
+    print("|---|---|---|---|---|---|---|---|")
     results = {}
     for name in names:
         r = results[name] = measure(name, args.width, args.tree, phases=args.phases)
         late = f"{len(r['late'])} ({r['late_cpu']:.1f} s: {', '.join(r['late'])})" if r["late"] else "0"
         print(f"| {name} | {r['compile_cpu']:.1f} | {r['compiled']} | {late} | {r['warm_wall']:.1f} | "
-              f"{r['process_cpu']:.1f} |", flush=True)
+              f"{r['process_cpu']:.1f} | {r['first_image_wall']:.1f} | {r['total_cpu']:.1f} |", flush=True)
     print(f"# load after {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
     if args.phases:
         for name, r in results.items():
@@ -246,15 +275,17 @@ def main():
 
 def paired(names: list[str], args):
     """Per scene, `args.runs` rounds of (before, then tree): every run's compile CPU seconds, their
-    median and the compiled specialisations; with --cached, every run's render CPU seconds on the
+    median and the compiled specialisations, then every run's wall seconds to the first image and
+    total CPU seconds (the worker's included) and their medians; with --cached, every run's render CPU seconds on the
     filled cache and what it compiled."""
     trees = ([("before", args.before)] if args.before else []) + [("now", args.tree)]
     print(f"# {', '.join(f'{k} {t.resolve()}' for k, t in trees)}; width {args.width}, {args.runs} runs each, "
           f"{os.cpu_count()} cores")
     cached = f" | cached render CPU s ({args.cached} px) | compiled" if args.cached else ""
-    head = " | ".join(f"compile CPU s, {k} (runs) | median | compiled{cached}" for k, _ in trees)
+    head = " | ".join(f"compile CPU s, {k} (runs) | median | compiled | first image wall s (runs) | median | "
+                      f"total CPU s (runs) | median{cached}" for k, _ in trees)
     print(f"| scene | {head} |")
-    print("|---" * (1 + (5 if args.cached else 3) * len(trees)) + "|")
+    print("|---" * (1 + (9 if args.cached else 7) * len(trees)) + "|")
     results = {}
     for name in names:
         runs = {k: [] for k, _ in trees}
@@ -267,12 +298,15 @@ def paired(names: list[str], args):
             cpu = statistics.median(r["compile_cpu"] for r in runs[k])
             each = ", ".join(f"{r['compile_cpu']:.1f}" for r in runs[k])
             cells.append(f"{each} | {cpu:.1f} | {runs[k][0]['compiled']}")
+            for field in ("first_image_wall", "total_cpu"):
+                cells.append(", ".join(f"{r[field]:.1f}" for r in runs[k]) + " | "
+                             + f"{statistics.median(r[field] for r in runs[k]):.1f}")
             if args.cached:
                 cells.append(", ".join(f"{r['cached']['main_cpu']:.2f}" for r in runs[k]) + " | "
                              + ", ".join(str(r["cached"]["compiled"]) for r in runs[k]))
         print(f"| {name} | {' | '.join(cells)} |", flush=True)
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
+        if args.json:  # after every scene: a long run's figures so far
+            args.json.write_text(json.dumps(results, indent=1))
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@ Every kernel is compiled with ``njit`` from here: cached, GIL-free (so a thread 
 uses every core) and with a fastmath subset that keeps NaN/Inf semantics (no ``nnan``/``ninf``,
 numba issues #2919 and #9383) and keeps libm accuracy (no ``afn``). The cache of the package's
 kernels lives in `cache.kernel_cache_dir()`, keyed on all of the package's sources (a locator
-placed first in numba's list); numba's own locators serve everything else.
+placed first in numba's list); numba's own locators serve everything else. ``hold`` and ``release``
+keep this process off that cache (no loads, its saves kept back) while a worker process writes it
+(rendering/compile_ahead.py); ``CACHE_EMPTY``: whether it held no kernel when this process started.
 
 ``exact_njit`` is the one exception: kernels that take over a tile's NumPy expressions (camera
 rays, shading normals, the surface term's shadow rays, the exponential transmittance), without
@@ -64,6 +66,9 @@ class SourceKeyedLocator(_Base):
         return locator
 
 
+# whether the cache held no kernel of these sources when this process started (rendering/compile_ahead.py)
+CACHE_EMPTY = not any(Path(SourceKeyedLocator.root).rglob("*.nbi"))
+
 if SourceKeyedLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, SourceKeyedLocator)
 
@@ -93,8 +98,27 @@ def _has_python_wrapper(cres) -> bool:
     return bool(cres.library.get_pointer_to_function(cres.fndesc.llvm_cpython_wrapper_name))
 
 
+_held = None  # while the disk cache is held (`hold`): the saves kept back, else None
+
+
+def hold():
+    """Hold this process's disk cache of the package's kernels: no loads, and every save kept back
+    until `release` (rendering/compile_ahead.py: another process writes the cache meanwhile)."""
+    global _held
+    _held = []
+
+
+def release():
+    """Write the saves held back since `hold`, then load and save as usual."""
+    global _held
+    pending, _held = _held or [], None
+    for cache, sig, cres in pending:
+        cache.save_overload(sig, cres)
+
+
 class _Cache:
-    """A dispatcher's disk cache that stores only compilations with a Python wrapper."""
+    """A dispatcher's disk cache that stores only compilations with a Python wrapper (and neither
+    loads nor saves while `hold` holds it)."""
 
     def __init__(self, cache):
         self._cache = cache
@@ -102,8 +126,15 @@ class _Cache:
     def __getattr__(self, name):
         return getattr(self._cache, name)
 
+    def load_overload(self, sig, target_context):
+        return None if _held is not None else self._cache.load_overload(sig, target_context)
+
     def save_overload(self, sig, cres):
-        if _has_python_wrapper(cres):
+        if not _has_python_wrapper(cres):
+            return
+        if _held is not None:
+            _held.append((self._cache, sig, cres))
+        else:
             self._cache.save_overload(sig, cres)
 
 

@@ -43,7 +43,7 @@ from ..shading import (STATS_NAMES as SURFACE_NAMES, emissive_shapes, emitted_ra
 from ..shadows.frusta import STATS_NAMES, build as build_frusta, exact_lit_intervals, split_lit
 from ..shadows import penumbra_airlight
 from ..shadows.shadow_rays import shadowed_airlight
-from . import aov, near_emitters
+from . import aov, compile_ahead, near_emitters
 
 RAYS_PER_TILE = 1 << 13  # about the most rays of one tile (each costs ~1.3 ms of Python around the kernels)
 PHASES = 128  # tiles a band of rows is cut into (its pixels dealt out in turn) ...
@@ -395,25 +395,57 @@ WARMED = set()  # (scene file, its size and time, method, parameters, shadows) w
 
 
 def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
-    """Compile the method's kernels on a few rays (spread over the image, so that rays into a spot's
-    cone or through a refracting surface are among them and the tiles compile nothing later);
-    returns the seconds it took. Once per scene file (unchanged), method, parameters and `shadows` in
-    a process: a later render of the same compiles nothing."""
+    """Build the lights' shadow frusta (with `shadows`) and compile the method's kernels on a few rays
+    (`warm_up_rays`), so that the tiles compile nothing later; on an empty kernel cache the air-light's
+    kernels compile meanwhile in a second process (compile_ahead.py). Returns the seconds it took.
+    Once per scene file (unchanged), method, parameters and `shadows` in a process: a later render of
+    the same compiles nothing."""
     path = prep.scene.path
     key = None if path is None or not os.path.isfile(path) else (
         os.path.abspath(path), os.stat(path).st_size, os.stat(path).st_mtime_ns, method.name, repr(sorted(params.items())),
         shadows)
     if key in WARMED:
+        if shadows:
+            prep.frusta()
         return 0.0
     start = time.perf_counter()
-    cam, n = prep.scene.camera, WARM_UP_GRID
-    ys, xs = np.meshgrid(np.arange(n) * cam.height // n, np.arange(n) * cam.width // n, indexing="ij")
-    o, d = pixel_rays(cam, ys.ravel().astype(float), xs.ravel().astype(float), slice(0, 1))
-    o, d = crossing.warm_up_rays(prep, o, d)  # and one at each shape holding a medium
-    shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed, shadows)
+    ahead = compile_ahead.start(shadows, compile_airlight, prep.scene, method.name, params, seed)
+    try:
+        if shadows:
+            prep.frusta()  # before the tiles' threads share it
+        o, d = warm_up_rays(prep)
+        shade_rays(prep, method if ahead is None else compile_ahead.Gated(method, ahead), params, o, d,
+                   np.zeros(len(o), dtype=np.uint64), seed, shadows)
+    except BaseException:
+        if ahead is not None:
+            ahead.wait(stop=True)
+        raise
+    if ahead is not None:
+        ahead.wait()
     if key is not None:
         WARMED.add(key)
     return time.perf_counter() - start
+
+
+def warm_up_rays(prep: Prepared):
+    """Origins and directions of the warm-up's rays: the first sample of the pixels of a grid over the
+    image (so that rays into a spot's cone or through a refracting surface are among them) and one
+    at each shape holding a medium."""
+    cam, n = prep.scene.camera, WARM_UP_GRID
+    ys, xs = np.meshgrid(np.arange(n) * cam.height // n, np.arange(n) * cam.width // n, indexing="ij")
+    o, d = pixel_rays(cam, ys.ravel().astype(float), xs.ravel().astype(float), slice(0, 1))
+    return crossing.warm_up_rays(prep, o, d)
+
+
+def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
+    """compile_ahead's worker: the air-light's kernels, on the warm-up's rays without shadows and
+    shaded as if they hit nothing where the camera is outside every medium (so that it compiles
+    neither the frusta's kernels nor the surfaces'); the area lights' cubature at its first orders."""
+    prep = prepare(scene)
+    o, d = warm_up_rays(prep)
+    t, prim, ground = first_hits(prep.accel, scene.medium, o, d)
+    hits = None if prep.camera_inside is not None else (t, np.full_like(prim, -1), np.zeros_like(ground))
+    shade_rays(prep, get_method(method_name), params, o, d, np.zeros(len(o), dtype=np.uint64), seed, hits=hits)
 
 
 def check_options(method, params, volumetric_shadows, source, lights, medium):
@@ -536,8 +568,6 @@ def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits)
 def prepare_task(prep: Prepared, task: Task) -> float:
     """Build what the tiles of `task` share (the lights' shadow maps) and compile the method's
     kernels; returns the seconds the compilation took."""
-    if task.shadows:
-        prep.frusta()  # before the tiles' threads share it
     return warm_up(prep, get_method(task.method), task.params, task.seed, task.shadows)
 
 

@@ -1,0 +1,132 @@
+"""The first render's compile split over two processes (rendering/compile_ahead.py): the main
+process's disk cache held (`jit.hold`: no loads, saves kept back) until the worker has finished, the
+air-light gated on the worker, engaged for the first warm-up (shadowed) of a process that started on
+an empty cache; and, in
+fresh processes on empty caches, the same image every time with the air-light's kernels loaded from
+what the worker compiled."""
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from raytrace import jit
+from raytrace.jit import njit
+from raytrace.rendering import compile_ahead
+
+pytestmark = pytest.mark.skipif(not jit.CUTS, reason="this numba's internals differ from 0.68's: plain numba.njit")
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@njit
+def _held_kernel(x):
+    return 3.0 * x - 1.0
+
+
+def test_a_held_cache_neither_loads_nor_saves_until_released(monkeypatch):
+    loads, saves = [], []
+    inner = type(_held_kernel._cache._cache)
+    monkeypatch.setattr(inner, "load_overload", lambda self, sig, ctx: loads.append(sig))
+    monkeypatch.setattr(inner, "save_overload", lambda self, sig, cres: saves.append(sig))
+    jit.hold()
+    try:
+        assert _held_kernel(2.0) == 5.0  # compiled here: no load tried, its save kept back
+        assert loads == [] and saves == []
+    finally:
+        jit.release()
+    (sig,) = _held_kernel.overloads
+    assert saves == [sig] and jit._held is None  # written at the release
+    assert _held_kernel._cache.load_overload(sig, None) is None and loads == [sig]  # loads go through again
+
+
+class _Ahead:
+    def __init__(self, log):
+        self.log = log
+
+    def wait(self):
+        self.log.append("wait")
+
+
+def test_a_failed_warm_up_ends_the_worker_and_releases_the_cache(monkeypatch):
+    monkeypatch.setattr(compile_ahead, "_started", [])
+    monkeypatch.setattr(jit, "CACHE_EMPTY", True)
+    ahead = compile_ahead.start(True, time.sleep, 600.0)  # a worker that would run for ten minutes
+    if ahead is None:
+        pytest.skip("one core: no worker")
+    assert jit._held == []
+    start = time.perf_counter()
+    ahead.wait(stop=True)
+    assert time.perf_counter() - start < 60.0 and jit._held is None
+    ahead.wait()  # once only
+
+
+class _Method:
+    name = "fake"
+
+    def __init__(self, log):
+        self.log = log
+
+    def airlight(self, *args):
+        self.log.append(("airlight", args))
+        return 7
+
+
+def test_the_gated_airlight_waits_for_the_worker_first():
+    log = []
+    gated = compile_ahead.Gated(_Method(log), _Ahead(log))
+    assert gated.name == "fake" and log == []  # everything else is the method's, ungated
+    assert gated.airlight(1, 2) == 7
+    assert log == ["wait", ("airlight", (1, 2))]
+
+
+def test_engaged_for_a_first_shadowed_warm_up_in_a_process_that_started_on_an_empty_cache(monkeypatch):
+    monkeypatch.delenv("RAYTRACE_COMPILE_AHEAD", raising=False)
+    monkeypatch.setattr(jit, "CACHE_EMPTY", False)
+    assert not compile_ahead.engaged()
+    monkeypatch.setattr(jit, "CACHE_EMPTY", True)
+    many = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1) > 1
+    assert compile_ahead.engaged() == many
+    monkeypatch.setenv("RAYTRACE_COMPILE_AHEAD", "0")
+    assert not compile_ahead.engaged()
+    monkeypatch.delenv("RAYTRACE_COMPILE_AHEAD")
+    monkeypatch.setattr(compile_ahead, "_started", [])
+    assert compile_ahead.start(False, print) is None  # an unshadowed first warm-up (a cubature pilot's) ...
+    assert compile_ahead.start(True, print) is None  # ... leaves the process's compile to itself
+    assert len(compile_ahead._started) == 2 and jit._held is None
+
+
+RENDER = """
+import json, sys
+import numpy as np
+from raytrace import api
+from raytrace.methods import analytic
+image = api.render(None, "analytic", width=12, height=8, spp=1, threads=1)
+np.save(sys.argv[1], image.array)
+print(json.dumps({"hits": sum(analytic.evaluate_segments.stats.cache_hits.values()),
+                  "misses": sum(analytic.evaluate_segments.stats.cache_misses.values())}))
+"""
+
+
+def _first_render(tmp_path, name, ahead):
+    env = dict(os.environ, RAYTRACE_CACHE=str(tmp_path / f"cache_{name}"), PYTHONPATH=str(ROOT),
+               RAYTRACE_COMPILE_AHEAD="1" if ahead else "0")
+    out = tmp_path / f"{name}.npy"
+    proc = subprocess.run([sys.executable, "-c", RENDER, str(out)], env=env, capture_output=True, text=True,
+                          check=True)
+    return np.load(out), json.loads(proc.stdout.splitlines()[-1])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
+def test_first_renders_on_empty_caches_load_the_workers_airlight_and_agree(tmp_path):
+    a, stats_a = _first_render(tmp_path, "a", True)
+    b, stats_b = _first_render(tmp_path, "b", True)
+    serial, stats_serial = _first_render(tmp_path, "serial", False)
+    assert stats_a == stats_b == {"hits": 1, "misses": 0}  # the worker's kernel, loaded
+    assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
+    np.testing.assert_array_equal(a, b)  # which process compiles what does not depend on timing
+    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)  # the same kernel, compiled elsewhere
