@@ -159,11 +159,11 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
     if compile_ahead is not None:
         wait = compile_ahead.Ahead.wait
 
-        def waited(self):
+        def waited(self, stop=False):
             gate.setdefault("cpu", time.process_time())  # this process's CPU seconds when it reached the gate
             start = time.perf_counter()
             try:
-                return wait(self)
+                return wait(self, stop)
             finally:
                 gate["wall"] = gate.get("wall", 0.0) + time.perf_counter() - start
 

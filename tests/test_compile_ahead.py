@@ -1,9 +1,9 @@
 """The first render's compile split over two processes (rendering/compile_ahead.py): the main
 process's disk cache held (`jit.hold`: no loads, saves kept back) until the worker has finished, the
 air-light gated on the worker, engaged for the first warm-up (shadowed) of a process that started on
-an empty cache; and, in
-fresh processes on empty caches, the same image every time with the air-light's kernels loaded from
-what the worker compiled."""
+an empty cache, or for the cubature pilot's (unshadowed) before a shadowed render, kept until the
+render's warm-up settles it; and, in fresh processes on empty caches, the same image every time with
+the air-light's kernels (or the shadows', beside a pilot) loaded from what the worker compiled."""
 import json
 import os
 import subprocess
@@ -62,6 +62,31 @@ def test_a_failed_warm_up_ends_the_worker_and_releases_the_cache(monkeypatch):
     ahead.wait(stop=True)
     assert time.perf_counter() - start < 60.0 and jit._held is None
     ahead.wait()  # once only
+
+
+def test_a_worker_for_a_later_warm_up_is_kept_until_settled(monkeypatch):
+    monkeypatch.setattr(compile_ahead, "_started", [])
+    monkeypatch.setattr(compile_ahead, "_later", [])
+    monkeypatch.setattr(jit, "CACHE_EMPTY", True)
+    assert compile_ahead.start(True, time.sleep, 0.5, later=True) is None  # this warm-up waits for nothing
+    if not compile_ahead._later:
+        pytest.skip("one core: no worker")
+    assert jit._held == []  # held from the worker's start ...
+    assert compile_ahead.settle() > 0.0  # ... until the later warm-up has waited for it
+    assert compile_ahead._later == [] and jit._held is None
+    assert compile_ahead.settle() < 0.1  # nothing left to wait for
+    assert compile_ahead.start(True, time.sleep, 600.0, later=True) is None  # not the first warm-up: no worker
+    assert compile_ahead._later == []
+
+
+def test_a_failed_pilot_ends_the_later_worker(monkeypatch):
+    monkeypatch.setattr(compile_ahead, "_started", [])
+    monkeypatch.setattr(compile_ahead, "_later", [])
+    monkeypatch.setattr(jit, "CACHE_EMPTY", True)
+    compile_ahead.start(True, time.sleep, 600.0, later=True)
+    if not compile_ahead._later:
+        pytest.skip("one core: no worker")
+    assert compile_ahead.settle(stop=True) < 60.0 and jit._held is None
 
 
 class _Method:
@@ -130,3 +155,37 @@ def test_first_renders_on_empty_caches_load_the_workers_airlight_and_agree(tmp_p
     assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
     np.testing.assert_array_equal(a, b)  # which process compiles what does not depend on timing
     np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)  # the same kernel, compiled elsewhere
+
+
+PILOT = """
+import json, sys
+import numpy as np
+from raytrace import api
+from raytrace.shadows import frusta
+image = api.render(sys.argv[2], "analytic", width=16, height=12, spp=1, threads=1,
+                   volumetric_shadows=True, precision=1e-1)
+np.save(sys.argv[1], image.array)
+print(json.dumps({"hits": sum(frusta._point_lit.stats.cache_hits.values()),
+                  "misses": sum(frusta._point_lit.stats.cache_misses.values())}))
+"""
+
+
+def _first_pilot_render(tmp_path, name, ahead):
+    env = dict(os.environ, RAYTRACE_CACHE=str(tmp_path / f"cache_{name}"), PYTHONPATH=str(ROOT),
+               RAYTRACE_COMPILE_AHEAD="1" if ahead else "0")
+    out = tmp_path / f"{name}.npy"
+    proc = subprocess.run([sys.executable, "-c", PILOT, str(out), str(ROOT / "tests/data/area_peers/occluded.toml")],
+                          env=env, capture_output=True, text=True, check=True)
+    return np.load(out), json.loads(proc.stdout.splitlines()[-1])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
+def test_beside_a_pilot_first_renders_load_the_workers_shadow_kernels_and_agree(tmp_path):
+    a, stats_a = _first_pilot_render(tmp_path, "a", True)
+    b, stats_b = _first_pilot_render(tmp_path, "b", True)
+    serial, stats_serial = _first_pilot_render(tmp_path, "serial", False)
+    assert stats_a == stats_b == {"hits": 1, "misses": 0}  # the penumbrae's kernel, the worker's, loaded
+    assert stats_serial == {"hits": 0, "misses": 1}
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)

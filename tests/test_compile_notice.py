@@ -6,24 +6,27 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
+from raytrace import api
 from raytrace.cli import main
 from raytrace.rendering import renderer
 
 from .conftest import box_room, to_toml
 
+ROOT = Path(__file__).resolve().parents[1]
 START = "compiling kernels (first use of this scene's kinds)..."
 
 
 class Sleeping:
-    """An executor whose prepare only sleeps `seconds`."""
+    """A compile that only sleeps `seconds`."""
 
     def __init__(self, seconds):
         self.seconds = seconds
 
-    def prepare(self, prep, task):
+    def work(self):
         time.sleep(self.seconds)
         return self.seconds
 
@@ -35,7 +38,7 @@ def quick_notice(monkeypatch):
 
 def test_a_slow_compile_is_announced_then_timed(quick_notice):
     lines = []
-    assert renderer.prepare_noticed(Sleeping(0.6), None, None, lines.append) == 0.6
+    assert renderer.noticed(Sleeping(0.6).work, lines.append) == 0.6
     assert lines[0] == START and len(lines) == 2
     assert lines[1].startswith("compiled in ") and lines[1].endswith(" s")
     assert 0.6 <= float(lines[1].split()[2]) < 5.0
@@ -43,25 +46,25 @@ def test_a_slow_compile_is_announced_then_timed(quick_notice):
 
 def test_a_quick_compile_says_nothing(quick_notice):
     lines = []
-    renderer.prepare_noticed(Sleeping(0.0), None, None, lines.append)
+    renderer.noticed(Sleeping(0.0).work, lines.append)
     time.sleep(0.4)  # past the notice's time: the timer was cancelled
     assert lines == []
 
 
 def test_without_a_hook_nothing_is_printed(quick_notice, capsys):
-    renderer.prepare_noticed(Sleeping(0.4), None, None)
+    renderer.noticed(Sleeping(0.4).work)
     assert capsys.readouterr() == ("", "")
 
 
 def test_an_interrupted_compile_says_it_started_only(quick_notice):
     class Interrupted(Sleeping):
-        def prepare(self, prep, task):
-            super().prepare(prep, task)
+        def work(self):
+            super().work()
             raise KeyboardInterrupt
 
     lines = []
     with pytest.raises(KeyboardInterrupt):
-        renderer.prepare_noticed(Interrupted(0.4), None, None, lines.append)
+        renderer.noticed(Interrupted(0.4).work, lines.append)
     assert lines == [START]
 
 
@@ -84,3 +87,20 @@ def test_the_command_line_prints_it_on_a_terminal_above_the_bar(tmp_path, quick_
         assert said[0] == START and said[1].startswith("compiled in ") and len(said) == 2
     else:
         assert said == []
+
+
+def test_the_cubature_pilots_warm_up_is_announced_with_the_render_s(quick_notice, monkeypatch):
+    """An area light's render compiles first in the cubature pilot's warm-up (before the tiles' own):
+    one notice covers both."""
+    warm_up = renderer.warm_up
+
+    def slow(*args, **kwargs):
+        time.sleep(0.3)  # the pilot's warm-up and the tiles': one notice, the time of both
+        return warm_up(*args, **kwargs)
+
+    monkeypatch.setattr(renderer, "warm_up", slow)
+    lines = []
+    api.render(str(ROOT / "tests/data/area_peers/occluded.toml"), "analytic", width=8, height=6, spp=1,
+               threads=1, precision=1e-1, notice=lines.append)
+    assert lines[0] == START and lines[1].startswith("compiled in ") and len(lines) == 2
+    assert float(lines[1].split()[2]) >= 0.6

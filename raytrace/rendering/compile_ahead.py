@@ -8,8 +8,11 @@ until the worker has finished, this process neither loads from the cache nor wri
 (`jit.hold`: it compiles whatever it calls itself), and its method's air-light (`Gated`) first waits
 for the worker, then loads what the worker compiled. Engaged for the first warm-up of a process
 that started with no kernel in the cache, on two cores or more, where that warm-up builds shadow
-frusta (the two groups: frusta and surfaces here, the air-light there; a scene whose area lights'
-cubature pilot warms up first, unshadowed, compiles in one process); ``RAYTRACE_COMPILE_AHEAD=0``
+frusta (the two groups: frusta and surfaces here, the air-light there). Where the area lights'
+cubature pilot warms up first, unshadowed, before a render with shadows, the groups go the other way
+round: the pilot's warm-up compiles the air-light and the surfaces here while the worker compiles the
+shadows' kernels (renderer.compile_shadows), which the render's own warm-up then loads (`settle`
+waits for the worker first); ``RAYTRACE_COMPILE_AHEAD=0``
 turns it off. The worker is a fresh interpreter on this one's module path (not multiprocessing's
 spawn, which would run the caller's main script again where it has no ``if __name__ ==
 "__main__"`` guard).
@@ -20,11 +23,13 @@ import os
 import pickle
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from .. import jit
 
 _started = []  # the warm-ups of this process that asked for a worker
+_later = []  # a worker that compiles a later warm-up's kernels (`start(later=True)`), until `settle`
 
 
 def engaged() -> bool:
@@ -63,18 +68,31 @@ class Ahead:
             jit.release()
 
 
-def start(split: bool, fn, *args) -> Ahead | None:
+def start(split: bool, fn, *args, later: bool = False) -> Ahead | None:
     """`Ahead(fn, *args)` for the first warm-up of a process (`start`'s first call) where `split` (it
     compiles a second group of kernels meanwhile) and `engaged`, else None (also where no process
-    can be started or the arguments cannot be pickled)."""
+    can be started or the arguments cannot be pickled). `later`: `fn` compiles the kernels of a later
+    warm-up, not this one's: the worker is kept for `settle`, and None returned."""
     first = not _started
     _started.append(fn)
     if not (split and first and engaged()):
         return None
     try:
-        return Ahead(fn, *args)
+        ahead = Ahead(fn, *args)
     except (OSError, pickle.PicklingError, AttributeError, TypeError):
         return None
+    if later:
+        _later.append(ahead)
+        return None
+    return ahead
+
+
+def settle(stop: bool = False) -> float:
+    """Wait for the worker `start(later=True)` left, if any (`stop`: end it first); the seconds waited."""
+    begin = time.perf_counter()
+    while _later:
+        _later.pop().wait(stop)
+    return time.perf_counter() - begin
 
 
 def serve():

@@ -136,16 +136,28 @@ def prepare(scene: Scene) -> Prepared:
     return prep
 
 
-def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict, float]:
+def adapt_cubature(prep: Prepared, method, params, seed, shadows=False) -> tuple[Prepared, dict, float]:
     """The scene with each emitter's cubature order chosen by the pilot (lights/cubature.py) for a
     method with a tolerance (`Method.tolerance`), the pilot's statistics and the seconds its kernels
-    took to compile (`warm_up`, before it); else `prep`, {} and 0."""
+    took to compile (`warm_up`, before it, unshadowed; where the render has volumetric `shadows`, their
+    kernels compile meanwhile in a second process on an empty kernel cache, and the wait for it after
+    the pilot counts too); else `prep`, {} and 0."""
     tol = method.tolerance(params)
-    scene, cam = prep.scene, prep.scene.camera
-    ladders, counts = cubature_ladders(scene.lights, prep.emissive)
+    ladders, counts = cubature_ladders(prep.scene.lights, prep.emissive)
     if tol is None or all(l is None for l in ladders):
         return prep, {}, 0.0
-    compile_s = warm_up(prep, method, params, seed)
+    try:
+        compile_s = warm_up(prep, method, params, seed, then_shadows=shadows)
+        adapted, pilot = _pilot(prep, method, params, seed, tol, ladders, counts)
+    except BaseException:
+        compile_ahead.settle(stop=True)
+        raise
+    return adapted, pilot, compile_s + compile_ahead.settle()
+
+
+def _pilot(prep: Prepared, method, params, seed, tol, ladders, counts) -> tuple[Prepared, dict]:
+    """`adapt_cubature`'s scene and statistics, its kernels compiled."""
+    scene, cam = prep.scene, prep.scene.camera
 
     def rays_of(pixels):
         return pixel_rays(cam, pixels[:, 0].astype(float), pixels[:, 1].astype(float), slice(0, 1))
@@ -168,7 +180,7 @@ def adapt_cubature(prep: Prepared, method, params, seed) -> tuple[Prepared, dict
     n_rows = int(np.count_nonzero(np.isin(adapted.lights.owner, emitters)))
     return adapted, {"cubature: rows": n_rows, "cubature: pilot rays": len(o),
                      "cubature: emitters capped": capped, "cubature: pilot rays near an emitter": n_near,
-                     "cubature: pilot rays not converged": stray}, compile_s
+                     "cubature: pilot rays not converged": stray}
 
 
 def default_threads() -> int:
@@ -394,12 +406,13 @@ WARM_UP_GRID = 8  # the warm-up traces the first sample of the pixels of an 8 x 
 WARMED = set()  # (scene file, its size and time, method, parameters, shadows) warmed up in this process
 
 
-def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
+def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=False) -> float:
     """Build the lights' shadow frusta (with `shadows`) and compile the method's kernels on a few rays
     (`warm_up_rays`), so that the tiles compile nothing later; on an empty kernel cache the air-light's
-    kernels compile meanwhile in a second process (compile_ahead.py). Returns the seconds it took.
-    Once per scene file (unchanged), method, parameters and `shadows` in a process: a later render of
-    the same compiles nothing."""
+    kernels compile meanwhile in a second process (compile_ahead.py), or, where a warm-up with shadows
+    follows this one without (`then_shadows`: the cubature pilot's), the shadows' kernels
+    (`compile_shadows`). Returns the seconds it took. Once per scene file (unchanged), method,
+    parameters and `shadows` in a process: a later render of the same compiles nothing."""
     path = prep.scene.path
     key = None if path is None or not os.path.isfile(path) else (
         os.path.abspath(path), os.stat(path).st_size, os.stat(path).st_mtime_ns, method.name, repr(sorted(params.items())),
@@ -409,7 +422,10 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False) -> float:
             prep.frusta()
         return 0.0
     start = time.perf_counter()
-    ahead = compile_ahead.start(shadows, compile_airlight, prep.scene, method.name, params, seed)
+    if then_shadows and not shadows:
+        ahead = compile_ahead.start(True, compile_shadows, prep.scene, method.name, seed, later=True)
+    else:
+        ahead = compile_ahead.start(shadows, compile_airlight, prep.scene, method.name, params, seed)
     try:
         if shadows:
             prep.frusta()  # before the tiles' threads share it
@@ -446,6 +462,20 @@ def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
     t, prim, ground = first_hits(prep.accel, scene.medium, o, d)
     hits = None if prep.camera_inside is not None else (t, np.full_like(prim, -1), np.zeros_like(ground))
     shade_rays(prep, get_method(method_name), params, o, d, np.zeros(len(o), dtype=np.uint64), seed, hits=hits)
+
+
+def compile_shadows(scene: Scene, method_name: str, seed: int):
+    """compile_ahead's worker beside the cubature pilot's warm-up: the kernels of the exact lit
+    intervals (the frusta, `exact_lit_intervals`) and of the penumbrae's pieces (`penumbra_airlight.
+    lit_pieces`) on the warm-up's rays, without their air-light (which the pilot's warm-up compiles)."""
+    prep = prepare(scene)
+    o, d = warm_up_rays(prep)
+    t, _, _ = first_hits(prep.accel, scene.medium, o, d)
+    segs, _ = cone_segments(whole_rays(o, d, t, np.zeros(len(o), dtype=np.uint64), len(prep.lights), seed,
+                                       prep.accel.scale), prep.lights)
+    exact_lit_intervals(prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
+    if penumbra_airlight.applies(prep.lights, get_method(method_name), True):
+        penumbra_airlight.lit_pieces(prep.accel, prep.lights, segs, 1, crossing.blockers(prep))
 
 
 def check_options(method, params, volumetric_shadows, source, lights, medium):
@@ -686,11 +716,11 @@ def check(prep: Prepared, method_name: str, given_params: dict, options: RenderO
 COMPILE_NOTICE = 1.0  # seconds of compiling before it is announced
 
 
-def prepare_noticed(executor, prep: Prepared, task: Task, notice=None) -> float:
-    """`executor.prepare(prep, task)` (it compiles the kernels of the scene's kinds on first use),
-    telling `notice` when it takes longer than COMPILE_NOTICE seconds and then how long it took."""
+def noticed(work, notice=None):
+    """`work()` (it compiles the kernels of the scene's kinds on first use), telling `notice` when it
+    takes longer than COMPILE_NOTICE seconds and then how long it took."""
     if notice is None:
-        return executor.prepare(prep, task)
+        return work()
     said = threading.Event()
 
     def say():
@@ -702,13 +732,13 @@ def prepare_noticed(executor, prep: Prepared, task: Task, notice=None) -> float:
     start = time.perf_counter()
     timer.start()
     try:
-        compile_s = executor.prepare(prep, task)
+        result = work()
     finally:
         timer.cancel()
         timer.join()  # a notice being said is finished first
     if said.is_set():
         notice(f"compiled in {time.perf_counter() - start:.1f} s")
-    return compile_s
+    return result
 
 
 def render(prep: Prepared, method_name: str, given_params: dict | None = None,
@@ -732,9 +762,12 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     acc = Accumulator(work, box, cam.spp, has_variance(prep, method), stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
     pilot_start = time.perf_counter()
-    prep, pilot, compile_s = adapt_cubature(prep, method, params, options.seed)
-    pilot_s = time.perf_counter() - pilot_start - compile_s  # counted in the render's seconds
-    compile_s += prepare_noticed(executor, prep, task, options.notice)
+
+    def first_use():  # the kernels compiled on first use: the cubature pilot's warm-up, then the tiles'
+        adapted, pilot, compile_s = adapt_cubature(prep, method, params, options.seed, options.shadows)
+        pilot_s = time.perf_counter() - pilot_start - compile_s  # counted in the render's seconds
+        return adapted, pilot, pilot_s, compile_s + executor.prepare(adapted, task)
+    prep, pilot, pilot_s, compile_s = noticed(first_use, options.notice)
     start = time.perf_counter() - pilot_s
     with contextlib.closing(executor.map(prep, task, work)) as results:  # an exception here stops the tiles
         for n, (i, result) in enumerate(results, 1):
