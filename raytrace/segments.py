@@ -43,7 +43,7 @@ def cone_segments(segs: Segments, lights, end_normals=None):
     """The segments cut to where their spot lights shine (cosine to the axis above cos_end: at most
     two pieces of a line, lights.segment_cone), dark ones dropped; point lights' segments unchanged.
     `end_normals` (S, 3) or None follow the segments, zero for a piece that now ends in the air."""
-    if "spot" not in lights.kinds():
+    if not lights.cones():
         return segs, end_normals
     xh, h, _, cone = segment_geometry(segs, lights)
     src, x0, x1, piece = _cone_pieces(xh, h, segs.length, cone)

@@ -169,6 +169,12 @@ class Lights:
         """The kinds of the scene's lights and of the rows they give (an area light's: spot)."""
         return set(self._kinds)
 
+    def cones(self) -> bool:
+        """Whether any row shines in a cone (a spot light's, an emitter's node: its Lambertian
+        half-space): code outside this package asks this, not for a kind, to cut segments to cones and
+        to compile the kernels of their bands."""
+        return spot.NAME in self._kinds
+
     @cached_property
     def _kinds(self) -> frozenset[str]:
         return frozenset({NAMES[int(k)] for k in np.unique(self.kind)} | set(self.scene_kinds))

@@ -430,8 +430,9 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
         if shadows:
             prep.frusta()  # before the tiles' threads share it
         o, d = warm_up_rays(prep)
-        shade_rays(prep, method if ahead is None else compile_ahead.Gated(method, ahead), params, o, d,
-                   np.zeros(len(o), dtype=np.uint64), seed, shadows)
+        radiance = shade_rays(prep, method if ahead is None else compile_ahead.Gated(method, ahead), params, o, d,
+                              np.zeros(len(o), dtype=np.uint64), seed, shadows)[0]
+        sum_samples(radiance, 1)  # the tiles' sums over their samples
     except BaseException:
         if ahead is not None:
             ahead.wait(stop=True)
