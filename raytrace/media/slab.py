@@ -236,10 +236,10 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
     |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share a sign and
     exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
     point's acceleration, and K_R); the others are halved down to 1e-13 of the segment's scale (at most
-    MAX_ISOLATE evaluations), and where `refracted_cosine` - level changes sign or is 0 at an end there
-    (`_isolate`'s change: at a crossing whose slope is below an ulp over that width, an end of the smallest
-    intervals often lies on the level exactly), with no cut in it, the crossing: that end, or the sign
-    change bisected to the resolution of doubles."""
+    MAX_ISOLATE evaluations). Where `refracted_cosine` - level changes sign there, or is 0 at one end only
+    (`_isolate` counts a 0 as a change: at a crossing whose slope is below an ulp of the cosine over that
+    width, the ends of the smallest intervals often lie on the level exactly), with no cut in it: that end
+    (where the run of 0s begins or ends), or the sign change bisected to the resolution of doubles."""
     scale = end + math.sqrt(ll) + hl + z0
     width = 1e-13 * scale
     bend = 1e-9 * scale  # fermat_bend's widening: the rounding of the row's numbers
@@ -265,7 +265,7 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
             c_lo = refracted_cosine(lo, z0, wl, ll, a, hl, eta, wa, la, na) - level
             c_hi = refracted_cosine(hi, z0, wl, ll, a, hl, eta, wa, la, na) - level
-            if c_lo * c_hi <= 0.0 and not _near(out[:m], lo, hi, 0.0):
+            if (c_lo * c_hi < 0.0 or (c_lo == 0.0) != (c_hi == 0.0)) and not _near(out[:m], lo, hi, 0.0):
                 out[m] = lo if c_lo == 0.0 else hi
                 if c_lo * c_hi < 0.0:
                     out[m] = _bisect_cosine(lo, hi, c_lo, z0, wl, ll, a, hl, eta, wa, la, na, level)
