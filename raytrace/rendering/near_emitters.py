@@ -19,7 +19,11 @@ there the rule applies only where the occluders' geometry clears the segment
 stratified samples replace the rows (`penumbra_airlight`'s estimate). Nor are a sphere's rows all dark
 along the whole ray a proof that all of it is hidden (a cap above a floor, between the rows, lights the
 ray): `penumbra_airlight.cut_pairs` samples those pairs, so no order of the rows decides that a segment
-is lit or dark. `montecarlo` keeps the rows (it samples them).
+is lit or dark. Nor that the sphere does not shine on it: a segment near the sphere may see a cap of it
+on which no row lies, so the sphere shines on every ray from outside it (`_shines`) and the pairs that
+no row faces take the rule where the geometry clears them, else the samples, drawn from a cap of the
+sphere that holds all the segment sees (`sphere_rule.Ball.seen_cap`). `montecarlo` keeps the rows (it
+samples them).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
