@@ -1,7 +1,8 @@
 """The second-order exclusion of the refracted point-light searches (media/slab.py): `edge_breaks`' own
 isolation (`_sign_changes`), as `_isolate`'s for the bound (edges), excludes an interval whose ends'
 values share a sign and exceed M (hi - lo)^2 / 8 (`_off_band`), M a bound on the edge distance's second
-derivative (`fermat_bend`, checked in tests/test_refracted_edge_isolation.py).
+derivative (`fermat_bend`, checked in tests/test_refracted_edge_isolation.py); a spot's cone levels
+(`cone_bend`): tests/test_cone_second_order.py.
 
 Where the refraction point slides along an edge's line over a long stretch, the first-order test (the point's speed) excludes only intervals shorter
 than the distance over the speed: the search ran out of its MAX_ISOLATE evaluations there. The

@@ -88,8 +88,8 @@ def rounding(theta, d: float) -> float:
     return max(abs(snyder(theta, d * (1.0 + ULP), R) / e - 1.0), abs(snyder(theta + ULP, d, R) / e - 1.0))
 
 
-def check(cases, kt: float, ref):
-    """Every uncounted point within tol + 2 roundings of `ref` at each of TOLS; returns the counted."""
+def check(cases, kt: float, ref, tols=TOLS):
+    """Every uncounted point within tol + 2 roundings of `ref` at each of `tols`; returns the counted."""
     counted = 0
     for theta, d in cases:
         th, length = exact_angle(theta)
@@ -97,7 +97,7 @@ def check(cases, kt: float, ref):
         if want == 0.0:
             continue
         slack = 2.0 * rounding(th, d)
-        for tol in TOLS:
+        for tol in tols:
             e, missed = rule(theta, d, kt, tol)
             counted += missed
             assert missed or abs(e / want - 1.0) <= tol + slack, (theta, d, kt, tol, e / want - 1.0, slack)

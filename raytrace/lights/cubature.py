@@ -16,7 +16,11 @@ air-light behaves like w_i / rho_i about the ray's foot point, the slowest place
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from ..jit import exact_njit
 
 GRID = 6  # the pilot's pixel grid
 NEAR = 8  # the pilot's rays nearest to each emitter
@@ -27,7 +31,6 @@ MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light c
 NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
 FLOOR = 1e-13  # agreement relative to the largest pilot radiance (`agree`) below which rays are not told apart
 AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
-BLOCK = 1 << 16  # (point, half-line) pairs `half_line_distances` measures at once
 LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
 
 
@@ -115,18 +118,29 @@ def nearest(samples, origins, dirs, k: int) -> tuple[np.ndarray, float]:
 
 def half_line_distances(points, origins, dirs) -> np.ndarray:
     """(N,) the distance from each half-line o + t d (t >= 0) to the nearest of `points` (P, 3): per
-    point and half-line |rel - max(rel . d, 0) d|, rel = p - o, for a block of points at a time (every
-    number rounded as one point at a time rounds it: the same (3,) sums on every row)."""
+    point and half-line |rel - max(rel . d, 0) d|, rel = p - o (`_half_line_distances`)."""
     best = np.full(len(origins), np.inf)
-    step = max(1, BLOCK // max(len(origins), 1))
-    for a in range(0, len(points), step):
-        block = points[a:a + step]
-        rel = (block[:, None, :] - origins[None]).reshape(-1, 3)
-        d = np.broadcast_to(dirs, (len(block),) + dirs.shape).reshape(-1, 3)
-        t = np.maximum(np.einsum("ij,ij->i", rel, d), 0.0)
-        dist = np.linalg.norm(rel - t[:, None] * d, axis=1).reshape(len(block), -1)
-        best = np.minimum(best, dist.min(axis=0))
+    _half_line_distances(np.ascontiguousarray(points, float), np.ascontiguousarray(origins, float),
+                         np.ascontiguousarray(dirs, float), best)
     return best
+
+
+@exact_njit
+def _half_line_distances(points, origins, dirs, best):
+    """`half_line_distances`' kernel, each number rounded as NumPy's expressions round it (tested):
+    rel . d as np.einsum sums its three products, (rel_y d_y) + ((rel_x d_x) + (rel_z d_z)); the
+    norm as np.linalg.norm, sqrt((x^2 + y^2) + z^2); the least as np.minimum takes it (a NaN wins)."""
+    for i in range(origins.shape[0]):
+        dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        for p in range(points.shape[0]):
+            rx, ry, rz = points[p, 0] - origins[i, 0], points[p, 1] - origins[i, 1], points[p, 2] - origins[i, 2]
+            t = ry * dy + (rx * dx + rz * dz)
+            if not t >= 0.0 and t == t:  # np.maximum(t, 0.0): a NaN stays
+                t = 0.0
+            ex, ey, ez = rx - t * dx, ry - t * dy, rz - t * dz
+            dist = math.sqrt((ex * ex + ey * ey) + ez * ez)
+            if not best[i] <= dist and best[i] == best[i]:
+                best[i] = dist
 
 
 def diameter(points) -> float:

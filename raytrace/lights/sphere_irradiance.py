@@ -22,7 +22,10 @@ closes on it as d nears R). So the integrand is entire but for Phi's branch poin
 [0, u*] (the circles the horizon cuts) with u = u* - w^2 (the square root's half powers become
 integer ones), and [u*, u0] (wholly above the horizon: 2 pi A, or below: 0), each Gauss–Legendre.
 In the vacuum the second is exact: pi cos theta sin^2 alpha where the horizon cuts no circle, else
-pi cos^3 theta (the cap of half-angle pi/2 - theta about a, which lies above the horizon).
+pi cos^3 theta (the cap of half-angle pi/2 - theta about a, which lies above the horizon). In a medium
+its integrand is entire, and its rule's order is the coarsest of ORDERS whose remainder bound (on a
+Bernstein ellipse, `_needed`) is within the tolerance of a lower bound of the piece: a bound, not an
+agreement, so a point whose cap lies wholly above its horizon has its irradiance within the tolerance.
 
 Phi on [0, u*] is also singular on the axis, where B = 0 (psi's logarithm, weighted by A): at
 w = i eta, eta^2 = u0 - u*, which nears the piece's end w = 0 where the horizon cuts the cap near its
@@ -34,9 +37,10 @@ a fixed distance from an interval that grows as log(sqrt(u*) / eta)), the rest i
 KAPPA sqrt(u*) what the singularity shapes weighs about (eta / sqrt(u*))^3 of the irradiance (measured
 2e-14 at 1e-5) and stays in w.
 
-The order climbs ORDERS until RUN consecutive pairs of orders (three successive orders) agree to
-SHARE x the tolerance relative to the finer in every channel, the finest of them kept; where none do,
-the finest of the ladder is kept and the point counted.
+The circles the horizon cuts have no such bound: their order climbs ORDERS until RUN consecutive pairs
+of orders (three successive orders) agree to SHARE x the tolerance relative to the finer in every
+channel, the finest of them kept; where none do, the finest of the ladder is kept and the point counted
+(as where no order of ORDERS meets the bound of the circles above the horizon).
 """
 from __future__ import annotations
 
@@ -55,6 +59,7 @@ KAPPA = 1e-6  # eta / sqrt(u*) below which the axis's singularity is left to the
 SPLIT = 0.25  # where [0, sqrt(u*)] splits, and the eta / sqrt(u*) below which it does (module docstring)
 RUN = 2  # the consecutive pairs of orders that must agree (two orders agreeing is not a bound)
 FLOOR = 1e-300  # agreement below this absolute irradiance / L counts as exact (a cap that vanishes)
+RHO, RHOS = 2.0 ** 0.5, 40  # the Bernstein ellipses tried for the remainder bound (`_needed`): rho = RHO^j
 
 
 def _tables():
@@ -72,7 +77,7 @@ def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=No
     radiance L (3,)) at points outside it with unit normals n, through a homogeneous medium of
     extinction `sigma_t` (3,) (0: the vacuum), to the relative tolerance `tol` (None: TOL). Points on
     or inside the sphere get 0 (not lit from outside). `missed` (1,), if given: += the points where no
-    three successive orders of ORDERS agreed (the finest kept)."""
+    three successive orders of ORDERS agreed or none met the bound (the finest kept; module docstring)."""
     out = np.zeros((len(points), 3))
     missed = np.zeros(1) if missed is None else missed
     _irradiance(np.asarray(centre, float), float(radius), np.ascontiguousarray(points, float),
@@ -93,34 +98,41 @@ def cap_cosine(centre, radius: float, points, normals):
 @njit
 def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out, missed):
     """`irradiance` / L into out (M, 3); missed[0] += the points where no RUN consecutive pairs of orders
-    agreed."""
-    prev = np.empty(3)
-    lossy = kt[0] != 0.0 or kt[1] != 0.0 or kt[2] != 0.0
+    agreed or no order met the bound (`_above`)."""
+    prev, exact = np.empty(3), np.empty(3)
     for i in range(points.shape[0]):
         cos_t, sin_t, sin_a, cos_a, root_k, u0, ustar, eta = _geometry(centre, R, points[i], normals[i])
         if not cos_t > -sin_a:  # on or inside the sphere, or the cap wholly below the horizon
             continue
         whole = cos_t > 0.0 and u0 > ustar  # the circles [u*, u0] wholly above the horizon
-        exact = math.pi * cos_t * (cos_t * cos_t if ustar > 0.0 else sin_a * sin_a) if whole else 0.0
+        vacuum = math.pi * cos_t * (cos_t * cos_t if ustar > 0.0 else sin_a * sin_a) if whole else 0.0
+        bounded = True
         for c in range(3):
-            out[i, c] = exact if kt[c] == 0.0 else 0.0
-        above = whole and lossy  # [u*, u0] by the rule
-        geometry = (cos_t, sin_t, cos_a, root_k, ustar, u0, eta, above)
-        if (ustar > 0.0 or above) and not _ladder(out[i], prev, exact, nodes, weights, offsets, tol, kt, geometry):
+            exact[c] = vacuum
+            if c > 0 and kt[c] == kt[c - 1]:  # a grey medium: the channel before's
+                exact[c] = exact[c - 1]
+            elif kt[c] != 0.0 and whole:
+                exact[c], ok = _above(kt[c], cos_t, cos_a, root_k, ustar, u0, tol, nodes, weights, offsets)
+                bounded = bounded and ok
+            out[i, c] = exact[c]
+        geometry = (cos_t, sin_t, cos_a, root_k, ustar, u0, eta)
+        if ustar > 0.0 and not _ladder(out[i], prev, exact, nodes, weights, offsets, tol, kt, geometry):
+            bounded = False
+        if not bounded:
             missed[0] += 1.0
 
 
 @njit
 def _ladder(acc, prev, exact, nodes, weights, offsets, tol, kt, geometry):
-    """acc (3,) = `exact` (in the channels without extinction) + the pieces (`_add_pieces` of `geometry`)
-    by ORDERS in turn, until RUN consecutive pairs of orders agree to tol relative to the finer (True; the
-    finest of them kept) or the finest (False); prev (3,) scratch."""
+    """acc (3,) = `exact` (3,) (the circles wholly above the horizon) + the circles the horizon cuts
+    (`_add_cut_pieces` of `geometry`) by ORDERS in turn, until RUN consecutive pairs of orders agree to tol
+    relative to the finer (True; the finest of them kept) or the finest (False); prev (3,) scratch."""
     run = 0
     for k in range(len(offsets) - 1):
         for c in range(3):
-            acc[c] = exact if kt[c] == 0.0 else 0.0
+            acc[c] = exact[c]
         lo, hi = offsets[k], offsets[k + 1]
-        _add_pieces(acc, nodes[lo:hi], weights[lo:hi], kt, *geometry)
+        _add_cut_pieces(acc, nodes[lo:hi], weights[lo:hi], kt, *geometry)
         if k > 0:
             agree = True
             for c in range(3):
@@ -163,26 +175,72 @@ def _geometry(centre, R, x, n):
 
 
 @njit
-def _add_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta, above):
-    """acc (3,) += the integral in u (module docstring) by the Gauss–Legendre rule (x, wx) on [0, 1] in
-    each piece: the circles the horizon cuts, [0, u*] (in two where KAPPA < eta / sqrt(u*) < SPLIT), and,
-    where `above`, in the channels with extinction those wholly above it, [u*, u0]."""
-    if ustar > 0.0:  # [0, u*]: u = u* - w^2, w in [0, sqrt(u*)], du = 2 w dw
-        top = math.sqrt(ustar)
-        if KAPPA * top < eta < SPLIT * top:
-            _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, 0.0, SPLIT * top, eta)
-            _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, SPLIT * top, top, 0.0)
-        else:
-            _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, 0.0, top, 0.0)
-    if above:  # [u*, u0]: Phi = 2 pi A
-        span = u0 - ustar
-        for j in range(x.shape[0]):
-            u = ustar + span * x[j]
-            f = 2.0 * math.pi * cos_t * cos_a * cos_a * math.cosh(u) * math.sinh(u) * span * wx[j]
-            s = root_k * math.exp(-u)
-            for c in range(3):
-                if kt[c] != 0.0:
-                    acc[c] += f * math.exp(-kt[c] * s)
+def _add_cut_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta):
+    """acc (3,) += the integral in u (module docstring) over the circles the horizon cuts, [0, u*] (in two
+    where KAPPA < eta / sqrt(u*) < SPLIT), u = u* - w^2, w in [0, sqrt(u*)], du = 2 w dw, by the
+    Gauss–Legendre rule (x, wx) on [0, 1] in each piece."""
+    top = math.sqrt(ustar)
+    if KAPPA * top < eta < SPLIT * top:
+        _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, 0.0, SPLIT * top, eta)
+        _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, SPLIT * top, top, 0.0)
+    else:
+        _add_cut(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, 0.0, top, 0.0)
+
+
+@njit
+def _above(kt, cos_t, cos_a, root_k, ustar, u0, tol, nodes, weights, offsets):
+    """(the circles wholly above the horizon, [u*, u0], through extinction kt > 0: 2 pi cos theta cos^2
+    alpha int cosh u sinh u exp(-kt sqrt(d^2 - R^2) e^-u) du, whether within tol of it) by the coarsest
+    of ORDERS with at least the nodes `_needed` for a remainder of tol x a lower bound of the integral
+    (`_above_rule`'s, of the coarsest); the finest of ORDERS where none has."""
+    scale = 2.0 * math.pi * cos_t * cos_a * cos_a
+    span = u0 - ustar
+    first, least = _above_rule(kt, root_k, ustar, span, nodes[offsets[0]:offsets[1]], weights[offsets[0]:offsets[1]])
+    need = _needed(kt, root_k, ustar, u0, math.log(tol * least)) if least > 0.0 else math.inf
+    for k in range(len(offsets) - 1):
+        lo, hi = offsets[k], offsets[k + 1]
+        if hi - lo >= need or k == len(offsets) - 2:
+            value = first if k == 0 else _above_rule(kt, root_k, ustar, span, nodes[lo:hi], weights[lo:hi])[0]
+            return scale * value, hi - lo >= need
+    return 0.0, False
+
+
+@njit
+def _above_rule(kt, root_k, ustar, span, x, wx):
+    """(int_{u*}^{u* + span} g(u) du, g = cosh u sinh u exp(-kt root_k e^-u), by the Gauss–Legendre rule
+    (x, wx) on [0, 1] (ascending nodes); a lower bound of it: g grows with u, so the sum of g at each node
+    times the step to the next (the last to the end) is at most the integral)."""
+    total, lower = 0.0, 0.0
+    for j in range(x.shape[0]):
+        u = ustar + span * x[j]
+        g = math.cosh(u) * math.sinh(u) * math.exp(-kt * root_k * math.exp(-u))
+        total += g * wx[j]
+        lower += g * ((x[j + 1] if j + 1 < x.shape[0] else 1.0) - x[j])
+    return total * span, lower * span
+
+
+@njit
+def _needed(kt, root_k, ustar, u0, target):
+    """The fewest nodes n of `_above_rule` whose remainder bound is at most exp(target): with u = c + h z
+    (z in [-1, 1]) the integrand g is entire and, on the Bernstein ellipse E_rho (|Re z| <= (rho + 1 / rho)
+    / 2 = p, |Im z| <= (rho - 1 / rho) / 2 = q), |g| <= M = cosh(2 (c + h p)) / 2 exp(-kt root_k e^-(c + h p)
+    cos(h q)) where h q < pi / 2 (|sinh 2u| <= cosh 2 Re u; Re(-kt root_k e^-u) = -kt root_k e^-Re u cos
+    Im u), so |I - I_n| <= h 64 / 15 M rho^(2 - 2n) / (rho^2 - 1) (Trefethen, Approximation Theory and
+    Approximation Practice, Theorem 19.3, whose rule of n + 1 points has rho^-2n); the least n over
+    rho = RHO^j, j = 1 ... RHOS (inf where none: the bound needs h q < pi / 2)."""
+    c, h = 0.5 * (ustar + u0), 0.5 * (u0 - ustar)
+    best = math.inf
+    for j in range(1, RHOS + 1):
+        rho = RHO ** j
+        p, q = 0.5 * (rho + 1.0 / rho), 0.5 * (rho - 1.0 / rho)
+        if not h * q < 0.5 * math.pi:
+            break
+        x = 2.0 * (c + h * p)
+        log_m = x + math.log1p(math.exp(-2.0 * x)) - 2.0 * math.log(2.0) - kt * root_k * math.exp(-(c + h * p)) * \
+            math.cos(h * q)
+        log_b = math.log(h * 64.0 / 15.0) + log_m - math.log(rho * rho - 1.0)  # the bound is exp(log_b) rho^(2 - 2n)
+        best = min(best, 1.0 + max(log_b - target, 0.0) / (2.0 * j * math.log(RHO)))
+    return best
 
 
 @njit

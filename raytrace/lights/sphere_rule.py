@@ -96,6 +96,41 @@ class Ball:
         normals, weights, owner = normals[keep], weights[keep], owner[keep]
         return self.centre + R * normals, normals, weights, owner
 
+    def seen_cap(self, origins, dirs, tmax):
+        """(axis (P, 3), h (P,)): a cap of the unit normals, those n with 1 - n·axis <= h, that holds all
+        that the segments o + t d, 0 <= t <= tmax (outside the sphere, unit dirs) see; h >= 2 (the whole
+        sphere) where a segment has no end. With q(t) = o + t d - c: the point q(t) sees the normals
+        within acos(R / |q|) of q / |q|, which runs along the great arc from q(0) / |q(0)| to q(T) / |q(T)|
+        (angle 2 g), and |q(t)| is convex, so every normal seen lies within g + acos(R / max |q| at the
+        ends) of the arc's middle (plus 1e-9: the cap's outline, where the light vanishes, is no sample's
+        concern)."""
+        q0 = origins - self.centre
+        tmax = np.asarray(tmax, float)
+        finite = np.isfinite(tmax)
+        q1 = q0 + np.where(finite, tmax, 0.0)[:, None] * dirs
+        n0, n1 = np.linalg.norm(q0, axis=1), np.linalg.norm(q1, axis=1)
+        u0, u1 = q0 / n0[:, None], q1 / n1[:, None]
+        mid = u0 + u1
+        axis = mid / np.maximum(np.linalg.norm(mid, axis=1), 1e-300)[:, None]
+        half = np.arctan2(np.linalg.norm(u0 - u1, axis=1), np.linalg.norm(mid, axis=1))
+        angle = half + np.arccos(np.minimum(self.radius / np.maximum(n0, n1), 1.0)) + 1e-9
+        h = np.where(finite & (angle < np.pi), 2.0 * np.sin(0.5 * np.minimum(angle, np.pi)) ** 2, 2.0)
+        return axis, h
+
+    def sample_cap(self, axis, h, u, v):
+        """(points (P K, 3), unit normals (P K, 3), area density (P K,)): (u, v) (P, K) in [0, 1) mapped
+        uniformly in area onto the caps 1 - n·axis <= h (`seen_cap`): n·axis = 1 - u h, azimuth 2 pi v
+        about the axis (Archimedes), the density 1 / (2 pi R^2 h); row by row as u.ravel()."""
+        z = 1.0 - u * h[:, None]
+        s = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+        e1, e2 = _across(axis)
+        phi = 2.0 * np.pi * v
+        normals = (z[..., None] * axis[:, None, :] + (s * np.cos(phi))[..., None] * e1[:, None, :]
+                   + (s * np.sin(phi))[..., None] * e2[:, None, :])
+        density = np.broadcast_to(1.0 / (2.0 * np.pi * self.radius ** 2 * h[:, None]), z.shape).ravel()
+        normals = normals.reshape(-1, 3)
+        return self.centre + self.radius * normals, normals, density
+
     def probes(self, points, normals):
         """(M, K) probes of the part of the sphere each of M points outside it sees, the same K for every
         cubature order (shading.py's penumbra test): (points (M, K, 3) on the sphere, NaN where unused),

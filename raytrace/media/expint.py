@@ -147,7 +147,7 @@ def i01_series(a, va, vb, precision, max_iter):
 
 @njit
 def i01_series_est(a, va, vb, precision, max_iter):
-    """The paper's Fig. 2 loop: (I0, I1, iterations, rounding-error estimate) for a < 0, va < vb
+    """The paper's Fig. 2 loop: (I0, I1, iterations, rounding-error estimate) for a < 0, 0 <= va < vb
     (vb may be +inf).
 
     The k-th increments are rho^k sin(a - k phi) / (k k!) and rho^k cos(a - k phi) / (k k!) at both
@@ -164,7 +164,7 @@ def i01_series_est(a, va, vb, precision, max_iter):
     if vb < math.inf:
         rvb = abs(a) * math.sqrt(vb * vb + 1.0)
         logv = math.log(rvb / rva)
-        phiv = math.atan2(va - vb, 1.0 + va * vb)  # phi_b - phi_a = arg(z_b conj(z_a))
+        phiv = math.atan((va - vb) / (1.0 + va * vb))  # phi_b - phi_a = arg(z_b conj(z_a)); 1 + va vb > 0
         i0 = sina * logv - cosa * phiv
         i1 = cosa * logv + sina * phiv
         zb = complex(a * vb, -a)

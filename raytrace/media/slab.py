@@ -233,11 +233,16 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
     `refraction_newton`), whose derivative is at most K_R / o_min (K_R `fermat_speed`, the refraction
     point's speed; the leaving direction's turn is at most |R'| / o, o >= sqrt(s^2 + hl^2) with
     s >= rho hl / (hl + z): tan t1 >= tan t2): an interval [lo, hi] with |c(lo) - level| +
-    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing; the others are halved down to 1e-13 of
-    the segment's scale (at most MAX_ISOLATE evaluations), and a sign change there of
-    `refracted_cosine` with no cut in it bisected to the resolution of doubles."""
+    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share a sign and
+    exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
+    point's acceleration, and K_R); the others are halved down to 1e-13 of the segment's scale (at most
+    MAX_ISOLATE evaluations). Where `refracted_cosine` - level changes sign there, or is 0 at one end only
+    (`_isolate` counts a 0 as a change: at a crossing whose slope is below an ulp of the cosine over that
+    width, the ends of the smallest intervals often lie on the level exactly), with no cut in it: that end
+    (where the run of 0s begins or ends), or the sign change bisected to the resolution of doubles."""
     scale = end + math.sqrt(ll) + hl + z0
     width = 1e-13 * scale
+    bend = 1e-9 * scale  # fermat_bend's widening: the rounding of the row's numbers
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2] = _cone_psi(0.0, z0, wl, ll, a, hl, eta, wa, la, na) - level
@@ -249,14 +254,21 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
         rmin, rmax = rho_range(lo, hi, wl, ll, a)
         zlo, zhi = min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi)
         smin = rmin * hl / (hl + zhi)
-        k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / math.sqrt(smin * smin + hl * hl)
+        o_min = math.sqrt(smin * smin + hl * hl)
+        k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / o_min
         if abs(vlo) + abs(vhi) > k * (hi - lo) + 2e-13:
             continue
+        if min(vlo, vhi) > 2e-13 or max(vlo, vhi) < -2e-13:
+            curve = cone_bend(fermat_bend(rmin, rmax, zlo, zhi, a, hl, eta, bend), k * o_min, o_min)
+            if _off_band(vlo, vhi, 2e-13, 2e-13, curve, hi - lo):
+                continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
             c_lo = refracted_cosine(lo, z0, wl, ll, a, hl, eta, wa, la, na) - level
             c_hi = refracted_cosine(hi, z0, wl, ll, a, hl, eta, wa, la, na) - level
-            if c_lo * c_hi < 0.0 and not _near(out[:m], lo, hi, 0.0):
-                out[m] = _bisect_cosine(lo, hi, c_lo, z0, wl, ll, a, hl, eta, wa, la, na, level)
+            if (c_lo * c_hi < 0.0 or (c_lo == 0.0) != (c_hi == 0.0)) and not _near(out[:m], lo, hi, 0.0):
+                out[m] = lo if c_lo == 0.0 else hi
+                if c_lo * c_hi < 0.0:
+                    out[m] = _bisect_cosine(lo, hi, c_lo, z0, wl, ll, a, hl, eta, wa, la, na, level)
                 m += 1
             continue
         mid = 0.5 * (lo + hi)
@@ -560,6 +572,15 @@ def _interval_bend(lo, hi, z0, a, wl, ll, hl, eta, d):
     rmin, rmax = rho_range(lo, hi, wl, ll, a)
     z_lo, z_hi = z0 + a * lo, z0 + a * hi
     return fermat_bend(rmin, rmax, min(z_lo, z_hi), max(z_lo, z_hi), a, hl, eta, d)
+
+
+@njit
+def cone_bend(bend, speed, o_min):
+    """A bound on |c''| for the leaving cosine c = A·(R - L) / o, o = |R - L| >= o_min, of a refraction point R
+    with |R'| <= speed and |R''| <= bend: with d = (R - L) / o and P = I - d d^T, d' = P R' / o and d'' =
+    P R'' / o - (2 d' (d·R') + d (d'·R')) / o, whose second part (d' across d, |d'·R'| <= |d'| |P R'|) is at
+    most 2 |d'| |R'| / o, so |c''| <= |d''| <= bend / o_min + 2 (speed / o_min)^2."""
+    return (bend / o_min + 2.0 * (speed / o_min) ** 2) * (1.0 + 1e-12)
 
 
 @njit
@@ -1009,13 +1030,12 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     (hi - lo) + 4 tol + 2 slack or -(psi(lo) + psi(hi)) > K (hi - lo) + 4 tol lies outside the band. Where
     that fails, a second-order test: psi_exact is twice differentiable on the interval (the point below the
     face's plane, away from straight below the light) with |psi''| <= M, for an edge plane tilt times
-    `fermat_bend`'s bound on |R''| over the interval (R'' lies along the face's plane, as R' does; a cone
-    level keeps the first-order test: its second-order search lost a crossing of a glancing pair, not
-    understood), so it lies above its chord less M (x - lo)(hi - x) / 2 >= M (hi - lo)^2 / 8, and
+    `fermat_bend`'s bound on |R''| over the interval (R'' lies along the face's plane, as R' does), for a
+    cosine `cone_bend`'s, so it lies above its chord less M (x - lo)(hi - x) / 2 >= M (hi - lo)^2 / 8, and
     above min(psi(lo), psi(hi)) - tol - M (hi - lo)^2 / 8: an interval with min(psi(lo), psi(hi)) > M (hi -
     lo)^2 / 8 + 2 tol + slack (or max(...) < -(M (hi - lo)^2 / 8 + 2 tol)) lies outside the band too
-    (`_off_band`). This closes a refraction point that slides along an edge's line, close to it over a
-    long stretch: there the first-order test, whose K is the speed of R
+    (`_off_band`). This closes a refraction point that slides along an edge's line (a cosine that stays
+    near a level), close to it over a long stretch: there the first-order test, whose K is the speed of R
     and not of its distance from the line, excludes only intervals below psi / K; the second-order one
     those below sqrt(8 psi / M). The others are halved until shorter than `width`, or than 1e4 `width`
     with both ends in twice the band:
@@ -1044,8 +1064,9 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
         k = k * tilt if kind == _EDGE else k / o_min
         if vlo + vhi > k * (hi - lo) + 4.0 * tol + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * tol:
             continue
-        if kind == _EDGE and (min(vlo, vhi) > 2.0 * tol + slack or max(vlo, vhi) < -2.0 * tol):
-            curve = tilt * _interval_bend(lo, hi, z0, a, wl, ll, row[2], eta, bend)
+        if min(vlo, vhi) > 2.0 * tol + slack or max(vlo, vhi) < -2.0 * tol:
+            curve = _interval_bend(lo, hi, z0, a, wl, ll, row[2], eta, bend)
+            curve = tilt * curve if kind == _EDGE else cone_bend(curve, k * o_min, o_min)
             if _off_band(vlo, vhi, 2.0 * tol + slack, 2.0 * tol, curve, hi - lo):
                 continue
         inside = -2.0 * tol <= vlo <= slack + 2.0 * tol and -2.0 * tol <= vhi <= slack + 2.0 * tol

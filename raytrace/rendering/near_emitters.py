@@ -19,7 +19,11 @@ there the rule applies only where the occluders' geometry clears the segment
 stratified samples replace the rows (`penumbra_airlight`'s estimate). Nor are a sphere's rows all dark
 along the whole ray a proof that all of it is hidden (a cap above a floor, between the rows, lights the
 ray): `penumbra_airlight.cut_pairs` samples those pairs, so no order of the rows decides that a segment
-is lit or dark. `montecarlo` keeps the rows (it samples them).
+is lit or dark. Nor that the sphere does not shine on it: a segment near the sphere may see a cap of it
+on which no row lies, so the sphere shines on every ray from outside it (`_shines`) and the pairs that
+no row faces take the rule where the geometry clears them, else the samples, drawn from a cap of the
+sphere that holds all the segment sees (`sphere_rule.Ball.seen_cap`). `montecarlo` keeps the rows (it
+samples them).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
@@ -35,8 +39,8 @@ from ..lights.cubature import NEAR_FRACTION, SHARE, agree
 from ..lights.planar import plane_feet
 from ..lights.sphere_occluders import segments_free
 from ..lights.sphere_rule import FIRST
-from ..shadows.penumbra_airlight import (LIT, emitter_estimate, emitter_states, lit_states, per_group, point_segments,
-                                         spot_rows)
+from ..shadows.penumbra_airlight import (LIT, NONE, emitter_estimate, emitter_states, lit_states, per_group,
+                                         point_segments, spot_rows)
 
 ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
 DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
@@ -71,13 +75,10 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
         near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
         feet[e] = foot
-    rows = lights.cubature[cone.light]
-    shines = np.zeros((n, n_e), bool)  # the emitter's rows reach the ray (none in another light's layer)
-    shines[cone.ray[rows], lights.owner[cone.light[rows]]] = True
-    near &= shines
+    near &= _shines(lights, cone, tmax, n)
     hidden = np.zeros((n, n_e), bool)
     if shadows and near.any():
-        near &= _all_lit(lights, cone, segs, n)
+        near &= _lit_or_unseen(lights, cone, segs, n)
         hidden = _may_hide(ctx[0], lights, near, rays)
         near &= ~hidden
     if not (near | hidden).any():
@@ -86,10 +87,11 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     drop = (near | hidden)[segs.ray, owner] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(hidden)[1]):
-        rs = np.nonzero(hidden[:, e])[0]
-        value, v = emitter_estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1])
-        air[rs] += value
-        var[rs] += v
+        for rs, sample in _cap_samplers(lights.emitters[e].ball, rays, np.nonzero(hidden[:, e])[0]):
+            value, v = emitter_estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1],
+                                        sample)
+            air[rs] += value
+            var[rs] += v
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
         em = lights.emitters[e]
@@ -99,6 +101,19 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         air[rs] += value
         stats += (len(rs), stray)
     return kept, air, stats, (near | hidden).any(axis=1), var
+
+
+def _cap_samplers(ball, rays, rs) -> list:
+    """[(camera rays, sampler)]: the rays `rs` whose segments see a part of the sphere `ball` within a
+    cap (`Ball.seen_cap`) with a sampler of that cap (`emitter_estimate`'s `sample`), and those whose
+    cap is the whole sphere with None (the emitter's own samples)."""
+    origins, dirs, tmax = rays[:3]
+    h = ball.seen_cap(origins[rs], dirs[rs], np.asarray(tmax, float)[rs])[1]
+    capped, whole = rs[h < 2.0], rs[h >= 2.0]
+
+    def sample(at, u, v):
+        return ball.sample_cap(*ball.seen_cap(origins[at], dirs[at], np.asarray(tmax, float)[at]), u, v)
+    return [(r, f) for r, f in ((capped, sample), (whole, None)) if len(r)]
 
 
 def _may_hide(accel, lights, near, rays) -> np.ndarray:
@@ -116,11 +131,30 @@ def _may_hide(accel, lights, near, rays) -> np.ndarray:
     return out
 
 
-def _all_lit(lights, cone, lit, n: int) -> np.ndarray:
-    """(N, E) whether every row of emitter e that shines on camera ray r is lit along all of it."""
+def _shines(lights, cone, tmax, n: int) -> np.ndarray:
+    """(N, E) whether emitter e shines on camera ray r: a flat emitter where one of its rows does (its
+    cone segments `cone`); a sphere wherever it is on (its rows' intensity is not zero: none in another
+    light's layer) and the ray's segment has a length (its origin outside the sphere, checked apart,
+    sees a cap of it, on which no row may lie: no order of the rows decides it)."""
+    n_e = len(lights.emitters)
+    rows = lights.cubature[cone.light]
+    out = np.zeros((n, n_e), bool)
+    out[cone.ray[rows], lights.owner[cone.light[rows]]] = True
+    on = np.zeros(n_e + 1, bool)
+    on[np.where(lights.cubature & np.any(lights.intensity != 0.0, axis=1), lights.owner, n_e)] = True
+    balls = np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
+    out[:, balls & on[:n_e]] = (np.asarray(tmax, float) > 0.0)[:, None]
+    return out
+
+
+def _lit_or_unseen(lights, cone, lit, n: int) -> np.ndarray:
+    """(N, E) whether every row of emitter e that shines on camera ray r is lit along all of it, or, for
+    a sphere, no row shines on it (`_shines`: its rule or samples decide, `_may_hide`)."""
     n_l = len(lights)
     row_state = lit_states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
-    return emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters)) == LIT
+    state = emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters))
+    balls = np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
+    return (state == LIT) | ((state == NONE) & balls[None, :])
 
 
 def _planar_rule(planar, feet):

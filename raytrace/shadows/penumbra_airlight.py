@@ -77,26 +77,28 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     return kept, air, var, cut.any(axis=1)
 
 
-def emitter_estimate(accel, method, medium, params, emitter, e, rs, rays, select):
+def emitter_estimate(accel, method, medium, params, emitter, e, rs, rays, select, sample=None):
     """(estimate, variance), each (len(rs), 3), of emitter `e` along the camera rays `rs`: stratified
     samples whose strata follow the method's tolerance (`Method.tolerance`; shading.stratified: a
-    pilot per ray, then fresh samples), shading.STRATA a side without one."""
+    pilot per ray, then fresh samples), shading.STRATA a side without one. `sample(rays, u, v)`: as
+    `emitter.sample` of (u, v) (len(rays), K), ray by ray (None: `emitter.sample`)."""
 
     def estimate(at, strata, stage):
         return _stratified(accel, method, medium, params, emitter, rs[at], rays, select, strata,
-                           block(DIM_AIRLIGHT, e, stage))
+                           block(DIM_AIRLIGHT, e, stage), sample)
 
     return stratified(estimate, len(rs), method.tolerance(params))
 
 
-def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata: int, dim: int):
-    """(estimate, variance), each (len(rs), 3): 2 strata^2 stratified samples of the emitter along each
-    camera ray rs (module docstring), at random-number dimensions from `dim`."""
+def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata: int, dim: int, sample=None):
+    """(estimate, variance), each (len(rs), 3): 2 strata^2 stratified samples of the emitter (or of
+    `sample`'s part of it: `emitter_estimate`) along each camera ray rs (module docstring), at
+    random-number dimensions from `dim`."""
     origins, dirs, tmax, keys, seed = rays
     per = 2 * strata * strata
     u, v = np.empty((len(rs), per)), np.empty((len(rs), per))
     jitter(keys[rs], seed, dim, strata, u, v)
-    y, normals, density = emitter.sample(u.ravel(), v.ravel())
+    y, normals, density = emitter.sample(u.ravel(), v.ravel()) if sample is None else sample(rs, u, v)
     samples = spot_rows(y, normals, emitter.radiance[None, :] / (per * density[:, None]), emitter.two_sided)
     sides = 2 if emitter.two_sided else 1
     segs = point_segments(samples, sides, rays, np.repeat(rs, per), accel.scale)
