@@ -194,11 +194,14 @@ def test_a_camera_inside_the_medium(tmp_path, name):
     assert np.mean((res.image - ref) ** 2 / res.variance) < 3.5
 
 
-def test_a_light_inside_a_medium_is_refused(tmp_path):
+def test_a_light_inside_a_refractive_medium_is_refused(tmp_path):
+    """A lamp inside the U takes index-matched interiors only (tests/test_light_inside_non_convex.py):
+    inside a refractive one its light would leave refracted (a caustic outside)."""
     import raytrace
 
     (tmp_path / "u.obj").write_text(u_obj())
     sc = u_scene({"type": "point", "position": [-0.7, 0.0, 0.0], "intensity": 1.0})
+    sc["shape"][0]["interior"]["ior"] = 1.33
     (tmp_path / "u.toml").write_text(to_toml(sc))
     with pytest.raises(raytrace.UserError, match=r"light\[0\]\.position: inside shape\[0\]"):
         render(prepare(load_scene(tmp_path / "u.toml")), "quadrature", {}, RenderOptions(threads=1))

@@ -186,12 +186,14 @@ def check(prep, method, method_params, source: str):
                         "shape or change them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
-        if inside is not None and (prep.lights.cubature[li] or prep.scene.shapes[inside].interior.ior != 1.0 or not (
-                len(convex_planes(prep, inside)) or paths.exact_sphere(prep, inside) is not None)):
+        if inside is not None and (prep.lights.cubature[li] or prep.scene.shapes[inside].interior.ior != 1.0):
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
                             "medium; a point or spot light inside a bounded medium needs an index-matched interior "
-                            "(ior = 1) in a convex shape or an exact sphere; move the light out of the shape or "
-                            "change it")
+                            "(ior = 1); move the light out of the shape or set its ior = 1")
+        if inside is not None and not sup.exact_paths:
+            raise UserError(f"{source}: --method {method.name}: light[{prep.lights.owner[li]}].position inside "
+                            f"shape[{inside}]: its inside model sees the light through the plane of the face a camera "
+                            f"ray enters by; use --method {', '.join(_takers(lambda s: s.exact_paths))}")
 
 
 def _takers(test=lambda interiors: True) -> list[str]:
@@ -200,29 +202,8 @@ def _takers(test=lambda interiors: True) -> list[str]:
 
 
 def inside_of(prep, o, inner) -> int | None:
-    """The first shape of `inner` that contains the point o (odd number of crossings of a ray), else None."""
-    d = np.array([0.5773502691896258, 0.5773502691896257, 0.5773502691896259]) + np.array([1e-3, -2e-3, 0.0])
-    d /= np.linalg.norm(d)
-    tris = prep.accel.triangles
-    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    pv = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, pv)
-    ok = np.abs(det) > 1e-300
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    tv = o - tris[:, 0]
-    u = np.einsum("ij,ij->i", tv, pv) * inv
-    qv = np.cross(tv, e1)
-    v = (qv @ d) * inv
-    t = np.einsum("ij,ij->i", e2, qv) * inv
-    cross = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-    for i in inner:
-        sphere = paths.exact_sphere(prep, i)
-        if sphere is not None:  # an exact sphere: by its own radius
-            if np.linalg.norm(np.asarray(o, float) - sphere[:3]) < sphere[3]:
-                return i
-        elif np.count_nonzero(cross & (prep.shape_ids == i)) % 2:
-            return i
-    return None
+    """The first shape of `inner` that contains the point o (`paths.contains`), else None."""
+    return next((i for i in inner if paths.contains(prep, o, i)), None)
 
 
 def hull_planes(prep, sid):

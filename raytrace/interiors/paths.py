@@ -310,8 +310,9 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None):
             dk[lit] = np.inf  # Embree's exits: their float32 reach is not analysed
     else:
         err = np.zeros((len(lit), 1)) if dk is not None else None
+        holds = np.zeros((len(lit), 1), dtype=bool) if directional else holding(prep, geo[seg[lit], 6:9], [sid])
         k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool),
-                                errors=err)[0][:, 0]
+                                errors=err, far_inside=holds)[0][:, 0]
         if dk is not None:
             dk[lit] = err[:, 0]
     if dk is not None:
@@ -562,7 +563,8 @@ def through_integrand(prep, segs, medium, sids, dk):
             at = np.nonzero(li == l)[0]
             f[at] = falloff_array(np.ascontiguousarray(-to[at] @ lights.axis[l]), *lights.cone[l])
         mu = np.einsum("ij,ij->i", to, segs.dirs[ss])
-        att = f[:, None] * np.exp(-chords(prep, sids, p, to, d) @ dk) * lights.intensity[li]
+        att = f[:, None] * np.exp(-chords(prep, sids, p, to, d, holding(prep, lights.position[li], sids)) @ dk) \
+            * lights.intensity[li]
         out = np.empty((len(x), 3))
         col = np.empty(len(x))
         zero = np.zeros(len(x))
@@ -574,10 +576,11 @@ def through_integrand(prep, segs, medium, sids, dk):
     return integrand
 
 
-def chords(prep, sids, points, dirs, dist):
+def chords(prep, sids, points, dirs, dist, far_inside=None):
     """Lengths (M, len(sids)) inside each index-matched shape of the segments from `points` outside
     every shape along the unit `dirs` over `dist`: a convex shape's by its face planes, an exact
-    sphere's by its roots, in float64 (`boundary`), another's walked with Embree (`inside_lengths`)."""
+    sphere's by its roots, in float64 (`boundary`), another's walked with Embree (`inside_lengths`;
+    `far_inside` (M, len(sids)): whether each segment's far end, its light, lies inside each shape)."""
     out = np.zeros((len(points), len(sids)))
     walked = []
     for j, sid in enumerate(sids):
@@ -590,7 +593,8 @@ def chords(prep, sids, points, dirs, dist):
         out[:, j] = col
     if walked:
         out[:, walked] = inside_lengths(prep, points, dirs, dist, [sids[j] for j in walked],
-                                        end_inside=np.zeros((len(points), len(walked)), dtype=bool))[0]
+                                        end_inside=np.zeros((len(points), len(walked)), dtype=bool),
+                                        far_inside=None if far_inside is None else far_inside[:, walked])[0]
     return out
 
 
@@ -666,6 +670,37 @@ def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs
         out[:, c] = f.mean(axis=1)
         var[:, c] = np.maximum((f * f).mean(axis=1) - out[:, c] ** 2, 0.0) / max(steps - 1, 1)
     return out, var
+
+
+def holding(prep, ends, sids) -> np.ndarray:
+    """(N, len(sids)) whether each point of `ends` (N, 3) lies inside each shape of `sids`
+    (`contains`, once per distinct point and shape in a render: the ends are lights' positions)."""
+    uniq, inv = np.unique(np.asarray(ends, float).reshape(-1, 3), axis=0, return_inverse=True)
+    table = np.array([[prep.memo(("holds", sid, u.tobytes()), lambda: contains(prep, u, sid)) for sid in sids]
+                      for u in uniq], dtype=bool).reshape(len(uniq), len(sids))
+    return table[inv.ravel()]
+
+
+def contains(prep, o, sid) -> bool:
+    """Whether shape sid contains the point o: an exact sphere by its radius, a mesh by the parity of
+    its triangles' crossings of a ray from o (a fixed direction off every axis and diagonal)."""
+    sphere = exact_sphere(prep, sid)
+    if sphere is not None:
+        return bool(np.linalg.norm(np.asarray(o, float) - sphere[:3]) < sphere[3])
+    d = np.array([0.5773502691896258, 0.5773502691896257, 0.5773502691896259]) + np.array([1e-3, -2e-3, 0.0])
+    d /= np.linalg.norm(d)
+    tris = prep.accel.triangles[prep.shape_ids == sid]
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    pv = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, pv)
+    ok = np.abs(det) > 1e-300
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    tv = o - tris[:, 0]
+    u = np.einsum("ij,ij->i", tv, pv) * inv
+    qv = np.cross(tv, e1)
+    v = (qv @ d) * inv
+    t = np.einsum("ij,ij->i", e2, qv) * inv
+    return bool(np.count_nonzero(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)) % 2)
 
 
 def exact_sphere(prep, sid):

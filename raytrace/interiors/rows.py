@@ -749,8 +749,10 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
         dirs = rel / np.where(dist > 0.0, dist, 1.0)[:, None]
         if exact:
             lengths = paths.chords(prep, inner, p[m], dirs, dist)
-        else:
-            lengths, _ = paths.inside_lengths(prep, p[m], dirs, dist, inner, margin=prep.accel.epsilon)
+        else:  # a light inside a shape: its walk starts inside
+            lengths, _ = paths.inside_lengths(prep, p[m], dirs, dist, inner, margin=prep.accel.epsilon,
+                                              far_inside=paths.holding(prep, np.broadcast_to(
+                                                  lp[:, None, None, :], p.shape)[m], inner))
         f = out[..., c]
         f[m] = np.exp(-lengths @ dk[:, c])
         out[..., c] = f
