@@ -8,7 +8,6 @@ import pytest
 
 import raytrace
 from raytrace.errors import UserError
-from raytrace.media.slab import APPROX, CLOSED
 from raytrace.methods import Method, Param, Supports, get_method, registry
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
@@ -27,7 +26,7 @@ def test_every_method_declares_what_it_supports():
                                                                                           "montecarlo"}
     # the seed's separable approximation: its own method, analytic outside
     slab, analytic = get_method("slab_approx"), get_method("analytic")
-    assert slab.supports.interiors.mode == APPROX and analytic.supports.interiors.mode == CLOSED
+    assert slab.supports.interiors.entry_plane and analytic.supports.interiors.closed_forms
     assert slab.params is analytic.params and slab.airlight is analytic.airlight
     assert slab.supports.lights == analytic.supports.lights and slab.supports.media == analytic.supports.media
 

@@ -35,21 +35,22 @@ import numpy as np
 from ..errors import UserError
 from ..lights import Lights
 from ..media.adaptive import CAPPED
-from ..media.slab import CLOSED, QUAD, refract_rays, surface_through_faces, transmittances
+from ..media.inside_rule import QUAD
+from ..media.slab import refract_rays, surface_through_faces, transmittances
 from ..media.sphere_refraction import UNBOUNDED
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
 from ..shading import facing_normals, shading_normals, surface_radiance
 from . import paths
 
-# the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a
-# CLOSED-mode method hands to quadrature (`single_scattering`); with volumetric shadows the inside segments
-# rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit pieces of
-# the others, and the outside air-light's pieces whose light crosses index-matched interiors
-# (`through_airlight`) and those of their integrals that fell short of their tolerance; the segments of
-# refractive exact spheres whose quadrature bound is infinite (media/sphere_refraction.py UNBOUNDED, which
-# writes that slot itself), and the refracted point- and spot-light segments whose shadow breaks could not
-# be located (their bound inf: rows.py `_lit_point`)
+# the inside integrals' statistics: media/adaptive.py's slots (EVALS, INTERVALS, CAPPED), the segments a method with
+# closed forms (methods/ `Interiors.closed_forms`) hands to its rule (`single_scattering`); with volumetric shadows
+# the inside segments rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit
+# pieces of the others, and the outside air-light's pieces whose light crosses index-matched interiors
+# (`through_airlight`) and those of their integrals that fell short of their tolerance; the segments of refractive
+# exact spheres whose quadrature bound is infinite (media/sphere_refraction.py UNBOUNDED, which writes that slot
+# itself), and the refracted point- and spot-light segments whose shadow breaks could not be located (their bound
+# inf: rows.py `_lit_point`)
 HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
 SPHERE_UNBOUNDED = UNBOUNDED  # 8
 UNLOCATED = 9
@@ -65,20 +66,20 @@ KERNEL_PLANES = 64
 def summarize(prep, method, stats, shadows: bool = False) -> dict:
     """The render statistics of the inside integrals (`single_scattering`'s) in a scene with media
     inside shapes: the adaptive integrator's integrals that fell short of their tolerance (a piece
-    accepted at a cap), as quadrature reports its own outside; for a CLOSED-mode method also the
-    segments (one per ray and light) it handed to quadrature; nothing for the other inside
-    integrators, which have no caps. With volumetric shadows also the inside segments rendered
+    accepted at a cap), as quadrature reports its own outside; for a method with closed forms also the
+    segments (one per ray and light) it handed to its rule; nothing for the other inside rules, which
+    have no caps, nor for the entry plane's model. With volumetric shadows also the inside segments rendered
     unshadowed, the lit pieces of the others, the outside pieces integrated through interiors, and the
     refracted segments whose shadow breaks were not located (shadows/fermat_legs.py: their bound is inf)."""
     sup = method.supports.interiors
     if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None:
         return {}
     out = {}
-    if sup.mode in (QUAD, CLOSED):
+    if sup.kind == QUAD and not sup.entry_plane:
         out["inside: integrals not converged"] = int(stats[CAPPED])
         if stats[SPHERE_UNBOUNDED]:
             out["inside: refracted sphere segments unbounded"] = int(stats[SPHERE_UNBOUNDED])
-    if sup.mode == CLOSED:
+    if sup.closed_forms:
         out["inside: segments handed to quadrature"] = int(stats[HANDED])
     if shadows:
         out.update({"inside: segments unshadowed (refractive or planar model)": int(stats[UNSHADOWED]),

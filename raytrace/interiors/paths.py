@@ -31,7 +31,7 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.slab import MARCH, QUAD, SAMPLE, U, phase_condition, sphere_radiance, straight_cuts
+from ..media.slab import U, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
@@ -379,18 +379,17 @@ def _rounding(geo, seg, x, d, k, dk, kts, kt_outs, code, g):
 
 
 
-def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rtol, stats):
-    """∫_0^ell of the integrand per segment and channel (N, C) and a bound on its error (N, C), by
-    `adaptive`; the first panels end at a spot's cone crossings (media/slab.py straight_cuts) and, in a
-    convex shape, where the light's exit facet changes (`exit_facets`): the integrand is smooth on each
-    panel. The bound is the rule's and the integrand's rounding with the length errors of the walks or,
-    in a convex shape (here: more than MAX_FACES planes), of the exit facets' planes
-    (`facet_walk.exit_lengths`; inf for a segment the facet walk could not follow, measured by Embree's
-    exits) (`_rounding`), inf where a panel was left open. An exact sphere: media/slab.py's kernel
-    (`_on_sphere`), bounded."""
+def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, stats):
+    """∫_0^ell of the integrand per segment and channel (N, C) and a bound on its error (N, C), by `adaptive` at the
+    QUAD `rule`'s rtol (media/inside_rule.py); the first panels end at a spot's cone crossings (media/slab.py
+    straight_cuts) and, in a convex shape, where the light's exit facet changes (`exit_facets`): the integrand is
+    smooth on each panel. The bound is the rule's and the integrand's rounding with the length errors of the walks
+    or, in a convex shape (here: more than MAX_FACES planes), of the exit facets' planes (`facet_walk.exit_lengths`;
+    inf for a segment the facet walk could not follow, measured by Embree's exits) (`_rounding`), inf where a panel
+    was left open. An exact sphere: media/slab.py's kernel (`_on_sphere`), bounded."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
-        val, _, err = _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, QUAD, stats, rtol=rtol)
+        val, _, err = _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule, stats)
         return val, err
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     convex = prep.interior_planes.get(sid) is not None
@@ -399,7 +398,7 @@ def segment_quadrature(prep, sid, geo, directional, ell, kts, kss, code, g, kt_o
     seg, a, b = _first_panels(geo, directional, end, facets, kinks)
     integrand = lambda ss, xs: _channels(prep, sid, geo, directional, ss, xs, kts, kss, code, g, kt_outs, facets,
                                          True)
-    return adaptive(integrand, end, len(kts), seg, a, b, rtol, stats, bounded=True)
+    return adaptive(integrand, end, len(kts), seg, a, b, rule.rtol, stats, bounded=True)
 
 
 class Facets(NamedTuple):
@@ -630,13 +629,13 @@ def _first_panels(geo, directional, end, facets=None, kinks=None):
     return seg[:-1][keep], at[:-1][keep], at[1:][keep]
 
 
-def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, tau_max):
-    """The midpoint rule with `steps` points per segment and channel, the segment cut where its optical
-    depth reaches tau_max (media/slab.py's MARCH; an exact sphere's in its kernel, `_on_sphere`)."""
+def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule):
+    """The midpoint rule with the MARCH `rule`'s steps per segment and channel, the segment cut where its
+    optical depth reaches tau_max (media/inside_rule.py; an exact sphere's in its kernel, `_on_sphere`)."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
-        return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, MARCH, steps=steps,
-                          tau_max=tau_max)[0]
+        return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule)[0]
+    steps, tau_max = rule.steps, rule.tau_max
     out = np.zeros((len(ell), len(kts)))
     seg = np.repeat(np.arange(len(ell)), steps)
     j = np.tile(np.arange(steps) + 0.5, len(ell))
@@ -648,22 +647,22 @@ def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, 
     return out
 
 
-def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, steps, keys, dim0, seed):
-    """Free-path sampling (media/slab.py's SAMPLE): `steps` samples per segment and channel, the same
-    random numbers for every channel (an exact sphere's in media/slab.py's kernel, `_on_sphere`); the
-    mean and the variance of the mean (N, C) each."""
+def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys, dim0, seed):
+    """Free-path sampling (media/inside_rule.py's SAMPLE): the `rule`'s steps samples per segment and
+    channel, the same random numbers for every channel (an exact sphere's in media/slab.py's kernel,
+    `_on_sphere`); the mean and the variance of the mean (N, C) each."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
-        return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, SAMPLE, steps=steps, keys=keys,
-                          dim0=dim0, seed=seed)[:2]
-    n = len(ell)
+        return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys=keys, dim0=dim0,
+                          seed=seed)[:2]
+    n, steps = len(ell), rule.steps
     out, var = np.zeros((n, len(kts))), np.zeros((n, len(kts)))
     seg = np.repeat(np.arange(n), steps)
     u = np.empty(len(seg))
     _uniforms(keys, seg, np.tile(np.arange(steps, dtype=np.uint64), n) + np.uint64(dim0), np.uint64(seed), u)
     for c in range(len(kts)):
         kt = float(kts[c])
-        mass = -np.expm1(-kt * np.minimum(ell, 745.0 / kt)) / kt
+        mass = -np.expm1(-kt * np.minimum(ell, rule.tau_max / kt)) / kt
         x = -np.log1p(-u * kt * mass[seg]) / kt
         f = _channels(prep, sid, geo, directional, seg, x, kts[c:c + 1], kss[c:c + 1], code, g, kt_outs[c:c + 1])[:, 0]
         f = (f * mass[seg] * np.exp(kt * x)).reshape(n, steps)
@@ -720,9 +719,8 @@ def boundary(prep, sid):
     return None if sphere is None else (SPHERE, sphere.reshape(1, 4))
 
 
-def _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, mode, stats=None, rtol=0.0, steps=1,
-               tau_max=0.0, keys=None, dim0=0, seed=0):
-    """The `segment_quadrature` (QUAD), `segment_march` (MARCH) or `segment_samples` (SAMPLE) of the
+def _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule, stats=None, keys=None, dim0=0, seed=0):
+    """The `segment_quadrature` (QUAD), `segment_march` (MARCH) or `segment_samples` (SAMPLE) by `rule` of the
     segments inside the exact sphere (centre, radius), per channel: (value, variance, bound) (N, C) each,
     by media/slab.py `sphere_radiance`; stats[0] += its integrals short of their tolerance."""
     n, nc = len(ell), len(kts)
@@ -733,8 +731,8 @@ def _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, mode, 
     geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
     for c in range(nc):
         sphere_radiance(np.ascontiguousarray(sphere, dtype=np.float64), geo, bool(directional), ell, float(kts[c]),
-                        float(kss[c]), code, g, float(kt_outs[c]), mode, rtol, steps, tau_max, keys, np.uint64(dim0),
-                        np.uint64(seed), col, col_var, col_err, slots)
+                        float(kss[c]), code, g, float(kt_outs[c]), rule, keys, np.uint64(dim0), np.uint64(seed), col,
+                        col_var, col_err, slots)
         out[:, c], var[:, c], err[:, c] = col, col_var, col_err
     if stats is not None:
         stats[0] += slots[CAPPED]

@@ -1,7 +1,7 @@
 """The single scattering of inside rows: the `Segments` rows that the boundary crossing (interiors/crossing.py)
 makes of camera rays inside shapes that hold a medium, integrated by the method's inside rule
-(`Supports.interiors`: media/slab.py's inside integrator `mode`, with the settings the method gives
-it), with volumetric shadows over each light's exact lit pieces, and the outside air-light whose
+(`Supports.interiors`: its inside rule, media/inside_rule.py, and what it declares of the light's path
+inside), with volumetric shadows over each light's exact lit pieces, and the outside air-light whose
 light crosses index-matched interiors (`through_airlight`).
 
 Each inside row starts at its entry point (the boundary, or the camera inside the shape) and runs
@@ -12,17 +12,18 @@ shape's faces; `TRACED`: straight through a non-convex one, measured with Embree
 through the refracting boundary). A row integrates every light (`light` = -1).
 
 In an index-matched shape the light's path inside is its exact straight path for the methods with
-`exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights) in an
-index-matched shape: convex, at most MAX_FACES planes, the closed form of media/convex_directional.py
-with its bound; else the segments go to the adaptive quadrature (`_traced`, rtol bounded.RTOL),
-counted (HANDED), with its bound. Through a refractive boundary a directional light enters a convex shape
-through every face it meets, one beam each (`bounded.refracted_beams`: the exact refracted path;
-CLOSED bounded as above), other shapes through the entry plane (eq. 5, unbounded); a point or spot
+`exact_paths`, else the note's entry plane (`entry_plane`: slab_approx). With `closed_forms` (analytic,
+directional lights) in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
+media/convex_directional.py with its bound; else the segments go to the method's rule (its adaptive
+quadrature: `_traced`, rtol bounded.RTOL), counted (HANDED), with its bound. Through a refractive boundary a
+directional light enters a convex shape through every face it meets, one beam each
+(`bounded.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
+through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
-sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; CLOSED hands
-them to QUAD, counted; QUAD bounded but where a caustic crossing has no fold pair); slab_approx keeps the
-entry plane everywhere.
+sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; closed forms hand
+them to the rule, counted; QUAD bounded but where a caustic crossing has no fold pair); the entry plane's
+model keeps the entry plane everywhere.
 
 QUAD (quadrature) bounds its integrals in index-matched shapes (docs/error_bounds.md, "Inside shapes"):
 convex ones of at most MAX_FACES planes in media/slab.py's kernel (`plane_errors`: how far its
@@ -30,8 +31,8 @@ planes are from the faces), others on the facet walk's exit planes or on traced 
 (paths.segment_quadrature), and in refractive exact spheres (`_refracted_sphere`, but where a caustic
 crossing has no fold pair); a directional light's refracted beams in convex refractive shapes (ior >
 1): of at most MAX_FACES planes by the distance of each beam's value from its closed form plus the
-closed form's bound (`_beam_terms`), of more by `_face_beams`; elsewhere, and for the other rules but
-CLOSED's closed form, the bound is infinite.
+closed form's bound (`_beam_terms`), of more by `_face_beams`; elsewhere, and for the other rules (but
+the closed forms), the bound is infinite.
 """
 from __future__ import annotations
 
@@ -42,8 +43,8 @@ import numpy as np
 
 from ..error_bounds import KERNEL_FLOOR, product, spot_rounding
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
-from ..media.slab import (APPROX, CLOSED, EVERY, GEO_COLUMNS, MARCH, QUAD, SAMPLE, STREAM, inside_radiance,
-                          phase_condition, segment_reach)
+from ..media.inside_rule import MARCH, QUAD
+from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
@@ -82,22 +83,22 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     summed over the lights, for the interior `medium` with outward entry normals `normals`, its
     variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
     (N, 3) on its error (inf where none is known). `reach`: how light reaches the rows (the crossing's
-    bounded.STRAIGHT, TRACED or REFRACTED). The method's inside integrator is its
-    `Supports.interiors.mode` with its `settings`; in an index-matched shape the light's path inside is its exact
+    bounded.STRAIGHT, TRACED or REFRACTED). The method's inside rule is its
+    `Supports.interiors.rule(params)`; in an index-matched shape the light's path inside is its exact
     straight path (convex: `convex_planes`; else traced, `_traced`) for the methods with
-    `exact_paths`, else the note's entry plane (slab_approx). CLOSED (analytic, directional lights)
-    in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
-    media/convex_directional.py with its bound; else the segments go to the adaptive quadrature
-    (`_traced`, rtol RTOL), counted (HANDED), bounded as QUAD's. Through a refractive boundary a directional
-    light enters a convex shape (`convex_planes`) through every face it meets, one beam each
-    (`refracted_beams`: the exact refracted path; CLOSED bounded as above, QUAD by each beam's distance
-    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the
-    entry plane (eq. 5, unbounded); a point or spot light a convex one through every face it is outside of
-    (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path); every light an
-    exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only
-    (else all); `piece`: the segments' rank among their ray's lit pieces (`lit_single_scattering`),
-    which numbers their random streams; `beam`: of a directional light's refracted beams, or of a
-    point or spot light's refracted paths, only the one through that face (`_lit_beams`)."""
+    `exact_paths`, else the note's entry plane (`entry_plane`: `plane_closed`). With `closed_forms`
+    (analytic, directional lights) in an index-matched shape: convex, at most MAX_FACES planes, the closed
+    form of media/convex_directional.py with its bound; else the segments go to the rule (`_traced`, its
+    adaptive quadrature at rtol RTOL), counted (HANDED), bounded as QUAD's. Through a refractive boundary a
+    directional light enters a convex shape (`convex_planes`) through every face it meets, one beam each
+    (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
+    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
+    unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
+    outside of (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path); every light an
+    exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only (else all); `piece`:
+    the segments' rank among their ray's lit pieces (`lit_single_scattering`), which numbers their random streams;
+    `beam`: of a directional light's refracted beams, or of a point or spot light's refracted paths, only the one
+    through that face (`_lit_beams`)."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     refractive = reach == REFRACTED
@@ -109,18 +110,17 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     out = np.zeros((n, 3))
     var = np.zeros((n, 3))
     sup = method.supports.interiors
-    mode = sup.mode
-    closed = mode == CLOSED and not refractive  # the exact closed form, or quadrature where there is none
-    kernel = mode == CLOSED and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
-    beams = refractive and len(planes) > 0 and mode != APPROX  # slab_approx keeps the note's plane
-    faces = refracting_planes(prep, sid) if refractive and mode != APPROX else np.zeros((0, 4))
+    closed = sup.closed_forms and not refractive  # the exact closed form, or the rule where there is none
+    kernel = sup.closed_forms and 0 < len(planes) <= MAX_FACES  # exact and bounded (refractive: the beams)
+    beams = refractive and len(planes) > 0 and not sup.entry_plane  # the note's model keeps its plane
+    faces = refracting_planes(prep, sid) if refractive and not sup.entry_plane else np.zeros((0, 4))
     near = plane_neighbours(prep, sid) if len(faces) else EVERY
     bound = np.zeros((n, 3))
-    rtol, steps, tau_max = sup.settings(params)
+    rule = sup.rule(params)
     stats = np.zeros(STATS_SIZE)
     a = -np.einsum("ij,ij->i", w, normals)
     dplanes = measured_plane_errors(prep, sid)
-    dims = STREAM + piece * MAX_DEPTH * len(lights) * steps
+    dims = STREAM + piece * MAX_DEPTH * len(lights) * rule.steps
 
     def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None):
         ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]  # the channels lit and scattering
@@ -128,13 +128,16 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             return
         unit, unit_var, unit_err = np.empty((n, len(ch))), np.empty((n, len(ch))), np.empty((n, len(ch)))
         kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
-        inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g,
-                        prep.scene.medium.sigma_t[ch].astype(float), wl, ll, float(medium.ior), geo, used,
-                        near if used is faces else EVERY, dplanes, only,
-                        mode, rtol, steps, tau_max, keys,
-                        np.uint64(dims + (depth * len(lights) + li) * steps + (only + 1) * STREAM), np.uint64(seed),
-                        unit, unit_var, unit_err, stats)
-        if toward is not None and mode == QUAD:  # beam `only`: against its closed form
+        kt_out = prep.scene.medium.sigma_t[ch].astype(float)
+        if sup.closed_forms or sup.entry_plane:  # through the entry plane
+            plane_closed(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g, kt_out, sup.entry_plane,
+                         unit, unit_var, unit_err)
+        else:
+            inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g, kt_out, wl, ll,
+                            float(medium.ior), geo, used, near if used is faces else EVERY, dplanes, only, rule, keys,
+                            np.uint64(dims + (depth * len(lights) + li) * rule.steps + (only + 1) * STREAM),
+                            np.uint64(seed), unit, unit_var, unit_err, stats)
+        if toward is not None and rule.kind == QUAD:  # beam `only`: against its closed form
             unit_err = against_beam(unit, li, only, toward, kt, ks)
         for j, c in enumerate(ch.tolist()):
             f = scale * lights.intensity[li, c]
@@ -164,7 +167,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
         bound[:] += b * (lights.intensity[li] * scale)
 
     zero = np.zeros(n)
-    sphere = paths.exact_sphere(prep, sid) if refractive and mode != APPROX else None
+    sphere = paths.exact_sphere(prep, sid) if refractive and not sup.entry_plane else None
     for li in range(len(lights)) if light is None else [light]:
         idx = np.full(n, li, dtype=np.int64)
         distant = np.full(n, lights.distant[li])
@@ -172,8 +175,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             geo[:, 9:12], geo[:, 12:14], geo[:, 17] = 0.0, lights.cone[li, :2], lights.cone[li, 2]
             if sphere is not None:
                 geo[:, 6:9] = -lights.axis[li]
-                _refracted_sphere(prep, sid, sphere, geo, True, ell, li, sup, params, keys,
-                                  dims + (depth * len(lights) + li) * steps, seed, out, var, bound, stats)
+                _refracted_sphere(prep, sid, sphere, geo, True, ell, li, sup, rule, keys,
+                                  dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
                 continue
             if beams:
                 for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
@@ -187,8 +190,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                               np.ascontiguousarray(toward))
                 continue
             if len(faces):  # more than KERNEL_PLANES planes: each beam over its lit interval
-                _face_beams(prep, sid, faces, near, li, beam, (points, w, ell, keys), mode, (rtol, steps, tau_max),
-                            dims + (depth * len(lights) + li) * steps, seed, (out, var, bound, stats))
+                _face_beams(prep, sid, faces, near, li, beam, (points, w, ell, keys), sup, rule,
+                            dims + (depth * len(lights) + li) * rule.steps, seed, (out, var, bound, stats))
                 continue
             if kernel:
                 closed_form(li, -lights.axis[li], 1.0, -1)
@@ -205,9 +208,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             if closed or (traced and sup.exact_paths):
                 if closed:
                     stats[HANDED] += np.count_nonzero(ell > 0.0)
-                _traced(prep, sid, medium, geo, True, ell, lights.intensity[li] * scale,
-                        QUAD if closed else mode, rtol, steps, tau_max, keys, dims + (depth * len(lights) + li) * steps,
-                        seed, out, var, bound, stats)
+                _traced(prep, sid, medium, geo, True, ell, lights.intensity[li] * scale, rule, keys,
+                        dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
                 continue
             integrate(li, distant, zero, zero, zero, b, mu, zero, zero, scale, planes if not refractive else np.zeros((0, 4)))
             continue
@@ -223,15 +225,14 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
             ll = np.einsum("ij,ij->i", lh, lh)
         if sphere is not None:
-            _refracted_sphere(prep, sid, sphere, geo, False, ell, li, sup, params, keys,
-                              dims + (depth * len(lights) + li) * steps, seed, out, var, bound, stats)
+            _refracted_sphere(prep, sid, sphere, geo, False, ell, li, sup, rule, keys,
+                              dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
             continue
         if closed or (traced and sup.exact_paths):
             if closed:
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
-            _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], QUAD if closed else mode, rtol, steps,
-                    tau_max, keys, dims + (depth * len(lights) + li) * steps, seed, out, var, bound, stats,
-                    lights.cone[li, 0])
+            _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], rule, keys,
+                    dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats, lights.cone[li, 0])
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
                   planes if not refractive else faces,  # refractive: faces_point's faces
@@ -242,21 +243,22 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     return out, var, stats, bound
 
 
-def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, seed, acc, others=None):
+def _face_beams(prep, sid, planes, near, li, beam, rows, sup, rule, dim0, seed, acc, others=None):
     """acc = (out, var, bound, stats) += directional light li's single scattering over the rows (points,
     w, ell, keys) of the convex refractive shape sid of more than KERNEL_PLANES face `planes` (neighbours
     `near`): each beam it makes (`refracted_beams`; with `beam`, that face's alone) over the interval
     of each segment where the path back leaves through its face (media/convex_directional.py
-    `beam_intervals`, from the face's neighbours alone), by the method's rule: CLOSED the closed form
-    (`beams_closed`, bounded as `segments_bounded` with the planes' own errors), QUAD, MARCH or SAMPLE
-    over the interval from its start on the face's plane alone (the exit there is that face's; the
-    kernel takes it as a straight path, eta 1, the beam's direction and irradiance given, so QUAD's
-    bound is `convex_bounded`'s), carried back by exp(-sigma_t lo); CLOSED's and QUAD's bounds add
+    `beam_intervals`, from the face's neighbours alone), as the method declares (`sup`): with closed
+    forms the closed form (`beams_closed`, bounded as `segments_bounded` with the planes' own errors), else
+    its `rule` (QUAD, MARCH or SAMPLE) over the interval from its start on the face's plane alone (the exit
+    there is that face's; the kernel takes it as a straight path, eta 1, the beam's direction and irradiance
+    given, so QUAD's bound is `convex_bounded`'s), carried back by exp(-sigma_t lo); the closed form's and QUAD's
+    bounds add
     the beam's direction and irradiance errors (`_beam_errors`) and what the interval's ends may
     change, misplaced within their spans. `others` (`_other_interiors`): the beam attenuated by the
     other index-matched interiors on its entry point's path to the sun (shadows/through_others.py
-    `attenuated_radiance` on face f's plane alone, `only` that plane; CLOSED, which has no closed form
-    with the chords, by QUAD, counted HANDED), the kernel's bound with the planes' normal error widened
+    `attenuated_radiance` on face f's plane alone, `only` that plane; closed forms, which have none with
+    the chords, by the rule, counted HANDED), the kernel's bound with the planes' normal error widened
     by twice the beam direction's error (the entry point X + k toward moves by at most 2 k du / q_f);
     the ends' spans bounded as without them (the attenuation is at most 1)."""
     points, w, ell, keys = rows
@@ -267,7 +269,6 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
         return
     kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
     kt_out = prep.scene.medium.sigma_t[ch].astype(float)
-    rtol, steps, tau_max = settings
     dplanes = measured_plane_errors(prep, sid)
     eta = float(medium.ior)
     for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
@@ -277,7 +278,7 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
         ints, val, edges, rel, err = _beam_terms(planes, near, int(f), toward, lights.axis[li], medium, dplanes,
                                                 (points, w, ell), kt, ks)
         f_li = irradiance * lights.intensity[li, ch]
-        if mode == CLOSED and others is None:
+        if sup.closed_forms and others is None:
             out[:, ch] += val * f_li
             bound[:, ch] += product(err, f_li)
             continue
@@ -291,20 +292,19 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
         if others is None:
             zero = np.zeros(m)
             inside_radiance(np.ones(m, np.bool_), zero, zero, zero, zero, zero, w[sel] @ toward, ints[sel, 1] - lo, kt,
-                            ks, medium.phase, medium.g, kt_out, zero, zero, 1.0, geo, face, EVERY, dplanes, -1, mode,
-                            rtol, steps, tau_max, keys[sel], dim, np.uint64(seed), unit, unit_var, unit_err, stats)
+                            ks, medium.phase, medium.g, kt_out, zero, zero, 1.0, geo, face, EVERY, dplanes, -1, rule,
+                            keys[sel], dim, np.uint64(seed), unit, unit_var, unit_err, stats)
         else:
             oplanes, first, stop, kt_other, dothers, balls = others
             du, _ = _beam_errors(float(-(planes[f, :3] @ lights.axis[li])), eta, dplanes[0])
             wide = np.array([dplanes[0] + 2.0 * du, dplanes[1]])
-            if mode == CLOSED:
+            if sup.closed_forms:
                 stats[HANDED] += m
-            rule = QUAD if mode == CLOSED else mode
             col, col_var, col_err = np.empty(m), np.empty(m), np.empty(m)
             for j, c in enumerate(ch.tolist()):
                 attenuated_radiance(True, geo, face, ints[sel, 1] - lo, kt[j], ks[j], medium.phase, medium.g, kt_out[j],
-                                    oplanes, first, stop, np.ascontiguousarray(kt_other[:, c]), rule, rtol, steps,
-                                    tau_max, keys[sel], dim, np.uint64(seed), wide, dothers, balls, 0,
+                                    oplanes, first, stop, np.ascontiguousarray(kt_other[:, c]), rule, keys[sel],
+                                    dim, np.uint64(seed), wide, dothers, balls, 0,
                                     np.ascontiguousarray(-lights.axis[li]), col, col_var, col_err, stats)
                 unit[:, j], unit_var[:, j], unit_err[:, j] = col, col_var, col_err
         with np.errstate(over="ignore", invalid="ignore"):
@@ -314,7 +314,7 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, mode, settings, dim0, s
             var[sel, c] += unit_var[:, j] * (tr[:, j] * f_li[j]) ** 2
             bound[sel, c] += _light_bound(product(unit_err[:, j], tr[:, j]) + rel[sel, j] * unit[:, j] * tr[:, j],
                                           unit[:, j] * tr[:, j] * f_li[j], f_li[j], lights.cone[li, 0])
-        if mode in (QUAD, CLOSED):
+        if rule.kind == QUAD:  # the closed form's, or QUAD's
             bound[:, ch] += product(edges, f_li)
         else:
             bound[np.ix_(ell > 0.0, ch)] = np.inf
@@ -377,15 +377,14 @@ def _beam_errors(cos_i, eta, dn):
     return du, (max(e[2] - e[1], e[1] - e[0]) / e[1] if e[1] > 0.0 else 0.0) + 16.0 * u
 
 
-def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, keys, dim0, seed, out, var, bound, stats):
+def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, rule, keys, dim0, seed, out, var, bound, stats):
     """out, var, bound += light li's single scattering over the rows (geo: GEO_COLUMNS) of the refractive
     exact sphere sid (centre, radius): its exact refracted paths (media/sphere_refraction.py) by the
-    method's inside rule (one kernel call per channel), CLOSED's handed to QUAD (counted, HANDED); QUAD's
-    bound (inf where a caustic crossing has no fold pair, counted) with a spot's rounding, inf for the others."""
+    method's inside `rule` (one kernel call per channel), handed to it by a method with closed forms
+    (`sup.closed_forms`: counted, HANDED); QUAD's bound (inf where a caustic crossing has no fold pair,
+    counted) with a spot's rounding, inf for the others."""
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    rtol, steps, tau_max = sup.settings(params)
-    mode = QUAD if sup.mode == CLOSED else sup.mode
-    if sup.mode == CLOSED:
+    if sup.closed_forms:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
     for c in range(3):
         if medium.sigma_s[c] == 0.0 or lights.intensity[li, c] == 0.0:
@@ -393,8 +392,7 @@ def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, params, key
         val, v, err = np.empty(len(ell)), np.empty(len(ell)), np.empty(len(ell))
         sphere_refracted(np.asarray(sphere, dtype=np.float64), geo, bool(distant), ell, float(medium.sigma_t[c]),
                          float(medium.sigma_s[c]), medium.phase, medium.g, float(prep.scene.medium.sigma_t[c]),
-                         float(medium.ior), mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), val, v,
-                         err, stats)
+                         float(medium.ior), rule, keys, np.uint64(dim0), np.uint64(seed), val, v, err, stats)
         out[:, c] += val * lights.intensity[li, c]
         var[:, c] += v * lights.intensity[li, c] ** 2
         bound[:, c] += _light_bound(err, val * lights.intensity[li, c], lights.intensity[li, c], lights.cone[li, 0])
@@ -404,28 +402,27 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     """`single_scattering` with volumetric shadows (`shadows`): over the pieces of each inside segment
     that each light reaches past the blockers (shadows/frusta.py's exact lit intervals of `blockers`;
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
-    start and carried back to the entry by exp(-sigma_t t0) (analytic's CLOSED too: its closed form
-    and its quadrature fallback take the exact path from any start); in a convex refractive shape,
+    start and carried back to the entry by exp(-sigma_t t0) (closed forms too: analytic's closed form
+    and its rule take the exact path from any start); in a convex refractive shape,
     `_lit_beams`. In a refractive exact sphere alone in the scene nothing blocks (`single_scattering`).
     Where the light's path is neither straight nor a convex shape's refracted paths (a refractive
-    interior that is not convex, an exact sphere beside other shapes) or not traced (slab_approx: the
-    note's planar model),
-    the segments are unshadowed, counted (UNSHADOWED), and
+    interior that is not convex, an exact sphere beside other shapes) or not traced (`entry_plane`: the
+    note's planar model), the segments are unshadowed, counted (UNSHADOWED), and
     their bound is infinite if anything but the shape itself could stand on the light's path. Inside
     a convex index-matched shape every light is attenuated by the other index-matched interiors on
-    its path where all are convex (`_through_others`, its bound; CLOSED hands those segments to
-    QUAD, counted), else not, and the bound is infinite."""
+    its path where all are convex (`_through_others`, its bound; closed forms hand those segments to
+    the rule, counted), else not, and the bound is infinite."""
     medium = prep.scene.shapes[sid].interior
     n, n_lights = len(points), len(prep.lights)
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     sup = method.supports.interiors
-    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and sup.mode != APPROX \
+    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and not sup.entry_plane \
             and not np.any(prep.shape_ids != sid):  # alone in the scene: nothing stands on its refracted paths
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
-    if reach == REFRACTED and len(refracting_planes(prep, sid)) and sup.mode != APPROX:
+    if reach == REFRACTED and len(refracting_planes(prep, sid)) and not sup.entry_plane:
         return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
-    if reach == REFRACTED or not (sup.exact_paths or sup.mode == CLOSED):  # CLOSED: exact paths, directional lights
+    if reach == REFRACTED or sup.entry_plane:  # closed forms: exact paths, directional lights
         out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
                                                    depth)
         stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
@@ -462,12 +459,12 @@ def _other_interiors(prep, sid, sup, many=False):
     holding each) of the index-matched interiors but shape sid, for
     `_through_others`, where sid and all of them are convex (at most KERNEL_PLANES faces; `many`: sid
     a convex refractive shape of more, for its directional beams, `_face_beams`, and its point and spot
-    lights' paths, `_lit_point`) and the method's
-    inside rule is QUAD, MARCH, SAMPLE or CLOSED; else None (their attenuation is not applied)."""
+    lights' paths, `_lit_point`) and the method takes the light's exact paths (not the
+    entry plane's model); else None (their attenuation is not applied)."""
     inner = [i for i in matched(prep) if i != sid]
     planes = [convex_planes(prep, i) for i in inner]
     own = refracting_planes(prep, sid) if many else convex_planes(prep, sid)
-    if not inner or sup.mode not in (QUAD, MARCH, SAMPLE, CLOSED) or not len(own) or any(not len(q) for q in planes):
+    if not inner or sup.entry_plane or not len(own) or any(not len(q) for q in planes):
         return None
     stop = np.cumsum([len(q) for q in planes])
     return (np.ascontiguousarray(np.concatenate(planes)), stop - np.array([len(q) for q in planes]), stop,
@@ -488,8 +485,8 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     """`single_scattering` of light li over the rows (points, normals, w, ell, keys) of convex
     index-matched shape sid, the light attenuated by the other interiors `others`
     (`_other_interiors`) on its straight path: shadows/through_others.py, by the method's inside rule
-    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; CLOSED, which has
-    no closed form with the chords, by QUAD at its rtol, counted HANDED). A directional light is
+    (QUAD at its rtol, MARCH, SAMPLE on the streams `single_scattering` would use; closed forms, which
+    have none with the chords, by the rule, counted HANDED). A directional light is
     attenuated by each interior's whole sigma_t (the outside medium does not attenuate it), a point
     or spot light by its excess over the outside's. `beam` = (face, toward, irradiance): in a convex
     refractive shape, the directional light's beam refracted through that face (`_lit_beams`), the
@@ -515,11 +512,11 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
     geo[:, 9:12], geo[:, 12:14] = 0.0 if distant else lights.axis[li], lights.cone[li, :2]
     geo[:, 17] = lights.cone[li, 2]
     sup = method.supports.interiors
-    rtol, steps, tau_max = sup.settings(params)
-    mode = QUAD if sup.mode == CLOSED else sup.mode
+    rule = sup.rule(params)
+    steps = rule.steps
     dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps + (only + 1) * STREAM
     out, var, bound, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(STATS_SIZE)
-    if sup.mode == CLOSED:
+    if sup.closed_forms:
         stats[HANDED] += np.count_nonzero(ell > 0.0)
     unit, unit_var, unit_err = np.empty(n), np.empty(n), np.empty(n)
     dplanes = measured_plane_errors(prep, sid)
@@ -530,11 +527,11 @@ def _through_others(prep, method, params, sid, others, li, piece, rows, seed, de
         dk = np.ascontiguousarray(kt_other[:, c] - (0.0 if distant else kt_out))
         if face is not None:
             refracted_attenuated(geo, planes, near, ell, kt, ks, medium.phase, medium.g, kt_out, float(medium.ior),
-                                 face, oplanes, first, stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0),
-                                 np.uint64(seed), dplanes, dothers, balls, unit, unit_var, unit_err, stats)
+                                 face, oplanes, first, stop, dk, rule, keys, np.uint64(dim0), np.uint64(seed), dplanes,
+                                 dothers, balls, unit, unit_var, unit_err, stats)
         else:
             attenuated_radiance(distant, geo, planes, ell, kt, ks, medium.phase, medium.g, kt_out, oplanes, first,
-                                stop, dk, mode, rtol, steps, tau_max, keys, np.uint64(dim0), np.uint64(seed), dplanes,
+                                stop, dk, rule, keys, np.uint64(dim0), np.uint64(seed), dplanes,
                                 dothers, balls, only, -lights.axis[li], unit, unit_var, unit_err, stats)
         f = scale * lights.intensity[li, c]
         out[:, c] = unit * f
@@ -600,10 +597,11 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
                 if many and beam_others is not None:
                     val, v, b, st = np.zeros((len(r), 3)), np.zeros((len(r), 3)), np.zeros((len(r), 3)), \
                         np.zeros(STATS_SIZE)
-                    rtol, steps, tau_max = sup.settings(params)
+                    rule = sup.rule(params)
+                    steps = rule.steps
                     dim0 = STREAM + piece * MAX_DEPTH * len(lights) * steps + (depth * len(lights) + li) * steps
                     _face_beams(prep, sid, planes, plane_neighbours(prep, sid), li, f,
-                                (rows[0], rows[2], rows[3], rows[4]), sup.mode, (rtol, steps, tau_max), dim0, seed,
+                                (rows[0], rows[2], rows[3], rows[4]), sup, rule, dim0, seed,
                                 (val, v, b, st), beam_others)
                 elif others is not None:
                     val, v, st, b = _through_others(prep, method, params, sid, others, li, piece, rows, seed, depth,
@@ -716,8 +714,8 @@ def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
         return shadowed_airlight(prep.accel, method, medium, prep.lights, params, _own_streams(segs, len(prep.lights)),
                                  n_rays, functools.partial(_attenuation, prep, inner, dk))
     capped = np.zeros(1)
-    values = paths.through_quadrature(prep, segs, medium, inner, kt_in,
-                                             method.supports.interiors.settings(params)[0], capped)
+    values = paths.through_quadrature(prep, segs, medium, inner, kt_in, method.supports.interiors.rule(params).rtol,
+                                      capped)
     stats[THROUGH_CAPPED] += capped[0]
     return gather(segs, values, n_rays, medium), np.zeros((n_rays, 3))
 
@@ -803,10 +801,11 @@ def _light_bound(err, value, f, cos_end):
     return product(err, f) + spot_rounding(np.array([cos_end]))[0] * np.abs(value)
 
 
-def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, tau_max, keys, dim0, seed, out, var,
-            bound, stats, cos_end=-2.0):
+def _traced(prep, sid, medium, geo, distant, ell, intensity, rule, keys, dim0, seed, out, var, bound, stats,
+            cos_end=-2.0):
     """out, var, bound += one light's single scattering over the segments of an index-matched shape
-    (non-convex, or handed over by CLOSED), the light's straight paths measured with Embree (paths.py),
+    (non-convex, or handed over by closed forms) by the inside `rule`, the light's straight paths measured
+    with Embree (paths.py),
     its bound (`paths.segment_quadrature`'s; inf for the other rules) with a spot's rounding (`cos_end`)."""
     ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
     if not len(ch):
@@ -815,14 +814,14 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, mode, rtol, steps, 
     args = (prep, sid, geo, distant, ell, kts, kss, medium.phase, medium.g, kt_outs)
     v = np.zeros((len(ell), len(ch)))
     err = np.full((len(ell), len(ch)), np.inf)
-    if mode == QUAD:
+    if rule.kind == QUAD:
         capped = np.zeros(1)
-        val, err = paths.segment_quadrature(*args, rtol, capped)
+        val, err = paths.segment_quadrature(*args, rule, capped)
         stats[CAPPED] += capped[0]
-    elif mode == MARCH:
-        val = paths.segment_march(*args, steps, tau_max)
+    elif rule.kind == MARCH:
+        val = paths.segment_march(*args, rule)
     else:
-        val, v = paths.segment_samples(*args, steps, keys, dim0, seed)
+        val, v = paths.segment_samples(*args, rule, keys, dim0, seed)
     out[:, ch] += val * intensity[ch]
     var[:, ch] += v * intensity[ch] ** 2
     for j, c in enumerate(ch.tolist()):

@@ -43,21 +43,16 @@ import numpy as np
 
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
-from ..rng import uniform
 from .adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..geometry.sorting import sort_few
 from .fermat_rounding import SQ3, cosine_error, fermat_speed, point_error, refraction_newton, term_rounding
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
-from .integrand import integrand, integrand_of
+from .inside_rule import QUAD, cut_length, march_or_sample
+from .integrand import integrand_of
 from .gauss import N10, N20, W10, W20
-from .march import march
 from .phase import ISOTROPIC, phase_value
 
-# how `inside_radiance` evaluates a segment: adaptive quadrature, eq. 5 only (CLOSED; in convex index-matched
-# shapes interiors/crossing.py takes media/convex_directional.py's exact closed form instead), the note's approximation,
-# the midpoint rule (ray marching), free-path sampling (Monte Carlo)
-QUAD, CLOSED, APPROX, MARCH, SAMPLE = 0, 1, 2, 3, 4
 STREAM = 1 << 40  # random-number dimensions of inside segments start here (a ray's air-light uses the low ones)
 # the spot terms (w_h·A, L_h·A, n·A, cos_end, cos_start, curve) of `refracted_point` for a light without a cone
 NO_SPOT = (0.0, 0.0, 0.0, NO_CONE[0], NO_CONE[1], float(SMOOTHSTEP))
@@ -1355,33 +1350,32 @@ def _point_rule(r, end, rtol, dplanes, stats):
 
 
 @njit
-def _straight(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, dplanes, mode, rtol, steps,
-              tau_max, key, dim0, seed, stats):
+def _straight(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, dplanes, rule, key, dim0, seed,
+              stats):
     """(value, variance, bound) of one inside segment of a convex index-matched shape (its boundary of
-    `kind`): QUAD `convex_bounded`, MARCH or SAMPLE `march_or_sample` of `convex_integrand` (bound inf)."""
-    if mode == QUAD:
-        value, bound = convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, ph, only, rtol,
-                                      dplanes, stats)
+    `kind`) by the inside `rule` (media/inside_rule.py): QUAD `convex_bounded`, MARCH or SAMPLE
+    `march_or_sample` of `convex_integrand` (bound inf)."""
+    if rule.kind == QUAD:
+        value, bound = convex_bounded(geo, kind, planes, directional, ell, kt, ks, code, g, kt_out, ph, only,
+                                      rule.rtol, dplanes, stats)
         return value, 0.0, bound
-    value, var = _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, mode, steps,
-                                   tau_max, key, dim0, seed)
+    value, var = _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, rule, key,
+                                   dim0, seed)
     return value, var, math.inf
 
 
 @njit
-def _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, mode, steps, tau_max, key,
-                      dim0, seed):
+def _straight_sampled(kind, planes, geo, directional, ell, kt, ks, code, g, kt_out, ph, only, rule, key, dim0, seed):
     """(value, variance) of `_straight`'s MARCH or SAMPLE."""
-    length = min(ell, (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
     rec = ConvexIntegrand(geo, kind, planes, directional, kt, ks, code, g, kt_out, ph, only)
-    return march_or_sample(rec, mode, length, kt, steps, key, dim0, seed)
+    return march_or_sample(rec, rule, cut_length(rule, ell, kt), kt, key, dim0, seed)
 
 
 @njit
-def sphere_radiance(sphere, geo, directional, ell, kt, ks, code, g, kt_out, mode, rtol, steps, tau_max, keys, dim0,
-                    seed, out, var, err, stats):
+def sphere_radiance(sphere, geo, directional, ell, kt, ks, code, g, kt_out, rule, keys, dim0, seed, out, var, err,
+                    stats):
     """`inside_radiance` inside an index-matched exact sphere (centre, radius) for one light and
-    channel (QUAD, MARCH or SAMPLE: `_straight`): out, var and err per segment (geo: GEO_COLUMNS rows;
+    channel (the inside `rule`: `_straight`): out, var and err per segment (geo: GEO_COLUMNS rows;
     a directional light's phase at the cosine between w and the direction toward it, geo[6:9])."""
     rows = sphere.reshape(1, 4)
     for s in range(ell.shape[0]):
@@ -1390,7 +1384,7 @@ def sphere_radiance(sphere, geo, directional, ell, kt, ks, code, g, kt_out, mode
             continue
         ph = phase_value(code, g, geo[s, 3] * geo[s, 6] + geo[s, 4] * geo[s, 7] + geo[s, 5] * geo[s, 8])
         out[s], var[s], err[s] = _straight(SPHERE, rows, geo[s], directional, ell[s], kt, ks, code, g, kt_out, ph, -1,
-                                           NO_PLANE_ERROR, mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
+                                           NO_PLANE_ERROR, rule, keys[s], dim0, seed, stats)
 
 
 U = 2.0 ** -53  # unit roundoff of doubles
@@ -1592,103 +1586,107 @@ def _inside_value(x, r):
                             r.wl, r.ll, r.eta, r.spot)
 
 
-@njit
-def march_or_sample(rec, mode, length, kt, steps, key, dim0, seed):
-    """(value, variance of the mean) of an inside segment [0, length]: MARCH, the midpoint rule with
-    `steps` cells (variance 0); SAMPLE, the mean of `steps` free-path samples
-    x = -ln(1 - u (1 - e^{-kt length})) / kt, u from the ray's key at dimensions dim0 + j."""
-    if mode == MARCH:
-        return march(rec, 0.0, steps, length / steps, 0.5), 0.0
-    mass = -math.expm1(-kt * length) / kt  # ∫ exp(-kt x) dx over the segment
-    acc = acc2 = 0.0
-    for j in range(steps):
-        u = uniform(key, dim0 + j, seed)
-        x = -math.log1p(-u * kt * mass) / kt
-        f = integrand(x, rec) * mass * math.exp(kt * x)
-        acc += f
-        acc2 += f * f
-    mean = acc / steps
-    return mean, max(acc2 / steps - mean * mean, 0.0) / max(steps - 1, 1)
-
-
 def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes, near,
-                    dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
+                    dplanes, only, rule, keys, dim0, seed, out, var, err, stats):
     """Single scattering over inside segments (module docstring), one light each, unit light, per
-    channel (kt, ks, kt_out: one each; out, var, err: (N, C)): for a directional light (`directional`)
+    channel (kt, ks, kt_out: one each; out, var, err: (N, C)) by the method's inside `rule`
+    (media/inside_rule.py): for a directional light (`directional`)
     per unit beam irradiance inside, with b the cosine of its refracted direction to the normal and mu
     the scattering cosine; for a point or spot light at height hl above the entry plane, kt_out the
-    extinction outside (through a refractive plane, eta != 1: wl, ll of `refracted_point`; not with
-    CLOSED or APPROX). A light below the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter
-    through that plane).
-    mode: QUAD (adaptive, the reference), CLOSED (eq. 5; point lights not allowed), APPROX (eq. 5
-    and the note's separable approximation, with the outside attenuation at the entry point), MARCH
-    (`steps` midpoints over the segment, cut where its optical depth reaches tau_max), SAMPLE (`steps`
-    free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt, u from the ray's key at dimensions
-    dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per segment (a spot's axis and cone
-    there; NO_CONE for other lights). With `planes` (a convex shape, rows of `convex_exit_face`; else an
-    empty array) QUAD, MARCH and SAMPLE integrate `convex_integrand` (geo: its per-segment rows)
+    extinction outside (through a refractive plane, eta != 1: wl, ll of `refracted_point`). A light below
+    the entry plane (hl <= 0, b <= 0) gives 0 (it does not enter through that plane).
+    rule: QUAD (adaptive, the reference), MARCH (`steps` midpoints over the segment, cut where its
+    optical depth reaches tau_max), SAMPLE (`steps` free-path samples x = -ln(1 - u (1 - e^{-kt ell})) / kt,
+    u from the ray's key at dimensions dim0 + j; var gets the variance of the mean). geo: GEO_COLUMNS per
+    segment (a spot's axis and cone there; NO_CONE for other lights). With `planes` (a convex shape, rows
+    of `convex_exit_face`; else an empty array) the rule integrates `convex_integrand` (geo: its per-segment rows)
     instead: the exact straight path to every light outside, or with only >= 0 a directional light's
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
     (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD,
     every channel at once: the faces' cull and breaks are the channels'), with only >= 0 through that
     face alone; `near` (int64): the planes' neighbours of interiors/crossing.py `plane_neighbours`
-    there (`reachable_faces`; empty: every plane is tested).
+    there (`reachable_faces`; empty: every plane is tested). The closed forms through the entry plane
+    are `plane_closed`'s.
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
     `dplanes` the planes' own errors against the shape's faces), for QUAD's point and spot lights in
     convex refractive ones (`faces_quadrature`) and where the value is exactly 0 (no light, nothing to
     scatter); inf elsewhere.
     Each kind of segment has its own kernel below, compiled on first use: a scene compiles the
     integrands of the kinds it meets only."""
-    out[:], var[:] = 0.0, 0.0
-    err[:] = np.where((ell[:, None] > 0.0) & (ks[None, :] != 0.0), math.inf, 0.0)
+    _unlit(ell, ks, out, var, err)
     directional = np.asarray(directional, dtype=np.bool_)
-    faces = eta != 1.0 and mode == QUAD
+    faces = eta != 1.0 and rule.kind == QUAD
     if faces and np.any((ell > 0.0) & ~directional):
         _faces_quad(np.flatnonzero((ell > 0.0) & ~directional), geo, planes, near, a, hl, wl, ll, only, ell, kt, ks,
-                    code, g, kt_out, eta, rtol, dplanes, out, err, stats)
+                    code, g, kt_out, eta, rule.rtol, dplanes, out, err, stats)
     for c in range(kt.shape[0]):
         column = out[:, c].copy(), var[:, c].copy(), err[:, c].copy()
-        live = ell > 0.0 if ks[c] != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
+        live = _live(ell, ks[c])
         _channel_radiance(live & directional if faces else live, directional, xh, h, hl, a, b, mu, ell, float(kt[c]),
                           float(ks[c]), code, g, float(kt_out[c]), wl, ll, eta, geo, planes, near, dplanes, only,
-                          mode, rtol, steps, tau_max, keys, dim0, seed, *column, stats)
+                          rule, keys, dim0, seed, *column, stats)
         out[:, c], var[:, c], err[:, c] = column
 
 
+def plane_closed(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, approximate, out, var, err):
+    """`inside_radiance` by the analytic note's closed forms through the entry plane, for the methods that
+    declare them (methods/ `Interiors`): a directional light's eq. 5 (`slab_distant`, exact for the planar
+    boundary) and, with `approximate`, a point light's separable approximation (`point_approx`, the outside
+    attenuation at the entry point; without it, 0); var 0, err inf where anything scatters."""
+    _unlit(ell, ks, out, var, err)
+    directional = np.asarray(directional, dtype=np.bool_)
+    for c in range(kt.shape[0]):
+        column = out[:, c].copy()
+        live = _live(ell, ks[c]) & np.where(directional, ~(b <= 0.0), ~(hl <= 0.0))  # below the entry plane: 0
+        kt_c, ks_c = float(kt[c]), float(ks[c])
+        _each(_distant_closed, live & directional, mu, a, b, ell, kt_c, ks_c, code, g, column)
+        if approximate:
+            _each(_point_approx, live & ~directional, xh, h, hl, a, ell, kt_c, ks_c, code, g, float(kt_out[c]), column)
+        out[:, c] = column
+
+
+def _unlit(ell, ks, out, var, err):
+    """out, var = 0; err inf where a segment has length and its channel scatters, else 0 (exact)."""
+    out[:], var[:] = 0.0, 0.0
+    err[:] = np.where((ell[:, None] > 0.0) & (ks[None, :] != 0.0), math.inf, 0.0)
+
+
+def _live(ell, ks):
+    """The segments that scatter in a channel of scattering coefficient ks."""
+    return ell > 0.0 if ks != 0.0 else np.zeros(ell.shape, dtype=np.bool_)
+
+
+def _each(kernel, which, *args):
+    """`kernel` over the segments `which` selects, where there are any."""
+    if np.any(which):
+        kernel(np.flatnonzero(which), *args)
+
+
 def _channel_radiance(live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, planes,
-                      near, dplanes, only, mode, rtol, steps, tau_max, keys, dim0, seed, out, var, err, stats):
+                      near, dplanes, only, rule, keys, dim0, seed, out, var, err, stats):
     """`inside_radiance` of one channel over the segments `live` (out, var, err: (N,))."""
-    convex, sampled = planes.shape[0] > 0, mode == MARCH or mode == SAMPLE
-
-    def each(kernel, which, *args):  # `kernel` over the segments `which` selects, where there are any
-        if np.any(which):
-            kernel(np.flatnonzero(which), *args)
-
-    if eta != 1.0 and convex and sampled:
+    convex, quad = planes.shape[0] > 0, rule.kind == QUAD
+    if eta != 1.0 and convex and not quad:
         # a point or spot light through every face of a convex refractive shape
-        each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
-             eta, mode, steps, tau_max, keys, dim0, seed, out, var)
+        _each(_faces_sampled, live & ~directional, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out,
+              eta, rule, keys, dim0, seed, out, var)
         live &= directional
-    if convex and mode != CLOSED and mode != APPROX:
-        if mode == QUAD:
+    if convex:
+        if quad:
             for kernel, which in ((_convex_quad, live & ~directional), (_convex_distant_quad, live & directional)):
-                each(kernel, which, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only, rtol,
-                     out, err, stats)
+                _each(kernel, which, directional, mu, ell, kt, ks, code, g, kt_out, eta, geo, planes, dplanes, only,
+                      rule.rtol, out, err, stats)
         else:
-            each(_convex_sampled, live, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, mode, steps,
-                 tau_max, keys, dim0, seed, out, var)
+            _each(_convex_sampled, live, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, rule, keys,
+                  dim0, seed, out, var)
         return
     live &= np.where(directional, ~(b <= 0.0), ~(hl <= 0.0))  # a light below the entry plane gives 0
-    if sampled:
-        each(_plane_sampled, live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo,
-             mode, steps, tau_max, keys, dim0, seed, out, var)
-    elif mode == QUAD:
-        each(_distant_quad, live & directional, mu, a, b, ell, kt, ks, code, g, rtol, out, stats)
-        each(_point_quad, live & ~directional, xh, h, hl, a, ell, kt, ks, code, g, kt_out, rtol, out, stats)
-    else:  # CLOSED or APPROX (a point light: APPROX only)
-        each(_distant_closed, live & directional, mu, a, b, ell, kt, ks, code, g, out)
-        if mode == APPROX:
-            each(_point_approx, live & ~directional, xh, h, hl, a, ell, kt, ks, code, g, kt_out, out)
+    if quad:
+        _each(_distant_quad, live & directional, mu, a, b, ell, kt, ks, code, g, rule.rtol, out, stats)
+        _each(_point_quad, live & ~directional, xh, h, hl, a, ell, kt, ks, code, g, kt_out, rule.rtol, out, stats)
+    else:
+        _each(_plane_sampled, live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo,
+              rule, keys, dim0, seed, out, var)
 
 
 @njit
@@ -1967,16 +1965,16 @@ def light_norms(geo):
 
 
 @njit
-def _faces_sampled(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, mode, steps, tau_max,
-                   keys, dim0, seed, out, var):
+def _faces_sampled(sel, geo, planes, near, a, hl, wl, ll, only, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim0,
+                   seed, out, var):
     """The same, MARCH or SAMPLE: `march_or_sample` of `faces_point`."""
     for s in sel:
-        length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
+        length = cut_length(rule, ell[s], kt)
         faces, m, local, spot = _reached(s, geo, planes, near, a, hl, wl, ll, only, eta, length)
         if m > 0:
             rec = FacesPoint(faces[:m], local, eta, kt, ks, code, g, kt_out, spot[3:], 0.0, 0.0, 0.0,
                              (0.0, 0.0, 0.0, 0.0), -1, np.zeros(0))
-            out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            out[s], var[s] = march_or_sample(rec, rule, length, kt, keys[s], dim0, seed)
 
 
 @njit
@@ -2017,26 +2015,25 @@ def _convex_store(s, found, eta, before, out, err, stats):
 
 
 @njit
-def _convex_sampled(sel, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, mode, steps, tau_max, keys,
-                    dim0, seed, out, var):
+def _convex_sampled(sel, directional, mu, ell, kt, ks, code, g, kt_out, geo, planes, only, rule, keys, dim0, seed, out,
+                    var):
     """The same, MARCH or SAMPLE: `march_or_sample` of `convex_integrand`."""
     for s in sel:
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         out[s], var[s] = _straight_sampled(PLANES, planes, geo[s], directional[s], ell[s], kt, ks, code, g, kt_out, ph,
-                                           only, mode, steps, tau_max, keys[s], dim0, seed)
+                                           only, rule, keys[s], dim0, seed)
 
 
 @njit
-def _plane_sampled(sel, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, mode, steps,
-                   tau_max, keys, dim0, seed, out, var):
+def _plane_sampled(sel, directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_out, wl, ll, eta, geo, rule, keys,
+                   dim0, seed, out, var):
     """`inside_radiance` through the entry plane, MARCH or SAMPLE: `march_or_sample` of `inside_integrand`."""
     for s in sel:
         ph = phase_value(code, g, mu[s]) if directional[s] else 0.0
         spot = spot_terms(geo[s], a[s], hl[s]) if eta != 1.0 and not directional[s] else NO_SPOT
-        length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)  # beyond 745, exp(-kt x) underflows
         rec = InsideIntegrand(directional[s], xh[s], h[s], hl[s], a[s], b[s], ph, kt, ks, code, g, kt_out, wl[s],
                               ll[s], eta, spot)
-        out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+        out[s], var[s] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt), kt, keys[s], dim0, seed)
 
 
 @njit
@@ -2048,7 +2045,7 @@ def _distant_quad(sel, mu, a, b, ell, kt, ks, code, g, rtol, out, stats):
 
 @njit
 def _distant_closed(sel, mu, a, b, ell, kt, ks, code, g, out):
-    """The same, CLOSED or APPROX: eq. 5 (`slab_distant`)."""
+    """`plane_closed`'s directional light: eq. 5 (`slab_distant`)."""
     for s in sel:
         out[s] = slab_distant(kt, ks, phase_value(code, g, mu[s]), a[s] / b[s], ell[s])
 
@@ -2062,7 +2059,8 @@ def _point_quad(sel, xh, h, hl, a, ell, kt, ks, code, g, kt_out, rtol, out, stat
 
 @njit
 def _point_approx(sel, xh, h, hl, a, ell, kt, ks, code, g, kt_out, out):
-    """The same, APPROX: the note's approximation (`point_approx`) with the outside attenuation at the entry point."""
+    """`plane_closed`'s point light: the note's approximation (`point_approx`) with the outside attenuation at the
+    entry point."""
     for s in sel:
         da = math.sqrt(h[s] * h[s] + xh[s] * xh[s])
         out[s] = point_approx(xh[s], h[s], ell[s], kt, ks, code, g, a[s], hl[s] / da) * math.exp(-kt_out * da)

@@ -198,7 +198,8 @@ from .adaptive import bounded_piecewise
 from .integrand import integrand_of
 from .phase import phase_value
 from .gauss import N10, N20, W10, W20
-from .slab import MARCH, QUAD, fresnel, march_or_sample, phase_condition
+from .inside_rule import QUAD, cut_length, march_or_sample
+from .slab import fresnel, phase_condition
 
 SCAN = 48  # uniform cells of the lit arc on which `paths` starts (`caustic_crossings` on its half [0, theta_a])
 MAX_HALVINGS = 40  # of a cell of `paths` (or `caustic_crossings`) before it is left unresolved
@@ -1523,13 +1524,14 @@ def _fold(r, lo, hi, flag_lo, flag_hi, theta_c, cone, cone_side, rtol, stats, tr
 
 
 @njit
-def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
+def _one(r, ell, rule, key, dim0, seed, stats):
     """(value, variance, bound) of one segment: QUAD adaptive between `breaks` with its bound (module
     docstring, "The bound"; the pieces across one caustic crossing by `_fold`, across a cone's crossing
     beside it too; inf where that fails, a scan was unproven or a piece's path count changed: counted in
     stats[UNBOUNDED]), MARCH or SAMPLE
-    media/slab.py's (bound inf)."""
-    if mode == QUAD:
+    media/inside_rule.py's (bound inf), by the inside `rule`."""
+    if rule.kind == QUAD:
+        rtol = rule.rtol
         end = min(ell, 745.0 / r.kt)
         spot_edges(r, end)
         br, caustic, spans = np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3), np.zeros(MAX_PATHS + 3)
@@ -1585,17 +1587,16 @@ def _one(r, ell, mode, rtol, steps, tau_max, key, dim0, seed, stats):
             bound = math.inf
             stats[UNBOUNDED] += 1.0
         return total, 0.0, bound
-    length = min(ell, (tau_max if mode == MARCH else 745.0) / r.kt)
-    value, var = march_or_sample(r, mode, length, r.kt, steps, key, dim0, seed)
+    value, var = march_or_sample(r, rule, cut_length(rule, ell, r.kt), r.kt, key, dim0, seed)
     return value, var, math.inf
 
 
 @njit
-def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, mode, rtol, steps, tau_max, keys, dim0,
-                     seed, out, var, err, stats):
+def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim0, seed, out, var, err,
+                     stats):
     """out, var, err (N,) := (value, variance, bound) of the inside segments (geo: media/slab.py's GEO_COLUMNS rows;
     a directional light's direction toward it in geo[6:9]) of the refractive exact sphere (centre,
-    radius) for one unit light and channel, by mode QUAD, MARCH or SAMPLE; stats: media/adaptive.py's
+    radius) for one unit light and channel, by the inside `rule` (QUAD, MARCH or SAMPLE); stats: media/adaptive.py's
     slots (stats[UNBOUNDED]: the QUAD segments whose bound is inf). One light's `frame` serves the rows
     that share its geo[6:9]."""
     out[:], var[:], err[:] = 0.0, 0.0, 0.0
@@ -1610,4 +1611,4 @@ def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, mo
             last = geo[s, 6:9].copy()
             light_frame = frame(sphere, last, distant, eta)
         r = record(sphere, geo[s], distant, eta, kt, ks, code, g, kt_out, light_frame)
-        out[s], var[s], err[s] = _one(r, ell[s], mode, rtol, steps, tau_max, keys[s], dim0, seed, stats)
+        out[s], var[s], err[s] = _one(r, ell[s], rule, keys[s], dim0, seed, stats)

@@ -15,7 +15,7 @@ import numpy as np
 from ..lights import AREA, EMISSION, ENVIRONMENT
 from ..media import Homogeneous
 from ..media.phase import HG, ISOTROPIC, NAMES as PHASE_NAMES, RAYLEIGH
-from ..media.slab import CLOSED, QUAD
+from ..media.inside_rule import QUAD, InsideRule, inside_rule
 
 _MODULES = ("analytic", "quadrature", "raymarch", "lecocq", "sun", "montecarlo", "slab_approx")
 
@@ -118,23 +118,25 @@ def _inside_defaults(params: dict) -> tuple:
 
 @dataclass(frozen=True)
 class Interiors:
-    """How a method integrates media inside shapes (interiors/crossing.py): media/slab.py's inside integrator
-    `mode` (QUAD adaptive, CLOSED closed forms: a directional light's exact path in convex index-matched
-    shapes, media/convex_directional.py, quadrature in other index-matched ones, counted, eq. 5 through
-    refractive boundaries; APPROX the slab note's separable approximation, MARCH midpoints, SAMPLE free
-    paths), for the light kinds `lights`, of which `refracted` also through a
-    refractive boundary (ior != 1). `exact_paths`: in index-matched shapes the light's exact straight
-    path, else the entry face's plane (the note's model; CLOSED as above). `camera_inside`: the rule
-    takes rows without an entry face (a camera inside a shape: index-matched, convex or an exact
-    sphere; interiors/crossing.py `start_inside`); the entry plane's model has none to take.
-    `fixed`: its parameters not implemented inside (they must keep their defaults). `limits`: what
-    its refusal of a light says. `settings(params)`: the inside integrator's (rtol, steps or samples
-    per segment, optical depth at which a march stops) from the method's own parameters. `through`: how
-    the outside air-light whose light crosses index-matched interiors is integrated: "points" (the
-    method's own medium points, `Method.points`, each point's light attenuated) or "quadrature" (the
-    traced adaptive quadrature at the inside rtol: quadrature's own rule, a fallback of the others,
-    counted)."""
-    mode: int
+    """How a method integrates media inside shapes (interiors/crossing.py), the one place it declares it: its
+    inside rule, of `kind` QUAD (adaptive quadrature), MARCH (midpoints) or SAMPLE (free paths) with
+    `settings(params)`, the rule's (rtol, steps or samples per segment, optical depth at which a segment is
+    cut) from the method's own parameters (`rule(params)`: the record media/inside_rule.py's drivers take),
+    for the light kinds `lights`, of which `refracted` also through a refractive boundary (ior != 1). The
+    light's path inside, one of three: `exact_paths`, the rule along the light's exact paths (straight in
+    index-matched shapes, refracted through refractive boundaries); `closed_forms`, closed forms where there
+    are some (a directional light's exact path in convex index-matched shapes, media/convex_directional.py;
+    its beams through every face of convex refractive ones; eq. 5 through the entry plane of other
+    refractive shapes), the rule on the exact paths elsewhere, counted; `entry_plane`, the entry face's
+    plane everywhere by the slab note's closed forms (eq. 5; its separable approximation for point
+    lights). `camera_inside`: the rule takes rows without an entry face (a camera inside a shape:
+    index-matched, convex or an exact sphere; interiors/crossing.py `start_inside`); the entry plane's
+    model has none to take. `fixed`: its parameters not implemented inside (they must keep their
+    defaults). `limits`: what its refusal of a light says. `through`: how the outside air-light whose
+    light crosses index-matched interiors is integrated: "points" (the method's own medium points,
+    `Method.points`, each point's light attenuated) or "quadrature" (the traced adaptive quadrature at
+    the rule's rtol: quadrature's own rule, a fallback of the others, counted)."""
+    kind: int
     lights: tuple = LIGHTS
     refracted: tuple = LIGHTS
     exact_paths: bool = False
@@ -143,6 +145,15 @@ class Interiors:
     settings: Callable[[dict], tuple] = _inside_defaults
     through: str = "quadrature"
     camera_inside: bool = True
+    closed_forms: bool = False
+    entry_plane: bool = False
+
+    def __post_init__(self):
+        assert self.exact_paths + self.closed_forms + self.entry_plane == 1, "one model of the light's path inside"
+
+    def rule(self, params: dict) -> InsideRule:
+        """The inside rule's record for the method's parameters `params`."""
+        return inside_rule(self.kind, *self.settings(params))
 
 
 @dataclass(frozen=True)
@@ -167,12 +178,12 @@ class Supports:
             model = ("exact straight light paths" if inside.exact_paths else
                      "closed forms: exact in convex shapes (refractive: the beam of every face the light meets; an "
                      "exact sphere's refracted paths: adaptive quadrature), the entry face's plane in other "
-                     "refractive shapes" if inside.mode == CLOSED else
+                     "refractive shapes" if inside.closed_forms else
                      "the slab note's separable approximation")
             through = "" if inside.refracted == inside.lights else \
                 f"; through refractive boundaries: {', '.join(inside.refracted)}"
             fallback = "; light through them: adaptive quadrature" if inside.through == "quadrature" and \
-                inside.mode != QUAD else ""
+                not (inside.kind == QUAD and inside.exact_paths) else ""
             shapes = f"media inside shapes ({', '.join(inside.lights)} lights{through}; {model}{fallback})"
         return (f"takes {', '.join(self.lights)} lights; {', '.join(m.type_name for m in self.media)} media; "
                 f"{', '.join(PHASE_NAMES[p] for p in self.phases)} phases; {shapes}")

@@ -48,7 +48,7 @@ from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forwa
                                hg_legendre, legendre_to_cosine, rayleigh_legendre, start_sensitivity, times_trig,
                                trig_moments_forward)
 from ..media.phase import HG, INV_4PI, ISOTROPIC, RAYLEIGH, hg, phase_split, phase_value
-from ..media.slab import CLOSED
+from ..media.inside_rule import QUAD
 from ..media.gauss import N10, N20, W10, W20
 from .quadrature import CAPPED
 from .quadrature import _rule as quad_rule
@@ -1123,7 +1123,7 @@ METHOD = Method(
     stats_size=STATS_SIZE,
     summarize=summarize_stats,
     supports=Supports(lights=("point", "spot") + AREA_LIGHTS, interiors=Interiors(
-        CLOSED, lights=("directional", ENVIRONMENT), refracted=("directional", ENVIRONMENT),
+        QUAD, closed_forms=True, lights=("directional", ENVIRONMENT), refracted=("directional", ENVIRONMENT),
         limits="no closed form (eq. 7 of the analytic note on single scattering in homogeneous slabs)")),
     tolerance_key="precision",
 )

@@ -44,7 +44,7 @@ from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import attenuated_density, column, column_distance
 from ..media.phase import phase_split
-from ..media.slab import SAMPLE
+from ..media.inside_rule import SAMPLE
 
 EQUIANGULAR, FREEPATH, MIS, CDF = 0, 1, 2, 3
 MODES = {"equiangular": EQUIANGULAR, "freepath": FREEPATH, "mis": MIS, "cdf": CDF}

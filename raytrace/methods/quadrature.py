@@ -49,7 +49,7 @@ from ..media.gauss import N10, N20, W10, W20
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import LINEAR, column, column_distance, column_error, top_distance
 from ..media.phase import HG, phase_split, phase_value
-from ..media.slab import QUAD
+from ..media.inside_rule import QUAD
 
 
 BOUND_FACTOR = 2.0

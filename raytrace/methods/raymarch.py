@@ -48,7 +48,7 @@ from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance
 from ..media.march import coarse_steps, march, march_error
-from ..media.slab import MARCH
+from ..media.inside_rule import MARCH
 
 MAX_STEPS = 1 << 20
 DIM_JITTER = 0x524D  # rng dimension of the per-ray jitter ("RM"), distinct from other methods' dims

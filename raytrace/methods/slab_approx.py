@@ -12,7 +12,6 @@ method is `analytic` and declares analytic's error law.
 """
 from dataclasses import replace
 
-from ..media.slab import APPROX
 from .analytic import METHOD as ANALYTIC
 
 # analytic's parameters, kernels and error law (outside bounded media it is analytic: tests/test_methods.py)
@@ -22,7 +21,8 @@ METHOD = replace(
     summary="inside bounded media, the separable point-light approximation of the analytic note on single "
             "scattering in homogeneous slabs (its eq. 5 for directional lights); the analytic air-light outside",
     supports=replace(ANALYTIC.supports, interiors=replace(
-        ANALYTIC.supports.interiors, mode=APPROX, lights=("point", "directional"), camera_inside=False,
+        ANALYTIC.supports.interiors, closed_forms=False, entry_plane=True, lights=("point", "directional"),
+        camera_inside=False,
         limits="the slab note's separable approximation is for index-matched boundaries with point lights, not "
                "spot lights")),
 )

@@ -10,7 +10,7 @@ B_j do not overlap, so c_j is B_j's chord of the whole path from the point to th
 chords change slope where the path toward the light passes a vertex of the polygon the plane through
 the segment and the light cuts from B_j (`section_kinks`), so `quadrature` starts its adaptive rule
 from those points as well as A's own kinks and a spot's cone crossings; `raymarch` and `montecarlo`
-evaluate the same integrand with their own rules (media/slab.py `march_or_sample`).
+evaluate the same integrand with their own rules (media/inside_rule.py `march_or_sample`).
 
 A directional light (geo's light columns: the unit direction u toward it) takes the path X + s u,
 s >= 0, and the integrand ks Phi(w·u) exp(-kt (x + k)) (the outside medium does not attenuate it:
@@ -49,9 +49,10 @@ from ..media.convex_directional import envelope
 from .fermat_legs import _OUT_EDGE, RESOLUTION, ROUNDING, _cross, _norm, _push, _refraction, _roots
 from ..media.fermat_rounding import point_error
 from ..media.gauss import N10, N20, W10, W20
-from ..media.slab import (EDGE_CUTS, FACE_COLUMNS, MARCH, MAX_CUTS, QUAD, U, FacesPoint, break_errors,
+from ..media.inside_rule import QUAD, cut_length, march_or_sample
+from ..media.slab import (EDGE_CUTS, FACE_COLUMNS, MAX_CUTS, U, FacesPoint, break_errors,
                           convex_exit_face, convex_integrand, coordinate_size, directional_rounding, edge_breaks,
-                          fermat, light_norms, light_span, march_or_sample, on_face, only_face, phase_condition,
+                          fermat, light_norms, light_span, on_face, only_face, phase_condition,
                           point_rounding, reachable_faces, refracted_at, refracted_cuts, refracting_faces, rho_range,
                           spot_terms, straight_cuts, term_error)
 
@@ -257,26 +258,26 @@ def _bounded(rec, planes, end, dplanes, dothers, spheres, stats):
 
 
 @njit
-def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, others, first, stop, dk, mode, rtol,
-                        steps, tau_max, keys, dim0, seed, dplanes, dothers, spheres, only, sun, out, var, err, stats):
+def attenuated_radiance(directional, geo, planes, ell, kt, ks, code, g, kt_out, others, first, stop, dk, rule, keys,
+                        dim0, seed, dplanes, dothers, spheres, only, sun, out, var, err, stats):
     """out, var, err (N,) = the attenuated single scattering (`AttenuatedConvex`) of each segment (geo
-    rows, unit light, one channel) over [0, ell], its variance and a bound on its error: QUAD adaptive
+    rows, unit light, one channel) over [0, ell], its variance and a bound on its error, by the inside
+    `rule` (media/inside_rule.py): QUAD adaptive
     between the kinks of A's and every B_j's chords and a spot's cone crossings, bounded (`_bounded`;
     dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j]: a ball (centre, radius)
     holding B_j; only, sun: a refracted beam's face and the direction toward the sun, only -1
-    otherwise); MARCH, SAMPLE as media/slab.py's `march_or_sample` (keys, dim0, seed: SAMPLE's
+    otherwise); MARCH, SAMPLE as media/inside_rule.py's `march_or_sample` (keys, dim0, seed: SAMPLE's
     random streams), err inf."""
     for s in range(geo.shape[0]):
         out[s], var[s], err[s] = 0.0, 0.0, 0.0
         if ks == 0.0 or not ell[s] > 0.0:
             continue
-        rec = AttenuatedConvex(directional, geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk, rtol,
-                               only, sun)
-        if mode == QUAD:
+        rec = AttenuatedConvex(directional, geo[s], planes, kt, ks, code, g, kt_out, others, first, stop, dk,
+                               rule.rtol, only, sun)
+        if rule.kind == QUAD:
             out[s], err[s] = _bounded(rec, planes, min(ell[s], 745.0 / kt), dplanes, dothers, spheres, stats)
         else:
-            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+            out[s], var[s] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt), kt, keys[s], dim0, seed)
             err[s] = math.inf
 
 
@@ -398,15 +399,15 @@ def leg_kinks(row, n, p, w, eta, light, others, first, stop, end, out):
 
 
 @njit
-def refracted_attenuated(geo, planes, near, ell, kt, ks, code, g, kt_out, eta, only, others, first, stop, dk, mode,
-                         rtol, steps, tau_max, keys, dim0, seed, dplanes, dothers, spheres, out, var, err, stats):
+def refracted_attenuated(geo, planes, near, ell, kt, ks, code, g, kt_out, eta, only, others, first, stop, dk, rule,
+                         keys, dim0, seed, dplanes, dothers, spheres, out, var, err, stats):
     """out, var, err (N,) = a unit point or spot light's single scattering over each segment (geo rows
     with zero entry normals: every face's terms from `planes`) of a convex refractive shape through
     face `only` (`RefractedAttenuated`), the outside leg attenuated by the B_j, its variance and a
-    bound on its error: QUAD adaptive between A's edge breaks and cone crossings (media/slab.py
+    bound on its error, by the inside `rule`: QUAD adaptive between A's edge breaks and cone crossings (media/slab.py
     `faces_quadrature`'s) and the leg's chord kinks (`leg_kinks`), bounded (`_refracted_bound`;
     dplanes, dothers[j]: the planes' (dn, dc) of A and B_j, spheres[j] a ball holding B_j); MARCH,
-    SAMPLE as media/slab.py's `march_or_sample`, err inf. `near` (interiors/crossing.py
+    SAMPLE as media/inside_rule.py's `march_or_sample`, err inf. `near` (interiors/crossing.py
     `plane_neighbours`; given for a shape of more than KERNEL_PLANES planes): the face's path over the
     planes it needs alone (media/slab.py `reachable_faces`, as `faces_quadrature`'s each face: its
     face test, breaks and bound those with every plane; 0, exactly, where its refraction point
@@ -432,11 +433,10 @@ def refracted_attenuated(geo, planes, near, ell, kt, ks, code, g, kt_out, eta, o
         r, cmax = coordinate_size(geo[s], planes, end)
         pn, ln, lp = light_norms(geo[s])
         tracked = FacesPoint(faces[:1].copy(), local, eta, kt, ks, code, g, kt_out, spot[3:], ph, dplanes[0],
-                               dplanes[1], (pn, ln, lp, r + ln + cmax), -1, np.zeros(1 if mode == QUAD else 0))
+                               dplanes[1], (pn, ln, lp, r + ln + cmax), -1, np.zeros(1 if rule.kind == QUAD else 0))
         rec = RefractedAttenuated(row.copy(), geo[s, 6:9].copy(), others, first, stop, dk, tracked)
-        if mode != QUAD:
-            length = min(ell[s], (tau_max if mode == MARCH else 745.0) / kt)
-            out[s], var[s] = march_or_sample(rec, mode, length, kt, steps, keys[s], dim0, seed)
+        if rule.kind != QUAD:
+            out[s], var[s] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt), kt, keys[s], dim0, seed)
             err[s] = math.inf
             continue
         br[0] = 0.0
@@ -447,7 +447,7 @@ def refracted_attenuated(geo, planes, near, ell, kt, ks, code, g, kt_out, eta, o
                                  others, first, stop, end, np.empty(16))
         cuts = np.concatenate((br[:k], legs[:n_legs], np.array([end])))
         cuts[1:-1].sort()
-        out[s], err[s] = _refracted_bound(rec, cuts, end, rtol, dothers, spheres, stats)
+        out[s], err[s] = _refracted_bound(rec, cuts, end, rule.rtol, dothers, spheres, stats)
 
 
 @njit
