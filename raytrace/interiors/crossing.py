@@ -191,7 +191,7 @@ def check(prep, method, method_params, source: str):
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
                             "medium; a point or spot light inside a bounded medium needs an index-matched interior "
                             "(ior = 1); move the light out of the shape or set its ior = 1")
-        if inside is not None and not sup.exact_paths:
+        if inside is not None and sup.entry_plane:
             raise UserError(f"{source}: --method {method.name}: light[{prep.lights.owner[li]}].position inside "
                             f"shape[{inside}]: its inside model sees the light through the plane of the face a camera "
                             f"ray enters by; use --method {', '.join(_takers(lambda s: s.exact_paths))}")
