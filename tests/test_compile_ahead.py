@@ -136,25 +136,14 @@ print(json.dumps({"hits": sum(analytic.evaluate_segments.stats.cache_hits.values
 """
 
 
-def _first_render(tmp_path, name, ahead):
+def _first_render(tmp_path, name, ahead, script, *args):
+    """The image and the kernel's cache statistics of `script`'s render in a fresh process on an empty cache."""
     env = dict(os.environ, RAYTRACE_CACHE=str(tmp_path / f"cache_{name}"), PYTHONPATH=str(ROOT),
                RAYTRACE_COMPILE_AHEAD="1" if ahead else "0")
     out = tmp_path / f"{name}.npy"
-    proc = subprocess.run([sys.executable, "-c", RENDER, str(out)], env=env, capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-c", script, str(out), *args], env=env, capture_output=True, text=True,
                           check=True)
     return np.load(out), json.loads(proc.stdout.splitlines()[-1])
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
-def test_first_renders_on_empty_caches_load_the_workers_airlight_and_agree(tmp_path):
-    a, stats_a = _first_render(tmp_path, "a", True)
-    b, stats_b = _first_render(tmp_path, "b", True)
-    serial, stats_serial = _first_render(tmp_path, "serial", False)
-    assert stats_a == stats_b == {"hits": 1, "misses": 0}  # the worker's kernel, loaded
-    assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
-    np.testing.assert_array_equal(a, b)  # which process compiles what does not depend on timing
-    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)  # the same kernel, compiled elsewhere
 
 
 PILOT = """
@@ -170,22 +159,18 @@ print(json.dumps({"hits": sum(frusta._point_lit.stats.cache_hits.values()),
 """
 
 
-def _first_pilot_render(tmp_path, name, ahead):
-    env = dict(os.environ, RAYTRACE_CACHE=str(tmp_path / f"cache_{name}"), PYTHONPATH=str(ROOT),
-               RAYTRACE_COMPILE_AHEAD="1" if ahead else "0")
-    out = tmp_path / f"{name}.npy"
-    proc = subprocess.run([sys.executable, "-c", PILOT, str(out), str(ROOT / "tests/data/area_peers/occluded.toml")],
-                          env=env, capture_output=True, text=True, check=True)
-    return np.load(out), json.loads(proc.stdout.splitlines()[-1])
-
 
 @pytest.mark.slow
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
-def test_beside_a_pilot_first_renders_load_the_workers_shadow_kernels_and_agree(tmp_path):
-    a, stats_a = _first_pilot_render(tmp_path, "a", True)
-    b, stats_b = _first_pilot_render(tmp_path, "b", True)
-    serial, stats_serial = _first_pilot_render(tmp_path, "serial", False)
-    assert stats_a == stats_b == {"hits": 1, "misses": 0}  # the penumbrae's kernel, the worker's, loaded
-    assert stats_serial == {"hits": 0, "misses": 1}
-    np.testing.assert_array_equal(a, b)
-    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)
+@pytest.mark.parametrize("script, args", [(RENDER, ()), (PILOT, (str(ROOT / "tests/data/area_peers/occluded.toml"),))],
+                         ids=["airlight", "beside a pilot: shadows"])
+def test_first_renders_on_empty_caches_load_the_workers_kernel_and_agree(tmp_path, script, args):
+    """The default scene: the air-light's kernel; an area light's scene, whose cubature pilot warms up
+    first: the penumbrae's kernel (the shadows' group)."""
+    a, stats_a = _first_render(tmp_path, "a", True, script, *args)
+    b, stats_b = _first_render(tmp_path, "b", True, script, *args)
+    serial, stats_serial = _first_render(tmp_path, "serial", False, script, *args)
+    assert stats_a == stats_b == {"hits": 1, "misses": 0}  # the worker's kernel, loaded
+    assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
+    np.testing.assert_array_equal(a, b)  # which process compiles what does not depend on timing
+    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)  # the same kernel, compiled elsewhere
