@@ -18,8 +18,10 @@ K on |h''| over it decides it: no root where h keeps its sign and the least |h| 
 K w^2 / 8 (h is within K (theta - a)(b - theta) / 2 of its chord) or where the secant's slope exceeds
 K w (h' then keeps its sign over the cell: monotone), one where h changes sign and is monotone,
 bisected to the resolution of doubles; each test less the values' rounding (the monotone test
-decides the cells beside a double root, where h is too small for the first). With phi(theta) the angle of the unit direction t,
-P' and P'' of length R and |X - P| <= |X| + R:
+decides the cells beside a double root, where h is too small for the first). The cell loop is one
+(`_halving`) for this scan and the two below, on a record of the scanned function (`PathScan`,
+`CausticScan`, `EdgeCone`) whose class picks its value and its cells' tests at compile time. With
+phi(theta) the angle of the unit direction t, P' and P'' of length R and |X - P| <= |X| + R:
     h'' = t'' x (X - P) - 2 t' x P' - t x P'',  |h''| <= (|phi''| + phi'^2)(|X| + R) + 2 |phi'| R + R.
 phi = theta + pi + theta_t, sin theta_t = sin theta_i / eta, theta_i = alpha - theta - pi (alpha the
 arriving direction's angle: constant for the sun; for a lamp at distance d, alpha' =
@@ -195,14 +197,14 @@ from ..lights import falloff
 from ..lights.spot import band_slope
 from ..geometry.sorting import sort_few
 from .adaptive import bounded_piecewise
-from .integrand import integrand_of
+from .integrand import integrand_of, record_dispatch
 from .phase import phase_value
 from .gauss import N10, N20, W10, W20
 from .slab import MARCH, QUAD, fresnel, march_or_sample, phase_condition
 
-SCAN = 48  # uniform cells of the lit arc on which `paths` starts (`caustic_crossings` on its half [0, theta_a])
-MAX_HALVINGS = 40  # of a cell of `paths` (or `caustic_crossings`) before it is left unresolved
-MAX_EVALS = 1000  # halvings of one scan of `paths` (or `caustic_crossings`) before its undecided cells are left unresolved
+SCAN = 48  # uniform cells on which a halving scan starts (`_halving`: the lit arc, its half, the edge rays)
+MAX_HALVINGS = 40  # of a cell of a halving scan before it is left unresolved
+MAX_EVALS = 1000  # halvings of one halving scan before its undecided cells are left unresolved
 CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
 U = 2.0 ** -53
 # a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
@@ -415,42 +417,95 @@ def _caustic(theta, radius, d, eta):
 
 
 @njit
-def _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
-    """(phi', H, H', |A|, |y_C|, |C'|) at theta: H = |A|^2 - wz^2 y_C^2, A = F + z_C v, of the caustic
-    point C(theta) (`_caustic`; F = (f0, f1, f2) = wz f - z0 v, v = (v0, v1, v2) of the segment f + x v
-    across the axis, z0 + x wz along it: 0 where C turned about the axis meets the segment's line) and
-    its derivative."""
-    phi1, cz, cy, dcz, dcy = _caustic(theta, radius, d, eta)
+def _gap(theta, s):
+    """(H, phi', H', |A|, |y_C|, |C'|) at theta of the `CausticScan` s: H = |A|^2 - wz^2 y_C^2, A = F + z_C v,
+    of the caustic point C(theta) (`_caustic`; F = (f0, f1, f2) = wz f - z0 v, v = (v0, v1, v2) of the
+    segment f + x v across the axis, z0 + x wz along it: 0 where C turned about the axis meets the
+    segment's line) and its derivative."""
+    phi1, cz, cy, dcz, dcy = _caustic(theta, s.radius, s.d, s.eta)
+    f0, f1, f2, v0, v1, v2, wz = s.f0, s.f1, s.f2, s.v0, s.v1, s.v2, s.wz
     a0, a1, a2 = f0 + cz * v0, f1 + cz * v1, f2 + cz * v2
     aa = a0 * a0 + a1 * a1 + a2 * a2
-    return phi1, aa - wz * wz * cy * cy, 2.0 * dcz * (v0 * a0 + v1 * a1 + v2 * a2) - 2.0 * wz * wz * cy * dcy, \
+    return aa - wz * wz * cy * cy, phi1, 2.0 * dcz * (v0 * a0 + v1 * a1 + v2 * a2) - 2.0 * wz * wz * cy * dcy, \
         math.sqrt(aa), abs(cy), math.sqrt(dcz * dcz + dcy * dcy)
 
 
-@njit
-def _gap_into(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, out):
-    """`_gap` into out (GAP,)."""
-    out[0], out[1], out[2], out[3], out[4], out[5] = _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
+# The halving scan (`_halving`) of `paths`, `caustic_crossings` and `edge_crossings`, on a scan record
+# (`PathScan`, `CausticScan`, `EdgeCone`) that names the function and its cells' tests:
+
+def scan_width(s):
+    """How many values `scan_at` gives at a point: the function's, then what `scan_cell` needs."""
+
+
+def scan_at(s, x, out):
+    """The scanned function at x into out[0], what `scan_cell` needs of that point into out[1:]."""
+
+
+def scan_value(s, x):
+    """The scanned function at x (out[0] of `scan_at`)."""
+
+
+def scan_cell(s, a, b, j, e):
+    """The verdict on the cell [a, b] (within the scan's uniform cell j; e: `scan_at` at a, then at b):
+    -1 no root, 1 monotone (one root where the ends' signs differ), 0 undecided (halved)."""
+
+
+def scan_spread(s, root, a, b, fa, fb, j):
+    """How far the root found in the monotone cell [a, b] (fa, fb the function there) may lie from the
+    exact function's (inf where not bounded)."""
+
+
+_width_of = record_dispatch(scan_width, 0)
+_at_of = record_dispatch(scan_at, 0)
+_value_of = record_dispatch(scan_value, 0)
+_cell_of = record_dispatch(scan_cell, 0)
+_spread_of = record_dispatch(scan_spread, 0)
+
+
+class PathScan(NamedTuple):
+    """`paths`' h of the point X = (zx, yx), X's rounding dx and reach = |X| + R (at least |X - P|), for
+    the light and sphere of a `SphereRefracted` (its radius, d, eta, theta_a and cells)."""
+    zx: float
+    yx: float
+    dx: float
+    reach: float
+    radius: float
+    d: float
+    eta: float
+    theta_a: float
+    cells: np.ndarray
+
+
+class CausticScan(NamedTuple):
+    """`caustic_crossings`' H for r's light and the segment's line: F = (f0, f1, f2), v = (v0, v1, v2), wz
+    (`_gap`), |v|, |v|^2, wz^2 and F's rounding e_f, for the light and sphere of a `SphereRefracted`
+    (its radius, d, eta and cells)."""
+    f0: float
+    f1: float
+    f2: float
+    v0: float
+    v1: float
+    v2: float
+    wz: float
+    vn: float
+    vv: float
+    ww: float
+    e_f: float
+    radius: float
+    d: float
+    eta: float
+    cells: np.ndarray
 
 
 @njit
-def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
-    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
-    kind 1: `_gap`'s H (`caustic_crossings`), nan where there is no caustic point ahead of P."""
-    if kind == 0:
-        pz, py, tz, ty, _, _, _ = _clamped(theta, radius, d, eta)
-        return tz * (yx - py) - ty * (zx - pz)
-    return _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)[1]
-
-
-@njit
-def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
-    """The root of _h in [lo, hi] (h_lo its sign at lo, the other sign at hi) to the resolution of doubles."""
+def _bisect(s, lo, hi, h_lo):
+    """The root of the scan record s's function in [lo, hi] (h_lo its sign at lo, the other sign at hi) to
+    the resolution of doubles."""
     for _ in range(200):
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:
             break
-        if _h(mid, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta) * h_lo > 0.0:
+        if scan_value(s, mid) * h_lo > 0.0:
             lo = mid
         else:
             hi = mid
@@ -458,82 +513,50 @@ def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, e
 
 
 @njit
-def _steepest(root, a, b, fa, fb, k, e, zx, yx, radius, d, eta):
-    """A lower bound on |h'| about the root of h in the monotone cell [a, b] (h(a) = fa, h(b) = fb, K = k
-    over it) within which the root of h off by e at most lies: the cell's secant's slope less K w,
-    and where that is below half the secant's, narrower intervals about the root, each quartered:
-    their secant less K w where h there differs from 0 by more than e at both ends (the root of h off
-    by e is then inside: |h| grows away from the root, h being monotone in the cell)."""
-    w = b - a
-    secant = abs(fb - fa) / w
-    best = secant - k * w - 2.0 * e / w  # the cell's: its ends' values off by e each
-    half = 0.25 * w
-    for _ in range(24):
-        if best >= 0.5 * secant:
-            break
-        lo, hi = max(a, root - half), min(b, root + half)
-        f1 = _h(lo, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        f2 = _h(hi, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        wn = hi - lo
-        if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
-            break
-        secant = abs(f2 - f1) / wn
-        best = max(best, secant - k * wn - 2.0 * e / wn)
-        half *= 0.25
-    return best
-
-
-@njit
-def paths(r, zx, yx, dx, out, spread):
-    """The roots of h (kind 0 of `_h`) of the point X = (zx, yx) on the lit arc into out, ascending,
-    and into spread[k] how far each may be from the exact root of X, whose computed coordinates are
-    off by dx at most: 2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`; inf
-    for a root at a node or in an unresolved cell); returns (count,
-    proven): SCAN uniform cells, each halved until the bound K on |h''| over it (`angular_bounds` of
-    its SCAN cell) shows that it holds no root (no sign change and either the least |h| at its ends
-    above K w^2 / 8 or h monotone: the secant's slope above K w, each less the values' rounding) or
-    one (a sign change and h monotone), that root bisected to the resolution of doubles (module
-    docstring, "The paths, proven"); not proven where a cell reached MAX_HALVINGS halvings, the scan
-    MAX_EVALS or out filled up (sign changes are still bisected)."""
-    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
-    lo = -r.theta_a
-    step = 2.0 * r.theta_a / SCAN
-    reach = math.sqrt(zx * zx + yx * yx) + radius  # |X - P| at most
+def _halving(s, lo, step, first, start, right_node, out, spread):
+    """The roots of the scan record s's function over the uniform cells first to SCAN - 1 of width step
+    from lo (the first cell starting at start) into out, ascending, each with its `scan_spread` (inf at a
+    node or in an unresolved cell) into spread; returns (count, proven): each cell halved until
+    `scan_cell` decides it, a root of a monotone cell bisected to the resolution of doubles, roots at the
+    nodes taken as they are (the right end's where right_node); not proven where a cell reached
+    MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (sign changes are still bisected)."""
+    width = scan_width(s)
     ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    ha, hb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    vals = np.empty((CELL_STACK, 2 * width))  # `scan_at` at both ends
+    node = np.empty(width)
     which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
     m, top, proven, evals = 0, 0, True, 0
     cap = out.shape[0]
-    right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-    if right == 0.0:
+    scan_at(s, lo + SCAN * step, node)
+    if node[0] == 0.0 and right_node:
         out[m] = lo + SCAN * step
         spread[m] = math.inf
         m += 1
-    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
-        left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        if left == 0.0 and m < cap:
-            out[m] = lo + j * step
+    for j in range(SCAN - 1, first - 1, -1):  # pushed last to first: popped from the left
+        left = lo + j * step if j > first else start
+        for i in range(width):
+            vals[top, width + i] = node[i]
+        scan_at(s, left, node)
+        if node[0] == 0.0 and m < cap:
+            out[m] = left
             spread[m] = math.inf
             m += 1
-        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, j, 0
+        ca[top], cb[top], which[top], depth[top] = left, lo + (j + 1) * step, j, 0
+        for i in range(width):
+            vals[top, i] = node[i]
         top += 1
-        right = left
     while top > 0:
         top -= 1
-        a, b, fa, fb, j = ca[top], cb[top], ha[top], hb[top], which[top]
-        w = b - a
-        p1, p2, et = cells[j, 0], cells[j, 1], cells[j, 2]
-        k = (p2 + p1 * p1) * reach + 2.0 * p1 * radius + radius
-        dh = 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
-        if fa * fb > 0.0:
-            if min(abs(fa), abs(fb)) - dh > 0.125 * k * w * w or abs(fb - fa) - 2.0 * dh > k * w * w:
-                continue  # keeps its sign, or monotone
-        elif abs(fb - fa) - 2.0 * dh > k * w * w:
+        a, b, j = ca[top], cb[top], which[top]
+        fa, fb = vals[top, 0], vals[top, width]
+        verdict = scan_cell(s, a, b, j, vals[top])
+        if verdict < 0:
+            continue
+        if verdict > 0:
             if fa * fb < 0.0:
                 if m < cap:
-                    out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-                    slope = _steepest(out[m], a, b, fa, fb, k, dh + dx, zx, yx, radius, d, eta)
-                    spread[m] = 2.0 * (dh + dx) / slope + 4.0 * U * r.theta_a if slope > 0.0 else math.inf
+                    out[m] = _bisect(s, a, b, fa)
+                    spread[m] = scan_spread(s, out[m], a, b, fa, fb, j)
                     m += 1
                 else:
                     proven = False
@@ -542,13 +565,13 @@ def paths(r, zx, yx, dx, out, spread):
         if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
             proven = False
             if fa * fb < 0.0 and m < cap:
-                out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                out[m] = _bisect(s, a, b, fa)
                 spread[m] = math.inf
                 m += 1
             continue
-        fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        scan_at(s, mid, node)
         evals += 1
-        if fm == 0.0:
+        if node[0] == 0.0:
             if m < cap:
                 out[m] = mid
                 spread[m] = math.inf
@@ -556,8 +579,10 @@ def paths(r, zx, yx, dx, out, spread):
             else:
                 proven = False
         level = depth[top] + 1
-        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = mid, b, fm, fb, j, level
-        ca[top + 1], cb[top + 1], ha[top + 1], hb[top + 1], which[top + 1], depth[top + 1] = a, mid, fa, fm, j, level
+        ca[top + 1], cb[top + 1], which[top + 1], depth[top + 1] = a, mid, j, level
+        for i in range(width):
+            vals[top + 1, i], vals[top + 1, width + i], vals[top, i] = vals[top, i], node[i], node[i]
+        ca[top], depth[top] = mid, level
         top += 2
     for p in range(1, m):  # insertion sort, the spreads alongside
         x, s0, q = out[p], spread[p], p
@@ -569,117 +594,195 @@ def paths(r, zx, yx, dx, out, spread):
 
 
 @njit
+def _h(theta, s):
+    """h(theta) = t x (X - P) of the `PathScan` s's point X (`_clamped`'s t, continuous to the arc's ends)."""
+    pz, py, tz, ty, _, _, _ = _clamped(theta, s.radius, s.d, s.eta)
+    return tz * (s.yx - py) - ty * (s.zx - pz)
+
+
+@njit
+def _paths_bound(s, j):
+    """(K, dh) of the `PathScan` s over SCAN cell j: the bound on |h''| and h's rounding (module docstring,
+    "The paths, proven")."""
+    radius, reach = s.radius, s.reach
+    p1, p2, et = s.cells[j, 0], s.cells[j, 1], s.cells[j, 2]
+    k = (p2 + p1 * p1) * reach + 2.0 * p1 * radius + radius
+    return k, 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
+
+
+@_width_of(PathScan)
+@njit
+def _paths_width(s):
+    return 1
+
+
+@_at_of(PathScan)
+@njit
+def _paths_at(s, x, out):
+    out[0] = _h(x, s)
+
+
+@_value_of(PathScan)
+@njit
+def _paths_value(s, x):
+    return _h(x, s)
+
+
+@_cell_of(PathScan)
+@njit
+def _paths_cell(s, a, b, j, e):
+    """No root where h keeps its sign and either its least |h| at the ends exceeds K w^2 / 8 or the
+    secant's slope exceeds K w; monotone where the secant's slope exceeds K w (each less the rounding)."""
+    k, dh = _paths_bound(s, j)
+    fa, fb, w = e[0], e[1], b - a
+    if fa * fb > 0.0:
+        return -1 if min(abs(fa), abs(fb)) - dh > 0.125 * k * w * w or abs(fb - fa) - 2.0 * dh > k * w * w else 0
+    return 1 if abs(fb - fa) - 2.0 * dh > k * w * w else 0
+
+
+@_spread_of(PathScan)
+@njit
+def _paths_spread(s, root, a, b, fa, fb, j):
+    """2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`)."""
+    k, dh = _paths_bound(s, j)
+    slope = _steepest(root, a, b, fa, fb, k, dh + s.dx, s)
+    return 2.0 * (dh + s.dx) / slope + 4.0 * U * s.theta_a if slope > 0.0 else math.inf
+
+
+@njit
+def _steepest(root, a, b, fa, fb, k, e, s):
+    """A lower bound on |h'| about the root of h (of the `PathScan` s) in the monotone cell [a, b] (h(a) =
+    fa, h(b) = fb, K = k over it) within which the root of h off by e at most lies: the cell's secant's
+    slope less K w, and where that is below half the secant's, narrower intervals about the root, each
+    quartered: their secant less K w where h there differs from 0 by more than e at both ends (the root of
+    h off by e is then inside: |h| grows away from the root, h being monotone in the cell)."""
+    w = b - a
+    secant = abs(fb - fa) / w
+    best = secant - k * w - 2.0 * e / w  # the cell's: its ends' values off by e each
+    half = 0.25 * w
+    for _ in range(24):
+        if best >= 0.5 * secant:
+            break
+        lo, hi = max(a, root - half), min(b, root + half)
+        f1 = _h(lo, s)
+        f2 = _h(hi, s)
+        wn = hi - lo
+        if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
+            break
+        secant = abs(f2 - f1) / wn
+        best = max(best, secant - k * wn - 2.0 * e / wn)
+        half *= 0.25
+    return best
+
+
+@njit
+def paths(r, zx, yx, dx, out, spread):
+    """The roots of h of the point X = (zx, yx) on the lit arc into out, ascending, and into spread[k]
+    how far each may be from the exact root of X, whose computed coordinates are off by dx at most: 2
+    (the values' rounding + dx) / the least |h'| about the root (`_steepest`; inf for a root at a node
+    or in an unresolved cell); returns (count, proven): `_halving` over SCAN uniform cells, each halved
+    until the bound K on |h''| over it (`angular_bounds` of its SCAN cell) shows that it holds no root
+    (no sign change and either the least |h| at its ends above K w^2 / 8 or h monotone: the secant's
+    slope above K w, each less the values' rounding) or one (a sign change and h monotone), that root
+    bisected to the resolution of doubles (module docstring, "The paths, proven")."""
+    s = PathScan(zx, yx, dx, math.sqrt(zx * zx + yx * yx) + r.radius, r.radius, r.d, r.eta, r.theta_a, r.cells)
+    step = 2.0 * r.theta_a / SCAN
+    return _halving(s, -r.theta_a, step, 0, -r.theta_a, True, out, spread)
+
+
+@njit
 def caustic_crossings(r, f, v, fz, wz, out):
     """The angles theta in [0, theta_a] where the caustic point C(theta) turned about the axis meets the
     line of the segment f + x v across the axis, fz + x wz along it: the roots of `_gap`'s H (F = wz f
     - fz v) into out, ascending; returns (count, proven) (module docstring, "The caustic's crossings,
-    proven"): the SCAN / 2 cells of `cell_table` on [0, theta_a], each halved until it is decided: left
-    out where phi' < 1/2 over it (C beyond the sphere or behind P), else, where phi' >= m > 0 over it,
-    as `paths` decides a cell of h by the bound K on |H''| and H's rounding, and monotone too where H'
-    keeps its sign at both ends and |H'(a)| + |H'(b)| exceeds K w (each less its rounding); each root
-    bisected to the resolution of doubles. Not proven where a cell reached MAX_HALVINGS halvings, the
-    scan MAX_EVALS or out filled up (a segment within rounding of tangent to the caustic surface, where
-    a root is double), or where wz = 0 (the caustic point's height alone does not place it on the
-    segment); none for eta <= 1 (phi' < 0: no caustic point ahead of P)."""
-    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
-    if not eta > 1.0:
+    proven"): `_halving` over the SCAN / 2 cells of `cell_table` on [0, theta_a], each halved until it
+    is decided: left out where phi' < 1/2 over it (C beyond the sphere or behind P), else, where phi'
+    >= m > 0 over it, as `paths` decides a cell of h by the bound K on |H''| and H's rounding, and
+    monotone too where H' keeps its sign at both ends and |H'(a)| + |H'(b)| exceeds K w (each less its
+    rounding); each root bisected to the resolution of doubles. Not proven where a cell reached
+    MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (a segment within rounding of tangent to
+    the caustic surface, where a root is double), or where wz = 0 (the caustic point's height alone does
+    not place it on the segment); none for eta <= 1 (phi' < 0: no caustic point ahead of P)."""
+    if not r.eta > 1.0:
         return 0, True
     if wz == 0.0:
         return 0, False
-    f0, f1, f2 = wz * f[0] - fz * v[0], wz * f[1] - fz * v[1], wz * f[2] - fz * v[2]
     v0, v1, v2 = v[0], v[1], v[2]
     vv = v0 * v0 + v1 * v1 + v2 * v2
-    vn, ww = math.sqrt(vv), wz * wz
+    vn = math.sqrt(vv)
     e_f = 16.0 * U * (abs(wz) * math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) + abs(fz) * vn)  # F's rounding
-    lo = -r.theta_a
+    s = CausticScan(wz * f[0] - fz * v[0], wz * f[1] - fz * v[1], wz * f[2] - fz * v[2], v0, v1, v2, wz, vn, vv,
+                    wz * wz, e_f, r.radius, r.d, r.eta, r.cells)
     step = 2.0 * r.theta_a / SCAN
-    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    vals = np.empty((CELL_STACK, 2 * GAP))  # `_gap` at both ends
-    node = np.empty(GAP)
-    which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
-    m, top, proven, evals = 0, 0, True, 0
-    cap = out.shape[0]
-    _gap_into(lo + SCAN * step, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
-    if node[1] == 0.0:
-        out[m] = lo + SCAN * step
-        m += 1
-    for j in range(SCAN - 1, SCAN // 2 - 1, -1):  # pushed last to first: popped from the left
-        left = lo + j * step if j > SCAN // 2 else 0.0
-        vals[top, GAP:] = node
-        _gap_into(left, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
-        if node[1] == 0.0 and m < cap:
-            out[m] = left
-            m += 1
-        ca[top], cb[top], which[top], depth[top] = left, lo + (j + 1) * step, j, 0
-        vals[top, :GAP] = node
-        top += 1
-    while top > 0:
-        top -= 1
-        a, b, j = ca[top], cb[top], which[top]
-        e = vals[top]
-        qa, fa, sa, qb, fb, sb = e[0], e[1], e[2], e[GAP], e[GAP + 1], e[GAP + 2]
-        w = b - a
-        p1, et, p2, p3, ct = cells[j, 0], cells[j, 2], cells[j, 4], cells[j, 5], cells[j, 6]
-        g = 1.0 + 1.0 / (eta * eta * ct * ct)
-        slack = 64.0 * U * p1 * g  # phi''s rounding
-        if 0.5 * (qa + qb + p2 * w) + slack < 0.5:
-            continue  # phi' < 1/2 over the cell: C beyond the sphere or behind P
-        low = 0.5 * (qa + qb - p2 * w) - slack  # the least phi' over the cell
-        if low > 0.0 and fa == fa and fb == fb:
-            d1 = p1 - 1.0  # |phi' - 1| at most
-            c2 = radius * (d1 + d1 * d1 / low + (p2 * (1.0 + d1) + p3) / (low * low) + 2.0 * p2 * p2 / low ** 3)
-            c1 = radius * (1.0 + d1 / low + p2 / (low * low))  # |C'|
-            c2 += c1 * p1  # |C''|
-            c1 = min(c1, max(e[5], e[GAP + 5]) + 0.5 * c2 * w)
-            amax = max(e[3], e[GAP + 3]) + 0.5 * c1 * vn * w  # |F + z_C v|
-            ymax = max(e[4], e[GAP + 4]) + 0.5 * c1 * w  # |y_C|
-            k = 2.0 * c2 * (vn * amax + ww * ymax) + 2.0 * c1 * c1 * (vv + ww)
-            e_r = et + 2.0 * slack / low  # t's rounding and 1 / phi''s relative
-            e_c = 4.0 * U * radius + radius / low * (e_r + 16.0 * U / (ct * ct))  # C's
-            e_c1 = (c1 * (2.0 + eta) + radius * (2.0 + 1.0 / low)) * e_r + radius * p2 / (low * low) * 64.0 * U * g  # C''s
-            e_a = vn * e_c + e_f + 16.0 * U * (radius + radius / low) * vn  # A's
-            dha = 2.0 * (2.0 * (e[3] * e_a + ww * e[4] * e_c) + 8.0 * U * (e[3] * e[3] + ww * e[4] * e[4]))
-            dhb = 2.0 * (2.0 * (e[GAP + 3] * e_a + ww * e[GAP + 4] * e_c) + 8.0 * U * (e[GAP + 3] ** 2 + ww * e[GAP + 4] ** 2))
-            dsa = 4.0 * ((vn * e[3] + ww * e[4]) * (e_c1 + 8.0 * U * e[5]) + e[5] * (vn * e_a + ww * e_c))
-            dsb = 4.0 * ((vn * e[GAP + 3] + ww * e[GAP + 4]) * (e_c1 + 8.0 * U * e[GAP + 5]) +
-                         e[GAP + 5] * (vn * e_a + ww * e_c))
-            mono = sa * sb > 0.0 and abs(sa) + abs(sb) - 2.0 * (dsa + dsb) > k * w or \
-                abs(fb - fa) - 2.0 * (dha + dhb) > k * w * w
-            if fa * fb > 0.0:
-                if abs(fa) > dha and abs(fb) > dhb and (min(abs(fa) - dha, abs(fb) - dhb) > 0.125 * k * w * w or mono):
-                    continue  # keeps its sign, or monotone
-            elif mono:
-                if fa * fb < 0.0:
-                    if m < cap:
-                        out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
-                        m += 1
-                    else:
-                        proven = False
-                continue
-        mid = 0.5 * (a + b)
-        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
-            proven = False
-            if fa * fb < 0.0 and m < cap:
-                out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
-                m += 1
-            continue
-        _gap_into(mid, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
-        evals += 1
-        if node[1] == 0.0:
-            if m < cap:
-                out[m] = mid
-                m += 1
-            else:
-                proven = False
-        level = depth[top] + 1
-        ca[top + 1], cb[top + 1], which[top + 1], depth[top + 1] = a, mid, j, level
-        vals[top + 1, :GAP] = vals[top, :GAP]
-        vals[top + 1, GAP:] = node
-        ca[top], depth[top] = mid, level
-        vals[top, :GAP] = node
-        top += 2
-    sort_few(out, 0, m)
-    return m, proven
+    return _halving(s, -r.theta_a, step, SCAN // 2, 0.0, True, out, np.empty(out.shape[0]))
+
+
+@_width_of(CausticScan)
+@njit
+def _caustic_width(s):
+    return GAP
+
+
+@_at_of(CausticScan)
+@njit
+def _caustic_at(s, x, out):
+    out[0], out[1], out[2], out[3], out[4], out[5] = _gap(x, s)
+
+
+@_value_of(CausticScan)
+@njit
+def _caustic_value(s, x):
+    return _gap(x, s)[0]
+
+
+@_cell_of(CausticScan)
+@njit
+def _caustic_cell(s, a, b, j, e):
+    """No root where phi' < 1/2 over the cell; else, where phi' >= m > 0 over it, as `_paths_cell` by the
+    bound K on |H''| (module docstring, "The caustic's crossings, proven") and monotone too where H' keeps
+    its sign at both ends and |H'(a)| + |H'(b)| exceeds K w, each less its rounding; no root needs both
+    ends' |H| above their rounding."""
+    radius, eta, cells = s.radius, s.eta, s.cells
+    vn, vv, ww = s.vn, s.vv, s.ww
+    fa, qa, sa, fb, qb, sb = e[0], e[1], e[2], e[GAP], e[GAP + 1], e[GAP + 2]
+    w = b - a
+    p1, et, p2, p3, ct = cells[j, 0], cells[j, 2], cells[j, 4], cells[j, 5], cells[j, 6]
+    g = 1.0 + 1.0 / (eta * eta * ct * ct)
+    slack = 64.0 * U * p1 * g  # phi''s rounding
+    if 0.5 * (qa + qb + p2 * w) + slack < 0.5:
+        return -1  # phi' < 1/2 over the cell: C beyond the sphere or behind P
+    low = 0.5 * (qa + qb - p2 * w) - slack  # the least phi' over the cell
+    if not (low > 0.0 and fa == fa and fb == fb):
+        return 0
+    d1 = p1 - 1.0  # |phi' - 1| at most
+    c2 = radius * (d1 + d1 * d1 / low + (p2 * (1.0 + d1) + p3) / (low * low) + 2.0 * p2 * p2 / low ** 3)
+    c1 = radius * (1.0 + d1 / low + p2 / (low * low))  # |C'|
+    c2 += c1 * p1  # |C''|
+    c1 = min(c1, max(e[5], e[GAP + 5]) + 0.5 * c2 * w)
+    amax = max(e[3], e[GAP + 3]) + 0.5 * c1 * vn * w  # |F + z_C v|
+    ymax = max(e[4], e[GAP + 4]) + 0.5 * c1 * w  # |y_C|
+    k = 2.0 * c2 * (vn * amax + ww * ymax) + 2.0 * c1 * c1 * (vv + ww)
+    e_r = et + 2.0 * slack / low  # t's rounding and 1 / phi''s relative
+    e_c = 4.0 * U * radius + radius / low * (e_r + 16.0 * U / (ct * ct))  # C's
+    e_c1 = (c1 * (2.0 + eta) + radius * (2.0 + 1.0 / low)) * e_r + radius * p2 / (low * low) * 64.0 * U * g  # C''s
+    e_a = vn * e_c + s.e_f + 16.0 * U * (radius + radius / low) * vn  # A's
+    dha = 2.0 * (2.0 * (e[3] * e_a + ww * e[4] * e_c) + 8.0 * U * (e[3] * e[3] + ww * e[4] * e[4]))
+    dhb = 2.0 * (2.0 * (e[GAP + 3] * e_a + ww * e[GAP + 4] * e_c) + 8.0 * U * (e[GAP + 3] ** 2 + ww * e[GAP + 4] ** 2))
+    dsa = 4.0 * ((vn * e[3] + ww * e[4]) * (e_c1 + 8.0 * U * e[5]) + e[5] * (vn * e_a + ww * e_c))
+    dsb = 4.0 * ((vn * e[GAP + 3] + ww * e[GAP + 4]) * (e_c1 + 8.0 * U * e[GAP + 5]) +
+                 e[GAP + 5] * (vn * e_a + ww * e_c))
+    mono = sa * sb > 0.0 and abs(sa) + abs(sb) - 2.0 * (dsa + dsb) > k * w or \
+        abs(fb - fa) - 2.0 * (dha + dhb) > k * w * w
+    if fa * fb > 0.0:
+        return -1 if abs(fa) > dha and abs(fb) > dhb and (min(abs(fa) - dha, abs(fb) - dhb) > 0.125 * k * w * w
+                                                           or mono) else 0
+    return 1 if mono else 0
+
+
+@_spread_of(CausticScan)
+@njit
+def _caustic_spread(s, root, a, b, fa, fb, j):
+    return math.inf
 
 
 class EdgeCone(NamedTuple):
@@ -851,87 +954,56 @@ def edge_bound(lo, hi, k):
 
 
 @njit
-def _edge_bisect(lo, hi, g_lo, k):
-    """The root of `edge_gap` in [lo, hi] (g_lo its sign at lo, the other at hi) to the resolution of doubles."""
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            break
-        if edge_gap(mid, k) * g_lo > 0.0:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
-@njit
 def edge_crossings(k, out):
     """The roots of `edge_gap` over the `EdgeCone` k's parameter range into out, ascending; returns
-    (count, proven) (module docstring, "The band edges, proven"): SCAN uniform cells, each halved until
-    `edge_bound`'s K decides it as `paths` decides a cell of h (no root: G keeps its sign and its least
-    |G| at the ends exceeds K w^2 / 8, or it is monotone, the secant's slope above K w; one root: a sign
-    change and monotone; each less G's rounding), each root bisected to the resolution of doubles. Not
-    proven where a cell reached MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (a segment
-    within rounding of tangent to the band edge's surface)."""
+    (count, proven) (module docstring, "The band edges, proven"): `_halving` over SCAN uniform cells,
+    each halved until `edge_bound`'s K decides it as `paths` decides a cell of h (no root: G keeps its
+    sign and its least |G| at the ends exceeds K w^2 / 8, or it is monotone, the secant's slope above K
+    w; one root: a sign change and monotone; each less G's rounding), each root bisected to the
+    resolution of doubles. Not proven where a cell reached MAX_HALVINGS halvings, the scan MAX_EVALS or
+    out filled up (a segment within rounding of tangent to the band edge's surface), or G's rounding is
+    not bounded."""
     if k.mode == 0:
         return 0, True
     lo = -0.5 * math.pi if k.mode == 1 else -math.pi
-    step = -2.0 * lo / SCAN
-    dg = k.dg
-    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    ga, gb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    depth = np.empty(CELL_STACK, dtype=np.int64)
-    m, top, proven, evals = 0, 0, dg < math.inf, 0
-    cap = out.shape[0]
-    right = edge_gap(lo + SCAN * step, k)
-    if right == 0.0 and k.mode == 1:  # (mode 2's ends are one ray: counted at its start)
-        out[m] = lo + SCAN * step
-        m += 1
-    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
-        left = edge_gap(lo + j * step, k)
-        if left == 0.0 and m < cap:
-            out[m] = lo + j * step
-            m += 1
-        ca[top], cb[top], ga[top], gb[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, 0
-        top += 1
-        right = left
-    while top > 0:
-        top -= 1
-        a, b, fa, fb = ca[top], cb[top], ga[top], gb[top]
-        w = b - a
-        kk = edge_bound(a, b, k)
-        if fa * fb > 0.0:
-            if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or abs(fb - fa) - 2.0 * dg > kk * w * w:
-                continue  # keeps its sign, or monotone
-        elif abs(fb - fa) - 2.0 * dg > kk * w * w:
-            if fa * fb < 0.0:
-                if m < cap:
-                    out[m] = _edge_bisect(a, b, fa, k)
-                    m += 1
-                else:
-                    proven = False
-            continue
-        mid = 0.5 * (a + b)
-        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
-            proven = False
-            if fa * fb < 0.0 and m < cap:
-                out[m] = _edge_bisect(a, b, fa, k)
-                m += 1
-            continue
-        fm = edge_gap(mid, k)
-        evals += 1
-        if fm == 0.0:
-            if m < cap:
-                out[m] = mid
-                m += 1
-            else:
-                proven = False
-        level = depth[top] + 1
-        ca[top], cb[top], ga[top], gb[top], depth[top] = mid, b, fm, fb, level
-        ca[top + 1], cb[top + 1], ga[top + 1], gb[top + 1], depth[top + 1] = a, mid, fa, fm, level
-        top += 2
-    sort_few(out, 0, m)
-    return m, proven
+    # (mode 2's ends are one ray: a root there counted at its start)
+    m, proven = _halving(k, lo, -2.0 * lo / SCAN, 0, lo, k.mode == 1, out, np.empty(out.shape[0]))
+    return m, proven and k.dg < math.inf
+
+
+@_width_of(EdgeCone)
+@njit
+def _edge_width(k):
+    return 1
+
+
+@_at_of(EdgeCone)
+@njit
+def _edge_at(k, x, out):
+    out[0] = edge_gap(x, k)
+
+
+@_value_of(EdgeCone)
+@njit
+def _edge_value(k, x):
+    return edge_gap(x, k)
+
+
+@_cell_of(EdgeCone)
+@njit
+def _edge_cell(k, a, b, j, e):
+    """As `_paths_cell`, by `edge_bound`'s K and G's rounding dg."""
+    kk, dg = edge_bound(a, b, k), k.dg
+    fa, fb, w = e[0], e[1], b - a
+    if fa * fb > 0.0:
+        return -1 if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or abs(fb - fa) - 2.0 * dg > kk * w * w else 0
+    return 1 if abs(fb - fa) - 2.0 * dg > kk * w * w else 0
+
+
+@_spread_of(EdgeCone)
+@njit
+def _edge_spread(k, root, a, b, fa, fb, j):
+    return math.inf
 
 
 @njit
