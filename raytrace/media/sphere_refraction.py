@@ -902,6 +902,85 @@ def edge_gap(tau, k):
 
 
 @njit
+def _det(w, x, y):
+    """det(w, x, y) of 3-vectors."""
+    return w[0] * (x[1] * y[2] - x[2] * y[1]) + w[1] * (x[2] * y[0] - x[0] * y[2]) + w[2] * (x[0] * y[1] - x[1] * y[0])
+
+
+@njit
+def edge_slope(tau, k):
+    """(G', its rounding) at tau of the `EdgeCone` k (module docstring, "The band edges, proven"): G' =
+    det(w, t', o - P) - det(w, t, P') through phi', S' and b' = q.u' in closed form, each intermediate's
+    absolute rounding carried to first order alongside (u the unit roundoff; sqrt, asin and the quotients
+    at their conditioning), doubled."""
+    radius, eta, beta, u = k.radius, k.eta, k.beta, U
+    if k.mode == 1:
+        cs, sn = max(math.cos(tau), 0.0), math.sin(tau)
+        den = (1.0 - k.s * sn) * (1.0 + k.s * sn)
+        root = math.sqrt(den)
+        phi = 2.0 * math.asin(k.s * sn)
+        e_phi = 16.0 * u / root + 4.0 * u * abs(phi)
+        d_phi = 2.0 * k.s * cs / root
+        e_dphi = abs(d_phi) * (8.0 * u + 4.0 * u / den)
+        y = beta + k.kappa * cs * cs
+        b, db = -beta - 2.0 * k.kappa * cs * cs, 4.0 * k.kappa * cs * sn
+        e_b, e_db = 8.0 * u * abs(b), 8.0 * u * abs(db)
+        g = 2.0 * k.s * math.sqrt(k.a1)
+        sq, dsq = g * cs * math.sqrt(y), -g * sn * (beta + 2.0 * k.kappa * cs * cs) / math.sqrt(y)
+        e_sq, e_dsq = 16.0 * u * sq, 16.0 * u * abs(dsq)
+    else:
+        phi, d_phi, e_phi, e_dphi = tau, 1.0, 0.0, 0.0
+        b, db = k.a0 - k.a1 * math.cos(phi), k.a1 * math.sin(phi)
+        e_b, e_db = 4.0 * u * (abs(k.a0) + k.a1), 4.0 * u * k.a1
+        sq = math.sqrt(max((-b - beta) * (beta - b), 0.0))
+        dsq = b * db / sq
+        e_sq = (abs(b) * e_b + 4.0 * u * b * b) / sq + 4.0 * u * sq
+        e_dsq = (e_b * abs(db) + abs(b) * e_db) / sq + abs(dsq) * (e_sq / sq + 4.0 * u)
+    cp, sp = math.cos(phi), math.sin(phi)
+    uu = k.ce * k.a - k.se * (cp * k.b1 + sp * k.b2)
+    du = d_phi * k.se * (sp * k.b1 - cp * k.b2)
+    e_u = k.se * e_phi + 12.0 * u
+    e_du = k.se * (abs(d_phi) * (e_phi + 8.0 * u) + e_dphi)
+    if eta >= 1.0:
+        ci, dci = sq / radius, dsq / radius
+        e_ci, e_dci = e_sq / radius + u * ci, e_dsq / radius + u * abs(dci)
+        ct = math.sqrt((eta - 1.0) * (eta + 1.0) + ci * ci) / eta
+        dct = ci * dci / (eta * eta * ct)
+        e_ct = ci * e_ci / (eta * eta * ct) + 4.0 * u * ct
+        e_dct = (abs(dci) * e_ci + ci * e_dci) / (eta * eta * ct) + abs(dct) * (e_ct / ct + 4.0 * u)
+    else:
+        ci = math.sqrt((1.0 - eta) * (1.0 + eta) + (sq / radius) ** 2)
+        ct, dct = sq / (radius * eta), dsq / (radius * eta)
+        dci = sq * dsq / (radius * radius * ci)
+        e_ci = sq * e_sq / (radius * radius * ci) + 4.0 * u * ci
+        e_ct, e_dct = e_sq / (radius * eta) + 2.0 * u * ct, e_dsq / (radius * eta) + 2.0 * u * abs(dct)
+        e_dci = (e_sq * abs(dsq) + sq * e_dsq) / (radius * radius * ci) + abs(dci) * (e_ci / ci + 4.0 * u)
+    r, dr = -b - radius * ci, -db - radius * dci
+    e_r = e_b + radius * e_ci + 2.0 * u * (abs(b) + radius * ci)
+    e_dr = e_db + radius * e_dci + 2.0 * u * (abs(db) + radius * abs(dci))
+    pc = k.q + r * uu
+    dp = dr * uu + r * du
+    n_u, n_du, n_p, n_dp = _norm(uu), _norm(du), _norm(pc), _norm(dp)
+    e_p = 2.0 * u * _norm(k.q) + e_r + abs(r) * e_u + 2.0 * u * abs(r)
+    e_dp = e_dr + abs(dr) * e_u + e_r * n_du + abs(r) * e_du + 4.0 * u * (abs(dr) + abs(r) * n_du)
+    f, df = ci / eta - ct, dci / eta - dct
+    e_f = e_ci / eta + e_ct + 2.0 * u * (ci / eta + ct)
+    e_df = e_dci / eta + e_dct + 2.0 * u * (abs(dci) / eta + abs(dct))
+    t = uu / eta + f / radius * pc
+    dt = du / eta + df / radius * pc + f / radius * dp
+    e_t = e_u / eta + (e_f * n_p + abs(f) * e_p) / radius + 4.0 * u * (n_u / eta + abs(f) * n_p / radius)
+    e_dt = e_du / eta + (e_df * n_p + abs(df) * e_p + e_f * n_dp + abs(f) * e_dp) / radius + \
+        6.0 * u * (n_du / eta + (abs(df) * n_p + abs(f) * n_dp) / radius)
+    m = k.oc - pc
+    n_m = _norm(m)
+    e_m = e_p + u * (_norm(k.oc) + n_p)
+    n_t, n_dt = _norm(t), _norm(dt)
+    slope = _det(k.w, dt, m) - _det(k.w, t, dp)
+    e_g = e_dt * n_m + n_dt * e_m + e_t * n_dp + n_t * e_dp + 16.0 * u * (n_dt * n_m + n_t * n_dp)
+    return slope, 2.0 * e_g
+
+
+@njit
 def edge_bound(lo, hi, k):
     """K >= |G''| over [lo, hi] of the `EdgeCone` k (module docstring, "The band edges, proven"): the
     parameter's (phi', phi'', S', S'', the least S) then |P''|, |t''|, |P'|, |t'| through the partial
@@ -974,13 +1053,14 @@ def edge_crossings(k, out):
 @_width_of(EdgeCone)
 @njit
 def _edge_width(k):
-    return 1
+    return 3
 
 
 @_at_of(EdgeCone)
 @njit
 def _edge_at(k, x, out):
     out[0] = edge_gap(x, k)
+    out[1], out[2] = edge_slope(x, k)
 
 
 @_value_of(EdgeCone)
@@ -992,12 +1072,15 @@ def _edge_value(k, x):
 @_cell_of(EdgeCone)
 @njit
 def _edge_cell(k, a, b, j, e):
-    """As `_paths_cell`, by `edge_bound`'s K and G's rounding dg."""
+    """As `_paths_cell`, by `edge_bound`'s K and G's rounding dg, and monotone too where G' (`edge_slope`)
+    keeps its sign at both ends and |G'(a)| + |G'(b)| less their rounding exceeds K w (G' then exceeds half
+    the excess in size over the cell, as G'(a) - K (x - a) and G'(b) - K (b - x) bound it)."""
     kk, dg = edge_bound(a, b, k), k.dg
-    fa, fb, w = e[0], e[1], b - a
+    fa, sa, dsa, fb, sb, dsb, w = e[0], e[1], e[2], e[3], e[4], e[5], b - a
+    mono = abs(fb - fa) - 2.0 * dg > kk * w * w or sa * sb > 0.0 and abs(sa) + abs(sb) - dsa - dsb > kk * w
     if fa * fb > 0.0:
-        return -1 if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or abs(fb - fa) - 2.0 * dg > kk * w * w else 0
-    return 1 if abs(fb - fa) - 2.0 * dg > kk * w * w else 0
+        return -1 if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or mono else 0
+    return 1 if mono else 0
 
 
 @_spread_of(EdgeCone)
