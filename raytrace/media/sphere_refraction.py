@@ -179,10 +179,24 @@ tests/test_sphere_band_edges.py checks it against mpmath's derivatives). The cel
 `paths` decides h's, less G's rounding: 2 ((|o - c| + R)(e_t + 16u) + e_p), e_p = 64u (|L| + |c| +
 |o| + d + R + d cond) an edge point's distance from the exact edge rays (cond the parameter's
 conditioning: (|A0| + beta + A1) / (A1 s sqrt(1 - s^2)) in mode 1, d / S_min in mode 2), e_t its
-direction's. Not proven (the segment's bound inf): a cell undecided after MAX_HALVINGS halvings or
-MAX_EVALS in one scan (a segment within rounding of tangent to the edge's surface: the test, against
-a reference that solves Snell's law in mpmath along the segment, finds every crossing and the scan
-proven on random lines and lines 1e-3 and 1e-6 from tangent, not always at 1e-9).
+direction's; and, as the caustic's, monotone too where G' keeps its sign at both ends and |G'(a)| +
+|G'(b)| less their rounding exceeds K w (G' >= G'(a) - K (x - a) and >= G'(b) - K (b - x), so over
+the cell |G'| exceeds half that excess: G has at most one root there, decided by its ends' signs).
+This decides the cells beside a nearly double root (a segment nearly tangent to the edge's surface),
+where |G| is within its rounding and the secant's slope is lost in it. G' = det(w, t', o - P) -
+det(w, t, P') (`edge_slope`) in closed form: mode 1 phi' = 2 s cos / sqrt(1 - s^2 sin^2), b' = 4 kappa
+cos sin, S' = -2 s sqrt(A1) sin (beta + 2 kappa cos^2) / sqrt(beta + kappa cos^2); mode 2 phi' = 1,
+b' = A1 sin phi, S' = b b' / S; u' = phi' se (sin phi b1 - cos phi b2), cos_i' and cos_t' from S' (S =
+R cos_i, cos_t' = cos_i cos_i' / (eta^2 cos_t); for eta < 1 S = R eta cos_t, cos_i' = S S' / (R^2
+cos_i)), r' = -b' - R cos_i', P' = r' u + r u', f' = cos_i' / eta - cos_t', t' = u' / eta + (f' P +
+f P') / R; its rounding is each intermediate's absolute rounding carried alongside to first order
+(sums and products at their magnitudes, sqrt, asin and quotients at their conditioning), doubled
+(tests/test_sphere_band_edges.py: within 1% of it against mpmath's derivative of the closed form, at
+random parameters and at the ends of the range). Not proven (the segment's bound inf): a cell
+undecided after MAX_HALVINGS halvings or MAX_EVALS in one scan (a segment within rounding of tangent
+to the edge's surface: the test, against a reference that solves Snell's law in mpmath along the
+segment, finds every crossing and the scan proven on random lines and lines 1e-3, 1e-6 and 1e-9 from
+tangent).
 """
 from __future__ import annotations
 
@@ -1038,10 +1052,10 @@ def edge_crossings(k, out):
     (count, proven) (module docstring, "The band edges, proven"): `_halving` over SCAN uniform cells,
     each halved until `edge_bound`'s K decides it as `paths` decides a cell of h (no root: G keeps its
     sign and its least |G| at the ends exceeds K w^2 / 8, or it is monotone, the secant's slope above K
-    w; one root: a sign change and monotone; each less G's rounding), each root bisected to the
-    resolution of doubles. Not proven where a cell reached MAX_HALVINGS halvings, the scan MAX_EVALS or
-    out filled up (a segment within rounding of tangent to the band edge's surface), or G's rounding is
-    not bounded."""
+    w or G' (`edge_slope`) of one sign at both ends with |G'(a)| + |G'(b)| above K w; one root: a sign
+    change and monotone; each less its rounding), each root bisected to the resolution of doubles. Not
+    proven where a cell reached MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (a segment
+    within rounding of tangent to the band edge's surface), or G's rounding is not bounded."""
     if k.mode == 0:
         return 0, True
     lo = -0.5 * math.pi if k.mode == 1 else -math.pi
