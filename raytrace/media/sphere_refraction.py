@@ -18,8 +18,10 @@ K on |h''| over it decides it: no root where h keeps its sign and the least |h| 
 K w^2 / 8 (h is within K (theta - a)(b - theta) / 2 of its chord) or where the secant's slope exceeds
 K w (h' then keeps its sign over the cell: monotone), one where h changes sign and is monotone,
 bisected to the resolution of doubles; each test less the values' rounding (the monotone test
-decides the cells beside a double root, where h is too small for the first). With phi(theta) the angle of the unit direction t,
-P' and P'' of length R and |X - P| <= |X| + R:
+decides the cells beside a double root, where h is too small for the first). The cell loop is one
+(`_halving`) for this scan and the two below, on a record of the scanned function (`PathScan`,
+`CausticScan`, `EdgeCone`) whose class picks its value and its cells' tests at compile time. With
+phi(theta) the angle of the unit direction t, P' and P'' of length R and |X - P| <= |X| + R:
     h'' = t'' x (X - P) - 2 t' x P' - t x P'',  |h''| <= (|phi''| + phi'^2)(|X| + R) + 2 |phi'| R + R.
 phi = theta + pi + theta_t, sin theta_t = sin theta_i / eta, theta_i = alpha - theta - pi (alpha the
 arriving direction's angle: constant for the sun; for a lamp at distance d, alpha' =
@@ -177,10 +179,24 @@ tests/test_sphere_band_edges.py checks it against mpmath's derivatives). The cel
 `paths` decides h's, less G's rounding: 2 ((|o - c| + R)(e_t + 16u) + e_p), e_p = 64u (|L| + |c| +
 |o| + d + R + d cond) an edge point's distance from the exact edge rays (cond the parameter's
 conditioning: (|A0| + beta + A1) / (A1 s sqrt(1 - s^2)) in mode 1, d / S_min in mode 2), e_t its
-direction's. Not proven (the segment's bound inf): a cell undecided after MAX_HALVINGS halvings or
-MAX_EVALS in one scan (a segment within rounding of tangent to the edge's surface: the test, against
-a reference that solves Snell's law in mpmath along the segment, finds every crossing and the scan
-proven on random lines and lines 1e-3 and 1e-6 from tangent, not always at 1e-9).
+direction's; and, as the caustic's, monotone too where G' keeps its sign at both ends and |G'(a)| +
+|G'(b)| less their rounding exceeds K w (G' >= G'(a) - K (x - a) and >= G'(b) - K (b - x), so over
+the cell |G'| exceeds half that excess: G has at most one root there, decided by its ends' signs).
+This decides the cells beside a nearly double root (a segment nearly tangent to the edge's surface),
+where |G| is within its rounding and the secant's slope is lost in it. G' = det(w, t', o - P) -
+det(w, t, P') (`edge_slope`) in closed form: mode 1 phi' = 2 s cos / sqrt(1 - s^2 sin^2), b' = 4 kappa
+cos sin, S' = -2 s sqrt(A1) sin (beta + 2 kappa cos^2) / sqrt(beta + kappa cos^2); mode 2 phi' = 1,
+b' = A1 sin phi, S' = b b' / S; u' = phi' se (sin phi b1 - cos phi b2), cos_i' and cos_t' from S' (S =
+R cos_i, cos_t' = cos_i cos_i' / (eta^2 cos_t); for eta < 1 S = R eta cos_t, cos_i' = S S' / (R^2
+cos_i)), r' = -b' - R cos_i', P' = r' u + r u', f' = cos_i' / eta - cos_t', t' = u' / eta + (f' P +
+f P') / R; its rounding is each intermediate's absolute rounding carried alongside to first order
+(sums and products at their magnitudes, sqrt, asin and quotients at their conditioning), doubled
+(tests/test_sphere_band_edges.py: within 1% of it against mpmath's derivative of the closed form, at
+random parameters and at the ends of the range). Not proven (the segment's bound inf): a cell
+undecided after MAX_HALVINGS halvings or MAX_EVALS in one scan (a segment within rounding of tangent
+to the edge's surface: the test, against a reference that solves Snell's law in mpmath along the
+segment, finds every crossing and the scan proven on random lines and lines 1e-3, 1e-6 and 1e-9 from
+tangent).
 """
 from __future__ import annotations
 
@@ -195,15 +211,15 @@ from ..lights import falloff
 from ..lights.spot import band_slope
 from ..geometry.sorting import sort_few
 from .adaptive import bounded_piecewise
-from .integrand import integrand_of
+from .integrand import integrand_of, record_dispatch
 from .phase import phase_value
 from .gauss import N10, N20, W10, W20
 from .inside_rule import QUAD, cut_length, march_or_sample
 from .slab import fresnel, phase_condition
 
-SCAN = 48  # uniform cells of the lit arc on which `paths` starts (`caustic_crossings` on its half [0, theta_a])
-MAX_HALVINGS = 40  # of a cell of `paths` (or `caustic_crossings`) before it is left unresolved
-MAX_EVALS = 1000  # halvings of one scan of `paths` (or `caustic_crossings`) before its undecided cells are left unresolved
+SCAN = 48  # uniform cells on which a halving scan starts (`_halving`: the lit arc, its half, the edge rays)
+MAX_HALVINGS = 40  # of a cell of a halving scan before it is left unresolved
+MAX_EVALS = 1000  # halvings of one halving scan before its undecided cells are left unresolved
 CELL_STACK = SCAN + 2 * MAX_HALVINGS + 2
 U = 2.0 ** -53
 # a record's `track` slots, written by its integrand: the evaluations whose scan was not proven, the
@@ -416,42 +432,95 @@ def _caustic(theta, radius, d, eta):
 
 
 @njit
-def _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
-    """(phi', H, H', |A|, |y_C|, |C'|) at theta: H = |A|^2 - wz^2 y_C^2, A = F + z_C v, of the caustic
-    point C(theta) (`_caustic`; F = (f0, f1, f2) = wz f - z0 v, v = (v0, v1, v2) of the segment f + x v
-    across the axis, z0 + x wz along it: 0 where C turned about the axis meets the segment's line) and
-    its derivative."""
-    phi1, cz, cy, dcz, dcy = _caustic(theta, radius, d, eta)
+def _gap(theta, s):
+    """(H, phi', H', |A|, |y_C|, |C'|) at theta of the `CausticScan` s: H = |A|^2 - wz^2 y_C^2, A = F + z_C v,
+    of the caustic point C(theta) (`_caustic`; F = (f0, f1, f2) = wz f - z0 v, v = (v0, v1, v2) of the
+    segment f + x v across the axis, z0 + x wz along it: 0 where C turned about the axis meets the
+    segment's line) and its derivative."""
+    phi1, cz, cy, dcz, dcy = _caustic(theta, s.radius, s.d, s.eta)
+    f0, f1, f2, v0, v1, v2, wz = s.f0, s.f1, s.f2, s.v0, s.v1, s.v2, s.wz
     a0, a1, a2 = f0 + cz * v0, f1 + cz * v1, f2 + cz * v2
     aa = a0 * a0 + a1 * a1 + a2 * a2
-    return phi1, aa - wz * wz * cy * cy, 2.0 * dcz * (v0 * a0 + v1 * a1 + v2 * a2) - 2.0 * wz * wz * cy * dcy, \
+    return aa - wz * wz * cy * cy, phi1, 2.0 * dcz * (v0 * a0 + v1 * a1 + v2 * a2) - 2.0 * wz * wz * cy * dcy, \
         math.sqrt(aa), abs(cy), math.sqrt(dcz * dcz + dcy * dcy)
 
 
-@njit
-def _gap_into(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, out):
-    """`_gap` into out (GAP,)."""
-    out[0], out[1], out[2], out[3], out[4], out[5] = _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
+# The halving scan (`_halving`) of `paths`, `caustic_crossings` and `edge_crossings`, on a scan record
+# (`PathScan`, `CausticScan`, `EdgeCone`) that names the function and its cells' tests:
+
+def scan_width(s):
+    """How many values `scan_at` gives at a point: the function's, then what `scan_cell` needs."""
+
+
+def scan_at(s, x, out):
+    """The scanned function at x into out[0], what `scan_cell` needs of that point into out[1:]."""
+
+
+def scan_value(s, x):
+    """The scanned function at x (out[0] of `scan_at`)."""
+
+
+def scan_cell(s, a, b, j, e):
+    """The verdict on the cell [a, b] (within the scan's uniform cell j; e: `scan_at` at a, then at b):
+    -1 no root, 1 monotone (one root where the ends' signs differ), 0 undecided (halved)."""
+
+
+def scan_spread(s, root, a, b, fa, fb, j):
+    """How far the root found in the monotone cell [a, b] (fa, fb the function there) may lie from the
+    exact function's (inf where not bounded)."""
+
+
+_width_of = record_dispatch(scan_width, 0)
+_at_of = record_dispatch(scan_at, 0)
+_value_of = record_dispatch(scan_value, 0)
+_cell_of = record_dispatch(scan_cell, 0)
+_spread_of = record_dispatch(scan_spread, 0)
+
+
+class PathScan(NamedTuple):
+    """`paths`' h of the point X = (zx, yx), X's rounding dx and reach = |X| + R (at least |X - P|), for
+    the light and sphere of a `SphereRefracted` (its radius, d, eta, theta_a and cells)."""
+    zx: float
+    yx: float
+    dx: float
+    reach: float
+    radius: float
+    d: float
+    eta: float
+    theta_a: float
+    cells: np.ndarray
+
+
+class CausticScan(NamedTuple):
+    """`caustic_crossings`' H for r's light and the segment's line: F = (f0, f1, f2), v = (v0, v1, v2), wz
+    (`_gap`), |v|, |v|^2, wz^2 and F's rounding e_f, for the light and sphere of a `SphereRefracted`
+    (its radius, d, eta and cells)."""
+    f0: float
+    f1: float
+    f2: float
+    v0: float
+    v1: float
+    v2: float
+    wz: float
+    vn: float
+    vv: float
+    ww: float
+    e_f: float
+    radius: float
+    d: float
+    eta: float
+    cells: np.ndarray
 
 
 @njit
-def _h(theta, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
-    """kind 0: h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends);
-    kind 1: `_gap`'s H (`caustic_crossings`), nan where there is no caustic point ahead of P."""
-    if kind == 0:
-        pz, py, tz, ty, _, _, _ = _clamped(theta, radius, d, eta)
-        return tz * (yx - py) - ty * (zx - pz)
-    return _gap(theta, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)[1]
-
-
-@njit
-def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta):
-    """The root of _h in [lo, hi] (h_lo its sign at lo, the other sign at hi) to the resolution of doubles."""
+def _bisect(s, lo, hi, h_lo):
+    """The root of the scan record s's function in [lo, hi] (h_lo its sign at lo, the other sign at hi) to
+    the resolution of doubles."""
     for _ in range(200):
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:
             break
-        if _h(mid, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, eta) * h_lo > 0.0:
+        if scan_value(s, mid) * h_lo > 0.0:
             lo = mid
         else:
             hi = mid
@@ -459,82 +528,50 @@ def _bisect(lo, hi, h_lo, kind, zx, yx, f0, f1, f2, v0, v1, v2, wz, radius, d, e
 
 
 @njit
-def _steepest(root, a, b, fa, fb, k, e, zx, yx, radius, d, eta):
-    """A lower bound on |h'| about the root of h in the monotone cell [a, b] (h(a) = fa, h(b) = fb, K = k
-    over it) within which the root of h off by e at most lies: the cell's secant's slope less K w,
-    and where that is below half the secant's, narrower intervals about the root, each quartered:
-    their secant less K w where h there differs from 0 by more than e at both ends (the root of h off
-    by e is then inside: |h| grows away from the root, h being monotone in the cell)."""
-    w = b - a
-    secant = abs(fb - fa) / w
-    best = secant - k * w - 2.0 * e / w  # the cell's: its ends' values off by e each
-    half = 0.25 * w
-    for _ in range(24):
-        if best >= 0.5 * secant:
-            break
-        lo, hi = max(a, root - half), min(b, root + half)
-        f1 = _h(lo, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        f2 = _h(hi, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        wn = hi - lo
-        if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
-            break
-        secant = abs(f2 - f1) / wn
-        best = max(best, secant - k * wn - 2.0 * e / wn)
-        half *= 0.25
-    return best
-
-
-@njit
-def paths(r, zx, yx, dx, out, spread):
-    """The roots of h (kind 0 of `_h`) of the point X = (zx, yx) on the lit arc into out, ascending,
-    and into spread[k] how far each may be from the exact root of X, whose computed coordinates are
-    off by dx at most: 2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`; inf
-    for a root at a node or in an unresolved cell); returns (count,
-    proven): SCAN uniform cells, each halved until the bound K on |h''| over it (`angular_bounds` of
-    its SCAN cell) shows that it holds no root (no sign change and either the least |h| at its ends
-    above K w^2 / 8 or h monotone: the secant's slope above K w, each less the values' rounding) or
-    one (a sign change and h monotone), that root bisected to the resolution of doubles (module
-    docstring, "The paths, proven"); not proven where a cell reached MAX_HALVINGS halvings, the scan
-    MAX_EVALS or out filled up (sign changes are still bisected)."""
-    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
-    lo = -r.theta_a
-    step = 2.0 * r.theta_a / SCAN
-    reach = math.sqrt(zx * zx + yx * yx) + radius  # |X - P| at most
+def _halving(s, lo, step, first, start, right_node, out, spread):
+    """The roots of the scan record s's function over the uniform cells first to SCAN - 1 of width step
+    from lo (the first cell starting at start) into out, ascending, each with its `scan_spread` (inf at a
+    node or in an unresolved cell) into spread; returns (count, proven): each cell halved until
+    `scan_cell` decides it, a root of a monotone cell bisected to the resolution of doubles, roots at the
+    nodes taken as they are (the right end's where right_node); not proven where a cell reached
+    MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (sign changes are still bisected)."""
+    width = scan_width(s)
     ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    ha, hb = np.empty(CELL_STACK), np.empty(CELL_STACK)
+    vals = np.empty((CELL_STACK, 2 * width))  # `scan_at` at both ends
+    node = np.empty(width)
     which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
     m, top, proven, evals = 0, 0, True, 0
     cap = out.shape[0]
-    right = _h(lo + SCAN * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-    if right == 0.0:
+    scan_at(s, lo + SCAN * step, node)
+    if node[0] == 0.0 and right_node:
         out[m] = lo + SCAN * step
         spread[m] = math.inf
         m += 1
-    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
-        left = _h(lo + j * step, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-        if left == 0.0 and m < cap:
-            out[m] = lo + j * step
+    for j in range(SCAN - 1, first - 1, -1):  # pushed last to first: popped from the left
+        left = lo + j * step if j > first else start
+        for i in range(width):
+            vals[top, width + i] = node[i]
+        scan_at(s, left, node)
+        if node[0] == 0.0 and m < cap:
+            out[m] = left
             spread[m] = math.inf
             m += 1
-        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, j, 0
+        ca[top], cb[top], which[top], depth[top] = left, lo + (j + 1) * step, j, 0
+        for i in range(width):
+            vals[top, i] = node[i]
         top += 1
-        right = left
     while top > 0:
         top -= 1
-        a, b, fa, fb, j = ca[top], cb[top], ha[top], hb[top], which[top]
-        w = b - a
-        p1, p2, et = cells[j, 0], cells[j, 1], cells[j, 2]
-        k = (p2 + p1 * p1) * reach + 2.0 * p1 * radius + radius
-        dh = 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
-        if fa * fb > 0.0:
-            if min(abs(fa), abs(fb)) - dh > 0.125 * k * w * w or abs(fb - fa) - 2.0 * dh > k * w * w:
-                continue  # keeps its sign, or monotone
-        elif abs(fb - fa) - 2.0 * dh > k * w * w:
+        a, b, j = ca[top], cb[top], which[top]
+        fa, fb = vals[top, 0], vals[top, width]
+        verdict = scan_cell(s, a, b, j, vals[top])
+        if verdict < 0:
+            continue
+        if verdict > 0:
             if fa * fb < 0.0:
                 if m < cap:
-                    out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
-                    slope = _steepest(out[m], a, b, fa, fb, k, dh + dx, zx, yx, radius, d, eta)
-                    spread[m] = 2.0 * (dh + dx) / slope + 4.0 * U * r.theta_a if slope > 0.0 else math.inf
+                    out[m] = _bisect(s, a, b, fa)
+                    spread[m] = scan_spread(s, out[m], a, b, fa, fb, j)
                     m += 1
                 else:
                     proven = False
@@ -543,13 +580,13 @@ def paths(r, zx, yx, dx, out, spread):
         if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
             proven = False
             if fa * fb < 0.0 and m < cap:
-                out[m] = _bisect(a, b, fa, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+                out[m] = _bisect(s, a, b, fa)
                 spread[m] = math.inf
                 m += 1
             continue
-        fm = _h(mid, 0, zx, yx, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, radius, d, eta)
+        scan_at(s, mid, node)
         evals += 1
-        if fm == 0.0:
+        if node[0] == 0.0:
             if m < cap:
                 out[m] = mid
                 spread[m] = math.inf
@@ -557,8 +594,10 @@ def paths(r, zx, yx, dx, out, spread):
             else:
                 proven = False
         level = depth[top] + 1
-        ca[top], cb[top], ha[top], hb[top], which[top], depth[top] = mid, b, fm, fb, j, level
-        ca[top + 1], cb[top + 1], ha[top + 1], hb[top + 1], which[top + 1], depth[top + 1] = a, mid, fa, fm, j, level
+        ca[top + 1], cb[top + 1], which[top + 1], depth[top + 1] = a, mid, j, level
+        for i in range(width):
+            vals[top + 1, i], vals[top + 1, width + i], vals[top, i] = vals[top, i], node[i], node[i]
+        ca[top], depth[top] = mid, level
         top += 2
     for p in range(1, m):  # insertion sort, the spreads alongside
         x, s0, q = out[p], spread[p], p
@@ -570,117 +609,195 @@ def paths(r, zx, yx, dx, out, spread):
 
 
 @njit
+def _h(theta, s):
+    """h(theta) = t x (X - P) of the `PathScan` s's point X (`_clamped`'s t, continuous to the arc's ends)."""
+    pz, py, tz, ty, _, _, _ = _clamped(theta, s.radius, s.d, s.eta)
+    return tz * (s.yx - py) - ty * (s.zx - pz)
+
+
+@njit
+def _paths_bound(s, j):
+    """(K, dh) of the `PathScan` s over SCAN cell j: the bound on |h''| and h's rounding (module docstring,
+    "The paths, proven")."""
+    radius, reach = s.radius, s.reach
+    p1, p2, et = s.cells[j, 0], s.cells[j, 1], s.cells[j, 2]
+    k = (p2 + p1 * p1) * reach + 2.0 * p1 * radius + radius
+    return k, 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
+
+
+@_width_of(PathScan)
+@njit
+def _paths_width(s):
+    return 1
+
+
+@_at_of(PathScan)
+@njit
+def _paths_at(s, x, out):
+    out[0] = _h(x, s)
+
+
+@_value_of(PathScan)
+@njit
+def _paths_value(s, x):
+    return _h(x, s)
+
+
+@_cell_of(PathScan)
+@njit
+def _paths_cell(s, a, b, j, e):
+    """No root where h keeps its sign and either its least |h| at the ends exceeds K w^2 / 8 or the
+    secant's slope exceeds K w; monotone where the secant's slope exceeds K w (each less the rounding)."""
+    k, dh = _paths_bound(s, j)
+    fa, fb, w = e[0], e[1], b - a
+    if fa * fb > 0.0:
+        return -1 if min(abs(fa), abs(fb)) - dh > 0.125 * k * w * w or abs(fb - fa) - 2.0 * dh > k * w * w else 0
+    return 1 if abs(fb - fa) - 2.0 * dh > k * w * w else 0
+
+
+@_spread_of(PathScan)
+@njit
+def _paths_spread(s, root, a, b, fa, fb, j):
+    """2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`)."""
+    k, dh = _paths_bound(s, j)
+    slope = _steepest(root, a, b, fa, fb, k, dh + s.dx, s)
+    return 2.0 * (dh + s.dx) / slope + 4.0 * U * s.theta_a if slope > 0.0 else math.inf
+
+
+@njit
+def _steepest(root, a, b, fa, fb, k, e, s):
+    """A lower bound on |h'| about the root of h (of the `PathScan` s) in the monotone cell [a, b] (h(a) =
+    fa, h(b) = fb, K = k over it) within which the root of h off by e at most lies: the cell's secant's
+    slope less K w, and where that is below half the secant's, narrower intervals about the root, each
+    quartered: their secant less K w where h there differs from 0 by more than e at both ends (the root of
+    h off by e is then inside: |h| grows away from the root, h being monotone in the cell)."""
+    w = b - a
+    secant = abs(fb - fa) / w
+    best = secant - k * w - 2.0 * e / w  # the cell's: its ends' values off by e each
+    half = 0.25 * w
+    for _ in range(24):
+        if best >= 0.5 * secant:
+            break
+        lo, hi = max(a, root - half), min(b, root + half)
+        f1 = _h(lo, s)
+        f2 = _h(hi, s)
+        wn = hi - lo
+        if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
+            break
+        secant = abs(f2 - f1) / wn
+        best = max(best, secant - k * wn - 2.0 * e / wn)
+        half *= 0.25
+    return best
+
+
+@njit
+def paths(r, zx, yx, dx, out, spread):
+    """The roots of h of the point X = (zx, yx) on the lit arc into out, ascending, and into spread[k]
+    how far each may be from the exact root of X, whose computed coordinates are off by dx at most: 2
+    (the values' rounding + dx) / the least |h'| about the root (`_steepest`; inf for a root at a node
+    or in an unresolved cell); returns (count, proven): `_halving` over SCAN uniform cells, each halved
+    until the bound K on |h''| over it (`angular_bounds` of its SCAN cell) shows that it holds no root
+    (no sign change and either the least |h| at its ends above K w^2 / 8 or h monotone: the secant's
+    slope above K w, each less the values' rounding) or one (a sign change and h monotone), that root
+    bisected to the resolution of doubles (module docstring, "The paths, proven")."""
+    s = PathScan(zx, yx, dx, math.sqrt(zx * zx + yx * yx) + r.radius, r.radius, r.d, r.eta, r.theta_a, r.cells)
+    step = 2.0 * r.theta_a / SCAN
+    return _halving(s, -r.theta_a, step, 0, -r.theta_a, True, out, spread)
+
+
+@njit
 def caustic_crossings(r, f, v, fz, wz, out):
     """The angles theta in [0, theta_a] where the caustic point C(theta) turned about the axis meets the
     line of the segment f + x v across the axis, fz + x wz along it: the roots of `_gap`'s H (F = wz f
     - fz v) into out, ascending; returns (count, proven) (module docstring, "The caustic's crossings,
-    proven"): the SCAN / 2 cells of `cell_table` on [0, theta_a], each halved until it is decided: left
-    out where phi' < 1/2 over it (C beyond the sphere or behind P), else, where phi' >= m > 0 over it,
-    as `paths` decides a cell of h by the bound K on |H''| and H's rounding, and monotone too where H'
-    keeps its sign at both ends and |H'(a)| + |H'(b)| exceeds K w (each less its rounding); each root
-    bisected to the resolution of doubles. Not proven where a cell reached MAX_HALVINGS halvings, the
-    scan MAX_EVALS or out filled up (a segment within rounding of tangent to the caustic surface, where
-    a root is double), or where wz = 0 (the caustic point's height alone does not place it on the
-    segment); none for eta <= 1 (phi' < 0: no caustic point ahead of P)."""
-    radius, d, eta, cells = r.radius, r.d, r.eta, r.cells
-    if not eta > 1.0:
+    proven"): `_halving` over the SCAN / 2 cells of `cell_table` on [0, theta_a], each halved until it
+    is decided: left out where phi' < 1/2 over it (C beyond the sphere or behind P), else, where phi'
+    >= m > 0 over it, as `paths` decides a cell of h by the bound K on |H''| and H's rounding, and
+    monotone too where H' keeps its sign at both ends and |H'(a)| + |H'(b)| exceeds K w (each less its
+    rounding); each root bisected to the resolution of doubles. Not proven where a cell reached
+    MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (a segment within rounding of tangent to
+    the caustic surface, where a root is double), or where wz = 0 (the caustic point's height alone does
+    not place it on the segment); none for eta <= 1 (phi' < 0: no caustic point ahead of P)."""
+    if not r.eta > 1.0:
         return 0, True
     if wz == 0.0:
         return 0, False
-    f0, f1, f2 = wz * f[0] - fz * v[0], wz * f[1] - fz * v[1], wz * f[2] - fz * v[2]
     v0, v1, v2 = v[0], v[1], v[2]
     vv = v0 * v0 + v1 * v1 + v2 * v2
-    vn, ww = math.sqrt(vv), wz * wz
+    vn = math.sqrt(vv)
     e_f = 16.0 * U * (abs(wz) * math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) + abs(fz) * vn)  # F's rounding
-    lo = -r.theta_a
+    s = CausticScan(wz * f[0] - fz * v[0], wz * f[1] - fz * v[1], wz * f[2] - fz * v[2], v0, v1, v2, wz, vn, vv,
+                    wz * wz, e_f, r.radius, r.d, r.eta, r.cells)
     step = 2.0 * r.theta_a / SCAN
-    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    vals = np.empty((CELL_STACK, 2 * GAP))  # `_gap` at both ends
-    node = np.empty(GAP)
-    which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
-    m, top, proven, evals = 0, 0, True, 0
-    cap = out.shape[0]
-    _gap_into(lo + SCAN * step, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
-    if node[1] == 0.0:
-        out[m] = lo + SCAN * step
-        m += 1
-    for j in range(SCAN - 1, SCAN // 2 - 1, -1):  # pushed last to first: popped from the left
-        left = lo + j * step if j > SCAN // 2 else 0.0
-        vals[top, GAP:] = node
-        _gap_into(left, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
-        if node[1] == 0.0 and m < cap:
-            out[m] = left
-            m += 1
-        ca[top], cb[top], which[top], depth[top] = left, lo + (j + 1) * step, j, 0
-        vals[top, :GAP] = node
-        top += 1
-    while top > 0:
-        top -= 1
-        a, b, j = ca[top], cb[top], which[top]
-        e = vals[top]
-        qa, fa, sa, qb, fb, sb = e[0], e[1], e[2], e[GAP], e[GAP + 1], e[GAP + 2]
-        w = b - a
-        p1, et, p2, p3, ct = cells[j, 0], cells[j, 2], cells[j, 4], cells[j, 5], cells[j, 6]
-        g = 1.0 + 1.0 / (eta * eta * ct * ct)
-        slack = 64.0 * U * p1 * g  # phi''s rounding
-        if 0.5 * (qa + qb + p2 * w) + slack < 0.5:
-            continue  # phi' < 1/2 over the cell: C beyond the sphere or behind P
-        low = 0.5 * (qa + qb - p2 * w) - slack  # the least phi' over the cell
-        if low > 0.0 and fa == fa and fb == fb:
-            d1 = p1 - 1.0  # |phi' - 1| at most
-            c2 = radius * (d1 + d1 * d1 / low + (p2 * (1.0 + d1) + p3) / (low * low) + 2.0 * p2 * p2 / low ** 3)
-            c1 = radius * (1.0 + d1 / low + p2 / (low * low))  # |C'|
-            c2 += c1 * p1  # |C''|
-            c1 = min(c1, max(e[5], e[GAP + 5]) + 0.5 * c2 * w)
-            amax = max(e[3], e[GAP + 3]) + 0.5 * c1 * vn * w  # |F + z_C v|
-            ymax = max(e[4], e[GAP + 4]) + 0.5 * c1 * w  # |y_C|
-            k = 2.0 * c2 * (vn * amax + ww * ymax) + 2.0 * c1 * c1 * (vv + ww)
-            e_r = et + 2.0 * slack / low  # t's rounding and 1 / phi''s relative
-            e_c = 4.0 * U * radius + radius / low * (e_r + 16.0 * U / (ct * ct))  # C's
-            e_c1 = (c1 * (2.0 + eta) + radius * (2.0 + 1.0 / low)) * e_r + radius * p2 / (low * low) * 64.0 * U * g  # C''s
-            e_a = vn * e_c + e_f + 16.0 * U * (radius + radius / low) * vn  # A's
-            dha = 2.0 * (2.0 * (e[3] * e_a + ww * e[4] * e_c) + 8.0 * U * (e[3] * e[3] + ww * e[4] * e[4]))
-            dhb = 2.0 * (2.0 * (e[GAP + 3] * e_a + ww * e[GAP + 4] * e_c) + 8.0 * U * (e[GAP + 3] ** 2 + ww * e[GAP + 4] ** 2))
-            dsa = 4.0 * ((vn * e[3] + ww * e[4]) * (e_c1 + 8.0 * U * e[5]) + e[5] * (vn * e_a + ww * e_c))
-            dsb = 4.0 * ((vn * e[GAP + 3] + ww * e[GAP + 4]) * (e_c1 + 8.0 * U * e[GAP + 5]) +
-                         e[GAP + 5] * (vn * e_a + ww * e_c))
-            mono = sa * sb > 0.0 and abs(sa) + abs(sb) - 2.0 * (dsa + dsb) > k * w or \
-                abs(fb - fa) - 2.0 * (dha + dhb) > k * w * w
-            if fa * fb > 0.0:
-                if abs(fa) > dha and abs(fb) > dhb and (min(abs(fa) - dha, abs(fb) - dhb) > 0.125 * k * w * w or mono):
-                    continue  # keeps its sign, or monotone
-            elif mono:
-                if fa * fb < 0.0:
-                    if m < cap:
-                        out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
-                        m += 1
-                    else:
-                        proven = False
-                continue
-        mid = 0.5 * (a + b)
-        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
-            proven = False
-            if fa * fb < 0.0 and m < cap:
-                out[m] = _bisect(a, b, fa, 1, 0.0, 0.0, f0, f1, f2, v0, v1, v2, wz, radius, d, eta)
-                m += 1
-            continue
-        _gap_into(mid, f0, f1, f2, v0, v1, v2, wz, radius, d, eta, node)
-        evals += 1
-        if node[1] == 0.0:
-            if m < cap:
-                out[m] = mid
-                m += 1
-            else:
-                proven = False
-        level = depth[top] + 1
-        ca[top + 1], cb[top + 1], which[top + 1], depth[top + 1] = a, mid, j, level
-        vals[top + 1, :GAP] = vals[top, :GAP]
-        vals[top + 1, GAP:] = node
-        ca[top], depth[top] = mid, level
-        vals[top, :GAP] = node
-        top += 2
-    sort_few(out, 0, m)
-    return m, proven
+    return _halving(s, -r.theta_a, step, SCAN // 2, 0.0, True, out, np.empty(out.shape[0]))
+
+
+@_width_of(CausticScan)
+@njit
+def _caustic_width(s):
+    return GAP
+
+
+@_at_of(CausticScan)
+@njit
+def _caustic_at(s, x, out):
+    out[0], out[1], out[2], out[3], out[4], out[5] = _gap(x, s)
+
+
+@_value_of(CausticScan)
+@njit
+def _caustic_value(s, x):
+    return _gap(x, s)[0]
+
+
+@_cell_of(CausticScan)
+@njit
+def _caustic_cell(s, a, b, j, e):
+    """No root where phi' < 1/2 over the cell; else, where phi' >= m > 0 over it, as `_paths_cell` by the
+    bound K on |H''| (module docstring, "The caustic's crossings, proven") and monotone too where H' keeps
+    its sign at both ends and |H'(a)| + |H'(b)| exceeds K w, each less its rounding; no root needs both
+    ends' |H| above their rounding."""
+    radius, eta, cells = s.radius, s.eta, s.cells
+    vn, vv, ww = s.vn, s.vv, s.ww
+    fa, qa, sa, fb, qb, sb = e[0], e[1], e[2], e[GAP], e[GAP + 1], e[GAP + 2]
+    w = b - a
+    p1, et, p2, p3, ct = cells[j, 0], cells[j, 2], cells[j, 4], cells[j, 5], cells[j, 6]
+    g = 1.0 + 1.0 / (eta * eta * ct * ct)
+    slack = 64.0 * U * p1 * g  # phi''s rounding
+    if 0.5 * (qa + qb + p2 * w) + slack < 0.5:
+        return -1  # phi' < 1/2 over the cell: C beyond the sphere or behind P
+    low = 0.5 * (qa + qb - p2 * w) - slack  # the least phi' over the cell
+    if not (low > 0.0 and fa == fa and fb == fb):
+        return 0
+    d1 = p1 - 1.0  # |phi' - 1| at most
+    c2 = radius * (d1 + d1 * d1 / low + (p2 * (1.0 + d1) + p3) / (low * low) + 2.0 * p2 * p2 / low ** 3)
+    c1 = radius * (1.0 + d1 / low + p2 / (low * low))  # |C'|
+    c2 += c1 * p1  # |C''|
+    c1 = min(c1, max(e[5], e[GAP + 5]) + 0.5 * c2 * w)
+    amax = max(e[3], e[GAP + 3]) + 0.5 * c1 * vn * w  # |F + z_C v|
+    ymax = max(e[4], e[GAP + 4]) + 0.5 * c1 * w  # |y_C|
+    k = 2.0 * c2 * (vn * amax + ww * ymax) + 2.0 * c1 * c1 * (vv + ww)
+    e_r = et + 2.0 * slack / low  # t's rounding and 1 / phi''s relative
+    e_c = 4.0 * U * radius + radius / low * (e_r + 16.0 * U / (ct * ct))  # C's
+    e_c1 = (c1 * (2.0 + eta) + radius * (2.0 + 1.0 / low)) * e_r + radius * p2 / (low * low) * 64.0 * U * g  # C''s
+    e_a = vn * e_c + s.e_f + 16.0 * U * (radius + radius / low) * vn  # A's
+    dha = 2.0 * (2.0 * (e[3] * e_a + ww * e[4] * e_c) + 8.0 * U * (e[3] * e[3] + ww * e[4] * e[4]))
+    dhb = 2.0 * (2.0 * (e[GAP + 3] * e_a + ww * e[GAP + 4] * e_c) + 8.0 * U * (e[GAP + 3] ** 2 + ww * e[GAP + 4] ** 2))
+    dsa = 4.0 * ((vn * e[3] + ww * e[4]) * (e_c1 + 8.0 * U * e[5]) + e[5] * (vn * e_a + ww * e_c))
+    dsb = 4.0 * ((vn * e[GAP + 3] + ww * e[GAP + 4]) * (e_c1 + 8.0 * U * e[GAP + 5]) +
+                 e[GAP + 5] * (vn * e_a + ww * e_c))
+    mono = sa * sb > 0.0 and abs(sa) + abs(sb) - 2.0 * (dsa + dsb) > k * w or \
+        abs(fb - fa) - 2.0 * (dha + dhb) > k * w * w
+    if fa * fb > 0.0:
+        return -1 if abs(fa) > dha and abs(fb) > dhb and (min(abs(fa) - dha, abs(fb) - dhb) > 0.125 * k * w * w
+                                                           or mono) else 0
+    return 1 if mono else 0
+
+
+@_spread_of(CausticScan)
+@njit
+def _caustic_spread(s, root, a, b, fa, fb, j):
+    return math.inf
 
 
 class EdgeCone(NamedTuple):
@@ -800,6 +917,85 @@ def edge_gap(tau, k):
 
 
 @njit
+def _det(w, x, y):
+    """det(w, x, y) of 3-vectors."""
+    return w[0] * (x[1] * y[2] - x[2] * y[1]) + w[1] * (x[2] * y[0] - x[0] * y[2]) + w[2] * (x[0] * y[1] - x[1] * y[0])
+
+
+@njit
+def edge_slope(tau, k):
+    """(G', its rounding) at tau of the `EdgeCone` k (module docstring, "The band edges, proven"): G' =
+    det(w, t', o - P) - det(w, t, P') through phi', S' and b' = q.u' in closed form, each intermediate's
+    absolute rounding carried to first order alongside (u the unit roundoff; sqrt, asin and the quotients
+    at their conditioning), doubled."""
+    radius, eta, beta, u = k.radius, k.eta, k.beta, U
+    if k.mode == 1:
+        cs, sn = max(math.cos(tau), 0.0), math.sin(tau)
+        den = (1.0 - k.s * sn) * (1.0 + k.s * sn)
+        root = math.sqrt(den)
+        phi = 2.0 * math.asin(k.s * sn)
+        e_phi = 16.0 * u / root + 4.0 * u * abs(phi)
+        d_phi = 2.0 * k.s * cs / root
+        e_dphi = abs(d_phi) * (8.0 * u + 4.0 * u / den)
+        y = beta + k.kappa * cs * cs
+        b, db = -beta - 2.0 * k.kappa * cs * cs, 4.0 * k.kappa * cs * sn
+        e_b, e_db = 8.0 * u * abs(b), 8.0 * u * abs(db)
+        g = 2.0 * k.s * math.sqrt(k.a1)
+        sq, dsq = g * cs * math.sqrt(y), -g * sn * (beta + 2.0 * k.kappa * cs * cs) / math.sqrt(y)
+        e_sq, e_dsq = 16.0 * u * sq, 16.0 * u * abs(dsq)
+    else:
+        phi, d_phi, e_phi, e_dphi = tau, 1.0, 0.0, 0.0
+        b, db = k.a0 - k.a1 * math.cos(phi), k.a1 * math.sin(phi)
+        e_b, e_db = 4.0 * u * (abs(k.a0) + k.a1), 4.0 * u * k.a1
+        sq = math.sqrt(max((-b - beta) * (beta - b), 0.0))
+        dsq = b * db / sq
+        e_sq = (abs(b) * e_b + 4.0 * u * b * b) / sq + 4.0 * u * sq
+        e_dsq = (e_b * abs(db) + abs(b) * e_db) / sq + abs(dsq) * (e_sq / sq + 4.0 * u)
+    cp, sp = math.cos(phi), math.sin(phi)
+    uu = k.ce * k.a - k.se * (cp * k.b1 + sp * k.b2)
+    du = d_phi * k.se * (sp * k.b1 - cp * k.b2)
+    e_u = k.se * e_phi + 12.0 * u
+    e_du = k.se * (abs(d_phi) * (e_phi + 8.0 * u) + e_dphi)
+    if eta >= 1.0:
+        ci, dci = sq / radius, dsq / radius
+        e_ci, e_dci = e_sq / radius + u * ci, e_dsq / radius + u * abs(dci)
+        ct = math.sqrt((eta - 1.0) * (eta + 1.0) + ci * ci) / eta
+        dct = ci * dci / (eta * eta * ct)
+        e_ct = ci * e_ci / (eta * eta * ct) + 4.0 * u * ct
+        e_dct = (abs(dci) * e_ci + ci * e_dci) / (eta * eta * ct) + abs(dct) * (e_ct / ct + 4.0 * u)
+    else:
+        ci = math.sqrt((1.0 - eta) * (1.0 + eta) + (sq / radius) ** 2)
+        ct, dct = sq / (radius * eta), dsq / (radius * eta)
+        dci = sq * dsq / (radius * radius * ci)
+        e_ci = sq * e_sq / (radius * radius * ci) + 4.0 * u * ci
+        e_ct, e_dct = e_sq / (radius * eta) + 2.0 * u * ct, e_dsq / (radius * eta) + 2.0 * u * abs(dct)
+        e_dci = (e_sq * abs(dsq) + sq * e_dsq) / (radius * radius * ci) + abs(dci) * (e_ci / ci + 4.0 * u)
+    r, dr = -b - radius * ci, -db - radius * dci
+    e_r = e_b + radius * e_ci + 2.0 * u * (abs(b) + radius * ci)
+    e_dr = e_db + radius * e_dci + 2.0 * u * (abs(db) + radius * abs(dci))
+    pc = k.q + r * uu
+    dp = dr * uu + r * du
+    n_u, n_du, n_p, n_dp = _norm(uu), _norm(du), _norm(pc), _norm(dp)
+    e_p = 2.0 * u * _norm(k.q) + e_r + abs(r) * e_u + 2.0 * u * abs(r)
+    e_dp = e_dr + abs(dr) * e_u + e_r * n_du + abs(r) * e_du + 4.0 * u * (abs(dr) + abs(r) * n_du)
+    f, df = ci / eta - ct, dci / eta - dct
+    e_f = e_ci / eta + e_ct + 2.0 * u * (ci / eta + ct)
+    e_df = e_dci / eta + e_dct + 2.0 * u * (abs(dci) / eta + abs(dct))
+    t = uu / eta + f / radius * pc
+    dt = du / eta + df / radius * pc + f / radius * dp
+    e_t = e_u / eta + (e_f * n_p + abs(f) * e_p) / radius + 4.0 * u * (n_u / eta + abs(f) * n_p / radius)
+    e_dt = e_du / eta + (e_df * n_p + abs(df) * e_p + e_f * n_dp + abs(f) * e_dp) / radius + \
+        6.0 * u * (n_du / eta + (abs(df) * n_p + abs(f) * n_dp) / radius)
+    m = k.oc - pc
+    n_m = _norm(m)
+    e_m = e_p + u * (_norm(k.oc) + n_p)
+    n_t, n_dt = _norm(t), _norm(dt)
+    slope = _det(k.w, dt, m) - _det(k.w, t, dp)
+    e_g = e_dt * n_m + n_dt * e_m + e_t * n_dp + n_t * e_dp + 16.0 * u * (n_dt * n_m + n_t * n_dp)
+    return slope, 2.0 * e_g
+
+
+@njit
 def edge_bound(lo, hi, k):
     """K >= |G''| over [lo, hi] of the `EdgeCone` k (module docstring, "The band edges, proven"): the
     parameter's (phi', phi'', S', S'', the least S) then |P''|, |t''|, |P'|, |t'| through the partial
@@ -852,87 +1048,60 @@ def edge_bound(lo, hi, k):
 
 
 @njit
-def _edge_bisect(lo, hi, g_lo, k):
-    """The root of `edge_gap` in [lo, hi] (g_lo its sign at lo, the other at hi) to the resolution of doubles."""
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            break
-        if edge_gap(mid, k) * g_lo > 0.0:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
-@njit
 def edge_crossings(k, out):
     """The roots of `edge_gap` over the `EdgeCone` k's parameter range into out, ascending; returns
-    (count, proven) (module docstring, "The band edges, proven"): SCAN uniform cells, each halved until
-    `edge_bound`'s K decides it as `paths` decides a cell of h (no root: G keeps its sign and its least
-    |G| at the ends exceeds K w^2 / 8, or it is monotone, the secant's slope above K w; one root: a sign
-    change and monotone; each less G's rounding), each root bisected to the resolution of doubles. Not
+    (count, proven) (module docstring, "The band edges, proven"): `_halving` over SCAN uniform cells,
+    each halved until `edge_bound`'s K decides it as `paths` decides a cell of h (no root: G keeps its
+    sign and its least |G| at the ends exceeds K w^2 / 8, or it is monotone, the secant's slope above K
+    w or G' (`edge_slope`) of one sign at both ends with |G'(a)| + |G'(b)| above K w; one root: a sign
+    change and monotone; each less its rounding), each root bisected to the resolution of doubles. Not
     proven where a cell reached MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (a segment
-    within rounding of tangent to the band edge's surface)."""
+    within rounding of tangent to the band edge's surface), or G's rounding is not bounded."""
     if k.mode == 0:
         return 0, True
     lo = -0.5 * math.pi if k.mode == 1 else -math.pi
-    step = -2.0 * lo / SCAN
-    dg = k.dg
-    ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    ga, gb = np.empty(CELL_STACK), np.empty(CELL_STACK)
-    depth = np.empty(CELL_STACK, dtype=np.int64)
-    m, top, proven, evals = 0, 0, dg < math.inf, 0
-    cap = out.shape[0]
-    right = edge_gap(lo + SCAN * step, k)
-    if right == 0.0 and k.mode == 1:  # (mode 2's ends are one ray: counted at its start)
-        out[m] = lo + SCAN * step
-        m += 1
-    for j in range(SCAN - 1, -1, -1):  # pushed last to first: popped from the left
-        left = edge_gap(lo + j * step, k)
-        if left == 0.0 and m < cap:
-            out[m] = lo + j * step
-            m += 1
-        ca[top], cb[top], ga[top], gb[top], depth[top] = lo + j * step, lo + (j + 1) * step, left, right, 0
-        top += 1
-        right = left
-    while top > 0:
-        top -= 1
-        a, b, fa, fb = ca[top], cb[top], ga[top], gb[top]
-        w = b - a
-        kk = edge_bound(a, b, k)
-        if fa * fb > 0.0:
-            if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or abs(fb - fa) - 2.0 * dg > kk * w * w:
-                continue  # keeps its sign, or monotone
-        elif abs(fb - fa) - 2.0 * dg > kk * w * w:
-            if fa * fb < 0.0:
-                if m < cap:
-                    out[m] = _edge_bisect(a, b, fa, k)
-                    m += 1
-                else:
-                    proven = False
-            continue
-        mid = 0.5 * (a + b)
-        if depth[top] >= MAX_HALVINGS or top + 2 > CELL_STACK or evals >= MAX_EVALS or not a < mid < b:
-            proven = False
-            if fa * fb < 0.0 and m < cap:
-                out[m] = _edge_bisect(a, b, fa, k)
-                m += 1
-            continue
-        fm = edge_gap(mid, k)
-        evals += 1
-        if fm == 0.0:
-            if m < cap:
-                out[m] = mid
-                m += 1
-            else:
-                proven = False
-        level = depth[top] + 1
-        ca[top], cb[top], ga[top], gb[top], depth[top] = mid, b, fm, fb, level
-        ca[top + 1], cb[top + 1], ga[top + 1], gb[top + 1], depth[top + 1] = a, mid, fa, fm, level
-        top += 2
-    sort_few(out, 0, m)
-    return m, proven
+    # (mode 2's ends are one ray: a root there counted at its start)
+    m, proven = _halving(k, lo, -2.0 * lo / SCAN, 0, lo, k.mode == 1, out, np.empty(out.shape[0]))
+    return m, proven and k.dg < math.inf
+
+
+@_width_of(EdgeCone)
+@njit
+def _edge_width(k):
+    return 3
+
+
+@_at_of(EdgeCone)
+@njit
+def _edge_at(k, x, out):
+    out[0] = edge_gap(x, k)
+    out[1], out[2] = edge_slope(x, k)
+
+
+@_value_of(EdgeCone)
+@njit
+def _edge_value(k, x):
+    return edge_gap(x, k)
+
+
+@_cell_of(EdgeCone)
+@njit
+def _edge_cell(k, a, b, j, e):
+    """As `_paths_cell`, by `edge_bound`'s K and G's rounding dg, and monotone too where G' (`edge_slope`)
+    keeps its sign at both ends and |G'(a)| + |G'(b)| less their rounding exceeds K w (G' then exceeds half
+    the excess in size over the cell, as G'(a) - K (x - a) and G'(b) - K (b - x) bound it)."""
+    kk, dg = edge_bound(a, b, k), k.dg
+    fa, sa, dsa, fb, sb, dsb, w = e[0], e[1], e[2], e[3], e[4], e[5], b - a
+    mono = abs(fb - fa) - 2.0 * dg > kk * w * w or sa * sb > 0.0 and abs(sa) + abs(sb) - dsa - dsb > kk * w
+    if fa * fb > 0.0:
+        return -1 if min(abs(fa), abs(fb)) - dg > 0.125 * kk * w * w or mono else 0
+    return 1 if mono else 0
+
+
+@_spread_of(EdgeCone)
+@njit
+def _edge_spread(k, root, a, b, fa, fb, j):
+    return math.inf
 
 
 @njit
