@@ -208,6 +208,19 @@ def lines(rng, L, axis, ce, eta, n):
 
 
 @pytest.mark.parametrize("eta", ETAS)
+def random_cones(rng, eta, n):
+    """The edge cones (`edge_cone`, mode 0 left out) of n random spots and one just off the axis, each
+    from a random segment in the ball."""
+    for L, axis, ce, cs in spots(rng, n) + [(np.array([0.0, 0.0, 4.0]), np.array([0.05, 0.0, -1.0]) /
+                                             math.hypot(0.05, 1.0), math.cos(0.1), 0.999)]:
+        o = rng.normal(size=3)
+        o *= rng.uniform(0.0, 0.95) / np.linalg.norm(o)
+        w = rng.normal(size=3)
+        k = edge_cone(rec(o, w / np.linalg.norm(w), eta, L, axis, ce, cs), ce)
+        if k.mode != 0:
+            yield k
+
+
 def test_every_crossing_is_found(eta):
     """On random lines and lines 1e-3 to 1e-9 from tangent to a band edge's surface: the scan proven on
     every one (1e-9 off, the derivative test decides the cells beside the nearly double root, where G is
@@ -265,14 +278,7 @@ def test_edge_rays_and_bound(eta):
     mpmath.mp.dps = 30
     rng = np.random.default_rng(11 + int(eta * 10))
     modes, worst = set(), 0.0
-    for L, axis, ce, cs in spots(rng, 6) + [(np.array([0.0, 0.0, 4.0]), np.array([0.05, 0.0, -1.0]) /
-                                             math.hypot(0.05, 1.0), math.cos(0.1), 0.999)]:
-        o = rng.normal(size=3)
-        o *= rng.uniform(0.0, 0.95) / np.linalg.norm(o)
-        w = rng.normal(size=3)
-        k = edge_cone(rec(o, w / np.linalg.norm(w), eta, L, axis, ce, cs), ce)
-        if k.mode == 0:
-            continue
+    for k in random_cones(rng, eta, 6):
         modes.add(k.mode)
         half = 0.5 * math.pi if k.mode == 1 else math.pi
         for _ in range(4):
@@ -331,14 +337,7 @@ def test_edge_slope_within_its_rounding(eta):
     mpmath.mp.dps = 40
     rng = np.random.default_rng(23 + int(eta * 10))
     modes, worst = set(), 0.0
-    for L, axis, ce, cs in spots(rng, 8) + [(np.array([0.0, 0.0, 4.0]), np.array([0.05, 0.0, -1.0]) /
-                                             math.hypot(0.05, 1.0), math.cos(0.1), 0.999)]:
-        o = rng.normal(size=3)
-        o *= rng.uniform(0.0, 0.95) / np.linalg.norm(o)
-        w = rng.normal(size=3)
-        k = edge_cone(rec(o, w / np.linalg.norm(w), eta, L, axis, ce, cs), ce)
-        if k.mode == 0:
-            continue
+    for k in random_cones(rng, eta, 8):
         modes.add(k.mode)
         half = 0.5 * math.pi if k.mode == 1 else math.pi
         for tau in [*rng.uniform(-half, half, 5), -half, half, half * (1.0 - 1e-9), -half * (1.0 - 1e-6)]:
