@@ -207,7 +207,6 @@ def lines(rng, L, axis, ce, eta, n):
     return out
 
 
-@pytest.mark.parametrize("eta", ETAS)
 def random_cones(rng, eta, n):
     """The edge cones (`edge_cone`, mode 0 left out) of n random spots and one just off the axis, each
     from a random segment in the ball."""
@@ -221,6 +220,7 @@ def random_cones(rng, eta, n):
             yield k
 
 
+@pytest.mark.parametrize("eta", ETAS)
 def test_every_crossing_is_found(eta):
     """On random lines and lines 1e-3 to 1e-9 from tangent to a band edge's surface: the scan proven on
     every one (1e-9 off, the derivative test decides the cells beside the nearly double root, where G is

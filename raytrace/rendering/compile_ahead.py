@@ -88,7 +88,10 @@ def start(split: bool, fn, *args, later: bool = False) -> Ahead | None:
 
 
 def settle(stop: bool = False) -> float:
-    """Wait for the worker `start(later=True)` left, if any (`stop`: end it first); the seconds waited."""
+    """Wait for the worker `start(later=True)` left, if any (`stop`: end it first); the seconds waited
+    (0 where there is none)."""
+    if not _later:
+        return 0.0
     begin = time.perf_counter()
     while _later:
         _later.pop().wait(stop)
