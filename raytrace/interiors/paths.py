@@ -310,7 +310,8 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None):
             dk[lit] = np.inf  # Embree's exits: their float32 reach is not analysed
     else:
         err = np.zeros((len(lit), 1)) if dk is not None else None
-        holds = np.zeros((len(lit), 1), dtype=bool) if directional else holding(prep, geo[seg[lit], 6:9], [sid])
+        holds = np.zeros((len(lit), 1), dtype=bool) if directional or not len(lit) else \
+            np.broadcast_to(holding(prep, geo[seg[lit[0]], 6:9], [sid]), (len(lit), 1))  # one light per call
         k[lit] = inside_lengths(prep, p[lit], to[lit], d[lit], [sid], end_inside=np.ones((len(lit), 1), dtype=bool),
                                 errors=err, far_inside=holds)[0][:, 0]
         if dk is not None:
@@ -562,7 +563,7 @@ def through_integrand(prep, segs, medium, sids, dk):
             at = np.nonzero(li == l)[0]
             f[at] = falloff_array(np.ascontiguousarray(-to[at] @ lights.axis[l]), *lights.cone[l])
         mu = np.einsum("ij,ij->i", to, segs.dirs[ss])
-        att = f[:, None] * np.exp(-chords(prep, sids, p, to, d, holding(prep, lights.position[li], sids)) @ dk) \
+        att = f[:, None] * np.exp(-chords(prep, sids, p, to, d, lights_holding(prep, li, sids)) @ dk) \
             * lights.intensity[li]
         out = np.empty((len(x), 3))
         col = np.empty(len(x))
@@ -671,13 +672,21 @@ def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs
     return out, var
 
 
-def holding(prep, ends, sids) -> np.ndarray:
-    """(N, len(sids)) whether each point of `ends` (N, 3) lies inside each shape of `sids`
-    (`contains`, once per distinct point and shape in a render: the ends are lights' positions)."""
-    uniq, inv = np.unique(np.asarray(ends, float).reshape(-1, 3), axis=0, return_inverse=True)
-    table = np.array([[prep.memo(("holds", sid, u.tobytes()), lambda: contains(prep, u, sid)) for sid in sids]
-                      for u in uniq], dtype=bool).reshape(len(uniq), len(sids))
-    return table[inv.ravel()]
+def holding(prep, point, sids) -> np.ndarray:
+    """(len(sids),) whether the point (3,) lies inside each shape of `sids` (`contains`, once per point
+    and shape in a render: the points are lights' positions)."""
+    key = np.asarray(point, float).tobytes()
+    return np.array([prep.memo(("holds", sid, key), lambda: contains(prep, point, sid)) for sid in sids], dtype=bool)
+
+
+def lights_holding(prep, li, sids) -> np.ndarray:
+    """(N, len(sids)) whether the light of each id in `li` lies inside each shape of `sids` (a
+    directional light never does): a table over the scene's lights, built once per `sids`."""
+    lights = prep.lights
+    table = prep.memo(("lights holding", tuple(sids)), lambda: np.array(
+        [[not lights.distant[l] and contains(prep, lights.position[l], sid) for sid in sids]
+         for l in range(len(lights.position))], dtype=bool).reshape(-1, len(sids)))
+    return table[np.asarray(li)]
 
 
 def contains(prep, o, sid) -> bool:

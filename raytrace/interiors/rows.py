@@ -749,8 +749,8 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
             lengths = paths.chords(prep, inner, p[m], dirs, dist)
         else:  # a light inside a shape: its walk starts inside
             lengths, _ = paths.inside_lengths(prep, p[m], dirs, dist, inner, margin=prep.accel.epsilon,
-                                              far_inside=paths.holding(prep, np.broadcast_to(
-                                                  lp[:, None, None, :], p.shape)[m], inner))
+                                              far_inside=paths.lights_holding(prep, np.broadcast_to(
+                                                  segs.light[:, None, None], p.shape[:-1])[m], inner))
         f = out[..., c]
         f[m] = np.exp(-lengths @ dk[:, c])
         out[..., c] = f
