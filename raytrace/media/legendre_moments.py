@@ -166,7 +166,10 @@ def cosine_moments_lanes(args, rows, c, out):
     for first in range(0, rows.shape[0], LANES):
         w = min(LANES, rows.shape[0] - first)
         for j in range(w):
-            H, va, vb, K1, L1, ea, eb = args[rows[first + j], 0:7]
+            r = rows[first + j]
+            # the row's entries read one by one: a slice of it would be a view, whose reference numba counts
+            H, va, vb, K1, L1 = args[r, 0], args[r, 1], args[r, 2], args[r, 3], args[r, 4]
+            ea, eb = args[r, 5], args[r, 6]
             # t and z = e^{i phi} at both ends (`_ends`, here without fastmath too)
             ta = 1.0 / (1.0 + va * va)
             zar[j], zai[j] = 2.0 * ta - 1.0, 2.0 * va * ta
