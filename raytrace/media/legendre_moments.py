@@ -179,7 +179,7 @@ def cosine_moments_lanes(args, rows, c, out):
             ebt = eb * tb if fin else 0.0
             eat = ea * ta
             acc[j] = c[0] * (2.0 * K1) if n > 0 else 0.0  # c_0 E_0
-            mr[j], mi[j] = 0.0, 0.0  # D_0 = 0 E_0
+            mr[j], mi[j] = 0.0, 0.0  # D_0 = 0 (0 times E_0)
             # D_1 = E_1 (module docstring, step 3)
             er[j] = 2.0 * ((ebt * vb if fin else 0.0) - eat * va) + 2.0 * H * L1
             ei[j] = -2.0 * (H * K1 + (ebt - eat))
