@@ -152,12 +152,12 @@ LANES = 64  # segments whose recurrences `cosine_moments_lanes` advances side by
 def cosine_moments_lanes(args, rows, c, out):
     """out[i] = `cosine_moments_forward` of the arguments args[rows[i], 0:7] (H, va, vb, K1, L1, ea,
     eb), all with the same coefficients c: the recurrences of LANES segments are advanced together,
-    one step k at a time, so that the loop over the segments inside a step, free of dependencies, runs
-    in SIMD registers (HG 0.9's 51 terms: about 3.5 times faster per segment than one call per
-    segment). No operation mixes two segments, and the function is compiled without fastmath (no
-    fused multiply-adds, no reassociation: every operation rounds as IEEE arithmetic says, in SIMD
-    registers or not), so a segment's result does not depend on the batch it came in or on its
-    place in it."""
+    two steps k at a time, so that the loop over the segments inside a pass, free of dependencies, runs
+    in SIMD registers (HG 0.9's 51 terms: several times faster per segment than one call per
+    segment). The recurrence runs on D_k = k E_k (`_step`). No operation mixes two segments, and
+    the function is compiled without fastmath (no fused multiply-adds, no reassociation: every
+    operation rounds as IEEE arithmetic says, in SIMD registers or not), so a segment's result does not
+    depend on the batch it came in or on its place in it."""
     n = c.shape[0]
     state = np.empty((14, LANES))
     acc, mr, mi, er, ei = state[0], state[1], state[2], state[3], state[4]
@@ -166,7 +166,10 @@ def cosine_moments_lanes(args, rows, c, out):
     for first in range(0, rows.shape[0], LANES):
         w = min(LANES, rows.shape[0] - first)
         for j in range(w):
-            H, va, vb, K1, L1, ea, eb = args[rows[first + j], 0:7]
+            r = rows[first + j]
+            # the row's entries read one by one: a slice of it would be a view, whose reference numba counts
+            H, va, vb, K1, L1 = args[r, 0], args[r, 1], args[r, 2], args[r, 3], args[r, 4]
+            ea, eb = args[r, 5], args[r, 6]
             # t and z = e^{i phi} at both ends (`_ends`, here without fastmath too)
             ta = 1.0 / (1.0 + va * va)
             zar[j], zai[j] = 2.0 * ta - 1.0, 2.0 * va * ta
@@ -175,9 +178,9 @@ def cosine_moments_lanes(args, rows, c, out):
             zbr[j], zbi[j] = (2.0 * tb - 1.0, 2.0 * vb * tb) if fin else (-1.0, 0.0)
             ebt = eb * tb if fin else 0.0
             eat = ea * ta
-            mr[j], mi[j] = 2.0 * K1, 0.0
-            acc[j] = c[0] * mr[j] if n > 0 else 0.0
-            # E_1 (module docstring, step 3)
+            acc[j] = c[0] * (2.0 * K1) if n > 0 else 0.0  # c_0 E_0
+            mr[j], mi[j] = 0.0, 0.0  # D_0 = 0 (0 times E_0)
+            # D_1 = E_1 (module docstring, step 3)
             er[j] = 2.0 * ((ebt * vb if fin else 0.0) - eat * va) + 2.0 * H * L1
             ei[j] = -2.0 * (H * K1 + (ebt - eat))
             if n > 1:
@@ -185,32 +188,48 @@ def cosine_moments_lanes(args, rows, c, out):
             # the boundary term times 4 (exact: a power of 2), as the recurrence takes it
             ar[j], ai[j], br[j], bi[j] = 4.0 * eat * zar[j], 4.0 * eat * zai[j], 4.0 * ebt * zbr[j], 4.0 * ebt * zbi[j]
             h2[j] = 2.0 * H
-        for k in range(1, n - 1):
-            _lanes_step(w, k, c[k + 1], acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2)
+        k = 1
+        while k + 1 < n - 1:  # two steps a pass over the lanes: each lane's state loaded and stored once
+            _lanes_steps(w, k, 2, c, acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2)
+            k += 2
+        if k < n - 1:
+            _lanes_steps(w, k, 1, c, acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2)
         for j in range(w):
             out[first + j] = acc[j]
 
 
 @exact_njit(inline="always")
-def _lanes_step(w, k, ck, acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2):
-    """One step k -> k + 1 of `trig_moments_forward`'s recurrence for lanes 0 .. w - 1, and c_{k+1} Re E_{k+1}
-    added: the right-hand side of (k+1) E_{k+1} = -4i q - 2 (k + iH) E_k - (k-1) E_{k-1} summed, then
-    multiplied by 1 / (k+1) once (the loop over the lanes runs in SIMD registers and its time is its
-    multiplications: 17 a lane, where dividing each term by k + 1 took 20); the boundary term 4 q arrives
-    scaled by 4, exactly."""
-    inv = 1.0 / (k + 1.0)
-    k2 = 2.0 * k
-    km = k - 1.0
+def _lanes_steps(w, k, steps, c, acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, zbr, zbi, h2):
+    """`steps` (1 or 2) steps k -> k + 1 (-> k + 2) of `trig_moments_forward`'s recurrence for lanes 0 .. w - 1
+    on D_k = k E_k, c_{k+1} Re E_{k+1} added (`_step`). The loop over the lanes runs in SIMD registers, and
+    two steps in one pass load and store each lane's state once where one step a pass did so twice."""
+    i1, c1 = 1.0 / k, c[k + 1] / (k + 1.0)
+    i2, c2 = (1.0 / (k + 1.0), c[k + 2] / (k + 2.0)) if steps == 2 else (0.0, 0.0)
     for j in range(w):
-        e_r, e_i = er[j], ei[j]
-        nr = ((bi[j] - ai[j]) - km * mr[j] - k2 * e_r + h2[j] * e_i) * inv
-        ni = ((ar[j] - br[j]) - km * mi[j] - k2 * e_i - h2[j] * e_r) * inv
-        mr[j], mi[j], er[j], ei[j] = e_r, e_i, nr, ni
-        acc[j] += ck * nr
-        x, y = ar[j], ai[j]
-        ar[j], ai[j] = x * zar[j] - y * zai[j], x * zai[j] + y * zar[j]
-        x, y = br[j], bi[j]
-        br[j], bi[j] = x * zbr[j] - y * zbi[j], x * zbi[j] + y * zbr[j]
+        za_r, za_i, zb_r, zb_i, h = zar[j], zai[j], zbr[j], zbi[j], h2[j]
+        s, e_r, e_i, m_r, m_i = acc[j], er[j], ei[j], mr[j], mi[j]
+        a_r, a_i, b_r, b_i = ar[j], ai[j], br[j], bi[j]
+        s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i = _step(i1, c1, s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i, za_r,
+                                                           za_i, zb_r, zb_i, h)
+        if steps == 2:
+            s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i = _step(i2, c2, s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i, za_r,
+                                                               za_i, zb_r, zb_i, h)
+        acc[j], er[j], ei[j], mr[j], mi[j], ar[j], ai[j], br[j], bi[j] = s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i
+
+
+@exact_njit(inline="always")
+def _step(invk, ck, s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i, za_r, za_i, zb_r, zb_i, h2):
+    """One lane's step k -> k + 1 on D_k = k E_k (e: D_k, m: D_{k-1}, a, b: the ends' boundary terms times 4,
+    exactly, as the recurrence takes them; invk = 1 / k, h2 = 2H): returns s + ck Re D_{k+1} (ck = c_{k+1} /
+    (k+1), so that s gains c_{k+1} Re E_{k+1}), D_{k+1}, D_k and the ends' terms times z. Divided by k,
+    (k+1) E_{k+1} + 2(k + iH) E_k + (k-1) E_{k-1} = -4i q reads D_{k+1} = -4i q - 2 D_k - (2iH / k) D_k - D_{k-1}
+    (D_0 = 0: the term of E_0 vanishes at k = 1): 15 operations besides the 12 of the ends' powers, where the
+    form on E_k took 18 (its factors k - 1, 2k, 2H and 1 / (k + 1))."""
+    hk = h2 * invk
+    nr = (b_i - a_i) - (e_r + e_r) + hk * e_i - m_r
+    ni = (a_r - b_r) - (e_i + e_i) - hk * e_r - m_i
+    return (s + ck * nr, nr, ni, e_r, e_i, a_r * za_r - a_i * za_i, a_r * za_i + a_i * za_r, b_r * zb_r - b_i * zb_i,
+            b_r * zb_i + b_i * zb_r)
 
 
 @njit
