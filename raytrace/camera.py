@@ -44,7 +44,13 @@ def _offsets(spp: int) -> np.ndarray:
 
 def basis(cam: Camera):
     """(forward, right, up) unit vectors of the camera (read-only, computed once per placement)."""
-    return _basis(tuple(map(float, cam.position)), tuple(map(float, cam.look_at)), tuple(map(float, cam.up)))
+    return _basis(_floats(cam.position), _floats(cam.look_at), _floats(cam.up))
+
+
+def _floats(v) -> tuple:
+    """A vector's entries as a tuple of Python floats (the values float() gives; `tolist`, not a loop
+    over NumPy scalars: every tile asks)."""
+    return tuple(np.asarray(v, np.float64).tolist())
 
 
 @functools.lru_cache(maxsize=16)

@@ -223,6 +223,19 @@ def test_exp_transmittance_is_numpys():
     np.testing.assert_array_max_ulp(got, ref, maxulp=1)
 
 
+
+def test_exp_transmittance_grey_channels_are_each_channels_own():
+    """Channels with equal coefficients share one exp per ray: each column is, bit for bit, what the
+    kernel gives that channel alone (vacuum, overflowing and repeated channels among them)."""
+    kt = np.array([0.3, 0.0, 0.3, 1e300, 0.7, 1e300, 0.3, 0.0])
+    tau = np.concatenate([RNG.exponential(10.0, size=3000), [0.0, np.inf, 1e-300]])
+    got = exp_transmittance(kt, tau)
+    for c in range(len(kt)):
+        assert np.array_equal(got[:, c], exp_transmittance(kt[c:c + 1], tau)[:, 0])
+    with np.errstate(invalid="ignore", over="ignore"):
+        ref = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * tau[:, None]))
+    np.testing.assert_array_max_ulp(got, ref, maxulp=1)
+
 def edge_values(n, scale):
     """n random magnitudes over many decades, with 0, inf and the largest double among them."""
     v = scale * 10.0 ** RNG.uniform(-20, 20, size=n)
