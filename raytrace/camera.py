@@ -44,7 +44,13 @@ def _offsets(spp: int) -> np.ndarray:
 
 def basis(cam: Camera):
     """(forward, right, up) unit vectors of the camera (read-only, computed once per placement)."""
-    return _basis(tuple(map(float, cam.position)), tuple(map(float, cam.look_at)), tuple(map(float, cam.up)))
+    return _basis(_floats(cam.position), _floats(cam.look_at), _floats(cam.up))
+
+
+def _floats(v) -> tuple:
+    """A vector's entries as a tuple of Python floats (the values float() gives; `tolist`, not a loop
+    over NumPy scalars: every tile asks)."""
+    return tuple(np.asarray(v, np.float64).tolist())
 
 
 @functools.lru_cache(maxsize=16)
@@ -68,48 +74,50 @@ def generate_rays(cam: Camera, rows: slice | None = None, cols: slice | None = N
     cols = cols or slice(0, cam.width)
     j = np.arange(rows.start, rows.stop, dtype=np.float64)
     i = np.arange(cols.start, cols.stop, dtype=np.float64)
-    off = sample_offsets(cam.spp)[samples or slice(None)]
-    x = (i[None, :, None] + off[None, None, :, 0]) * np.ones((len(j), 1, 1))
-    y = (j[:, None, None] + off[None, None, :, 1]) * np.ones((1, len(i), 1))
-    return _rays(cam, x, y)
+    return _rays(cam, np.tile(i, len(j)), np.repeat(j, len(i)), sample_offsets(cam.spp)[samples or slice(None)])
 
 
 def pixel_rays(cam: Camera, ys: np.ndarray, xs: np.ndarray, samples: slice | None = None):
     """Rays of the pixels (ys[k], xs[k]) (the pixel samples `samples`, default all), every sample
     of a pixel consecutive: each ray the same as generate_rays gives it."""
     off = sample_offsets(cam.spp)[samples or slice(None)]
-    return _rays(cam, xs[:, None] + off[None, :, 0], ys[:, None] + off[None, :, 1])
+    return _rays(cam, np.ascontiguousarray(xs, np.float64), np.ascontiguousarray(ys, np.float64), off)
 
 
-def _rays(cam: Camera, x: np.ndarray, y: np.ndarray):
-    """Origins and unit directions through the image points (x, y) (pixel units), in their order."""
+def _rays(cam: Camera, xs: np.ndarray, ys: np.ndarray, off: np.ndarray):
+    """Origins and unit directions through the image points (xs[p] + off[s, 0], ys[p] + off[s, 1])
+    (pixel units; xs, ys (P,), off (S, 2)), in the order (p, s)."""
     forward, right, up = basis(cam)
-    x, y = np.ravel(np.asarray(x, np.float64)), np.ravel(np.asarray(y, np.float64))
-    o, d = np.empty((len(x), 3)), np.empty((len(x), 3))
+    o, d = np.empty((len(xs) * len(off), 3)), np.empty((len(xs) * len(off), 3))
     perspective = cam.type == "perspective"
     tan = math.tan(math.radians(cam.fov) / 2.0) if perspective else 0.0
-    _ray_kernel(x, y, float(cam.width), float(cam.height), perspective, tan, cam.width / cam.height, forward, right, up,
-                np.asarray(cam.position, np.float64), o, d)
+    _ray_kernel(xs, ys, off, float(cam.width), float(cam.height), perspective, tan, cam.width / cam.height, forward,
+                right, up, np.asarray(cam.position, np.float64), o, d)
     return o, d
 
 
 @exact_njit
-def _ray_kernel(x, y, W, H, perspective, tan, aspect, forward, right, up, position, o, d):
-    """The rays of the module's formulas (`perspective`, else environment) into o and d, each number
-    rounded as the NumPy expressions this kernel replaced round it."""
-    for i in range(x.shape[0]):
-        if perspective:
-            a = (2.0 * x[i] / W - 1.0) * tan * aspect
-            b = (1.0 - 2.0 * y[i] / H) * tan
+def _ray_kernel(xs, ys, off, W, H, perspective, tan, aspect, forward, right, up, position, o, d):
+    """The rays of the module's formulas (`perspective`, else environment) through the points
+    (xs[p] + off[s, 0], ys[p] + off[s, 1]), ray p S + s, into o and d, each number rounded as the NumPy
+    expressions this kernel replaced round it (the point's two sums among them)."""
+    S = off.shape[0]
+    for p in range(xs.shape[0]):
+        for s in range(S):
+            i = p * S + s
+            x, y = xs[p] + off[s, 0], ys[p] + off[s, 1]
+            if perspective:
+                a = (2.0 * x / W - 1.0) * tan * aspect
+                b = (1.0 - 2.0 * y / H) * tan
+                for k in range(3):
+                    d[i, k] = forward[k] + a * right[k] + b * up[k]
+            else:
+                phi = (2.0 * math.pi) * (x / W - 0.5)
+                theta = math.pi * y / H
+                st, cp, sp, ct = math.sin(theta), math.cos(phi), math.sin(phi), math.cos(theta)
+                for k in range(3):
+                    d[i, k] = st * (cp * forward[k] + sp * right[k]) + ct * up[k]
+            length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
             for k in range(3):
-                d[i, k] = forward[k] + a * right[k] + b * up[k]
-        else:
-            phi = (2.0 * math.pi) * (x[i] / W - 0.5)
-            theta = math.pi * y[i] / H
-            st, cp, sp, ct = math.sin(theta), math.cos(phi), math.sin(phi), math.cos(theta)
-            for k in range(3):
-                d[i, k] = st * (cp * forward[k] + sp * right[k]) + ct * up[k]
-        length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
-        for k in range(3):
-            d[i, k] = d[i, k] / length
-            o[i, k] = position[k]
+                d[i, k] = d[i, k] / length
+                o[i, k] = position[k]

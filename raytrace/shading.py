@@ -104,6 +104,14 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
     n = np.empty(3)
     for i in range(prim.shape[0]):
         k = prim[i]
+        same = True  # every corner normal equal to the first (most of a mesh's triangles, often)
+        for c in range(1, 3):
+            for a in range(3):
+                same = same and corners[k, c, a] == corners[k, 0, a]
+        if same or sphere_of[k] >= 0:  # flat: the geometric normal, nothing to interpolate
+            for a in range(3):
+                out[i, a] = facing[i, a]
+            continue
         for a in range(3):
             e[0, a] = triangles[k, 1, a] - triangles[k, 0, a]
             e[1, a] = triangles[k, 2, a] - triangles[k, 0, a]
@@ -120,11 +128,7 @@ def _shading_normals(corners, triangles, normals, sphere_of, prim, points, facin
         for a in range(3):
             n[a] = b[0] * corners[k, 0, a] + b[1] * corners[k, 1, a] + b[2] * corners[k, 2, a]
         length = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-        same = True  # every corner normal equal to the first
-        for c in range(1, 3):
-            for a in range(3):
-                same = same and corners[k, c, a] == corners[k, 0, a]
-        flat = same or not (length > 0.0) or sphere_of[k] >= 0
+        flat = not (length > 0.0)
         flip = -1.0 if _dot(normals, k, facing, i) < 0.0 and not flat else 1.0
         for a in range(3):
             out[i, a] = facing[i, a] if flat else flip * (n[a] / length)

@@ -205,13 +205,33 @@ def test_camera_rays_are_numpys(kind):
     cam = Camera(kind, np.array([1.0, 2.0, 3.0]), np.array([0.3, 1.0, -2.0]), np.array([0.0, 1.0, 0.0]), 50.0, 640, 360,
                  4)
     x, y = RNG.uniform(0, 640, size=(3000, 4)), RNG.uniform(0, 360, size=(3000, 4))
-    (o, d), (ref_o, ref_d) = camera._rays(cam, x, y), reference_rays(cam, x, y)
+    # the points themselves: zero offsets (x + 0.0 is x)
+    (o, d), (ref_o, ref_d) = camera._rays(cam, x.ravel(), y.ravel(), np.zeros((1, 2))), reference_rays(cam, x, y)
     assert np.array_equal(o, ref_o)
     if kind == "perspective":
         assert np.array_equal(d, ref_d)
     else:  # libm's sin and cos against NumPy's
         np.testing.assert_array_max_ulp(d, ref_d, maxulp=1)
 
+
+
+@pytest.mark.parametrize("kind", ["perspective", "environment"])
+def test_pixel_rays_are_the_offsets_sums(kind):
+    """`pixel_rays` and `generate_rays` are the rays through pixel + offset, the sums made in NumPy
+    (the broadcast the kernel took over), in the order (pixel, sample)."""
+    cam = Camera(kind, np.array([1.0, 2.0, 3.0]), np.array([0.3, 1.0, -2.0]), np.array([0.0, 1.0, 0.0]), 50.0, 64, 36,
+                 5)  # 5 spp: the R2 offsets, not a grid
+    off = camera.sample_offsets(cam.spp)[1:4]
+    ys, xs = RNG.integers(0, 36, size=200), RNG.integers(0, 64, size=200)
+    got = camera.pixel_rays(cam, ys, xs, slice(1, 4))
+    ref = camera._rays(cam, (xs[:, None] + off[None, :, 0]).ravel(), (ys[:, None] + off[None, :, 1]).ravel(),
+                       np.zeros((1, 2)))
+    assert all(np.array_equal(a, b) for a, b in zip(got, ref))
+    j, i = np.arange(3.0, 9.0), np.arange(10.0, 17.0)
+    every = camera.generate_rays(cam, slice(3, 9), slice(10, 17), slice(1, 4))
+    x = (i[None, :, None] + off[None, None, :, 0]) * np.ones((len(j), 1, 1))
+    y = (j[:, None, None] + off[None, None, :, 1]) * np.ones((1, len(i), 1))
+    assert all(np.array_equal(a, b) for a, b in zip(every, camera._rays(cam, x.ravel(), y.ravel(), np.zeros((1, 2)))))
 
 def test_exp_transmittance_is_numpys():
     kt = np.array([0.0, 0.3, 1e300])  # a vacuum channel, an ordinary one, one that overflows
@@ -222,6 +242,19 @@ def test_exp_transmittance_is_numpys():
     assert np.all(got[:, 0] == 1.0) and got[-2, 1] == 0.0 and got[-1, 2] == math.exp(-1.0)
     np.testing.assert_array_max_ulp(got, ref, maxulp=1)
 
+
+
+def test_exp_transmittance_grey_channels_are_each_channels_own():
+    """Channels with equal coefficients share one exp per ray: each column is, bit for bit, what the
+    kernel gives that channel alone (vacuum, overflowing and repeated channels among them)."""
+    kt = np.array([0.3, 0.0, 0.3, 1e300, 0.7, 1e300, 0.3, 0.0])
+    tau = np.concatenate([RNG.exponential(10.0, size=3000), [0.0, np.inf, 1e-300]])
+    got = exp_transmittance(kt, tau)
+    for c in range(len(kt)):
+        assert np.array_equal(got[:, c], exp_transmittance(kt[c:c + 1], tau)[:, 0])
+    with np.errstate(invalid="ignore", over="ignore"):
+        ref = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * tau[:, None]))
+    np.testing.assert_array_max_ulp(got, ref, maxulp=1)
 
 def edge_values(n, scale):
     """n random magnitudes over many decades, with 0, inf and the largest double among them."""

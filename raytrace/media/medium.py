@@ -106,14 +106,23 @@ def _kernel_array(v, shape):
 def exp_transmittance(kt: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """exp(-kt tau) per channel (N, 3) for unit optical depths tau (N,), exactly 1 in vacuum channels
     even for tau = inf, 0 where kt tau overflows (a GIL-free kernel, rounding as np.exp does)."""
-    tau = np.require(tau, np.float64, ("C", "W"))
+    kt, tau = _kernel_array(kt, (len(kt),)), _kernel_array(tau, (len(tau),))
     out = np.empty((len(tau), len(kt)))
-    _exp_transmittance(np.require(kt, np.float64, ("C", "W")), tau, out)
+    _exp_transmittance(kt, tau, out)
     return out
 
 
 @exact_njit
 def _exp_transmittance(kt, tau, out):
+    """`exp_transmittance` into out; a channel whose kt equals an earlier one's copies that channel's
+    number (the same exp of the same product: a grey medium takes one exp per ray, not three)."""
     for i in range(tau.shape[0]):
         for c in range(kt.shape[0]):
-            out[i, c] = 1.0 if kt[c] == 0.0 else math.exp(-kt[c] * tau[i])
+            same = -1
+            for e in range(c):
+                if same < 0 and kt[e] == kt[c]:
+                    same = e
+            if same >= 0:
+                out[i, c] = out[i, same]
+            else:
+                out[i, c] = 1.0 if kt[c] == 0.0 else math.exp(-kt[c] * tau[i])
