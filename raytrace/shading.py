@@ -36,7 +36,7 @@ from .rng import uniform
 STATS_NAMES = ("closed form not converged",)  # surface_radiance's: points left at the finest order
 SHADOW_BATCH = 1 << 15  # shadow rays (points x lights) the surface term traces in one batch at most
 STRATA = 8  # a penumbra's strata per side for a method without a tolerance (even; two samples in each)
-PILOT = 4  # strata per side of the pilot that chooses a penumbra's strata (`stratified`)
+PILOT = 2  # strata per side of the pilot that chooses a penumbra's strata (`stratified`)
 LADDER = (4, 8, 16)  # the strata per side a penumbra may get: the floor first, the cap last
 DIM_PENUMBRA = 1 << 48  # the first random-number dimension (rng.py) of the penumbrae's samples
 SAMPLES_PER_CHUNK = 1 << 16  # emitter samples (points x samples per point) per batch of shadow rays

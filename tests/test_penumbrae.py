@@ -189,7 +189,7 @@ def test_penumbrae_against_the_twin(reference, monkeypatch, emissive, rule_tol):
 
 
 def test_the_sampling_effort_follows_the_precision(reference, monkeypatch):
-    """The quad light's floor at rtol 1e-1 and 1e-3, 8 seeds each: the pilot (4 x 4 strata per point)
+    """The quad light's floor at rtol 1e-1 and 1e-3, 8 seeds each: the pilot (2 x 2 strata per point)
     gives the sampled points more strata at the finer tolerance (on average at least 1.5 x per side;
     some at the floor, 4 x 4, at 1e-1, most at the cap, 16 x 16, at 1e-3); the reported variance stays
     honest at both (the z-test above against the twin) and the rms error of the sampled pixels falls
