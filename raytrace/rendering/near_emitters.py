@@ -22,8 +22,9 @@ ray): `penumbra_airlight.cut_pairs` samples those pairs, so no order of the rows
 is lit or dark. Nor that the sphere does not shine on it: a segment near the sphere may see a cap of it
 on which no row lies, so the sphere shines on every ray from outside it (`_shines`) and the pairs that
 no row faces take the rule where the geometry clears them, else the samples, drawn from a cap of the
-sphere that holds all the segment sees (`sphere_rule.Ball.seen_cap`). `montecarlo` keeps the rows (it
-samples them).
+sphere that holds all the segment sees (`sphere_rule.Ball.seen_cap`). A stochastic method keeps a flat
+emitter's rows (it samples them); a sphere's pairs take its own estimate where it has one
+(`Method.sphere`), without shadow rays where the geometry clears the segment, else with them (`_in_sight`).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
