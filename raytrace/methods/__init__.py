@@ -213,6 +213,10 @@ class Method:
     # segment, so that the renderer can cut the work into chunks of bounded memory
     point_count: Callable | None = None
     supports: Supports = Supports()
+    # sphere(medium, params) -> None, or a stochastic method's own estimate of a sphere emitter's unoccluded
+    # air-light along camera rays, estimate(ball, radiance (3,), owner, rays, rs) -> (value (P, 3), variance
+    # (P, 3)) (rendering/near_emitters.py); None: the emitter's rows
+    sphere: Callable | None = None
     # the parameter holding the method's requested relative tolerance, which the renderer's adaptive
     # rules follow (an emitter's order, a penumbra's strata, the rule near a flat emitter); None: none
     tolerance_key: str | None = None

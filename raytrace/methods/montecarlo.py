@@ -663,6 +663,191 @@ def atmosphere_segments(rows, directional, xh, h, cone, keys, stream, seed, kt, 
                                        gs, Hs, R, top, mode, n, keys[s], 2 * n * stream[s], seed, cols, pieces, buf)
 
 
+# ----------------------------------------------------------------------------------------------
+# sphere emitters: distances along the ray, then directions in the cone the sphere subtends
+# ----------------------------------------------------------------------------------------------
+DIM_SPHERE = 1 << 50  # the first random-number dimension of the sphere emitters' samples (rng.py)
+SPHERE_DIMS = 8  # dimensions per iteration: each strategy's distance, then its direction's two
+SPHERE_DRAWS = 128  # iterations per sample: as many as the rows (2 x 8^2, lights/sphere.py) whose samples they replace
+
+
+@njit
+def _cone_light(x, o, d, c, R, kt, code, g, u, v):
+    """One sample of the light the sphere (centre c, radius R, unit radiance) scatters at the point
+    x = o + x d toward the camera: a direction w uniform in the cone it subtends (half-angle alpha,
+    solid angle 2 pi (1 - cos alpha)), met by the sphere at t_y along it. Returns (2 pi (1 - cos alpha)
+    Phi(d·w) exp(-kt t_y), w, t_y) (Lambertian: the radiance is L in every direction)."""
+    a0, a1, a2 = c[0] - o[0] - x * d[0], c[1] - o[1] - x * d[1], c[2] - o[2] - x * d[2]
+    dist = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    a0, a1, a2 = a0 / dist, a1 / dist, a2 / dist
+    s2 = min(R * R / (dist * dist), 1.0)  # sin^2 alpha
+    one_minus_a = s2 / (1.0 + math.sqrt(1.0 - s2))  # 1 - cos alpha
+    one_minus = u * one_minus_a  # 1 - cos theta, theta the angle from the axis
+    ct = 1.0 - one_minus
+    st = math.sqrt(max(one_minus * (2.0 - one_minus), 0.0))
+    if abs(a0) < 0.9:  # b = a unit vector across a, e = a x b
+        b0, b1, b2 = 0.0, -a2, a1
+    else:
+        b0, b1, b2 = -a1, a0, 0.0
+    nb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+    b0, b1, b2 = b0 / nb, b1 / nb, b2 / nb
+    e0, e1, e2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    cp, sp = st * math.cos(2.0 * math.pi * v), st * math.sin(2.0 * math.pi * v)
+    w = (ct * a0 + cp * b0 + sp * e0, ct * a1 + cp * b1 + sp * e1, ct * a2 + cp * b2 + sp * e2)
+    chord = math.sqrt(max(R * R - dist * dist * st * st, 0.0))
+    t_y = max(dist * dist - R * R, 0.0) / (dist * ct + chord)  # the nearer root, without cancellation
+    mu = d[0] * w[0] + d[1] * w[1] + d[2] * w[2]
+    f = 2.0 * math.pi * one_minus_a * phase_split(code, g, mu, 1.0 - mu, 1.0 + mu) * math.exp(-kt * t_y)
+    return f, w, t_y
+
+
+@njit
+def _sphere_frame(o, d, ell, c, kt):
+    """(x_h, h, theta_a, theta_b, 1 - exp(-kt ell)) of the ray o + x d, 0 <= x <= ell, about the centre c."""
+    xh = (c[0] - o[0]) * d[0] + (c[1] - o[1]) * d[1] + (c[2] - o[2]) * d[2]
+    h = 0.0
+    for k in range(3):
+        h += (c[k] - o[k] - xh * d[k]) ** 2
+    h = max(math.sqrt(h), 1e-300)
+    th_a, th_b, norm = _angles(xh, h, ell, kt)
+    return xh, h, th_a, th_b, norm
+
+
+@njit
+def _sphere_draw(o, d, ell, c, R, kt, code, g, mode, frame, k, key, dim, seed):
+    """One draw of strategy k (0 equiangular about the centre, 1 free-path; balance heuristic as
+    `_sample`) of a sphere emitter's air-light along the ray o + x d, 0 <= x <= ell (outside the sphere)
+    for ks = 1 and unit radiance: the distance x (dimension dim + k), a direction in the cone
+    (`_cone_light`, dimensions dim + 2 + 2 k, dim + 3 + 2 k). Returns (x, exp(-kt x) times the
+    direction's estimate / p(x) (0 where p is), w, t_y)."""
+    xh, h, th_a, th_b, norm = frame
+    use_e, use_f = _strategies_used(mode, False)
+    u = uniform(key, dim + k, seed)
+    if k == 0:
+        x = min(max(xh + h * math.tan(th_a + u * (th_b - th_a)), 0.0), ell)
+    else:
+        x = min(-math.log1p(-u * norm) / kt, ell)
+    p = (_p_equiangular(x, xh, h, th_a, th_b) if use_e else 0.0) + (_p_freepath(x, kt, norm) if use_f else 0.0)
+    if not (p > 0.0 and x < math.inf):
+        return x, 0.0, (0.0, 0.0, 1.0), 0.0
+    f, w, t_y = _cone_light(x, o, d, c, R, kt, code, g, uniform(key, dim + 2 + 2 * k, seed),
+                            uniform(key, dim + 3 + 2 * k, seed))
+    return x, math.exp(-kt * x) * f / p, w, t_y
+
+
+@njit
+def _shared_channel(kt, ch):
+    """The first channel before ch with the same extinction (its draws are ch's), else -1."""
+    for c in range(ch):
+        if kt[c] == kt[ch]:
+            return c
+    return -1
+
+
+@njit
+def sphere_means(origins, dirs, tmax, keys, seed, c, R, kt, code, g, mode, n, dim0, out, var):
+    """Mean and variance of the mean over n iterations (each one draw per strategy used, `_sphere_draw`,
+    iteration j from dimension dim0 + SPHERE_DIMS j) of every camera ray and channel, unoccluded."""
+    use_e, use_f = _strategies_used(mode, False)
+    for r in range(origins.shape[0]):
+        for ch in range(3):
+            same = _shared_channel(kt, ch)
+            if same >= 0:
+                out[r, ch], var[r, ch] = out[r, same], var[r, same]
+                continue
+            if not tmax[r] > 0.0:
+                continue
+            frame = _sphere_frame(origins[r], dirs[r], tmax[r], c, kt[ch])
+            acc = acc2 = 0.0
+            for j in range(n):
+                est = 0.0
+                for k in range(0 if use_e else 1, 2 if use_f else 1):
+                    est += _sphere_draw(origins[r], dirs[r], tmax[r], c, R, kt[ch], code, g, mode, frame, k, keys[r],
+                                        dim0 + SPHERE_DIMS * j, seed)[1]
+                acc += est
+                acc2 += est * est
+            out[r, ch], var[r, ch] = _mean_var(acc, acc2, n)
+
+
+@njit
+def sphere_samples(origins, dirs, tmax, keys, seed, c, R, kt, code, g, mode, n, dim0, pos, wdir, dist, weight):
+    """The draws of `sphere_means` for shadow rays: of camera ray r, iteration j, strategy k and channel ch
+    the point pos[r, j, k, ch], the unit direction wdir[...] to the sphere, its distance dist[...] and
+    the weight weight[...] (0 for a strategy not used); pos, wdir (P, n, 2, 3, 3), dist, weight (P, n, 2, 3)."""
+    use_e, use_f = _strategies_used(mode, False)
+    for r in range(origins.shape[0]):
+        for ch in range(3):
+            if not tmax[r] > 0.0:
+                continue
+            frame = _sphere_frame(origins[r], dirs[r], tmax[r], c, kt[ch])
+            for j in range(n):
+                for k in range(0 if use_e else 1, 2 if use_f else 1):
+                    x, weight[r, j, k, ch], w, dist[r, j, k, ch] = _sphere_draw(
+                        origins[r], dirs[r], tmax[r], c, R, kt[ch], code, g, mode, frame, k, keys[r],
+                        dim0 + SPHERE_DIMS * j, seed)
+                    for a in range(3):
+                        pos[r, j, k, ch, a] = origins[r, a] + x * dirs[r, a]
+                        wdir[r, j, k, ch, a] = w[a]
+
+
+SPHERE_CHUNK = 1 << 16  # a sphere's samples (rays x iterations x strategies) per batch of rays
+
+
+def _sphere(medium, params):
+    """`Method.sphere`: in a homogeneous medium (but for cdf sampling) estimate(ball, radiance, owner, rays,
+    rs, visible) -> (value, variance), each (len(rs), 3), of a sphere emitter along the camera rays rs
+    (`_sphere_draws`, SPHERE_DRAWS iterations per sample, dimensions from DIM_SPHERE + owner SPHERE_DIMS
+    SPHERE_DRAWS samples; `visible(points, dirs,
+    distances)` whether each sample's sphere point is in sight, None: all); else None."""
+    if not isinstance(medium, Homogeneous) or params["sampling"] == "cdf":
+        return None
+    n = SPHERE_DRAWS * params["samples"]
+
+    def estimate(ball, radiance, owner, rays, rs, visible=None):
+        out, var = np.zeros((len(rs), 3)), np.zeros((len(rs), 3))
+        step = max(1, SPHERE_CHUNK // (2 * n))
+        for at in range(0, len(rs), step):
+            out[at:at + step], var[at:at + step] = _sphere_part(medium, params["sampling"], n, ball, owner, rays,
+                                                                 rs[at:at + step], visible)
+        scale = medium.sigma_s * np.asarray(radiance, float)
+        return out * scale, var * scale ** 2
+    return estimate
+
+
+def _sphere_part(medium, sampling, n, ball, owner, rays, rs, visible):
+    """`_sphere`'s estimate of unit radiance and ks = 1 along the camera rays rs (one batch), n iterations."""
+    origins, dirs, tmax, keys, seed = rays
+    args = (np.ascontiguousarray(origins[rs]), np.ascontiguousarray(dirs[rs]),
+            np.ascontiguousarray(np.asarray(tmax, float)[rs]), np.ascontiguousarray(keys[rs], dtype=np.uint64),
+            np.uint64(seed), np.asarray(ball.centre, float), float(ball.radius), medium.sigma_t, medium.phase, medium.g,
+            MODES[sampling], n, DIM_SPHERE + owner * SPHERE_DIMS * n)
+    if visible is None:
+        out, var = np.zeros((len(rs), 3)), np.zeros((len(rs), 3))
+        sphere_means(*args, out, var)
+        return out, var
+    pos, wdir = np.zeros((len(rs), n, 2, 3, 3)), np.zeros((len(rs), n, 2, 3, 3))
+    dist, weight = np.zeros((len(rs), n, 2, 3)), np.zeros((len(rs), n, 2, 3))
+    sphere_samples(*args, pos, wdir, dist, weight)
+    weight *= _in_sight(pos, wdir, dist, weight, visible)
+    est = weight.sum(axis=2)  # (P, n, 3) per iteration
+    return est.mean(axis=1), (est.var(axis=1, ddof=1) / n if n > 1 else np.zeros((len(rs), 3)))
+
+
+def _in_sight(pos, wdir, dist, weight, visible) -> np.ndarray:
+    """(same shape as weight) `visible` of each weighted sample; a channel whose samples are channel 0's
+    (the same extinction, or equiangular draws) shares its answers."""
+    out = np.zeros(weight.shape, bool)
+    ask = np.any(weight != 0.0, axis=-1)
+    out[..., 0][ask] = visible(pos[..., 0, :][ask], wdir[..., 0, :][ask], dist[..., 0][ask])
+    for c in (1, 2):
+        if np.array_equal(pos[..., c, :], pos[..., 0, :]) and np.array_equal(wdir[..., c, :], wdir[..., 0, :]):
+            out[..., c] = out[..., 0]
+            continue
+        ask = weight[..., c] != 0.0
+        out[..., c][ask] = visible(pos[..., c, :][ask], wdir[..., c, :][ask], dist[..., c][ask])
+    return out
+
+
 def _check(medium, params):
     if not medium.homogeneous and params["sampling"] == "cdf":
         raise UserError(f"method montecarlo: --sampling cdf inverts the homogeneous medium's closed-form air-light; "
@@ -684,6 +869,7 @@ METHOD = Method(
                              choices=("intervals", "samples")),
     },
     airlight=_airlight,
+    sphere=_sphere,
     error_law=ErrorLaw({"samples": 1024}, "sigma", 3.5),  # worst 1.8 over 100 seeds; at 64 samples 4.2 (g = 0.9)
     stats_size=CDF_STATS,
     summarize=_summarize,

@@ -22,8 +22,9 @@ ray): `penumbra_airlight.cut_pairs` samples those pairs, so no order of the rows
 is lit or dark. Nor that the sphere does not shine on it: a segment near the sphere may see a cap of it
 on which no row lies, so the sphere shines on every ray from outside it (`_shines`) and the pairs that
 no row faces take the rule where the geometry clears them, else the samples, drawn from a cap of the
-sphere that holds all the segment sees (`sphere_rule.Ball.seen_cap`). `montecarlo` keeps the rows (it
-samples them).
+sphere that holds all the segment sees (`sphere_rule.Ball.seen_cap`). A stochastic method keeps a flat
+emitter's rows (it samples them); a sphere's pairs take its own estimate where it has one
+(`Method.sphere`), without shadow rays where the geometry clears the segment, else with them (`_in_sight`).
 
 A sphere emitter's rows meet a kink along the horizon of each of a segment's points, where it crosses
 the rows' rule (an error of about n^-2 that the pilot's rows cannot reach 1e-6 with), so for every
@@ -32,6 +33,8 @@ way by a rule about the segment (`sphere_rule.Ball.rule`: the pencil of the segm
 at its ends), its ladder from sphere_rule.FIRST, counted among the rays near an emitter.
 """
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -48,10 +51,10 @@ STATS_NAMES = ("rays near an emitter", "rays near an emitter not converged")
 
 
 def applies(lights, method) -> bool:
-    """Whether a render has flat emitters whose near rays, or sphere emitters whose rays, a deterministic
-    method integrates so."""
-    return not method.stochastic and any(e is not None and (e.planar is not None or e.ball is not None)
-                                         for e in lights.emitters)
+    """Whether a render has sphere emitters, or flat emitters whose near rays a deterministic method
+    integrates so."""
+    return any(e is not None and (e.ball is not None or (e.planar is not None and not method.stochastic))
+               for e in lights.emitters)
 
 
 def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen, ctx=None):
@@ -76,9 +79,13 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
         feet[e] = foot
     near &= _shines(lights, cone, tmax, n)
+    own = method.sphere(medium, params) if method.stochastic and method.sphere is not None else None
+    if method.stochastic:  # its own estimate of the spheres, else their rows; flat emitters keep their rows
+        near &= _balls(lights)[None, :] & (own is not None)
     hidden = np.zeros((n, n_e), bool)
     if shadows and near.any():
-        near &= _lit_or_unseen(lights, cone, segs, n)
+        if not method.stochastic:
+            near &= _lit_or_unseen(lights, cone, segs, n)
         hidden = _may_hide(ctx[0], lights, near, rays)
         near &= ~hidden
     if not (near | hidden).any():
@@ -87,6 +94,12 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     drop = (near | hidden)[segs.ray, owner] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(hidden)[1]):
+        if own is not None:
+            em, rs = lights.emitters[e], np.nonzero(hidden[:, e])[0]
+            value, v = own(em.ball, em.radiance, e, rays, rs, functools.partial(_in_sight, ctx[0]))
+            air[rs] += value
+            var[rs] += v
+            continue
         for rs, sample in _cap_samplers(lights.emitters[e].ball, rays, np.nonzero(hidden[:, e])[0]):
             value, v = emitter_estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1],
                                         sample)
@@ -95,12 +108,23 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
         em = lights.emitters[e]
+        if own is not None:
+            value, v = own(em.ball, em.radiance, e, rays, rs)
+            air[rs] += value
+            var[rs] += v
+            continue
         rule, orders = ((_ball_rule(em.ball, rays, rs), ORDERS[ORDERS.index(FIRST):]) if em.ball is not None
                         else (_planar_rule(em.planar, feet[e][rs]), ORDERS))
         value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
     return kept, air, stats, (near | hidden).any(axis=1), var
+
+
+def _in_sight(accel, points, dirs, dist) -> np.ndarray:
+    """Whether nothing lies between each point and the point `dist` along its unit direction."""
+    eps = accel.epsilon
+    return ~accel.occluded(points + eps * dirs, dirs, np.maximum(dist - 2.0 * eps, 0.0))
 
 
 def _cap_samplers(ball, rays, rs) -> list:
@@ -142,8 +166,7 @@ def _shines(lights, cone, tmax, n: int) -> np.ndarray:
     out[cone.ray[rows], lights.owner[cone.light[rows]]] = True
     on = np.zeros(n_e + 1, bool)
     on[np.where(lights.cubature & np.any(lights.intensity != 0.0, axis=1), lights.owner, n_e)] = True
-    balls = np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
-    out[:, balls & on[:n_e]] = (np.asarray(tmax, float) > 0.0)[:, None]
+    out[:, _balls(lights) & on[:n_e]] = (np.asarray(tmax, float) > 0.0)[:, None]
     return out
 
 
@@ -153,8 +176,12 @@ def _lit_or_unseen(lights, cone, lit, n: int) -> np.ndarray:
     n_l = len(lights)
     row_state = lit_states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
     state = emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters))
-    balls = np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
-    return (state == LIT) | ((state == NONE) & balls[None, :])
+    return (state == LIT) | ((state == NONE) & _balls(lights)[None, :])
+
+
+def _balls(lights) -> np.ndarray:
+    """(E,) whether each emitter is a sphere."""
+    return np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
 
 
 def _planar_rule(planar, feet):
