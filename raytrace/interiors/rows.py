@@ -57,8 +57,8 @@ from ..shadows.through_others import attenuated_radiance, refracted_attenuated
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
-                       UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
-                       plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
+                       UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, held_lights, hull_planes,
+                       matched, plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
@@ -122,7 +122,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     dplanes = measured_plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * rule.steps
 
-    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None):
+    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None, eta=float(medium.ior)):
         ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]  # the channels lit and scattering
         if not len(ch):
             return
@@ -134,7 +134,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                          unit, unit_var, unit_err)
         else:
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g, kt_out, wl, ll,
-                            float(medium.ior), geo, used, near if used is faces else EVERY, dplanes, only, rule, keys,
+                            eta, geo, used, near if used is faces else EVERY, dplanes, only, rule, keys,
                             np.uint64(dims + (depth * len(lights) + li) * rule.steps + (only + 1) * STREAM),
                             np.uint64(seed), unit, unit_var, unit_err, stats)
         if toward is not None and rule.kind == QUAD:  # beam `only`: against its closed form
@@ -233,6 +233,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], rule, keys,
                     dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats, lights.cone[li, 0])
+            continue
+        if refractive and (li, sid) in held_lights(prep):  # inside a convex refractive shape: straight, wholly inside
+            integrate(li, distant, xh, h, hl, zero, zero, zero, zero, 1.0, planes, eta=1.0)
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
                   planes if not refractive else faces,  # refractive: faces_point's faces
@@ -633,6 +636,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
     position = prep.lights.position[li]
     faces = np.nonzero(planes[:, :3] @ position - planes[:, 3] > 0.0)[0].tolist()
+    held = not faces  # the light inside the shape: its straight paths, which nothing inside blocks (crossing.check)
     dplanes = measured_plane_errors(prep, sid)
     geo = np.zeros((len(ell), GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points, w, position
@@ -653,7 +657,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
         unlocated |= ~spans[3] & (ell > 0.0)
     bound[unlocated] = np.inf
     stats[UNLOCATED] += np.count_nonzero(unlocated)
-    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None)
+    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None or held)
     clear = np.nonzero(whole)[0]
     if len(clear):
         val, v, st, b = single_scattering(prep, method, params, sid, points[clear], normals[clear], w[clear], ell[clear],

@@ -2100,6 +2100,28 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
     direction the light leaves in (`refracted_at` at x = 0 with its attenuation left out) in
     value[:, f], 0 where no such path; the unit direction from q toward the refraction point in
     toward[:, f], the path's lengths inside and outside in inside[:, f] and outside[:, f]."""
+    _surface_faces(q, planes, planes, light, axis, cone, eta, False, value, toward, inside, outside)
+
+
+@njit
+def surface_out_of_faces(q, planes, light, axis, cone, eta, value, toward, inside, outside):
+    """`surface_through_faces` reversed: a unit point or spot light inside the convex refractive shape
+    (relative index eta inside) at the points q (M, 3) outside it, through each face f whose plane q is
+    outside of: the same Fermat path (its refraction point on the face), now from the light's side of
+    index eta to q's of index 1 (`refracted_at` with the plane's normal turned toward the light and
+    relative index 1 / eta: Snell's sin1 = sin2 / eta, Fresnel's T the same on either side, and the ray
+    tube's irradiance E = T sin1 / (rho cos2 (hl / cos1^2 + z eta cos1 / cos2^3)), hl the light's depth
+    below the face's plane and z q's height above it; below the light T / (hl + eta z)^2; total internal
+    reflection never lies on Fermat's path, whose leaving angle obeys sin1 = sin2 / eta <= 1 / eta). The
+    path's lengths inside (the light's leg) in inside[:, f], outside (q's leg) in outside[:, f]."""
+    _surface_faces(q, -planes, planes, light, axis, cone, 1.0 / eta, True, value, toward, outside, inside)
+
+
+@njit
+def _surface_faces(q, toward_light, planes, light, axis, cone, eta, beyond, value, toward, near, far):
+    """`surface_through_faces` over the faces whose plane (rows of `toward_light`: `planes` with their
+    normals toward the light's side) the light is outside of (`beyond`: and q is not), relative index
+    eta on q's side: q's leg in near[:, f], the light's in far[:, f]."""
     geo = np.zeros(GEO_COLUMNS)
     geo[3] = 1.0  # a direction along which x = 0 is taken (the terms that depend on it drop out there)
     geo[6:9], geo[9:12], geo[12:14], geo[17] = light, axis, cone[:2], cone[2]
@@ -2107,22 +2129,25 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
     value[:] = 0.0
     for i in range(q.shape[0]):
         geo[0:3] = q[i]
-        for j in range(refracting_faces(geo, planes, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)):
+        for j in range(refracting_faces(geo, toward_light, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)):
             row = faces[j]
+            f = int(row[17])
+            if beyond and toward_light[f, 0] * q[i, 0] + toward_light[f, 1] * q[i, 1] + toward_light[f, 2] * q[i, 2] \
+                    > toward_light[f, 3]:
+                continue  # q on the light's side of the face's plane
             rho, r = fermat(0.0, row[0], row[3], row[4], row[1], row[2], eta)
             if not on_face(0.0, row, r, rho, planes):
                 continue
-            f = int(row[17])
             t = r / rho if rho > 0.0 else 0.0
             k = 0.0
             for c in range(3):
                 toward[i, f, c] = row[8 + c] + t * row[14 + c] - q[i, c]
                 k += toward[i, f, c] * toward[i, f, c]
             k = math.sqrt(k)
-            for c in range(3):  # on the face itself (k = 0): its outward normal
-                toward[i, f, c] = toward[i, f, c] / k if k > 0.0 else planes[f, c]
-            inside[i, f] = k
-            outside[i, f] = math.sqrt((rho - r) * (rho - r) + row[2] * row[2])
+            for c in range(3):  # on the face itself (k = 0): its normal toward the light's side
+                toward[i, f, c] = toward[i, f, c] / k if k > 0.0 else toward_light[f, c]
+            near[i, f] = k
+            far[i, f] = math.sqrt((rho - r) * (rho - r) + row[2] * row[2])
             value[i, f] = 4.0 * math.pi * refracted_at(0.0, row[0], rho, r, row[3], row[1], row[2], eta, 0.0, 1.0,
                                                        ISOTROPIC, 0.0, 0.0, row[5], row[6], row[7], cone[0], cone[1],
                                                        cone[2])
