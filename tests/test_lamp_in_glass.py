@@ -3,18 +3,18 @@ it along straight paths wholly inside; surfaces outside are lit by its light ref
 face (interiors/crossing.py `lit_from_inside`, media/slab.py `surface_out_of_faces`): Fermat's path
 reversed, Fresnel's T, the ray tube's irradiance.
 
-The twin is built from the geometry alone. Its refraction point through a face minimises the optical
-path eta |R - L| + |X - R| over the face's plane (scipy minimize, then the stationary point polished as
-a root of the path's in-plane gradient), counted where it lies on the (closed) face; the irradiance is
-the light's solid angle per unit area of the path map's image, by central finite differences of the map
-(Richardson-extrapolated)
-from a direction leaving the light to where its ray, refracted out by Snell's law in vector form, meets
-the receiving plane. A pixel is the camera ray's path: straight to the floor; or into the glass (Fresnel's
-T / eta^2 for what comes out of it, the mirror's 1 - T for what the reflected ray sees), the inside single
+The twin is built from the geometry alone, in 30 digits (mpmath). Its refraction point through a face makes
+the optical path eta |R - L| + |X - R| stationary over the face's plane (scipy minimize, then the root of the
+path's in-plane gradient, mpmath findroot), counted where it lies on the (closed) face; the irradiance is the
+light's solid angle per unit area of the path map's image, by central finite differences of the map from a
+direction leaving the light to where its ray, refracted out by Snell's law in vector form, meets the
+receiving plane. A pixel is the camera ray's path: straight to the floor; or into the glass (Fresnel's T /
+eta^2 for what comes out of it, the mirror's 1 - T for what the reflected ray sees), the inside single
 scattering (scipy quad), and out through the far face (T eta^2 exp(-sigma_t ell) for what it sees beyond,
 nothing on total internal reflection)."""
 import math
 
+import mpmath as mp
 import numpy as np
 import pytest
 from scipy import integrate, optimize
@@ -74,36 +74,54 @@ def on_face(R, n):
     return all(LO[a] <= R[a] <= HI[a] for a in range(3) if n[a] == 0.0)
 
 
+def dot(a, b):
+    return sum(x * y for x, y in zip(a, b))
+
+
+def unit(a):
+    n = mp.sqrt(dot(a, a))
+    return [x / n for x in a]
+
+
 def exit_point(L, X, n):
-    """Fermat's refraction point of the path from L inside to X outside through the plane of the face of
-    outward normal n: the optical path minimised over the plane's coordinates, then polished."""
+    """Fermat's refraction point (mpmath, 30 digits) of the path from L inside to X outside through the plane
+    of the face of outward normal n: the optical path eta |R - L| + |X - R| minimised over the plane's
+    coordinates (scipy), then its in-plane gradient's root (mpmath findroot)."""
     a, b = [e for e in np.eye(3) if e @ n == 0.0]
     base = n * max(n @ LO, n @ HI)
 
-    def point(s):
-        return base + s[0] * a + s[1] * b
+    def length(s):
+        R = base + s[0] * a + s[1] * b
+        return ETA * np.linalg.norm(R - L) + np.linalg.norm(X - R)
 
-    def grad(s):
-        R = point(s)
-        v = ETA * (R - L) / np.linalg.norm(R - L) + (R - X) / np.linalg.norm(R - X)
-        return np.array([v @ a, v @ b])
+    s0 = optimize.minimize(length, np.array([(L + X) @ a, (L + X) @ b]) / 2.0, method="BFGS", options={"gtol": 1e-12}).x
+    with mp.workdps(30):
+        Lm, Xm = [mp.mpf(float(v)) for v in L], [mp.mpf(float(v)) for v in X]
 
-    s0 = optimize.minimize(lambda s: ETA * np.linalg.norm(point(s) - L) + np.linalg.norm(X - point(s)),
-                           np.array([(L + X) @ a, (L + X) @ b]) / 2.0, method="BFGS", options={"gtol": 1e-12}).x
-    return point(optimize.root(grad, s0, tol=1e-15).x)
+        def point(s, t):
+            return [mp.mpf(float(base[k])) + s * float(a[k]) + t * float(b[k]) for k in range(3)]
+
+        def grad(s, t):
+            R = point(s, t)
+            v = [ETA * p_ + q_ for p_, q_ in zip(unit([r - l for r, l in zip(R, Lm)]), unit([r - x for r, x in zip(R, Xm)]))]
+            return [dot(v, [float(c) for c in a]), dot(v, [float(c) for c in b])]
+
+        s = mp.findroot(grad, (mp.mpf(s0[0]), mp.mpf(s0[1])), tol=mp.mpf(10) ** -50)
+        return point(s[0], s[1])
 
 
-def path_end(L, u, n, c, target, normal):
-    """Where the ray from L along u, refracted out through the plane n.q = c, meets the plane through
-    `target` of unit `normal`."""
-    R = L + (c - n @ L) / (u @ n) * u
-    v = refract(u, -n, 1.0 / ETA)
-    return R + ((target - R) @ normal) / (v @ normal) * v
+def refract_mp(d, n, eta):
+    """`refract` in mpmath (lists)."""
+    c = -dot(d, n)
+    k = 1 - (1 - c * c) / (eta * eta)
+    return [x / eta + (c / eta - mp.sqrt(k)) * m_ for x, m_ in zip(d, n)]
 
 
 def irradiance(light, X, normal=None):
     """The light's irradiance (3,) at X outside the box, per unit area of the plane through X of unit
-    `normal` (None: across the ray), summed over the faces whose plane X is outside of, attenuated."""
+    `normal` (None: across the ray), summed over the faces whose plane X is outside of, attenuated: the
+    light's solid angle per unit area of the path map's image, central differences in 30 digits (step
+    1e-12: truncation 1e-24, rounding 1e-18)."""
     L = np.array(light["position"], float)
     inten = np.array(light["intensity"], float)
     spot, kt = spot_of(light), KS + KA
@@ -112,32 +130,38 @@ def irradiance(light, X, normal=None):
         c = float(max(n @ LO, n @ HI))
         if n @ X <= c:
             continue
-        R = exit_point(L, X, n)
-        if not on_face(R, n):
-            continue
-        u0 = (R - L) / np.linalg.norm(R - L)
-        v0 = refract(u0, -n, 1.0 / ETA)
-        nrm = v0 if normal is None else normal
-        e1 = np.cross(u0, n if abs(u0 @ n) < 0.9 else np.array([0.3, 0.5, 0.8]))
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(u0, e1)
+        with mp.workdps(30):
+            R = exit_point(L, X, n)
+            Rf = np.array([float(v) for v in R])
+            if not on_face(Rf, n):
+                continue
+            Lm, nm = [mp.mpf(float(v)) for v in L], [float(v) for v in n]
+            u0 = unit([r - l for r, l in zip(R, Lm)])
+            v0 = refract_mp(u0, [-v for v in nm], 1 / mp.mpf(ETA))
+            nrm = v0 if normal is None else [mp.mpf(float(v)) for v in normal]
+            Xm = [mp.mpf(float(v)) for v in X]
+            side = [float(v) for v in (n if abs(float(dot(u0, nm))) < 0.9 else np.array([0.3, 0.5, 0.8]))]
+            e1 = unit([u0[1] * side[2] - u0[2] * side[1], u0[2] * side[0] - u0[0] * side[2],
+                       u0[0] * side[1] - u0[1] * side[0]])
+            e2 = [u0[1] * e1[2] - u0[2] * e1[1], u0[2] * e1[0] - u0[0] * e1[2], u0[0] * e1[1] - u0[1] * e1[0]]
 
-        def end(s, t):
-            u = u0 + s * e1 + t * e2
-            return path_end(L, u / np.linalg.norm(u), n, c, X, nrm)
+            def end(s, t):
+                u = unit([x + s * y + t * z for x, y, z in zip(u0, e1, e2)])
+                P = [lv + (c - dot(nm, Lm)) / dot(u, nm) * uv for lv, uv in zip(Lm, u)]
+                v = refract_mp(u, [-x for x in nm], 1 / mp.mpf(ETA))
+                step = dot([x - y for x, y in zip(Xm, P)], nrm) / dot(v, nrm)
+                return [pv + step * vv for pv, vv in zip(P, v)]
 
-        def slope(e, h):  # central differences, Richardson-extrapolated: O(h^4)
-            one = (end(*(h * e)) - end(*(-h * e))) / (2.0 * h)
-            half = (end(*(h * e / 2.0)) - end(*(-h * e / 2.0))) / h
-            return (4.0 * half - one) / 3.0
-
-        h = 1e-4 * abs(float(v0 @ n))  # the map's derivatives grow as 1 / cos near grazing
-        js, jt = slope(np.array([1.0, 0.0]), h), slope(np.array([0.0, 1.0]), h)
-        area = abs(np.cross(js, jt) @ nrm)
-        ti, tt = math.acos(min(1.0, abs(float(v0 @ n)))), math.acos(min(1.0, abs(float(u0 @ n))))
-        fall = 1.0 if spot is None else smoothstep(float(u0 @ spot[0]), spot[1], spot[2])
-        att = np.exp(-kt * np.linalg.norm(R - L) - KA_OUT * np.linalg.norm(X - R))
-        total += fresnel_t(ti, tt, ETA) * fall * inten * att / area
+            h = mp.mpf(10) ** -12
+            js = [(x - y) / (2 * h) for x, y in zip(end(h, 0), end(-h, 0))]
+            jt = [(x - y) / (2 * h) for x, y in zip(end(0, h), end(0, -h))]
+            cross = [js[1] * jt[2] - js[2] * jt[1], js[2] * jt[0] - js[0] * jt[2], js[0] * jt[1] - js[1] * jt[0]]
+            area = float(abs(dot(cross, nrm)))
+            cos_out, cos_in = float(abs(dot(v0, nm))), float(abs(dot(u0, nm)))
+            u0f = np.array([float(v) for v in u0])
+        fall = 1.0 if spot is None else smoothstep(float(u0f @ spot[0]), spot[1], spot[2])
+        att = np.exp(-kt * np.linalg.norm(Rf - L) - KA_OUT * np.linalg.norm(X - Rf))
+        total += fresnel_t(math.acos(cos_out), math.acos(cos_in), ETA) * fall * inten * att / area
     return total
 
 
@@ -212,7 +236,7 @@ def case(request):
 
 def test_the_kernel_against_the_twin():
     """`surface_out_of_faces` at 300 points around the box (the irradiance across the ray, the spot's
-    falloff, the legs' lengths) within 1e-8 of the twin's finite differences (Richardson-extrapolated) summed over the faces, the
+    falloff, the legs' lengths) within 1e-12 of the twin's (measured 1.7e-14) summed over the faces, the
     refraction points' edges crossed (several faces light one point) and total internal reflection near."""
     rng = np.random.default_rng(5)
     q = rng.uniform(-3.0, 3.0, (300, 3))
@@ -232,7 +256,7 @@ def test_the_kernel_against_the_twin():
             several += np.count_nonzero(lit) > 1
             att = np.exp(-(KS[0] + KA[0]) * ins[i] - KA_OUT * outs[i])
             ref = irradiance(unit, X)[0]
-            assert abs(float(value[i] @ att) - ref) <= 1e-8 * ref + 1e-300, (i, value[i] @ att, ref)
+            assert abs(float(value[i] @ att) - ref) <= 1e-12 * ref, (i, value[i] @ att, ref)
     assert several > 20, several
 
 
@@ -243,7 +267,7 @@ def test_quadrature_from_a_lamp_in_glass(case):
     light, ref = case
     res = image(scene(light), "quadrature", {"rtol": 1e-10})
     err = np.abs(res.image - ref)
-    assert np.count_nonzero(ref[..., 1] > 0.0) >= 20
+    assert np.count_nonzero(ref[..., 1] > 0.0) >= 12  # the spot's: 14 of 48
     assert np.all(err <= 1e-6 * ref), np.max(err / np.maximum(ref, 1e-300))
     finite = np.isfinite(res.error_bound)
     assert np.all(err[finite] <= res.error_bound[finite]), np.max((err - res.error_bound)[finite])
@@ -258,16 +282,18 @@ def test_unshadowed_is_the_same(case):
 
 def test_raymarch_and_montecarlo_from_a_lamp_in_glass(case):
     """The midpoint rule converges to the twin at its order (4x the steps, at least 8x closer; within 1e-3 at
-    4096 steps); Monte Carlo's free-path samples unbiased (mean squared z-score about 1)."""
+    4096 steps); Monte Carlo's free-path samples unbiased (mean squared z-score about 1 over four seeds)."""
     light, ref = case
     lit = ref > 1e-6
     errs = [np.max(np.abs(image(scene(light), "raymarch", {"steps": steps}).image - ref)[lit] / ref[lit])
             for steps in (1024, 4096)]
     assert errs[1] < errs[0] / 8.0 and errs[1] < 1e-3, errs
-    mc = image(scene(light), "montecarlo", {"samples": 64}, seed=3)
-    ok = lit & (mc.variance > 0.0)
-    z2 = np.mean((mc.image - ref)[ok] ** 2 / mc.variance[ok])
-    assert 0.3 < z2 < 3.5, z2
+    z2 = []
+    for seed in (3, 4, 5, 6):  # the spot lights 12 pixels, its samples mostly off the cone: a heavy tail
+        mc = image(scene(light), "montecarlo", {"samples": 256}, seed=seed)
+        ok = lit & (mc.variance > 0.0)
+        z2 += ((mc.image - ref)[ok] ** 2 / mc.variance[ok]).tolist()
+    assert 0.3 < np.mean(z2) < 3.5, np.mean(z2)
 
 
 def test_what_is_not_implemented_is_refused():
@@ -282,7 +308,7 @@ def test_what_is_not_implemented_is_refused():
                               (sphere, "quadrature", "exact sphere"),
                               (inner, "quadrature", r"another shape inside it \(shape\[2\]\)"),
                               (scene(LAMP), "analytic", "no closed form"),
-                              (scene(LAMP), "slab_approx", "use --method quadrature")):
+                              (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")):
         with pytest.raises(UserError, match=words) as err:
             image(sc, method, {})
         assert "\n" not in str(err.value)

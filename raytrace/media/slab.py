@@ -1442,17 +1442,28 @@ def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
     (dc + dn (R + D)) D / h_f where the planes are dn, dc off the faces (`dplanes`); the
     exponent kt (x + k) + kt_out (d - k) by 32u of its size and kt dk + kt_out (dk + dd) + kt 16u R; d
     by dd = 8u (|p| + R), which moves 1 / d^2 and the scattering cosine r·w / d relatively by dd / d_min
-    times 2 + the phase's condition (d_min the light's least distance from the segment). inf where the
-    light is inside every face plane or on the segment."""
+    times 2 + the phase's condition (d_min the light's least distance from the segment). A light inside
+    every face plane, at depth g_f = c_f - n_f·p >= g below each: the exit along u = (p - X) / d is
+    k_f = (c_f - n_f·X) / q_f = d + g_f / q_f >= d + g_f (q_f = n_f·u <= 1), so the computed exit, off by
+    at most s / q_f with s = 16u (|c_f| + |p| + 2R + D) + dc + dn (R + D) (numerator and q_f's rounding,
+    the planes' errors), stays beyond d where 4 s < g: then k = min(exit, d) = d itself (dk = dd); inf
+    otherwise, and where the light lies on the segment."""
     r, cmax = coordinate_size(geo, planes, end)
     p, dmax, dmin = light_span(geo, end)
-    hmin = math.inf
+    hmin, depth = math.inf, math.inf
     for f in range(planes.shape[0]):
         hf = planes[f, 0] * geo[6] + planes[f, 1] * geo[7] + planes[f, 2] * geo[8] - planes[f, 3]
         if hf > 0.0:
             hmin = min(hmin, hf)
-    if not (hmin < math.inf and dmin > 0.0):
+        else:
+            depth = min(depth, -hf)
+    if not dmin > 0.0:
         return math.inf
+    if hmin == math.inf:  # the light inside
+        slack = 16.0 * U * (cmax + p + 2.0 * r + dmax) + dplanes[1] + dplanes[0] * (r + dmax)
+        if not 4.0 * slack < depth:
+            return math.inf
+        return _point_eps(r, p, dmax, dmin, 8.0 * U * (p + r), end, kt, kt_out, code, g)
     dk = 16.0 * U * ((cmax + p + 2.0 * r) * dmax / hmin + dmax) + (dplanes[1] + dplanes[0] * (r + dmax)) * dmax / hmin
     return _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g)
 
