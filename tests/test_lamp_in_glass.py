@@ -261,23 +261,23 @@ def test_the_kernel_against_the_twin():
 
 
 def test_quadrature_from_a_lamp_in_glass(case):
-    """quadrature (rtol 1e-10, volumetric shadows) within 1e-6 of the twin on every pixel, inside its bound where
+    """quadrature (rtol 1e-10, volumetric shadows) within 1e-9 of the twin on every pixel, inside its bound where
     that is finite: the glass's fog around the light seen through a face, the floor lit through the faces seen
     straight, in the glass's mirror and through it."""
     light, ref = case
     res = image(scene(light), "quadrature", {"rtol": 1e-10})
     err = np.abs(res.image - ref)
     assert np.count_nonzero(ref[..., 1] > 0.0) >= 12  # the spot's: 14 of 48
-    assert np.all(err <= 1e-6 * ref), np.max(err / np.maximum(ref, 1e-300))
+    assert np.all(err <= 1e-9 * ref), np.max(err / np.maximum(ref, 1e-300))  # measured 4.3e-15 lamp, 3.0e-14 spot
     finite = np.isfinite(res.error_bound)
     assert np.all(err[finite] <= res.error_bound[finite]), np.max((err - res.error_bound)[finite])
 
 
 def test_unshadowed_is_the_same(case):
-    """Without volumetric shadows (nothing but the glass could shadow: the same paths) within 1e-6 too."""
+    """Without volumetric shadows (nothing but the glass could shadow: the same paths) within 1e-9 too."""
     light, ref = case
     res = image(scene(light), "quadrature", {"rtol": 1e-10}, shadows=False)
-    assert np.all(np.abs(res.image - ref) <= 1e-6 * ref)
+    assert np.all(np.abs(res.image - ref) <= 1e-9 * ref)
 
 
 def test_raymarch_and_montecarlo_from_a_lamp_in_glass(case):
