@@ -103,7 +103,8 @@ def exit_point(L, X, n):
 
         def grad(s, t):
             R = point(s, t)
-            v = [ETA * p_ + q_ for p_, q_ in zip(unit([r - l for r, l in zip(R, Lm)]), unit([r - x for r, x in zip(R, Xm)]))]
+            to_light, to_x = unit([r - l for r, l in zip(R, Lm)]), unit([r - x for r, x in zip(R, Xm)])
+            v = [ETA * p_ + q_ for p_, q_ in zip(to_light, to_x)]
             return [dot(v, [float(c) for c in a]), dot(v, [float(c) for c in b])]
 
         s = mp.findroot(grad, (mp.mpf(s0[0]), mp.mpf(s0[1])), tol=mp.mpf(10) ** -50)
