@@ -205,7 +205,8 @@ def check(prep, method, method_params, source: str):
 def _not_held(prep, sid) -> str | None:
     """Why a point or spot light inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces (`lit_from_inside`) with
-    no other shape inside, the camera outside and an outside medium that does not scatter."""
+    no other shape inside, the camera outside, no other shape holding a medium and an outside medium that
+    does not scatter."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     if paths.exact_sphere(prep, sid) is not None:
@@ -217,6 +218,9 @@ def _not_held(prep, sid) -> str | None:
                 "does not scatter")
     if prep.camera_inside == sid:
         return "is not implemented with the camera inside the same shape yet"
+    media = [int(j) for j in prep.interior_shapes if j != sid]
+    if media:  # the light refracted out into another medium
+        return f"is not implemented with another shape holding a medium (shape[{media[0]}]) yet"
     for j in range(len(prep.scene.shapes)):
         first = prep.accel.triangles[prep.shape_ids == j]
         if j != sid and len(first) and inside_of(prep, first[0, 0], [sid]) is not None:
@@ -229,7 +233,8 @@ def held_lights(prep) -> list[tuple[int, int]]:
     alone), each with its shape."""
     def build():
         inner = [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior != 1.0]
-        found = [(int(li), inside_of(prep, prep.lights.position[li], inner)) for li in np.nonzero(~prep.lights.distant)[0]]
+        found = [(int(li), inside_of(prep, prep.lights.position[li], inner))
+                 for li in np.nonzero(~prep.lights.distant)[0]]
         return [(li, sid) for li, sid in found if sid is not None]
     return [] if prep.interior_shapes is None else prep.memo("held lights", build)
 
@@ -255,7 +260,8 @@ def lit_from_inside(prep, q, normals, shading, refl):
             cos_s = np.einsum("ij,ij->i", shading, u)
             ok = np.nonzero((value[:, f] > 0.0) & (cos_s > 0.0) & (np.einsum("ij,ij->i", normals, u) > 0.0))[0]
             t, hit = accel.first_hit(q[ok] + accel.epsilon * normals[ok], u[ok])
-            ok = ok[(hit < 0) | (t >= outside[ok, f]) | np.isin(prep.shape_ids[np.maximum(hit, 0)], matched(prep) + [sid])]
+            clear = np.isin(prep.shape_ids[np.maximum(hit, 0)], matched(prep) + [sid])
+            ok = ok[(hit < 0) | (t >= outside[ok, f]) | clear]
             with np.errstate(over="ignore", invalid="ignore"):
                 att = np.exp(-kt * inside[ok, f, None] - prep.scene.medium.sigma_t[None, :] * outside[ok, f, None])
             out[ok] += refl[ok] / np.pi * lights.intensity[li] * (value[ok, f] * cos_s[ok])[:, None] * att
