@@ -94,7 +94,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
     unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
-    outside of (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path); every light an
+    outside of (media/slab.py `faces_point`), or one inside it (crossing.py `held_lights`) along its straight
+    paths, wholly inside; other shapes through the entry plane (Fermat's path); every light an
     exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only (else all); `piece`:
     the segments' rank among their ray's lit pieces (`lit_single_scattering`), which numbers their random streams;
     `beam`: of a directional light's refracted beams, or of a point or spot light's refracted paths, only the one
@@ -636,7 +637,6 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
     kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
     position = prep.lights.position[li]
     faces = np.nonzero(planes[:, :3] @ position - planes[:, 3] > 0.0)[0].tolist()
-    held = not faces  # the light inside the shape: its straight paths, which nothing inside blocks (crossing.check)
     dplanes = measured_plane_errors(prep, sid)
     geo = np.zeros((len(ell), GEO_COLUMNS))
     geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points, w, position
@@ -657,7 +657,7 @@ def _lit_point(prep, method, params, sid, planes, mask, li, rows, reach, seed, d
         unlocated |= ~spans[3] & (ell > 0.0)
     bound[unlocated] = np.inf
     stats[UNLOCATED] += np.count_nonzero(unlocated)
-    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None or held)
+    whole = np.logical_and.reduce([f[4] for f in found], initial=True) & (ell > 0.0) & (others is None)
     clear = np.nonzero(whole)[0]
     if len(clear):
         val, v, st, b = single_scattering(prep, method, params, sid, points[clear], normals[clear], w[clear], ell[clear],
