@@ -22,14 +22,11 @@ from scipy import integrate, optimize
 from raytrace.errors import UserError
 from raytrace.lights import NO_CONE, SMOOTHSTEP
 from raytrace.media.slab import surface_out_of_faces
-from raytrace.options import RenderOptions
-from raytrace.rendering.renderer import prepare, render
-from raytrace.scene.format import scene_from_text
 
 from . import oracle
-from .conftest import to_toml
 from .test_bounded_media import box_entry, fresnel_t
-from .test_refracted_point_light import smoothstep, switches
+from .test_light_inside import image
+from .test_refracted_point_light import smoothstep, spot_terms, switches
 
 LO, HI = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0])
 FACES = [np.eye(3)[a] * s for a in range(3) for s in (-1.0, 1.0)]
@@ -50,14 +47,6 @@ def scene(light, medium=None, ior=ETA):
                       {"primitive": "quad", "corners": [[-5.0, FLOOR_Y, 5.0], [5.0, FLOOR_Y, 5.0], [5.0, FLOOR_Y, -5.0],
                                                         [-5.0, FLOOR_Y, -5.0]], "reflectance": RHO}],
             "light": [light]}
-
-
-def spot_of(light):
-    if light.get("type") != "spot":
-        return None
-    axis = np.array(light["look_at"], float) - np.array(light["position"], float)
-    return axis / np.linalg.norm(axis), math.cos(math.radians(light["cone_angle"])), \
-        math.cos(math.radians(light["falloff_start"]))
 
 
 def refract(d, n, eta):
@@ -125,7 +114,7 @@ def irradiance(light, X, normal=None):
     1e-12: truncation 1e-24, rounding 1e-18)."""
     L = np.array(light["position"], float)
     inten = np.array(light["intensity"], float)
-    spot, kt = spot_of(light), KS + KA
+    spot, kt = spot_terms(light), KS + KA
     total = np.zeros(3)
     for n in FACES:
         c = float(max(n @ LO, n @ HI))
@@ -181,7 +170,7 @@ def floor_radiance(light, o, d):
 def inside(light, p, w, ell):
     """The inside single scattering (3,) along p + x w, x in [0, ell], lit straight from inside."""
     L, inten = np.array(light["position"], float), np.array(light["intensity"], float)
-    spot, kt = spot_of(light), KS + KA
+    spot, kt = spot_terms(light), KS + KA
 
     def f(x, ch):
         X = p + x * w
@@ -224,11 +213,6 @@ def twin(light):
     return img
 
 
-def image(sc, method, params, shadows=True, seed=0):
-    return render(prepare(scene_from_text(to_toml(sc), sc["name"])), method, params,
-                  RenderOptions(threads=1, volumetric_shadows=shadows, seed=seed))
-
-
 @pytest.fixture(scope="module", params=["lamp", "spot"])
 def case(request):
     light = LAMP if request.param == "lamp" else SPOT
@@ -245,7 +229,7 @@ def test_the_kernel_against_the_twin():
     planes = np.array([[*n, 1.0] for n in FACES])
     several = 0
     for light in (LAMP, SPOT):
-        spot = spot_of(light) or (np.array([0.0, 0.0, -1.0]), *NO_CONE)
+        spot = spot_terms(light) or (np.array([0.0, 0.0, -1.0]), *NO_CONE)
         cone = np.array([spot[1], spot[2], SMOOTHSTEP])
         value, toward = np.zeros((len(q), 6)), np.zeros((len(q), 6, 3))
         ins, outs = np.zeros((len(q), 6)), np.zeros((len(q), 6))
