@@ -36,7 +36,7 @@ from ..errors import UserError
 from ..lights import Lights
 from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
-from ..media.slab import refract_rays, surface_through_faces, transmittances
+from ..media.slab import refract_rays, surface_out_of_faces, surface_through_faces, transmittances
 from ..media.sphere_refraction import UNBOUNDED
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
@@ -187,14 +187,85 @@ def check(prep, method, method_params, source: str):
                         "shape or change them")
     for li in np.nonzero(~prep.lights.distant)[0]:
         inside = inside_of(prep, prep.lights.position[li], inner)
-        if inside is not None and (prep.lights.cubature[li] or prep.scene.shapes[inside].interior.ior != 1.0):
+        if inside is not None and prep.lights.cubature[li]:
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
-                            "medium; a point or spot light inside a bounded medium needs an index-matched interior "
-                            "(ior = 1); move the light out of the shape or set its ior = 1")
+                            "medium; an emitter inside a bounded medium is not implemented; move the light out of "
+                            "the shape")
+        why = _not_held(prep, inside) if inside is not None else None
+        if why:
+            raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
+                            f"medium of ior {prep.scene.shapes[inside].interior.ior:g}; a point or spot light inside "
+                            f"a refractive medium {why}; move the light out of the shape or set its ior = 1")
         if inside is not None and sup.entry_plane:
             raise UserError(f"{source}: --method {method.name}: light[{prep.lights.owner[li]}].position inside "
                             f"shape[{inside}]: its inside model sees the light through the plane of the face a camera "
                             f"ray enters by; use --method {', '.join(_takers(lambda s: s.exact_paths))}")
+
+
+def _not_held(prep, sid) -> str | None:
+    """Why a point or spot light inside the interior of shape sid is refused, None where it is taken:
+    index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces (`lit_from_inside`) with
+    no other shape inside, the camera outside, no other shape holding a medium and an outside medium that
+    does not scatter."""
+    if prep.scene.shapes[sid].interior.ior == 1.0:
+        return None
+    if paths.exact_sphere(prep, sid) is not None:
+        return "is not implemented in an exact sphere yet (its refracted paths out); use a convex mesh"
+    if not len(convex_planes(prep, sid)):
+        return f"needs a convex shape of at most {KERNEL_PLANES} faces"
+    if prep.scene.medium.scatters:
+        return ("lights the outside medium through its faces, which is not implemented yet; use a [medium] that "
+                "does not scatter")
+    if prep.camera_inside == sid:
+        return "is not implemented with the camera inside the same shape yet"
+    media = [int(j) for j in prep.interior_shapes if j != sid]
+    if media:  # the light refracted out into another medium
+        return f"is not implemented with another shape holding a medium (shape[{media[0]}]) yet"
+    for j in range(len(prep.scene.shapes)):
+        first = prep.accel.triangles[prep.shape_ids == j]
+        if j != sid and len(first) and inside_of(prep, first[0, 0], [sid]) is not None:
+            return f"is not implemented with another shape inside it (shape[{j}]) yet"
+    return None
+
+
+def held_lights(prep) -> list[tuple[int, int]]:
+    """(light, shape): the point and spot lights inside refractive interiors (`check` takes convex meshes'
+    alone), each with its shape."""
+    def build():
+        inner = [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior != 1.0]
+        found = [(int(li), inside_of(prep, prep.lights.position[li], inner))
+                 for li in np.nonzero(~prep.lights.distant)[0]]
+        return [(li, sid) for li, sid in found if sid is not None]
+    return [] if prep.interior_shapes is None else prep.memo("held lights", build)
+
+
+def lit_from_inside(prep, q, normals, shading, refl):
+    """rho / pi I E cos_s exp(-sigma_t k - sigma_out o) (M, 3) at surface points q outside the shapes from the
+    point and spot lights inside convex refractive ones (`held_lights`; their straight shadow rays stop at
+    the boundary, `blockers`), through every face whose plane q is outside of: Fermat's path out with
+    Fresnel's T and the ray tube's irradiance E with the spot's falloff (media/slab.py `surface_out_of_faces`),
+    k and o its lengths inside and outside. Opaque surfaces and other refractive interiors on the leg outside
+    shadow (index-matched interiors there do not attenuate it, as `_outside_clear`)."""
+    out = np.zeros((len(q), 3))
+    lights, accel = prep.lights, prep.accel
+    for li, sid in held_lights(prep):
+        planes = convex_planes(prep, sid)
+        m, nf = len(q), len(planes)
+        value, toward, inside, outside = np.zeros((m, nf)), np.zeros((m, nf, 3)), np.zeros((m, nf)), np.zeros((m, nf))
+        surface_out_of_faces(np.ascontiguousarray(q), planes, lights.position[li], lights.axis[li], lights.cone[li],
+                             float(prep.scene.shapes[sid].interior.ior), value, toward, inside, outside)
+        kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
+        for f in range(nf):
+            u = toward[:, f]
+            cos_s = np.einsum("ij,ij->i", shading, u)
+            ok = np.nonzero((value[:, f] > 0.0) & (cos_s > 0.0) & (np.einsum("ij,ij->i", normals, u) > 0.0))[0]
+            t, hit = accel.first_hit(q[ok] + accel.epsilon * normals[ok], u[ok])
+            clear = np.isin(prep.shape_ids[np.maximum(hit, 0)], matched(prep) + [sid])
+            ok = ok[(hit < 0) | (t >= outside[ok, f]) | clear]
+            with np.errstate(over="ignore", invalid="ignore"):
+                att = np.exp(-kt * inside[ok, f, None] - prep.scene.medium.sigma_t[None, :] * outside[ok, f, None])
+            out[ok] += refl[ok] / np.pi * lights.intensity[li] * (value[ok, f] * cos_s[ok])[:, None] * att
+    return out
 
 
 def _takers(test=lambda interiors: True) -> list[str]:
@@ -696,9 +767,10 @@ def _exit(prep, medium, rows, q, w, prim, ell, touch, direct):
     if rest.any():  # a surface met at once where the ray leaves
         on = on[rest]
         geometric = facing_normals(accel.hit_normals(on, at[rest]), w_out[rest])
-        direct[rows[rest]] = f[rest] * surface_radiance(
+        shading = shading_normals(accel, prep.corner_normals, on, at[rest], geometric)
+        direct[rows[rest]] = f[rest] * (surface_radiance(
             accel, at[rest], geometric, prep.reflectance[on], prep.lights, prep.scene.medium, shadow_through(prep),
-            shading_normals(accel, prep.corner_normals, on, at[rest], geometric))
+            shading) + lit_from_inside(prep, at[rest], geometric, shading, prep.reflectance[on]))
     return rows[~rest], q[~rest], w_out[~rest], f[~rest], False, _skip(prep, cos_o[~rest])
 
 

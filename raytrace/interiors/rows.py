@@ -57,8 +57,8 @@ from ..shadows.through_others import attenuated_radiance, refracted_attenuated
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
 from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
-                       UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, hull_planes, matched,
-                       plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
+                       UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, held_lights, hull_planes,
+                       matched, plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
@@ -94,7 +94,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
     unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
-    outside of (media/slab.py `faces_point`), other shapes through the entry plane (Fermat's path); every light an
+    outside of (media/slab.py `faces_point`), or one inside it (crossing.py `held_lights`) along its straight
+    paths, wholly inside; other shapes through the entry plane (Fermat's path); every light an
     exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only (else all); `piece`:
     the segments' rank among their ray's lit pieces (`lit_single_scattering`), which numbers their random streams;
     `beam`: of a directional light's refracted beams, or of a point or spot light's refracted paths, only the one
@@ -122,7 +123,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     dplanes = measured_plane_errors(prep, sid)
     dims = STREAM + piece * MAX_DEPTH * len(lights) * rule.steps
 
-    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None):
+    def integrate(li, distant, xh, h, hl, b, mu, wl, ll, scale, used, only=-1, toward=None, eta=float(medium.ior)):
         ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]  # the channels lit and scattering
         if not len(ch):
             return
@@ -134,7 +135,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                          unit, unit_var, unit_err)
         else:
             inside_radiance(distant, xh, h, hl, a, b, mu, ell, kt, ks, medium.phase, medium.g, kt_out, wl, ll,
-                            float(medium.ior), geo, used, near if used is faces else EVERY, dplanes, only, rule, keys,
+                            eta, geo, used, near if used is faces else EVERY, dplanes, only, rule, keys,
                             np.uint64(dims + (depth * len(lights) + li) * rule.steps + (only + 1) * STREAM),
                             np.uint64(seed), unit, unit_var, unit_err, stats)
         if toward is not None and rule.kind == QUAD:  # beam `only`: against its closed form
@@ -233,6 +234,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], rule, keys,
                     dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats, lights.cone[li, 0])
+            continue
+        if refractive and (li, sid) in held_lights(prep):  # inside a convex refractive shape: straight, wholly inside
+            integrate(li, distant, xh, h, hl, zero, zero, zero, zero, 1.0, planes, eta=1.0)
             continue
         integrate(li, distant, xh, h, hl, zero, zero, wl, ll, 1.0,
                   planes if not refractive else faces,  # refractive: faces_point's faces

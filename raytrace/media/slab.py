@@ -1442,17 +1442,28 @@ def point_rounding(geo, planes, end, kt, kt_out, code, g, dplanes):
     (dc + dn (R + D)) D / h_f where the planes are dn, dc off the faces (`dplanes`); the
     exponent kt (x + k) + kt_out (d - k) by 32u of its size and kt dk + kt_out (dk + dd) + kt 16u R; d
     by dd = 8u (|p| + R), which moves 1 / d^2 and the scattering cosine r·w / d relatively by dd / d_min
-    times 2 + the phase's condition (d_min the light's least distance from the segment). inf where the
-    light is inside every face plane or on the segment."""
+    times 2 + the phase's condition (d_min the light's least distance from the segment). A light inside
+    every face plane, at depth g_f = c_f - n_f·p >= g below each: the exit along u = (p - X) / d is
+    k_f = (c_f - n_f·X) / q_f = d + g_f / q_f >= d + g_f (q_f = n_f·u <= 1), so the computed exit, off by
+    at most s / q_f with s = 16u (|c_f| + |p| + 2R + D) + dc + dn (R + D) (numerator and q_f's rounding,
+    the planes' errors), stays beyond d where 4 s < g: then k = min(exit, d) = d itself (dk = dd); inf
+    otherwise, and where the light lies on the segment."""
     r, cmax = coordinate_size(geo, planes, end)
     p, dmax, dmin = light_span(geo, end)
-    hmin = math.inf
+    hmin, depth = math.inf, math.inf
     for f in range(planes.shape[0]):
         hf = planes[f, 0] * geo[6] + planes[f, 1] * geo[7] + planes[f, 2] * geo[8] - planes[f, 3]
         if hf > 0.0:
             hmin = min(hmin, hf)
-    if not (hmin < math.inf and dmin > 0.0):
+        else:
+            depth = min(depth, -hf)
+    if not dmin > 0.0:
         return math.inf
+    if hmin == math.inf:  # the light inside
+        slack = 16.0 * U * (cmax + p + 2.0 * r + dmax) + dplanes[1] + dplanes[0] * (r + dmax)
+        if not 4.0 * slack < depth:
+            return math.inf
+        return _point_eps(r, p, dmax, dmin, 8.0 * U * (p + r), end, kt, kt_out, code, g)
     dk = 16.0 * U * ((cmax + p + 2.0 * r) * dmax / hmin + dmax) + (dplanes[1] + dplanes[0] * (r + dmax)) * dmax / hmin
     return _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g)
 
@@ -2100,6 +2111,28 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
     direction the light leaves in (`refracted_at` at x = 0 with its attenuation left out) in
     value[:, f], 0 where no such path; the unit direction from q toward the refraction point in
     toward[:, f], the path's lengths inside and outside in inside[:, f] and outside[:, f]."""
+    _surface_faces(q, planes, planes, light, axis, cone, eta, False, value, toward, inside, outside)
+
+
+@njit
+def surface_out_of_faces(q, planes, light, axis, cone, eta, value, toward, inside, outside):
+    """`surface_through_faces` reversed: a unit point or spot light inside the convex refractive shape
+    (relative index eta inside) at the points q (M, 3) outside it, through each face f whose plane q is
+    outside of: the same Fermat path (its refraction point on the face), now from the light's side of
+    index eta to q's of index 1 (`refracted_at` with the plane's normal turned toward the light and
+    relative index 1 / eta: Snell's sin1 = sin2 / eta, Fresnel's T the same on either side, and the ray
+    tube's irradiance E = T sin1 / (rho cos2 (hl / cos1^2 + z eta cos1 / cos2^3)), hl the light's depth
+    below the face's plane and z q's height above it; below the light T / (hl + eta z)^2; total internal
+    reflection never lies on Fermat's path, whose leaving angle obeys sin1 = sin2 / eta <= 1 / eta). The
+    path's lengths inside (the light's leg) in inside[:, f], outside (q's leg) in outside[:, f]."""
+    _surface_faces(q, -planes, planes, light, axis, cone, 1.0 / eta, True, value, toward, outside, inside)
+
+
+@njit
+def _surface_faces(q, toward_light, planes, light, axis, cone, eta, beyond, value, toward, near, far):
+    """`surface_through_faces` over the faces whose plane (rows of `toward_light`: `planes` with their
+    normals toward the light's side) the light is outside of (`beyond`: and q is not), relative index
+    eta on q's side: q's leg in near[:, f], the light's in far[:, f]."""
     geo = np.zeros(GEO_COLUMNS)
     geo[3] = 1.0  # a direction along which x = 0 is taken (the terms that depend on it drop out there)
     geo[6:9], geo[9:12], geo[12:14], geo[17] = light, axis, cone[:2], cone[2]
@@ -2107,22 +2140,25 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
     value[:] = 0.0
     for i in range(q.shape[0]):
         geo[0:3] = q[i]
-        for j in range(refracting_faces(geo, planes, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)):
+        for j in range(refracting_faces(geo, toward_light, 0.0, 0.0, 0.0, 0.0, NO_SPOT, faces)):
             row = faces[j]
+            f = int(row[17])
+            if beyond and toward_light[f, 0] * q[i, 0] + toward_light[f, 1] * q[i, 1] + toward_light[f, 2] * q[i, 2] \
+                    > toward_light[f, 3]:
+                continue  # q on the light's side of the face's plane
             rho, r = fermat(0.0, row[0], row[3], row[4], row[1], row[2], eta)
             if not on_face(0.0, row, r, rho, planes):
                 continue
-            f = int(row[17])
             t = r / rho if rho > 0.0 else 0.0
             k = 0.0
             for c in range(3):
                 toward[i, f, c] = row[8 + c] + t * row[14 + c] - q[i, c]
                 k += toward[i, f, c] * toward[i, f, c]
             k = math.sqrt(k)
-            for c in range(3):  # on the face itself (k = 0): its outward normal
-                toward[i, f, c] = toward[i, f, c] / k if k > 0.0 else planes[f, c]
-            inside[i, f] = k
-            outside[i, f] = math.sqrt((rho - r) * (rho - r) + row[2] * row[2])
+            for c in range(3):  # on the face itself (k = 0): its normal toward the light's side
+                toward[i, f, c] = toward[i, f, c] / k if k > 0.0 else toward_light[f, c]
+            near[i, f] = k
+            far[i, f] = math.sqrt((rho - r) * (rho - r) + row[2] * row[2])
             value[i, f] = 4.0 * math.pi * refracted_at(0.0, row[0], rho, r, row[3], row[1], row[2], eta, 0.0, 1.0,
                                                        ISOTROPIC, 0.0, 0.0, row[5], row[6], row[7], cone[0], cone[1],
                                                        cone[2])
