@@ -252,7 +252,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         radiance[surf] = surface_radiance(prep.accel, points, normals, surf_refl, prep.lights,
                                           medium, crossing.shadow_through(prep), shading, surf_keys, seed, surf_var,
                                           method.tolerance(params), deeper[SURFACE_STATS])
-        radiance[surf] += crossing.lit_from_inside(prep, points, normals, shading, surf_refl)
+        if crossing.held_lights(prep):  # lights inside refractive shapes
+            radiance[surf] += crossing.lit_from_inside(prep, points, normals, shading, surf_refl)
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[surf_prim],
                                                prep.accel.hit_normals(surf_prim, points), surf_dirs)
