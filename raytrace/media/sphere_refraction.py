@@ -646,7 +646,7 @@ def _paths_cell(s, a, b, j, e):
     return 1 if abs(fb - fa) - 2.0 * dh > k * w * w else 0
 
 
-@_spread_of(PathScan, inline=True)
+@_spread_of(PathScan)
 @njit
 def _paths_spread(s, root, a, b, fa, fb, j):
     """2 (the values' rounding + dx) / the least |h'| about the root (`_steepest`)."""
