@@ -10,6 +10,9 @@ a fall-through to another record's code. The overload's implementation is the re
 own Python code, compiled with `jit.njit`'s flags (which a registered function must have) once per
 argument types, and a caller calls it directly: no forwarding function between them, which would be
 compiled too and whose module would optimise the integrand once more (tests/test_compile_specialisations.py).
+A dispatch made with inline=True compiles the code of the implementations registered with inline=True
+into each caller's own (numba's inlining: the caller's hot loop then holds no call and takes no
+reference to the record's arrays per call) and a call of the others' compiled functions there.
 
 `integrand(x, rec)`: the value at x of the integrand a record names, registered with `integrand_of`.
 """
@@ -23,10 +26,8 @@ from ..jit import OPTIONS
 
 def record_dispatch(stub, at, inline=False):
     """Dispatch `stub` on the record class of its argument `at`; returns `register(cls, inline=False)`,
-    the decorator that makes an njit function (with stub's arguments) the implementation for cls.
-    With inline, numba compiles the code of an implementation registered with inline=True into each
-    caller (its IR, before LLVM's: no call, no copy of the record's arrays' references per call) and
-    calls the others' compiled functions."""
+    the decorator that makes an njit function (with stub's arguments) the implementation for cls;
+    with inline, those registered with inline=True are inlined into their callers (module docstring)."""
     impls, names = {}, ", ".join(inspect.signature(stub).parameters)
 
     @overload(stub, jit_options=OPTIONS, strict=False, inline="always" if inline else "never")
