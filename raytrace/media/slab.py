@@ -621,7 +621,10 @@ def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
     `fermat_bend` (R'' along the face's plane), and the face test's tolerance that `_edge_distance`
     subtracts (EDGE_TOL (|c_g| + |R|_1), not smooth) lies within EDGE_TOL sqrt(3) K_R (hi - lo) of its
     chord (its slope is at most EDGE_TOL sqrt(3) |R'|), so an interval whose ends' values share a sign
-    and exceed M (hi - lo)^2 / 8 + 2 (tol + newton) + that holds no sign change."""
+    and exceed M (hi - lo)^2 / 8 + 2 (tol + newton) + that holds no sign change. A smallest interval
+    where `_edge_value` changes sign: bisected; where it is 0 at one end only (a crossing whose value
+    lies on 0 exactly at a shared end of two smallest intervals, which neither sees as a strict change):
+    that end, where the run of 0s begins or ends, unless a cut of plane g lies in the interval."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     tilt = edge_tilt(row, planes, g) * (1.0 + 1e-11)
     reach = math.sqrt(row[8] * row[8] + row[9] * row[9] + row[10] * row[10]) + end + math.sqrt(ll)
@@ -629,7 +632,7 @@ def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
     stack = np.empty((128, 4))
     stack[0, 0], stack[0, 1] = 0.0, end
     stack[0, 2], stack[0, 3] = _edge_newton(0.0, row, planes, g, eta), _edge_newton(end, row, planes, g, eta)
-    top, evals = 1, 2
+    top, evals, first = 1, 2, m
     while top > 0 and m < out.shape[0]:
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
@@ -641,9 +644,14 @@ def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
                 vlo, vhi, margin, margin, tilt * _interval_bend(lo, hi, z0, a, wl, ll, row[2], eta, bend), hi - lo):
             continue
         if hi - lo <= width or evals >= MAX_ISOLATE or top + 2 > stack.shape[0]:
-            clear = vlo * vhi > 0.0 and min(abs(vlo), abs(vhi)) > newton  # `_edge_value`'s signs the same
-            if not clear and _edge_value(lo, row, planes, g, eta) * _edge_value(hi, row, planes, g, eta) < 0.0:
+            if vlo * vhi > 0.0 and min(abs(vlo), abs(vhi)) > newton:  # `_edge_value`'s signs the same
+                continue
+            c_lo, c_hi = _edge_value(lo, row, planes, g, eta), _edge_value(hi, row, planes, g, eta)
+            if c_lo * c_hi < 0.0:
                 out[m] = _bisect(row, planes, g, eta, lo, hi)
+                m += 1
+            elif (c_lo == 0.0) != (c_hi == 0.0) and not _near(out[first:m], lo, hi, 0.0):
+                out[m] = lo if c_lo == 0.0 else hi  # where a run of 0s begins or ends
                 m += 1
             continue
         mid = 0.5 * (lo + hi)

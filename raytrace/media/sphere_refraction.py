@@ -448,16 +448,12 @@ def _gap(theta, s):
 # The halving scan (`_halving`) of `paths`, `caustic_crossings` and `edge_crossings`, on a scan record
 # (`PathScan`, `CausticScan`, `EdgeCone`) that names the function and its cells' tests:
 
-def scan_width(s):
-    """How many values `scan_at` gives at a point: the function's, then what `scan_cell` needs."""
-
-
-def scan_at(s, x, out):
-    """The scanned function at x into out[0], what `scan_cell` needs of that point into out[1:]."""
+def scan_at(s, x):
+    """A tuple at x: the scanned function's value, then what `scan_cell` needs of that point."""
 
 
 def scan_value(s, x):
-    """The scanned function at x (out[0] of `scan_at`)."""
+    """The scanned function at x (`scan_at`'s first)."""
 
 
 def scan_cell(s, a, b, j, e):
@@ -470,11 +466,10 @@ def scan_spread(s, root, a, b, fa, fb, j):
     exact function's (inf where not bounded)."""
 
 
-_width_of = record_dispatch(scan_width, 0)
-_at_of = record_dispatch(scan_at, 0)
-_value_of = record_dispatch(scan_value, 0)
-_cell_of = record_dispatch(scan_cell, 0)
-_spread_of = record_dispatch(scan_spread, 0)
+_at_of = record_dispatch(scan_at, 0, inline=True)
+_value_of = record_dispatch(scan_value, 0, inline=True)
+_cell_of = record_dispatch(scan_cell, 0, inline=True)
+_spread_of = record_dispatch(scan_spread, 0, inline=True)
 
 
 class PathScan(NamedTuple):
@@ -535,14 +530,14 @@ def _halving(s, lo, step, first, start, right_node, out, spread):
     `scan_cell` decides it, a root of a monotone cell bisected to the resolution of doubles, roots at the
     nodes taken as they are (the right end's where right_node); not proven where a cell reached
     MAX_HALVINGS halvings, the scan MAX_EVALS or out filled up (sign changes are still bisected)."""
-    width = scan_width(s)
+    node = scan_at(s, lo + SCAN * step)
+    width = len(node)
     ca, cb = np.empty(CELL_STACK), np.empty(CELL_STACK)
     vals = np.empty((CELL_STACK, 2 * width))  # `scan_at` at both ends
-    node = np.empty(width)
+    ends = np.empty(2 * width)  # a cell's, for `scan_cell`
     which, depth = np.empty(CELL_STACK, dtype=np.int64), np.empty(CELL_STACK, dtype=np.int64)
     m, top, proven, evals = 0, 0, True, 0
     cap = out.shape[0]
-    scan_at(s, lo + SCAN * step, node)
     if node[0] == 0.0 and right_node:
         out[m] = lo + SCAN * step
         spread[m] = math.inf
@@ -551,7 +546,7 @@ def _halving(s, lo, step, first, start, right_node, out, spread):
         left = lo + j * step if j > first else start
         for i in range(width):
             vals[top, width + i] = node[i]
-        scan_at(s, left, node)
+        node = scan_at(s, left)
         if node[0] == 0.0 and m < cap:
             out[m] = left
             spread[m] = math.inf
@@ -564,7 +559,9 @@ def _halving(s, lo, step, first, start, right_node, out, spread):
         top -= 1
         a, b, j = ca[top], cb[top], which[top]
         fa, fb = vals[top, 0], vals[top, width]
-        verdict = scan_cell(s, a, b, j, vals[top])
+        for i in range(2 * width):
+            ends[i] = vals[top, i]
+        verdict = scan_cell(s, a, b, j, ends)
         if verdict < 0:
             continue
         if verdict > 0:
@@ -584,7 +581,7 @@ def _halving(s, lo, step, first, start, right_node, out, spread):
                 spread[m] = math.inf
                 m += 1
             continue
-        scan_at(s, mid, node)
+        node = scan_at(s, mid)
         evals += 1
         if node[0] == 0.0:
             if m < cap:
@@ -609,10 +606,10 @@ def _halving(s, lo, step, first, start, right_node, out, spread):
 
 
 @njit
-def _h(theta, s):
-    """h(theta) = t x (X - P) of the `PathScan` s's point X (`_clamped`'s t, continuous to the arc's ends)."""
-    pz, py, tz, ty, _, _, _ = _clamped(theta, s.radius, s.d, s.eta)
-    return tz * (s.yx - py) - ty * (s.zx - pz)
+def _h(theta, zx, yx, radius, d, eta):
+    """h(theta) = t x (X - P) of the point X = (zx, yx) (`_clamped`'s t, continuous to the arc's ends)."""
+    pz, py, tz, ty, _, _, _ = _clamped(theta, radius, d, eta)
+    return tz * (yx - py) - ty * (zx - pz)
 
 
 @njit
@@ -625,25 +622,19 @@ def _paths_bound(s, j):
     return k, 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
 
 
-@_width_of(PathScan)
+@_at_of(PathScan, inline=True)
 @njit
-def _paths_width(s):
-    return 1
+def _paths_at(s, x):
+    return (_h(x, s.zx, s.yx, s.radius, s.d, s.eta),)
 
 
-@_at_of(PathScan)
-@njit
-def _paths_at(s, x, out):
-    out[0] = _h(x, s)
-
-
-@_value_of(PathScan)
+@_value_of(PathScan, inline=True)
 @njit
 def _paths_value(s, x):
-    return _h(x, s)
+    return _h(x, s.zx, s.yx, s.radius, s.d, s.eta)
 
 
-@_cell_of(PathScan)
+@_cell_of(PathScan, inline=True)
 @njit
 def _paths_cell(s, a, b, j, e):
     """No root where h keeps its sign and either its least |h| at the ends exceeds K w^2 / 8 or the
@@ -679,8 +670,8 @@ def _steepest(root, a, b, fa, fb, k, e, s):
         if best >= 0.5 * secant:
             break
         lo, hi = max(a, root - half), min(b, root + half)
-        f1 = _h(lo, s)
-        f2 = _h(hi, s)
+        f1 = _h(lo, s.zx, s.yx, s.radius, s.d, s.eta)
+        f2 = _h(hi, s.zx, s.yx, s.radius, s.d, s.eta)
         wn = hi - lo
         if not wn > 0.0 or not f1 * f2 < 0.0 or min(abs(f1), abs(f2)) <= 2.0 * e:
             break
@@ -732,25 +723,19 @@ def caustic_crossings(r, f, v, fz, wz, out):
     return _halving(s, -r.theta_a, step, SCAN // 2, 0.0, True, out, np.empty(out.shape[0]))
 
 
-@_width_of(CausticScan)
+@_at_of(CausticScan, inline=True)
 @njit
-def _caustic_width(s):
-    return GAP
+def _caustic_at(s, x):
+    return _gap(x, s)
 
 
-@_at_of(CausticScan)
-@njit
-def _caustic_at(s, x, out):
-    out[0], out[1], out[2], out[3], out[4], out[5] = _gap(x, s)
-
-
-@_value_of(CausticScan)
+@_value_of(CausticScan, inline=True)
 @njit
 def _caustic_value(s, x):
     return _gap(x, s)[0]
 
 
-@_cell_of(CausticScan)
+@_cell_of(CausticScan, inline=True)
 @njit
 def _caustic_cell(s, a, b, j, e):
     """No root where phi' < 1/2 over the cell; else, where phi' >= m > 0 over it, as `_paths_cell` by the
@@ -794,7 +779,7 @@ def _caustic_cell(s, a, b, j, e):
     return 1 if mono else 0
 
 
-@_spread_of(CausticScan)
+@_spread_of(CausticScan, inline=True)
 @njit
 def _caustic_spread(s, root, a, b, fa, fb, j):
     return math.inf
@@ -1065,17 +1050,10 @@ def edge_crossings(k, out):
     return m, proven and k.dg < math.inf
 
 
-@_width_of(EdgeCone)
-@njit
-def _edge_width(k):
-    return 3
-
-
 @_at_of(EdgeCone)
 @njit
-def _edge_at(k, x, out):
-    out[0] = edge_gap(x, k)
-    out[1], out[2] = edge_slope(x, k)
+def _edge_at(k, x):
+    return (edge_gap(x, k),) + edge_slope(x, k)
 
 
 @_value_of(EdgeCone)
