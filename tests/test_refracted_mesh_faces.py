@@ -34,7 +34,7 @@ from raytrace.scene.format import scene_from_text
 from . import oracle
 from .conftest import to_toml
 from .test_bounded_media import fresnel_t, snell
-from .test_refracted_point_light import tube
+from .test_refracted_point_light import smoothstep, spot_terms, switches, tube
 
 CAMERA = {"position": [0.3, 0.4, 3.2], "look_at": [0.0, 0.0, 0.0], "fov": 26.0, "width": 6, "height": 5, "spp": 1}
 LAMP = np.array([0.6, 2.0, -2.2])  # above and behind the ball: behind most faces the camera enters by
@@ -159,7 +159,8 @@ def exit_distance(p, w, normals, offsets):
 def point_segment(scene, geometry, p, w, ell, lit_faces=None):
     """The point light's single scattering (3,) over the inside segment p + x w, x in [0, ell]: each
     triangle whose plane the light is outside of, on Fermat's path, where its refraction point lies in
-    the triangle."""
+    the triangle; a spot's smoothstep falloff of the direction the light leaves in, the pieces cut where
+    the leaving direction crosses a cone level (`cone_cuts`)."""
     tri, normals, offsets = geometry
     inner, light = scene["shape"][0]["interior"], scene["light"][0]
     eta, g = inner["ior"], inner["phase"]["g"]
@@ -167,6 +168,7 @@ def point_segment(scene, geometry, p, w, ell, lit_faces=None):
     kt = np.array(inner["sigma_a"], float) + ks
     kt_out = scene["medium"]["sigma_a"]
     L, inten = np.array(light["position"], float), np.array(light["intensity"], float)
+    spot = spot_terms(light)
     out = np.zeros(3)
     for f in np.nonzero(normals @ L > offsets)[0]:
         n, c = normals[f], offsets[f]
@@ -180,11 +182,30 @@ def point_segment(scene, geometry, p, w, ell, lit_faces=None):
             e = fresnel_t(math.acos(cos1), math.asin(math.sqrt(1 - cos1**2) / eta), eta) * tube(n @ L - c, z, cos1,
                                                                                                  cos2, rho, eta)
             mu = float((X - R) / k @ -w)
-            return ks * oracle.phase("hg", g, mu) * e * np.exp(-kt * (x + k) - kt_out * o)
+            fall = 1.0 if spot is None else smoothstep(float((R - L) @ spot[0]) / o, spot[1], spot[2])
+            return ks * oracle.phase("hg", g, mu) * fall * e * np.exp(-kt * (x + k) - kt_out * o)
 
         for lo, hi in pieces:
-            out += inten * integrate.quad_vec(term, lo, hi, epsabs=0.0, epsrel=1e-11, limit=200)[0]
+            edges = [lo, *cone_cuts(p, w, lo, hi, L, n, c, eta, spot), hi]
+            out += inten * sum(integrate.quad_vec(term, a, b, epsabs=0.0, epsrel=1e-11, limit=200)[0]
+                               for a, b in zip(edges[:-1], edges[1:]))
     return out
+
+
+def cone_cuts(p, w, lo, hi, L, n, c, eta, spot) -> list:
+    """The x in (lo, hi) where the direction a spot's light leaves in toward p + x w (Fermat's path through
+    the plane n.X = c; straight on the plane itself) crosses either cone level, bisected; none for a point
+    light."""
+    if spot is None:
+        return []
+
+    def side(x):
+        X = p + x * w
+        R = X if c - n @ X <= 0.0 else fermat_scalar(X, L, n, c, eta)[0]
+        cos = float((R - L) @ spot[0]) / np.linalg.norm(R - L)
+        return cos > spot[1], cos > spot[2]
+
+    return [lo + x for x in switches(p, w, hi - lo, lambda x: side(lo + x))]
 
 
 def image(scene, method, params=None, seed=0):
