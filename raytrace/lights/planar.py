@@ -8,8 +8,13 @@ Jacobian vanishes like |y - f| makes that integrand smooth in its parameters:
 - a convex polygon: the triangles (f, a, b) over its edges, the edge at signed distance h from f
   (perpendicular m, direction e): y = f + r |h| (m + sinh(u) e), r in [0, 1], dA = r h^2 cosh(u) dr du,
   signed by the side of the edge f lies on (f outside the polygon: the triangles beyond it subtract);
-  Gauss–Legendre in u (panels of at most SPAN) and `graded` in r (sinh: 1 / rho = 1 / (r |h| cosh u) times the Jacobian is smooth however near
-  f lies to the edge's line);
+  Gauss–Legendre in u (panels of at most SPAN) and `graded` in r (sinh: 1 / rho = 1 / (r |h| cosh u)
+  times the Jacobian is smooth however near f lies to the edge's line); a ray that grazes the plane
+  (the sine s of its angle to it below GRAZE) puts 1 / rho in a ridge along its projection p on the
+  plane: rho = |y - f| sqrt(sin^2 delta + cos^2 delta s^2), delta the angle of y - f off p, a peak about
+  s wide in angle. There u = u0 + w sinh(s') (s' Gauss–Legendre, panels of at most SPAN) grades each
+  triangle toward the angle u0 = asinh(tan phi0) where the line along p meets its edge's line (tan phi0
+  = (p . e) / (p . m)), w = s cosh(u0) the peak's width in u (d phi / du = 1 / cosh u): `peaks`;
 - a disk: polar coordinates (rho, phi) about f, dA = rho drho dphi, Gauss–Legendre in rho between the
   rim's crossings (`graded` from f where f lies inside); f inside: phi = psi + (a / 2) sin(2 psi) from the
   direction of f off the centre, psi equally spaced (periodic; the chord to the rim is nearly singular
@@ -29,6 +34,8 @@ from .area import gauss_legendre
 
 SPAN = 2.0  # the longest stretch of u one Gauss–Legendre panel takes (a foot point near an edge's line: longer)
 TINY = 1e-9  # of an edge's length: nearer its line a foot point's triangle counts as of no area
+GRAZE = 0.5  # a ray whose sine to the plane is below this grazes it: the polygon's rule grades toward it
+MAX_TAN = 1e6  # a ray's projection nearer than this (tan) to an edge's direction is not graded toward it
 
 
 def graded(n: int):
@@ -49,13 +56,56 @@ def cross(u, v):
     return out
 
 
+def grazing(normal, dirs, n: int):
+    """((n, 3) the unit direction of each ray's projection on the plane, (n,) the sine of its angle to
+    the plane), where that sine is below GRAZE (a ray nearly parallel to the plane: its nodes' 1 / rho
+    peaks along that direction, module docstring), NaN elsewhere and where `dirs` is None."""
+    out, sine = np.full((n, 3), np.nan), np.full(n, np.nan)
+    if dirs is None:
+        return out, sine
+    dn = dirs @ normal
+    flat = dirs - dn[:, None] * normal
+    length = np.linalg.norm(flat, axis=1)
+    on = np.abs(dn) < GRAZE
+    out[on], sine[on] = flat[on] / length[on, None], np.abs(dn[on])
+    return out, sine
+
+
+def peaks(graze, toward, along, lo, hi):
+    """(centre, width, s_lo, s_hi), each (P,): per triangle (f, edge) over u in [lo, hi] (q = |h| sinh u
+    along the edge) the u = centre + width sinh(s) that grades it toward u0, where the line through f
+    along the ray's projection meets the edge's line (tan phi0 = (p . along) / (p . toward), u0 =
+    asinh(tan phi0)), width the peak's angular width, the ray's sine to the plane, in u (d phi / du =
+    1 / cosh u); not graded (centre NaN, s = u) where the ray does not graze or runs along the edge."""
+    p, sine = graze
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tan = (p @ along) / np.einsum("ij,ij->i", p, toward)
+    graded = np.isfinite(tan) & (np.abs(tan) < MAX_TAN)
+    centre = np.where(graded, np.arcsinh(np.where(graded, tan, 0.0)), np.nan)
+    width = np.where(graded, np.maximum(sine, TINY) * np.cosh(np.where(graded, centre, 0.0)), np.nan)
+    with np.errstate(invalid="ignore"):
+        s_lo = np.where(graded, np.arcsinh((lo - centre) / width), lo)
+        s_hi = np.where(graded, np.arcsinh((hi - centre) / width), hi)
+    return centre, width, s_lo, s_hi
+
+
+def _ungraded(s, centre, width):
+    """(u, du / ds) of `peaks`' grading (u = s, 1 where the centre is NaN)."""
+    graded = ~np.isnan(centre)
+    if not graded.any():
+        return s, 1.0
+    return (np.where(graded, centre + width * np.sinh(s), s),
+            np.where(graded, width * np.cosh(np.where(graded, s, 0.0)), 1.0))
+
+
 @dataclass(frozen=True)
 class Planar:
     """A flat emitter as near_emitters.py needs it: a point `centre` (3,) of its plane, the plane's unit
     `normal` (3,), its `diameter`, `outside(f)` the distance (P,) from points f (P, 3) of the plane to the
-    emitter (0 on it), and `rule(f, order)` (points (M, 3), signed area weights (M,), owner (M,): the f of
-    each node) a rule over the emitter singular at each f (module docstring) whose weights sum to the
-    emitter's area for every f."""
+    emitter (0 on it), and `rule(f, order, dirs=None)` (points (M, 3), signed area weights (M,), owner (M,):
+    the f of each node) a rule over the emitter singular at each f (module docstring) whose weights sum
+    to the emitter's area for every f; `dirs` (P, 3) the rays' unit directions (the polygon's rule grades
+    its nodes toward a grazing ray's projection; the disk's ignores them)."""
     centre: np.ndarray
     normal: np.ndarray
     diameter: float
@@ -98,24 +148,27 @@ def polygon(corners, normal) -> Planar:
         along = (b - a) / np.linalg.norm(b - a)
         sides.append((a, b, along, np.linalg.norm(b - a), np.cross(normal, along)))
 
-    def rule(f, order):
+    def rule(f, order, dirs=None):
         r, wr = graded(order)
         x, wx = gauss_legendre(order)
         parts = []
+        graze = grazing(normal, dirs, len(f))
         for a, b, along, length, across in sides:
             foot = a + ((f - a) @ along)[:, None] * along  # f's perpendicular foot on the edge's line
             h = cross(a - f, b - f) @ normal / length  # signed: > 0 on the inner side
             toward = np.where(h[:, None] >= 0.0, -1.0, 1.0) * across  # from f to the edge
             scale = np.maximum(np.abs(h), TINY * length)  # h ~ 0: a triangle of no area
             lo, hi = np.arcsinh((a - foot) @ along / scale), np.arcsinh((b - foot) @ along / scale)
-            panels = np.maximum(np.ceil((hi - lo) / SPAN), 1).astype(np.int64)
+            centre, width, s_lo, s_hi = peaks(graze, toward, along, lo, hi)
+            panels = np.maximum(np.ceil((s_hi - s_lo) / SPAN), 1).astype(np.int64)
             for p in np.unique(panels):
                 at = np.nonzero(panels == p)[0]
                 t = ((np.arange(p)[:, None] + x[None]) / p).ravel()  # (p x order,) in [0, 1]
-                u = lo[at, None] + (hi - lo)[at, None] * t[None]  # q = |h| sinh(u) along the edge
+                s = s_lo[at, None] + (s_hi - s_lo)[at, None] * t[None]
+                u, du = _ungraded(s, centre[at, None], width[at, None])  # q = |h| sinh(u) along the edge
                 arm = scale[at, None, None] * (toward[at, None, :] + np.sinh(u)[..., None] * along)  # f to the edge
                 points = f[at, None, None, :] + r[None, :, None, None] * arm[:, None, :, :]
-                jac = (h * scale)[at, None] * (hi - lo)[at, None] * np.tile(wx, p)[None] / p * np.cosh(u)
+                jac = (h * scale)[at, None] * (s_hi - s_lo)[at, None] * np.tile(wx, p)[None] / p * np.cosh(u) * du
                 weights = (r * wr)[None, :, None] * jac[:, None, :]
                 parts.append((points.reshape(-1, 3), weights.ravel(), np.repeat(at, weights[0].size)))
         return tuple(np.concatenate(c) for c in zip(*parts))
@@ -130,7 +183,7 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
     def outside(f):
         return np.maximum(np.linalg.norm(f - centre, axis=1) - radius, 0.0)
 
-    def rule(f, order):
+    def rule(f, order, dirs=None):  # dirs: not used (`Planar`)
         px, py = (f - centre) @ t1, (f - centre) @ t2  # (P,)
         dist = np.hypot(px, py)
         m = 4 * order

@@ -114,7 +114,7 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
             var[rs] += v
             continue
         rule, orders = ((_ball_rule(em.ball, rays, rs), ORDERS[ORDERS.index(FIRST):]) if em.ball is not None
-                        else (_planar_rule(em.planar, feet[e][rs]), ORDERS))
+                        else (_planar_rule(em.planar, feet[e][rs], dirs[rs]), ORDERS))
         value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
@@ -184,10 +184,11 @@ def _balls(lights) -> np.ndarray:
     return np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
 
 
-def _planar_rule(planar, feet):
-    """rule(at, order) -> (points, normals, weights, owner) of a flat emitter about the `feet` [at]."""
+def _planar_rule(planar, feet, dirs):
+    """rule(at, order) -> (points, normals, weights, owner) of a flat emitter about the `feet` [at] of
+    the rays along `dirs` [at]."""
     def rule(at, order):
-        points, weights, owner = planar.rule(feet[at], order)
+        points, weights, owner = planar.rule(feet[at], order, dirs[at])
         return points, np.broadcast_to(planar.normal, points.shape), weights, owner
     return rule
 
