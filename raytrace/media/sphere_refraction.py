@@ -1759,3 +1759,67 @@ def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, ru
             light_frame = frame(sphere, last, distant, eta)
         r = record(sphere, geo[s], distant, eta, kt, ks, code, g, kt_out, light_frame)
         out[s], var[s], err[s] = _one(r, ell[s], rule, keys[s], dim0, seed, stats)
+
+
+class Outward(NamedTuple):
+    """`paths`' light and sphere for `surface_out_of_sphere`: the receiving point outside at distance d
+    from the centre, taken as the light (the paths are reversible)."""
+    radius: float
+    d: float
+    eta: float
+    theta_a: float
+    cells: np.ndarray
+
+
+@njit
+def surface_out_of_sphere(q, sphere, light, axis, cone, eta, value, toward, inside, outside):
+    """A unit point or spot light inside the refractive exact sphere (centre, radius; relative index eta
+    inside) at the points q (M, 3) outside it, through each of its refracted paths out (up to MAX_PATHS,
+    the columns): Fermat's paths from q to the light are those of a light at q reaching the inside point
+    L (light paths are reversible): `paths` in the plane of q, the centre and L, proven as there. Per
+    path (`incidence` from q: the cosines at the boundary, q's leg o, the direction t inside, L's leg
+    s): value the irradiance across the ray at q, F T cos_i / (eta^2 o^2 cos_t |(1 - s kappa_t)(1 - s
+    kappa_s)|) with the spot's falloff F toward the direction -t the light leaves in (module docstring's
+    tube at L from a unit light at q, over eta^2: the etendue n^2 dA dOmega is conserved, so the solid
+    angle per area at q from L is the one at L from q over eta^2; light beyond the critical angle is
+    totally reflected and meets no path, which enters from q at cos_i > 0); toward the unit direction
+    from q to the refraction point; inside s, outside o. A point q within the sphere has none."""
+    c, radius = sphere[:3], sphere[3]
+    rel = light - c
+    value[:] = 0.0
+    found, spread = np.empty(MAX_PATHS), np.empty(MAX_PATHS)
+    for i in range(q.shape[0]):
+        ez = q[i] - c
+        d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
+        if not d > radius:
+            continue
+        ez /= d
+        zx = rel[0] * ez[0] + rel[1] * ez[1] + rel[2] * ez[2]
+        ey = rel - zx * ez
+        yx = math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+        if yx > 0.0:
+            ey /= yx
+        else:  # on the axis: any normal to it
+            k = 0 if abs(ez[0]) < 0.9 else 1
+            ey[:] = -ez[k] * ez
+            ey[k] += 1.0
+            ey /= math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+        theta_a = lit_arc(radius, d, eta)
+        scan = Outward(radius, d, eta, theta_a, cell_table(theta_a, radius, d, eta))
+        dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
+        m, _ = paths(scan, zx, yx, dx, found, spread)
+        for k in range(m):
+            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
+            s = tz * (zx - pz) + ty * (yx - py)
+            if cos_t == 0.0 or not s >= 0.0:
+                continue
+            f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
+                          + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
+            tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
+                       * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
+            if f == 0.0 or not tube > 0.0:
+                continue
+            value[i, k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
+            for j in range(3):
+                toward[i, k, j] = ((pz - d) * ez[j] + py * ey[j]) / o
+            inside[i, k], outside[i, k] = s, o
