@@ -37,7 +37,7 @@ from ..lights import Lights
 from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.slab import refract_rays, surface_out_of_faces, surface_through_faces, transmittances
-from ..media.sphere_refraction import UNBOUNDED
+from ..media.sphere_refraction import MAX_PATHS, UNBOUNDED, surface_out_of_sphere
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
 from ..shading import facing_normals, shading_normals, surface_radiance
@@ -204,15 +204,13 @@ def check(prep, method, method_params, source: str):
 
 def _not_held(prep, sid) -> str | None:
     """Why a point or spot light inside the interior of shape sid is refused, None where it is taken:
-    index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces (`lit_from_inside`) with
-    no other shape inside, the camera outside, no other shape holding a medium and an outside medium that
-    does not scatter."""
+    index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
+    (`lit_from_inside`) with no other shape inside, the camera outside, no other shape holding a medium and an
+    outside medium that does not scatter."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
-    if paths.exact_sphere(prep, sid) is not None:
-        return "is not implemented in an exact sphere yet (its refracted paths out); use a convex mesh"
-    if not len(convex_planes(prep, sid)):
-        return f"needs a convex shape of at most {KERNEL_PLANES} faces"
+    if paths.exact_sphere(prep, sid) is None and not len(convex_planes(prep, sid)):
+        return f"needs a convex shape of at most {KERNEL_PLANES} faces or an exact sphere"
     if prep.scene.medium.scatters:
         return ("lights the outside medium through its faces, which is not implemented yet; use a [medium] that "
                 "does not scatter")
@@ -229,8 +227,8 @@ def _not_held(prep, sid) -> str | None:
 
 
 def held_lights(prep) -> list[tuple[int, int]]:
-    """(light, shape): the point and spot lights inside refractive interiors (`check` takes convex meshes'
-    alone), each with its shape."""
+    """(light, shape): the point and spot lights inside refractive interiors (`check` takes convex meshes' and
+    exact spheres' alone), each with its shape."""
     def build():
         inner = [int(i) for i in prep.interior_shapes if prep.scene.shapes[i].interior.ior != 1.0]
         found = [(int(li), inside_of(prep, prep.lights.position[li], inner))
@@ -241,21 +239,17 @@ def held_lights(prep) -> list[tuple[int, int]]:
 
 def lit_from_inside(prep, q, normals, shading, refl):
     """rho / pi I E cos_s exp(-sigma_t k - sigma_out o) (M, 3) at surface points q outside the shapes from the
-    point and spot lights inside convex refractive ones (`held_lights`; their straight shadow rays stop at
-    the boundary, `blockers`), through every face whose plane q is outside of: Fermat's path out with
-    Fresnel's T and the ray tube's irradiance E with the spot's falloff (media/slab.py `surface_out_of_faces`),
-    k and o its lengths inside and outside. Opaque surfaces and other refractive interiors on the leg outside
-    shadow (index-matched interiors there do not attenuate it, as `_outside_clear`)."""
+    point and spot lights inside refractive ones (`held_lights`; their straight shadow rays stop at the
+    boundary, `blockers`) on each of their paths out (`_paths_out`): Fermat's path with Fresnel's T and the ray
+    tube's irradiance E with the spot's falloff, k and o its lengths inside and outside. Opaque surfaces and
+    other refractive interiors on the leg outside shadow (index-matched interiors there do not attenuate it, as
+    `_outside_clear`)."""
     out = np.zeros((len(q), 3))
     lights, accel = prep.lights, prep.accel
     for li, sid in held_lights(prep):
-        planes = convex_planes(prep, sid)
-        m, nf = len(q), len(planes)
-        value, toward, inside, outside = np.zeros((m, nf)), np.zeros((m, nf, 3)), np.zeros((m, nf)), np.zeros((m, nf))
-        surface_out_of_faces(np.ascontiguousarray(q), planes, lights.position[li], lights.axis[li], lights.cone[li],
-                             float(prep.scene.shapes[sid].interior.ior), value, toward, inside, outside)
+        value, toward, inside, outside = _paths_out(prep, li, sid, q)
         kt = prep.scene.shapes[sid].interior.sigma_t[None, :]
-        for f in range(nf):
+        for f in range(value.shape[1]):
             u = toward[:, f]
             cos_s = np.einsum("ij,ij->i", shading, u)
             ok = np.nonzero((value[:, f] > 0.0) & (cos_s > 0.0) & (np.einsum("ij,ij->i", normals, u) > 0.0))[0]
@@ -266,6 +260,25 @@ def lit_from_inside(prep, q, normals, shading, refl):
                 att = np.exp(-kt * inside[ok, f, None] - prep.scene.medium.sigma_t[None, :] * outside[ok, f, None])
             out[ok] += refl[ok] / np.pi * lights.intensity[li] * (value[ok, f] * cos_s[ok])[:, None] * att
     return out
+
+
+def _paths_out(prep, li, sid, q):
+    """(value, toward, inside, outside) of point or spot light li inside the refractive shape sid at the points q
+    (M, 3) outside it, one column per path out (M, K; toward (M, K, 3)): through each face of a convex mesh
+    (media/slab.py `surface_out_of_faces`), or each refracted path out of an exact sphere (media/sphere_refraction.py
+    `surface_out_of_sphere`); value the irradiance across the ray per unit intensity (0: no path), toward the unit
+    direction from q to where the path crosses the boundary, inside and outside its lengths."""
+    lights, sphere = prep.lights, paths.exact_sphere(prep, sid)
+    planes = convex_planes(prep, sid)
+    m, k = len(q), MAX_PATHS if sphere is not None else len(planes)
+    value, toward, inside, outside = np.zeros((m, k)), np.zeros((m, k, 3)), np.zeros((m, k)), np.zeros((m, k))
+    rest = (lights.position[li], lights.axis[li], lights.cone[li], float(prep.scene.shapes[sid].interior.ior), value,
+            toward, inside, outside)
+    if sphere is None:
+        surface_out_of_faces(np.ascontiguousarray(q), planes, *rest)
+    else:
+        surface_out_of_sphere(np.ascontiguousarray(q), np.asarray(sphere, dtype=np.float64), *rest)
+    return value, toward, inside, outside
 
 
 def _takers(test=lambda interiors: True) -> list[str]:

@@ -95,11 +95,11 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
     unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
     outside of (media/slab.py `faces_point`), or one inside it (crossing.py `held_lights`) along its straight
-    paths, wholly inside; other shapes through the entry plane (Fermat's path); every light an
-    exact sphere on its exact refracted paths (`_refracted_sphere`). `light`: that light only (else all); `piece`:
-    the segments' rank among their ray's lit pieces (`lit_single_scattering`), which numbers their random streams;
-    `beam`: of a directional light's refracted beams, or of a point or spot light's refracted paths, only the one
-    through that face (`_lit_beams`)."""
+    paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through the entry plane
+    (Fermat's path); every light outside an exact sphere on its exact refracted paths (`_refracted_sphere`).
+    `light`: that light only (else all); `piece`: the segments' rank among their ray's lit pieces
+    (`lit_single_scattering`), which numbers their random streams; `beam`: of a directional light's refracted
+    beams, or of a point or spot light's refracted paths, only the one through that face (`_lit_beams`)."""
     medium = prep.scene.shapes[sid].interior
     planes = convex_planes(prep, sid)
     refractive = reach == REFRACTED
@@ -225,6 +225,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             lh = rel - hl[:, None] * normals
             wl = np.einsum("ij,ij->i", w + a[:, None] * normals, lh)
             ll = np.einsum("ij,ij->i", lh, lh)
+        if sphere is not None and (li, sid) in held_lights(prep):  # inside: straight, wholly inside (chords)
+            _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], rule, keys,
+                    dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats, lights.cone[li, 0])
+            continue
         if sphere is not None:
             _refracted_sphere(prep, sid, sphere, geo, False, ell, li, sup, rule, keys,
                               dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
@@ -408,7 +412,8 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     the shape's own boundary attenuates, it does not block), each piece integrated from its own
     start and carried back to the entry by exp(-sigma_t t0) (closed forms too: analytic's closed form
     and its rule take the exact path from any start); in a convex refractive shape,
-    `_lit_beams`. In a refractive exact sphere alone in the scene nothing blocks (`single_scattering`).
+    `_lit_beams`. In a refractive exact sphere alone in the scene, or holding every light, nothing blocks
+    (`single_scattering`).
     Where the light's path is neither straight nor a convex shape's refracted paths (a refractive
     interior that is not convex, an exact sphere beside other shapes) or not traced (`entry_plane`: the
     note's planar model), the segments are unshadowed, counted (UNSHADOWED), and
@@ -421,8 +426,10 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     if not shadows or not n or not n_lights:
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     sup = method.supports.interiors
-    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and not sup.entry_plane \
-            and not np.any(prep.shape_ids != sid):  # alone in the scene: nothing stands on its refracted paths
+    if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and not sup.entry_plane and (
+            not np.any(prep.shape_ids != sid) or all((li, sid) in held_lights(prep) for li in range(n_lights))):
+        # alone in the scene, or every light inside it (nothing else inside: crossing.check): nothing stands on
+        # the light's paths
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     if reach == REFRACTED and len(refracting_planes(prep, sid)) and not sup.entry_plane:
         return _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)

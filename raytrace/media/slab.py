@@ -1522,17 +1522,20 @@ def sphere_rounding(geo, sphere, directional, end, kt, kt_out, code, g):
     L's pass through L, h = |c - L| sin(theta) with theta the angle at L between c and X, whose cosine
     (A + B x) / sqrt(C + 2 D x + x^2) (A = e·(o - L), B = e·w for the unit e toward c, C = |o - L|^2,
     D = (o - L)·w) is stationary only at x* = (A D - B C) / (B D - A): the largest at an end or x*.
-    inf for a light inside the sphere or on the segment."""
+    A light inside, at depth g = rho - |c - L|: the exit along u = (L - X) / d lies at least g beyond L,
+    so where 4 dk < g the computed exit stays beyond it and k = min(exit, d) = d itself (dk = dd, as
+    `point_rounding`'s light inside every face). inf otherwise, for a light on the sphere or on the segment."""
     cx, cy, cz, rho = sphere[0], sphere[1], sphere[2], sphere[3]
     r = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2]) + end
     delta = 16.0 * U * (r + math.sqrt(cx * cx + cy * cy + cz * cz) + rho)
     e = 4.0 * rho * delta + 4.0 * delta * delta
     ends = (0.0, end, -1.0)
     lx, ly, lz = geo[6], geo[7], geo[8]
+    dist = math.inf
     if not directional:
         ex, ey, ez = cx - geo[6], cy - geo[7], cz - geo[8]
         dist = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if not dist > rho:
+        if not (dist > rho or dist < rho):
             return math.inf
         vx, vy, vz = geo[0] - geo[6], geo[1] - geo[7], geo[2] - geo[8]
         a = (ex * vx + ey * vy + ez * vz) / dist
@@ -1556,6 +1559,10 @@ def sphere_rounding(geo, sphere, directional, end, kt, kt_out, code, g):
     p, dmax, dmin = light_span(geo, end)
     if not dmin > 0.0:
         return math.inf
+    if dist < rho:  # the light inside
+        if not 4.0 * dk < rho - dist:
+            return math.inf
+        dk = 8.0 * U * (p + r)
     return _point_eps(r, p, dmax, dmin, dk, end, kt, kt_out, code, g)
 
 

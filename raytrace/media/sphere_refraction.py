@@ -790,8 +790,9 @@ class EdgeCone(NamedTuple):
     edges, proven"): mode 0 (no edge ray enters), 1 (some: tau in [-pi/2, pi/2]) or 2 (all: phi in
     [-pi, pi]); A0, A1 of b = q.u = A0 - A1 cos phi, beta (b <= -beta where the ray enters), s and kappa
     = A1 s^2 of mode 1, the edge's cosine ce and sine se, the unit axis a and b1, b2 across it (b1
-    toward q), q = L - c, the segment's start oc relative to the centre and its direction w, the
-    radius, eta, d = |q|, reach (|oc| + R, at least |oc - P|) and dg (G's rounding)."""
+    toward q), q = L - c, the segment's start oc relative to the centre and its direction w (3-tuples:
+    scalars, no arrays to count references to in the scan), the radius, eta, d = |q|, reach (|oc| + R, at
+    least |oc - P|) and dg (G's rounding)."""
     mode: int
     a0: float
     a1: float
@@ -800,12 +801,12 @@ class EdgeCone(NamedTuple):
     kappa: float
     ce: float
     se: float
-    a: np.ndarray
-    b1: np.ndarray
-    b2: np.ndarray
-    q: np.ndarray
-    oc: np.ndarray
-    w: np.ndarray
+    a: tuple
+    b1: tuple
+    b2: tuple
+    q: tuple
+    oc: tuple
+    w: tuple
     radius: float
     eta: float
     d: float
@@ -859,8 +860,28 @@ def edge_cone(r, ce):
     ep = 64.0 * U * (_norm(r.light) + _norm(r.c) + _norm(r.o) + d + radius + d * cond)
     et = ep * (1.0 / (eta * (d - radius)) + 3.0 * fm / radius) + 32.0 * U * (1.0 + 2.0 * fm)
     reach = _norm(oc) + radius
-    return EdgeCone(mode, a0, a1, beta, s, kappa, ce, se, a, b1, b2, q, oc, r.w.copy(), radius, eta, d, reach,
-                    2.0 * (reach * (et + 16.0 * U) + ep))
+    return EdgeCone(mode, a0, a1, beta, s, kappa, ce, se, _tuple(a), _tuple(b1), _tuple(b2), _tuple(q), _tuple(oc),
+                    _tuple(r.w), radius, eta, d, reach, 2.0 * (reach * (et + 16.0 * U) + ep))
+
+
+@njit
+def _tuple(v):
+    """A 3-vector's components as a tuple."""
+    return v[0], v[1], v[2]
+
+
+@njit
+def _edge_direction(cp, sp, k):
+    """u = ce a - se (cos(phi) b1 + sin(phi) b2) of the `EdgeCone` k (cp, sp: cos and sin phi)."""
+    a, b1, b2, ce, se = k.a, k.b1, k.b2, k.ce, k.se
+    return (ce * a[0] - se * (cp * b1[0] + sp * b2[0]), ce * a[1] - se * (cp * b1[1] + sp * b2[1]),
+            ce * a[2] - se * (cp * b1[2] + sp * b2[2]))
+
+
+@njit
+def _axpy(x, f, y):
+    """x + f y of 3-tuples x, y and a scalar f."""
+    return x[0] + f * y[0], x[1] + f * y[1], x[2] + f * y[2]
 
 
 @njit
@@ -885,11 +906,11 @@ def edge_ray(tau, k):
         phi = tau
         b = k.a0 - k.a1 * math.cos(phi)
         sq = math.sqrt(max((-b - k.beta) * (k.beta - b), 0.0))
-    cp, sp = math.cos(phi), math.sin(phi)
-    u = k.ce * k.a - k.se * (cp * k.b1 + sp * k.b2)
+    u = _edge_direction(math.cos(phi), math.sin(phi), k)
     ci, ct = _edge_cosines(sq, k.radius, k.eta)
-    pc = k.q + (-b - k.radius * ci) * u
-    return pc, u / k.eta + (ci / k.eta - ct) / k.radius * pc
+    pc = _axpy(k.q, -b - k.radius * ci, u)
+    f, eta = (ci / k.eta - ct) / k.radius, k.eta
+    return pc, (u[0] / eta + f * pc[0], u[1] / eta + f * pc[1], u[2] / eta + f * pc[2])
 
 
 @njit
@@ -937,8 +958,9 @@ def edge_slope(tau, k):
         e_sq = (abs(b) * e_b + 4.0 * u * b * b) / sq + 4.0 * u * sq
         e_dsq = (e_b * abs(db) + abs(b) * e_db) / sq + abs(dsq) * (e_sq / sq + 4.0 * u)
     cp, sp = math.cos(phi), math.sin(phi)
-    uu = k.ce * k.a - k.se * (cp * k.b1 + sp * k.b2)
-    du = d_phi * k.se * (sp * k.b1 - cp * k.b2)
+    uu = _edge_direction(cp, sp, k)
+    g_u, b1, b2 = d_phi * k.se, k.b1, k.b2
+    du = (g_u * (sp * b1[0] - cp * b2[0]), g_u * (sp * b1[1] - cp * b2[1]), g_u * (sp * b1[2] - cp * b2[2]))
     e_u = k.se * e_phi + 12.0 * u
     e_du = k.se * (abs(d_phi) * (e_phi + 8.0 * u) + e_dphi)
     if eta >= 1.0:
@@ -958,20 +980,22 @@ def edge_slope(tau, k):
     r, dr = -b - radius * ci, -db - radius * dci
     e_r = e_b + radius * e_ci + 2.0 * u * (abs(b) + radius * ci)
     e_dr = e_db + radius * e_dci + 2.0 * u * (abs(db) + radius * abs(dci))
-    pc = k.q + r * uu
-    dp = dr * uu + r * du
+    pc = _axpy(k.q, r, uu)
+    dp = (dr * uu[0] + r * du[0], dr * uu[1] + r * du[1], dr * uu[2] + r * du[2])
     n_u, n_du, n_p, n_dp = _norm(uu), _norm(du), _norm(pc), _norm(dp)
     e_p = 2.0 * u * _norm(k.q) + e_r + abs(r) * e_u + 2.0 * u * abs(r)
     e_dp = e_dr + abs(dr) * e_u + e_r * n_du + abs(r) * e_du + 4.0 * u * (abs(dr) + abs(r) * n_du)
     f, df = ci / eta - ct, dci / eta - dct
     e_f = e_ci / eta + e_ct + 2.0 * u * (ci / eta + ct)
     e_df = e_dci / eta + e_dct + 2.0 * u * (abs(dci) / eta + abs(dct))
-    t = uu / eta + f / radius * pc
-    dt = du / eta + df / radius * pc + f / radius * dp
+    fr, dfr = f / radius, df / radius
+    t = (uu[0] / eta + fr * pc[0], uu[1] / eta + fr * pc[1], uu[2] / eta + fr * pc[2])
+    dt = (du[0] / eta + dfr * pc[0] + fr * dp[0], du[1] / eta + dfr * pc[1] + fr * dp[1],
+          du[2] / eta + dfr * pc[2] + fr * dp[2])
     e_t = e_u / eta + (e_f * n_p + abs(f) * e_p) / radius + 4.0 * u * (n_u / eta + abs(f) * n_p / radius)
     e_dt = e_du / eta + (e_df * n_p + abs(df) * e_p + e_f * n_dp + abs(f) * e_dp) / radius + \
         6.0 * u * (n_du / eta + (abs(df) * n_p + abs(f) * n_dp) / radius)
-    m = k.oc - pc
+    m = (k.oc[0] - pc[0], k.oc[1] - pc[1], k.oc[2] - pc[2])
     n_m = _norm(m)
     e_m = e_p + u * (_norm(k.oc) + n_p)
     n_t, n_dt = _norm(t), _norm(dt)
@@ -1281,13 +1305,13 @@ def _edge_meets(k, pc, t):
     coplanar), x = ((P - o) x t).(w x t) / |w x t|^2 and s = ((P - o) x w).(w x t) / |w x t|^2 (nan
     where they are parallel)."""
     w = k.w
-    m = pc - k.oc
-    c = np.array([w[1] * t[2] - w[2] * t[1], w[2] * t[0] - w[0] * t[2], w[0] * t[1] - w[1] * t[0]])
+    m = (pc[0] - k.oc[0], pc[1] - k.oc[1], pc[2] - k.oc[2])
+    c = (w[1] * t[2] - w[2] * t[1], w[2] * t[0] - w[0] * t[2], w[0] * t[1] - w[1] * t[0])
     cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
     if not cc > 0.0:
         return math.nan, math.nan
-    mt = np.array([m[1] * t[2] - m[2] * t[1], m[2] * t[0] - m[0] * t[2], m[0] * t[1] - m[1] * t[0]])
-    mw = np.array([m[1] * w[2] - m[2] * w[1], m[2] * w[0] - m[0] * w[2], m[0] * w[1] - m[1] * w[0]])
+    mt = (m[1] * t[2] - m[2] * t[1], m[2] * t[0] - m[0] * t[2], m[0] * t[1] - m[1] * t[0])
+    mw = (m[1] * w[2] - m[2] * w[1], m[2] * w[0] - m[0] * w[2], m[0] * w[1] - m[1] * w[0])
     return (mt[0] * c[0] + mt[1] * c[1] + mt[2] * c[2]) / cc, (mw[0] * c[0] + mw[1] * c[1] + mw[2] * c[2]) / cc
 
 
@@ -1759,3 +1783,67 @@ def sphere_refracted(sphere, geo, distant, ell, kt, ks, code, g, kt_out, eta, ru
             light_frame = frame(sphere, last, distant, eta)
         r = record(sphere, geo[s], distant, eta, kt, ks, code, g, kt_out, light_frame)
         out[s], var[s], err[s] = _one(r, ell[s], rule, keys[s], dim0, seed, stats)
+
+
+class Outward(NamedTuple):
+    """`paths`' light and sphere for `surface_out_of_sphere`: the receiving point outside at distance d
+    from the centre, taken as the light (the paths are reversible)."""
+    radius: float
+    d: float
+    eta: float
+    theta_a: float
+    cells: np.ndarray
+
+
+@njit
+def surface_out_of_sphere(q, sphere, light, axis, cone, eta, value, toward, inside, outside):
+    """A unit point or spot light inside the refractive exact sphere (centre, radius; relative index eta
+    inside) at the points q (M, 3) outside it, through each of its refracted paths out (up to MAX_PATHS,
+    the columns): Fermat's paths from q to the light are those of a light at q reaching the inside point
+    L (light paths are reversible): `paths` in the plane of q, the centre and L, proven as there. Per
+    path (`incidence` from q: the cosines at the boundary, q's leg o, the direction t inside, L's leg
+    s): value the irradiance across the ray at q, F T cos_i / (eta^2 o^2 cos_t |(1 - s kappa_t)(1 - s
+    kappa_s)|) with the spot's falloff F toward the direction -t the light leaves in (module docstring's
+    tube at L from a unit light at q, over eta^2: the etendue n^2 dA dOmega is conserved, so the solid
+    angle per area at q from L is the one at L from q over eta^2; light beyond the critical angle is
+    totally reflected and meets no path, which enters from q at cos_i > 0); toward the unit direction
+    from q to the refraction point; inside s, outside o. A point q within the sphere has none."""
+    c, radius = sphere[:3], sphere[3]
+    rel = light - c
+    value[:] = 0.0
+    found, spread = np.empty(MAX_PATHS), np.empty(MAX_PATHS)
+    for i in range(q.shape[0]):
+        ez = q[i] - c
+        d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
+        if not d > radius:
+            continue
+        ez /= d
+        zx = rel[0] * ez[0] + rel[1] * ez[1] + rel[2] * ez[2]
+        ey = rel - zx * ez
+        yx = math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+        if yx > 0.0:
+            ey /= yx
+        else:  # on the axis: any normal to it
+            k = 0 if abs(ez[0]) < 0.9 else 1
+            ey[:] = -ez[k] * ez
+            ey[k] += 1.0
+            ey /= math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+        theta_a = lit_arc(radius, d, eta)
+        scan = Outward(radius, d, eta, theta_a, cell_table(theta_a, radius, d, eta))
+        dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
+        m, _ = paths(scan, zx, yx, dx, found, spread)
+        for k in range(m):
+            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
+            s = tz * (zx - pz) + ty * (yx - py)
+            if cos_t == 0.0 or not s >= 0.0:
+                continue
+            f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
+                          + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
+            tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
+                       * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
+            if f == 0.0 or not tube > 0.0:
+                continue
+            value[i, k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
+            for j in range(3):
+                toward[i, k, j] = ((pz - d) * ez[j] + py * ey[j]) / o
+            inside[i, k], outside[i, k] = s, o
