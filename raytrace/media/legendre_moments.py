@@ -36,10 +36,8 @@ factor F (e.g. F = e^{H va}, or the renderer's folded e^{-kt xh}) and the result
 import math
 
 import numpy as np
-from numba import types
-from numba.extending import intrinsic
-
 from ..jit import exact_njit, njit
+from .expint import fma
 from .phase import INV_4PI
 
 
@@ -157,7 +155,7 @@ def cosine_moments_lanes(args, rows, c, out):
     in SIMD registers (HG 0.9's 51 terms: several times faster per segment than one call per
     segment). The recurrence runs on D_k = k E_k (`_step`). No operation mixes two segments, and
     the function is compiled without fastmath (no reassociation, no fused multiply-adds but the explicit
-    ones, `_fma`: every operation rounds as IEEE arithmetic says, in SIMD registers or not), so a segment's
+    ones, `expint.fma`: every operation rounds as IEEE arithmetic says, in SIMD registers or not), so a segment's
     result does not depend on the batch it came in or on its place in it."""
     n = c.shape[0]
     state = np.empty((14, LANES))
@@ -218,15 +216,6 @@ def _lanes_steps(w, k, steps, c, acc, mr, mi, er, ei, ar, ai, br, bi, zar, zai, 
         acc[j], er[j], ei[j], mr[j], mi[j], ar[j], ai[j], br[j], bi[j] = s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i
 
 
-@intrinsic
-def _fma(typingctx, x, y, z):
-    """x * y + z rounded once (IEEE 754 fused multiply-add, LLVM's llvm.fma): one instruction, the same bits in
-    SIMD registers or not, where the fastmath flag `contract` lets the compiler choose where to fuse."""
-    def codegen(context, builder, signature, args):
-        return builder.fma(*args)
-    return types.float64(types.float64, types.float64, types.float64), codegen
-
-
 @exact_njit(inline="always")
 def _step(invk, ck, s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i, za_r, za_i, zb_r, zb_i, h2):
     """One lane's step k -> k + 1 on D_k = k E_k (e: D_k, m: D_{k-1}, a, b: the ends' boundary terms times 4,
@@ -234,12 +223,12 @@ def _step(invk, ck, s, e_r, e_i, m_r, m_i, a_r, a_i, b_r, b_i, za_r, za_i, zb_r,
     (k+1), so that s gains c_{k+1} Re E_{k+1}), D_{k+1}, D_k and the ends' terms times z. Divided by k,
     (k+1) E_{k+1} + 2(k + iH) E_k + (k-1) E_{k-1} = -4i q reads D_{k+1} = -4i q - 2 D_k - (2iH / k) D_k - D_{k-1}
     (D_0 = 0: the term of E_0 vanishes at k = 1): 18 operations with the ends' powers, 9 of them fused
-    multiply-adds (`_fma`; 2 D_k is exact), where separate products and sums took 27."""
+    multiply-adds (`expint.fma`; 2 D_k is exact), where separate products and sums took 27."""
     hk = h2 * invk
-    nr = _fma(hk, e_i, _fma(-2.0, e_r, b_i - a_i)) - m_r
-    ni = _fma(-hk, e_r, _fma(-2.0, e_i, a_r - b_r)) - m_i
-    return (_fma(ck, nr, s), nr, ni, e_r, e_i, _fma(a_r, za_r, -(a_i * za_i)), _fma(a_r, za_i, a_i * za_r),
-            _fma(b_r, zb_r, -(b_i * zb_i)), _fma(b_r, zb_i, b_i * zb_r))
+    nr = fma(hk, e_i, fma(-2.0, e_r, b_i - a_i)) - m_r
+    ni = fma(-hk, e_r, fma(-2.0, e_i, a_r - b_r)) - m_i
+    return (fma(ck, nr, s), nr, ni, e_r, e_i, fma(a_r, za_r, -(a_i * za_i)), fma(a_r, za_i, a_i * za_r),
+            fma(b_r, zb_r, -(b_i * zb_i)), fma(b_r, zb_i, b_i * zb_r))
 
 
 @njit
