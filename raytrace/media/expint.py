@@ -236,7 +236,7 @@ SERIES_LANES = 64  # segments whose Fig. 2 loops `i01_series_lanes` advances sid
 def i01_series_lanes(args, rows, prec_col, max_iter, out):
     """out[i] = (I0, I1, iterations, rounding-error estimate) of `i01_series_est(-H, va, vb, precision, max_iter)`
     for H, va, vb = args[rows[i], 0:3] and precision = args[rows[i], prec_col]: the loops of SERIES_LANES
-    segments advanced together, an iteration k a pass over the lanes (in SIMD registers), each lane's sums
+    segments advanced together, two iterations k a pass over the lanes (in SIMD registers), each lane's sums
     frozen from the iteration its own test stops it, the pass repeated while any lane runs. Compiled without
     fastmath, no operation mixing two segments, so that a segment's result does not depend on its batch;
     the same arithmetic as `i01_series_est` but for the fused multiply-adds (`fma`; the scalar loop lets the
@@ -245,7 +245,6 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
     i0, i1, big, its, prec = st[0], st[1], st[2], st[3], st[4]
     par, pai, pbr, pbi, zar, zai, zbr, zbi = st[5], st[6], st[7], st[8], st[9], st[10], st[11], st[12]
     rka, rkb, rva, rvb = st[13], st[14], st[15], st[16]
-    last = SERIES_WEIGHTS.shape[0] - 1
     for first in range(0, rows.shape[0], SERIES_LANES):
         w = min(SERIES_LANES, rows.shape[0] - first)
         for j in range(w):
@@ -258,10 +257,13 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
             zar[j], zai[j], zbr[j], zbi[j] = za.real, za.imag, zb.real, zb.imag
             rka[j], rkb[j] = 1.0, 1.0
         k, live = 0, w
-        while live > 0 and k < max_iter:
-            k += 1
-            live = _series_pass(w, float(k), SERIES_WEIGHTS[min(k, last)], i0, i1, big, its, prec, par, pai, pbr,
-                                pbi, zar, zai, zbr, zbi, rka, rkb, rva, rvb)
+        while live > 0 and k + 1 < max_iter:  # two iterations a pass: each lane's state loaded and stored once
+            live = _series_pass(w, k + 1, 2, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb,
+                                rva, rvb)
+            k += 2
+        if live > 0 and k < max_iter:
+            _series_pass(w, k + 1, 1, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb, rva,
+                         rvb)
         for j in range(w):
             out[first + j, 0], out[first + j, 1] = i0[j], i1[j]
             out[first + j, 2] = its[j] if its[j] > 0.0 else float(max_iter)  # (a loop that never stopped)
@@ -269,24 +271,41 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
 
 
 @exact_njit(inline="always")
-def _series_pass(w, k, denom, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb, rva, rvb):
-    """Iteration k (denom = 1 / (k k!)) of the Fig. 2 loop for lanes 0 .. w - 1 (`i01_series_lanes`): the powers
-    advanced in every lane, the sums, the largest indicator and the iteration count (its: 0 while it runs)
-    only in the lanes still running; returns how many run on."""
+def _series_pass(w, k, steps, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb, rva, rvb):
+    """Iterations k .. k + steps - 1 (steps 1 or 2) of the Fig. 2 loop for lanes 0 .. w - 1 (`i01_series_lanes`,
+    `_series_iteration`); returns how many lanes run on."""
+    last = SERIES_WEIGHTS.shape[0] - 1
+    d1, d2 = SERIES_WEIGHTS[min(k, last)], SERIES_WEIGHTS[min(k + 1, last)]
+    k1, k2 = float(k), float(k + 1)
     live = 0
     for j in range(w):
-        ar, ai = fma(par[j], zar[j], -(pai[j] * zai[j])), fma(par[j], zai[j], pai[j] * zar[j])
-        br, bi = fma(pbr[j], zbr[j], -(pbi[j] * zbi[j])), fma(pbr[j], zbi[j], pbi[j] * zbr[j])
-        par[j], pai[j], pbr[j], pbi[j] = ar, ai, br, bi
-        ka, kb = rka[j] * rva[j], rkb[j] * rvb[j]
+        s0, s1, was, it, a_r, a_i, b_r, b_i = i0[j], i1[j], big[j], its[j], par[j], pai[j], pbr[j], pbi[j]
+        ka, kb, p = rka[j], rkb[j], prec[j]
+        za_r, za_i, zb_r, zb_i, ra, rb = zar[j], zai[j], zbr[j], zbi[j], rva[j], rvb[j]
+        s0, s1, was, it, a_r, a_i, b_r, b_i, ka, kb = _series_iteration(k1, d1, p, za_r, za_i, zb_r, zb_i, ra, rb, s0,
+                                                                        s1, was, it, a_r, a_i, b_r, b_i, ka, kb)
+        if steps == 2:
+            s0, s1, was, it, a_r, a_i, b_r, b_i, ka, kb = _series_iteration(k2, d2, p, za_r, za_i, zb_r, zb_i, ra, rb,
+                                                                            s0, s1, was, it, a_r, a_i, b_r, b_i, ka,
+                                                                            kb)
+        i0[j], i1[j], big[j], its[j], par[j], pai[j], pbr[j], pbi[j] = s0, s1, was, it, a_r, a_i, b_r, b_i
         rka[j], rkb[j] = ka, kb
-        s0, s1, was, it = i0[j], i1[j], big[j], its[j]
-        n0, n1 = fma(bi - ai, denom, s0), fma(br - ar, denom, s1)
-        indicator = (kb + ka) * denom
-        run = it == 0.0
-        stop = indicator <= prec[j] * abs(n0)
-        i0[j], i1[j] = select(run, n0, s0), select(run, n1, s1)
-        big[j] = select(run & (indicator > was), indicator, was)
-        its[j] = select(run & stop, k, it)
-        live += run & (not stop)
+        live += it == 0.0
     return live
+
+
+@exact_njit(inline="always")
+def _series_iteration(k, denom, prec, za_r, za_i, zb_r, zb_i, ra, rb, s0, s1, was, it, pa_r, pa_i, pb_r, pb_i, ka,
+                      kb):
+    """One lane's iteration k (denom = 1 / (k k!)) of `i01_series_est`'s loop: the powers advanced whatever the
+    lane's state, the sums, the largest indicator and the iteration count `it` (0 while it runs) only while it
+    runs (`select`: no branch, so that the loop over the lanes runs in SIMD registers)."""
+    ar, ai = fma(pa_r, za_r, -(pa_i * za_i)), fma(pa_r, za_i, pa_i * za_r)
+    br, bi = fma(pb_r, zb_r, -(pb_i * zb_i)), fma(pb_r, zb_i, pb_i * zb_r)
+    ka, kb = ka * ra, kb * rb
+    n0, n1 = fma(bi - ai, denom, s0), fma(br - ar, denom, s1)
+    indicator = (kb + ka) * denom
+    run = it == 0.0
+    stop = indicator <= prec * abs(n0)
+    return (select(run, n0, s0), select(run, n1, s1), select(run & (indicator > was), indicator, was),
+            select(run & stop, k, it), ar, ai, br, bi, ka, kb)
