@@ -15,8 +15,10 @@ import cmath
 import math
 
 import numpy as np
+from numba import types
+from numba.extending import intrinsic
 
-from ..jit import njit
+from ..jit import exact_njit, njit
 
 EULER_GAMMA = 0.57721566490153286060651209
 _EPS = 2.220446049250313e-16
@@ -158,26 +160,7 @@ def i01_series_est(a, va, vb, precision, max_iter):
     max_iter iterations. For vb = +inf the limits i0(a, inf) = pi cos a, i1(a, inf) = -pi sin a
     replace the upper antiderivative (only the lower end is summed).
     """
-    sina = math.sin(a)
-    cosa = math.cos(a)
-    rva = abs(a) * math.sqrt(va * va + 1.0)
-    if vb < math.inf:
-        rvb = abs(a) * math.sqrt(vb * vb + 1.0)
-        logv = math.log(rvb / rva)
-        phiv = math.atan((va - vb) / (1.0 + va * vb))  # phi_b - phi_a = arg(z_b conj(z_a)); 1 + va vb > 0
-        i0 = sina * logv - cosa * phiv
-        i1 = cosa * logv + sina * phiv
-        zb = complex(a * vb, -a)
-    else:
-        rvb = 0.0
-        pva = math.atan2(a, a * va)
-        lg = EULER_GAMMA + math.log(rva)
-        # I = i(inf) - i(va)
-        i0 = math.pi * cosa - (sina * lg - cosa * pva)
-        i1 = -math.pi * sina - (cosa * lg + sina * pva)
-        zb = 0.0j
-    za = complex(a * va, -a)
-    pa = complex(cosa, sina)
+    i0, i1, pa, za, zb, rva, rvb = _series_start(a, va, vb)
     pb = pa
     big = abs(i0) + abs(i1) + 1.0
     rka = 1.0
@@ -200,3 +183,129 @@ def i01_series_est(a, va, vb, precision, max_iter):
     # rounding: every partial sum carries ~eps * (largest increment); ~sqrt(rho) of them are large
     err = 4.0 * _EPS * big * (1.0 + math.sqrt(rva + rvb))
     return i0, i1, k, err
+
+
+@njit(inline="always")
+def _series_start(a, va, vb):
+    """(I0, I1, e^{ia}, z_a, z_b, rho_a, rho_b) before the Fig. 2 loop's first iteration (`i01_series_est`):
+    the logarithmic terms of both ends (for vb = +inf the limits at infinity), z = a (v + i), conjugated as the
+    loop takes it (z_b = 0, rho_b = 0 at infinity)."""
+    sina = math.sin(a)
+    cosa = math.cos(a)
+    rva = abs(a) * math.sqrt(va * va + 1.0)
+    if vb < math.inf:
+        rvb = abs(a) * math.sqrt(vb * vb + 1.0)
+        logv = math.log(rvb / rva)
+        phiv = math.atan((va - vb) / (1.0 + va * vb))  # phi_b - phi_a = arg(z_b conj(z_a)); 1 + va vb > 0
+        i0 = sina * logv - cosa * phiv
+        i1 = cosa * logv + sina * phiv
+        zb = complex(a * vb, -a)
+    else:
+        rvb = 0.0
+        pva = math.atan2(a, a * va)
+        lg = EULER_GAMMA + math.log(rva)
+        # I = i(inf) - i(va)
+        i0 = math.pi * cosa - (sina * lg - cosa * pva)
+        i1 = -math.pi * sina - (cosa * lg + sina * pva)
+        zb = 0.0j
+    return i0, i1, complex(cosa, sina), complex(a * va, -a), zb, rva, rvb
+
+
+@intrinsic
+def fma(typingctx, x, y, z):
+    """x * y + z rounded once (IEEE 754 fused multiply-add, LLVM's llvm.fma): one instruction, the same bits in
+    SIMD registers or not, where the fastmath flag `contract` lets the compiler choose where to fuse."""
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+    return types.float64(types.float64, types.float64, types.float64), codegen
+
+
+@intrinsic
+def select(typingctx, cond, x, y):
+    """x if cond else y as LLVM's select, no branch (numba branches on `x if cond else y`, and a loop with a
+    branch in it does not run in SIMD registers)."""
+    def codegen(context, builder, signature, args):
+        return builder.select(*args)
+    return types.float64(types.boolean, types.float64, types.float64), codegen
+
+
+SERIES_LANES = 64  # segments whose Fig. 2 loops `i01_series_lanes` advances side by side
+
+
+@exact_njit
+def i01_series_lanes(args, rows, prec_col, max_iter, out):
+    """out[i] = (I0, I1, iterations, rounding-error estimate) of `i01_series_est(-H, va, vb, precision, max_iter)`
+    for H, va, vb = args[rows[i], 0:3] and precision = args[rows[i], prec_col]: the loops of SERIES_LANES
+    segments advanced together, two iterations k a pass over the lanes (in SIMD registers), each lane's sums
+    frozen from the iteration its own test stops it, the pass repeated while any lane runs. Compiled without
+    fastmath, no operation mixing two segments, so that a segment's result does not depend on its batch;
+    the same arithmetic as `i01_series_est` but for the fused multiply-adds (`fma`; the scalar loop lets the
+    compiler fuse): its last bits may differ."""
+    st = np.empty((17, SERIES_LANES))
+    i0, i1, big, its, prec = st[0], st[1], st[2], st[3], st[4]
+    par, pai, pbr, pbi, zar, zai, zbr, zbi = st[5], st[6], st[7], st[8], st[9], st[10], st[11], st[12]
+    rka, rkb, rva, rvb = st[13], st[14], st[15], st[16]
+    for first in range(0, rows.shape[0], SERIES_LANES):
+        w = min(SERIES_LANES, rows.shape[0] - first)
+        for j in range(w):
+            r = rows[first + j]
+            a, va, vb = -args[r, 0], args[r, 1], args[r, 2]
+            i0[j], i1[j], p, za, zb, rva[j], rvb[j] = _series_start(a, va, vb)
+            big[j] = abs(i0[j]) + abs(i1[j]) + 1.0
+            its[j], prec[j] = 0.0, args[r, prec_col]
+            par[j], pai[j], pbr[j], pbi[j] = p.real, p.imag, p.real, p.imag
+            zar[j], zai[j], zbr[j], zbi[j] = za.real, za.imag, zb.real, zb.imag
+            rka[j], rkb[j] = 1.0, 1.0
+        k, live = 0, w
+        while live > 0 and k + 1 < max_iter:  # two iterations a pass: each lane's state loaded and stored once
+            live = _series_pass(w, k + 1, 2, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb,
+                                rva, rvb)
+            k += 2
+        if live > 0 and k < max_iter:
+            _series_pass(w, k + 1, 1, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb, rva,
+                         rvb)
+        for j in range(w):
+            out[first + j, 0], out[first + j, 1] = i0[j], i1[j]
+            out[first + j, 2] = its[j] if its[j] > 0.0 else float(max_iter)  # (a loop that never stopped)
+            out[first + j, 3] = 4.0 * _EPS * big[j] * (1.0 + math.sqrt(rva[j] + rvb[j]))
+
+
+@exact_njit(inline="always")
+def _series_pass(w, k, steps, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb, rva, rvb):
+    """Iterations k .. k + steps - 1 (steps 1 or 2) of the Fig. 2 loop for lanes 0 .. w - 1 (`i01_series_lanes`,
+    `_series_iteration`); returns how many lanes run on."""
+    last = SERIES_WEIGHTS.shape[0] - 1
+    d1, d2 = SERIES_WEIGHTS[min(k, last)], SERIES_WEIGHTS[min(k + 1, last)]
+    k1, k2 = float(k), float(k + 1)
+    live = 0
+    for j in range(w):
+        s0, s1, was, it, a_r, a_i, b_r, b_i = i0[j], i1[j], big[j], its[j], par[j], pai[j], pbr[j], pbi[j]
+        ka, kb, p = rka[j], rkb[j], prec[j]
+        za_r, za_i, zb_r, zb_i, ra, rb = zar[j], zai[j], zbr[j], zbi[j], rva[j], rvb[j]
+        s0, s1, was, it, a_r, a_i, b_r, b_i, ka, kb = _series_iteration(k1, d1, p, za_r, za_i, zb_r, zb_i, ra, rb, s0,
+                                                                        s1, was, it, a_r, a_i, b_r, b_i, ka, kb)
+        if steps == 2:
+            s0, s1, was, it, a_r, a_i, b_r, b_i, ka, kb = _series_iteration(k2, d2, p, za_r, za_i, zb_r, zb_i, ra, rb,
+                                                                            s0, s1, was, it, a_r, a_i, b_r, b_i, ka,
+                                                                            kb)
+        i0[j], i1[j], big[j], its[j], par[j], pai[j], pbr[j], pbi[j] = s0, s1, was, it, a_r, a_i, b_r, b_i
+        rka[j], rkb[j] = ka, kb
+        live += it == 0.0
+    return live
+
+
+@exact_njit(inline="always")
+def _series_iteration(k, denom, prec, za_r, za_i, zb_r, zb_i, ra, rb, s0, s1, was, it, pa_r, pa_i, pb_r, pb_i, ka,
+                      kb):
+    """One lane's iteration k (denom = 1 / (k k!)) of `i01_series_est`'s loop: the powers advanced whatever the
+    lane's state, the sums, the largest indicator and the iteration count `it` (0 while it runs) only while it
+    runs (`select`: no branch, so that the loop over the lanes runs in SIMD registers)."""
+    ar, ai = fma(pa_r, za_r, -(pa_i * za_i)), fma(pa_r, za_i, pa_i * za_r)
+    br, bi = fma(pb_r, zb_r, -(pb_i * zb_i)), fma(pb_r, zb_i, pb_i * zb_r)
+    ka, kb = ka * ra, kb * rb
+    n0, n1 = fma(bi - ai, denom, s0), fma(br - ar, denom, s1)
+    indicator = (kb + ka) * denom
+    run = it == 0.0
+    stop = indicator <= prec * abs(n0)
+    return (select(run, n0, s0), select(run, n1, s1), select(run & (indicator > was), indicator, was),
+            select(run & stop, k, it), ar, ai, br, bi, ka, kb)

@@ -42,7 +42,7 @@ from .. import error_bounds
 from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, cone_row, v_of
-from ..media.expint import g_scaled, en_scaled, i01_series_est
+from ..media.expint import g_scaled, en_scaled, i01_series_est, i01_series_lanes
 from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
                                hg_legendre, legendre_to_cosine, rayleigh_legendre, start_sensitivity, times_trig,
@@ -122,9 +122,10 @@ BAND_ORDER = 3  # a polynomial band is at most cubic in the cosine to the spot a
 BAND_GAUSS_FIRST = 48
 BAND_MARGIN = 0.01  # a band's K1, L1 are computed this much finer than its polynomial's terms need
 # a row of `evaluate_segments`' batch of moment recurrences (`checked_airlight`'s `pending`): the arguments of
-# cosine_moments_forward, the start of the block in coeffs (0: nothing pending) and the factor 2 I / h
-P_H, P_V1, P_V2, P_K1, P_L1, P_E1, P_E2, P_BLOCK, P_PREF = range(9)
-PENDING = 9
+# cosine_moments_forward, the start of the block in coeffs (0: nothing pending), the factor 2 I / h and, where
+# the Fig. 2 loop that gives K1 and L1 is pending too (`_pending_series`), its precision (else 0)
+P_H, P_V1, P_V2, P_K1, P_L1, P_E1, P_E2, P_BLOCK, P_PREF, P_PREC = range(10)
+PENDING = 10
 NOTHING_PENDING = (0.0,) * PENDING  # a row with P_BLOCK 0
 
 
@@ -270,7 +271,7 @@ def _e1_ends(H, v1, v2, E1, E2, prec_i):
 
 @njit(inline="always")
 def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, precision, max_iter, aniso, defer):
-    """(S, ok, iterations, flags, K1, L1, E1, E2, start) for the piece v1 < v < v2 of a segment
+    """(S, ok, iterations, flags, K1, L1, E1, E2, start, prec_s) for the piece v1 < v < v2 of a segment
     (0 <= v1 < v2 <= inf) at the light's full intensity: S = int w(phi) Phi(cos phi) dphi / 2 (w = e^{-H v},
     folded with the optical paths p1, p2 = x + d at the ends; the Taylor mode's PP-19 sum approximates
     it); not ok: a closed form here would miss the precision (quadrature). Its statistics (the Fig. 2
@@ -283,7 +284,9 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     phase function, and the anisotropic code is not compiled (such a piece is then not ok). `defer`:
     the exact mode's moment recurrence is left to the caller (`_pending_recurrences`): S is then 0,
     start > 0 the start of the coefficient block in `coeffs`, and K1, L1, E1, E2 the recurrence's
-    arguments with H, v1, v2 (start is 0 where nothing is left)."""
+    arguments with H, v1, v2 (start is 0 where nothing is left); where the Fig. 2 loop would give K1 and L1,
+    it is left to the caller too (`_pending_series`): K1 and L1 are then 0, prec_s > 0 the loop's precision
+    (else 0), and the statistics are the caller's to count."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     start, n = 0, 0  # the block in coeffs (offsets, not a slice: a slice costs numba a reference count)
     prec_i = precision
@@ -295,11 +298,13 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
             # block[B_RATIO] = 0.1 min(Phi) / sum|c_k|: a tenth of the precision
             start, n, sens = _block_at(coeffs, v1, v2, H, B_HMAX)
             if sens == math.inf:  # the moment recurrence would lose digits: quadrature
-                return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0
+                return 0.0, False, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0, 0.0
             prec_i = max(1e-15, precision * coeffs[start + B_RATIO] / sens)
     rho_max = H * math.sqrt(1.0 + v2 * v2)
     iterations, flags = 0.0, 0
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
+    if use_series and defer and exact:  # (`exact` only where the anisotropic code is compiled)
+        return 0.0, True, 0.0, 0, 0.0, 0.0, math.exp(-kt * p1), math.exp(-kt * p2), start, prec_i
     if use_series:
         i0, i1, it, err = i01_series_est(-H, v1, v2, prec_i, max_iter)
         iterations = float(it)
@@ -314,18 +319,18 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
             K1 = f * i0
             L1 = f * i1
             if phase_code == ISOTROPIC:
-                return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+                return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
     E1 = math.exp(-kt * p1)
     E2 = math.exp(-kt * p2)
     if not use_series:
         K1, L1, _, ok = _e1_ends(H, v1, v2, E1, E2, prec_i)
         if not ok:
-            return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+            return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
         flags |= F_STABLE
     if phase_code == ISOTROPIC:
-        return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+        return INV_4PI * K1, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
     if aniso is None:  # (numba prunes the code below where it is None)
-        return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+        return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
 
     if aniso_mode == ANISO_TAYLOR:
         # PP-19 with N = terms coefficients c_n of Phi in v
@@ -343,13 +348,13 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
             sg = -1.0 if ((n % 4) // 2) == 1 else 1.0
             base = K1 if n % 2 == 0 else L1
             acc += cn * (_taylor_poly_part(H, v1, v2, E1, E2, n) + sg * base)
-        return acc, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+        return acc, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
 
     # exact: Phi as a cosine series, its Fourier moments by the forward recurrence
     if defer:
-        return 0.0, True, iterations, flags, K1, L1, E1, E2, start
+        return 0.0, True, iterations, flags, K1, L1, E1, E2, start, 0.0
     S = 0.5 * cosine_moments_forward(H, v1, v2, K1, L1, E1, E2, coeffs[start + B_C:start + n])
-    return S, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0
+    return S, True, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
 
 
 @njit
@@ -527,13 +532,14 @@ def _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision,
         if ok or taylor:
             return val, ok and not taylor, NOTHING_PENDING, 0.0, F_NEARLINE
     H, va, vb, pref, pa, pb = _ends_of(xh, h, da, ell, kt, intensity)
-    val, ok, iterations, flags, K1, L1, E1, E2, start = _piece(H, kt, xh, va, vb, pa, pb, phase_code, g, aniso_mode,
-                                                               terms, coeffs, precision, max_iter, aniso, defer)
+    val, ok, iterations, flags, K1, L1, E1, E2, start, prec_s = _piece(H, kt, xh, va, vb, pa, pb, phase_code, g,
+                                                                       aniso_mode, terms, coeffs, precision, max_iter,
+                                                                       aniso, defer)
     if not ok:
         val, ok = _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
         return val, ok, NOTHING_PENDING, iterations, flags
     if start > 0:
-        return 0.0, not taylor, (H, va, vb, K1, L1, E1, E2, float(start), pref), iterations, flags
+        return 0.0, not taylor, (H, va, vb, K1, L1, E1, E2, float(start), pref, prec_s), iterations, flags
     return _scaled(pref, ks, val), not taylor, NOTHING_PENDING, iterations, flags
 
 
@@ -602,8 +608,10 @@ def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_
             vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work[25:])
             _count(stats, 0.0, flags)
         else:  # (defer False: a spot's piece runs its moment recurrence here)
-            vals[i], ok, iterations, flags, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode,
-                                                                   terms, coeffs, precision, max_iter, aniso, False)
+            vals[i], ok, iterations, flags, _, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g,
+                                                                      aniso_mode, terms, coeffs, precision, max_iter,
+                                                                      aniso, False)
+
             _count(stats, iterations, flags)
         if not ok:
             errs[i] = math.inf  # no closed form for this piece: quadrature below
@@ -994,15 +1002,55 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
             out[s], met[s], p, iterations, flags = _point_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g,
                                                                    precision, max_iter, aniso_mode, terms, coeffs, row,
                                                                    stats, quadrature, aniso, defer)
-            _tally(stats, quadrature, out[s], iterations, flags)
+            if p[P_PREC] == 0.0:  # (a segment whose Fig. 2 loop is pending is counted with it: `_pending_series`)
+                _tally(stats, quadrature, out[s], iterations, flags)
         if quadrature is None and math.isnan(out[s]):
             left += 1  # left to the second pass (its statistics counted there)
         if aniso is not None:
             for k in range(PENDING):
                 pending[s, k] = p[k]
     if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
+        left += _pending_series(pending, xh, h, ell, kt, ks, code, g, precision, max_iter, cone, out, met, stats,
+                                quadrature)
         _pending_recurrences(pending, coeffs, ks, out)
     return left
+
+
+@njit
+def _pending_series(pending, xh, h, ell, kt, ks, code, g, precision, max_iter, cone, out, met, stats, quadrature):
+    """The Fig. 2 loops that `_piece` left pending (P_PREC > 0), side by side (`i01_series_lanes`), each segment
+    then taken on as `_piece` goes on from its loop: the loop's result accepted (K1, L1 into the segment's row
+    of the recurrences' batch) or rejected by its guard (the scaled-E1 ends, and where their terms cancel the
+    fallback: out and met, the row's P_BLOCK then 0), and counted (`_tally`). Returns how many are left nan
+    (`quadrature` None)."""
+    rows = np.flatnonzero(pending[:, P_PREC] > 0.0)
+    res = np.empty((rows.shape[0], 4))
+    i01_series_lanes(pending, rows, P_PREC, max_iter, res)
+    left = 0
+    for i in range(rows.shape[0]):
+        s = rows[i]
+        H, v1, v2, E1, E2, prec_i = (pending[s, P_H], pending[s, P_V1], pending[s, P_V2], pending[s, P_E1],
+                                     pending[s, P_E2], pending[s, P_PREC])
+        i0, i1, iterations, err = res[i, 0], res[i, 1], res[i, 2], res[i, 3]
+        # `_piece`'s a-posteriori guard: estimated rounding error vs the precision; a loop that used all
+        # max_iter iterations may not have converged
+        if iterations >= max_iter or not (err <= SERIES_SAFETY * prec_i * i0):
+            K1, L1, _, ok = _e1_ends(H, v1, v2, E1, E2, prec_i)
+            flags = F_REJECTED | F_STABLE if ok else F_REJECTED
+        else:
+            f = math.exp(-kt * xh[s])
+            K1, L1, ok, flags = f * i0, f * i1, True, F_SERIES
+        if ok:
+            pending[s, P_K1], pending[s, P_L1] = K1, L1
+        else:
+            row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])
+            out[s], met[s] = _fallback(xh[s], h[s], ell[s], kt, ks, 1.0, code, g, row, precision, stats, quadrature)
+            pending[s, P_BLOCK] = 0.0
+            if quadrature is None and math.isnan(out[s]):
+                left += 1
+        _tally(stats, quadrature, out[s], iterations, flags)
+    return left
+
 
 
 @njit
