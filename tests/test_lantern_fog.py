@@ -33,10 +33,10 @@ FLOOR_Y = -1.6
 PIXELS = [(2, 1), (3, 5), (3, 2), (2, 3)]  # (row, column): the floor beside the lantern; (2, 3) the lantern's +z face
 
 
-def switches(o, d, t0, t1, n, samples=48):
-    """The t in (t0, t1) where face n's refraction point (the twin's `exit_point`) crosses the face's edges:
-    its on-face test on samples, each change bisected to 1e-14 of the segment."""
-    L = np.array(LAMP["position"], float)
+def switches(light, o, d, t0, t1, n, samples=48):
+    """The t in (t0, t1) where face n's refraction point (the twin's `exit_point`) of the light's path crosses
+    the face's edges: its on-face test on samples, each change bisected to 1e-14 of the segment."""
+    L = np.array(light["position"], float)
 
     def on(t):
         R = exit_point(L, o + t * d, n)
@@ -55,7 +55,7 @@ def switches(o, d, t0, t1, n, samples=48):
     return out
 
 
-def airlight(o, d, tmax, epsrel):
+def airlight(light, o, d, tmax, epsrel):
     """The isotropic fog's single scattering (3,) along o + t d, t in [0, tmax], lit from inside the box, with the
     fog's transmittance from o."""
     cuts = {0.0, tmax}
@@ -69,11 +69,11 @@ def airlight(o, d, tmax, epsrel):
         elif depth <= 0.0:
             continue
         if hi > lo:
-            cuts |= {lo, hi, *switches(o, d, lo, hi, n)}
+            cuts |= {lo, hi, *switches(light, o, d, lo, hi, n)}
     cuts = sorted(cuts)
 
     def f(t):
-        return KS_OUT / (4.0 * math.pi) * irradiance(LAMP, o + t * d) * math.exp(-KA_OUT * t)
+        return KS_OUT / (4.0 * math.pi) * irradiance(light, o + t * d) * math.exp(-KA_OUT * t)
 
     return sum(integrate.quad_vec(f, a, b, epsrel=epsrel, epsabs=0.0, norm="max")[0] for a, b in zip(cuts, cuts[1:])
                if b > a)
@@ -83,28 +83,28 @@ def floor_t(o, d):
     return (FLOOR_Y - o[1]) / d[1]
 
 
-def fog_pixel(j, i, epsrel):
+def fog_pixel(light, j, i, epsrel):
     """The twin's air-light (3,) of pixel (j, i): its camera segment to the floor, or to the box and then its
     mirrored and exiting rays' segments to the floor, with Fresnel's weights (as tests/test_lamp_in_glass.py
     `twin`)."""
     o, d = oracle.camera_ray(CAMERA, i, j)
     t0, n_in = box_entry(o, d, LO, HI)
     if n_in is None:
-        return airlight(o, d, floor_t(o, d), epsrel)
+        return airlight(light, o, d, floor_t(o, d), epsrel)
     p = o + t0 * d
     cos_i = -float(d @ n_in)
     w = refract(d, n_in, ETA)
     t_in = fresnel_t(math.acos(cos_i), math.acos(-float(w @ n_in)), ETA)
     mirrored = d + 2.0 * cos_i * n_in
-    total = airlight(o, d, t0, epsrel) + math.exp(-KA_OUT * t0) * (1.0 - t_in) * airlight(
-        p, mirrored, floor_t(p, mirrored), epsrel)
+    total = airlight(light, o, d, t0, epsrel) + math.exp(-KA_OUT * t0) * (1.0 - t_in) * airlight(
+        light, p, mirrored, floor_t(p, mirrored), epsrel)
     ell, m = oracle.box_exit(p, w, LO, HI)
     out = refract(w, np.array(m, float), 1.0 / ETA)
     if out is not None:
         t_out = fresnel_t(math.acos(abs(float(w @ m))), math.acos(abs(float(out @ m))), 1.0 / ETA)
         q = p + ell * w
-        total += math.exp(-KA_OUT * t0) * t_in * t_out * np.exp(-(KS + KA) * ell) * airlight(q, out, floor_t(q, out),
-                                                                                            epsrel)
+        total += math.exp(-KA_OUT * t0) * t_in * t_out * np.exp(-(KS + KA) * ell) * airlight(
+            light, q, out, floor_t(q, out), epsrel)
     return total
 
 

@@ -228,9 +228,9 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
     the new count. c(x) - level with the refraction point by Newton's method (media/fermat_rounding.py
     `refraction_newton`), whose derivative is at most K_R / o_min (K_R `_speed`, the refraction
     point's speed; the leaving direction's turn is at most |R'| / o, o >= sqrt(s^2 + hl^2) with
-    s >= rho hl / (hl + z) for eta > 1: tan t1 >= tan t2; s >= 0 for eta < 1): an interval [lo, hi] with |c(lo) - level| +
-    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share a sign and
-    exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
+    s >= rho hl / (hl + z) for eta > 1: tan t1 >= tan t2; s >= 0 for eta < 1): an interval [lo, hi] with
+    |c(lo) - level| + |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share
+    a sign and exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
     point's acceleration, and K_R); the others are halved down to 1e-13 of the segment's scale (at most
     MAX_ISOLATE evaluations). Where `refracted_cosine` - level changes sign there, or is 0 at one end only
     (`_isolate` counts a 0 as a change: at a crossing whose slope is below an ulp of the cosine over that
