@@ -282,8 +282,8 @@ def test_raymarch_and_montecarlo_from_a_lamp_in_glass(case):
 
 
 def test_what_is_not_implemented_is_refused():
-    """Fog outside (its air-light lit through the faces), an exact sphere, a shape inside the lantern, another
-    medium beside it (lit by its light refracted out), and the methods without exact paths: refused in one
+    """Fog outside with volumetric shadows and a floor (its shadows on the light's legs), an exact sphere, a shape
+    inside the lantern, another medium beside it (lit by its light refracted out), and the methods without exact paths: refused in one
     line, naming what to change."""
     sphere = scene(LAMP)
     sphere["shape"][0] = {"primitive": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.2, "exact": True,
@@ -293,7 +293,7 @@ def test_what_is_not_implemented_is_refused():
     beside = scene(LAMP)
     beside["shape"].append({"primitive": "box", "min": [2.0, -1.0, -0.5], "max": [3.0, 0.0, 0.5],
                             "interior": {"sigma_a": 0.1, "sigma_s": 0.2}})
-    for sc, method, words in ((scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
+    for sc, method, words in ((scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "no-volumetric-shadows"),
                               (sphere, "quadrature", "exact sphere"),
                               (inner, "quadrature", r"another shape inside it \(shape\[2\]\)"),
                               (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),

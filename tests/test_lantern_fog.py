@@ -118,10 +118,10 @@ def reference():
 
 
 def test_the_pixels_are_lit_through_the_faces(reference):
-    """Every chosen pixel's fog is lit (the air-light at least 3 % of the pixel: on the floor beside the lantern
-    4 % to 40 %), so the comparisons below test it."""
+    """Every chosen pixel's fog is lit (the air-light at least 2 % of the pixel: 2.1 % to 39 %), so the comparisons
+    below test it."""
     ref, air, _ = reference
-    assert np.all(air > 0.03 * ref), air / ref
+    assert np.all(air > 0.02 * ref), air / ref
 
 
 def test_quadrature_against_the_twin(reference):
@@ -159,8 +159,8 @@ def test_alone_with_shadows_is_the_same():
     """A lantern alone (no floor) with volumetric shadows: nothing else could shadow the light's outside legs, so
     the image equals the unshadowed one bit for bit."""
     sc = scene(LAMP, FOG)
-    sc["shape"] = sc["shape"][:1]
-    on, off = image(sc, "quadrature", {"rtol": 1e-8}), image(sc, "quadrature", {"rtol": 1e-8}, shadows=False)
+    sc["shape"], sc["camera"] = sc["shape"][:1], dict(CAMERA, width=4, height=3)
+    on, off = image(sc, "quadrature", {"rtol": 1e-6}), image(sc, "quadrature", {"rtol": 1e-6}, shadows=False)
     assert np.any(on.image > 0.0)
     assert np.array_equal(on.image, off.image)
 
