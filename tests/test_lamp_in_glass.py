@@ -283,8 +283,8 @@ def test_raymarch_and_montecarlo_from_a_lamp_in_glass(case):
 
 def test_what_is_not_implemented_is_refused():
     """Fog outside with volumetric shadows and a floor (its shadows on the light's legs), an exact sphere, a shape
-    inside the lantern, another medium beside it (lit by its light refracted out), and the methods without exact paths: refused in one
-    line, naming what to change."""
+    inside the lantern, another medium beside it (lit by its light refracted out), and the methods without exact
+    paths: refused in one line, naming what to change."""
     sphere = scene(LAMP)
     sphere["shape"][0] = {"primitive": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.2, "exact": True,
                           "interior": sphere["shape"][0]["interior"]}

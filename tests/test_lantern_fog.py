@@ -112,7 +112,7 @@ def fog_pixel(light, j, i, epsrel):
 def reference():
     """The twin's pixels (quad_vec at epsrel 1e-10) and the quadrature's image (rtol 1e-10)."""
     base = twin(LAMP)
-    air = np.array([fog_pixel(j, i, 1e-10) for j, i in PIXELS])
+    air = np.array([fog_pixel(LAMP, j, i, 1e-10) for j, i in PIXELS])
     return air + np.array([base[j, i] for j, i in PIXELS]), air, image(scene(LAMP, FOG), "quadrature", {"rtol": 1e-10},
                                                                         shadows=False)
 
@@ -166,8 +166,8 @@ def test_alone_with_shadows_is_the_same():
 
 
 def test_what_is_not_implemented_is_refused():
-    """A spot light, volumetric shadows with another shape, and the methods without exact paths: refused in one
-    line, naming what to change."""
+    """A spot light (its cone crossings are isolated, but not yet checked against a twin), volumetric shadows with
+    another shape, and the methods without exact paths: refused in one line, naming what to change."""
     for sc, method, shadows, words in ((scene(SPOT, FOG), "quadrature", False, "use a point light"),
                                        (scene(LAMP, FOG), "quadrature", True, "--no-volumetric-shadows"),
                                        (scene(LAMP, FOG), "analytic", False, "no closed form"),
