@@ -125,8 +125,8 @@ def test_the_pixels_are_lit_through_the_faces(reference):
 
 
 def test_quadrature_against_the_twin(reference):
-    """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels (rtol 1e-6: within 1e-5); its bound
-    is inf there (not derived for eta < 1), never below the error."""
+    """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels (rtol 1e-6: within 1e-5; measured
+    1.8e-13 and 3.3e-13, the twin's own accuracy); its bound is inf there (not derived for eta < 1)."""
     ref, _, res = reference
     got = np.array([res.image[j, i] for j, i in PIXELS])
     err = np.abs(got - ref) / ref
@@ -139,14 +139,15 @@ def test_quadrature_against_the_twin(reference):
 
 
 def test_raymarch_converges_and_montecarlo_is_unbiased(reference):
-    """raymarch's midpoints (each face's term jumps at its edges: first order) within 1e-3 of the twin at 4096
-    steps and closer than at 512; Monte Carlo's free-path samples: mean squared z-score about 1 over four seeds."""
+    """raymarch's midpoints (each face's term jumps at its edges: first order at least) 4x closer to the twin at
+    4096 steps than at 512 and within 1e-5 (measured 3.7e-5 -> 2.4e-7); Monte Carlo's free-path samples: mean
+    squared z-score about 1 over four seeds (measured 1.07)."""
     ref, _, _ = reference
     errs = []
     for steps in (512, 4096):
         res = image(scene(LAMP, FOG), "raymarch", {"steps": steps}, shadows=False)
         errs.append(max(np.max(np.abs(res.image[j, i] - r) / r) for (j, i), r in zip(PIXELS, ref)))
-    assert errs[1] < errs[0] and errs[1] < 1e-3, errs
+    assert errs[1] < errs[0] / 4.0 and errs[1] < 1e-5, errs
     z2 = []
     for seed in (3, 4, 5, 6):
         mc = image(scene(LAMP, FOG), "montecarlo", {"samples": 256}, shadows=False, seed=seed)
