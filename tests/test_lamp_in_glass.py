@@ -282,15 +282,15 @@ def test_raymarch_and_montecarlo_from_a_lamp_in_glass(case):
 
 
 def test_what_is_not_implemented_is_refused():
-    """Fog outside (its air-light lit through the faces), a shape inside the lantern, another medium beside it (lit
-    by its light refracted out), and the methods without exact paths: refused in one line, naming what to change
-    (an exact sphere: tests/test_lamp_in_globe.py)."""
+    """Fog outside with volumetric shadows and a floor (its shadows on the light's legs), a shape inside the
+    lantern, another medium beside it (lit by its light refracted out), and the methods without exact paths: refused
+    in one line, naming what to change (an exact sphere: tests/test_lamp_in_globe.py)."""
     inner = scene(LAMP)
     inner["shape"].append({"primitive": "box", "min": [-0.5, -0.9, -0.5], "max": [-0.2, -0.6, -0.2]})
     beside = scene(LAMP)
     beside["shape"].append({"primitive": "box", "min": [2.0, -1.0, -0.5], "max": [3.0, 0.0, 0.5],
                             "interior": {"sigma_a": 0.1, "sigma_s": 0.2}})
-    for sc, method, words in ((scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
+    for sc, method, words in ((scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "no-volumetric-shadows"),
                               (inner, "quadrature", r"another shape inside it \(shape\[2\]\)"),
                               (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
                               (scene(LAMP), "analytic", "no closed form"),

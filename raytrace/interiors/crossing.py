@@ -33,10 +33,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..lights import Lights
+from ..lights import Lights, is_spot
 from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
-from ..media.slab import refract_rays, surface_out_of_faces, surface_through_faces, transmittances
+from ..media.slab import (GEO_COLUMNS, STREAM, out_of_faces, refract_rays, surface_out_of_faces,
+                          surface_through_faces, transmittances)
 from ..media.sphere_refraction import MAX_PATHS, UNBOUNDED, surface_out_of_sphere
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
@@ -205,15 +206,17 @@ def check(prep, method, method_params, source: str):
 def _not_held(prep, sid) -> str | None:
     """Why a point or spot light inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
-    (`lit_from_inside`) with no other shape inside, the camera outside, no other shape holding a medium and an
-    outside medium that does not scatter."""
+    (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
+    scattering outside medium (`held_airlight`) a point light in a convex mesh, and with volumetric shadows no other
+    shape."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
-    if paths.exact_sphere(prep, sid) is None and not len(convex_planes(prep, sid)):
+    sphere = paths.exact_sphere(prep, sid) is not None
+    if not sphere and not len(convex_planes(prep, sid)):
         return f"needs a convex shape of at most {KERNEL_PLANES} faces or an exact sphere"
-    if prep.scene.medium.scatters:
-        return ("lights the outside medium through its faces, which is not implemented yet; use a [medium] that "
-                "does not scatter")
+    if sphere and prep.scene.medium.scatters:
+        return ("in an exact sphere lights the outside medium through its surface, which is not implemented yet; use "
+                "a convex mesh, or a [medium] that does not scatter")
     if prep.camera_inside == sid:
         return "is not implemented with the camera inside the same shape yet"
     media = [int(j) for j in prep.interior_shapes if j != sid]
@@ -224,6 +227,50 @@ def _not_held(prep, sid) -> str | None:
         if j != sid and len(first) and inside_of(prep, first[0, 0], [sid]) is not None:
             return f"is not implemented with another shape inside it (shape[{j}]) yet"
     return None
+
+
+def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int, shadows: bool):
+    """The outside medium's air-light (N, 3) of the segments `segs` (whole camera rays) whose light lies inside a
+    convex refractive shape (`held_lights`), its variance (N, 3; 0 but for a stochastic rule) and bound (N, 3; inf
+    where lit), and the other segments: the light refracted out through every face (media/slab.py `out_of_faces`,
+    relative index 1 / ior), integrated by the method's inside rule. Refused, in one line: a spot light (its cone
+    crossings are isolated as a point light's edges, but not yet verified), and volumetric shadows with another
+    shape in the scene (its shadows on the light's outside legs are not located yet)."""
+    held = dict(held_lights(prep))
+    mine = np.isin(segs.light, list(held))
+    val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
+    medium, lights, sup = prep.scene.medium, prep.lights, method.supports.interiors
+    rule = sup.rule(params)
+    for li, sid in held.items():
+        owner = f"light[{lights.owner[li]}]"
+        if is_spot(lights.cone[li, 1]):
+            raise UserError(f"{owner}: a spot light inside a refractive shape lighting a scattering [medium] through "
+                            "its faces is not implemented yet; use a point light, or a [medium] that does not scatter")
+        if shadows and len(np.unique(prep.shape_ids)) > 1:
+            raise UserError(f"{owner}: inside shape[{sid}] with volumetric shadows: the other shapes' shadows on its "
+                            "light refracted out into the scattering [medium] are not implemented yet; use "
+                            "--no-volumetric-shadows, or a [medium] that does not scatter")
+        sel = np.nonzero((segs.light == li) & (prep.lights_on is None or prep.lights_on[li]))[0]
+        ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]
+        if not len(sel) or not len(ch):
+            continue
+        planes = convex_planes(prep, sid)
+        geo = np.zeros((len(sel), GEO_COLUMNS))
+        geo[:, :3], geo[:, 3:6], geo[:, 6:9] = segs.origins[sel], segs.dirs[sel], lights.position[li]
+        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = lights.axis[li], lights.cone[li, :2], lights.cone[li, 2]
+        out, v, err = (np.zeros((len(sel), len(ch))) for _ in range(3))
+        inner = prep.scene.shapes[sid].interior
+        dim0 = np.uint64((2 * KERNEL_PLANES + 2) * STREAM + (depth * len(lights) + li) * rule.steps)
+        out_of_faces(geo, planes, np.ascontiguousarray(segs.length[sel]), medium.sigma_t[ch].astype(float),
+                     medium.sigma_s[ch].astype(float), medium.phase, medium.g,
+                     inner.sigma_t[ch].astype(float), 1.0 / inner.ior,
+                     rule, segs.keys[sel], dim0, np.uint64(segs.seed), out, v, err, np.zeros(STATS_SIZE))
+        inten = lights.intensity[li, ch]
+        for acc, part in ((val, out * inten), (var, v * inten * inten), (bound, err * inten)):
+            whole = np.zeros((len(sel), 3))
+            whole[:, ch] = part
+            np.add.at(acc, segs.ray[sel], whole)
+    return segs.take(np.nonzero(~mine)[0]), val, var, bound
 
 
 def held_lights(prep) -> list[tuple[int, int]]:

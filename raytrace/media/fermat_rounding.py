@@ -58,8 +58,8 @@ def refraction_newton(rho, z, hl, eta):
     step leaves it): the root of f(r) = (rho - r) / o - eta r / k, which falls from f(0) >= 0 to
     f(rho) <= 0 with f' = -hl^2 / o^3 - eta z^2 / k^3, to the resolution of doubles (within 4e-16 rho
     of where the computed f changes sign)."""
-    if not z > 0.0:
-        return 0.0
+    if not z > 0.0:  # on the plane: r = 0, or for eta < 1 where the light leaves at the critical angle (sin t1 = eta)
+        return max(rho - hl * eta / math.sqrt(1.0 - eta * eta), 0.0) if eta < 1.0 else 0.0
     lo, hi = 0.0, rho
     r = rho * z / (eta * hl + z)  # the paraxial guess, in the bracket
     for _ in range(100):
@@ -91,6 +91,27 @@ def fermat_speed(rho0, rho1, zmin, a, eta):
     if zmin > 0.0:
         t = min(t, max(rho0, rho1) / zmin)
     return math.sqrt(max(1.0 - a * a, 0.0)) + abs(a) * t
+
+
+@njit
+def fermat_pace(width, rho0, rho1, z_a, z_b, a, hl, eta):
+    """For eta < 1 (the point's side the less dense), a bound on the refraction point's displacement on the
+    face's plane over a piece of a segment of length `width` whose horizontal distances to the light at its
+    ends are rho0, rho1 and depths z_a, z_b >= 0 (linear in x at rate a; hl > 0 the light's height). As for
+    `fermat_speed`, |R'| <= W + |a| B with W = sqrt(1 - a^2) and B = T / (1 + z T'), T = tan t2, T' = dT/ds
+    >= 0 (s' = (rho' - a T) / (1 + z T')). In sigma = sin t2 = s / (eta o), c = 1 - sigma^2: T = sigma /
+    sqrt(c) <= 1 / sqrt(c), T' = sigma' / c^(3/2) with sigma' = hl^2 / (eta o^3), so B <= T / (z T') <= c C / z
+    with C = eta o^3 / hl^2 <= eta (rho_max^2 + hl^2)^(3/2) / hl^2 (o <= |(rho, hl)|), and min(1 / sqrt(c),
+    c C / z) <= (C / z)^(1/3); also B <= T = r / z <= rho_max / z. Integrated over the piece (dz = a dx):
+    W width + min(1.5 C^(1/3) |z_b^(2/3) - z_a^(2/3)|, rho_max |ln(z_b / z_a)|), finite where a depth is 0
+    (there the refraction point tends to where the light leaves at the critical angle). Times 1 + 1e-9."""
+    rmax = max(rho0, rho1)
+    w = math.sqrt(max(1.0 - a * a, 0.0)) * width
+    cube = eta * (rmax * rmax + hl * hl) ** 1.5 / (hl * hl) if hl > 0.0 else math.inf
+    turn = 1.5 * cube ** (1.0 / 3.0) * abs(z_b ** (2.0 / 3.0) - z_a ** (2.0 / 3.0)) if z_a != z_b else 0.0
+    if z_a > 0.0 and z_b > 0.0:
+        turn = min(turn, rmax * abs(math.log(z_b / z_a)))
+    return (w + turn) * (1.0 + 1e-9)
 
 
 @njit

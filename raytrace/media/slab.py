@@ -45,7 +45,8 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
 from .adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..geometry.sorting import sort_few
-from .fermat_rounding import SQ3, cosine_error, fermat_speed, point_error, refraction_newton, term_rounding
+from .fermat_rounding import (SQ3, cosine_error, fermat_pace, fermat_speed, point_error, refraction_newton,
+                              term_rounding)
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
 from .inside_rule import QUAD, cut_length, march_or_sample
@@ -179,7 +180,7 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
     """The depths in (0, end) where the cosine of the refracted path's leaving direction crosses the
     cone's levels (kinks of the falloff, its jumps for a hard edge), bracketed on SCAN samples and
     bisected to the resolution of doubles, then those the samples missed (two in one cell, or in
-    the half cells at the ends; for eta > 1) isolated with a bound on the cosine's derivative
+    the half cells at the ends; for eta != 1) isolated with a bound on the cosine's derivative
     (`_cone_crossings`), ascending in out; returns their count (<= MAX_CUTS)."""
     if not is_spot(cos_start):
         return 0
@@ -197,7 +198,7 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
                 break
         prev = c1
     for level in (cos_end, cos_start):
-        if not eta > 1.0:  # no speed bound (fermat_speed)
+        if eta == 1.0:  # no speed bound (fermat_speed)
             break
         m = _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m)
         if cos_start == cos_end:
@@ -225,11 +226,11 @@ def _bisect_cosine(lo, hi, s_lo, z0, wl, ll, a, hl, eta, wa, la, na, level):
 def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
     """`refracted_cuts`' crossings of one level that out[:m] lacks, appended (up to MAX_CUTS); returns
     the new count. c(x) - level with the refraction point by Newton's method (media/fermat_rounding.py
-    `refraction_newton`), whose derivative is at most K_R / o_min (K_R `fermat_speed`, the refraction
+    `refraction_newton`), whose derivative is at most K_R / o_min (K_R `_speed`, the refraction
     point's speed; the leaving direction's turn is at most |R'| / o, o >= sqrt(s^2 + hl^2) with
-    s >= rho hl / (hl + z): tan t1 >= tan t2): an interval [lo, hi] with |c(lo) - level| +
-    |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share a sign and
-    exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
+    s >= rho hl / (hl + z) for eta > 1: tan t1 >= tan t2; s >= 0 for eta < 1): an interval [lo, hi] with
+    |c(lo) - level| + |c(hi) - level| > K (hi - lo) + 2e-13 holds no crossing, nor one whose ends' values share
+    a sign and exceed `cone_bend`'s M (hi - lo)^2 / 8 + 2e-13 (`_off_band`; M from `fermat_bend`, the refraction
     point's acceleration, and K_R); the others are halved down to 1e-13 of the segment's scale (at most
     MAX_ISOLATE evaluations). Where `refracted_cosine` - level changes sign there, or is 0 at one end only
     (`_isolate` counts a 0 as a change: at a crossing whose slope is below an ulp of the cosine over that
@@ -248,9 +249,13 @@ def _cone_crossings(z0, wl, ll, a, hl, eta, wa, la, na, level, end, out, m):
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
         rmin, rmax = rho_range(lo, hi, wl, ll, a)
         zlo, zhi = min(z0 + a * lo, z0 + a * hi), max(z0 + a * lo, z0 + a * hi)
-        smin = rmin * hl / (hl + zhi)
+        smin = rmin * hl / (hl + zhi) if eta > 1.0 else 0.0
         o_min = math.sqrt(smin * smin + hl * hl)
-        k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / o_min
+        if eta > 1.0:
+            k = fermat_speed(rmin, rmax, max(zlo, 0.0), a, eta) / o_min
+        else:
+            k = fermat_pace(hi - lo, rmin, rmax, max(zlo, 0.0), max(zhi, 0.0), a, hl, eta) / (hi - lo) * (
+                1.0 + 1e-12) / o_min
         if abs(vlo) + abs(vhi) > k * (hi - lo) + 2e-13:
             continue
         if min(vlo, vhi) > 2e-13 or max(vlo, vhi) < -2e-13:
@@ -481,8 +486,9 @@ def edge_breaks(row, planes, eta, end, out):
     at most MAX_ISOLATE evaluations: none missed, no grid) and bisected to the resolution of doubles. The
     isolation reads phi with the refraction point by Newton's method (`_edge_newton`, far cheaper than the
     bisection of `fermat`; within 1e-15 S of phi: its test takes 2e-14 S more), the sign changes and their
-    bisection phi itself; one sign change between the segment's ends is bisected from them (for eta <= 1,
-    which has no such bound, only that one). Into out, returns their count (at most out's length)."""
+    bisection phi itself; one sign change between the segment's ends is bisected from them (for eta = 1,
+    which has no such bound, only that one; for eta < 1 K bounds the mean speed over each interval,
+    `_speed`). Into out, returns their count (at most out's length)."""
     f = int(row[17])
     m = 0
     scale = math.sqrt(row[8] ** 2 + row[9] ** 2 + row[10] ** 2) + end + math.sqrt(row[4])
@@ -491,7 +497,7 @@ def edge_breaks(row, planes, eta, end, out):
             continue
         size = scale + abs(planes[g, 3])
         ends = _edge_value(0.0, row, planes, g, eta) * _edge_value(end, row, planes, g, eta) < 0.0
-        if eta > 1.0:
+        if eta != 1.0:
             found = _sign_changes(row, planes, g, eta, end, 2e-14 * size, 1e-14 * size, 1e-13 * size, out, m)
         else:  # no speed bound (fermat_speed): the crossing between the ends only
             found = m + 1 if ends else m
@@ -613,6 +619,16 @@ def _edge_newton(x, row, planes, g, eta):
 
 
 @njit
+def _speed(lo, hi, z0, a, wl, ll, hl, eta):
+    """K_R over [lo, hi] of a face row's segment: `fermat_speed` for eta > 1; for eta < 1 `fermat_pace`'s
+    displacement over hi - lo (a bound on the mean speed, which is what the isolation's tests need)."""
+    if eta < 1.0:
+        return fermat_pace(hi - lo, _rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(z0 + a * lo, 0.0),
+                           max(z0 + a * hi, 0.0), a, hl, eta) / (hi - lo) * (1.0 + 1e-12)
+    return fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
+
+
+@njit
 def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
     """`edge_breaks`' isolation of plane g's sign changes, appended to out from m; returns the new count.
     newton: a bound on `_edge_newton`'s difference from `_edge_value` (a smallest interval whose Newton
@@ -636,7 +652,7 @@ def _sign_changes(row, planes, g, eta, end, tol, newton, width, out, m):
     while top > 0 and m < out.shape[0]:
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-        k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
+        k = _speed(lo, hi, z0, a, wl, ll, row[2], eta)
         if abs(vlo) + abs(vhi) > k * tilt * (hi - lo) + 2.0 * (tol + newton):
             continue
         margin = 2.0 * (tol + newton) + EDGE_TOL * SQ3 * (1.0 + 1e-12) * k * (hi - lo)
@@ -2177,3 +2193,66 @@ def _surface_faces(q, toward_light, planes, light, axis, cone, eta, beyond, valu
             value[i, f] = 4.0 * math.pi * refracted_at(0.0, row[0], rho, r, row[3], row[1], row[2], eta, 0.0, 1.0,
                                                        ISOTROPIC, 0.0, 0.0, row[5], row[6], row[7], cone[0], cone[1],
                                                        cone[2])
+
+
+@njit
+def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim0, seed, out, var, err, stats):
+    """The outside medium's single scattering (N, C) over segments outside a convex refractive shape ({q :
+    n_f·q <= c_f}, `planes`) from a unit point or spot light inside it (geo rows of GEO_COLUMNS, no entry
+    normal; kt, ks: the outside's, kt_out the inside's, one each per channel; eta = 1 / the shape's ior):
+    `surface_out_of_faces`' path along each segment, each face f over the part [lo, hi] of [0, ell] beyond its
+    plane (n_f·q > c_f), its row from the segment's point at lo (`refracting_faces` with the normals toward the
+    light, the face test against `planes`), times exp(-kt lo). QUAD: `faces_quadrature` per face (its breaks:
+    the refraction point's edge crossings and a spot's cone crossings, isolated with `_speed`'s eta < 1 bound;
+    its bound inf: media/fermat_rounding.py's rounding bounds are for eta > 1); MARCH, SAMPLE: `march_or_sample`
+    per face and channel at dimensions dim0 + f STREAM, their variances summed (independent streams)."""
+    nf, nc = planes.shape[0], kt.shape[0]
+    toward = -planes
+    rows = np.empty((max(nf, 1), FACE_COLUMNS))
+    start = np.empty(GEO_COLUMNS)
+    value, bound = np.empty(nc), np.empty(nc)
+    no = (0.0, 0.0, 0.0, 0.0)
+    for s in range(geo.shape[0]):
+        out[s, :], var[s, :], err[s, :] = 0.0, 0.0, 0.0
+        for f in range(nf):
+            depth = planes[f, 0] * geo[s, 0] + planes[f, 1] * geo[s, 1] + planes[f, 2] * geo[s, 2] - planes[f, 3]
+            rate = planes[f, 0] * geo[s, 3] + planes[f, 1] * geo[s, 4] + planes[f, 2] * geo[s, 5]
+            lo, hi = 0.0, ell[s]
+            if rate > 0.0:
+                lo = max(lo, -depth / rate)
+            elif rate < 0.0:
+                hi = min(hi, depth / -rate)
+            elif not depth > 0.0:
+                continue
+            if not hi > lo:
+                continue
+            for c in range(GEO_COLUMNS):
+                start[c] = geo[s, c]
+            for c in range(3):
+                start[c] = geo[s, c] + lo * geo[s, 3 + c]
+            m = only_face(rows, refracting_faces(start, toward, 0.0, 0.0, 0.0, 0.0, NO_SPOT, rows), f)
+            if m == 0:
+                continue
+            row = rows[:1]
+            spot = (start[12], start[13], start[17])
+            if rule.kind == QUAD:
+                for c in range(nc):
+                    if ks[c] == 0.0:
+                        continue
+                    faces_quadrature(row, planes, hi - lo, min(hi - lo, 745.0 / kt[c]), kt[c:c + 1], ks[c:c + 1], code,
+                                     g, kt_out[c:c + 1], eta, spot, rule.rtol, np.zeros(2), no, -1, stats,
+                                     value[:1], bound[:1])
+                    out[s, c] += value[0] * math.exp(-kt[c] * lo)
+                    err[s, c] = math.inf
+                continue
+            for c in range(nc):
+                if ks[c] == 0.0:
+                    continue
+                rec = FacesPoint(row, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot, 0.0, 0.0, 0.0, no, -1,
+                                 np.zeros(0))
+                v, vv = march_or_sample(rec, rule, cut_length(rule, hi - lo, kt[c]), kt[c], keys[s],
+                                        dim0 + np.uint64(f) * np.uint64(STREAM), seed)
+                t = math.exp(-kt[c] * lo)
+                out[s, c] += v * t
+                var[s, c] += vv * t * t
+                err[s, c] = math.inf

@@ -284,6 +284,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         bound[into] = crossing.scaled(into_bound, tr[into])
     if len(prep.lights) and prep.memo("scatters", lambda: medium.scatters):
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
+        held = None
+        if crossing.held_lights(prep):  # lights inside refractive shapes: their light refracted out
+            segs, *held = crossing.held_airlight(prep, method, params, segs, len(origins), depth, shadows)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
             segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
@@ -328,6 +331,10 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                 if method.stochastic:
                     var = var + through_var
                 bound[error_bounds.rays_with(through.ray, len(origins))] = np.inf
+        if held is not None:
+            air = air + held[0]
+            var = var + held[1] if method.stochastic else var
+            bound += held[2]
         radiance += air
         if method.stochastic:
             variance = variance + var
