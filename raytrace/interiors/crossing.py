@@ -129,9 +129,9 @@ def attenuators(prep) -> np.ndarray | None:
     return np.isin(prep.shape_ids, inner)
 
 
-def check(prep, method, method_params, source: str):
+def check(prep, method, method_params, source: str, shadows: bool):
     """Refuse, in one line, what this first cut, or the method (its `Supports.interiors`), does not
-    render in a scene with interior media."""
+    render in a scene with interior media (`shadows`: volumetric shadows on)."""
     inner = [i for i, m in enumerate(interiors(prep.scene)) if m is not None]
     if not inner:
         return
@@ -192,7 +192,7 @@ def check(prep, method, method_params, source: str):
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
                             "medium; an emitter inside a bounded medium is not implemented; move the light out of "
                             "the shape")
-        why = _not_held(prep, inside) if inside is not None else None
+        why = _not_held(prep, inside, li, shadows) if inside is not None else None
         if why:
             raise UserError(f"{source}: light[{prep.lights.owner[li]}].position: inside shape[{inside}], which holds a "
                             f"medium of ior {prep.scene.shapes[inside].interior.ior:g}; a point or spot light inside "
@@ -203,8 +203,8 @@ def check(prep, method, method_params, source: str):
                             f"ray enters by; use --method {', '.join(_takers(lambda s: s.exact_paths))}")
 
 
-def _not_held(prep, sid) -> str | None:
-    """Why a point or spot light inside the interior of shape sid is refused, None where it is taken:
+def _not_held(prep, sid, li, shadows) -> str | None:
+    """Why light li inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
     scattering outside medium (`held_airlight`) a point light in a convex mesh, and with volumetric shadows no other
@@ -214,9 +214,17 @@ def _not_held(prep, sid) -> str | None:
     sphere = paths.exact_sphere(prep, sid) is not None
     if not sphere and not len(convex_planes(prep, sid)):
         return f"needs a convex shape of at most {KERNEL_PLANES} faces or an exact sphere"
-    if sphere and prep.scene.medium.scatters:
-        return ("in an exact sphere lights the outside medium through its surface, which is not implemented yet; use "
-                "a convex mesh, or a [medium] that does not scatter")
+    if prep.scene.medium.scatters:  # lights the fog outside (`held_airlight`)
+        if sphere:
+            return ("in an exact sphere lights the outside medium through its surface, which is not implemented yet; "
+                    "use a convex mesh, or a [medium] that does not scatter")
+        if is_spot(prep.lights.cone[li, 1]):
+            return ("as a spot lights the scattering [medium] outside through its faces, which is not implemented "
+                    "yet; use a point light, or a [medium] that does not scatter")
+        if shadows and len(np.unique(prep.shape_ids)) > 1:
+            return ("lights the scattering [medium] outside, where the other shapes' volumetric shadows on its "
+                    "refracted light are not implemented yet; use --no-volumetric-shadows, or a [medium] that does "
+                    "not scatter")
     if prep.camera_inside == sid:
         return "is not implemented with the camera inside the same shape yet"
     media = [int(j) for j in prep.interior_shapes if j != sid]
@@ -229,27 +237,18 @@ def _not_held(prep, sid) -> str | None:
     return None
 
 
-def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int, shadows: bool):
+def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int):
     """The outside medium's air-light (N, 3) of the segments `segs` (whole camera rays) whose light lies inside a
     convex refractive shape (`held_lights`), its variance (N, 3; 0 but for a stochastic rule) and bound (N, 3; inf
     where lit), and the other segments: the light refracted out through every face (media/slab.py `out_of_faces`,
-    relative index 1 / ior), integrated by the method's inside rule. Refused, in one line: a spot light (its cone
-    crossings are isolated as a point light's edges, but not yet verified), and volumetric shadows with another
-    shape in the scene (its shadows on the light's outside legs are not located yet)."""
+    relative index 1 / ior), integrated by the method's inside rule (`check` refuses a spot light and volumetric
+    shadows with another shape in the scene)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
     medium, lights, sup = prep.scene.medium, prep.lights, method.supports.interiors
     rule = sup.rule(params)
     for li, sid in held.items():
-        owner = f"light[{lights.owner[li]}]"
-        if is_spot(lights.cone[li, 1]):
-            raise UserError(f"{owner}: a spot light inside a refractive shape lighting a scattering [medium] through "
-                            "its faces is not implemented yet; use a point light, or a [medium] that does not scatter")
-        if shadows and len(np.unique(prep.shape_ids)) > 1:
-            raise UserError(f"{owner}: inside shape[{sid}] with volumetric shadows: the other shapes' shadows on its "
-                            "light refracted out into the scattering [medium] are not implemented yet; use "
-                            "--no-volumetric-shadows, or a [medium] that does not scatter")
         sel = np.nonzero((segs.light == li) & (prep.lights_on is None or prep.lights_on[li]))[0]
         ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]
         if not len(sel) or not len(ch):

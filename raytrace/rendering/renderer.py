@@ -286,7 +286,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         held = None
         if crossing.held_lights(prep):  # lights inside refractive shapes: their light refracted out
-            segs, *held = crossing.held_airlight(prep, method, params, segs, len(origins), depth, shadows)
+            segs, *held = crossing.held_airlight(prep, method, params, segs, len(origins), depth)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
             segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
@@ -719,7 +719,7 @@ def check(prep: Prepared, method_name: str, given_params: dict, options: RenderO
     method.check(prep.scene.medium, params)
     method.check_lights(crossing.outside_lights(prep), source)
     check_options(method, params, options.volumetric_shadows, source, prep.lights, prep.scene.medium)
-    crossing.check(prep, method, params, source)
+    crossing.check(prep, method, params, source, options.shadows)
     return params
 
 
