@@ -32,7 +32,7 @@ import threading
 from pathlib import Path
 
 import numba
-from numba.core import caching, compiler, dispatcher, sigutils, targetconfig
+from numba.core import caching, compiler, dispatcher, errors, sigutils, targetconfig, types
 from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
@@ -166,6 +166,19 @@ class Kernel(CPUDispatcher):
             super().add_overload(cres)
         else:
             self.overloads[tuple(cres.signature.args)] = cres
+
+    def get_call_template(self, args, kws):
+        """A call from compiled code, typed for its arguments' non-literal types: numba types a constant
+        argument as a literal (`Literal[int](0)`), also while a variable's type is not yet settled (`m = 0`
+        then `m += 1`: int64 in the end), and compiles a specialisation per literal, used or not. A
+        function that needs the constant (`numba.literally`, a tuple indexed by it) gets the literal."""
+        plain, plain_kws = tuple(types.unliteral(a) for a in args), {k: types.unliteral(v) for k, v in kws.items()}
+        if self._can_compile and (plain != tuple(args) or plain_kws != kws):
+            try:
+                return super().get_call_template(plain, plain_kws)
+            except errors.NumbaError:
+                pass
+        return super().get_call_template(args, kws)
 
     def compile(self, sig):
         depth = getattr(_nesting, "depth", 0)
