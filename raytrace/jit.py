@@ -20,11 +20,11 @@ arguments, compiled once per argument type rather than once per constant. ``OPTI
 flags without its cache, for the overloads that compile a registered kernel's own code into its
 callers (media/integrand.py's record dispatch).
 
-Two cuts of numba's own cost per compilation, neither changing a kernel's code: ``njit`` and
-``exact_njit`` give a `Kernel`, numba's dispatcher less the Python wrapper of the functions that only
-compiled code calls; and `TargetConfig.values` builds its dict without a property call per option
-(numba hashes and compares the compile flags at every overload it tries while typing a call). Both
-rely on numba's internals (0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
+Cuts of numba's own cost per compilation: ``njit`` and ``exact_njit`` give a `Kernel`, numba's
+dispatcher less the Python wrapper of the functions that only compiled code calls, which compiles a
+function called from compiled code once per argument type, not once per constant; and
+`TargetConfig.values` builds its dict without a property call per option (numba hashes and compares
+the compile flags at every overload it tries while typing a call). They rely on numba's internals (0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
 """
 import functools
 import os
