@@ -24,7 +24,8 @@ Cuts of numba's own cost per compilation: ``njit`` and ``exact_njit`` give a `Ke
 dispatcher less the Python wrapper of the functions that only compiled code calls, which compiles a
 function called from compiled code once per argument type, not once per constant; and
 `TargetConfig.values` builds its dict without a property call per option (numba hashes and compares
-the compile flags at every overload it tries while typing a call). They rely on numba's internals (0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
+the compile flags at every overload it tries while typing a call). They rely on numba's internals
+(0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
 """
 import functools
 import os
