@@ -20,11 +20,12 @@ arguments, compiled once per argument type rather than once per constant. ``OPTI
 flags without its cache, for the overloads that compile a registered kernel's own code into its
 callers (media/integrand.py's record dispatch).
 
-Two cuts of numba's own cost per compilation, neither changing a kernel's code: ``njit`` and
-``exact_njit`` give a `Kernel`, numba's dispatcher less the Python wrapper of the functions that only
-compiled code calls; and `TargetConfig.values` builds its dict without a property call per option
-(numba hashes and compares the compile flags at every overload it tries while typing a call). Both
-rely on numba's internals (0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
+Cuts of numba's own cost per compilation: ``njit`` and ``exact_njit`` give a `Kernel`, numba's
+dispatcher less the Python wrapper of the functions that only compiled code calls, which compiles a
+function called from compiled code once per argument type, not once per constant; and
+`TargetConfig.values` builds its dict without a property call per option (numba hashes and compares
+the compile flags at every overload it tries while typing a call). They rely on numba's internals
+(0.68's); `CUTS` is False where those differ, and ``njit`` is numba's own.
 """
 import functools
 import os
@@ -32,7 +33,7 @@ import threading
 from pathlib import Path
 
 import numba
-from numba.core import caching, compiler, dispatcher, sigutils, targetconfig
+from numba.core import caching, compiler, dispatcher, errors, sigutils, targetconfig, types
 from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
@@ -166,6 +167,19 @@ class Kernel(CPUDispatcher):
             super().add_overload(cres)
         else:
             self.overloads[tuple(cres.signature.args)] = cres
+
+    def get_call_template(self, args, kws):
+        """A call from compiled code, typed for its arguments' non-literal types: numba types a constant
+        argument as a literal (`Literal[int](0)`), also while a variable's type is not yet settled (`m = 0`
+        then `m += 1`: int64 in the end), and compiles a specialisation per literal, used or not. A
+        function that needs the constant (`numba.literally`, a tuple indexed by it) gets the literal."""
+        plain, plain_kws = tuple(types.unliteral(a) for a in args), {k: types.unliteral(v) for k, v in kws.items()}
+        if self._can_compile and (plain != tuple(args) or plain_kws != kws):
+            try:
+                return super().get_call_template(plain, plain_kws)
+            except errors.NumbaError:
+                pass
+        return super().get_call_template(args, kws)
 
     def compile(self, sig):
         depth = getattr(_nesting, "depth", 0)
