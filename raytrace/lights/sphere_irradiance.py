@@ -37,10 +37,17 @@ a fixed distance from an interval that grows as log(sqrt(u*) / eta)), the rest i
 KAPPA sqrt(u*) what the singularity shapes weighs about (eta / sqrt(u*))^3 of the irradiance (measured
 2e-14 at 1e-5) and stays in w.
 
-The circles the horizon cuts have no such bound: their order climbs ORDERS until RUN consecutive pairs
-of orders (three successive orders) agree to SHARE x the tolerance relative to the finer in every
-channel, the finest of them kept; where none do, the finest of the ladder is kept and the point counted
-(as where no order of ORDERS meets the bound of the circles above the horizon).
+The circles the horizon cuts take the coarsest of ORDERS whose remainder bound is within half the
+tolerance of the value in every channel (`_bounded_cut`): on Bernstein ellipses of the rule's variable
+(w, or t in the split's first piece) the integrand's analytic continuation is bounded factor by factor
+(`_arc_bound`) on CUT_ARCS arcs of each ellipse that avoids its singularities (w = +-i eta, the axis;
+w^2 = 2 u* and u* + u0 on the real axis), so that where one holds the point's error is proven (the
+`bound` of `irradiance`). Where none does (the axis within about KAPPA sqrt(u*) of the piece's end: no
+ellipse clears it; or the bound needs more than the finest order), the order climbs ORDERS until RUN
+consecutive pairs of orders (three successive orders) agree to SHARE x the tolerance relative to the
+finer in every channel, the finest of them kept, and the bound is inf; where none do, the finest of the
+ladder is kept and the point counted (as where no order of ORDERS meets the bound of the circles above
+the horizon).
 """
 from __future__ import annotations
 
