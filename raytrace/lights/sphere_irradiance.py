@@ -37,17 +37,17 @@ a fixed distance from an interval that grows as log(sqrt(u*) / eta)), the rest i
 KAPPA sqrt(u*) what the singularity shapes weighs about (eta / sqrt(u*))^3 of the irradiance (measured
 2e-14 at 1e-5) and stays in w.
 
-The circles the horizon cuts take the coarsest of ORDERS whose remainder bound is within half the
-tolerance of the value in every channel (`_bounded_cut`): on Bernstein ellipses of the rule's variable
-(w, or t in the split's first piece) the integrand's analytic continuation is bounded factor by factor
-(`_arc_bound`) on CUT_ARCS arcs of each ellipse that avoids its singularities (w = +-i eta, the axis;
-w^2 = 2 u* and u* + u0 on the real axis), so that where one holds the point's error is proven (the
-`bound` of `irradiance`). Where none does (the axis within about KAPPA sqrt(u*) of the piece's end: no
-ellipse clears it; or the bound needs more than the finest order), the order climbs ORDERS until RUN
-consecutive pairs of orders (three successive orders) agree to SHARE x the tolerance relative to the
-finer in every channel, the finest of them kept, and the bound is inf; where none do, the finest of the
-ladder is kept and the point counted (as where no order of ORDERS meets the bound of the circles above
-the horizon).
+Asked for a bound, the circles the horizon cuts take the coarsest of ORDERS whose remainder bound is
+within half the tolerance of the value in every channel (`_bounded_cut`): on Bernstein ellipses of the
+rule's variable (w, or t in the split's first piece) the integrand's analytic continuation is bounded
+factor by factor (`_arc_bound`) on CUT_ARCS arcs of each ellipse that avoids its singularities
+(w = +-i eta, the axis; w^2 = 2 u* and u* + u0 on the real axis), so that where one holds the point's
+error is proven (the `bound` of `irradiance`). Otherwise, or where none does (the axis within about
+KAPPA sqrt(u*) of the piece's end: no ellipse clears it; or the bound needs more than the finest
+order), the order climbs ORDERS until RUN consecutive pairs of orders (three successive orders) agree
+to SHARE x the tolerance relative to the finer in every channel, the finest of them kept, and the bound
+is inf; where none do, the finest of the ladder is kept and the point counted (as where no order of
+ORDERS meets the bound of the circles above the horizon).
 """
 from __future__ import annotations
 
@@ -87,13 +87,15 @@ def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=No
     or inside the sphere get 0 (not lit from outside). `missed` (1,), if given: += the points where no
     three successive orders of ORDERS agreed or none met the bound (the finest kept; module docstring).
     `bound` (M, 3), if given: a proven bound of each value's error (the rule's; rounding aside), inf
-    where the circles the horizon cuts stopped on agreement."""
+    where the circles the horizon cuts stopped on agreement; only then do those circles take the order
+    of their bound (`_bounded_cut`; without it their agreement, which costs a few times less)."""
     out = np.zeros((len(points), 3))
     missed = np.zeros(1) if missed is None else missed
     errors = np.zeros((len(points), 3))
     _irradiance(np.asarray(centre, float), float(radius), np.ascontiguousarray(points, float),
                 np.ascontiguousarray(normals, float), np.ascontiguousarray(sigma_t, float),
-                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out, missed, errors)
+                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out, missed, errors,
+                bound is not None)
     if bound is not None:
         bound[...] = errors * np.abs(np.asarray(radiance, float))[None, :]
     return out * np.asarray(radiance, float)[None, :]
@@ -109,9 +111,10 @@ def cap_cosine(centre, radius: float, points, normals):
 
 
 @njit
-def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out, missed, errors):
-    """`irradiance` / L into out (M, 3) and its error bounds into errors (M, 3); missed[0] += the points where
-    no RUN consecutive pairs of orders agreed or no order met the bound (`_above`)."""
+def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out, missed, errors, prove):
+    """`irradiance` / L into out (M, 3) and its error bounds into errors (M, 3), the circles the horizon cuts
+    by their bound where `prove` and it holds; missed[0] += the points where no RUN consecutive pairs of
+    orders agreed or no order met the bound (`_above`)."""
     prev, exact = np.empty(3), np.empty(3)
     base, damp = np.empty((2, CUT_RHOS)), np.empty((2, CUT_RHOS))
     for i in range(points.shape[0]):
@@ -130,8 +133,8 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
                 bounded = bounded and errors[i, c] < math.inf
             out[i, c] = exact[c]
         geometry = (cos_t, sin_t, cos_a, root_k, ustar, u0, eta)
-        if ustar > 0.0 and not _bounded_cut(out[i], errors[i], exact, nodes, weights, offsets, tol, kt, geometry,
-                                            base, damp):
+        if ustar > 0.0 and not (prove and _bounded_cut(out[i], errors[i], exact, nodes, weights, offsets, tol, kt,
+                                                       geometry, base, damp)):
             for c in range(3):
                 errors[i, c] = math.inf
             if not _ladder(out[i], prev, exact, nodes, weights, offsets, tol, kt, geometry):
