@@ -37,10 +37,17 @@ a fixed distance from an interval that grows as log(sqrt(u*) / eta)), the rest i
 KAPPA sqrt(u*) what the singularity shapes weighs about (eta / sqrt(u*))^3 of the irradiance (measured
 2e-14 at 1e-5) and stays in w.
 
-The circles the horizon cuts have no such bound: their order climbs ORDERS until RUN consecutive pairs
-of orders (three successive orders) agree to SHARE x the tolerance relative to the finer in every
-channel, the finest of them kept; where none do, the finest of the ladder is kept and the point counted
-(as where no order of ORDERS meets the bound of the circles above the horizon).
+Asked for a bound, the circles the horizon cuts take the coarsest of ORDERS whose remainder bound is
+within half the tolerance of the value in every channel (`_bounded_cut`): on Bernstein ellipses of the
+rule's variable (w, or t in the split's first piece) the integrand's analytic continuation is bounded
+factor by factor (`_arc_bound`) on CUT_ARCS arcs of each ellipse that avoids its singularities
+(w = +-i eta, the axis; w^2 = 2 u* and u* + u0 on the real axis), so that where one holds the point's
+error is proven (the `bound` of `irradiance`). Otherwise, or where none does (the axis within about
+KAPPA sqrt(u*) of the piece's end: no ellipse clears it; or the bound needs more than the finest
+order), the order climbs ORDERS until RUN consecutive pairs of orders (three successive orders) agree
+to SHARE x the tolerance relative to the finer in every channel, the finest of them kept, and the bound
+is inf; where none do, the finest of the ladder is kept and the point counted (as where no order of
+ORDERS meets the bound of the circles above the horizon).
 """
 from __future__ import annotations
 
@@ -60,6 +67,7 @@ SPLIT = 0.25  # where [0, sqrt(u*)] splits, and the eta / sqrt(u*) below which i
 RUN = 2  # the consecutive pairs of orders that must agree (two orders agreeing is not a bound)
 FLOOR = 1e-300  # agreement below this absolute irradiance / L counts as exact (a cap that vanishes)
 RHO, RHOS = 2.0 ** 0.5, 40  # the Bernstein ellipses tried for the remainder bound (`_needed`): rho = RHO^j
+CUT_RHO, CUT_RHOS, CUT_ARCS = 2.0 ** 0.25, 24, 8  # the same for the circles the horizon cuts (`_cut_ellipses`)
 
 
 def _tables():
@@ -72,17 +80,24 @@ def _tables():
 NODES, WEIGHTS, OFFSETS = _tables()
 
 
-def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=None, missed=None):
+def irradiance(centre, radius: float, radiance, points, normals, sigma_t, tol=None, missed=None, bound=None):
     """(M, 3) the unshadowed irradiance L int max(0, n·w) T dw of the sphere (`centre`, `radius`,
     radiance L (3,)) at points outside it with unit normals n, through a homogeneous medium of
     extinction `sigma_t` (3,) (0: the vacuum), to the relative tolerance `tol` (None: TOL). Points on
     or inside the sphere get 0 (not lit from outside). `missed` (1,), if given: += the points where no
-    three successive orders of ORDERS agreed or none met the bound (the finest kept; module docstring)."""
+    three successive orders of ORDERS agreed or none met the bound (the finest kept; module docstring).
+    `bound` (M, 3), if given: a proven bound of each value's error (the rule's; rounding aside), inf
+    where the circles the horizon cuts stopped on agreement; only then do those circles take the order
+    of their bound (`_bounded_cut`; without it their agreement, which costs a few times less)."""
     out = np.zeros((len(points), 3))
     missed = np.zeros(1) if missed is None else missed
+    errors = np.zeros((len(points), 3))
     _irradiance(np.asarray(centre, float), float(radius), np.ascontiguousarray(points, float),
                 np.ascontiguousarray(normals, float), np.ascontiguousarray(sigma_t, float),
-                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out, missed)
+                SHARE * (TOL if tol is None else float(tol)), NODES, WEIGHTS, OFFSETS, out, missed, errors,
+                bound is not None)
+    if bound is not None:
+        bound[...] = errors * np.abs(np.asarray(radiance, float))[None, :]
     return out * np.asarray(radiance, float)[None, :]
 
 
@@ -96,10 +111,12 @@ def cap_cosine(centre, radius: float, points, normals):
 
 
 @njit
-def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out, missed):
-    """`irradiance` / L into out (M, 3); missed[0] += the points where no RUN consecutive pairs of orders
-    agreed or no order met the bound (`_above`)."""
+def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, out, missed, errors, prove):
+    """`irradiance` / L into out (M, 3) and its error bounds into errors (M, 3), the circles the horizon cuts
+    by their bound where `prove` and it holds; missed[0] += the points where no RUN consecutive pairs of
+    orders agreed or no order met the bound (`_above`)."""
     prev, exact = np.empty(3), np.empty(3)
+    base, damp = np.empty((2, CUT_RHOS)), np.empty((2, CUT_RHOS))
     for i in range(points.shape[0]):
         cos_t, sin_t, sin_a, cos_a, root_k, u0, ustar, eta = _geometry(centre, R, points[i], normals[i])
         if not cos_t > -sin_a:  # on or inside the sphere, or the cap wholly below the horizon
@@ -108,18 +125,74 @@ def _irradiance(centre, R, points, normals, kt, tol, nodes, weights, offsets, ou
         vacuum = math.pi * cos_t * (cos_t * cos_t if ustar > 0.0 else sin_a * sin_a) if whole else 0.0
         bounded = True
         for c in range(3):
-            exact[c] = vacuum
+            exact[c], errors[i, c] = vacuum, 0.0
             if c > 0 and kt[c] == kt[c - 1]:  # a grey medium: the channel before's
-                exact[c] = exact[c - 1]
+                exact[c], errors[i, c] = exact[c - 1], errors[i, c - 1]
             elif kt[c] != 0.0 and whole:
-                exact[c], ok = _above(kt[c], cos_t, cos_a, root_k, ustar, u0, tol, nodes, weights, offsets)
-                bounded = bounded and ok
+                exact[c], errors[i, c] = _above(kt[c], cos_t, cos_a, root_k, ustar, u0, tol, nodes, weights, offsets)
+                bounded = bounded and errors[i, c] < math.inf
             out[i, c] = exact[c]
         geometry = (cos_t, sin_t, cos_a, root_k, ustar, u0, eta)
-        if ustar > 0.0 and not _ladder(out[i], prev, exact, nodes, weights, offsets, tol, kt, geometry):
-            bounded = False
+        if ustar > 0.0 and not (prove and _bounded_cut(out[i], errors[i], exact, nodes, weights, offsets, tol, kt,
+                                                       geometry, base, damp)):
+            for c in range(3):
+                errors[i, c] = math.inf
+            if not _ladder(out[i], prev, exact, nodes, weights, offsets, tol, kt, geometry):
+                bounded = False
         if not bounded:
             missed[0] += 1.0
+
+
+@njit
+def _bounded_cut(acc, errors, exact, nodes, weights, offsets, tol, kt, geometry, base, damp):
+    """acc (3,) = `exact` (3,) + the circles the horizon cuts (`_add_cut_pieces`) by the coarsest order of
+    ORDERS whose remainder bound (`_cut_ellipses`, summed over the pieces) is within half tol of the
+    value in every channel, errors (3,) += that bound (True); False where none is (acc then undefined).
+    The order tried first is the coarsest whose bound is within tol / 4 of the 4-node value; then up the
+    ladder from there until one's bound holds of its own value."""
+    cos_t, sin_t, cos_a, root_k, ustar, u0, eta = geometry
+    top = math.sqrt(ustar)
+    split = KAPPA * top < eta < SPLIT * top
+    counts = (_cut_ellipses(cos_t, sin_t, cos_a, ustar, u0, eta, 0.0, SPLIT * top if split else top, split,
+                            base[0], damp[0]),
+              _cut_ellipses(cos_t, sin_t, cos_a, ustar, u0, eta, SPLIT * top, top, False, base[1], damp[1])
+              if split else 0)
+    if counts[0] == 0 or (split and counts[1] == 0):
+        return False
+    k = 0
+    while k < len(offsets) - 1:
+        lo, hi = offsets[k], offsets[k + 1]
+        for c in range(3):
+            acc[c] = exact[c]
+        _add_cut_pieces(acc, nodes[lo:hi], weights[lo:hi], kt, *geometry)
+        if _within(base, damp, counts, split, kt, root_k, hi - lo, 0.5 * tol * acc):
+            for c in range(3):
+                errors[c] += _summed(base, damp, counts, split, kt[c] * root_k, hi - lo)
+            return True
+        if k == 0:  # on to the coarsest order whose bound is within tol / 4 of this value
+            k += 1
+            while k < len(offsets) - 2 and not _within(base, damp, counts, split, kt, root_k,
+                                                         offsets[k + 1] - offsets[k], 0.25 * tol * acc):
+                k += 1
+        else:
+            k += 1
+    return False
+
+
+@njit
+def _summed(base, damp, counts, split, kappa, n):
+    """The remainder bound of n nodes a piece summed over the pieces (`_cut_ellipses`' tables)."""
+    return _cut_bound(base[0], damp[0], counts[0], kappa, n) + \
+        (_cut_bound(base[1], damp[1], counts[1], kappa, n) if split else 0.0)
+
+
+@njit
+def _within(base, damp, counts, split, kt, root_k, n, limit):
+    """Whether the summed remainder bound of n nodes a piece is within limit (3,) in every channel."""
+    for c in range(3):
+        if not _summed(base, damp, counts, split, kt[c] * root_k, n) <= limit[c]:
+            return False
+    return True
 
 
 @njit
@@ -190,9 +263,10 @@ def _add_cut_pieces(acc, x, wx, kt, cos_t, sin_t, cos_a, root_k, ustar, u0, eta)
 @njit
 def _above(kt, cos_t, cos_a, root_k, ustar, u0, tol, nodes, weights, offsets):
     """(the circles wholly above the horizon, [u*, u0], through extinction kt > 0: 2 pi cos theta cos^2
-    alpha int cosh u sinh u exp(-kt sqrt(d^2 - R^2) e^-u) du, whether within tol of it) by the coarsest
-    of ORDERS with at least the nodes `_needed` for a remainder of tol x a lower bound of the integral
-    (`_above_rule`'s, of the coarsest); the finest of ORDERS where none has."""
+    alpha int cosh u sinh u exp(-kt sqrt(d^2 - R^2) e^-u) du, a bound of its error: tol x a lower bound of
+    the integral, inf where no order has it) by the coarsest of ORDERS with at least the nodes `_needed`
+    for a remainder of tol x that lower bound (`_above_rule`'s, of the coarsest); the finest of ORDERS
+    where none has."""
     scale = 2.0 * math.pi * cos_t * cos_a * cos_a
     span = u0 - ustar
     first, least = _above_rule(kt, root_k, ustar, span, nodes[offsets[0]:offsets[1]], weights[offsets[0]:offsets[1]])
@@ -201,8 +275,8 @@ def _above(kt, cos_t, cos_a, root_k, ustar, u0, tol, nodes, weights, offsets):
         lo, hi = offsets[k], offsets[k + 1]
         if hi - lo >= need or k == len(offsets) - 2:
             value = first if k == 0 else _above_rule(kt, root_k, ustar, span, nodes[lo:hi], weights[lo:hi])[0]
-            return scale * value, hi - lo >= need
-    return 0.0, False
+            return scale * value, scale * tol * least if hi - lo >= need else math.inf
+    return 0.0, math.inf
 
 
 @njit
@@ -241,6 +315,86 @@ def _needed(kt, root_k, ustar, u0, target):
         log_b = math.log(h * 64.0 / 15.0) + log_m - math.log(rho * rho - 1.0)  # the bound is exp(log_b) rho^(2 - 2n)
         best = min(best, 1.0 + max(log_b - target, 0.0) / (2.0 * j * math.log(RHO)))
     return best
+
+
+@njit
+def _cut_ellipses(cos_t, sin_t, cos_a, ustar, u0, eta, lo, hi, sinh_t, base, damp):
+    """The remainder bounds of the rule for the circles the horizon cuts on [lo, hi] in w or (sinh_t) in t,
+    w = eta sinh t (`_add_cut`), on the Bernstein ellipses rho = CUT_RHO^(j + 1) of that variable v
+    (v = m + h z): |I - I_n| <= exp(base[j] - kt root_k damp[j]) rho^(2 - 2n) (Trefethen, Theorem 19.3, as
+    `_needed`) for j below the count returned (the ellipses that avoid the singularities). The bound of
+    the integrand on an ellipse is the largest of `_arc_bound`'s over CUT_ARCS arcs of its upper half (the
+    integrand is real on the real axis: |G| is symmetric)."""
+    v0, v1 = (math.asinh(lo / eta), math.asinh(hi / eta)) if sinh_t else (lo, hi)
+    m, h = 0.5 * (v0 + v1), 0.5 * (v1 - v0)
+    for j in range(CUT_RHOS):
+        rho = CUT_RHO ** (j + 1)
+        p, q = 0.5 * (rho + 1.0 / rho), 0.5 * (rho - 1.0 / rho)
+        log_m, damp[j] = -math.inf, math.inf
+        for k in range(CUT_ARCS):
+            f0, f1 = math.pi * k / CUT_ARCS, math.pi * (k + 1) / CUT_ARCS
+            y = q * (1.0 if f0 <= 0.5 * math.pi <= f1 else max(math.sin(f0), math.sin(f1)))
+            x0, x1 = m + h * p * math.cos(f1), m + h * p * math.cos(f0)
+            a_lo, a_hi = (0.0 if x0 <= 0.0 <= x1 else min(abs(x0), abs(x1))), max(abs(x0), abs(x1))
+            arc, arc_damp = _arc_bound(cos_t, sin_t, cos_a, ustar, u0, eta, sinh_t, a_lo, a_hi, h * y)
+            if arc == math.inf:
+                return j
+            log_m, damp[j] = max(log_m, arc), min(damp[j], arc_damp)
+        base[j] = math.log(h * 64.0 / 15.0 / (rho * rho - 1.0)) + log_m
+    return CUT_RHOS
+
+
+@njit
+def _arc_bound(cos_t, sin_t, cos_a, ustar, u0, eta, sinh_t, a_lo, a_hi, b):
+    """(log M, D): |G| <= M exp(-kt root_k D) for v = a + i b', a_lo <= |a| <= a_hi, 0 <= b' <= b, and on
+    the segments from those points down to the real axis (log M inf where that rectangle may hold a
+    singularity). G = Phi cos alpha sinh u 2 w exp(-kt root_k e^-u) dw/dv; with s = w^2 (u = u* - s)
+    bounded by Re s in [s_lo, s_hi], |Im s| <= s_im, factor by factor: |sinh u|, |cosh u| <= cosh Re u;
+    |A| <= |cos theta| C, |R| <= sin theta + C (C = cos alpha max cosh Re u); |exp(-kt root_k e^-u)| <=
+    exp(-kt root_k e^-Re u cos Im u) (|Im u| <= pi / 2); Phi = 2 (A psi + R) with |psi| <= 2 pi + b max
+    |dpsi/dv| (on the real axis psi is in [0, pi] for w > 0 and, R being odd in w, in [-pi, 2 pi] for
+    w < 0), dpsi/dw = -2 cos theta cos alpha sinh u / ((1 - c^2) S), R = w S, c = cos beta = cos alpha
+    cosh u, from lower bounds of |sinh|, |cosh| (|sinh(x + iy)| >= sinh |x|, |cosh(x + iy)| >= max(sinh
+    |x|, cos y)) in 1 - c = 2 cos alpha sinh((u0 + u) / 2) sinh((eta^2 + s) / 2), |1 + c| >= 1 (Re c >= 0),
+    S^2 = cos alpha sinh(u* - s / 2) (sinh(s / 2) / (s / 2)) (sin theta + c), sin theta + c = 2 cos alpha
+    cosh(u* - s / 2) cosh(s / 2), |sinh z / z| >= 2 - sinh |z| / |z|. The rectangle must keep |Im s| <=
+    pi / 2, s_hi below 2 u* and u* + u0 (branch points of S and of 1 - c on the real axis), eta^2 + s_lo > 0
+    (the axis: w = +-i eta) and, in t (w = eta sinh t), b < pi / 4."""
+    e2 = eta * eta
+    if sinh_t:
+        if not b < 0.25 * math.pi:
+            return math.inf, 0.0
+        s_lo, s_hi = 0.5 * e2 * (math.cosh(2.0 * a_lo) * math.cos(2.0 * b) - 1.0), e2 * math.sinh(a_hi) ** 2
+        s_im, jac = 0.5 * e2 * math.sinh(2.0 * a_hi) * math.sin(2.0 * b), eta * math.cosh(a_hi)
+    else:
+        s_lo, s_hi, s_im, jac = a_lo * a_lo - b * b, a_hi * a_hi, 2.0 * a_hi * b, 1.0
+    if not (s_im <= 0.5 * math.pi and s_hi < 2.0 * ustar and s_hi < ustar + u0 and e2 + s_lo > 0.0):
+        return math.inf, 0.0
+    ch = math.cosh(max(abs(ustar - s_hi), abs(ustar - s_lo)))
+    big_c = cos_a * ch
+    s_abs = math.hypot(max(abs(s_lo), abs(s_hi)), s_im)
+    half, v, cb = ustar - 0.5 * s_hi, 0.5 * s_abs, math.cos(0.5 * s_im)
+    ratio = 1.0 if v < 1e-8 else 2.0 - math.sinh(v) / v  # |sinh(s / 2) / (s / 2)| from below
+    if s_lo > 0.0:
+        ratio = max(ratio, math.sinh(0.5 * s_lo) / v)
+    if not ratio > 0.0:
+        return math.inf, 0.0
+    sh = math.sinh(half)
+    s2 = cos_a * sh * ratio * 2.0 * cos_a * max(sh, cb) * cb  # |S|^2 from below
+    minus = 2.0 * cos_a * math.sinh(0.5 * (u0 + ustar - s_hi)) * math.sinh(0.5 * (e2 + s_lo))  # |1 - c| from below
+    dpsi = 2.0 * abs(cos_t) * cos_a * ch / (minus * math.sqrt(s2)) * jac
+    phi = 2.0 * (abs(cos_t) * big_c * (2.0 * math.pi + b * dpsi) + sin_t + big_c)
+    return math.log(phi * cos_a * ch * 2.0 * math.sqrt(s_abs) * jac), math.exp(-(ustar - s_lo)) * math.cos(s_im)
+
+
+@njit
+def _cut_bound(base, damp, count, kappa, n):
+    """The least of the remainder bounds exp(base[j] - kappa damp[j]) rho_j^(2 - 2n) of `_cut_ellipses`
+    (inf where none)."""
+    best = math.inf
+    for j in range(count):
+        best = min(best, base[j] - kappa * damp[j] + (2.0 - 2.0 * n) * (j + 1) * math.log(CUT_RHO))
+    return math.exp(best)
 
 
 @njit

@@ -796,9 +796,9 @@ SPHERE_CHUNK = 1 << 16  # a sphere's samples (rays x iterations x strategies) pe
 def _sphere(medium, params):
     """`Method.sphere`: in a homogeneous medium (but for cdf sampling) estimate(ball, radiance, owner, rays,
     rs, visible) -> (value, variance), each (len(rs), 3), of a sphere emitter along the camera rays rs
-    (`_sphere_draws`, SPHERE_DRAWS iterations per sample, dimensions from DIM_SPHERE + owner SPHERE_DIMS
-    SPHERE_DRAWS samples; `visible(points, dirs,
-    distances)` whether each sample's sphere point is in sight, None: all); else None."""
+    (`_sphere_draw`, SPHERE_DRAWS iterations per sample, dimensions from DIM_SPHERE + owner SPHERE_DIMS
+    SPHERE_DRAWS samples; `visible(points, dirs, distances)` whether each sample's sphere point is in
+    sight, None: all), with either shadow test (rendering/near_emitters.py); else None."""
     if not isinstance(medium, Homogeneous) or params["sampling"] == "cdf":
         return None
     n = SPHERE_DRAWS * params["samples"]

@@ -50,9 +50,13 @@ DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
 STATS_NAMES = ("rays near an emitter", "rays near an emitter not converged")
 
 
-def applies(lights, method) -> bool:
+def applies(lights, method, sampled: bool = False) -> bool:
     """Whether a render has sphere emitters, or flat emitters whose near rays a deterministic method
-    integrates so."""
+    integrates so; with a shadow ray per medium sample (`sampled`: the method's points, not its lit
+    intervals), sphere emitters of a method with its own estimate of them (`Method.sphere`), which
+    `replaced` then samples with their own shadow rays (the rows' stay with the points)."""
+    if sampled:
+        return method.sphere is not None and bool(_balls(lights).any())
     return any(e is not None and (e.ball is not None or (e.planar is not None and not method.stochastic))
                for e in lights.emitters)
 

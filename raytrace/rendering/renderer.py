@@ -291,7 +291,16 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
             segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
         if shadows and method.samples_shadows(params):
+            near = None
+            if near_emitters.applies(prep.lights, method, sampled=True):  # a sphere by the method's own estimate
+                segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
+                                                     segs, segs, (origins, dirs, t, keys, seed), True, radiance,
+                                                     (prep.accel, crossing.blockers(prep)))
+                stats[NEAR_STATS] = near[1]
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
+            if near is not None:
+                air, var = air + near[0], var + near[3]
+                bound[near[2]] = np.inf
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
                 bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
         else:
