@@ -1110,12 +1110,18 @@ def _edge_spread(k, root, a, b, fa, fb, j):
 def _plane(r, x):
     """(z_X, y_X, e_y) of the point o + x w: its coordinates along the axis and across it from the
     centre, and the unit direction across (any normal to the axis on the axis)."""
-    ez = r.ez
     q = np.empty(3)
     for k in range(3):
         q[k] = r.o[k] + x * r.w[k] - r.c[k]
-    zx = q[0] * ez[0] + q[1] * ez[1] + q[2] * ez[2]
-    ey = q - zx * ez
+    return _about(q, r.ez)
+
+
+@njit
+def _about(v, ez):
+    """(z, y, e_y) of the vector v about the unit axis ez: its component along the axis, its length across it and
+    the unit direction across (any normal to the axis on the axis)."""
+    zx = v[0] * ez[0] + v[1] * ez[1] + v[2] * ez[2]
+    ey = v - zx * ez
     yx = math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
     if yx > 0.0:
         ey /= yx
@@ -1818,16 +1824,7 @@ def surface_out_of_sphere(q, sphere, light, axis, cone, eta, value, toward, insi
         if not d > radius:
             continue
         ez /= d
-        zx = rel[0] * ez[0] + rel[1] * ez[1] + rel[2] * ez[2]
-        ey = rel - zx * ez
-        yx = math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
-        if yx > 0.0:
-            ey /= yx
-        else:  # on the axis: any normal to it
-            k = 0 if abs(ez[0]) < 0.9 else 1
-            ey[:] = -ez[k] * ez
-            ey[k] += 1.0
-            ey /= math.sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2])
+        zx, yx, ey = _about(rel, ez)
         theta_a = lit_arc(radius, d, eta)
         scan = Outward(radius, d, eta, theta_a, cell_table(theta_a, radius, d, eta))
         dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
