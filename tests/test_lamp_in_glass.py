@@ -67,6 +67,17 @@ def dot(a, b):
     return sum(x * y for x, y in zip(a, b))
 
 
+def tube_area(end, nrm):
+    """The ray tube's cross-section on the receiving plane of normal nrm per unit square of the light's directions:
+    |(d end/ds x d end/dt) . nrm| by central differences (h = 1e-12, in mpmath) of the map end(s, t) from the
+    directions about the path's to the plane."""
+    h = mp.mpf(10) ** -12
+    js = [(x - y) / (2 * h) for x, y in zip(end(h, 0), end(-h, 0))]
+    jt = [(x - y) / (2 * h) for x, y in zip(end(0, h), end(0, -h))]
+    cross = [js[1] * jt[2] - js[2] * jt[1], js[2] * jt[0] - js[0] * jt[2], js[0] * jt[1] - js[1] * jt[0]]
+    return float(abs(dot(cross, nrm)))
+
+
 def unit(a):
     n = mp.sqrt(dot(a, a))
     return [x / n for x in a]
@@ -142,11 +153,7 @@ def irradiance(light, X, normal=None):
                 step = dot([x - y for x, y in zip(Xm, P)], nrm) / dot(v, nrm)
                 return [pv + step * vv for pv, vv in zip(P, v)]
 
-            h = mp.mpf(10) ** -12
-            js = [(x - y) / (2 * h) for x, y in zip(end(h, 0), end(-h, 0))]
-            jt = [(x - y) / (2 * h) for x, y in zip(end(0, h), end(0, -h))]
-            cross = [js[1] * jt[2] - js[2] * jt[1], js[2] * jt[0] - js[0] * jt[2], js[0] * jt[1] - js[1] * jt[0]]
-            area = float(abs(dot(cross, nrm)))
+            area = tube_area(end, nrm)
             cos_out, cos_in = float(abs(dot(v0, nm))), float(abs(dot(u0, nm)))
             u0f = np.array([float(v) for v in u0])
         fall = 1.0 if spot is None else smoothstep(float(u0f @ spot[0]), spot[1], spot[2])
@@ -155,16 +162,16 @@ def irradiance(light, X, normal=None):
     return total
 
 
-def floor_radiance(light, o, d):
-    """(what the ray from o along d sees of the floor, lit from inside the box, 0 where it misses), with
-    the outside medium's transmittance."""
+def floor_radiance(light, o, d, lit_by=None):
+    """(what the ray from o along d sees of the floor, lit from inside the box, or by `lit_by(light, point,
+    normal)`, 0 where it misses), with the outside medium's transmittance."""
     if d[1] >= 0.0:
         return np.zeros(3)
     t = (FLOOR_Y - o[1]) / d[1]
     F = o + t * d
     if max(abs(F[0]), abs(F[2])) > 5.0:
         return np.zeros(3)
-    return RHO / math.pi * irradiance(light, F, np.array([0.0, 1.0, 0.0])) * math.exp(-KA_OUT * t)
+    return RHO / math.pi * (lit_by or irradiance)(light, F, np.array([0.0, 1.0, 0.0])) * math.exp(-KA_OUT * t)
 
 
 def inside(light, p, w, ell):
@@ -277,16 +284,27 @@ def test_what_is_not_implemented_is_refused():
     """Fog outside with volumetric shadows and a floor (its shadows on the light's legs), a shape inside the
     lantern, another medium beside it (lit by its light refracted out), and the methods without exact paths: refused
     in one line, naming what to change (an exact sphere: tests/test_lamp_in_globe.py)."""
+    inner, beside = inner_and_beside(scene)
+    refused([(scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "no-volumetric-shadows"),
+             (inner, "quadrature", r"another shape inside it \(shape\[2\]\)"),
+             (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
+             (scene(LAMP), "analytic", "no closed form"),
+             (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")])
+
+
+def inner_and_beside(scene):
+    """The lamp's scene made by `scene` with a box inside its shape, and with a box of another medium beside it."""
     inner = scene(LAMP)
     inner["shape"].append({"primitive": "box", "min": [-0.5, -0.9, -0.5], "max": [-0.2, -0.6, -0.2]})
     beside = scene(LAMP)
     beside["shape"].append({"primitive": "box", "min": [2.0, -1.0, -0.5], "max": [3.0, 0.0, 0.5],
                             "interior": {"sigma_a": 0.1, "sigma_s": 0.2}})
-    for sc, method, words in ((scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "no-volumetric-shadows"),
-                              (inner, "quadrature", r"another shape inside it \(shape\[2\]\)"),
-                              (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
-                              (scene(LAMP), "analytic", "no closed form"),
-                              (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")):
+    return inner, beside
+
+
+def refused(cases):
+    """Each (scene, method, words) refused in one line matching words."""
+    for sc, method, words in cases:
         with pytest.raises(UserError, match=words) as err:
             image(sc, method, {})
         assert "\n" not in str(err.value)

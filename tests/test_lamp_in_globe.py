@@ -20,14 +20,13 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from raytrace.errors import UserError
 from raytrace.lights import NO_CONE, SMOOTHSTEP
 from raytrace.media.sphere_refraction import MAX_PATHS, surface_out_of_sphere
 
 from . import oracle
 from .test_bounded_media import fresnel_t
-from .test_lamp_in_glass import CAMERA, ETA, FLOOR_Y, KA, KA_OUT, KS, LAMP, RHO, SPOT, dot, inside, refract, \
-    refract_mp, scene as box_scene, unit
+from .test_lamp_in_glass import CAMERA, ETA, KA, KA_OUT, KS, LAMP, SPOT, dot, inside, refract, \
+    floor_radiance as box_floor, inner_and_beside, refract_mp, refused, scene as box_scene, tube_area, unit
 from .test_light_inside import image, raymarch_and_montecarlo
 from .test_refracted_point_light import smoothstep, spot_terms
 
@@ -130,11 +129,7 @@ def paths_out(light, X, normal=None):
                 step = dot([x - y for x, y in zip(Xm, P)], nrm) / dot(v, nrm)
                 return [pv + step * vv for pv, vv in zip(P, v)]
 
-            h = mp.mpf(10) ** -12
-            js = [(x - y) / (2 * h) for x, y in zip(end(h, 0), end(-h, 0))]
-            jt = [(x - y) / (2 * h) for x, y in zip(end(0, h), end(0, -h))]
-            cross = [js[1] * jt[2] - js[2] * jt[1], js[2] * jt[0] - js[0] * jt[2], js[0] * jt[1] - js[1] * jt[0]]
-            area = float(abs(dot(cross, nrm)))
+            area = tube_area(end, nrm)
             cos_out, cos_in = float(dot(v0, n0)), float(dot(u0, n0))
             Rf, u0f = np.array([float(v) for v in R]), np.array([float(v) for v in u0])
         fall = 1.0 if spot is None else smoothstep(float(u0f @ spot[0]), spot[1], spot[2])
@@ -196,13 +191,7 @@ def sphere_hits(o, d):
 def floor_radiance(light, o, d):
     """What the ray from o along d (outside the globe) sees of the floor lit through the globe, 0 where it misses,
     with the outside medium's transmittance."""
-    if d[1] >= 0.0:
-        return np.zeros(3)
-    t = (FLOOR_Y - o[1]) / d[1]
-    F = o + t * d
-    if max(abs(F[0]), abs(F[2])) > 5.0:
-        return np.zeros(3)
-    return RHO / math.pi * irradiance(light, F, np.array([0.0, 1.0, 0.0])) * math.exp(-KA_OUT * t)
+    return box_floor(light, o, d, lit_by=irradiance)
 
 
 def twin(light):
@@ -270,17 +259,10 @@ def test_what_is_not_implemented_is_refused():
     medium beside it, and the methods without exact paths: refused in one line, naming what to change."""
     inside_camera = scene(LAMP)
     inside_camera["camera"] = dict(CAMERA, position=[0.0, -0.5, 0.5])
-    inner = scene(LAMP)
-    inner["shape"].append({"primitive": "box", "min": [-0.5, -0.9, -0.5], "max": [-0.2, -0.6, -0.2]})
-    beside = scene(LAMP)
-    beside["shape"].append({"primitive": "box", "min": [2.0, -1.0, -0.5], "max": [3.0, 0.0, 0.5],
-                            "interior": {"sigma_a": 0.1, "sigma_s": 0.2}})
-    for sc, method, words in ((scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
-                              (inside_camera, "quadrature", "camera"),
-                              (inner, "quadrature", r"shape\[2\]: lies inside shape\[0\]"),
-                              (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
-                              (scene(LAMP), "analytic", "no closed form"),
-                              (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")):
-        with pytest.raises(UserError, match=words) as err:
-            image(sc, method, {})
-        assert "\n" not in str(err.value)
+    inner, beside = inner_and_beside(scene)
+    refused([(scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
+             (inside_camera, "quadrature", "camera"),
+             (inner, "quadrature", r"shape\[2\]: lies inside shape\[0\]"),
+             (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
+             (scene(LAMP), "analytic", "no closed form"),
+             (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")])
