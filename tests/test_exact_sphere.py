@@ -503,6 +503,7 @@ def test_every_method_takes_the_exact_sphere_in_its_kernel(monkeypatch, method, 
         assert result.stats["inside: segments handed to quadrature"] > 0
 
 
+@pytest.mark.slow  # about 1.5 min: a study of the meshes' convergence (each kind verified by its own twin)
 def test_refractive_sphere_meshes_approach_the_exact_sphere():
     """A refractive sphere of fog (ior 1.33) under a point light: meshes of 16 and 32 segments (128 and
     512 face planes, more than media/slab.py's convex kernel takes) are lit through every face the
