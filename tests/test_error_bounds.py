@@ -61,7 +61,7 @@ def check_bound(img, ref, precision):
     err = np.abs(img.array - ref)
     bound = img.error_bound
     assert bound.shape == img.array.shape and np.all(np.isfinite(bound))
-    ratio = np.where(err == 0.0, 0.0, err / np.where(bound > 0.0, bound, 1e-300))
+    ratio = np.divide(err, bound, out=np.where(err == 0.0, 0.0, np.inf), where=bound > 0.0)  # bound: float32
     lit = ref > 0.0
     median = float(np.median(bound[lit] / ref[lit]))
     worst = np.unravel_index(ratio.argmax(), ratio.shape)
