@@ -36,15 +36,16 @@ PIXELS = [(2, 1), (3, 5), (2, 3), (2, 4), (0, 0)]  # (row, column): the floor be
 # (mirrored to the sky, out of its far side to the floor), the sky
 
 
-def path_count(L, X):
-    """The number of paths from L inside to X outside by the twin's bracketing alone (`exit_points`' sign changes
-    of the optical path's derivative on GRID angles, kept where X lies outside the tangent plane)."""
+def path_count(L, X, eta=ETA):
+    """The number of paths from L inside to X outside (relative index eta inside) by the twin's bracketing alone
+    (`exit_points`' sign changes of the optical path's derivative on GRID angles, kept where X lies outside the
+    tangent plane)."""
     e1, e2 = circle(L, X)
     th = np.linspace(-math.pi, math.pi, GRID + 1)
     P = CENTRE + RADIUS * (np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2)
     dP = RADIUS * (-np.sin(th)[:, None] * e1 + np.cos(th)[:, None] * e2)
     u, v = P - L, X - P
-    slope = ETA * np.einsum("ij,ij->i", u, dP) / np.linalg.norm(u, axis=1) - np.einsum("ij,ij->i", v, dP) / \
+    slope = eta * np.einsum("ij,ij->i", u, dP) / np.linalg.norm(u, axis=1) - np.einsum("ij,ij->i", v, dP) / \
         np.linalg.norm(v, axis=1)
     j = np.nonzero(np.sign(slope[:-1]) != np.sign(slope[1:]))[0]
     return int(np.count_nonzero(np.einsum("ij,ij->i", v[j], P[j] - CENTRE) > 0.0))
@@ -125,15 +126,16 @@ def reference():
 
 def test_one_path_within_radius_over_ior():
     """The twin's bracketing finds one path to each of 200 random points outside from lights in random directions
-    at 0.3, 0.7 and 0.97 of radius / ior from the centre (`out_of_sphere`'s claim), and from a light at 0.95 radius
-    points with none and with two."""
+    at 0.3, 0.7 and 0.97 of radius / ior from the centre (`out_of_sphere`'s claim), ior 1.33, 1.5 and 2.4, and from
+    a light at 0.95 radius (ior 1.5) points with none and with two."""
     rng = np.random.default_rng(5)
     q = rng.normal(size=(200, 3))
     q *= (rng.uniform(RADIUS * 1.001, 4.0, len(q)) / np.linalg.norm(q, axis=1))[:, None]
-    for f in (0.3, 0.7, 0.97):
-        L = rng.normal(size=3)
-        L *= f * RADIUS / ETA / np.linalg.norm(L)
-        assert {path_count(L, X) for X in q} == {1}, f
+    for eta in (1.33, ETA, 2.4):
+        for f in (0.3, 0.7, 0.97):
+            L = rng.normal(size=3)
+            L *= f * RADIUS / eta / np.linalg.norm(L)
+            assert {path_count(L, X, eta) for X in q} == {1}, (eta, f)
     assert {0, 2} <= {path_count(np.array(NEAR["position"]), X) for X in q}
 
 
