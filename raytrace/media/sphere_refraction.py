@@ -1,5 +1,7 @@
 """Single scattering inside a refractive exact sphere (geometry/sphere.py) lit through the sphere:
-the exact refracted light at each inside point, for point, spot and directional lights.
+the exact refracted light at each inside point, for point, spot and directional lights; and the light
+of a point or spot light inside the sphere on surfaces outside (`surface_out_of_sphere`), and of a point
+light well inside it in a scattering medium outside (`out_of_sphere`), on its paths out.
 
 The plane of the light's paths: a ray from a point light L (or along a directional light) refracted
 at P on the sphere (centre c, radius R) stays in the plane through L, c and P (the normal at P lies in
