@@ -255,12 +255,13 @@ def test_raymarch_and_montecarlo_from_a_lamp_in_a_globe(case):
 
 
 def test_what_is_not_implemented_is_refused():
-    """Fog outside (its air-light lit through the glass), the camera inside the globe, a shape inside it, another
-    medium beside it, and the methods without exact paths: refused in one line, naming what to change."""
+    """Fog outside lit from beyond radius / ior (tests/test_globe_fog.py takes it nearer), the camera inside the
+    globe, a shape inside it, another medium beside it, and the methods without exact paths: refused in one line,
+    naming what to change."""
     inside_camera = scene(LAMP)
     inside_camera["camera"] = dict(CAMERA, position=[0.0, -0.5, 0.5])
     inner, beside = inner_and_beside(scene)
-    refused([(scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
+    refused([(scene(NEAR, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
              (inside_camera, "quadrature", "camera"),
              (inner, "quadrature", r"shape\[2\]: lies inside shape\[0\]"),
              (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),

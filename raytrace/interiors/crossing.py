@@ -38,7 +38,7 @@ from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.slab import (GEO_COLUMNS, STREAM, out_of_faces, refract_rays, surface_out_of_faces,
                           surface_through_faces, transmittances)
-from ..media.sphere_refraction import MAX_PATHS, UNBOUNDED, surface_out_of_sphere
+from ..media.sphere_refraction import MAX_PATHS, UNBOUNDED, out_of_sphere, surface_out_of_sphere
 from ..methods import INSIDE_RTOL, Segments, registry
 from ..scene.meshes import convex_planes as hull_of
 from ..shading import facing_normals, shading_normals, surface_radiance
@@ -207,17 +207,17 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     """Why light li inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
-    scattering outside medium (`held_airlight`) a point light in a convex mesh, and with volumetric shadows no other
-    shape."""
+    scattering outside medium (`held_airlight`) a point light in a convex mesh or well inside an exact sphere
+    (`_globe_fog`), and with volumetric shadows no other shape."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     sphere = paths.exact_sphere(prep, sid) is not None
     if not sphere and not len(convex_planes(prep, sid)):
         return f"needs a convex shape of at most {KERNEL_PLANES} faces or an exact sphere"
     if prep.scene.medium.scatters:  # lights the fog outside (`held_airlight`)
-        if sphere:
-            return ("in an exact sphere lights the outside medium through its surface, which is not implemented yet; "
-                    "use a convex mesh, or a [medium] that does not scatter")
+        why = _globe_fog(prep, sid, li) if sphere else None
+        if why:
+            return why
         if is_spot(prep.lights.cone[li, 1]):
             return ("as a spot lights the scattering [medium] outside through its faces, which is not implemented "
                     "yet; use a point light, or a [medium] that does not scatter")
@@ -237,12 +237,31 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     return None
 
 
+def _globe_fog(prep, sid, li) -> str | None:
+    """Why point light li inside the refractive exact sphere sid is refused with a scattering outside medium (None
+    where taken: ior > 1 and the light closer to the centre than radius / ior, where each point outside has one
+    path, media/sphere_refraction.py `out_of_sphere`)."""
+    sphere = paths.exact_sphere(prep, sid)
+    centre, radius = sphere[:3], float(sphere[3])
+    ior = prep.scene.shapes[sid].interior.ior
+    if is_spot(prep.lights.cone[li, 1]):
+        return ("as a spot in an exact sphere lights the scattering [medium] outside, where the cuts at its cone's "
+                "refracted edges are not implemented yet; use a point light, or a [medium] that does not scatter")
+    if ior < 1.0 or np.linalg.norm(prep.lights.position[li] - centre) >= radius / ior:
+        return (f"in an exact sphere lights the scattering [medium] outside only from within radius / ior "
+                f"({radius / ior:g}) of its centre, with ior > 1; beyond, the breaks where its paths out change (the "
+                "critical angle's cones, the caustic) are not implemented yet; move the light closer to the centre, "
+                "or use a [medium] that does not scatter")
+    return None
+
+
 def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int):
     """The outside medium's air-light (N, 3) of the segments `segs` (whole camera rays) whose light lies inside a
-    convex refractive shape (`held_lights`), its variance (N, 3; 0 but for a stochastic rule) and bound (N, 3; inf
-    where lit), and the other segments: the light refracted out through every face (media/slab.py `out_of_faces`,
-    relative index 1 / ior), integrated by the method's inside rule (`check` refuses a spot light and volumetric
-    shadows with another shape in the scene)."""
+    convex refractive shape or an exact sphere (`held_lights`), its variance (N, 3; 0 but for a stochastic rule)
+    and bound (N, 3; inf where lit), and the other segments: the light refracted out through every face
+    (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact sphere (media/sphere_refraction.py
+    `out_of_sphere`), integrated by the method's inside rule (`check` refuses a spot light and volumetric shadows
+    with another shape in the scene)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
@@ -260,10 +279,14 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int)
         out, v, err = (np.zeros((len(sel), len(ch))) for _ in range(3))
         inner = prep.scene.shapes[sid].interior
         dim0 = np.uint64((2 * KERNEL_PLANES + 2) * STREAM + (depth * len(lights) + li) * rule.steps)
-        out_of_faces(geo, planes, np.ascontiguousarray(segs.length[sel]), medium.sigma_t[ch].astype(float),
-                     medium.sigma_s[ch].astype(float), medium.phase, medium.g,
-                     inner.sigma_t[ch].astype(float), 1.0 / inner.ior,
-                     rule, segs.keys[sel], dim0, np.uint64(segs.seed), out, v, err, np.zeros(STATS_SIZE))
+        sphere = paths.exact_sphere(prep, sid)
+        args = (np.ascontiguousarray(segs.length[sel]), medium.sigma_t[ch].astype(float),
+                medium.sigma_s[ch].astype(float), medium.phase, medium.g, inner.sigma_t[ch].astype(float))
+        rest = (rule, segs.keys[sel], dim0, np.uint64(segs.seed), out, v, err, np.zeros(STATS_SIZE))
+        if sphere is None:
+            out_of_faces(geo, planes, *args, 1.0 / inner.ior, *rest)
+        else:
+            out_of_sphere(geo, np.asarray(sphere, dtype=np.float64), *args, float(inner.ior), *rest)
         inten = lights.intensity[li, ch]
         for acc, part in ((val, out * inten), (var, v * inten * inten), (bound, err * inten)):
             whole = np.zeros((len(sel), 3))

@@ -1,5 +1,7 @@
 """Single scattering inside a refractive exact sphere (geometry/sphere.py) lit through the sphere:
-the exact refracted light at each inside point, for point, spot and directional lights.
+the exact refracted light at each inside point, for point, spot and directional lights; and the light
+of a point or spot light inside the sphere on surfaces outside (`surface_out_of_sphere`), and of a point
+light well inside it in a scattering medium outside (`out_of_sphere`), on its paths out.
 
 The plane of the light's paths: a ray from a point light L (or along a directional light) refracted
 at P on the sphere (centre c, radius R) stays in the plane through L, c and P (the normal at P lies in
@@ -1805,42 +1807,147 @@ class Outward(NamedTuple):
 def surface_out_of_sphere(q, sphere, light, axis, cone, eta, value, toward, inside, outside):
     """A unit point or spot light inside the refractive exact sphere (centre, radius; relative index eta
     inside) at the points q (M, 3) outside it, through each of its refracted paths out (up to MAX_PATHS,
-    the columns): Fermat's paths from q to the light are those of a light at q reaching the inside point
-    L (light paths are reversible): `paths` in the plane of q, the centre and L, proven as there. Per
-    path (`incidence` from q: the cosines at the boundary, q's leg o, the direction t inside, L's leg
-    s): value the irradiance across the ray at q, F T cos_i / (eta^2 o^2 cos_t |(1 - s kappa_t)(1 - s
-    kappa_s)|) with the spot's falloff F toward the direction -t the light leaves in (module docstring's
-    tube at L from a unit light at q, over eta^2: the etendue n^2 dA dOmega is conserved, so the solid
-    angle per area at q from L is the one at L from q over eta^2; light beyond the critical angle is
-    totally reflected and meets no path, which enters from q at cos_i > 0); toward the unit direction
-    from q to the refraction point; inside s, outside o. A point q within the sphere has none."""
-    c, radius = sphere[:3], sphere[3]
+    the columns): `paths_out` at each point."""
+    c = sphere[:3]
     rel = light - c
     value[:] = 0.0
     found, spread = np.empty(MAX_PATHS), np.empty(MAX_PATHS)
     for i in range(q.shape[0]):
-        ez = q[i] - c
-        d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
-        if not d > radius:
+        paths_out(q[i], c, sphere[3], rel, axis, cone, eta, found, spread, value[i], toward[i], inside[i], outside[i])
+
+
+@njit
+def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, inside, outside):
+    """A unit point or spot light at c + rel inside the refractive exact sphere (centre c, radius; relative index
+    eta inside) at the point q outside it, through each of its refracted paths out (up to MAX_PATHS, the entries
+    of value (MAX_PATHS,), toward (MAX_PATHS, 3), inside, outside; value 0: no path; found, spread: `paths`'
+    scratch): Fermat's paths from q to the light are those of a light at q reaching the inside point L (light
+    paths are reversible): `paths` in the plane of q, the centre and L, proven as there. Per path (`incidence`
+    from q: the cosines at the boundary, q's leg o, the direction t inside, L's leg s): value the irradiance
+    across the ray at q, F T cos_i / (eta^2 o^2 cos_t |(1 - s kappa_t)(1 - s kappa_s)|) with the spot's falloff
+    F toward the direction -t the light leaves in (module docstring's tube at L from a unit light at q, over
+    eta^2: the etendue n^2 dA dOmega is conserved, so the solid angle per area at q from L is the one at L from
+    q over eta^2; light beyond the critical angle is totally reflected and meets no path, which enters from q
+    at cos_i > 0); toward the unit direction from q to the refraction point; inside s, outside o. A point q
+    within the sphere has none. Returns whether the scan was proven (True where q is within the sphere)."""
+    value[:] = 0.0
+    ez = q - c
+    d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
+    if not d > radius:
+        return True
+    ez /= d
+    zx, yx, ey = _about(rel, ez)
+    theta_a = lit_arc(radius, d, eta)
+    scan = Outward(radius, d, eta, theta_a, cell_table(theta_a, radius, d, eta))
+    dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
+    m, proven = paths(scan, zx, yx, dx, found, spread)
+    for k in range(m):
+        pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
+        s = tz * (zx - pz) + ty * (yx - py)
+        if cos_t == 0.0 or not s >= 0.0:
             continue
-        ez /= d
-        zx, yx, ey = _about(rel, ez)
-        theta_a = lit_arc(radius, d, eta)
-        scan = Outward(radius, d, eta, theta_a, cell_table(theta_a, radius, d, eta))
-        dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
-        m, _ = paths(scan, zx, yx, dx, found, spread)
-        for k in range(m):
-            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
-            s = tz * (zx - pz) + ty * (yx - py)
-            if cos_t == 0.0 or not s >= 0.0:
+        f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
+                      + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
+        tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
+                   * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
+        if f == 0.0 or not tube > 0.0:
+            continue
+        value[k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
+        for j in range(3):
+            toward[k, j] = ((pz - d) * ez[j] + py * ey[j]) / o
+        inside[k], outside[k] = s, o
+    return proven
+
+
+class GlobeFog(NamedTuple):
+    """One segment o + x w of the scattering medium outside a refractive exact sphere (centre c, radius; relative
+    index eta inside) and a unit point light inside it at c + rel (a spot: its axis and cone), for one channel
+    (kt, ks and the phase: the outside medium's; kt_in: the inside's); `paths_out`'s rows and scratch, and the
+    track: the evaluations whose scan was unproven or that found a number of paths other than one."""
+    o: np.ndarray
+    w: np.ndarray
+    c: np.ndarray
+    radius: float
+    rel: np.ndarray
+    axis: np.ndarray
+    cone: np.ndarray
+    eta: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_in: float
+    found: np.ndarray
+    spread: np.ndarray
+    value: np.ndarray
+    toward: np.ndarray
+    inside: np.ndarray
+    outside: np.ndarray
+    track: np.ndarray
+
+
+@njit
+def fog_value(x, r):
+    """The outside medium's single scattering at o + x w of the `GlobeFog` r: over the paths out (`paths_out`),
+    ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point)."""
+    q = np.empty(3)
+    for j in range(3):
+        q[j] = r.o[j] + x * r.w[j]
+    proven = paths_out(q, r.c, r.radius, r.rel, r.axis, r.cone, r.eta, r.found, r.spread, r.value, r.toward,
+                       r.inside, r.outside)
+    total = 0.0
+    n = 0
+    for k in range(MAX_PATHS):
+        if r.value[k] > 0.0:
+            n += 1
+            mu = r.toward[k, 0] * r.w[0] + r.toward[k, 1] * r.w[1] + r.toward[k, 2] * r.w[2]
+            total += phase_value(r.code, r.g, mu) * r.value[k] * math.exp(-r.kt * (x + r.outside[k])
+                                                                           - r.kt_in * r.inside[k])
+    if n != 1 or not proven:
+        r.track[0] += 1.0
+    return r.ks * total
+
+
+@integrand_of(GlobeFog)
+@njit
+def _fog_value(x, r):
+    return fog_value(x, r)
+
+
+@njit
+def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim0, seed, out, var, err, stats):
+    """The outside medium's single scattering (N, C) over segments outside a refractive exact sphere (centre,
+    radius; relative index eta = its ior > 1 inside) from a unit point light inside it, closer to the centre than
+    radius / eta (geo rows of media/slab.py's GEO_COLUMNS; kt, ks: the outside's, kt_in the inside's, one each per
+    channel): `fog_value` along each segment. There every path leaves the sphere (the distance from the centre of
+    a ray from the light, at most its own, is below radius / eta: the internal incidence below the critical
+    angle) and each point outside has one path, the outward rays crossing neither each other nor the axis ahead
+    (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the integrand is
+    smooth along the segment: QUAD media/adaptive.py `bounded_piecewise` over [0, min(ell, 745 / kt)] whole;
+    MARCH, SAMPLE `march_or_sample` at dimensions dim0. The bound is inf (the evaluations' rounding not derived);
+    the segments with an evaluation whose scan was unproven or whose count of paths was not one (the light beyond
+    radius / eta, which `check` refuses) are counted in stats[UNBOUNDED]."""
+    nc = kt.shape[0]
+    cone = np.empty(3)
+    for s in range(geo.shape[0]):
+        out[s, :], var[s, :], err[s, :] = 0.0, 0.0, 0.0
+        if not ell[s] > 0.0:
+            continue
+        cone[0], cone[1], cone[2] = geo[s, 12], geo[s, 13], geo[s, 17]
+        track = np.zeros(1)
+        for c in range(nc):
+            if ks[c] == 0.0:
                 continue
-            f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
-                          + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
-            tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
-                       * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
-            if f == 0.0 or not tube > 0.0:
-                continue
-            value[i, k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
-            for j in range(3):
-                toward[i, k, j] = ((pz - d) * ez[j] + py * ey[j]) / o
-            inside[i, k], outside[i, k] = s, o
+            rec = GlobeFog(geo[s, :3].copy(), geo[s, 3:6].copy(), sphere[:3].copy(), sphere[3],
+                           geo[s, 6:9] - sphere[:3], geo[s, 9:12].copy(), cone, eta, kt[c], ks[c], code, g, kt_in[c],
+                           np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty((MAX_PATHS, 3)),
+                           np.empty(MAX_PATHS), np.empty(MAX_PATHS), track)
+            if rule.kind == QUAD:
+                out[s, c], _ = bounded_piecewise(rec, (0.0, min(ell[s], 745.0 / kt[c])), 2, rule.rtol, N10, W10, N20,
+                                                 W20, stats)
+            else:
+                out[s, c], var[s, c] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt[c]), kt[c], keys[s],
+                                                       dim0, seed)
+            err[s, c] = math.inf
+        if track[0] > 0.0:
+            stats[UNBOUNDED] += 1.0
