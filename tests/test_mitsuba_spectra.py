@@ -119,3 +119,75 @@ def test_malformed_spectra_refused_in_one_line(tmp_path, capsys, value, problem,
     assert msg.startswith(f'{path}:2: <spectrum name="reflectance">: {problem}; {fix}') and "\n" not in msg
     assert main(["describe", str(path)]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [f"error: {msg}"]
+
+
+def test_cornell_box_renders_as_its_rgb_twin_times_the_colour_ratios():
+    """cbox.xml imports without a refusal and renders (quadrature, 16 x 16). Its twin cbox-rgb.xml has the
+    same meshes, camera and light with colours of its own: the reflectances are the spectra taken without
+    D65 (as an emitter's, near (0.886, 0.699, 0.666) for the white), the large and small boxes blue
+    (0.45, 0.30, 0.90) instead of white, and radiance (18.387, 10.9873, 2.75357) against our (20.71, 10.85,
+    2.77) of the spectrum. Surfaces here are lit directly by the one area light, so each pixel of the
+    spectral render is the twin's times rho / rho_twin of its surface times L / L_twin (the light seen
+    itself: L / L_twin): every lit pixel's ratio is one of those, to float32 rounding."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        raws = [io.read_scene(CBOX / name) for name in ("cbox.xml", "cbox-rgb.xml")]
+        images = [render(CBOX / name, "quadrature", width=16, height=16, spp=1).array[..., :3]
+                  for name in ("cbox.xml", "cbox-rgb.xml")]
+    (lamp, lamp_twin) = ([s for s in raw["shape"] if "emission" in s][0] for raw in raws)
+    light = np.divide(lamp["emission"], lamp_twin["emission"])
+    shapes = [sorted((np.round(s["vertices"], 9).tolist(), s["reflectance"]) for s in raw["shape"]) for raw in raws]
+    assert [v for v, _ in shapes[0]] == [v for v, _ in shapes[1]]  # the same meshes, one to one
+    ratios = np.array([light] + [np.divide(a, b) * light for (_, a), (_, b) in zip(*shapes)])
+    spectral, twin = (image.reshape(-1, 3) for image in images)
+    lit = np.all(twin > 0.0, axis=1)
+    assert np.all(spectral[~lit] == 0.0) and np.count_nonzero(lit) > 100
+    r = spectral[lit] / twin[lit]
+    nearest = np.argmin(np.max(np.abs(r[:, None, :] / ratios[None] - 1.0), axis=2), axis=1)
+    np.testing.assert_allclose(r, ratios[nearest], rtol=1e-5)
+    assert len({tuple(ratios[i]) for i in nearest}) == 5  # the light, the white, red and green walls, the boxes
+
+
+# ------------------------------------------------------------------------------------------- Mitsuba 3 itself
+
+@pytest.fixture(scope="module")
+def mi():
+    mitsuba = pytest.importorskip("mitsuba")
+    mitsuba.set_variant("scalar_rgb")
+    return mitsuba
+
+
+def mitsuba_rgb(mi, kind, value):
+    """Mitsuba's linear sRGB of the spectrum in `body(kind, value)`, read back with mi.traverse."""
+    params = mi.traverse(mi.load_string(f'<scene version="3.0.0">{body(kind, value)}</scene>'))
+    end = {"emission": "radiance.value", "reflectance": "reflectance.value", "medium": "albedo.value.value"}[kind]
+    (key,) = [k for k in params.keys() if k.endswith(end)]
+    return [float(x) for x in params[key]]
+
+
+@pytest.mark.peers
+def test_stored_numbers_are_mitsubas(mi, tmp_path):
+    """MITSUBA is what Mitsuba gives now (to float32), and ours agrees with it to REL."""
+    for (kind, value), stored in MITSUBA.items():
+        got = mitsuba_rgb(mi, kind, value)
+        np.testing.assert_allclose(got, stored, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(ours(tmp_path, kind, value), got, rtol=REL, atol=1e-7)
+
+
+@pytest.mark.peers
+def test_cornell_box_colours_are_mitsubas(mi):
+    """Every colour of cbox.xml as Mitsuba loads the file itself and as we import it."""
+    params = mi.traverse(mi.load_file(str(CBOX / "cbox.xml")))
+    theirs = {k: np.array(params[k], float) for k in params.keys() if k.endswith(("reflectance.value",
+                                                                                  "radiance.value"))}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        raw = io.read_scene(CBOX / "cbox.xml")
+    (lamp,) = [s for s in raw["shape"] if "emission" in s]
+    (radiance,) = [v for k, v in theirs.items() if k.endswith("radiance.value")]
+    np.testing.assert_allclose(lamp["emission"], radiance, rtol=REL)
+    reflectances = {tuple(s["reflectance"]) for s in raw["shape"]}
+    mitsubas = [v for k, v in theirs.items() if k.endswith("reflectance.value")]
+    assert len(reflectances) == len(mitsubas) == 4  # white (the boxes' is the same spectrum), red, green, light
+    for rho in reflectances:
+        assert min(np.max(np.abs(np.divide(rho, m) - 1.0)) for m in mitsubas) < REL
