@@ -98,8 +98,8 @@ def test_the_matrices_differ_by_channel_scales_only():
     assert np.all(np.abs(np.diag(scale) - 1.0) < 3.5e-4)
 
 
-INCREASING = ("a sampled spectrum needs two or more wavelengths in increasing order", 'write value="400:0.5, 500:0.6, ..."')
 PAIR = 'write value="400:0.5, 500:0.6, ..."'
+INCREASING = ("a sampled spectrum needs two or more wavelengths in increasing order", PAIR)
 
 
 @pytest.mark.parametrize("value,problem,fix", [
