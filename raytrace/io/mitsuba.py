@@ -315,8 +315,9 @@ def _samples(doc, el, text) -> tuple[np.ndarray, np.ndarray]:
     """(wavelengths, values) of a spectrum's "w:v, w:v, ..." with at least two increasing wavelengths
     (mitsuba3 src/core/properties.cpp `Spectrum`)."""
     fix = 'write value="400:0.5, 500:0.6, ..." (wavelengths in nm, increasing)'
-    pairs = [t.split(":") for t in _tokens(text)]
-    for t, pair in zip(_tokens(text), pairs):
+    tokens = _tokens(text)
+    pairs = [t.split(":") for t in tokens]
+    for t, pair in zip(tokens, pairs):
         if len(pair) != 2:
             doc.fail(el, f"{t!r} is not a wavelength:value pair", fix)
     w, v = (np.array([_finite(doc, el, p[i]) for p in pairs]) for i in (0, 1))

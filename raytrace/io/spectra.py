@@ -8,10 +8,10 @@ spectrum s as linear between its samples and zero outside them and forms the tri
 with the CIE 1931 2 degree colour matching functions x, y, z tabulated every 5 nm (linear between) and
 k = 1 / sum_i y(w_i) (a unit spectrum has luminance Y = 1). D is 1 for an emitter; for anything else it is
 the CIE D65 illuminant over D65_SCALE (Mitsuba's MI_CIE_D65_NORMALIZATION: a unit reflectance has
-Y = 0.99889, not 1, under this sum). XYZ then
-goes to linear sRGB (Rec. 709 primaries, D65 white, IEC 61966-2-1); Mitsuba clamps a reflectance into
-[0, 1] and anything else (emission, a medium's coefficients) to >= 0. The CIE tables come from
-colour-science (CIE 015:2004: the observer, and D65 as the D series at 6500 K * 1.4388 / 1.4380).
+Y = 0.99889, not 1, under this sum). XYZ then goes to linear sRGB (Rec. 709 primaries, D65 white,
+IEC 61966-2-1); Mitsuba clamps a reflectance into [0, 1] and anything else (emission, a medium's
+coefficients) to >= 0. The CIE tables come from colour-science (CIE 015:2004: the observer, and D65 as
+the D series at 6500 K * 1.4388 / 1.4380, which reproduces the CIE's D65 table).
 """
 from __future__ import annotations
 
