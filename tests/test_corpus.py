@@ -58,7 +58,6 @@ REFUSES = {
     "pbrt-v4-scenes/killeroo-simple.pbrt": ['included file "'],
     GOLD: ['included file "', "Texture (textures) is not read", "Texture (textures) is not read",
            '"texture reflectance" is type texture', 'Material "conductor" is not read'],
-    "mitsuba-data/scenes/cbox/cbox.xml": ["a spectrum sampled at wavelengths is not read"] * 6,  # (the 6th: radiance)
     "mitsuba-tutorials/cbox.xml": ["conductor bsdfs are not read"],
     MEDIA + "test_hetero_sigmat_albedo_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
     MEDIA + "test_hetero_sigmat_volpath.xml": [CHECKER, ENVMAP, "only homogeneous media", "sphere_base.obj"],
@@ -68,8 +67,7 @@ REFUSES = {
     MEDIA + "test_homo_area_light_volpath.xml": [CHECKER, "sphere_tiny.obj", "thindielectric"],
     MEDIA + "test_homo_dielectric_envmap_volpath.xml": [ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
     MEDIA + "test_homo_emitter_inside_medium_volpath.xml": [CHECKER, ENVMAP, "thindielectric", "thindielectric",
-                                                            "torus1.obj", "a spectrum sampled at wavelengths",
-                                                            "torus2.obj"],
+                                                            "torus1.obj", "torus2.obj"],
     MEDIA + "test_homo_null_envmap_volpath.xml": [CHECKER, ENVMAP, "sphere_tiny.obj", "sphere_base.obj"],
     MEDIA + "test_homo_obj_inside_medium_volpath.xml": [CHECKER, ENVMAP, "thindielectric", "thindielectric",
                                                         "torus1.obj", "torus2.obj"],
@@ -84,6 +82,7 @@ AREA_LIGHTS = {
     "houdini-pbrt-v4/TestMediums/test_exterior_cam_interior_obj.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
     "houdini-pbrt-v4/TestMediums/test_interior_homogeneous.pbrt": (HOUDINI_FOV, HOUDINI_NOTES),
     "mitsuba-data/scenes/cbox/cbox-rgb.xml": (39.3077, []),
+    "mitsuba-data/scenes/cbox/cbox.xml": (39.3077, []),  # its spectra as Mitsuba's RGB variants read them
     "houdini-pbrt-v4/TestShapes/test_loopsubdiv.pbrt": (HOUDINI_FOV, ["orthonormal to 0.00012"]),
     "houdini-pbrt-v4/TestShapes/test_loopsubdiv_levels.pbrt": (HOUDINI_FOV, ["orthonormal to 0.00012"]),
     SPHERE_LIGHT: (26.0, ["roughplastic read as diffuse of its diffuse_reflectance"]),

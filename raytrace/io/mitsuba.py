@@ -262,8 +262,10 @@ class _Props:
             self.doc.fail(child, "expected <point> or <vector>", f'write <point name="{name}" value="x, y, z"/>')
         return _xyz(self.doc, child, 0.0)
 
-    def colour(self, name, default=None):
-        """An rgb, a float or a constant spectrum as three numbers; textures are refused."""
+    def colour(self, name, default=None, kind="reflectance"):
+        """An rgb, a float or a spectrum as three numbers; textures are refused. A spectrum sampled at
+        wavelengths goes to sRGB as Mitsuba's RGB variants take it (io/spectra.py): `kind` "emission"
+        without D65 and clamped to >= 0, "reflectance" with D65 and into [0, 1], "medium" with D65, >= 0."""
         child = self.values.get(name)
         if child is None:
             for oname, obj in self.objects:
@@ -274,8 +276,9 @@ class _Props:
         self.read.add(name)
         text = child.get("value", "")
         if child.tag == "spectrum" and ":" in text:
-            self.doc.fail(child, "a spectrum sampled at wavelengths is not read (RGB variants only)",
-                          f'give an <rgb name="{name}" value="r, g, b"/>')
+            from .spectra import to_srgb
+
+            return to_srgb(*_samples(self.doc, child, text), kind == "emission", kind == "reflectance")
         if child.tag not in ("rgb", "float", "spectrum"):
             self.doc.fail(child, "expected <rgb>, <float> or <spectrum>", f'write <rgb name="{name}" value="r, g, b"/>')
         values = [_finite(self.doc, child, t) for t in _tokens(text)]
@@ -306,6 +309,21 @@ class _Props:
 
 def _tokens(text: str) -> list[str]:
     return [t for t in re.split(r"[,\s]+", text.strip()) if t]
+
+
+def _samples(doc, el, text) -> tuple[np.ndarray, np.ndarray]:
+    """(wavelengths, values) of a spectrum's "w:v, w:v, ..." with at least two increasing wavelengths
+    (mitsuba3 src/core/properties.cpp `Spectrum`)."""
+    fix = 'write value="400:0.5, 500:0.6, ..." (wavelengths in nm, increasing)'
+    tokens = _tokens(text)
+    pairs = [t.split(":") for t in tokens]
+    for t, pair in zip(tokens, pairs):
+        if len(pair) != 2:
+            doc.fail(el, f"{t!r} is not a wavelength:value pair", fix)
+    w, v = (np.array([_finite(doc, el, p[i]) for p in pairs]) for i in (0, 1))
+    if len(w) < 2 or np.any(np.diff(w) <= 0):
+        doc.fail(el, "a sampled spectrum needs two or more wavelengths in increasing order", fix)
+    return w, v
 
 
 def _finite(doc, el, text, integer=False):
@@ -549,8 +567,8 @@ class _Reader:
                 p.values[name] = q.values["value"]
                 q.read.add("value")
                 q.done()
-        sigma_t = p.colour("sigma_t", 1.0) * p.number("scale", 1.0)
-        albedo = p.colour("albedo", 0.75)
+        sigma_t = p.colour("sigma_t", 1.0, "medium") * p.number("scale", 1.0)
+        albedo = p.colour("albedo", 0.75, "medium")
         if np.any(sigma_t < 0) or np.any(albedo < 0) or np.any(albedo > 1):
             doc.fail(el, "sigma_t must be >= 0 and albedo in [0, 1]", "fix the coefficients")
         phases = p.nested("phase")
@@ -589,7 +607,7 @@ class _Reader:
             if not np.linalg.norm(d) > 0:
                 doc.fail(el, "the direction is zero", "give the direction the light travels")
             light = {"type": "directional", "direction": (d / np.linalg.norm(d)).tolist(),
-                     "irradiance": _channels(p.colour("irradiance", 1.0))}
+                     "irradiance": _channels(p.colour("irradiance", 1.0, "emission"))}
             p.done()
             return light
         if "position" in p.values and "to_world" in p.values:
@@ -597,7 +615,7 @@ class _Reader:
         M = p.transform()
         pos = p.point("position")
         pos = M[:3, 3] if pos is None else pos
-        light = {"type": kind, "position": pos.tolist(), "intensity": _channels(p.colour("intensity", 1.0))}
+        light = {"type": kind, "position": pos.tolist(), "intensity": _channels(p.colour("intensity", 1.0, "emission"))}
         if kind == "spot":
             cutoff = p.number("cutoff_angle", 20.0)
             beam = p.number("beam_width", cutoff * 0.75)
@@ -620,7 +638,7 @@ class _Reader:
         doc, p = self.doc, _Props(self.doc, el)
         self.same_fog(p, el, "medium")
         if kind == "constant":
-            light = {"type": "environment", "radiance": _channels(p.colour("radiance", 1.0))}
+            light = {"type": "environment", "radiance": _channels(p.colour("radiance", 1.0, "emission"))}
             p.done()
             return light
         name = p.string("filename")
@@ -718,7 +736,7 @@ class _Reader:
             doc.fail(el, f"a {el.get('type')} emitter inside a shape is not read", 'use <emitter type="area">')
         q = _Props(doc, el)
         self.same_fog(q, el, "medium")
-        radiance = _channels(q.colour("radiance", 1.0))
+        radiance = _channels(q.colour("radiance", 1.0, "emission"))
         q.done()
         return radiance
 
