@@ -265,7 +265,9 @@ class _Props:
     def colour(self, name, default=None, kind="reflectance"):
         """An rgb, a float or a spectrum as three numbers; textures are refused. A spectrum sampled at
         wavelengths goes to sRGB as Mitsuba's RGB variants take it (io/spectra.py): `kind` "emission"
-        without D65 and clamped to >= 0, "reflectance" with D65 and into [0, 1], "medium" with D65, >= 0."""
+        without D65 and clamped to >= 0, "reflectance" with D65 and into [0, 1], "medium" with D65, >= 0.
+        A one-number spectrum is grey, but an emitter's is that value over the CIE range, as Mitsuba's
+        RGB variants read it: v (1.2048, 0.9483, 0.9092), the equal-energy white in sRGB."""
         child = self.values.get(name)
         if child is None:
             for oname, obj in self.objects:
@@ -284,6 +286,10 @@ class _Props:
         values = [_finite(self.doc, child, t) for t in _tokens(text)]
         if len(values) not in (1, 3):
             self.doc.fail(child, f"expected one or three numbers, got {len(values)}", 'write value="r, g, b"')
+        if child.tag == "spectrum" and len(values) == 1 and kind == "emission":  # a flat spectrum, not grey
+            from .spectra import CIE_RANGE, to_srgb
+
+            return to_srgb(np.array(CIE_RANGE), np.array(values * 2), True, False)
         return np.array(values * 3 if len(values) == 1 else values, float)
 
     def transform(self, name="to_world"):

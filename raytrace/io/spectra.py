@@ -20,7 +20,8 @@ import functools
 import numpy as np
 
 CIE_NM = np.arange(360.0, 830.0 + 2.5, 5.0)  # the 95 wavelengths Mitsuba tabulates the CIE curves at
-SUM_NM = np.linspace(360.0, 830.0, 1000)  # the wavelengths the sum runs over
+CIE_RANGE = (360.0, 830.0)  # nm
+SUM_NM = np.linspace(*CIE_RANGE, 1000)  # the wavelengths the sum runs over
 D65_SCALE = 98.99741751876255  # Mitsuba's D65 is divided by this (include/mitsuba/core/spectrum.h)
 
 
