@@ -77,7 +77,7 @@ def _libm_allowance(H, va, vb):
         ends = abs(math.log(math.sqrt(1.0 + vb * vb) / math.sqrt(1.0 + va * va)))
         ends += abs(math.atan((va - vb) / (1.0 + va * vb)))
     else:
-        ends = abs(math.log(H * math.sqrt(1.0 + va * va))) + abs(math.atan2(1.0, va) - math.pi) + EULER_GAMMA + math.pi
+        ends = abs(math.log(H * math.sqrt(1.0 + va * va))) + abs(0.5 * math.pi + math.atan(va)) + EULER_GAMMA + math.pi
     return 2.0 * LIBM_ULPS * 2.220446049250313e-16 * ends
 
 

@@ -203,12 +203,12 @@ def _series_start(a, va, vb):
 def _series_arguments(a, va, vb):
     """(rho_a, rho_b, x, y) of `_series_start`: the ends' |z| = |a| sqrt(1 + v^2) (rho_b = 0 at vb = +inf) and the
     arguments of its logarithm and arc tangent, rho_b / rho_a and tan(phi_b - phi_a) = (va - vb) / (1 + va vb)
-    (1 + va vb > 0); at vb = +inf rho_a and 1 / va, arg(a (va + i)) = atan(1 / va) - pi for a < 0."""
+    (1 + va vb > 0); at vb = +inf rho_a and va, arg(a (va + i)) = -pi / 2 - atan(va) for a < 0."""
     rva = abs(a) * math.sqrt(va * va + 1.0)
     if vb < math.inf:
         rvb = abs(a) * math.sqrt(vb * vb + 1.0)
         return rva, rvb, rvb / rva, (va - vb) / (1.0 + va * vb)
-    return rva, 0.0, rva, 1.0 / va
+    return rva, 0.0, rva, va
 
 
 @njit(inline="always")
@@ -268,12 +268,11 @@ VECTOR_BLOCK = max(VECTOR_WIDTH, 1)  # the entries one `vector_math` call takes
 LIBM_ULPS = 4.0  # libmvec's documented accuracy (the scalar libm's is within 1 ulp)
 
 
-def _vector_math(name):
-    """An intrinsic f(buf, i): buf[i:i + VECTOR_BLOCK] = name(buf[i:i + VECTOR_BLOCK]) in place (buf a contiguous
-    float64 array, name a libm function of one double): one call of libmvec's variant for a SIMD register (the x86-64
-    vector function ABI's name), or of the scalar libm where VECTOR_WIDTH is 0. Entry by entry: an entry's result
-    does not depend on its neighbours (libmvec takes its special cases lane by lane)."""
-    width = VECTOR_WIDTH
+def _vector_math(name, width=VECTOR_WIDTH):
+    """An intrinsic f(buf, i): buf[i:i + max(width, 1)] = name(buf[i:i + max(width, 1)]) in place (buf a contiguous
+    float64 array, name a libm function of one double): one call of libmvec's variant for a SIMD register of `width`
+    doubles (the x86-64 vector function ABI's name), or of the scalar libm where width is 0. Entry by entry: an entry's
+    result does not depend on its neighbours (libmvec takes its special cases lane by lane)."""
     symbol = f"_ZGV{'e' if width == 8 else 'd'}N{width}v_{name}" if width else name
 
     @intrinsic
@@ -326,7 +325,7 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
         for j in range(w):
             r = rows[first + j]
             a, va, vb = -args[r, 0], args[r, 1], args[r, 2]
-            phi = at[j] if vb < math.inf else at[j] - math.pi
+            phi = at[j] if vb < math.inf else -0.5 * math.pi - at[j]
             i0[j], i1[j], p, za, zb, _, _ = _series_terms(a, va, vb, sn[j], cs[j], lg[j], phi, rva[j], rvb[j])
             # libmvec's error in the start terms: sin a, cos a within LIBM_ULPS ulp each times |log x| + |phi|
             # (+ |gamma| + pi at vb = +inf), the logarithm and the angle within LIBM_ULPS ulp
