@@ -253,13 +253,13 @@ def _vector_width():
     scalar libm)."""
     if numba.config.CPU_NAME or numba.config.CPU_FEATURES:
         return 0
-    features = llvm.get_host_cpu_features()
-    width = 8 if features.get("avx512f") else 4 if features.get("avx2") else 0
-    if width:
-        try:
+    try:
+        features = llvm.get_host_cpu_features()
+        width = 8 if features.get("avx512f") else 4 if features.get("avx2") else 0
+        if width:
             llvm.load_library_permanently("libmvec.so.1")
-        except RuntimeError:
-            return 0
+    except RuntimeError:  # (features unknown, or no libmvec)
+        return 0
     return width
 
 
