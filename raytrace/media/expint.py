@@ -14,8 +14,12 @@ Written from the formulas of METHODS.md; no external code.
 import cmath
 import math
 
+import llvmlite.binding as llvm
+import llvmlite.ir as llvm_ir
+import numba
 import numpy as np
 from numba import types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ..jit import exact_njit, njit
@@ -190,23 +194,36 @@ def _series_start(a, va, vb):
     """(I0, I1, e^{ia}, z_a, z_b, rho_a, rho_b) before the Fig. 2 loop's first iteration (`i01_series_est`):
     the logarithmic terms of both ends (for vb = +inf the limits at infinity), z = a (v + i), conjugated as the
     loop takes it (z_b = 0, rho_b = 0 at infinity)."""
-    sina = math.sin(a)
-    cosa = math.cos(a)
+    rva, rvb, x, y = _series_arguments(a, va, vb)
+    phi = math.atan(y) if vb < math.inf else math.atan2(a, a * va)
+    return _series_terms(a, va, vb, math.sin(a), math.cos(a), math.log(x), phi, rva, rvb)
+
+
+@njit(inline="always")
+def _series_arguments(a, va, vb):
+    """(rho_a, rho_b, x, y) of `_series_start`: the ends' |z| = |a| sqrt(1 + v^2) (rho_b = 0 at vb = +inf) and the
+    arguments of its logarithm and arc tangent, rho_b / rho_a and tan(phi_b - phi_a) = (va - vb) / (1 + va vb)
+    (1 + va vb > 0); at vb = +inf rho_a and va, arg(a (va + i)) = -pi / 2 - atan(va) for a < 0."""
     rva = abs(a) * math.sqrt(va * va + 1.0)
     if vb < math.inf:
         rvb = abs(a) * math.sqrt(vb * vb + 1.0)
-        logv = math.log(rvb / rva)
-        phiv = math.atan((va - vb) / (1.0 + va * vb))  # phi_b - phi_a = arg(z_b conj(z_a)); 1 + va vb > 0
-        i0 = sina * logv - cosa * phiv
-        i1 = cosa * logv + sina * phiv
+        return rva, rvb, rvb / rva, (va - vb) / (1.0 + va * vb)
+    return rva, 0.0, rva, va
+
+
+@njit(inline="always")
+def _series_terms(a, va, vb, sina, cosa, logx, phi, rva, rvb):
+    """`_series_start`'s result from sin a, cos a, the logarithm of `_series_arguments`' x and the angle phi: the
+    arc tangent of its y (vb finite: phi_b - phi_a), or at vb = +inf arg(a (va + i)) itself."""
+    if vb < math.inf:
+        i0 = sina * logx - cosa * phi
+        i1 = cosa * logx + sina * phi
         zb = complex(a * vb, -a)
     else:
-        rvb = 0.0
-        pva = math.atan2(a, a * va)
-        lg = EULER_GAMMA + math.log(rva)
+        lg = EULER_GAMMA + logx
         # I = i(inf) - i(va)
-        i0 = math.pi * cosa - (sina * lg - cosa * pva)
-        i1 = -math.pi * sina - (cosa * lg + sina * pva)
+        i0 = math.pi * cosa - (sina * lg - cosa * phi)
+        i1 = -math.pi * sina - (cosa * lg + sina * phi)
         zb = 0.0j
     return i0, i1, complex(cosa, sina), complex(a * va, -a), zb, rva, rvb
 
@@ -229,6 +246,53 @@ def select(typingctx, cond, x, y):
     return types.float64(types.boolean, types.float64, types.float64), codegen
 
 
+def _vector_width():
+    """How many doubles one call of glibc's vector math library (libmvec: sin, cos, log, atan, exp of a SIMD
+    register, each within 4 ulp) takes in this process: 8 with AVX-512, 4 with AVX2; 0 where it cannot be called
+    (no libmvec, another CPU, or numba told to compile for a CPU other than this one: `vector_math` then calls the
+    scalar libm)."""
+    if numba.config.CPU_NAME or numba.config.CPU_FEATURES:
+        return 0
+    try:
+        features = llvm.get_host_cpu_features()
+        width = 8 if features.get("avx512f") else 4 if features.get("avx2") else 0
+        if width:
+            llvm.load_library_permanently("libmvec.so.1")
+    except RuntimeError:  # (features unknown, or no libmvec)
+        return 0
+    return width
+
+
+VECTOR_WIDTH = _vector_width()
+VECTOR_BLOCK = max(VECTOR_WIDTH, 1)  # the entries one `vector_math` call takes
+LIBM_ULPS = 4.0  # libmvec's documented accuracy (the scalar libm's is within 1 ulp)
+
+
+def _vector_math(name, width=VECTOR_WIDTH):
+    """An intrinsic f(buf, i): buf[i:i + max(width, 1)] = name(buf[i:i + max(width, 1)]) in place (buf a contiguous
+    float64 array, name a libm function of one double): one call of libmvec's variant for a SIMD register of `width`
+    doubles (the x86-64 vector function ABI's name), or of the scalar libm where width is 0. Entry by entry: an entry's
+    result does not depend on its neighbours (libmvec takes its special cases lane by lane)."""
+    symbol = f"_ZGV{'e' if width == 8 else 'd'}N{width}v_{name}" if width else name
+
+    @intrinsic
+    def vector_math(typingctx, buf, i):
+        def codegen(context, builder, signature, args):
+            data = context.make_array(signature.args[0])(context, builder, args[0]).data
+            at = builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
+            vt = llvm_ir.VectorType(llvm_ir.DoubleType(), width) if width else llvm_ir.DoubleType()
+            ptr = builder.bitcast(at, vt.as_pointer())
+            fn = cgutils.get_or_insert_function(builder.module, llvm_ir.FunctionType(vt, [vt]), symbol)
+            builder.store(builder.call(fn, [builder.load(ptr, align=8)]), ptr, align=8)
+            return context.get_dummy_value()
+        return types.none(buf, i), codegen
+    return vector_math
+
+
+vector_sin, vector_cos, vector_log, vector_atan, vector_exp = (_vector_math(f)
+                                                              for f in ("sin", "cos", "log", "atan", "exp"))
+
+
 SERIES_LANES = 64  # segments whose Fig. 2 loops `i01_series_lanes` advances side by side
 
 
@@ -240,17 +304,33 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
     frozen from the iteration its own test stops it, the pass repeated while any lane runs. Compiled without
     fastmath, no operation mixing two segments, so that a segment's result does not depend on its batch;
     the same arithmetic as `i01_series_est` but for the fused multiply-adds (`fma`; the scalar loop lets the
-    compiler fuse): its last bits may differ."""
-    st = np.empty((17, SERIES_LANES))
+    compiler fuse) and the setup's sin, cos, log and atan, VECTOR_BLOCK lanes a call (`vector_math`: libmvec,
+    within LIBM_ULPS ulp, which the estimate adds): its last bits may differ."""
+    st = np.ones((22, SERIES_LANES))  # (the transcendentals' rows beyond a last batch's lanes: 1, harmless)
     i0, i1, big, its, prec = st[0], st[1], st[2], st[3], st[4]
     par, pai, pbr, pbi, zar, zai, zbr, zbi = st[5], st[6], st[7], st[8], st[9], st[10], st[11], st[12]
-    rka, rkb, rva, rvb = st[13], st[14], st[15], st[16]
+    rka, rkb, rva, rvb, sn, cs, lg, at, lib = st[13], st[14], st[15], st[16], st[17], st[18], st[19], st[20], st[21]
     for first in range(0, rows.shape[0], SERIES_LANES):
         w = min(SERIES_LANES, rows.shape[0] - first)
+        for j in range(w):  # `_series_start` with its libm calls made VECTOR_BLOCK lanes at a time
+            r = rows[first + j]
+            a, va, vb = -args[r, 0], args[r, 1], args[r, 2]
+            rva[j], rvb[j], lg[j], at[j] = _series_arguments(a, va, vb)
+            sn[j], cs[j] = a, a
+        for j in range(0, w, VECTOR_BLOCK):
+            vector_sin(sn, j)
+            vector_cos(cs, j)
+            vector_log(lg, j)
+            vector_atan(at, j)
         for j in range(w):
             r = rows[first + j]
             a, va, vb = -args[r, 0], args[r, 1], args[r, 2]
-            i0[j], i1[j], p, za, zb, rva[j], rvb[j] = _series_start(a, va, vb)
+            phi = at[j] if vb < math.inf else -0.5 * math.pi - at[j]
+            i0[j], i1[j], p, za, zb, _, _ = _series_terms(a, va, vb, sn[j], cs[j], lg[j], phi, rva[j], rvb[j])
+            # libmvec's error in the start terms: sin a, cos a within LIBM_ULPS ulp each times |log x| + |phi|
+            # (+ |gamma| + pi at vb = +inf), the logarithm and the angle within LIBM_ULPS ulp
+            ends = abs(lg[j]) + abs(phi) + (0.0 if vb < math.inf else EULER_GAMMA + math.pi)
+            lib[j] = 2.0 * LIBM_ULPS * _EPS * ends
             big[j] = abs(i0[j]) + abs(i1[j]) + 1.0
             its[j], prec[j] = 0.0, args[r, prec_col]
             par[j], pai[j], pbr[j], pbi[j] = p.real, p.imag, p.real, p.imag
@@ -267,7 +347,7 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
         for j in range(w):
             out[first + j, 0], out[first + j, 1] = i0[j], i1[j]
             out[first + j, 2] = its[j] if its[j] > 0.0 else float(max_iter)  # (a loop that never stopped)
-            out[first + j, 3] = 4.0 * _EPS * big[j] * (1.0 + math.sqrt(rva[j] + rvb[j]))
+            out[first + j, 3] = 4.0 * _EPS * big[j] * (1.0 + math.sqrt(rva[j] + rvb[j])) + lib[j]
 
 
 @exact_njit(inline="always")

@@ -42,7 +42,7 @@ from .. import error_bounds
 from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, cone_row, v_of
-from ..media.expint import g_scaled, en_scaled, i01_series_est, i01_series_lanes
+from ..media.expint import VECTOR_BLOCK, g_scaled, en_scaled, i01_series_est, i01_series_lanes, vector_exp
 from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
                                hg_legendre, legendre_to_cosine, rayleigh_legendre, start_sensitivity, times_trig,
@@ -123,7 +123,8 @@ BAND_GAUSS_FIRST = 48
 BAND_MARGIN = 0.01  # a band's K1, L1 are computed this much finer than its polynomial's terms need
 # a row of `evaluate_segments`' batch of moment recurrences (`checked_airlight`'s `pending`): the arguments of
 # cosine_moments_forward, the start of the block in coeffs (0: nothing pending), the factor 2 I / h and, where
-# the Fig. 2 loop that gives K1 and L1 is pending too (`_pending_series`), its precision (else 0)
+# the Fig. 2 loop that gives K1 and L1 is pending too (`_pending_series`), its precision (else 0; where it is
+# pending, E1 and E2 hold their exponents until `_pending_series` takes their exponentials)
 P_H, P_V1, P_V2, P_K1, P_L1, P_E1, P_E2, P_BLOCK, P_PREF, P_PREC = range(10)
 PENDING = 10
 NOTHING_PENDING = (0.0,) * PENDING  # a row with P_BLOCK 0
@@ -285,8 +286,9 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     the exact mode's moment recurrence is left to the caller (`_pending_recurrences`): S is then 0,
     start > 0 the start of the coefficient block in `coeffs`, and K1, L1, E1, E2 the recurrence's
     arguments with H, v1, v2 (start is 0 where nothing is left); where the Fig. 2 loop would give K1 and L1,
-    it is left to the caller too (`_pending_series`): K1 and L1 are then 0, prec_s > 0 the loop's precision
-    (else 0), and the statistics are the caller's to count."""
+    it is left to the caller too (`_pending_series`): K1 and L1 are then 0, E1 and E2 the exponents -kt p1,
+    -kt p2 (the caller takes their exponentials, a vector of segments at a time), prec_s > 0 the loop's
+    precision (else 0), and the statistics are the caller's to count."""
     exact = phase_code != ISOTROPIC and aniso_mode == ANISO_EXACT
     start, n = 0, 0  # the block in coeffs (offsets, not a slice: a slice costs numba a reference count)
     prec_i = precision
@@ -304,7 +306,7 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     iterations, flags = 0.0, 0
     use_series = rho_max <= RHO_SWITCH_CAP and rho_max <= rho_switch(prec_i)
     if use_series and defer and exact:  # (`exact` only where the anisotropic code is compiled)
-        return 0.0, True, 0.0, 0, 0.0, 0.0, math.exp(-kt * p1), math.exp(-kt * p2), start, prec_i
+        return 0.0, True, 0.0, 0, 0.0, 0.0, -kt * p1, -kt * p2, start, prec_i
     if use_series:
         i0, i1, it, err = i01_series_est(-H, v1, v2, prec_i, max_iter)
         iterations = float(it)
@@ -1022,15 +1024,25 @@ def _pending_series(pending, xh, h, ell, kt, ks, code, g, precision, max_iter, c
     then taken on as `_piece` goes on from its loop: the loop's result accepted (K1, L1 into the segment's row
     of the recurrences' batch) or rejected by its guard (the scaled-E1 ends, and where their terms cancel the
     fallback: out and met, the row's P_BLOCK then 0), and counted (`_tally`). Returns how many are left nan
-    (`quadrature` None)."""
+    (`quadrature` None). The exponentials e^{-kt xh} (the fold of K1 and L1) and those of the rows' E1 and E2
+    (`_piece` left their exponents) are taken VECTOR_BLOCK segments a call (`vector_exp`)."""
     rows = np.flatnonzero(pending[:, P_PREC] > 0.0)
     res = np.empty((rows.shape[0], 4))
     i01_series_lanes(pending, rows, P_PREC, max_iter, res)
+    ex = np.zeros((3, -(-rows.shape[0] // VECTOR_BLOCK) * VECTOR_BLOCK))  # rows of whole vectors
+    for i in range(rows.shape[0]):
+        s = rows[i]
+        ex[0, i], ex[1, i], ex[2, i] = -kt * xh[s], pending[s, P_E1], pending[s, P_E2]
+    for i in range(0, rows.shape[0], VECTOR_BLOCK):
+        vector_exp(ex[0], i)
+        vector_exp(ex[1], i)
+        vector_exp(ex[2], i)
     left = 0
     for i in range(rows.shape[0]):
         s = rows[i]
-        H, v1, v2, E1, E2, prec_i = (pending[s, P_H], pending[s, P_V1], pending[s, P_V2], pending[s, P_E1],
-                                     pending[s, P_E2], pending[s, P_PREC])
+        H, v1, v2, prec_i = pending[s, P_H], pending[s, P_V1], pending[s, P_V2], pending[s, P_PREC]
+        E1, E2 = ex[1, i], ex[2, i]
+        pending[s, P_E1], pending[s, P_E2] = E1, E2
         i0, i1, iterations, err = res[i, 0], res[i, 1], res[i, 2], res[i, 3]
         # `_piece`'s a-posteriori guard: estimated rounding error vs the precision; a loop that used all
         # max_iter iterations may not have converged
@@ -1038,7 +1050,7 @@ def _pending_series(pending, xh, h, ell, kt, ks, code, g, precision, max_iter, c
             K1, L1, _, ok = _e1_ends(H, v1, v2, E1, E2, prec_i)
             flags = F_REJECTED | F_STABLE if ok else F_REJECTED
         else:
-            f = math.exp(-kt * xh[s])
+            f = ex[0, i]
             K1, L1, ok, flags = f * i0, f * i1, True, F_SERIES
         if ok:
             pending[s, P_K1], pending[s, P_L1] = K1, L1
