@@ -38,7 +38,6 @@ import functools
 
 import numpy as np
 
-from ..lights.area import gauss_legendre
 from ..lights.cubature import NEAR_FRACTION, PASSING, SHARE, agree, passes
 from ..lights.planar import plane_feet
 from ..lights.sphere_occluders import segments_free
@@ -224,13 +223,10 @@ def _planar_rule(planar, feet, dirs):
 
 
 def _own_rule(emitter):
-    """rule(at, order) -> (points, normals, weights, owner) of an emitter's own map (`Emitter.sample`) at
-    Gauss–Legendre order x order parameters, the same nodes for each ray `at`."""
+    """rule(at, order) -> (points, normals, weights, owner) of an emitter's own rows' rule (`Emitter.rule`),
+    the same nodes for each ray `at`."""
     def rule(at, order):
-        x, w = gauss_legendre(order)
-        u, v = np.meshgrid(x, x, indexing="ij")
-        points, normals, density = emitter.sample(u.ravel(), v.ravel())
-        weights = np.outer(w, w).ravel() / density
+        points, normals, weights = emitter.rule(order)
         k = len(at)
         return (np.tile(points, (k, 1)), np.tile(normals, (k, 1)), np.tile(weights, k),
                 np.repeat(np.arange(k), len(weights)))
