@@ -118,7 +118,8 @@ class Emitter:
     # where the kind has it in closed form about a centre (None: not; the kind's `surface_irradiance`);
     # missed (1,) += the points where it did not converge (the finest order kept)
     irradiance: Callable | None = None
-    rule: Callable | None = None  # rule(order) -> (points (n, 3), unit normals (n, 3), area weights (n,)): its rows' rule
+    # rule(order) -> (points (n, 3), unit normals (n, 3), area weights (n,)): its rows' rule (`unit_rule`)
+    rule: Callable | None = None
 
 
 def uniform_density(n: int, area: float) -> np.ndarray:
