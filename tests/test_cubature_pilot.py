@@ -4,9 +4,12 @@ raytrace/rendering/renderer.py):
 - `choose` shades the near rays, which do not choose the order, at the chosen pair only, and returns
   what the same rule with every pilot ray shaded at every order returns (a twin written here);
 - `pilot_pixels` measures only the candidates that may be among the nearest (`nearest`: the same
-  distances and order as `distances` on all) and reuses them for the pilot rays: the same pixels
-  and near rays as distances measured afresh on the pilot's own rays (and np.unique over rows), on
-  images smaller and larger than the candidates' grid;
+  distances and order as `distances` on all, of all rays or of those beyond a floor) and reuses them
+  for the pilot rays: the same pixels and near rays as distances measured afresh on the pilot's own
+  rays (and np.unique over rows), on images smaller and larger than the candidates' grid; a flat
+  emitter's near pixels are the nearest beyond cubature.PASSING, its near rays those within it;
+- `passes` (a flat emitter's near rays in the render) measures the rays the bounding sphere cannot
+  clear: the same rays as `distances` on all;
 - the warm-up runs once per scene file, method, parameters and shadows in a process: a second
   render of the same file compiles nothing and gives the same image, a changed file warms up again.
 """
@@ -89,12 +92,14 @@ def test_pilot_pixels_as_measured_afresh(size):
     cand = np.unique(cubature.grid(cubature.CANDIDATES, *size), axis=0)
     o, d = rays_of(cand)
     sample = lights.emitters[0].sample
-    picks = [cubature.grid(cubature.GRID, *size), cand[np.argsort(distances(sample, o, d)[0], kind="stable")
-                                                      [:cubature.NEAR]]]
+    every, diameter = distances(sample, o, d)
+    beyond = np.flatnonzero(every >= cubature.PASSING * diameter)  # a flat emitter: its near rays do not choose
+    picks = [cubature.grid(cubature.GRID, *size), cand[beyond[np.argsort(every[beyond], kind="stable")
+                                                             [:cubature.NEAR]]]]
     want = np.unique(np.concatenate(picks), axis=0)
     dist, diameter = distances(sample, *rays_of(want))
     np.testing.assert_array_equal(pixels, want)
-    np.testing.assert_array_equal(near[0], dist < cubature.NEAR_FRACTION * diameter)
+    np.testing.assert_array_equal(near[0], dist < cubature.PASSING * diameter)
 
 
 def test_warm_up_once_per_scene_file(tmp_path):
@@ -108,8 +113,9 @@ def test_warm_up_once_per_scene_file(tmp_path):
     assert api.render(str(copy), "analytic", **kw).compile_seconds > 0.0  # another file: warmed up
 
 
+@pytest.mark.parametrize("beyond", [0.0, 0.25, 1.0])
 @pytest.mark.parametrize("seed", range(4))
-def test_nearest_measures_every_ray_that_may_be_among_the_nearest(seed):
+def test_nearest_measures_every_ray_that_may_be_among_the_nearest(seed, beyond):
     rng = np.random.default_rng(seed)
     sc = load_scene(SCENE)
     sample = Lights.of(sc.lights, []).emitters[0].sample
@@ -118,9 +124,27 @@ def test_nearest_measures_every_ray_that_may_be_among_the_nearest(seed):
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     every, diameter = distances(sample, o, d)
-    some, same_diameter = cubature.nearest(sample, o, d, cubature.NEAR)
+    some, same_diameter = cubature.nearest(sample, o, d, cubature.NEAR, beyond)
     measured = ~np.isnan(some)
-    assert same_diameter == diameter and measured.sum() >= min(n, cubature.NEAR)
+    eligible = every >= beyond * diameter
+    assert same_diameter == diameter and measured[eligible].sum() >= min(eligible.sum(), cubature.NEAR)
     np.testing.assert_array_equal(some[measured], every[measured])
-    np.testing.assert_array_equal(np.argsort(np.nan_to_num(some, nan=np.inf), kind="stable")[:cubature.NEAR],
-                                  np.argsort(every, kind="stable")[:cubature.NEAR])
+    got = np.where(measured & (np.nan_to_num(some) >= beyond * diameter), some, np.inf)
+    want = np.argsort(np.where(eligible, every, np.inf), kind="stable")[:cubature.NEAR]
+    np.testing.assert_array_equal(np.argsort(got, kind="stable")[:cubature.NEAR][:eligible.sum()],
+                                  want[:eligible.sum()])
+
+
+@pytest.mark.parametrize("fraction", [cubature.NEAR_FRACTION, cubature.PASSING, 2.0])
+@pytest.mark.parametrize("seed", range(3))
+def test_passes_as_measured_on_every_ray(seed, fraction):
+    rng = np.random.default_rng(seed)
+    sample = Lights.of(load_scene(SCENE).lights, []).emitters[0].sample
+    n = 3000
+    o = rng.normal(size=(n, 3)) * rng.uniform(0.3, 3.0)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    every, diameter = distances(sample, o, d)
+    want = every < fraction * diameter
+    assert 0 < want.sum() < n
+    np.testing.assert_array_equal(cubature.passes(sample, o, d, fraction), want)

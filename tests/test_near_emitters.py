@@ -84,8 +84,9 @@ TWINS = json.loads((Path(__file__).resolve().parent / "data" / "near_emitter_twi
 @pytest.mark.parametrize("kind", sorted(TWINS))
 def test_rays_near_an_emitter_against_the_exact_twin(kind, monkeypatch):
     """The twins' scenes (tests/make_near_twins.py): the rays near the emitter (9 of the 12 by the quad, 7 by
-    the disk) within 1e-6 of the twin (the rows alone: 1e-4 or more off on some); the others the rows'
-    bit for bit (at the pilot's order, whose pilot rays are elsewhere)."""
+    the disk, the others passing within cubature.PASSING of it: their own ladders of its rows' rule, which
+    may end on the pilot's rule, the rows' value bit for bit) within 1e-6 of the twin (the rows alone:
+    1e-4 or more off on some)."""
     case = TWINS[kind]
     ref = np.array(case["radiance"])
     sc = scene([case["light"]], case["medium"], case["camera"])
@@ -94,8 +95,8 @@ def test_rays_near_an_emitter_against_the_exact_twin(kind, monkeypatch):
     rows = api.render(sc, "quadrature", rtol=1e-6), api.render(sc, "analytic", precision=1e-6)
     for img, alone in zip(renders, rows):
         near = np.any(img.array != alone.array, axis=-1)
-        assert near.sum() == img.stats["cubature: rays near an emitter"] >= 7, img.stats
+        assert img.stats["cubature: rays near an emitter"] >= near.sum() >= 7, img.stats
         assert img.stats["cubature: rays near an emitter not converged"] == 0, img.stats
         rel = np.abs(img.array[..., 0] / ref - 1)
-        assert rel[near].max() <= 1e-6, (img.method, rel)
+        assert rel.max() <= 1e-6, (img.method, rel)
         assert np.abs(alone.array[..., 0] / ref - 1)[near].max() > 1e-4

@@ -90,7 +90,7 @@ def _emitter(light: Light):
     if not hasattr(kind, "sample_emitter"):
         return None
     return emitter(light, kind.sample_emitter, getattr(kind, "CORNERS", None), getattr(kind, "planar", None),
-                   getattr(kind, "ball", None), getattr(kind, "surface_irradiance", None))
+                   getattr(kind, "ball", None), getattr(kind, "surface_irradiance", None), kind.rows)
 
 
 def cubature_ladders(lights: list[Light], emitters=()):

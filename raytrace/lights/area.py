@@ -18,6 +18,7 @@ and `Emitter` is what the surface term needs of one emitter (shading.py).
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Callable
@@ -117,6 +118,8 @@ class Emitter:
     # where the kind has it in closed form about a centre (None: not; the kind's `surface_irradiance`);
     # missed (1,) += the points where it did not converge (the finest order kept)
     irradiance: Callable | None = None
+    # rule(order) -> (points (n, 3), unit normals (n, 3), area weights (n,)): its rows' rule (`unit_rule`)
+    rule: Callable | None = None
 
 
 def uniform_density(n: int, area: float) -> np.ndarray:
@@ -124,16 +127,26 @@ def uniform_density(n: int, area: float) -> np.ndarray:
     return np.full(n, 1.0 / area)
 
 
-def emitter(light: Light, sample_emitter, corners=None, planar=None, ball=None, irradiance=None) -> Emitter:
+def emitter(light: Light, sample_emitter, corners=None, planar=None, ball=None, irradiance=None,
+            rows=None) -> Emitter:
     """The `Emitter` of an area light whose kind maps (u, v) by `sample_emitter(light, u, v)`, its
     probes at the parameters `corners` ((u, v), each (K,); None: no probes), `planar(light)` its
     `Planar` where the kind is flat, `ball(light)` its `Ball` where it is a sphere (None: not),
-    `irradiance(light, ...)` its `Emitter.irradiance` where it has one."""
+    `irradiance(light, ...)` its `Emitter.irradiance` where it has one, `rows(light, order)` its
+    kind's rows (`Emitter.rule`: `unit_rule`)."""
     sample = functools.partial(sample_emitter, light)
     probes = None if corners is None else sample(*corners)[:2]
     return Emitter(light.intensity, light.two_sided, sample, probes, None if planar is None else planar(light),
                    None if ball is None else ball(light),
-                   None if irradiance is None else functools.partial(irradiance, light))
+                   None if irradiance is None else functools.partial(irradiance, light),
+                   None if rows is None else functools.partial(unit_rule, rows, light))
+
+
+def unit_rule(rows, light: Light, order: int):
+    """(points (n, 3), unit normals (n, 3), area weights (n,)) of the kind's `rows(light, order)`: the
+    rows of the light made one-sided of unit radiance (`emitter_rows`' weights times 1)."""
+    r = rows(dataclasses.replace(light, intensity=np.ones(3), two_sided=False), order)
+    return r.position, r.axis, r.intensity[:, 0]
 
 
 def collapsed_variance(g, strata: int) -> np.ndarray:

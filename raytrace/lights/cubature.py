@@ -13,6 +13,9 @@ The pilot rays are the pixel centres of a GRID x GRID grid over the image and, p
 pixel rays (of a CANDIDATES x CANDIDATES sample of the image's, every pixel of a smaller image, each
 once) that pass closest to its points: where a ray passes near or ends on an emitter each node's
 air-light behaves like w_i / rho_i about the ray's foot point, the slowest place for the rule to converge.
+Rays that pass within `near_fraction` of the emitter's diameter do not choose: a flat emitter's (within
+PASSING) take rules of their own in the render (rendering/near_emitters.py), so its NEAR pixels are the
+nearest of those beyond it, the rays that choose its order.
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ PROBES = 17  # ... by their distance to PROBES x PROBES points of the emitter, i
 SHARE = 0.25  # the share of the method's precision the two orders must agree to
 MAX_ROWS = 1024  # an emitter's rows at most (each row costs what a spot light costs)
 NEAR_FRACTION = 1 / 8  # a pilot ray this close to an emitter (of its diameter) is in its 1/r region
+PASSING = 1 / 4  # a camera ray this close to a flat emitter takes its own ladder of the emitter's rule (near_emitters)
 FLOOR = 1e-13  # agreement relative to the largest pilot radiance (`agree`) below which rays are not told apart
 AREA_LADDER = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # orders of the area lights' rules (32 x 32: MAX_ROWS)
 LEVELS = 6  # an emissive shape's subdivision levels at most (each triangle split in 4^level)
@@ -57,21 +61,33 @@ def grid(n: int, width: int, height: int) -> np.ndarray:
     return np.stack([ys.ravel(), xs.ravel()], axis=1).astype(np.int64)
 
 
+def near_fraction(emitter) -> float:
+    """The share of an emitter's diameter within which a pilot ray is near it and does not choose its
+    order: PASSING for a flat emitter (`Emitter.planar`; near_emitters integrates such rays per ray),
+    NEAR_FRACTION for the others."""
+    return PASSING if emitter.planar is not None else NEAR_FRACTION
+
+
 def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
     """(pixels (N, 2), near): the pilot's pixels (row, column), the GRID grid's and the NEAR pixels of
-    the CANDIDATES grid (each pixel once: all of an image smaller than it) nearest to each emitter, and per source (None where `ladders[s]` is None) whether
-    each of their rays passes within NEAR_FRACTION of its diameter of the emitter. `emitters[s]`: its
-    area.Emitter; `rays_of(pixels)`: their rays (origins, unit directions). Only the candidates that
-    may be among the NEAR nearest are measured (`nearest`), and a pilot pixel among those takes its
-    candidate ray's distance (the same number: each ray's is its own)."""
+    the CANDIDATES grid (each pixel once: all of an image smaller than it) nearest to each emitter
+    beyond its `near_fraction` of its diameter (all of them for the emitters whose fraction is
+    NEAR_FRACTION), and per source (None where `ladders[s]` is None) whether each of their rays passes
+    within that fraction of the emitter. `emitters[s]`: its area.Emitter; `rays_of(pixels)`: their rays
+    (origins, unit directions). Only the candidates that may be among the NEAR nearest are measured
+    (`nearest`), and a pilot pixel among those takes its candidate ray's distance (the same number:
+    each ray's is its own)."""
     sources = [s for s, l in enumerate(ladders) if l is not None]
     cand = unique_pixels(grid(CANDIDATES, width, height), width)  # an image smaller than the grid: each pixel once
     o, d = rays_of(cand)
     picks = [grid(GRID, width, height)]
     measured = {}
     for s in sources:
-        measured[s] = nearest(emitters[s].sample, o, d, NEAR)
-        picks.append(cand[np.argsort(np.nan_to_num(measured[s][0], nan=np.inf), kind="stable")[:NEAR]])
+        beyond = PASSING if emitters[s].planar is not None else 0.0  # its near rays are not the nearest that choose
+        measured[s] = nearest(emitters[s].sample, o, d, NEAR, beyond)
+        dist = measured[s][0]
+        order = np.argsort(np.where(dist >= beyond * measured[s][1], dist, np.inf), kind="stable")[:NEAR]
+        picks.append(cand[order[dist[order] >= beyond * measured[s][1]]])
     pixels = unique_pixels(np.concatenate(picks), width)
     key, cand_key = pixels @ [width, 1], cand @ [width, 1]  # both sorted
     at = np.minimum(np.searchsorted(cand_key, key), len(cand) - 1)
@@ -81,7 +97,7 @@ def pilot_pixels(emitters, ladders, rays_of, width: int, height: int):
         afresh = np.isnan(dist)  # off the candidates (an image larger than them) or not measured there
         if afresh.any():
             dist[afresh] = half_line_distances(probe_points(emitters[s].sample), *rays_of(pixels[afresh]))
-        near[s] = dist < NEAR_FRACTION * measured[s][1]
+        near[s] = dist < near_fraction(emitters[s]) * measured[s][1]
     return pixels, near
 
 
@@ -98,22 +114,44 @@ def probe_points(samples) -> np.ndarray:
     return samples(u.ravel(), v.ravel())[0]
 
 
-def nearest(samples, origins, dirs, k: int) -> tuple[np.ndarray, float]:
-    """`distances` of the half-lines that may be among the k nearest to the emitter's probe points, NaN
-    for the others: each of those is farther than k of them (its distance is within the radius r of
-    the points' bounding sphere of its distance to the sphere's centre, so one whose distance to the
-    centre less r is beyond the k-th smallest distance to the centre plus r is not among them)."""
+def nearest(samples, origins, dirs, k: int, beyond: float = 0.0) -> tuple[np.ndarray, float]:
+    """(`distances` of the half-lines that may be among the k nearest to the emitter's probe points of
+    those at least `beyond` x its diameter from them, NaN for the others; the diameter). Each distance
+    lies within the radius r of the points' bounding sphere of the half-line's distance c to the
+    sphere's centre: one whose c + r is below that floor is not among them, nor one whose c - r is
+    beyond the k-th smallest c + r of those surely at or beyond the floor (c - r at or above it)."""
+    points, size, radius, to_centre = _about(samples, origins, dirs)
+    out = np.full(len(origins), np.nan)
+    floor = beyond * size
+    margin = 1e-9 * (floor + radius)  # for rounding
+    maybe = np.flatnonzero(to_centre + radius >= floor - margin) if floor > 0.0 else np.arange(len(origins))
+    sure = to_centre[maybe] - radius >= floor + margin if floor > 0.0 else np.ones(len(maybe), bool)
+    if np.count_nonzero(sure) > k:
+        kth = np.partition(to_centre[maybe][sure], k - 1)[k - 1] + radius
+        maybe = maybe[to_centre[maybe] - radius <= kth + 1e-9 * (kth + radius)]
+    out[maybe] = half_line_distances(points, origins[maybe], dirs[maybe])
+    return out, size
+
+
+def passes(samples, origins, dirs, fraction: float) -> np.ndarray:
+    """(N,) whether each half-line passes within `fraction` of an emitter's diameter of its probe points
+    (the pilot's measure, `near_fraction`); only those whose distance to the points' bounding sphere
+    allows it are measured."""
+    points, size, radius, to_centre = _about(samples, origins, dirs)
+    limit = fraction * size
+    maybe = np.flatnonzero(to_centre - radius < limit * (1.0 + 1e-9) + 1e-9 * radius)
+    out = np.zeros(len(origins), bool)
+    out[maybe] = half_line_distances(points, origins[maybe], dirs[maybe]) < limit
+    return out
+
+
+def _about(samples, origins, dirs):
+    """(probe points (P, 3), their `diameter`, the radius of their bounding sphere about their mean, (N,)
+    each half-line's distance to that centre)."""
     points = probe_points(samples)
     centre = points.mean(axis=0)
     radius = np.linalg.norm(points - centre, axis=1).max()
-    to_centre = half_line_distances(centre[None], origins, dirs)
-    out = np.full(len(origins), np.nan)
-    maybe = np.arange(len(origins))
-    if len(origins) > k:
-        kth = np.partition(to_centre, k - 1)[k - 1] + radius
-        maybe = np.flatnonzero(to_centre - radius <= kth + 1e-9 * (kth + radius))  # a margin for rounding
-    out[maybe] = half_line_distances(points, origins[maybe], dirs[maybe])
-    return out, diameter(points)
+    return points, diameter(points), radius, half_line_distances(centre[None], origins, dirs)
 
 
 def half_line_distances(points, origins, dirs) -> np.ndarray:

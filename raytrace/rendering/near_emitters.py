@@ -38,7 +38,7 @@ import functools
 
 import numpy as np
 
-from ..lights.cubature import NEAR_FRACTION, SHARE, agree
+from ..lights.cubature import NEAR_FRACTION, PASSING, SHARE, agree, passes
 from ..lights.planar import plane_feet
 from ..lights.sphere_occluders import segments_free
 from ..lights.sphere_rule import FIRST
@@ -82,20 +82,25 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
         near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
         feet[e] = foot
-    near &= _shines(lights, cone, tmax, n)
+    passing = _passing(lights, method, tol, origins, dirs, near)
+    shine = _shines(lights, cone, tmax, n)
+    near &= shine
+    passing &= shine
     own = method.sphere(medium, params) if method.stochastic and method.sphere is not None else None
     if method.stochastic:  # its own estimate of the spheres, else their rows; flat emitters keep their rows
         near &= _balls(lights)[None, :] & (own is not None)
     hidden = np.zeros((n, n_e), bool)
-    if shadows and near.any():
+    if shadows and (near | passing).any():
         if not method.stochastic:
-            near &= _lit_or_unseen(lights, cone, segs, n)
+            lit = _lit_or_unseen(lights, cone, segs, n)
+            near &= lit
+            passing &= lit
         hidden = _may_hide(ctx[0], lights, near, rays)
         near &= ~hidden
-    if not (near | hidden).any():
+    if not (near | hidden | passing).any():
         return segs, air, stats, near.any(axis=1), var
     owner = np.where(lights.cubature, lights.owner, 0)[segs.light]
-    drop = (near | hidden)[segs.ray, owner] & lights.cubature[segs.light]
+    drop = (near | hidden | passing)[segs.ray, owner] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(hidden)[1]):
         if own is not None:
@@ -122,7 +127,27 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
         value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
-    return kept, air, stats, (near | hidden).any(axis=1), var
+    for e in np.unique(np.nonzero(passing)[1]):
+        rs = np.nonzero(passing[:, e])[0]
+        em = lights.emitters[e]
+        value, stray = _ladder(em, _own_rule(em), ORDERS, method, medium, params, tol, rs, rays, segs.scale,
+                               np.abs(seen[rs]))
+        air[rs] += value
+        stats += (len(rs), stray)
+    return kept, air, stats, (near | hidden | passing).any(axis=1), var
+
+
+def _passing(lights, method, tol, origins, dirs, near) -> np.ndarray:
+    """(N, E) the camera rays that pass within cubature.PASSING of a flat emitter's diameter of it (the
+    pilot's measure: they do not choose its order) and are not `near` it, for a deterministic method
+    with a precision (whose pilot chose the order)."""
+    out = np.zeros(near.shape, bool)
+    if tol is None or method.stochastic:
+        return out
+    for e, em in enumerate(lights.emitters):
+        if em is not None and em.planar is not None:
+            out[:, e] = passes(em.sample, origins, dirs, PASSING) & ~near[:, e]
+    return out
 
 
 def _in_sight(accel, points, dirs, dist) -> np.ndarray:
@@ -194,6 +219,17 @@ def _planar_rule(planar, feet, dirs):
     def rule(at, order):
         points, weights, owner = planar.rule(feet[at], order, dirs[at])
         return points, np.broadcast_to(planar.normal, points.shape), weights, owner
+    return rule
+
+
+def _own_rule(emitter):
+    """rule(at, order) -> (points, normals, weights, owner) of an emitter's own rows' rule (`Emitter.rule`),
+    the same nodes for each ray `at`."""
+    def rule(at, order):
+        points, normals, weights = emitter.rule(order)
+        k = len(at)
+        return (np.tile(points, (k, 1)), np.tile(normals, (k, 1)), np.tile(weights, k),
+                np.repeat(np.arange(k), len(weights)))
     return rule
 
 
