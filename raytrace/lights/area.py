@@ -120,6 +120,9 @@ class Emitter:
     irradiance: Callable | None = None
     # rule(order) -> (points (n, 3), unit normals (n, 3), area weights (n,)): its rows' rule (`unit_rule`)
     rule: Callable | None = None
+    # whether a sample on it can be shadowed by the emitter itself (an emissive shape's triangles: a shadow
+    # ray from one leaves through the rest of the shape), so that its penumbrae are not sampled
+    self_shadowing: bool = False
 
 
 def uniform_density(n: int, area: float) -> np.ndarray:

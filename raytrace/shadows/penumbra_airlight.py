@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from ..jit import exact_njit
-from ..lights import EMISSION, LAMBERT, SPOT, Lights
+from ..lights import LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..methods import Segments
 from ..segments import cone_segments, gather, pieces
@@ -48,10 +48,8 @@ def applies(lights, method, shadows: bool) -> bool:
 
 def sampled_emitters(lights) -> np.ndarray:
     """(E,) whether each emitter's penumbrae are sampled: one that can be sampled (`Lights.emitters`) and
-    is not an emissive shape (a sample on one of its triangles is shadowed by the shape itself: those
-    keep their rows)."""
-    return np.array([e is not None and kind != EMISSION for e, kind in zip(lights.emitters, lights.scene_kinds)],
-                    dtype=bool)
+    that does not shadow its own samples (`Emitter.self_shadowing`: an emissive shape, whose rows are kept)."""
+    return np.array([e is not None and not e.self_shadowing for e in lights.emitters], dtype=bool)
 
 
 def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, select):
