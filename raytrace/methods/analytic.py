@@ -662,28 +662,41 @@ def _lambert_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precisio
     plane (`_lit_piece`), so a segment has one lit piece at most, on which F Phi is a trigonometric series of
     first order in F (`_band_piece`: A sin(phi) - B cos(phi) times Phi's cosine series) or, where that misses
     the precision, a Gauss-Legendre step or the quadrature (as `_spot_body`'s). Counted in `stats` only
-    where Lm is not nan (`quadrature` None: the pass with the quadrature counts it)."""
+    where Lm is not nan (`quadrature` None: the pass with the quadrature counts it), in one place."""
+    val, met, flags, quads = _lambert_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, aniso_mode,
+                                           coeffs, cone, stats, quadrature)
+    if quadrature is not None or not math.isnan(val):
+        stats[ST_PIECE_QUAD] += quads
+    _tally(stats, quadrature, val, 0.0, flags)
+    return val, met
+
+
+@njit(inline="always")
+def _lambert_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, aniso_mode, coeffs, cone, stats,
+                  quadrature):
+    """`_lambert_airlight`'s (Lm, met, flags, pieces by quadrature): the paths taken (F_*, `_count`) and the
+    pieces that a Gauss-Legendre step or the quadrature took, for its caller to count."""
     kind, dmin = _front(xh, h, da, ell, kt, ks, intensity, phase_code, g)
     if kind == FRONT_ZERO:
-        return _tally_lambert(stats, quadrature, 0.0, F_ZERO, 0.0), True
+        return 0.0, True, F_ZERO, 0.0
     if kind == FRONT_VACUUM:
         val, ok = _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
-        return _tally_lambert(stats, quadrature, val, 0, 0.0), ok
+        return val, ok, 0, 0.0
     taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
     if kind == FRONT_NEAR:
         val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
         f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
         ok = ok and ok_f
         if ok or taylor:  # (as `_point_airlight`'s)
-            return _tally_lambert(stats, quadrature, val * f, F_NEARLINE, 0.0), ok and not taylor
+            return val * f, ok and not taylor, F_NEARLINE, 0.0
     H, va, vb, pref, pa, pb = _ends_of(xh, h, da, ell, kt, intensity)
     v1, v2 = _lit_piece(cone[0], cone[1], va, vb)
     if not v2 > v1:  # dark
-        return _tally_lambert(stats, quadrature, 0.0, 0, 0.0), not taylor
+        return 0.0, not taylor, 0, 0.0
     if _block_at(coeffs, v1, v2, H, B_HMAX_BAND)[1] - B_C > BAND_GAUSS_FIRST:  # (as `_spot_body`'s bands)
         fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
         if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
-            return _tally_lambert(stats, quadrature, pref * (ks * fine), 0, 1.0), not taylor
+            return pref * (ks * fine), not taylor, 0, 1.0
     p1 = pa if v1 == va else xh + h * v1
     p2 = pb if v2 == vb else xh + h * v2
     work = np.empty(2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)
@@ -692,28 +705,18 @@ def _lambert_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precisio
         val, err = 0.0, math.inf  # no closed form for the piece: quadrature below
     out = pref * (ks * val)
     if not err > SERIES_SAFETY * precision * val:
-        return _tally_lambert(stats, quadrature, out, flags, 0.0), not taylor
+        return out, not taylor, flags, 0.0
     # a narrow piece whose polynomial's terms cancel: one 10/20-point Gauss-Legendre step, else the
     # quadrature over the piece's own stretch [x1, x2] of the segment (x = x_h + h (v - 1/v) / 2)
     fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
     if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
-        return _tally_lambert(stats, quadrature, out + (pref * (ks * fine) - out), flags, 1.0), not taylor
+        return out + (pref * (ks * fine) - out), not taylor, flags, 1.0
     if quadrature is None:
-        return math.nan, False
+        return math.nan, False, flags, 1.0
     x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
     x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
     part, converged = _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats)
-    val = out + (part * math.exp(-kt * x1) - out)
-    return _tally_lambert(stats, quadrature, val, flags, 1.0), converged and not taylor
-
-
-@njit(inline="always")
-def _tally_lambert(stats, quadrature, val, flags, pieces_by_quadrature):
-    """`_tally` of an emitter point's segment (`_lambert_airlight`), with its pieces by quadrature; returns val."""
-    if quadrature is not None or not math.isnan(val):
-        stats[ST_PIECE_QUAD] += pieces_by_quadrature
-    _tally(stats, quadrature, val, 0.0, flags)
-    return val
+    return out + (part * math.exp(-kt * x1) - out), converged and not taylor, flags, 1.0
 
 
 @njit
