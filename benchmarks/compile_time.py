@@ -29,7 +29,7 @@ lowering to LLVM IR; its other passes: bytecode, SSA, rewrites, inlining; dispat
 (the IR printed and parsed, function passes, module passes over the module with its callees linked
 in, machine code), each without the phases nested in it (a callee compiled during its caller's type
 inference counts in its own phases); with --profile, each exclusive figure split into numba's part
-and LLVM's. --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
+and LLVM's (with --before or --runs, in --json's figures of each run). --tree runs the scenes against another checkout's `raytrace` (its root on PYTHONPATH),
 e.g. an older commit's `git archive`, for before/after tables; --before DIR measures that checkout
 too, alternating with --tree's, scene by scene (paired runs: both see the same load), and --runs N
 repeats each measurement N times, giving every run's compile CPU seconds, wall seconds to the first
@@ -291,7 +291,7 @@ def paired(names: list[str], args):
         runs = {k: [] for k, _ in trees}
         for _ in range(args.runs):
             for k, tree in trees:
-                runs[k].append(measure(name, args.width, tree, args.cached))
+                runs[k].append(measure(name, args.width, tree, args.cached, args.phases))
         results[name] = runs
         cells = []
         for k, _ in trees:

@@ -3,7 +3,8 @@ process's disk cache held (`jit.hold`: no loads, saves kept back) until the work
 air-light gated on the worker, engaged for the first warm-up (shadowed) of a process that started on
 an empty cache, or for the cubature pilot's (unshadowed) before a shadowed render, kept until the
 render's warm-up settles it; and, in fresh processes on empty caches, the same image every time with
-the air-light's kernels (or the shadows', beside a pilot) loaded from what the worker compiled."""
+the air-light's kernels (or the shadows', beside a pilot; or the media inside shapes') loaded from what the
+worker compiled."""
 import json
 import os
 import subprocess
@@ -174,3 +175,30 @@ def test_first_renders_on_empty_caches_load_the_workers_kernel_and_agree(tmp_pat
     assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
     np.testing.assert_array_equal(a, b)  # which process compiles what does not depend on timing
     np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)  # the same kernel, compiled elsewhere
+
+
+INTERIOR = """
+import json, sys
+import numpy as np
+from raytrace import api
+from raytrace.media import slab
+image = api.render(sys.argv[2], "quadrature", width=16, height=12, spp=1, threads=1, volumetric_shadows=True)
+np.save(sys.argv[1], image.array)
+print(json.dumps({"hits": sum(slab._convex_quad.stats.cache_hits.values()),
+                  "misses": sum(slab._convex_quad.stats.cache_misses.values())}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
+def test_the_worker_compiles_the_media_inside_shapes_and_the_render_loads_them(tmp_path):
+    """wax: the inside integrals' kernel (`slab._convex_quad`) compiled by the worker beside the render's
+    warm-up (`renderer.interiors_ahead`), whose rays into the block wait for it and load it."""
+    wax = str(ROOT / "scenes" / "wax.toml")
+    a, stats_a = _first_render(tmp_path, "a", True, INTERIOR, wax)
+    b, stats_b = _first_render(tmp_path, "b", True, INTERIOR, wax)
+    serial, stats_serial = _first_render(tmp_path, "serial", False, INTERIOR, wax)
+    assert stats_a == stats_b == {"hits": 1, "misses": 0}  # the worker's kernel, loaded
+    assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)

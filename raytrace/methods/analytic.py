@@ -43,7 +43,9 @@ from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, cone_row, v_of
 from ..media.expint import VECTOR_BLOCK, g_scaled, en_scaled, i01_series_est, i01_series_lanes, vector_exp
-from ..lights import ENVIRONMENT, band_slope, band_trig, falloff, is_spot, polynomial_band, segment_cone
+from ..lights import (ENVIRONMENT, LAMBERT, band_slope, band_trig, cone_breaks, falloff, is_spot, polynomial_band,
+                      segment_cone)
+from ..lights.spot import CUT_TOL, cosine_at
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
                                hg_legendre, legendre_to_cosine, rayleigh_legendre, start_sensitivity, times_trig,
                                trig_moments_forward)
@@ -433,7 +435,8 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     with the quadrature counts it).
 
     A light without a cone takes `_point_airlight` (inlined), a spot light's segment `_spot_airlight`
-    (compiled once on its own). `evaluate_segments` makes the same choice itself, with
+    (compiled once on its own), an area light's emitter point `_lambert_airlight` (likewise).
+    `evaluate_segments` makes the same choice itself, with
     `_point_airlight` inlined into its loop over the segments: that loop then hands no array to a call
     for a point light's segment (each costs numba a reference count: an atomic increment and
     decrement), and nothing of the spot's code is compiled into it.
@@ -441,8 +444,12 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     if is_spot(cone[3]):
         if spots is None:
             return math.nan, False, NOTHING_PENDING
-        val, met = _spot_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
-                                  aniso_mode, terms, coeffs, cone, stats, quadrature, aniso)
+        if cone[4] == LAMBERT:
+            val, met = _lambert_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, aniso_mode,
+                                         coeffs, cone, stats, quadrature)
+        else:
+            val, met = _spot_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter,
+                                      aniso_mode, terms, coeffs, cone, stats, quadrature, aniso)
         return val, met, NOTHING_PENDING
     val, met, pending, iterations, flags = _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g,
                                                            precision, max_iter, aniso_mode, terms, coeffs, cone,
@@ -646,6 +653,88 @@ def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_
                 out += part * math.exp(-kt * x1) - old
                 met = met and converged
     return out, met and not taylor
+
+
+@njit
+def _lambert_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, aniso_mode, coeffs, cone, stats,
+                      quadrature):
+    """(Lm, met): `checked_airlight` of an emitter point of an area light (a LAMBERT row, lights/area.py: F =
+    max(c, 0)), with `_spot_airlight`'s values and statistics, without a cone's general cuts: the cosine
+    c = A sin(phi) - B cos(phi) (lights/spot.py) changes sign once at most, where the ray crosses the emitter's
+    plane (`_lit_piece`), so a segment has one lit piece at most, on which F Phi is a trigonometric series of
+    first order in F (`_band_piece`: A sin(phi) - B cos(phi) times Phi's cosine series) or, where that misses
+    the precision, a Gauss-Legendre step or the quadrature (as `_spot_body`'s). Counted in `stats` only
+    where Lm is not nan (`quadrature` None: the pass with the quadrature counts it), in one place."""
+    val, met, flags, quads = _lambert_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, aniso_mode,
+                                           coeffs, cone, stats, quadrature)
+    if quadrature is not None or not math.isnan(val):
+        stats[ST_PIECE_QUAD] += quads
+    _tally(stats, quadrature, val, 0.0, flags)
+    return val, met
+
+
+@njit(inline="always")
+def _lambert_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, aniso_mode, coeffs, cone, stats,
+                  quadrature):
+    """`_lambert_airlight`'s (Lm, met, flags, pieces by quadrature): the paths taken (F_*, `_count`) and the
+    pieces that a Gauss-Legendre step or the quadrature took, for its caller to count."""
+    kind, dmin = _front(xh, h, da, ell, kt, ks, intensity, phase_code, g)
+    if kind == FRONT_ZERO:
+        return 0.0, True, F_ZERO, 0.0
+    if kind == FRONT_VACUUM:
+        val, ok = _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
+        return val, ok, 0, 0.0
+    taylor = phase_code != ISOTROPIC and aniso_mode == ANISO_TAYLOR
+    if kind == FRONT_NEAR:
+        val, ok = _nearline(xh, h, da, ell, kt, ks, intensity, phase_code, g, dmin, precision)
+        f, ok_f = _spot_nearline(xh, h, dmin, cone, precision)
+        ok = ok and ok_f
+        if ok or taylor:  # (as `_point_airlight`'s)
+            return val * f, ok and not taylor, F_NEARLINE, 0.0
+    H, va, vb, pref, pa, pb = _ends_of(xh, h, da, ell, kt, intensity)
+    v1, v2 = _lit_piece(cone[0], cone[1], va, vb)
+    if not v2 > v1:  # dark
+        return 0.0, not taylor, 0, 0.0
+    if _block_at(coeffs, v1, v2, H, B_HMAX_BAND)[1] - B_C > BAND_GAUSS_FIRST:  # (as `_spot_body`'s bands)
+        fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
+        if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
+            return pref * (ks * fine), not taylor, 0, 1.0
+    p1 = pa if v1 == va else xh + h * v1
+    p2 = pb if v2 == vb else xh + h * v2
+    work = np.empty(2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)
+    val, err, ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work)
+    if not ok:
+        val, err = 0.0, math.inf  # no closed form for the piece: quadrature below
+    out = pref * (ks * val)
+    if not err > SERIES_SAFETY * precision * val:
+        return out, not taylor, flags, 0.0
+    # a narrow piece whose polynomial's terms cancel: one 10/20-point Gauss-Legendre step, else the
+    # quadrature over the piece's own stretch [x1, x2] of the segment (x = x_h + h (v - 1/v) / 2)
+    fine, coarse = _gauss_piece(xh, h, kt, phase_code, g, cone, v1, v2)
+    if abs(fine - coarse) <= SERIES_SAFETY * precision * fine:
+        return out + (pref * (ks * fine) - out), not taylor, flags, 1.0
+    if quadrature is None:
+        return math.nan, False, flags, 1.0
+    x1 = 0.0 if v1 == va else xh + 0.5 * h * (v1 - 1.0 / v1)
+    x2 = ell if v2 == vb else xh + 0.5 * h * (v2 - 1.0 / v2)
+    part, converged = _quadrature(xh - x1, h, x2 - x1, kt, ks, intensity, phase_code, g, cone, precision, stats)
+    return out + (part * math.exp(-kt * x1) - out), converged and not taylor, flags, 1.0
+
+
+@njit
+def _lit_piece(A, B, va, vb):
+    """(v1, v2): the piece of va < v < vb (v = tan(phi / 2)) where c = A sin(phi) - B cos(phi) > 0, empty where
+    v2 <= v1: `lights.segment_cone`'s pieces for a cone of 90 degrees (c = 0 at the roots of B v^2 + 2 A v - B,
+    whose product is -1: one in (0, inf) at most; a root within CUT_TOL of an end is that end), each piece
+    told lit or dark by c at a point inside it."""
+    k, r, _ = cone_breaks(A, B, 0.0)
+    lo, hi = va, vb
+    if k > 0 and va * (1.0 + CUT_TOL) < r < vb * (1.0 - CUT_TOL):
+        if cosine_at(A, B, va + 0.3 * (r - va)) > 0.0:
+            return va, r
+        lo = r
+    inside = (1.0 + lo) * 3.2 if hi == math.inf else lo + 0.3 * (hi - lo)
+    return (lo, hi) if cosine_at(A, B, inside) > 0.0 else (lo, lo)
 
 
 @njit
@@ -979,13 +1068,13 @@ def summarize_stats(stats):
 # ----------------------------------------------------------------------------------------------
 @njit
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, quadrature, spots, aniso):
+                      met, stats, quadrature, spots, aniso, lamberts=True, points=True):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`'s choice, made here: a point light's path inlined, numba's
     inlining one level deep only, as each level types its callee's code again). With `quadrature` None
-    (and `spots` or `aniso`) the segments that need the reference quadrature (a spot's code, an
-    anisotropic phase function's) are left nan, their statistics not counted (`evaluate_deferred`);
-    returns how many. The exact mode's
+    (and `spots`, `aniso`, `lamberts` or `points`) the segments that need the reference quadrature (a spot's
+    code, an anisotropic phase function's, an emitter point's, a point light's) are left nan, their statistics
+    not counted (`evaluate_deferred`); returns how many. The exact mode's
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
     either pass, so that deferring changes no bit."""
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
@@ -995,11 +1084,19 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
         row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
         p = NOTHING_PENDING
         if is_spot(row[3]):
-            if spots is None:
+            if row[4] == LAMBERT:
+                if lamberts is None:
+                    out[s], met[s] = math.nan, False
+                else:
+                    out[s], met[s] = _lambert_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision,
+                                                       aniso_mode, coeffs, row, stats, quadrature)
+            elif spots is None:
                 out[s], met[s] = math.nan, False
             else:
                 out[s], met[s] = _spot_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g, precision, max_iter,
                                                 aniso_mode, terms, coeffs, row, stats, quadrature, aniso)
+        elif points is None:
+            out[s], met[s] = math.nan, False
         else:
             out[s], met[s], p, iterations, flags = _point_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g,
                                                                    precision, max_iter, aniso_mode, terms, coeffs, row,
@@ -1011,7 +1108,7 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
         if aniso is not None:
             for k in range(PENDING):
                 pending[s, k] = p[k]
-    if aniso is not None and aniso_mode == ANISO_EXACT:  # (the Taylor mode's coeffs are not blocks)
+    if aniso is not None and points is not None and aniso_mode == ANISO_EXACT:  # (Taylor mode's coeffs: no blocks)
         left += _pending_series(pending, xh, h, ell, kt, ks, code, g, precision, max_iter, cone, out, met, stats,
                                 quadrature)
         _pending_recurrences(pending, coeffs, ks, out)
@@ -1107,15 +1204,17 @@ def _pending_recurrences(pending, coeffs, ks, out):
 
 
 def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, spots=True, aniso=True):
+                      met, stats, spots=True, aniso=True, lamberts=True, points=True):
     """`evaluate_segments` with the quadrature's kernels compiled on first need only: every segment
     without them, then again with them the few left nan (the quadrature fallback, or a nan of the
     closed form, which the second pass reproduces), so the result is that of one pass with them.
-    `spots` False: the scene has no light with a cone (`Lights.kinds`), `aniso` False: its medium is
-    isotropic; the first pass is then compiled without their code too (such segments, were there
-    any, would be left to the second pass)."""
+    `spots` False: the scene has no light with a cone but emitter points (`light_rows`), `aniso` False:
+    its medium is isotropic, `lamberts` False: no emitter point, `points` False: no light without a cone;
+    the first pass is then compiled without their code too (such segments, were there any, would be left
+    to the second pass)."""
     if evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                         met, stats, None, True if spots else None, True if aniso else None):
+                         met, stats, None, True if spots else None, True if aniso else None,
+                         True if lamberts else None, True if points else None):
         todo = np.flatnonzero(np.isnan(out))
         part, part_met = np.empty(len(todo)), np.empty(len(todo), dtype=np.bool_)
         evaluate_segments(xh[todo], h[todo], da[todo], ell[todo], kt, ks, code, g, precision, max_iter, aniso_mode,
@@ -1124,6 +1223,16 @@ def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
 
 
 ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
+
+
+def light_rows(cone):
+    """(spots, lamberts, points) of the rows' cones (`Lights.cone`: cos_end, cos_start, curve): whether any
+    row is a spot light's (a cone, `is_spot`, with a curve other than LAMBERT), an emitter point (LAMBERT:
+    an area light's, `_lambert_airlight`) or has no cone (`_point_airlight`): the kernels
+    `evaluate_deferred` compiles."""
+    banded = cone[:, 1] > -1.0  # (`is_spot`, without compiling it for Python)
+    lambert = banded & (cone[:, 2] == LAMBERT)
+    return bool(np.any(banded & ~lambert)), bool(np.any(lambert)), bool(np.any(~banded))
 
 
 def working_precision(precision):
@@ -1152,14 +1261,15 @@ def _airlight(segs, medium, lights, params):
     precision = working_precision(params["precision"])
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], precision)
     stats = new_stats()
-    spots, aniso = "spot" in lights.kinds(), medium.phase != ISOTROPIC
+    aniso = medium.phase != ISOTROPIC
+    spots, lamberts, points = light_rows(lights.cone)
     met = {}  # (kt, ks) -> whether each segment's evaluation met the precision
 
     def evaluate(xh, h, da, ell, kt, ks, cone):
         out = np.empty_like(xh)
         met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
         evaluate_deferred(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
-                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats, spots, aniso)
+                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats, spots, aniso, lamberts, points)
         return out
 
     radiance = by_channel(segs, medium, lights, evaluate)

@@ -427,7 +427,8 @@ WARMED = set()  # (scene file, its size and time, method, parameters, shadows) w
 def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=False) -> float:
     """Build the lights' shadow frusta (with `shadows`) and compile the method's kernels on a few rays
     (`warm_up_rays`), so that the tiles compile nothing later; on an empty kernel cache the air-light's
-    kernels compile meanwhile in a second process (compile_ahead.py), or, where a warm-up with shadows
+    kernels and those of the media inside shapes compile meanwhile in a second process (compile_ahead.py,
+    `compile_airlight`; the rays into those media are shaded here after it), or, where a warm-up with shadows
     follows this one without (`then_shadows`: the cubature pilot's), the shadows' kernels
     (`compile_shadows`). Returns the seconds it took. Once per scene file (unchanged), method,
     parameters and `shadows` in a process: a later render of the same compiles nothing."""
@@ -448,9 +449,18 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
         if shadows:
             prep.frusta()  # before the tiles' threads share it
         o, d = warm_up_rays(prep)
-        radiance = shade_rays(prep, method if ahead is None else compile_ahead.Gated(method, ahead), params, o, d,
-                              np.zeros(len(o), dtype=np.uint64), seed, shadows)[0]
-        sum_samples(radiance, 1)  # the tiles' sums over their samples
+        hits = first_hits(prep.accel, prep.scene.medium, o, d)
+        later = interiors_ahead(prep, hits[1]) if ahead is not None else np.zeros(len(o), dtype=bool)
+        for part in (~later, later):  # the rays into media inside shapes after the worker (it compiles their kernels)
+            if part is later and np.any(later):
+                if shadows:  # their lit intervals' kernels here, before the wait (without a medium outside, the
+                    shadow_kernels(prep, method.name, seed)  # rays before compiled none)
+                ahead.wait()
+            if np.any(part):
+                radiance = shade_rays(prep, method if ahead is None else compile_ahead.Gated(method, ahead), params,
+                                      o[part], d[part], np.zeros(np.count_nonzero(part), dtype=np.uint64), seed,
+                                      shadows, hits=tuple(a[part] for a in hits))[0]
+                sum_samples(radiance, 1)  # the tiles' sums over their samples
     except BaseException:
         if ahead is not None:
             ahead.wait(stop=True)
@@ -475,21 +485,43 @@ def warm_up_rays(prep: Prepared):
 def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
     """compile_ahead's worker: the air-light's kernels, on the warm-up's rays without shadows and
     shaded as if they hit nothing where the camera is outside every medium (so that it compiles
-    neither the frusta's kernels nor the surfaces'); the area lights' cubature at its first orders."""
-    prep = prepare(scene)
+    neither the frusta's kernels nor the surfaces'); the area lights' cubature at its first orders;
+    then the inside integrals of the rays into media inside shapes (`interiors_ahead`: their boundary
+    crossing and their inside rows, not the rays beyond them), which the render's warm-up shades after
+    this worker."""
+    prep, method = prepare(scene), get_method(method_name)
     o, d = warm_up_rays(prep)
+    keys = np.zeros(len(o), dtype=np.uint64)
     t, prim, ground = first_hits(prep.accel, scene.medium, o, d)
     hits = None if prep.camera_inside is not None else (t, np.full_like(prim, -1), np.zeros_like(ground))
-    shade_rays(prep, get_method(method_name), params, o, d, np.zeros(len(o), dtype=np.uint64), seed, hits=hits)
+    shade_rays(prep, method, params, o, d, keys, seed, hits=hits)
+    into = interiors_ahead(prep, prim)
+    if np.any(into):
+        boundary = crossing.cross(prep, o[into], d[into], t[into], prim[into], keys[into], 0)
+        if boundary is not None:
+            rows.integrate(prep, method, params, boundary.rows, seed, 0, False)
+
+
+def interiors_ahead(prep: Prepared, prim) -> np.ndarray:
+    """Which warm-up rays (their first hits `prim`) enter media inside shapes whose kernels the compile
+    worker compiles (`compile_airlight`): all that enter one, where the camera is outside every medium
+    (else the worker's rays start inside one and the render's process compiles them)."""
+    if prep.camera_inside is not None:
+        return np.zeros(len(prim), dtype=bool)
+    return crossing.enters(prep, prim)
 
 
 def compile_shadows(scene: Scene, method_name: str, seed: int):
     """compile_ahead's worker beside the cubature pilot's warm-up: the kernels of the exact lit
     intervals (the frusta, `exact_lit_intervals`) and of the penumbrae's pieces (`penumbra_airlight.
     lit_pieces`) on the warm-up's rays, without their air-light (which the pilot's warm-up compiles)."""
-    prep = prepare(scene)
+    shadow_kernels(prepare(scene), method_name, seed)
+
+
+def shadow_kernels(prep: Prepared, method_name: str, seed: int):
+    """`compile_shadows`' kernels, in this process."""
     o, d = warm_up_rays(prep)
-    t, _, _ = first_hits(prep.accel, scene.medium, o, d)
+    t, _, _ = first_hits(prep.accel, prep.scene.medium, o, d)
     segs, _ = cone_segments(whole_rays(o, d, t, np.zeros(len(o), dtype=np.uint64), len(prep.lights), seed,
                                        prep.accel.scale), prep.lights)
     exact_lit_intervals(prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
