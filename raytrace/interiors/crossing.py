@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..lights import Lights, is_spot
+from ..lights import Lights
 from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.slab import (GEO_COLUMNS, STREAM, out_of_faces, refract_rays, surface_out_of_faces,
@@ -207,8 +207,8 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     """Why light li inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
-    scattering outside medium (`held_airlight`) a point light in a convex mesh, and with volumetric shadows no other
-    shape."""
+    scattering outside medium (`held_airlight`) a point or spot light in a convex mesh, and with volumetric shadows no
+    other shape."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     sphere = paths.exact_sphere(prep, sid) is not None
@@ -218,9 +218,6 @@ def _not_held(prep, sid, li, shadows) -> str | None:
         if sphere:
             return ("in an exact sphere lights the outside medium through its surface, which is not implemented yet; "
                     "use a convex mesh, or a [medium] that does not scatter")
-        if is_spot(prep.lights.cone[li, 1]):
-            return ("as a spot lights the scattering [medium] outside through its faces, which is not implemented "
-                    "yet; use a point light, or a [medium] that does not scatter")
         if shadows and len(np.unique(prep.shape_ids)) > 1:
             return ("lights the scattering [medium] outside, where the other shapes' volumetric shadows on its "
                     "refracted light are not implemented yet; use --no-volumetric-shadows, or a [medium] that does "
@@ -241,8 +238,8 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int)
     """The outside medium's air-light (N, 3) of the segments `segs` (whole camera rays) whose light lies inside a
     convex refractive shape (`held_lights`), its variance (N, 3; 0 but for a stochastic rule) and bound (N, 3; inf
     where lit), and the other segments: the light refracted out through every face (media/slab.py `out_of_faces`,
-    relative index 1 / ior), integrated by the method's inside rule (`check` refuses a spot light and volumetric
-    shadows with another shape in the scene)."""
+    relative index 1 / ior), integrated by the method's inside rule (`check` refuses volumetric shadows with another
+    shape in the scene)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
