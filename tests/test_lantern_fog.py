@@ -4,11 +4,13 @@ Fermat's path with relative index 1 / eta, Fresnel's T, the ray tube's irradianc
 the segment beyond its plane, its breaks where the refraction point crosses the face's edges isolated with
 media/fermat_rounding.py `fermat_pace`, the eta < 1 speed bound).
 
-The twin is tests/test_lamp_in_glass.py's, built from the geometry alone (refraction points by direct
-minimisation of the optical path in 30 digits, the irradiance by central differences of the path map), here
-integrated along the camera rays' segments in the fog: each face's term switches on and off where its
-refraction point crosses the face's edges, found on 48 samples of the segment and bisected (the twin's own
-refraction points), and starts where the segment crosses the face's plane; scipy quad_vec integrates the
+The twin is tests/test_lamp_in_glass.py's, built from the geometry alone (refraction points where the optical
+path is stationary, by Newton's method in 30 digits, checked here against its direct minimisation; the
+irradiance by central differences of the path map), here integrated along the camera rays' segments in the fog:
+each face's term switches on and off where its refraction point crosses the face's edges (and a spot's falloff
+kinks or jumps where the direction the light leaves in crosses its cone's levels), found on 48 samples of the
+segment and bisected (the twin's own refraction points), and starts where the segment crosses the face's plane;
+scipy quad_vec integrates the
 isotropic fog's in-scattering sigma_s / (4 pi) E exp(-sigma_t t) between those breaks. A pixel adds the
 air-light of its camera segment (and for a ray that enters the lantern, of its mirrored and its exiting rays,
 with Fresnel's weights) to tests/test_lamp_in_glass.py `twin`'s value (the fog's extinction is the twin's

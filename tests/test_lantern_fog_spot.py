@@ -42,8 +42,8 @@ def test_the_pixels_are_lit_through_the_faces(smooth):
 
 
 def test_quadrature_against_the_twin(smooth):
-    """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels, at rtol 1e-6 within 1e-5; its bound
-    is inf there (not derived for light leaving the denser side)."""
+    """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels, at rtol 1e-6 within 1e-5 (measured
+    6.7e-15 and 6.9e-15); its bound is inf there (not derived for light leaving the denser side)."""
     ref, _, res = smooth
     got = np.array([res.image[j, i] for j, i in PIXELS])
     assert np.all(np.abs(got - ref) <= 1e-9 * ref), (np.abs(got - ref) / ref).max()
@@ -54,14 +54,16 @@ def test_quadrature_against_the_twin(smooth):
 
 
 def test_raymarch_converges_and_montecarlo_is_unbiased(smooth):
-    """raymarch 4x closer to the twin at 4096 steps than at 512 and within 1e-5; Monte Carlo's mean squared z-score
-    about 1 over four seeds (tests/test_lantern_fog.py `march_and_sample`)."""
+    """raymarch 4x closer to the twin at 4096 steps than at 512 and within 1e-5 (measured 1.7e-6 -> 2.8e-8); Monte
+    Carlo's mean squared z-score about 1 over four seeds (tests/test_lantern_fog.py `march_and_sample`; measured
+    2.1: a heavy tail, few samples in the beam; over 32 seeds the green channel's mean z -0.12 to 0.15 and mean z^2
+    0.97 to 1.2 per pixel)."""
     march_and_sample(SIDE, PIXELS, smooth[0])
 
 
 def test_a_hard_edged_spot():
     """A hard-edged cone (its falloff a step where the leaving direction crosses it): quadrature at rtol 1e-10 within
-    1e-9 of the twin, the edges' jumps located."""
+    1e-9 of the twin (measured 1.2e-13), the edges' jumps located."""
     ref, air, res = reference(HARD)
     assert np.all(air > 0.015 * ref), air / ref
     got = np.array([res.image[j, i] for j, i in PIXELS])
