@@ -207,8 +207,8 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     """Why light li inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
-    scattering outside medium (`held_airlight`) a point light in a convex mesh or well inside an exact sphere
-    (`_globe_fog`), and with volumetric shadows no other shape."""
+    scattering outside medium (`held_airlight`) a point or spot light in a convex mesh or a point light well inside
+    an exact sphere (`_globe_fog`), and with volumetric shadows no other shape."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     sphere = paths.exact_sphere(prep, sid) is not None
@@ -218,9 +218,6 @@ def _not_held(prep, sid, li, shadows) -> str | None:
         why = _globe_fog(prep, sid, li) if sphere else None
         if why:
             return why
-        if is_spot(prep.lights.cone[li, 1]):
-            return ("as a spot lights the scattering [medium] outside through its faces, which is not implemented "
-                    "yet; use a point light, or a [medium] that does not scatter")
         if shadows and len(np.unique(prep.shape_ids)) > 1:
             return ("lights the scattering [medium] outside, where the other shapes' volumetric shadows on its "
                     "refracted light are not implemented yet; use --no-volumetric-shadows, or a [medium] that does "
@@ -260,8 +257,8 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int)
     convex refractive shape or an exact sphere (`held_lights`), its variance (N, 3; 0 but for a stochastic rule)
     and bound (N, 3; inf where lit), and the other segments: the light refracted out through every face
     (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact sphere (media/sphere_refraction.py
-    `out_of_sphere`), integrated by the method's inside rule (`check` refuses a spot light and volumetric shadows
-    with another shape in the scene)."""
+    `out_of_sphere`), integrated by the method's inside rule (`check` refuses volumetric shadows with another shape
+    in the scene, and in an exact sphere a spot or a light beyond radius / ior of its centre)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
