@@ -199,9 +199,14 @@ def test_bad_spot_lights_are_one_line_errors(write_scene, tmp_path, capsys, chan
     (["--method", "lecocq"], "--method lecocq: it does not take spot lights"),
     (["--method", "sun"], "--method sun: it does not take spot lights"),
     (["--method", "analytic", "--anisotropic", "taylor", "--set", 'medium.phase="rayleigh"'],
-     "--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot light"),
+     "--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot or area light"),
+    (["--method", "analytic", "--anisotropic", "taylor", "--set", 'medium.phase="rayleigh"', "--set",
+      'light[0]={type="quad",corners=[[-0.5,1.5,-0.5],[0.5,1.5,-0.5],[0.5,1.5,0.5],[-0.5,1.5,0.5]],radiance=10.0}'],
+     "--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot or area light"),
 ])
 def test_methods_that_cannot_take_spot_lights_refuse(write_scene, tmp_path, capsys, args, message):
+    """A spot light (and, for Taylor's series, an area light's emitter points: rows with a cone) refused in
+    one line, exit status 2, nothing written."""
     path = write_scene(box_room(light=[SPOT]))
     out = tmp_path / "x.exr"
     assert main(["render", str(path), "--out", str(out), "--quiet", *args]) == 2

@@ -1245,14 +1245,16 @@ def working_precision(precision):
 
 def mode_for(medium, params, lights):
     """The kernels' anisotropic mode: isotropic media always use the exact mode's coefficients (a
-    spot's band needs its moment blocks); the paper's Taylor mode takes no spot light (refused)."""
+    spot's band needs its moment blocks); the paper's Taylor mode takes no rows with a cone (a spot
+    light's, an area light's emitter points: `light_rows`), refused."""
     if medium.phase == ISOTROPIC:
         return ANISO_EXACT
     from ..errors import UserError
 
-    if params["anisotropic"] == "taylor" and "spot" in lights.kinds():
-        raise UserError("--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot light; "
-                        "use --anisotropic exact")
+    spots, lamberts, _ = light_rows(lights.cone)
+    if params["anisotropic"] == "taylor" and (spots or lamberts):
+        raise UserError("--anisotropic taylor (render.anisotropic): the paper's Taylor series takes no spot or area "
+                        "light (their light's cone); use --anisotropic exact")
     return ANISO_MODES[params["anisotropic"]]
 
 
