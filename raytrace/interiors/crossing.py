@@ -141,7 +141,7 @@ def check(prep, method, method_params, source: str, shadows: bool):
         raise UserError(f"{source}: --method {method.name}: it does not integrate media inside shapes ({key}); use "
                         f"--method {', '.join(_takers())}")
     kinds = prep.lights.kinds()
-    near = "point" in kinds or "spot" in kinds  # lights with a position
+    near = bool(np.any(~prep.lights.distant))  # rows with a position (point and spot lights, emitters' nodes)
     fixed = [k for k in sup.fixed if method_params.get(k, method.params[k].default) != method.params[k].default]
     if fixed:
         raise UserError(f"{source}: {' / '.join('--' + k.replace('_', '-') for k in fixed)} "
