@@ -58,7 +58,7 @@ def test_raymarch_converges_and_montecarlo_is_unbiased(smooth):
     Carlo's mean squared z-score about 1 over four seeds (tests/test_lantern_fog.py `march_and_sample`; measured
     2.1: a heavy tail, few samples in the beam; over 32 seeds the green channel's mean z -0.12 to 0.15 and mean z^2
     0.97 to 1.2 per pixel)."""
-    march_and_sample(SIDE, PIXELS, smooth[0])
+    march_and_sample(scene(SIDE, FOG), PIXELS, smooth[0])
 
 
 def test_a_hard_edged_spot():
