@@ -386,9 +386,10 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                 v0, v1, v2 = _airlight(x, d, tx * wx + ty * wy + tz * wz, f, e0, e1, e2, kt[0], kt[1], kt[2],
                                        ks[0], ks[1], ks[2], intensities[li, 0], intensities[li, 1],
                                        intensities[li, 2], code, g)
-                r0 = _times(weight * abs(v0), node_eps[i, 0] + a0)
-                r1 = _times(weight * abs(v1), node_eps[i, 1] + a1)
-                r2 = _times(weight * abs(v2), node_eps[i, 2] + a2)
+                # weight * v_c only in the sums: a product used twice is not contracted into their fma
+                r0 = weight * _times(abs(v0), node_eps[i, 0] + a0)
+                r1 = weight * _times(abs(v1), node_eps[i, 1] + a1)
+                r2 = weight * _times(abs(v2), node_eps[i, 2] + a2)
                 if coarse:
                     c0, c1, c2 = c0 + weight * v0, c1 + weight * v1, c2 + weight * v2
                     rc0, rc1, rc2 = rc0 + r0, rc1 + r1, rc2 + r2
