@@ -261,6 +261,38 @@ def _meet(la, lb, lc, i, j):
     return (lc[i] * lb[j] - lc[j] * lb[i]) / det, (la[i] * lc[j] - la[j] * lc[i]) / det
 
 
+@njit
+def _panel_rounding(i, a, b, wp, n10, n20, origins, dirs, light, positions, planes, offsets, kinds, dk, node_eps,
+                    moves, chord_err):
+    """The largest relative rounding (3,) of `through_pieces`' evaluations at the 10- and 20-point
+    nodes of panel [a, b] (warp wp) of piece i: node_eps[i] + sum_j |dk[j]| (e_j + 16u k_j), e_j
+    chord_err[i, j] or `sphere_chord_error` (moves[i] = (dx, du, dd)). Apart from the sums' loop, so
+    that their compiled code, and the values, stay as they were."""
+    ox, oy, oz, wx, wy, wz = origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2]
+    lx, ly, lz = positions[light[i], 0], positions[light[i], 1], positions[light[i], 2]
+    half, mid = 0.5 * (b - a), 0.5 * (a + b)
+    m0 = m1 = m2 = 0.0
+    for q in range(n10.shape[0] + n20.shape[0]):
+        node = n10[q] if q < n10.shape[0] else n20[q - n10.shape[0]]
+        u = 0.5 * (1.0 + node)
+        x = mid + half * node if wp == 0 else (a + (b - a) * u * u if wp == 1 else b - (b - a) * u * u)
+        px, py, pz = ox + x * wx, oy + x * wy, oz + x * wz
+        rx, ry, rz = lx - px, ly - py, lz - pz
+        d = max(math.sqrt(rx * rx + ry * ry + rz * rz), 1e-125)
+        tx, ty, tz = rx / d, ry / d, rz / d
+        a0 = a1 = a2 = 0.0
+        for j in range(dk.shape[0]):
+            k = boundary_chord(kinds[j], planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
+            ek = 16.0 * U * k + (sphere_chord_error(planes[offsets[j]], px, py, pz, tx, ty, tz, k, moves[i, 0],
+                                                    moves[i, 1], moves[i, 2])
+                                 if kinds[j] == SPHERE else chord_err[i, j])
+            a0 += _times(abs(dk[j, 0]), ek)
+            a1 += _times(abs(dk[j, 1]), ek)
+            a2 += _times(abs(dk[j, 2]), ek)
+        m0, m1, m2 = max(m0, node_eps[i, 0] + a0), max(m1, node_eps[i, 1] + a1), max(m2, node_eps[i, 2] + a2)
+    return m0, m1, m2
+
+
 @njit(inline="always")
 def _times(a, b):
     """a b, 0 where a is 0 (an exact 0 carries no error, however large b's bound: not inf x 0 = nan)."""
@@ -298,12 +330,13 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
     bound[i] (3,): the rule's bound per accepted panel, max(rtol |G20|, the floor times its width)
     (each panel's 20-point value taken to be within |G20 - G10| of its integral, as the test keeps
     it), + twice the 20-point sum's and once the 10-point sum's rounding (the test reads computed
-    sums), + u per panel x (|out| + bound); inf where a panel was dropped or accepted at max_panels.
-    An evaluation's relative rounding: node_eps[i] (3,) (the unattenuated integrand's, the exponent
-    sum's and a spot's, interiors/paths.py `piece_errors`) + sum_j |dk[j]| (e_j + 16u k_j), e_j the
-    chord's rounding: chord_err[i, j] for face planes (shadows/through_others.py
-    `point_chord_rounding`), `sphere_chord_error` per evaluation for a sphere (moves[i] = (dx, du,
-    dd): the point's, the direction's and the distance's rounding)."""
+    sums): the evaluations' largest relative rounding (`_panel_rounding`) x (2 |G20| + |G10|) (the
+    integrand and the weights are positive), + u per panel x (|out| + bound); inf where a panel was
+    dropped or accepted at max_panels. An evaluation's relative rounding: node_eps[i] (3,) (the
+    unattenuated integrand's, the exponent sum's and a spot's, interiors/paths.py `piece_errors`) +
+    sum_j |dk[j]| (e_j + 16u k_j), e_j the chord's rounding: chord_err[i, j] for face planes
+    (shadows/through_others.py `point_chord_rounding`), `sphere_chord_error` per evaluation for a
+    sphere (moves[i] = (dx, du, dd): the point's, the direction's and the distance's rounding)."""
     n_kinks = 0
     for j in range(offsets.shape[0] - 1):
         n_kinks += offsets[j + 1] - offsets[j] + 4
@@ -348,13 +381,11 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                 top += 1
             b, at_b = a, at_a
         panels, accepted, short = 0, 0, False
-        dx, du, dd = moves[i, 0], moves[i, 1], moves[i, 2]
         while top > 0:
             top -= 1
             a, b, level, wp = lo_stack[top], hi_stack[top], depth[top], warp[top]
             half, mid = 0.5 * (b - a), 0.5 * (a + b)
             c0 = c1 = c2 = f0 = f1 = f2 = 0.0  # the 10- and 20-point sums
-            rc0 = rc1 = rc2 = rf0 = rf1 = rf2 = 0.0  # their rounding
             for q in range(n_nodes):
                 coarse = q < n10.shape[0]
                 node, weight = (n10[q], w10[q]) if coarse else (n20[q - n10.shape[0]], w20[q - n10.shape[0]])
@@ -372,30 +403,19 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                             cones[li, 2])
                 if f == 0.0:  # outside a spot's cone: no chords measured
                     continue
-                e0 = e1 = e2 = a0 = a1 = a2 = 0.0
+                e0 = e1 = e2 = 0.0
                 for j in range(dk.shape[0]):
                     k = boundary_chord(kinds[j], planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
                     e0 += k * dk[j, 0]
                     e1 += k * dk[j, 1]
                     e2 += k * dk[j, 2]
-                    ek = 16.0 * U * k + (sphere_chord_error(planes[offsets[j]], px, py, pz, tx, ty, tz, k, dx, du, dd)
-                                         if kinds[j] == SPHERE else chord_err[i, j])
-                    a0 += _times(abs(dk[j, 0]), ek)
-                    a1 += _times(abs(dk[j, 1]), ek)
-                    a2 += _times(abs(dk[j, 2]), ek)
                 v0, v1, v2 = _airlight(x, d, tx * wx + ty * wy + tz * wz, f, e0, e1, e2, kt[0], kt[1], kt[2],
                                        ks[0], ks[1], ks[2], intensities[li, 0], intensities[li, 1],
                                        intensities[li, 2], code, g)
-                # weight * v_c only in the sums: a product used twice is not contracted into their fma
-                r0 = weight * _times(abs(v0), node_eps[i, 0] + a0)
-                r1 = weight * _times(abs(v1), node_eps[i, 1] + a1)
-                r2 = weight * _times(abs(v2), node_eps[i, 2] + a2)
                 if coarse:
                     c0, c1, c2 = c0 + weight * v0, c1 + weight * v1, c2 + weight * v2
-                    rc0, rc1, rc2 = rc0 + r0, rc1 + r1, rc2 + r2
                 else:
                     f0, f1, f2 = f0 + weight * v0, f1 + weight * v1, f2 + weight * v2
-                    rf0, rf1, rf2 = rf0 + r0, rf1 + r1, rf2 + r2
             c0, c1, c2, f0, f1, f2 = c0 * half, c1 * half, c2 * half, f0 * half, f1 * half, f2 * half
             panels += 1
             if panels == 1:  # the floor: rtol/10 of the first panel's mean 20-point value per unit length
@@ -412,9 +432,11 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                 out[i, 0] += f0
                 out[i, 1] += f1
                 out[i, 2] += f2
-                bound[i, 0] += max(rtol * abs(f0), floor0 * width) + (2.0 * rf0 + rc0) * half
-                bound[i, 1] += max(rtol * abs(f1), floor1 * width) + (2.0 * rf1 + rc1) * half
-                bound[i, 2] += max(rtol * abs(f2), floor2 * width) + (2.0 * rf2 + rc2) * half
+                m0, m1, m2 = _panel_rounding(i, a, b, wp, n10, n20, origins, dirs, light, positions, planes, offsets,
+                                             kinds, dk, node_eps, moves, chord_err)
+                bound[i, 0] += max(rtol * abs(f0), floor0 * width) + _times(m0, 2.0 * abs(f0) + abs(c0))
+                bound[i, 1] += max(rtol * abs(f1), floor1 * width) + _times(m1, 2.0 * abs(f1) + abs(c1))
+                bound[i, 2] += max(rtol * abs(f2), floor2 * width) + _times(m2, 2.0 * abs(f2) + abs(c2))
                 accepted += 1
             elif level + 1 >= max_levels:  # dropped, as inside_paths.adaptive drops it
                 stats[0] += 1.0
