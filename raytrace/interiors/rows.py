@@ -714,7 +714,8 @@ def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
     quadrature (paths.through_quadrature at the method's inside rtol: quadrature's own, or the
     fallback a method declares with `Supports.interiors.through`), counted (THROUGH; integrals short
     of their tolerance: THROUGH_CAPPED), carried to the camera by the outside's transmittance over t0,
-    as its bound (paths.through_quadrature's; inf for the points' rules, which have none)."""
+    as its bound (paths.through_quadrature's; inf for the points' rules, which have none, and for an
+    area light's cubature nodes)."""
     inner = matched(prep)
     for sid in inner:
         hull_planes(prep, sid)  # fills the convex shapes' planes, which through_quadrature reads
@@ -733,6 +734,7 @@ def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
                                              np.array([measured_plane_errors(prep, i) for i in inner]),
                                              np.array([_ball(prep, i) for i in inner]))
     stats[THROUGH_CAPPED] += capped[0]
+    bound[prep.lights.cubature[segs.light]] = np.inf  # an area light's cubature nodes: no bound (as elsewhere)
     tr = gather_weights(segs, medium)
     return gather(segs, values, n_rays, medium, tr=tr), np.zeros((n_rays, 3)), gather(segs, bound, n_rays, medium,
                                                                                         tr=tr)
