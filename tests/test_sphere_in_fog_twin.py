@@ -185,6 +185,29 @@ def test_quadrature_bound_at_rtol_1e_10():
     assert np.median(img.error_bound[finite] / ref[finite]) <= 10 * 1e-10
 
 
+def test_quadrature_bound_with_the_lamp_inside_the_sphere(monkeypatch):
+    """The lamp moved inside the sphere, to (0, 1.3, 0.4): the light of every point of the fog outside
+    crosses it (the chord ends at the lamp, so its rounding holds the distance's), at rtol 1e-8: every
+    pixel within 1e-7 of the twin (no shadow edges now), inside its bound, the bound finite on every
+    pixel and at most 10 rtol of the value on the median."""
+    import sys
+
+    light = np.array([0.0, 1.3, 0.4])
+    sc = scene_dict()
+    sc["light"][0]["position"] = light.tolist()
+    module = sys.modules[__name__]
+    monkeypatch.setattr(module, "LIGHT", light)
+    monkeypatch.setattr(module, "shadow_edges", lambda o, d: [])
+    ref = np.array([[twin_pixel(i, j) for i in range(CAMERA["width"])] for j in range(CAMERA["height"])])
+    img = api.render(scene_from_text(to_toml(sc), "lamp in the sphere"), "quadrature", rtol=1e-8,
+                     volumetric_shadows=True)
+    err = np.abs(img.array - ref)
+    assert np.max(err / ref) < 1e-7, np.max(err / ref)
+    assert img.stats["shadows: pieces through interiors (quadrature)"] > 0
+    assert np.all(err <= img.error_bound + 1e-12 * ref)
+    assert np.all(np.isfinite(img.error_bound)) and np.median(img.error_bound / ref) <= 10 * 1e-8
+
+
 def test_analytic_refuses_naming_the_methods_that_take_it():
     """analytic has no closed form for a point light into a medium inside a shape; slab_approx is an
     approximation there, held to the slab note's formula elsewhere (tests/test_bounded_media.py)."""
