@@ -55,9 +55,9 @@ def test_the_sphere_chord_bound_holds():
         o = shade - 5.0 * w  # through a point behind the sphere: most lines cross the light's tangent cone
         end = 10.0
         moves, eps, chord_err = np.empty((1, 3)), np.empty((1, 3)), np.zeros((1, 1))
-        piece_errors(o[None], w[None], np.array([end]), np.zeros(1, np.int64), light[None], np.array([[-2.0, -2.0, 0.0]]),
-                     SPHERE_ROW[None], np.array([0, 1]), np.array([SPHERE]), np.zeros((1, 2)), np.zeros((1, 4)),
-                     np.full(3, 0.1), 0, 0.0, eps, moves, chord_err)
+        piece_errors(o[None], w[None], np.array([end]), np.zeros(1, np.int64), light[None],
+                     np.array([[-2.0, -2.0, 0.0]]), SPHERE_ROW[None], np.array([0, 1]), np.array([SPHERE]),
+                     np.zeros((1, 2)), np.zeros((1, 4)), np.full(3, 0.1), 0, 0.0, eps, moves, chord_err)
         kinks = np.empty(8)
         n = boundary_kinks(SPHERE, SPHERE_ROW[None], 0, 1, o, w, light, end, kinks)
         xs = list(rng.uniform(0.0, end, 20))
