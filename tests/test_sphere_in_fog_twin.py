@@ -193,8 +193,7 @@ def test_quadrature_bound_with_the_lamp_inside_the_sphere(monkeypatch):
     import sys
 
     light = np.array([0.0, 1.3, 0.4])
-    sc = scene_dict()
-    sc["light"][0]["position"] = light.tolist()
+    sc = scene_dict() | {"light": [scene_dict()["light"][0] | {"position": light.tolist()}]}  # the cached one kept
     module = sys.modules[__name__]
     monkeypatch.setattr(module, "LIGHT", light)
     monkeypatch.setattr(module, "shadow_edges", lambda o, d: [])
