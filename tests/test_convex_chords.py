@@ -147,9 +147,9 @@ def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
     seen = []
     real = paths.through_quadrature
 
-    def spy(prep, segs, medium, sids, kt_in, rtol, stats):
+    def spy(prep, segs, medium, sids, kt_in, rtol, stats, *errors):
         seen.append((segs, sids, kt_in, rtol))
-        return real(prep, segs, medium, sids, kt_in, rtol, stats)
+        return real(prep, segs, medium, sids, kt_in, rtol, stats, *errors)
 
     monkeypatch.setattr(paths, "through_quadrature", spy)
     render(prep, "quadrature", {}, RenderOptions(threads=1, volumetric_shadows=True))
@@ -160,7 +160,7 @@ def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
     for segs, sids, kt_in, rtol in seen:
         lights |= set(segs.light.tolist())
         cap_k, cap_n = np.zeros(1), np.zeros(1)
-        got = real(prep, segs, medium, sids, kt_in, rtol, cap_k)
+        got = real(prep, segs, medium, sids, kt_in, rtol, cap_k)[0]
         end = np.minimum(segs.length, 745.0 / float(np.min(medium.sigma_t)))
         seg, lo, hi = first_panels(prep, segs, sids, end)
         ref = paths.adaptive(paths.through_integrand(prep, segs, medium, sids, kt_in - medium.sigma_t),

@@ -25,14 +25,16 @@ from typing import NamedTuple
 import numpy as np
 
 from ..geometry import facet_walk, sections
+from ..error_bounds import spot_allowance
 from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, falloff_array
 from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.slab import U, phase_condition, sphere_radiance, straight_cuts
+from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
+from ..shadows.through_others import point_chord_rounding
 
 MAX_CROSSINGS = 64  # boundary crossings followed along one segment (more: the rest counts as outside)
 FAR = 3.5  # x the scene's scale: from any scene point this far toward a directional light is outside every shape
@@ -520,30 +522,69 @@ def _accepted(absum, rounding, panels, seg, ok, g20, fe, m, half, nc):
     np.add.at(panels, seg[ok], 1.0)
 
 
-def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats):
+def through_quadrature(prep, segs, medium, sids, kt_in, rtol, stats, dplanes=None, balls=None):
     """The outside medium's single scattering (N, 3) over segments `segs` (point and spot lights)
     whose light crosses the index-matched shapes `sids` (interior sigma_t `kt_in`, (S, 3)) on its
-    straight path: the integrand ks Phi(mu) F exp(-kt (x + d)) / d^2 of the unshadowed air-light
-    times exp(-(kt_in - kt) . k) over the lengths k inside each shape (`chords`), by `adaptive`
-    from the whole segments (cone crossings were cut before: segments.cone_segments); when every
-    shape is convex or an exact sphere (`boundary`), by media/convex_chords.py's kernel of the same
-    rule, chords and integrand."""
+    straight path, and its bound (N, 3): the integrand ks Phi(mu) F exp(-kt (x + d)) / d^2 of the
+    unshadowed air-light times exp(-(kt_in - kt) . k) over the lengths k inside each shape
+    (`chords`), by `adaptive` from the whole segments (cone crossings were cut before:
+    segments.cone_segments), bound inf; when every shape is convex or an exact sphere (`boundary`),
+    by media/convex_chords.py's kernel of the same rule, chords and integrand, bounded
+    (`piece_errors`: dplanes (S, 2) the face planes' errors, balls (S, 4) a ball holding each shape;
+    without them, the bound of pieces through face planes is inf)."""
     lights = prep.lights
     kt, ks = medium.sigma_t, medium.sigma_s
     end = np.minimum(segs.length, 745.0 / max(float(np.min(kt)), 1e-300))
     dk = kt_in - kt[None, :]
     bounds = [boundary(prep, sid) for sid in sids]
     if all(b is not None for b in bounds):  # the whole rule in one kernel (media/convex_chords.py)
-        out = np.empty((len(end), 3))
+        out, bound = np.empty((len(end), 3)), np.empty((len(end), 3))
+        rows = np.concatenate([np.zeros((0, 4))] + [b[1] for b in bounds])
+        offsets = np.cumsum([0] + [len(b[1]) for b in bounds])
+        kinds = np.array([b[0] for b in bounds], np.int64)
+        node_eps, moves, chord_err = np.empty((len(end), 3)), np.empty((len(end), 3)), np.empty((len(end), len(sids)))
+        if dplanes is None:
+            dplanes, balls = np.full((len(sids), 2), np.inf), np.zeros((len(sids), 4))
+        piece_errors(segs.origins, segs.dirs, end, segs.light, lights.position, lights.cone, rows, offsets, kinds,
+                     np.ascontiguousarray(dplanes, dtype=np.float64), np.ascontiguousarray(balls, dtype=np.float64),
+                     kt, medium.phase, medium.g, node_eps, moves, chord_err)
         through_pieces(segs.origins, segs.dirs, end, segs.light, lights.position, lights.axis, lights.cone,
-                       lights.intensity, np.concatenate([np.zeros((0, 4))] + [b[1] for b in bounds]),
-                       np.cumsum([0] + [len(b[1]) for b in bounds]), np.array([b[0] for b in bounds], np.int64),
-                       np.ascontiguousarray(dk), kt, ks, medium.phase, medium.g, rtol, MAX_LEVELS, MAX_OPEN,
-                       N10, W10, N20, W20, out, stats)
-        return out
+                       lights.intensity, rows, offsets, kinds, np.ascontiguousarray(dk), kt, ks, medium.phase,
+                       medium.g, rtol, MAX_LEVELS, MAX_OPEN, N10, W10, N20, W20, node_eps, moves, chord_err, out,
+                       bound, stats)
+        return out, bound
     seg = np.nonzero(end > 0.0)[0]
-    return adaptive(through_integrand(prep, segs, medium, sids, dk), end, 3, seg, np.zeros(len(seg)), end[seg], rtol,
-                    stats)
+    return (adaptive(through_integrand(prep, segs, medium, sids, dk), end, 3, seg, np.zeros(len(seg)), end[seg], rtol,
+                     stats), np.full((len(end), 3), np.inf))
+
+
+@njit
+def piece_errors(origins, dirs, end, light, positions, cones, rows, offsets, kinds, dplanes, balls, kt, code, g,
+                 node_eps, moves, chord_err):
+    """The rounding that media/convex_chords.py `through_pieces` bounds per piece i (o + x w, x in
+    [0, end[i]], its light at L; R = |o| + end, D and d_min the light's largest and least distance
+    from the piece, media/slab.py `light_span`): moves[i] = (dx, du, dd), the point's rounding 16u R,
+    the unit direction's to the light 64u (|L| + R) / d_min + 4u, the distance's 8u (|L| + R);
+    node_eps[i, c] the relative rounding of the integrand without its chords, as media/slab.py
+    `point_rounding`'s with the light's path d (exp(-kt (x + d)): 32u (1 + kt (end + D)) + kt (dd +
+    16u R), 1 / d^2 and the scattering cosine (2 + the phase's condition) dd / d_min), + a spot's
+    falloff's (error_bounds.spot_allowance) + the exponent sum's exp, 4u; chord_err[i, j] a bound on
+    the chord's rounding through shape j's face planes (shadows/through_others.py
+    `point_chord_rounding`, the planes dplanes[j] off the faces, inside the ball balls[j]), 0 for an
+    exact sphere (its error per evaluation: convex_chords.py `sphere_chord_error`)."""
+    geo = np.empty(9)
+    for i in range(origins.shape[0]):
+        geo[0:3], geo[3:6], geo[6:9] = origins[i], dirs[i], positions[light[i]]
+        p, dmax, dmin = light_span(geo, end[i])
+        r = math.sqrt(geo[0] * geo[0] + geo[1] * geo[1] + geo[2] * geo[2]) + end[i]
+        dd = 8.0 * U * (p + r)
+        moves[i, 0], moves[i, 1], moves[i, 2] = 16.0 * U * r, 64.0 * U * (p + r) / dmin + 4.0 * U, dd
+        rel = (2.0 + phase_condition(code, g)) * dd / dmin + spot_allowance(cones[light[i], 0]) + 4.0 * U
+        for c in range(3):
+            node_eps[i, c] = 32.0 * U * (1.0 + kt[c] * (end[i] + dmax)) + kt[c] * (dd + 16.0 * U * r) + rel
+        for j in range(kinds.shape[0]):
+            chord_err[i, j] = 0.0 if kinds[j] == SPHERE else point_chord_rounding(
+                rows, offsets[j], offsets[j + 1], geo[6:9], balls[j], r, dmax, dmin, dplanes[j])[0]
 
 
 def through_integrand(prep, segs, medium, sids, dk):

@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from ..error_bounds import KERNEL_FLOOR, product, spot_rounding
+from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
@@ -49,7 +49,7 @@ from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
 from ..scene.meshes import PLANE_DECIMALS
-from ..segments import gather
+from ..segments import gather, gather_weights
 from ..shadows.beams import lit_pieces_of_beam
 from ..shadows.fermat_legs import lit_pieces_of_point, span_errors
 from ..shadows.frusta import exact_lit_intervals
@@ -707,13 +707,15 @@ def _face_pieces(prep, sid, planes, mask, li, f, rows, dplanes, reached):
 
 def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
     """The outside medium's air-light (N, 3) of the pieces `segs` whose light crosses index-matched
-    interiors (shadow_frusta.split_lit's `behind`) and its variance (N, 3): the light attenuated by
+    interiors (shadow_frusta.split_lit's `behind`), its variance (N, 3) and its bound (N, 3): the light attenuated by
     exp(-(sigma_t inside - sigma_t outside) x length inside) of each interior on its straight path,
     integrated by the method's own rule where it has medium points (`Method.points`: raymarch's
     midpoints, Monte Carlo's samples, each point's light attenuated), else by the traced adaptive
     quadrature (paths.through_quadrature at the method's inside rtol: quadrature's own, or the
     fallback a method declares with `Supports.interiors.through`), counted (THROUGH; integrals short
-    of their tolerance: THROUGH_CAPPED), carried to the camera by the outside's transmittance over t0."""
+    of their tolerance: THROUGH_CAPPED), carried to the camera by the outside's transmittance over t0,
+    as its bound (paths.through_quadrature's; inf for the points' rules, which have none, and for an
+    area light's cubature nodes)."""
     inner = matched(prep)
     for sid in inner:
         hull_planes(prep, sid)  # fills the convex shapes' planes, which through_quadrature reads
@@ -722,13 +724,20 @@ def through_airlight(prep, method, params, segs: Segments, n_rays: int, stats):
     dk = kt_in - medium.sigma_t[None, :]
     stats[THROUGH] += len(segs)
     if method.supports.interiors.through == "points":
-        return shadowed_airlight(prep.accel, method, medium, prep.lights, params, _own_streams(segs, len(prep.lights)),
-                                 n_rays, functools.partial(_attenuation, prep, inner, dk))
+        air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params,
+                                     _own_streams(segs, len(prep.lights)), n_rays,
+                                     functools.partial(_attenuation, prep, inner, dk))
+        return air, var, np.where(rays_with(segs.ray, n_rays)[:, None], np.inf, 0.0)
     capped = np.zeros(1)
-    values = paths.through_quadrature(prep, segs, medium, inner, kt_in, method.supports.interiors.rule(params).rtol,
-                                      capped)
+    values, bound = paths.through_quadrature(prep, segs, medium, inner, kt_in,
+                                             method.supports.interiors.rule(params).rtol, capped,
+                                             np.array([measured_plane_errors(prep, i) for i in inner]),
+                                             np.array([_ball(prep, i) for i in inner]))
     stats[THROUGH_CAPPED] += capped[0]
-    return gather(segs, values, n_rays, medium), np.zeros((n_rays, 3))
+    bound[prep.lights.cubature[segs.light]] = np.inf  # an area light's cubature nodes: no bound (as elsewhere)
+    tr = gather_weights(segs, medium)
+    return gather(segs, values, n_rays, medium, tr=tr), np.zeros((n_rays, 3)), gather(segs, bound, n_rays, medium,
+                                                                                        tr=tr)
 
 
 THROUGH_STREAMS = 1 << 20  # random streams of the pieces behind interiors start past any ray's clear pieces'

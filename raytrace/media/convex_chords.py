@@ -107,6 +107,42 @@ def boundary_chords(points, dirs, dist, kind, rows, out):
                                 dirs[i, 1], dirs[i, 2], dist[i])
 
 
+U = 2.0 ** -53  # unit roundoff of doubles
+
+
+@njit(inline="always")
+def sphere_chord_error(row, px, py, pz, ux, uy, uz, k, dx, du, dd):
+    """A bound on the rounding of `sphere_chord` k toward a point light, at p along the computed unit u
+    (p off by dx from its exact point, u off by du from the exact direction to the light, the distance
+    to the light by dd). With f = p - c, b = f·u and h = |f - b u| the line's offset from the centre c,
+    the roots are -b -+ s, s = sqrt(q), q = rho^2 - h^2: b and h are off by db = dx + |f| du + 8u |f|
+    and dh = dx + |f| du + 16u |f| (inputs and own rounding, as sphere_roots's), q by dq = dh (2h + dh)
+    + 8u (rho^2 + h^2), so s by ds = 2 min(sqrt(dq), dq / s) (|sqrt(a) - sqrt(b)| <= min(sqrt|a - b|,
+    |a - b| / sqrt(b)), once for these values, once for sphere_roots's); the far root's form c0 / q'
+    (c0 = |f|^2 - rho^2, |q'| = |b| + s) adds 8u (|f|^2 + rho^2) / |q'|, each root 12u (|b| + s).
+    The chord max(min(t1, d) - max(t0, 0), 0) moves by at most the two roots' errors (each 2 db + ds
+    + its own rounding) plus dd; it is 0 where h - dh > rho (the exact line misses the sphere: the
+    error is k itself), and within [0, 2 rho (1 + 8u)] either way, so never off by more than 4 rho."""
+    rho = row[3]
+    fx, fy, fz = px - row[0], py - row[1], pz - row[2]
+    nf = math.sqrt(fx * fx + fy * fy + fz * fz)
+    b = fx * ux + fy * uy + fz * uz
+    hx, hy, hz = fx - b * ux, fy - b * uy, fz - b * uz
+    h = math.sqrt(hx * hx + hy * hy + hz * hz)
+    move = dx + nf * du
+    db, dh = move + 8.0 * U * nf, move + 16.0 * U * nf
+    if h - dh > rho:
+        return k
+    dq = dh * (2.0 * h + dh) + 8.0 * U * (rho * rho + h * h)
+    s = math.sqrt(max((rho - h) * (rho + h), 0.0))
+    ds = 2.0 * (min(math.sqrt(dq), dq / s) if s > 0.0 else math.sqrt(dq))
+    low = abs(b) + s - 2.0 * db - ds  # |q'| at least
+    if not low > 0.0:
+        return 4.0 * rho
+    root = 12.0 * U * (abs(b) + s) + 8.0 * U * (nf * nf + rho * rho) / low
+    return min(4.0 * db + 2.0 * ds + 2.0 * root + dd, 4.0 * rho)
+
+
 @njit
 def boundary_kinks(kind, rows, first, stop, o, w, light, end, out):
     """The kinks in (0, end) of the chords toward the point light along the line o + x w (into out,
@@ -225,6 +261,44 @@ def _meet(la, lb, lc, i, j):
     return (lc[i] * lb[j] - lc[j] * lb[i]) / det, (la[i] * lc[j] - la[j] * lc[i]) / det
 
 
+@njit
+def _panel_rounding(i, a, b, wp, n10, n20, origins, dirs, light, positions, planes, offsets, kinds, dk, node_eps,
+                    moves, chord_err):
+    """The largest relative rounding (3,) of `through_pieces`' evaluations at the 10- and 20-point
+    nodes of panel [a, b] (warp wp) of piece i: node_eps[i] + sum_j |dk[j]| (e_j + 16u k_j), e_j
+    chord_err[i, j] or `sphere_chord_error` (moves[i] = (dx, du, dd)). Apart from the sums' loop, so
+    that their compiled code, and the values, stay as they were."""
+    ox, oy, oz, wx, wy, wz = origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2]
+    lx, ly, lz = positions[light[i], 0], positions[light[i], 1], positions[light[i], 2]
+    half, mid = 0.5 * (b - a), 0.5 * (a + b)
+    m0 = m1 = m2 = 0.0
+    for q in range(n10.shape[0] + n20.shape[0]):
+        node = n10[q] if q < n10.shape[0] else n20[q - n10.shape[0]]
+        u = 0.5 * (1.0 + node)
+        x = mid + half * node if wp == 0 else (a + (b - a) * u * u if wp == 1 else b - (b - a) * u * u)
+        px, py, pz = ox + x * wx, oy + x * wy, oz + x * wz
+        rx, ry, rz = lx - px, ly - py, lz - pz
+        d = max(math.sqrt(rx * rx + ry * ry + rz * rz), 1e-125)
+        tx, ty, tz = rx / d, ry / d, rz / d
+        a0 = a1 = a2 = 0.0
+        for j in range(dk.shape[0]):
+            k = boundary_chord(kinds[j], planes, offsets[j], offsets[j + 1], px, py, pz, tx, ty, tz, d)
+            ek = 16.0 * U * k + (sphere_chord_error(planes[offsets[j]], px, py, pz, tx, ty, tz, k, moves[i, 0],
+                                                    moves[i, 1], moves[i, 2])
+                                 if kinds[j] == SPHERE else chord_err[i, j])
+            a0 += _times(abs(dk[j, 0]), ek)
+            a1 += _times(abs(dk[j, 1]), ek)
+            a2 += _times(abs(dk[j, 2]), ek)
+        m0, m1, m2 = max(m0, node_eps[i, 0] + a0), max(m1, node_eps[i, 1] + a1), max(m2, node_eps[i, 2] + a2)
+    return m0, m1, m2
+
+
+@njit(inline="always")
+def _times(a, b):
+    """a b, 0 where a is 0 (an exact 0 carries no error, however large b's bound: not inf x 0 = nan)."""
+    return a * b if a != 0.0 else 0.0
+
+
 @njit(inline="always")
 def _airlight(x, d, mu, f, e0, e1, e2, kt0, kt1, kt2, ks0, ks1, ks2, i0, i1, i2, code, g):
     """(1) per channel from the distance d to the light, the cosine mu, the falloff f and the
@@ -237,7 +311,8 @@ def _airlight(x, d, mu, f, e0, e1, e2, kt0, kt1, kt2, ks0, ks1, ks2, i0, i1, i2,
 
 @njit
 def through_pieces(origins, dirs, end, light, positions, axes, cones, intensities, planes, offsets, kinds, dk, kt,
-                   ks, code, g, rtol, max_levels, max_panels, n10, w10, n20, w20, out, stats):
+                   ks, code, g, rtol, max_levels, max_panels, n10, w10, n20, w20, node_eps, moves, chord_err, out,
+                   bound, stats):
     """out[i] (3,) = ∫_0^end[i] of (1) along piece i (origins, dirs; light[i] indexes the lights'
     positions, axes, cones (cos_end, cos_start, curve) and intensities) through the shapes whose
     boundaries (of kind kinds[j]: face planes or an exact sphere) are planes[offsets[j]:offsets[j + 1]]
@@ -250,7 +325,18 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
     u with x = x_b + (x_other - x_b) u^2 (smooth in u), its halves in u the quarter beside x_b (warped
     again) and the rest (plain); a panel with such a kink at both ends is halved first. One loop with
     its helpers inlined: helpers called per evaluation with arrays and tuples (their reference counts)
-    took half of the kernel's time."""
+    took half of the kernel's time.
+
+    bound[i] (3,): the rule's bound per accepted panel, max(rtol |G20|, the floor times its width)
+    (each panel's 20-point value taken to be within |G20 - G10| of its integral, as the test keeps
+    it), + twice the 20-point sum's and once the 10-point sum's rounding (the test reads computed
+    sums): the evaluations' largest relative rounding (`_panel_rounding`) x (2 |G20| + |G10|) (the
+    integrand and the weights are positive), + u per panel x (|out| + bound); inf where a panel was
+    dropped or accepted at max_panels. An evaluation's relative rounding: node_eps[i] (3,) (the
+    unattenuated integrand's, the exponent sum's and a spot's, interiors/paths.py `piece_errors`) +
+    sum_j |dk[j]| (e_j + 16u k_j), e_j the chord's rounding: chord_err[i, j] for face planes
+    (shadows/through_others.py `point_chord_rounding`), `sphere_chord_error` per evaluation for a
+    sphere (moves[i] = (dx, du, dd): the point's, the direction's and the distance's rounding)."""
     n_kinks = 0
     for j in range(offsets.shape[0] - 1):
         n_kinks += offsets[j + 1] - offsets[j] + 4
@@ -262,6 +348,7 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
     n_nodes = n10.shape[0] + n20.shape[0]
     for i in range(origins.shape[0]):
         out[i, 0] = out[i, 1] = out[i, 2] = 0.0
+        bound[i, 0] = bound[i, 1] = bound[i, 2] = 0.0
         if not end[i] > 0.0:
             continue
         li = light[i]
@@ -293,7 +380,7 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
                 lo_stack[top], hi_stack[top], depth[top], warp[top] = a, b, 0, 1 if at_a else (2 if at_b else 0)
                 top += 1
             b, at_b = a, at_a
-        panels = 0
+        panels, accepted, short = 0, 0, False
         while top > 0:
             top -= 1
             a, b, level, wp = lo_stack[top], hi_stack[top], depth[top], warp[top]
@@ -341,14 +428,24 @@ def through_pieces(origins, dirs, end, light, positions, axes, cones, intensitie
             if ok or panels >= max_panels:
                 if not ok:
                     stats[0] += 1.0
+                    short = True
                 out[i, 0] += f0
                 out[i, 1] += f1
                 out[i, 2] += f2
+                m0, m1, m2 = _panel_rounding(i, a, b, wp, n10, n20, origins, dirs, light, positions, planes, offsets,
+                                             kinds, dk, node_eps, moves, chord_err)
+                bound[i, 0] += max(rtol * abs(f0), floor0 * width) + _times(m0, 2.0 * abs(f0) + abs(c0))
+                bound[i, 1] += max(rtol * abs(f1), floor1 * width) + _times(m1, 2.0 * abs(f1) + abs(c1))
+                bound[i, 2] += max(rtol * abs(f2), floor2 * width) + _times(m2, 2.0 * abs(f2) + abs(c2))
+                accepted += 1
             elif level + 1 >= max_levels:  # dropped, as inside_paths.adaptive drops it
                 stats[0] += 1.0
+                short = True
             else:  # halves in x, or in u: the quarter beside the kink (warped) and the rest (plain)
                 cut = mid if wp == 0 else (a + 0.25 * (b - a) if wp == 1 else b - 0.25 * (b - a))
                 lo_stack[top], hi_stack[top], depth[top], warp[top] = cut, b, level + 1, 2 if wp == 2 else 0
                 lo_stack[top + 1], hi_stack[top + 1], depth[top + 1] = a, cut, level + 1
                 warp[top + 1] = 1 if wp == 1 else 0
                 top += 2
+        for c in range(3):
+            bound[i, c] = math.inf if short else bound[i, c] + accepted * U * (abs(out[i, c]) + bound[i, c])

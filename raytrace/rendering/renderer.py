@@ -334,12 +334,12 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                 air, variance = air + sampled[0], variance + sampled[1]
                 bound[sampled[2]] = np.inf
             if through is not None and len(through):
-                through_air, through_var = rows.through_airlight(prep, method, params, through, len(origins),
-                                                                        stats[-crossing.STATS_SIZE:])
+                through_air, through_var, through_bound = rows.through_airlight(
+                    prep, method, params, through, len(origins), stats[-crossing.STATS_SIZE:])
                 air = air + through_air
                 if method.stochastic:
                     var = var + through_var
-                bound[error_bounds.rays_with(through.ray, len(origins))] = np.inf
+                bound += through_bound
         if held is not None:
             air = air + held[0]
             var = var + held[1] if method.stochastic else var
