@@ -7,7 +7,7 @@ light crosses index-matched interiors (`through_airlight`).
 Each inside row starts at its entry point (the boundary, or the camera inside the shape) and runs
 along the refracted ray for its length; its `medium` is the shape whose interior holds it, its
 `normals` the outward normal of the face it entered by (the analytic note's planar boundary), its
-`reach` how light reaches it (`bounded.STRAIGHT`: the light's straight path to a convex index-matched
+`reach` how light reaches it (`crossing.STRAIGHT`: the light's straight path to a convex index-matched
 shape's faces; `TRACED`: straight through a non-convex one, measured with Embree; `REFRACTED`:
 through the refracting boundary). A row integrates every light (`light` = -1).
 
@@ -15,9 +15,9 @@ In an index-matched shape the light's path inside is its exact straight path for
 `exact_paths`, else the note's entry plane (`entry_plane`: slab_approx). With `closed_forms` (analytic,
 directional lights) in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
 media/convex_directional.py with its bound; else the segments go to the method's rule (its adaptive
-quadrature: `_traced`, rtol bounded.RTOL), counted (HANDED), with its bound. Through a refractive boundary a
+quadrature: `_traced`, rtol crossing.RTOL), counted (HANDED), with its bound. Through a refractive boundary a
 directional light enters a convex shape through every face it meets, one beam each
-(`bounded.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
+(`crossing.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
 through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
@@ -83,7 +83,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     summed over the lights, for the interior `medium` with outward entry normals `normals`, its
     variance (N, 3) (0 but for the sampling integrator), its statistics (STATS_SIZE) and a bound
     (N, 3) on its error (inf where none is known). `reach`: how light reaches the rows (the crossing's
-    bounded.STRAIGHT, TRACED or REFRACTED). The method's inside rule is its
+    crossing.STRAIGHT, TRACED or REFRACTED). The method's inside rule is its
     `Supports.interiors.rule(params)`; in an index-matched shape the light's path inside is its exact
     straight path (convex: `convex_planes`; else traced, `_traced`) for the methods with
     `exact_paths`, else the note's entry plane (`entry_plane`: `plane_closed`). With `closed_forms`

@@ -28,7 +28,7 @@ from 0 to far beyond 745 (exp underflows to 0, never NaN). A last piece of infin
 over any length, also where no face faces the light); kt > 0 with no face toward the light gives
 0 (an infinite path).
 
-Through a refractive boundary the light makes one beam per face it meets (bounded.refracted_beams),
+Through a refractive boundary the light makes one beam per face it meets (interiors/crossing.py refracted_beams),
 each with its own direction inside; beam f lights a point only where the point's path back leaves
 through f, i.e. on the envelope's pieces on face f (`only` = f below).
 

@@ -78,7 +78,7 @@ class Segments:
     per_ray: int = 0  # k when segment r k + j is ray r's j-th and every t0 is 0 (whole rays), else 0
     # rows inside shapes that hold a medium (interiors/crossing.py's crossing; None: every row lies in the camera's
     # medium): the shape whose interior holds each row, the outward normal (S, 3) of the boundary face its
-    # camera ray entered by (the slab note's plane), and how light reaches it (bounded.STRAIGHT, ...)
+    # camera ray entered by (the slab note's plane), and how light reaches it (crossing.STRAIGHT, ...)
     medium: np.ndarray | None = None
     normals: np.ndarray | None = None
     reach: np.ndarray | None = None
