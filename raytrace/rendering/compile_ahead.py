@@ -2,8 +2,9 @@
 
 numba compiles under one lock per process, but the kernel cache is shared on disk. While the
 warm-up (renderer.warm_up) compiles the shadow frusta's and the surfaces' kernels in this process,
-a worker process started at its beginning compiles the air-light's kernels
-(renderer.compile_airlight) into the cache. Which process compiles what does not depend on timing:
+a worker process started at its beginning compiles the air-light's kernels and the inside
+integrals of the rays into media inside shapes (renderer.compile_airlight, `interiors_ahead`: the
+warm-up shades those rays after the worker) into the cache. Which process compiles what does not depend on timing:
 until the worker has finished, this process neither loads from the cache nor writes to it
 (`jit.hold`: it compiles whatever it calls itself), and its method's air-light (`Gated`) first waits
 for the worker, then loads what the worker compiled. Engaged for the first warm-up of a process
