@@ -20,12 +20,17 @@ CAMERA = {"position": [0.0, 1.47, 2.5], "look_at": [0.45, 1.5, 0.0], "up": [0.0,
 
 
 def main():
-    o = np.array(CAMERA["position"])
-    dirs = twin.camera_rays(o, CAMERA["look_at"], CAMERA["up"], CAMERA["fov"], CAMERA["width"], CAMERA["height"])
+    write(CAMERA, OUT)
+
+
+def write(camera: dict, path: Path):
+    """The exact radiance of each of `camera`'s pixel rays under the quad light in its fog, as JSON at `path`."""
+    o = np.array(camera["position"])
+    dirs = twin.camera_rays(o, camera["look_at"], camera["up"], camera["fov"], camera["width"], camera["height"])
     em = twin.Quad(QUAD["corners"], QUAD["radiance"], exact=True)
-    out = {"camera": CAMERA, "radiance": [[twin.radiance(em, o, d, KT, KS) for d in row] for row in dirs]}
+    out = {"camera": camera, "radiance": [[twin.radiance(em, o, d, KT, KS) for d in row] for row in dirs]}
     print(out["radiance"])
-    OUT.write_text(json.dumps(out, indent=1) + "\n")
+    path.write_text(json.dumps(out, indent=1) + "\n")
 
 
 if __name__ == "__main__":

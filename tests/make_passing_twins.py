@@ -6,13 +6,9 @@ The quad light of tests/test_area_lights.py in its isotropic fog, seen by a 1 x 
 plane whose rays pass under it without crossing its plane (0.09 to 0.4 of its diameter from it), and
 each ray's radiance by tests/area_twin.py with `exact=True` (the geometry and scipy alone, no project code).
 """
-import json
 from pathlib import Path
 
-import numpy as np
-
-from . import area_twin as twin
-from .test_area_lights import KS, KT, QUAD
+from .make_grazing_twins import write
 
 OUT = Path(__file__).resolve().parent / "data" / "passing_twins.json"
 CAMERA = {"position": [0.1, 1.38, 2.5], "look_at": [0.1, 1.0951, 0.0], "up": [0.0, 1.0, 0.0], "fov": 14.0,
@@ -20,12 +16,7 @@ CAMERA = {"position": [0.1, 1.38, 2.5], "look_at": [0.1, 1.0951, 0.0], "up": [0.
 
 
 def main():
-    o = np.array(CAMERA["position"])
-    dirs = twin.camera_rays(o, CAMERA["look_at"], CAMERA["up"], CAMERA["fov"], CAMERA["width"], CAMERA["height"])
-    em = twin.Quad(QUAD["corners"], QUAD["radiance"], exact=True)
-    out = {"camera": CAMERA, "radiance": [[twin.radiance(em, o, d, KT, KS) for d in row] for row in dirs]}
-    print(out["radiance"])
-    OUT.write_text(json.dumps(out, indent=1) + "\n")
+    write(CAMERA, OUT)
 
 
 if __name__ == "__main__":
