@@ -27,7 +27,7 @@ from . import oracle
 from .test_bounded_media import fresnel_t
 from .test_lamp_in_glass import CAMERA, ETA, FLOOR_Y, KA, KA_OUT, KS, LAMP, SPOT, refract
 from .test_lamp_in_globe import CENTRE, GRID, NEAR, RADIUS, SPHERE, circle, paths_out, scene, sphere_hits, twin
-from .test_lantern_fog import march_and_sample
+from .test_lantern_fog import march_and_sample, quadrature_against
 from .test_light_inside import image
 
 KS_OUT, G_OUT = 0.02, 0.4
@@ -185,15 +185,7 @@ def test_the_pixels_are_lit_through_the_globe(reference):
 def test_quadrature_against_the_twin(reference):
     """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels (rtol 1e-6: within 1e-5; measured
     2.5e-15 and 1.2e-12); its bound is inf there (the evaluations' rounding is not derived), which holds."""
-    ref, _, res = reference
-    got = np.array([res.image[j, i] for j, i in PIXELS])
-    err = np.abs(got - ref) / ref
-    assert np.all(err <= 1e-9), err.max()
-    bounds = np.array([res.error_bound[j, i] for j, i in PIXELS])
-    assert np.all(bounds >= np.abs(got - ref))
-    coarse = image(scene(LAMP, FOG), "quadrature", {"rtol": 1e-6}, shadows=False)
-    got = np.array([coarse.image[j, i] for j, i in PIXELS])
-    assert np.all(np.abs(got - ref) <= 1e-5 * ref), (np.abs(got - ref) / ref).max()
+    quadrature_against(reference, scene(LAMP, FOG), PIXELS)
 
 
 def test_raymarch_converges_and_montecarlo_is_unbiased(reference):
