@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 # (name, scene of DIR's scenes/, method, width): a point lamp, spots, the sun
-CASES = [("box_room, a point lamp", "box_room", "analytic", 160), ("box_room, a point lamp", "box_room", "quadrature", 160),
+CASES = [("box_room, a point lamp", "box_room", "analytic", 160),
+         ("box_room, a point lamp", "box_room", "quadrature", 160),
          ("stage, 3 spots", "stage", "analytic", 160), ("stage, 3 spots", "stage", "quadrature", 160),
          ("ocean, directional", "ocean", "quadrature", 160),
          ("valley_fog, directional in height fog", "valley_fog", "quadrature", 96)]
