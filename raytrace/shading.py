@@ -363,12 +363,12 @@ def _free(accel, points, normals, emitter):
 def _cut(accel, points, normals, shading, emitter, reached, blocked, free):
     """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its rows
     that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; for a
-    sphere (whose rows decide nothing: `near_rules.rows_decide`), where the rows agree and the point is not `free` of occluders (`_free`), wherever
-    any of its rows or of the probes of the part the point sees (`_ball_probes`, the same for every
-    cubature order) reaches the point (all blocked: hidden, 0); for an emitter with corner probes, where
-    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between
-    them, or, where the rows agree, the shadow rays to those that emit toward the point disagree with
-    them."""
+    sphere (whose rows decide nothing: `near_rules.rows_decide`), where the rows agree and the point is
+    not `free` of occluders (`_free`), wherever any of its rows or of the probes of the part the point
+    sees (`_ball_probes`, the same for every cubature order) reaches the point (all blocked: hidden, 0);
+    for an emitter with corner probes, where the point's horizon (its tangent plane, or the terminator
+    of its shading normal) passes between them, or, where the rows agree, the shadow rays to those that
+    emit toward the point disagree with them."""
     cut = (reached > 0) & (blocked > 0)
     if not rows_decide(emitter):
         at = np.flatnonzero(~cut & ~free)
