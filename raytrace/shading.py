@@ -29,8 +29,8 @@ import numpy as np
 
 from .geometry.shadow_rays import shadow_rays_into
 from .jit import exact_jitable, exact_njit, njit
-from .lights import sphere_occluders
 from .lights.area import collapsed_variance
+from .lights.near_rules import free as free_of, rows_decide, seen_probes
 from .rng import uniform
 
 STATS_NAMES = ("closed form not converged",)  # surface_radiance's: points left at the finest order
@@ -166,7 +166,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     _add_lights(out, rows, accel, points, normals, shading if terminator else normals, terminator, reflectance,
                 lights, run, medium, through, sampled)
     for owner in np.unique(lights.owner[~dark]) if sampled else ():  # spheres no row reaches: their probes may
-        if lights.emitters[owner] is not None and lights.emitters[owner].ball is not None:
+        if lights.emitters[owner] is not None and not rows_decide(lights.emitters[owner]):
             rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64), np.zeros(len(out), np.int64)))
     for owner, (value, reached, missed) in rows.items():
         free = _free(accel, points, normals, lights.emitters[owner])
@@ -354,28 +354,25 @@ def _reached_into(seen, starts, blocked, points, to_light, dist, cos, idx, at, w
 
 
 def _free(accel, points, normals, emitter):
-    """(N,) where nothing but the emitter can hide any of it from the points: for a sphere (`ball`), the
-    exact test of the occluders' geometry (`sphere_occluders.free`, the same for every cubature order);
-    nowhere for other emitters (their rows and probes tell)."""
-    if emitter.ball is None:
-        return np.zeros(len(points), dtype=bool)
-    return sphere_occluders.free(emitter.ball.centre, emitter.ball.radius, points, normals, accel.triangles,
-                                 accel.sphere_of, accel.spheres, accel.epsilon)
+    """(N,) where nothing but the emitter can hide any of it from the points: for a sphere, the exact test
+    of the occluders' geometry (`near_rules.free`, the same for every cubature order); nowhere for other
+    emitters (their rows and probes tell)."""
+    return free_of(emitter, accel, points, normals)
 
 
 def _cut(accel, points, normals, shading, emitter, reached, blocked, free):
     """(N,) where the emitter (`lights.Emitter`) seen from the points is cut: the shadow rays of its rows
     that emit toward a point (`reached`, `blocked`: how many reached it, were blocked) disagree; for a
-    sphere (`ball`), where the rows agree and the point is not `free` of occluders (`_free`), wherever
-    any of its rows or of the probes of the part the point sees (`_ball_probes`, the same for every
-    cubature order) reaches the point (all blocked: hidden, 0); for an emitter with corner probes, where
-    the point's horizon (its tangent plane, or the terminator of its shading normal) passes between
-    them, or, where the rows agree, the shadow rays to those that emit toward the point disagree with
-    them."""
+    sphere (whose rows decide nothing: `near_rules.rows_decide`), where the rows agree and the point is
+    not `free` of occluders (`_free`), wherever any of its rows or of the probes of the part the point
+    sees (`_ball_probes`, the same for every cubature order) reaches the point (all blocked: hidden, 0);
+    for an emitter with corner probes, where the point's horizon (its tangent plane, or the terminator
+    of its shading normal) passes between them, or, where the rows agree, the shadow rays to those that
+    emit toward the point disagree with them."""
     cut = (reached > 0) & (blocked > 0)
-    if emitter.ball is not None:
+    if not rows_decide(emitter):
         at = np.flatnonzero(~cut & ~free)
-        seen = _ball_probes(accel, points[at], normals[at], None if shading is None else shading[at], emitter.ball)
+        seen = _ball_probes(accel, points[at], normals[at], None if shading is None else shading[at], emitter)
         cut[at] = reached[at] + seen > 0
         return cut
     if emitter.probes is None:
@@ -397,20 +394,20 @@ def _cut(accel, points, normals, shading, emitter, reached, blocked, free):
     return cut
 
 
-def _ball_probes(accel, points, normals, shading, ball):
-    """(M,) how many of a sphere emitter's probes (`sphere_rule.Ball.probes`, the same for every cubature
+def _ball_probes(accel, points, normals, shading, emitter):
+    """(M,) how many of a sphere emitter's probes (`near_rules.seen_probes`, the same for every cubature
     order) above each point's horizon (its shading normal's terminator too, where given) reach the
     point: shadow rays as `_emitter_samples` traces them (the exact sphere does not shadow its own
     surface's near side)."""
-    y = ball.probes(points, [normals] if shading is None else [normals, shading])
+    y, outward = seen_probes(emitter, points, [normals] if shading is None else [normals, shading])
     per = y.shape[1]
-    y = y.reshape(-1, 3)
+    y, outward = y.reshape(-1, 3), outward.reshape(-1, 3)
     p, n = np.repeat(points, per, axis=0), np.repeat(normals, per, axis=0)
     to = y - p
     lit = np.einsum("ij,ij->i", n, to) > 0.0  # False where NaN (no probe)
     if shading is not None:
         lit &= np.einsum("ij,ij->i", np.repeat(shading, per, axis=0), to) > 0.0
-    idx = np.flatnonzero(lit & (np.einsum("ij,ij->i", y - ball.centre, to) < 0.0))  # the probe faces the point
+    idx = np.flatnonzero(lit & (np.einsum("ij,ij->i", outward, to) < 0.0))  # the probe faces the point
     o = p[idx] + accel.epsilon * n[idx]
     d = y[idx] - o
     length = np.linalg.norm(d, axis=1)

@@ -118,7 +118,8 @@ class Emitter:
     # where the kind has it in closed form about a centre (None: not; the kind's `surface_irradiance`);
     # missed (1,) += the points where it did not converge (the finest order kept)
     irradiance: Callable | None = None
-    # rule(order) -> (points (n, 3), unit normals (n, 3), area weights (n,)): its rows' rule (`unit_rule`)
+    # rule(order) -> (points (n, 3), unit normals (n, 3), area weights (n,)): its rows' rule (`unit_rule`), built
+    # once per order (the same arrays, read-only, at each call)
     rule: Callable | None = None
     # whether a sample on it can be shadowed by the emitter itself (an emissive shape's triangles: a shadow
     # ray from one leaves through the rest of the shape), so that its penumbrae are not sampled
@@ -139,17 +140,21 @@ def emitter(light: Light, sample_emitter, corners=None, planar=None, ball=None, 
     kind's rows (`Emitter.rule`: `unit_rule`)."""
     sample = functools.partial(sample_emitter, light)
     probes = None if corners is None else sample(*corners)[:2]
+    rule = None if rows is None else functools.lru_cache(maxsize=None)(functools.partial(unit_rule, rows, light))
     return Emitter(light.intensity, light.two_sided, sample, probes, None if planar is None else planar(light),
                    None if ball is None else ball(light),
-                   None if irradiance is None else functools.partial(irradiance, light),
-                   None if rows is None else functools.partial(unit_rule, rows, light))
+                   None if irradiance is None else functools.partial(irradiance, light), rule)
 
 
 def unit_rule(rows, light: Light, order: int):
     """(points (n, 3), unit normals (n, 3), area weights (n,)) of the kind's `rows(light, order)`: the
-    rows of the light made one-sided of unit radiance (`emitter_rows`' weights times 1)."""
+    rows of the light made one-sided of unit radiance (`emitter_rows`' weights times 1), read-only (an
+    `Emitter.rule` keeps them)."""
     r = rows(dataclasses.replace(light, intensity=np.ones(3), two_sided=False), order)
-    return r.position, r.axis, r.intensity[:, 0]
+    out = r.position, r.axis, r.intensity[:, 0]
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def collapsed_variance(g, strata: int) -> np.ndarray:

@@ -19,6 +19,7 @@ nearest of those beyond it, the rays that choose its order.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -148,10 +149,17 @@ def passes(samples, origins, dirs, fraction: float) -> np.ndarray:
 def _about(samples, origins, dirs):
     """(probe points (P, 3), their `diameter`, the radius of their bounding sphere about their mean, (N,)
     each half-line's distance to that centre)."""
+    points, size, radius, centre = _probe_geometry(samples)
+    return points, size, radius, half_line_distances(centre[None], origins, dirs)
+
+
+@functools.lru_cache(maxsize=64)
+def _probe_geometry(samples):
+    """(probe points (P, 3), their `diameter`, their bounding sphere's radius and centre (their mean)) of
+    an emitter's `samples` (`Emitter.sample`): once per emitter, not per tile of camera rays."""
     points = probe_points(samples)
     centre = points.mean(axis=0)
-    radius = np.linalg.norm(points - centre, axis=1).max()
-    return points, diameter(points), radius, half_line_distances(centre[None], origins, dirs)
+    return points, diameter(points), np.linalg.norm(points - centre, axis=1).max(), centre
 
 
 def half_line_distances(points, origins, dirs) -> np.ndarray:

@@ -38,14 +38,12 @@ import functools
 
 import numpy as np
 
-from ..lights.cubature import NEAR_FRACTION, PASSING, SHARE, agree, passes
-from ..lights.planar import plane_feet
-from ..lights.sphere_occluders import segments_free
-from ..lights.sphere_rule import FIRST
+from ..lights.cubature import SHARE, agree
+from ..lights.near_rules import (ORDERS, cap_samplers, near as near_of, own_estimate, passing as passing_of,
+                                 replaces_rows, rows_decide, segments_clear)
 from ..shadows.penumbra_airlight import (LIT, NONE, emitter_estimate, emitter_states, lit_states, per_group,
                                          point_segments, spot_rows)
 
-ORDERS = (2, 3, 4, 6, 8, 12, 16, 24, 32)  # nodes per parameter of each of a rule's parts (consecutive pairs compared)
 DEFAULT_ORDER = 8  # raymarch's (no precision to meet)
 STATS_NAMES = ("rays near an emitter", "rays near an emitter not converged")
 
@@ -56,9 +54,8 @@ def applies(lights, method, sampled: bool = False) -> bool:
     intervals), sphere emitters of a method with its own estimate of them (`Method.sphere`), which
     `replaced` then samples with their own shadow rays (the rows' stay with the points)."""
     if sampled:
-        return method.sphere is not None and bool(_balls(lights).any())
-    return any(e is not None and (e.ball is not None or (e.planar is not None and not method.stochastic))
-               for e in lights.emitters)
+        return any(e is not None and own_estimate(e, method.sphere) is not None for e in lights.emitters)
+    return any(e is not None and replaces_rows(e, method.stochastic) for e in lights.emitters)
 
 
 def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: bool, seen, ctx=None):
@@ -73,22 +70,18 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     n, n_e = len(origins), len(lights.emitters)
     air, stats, var = np.zeros((n, 3)), np.zeros(len(STATS_NAMES)), np.zeros((n, 3))
     near = np.zeros((n, n_e), bool)
-    feet = {}
-    for e, em in enumerate(lights.emitters):
-        if em is not None and em.ball is not None:
-            near[:, e] = em.ball.outside(origins)  # every ray (module docstring)
-        if em is None or em.planar is None:
-            continue
-        foot, height = plane_feet(em.planar.centre, em.planar.normal, origins, dirs, tmax)
-        near[:, e] = np.hypot(height, em.planar.outside(foot)) < NEAR_FRACTION * em.planar.diameter
-        feet[e] = foot
+    rules = [None if em is None else near_of(em, origins, dirs, tmax) for em in lights.emitters]
+    for e, r in enumerate(rules):
+        if r is not None:
+            near[:, e] = r.rays
     passing = _passing(lights, method, tol, origins, dirs, near)
     shine = _shines(lights, cone, tmax, n)
     near &= shine
     passing &= shine
     own = method.sphere(medium, params) if method.stochastic and method.sphere is not None else None
-    if method.stochastic:  # its own estimate of the spheres, else their rows; flat emitters keep their rows
-        near &= _balls(lights)[None, :] & (own is not None)
+    owns = [None if em is None else own_estimate(em, own) for em in lights.emitters]
+    if method.stochastic:  # its own estimate (of the spheres), else the rows (a flat emitter's: it samples them)
+        near &= np.array([o is not None for o in owns], bool)[None, :]
     hidden = np.zeros((n, n_e), bool)
     if shadows and (near | passing).any():
         if not method.stochastic:
@@ -103,13 +96,13 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     drop = (near | hidden | passing)[segs.ray, owner] & lights.cubature[segs.light]
     kept = segs.take(np.nonzero(~drop)[0])
     for e in np.unique(np.nonzero(hidden)[1]):
-        if own is not None:
-            em, rs = lights.emitters[e], np.nonzero(hidden[:, e])[0]
-            value, v = own(em.ball, em.radiance, e, rays, rs, functools.partial(_in_sight, ctx[0]))
+        if owns[e] is not None:
+            rs = np.nonzero(hidden[:, e])[0]
+            value, v = owns[e](e, rays, rs, functools.partial(_in_sight, ctx[0]))
             air[rs] += value
             var[rs] += v
             continue
-        for rs, sample in _cap_samplers(lights.emitters[e].ball, rays, np.nonzero(hidden[:, e])[0]):
+        for rs, sample in cap_samplers(lights.emitters[e], rays, np.nonzero(hidden[:, e])[0]):
             value, v = emitter_estimate(ctx[0], method, medium, params, lights.emitters[e], e, rs, rays, ctx[1],
                                         sample)
             air[rs] += value
@@ -117,14 +110,13 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     for e in np.unique(np.nonzero(near)[1]):
         rs = np.nonzero(near[:, e])[0]
         em = lights.emitters[e]
-        if own is not None:
-            value, v = own(em.ball, em.radiance, e, rays, rs)
+        if owns[e] is not None:
+            value, v = owns[e](e, rays, rs)
             air[rs] += value
             var[rs] += v
             continue
-        rule, orders = ((_ball_rule(em.ball, rays, rs), ORDERS[ORDERS.index(FIRST):]) if em.ball is not None
-                        else (_planar_rule(em.planar, feet[e][rs], dirs[rs]), ORDERS))
-        value, stray = _ladder(em, rule, orders, method, medium, params, tol, rs, rays, segs.scale, np.abs(seen[rs]))
+        value, stray = _ladder(em, rules[e].rule(rays, rs), rules[e].orders, method, medium, params, tol, rs, rays,
+                               segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
     for e in np.unique(np.nonzero(passing)[1]):
@@ -145,8 +137,8 @@ def _passing(lights, method, tol, origins, dirs, near) -> np.ndarray:
     if tol is None or method.stochastic:
         return out
     for e, em in enumerate(lights.emitters):
-        if em is not None and em.planar is not None:
-            out[:, e] = passes(em.sample, origins, dirs, PASSING) & ~near[:, e]
+        if em is not None:
+            out[:, e] = passing_of(em, origins, dirs) & ~near[:, e]
     return out
 
 
@@ -156,31 +148,14 @@ def _in_sight(accel, points, dirs, dist) -> np.ndarray:
     return ~accel.occluded(points + eps * dirs, dirs, np.maximum(dist - 2.0 * eps, 0.0))
 
 
-def _cap_samplers(ball, rays, rs) -> list:
-    """[(camera rays, sampler)]: the rays `rs` whose segments see a part of the sphere `ball` within a
-    cap (`Ball.seen_cap`) with a sampler of that cap (`emitter_estimate`'s `sample`), and those whose
-    cap is the whole sphere with None (the emitter's own samples)."""
-    origins, dirs, tmax = rays[:3]
-    h = ball.seen_cap(origins[rs], dirs[rs], np.asarray(tmax, float)[rs])[1]
-    capped, whole = rs[h < 2.0], rs[h >= 2.0]
-
-    def sample(at, u, v):
-        return ball.sample_cap(*ball.seen_cap(origins[at], dirs[at], np.asarray(tmax, float)[at]), u, v)
-    return [(r, f) for r, f in ((capped, sample), (whole, None)) if len(r)]
-
-
 def _may_hide(accel, lights, near, rays) -> np.ndarray:
-    """(N, E) the near pairs of a sphere emitter whose camera ray's segment the occluders' geometry does
-    not clear (`sphere_occluders.segments_free`)."""
+    """(N, E) the near pairs whose camera ray's segment the occluders' geometry does not clear of hiding
+    part of the emitter (`near_rules.segments_clear`: a sphere's; the others' rows tell)."""
     origins, dirs, tmax = rays[:3]
     out = np.zeros(near.shape, bool)
     for e in np.unique(np.nonzero(near)[1]):
-        ball = lights.emitters[e].ball
-        if ball is None:
-            continue
         rs = np.nonzero(near[:, e])[0]
-        out[rs, e] = ~segments_free(ball.centre, ball.radius, origins[rs], dirs[rs], np.asarray(tmax, float)[rs],
-                                    accel.triangles, accel.sphere_of, accel.spheres, accel.epsilon)
+        out[rs, e] = ~segments_clear(lights.emitters[e], accel, origins[rs], dirs[rs], np.asarray(tmax, float)[rs])
     return out
 
 
@@ -195,7 +170,7 @@ def _shines(lights, cone, tmax, n: int) -> np.ndarray:
     out[cone.ray[rows], lights.owner[cone.light[rows]]] = True
     on = np.zeros(n_e + 1, bool)
     on[np.where(lights.cubature & np.any(lights.intensity != 0.0, axis=1), lights.owner, n_e)] = True
-    out[:, _balls(lights) & on[:n_e]] = (np.asarray(tmax, float) > 0.0)[:, None]
+    out[:, _undecided(lights) & on[:n_e]] = (np.asarray(tmax, float) > 0.0)[:, None]
     return out
 
 
@@ -205,21 +180,12 @@ def _lit_or_unseen(lights, cone, lit, n: int) -> np.ndarray:
     n_l = len(lights)
     row_state = lit_states(cone, lit, cone.ray * n_l + cone.light, lit.ray * n_l + lit.light, n * n_l)
     state = emitter_states(row_state.reshape(n, n_l), lights.owner, lights.cubature, len(lights.emitters))
-    return (state == LIT) | ((state == NONE) & _balls(lights)[None, :])
+    return (state == LIT) | ((state == NONE) & _undecided(lights)[None, :])
 
 
-def _balls(lights) -> np.ndarray:
-    """(E,) whether each emitter is a sphere."""
-    return np.array([em is not None and em.ball is not None for em in lights.emitters], dtype=bool)
-
-
-def _planar_rule(planar, feet, dirs):
-    """rule(at, order) -> (points, normals, weights, owner) of a flat emitter about the `feet` [at] of
-    the rays along `dirs` [at]."""
-    def rule(at, order):
-        points, weights, owner = planar.rule(feet[at], order, dirs[at])
-        return points, np.broadcast_to(planar.normal, points.shape), weights, owner
-    return rule
+def _undecided(lights) -> np.ndarray:
+    """(E,) whether each emitter's rows decide nothing of it (`near_rules.rows_decide`: a sphere's)."""
+    return np.array([em is not None and not rows_decide(em) for em in lights.emitters], dtype=bool)
 
 
 def _own_rule(emitter):
@@ -233,19 +199,9 @@ def _own_rule(emitter):
     return rule
 
 
-def _ball_rule(ball, rays, rs):
-    """rule(at, order) -> (points, normals, weights, owner) of a sphere emitter about camera rays rs[at]."""
-    origins, dirs, tmax = rays[:3]
-
-    def rule(at, order):
-        r = rs[at]
-        return ball.rule(origins[r], dirs[r], np.asarray(tmax, float)[r], order)
-    return rule
-
-
 def _ladder(emitter, rule, orders, method, medium, params, tol, rs, rays, scale, seen):
-    """((P, 3) the air-light of `emitter` along camera rays `rs` by its `rule` (`_planar_rule`,
-    `_ball_rule`) at `orders` in turn (the first two, which every ray takes, in one batch), the number
+    """((P, 3) the air-light of `emitter` along camera rays `rs` by its `rule` (`near_rules.Near.rule`,
+    `_own_rule`) at `orders` in turn (the first two, which every ray takes, in one batch), the number
     of rays whose last two orders disagree; `seen` (P, 3) the rays' other radiance)."""
     if tol is None:
         return _values(emitter, rule, method, medium, params, np.arange(len(rs)), rs, rays, scale,

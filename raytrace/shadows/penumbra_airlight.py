@@ -30,6 +30,7 @@ import numpy as np
 from ..jit import exact_njit
 from ..lights import LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
+from ..lights.near_rules import rows_decide
 from ..methods import Segments
 from ..segments import cone_segments, gather, pieces
 from ..shading import _jitter as jitter, block, stratified
@@ -139,7 +140,7 @@ def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.
     cut = state == MIXED
     for e in np.unique(agreed[1]):
         emitter = lights.emitters[e]
-        if emitter.ball is not None:  # a sphere's rows all dark prove nothing: a sliver between them may shine
+        if not rows_decide(emitter):  # a sphere's rows all dark prove nothing: a sliver between them may shine
             cut[agreed[0][agreed[1] == e], e] = state[agreed[0][agreed[1] == e], e] == DARK
         if emitter.probes is None:
             continue
