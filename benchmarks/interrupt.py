@@ -1,12 +1,13 @@
-"""How long Ctrl-C takes to stop `render.py render SCENE`, per bundled scene.
+"""How long Ctrl-C takes to stop `render.py render SCENE`, per bundled scene and the built-in default.
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/interrupt.py [SCENE ...] [--delay 1.0]
 
-Each scene is rendered by the command line with its progress bar on a pseudo-terminal; once the bar
-shows a tile finished (the kernels are compiled, the tiles running) and `--delay` seconds more have
-passed, the process gets SIGINT and the seconds until it has exited are printed, with its exit
-status (130 expected) and whether its output folder is still empty (nothing half-written). A
-render that ends before the signal (or saves its image as it arrives) is listed as finished first.
+Each scene ("(default)": the built-in default scene) is rendered by the command line with its progress
+bar on a pseudo-terminal; once the bar shows a tile finished (the kernels are compiled, the tiles
+running) and `--delay` seconds more have passed, the process gets SIGINT and the seconds until it has
+exited are printed, with its exit status (130 expected) and whether its output folder is still empty
+(nothing half-written). A render that ends before the signal (or saves its image as it arrives) is
+listed as finished first.
 """
 import argparse
 import fcntl
@@ -23,7 +24,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENES = sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
+DEFAULT = "(default)"  # the built-in default scene: render.py render without a scene
+SCENES = [DEFAULT] + sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
 STARTUP_LIMIT = 600.0  # seconds to wait for the first finished tile (loading and compiling included)
 
 
@@ -33,7 +35,8 @@ def interrupt(scene: str, delay: float) -> tuple[float, int, list[str]] | None:
     out = Path(tempfile.mkdtemp(prefix="interrupt-"))
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # else 0 columns: no bar
-    proc = subprocess.Popen([sys.executable, str(ROOT / "render.py"), "render", scene, "--out", str(out / "a.exr")],
+    named = [] if scene == DEFAULT else [scene]
+    proc = subprocess.Popen([sys.executable, str(ROOT / "render.py"), "render", *named, "--out", str(out / "a.exr")],
                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave, cwd=ROOT)
     os.close(slave)
     shown = threading.Event()
