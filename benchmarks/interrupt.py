@@ -29,6 +29,13 @@ SCENES = [DEFAULT] + sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
 STARTUP_LIMIT = 600.0  # seconds to wait for the first finished tile (loading and compiling included)
 
 
+def _default_sigint():
+    """In the render's process before it starts: SIGINT's default action, as a terminal's Ctrl-C finds it
+    (a benchmark started in the background of a shell without job control inherits SIGINT ignored, and
+    Python then keeps it ignored: the render would run on)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def interrupt(scene: str, delay: float) -> tuple[float, int, list[str]] | None:
     """(seconds from SIGINT to exit, exit status, files left in the output folder), or None when
     the render finished first."""
@@ -37,7 +44,8 @@ def interrupt(scene: str, delay: float) -> tuple[float, int, list[str]] | None:
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # else 0 columns: no bar
     named = [] if scene == DEFAULT else [scene]
     proc = subprocess.Popen([sys.executable, str(ROOT / "render.py"), "render", *named, "--out", str(out / "a.exr")],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave, cwd=ROOT)
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave, cwd=ROOT,
+                            preexec_fn=_default_sigint)
     os.close(slave)
     shown = threading.Event()
 
@@ -50,9 +58,9 @@ def interrupt(scene: str, delay: float) -> tuple[float, int, list[str]] | None:
                 return
             if not chunk:
                 return
-            seen = (seen + chunk)[-200:]
-            if b"%|" in seen:
+            if b"%|" in seen + chunk:  # the tail before it too: a mark split over two reads
                 shown.set()
+            seen = (seen + chunk)[-200:]
 
     threading.Thread(target=drain, daemon=True).start()
     deadline = time.monotonic() + STARTUP_LIMIT
