@@ -1,6 +1,6 @@
 """How the renderer's tiles would scale on many cores, measured on few.
 
-    RAYTRACE_ASSETS=../shared/scenes python benchmarks/scaling.py [--quick] [--balance]
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/scaling.py [--quick] [--balance [SCENE ...]]
 
 Per row (a scene, size and method): every tile of the render is run once on one thread under `py-spy
 record --gil` (py-spy samples the stack only while the thread holds the GIL; NumPy's large
@@ -19,9 +19,10 @@ threads to have a chance. Beside it, the measured 2-thread speedup: one-thread a
 renders of the row taking turns (ROUNDS each, the median wall times), on this machine however busy
 it is (the load average is printed).
 
---balance prints, for every bundled scene at its own size and method, the largest tile's share of
-the render's CPU time (issue 37's target: at most 1/64); --rows, for each row of the table, the
-largest image row's share (what a tile of whole rows would at least hold).
+--balance prints, for the built-in default scene and every bundled scene (or the scenes it names) at its
+own size and method, the largest tile's share of the render's CPU time (the target: at most 1/64);
+--rows, for each row of the table, the largest image row's share (what a tile of whole rows would at
+least hold).
 """
 import argparse
 import heapq
@@ -192,24 +193,31 @@ def speedup(row) -> tuple[float, float]:
     return statistics.median(one), statistics.median(two)
 
 
-def balance():
+DEFAULT = "(default)"  # the built-in default scene (render.py without a scene)
+
+
+def balance(names: list[str] | None = None):
+    """The largest tile's share of the CPU time, per scene of `names` (default: the built-in default scene
+    and every bundled scene)."""
+    names = names or [DEFAULT] + sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
     print(f"{'scene':<20} {'tiles':>6} {'CPU s':>8} {'largest tile':>13}")
-    for path in sorted((ROOT / "scenes").glob("*.toml")):
-        scene = api.load(str(path))
+    for name in names:
+        scene = api.load(None if name == DEFAULT else str(ROOT / "scenes" / f"{name}.toml"))
         method = scene.render.get("method", "analytic")
-        row = (str(path), [], method, bool(scene.render.get("volumetric_shadows", True)))
+        row = (scene, [], method, bool(scene.render.get("volumetric_shadows", True)))
         try:
             cpu = np.array([t["cpu"] for t in tile_times(row)])
         except raytrace.errors.UserError as exc:  # a scene whose meshes RAYTRACE_ASSETS does not find
-            print(f"{path.stem:<20} skipped: {exc}")
+            print(f"{name:<20} skipped: {exc}")
             continue
-        print(f"{path.stem:<20} {len(cpu):>6} {cpu.sum():>8.2f} {cpu.max() / cpu.sum():>12.4f}", flush=True)
+        print(f"{name:<20} {len(cpu):>6} {cpu.sum():>8.2f} {cpu.max() / cpu.sum():>12.4f}", flush=True)
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="small Sibenik and the 160x120 fog: minutes")
-    p.add_argument("--balance", action="store_true", help="the largest tile's share on every bundled scene")
+    p.add_argument("--balance", nargs="*", metavar="SCENE",
+                   help="the largest tile's share on these scenes (none named: the default and every bundled scene)")
     p.add_argument("--rows", action="store_true", help="the largest image row's share of each row's render")
     p.add_argument("--child", nargs=2, metavar=("ROW", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args()
@@ -218,8 +226,8 @@ def main():
         spun = gil_calibration()
         Path(args.child[1]).write_text(json.dumps({"calibration": spun, "tiles": tile_times(rows[args.child[0]])}))
         return
-    if args.balance:
-        balance()
+    if args.balance is not None:
+        balance(args.balance)
         return
     if args.rows:
         for name, row in rows.items():

@@ -6,7 +6,7 @@ running to infinity; thin and thick media; four phase functions; three precision
 the spot lights' path (`_spot_airlight`, which integrates the same rows as a spot with falloff bands)
 to within 1e-14 relative, with the same met flags and statistics; a first pass without the emitter
 points' code (or the point lights') leaves theirs nan; and a fresh process that evaluates emitter points
-compiles neither the spot lights' path nor the point lights' batch."""
+compiles neither the spot lights' path (nor their bands' cubic, `band_trig`) nor the point lights' batch."""
 import json
 import math
 import os
@@ -120,7 +120,7 @@ spots, lamberts, points = flags
 A.evaluate_segments(*segs[:4], 0.3, 0.2, HG, 0.5, precision, 1000, A.ANISO_EXACT, 6, coeffs, segs[4], out, met,
                     A.new_stats(), None, spots, True, lamberts, points)  # (`evaluate_deferred`'s first pass)
 print(json.dumps({name: len(getattr(A, name).signatures) for name in
-                  ("_lambert_airlight", "_spot_airlight", "_pending_series", "_pending_recurrences")}))
+                  ("_lambert_airlight", "_spot_airlight", "band_trig", "_pending_series", "_pending_recurrences")}))
 """
 
 
@@ -129,4 +129,5 @@ def test_a_scene_of_emitter_points_compiles_neither_spots_nor_point_lights(tmp_p
     proc = subprocess.run([sys.executable, "-c", FRESH, str(ROOT / "tests")], env=env, capture_output=True, text=True,
                           check=True)
     compiled = json.loads(proc.stdout.splitlines()[-1])
-    assert compiled == {"_lambert_airlight": 1, "_spot_airlight": 0, "_pending_series": 0, "_pending_recurrences": 0}
+    assert compiled == {"_lambert_airlight": 1, "_spot_airlight": 0, "band_trig": 0, "_pending_series": 0,
+                        "_pending_recurrences": 0}

@@ -235,6 +235,15 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
 
 
 @njit
+def lambert_trig(A, B, cos_end, cos_start, a, b):
+    """`band_trig` of the LAMBERT curve, F = t = u / d alone: a_0 = u0 / d, a_1 = 2 Re(alpha) / d,
+    b_1 = -2 Im(alpha) / d, the rest 0 (real arithmetic only: what an area light's emitter points compile)."""
+    d = cos_start - cos_end
+    a[0], b[0], a[1], b[1] = -cos_end / d, 0.0, 2.0 * (-0.5 * B) / d, -2.0 * (-0.5 * A) / d
+    a[2] = b[2] = a[3] = b[3] = 0.0
+
+
+@njit
 def band_trig(A, B, cos_end, cos_start, curve, a, b):
     """A polynomial curve's band (`polynomial_band`) as a trigonometric polynomial in phi:
     F = sum_{m=0}^{3} a_m cos(m phi) + b_m sin(m phi) (a, b of length 4), for
@@ -243,13 +252,12 @@ def band_trig(A, B, cos_end, cos_start, curve, a, b):
     c - cos_end = alpha z + u0 + conj(alpha) / z,
     alpha = -(B + iA) / 2, u0 = -cos_end; its square and cube are Laurent polynomials whose
     coefficient P_m of z^m gives a_m = 2 Re P_m, b_m = -2 Im P_m (a_0 = P_0)."""
+    if curve == LAMBERT:
+        lambert_trig(A, B, cos_end, cos_start, a, b)
+        return
     d = cos_start - cos_end
     al = complex(-0.5 * B, -0.5 * A)
     u0 = -cos_end
-    if curve == LAMBERT:  # F = t: u / d alone
-        a[0], b[0], a[1], b[1] = u0 / d, 0.0, 2.0 * al.real / d, -2.0 * al.imag / d
-        a[2] = b[2] = a[3] = b[3] = 0.0
-        return
     s0 = u0 * u0 + 2.0 * (al.real * al.real + al.imag * al.imag)  # u^2 coefficients: z^0, z^1, z^2
     s1 = 2.0 * u0 * al
     s2 = al * al

@@ -45,7 +45,7 @@ from .geometry import by_channel, cone_row, v_of
 from ..media.expint import VECTOR_BLOCK, g_scaled, en_scaled, i01_series_est, i01_series_lanes, vector_exp
 from ..lights import (ENVIRONMENT, LAMBERT, band_slope, band_trig, cone_breaks, falloff, is_spot, polynomial_band,
                       segment_cone)
-from ..lights.spot import CUT_TOL, cosine_at
+from ..lights.spot import CUT_TOL, cosine_at, lambert_trig
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
                                hg_legendre, legendre_to_cosine, rayleigh_legendre, start_sensitivity, times_trig,
                                trig_moments_forward)
@@ -362,12 +362,13 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
 
 
 @njit
-def _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work):
-    """(S, err, ok, flags) for the piece v1 < v < v2 of a segment in a spot's polynomial band (smoothstep
-    or gltf, docs/spot_lights.md): S = int w(phi) Phi(cos phi) F dphi / 2 (folded as `_piece`'s), F the
-    band's polynomial; err bounds its rounding; not ok: a closed form here would miss the precision
-    (quadrature); flags: the paths taken (F_*, `_count`). `work`: scratch for 2 (len(coeffs) +
-    BAND_ORDER + 1) + 8 values."""
+def _band_piece(H, kt, v1, v2, p1, p2, coeffs, precision, work):
+    """(S, err, ok, flags) for the piece v1 < v < v2 of a segment in a spot's polynomial band (smoothstep,
+    gltf or an emitter point's lambert, docs/spot_lights.md): S = int w(phi) Phi(cos phi) F dphi / 2 (folded
+    as `_piece`'s), F the band's polynomial; err bounds its rounding; not ok: a closed form here would miss the
+    precision (quadrature); flags: the paths taken (F_*, `_count`). `work`: F as a trigonometric series
+    (a, b: `band_trig`, or `lambert_trig`, filled by the caller) in its first 2 (BAND_ORDER + 1) values, then
+    scratch for 2 (len(coeffs) + BAND_ORDER) + 8 values."""
     start, n, loss = _block_at(coeffs, v1, v2, H, B_HMAX_BAND)
     if loss == math.inf:  # the moment recurrence would lose digits: quadrature
         return 0.0, 0.0, False, 0
@@ -375,7 +376,6 @@ def _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work):
     # cancellation of the final sum, so K1 and L1 are wanted that much more accurately
     a = work[:BAND_ORDER + 1]
     b = work[BAND_ORDER + 1:2 * BAND_ORDER + 2]
-    band_trig(cone[0], cone[1], cone[2], cone[3], cone[4], a, b)
     c = coeffs[start + B_C:start + n]
     m = c.shape[0] + BAND_ORDER
     gc = work[2 * BAND_ORDER + 2:2 * BAND_ORDER + 2 + m]
@@ -614,7 +614,9 @@ def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_
         p1 = pa if v1 == va else xh + h * v1
         p2 = pb if v2 == vb else xh + h * v2
         if band:
-            vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work[25:])
+            band_trig(cone[0], cone[1], cone[2], cone[3], cone[4], work[25:26 + BAND_ORDER],
+                      work[26 + BAND_ORDER:27 + 2 * BAND_ORDER])
+            vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, coeffs, precision, work[25:])
             _count(stats, 0.0, flags)
         else:  # (defer False: a spot's piece runs its moment recurrence here)
             vals[i], ok, iterations, flags, _, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g,
@@ -702,7 +704,8 @@ def _lambert_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, a
     p1 = pa if v1 == va else xh + h * v1
     p2 = pb if v2 == vb else xh + h * v2
     work = np.empty(2 * (coeffs.shape[0] + BAND_ORDER + 1) + 8)
-    val, err, ok, flags = _band_piece(H, kt, v1, v2, p1, p2, cone, coeffs, precision, work)
+    lambert_trig(cone[0], cone[1], cone[2], cone[3], work[:BAND_ORDER + 1], work[BAND_ORDER + 1:2 * BAND_ORDER + 2])
+    val, err, ok, flags = _band_piece(H, kt, v1, v2, p1, p2, coeffs, precision, work)
     if not ok:
         val, err = 0.0, math.inf  # no closed form for the piece: quadrature below
     out = pref * (ks * val)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import error_bounds
-from ..camera import pixel_rays
+from ..camera import basis, pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows
@@ -514,16 +514,28 @@ def interiors_ahead(prep: Prepared, prim) -> np.ndarray:
 def compile_shadows(scene: Scene, method_name: str, seed: int):
     """compile_ahead's worker beside the cubature pilot's warm-up: the kernels of the exact lit
     intervals (the frusta, `exact_lit_intervals`) and of the penumbrae's pieces (`penumbra_airlight.
-    lit_pieces`) on the warm-up's rays, without their air-light (which the pilot's warm-up compiles)."""
-    shadow_kernels(prepare(scene), method_name, seed)
+    lit_pieces`), without their air-light (which the pilot's warm-up compiles), on one segment per
+    light along the camera's axis: the camera rays', first hits' and cone cuts' kernels, which the
+    pilot's warm-up compiles meanwhile, are not compiled here too (the lit intervals' kernels take
+    the same argument types from these segments as from the warm-up's)."""
+    prep = prepare(scene)
+    o = np.array([prep.scene.camera.position], np.float64)
+    d = np.array([basis(prep.scene.camera)[0]], np.float64)
+    lit_kernels(prep, method_name, whole_rays(o, d, np.array([prep.accel.scale]), np.zeros(1, dtype=np.uint64),
+                                              len(prep.lights), seed, prep.accel.scale))
 
 
 def shadow_kernels(prep: Prepared, method_name: str, seed: int):
-    """`compile_shadows`' kernels, in this process."""
+    """`compile_shadows`' kernels, in this process, on the warm-up's rays."""
     o, d = warm_up_rays(prep)
     t, _, _ = first_hits(prep.accel, prep.scene.medium, o, d)
     segs, _ = cone_segments(whole_rays(o, d, t, np.zeros(len(o), dtype=np.uint64), len(prep.lights), seed,
                                        prep.accel.scale), prep.lights)
+    lit_kernels(prep, method_name, segs)
+
+
+def lit_kernels(prep: Prepared, method_name: str, segs):
+    """The lit intervals' kernels (and the penumbrae's pieces', where they apply) on the segments `segs`."""
     exact_lit_intervals(prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
     if penumbra_airlight.applies(prep.lights, get_method(method_name), True):
         penumbra_airlight.lit_pieces(prep.accel, prep.lights, segs, 1, crossing.blockers(prep))
