@@ -27,6 +27,7 @@ into per-pixel variance channels (the variance of the pixel's estimate).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -35,11 +36,12 @@ import numpy as np
 from ..jit import njit
 from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
-from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
+from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Segments, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        cone_row, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
+from ..lights.planar import flat_rows, row_points
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import attenuated_density, column, column_distance
@@ -428,7 +430,26 @@ def cdf_setup(medium):
 
 
 def _airlight(segs, medium, lights, params):
-    return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
+    def run(segs, lights, params):
+        return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
+
+    flat = flat_rows(lights)[segs.light]
+    if not flat.any():
+        return run(segs, lights, params)
+    n = params["samples"]
+    out, stats, var = np.zeros((len(segs), 3)), np.zeros(CDF_STATS), np.zeros((len(segs), 3))
+    for at, drawn in ((np.nonzero(~flat)[0], False), (np.nonzero(flat)[0], True)):
+        if not len(at):
+            continue
+        sub = segs.take(at)
+        if drawn:
+            sub, sub_lights = _emitter_draws(sub, lights, n)
+            est, st, _ = run(sub, sub_lights, {**params, "samples": 1})
+            out[at], var[at] = _over_draws(est.reshape(len(at), n, 3), n)
+        else:
+            out[at], st, var[at] = run(sub, lights, params)
+        stats += st
+    return out, stats, var
 
 
 def _atmosphere(segs, atm, lights, params):
@@ -474,6 +495,26 @@ def _strategies(params):
 
 
 def _points(segs, medium, lights, params):
+    flat = flat_rows(lights)[segs.light]
+    if not flat.any():
+        return _drawn_points(segs, medium, lights, params)
+    n = params["samples"]
+    pos = np.zeros((len(segs), n, _strategies(params), 3, 3))
+    weight = np.zeros(pos.shape[:-1])
+    for at, drawn in ((np.nonzero(~flat)[0], False), (np.nonzero(flat)[0], True)):
+        if not len(at):
+            continue
+        sub = segs.take(at)
+        if drawn:
+            sub, sub_lights = _emitter_draws(sub, lights, n)
+            p, w = _drawn_points(sub, medium, sub_lights, {**params, "samples": 1})
+            pos[at], weight[at] = p.reshape(pos[at].shape), w.reshape(weight[at].shape)
+        else:
+            pos[at], weight[at] = _drawn_points(sub, medium, lights, params)
+    return pos, weight
+
+
+def _drawn_points(segs, medium, lights, params):
     shape = (len(segs), params["samples"], _strategies(params), 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
@@ -485,6 +526,49 @@ def _points(segs, medium, lights, params):
     else:
         sample_points(segs.origins, segs.dirs, *_args(segs, medium, lights, params), pos, weight)
     return pos, weight
+
+
+# ----------------------------------------------------------------------------------------------
+# flat emitters (quads, disks, flat emissive shapes): each row's node drawn over the emitter per iteration
+# ----------------------------------------------------------------------------------------------
+DIM_EMITTER = 1 << 51  # the first random-number dimension of the flat emitters' points (rng.py)
+
+
+@njit
+def emitter_numbers(keys, stream, seed, n, u, v):
+    """u[s, j], v[s, j] (S, n): the numbers of segment s's emitter point in iteration j, the dimensions
+    DIM_EMITTER + 2 (n stream[s] + j) and the next of its ray's key."""
+    for s in range(keys.shape[0]):
+        for j in range(n):
+            dim = DIM_EMITTER + 2 * (n * stream[s] + j)
+            u[s, j] = uniform(keys[s], dim, seed)
+            v[s, j] = uniform(keys[s], dim + 1, seed)
+
+
+def _emitter_draws(segs, lights, n):
+    """(segments, lights): segment s of a flat emitter's row (lights/planar.py `flat_rows`) as n segments
+    s n + j, each lit by a row of its own, the row's node moved to a point of the emitter uniform in area
+    (`planar.row_points`, numbers `emitter_numbers`): the row's intensity L w and axis kept, an unbiased
+    estimate of the row's share of the emitter's integral (the rows' sum is the emitter's, not its rule's).
+    Segment s n + j draws its distances as iteration j of s (stream n stream[s] + j with one iteration)."""
+    u, v = np.empty((len(segs), n)), np.empty((len(segs), n))
+    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
+    emitter_numbers(keys, np.asarray(segs.stream, np.int64), np.uint64(segs.seed), n, u, v)
+    points = row_points(lights, segs.light, u, v).reshape(-1, 3)
+    rep = np.repeat(np.arange(len(segs)), n)
+    rows = segs.light[rep]
+    pick = lambda a: None if a is None else a[rep]  # noqa: E731
+    drawn = Segments(segs.origins[rep], segs.dirs[rep], segs.length[rep], np.arange(len(rep)), segs.ray[rep],
+                     segs.t0[rep], segs.keys[rep], n * segs.stream[rep] + np.tile(np.arange(n), len(segs)), segs.seed,
+                     segs.scale, medium=pick(segs.medium), normals=pick(segs.normals), reach=pick(segs.reach))
+    return drawn, dataclasses.replace(lights, kind=lights.kind[rows], position=points, intensity=lights.intensity[rows],
+                                      axis=lights.axis[rows], cone=lights.cone[rows], owner=lights.owner[rows],
+                                      cubature=lights.cubature[rows])
+
+
+def _over_draws(est, n):
+    """(mean, variance of the mean) (S, 3) of the n one-iteration estimates est (S, n, 3) of each segment."""
+    return est.mean(axis=1), (est.var(axis=1, ddof=1) / n if n > 1 else np.zeros(est[:, 0].shape))
 
 
 def _summarize(stats):
