@@ -42,9 +42,8 @@ from ..jit import njit
 from ..rng import uniform
 from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_row, by_channel, cone_row,
-                       eq4_integrand, fog_rows, segment_geometry, segment_light_table, spot_factor)
+                       eq4_integrand, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
-from ..lights.planar import flat_rows, row_points
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import column, column_distance
@@ -203,90 +202,6 @@ def _fog(segs, medium, lights, params):
 
 
 def _homogeneous(segs, medium, lights, params):
-    flat = flat_rows(lights)[segs.light]
-    if not flat.any():
-        return _rows(segs, medium, lights, params)
-    radiance, stats, est = np.zeros((len(segs), 3)), np.zeros(3), np.zeros((len(segs), 3))
-    rows = np.nonzero(~flat)[0]
-    if len(rows):
-        radiance[rows], stats, est[rows] = _rows(segs.take(rows), medium, lights, params)
-    drawn = np.nonzero(flat)[0]
-    radiance[drawn] = _emitter_march(segs.take(drawn), medium, lights, params, stats)
-    return radiance, stats, est
-
-
-# --- flat emitters (quads, disks, flat emissive shapes): each step its own point of the emitter ----------
-DIM_EMITTER = 3 << 50  # the random-number dimensions (rng.py) of the flat emitters' points' shifts
-R2 = (0.7548776662466927, 0.5698402909980532)  # 1 / g, 1 / g^2, g the plastic number: Roberts' R2 sequence
-CHUNK = 1 << 18  # emitter points per batch
-
-
-@njit
-def emitter_numbers(keys, stream, seed, first, n, u, v):
-    """u, v [first[s] + k], k < n[s]: step k's numbers of segment s, the R2 sequence (k / g, k / g^2) shifted
-    modulo 1 by the segment's keyed numbers (dimensions DIM_EMITTER + 2 stream[s] and the next): each pair
-    uniform in [0, 1)^2, the steps' pairs spread evenly over it (a low-discrepancy sequence)."""
-    for s in range(keys.shape[0]):
-        su = uniform(keys[s], DIM_EMITTER + 2 * stream[s], seed)
-        sv = uniform(keys[s], DIM_EMITTER + 2 * stream[s] + 1, seed)
-        for k in range(n[s]):
-            a = su + k * R2[0]
-            b = sv + k * R2[1]
-            u[first[s] + k] = a - math.floor(a)
-            v[first[s] + k] = b - math.floor(b)
-
-
-@njit
-def emitter_steps(first, xh, h, cone, ell, keys, seed, kt, ks, code, g, steps, step, tau_max, jitter, out, stats):
-    """The march of every segment and channel (unit intensity) whose step k takes the emitter point of
-    geometry xh, h, cone [first[s] + k] (`geometry.segment_light_table` of that point)."""
-    for s in range(ell.shape[0]):
-        xi = uniform(keys[s], DIM_JITTER, seed) if jitter else 0.5
-        for c in range(3):
-            out[s, c] = 0.0
-            if ks[c] == 0.0 or not ell[s] > 0.0:
-                continue
-            stats[EVALS] += 1.0
-            n, delta, capped = _count(ell[s], kt[c], steps, step, tau_max)
-            stats[CAPPED] += capped
-            stats[SAMPLES] += n
-            acc = 0.0
-            for k in range(n):
-                p = first[s] + k
-                acc += eq4_integrand((k + xi) * delta, xh[p], h[p], kt[c], ks[c], code, g, cone[p])
-            out[s, c] = acc * delta
-
-
-def _emitter_march(segs, medium, lights, params, stats):
-    """(S, 3) the march of flat emitters' rows (lights/planar.py `flat_rows`) whose step k takes, instead of
-    the row's node, a point of the emitter uniform in area (`planar.row_points` of `emitter_numbers`), the
-    row's intensity L w and side kept: an unbiased estimate, step by step, of the midpoint rule on the row's
-    share w / A of the emitter's integral (the rows' weights of a side sum to its area A)."""
-    kt, ks = np.asarray(medium.sigma_t, float), np.asarray(medium.sigma_s, float)
-    n = counts(segs.length, kt, *_march(params))
-    out = np.zeros((len(segs), 3))
-    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
-    at = 0
-    while at < len(segs):
-        end = at + max(1, int(np.searchsorted(np.cumsum(n[at:]), CHUNK, side="right")))
-        part = slice(at, end)
-        first = np.concatenate([[0], np.cumsum(n[part])[:-1]])
-        total = int(n[part].sum())
-        u, v = np.empty(total), np.empty(total)
-        emitter_numbers(keys[part], np.asarray(segs.stream[part], np.int64), np.uint64(segs.seed), first, n[part], u,
-                        v)
-        of = np.repeat(np.arange(at, end), n[part])  # the segment of each point
-        rows = segs.light[of]
-        points = row_points(lights, rows, u[:, None], v[:, None])[:, 0]
-        xh, h, _, cone = segment_light_table(segs.origins[of], segs.dirs[of], points, lights.axis[rows],
-                                             lights.cone[rows], np.arange(total), segs.scale)
-        emitter_steps(first, xh, h, cone, segs.length[part], keys[part], np.uint64(segs.seed), kt, ks, medium.phase,
-                      medium.g, *_march(params), bool(params["jitter"]), out[part], stats)
-        at = end
-    return out * lights.intensity[segs.light]
-
-
-def _rows(segs, medium, lights, params):
     stats = np.zeros(3)
     keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
 
