@@ -22,6 +22,9 @@ safeguarded Newton on the sum of the layers' closed-form (Chapman) optical depth
 light takes free-path draws only.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
+A flat emitter's rows (quad, disk, flat emissive shape) move their node, in every iteration, to a point of
+the emitter uniform in area (`_emitter_draws`): the sum over the rows estimates the emitter's integral,
+not its cubature rule's (docs/area_lights.md); visibility stays the nodes'.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
 """
@@ -430,24 +433,11 @@ def cdf_setup(medium):
 
 
 def _airlight(segs, medium, lights, params):
-    def run(segs, lights, params):
-        return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
-
-    flat = flat_rows(lights)[segs.light]
-    if not flat.any():
-        return run(segs, lights, params)
     n = params["samples"]
     out, stats, var = np.zeros((len(segs), 3)), np.zeros(CDF_STATS), np.zeros((len(segs), 3))
-    for at, drawn in ((np.nonzero(~flat)[0], False), (np.nonzero(flat)[0], True)):
-        if not len(at):
-            continue
-        sub = segs.take(at)
-        if drawn:
-            sub, sub_lights = _emitter_draws(sub, lights, n)
-            est, st, _ = run(sub, sub_lights, {**params, "samples": 1})
-            out[at], var[at] = _over_draws(est.reshape(len(at), n, 3), n)
-        else:
-            out[at], st, var[at] = run(sub, lights, params)
+    for at, sub, sub_lights, sub_params, drawn in _parts(segs, lights, params):
+        est, st, v = by_kind(_BY_KIND, medium)(sub, medium, sub_lights, sub_params)
+        out[at], var[at] = _over_draws(est.reshape(-1, n, 3), n) if drawn else (est, v)
         stats += st
     return out, stats, var
 
@@ -495,22 +485,11 @@ def _strategies(params):
 
 
 def _points(segs, medium, lights, params):
-    flat = flat_rows(lights)[segs.light]
-    if not flat.any():
-        return _drawn_points(segs, medium, lights, params)
-    n = params["samples"]
-    pos = np.zeros((len(segs), n, _strategies(params), 3, 3))
+    pos = np.zeros((len(segs), params["samples"], _strategies(params), 3, 3))
     weight = np.zeros(pos.shape[:-1])
-    for at, drawn in ((np.nonzero(~flat)[0], False), (np.nonzero(flat)[0], True)):
-        if not len(at):
-            continue
-        sub = segs.take(at)
-        if drawn:
-            sub, sub_lights = _emitter_draws(sub, lights, n)
-            p, w = _drawn_points(sub, medium, sub_lights, {**params, "samples": 1})
-            pos[at], weight[at] = p.reshape(pos[at].shape), w.reshape(weight[at].shape)
-        else:
-            pos[at], weight[at] = _drawn_points(sub, medium, lights, params)
+    for at, sub, sub_lights, sub_params, _ in _parts(segs, lights, params):
+        p, w = _drawn_points(sub, medium, sub_lights, sub_params)
+        pos[at], weight[at] = p.reshape(pos[at].shape), w.reshape(weight[at].shape)
     return pos, weight
 
 
@@ -543,6 +522,17 @@ def emitter_numbers(keys, stream, seed, n, u, v):
             dim = DIM_EMITTER + 2 * (n * stream[s] + j)
             u[s, j] = uniform(keys[s], dim, seed)
             v[s, j] = uniform(keys[s], dim + 1, seed)
+
+
+def _parts(segs, lights, params):
+    """[(indices into segs, segments, lights, params, drawn)]: the segments whose rows stay as they are, and
+    those of flat emitters' rows (lights/planar.py `flat_rows`) as `_emitter_draws`, one iteration each."""
+    flat = flat_rows(lights)[segs.light]
+    if not flat.any():
+        return [(slice(None), segs, lights, params, False)]
+    keep, at = np.nonzero(~flat)[0], np.nonzero(flat)[0]
+    return ([(keep, segs.take(keep), lights, params, False)] if len(keep) else []) + [
+        (at, *_emitter_draws(segs.take(at), lights, params["samples"]), {**params, "samples": 1}, True)]
 
 
 def _emitter_draws(segs, lights, n):
