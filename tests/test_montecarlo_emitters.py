@@ -28,8 +28,8 @@ from raytrace.methods.montecarlo import emitter_numbers
 from . import area_twin as twin
 from .test_area_lights import DISK, KS, KT, QUAD, SPHERE, scene
 
-# rays that pass 0.07 to 0.2 below the emitters' plane, under them, none ending on them (a ray that ends on one:
-# the estimate's variance diverges there like the log of the distance to the ray's end, docs/area_lights.md)
+# rays that pass 0.08 to 0.26 from the quad (under it, below its plane), none ending on an emitter (on a ray
+# that ends on one the estimate's mean square diverges like a log, docs/area_lights.md)
 NEAR = {"position": [0.3, 1.3, 1.5], "look_at": [0.0, 1.3, 0.0], "fov": 10.0, "width": 4, "height": 3}
 # a convex quadrilateral, not a parallelogram, as two emissive triangles of unequal area (wound to face -y)
 PAIR = np.array([[-0.5, 1.5, -0.5], [0.5, 1.5, -0.5], [0.7, 1.5, 0.6], [-0.5, 1.5, 0.5]])
