@@ -485,15 +485,6 @@ def _strategies(params):
 
 
 def _points(segs, medium, lights, params):
-    pos = np.zeros((len(segs), params["samples"], _strategies(params), 3, 3))
-    weight = np.zeros(pos.shape[:-1])
-    for at, sub, sub_lights, sub_params, _ in _parts(segs, lights, params):
-        p, w = _drawn_points(sub, medium, sub_lights, sub_params)
-        pos[at], weight[at] = p.reshape(pos[at].shape), w.reshape(weight[at].shape)
-    return pos, weight
-
-
-def _drawn_points(segs, medium, lights, params):
     shape = (len(segs), params["samples"], _strategies(params), 3)
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
@@ -526,13 +517,54 @@ def emitter_numbers(keys, stream, seed, n, u, v):
 
 def _parts(segs, lights, params):
     """[(indices into segs, segments, lights, params, drawn)]: the segments whose rows stay as they are, and
-    those of flat emitters' rows (lights/planar.py `flat_rows`) as `_emitter_draws`, one iteration each."""
+    those of flat emitters' rows (lights/planar.py `flat_rows`) whose side of the emitter is whole along
+    their ray (`_whole`) as `_emitter_draws`, one iteration each."""
     flat = flat_rows(lights)[segs.light]
+    if flat.any():
+        flat[flat] = _whole(segs, lights, flat)
     if not flat.any():
         return [(slice(None), segs, lights, params, False)]
     keep, at = np.nonzero(~flat)[0], np.nonzero(flat)[0]
     return ([(keep, segs.take(keep), lights, params, False)] if len(keep) else []) + [
         (at, *_emitter_draws(segs.take(at), lights, params["samples"]), {**params, "samples": 1}, True)]
+
+
+WHOLE_RTOL = 1e-9  # of the scene's size: how far the pieces of one emitter's rows may start and end apart
+
+
+def _whole(segs, lights, flat) -> np.ndarray:
+    """(count of flat,) whether each of the segments `flat` (rows of flat emitters) lies where every row of its
+    emitter's side (a two-sided emitter's sides apart) has one segment on the ray, all the same piece to
+    WHOLE_RTOL: no shadow cuts the rows along the ray (as without volumetric shadows), so that the emitter's
+    points off the nodes are taken as lit as they. Elsewhere (a penumbra cuts the rows' pieces) the rows stay:
+    their nodes' visibility weighs their own points."""
+    rows = np.nonzero(flat_rows(lights))[0]
+    owner = lights.owner[rows]
+    first = np.zeros(len(lights.emitters), np.int64)
+    emitters, at_first = np.unique(owner, return_index=True)
+    first[emitters] = rows[at_first]
+    side = np.zeros(len(lights), np.int64)
+    side[rows] = 2 * owner + (np.einsum("ij,ij->i", lights.axis[rows], lights.axis[first[owner]]) < 0.0)
+    expected = np.bincount(side[rows], minlength=2 * len(lights.emitters))
+    at = np.nonzero(flat)[0]
+    group = side[segs.light[at]]
+    _, inverse, count = np.unique(segs.ray[at].astype(np.int64) * len(expected) + group, return_inverse=True,
+                                  return_counts=True)
+    inverse = inverse.ravel()
+    of = np.zeros(len(count), np.int64)
+    of[inverse] = group
+    start = segs.t0[at]
+    end = start + segs.length[at]
+    tol = np.zeros(len(count))
+    np.maximum.at(tol, inverse, WHOLE_RTOL * (segs.scale + np.abs(start) + np.where(np.isfinite(end), end, 0.0)))
+    whole = count == expected[of]
+    for v in (start, end):
+        hi, lo = np.full(len(count), -np.inf), np.full(len(count), np.inf)
+        np.maximum.at(hi, inverse, v)
+        np.minimum.at(lo, inverse, v)
+        with np.errstate(invalid="ignore"):
+            whole &= (hi == lo) | (hi - lo <= tol)
+    return whole[inverse]
 
 
 def _emitter_draws(segs, lights, n):
