@@ -24,7 +24,7 @@ The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) 
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 A flat emitter's rows (quad, disk, flat emissive shape) move their node, in every iteration, to a point of
 the emitter uniform in area (`_emitter_draws`): the sum over the rows estimates the emitter's integral,
-not its cubature rule's (docs/area_lights.md); visibility stays the nodes'.
+not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows (`_whole`).
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
 """
