@@ -215,3 +215,42 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
         return points.reshape(-1, 3), weights.ravel(), np.repeat(np.arange(len(f)), weights[0].size)
 
     return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule)
+
+
+# --- flat emitters sampled by the stochastic methods: the rows' nodes drawn over the emitter ---------------
+FLAT_TOL = 1e-9  # relative to the emitter's extent: how far from one plane an emissive shape's probes may lie
+
+
+def flat(em) -> bool:
+    """Whether an `area.Emitter` is flat, one plane that its every row's half-space is the same for: a quad's, a
+    disk's (`planar`), an emissive shape's whose triangles (its corner probes) share one normal and one plane."""
+    if em is None or em.ball is not None:
+        return False
+    if em.planar is not None:
+        return True
+    if em.probes is None:
+        return False
+    points, normals = em.probes
+    extent = max(float(np.ptp(points, axis=0).max()), 1e-300)
+    return bool(np.all(np.abs(normals - normals[0]) <= FLAT_TOL) and
+                np.all(np.abs((points - points[0]) @ normals[0]) <= FLAT_TOL * extent))
+
+
+def flat_rows(lights) -> np.ndarray:
+    """(L,) whether each row of `lights` (lights.Lights) is a node of a flat emitter's cubature (`flat`)."""
+    ems = lights.emitters
+    is_flat = np.array([flat(e) for e in ems] + [False], dtype=bool)
+    return is_flat[np.where(lights.cubature & (lights.owner < len(ems)), lights.owner, len(ems))]
+
+
+def row_points(lights, rows, u, v) -> np.ndarray:
+    """(*u.shape, 3) points of the flat emitters (`flat_rows`) of `rows` (S,), by their `Emitter.sample` of the
+    numbers u, v (S, n), uniform in area: a row of area weight w and radiance L (intensity L w) moved to such a
+    point Y is an unbiased estimate of its share w / A of the emitter's integral of L over y (the rows' weights
+    sum to the area A of each side), so that the sum over the rows is of the emitter itself, not of its rule."""
+    out = np.empty(u.shape + (3,))
+    owner = lights.owner[rows]
+    for e in np.unique(owner):
+        at = owner == e
+        out[at] = lights.emitters[e].sample(u[at].ravel(), v[at].ravel())[0].reshape(u[at].shape + (3,))
+    return out

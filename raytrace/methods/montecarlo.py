@@ -22,11 +22,15 @@ safeguarded Newton on the sum of the layers' closed-form (Chapman) optical depth
 light takes free-path draws only.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
+A flat emitter's rows (quad, disk, flat emissive shape) move their node, in every iteration, to a point of
+the emitter uniform in area (`_emitter_draws`): the sum over the rows estimates the emitter's integral,
+not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows (`_whole`).
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -35,11 +39,12 @@ import numpy as np
 from ..jit import njit
 from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
-from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
+from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Segments, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        cone_row, fog_rows, segment_geometry, spot_factor)
 from ..errors import UserError
+from ..lights.planar import flat_rows, row_points
 from ..media import atmosphere as atmo
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import attenuated_density, column, column_distance
@@ -428,7 +433,13 @@ def cdf_setup(medium):
 
 
 def _airlight(segs, medium, lights, params):
-    return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
+    n = params["samples"]
+    out, stats, var = np.zeros((len(segs), 3)), np.zeros(CDF_STATS), np.zeros((len(segs), 3))
+    for at, sub, sub_lights, sub_params, drawn in _parts(segs, lights, params):
+        est, st, v = by_kind(_BY_KIND, medium)(sub, medium, sub_lights, sub_params)
+        out[at], var[at] = _over_draws(est.reshape(-1, n, 3), n) if drawn else (est, v)
+        stats += st
+    return out, stats, var
 
 
 def _atmosphere(segs, atm, lights, params):
@@ -485,6 +496,101 @@ def _points(segs, medium, lights, params):
     else:
         sample_points(segs.origins, segs.dirs, *_args(segs, medium, lights, params), pos, weight)
     return pos, weight
+
+
+# ----------------------------------------------------------------------------------------------
+# flat emitters (quads, disks, flat emissive shapes): each row's node drawn over the emitter per iteration
+# ----------------------------------------------------------------------------------------------
+DIM_EMITTER = 1 << 51  # the first random-number dimension of the flat emitters' points (rng.py)
+
+
+@njit
+def emitter_numbers(keys, stream, seed, n, u, v):
+    """u[s, j], v[s, j] (S, n): the numbers of segment s's emitter point in iteration j, the dimensions
+    DIM_EMITTER + 2 (n stream[s] + j) and the next of its ray's key."""
+    for s in range(keys.shape[0]):
+        for j in range(n):
+            dim = DIM_EMITTER + 2 * (n * stream[s] + j)
+            u[s, j] = uniform(keys[s], dim, seed)
+            v[s, j] = uniform(keys[s], dim + 1, seed)
+
+
+def _parts(segs, lights, params):
+    """[(indices into segs, segments, lights, params, drawn)]: the segments whose rows stay as they are, and
+    those of flat emitters' rows (lights/planar.py `flat_rows`) whose side of the emitter is whole along
+    their ray (`_whole`) as `_emitter_draws`, one iteration each."""
+    flat = flat_rows(lights)[segs.light]
+    if flat.any():
+        flat[flat] = _whole(segs, lights, flat)
+    if not flat.any():
+        return [(slice(None), segs, lights, params, False)]
+    keep, at = np.nonzero(~flat)[0], np.nonzero(flat)[0]
+    return ([(keep, segs.take(keep), lights, params, False)] if len(keep) else []) + [
+        (at, *_emitter_draws(segs.take(at), lights, params["samples"]), {**params, "samples": 1}, True)]
+
+
+WHOLE_RTOL = 1e-9  # of the scene's size: how far the pieces of one emitter's rows may start and end apart
+
+
+def _whole(segs, lights, flat) -> np.ndarray:
+    """(count of flat,) whether each of the segments `flat` (rows of flat emitters) lies where every row of its
+    emitter's side (a two-sided emitter's sides apart) has one segment on the ray, all the same piece to
+    WHOLE_RTOL: no shadow cuts the rows along the ray (as without volumetric shadows), so that the emitter's
+    points off the nodes are taken as lit as they. Elsewhere (a penumbra cuts the rows' pieces) the rows stay:
+    their nodes' visibility weighs their own points."""
+    rows = np.nonzero(flat_rows(lights))[0]
+    owner = lights.owner[rows]
+    first = np.zeros(len(lights.emitters), np.int64)
+    emitters, at_first = np.unique(owner, return_index=True)
+    first[emitters] = rows[at_first]
+    side = np.zeros(len(lights), np.int64)
+    side[rows] = 2 * owner + (np.einsum("ij,ij->i", lights.axis[rows], lights.axis[first[owner]]) < 0.0)
+    expected = np.bincount(side[rows], minlength=2 * len(lights.emitters))
+    at = np.nonzero(flat)[0]
+    group = side[segs.light[at]]
+    _, inverse, count = np.unique(segs.ray[at].astype(np.int64) * len(expected) + group, return_inverse=True,
+                                  return_counts=True)
+    inverse = inverse.ravel()
+    of = np.zeros(len(count), np.int64)
+    of[inverse] = group
+    start = segs.t0[at]
+    end = start + segs.length[at]
+    tol = np.zeros(len(count))
+    np.maximum.at(tol, inverse, WHOLE_RTOL * (segs.scale + np.abs(start) + np.where(np.isfinite(end), end, 0.0)))
+    whole = count == expected[of]
+    for v in (start, end):
+        hi, lo = np.full(len(count), -np.inf), np.full(len(count), np.inf)
+        np.maximum.at(hi, inverse, v)
+        np.minimum.at(lo, inverse, v)
+        with np.errstate(invalid="ignore"):
+            whole &= (hi == lo) | (hi - lo <= tol)
+    return whole[inverse]
+
+
+def _emitter_draws(segs, lights, n):
+    """(segments, lights): segment s of a flat emitter's row (lights/planar.py `flat_rows`) as n segments
+    s n + j, each lit by a row of its own, the row's node moved to a point of the emitter uniform in area
+    (`planar.row_points`, numbers `emitter_numbers`): the row's intensity L w and axis kept, an unbiased
+    estimate of the row's share of the emitter's integral (the rows' sum is the emitter's, not its rule's).
+    Segment s n + j draws its distances as iteration j of s (stream n stream[s] + j with one iteration)."""
+    u, v = np.empty((len(segs), n)), np.empty((len(segs), n))
+    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
+    emitter_numbers(keys, np.asarray(segs.stream, np.int64), np.uint64(segs.seed), n, u, v)
+    points = row_points(lights, segs.light, u, v).reshape(-1, 3)
+    rep = np.repeat(np.arange(len(segs)), n)
+    rows = segs.light[rep]
+    pick = lambda a: None if a is None else a[rep]  # noqa: E731
+    drawn = Segments(segs.origins[rep], segs.dirs[rep], segs.length[rep], np.arange(len(rep)), segs.ray[rep],
+                     segs.t0[rep], segs.keys[rep], n * segs.stream[rep] + np.tile(np.arange(n), len(segs)), segs.seed,
+                     segs.scale, medium=pick(segs.medium), normals=pick(segs.normals), reach=pick(segs.reach))
+    return drawn, dataclasses.replace(lights, kind=lights.kind[rows], position=points, intensity=lights.intensity[rows],
+                                      axis=lights.axis[rows], cone=lights.cone[rows], owner=lights.owner[rows],
+                                      cubature=lights.cubature[rows])
+
+
+def _over_draws(est, n):
+    """(mean, variance of the mean) (S, 3) of the n one-iteration estimates est (S, n, 3) of each segment."""
+    return est.mean(axis=1), (est.var(axis=1, ddof=1) / n if n > 1 else np.zeros(est[:, 0].shape))
 
 
 def _summarize(stats):
