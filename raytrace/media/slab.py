@@ -826,7 +826,8 @@ def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot
     panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
     (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
     the 10-point sums of its test), plus the breaks' location error (`break_errors`), plus u per
-    interval; inf with no planes or eta = 1. dplanes: the planes' errors (interiors/rows.py
+    interval; inf with no planes, eta = 1, or for eta < 1 without the scene's size (mags[3] = 0:
+    `out_of_faces` without the planes' errors). dplanes: the planes' errors (interiors/rows.py
     `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
     `leg_errors`); entry: the entry face's row in planes."""
     value[:] = 0.0
@@ -842,7 +843,7 @@ def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot
                             end, cuts[m:])
         m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
-    bounded = planes.shape[0] > 0 and eta != 1.0
+    bounded = planes.shape[0] > 0 and (eta > 1.0 or (eta < 1.0 and mags[3] > 0.0))  # eta < 1: given mags
     graze = bounded and nf == 1 and not faces[0, 2] > GRAZING * mags[3]  # bounded whole (`grazing_bound`)
     located = np.zeros(kt.shape[0])
     track = np.zeros(1)
