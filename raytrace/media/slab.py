@@ -45,7 +45,7 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
 from .adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..geometry.sorting import sort_few
-from .fermat_rounding import (SQ3, cosine_error, fermat_pace, fermat_speed, leaving_slope, point_error,
+from .fermat_rounding import (SQ3, cosine_error, fermat_pace, fermat_speed, leaving_slope, leg_errors, point_error,
                               refraction_newton, term_rounding)
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
@@ -916,7 +916,8 @@ def term_error(x, row, term, rho, r, rec):
                               rec.mags, row[17] == rec.entry)
     err = eps * term
     if rec.eta < 1.0 and not eps <= 0.25:  # beyond first order: the term and the exact one's bound
-        err = term + leaving_envelope(hl, rec.ks, rec.code, rec.g, rec.eta, rec.dn, rec.dc, rec.mags)
+        err = term + leaving_envelope(x, row, 0.0, rec.ks, rec.code, rec.g, rec.eta, rec.dn, rec.dc, rec.mags,
+                                      row[17] == rec.entry)
     if is_spot(sp[1]) and sp[1] > sp[0]:
         z = z0 + a * x
         c = -row[7]
@@ -930,15 +931,27 @@ def term_error(x, row, term, rho, r, rec):
 
 
 @njit
-def leaving_envelope(hl, ks, code, g, eta, dn, dc, mags):
-    """For eta < 1, a bound on a face's exact term of `faces_point` anywhere for a unit light at computed height
-    hl (media/fermat_rounding.py's module docstring, "Light leaving the denser side"): ks Phi_max 2 (eta + 1 /
-    eta) / hl_e^2, hl_e = hl less its error (`leg_errors`' dh); inf where that is not positive. Times 1 + 1e-9."""
-    h = hl - (dc + SQ3 * dn * mags[1] + 8.0 * U * mags[3])
+def leaving_envelope(x, row, spread, ks, code, g, eta, dn, dc, mags, entry):
+    """For eta < 1, a bound on face row's exact term of `faces_point` for a unit light within `spread` of x along
+    the segment (media/fermat_rounding.py's module docstring, "Light leaving the denser side"): with the exact
+    depth z <= |z0 + a x| + |a| spread + dz, rho >= rho(x) - spread - drho and hl_e = hl - dh (`leg_errors`'),
+    ks Phi_max times the least of 2 (eta + 1 / eta) / hl_e^2 and, beyond the critical circle (k >= r >= rho -
+    s_c, s_c = eta (hl + dh) / sqrt(1 - eta^2): s <= hl tan t_c), 2 (1 + eta^2) z^2 / (hl_e (1 - eta^2) k^3)
+    (from Q >= B: E <= T sin1 eta cos2^2 / (rho z cos1), T <= 2 (eta + 1 / eta) cos2 / cos1, sin1 / rho <= 1 /
+    hl, cos1^2 >= 1 - eta^2, cos2^3 / z = z^2 / k^3); inf where hl_e is not positive. Times 1 + 1e-9."""
+    z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+    rho = _rho(x, wl, ll, a)
+    dz, dh, drho, _, _ = leg_errors(x + spread, 1.0, 0.0, hl, ll, max(rho, 1e-300), eta, dn, dc, mags, entry, 0.0)
+    h = hl - dh
     if not h > 0.0:
         return math.inf
+    e = 2.0 * (eta + 1.0 / eta) / (h * h)
+    k = rho - spread - drho - eta * (hl + dh) / math.sqrt(1.0 - eta * eta)
+    if k > 0.0:
+        z = abs(z0 + a * x) + abs(a) * spread + dz
+        e = min(e, 2.0 * (1.0 + eta * eta) * z * z / (h * (1.0 - eta * eta) * k * k * k))
     phi = max(phase_value(code, g, 1.0), phase_value(code, g, -1.0))
-    return ks * phi * 2.0 * (eta + 1.0 / eta) / (h * h) * (1.0 + 1e-9)
+    return ks * phi * e * (1.0 + 1e-9)
 
 
 _EDGE, _CONE = 0, 1
@@ -2197,21 +2210,18 @@ def _piece_mags(p, length, planes):
 
 
 @njit
-def _ends_error(row, plane, lo, hi, ell, dplanes):
-    """How far `out_of_faces`' piece [lo, hi] of the segment (geo row) beyond a face's plane may end from the
-    exact one's: at an end set by the plane (lo > 0, hi < ell), the crossing -depth / rate with depth off by
-    dc + sqrt(3) dn |o| + 8u (|c| + |o|) and rate by sqrt(3) dn + 4u, so x by (that + x (sqrt(3) dn + 4u)) /
-    |rate| + 4u x; the sum over those ends, doubled. The pieces' values move by at most this times the term's
-    bound (`leaving_envelope`) and their transmittance exp(-kt lo) by kt times it."""
+def _end_moved(row, plane, x, dplanes):
+    """How far an end x of `out_of_faces`' piece of the segment (geo row) beyond a face's plane, set by that plane
+    (the crossing -depth / rate), may lie from the exact one's: depth off by dc + sqrt(3) dn |o| + 8u (|c| + |o|)
+    and rate by sqrt(3) dn + 4u, so x by (that + x (sqrt(3) dn + 4u)) / |rate| + 4u x; doubled. The piece's value
+    moves by at most this times the term's bound there (`leaving_envelope`), its transmittance exp(-kt lo) by kt
+    times it."""
     on = math.sqrt(row[0] * row[0] + row[1] * row[1] + row[2] * row[2])
     rate = abs(plane[0] * row[3] + plane[1] * row[4] + plane[2] * row[5])
     dd = dplanes[1] + SQ3 * dplanes[0] * on + 8.0 * U * (abs(plane[3]) + on)
-    dr = SQ3 * dplanes[0] + 4.0 * U
-    total = 0.0
-    for x, cut in ((lo, lo > 0.0), (hi, hi < ell)):
-        if cut:
-            total += (dd + x * dr) / rate + 4.0 * U * x if rate > 0.0 else math.inf
-    return 2.0 * total
+    if not rate > 0.0:
+        return math.inf
+    return 2.0 * ((dd + x * (SQ3 * dplanes[0] + 4.0 * U)) / rate + 4.0 * U * x)
 
 
 @njit
@@ -2275,7 +2285,7 @@ def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim
     light, the face test against `planes`), times exp(-kt lo). QUAD: `faces_quadrature` per face (its breaks:
     the refraction point's edge crossings and a spot's cone crossings, isolated with `_speed`'s eta < 1 bound;
     its bound with the planes' errors dplanes (interiors/rows.py `measured_plane_errors`; None: inf), plus
-    `_ends_error` where a piece ends on a face's plane); MARCH, SAMPLE: `march_or_sample` per face and
+    `_end_moved` where a piece ends on a face's plane); MARCH, SAMPLE: `march_or_sample` per face and
     channel at dimensions dim0 + f STREAM, their variances summed (independent streams)."""
     nf, nc = planes.shape[0], kt.shape[0]
     toward = -planes
@@ -2320,10 +2330,13 @@ def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim
                     if dplanes is None:
                         err[s, c] = math.inf
                     else:
-                        moved = _ends_error(geo[s], planes[f], lo, hi, ell[s], dplanes)
-                        err[s, c] += (bound[0] + value[0] * (kt[c] * moved + 8.0 * U * (1.0 + kt[c] * lo))) * t \
-                            + (moved * leaving_envelope(row[0, 2], ks[c], code, g, eta, errs[0], errs[1], mags)
-                               if moved > 0.0 else 0.0)
+                        m_lo = _end_moved(geo[s], planes[f], lo, dplanes) if lo > 0.0 else 0.0
+                        m_hi = _end_moved(geo[s], planes[f], hi, dplanes) if hi < ell[s] else 0.0
+                        err[s, c] += (bound[0] + value[0] * (kt[c] * m_lo + 8.0 * U * (1.0 + kt[c] * lo))) * t
+                        for x, moved in ((0.0, m_lo), (hi - lo, m_hi)):
+                            if moved > 0.0:
+                                err[s, c] += moved * leaving_envelope(x, row[0], moved, ks[c], code, g, eta, errs[0],
+                                                                      errs[1], mags, False)
                 continue
             for c in range(nc):
                 if ks[c] == 0.0:
