@@ -68,7 +68,7 @@ def chord(planes, first, stop, px, py, pz, ux, uy, uz, dist):
 
 
 PLANES, SPHERE = 0, 1  # boundary kinds: rows of face planes (n_x, n_y, n_z, c), or one row (centre, radius)
-END_SNAP = 1e-12  # relative: a sphere's kink this close to a piece's end is taken to lie on it
+END_SNAP = 1e-12  # of the scene's scale about a piece: a sphere's kink this close to its end is taken to lie on it
 
 
 @njit(inline="always")
@@ -148,15 +148,20 @@ def boundary_kinks(kind, rows, first, stop, o, w, light, end, out):
     """The kinks in (0, end) of the chords toward the point light along the line o + x w (into out,
     ascending; >= stop - first + 4 long; returns their count): `section_kinks` of a convex shape, a
     sphere's tangent-cone crossings (`shadow_breaks`, which also gives where the line itself crosses
-    the sphere: the ends of a piece outside it) in [0, end], those within END_SNAP of an end at that
-    end (a piece that the frusta end at the sphere's shadow ends on its tangent cone: a square-root
-    kink at the end, which the rule must know of as well)."""
+    the sphere: the ends of a piece outside it) in [0, end], those within END_SNAP (end + |o - c| + |L - c|
+    + R) of an end at that end (a piece that the frusta end at the sphere's shadow ends on its tangent cone:
+    a square-root kink at the end, which the rule must know of as well; the kink is found to the
+    rounding of those magnitudes, not of the piece's length: a short piece starting on the cone far
+    from the sphere would miss it)."""
     if kind != SPHERE:
         return section_kinks(rows, first, stop, o, w, light, end, out)
     buf = np.empty(4)
     n = shadow_breaks(o, w, light, False, rows[first, :3], rows[first, 3], buf)
     m = 0
-    tol = END_SNAP * end
+    c = rows[first]
+    far = math.sqrt((o[0] - c[0]) ** 2 + (o[1] - c[1]) ** 2 + (o[2] - c[2]) ** 2)
+    tol = END_SNAP * (end + far + math.sqrt((light[0] - c[0]) ** 2 + (light[1] - c[1]) ** 2 + (light[2] - c[2]) ** 2)
+                      + abs(c[3]))
     for j in range(n):
         if -tol <= buf[j] <= end + tol:
             out[m] = min(max(buf[j], 0.0), end)

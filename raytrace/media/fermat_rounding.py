@@ -41,6 +41,26 @@ The integrand ks Phi(mu) T(cos t1) E F(c) exp(-kt (x + k) - kt_out o), relative,
 The whole is doubled for the second-order terms. Below the light (rho <= 1e-12 (hl + z), where
 `refracted_at` takes the limit T(1) / (hl + z / eta)^2): 2 (dhl + dz / eta) / (hl + z / eta) + 1e-11
 (the limit's own error, O(rho / hl)) plus the phase's and the spot's as above.
+
+Light leaving the denser side (eta < 1: a light inside a refractive shape, the point outside; media/slab.py
+`out_of_faces`). sin t1 = eta sin t2 <= eta: cos t1 >= sqrt(1 - eta^2), t2 -> 90 degrees as the point nears
+the critical circle on the plane. Changed from the above:
+- the root: |f'| >= hl^2 / o^3, so the computed root is off by 8u (1 + eta) o^3 / hl^2 + 4u k;
+- dr/dz = eta r z / k^3 / (hl^2 / o^3 + eta z^2 / k^3) (implicit differentiation of f) is at most r / z
+  (dropping hl^2 / o^3) and eta z o^3 / (hl^2 k^2) (dropping the other, r <= k): `leaving_slope` bounds it
+  over a piece, a node takes the lesser at its own values;
+- Fresnel's T: T(cos t1; eta) = T(cos t2; 1 / eta) (reciprocity), whose log-slope in cos t2 is at most 1.001
+  (the grid of tests/test_refracted_point_bounds.py, eta > 1), and d log cos t2 / d log cos t1 = cos1^2 /
+  (eta^2 cos2^2); `fresnel`'s own cos t2 = sqrt(1 - sin1^2 / eta^2) is off by (2 / eta^2 + 1/2) u / cos2^2
+  relative, and 1 - R by 11u absolute where T >= tau cos2, tau = 4 eta sqrt(1 - eta^2) / (1 + eta)^2 (each
+  of 1 - rs^2 = 4 c eta ct / (c + eta ct)^2 and 1 - rp^2 = 4 eta c ct / (eta c + ct)^2 with c <= 1, ct <= 1);
+- sin t1 / rho = s / (o rho): (drho + dr) / s + do / hl + drho / rho (s itself: no s >= rho hl / (hl + z));
+- Q = A + B (A = hl / cos1^2, B = z cos1 / (eta cos2^3), both positive): at most the sum of their relative
+  errors, dh / hl + 2 (cos t1's) and dz / z + (cos t1's) + 3 (cos t2's).
+These grow like 1 / cos2^2 near the critical circle while the term vanishes there (E ~ z^2 beyond it): where
+the doubled first order exceeds 1/4 (media/slab.py `term_error`), the term's error is at most itself plus
+E <= T sin1 cos1^2 / (rho cos2 hl) <= 2 (eta + 1 / eta) / hl^2 (Q >= A; T <= 2 (eta + 1 / eta) cos2 / cos1
+from the same factors with their denominators >= c^2, (eta c)^2; sin1 / rho <= 1 / o <= 1 / hl).
 """
 from __future__ import annotations
 
@@ -115,13 +135,14 @@ def fermat_pace(width, rho0, rho1, z_a, z_b, a, hl, eta):
 
 
 @njit
-def leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry):
+def leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope=math.inf):
     """(dz, dh, drho, dr, da): the errors of the depth z, the light's height hl, the horizontal distance
     rho, the refraction point's r and the cosine a at x, where the inside leg is k and s = rho - r
     (module docstring, "Inputs" and "The refraction point"; any k, s at least theirs and rho at
     most its, x at least the node's, bound them). dn, dc: the planes' errors; mags = (|p|, |L|,
     |L - p|, size), size = |p| + the segment's length + |L| + the largest |c_f|; entry: whether this
-    is the row's entry face (its plane the entry point's, z0 = 0)."""
+    is the row's entry face (its plane the entry point's, z0 = 0). For eta < 1 ("Light leaving the
+    denser side"), slope: a bound on |dr/dz| there (`leaving_slope`; inf: dr inf)."""
     pn, ln, lp, size = mags
     if entry:
         dn, dz = 8.0 * U, 16.0 * U * size
@@ -131,45 +152,74 @@ def leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry):
     dh = dc + SQ3 * dn * ln + 8.0 * U * size
     lh = math.sqrt(ll)
     drho = 16.0 * U * (x + lh) * (x + lh) / (2.0 * rho) + SQ3 * dn * (lp + x)
-    dr = (8.0 * U * (1.0 + eta) * eta / (eta * eta - 1.0) + 4.0 * U) * k + drho + dz / math.sqrt(eta * eta - 1.0) \
-        + dh * s / hl
+    if eta > 1.0:
+        dr = (8.0 * U * (1.0 + eta) * eta / (eta * eta - 1.0) + 4.0 * U) * k + drho + dz / math.sqrt(eta * eta - 1.0) \
+            + dh * s / hl
+    else:
+        o = math.sqrt(s * s + hl * hl)
+        dr = 8.0 * U * (1.0 + eta) * (o / hl) * (o / hl) * o + 4.0 * U * k + drho + dh * s / hl
+        dr += dz * slope if slope < math.inf else math.inf
     return dz, dh, drho, dr, SQ3 * dn + 4.0 * U
 
 
 @njit
-def point_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry):
+def point_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope=math.inf):
     """A bound on the error of the refraction point R on the face's plane (`leg_errors`' arguments):
     dr along the horizontal direction, drho and the plane's tilt on the direction's and the foot's,
     16u of the coordinates."""
-    _, _, drho, dr, da = leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry)
+    _, _, drho, dr, da = leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope)
     return dr + drho + (da - 4.0 * U) * (mags[2] + x) + 16.0 * U * mags[3]
 
 
 @njit
-def cosine_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry):
+def cosine_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope=math.inf):
     """A bound on the error of a spot's cosine to its axis of the direction the light leaves in
     (`leg_errors`' arguments; module docstring)."""
-    _, dh, drho, dr, da = leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry)
+    _, dh, drho, dr, da = leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope)
     do = drho + dr + dh + 4.0 * U * math.sqrt(s * s + hl * hl)
     turn = (2.0 * drho + 2.0 * dr + dh + do + 32.0 * U * (x + math.sqrt(ll) + mags[3])) / hl
     return 2.0 * (turn + 2.0 * da + 8.0 * U)
 
 
 @njit
+def leaving_slope(rmin, rmax, zlo, hl, eta):
+    """For eta < 1, a bound on |dr/dz| over a piece where rho lies in [rmin, rmax], the depth is at least
+    zlo >= 0 and the light's height is hl > 0 (module docstring, "Light leaving the denser side"): the
+    least of tan t2 <= sigma / sqrt(1 - sigma^2), sigma = rmax / (eta sqrt(rmax^2 + hl^2)) (where below
+    1), r / z <= rmax / zlo and eta o^3 z / (hl^2 k^2) with o^2 <= rmax^2 + hl^2 and z / k^2 <= min(1 / zlo,
+    1 / (2 r_lo)), r_lo = rmin - eta hl / sqrt(1 - eta^2) (k^2 = r^2 + z^2 >= 2 r z; s <= hl tan t_c);
+    inf where none applies. Times 1 + 1e-9."""
+    best = math.inf
+    sig = rmax / (eta * math.sqrt(rmax * rmax + hl * hl))
+    if sig < 1.0:
+        best = sig / math.sqrt(1.0 - sig * sig)
+    near = math.inf
+    if zlo > 0.0:
+        best = min(best, rmax / zlo)
+        near = 1.0 / zlo
+    r_lo = rmin - eta * hl / math.sqrt(1.0 - eta * eta)
+    if r_lo > 0.0:
+        near = min(near, 0.5 / r_lo)
+    if near < math.inf:
+        o = math.sqrt(rmax * rmax + hl * hl)
+        best = min(best, eta * (o / hl) * (o / hl) * o * near)
+    return best * (1.0 + 1e-9)
+
+
+@njit
 def term_rounding(x, z0, a, hl, ll, rho, r, eta, kt, kt_out, ph, dn, dc, mags, entry):
     """(eps, dcos): a bound on the relative rounding of `refracted_at`'s value at x without the spot's
-    falloff, and the absolute error of the spot's cosine to its axis (module docstring). ph: the phase's
-    condition (media/slab.py `phase_condition`); dn, dc, mags, entry: as `leg_errors`'."""
+    falloff, and the absolute error of the spot's cosine to its axis (module docstring; eta < 1:
+    `leaving_rounding`). ph: the phase's condition (media/slab.py `phase_condition`); dn, dc, mags,
+    entry: as `leg_errors`'."""
     z = z0 + a * x
+    if hl > 0.0 and z > 0.0 and eta < 1.0:
+        return leaving_rounding(x, z, hl, ll, rho, r, eta, kt, kt_out, ph, dn, dc, mags, entry)
     if not (hl > 0.0 and z > 0.0 and eta > 1.0):
         return math.inf, math.inf
     lh = math.sqrt(ll)
     if not rho > 1e-12 * (hl + z):
-        dz, dh, _, _, da = leg_errors(x, z, 0.0, hl, ll, 1.0, eta, dn, dc, mags, entry)
-        q = hl + z / eta
-        eps = 2.0 * (dh + dz / eta) / q + 1e-11 * (1.0 + ph) + 32.0 * U
-        eps += kt * (dz + 8.0 * U * (x + z)) + kt_out * dh + 16.0 * U * (kt * (x + z) + kt_out * hl)
-        return 2.0 * eps, 2.0 * (1e-11 + (dh + dz) / hl + da + 8.0 * U)
+        return _below_light(x, z, hl, ll, eta, kt, kt_out, ph, dn, dc, mags, entry, 1.0)
     k = math.sqrt(r * r + z * z)
     s = rho - r
     o = math.sqrt(s * s + hl * hl)
@@ -186,3 +236,44 @@ def term_rounding(x, z0, a, hl, ll, rho, r, eta, kt, kt_out, ph, dn, dc, mags, e
     eps += ph * ((dr + dz) / k + 2.0 * (drho + 16.0 * U * (x + lh)) / rho + da)  # the phase
     eps += 32.0 * U
     return 2.0 * eps, cosine_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry)
+
+
+@njit
+def _below_light(x, z, hl, ll, eta, kt, kt_out, ph, dn, dc, mags, entry, slope):
+    """`term_rounding` below the light (rho <= 1e-12 (hl + z): the limit T(1) / (hl + z / eta)^2), dr/dz
+    at most slope there."""
+    dz, dh, _, _, da = leg_errors(x, z, 0.0, hl, ll, 1.0, eta, dn, dc, mags, entry, slope)
+    q = hl + z / eta
+    eps = 2.0 * (dh + dz / eta) / q + 1e-11 * (1.0 + ph) + 32.0 * U
+    eps += kt * (dz + 8.0 * U * (x + z)) + kt_out * dh + 16.0 * U * (kt * (x + z) + kt_out * hl)
+    return 2.0 * eps, 2.0 * (1e-11 + (dh + dz) / hl + da + 8.0 * U)
+
+
+@njit
+def leaving_rounding(x, z, hl, ll, rho, r, eta, kt, kt_out, ph, dn, dc, mags, entry):
+    """`term_rounding` for eta < 1 at depth z > 0 (module docstring, "Light leaving the denser side")."""
+    if not rho > 1e-12 * (hl + z):
+        return _below_light(x, z, hl, ll, eta, kt, kt_out, ph, dn, dc, mags, entry, 1.0)
+    lh = math.sqrt(ll)
+    k = math.sqrt(r * r + z * z)
+    s = rho - r
+    o = math.sqrt(s * s + hl * hl)
+    if not (s > 0.0 and r > 0.0):
+        return math.inf, math.inf
+    slope = min(r / z, eta * z * (o / hl) * (o / hl) * o / (k * k))
+    dz, dh, drho, dr, da = leg_errors(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope)
+    dk = dr + dz + 4.0 * U * k
+    do = drho + dr + dh + 4.0 * U * o
+    cos1, cos2 = hl / o, z / k
+    rc1 = (dh + do) / hl
+    rc2 = (dz + dk) / z
+    tau = 4.0 * eta * math.sqrt(1.0 - eta * eta) / ((1.0 + eta) * (1.0 + eta))
+    eps = kt * (dk + 4.0 * U * x) + kt_out * do + 16.0 * U * (kt * (x + k) + kt_out * o)
+    eps += 1.001 * ((cos1 * cos1 * rc1 / (eta * eta) + (2.0 / (eta * eta) + 1.0) * U) / (cos2 * cos2) + U) \
+        + 16.0 * U / (tau * cos2)  # Fresnel's T
+    eps += (drho + dr) / s + do / hl + drho / rho  # sin t1 / rho = s / (o rho)
+    eps += rc2  # cos t2
+    eps += dh / hl + 2.0 * rc1 + dz / z + rc1 + 3.0 * rc2  # Q = A + B, A = hl / cos1^2, B = z cos1 / (eta cos2^3)
+    eps += ph * ((dr + dz) / k + 2.0 * (drho + 16.0 * U * (x + lh)) / rho + da)  # the phase
+    eps += 32.0 * U
+    return 2.0 * eps, cosine_error(x, k, s, hl, ll, rho, eta, dn, dc, mags, entry, slope)

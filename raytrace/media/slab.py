@@ -45,8 +45,8 @@ from ..jit import njit
 from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
 from .adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..geometry.sorting import sort_few
-from .fermat_rounding import (SQ3, cosine_error, fermat_pace, fermat_speed, point_error, refraction_newton,
-                              term_rounding)
+from .fermat_rounding import (SQ3, cosine_error, fermat_pace, fermat_speed, leaving_slope, leg_errors, point_error,
+                              refraction_newton, term_rounding)
 from .convex_chords import PLANES, SPHERE, section_kinks, sphere_exit
 from .convex_directional import envelope
 from .inside_rule import QUAD, cut_length, march_or_sample
@@ -826,7 +826,8 @@ def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot
     panel was accepted at a cap), plus 3 times each piece's largest rounding of an evaluation
     (`FacesPoint`'s track) times its width (the positive weights' sum, over the rule's 20-point sums and
     the 10-point sums of its test), plus the breaks' location error (`break_errors`), plus u per
-    interval; inf with no planes or eta <= 1. dplanes: the planes' errors (interiors/rows.py
+    interval; inf with no planes, eta = 1, or for eta < 1 without the scene's size (mags[3] = 0:
+    `out_of_faces` without the planes' errors). dplanes: the planes' errors (interiors/rows.py
     `plane_errors`); mags: (|p|, |L|, |L - p|, |p| + ell + |L| + the largest |c_f|) (media/fermat_rounding.py
     `leg_errors`); entry: the entry face's row in planes."""
     value[:] = 0.0
@@ -842,7 +843,7 @@ def faces_quadrature(faces, planes, ell, end, kt, ks, code, g, kt_out, eta, spot
                             end, cuts[m:])
         m += edge_breaks(row, planes, eta, end, cuts[m:m + EDGE_CUTS * planes.shape[0]])
     cuts[:m].sort()
-    bounded = planes.shape[0] > 0 and eta > 1.0
+    bounded = planes.shape[0] > 0 and (eta > 1.0 or (eta < 1.0 and mags[3] > 0.0))  # eta < 1: given mags
     graze = bounded and nf == 1 and not faces[0, 2] > GRAZING * mags[3]  # bounded whole (`grazing_bound`)
     located = np.zeros(kt.shape[0])
     track = np.zeros(1)
@@ -907,12 +908,16 @@ def term_error(x, row, term, rho, r, rec):
     """A bound on the rounding of face row's term `term` at x (lit through the face): its relative
     rounding (media/fermat_rounding.py `term_rounding`) times it, and where the spot's cosine c lies
     within its error dcos of the falloff's band, the falloff's slope times dcos times the term without
-    the falloff (a hard edge's jump is a break, `break_errors`)."""
+    the falloff (a hard edge's jump is a break, `break_errors`). For eta < 1 where the relative rounding exceeds
+    1/4 (near the critical circle: first order no longer bounds it), the term plus `leaving_envelope`."""
     sp = rec.spot
     z0, a, hl = row[0], row[1], row[2]
     eps, dcos = term_rounding(x, z0, a, hl, row[4], rho, r, rec.eta, rec.kt, rec.kt_out, rec.ph, rec.dn, rec.dc,
                               rec.mags, row[17] == rec.entry)
     err = eps * term
+    if rec.eta < 1.0 and not eps <= 0.25:  # beyond first order: the term and the exact one's bound
+        err = term + leaving_envelope(x, row, 0.0, rec.ks, rec.code, rec.g, rec.eta, rec.dn, rec.dc, rec.mags,
+                                      row[17] == rec.entry)
     if is_spot(sp[1]) and sp[1] > sp[0]:
         z = z0 + a * x
         c = -row[7]
@@ -923,6 +928,30 @@ def term_error(x, row, term, rho, r, rec):
                                 row[5], row[6], row[7], NO_CONE[0], NO_CONE[1], SMOOTHSTEP)
             err += band_slope(sp[0], sp[1], int(sp[2])) / (sp[1] - sp[0]) * dcos * bare * (1.0 + eps)
     return err
+
+
+@njit
+def leaving_envelope(x, row, spread, ks, code, g, eta, dn, dc, mags, entry):
+    """For eta < 1, a bound on face row's exact term of `faces_point` for a unit light within `spread` of x along
+    the segment (media/fermat_rounding.py's module docstring, "Light leaving the denser side"): with the exact
+    depth z <= |z0 + a x| + |a| spread + dz, rho >= rho(x) - spread - drho and hl_e = hl - dh (`leg_errors`'),
+    ks Phi_max times the least of 2 (eta + 1 / eta) / hl_e^2 and, beyond the critical circle (k >= r >= rho -
+    s_c, s_c = eta (hl + dh) / sqrt(1 - eta^2): s <= hl tan t_c), 2 (1 + eta^2) z^2 / (hl_e (1 - eta^2) k^3)
+    (from Q >= B: E <= T sin1 eta cos2^2 / (rho z cos1), T <= 2 (eta + 1 / eta) cos2 / cos1, sin1 / rho <= 1 /
+    hl, cos1^2 >= 1 - eta^2, cos2^3 / z = z^2 / k^3); inf where hl_e is not positive. Times 1 + 1e-9."""
+    z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+    rho = _rho(x, wl, ll, a)
+    dz, dh, drho, _, _ = leg_errors(x + spread, 1.0, 0.0, hl, ll, max(rho, 1e-300), eta, dn, dc, mags, entry, 0.0)
+    h = hl - dh
+    if not h > 0.0:
+        return math.inf
+    e = 2.0 * (eta + 1.0 / eta) / (h * h)
+    k = rho - spread - drho - eta * (hl + dh) / math.sqrt(1.0 - eta * eta)
+    if k > 0.0:
+        z = abs(z0 + a * x) + abs(a) * spread + dz
+        e = min(e, 2.0 * (1.0 + eta * eta) * z * z / (h * (1.0 - eta * eta) * k * k * k))
+    phi = max(phase_value(code, g, 1.0), phase_value(code, g, -1.0))
+    return ks * phi * e * (1.0 + 1e-9)
 
 
 _EDGE, _CONE = 0, 1
@@ -948,10 +977,12 @@ def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
     the cosine's error `cosine_error`) are isolated by `_isolate` (which reads no channel's
     coefficients); inf where one may lie away from every cut (the rule would have met an unfound jump
     or kink), else the sum over the undecided intervals of their width times twice the face's term at
-    their ends (the jumps: an edge's, a hard cone edge's)."""
+    their ends (the jumps: an edge's, a hard cone edge's). For eta < 1 the refraction point's and the
+    cosine's errors are `_isolate`'s per interval (`_leaving_tol`): no bound on dr/dz holds over a whole
+    piece that starts on the face's plane inside the critical circle and leaves it."""
     faces, planes, eta, sp = rec.faces, rec.planes, rec.eta, rec.spot
     out[:] = 0.0
-    if not eta > 1.0:
+    if eta == 1.0:
         out[:] = math.inf
         return
     width = 1e-13 * rec.mags[3]
@@ -967,7 +998,7 @@ def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
         k_max = math.sqrt(rho_max * rho_max + z_max * z_max)
         entry = row[17] == rec.entry
         args = (end, k_max, rho_max, hl, ll, rho_min, eta, rec.dn, rec.dc, rec.mags, entry)
-        e_point = point_error(*args)
+        e_point = point_error(*args) if eta > 1.0 else 0.0  # for eta < 1 per interval, `_isolate`
         q = SQ3 * max(rec.mags[0] + end + z_max, rec.mags[1] + hl)  # |R|_1, R between the feet of X and L
         for g in range(planes.shape[0]):
             if g == int(row[17]):
@@ -979,8 +1010,8 @@ def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
                 return
             out += part
         if is_spot(sp[1]):
-            tol = cosine_error(*args) + 8.0 * U * rho_max / hl
-            s_min = rho_min * hl / (hl + z_max)  # s / rho >= hl / (hl + z): tan t1 >= tan t2
+            tol = (cosine_error(*args) if eta > 1.0 else 0.0) + 8.0 * U * rho_max / hl
+            s_min = rho_min * hl / (hl + z_max) if eta > 1.0 else 0.0  # s / rho >= hl / (hl + z): tan t1 >= tan t2
             for level in (sp[0], sp[1]):
                 if not _isolate(_CONE, rec, row, -1, level, end, tol, 0.0, cuts, width, math.hypot(s_min, hl), kt,
                                 ks, kt_out, part):
@@ -1063,7 +1094,11 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     at): inf; else, for an edge or a hard cone edge, the sum of each undecided interval's width times twice
     the larger `_jump` at its ends (the term varies by far less than that over 1e4 `width` = 1e-9 of the
     scene's size: its log-derivative is at most a few over the light's height, which is above 1e-9 of it).
-    inf after MAX_ISOLATE evaluations. The isolation reads no channel's coefficients."""
+    inf after MAX_ISOLATE evaluations. The isolation reads no channel's coefficients. For eta < 1 (`_speed`: K
+    the mean speed over the interval, which is what the first-order test needs; `fermat_bend` is inf) tol
+    is the interval's own plus `_leaving_tol`, and an undecided interval where the depth is below 10 times
+    its width is inf (the term's log-derivative grows like 2 / z near the plane, E ~ z^2, so twice the
+    larger end holds only away from it)."""
     z0, a, wl, ll = row[0], row[1], row[3], row[4]
     eta = rec.eta
     hard = kind == _EDGE or rec.spot[0] == rec.spot[1]
@@ -1079,17 +1114,20 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
     while top > 0:
         top -= 1
         lo, hi, vlo, vhi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-        k = fermat_speed(_rho(lo, wl, ll, a), _rho(hi, wl, ll, a), max(min(z0 + a * lo, z0 + a * hi), 0.0), a, eta)
+        k = _speed(lo, hi, z0, a, wl, ll, row[2], eta)
         k = k * tilt if kind == _EDGE else k / o_min
-        if vlo + vhi > k * (hi - lo) + 4.0 * tol + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * tol:
+        t = tol if eta > 1.0 else tol + _leaving_tol(kind, rec, row, lo, hi)
+        if vlo + vhi > k * (hi - lo) + 4.0 * t + 2.0 * slack or -(vlo + vhi) > k * (hi - lo) + 4.0 * t:
             continue
-        if min(vlo, vhi) > 2.0 * tol + slack or max(vlo, vhi) < -2.0 * tol:
+        if min(vlo, vhi) > 2.0 * t + slack or max(vlo, vhi) < -2.0 * t:
             curve = _interval_bend(lo, hi, z0, a, wl, ll, row[2], eta, bend)
             curve = tilt * curve if kind == _EDGE else cone_bend(curve, k * o_min, o_min)
-            if _off_band(vlo, vhi, 2.0 * tol + slack, 2.0 * tol, curve, hi - lo):
+            if _off_band(vlo, vhi, 2.0 * t + slack, 2.0 * t, curve, hi - lo):
                 continue
-        inside = -2.0 * tol <= vlo <= slack + 2.0 * tol and -2.0 * tol <= vhi <= slack + 2.0 * tol
+        inside = -2.0 * t <= vlo <= slack + 2.0 * t and -2.0 * t <= vhi <= slack + 2.0 * t
         if hi - lo <= width or (inside and hi - lo <= 1e4 * width):
+            if eta < 1.0 and not min(z0 + a * lo, z0 + a * hi) >= 10.0 * (hi - lo):
+                return False
             if lo != run_hi:  # a new cluster: close the last
                 if change and not _near(cuts, run_lo, run_hi, width):
                     return False
@@ -1112,6 +1150,22 @@ def _isolate(kind, rec, row, g, level, end, tol, slack, cuts, width, o_min, kt, 
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = lo, mid, vlo, vm
         top += 2
     return not (change and not _near(cuts, run_lo, run_hi, width))
+
+
+@njit
+def _leaving_tol(kind, rec, row, lo, hi):
+    """For eta < 1, over [lo, hi] of face row's segment: the refraction point's error (_EDGE, media/fermat_rounding.py
+    `point_error`) or the leaving cosine's (_CONE, `cosine_error`) at the interval's worst (x = hi, the largest
+    k and s, the least rho) with `leaving_slope`'s bound on dr/dz there; inf where rho may vanish."""
+    z0, a, hl, wl, ll = row[0], row[1], row[2], row[3], row[4]
+    rmin, rmax = rho_range(lo, hi, wl, ll, a)
+    if not (rmin > 0.0 and hl > 0.0):
+        return math.inf
+    z_lo, z_hi = max(min(z0 + a * lo, z0 + a * hi), 0.0), max(z0 + a * lo, z0 + a * hi, 0.0)
+    slope = leaving_slope(rmin, rmax, z_lo, hl, rec.eta)
+    args = (hi, math.sqrt(rmax * rmax + z_hi * z_hi), rmax, hl, ll, rmin, rec.eta, rec.dn, rec.dc, rec.mags,
+            row[17] == rec.entry, slope)
+    return point_error(*args) if kind == _EDGE else cosine_error(*args)
 
 
 @njit
@@ -2146,6 +2200,31 @@ def surface_through_faces(q, planes, light, axis, cone, eta, value, toward, insi
 
 
 @njit
+def _piece_mags(p, length, planes):
+    """`faces_quadrature`'s mags of a piece of a segment from p of that length lit from inside: (|p|, |L|,
+    |L - p|, |p| + length + |L| + the largest |c_f|), L = p[6:9]."""
+    pn = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    ln = math.sqrt(p[6] * p[6] + p[7] * p[7] + p[8] * p[8])
+    lp = math.sqrt((p[6] - p[0]) ** 2 + (p[7] - p[1]) ** 2 + (p[8] - p[2]) ** 2)
+    return pn, ln, lp, pn + length + ln + np.max(np.abs(planes[:, 3]))
+
+
+@njit
+def _end_moved(row, plane, x, dplanes):
+    """How far an end x of `out_of_faces`' piece of the segment (geo row) beyond a face's plane, set by that plane
+    (the crossing -depth / rate), may lie from the exact one's: depth off by dc + sqrt(3) dn |o| + 8u (|c| + |o|)
+    and rate by sqrt(3) dn + 4u, so x by (that + x (sqrt(3) dn + 4u)) / |rate| + 4u x; doubled. The piece's value
+    moves by at most this times the term's bound there (`leaving_envelope`), its transmittance exp(-kt lo) by kt
+    times it."""
+    on = math.sqrt(row[0] * row[0] + row[1] * row[1] + row[2] * row[2])
+    rate = abs(plane[0] * row[3] + plane[1] * row[4] + plane[2] * row[5])
+    dd = dplanes[1] + SQ3 * dplanes[0] * on + 8.0 * U * (abs(plane[3]) + on)
+    if not rate > 0.0:
+        return math.inf
+    return 2.0 * ((dd + x * (SQ3 * dplanes[0] + 4.0 * U)) / rate + 4.0 * U * x)
+
+
+@njit
 def surface_out_of_faces(q, planes, light, axis, cone, eta, value, toward, inside, outside):
     """`surface_through_faces` reversed: a unit point or spot light inside the convex refractive shape
     (relative index eta inside) at the points q (M, 3) outside it, through each face f whose plane q is
@@ -2196,7 +2275,8 @@ def _surface_faces(q, toward_light, planes, light, axis, cone, eta, beyond, valu
 
 
 @njit
-def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim0, seed, out, var, err, stats):
+def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim0, seed, out, var, err, stats,
+                 dplanes=None):
     """The outside medium's single scattering (N, C) over segments outside a convex refractive shape ({q :
     n_f·q <= c_f}, `planes`) from a unit point or spot light inside it (geo rows of GEO_COLUMNS, no entry
     normal; kt, ks: the outside's, kt_out the inside's, one each per channel; eta = 1 / the shape's ior):
@@ -2204,8 +2284,9 @@ def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim
     plane (n_f·q > c_f), its row from the segment's point at lo (`refracting_faces` with the normals toward the
     light, the face test against `planes`), times exp(-kt lo). QUAD: `faces_quadrature` per face (its breaks:
     the refraction point's edge crossings and a spot's cone crossings, isolated with `_speed`'s eta < 1 bound;
-    its bound inf: media/fermat_rounding.py's rounding bounds are for eta > 1); MARCH, SAMPLE: `march_or_sample`
-    per face and channel at dimensions dim0 + f STREAM, their variances summed (independent streams)."""
+    its bound with the planes' errors dplanes (interiors/rows.py `measured_plane_errors`; None: inf), plus
+    `_end_moved` where a piece ends on a face's plane); MARCH, SAMPLE: `march_or_sample` per face and
+    channel at dimensions dim0 + f STREAM, their variances summed (independent streams)."""
     nf, nc = planes.shape[0], kt.shape[0]
     toward = -planes
     rows = np.empty((max(nf, 1), FACE_COLUMNS))
@@ -2236,14 +2317,26 @@ def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim
             row = rows[:1]
             spot = (start[12], start[13], start[17])
             if rule.kind == QUAD:
+                errs = np.zeros(2) if dplanes is None else dplanes
+                mags = no if dplanes is None else _piece_mags(start, hi - lo, planes)
                 for c in range(nc):
                     if ks[c] == 0.0:
                         continue
                     faces_quadrature(row, planes, hi - lo, min(hi - lo, 745.0 / kt[c]), kt[c:c + 1], ks[c:c + 1], code,
-                                     g, kt_out[c:c + 1], eta, spot, rule.rtol, np.zeros(2), no, -1, stats,
+                                     g, kt_out[c:c + 1], eta, spot, rule.rtol, errs, mags, -1, stats,
                                      value[:1], bound[:1])
-                    out[s, c] += value[0] * math.exp(-kt[c] * lo)
-                    err[s, c] = math.inf
+                    t = math.exp(-kt[c] * lo)
+                    out[s, c] += value[0] * t
+                    if dplanes is None:
+                        err[s, c] = math.inf
+                    else:
+                        m_lo = _end_moved(geo[s], planes[f], lo, dplanes) if lo > 0.0 else 0.0
+                        m_hi = _end_moved(geo[s], planes[f], hi, dplanes) if hi < ell[s] else 0.0
+                        err[s, c] += (bound[0] + value[0] * (kt[c] * m_lo + 8.0 * U * (1.0 + kt[c] * lo))) * t
+                        for x, moved in ((0.0, m_lo), (hi - lo, m_hi)):
+                            if moved > 0.0:
+                                err[s, c] += moved * leaving_envelope(x, row[0], moved, ks[c], code, g, eta, errs[0],
+                                                                      errs[1], mags, False)
                 continue
             for c in range(nc):
                 if ks[c] == 0.0:
