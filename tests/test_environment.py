@@ -80,7 +80,8 @@ def texel_of(dirs, rotation, height, width):
 def test_it_parses_and_describes(tmp_path):
     (light,) = scene([ENV]).lights
     assert describe(light) == ("environment, constant radiance [0.2, 0.3, 0.5], mean radiance [0.2, 0.3, 0.5]; "
-                               f"{environment.COUNT} directions (importance-sampled, the same for every pixel)")
+                               f"{environment.COUNT} directions in {environment.GROUPS} groups (importance-sampled, "
+                               "shifted by the seed; their spread is the variance)")
     light = map_light(tmp_path, a_map(), rotate=[0.0, 90.0, 0.0], scale=2.0)
     assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (16 x 8), rotated, mean radiance")
     np.testing.assert_array_equal(light.emitter["map"], 2.0 * a_map())
@@ -207,17 +208,9 @@ def test_the_environment_camera_sees_the_map(tmp_path, rotate, shift):
                                   [[0.1, 0.2, 0.3]] * 3)
 
 
-def shifted_renders(monkeypatch, sc, r, method="quadrature", **kw):
-    """R renders, each with the lattice of directions shifted by its own uniform (Cranley–Patterson)."""
-    lattice = environment.lattice
-    rng = np.random.default_rng(RNG_SEED)
-    out = []
-    for _ in range(r):
-        shift = rng.random(2)
-        monkeypatch.setattr(environment, "lattice", lambda n, s=shift: np.mod(lattice(n) + s, 1.0))
-        out.append(api.render(sc, method, **kw))
-    monkeypatch.setattr(environment, "lattice", lattice)
-    return out
+def shifted_renders(sc, r, method="quadrature", **kw):
+    """R renders, seeds 1 ... R: each group of directions shifted by its own uniforms (Cranley–Patterson)."""
+    return [api.render(sc, method, seed=seed, **kw) for seed in range(1, r + 1)]
 
 
 def z_of(samples, reference):
@@ -232,7 +225,7 @@ PLATE = {"primitive": "quad", "corners": [[-1.0, 1.0, -1.0], [1.0, 1.0, -1.0], [
 POINT_CAMERA = {"position": [0.0, 0.5, 0.6], "look_at": [0.0, 0.0, 0.0], "fov": 1.0, "width": 1, "height": 1, "spp": 1}
 
 
-def test_a_ground_point_under_a_plate_against_its_form_factor(monkeypatch):
+def test_a_ground_point_under_a_plate_against_its_form_factor():
     """A Lambertian ground (rho 0.5) under a constant environment L in vacuum, below an opaque 2 x 2
     plate at height 1 centred over the point the camera sees: radiance rho L (1 - F), F the plate's
     form factor from the point (scipy over the plate of cos^2 / (pi r^2), and the corner formula of
@@ -247,7 +240,7 @@ def test_a_ground_point_under_a_plate_against_its_form_factor(monkeypatch):
     L = np.array(ENV["radiance"])
     exact = 0.5 * L * (1.0 - F)
     sc = scene([ENV], camera=POINT_CAMERA, shapes=[GROUND, PLATE])
-    renders = shifted_renders(monkeypatch, sc, 24)
+    renders = shifted_renders(sc, 24)
     values = np.array([img.array[0, 0] for img in renders])
     assert np.all(np.abs(z_of(values, exact)) < 4.0), (values.mean(axis=0), exact)
     default = api.render(sc, "quadrature")
@@ -292,7 +285,7 @@ def test_the_direction_integral_is_e2():
 
 
 @pytest.mark.parametrize("method", ["quadrature", "raymarch"])
-def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
+def test_rays_up_through_height_fog_against_the_twin(method):
     """Camera rays up through a height fog under a constant environment (no shapes): quadrature (rtol
     1e-10) and raymarch (4096 steps, its own error under 1e-3 of the value) with shifted lattices: the mean
     of 16 renders within 4 standard errors of the twin (raymarch: plus its step error); the default
@@ -305,7 +298,7 @@ def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
     L = np.array(ENV["radiance"])
     twin = np.array([fog_twin(o, d, L, L, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)]).reshape(2, 2, 3)
     kw = {"rtol": 1e-10} if method == "quadrature" else {"steps": 4096}
-    values = np.array([img.array for img in shifted_renders(monkeypatch, sc, 16, method, **kw)])
+    values = np.array([img.array for img in shifted_renders(sc, 16, method, **kw)])
     step = 0.0 if method == "quadrature" else 1e-3 * twin
     err = np.abs(values.mean(axis=0) - twin) - step
     sem = values.std(axis=0, ddof=1) / math.sqrt(len(values))
@@ -315,7 +308,7 @@ def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
     assert np.all(np.isinf(default.error_bound))
 
 
-def test_a_map_over_height_fog_against_the_twin(tmp_path, monkeypatch):
+def test_a_map_over_height_fog_against_the_twin(tmp_path):
     """A 2 x 4 map: four colours over the upper hemisphere, a bright lower one (sampled, but light from below
     meets infinite optical depth). The camera rays see their texel times T(inf); the fog is lit by the upper
     mean (the twin's E_2): shifted lattices, z-test of 16 renders of quadrature; the default within 4 of their
@@ -330,7 +323,7 @@ def test_a_map_over_height_fog_against_the_twin(tmp_path, monkeypatch):
     assert np.all(r == 0)
     twin = np.array([fog_twin(o, d, image[0, k], image[0].mean(axis=0), 0.02, 0.1, 2.0)
                      for o, d, k in zip(origins, dirs, c)]).reshape(2, 2, 3)
-    values = np.array([img.array for img in shifted_renders(monkeypatch, sc, 16, rtol=1e-10)])
+    values = np.array([img.array for img in shifted_renders(sc, 16, rtol=1e-10)])
     sem = values.std(axis=0, ddof=1) / math.sqrt(len(values))
     assert np.all(np.abs(values.mean(axis=0) - twin) < 4.0 * sem), (values.mean(axis=0), twin, sem)
     default = api.render(sc, "quadrature", rtol=1e-10).array
