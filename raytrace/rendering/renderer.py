@@ -412,7 +412,8 @@ def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stat
 def has_variance(prep: Prepared, method) -> bool:
     """Whether a render has a variance layer: a stochastic method's, the surface term's samples of
     area lights' emitters in penumbrae (shading.penumbra) or an environment light's groups of directions."""
-    return method.stochastic or any(e is not None for e in prep.lights.emitters) or bool(environment.groups(prep.lights))
+    return (method.stochastic or any(e is not None for e in prep.lights.emitters)
+            or bool(environment.groups(prep.lights)))
 
 
 NEAR_STATS = slice(-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES), -crossing.STATS_SIZE)  # their place in the stats
