@@ -124,6 +124,17 @@ def test_the_same_bytes_whatever_the_threads(monkeypatch):
         assert img.stats == first.stats
 
 
+def test_progressive_passes_draw_their_own_directions():
+    """montecarlo in 3 passes (seeds up to 2^64: progressive.pass_seed): the same bytes with 1 thread or all,
+    each pass's directions its own (the image differs from one pass's)."""
+    sc = scene([ENV], medium=FOG, camera=UP_CAMERA)
+    img = api.render(sc, "montecarlo", samples=4, passes=3, seed=2)
+    one = api.render(sc, "montecarlo", samples=4, passes=3, seed=2, threads=1)
+    assert img.array.tobytes() == one.array.tobytes() and img.variance.tobytes() == one.variance.tobytes()
+    assert np.all(img.variance > 0.0) and img.stats["environment: groups"] == environment.GROUPS
+    assert not np.array_equal(img.array, api.render(sc, "montecarlo", samples=4, seed=2).array)
+
+
 @pytest.mark.parametrize("count", [64, 4096, 1000])
 def test_each_seed_draws_its_own_shifts(count):
     """The points of `count` directions: GROUPS groups of count // GROUPS (or one more), each a lattice shifted

@@ -229,7 +229,7 @@ def points(count: int, seed: int = 0) -> list[np.ndarray]:
     for g in range(GROUPS):
         size = count * (g + 1) // GROUPS - count * g // GROUPS
         base = lattice((size + 1) // 2)
-        shift = np.array([uniform(g, DIM_SHIFT, seed), uniform(g, DIM_SHIFT + 1, seed)])
+        shift = np.array([uniform(np.uint64(g), np.uint64(DIM_SHIFT + k), np.uint64(seed)) for k in range(2)])
         ahead = np.mod(base + shift, 1.0)
         mirror = np.stack([np.mod(1.0 - base[:, 0] - shift[0], 1.0), ahead[:, 1]], axis=1)  # 1 - u0 within [0, 1)
         out.append(np.concatenate([ahead, mirror[:size // 2]]))
