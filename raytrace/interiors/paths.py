@@ -32,6 +32,7 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
+from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, face_paths, face_planes
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -671,9 +672,11 @@ def _first_panels(geo, directional, end, facets=None, kinks=None):
     return seg[:-1][keep], at[:-1][keep], at[1:][keep]
 
 
-def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule):
+def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, channel=None):
     """The midpoint rule with the MARCH `rule`'s steps per segment and channel, the segment cut where its
-    optical depth reaches tau_max (media/inside_rule.py; an exact sphere's in its kernel, `_on_sphere`)."""
+    optical depth reaches tau_max (media/inside_rule.py; an exact sphere's in its kernel, `_on_sphere`).
+    `channel(seg, x, c)`, where given, is the integrand of channel c (`refracted_integrand`), else the
+    straight paths' (`_channels`)."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
         return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule)[0]
@@ -681,18 +684,18 @@ def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, 
     out = np.zeros((len(ell), len(kts)))
     seg = np.repeat(np.arange(len(ell)), steps)
     j = np.tile(np.arange(steps) + 0.5, len(ell))
+    channel = channel or _straight(prep, sid, geo, directional, kts, kss, code, g, kt_outs)
     for c in range(len(kts)):
         dx = np.minimum(ell, tau_max / kts[c]) / steps
-        f = _channels(prep, sid, geo, directional, seg, j * dx[seg], kts[c:c + 1], kss[c:c + 1], code, g,
-                      kt_outs[c:c + 1])[:, 0]
-        out[:, c] = f.reshape(len(ell), steps).sum(axis=1) * dx
+        out[:, c] = channel(seg, j * dx[seg], c).reshape(len(ell), steps).sum(axis=1) * dx
     return out
 
 
-def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys, dim0, seed):
+def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys, dim0, seed,
+                    channel=None):
     """Free-path sampling (media/inside_rule.py's SAMPLE): the `rule`'s steps samples per segment and
     channel, the same random numbers for every channel (an exact sphere's in media/slab.py's kernel,
-    `_on_sphere`); the mean and the variance of the mean (N, C) each."""
+    `_on_sphere`); the mean and the variance of the mean (N, C) each. `channel`: `segment_march`'s."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
         return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys=keys, dim0=dim0,
@@ -702,15 +705,97 @@ def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs
     seg = np.repeat(np.arange(n), steps)
     u = np.empty(len(seg))
     _uniforms(keys, seg, np.tile(np.arange(steps, dtype=np.uint64), n) + np.uint64(dim0), np.uint64(seed), u)
+    channel = channel or _straight(prep, sid, geo, directional, kts, kss, code, g, kt_outs)
     for c in range(len(kts)):
         kt = float(kts[c])
         mass = -np.expm1(-kt * np.minimum(ell, rule.tau_max / kt)) / kt
         x = -np.log1p(-u * kt * mass[seg]) / kt
-        f = _channels(prep, sid, geo, directional, seg, x, kts[c:c + 1], kss[c:c + 1], code, g, kt_outs[c:c + 1])[:, 0]
-        f = (f * mass[seg] * np.exp(kt * x)).reshape(n, steps)
+        f = (channel(seg, x, c) * mass[seg] * np.exp(kt * x)).reshape(n, steps)
         out[:, c] = f.mean(axis=1)
         var[:, c] = np.maximum((f * f).mean(axis=1) - out[:, c] ** 2, 0.0) / max(steps - 1, 1)
     return out, var
+
+
+def _straight(prep, sid, geo, directional, kts, kss, code, g, kt_outs):
+    """`segment_march`'s default `channel`: `_channels` of one channel, the light's straight paths."""
+    return lambda seg, x, c: _channels(prep, sid, geo, directional, seg, x, kts[c:c + 1], kss[c:c + 1], code, g,
+                                       kt_outs[c:c + 1])[:, 0]
+
+
+PATH_CHUNK = 1 << 19  # candidate (point, face) pairs per call of `face_paths`
+LEG_SKIP = 1e-6  # x the scene's scale: how far a leg's test starts from its ends (Embree's float32 crossings)
+
+
+def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
+    """The single-scattering integrand (per unit light) of a point or spot light (geo rows of media/slab.py
+    GEO_COLUMNS) into the refractive shape sid that is not convex, along its segments (over [0, ell]), as a
+    function `values(seg, x, cs)` (M, len(cs)) of the channels cs: media/nonconvex_refraction.py's Fermat
+    path through every face whose refraction point lies on it (`face_paths`; the faces culled per segment,
+    `candidates`) and whose legs are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o),
+    summed."""
+    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
+    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
+    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
+    geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
+    counts = np.zeros(len(ell), np.int64)
+    candidates(tris, planes, geo, ell, counts, np.zeros(0, np.int64), False)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    faces = np.empty(offsets[-1], np.int64)
+    candidates(tris, planes, geo, ell, counts, faces, True)
+    eta = float(prep.scene.shapes[sid].interior.ior)
+
+    def paths(seg, x):
+        rows, cost, start = [], np.cumsum(counts[seg]), 0
+        while start < len(x):
+            stop = max(int(np.searchsorted(cost, (cost[start - 1] if start else 0) + PATH_CHUNK, "right")), start + 1)
+            out = np.empty((int(counts[seg[start:stop]].sum()), PATH_COLUMNS))
+            m = face_paths(seg[start:stop], x[start:stop], geo, tris, planes, offsets, faces, eta, code, g, out)
+            out[:m, 0] += start
+            rows.append(out[:m])
+            start = stop
+        found = np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
+        pt = found[:, 0].astype(np.int64)
+        keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], found[:, 2:5],
+                          geo[seg[pt], 6:9], found[:, 1].astype(np.int64), found[:, 8], found[:, 9])
+        return pt[keep], found[keep, 5], found[keep, 6], found[keep, 7]
+
+    def values(seg, x, cs):
+        pt, value, k, o = paths(seg, x)
+        out = np.empty((len(x), len(cs)))
+        for j, c in enumerate(cs):
+            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
+            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
+        return out
+    return values
+
+
+def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, stats):
+    """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
+    from the whole segment: the integrand's jumps (a path appearing or disappearing) are not located, the
+    panels holding them are halved MAX_LEVELS times (stats[0] counts them)."""
+    values = refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs)
+    end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
+    seg, a, b = _first_panels(geo, True, end)
+    cs = list(range(len(kts)))
+    return adaptive(lambda ss, xs: values(ss, xs, cs), end, len(kts), seg, a, b, rule.rtol, stats)
+
+
+def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):
+    """Whether each path's legs are clear of the shape `own` (its accelerator: the shape's triangles
+    alone): X to its refraction point R on triangle `face` meets no other triangle, nor R to the light L.
+    Embree's hits within LEG_SKIP x scale of a leg's start, or of its end over the leg's cosine there
+    (cos_in, cos_out: the legs' cosines to the face's normal), are not counted (float32 crossings at
+    the leg's own ends)."""
+    skip = LEG_SKIP * scale
+    clear = np.ones(len(X), dtype=bool)
+    for a, b, end_skip, start_skip in ((X, R, skip / np.maximum(cos_in, 1e-2), skip),
+                                       (R, L, skip, skip / np.maximum(cos_out, 1e-2))):
+        rel = b - a
+        d = np.linalg.norm(rel, axis=1)
+        u = rel / np.maximum(d, 1e-300)[:, None]
+        t, prim = own.first_hit(a + start_skip[..., None] * u if np.ndim(start_skip) else a + start_skip * u, u)
+        clear &= (prim < 0) | (prim == face) | (t + start_skip >= d - end_skip)
+    return clear
 
 
 def holding(prep, point, sids) -> np.ndarray:

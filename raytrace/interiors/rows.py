@@ -239,6 +239,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], rule, keys,
                     dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats, lights.cone[li, 0])
             continue
+        if refractive and sphere is None and not len(faces) and not sup.entry_plane:  # not convex: every face
+            _through_faces(prep, sid, medium, geo, ell, lights.intensity[li], rule, keys,
+                           dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
+            continue
         if refractive and (li, sid) in held_lights(prep):  # inside a convex refractive shape: straight, wholly inside
             integrate(li, distant, xh, h, hl, zero, zero, zero, zero, 1.0, planes, eta=1.0)
             continue
@@ -846,3 +850,32 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, rule, keys, dim0, s
     var[:, ch] += v * intensity[ch] ** 2
     for j, c in enumerate(ch.tolist()):
         bound[:, c] += _light_bound(err[:, j], val[:, j] * intensity[c], intensity[c], cos_end)
+
+
+def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, seed, out, var, bound, stats):
+    """out, var, bound += one point or spot light's single scattering over the segments of the refractive shape
+    sid that is not convex, on Fermat's paths through its faces (paths.refracted_integrand) by the inside `rule`;
+    the bound is infinite where anything scatters (the integrand's jumps are not located: counted, UNLOCATED)."""
+    ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
+    if not len(ch):
+        return
+    kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
+    args = (prep, sid, geo, ell, kts, kss, medium.phase, medium.g, kt_outs)
+    v = np.zeros((len(ell), len(ch)))
+    if rule.kind == QUAD:
+        capped = np.zeros(1)
+        val = paths.refracted_quadrature(*args, rule, capped)
+        stats[CAPPED] += capped[0]
+    else:
+        values = paths.refracted_integrand(*args)
+        channel = lambda seg, x, c: values(seg, x, [c])[:, 0]
+        geo_args = (prep, sid, geo, False, ell, kts, kss, medium.phase, medium.g, kt_outs, rule)
+        if rule.kind == MARCH:
+            val = paths.segment_march(*geo_args, channel=channel)
+        else:
+            val, v = paths.segment_samples(*geo_args, keys, dim0, seed, channel=channel)
+    out[:, ch] += val * intensity[ch]
+    var[:, ch] += v * intensity[ch] ** 2
+    live = ell > 0.0
+    bound[np.ix_(live, ch)] = np.inf
+    stats[UNLOCATED] += np.count_nonzero(live)
