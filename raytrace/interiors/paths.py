@@ -32,7 +32,7 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, face_paths, face_planes
+from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_paths, face_planes
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -437,7 +437,7 @@ def exit_facets(prep, sid, geo, directional, end):
     return Facets(offsets, counts, bt, bf, links[0], float(np.max(np.linalg.norm(links[1], axis=1))))
 
 
-def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, narrow=0.0, panels=False):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
     panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
     Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
@@ -450,7 +450,10 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     of its integral, which the test keeps below rtol |G20| or the floor times its width, so rtol
     (sum |G20| + estimate / 10) (adaptive.bounded_piecewise's), plus the rounding of the 20-point sums
     (twice: their own and the test's) and of the 10-point sums, and u per panel for the sums; inf for a
-    segment with a panel left open."""
+    segment with a panel left open. `narrow` > 0: a panel narrower than narrow x rtol x its segment's end is
+    accepted as it is, counted in stats[0] (an integrand whose jumps are not located: each adds at most
+    its size times that width). `panels`: the integrand takes a third argument, (seg, a, b, the panel of
+    each point) of the panels it is evaluated on."""
     total = np.zeros((len(end), nc))
     bound = np.zeros((len(end), nc)) if bounded else None
     bounds = np.flatnonzero(np.diff(seg)) + 1  # where a segment's first panels begin
@@ -458,12 +461,12 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     while lo < len(seg):
         k = np.searchsorted(bounds, lo + MAX_OPEN)
         hi = bounds[k] if k < len(bounds) else len(seg)
-        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound, narrow, panels)
         lo = hi
     return (total, bound) if bounded else total
 
 
-def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, narrow=0.0, panels=False):
     """`adaptive` from one group of first panels (`bound` += their bounds, where given); the first
     panels end at every kink of the integrand (`_first_panels`)."""
     n = len(end)
@@ -478,7 +481,11 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
         xs = np.concatenate([(mid[:, None] + half[:, None] * N10).ravel(), (mid[:, None] + half[:, None] * N20).ravel()])
         ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
-        f = integrand(ss, xs)
+        if panels:
+            pid = np.arange(len(seg))
+            f = integrand(ss, xs, (seg, a, b, np.concatenate([np.repeat(pid, 10), np.repeat(pid, 20)])))
+        else:
+            f = integrand(ss, xs)
         if bound is not None:
             f, fe = f
         m = len(seg)
@@ -490,6 +497,10 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
             estimate = floor.copy()
             floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
+        if narrow > 0.0:
+            small = ~ok & (b - a <= narrow * rtol * end[seg])
+            stats[0] += np.count_nonzero(small)
+            ok |= small
         if 2 * np.count_nonzero(~ok) > max(MAX_OPEN_PER_SEGMENT * n, MAX_OPEN):  # a memory bound, not a tolerance
             np.add.at(total, seg, g20)
             stats[0] += np.count_nonzero(~ok)
@@ -729,27 +740,35 @@ LEG_SKIP = 1e-6  # x the scene's scale: how far a leg's test starts from its end
 def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
     """The single-scattering integrand (per unit light) of a point or spot light (geo rows of media/slab.py
     GEO_COLUMNS) into the refractive shape sid that is not convex, along its segments (over [0, ell]), as a
-    function `values(seg, x, cs)` (M, len(cs)) of the channels cs: media/nonconvex_refraction.py's Fermat
-    path through every face whose refraction point lies on it (`face_paths`; the faces culled per segment,
-    `candidates`) and whose legs are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o),
-    summed."""
+    function `values(seg, x, cs, panels=None)` (M, len(cs)) of the channels cs: media/nonconvex_refraction.py's
+    Fermat path through every face whose refraction point lies on it (`face_paths`; the faces culled per
+    segment, or with `panels` = (seg, a, b, panel of each point) per panel, by `candidates`) and whose legs
+    are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o), summed."""
     own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
     tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
     planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
     geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
-    counts = np.zeros(len(ell), np.int64)
-    candidates(tris, planes, geo, ell, counts, np.zeros(0, np.int64), False)
-    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    faces = np.empty(offsets[-1], np.int64)
-    candidates(tris, planes, geo, ell, counts, faces, True)
     eta = float(prep.scene.shapes[sid].interior.ior)
+    n = len(ell)
 
-    def paths(seg, x):
-        rows, cost, start = [], np.cumsum(counts[seg]), 0
+    def lists(seg, lo, hi, which, starts, stops, faces):
+        counts = np.zeros(len(seg), np.int64)
+        args = (tris, planes, geo, seg, lo, hi, eta, which, starts, stops, faces, counts)
+        candidates(*args, np.zeros(0, np.int64), False)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        out = np.empty(offsets[-1], np.int64)
+        candidates(*args, out, True)
+        return offsets[:-1], offsets[1:], out
+
+    whole = lists(np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64), *every(len(tris)))
+
+    def paths(seg, x, which, starts, stops, faces):
+        rows, cost, start = [], np.cumsum(stops[which] - starts[which]), 0
         while start < len(x):
             stop = max(int(np.searchsorted(cost, (cost[start - 1] if start else 0) + PATH_CHUNK, "right")), start + 1)
-            out = np.empty((int(counts[seg[start:stop]].sum()), PATH_COLUMNS))
-            m = face_paths(seg[start:stop], x[start:stop], geo, tris, planes, offsets, faces, eta, code, g, out)
+            part = slice(start, stop)
+            out = np.empty((int((stops[which[part]] - starts[which[part]]).sum()), PATH_COLUMNS))
+            m = face_paths(seg[part], which[part], x[part], geo, tris, planes, starts, stops, faces, eta, code, g, out)
             out[:m, 0] += start
             rows.append(out[:m])
             start = stop
@@ -759,8 +778,12 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
                           geo[seg[pt], 6:9], found[:, 1].astype(np.int64), found[:, 8], found[:, 9])
         return pt[keep], found[keep, 5], found[keep, 6], found[keep, 7]
 
-    def values(seg, x, cs):
-        pt, value, k, o = paths(seg, x)
+    def values(seg, x, cs, panels=None):
+        if panels is None:
+            pt, value, k, o = paths(seg, x, seg, *whole)
+        else:
+            pseg, a, b, pid = panels
+            pt, value, k, o = paths(seg, x, pid, *lists(pseg, a, b, pseg, *whole))
         out = np.empty((len(x), len(cs)))
         for j, c in enumerate(cs):
             w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
@@ -769,15 +792,20 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
     return values
 
 
+NARROW = 1e-2  # `refracted_quadrature`'s panels narrower than this x rtol x the segment are accepted as they are
+
+
 def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, stats):
     """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
     from the whole segment: the integrand's jumps (a path appearing or disappearing) are not located, the
-    panels holding them are halved MAX_LEVELS times (stats[0] counts them)."""
+    panels holding them are halved until narrower than NARROW x rtol x the segment, then accepted, counted in
+    stats[0] (a jump of size J adds at most about J x that width)."""
     values = refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     seg, a, b = _first_panels(geo, True, end)
     cs = list(range(len(kts)))
-    return adaptive(lambda ss, xs: values(ss, xs, cs), end, len(kts), seg, a, b, rule.rtol, stats)
+    return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
+                    narrow=NARROW, panels=True)
 
 
 def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):

@@ -2,7 +2,7 @@
 
 Inside a closed mesh of relative index eta that is not convex, a point or spot light at L reaches an inside
 point X through each triangle F whose plane separates X from L, on Fermat's path through that plane
-(media/slab.py: `refraction_point`, Snell's law in the plane of incidence, and `refracted_at`, Fresnel's T on
+(Snell's law in the plane of incidence, as media/slab.py `refraction_point`, and `refracted_at`, Fresnel's T on
 the way in, the ray tube's irradiance of a point source through a plane, a spot's falloff on the direction the
 light leaves in), where its refraction point R lies inside F and both legs are clear of the mesh: X to R meets
 no other face (it stays inside), R to L meets none (it stays outside). The legs are tested by the caller
@@ -20,8 +20,9 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .slab import refraction_point, refracted_at
+from .slab import refracted_at
 
+SPAN_SLACK = 1e-9  # relative margin of the triangle's span along the foot's line (`_span`) before Snell's root
 PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit light value, k, o, the legs' cosines
 
 
@@ -35,27 +36,45 @@ def face_planes(tris):
 
 
 @njit
-def candidates(tris, planes, geo, ell, counts, out, fill):
-    """The faces that may light segment s (geo rows of media/slab.py GEO_COLUMNS: start, direction, the
-    light's position; over [0, ell[s]]), a bounding test: the light off the face's plane, some of the
-    segment on the other side, and the box of the feet on that plane of the segment's ends and the light
+def candidates(tris, planes, geo, seg, lo, hi, eta, lists, starts, stops, faces, counts, out, fill):
+    """The faces that may light the pieces [lo[i], hi[i]] of segments seg[i] (geo rows of media/slab.py
+    GEO_COLUMNS: start, direction, the light's position) among faces[starts[lists[i]]:stops[lists[i]]]
+    (`every` for all of them), a bounding test (`_may_light`): the light off the face's plane, some of
+    the piece on the other side, and the box of the feet on that plane of the piece's ends and the light
     (which holds every refraction point through it: R lies between X's foot and the light's) meeting the
-    triangle's box. counts[s] = their number; with `fill`, out (sum counts) receives them, segment by
-    segment."""
+    triangle's box; for eta > 1 that box is cut to the feet of the piece's ends widened by `reach` of
+    their depths. counts[i] = their number; with `fill`, out (sum counts) receives them, piece by piece."""
     m = 0
-    for s in range(geo.shape[0]):
+    row = np.empty(geo.shape[1])
+    for i in range(seg.shape[0]):
+        row[:] = geo[seg[i]]
+        for k in range(3):
+            row[k] += lo[i] * row[3 + k]
         c = 0
-        for f in range(tris.shape[0]):
-            if _may_light(tris[f], planes[f], geo[s], ell[s]):
+        for j in range(starts[lists[i]], stops[lists[i]]):
+            f = faces[j]
+            if _may_light(tris[f], planes[f], row, hi[i] - lo[i], eta):
                 if fill:
                     out[m] = f
                 m += 1
                 c += 1
-        counts[s] = c
+        counts[i] = c
+
+
+def every(n_faces):
+    """`candidates`' starts, stops and faces of one list (lists 0) that holds every face."""
+    return np.zeros(1, np.int64), np.array([n_faces], np.int64), np.arange(n_faces, dtype=np.int64)
 
 
 @njit
-def _may_light(tri, plane, row, end):
+def reach(eta):
+    """r / z at most on a path refracted into relative index eta > 1 (sin2 <= 1 / eta: r <= z / sqrt(eta^2 - 1));
+    inf for eta <= 1."""
+    return 1.0 / math.sqrt(eta * eta - 1.0) if eta > 1.0 else math.inf
+
+
+@njit
+def _may_light(tri, plane, row, end, eta):
     n0, n1, n2, cf = plane[0], plane[1], plane[2], plane[3]
     if n0 == 0.0 and n1 == 0.0 and n2 == 0.0:
         return False
@@ -69,23 +88,69 @@ def _may_light(tri, plane, row, end):
         return False
     size = abs(cf) + abs(row[6]) + abs(row[7]) + abs(row[8]) + abs(row[0]) + abs(e0) + abs(e1) + abs(e2)
     slack = 1e-9 * size
+    wide = reach(eta) * max(abs(h0), abs(h1)) + slack
     for k in range(3):
-        lo = min(row[k] - h0 * plane[k], row[k] + end * row[3 + k] - h1 * plane[k], row[6 + k] - hl * plane[k])
-        hi = max(row[k] - h0 * plane[k], row[k] + end * row[3 + k] - h1 * plane[k], row[6 + k] - hl * plane[k])
+        a, b = row[k] - h0 * plane[k], row[k] + end * row[3 + k] - h1 * plane[k]
+        lo = max(min(a, b, row[6 + k] - hl * plane[k]), min(a, b) - wide)
+        hi = min(max(a, b, row[6 + k] - hl * plane[k]), max(a, b) + wide)
         if hi < min(tri[0, k], tri[1, k], tri[2, k]) - slack or lo > max(tri[0, k], tri[1, k], tri[2, k]) + slack:
             return False
     return True
 
 
 @njit
-def _off_box(a0, a1, a2, b0, b1, b2, tri):
-    """Whether the box of the segment a b misses the triangle's box (with a margin of 1e-9 of their size)."""
-    slack = 1e-9 * (abs(a0) + abs(a1) + abs(a2) + abs(b0) + abs(b1) + abs(b2) + abs(tri[0, 0]) + abs(tri[0, 1])
-                    + abs(tri[0, 2]))
-    for lo, hi, k in ((min(a0, b0), max(a0, b0), 0), (min(a1, b1), max(a1, b1), 1), (min(a2, b2), max(a2, b2), 2)):
-        if hi < min(tri[0, k], tri[1, k], tri[2, k]) - slack or lo > max(tri[0, k], tri[1, k], tri[2, k]) + slack:
-            return True
-    return False
+def _span(f0, f1, f2, l0, l1, l2, tri, n0, n1, n2):
+    """The interval [lo, hi] of t in [0, 1] where f + t l (on the triangle's plane, unit normal n) lies inside
+    the triangle (lo > hi: nowhere): each edge's side n·(u × (q - v)) is linear in t."""
+    lo, hi = 0.0, 1.0
+    turn = n0 * ((tri[1, 1] - tri[0, 1]) * (tri[2, 2] - tri[1, 2]) - (tri[1, 2] - tri[0, 2]) * (tri[2, 1] - tri[1, 1])) \
+        + n1 * ((tri[1, 2] - tri[0, 2]) * (tri[2, 0] - tri[1, 0]) - (tri[1, 0] - tri[0, 0]) * (tri[2, 2] - tri[1, 2])) \
+        + n2 * ((tri[1, 0] - tri[0, 0]) * (tri[2, 1] - tri[1, 1]) - (tri[1, 1] - tri[0, 1]) * (tri[2, 0] - tri[1, 0]))
+    sign = 1.0 if turn > 0.0 else -1.0
+    for k in range(3):
+        v, e = tri[k], tri[(k + 1) % 3]
+        ux, uy, uz = e[0] - v[0], e[1] - v[1], e[2] - v[2]
+        px, py, pz = f0 - v[0], f1 - v[1], f2 - v[2]
+        at0 = sign * (n0 * (uy * pz - uz * py) + n1 * (uz * px - ux * pz) + n2 * (ux * py - uy * px))
+        slope = sign * (n0 * (uy * l2 - uz * l1) + n1 * (uz * l0 - ux * l2) + n2 * (ux * l1 - uy * l0))
+        if slope > 0.0:
+            lo = max(lo, -at0 / slope)
+        elif slope < 0.0:
+            hi = min(hi, -at0 / slope)
+        elif at0 < 0.0:
+            return 1.0, 0.0
+    return lo, hi
+
+
+@njit
+def _snell(r, rho, z, hl, eta):
+    """media/slab.py `refraction_point`'s Snell function (rho - r) / o - eta r / k, decreasing in r."""
+    return (rho - r) / math.sqrt((rho - r) * (rho - r) + hl * hl) - eta * r / math.sqrt(r * r + z * z)
+
+
+@njit
+def _snell_root(lo, hi, rho, z, hl, eta):
+    """The root of `_snell` in [lo, hi] (its value >= 0 at lo, <= 0 at hi): Newton's method, its derivative
+    -hl^2 / o^3 - eta z^2 / k^3, kept inside the bracket (bisection where a step leaves it), to the
+    resolution of doubles."""
+    r = 0.5 * (lo + hi)
+    for _ in range(100):
+        o2, k2 = (rho - r) * (rho - r) + hl * hl, r * r + z * z
+        o, k = math.sqrt(o2), math.sqrt(k2)
+        value = (rho - r) / o - eta * r / k
+        if value == 0.0:
+            return r
+        if value > 0.0:
+            lo = r
+        else:
+            hi = r
+        step = r - value / (-hl * hl / (o2 * o) - eta * z * z / (k2 * k))
+        if not lo < step < hi:
+            step = 0.5 * (lo + hi)
+        if abs(step - r) <= 2e-16 * rho or not lo < step < hi:
+            return step if lo <= step <= hi else r
+        r = step
+    return r
 
 
 @njit
@@ -111,13 +176,13 @@ def _inside_triangle(q0, q1, q2, tri, n0, n1, n2):
 
 
 @njit
-def face_paths(seg, x, geo, tris, planes, offsets, faces, eta, code, g, out):
+def face_paths(seg, lists, x, geo, tris, planes, starts, stops, faces, eta, code, g, out):
     """The Fermat paths through single faces at the points x along segments seg (geo rows of media/slab.py
     GEO_COLUMNS: start, direction w, the light's position, a spot's axis, cone and curve), for the
-    candidate faces faces[offsets[s]:offsets[s + 1]] of each segment s (`candidates`): where the face's
+    candidate faces faces[starts[lists[i]]:stops[lists[i]]] of each point i (`candidates`): where the face's
     plane separates X = p + x w from the light (normal n turned toward it: the light at height hl above
     the plane, X at depth z below it), R = X + z n + (r / rho) L_h (L_h the light's offset from X's foot,
-    rho its length, r of `refraction_point`) inside the triangle, one row of PATH_COLUMNS in out: the
+    rho its length, r the root of Snell's law, `_snell_root`) inside the triangle, one row of PATH_COLUMNS in out: the
     point's index, the face, R, media/slab.py `refracted_at`'s value per unit light without the
     exponential (ks = 1, kt = kt_out = 0: Phi(mu) E F), the legs' lengths k inside and o outside, and
     their cosines to the face's normal, z / k and hl / o. Returns the rows' count (at most out's rows; the caller sizes
@@ -127,7 +192,7 @@ def face_paths(seg, x, geo, tris, planes, offsets, faces, eta, code, g, out):
         row = geo[seg[i]]
         X0, X1, X2 = row[0] + x[i] * row[3], row[1] + x[i] * row[4], row[2] + x[i] * row[5]
         r0, r1, r2 = row[6] - X0, row[7] - X1, row[8] - X2
-        for j in range(offsets[seg[i]], offsets[seg[i] + 1]):
+        for j in range(starts[lists[i]], stops[lists[i]]):
             f = faces[j]
             n0, n1, n2 = planes[f, 0], planes[f, 1], planes[f, 2]
             hl = n0 * row[6] + n1 * row[7] + n2 * row[8] - planes[f, 3]
@@ -139,10 +204,13 @@ def face_paths(seg, x, geo, tris, planes, offsets, faces, eta, code, g, out):
             up = hl + z
             l0, l1, l2 = r0 - up * n0, r1 - up * n1, r2 - up * n2
             f0, f1, f2 = X0 + z * n0, X1 + z * n1, X2 + z * n2  # X's foot; R lies between it and the light's
-            if _off_box(f0, f1, f2, f0 + l0, f1 + l1, f2 + l2, tris[f]):
-                continue
+            lo, hi = _span(f0, f1, f2, l0, l1, l2, tris[f], n0, n1, n2)
             rho = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
-            r = refraction_point(rho, z, hl, eta)
+            lo, hi = max(lo - SPAN_SLACK, 0.0) * rho, min(hi + SPAN_SLACK, 1.0) * rho
+            hi = min(hi, (1.0 + SPAN_SLACK) * reach(eta) * z)
+            if lo > hi or _snell(lo, rho, z, hl, eta) < 0.0 or _snell(hi, rho, z, hl, eta) > 0.0:
+                continue  # Snell's root lies outside the triangle's span
+            r = _snell_root(lo, hi, rho, z, hl, eta)
             t = r / rho if rho > 0.0 else 0.0
             q0, q1, q2 = f0 + t * l0, f1 + t * l1, f2 + t * l2
             if not _inside_triangle(q0, q1, q2, tris[f], n0, n1, n2):
