@@ -437,7 +437,7 @@ def exit_facets(prep, sid, geo, directional, end):
     return Facets(offsets, counts, bt, bf, links[0], float(np.max(np.linalg.norm(links[1], axis=1))))
 
 
-def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, narrow=0.0, panels=False):
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, narrow=0.0, by_panel=False):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
     panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
     Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
@@ -452,7 +452,7 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, narrow=0
     (twice: their own and the test's) and of the 10-point sums, and u per panel for the sums; inf for a
     segment with a panel left open. `narrow` > 0: a panel narrower than narrow x rtol x its segment's end is
     accepted as it is, counted in stats[0] (an integrand whose jumps are not located: each adds at most
-    its size times that width). `panels`: the integrand takes a third argument, (seg, a, b, the panel of
+    its size times that width). `by_panel`: the integrand takes a third argument, (seg, a, b, the panel of
     each point) of the panels it is evaluated on."""
     total = np.zeros((len(end), nc))
     bound = np.zeros((len(end), nc)) if bounded else None
@@ -461,12 +461,12 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, narrow=0
     while lo < len(seg):
         k = np.searchsorted(bounds, lo + MAX_OPEN)
         hi = bounds[k] if k < len(bounds) else len(seg)
-        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound, narrow, panels)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound, narrow, by_panel)
         lo = hi
     return (total, bound) if bounded else total
 
 
-def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, narrow=0.0, panels=False):
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, narrow=0.0, by_panel=False):
     """`adaptive` from one group of first panels (`bound` += their bounds, where given); the first
     panels end at every kink of the integrand (`_first_panels`)."""
     n = len(end)
@@ -481,7 +481,7 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, narrow=0.0
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
         xs = np.concatenate([(mid[:, None] + half[:, None] * N10).ravel(), (mid[:, None] + half[:, None] * N20).ravel()])
         ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
-        if panels:
+        if by_panel:
             pid = np.arange(len(seg))
             f = integrand(ss, xs, (seg, a, b, np.concatenate([np.repeat(pid, 10), np.repeat(pid, 20)])))
         else:
@@ -805,7 +805,7 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     seg, a, b = _first_panels(geo, True, end)
     cs = list(range(len(kts)))
     return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
-                    narrow=NARROW, panels=True)
+                    narrow=NARROW, by_panel=True)
 
 
 def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):

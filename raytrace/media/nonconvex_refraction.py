@@ -103,9 +103,9 @@ def _span(f0, f1, f2, l0, l1, l2, tri, n0, n1, n2):
     """The interval [lo, hi] of t in [0, 1] where f + t l (on the triangle's plane, unit normal n) lies inside
     the triangle (lo > hi: nowhere): each edge's side n·(u × (q - v)) is linear in t."""
     lo, hi = 0.0, 1.0
-    turn = n0 * ((tri[1, 1] - tri[0, 1]) * (tri[2, 2] - tri[1, 2]) - (tri[1, 2] - tri[0, 2]) * (tri[2, 1] - tri[1, 1])) \
-        + n1 * ((tri[1, 2] - tri[0, 2]) * (tri[2, 0] - tri[1, 0]) - (tri[1, 0] - tri[0, 0]) * (tri[2, 2] - tri[1, 2])) \
-        + n2 * ((tri[1, 0] - tri[0, 0]) * (tri[2, 1] - tri[1, 1]) - (tri[1, 1] - tri[0, 1]) * (tri[2, 0] - tri[1, 0]))
+    u0, u1, u2 = tri[1, 0] - tri[0, 0], tri[1, 1] - tri[0, 1], tri[1, 2] - tri[0, 2]
+    v0, v1, v2 = tri[2, 0] - tri[1, 0], tri[2, 1] - tri[1, 1], tri[2, 2] - tri[1, 2]
+    turn = n0 * (u1 * v2 - u2 * v1) + n1 * (u2 * v0 - u0 * v2) + n2 * (u0 * v1 - u1 * v0)
     sign = 1.0 if turn > 0.0 else -1.0
     for k in range(3):
         v, e = tri[k], tri[(k + 1) % 3]
