@@ -20,7 +20,8 @@ directional light enters a convex shape through every face it meets, one beam ea
 (`crossing.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
 through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
-path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
+path per face), other shapes through every face whose legs are clear of the shape (`_through_faces`,
+paths.refracted_integrand; the entry plane's model keeps the entry plane). Every light enters an exact
 sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; closed forms hand
 them to the rule, counted; QUAD bounded but where a caustic crossing has no fold pair); the entry plane's
 model keeps the entry plane everywhere.
@@ -95,8 +96,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
     unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
     outside of (media/slab.py `faces_point`), or one inside it (crossing.py `held_lights`) along its straight
-    paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through the entry plane
-    (Fermat's path); every light outside an exact sphere on its exact refracted paths (`_refracted_sphere`).
+    paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through every face whose
+    legs are clear (`_through_faces`); every light outside an exact sphere on its exact refracted paths
+    (`_refracted_sphere`).
     `light`: that light only (else all); `piece`: the segments' rank among their ray's lit pieces
     (`lit_single_scattering`), which numbers their random streams; `beam`: of a directional light's refracted
     beams, or of a point or spot light's refracted paths, only the one through that face (`_lit_beams`)."""
