@@ -6,7 +6,7 @@ point X through each triangle F whose plane separates X from L, on Fermat's path
 the way in, the ray tube's irradiance of a point source through a plane, a spot's falloff on the direction the
 light leaves in), where its refraction point R lies inside F and both legs are clear of the mesh: X to R meets
 no other face (it stays inside), R to L meets none (it stays outside). The legs are tested by the caller
-(interiors/paths.py `refracted_channels`, Embree); this module finds the candidate paths. Each face is taken in
+(interiors/paths.py `refracted_integrand`, Embree); this module finds the candidate paths. Each face is taken in
 either orientation (its plane's normal turned toward the light): a face whose outside looks toward X gives a
 leg that leaves the shape before reaching it, which the leg tests reject.
 
@@ -182,11 +182,12 @@ def face_paths(seg, lists, x, geo, tris, planes, starts, stops, faces, eta, code
     candidate faces faces[starts[lists[i]]:stops[lists[i]]] of each point i (`candidates`): where the face's
     plane separates X = p + x w from the light (normal n turned toward it: the light at height hl above
     the plane, X at depth z below it), R = X + z n + (r / rho) L_h (L_h the light's offset from X's foot,
-    rho its length, r the root of Snell's law, `_snell_root`) inside the triangle, one row of PATH_COLUMNS in out: the
-    point's index, the face, R, media/slab.py `refracted_at`'s value per unit light without the
-    exponential (ks = 1, kt = kt_out = 0: Phi(mu) E F), the legs' lengths k inside and o outside, and
-    their cosines to the face's normal, z / k and hl / o. Returns the rows' count (at most out's rows; the caller sizes
-    out by the candidates)."""
+    rho its length, r the root of Snell's law, `_snell_root`, sought only where the line from X's foot
+    toward the light's crosses the triangle, `_span`) inside the triangle, one row of PATH_COLUMNS in out:
+    the point's index, the face, R, media/slab.py `refracted_at`'s value per unit light without the
+    exponential (ks = 1, kt = kt_out = 0: Phi(mu) E F), the legs' lengths k inside and o outside, and their
+    cosines to the face's normal, z / k and hl / o. Returns the rows' count (at most out's rows; the caller
+    sizes out by the candidates)."""
     m = 0
     for i in range(x.shape[0]):
         row = geo[seg[i]]
