@@ -32,6 +32,7 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
+from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_paths, face_planes
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -436,7 +437,7 @@ def exit_facets(prep, sid, geo, directional, end):
     return Facets(offsets, counts, bt, bf, links[0], float(np.max(np.linalg.norm(links[1], axis=1))))
 
 
-def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
+def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False, narrow=0.0, by_panel=False):
     """∫ over [0, end] of `integrand(seg, x)` (M, nc) per segment and channel (N, nc) from the first
     panels (seg, a, b; ascending in seg), adaptive: panels are halved until their 10- and 20-point
     Gauss-Legendre values agree to rtol, or to rtol/10 of a first estimate of the whole per unit
@@ -449,7 +450,10 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     of its integral, which the test keeps below rtol |G20| or the floor times its width, so rtol
     (sum |G20| + estimate / 10) (adaptive.bounded_piecewise's), plus the rounding of the 20-point sums
     (twice: their own and the test's) and of the 10-point sums, and u per panel for the sums; inf for a
-    segment with a panel left open."""
+    segment with a panel left open. `narrow` > 0: a panel narrower than narrow x rtol x its segment's end is
+    accepted as it is, counted in stats[0] (an integrand whose jumps are not located: each adds at most
+    its size times that width). `by_panel`: the integrand takes a third argument, (seg, a, b, the panel of
+    each point) of the panels it is evaluated on."""
     total = np.zeros((len(end), nc))
     bound = np.zeros((len(end), nc)) if bounded else None
     bounds = np.flatnonzero(np.diff(seg)) + 1  # where a segment's first panels begin
@@ -457,12 +461,12 @@ def adaptive(integrand, end, nc, seg, a, b, rtol, stats, bounded=False):
     while lo < len(seg):
         k = np.searchsorted(bounds, lo + MAX_OPEN)
         hi = bounds[k] if k < len(bounds) else len(seg)
-        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound)
+        total += _adaptive(integrand, end, nc, seg[lo:hi], a[lo:hi], b[lo:hi], rtol, stats, bound, narrow, by_panel)
         lo = hi
     return (total, bound) if bounded else total
 
 
-def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
+def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None, narrow=0.0, by_panel=False):
     """`adaptive` from one group of first panels (`bound` += their bounds, where given); the first
     panels end at every kink of the integrand (`_first_panels`)."""
     n = len(end)
@@ -477,7 +481,11 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
         half, mid = 0.5 * (b - a), 0.5 * (a + b)
         xs = np.concatenate([(mid[:, None] + half[:, None] * N10).ravel(), (mid[:, None] + half[:, None] * N20).ravel()])
         ss = np.concatenate([np.repeat(seg, 10), np.repeat(seg, 20)])
-        f = integrand(ss, xs)
+        if by_panel:
+            pid = np.arange(len(seg))
+            f = integrand(ss, xs, (seg, a, b, np.concatenate([np.repeat(pid, 10), np.repeat(pid, 20)])))
+        else:
+            f = integrand(ss, xs)
         if bound is not None:
             f, fe = f
         m = len(seg)
@@ -489,6 +497,10 @@ def _adaptive(integrand, end, nc, seg, a, b, rtol, stats, bound=None):
             estimate = floor.copy()
             floor *= 0.1 * rtol / np.where(end > 0.0, end, 1.0)[:, None]
         ok = np.all(np.abs(g20 - g10) <= np.maximum(rtol * np.abs(g20), floor[seg] * (b - a)[:, None]), axis=1)
+        if narrow > 0.0:
+            small = ~ok & (b - a <= narrow * rtol * end[seg])
+            stats[0] += np.count_nonzero(small)
+            ok |= small
         if 2 * np.count_nonzero(~ok) > max(MAX_OPEN_PER_SEGMENT * n, MAX_OPEN):  # a memory bound, not a tolerance
             np.add.at(total, seg, g20)
             stats[0] += np.count_nonzero(~ok)
@@ -671,9 +683,11 @@ def _first_panels(geo, directional, end, facets=None, kinks=None):
     return seg[:-1][keep], at[:-1][keep], at[1:][keep]
 
 
-def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule):
+def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, channel=None):
     """The midpoint rule with the MARCH `rule`'s steps per segment and channel, the segment cut where its
-    optical depth reaches tau_max (media/inside_rule.py; an exact sphere's in its kernel, `_on_sphere`)."""
+    optical depth reaches tau_max (media/inside_rule.py; an exact sphere's in its kernel, `_on_sphere`).
+    `channel(seg, x, c)`, where given, is the integrand of channel c (`refracted_integrand`), else the
+    straight paths' (`_channels`)."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
         return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule)[0]
@@ -681,18 +695,18 @@ def segment_march(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, 
     out = np.zeros((len(ell), len(kts)))
     seg = np.repeat(np.arange(len(ell)), steps)
     j = np.tile(np.arange(steps) + 0.5, len(ell))
+    channel = channel or _straight(prep, sid, geo, directional, kts, kss, code, g, kt_outs)
     for c in range(len(kts)):
         dx = np.minimum(ell, tau_max / kts[c]) / steps
-        f = _channels(prep, sid, geo, directional, seg, j * dx[seg], kts[c:c + 1], kss[c:c + 1], code, g,
-                      kt_outs[c:c + 1])[:, 0]
-        out[:, c] = f.reshape(len(ell), steps).sum(axis=1) * dx
+        out[:, c] = channel(seg, j * dx[seg], c).reshape(len(ell), steps).sum(axis=1) * dx
     return out
 
 
-def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys, dim0, seed):
+def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys, dim0, seed,
+                    channel=None):
     """Free-path sampling (media/inside_rule.py's SAMPLE): the `rule`'s steps samples per segment and
     channel, the same random numbers for every channel (an exact sphere's in media/slab.py's kernel,
-    `_on_sphere`); the mean and the variance of the mean (N, C) each."""
+    `_on_sphere`); the mean and the variance of the mean (N, C) each. `channel`: `segment_march`'s."""
     sphere = exact_sphere(prep, sid)
     if sphere is not None:
         return _on_sphere(sphere, geo, directional, ell, kts, kss, code, g, kt_outs, rule, keys=keys, dim0=dim0,
@@ -702,15 +716,114 @@ def segment_samples(prep, sid, geo, directional, ell, kts, kss, code, g, kt_outs
     seg = np.repeat(np.arange(n), steps)
     u = np.empty(len(seg))
     _uniforms(keys, seg, np.tile(np.arange(steps, dtype=np.uint64), n) + np.uint64(dim0), np.uint64(seed), u)
+    channel = channel or _straight(prep, sid, geo, directional, kts, kss, code, g, kt_outs)
     for c in range(len(kts)):
         kt = float(kts[c])
         mass = -np.expm1(-kt * np.minimum(ell, rule.tau_max / kt)) / kt
         x = -np.log1p(-u * kt * mass[seg]) / kt
-        f = _channels(prep, sid, geo, directional, seg, x, kts[c:c + 1], kss[c:c + 1], code, g, kt_outs[c:c + 1])[:, 0]
-        f = (f * mass[seg] * np.exp(kt * x)).reshape(n, steps)
+        f = (channel(seg, x, c) * mass[seg] * np.exp(kt * x)).reshape(n, steps)
         out[:, c] = f.mean(axis=1)
         var[:, c] = np.maximum((f * f).mean(axis=1) - out[:, c] ** 2, 0.0) / max(steps - 1, 1)
     return out, var
+
+
+def _straight(prep, sid, geo, directional, kts, kss, code, g, kt_outs):
+    """`segment_march`'s default `channel`: `_channels` of one channel, the light's straight paths."""
+    return lambda seg, x, c: _channels(prep, sid, geo, directional, seg, x, kts[c:c + 1], kss[c:c + 1], code, g,
+                                       kt_outs[c:c + 1])[:, 0]
+
+
+PATH_CHUNK = 1 << 19  # candidate (point, face) pairs per call of `face_paths`
+LEG_SKIP = 1e-6  # x the scene's scale: how far a leg's test starts from its ends (Embree's float32 crossings)
+
+
+def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
+    """The single-scattering integrand (per unit light) of a point or spot light (geo rows of media/slab.py
+    GEO_COLUMNS) into the refractive shape sid that is not convex, along its segments (over [0, ell]), as a
+    function `values(seg, x, cs, panels=None)` (M, len(cs)) of the channels cs: media/nonconvex_refraction.py's
+    Fermat path through every face whose refraction point lies on it (`face_paths`; the faces culled per
+    segment, or with `panels` = (seg, a, b, panel of each point) per panel, by `candidates`) and whose legs
+    are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o), summed."""
+    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
+    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
+    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
+    geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
+    eta = float(prep.scene.shapes[sid].interior.ior)
+    n = len(ell)
+
+    def lists(seg, lo, hi, which, starts, stops, faces):
+        counts = np.zeros(len(seg), np.int64)
+        args = (tris, planes, geo, seg, lo, hi, eta, which, starts, stops, faces, counts)
+        candidates(*args, np.zeros(0, np.int64), False)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        out = np.empty(offsets[-1], np.int64)
+        candidates(*args, out, True)
+        return offsets[:-1], offsets[1:], out
+
+    whole = lists(np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64), *every(len(tris)))
+
+    def paths(seg, x, which, starts, stops, faces):
+        rows, cost, start = [], np.cumsum(stops[which] - starts[which]), 0
+        while start < len(x):
+            stop = max(int(np.searchsorted(cost, (cost[start - 1] if start else 0) + PATH_CHUNK, "right")), start + 1)
+            part = slice(start, stop)
+            out = np.empty((int((stops[which[part]] - starts[which[part]]).sum()), PATH_COLUMNS))
+            m = face_paths(seg[part], which[part], x[part], geo, tris, planes, starts, stops, faces, eta, code, g, out)
+            out[:m, 0] += start
+            rows.append(out[:m])
+            start = stop
+        found = np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
+        pt = found[:, 0].astype(np.int64)
+        keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], found[:, 2:5],
+                          geo[seg[pt], 6:9], found[:, 1].astype(np.int64), found[:, 8], found[:, 9])
+        return pt[keep], found[keep, 5], found[keep, 6], found[keep, 7]
+
+    def values(seg, x, cs, panels=None):
+        if panels is None:
+            pt, value, k, o = paths(seg, x, seg, *whole)
+        else:
+            pseg, a, b, pid = panels
+            pt, value, k, o = paths(seg, x, pid, *lists(pseg, a, b, pseg, *whole))
+        out = np.empty((len(x), len(cs)))
+        for j, c in enumerate(cs):
+            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
+            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
+        return out
+    return values
+
+
+NARROW = 1e-2  # `refracted_quadrature`'s panels narrower than this x rtol x the segment are accepted as they are
+
+
+def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, stats):
+    """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
+    from the whole segment: the integrand's jumps (a path appearing or disappearing) are not located, the
+    panels holding them are halved until narrower than NARROW x rtol x the segment, then accepted, counted in
+    stats[0] (a jump of size J adds at most about J x that width)."""
+    values = refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs)
+    end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
+    seg, a, b = _first_panels(geo, True, end)
+    cs = list(range(len(kts)))
+    return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
+                    narrow=NARROW, by_panel=True)
+
+
+def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):
+    """Whether each path's legs are clear of the shape `own` (its accelerator: the shape's triangles
+    alone): X to its refraction point R on triangle `face` meets no other triangle, nor R to the light L.
+    Embree's hits within LEG_SKIP x scale of a leg's start, or of its end over the leg's cosine there
+    (cos_in, cos_out: the legs' cosines to the face's normal), are not counted (float32 crossings at
+    the leg's own ends)."""
+    skip = LEG_SKIP * scale
+    clear = np.ones(len(X), dtype=bool)
+    for a, b, end_skip, start_skip in ((X, R, skip / np.maximum(cos_in, 1e-2), skip),
+                                       (R, L, skip, skip / np.maximum(cos_out, 1e-2))):
+        rel = b - a
+        d = np.linalg.norm(rel, axis=1)
+        u = rel / np.maximum(d, 1e-300)[:, None]
+        t, prim = own.first_hit(a + start_skip[..., None] * u if np.ndim(start_skip) else a + start_skip * u, u)
+        clear &= (prim < 0) | (prim == face) | (t + start_skip >= d - end_skip)
+    return clear
 
 
 def holding(prep, point, sids) -> np.ndarray:

@@ -20,7 +20,8 @@ directional light enters a convex shape through every face it meets, one beam ea
 (`crossing.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
 through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
-path per face), other shapes through the entry plane (Fermat's path). Every light enters an exact
+path per face), other shapes through every face whose legs are clear of the shape (`_through_faces`,
+paths.refracted_integrand; the entry plane's model keeps the entry plane). Every light enters an exact
 sphere on its exact refracted paths (media/sphere_refraction.py, `_refracted_sphere`; closed forms hand
 them to the rule, counted; QUAD bounded but where a caustic crossing has no fold pair); the entry plane's
 model keeps the entry plane everywhere.
@@ -95,8 +96,9 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
     unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
     outside of (media/slab.py `faces_point`), or one inside it (crossing.py `held_lights`) along its straight
-    paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through the entry plane
-    (Fermat's path); every light outside an exact sphere on its exact refracted paths (`_refracted_sphere`).
+    paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through every face whose
+    legs are clear (`_through_faces`); every light outside an exact sphere on its exact refracted paths
+    (`_refracted_sphere`).
     `light`: that light only (else all); `piece`: the segments' rank among their ray's lit pieces
     (`lit_single_scattering`), which numbers their random streams; `beam`: of a directional light's refracted
     beams, or of a point or spot light's refracted paths, only the one through that face (`_lit_beams`)."""
@@ -238,6 +240,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
                 stats[HANDED] += np.count_nonzero(ell > 0.0)
             _traced(prep, sid, medium, geo, False, ell, lights.intensity[li], rule, keys,
                     dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats, lights.cone[li, 0])
+            continue
+        if refractive and sphere is None and not len(faces) and not sup.entry_plane:  # not convex: every face
+            _through_faces(prep, sid, medium, geo, ell, lights.intensity[li], rule, keys,
+                           dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
             continue
         if refractive and (li, sid) in held_lights(prep):  # inside a convex refractive shape: straight, wholly inside
             integrate(li, distant, xh, h, hl, zero, zero, zero, zero, 1.0, planes, eta=1.0)
@@ -846,3 +852,32 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, rule, keys, dim0, s
     var[:, ch] += v * intensity[ch] ** 2
     for j, c in enumerate(ch.tolist()):
         bound[:, c] += _light_bound(err[:, j], val[:, j] * intensity[c], intensity[c], cos_end)
+
+
+def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, seed, out, var, bound, stats):
+    """out, var, bound += one point or spot light's single scattering over the segments of the refractive shape
+    sid that is not convex, on Fermat's paths through its faces (paths.refracted_integrand) by the inside `rule`;
+    the bound is infinite where anything scatters (the integrand's jumps are not located: counted, UNLOCATED)."""
+    ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
+    if not len(ch):
+        return
+    kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
+    args = (prep, sid, geo, ell, kts, kss, medium.phase, medium.g, kt_outs)
+    v = np.zeros((len(ell), len(ch)))
+    if rule.kind == QUAD:
+        capped = np.zeros(1)
+        val = paths.refracted_quadrature(*args, rule, capped)
+        stats[CAPPED] += capped[0]
+    else:
+        values = paths.refracted_integrand(*args)
+        channel = lambda seg, x, c: values(seg, x, [c])[:, 0]
+        geo_args = (prep, sid, geo, False, ell, kts, kss, medium.phase, medium.g, kt_outs, rule)
+        if rule.kind == MARCH:
+            val = paths.segment_march(*geo_args, channel=channel)
+        else:
+            val, v = paths.segment_samples(*geo_args, keys, dim0, seed, channel=channel)
+    out[:, ch] += val * intensity[ch]
+    var[:, ch] += v * intensity[ch] ** 2
+    live = ell > 0.0
+    bound[np.ix_(live, ch)] = np.inf
+    stats[UNLOCATED] += np.count_nonzero(live)

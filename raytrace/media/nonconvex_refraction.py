@@ -1,0 +1,232 @@
+"""Point and spot light into refractive shapes that are not convex: Fermat's path through every face.
+
+Inside a closed mesh of relative index eta that is not convex, a point or spot light at L reaches an inside
+point X through each triangle F whose plane separates X from L, on Fermat's path through that plane
+(Snell's law in the plane of incidence, as media/slab.py `refraction_point`, and `refracted_at`, Fresnel's T on
+the way in, the ray tube's irradiance of a point source through a plane, a spot's falloff on the direction the
+light leaves in), where its refraction point R lies inside F and both legs are clear of the mesh: X to R meets
+no other face (it stays inside), R to L meets none (it stays outside). The legs are tested by the caller
+(interiors/paths.py `refracted_integrand`, Embree); this module finds the candidate paths. Each face is taken in
+either orientation (its plane's normal turned toward the light): a face whose outside looks toward X gives a
+leg that leaves the shape before reaching it, which the leg tests reject.
+
+The integrand jumps where a path appears or disappears (R crossing an edge of its triangle, a leg grazing
+another face); those points are not located.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import njit
+from .slab import refracted_at
+
+SPAN_SLACK = 1e-9  # relative margin of the triangle's span along the foot's line (`_span`) before Snell's root
+PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit light value, k, o, the legs' cosines
+
+
+def face_planes(tris):
+    """Unit normals and offsets (T, 4) of the triangles (T, 3, 3) (zero rows for degenerate ones)."""
+    tris = np.asarray(tris, dtype=np.float64)
+    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    area = np.linalg.norm(cross, axis=1)
+    n = np.where(area[:, None] > 0.0, cross / np.where(area > 0.0, area, 1.0)[:, None], 0.0)
+    return np.ascontiguousarray(np.column_stack([n, np.einsum("ij,ij->i", n, tris[:, 0])]))
+
+
+@njit
+def candidates(tris, planes, geo, seg, lo, hi, eta, lists, starts, stops, faces, counts, out, fill):
+    """The faces that may light the pieces [lo[i], hi[i]] of segments seg[i] (geo rows of media/slab.py
+    GEO_COLUMNS: start, direction, the light's position) among faces[starts[lists[i]]:stops[lists[i]]]
+    (`every` for all of them), a bounding test (`_may_light`): the light off the face's plane, some of
+    the piece on the other side, and the box of the feet on that plane of the piece's ends and the light
+    (which holds every refraction point through it: R lies between X's foot and the light's) meeting the
+    triangle's box; for eta > 1 that box is cut to the feet of the piece's ends widened by `reach` of
+    their depths. counts[i] = their number; with `fill`, out (sum counts) receives them, piece by piece."""
+    m = 0
+    row = np.empty(geo.shape[1])
+    for i in range(seg.shape[0]):
+        row[:] = geo[seg[i]]
+        for k in range(3):
+            row[k] += lo[i] * row[3 + k]
+        c = 0
+        for j in range(starts[lists[i]], stops[lists[i]]):
+            f = faces[j]
+            if _may_light(tris[f], planes[f], row, hi[i] - lo[i], eta):
+                if fill:
+                    out[m] = f
+                m += 1
+                c += 1
+        counts[i] = c
+
+
+def every(n_faces):
+    """`candidates`' starts, stops and faces of one list (lists 0) that holds every face."""
+    return np.zeros(1, np.int64), np.array([n_faces], np.int64), np.arange(n_faces, dtype=np.int64)
+
+
+@njit
+def reach(eta):
+    """r / z at most on a path refracted into relative index eta > 1 (sin2 <= 1 / eta: r <= z / sqrt(eta^2 - 1));
+    inf for eta <= 1."""
+    return 1.0 / math.sqrt(eta * eta - 1.0) if eta > 1.0 else math.inf
+
+
+@njit
+def _may_light(tri, plane, row, end, eta):
+    n0, n1, n2, cf = plane[0], plane[1], plane[2], plane[3]
+    if n0 == 0.0 and n1 == 0.0 and n2 == 0.0:
+        return False
+    hl = n0 * row[6] + n1 * row[7] + n2 * row[8] - cf
+    if hl == 0.0:
+        return False
+    e0, e1, e2 = row[0] + end * row[3], row[1] + end * row[4], row[2] + end * row[5]
+    h0 = n0 * row[0] + n1 * row[1] + n2 * row[2] - cf
+    h1 = n0 * e0 + n1 * e1 + n2 * e2 - cf
+    if not (h0 * hl < 0.0 or h1 * hl < 0.0):
+        return False
+    size = abs(cf) + abs(row[6]) + abs(row[7]) + abs(row[8]) + abs(row[0]) + abs(e0) + abs(e1) + abs(e2)
+    slack = 1e-9 * size
+    wide = reach(eta) * max(abs(h0), abs(h1)) + slack
+    for k in range(3):
+        a, b = row[k] - h0 * plane[k], row[k] + end * row[3 + k] - h1 * plane[k]
+        lo = max(min(a, b, row[6 + k] - hl * plane[k]), min(a, b) - wide)
+        hi = min(max(a, b, row[6 + k] - hl * plane[k]), max(a, b) + wide)
+        if hi < min(tri[0, k], tri[1, k], tri[2, k]) - slack or lo > max(tri[0, k], tri[1, k], tri[2, k]) + slack:
+            return False
+    return True
+
+
+@njit
+def _span(f0, f1, f2, l0, l1, l2, tri, n0, n1, n2):
+    """The interval [lo, hi] of t in [0, 1] where f + t l (on the triangle's plane, unit normal n) lies inside
+    the triangle (lo > hi: nowhere): each edge's side n·(u × (q - v)) is linear in t."""
+    lo, hi = 0.0, 1.0
+    u0, u1, u2 = tri[1, 0] - tri[0, 0], tri[1, 1] - tri[0, 1], tri[1, 2] - tri[0, 2]
+    v0, v1, v2 = tri[2, 0] - tri[1, 0], tri[2, 1] - tri[1, 1], tri[2, 2] - tri[1, 2]
+    turn = n0 * (u1 * v2 - u2 * v1) + n1 * (u2 * v0 - u0 * v2) + n2 * (u0 * v1 - u1 * v0)
+    sign = 1.0 if turn > 0.0 else -1.0
+    for k in range(3):
+        v, e = tri[k], tri[(k + 1) % 3]
+        ux, uy, uz = e[0] - v[0], e[1] - v[1], e[2] - v[2]
+        px, py, pz = f0 - v[0], f1 - v[1], f2 - v[2]
+        at0 = sign * (n0 * (uy * pz - uz * py) + n1 * (uz * px - ux * pz) + n2 * (ux * py - uy * px))
+        slope = sign * (n0 * (uy * l2 - uz * l1) + n1 * (uz * l0 - ux * l2) + n2 * (ux * l1 - uy * l0))
+        if slope > 0.0:
+            lo = max(lo, -at0 / slope)
+        elif slope < 0.0:
+            hi = min(hi, -at0 / slope)
+        elif at0 < 0.0:
+            return 1.0, 0.0
+    return lo, hi
+
+
+@njit
+def _snell(r, rho, z, hl, eta):
+    """media/slab.py `refraction_point`'s Snell function (rho - r) / o - eta r / k, decreasing in r."""
+    return (rho - r) / math.sqrt((rho - r) * (rho - r) + hl * hl) - eta * r / math.sqrt(r * r + z * z)
+
+
+@njit
+def _snell_root(lo, hi, rho, z, hl, eta):
+    """The root of `_snell` in [lo, hi] (its value >= 0 at lo, <= 0 at hi): Newton's method, its derivative
+    -hl^2 / o^3 - eta z^2 / k^3, kept inside the bracket (bisection where a step leaves it), to the
+    resolution of doubles."""
+    r = 0.5 * (lo + hi)
+    for _ in range(100):
+        o2, k2 = (rho - r) * (rho - r) + hl * hl, r * r + z * z
+        o, k = math.sqrt(o2), math.sqrt(k2)
+        value = (rho - r) / o - eta * r / k
+        if value == 0.0:
+            return r
+        if value > 0.0:
+            lo = r
+        else:
+            hi = r
+        step = r - value / (-hl * hl / (o2 * o) - eta * z * z / (k2 * k))
+        if not lo < step < hi:
+            step = 0.5 * (lo + hi)
+        if abs(step - r) <= 2e-16 * rho or not lo < step < hi:
+            return step if lo <= step <= hi else r
+        r = step
+    return r
+
+
+@njit
+def _inside_triangle(q0, q1, q2, tri, n0, n1, n2):
+    """Whether the point q, on the triangle's plane (unit normal n), lies inside it (edges included)."""
+    ax, ay, az = tri[0, 0], tri[0, 1], tri[0, 2]
+    bx, by, bz = tri[1, 0], tri[1, 1], tri[1, 2]
+    cx, cy, cz = tri[2, 0], tri[2, 1], tri[2, 2]
+    s = 0.0
+    for k in range(3):
+        if k == 0:
+            ux, uy, uz, vx, vy, vz = bx - ax, by - ay, bz - az, q0 - ax, q1 - ay, q2 - az
+        elif k == 1:
+            ux, uy, uz, vx, vy, vz = cx - bx, cy - by, cz - bz, q0 - bx, q1 - by, q2 - bz
+        else:
+            ux, uy, uz, vx, vy, vz = ax - cx, ay - cy, az - cz, q0 - cx, q1 - cy, q2 - cz
+        side = n0 * (uy * vz - uz * vy) + n1 * (uz * vx - ux * vz) + n2 * (ux * vy - uy * vx)
+        if side * s < 0.0:
+            return False
+        if side != 0.0:
+            s = side
+    return True
+
+
+@njit
+def face_paths(seg, lists, x, geo, tris, planes, starts, stops, faces, eta, code, g, out):
+    """The Fermat paths through single faces at the points x along segments seg (geo rows of media/slab.py
+    GEO_COLUMNS: start, direction w, the light's position, a spot's axis, cone and curve), for the
+    candidate faces faces[starts[lists[i]]:stops[lists[i]]] of each point i (`candidates`): where the face's
+    plane separates X = p + x w from the light (normal n turned toward it: the light at height hl above
+    the plane, X at depth z below it), R = X + z n + (r / rho) L_h (L_h the light's offset from X's foot,
+    rho its length, r the root of Snell's law, `_snell_root`, sought only where the line from X's foot
+    toward the light's crosses the triangle, `_span`) inside the triangle, one row of PATH_COLUMNS in out:
+    the point's index, the face, R, media/slab.py `refracted_at`'s value per unit light without the
+    exponential (ks = 1, kt = kt_out = 0: Phi(mu) E F), the legs' lengths k inside and o outside, and their
+    cosines to the face's normal, z / k and hl / o. Returns the rows' count (at most out's rows; the caller
+    sizes out by the candidates)."""
+    m = 0
+    for i in range(x.shape[0]):
+        row = geo[seg[i]]
+        X0, X1, X2 = row[0] + x[i] * row[3], row[1] + x[i] * row[4], row[2] + x[i] * row[5]
+        r0, r1, r2 = row[6] - X0, row[7] - X1, row[8] - X2
+        for j in range(starts[lists[i]], stops[lists[i]]):
+            f = faces[j]
+            n0, n1, n2 = planes[f, 0], planes[f, 1], planes[f, 2]
+            hl = n0 * row[6] + n1 * row[7] + n2 * row[8] - planes[f, 3]
+            z = planes[f, 3] - (n0 * X0 + n1 * X1 + n2 * X2)
+            if hl < 0.0:  # the normal turned toward the light
+                n0, n1, n2, hl, z = -n0, -n1, -n2, -hl, -z
+            if not (hl > 0.0 and z > 0.0):
+                continue
+            up = hl + z
+            l0, l1, l2 = r0 - up * n0, r1 - up * n1, r2 - up * n2
+            f0, f1, f2 = X0 + z * n0, X1 + z * n1, X2 + z * n2  # X's foot; R lies between it and the light's
+            lo, hi = _span(f0, f1, f2, l0, l1, l2, tris[f], n0, n1, n2)
+            rho = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+            lo, hi = max(lo - SPAN_SLACK, 0.0) * rho, min(hi + SPAN_SLACK, 1.0) * rho
+            hi = min(hi, (1.0 + SPAN_SLACK) * reach(eta) * z)
+            if lo > hi or _snell(lo, rho, z, hl, eta) < 0.0 or _snell(hi, rho, z, hl, eta) > 0.0:
+                continue  # Snell's root lies outside the triangle's span
+            r = _snell_root(lo, hi, rho, z, hl, eta)
+            t = r / rho if rho > 0.0 else 0.0
+            q0, q1, q2 = f0 + t * l0, f1 + t * l1, f2 + t * l2
+            if not _inside_triangle(q0, q1, q2, tris[f], n0, n1, n2):
+                continue
+            a = -(n0 * row[3] + n1 * row[4] + n2 * row[5])
+            wl = row[3] * l0 + row[4] * l1 + row[5] * l2
+            na = n0 * row[9] + n1 * row[10] + n2 * row[11]
+            la = l0 * row[9] + l1 * row[10] + l2 * row[11]
+            value = refracted_at(0.0, z, rho, r, wl, a, hl, eta, 0.0, 1.0, code, g, 0.0, 0.0, la, na, row[12],
+                                 row[13], row[17])
+            if value == 0.0:
+                continue
+            k = math.sqrt(r * r + z * z)
+            o = math.sqrt((rho - r) * (rho - r) + hl * hl)
+            out[m, 0], out[m, 1], out[m, 2], out[m, 3], out[m, 4] = i, f, q0, q1, q2
+            out[m, 5], out[m, 6], out[m, 7], out[m, 8], out[m, 9] = value, k, o, z / k if k > 0.0 else 1.0, hl / o
+            m += 1
+    return m
