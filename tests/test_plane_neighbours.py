@@ -1,4 +1,4 @@
-"""interiors/crossing.py `plane_neighbours`: the planes media/slab.py `reachable_faces` reads for each
+"""interiors/shapes.py `plane_neighbours`: the planes media/slab.py `reachable_faces` reads for each
 face of a convex refractive shape. A point of a face's plane is on the face iff it lies inside every
 other plane; the test checks, from the geometry alone, that the listed planes decide the same: on
 points of each plane sampled over a disk around its face (the face's own triangles' extent, doubled)

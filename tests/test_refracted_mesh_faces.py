@@ -1,6 +1,6 @@
 """A point light reaches the inside of a finely tessellated convex refractive shape (a glass icosphere
 of 80 or 320 triangles, more face planes than the index-matched kernel's KERNEL_PLANES) through every
-face it is outside of (interiors/crossing.py `refracting_planes`; media/slab.py `reachable_faces`
+face it is outside of (interiors/shapes.py `refracting_planes`; media/slab.py `reachable_faces`
 culls each segment's faces to those whose refraction point can lie on them).
 
 Before this change such a shape kept the entry plane: the light reached the inside only through the

@@ -50,7 +50,7 @@ def warm_up_rays(prep, origins, dirs):
 
 def _skip(prep, cos):
     """The step (N,) past which the first hit of a ray leaving a shape (cosine `cos` to the face it
-    leaves) is asked (`nudge`'s), so that Embree does not report the face left; the ray itself goes on
+    leaves) is asked (shapes.py `nudge`'s), so that Embree does not report the face left; the ray itself goes on
     from the face (its air-light and transmittance from there: renderer `_across`)."""
     return prep.accel.epsilon / np.maximum(cos, 1e-2)
 

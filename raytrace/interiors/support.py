@@ -29,9 +29,9 @@ from .shapes import KERNEL_PLANES, convex_planes, inside_of, interiors, refracti
 # the inside segments rendered unshadowed (refractive or planar-model interiors: `lit_single_scattering`), the lit
 # pieces of the others, and the outside air-light's pieces whose light crosses index-matched interiors
 # (`through_airlight`) and those of their integrals that fell short of their tolerance; the segments of refractive
-# exact spheres whose quadrature bound is infinite (media/sphere_refraction.py UNBOUNDED, which writes that slot
-# itself), and the refracted point- and spot-light segments whose shadow breaks could not be located (their bound
-# inf: rows.py `_lit_point`)
+# exact spheres whose quadrature bound is infinite, inside or in the fog a lamp inside lights (held.py; media/
+# sphere_refraction.py UNBOUNDED, which writes that slot itself), and the refracted point- and spot-light segments
+# whose shadow breaks could not be located (their bound inf: rows.py `_lit_point`)
 HANDED, UNSHADOWED, LIT_PIECES, THROUGH, THROUGH_CAPPED = range(3, 8)
 SPHERE_UNBOUNDED = UNBOUNDED  # 8
 UNLOCATED = 9
@@ -39,12 +39,12 @@ STATS_SIZE = 10
 
 
 def summarize(prep, method, stats, shadows: bool = False) -> dict:
-    """The render statistics of the inside integrals (`single_scattering`'s) in a scene with media
-    inside shapes: the adaptive integrator's integrals that fell short of their tolerance (a piece
-    accepted at a cap), as quadrature reports its own outside; for a method with closed forms also the
-    segments (one per ray and light) it handed to its rule; nothing for the other inside rules, which
-    have no caps, nor for the entry plane's model. With volumetric shadows also the inside segments rendered
-    unshadowed, the lit pieces of the others, the outside pieces integrated through interiors, and the
+    """The render statistics of the inside integrals (`single_scattering`'s, and `held_airlight`'s of the fog lit
+    from inside refractive shapes) in a scene with media inside shapes: the adaptive integrator's integrals that
+    fell short of their tolerance (a piece accepted at a cap), as quadrature reports its own outside; for a method
+    with closed forms also the segments (one per ray and light) it handed to its rule; nothing for the other inside
+    rules, which have no caps, nor for the entry plane's model. With volumetric shadows also the inside segments
+    rendered unshadowed, the lit pieces of the others, the outside pieces integrated through interiors, and the
     refracted segments whose shadow breaks were not located (shadows/fermat_legs.py: their bound is inf)."""
     sup = method.supports.interiors
     if prep.interior_shapes is None or not len(prep.interior_shapes) or sup is None:
@@ -57,10 +57,10 @@ def summarize(prep, method, stats, shadows: bool = False) -> dict:
     if sup.closed_forms:
         out["inside: segments handed to quadrature"] = int(stats[HANDED])
     if shadows:
+        through = 'quadrature' if sup.through == 'quadrature' else method.name
         out.update({"inside: segments unshadowed (refractive or planar model)": int(stats[UNSHADOWED]),
                     "inside: lit pieces": int(stats[LIT_PIECES]),
-                    f"shadows: pieces through interiors ({'quadrature' if sup.through == 'quadrature' else method.name})":
-                        int(stats[THROUGH]),
+                    f"shadows: pieces through interiors ({through})": int(stats[THROUGH]),
                     "shadows: through-interior integrals not converged": int(stats[THROUGH_CAPPED]),
                     "inside: segments with shadow breaks not located (bound inf)": int(stats[UNLOCATED])})
     return out
@@ -112,7 +112,8 @@ def check(prep, method, method_params, source: str, shadows: bool):
             takers = _takers(lambda s: kind in s.refracted)
             why = f": {sup.limits}" if kind in sup.lights and sup.limits else ""
             raise UserError(f"{source}: shape[{i}].interior.ior: --method {method.name}: {kind} lights through a "
-                            f"refractive boundary{why}; use ior = 1" + (f", or --method {', '.join(takers)}" if takers else ""))
+                            f"refractive boundary{why}; use ior = 1"
+                            + (f", or --method {', '.join(takers)}" if takers else ""))
     if near:
         for i in inner:
             if prep.scene.shapes[i].interior.ior == 1.0 or len(refracting_planes(prep, i)):

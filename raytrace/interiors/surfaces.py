@@ -21,8 +21,8 @@ def surface_inside(prep, sid, p, n, w, prim, ell):
     along it leaves through that face (`refracted_beams`, `_lit_by_beam`); in another shape directional
     lights only (`check` refuses the rest) by the note's planar boundary, the entry face's plane
     (outward normals n): the beam refracted into t through it, irradiance E T cos_i / cos_t (eq. 5's
-    E_in), attenuated over the path q - k t back to the plane, k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's
-    leg outside (`_outside_clear`)."""
+    E_in), attenuated over the path q - k t back to the plane, k = depth / cos_t. Opaque surfaces shadow on the
+    path inside and on the light's leg outside (`_outside_clear`)."""
     accel = prep.accel
     medium = prep.scene.shapes[sid].interior
     q = p + ell[:, None] * w
