@@ -30,7 +30,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from raytrace.interiors import crossing, paths  # noqa: E402
+from raytrace.interiors import paths  # noqa: E402
+from raytrace.interiors.shapes import convex_planes, hull_planes  # noqa: E402
 from raytrace.options import RenderOptions  # noqa: E402
 from raytrace.rendering.renderer import prepare, render  # noqa: E402
 from raytrace.scene.format import scene_from_text  # noqa: E402
@@ -103,11 +104,11 @@ def main():
         tracemalloc.start()
         t0 = time.perf_counter()
         prep = prepare(scene_from_text(text, "interiors_scale"))
-        convex = crossing.hull_planes(prep, 0) is not None
+        convex = hull_planes(prep, 0) is not None
         load = time.perf_counter() - t0
         peak = tracemalloc.get_traced_memory()[1] / 2**20
         tracemalloc.stop()
-        kernel = "kernel" if len(crossing.convex_planes(prep, 0)) else "Embree"
+        kernel = "kernel" if len(convex_planes(prep, 0)) else "Embree"
         for name, params in METHODS.items():
             seconds = []
             for _ in range(args.repeat):

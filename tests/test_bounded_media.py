@@ -612,7 +612,7 @@ def test_spot_lights_without_a_method_for_them_are_refused():
     assert "not spot lights" in bad(SPOTS["spot_index_matched"], "slab_approx")
     assert "shape[1]: lies inside shape[0], whose interior is refractive" in bad(rock_in_dented_box(ABOVE))
     # refractive, fog outside: a spot in a convex mesh lights it through the faces (tests/test_lantern_fog_spot.py),
-    # one in an exact sphere does not yet (its cone's refracted edges are not cut: crossing._globe_fog)
+    # one in an exact sphere does not yet (its cone's refracted edges are not cut: support._globe_fog)
     inside = scene(spot([0.0, -1.0, 0.0], [0.0, -3.0, 0.0], 30.0, 20.0), ior=1.33,
                    medium={"sigma_a": 0.02, "sigma_s": 0.05})
     inside["shape"][0] = {"primitive": "sphere", "center": [0.0, -1.5, 0.0], "radius": 2.0, "exact": True,

@@ -207,12 +207,12 @@ def test_shapes_without_the_closed_form_go_to_quadrature_counted(tmp_path):
     counted in `inside: segments handed to quadrature`; they carry quadrature's bound, the same as
     `quadrature`'s: the sphere's (more than 64 planes) on the facet walk's exit planes, the U's on its
     traced walks, finite on every pixel here."""
-    from raytrace.interiors import crossing
+    from raytrace.interiors import shapes
     from raytrace.media.convex_directional import MAX_FACES
 
     for name, prep in fallback_cases(tmp_path).items():
         if name == "sphere":
-            assert len(crossing.hull_planes(prep, 0)) > MAX_FACES
+            assert len(shapes.hull_planes(prep, 0)) > MAX_FACES
         res = render(prep, "analytic", {}, RenderOptions(threads=1))
         ref = render(prep, "quadrature", {}, RenderOptions(threads=1))
         handed = res.stats["inside: segments handed to quadrature"]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from raytrace.interiors import crossing, paths
+from raytrace.interiors import paths, shapes
 from raytrace.media.convex_chords import PLANES, boundary_chords, section_kinks
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import render
@@ -171,4 +171,4 @@ def test_the_kernel_integrates_as_the_numpy_driver(tmp_path, monkeypatch):
         assert rel.max() <= 1e-12
         assert cap_k[0] == cap_n[0] == 0.0
     assert lights == {0, 1}
-    assert crossing.matched(prep) == list(seen[0][1])
+    assert shapes.matched(prep) == list(seen[0][1])

@@ -11,7 +11,7 @@ channel: 1e-12 relative (measured: <= 1e-13 on the box, prism and slab, 8e-13 on
 where the answer itself is ill-conditioned in doubles (`test_against_the_twin`). Also: the sweep
 against the brute-force minimum, a box by hand, the planar model (slab.slab_distant) where it is
 exact, the existing convex quadrature (slab.convex_quadrature), the edge cases of the module docstring,
-and the error bound interiors/crossing.py renders with (`segments_bounded`) against the twin.
+and the error bound interiors/rows.py renders with (`segments_bounded`) against the twin.
 """
 import itertools
 import math
@@ -206,7 +206,7 @@ def test_against_the_twin(name):
 
 @pytest.mark.parametrize("name", sorted(SHAPES))
 def test_the_bound_holds_against_the_twin(name):
-    """`segments_bounded` (what interiors/crossing.py renders with): the values of `segment_radiance` with the
+    """`segments_bounded` (what interiors/rows.py renders with): the values of `segment_radiance` with the
     phase function at each segment's scattering cosine (to 1e-14: the two kernels are compiled apart
     with fastmath, which may reassociate differently on another CPU), and a bound that the twin's error never
     exceeds (half the lights grazing a face at 1e-9), finite for finite segments, and within

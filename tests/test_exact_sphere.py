@@ -14,7 +14,7 @@ import pytest
 from raytrace.errors import UserError
 from raytrace.geometry.accel import Accelerator
 from raytrace.geometry.sphere import sphere_roots
-from raytrace.interiors import crossing
+from raytrace.interiors import crossing, shapes
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -437,7 +437,7 @@ def test_fog_sphere_against_the_exact_twin(light):
     """tests/test_interiors_scale.py's sphere of fog under a point light, a spot whose cone edges cross
     it, and a directional light (in a vacuum), exact: every pixel whose centre ray crosses it against the twin (scipy
     quad on the analytic chords, 1e-11) to 2e-9 with quadrature at rtol 1e-10, where its 512-segment
-    mesh is off by ~1e-4 (O(1 / segments^2)); a sphere has no face planes (crossing.hull_planes): its
+    mesh is off by ~1e-4 (O(1 / segments^2)); a sphere has no face planes (shapes.hull_planes): its
     light paths are the closed-form chords of media/slab.py's kernel (kind SPHERE), without facet
     kinks. Its error bound (media/slab.py sphere_rounding and the rule's) holds at every pixel and is
     not vacuous: median at most 10 rtol of the value."""
@@ -451,7 +451,7 @@ def test_fog_sphere_against_the_exact_twin(light):
     prep = prepare(scene_from_text(to_toml(sc), "sphere"))
     result = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1))
     img, bound = result.image, result.error_bound
-    assert crossing.hull_planes(prep, 0) is None
+    assert shapes.hull_planes(prep, 0) is None
     worst, n, ratios = 0.0, 0, []
     for j in range(sc["camera"]["height"]):
         for i in range(sc["camera"]["width"]):
@@ -507,7 +507,7 @@ def test_every_method_takes_the_exact_sphere_in_its_kernel(monkeypatch, method, 
 def test_refractive_sphere_meshes_approach_the_exact_sphere():
     """A refractive sphere of fog (ior 1.33) under a point light: meshes of 16 and 32 segments (128 and
     512 face planes, more than media/slab.py's convex kernel takes) are lit through every face the
-    light is outside of, on Fermat's path through each (crossing.refracting_planes, rows REFRACTED;
+    light is outside of, on Fermat's path through each (shapes.refracting_planes, rows REFRACTED;
     verified against a twin in tests/test_refracted_mesh_faces.py), so that their images approach
     the exact sphere's (rows REFRACTED too: its exact refracted paths, media/sphere_refraction.py,
     verified in tests/test_refracted_sphere.py) as the mesh is refined: median relative difference
@@ -520,9 +520,9 @@ def test_refractive_sphere_meshes_approach_the_exact_sphere():
         inner = SPHERE["shape"][0]["interior"] | {"ior": 1.33}
         prep = prepare(scene_from_text(to_toml({**SPHERE, "shape": [SPHERE["shape"][0] | extra | {"interior": inner}]}),
                                        name))
-        assert not len(crossing.convex_planes(prep, 0))
-        faces = len(crossing.refracting_planes(prep, 0))
-        assert faces == 0 if name == "exact" else faces > crossing.KERNEL_PLANES, faces
+        assert not len(shapes.convex_planes(prep, 0))
+        faces = len(shapes.refracting_planes(prep, 0))
+        assert faces == 0 if name == "exact" else faces > shapes.KERNEL_PLANES, faces
         rows = crossing._rows(prep, 0, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, -1.0]]),
                               np.ones(1), np.zeros(1, np.uint64))
         assert rows.reach[0] == crossing.REFRACTED

@@ -14,7 +14,7 @@ from scipy import integrate
 from scipy.spatial import ConvexHull
 
 from raytrace.geometry import facet_walk
-from raytrace.interiors import crossing, paths
+from raytrace.interiors import paths, shapes
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -196,7 +196,7 @@ def faceted_pixel(sc, planes, i, j):
 @pytest.mark.parametrize("route", ["walk", "kernel"])
 def test_a_tessellated_sphere_matches_the_faceted_twin(light, route):
     """quadrature (rtol 1e-10) within 1e-9 of the twin on every lit pixel, the light's exits found by
-    the walk (24 segments: 300 face planes, beyond crossing.KERNEL_PLANES; Embree's facet to start
+    the walk (24 segments: 300 face planes, beyond shapes.KERNEL_PLANES; Embree's facet to start
     from) or by media/slab.py's kernel (8 segments: 32 planes, each tested at every evaluation, the
     kinks from convex_directional.envelope and convex_chords.section_kinks). Before, the kernel was
     3e-9 off under the point light (its kinks inside panels) and 24 % under the directional one
@@ -204,8 +204,8 @@ def test_a_tessellated_sphere_matches_the_faceted_twin(light, route):
     segments = 24 if route == "walk" else 8
     sc = {**SCENE, **LIGHTS[light], "shape": [SCENE["shape"][0] | {"segments": segments}]}
     prep = prepare(scene_from_text(to_toml(sc), "sphere"))
-    planes = crossing.hull_planes(prep, 0)
-    assert (len(crossing.convex_planes(prep, 0)) > 0) == (route == "kernel")
+    planes = shapes.hull_planes(prep, 0)
+    assert (len(shapes.convex_planes(prep, 0)) > 0) == (route == "kernel")
     img = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
     worst, lit = 0.0, 0
     for j in range(sc["camera"]["height"]):

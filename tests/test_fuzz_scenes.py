@@ -565,7 +565,7 @@ def lit_scene(draw):
 
 
 def shadows_only(sc) -> bool:
-    """Spot lights: media inside shapes do not take them (interiors/crossing.py refuses them in one line)."""
+    """Spot lights: media inside shapes do not take them (interiors/support.py refuses them in one line)."""
     return any(x.get("type") == "spot" for x in sc["light"])
 
 

@@ -1,5 +1,5 @@
 """A point light inside a refractive exact sphere (a lamp in a glass globe) with fog outside: the fog is lit by the
-light refracted out of the sphere (interiors/crossing.py `held_airlight`, media/sphere_refraction.py
+light refracted out of the sphere (interiors/held.py `held_airlight`, media/sphere_refraction.py
 `out_of_sphere`: at each point of a camera segment its paths out, `surface_out_of_sphere`'s irradiance, Fresnel's T
 and the ray tube, times the phase function and the legs' transmittances). Taken where the light is closer to the
 centre than radius / ior: there every point outside has one path out, so the integrand is smooth along a segment.

@@ -88,7 +88,7 @@ def test_a_lamp_in_a_faces_plane_keeps_the_bound_finite():
     """A 512-plane UV sphere of water under a lamp that lies in the plane of one of its faces (to
     1e-15): that face is kept on some segments, whose bound was infinite before `grazing_bound`
     (the breaks' isolation needs the lamp's height); quadrature's bound is finite on every pixel."""
-    from raytrace.interiors import crossing
+    from raytrace.interiors import shapes
     from raytrace.options import RenderOptions
     from raytrace.rendering.renderer import prepare, render
     from raytrace.scene.format import scene_from_text
@@ -100,7 +100,7 @@ def test_a_lamp_in_a_faces_plane_keeps_the_bound_finite():
     scene = {**SPHERE, "camera": SPHERE["camera"] | {"width": 8, "height": 6},
              "shape": [SPHERE["shape"][0] | {"segments": 32, "interior": inner}]}
     prep = prepare(scene_from_text(to_toml(scene), "uv32"))
-    planes = crossing.refracting_planes(prep, 0)
+    planes = shapes.refracting_planes(prep, 0)
     lamp = np.array(SPHERE["light"][0]["position"], float)
     assert len(planes) == 512 and np.min(np.abs(planes[:, :3] @ lamp - planes[:, 3])) < 1e-15
     res = render(prep, "quadrature", {}, RenderOptions(threads=1))

@@ -153,7 +153,7 @@ def test_non_convex_shape_traces_paths_that_leave_and_reenter(tmp_path, name):
     twin's own quad reports its limit and Embree's float32 decisions near the U's edges move lengths
     by ~1e-7), ray marching converging (at least O(h)), Monte Carlo unbiased (mean squared z). The
     spot's (smooth and hard-edged) beam edge crosses the U: some pixels are dark, some partly lit."""
-    from raytrace.interiors.crossing import convex_planes
+    from raytrace.interiors.shapes import convex_planes
 
     sc, prep = setup(tmp_path, LIGHTS.get(name, HARD))
     assert not len(convex_planes(prep, 0))  # the traced path, not the convex kernel

@@ -47,7 +47,7 @@ def test_inside_integrals_that_stop_short_are_reported(tmp_path, monkeypatch):
     sc = dict(bounded_media.SPOTS["spot_beside_cube"])
     sc.pop("any_face", None)
     prep = prepare(scene_from_text(to_toml(sc), "cube"))
-    assert len(raytrace.interiors.crossing.convex_planes(prep, 0))  # the kernel's convex path
+    assert len(raytrace.interiors.shapes.convex_planes(prep, 0))  # the kernel's convex path
     res = render(prep, "quadrature", {"rtol": 1e-14}, RenderOptions(threads=1))
     assert res.stats[NOT_CONVERGED] > 0, res.stats
     assert NOT_CONVERGED not in render(prep, "raymarch", {"steps": 4}, RenderOptions(threads=1)).stats

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace.interiors import crossing
+from raytrace.interiors import shapes
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import load_scene
@@ -221,9 +221,9 @@ def test_refractive_interiors_block_and_are_shadowed_inside(tmp_path):
     """A refractive box stops the fog's light (its boundary is a blocker: the refracted light would be
     a caustic) and its inside takes the lamp's refracted paths' shadows (lit pieces, none counted
     unshadowed: a convex box); index-matched boundaries are not blockers."""
-    assert not crossing.blockers(outside_scene(tmp_path)).any()
+    assert not shapes.blockers(outside_scene(tmp_path)).any()
     prep = outside_scene(tmp_path, 1.33)
-    assert crossing.blockers(prep) is None and crossing.attenuators(prep) is None
+    assert shapes.blockers(prep) is None and shapes.attenuators(prep) is None
     o, d = oracle.camera_ray(OUT_CAMERA, 5, 7)  # beside the box, below it
     assert box_clip(o, d, OUT_LO, OUT_HI) is None
     column = dict(threads=1, crop=(5, 0, 6, 8))  # its top pixels see the box

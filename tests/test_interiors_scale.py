@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace.interiors import crossing, paths
+from raytrace.interiors import paths, shapes
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -108,15 +108,15 @@ def test_batched_exits_match_the_face_planes():
 
 
 def test_a_fine_sphere_through_embree_exits_matches_the_plane_kernel(monkeypatch):
-    """24 segments: 300 face planes, beyond crossing.KERNEL_PLANES (quadrature's exits from the facet
+    """24 segments: 300 face planes, beyond shapes.KERNEL_PLANES (quadrature's exits from the facet
     walk, started from Embree's facet); the same shape through media/slab.py's convex kernel (every
     plane at every evaluation) to the quadrature's 1e-9."""
     sc, prep = sphere_prep(24)
-    assert not len(crossing.convex_planes(prep, 0)) and crossing.hull_planes(prep, 0) is not None
+    assert not len(shapes.convex_planes(prep, 0)) and shapes.hull_planes(prep, 0) is not None
     img = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
-    monkeypatch.setattr(crossing, "KERNEL_PLANES", 10**6)
+    monkeypatch.setattr(shapes, "KERNEL_PLANES", 10**6)
     _, prep = sphere_prep(24)
-    assert len(crossing.convex_planes(prep, 0)) == len(crossing.hull_planes(prep, 0))
+    assert len(shapes.convex_planes(prep, 0)) == len(shapes.hull_planes(prep, 0))
     ref = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
     lit = ref > 0
     assert lit.sum() > 100 and np.all(img[~lit] == 0)

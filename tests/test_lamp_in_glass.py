@@ -1,6 +1,6 @@
 """A point or spot light inside a convex refractive shape (a lamp in a glass lantern): the inside rows see
 it along straight paths wholly inside; surfaces outside are lit by its light refracted out through each
-face (interiors/crossing.py `lit_from_inside`, media/slab.py `surface_out_of_faces`): Fermat's path
+face (interiors/held.py `lit_from_inside`, media/slab.py `surface_out_of_faces`): Fermat's path
 reversed, Fresnel's T, the ray tube's irradiance.
 
 The twin is built from the geometry alone, in 30 digits (mpmath). Its refraction point through a face makes

@@ -1,6 +1,6 @@
 """A point or spot light inside a refractive exact sphere (a bulb in a glass globe): the inside rows see it along
 straight paths wholly inside; surfaces outside are lit by its light refracted out of the sphere
-(interiors/crossing.py `lit_from_inside`, media/sphere_refraction.py `surface_out_of_sphere`): each refracted path
+(interiors/held.py `lit_from_inside`, media/sphere_refraction.py `surface_out_of_sphere`): each refracted path
 out, Fresnel's T, the ray tube's irradiance, nothing beyond the critical angle.
 
 The twin is built from the geometry alone, in 30 digits (mpmath). The paths from the light L to a point X outside

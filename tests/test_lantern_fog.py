@@ -1,5 +1,5 @@
 """A point light inside a refractive convex mesh (a lamp in a glass lantern) with fog outside: the fog is lit by
-the light refracted out through every face (interiors/crossing.py `held_airlight`, media/slab.py `out_of_faces`:
+the light refracted out through every face (interiors/held.py `held_airlight`, media/slab.py `out_of_faces`:
 Fermat's path with relative index 1 / eta, Fresnel's T, the ray tube's irradiance, each face over the part of
 the segment beyond its plane, its breaks where the refraction point crosses the face's edges isolated with
 media/fermat_rounding.py `fermat_pace`, the eta < 1 speed bound).

@@ -8,7 +8,7 @@ an index-matched shape's kernels took the rounding of one triangle's plane alone
 import numpy as np
 import pytest
 
-from raytrace.interiors import crossing, rows
+from raytrace.interiors import rows, shapes
 from raytrace.rendering.renderer import prepare
 from raytrace.scene.format import scene_from_dict
 
@@ -34,7 +34,7 @@ def test_the_measured_errors_cover_the_faces_off_their_plane(ior):
         "shape": [{"primitive": "triangles", "vertices": v.tolist(), "faces": f.tolist(),
                    "interior": {"sigma_a": 0.1, "sigma_s": 0.2, "ior": ior}}]}, "raised box")
     prep = prepare(scene)
-    planes = crossing.hull_planes(prep, 0)
+    planes = shapes.hull_planes(prep, 0)
     assert planes is not None and len(planes) == 6  # the raised corner's two triangles share one plane
     tris = v[f]
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])

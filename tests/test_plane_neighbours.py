@@ -1,4 +1,4 @@
-"""interiors/crossing.py `plane_neighbours`: the planes media/slab.py `reachable_faces` reads for each
+"""interiors/shapes.py `plane_neighbours`: the planes media/slab.py `reachable_faces` reads for each
 face of a convex refractive shape. A point of a face's plane is on the face iff it lies inside every
 other plane; the test checks, from the geometry alone, that the listed planes decide the same: on
 points of each plane sampled over a disk around its face (the face's own triangles' extent, doubled)
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from raytrace.interiors import crossing
+from raytrace.interiors import shapes
 from raytrace.rendering.renderer import prepare
 from raytrace.scene.format import scene_from_text
 
@@ -41,8 +41,8 @@ SHAPES = {"uv10": {"primitive": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1
 @pytest.mark.parametrize("name", SHAPES)
 def test_the_listed_planes_decide_the_face(name):
     prep = prep_of(SHAPES[name])
-    planes = crossing.refracting_planes(prep, 0)
-    near = crossing.plane_neighbours(prep, 0)
+    planes = shapes.refracting_planes(prep, 0)
+    near = shapes.plane_neighbours(prep, 0)
     P = len(planes)
     assert P > 0 and len(near) > P + 1 and near[0] == P + 1 and near[P] == len(near)
     tris = prep.accel.triangles[prep.shape_ids == 0].astype(float)

@@ -1,6 +1,6 @@
 """A point light reaches the inside of a finely tessellated convex refractive shape (a glass icosphere
 of 80 or 320 triangles, more face planes than the index-matched kernel's KERNEL_PLANES) through every
-face it is outside of (interiors/crossing.py `refracting_planes`; media/slab.py `reachable_faces`
+face it is outside of (interiors/shapes.py `refracting_planes`; media/slab.py `reachable_faces`
 culls each segment's faces to those whose refraction point can lie on them).
 
 Before this change such a shape kept the entry plane: the light reached the inside only through the
@@ -26,7 +26,7 @@ import pytest
 import trimesh
 from scipy import integrate, optimize
 
-from raytrace.interiors import crossing
+from raytrace.interiors import shapes
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -235,8 +235,8 @@ def test_the_light_is_behind_most_entry_faces(case):
     several faces each."""
     scene, (tri, normals, offsets), twin, lit, entries = case
     prep = prepare(scene_from_text(to_toml(scene), scene["name"]))
-    assert len(crossing.refracting_planes(prep, 0)) == len(tri) > crossing.KERNEL_PLANES
-    assert len(crossing.convex_planes(prep, 0)) == 0
+    assert len(shapes.refracting_planes(prep, 0)) == len(tri) > shapes.KERNEL_PLANES
+    assert len(shapes.convex_planes(prep, 0)) == 0
     assert np.all(twin[..., 1] > 0.0) and None not in entries
     behind = [normals[f] @ LAMP <= offsets[f] for f in entries]
     assert sum(behind) >= 0.6 * len(entries), sum(behind)
@@ -280,7 +280,7 @@ def test_a_lamp_in_the_plane_of_a_face():
     scene = ball(1)
     geometry = triangles(scene)
     scene["camera"] = CAMERA | {"width": 4, "height": 3}
-    planes = crossing.refracting_planes(prepare(scene_from_text(to_toml(scene), scene["name"])), 0)
+    planes = shapes.refracting_planes(prepare(scene_from_text(to_toml(scene), scene["name"])), 0)
     n, c = planes[int(np.argmin(planes[:, :3] @ CAMERA["position"])), :3], planes[int(np.argmin(planes[:, :3] @ CAMERA["position"])), 3]  # where the middle rays leave
     up = LAMP - (n @ LAMP) * n
     lamp = c * n + 3.0 * up / np.linalg.norm(up)  # in that plane, 3 from its foot

@@ -19,7 +19,7 @@ import pytest
 import trimesh
 from scipy import integrate
 
-from raytrace.interiors import crossing
+from raytrace.interiors import shapes
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -147,7 +147,7 @@ def test_the_sun_through_every_face_of_a_320_face_ball(camera):
     than 10 % off; inside: refused)."""
     scene = ball(camera, SUN)
     prep = prepare(scene_from_text(to_toml(scene), scene["name"]))
-    assert len(crossing.refracting_planes(prep, 0)) == 320 > crossing.KERNEL_PLANES
+    assert len(shapes.refracting_planes(prep, 0)) == 320 > shapes.KERNEL_PLANES
     geometry = triangles(scene)
     ref = twin(scene, geometry, sun_segment)
     check(scene, ref, "quadrature", {"rtol": 1e-6}, 1e-6, 1e-5)
@@ -231,8 +231,8 @@ def test_the_beam_intervals_and_their_spans():
     scene = ball(OUTSIDE, SUN)
     tri, normals, offsets = triangles(scene)
     prep = prepare(scene_from_text(to_toml(scene), scene["name"]))
-    planes = crossing.refracting_planes(prep, 0)
-    near = crossing.plane_neighbours(prep, 0)
+    planes = shapes.refracting_planes(prep, 0)
+    near = shapes.plane_neighbours(prep, 0)
     dplanes = rows.measured_plane_errors(prep, 0)  # the planes against the triangles
     rng = np.random.default_rng(3)
     o = rng.normal(size=(40, 3))

@@ -11,7 +11,7 @@ images)."""
 import numpy as np
 import pytest
 
-from raytrace.interiors.crossing import blockers, convex_planes
+from raytrace.interiors.shapes import blockers, convex_planes
 from raytrace.interiors.rows import measured_plane_errors
 from raytrace.rendering.renderer import prepare
 from raytrace.scene.format import scene_from_text

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from raytrace.interiors import crossing
+from raytrace.interiors import shapes
 from raytrace.scene.meshes import sphere_triangles
 
 from . import oracle
@@ -145,7 +145,7 @@ def test_the_sun_into_fine_uv_balls(segments, width, height):
     (now the spans are cut to where either interval may lie)."""
     scene = uv_ball(segments, width, height)
     geometry = uv_triangles(scene)
-    assert len(geometry[0]) > crossing.KERNEL_PLANES
+    assert len(geometry[0]) > shapes.KERNEL_PLANES
     ref = twin(scene, geometry[:3], lambda sc, g, p, w, ell: uv_segment(sc, geometry, p, w, ell))
     for method, params in (("analytic", {}), ("quadrature", {"rtol": 1e-6})):
         _, err, ratio = check(scene, ref, method, params, 1e-5)

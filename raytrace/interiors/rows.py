@@ -43,6 +43,7 @@ import math
 import numpy as np
 
 from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
+from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
@@ -57,9 +58,11 @@ from ..shadows.frusta import exact_lit_intervals
 from ..shadows.through_others import attenuated_radiance, refracted_attenuated
 from ..shadows.shadow_rays import shadowed_airlight
 from . import paths
-from .crossing import (CAPPED, HANDED, LIT_PIECES, MAX_DEPTH, REFRACTED, STATS_SIZE, THROUGH, THROUGH_CAPPED, TRACED,
-                       UNLOCATED, UNSHADOWED, _refract, _transmittance, blockers, convex_planes, held_lights, hull_planes,
-                       matched, plane_neighbours, refracted_beams, refracting_planes, scaled, triangle_planes)
+from .crossing import MAX_DEPTH, REFRACTED, TRACED, scaled
+from .fresnel import refract, refracted_beams, transmittance
+from .held import held_lights
+from .shapes import blockers, convex_planes, hull_planes, matched, plane_neighbours, refracting_planes, triangle_planes
+from .support import HANDED, LIT_PIECES, STATS_SIZE, THROUGH, THROUGH_CAPPED, UNLOCATED, UNSHADOWED
 
 
 def integrate(prep, method, params, rows: Segments, seed, depth, shadows: bool):
@@ -202,11 +205,11 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             geo[:, 6:9] = -lights.axis[li]
             axis = np.broadcast_to(lights.axis[li], (n, 3))
             cos_l = -(normals @ lights.axis[li])
-            t_l, b = _refract(axis, normals, medium.ior)
+            t_l, b = refract(axis, normals, medium.ior)
             b = np.where(cos_l > 0.0, b, 0.0)
-            mu = -np.einsum("ij,ij->i", t_l if refractive else axis, w)  # index-matched: not bent (_refract
+            mu = -np.einsum("ij,ij->i", t_l if refractive else axis, w)  # index-matched: not bent (refract
             # would mirror the light off an entry face it meets from behind)
-            scale = np.where(cos_l > 0.0, _transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
+            scale = np.where(cos_l > 0.0, transmittance(np.maximum(cos_l, 0.0), medium.ior) * np.maximum(cos_l, 0.0)
                              / np.maximum(b, 1e-300), 0.0) if refractive else 1.0
             if closed or (traced and sup.exact_paths):
                 if closed:
@@ -386,7 +389,7 @@ def _beam_errors(cos_i, eta, dn):
         return 0.0, 0.0
     cos = np.array([max(cos_i - dcos, 0.0), cos_i, min(cos_i + dcos, 1.0)])
     cos_t = np.sqrt(1.0 - (1.0 - cos * cos) / (eta * eta))
-    e = _transmittance(cos, eta) * cos / cos_t
+    e = transmittance(cos, eta) * cos / cos_t
     du = 2.0 * math.sqrt(3.0) * dn + dcos / eta + dcos * cos_i / (eta * eta * cos_t[1]) + 8.0 * u
     return du, (max(e[2] - e[1], e[1] - e[0]) / e[1] if e[1] > 0.0 else 0.0) + 16.0 * u
 

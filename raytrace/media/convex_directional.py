@@ -28,7 +28,7 @@ from 0 to far beyond 745 (exp underflows to 0, never NaN). A last piece of infin
 over any length, also where no face faces the light); kt > 0 with no face toward the light gives
 0 (an infinite path).
 
-Through a refractive boundary the light makes one beam per face it meets (interiors/crossing.py refracted_beams),
+Through a refractive boundary the light makes one beam per face it meets (interiors/fresnel.py refracted_beams),
 each with its own direction inside; beam f lights a point only where the point's path back leaves
 through f, i.e. on the envelope's pieces on face f (`only` = f below).
 
@@ -53,7 +53,7 @@ from ..error_bounds import KERNEL_FLOOR
 from ..jit import njit
 from .phase import phase_value
 
-MAX_FACES = 64  # beyond, interiors/crossing.py hands the segments to quadrature (counted)
+MAX_FACES = 64  # beyond, interiors/rows.py hands the segments to quadrature (counted)
 EPS = 2.0 ** -52
 
 
@@ -163,7 +163,7 @@ def _pieces(n, c, o, w, toward, length, kt, ks, phase, out, alpha, beta, cuts, l
 def beam_intervals(n, c, near, f, toward, origins, dirs, lengths, dplanes, du, out):
     """Where beam f (the light refracted through face f, travelling along -toward inside, q_f > 0) lights
     each segment (origins, dirs (N, 3), lengths (N,)) of the convex polyhedron (n, c: P planes; near:
-    interiors/crossing.py `plane_neighbours`' packed lists, f's neighbours near[near[f]:near[f + 1]];
+    interiors/shapes.py `plane_neighbours`' packed lists, f's neighbours near[near[f]:near[f + 1]];
     empty: every plane): out (N, 9) = (lo, hi, lo_a, lo_b, hi_a, hi_b, alpha, beta, es): the computed
     interval [lo, hi] (lo >= hi: unlit); the true interval's ends lie in [lo_a, lo_b] and [hi_a, hi_b]
     where the planes are (dn, dc) = `dplanes` off the faces (dn per component) and the arithmetic rounds

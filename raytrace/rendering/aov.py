@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..interiors import crossing
+from ..interiors import shapes
 from ..shading import facing_normals, shading_normals
 
 NAMES = ("depth", "normal", "albedo", "lights")
@@ -67,7 +67,7 @@ def hit_columns(prep, names, origins, dirs, hits) -> np.ndarray:
         points = origins[hit] + t[hit, None] * dirs[hit]
         normal[hit] = shading_normals(prep.accel, prep.corner_normals, p, points,
                                       facing_normals(prep.accel.hit_normals(p, points), dirs[hit]))
-        albedo[hit] = np.where(crossing.enters(prep, p)[:, None], 0.0, prep.reflectance[p])
+        albedo[hit] = np.where(shapes.enters(prep, p)[:, None], 0.0, prep.reflectance[p])
     if ground.any() and {"normal", "albedo"} & set(wanted):
         normals, refl = medium.ground_surface(origins[ground] + t[ground, None] * dirs[ground])
         normal[ground], albedo[ground] = facing_normals(normals, dirs[ground]), refl

@@ -29,7 +29,8 @@ from .. import error_bounds
 from ..camera import basis, pixel_rays
 from ..errors import UserError
 from ..geometry.accel import Accelerator
-from ..interiors import crossing, rows
+from ..interiors import crossing, rows, shapes, support
+from ..interiors.held import held_airlight, held_lights, lit_from_inside
 from ..jit import exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders, environment
 from ..media.particles import particle_radiance
@@ -61,9 +62,9 @@ class Prepared:
     corner_normals: np.ndarray | None = None  # shading normals at the triangles' corners (None: all flat)
     _frusta: list | None = None
     _through: list | None = None
-    shape_ids: np.ndarray | None = None  # each triangle's shape (crossing.py)
+    shape_ids: np.ndarray | None = None  # each triangle's shape (interiors/shapes.py)
     interior_shapes: np.ndarray | None = None  # the shapes that hold a medium
-    interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (crossing.py)
+    interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (interiors/shapes.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
     lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
     emission: bool = True  # whether camera rays see the background and the emitters themselves (`only`)
@@ -80,15 +81,15 @@ class Prepared:
 
     def frusta(self) -> list:
         """The lights' texel lists of the shadow frusta of the triangles that stop light
-        (crossing.blockers), for the exact lit intervals, built once (shadows/frusta.py)."""
+        (shapes.blockers), for the exact lit intervals, built once (shadows/frusta.py)."""
         if self._frusta is None:
-            self._frusta = build_frusta(self.accel, self.lights, select=crossing.blockers(self))
+            self._frusta = build_frusta(self.accel, self.lights, select=shapes.blockers(self))
         return self._frusta
 
     def through(self) -> list | None:
         """The same of the index-matched interiors' triangles, which attenuate the outside air-light's
-        light (crossing.attenuators; None where none need it), built once."""
-        mask = crossing.attenuators(self)
+        light (shapes.attenuators; None where none need it), built once."""
+        mask = shapes.attenuators(self)
         if mask is not None and self._through is None:
             self._through = build_frusta(self.accel, self.lights, select=mask)
         return None if mask is None else self._through
@@ -139,7 +140,7 @@ def prepare(scene: Scene) -> Prepared:
     prep = Prepared(scene, Accelerator(tris, extent, *exact_spheres(scene, ids)), refl, lights, corners, shape_ids=ids,
                     interior_shapes=inner, emissive=emissive)
     if len(inner):
-        prep.camera_inside = crossing.inside_of(prep, scene.camera.position, inner)
+        prep.camera_inside = shapes.inside_of(prep, scene.camera.position, inner)
     return prep
 
 
@@ -244,7 +245,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         rad, var, bound = _across(prep, method, params, boundary, seed, shadows, 0, deeper)
         return rad, deeper, var if varies else None, bound
     radiance = np.zeros((len(origins), 3))
-    into = crossing.enters(prep, prim)
+    into = shapes.enters(prep, prim)
     # the rays that hit a surface (not one holding a medium), their points, directions, rows and keys
     n = len(origins)
     surf, points, surf_dirs = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
@@ -258,10 +259,10 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         shading = shading_normals(prep.accel, prep.corner_normals, surf_prim, points, normals)
         surf_var = np.zeros((len(points), 3)) if varies else None  # shading.penumbra's
         radiance[surf] = surface_radiance(prep.accel, points, normals, surf_refl, prep.lights,
-                                          medium, crossing.shadow_through(prep), shading, surf_keys, seed, surf_var,
+                                          medium, shapes.shadow_through(prep), shading, surf_keys, seed, surf_var,
                                           method.tolerance(params), deeper[SURFACE_STATS])
-        if crossing.held_lights(prep):  # lights inside refractive shapes
-            radiance[surf] += crossing.lit_from_inside(prep, points, normals, shading, surf_refl)
+        if held_lights(prep):  # lights inside refractive shapes
+            radiance[surf] += lit_from_inside(prep, points, normals, shading, surf_refl)
         if sees_emission(prep) and prep.memo("emits", lambda: any(s.emission is not None for s in scene.shapes)):
             radiance[surf] += emitted_radiance(scene.shapes, prep.shape_ids[surf_prim],
                                                prep.accel.hit_normals(surf_prim, points), surf_dirs)
@@ -293,8 +294,8 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
     if len(prep.lights) and prep.memo("scatters", lambda: medium.scatters):
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         held = None
-        if crossing.held_lights(prep):  # lights inside refractive shapes: their light refracted out
-            segs, *held = crossing.held_airlight(prep, method, params, segs, len(origins), depth)
+        if held_lights(prep):  # lights inside refractive shapes: their light refracted out
+            segs, *held = held_airlight(prep, method, params, segs, len(origins), depth)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
             segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
@@ -303,7 +304,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             if near_emitters.applies(prep.lights, method, sampled=True):  # a sphere by the method's own estimate
                 segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
                                                      segs, segs, (origins, dirs, t, keys, seed), True, radiance,
-                                                     (prep.accel, crossing.blockers(prep)))
+                                                     (prep.accel, shapes.blockers(prep)))
                 stats[NEAR_STATS] = near[1]
             air, var = shadowed_airlight(prep.accel, method, medium, prep.lights, params, segs, len(origins))
             if near is not None:
@@ -322,13 +323,13 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                 elif penumbra_airlight.applies(prep.lights, method, shadows):  # emitters cut by occluders
                     segs, *sampled = penumbra_airlight.sampled((prep.accel, prep.lights), method, medium, params,
                                                                cone, segs, (origins, dirs, t, keys, seed),
-                                                               crossing.blockers(prep))
+                                                               shapes.blockers(prep))
             near = None
             if near_emitters.applies(prep.lights, method) and (through is None or not len(through)):
                 segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
                                                      cone if shadows else segs, segs,
                                                      (origins, dirs, t, keys, seed), shadows, radiance,
-                                                     (prep.accel, crossing.blockers(prep)))
+                                                     (prep.accel, shapes.blockers(prep)))
                 stats[NEAR_STATS] = near[1]
             air, stats[:method.stats_size], var, air_bound = airlight(method, medium, prep.lights, params, segs,
                                                                       len(origins))
@@ -343,13 +344,14 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                 bound[sampled[2]] = np.inf
             if through is not None and len(through):
                 through_air, through_var, through_bound = rows.through_airlight(
-                    prep, method, params, through, len(origins), stats[-crossing.STATS_SIZE:])
+                    prep, method, params, through, len(origins), stats[-support.STATS_SIZE:])
                 air = air + through_air
                 if method.stochastic:
                     var = var + through_var
                 bound += through_bound
         if held is not None:
             air = air + held[0]
+            stats[-support.STATS_SIZE:] += held[3]
             var = var + held[1] if method.stochastic else var
             bound += held[2]
         radiance += air
@@ -395,7 +397,7 @@ def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stat
     boundary deeper, combined (crossing.combine); their statistics added to `stats`."""
     inner, inner_var, inner_bound, inside = rows.integrate(prep, method, params, boundary.rows, seed, depth,
                                                          shadows)
-    stats[-crossing.STATS_SIZE:] += inside
+    stats[-support.STATS_SIZE:] += inside
     if len(boundary.origins):  # from the boundary, their first hits asked past the face they leave
         t, prim, ground = first_hits(prep.accel, prep.scene.medium, boundary.origins + boundary.skip[:, None]
                                      * boundary.dirs, boundary.dirs)
@@ -416,7 +418,7 @@ def has_variance(prep: Prepared, method) -> bool:
             or bool(environment.groups(prep.lights)))
 
 
-NEAR_STATS = slice(-crossing.STATS_SIZE - len(near_emitters.STATS_NAMES), -crossing.STATS_SIZE)  # their place in the stats
+NEAR_STATS = slice(-support.STATS_SIZE - len(near_emitters.STATS_NAMES), -support.STATS_SIZE)  # their place in the stats
 SURFACE_STATS = slice(NEAR_STATS.start - len(SURFACE_NAMES), NEAR_STATS.start)  # the surface term's
 
 
@@ -424,7 +426,7 @@ def stats_size(method) -> int:
     """The length of a render's statistics array: the method's, the lit intervals', the surface term's,
     the rays near flat emitters', the inside integrals'."""
     return (method.stats_size + len(STATS_NAMES) + len(SURFACE_NAMES) + len(near_emitters.STATS_NAMES)
-            + crossing.STATS_SIZE)
+            + support.STATS_SIZE)
 
 
 WARM_UP_GRID = 8  # the warm-up traces the first sample of the pixels of an 8 x 8 grid over the image
@@ -517,7 +519,7 @@ def interiors_ahead(prep: Prepared, prim) -> np.ndarray:
     (else the worker's rays start inside one and the render's process compiles them)."""
     if prep.camera_inside is not None:
         return np.zeros(len(prim), dtype=bool)
-    return crossing.enters(prep, prim)
+    return shapes.enters(prep, prim)
 
 
 def compile_shadows(scene: Scene, method_name: str, seed: int):
@@ -547,7 +549,7 @@ def lit_kernels(prep: Prepared, method_name: str, segs):
     """The lit intervals' kernels (and the penumbrae's pieces', where they apply) on the segments `segs`."""
     exact_lit_intervals(prep.accel, segs, prep.lights, len(prep.lights), prep.frusta())
     if penumbra_airlight.applies(prep.lights, get_method(method_name), True):
-        penumbra_airlight.lit_pieces(prep.accel, prep.lights, segs, 1, crossing.blockers(prep))
+        penumbra_airlight.lit_pieces(prep.accel, prep.lights, segs, 1, shapes.blockers(prep))
 
 
 def check_options(method, params, volumetric_shadows, source, lights, medium):
@@ -829,9 +831,9 @@ def check(prep: Prepared, method_name: str, given_params: dict, options: RenderO
     params = resolve_params(method, given_params, source)
     method.check_medium(prep.scene.medium, source)
     method.check(prep.scene.medium, params)
-    method.check_lights(crossing.outside_lights(prep), source)
+    method.check_lights(support.outside_lights(prep), source)
     check_options(method, params, options.volumetric_shadows, source, prep.lights, prep.scene.medium)
-    crossing.check(prep, method, params, source, options.shadows)
+    support.check(prep, method, params, source, options.shadows)
     return params
 
 
@@ -909,7 +911,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
         summary.update({f"cubature: {k}": int(v) for k, v in zip(near_emitters.STATS_NAMES, totals[NEAR_STATS])})
     if any(e is not None and e.irradiance is not None for e in prep.lights.emitters):
         summary.update({f"surface: {k}": int(v) for k, v in zip(SURFACE_NAMES, totals[SURFACE_STATS])})
-    summary.update(crossing.summarize(prep, method, totals[-crossing.STATS_SIZE:], task.shadows))
+    summary.update(support.summarize(prep, method, totals[-support.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
     summary.update(pilot)
     if acc.groups:

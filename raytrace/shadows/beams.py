@@ -1,7 +1,7 @@
 """Volumetric shadows of a directional light refracted into a convex shape: the pieces of camera
 segments inside the shape that a refracted beam reaches past every occluder.
 
-Face f's beam (crossing.refracted_beams: the light refracted through f, travelling along -u inside)
+Face f's beam (fresnel.refracted_beams: the light refracted through f, travelling along -u inside)
 reaches a point p inside along a straight leg from its entry point e(p) = p + s(p) u on f's plane,
 s(p) = (c - n.p) / (n.u), and e(p) is lit from outside along the light's own direction. On a camera
 segment p(x) = o + x w inside the shape, both legs are exact lit-interval problems of
