@@ -139,7 +139,7 @@ def surface_radiance(accel, points, normals, reflectance, lights, medium, throug
     """Reflected radiance (N, 3) at surface points with ray-facing unit geometric normals `normals`
     and shading normals `shading` (`shading_normals`; None: the geometric ones). `through(li, points)`,
     if given, is the transmittance (M, 3) toward light li of points whose shadow ray is occluded (0
-    where truly blocked; interiors/crossing.py's shadows through index-matched interiors).
+    where truly blocked; interiors/shapes.py's shadows through index-matched interiors).
     `keys` (N,), the points' pixel-sample keys (rng.py), with `seed`: an emitter's rows whose shadow
     rays disagree at a point (a penumbra) are replaced there by stratified samples of the emitter
     (`penumbra`, their strata following the method's relative tolerance `tol`: `Method.tolerance`;

@@ -1,4 +1,4 @@
-"""The planes' errors that every convex kernel's bound takes (interiors/rows.py `measured_plane_errors`):
+"""The planes' errors that every convex kernel's bound takes (interiors/shapes.py `measured_plane_errors`):
 the hull keeps one plane for faces within 1e-9 of each other, so a face whose corners lie a little off
 one plane (here the top of an index-matched box, one corner raised 4e-10) is integrated on a plane up
 to that far from its triangles. The twin measures, from the triangles as written (numpy, not the
@@ -8,7 +8,7 @@ an index-matched shape's kernels took the rounding of one triangle's plane alone
 import numpy as np
 import pytest
 
-from raytrace.interiors import rows, shapes
+from raytrace.interiors import shapes
 from raytrace.rendering.renderer import prepare
 from raytrace.scene.format import scene_from_dict
 
@@ -41,8 +41,8 @@ def test_the_measured_errors_cover_the_faces_off_their_plane(ior):
     n /= np.linalg.norm(n, axis=1)[:, None]
     nearest = np.argmax(n @ planes[:, :3].T, axis=1)
     offsets = np.abs(np.einsum("tvk,tk->tv", tris, planes[nearest, :3]) - planes[nearest, 3, None]).max(axis=1)
-    dn, dc = rows.measured_plane_errors(prep, 0)
+    dn, dc = shapes.measured_plane_errors(prep, 0)
     assert offsets.max() > 0.4 * RAISED  # the twin sees the raised corner
     assert dc >= offsets.max()
     assert dn >= np.abs(n - planes[nearest, :3]).max()
-    assert rows.plane_errors(prep, 0)[1] < offsets.max()  # the rounding of one plane alone is not enough
+    assert shapes.plane_errors(prep, 0)[1] < offsets.max()  # the rounding of one plane alone is not enough

@@ -221,11 +221,10 @@ def test_the_beam_intervals_and_their_spans():
     """media/convex_directional.py `beam_intervals` on random chords of the 320-face ball, every beam of
     the sun (its direction from the twin's Snell): the computed ends lie in their spans (lo_a <= lo <=
     lo_b, hi_a <= hi <= hi_b), and the twin's interval (barycentric in the triangle, `sun_segment`'s
-    rule) inside the spans of the planes' measured errors against the triangles (interiors/rows.py
+    rule) inside the spans of the planes' measured errors against the triangles (interiors/shapes.py
     `measured_plane_errors`; one end 1.2e-10 from the twin's, inside its span); with the planes taken
     1e-6 off, the spans widen about the same ends. Swapped upper spans (fixed before merging) failed
     here and cut the shadowed beams 6e-9 short."""
-    from raytrace.interiors import rows
     from raytrace.media.convex_directional import beam_intervals
 
     scene = ball(OUTSIDE, SUN)
@@ -233,7 +232,7 @@ def test_the_beam_intervals_and_their_spans():
     prep = prepare(scene_from_text(to_toml(scene), scene["name"]))
     planes = shapes.refracting_planes(prep, 0)
     near = shapes.plane_neighbours(prep, 0)
-    dplanes = rows.measured_plane_errors(prep, 0)  # the planes against the triangles
+    dplanes = shapes.measured_plane_errors(prep, 0)  # the planes against the triangles
     rng = np.random.default_rng(3)
     o = rng.normal(size=(40, 3))
     o *= (0.9 * rng.random(40) ** (1 / 3) / np.linalg.norm(o, axis=1))[:, None]

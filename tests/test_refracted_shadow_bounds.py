@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from raytrace.interiors.shapes import blockers, convex_planes
-from raytrace.interiors.rows import measured_plane_errors
+from raytrace.interiors.shapes import measured_plane_errors
 from raytrace.rendering.renderer import prepare
 from raytrace.scene.format import scene_from_text
 from raytrace.shadows.fermat_legs import SPAN_WIDTH, lit_pieces_of_point

@@ -10,7 +10,7 @@ from ..media.slab import GEO_COLUMNS, STREAM, out_of_faces, surface_out_of_faces
 from ..media.sphere_refraction import MAX_PATHS, out_of_sphere, surface_out_of_sphere
 from ..methods import Segments
 from . import paths
-from .shapes import KERNEL_PLANES, convex_planes, inside_of, matched
+from .shapes import KERNEL_PLANES, convex_planes, inside_of, matched, measured_plane_errors
 from .support import STATS_SIZE
 
 
@@ -45,7 +45,7 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int)
                 medium.sigma_s[ch].astype(float), medium.phase, medium.g, inner.sigma_t[ch].astype(float))
         rest = (rule, segs.keys[sel], dim0, np.uint64(segs.seed), out, v, err, stats)
         if sphere is None:
-            out_of_faces(geo, planes, *args, 1.0 / inner.ior, *rest)
+            out_of_faces(geo, planes, *args, 1.0 / inner.ior, *rest, measured_plane_errors(prep, sid))
         else:
             out_of_sphere(geo, np.asarray(sphere, dtype=np.float64), *args, float(inner.ior), *rest)
         inten = lights.intensity[li, ch]

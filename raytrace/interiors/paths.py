@@ -14,7 +14,7 @@ media/slab.py instead, and so does an exact sphere here: its light paths are the
 media/convex_chords.py, `sphere_radiance`). `through_quadrature` integrates the outside medium where
 its light crosses index-matched shapes (media/convex_chords.py's kernel when they are all convex or
 exact spheres: `boundary`). The shadow rays of
-surfaces use `inside_lengths` too (crossing.shadow_through): through an index-matched interior they are
+surfaces use `inside_lengths` too (shapes.shadow_through): through an index-matched interior they are
 attenuated, not blocked.
 """
 from __future__ import annotations
@@ -307,7 +307,7 @@ def _geometry(prep, sid, geo, directional, seg, x, facets=None, dk=None):
         if dk is not None:
             dk[walked] = err
         lit = lit[facets.counts[seg[lit]] < 0]
-    if prep.interior_planes.get(sid) is not None:  # convex (crossing.hull_planes, filled before integrating)
+    if prep.interior_planes.get(sid) is not None:  # convex (shapes.hull_planes, filled before integrating)
         k[lit] = convex_exits(prep, sid, p[lit], to[lit], d[lit])
         if dk is not None:
             dk[lit] = np.inf  # Embree's exits: their float32 reach is not analysed
@@ -873,7 +873,7 @@ def exact_sphere(prep, sid):
 
 def boundary(prep, sid):
     """(kind, rows) of shape sid's boundary for the float64 kernels of media/convex_chords.py: PLANES
-    and its face planes (convex: crossing.hull_planes' cache, filled before), SPHERE and an exact
+    and its face planes (convex: shapes.hull_planes' cache, filled before), SPHERE and an exact
     sphere's (centre, radius); None for a shape walked with Embree."""
     planes = prep.interior_planes.get(sid)
     if planes is not None:

@@ -15,9 +15,9 @@ In an index-matched shape the light's path inside is its exact straight path for
 `exact_paths`, else the note's entry plane (`entry_plane`: slab_approx). With `closed_forms` (analytic,
 directional lights) in an index-matched shape: convex, at most MAX_FACES planes, the closed form of
 media/convex_directional.py with its bound; else the segments go to the method's rule (its adaptive
-quadrature: `_traced`, rtol crossing.RTOL), counted (HANDED), with its bound. Through a refractive boundary a
+quadrature: `_traced`, rtol methods.INSIDE_RTOL), counted (HANDED), with its bound. Through a refractive boundary a
 directional light enters a convex shape through every face it meets, one beam each
-(`crossing.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
+(`fresnel.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
 through the entry plane (eq. 5, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through every face whose legs are clear of the shape (`_through_faces`,
@@ -50,7 +50,6 @@ from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_cond
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
 from ..methods.geometry import segment_light_table
-from ..scene.meshes import PLANE_DECIMALS
 from ..segments import gather, gather_weights
 from ..shadows.beams import lit_pieces_of_beam
 from ..shadows.fermat_legs import lit_pieces_of_point, span_errors
@@ -61,7 +60,8 @@ from . import paths
 from .crossing import MAX_DEPTH, REFRACTED, TRACED, scaled
 from .fresnel import refract, refracted_beams, transmittance
 from .held import held_lights
-from .shapes import blockers, convex_planes, hull_planes, matched, plane_neighbours, refracting_planes, triangle_planes
+from .shapes import (blockers, convex_planes, hull_planes, matched, measured_plane_errors, plane_neighbours,
+                     refracting_planes)
 from .support import HANDED, LIT_PIECES, STATS_SIZE, THROUGH, THROUGH_CAPPED, UNLOCATED, UNSHADOWED
 
 
@@ -98,7 +98,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
     unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
-    outside of (media/slab.py `faces_point`), or one inside it (crossing.py `held_lights`) along its straight
+    outside of (media/slab.py `faces_point`), or one inside it (held.py `held_lights`) along its straight
     paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through every face whose
     legs are clear (`_through_faces`); every light outside an exact sphere on its exact refracted paths
     (`_refracted_sphere`).
@@ -437,7 +437,7 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     sup = method.supports.interiors
     if reach == REFRACTED and paths.exact_sphere(prep, sid) is not None and not sup.entry_plane and (
             not np.any(prep.shape_ids != sid) or all((li, sid) in held_lights(prep) for li in range(n_lights))):
-        # alone in the scene, or every light inside it (nothing else inside: crossing.check): nothing stands on
+        # alone in the scene, or every light inside it (nothing else inside: support.check): nothing stands on
         # the light's paths
         return single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed, depth)
     if reach == REFRACTED and len(refracting_planes(prep, sid)) and not sup.entry_plane:
@@ -784,43 +784,6 @@ def _attenuation(prep, inner, dk, segs, pos, weight):
         f[m] = np.exp(-lengths @ dk[:, c])
         out[..., c] = f
     return out
-
-
-def plane_errors(prep, sid):
-    """(dn, dc): how far the convex planes of shape sid (scene/meshes.py convex_planes: normals and
-    offsets / size rounded to PLANE_DECIMALS, size the largest coordinate) may be from its faces' own
-    planes, on the normals (each of three components) and on the offsets, with a few ulps more."""
-    half = 0.5 * 10.0 ** -PLANE_DECIMALS
-    size = float(np.max(np.abs(prep.accel.triangles[prep.shape_ids == sid]), initial=0.0))
-    return np.array([math.sqrt(3.0) * half + 1e-15, (half + 1e-15) * size])
-
-
-def measured_plane_errors(prep, sid):
-    """(dn, dc) as `plane_errors`, measured on the shape's triangles (the planes' errors in every convex
-    kernel's bound: media/slab.py, media/fermat_rounding.py, shadows/through_others.py): each triangle's unit normal (its cross product's, a few
-    ulps off: + 8u) and vertices against the plane of `hull_planes` it lies in (the nearest by
-    normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
-    plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|) (crossing.py
-    `triangle_planes`: the normal turned outward, as the planes'), for index-matched and refractive
-    shapes alike. `plane_errors` where the shape has no convex planes. The measured errors may exceed
-    `plane_errors` (which bounds the rounding of one triangle's plane alone): the hull keeps one plane for
-    faces within 1e-9 of each other (the two triangles of a quad whose corners round off one plane:
-    1.2e-12 on a 256-segment UV sphere, 1.7e-12 on a 320-face icosphere)."""
-    def measure():
-        planes = hull_planes(prep, sid)
-        bound = plane_errors(prep, sid)
-        if planes is None:
-            return bound
-        tris, n, best = triangle_planes(prep.accel.triangles[prep.shape_ids == sid], planes)
-        if not len(planes) or not len(tris):
-            return bound
-        off = np.abs(np.einsum("tvk,tk->tv", tris, planes[best, :3]) - planes[best, 3, None]).max(axis=1)
-        u = 2.0 ** -53
-        dn_f = np.abs(n - planes[best, :3]).max(axis=1) + 8.0 * u
-        norms = np.linalg.norm(tris, axis=2).max(axis=1)
-        dc_f = off + math.sqrt(3.0) * dn_f * norms + 8.0 * u * (np.abs(planes[best, 3]) + norms)
-        return np.array([dn_f.max(), dc_f.max()])
-    return prep.memo(("measured plane errors", sid), measure)
 
 
 def _light_bound(err, value, f, cos_end):

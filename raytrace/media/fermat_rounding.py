@@ -9,7 +9,7 @@ height hl above it, rho their horizontal distance, r the refraction point's dist
 the angles of incidence and refraction (sin t1 = eta sin t2, eta > 1), u = 2^-53.
 
 Inputs. The face's plane is its mesh face's to dn on each normal component and dc on the offset
-(interiors/rows.py `plane_errors`; the entry face's is the row's own normal through the entry
+(interiors/shapes.py `plane_errors`; the entry face's is the row's own normal through the entry
 point, 8u and 16u S): z0 is off by dc + sqrt(3) dn |p| + 8u S, z by that plus
 x (sqrt(3) dn + 8u), hl by dc + sqrt(3) dn |L| + 8u S, a by sqrt(3) dn + 4u (S = |p| + the
 segment's length + |L| + the largest |c_f|). rho =

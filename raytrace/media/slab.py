@@ -1700,7 +1700,7 @@ def inside_radiance(directional, xh, h, hl, a, b, mu, ell, kt, ks, code, g, kt_o
     beam refracted through that face (`convex_integrand`); a point or spot light in a refractive one
     (eta != 1): `faces_point`, its refracted paths through every face (`faces_quadrature` for QUAD,
     every channel at once: the faces' cull and breaks are the channels'), with only >= 0 through that
-    face alone; `near` (int64): the planes' neighbours of interiors/crossing.py `plane_neighbours`
+    face alone; `near` (int64): the planes' neighbours of interiors/shapes.py `plane_neighbours`
     there (`reachable_faces`; empty: every plane is tested). The closed forms through the entry plane
     are `plane_closed`'s.
     err: a bound on each value's error, known for QUAD in convex index-matched shapes (`convex_bounded`,
@@ -1869,7 +1869,7 @@ def reachable_faces(faces, m, planes, near, eta, end, ids):
     """The first m rows of `refracting_faces` culled, in place, to those whose refraction point can lie
     on their face for some x in [0, end], and the planes (`planes`' rows) they need; the rows' face
     numbers [17] renumbered into those planes: (count, planes). Face f's face is its plane's points
-    inside the planes `near` lists for it (interiors/crossing.py `plane_neighbours`; every plane where
+    inside the planes `near` lists for it (interiors/shapes.py `plane_neighbours`; every plane where
     `near` is empty): only these are read. A face whose refraction points all lie beyond one of them
     (`_beyond_span`) is dropped at once. Else over a piece [lo, hi] the refraction
     point R(x) stays within K (hi - lo) / 2 of R at the middle (K media/fermat_rounding.py
@@ -2284,7 +2284,7 @@ def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim
     plane (n_f·q > c_f), its row from the segment's point at lo (`refracting_faces` with the normals toward the
     light, the face test against `planes`), times exp(-kt lo). QUAD: `faces_quadrature` per face (its breaks:
     the refraction point's edge crossings and a spot's cone crossings, isolated with `_speed`'s eta < 1 bound;
-    its bound with the planes' errors dplanes (interiors/rows.py `measured_plane_errors`; None: inf), plus
+    its bound with the planes' errors dplanes (interiors/shapes.py `measured_plane_errors`; None: inf), plus
     `_end_moved` where a piece ends on a face's plane); MARCH, SAMPLE: `march_or_sample` per face and
     channel at dimensions dim0 + f STREAM, their variances summed (independent streams)."""
     nf, nc = planes.shape[0], kt.shape[0]

@@ -709,7 +709,7 @@ def split_lit(accel, segs: Segments, n_lights: int, bins: list[LightBins]):
     triangle of the bins: `clear`) and the pieces inside one (`behind`), as segments from their own
     start points, and the statistics (STATS_NAMES). Streams are renumbered per camera ray and light
     over the clear pieces (light + n_lights x rank, as whole rays number them); the behind pieces
-    keep their segment's (interiors/crossing.py integrates them without random numbers)."""
+    keep their segment's (interiors/rows.py integrates them without random numbers)."""
     stats = np.zeros(len(STATS_NAMES))
     src, x0, x1 = lit_pieces(segs, bins, accel.scale, stats)
     clear = _take(segs, src, x0, x1, np.zeros(len(src), np.int64))
