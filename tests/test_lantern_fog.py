@@ -184,7 +184,8 @@ def test_the_pixels_are_lit_through_the_faces(reference):
 
 def test_quadrature_against_the_twin(reference):
     """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels (rtol 1e-6: within 1e-5; measured
-    1.8e-13 and 3.3e-13, the twin's own accuracy); its bound is inf there (not derived for eta < 1)."""
+    1.8e-13 and 3.3e-13, the twin's own accuracy); its bound holding (finite for light leaving the faces:
+    tests/test_leaving_bounds.py)."""
     quadrature_against(reference, scene(LAMP, FOG), PIXELS)
 
 

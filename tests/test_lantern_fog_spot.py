@@ -43,7 +43,7 @@ def test_the_pixels_are_lit_through_the_faces(smooth):
 
 def test_quadrature_against_the_twin(smooth):
     """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels, at rtol 1e-6 within 1e-5 (measured
-    6.7e-15 and 6.9e-15); its bound is inf there (not derived for light leaving the denser side)."""
+    6.7e-15 and 6.9e-15); its bound holding (finite for light leaving the faces: tests/test_leaving_bounds.py)."""
     ref, _, res = smooth
     got = np.array([res.image[j, i] for j, i in PIXELS])
     assert np.all(np.abs(got - ref) <= 1e-9 * ref), (np.abs(got - ref) / ref).max()
