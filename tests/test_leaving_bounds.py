@@ -5,7 +5,9 @@ refraction points, the irradiance by central differences of the path map, scipy 
 own breaks) on the fog segments of a grid of pixels (the camera's, and for a pixel that meets the lantern its
 mirrored and exiting rays' from the glass), at rtol 1e-6 and 1e-10: the bound is finite, never exceeded, and
 not vacuous (its median at most 10 rtol of the value)."""
+import json
 import math
+import pathlib
 
 import mpmath as mp
 import numpy as np
@@ -19,7 +21,7 @@ from raytrace.media.slab import GEO_COLUMNS, out_of_faces
 from . import oracle
 from .test_bounded_media import box_entry
 from .test_lamp_in_glass import CAMERA, ETA, HI, KA, KS, LAMP, LO, refract
-from .test_lantern_fog import KA_OUT, KS_OUT, airlight, floor_t
+from .test_lantern_fog import KA_OUT, KS_OUT, floor_t
 from .test_lantern_fog_spot import HARD, SIDE
 from .test_refracted_point_light import spot_terms
 
@@ -74,11 +76,17 @@ def kernel(light, rtol, dplanes=DPLANES):
     return out * inten, err * inten
 
 
-@pytest.fixture(scope="module", params=["lamp", "spot", "hard"])
+LIGHTS = {"lamp": LAMP, "spot": SIDE, "hard": HARD}
+TWINS = pathlib.Path(__file__).with_name("data") / "leaving_twins.json"  # tests/make_leaving_twins.py writes it
+
+
+@pytest.fixture(scope="module", params=list(LIGHTS))
 def case(request):
-    """The light and its twin's air-light (N, 3) on SEGMENTS (quad_vec at epsrel 1e-12)."""
-    light = {"lamp": LAMP, "spot": SIDE, "hard": HARD}[request.param]
-    return light, np.array([airlight(light, o, d, t, 1e-12) for o, d, t in SEGMENTS])
+    """The light and its twin's air-light (N, 3) on SEGMENTS (`airlight`, quad_vec at epsrel 1e-12), as stored by
+    tests/make_leaving_twins.py for these very segments."""
+    stored = json.loads(TWINS.read_text())
+    assert np.array_equal([np.r_[o, d, t] for o, d, t in SEGMENTS], [np.r_[o, d, t] for o, d, t in stored["segments"]])
+    return LIGHTS[request.param], np.array(stored["twins"][request.param])
 
 
 @pytest.mark.parametrize("rtol", [1e-6, 1e-10])

@@ -203,9 +203,9 @@ def plane_errors(prep, sid):
 
 def measured_plane_errors(prep, sid):
     """(dn, dc) as `plane_errors`, measured on the shape's triangles (the planes' errors in every convex
-    kernel's bound: media/slab.py, media/fermat_rounding.py, shadows/through_others.py): each triangle's unit normal (its cross product's, a few
-    ulps off: + 8u) and vertices against the plane of `hull_planes` it lies in (the nearest by
-    normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
+    kernel's bound: media/slab.py, media/fermat_rounding.py, shadows/through_others.py): each triangle's unit
+    normal (its cross product's, a few ulps off: + 8u) and vertices against the plane of `hull_planes` it lies in
+    (the nearest by normal and offset); dn the largest difference of a normal component, dc the largest |n·v - c|
     plus sqrt(3) dn |v| (the plane turned about the origin) and 8u (|c| + |v|) (shapes.py
     `triangle_planes`: the normal turned outward, as the planes'), for index-matched and refractive
     shapes alike. `plane_errors` where the shape has no convex planes. The measured errors may exceed
