@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from .jit import exact_njit, njit
-from .lights import is_spot, segment_cone
+from .lights import has_cone, segment_cone
 from .methods import Segments
 from .methods.geometry import segment_geometry, v_of
 
@@ -90,7 +90,7 @@ def _cone_pieces(xh, h, length, cone):
     m = 0
     for s in range(n):
         ell = length[s]
-        if not is_spot(cone[s, 3]):
+        if not has_cone(cone[s, 3]):
             src[m], x0[m], x1[m], piece[m] = s, 0.0, ell, 0
             m += 1
             continue

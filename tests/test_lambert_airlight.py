@@ -86,7 +86,7 @@ def test_a_pass_without_a_rows_path_leaves_its_segments_nan():
     coeffs = A.make_coeffs(HG, 0.5, A.ANISO_EXACT, 6, precision)
     point = [*NO_CONE, float(CURVES["smoothstep"])]
     segs = emitter_segments(200, 42, cones=(EMITTER, point))
-    lit = segs[4][:, 3] > -1.0  # an emitter point's (`is_spot`)
+    lit = segs[4][:, 3] > -1.0  # an emitter point's (`has_cone`)
     assert 50 < np.count_nonzero(lit) < 150
     for lamberts, points in ((None, True), (True, None)):
         out, met = np.empty(200), np.empty(200, dtype=np.bool_)

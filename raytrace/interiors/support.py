@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..lights import Lights, is_spot
+from ..lights import Lights, has_cone
 from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.sphere_refraction import UNBOUNDED
@@ -187,7 +187,7 @@ def _globe_fog(prep, sid, li) -> str | None:
     sphere = paths.exact_sphere(prep, sid)
     centre, radius = sphere[:3], float(sphere[3])
     ior = prep.scene.shapes[sid].interior.ior
-    if is_spot(prep.lights.cone[li, 1]):
+    if has_cone(prep.lights.cone[li, 1]):
         return ("as a spot in an exact sphere lights the scattering [medium] outside, where the cuts at its cone's "
                 "refracted edges are not implemented yet; use a point light, or a [medium] that does not scatter")
     if ior < 1.0 or np.linalg.norm(prep.lights.position[li] - centre) >= radius / ior:

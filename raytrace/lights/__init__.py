@@ -22,7 +22,7 @@ from . import cubature, directional, disk, emissive, environment, point, quad, s
 from .area import Emitter, emitter, power_of, two_sided
 from .light import NO_CONE, Light, power
 from .spot import (CURVES, GLTF, LAMBERT, MITSUBA, SMOOTHSTEP, band_slope, band_trig, cone_breaks, falloff,
-                   falloff_array, is_spot, polynomial_band, segment_cone)
+                   falloff_array, has_cone, polynomial_band, segment_cone)
 
 KINDS = {kind.NAME: kind for kind in (point, spot, directional, quad, disk, sphere, environment)}
 _BY_CODE = {kind.CODE: kind for kind in KINDS.values()}
@@ -210,5 +210,5 @@ def light_sample(kind, position, axis, cone, li, px, py, pz):
 __all__ = ["AREA", "CURVES", "DIRECTIONAL", "EMISSION", "Emitter", "ENVIRONMENT", "EXPANDED", "GLTF", "KINDS", "LAMBERT", "Light", "Lights",
            "MITSUBA", "NAMES", "NO_CONE", "POINT", "SMOOTHSTEP", "SPOT", "at_infinity", "band_slope", "band_trig",
            "check_at_infinity", "cone_breaks", "cubature", "cubature_ladders", "describe", "distant", "emitter_shape", "falloff", "falloff_array",
-           "is_spot", "light_sample", "parse_light", "polynomial_band", "power", "power_of", "segment_cone",
+           "has_cone", "light_sample", "parse_light", "polynomial_band", "power", "power_of", "segment_cone",
            "two_sided"]

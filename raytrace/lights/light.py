@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1 (spot.is_spot)
+# the (cos_end, cos_start) of a light without a cone: F = 1 for every cosine >= -1 (spot.has_cone)
 NO_CONE = (-3.0, -2.0)
 MAX_POWER = 1e150  # a light's intensity or irradiance: its square (a Monte Carlo variance) must stay finite
 

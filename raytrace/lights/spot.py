@@ -92,9 +92,10 @@ def sample(position, axis, cone, li, px, py, pz):
 
 
 @njit
-def is_spot(cos_start):
-    """Whether a light whose core has the cosine `cos_start` (`Light.cos_start`, column 1 of
-    `Lights.cone`, column 3 of a segment's cone row) has a cone: NO_CONE's is below -1."""
+def has_cone(cos_start):
+    """Whether an emitter point's emission has an angular profile (a spot's cone, an area light's Lambert lobe)
+    from the cosine `cos_start` of its core (`Light.cos_start`, column 1 of `Lights.cone`, column 3 of a
+    segment's cone row): a property of the row, not of the light's kind; NO_CONE's (isotropic) is below -1."""
     return cos_start > -1.0
 
 
@@ -195,7 +196,7 @@ def segment_cone(A, B, cos_end, cos_start, va, vb, out):
     """The pieces of [va, vb] (v = tan(phi/2)) between the cone's crossings: out[i] = (v_lo, v_hi,
     kind) with kind 0 (dark), 1 (full intensity), 2 (the falloff's band); returns the count (<= 5 rows
     of `out`, no allocation). A light without a cone (cos_start <= -1) is one full piece."""
-    if not is_spot(cos_start):
+    if not has_cone(cos_start):
         out[0, 0], out[0, 1], out[0, 2] = va, vb, 1.0
         return 1
     m = 0

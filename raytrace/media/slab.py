@@ -42,7 +42,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit
-from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, is_spot
+from ..lights import NO_CONE, SMOOTHSTEP, band_slope, cone_breaks, falloff, has_cone
 from .adaptive import INTERVALS, bounded_piecewise, piecewise
 from ..geometry.sorting import sort_few
 from .fermat_rounding import (SQ3, cosine_error, fermat_pace, fermat_speed, leaving_slope, leg_errors, point_error,
@@ -182,7 +182,7 @@ def refracted_cuts(z0, wl, ll, a, hl, eta, wa, la, na, cos_end, cos_start, end, 
     bisected to the resolution of doubles, then those the samples missed (two in one cell, or in
     the half cells at the ends; for eta != 1) isolated with a bound on the cosine's derivative
     (`_cone_crossings`), ascending in out; returns their count (<= MAX_CUTS)."""
-    if not is_spot(cos_start):
+    if not has_cone(cos_start):
         return 0
     m = 0
     prev = refracted_cosine(end * 0.5 / SCAN, z0, wl, ll, a, hl, eta, wa, la, na)
@@ -402,7 +402,7 @@ def refracting_faces(geo, planes, a, hl, wl, ll, spot, out, floor=0.0):
             llf = row[14] * row[14] + row[15] * row[15] + row[16] * row[16]
         row[0], row[1], row[2], row[3], row[4] = z0, af, hf, wlf, llf
         row[5], row[6], row[7] = spot[0], spot[1], spot[2]
-        if f != entry and is_spot(geo[13]):  # the spot's terms, as refracted_point's
+        if f != entry and has_cone(geo[13]):  # the spot's terms, as refracted_point's
             na = n0 * geo[9] + n1 * geo[10] + n2 * geo[11]
             row[5] = geo[3] * geo[9] + geo[4] * geo[10] + geo[5] * geo[11] + af * na
             row[6] = rel0 * geo[9] + rel1 * geo[10] + rel2 * geo[11] - up * na
@@ -918,7 +918,7 @@ def term_error(x, row, term, rho, r, rec):
     if rec.eta < 1.0 and not eps <= 0.25:  # beyond first order: the term and the exact one's bound
         err = term + leaving_envelope(x, row, 0.0, rec.ks, rec.code, rec.g, rec.eta, rec.dn, rec.dc, rec.mags,
                                       row[17] == rec.entry)
-    if is_spot(sp[1]) and sp[1] > sp[0]:
+    if has_cone(sp[1]) and sp[1] > sp[0]:
         z = z0 + a * x
         c = -row[7]
         if rho > 1e-12 * (hl + z):
@@ -1009,7 +1009,7 @@ def channel_break_errors(rec, end, cuts, kt, ks, kt_out, out):
                 out[:] = math.inf
                 return
             out += part
-        if is_spot(sp[1]):
+        if has_cone(sp[1]):
             tol = (cosine_error(*args) if eta > 1.0 else 0.0) + 8.0 * U * rho_max / hl
             s_min = rho_min * hl / (hl + z_max) if eta > 1.0 else 0.0  # s / rho >= hl / (hl + z): tan t1 >= tan t2
             for level in (sp[0], sp[1]):
@@ -1315,7 +1315,7 @@ def straight_cuts(geo, end, out):
     light crosses its cone's levels (lights.cone_breaks in v = tan(phi / 2), x = x_h + h (v - 1/v) / 2;
     A from h A = (r x w)·(w x a) as segment_light_table), ascending in out (>= 4); returns the count.
     0 for a point light or a light on the segment's line."""
-    if not is_spot(geo[13]):
+    if not has_cone(geo[13]):
         return 0
     r0, r1, r2 = geo[6] - geo[0], geo[7] - geo[1], geo[8] - geo[2]
     w0, w1, w2 = geo[3], geo[4], geo[5]
@@ -1788,7 +1788,7 @@ def _channel_radiance(live, directional, xh, h, hl, a, b, mu, ell, kt, ks, code,
 @njit
 def spot_terms(geo, a, hl):
     """`refracted_point`'s spot terms of a segment's geo row (NO_SPOT for a light without a cone)."""
-    if not is_spot(geo[13]):
+    if not has_cone(geo[13]):
         return NO_SPOT
     n0, n1, n2 = geo[14], geo[15], geo[16]
     na = n0 * geo[9] + n1 * geo[10] + n2 * geo[11]

@@ -43,7 +43,7 @@ from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, ErrorLaw, Interiors, Method, Param, Supports
 from .geometry import by_channel, cone_row, v_of
 from ..media.expint import VECTOR_BLOCK, g_scaled, en_scaled, i01_series_est, i01_series_lanes, vector_exp
-from ..lights import (ENVIRONMENT, LAMBERT, band_slope, band_trig, cone_breaks, falloff, is_spot, polynomial_band,
+from ..lights import (ENVIRONMENT, LAMBERT, band_slope, band_trig, cone_breaks, falloff, has_cone, polynomial_band,
                       segment_cone)
 from ..lights.spot import CUT_TOL, cosine_at, lambert_trig
 from ..media.legendre_moments import (FORWARD_ERR_PER_LOSS, cosine_moments_forward, cosine_moments_lanes, forward_loss,
@@ -441,7 +441,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
     for a point light's segment (each costs numba a reference count: an atomic increment and
     decrement), and nothing of the spot's code is compiled into it.
     """
-    if is_spot(cone[3]):
+    if has_cone(cone[3]):
         if spots is None:
             return math.nan, False, NOTHING_PENDING
         if cone[4] == LAMBERT:
@@ -1086,7 +1086,7 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     for s in range(xh.shape[0]):
         row = (cone[s, 0], cone[s, 1], cone[s, 2], cone[s, 3], cone[s, 4])  # a tuple: a view costs a reference count
         p = NOTHING_PENDING
-        if is_spot(row[3]):
+        if has_cone(row[3]):
             if row[4] == LAMBERT:
                 if lamberts is None:
                     out[s], met[s] = math.nan, False
@@ -1230,10 +1230,10 @@ ANISO_MODES = {"exact": ANISO_EXACT, "taylor": ANISO_TAYLOR}
 
 def light_rows(cone):
     """(spots, lamberts, points) of the rows' cones (`Lights.cone`: cos_end, cos_start, curve): whether any
-    row is a spot light's (a cone, `is_spot`, with a curve other than LAMBERT), an emitter point (LAMBERT:
+    row is a spot light's (a cone, `has_cone`, with a curve other than LAMBERT), an emitter point (LAMBERT:
     an area light's, `_lambert_airlight`) or has no cone (`_point_airlight`): the kernels
     `evaluate_deferred` compiles."""
-    banded = cone[:, 1] > -1.0  # (`is_spot`, without compiling it for Python)
+    banded = cone[:, 1] > -1.0  # (`has_cone`, without compiling it for Python)
     lambert = banded & (cone[:, 2] == LAMBERT)
     return bool(np.any(banded & ~lambert)), bool(np.any(lambert)), bool(np.any(~banded))
 

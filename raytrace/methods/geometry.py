@@ -18,7 +18,7 @@ import numpy as np
 
 from ..error_bounds import channel_keys
 from ..jit import njit
-from ..lights import NO_CONE, SMOOTHSTEP, falloff, is_spot
+from ..lights import NO_CONE, SMOOTHSTEP, falloff, has_cone
 from ..media import atmosphere as atmo
 from ..media.atmosphere import ROW, segment_rows
 from ..media.fog import above_top, attenuated_density, column
@@ -62,7 +62,7 @@ def segment_light_table(origins, dirs, lpos, laxis, lcone, light, scale):
         xh[s], h[s], da[s] = ray_light(ox, oy, oz, wx, wy, wz, lpos[li, 0], lpos[li, 1], lpos[li, 2], scale)
         cone[s, 2], cone[s, 3], cone[s, 4] = lcone[li, 0], lcone[li, 1], lcone[li, 2]
         cone[s, 0] = cone[s, 1] = 0.0
-        if is_spot(lcone[li, 1]):
+        if has_cone(lcone[li, 1]):
             ax, ay, az = laxis[li, 0], laxis[li, 1], laxis[li, 2]
             rx, ry, rz = lpos[li, 0] - ox, lpos[li, 1] - oy, lpos[li, 2] - oz
             cx, cy, cz = ry * wz - rz * wy, rz * wx - rx * wz, rx * wy - ry * wx
@@ -91,7 +91,7 @@ def v_of(s, h):
 def spot_factor(dx, d, h, cone):
     """A spot light's falloff (lights.py) toward the point at x - x_h = dx, distance d, on a segment
     with cone row `cone`: the cosine to its axis is (h A + dx B) / d; 1 for point lights."""
-    if not is_spot(cone[3]):
+    if not has_cone(cone[3]):
         return 1.0
     return falloff((h * cone[0] + dx * cone[1]) / d, cone[2], cone[3], cone[4])
 

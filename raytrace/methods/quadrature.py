@@ -39,7 +39,7 @@ from ..jit import exact_njit, njit
 from . import AREA_LIGHTS, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .geometry import (COSD, HL, HO, MU, MUS, AtmosphereInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        by_channel, cone_row, fog_inscatter_parts, fog_rows, spot_factor)
-from ..lights import cone_breaks, falloff, is_spot
+from ..lights import cone_breaks, falloff, has_cone
 from ..media import atmosphere as atmo
 from ..media.chapman import relative_error as chapman_error
 from ..media.adaptive import CAPPED, EVALS, INTERVALS, bounded_piecewise, first_estimate, refine, rule
@@ -80,7 +80,7 @@ def _integrand(piece, s, xh, h, kt, code, g, cone):
         mu = -(1.0 - t2) / (1.0 + t2)
         one_minus, one_plus = 2.0 / (1.0 + t2), 2.0 * t2 / (1.0 + t2)
     f = 1.0
-    if is_spot(cone[3]):  # cosine to the axis A sin(phi) - B cos(phi), sin(phi) = sin(psi) = 2t / (1 + t^2)
+    if has_cone(cone[3]):  # cosine to the axis A sin(phi) - B cos(phi), sin(phi) = sin(psi) = 2t / (1 + t^2)
         f = falloff(cone[0] * 2.0 * t / (1.0 + t2) - cone[1] * mu, cone[2], cone[3], cone[4])
     return f * math.exp(-kt * path) * phase_split(code, g, mu, one_minus, one_plus)
 
@@ -104,7 +104,7 @@ def _cuts(xh, h, cone, phi_a, phi_b, psi_end, psi_start, out0, out1):
     the piece's ends; returns their lengths."""
     out0[0], out1[0] = phi_a, psi_end
     n0 = n1 = 1
-    if is_spot(cone[3]):
+    if has_cone(cone[3]):
         for C in (cone[2], cone[3]):
             k, r1, r2 = cone_breaks(cone[0], cone[1], C)
             for i in range(k):
@@ -449,7 +449,7 @@ def _fog_point(s, r, spots):
     else:  # rho(x) x <= tc (1 + |MU| x / H) (the density changes by e^{MU t / H} along the ray): no exp
         rho = tc * (1.0 / x + abs(row[MU]) / H) if x > 0.0 else math.exp(-row[HO] / H)
     moved = (h * inv_d * dx + 2.0 * (dh + 2.0 * ULP * d)) * inv_d + 4.0 * ULP
-    spot = moved * row[SPOT_WIDTH] if spots is not None and is_spot(r.cone[3]) else 0.0
+    spot = moved * row[SPOT_WIDTH] if spots is not None and has_cone(r.cone[3]) else 0.0
     eps = (dens + r.kt * (d_cam + d_light + 2.0 * ULP * (tc + tl) + rho * dx + tl * dd * inv_d) + row[PHASE_COND] * moved
            + spot + dh / h + C_OPS * ULP)
     return value, 2.0 * eps
@@ -467,7 +467,7 @@ def _fog_value(s, r):
 def _cone_thetas(cone, out, n, spots):
     """Append a spot light's cone crossings as angles theta from the foot point (theta = phi -
     pi/2) to out[n:]; returns the new count. `spots`: None if the scene has no spot light (`_kinds`)."""
-    if spots is not None and is_spot(cone[3]):
+    if spots is not None and has_cone(cone[3]):
         for C in (cone[2], cone[3]):
             k, r1, r2 = cone_breaks(cone[0], cone[1], C)
             for i in range(k):
