@@ -32,7 +32,7 @@ from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows, shapes, support
 from ..interiors.held import held_airlight, held_lights, lit_from_inside
 from ..jit import exact_njit
-from ..lights import Lights, at_infinity, cubature, cubature_ladders, environment
+from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
 from ..methods import get_method, resolve_params
 from ..options import RenderOptions
@@ -67,7 +67,6 @@ class Prepared:
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (interiors/shapes.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
     lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
-    emission: bool = True  # whether camera rays see the background and the emitters themselves (`only`)
     emissive: list = field(default_factory=list)  # the emissive shapes (`Lights.of`'s emitters)
     _memo: dict = field(default_factory=dict)
     _memo_lock: threading.Lock = field(default_factory=threading.Lock)
@@ -94,23 +93,17 @@ class Prepared:
             self._through = build_frusta(self.accel, self.lights, select=mask)
         return None if mask is None else self._through
 
-    def only(self, keep: np.ndarray, emission: bool | None = None) -> "Prepared":
+    def only(self, keep: np.ndarray) -> "Prepared":
         """This scene lit by the lights `keep` (a boolean mask over `lights`) only, for the output
-        layers (rendering/aov.py) and the environment's groups (`shade_groups`): the other lights'
-        intensities are zero (their contributions exact zeros, so each light's layer holds the very
-        numbers the image adds up) and their segments of the camera's medium are dropped; the
-        background and the emitters are seen where `emission` (default: where no light is kept, the
-        emission layer); everything else, the shadow frusta included, is shared."""
+        layers (rendering/aov.py): the other lights' intensities are zero (their contributions exact zeros, so
+        each light's layer holds the very numbers the image adds up) and their segments of the
+        camera's medium are dropped; the background is seen only where no light is kept (the emission
+        layer); everything else, the shadow frusta included, is shared."""
         self.through()
         view = copy.copy(self)
         view.lights = dataclasses.replace(self.lights, intensity=np.where(keep[:, None], self.lights.intensity, 0.0))
         view.lights_on = keep
-        view.emission = not keep.any() if emission is None else emission
         return view
-
-    def view(self, keep: np.ndarray, emission: bool | None = None) -> "Prepared":
-        """`only(keep, emission)`, made once per scene."""
-        return self.memo(("only", keep.tobytes(), emission), functools.partial(self.only, keep, emission))
 
 
 @dataclass
@@ -176,9 +169,8 @@ def _pilot(prep: Prepared, method, params, seed, tol, ladders, counts) -> tuple[
 
     @functools.lru_cache(maxsize=None)
     def rows_at(orders):
-        return dataclasses.replace(prep, lights=environment.seeded(Lights.of(scene.lights, prep.emissive, orders),
-                                                                   scene.lights, seed),
-                                   _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
+        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders), _frusta=None,
+                                   _through=None, _memo={}, _memo_lock=threading.Lock())
 
     def shade(orders, rays):
         return shade_rays(rows_at(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
@@ -218,8 +210,8 @@ def airlight(method, medium, lights, params, segs, n_rays: int):
 
 def sees_emission(prep: Prepared) -> bool:
     """Whether camera rays see the background and the emitters themselves: in every pass but a light
-    layer's or an environment group's (`Prepared.only`), whose rays see only those lights' light."""
-    return prep.emission
+    layer's (`Prepared.only`), whose rays see only that light's light."""
+    return prep.lights_on is None or not prep.lights_on.any()
 
 
 def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: bool = False, depth=0,
@@ -412,10 +404,9 @@ def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stat
 
 
 def has_variance(prep: Prepared, method) -> bool:
-    """Whether a render has a variance layer: a stochastic method's, the surface term's samples of
-    area lights' emitters in penumbrae (shading.penumbra) or an environment light's groups of directions."""
-    return (method.stochastic or any(e is not None for e in prep.lights.emitters)
-            or bool(environment.groups(prep.lights)))
+    """Whether a render has a variance layer: a stochastic method's, or the surface term's samples of
+    area lights' emitters in penumbrae (shading.penumbra)."""
+    return method.stochastic or any(e is not None for e in prep.lights.emitters)
 
 
 NEAR_STATS = slice(-support.STATS_SIZE - len(near_emitters.STATS_NAMES), -support.STATS_SIZE)  # their place in the stats
@@ -649,47 +640,11 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
     method = _method(task.method)
-    prep = seeded(prep, task.seed)
-    split = environment.groups(prep.lights)
-    hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov or split else None  # shared by the passes
-    rad, stats, var, bound, parts = shade_groups(prep, split, method, task.params, o, d, keys, task.seed,
-                                                 task.shadows, hits)
+    hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
+    rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start
     layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys, hits), n)
-    return (sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers,
-            None if parts is None else sum_samples(parts, n))
-
-
-def shade_groups(prep: Prepared, split: list, method, params, origins, dirs, keys, seed, shadows, hits):
-    """`shade_rays`' four values and, with an environment light, the radiance (N, 3 G) of each of its G
-    groups of directions (`split`: environment.groups' masks; else None): its rows shaded apart, a pass
-    (`Prepared.only`) per group and one of the other lights and the emission, added up in that order.
-    The variance is the other lights' (a stochastic method's estimate of a group's rows is part of that
-    group's spread: Accumulator.add)."""
-    if not split:
-        return (*shade_rays(prep, method, params, origins, dirs, keys, seed, shadows, hits=hits), None)
-    rest = prep.view(~np.any(split, axis=0), emission=True)
-    rad, stats, var, bound = shade_rays(rest, method, params, origins, dirs, keys, seed, shadows, hits=hits)
-    parts = []
-    for keep in split:
-        part, part_stats, _, part_bound = shade_rays(prep.view(keep), method, params, origins, dirs, keys, seed,
-                                                     shadows, hits=hits)
-        rad, stats, bound = rad + part, stats + part_stats, bound + part_bound
-        parts.append(part)
-    return rad, stats, var, bound, np.concatenate(parts, axis=1)
-
-
-def seeded(prep: Prepared, seed: int) -> Prepared:
-    """`prep` with the environment light's directions drawn for `seed` (environment.seeded; `prep`
-    itself where they are the same), its shadow frusta its own; the last one made is kept."""
-    with prep._memo_lock:
-        last = prep._memo.get("seeded")
-        if last is None or last[0] != seed:
-            lights = environment.seeded(prep.lights, prep.scene.lights, seed)
-            new = prep if lights is prep.lights else dataclasses.replace(
-                prep, lights=lights, _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
-            last = prep._memo["seeded"] = new._memo["seeded"] = (seed, new)
-        return last[1]
+    return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
@@ -699,7 +654,8 @@ def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits)
     cols = [aov.hit_columns(prep, task.aov, origins, dirs, hits)]
     if "lights" in task.aov:
         for keep in aov.light_masks(prep.lights):
-            cols.append(shade_rays(prep.view(keep), method, task.params, origins, dirs, keys, task.seed, task.shadows,
+            view = prep.memo(("only", keep.tobytes()), functools.partial(prep.only, keep))
+            cols.append(shade_rays(view, method, task.params, origins, dirs, keys, task.seed, task.shadows,
                                    hits=hits)[0])
     return np.concatenate(cols, axis=1)
 
@@ -759,13 +715,9 @@ class Accumulator:
     """Tile results reduced in one fixed order whatever order they arrive in: a band's pixel sums of
     each sample range are gathered, then its ranges added in sample order (each pixel the same sum
     as in the earlier tiles of whole rows), the statistics in tile order; the error bound is the
-    mean of the samples' bounds. With an environment light's `groups` (G > 0) its groups' radiances are
-    summed the same way and their spread added to the variance: G / (G - 1) sum_g (P_g - P / G)^2, P_g a
-    group's pixel mean and P their sum (the variance of the sum of G independent unbiased estimates of
-    P / G, from their sample variance)."""
+    mean of the samples' bounds."""
 
-    def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int, layers: int = 0,
-                 groups: int = 0):
+    def __init__(self, work: list[Tile], box, spp: int, stochastic: bool, stats_size: int, layers: int = 0):
         x0, self.y0, x1, y1 = box
         self.work, self.spp, self.width = work, spp, x1 - x0
         self.image = np.zeros((y1 - self.y0, x1 - x0, 3))
@@ -773,23 +725,21 @@ class Accumulator:
         self.variance = np.zeros_like(self.image) if stochastic else None
         self.bound = np.zeros(self.image.shape, dtype=np.float32)  # rounded up: still a bound, half the memory
         self._left = collections.Counter(t.rows.start for t in work)  # first row of a band -> tiles to come
-        self.groups = groups
-        self._pending = {}  # first row of a band -> {first sample: [radiance, variance, bound, layers, groups] sums}
+        self._pending = {}  # first row of a band -> {first sample: [radiance, variance, bound, layers] sums}
         self._stats = [np.zeros(stats_size)] * len(work)
 
     def add(self, i: int, result) -> slice | None:
         """Add tile `i`'s result; returns the rows of the image (relative to the block) that it
         finished, or None while some of their tiles are still to come."""
         tile = self.work[i]
-        rad, self._stats[i], var, bound, layers, groups = result
+        rad, self._stats[i], var, bound, layers = result
         band = tile.rows.start
         parts = self._pending.setdefault(band, {})
         if tile.samples.start not in parts:
             shape = ((tile.rows.stop - band) * self.width, 3)
             parts[tile.samples.start] = [np.zeros(shape), None if var is None else np.zeros(shape), np.zeros(shape),
-                                         None if layers is None else np.zeros((shape[0], layers.shape[1])),
-                                         None if groups is None else np.zeros((shape[0], groups.shape[1]))]
-        for total, value in zip(parts[tile.samples.start], (rad, var, bound, layers, groups)):
+                                         None if layers is None else np.zeros((shape[0], layers.shape[1]))]
+        for total, value in zip(parts[tile.samples.start], (rad, var, bound, layers)):
             if value is not None:
                 total[tile.pixels] = value
         self._left[band] -= 1
@@ -799,14 +749,12 @@ class Accumulator:
         order = [[a.reshape(-1, self.width, a.shape[1]) if a is not None else None for a in parts[k]]
                  for k in sorted(parts)]
         block = slice(band - self.y0, tile.rows.stop - self.y0)
-        self.image[block] = functools.reduce(np.add, [r[0] for r in order]) / self.spp
+        self.image[block] = functools.reduce(np.add, [r for r, _, _, _ in order]) / self.spp
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            self.variance[block] = functools.reduce(np.add, [r[1] for r in order]) / self.spp**2
-        error_bounds.add_up(self.bound[block], functools.reduce(np.add, [r[2] for r in order]), self.spp)
+            self.variance[block] = functools.reduce(np.add, [v for _, v, _, _ in order]) / self.spp**2
+        error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b, _ in order]), self.spp)
         if self.layers is not None:
-            self.layers[block] = functools.reduce(np.add, [r[3] for r in order]) / self.spp
-        if self.groups:
-            self.variance[block] += spread(functools.reduce(np.add, [r[4] for r in order]) / self.spp, self.groups)
+            self.layers[block] = functools.reduce(np.add, [a for _, _, _, a in order]) / self.spp
         return block
 
     def totals(self) -> np.ndarray:
@@ -814,13 +762,6 @@ class Accumulator:
         for s in self._stats:
             totals += s
         return totals
-
-
-def spread(means: np.ndarray, groups: int) -> np.ndarray:
-    """(..., 3) the variance of the sum of `groups` independent unbiased estimates from their values,
-    `means` (..., 3 groups): groups / (groups - 1) sum_g (P_g - P / groups)^2, P the sum."""
-    parts = means.reshape(*means.shape[:-1], groups, 3)
-    return groups / (groups - 1) * np.sum((parts - parts.sum(axis=-2, keepdims=True) / groups) ** 2, axis=-2)
 
 
 def check(prep: Prepared, method_name: str, given_params: dict, options: RenderOptions, source: str) -> dict:
@@ -883,9 +824,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     box = options.crop or (0, 0, cam.width, cam.height)
     task = Task(method.name, params, options.seed, options.shadows, box, options.aov)
     work = tiles(cam, box)
-    prep = seeded(prep, options.seed)
-    acc = Accumulator(work, box, cam.spp, has_variance(prep, method), stats_size(method),
-                      aov.width(task.aov, aov.sources(prep.lights)), len(environment.groups(prep.lights)))
+    acc = Accumulator(work, box, cam.spp, has_variance(prep, method), stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
     pilot_start = time.perf_counter()
 
@@ -914,10 +853,6 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     summary.update(support.summarize(prep, method, totals[-support.STATS_SIZE:], task.shadows))
     summary.update(error_bounds.summary(acc.bound))
     summary.update(pilot)
-    if acc.groups:
-        summary.update({"environment: directions": int(np.count_nonzero(np.any(environment.groups(prep.lights),
-                                                                                 axis=0))),
-                        "environment: groups": acc.groups})
     layers = {} if acc.layers is None else aov.split(task.aov, aov.sources(prep.lights), acc.layers)
     return RenderResult(acc.image, method.name, params, seconds, compile_s, summary, acc.variance,
                         error_bound=acc.bound, layers=layers)
