@@ -15,6 +15,23 @@ import numpy as np
 from scipy import integrate, optimize
 
 
+def triangle_hits(tris, o, d):
+    """Moller-Trumbore in float64 against every triangle of tris (T, 3, 3): (t, u, v, det) (T,) each, the ray
+    o + t d meeting the triangle's plane at barycentric (u, v) (inf or nan where det = 0); the caller decides
+    what counts as a hit."""
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        s = o - tris[:, 0]
+        u = np.einsum("ij,ij->i", s, p) * inv
+        q = np.cross(s, e1)
+        v = (q @ d) * inv
+        t = np.einsum("ij,ij->i", e2, q) * inv
+    return t, u, v, det
+
+
 def phase(name: str, g: float, mu: float) -> float:
     if name == "isotropic":
         return 1.0 / (4.0 * math.pi)

@@ -45,16 +45,10 @@ OFFSETS = np.einsum("ij,ij->i", NORMALS, TRIS[:, 0])
 
 
 def hits(o, d):
-    """Moller-Trumbore: the ray parameter t of o + t d on every triangle (inf where it misses)."""
-    p = np.cross(d, E2)
-    det = np.einsum("ij,ij->i", E1, p)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / det
-        s = o - TRIS[:, 0]
-        u = np.einsum("ij,ij->i", s, p) * inv
-        q = np.cross(s, E1)
-        v = (q @ d) * inv
-        t = np.einsum("ij,ij->i", E2, q) * inv
+    """Moller-Trumbore (oracle.triangle_hits): the ray parameter t of o + t d on every triangle (inf where it
+    misses)."""
+    t, u, v, det = oracle.triangle_hits(TRIS, o, d)
+    with np.errstate(invalid="ignore"):
         ok = (np.abs(det) > 1e-14) & (u >= 0) & (v >= 0) & (u + v <= 1)
     return np.where(ok, t, np.inf)
 

@@ -20,6 +20,8 @@ from raytrace.methods import registry
 from raytrace.rendering.renderer import prepare
 from raytrace.scene.format import scene_from_dict
 
+from . import oracle
+
 SIGMA_A, SIGMA_S, G = 0.2, 0.6, 0.3
 LAMP = np.array([1.6, 0.9, 0.4])
 INTENSITY = 4.0
@@ -43,18 +45,10 @@ def torus(tmp_path_factory):
 
 def hits(tris, o, d):
     """(t, triangle) of every crossing of the ray o + t d, t > 0, with the triangles (float64
-    Moller-Trumbore), ascending."""
-    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    p = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / det
-        s = o - tris[:, 0]
-        u = np.einsum("ij,ij->i", s, p) * inv
-        q = np.cross(s, e1)
-        v = (q @ d) * inv
-        t = np.einsum("ij,ij->i", e2, q) * inv
-    ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    Moller-Trumbore, oracle.triangle_hits), ascending."""
+    t, u, v, _ = oracle.triangle_hits(tris, o, d)
+    with np.errstate(invalid="ignore"):
+        ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
     order = np.argsort(t[ok])
     return t[ok][order], np.nonzero(ok)[0][order]
 
