@@ -39,7 +39,7 @@ import numpy as np
 from ..jit import njit
 from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
-from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Segments, Supports, by_kind
+from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
 from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
                        cone_row, fog_rows, segment_geometry, spot_factor)
@@ -519,9 +519,10 @@ def _parts(segs, lights, params):
     """[(indices into segs, segments, lights, params, drawn)]: the segments whose rows stay as they are, and
     those of flat emitters' rows (lights/planar.py `flat_rows`) whose side of the emitter is whole along
     their ray (`_whole`) as `_emitter_draws`, one iteration each."""
-    flat = flat_rows(lights)[segs.light]
+    flat_row = flat_rows(lights)
+    flat = flat_row[segs.light]
     if flat.any():
-        flat[flat] = _whole(segs, lights, flat)
+        flat[flat] = _whole(segs, lights, flat_row, flat)
     if not flat.any():
         return [(slice(None), segs, lights, params, False)]
     keep, at = np.nonzero(~flat)[0], np.nonzero(flat)[0]
@@ -532,13 +533,13 @@ def _parts(segs, lights, params):
 WHOLE_RTOL = 1e-9  # of the scene's size: how far the pieces of one emitter's rows may start and end apart
 
 
-def _whole(segs, lights, flat) -> np.ndarray:
+def _whole(segs, lights, flat_row, flat) -> np.ndarray:
     """(count of flat,) whether each of the segments `flat` (rows of flat emitters) lies where every row of its
     emitter's side (a two-sided emitter's sides apart) has one segment on the ray, all the same piece to
     WHOLE_RTOL: no shadow cuts the rows along the ray (as without volumetric shadows), so that the emitter's
     points off the nodes are taken as lit as they. Elsewhere (a penumbra cuts the rows' pieces) the rows stay:
-    their nodes' visibility weighs their own points."""
-    rows = np.nonzero(flat_rows(lights))[0]
+    their nodes' visibility weighs their own points. `flat_row` (L,): `flat_rows(lights)`."""
+    rows = np.nonzero(flat_row)[0]
     owner = lights.owner[rows]
     first = np.zeros(len(lights.emitters), np.int64)
     emitters, at_first = np.unique(owner, return_index=True)
@@ -579,10 +580,8 @@ def _emitter_draws(segs, lights, n):
     points = row_points(lights, segs.light, u, v).reshape(-1, 3)
     rep = np.repeat(np.arange(len(segs)), n)
     rows = segs.light[rep]
-    pick = lambda a: None if a is None else a[rep]  # noqa: E731
-    drawn = Segments(segs.origins[rep], segs.dirs[rep], segs.length[rep], np.arange(len(rep)), segs.ray[rep],
-                     segs.t0[rep], segs.keys[rep], n * segs.stream[rep] + np.tile(np.arange(n), len(segs)), segs.seed,
-                     segs.scale, medium=pick(segs.medium), normals=pick(segs.normals), reach=pick(segs.reach))
+    drawn = dataclasses.replace(segs.take(rep), light=np.arange(len(rep)),
+                                stream=n * segs.stream[rep] + np.tile(np.arange(n), len(segs)))
     return drawn, dataclasses.replace(lights, kind=lights.kind[rows], position=points, intensity=lights.intensity[rows],
                                       axis=lights.axis[rows], cone=lights.cone[rows], owner=lights.owner[rows],
                                       cubature=lights.cubature[rows])
