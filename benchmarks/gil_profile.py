@@ -44,6 +44,8 @@ RATE = 400  # each sampler's samples a second
 
 
 def child(row: str, passes: int, out: Path, size: str | None = None):
+    import raytrace  # the --tree's (PYTHONPATH), before scaling.py puts its own checkout first on the path
+
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import scaling
     from raytrace.rendering import renderer
@@ -76,7 +78,7 @@ def child(row: str, passes: int, out: Path, size: str | None = None):
         tiles_pass()
         cpu.append(time.thread_time() - start)
         spin()
-    out.write_text(json.dumps({"cpu": cpu, "tiles": len(work)}))
+    out.write_text(json.dumps({"cpu": cpu, "tiles": len(work), "package": str(Path(raytrace.__file__).parent)}))
 
 
 def stacks(path: Path):
@@ -138,7 +140,7 @@ def main():
     share = (gil_tiles / gil_spin) / (all_tiles / all_spin)
     per_pass = sum(cpu["cpu"]) / len(cpu["cpu"])
     size = f" at {args.size}" if args.size else ""
-    print(f"# {ROWS[args.row]}{size}, {cpu['tiles']} tiles, {args.tree}; load {os.getloadavg()[0]:.1f}")
+    print(f"# {ROWS[args.row]}{size}, {cpu['tiles']} tiles, {cpu['package']}; load {os.getloadavg()[0]:.1f}")
     print(f"CPU per pass {1e3 * per_pass:.1f} ms; GIL share {share:.3f}; GIL-holding CPU per pass "
           f"{1e3 * share * per_pass:.1f} ms, per tile {1e6 * share * per_pass / cpu['tiles']:.0f} us")
     print(f"functions (share of the tiles' {total} GIL-holding samples, inclusive):")
