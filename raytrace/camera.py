@@ -122,7 +122,7 @@ def _ray_kernel(xs, ys, off, W, H, perspective, tan, aspect, forward, right, up,
                 for k in range(3):
                     d[i, k] = forward[k] + a * right[k] + b * up[k]
             else:
-                slot = int(xs[p]) % K if xs[p] == xs[p] else 0
+                slot = math.floor(xs[p]) % K if abs(xs[p]) < 1e15 else 0  # (int() compiles an overload of its own)
                 if memo[s, slot, 0] != x:
                     phi = (2.0 * math.pi) * (x / W - 0.5)
                     memo[s, slot, 0], memo[s, slot, 1], memo[s, slot, 2] = x, math.cos(phi), math.sin(phi)
