@@ -2,7 +2,7 @@
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/gil_profile.py [--row unshadowed|shadowed|fog]
                                                                       [--passes N] [--tree DIR] [--top K]
-                                                                      [--lines FUNC,...]
+                                                                      [--lines FUNC,...] [--size WxH]
 
 A child process renders every tile of one of `scaling.py --quick`'s rows once (untimed: kernels the
 warm-up leaves out load then), then N passes over all of them on one thread, each pass followed by
@@ -19,7 +19,8 @@ by both samplers, so the load cancels (as far as it falls evenly on Python and o
 GIL-holding CPU time is that share times the tiles' thread CPU time. Then, per function of the
 tiles' stacks, its share of the GIL-holding samples (inclusive), and the lines of render_tile and
 shade_rays (or of the functions `--lines` names, the innermost of them in each stack) by what they
-call. Attaching to a process needs ptrace permission (root, or
+call. `--size 1024x512` renders the row at another size (the Sibenik rows' tiles grow with it: 1,024
+rays at 256x128, 8,192 at 1024x512). Attaching to a process needs ptrace permission (root, or
 kernel.yama.ptrace_scope = 0); py-spy: `pip install py-spy`.
 """
 import argparse
@@ -42,12 +43,18 @@ CALIBRATE = 0.25  # seconds of GIL-holding spin after each pass
 RATE = 400  # each sampler's samples a second
 
 
-def child(row: str, passes: int, out: Path):
+def child(row: str, passes: int, out: Path, size: str | None = None):
+    import raytrace  # the --tree's (PYTHONPATH), before scaling.py puts its own checkout first on the path
+
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import scaling
     from raytrace.rendering import renderer
 
-    scene, method, shadows = scaling.load(scaling.QUICK[ROWS[row]])
+    name, overrides, method, shadows = scaling.QUICK[ROWS[row]]
+    if size:
+        width, height = size.split("x")
+        overrides = [*overrides, f"camera.width={width}", f"camera.height={height}"]
+    scene, method, shadows = scaling.load((name, overrides, method, shadows))
     prep = renderer.prepare(scene)
     task = scaling.task_of(scene, method, shadows)
     renderer.prepare_task(prep, task)
@@ -71,7 +78,7 @@ def child(row: str, passes: int, out: Path):
         tiles_pass()
         cpu.append(time.thread_time() - start)
         spin()
-    out.write_text(json.dumps({"cpu": cpu, "tiles": len(work)}))
+    out.write_text(json.dumps({"cpu": cpu, "tiles": len(work), "package": str(Path(raytrace.__file__).parent)}))
 
 
 def stacks(path: Path):
@@ -90,16 +97,17 @@ def main():
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--lines", default="render_tile,shade_rays",
                     help="the functions whose lines are listed by what they call (comma-separated)")
+    ap.add_argument("--size", help="WxH: the row's image at this size instead")
     ap.add_argument("--child", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        return child(args.row, args.passes, args.child)
+        return child(args.row, args.passes, args.child, args.size)
     spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         env = dict(os.environ, PYTHONPATH=str(args.tree))
         proc = subprocess.Popen([sys.executable, __file__, "--row", args.row, "--passes", str(args.passes), "--child",
-                                 str(tmp / "out.json")], env=env)
+                                 str(tmp / "out.json")] + (["--size", args.size] if args.size else []), env=env)
         spies = []
         for name, flags in (("gil", ["--gil"]), ("all", [])):
             # --nonblocking: two samplers cannot both suspend the process for each sample
@@ -131,7 +139,8 @@ def main():
     (gil_spin, gil_tiles), (all_spin, all_tiles) = counts["gil"], counts["all"]
     share = (gil_tiles / gil_spin) / (all_tiles / all_spin)
     per_pass = sum(cpu["cpu"]) / len(cpu["cpu"])
-    print(f"# {ROWS[args.row]}, {cpu['tiles']} tiles, {args.tree}; load {os.getloadavg()[0]:.1f}")
+    size = f" at {args.size}" if args.size else ""
+    print(f"# {ROWS[args.row]}{size}, {cpu['tiles']} tiles, {cpu['package']}; load {os.getloadavg()[0]:.1f}")
     print(f"CPU per pass {1e3 * per_pass:.1f} ms; GIL share {share:.3f}; GIL-holding CPU per pass "
           f"{1e3 * share * per_pass:.1f} ms, per tile {1e6 * share * per_pass / cpu['tiles']:.0f} us")
     print(f"functions (share of the tiles' {total} GIL-holding samples, inclusive):")

@@ -91,17 +91,27 @@ def _rays(cam: Camera, xs: np.ndarray, ys: np.ndarray, off: np.ndarray):
     o, d = np.empty((len(xs) * len(off), 3)), np.empty((len(xs) * len(off), 3))
     perspective = cam.type == "perspective"
     tan = math.tan(math.radians(cam.fov) / 2.0) if perspective else 0.0
+    memo = np.full((0 if perspective else len(off), TRIG_SLOTS + 1, 3), np.nan)
     _ray_kernel(xs, ys, off, float(cam.width), float(cam.height), perspective, tan, cam.width / cam.height, forward,
-                right, up, np.asarray(cam.position, np.float64), o, d)
+                right, up, np.asarray(cam.position, np.float64), o, d, memo)
     return o, d
 
 
+TRIG_SLOTS = 31  # an environment camera's remembered columns per sample (`_ray_kernel`): prime, so that a tile's
+# columns (every 128th pixel of the raster order: 4 of 512, 8 of 1024) fall in different slots
+
+
 @exact_njit
-def _ray_kernel(xs, ys, off, W, H, perspective, tan, aspect, forward, right, up, position, o, d):
+def _ray_kernel(xs, ys, off, W, H, perspective, tan, aspect, forward, right, up, position, o, d, memo):
     """The rays of the module's formulas (`perspective`, else environment) through the points
     (xs[p] + off[s, 0], ys[p] + off[s, 1]), ray p S + s, into o and d, each number rounded as the NumPy
-    expressions this kernel replaced round it (the point's two sums among them)."""
+    expressions this kernel replaced round it (the point's two sums among them). An environment ray's
+    sines and cosines are those of its phi and theta, computed once per value: memo (S, TRIG_SLOTS + 1,
+    3), NaN on entry, keeps per sample the last x of each slot (by column) with cos and sin of its phi,
+    and in its last row the last y with sin and cos of its theta (a tile's rays take a few columns,
+    row after row)."""
     S = off.shape[0]
+    K = memo.shape[1] - 1
     for p in range(xs.shape[0]):
         for s in range(S):
             i = p * S + s
@@ -112,9 +122,14 @@ def _ray_kernel(xs, ys, off, W, H, perspective, tan, aspect, forward, right, up,
                 for k in range(3):
                     d[i, k] = forward[k] + a * right[k] + b * up[k]
             else:
-                phi = (2.0 * math.pi) * (x / W - 0.5)
-                theta = math.pi * y / H
-                st, cp, sp, ct = math.sin(theta), math.cos(phi), math.sin(phi), math.cos(theta)
+                slot = math.floor(xs[p]) % K if abs(xs[p]) < 1e15 else 0  # (int() compiles an overload of its own)
+                if memo[s, slot, 0] != x:
+                    phi = (2.0 * math.pi) * (x / W - 0.5)
+                    memo[s, slot, 0], memo[s, slot, 1], memo[s, slot, 2] = x, math.cos(phi), math.sin(phi)
+                if memo[s, K, 0] != y:
+                    theta = math.pi * y / H
+                    memo[s, K, 0], memo[s, K, 1], memo[s, K, 2] = y, math.sin(theta), math.cos(theta)
+                cp, sp, st, ct = memo[s, slot, 1], memo[s, slot, 2], memo[s, K, 1], memo[s, K, 2]
                 for k in range(3):
                     d[i, k] = st * (cp * forward[k] + sp * right[k]) + ct * up[k]
             length = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
