@@ -1,0 +1,150 @@
+"""Directional light (the sun) into a refractive shape that is not convex: each face's beam over its exact lit pieces.
+
+The light (unit direction of travel `axis`) meets each triangle F of a closed mesh whose plane faces it (its
+normal turned toward the light: either orientation) and, refracted there, travels inside along a constant
+direction d_F (interiors/fresnel.py `refracted_beams`: the beam, its irradiance T cos_i / cos_t). A point X
+inside is lit by F's beam where its path back, X + s u (u = -d_F, s > 0), leaves the shape through F: it meets
+F's plane at P = X + s_F u inside the triangle, no other triangle on the way (the inside leg), and the light's
+leg from P back toward the source, P - r axis (r > 0), meets no triangle (the outside leg). Every triangle is
+taken in either orientation; a face whose outside looks into the shape gives a path that leaves before it, which
+the inside leg rejects.
+
+On a camera segment X(t) = o + t w, t in [0, T], each condition is linear in t: s_F(t) = alpha + beta t > 0;
+P(t) = o + alpha u + t (w + beta u) moves along a line of F's plane, so each edge test of F is a linear
+inequality; another triangle G blocks the inside leg where its plane's crossing v_G(t) (linear) lies in
+(0, s_F(t)) and Q(t) = X(t) + v_G(t) u (linear) in G, and blocks the outside leg where P(t)'s crossing
+r_G(t) > 0 and R(t) = P(t) - r_G(t) axis lies in G. Each blocker's set is an intersection of half-lines, one
+interval; F's lit pieces are its own interval less their union (`beam_pieces`). The pieces' ends are computed
+in doubles, not bounded.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import njit
+
+
+@njit
+def _clip(lo, hi, a, b):
+    """[lo, hi] cut to {t : a + b t >= 0}."""
+    if b > 0.0:
+        return max(lo, -a / b), hi
+    if b < 0.0:
+        return lo, min(hi, -a / b)
+    return (lo, hi) if a >= 0.0 else (lo, -math.inf)
+
+
+@njit
+def _in_triangle(lo, hi, tri, p0, p1):
+    """[lo, hi] cut to the t where p0 + t p1 lies in triangle tri (3, 3) (on its plane: the edge tests of the
+    cross products against its normal from the vertex order)."""
+    e1, e2 = tri[1] - tri[0], tri[2] - tri[0]
+    nrm = np.cross(e1, e2)
+    for k in range(3):
+        a, b = tri[k], tri[(k + 1) % 3]
+        edge = np.cross(b - a, nrm)  # (b - a) x (p - a) . n = (p - a) . ((n x (b - a))): inside where >= 0
+        lo, hi = _clip(lo, hi, -(edge[0] * (p0[0] - a[0]) + edge[1] * (p0[1] - a[1]) + edge[2] * (p0[2] - a[2])),
+                       -(edge[0] * p1[0] + edge[1] * p1[1] + edge[2] * p1[2]))
+        if not hi > lo:
+            break
+    return lo, hi
+
+
+@njit
+def _crossing(normal, offset, p0, p1, d):
+    """(c0, c1): the parameter c0 + c1 t where p0 + t p1 + c d meets the plane normal . x = offset (d not parallel)."""
+    q = normal[0] * d[0] + normal[1] * d[1] + normal[2] * d[2]
+    return ((offset - (normal[0] * p0[0] + normal[1] * p0[1] + normal[2] * p0[2])) / q,
+            -(normal[0] * p1[0] + normal[1] * p1[1] + normal[2] * p1[2]) / q)
+
+
+@njit
+def _blocked(tri, normal, offset, p0, p1, d, lo, hi, s0, s1):
+    """The interval of t in [lo, hi] where the leg p0 + t p1 + c d, 0 < c < s0 + s1 t (s0 = inf: unbounded),
+    meets triangle tri (plane normal . x = offset); empty (hi <= lo) where the leg runs along its plane."""
+    q = normal[0] * d[0] + normal[1] * d[1] + normal[2] * d[2]
+    if q == 0.0:
+        return lo, -math.inf
+    c0, c1 = _crossing(normal, offset, p0, p1, d)
+    lo, hi = _clip(lo, hi, c0, c1)
+    if s0 < math.inf:
+        lo, hi = _clip(lo, hi, s0 - c0, s1 - c1)
+    if not hi > lo:
+        return lo, hi
+    return _in_triangle(lo, hi, tri, p0 + c0 * d, p1 + c1 * d)
+
+
+@njit
+def _subtract(lo, hi, cuts, m, seg, src, x0, x1, k):
+    """Write [lo, hi] less the union of the intervals cuts[:m] as pieces of segment seg into src, x0, x1 from
+    k on; returns the new count (or -1 where the arrays are full)."""
+    order = np.argsort(cuts[:m, 0])
+    t = lo
+    for i in order:
+        a, b = cuts[i, 0], cuts[i, 1]
+        if a > t:
+            if k >= src.shape[0]:
+                return -1
+            src[k], x0[k], x1[k] = seg, t, min(a, hi)
+            k += 1
+        t = max(t, b)
+        if t >= hi:
+            return k
+    if hi > t:
+        if k >= src.shape[0]:
+            return -1
+        src[k], x0[k], x1[k] = seg, t, hi
+        k += 1
+    return k
+
+
+@njit
+def beam_pieces(tris, planes, f, toward, axis, origins, dirs, lengths, src, x0, x1):
+    """The pieces (src: segment, x0, x1) of the segments origins + t dirs, t in [0, lengths], that face f's beam
+    lights (module docstring; toward = -d_F, unit; planes (T, 4): the triangles' unit normals and offsets, any
+    orientation). Returns their number, or -1 where src, x0, x1 are too short."""
+    nf, cf = planes[f, :3], planes[f, 3]
+    back = -axis
+    cuts = np.empty((2 * tris.shape[0], 2))
+    k = 0
+    for s in range(origins.shape[0]):
+        o, w = origins[s], dirs[s]
+        alpha, beta = _crossing(nf, cf, o, w, toward)
+        lo, hi = _clip(0.0, lengths[s], alpha, beta)
+        if not hi > lo:
+            continue
+        p0, p1 = o + alpha * toward, w + beta * toward
+        lo, hi = _in_triangle(lo, hi, tris[f], p0, p1)
+        if not hi > lo:
+            continue
+        m = 0
+        for g in range(tris.shape[0]):
+            if g == f:
+                continue
+            ng, cg = planes[g, :3], planes[g, 3]
+            a, b = _blocked(tris[g], ng, cg, o, w, toward, lo, hi, alpha, beta)
+            if b > a:
+                cuts[m, 0], cuts[m, 1] = a, b
+                m += 1
+            a, b = _blocked(tris[g], ng, cg, p0, p1, back, lo, hi, math.inf, 0.0)
+            if b > a:
+                cuts[m, 0], cuts[m, 1] = a, b
+                m += 1
+        k = _subtract(lo, hi, cuts, m, s, src, x0, x1, k)
+        if k < 0:
+            return -1
+    return k
+
+
+def lit_pieces(tris, planes, f, toward, axis, origins, dirs, lengths):
+    """`beam_pieces` as arrays (src, x0, x1), ordered by segment and t."""
+    cap = 2 * len(lengths) + 16
+    while True:
+        src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+        k = beam_pieces(tris, planes, int(f), np.ascontiguousarray(toward, dtype=np.float64),
+                        np.ascontiguousarray(axis, dtype=np.float64), origins, dirs, lengths, src, x0, x1)
+        if k >= 0:
+            return src[:k], x0[:k], x1[:k]
+        cap *= 4
