@@ -158,3 +158,70 @@ def test_raymarch_and_montecarlo_converge_to_the_twin(prep, twins):
     res = render(prep, "montecarlo", {"samples": 64}, RenderOptions(seed=5, threads=1))
     z2 = [(res.image[j, i] - r) ** 2 / res.variance[j, i] for (i, j), r in twins.items()]
     assert 0.2 < np.mean(z2) < 3.5, z2
+
+
+def test_lit_pieces_on_a_torus_match_brute_force():
+    """media/nonconvex_directional.py `lit_pieces` on chords inside a coarse glass torus (240 triangles, its normals
+    in either orientation) against the lit set found point by point with Moller-Trumbore: each sample is inside a
+    beam's pieces exactly where the path back along it first meets that beam's triangle and the leg from there
+    toward the sun meets none (samples within 1e-9 of a piece's end skipped). Both legs' tests must cut something."""
+    import trimesh
+
+    from raytrace.media.nonconvex_directional import lit_pieces
+    from raytrace.media.nonconvex_refraction import face_planes
+
+    mesh = trimesh.creation.torus(1.0, 0.35, major_sections=12, minor_sections=10)
+    tris = np.array(mesh.triangles, dtype=np.float64)
+    tris[::3] = tris[::3, ::-1].copy()  # every third triangle turned over
+    planes = face_planes(tris)
+    rng = np.random.default_rng(7)
+    axis = np.array([-0.4, -1.0, -0.3]) / np.linalg.norm([-0.4, -1.0, -0.3])
+
+    def hits_of(o, d, skip=-1):
+        t, u, v, det = oracle.triangle_hits(tris, o, d)
+        with np.errstate(invalid="ignore"):
+            t = np.where((np.abs(det) > 1e-14) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9), t, np.inf)
+        if skip >= 0:
+            t[skip] = np.inf
+        return t
+
+    chords = []
+    for _ in range(6):
+        phi, psi, r = rng.uniform(0, 2 * np.pi), rng.uniform(0, 2 * np.pi), rng.uniform(0.0, 0.3)
+        centre = np.array([np.cos(phi), np.sin(phi), 0.0])
+        X = centre + r * (np.cos(psi) * centre + np.array([0.0, 0.0, np.sin(psi)]))
+        w = rng.normal(size=3)
+        chords.append((X, w / np.linalg.norm(w)))
+    origins, dirs = np.array([c[0] for c in chords]), np.array([c[1] for c in chords])
+    ells = np.array([hits_of(o, w).min() for o, w in chords])
+    cut = {"inside": 0, "outside": 0, "lit": 0}
+    for f in range(len(tris)):
+        n = planes[f, :3] * (-1.0 if planes[f, :3] @ axis > 0 else 1.0)
+        d = refract(axis, n, ETA)
+        if d is None or not -(axis @ n) > 0:
+            continue
+        src, x0, x1 = lit_pieces(tris, planes, f, -d, axis, origins, dirs, ells)
+        for s in range(len(chords)):
+            xs = np.linspace(0.0, ells[s], 25)[1:-1]
+            tf, u, v, _ = oracle.triangle_hits(np.repeat(tris[f:f + 1], len(xs), axis=0),
+                                               origins[s] + xs[:, None] * dirs[s], -d)
+            meets = (u >= 0) & (v >= 0) & (u + v <= 1) & (tf > 1e-9)  # the path back meets triangle f at all
+            for x, m in zip(xs, meets):
+                mine = (src == s) & (x0 <= x) & (x <= x1)
+                if np.any((src == s) & ((np.abs(x - x0) < 1e-9) | (np.abs(x1 - x) < 1e-9))):
+                    continue
+                if not m:
+                    assert not np.any(mine), (f, s, x)
+                    continue
+                X = origins[s] + x * dirs[s]
+                t = hits_of(X, -d)
+                lit = bool(np.isfinite(t[f]) and t[f] <= t.min())
+                if np.isfinite(t[f]) and not lit:
+                    cut["inside"] += 1
+                if lit and np.any(np.isfinite(hits_of(X - t[f] * d, -axis, skip=f))):
+                    cut["outside"] += 1
+                    lit = False
+                cut["lit"] += lit
+                assert bool(np.any(mine)) == lit, (f, s, x)
+    print(cut)
+    assert min(cut.values()) > 0, cut

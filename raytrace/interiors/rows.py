@@ -18,7 +18,7 @@ media/convex_directional.py with its bound; else the segments go to the method's
 quadrature: `_traced`, rtol methods.INSIDE_RTOL), counted (HANDED), with its bound. Through a refractive boundary a
 directional light enters a convex shape through every face it meets, one beam each
 (`fresnel.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
-through the entry plane (eq. 5, unbounded); a point or spot
+through every triangle, each beam over its exact lit pieces (`_sun_faces`, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through every face whose legs are clear of the shape (`_through_faces`,
 paths.refracted_integrand; the entry plane's model keeps the entry plane). Every light enters an exact
@@ -98,8 +98,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     adaptive quadrature at rtol RTOL), counted (HANDED), bounded as QUAD's. Through a refractive boundary a
     directional light enters a convex shape (`convex_planes`) through every face it meets, one beam each
     (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
-    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
-    unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
+    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through every triangle, each beam
+    over its exact lit pieces (`_sun_faces`, unbounded); a point or spot light a convex one through every face it is
     outside of (media/slab.py `faces_point`), or one inside it (held.py `held_lights`) along its straight
     paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through every face whose
     legs are clear (`_through_faces`); every light outside an exact sphere on its exact refracted paths
