@@ -167,7 +167,7 @@ def test_lit_pieces_on_a_torus_match_brute_force():
     toward the sun meets none (samples within 1e-9 of a piece's end skipped). Both legs' tests must cut something."""
     import trimesh
 
-    from raytrace.media.nonconvex_directional import lit_pieces
+    from raytrace.media.nonconvex_directional import edge_planes, lit_pieces
     from raytrace.media.nonconvex_refraction import face_planes
 
     mesh = trimesh.creation.torus(1.0, 0.35, major_sections=12, minor_sections=10)
@@ -200,7 +200,7 @@ def test_lit_pieces_on_a_torus_match_brute_force():
         d = refract(axis, n, ETA)
         if d is None or not -(axis @ n) > 0:
             continue
-        src, x0, x1 = lit_pieces(tris, planes, f, -d, axis, origins, dirs, ells)
+        _, src, x0, x1 = lit_pieces(edge_planes(tris), planes, [f], [-d], axis, origins, dirs, ells)
         for s in range(len(chords)):
             xs = np.linspace(0.0, ells[s], 25)[1:-1]
             tf, u, v, _ = oracle.triangle_hits(np.repeat(tris[f:f + 1], len(xs), axis=0),

@@ -46,7 +46,7 @@ from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
 from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
-from ..media.nonconvex_directional import lit_pieces
+from ..media.nonconvex_directional import edge_planes, lit_pieces
 from ..media.nonconvex_refraction import face_planes
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
@@ -417,16 +417,17 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
         return
     kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
     kt_out = prep.scene.medium.sigma_t[ch].astype(float)
-    tris, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
+    edges, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
     axis = np.asarray(lights.axis[li], dtype=float)
     turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
     dplanes = measured_plane_errors(prep, sid)
     points, w, ell = (np.ascontiguousarray(a, dtype=float) for a in (points, w, ell))
-    for f, toward, irradiance in zip(*refracted_beams(turned, axis, medium.ior)):
-        toward = np.ascontiguousarray(toward)
-        src, x0, x1 = lit_pieces(tris, planes, f, toward, axis, points, w, ell)
-        if not len(src):
-            continue
+    faces, towards, scales = refracted_beams(turned, axis, medium.ior)
+    beams, srcs, x0s, x1s = lit_pieces(edges, planes, faces, towards, axis, points, w, ell)
+    bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
+    for i in np.unique(beams).tolist():
+        f, toward, irradiance = int(faces[i]), np.ascontiguousarray(towards[i]), scales[i]
+        src, x0, x1 = (a[bounds[i]:bounds[i + 1]] for a in (srcs, x0s, x1s))
         f_li = irradiance * lights.intensity[li, ch]
         if sup.closed_forms:
             q = float(turned[f, :3] @ toward)
@@ -434,8 +435,8 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
             ints[:, 0], ints[:, 2], ints[:, 3] = x0, x0, x0
             ints[:, 1], ints[:, 4], ints[:, 5] = x1, x1, x1
             ints[:, 6], ints[:, 7] = (turned[f, 3] - points[src] @ turned[f, :3]) / q, -(w[src] @ turned[f, :3]) / q
-            val, edges = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))
-            beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, edges)
+            val, spans = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))  # spans: 0 (ends given)
+            beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, spans)
             np.add.at(out, (src[:, None], ch[None, :]), val * f_li)
             continue
         rank = np.arange(len(src)) - np.searchsorted(src, src)
@@ -450,7 +451,7 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
             zero = np.zeros(m)
             inside_radiance(np.ones(m, np.bool_), zero, zero, zero, zero, zero, w[sel] @ toward, x1[at] - lo, kt, ks,
                             medium.phase, medium.g, kt_out, zero, zero, 1.0, geo, face, EVERY, dplanes, -1, rule,
-                            keys[sel], np.uint64(dim0 + (1 + f + piece * len(tris)) * STREAM), np.uint64(seed), unit,
+                            keys[sel], np.uint64(dim0 + (1 + f + piece * len(planes)) * STREAM), np.uint64(seed), unit,
                             unit_var, unit_err, stats)
             with np.errstate(over="ignore", invalid="ignore"):
                 tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
@@ -460,9 +461,9 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
 
 
 def _shape_faces(prep, sid):
-    """(triangles (T, 3, 3), their planes (T, 4)) of shape sid, in float64."""
+    """(edge_planes (T, 3, 4), planes (T, 4)) of shape sid's triangles, in float64."""
     tris = np.ascontiguousarray(prep.accel.triangles[prep.shape_ids == sid], dtype=np.float64)
-    return tris, face_planes(tris)
+    return edge_planes(tris), face_planes(tris)
 
 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, rule, keys, dim0, seed, out, var, bound, stats):

@@ -36,17 +36,28 @@ def _clip(lo, hi, a, b):
     return (lo, hi) if a >= 0.0 else (lo, -math.inf)
 
 
-@njit
-def _in_triangle(lo, hi, tri, p0, p1):
-    """[lo, hi] cut to the t where p0 + t p1 lies in triangle tri (3, 3) (on its plane: the edge tests of the
-    cross products against its normal from the vertex order)."""
-    e1, e2 = tri[1] - tri[0], tri[2] - tri[0]
-    nrm = np.cross(e1, e2)
+def edge_planes(tris):
+    """(T, 3, 4) per triangle and edge (a, b): e = n x (b - a), n the normal of the vertex order (the edge's inward
+    normal in the triangle's plane, whichever the order), and its offset o = e . a: a point p of the plane lies in
+    the triangle where all three rows give e . p - o >= 0 ((b - a) x (p - a) . n >= 0)."""
+    tris = np.asarray(tris, dtype=np.float64)
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    out = np.empty((len(tris), 3, 4))
     for k in range(3):
-        a, b = tri[k], tri[(k + 1) % 3]
-        edge = np.cross(b - a, nrm)  # (b - a) x (p - a) . n = (p - a) . ((n x (b - a))): inside where >= 0
-        lo, hi = _clip(lo, hi, -(edge[0] * (p0[0] - a[0]) + edge[1] * (p0[1] - a[1]) + edge[2] * (p0[2] - a[2])),
-                       -(edge[0] * p1[0] + edge[1] * p1[1] + edge[2] * p1[2]))
+        a, b = tris[:, k], tris[:, (k + 1) % 3]
+        e = np.cross(n, b - a)  # (b - a) x (p - a) . n = (p - a) . (n x (b - a))
+        out[:, k, :3], out[:, k, 3] = e, np.einsum("ij,ij->i", e, a)
+    return np.ascontiguousarray(out)
+
+
+@njit
+def _in_triangle(lo, hi, edges, p0, p1):
+    """[lo, hi] cut to the t where p0 + t p1 lies in the triangle of `edges` (3, 4: `edge_planes`' rows; p0, p1
+    on its plane)."""
+    for k in range(3):
+        e = edges[k]
+        lo, hi = _clip(lo, hi, e[0] * p0[0] + e[1] * p0[1] + e[2] * p0[2] - e[3],
+                       e[0] * p1[0] + e[1] * p1[1] + e[2] * p1[2])
         if not hi > lo:
             break
     return lo, hi
@@ -61,9 +72,10 @@ def _crossing(normal, offset, p0, p1, d):
 
 
 @njit
-def _blocked(tri, normal, offset, p0, p1, d, lo, hi, s0, s1):
+def _blocked(edges, normal, offset, p0, p1, d, lo, hi, s0, s1, q0, q1):
     """The interval of t in [lo, hi] where the leg p0 + t p1 + c d, 0 < c < s0 + s1 t (s0 = inf: unbounded),
-    meets triangle tri (plane normal . x = offset); empty (hi <= lo) where the leg runs along its plane."""
+    meets the triangle of `edges` (plane normal . x = offset); empty (hi <= lo) where the leg runs along its plane.
+    q0, q1 (3,): scratch."""
     q = normal[0] * d[0] + normal[1] * d[1] + normal[2] * d[2]
     if q == 0.0:
         return lo, -math.inf
@@ -73,7 +85,9 @@ def _blocked(tri, normal, offset, p0, p1, d, lo, hi, s0, s1):
         lo, hi = _clip(lo, hi, s0 - c0, s1 - c1)
     if not hi > lo:
         return lo, hi
-    return _in_triangle(lo, hi, tri, p0 + c0 * d, p1 + c1 * d)
+    for k in range(3):
+        q0[k], q1[k] = p0[k] + c0 * d[k], p1[k] + c1 * d[k]
+    return _in_triangle(lo, hi, edges, q0, q1)
 
 
 @njit
@@ -101,50 +115,60 @@ def _subtract(lo, hi, cuts, m, seg, src, x0, x1, k):
 
 
 @njit
-def beam_pieces(tris, planes, f, toward, axis, origins, dirs, lengths, src, x0, x1):
-    """The pieces (src: segment, x0, x1) of the segments origins + t dirs, t in [0, lengths], that face f's beam
-    lights (module docstring; toward = -d_F, unit; planes (T, 4): the triangles' unit normals and offsets, any
-    orientation). Returns their number, or -1 where src, x0, x1 are too short."""
-    nf, cf = planes[f, :3], planes[f, 3]
+def beam_pieces(edges, planes, faces, towards, axis, origins, dirs, lengths, beam, src, x0, x1):
+    """The pieces (beam: index into faces, src: segment, x0, x1; by beam, then segment and t) of the segments
+    origins + t dirs, t in [0, lengths], that each face's beam lights (module docstring; towards (B, 3): minus each
+    beam's direction inside, unit; edges: `edge_planes`; planes (T, 4): the triangles' unit normals and offsets,
+    any orientation). Returns their number, or -1 where beam, src, x0, x1 are too short."""
     back = -axis
-    cuts = np.empty((2 * tris.shape[0], 2))
+    cuts = np.empty((2 * planes.shape[0], 2))
+    p0, p1, q0, q1 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     k = 0
-    for s in range(origins.shape[0]):
-        o, w = origins[s], dirs[s]
-        alpha, beta = _crossing(nf, cf, o, w, toward)
-        lo, hi = _clip(0.0, lengths[s], alpha, beta)
-        if not hi > lo:
-            continue
-        p0, p1 = o + alpha * toward, w + beta * toward
-        lo, hi = _in_triangle(lo, hi, tris[f], p0, p1)
-        if not hi > lo:
-            continue
-        m = 0
-        for g in range(tris.shape[0]):
-            if g == f:
+    for i in range(faces.shape[0]):
+        f, toward = faces[i], towards[i]
+        nf, cf = planes[f, :3], planes[f, 3]
+        for s in range(origins.shape[0]):
+            o, w = origins[s], dirs[s]
+            alpha, beta = _crossing(nf, cf, o, w, toward)
+            lo, hi = _clip(0.0, lengths[s], alpha, beta)
+            if not hi > lo:
                 continue
-            ng, cg = planes[g, :3], planes[g, 3]
-            a, b = _blocked(tris[g], ng, cg, o, w, toward, lo, hi, alpha, beta)
-            if b > a:
-                cuts[m, 0], cuts[m, 1] = a, b
-                m += 1
-            a, b = _blocked(tris[g], ng, cg, p0, p1, back, lo, hi, math.inf, 0.0)
-            if b > a:
-                cuts[m, 0], cuts[m, 1] = a, b
-                m += 1
-        k = _subtract(lo, hi, cuts, m, s, src, x0, x1, k)
-        if k < 0:
-            return -1
+            for j in range(3):
+                p0[j], p1[j] = o[j] + alpha * toward[j], w[j] + beta * toward[j]
+            lo, hi = _in_triangle(lo, hi, edges[f], p0, p1)
+            if not hi > lo:
+                continue
+            m = 0
+            for g in range(planes.shape[0]):
+                if g == f:
+                    continue
+                ng, cg = planes[g, :3], planes[g, 3]
+                a, b = _blocked(edges[g], ng, cg, o, w, toward, lo, hi, alpha, beta, q0, q1)
+                if b > a:
+                    cuts[m, 0], cuts[m, 1] = a, b
+                    m += 1
+                a, b = _blocked(edges[g], ng, cg, p0, p1, back, lo, hi, math.inf, 0.0, q0, q1)
+                if b > a:
+                    cuts[m, 0], cuts[m, 1] = a, b
+                    m += 1
+            start = k
+            k = _subtract(lo, hi, cuts, m, s, src, x0, x1, k)
+            if k < 0:
+                return -1
+            beam[start:k] = i
     return k
 
 
-def lit_pieces(tris, planes, f, toward, axis, origins, dirs, lengths):
-    """`beam_pieces` as arrays (src, x0, x1), ordered by segment and t."""
-    cap = 2 * len(lengths) + 16
+def lit_pieces(edges, planes, faces, towards, axis, origins, dirs, lengths):
+    """`beam_pieces` as arrays (beam, src, x0, x1), ordered by beam, segment and t."""
+    cap = 4 * len(lengths) + 16
+    args = (np.ascontiguousarray(edges), np.ascontiguousarray(planes), np.ascontiguousarray(faces, dtype=np.int64),
+            np.ascontiguousarray(towards, dtype=np.float64), np.ascontiguousarray(axis, dtype=np.float64),
+            np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(dirs, dtype=np.float64),
+            np.ascontiguousarray(lengths, dtype=np.float64))
     while True:
-        src, x0, x1 = np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
-        k = beam_pieces(tris, planes, int(f), np.ascontiguousarray(toward, dtype=np.float64),
-                        np.ascontiguousarray(axis, dtype=np.float64), origins, dirs, lengths, src, x0, x1)
+        beam, src, x0, x1 = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
+        k = beam_pieces(*args, beam, src, x0, x1)
         if k >= 0:
-            return src[:k], x0[:k], x1[:k]
+            return beam[:k], src[:k], x0[:k], x1[:k]
         cap *= 4
