@@ -132,7 +132,8 @@ def test_the_twin_still_agrees_with_its_stored_values(twins):
 def test_quadrature_and_analytic_match_the_twin(prep, twins):
     """quadrature (rtol 1e-6) within 1e-6 of the twin and analytic's closed form on each lit piece within 1e-9, on
     pixels of both arms and the base, most of whose camera rays enter through the face that looks away from the sun
-    (the entry plane's model: 0). The pieces' ends are not bounded: the bound is infinite."""
+    (the entry plane's model: 0). The pieces' ends are not bounded: the bound is infinite. With volumetric shadows
+    (nothing but the U in the scene) the image is the same, its segments counted unshadowed."""
     quad = render(prep, "quadrature", {"rtol": 1e-6}, RenderOptions(threads=1))
     closed = render(prep, "analytic", {}, RenderOptions(threads=1))
     behind = 0
@@ -140,11 +141,13 @@ def test_quadrature_and_analytic_match_the_twin(prep, twins):
         o, d = oracle.camera_ray(CAMERA, i, j)
         behind += bool(NORMALS[first(o, d)[1]] @ AXIS > 0)
         assert np.all(ref > 0)
-        print((i, j), np.max(np.abs(quad.image[j, i] - ref) / ref), np.max(np.abs(closed.image[j, i] - ref) / ref))
         assert np.max(np.abs(quad.image[j, i] - ref) / ref) < 1e-6, (i, j, quad.image[j, i], ref)
         assert np.max(np.abs(closed.image[j, i] - ref) / ref) < 1e-9, (i, j, closed.image[j, i], ref)
         assert np.all(np.isinf(quad.error_bound[j, i])) and np.all(np.isinf(closed.error_bound[j, i]))
     assert behind >= 5
+    shadowed = render(prep, "quadrature", {"rtol": 1e-6}, RenderOptions(threads=1, volumetric_shadows=True))
+    assert np.array_equal(shadowed.image, quad.image)
+    assert shadowed.stats["inside: segments unshadowed (refractive or planar model)"] > 0
 
 
 def test_raymarch_and_montecarlo_converge_to_the_twin(prep, twins):
@@ -153,7 +156,6 @@ def test_raymarch_and_montecarlo_converge_to_the_twin(prep, twins):
     def error(img):
         return max(np.max(np.abs(img[j, i] - r) / r) for (i, j), r in twins.items())
     errs = [error(render(prep, "raymarch", {"steps": n}, RenderOptions(threads=1)).image) for n in (4, 16)]
-    print(errs)
     assert errs[0] / errs[1] > 10.0 and errs[1] < 1e-3, errs
     res = render(prep, "montecarlo", {"samples": 64}, RenderOptions(seed=5, threads=1))
     z2 = [(res.image[j, i] - r) ** 2 / res.variance[j, i] for (i, j), r in twins.items()]
@@ -167,7 +169,7 @@ def test_lit_pieces_on_a_torus_match_brute_force():
     toward the sun meets none (samples within 1e-9 of a piece's end skipped). Both legs' tests must cut something."""
     import trimesh
 
-    from raytrace.media.nonconvex_directional import edge_planes, lit_pieces
+    from raytrace.media.nonconvex_directional import lit_pieces
     from raytrace.media.nonconvex_refraction import face_planes
 
     mesh = trimesh.creation.torus(1.0, 0.35, major_sections=12, minor_sections=10)
@@ -200,7 +202,7 @@ def test_lit_pieces_on_a_torus_match_brute_force():
         d = refract(axis, n, ETA)
         if d is None or not -(axis @ n) > 0:
             continue
-        _, src, x0, x1 = lit_pieces(edge_planes(tris), planes, [f], [-d], axis, origins, dirs, ells)
+        _, src, x0, x1 = lit_pieces(tris, planes, [f], [-d], axis, origins, dirs, ells)
         for s in range(len(chords)):
             xs = np.linspace(0.0, ells[s], 25)[1:-1]
             tf, u, v, _ = oracle.triangle_hits(np.repeat(tris[f:f + 1], len(xs), axis=0),
@@ -223,5 +225,4 @@ def test_lit_pieces_on_a_torus_match_brute_force():
                     lit = False
                 cut["lit"] += lit
                 assert bool(np.any(mine)) == lit, (f, s, x)
-    print(cut)
     assert min(cut.values()) > 0, cut

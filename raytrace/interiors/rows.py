@@ -46,7 +46,7 @@ from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
 from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
-from ..media.nonconvex_directional import edge_planes, lit_pieces
+from ..media.nonconvex_directional import lit_pieces
 from ..media.nonconvex_refraction import face_planes
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
@@ -417,13 +417,13 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
         return
     kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
     kt_out = prep.scene.medium.sigma_t[ch].astype(float)
-    edges, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
+    tris, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
     axis = np.asarray(lights.axis[li], dtype=float)
     turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
     dplanes = measured_plane_errors(prep, sid)
     points, w, ell = (np.ascontiguousarray(a, dtype=float) for a in (points, w, ell))
     faces, towards, scales = refracted_beams(turned, axis, medium.ior)
-    beams, srcs, x0s, x1s = lit_pieces(edges, planes, faces, towards, axis, points, w, ell)
+    beams, srcs, x0s, x1s = lit_pieces(tris, planes, faces, towards, axis, points, w, ell)
     bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
     for i in np.unique(beams).tolist():
         f, toward, irradiance = int(faces[i]), np.ascontiguousarray(towards[i]), scales[i]
@@ -461,9 +461,9 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
 
 
 def _shape_faces(prep, sid):
-    """(edge_planes (T, 3, 4), planes (T, 4)) of shape sid's triangles, in float64."""
+    """(triangles (T, 3, 3), their planes (T, 4)) of shape sid, in float64."""
     tris = np.ascontiguousarray(prep.accel.triangles[prep.shape_ids == sid], dtype=np.float64)
-    return edge_planes(tris), face_planes(tris)
+    return tris, face_planes(tris)
 
 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, rule, keys, dim0, seed, out, var, bound, stats):

@@ -115,14 +115,35 @@ def _subtract(lo, hi, cuts, m, seg, src, x0, x1, k):
 
 
 @njit
-def beam_pieces(edges, planes, faces, towards, axis, origins, dirs, lengths, beam, src, x0, x1):
+def _box(out, a0, a1, b0, b1, lo, hi, reach):
+    """out (6,) = the box (min, max) of the points a0 + t a1 and b0 + t b1 at t = lo and hi and of the same moved
+    by `reach`."""
+    for j in range(3):
+        v = (a0[j] + lo * a1[j], a0[j] + hi * a1[j], b0[j] + lo * b1[j], b0[j] + hi * b1[j])
+        out[j], out[3 + j] = min(v), max(v)
+        out[j] = min(out[j], out[j] + reach[j])
+        out[3 + j] = max(out[3 + j], out[3 + j] + reach[j])
+
+
+@njit
+def _meets(box, tbox):
+    return (tbox[0] <= box[3] and box[0] <= tbox[3] and tbox[1] <= box[4] and box[1] <= tbox[4]
+            and tbox[2] <= box[5] and box[2] <= tbox[5])
+
+
+@njit
+def beam_pieces(edges, planes, boxes, size, faces, towards, axis, origins, dirs, lengths, beam, src, x0, x1):
     """The pieces (beam: index into faces, src: segment, x0, x1; by beam, then segment and t) of the segments
     origins + t dirs, t in [0, lengths], that each face's beam lights (module docstring; towards (B, 3): minus each
     beam's direction inside, unit; edges: `edge_planes`; planes (T, 4): the triangles' unit normals and offsets,
-    any orientation). Returns their number, or -1 where beam, src, x0, x1 are too short."""
+    any orientation; boxes (T, 6): their bounding boxes, size: the diagonal of the shape's). A blocker is tested
+    only where its box meets the box of the legs: the inside legs' ends X and P at the interval's ends, the outside
+    legs' from P over `size` toward the light (beyond, nothing of the shape). Returns their number, or -1 where
+    beam, src, x0, x1 are too short."""
     back = -axis
     cuts = np.empty((2 * planes.shape[0], 2))
     p0, p1, q0, q1 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    inner, outer, still, far = np.empty(6), np.empty(6), np.zeros(3), size * back
     k = 0
     for i in range(faces.shape[0]):
         f, toward = faces[i], towards[i]
@@ -138,19 +159,25 @@ def beam_pieces(edges, planes, faces, towards, axis, origins, dirs, lengths, bea
             lo, hi = _in_triangle(lo, hi, edges[f], p0, p1)
             if not hi > lo:
                 continue
+            _box(inner, o, w, p0, p1, lo, hi, still)
+            _box(outer, p0, p1, p0, p1, lo, hi, far)
             m = 0
             for g in range(planes.shape[0]):
                 if g == f:
                     continue
                 ng, cg = planes[g, :3], planes[g, 3]
-                a, b = _blocked(edges[g], ng, cg, o, w, toward, lo, hi, alpha, beta, q0, q1)
-                if b > a:
-                    cuts[m, 0], cuts[m, 1] = a, b
-                    m += 1
-                a, b = _blocked(edges[g], ng, cg, p0, p1, back, lo, hi, math.inf, 0.0, q0, q1)
-                if b > a:
-                    cuts[m, 0], cuts[m, 1] = a, b
-                    m += 1
+                if _meets(inner, boxes[g]):
+                    a, b = _blocked(edges[g], ng, cg, o, w, toward, lo, hi, alpha, beta, q0, q1)
+                    if b > a:
+                        cuts[m, 0], cuts[m, 1] = a, b
+                        m += 1
+                if _meets(outer, boxes[g]):
+                    a, b = _blocked(edges[g], ng, cg, p0, p1, back, lo, hi, math.inf, 0.0, q0, q1)
+                    if b > a:
+                        cuts[m, 0], cuts[m, 1] = a, b
+                        m += 1
+                if m and cuts[m - 1, 0] <= lo and cuts[m - 1, 1] >= hi:  # blocked whole
+                    break
             start = k
             k = _subtract(lo, hi, cuts, m, s, src, x0, x1, k)
             if k < 0:
@@ -159,13 +186,16 @@ def beam_pieces(edges, planes, faces, towards, axis, origins, dirs, lengths, bea
     return k
 
 
-def lit_pieces(edges, planes, faces, towards, axis, origins, dirs, lengths):
-    """`beam_pieces` as arrays (beam, src, x0, x1), ordered by beam, segment and t."""
+def lit_pieces(tris, planes, faces, towards, axis, origins, dirs, lengths):
+    """`beam_pieces` of the triangles tris (T, 3, 3) as arrays (beam, src, x0, x1), ordered by beam, segment and
+    t."""
+    boxes = np.concatenate([tris.min(axis=1), tris.max(axis=1)], axis=1)
+    size = float(np.linalg.norm(boxes[:, 3:].max(axis=0) - boxes[:, :3].min(axis=0)))
     cap = 4 * len(lengths) + 16
-    args = (np.ascontiguousarray(edges), np.ascontiguousarray(planes), np.ascontiguousarray(faces, dtype=np.int64),
-            np.ascontiguousarray(towards, dtype=np.float64), np.ascontiguousarray(axis, dtype=np.float64),
-            np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(dirs, dtype=np.float64),
-            np.ascontiguousarray(lengths, dtype=np.float64))
+    args = (edge_planes(tris), np.ascontiguousarray(planes), np.ascontiguousarray(boxes), size,
+            np.ascontiguousarray(faces, dtype=np.int64), np.ascontiguousarray(towards, dtype=np.float64),
+            np.ascontiguousarray(axis, dtype=np.float64), np.ascontiguousarray(origins, dtype=np.float64),
+            np.ascontiguousarray(dirs, dtype=np.float64), np.ascontiguousarray(lengths, dtype=np.float64))
     while True:
         beam, src, x0, x1 = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
         k = beam_pieces(*args, beam, src, x0, x1)
