@@ -18,7 +18,7 @@ media/convex_directional.py with its bound; else the segments go to the method's
 quadrature: `_traced`, rtol methods.INSIDE_RTOL), counted (HANDED), with its bound. Through a refractive boundary a
 directional light enters a convex shape through every face it meets, one beam each
 (`fresnel.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
-through the entry plane (eq. 5, unbounded); a point or spot
+through every triangle, each beam over its exact lit pieces (`_sun_faces`, unbounded); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through every face whose legs are clear of the shape (`_through_faces`,
 paths.refracted_integrand; the entry plane's model keeps the entry plane). Every light enters an exact
@@ -46,6 +46,8 @@ from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
 from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
+from ..media.nonconvex_directional import lit_pieces
+from ..media.nonconvex_refraction import face_planes
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
@@ -96,8 +98,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     adaptive quadrature at rtol RTOL), counted (HANDED), bounded as QUAD's. Through a refractive boundary a
     directional light enters a convex shape (`convex_planes`) through every face it meets, one beam each
     (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
-    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through the entry plane (eq. 5,
-    unbounded; `plane_closed` with closed forms); a point or spot light a convex one through every face it is
+    from its closed form plus the closed form's bound, `_beam_terms`), other shapes through every triangle, each beam
+    over its exact lit pieces (`_sun_faces`, unbounded); a point or spot light a convex one through every face it is
     outside of (media/slab.py `faces_point`), or one inside it (held.py `held_lights`) along its straight
     paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through every face whose
     legs are clear (`_through_faces`); every light outside an exact sphere on its exact refracted paths
@@ -198,6 +200,10 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             if len(faces):  # more than KERNEL_PLANES planes: each beam over its lit interval
                 _face_beams(prep, sid, faces, near, li, beam, (points, w, ell, keys), sup, rule,
                             dims + (depth * len(lights) + li) * rule.steps, seed, (out, var, bound, stats))
+                continue
+            if refractive and not sup.entry_plane:  # not convex: every triangle's beam over its lit pieces
+                _sun_faces(prep, sid, li, (points, w, ell, keys), sup, rule,
+                           dims + (depth * len(lights) + li) * rule.steps, seed, (out, var, bound, stats))
                 continue
             if kernel:
                 closed_form(li, -lights.axis[li], 1.0, -1)
@@ -392,6 +398,72 @@ def _beam_errors(cos_i, eta, dn):
     e = transmittance(cos, eta) * cos / cos_t
     du = 2.0 * math.sqrt(3.0) * dn + dcos / eta + dcos * cos_i / (eta * eta * cos_t[1]) + 8.0 * u
     return du, (max(e[2] - e[1], e[1] - e[0]) / e[1] if e[1] > 0.0 else 0.0) + 16.0 * u
+
+
+def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
+    """acc = (out, var, bound, stats) += directional light li's single scattering over the rows (points, w, ell,
+    keys) of the refractive shape sid that is not convex: each triangle's beam (`refracted_beams` of its plane
+    turned toward the light) over the pieces of each segment it lights (media/nonconvex_directional.py
+    `lit_pieces`: the path back leaves through that triangle, both legs clear of the shape), integrated as
+    `_face_beams` integrates a convex shape's beams: with closed forms `beams_closed` on each piece, else the
+    `rule` from each piece's start on the face's plane alone, carried back by exp(-sigma_t x0), each piece of a
+    segment on its own random stream. The pieces' ends are not bounded: the bound is infinite where anything
+    scatters."""
+    points, w, ell, keys = rows
+    out, var, bound, stats = acc
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]
+    if not len(ch):
+        return
+    kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
+    kt_out = prep.scene.medium.sigma_t[ch].astype(float)
+    tris, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
+    axis = np.asarray(lights.axis[li], dtype=float)
+    turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
+    dplanes = measured_plane_errors(prep, sid)
+    points, w, ell = (np.ascontiguousarray(a, dtype=float) for a in (points, w, ell))
+    faces, towards, scales = refracted_beams(turned, axis, medium.ior)
+    beams, srcs, x0s, x1s = lit_pieces(tris, planes, faces, towards, axis, points, w, ell)
+    bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
+    for i in np.unique(beams).tolist():
+        f, toward, irradiance = int(faces[i]), np.ascontiguousarray(towards[i]), scales[i]
+        src, x0, x1 = (a[bounds[i]:bounds[i + 1]] for a in (srcs, x0s, x1s))
+        f_li = irradiance * lights.intensity[li, ch]
+        if sup.closed_forms:
+            q = float(turned[f, :3] @ toward)
+            ints = np.zeros((len(src), 9))
+            ints[:, 0], ints[:, 2], ints[:, 3] = x0, x0, x0
+            ints[:, 1], ints[:, 4], ints[:, 5] = x1, x1, x1
+            ints[:, 6], ints[:, 7] = (turned[f, 3] - points[src] @ turned[f, :3]) / q, -(w[src] @ turned[f, :3]) / q
+            val, spans = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))  # spans: 0 (ends given)
+            beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, spans)
+            np.add.at(out, (src[:, None], ch[None, :]), val * f_li)
+            continue
+        rank = np.arange(len(src)) - np.searchsorted(src, src)
+        face = np.ascontiguousarray(turned[f:f + 1])
+        for piece in np.unique(rank).tolist():
+            at = np.nonzero(rank == piece)[0]
+            sel, lo, m = src[at], x0[at], len(at)
+            geo = np.zeros((m, GEO_COLUMNS))
+            geo[:, :3], geo[:, 3:6], geo[:, 6:9] = points[sel] + lo[:, None] * w[sel], w[sel], toward
+            geo[:, 12:14], geo[:, 17] = lights.cone[li, :2], lights.cone[li, 2]
+            unit, unit_var, unit_err = np.empty((m, len(ch))), np.empty((m, len(ch))), np.empty((m, len(ch)))
+            zero = np.zeros(m)
+            inside_radiance(np.ones(m, np.bool_), zero, zero, zero, zero, zero, w[sel] @ toward, x1[at] - lo, kt, ks,
+                            medium.phase, medium.g, kt_out, zero, zero, 1.0, geo, face, EVERY, dplanes, -1, rule,
+                            keys[sel], np.uint64(dim0 + (1 + f + piece * len(planes)) * STREAM), np.uint64(seed), unit,
+                            unit_var, unit_err, stats)
+            with np.errstate(over="ignore", invalid="ignore"):
+                tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
+            out[np.ix_(sel, ch)] += unit * tr * f_li
+            var[np.ix_(sel, ch)] += unit_var * (tr * f_li) ** 2
+    bound[np.ix_(ell > 0.0, ch)] = np.inf
+
+
+def _shape_faces(prep, sid):
+    """(triangles (T, 3, 3), their planes (T, 4)) of shape sid, in float64."""
+    tris = np.ascontiguousarray(prep.accel.triangles[prep.shape_ids == sid], dtype=np.float64)
+    return tris, face_planes(tris)
 
 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, rule, keys, dim0, seed, out, var, bound, stats):
