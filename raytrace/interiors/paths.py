@@ -32,7 +32,7 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_paths, face_planes
+from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_breaks, face_paths, face_planes
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -744,23 +744,9 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
     Fermat path through every face whose refraction point lies on it (`face_paths`; the faces culled per
     segment, or with `panels` = (seg, a, b, panel of each point) per panel, by `candidates`) and whose legs
     are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o), summed."""
-    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
-    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
-    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
-    geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
-    eta = float(prep.scene.shapes[sid].interior.ior)
-    n = len(ell)
-
-    def lists(seg, lo, hi, which, starts, stops, faces):
-        counts = np.zeros(len(seg), np.int64)
-        args = (tris, planes, geo, seg, lo, hi, eta, which, starts, stops, faces, counts)
-        candidates(*args, np.zeros(0, np.int64), False)
-        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        out = np.empty(offsets[-1], np.int64)
-        candidates(*args, out, True)
-        return offsets[:-1], offsets[1:], out
-
-    whole = lists(np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64), *every(len(tris)))
+    own, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
+    whole = _candidates(tris, planes, geo, eta, np.arange(len(ell)), np.zeros(len(ell)), ell,
+                        np.zeros(len(ell), np.int64), *every(len(tris)))
 
     def paths(seg, x, which, starts, stops, faces):
         rows, cost, start = [], np.cumsum(stops[which] - starts[which]), 0
@@ -783,7 +769,7 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
             pt, value, k, o = paths(seg, x, seg, *whole)
         else:
             pseg, a, b, pid = panels
-            pt, value, k, o = paths(seg, x, pid, *lists(pseg, a, b, pseg, *whole))
+            pt, value, k, o = paths(seg, x, pid, *_candidates(tris, planes, geo, eta, pseg, a, b, pseg, *whole))
         out = np.empty((len(x), len(cs)))
         for j, c in enumerate(cs):
             w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
@@ -792,17 +778,53 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
     return values
 
 
+def _faces(prep, sid, geo, ell):
+    """(the shape's own accelerator, its triangles, their planes, its relative index, geo, ell) as
+    media/nonconvex_refraction.py's kernels take them."""
+    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
+    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
+    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
+    return (own, tris, planes, float(prep.scene.shapes[sid].interior.ior), np.ascontiguousarray(geo, dtype=np.float64),
+            np.ascontiguousarray(ell, dtype=np.float64))
+
+
+def _candidates(tris, planes, geo, eta, seg, lo, hi, which, starts, stops, faces):
+    """media/nonconvex_refraction.py `candidates` of the pieces [lo, hi] of segments seg among the lists `which`
+    of (starts, stops, faces): their (starts, stops, faces)."""
+    counts = np.zeros(len(seg), np.int64)
+    args = (tris, planes, geo, seg, lo, hi, eta, which, starts, stops, faces, counts)
+    candidates(*args, np.zeros(0, np.int64), False)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    out = np.empty(offsets[-1], np.int64)
+    candidates(*args, out, True)
+    return offsets[:-1], offsets[1:], out
+
+
+def refracted_breaks(prep, sid, geo, ell):
+    """media/nonconvex_refraction.py `face_breaks` of the segments (geo rows, over [0, ell]) in the refractive
+    shape sid that is not convex: (segment, x) of the breaks, and whether each segment's were all found."""
+    _, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
+    n = len(ell)
+    whole = _candidates(tris, planes, geo, eta, np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64),
+                        *every(len(tris)))
+    return face_breaks(geo, ell, tris, planes, *whole, eta, float(prep.accel.scale))
+
+
 NARROW = 1e-2  # `refracted_quadrature`'s panels narrower than this x rtol x the segment are accepted as they are
 
 
 def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, stats):
     """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
-    from the whole segment: the integrand's jumps (a path appearing or disappearing) are not located, the
-    panels holding them are halved until narrower than NARROW x rtol x the segment, then accepted, counted in
-    stats[0] (a jump of size J adds at most about J x that width)."""
+    from first panels cut at the breaks `refracted_breaks` locates (a refraction point crossing its face's edge,
+    a spot's cone); the jumps it does not locate (a leg starting or ceasing to meet another face) are halved
+    until narrower than NARROW x rtol x the segment, then accepted, counted in stats[0] (a jump of size J adds
+    at most about J x that width)."""
     values = refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    seg, a, b = _first_panels(geo, True, end)
+    bseg, bx, _ = refracted_breaks(prep, sid, geo, end)
+    order = np.lexsort((bx, bseg))
+    seg, a, b = _first_panels(geo, True, end, kinks=(np.searchsorted(bseg[order], np.arange(len(end) + 1)),
+                                                     bx[order]))
     cs = list(range(len(kts)))
     return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
                     narrow=NARROW, by_panel=True)
