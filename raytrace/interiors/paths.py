@@ -744,11 +744,29 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
     Fermat path through every face whose refraction point lies on it (`face_paths`; the faces culled per
     segment, or with `panels` = (seg, a, b, panel of each point) per panel, by `candidates`) and whose legs
     are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o), summed."""
+    return _summed(refracted_paths(prep, sid, geo, ell, code, g), kts, kss, kt_outs)
+
+
+def _summed(paths, kts, kss, kt_outs):
+    """`refracted_integrand`'s `values` from its `paths` (`refracted_paths`)."""
+    def values(seg, x, cs, panels=None):
+        pt, _, value, k, o = paths(seg, x, panels)
+        out = np.empty((len(x), len(cs)))
+        for j, c in enumerate(cs):
+            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
+            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
+        return out
+    return values
+
+
+def refracted_paths(prep, sid, geo, ell, code, g):
+    """`refracted_integrand`'s paths as a function `paths(seg, x, panels=None)`: (point, face, value per unit
+    light without the exponential, k, o) of each path found (`face_paths`) whose legs are clear."""
     own, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
     whole = _candidates(tris, planes, geo, eta, np.arange(len(ell)), np.zeros(len(ell)), ell,
                         np.zeros(len(ell), np.int64), *every(len(tris)))
 
-    def paths(seg, x, which, starts, stops, faces):
+    def found(seg, x, which, starts, stops, faces):
         rows, cost, start = [], np.cumsum(stops[which] - starts[which]), 0
         while start < len(x):
             stop = max(int(np.searchsorted(cost, (cost[start - 1] if start else 0) + PATH_CHUNK, "right")), start + 1)
@@ -758,24 +776,19 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
             out[:m, 0] += start
             rows.append(out[:m])
             start = stop
-        found = np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
-        pt = found[:, 0].astype(np.int64)
-        keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], found[:, 2:5],
-                          geo[seg[pt], 6:9], found[:, 1].astype(np.int64), found[:, 8], found[:, 9])
-        return pt[keep], found[keep, 5], found[keep, 6], found[keep, 7]
+        return np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
 
-    def values(seg, x, cs, panels=None):
+    def paths(seg, x, panels=None):
         if panels is None:
-            pt, value, k, o = paths(seg, x, seg, *whole)
+            rows = found(seg, x, seg, *whole)
         else:
             pseg, a, b, pid = panels
-            pt, value, k, o = paths(seg, x, pid, *_candidates(tris, planes, geo, eta, pseg, a, b, pseg, *whole))
-        out = np.empty((len(x), len(cs)))
-        for j, c in enumerate(cs):
-            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
-            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
-        return out
-    return values
+            rows = found(seg, x, pid, *_candidates(tris, planes, geo, eta, pseg, a, b, pseg, *whole))
+        pt, face = rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)
+        keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], rows[:, 2:5],
+                          geo[seg[pt], 6:9], face, rows[:, 8], rows[:, 9])
+        return pt[keep], face[keep], rows[keep, 5], rows[keep, 6], rows[keep, 7]
+    return paths
 
 
 def _faces(prep, sid, geo, ell):
@@ -802,32 +815,87 @@ def _candidates(tris, planes, geo, eta, seg, lo, hi, which, starts, stops, faces
 
 def refracted_breaks(prep, sid, geo, ell):
     """media/nonconvex_refraction.py `face_breaks` of the segments (geo rows, over [0, ell]) in the refractive
-    shape sid that is not convex: (segment, x) of the breaks, and whether each segment's were all found."""
-    _, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
+    shape sid that is not convex, those where the face's path is blocked (`clear_legs` at the break: its term
+    is 0 on both sides) left out: (segment, x) of the breaks, and whether each segment's were all found."""
+    own, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
     n = len(ell)
     whole = _candidates(tris, planes, geo, eta, np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64),
                         *every(len(tris)))
-    return face_breaks(geo, ell, tris, planes, *whole, eta, float(prep.accel.scale))
+    rows, found = face_breaks(geo, ell, tris, planes, *whole, eta, float(prep.accel.scale))
+    seg, face, R = rows[:, 0].astype(np.int64), rows[:, 2].astype(np.int64), rows[:, 3:6]
+    X, L = geo[seg, :3] + rows[:, 1:2] * geo[seg, 3:6], geo[seg, 6:9]
+    k, o = np.linalg.norm(R - X, axis=1), np.linalg.norm(L - R, axis=1)
+    cos_in = np.abs(np.einsum("ij,ij->i", planes[face, :3], R - X)) / np.maximum(k, 1e-300)
+    cos_out = np.abs(np.einsum("ij,ij->i", planes[face, :3], L - R)) / np.maximum(o, 1e-300)
+    keep = clear_legs(own, prep.accel.scale, X, R, L, face, cos_in, cos_out)
+    return seg[keep], rows[keep, 1], found
 
 
 NARROW = 1e-2  # `refracted_quadrature`'s panels narrower than this x rtol x the segment are accepted as they are
+SET_ENDS = 1e-9  # `set_breaks` reads the path set this fraction of a panel inside its ends
+SET_WIDTH = 1e-6  # x the segment: `set_breaks` searches the panels wider than this
+SET_STEPS = 60  # halvings of `set_breaks`' bisection
+MERGE = 1e-13  # x the segment: breaks closer than this are one (`_kinks`)
 
 
 def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, stats):
     """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
     from first panels cut at the breaks `refracted_breaks` locates (a refraction point crossing its face's edge,
-    a spot's cone); the jumps it does not locate (a leg starting or ceasing to meet another face) are halved
+    a spot's cone) and then at those `set_breaks` finds between them (a leg starting or ceasing to meet
+    another face, where the panel's ends see different sets of faces); the jumps still not located are halved
     until narrower than NARROW x rtol x the segment, then accepted, counted in stats[0] (a jump of size J adds
     at most about J x that width)."""
-    values = refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs)
+    paths = refracted_paths(prep, sid, geo, ell, code, g)
+    values = _summed(paths, kts, kss, kt_outs)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     bseg, bx, _ = refracted_breaks(prep, sid, geo, end)
-    order = np.lexsort((bx, bseg))
-    seg, a, b = _first_panels(geo, True, end, kinks=(np.searchsorted(bseg[order], np.arange(len(end) + 1)),
-                                                     bx[order]))
+    seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, bseg, bx))
+    wide = b - a > SET_WIDTH * end[seg]
+    more = set_breaks(paths, seg[wide], a[wide], b[wide])
+    seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, np.concatenate([bseg, more[0]]),
+                                                             np.concatenate([bx, more[1]])))
     cs = list(range(len(kts)))
     return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
                     narrow=NARROW, by_panel=True)
+
+
+def _kinks(end, bseg, bx):
+    """(offsets (n + 1,), breaks) of `_first_panels`' kinks from breaks (segment, x) in any order, a break
+    within MERGE x end of the one before it dropped (two faces' breaks a few ulps apart: the piece between
+    them would never converge)."""
+    order = np.lexsort((bx, bseg))
+    bseg, bx = bseg[order], bx[order]
+    keep = np.ones(len(bx), dtype=bool)
+    keep[1:] = (bseg[1:] != bseg[:-1]) | (np.diff(bx) > MERGE * end[bseg[1:]])
+    return np.searchsorted(bseg[keep], np.arange(len(end) + 1)), bx[keep]
+
+
+def set_breaks(paths, seg, a, b):
+    """(segment, x) where the set of faces lighting a point (`refracted_paths`' paths: each face's hash, summed)
+    changes inside the panels (seg, a, b), found where the sets SET_ENDS inside a panel's ends differ and
+    bisected SET_STEPS times (a third set met halfway splits the search in two); changes whose sets agree at the
+    panel's ends are not found (the caller leaves out panels narrower than SET_WIDTH x the segment: their ends'
+    sets are read too near the breaks that bound them)."""
+    keys = np.random.default_rng(0).integers(1, 2 ** 62, size=1 << 20, dtype=np.int64)
+
+    def sets(s, x):
+        pt, face, _, _, _ = paths(s, x)
+        return np.bincount(pt, weights=(keys[face % len(keys)] % (1 << 40)).astype(np.float64), minlength=len(x))
+    lo, hi = a + SET_ENDS * (b - a), b - SET_ENDS * (b - a)
+    both = sets(np.concatenate([seg, seg]), np.concatenate([lo, hi]))
+    slo, shi = both[:len(seg)], both[len(seg):]
+    open_ = slo != shi
+    seg, lo, hi, slo, shi = seg[open_], lo[open_], hi[open_], slo[open_], shi[open_]
+    for _ in range(SET_STEPS):
+        if not len(seg):
+            break
+        mid = 0.5 * (lo + hi)
+        sm = sets(seg, mid)
+        left, right = sm != slo, sm != shi  # the change lies left of mid, right of it, or both
+        seg, lo, hi, slo, shi = (np.concatenate([seg[left], seg[right]]), np.concatenate([lo[left], mid[right]]),
+                                 np.concatenate([mid[left], hi[right]]), np.concatenate([slo[left], sm[right]]),
+                                 np.concatenate([sm[left], shi[right]]))
+    return seg, 0.5 * (lo + hi)
 
 
 def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):

@@ -251,11 +251,11 @@ def face_paths(seg, lists, x, geo, tris, planes, starts, stops, faces, eta, code
 
 @njit
 def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
-    """(segment, x) of the breaks of every candidate face's path along the segments (geo rows of media/slab.py
-    GEO_COLUMNS; faces[starts[i]:stops[i]] for segment i: `candidates` over [0, ell[i]]), segment by segment,
-    unsorted: R crossing an edge of the face, a spot's leaving direction crossing a level of its cone (module
-    docstring); and whether each segment's were all found (N,)."""
-    bseg, bx = np.empty(64, np.int64), np.empty(64)
+    """The breaks of every candidate face's path along the segments (geo rows of media/slab.py GEO_COLUMNS;
+    faces[starts[i]:stops[i]] for segment i: `candidates` over [0, ell[i]]): R crossing an edge of the face, a
+    spot's leaving direction crossing a level of its cone (module docstring), as rows (segment, x, face, R (3))
+    segment by segment, unsorted; and whether each segment's were all found (N,)."""
+    out = np.empty((64, 6))
     m = 0
     found = np.ones(ell.shape[0], np.bool_)
     vec, e0, level, lip = np.empty((5, 3)), np.empty((5, 3)), np.empty(5), np.empty(5)
@@ -279,10 +279,10 @@ def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
             if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
                 continue
             nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
-            ok, bseg, bx, m = _isolate(s, lo, hi, p + z0 * n, w + a * n, light - hl * n, z0, a, hl, eta, nf, vec, e0,
-                                       level, lip, scale, stack, bseg, bx, m)
+            ok, out, m = _isolate(s, f, lo, hi, p + z0 * n, w + a * n, light - hl * n, z0, a, hl, eta, nf, vec, e0,
+                                  level, lip, scale, stack, out, m)
             found[s] = found[s] and ok
-    return bseg[:m].copy(), bx[:m].copy(), found
+    return out[:m].copy(), found
 
 
 @njit
@@ -310,12 +310,7 @@ def _break_functions(tri, n, row, hl, vec, e0, level, lip):
 def _values(x, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, out):
     """The break functions at x (out[:nf]): R on the face's plane (Fermat's path, media/fermat_rounding.py
     `refraction_newton`), then v.(R - E0) of the edges and A.(R - L) / |R - L| - c of the cone's levels."""
-    xf = pf + x * wh
-    d = lf - xf
-    rho = math.sqrt(d @ d)
-    rp = xf
-    if rho > 0.0:
-        rp = xf + (refraction_newton(rho, max(z0 + a * x, 0.0), hl, eta) / rho) * d
+    rp = _point(x, pf, wh, lf, z0, a, hl, eta)
     for k in range(nf):
         if math.isnan(level[k]):
             out[k] = vec[k] @ (rp - e0[k])
@@ -325,9 +320,20 @@ def _values(x, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, out):
 
 
 @njit
-def _isolate(s, lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, scale, stack, bseg, bx, m):
-    """Append to (bseg, bx) from m the roots in (lo, hi) of the face's break functions along segment s (module
-    docstring); returns (whether all were found, bseg, bx, m)."""
+def _point(x, pf, wh, lf, z0, a, hl, eta):
+    """R at x: X's foot pf + x wh moved toward the light's foot lf by Snell's root."""
+    xf = pf + x * wh
+    d = lf - xf
+    rho = math.sqrt(d @ d)
+    if not rho > 0.0:
+        return xf
+    return xf + (refraction_newton(rho, max(z0 + a * x, 0.0), hl, eta) / rho) * d
+
+
+@njit
+def _isolate(s, f, lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, scale, stack, out, m):
+    """Append to out (`face_breaks`' rows) from m the roots in (lo, hi) of face f's break functions along segment
+    s (module docstring); returns (whether all were found, out, m)."""
     width = RESOLUTION * scale
     tol = np.empty(nf)
     for k in range(nf):
@@ -354,12 +360,12 @@ def _isolate(s, lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, sca
         if x1 - x0 <= width:
             for k in range(nf):
                 if g0[k] * g1[k] < 0.0:
-                    bseg, bx, m = _push(bseg, bx, m, s, _bisect(x0, x1, g0[k], k, pf, wh, lf, z0, a, hl, eta, nf, vec,
-                                                                e0, level, g))
+                    xb = _bisect(x0, x1, g0[k], k, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, g)
+                    out, m = _push(out, m, s, xb, f, _point(xb, pf, wh, lf, z0, a, hl, eta))
             continue
         if evals >= MAX_EVALS or top + 2 > stack.shape[0]:  # undecided: its ends are breaks
-            bseg, bx, m = _push(bseg, bx, m, s, x0)
-            bseg, bx, m = _push(bseg, bx, m, s, x1)
+            out, m = _push(out, m, s, x0, f, _point(x0, pf, wh, lf, z0, a, hl, eta))
+            out, m = _push(out, m, s, x1, f, _point(x1, pf, wh, lf, z0, a, hl, eta))
             ok = False
             continue
         mid = 0.5 * (x0 + x1)
@@ -368,7 +374,7 @@ def _isolate(s, lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, sca
         stack[top, 0], stack[top, 1], stack[top, 2:2 + nf], stack[top, 7:7 + nf] = mid, x1, g, g1[:nf]
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2:2 + nf], stack[top + 1, 7:7 + nf] = x0, mid, g0[:nf], g
         top += 2
-    return ok, bseg, bx, m
+    return ok, out, m
 
 
 @njit
@@ -387,9 +393,8 @@ def _bisect(x0, x1, g0, k, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, g):
 
 
 @njit
-def _push(bseg, bx, m, s, x):
-    if m == bseg.shape[0]:
-        bseg = np.concatenate((bseg, np.empty(m, np.int64)))
-        bx = np.concatenate((bx, np.empty(m)))
-    bseg[m], bx[m] = s, x
-    return bseg, bx, m + 1
+def _push(out, m, s, x, f, rp):
+    if m == out.shape[0]:
+        out = np.concatenate((out, np.empty_like(out)))
+    out[m, 0], out[m, 1], out[m, 2], out[m, 3:6] = s, x, f, rp
+    return out, m + 1
