@@ -851,7 +851,7 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     bseg, bx, _ = refracted_breaks(prep, sid, geo, end)
     seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, bseg, bx))
     wide = b - a > SET_WIDTH * end[seg]
-    more = set_breaks(paths, seg[wide], a[wide], b[wide])
+    more = refined(prep, sid, geo, end, code, g, paths, *set_breaks(paths, seg[wide], a[wide], b[wide]))
     seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, np.concatenate([bseg, more[0]]),
                                                              np.concatenate([bx, more[1]])))
     cs = list(range(len(kts)))
@@ -871,7 +871,7 @@ def _kinks(end, bseg, bx):
 
 
 def set_breaks(paths, seg, a, b):
-    """(segment, x) where the set of faces lighting a point (`refracted_paths`' paths: each face's hash, summed)
+    """(segment, x, lo, hi) where the set of faces lighting a point (`refracted_paths`' paths: each face's hash, summed)
     changes inside the panels (seg, a, b), found where the sets SET_ENDS inside a panel's ends differ and
     bisected SET_STEPS times (a third set met halfway splits the search in two); changes whose sets agree at the
     panel's ends are not found (the caller leaves out panels narrower than SET_WIDTH x the segment: their ends'
@@ -895,7 +895,79 @@ def set_breaks(paths, seg, a, b):
         seg, lo, hi, slo, shi = (np.concatenate([seg[left], seg[right]]), np.concatenate([lo[left], mid[right]]),
                                  np.concatenate([mid[left], hi[right]]), np.concatenate([slo[left], sm[right]]),
                                  np.concatenate([sm[left], shi[right]]))
-    return seg, 0.5 * (lo + hi)
+    return seg, 0.5 * (lo + hi), lo, hi
+
+
+REFINE = 1e-5  # x the segment: how far `refined` seeks a set break's exact place on either side
+
+
+def refined(prep, sid, geo, end, code, g, paths, seg, x, lo, hi):
+    """The set breaks (seg, x) of `set_breaks` (found between lo and hi by Embree's float32 leg tests, `paths`)
+    moved to where the exact leg test (`exact_clear`) of a face that lights one side and not the other changes,
+    bisected in [x - REFINE end, x + REFINE end] where that test differs at its ends (else x kept)."""
+    a, b = paths(np.concatenate([seg, seg]), np.concatenate([lo, hi]))[:2]
+    n = len(seg)
+    side = {}
+    for p_, f in zip(a.tolist(), b.tolist()):
+        side.setdefault((p_ % n, f), set()).add(p_ // n)
+    pairs = [(p_, f) for (p_, f), sides in side.items() if len(sides) == 1]
+    if not pairs:
+        return seg, x
+    _, tris, planes, eta, geo, _ = _faces(prep, sid, geo, end)
+    k = np.array([p_ for p_, _ in pairs])
+    face = np.array([f for _, f in pairs], dtype=np.int64)
+    s, h = seg[k], REFINE * end[seg[k]]
+    u, v = np.maximum(x[k] - h, 0.0), np.minimum(x[k] + h, end[s])
+    lu = _exact_lit(tris, planes, eta, geo, s, u, face, code, g, prep.accel.scale)
+    moved = lu != _exact_lit(tris, planes, eta, geo, s, v, face, code, g, prep.accel.scale)
+    s, face, u, v, lu = s[moved], face[moved], u[moved], v[moved], lu[moved]
+    for _ in range(SET_STEPS):
+        mid = 0.5 * (u + v)
+        same = _exact_lit(tris, planes, eta, geo, s, mid, face, code, g, prep.accel.scale) == lu
+        u, v = np.where(same, mid, u), np.where(same, v, mid)
+    out = x.copy()
+    out[k[moved]] = 0.5 * (u + v)
+    return seg, out
+
+
+def _exact_lit(tris, planes, eta, geo, seg, x, face, code, g, scale):
+    """Whether face `face`'s path lights the point x of segment seg (media/nonconvex_refraction.py `face_paths`
+    with that face alone) with both legs clear by `exact_clear`."""
+    m = len(x)
+    out = np.empty((m, PATH_COLUMNS))
+    idx = np.arange(m, dtype=np.int64)
+    found = out[:face_paths(seg, idx, x, geo, tris, planes, idx, idx + 1, face, eta, code, g, out)]
+    pt = found[:, 0].astype(np.int64)
+    X = geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6]
+    ok = exact_clear(tris, scale, X, found[:, 2:5], geo[seg[pt], 6:9], face[pt], found[:, 8], found[:, 9])
+    lit = np.zeros(m, dtype=bool)
+    lit[pt[ok]] = True
+    return lit
+
+
+def exact_clear(tris, scale, X, R, L, face, cos_in, cos_out):
+    """`clear_legs` in float64 against every triangle (Moller-Trumbore), the same lengths skipped at the ends."""
+    skip = LEG_SKIP * scale
+    clear = np.ones(len(X), dtype=bool)
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    ones = np.ones(len(X))
+    for a, b, end_skip, start_skip in ((X, R, skip / np.maximum(cos_in, 1e-2), skip * ones),
+                                       (R, L, skip * ones, skip / np.maximum(cos_out, 1e-2))):
+        d = b - a
+        length = np.linalg.norm(d, axis=1)
+        pv = np.cross(d[:, None, :], e2[None])
+        det = np.einsum("tk,mtk->mt", e1, pv)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tv = a[:, None, :] - tris[None, :, 0]
+            uu = np.einsum("mtk,mtk->mt", tv, pv) / det
+            qv = np.cross(tv, e1[None])
+            vv = np.einsum("mk,mtk->mt", d, qv) / det
+            t = np.einsum("tk,mtk->mt", e2, qv) / det * length[:, None]
+        hit = ((det != 0.0) & (uu >= 0.0) & (vv >= 0.0) & (uu + vv <= 1.0) & (t > start_skip[:, None])
+               & (t < (length - end_skip)[:, None]))
+        hit[np.arange(len(X)), face] = False
+        clear &= ~hit.any(axis=1)
+    return clear
 
 
 def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):
