@@ -842,9 +842,9 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
     from first panels cut at the breaks `refracted_breaks` locates (a refraction point crossing its face's edge,
     a spot's cone) and then at those `set_breaks` finds between them (a leg starting or ceasing to meet
-    another face, where the panel's ends see different sets of faces); the jumps still not located are halved
-    until narrower than NARROW x rtol x the segment, then accepted, counted in stats[0] (a jump of size J adds
-    at most about J x that width)."""
+    another face, where the panel's ends see different sets of faces), placed by the exact leg test (`refined`);
+    the jumps still not located are halved until narrower than NARROW x rtol x the segment, then accepted,
+    counted in stats[0] (a jump of size J adds at most about J x that width)."""
     paths = refracted_paths(prep, sid, geo, ell, code, g)
     values = _summed(paths, kts, kss, kt_outs)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
