@@ -946,27 +946,34 @@ def _exact_lit(tris, planes, eta, geo, seg, x, face, code, g, scale):
 
 
 def exact_clear(tris, scale, X, R, L, face, cos_in, cos_out):
-    """`clear_legs` in float64 against every triangle (Moller-Trumbore), the same lengths skipped at the ends."""
+    """`clear_legs` in float64 (Moller-Trumbore) against the triangles whose boxes meet each leg's, the same
+    lengths skipped at the ends."""
     skip = LEG_SKIP * scale
     clear = np.ones(len(X), dtype=bool)
-    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    tlo, thi = tris.min(axis=1), tris.max(axis=1)
     ones = np.ones(len(X))
     for a, b, end_skip, start_skip in ((X, R, skip / np.maximum(cos_in, 1e-2), skip * ones),
                                        (R, L, skip * ones, skip / np.maximum(cos_out, 1e-2))):
-        d = b - a
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        step = max(1, (1 << 22) // max(len(tris), 1))  # legs per box test: memory bounded
+        pairs = [np.nonzero(np.all((tlo[None] <= hi[i:i + step, None]) & (thi[None] >= lo[i:i + step, None]), axis=2)
+                            & (np.arange(len(tris))[None] != face[i:i + step, None])) for i in range(0, len(X), step)]
+        leg = np.concatenate([p[0] + i * step for i, p in enumerate(pairs)] or [np.zeros(0, np.int64)])
+        tri = np.concatenate([p[1] for p in pairs] or [np.zeros(0, np.int64)])
+        v0, d = tris[tri, 0], b[leg] - a[leg]
+        e1, e2 = tris[tri, 1] - v0, tris[tri, 2] - v0
         length = np.linalg.norm(d, axis=1)
-        pv = np.cross(d[:, None, :], e2[None])
-        det = np.einsum("tk,mtk->mt", e1, pv)
+        pv = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, pv)
         with np.errstate(divide="ignore", invalid="ignore"):
-            tv = a[:, None, :] - tris[None, :, 0]
-            uu = np.einsum("mtk,mtk->mt", tv, pv) / det
-            qv = np.cross(tv, e1[None])
-            vv = np.einsum("mk,mtk->mt", d, qv) / det
-            t = np.einsum("tk,mtk->mt", e2, qv) / det * length[:, None]
-        hit = ((det != 0.0) & (uu >= 0.0) & (vv >= 0.0) & (uu + vv <= 1.0) & (t > start_skip[:, None])
-               & (t < (length - end_skip)[:, None]))
-        hit[np.arange(len(X)), face] = False
-        clear &= ~hit.any(axis=1)
+            tv = a[leg] - v0
+            u = np.einsum("ij,ij->i", tv, pv) / det
+            qv = np.cross(tv, e1)
+            v = np.einsum("ij,ij->i", d, qv) / det
+            t = np.einsum("ij,ij->i", e2, qv) / det * length
+        hit = ((det != 0.0) & (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0) & (t > start_skip[leg])
+               & (t < length - end_skip[leg]))
+        clear[leg[hit]] = False
     return clear
 
 
