@@ -32,7 +32,7 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_paths, face_planes
+from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_breaks, face_paths, face_planes
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -744,25 +744,29 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
     Fermat path through every face whose refraction point lies on it (`face_paths`; the faces culled per
     segment, or with `panels` = (seg, a, b, panel of each point) per panel, by `candidates`) and whose legs
     are clear (`clear_legs`), each ks Phi E F exp(-kt (x + k) - kt_out o), summed."""
-    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
-    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
-    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
-    geo, ell = np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64)
-    eta = float(prep.scene.shapes[sid].interior.ior)
-    n = len(ell)
+    return _summed(refracted_paths(prep, sid, geo, ell, code, g), kts, kss, kt_outs)
 
-    def lists(seg, lo, hi, which, starts, stops, faces):
-        counts = np.zeros(len(seg), np.int64)
-        args = (tris, planes, geo, seg, lo, hi, eta, which, starts, stops, faces, counts)
-        candidates(*args, np.zeros(0, np.int64), False)
-        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        out = np.empty(offsets[-1], np.int64)
-        candidates(*args, out, True)
-        return offsets[:-1], offsets[1:], out
 
-    whole = lists(np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64), *every(len(tris)))
+def _summed(paths, kts, kss, kt_outs):
+    """`refracted_integrand`'s `values` from its `paths` (`refracted_paths`)."""
+    def values(seg, x, cs, panels=None):
+        pt, _, value, k, o = paths(seg, x, panels)
+        out = np.empty((len(x), len(cs)))
+        for j, c in enumerate(cs):
+            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
+            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
+        return out
+    return values
 
-    def paths(seg, x, which, starts, stops, faces):
+
+def refracted_paths(prep, sid, geo, ell, code, g):
+    """`refracted_integrand`'s paths as a function `paths(seg, x, panels=None)`: (point, face, value per unit
+    light without the exponential, k, o) of each path found (`face_paths`) whose legs are clear."""
+    own, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
+    whole = _candidates(tris, planes, geo, eta, np.arange(len(ell)), np.zeros(len(ell)), ell,
+                        np.zeros(len(ell), np.int64), *every(len(tris)))
+
+    def found(seg, x, which, starts, stops, faces):
         rows, cost, start = [], np.cumsum(stops[which] - starts[which]), 0
         while start < len(x):
             stop = max(int(np.searchsorted(cost, (cost[start - 1] if start else 0) + PATH_CHUNK, "right")), start + 1)
@@ -772,40 +776,205 @@ def refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs):
             out[:m, 0] += start
             rows.append(out[:m])
             start = stop
-        found = np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
-        pt = found[:, 0].astype(np.int64)
-        keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], found[:, 2:5],
-                          geo[seg[pt], 6:9], found[:, 1].astype(np.int64), found[:, 8], found[:, 9])
-        return pt[keep], found[keep, 5], found[keep, 6], found[keep, 7]
+        return np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
 
-    def values(seg, x, cs, panels=None):
+    def paths(seg, x, panels=None):
         if panels is None:
-            pt, value, k, o = paths(seg, x, seg, *whole)
+            rows = found(seg, x, seg, *whole)
         else:
             pseg, a, b, pid = panels
-            pt, value, k, o = paths(seg, x, pid, *lists(pseg, a, b, pseg, *whole))
-        out = np.empty((len(x), len(cs)))
-        for j, c in enumerate(cs):
-            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
-            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
-        return out
-    return values
+            rows = found(seg, x, pid, *_candidates(tris, planes, geo, eta, pseg, a, b, pseg, *whole))
+        pt, face = rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)
+        keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], rows[:, 2:5],
+                          geo[seg[pt], 6:9], face, rows[:, 8], rows[:, 9])
+        return pt[keep], face[keep], rows[keep, 5], rows[keep, 6], rows[keep, 7]
+    return paths
+
+
+def _faces(prep, sid, geo, ell):
+    """(the shape's own accelerator, its triangles, their planes, its relative index, geo, ell) as
+    media/nonconvex_refraction.py's kernels take them."""
+    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
+    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
+    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
+    return (own, tris, planes, float(prep.scene.shapes[sid].interior.ior), np.ascontiguousarray(geo, dtype=np.float64),
+            np.ascontiguousarray(ell, dtype=np.float64))
+
+
+def _candidates(tris, planes, geo, eta, seg, lo, hi, which, starts, stops, faces):
+    """media/nonconvex_refraction.py `candidates` of the pieces [lo, hi] of segments seg among the lists `which`
+    of (starts, stops, faces): their (starts, stops, faces)."""
+    counts = np.zeros(len(seg), np.int64)
+    args = (tris, planes, geo, seg, lo, hi, eta, which, starts, stops, faces, counts)
+    candidates(*args, np.zeros(0, np.int64), False)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    out = np.empty(offsets[-1], np.int64)
+    candidates(*args, out, True)
+    return offsets[:-1], offsets[1:], out
+
+
+def refracted_breaks(prep, sid, geo, ell):
+    """media/nonconvex_refraction.py `face_breaks` of the segments (geo rows, over [0, ell]) in the refractive
+    shape sid that is not convex, those where the face's path is blocked (`clear_legs` at the break: its term
+    is 0 on both sides) left out: (segment, x) of the breaks, and whether each segment's were all found."""
+    own, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
+    n = len(ell)
+    whole = _candidates(tris, planes, geo, eta, np.arange(n), np.zeros(n), ell, np.zeros(n, np.int64),
+                        *every(len(tris)))
+    rows, found = face_breaks(geo, ell, tris, planes, *whole, eta, float(prep.accel.scale))
+    seg, face, R = rows[:, 0].astype(np.int64), rows[:, 2].astype(np.int64), rows[:, 3:6]
+    X, L = geo[seg, :3] + rows[:, 1:2] * geo[seg, 3:6], geo[seg, 6:9]
+    k, o = np.linalg.norm(R - X, axis=1), np.linalg.norm(L - R, axis=1)
+    cos_in = np.abs(np.einsum("ij,ij->i", planes[face, :3], R - X)) / np.maximum(k, 1e-300)
+    cos_out = np.abs(np.einsum("ij,ij->i", planes[face, :3], L - R)) / np.maximum(o, 1e-300)
+    keep = clear_legs(own, prep.accel.scale, X, R, L, face, cos_in, cos_out)
+    return seg[keep], rows[keep, 1], found
 
 
 NARROW = 1e-2  # `refracted_quadrature`'s panels narrower than this x rtol x the segment are accepted as they are
+SET_ENDS = 1e-9  # `set_breaks` reads the path set this fraction of a panel inside its ends
+SET_WIDTH = 1e-6  # x the segment: `set_breaks` searches the panels wider than this
+SET_STEPS = 60  # halvings of `set_breaks`' bisection
+MERGE = 1e-13  # x the segment: breaks closer than this are one (`_kinks`)
 
 
 def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, stats):
     """∫_0^ell of `refracted_integrand` per segment and channel (N, C) by `adaptive` at the QUAD `rule`'s rtol
-    from the whole segment: the integrand's jumps (a path appearing or disappearing) are not located, the
-    panels holding them are halved until narrower than NARROW x rtol x the segment, then accepted, counted in
-    stats[0] (a jump of size J adds at most about J x that width)."""
-    values = refracted_integrand(prep, sid, geo, ell, kts, kss, code, g, kt_outs)
+    from first panels cut at the breaks `refracted_breaks` locates (a refraction point crossing its face's edge,
+    a spot's cone) and then at those `set_breaks` finds between them (a leg starting or ceasing to meet
+    another face, where the panel's ends see different sets of faces), placed by the exact leg test (`refined`);
+    the jumps still not located are halved until narrower than NARROW x rtol x the segment, then accepted,
+    counted in stats[0] (a jump of size J adds at most about J x that width)."""
+    paths = refracted_paths(prep, sid, geo, ell, code, g)
+    values = _summed(paths, kts, kss, kt_outs)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
-    seg, a, b = _first_panels(geo, True, end)
+    bseg, bx, _ = refracted_breaks(prep, sid, geo, end)
+    seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, bseg, bx))
+    wide = b - a > SET_WIDTH * end[seg]
+    more = refined(prep, sid, geo, end, code, g, paths, *set_breaks(paths, seg[wide], a[wide], b[wide]))
+    seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, np.concatenate([bseg, more[0]]),
+                                                             np.concatenate([bx, more[1]])))
     cs = list(range(len(kts)))
     return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
                     narrow=NARROW, by_panel=True)
+
+
+def _kinks(end, bseg, bx):
+    """(offsets (n + 1,), breaks) of `_first_panels`' kinks from breaks (segment, x) in any order, a break
+    within MERGE x end of the one before it dropped (two faces' breaks a few ulps apart: the piece between
+    them would never converge)."""
+    order = np.lexsort((bx, bseg))
+    bseg, bx = bseg[order], bx[order]
+    keep = np.ones(len(bx), dtype=bool)
+    keep[1:] = (bseg[1:] != bseg[:-1]) | (np.diff(bx) > MERGE * end[bseg[1:]])
+    return np.searchsorted(bseg[keep], np.arange(len(end) + 1)), bx[keep]
+
+
+def set_breaks(paths, seg, a, b):
+    """(segment, x, lo, hi) where the set of faces lighting a point (`refracted_paths`' paths: each face's hash, summed)
+    changes inside the panels (seg, a, b), found where the sets SET_ENDS inside a panel's ends differ and
+    bisected SET_STEPS times (a third set met halfway splits the search in two); changes whose sets agree at the
+    panel's ends are not found (the caller leaves out panels narrower than SET_WIDTH x the segment: their ends'
+    sets are read too near the breaks that bound them)."""
+    keys = np.random.default_rng(0).integers(1, 2 ** 62, size=1 << 20, dtype=np.int64)
+
+    def sets(s, x):
+        pt, face, _, _, _ = paths(s, x)
+        return np.bincount(pt, weights=(keys[face % len(keys)] % (1 << 40)).astype(np.float64), minlength=len(x))
+    lo, hi = a + SET_ENDS * (b - a), b - SET_ENDS * (b - a)
+    both = sets(np.concatenate([seg, seg]), np.concatenate([lo, hi]))
+    slo, shi = both[:len(seg)], both[len(seg):]
+    open_ = slo != shi
+    seg, lo, hi, slo, shi = seg[open_], lo[open_], hi[open_], slo[open_], shi[open_]
+    for _ in range(SET_STEPS):
+        if not len(seg):
+            break
+        mid = 0.5 * (lo + hi)
+        sm = sets(seg, mid)
+        left, right = sm != slo, sm != shi  # the change lies left of mid, right of it, or both
+        seg, lo, hi, slo, shi = (np.concatenate([seg[left], seg[right]]), np.concatenate([lo[left], mid[right]]),
+                                 np.concatenate([mid[left], hi[right]]), np.concatenate([slo[left], sm[right]]),
+                                 np.concatenate([sm[left], shi[right]]))
+    return seg, 0.5 * (lo + hi), lo, hi
+
+
+REFINE = 1e-5  # x the segment: how far `refined` seeks a set break's exact place on either side
+
+
+def refined(prep, sid, geo, end, code, g, paths, seg, x, lo, hi):
+    """The set breaks (seg, x) of `set_breaks` (found between lo and hi by Embree's float32 leg tests, `paths`)
+    moved to where the exact leg test (`exact_clear`) of a face that lights one side and not the other changes,
+    bisected in [x - REFINE end, x + REFINE end] where that test differs at its ends (else x kept)."""
+    a, b = paths(np.concatenate([seg, seg]), np.concatenate([lo, hi]))[:2]
+    n = len(seg)
+    side = {}
+    for p_, f in zip(a.tolist(), b.tolist()):
+        side.setdefault((p_ % n, f), set()).add(p_ // n)
+    pairs = [(p_, f) for (p_, f), sides in side.items() if len(sides) == 1]
+    if not pairs:
+        return seg, x
+    _, tris, planes, eta, geo, _ = _faces(prep, sid, geo, end)
+    k = np.array([p_ for p_, _ in pairs])
+    face = np.array([f for _, f in pairs], dtype=np.int64)
+    s, h = seg[k], REFINE * end[seg[k]]
+    u, v = np.maximum(x[k] - h, 0.0), np.minimum(x[k] + h, end[s])
+    lu = _exact_lit(tris, planes, eta, geo, s, u, face, code, g, prep.accel.scale)
+    moved = lu != _exact_lit(tris, planes, eta, geo, s, v, face, code, g, prep.accel.scale)
+    s, face, u, v, lu = s[moved], face[moved], u[moved], v[moved], lu[moved]
+    for _ in range(SET_STEPS):
+        mid = 0.5 * (u + v)
+        same = _exact_lit(tris, planes, eta, geo, s, mid, face, code, g, prep.accel.scale) == lu
+        u, v = np.where(same, mid, u), np.where(same, v, mid)
+    out = x.copy()
+    out[k[moved]] = 0.5 * (u + v)
+    return seg, out
+
+
+def _exact_lit(tris, planes, eta, geo, seg, x, face, code, g, scale):
+    """Whether face `face`'s path lights the point x of segment seg (media/nonconvex_refraction.py `face_paths`
+    with that face alone) with both legs clear by `exact_clear`."""
+    m = len(x)
+    out = np.empty((m, PATH_COLUMNS))
+    idx = np.arange(m, dtype=np.int64)
+    found = out[:face_paths(seg, idx, x, geo, tris, planes, idx, idx + 1, face, eta, code, g, out)]
+    pt = found[:, 0].astype(np.int64)
+    X = geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6]
+    ok = exact_clear(tris, scale, X, found[:, 2:5], geo[seg[pt], 6:9], face[pt], found[:, 8], found[:, 9])
+    lit = np.zeros(m, dtype=bool)
+    lit[pt[ok]] = True
+    return lit
+
+
+def exact_clear(tris, scale, X, R, L, face, cos_in, cos_out):
+    """`clear_legs` in float64 (Moller-Trumbore) against the triangles whose boxes meet each leg's, the same
+    lengths skipped at the ends."""
+    skip = LEG_SKIP * scale
+    clear = np.ones(len(X), dtype=bool)
+    tlo, thi = tris.min(axis=1), tris.max(axis=1)
+    ones = np.ones(len(X))
+    for a, b, end_skip, start_skip in ((X, R, skip / np.maximum(cos_in, 1e-2), skip * ones),
+                                       (R, L, skip * ones, skip / np.maximum(cos_out, 1e-2))):
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        step = max(1, (1 << 22) // max(len(tris), 1))  # legs per box test: memory bounded
+        pairs = [np.nonzero(np.all((tlo[None] <= hi[i:i + step, None]) & (thi[None] >= lo[i:i + step, None]), axis=2)
+                            & (np.arange(len(tris))[None] != face[i:i + step, None])) for i in range(0, len(X), step)]
+        leg = np.concatenate([p[0] + i * step for i, p in enumerate(pairs)] or [np.zeros(0, np.int64)])
+        tri = np.concatenate([p[1] for p in pairs] or [np.zeros(0, np.int64)])
+        v0, d = tris[tri, 0], b[leg] - a[leg]
+        e1, e2 = tris[tri, 1] - v0, tris[tri, 2] - v0
+        length = np.linalg.norm(d, axis=1)
+        pv = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, pv)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tv = a[leg] - v0
+            u = np.einsum("ij,ij->i", tv, pv) / det
+            qv = np.cross(tv, e1)
+            v = np.einsum("ij,ij->i", d, qv) / det
+            t = np.einsum("ij,ij->i", e2, qv) / det * length
+        hit = ((det != 0.0) & (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0) & (t > start_skip[leg])
+               & (t < length - end_skip[leg]))
+        clear[leg[hit]] = False
+    return clear
 
 
 def clear_legs(own, scale, X, R, L, face, cos_in, cos_out):

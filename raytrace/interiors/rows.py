@@ -895,7 +895,8 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, rule, keys, dim0, s
 def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, seed, out, var, bound, stats):
     """out, var, bound += one point or spot light's single scattering over the segments of the refractive shape
     sid that is not convex, on Fermat's paths through its faces (paths.refracted_integrand) by the inside `rule`;
-    the bound is infinite where anything scatters (the integrand's jumps are not located: counted, UNLOCATED)."""
+    the bound is infinite where anything scatters (quadrature locates the integrand's jumps, paths.refracted_quadrature,
+    but bounds neither their location errors nor the integrand's rounding: counted, UNLOCATED)."""
     ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
     if not len(ch):
         return

@@ -10,8 +10,19 @@ no other face (it stays inside), R to L meets none (it stays outside). The legs 
 either orientation (its plane's normal turned toward the light): a face whose outside looks toward X gives a
 leg that leaves the shape before reaching it, which the leg tests reject.
 
-The integrand jumps where a path appears or disappears (R crossing an edge of its triangle, a leg grazing
-another face); those points are not located.
+The integrand jumps where a path appears or disappears: R crossing an edge of its triangle, a leg grazing
+another face, and (a spot) the direction the light leaves in crossing a level of its cone. `face_breaks` locates
+the first and the last kind per candidate face along each segment as roots of functions of R, isolated with a
+Lipschitz bound as in shadows/fermat_legs.py: in F's plane (normal n toward the light) R moves at a speed
+|R'| <= K_R over an interval of the segment (media/fermat_rounding.py `fermat_speed`, from the ends' horizontal
+distances to the light and the least depth). Edge e from E0, v = +-n x e its inward normal in the plane:
+g = v.(R - E0), R inside F where the three are >= 0, |g'| <= |v| K_R. A cone level c: g = A.(R - L) / |R - L| - c,
+|g'| <= K_R / hl (|R - L| >= hl). An interval [lo, hi] holds no break of F where an edge has g(lo) + g(hi) <
+-|g'| (hi - lo) (then g < 0 all along: R off F), or where every function has |g(lo)| + |g(hi)| > |g'| (hi - lo)
+(no root); both with ROUNDING's allowance. Others are halved down to RESOLUTION of the scene's size, where a sign
+change is bisected to the resolution of doubles (two roots closer than that, a sliver, are not resolved). A
+search cut off after MAX_EVALS evaluations takes its undecided intervals' ends as breaks and reports that the
+segment's breaks were not all found.
 """
 from __future__ import annotations
 
@@ -20,10 +31,15 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..lights import has_cone
+from .fermat_rounding import fermat_speed, refraction_newton
 from .slab import refracted_at
 
 SPAN_SLACK = 1e-9  # relative margin of the triangle's span along the foot's line (`_span`) before Snell's root
 PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit light value, k, o, the legs' cosines
+RESOLUTION = 1e-13  # x the scene's size: `face_breaks`' intervals this short are not halved, only bisected
+ROUNDING = 1e-14  # x the scene's size: the rounding allowed in R's position (`face_breaks`)
+MAX_EVALS = 4000  # evaluations of R per segment and face in `face_breaks`
 
 
 def face_planes(tris):
@@ -230,3 +246,155 @@ def face_paths(seg, lists, x, geo, tris, planes, starts, stops, faces, eta, code
             out[m, 5], out[m, 6], out[m, 7], out[m, 8], out[m, 9] = value, k, o, z / k if k > 0.0 else 1.0, hl / o
             m += 1
     return m
+
+
+
+@njit
+def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
+    """The breaks of every candidate face's path along the segments (geo rows of media/slab.py GEO_COLUMNS;
+    faces[starts[i]:stops[i]] for segment i: `candidates` over [0, ell[i]]): R crossing an edge of the face, a
+    spot's leaving direction crossing a level of its cone (module docstring), as rows (segment, x, face, R (3))
+    segment by segment, unsorted; and whether each segment's were all found (N,)."""
+    out = np.empty((64, 6))
+    m = 0
+    found = np.ones(ell.shape[0], np.bool_)
+    vec, e0, level, lip = np.empty((5, 3)), np.empty((5, 3)), np.empty(5), np.empty(5)
+    stack = np.empty((128, 12))
+    for s in range(ell.shape[0]):
+        row = geo[s]
+        p, w, light = row[0:3], row[3:6], row[6:9]
+        for j in range(starts[s], stops[s]):
+            f = faces[j]
+            n = planes[f, :3].copy()
+            c = planes[f, 3]
+            hl = n @ light - c
+            if hl < 0.0:  # the normal turned toward the light
+                n, c, hl = -n, -c, -hl
+            z0, a = c - n @ p, -(n @ w)
+            lo, hi = 0.0, ell[s]  # where X lies below the plane
+            if a > 0.0:
+                lo = max(lo, -z0 / a)
+            elif a < 0.0:
+                hi = min(hi, z0 / -a)
+            if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
+                continue
+            nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
+            ok, out, m = _isolate(s, f, lo, hi, p + z0 * n, w + a * n, light - hl * n, z0, a, hl, eta, nf, vec, e0,
+                                  level, lip, scale, stack, out, m)
+            found[s] = found[s] and ok
+    return out[:m].copy(), found
+
+
+@njit
+def _break_functions(tri, n, row, hl, vec, e0, level, lip):
+    """Fill vec, e0, level and lip (the factor of K_R in the Lipschitz bound) of the face's break functions
+    (module docstring): its three edges (vec their inward normals in the plane, e0 their starts, level nan),
+    then a spot's cone levels (vec its axis, e0 the light, lip 1 / hl); returns their number."""
+    for k in range(3):
+        e = tri[(k + 1) % 3] - tri[k]
+        v = np.array([n[1] * e[2] - n[2] * e[1], n[2] * e[0] - n[0] * e[2], n[0] * e[1] - n[1] * e[0]])
+        if v @ (tri[(k + 2) % 3] - tri[k]) < 0.0:
+            v = -v
+        vec[k], e0[k], level[k], lip[k] = v, tri[k], math.nan, math.sqrt(v @ v)
+    m = 3
+    if has_cone(row[13]):  # a spot: its cone's levels (cos_end, cos_start)
+        for cut in (row[12], row[13]):
+            if m == 4 and cut == row[12]:
+                break
+            vec[m], e0[m], level[m], lip[m] = row[9:12], row[6:9], cut, 1.0 / hl
+            m += 1
+    return m
+
+
+@njit
+def _values(x, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, out):
+    """The break functions at x (out[:nf]): R on the face's plane (Fermat's path, media/fermat_rounding.py
+    `refraction_newton`), then v.(R - E0) of the edges and A.(R - L) / |R - L| - c of the cone's levels."""
+    rp = _point(x, pf, wh, lf, z0, a, hl, eta)
+    for k in range(nf):
+        if math.isnan(level[k]):
+            out[k] = vec[k] @ (rp - e0[k])
+        else:
+            q = rp - e0[k]
+            out[k] = vec[k] @ q / math.sqrt(q @ q) - level[k]
+
+
+@njit
+def _point(x, pf, wh, lf, z0, a, hl, eta):
+    """R at x: X's foot pf + x wh moved toward the light's foot lf by Snell's root."""
+    xf = pf + x * wh
+    d = lf - xf
+    rho = math.sqrt(d @ d)
+    if not rho > 0.0:
+        return xf
+    return xf + (refraction_newton(rho, max(z0 + a * x, 0.0), hl, eta) / rho) * d
+
+
+@njit
+def _isolate(s, f, lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, scale, stack, out, m):
+    """Append to out (`face_breaks`' rows) from m the roots in (lo, hi) of face f's break functions along segment
+    s (module docstring); returns (whether all were found, out, m)."""
+    width = RESOLUTION * scale
+    tol = np.empty(nf)
+    for k in range(nf):
+        tol[k] = ROUNDING * scale * (lip[k] if math.isnan(level[k]) else lip[k] + 1.0)
+    g = np.empty(nf)
+    stack[0, 0], stack[0, 1] = lo, hi
+    _values(lo, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, stack[0, 2:7])
+    _values(hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, stack[0, 7:12])
+    top, evals, ok = 1, 2, True
+    while top > 0:
+        top -= 1
+        x0, x1 = stack[top, 0], stack[top, 1]
+        g0, g1 = stack[top, 2:7].copy(), stack[top, 7:12].copy()
+        d0, d1 = lf - pf - x0 * wh, lf - pf - x1 * wh
+        speed = fermat_speed(math.sqrt(d0 @ d0), math.sqrt(d1 @ d1), min(z0 + a * x0, z0 + a * x1), a, eta)
+        off, near = False, False
+        for k in range(nf):
+            span = lip[k] * speed * (x1 - x0)
+            if math.isnan(level[k]) and g0[k] + g1[k] + 2.0 * tol[k] < -span:
+                off = True  # R off the face all along
+            near = near or not abs(g0[k]) + abs(g1[k]) > span + 2.0 * tol[k]
+        if off or not near:
+            continue
+        if x1 - x0 <= width:
+            for k in range(nf):
+                if g0[k] * g1[k] < 0.0:
+                    xb = _bisect(x0, x1, g0[k], k, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, g)
+                    out, m = _push(out, m, s, xb, f, _point(xb, pf, wh, lf, z0, a, hl, eta))
+            continue
+        if evals >= MAX_EVALS or top + 2 > stack.shape[0]:  # undecided: its ends are breaks
+            out, m = _push(out, m, s, x0, f, _point(x0, pf, wh, lf, z0, a, hl, eta))
+            out, m = _push(out, m, s, x1, f, _point(x1, pf, wh, lf, z0, a, hl, eta))
+            ok = False
+            continue
+        mid = 0.5 * (x0 + x1)
+        _values(mid, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, g)
+        evals += 1
+        stack[top, 0], stack[top, 1], stack[top, 2:2 + nf], stack[top, 7:7 + nf] = mid, x1, g, g1[:nf]
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2:2 + nf], stack[top + 1, 7:7 + nf] = x0, mid, g0[:nf], g
+        top += 2
+    return ok, out, m
+
+
+@njit
+def _bisect(x0, x1, g0, k, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, g):
+    """The sign change of break function k in [x0, x1] (g0 its value at x0) to the resolution of doubles."""
+    for _ in range(200):
+        mid = 0.5 * (x0 + x1)
+        if not x0 < mid < x1:
+            break
+        _values(mid, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, g)
+        if g[k] * g0 > 0.0:
+            x0 = mid
+        else:
+            x1 = mid
+    return 0.5 * (x0 + x1)
+
+
+@njit
+def _push(out, m, s, x, f, rp):
+    if m == out.shape[0]:
+        out = np.concatenate((out, np.empty_like(out)))
+    out[m, 0], out[m, 1], out[m, 2], out[m, 3:6] = s, x, f, rp
+    return out, m + 1
