@@ -176,8 +176,9 @@ class Lights:
     def cones(self) -> bool:
         """Whether any row shines in a cone (a spot light's, an emitter's node: its Lambertian
         half-space): code outside this package asks this, not for a kind, to cut segments to cones and
-        to compile the kernels of their bands."""
-        return spot.NAME in self._kinds
+        to compile the kernels of their bands. (`kinds()`'s answer without its set: asked of every batch of
+        emitter samples.)"""
+        return bool(np.any(self.kind == spot.CODE)) or spot.NAME in self.scene_kinds
 
     @cached_property
     def _kinds(self) -> frozenset[str]:
