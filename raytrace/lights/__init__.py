@@ -176,8 +176,12 @@ class Lights:
     def cones(self) -> bool:
         """Whether any row shines in a cone (a spot light's, an emitter's node: its Lambertian
         half-space): code outside this package asks this, not for a kind, to cut segments to cones and
-        to compile the kernels of their bands. (`kinds()`'s answer without its set: asked of every batch of
-        emitter samples.)"""
+        to compile the kernels of their bands."""
+        return self._cones
+
+    @cached_property
+    def _cones(self) -> bool:
+        """`cones`, once per rows (without `_kinds`' set: asked of every batch of emitter samples)."""
         return bool(np.any(self.kind == spot.CODE)) or spot.NAME in self.scene_kinds
 
     @cached_property
