@@ -12,6 +12,7 @@ radiance, else the [background]).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -95,15 +96,16 @@ def _emitter(light: Light):
 
 def cubature_ladders(lights: list[Light], emitters=()):
     """(ladders, counts) of `Lights.of`'s sources for the pilot (cubature.py): per source its orders
-    (None: not a cubature of an emitter) and the function order -> its rows."""
+    (None: not a cubature of an emitter) and the function order -> its rows (each order's counted once)."""
     ladders, counts = [], []
+    remembered = functools.lru_cache(maxsize=None)
     for l in lights:
         kind = _BY_CODE[l.kind]
-        count = (lambda o, kind=kind, l=l: len(kind.rows(l, o).kind)) if kind.NAME in AREA else None
+        count = remembered(lambda o, kind=kind, l=l: len(kind.rows(l, o).kind)) if kind.NAME in AREA else None
         ladders.append(None if count is None else cubature.ladder(cubature.AREA_LADDER, count))
         counts.append(count)
     for tris, _, two, _ in emitters:
-        count = lambda o, tris=tris, two=two: emissive.count(tris, two, o)  # noqa: E731
+        count = remembered(lambda o, tris=tris, two=two: emissive.count(tris, two, o))
         ladders.append(cubature.ladder(emissive.levels(len(tris), cubature.LEVELS), count))
         counts.append(count)
     return ladders, counts
@@ -138,11 +140,12 @@ class Lights:
     emitters: tuple = ()
 
     @classmethod
-    def of(cls, lights: list[Light], emitters=(), orders=None) -> "Lights":
+    def of(cls, lights: list[Light], emitters=(), orders=None, sources=None) -> "Lights":
         """The rows of the scene's `lights`, then of its emissive shapes: `emitters`, a list of
         (world triangles (T, 3, 3), emission, two_sided, the shape's key for a refusal); `orders`:
         per source (the lights, then the emitters) its rule's order (`cubature_ladders`; None: the
-        kind's default)."""
+        kind's default); `sources`: the `emitters` tuple of a `Lights` of the same lights and shapes
+        at other orders (the pilot's: their rules built once), else built here."""
         orders = orders or (None,) * (len(lights) + len(emitters))
         rows = ([_BY_CODE[l.kind].rows(l, o) if o is not None else _BY_CODE[l.kind].rows(l)
                  for l, o in zip(lights, orders)] +
@@ -153,6 +156,7 @@ class Lights:
                    np.repeat(np.arange(len(rows), dtype=np.int64), counts),
                    np.repeat(np.array([r.cubature for r in rows], dtype=bool), counts),
                    tuple(NAMES[l.kind] for l in lights) + (EMISSION,) * len(emitters),
+                   sources if sources is not None else
                    tuple(_emitter(l) for l in lights) + tuple(emissive.emitter(*e) for e in emitters))
 
     def __len__(self) -> int:
@@ -173,7 +177,12 @@ class Lights:
         """Whether any row shines in a cone (a spot light's, an emitter's node: its Lambertian
         half-space): code outside this package asks this, not for a kind, to cut segments to cones and
         to compile the kernels of their bands."""
-        return spot.NAME in self._kinds
+        return self._cones
+
+    @cached_property
+    def _cones(self) -> bool:
+        """`cones`, once per rows (without `_kinds`' set: asked of every batch of emitter samples)."""
+        return bool(np.any(self.kind == spot.CODE)) or spot.NAME in self.scene_kinds
 
     @cached_property
     def _kinds(self) -> frozenset[str]:

@@ -209,9 +209,9 @@ def choose(ladders, counts, near, shade, tol):
     of the pilot rays `rays` (indices) with each source at its order (None where not a cubature); `tol`
     the method's precision. The other rays choose the order (all of them where all are near), their
     agreement floor relative to the largest of their own radiances; the near rays, which do not
-    choose, are shaded at the chosen pair only (the finest, where capped), where the rays that
-    disagree are counted as not converged (all pilot rays, the floor of their largest radiance),
-    summed over the sources."""
+    choose, are shaded with them at each order (one pass an order: each ray's radiance is its own),
+    and at the chosen pair (the finest, where capped) the rays that disagree are counted as not
+    converged (all pilot rays, the floor of their largest radiance), summed over the sources."""
     base = tuple(None if l is None else l[0] for l in ladders)
     chosen, capped, n_near, stray = list(base), 0, 0, 0
     for s, orders in enumerate(ladders):
@@ -219,17 +219,10 @@ def choose(ladders, counts, near, shade, tol):
             continue
         every = np.arange(len(near[s]))
         decide = every[~near[s]] if not near[s].all() else every  # all near: they decide
-        rays = {"decide": decide, "rest": every[near[s]] if len(decide) < len(every) else every[:0]}
-        memo = {}
-
-        def at(order, which):
-            if (order, which) not in memo:
-                memo[order, which] = shade(base[:s] + (order,) + base[s + 1:], rays[which])
-            return memo[order, which]
-
+        at = functools.lru_cache(maxsize=None)(lambda order, s=s: shade(base[:s] + (order,) + base[s + 1:], every))
         last = None
         for last in pairs(orders, counts[s]):
-            if agree(at(last[0], "decide"), at(last[1], "decide"), SHARE * tol).all():
+            if agree(at(last[0])[decide], at(last[1])[decide], SHARE * tol).all():
                 chosen[s] = last[0]
                 break
         else:
@@ -237,9 +230,5 @@ def choose(ladders, counts, near, shade, tol):
             capped += 1
         n_near += int(np.count_nonzero(near[s]))
         if last is not None:
-            coarse, fine = (np.empty((len(every), 3)) for _ in range(2))
-            for out, order in zip((coarse, fine), last):
-                for which in ("decide", "rest") if len(rays["rest"]) else ("decide",):
-                    out[rays[which]] = at(order, which)
-            stray += int(np.count_nonzero(~agree(coarse, fine, SHARE * tol)))
+            stray += int(np.count_nonzero(~agree(at(last[0]), at(last[1]), SHARE * tol)))
     return tuple(chosen), capped, n_near, stray

@@ -169,7 +169,8 @@ def _pilot(prep: Prepared, method, params, seed, tol, ladders, counts) -> tuple[
 
     @functools.lru_cache(maxsize=None)
     def rows_at(orders):
-        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders), _frusta=None,
+        return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders, prep.lights.emitters),
+                                   _frusta=None,
                                    _through=None, _memo={}, _memo_lock=threading.Lock())
 
     def shade(orders, rays):
