@@ -190,6 +190,12 @@ def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
         return 0.0, 0.0
     th_a, th_b, norm = _angles(xh, h, ell, kt)
     use_e, use_f = _strategies_used(mode, False)
+    return _homogeneous_estimate(xh, h, ell, kt, ks, code, g, cone, use_e, use_f, th_a, th_b, norm, n, key, dim0, seed)
+
+
+@njit
+def _homogeneous_estimate(xh, h, ell, kt, ks, code, g, cone, use_e, use_f, th_a, th_b, norm, n, key, dim0, seed):
+    """`estimate` given its angles th_a, th_b and free-path norm (`_angles`)."""
     paths = HomogeneousPaths(Eq4(xh, h, kt, ks, code, g, cone_row(cone)), ell, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
 
@@ -514,7 +520,7 @@ def draw_estimate(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
     geometry (x_h, h, d_a, cone row) from its start, the distances drawn from the dimensions dim0 on."""
 
 
-_draw_estimate_of = record_dispatch(draw_estimate, 0)
+_draw_estimate_of = record_dispatch(draw_estimate, 0, inline=True)
 
 
 @njit
@@ -565,9 +571,11 @@ def _same_channel(kt, ks, c):
 
 
 class HomogeneousDraws(NamedTuple):
-    """`draw_estimate`'s record in a homogeneous medium: segment lengths ell (S,), coefficients kt, ks (3,),
-    phase, sampling mode, the cdf mode's (precision, coeffs) and scratch (astats: analytic's counters)."""
+    """`draw_estimate`'s record in a homogeneous medium: segment lengths ell (S,), free-path norms 1 - exp(-kt ell)
+    (S, 3), coefficients kt, ks (3,), phase, sampling mode, the cdf mode's (precision, coeffs) and scratch
+    (astats: analytic's counters)."""
     ell: np.ndarray
+    norm: np.ndarray
     kt: np.ndarray
     ks: np.ndarray
     code: int
@@ -579,20 +587,29 @@ class HomogeneousDraws(NamedTuple):
     ftot: np.ndarray
 
 
-@_draw_estimate_of(HomogeneousDraws)
+@_draw_estimate_of(HomogeneousDraws, inline=True)
 @njit
 def _homogeneous_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
-    """`estimate` of one iteration per channel; cdf: F(ell) (`_totals`)."""
+    """`estimate` of one iteration per channel (the angles once, the norms of `HomogeneousDraws`); cdf: F(ell)
+    (`_totals`)."""
     if rec.mode == CDF:
         _totals(xh, h, da, rec.ell[s], rec.kt, rec.ks, rec.code, rec.g, cone, rec.precision, rec.coeffs, rec.astats,
                 rec.ftot)
         for c in range(3):
             est[c] = rec.ks[c] * rec.ftot[c]
         return
+    ell = rec.ell[s]
+    th_a, th_b, _ = _angles(xh, h, ell, 0.0)
+    use_e, use_f = _strategies_used(rec.mode, False)
     for c in range(3):
         same = _same_channel(rec.kt, rec.ks, c)
-        est[c] = est[same] if same >= 0 else estimate(xh, h, rec.ell[s], rec.kt[c], rec.ks[c], rec.code, rec.g, cone,
-                                                      rec.mode, 1, key, dim0, seed)[0]
+        if same >= 0:
+            est[c] = est[same]
+        elif rec.ks[c] == 0.0 or not ell > 0.0:
+            est[c] = 0.0
+        else:
+            est[c] = _homogeneous_estimate(xh, h, ell, rec.kt[c], rec.ks[c], rec.code, rec.g, cone, use_e, use_f, th_a,
+                                           th_b, rec.norm[s, c], 1, key, dim0, seed)[0]
 
 
 class FogDraws(NamedTuple):
@@ -613,7 +630,7 @@ class FogDraws(NamedTuple):
     row: np.ndarray
 
 
-@_draw_estimate_of(FogDraws)
+@_draw_estimate_of(FogDraws, inline=True)
 @njit
 def _fog_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
     """`_fog_estimate` of one iteration per channel, the light at `point`."""
@@ -648,7 +665,7 @@ class AtmosphereDraws(NamedTuple):
     row: np.ndarray
 
 
-@_draw_estimate_of(AtmosphereDraws)
+@_draw_estimate_of(AtmosphereDraws, inline=True)
 @njit
 def _atmosphere_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
     """`_atm_estimate` of one iteration per channel (0 where no layer scatters it), the light at `point`."""
@@ -678,7 +695,10 @@ def _drawn(rec, segs, lights, params):
 
 def _homogeneous_draws(segs, medium, lights, params):
     cdf = params["sampling"] == "cdf"
-    rec = HomogeneousDraws(np.asarray(segs.length, float), medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
+    ell = np.asarray(segs.length, float)
+    with np.errstate(invalid="ignore"):  # kt = 0 on rays to infinity: a channel that does not scatter (ks = 0)
+        norm = -np.expm1(-np.outer(ell, medium.sigma_t))
+    rec = HomogeneousDraws(ell, norm, medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
                            MODES[params["sampling"]], *(cdf_setup(medium) if cdf else (1.0, np.zeros(1))),
                            np.zeros(STATS_SIZE), np.zeros(3))
     out, var = _drawn(rec, segs, lights, params)
