@@ -24,11 +24,13 @@ Jacobian vanishes like |y - f| makes that integrand smooth in its parameters:
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from ..jit import njit
 from .area import gauss_legendre
 
 
@@ -111,6 +113,7 @@ class Planar:
     diameter: float
     outside: Callable
     rule: Callable
+    pieces: tuple = ()  # (kinds (P,), frames (P, 3, 3)): the emitter as pieces uniform in area (`emitter_pieces`)
 
 
 def plane_feet(centre, normal, origins, dirs, tmax):
@@ -173,7 +176,9 @@ def polygon(corners, normal) -> Planar:
                 parts.append((points.reshape(-1, 3), weights.ravel(), np.repeat(at, weights[0].size)))
         return tuple(np.concatenate(c) for c in zip(*parts))
 
-    return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule)
+    fan = np.stack([np.broadcast_to(corners[0], (len(corners) - 2, 3)), corners[1:-1], corners[2:]], axis=1)
+    return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule,
+                  (np.full(len(fan), TRIANGLE), fan))
 
 
 def disk(centre, normal, t1, t2, radius: float) -> Planar:
@@ -214,7 +219,8 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
         weights = dphi[:, :, None] * chord[:, :, None] * rho * wr[:, None, :]
         return points.reshape(-1, 3), weights.ravel(), np.repeat(np.arange(len(f)), weights[0].size)
 
-    return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule)
+    round_piece = np.array([[centre, radius * np.asarray(t1, float), radius * np.asarray(t2, float)]])
+    return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule, (np.array([ROUND]), round_piece))
 
 
 # --- flat emitters sampled by the stochastic methods: the rows' nodes drawn over the emitter ---------------
@@ -243,14 +249,64 @@ def flat_rows(lights) -> np.ndarray:
     return is_flat[np.where(lights.cubature & (lights.owner < len(ems)), lights.owner, len(ems))]
 
 
-def row_points(lights, rows, u, v) -> np.ndarray:
-    """(*u.shape, 3) points of the flat emitters (`flat_rows`) of `rows` (S,), by their `Emitter.sample` of the
-    numbers u, v (S, n), uniform in area: a row of area weight w and radiance L (intensity L w) moved to such a
-    point Y is an unbiased estimate of its share w / A of the emitter's integral of L over y (the rows' weights
-    sum to the area A of each side), so that the sum over the rows is of the emitter itself, not of its rule."""
-    out = np.empty(u.shape + (3,))
-    owner = lights.owner[rows]
-    for e in np.unique(owner):
-        at = owner == e
-        out[at] = lights.emitters[e].sample(u[at].ravel(), v[at].ravel())[0].reshape(u[at].shape + (3,))
-    return out
+TRIANGLE, ROUND = 0, 1  # the kinds of a flat emitter's pieces (`Planar.pieces`, `emitter_point`)
+
+
+def emitter_pieces(lights):
+    """The flat emitters (`flat`) of `lights` (lights.Lights) as pieces that `emitter_point` draws on, uniform in
+    area: (kind (P,), frame (P, 3, 3), upper (P,) the cumulative area of its emitter's pieces up to and with
+    each, first (E,), last (E,) the pieces of emitter e (none for the rest)). A quad's and a polygon's pieces
+    are its fan of triangles, a disk's is itself, a flat emissive shape's its triangles."""
+    kinds, frames, areas, first, last = [], [], [], [], []
+    for em in lights.emitters:
+        first.append(len(kinds))
+        if flat(em):
+            k, f = em.planar.pieces if em.planar is not None else _mesh_pieces(em)
+            kinds += list(k)
+            frames += list(f)
+            areas.append(np.cumsum(_areas(np.asarray(k), np.asarray(f))))
+        last.append(len(kinds))
+    frames = np.array(frames, float).reshape(-1, 3, 3)
+    upper = np.concatenate(areas) if areas else np.zeros(0)
+    return (np.array(kinds, np.int64), frames, upper, np.array(first, np.int64), np.array(last, np.int64))
+
+
+def _mesh_pieces(em):
+    """(kinds, frames) of a flat emissive shape: its triangles (the `Emitter.sample` map's own, lights/emissive.py,
+    whose first argument they are)."""
+    triangles = np.asarray(em.sample.args[0], float)
+    return np.full(len(triangles), TRIANGLE), triangles
+
+
+def _areas(kinds, frames):
+    """(P,) the area of each piece: a triangle (a, b, c)'s |(b - a) x (c - a)| / 2; a round piece (centre, R t1,
+    R t2)'s pi R^2."""
+    tri = 0.5 * np.linalg.norm(np.cross(frames[:, 1] - frames[:, 0], frames[:, 2] - frames[:, 0]), axis=1)
+    return np.where(kinds == TRIANGLE, tri, math.pi * np.einsum("ij,ij->i", frames[:, 1], frames[:, 1]))
+
+
+@njit
+def emitter_point(kind, frame, upper, first, last, u, v):
+    """(x, y, z): the point of the emitter whose pieces are first .. last - 1 (`emitter_pieces`) that the numbers u,
+    v in [0, 1) map to, uniform in area (density 1 / A, A = upper[last - 1]): u A picks the piece by area (binary
+    search in `upper`) and, rescaled within its share to u', with v the point: a triangle (a, b, c) by the square
+    to triangle map (1 - s) a + s (1 - v) b + s v c, s = sqrt(u'); a round piece (centre, R t1, R t2) by radius
+    R sqrt(u') at angle 2 pi v."""
+    x = u * upper[last - 1]
+    lo, hi = first, last - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if x < upper[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    below = upper[lo - 1] if lo > first else 0.0
+    s = math.sqrt(min(max((x - below) / (upper[lo] - below), 0.0), 1.0))
+    f = frame[lo]
+    if kind[lo] == TRIANGLE:
+        a, b, c = 1.0 - s, s * (1.0 - v), s * v
+        return (a * f[0, 0] + b * f[1, 0] + c * f[2, 0], a * f[0, 1] + b * f[1, 1] + c * f[2, 1],
+                a * f[0, 2] + b * f[1, 2] + c * f[2, 2])
+    cp, sp = s * math.cos(2.0 * math.pi * v), s * math.sin(2.0 * math.pi * v)
+    return (f[0, 0] + cp * f[1, 0] + sp * f[2, 0], f[0, 1] + cp * f[1, 1] + sp * f[2, 1],
+            f[0, 2] + cp * f[1, 2] + sp * f[2, 2])

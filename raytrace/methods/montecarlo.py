@@ -23,14 +23,14 @@ light takes free-path draws only.
 The estimator of eq. 4 is f(x)/p(x) with f = ks Phi(cos phi) I exp(-kt (x + d)) / d^2. Random
 numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not depend on threads.
 A flat emitter's rows (quad, disk, flat emissive shape) move their node, in every iteration, to a point of
-the emitter uniform in area (`_emitter_draws`): the sum over the rows estimates the emitter's integral,
-not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows (`_whole`).
+the emitter uniform in area, drawn in the kernel (`drawn_segments`): the sum over the rows estimates the
+emitter's integral, not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows
+(`_whole`).
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import NamedTuple
 
@@ -41,11 +41,12 @@ from ..media.integrand import integrand, record_dispatch
 from ..rng import uniform
 from . import AREA_LIGHTS, INSIDE_RTOL, LIGHTS, ErrorLaw, Interiors, Method, Param, Supports, by_kind
 from .analytic import ANISO_EXACT, STATS_SIZE, ST_EVALS, ST_FALLBACK, airlight, make_coeffs, working_precision
-from .geometry import (HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
-                       cone_row, fog_rows, segment_geometry, spot_factor)
+from .geometry import (HL, HO, MU, AtmosphereInX, Eq4, FogInX, atmosphere_channels, atmosphere_in_x, atmosphere_row,
+                       cone_row, fog_rows, segment_geometry, segment_light_table, spot_factor)
 from ..errors import UserError
-from ..lights.planar import flat_rows, row_points
+from ..lights.planar import emitter_pieces, emitter_point, flat_rows
 from ..media import atmosphere as atmo
+from ..media.atmosphere import segment_rows
 from ..media import Atmosphere, HeightFog, Homogeneous
 from ..media.fog import attenuated_density, column, column_distance
 from ..media.phase import phase_split
@@ -189,6 +190,12 @@ def estimate(xh, h, ell, kt, ks, code, g, cone, mode, n, key, dim0, seed):
         return 0.0, 0.0
     th_a, th_b, norm = _angles(xh, h, ell, kt)
     use_e, use_f = _strategies_used(mode, False)
+    return _homogeneous_estimate(xh, h, ell, kt, ks, code, g, cone, use_e, use_f, th_a, th_b, norm, n, key, dim0, seed)
+
+
+@njit
+def _homogeneous_estimate(xh, h, ell, kt, ks, code, g, cone, use_e, use_f, th_a, th_b, norm, n, key, dim0, seed):
+    """`estimate` given its angles th_a, th_b and free-path norm (`_angles`)."""
     paths = HomogeneousPaths(Eq4(xh, h, kt, ks, code, g, cone_row(cone)), ell, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
 
@@ -433,12 +440,14 @@ def cdf_setup(medium):
 
 
 def _airlight(segs, medium, lights, params):
-    n = params["samples"]
+    flat = _flat(segs, lights)
+    if not flat.any():
+        return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
     out, stats, var = np.zeros((len(segs), 3)), np.zeros(CDF_STATS), np.zeros((len(segs), 3))
-    for at, sub, sub_lights, sub_params, drawn in _parts(segs, lights, params):
-        est, st, v = by_kind(_BY_KIND, medium)(sub, medium, sub_lights, sub_params)
-        out[at], var[at] = _over_draws(est.reshape(-1, n, 3), n) if drawn else (est, v)
-        stats += st
+    for at, table in ((np.nonzero(~flat)[0], _BY_KIND), (np.nonzero(flat)[0], _DRAWS)):
+        if len(at):
+            out[at], st, var[at] = by_kind(table, medium)(segs.take(at), medium, lights, params)
+            stats += st
     return out, stats, var
 
 
@@ -499,35 +508,237 @@ def _points(segs, medium, lights, params):
 
 
 # ----------------------------------------------------------------------------------------------
-# flat emitters (quads, disks, flat emissive shapes): each row's node drawn over the emitter per iteration
+# flat emitters (quads, disks, flat emissive shapes): each row's light drawn over the emitter per iteration
 # ----------------------------------------------------------------------------------------------
 DIM_EMITTER = 1 << 51  # the first random-number dimension of the flat emitters' points (rng.py)
+DRAW_BLOCK = 256  # segments whose draws one pass of `drawn_segments` holds
+
+
+def draw_estimate(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
+    """est (3,) = one iteration's unit-intensity estimate per channel of segment s of the record `rec` (a
+    medium's draws: HomogeneousDraws, FogDraws, AtmosphereDraws) with its row's light at `point` (3,), of
+    geometry (x_h, h, d_a, cone row) from its start, the distances drawn from the dimensions dim0 on."""
+
+
+_draw_estimate_of = record_dispatch(draw_estimate, 0, inline=True)
 
 
 @njit
-def emitter_numbers(keys, stream, seed, n, u, v):
-    """u[s, j], v[s, j] (S, n): the numbers of segment s's emitter point in iteration j, the dimensions
-    DIM_EMITTER + 2 (n stream[s] + j) and the next of its ray's key."""
-    for s in range(keys.shape[0]):
+def drawn_segments(rec, origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream, seed, scale,
+                   intensity, n, out, var):
+    """Mean and variance of the mean (S, 3) over n iterations of every segment of a flat emitter's row: iteration
+    j moves the row's light to a point of the emitter uniform in area (lights/planar.py `emitter_point` of
+    the pieces first[s] .. last[s] - 1, numbers from the dimensions DIM_EMITTER + 2 (n stream[s] + j) and the
+    next), keeps its axis and cone (axis, lcone (S, 3): the row's) and its intensity L w, and draws the
+    distances of the rows' iteration j (dimensions 2 n stream[s] + 2 j on): the rows' weights of a side sum
+    to its area A and the point has density 1 / A, so the sum over the rows estimates the emitter's integral
+    (not its rule's)."""
+    points = np.empty((DRAW_BLOCK, 3))
+    index = np.arange(DRAW_BLOCK)
+    acc, acc2, est = np.zeros((DRAW_BLOCK, 3)), np.zeros((DRAW_BLOCK, 3)), np.zeros(3)
+    for b0 in range(0, origins.shape[0], DRAW_BLOCK):
+        m = min(DRAW_BLOCK, origins.shape[0] - b0)
+        acc[:] = 0.0
+        acc2[:] = 0.0
         for j in range(n):
-            dim = DIM_EMITTER + 2 * (n * stream[s] + j)
-            u[s, j] = uniform(keys[s], dim, seed)
-            v[s, j] = uniform(keys[s], dim + 1, seed)
+            for i in range(m):
+                s = b0 + i
+                dim = DIM_EMITTER + 2 * (n * stream[s] + j)
+                points[i, 0], points[i, 1], points[i, 2] = emitter_point(
+                    kind, frame, upper, first[s], last[s], uniform(keys[s], dim, seed), uniform(keys[s], dim + 1, seed))
+            xh, h, da, cone = segment_light_table(origins[b0:b0 + m], dirs[b0:b0 + m], points, axis[b0:b0 + m],
+                                                  lcone[b0:b0 + m], index[:m], scale)
+            for i in range(m):
+                s = b0 + i
+                draw_estimate(rec, s, points[i], xh[i], h[i], da[i], cone[i], keys[s], 2 * n * stream[s] + 2 * j,
+                              seed, est)
+                for c in range(3):
+                    e = est[c] * intensity[s, c]
+                    acc[i, c] += e
+                    acc2[i, c] += e * e
+        for i in range(m):
+            for c in range(3):
+                out[b0 + i, c], var[b0 + i, c] = _mean_var(acc[i, c], acc2[i, c], n)
 
 
-def _parts(segs, lights, params):
-    """[(indices into segs, segments, lights, params, drawn)]: the segments whose rows stay as they are, and
-    those of flat emitters' rows (lights/planar.py `flat_rows`) whose side of the emitter is whole along
-    their ray (`_whole`) as `_emitter_draws`, one iteration each."""
+@njit
+def _same_channel(kt, ks, c):
+    """The first channel before c of the same coefficients (its estimate is c's), else -1."""
+    for c2 in range(c):
+        if kt[c2] == kt[c] and ks[c2] == ks[c]:
+            return c2
+    return -1
+
+
+class HomogeneousDraws(NamedTuple):
+    """`draw_estimate`'s record in a homogeneous medium: segment lengths ell (S,), free-path norms 1 - exp(-kt ell)
+    (S, 3), coefficients kt, ks (3,), phase, sampling mode, the cdf mode's (precision, coeffs) and scratch
+    (astats: analytic's counters)."""
+    ell: np.ndarray
+    norm: np.ndarray
+    kt: np.ndarray
+    ks: np.ndarray
+    code: int
+    g: float
+    mode: int
+    precision: float
+    coeffs: np.ndarray
+    astats: np.ndarray
+    ftot: np.ndarray
+
+
+@_draw_estimate_of(HomogeneousDraws, inline=True)
+@njit
+def _homogeneous_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
+    """`estimate` of one iteration per channel (the angles once, the norms of `HomogeneousDraws`); cdf: F(ell)
+    (`_totals`)."""
+    if rec.mode == CDF:
+        _totals(xh, h, da, rec.ell[s], rec.kt, rec.ks, rec.code, rec.g, cone, rec.precision, rec.coeffs, rec.astats,
+                rec.ftot)
+        for c in range(3):
+            est[c] = rec.ks[c] * rec.ftot[c]
+        return
+    ell = rec.ell[s]
+    th_a, th_b, _ = _angles(xh, h, ell, 0.0)
+    use_e, use_f = _strategies_used(rec.mode, False)
+    for c in range(3):
+        same = _same_channel(rec.kt, rec.ks, c)
+        if same >= 0:
+            est[c] = est[same]
+        elif rec.ks[c] == 0.0 or not ell > 0.0:
+            est[c] = 0.0
+        else:
+            est[c] = _homogeneous_estimate(xh, h, ell, rec.kt[c], rec.ks[c], rec.code, rec.g, cone, use_e, use_f, th_a,
+                                           th_b, rec.norm[s, c], 1, key, dim0, seed)[0]
+
+
+class FogDraws(NamedTuple):
+    """`draw_estimate`'s record in a height fog: the segments' `fog_rows` (S, 5) (a row's light height HL is
+    the drawn point's), lengths ell (S,), the fog's up (3,) and h0, coefficients kt, ks (3,), phase, scale
+    height, profile, sampling mode and a scratch row (5,)."""
+    rows: np.ndarray
+    ell: np.ndarray
+    up: np.ndarray
+    h0: float
+    kt: np.ndarray
+    ks: np.ndarray
+    code: int
+    g: float
+    H: float
+    profile: int
+    mode: int
+    row: np.ndarray
+
+
+@_draw_estimate_of(FogDraws, inline=True)
+@njit
+def _fog_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
+    """`_fog_estimate` of one iteration per channel, the light at `point`."""
+    row = rec.row
+    row[:] = rec.rows[s]
+    row[HL] = point[0] * rec.up[0] + point[1] * rec.up[1] + point[2] * rec.up[2] - rec.h0
+    for c in range(3):
+        same = _same_channel(rec.kt, rec.ks, c)
+        est[c] = est[same] if same >= 0 else _fog_estimate(row, False, xh, h, rec.ell[s], rec.kt[c], rec.ks[c],
+                                                           rec.code, rec.g, cone, rec.H, rec.profile, rec.mode, 1,
+                                                           key, dim0, seed)[0]
+
+
+class AtmosphereDraws(NamedTuple):
+    """`draw_estimate`'s record in an atmosphere: the segments' `atmosphere.segment_rows` (S, ROW) (a row's
+    light LX, LY, LZ is the drawn point's, from the planet's centre (3,)), per channel its layers'
+    coefficients kt, ks (3, K), the layers' phases, radius, top, sampling mode and scratch (`_atm_estimate`'s
+    cols, pieces and buf, a row (ROW,))."""
+    rows: np.ndarray
+    centre: np.ndarray
+    kt: np.ndarray
+    ks: np.ndarray
+    codes: np.ndarray
+    gs: np.ndarray
+    Hs: np.ndarray
+    R: float
+    top: float
+    mode: int
+    cols: np.ndarray
+    pieces: np.ndarray
+    buf: np.ndarray
+    row: np.ndarray
+
+
+@_draw_estimate_of(AtmosphereDraws, inline=True)
+@njit
+def _atmosphere_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
+    """`_atm_estimate` of one iteration per channel (0 where no layer scatters it), the light at `point`."""
+    row = rec.row
+    row[:] = rec.rows[s]
+    row[atmo.LX], row[atmo.LY], row[atmo.LZ] = (point[0] - rec.centre[0], point[1] - rec.centre[1],
+                                                point[2] - rec.centre[2])
+    for c in range(3):
+        est[c] = 0.0
+        if not np.any(rec.ks[c] > 0.0):
+            continue
+        est[c] = _atm_estimate(atmosphere_row(row), False, xh, h, cone, rec.kt[c], rec.ks[c], rec.codes, rec.gs,
+                               rec.Hs, rec.R, rec.top, rec.mode, 1, key, dim0, seed, rec.cols, rec.pieces, rec.buf)[0]
+
+
+def _drawn(rec, segs, lights, params):
+    """(mean, variance) (S, 3) of `drawn_segments` over the segments segs of flat emitters' rows."""
+    kind, frame, upper, first, last = emitter_pieces(lights)
+    owner = lights.owner[segs.light]
+    out, var = np.zeros((len(segs), 3)), np.zeros((len(segs), 3))
+    drawn_segments(rec, segs.origins, segs.dirs, lights.axis[segs.light], lights.cone[segs.light], first[owner],
+                   last[owner], kind, frame, upper, np.ascontiguousarray(segs.keys, dtype=np.uint64),
+                   np.asarray(segs.stream, np.int64), np.uint64(segs.seed), float(segs.scale),
+                   lights.intensity[segs.light], params["samples"], out, var)
+    return out, var
+
+
+def _homogeneous_draws(segs, medium, lights, params):
+    cdf = params["sampling"] == "cdf"
+    ell = np.asarray(segs.length, float)
+    with np.errstate(invalid="ignore"):  # kt = 0 on rays to infinity: a channel that does not scatter (ks = 0)
+        norm = -np.expm1(-np.outer(ell, medium.sigma_t))
+    rec = HomogeneousDraws(ell, norm, medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
+                           MODES[params["sampling"]], *(cdf_setup(medium) if cdf else (1.0, np.zeros(1))),
+                           np.zeros(STATS_SIZE), np.zeros(3))
+    out, var = _drawn(rec, segs, lights, params)
+    stats = np.zeros(CDF_STATS)
+    stats[CS_EVALS], stats[CS_FALLBACK] = rec.astats[ST_EVALS], rec.astats[ST_FALLBACK]
+    return out, stats, var
+
+
+def _fog_draws(segs, medium, lights, params):
+    rows, _ = fog_rows(segs, medium, lights)
+    rec = FogDraws(rows, np.asarray(segs.length, float), np.asarray(medium.up, float), float(medium.h0),
+                   medium.sigma_t, medium.sigma_s, medium.phase, medium.g, medium.scale_height, medium.profile,
+                   MODES[params["sampling"]], np.zeros(5))
+    out, var = _drawn(rec, segs, lights, params)
+    return out, np.zeros(CDF_STATS), var
+
+
+def _atmosphere_draws(segs, atm, lights, params):
+    rows = np.empty((len(segs), atmo.ROW))
+    centre = np.asarray(atm.center, float)
+    segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
+                 np.zeros(len(segs), bool), *centre, float(atm.radius), float(atm.top), rows)
+    rec = AtmosphereDraws(rows, centre, np.ascontiguousarray(atm.layer_sigma_t.T),
+                          np.ascontiguousarray(atm.layer_sigma_s.T), atm.phases, atm.gs, atm.layers, float(atm.radius), float(atm.top), MODES[params["sampling"]],
+                          np.empty(atm.layers.shape[0]), np.empty((3, 4)), np.empty(2), np.empty(atmo.ROW))
+    out, var = _drawn(rec, segs, lights, params)
+    return out, np.zeros(CDF_STATS), var
+
+
+_DRAWS = {Homogeneous: _homogeneous_draws, HeightFog: _fog_draws, Atmosphere: _atmosphere_draws}
+
+
+def _flat(segs, lights) -> np.ndarray:
+    """(S,) whether each segment is of a flat emitter's row (lights/planar.py `flat_rows`) whose side of the
+    emitter is whole along its ray (`_whole`): those take `drawn_segments`, the rest keep their rows."""
     flat_row = flat_rows(lights)
     flat = flat_row[segs.light]
     if flat.any():
         flat[flat] = _whole(segs, lights, flat_row, flat)
-    if not flat.any():
-        return [(slice(None), segs, lights, params, False)]
-    keep, at = np.nonzero(~flat)[0], np.nonzero(flat)[0]
-    return ([(keep, segs.take(keep), lights, params, False)] if len(keep) else []) + [
-        (at, *_emitter_draws(segs.take(at), lights, params["samples"]), {**params, "samples": 1}, True)]
+    return flat
 
 
 WHOLE_RTOL = 1e-9  # of the scene's size: how far the pieces of one emitter's rows may start and end apart
@@ -568,28 +779,6 @@ def _whole(segs, lights, flat_row, flat) -> np.ndarray:
     return whole[inverse]
 
 
-def _emitter_draws(segs, lights, n):
-    """(segments, lights): segment s of a flat emitter's row (lights/planar.py `flat_rows`) as n segments
-    s n + j, each lit by a row of its own, the row's node moved to a point of the emitter uniform in area
-    (`planar.row_points`, numbers `emitter_numbers`): the row's intensity L w and axis kept, an unbiased
-    estimate of the row's share of the emitter's integral (the rows' sum is the emitter's, not its rule's).
-    Segment s n + j draws its distances as iteration j of s (stream n stream[s] + j with one iteration)."""
-    u, v = np.empty((len(segs), n)), np.empty((len(segs), n))
-    keys = np.ascontiguousarray(segs.keys, dtype=np.uint64)
-    emitter_numbers(keys, np.asarray(segs.stream, np.int64), np.uint64(segs.seed), n, u, v)
-    points = row_points(lights, segs.light, u, v).reshape(-1, 3)
-    rep = np.repeat(np.arange(len(segs)), n)
-    rows = segs.light[rep]
-    drawn = dataclasses.replace(segs.take(rep), light=np.arange(len(rep)),
-                                stream=n * segs.stream[rep] + np.tile(np.arange(n), len(segs)))
-    return drawn, dataclasses.replace(lights, kind=lights.kind[rows], position=points, intensity=lights.intensity[rows],
-                                      axis=lights.axis[rows], cone=lights.cone[rows], owner=lights.owner[rows],
-                                      cubature=lights.cubature[rows])
-
-
-def _over_draws(est, n):
-    """(mean, variance of the mean) (S, 3) of the n one-iteration estimates est (S, n, 3) of each segment."""
-    return est.mean(axis=1), (est.var(axis=1, ddof=1) / n if n > 1 else np.zeros(est[:, 0].shape))
 
 
 def _summarize(stats):
