@@ -124,6 +124,7 @@ class Emitter:
     # whether a sample on it can be shadowed by the emitter itself (an emissive shape's triangles: a shadow
     # ray from one leaves through the rest of the shape), so that its penumbrae are not sampled
     self_shadowing: bool = False
+    triangles: np.ndarray | None = None  # an emissive shape's triangles (T, 3, 3), the pieces its samples are drawn on
 
 
 def uniform_density(n: int, area: float) -> np.ndarray:

@@ -141,7 +141,7 @@ def emitter(triangles, radiance, two_sided: bool, where: str = "") -> Emitter:
     corners = (1.0 - PROBE_INSET) * triangles + PROBE_INSET * triangles.mean(axis=1, keepdims=True)  # the probes
     sample = functools.partial(_sample, triangles, normals, np.cumsum(area))
     probes = (corners.reshape(-1, 3), np.repeat(normals, 3, axis=0))
-    return Emitter(np.asarray(radiance, float), two_sided, sample, probes, self_shadowing=True)
+    return Emitter(np.asarray(radiance, float), two_sided, sample, probes, self_shadowing=True, triangles=triangles)
 
 
 def _sample(triangles, normals, cumulative, u, v):

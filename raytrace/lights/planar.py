@@ -261,7 +261,10 @@ def emitter_pieces(lights):
     for em in lights.emitters:
         first.append(len(kinds))
         if flat(em):
-            k, f = em.planar.pieces if em.planar is not None else _mesh_pieces(em)
+            if em.planar is not None:
+                k, f = em.planar.pieces
+            else:
+                k, f = np.full(len(em.triangles), TRIANGLE), em.triangles
             kinds += list(k)
             frames += list(f)
             areas.append(np.cumsum(_areas(np.asarray(k), np.asarray(f))))
@@ -269,13 +272,6 @@ def emitter_pieces(lights):
     frames = np.array(frames, float).reshape(-1, 3, 3)
     upper = np.concatenate(areas) if areas else np.zeros(0)
     return (np.array(kinds, np.int64), frames, upper, np.array(first, np.int64), np.array(last, np.int64))
-
-
-def _mesh_pieces(em):
-    """(kinds, frames) of a flat emissive shape: its triangles (the `Emitter.sample` map's own, lights/emissive.py,
-    whose first argument they are)."""
-    triangles = np.asarray(em.sample.args[0], float)
-    return np.full(len(triangles), TRIANGLE), triangles
 
 
 def _areas(kinds, frames):
