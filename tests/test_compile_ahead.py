@@ -209,10 +209,10 @@ def test_the_worker_compiles_the_media_inside_shapes_and_the_render_loads_them(t
 
 
 def test_the_workers_segments_have_the_warm_ups_types():
-    """`renderer.axis_segments` (the worker's air-light, `compile_airlight`) give every array the numba type of the
-    warm-up's segments (its camera rays cut at the spot lights' cones, `cone_segments`), so the kernels the
-    worker compiles on them are those the render's process loads; one segment per light, a piece of a line of
-    sight (t0 > 0, as the lit intervals' are)."""
+    """`renderer.axis_segments` (the worker's air-light, `compile_airlight`, from the scene's lights alone) give
+    every array the numba type of the warm-up's segments (its camera rays cut at the spot lights' cones,
+    `cone_segments`), so the kernels the worker compiles on them are those the render's process loads; one
+    segment per light, a piece of a line of sight (t0 > 0, as the lit intervals' are)."""
     import numba
     from raytrace import api
     from raytrace.rendering import renderer
@@ -223,7 +223,7 @@ def test_the_workers_segments_have_the_warm_ups_types():
     t, _, _ = renderer.first_hits(prep.accel, prep.scene.medium, o, d)
     warm, _ = cone_segments(whole_rays(o, d, t, np.zeros(len(o), np.uint64), len(prep.lights), 3, prep.accel.scale),
                             prep.lights)
-    axis = renderer.axis_segments(prep, 3)
+    axis = renderer.axis_segments(prep.scene.camera, prep.lights, 3)
     for field in ("origins", "dirs", "length", "light", "ray", "t0", "keys", "stream"):
         assert numba.typeof(getattr(axis, field)) == numba.typeof(getattr(warm, field)), field
     assert (type(axis.seed), type(axis.scale), axis.per_ray) == (type(warm.seed), type(warm.scale), warm.per_ray)

@@ -489,19 +489,23 @@ def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
     segment per light (`axis_segments`), not on the warm-up's rays: the camera rays', first hits', surfaces'
     and cone cuts' kernels, which the warm-up compiles meanwhile in the render's process, are not compiled
     here too (the air-light's kernels take the same argument types from these segments as from the
-    warm-up's); then the inside integrals of the rays into media inside shapes (`interiors_ahead`: their
-    boundary crossing and their inside rows, not the rays beyond them), which the render's warm-up shades
-    after this worker. Where the camera is inside a medium, the warm-up's rays shaded from there
-    (crossing.start_inside)."""
-    prep, method = prepare(scene), get_method(method_name)
-    o, d = warm_up_rays(prep) if prep.camera_inside is not None or len(prep.interior_shapes) else (None, None)
-    if prep.camera_inside is not None:
+    warm-up's), and a scene without shapes that emit or hold a medium is not even prepared (its meshes
+    loaded, their accelerator built: the lights suffice); then the inside integrals of the rays into media
+    inside shapes (`interiors_ahead`: their boundary crossing and their inside rows, not the rays beyond
+    them), which the render's warm-up shades after this worker. Where the camera is inside a medium, the
+    warm-up's rays shaded from there (crossing.start_inside)."""
+    method = get_method(method_name)
+    prep = prepare(scene) if any(s.interior is not None or s.emission is not None for s in scene.shapes) else None
+    if prep is not None and prep.camera_inside is not None:
+        o, d = warm_up_rays(prep)
         shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed)
         return
-    if len(prep.lights) and scene.medium.scatters:
-        airlight(method, scene.medium, prep.lights, params, axis_segments(prep, seed), 1)
-    if o is None:
+    lights = Lights.of(scene.lights, []) if prep is None else prep.lights
+    if len(lights) and scene.medium.scatters:
+        airlight(method, scene.medium, lights, params, axis_segments(scene.camera, lights, seed), 1)
+    if prep is None:
         return
+    o, d = warm_up_rays(prep)
     keys = np.zeros(len(o), dtype=np.uint64)
     t, prim, _ = first_hits(prep.accel, scene.medium, o, d)
     into = interiors_ahead(prep, prim)
@@ -511,18 +515,20 @@ def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
             rows.integrate(prep, method, params, boundary.rows, seed, 0, False)
 
 
-def axis_segments(prep: Prepared, seed: int) -> Segments:
+def axis_segments(camera, lights: Lights, seed: int) -> Segments:
     """One segment per light along a line of sight near the camera's axis (tilted off it: not through a light
-    placed on the axis), from a quarter of the scene's size to its end: a piece of a camera ray (t0 > 0), as the
-    lit intervals' are, so that `gather` weighs it by the transmittance before it as it weighs theirs."""
-    forward, right, up = basis(prep.scene.camera)
-    n, scale = len(prep.lights), prep.accel.scale
+    placed on the axis), from a quarter of the scene's size (the lights' and the camera's distance from the
+    origin) to its end: a piece of a camera ray (t0 > 0), as the lit intervals' are, so that `gather` weighs it
+    by the transmittance before it as it weighs theirs."""
+    forward, right, up = basis(camera)
+    n = len(lights)
+    scale = float(np.max(np.abs(np.concatenate([lights.position[~lights.distant], [camera.position]])))) or 1.0
     d = forward + 0.0123 * right + 0.0311 * up
     d = np.tile(d / np.linalg.norm(d), (n, 1))
     t0 = np.full(n, 0.25 * scale)
     light = np.arange(n, dtype=np.int64)
-    return Segments(prep.scene.camera.position + t0[:, None] * d, d, np.full(n, 0.75 * scale), light,
-                    np.zeros(n, np.int64), t0, np.zeros(n, np.uint64), light.copy(), int(seed), float(scale))
+    return Segments(camera.position + t0[:, None] * d, d, np.full(n, 0.75 * scale), light, np.zeros(n, np.int64), t0,
+                    np.zeros(n, np.uint64), light.copy(), int(seed), scale)
 
 
 def interiors_ahead(prep: Prepared, prim) -> np.ndarray:
