@@ -2,7 +2,7 @@
 
     RAYTRACE_ASSETS=../shared/scenes python benchmarks/compile_time.py [--profile] [--scenes a,b] [--tree DIR]
                                                                        [--before DIR] [--runs N] [--cached W]
-                                                                       [--phases]
+                                                                       [--phases] [--ahead]
 
 One subprocess per scene (and one for the built-in default scene), each with `RAYTRACE_CACHE`
 pointed at a fresh empty folder, renders the scene through the command line at `--width` pixels
@@ -36,7 +36,11 @@ repeats each measurement N times, giving every run's compile CPU seconds, wall s
 image and total CPU seconds, and their medians. --cached W
 then renders each scene again at W pixels wide in a second process on the same cache (its kernels all
 loaded from it): the CPU seconds of that render's `main` (warm render speed, to compare two checkouts
-like with like) and what it compiled (nothing, when the cache works). Scenes whose meshes come from
+like with like) and what it compiled (nothing, when the cache works). --ahead measures, instead of the
+render's process, the group of kernels its compile worker would compile (rendering/compile_ahead.py's call,
+made in the measured process on its empty cache, which then stops): its compile CPU seconds, its compilations
+and with --profile its dispatchers (the process's CPU seconds include the scene's loading, not a worker's
+imports). Scenes whose meshes come from
 `render.py assets` (sibenik, conference) run only when RAYTRACE_ASSETS is set.
 """
 import argparse
@@ -117,8 +121,13 @@ class Compiles:
             self.events[self.stack.pop()]["end"] = now
 
 
-def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
-    """Render `scene` in this process (an empty cache set by the caller) and return the figures."""
+class _Ahead(BaseException):
+    """The end of an --ahead measurement: the worker's group compiled (not an error: no handler catches it)."""
+
+
+def worker(scene: str, width: int, out: Path, phases: bool = False, ahead: bool = False) -> dict:
+    """Render `scene` in this process (an empty cache set by the caller) and return the figures; `ahead`: compile
+    the compile worker's group here instead, then stop."""
     from numba.core import event as ev
 
     rec = Compiles()
@@ -168,11 +177,22 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
                 gate["wall"] = gate.get("wall", 0.0) + time.perf_counter() - start
 
         compile_ahead.Ahead.wait = waited
+        if ahead:
+            def start(split, fn, *args, later=False):
+                rec.phase = "worker"
+                rec.events.clear()  # (what this process compiled before: not the worker's)
+                if split:  # (else the worker is not started: its group is empty)
+                    fn(*args)
+                raise _Ahead
+            compile_ahead.start = start
     args = ([] if scene == DEFAULT else [scene]) + ["--width", str(width), "--threads", "1", "--quiet",
                                                    "--out", str(out / "image.exr")]
     with ev.install_listener("numba:compile", Listener()):
         main_cpu = time.process_time()
-        status = main(args)
+        try:
+            status = main(args)
+        except _Ahead:
+            status = 0
         main_cpu = time.process_time() - main_cpu
     if status != 0:
         raise SystemExit(f"{scene}: render.py exited with {status}")
@@ -201,7 +221,8 @@ def worker(scene: str, width: int, out: Path, phases: bool = False) -> dict:
                        for e in rec.events]}
 
 
-def measure(scene: str, width: int, tree: Path, cached: int | None = None, phases: bool = False) -> dict:
+def measure(scene: str, width: int, tree: Path, cached: int | None = None, phases: bool = False,
+            ahead: bool = False) -> dict:
     """The worker's figures for `scene` on an empty cache; with `cached`, those of a second render at
     `cached` pixels wide on the cache the first filled, under "cached"."""
     with tempfile.TemporaryDirectory(prefix="compile_time_") as tmp:
@@ -209,7 +230,7 @@ def measure(scene: str, width: int, tree: Path, cached: int | None = None, phase
         runs = []
         for w in [width] + ([cached] if cached else []):
             cmd = [sys.executable, __file__, "--worker", scene, "--width", str(w), "--out", tmp] + \
-                (["--phases"] if phases and not runs else [])
+                (["--phases"] if phases and not runs else []) + (["--ahead"] if ahead and not runs else [])
             before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
             proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
             wall, after = time.perf_counter() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -235,12 +256,13 @@ def main():
     ap.add_argument("--cached", type=int, metavar="W",
                     help="then render each scene W pixels wide on the filled cache: its CPU s and compiles")
     ap.add_argument("--phases", action="store_true", help="the compile CPU seconds per phase (numba, LLVM)")
+    ap.add_argument("--ahead", action="store_true", help="measure the compile worker's group (in one process)")
     ap.add_argument("--json", type=Path, help="also write the figures here")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
-        print(json.dumps(worker(args.worker, args.width, args.out, args.phases)))
+        print(json.dumps(worker(args.worker, args.width, args.out, args.phases, args.ahead)))
         return
     names = args.scenes.split(",") if args.scenes else scene_names(bool(os.environ.get("RAYTRACE_ASSETS")))
     if args.before or args.runs > 1 or args.cached:
@@ -252,7 +274,7 @@ def main():
     print("|---|---|---|---|---|---|---|---|")
     results = {}
     for name in names:
-        r = results[name] = measure(name, args.width, args.tree, phases=args.phases)
+        r = results[name] = measure(name, args.width, args.tree, phases=args.phases, ahead=args.ahead)
         late = f"{len(r['late'])} ({r['late_cpu']:.1f} s: {', '.join(r['late'])})" if r["late"] else "0"
         print(f"| {name} | {r['compile_cpu']:.1f} | {r['compiled']} | {late} | {r['warm_wall']:.1f} | "
               f"{r['process_cpu']:.1f} | {r['first_image_wall']:.1f} | {r['total_cpu']:.1f} |", flush=True)
@@ -291,7 +313,7 @@ def paired(names: list[str], args):
         runs = {k: [] for k, _ in trees}
         for _ in range(args.runs):
             for k, tree in trees:
-                runs[k].append(measure(name, args.width, tree, args.cached, args.phases))
+                runs[k].append(measure(name, args.width, tree, args.cached, args.phases, args.ahead))
         results[name] = runs
         cells = []
         for k, _ in trees:

@@ -130,7 +130,7 @@ import json, sys
 import numpy as np
 from raytrace import api
 from raytrace.methods import analytic
-image = api.render(None, "analytic", width=12, height=8, spp=1, threads=1)
+image = api.render(sys.argv[2] if len(sys.argv) > 2 else None, "analytic", width=12, height=8, spp=1, threads=1)
 np.save(sys.argv[1], image.array)
 print(json.dumps({"hits": sum(analytic.evaluate_segments.stats.cache_hits.values()),
                   "misses": sum(analytic.evaluate_segments.stats.cache_misses.values())}))
@@ -164,13 +164,14 @@ print(json.dumps({"hits": sum(sum(k.stats.cache_hits.values()) for k in kernels)
 
 @pytest.mark.slow
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
-@pytest.mark.parametrize("script, args, n", [(RENDER, (), 1),
+@pytest.mark.parametrize("script, args, n", [(RENDER, (), 1), (RENDER, (str(ROOT / "scenes/stage.toml"),), 1),
                                              (PILOT, (str(ROOT / "tests/data/area_peers/occluded.toml"),), 4)],
-                         ids=["airlight", "beside a pilot: shadows"])
+                         ids=["airlight", "airlight: spot lights", "beside a pilot: shadows"])
 def test_first_renders_on_empty_caches_load_the_workers_kernel_and_agree(tmp_path, script, args, n):
-    """The default scene: the air-light's kernel; an area light's scene, whose cubature pilot warms up
-    first: the penumbrae's kernel and the lit intervals' (the shadows' group, which the worker compiles
-    on segments of its own: the render's process compiles none of them)."""
+    """The default scene and stage (spot lights, an anisotropic medium): the air-light's kernel, which the
+    worker compiles on segments of its own (renderer.axis_segments); an area light's scene, whose cubature
+    pilot warms up first: the penumbrae's kernel and the lit intervals' (the shadows' group, which the worker
+    compiles on segments of its own too): the render's process compiles none of them."""
     a, stats_a = _first_render(tmp_path, "a", True, script, *args)
     b, stats_b = _first_render(tmp_path, "b", True, script, *args)
     serial, stats_serial = _first_render(tmp_path, "serial", False, script, *args)
@@ -205,3 +206,26 @@ def test_the_worker_compiles_the_media_inside_shapes_and_the_render_loads_them(t
     assert stats_serial == {"hits": 0, "misses": 1}  # compiled in the process
     np.testing.assert_array_equal(a, b)
     np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)
+
+
+def test_the_workers_segments_have_the_warm_ups_types():
+    """`renderer.axis_segments` (the worker's air-light, `compile_airlight`, from the scene's lights alone) give
+    every array the numba type of the warm-up's segments (its camera rays cut at the spot lights' cones,
+    `cone_segments`), so the kernels the worker compiles on them are those the render's process loads; one
+    segment per light, a piece of a line of sight (t0 > 0, as the lit intervals' are)."""
+    import numba
+    from raytrace import api
+    from raytrace.rendering import renderer
+    from raytrace.segments import cone_segments, whole_rays
+
+    prep = renderer.prepare(api.load(str(ROOT / "scenes" / "stage.toml")))
+    o, d = renderer.warm_up_rays(prep)
+    t, _, _ = renderer.first_hits(prep.accel, prep.scene.medium, o, d)
+    warm, _ = cone_segments(whole_rays(o, d, t, np.zeros(len(o), np.uint64), len(prep.lights), 3, prep.accel.scale),
+                            prep.lights)
+    axis = renderer.axis_segments(prep.scene.camera, prep.lights, 3)
+    for field in ("origins", "dirs", "length", "light", "ray", "t0", "keys", "stream"):
+        assert numba.typeof(getattr(axis, field)) == numba.typeof(getattr(warm, field)), field
+    assert (type(axis.seed), type(axis.scale), axis.per_ray) == (type(warm.seed), type(warm.scale), warm.per_ray)
+    assert np.array_equal(axis.light, np.arange(len(prep.lights))) and np.all(axis.t0 > 0.0)
+    np.testing.assert_allclose(axis.origins, prep.scene.camera.position + axis.t0[:, None] * axis.dirs)

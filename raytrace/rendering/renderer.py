@@ -34,7 +34,7 @@ from ..interiors.held import held_airlight, held_lights, lit_from_inside
 from ..jit import exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders
 from ..media.particles import particle_radiance
-from ..methods import get_method, resolve_params
+from ..methods import Segments, get_method, resolve_params
 from ..options import RenderOptions
 from ..scene.format import Scene
 from ..scene.meshes import exact_spheres, scene_triangles
@@ -486,23 +486,50 @@ def warm_up_rays(prep: Prepared):
 
 
 def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
-    """compile_ahead's worker: the air-light's kernels, on the warm-up's rays without shadows and
-    shaded as if they hit nothing where the camera is outside every medium (so that it compiles
-    neither the frusta's kernels nor the surfaces'); the area lights' cubature at its first orders;
-    then the inside integrals of the rays into media inside shapes (`interiors_ahead`: their boundary
-    crossing and their inside rows, not the rays beyond them), which the render's warm-up shades after
-    this worker."""
-    prep, method = prepare(scene), get_method(method_name)
+    """compile_ahead's worker: the air-light's kernels (the method's and their gathering, `airlight`) on one
+    segment per light (`axis_segments`), not on the warm-up's rays: the camera rays', first hits', surfaces'
+    and cone cuts' kernels, which the warm-up compiles meanwhile in the render's process, are not compiled
+    here too (the air-light's kernels take the same argument types from these segments as from the
+    warm-up's), and a scene without shapes that emit or hold a medium is not even prepared (its meshes
+    loaded, their accelerator built: the lights suffice); then the inside integrals of the rays into media
+    inside shapes (`interiors_ahead`: their boundary crossing and their inside rows, not the rays beyond
+    them), which the render's warm-up shades after this worker. Where the camera is inside a medium, the
+    warm-up's rays shaded from there (crossing.start_inside)."""
+    method = get_method(method_name)
+    prep = prepare(scene) if any(s.interior is not None or s.emission is not None for s in scene.shapes) else None
+    if prep is not None and prep.camera_inside is not None:
+        o, d = warm_up_rays(prep)
+        shade_rays(prep, method, params, o, d, np.zeros(len(o), dtype=np.uint64), seed)
+        return
+    lights = Lights.of(scene.lights, []) if prep is None else prep.lights
+    if len(lights) and scene.medium.scatters:
+        airlight(method, scene.medium, lights, params, axis_segments(scene.camera, lights, seed), 1)
+    if prep is None:
+        return
     o, d = warm_up_rays(prep)
     keys = np.zeros(len(o), dtype=np.uint64)
-    t, prim, ground = first_hits(prep.accel, scene.medium, o, d)
-    hits = None if prep.camera_inside is not None else (t, np.full_like(prim, -1), np.zeros_like(ground))
-    shade_rays(prep, method, params, o, d, keys, seed, hits=hits)
+    t, prim, _ = first_hits(prep.accel, scene.medium, o, d)
     into = interiors_ahead(prep, prim)
     if np.any(into):
         boundary = crossing.cross(prep, o[into], d[into], t[into], prim[into], keys[into], 0)
         if boundary is not None:
             rows.integrate(prep, method, params, boundary.rows, seed, 0, False)
+
+
+def axis_segments(camera, lights: Lights, seed: int) -> Segments:
+    """One segment per light along a line of sight near the camera's axis (tilted off it: not through a light
+    placed on the axis), from a quarter of the scene's size (the lights' and the camera's distance from the
+    origin) to its end: a piece of a camera ray (t0 > 0), as the lit intervals' are, so that `gather` weighs it
+    by the transmittance before it as it weighs theirs."""
+    forward, right, up = basis(camera)
+    n = len(lights)
+    scale = float(np.max(np.abs(np.concatenate([lights.position[~lights.distant], [camera.position]])))) or 1.0
+    d = forward + 0.0123 * right + 0.0311 * up
+    d = np.tile(d / np.linalg.norm(d), (n, 1))
+    t0 = np.full(n, 0.25 * scale)
+    light = np.arange(n, dtype=np.int64)
+    return Segments(camera.position + t0[:, None] * d, d, np.full(n, 0.75 * scale), light, np.zeros(n, np.int64), t0,
+                    np.zeros(n, np.uint64), light.copy(), int(seed), scale)
 
 
 def interiors_ahead(prep: Prepared, prim) -> np.ndarray:
