@@ -32,6 +32,25 @@ def triangle_hits(tris, o, d):
     return t, u, v, det
 
 
+def set_changes(signature, ell: float, n: int = 401) -> list[float]:
+    """[0, ..., ell]: the points of (0, ell) where `signature(x)` (a set of the paths lighting x) changes, found on
+    a grid of n points (its ends 1e-9 of ell inside) and bisected 50 times each."""
+    grid = np.linspace(0.0, ell, n)
+    grid[0], grid[-1] = 1e-9 * ell, ell * (1 - 1e-9)
+    sig = [signature(x) for x in grid]
+    cuts = [0.0]
+    for a, b, sa, sb in zip(grid, grid[1:], sig, sig[1:]):
+        if sa != sb:
+            for _ in range(50):
+                m = 0.5 * (a + b)
+                if signature(m) == sa:
+                    a = m
+                else:
+                    b = m
+            cuts.append(0.5 * (a + b))
+    return cuts + [ell]
+
+
 def phase(name: str, g: float, mu: float) -> float:
     if name == "isotropic":
         return 1.0 / (4.0 * math.pi)

@@ -185,20 +185,7 @@ def twin_pixel(light, i, j):
     def signature(x):
         return frozenset(f for f, _, _ in paths(P + x * w, light))
 
-    grid = np.linspace(0.0, ell, 401)
-    grid[0], grid[-1] = 1e-9 * ell, ell * (1 - 1e-9)
-    sig = [signature(x) for x in grid]
-    cuts = [0.0]
-    for a, b, sa, sb in zip(grid, grid[1:], sig, sig[1:]):
-        if sa != sb:
-            for _ in range(50):
-                m = 0.5 * (a + b)
-                if signature(m) == sa:
-                    a = m
-                else:
-                    b = m
-            cuts.append(0.5 * (a + b))
-    cuts.append(ell)
+    cuts = oracle.set_changes(signature, ell)
     total = np.zeros(3)
     for c in range(3):
         total[c] = sum(integrate.quad(lambda x: value(x)[c], a, b, epsabs=0.0, epsrel=1e-10, limit=200)[0]

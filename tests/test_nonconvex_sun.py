@@ -75,20 +75,7 @@ def twin_pixel(i, j):
     def signature(x):
         return frozenset(f for f, _, _, _ in beams(P + x * w))
 
-    grid = np.linspace(0.0, ell, 401)
-    grid[0], grid[-1] = 1e-9 * ell, ell * (1 - 1e-9)
-    sig = [signature(x) for x in grid]
-    cuts = [0.0]
-    for a, b, sa, sb in zip(grid, grid[1:], sig, sig[1:]):
-        if sa != sb:
-            for _ in range(50):
-                m = 0.5 * (a + b)
-                if signature(m) == sa:
-                    a = m
-                else:
-                    b = m
-            cuts.append(0.5 * (a + b))
-    cuts.append(ell)
+    cuts = oracle.set_changes(signature, ell)
     total = np.zeros(3)
     for a, b in zip(cuts, cuts[1:]):  # the lit set is constant in between: each beam's leg back to its own triangle
         for f, u, e, _ in beams(P + 0.5 * (a + b) * w):

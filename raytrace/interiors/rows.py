@@ -287,11 +287,9 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, sup, rule, dim0, seed, 
     points, w, ell, keys = rows
     out, var, bound, stats = acc
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]
+    ch, kt, ks, kt_out = _scattering_channels(prep, medium, li)
     if not len(ch):
         return
-    kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
-    kt_out = prep.scene.medium.sigma_t[ch].astype(float)
     dplanes = measured_plane_errors(prep, sid)
     eta = float(medium.ior)
     for f, toward, irradiance in zip(*refracted_beams(planes, lights.axis[li], medium.ior)):
@@ -343,6 +341,14 @@ def _face_beams(prep, sid, planes, near, li, beam, rows, sup, rule, dim0, seed, 
             bound[np.ix_(ell > 0.0, ch)] = np.inf
     if eta < 1.0:  # the irradiance is not monotone in cos_i there (`_beam_errors`)
         bound[np.ix_(ell > 0.0, ch)] = np.inf
+
+
+def _scattering_channels(prep, medium, li):
+    """(channels, sigma_t, sigma_s inside, sigma_t outside on them): the channels where the shape's `medium`
+    scatters light li."""
+    ch = np.nonzero((medium.sigma_s != 0.0) & (prep.lights.intensity[li] != 0.0))[0]
+    return (ch, medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float),
+            prep.scene.medium.sigma_t[ch].astype(float))
 
 
 def _beam_terms(planes, near, f, toward, axis, medium, dplanes, rows, kt, ks):
@@ -412,11 +418,9 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
     points, w, ell, keys = rows
     out, var, bound, stats = acc
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
-    ch = np.nonzero((medium.sigma_s != 0.0) & (lights.intensity[li] != 0.0))[0]
+    ch, kt, ks, kt_out = _scattering_channels(prep, medium, li)
     if not len(ch):
         return
-    kt, ks = medium.sigma_t[ch].astype(float), medium.sigma_s[ch].astype(float)
-    kt_out = prep.scene.medium.sigma_t[ch].astype(float)
     tris, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
     axis = np.asarray(lights.axis[li], dtype=float)
     turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
