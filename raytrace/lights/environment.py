@@ -48,7 +48,7 @@ from .light import NO_CONE, Light, Rows, power
 
 NAME = "environment"
 CODE = 6
-KEYS = frozenset({"type", "radiance", "map", "rotate", "scale", "mapping", "filter", "mirror"})
+KEYS = frozenset({"type", "radiance", "map", "rotate", "scale", "mapping", "filter", "mirror", "directions"})
 MAPPINGS = ("equirectangular", "octahedral")
 FILTERS = ("nearest", "bilinear", "mitsuba")
 COUNT = 64  # directions of a pixel sample (docs/environment.md: the error against the count)
@@ -61,7 +61,7 @@ MIRROR = np.diag([-1.0, 1.0, 1.0])  # `mirror`: the local x negated
 
 def parse(read, key, raw) -> Light:
     """A constant `radiance` or a `map` (an EXR read by the scene reader, `read.image`) with its `mapping`
-    and `filter`, `rotate`, `mirror`, `scale` (>= 0)."""
+    and `filter`, `rotate`, `mirror`, `scale` (>= 0) and the `directions` of a pixel sample (default COUNT)."""
     if ("radiance" in raw) == ("map" in raw):
         read.fail(key, "give either radiance (a constant environment) or map (an EXR)" if "map" in raw
                   else "missing radiance", f"add {key}.radiance = [0.2, 0.3, 0.5] or {key}.map = \"sky.exr\"")
@@ -70,6 +70,11 @@ def parse(read, key, raw) -> Light:
     mirror = raw.get("mirror", False)
     if not isinstance(mirror, bool):
         read.fail(f"{key}.mirror", f"expected true or false, got {mirror!r}", f"write {key}.mirror = true")
+    directions = raw.get("directions")
+    if directions is not None and (isinstance(directions, bool) or not isinstance(directions, int)
+                                   or directions < 2 * GROUPS or directions % (2 * GROUPS)):
+        read.fail(f"{key}.directions", f"expected a multiple of {2 * GROUPS} (the groups' even counts), got "
+                  f"{directions!r}", f"write {key}.directions = {4 * COUNT}")
     mapping = read.string(f"{key}.mapping", raw.get("mapping", MAPPINGS[0]), MAPPINGS)
     filt = read.string(f"{key}.filter", raw.get("filter", FILTERS[0]), FILTERS)
     if "radiance" in raw:
@@ -90,7 +95,7 @@ def parse(read, key, raw) -> Light:
     digest = hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest()  # (checkpoints' fingerprint)
     return Light(np.zeros(3), integral(image, mapping, filt) / (4.0 * math.pi), CODE,
                  emitter={"map": image, "rotation": rotation, "file": source and str(source), "digest": digest,
-                          "mapping": mapping, "filter": filt})
+                          "mapping": mapping, "filter": filt, "directions": directions})
 
 
 def _check_shape(read, key, image, source, mapping, filt):
@@ -126,9 +131,10 @@ def describe(light) -> str:
                     if em[k] != default)
     what = (f"map {em['file']} ({image.shape[1]} x {image.shape[0]}{kinds})" if em["file"] else
             f"constant radiance {image[0, 0].tolist()}")
+    count = em["directions"] or COUNT
     turned = ("" if np.allclose(em["rotation"], np.eye(3)) else
               ", mirrored" if np.linalg.det(em["rotation"]) < 0.0 else ", rotated")
-    return (f"{NAME}, {what}{turned}, mean radiance {light.intensity.tolist()}; {COUNT} directions in {GROUPS} "
+    return (f"{NAME}, {what}{turned}, mean radiance {light.intensity.tolist()}; {count} directions in {GROUPS} "
             "groups a pixel sample (importance-sampled, shifted by the seed and the sample; their spread is the "
             "variance)")
 
@@ -225,12 +231,14 @@ def lattice(n: int) -> np.ndarray:
 
 
 def points(count: int, seed: int = 0, sample: int = 0) -> list[np.ndarray]:
-    """The GROUPS groups of count // GROUPS points of [0, 1)^2 of a pixel sample, each uniform on its own: the
-    lattice shifted by the group's uniforms (s0, s1) mod 1, keyed by (sample GROUPS + group, seed) (rng.py),
-    then u0 -> 1 - |2 u0 - 1| (the tent: a midpoint-like rule in u0 whose nodes pair about the horizon)."""
-    size = count // GROUPS
+    """The GROUPS groups (count // GROUPS points or one more; count >= GROUPS) of points of [0, 1)^2 of a pixel
+    sample, each uniform on its own: the lattice shifted by the group's uniforms (s0, s1) mod 1, keyed by
+    (sample GROUPS + group, seed) (rng.py), then u0 -> 1 - |2 u0 - 1| (the tent: a midpoint-like rule in u0
+    whose nodes pair about the horizon)."""
+    assert count >= GROUPS, count
     out = []
     for g in range(GROUPS):
+        size = count * (g + 1) // GROUPS - count * g // GROUPS
         key = np.uint64(sample) * np.uint64(GROUPS) + np.uint64(g)
         shift = np.array([uniform(key, np.uint64(DIM_SHIFT + k), np.uint64(seed)) for k in range(2)])
         u = np.mod(lattice(size) + shift, 1.0)
@@ -239,16 +247,19 @@ def points(count: int, seed: int = 0, sample: int = 0) -> list[np.ndarray]:
 
 
 def rows(light, count: int | None = None, seed: int = 0, sample: int = 0) -> Rows:
-    """`count` (default COUNT, a multiple of GROUPS) directional rows of a pixel sample, the GROUPS groups of
-    `points` one after another: axis -w_k, irradiance L(w_k) / pdf(w_k) / count; none for a black
+    """`count` (default the light's `directions`, else COUNT; a multiple of GROUPS) directional rows of a pixel
+    sample, the GROUPS groups of `points` one after another: axis -w_k, irradiance L(w_k) / pdf(w_k) / (GROUPS n),
+    n its group's size (each group's sum an unbiased estimate of the integral / GROUPS); none for a black
     environment."""
-    count = count or COUNT
+    count = count or light.emitter["directions"] or COUNT
     em = light.emitter
     if not integral(em["map"], em["mapping"], em["filter"]) @ LUMA > 0.0:
         count = 0
-    dirs, density, value = (directions(light, np.concatenate(points(count, seed, sample))) if count else
+    u = points(count, seed, sample) if count else []
+    dirs, density, value = (directions(light, np.concatenate(u)) if count else
                             (np.zeros((0, 3)), np.ones(0), np.zeros((0, 3))))
-    return Rows(np.zeros((count, 3)), value / (density * count)[:, None],
+    share = np.repeat([GROUPS * len(g) for g in u], [len(g) for g in u]) if count else np.ones(0)
+    return Rows(np.zeros((count, 3)), value / (density * share)[:, None],
                 np.full(count, DIRECTIONAL, dtype=np.int64), np.ascontiguousarray(-dirs),
                 np.tile([*NO_CONE, 0.0], (count, 1)), cubature=True)
 
