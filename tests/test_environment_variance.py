@@ -13,7 +13,8 @@ and its variance their spread, added up over the pixel's samples as a stochastic
   SEEDS seeds in the default run (spp 1); `pytest -m slow` runs 256 (spp 1 and 4).
 - The plumbing: the image is the other lights' pass plus the groups', sample by sample with each sample's own
   directions, the variance the groups' spread summed over the samples / spp^2 (each group shaded here through
-  `Prepared.only`), to 1e-12; the same bytes whatever the thread count and tile size; progressive passes.
+  `Prepared.only`), to 1e-12; the same bytes whatever the thread count and tile size and on two Dask workers
+  (slow); progressive passes.
 - The points: determinism per (seed, sample), each group's shift uniform and independent of the others'.
 """
 from __future__ import annotations
@@ -178,3 +179,19 @@ def test_each_seed_and_sample_draws_its_own_shifts(count):
             assert stats.kstest(first[:, g, k], "uniform").pvalue > 1e-3
     corr = np.corrcoef(first[:, :, 0].T)[np.triu_indices(first.shape[1], 1)]
     assert np.all(np.abs(corr) < 4.0 / math.sqrt(len(first))), corr
+
+
+@pytest.mark.slow
+def test_a_cluster_gives_the_threaded_bytes(monkeypatch):
+    """Two local Dask workers, small tiles and one-sample ranges: the image and variance of 3 samples a pixel are
+    the threads' bytes (each worker draws every sample's directions from the seed and the sample index)."""
+    pytest.importorskip("distributed")
+    from raytrace.rendering.distributed import connect
+
+    monkeypatch.setattr(renderer, "RAYS_PER_TILE", 2)
+    monkeypatch.setattr(renderer, "SUM_RAYS", 3)
+    sc = scene([ENV, LAMP], medium=FOG, camera=CAMERA, shapes=[PLATE])
+    one = raytrace.render(sc, "quadrature", seed=4, rtol=1e-8, threads=2)
+    with connect("local:2") as client:
+        many = raytrace.render(sc, "quadrature", seed=4, rtol=1e-8, client=client)
+    assert one.array.tobytes() == many.array.tobytes() and one.variance.tobytes() == many.variance.tobytes()
