@@ -282,7 +282,7 @@ def interpolated(mi, tmp_path_factory):  # noqa: F811 (the fixture)
     scene = fog_box(plate=0.0, light={"type": "environment", "map": "sky.exr", "filter": "mitsuba"}, folder=folder)
     export(scene, folder / "scene.xml")
     runs = mitsuba_runs(mi, folder / "scene.xml")
-    return runs, ours(scene, count=FINE).array, deterministic(runs)
+    return runs, ours(scene, count=FINE), deterministic(runs)
 
 
 @pytest.mark.peers
