@@ -275,8 +275,8 @@ def test_an_export_from_another_folder_finds_its_map(sky, tmp_path):
 
 @pytest.fixture(scope="module")
 def interpolated(mi, tmp_path_factory):  # noqa: F811 (the fixture)
-    """(Mitsuba's runs of the 16 x 8 map itself, our quadrature at FINE with filter = "mitsuba", the pixels
-    Mitsuba renders deterministically): the export is exact, no repeated copy of the map."""
+    """(Mitsuba's runs of the 16 x 8 map itself, our quadrature (image, variance) at FINE with filter =
+    "mitsuba", the pixels Mitsuba renders deterministically): the export is exact, no repeated copy of the map."""
     folder = tmp_path_factory.mktemp("interpolated")
     write_exr(folder / "sky.exr", sky_map())
     scene = fog_box(plate=0.0, light={"type": "environment", "map": "sky.exr", "filter": "mitsuba"}, folder=folder)
