@@ -15,10 +15,12 @@ samples, and ours must agree within that noise (tests/test_area_peers.py's z-tes
 Our 64 directions a pixel sample make the shadows cast by the sky sums of 64 hard shadows, random from
 seed to seed: each comparison adds our variance (the groups' spread) to Mitsuba's, and at 64 directions
 compares the mean of SEEDS renders (their variance SEEDS degrees of freedom); FINE directions come closer
-to Mitsuba (z without our variance). Findings, each an xfail(strict): with a grey plate Mitsuba's volpath at max_depth 2 adds
-light reflected by the plate to the fog box's pixels (a black plate removes it); Mitsuba does not read
-a nearest map as we do (it interpolates; exported with --approximate). With filter = "mitsuba" (its own
-interpolation) the 16 x 8 map itself is exported exactly and every pixel agrees at FINE directions. The exporter finds the map beside the scene file from any working folder.
+to Mitsuba (z without our variance). Findings, each an xfail(strict): with a grey plate Mitsuba's volpath
+at max_depth 2 adds light reflected by the plate to the fog box's pixels (a black plate removes it: every
+pixel agrees, at 64 and at FINEST directions); Mitsuba does not read a nearest map as we do (it
+interpolates; exported with --approximate). With filter = "mitsuba" (its own interpolation) the 16 x 8 map
+itself is exported exactly and every pixel agrees at FINE directions. The exporter finds the map beside
+the scene file from any working folder.
 
 Height fog is not compared: Mitsuba 3 has no exponential height fog, and a `heterogeneous` medium's grid
 is bounded by its shape while ours extends to infinity sideways and upward (docs/environment.md).
