@@ -10,12 +10,13 @@ importance-sampled into directional rows, seen by the rays that leave the scene.
   of L over the sphere (exactly for a constant and a grey map; unbiased for a coloured one: z-test of
   iid samples); the environment camera sees the map texel by texel, rotated as a shape is.
 - Images against twins built from the geometry and scipy alone, through the renderer with the
-  lattice of directions randomly shifted (Cranley–Patterson: each render an unbiased estimate), z-tests
-  of the mean of R renders with their sample variance: a Lambertian ground point under an opaque
-  square plate in vacuum (rho L (1 - F), F the plate's form factor, by scipy), and camera rays up
-  through a height fog (scipy over the ray of the exact direction integral, an E_2 exponential
-  integral itself checked against scipy over directions). The default lattice (unshifted) then lies
-  within the same spread, and every pixel lit by the environment has an infinite error bound.
+  groups of directions shifted by each render's seed (Cranley–Patterson: each render an unbiased estimate),
+  z-tests of the mean of R renders (seeds 1 ... R) with their sample variance: a Lambertian ground point
+  under an opaque square plate in vacuum (rho L (1 - F), F the plate's form factor, by scipy), and camera
+  rays up through a height fog (scipy over the ray of the exact direction integral, an E_2 exponential
+  integral itself checked against scipy over directions). The default seed's render then lies within the
+  same spread, and every pixel lit by the environment has an infinite error bound
+  (tests/test_environment_variance.py: the variance each render reports).
 """
 from __future__ import annotations
 
@@ -27,9 +28,12 @@ import pytest
 from scipy import integrate, special, stats
 
 from raytrace import api
+from raytrace.camera import generate_rays
 from raytrace.cli import main
 from raytrace.output.film import write_exr
 from raytrace.lights import Lights, at_infinity, describe, environment
+from raytrace.methods import resolve_params
+from raytrace.rendering import renderer
 from raytrace.scene.format import scene_from_text
 from raytrace.scene.meshes import rotation_matrix
 
@@ -80,13 +84,28 @@ def texel_of(dirs, rotation, height, width):
 def test_it_parses_and_describes(tmp_path):
     (light,) = scene([ENV]).lights
     assert describe(light) == ("environment, constant radiance [0.2, 0.3, 0.5], mean radiance [0.2, 0.3, 0.5]; "
-                               f"{environment.COUNT} directions (importance-sampled, the same for every pixel)")
+                               f"{environment.COUNT} directions in {environment.GROUPS} groups a pixel sample "
+                               "(importance-sampled, shifted by the seed and the sample; their spread is the variance)")
     light = map_light(tmp_path, a_map(), rotate=[0.0, 90.0, 0.0], scale=2.0)
     assert describe(light).startswith(f"environment, map {tmp_path / 'sky.exr'} (16 x 8), rotated, mean radiance")
     np.testing.assert_array_equal(light.emitter["map"], 2.0 * a_map())
     np.testing.assert_allclose(light.emitter["rotation"], rotation_matrix([0.0, 90.0, 0.0]), atol=1e-15)
     rows = Lights.of([light])
     assert len(rows) == environment.COUNT and rows.kinds() == {"directional", "environment"} and rows.cubature.all()
+
+
+def test_the_stated_directions(write_scene, tmp_path, capsys):
+    """`directions` sets the count of a pixel sample (a multiple of 2 GROUPS); anything else is one line, exit 2."""
+    (light,) = scene([{**ENV, "directions": 256}]).lights
+    assert len(environment.rows(light).kind) == 256 and describe(light).endswith(
+        f"256 directions in {environment.GROUPS} groups a pixel sample (importance-sampled, shifted by the seed "
+        "and the sample; their spread is the variance)")
+    for bad in (6, 0, 64.0, True, "64"):
+        path = write_scene({"camera": CAMERA, "light": [{**ENV, "directions": bad}], "medium": VACUUM})
+        assert main(["render", str(path), "--out", str(tmp_path / "x.exr"), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "light[0].directions: expected a multiple of" in err and "= 256" in err, err
+        assert not (tmp_path / "x.exr").exists()
 
 
 @pytest.mark.parametrize("light,extra,message", [
@@ -167,7 +186,7 @@ def test_the_weights_integrate_the_map(tmp_path):
     """The rows' irradiances sum to the integral of L over the sphere: 4 pi L for a constant and the exact
     sum of L x solid angle for a grey map, to rounding, at any count; for a coloured map, iid samples of
     L / pdf are unbiased: z-test of their mean (n = 100 000) against the exact integral."""
-    for count in (1, 7, 64, 1000):
+    for count in (2, 8, 64, 1000):  # (at least GROUPS; a multiple of GROUPS: rows of equal weight)
         rows = environment.rows(scene([ENV]).lights[0], count)
         np.testing.assert_allclose(rows.intensity.sum(axis=0), 4 * math.pi * np.array(ENV["radiance"]), rtol=1e-13)
         np.testing.assert_allclose(rows.intensity, np.broadcast_to(4 * math.pi / count * np.array(ENV["radiance"]),
@@ -207,17 +226,9 @@ def test_the_environment_camera_sees_the_map(tmp_path, rotate, shift):
                                   [[0.1, 0.2, 0.3]] * 3)
 
 
-def shifted_renders(monkeypatch, sc, r, method="quadrature", **kw):
-    """R renders, each with the lattice of directions shifted by its own uniform (Cranley–Patterson)."""
-    lattice = environment.lattice
-    rng = np.random.default_rng(RNG_SEED)
-    out = []
-    for _ in range(r):
-        shift = rng.random(2)
-        monkeypatch.setattr(environment, "lattice", lambda n, s=shift: np.mod(lattice(n) + s, 1.0))
-        out.append(api.render(sc, method, **kw))
-    monkeypatch.setattr(environment, "lattice", lattice)
-    return out
+def shifted_renders(sc, r, method="quadrature", **kw):
+    """R renders, seeds 1 ... R: each group of directions shifted by its own uniforms (Cranley–Patterson)."""
+    return [api.render(sc, method, seed=seed, **kw) for seed in range(1, r + 1)]
 
 
 def z_of(samples, reference):
@@ -232,11 +243,11 @@ PLATE = {"primitive": "quad", "corners": [[-1.0, 1.0, -1.0], [1.0, 1.0, -1.0], [
 POINT_CAMERA = {"position": [0.0, 0.5, 0.6], "look_at": [0.0, 0.0, 0.0], "fov": 1.0, "width": 1, "height": 1, "spp": 1}
 
 
-def test_a_ground_point_under_a_plate_against_its_form_factor(monkeypatch):
+def test_a_ground_point_under_a_plate_against_its_form_factor():
     """A Lambertian ground (rho 0.5) under a constant environment L in vacuum, below an opaque 2 x 2
     plate at height 1 centred over the point the camera sees: radiance rho L (1 - F), F the plate's
     form factor from the point (scipy over the plate of cos^2 / (pi r^2), and the corner formula of
-    a parallel rectangle). Shifted lattices: z-test; the default lattice within 4 of their standard
+    a parallel rectangle). Seeds 1 ... 24: z-test; the default seed within 4 of their standard
     deviations; the bound infinite."""
     c = 1.0
     F = integrate.dblquad(lambda z, x: c * c / (math.pi * (x * x + z * z + c * c) ** 2), -1, 1, -1, 1,
@@ -247,7 +258,7 @@ def test_a_ground_point_under_a_plate_against_its_form_factor(monkeypatch):
     L = np.array(ENV["radiance"])
     exact = 0.5 * L * (1.0 - F)
     sc = scene([ENV], camera=POINT_CAMERA, shapes=[GROUND, PLATE])
-    renders = shifted_renders(monkeypatch, sc, 24)
+    renders = shifted_renders(sc, 24)
     values = np.array([img.array[0, 0] for img in renders])
     assert np.all(np.abs(z_of(values, exact)) < 4.0), (values.mean(axis=0), exact)
     default = api.render(sc, "quadrature")
@@ -257,11 +268,14 @@ def test_a_ground_point_under_a_plate_against_its_form_factor(monkeypatch):
 
 
 def test_an_open_horizontal_ground_is_lit_exactly():
-    """Without the plate the default lattice lights the ground exactly: rho L (its cos theta nodes
-    (k + 1/2) / N are the midpoint rule in cos theta, exact for the linear cosine of a horizontal surface, and
-    the horizon falls between nodes for even N)."""
-    img = api.render(scene([ENV], camera=POINT_CAMERA, shapes=[GROUND]), "quadrature")
-    np.testing.assert_allclose(img.array[0, 0], 0.5 * np.array(ENV["radiance"]), rtol=1e-12)
+    """Without the plate every group of directions lights the ground exactly: rho L (a group's cos theta nodes
+    are a shifted lattice's folded by the tent u0 -> 1 - |2 u0 - 1|: in the upper hemisphere a rule symmetric
+    about cos theta = 1/2, exact for the linear cosine of a horizontal surface), whatever the seed and sample;
+    so the variance is 0."""
+    for seed, spp in ((0, 1), (5, 3)):
+        img = api.render(scene([ENV], camera={**POINT_CAMERA, "spp": spp}, shapes=[GROUND]), "quadrature", seed=seed)
+        np.testing.assert_allclose(img.array[0, 0], 0.5 * np.array(ENV["radiance"]), rtol=1e-12)
+        assert np.all(img.variance < 1e-30)
 
 
 UP_CAMERA = {"position": [0.0, 0.5, 0.0], "look_at": [0.0, 1.5, -1.0], "fov": 30.0, "width": 2, "height": 2,
@@ -292,20 +306,19 @@ def test_the_direction_integral_is_e2():
 
 
 @pytest.mark.parametrize("method", ["quadrature", "raymarch"])
-def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
+def test_rays_up_through_height_fog_against_the_twin(method):
     """Camera rays up through a height fog under a constant environment (no shapes): quadrature (rtol
-    1e-10) and raymarch (4096 steps, its own error under 1e-3 of the value) with shifted lattices: the mean
+    1e-10) and raymarch (4096 steps, its own error under 1e-3 of the value), seeds 1 ... 16: the mean
     of 16 renders within 4 standard errors of the twin (raymarch: plus its step error); the default
-    lattice within 4 of their standard deviations."""
+    seed within 4 of their standard deviations."""
     sc = scene([ENV], medium=FOG, camera=UP_CAMERA)
     cam = sc.camera
-    from raytrace.camera import generate_rays
 
     origins, dirs = generate_rays(cam)
     L = np.array(ENV["radiance"])
     twin = np.array([fog_twin(o, d, L, L, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)]).reshape(2, 2, 3)
     kw = {"rtol": 1e-10} if method == "quadrature" else {"steps": 4096}
-    values = np.array([img.array for img in shifted_renders(monkeypatch, sc, 16, method, **kw)])
+    values = np.array([img.array for img in shifted_renders(sc, 16, method, **kw)])
     step = 0.0 if method == "quadrature" else 1e-3 * twin
     err = np.abs(values.mean(axis=0) - twin) - step
     sem = values.std(axis=0, ddof=1) / math.sqrt(len(values))
@@ -315,22 +328,21 @@ def test_rays_up_through_height_fog_against_the_twin(monkeypatch, method):
     assert np.all(np.isinf(default.error_bound))
 
 
-def test_a_map_over_height_fog_against_the_twin(tmp_path, monkeypatch):
+def test_a_map_over_height_fog_against_the_twin(tmp_path):
     """A 2 x 4 map: four colours over the upper hemisphere, a bright lower one (sampled, but light from below
     meets infinite optical depth). The camera rays see their texel times T(inf); the fog is lit by the upper
-    mean (the twin's E_2): shifted lattices, z-test of 16 renders of quadrature; the default within 4 of their
-    standard deviations."""
+    mean (the twin's E_2): seeds 1 ... 16, z-test of 16 renders of quadrature; the default seed within 4 of
+    their standard deviations."""
     image = np.array([[[0.1, 0.2, 0.4], [0.4, 0.3, 0.1], [0.9, 0.8, 0.7], [0.2, 0.6, 0.2]], [[3.0, 3.0, 3.0]] * 4])
     write_exr(tmp_path / "sky.exr", image)
     sc = scene([{"type": "environment", "map": "sky.exr"}], medium=FOG, camera=UP_CAMERA, path=tmp_path / "env.toml")
-    from raytrace.camera import generate_rays
 
     origins, dirs = generate_rays(sc.camera)
     r, c = texel_of(dirs, np.eye(3), 2, 4)
     assert np.all(r == 0)
     twin = np.array([fog_twin(o, d, image[0, k], image[0].mean(axis=0), 0.02, 0.1, 2.0)
                      for o, d, k in zip(origins, dirs, c)]).reshape(2, 2, 3)
-    values = np.array([img.array for img in shifted_renders(monkeypatch, sc, 16, rtol=1e-10)])
+    values = np.array([img.array for img in shifted_renders(sc, 16, rtol=1e-10)])
     sem = values.std(axis=0, ddof=1) / math.sqrt(len(values))
     assert np.all(np.abs(values.mean(axis=0) - twin) < 4.0 * sem), (values.mean(axis=0), twin, sem)
     default = api.render(sc, "quadrature", rtol=1e-10).array
@@ -338,13 +350,22 @@ def test_a_map_over_height_fog_against_the_twin(tmp_path, monkeypatch):
 
 
 def test_montecarlo_integrates_the_same_rows():
-    """montecarlo (64 samples per row) on the fog scene with a plate: unbiased against quadrature's value of the
-    same rows (its z-scores: mean square below 2, none beyond 5 sigma), with volumetric shadows."""
+    """montecarlo (64 samples per row) on the fog scene with a plate, with volumetric shadows, the camera's rays
+    shaded with the same rows (one pixel sample's directions): unbiased against quadrature's value of them, its
+    z-scores with its own variance have a mean square below 2, none beyond 5."""
     cam = {"position": [0.0, 0.5, 3.0], "look_at": [0.0, 1.5, 0.0], "fov": 60.0, "width": 4, "height": 3}
     sc = scene([ENV], medium=FOG, camera=cam, shapes=[PLATE])
-    ref = api.render(sc, "quadrature", rtol=1e-10).array
-    mc = api.render(sc, "montecarlo", samples=64, seed=3)
-    z = (mc.array - ref) / np.sqrt(mc.variance)
+    prep = renderer.prepare(sc)
+    o, d = generate_rays(sc.camera)
+
+    def shade(name, seed, **given):
+        method = renderer.get_method(name)
+        return renderer.shade_rays(prep, method, resolve_params(method, given, "test"), o, d,
+                                   np.arange(len(o), dtype=np.uint64), seed, True)
+
+    ref = shade("quadrature", 0, rtol=1e-10)[0]
+    mc, _, var, _ = shade("montecarlo", 3, samples=64)
+    z = (mc - ref) / np.sqrt(var)
     assert np.mean(z**2) < 2.0 and np.abs(z).max() < 5.0, (np.mean(z**2), np.abs(z).max())
 
 

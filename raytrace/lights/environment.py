@@ -22,13 +22,18 @@ interpolated map: pdf(w) = Y(w) / Z exactly, Y its interpolated luminance (bilin
 travels along -w_k with irradiance L(w_k) / pdf(w_k) / COUNT: the rows' sum over any smooth f is the
 Monte Carlo estimate of the integral of L f over the sphere, so every method integrates each row as a
 directional light's air-light and surface term, with its visibility (shadow rays, exact lit intervals).
-The COUNT points are deterministic, the spherical Fibonacci lattice's ((k + 1/2) / COUNT, {k / golden})
-through that inverse distribution: the same directions for every pixel (no noise: the error is a
-smooth bias that has no bound, Rows.cubature). A grey map (and a constant) gives every row the same
-ratio L / pdf, so the rows' total irradiance is exact. Rays that leave the scene see L(w) (`radiance`).
+For each pixel sample the COUNT points are GROUPS independent groups (`points`), each the lattice
+((k + 1/2) / n, {k / golden}) shifted mod 1 by uniforms keyed by (the sample's index, the group, the seed)
+(Cranley-Patterson) and folded by the tent u0 -> 1 - |2 u0 - 1| (the baker's transform): each group's rows
+sum to an unbiased estimate of the integral, and the renderer reports their spread as the variance
+(renderer.py `shade_groups`); its bound is none (Rows.cubature). Rows of a grey map (and a constant) have
+the same ratio L / pdf, so the rows' total irradiance is exact, and the tent makes each group's cos theta
+nodes symmetric about the horizon: an open horizontal ground under a constant sky is exact in every group.
+Rays that leave the scene see L(w) (`radiance`).
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import warnings
@@ -36,16 +41,19 @@ import warnings
 import numpy as np
 
 from ..geometry.vectors import rotation_matrix
+from ..rng import uniform
 from . import bilinear, octahedral
 from .directional import CODE as DIRECTIONAL
 from .light import NO_CONE, Light, Rows, power
 
 NAME = "environment"
 CODE = 6
-KEYS = frozenset({"type", "radiance", "map", "rotate", "scale", "mapping", "filter", "mirror"})
+KEYS = frozenset({"type", "radiance", "map", "rotate", "scale", "mapping", "filter", "mirror", "directions"})
 MAPPINGS = ("equirectangular", "octahedral")
 FILTERS = ("nearest", "bilinear", "mitsuba")
-COUNT = 64  # directions (docs/environment.md: the error against the count)
+COUNT = 64  # directions of a pixel sample (docs/environment.md: the error against the count)
+GROUPS = 2  # independent groups of directions: their spread is the variance
+DIM_SHIFT = 1 << 51  # the random-number dimensions (rng.py) of the groups' shifts
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance: the texels' sampling weight
 GOLDEN = (1.0 + math.sqrt(5.0)) / 2.0
 MIRROR = np.diag([-1.0, 1.0, 1.0])  # `mirror`: the local x negated
@@ -53,7 +61,7 @@ MIRROR = np.diag([-1.0, 1.0, 1.0])  # `mirror`: the local x negated
 
 def parse(read, key, raw) -> Light:
     """A constant `radiance` or a `map` (an EXR read by the scene reader, `read.image`) with its `mapping`
-    and `filter`, `rotate`, `mirror`, `scale` (>= 0)."""
+    and `filter`, `rotate`, `mirror`, `scale` (>= 0) and the `directions` of a pixel sample (default COUNT)."""
     if ("radiance" in raw) == ("map" in raw):
         read.fail(key, "give either radiance (a constant environment) or map (an EXR)" if "map" in raw
                   else "missing radiance", f"add {key}.radiance = [0.2, 0.3, 0.5] or {key}.map = \"sky.exr\"")
@@ -62,6 +70,11 @@ def parse(read, key, raw) -> Light:
     mirror = raw.get("mirror", False)
     if not isinstance(mirror, bool):
         read.fail(f"{key}.mirror", f"expected true or false, got {mirror!r}", f"write {key}.mirror = true")
+    directions = raw.get("directions")
+    if directions is not None and (isinstance(directions, bool) or not isinstance(directions, int)
+                                   or directions < 2 * GROUPS or directions % (2 * GROUPS)):
+        read.fail(f"{key}.directions", f"expected a multiple of {2 * GROUPS} (the groups' even counts), got "
+                  f"{directions!r}", f"write {key}.directions = {4 * COUNT}")
     mapping = read.string(f"{key}.mapping", raw.get("mapping", MAPPINGS[0]), MAPPINGS)
     filt = read.string(f"{key}.filter", raw.get("filter", FILTERS[0]), FILTERS)
     if "radiance" in raw:
@@ -82,7 +95,7 @@ def parse(read, key, raw) -> Light:
     digest = hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest()  # (checkpoints' fingerprint)
     return Light(np.zeros(3), integral(image, mapping, filt) / (4.0 * math.pi), CODE,
                  emitter={"map": image, "rotation": rotation, "file": source and str(source), "digest": digest,
-                          "mapping": mapping, "filter": filt})
+                          "mapping": mapping, "filter": filt, "directions": directions})
 
 
 def _check_shape(read, key, image, source, mapping, filt):
@@ -118,10 +131,12 @@ def describe(light) -> str:
                     if em[k] != default)
     what = (f"map {em['file']} ({image.shape[1]} x {image.shape[0]}{kinds})" if em["file"] else
             f"constant radiance {image[0, 0].tolist()}")
+    count = em["directions"] or COUNT
     turned = ("" if np.allclose(em["rotation"], np.eye(3)) else
               ", mirrored" if np.linalg.det(em["rotation"]) < 0.0 else ", rotated")
-    return (f"{NAME}, {what}{turned}, mean radiance {light.intensity.tolist()}; {COUNT} directions (importance-"
-            "sampled, the same for every pixel)")
+    return (f"{NAME}, {what}{turned}, mean radiance {light.intensity.tolist()}; {count} directions in {GROUPS} "
+            "groups a pixel sample (importance-sampled, shifted by the seed and the sample; their spread is the "
+            "variance)")
 
 
 def solid_angles(height: int, width: int, mapping: str = MAPPINGS[0]) -> np.ndarray:
@@ -215,14 +230,67 @@ def lattice(n: int) -> np.ndarray:
     return np.stack([(k + 0.5) / n, np.mod(k / GOLDEN, 1.0)], axis=1)
 
 
-def rows(light, count: int | None = None) -> Rows:
-    """`count` (default COUNT) directional rows: axis -w_k, irradiance L(w_k) / pdf(w_k) / count; none
-    for a black environment."""
-    count = count or COUNT
+def points(count: int, seed: int = 0, sample: int = 0) -> list[np.ndarray]:
+    """The GROUPS groups (count // GROUPS points or one more; count >= GROUPS) of points of [0, 1)^2 of a pixel
+    sample, each uniform on its own: the lattice shifted by the group's uniforms (s0, s1) mod 1, keyed by
+    (sample GROUPS + group, seed) (rng.py), then u0 -> 1 - |2 u0 - 1| (the tent: a midpoint-like rule in u0
+    whose nodes pair about the horizon)."""
+    assert count >= GROUPS, count
+    out = []
+    for g in range(GROUPS):
+        size = count * (g + 1) // GROUPS - count * g // GROUPS
+        key = np.uint64(sample) * np.uint64(GROUPS) + np.uint64(g)
+        shift = np.array([uniform(key, np.uint64(DIM_SHIFT + k), np.uint64(seed)) for k in range(2)])
+        u = np.mod(lattice(size) + shift, 1.0)
+        out.append(np.stack([1.0 - np.abs(2.0 * u[:, 0] - 1.0), u[:, 1]], axis=1))
+    return out
+
+
+def rows(light, count: int | None = None, seed: int = 0, sample: int = 0) -> Rows:
+    """`count` (default the light's `directions`, else COUNT; a multiple of GROUPS) directional rows of a pixel
+    sample, the GROUPS groups of `points` one after another: axis -w_k, irradiance L(w_k) / pdf(w_k) / (GROUPS n),
+    n its group's size (each group's sum an unbiased estimate of the integral / GROUPS); none for a black
+    environment."""
+    count = count or light.emitter["directions"] or COUNT
     em = light.emitter
     if not integral(em["map"], em["mapping"], em["filter"]) @ LUMA > 0.0:
         count = 0
-    dirs, density, value = directions(light, lattice(count)) if count else (np.zeros((0, 3)), np.ones(0), np.zeros((0, 3)))
-    return Rows(np.zeros((count, 3)), value / (density * count)[:, None],
+    u = points(count, seed, sample) if count else []
+    dirs, density, value = (directions(light, np.concatenate(u)) if count else
+                            (np.zeros((0, 3)), np.ones(0), np.zeros((0, 3))))
+    share = np.repeat([GROUPS * len(g) for g in u], [len(g) for g in u]) if count else np.ones(0)
+    return Rows(np.zeros((count, 3)), value / (density * share)[:, None],
                 np.full(count, DIRECTIONAL, dtype=np.int64), np.ascontiguousarray(-dirs),
                 np.tile([*NO_CONE, 0.0], (count, 1)), cubature=True)
+
+
+def _rows_of(lights) -> np.ndarray:
+    """The indices of the rows of the scene's environment light among `lights` (Lights; none without one)."""
+    owners = [o for o, kind in enumerate(lights.scene_kinds) if kind == NAME]
+    return np.flatnonzero(np.isin(lights.owner, owners))
+
+
+def seeded(lights, scene_lights, seed: int, sample: int):
+    """`lights` (Lights of `scene_lights`) with the environment's rows of the pixel sample `sample` for `seed`
+    (`rows`); `lights` itself where they are the same."""
+    at = _rows_of(lights)
+    if not len(at):
+        return lights
+    new = rows(scene_lights[int(lights.owner[at[0]])], len(at), seed, sample)
+    if np.array_equal(new.intensity, lights.intensity[at]) and np.array_equal(new.axis, lights.axis[at]):
+        return lights
+    intensity, axis = lights.intensity.copy(), lights.axis.copy()
+    intensity[at], axis[at] = new.intensity, new.axis
+    return dataclasses.replace(lights, intensity=intensity, axis=axis)
+
+
+def groups(lights) -> list[np.ndarray]:
+    """(L,) masks of the environment's rows among `lights` (Lights), one per group of `points`; [] without
+    an environment. Each group's rows sum to an unbiased estimate of the environment's light / GROUPS."""
+    at = _rows_of(lights)
+    if not len(at):
+        return []
+    masks = np.zeros((GROUPS, len(lights)), dtype=bool)
+    for g in range(GROUPS):
+        masks[g, at[len(at) * g // GROUPS:len(at) * (g + 1) // GROUPS]] = True
+    return list(masks)

@@ -32,7 +32,7 @@ from ..geometry.accel import Accelerator
 from ..interiors import crossing, rows, shapes, support
 from ..interiors.held import held_airlight, held_lights, lit_from_inside
 from ..jit import exact_njit
-from ..lights import Lights, at_infinity, cubature, cubature_ladders
+from ..lights import Lights, at_infinity, cubature, cubature_ladders, environment
 from ..media.particles import particle_radiance
 from ..methods import Segments, get_method, resolve_params
 from ..options import RenderOptions
@@ -67,6 +67,7 @@ class Prepared:
     interior_planes: dict = field(default_factory=dict)  # convex interiors' face planes (interiors/shapes.py)
     camera_inside: int | None = None  # the shape holding a medium that contains the camera
     lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
+    emission: bool = True  # whether camera rays see the background and the emitters themselves (`only`)
     emissive: list = field(default_factory=list)  # the emissive shapes (`Lights.of`'s emitters)
     _memo: dict = field(default_factory=dict)
     _memo_lock: threading.Lock = field(default_factory=threading.Lock)
@@ -93,17 +94,23 @@ class Prepared:
             self._through = build_frusta(self.accel, self.lights, select=mask)
         return None if mask is None else self._through
 
-    def only(self, keep: np.ndarray) -> "Prepared":
+    def only(self, keep: np.ndarray, emission: bool | None = None) -> "Prepared":
         """This scene lit by the lights `keep` (a boolean mask over `lights`) only, for the output
-        layers (rendering/aov.py): the other lights' intensities are zero (their contributions exact zeros, so
-        each light's layer holds the very numbers the image adds up) and their segments of the
-        camera's medium are dropped; the background is seen only where no light is kept (the emission
-        layer); everything else, the shadow frusta included, is shared."""
+        layers (rendering/aov.py) and the environment's groups (`shade_groups`): the other lights'
+        intensities are zero (their contributions exact zeros, so each light's layer holds the very
+        numbers the image adds up) and their segments of the camera's medium are dropped; the
+        background and the emitters are seen where `emission` (default: where no light is kept, the
+        emission layer); everything else, the shadow frusta included, is shared."""
         self.through()
         view = copy.copy(self)
         view.lights = dataclasses.replace(self.lights, intensity=np.where(keep[:, None], self.lights.intensity, 0.0))
         view.lights_on = keep
+        view.emission = not keep.any() if emission is None else emission
         return view
+
+    def view(self, keep: np.ndarray, emission: bool | None = None) -> "Prepared":
+        """`only(keep, emission)`, made once per scene."""
+        return self.memo(("only", keep.tobytes(), emission), functools.partial(self.only, keep, emission))
 
 
 @dataclass
@@ -211,8 +218,8 @@ def airlight(method, medium, lights, params, segs, n_rays: int):
 
 def sees_emission(prep: Prepared) -> bool:
     """Whether camera rays see the background and the emitters themselves: in every pass but a light
-    layer's (`Prepared.only`), whose rays see only that light's light."""
-    return prep.lights_on is None or not prep.lights_on.any()
+    layer's or an environment group's (`Prepared.only`), whose rays see only those lights' light."""
+    return prep.emission
 
 
 def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadows: bool = False, depth=0,
@@ -405,9 +412,10 @@ def _across(prep: Prepared, method, params, boundary, seed, shadows, depth, stat
 
 
 def has_variance(prep: Prepared, method) -> bool:
-    """Whether a render has a variance layer: a stochastic method's, or the surface term's samples of
-    area lights' emitters in penumbrae (shading.penumbra)."""
-    return method.stochastic or any(e is not None for e in prep.lights.emitters)
+    """Whether a render has a variance layer: a stochastic method's, the surface term's samples of
+    area lights' emitters in penumbrae (shading.penumbra) or an environment light's groups of directions."""
+    return (method.stochastic or any(e is not None for e in prep.lights.emitters)
+            or bool(environment.groups(prep.lights)))
 
 
 NEAR_STATS = slice(-support.STATS_SIZE - len(near_emitters.STATS_NAMES), -support.STATS_SIZE)  # their place in the stats
@@ -668,11 +676,75 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
             + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
     method = _method(task.method)
-    hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
-    rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
     n = tile.samples.stop - tile.samples.start
-    layers = None if not task.aov else sum_samples(layer_columns(prep, method, task, o, d, keys, hits), n)
+    if environment.groups(prep.lights):
+        rad, stats, var, bound, layers = _sample_by_sample(prep, method, task, tile, o, d, keys)
+    else:
+        hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
+        rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
+        layers = None if not task.aov else layer_columns(prep, method, task, o, d, keys, hits)
+    layers = None if layers is None else sum_samples(layers, n)
     return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
+
+
+def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, dirs, keys):
+    """`shade_rays`' four values and the layers' columns (None without layers) of the tile's rays (pixel by
+    pixel, `tile.samples` each) with an environment light: each pixel sample index s its own directions
+    (`seeded`), their groups shaded apart (`shade_groups`); the statistics added in sample order."""
+    n = tile.samples.stop - tile.samples.start
+    out = [np.zeros((len(keys), 3)) for _ in range(3)]
+    layers, stats = None, 0.0
+    for j in range(n):
+        at = slice(j, None, n)
+        view = seeded(prep, task.seed, tile.samples.start + j)
+        o, d, k = origins[at], dirs[at], keys[at]
+        hits = first_hits(view.accel, view.scene.medium, o, d)  # shared by the passes
+        rad, st, var, bound = shade_groups(view, environment.groups(view.lights), method, task.params, o, d, k,
+                                           task.seed, task.shadows, hits)
+        for total, value in zip(out, (rad, var, bound)):
+            total[at] = value
+        stats = stats + st
+        if task.aov:
+            cols = layer_columns(view, method, task, o, d, k, hits)
+            layers = np.zeros((len(keys), cols.shape[1])) if layers is None else layers
+            layers[at] = cols
+    return out[0], stats, out[1], out[2], layers
+
+
+def shade_groups(prep: Prepared, split: list, method, params, origins, dirs, keys, seed, shadows, hits):
+    """`shade_rays`' four values with an environment light, the G groups of its directions (`split`:
+    environment.groups' masks) shaded apart: a pass (`Prepared.view`) per group and one of the other lights
+    and the emission, added up in that order. The variance is the other lights' plus the groups' spread
+    G / (G - 1) sum_g (P_g - P / G)^2, P_g a group's radiance and P their sum (the variance of the sum of G
+    independent unbiased estimates of P / G, from their sample variance); a stochastic method's own variance
+    of a group's rows is part of that spread, so not added."""
+    rest = prep.view(~np.any(split, axis=0), emission=True)
+    rad, stats, var, bound = shade_rays(rest, method, params, origins, dirs, keys, seed, shadows, hits=hits)
+    parts = []
+    for keep in split:
+        part, part_stats, _, part_bound = shade_rays(prep.view(keep), method, params, origins, dirs, keys, seed,
+                                                     shadows, hits=hits)
+        rad, stats, bound = rad + part, stats + part_stats, bound + part_bound
+        parts.append(part)
+    parts = np.array(parts)
+    G = len(parts)
+    spread = G / (G - 1) * np.sum((parts - parts.sum(axis=0) / G) ** 2, axis=0)
+    return rad, stats, spread if var is None else var + spread, bound
+
+
+def seeded(prep: Prepared, seed: int, sample: int) -> Prepared:
+    """`prep` with the environment light's directions of the pixel sample `sample` for `seed`
+    (environment.seeded; `prep` itself where they are the same), its shadow frusta its own; those of the
+    last seed are kept."""
+    with prep._memo_lock:
+        last = prep._memo.get("seeded")
+        if last is None or last[0] != seed:
+            last = prep._memo["seeded"] = (seed, {})
+        if sample not in last[1]:
+            lights = environment.seeded(prep.lights, prep.scene.lights, seed, sample)
+            last[1][sample] = prep if lights is prep.lights else dataclasses.replace(
+                prep, lights=lights, _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
+        return last[1][sample]
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
@@ -682,8 +754,7 @@ def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits)
     cols = [aov.hit_columns(prep, task.aov, origins, dirs, hits)]
     if "lights" in task.aov:
         for keep in aov.light_masks(prep.lights):
-            view = prep.memo(("only", keep.tobytes()), functools.partial(prep.only, keep))
-            cols.append(shade_rays(view, method, task.params, origins, dirs, keys, task.seed, task.shadows,
+            cols.append(shade_rays(prep.view(keep), method, task.params, origins, dirs, keys, task.seed, task.shadows,
                                    hits=hits)[0])
     return np.concatenate(cols, axis=1)
 
