@@ -151,8 +151,8 @@ def segments(light, rows):
 
 def test_the_guard_counts_points_with_other_than_one_path():
     """`out_of_sphere` counts (stats[UNBOUNDED]) the segments where an evaluation found a number of paths other
-    than one: none from the lamp within radius / ior, and some of the same segments from the light at 0.95 radius
-    (beyond, refused by the renderer)."""
+    than one, their bound inf: none from the lamp within radius / ior (every bound finite), and some of the same
+    segments from the light at 0.95 radius (beyond, refused by the renderer)."""
     rng = np.random.default_rng(9)
     rows = []
     while len(rows) < 8:
@@ -170,7 +170,7 @@ def test_the_guard_counts_points_with_other_than_one_path():
                       np.array([KS[0] + KA[0]]), ETA, inside_rule(QUAD, 1e-4), np.zeros(n, np.uint64), np.uint64(0),
                       np.uint64(0), out, var, err, stats)
         assert np.all(out > 0.0) if light is LAMP else np.any(out > 0.0)
-        assert np.all(np.isinf(err))
+        assert np.all(np.isfinite(err)) if light is LAMP else np.any(np.isinf(err))
         counts.append(stats[UNBOUNDED])
     assert counts[0] == 0 and counts[1] > 0, counts
 
@@ -184,7 +184,7 @@ def test_the_pixels_are_lit_through_the_globe(reference):
 
 def test_quadrature_against_the_twin(reference):
     """quadrature at rtol 1e-10 within 1e-9 of the twin on the chosen pixels (rtol 1e-6: within 1e-5; measured
-    2.5e-15 and 1.2e-12); its bound is inf there (the evaluations' rounding is not derived), which holds."""
+    2.5e-15 and 1.2e-12) and within its bound (finite: tests/test_globe_bounds.py)."""
     quadrature_against(reference, scene(LAMP, FOG), PIXELS)
 
 

@@ -1887,24 +1887,92 @@ class GlobeFog(NamedTuple):
 
 
 @njit
+def fog_rounding(r, x, q, k):
+    """The relative rounding bound of path k's term of `fog_value` at o + x w (q as computed; module docstring,
+    "The fog's bound"), first order doubled, inf where a bound does not apply."""
+    radius, eta = r.radius, r.eta
+    rn = math.sqrt(r.rel[0] * r.rel[0] + r.rel[1] * r.rel[1] + r.rel[2] * r.rel[2])
+    ez = q - r.c
+    d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
+    if not (d > radius and rn < radius):
+        return math.inf
+    ez /= d
+    zx, yx, ey = _about(r.rel, ez)
+    ev = 3.0 * U * (math.sqrt(r.o[0] * r.o[0] + r.o[1] * r.o[1] + r.o[2] * r.o[2]) + x) + 2.0 * U * d  # q - c's
+    dd, dez = ev + 4.0 * U * d, ev / d + 8.0 * U  # d's error, ez's (absolute)
+    dxy = rn * (3.0 * dez + 16.0 * U)  # X's coordinates'
+    dey = 2.0 * rn * (2.0 * dez + 10.0 * U) / yx if yx > 0.0 else math.inf
+    theta_a = lit_arc(radius, d, eta)
+    step = 2.0 * theta_a / SCAN
+    j = min(max(int((r.found[k] + theta_a) / step), 0), SCAN - 1)
+    p1, _, et, a1 = angular_bounds(-theta_a + j * step, -theta_a + (j + 1) * step, radius, d, eta)
+    pz, py, tz, ty, cos_i, cos_t, o = incidence(r.found[k], radius, d, eta)
+    s, reach, inv_o = r.inside[k], rn + radius, 1.0 / o
+    kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
+    kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
+    tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
+    g1 = cos_i / (eta * cos_t)  # |d phi / d alpha|
+    dal = abs(py) * dd * inv_o * inv_o + et  # the arriving direction at fixed theta: d's error, its own rounding
+    # the root: h off by its rounding dh, X's offset dxy and d's error (h_d = -s phi_d), over |h_theta| = R cos_t
+    # |1 - s kappa_t|, first order doubled, or `paths_out`'s spread (h's rounding, X off by its dx) and the rest
+    dx = 16.0 * U * (d + 2.0 * radius + rn)
+    slope = radius * cos_t * abs(tang)
+    dh = 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
+    dth = min(2.0 * (dh + dxy + s * g1 * dal) / slope + 4.0 * U * theta_a,
+              r.spread[k] + (max(dxy - dx, 0.0) + s * g1 * dal) / slope)
+    dti = a1 * dth + dal  # the incidence angle's error
+    dphi = p1 * dth + g1 * dal + et  # t's direction's
+    do = radius * dth + dd + 4.0 * U * o
+    ds = dphi * reach + radius * dth + dxy + 8.0 * U * reach
+    eps = r.kt * (do + 4.0 * U * (x + o)) + r.kt_in * (ds + 4.0 * U * s) + 64.0 * U
+    eps += 16.0 * U * (r.kt * (x + o) + r.kt_in * s)
+    eps += 2.0 * do * inv_o  # 1 / o^2
+    dci, dct = dti, dti / (eta * eta * cos_t)  # |d cos_i|, |d cos_t| (sin_t <= 1 / eta)
+    eps += 3.0 * dci / cos_i + dct / cos_t + 16.0 * U / (1.0 - fresnel(cos_i, eta))  # T cos_i, cos_t
+    dinv = do * inv_o * inv_o  # 1 / o's
+    nt = (eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o
+    dnt = (eta * dct + dci) / radius + 2.0 * cos_i * dci * inv_o + cos_i * cos_i * dinv
+    dkt = dnt / (eta * cos_t * cos_t) + 2.0 * abs(nt) * dct / (eta * cos_t ** 3)
+    eps += (ds * abs(kappa_t) + s * dkt + 32.0 * U * (1.0 + s * (abs(kappa_t) + 1.0 / radius + inv_o)
+                                                      / (cos_t * cos_t))) / abs(tang)
+    dks = ((eta * dct + dci) / radius + dinv) / eta
+    eps += (ds * abs(kappa_s) + s * dks + 16.0 * U * (1.0 + s * (abs(kappa_s) + 1.0 / radius + inv_o))) / abs(sag)
+    # toward = ((pz - d) e_z + py e_y) / o: P's move, q's and the frame's
+    dmu = (radius * dth + dd) * inv_o + dez + (abs(py) * inv_o * dey if py != 0.0 else 0.0) + 8.0 * U
+    eps += phase_condition(r.code, r.g) * dmu
+    eps = 2.0 * eps
+    cone = r.cone
+    f = falloff(-((tz * ez[0] + ty * ey[0]) * r.axis[0] + (tz * ez[1] + ty * ey[1]) * r.axis[1]
+                  + (tz * ez[2] + ty * ey[2]) * r.axis[2]), cone[0], cone[1], int(cone[2]))
+    if f < 1.0:  # the falloff at the error of the cosine of -t to the axis, absolute, over F
+        dc = dphi + dez + (abs(ty) * dey if ty != 0.0 else 0.0) + 8.0 * U
+        eps += 2.0 * band_slope(cone[0], cone[1], int(cone[2])) / (cone[1] - cone[0]) * dc / f
+    return eps
+
+
+@njit
 def fog_value(x, r):
     """The outside medium's single scattering at o + x w of the `GlobeFog` r: over the paths out (`paths_out`),
-    ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point)."""
+    ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point); the
+    rounding of the sum (`fog_rounding`) into the track: the largest relative and absolute of the evaluations."""
     q = np.empty(3)
     for j in range(3):
         q[j] = r.o[j] + x * r.w[j]
     proven = paths_out(q, r.c, r.radius, r.rel, r.axis, r.cone, r.eta, r.found, r.spread, r.value, r.toward,
                        r.inside, r.outside)
-    total = 0.0
+    total = err = 0.0
     n = 0
     for k in range(MAX_PATHS):
         if r.value[k] > 0.0:
             n += 1
             mu = r.toward[k, 0] * r.w[0] + r.toward[k, 1] * r.w[1] + r.toward[k, 2] * r.w[2]
-            total += phase_value(r.code, r.g, mu) * r.value[k] * math.exp(-r.kt * (x + r.outside[k])
-                                                                           - r.kt_in * r.inside[k])
+            term = phase_value(r.code, r.g, mu) * r.value[k] * math.exp(-r.kt * (x + r.outside[k])
+                                                                       - r.kt_in * r.inside[k])
+            total += term
+            err += r.ks * term * fog_rounding(r, x, q, k)
     if n != 1 or not proven:
         r.track[0] += 1.0
+    _track_rounding(r.track, r.ks * total, err, ROUNDING_ABS)
     return r.ks * total
 
 
@@ -1934,7 +2002,7 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
         if not ell[s] > 0.0:
             continue
         cone[0], cone[1], cone[2] = geo[s, 12], geo[s, 13], geo[s, 17]
-        track = np.zeros(1)
+        track = np.zeros(3)
         for c in range(nc):
             if ks[c] == 0.0:
                 continue
@@ -1943,11 +2011,15 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty((MAX_PATHS, 3)),
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), track)
             if rule.kind == QUAD:
-                out[s, c], _ = bounded_piecewise(rec, (0.0, min(ell[s], 745.0 / kt[c])), 2, rule.rtol, N10, W10, N20,
-                                                 W20, stats)
+                end = min(ell[s], 745.0 / kt[c])
+                track[ROUNDING] = track[ROUNDING_ABS] = 0.0
+                out[s, c], b = bounded_piecewise(rec, (0.0, end), 2, rule.rtol, N10, W10, N20, W20, stats)
+                err[s, c] = b + 3.0 * min(track[ROUNDING] * (abs(out[s, c]) + b), track[ROUNDING_ABS] * end)
             else:
                 out[s, c], var[s, c] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt[c]), kt[c], keys[s],
                                                        dim0, seed)
-            err[s, c] = math.inf
+                err[s, c] = math.inf
         if track[0] > 0.0:
+            err[s, :] = math.inf
+        if track[0] > 0.0 or (rule.kind == QUAD and not np.all(err[s] < math.inf)):
             stats[UNBOUNDED] += 1.0
