@@ -153,6 +153,26 @@ within rounding of tangent to the caustic surface: tests/test_caustic_crossings.
 envelope of the refracted rays from mpmath, finds every crossing and the scan proven on lines 1e-3 to
 1e-6 from tangent and beside the cusp, not always at 1e-9), or wz = 0.
 
+The fog's bound (`fog_rounding`, `out_of_sphere`). An evaluation of `fog_value` at o + x w rounds q = o + x w
+(3u (|o| + x)), q - c and d = |q - c| (dd = 3u (|o| + x) + 6u d), the axis e_z (dez = dd / d + 8u, absolute), the
+light's coordinates X = (z_X, y_X) about it (dxy = |L - c| (3 dez + 16u)) and e_y (2 |L - c| (2 dez + 10u) / y_X).
+At fixed theta d turns the arriving direction at P by dal = |p_y| dd / o^2 (d alpha / dd = p_y / o^2), plus its
+own rounding (`angular_bounds`' e_t, which bounds it). The root: h = t x (X - P) has h_theta = R cos_t (1 - s
+kappa_t) (t' = phi' n, t' x (X - P) = -phi' s, t x P' = -R cos_t: the tube's width in the plane) and h_d =
+-s phi_d, |phi_d| <= g' dal / dd (g' = cos_i / (eta cos_t)), so the computed root is off by at most the least of
+2 (dh + dxy + s g' dal) / |h_theta| + 4u theta_a (first order, doubled: dh `paths`' rounding of h) and `paths`'
+proven spread plus what of dxy exceeds its dx and s g' dal, over |h_theta|. Then theta_i is off by a1 dth + dal,
+t's angle by p1 dth + g' dal + e_t (a1, p1 of the root's SCAN cell), o by R dth + dd, s by that angle x (|X| + R)
++ R dth + dxy; and the term's relative error, first order, doubled: the legs' attenuation (their errors times
+kt and kt_in, 16u of the exponent), 1 / o^2 (2 do / o), T cos_i / cos_t (Fresnel's T at most twice cos_i's
+relative error for eta > 1, |d cos_t| <= |d cos_i| / (eta^2 cos_t), 16u / T its own rounding), the tube factors
+1 - s kappa (kappa's error through the cosines and 1 / o, s's, and their rounding, each over the factor), the
+phase at its condition times toward's error ((R dth + dd) / o + dez + |p_y| / o x e_y's) and a spot's falloff at
+its slope times the cosine's error (t's angle, e_z's and e_y's). It grows like 8u (R + d) / o toward the glass (the
+arriving direction's rounding): measured at most 1e-8 of the value there, 1.4e-11 at a distance. The integral's:
+media/adaptive.py's rule bound b plus 3 min(rho (|value| + b), e x length) (rho, e the largest relative and
+absolute rounding of the evaluations). tests/test_globe_bounds.py checks it against the twin.
+
 The band edges, proven (`edge_crossings`). The edge's directions out of the light L, at cosine ce
 to the spot's unit axis a, are u(phi) = ce a - se (cos phi b1 + sin phi b2) (se = sqrt(1 - ce^2), b1
 the unit normal to a toward q = L - c, b2 = a x b1), b = q.u = A0 - A1 cos phi (A0 = ce q.a, A1 = se
@@ -1991,10 +2011,12 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
     a ray from the light, at most its own, is below radius / eta: the internal incidence below the critical
     angle) and each point outside has one path, the outward rays crossing neither each other nor the axis ahead
     (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the integrand is
-    smooth along the segment: QUAD media/adaptive.py `bounded_piecewise` over [0, min(ell, 745 / kt)] whole;
-    MARCH, SAMPLE `march_or_sample` at dimensions dim0. The bound is inf (the evaluations' rounding not derived);
-    the segments with an evaluation whose scan was unproven or whose count of paths was not one (the light beyond
-    radius / eta, which `check` refuses) are counted in stats[UNBOUNDED]."""
+    smooth along the segment: QUAD media/adaptive.py `bounded_piecewise` over [0, end], end = min(ell, 745 / kt),
+    whole, its bound the rule's b plus 3 min(rho (|value| + b), e end) (rho, e: the largest relative and absolute
+    rounding of its evaluations, `fog_rounding`; the rule's weights are positive and sum to end); MARCH, SAMPLE
+    `march_or_sample` at dimensions dim0 (bound inf). The bound is inf on the segments with an evaluation whose
+    scan was unproven or whose count of paths was not one (the light beyond radius / eta, which `check`
+    refuses), counted in stats[UNBOUNDED] with the QUAD segments whose bound is inf for another reason."""
     nc = kt.shape[0]
     cone = np.empty(3)
     for s in range(geo.shape[0]):
