@@ -1,12 +1,13 @@
 """Writes tests/data/globe_twins.json: tests/test_globe_bounds.py's twin (tests/test_globe_fog.py `airlight`, scipy
-quad_vec at epsrel 1e-12 over 30-digit paths out) on its fog segments, for each of its lights. Too slow for CI
+quad_vec at epsrel 1e-12 over 30-digit paths out, cut where a spot's leaving cosine crosses its band edges) on its
+fog segments, for each of its lights. Too slow for CI
 (minutes a light): run `python -m tests.make_globe_twins` from the repository root after changing the segments or
 the lights."""
 import json
 import pathlib
 import sys
 
-from .test_globe_bounds import LIGHTS, SEGMENTS
+from .test_globe_bounds import LIGHTS, SEGMENTS, band_cuts
 from .test_globe_fog import airlight
 
 OUT = pathlib.Path(__file__).with_name("data") / "globe_twins.json"
@@ -16,7 +17,9 @@ def main(names=None):
     """The twins of the lights `names` (all by default) into OUT, keeping the others' already there."""
     stored = json.loads(OUT.read_text())["twins"] if OUT.exists() else {}
     for name in names or list(LIGHTS):
-        stored[name] = [list(map(float, airlight(LIGHTS[name], o, d, t, 1e-12))) for o, d, t in SEGMENTS]
+        light = LIGHTS[name]
+        stored[name] = [list(map(float, airlight(light, o, d, t, 1e-12, band_cuts(light, o, d, t) if
+                                                 light.get("type") == "spot" else ()))) for o, d, t in SEGMENTS]
     OUT.write_text(json.dumps({"segments": [[list(map(float, o)), list(map(float, d)), float(t)]
                                             for o, d, t in SEGMENTS], "twins": stored}, indent=1))
 

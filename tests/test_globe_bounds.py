@@ -19,8 +19,8 @@ from raytrace.media.sphere_refraction import UNBOUNDED, out_of_sphere
 
 from . import oracle
 from .test_globe_fog import G_OUT, KS_OUT, floor_t
-from .test_lamp_in_glass import CAMERA, ETA, KA, KA_OUT, KS, LAMP, refract
-from .test_lamp_in_globe import CENTRE, RADIUS, SPHERE, sphere_hits
+from .test_lamp_in_glass import CAMERA, ETA, KA, KA_OUT, KS, LAMP, SPOT, refract
+from .test_lamp_in_globe import CENTRE, RADIUS, SPHERE, exit_points, sphere_hits
 from .test_refracted_point_light import spot_terms
 
 PIXELS = [(j, i) for j in range(0, 6, 2) for i in range(1, 8, 2)] + [(2, 4), (3, 5)]  # (2, 3), (2, 4), (3, 5): globe
@@ -45,8 +45,48 @@ def fog_segments(j, i):
     return out
 
 
-SEGMENTS = [s for j, i in PIXELS for s in fog_segments(j, i)]
-LIGHTS = {"lamp": LAMP}
+def _line(o, toward, length):
+    o = np.array(o, float)
+    d = np.array(toward, float) - o
+    return o, d / np.linalg.norm(d), length
+
+
+ACROSS = [_line([-3.0, -1.2, 0.6], [3.0, -1.2, 0.6], 6.0), _line([0.6, -1.45, -3.0], [0.6, -1.45, 4.0], 7.0),
+          _line([-3.0, -1.5, 1.3], [3.0, -1.5, 1.3], 6.0)]  # across the spot's cone below the globe
+SEGMENTS = [s for j, i in PIXELS for s in fog_segments(j, i)] + ACROSS
+LIGHTS = {"lamp": LAMP, "spot": SPOT}
+
+
+def leaving_cosine(light, X):
+    """The cosine to the spot's axis of the direction in which the path to X leaves the light (the twin's 30-digit
+    exit point), nan where X has no path."""
+    L = np.array(light["position"], float)
+    found = exit_points(L, X)
+    if not found:
+        return math.nan
+    u = np.array([float(v) for v in found[0]]) - L
+    return float(u @ spot_terms(light)[0]) / float(np.linalg.norm(u))
+
+
+def band_cuts(light, o, d, tmax, samples=200):
+    """The t in (0, tmax) where the spot's leaving cosine crosses its band edges (`leaving_cosine` on samples, a
+    sign change bisected to 1e-13 of the segment; the sky's segments sampled to 50 / sigma_t only, beyond which the
+    fog's transmittance underflows the twin's tolerance)."""
+    _, ce, cs = spot_terms(light)
+    top = min(tmax, 50.0 / KA_OUT)
+    ts = top * (np.arange(samples + 1) / samples)
+    ts[0], ts[-1] = 1e-9 * top, top * (1.0 - 1e-9)
+    cos = np.array([leaving_cosine(light, o + t * d) for t in ts])
+    out = []
+    for edge in (ce, cs):
+        g = cos - edge
+        for j in np.nonzero(np.sign(g[:-1]) != np.sign(g[1:]))[0]:
+            a, b = ts[j], ts[j + 1]
+            while b - a > 1e-13 * top:
+                mid = 0.5 * (a + b)
+                a, b = (mid, b) if np.sign(leaving_cosine(light, o + mid * d) - edge) == np.sign(g[j]) else (a, mid)
+            out.append(0.5 * (a + b))
+    return sorted(out)
 TWINS = pathlib.Path(__file__).with_name("data") / "globe_twins.json"  # tests/make_globe_twins.py writes it
 
 

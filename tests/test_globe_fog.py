@@ -69,12 +69,13 @@ def switches(light, o, d, t0, t1, samples=48):
     return out, counts
 
 
-def airlight(light, o, d, tmax, epsrel):
+def airlight(light, o, d, tmax, epsrel, extra=()):
     """The HG fog's single scattering (3,) along o + t d, t in [0, tmax], lit from inside the globe, with the fog's
-    transmittance from o; asserts one path at every sample (the claim `out_of_sphere` rests on)."""
+    transmittance from o, integrated between the cuts `extra` (a spot's band edges); asserts one path at every
+    sample (the claim `out_of_sphere` rests on)."""
     cuts, counts = switches(light, o, d, 0.0, tmax)
     assert not cuts and set(counts) == {1}, (cuts, set(counts))
-    cuts = [0.0, *cuts, tmax]
+    cuts = [0.0, *sorted(extra), tmax]
 
     def f(t):
         return KS_OUT * sum((e * oracle.phase("hg", G_OUT, float(toward @ d)) for e, toward, _ in

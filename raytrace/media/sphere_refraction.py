@@ -1879,6 +1879,151 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
     return proven
 
 
+class OutEdge(NamedTuple):
+    """A spot's band edge at cosine ce (sine se) to its unit axis a, the spot inside the sphere at q = L - c (d = |q|
+    < radius / eta), and one segment outside (start oc relative to the centre, direction w): b1, b2 across a (b1
+    toward q), k2 the bound on |G''| and dg G's rounding (`out_edge`; 3-tuples: no arrays in the scan)."""
+    ce: float
+    se: float
+    a: tuple
+    b1: tuple
+    b2: tuple
+    q: tuple
+    oc: tuple
+    w: tuple
+    radius: float
+    eta: float
+    d: float
+    k2: float
+    dg: float
+
+
+@njit
+def _out_edge_ray(phi, k):
+    """(P - c, t) of the edge ray u(phi) = ce a - se (cos phi b1 + sin phi b2) of the `OutEdge` k: where it leaves
+    the sphere, P = L + r u, r = S - b (b = q.u, S = sqrt(b^2 + R^2 - d^2) = R cos_1), and its direction
+    out, t = eta u + (cos_2 - eta cos_1) n (n = (P - c) / R, cos_2 = sqrt(1 - eta^2 (1 - cos_1^2)))."""
+    cp, sp = math.cos(phi), math.sin(phi)
+    a, b1, b2, q, radius, eta = k.a, k.b1, k.b2, k.q, k.radius, k.eta
+    u = (k.ce * a[0] - k.se * (cp * b1[0] + sp * b2[0]), k.ce * a[1] - k.se * (cp * b1[1] + sp * b2[1]),
+         k.ce * a[2] - k.se * (cp * b1[2] + sp * b2[2]))
+    b = q[0] * u[0] + q[1] * u[1] + q[2] * u[2]
+    sq = math.sqrt(max(b * b + (radius - k.d) * (radius + k.d), 0.0))
+    pc = _axpy(q, sq - b, u)
+    c1 = sq / radius
+    f = (math.sqrt(max(1.0 - eta * eta * (1.0 - c1) * (1.0 + c1), 0.0)) - eta * c1) / radius
+    return pc, (eta * u[0] + f * pc[0], eta * u[1] + f * pc[1], eta * u[2] + f * pc[2])
+
+
+@njit
+def out_edge_gap(phi, k):
+    """G(phi) = det(w, t, oc - P) of the `OutEdge` k: 0 where the segment's line meets the edge ray out's."""
+    pc, t = _out_edge_ray(phi, k)
+    return _det(k.w, t, (k.oc[0] - pc[0], k.oc[1] - pc[1], k.oc[2] - pc[2]))
+
+
+@_at_of(OutEdge, inline=True)
+@njit
+def _out_edge_at(k, x):
+    return (out_edge_gap(x, k),)
+
+
+@_value_of(OutEdge, inline=True)
+@njit
+def _out_edge_value(k, x):
+    return out_edge_gap(x, k)
+
+
+@_cell_of(OutEdge, inline=True)
+@njit
+def _out_edge_cell(k, a, b, j, e):
+    """As `_paths_cell`, by the `OutEdge`'s K and G's rounding."""
+    fa, fb, w = e[0], e[1], b - a
+    if fa * fb > 0.0:
+        return -1 if min(abs(fa), abs(fb)) - k.dg > 0.125 * k.k2 * w * w or \
+            abs(fb - fa) - 2.0 * k.dg > k.k2 * w * w else 0
+    return 1 if abs(fb - fa) - 2.0 * k.dg > k.k2 * w * w else 0
+
+
+@_spread_of(OutEdge, inline=True)
+@njit
+def _out_edge_spread(k, root, a, b, fa, fb, j):
+    return math.inf
+
+
+@njit
+def out_edge(o, w, c, radius, light, axis, ce, eta):
+    """The `OutEdge` of a spot at light (unit axis, edge cosine ce, |light - c| < radius / eta) and the segment o +
+    x w (module docstring, "The spot's band edges outside"): K = |t''| (|oc| + R) + 2 |t'| |P'| + |P''| over all
+    phi from the derivatives' bounds there, and G's rounding."""
+    a = axis / _norm(axis)
+    q = light - c
+    d = _norm(q)
+    qa = q[0] * a[0] + q[1] * a[1] + q[2] * a[2]
+    b1 = q - qa * a
+    if not _norm(b1) > 1e-12 * d:  # q along the axis: any normal to it
+        i = 0 if abs(a[0]) < 0.9 else 1
+        b1[:] = -a[i] * a
+        b1[i] += 1.0
+    b1 /= _norm(b1)
+    b2 = np.array([a[1] * b1[2] - a[2] * b1[1], a[2] * b1[0] - a[0] * b1[2], a[0] * b1[1] - a[1] * b1[0]])
+    se = math.sqrt((1.0 - ce) * (1.0 + ce))
+    oc = o - c
+    s0 = math.sqrt((radius - d) * (radius + d))  # the least S
+    c2 = math.sqrt(max(1.0 - (eta * d / radius) ** 2, 0.0))  # the least cos_2
+    db = d * se  # |b'|, |b''|
+    ds1 = d * db / s0
+    ds2 = (db * db + d * db + ds1 * ds1) / s0
+    r0, r1, r2 = radius + d, ds1 + db, ds2 + db
+    p1, p2 = r1 + r0 * se, r2 + 2.0 * r1 * se + r0 * se
+    c11, c12 = ds1 / radius, ds2 / radius
+    c21 = eta * eta * c11 / c2
+    c22 = eta * eta * (c11 * c11 + c12) / c2 + c21 * c21 / c2
+    f0, f1, f2 = 1.0 + eta, c21 + eta * c11, c22 + eta * c12
+    t1 = eta * se + f1 + f0 * p1 / radius
+    t2 = eta * se + f2 + 2.0 * f1 * p1 / radius + f0 * p2 / radius
+    reach = _norm(oc) + radius
+    k2 = (t2 * reach + 2.0 * t1 * p1 + p2) * (1.0 + 1e-9)
+    ep = 64.0 * U * (_norm(light) + _norm(c) + radius + d) * (1.0 + d / s0)
+    et = 8.0 * U * eta + (1.0 + eta + eta * eta / c2) * ep / radius + (1.0 + eta) * ep / radius + 16.0 * U
+    dg = 2.0 * (reach * (et + 16.0 * U) + ep + 4.0 * U * (_norm(o) + _norm(c)))
+    return OutEdge(ce, se, _tuple(a), _tuple(b1), _tuple(b2), _tuple(q), _tuple(oc), _tuple(w), radius, eta, d, k2, dg)
+
+
+@njit
+def out_edge_cuts(o, w, c, radius, light, axis, cone, eta, end, out):
+    """The x in (0, end) where the segment o + x w crosses a spot's band edges' rays out of the sphere (both edges,
+    cone = (cos_end, cos_start, curve)) into out, ascending; returns (count, proven): per edge `_halving` over phi
+    in [-pi, pi] of G (`out_edge`), each root's ray meeting the segment's line at x (kept where 0 < x < end and
+    ahead of P). Unproven where a scan was, or out filled up."""
+    m, proven = 0, True
+    found, spread = np.empty(EDGES), np.empty(EDGES)
+    for e in range(2):
+        ce = cone[e]
+        if not -1.0 < ce < 1.0 or (e == 1 and ce == cone[0]):
+            continue
+        k = out_edge(o, w, c, radius, light, axis, ce, eta)
+        n, ok = _halving(k, -math.pi, 2.0 * math.pi / SCAN, 0, -math.pi, False, found, spread)
+        proven = proven and ok and n < EDGES
+        for i in range(n):
+            pc, t = _out_edge_ray(found[i], k)
+            v = (pc[0] - k.oc[0], pc[1] - k.oc[1], pc[2] - k.oc[2])  # P - o
+            wt = (w[1] * t[2] - w[2] * t[1], w[2] * t[0] - w[0] * t[2], w[0] * t[1] - w[1] * t[0])
+            nn = wt[0] * wt[0] + wt[1] * wt[1] + wt[2] * wt[2]
+            if not nn > 0.0:
+                continue
+            x = _det(v, t, wt) / nn
+            sig = _det(v, w, wt) / nn
+            if 0.0 < x < end and sig > 0.0:
+                if m < out.shape[0]:
+                    out[m] = x
+                    m += 1
+                else:
+                    proven = False
+    sort_few(out, 0, m)
+    return m, proven
+
+
 class GlobeFog(NamedTuple):
     """One segment o + x w of the scattering medium outside a refractive exact sphere (centre c, radius; relative
     index eta inside) and a unit point light inside it at c + rel (a spot: its axis and cone), for one channel
@@ -2025,6 +2170,11 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
             continue
         cone[0], cone[1], cone[2] = geo[s, 12], geo[s, 13], geo[s, 17]
         track = np.zeros(3)
+        cuts = np.zeros(2 * EDGES + 2)
+        m, proven = 0, True
+        if rule.kind == QUAD:
+            m, proven = out_edge_cuts(geo[s, :3], geo[s, 3:6], sphere[:3], sphere[3], geo[s, 6:9], geo[s, 9:12],
+                                      cone, eta, ell[s], cuts[1:2 * EDGES + 1])
         for c in range(nc):
             if ks[c] == 0.0:
                 continue
@@ -2034,8 +2184,15 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), track)
             if rule.kind == QUAD:
                 end = min(ell[s], 745.0 / kt[c])
+                n = 1
+                while n <= m and cuts[n] < end:
+                    n += 1
+                br = cuts[:n + 1].copy()  # 0, the cuts before end, end
+                br[n] = end
                 track[ROUNDING] = track[ROUNDING_ABS] = 0.0
-                out[s, c], b = bounded_piecewise(rec, (0.0, end), 2, rule.rtol, N10, W10, N20, W20, stats)
+                out[s, c], b = bounded_piecewise(rec, br, n + 1, rule.rtol, N10, W10, N20, W20, stats)
+                if not proven:
+                    b = math.inf
                 err[s, c] = b + 3.0 * min(track[ROUNDING] * (abs(out[s, c]) + b), track[ROUNDING_ABS] * end)
             else:
                 out[s, c], var[s, c] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt[c]), kt[c], keys[s],
