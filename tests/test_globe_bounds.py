@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from raytrace.lights import SMOOTHSTEP
-from raytrace.media.inside_rule import QUAD, inside_rule
+from raytrace.media.inside_rule import MARCH, QUAD, SAMPLE, inside_rule
 from raytrace.media.phase import HG
 from raytrace.media.slab import GEO_COLUMNS
 from raytrace.media.sphere_refraction import UNBOUNDED, out_of_sphere
@@ -90,9 +90,9 @@ def band_cuts(light, o, d, tmax, samples=200):
 TWINS = pathlib.Path(__file__).with_name("data") / "globe_twins.json"  # tests/make_globe_twins.py writes it
 
 
-def kernel(light, rtol):
-    """`out_of_sphere`'s air-light (N, 3) of SEGMENTS, its bound, times the light's intensity, and the count of
-    unbounded segments (stats[UNBOUNDED])."""
+def kernel(light, rtol, kind=QUAD, steps=1, seed=0):
+    """`out_of_sphere`'s air-light (N, 3) of SEGMENTS, its bound (its variance for a stochastic rule), times the
+    light's intensity, and the count of unbounded segments (stats[UNBOUNDED]), by the inside rule `kind`."""
     n = len(SEGMENTS)
     geo = np.zeros((n, GEO_COLUMNS))
     for k, (o, d, _) in enumerate(SEGMENTS):
@@ -105,9 +105,10 @@ def kernel(light, rtol):
     ell = np.array([t for _, _, t in SEGMENTS])
     out, var, err, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(10)
     out_of_sphere(geo, SPHERE, ell, np.full(3, KA_OUT), np.full(3, KS_OUT), HG, G_OUT, KS + KA, ETA,
-                  inside_rule(QUAD, rtol), np.zeros(n, np.uint64), np.uint64(0), np.uint64(0), out, var, err, stats)
+                  inside_rule(kind, rtol, steps), np.arange(n, dtype=np.uint64), np.uint64(0), np.uint64(seed), out,
+                  var, err, stats)
     inten = np.array(light["intensity"], float)
-    return out * inten, err * inten, stats[UNBOUNDED]
+    return out * inten, (err * inten if kind == QUAD else var * inten * inten), stats[UNBOUNDED]
 
 
 @pytest.fixture(scope="module", params=list(LIGHTS))
@@ -122,15 +123,56 @@ def case(request):
 @pytest.mark.parametrize("rtol", [1e-6, 1e-10])
 def test_the_bound_holds_and_is_not_vacuous(case, rtol):
     """Never exceeded by the difference from the twin (measured at most 1.3e-5 of the bound); finite on every
-    segment and channel, none counted unbounded; its median at most 10 rtol of the value (measured 1.1 rtol at 1e-6,
-    1.9 rtol at 1e-10; at 1e-10 the segments that start or end on the glass reach 86 rtol: the arriving direction's
-    rounding, 8u (R + d) / o, grows toward the glass)."""
+    segment and channel, none counted unbounded; its median where the fog is lit at most 10 rtol of the value
+    (measured: the lamp 1.1 rtol at 1e-6, 1.9 rtol at 1e-10; at 1e-10 the segments that start or end on the glass
+    reach 86 rtol: the arriving direction's rounding, 8u (R + d) / o, grows toward the glass). The spot's segments
+    that cross its band edges are cut there (`out_edge_cuts`, as the twin's own bisection finds them)."""
     light, ref = case
     got, bound, unbounded = kernel(light, rtol)
-    assert np.all(ref > 0.0) and np.all(np.isfinite(bound)) and unbounded == 0
+    assert np.all(np.isfinite(bound)) and unbounded == 0
     assert np.all(np.abs(got - ref) <= bound), np.max(np.abs(got - ref) / bound)
-    assert np.median(bound / got) <= 10.0 * rtol, np.median(bound / got)
-    assert np.all(bound <= 1e3 * rtol * got), np.max(bound / got)
+    lit = ref > 1e-6 * ref.max()
+    assert lit.all() if light is LAMP else lit.all(axis=1).sum() >= 6, lit.all(axis=1).sum()
+    assert np.median(bound[lit] / got[lit]) <= 10.0 * rtol, np.median(bound[lit] / got[lit])
+    assert np.all(bound[lit] <= 1e3 * rtol * got[lit]), np.max(bound[lit] / got[lit])
+
+
+def test_the_spot_cuts_are_the_twins():
+    """`out_edge_cuts` finds where the segments cross the spot's band edges' rays out of the globe, proven, as the
+    twin's bisection of the 30-digit leaving cosine does (within 1e-9 of the segment: measured 3e-13), and no
+    others: 13 crossings on 6 segments."""
+    from raytrace.media.sphere_refraction import EDGES, out_edge_cuts
+    axis, ce, cs = spot_terms(SPOT)
+    found = 0
+    for k in (11, 12, 17, 18, 19, 20):
+        o, d, t = SEGMENTS[k]
+        out = np.zeros(2 * EDGES)
+        m, proven = out_edge_cuts(np.array(o), np.array(d), SPHERE[:3].copy(), SPHERE[3],
+                                  np.array(SPOT["position"], float), axis, np.array([ce, cs, 0.0]), ETA, t, out)
+        ref = band_cuts(SPOT, o, d, t)
+        assert proven and m == len(ref), (k, out[:m], ref)
+        assert np.allclose(out[:m], ref, rtol=0.0, atol=1e-9 * t), (k, out[:m], ref)
+        found += m
+    assert found == 13
+
+
+@pytest.mark.parametrize("light", [SPOT], ids=["spot"])
+def test_raymarch_converges_and_montecarlo_is_unbiased(light):
+    """On the segments the spot lights: raymarch's midpoints 8x closer to the twin at 2048 steps than at 256 and
+    within 1e-4 of it; Monte Carlo's free-path samples (64 a segment): mean squared z-score about 1 over four seeds
+    (measured: see the asserts)."""
+    ref = np.array(json.loads(TWINS.read_text())["twins"]["spot"])
+    lit = (ref > 1e-6 * ref.max()).all(axis=1)
+    errs = []
+    for steps in (256, 2048):
+        got, _, _ = kernel(light, 0.0, MARCH, steps)
+        errs.append(np.max(np.abs(got[lit] - ref[lit]) / ref[lit]))
+    assert errs[1] < errs[0] / 8.0 and errs[1] < 1e-4, errs
+    z2 = []
+    for seed in (3, 4, 5, 6):
+        got, var, _ = kernel(light, 0.0, SAMPLE, 64, seed)
+        z2 += ((got[lit] - ref[lit]) ** 2 / var[lit]).ravel().tolist()
+    assert 0.3 < np.mean(z2) < 3.0, np.mean(z2)
 
 
 def test_an_evaluation_within_its_rounding_bound():

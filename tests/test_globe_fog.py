@@ -25,7 +25,7 @@ from raytrace.media.sphere_refraction import UNBOUNDED, out_of_sphere
 
 from . import oracle
 from .test_bounded_media import fresnel_t
-from .test_lamp_in_glass import CAMERA, ETA, FLOOR_Y, KA, KA_OUT, KS, LAMP, SPOT, refract
+from .test_lamp_in_glass import CAMERA, ETA, FLOOR_Y, KA, KA_OUT, KS, LAMP, refract
 from .test_lamp_in_globe import CENTRE, GRID, NEAR, RADIUS, SPHERE, circle, paths_out, scene, sphere_hits, twin
 from .test_lantern_fog import march_and_sample, quadrature_against
 from .test_light_inside import image
@@ -208,11 +208,10 @@ def test_alone_with_shadows_is_the_same():
 
 
 def test_what_is_not_implemented_is_refused():
-    """A light beyond radius / ior (paths out totally reflected, a caustic outside), a spot light, volumetric
-    shadows with another shape, and the methods without exact paths: refused in one line, naming what to
-    change."""
+    """A light beyond radius / ior (paths out totally reflected, a caustic outside), volumetric shadows with another
+    shape, and the methods without exact paths: refused in one line, naming what to change (a spot light is taken:
+    tests/test_globe_bounds.py)."""
     for sc, method, shadows, words in ((scene(NEAR, FOG), "quadrature", False, r"within radius / ior \(0\.8\)"),
-                                       (scene(SPOT, FOG), "quadrature", False, "use a point light"),
                                        (scene(LAMP, FOG), "quadrature", True, "--no-volumetric-shadows"),
                                        (scene(LAMP, FOG), "analytic", False, "no closed form"),
                                        (scene(LAMP, FOG), "slab_approx", False, "--method quadrature")):

@@ -1,7 +1,7 @@
 """Single scattering inside a refractive exact sphere (geometry/sphere.py) lit through the sphere:
 the exact refracted light at each inside point, for point, spot and directional lights; and the light
 of a point or spot light inside the sphere on surfaces outside (`surface_out_of_sphere`), and of a point
-light well inside it in a scattering medium outside (`out_of_sphere`), on its paths out.
+or spot light well inside it in a scattering medium outside (`out_of_sphere`), on its paths out.
 
 The plane of the light's paths: a ray from a point light L (or along a directional light) refracted
 at P on the sphere (centre c, radius R) stays in the plane through L, c and P (the normal at P lies in
@@ -172,6 +172,25 @@ its slope times the cosine's error (t's angle, e_z's and e_y's). It grows like 8
 arriving direction's rounding): measured at most 1e-8 of the value there, 1.4e-11 at a distance. The integral's:
 media/adaptive.py's rule bound b plus 3 min(rho (|value| + b), e x length) (rho, e the largest relative and
 absolute rounding of the evaluations). tests/test_globe_bounds.py checks it against the twin.
+
+The spot's band edges outside (`out_edge_cuts`). A spot inside the sphere (d = |L - c| < R / eta) lights the
+fog outside through its falloff, whose band edges (cosines ce = cos_end, cos_start to its axis a) are kinks of the
+integrand along a segment: where the segment crosses the edge rays refracted out. The edge's directions are u(phi)
+= ce a - se (cos phi b1 + sin phi b2) (b1 the unit normal to a toward q = L - c, b2 = a x b1); each leaves at P =
+L + r u, r = S - b (b = q.u, S = sqrt(b^2 + R^2 - d^2) = R cos_1 >= S0 = sqrt(R^2 - d^2)), along t = eta u +
+(cos_2 - eta cos_1) n (n = (P - c) / R, cos_2 = sqrt(1 - eta^2 + eta^2 cos_1^2) >= sqrt(1 - eta^2 d^2 / R^2) > 0:
+no ray is totally reflected, so every phi in [-pi, pi] gives one smooth ray). A point of the segment whose one path
+leaves at the edge's cosine lies on such a ray, so the segment's crossings are among the roots of G(phi) =
+det(w, t, o - P) (the lines coplanar), each kept where the two lines meet at 0 < x < end ahead of P. Over all phi
+(|b|, |b'|, |b''| <= d, d se, d se; |S'| <= d^2 se / S0, |S''| <= (d^2 se^2 + d^2 se + S'^2) / S0; r <= R + d;
+P' = r' u + r u', P'' = r'' u + 2 r' u' + r u'' with |u'| = |u''| = se; cos_1 = S / R; |cos_2'| <= eta^2 |cos_1'| /
+cos_2, |cos_2''| <= (eta^2 (cos_1'^2 + |cos_1''|) + cos_2'^2) / cos_2; t' = eta u' + f' n + f n', t'' = eta u'' + f''
+n + 2 f' n' + f n'' with f = cos_2 - eta cos_1, |f| <= 1 + eta) K = |t''| (|o - c| + R) + 2 |t'| |P'| + |P''|
+bounds |G''|; G is scanned as `paths` scans h (`_halving`, its rounding 2 ((|o - c| + R)(e_t + 16u) + e_p + 4u (|o|
++ |c|)), e_p = 64u (|L| + |c| + R + d)(1 + d / S0) P's and e_t t's). QUAD integrates between the crossings (the
+falloff smooth between; a crossing misplaced by dx changes the integral by its jump in slope x dx^2 for a continuous
+falloff, far below the rounding; a hard edge's jump x dx is not in the bound); a scan not proven leaves the bound
+inf (counted). tests/test_globe_bounds.py checks the crossings against the twin's bisection of the leaving cosine.
 
 The band edges, proven (`edge_crossings`). The edge's directions out of the light L, at cosine ce
 to the spot's unit axis a, are u(phi) = ce a - se (cos phi b1 + sin phi b2) (se = sqrt(1 - ce^2), b1
@@ -2028,7 +2047,8 @@ class GlobeFog(NamedTuple):
     """One segment o + x w of the scattering medium outside a refractive exact sphere (centre c, radius; relative
     index eta inside) and a unit point light inside it at c + rel (a spot: its axis and cone), for one channel
     (kt, ks and the phase: the outside medium's; kt_in: the inside's); `paths_out`'s rows and scratch, and the
-    track: the evaluations whose scan was unproven or that found a number of paths other than one."""
+    track: the evaluations whose scan was unproven or that found a number of paths other than one, then (ROUNDING,
+    ROUNDING_ABS) the largest relative and absolute rounding of the evaluations (`fog_rounding`)."""
     o: np.ndarray
     w: np.ndarray
     c: np.ndarray
@@ -2150,14 +2170,15 @@ def _fog_value(x, r):
 @njit
 def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim0, seed, out, var, err, stats):
     """The outside medium's single scattering (N, C) over segments outside a refractive exact sphere (centre,
-    radius; relative index eta = its ior > 1 inside) from a unit point light inside it, closer to the centre than
-    radius / eta (geo rows of media/slab.py's GEO_COLUMNS; kt, ks: the outside's, kt_in the inside's, one each per
+    radius; relative index eta = its ior > 1 inside) from a unit point or spot light inside it, closer to the centre
+    than radius / eta (geo rows of media/slab.py's GEO_COLUMNS; kt, ks: the outside's, kt_in the inside's, one each per
     channel): `fog_value` along each segment. There every path leaves the sphere (the distance from the centre of
     a ray from the light, at most its own, is below radius / eta: the internal incidence below the critical
     angle) and each point outside has one path, the outward rays crossing neither each other nor the axis ahead
     (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the integrand is
-    smooth along the segment: QUAD media/adaptive.py `bounded_piecewise` over [0, end], end = min(ell, 745 / kt),
-    whole, its bound the rule's b plus 3 min(rho (|value| + b), e end) (rho, e: the largest relative and absolute
+    smooth along the segment but where it crosses a spot's band edges (`out_edge_cuts`): QUAD media/adaptive.py
+    `bounded_piecewise` over [0, end], end = min(ell, 745 / kt), cut there (bound inf where that scan is not proven),
+    its bound the rule's b plus 3 min(rho (|value| + b), e end) (rho, e: the largest relative and absolute
     rounding of its evaluations, `fog_rounding`; the rule's weights are positive and sum to end); MARCH, SAMPLE
     `march_or_sample` at dimensions dim0 (bound inf). The bound is inf on the segments with an evaluation whose
     scan was unproven or whose count of paths was not one (the light beyond radius / eta, which `check`
