@@ -1867,9 +1867,10 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
     F toward the direction -t the light leaves in (module docstring's tube at L from a unit light at q, over
     eta^2: the etendue n^2 dA dOmega is conserved, so the solid angle per area at q from L is the one at L from
     q over eta^2; light beyond the critical angle is totally reflected and meets no path, which enters from q
-    at cos_i > 0); toward the unit direction from q to the refraction point; inside s, outside o. A point q
-    within the sphere has none. Returns whether the scan was proven (True where q is within the sphere)."""
+    at cos_i > 0); toward the unit direction from q to the refraction point; inside s, outside o (of every path
+    out, where a spot does not reach too; outside 0: no path). A point q within the sphere has none. Returns whether the scan was proven (True where q is within the sphere)."""
     value[:] = 0.0
+    outside[:] = 0.0
     ez = q - c
     d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
     if not d > radius:
@@ -1885,6 +1886,7 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
         s = tz * (zx - pz) + ty * (yx - py)
         if cos_t == 0.0 or not s >= 0.0:
             continue
+        inside[k], outside[k] = s, o
         f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
                       + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
         tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
@@ -1894,7 +1896,6 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
         value[k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
         for j in range(3):
             toward[k, j] = ((pz - d) * ez[j] + py * ey[j]) / o
-        inside[k], outside[k] = s, o
     return proven
 
 
@@ -2148,8 +2149,8 @@ def fog_value(x, r):
     total = err = 0.0
     n = 0
     for k in range(MAX_PATHS):
+        n += r.outside[k] > 0.0
         if r.value[k] > 0.0:
-            n += 1
             mu = r.toward[k, 0] * r.w[0] + r.toward[k, 1] * r.w[1] + r.toward[k, 2] * r.w[2]
             term = phase_value(r.code, r.g, mu) * r.value[k] * math.exp(-r.kt * (x + r.outside[k])
                                                                        - r.kt_in * r.inside[k])
