@@ -17,11 +17,11 @@ from .support import STATS_SIZE
 def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int):
     """The segments of `segs` (whole camera rays) whose light is not held in a refractive shape, and of the others
     (`held_lights`: inside a convex refractive mesh or an exact sphere) the outside medium's air-light (N, 3), its
-    variance (N, 3; 0 but for a stochastic rule), bound (N, 3; inf where lit) and the kernels' statistics
-    (STATS_SIZE, support.py's slots: the exact sphere's unbounded segments): the light refracted out through every
-    face (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact sphere (media/sphere_refraction.py
-    `out_of_sphere`), integrated by the method's inside rule (`check` refuses volumetric shadows with another shape
-    in the scene, and in an exact sphere a spot or a light beyond radius / ior of its centre)."""
+    variance (N, 3; 0 but for a stochastic rule), bound (N, 3; quadrature's, else inf where lit) and the kernels'
+    statistics (STATS_SIZE, support.py's slots: the exact sphere's unbounded segments): the light refracted out
+    through every face (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact sphere
+    (media/sphere_refraction.py `out_of_sphere`), integrated by the method's inside rule (`check` refuses volumetric
+    shadows with another shape in the scene, and in an exact sphere a light beyond radius / ior of its centre)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..lights import Lights, has_cone
+from ..lights import Lights
 from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.sphere_refraction import UNBOUNDED
@@ -153,8 +153,8 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     """Why light li inside the interior of shape sid is refused, None where it is taken:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
-    scattering outside medium (`held_airlight`) a point or spot light in a convex mesh or a point light well inside
-    an exact sphere (`_globe_fog`), and with volumetric shadows no other shape."""
+    scattering outside medium (`held_airlight`) a point or spot light in a convex mesh or well inside an exact sphere
+    (`_globe_fog`), and with volumetric shadows no other shape."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     sphere = paths.exact_sphere(prep, sid) is not None
@@ -181,15 +181,12 @@ def _not_held(prep, sid, li, shadows) -> str | None:
 
 
 def _globe_fog(prep, sid, li) -> str | None:
-    """Why point light li inside the refractive exact sphere sid is refused with a scattering outside medium (None
-    where taken: ior > 1 and the light closer to the centre than radius / ior, where each point outside has one
-    path, media/sphere_refraction.py `out_of_sphere`)."""
+    """Why point or spot light li inside the refractive exact sphere sid is refused with a scattering outside medium
+    (None where taken: ior > 1 and the light closer to the centre than radius / ior, where each point outside has
+    one path, media/sphere_refraction.py `out_of_sphere`)."""
     sphere = paths.exact_sphere(prep, sid)
     centre, radius = sphere[:3], float(sphere[3])
     ior = prep.scene.shapes[sid].interior.ior
-    if has_cone(prep.lights.cone[li, 1]):
-        return ("as a spot in an exact sphere lights the scattering [medium] outside, where the cuts at its cone's "
-                "refracted edges are not implemented yet; use a point light, or a [medium] that does not scatter")
     if ior < 1.0 or np.linalg.norm(prep.lights.position[li] - centre) >= radius / ior:
         return (f"in an exact sphere lights the scattering [medium] outside only from within radius / ior "
                 f"({radius / ior:g}) of its centre, with ior > 1; beyond, the breaks where its paths out change (the "

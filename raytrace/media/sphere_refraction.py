@@ -1,7 +1,7 @@
 """Single scattering inside a refractive exact sphere (geometry/sphere.py) lit through the sphere:
 the exact refracted light at each inside point, for point, spot and directional lights; and the light
 of a point or spot light inside the sphere on surfaces outside (`surface_out_of_sphere`), and of a point
-light well inside it in a scattering medium outside (`out_of_sphere`), on its paths out.
+or spot light well inside it in a scattering medium outside (`out_of_sphere`), on its paths out.
 
 The plane of the light's paths: a ray from a point light L (or along a directional light) refracted
 at P on the sphere (centre c, radius R) stays in the plane through L, c and P (the normal at P lies in
@@ -152,6 +152,45 @@ segment's bound inf): a cell undecided after MAX_HALVINGS halvings or MAX_EVALS 
 within rounding of tangent to the caustic surface: tests/test_caustic_crossings.py, against the
 envelope of the refracted rays from mpmath, finds every crossing and the scan proven on lines 1e-3 to
 1e-6 from tangent and beside the cusp, not always at 1e-9), or wz = 0.
+
+The fog's bound (`fog_rounding`, `out_of_sphere`). An evaluation of `fog_value` at o + x w rounds q = o + x w
+(3u (|o| + x)), q - c and d = |q - c| (dd = 3u (|o| + x) + 6u d), the axis e_z (dez = dd / d + 8u, absolute), the
+light's coordinates X = (z_X, y_X) about it (dxy = |L - c| (3 dez + 16u)) and e_y (2 |L - c| (2 dez + 10u) / y_X).
+At fixed theta d turns the arriving direction at P by dal = |p_y| dd / o^2 (d alpha / dd = p_y / o^2), plus its
+own rounding (`angular_bounds`' e_t, which bounds it). The root: h = t x (X - P) has h_theta = R cos_t (1 - s
+kappa_t) (t' = phi' n, t' x (X - P) = -phi' s, t x P' = -R cos_t: the tube's width in the plane) and h_d =
+-s phi_d, |phi_d| <= g' dal / dd (g' = cos_i / (eta cos_t)), so the computed root is off by at most the least of
+2 (dh + dxy + s g' dal) / |h_theta| + 4u theta_a (first order, doubled: dh `paths`' rounding of h) and `paths`'
+proven spread plus what of dxy exceeds its dx and s g' dal, over |h_theta|. Then theta_i is off by a1 dth + dal,
+t's angle by p1 dth + g' dal + e_t (a1, p1 of the root's SCAN cell), o by R dth + dd, s by that angle x (|X| + R)
++ R dth + dxy; and the term's relative error, first order, doubled: the legs' attenuation (their errors times
+kt and kt_in, 16u of the exponent), 1 / o^2 (2 do / o), T cos_i / cos_t (Fresnel's T at most twice cos_i's
+relative error for eta > 1, |d cos_t| <= |d cos_i| / (eta^2 cos_t), 16u / T its own rounding), the tube factors
+1 - s kappa (kappa's error through the cosines and 1 / o, s's, and their rounding, each over the factor), the
+phase at its condition times toward's error ((R dth + dd) / o + dez + |p_y| / o x e_y's) and a spot's falloff at
+its slope times the cosine's error (t's angle, e_z's and e_y's). It grows like 8u (R + d) / o toward the glass (the
+arriving direction's rounding): measured at most 1e-8 of the value there, 1.4e-11 at a distance. The integral's:
+media/adaptive.py's rule bound b plus 3 min(rho (|value| + b), e x length) (rho, e the largest relative and
+absolute rounding of the evaluations). tests/test_globe_bounds.py checks it against the twin.
+
+The spot's band edges outside (`out_edge_cuts`). A spot inside the sphere (d = |L - c| < R / eta) lights the
+fog outside through its falloff, whose band edges (cosines ce = cos_end, cos_start to its axis a) are kinks of the
+integrand along a segment: where the segment crosses the edge rays refracted out. The edge's directions are u(phi)
+= ce a - se (cos phi b1 + sin phi b2) (b1 the unit normal to a toward q = L - c, b2 = a x b1); each leaves at P =
+L + r u, r = S - b (b = q.u, S = sqrt(b^2 + R^2 - d^2) = R cos_1 >= S0 = sqrt(R^2 - d^2)), along t = eta u +
+(cos_2 - eta cos_1) n (n = (P - c) / R, cos_2 = sqrt(1 - eta^2 + eta^2 cos_1^2) >= sqrt(1 - eta^2 d^2 / R^2) > 0:
+no ray is totally reflected, so every phi in [-pi, pi] gives one smooth ray). A point of the segment whose one path
+leaves at the edge's cosine lies on such a ray, so the segment's crossings are among the roots of G(phi) =
+det(w, t, o - P) (the lines coplanar), each kept where the two lines meet at 0 < x < end ahead of P. Over all phi
+(|b|, |b'|, |b''| <= d, d se, d se; |S'| <= d^2 se / S0, |S''| <= (d^2 se^2 + d^2 se + S'^2) / S0; r <= R + d;
+P' = r' u + r u', P'' = r'' u + 2 r' u' + r u'' with |u'| = |u''| = se; cos_1 = S / R; |cos_2'| <= eta^2 |cos_1'| /
+cos_2, |cos_2''| <= (eta^2 (cos_1'^2 + |cos_1''|) + cos_2'^2) / cos_2; t' = eta u' + f' n + f n', t'' = eta u'' + f''
+n + 2 f' n' + f n'' with f = cos_2 - eta cos_1, |f| <= 1 + eta) K = |t''| (|o - c| + R) + 2 |t'| |P'| + |P''|
+bounds |G''|; G is scanned as `paths` scans h (`_halving`, its rounding 2 ((|o - c| + R)(e_t + 16u) + e_p + 4u (|o|
++ |c|)), e_p = 64u (|L| + |c| + R + d)(1 + d / S0) P's and e_t t's). QUAD integrates between the crossings (the
+falloff smooth between; a crossing misplaced by dx changes the integral by its jump in slope x dx^2 for a continuous
+falloff, far below the rounding; a hard edge's jump x dx is not in the bound); a scan not proven leaves the bound
+inf (counted). tests/test_globe_bounds.py checks the crossings against the twin's bisection of the leaving cosine.
 
 The band edges, proven (`edge_crossings`). The edge's directions out of the light L, at cosine ce
 to the spot's unit axis a, are u(phi) = ce a - se (cos phi b1 + sin phi b2) (se = sqrt(1 - ce^2), b1
@@ -1828,9 +1867,10 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
     F toward the direction -t the light leaves in (module docstring's tube at L from a unit light at q, over
     eta^2: the etendue n^2 dA dOmega is conserved, so the solid angle per area at q from L is the one at L from
     q over eta^2; light beyond the critical angle is totally reflected and meets no path, which enters from q
-    at cos_i > 0); toward the unit direction from q to the refraction point; inside s, outside o. A point q
-    within the sphere has none. Returns whether the scan was proven (True where q is within the sphere)."""
+    at cos_i > 0); toward the unit direction from q to the refraction point; inside s, outside o (of every path
+    out, where a spot does not reach too; outside 0: no path). A point q within the sphere has none. Returns whether the scan was proven (True where q is within the sphere)."""
     value[:] = 0.0
+    outside[:] = 0.0
     ez = q - c
     d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
     if not d > radius:
@@ -1846,6 +1886,7 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
         s = tz * (zx - pz) + ty * (yx - py)
         if cos_t == 0.0 or not s >= 0.0:
             continue
+        inside[k], outside[k] = s, o
         f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
                       + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
         tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
@@ -1855,15 +1896,160 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
         value[k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
         for j in range(3):
             toward[k, j] = ((pz - d) * ez[j] + py * ey[j]) / o
-        inside[k], outside[k] = s, o
     return proven
+
+
+class OutEdge(NamedTuple):
+    """A spot's band edge at cosine ce (sine se) to its unit axis a, the spot inside the sphere at q = L - c (d = |q|
+    < radius / eta), and one segment outside (start oc relative to the centre, direction w): b1, b2 across a (b1
+    toward q), k2 the bound on |G''| and dg G's rounding (`out_edge`; 3-tuples: no arrays in the scan)."""
+    ce: float
+    se: float
+    a: tuple
+    b1: tuple
+    b2: tuple
+    q: tuple
+    oc: tuple
+    w: tuple
+    radius: float
+    eta: float
+    d: float
+    k2: float
+    dg: float
+
+
+@njit
+def _out_edge_ray(phi, k):
+    """(P - c, t) of the edge ray u(phi) = ce a - se (cos phi b1 + sin phi b2) of the `OutEdge` k: where it leaves
+    the sphere, P = L + r u, r = S - b (b = q.u, S = sqrt(b^2 + R^2 - d^2) = R cos_1), and its direction
+    out, t = eta u + (cos_2 - eta cos_1) n (n = (P - c) / R, cos_2 = sqrt(1 - eta^2 (1 - cos_1^2)))."""
+    cp, sp = math.cos(phi), math.sin(phi)
+    a, b1, b2, q, radius, eta = k.a, k.b1, k.b2, k.q, k.radius, k.eta
+    u = (k.ce * a[0] - k.se * (cp * b1[0] + sp * b2[0]), k.ce * a[1] - k.se * (cp * b1[1] + sp * b2[1]),
+         k.ce * a[2] - k.se * (cp * b1[2] + sp * b2[2]))
+    b = q[0] * u[0] + q[1] * u[1] + q[2] * u[2]
+    sq = math.sqrt(max(b * b + (radius - k.d) * (radius + k.d), 0.0))
+    pc = _axpy(q, sq - b, u)
+    c1 = sq / radius
+    f = (math.sqrt(max(1.0 - eta * eta * (1.0 - c1) * (1.0 + c1), 0.0)) - eta * c1) / radius
+    return pc, (eta * u[0] + f * pc[0], eta * u[1] + f * pc[1], eta * u[2] + f * pc[2])
+
+
+@njit
+def out_edge_gap(phi, k):
+    """G(phi) = det(w, t, oc - P) of the `OutEdge` k: 0 where the segment's line meets the edge ray out's."""
+    pc, t = _out_edge_ray(phi, k)
+    return _det(k.w, t, (k.oc[0] - pc[0], k.oc[1] - pc[1], k.oc[2] - pc[2]))
+
+
+@_at_of(OutEdge, inline=True)
+@njit
+def _out_edge_at(k, x):
+    return (out_edge_gap(x, k),)
+
+
+@_value_of(OutEdge, inline=True)
+@njit
+def _out_edge_value(k, x):
+    return out_edge_gap(x, k)
+
+
+@_cell_of(OutEdge, inline=True)
+@njit
+def _out_edge_cell(k, a, b, j, e):
+    """As `_paths_cell`, by the `OutEdge`'s K and G's rounding."""
+    fa, fb, w = e[0], e[1], b - a
+    if fa * fb > 0.0:
+        return -1 if min(abs(fa), abs(fb)) - k.dg > 0.125 * k.k2 * w * w or \
+            abs(fb - fa) - 2.0 * k.dg > k.k2 * w * w else 0
+    return 1 if abs(fb - fa) - 2.0 * k.dg > k.k2 * w * w else 0
+
+
+@_spread_of(OutEdge, inline=True)
+@njit
+def _out_edge_spread(k, root, a, b, fa, fb, j):
+    return math.inf
+
+
+@njit
+def out_edge(o, w, c, radius, light, axis, ce, eta):
+    """The `OutEdge` of a spot at light (unit axis, edge cosine ce, |light - c| < radius / eta) and the segment o +
+    x w (module docstring, "The spot's band edges outside"): K = |t''| (|oc| + R) + 2 |t'| |P'| + |P''| over all
+    phi from the derivatives' bounds there, and G's rounding."""
+    a = axis / _norm(axis)
+    q = light - c
+    d = _norm(q)
+    qa = q[0] * a[0] + q[1] * a[1] + q[2] * a[2]
+    b1 = q - qa * a
+    if not _norm(b1) > 1e-12 * d:  # q along the axis: any normal to it
+        i = 0 if abs(a[0]) < 0.9 else 1
+        b1[:] = -a[i] * a
+        b1[i] += 1.0
+    b1 /= _norm(b1)
+    b2 = np.array([a[1] * b1[2] - a[2] * b1[1], a[2] * b1[0] - a[0] * b1[2], a[0] * b1[1] - a[1] * b1[0]])
+    se = math.sqrt((1.0 - ce) * (1.0 + ce))
+    oc = o - c
+    s0 = math.sqrt((radius - d) * (radius + d))  # the least S
+    c2 = math.sqrt(max(1.0 - (eta * d / radius) ** 2, 0.0))  # the least cos_2
+    db = d * se  # |b'|, |b''|
+    ds1 = d * db / s0
+    ds2 = (db * db + d * db + ds1 * ds1) / s0
+    r0, r1, r2 = radius + d, ds1 + db, ds2 + db
+    p1, p2 = r1 + r0 * se, r2 + 2.0 * r1 * se + r0 * se
+    c11, c12 = ds1 / radius, ds2 / radius
+    c21 = eta * eta * c11 / c2
+    c22 = eta * eta * (c11 * c11 + c12) / c2 + c21 * c21 / c2
+    f0, f1, f2 = 1.0 + eta, c21 + eta * c11, c22 + eta * c12
+    t1 = eta * se + f1 + f0 * p1 / radius
+    t2 = eta * se + f2 + 2.0 * f1 * p1 / radius + f0 * p2 / radius
+    reach = _norm(oc) + radius
+    k2 = (t2 * reach + 2.0 * t1 * p1 + p2) * (1.0 + 1e-9)
+    ep = 64.0 * U * (_norm(light) + _norm(c) + radius + d) * (1.0 + d / s0)
+    et = 8.0 * U * eta + (1.0 + eta + eta * eta / c2) * ep / radius + (1.0 + eta) * ep / radius + 16.0 * U
+    dg = 2.0 * (reach * (et + 16.0 * U) + ep + 4.0 * U * (_norm(o) + _norm(c)))
+    return OutEdge(ce, se, _tuple(a), _tuple(b1), _tuple(b2), _tuple(q), _tuple(oc), _tuple(w), radius, eta, d, k2, dg)
+
+
+@njit
+def out_edge_cuts(o, w, c, radius, light, axis, cone, eta, end, out):
+    """The x in (0, end) where the segment o + x w crosses a spot's band edges' rays out of the sphere (both edges,
+    cone = (cos_end, cos_start, curve)) into out, ascending; returns (count, proven): per edge `_halving` over phi
+    in [-pi, pi] of G (`out_edge`), each root's ray meeting the segment's line at x (kept where 0 < x < end and
+    ahead of P). Unproven where a scan was, or out filled up."""
+    m, proven = 0, True
+    found, spread = np.empty(EDGES), np.empty(EDGES)
+    for e in range(2):
+        ce = cone[e]
+        if not -1.0 < ce < 1.0 or (e == 1 and ce == cone[0]):
+            continue
+        k = out_edge(o, w, c, radius, light, axis, ce, eta)
+        n, ok = _halving(k, -math.pi, 2.0 * math.pi / SCAN, 0, -math.pi, False, found, spread)
+        proven = proven and ok and n < EDGES
+        for i in range(n):
+            pc, t = _out_edge_ray(found[i], k)
+            v = (pc[0] - k.oc[0], pc[1] - k.oc[1], pc[2] - k.oc[2])  # P - o
+            wt = (w[1] * t[2] - w[2] * t[1], w[2] * t[0] - w[0] * t[2], w[0] * t[1] - w[1] * t[0])
+            nn = wt[0] * wt[0] + wt[1] * wt[1] + wt[2] * wt[2]
+            if not nn > 0.0:
+                continue
+            x = _det(v, t, wt) / nn
+            sig = _det(v, w, wt) / nn
+            if 0.0 < x < end and sig > 0.0:
+                if m < out.shape[0]:
+                    out[m] = x
+                    m += 1
+                else:
+                    proven = False
+    sort_few(out, 0, m)
+    return m, proven
 
 
 class GlobeFog(NamedTuple):
     """One segment o + x w of the scattering medium outside a refractive exact sphere (centre c, radius; relative
     index eta inside) and a unit point light inside it at c + rel (a spot: its axis and cone), for one channel
     (kt, ks and the phase: the outside medium's; kt_in: the inside's); `paths_out`'s rows and scratch, and the
-    track: the evaluations whose scan was unproven or that found a number of paths other than one."""
+    track: the evaluations whose scan was unproven or that found a number of paths other than one, then (ROUNDING,
+    ROUNDING_ABS) the largest relative and absolute rounding of the evaluations (`fog_rounding`)."""
     o: np.ndarray
     w: np.ndarray
     c: np.ndarray
@@ -1887,24 +2073,92 @@ class GlobeFog(NamedTuple):
 
 
 @njit
+def fog_rounding(r, x, q, k):
+    """The relative rounding bound of path k's term of `fog_value` at o + x w (q as computed; module docstring,
+    "The fog's bound"), first order doubled, inf where a bound does not apply."""
+    radius, eta = r.radius, r.eta
+    rn = math.sqrt(r.rel[0] * r.rel[0] + r.rel[1] * r.rel[1] + r.rel[2] * r.rel[2])
+    ez = q - r.c
+    d = math.sqrt(ez[0] * ez[0] + ez[1] * ez[1] + ez[2] * ez[2])
+    if not (d > radius and rn < radius):
+        return math.inf
+    ez /= d
+    zx, yx, ey = _about(r.rel, ez)
+    ev = 3.0 * U * (math.sqrt(r.o[0] * r.o[0] + r.o[1] * r.o[1] + r.o[2] * r.o[2]) + x) + 2.0 * U * d  # q - c's
+    dd, dez = ev + 4.0 * U * d, ev / d + 8.0 * U  # d's error, ez's (absolute)
+    dxy = rn * (3.0 * dez + 16.0 * U)  # X's coordinates'
+    dey = 2.0 * rn * (2.0 * dez + 10.0 * U) / yx if yx > 0.0 else math.inf
+    theta_a = lit_arc(radius, d, eta)
+    step = 2.0 * theta_a / SCAN
+    j = min(max(int((r.found[k] + theta_a) / step), 0), SCAN - 1)
+    p1, _, et, a1 = angular_bounds(-theta_a + j * step, -theta_a + (j + 1) * step, radius, d, eta)
+    pz, py, tz, ty, cos_i, cos_t, o = incidence(r.found[k], radius, d, eta)
+    s, reach, inv_o = r.inside[k], rn + radius, 1.0 / o
+    kappa_t = tangential_curvature(cos_i, cos_t, inv_o, radius, eta)
+    kappa_s = ((eta * cos_t - cos_i) / radius - inv_o) / eta
+    tang, sag = 1.0 - s * kappa_t, 1.0 - s * kappa_s
+    g1 = cos_i / (eta * cos_t)  # |d phi / d alpha|
+    dal = abs(py) * dd * inv_o * inv_o + et  # the arriving direction at fixed theta: d's error, its own rounding
+    # the root: h off by its rounding dh, X's offset dxy and d's error (h_d = -s phi_d), over |h_theta| = R cos_t
+    # |1 - s kappa_t|, first order doubled, or `paths_out`'s spread (h's rounding, X off by its dx) and the rest
+    dx = 16.0 * U * (d + 2.0 * radius + rn)
+    slope = radius * cos_t * abs(tang)
+    dh = 2.0 * (2.0 * et * reach + 16.0 * U * (radius + reach))
+    dth = min(2.0 * (dh + dxy + s * g1 * dal) / slope + 4.0 * U * theta_a,
+              r.spread[k] + (max(dxy - dx, 0.0) + s * g1 * dal) / slope)
+    dti = a1 * dth + dal  # the incidence angle's error
+    dphi = p1 * dth + g1 * dal + et  # t's direction's
+    do = radius * dth + dd + 4.0 * U * o
+    ds = dphi * reach + radius * dth + dxy + 8.0 * U * reach
+    eps = r.kt * (do + 4.0 * U * (x + o)) + r.kt_in * (ds + 4.0 * U * s) + 64.0 * U
+    eps += 16.0 * U * (r.kt * (x + o) + r.kt_in * s)
+    eps += 2.0 * do * inv_o  # 1 / o^2
+    dci, dct = dti, dti / (eta * eta * cos_t)  # |d cos_i|, |d cos_t| (sin_t <= 1 / eta)
+    eps += 3.0 * dci / cos_i + dct / cos_t + 16.0 * U / (1.0 - fresnel(cos_i, eta))  # T cos_i, cos_t
+    dinv = do * inv_o * inv_o  # 1 / o's
+    nt = (eta * cos_t - cos_i) / radius - cos_i * cos_i * inv_o
+    dnt = (eta * dct + dci) / radius + 2.0 * cos_i * dci * inv_o + cos_i * cos_i * dinv
+    dkt = dnt / (eta * cos_t * cos_t) + 2.0 * abs(nt) * dct / (eta * cos_t ** 3)
+    eps += (ds * abs(kappa_t) + s * dkt + 32.0 * U * (1.0 + s * (abs(kappa_t) + 1.0 / radius + inv_o)
+                                                      / (cos_t * cos_t))) / abs(tang)
+    dks = ((eta * dct + dci) / radius + dinv) / eta
+    eps += (ds * abs(kappa_s) + s * dks + 16.0 * U * (1.0 + s * (abs(kappa_s) + 1.0 / radius + inv_o))) / abs(sag)
+    # toward = ((pz - d) e_z + py e_y) / o: P's move, q's and the frame's
+    dmu = (radius * dth + dd) * inv_o + dez + (abs(py) * inv_o * dey if py != 0.0 else 0.0) + 8.0 * U
+    eps += phase_condition(r.code, r.g) * dmu
+    eps = 2.0 * eps
+    cone = r.cone
+    f = falloff(-((tz * ez[0] + ty * ey[0]) * r.axis[0] + (tz * ez[1] + ty * ey[1]) * r.axis[1]
+                  + (tz * ez[2] + ty * ey[2]) * r.axis[2]), cone[0], cone[1], int(cone[2]))
+    if f < 1.0:  # the falloff at the error of the cosine of -t to the axis, absolute, over F
+        dc = dphi + dez + (abs(ty) * dey if ty != 0.0 else 0.0) + 8.0 * U
+        eps += 2.0 * band_slope(cone[0], cone[1], int(cone[2])) / (cone[1] - cone[0]) * dc / f
+    return eps
+
+
+@njit
 def fog_value(x, r):
     """The outside medium's single scattering at o + x w of the `GlobeFog` r: over the paths out (`paths_out`),
-    ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point)."""
+    ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point); the
+    rounding of the sum (`fog_rounding`) into the track: the largest relative and absolute of the evaluations."""
     q = np.empty(3)
     for j in range(3):
         q[j] = r.o[j] + x * r.w[j]
     proven = paths_out(q, r.c, r.radius, r.rel, r.axis, r.cone, r.eta, r.found, r.spread, r.value, r.toward,
                        r.inside, r.outside)
-    total = 0.0
+    total = err = 0.0
     n = 0
     for k in range(MAX_PATHS):
+        n += r.outside[k] > 0.0
         if r.value[k] > 0.0:
-            n += 1
             mu = r.toward[k, 0] * r.w[0] + r.toward[k, 1] * r.w[1] + r.toward[k, 2] * r.w[2]
-            total += phase_value(r.code, r.g, mu) * r.value[k] * math.exp(-r.kt * (x + r.outside[k])
-                                                                           - r.kt_in * r.inside[k])
+            term = phase_value(r.code, r.g, mu) * r.value[k] * math.exp(-r.kt * (x + r.outside[k])
+                                                                       - r.kt_in * r.inside[k])
+            total += term
+            err += r.ks * term * fog_rounding(r, x, q, k)
     if n != 1 or not proven:
         r.track[0] += 1.0
+    _track_rounding(r.track, r.ks * total, err, ROUNDING_ABS)
     return r.ks * total
 
 
@@ -1917,16 +2171,19 @@ def _fog_value(x, r):
 @njit
 def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim0, seed, out, var, err, stats):
     """The outside medium's single scattering (N, C) over segments outside a refractive exact sphere (centre,
-    radius; relative index eta = its ior > 1 inside) from a unit point light inside it, closer to the centre than
-    radius / eta (geo rows of media/slab.py's GEO_COLUMNS; kt, ks: the outside's, kt_in the inside's, one each per
+    radius; relative index eta = its ior > 1 inside) from a unit point or spot light inside it, closer to the centre
+    than radius / eta (geo rows of media/slab.py's GEO_COLUMNS; kt, ks: the outside's, kt_in the inside's, one each per
     channel): `fog_value` along each segment. There every path leaves the sphere (the distance from the centre of
     a ray from the light, at most its own, is below radius / eta: the internal incidence below the critical
     angle) and each point outside has one path, the outward rays crossing neither each other nor the axis ahead
     (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the integrand is
-    smooth along the segment: QUAD media/adaptive.py `bounded_piecewise` over [0, min(ell, 745 / kt)] whole;
-    MARCH, SAMPLE `march_or_sample` at dimensions dim0. The bound is inf (the evaluations' rounding not derived);
-    the segments with an evaluation whose scan was unproven or whose count of paths was not one (the light beyond
-    radius / eta, which `check` refuses) are counted in stats[UNBOUNDED]."""
+    smooth along the segment but where it crosses a spot's band edges (`out_edge_cuts`): QUAD media/adaptive.py
+    `bounded_piecewise` over [0, end], end = min(ell, 745 / kt), cut there (bound inf where that scan is not proven),
+    its bound the rule's b plus 3 min(rho (|value| + b), e end) (rho, e: the largest relative and absolute
+    rounding of its evaluations, `fog_rounding`; the rule's weights are positive and sum to end); MARCH, SAMPLE
+    `march_or_sample` at dimensions dim0 (bound inf). The bound is inf on the segments with an evaluation whose
+    scan was unproven or whose count of paths was not one (the light beyond radius / eta, which `check`
+    refuses), counted in stats[UNBOUNDED] with the QUAD segments whose bound is inf for another reason."""
     nc = kt.shape[0]
     cone = np.empty(3)
     for s in range(geo.shape[0]):
@@ -1934,7 +2191,12 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
         if not ell[s] > 0.0:
             continue
         cone[0], cone[1], cone[2] = geo[s, 12], geo[s, 13], geo[s, 17]
-        track = np.zeros(1)
+        track = np.zeros(3)
+        cuts = np.zeros(2 * EDGES + 2)
+        m, proven = 0, True
+        if rule.kind == QUAD:
+            m, proven = out_edge_cuts(geo[s, :3], geo[s, 3:6], sphere[:3], sphere[3], geo[s, 6:9], geo[s, 9:12],
+                                      cone, eta, ell[s], cuts[1:2 * EDGES + 1])
         for c in range(nc):
             if ks[c] == 0.0:
                 continue
@@ -1943,11 +2205,22 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty((MAX_PATHS, 3)),
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), track)
             if rule.kind == QUAD:
-                out[s, c], _ = bounded_piecewise(rec, (0.0, min(ell[s], 745.0 / kt[c])), 2, rule.rtol, N10, W10, N20,
-                                                 W20, stats)
+                end = min(ell[s], 745.0 / kt[c])
+                n = 1
+                while n <= m and cuts[n] < end:
+                    n += 1
+                br = cuts[:n + 1].copy()  # 0, the cuts before end, end
+                br[n] = end
+                track[ROUNDING] = track[ROUNDING_ABS] = 0.0
+                out[s, c], b = bounded_piecewise(rec, br, n + 1, rule.rtol, N10, W10, N20, W20, stats)
+                if not proven:
+                    b = math.inf
+                err[s, c] = b + 3.0 * min(track[ROUNDING] * (abs(out[s, c]) + b), track[ROUNDING_ABS] * end)
             else:
                 out[s, c], var[s, c] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt[c]), kt[c], keys[s],
                                                        dim0, seed)
-            err[s, c] = math.inf
+                err[s, c] = math.inf
         if track[0] > 0.0:
+            err[s, :] = math.inf
+        if track[0] > 0.0 or (rule.kind == QUAD and not np.all(err[s] < math.inf)):
             stats[UNBOUNDED] += 1.0
