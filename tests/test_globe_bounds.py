@@ -11,17 +11,15 @@ import pathlib
 import numpy as np
 import pytest
 
-from raytrace.lights import SMOOTHSTEP
 from raytrace.media.inside_rule import MARCH, QUAD, SAMPLE, inside_rule
 from raytrace.media.phase import HG
-from raytrace.media.slab import GEO_COLUMNS
 from raytrace.media.sphere_refraction import UNBOUNDED, out_of_sphere
 
 from . import oracle
 from .test_globe_fog import G_OUT, KS_OUT, floor_t
 from .test_lamp_in_glass import CAMERA, ETA, KA, KA_OUT, KS, LAMP, SPOT, refract
 from .test_lamp_in_globe import CENTRE, RADIUS, SPHERE, exit_points, sphere_hits
-from .test_refracted_point_light import spot_terms
+from .test_refracted_point_light import segment_geo, spot_terms
 
 PIXELS = [(j, i) for j in range(0, 6, 2) for i in range(1, 8, 2)] + [(2, 4), (3, 5)]  # (2, 3), (2, 4), (3, 5): globe
 
@@ -94,14 +92,7 @@ def kernel(light, rtol, kind=QUAD, steps=1, seed=0):
     """`out_of_sphere`'s air-light (N, 3) of SEGMENTS, its bound (its variance for a stochastic rule), times the
     light's intensity, and the count of unbounded segments (stats[UNBOUNDED]), by the inside rule `kind`."""
     n = len(SEGMENTS)
-    geo = np.zeros((n, GEO_COLUMNS))
-    for k, (o, d, _) in enumerate(SEGMENTS):
-        geo[k, :3], geo[k, 3:6], geo[k, 6:9] = o, d, light["position"]
-    spot = spot_terms(light)
-    if spot is None:
-        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = [0.0, 0.0, -1.0], [-2.0, -1.5], SMOOTHSTEP
-    else:
-        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = spot[0], spot[1:], SMOOTHSTEP
+    geo = segment_geo(SEGMENTS, light)
     ell = np.array([t for _, _, t in SEGMENTS])
     out, var, err, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(10)
     out_of_sphere(geo, SPHERE, ell, np.full(3, KA_OUT), np.full(3, KS_OUT), HG, G_OUT, KS + KA, ETA,

@@ -16,14 +16,14 @@ import pytest
 from raytrace.lights import SMOOTHSTEP
 from raytrace.media.inside_rule import QUAD, inside_rule
 from raytrace.media.phase import ISOTROPIC
-from raytrace.media.slab import GEO_COLUMNS, out_of_faces
+from raytrace.media.slab import out_of_faces
 
 from . import oracle
 from .test_bounded_media import box_entry
 from .test_lamp_in_glass import CAMERA, ETA, HI, KA, KS, LAMP, LO, refract
 from .test_lantern_fog import KA_OUT, KS_OUT, floor_t
 from .test_lantern_fog_spot import HARD, SIDE
-from .test_refracted_point_light import spot_terms
+from .test_refracted_point_light import segment_geo
 
 PLANES = np.array([[s * e[0], s * e[1], s * e[2], 1.0] for e in np.eye(3) for s in (-1.0, 1.0)])
 U = 2.0 ** -53
@@ -56,14 +56,7 @@ SEGMENTS = [s for j, i in PIXELS for s in fog_segments(j, i)]
 def kernel(light, rtol, dplanes=DPLANES):
     """`out_of_faces`' air-light (N, 3) of SEGMENTS and its bound, times the light's intensity."""
     n = len(SEGMENTS)
-    geo = np.zeros((n, GEO_COLUMNS))
-    for k, (o, d, _) in enumerate(SEGMENTS):
-        geo[k, :3], geo[k, 3:6], geo[k, 6:9] = o, d, light["position"]
-    spot = spot_terms(light)
-    if spot is None:
-        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = [0.0, 0.0, -1.0], [-2.0, -1.5], SMOOTHSTEP
-    else:
-        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = spot[0], spot[1:], SMOOTHSTEP
+    geo = segment_geo(SEGMENTS, light)
     ell = np.array([t for _, _, t in SEGMENTS])
     out, var, err, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(10)
     args = (geo, PLANES, ell, np.full(3, KA_OUT), np.full(3, KS_OUT), ISOTROPIC, 0.0, KS + KA, 1.0 / ETA,

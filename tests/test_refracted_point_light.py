@@ -24,6 +24,8 @@ import pytest
 from scipy import integrate, optimize
 
 from raytrace.errors import UserError
+from raytrace.lights import SMOOTHSTEP
+from raytrace.media.slab import GEO_COLUMNS
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -86,6 +88,20 @@ def spot_terms(light):
     axis = np.array(light["look_at"], float) - np.array(light["position"], float)
     return axis / np.linalg.norm(axis), math.cos(math.radians(light["cone_angle"])), \
         math.cos(math.radians(light["falloff_start"]))
+
+
+def segment_geo(segments, light):
+    """The kernels' geometry rows (N, GEO_COLUMNS) of segments [(o, d, t)] under a lamp or spot `light` (its cone
+    and smoothstep falloff; a lamp's cone row never cuts)."""
+    geo = np.zeros((len(segments), GEO_COLUMNS))
+    for k, (o, d, _) in enumerate(segments):
+        geo[k, :3], geo[k, 3:6], geo[k, 6:9] = o, d, light["position"]
+    spot = spot_terms(light)
+    if spot is None:
+        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = [0.0, 0.0, -1.0], [-2.0, -1.5], SMOOTHSTEP
+    else:
+        geo[:, 9:12], geo[:, 12:14], geo[:, 17] = spot[0], spot[1:], SMOOTHSTEP
+    return geo
 
 
 def smoothstep(c, cos_end, cos_start):
