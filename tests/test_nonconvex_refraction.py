@@ -157,17 +157,14 @@ def paths(X, light):
     return out
 
 
-def twin_pixel(light, i, j):
-    """The pixel's radiance (3,), or None where the camera ray's light is not the one inside stretch the twin
-    follows (its reflection or its way out meets the U again)."""
-    o, d = oracle.camera_ray(CAMERA, i, j)
+def inside_stretch(o, d):
+    """(t0, cos_i, P, w, ell): the distance to the entry point, the cosine of incidence there, the entry point, the
+    refracted direction and the length of the camera ray (o, d)'s stretch inside the U, which it meets; None where
+    its reflection or its way out meets the U again (light the twins do not follow)."""
     t0, f0 = first(o, d)
-    if not np.isfinite(t0):
-        return np.zeros(3)
     n = NORMALS[f0] * (-1.0 if NORMALS[f0] @ d > 0 else 1.0)
     P = o + t0 * d
-    refl = d - 2 * (d @ n) * n
-    if np.isfinite(first(P, refl)[0]):
+    if np.isfinite(first(P, d - 2 * (d @ n) * n)[0]):
         return None
     w = refract(d, n, ETA)
     ell, f1 = first(P, w)
@@ -175,6 +172,19 @@ def twin_pixel(light, i, j):
     out_dir = refract(w, -n1, 1.0 / ETA)
     if out_dir is not None and np.isfinite(first(P + ell * w, out_dir)[0]):
         return None
+    return t0, -float(d @ n), P, w, ell
+
+
+def twin_pixel(light, i, j):
+    """The pixel's radiance (3,), or None where the camera ray's light is not the one inside stretch the twin
+    follows (its reflection or its way out meets the U again)."""
+    o, d = oracle.camera_ray(CAMERA, i, j)
+    if not np.isfinite(first(o, d)[0]):
+        return np.zeros(3)
+    stretch = inside_stretch(o, d)
+    if stretch is None:
+        return None
+    t0, cos_i, P, w, ell = stretch
     kt = KA + KS
 
     def value(x):
@@ -190,7 +200,7 @@ def twin_pixel(light, i, j):
     for c in range(3):
         total[c] = sum(integrate.quad(lambda x: value(x)[c], a, b, epsabs=0.0, epsrel=1e-10, limit=200)[0]
                        for a, b in zip(cuts, cuts[1:]))
-    return math.exp(-KT_OUT * t0) * transmittance(-float(d @ n), ETA) / ETA ** 2 * total
+    return math.exp(-KT_OUT * t0) * transmittance(cos_i, ETA) / ETA ** 2 * total
 
 
 def scene(tmp_path, light):

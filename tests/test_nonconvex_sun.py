@@ -26,7 +26,7 @@ from raytrace.scene.format import load_scene
 from . import oracle
 from .conftest import to_toml
 from .test_inside_paths import G, KA, KS, u_obj
-from .test_nonconvex_refraction import CAMERA, ETA, NORMALS, first, hits, refract, transmittance
+from .test_nonconvex_refraction import CAMERA, ETA, NORMALS, first, hits, inside_stretch, refract, transmittance
 
 AXIS = np.array([-0.6, -0.3, 0.5]) / np.linalg.norm([-0.6, -0.3, 0.5])  # travels toward +z: from behind the U
 SUN = {"type": "directional", "direction": AXIS.tolist(), "irradiance": 2.0}
@@ -58,18 +58,10 @@ def beams(X):
 def twin_pixel(i, j):
     """The pixel's radiance (3,), or None where the camera ray's light is not the one inside stretch the twin
     follows (its reflection or its way out meets the U again)."""
-    o, d = oracle.camera_ray(CAMERA, i, j)
-    t0, f0 = first(o, d)
-    n = NORMALS[f0] * (-1.0 if NORMALS[f0] @ d > 0 else 1.0)
-    P = o + t0 * d
-    if np.isfinite(first(P, d - 2 * (d @ n) * n)[0]):
+    stretch = inside_stretch(*oracle.camera_ray(CAMERA, i, j))
+    if stretch is None:
         return None
-    w = refract(d, n, ETA)
-    ell, f1 = first(P, w)
-    n1 = NORMALS[f1] * (1.0 if NORMALS[f1] @ w > 0 else -1.0)
-    out_dir = refract(w, -n1, 1.0 / ETA)
-    if out_dir is not None and np.isfinite(first(P + ell * w, out_dir)[0]):
-        return None
+    _, cos_i, P, w, ell = stretch
     kt = KA + KS
 
     def signature(x):
@@ -84,7 +76,7 @@ def twin_pixel(i, j):
             def value(x, f=f, u=u):
                 return np.exp(-kt * (x + hits(P + x * w, -u)[f]))
             total += KS * ph * e * integrate.quad_vec(value, a, b, epsabs=0.0, epsrel=1e-12)[0]
-    return transmittance(-float(d @ n), ETA) / ETA ** 2 * total
+    return transmittance(cos_i, ETA) / ETA ** 2 * total
 
 
 def scene(tmp_path):
