@@ -8,9 +8,9 @@ outside medium) or by the sun from behind (test_nonconvex_sun's). The twin reads
 corners and knows nothing of the renderer: Moller-Trumbore in float64 for every crossing; the camera ray refracted
 in at its first triangle (skipped where its mirror reflection meets the U again) to the first quad it meets inside;
 there the surface term rho / pi sum E cos_s exp(-sigma_t k - sigma_out o) over every triangle whose Fermat point
-(scipy `brentq` on Snell's law, test_nonconvex_refraction.fermat_point) lies on it and whose legs meet no other
-triangle nor quad, E the lamp's intensity times the spot's falloff times the ray tube's irradiance by central
-differences (test_nonconvex_refraction.tube_irradiance); for the sun, every triangle's beam whose path back first
+(scipy `brentq` on Snell's law) lies on it and whose legs meet no other triangle (test_nonconvex_refraction.paths)
+nor quad, E the lamp's intensity times the spot's falloff times the ray tube's irradiance by central differences;
+for the sun, every triangle's beam whose path back first
 meets that triangle and whose leg from there toward the sun meets none (test_nonconvex_sun.beams), irradiance
 T cos_i / cos_t, and no quad on the path back. The pixel: exp(-sigma_out t0) T / eta^2 exp(-sigma_t ell) times it.
 Before: point and spot light were refused here ("lies inside shape[0], whose interior is refractive ... and not
@@ -28,13 +28,11 @@ from raytrace.scene.format import scene_from_text
 
 from . import oracle
 from .conftest import to_toml
-from .test_inside_paths import u_obj
-from .test_nonconvex_refraction import ETA, NORMALS, crosses, fermat_point, first, refract, transmittance, \
-    tube_irradiance
+from .test_inside_paths import KA, KS, KT_OUT, u_obj
+from .test_nonconvex_refraction import ETA, NORMALS, first, paths, refract, transmittance
 from .test_nonconvex_sun import SUN, beams
 
-KT = np.array([0.3, 0.2, 0.1])  # the glass's absorption
-KT_OUT = 0.02  # the outside's, with the lamp and the spot
+KT = KA + KS  # the glass's absorption (test_nonconvex_refraction.paths' attenuation), the outside's KT_OUT with a lamp
 RHO = 0.6
 FLOOR = [[-0.9, -0.75, -0.4], [0.9, -0.75, -0.4], [0.9, -0.75, 0.4], [-0.9, -0.75, 0.4]]  # in the base
 PLATE = [[0.5, 0.0, -0.4], [0.9, 0.0, -0.4], [0.9, 0.0, 0.4], [0.5, 0.0, 0.4]]  # in the right arm
@@ -64,19 +62,10 @@ def radiance(X, n, light):
             if cos_s > 0 and not quad_hit(X, -d)[0] < s:
                 out += RHO / math.pi * e * cos_s * np.exp(-KT * s)
         return out
-    L = np.array(light["position"], float)
-    spot = oracle.spot_of(light)
-    for f in range(len(NORMALS)):
-        found = fermat_point(X, L, f)
-        if found is None or crosses(X, found[0], f) or crosses(found[0], L, f):
-            continue
-        R, nf = found
-        k, o = np.linalg.norm(R - X), np.linalg.norm(L - R)
-        cos_s = float((R - X) @ n) / k
-        if cos_s <= 0 or quad_hit(X, (R - X) / k)[0] < k:
-            continue
-        e = light["intensity"] * oracle.emission(spot, (R - L) / o) * tube_irradiance(L, R, nf, k)
-        out += RHO / math.pi * e * cos_s * np.exp(-KT * k - KT_OUT * o)
+    for _, t, v in paths(X, light):  # t: the direction of travel inside, v: E exp(-sigma_t k - sigma_out o)
+        cos_s = -float(t @ n)
+        if cos_s > 0 and not quad_hit(X, -t)[0] < first(X, -t)[0]:  # no quad before the path's triangle
+            out += RHO / math.pi * v * cos_s
     return out
 
 
