@@ -134,3 +134,20 @@ def test_surfaces_inside_a_refractive_exact_sphere_with_a_lamp_are_still_refused
     with pytest.raises(UserError, match=r"shape\[1\]: lies inside shape\[0\], whose interior is refractive "
                                         r"\(ior 1.5\) and an exact sphere"):
         render(prepare(scene_from_text(to_toml(sc), "ball")), "quadrature", {}, RenderOptions(threads=1))
+
+
+@pytest.mark.parametrize("light", ["lamp", "spot"])
+def test_the_rock_in_the_dented_box_is_lit(light):
+    """tests/test_bounded_media.py's rock in a water box with its top dented (not convex), refused there before
+    under a lamp and a spot: rendered, its pixels lit (the values are the U's twin's business), the same for raymarch
+    (the water made not to scatter: the lit pixels are the rock's)."""
+    from .test_bounded_media import ABOVE, rock_in_dented_box
+    from .test_bounded_media import LAMP as ROCK_LAMP
+
+    sc = rock_in_dented_box({"lamp": ROCK_LAMP, "spot": ABOVE}[light])
+    sc["shape"][0]["interior"]["sigma_s"] = 0.0  # the pixels lit are the rock's
+    sc["camera"].update(look_at=[0.0, -0.6, 0.0], fov=16.0, width=24, height=16)
+    prep = prepare(scene_from_text(to_toml(sc), "rock"))
+    img = render(prep, "quadrature", {}, RenderOptions(threads=1)).image
+    assert np.count_nonzero(img[..., 0] > 0) >= 20, img[..., 0]
+    assert np.array_equal(render(prep, "raymarch", {"steps": 4}, RenderOptions(threads=1)).image, img)
