@@ -72,7 +72,8 @@ def switches(light, o, d, t0, t1, samples=48):
 def airlight(light, o, d, tmax, epsrel, extra=()):
     """The HG fog's single scattering (3,) along o + t d, t in [0, tmax], lit from inside the globe, with the fog's
     transmittance from o, integrated between the cuts `extra` (a spot's band edges); asserts one path at every
-    sample (the claim `out_of_sphere` rests on)."""
+    sample (the claim `out_of_sphere` rests on). epsabs 1e-300, not 0: quad_vec accepts where its error is below
+    max(epsabs, epsrel |I|), never on a piece the spot does not reach (I = 0: it subdivided to its limit there)."""
     cuts, counts = switches(light, o, d, 0.0, tmax)
     assert not cuts and set(counts) == {1}, (cuts, set(counts))
     cuts = [0.0, *sorted(extra), tmax]
@@ -81,7 +82,7 @@ def airlight(light, o, d, tmax, epsrel, extra=()):
         return KS_OUT * sum((e * oracle.phase("hg", G_OUT, float(toward @ d)) for e, toward, _ in
                              paths_out(light, o + t * d)), np.zeros(3)) * math.exp(-KA_OUT * t)
 
-    return sum(integrate.quad_vec(f, a, b, epsrel=epsrel, epsabs=0.0, norm="max", limit=400)[0]
+    return sum(integrate.quad_vec(f, a, b, epsrel=epsrel, epsabs=1e-300, norm="max", limit=400)[0]
                for a, b in zip(cuts, cuts[1:]) if b > a)
 
 
