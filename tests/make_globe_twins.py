@@ -1,8 +1,8 @@
 """Writes tests/data/globe_twins.json: tests/test_globe_bounds.py's twin (tests/test_globe_fog.py `airlight`, scipy
 quad_vec at epsrel 1e-12 over 30-digit paths out, cut where a spot's leaving cosine crosses its band edges:
-`band_cuts`, stored too) on its fog segments, for each of its lights. Too slow for CI (about 70 CPU s:
-the lamp 32, the spot 39): run `python -m tests.make_globe_twins` from the
-repository root after changing the segments or the lights."""
+`band_cuts`, stored too) on its fog segments, for each of its lights. Too slow for CI (about 70 CPU s: the lamp
+32, the spot 39): run `python -m tests.make_globe_twins` from the repository root after changing the segments or
+the lights."""
 import json
 import pathlib
 import sys
