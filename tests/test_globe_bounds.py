@@ -102,10 +102,11 @@ def kernel(light, rtol, kind=QUAD, steps=1, seed=0):
     return out * inten, (err * inten if kind == QUAD else var * inten * inten), stats[UNBOUNDED]
 
 
-@pytest.fixture(scope="module", params=["lamp"])  # the spot's twin: `python -m tests.make_globe_twins spot`
+@pytest.fixture(scope="module", params=list(LIGHTS))
 def case(request):
-    """The light and its twin's air-light (N, 3) on SEGMENTS (`airlight`, quad_vec at epsrel 1e-12), as stored by
-    tests/make_globe_twins.py for these very segments."""
+    """The light and its twin's air-light (N, 3) on SEGMENTS (`airlight`, quad_vec at epsrel 1e-12; the spot's
+    between its band edges' crossings, `band_cuts`), as stored by tests/make_globe_twins.py for these very
+    segments."""
     stored = json.loads(TWINS.read_text())
     assert np.array_equal([np.r_[o, d, t] for o, d, t in SEGMENTS], [np.r_[o, d, t] for o, d, t in stored["segments"]])
     return LIGHTS[request.param], np.array(stored["twins"][request.param])
@@ -116,8 +117,10 @@ def test_the_bound_holds_and_is_not_vacuous(case, rtol):
     """Never exceeded by the difference from the twin (measured at most 1.3e-5 of the bound); finite on every
     segment and channel, none counted unbounded; its median where the fog is lit at most 10 rtol of the value
     (measured: the lamp 1.1 rtol at 1e-6, 2.0 rtol at 1e-10; at 1e-10 the segments that start or end on the glass
-    reach 86 rtol: the arriving direction's rounding, 8u (R + d) / o, grows toward the glass). The spot's segments
-    that cross its band edges are cut there (`out_edge_cuts`, as the twin's own bisection finds them)."""
+    reach 86 rtol: the arriving direction's rounding, 8u (R + d) / o, grows toward the glass; the spot 1.1 and 3.1
+    rtol, at most 16, on the 6 segments it lights, 0 and bound 0 on the 15 it does not). The spot's segments that
+    cross its band edges are cut there (`out_edge_cuts`, as the twin's own bisection finds them), their rounding
+    summed piece by piece (one largest rounding x the segment's length: 11 rtol at 1e-10)."""
     light, ref = case
     got, bound, unbounded = kernel(light, rtol)
     assert np.all(np.isfinite(bound)) and unbounded == 0
@@ -190,7 +193,7 @@ def test_an_evaluation_within_its_rounding_bound():
                 rec = GlobeFog(np.array(o), np.array(d), SPHERE[:3].copy(), SPHERE[3], np.array(LAMP["position"]),
                                np.array([0.0, 0.0, -1.0]), np.array([-2.0, -1.5, 1.0]), ETA, KA_OUT, KS_OUT, HG,
                                G_OUT, (KS + KA)[c], *(np.empty(MAX_PATHS) for _ in range(3)), np.empty((MAX_PATHS, 3)),
-                               np.empty(MAX_PATHS), np.empty(MAX_PATHS), track)
+                               np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.array([0.0, t]), track)
                 got = fog_value(x, rec) * LAMP["intensity"][c]
                 bound = track[ROUNDING_ABS] * LAMP["intensity"][c]
                 assert 0.0 < bound <= 1e-5 * got, (k, f, bound / got)

@@ -72,7 +72,8 @@ def switches(light, o, d, t0, t1, samples=48):
 def airlight(light, o, d, tmax, epsrel, extra=()):
     """The HG fog's single scattering (3,) along o + t d, t in [0, tmax], lit from inside the globe, with the fog's
     transmittance from o, integrated between the cuts `extra` (a spot's band edges); asserts one path at every
-    sample (the claim `out_of_sphere` rests on)."""
+    sample (the claim `out_of_sphere` rests on). epsabs 1e-300, not 0: quad_vec accepts where its error is below
+    max(epsabs, epsrel |I|), never on a piece the spot does not reach (I = 0: it subdivided to its limit there)."""
     cuts, counts = switches(light, o, d, 0.0, tmax)
     assert not cuts and set(counts) == {1}, (cuts, set(counts))
     cuts = [0.0, *sorted(extra), tmax]
@@ -81,7 +82,7 @@ def airlight(light, o, d, tmax, epsrel, extra=()):
         return KS_OUT * sum((e * oracle.phase("hg", G_OUT, float(toward @ d)) for e, toward, _ in
                              paths_out(light, o + t * d)), np.zeros(3)) * math.exp(-KA_OUT * t)
 
-    return sum(integrate.quad_vec(f, a, b, epsrel=epsrel, epsabs=0.0, norm="max", limit=400)[0]
+    return sum(integrate.quad_vec(f, a, b, epsrel=epsrel, epsabs=1e-300, norm="max", limit=400)[0]
                for a, b in zip(cuts, cuts[1:]) if b > a)
 
 
@@ -91,29 +92,32 @@ def floor_t(o, d):
     return t if t < FAR and max(abs(o[0] + t * d[0]), abs(o[2] + t * d[2])) <= 5.0 else FAR
 
 
-def fog_pixel(light, j, i, epsrel):
+def fog_pixel(light, j, i, epsrel, cuts=lambda o, d, t: ()):
     """The twin's air-light (3,) of pixel (j, i): its camera segment, or the one to the globe and then its mirrored
-    and exiting rays' segments, with Fresnel's weights (as tests/test_lamp_in_globe.py `twin`)."""
+    and exiting rays' segments, with Fresnel's weights (as tests/test_lamp_in_globe.py `twin`); each segment o + t d,
+    t in [0, t_max], cut at cuts(o, d, t_max) (a spot's band edges: tests/test_globe_bounds.py `band_cuts`)."""
+
+    def air(o, d, tmax):
+        return airlight(light, o, d, tmax, epsrel, cuts(o, d, tmax))
+
     o, d = oracle.camera_ray(CAMERA, i, j)
     hits = sphere_hits(o, d)
     if hits is None or hits[0] <= 0.0:
-        return airlight(light, o, d, floor_t(o, d), epsrel)
+        return air(o, d, floor_t(o, d))
     p = o + hits[0] * d
     n_in = (p - CENTRE) / RADIUS
     cos_i = -float(d @ n_in)
     w = refract(d, n_in, ETA)
     t_in = fresnel_t(math.acos(cos_i), math.acos(-float(w @ n_in)), ETA)
     mirrored = d + 2.0 * cos_i * n_in
-    total = airlight(light, o, d, hits[0], epsrel) + math.exp(-KA_OUT * hits[0]) * (1.0 - t_in) * airlight(
-        light, p, mirrored, floor_t(p, mirrored), epsrel)
+    total = air(o, d, hits[0]) + math.exp(-KA_OUT * hits[0]) * (1.0 - t_in) * air(p, mirrored, floor_t(p, mirrored))
     ell = sphere_hits(p, w)[1]
     q = p + ell * w
     m = -(q - CENTRE) / RADIUS
     out = refract(w, m, 1.0 / ETA)
     if out is not None:
         t_out = fresnel_t(math.acos(abs(float(w @ m))), math.acos(abs(float(out @ m))), 1.0 / ETA)
-        total += math.exp(-KA_OUT * hits[0]) * t_in * t_out * np.exp(-(KS + KA) * ell) * airlight(
-            light, q, out, floor_t(q, out), epsrel)
+        total += math.exp(-KA_OUT * hits[0]) * t_in * t_out * np.exp(-(KS + KA) * ell) * air(q, out, floor_t(q, out))
     return total
 
 

@@ -170,8 +170,11 @@ relative error for eta > 1, |d cos_t| <= |d cos_i| / (eta^2 cos_t), 16u / T its 
 phase at its condition times toward's error ((R dth + dd) / o + dez + |p_y| / o x e_y's) and a spot's falloff at
 its slope times the cosine's error (t's angle, e_z's and e_y's). It grows like 8u (R + d) / o toward the glass (the
 arriving direction's rounding): measured at most 1e-8 of the value there, 1.4e-11 at a distance. The integral's:
-media/adaptive.py's rule bound b plus 3 min(rho (|value| + b), e x length) (rho, e the largest relative and
-absolute rounding of the evaluations). tests/test_globe_bounds.py checks it against the twin.
+media/adaptive.py's rule bound b plus 3 min(rho (|value| + b), sum_i e_i l_i) (rho the largest relative rounding
+of the evaluations, e_i the largest absolute of those on piece i between a spot's cuts, of length l_i: the rule's
+weights are positive and sum to each piece's length, and a piece the spot does not reach adds 0, where one e x
+length over the segment was ~7x the integral of the rounding under the spot). tests/test_globe_bounds.py checks it
+against the twin.
 
 The spot's band edges outside (`out_edge_cuts`). A spot inside the sphere (d = |L - c| < R / eta) lights the
 fog outside through its falloff, whose band edges (cosines ce = cos_end, cos_start to its axis a) are kinks of the
@@ -2047,9 +2050,10 @@ def out_edge_cuts(o, w, c, radius, light, axis, cone, eta, end, out):
 class GlobeFog(NamedTuple):
     """One segment o + x w of the scattering medium outside a refractive exact sphere (centre c, radius; relative
     index eta inside) and a unit point light inside it at c + rel (a spot: its axis and cone), for one channel
-    (kt, ks and the phase: the outside medium's; kt_in: the inside's); `paths_out`'s rows and scratch, and the
-    track: the evaluations whose scan was unproven or that found a number of paths other than one, then (ROUNDING,
-    ROUNDING_ABS) the largest relative and absolute rounding of the evaluations (`fog_rounding`)."""
+    (kt, ks and the phase: the outside medium's; kt_in: the inside's); `paths_out`'s rows and scratch; the pieces'
+    ends (ascending, the first 0: QUAD's cuts); and the track: the evaluations whose scan was unproven or that found
+    a number of paths other than one, then (ROUNDING) the largest relative rounding of the evaluations
+    (`fog_rounding`) and (ROUNDING_ABS + i) the largest absolute of those on piece i."""
     o: np.ndarray
     w: np.ndarray
     c: np.ndarray
@@ -2069,6 +2073,7 @@ class GlobeFog(NamedTuple):
     toward: np.ndarray
     inside: np.ndarray
     outside: np.ndarray
+    ends: np.ndarray
     track: np.ndarray
 
 
@@ -2140,7 +2145,8 @@ def fog_rounding(r, x, q, k):
 def fog_value(x, r):
     """The outside medium's single scattering at o + x w of the `GlobeFog` r: over the paths out (`paths_out`),
     ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point); the
-    rounding of the sum (`fog_rounding`) into the track: the largest relative and absolute of the evaluations."""
+    rounding of the sum (`fog_rounding`) into the track: the largest relative of the evaluations, and the largest
+    absolute of those on x's piece (between r.ends)."""
     q = np.empty(3)
     for j in range(3):
         q[j] = r.o[j] + x * r.w[j]
@@ -2158,7 +2164,10 @@ def fog_value(x, r):
             err += r.ks * term * fog_rounding(r, x, q, k)
     if n != 1 or not proven:
         r.track[0] += 1.0
-    _track_rounding(r.track, r.ks * total, err, ROUNDING_ABS)
+    i = 1
+    while i < r.ends.shape[0] - 1 and r.ends[i] <= x:
+        i += 1
+    _track_rounding(r.track, r.ks * total, err, ROUNDING_ABS + i - 1)
     return r.ks * total
 
 
@@ -2179,8 +2188,9 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
     (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the integrand is
     smooth along the segment but where it crosses a spot's band edges (`out_edge_cuts`): QUAD media/adaptive.py
     `bounded_piecewise` over [0, end], end = min(ell, 745 / kt), cut there (bound inf where that scan is not proven),
-    its bound the rule's b plus 3 min(rho (|value| + b), e end) (rho, e: the largest relative and absolute
-    rounding of its evaluations, `fog_rounding`; the rule's weights are positive and sum to end); MARCH, SAMPLE
+    its bound the rule's b plus 3 min(rho (|value| + b), sum_i e_i l_i) (rho: the largest relative rounding of its
+    evaluations, `fog_rounding`; e_i: the largest absolute of those on piece i, of length l_i: the rule's weights
+    are positive and sum to each piece's length; a piece the spot does not reach adds 0); MARCH, SAMPLE
     `march_or_sample` at dimensions dim0 (bound inf). The bound is inf on the segments with an evaluation whose
     scan was unproven or whose count of paths was not one (the light beyond radius / eta, which `check`
     refuses), counted in stats[UNBOUNDED] with the QUAD segments whose bound is inf for another reason."""
@@ -2191,7 +2201,7 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
         if not ell[s] > 0.0:
             continue
         cone[0], cone[1], cone[2] = geo[s, 12], geo[s, 13], geo[s, 17]
-        track = np.zeros(3)
+        track = np.zeros(ROUNDING_ABS + 2 * EDGES + 1)
         cuts = np.zeros(2 * EDGES + 2)
         m, proven = 0, True
         if rule.kind == QUAD:
@@ -2200,22 +2210,25 @@ def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim
         for c in range(nc):
             if ks[c] == 0.0:
                 continue
+            end = min(ell[s], 745.0 / kt[c])
+            n = 1
+            while n <= m and cuts[n] < end:
+                n += 1
+            br = cuts[:n + 1].copy()  # 0, the cuts before end, end
+            br[n] = end
             rec = GlobeFog(geo[s, :3].copy(), geo[s, 3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo[s, 6:9] - sphere[:3], geo[s, 9:12].copy(), cone, eta, kt[c], ks[c], code, g, kt_in[c],
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty((MAX_PATHS, 3)),
-                           np.empty(MAX_PATHS), np.empty(MAX_PATHS), track)
+                           np.empty(MAX_PATHS), np.empty(MAX_PATHS), br, track)
             if rule.kind == QUAD:
-                end = min(ell[s], 745.0 / kt[c])
-                n = 1
-                while n <= m and cuts[n] < end:
-                    n += 1
-                br = cuts[:n + 1].copy()  # 0, the cuts before end, end
-                br[n] = end
-                track[ROUNDING] = track[ROUNDING_ABS] = 0.0
+                track[ROUNDING:] = 0.0
                 out[s, c], b = bounded_piecewise(rec, br, n + 1, rule.rtol, N10, W10, N20, W20, stats)
                 if not proven:
                     b = math.inf
-                err[s, c] = b + 3.0 * min(track[ROUNDING] * (abs(out[s, c]) + b), track[ROUNDING_ABS] * end)
+                pieces = 0.0
+                for i in range(n):
+                    pieces += track[ROUNDING_ABS + i] * (br[i + 1] - br[i])
+                err[s, c] = b + 3.0 * min(track[ROUNDING] * (abs(out[s, c]) + b), pieces)
             else:
                 out[s, c], var[s, c] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt[c]), kt[c], keys[s],
                                                        dim0, seed)
