@@ -671,10 +671,9 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
     n = tile.samples.stop - tile.samples.start
-    count = len(range(tile.pixels.start, tile.pixels.stop, tile.pixels.step))
-    ys, xs, keys = np.empty(count, np.int64), np.empty(count, np.int64), np.empty(count * n, np.uint64)
-    _tile_keys(tile.pixels.start, tile.pixels.step, tile.rows.start, x0, x1 - x0, cam.width, cam.spp,
-               tile.samples.start, ys, xs, keys)
+    q = range(tile.pixels.stop)[tile.pixels]  # the pixels' places in the band's raster order
+    ys, xs, keys = np.empty(len(q), np.int64), np.empty(len(q), np.int64), np.empty(len(q) * n, np.uint64)
+    _tile_keys(q.start, q.step, tile.rows.start, x0, x1 - x0, cam.width, cam.spp, tile.samples.start, ys, xs, keys)
     o, d = pixel_rays(cam, ys, xs, tile.samples)
     method = _method(task.method)
     if prep.memo("environment", lambda: bool(environment.groups(prep.lights))):  # the views' lights share its rows
