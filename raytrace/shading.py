@@ -247,8 +247,10 @@ def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectanc
         if j in parts:
             tr[got] = tr[got] * parts[j]
     _add_reflected(out, idx, reflectance, irradiance, tr, cl)  # light after light at each point
+    if not sampled:
+        return
     owners = lights.owner[run]
-    for owner in dict.fromkeys(owners[shines].tolist()) if sampled else ():  # in the order the lights name them
+    for owner in dict.fromkeys(owners[shines].tolist()):  # in the order the lights name them
         if owner < 0 or lights.emitters[owner] is None:
             continue
         value, reached, missed = rows.setdefault(owner, (np.zeros_like(out), np.zeros(len(out), np.int64),
