@@ -861,12 +861,12 @@ class Accumulator:
         order = [[a.reshape(-1, self.width, a.shape[1]) if a is not None else None for a in parts[k]]
                  for k in sorted(parts)]
         block = slice(band - self.y0, tile.rows.stop - self.y0)
-        self.image[block] = functools.reduce(np.add, [r for r, _, _, _ in order]) / self.spp
+        _mean([r for r, _, _, _ in order], self.spp, self.image[block])
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            self.variance[block] = functools.reduce(np.add, [v for _, v, _, _ in order]) / self.spp**2
+            _mean([v for _, v, _, _ in order], self.spp**2, self.variance[block])
         error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b, _ in order]), self.spp)
         if self.layers is not None:
-            self.layers[block] = functools.reduce(np.add, [a for _, _, _, a in order]) / self.spp
+            _mean([a for _, _, _, a in order], self.spp, self.layers[block])
         return block
 
     def totals(self) -> np.ndarray:
@@ -874,6 +874,18 @@ class Accumulator:
         for s in self._stats:
             totals += s
         return totals
+
+
+def _mean(parts: list, divide, out: np.ndarray):
+    """out = (parts[0] + parts[1] + ...) / divide, added in that order (`Accumulator`'s sample ranges), in
+    place: no image-sized temporaries."""
+    if len(parts) == 1:
+        np.divide(parts[0], divide, out=out)
+        return
+    np.add(parts[0], parts[1], out=out)
+    for part in parts[2:]:
+        np.add(out, part, out=out)
+    np.divide(out, divide, out=out)
 
 
 def check(prep: Prepared, method_name: str, given_params: dict, options: RenderOptions, source: str) -> dict:
