@@ -1,6 +1,6 @@
 """How the renderer's tiles would scale on many cores, measured on few.
 
-    RAYTRACE_ASSETS=../shared/scenes python benchmarks/scaling.py [--quick] [--balance [SCENE ...]]
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/scaling.py [--quick] [--only TEXT] [--balance [SCENE ...]]
 
 Per row (a scene, size and method): every tile of the render is run once on one thread under `py-spy
 record --gil` (py-spy samples the stack only while the thread holds the GIL; NumPy's large
@@ -219,6 +219,7 @@ def main():
     p.add_argument("--balance", nargs="*", metavar="SCENE",
                    help="the largest tile's share on these scenes (none named: the default and every bundled scene)")
     p.add_argument("--rows", action="store_true", help="the largest image row's share of each row's render")
+    p.add_argument("--only", metavar="TEXT", help="the rows whose name contains TEXT")
     p.add_argument("--child", nargs=2, metavar=("ROW", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args()
     rows = QUICK if args.quick else ROWS
@@ -240,6 +241,8 @@ def main():
     print(f"{'row':<56} {'tiles':>5} {'CPU s':>7} {'GIL':>5} {'largest':>8} {'eff16':>6} {'eff64':>6} "
           f"{'1 thr s':>8} {'2 thr s':>8} {'speedup':>7}")
     for name, row in rows.items():
+        if args.only and args.only not in name:
+            continue
         cpu, gil = profiled(name, rows)
         eff = [cpu.sum() / (n * makespan(cpu, gil, n)) for n in (16, 64)]
         one, two = speedup(row)

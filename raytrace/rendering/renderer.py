@@ -670,14 +670,13 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     whichever thread or cluster worker computes it."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
-    q = np.arange(tile.pixels.start, tile.pixels.stop, tile.pixels.step)
-    ys, xs = tile.rows.start + q // (x1 - x0), x0 + q % (x1 - x0)
-    o, d = pixel_rays(cam, ys, xs, tile.samples)
-    keys = ((ys * cam.width + xs)[:, None].astype(np.uint64) * np.uint64(cam.spp)
-            + np.arange(tile.samples.start, tile.samples.stop, dtype=np.uint64)).ravel()
-    method = _method(task.method)
     n = tile.samples.stop - tile.samples.start
-    if environment.groups(prep.lights):
+    q = range(tile.pixels.stop)[tile.pixels]  # the pixels' places in the band's raster order
+    ys, xs, keys = np.empty(len(q), np.int64), np.empty(len(q), np.int64), np.empty(len(q) * n, np.uint64)
+    _tile_keys(q.start, q.step, tile.rows.start, x0, x1 - x0, cam.width, cam.spp, tile.samples.start, ys, xs, keys)
+    o, d = pixel_rays(cam, ys, xs, tile.samples)
+    method = _method(task.method)
+    if prep.memo("environment", lambda: bool(environment.groups(prep.lights))):  # the views' lights share its rows
         rad, stats, var, bound, layers = _sample_by_sample(prep, method, task, tile, o, d, keys)
     else:
         hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
@@ -685,6 +684,20 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
         layers = None if not task.aov else layer_columns(prep, method, task, o, d, keys, hits)
     layers = None if layers is None else sum_samples(layers, n)
     return sum_samples(rad, n), stats, None if var is None else sum_samples(var, n), sum_samples(bound, n), layers
+
+
+@exact_njit
+def _tile_keys(first, step, row, x0, width, image_width, spp, sample, ys, xs, keys):
+    """The image rows `ys` and columns `xs` of a tile's pixels (the band's raster order from `first`, every
+    `step`-th, `width` columns from x0, the band's first row `row`) and the rng.py keys of their samples
+    (pixel (y image_width + x) spp + s for the samples s from `sample`, pixel after pixel), in one GIL-free
+    pass."""
+    n = keys.shape[0] // ys.shape[0] if ys.shape[0] else 0
+    for i in range(ys.shape[0]):
+        q = first + i * step
+        ys[i], xs[i] = row + q // width, x0 + q % width
+        for s in range(n):
+            keys[i * n + s] = np.uint64(ys[i] * image_width + xs[i]) * np.uint64(spp) + np.uint64(sample + s)
 
 
 def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, dirs, keys):
@@ -848,12 +861,12 @@ class Accumulator:
         order = [[a.reshape(-1, self.width, a.shape[1]) if a is not None else None for a in parts[k]]
                  for k in sorted(parts)]
         block = slice(band - self.y0, tile.rows.stop - self.y0)
-        self.image[block] = functools.reduce(np.add, [r for r, _, _, _ in order]) / self.spp
+        _mean([r for r, _, _, _ in order], self.spp, self.image[block])
         if self.variance is not None:  # variance of the pixel mean of independent per-ray estimates
-            self.variance[block] = functools.reduce(np.add, [v for _, v, _, _ in order]) / self.spp**2
+            _mean([v for _, v, _, _ in order], self.spp**2, self.variance[block])
         error_bounds.add_up(self.bound[block], functools.reduce(np.add, [b for _, _, b, _ in order]), self.spp)
         if self.layers is not None:
-            self.layers[block] = functools.reduce(np.add, [a for _, _, _, a in order]) / self.spp
+            _mean([a for _, _, _, a in order], self.spp, self.layers[block])
         return block
 
     def totals(self) -> np.ndarray:
@@ -861,6 +874,18 @@ class Accumulator:
         for s in self._stats:
             totals += s
         return totals
+
+
+def _mean(parts: list, divide, out: np.ndarray):
+    """out = (parts[0] + parts[1] + ...) / divide, added in that order (`Accumulator`'s sample ranges), in
+    place: no image-sized temporaries."""
+    if len(parts) == 1:
+        np.divide(parts[0], divide, out=out)
+        return
+    np.add(parts[0], parts[1], out=out)
+    for part in parts[2:]:
+        np.add(out, part, out=out)
+    np.divide(out, divide, out=out)
 
 
 def check(prep: Prepared, method_name: str, given_params: dict, options: RenderOptions, source: str) -> dict:
