@@ -46,7 +46,7 @@ from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
 from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
-from ..media.nonconvex_directional import lit_pieces
+from ..media.nonconvex_directional import crossing_error, end_bounds, face_errors, lit_pieces
 from ..media.nonconvex_refraction import face_planes
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
@@ -413,28 +413,44 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
     `lit_pieces`: the path back leaves through that triangle, both legs clear of the shape), integrated as
     `_face_beams` integrates a convex shape's beams: with closed forms `beams_closed` on each piece, else the
     `rule` from each piece's start on the face's plane alone, carried back by exp(-sigma_t x0), each piece of a
-    segment on its own random stream. The pieces' ends are not bounded: the bound is infinite where anything
-    scatters."""
+    segment on its own random stream. The bound (eta > 1, closed forms and QUAD; inf for the other rules, as
+    `_face_beams` has them): each piece's (the closed form's rounding as `_beam_terms`', or the rule's bound with
+    its face's own plane errors, plus the rounding of exp(-sigma_t x0): 2 ulps and kt x0 u, doubled), the
+    relative error rel of the beam's direction (du: s_F's error times kt, the phase's condition) and irradiance
+    (de) of `_beam_errors` from the face's measured normal, plus what the pieces' ends may change (`lit_pieces`'
+    spans, `end_bounds`: media/nonconvex_directional.py's docstring, the triangles' planes and edges measured by
+    `face_errors`)."""
     points, w, ell, keys = rows
     out, var, bound, stats = acc
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     ch, kt, ks, kt_out = _scattering_channels(prep, medium, li)
     if not len(ch):
         return
-    tris, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
+    tris, planes, errs = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
     axis = np.asarray(lights.axis[li], dtype=float)
     turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
-    dplanes = measured_plane_errors(prep, sid)
     points, w, ell = (np.ascontiguousarray(a, dtype=float) for a in (points, w, ell))
+    eta = float(medium.ior)
     faces, towards, scales = refracted_beams(turned, axis, medium.ior)
-    beams, srcs, x0s, x1s = lit_pieces(tris, planes, faces, towards, axis, points, w, ell)
+    du, de = np.zeros(len(faces)), np.zeros(len(faces))
+    for i, f in enumerate(faces.tolist()):
+        du[i], de[i] = _beam_errors(float(-(turned[f, :3] @ axis)), eta, errs[f, 0])
+    (beams, srcs, x0s, x1s), spans = lit_pieces(tris, planes, errs, faces, towards, du, axis, points, w, ell)
+    ends = np.zeros((len(ell), len(ch)))
+    end_bounds(*spans, np.ascontiguousarray(towards), np.ascontiguousarray(scales), w, kt, ks, medium.phase, medium.g,
+               ends)
+    bound[:, ch] += product(ends, lights.intensity[li, ch])
+    reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))
     bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
     for i in np.unique(beams).tolist():
         f, toward, irradiance = int(faces[i]), np.ascontiguousarray(towards[i]), scales[i]
         src, x0, x1 = (a[bounds[i]:bounds[i + 1]] for a in (srcs, x0s, x1s))
         f_li = irradiance * lights.intensity[li, ch]
+        q = float(turned[f, :3] @ toward)
+        r = np.linalg.norm(points[src], axis=1) + ell[src]
+        rel = (2.0 * kt[None, :] * crossing_error(errs[f], turned[f, 3], r + reach, 0.0, du[i])[:, None] / q
+               + du[i] * (phase_condition(medium.phase, medium.g) - 1.0) + de[i])
         if sup.closed_forms:
-            q = float(turned[f, :3] @ toward)
             ints = np.zeros((len(src), 9))
             ints[:, 0], ints[:, 2], ints[:, 3] = x0, x0, x0
             ints[:, 1], ints[:, 4], ints[:, 5] = x1, x1, x1
@@ -442,9 +458,12 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
             val, spans = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))  # spans: 0 (ends given)
             beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, spans)
             np.add.at(out, (src[:, None], ch[None, :]), val * f_li)
+            cond = 8.0 * EPS * (abs(turned[f, 3]) + r) / q  # `_beam_terms`' rounding of the closed form
+            np.add.at(bound, (src[:, None], ch[None, :]),
+                      product((KERNEL_FLOOR + kt[None, :] * cond[:, None] + rel) * val, f_li))
             continue
         rank = np.arange(len(src)) - np.searchsorted(src, src)
-        face = np.ascontiguousarray(turned[f:f + 1])
+        face, dplanes = np.ascontiguousarray(turned[f:f + 1]), np.array(errs[f, :2])  # a C array: the kernel's type
         for piece in np.unique(rank).tolist():
             at = np.nonzero(rank == piece)[0]
             sel, lo, m = src[at], x0[at], len(at)
@@ -461,13 +480,21 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
                 tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
             out[np.ix_(sel, ch)] += unit * tr * f_li
             var[np.ix_(sel, ch)] += unit_var * (tr * f_li) ** 2
-    bound[np.ix_(ell > 0.0, ch)] = np.inf
+            if rule.kind == QUAD:  # the rule's bound, the beam's errors and exp(-kt x0)'s rounding, doubled
+                carried = rel[at] + EPS * (2.0 + kt[None, :] * lo[:, None])
+                for j, c in enumerate(ch.tolist()):
+                    v = unit[:, j] * tr[:, j]
+                    bound[sel, c] += _light_bound(product(unit_err[:, j], tr[:, j]) + carried[:, j] * v, v * f_li[j],
+                                                  f_li[j], lights.cone[li, 0])
+    if rule.kind != QUAD and not sup.closed_forms or not eta > 1.0:  # as `_face_beams`
+        bound[np.ix_(ell > 0.0, ch)] = np.inf
 
 
 def _shape_faces(prep, sid):
-    """(triangles (T, 3, 3), their planes (T, 4)) of shape sid, in float64."""
+    """(triangles (T, 3, 3), their planes (T, 4), their errors (`face_errors`)) of shape sid, in float64."""
     tris = np.ascontiguousarray(prep.accel.triangles[prep.shape_ids == sid], dtype=np.float64)
-    return tris, face_planes(tris)
+    planes = face_planes(tris)
+    return tris, planes, face_errors(tris, planes)
 
 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, rule, keys, dim0, seed, out, var, bound, stats):
