@@ -427,30 +427,33 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
     if not len(ch):
         return
     tris, planes, errs = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
-    axis = np.asarray(lights.axis[li], dtype=float)
-    turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
+    turned, faces, towards, scales, du, de = prep.memo(("sun beams", sid, li), lambda: _sun_beams(prep, sid, li, planes,
+                                                                                                   errs))
     points, w, ell = (np.ascontiguousarray(a, dtype=float) for a in (points, w, ell))
-    eta = float(medium.ior)
-    faces, towards, scales = refracted_beams(turned, axis, medium.ior)
-    du, de = np.zeros(len(faces)), np.zeros(len(faces))
-    for i, f in enumerate(faces.tolist()):
-        du[i], de[i] = _beam_errors(float(-(turned[f, :3] @ axis)), eta, errs[f, 0])
-    (beams, srcs, x0s, x1s), spans = lit_pieces(tris, planes, errs, faces, towards, du, axis, points, w, ell)
-    ends = np.zeros((len(ell), len(ch)))
-    end_bounds(*spans, np.ascontiguousarray(towards), np.ascontiguousarray(scales), w, kt, ks, medium.phase, medium.g,
-               ends)
-    bound[:, ch] += product(ends, lights.intensity[li, ch])
-    reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))
+    bounded = (sup.closed_forms or rule.kind == QUAD) and medium.ior > 1.0  # else inf, as `_face_beams` has it
+    (beams, srcs, x0s, x1s), spans = lit_pieces(tris, planes, errs, faces, towards, du, lights.axis[li], points, w, ell,
+                                                bounded)
+    if bounded:
+        ends = np.zeros((len(ell), len(ch)))
+        end_bounds(*spans, towards, scales, w, kt, ks, medium.phase, medium.g, ends)
+        bound[:, ch] += product(ends, lights.intensity[li, ch])
+        f = faces[beams]
+        q = np.einsum("ij,ij->i", turned[f, :3], towards[beams])
+        r = np.linalg.norm(points[srcs], axis=1) + ell[srcs]  # |o| + T
+        reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))
+        path = 2.0 * crossing_error(np.ascontiguousarray(errs[f, :2].T), turned[f, 3], r + reach, 0.0, du[beams]) / q
+        rels = (kt[None, :] * path[:, None] + (du[beams] * (phase_condition(medium.phase, medium.g) - 1.0)
+                                               + de[beams])[:, None])
+    else:
+        bound[np.ix_(ell > 0.0, ch)] = np.inf
+    cos_end = lights.cone[li, 0]
     bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
     for i in np.unique(beams).tolist():
-        f, toward, irradiance = int(faces[i]), np.ascontiguousarray(towards[i]), scales[i]
+        f, toward, irradiance = int(faces[i]), towards[i], scales[i]
         src, x0, x1 = (a[bounds[i]:bounds[i + 1]] for a in (srcs, x0s, x1s))
         f_li = irradiance * lights.intensity[li, ch]
-        q = float(turned[f, :3] @ toward)
-        r = np.linalg.norm(points[src], axis=1) + ell[src]
-        rel = (2.0 * kt[None, :] * crossing_error(errs[f], turned[f, 3], r + reach, 0.0, du[i])[:, None] / q
-               + du[i] * (phase_condition(medium.phase, medium.g) - 1.0) + de[i])
         if sup.closed_forms:
+            q = float(turned[f, :3] @ toward)
             ints = np.zeros((len(src), 9))
             ints[:, 0], ints[:, 2], ints[:, 3] = x0, x0, x0
             ints[:, 1], ints[:, 4], ints[:, 5] = x1, x1, x1
@@ -458,9 +461,10 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
             val, spans = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))  # spans: 0 (ends given)
             beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, spans)
             np.add.at(out, (src[:, None], ch[None, :]), val * f_li)
-            cond = 8.0 * EPS * (abs(turned[f, 3]) + r) / q  # `_beam_terms`' rounding of the closed form
-            np.add.at(bound, (src[:, None], ch[None, :]),
-                      product((KERNEL_FLOOR + kt[None, :] * cond[:, None] + rel) * val, f_li))
+            if bounded:  # `_beam_terms`' rounding of the closed form, the beam's errors
+                cond = 8.0 * EPS * (abs(turned[f, 3]) + np.linalg.norm(points[src], axis=1) + ell[src]) / q
+                err = (KERNEL_FLOOR + kt[None, :] * cond[:, None] + rels[bounds[i]:bounds[i + 1]]) * val
+                np.add.at(bound, (src[:, None], ch[None, :]), product(err, f_li))
             continue
         rank = np.arange(len(src)) - np.searchsorted(src, src)
         face, dplanes = np.ascontiguousarray(turned[f:f + 1]), np.array(errs[f, :2])  # a C array: the kernel's type
@@ -480,14 +484,24 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
                 tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
             out[np.ix_(sel, ch)] += unit * tr * f_li
             var[np.ix_(sel, ch)] += unit_var * (tr * f_li) ** 2
-            if rule.kind == QUAD:  # the rule's bound, the beam's errors and exp(-kt x0)'s rounding, doubled
-                carried = rel[at] + EPS * (2.0 + kt[None, :] * lo[:, None])
-                for j, c in enumerate(ch.tolist()):
-                    v = unit[:, j] * tr[:, j]
-                    bound[sel, c] += _light_bound(product(unit_err[:, j], tr[:, j]) + carried[:, j] * v, v * f_li[j],
-                                                  f_li[j], lights.cone[li, 0])
-    if rule.kind != QUAD and not sup.closed_forms or not eta > 1.0:  # as `_face_beams`
-        bound[np.ix_(ell > 0.0, ch)] = np.inf
+            if bounded:  # the rule's bound, the beam's errors and exp(-kt x0)'s rounding (2 ulps, kt x0 u), doubled
+                v = unit * tr
+                carried = rels[bounds[i] + at] + EPS * (2.0 + kt[None, :] * lo[:, None])
+                bound[np.ix_(sel, ch)] += _light_bound(product(unit_err, tr) + carried * v, v * f_li, f_li, cos_end)
+
+
+def _sun_beams(prep, sid, li, planes, errs):
+    """(turned, faces, towards, scales, du, de): the planes of shape sid turned toward directional light li, the
+    beams they refract (`refracted_beams`) and each beam's errors (`_beam_errors`, from its face's measured normal
+    error, `face_errors`)."""
+    axis = np.asarray(prep.lights.axis[li], dtype=float)
+    turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
+    eta = float(prep.scene.shapes[sid].interior.ior)
+    faces, towards, scales = refracted_beams(turned, axis, eta)
+    du, de = np.zeros(len(faces)), np.zeros(len(faces))
+    for i, f in enumerate(faces.tolist()):
+        du[i], de[i] = _beam_errors(float(-(turned[f, :3] @ axis)), eta, errs[f, 0])
+    return turned, faces, np.ascontiguousarray(towards), np.ascontiguousarray(scales), du, de
 
 
 def _shape_faces(prep, sid):

@@ -229,8 +229,8 @@ def end_bounds(owner, span, towards, scales, dirs, kt, ks, code, g, out):
 
 
 @njit
-def beam_pieces(edges, norms, errs, planes, boxes, size, reach, faces, towards, du, axis, origins, dirs, lengths, beam,
-                src, x0, x1, owner, span):
+def beam_pieces(edges, norms, errs, planes, boxes, size, reach, faces, towards, du, axis, origins, dirs, lengths, first,
+                beam, src, x0, x1, owner, span):
     """The pieces (beam: index into faces, src: segment, x0, x1; by beam, then segment and t) of the segments
     origins + t dirs, t in [0, lengths], that each face's beam lights (module docstring; towards (B, 3): minus each
     beam's direction inside, unit, off by du (B,); edges: `edge_planes`, norms (T, 3) their rows' norms, errs (T, 4)
@@ -238,88 +238,101 @@ def beam_pieces(edges, norms, errs, planes, boxes, size, reach, faces, towards, 
     bounding boxes, size: the diagonal of the shape's, reach: twice its largest vertex norm). A blocker is tested
     only where its box meets the box of the legs: the inside legs' ends X and P at the interval's ends, the outside
     legs' from P over `size` toward the light (beyond, nothing of the shape). The spans where the true pieces may
-    differ (module docstring): owner (beam, segment), span (a, b, g_min). Returns the numbers of pieces and spans,
-    or -1 where the arrays are too short."""
+    differ (module docstring): owner (beam, segment), span (a, b, g_min), none where owner has no rows (the pieces
+    alone, for the rules without a bound). From beam `first` on; returns the numbers of pieces and spans and the
+    beam it stopped at: faces' length, or the first beam that did not fit in the arrays (the counts then those of
+    the beams before it)."""
     back = -axis
     cuts = np.empty((2 * planes.shape[0], 2))
     p0, p1, q0, q1 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     inner, outer, still, far = np.empty(6), np.empty(6), np.zeros(3), size * back
     inner_w, outer_w = np.empty(6), np.empty(6)
+    bounded = owner.shape[0] > 0
     k, n = 0, 0
-    for i in range(faces.shape[0]):
+    for i in range(first, faces.shape[0]):
         f, toward = faces[i], towards[i]
+        k_i, n_i = k, n
         nf, cf = planes[f, :3], planes[f, 3]
         qf = abs(nf[0] * toward[0] + nf[1] * toward[1] + nf[2] * toward[2])
         for s in range(origins.shape[0]):
             o, w = origins[s], dirs[s]
             alpha, beta = _crossing(nf, cf, o, w, toward)
+            nlo, nhi, r, es, e_p = 0.0, -1.0, 0.0, 0.0, 0.0
+            if bounded:
+                r = math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) + lengths[s] + reach
+                es = 2.0 * crossing_error(errs[f], cf, r, 0.0, du[i]) / qf
+                wlo, whi = _clip(0.0, lengths[s], alpha + es, beta)
+                if not whi > wlo:  # the computed interval lies in it
+                    continue
+            lo, hi = _clip(0.0, lengths[s], alpha, beta)
+            if not (bounded or hi > lo):
+                continue
             for j in range(3):
                 p0[j], p1[j] = o[j] + alpha * toward[j], w[j] + beta * toward[j]
-            r = math.sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) + lengths[s] + reach
-            es = 2.0 * crossing_error(errs[f], cf, r, 0.0, du[i]) / qf
-            e_p = es + 2.0 * (r * du[i] + 16.0 * U * r)
-            e_f = e_p + 2.0 * (errs[f, 2] * r + errs[f, 3])
-            wlo, whi = _clip(0.0, lengths[s], alpha + es, beta)
-            wlo, whi = _in_triangle(wlo, whi, edges[f], p0, p1, 1, e_f, norms[f])
-            if not whi > wlo:  # the computed interval lies in it
-                continue
-            nlo, nhi = _clip(0.0, lengths[s], alpha - es, beta)
-            nlo, nhi = _in_triangle(nlo, nhi, edges[f], p0, p1, -1, e_f, norms[f])
-            n = _uncertain(owner, span, n, i, s, wlo, whi, nlo, nhi, alpha, beta, es)
-            if n < 0:
-                return -1, -1
-            lo, hi = _clip(0.0, lengths[s], alpha, beta)
-            if not hi > lo:
-                continue
+            if bounded:
+                e_p = es + 2.0 * (r * du[i] + 16.0 * U * r)
+                e_f = e_p + 2.0 * (errs[f, 2] * r + errs[f, 3])
+                wlo, whi = _in_triangle(wlo, whi, edges[f], p0, p1, 1, e_f, norms[f])
+                if not whi > wlo:
+                    continue
+                nlo, nhi = _clip(0.0, lengths[s], alpha - es, beta)
+                nlo, nhi = _in_triangle(nlo, nhi, edges[f], p0, p1, -1, e_f, norms[f])
+                n = _uncertain(owner, span, n, i, s, wlo, whi, nlo, nhi, alpha, beta, es)
+                if n < 0:
+                    return k_i, n_i, i
+                if not hi > lo:
+                    continue
             lo, hi = _in_triangle(lo, hi, edges[f], p0, p1, 0, 0.0, norms[f])
             if not hi > lo:
                 continue
-            track = nhi > nlo  # else all of W is counted
+            track = nhi > nlo  # bounded, and not all of W counted
             _box(inner, o, w, p0, p1, lo, hi, still)
             _box(outer, p0, p1, p0, p1, lo, hi, far)
-            _widened(inner_w, inner, e_p + 16.0 * U * r)
-            _widened(outer_w, outer, e_p + 16.0 * U * r)
+            _widened(inner_w, inner, e_p + 16.0 * U * r if track else 0.0)
+            _widened(outer_w, outer, e_p + 16.0 * U * r if track else 0.0)
             m = 0
             for g in range(planes.shape[0]):
                 if g == f:
                     continue
                 ng, cg = planes[g, :3], planes[g, 3]
-                tested = _meets(inner, boxes[g])
+                wide = _meets(inner_w, boxes[g])  # holds inner
+                tested = wide and _meets(inner, boxes[g])
                 if tested:
                     a, b = _blocked(edges[g], ng, cg, o, w, toward, lo, hi, alpha, beta, q0, q1, 0, 0.0, 0.0, 0.0,
                                     norms[g])
                     if b > a:
                         cuts[m, 0], cuts[m, 1] = a, b
                         m += 1
-                if track and norms[g, 0] > 0.0 and (tested or _meets(inner_w, boxes[g])):
+                if track and wide and norms[g, 0] > 0.0:
                     n = _blocker_spans(edges[g], norms[g], ng, cg, o, w, toward, nlo, nhi, alpha, beta, q0, q1,
                                        2.0 * crossing_error(errs[g], cg, r, 0.0, du[i]), es,
                                        2.0 * (r * du[i] + 16.0 * U * r + errs[g, 2] * r + errs[g, 3]), tested, owner,
                                        span, n, i, s, alpha, beta, es)
                     if n < 0:
-                        return -1, -1
-                tested = _meets(outer, boxes[g])
+                        return k_i, n_i, i
+                wide = _meets(outer_w, boxes[g])  # holds outer
+                tested = wide and _meets(outer, boxes[g])
                 if tested:
                     a, b = _blocked(edges[g], ng, cg, p0, p1, back, lo, hi, math.inf, 0.0, q0, q1, 0, 0.0, 0.0, 0.0,
                                     norms[g])
                     if b > a:
                         cuts[m, 0], cuts[m, 1] = a, b
                         m += 1
-                if track and norms[g, 0] > 0.0 and (tested or _meets(outer_w, boxes[g])):
+                if track and wide and norms[g, 0] > 0.0:
                     n = _blocker_spans(edges[g], norms[g], ng, cg, p0, p1, back, nlo, nhi, math.inf, 0.0, q0, q1,
                                        2.0 * crossing_error(errs[g], cg, r, e_p, 0.0), 0.0,
                                        2.0 * (e_p + 16.0 * U * r + errs[g, 2] * r + errs[g, 3]), tested, owner, span,
                                        n, i, s, alpha, beta, es)
                     if n < 0:
-                        return -1, -1
+                        return k_i, n_i, i
                 if m and cuts[m - 1, 0] <= lo and cuts[m - 1, 1] >= hi:  # blocked whole
                     break
             start = k
             k = _subtract(lo, hi, cuts, m, s, src, x0, x1, k)
             if k < 0:
-                return -1, -1
+                return k_i, n_i, i
             beam[start:k] = i
-    return k, n
+    return k, n, faces.shape[0]
 
 
 def face_errors(tris, planes):
@@ -354,9 +367,10 @@ def face_errors(tris, planes):
     return np.ascontiguousarray(out)
 
 
-def lit_pieces(tris, planes, errs, faces, towards, du, axis, origins, dirs, lengths):
+def lit_pieces(tris, planes, errs, faces, towards, du, axis, origins, dirs, lengths, bounded=True):
     """`beam_pieces` of the triangles tris (T, 3, 3) (errs: `face_errors`; du (B,) the beams' direction errors) as
-    arrays (beam, src, x0, x1), ordered by beam, segment and t, and its spans as (owner (S, 2), span (S, 3))."""
+    arrays (beam, src, x0, x1), ordered by beam, segment and t, and its spans as (owner (S, 2), span (S, 3)) (none
+    unless `bounded`)."""
     boxes = np.concatenate([tris.min(axis=1), tris.max(axis=1)], axis=1)
     size = float(np.linalg.norm(boxes[:, 3:].max(axis=0) - boxes[:, :3].min(axis=0)))
     reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))
@@ -368,10 +382,14 @@ def lit_pieces(tris, planes, errs, faces, towards, du, axis, origins, dirs, leng
             np.ascontiguousarray(du, dtype=np.float64), np.ascontiguousarray(axis, dtype=np.float64),
             np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(dirs, dtype=np.float64),
             np.ascontiguousarray(lengths, dtype=np.float64))
-    while True:
+    pieces, spans, first = [], [], 0
+    while True:  # the beams that did not fit go on in arrays four times as long
         beam, src, x0, x1 = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap), np.empty(cap)
-        owner, span = np.empty((2 * cap, 2), np.int64), np.empty((2 * cap, 3))
-        k, n = beam_pieces(*args, beam, src, x0, x1, owner, span)
-        if k >= 0:
-            return (beam[:k], src[:k], x0[:k], x1[:k]), (owner[:n], span[:n])
+        rows = 2 * cap if bounded else 0
+        owner, span = np.empty((rows, 2), np.int64), np.empty((rows, 3))
+        k, n, first = beam_pieces(*args, first, beam, src, x0, x1, owner, span)
+        pieces.append((beam[:k], src[:k], x0[:k], x1[:k]))
+        spans.append((owner[:n], span[:n]))
+        if first == len(faces):
+            return tuple(np.concatenate(a) for a in zip(*pieces)), tuple(np.concatenate(a) for a in zip(*spans))
         cap *= 4
