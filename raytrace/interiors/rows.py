@@ -437,16 +437,9 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
         ends = np.zeros((len(ell), len(ch)))
         end_bounds(*spans, towards, scales, w, kt, ks, medium.phase, medium.g, ends)
         bound[:, ch] += product(ends, lights.intensity[li, ch])
-        f = faces[beams]
-        q = np.einsum("ij,ij->i", turned[f, :3], towards[beams])
-        r = np.linalg.norm(points[srcs], axis=1) + ell[srcs]  # |o| + T
-        reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))
-        path = 2.0 * crossing_error(np.ascontiguousarray(errs[f, :2].T), turned[f, 3], r + reach, 0.0, du[beams]) / q
-        rels = (kt[None, :] * path[:, None] + (du[beams] * (phase_condition(medium.phase, medium.g) - 1.0)
-                                               + de[beams])[:, None])
+        per, rule_err = np.zeros((len(beams), len(ch))), np.zeros((len(beams), len(ch)))  # each piece's, carried back
     else:
         bound[np.ix_(ell > 0.0, ch)] = np.inf
-    cos_end = lights.cone[li, 0]
     bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
     for i in np.unique(beams).tolist():
         f, toward, irradiance = int(faces[i]), towards[i], scales[i]
@@ -461,10 +454,8 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
             val, spans = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))  # spans: 0 (ends given)
             beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, spans)
             np.add.at(out, (src[:, None], ch[None, :]), val * f_li)
-            if bounded:  # `_beam_terms`' rounding of the closed form, the beam's errors
-                cond = 8.0 * EPS * (abs(turned[f, 3]) + np.linalg.norm(points[src], axis=1) + ell[src]) / q
-                err = (KERNEL_FLOOR + kt[None, :] * cond[:, None] + rels[bounds[i]:bounds[i + 1]]) * val
-                np.add.at(bound, (src[:, None], ch[None, :]), product(err, f_li))
+            if bounded:
+                per[bounds[i]:bounds[i + 1]] = val
             continue
         rank = np.arange(len(src)) - np.searchsorted(src, src)
         face, dplanes = np.ascontiguousarray(turned[f:f + 1]), np.array(errs[f, :2])  # a C array: the kernel's type
@@ -484,10 +475,34 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
                 tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
             out[np.ix_(sel, ch)] += unit * tr * f_li
             var[np.ix_(sel, ch)] += unit_var * (tr * f_li) ** 2
-            if bounded:  # the rule's bound, the beam's errors and exp(-kt x0)'s rounding (2 ulps, kt x0 u), doubled
-                v = unit * tr
-                carried = rels[bounds[i] + at] + EPS * (2.0 + kt[None, :] * lo[:, None])
-                bound[np.ix_(sel, ch)] += _light_bound(product(unit_err, tr) + carried * v, v * f_li, f_li, cos_end)
+            if bounded:
+                per[bounds[i] + at], rule_err[bounds[i] + at] = unit * tr, product(unit_err, tr)
+    if bounded:
+        _sun_piece_bounds(prep, sid, li, (points, ell), (beams, srcs, x0s), (turned, faces, towards, scales, du, de),
+                          (tris, errs), per, rule_err, sup, bound)
+
+
+def _sun_piece_bounds(prep, sid, li, rows, pieces, beams, shape, per, rule_err, sup, bound):
+    """bound += each of `_sun_faces`' pieces' own bound (its docstring): the beam's relative errors rel (its direction
+    du: s_F's error, `crossing_error`, times kt, and the phase's condition; its irradiance's de) on the piece's value
+    per unit irradiance `per` (P, C), plus with closed forms their rounding (`_beam_terms`'), else the rule's bound
+    `rule_err` and exp(-kt x0)'s rounding (2 ulps and kt x0 u, doubled). rows: (points, ell); pieces: `lit_pieces`'
+    (beam, src, x0); beams: `_sun_beams`'; shape: (triangles, `face_errors`)."""
+    (points, ell), (beam, src, x0), (turned, faces, towards, scales, du, de), (tris, errs) = rows, pieces, beams, shape
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    ch, kt, _, _ = _scattering_channels(prep, medium, li)
+    f = faces[beam]
+    q = np.einsum("ij,ij->i", turned[f, :3], towards[beam])
+    r = np.linalg.norm(points[src], axis=1) + ell[src]  # |o| + T
+    reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))  # R of media/nonconvex_directional.py
+    path = 2.0 * crossing_error(np.ascontiguousarray(errs[f, :2].T), turned[f, 3], r + reach, 0.0, du[beam]) / q
+    rel = kt[None, :] * path[:, None] + (du[beam] * (phase_condition(medium.phase, medium.g) - 1.0) + de[beam])[:, None]
+    if sup.closed_forms:
+        err = (KERNEL_FLOOR + kt[None, :] * (8.0 * EPS * (np.abs(turned[f, 3]) + r) / q)[:, None] + rel) * per
+    else:
+        err = rule_err + (rel + EPS * (2.0 + kt[None, :] * x0[:, None])) * per
+    f_li = scales[beam][:, None] * lights.intensity[li, ch][None, :]
+    np.add.at(bound, (src[:, None], ch[None, :]), _light_bound(err, per * f_li, f_li, lights.cone[li, 0]))
 
 
 def _sun_beams(prep, sid, li, planes, errs):
