@@ -46,7 +46,7 @@ from ..error_bounds import KERNEL_FLOOR, product, rays_with, spot_rounding
 from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
-from ..media.nonconvex_directional import lit_pieces
+from ..media.nonconvex_directional import crossing_error, end_bounds, face_errors, lit_pieces
 from ..media.nonconvex_refraction import face_planes
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
@@ -413,24 +413,36 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
     `lit_pieces`: the path back leaves through that triangle, both legs clear of the shape), integrated as
     `_face_beams` integrates a convex shape's beams: with closed forms `beams_closed` on each piece, else the
     `rule` from each piece's start on the face's plane alone, carried back by exp(-sigma_t x0), each piece of a
-    segment on its own random stream. The pieces' ends are not bounded: the bound is infinite where anything
-    scatters."""
+    segment on its own random stream. The bound (eta > 1, closed forms and QUAD; inf for the other rules, as
+    `_face_beams` has them): each piece's (the closed form's rounding as `_beam_terms`', or the rule's bound with
+    its face's own plane errors, plus the rounding of exp(-sigma_t x0): 2 ulps and kt x0 u, doubled), the
+    relative error rel of the beam's direction (du: s_F's error times kt, the phase's condition) and irradiance
+    (de) of `_beam_errors` from the face's measured normal, plus what the pieces' ends may change (`lit_pieces`'
+    spans, `end_bounds`: media/nonconvex_directional.py's docstring, the triangles' planes and edges measured by
+    `face_errors`)."""
     points, w, ell, keys = rows
     out, var, bound, stats = acc
     medium, lights = prep.scene.shapes[sid].interior, prep.lights
     ch, kt, ks, kt_out = _scattering_channels(prep, medium, li)
     if not len(ch):
         return
-    tris, planes = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
-    axis = np.asarray(lights.axis[li], dtype=float)
-    turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
-    dplanes = measured_plane_errors(prep, sid)
+    tris, planes, errs = prep.memo(("sun faces", sid), lambda: _shape_faces(prep, sid))
+    turned, faces, towards, scales, du, de = prep.memo(("sun beams", sid, li), lambda: _sun_beams(prep, sid, li, planes,
+                                                                                                   errs))
     points, w, ell = (np.ascontiguousarray(a, dtype=float) for a in (points, w, ell))
-    faces, towards, scales = refracted_beams(turned, axis, medium.ior)
-    beams, srcs, x0s, x1s = lit_pieces(tris, planes, faces, towards, axis, points, w, ell)
+    bounded = (sup.closed_forms or rule.kind == QUAD) and medium.ior > 1.0  # else inf, as `_face_beams` has it
+    (beams, srcs, x0s, x1s), spans = lit_pieces(tris, planes, errs, faces, towards, du, lights.axis[li], points, w, ell,
+                                                bounded)
+    if bounded:
+        ends = np.zeros((len(ell), len(ch)))
+        end_bounds(*spans, towards, scales, w, kt, ks, medium.phase, medium.g, ends)
+        bound[:, ch] += product(ends, lights.intensity[li, ch])
+        per, rule_err = np.zeros((len(beams), len(ch))), np.zeros((len(beams), len(ch)))  # each piece's, carried back
+    else:
+        bound[np.ix_(ell > 0.0, ch)] = np.inf
     bounds = np.searchsorted(beams, np.arange(len(faces) + 1))
     for i in np.unique(beams).tolist():
-        f, toward, irradiance = int(faces[i]), np.ascontiguousarray(towards[i]), scales[i]
+        f, toward, irradiance = int(faces[i]), towards[i], scales[i]
         src, x0, x1 = (a[bounds[i]:bounds[i + 1]] for a in (srcs, x0s, x1s))
         f_li = irradiance * lights.intensity[li, ch]
         if sup.closed_forms:
@@ -442,9 +454,11 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
             val, spans = np.empty((len(src), len(ch))), np.empty((len(src), len(ch)))  # spans: 0 (ends given)
             beams_closed(ints, toward, w[src], kt, ks, medium.phase, medium.g, val, spans)
             np.add.at(out, (src[:, None], ch[None, :]), val * f_li)
+            if bounded:
+                per[bounds[i]:bounds[i + 1]] = val
             continue
         rank = np.arange(len(src)) - np.searchsorted(src, src)
-        face = np.ascontiguousarray(turned[f:f + 1])
+        face, dplanes = np.ascontiguousarray(turned[f:f + 1]), np.array(errs[f, :2])  # a C array: the kernel's type
         for piece in np.unique(rank).tolist():
             at = np.nonzero(rank == piece)[0]
             sel, lo, m = src[at], x0[at], len(at)
@@ -461,13 +475,55 @@ def _sun_faces(prep, sid, li, rows, sup, rule, dim0, seed, acc):
                 tr = np.where(kt[None, :] == 0.0, 1.0, np.exp(-kt[None, :] * lo[:, None]))
             out[np.ix_(sel, ch)] += unit * tr * f_li
             var[np.ix_(sel, ch)] += unit_var * (tr * f_li) ** 2
-    bound[np.ix_(ell > 0.0, ch)] = np.inf
+            if bounded:
+                per[bounds[i] + at], rule_err[bounds[i] + at] = unit * tr, product(unit_err, tr)
+    if bounded:
+        _sun_piece_bounds(prep, sid, li, (points, ell), (beams, srcs, x0s), (turned, faces, towards, scales, du, de),
+                          (tris, errs), per, rule_err, sup, bound)
+
+
+def _sun_piece_bounds(prep, sid, li, rows, pieces, beams, shape, per, rule_err, sup, bound):
+    """bound += each of `_sun_faces`' pieces' own bound (its docstring): the beam's relative errors rel (its direction
+    du: s_F's error, `crossing_error`, times kt, and the phase's condition; its irradiance's de) on the piece's value
+    per unit irradiance `per` (P, C), plus with closed forms their rounding (`_beam_terms`'), else the rule's bound
+    `rule_err` and exp(-kt x0)'s rounding (2 ulps and kt x0 u, doubled). rows: (points, ell); pieces: `lit_pieces`'
+    (beam, src, x0); beams: `_sun_beams`'; shape: (triangles, `face_errors`)."""
+    (points, ell), (beam, src, x0), (turned, faces, towards, scales, du, de), (tris, errs) = rows, pieces, beams, shape
+    medium, lights = prep.scene.shapes[sid].interior, prep.lights
+    ch, kt, _, _ = _scattering_channels(prep, medium, li)
+    f = faces[beam]
+    q = np.einsum("ij,ij->i", turned[f, :3], towards[beam])
+    r = np.linalg.norm(points[src], axis=1) + ell[src]  # |o| + T
+    reach = 2.0 * float(np.linalg.norm(tris, axis=2).max(initial=0.0))  # R of media/nonconvex_directional.py
+    path = 2.0 * crossing_error(np.ascontiguousarray(errs[f, :2].T), turned[f, 3], r + reach, 0.0, du[beam]) / q
+    rel = kt[None, :] * path[:, None] + (du[beam] * (phase_condition(medium.phase, medium.g) - 1.0) + de[beam])[:, None]
+    if sup.closed_forms:
+        err = (KERNEL_FLOOR + kt[None, :] * (8.0 * EPS * (np.abs(turned[f, 3]) + r) / q)[:, None] + rel) * per
+    else:
+        err = rule_err + (rel + EPS * (2.0 + kt[None, :] * x0[:, None])) * per
+    f_li = scales[beam][:, None] * lights.intensity[li, ch][None, :]
+    np.add.at(bound, (src[:, None], ch[None, :]), _light_bound(err, per * f_li, f_li, lights.cone[li, 0]))
+
+
+def _sun_beams(prep, sid, li, planes, errs):
+    """(turned, faces, towards, scales, du, de): the planes of shape sid turned toward directional light li, the
+    beams they refract (`refracted_beams`) and each beam's errors (`_beam_errors`, from its face's measured normal
+    error, `face_errors`)."""
+    axis = np.asarray(prep.lights.axis[li], dtype=float)
+    turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
+    eta = float(prep.scene.shapes[sid].interior.ior)
+    faces, towards, scales = refracted_beams(turned, axis, eta)
+    du, de = np.zeros(len(faces)), np.zeros(len(faces))
+    for i, f in enumerate(faces.tolist()):
+        du[i], de[i] = _beam_errors(float(-(turned[f, :3] @ axis)), eta, errs[f, 0])
+    return turned, faces, np.ascontiguousarray(towards), np.ascontiguousarray(scales), du, de
 
 
 def _shape_faces(prep, sid):
-    """(triangles (T, 3, 3), their planes (T, 4)) of shape sid, in float64."""
+    """(triangles (T, 3, 3), their planes (T, 4), their errors (`face_errors`)) of shape sid, in float64."""
     tris = np.ascontiguousarray(prep.accel.triangles[prep.shape_ids == sid], dtype=np.float64)
-    return tris, face_planes(tris)
+    planes = face_planes(tris)
+    return tris, planes, face_errors(tris, planes)
 
 
 def _refracted_sphere(prep, sid, sphere, geo, distant, ell, li, sup, rule, keys, dim0, seed, out, var, bound, stats):
