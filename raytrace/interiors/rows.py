@@ -18,7 +18,8 @@ media/convex_directional.py with its bound; else the segments go to the method's
 quadrature: `_traced`, rtol methods.INSIDE_RTOL), counted (HANDED), with its bound. Through a refractive boundary a
 directional light enters a convex shape through every face it meets, one beam each
 (`fresnel.refracted_beams`: the exact refracted path; the closed forms bounded as above), other shapes
-through every triangle, each beam over its exact lit pieces (`_sun_faces`, unbounded); a point or spot
+through every triangle, each beam over its exact lit pieces (`_sun_faces`; closed forms and QUAD bounded, ior > 1:
+the pieces' ends by media/nonconvex_directional.py `end_bounds`); a point or spot
 light enters a convex one through every face it is outside of (media/slab.py `faces_point`: Fermat's
 path per face), other shapes through every face whose legs are clear of the shape (`_through_faces`,
 paths.refracted_integrand; the entry plane's model keeps the entry plane). Every light enters an exact
@@ -32,7 +33,9 @@ planes are from the faces), others on the facet walk's exit planes or on traced 
 (paths.segment_quadrature), and in refractive exact spheres (`_refracted_sphere`, but where a caustic
 crossing has no fold pair); a directional light's refracted beams in convex refractive shapes (ior >
 1): of at most MAX_FACES planes by the distance of each beam's value from its closed form plus the
-closed form's bound (`_beam_terms`), of more by `_face_beams`; elsewhere, and for the other rules (but
+closed form's bound (`_beam_terms`), of more by `_face_beams`; in refractive shapes that are not convex each
+triangle's beam (`_sun_faces`: the pieces' ends' uncertain spans times the integrand, each piece's closed form or
+rule bound); elsewhere, and for the other rules (but
 the closed forms), the bound is infinite.
 """
 from __future__ import annotations
@@ -99,7 +102,7 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
     directional light enters a convex shape (`convex_planes`) through every face it meets, one beam each
     (`refracted_beams`: the exact refracted path; closed forms bounded as above, QUAD by each beam's distance
     from its closed form plus the closed form's bound, `_beam_terms`), other shapes through every triangle, each beam
-    over its exact lit pieces (`_sun_faces`, unbounded); a point or spot light a convex one through every face it is
+    over its exact lit pieces (`_sun_faces`, bounded for closed forms and QUAD); a point or spot light a convex one through every face it is
     outside of (media/slab.py `faces_point`), or one inside it (held.py `held_lights`) along its straight
     paths, wholly inside (an exact sphere's by its chords, `_traced`); other shapes through every face whose
     legs are clear (`_through_faces`); every light outside an exact sphere on its exact refracted paths
