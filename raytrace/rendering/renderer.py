@@ -415,7 +415,7 @@ def has_variance(prep: Prepared, method) -> bool:
     """Whether a render has a variance layer: a stochastic method's, the surface term's samples of
     area lights' emitters in penumbrae (shading.penumbra) or an environment light's groups of directions."""
     return (method.stochastic or any(e is not None for e in prep.lights.emitters)
-            or bool(environment.groups(prep.lights)))
+            or prep.memo("environment", lambda: bool(environment.groups(prep.lights))))
 
 
 NEAR_STATS = slice(-support.STATS_SIZE - len(near_emitters.STATS_NAMES), -support.STATS_SIZE)  # their place in the stats
