@@ -1,14 +1,17 @@
 """The environment light: what it costs against a directional light of the same irradiance, and its error
 against the number of directions (docs/environment.md).
 
-    RAYTRACE_ASSETS=../shared/scenes python benchmarks/environment.py [--quick]
+    RAYTRACE_ASSETS=../shared/scenes python benchmarks/environment.py [--quick] [--seeds N]
 
 Cost: 16 x 12 pixels of a height fog over a 6 x 6 ground quad, `quadrature`, volumetric shadows on, one
 thread, lit by a constant environment L of N directions or by a directional light straight down of
 irradiance pi L (what the sky gives the open ground). CPU seconds of each render after a warm-up (compilation
 excluded), the lights interleaved, best of `rounds`.
-Error: the twins of tests/test_environment.py (rays up through a height fog; a ground point under an opaque
-plate) against `quadrature` with `environment.COUNT` set to N.
+Error: the twins of tests/test_environment.py (rays up through a height fog, 2 x 2 pixels at rtol 1e-10; a ground
+point under an opaque plate) against `quadrature` with N `directions`, over `seeds` seeds (each render's directions
+are its seed's: the error is random). Per count: the mean relative error (0 within its standard error: unbiased)
+and the rms relative error, each +- its standard error over the seeds, and mean e^2 / the mean variance the render
+reports (1 where the variance is the expected square error).
 """
 import argparse
 import math
@@ -23,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import raytrace  # noqa: E402
 from raytrace.camera import generate_rays  # noqa: E402
 from raytrace.lights import environment  # noqa: E402
+from raytrace.rendering import renderer  # noqa: E402
 from tests import test_environment as twins  # noqa: E402
 
 L = [0.2, 0.3, 0.5]
@@ -45,26 +49,51 @@ def cpu_seconds(light, count):
     return time.process_time() - start
 
 
-def errors(counts):
-    """The largest relative error over the fog twin's pixels and the plate twin's, per count."""
-    fog = twins.scene([SKY], medium=twins.FOG, camera=twins.UP_CAMERA)
-    origins, dirs = generate_rays(fog.camera)
+def relative_errors(sc, exact, seeds):
+    """(seeds, values) relative errors of `sc`'s renders with seeds 0 ... seeds - 1 against `exact` (H, W, 3),
+    and their reported variances relative to exact^2."""
+    prep = renderer.prepare(sc)
+    imgs = [raytrace.render(prepared=prep, method="quadrature", rtol=1e-10, seed=seed) for seed in range(seeds)]
+    e = np.array([(img.array / exact - 1.0).ravel() for img in imgs])
+    return e, np.array([(img.variance / exact**2).ravel() for img in imgs])
+
+
+def figures(e, v) -> str:
+    """mean and rms relative error e over the seeds (rows) and values, each +- its standard error (the rms by the
+    delta method from the seeds' mean squares), and mean e^2 / the mean reported relative variance v."""
+    per_seed, squares = e.mean(axis=1), (e**2).mean(axis=1)
+    n = len(e)
+    rms = math.sqrt(squares.mean())
+    rms_se = squares.std(ddof=1) / math.sqrt(n) / (2.0 * rms)
+    return (f"mean {per_seed.mean():+.2e} +- {per_seed.std(ddof=1) / math.sqrt(n):.1e}, "
+            f"rms {rms:.2e} +- {rms_se:.1e}, e^2 / variance {squares.mean() / v.mean():.2f}")
+
+
+def errors(counts, seeds):
+    """The fog twin's pixels' and the plate twin's relative errors per count, over `seeds` seeds."""
+    up = twins.scene([SKY], medium=twins.FOG, camera=twins.UP_CAMERA)
+    origins, dirs = generate_rays(up.camera)
     fog_ref = np.array([twins.fog_twin(o, d, L, L, 0.02, 0.1, 2.0) for o, d in zip(origins, dirs)])
+    fog_ref = fog_ref.reshape(up.camera.height, up.camera.width, 3)
     F = 4 * (2 / math.sqrt(2) * math.atan(1 / math.sqrt(2)) / (2 * math.pi))  # the plate's form factor
-    plate = twins.scene([SKY], camera=twins.POINT_CAMERA, shapes=[twins.GROUND, twins.PLATE])
+    plate_ref = (0.5 * np.array(L) * (1 - F)).reshape(1, 1, 3)
+    print(f"relative error over {seeds} seeds (mean, rms, each +- its standard error; mean e^2 / the mean "
+          "reported variance)")
     for n in counts:
-        environment.COUNT = n
-        f = raytrace.render(fog, "quadrature", rtol=1e-10).array.reshape(-1, 3)
-        p = raytrace.render(plate, "quadrature").array[0, 0]
-        plate_error = np.abs(p / (0.5 * np.array(L) * (1 - F)) - 1).max()
-        print(f"N = {n}: fog {np.abs(f / fog_ref - 1).max():.2g}, plate {plate_error:.2g}")
+        sky = {**SKY, "directions": n}
+        fog = twins.scene([sky], medium=twins.FOG, camera=twins.UP_CAMERA)
+        plate = twins.scene([sky], camera=twins.POINT_CAMERA, shapes=[twins.GROUND, twins.PLATE])
+        print(f"N = {n}: fog {figures(*relative_errors(fog, fog_ref, seeds))}")
+        print(f"N = {n}: plate {figures(*relative_errors(plate, plate_ref, seeds))}")
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--seeds", type=int, default=None, help="seeds of each error figure (default 64; --quick 16)")
     args = ap.parse_args()
     counts, rounds = ((16, 64), 1) if args.quick else ((16, 64, 256), 2)
+    seeds = args.seeds or (16 if args.quick else 64)
     cpu_seconds(SUN, environment.COUNT), cpu_seconds(SKY, 4)  # compile
     best = {}
     for _ in range(rounds):
@@ -73,7 +102,7 @@ def main():
             best[name] = min(best.get(name, math.inf), cpu_seconds(light, n))
     for name, s in best.items():
         print(f"{name}: {s:.2f} CPU s, {s / best['directional']:.1f} x directional")
-    errors(counts + (1024,))
+    errors(counts + (1024,), seeds)
 
 
 if __name__ == "__main__":

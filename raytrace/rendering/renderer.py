@@ -709,7 +709,7 @@ def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, d
     layers, stats = None, 0.0
     for j in range(n):
         at = slice(j, None, n)
-        view = seeded(prep, task.seed, tile.samples.start + j)
+        view = seeded(prep, task.seed, tile.samples.start + j, task.shadows)
         o, d, k = origins[at], dirs[at], keys[at]
         hits = first_hits(view.accel, view.scene.medium, o, d)  # shared by the passes
         rad, st, var, bound = shade_groups(view, environment.groups(view.lights), method, task.params, o, d, k,
@@ -745,10 +745,11 @@ def shade_groups(prep: Prepared, split: list, method, params, origins, dirs, key
     return rad, stats, spread if var is None else var + spread, bound
 
 
-def seeded(prep: Prepared, seed: int, sample: int) -> Prepared:
+def seeded(prep: Prepared, seed: int, sample: int, shadows: bool = False) -> Prepared:
     """`prep` with the environment light's directions of the pixel sample `sample` for `seed`
-    (environment.seeded; `prep` itself where they are the same), its shadow frusta its own; those of the
-    last seed are kept."""
+    (environment.seeded; `prep` itself where they are the same), its shadow frusta its own, built here
+    with `shadows` (once, before any view of it copies it: `shade_groups`' passes and the layers' views
+    share them); those of the last seed are kept."""
     with prep._memo_lock:
         last = prep._memo.get("seeded")
         if last is None or last[0] != seed:
@@ -757,7 +758,10 @@ def seeded(prep: Prepared, seed: int, sample: int) -> Prepared:
             lights = environment.seeded(prep.lights, prep.scene.lights, seed, sample)
             last[1][sample] = prep if lights is prep.lights else dataclasses.replace(
                 prep, lights=lights, _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
-        return last[1][sample]
+        view = last[1][sample]
+    if shadows:
+        view.memo("frusta", view.frusta)  # under the view's lock: a tile of another sample does not wait
+    return view
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
