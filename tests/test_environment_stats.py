@@ -58,15 +58,10 @@ def one_pass_summary(sc, name, given, shadows):
     return out
 
 
-INSIDE = pytest.mark.xfail(strict=True, reason=(
-    "interiors/rows.py counts the inside lit pieces of every light in each pass, those the pass keeps dark too: "
-    "the change is described in /work/notes/reports60/envstats.md"))
-
-
 @pytest.mark.parametrize("case, name, given, shadows", [
     (fog, "quadrature", {"rtol": 1e-6}, False),
     (fog, "quadrature", {"rtol": 1e-6}, True),
-    pytest.param(fog_box, "quadrature", {"rtol": 1e-6}, True, marks=INSIDE),
+    (fog_box, "quadrature", {"rtol": 1e-6}, True),
 ], ids=["fog", "fog-shadows", "box-shadows"])
 def test_statistics_count_each_camera_ray_once(case, name, given, shadows):
     """The render's statistics equal one pass's over all the lights (on main the inside ones were G + 1 = 3 times

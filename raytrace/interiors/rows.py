@@ -580,12 +580,13 @@ def lit_single_scattering(prep, method, params, sid, points, normals, w, ell, ke
     if reach == REFRACTED or sup.entry_plane:  # closed forms: exact paths, directional lights
         out, var, stats, bound = single_scattering(prep, method, params, sid, points, normals, w, ell, keys, reach, seed,
                                                    depth)
-        stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * n_lights
+        stats[UNSHADOWED] += np.count_nonzero(ell > 0.0) * np.count_nonzero(prep.lights.intensity.any(axis=1))
         if np.any(prep.shape_ids != sid):
             bound = np.where(ell[:, None] > 0.0, np.inf, bound)
         return out, var, stats, bound
-    rays = np.tile(np.arange(n), n_lights)
-    segs = Segments(points[rays], w[rays], ell[rays], np.repeat(np.arange(n_lights), n), rays, np.zeros(len(rays)),
+    on = np.flatnonzero(prep.lights.intensity.any(axis=1))  # not a pass's dark lights (renderer.Prepared.only)
+    rays = np.tile(np.arange(n), len(on))
+    segs = Segments(points[rays], w[rays], ell[rays], np.repeat(on, n), rays, np.zeros(len(rays)),
                     keys[rays], np.zeros(len(rays), np.int64), seed, prep.accel.scale)
     lit, _ = exact_lit_intervals(prep.accel, segs, prep.lights, n_lights, prep.frusta())
     out, var, bound = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
@@ -727,7 +728,7 @@ def _lit_beams(prep, method, params, sid, points, normals, w, ell, keys, reach, 
     others = _other_interiors(prep, sid, sup)
     beam_others = _other_interiors(prep, sid, sup, many=True) if many else others
     unapplied = False  # a light's path computed without the other index-matched interiors
-    for li in range(len(lights)):
+    for li in np.flatnonzero(lights.intensity.any(axis=1)).tolist():  # not a pass's dark lights (Prepared.only)
         if not lights.distant[li]:
             _lit_point(prep, method, params, sid, refracting_planes(prep, sid), mask, li,
                        (points, normals, w, ell, keys), reach, seed, depth, (out, var, bound, stats), beam_others)
