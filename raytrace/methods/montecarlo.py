@@ -587,13 +587,8 @@ def drawn_segments(rec, origins, dirs, axis, lcone, first, last, kind, frame, up
         acc[:] = 0.0
         acc2[:] = 0.0
         for j in range(n):
-            for i in range(m):
-                s = b0 + i
-                dim = DIM_EMITTER + 2 * (n * stream[s] + j)
-                points[i, 0], points[i, 1], points[i, 2] = emitter_point(
-                    kind, frame, upper, first[s], last[s], uniform(keys[s], dim, seed), uniform(keys[s], dim + 1, seed))
-            xh, h, da, cone = segment_light_table(origins[b0:b0 + m], dirs[b0:b0 + m], points, axis[b0:b0 + m],
-                                                  lcone[b0:b0 + m], index[:m], scale)
+            xh, h, da, cone = _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream,
+                                          seed, scale, n, b0, m, j, points, index)
             for i in range(m):
                 s = b0 + i
                 draw_estimate(rec, s, points[i], xh[i], h[i], da[i], cone[i], keys[s], 2 * n * stream[s] + 2 * j,
@@ -605,6 +600,20 @@ def drawn_segments(rec, origins, dirs, axis, lcone, first, last, kind, frame, up
         for i in range(m):
             for c in range(3):
                 out[b0 + i, c], var[b0 + i, c] = _mean_var(acc[i, c], acc2[i, c], n)
+
+
+@njit
+def _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream, seed, scale, n, b0, m, j,
+                points, index):
+    """points[:m] (DRAW_BLOCK, 3): iteration j's drawn points of the segments b0 .. b0 + m - 1 (`drawn_segments`),
+    and (x_h, h, d_a, cone rows) of each segment's light moved there (`segment_light_table`)."""
+    for i in range(m):
+        s = b0 + i
+        dim = DIM_EMITTER + 2 * (n * stream[s] + j)
+        points[i, 0], points[i, 1], points[i, 2] = emitter_point(
+            kind, frame, upper, first[s], last[s], uniform(keys[s], dim, seed), uniform(keys[s], dim + 1, seed))
+    return segment_light_table(origins[b0:b0 + m], dirs[b0:b0 + m], points, axis[b0:b0 + m], lcone[b0:b0 + m],
+                               index[:m], scale)
 
 
 @njit
@@ -620,16 +629,11 @@ def drawn_points(origins, dirs, ell, axis, lcone, first, last, kind, frame, uppe
     for b0 in range(0, origins.shape[0], DRAW_BLOCK):
         m = min(DRAW_BLOCK, origins.shape[0] - b0)
         for j in range(n):
+            xh, h, da, cone = _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream,
+                                          seed, scale, n, b0, m, j, points, index)
             for i in range(m):
                 s = b0 + i
-                dim = DIM_EMITTER + 2 * (n * stream[s] + j)
-                points[i, 0], points[i, 1], points[i, 2] = emitter_point(
-                    kind, frame, upper, first[s], last[s], uniform(keys[s], dim, seed), uniform(keys[s], dim + 1, seed))
                 targets[s, j] = points[i]
-            xh, h, da, cone = segment_light_table(origins[b0:b0 + m], dirs[b0:b0 + m], points, axis[b0:b0 + m],
-                                                  lcone[b0:b0 + m], index[:m], scale)
-            for i in range(m):
-                s = b0 + i
                 dim = 2 * n * stream[s] + 2 * j
                 if mode == CDF:
                     _totals(xh[i], h[i], da[i], ell[s], kt, ks, code, g, cone[i], precision, coeffs, astats, ftot)
