@@ -25,7 +25,9 @@ numbers come from `rng.uniform(ray key, dimension, seed)`, so results do not dep
 A flat emitter's rows (quad, disk, flat emissive shape) move their node, in every iteration, to a point of
 the emitter uniform in area, drawn in the kernel (`drawn_segments`): the sum over the rows estimates the
 emitter's integral, not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows
-(`_whole`).
+(`_whole`); where one does (volumetric shadows), and with shadow_test = samples everywhere, its medium points
+are those of the drawn points (`drawn_points`), each point's shadow ray to its own drawn point
+(shadows/penumbra_airlight.py `drawn`, shadows/shadow_rays.py): unbiased in penumbrae too.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
 """
@@ -221,23 +223,29 @@ def sample_points(origins, dirs, xh, h, ell, cone, keys, stream, seed, intensity
     use_e, use_f = _strategies_used(mode, False)
     for s in range(xh.shape[0]):
         for j in range(n):
-            for c in range(3):
-                if ks[c] == 0.0 or not ell[s] > 0.0:
-                    continue
-                th_a, th_b, norm = _angles(xh[s], h[s], ell[s], kt[c])
-                paths = HomogeneousPaths(Eq4(xh[s], h[s], kt[c], ks[c], code, g, cone_row(cone[s])), ell[s], norm)
-                dim = 2 * n * stream[s] + 2 * j
-                xe = xf = we = wf = 0.0
-                if use_e:
-                    xe, we = _sample(paths, 0, use_e, use_f, xh[s], h[s], th_a, th_b, 0.0, ell[s], keys[s], dim, seed)
-                if use_f:
-                    xf, wf = _sample(paths, 1, use_e, use_f, xh[s], h[s], th_a, th_b, 0.0, ell[s], keys[s], dim + 1,
-                                     seed)
-                for a in range(3):
-                    pos[s, j, 0, c, a] = origins[s, a] + xe * dirs[s, a]
-                    pos[s, j, 1, c, a] = origins[s, a] + xf * dirs[s, a]
-                weight[s, j, 0, c] = we * intensity[s, c]
-                weight[s, j, 1, c] = wf * intensity[s, c]
+            _iteration_points(origins[s], dirs[s], xh[s], h[s], ell[s], cone[s], keys[s], 2 * n * stream[s] + 2 * j,
+                              seed, intensity[s], kt, ks, code, g, use_e, use_f, pos[s, j], weight[s, j])
+
+
+@njit
+def _iteration_points(o, w, xh, h, ell, cone, key, dim, seed, intensity, kt, ks, code, g, use_e, use_f, pos, weight):
+    """One iteration of `sample_points` (dimensions dim, dim + 1) of the segment o + x w, 0 <= x <= ell, lit from
+    (x_h, h, cone): pos (2, 3, 3), weight (2, 3) per strategy and channel (left as they are where ks = 0)."""
+    for c in range(3):
+        if ks[c] == 0.0 or not ell > 0.0:
+            continue
+        th_a, th_b, norm = _angles(xh, h, ell, kt[c])
+        paths = HomogeneousPaths(Eq4(xh, h, kt[c], ks[c], code, g, cone_row(cone)), ell, norm)
+        xe = xf = we = wf = 0.0
+        if use_e:
+            xe, we = _sample(paths, 0, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, key, dim, seed)
+        if use_f:
+            xf, wf = _sample(paths, 1, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, key, dim + 1, seed)
+        for a in range(3):
+            pos[0, c, a] = o[a] + xe * w[a]
+            pos[1, c, a] = o[a] + xf * w[a]
+        weight[0, c] = we * intensity[c]
+        weight[1, c] = wf * intensity[c]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -405,26 +413,35 @@ def sample_points_cdf(origins, dirs, xh, h, da, ell, cone, keys, stream, seed, i
     xs = np.zeros(3)
     for s in range(xh.shape[0]):
         _totals(xh[s], h[s], da[s], ell[s], kt, ks, code, g, cone[s], precision, coeffs, astats, ftot)
-        A, r2 = _cdf_frame(xh[s], h[s], ell[s])
         for j in range(n):
-            u = uniform(keys[s], 2 * n * stream[s] + 2 * j, seed)
-            for c in range(3):
-                if not ftot[c] > 0.0:
-                    continue
-                same = -1
-                for c2 in range(c):
-                    if ftot[c2] > 0.0 and kt[c2] == kt[c]:
-                        same = c2
-                if same >= 0:
-                    xs[c] = xs[same]
-                else:
-                    xs[c] = _invert(u, xh[s], h[s], da[s], r2, ell[s], A, ftot[c], kt[c], code, g, cone[s],
-                                    precision, coeffs, astats, stats)
-                for a in range(3):
-                    pos[s, j, 0, c, a] = origins[s, a] + xs[c] * dirs[s, a]
-                weight[s, j, 0, c] = ks[c] * ftot[c] * intensity[s, c]
+            _cdf_iteration(origins[s], dirs[s], xh[s], h[s], da[s], ell[s], cone[s],
+                           uniform(keys[s], 2 * n * stream[s] + 2 * j, seed), intensity[s], kt, ks, code, g, precision,
+                           coeffs, ftot, xs, astats, stats, pos[s, j], weight[s, j])
     stats[CS_EVALS] += astats[ST_EVALS]
     stats[CS_FALLBACK] += astats[ST_FALLBACK]
+
+
+@njit
+def _cdf_iteration(o, w, xh, h, da, ell, cone, u, intensity, kt, ks, code, g, precision, coeffs, ftot, xs, astats,
+                   cstats, pos, weight):
+    """One iteration of `sample_points_cdf` of the segment o + x w, 0 <= x <= ell, lit from (x_h, h, d_a, cone),
+    its totals ftot (3,) (`_totals`), the uniform number u: pos (1, 3, 3), weight (1, 3); xs (3,) scratch."""
+    A, r2 = _cdf_frame(xh, h, ell)
+    for c in range(3):
+        if not ftot[c] > 0.0:
+            continue
+        same = -1
+        for c2 in range(c):
+            if ftot[c2] > 0.0 and kt[c2] == kt[c]:
+                same = c2
+        if same >= 0:
+            xs[c] = xs[same]
+        else:
+            xs[c] = _invert(u, xh, h, da, r2, ell, A, ftot[c], kt[c], code, g, cone, precision, coeffs, astats,
+                            cstats)
+        for a in range(3):
+            pos[0, c, a] = o[a] + xs[c] * w[a]
+        weight[0, c] = ks[c] * ftot[c] * intensity[c]
 
 
 def _args(segs, medium, lights, params):
@@ -494,7 +511,36 @@ def _strategies(params):
 
 
 def _points(segs, medium, lights, params):
+    """`Method.points`. With shadow_test = samples a flat emitter's rows (`flat_rows`) draw their light's point
+    per iteration (`drawn_points`) and a third array, targets (S, n, 3), says where each iteration's shadow
+    rays go (the other rows': their lights); with intervals (the points of the pieces whose light crosses
+    index-matched interiors, interiors/rows.py) every row keeps its node."""
     shape = (len(segs), params["samples"], _strategies(params), 3)
+    flat = flat_rows(lights)[segs.light] if params["shadow_test"] == "samples" else np.zeros(len(segs), bool)
+    if not flat.any():
+        return _row_points(segs, medium, lights, params, shape)
+    rows, at = np.nonzero(~flat)[0], np.nonzero(flat)[0]
+    pos, weight = np.zeros(shape + (3,)), np.zeros(shape)
+    if len(rows):
+        pos[rows], weight[rows] = _row_points(segs.take(rows), medium, lights, params, (len(rows),) + shape[1:])
+    targets = np.repeat(lights.position[segs.light][:, None, :], params["samples"], axis=1)
+    drawn = segs.take(at)
+    kind, frame, upper, first, last = emitter_pieces(lights)
+    owner = lights.owner[drawn.light]
+    part = (np.zeros((len(at),) + shape[1:] + (3,)), np.zeros((len(at),) + shape[1:]), targets[at])
+    drawn_points(drawn.origins, drawn.dirs, np.asarray(drawn.length, float), lights.axis[drawn.light],
+                 lights.cone[drawn.light], first[owner], last[owner], kind, frame, upper,
+                 np.ascontiguousarray(drawn.keys, dtype=np.uint64), np.asarray(drawn.stream, np.int64),
+                 np.uint64(drawn.seed), float(drawn.scale), lights.intensity[drawn.light], medium.sigma_t,
+                 medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], params["samples"],
+                 *(cdf_setup(medium) if params["sampling"] == "cdf" else (1.0, np.zeros(1))), *part,
+                 np.zeros(CDF_STATS))
+    pos[at], weight[at], targets[at] = part
+    return pos, weight, targets
+
+
+def _row_points(segs, medium, lights, params, shape):
+    """(pos, weight) of `_points` with every row's light at its node."""
     pos = np.zeros(shape + (3,))
     weight = np.zeros(shape)
     if params["sampling"] == "cdf":
@@ -541,13 +587,8 @@ def drawn_segments(rec, origins, dirs, axis, lcone, first, last, kind, frame, up
         acc[:] = 0.0
         acc2[:] = 0.0
         for j in range(n):
-            for i in range(m):
-                s = b0 + i
-                dim = DIM_EMITTER + 2 * (n * stream[s] + j)
-                points[i, 0], points[i, 1], points[i, 2] = emitter_point(
-                    kind, frame, upper, first[s], last[s], uniform(keys[s], dim, seed), uniform(keys[s], dim + 1, seed))
-            xh, h, da, cone = segment_light_table(origins[b0:b0 + m], dirs[b0:b0 + m], points, axis[b0:b0 + m],
-                                                  lcone[b0:b0 + m], index[:m], scale)
+            xh, h, da, cone = _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream,
+                                          seed, scale, n, b0, m, j, points, index)
             for i in range(m):
                 s = b0 + i
                 draw_estimate(rec, s, points[i], xh[i], h[i], da[i], cone[i], keys[s], 2 * n * stream[s] + 2 * j,
@@ -559,6 +600,51 @@ def drawn_segments(rec, origins, dirs, axis, lcone, first, last, kind, frame, up
         for i in range(m):
             for c in range(3):
                 out[b0 + i, c], var[b0 + i, c] = _mean_var(acc[i, c], acc2[i, c], n)
+
+
+@njit
+def _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream, seed, scale, n, b0, m, j,
+                points, index):
+    """points[:m] (DRAW_BLOCK, 3): iteration j's drawn points of the segments b0 .. b0 + m - 1 (`drawn_segments`),
+    and (x_h, h, d_a, cone rows) of each segment's light moved there (`segment_light_table`)."""
+    for i in range(m):
+        s = b0 + i
+        dim = DIM_EMITTER + 2 * (n * stream[s] + j)
+        points[i, 0], points[i, 1], points[i, 2] = emitter_point(
+            kind, frame, upper, first[s], last[s], uniform(keys[s], dim, seed), uniform(keys[s], dim + 1, seed))
+    return segment_light_table(origins[b0:b0 + m], dirs[b0:b0 + m], points, axis[b0:b0 + m], lcone[b0:b0 + m],
+                               index[:m], scale)
+
+
+@njit
+def drawn_points(origins, dirs, ell, axis, lcone, first, last, kind, frame, upper, keys, stream, seed, scale,
+                 intensity, kt, ks, code, g, mode, n, precision, coeffs, pos, weight, targets, stats):
+    """`sample_points` (cdf: `sample_points_cdf`) of a flat emitter's rows, each iteration's light moved to the
+    point of the emitter that `drawn_segments` draws for it (the same dimensions), targets[s, j] (3,): the
+    medium points' shadow rays go there, so that their visibility is the drawn point's, not the row's node's."""
+    points = np.empty((DRAW_BLOCK, 3))
+    index = np.arange(DRAW_BLOCK)
+    astats, ftot, xs = np.zeros(STATS_SIZE), np.zeros(3), np.zeros(3)
+    use_e, use_f = _strategies_used(mode, False)
+    for b0 in range(0, origins.shape[0], DRAW_BLOCK):
+        m = min(DRAW_BLOCK, origins.shape[0] - b0)
+        for j in range(n):
+            xh, h, da, cone = _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream,
+                                          seed, scale, n, b0, m, j, points, index)
+            for i in range(m):
+                s = b0 + i
+                targets[s, j] = points[i]
+                dim = 2 * n * stream[s] + 2 * j
+                if mode == CDF:
+                    _totals(xh[i], h[i], da[i], ell[s], kt, ks, code, g, cone[i], precision, coeffs, astats, ftot)
+                    _cdf_iteration(origins[s], dirs[s], xh[i], h[i], da[i], ell[s], cone[i], uniform(keys[s], dim, seed),
+                                   intensity[s], kt, ks, code, g, precision, coeffs, ftot, xs, astats, stats, pos[s, j],
+                                   weight[s, j])
+                else:
+                    _iteration_points(origins[s], dirs[s], xh[i], h[i], ell[s], cone[i], keys[s], dim, seed,
+                                      intensity[s], kt, ks, code, g, use_e, use_f, pos[s, j], weight[s, j])
+    stats[CS_EVALS] += astats[ST_EVALS]
+    stats[CS_FALLBACK] += astats[ST_FALLBACK]
 
 
 @njit

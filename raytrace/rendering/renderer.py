@@ -313,7 +313,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             if not method.stochastic:  # the shadow-tested samples of raymarch: no bound
                 bound[error_bounds.rays_with(segs.ray, len(origins))] = np.inf
         else:
-            through = sampled = None
+            through = sampled = drawn = None
             if shadows:
                 cone = segs
                 segs, stats[method.stats_size:method.stats_size + len(STATS_NAMES)] = exact_lit_intervals(
@@ -324,6 +324,9 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                     segs, *sampled = penumbra_airlight.sampled((prep.accel, prep.lights), method, medium, params,
                                                                cone, segs, (origins, dirs, t, keys, seed),
                                                                shapes.blockers(prep))
+                elif penumbra_airlight.draws(prep.lights, method, medium, shadows):  # by the method's drawn points
+                    segs, drawn = penumbra_airlight.drawn((prep.accel, prep.lights), cone, segs,
+                                                          (origins, dirs, t, keys, seed), shapes.blockers(prep))
             near = None
             if near_emitters.applies(prep.lights, method) and (through is None or not len(through)):
                 segs, *near = near_emitters.replaced(prep.lights, method, medium, params, method.tolerance(params),
@@ -342,6 +345,10 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
             if sampled is not None:
                 air, variance = air + sampled[0], variance + sampled[1]
                 bound[sampled[2]] = np.inf
+            if drawn is not None and len(drawn):
+                drawn_air, drawn_var = shadowed_airlight(prep.accel, method, medium, prep.lights,
+                                                         {**params, "shadow_test": "samples"}, drawn, len(origins))
+                air, var = air + drawn_air, var + drawn_var
             if through is not None and len(through):
                 through_air, through_var, through_bound = rows.through_airlight(
                     prep, method, params, through, len(origins), stats[-support.STATS_SIZE:])

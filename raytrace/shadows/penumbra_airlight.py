@@ -20,6 +20,9 @@ The estimate is the sum over the samples, its variance the surface term's estima
 (area.collapsed_variance: strata collapsed 2 x 2, conservative), with the same floor where all
 samples agree (all lit or all dark, though the rows or probes saw a cut): one sample's share of the
 unshadowed sum, squared. Sampled rays have no error bound (the renderer makes it infinite).
+
+Monte Carlo draws a flat emitter's points itself (methods/montecarlo.py `drawn_segments`): in the pairs cut
+so (`drawn`) its medium points' shadow rays go each to its own drawn point (`draws`, shadows/shadow_rays.py).
 """
 from __future__ import annotations
 
@@ -31,6 +34,7 @@ from ..jit import exact_njit
 from ..lights import LAMBERT, SPOT, Lights
 from ..lights.area import collapsed_variance
 from ..lights.near_rules import rows_decide
+from ..lights.planar import flat_rows
 from ..methods import Segments
 from ..segments import cone_segments, gather, pieces
 from ..shading import _jitter as jitter, block, stratified
@@ -74,6 +78,31 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
         air[rs] += value  # rs: each ray once (np.nonzero's)
         var[rs] += v
     return kept, air, var, cut.any(axis=1)
+
+
+def draws(lights, method, medium, shadows: bool) -> bool:
+    """Whether a render shadow-tests flat emitters' penumbrae with the method's own drawn points (`drawn`):
+    volumetric shadows by exact lit intervals, a stochastic method with medium points (montecarlo: its
+    `points` draw each flat emitter's point per iteration with shadow_test = samples), a homogeneous medium
+    (where it has them) and a flat emitter (lights/planar.py `flat_rows`)."""
+    return (shadows and method.stochastic and method.points is not None and medium.homogeneous
+            and bool(flat_rows(lights).any()))
+
+
+def drawn(ctx, cone: Segments, lit: Segments, rays, select):
+    """(the lit segments `lit` less the flat emitters' rows of the cut (ray, emitter) pairs, the segments of
+    `cone` of those rows): the renderer hands the latter to the shadow rays of the method's own points
+    (shadows/shadow_rays.py, shadow_test = samples), each medium point's ray to the emitter's point drawn with
+    it, so that the estimate is unbiased where an occluder cuts the emitter, not the rows' rule; `ctx`, `rays`
+    and `select` as `sampled`'s."""
+    accel, lights = ctx
+    rows = flat_rows(lights)
+    cut = cut_pairs(accel, lights, cone, lit, rays, select, rows)
+    if not cut.any():
+        return lit, cone.take(np.zeros(0, np.int64))
+    owner = np.where(rows, lights.owner, 0)
+    on = lambda segs: cut[segs.ray, owner[segs.light]] & rows[segs.light]
+    return lit.take(np.nonzero(~on(lit))[0]), cone.take(np.nonzero(on(cone))[0])
 
 
 def emitter_estimate(accel, method, medium, params, emitter, e, rs, rays, select, sample=None):
@@ -123,12 +152,13 @@ def per_group(method, medium, params, lights, segs: Segments, groups: int) -> np
     return gather(segs, method.airlight(segs, medium, lights, params)[0], groups, medium)
 
 
-def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select) -> np.ndarray:
+def cut_pairs(accel, lights, cone: Segments, lit: Segments, rays, select, rows=None) -> np.ndarray:
     """(N, E) whether the camera ray's segments of emitter e are cut (module docstring): its rows'
     states (`_group_states` per row, LIT, DARK or MIXED) are mixed, or agree but the probes' differ, or
-    are all DARK for a sphere (no order of its rows proves it hidden: rendering/near_emitters.py)."""
+    are all DARK for a sphere (no order of its rows proves it hidden: rendering/near_emitters.py). `rows`
+    (L,): the rows of the emitters asked about (None: `emitter_rows`)."""
     n, n_e = len(rays[0]), len(lights.emitters)
-    rows = emitter_rows(lights)
+    rows = emitter_rows(lights) if rows is None else rows
     on = np.nonzero(rows[cone.light])[0]
     if not len(on):
         return np.zeros((n, n_e), bool)

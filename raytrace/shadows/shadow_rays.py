@@ -1,6 +1,7 @@
 """The classic volumetric shadow test of the methods that expose their medium points (raymarch,
-montecarlo with `shadow_test = "samples"`): a shadow ray from every point to its light, in chunks of
-at most POINTS_PER_CHUNK points.
+montecarlo with `shadow_test = "samples"`, and in the penumbrae of flat emitters): a shadow ray from every
+point to its light (Monte Carlo's flat emitters: to the emitter's point drawn for it), in chunks of at most
+POINTS_PER_CHUNK points.
 """
 from __future__ import annotations
 
@@ -37,18 +38,19 @@ def chunks(sizes: np.ndarray, budget: int):
         start = stop
 
 
-def _visible(accel, lights, segs, pos, weight):
-    """Shadow-ray visibility (same shape as weight) of the medium points pos toward their lights."""
+def _visible(accel, lights, segs, pos, weight, targets=None):
+    """Shadow-ray visibility (same shape as weight) of the medium points pos toward their lights, or toward
+    the points targets (S, n, 3) of each iteration where the method drew its lights' points (`points`)."""
     visible = np.zeros(weight.shape, dtype=bool)
     eps = accel.epsilon
-    lp = lights.position[segs.light]
+    lp = lights.position[segs.light][:, None, None, :] if targets is None else targets[:, :, None, :]
     for c in range(3):
         p, w = pos[..., c, :], weight[..., c]
         if c > 0 and np.array_equal(p, pos[..., 0, :]):
             visible[..., c] = visible[..., 0]
             continue
         m = w != 0.0
-        to_light = np.broadcast_to(lp[:, None, None, :], p.shape)[m] - p[m]
+        to_light = np.broadcast_to(lp, p.shape)[m] - p[m]
         dist = np.linalg.norm(to_light, axis=1)
         d = to_light / np.where(dist > 0.0, dist, 1.0)[:, None]
         vis = visible[..., c]
@@ -61,16 +63,18 @@ def shadowed_airlight(accel, method, medium, lights, params, segs: Segments, n_r
     """Air-light (N, 3) with volumetric shadows from the method's medium points and the variance
     (N, 3) of each ray's estimate: the sum over its segments (independent random numbers) of the
     variance of each segment's mean over iterations (zero for one iteration or a deterministic
-    method). `visible(segs, pos, weight)`: the factor (same shape as weight) of each point's light,
-    by default its shadow ray's visibility."""
+    method). `visible(segs, pos, weight[, targets])`: the factor (same shape as weight) of each point's light,
+    by default its shadow ray's visibility; targets (S, n, 3), where the method's `points` returns them (Monte
+    Carlo's flat emitters with shadow_test = samples: each iteration's drawn point of the emitter), are where
+    each iteration's light is."""
     visible = visible or functools.partial(_visible, accel, lights)
     counts = method.point_count(segs, medium, params)
     air = np.zeros((n_rays, 3))
     var = np.zeros((n_rays, 3))
     for part in chunks(counts, POINTS_PER_CHUNK):
         seg = segs.take(part)
-        pos, weight = method.points(seg, medium, lights, params)
-        est = (weight * visible(seg, pos, weight)).sum(axis=2)  # (S, n, 3) per iteration
+        pos, weight, *targets = method.points(seg, medium, lights, params)
+        est = (weight * visible(seg, pos, weight, *targets)).sum(axis=2)  # (S, n, 3) per iteration
         air += gather(seg, est.mean(axis=1), n_rays, medium)
         n = est.shape[1]
         if method.stochastic and n > 1:
