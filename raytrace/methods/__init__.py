@@ -207,7 +207,9 @@ class Method:
     stochastic: bool = False  # results depend on the seed; the renderer keeps per-pixel variance
     # points(segments, medium, lights, params) -> (pos (S, n, k, 3, 3), weight (S, n, k, 3)): the
     # medium points behind the estimate (n iterations of k strategies, per channel), for volumetric
-    # shadows: a segment's air-light is the mean over iterations of sum over strategies of V * weight
+    # shadows: a segment's air-light is the mean over iterations of sum over strategies of V * weight; or
+    # (pos, weight, targets (S, n, 3)): where each iteration's shadow rays go, for a method that moves its
+    # lights' points per iteration (montecarlo's flat emitters); shadow_rays.shadowed_airlight traces to them
     points: Callable | None = None
     # point_count(segments, medium, params) -> (S,) iterations x strategies `points` would give each
     # segment, so that the renderer can cut the work into chunks of bounded memory
