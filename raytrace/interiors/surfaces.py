@@ -186,7 +186,8 @@ def _triangle_beams(prep, sid, q, axis, eta):
     turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
     faces, towards, scales = refracted_beams(turned, axis, eta)
     q = np.ascontiguousarray(q, dtype=np.float64)
-    beam, src, _, _ = lit_pieces(tris, planes, faces, towards, axis, q, np.zeros_like(q), np.ones(len(q)))
+    (beam, src, _, _), _ = lit_pieces(tris, planes, np.zeros((len(tris), 4)), faces, towards, np.zeros(len(faces)),
+                                      axis, q, np.zeros_like(q), np.ones(len(q)), bounded=False)  # no errors: no spans
     for i in np.unique(beam).tolist():
         n, toward = turned[faces[i]], towards[i]
         lit = np.zeros(len(q), bool)
