@@ -10,6 +10,8 @@ from numba.core import event
 
 from raytrace.jit import exact_jitable, njit
 from raytrace.media.integrand import integrand, integrand_of
+from raytrace.media.phase import HG
+from raytrace.methods import analytic
 
 FLAGGED = re.compile(r"=\s*(fadd|fsub|fmul|fdiv|frem|fneg|fcmp)\s+(fast|nnan|ninf|nsz|arcp|contract|afn|reassoc)\b")
 FUSED = re.compile(r"@llvm\.(fma|fmuladd)\.")
@@ -164,3 +166,23 @@ def test_quadratures_kernels_without_the_lights_a_scene_lacks_give_the_same_imag
     monkeypatch.setattr(quadrature, "_kinds", lambda lights: (True, True))
     full = raytrace.render(scene, method="quadrature", threads=1).array
     assert np.array_equal(pruned, full)
+
+
+@njit(cache=False)
+def _taylor_piece(coeffs, taylor_mode):
+    """analytic's `_piece` (inlined) of a piece in the Taylor mode of an HG medium: (S, ok)."""
+    res = analytic._piece(0.5, 0.1, 1.0, 0.2, 0.8, 1.0, 2.0, HG, 0.5, analytic.ANISO_TAYLOR, 6, coeffs, 1e-3, 1000,
+                          True, False, taylor_mode)
+    return res[0], res[1]
+
+
+def test_analytic_compiles_the_taylor_mode_only_in_that_mode():
+    """methods/analytic.py `_piece`: with `taylor_mode` None (the exact mode's kernels, a spot's pieces) the Taylor
+    mode's series is not compiled (no `_taylor_poly_part` in the kernel's code), and such a piece is not ok (the
+    quadrature takes it); with it, the PP-19 sum is compiled and taken."""
+    coeffs = analytic.make_coeffs(HG, 0.5, analytic.ANISO_TAYLOR, 6, 1e-3)
+    assert _taylor_piece(coeffs, None) == (0.0, False)
+    value, ok = _taylor_piece(coeffs, True)
+    assert ok and np.isfinite(value) and value != 0.0
+    pruned, full = (_taylor_piece.inspect_llvm(sig) for sig in _taylor_piece.signatures)
+    assert "_taylor_poly_part" not in pruned and "_taylor_poly_part" in full

@@ -273,7 +273,8 @@ def _e1_ends(H, v1, v2, E1, E2, prec_i):
 
 
 @njit(inline="always")
-def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, precision, max_iter, aniso, defer):
+def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, precision, max_iter, aniso, defer,
+           taylor_mode):
     """(S, ok, iterations, flags, K1, L1, E1, E2, start, prec_s) for the piece v1 < v < v2 of a segment
     (0 <= v1 < v2 <= inf) at the light's full intensity: S = int w(phi) Phi(cos phi) dphi / 2 (w = e^{-H v},
     folded with the optical paths p1, p2 = x + d at the ends; the Taylor mode's PP-19 sum approximates
@@ -284,7 +285,9 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
     its results passed through memory cost more (inlined, the kernel takes about 40 ns less per
     segment; the default scene's compile barely changes, as its isotropic medium prunes most of this
     function). `aniso` None: an isotropic
-    phase function, and the anisotropic code is not compiled (such a piece is then not ok). `defer`:
+    phase function, and the anisotropic code is not compiled (such a piece is then not ok). `taylor_mode`
+    None: the Taylor mode's code is not compiled (such a piece is then not ok: a spot light's, which `mode_for`
+    refuses in that mode, or a render's in the exact mode). `defer`:
     the exact mode's moment recurrence is left to the caller (`_pending_recurrences`): S is then 0,
     start > 0 the start of the coefficient block in `coeffs`, and K1, L1, E1, E2 the recurrence's
     arguments with H, v1, v2 (start is 0 where nothing is left); where the Fig. 2 loop would give K1 and L1,
@@ -337,6 +340,8 @@ def _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g, aniso_mode, terms, coeffs, 
         return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
 
     if aniso_mode == ANISO_TAYLOR:
+        if taylor_mode is None:  # (numba prunes the code below where it is None)
+            return 0.0, False, iterations, flags, 0.0, 0.0, 0.0, 0.0, 0, 0.0
         # PP-19 with N = terms coefficients c_n of Phi in v
         R = 1.0
         if phase_code == HG and g > 0.0:
@@ -453,7 +458,7 @@ def checked_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision
         return val, met, NOTHING_PENDING
     val, met, pending, iterations, flags = _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g,
                                                            precision, max_iter, aniso_mode, terms, coeffs, cone,
-                                                           stats, quadrature, aniso, defer)
+                                                           stats, quadrature, aniso, defer, True)
     _tally(stats, quadrature, val, iterations, flags)
     return val, met, pending
 
@@ -522,9 +527,9 @@ def _scaled(pref, ks, val):
 
 @njit(inline="always")
 def _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_iter, aniso_mode, terms,
-                    coeffs, cone, stats, quadrature, aniso, defer):
-    """(Lm, met, pending, iterations, flags): `checked_airlight` of a light without a cone. Its statistics
-    but the fallback's (the Fig. 2 loop's iterations and the paths taken as F_* bits, `_count`) are
+                    coeffs, cone, stats, quadrature, aniso, defer, taylor_mode):
+    """(Lm, met, pending, iterations, flags): `checked_airlight` of a light without a cone (`taylor_mode`: `_piece`'s).
+    Its statistics but the fallback's (the Fig. 2 loop's iterations and the paths taken as F_* bits, `_count`) are
     returned, not written, so that its caller counts a segment left nan (deferred) not at all."""
     kind, dmin = _front(xh, h, da, ell, kt, ks, intensity, phase_code, g)
     if kind == FRONT_ZERO:
@@ -543,7 +548,7 @@ def _point_airlight(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision,
     H, va, vb, pref, pa, pb = _ends_of(xh, h, da, ell, kt, intensity)
     val, ok, iterations, flags, K1, L1, E1, E2, start, prec_s = _piece(H, kt, xh, va, vb, pa, pb, phase_code, g,
                                                                        aniso_mode, terms, coeffs, precision, max_iter,
-                                                                       aniso, defer)
+                                                                       aniso, defer, taylor_mode)
     if not ok:
         val, ok = _fallback(xh, h, ell, kt, ks, intensity, phase_code, g, cone, precision, stats, quadrature)
         return val, ok, NOTHING_PENDING, iterations, flags
@@ -618,10 +623,10 @@ def _spot_body(xh, h, da, ell, kt, ks, intensity, phase_code, g, precision, max_
                       work[26 + BAND_ORDER:27 + 2 * BAND_ORDER])
             vals[i], errs[i], ok, flags = _band_piece(H, kt, v1, v2, p1, p2, coeffs, precision, work[25:])
             _count(stats, 0.0, flags)
-        else:  # (defer False: a spot's piece runs its moment recurrence here)
+        else:  # (defer False: a spot's piece runs its moment recurrence here; no Taylor mode)
             vals[i], ok, iterations, flags, _, _, _, _, _, _ = _piece(H, kt, xh, v1, v2, p1, p2, phase_code, g,
                                                                       aniso_mode, terms, coeffs, precision, max_iter,
-                                                                      aniso, False)
+                                                                      aniso, False, None)
 
             _count(stats, iterations, flags)
         if not ok:
@@ -1071,13 +1076,14 @@ def summarize_stats(stats):
 # ----------------------------------------------------------------------------------------------
 @njit
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, quadrature, spots, aniso, lamberts=True, points=True):
+                      met, stats, quadrature, spots, aniso, lamberts=True, points=True, taylor_mode=True):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`'s choice, made here: a point light's path inlined, numba's
     inlining one level deep only, as each level types its callee's code again). With `quadrature` None
     (and `spots`, `aniso`, `lamberts` or `points`) the segments that need the reference quadrature (a spot's
     code, an anisotropic phase function's, an emitter point's, a point light's) are left nan, their statistics
-    not counted (`evaluate_deferred`); returns how many. The exact mode's
+    not counted (`evaluate_deferred`); returns how many. `taylor_mode` None: the Taylor mode's code is not
+    compiled (`_piece`; `aniso_mode` is then the exact one). The exact mode's
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
     either pass, so that deferring changes no bit."""
     pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
@@ -1103,7 +1109,7 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
         else:
             out[s], met[s], p, iterations, flags = _point_airlight(xh[s], h[s], da[s], ell[s], kt, ks, 1.0, code, g,
                                                                    precision, max_iter, aniso_mode, terms, coeffs, row,
-                                                                   stats, quadrature, aniso, defer)
+                                                                   stats, quadrature, aniso, defer, taylor_mode)
             if p[P_PREC] == 0.0:  # (a segment whose Fig. 2 loop is pending is counted with it: `_pending_series`)
                 _tally(stats, quadrature, out[s], iterations, flags)
         if quadrature is None and math.isnan(out[s]):
@@ -1214,14 +1220,15 @@ def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     `spots` False: the scene has no light with a cone but emitter points (`light_rows`), `aniso` False:
     its medium is isotropic, `lamberts` False: no emitter point, `points` False: no light without a cone;
     the first pass is then compiled without their code too (such segments, were there any, would be left
-    to the second pass)."""
+    to the second pass). Both passes compile the Taylor mode's code only in that mode."""
+    taylor_mode = True if aniso_mode == ANISO_TAYLOR else None
     if evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
                          met, stats, None, True if spots else None, True if aniso else None,
-                         True if lamberts else None, True if points else None):
+                         True if lamberts else None, True if points else None, taylor_mode):
         todo = np.flatnonzero(np.isnan(out))
         part, part_met = np.empty(len(todo)), np.empty(len(todo), dtype=np.bool_)
         evaluate_segments(xh[todo], h[todo], da[todo], ell[todo], kt, ks, code, g, precision, max_iter, aniso_mode,
-                          terms, coeffs, cone[todo], part, part_met, stats, True, True, True)
+                          terms, coeffs, cone[todo], part, part_met, stats, True, True, True, taylor_mode=taylor_mode)
         out[todo], met[todo] = part, part_met
 
 
