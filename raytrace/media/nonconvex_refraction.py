@@ -31,9 +31,9 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..lights import has_cone
-from .fermat_rounding import fermat_speed, refraction_newton
-from .slab import refracted_at
+from ..lights import NO_CONE, SMOOTHSTEP, band_slope, has_cone
+from .fermat_rounding import fermat_speed, point_error, refraction_newton, term_rounding
+from .slab import phase_condition, refracted_at
 
 SPAN_SLACK = 1e-9  # relative margin of the triangle's span along the foot's line (`_span`) before Snell's root
 PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit light value, k, o, the legs' cosines
@@ -398,3 +398,385 @@ def _push(out, m, s, x, f, rp):
         out = np.concatenate((out, np.empty_like(out)))
     out[m, 0], out[m, 1], out[m, 2], out[m, 3:6] = s, x, f, rp
     return out, m + 1
+
+
+# rows of `lit_scan`: segment, face, x0, x1, kind (LIT or CLUSTER), the face's bare term at the cluster's ends (per
+# unit light, no falloff nor exponential: at least its jump there), whether a spot's cone level may be crossed in it
+SCAN_COLUMNS = 7
+LIT, CLUSTER = 1.0, 2.0
+U = 2.0 ** -53
+SQ3 = math.sqrt(3.0)
+IN_LEG, OUT_LEG = 1, 2  # `_blockers`' flags: the triangle may meet the leg inside (X to R), outside (R to L)
+
+
+@njit
+def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g):
+    """Where each candidate face lights each segment (faces[starts[s]:stops[s]] of segment s, geo rows of
+    media/slab.py GEO_COLUMNS over [0, ell[s]]), proven: the rows (SCAN_COLUMNS) of the intervals where its
+    path's refraction point lies inside it and both legs are clear of the shape's other triangles (LIT), and of
+    the clusters of undecided intervals, each no wider than RESOLUTION x the scene's size, that hold every
+    place where that may change or a spot's cone level be crossed (CLUSTER; module docstring of `_scan`); and
+    whether every segment's scan finished (MAX_EVALS evaluations per face, eta > 1 and a finite tolerance).
+    dn, dc: the planes' errors on each normal component and on the offsets (`plane_errors`)."""
+    out = np.empty((64, SCAN_COLUMNS))
+    m = 0
+    found = np.ones(ell.shape[0], np.bool_)
+    vec, e0, level, lip = np.empty((5, 3)), np.empty((5, 3)), np.empty(5), np.empty(5)
+    vmax, cmax = 0.0, 0.0
+    for t in range(tris.shape[0]):
+        cmax = max(cmax, abs(planes[t, 3]))
+        for k in range(3):
+            vmax = max(vmax, math.sqrt(tris[t, k] @ tris[t, k]))
+    blockers, flags = np.empty(tris.shape[0], np.int64), np.empty(tris.shape[0], np.int64)
+    for s in range(ell.shape[0]):
+        row = geo[s]
+        p, w, light = row[0:3], row[3:6], row[6:9]
+        if not eta > 1.0:
+            found[s] = found[s] and starts[s] == stops[s]
+            continue
+        pn, ln = math.sqrt(p @ p), math.sqrt(light @ light)
+        size = max(pn + ell[s], ln, vmax)
+        mags = (pn, ln, math.sqrt((light - p) @ (light - p)), pn + ell[s] + ln + cmax)
+        for j in range(starts[s], stops[s]):
+            f = faces[j]
+            n = planes[f, :3].copy()
+            c = planes[f, 3]
+            hl = n @ light - c
+            if hl < 0.0:
+                n, c, hl = -n, -c, -hl
+            z0, a = c - n @ p, -(n @ w)
+            lo, hi = 0.0, ell[s]
+            if a > 0.0:
+                lo = max(lo, -z0 / a)
+            elif a < 0.0:
+                hi = min(hi, z0 / -a)
+            if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
+                continue
+            pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
+            tol_r = _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags)
+            nb = _blockers(tris, planes, f, n, c, p + lo * w, p + hi * w, light, dn, dc, size, blockers, flags)
+            if not tol_r < math.inf or nb < 0:
+                found[s] = False
+                continue
+            nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
+            ok, out, m = _scan(s, f, lo, hi, ell[s], p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip,
+                               tris, planes, blockers[:nb], flags[:nb], tol_r, dn, dc, size, code, g, out, m)
+            found[s] = found[s] and ok
+    return out[:m].copy(), found
+
+
+@njit
+def _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags):
+    """A bound on the error of the refraction point R over [lo, hi] (media/fermat_rounding.py `point_error` at the
+    piece's worst: its largest x, legs and least horizontal distance rho, with `refraction_newton`'s 4e-16 rho of
+    bisection, doubled); inf below the light (rho <= 1e-12 (hl + z) somewhere)."""
+    d0, dw = lf - pf, wh @ wh
+    r0, r1 = math.sqrt((d0 - lo * wh) @ (d0 - lo * wh)), math.sqrt((d0 - hi * wh) @ (d0 - hi * wh))
+    rmin, rmax = min(r0, r1), max(r0, r1)
+    if dw > 0.0:
+        t = (d0 @ wh) / dw
+        if lo < t < hi:
+            rmin = math.sqrt(max((d0 - t * wh) @ (d0 - t * wh), 0.0))
+    zmax = max(z0 + a * lo, z0 + a * hi)
+    if not rmin > 1e-12 * (hl + zmax):
+        return math.inf
+    kmax = math.sqrt(rmax * rmax + zmax * zmax)
+    return point_error(hi, kmax, rmax, hl, d0 @ d0, rmin, eta, dn, dc, mags, False) + 8.0 * U * rmax
+
+
+@njit
+def _blockers(tris, planes, f, n, c, x0, x1, light, dn, dc, size, out, flags):
+    """The other triangles that may meet face f's legs (out, with IN_LEG / OUT_LEG flags; returns their number,
+    -1 where the light lies within rounding of one's plane): not within rounding of f's plane (its legs meet
+    that plane at R alone), some corner below it (the side of X) and its box meeting that of X's stretch
+    x0 x1 and f (IN_LEG), some corner above it and its box meeting that of f and the light (OUT_LEG)."""
+    tol = dc + SQ3 * dn * size + 16.0 * U * size
+    tri = tris[f]
+    ilo, ihi = np.minimum(np.minimum(x0, x1), np.minimum(np.minimum(tri[0], tri[1]), tri[2])), \
+        np.maximum(np.maximum(x0, x1), np.maximum(np.maximum(tri[0], tri[1]), tri[2]))
+    olo = np.minimum(light, np.minimum(np.minimum(tri[0], tri[1]), tri[2]))
+    ohi = np.maximum(light, np.maximum(np.maximum(tri[0], tri[1]), tri[2]))
+    m = 0
+    for t in range(tris.shape[0]):
+        if t == f or not planes[t, :3] @ planes[t, :3] > 0.0:  # a degenerate triangle blocks nothing
+            continue
+        h = np.empty(3)
+        for k in range(3):
+            h[k] = n @ tris[t, k] - c
+        if np.all(np.abs(h) <= tol):
+            continue
+        blo = np.minimum(np.minimum(tris[t, 0], tris[t, 1]), tris[t, 2]) - tol
+        bhi = np.maximum(np.maximum(tris[t, 0], tris[t, 1]), tris[t, 2]) + tol
+        fl = 0
+        if np.any(h < tol) and np.all(blo <= ihi) and np.all(bhi >= ilo):
+            fl |= IN_LEG
+        if np.any(h > -tol) and np.all(blo <= ohi) and np.all(bhi >= olo):
+            if abs(planes[t, :3] @ light - planes[t, 3]) <= tol:
+                return -1
+            fl |= OUT_LEG
+        if fl:
+            out[m], flags[m] = t, fl
+            m += 1
+    return m
+
+
+@njit
+def _state(v0, v1, span, tol):
+    """+1 (-1) where a function within tol of values v0, v1 at an interval's ends and changing by at most span
+    over it is positive (negative) all along; 0: undecided."""
+    if v0 + v1 > span + 2.0 * tol:
+        return 1
+    if v0 + v1 < -(span + 2.0 * tol):
+        return -1
+    return 0
+
+
+@njit
+def _scan(s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tris, planes, blk,
+          flags, tol_r, dn, dc, size, code, g, out, m):
+    """`lit_scan` of face f along segment s over [lo, hi] (where X lies below its plane): an interval is decided
+    (module docstring's Lipschitz tests, `_state`, on the values at its ends) where an edge function of the face
+    is negative all along (R off the face: dark), where some other triangle blocks a leg all along (dark: the
+    leg's ends on opposite sides of its plane, and the line from the leg's apex, X inside, the light outside,
+    through the other end inside its three edges' planes, each sign proven), or where every edge function is
+    positive, each cone level's sign proven and every other triangle proven clear of both legs (the ends on
+    one side of its plane, or the edges' planes of opposite signs): LIT. A triangle proven clear of an interval
+    is not tested on its parts (`drop`: the depth it was dropped at, reset for the next sibling). The others
+    are halved down to RESOLUTION x size and appended as CLUSTER rows (adjacent ones merged). Lipschitz
+    bounds with K_R = `fermat_speed`: an edge's or a plane's value at R, |v| K_R; a cone level, K_R / hl;
+    a plane at X, |n·w|; the apex X's edge planes ((E_k - X) x (E_k+1 - X))·(R - X), whose derivative is
+    (w x (E_k - E_k+1))·(R - X) + ((E_k - X) x (E_k+1 - X))·(R' - w): |e| |R - X| + |(E_k - X) x (E_k+1 - X)|
+    (K_R + 1), the first at most the mean of its ends plus (K_R + 1) / 2 times the width, the second the
+    larger of its ends (convex); the light's, |(E_k - L) x (E_k+1 - L)| K_R. Tolerances: R within tol_r
+    (`_point_tolerance`), X within 8u size, the planes' errors dn, dc, and the products' rounding."""
+    width = RESOLUTION * size
+    tol_x = 8.0 * U * size
+    tol_plane = dc + 2.0 * SQ3 * dn * size + 16.0 * U * size
+    tol_tri = 4.0 * size * size * tol_r + 8.0 * size * size * tol_x + 400.0 * U * size ** 3
+    drop = np.full(blk.shape[0], 1 << 30)
+    tol = np.empty(nf)
+    for k in range(nf):
+        if math.isnan(level[k]):
+            tol[k] = lip[k] * tol_r + 4.0 * size * (SQ3 * dn + 16.0 * U) * (lip[k] + 1.0)
+        else:
+            tol[k] = 2.0 * tol_r / hl + 32.0 * U
+    stack = np.empty((128, 9))
+    stack[0, 0], stack[0, 1] = lo, hi
+    stack[0, 2:5], stack[0, 5:8], stack[0, 8] = _point(lo, pf, wh, lf, z0, a, hl, eta), \
+        _point(hi, pf, wh, lf, z0, a, hl, eta), 0.0
+    top, evals, ok = 1, 2, True
+    v0, v1 = np.empty(nf), np.empty(nf)
+    while top > 0:
+        top -= 1
+        x0, x1, depth = stack[top, 0], stack[top, 1], int(stack[top, 8])
+        r0, r1 = stack[top, 2:5].copy(), stack[top, 5:8].copy()
+        for b in range(blk.shape[0]):
+            if drop[b] >= depth:
+                drop[b] = 1 << 30
+        X0, X1 = p + x0 * w, p + x1 * w
+        d0, d1 = lf - pf - x0 * wh, lf - pf - x1 * wh
+        speed = fermat_speed(math.sqrt(d0 @ d0), math.sqrt(d1 @ d1), min(z0 + a * x0, z0 + a * x1), a, eta)
+        _face_values(r0, nf, vec, e0, level, v0)
+        _face_values(r1, nf, vec, e0, level, v1)
+        dark, edges, cones = False, True, True
+        for k in range(nf):
+            st = _state(v0[k], v1[k], lip[k] * speed * (x1 - x0), tol[k])
+            if math.isnan(level[k]):
+                dark = dark or st < 0
+                edges = edges and st > 0
+            else:
+                cones = cones and st != 0
+        undecided = False
+        if not dark:
+            for b in range(blk.shape[0]):
+                if drop[b] < depth:
+                    continue
+                st = _leg_states(tris[blk[b]], planes[blk[b]], flags[b], X0, X1, r0, r1, w, light,
+                                 speed, x1 - x0, tol_r, tol_x, tol_plane, tol_tri)
+                if st < 0:
+                    dark = True
+                    break
+                if st > 0:
+                    drop[b] = depth
+                else:
+                    undecided = True
+        if dark:
+            continue
+        if edges and cones and not undecided:
+            if x0 == lo and lo > 0.0:  # X leaves the face's plane lit: a jump where no break may be cut
+                out, m = _append(out, m, s, f, lo, lo, CLUSTER, math.inf, 1.0)
+            out, m = _append(out, m, s, f, x0, x1, LIT, 0.0, 0.0)
+            if x1 == hi and hi < full:
+                out, m = _append(out, m, s, f, hi, hi, CLUSTER, math.inf, 1.0)
+            continue
+        if x1 - x0 <= width:
+            jump = 2.0 * max(_plane_value(x0, p, w, light, n, hl, z0, a, eta, code, g),
+                             _plane_value(x1, p, w, light, n, hl, z0, a, eta, code, g))
+            cone = 0.0
+            for k in range(nf):
+                if not math.isnan(level[k]) and not v0[k] * v1[k] > 0.0:
+                    cone = 1.0
+            out, m = _append(out, m, s, f, x0, x1, CLUSTER, jump, cone)
+            continue
+        if evals >= MAX_EVALS or top + 2 > stack.shape[0]:
+            ok = False
+            continue
+        mid = 0.5 * (x0 + x1)
+        rm = _point(mid, pf, wh, lf, z0, a, hl, eta)
+        evals += 1
+        stack[top, 0], stack[top, 1], stack[top, 2:5], stack[top, 5:8], stack[top, 8] = mid, x1, rm, r1, depth + 1
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2:5], stack[top + 1, 5:8], stack[top + 1, 8] = \
+            x0, mid, r0, rm, depth + 1
+        top += 2
+    return ok, out, m
+
+
+@njit
+def _face_values(rp, nf, vec, e0, level, out):
+    """The face's break functions at R = rp (out[:nf]): v·(R - E0) of its edges, A·(R - L) / |R - L| - c of the
+    cone's levels."""
+    for k in range(nf):
+        q = rp - e0[k]
+        out[k] = vec[k] @ q if math.isnan(level[k]) else vec[k] @ q / math.sqrt(q @ q) - level[k]
+
+
+@njit
+def _leg_states(tri, plane, flag, X0, X1, r0, r1, w, light, speed, width, tol_r, tol_x, tol_plane, tol_tri):
+    """-1 where triangle tri blocks a leg all along the interval (`_scan`), +1 where it is clear of both, 0
+    undecided."""
+    n, c = plane[:3], plane[3]
+    sr = _state(n @ r0 - c, n @ r1 - c, speed * width, tol_plane + tol_r)
+    clear = True
+    if flag & IN_LEG:
+        sx = _state(n @ X0 - c, n @ X1 - c, abs(n @ w) * width, tol_plane + tol_x)
+        st = _apex_states(tri, X0, X1, r0, r1, w, speed, width, tol_tri)
+        if sx != 0 and sr == -sx and abs(st) == 3:
+            return -1
+        clear = (sx != 0 and sx == sr) or st == 0
+    if flag & OUT_LEG:
+        sl = 1 if n @ light - c > 0.0 else -1
+        st = _apex_states(tri, light, light, r0, r1, np.zeros(3), speed, width, tol_tri)
+        if sr == -sl and abs(st) == 3:
+            return -1
+        clear = clear and (sr == sl or st == 0)
+    return 1 if clear else 0
+
+
+@njit
+def _apex_states(tri, Y0, Y1, r0, r1, v, speed, width, tol):
+    """For the line from apex Y (Y0, Y1 at the interval's ends, moving at v: X along the segment, or the light)
+    to R: +3 (-3) where its three edge planes' functions ((E_k - Y) x (E_k+1 - Y))·(R - Y) are all positive
+    (negative) all along (`_scan`'s bounds), 0 where two have opposite signs all along, else 1."""
+    pos, neg = 0, 0
+    moving = v @ v > 0.0
+    for k in range(3):
+        ea, eb = tri[k], tri[(k + 1) % 3]
+        c0, c1 = np.cross(ea - Y0, eb - Y0), np.cross(ea - Y1, eb - Y1)
+        q0, q1 = r0 - Y0, r1 - Y1
+        big = max(math.sqrt(c0 @ c0), math.sqrt(c1 @ c1))
+        if moving:
+            e = ea - eb
+            span = (math.sqrt(e @ e) * 0.5 * (math.sqrt(q0 @ q0) + math.sqrt(q1 @ q1) + (speed + 1.0) * width)
+                    + big * (speed + 1.0)) * width
+        else:
+            span = big * speed * width
+        st = _state(c0 @ q0, c1 @ q1, span, tol)
+        pos += st > 0
+        neg += st < 0
+    if pos and neg:
+        return 0
+    return 3 if pos == 3 else (-3 if neg == 3 else 1)
+
+
+@njit
+def _plane_value(x, p, w, light, n, hl, z0, a, eta, code, g):
+    """The face's path's value per unit light at x through its whole plane (normal n toward the light, at height
+    hl above it; media/slab.py `refracted_at` with no falloff nor attenuation), 0 above the plane."""
+    z = z0 + a * x
+    if not z > 0.0:
+        return 0.0
+    l = light - (p + x * w) - (hl + z) * n
+    rho = math.sqrt(l @ l)
+    r = refraction_newton(rho, z, hl, eta)
+    return refracted_at(0.0, z, rho, r, w @ l, a, hl, eta, 0.0, 1.0, code, g, 0.0, 0.0, 0.0, 0.0, NO_CONE[0],
+                        NO_CONE[1], SMOOTHSTEP)
+
+
+@njit
+def _append(out, m, s, f, x0, x1, kind, jump, cone):
+    """Append a `lit_scan` row, merged into the last where it continues it (same segment, face and kind)."""
+    if m and out[m - 1, 0] == s and out[m - 1, 1] == f and out[m - 1, 4] == kind and out[m - 1, 3] == x0:
+        out[m - 1, 3] = x1
+        out[m - 1, 5] = max(out[m - 1, 5], jump)
+        out[m - 1, 6] = max(out[m - 1, 6], cone)
+        return out, m
+    if m == out.shape[0]:
+        out = np.concatenate((out, np.empty_like(out)))
+    out[m, 0], out[m, 1], out[m, 2], out[m, 3], out[m, 4], out[m, 5], out[m, 6] = s, f, x0, x1, kind, jump, cone
+    return out, m + 1
+
+
+def plane_errors(tris, planes):
+    """(dn, dc) of `face_planes` (T, 4) from the triangles (T, 3, 3) (each given exactly in float64: their edges are
+    exact): a cross product's component is within 3u |e1| |e2| of the exact one, so a unit normal's within
+    dn = 10u |e1| |e2| / |e1 x e2| + 4u, and an offset n·v0 within dc = sqrt(3) dn |v0| + 4u |v0| of the exact
+    plane's through the triangle (largest over the triangles, degenerate ones left out)."""
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    area = np.linalg.norm(np.cross(e1, e2), axis=1)
+    live = area > 0.0
+    if not np.any(live):
+        return 0.0, 0.0
+    dn = float(np.max(10.0 * U * np.linalg.norm(e1, axis=1)[live] * np.linalg.norm(e2, axis=1)[live] / area[live]))
+    dn += 4.0 * U
+    return dn, float(np.max((SQ3 * dn + 4.0 * U) * np.linalg.norm(tris[live, 0], axis=1)))
+
+
+@njit
+def scan_status(gid, x0, x1, kind, qgid, qx):
+    """For each query (face key qgid = segment x faces + face, x), `lit_scan`'s kind there (rows sorted by key
+    and x0: gid, x0, x1, kind): LIT, CLUSTER (a cluster's ends included), or 0 (dark: no row holds x)."""
+    out = np.zeros(qx.shape[0])
+    for i in range(qx.shape[0]):
+        j = np.searchsorted(gid, qgid[i])
+        while j < gid.shape[0] and gid[j] == qgid[i] and x0[j] <= qx[i]:
+            if qx[i] <= x1[j] and (out[i] == 0.0 or kind[j] == CLUSTER):
+                out[i] = kind[j]
+            j += 1
+    return out
+
+
+@njit
+def path_rounding(seg, x, face, geo, planes, eta, ell, kts, kt_outs, code, g, dn, dc, cmax, eps, spot):
+    """eps (M, C): a bound on the relative rounding of each path's term (point i: segment seg[i] at x[i], through
+    face[i]; channels kts, kt_outs) by media/fermat_rounding.py `term_rounding` in the face's frame (dn, dc the
+    planes' errors, `plane_errors`; cmax the largest |c_f|; the phase's condition of code, g), and spot (M,) the
+    falloff's absolute part where the leaving cosine lies within its error of the spot's band (media/slab.py
+    `term_error`'s: the falloff's slope x the cosine's error x the term without falloff nor attenuation)."""
+    ph = phase_condition(code, g)
+    for i in range(x.shape[0]):
+        row = geo[seg[i]]
+        p, w, light = row[0:3], row[3:6], row[6:9]
+        n = planes[face[i], :3].copy()
+        c = planes[face[i], 3]
+        hl = n @ light - c
+        if hl < 0.0:
+            n, c, hl = -n, -c, -hl
+        z0, a = c - n @ p, -(n @ w)
+        pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
+        d0 = lf - pf
+        d = d0 - x[i] * wh
+        rho = math.sqrt(d @ d)
+        r = refraction_newton(rho, max(z0 + a * x[i], 0.0), hl, eta)
+        pn, ln = math.sqrt(p @ p), math.sqrt(light @ light)
+        mags = (pn, ln, math.sqrt((light - p) @ (light - p)), pn + ell[seg[i]] + ln + cmax)
+        dcos = 0.0
+        for ch in range(kts.shape[0]):
+            eps[i, ch], dcos = term_rounding(x[i], z0, a, hl, d0 @ d0, rho, r, eta, kts[ch], kt_outs[ch], ph, dn, dc,
+                                             mags, False)
+        spot[i] = 0.0
+        if has_cone(row[13]) and row[13] > row[12] and rho > 0.0:
+            q = pf + x[i] * wh + (r / rho) * d - light
+            cos = row[9:12] @ q / math.sqrt(q @ q)
+            if row[12] - dcos < cos < row[13] + dcos:
+                spot[i] = band_slope(row[12], row[13], int(row[17])) / (row[13] - row[12]) * dcos * \
+                    _plane_value(x[i], p, w, light, n, hl, z0, a, eta, code, g) * (1.0 + eps[i, 0])
