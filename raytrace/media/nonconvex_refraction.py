@@ -23,6 +23,21 @@ g = v.(R - E0), R inside F where the three are >= 0, |g'| <= |v| K_R. A cone lev
 change is bisected to the resolution of doubles (two roots closer than that, a sliver, are not resolved). A
 search cut off after MAX_EVALS evaluations takes its undecided intervals' ends as breaks and reports that the
 segment's breaks were not all found.
+
+The bound (interiors/paths.py `refracted_quadrature`). `lit_scan` proves where each face lights each segment:
+the same isolation over the face's edges, its cone levels and, for every other triangle G that may meet a leg
+(`_blockers`: not on the face's plane, its box meeting the leg's hull), the conditions under which G blocks it:
+the leg's ends on opposite sides of G's plane and the line from its apex (X inside, the light outside) through
+its other end inside G's three edge planes. The inside leg's conditions are functions of X (linear) and of R and
+X together (`_scan` bounds their derivatives); the outside leg's are linear in R. Tolerances are proven bounds
+on the values' rounding: R's error from media/fermat_rounding.py `point_error` (first order, doubled), the
+planes' from `plane_errors`. What is left undecided at RESOLUTION x the scene's size forms clusters; between
+them each face is proven lit or dark. The quadrature keeps Embree's leg tests (its image is unchanged) and
+checks them at every node against the scan: where they differ, or a node falls in a cluster, the bound is inf.
+Each cluster adds its width times twice the face's bare term at its ends (at least its jump: the term varies by
+far less over that width); one that holds a change of the lit state or a cone level with no panel end within
+RESOLUTION x the size of it (an unlocated jump inside a panel) makes the bound inf. The nodes' rounding is
+`path_rounding`'s (media/fermat_rounding.py `term_rounding` per path).
 """
 from __future__ import annotations
 
