@@ -55,6 +55,8 @@ PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit ligh
 RESOLUTION = 1e-13  # x the scene's size: `face_breaks`' intervals this short are not halved, only bisected
 ROUNDING = 1e-14  # x the scene's size: the rounding allowed in R's position (`face_breaks`)
 MAX_EVALS = 4000  # evaluations of R per segment and face in `face_breaks`
+SCAN_EVALS = 4000  # and in `lit_scan`
+SCAN_WORK = 2000  # `lit_scan`'s tests of other triangles per segment (beyond: not found, its bound inf)
 
 
 def face_planes(tris):
@@ -421,6 +423,7 @@ SCAN_COLUMNS = 7
 LIT, CLUSTER = 1.0, 2.0
 U = 2.0 ** -53
 SQ3 = math.sqrt(3.0)
+ZERO = np.zeros(3)  # the light's speed in `_apex_states`
 IN_LEG, OUT_LEG = 1, 2  # `_blockers`' flags: the triangle may meet the leg inside (X to R), outside (R to L)
 
 
@@ -431,7 +434,8 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
     path's refraction point lies inside it and both legs are clear of the shape's other triangles (LIT), and of
     the clusters of undecided intervals, each no wider than RESOLUTION x the scene's size, that hold every
     place where that may change or a spot's cone level be crossed (CLUSTER; module docstring of `_scan`); and
-    whether every segment's scan finished (MAX_EVALS evaluations per face, eta > 1 and a finite tolerance).
+    whether every segment's scan finished (SCAN_EVALS evaluations per face, SCAN_WORK tests of other triangles per
+    segment, eta > 1 and a finite tolerance).
     dn, dc: the planes' errors on each normal component and on the offsets (`plane_errors`)."""
     out = np.empty((64, SCAN_COLUMNS))
     m = 0
@@ -443,6 +447,11 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
         for k in range(3):
             vmax = max(vmax, math.sqrt(tris[t, k] @ tris[t, k]))
     blockers, flags = np.empty(tris.shape[0], np.int64), np.empty(tris.shape[0], np.int64)
+    boxes = np.empty((tris.shape[0], 2, 3))
+    for t in range(tris.shape[0]):
+        for k in range(3):
+            boxes[t, 0, k] = min(tris[t, 0, k], tris[t, 1, k], tris[t, 2, k])
+            boxes[t, 1, k] = max(tris[t, 0, k], tris[t, 1, k], tris[t, 2, k])
     for s in range(ell.shape[0]):
         row = geo[s]
         p, w, light = row[0:3], row[3:6], row[6:9]
@@ -452,6 +461,7 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
         pn, ln = math.sqrt(p @ p), math.sqrt(light @ light)
         size = max(pn + ell[s], ln, vmax)
         mags = (pn, ln, math.sqrt((light - p) @ (light - p)), pn + ell[s] + ln + cmax)
+        work = SCAN_WORK
         for j in range(starts[s], stops[s]):
             f = faces[j]
             n = planes[f, :3].copy()
@@ -467,14 +477,17 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
                 hi = min(hi, z0 / -a)
             if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
                 continue
+            if work <= 0:
+                found[s] = False
+                break
             pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
             tol_r = _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags)
-            nb = _blockers(tris, planes, f, n, c, p + lo * w, p + hi * w, light, dn, dc, size, blockers, flags)
+            nb = _blockers(tris, planes, boxes, f, n, c, p + lo * w, p + hi * w, light, dn, dc, size, blockers, flags)
             if not tol_r < math.inf or nb < 0:
                 found[s] = False
                 continue
             nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
-            ok, out, m = _scan(s, f, lo, hi, ell[s], p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip,
+            ok, out, m, work = _scan(work, s, f, lo, hi, ell[s], p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip,
                                tris, planes, blockers[:nb], flags[:nb], tol_r, dn, dc, size, code, g, out, m)
             found[s] = found[s] and ok
     return out[:m].copy(), found
@@ -500,35 +513,33 @@ def _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags):
 
 
 @njit
-def _blockers(tris, planes, f, n, c, x0, x1, light, dn, dc, size, out, flags):
+def _blockers(tris, planes, boxes, f, n, c, x0, x1, light, dn, dc, size, out, flags):
     """The other triangles that may meet face f's legs (out, with IN_LEG / OUT_LEG flags; returns their number,
     -1 where the light lies within rounding of one's plane): not within rounding of f's plane (its legs meet
-    that plane at R alone), some corner below it (the side of X) and its box meeting that of X's stretch
-    x0 x1 and f (IN_LEG), some corner above it and its box meeting that of f and the light (OUT_LEG)."""
+    that plane at R alone), some corner below it (the side of X) and its box (boxes: each triangle's least and
+    largest corner) meeting that of X's stretch x0 x1 and f (IN_LEG), some corner above it and its box meeting
+    that of f and the light (OUT_LEG)."""
     tol = dc + SQ3 * dn * size + 16.0 * U * size
-    tri = tris[f]
-    ilo, ihi = np.minimum(np.minimum(x0, x1), np.minimum(np.minimum(tri[0], tri[1]), tri[2])), \
-        np.maximum(np.maximum(x0, x1), np.maximum(np.maximum(tri[0], tri[1]), tri[2]))
-    olo = np.minimum(light, np.minimum(np.minimum(tri[0], tri[1]), tri[2]))
-    ohi = np.maximum(light, np.maximum(np.maximum(tri[0], tri[1]), tri[2]))
+    ilo, ihi = np.minimum(np.minimum(x0, x1), boxes[f, 0]), np.maximum(np.maximum(x0, x1), boxes[f, 1])
+    olo, ohi = np.minimum(light, boxes[f, 0]), np.maximum(light, boxes[f, 1])
     m = 0
     for t in range(tris.shape[0]):
-        if t == f or not planes[t, :3] @ planes[t, :3] > 0.0:  # a degenerate triangle blocks nothing
+        if t == f or not _dot(planes[t, :3], planes[t, :3]) > 0.0:  # a degenerate triangle blocks nothing
             continue
-        h = np.empty(3)
+        below, above = False, False
         for k in range(3):
-            h[k] = n @ tris[t, k] - c
-        if np.all(np.abs(h) <= tol):
+            h = _dot(n, tris[t, k]) - c
+            below = below or h < -tol
+            above = above or h > tol
+        if not (below or above):
             continue
-        blo = np.minimum(np.minimum(tris[t, 0], tris[t, 1]), tris[t, 2]) - tol
-        bhi = np.maximum(np.maximum(tris[t, 0], tris[t, 1]), tris[t, 2]) + tol
-        fl = 0
-        if np.any(h < tol) and np.all(blo <= ihi) and np.all(bhi >= ilo):
-            fl |= IN_LEG
-        if np.any(h > -tol) and np.all(blo <= ohi) and np.all(bhi >= olo):
-            if abs(planes[t, :3] @ light - planes[t, 3]) <= tol:
-                return -1
-            fl |= OUT_LEG
+        inside, outside = below, above
+        for k in range(3):
+            inside = inside and boxes[t, 0, k] - tol <= ihi[k] and boxes[t, 1, k] + tol >= ilo[k]
+            outside = outside and boxes[t, 0, k] - tol <= ohi[k] and boxes[t, 1, k] + tol >= olo[k]
+        fl = (IN_LEG if inside else 0) | (OUT_LEG if outside else 0)
+        if outside and abs(_dot(planes[t, :3], light) - planes[t, 3]) <= tol:
+            return -1
         if fl:
             out[m], flags[m] = t, fl
             m += 1
@@ -547,7 +558,7 @@ def _state(v0, v1, span, tol):
 
 
 @njit
-def _scan(s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tris, planes, blk,
+def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tris, planes, blk,
           flags, tol_r, dn, dc, size, code, g, out, m):
     """`lit_scan` of face f along segment s over [lo, hi] (where X lies below its plane): an interval is decided
     (module docstring's Lipschitz tests, `_state`, on the values at its ends) where an edge function of the face
@@ -567,12 +578,12 @@ def _scan(s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, ve
     width = RESOLUTION * size
     tol_x = 8.0 * U * size
     tol_plane = dc + 2.0 * SQ3 * dn * size + 16.0 * U * size
-    tol_tri = 4.0 * size * size * tol_r + 8.0 * size * size * tol_x + 400.0 * U * size ** 3
+    tol_tri = 4.0 * size * size * tol_r + 20.0 * size * size * tol_x + 400.0 * U * size ** 3
     drop = np.full(blk.shape[0], 1 << 30)
     tol = np.empty(nf)
     for k in range(nf):
         if math.isnan(level[k]):
-            tol[k] = lip[k] * tol_r + 4.0 * size * (SQ3 * dn + 16.0 * U) * (lip[k] + 1.0)
+            tol[k] = lip[k] * tol_r + 8.0 * size * (SQ3 * dn + 16.0 * U) * (lip[k] + 1.0)
         else:
             tol[k] = 2.0 * tol_r / hl + 32.0 * U
     stack = np.empty((128, 9))
@@ -606,7 +617,8 @@ def _scan(s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, ve
             for b in range(blk.shape[0]):
                 if drop[b] < depth:
                     continue
-                st = _leg_states(tris[blk[b]], planes[blk[b]], flags[b], X0, X1, r0, r1, w, light,
+                work -= 1
+                st = _leg_states(tris[blk[b]], planes[blk[b]], flags[b], X0, X1, r0, r1, w, light, n,
                                  speed, x1 - x0, tol_r, tol_x, tol_plane, tol_tri)
                 if st < 0:
                     dark = True
@@ -633,7 +645,7 @@ def _scan(s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, ve
                     cone = 1.0
             out, m = _append(out, m, s, f, x0, x1, CLUSTER, jump, cone)
             continue
-        if evals >= MAX_EVALS or top + 2 > stack.shape[0]:
+        if evals >= SCAN_EVALS or work <= 0 or top + 2 > stack.shape[0]:
             ok = False
             continue
         mid = 0.5 * (x0 + x1)
@@ -643,7 +655,7 @@ def _scan(s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, ve
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2:5], stack[top + 1, 5:8], stack[top + 1, 8] = \
             x0, mid, r0, rm, depth + 1
         top += 2
-    return ok, out, m
+    return ok, out, m, work
 
 
 @njit
@@ -651,56 +663,86 @@ def _face_values(rp, nf, vec, e0, level, out):
     """The face's break functions at R = rp (out[:nf]): v·(R - E0) of its edges, A·(R - L) / |R - L| - c of the
     cone's levels."""
     for k in range(nf):
-        q = rp - e0[k]
-        out[k] = vec[k] @ q if math.isnan(level[k]) else vec[k] @ q / math.sqrt(q @ q) - level[k]
+        q0, q1, q2 = rp[0] - e0[k, 0], rp[1] - e0[k, 1], rp[2] - e0[k, 2]
+        g = vec[k, 0] * q0 + vec[k, 1] * q1 + vec[k, 2] * q2
+        out[k] = g if math.isnan(level[k]) else g / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2) - level[k]
 
 
 @njit
-def _leg_states(tri, plane, flag, X0, X1, r0, r1, w, light, speed, width, tol_r, tol_x, tol_plane, tol_tri):
+def _leg_states(tri, plane, flag, X0, X1, r0, r1, w, light, nf, speed, width, tol_r, tol_x, tol_plane, tol_tri):
     """-1 where triangle tri blocks a leg all along the interval (`_scan`), +1 where it is clear of both, 0
-    undecided."""
+    undecided. nf: the face's normal (R moves in its plane: a function u·R changes at |u - (u·nf) nf| K_R)."""
     n, c = plane[:3], plane[3]
-    sr = _state(n @ r0 - c, n @ r1 - c, speed * width, tol_plane + tol_r)
+    sr = _state(_dot(n, r0) - c, _dot(n, r1) - c, _along(n, nf) * speed * width, tol_plane + tol_r)
     clear = True
     if flag & IN_LEG:
-        sx = _state(n @ X0 - c, n @ X1 - c, abs(n @ w) * width, tol_plane + tol_x)
-        st = _apex_states(tri, X0, X1, r0, r1, w, speed, width, tol_tri)
-        if sx != 0 and sr == -sx and abs(st) == 3:
-            return -1
-        clear = (sx != 0 and sx == sr) or st == 0
+        sx = _state(_dot(n, X0) - c, _dot(n, X1) - c, abs(_dot(n, w)) * width, tol_plane + tol_x)
+        if sx != 0 and sx == sr:
+            clear = True
+        else:
+            st = _apex_states(tri, X0, X1, r0, r1, w, nf, speed, width, tol_tri)
+            if sx != 0 and sr == -sx and abs(st) == 3:
+                return -1
+            clear = st == 0
     if flag & OUT_LEG:
-        sl = 1 if n @ light - c > 0.0 else -1
-        st = _apex_states(tri, light, light, r0, r1, np.zeros(3), speed, width, tol_tri)
-        if sr == -sl and abs(st) == 3:
-            return -1
-        clear = clear and (sr == sl or st == 0)
+        sl = 1 if _dot(n, light) - c > 0.0 else -1
+        if sr != sl:
+            st = _apex_states(tri, light, light, r0, r1, ZERO, nf, speed, width, tol_tri)
+            if sr == -sl and abs(st) == 3:
+                return -1
+            clear = clear and st == 0
     return 1 if clear else 0
 
 
 @njit
-def _apex_states(tri, Y0, Y1, r0, r1, v, speed, width, tol):
+def _dot(u, v):
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+@njit
+def _along(u, nf):
+    """|u - (u·nf) nf|: the part of u in the plane of unit normal nf."""
+    d = _dot(u, nf)
+    return math.sqrt(max(_dot(u, u) - d * d, 0.0))
+
+
+@njit
+def _apex_states(tri, Y0, Y1, r0, r1, v, nf, speed, width, tol):
     """For the line from apex Y (Y0, Y1 at the interval's ends, moving at v: X along the segment, or the light)
     to R: +3 (-3) where its three edge planes' functions ((E_k - Y) x (E_k+1 - Y))·(R - Y) are all positive
-    (negative) all along (`_scan`'s bounds), 0 where two have opposite signs all along, else 1."""
+    (negative) all along (`_scan`'s bounds, R' in the face's plane of normal nf), 0 where two have opposite
+    signs all along, else 1."""
     pos, neg = 0, 0
-    moving = v @ v > 0.0
+    moving = v[0] != 0.0 or v[1] != 0.0 or v[2] != 0.0
+    q0 = math.sqrt((r0[0] - Y0[0]) ** 2 + (r0[1] - Y0[1]) ** 2 + (r0[2] - Y0[2]) ** 2)
+    q1 = math.sqrt((r1[0] - Y1[0]) ** 2 + (r1[1] - Y1[1]) ** 2 + (r1[2] - Y1[2]) ** 2)
     for k in range(3):
-        ea, eb = tri[k], tri[(k + 1) % 3]
-        c0, c1 = np.cross(ea - Y0, eb - Y0), np.cross(ea - Y1, eb - Y1)
-        q0, q1 = r0 - Y0, r1 - Y1
-        big = max(math.sqrt(c0 @ c0), math.sqrt(c1 @ c1))
+        ka, kb = k, (k + 1) % 3
+        g0, big0, par0 = _edge_plane(tri, ka, kb, Y0, r0, nf)
+        g1, big1, par1 = _edge_plane(tri, ka, kb, Y1, r1, nf)
+        turn = max(par0, par1) * speed
         if moving:
-            e = ea - eb
-            span = (math.sqrt(e @ e) * 0.5 * (math.sqrt(q0 @ q0) + math.sqrt(q1 @ q1) + (speed + 1.0) * width)
-                    + big * (speed + 1.0)) * width
-        else:
-            span = big * speed * width
-        st = _state(c0 @ q0, c1 @ q1, span, tol)
+            e = math.sqrt((tri[ka, 0] - tri[kb, 0]) ** 2 + (tri[ka, 1] - tri[kb, 1]) ** 2
+                          + (tri[ka, 2] - tri[kb, 2]) ** 2)
+            turn += e * 0.5 * (q0 + q1 + (speed + 1.0) * width) + max(big0, big1)
+        st = _state(g0, g1, turn * width, tol)
         pos += st > 0
         neg += st < 0
     if pos and neg:
         return 0
     return 3 if pos == 3 else (-3 if neg == 3 else 1)
+
+
+@njit
+def _edge_plane(tri, ka, kb, y, r, nf):
+    """(c·(R - Y), |c|, |c - (c·nf) nf|) of c = (E_ka - Y) x (E_kb - Y)."""
+    ax, ay, az = tri[ka, 0] - y[0], tri[ka, 1] - y[1], tri[ka, 2] - y[2]
+    bx, by, bz = tri[kb, 0] - y[0], tri[kb, 1] - y[1], tri[kb, 2] - y[2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    cc = cx * cx + cy * cy + cz * cz
+    cn = cx * nf[0] + cy * nf[1] + cz * nf[2]
+    return (cx * (r[0] - y[0]) + cy * (r[1] - y[1]) + cz * (r[2] - y[2]), math.sqrt(cc),
+            math.sqrt(max(cc - cn * cn, 0.0)))
 
 
 @njit
