@@ -880,7 +880,7 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
         status = scan.status(ss[pt], face, xs[pt])
         unbounded[ss[pt[(status == CLUSTER) | ((status == LIT) != keep)]]] = True
         pt, face, rows = pt[keep], face[keep], rows[keep]
-        eps, spot = scan.rounding(ss[pt], xs[pt], face, kts, kt_outs)
+        eps, spot = scan.rounding(ss[pt], xs[pt], face, rows[:, 2:5], kts, kt_outs)
         return _sums(xs, pt, rows[:, 5], rows[:, 6], rows[:, 7], kts, kss, kt_outs, cs, eps, spot)
     val, err = adaptive(values, end, len(kts), seg, a, b, rule.rtol, stats, bounded=True, narrow=NARROW,
                         by_panel=True)
@@ -891,7 +891,7 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
 
 class _Scan(NamedTuple):
     """media/nonconvex_refraction.py `lit_scan` of a shape's segments: whether each finished (found), the kind
-    at nodes (`status(seg, face, x)`: LIT, CLUSTER or 0), the paths' rounding (`rounding(seg, x, face, kts,
+    at nodes (`status(seg, face, x)`: LIT, CLUSTER or 0), the paths' rounding (`rounding(seg, x, face, R, kts,
     kt_outs)`: `path_rounding`'s eps, spot) and the clusters' bound (`cluster_errors`)."""
     found: np.ndarray
     status: object
@@ -913,11 +913,12 @@ def _lit_scan(prep, sid, geo, end, code, g):
     cmax = float(np.max(np.abs(planes[:, 3]), initial=0.0))
 
     def status(seg, face, x):
-        return scan_status(gid, rows[:, 2], rows[:, 3], rows[:, 4], seg * nt + face, x)
+        key = seg * nt + face
+        return scan_status(gid, rows[:, 2], rows[:, 3], rows[:, 4], key, x, np.searchsorted(gid, key))
 
-    def rounding(seg, x, face, kts, kt_outs):
+    def rounding(seg, x, face, rp, kts, kt_outs):
         eps, spot = np.empty((len(x), len(kts))), np.empty(len(x))
-        path_rounding(seg, x, face, geo, planes, eta, end, np.asarray(kts, float), np.asarray(kt_outs, float), code,
+        path_rounding(seg, x, face, np.ascontiguousarray(rp), geo, planes, eta, end, np.asarray(kts, float), np.asarray(kt_outs, float), code,
                       g, dn, dc, cmax, eps, spot)
         return eps, spot
 

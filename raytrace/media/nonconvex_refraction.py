@@ -789,12 +789,13 @@ def plane_errors(tris, planes):
 
 
 @njit
-def scan_status(gid, x0, x1, kind, qgid, qx):
+def scan_status(gid, x0, x1, kind, qgid, qx, first):
     """For each query (face key qgid = segment x faces + face, x), `lit_scan`'s kind there (rows sorted by key
-    and x0: gid, x0, x1, kind): LIT, CLUSTER (a cluster's ends included), or 0 (dark: no row holds x)."""
+    and x0: gid, x0, x1, kind; first: np.searchsorted(gid, qgid)): LIT, CLUSTER (a cluster's ends included), or
+    0 (dark: no row holds x)."""
     out = np.zeros(qx.shape[0])
     for i in range(qx.shape[0]):
-        j = np.searchsorted(gid, qgid[i])
+        j = first[i]
         while j < gid.shape[0] and gid[j] == qgid[i] and x0[j] <= qx[i]:
             if qx[i] <= x1[j] and (out[i] == 0.0 or kind[j] == CLUSTER):
                 out[i] = kind[j]
@@ -803,37 +804,38 @@ def scan_status(gid, x0, x1, kind, qgid, qx):
 
 
 @njit
-def path_rounding(seg, x, face, geo, planes, eta, ell, kts, kt_outs, code, g, dn, dc, cmax, eps, spot):
+def path_rounding(seg, x, face, rp, geo, planes, eta, ell, kts, kt_outs, code, g, dn, dc, cmax, eps, spot):
     """eps (M, C): a bound on the relative rounding of each path's term (point i: segment seg[i] at x[i], through
-    face[i]; channels kts, kt_outs) by media/fermat_rounding.py `term_rounding` in the face's frame (dn, dc the
+    face[i] at its refraction point rp[i] (`face_paths`'); channels kts, kt_outs) by media/fermat_rounding.py `term_rounding` in the face's frame (dn, dc the
     planes' errors, `plane_errors`; cmax the largest |c_f|; the phase's condition of code, g), and spot (M,) the
     falloff's absolute part where the leaving cosine lies within its error of the spot's band (media/slab.py
     `term_error`'s: the falloff's slope x the cosine's error x the term without falloff nor attenuation)."""
     ph = phase_condition(code, g)
     for i in range(x.shape[0]):
         row = geo[seg[i]]
-        p, w, light = row[0:3], row[3:6], row[6:9]
-        n = planes[face[i], :3].copy()
-        c = planes[face[i], 3]
-        hl = n @ light - c
-        if hl < 0.0:
-            n, c, hl = -n, -c, -hl
-        z0, a = c - n @ p, -(n @ w)
-        pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
-        d0 = lf - pf
-        d = d0 - x[i] * wh
-        rho = math.sqrt(d @ d)
-        r = refraction_newton(rho, max(z0 + a * x[i], 0.0), hl, eta)
-        pn, ln = math.sqrt(p @ p), math.sqrt(light @ light)
-        mags = (pn, ln, math.sqrt((light - p) @ (light - p)), pn + ell[seg[i]] + ln + cmax)
+        f = face[i]
+        sg = 1.0 if _dot(planes[f, :3], row[6:9]) - planes[f, 3] >= 0.0 else -1.0  # the normal toward the light
+        n0, n1, n2, c = sg * planes[f, 0], sg * planes[f, 1], sg * planes[f, 2], sg * planes[f, 3]
+        hl = n0 * row[6] + n1 * row[7] + n2 * row[8] - c
+        z0, a = c - (n0 * row[0] + n1 * row[1] + n2 * row[2]), -(n0 * row[3] + n1 * row[4] + n2 * row[5])
+        u = z0 + x[i] * a  # X's foot: X + z n; the light's: L - hl n
+        f0, f1, f2 = row[0] + x[i] * row[3] + u * n0, row[1] + x[i] * row[4] + u * n1, row[2] + x[i] * row[5] + u * n2
+        d0, d1, d2 = row[6] - hl * n0 - f0, row[7] - hl * n1 - f1, row[8] - hl * n2 - f2
+        b0, b1, b2 = row[6] - hl * n0 - row[0] - z0 * n0, row[7] - hl * n1 - row[1] - z0 * n1, \
+            row[8] - hl * n2 - row[2] - z0 * n2  # at x = 0
+        rho = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        r = math.sqrt((rp[i, 0] - f0) ** 2 + (rp[i, 1] - f1) ** 2 + (rp[i, 2] - f2) ** 2)
+        pn, ln = math.sqrt(_dot(row, row)), math.sqrt(_dot(row[6:9], row[6:9]))
+        lp = math.sqrt((row[6] - row[0]) ** 2 + (row[7] - row[1]) ** 2 + (row[8] - row[2]) ** 2)
+        mags = (pn, ln, lp, pn + ell[seg[i]] + ln + cmax)
         dcos = 0.0
         for ch in range(kts.shape[0]):
-            eps[i, ch], dcos = term_rounding(x[i], z0, a, hl, d0 @ d0, rho, r, eta, kts[ch], kt_outs[ch], ph, dn, dc,
-                                             mags, False)
+            eps[i, ch], dcos = term_rounding(x[i], z0, a, hl, b0 * b0 + b1 * b1 + b2 * b2, rho, r, eta, kts[ch],
+                                             kt_outs[ch], ph, dn, dc, mags, False)
         spot[i] = 0.0
-        if has_cone(row[13]) and row[13] > row[12] and rho > 0.0:
-            q = pf + x[i] * wh + (r / rho) * d - light
+        if has_cone(row[13]) and row[13] > row[12]:
+            q = rp[i] - row[6:9]
             cos = row[9:12] @ q / math.sqrt(q @ q)
             if row[12] - dcos < cos < row[13] + dcos:
-                spot[i] = band_slope(row[12], row[13], int(row[17])) / (row[13] - row[12]) * dcos * \
-                    _plane_value(x[i], p, w, light, n, hl, z0, a, eta, code, g) * (1.0 + eps[i, 0])
+                spot[i] = band_slope(row[12], row[13], int(row[17])) / (row[13] - row[12]) * dcos * (1.0 + eps[i, 0]) \
+                    * _plane_value(x[i], row[0:3], row[3:6], row[6:9], np.array([n0, n1, n2]), hl, z0, a, eta, code, g)
