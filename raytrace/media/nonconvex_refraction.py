@@ -56,7 +56,7 @@ RESOLUTION = 1e-13  # x the scene's size: `face_breaks`' intervals this short ar
 ROUNDING = 1e-14  # x the scene's size: the rounding allowed in R's position (`face_breaks`)
 MAX_EVALS = 4000  # evaluations of R per segment and face in `face_breaks`
 SCAN_EVALS = 4000  # and in `lit_scan`
-SCAN_WORK = 2000  # `lit_scan`'s tests of other triangles per segment (beyond: not found, its bound inf)
+SCAN_WORK = 5000  # `lit_scan`'s tests of other triangles per segment, culling included (beyond: not found, bound inf)
 
 
 def face_planes(tris):
@@ -282,17 +282,7 @@ def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
         p, w, light = row[0:3], row[3:6], row[6:9]
         for j in range(starts[s], stops[s]):
             f = faces[j]
-            n = planes[f, :3].copy()
-            c = planes[f, 3]
-            hl = n @ light - c
-            if hl < 0.0:  # the normal turned toward the light
-                n, c, hl = -n, -c, -hl
-            z0, a = c - n @ p, -(n @ w)
-            lo, hi = 0.0, ell[s]  # where X lies below the plane
-            if a > 0.0:
-                lo = max(lo, -z0 / a)
-            elif a < 0.0:
-                hi = min(hi, z0 / -a)
+            n, c, hl, z0, a, lo, hi = _face_frame(planes[f], p, w, light, ell[s])
             if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
                 continue
             nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
@@ -300,6 +290,25 @@ def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
                                   level, lip, scale, stack, out, m)
             found[s] = found[s] and ok
     return out[:m].copy(), found
+
+
+@njit
+def _face_frame(plane, p, w, light, ell):
+    """A face's plane seen from a segment (start p, direction w, length ell) and the light: its normal n and offset
+    c turned toward the light, the light's height hl above it, the depth z0 of p below it and its rate a along
+    w, and [lo, hi] where X lies below it."""
+    n = plane[:3].copy()
+    c = plane[3]
+    hl = n @ light - c
+    if hl < 0.0:
+        n, c, hl = -n, -c, -hl
+    z0, a = c - n @ p, -(n @ w)
+    lo, hi = 0.0, ell
+    if a > 0.0:
+        lo = max(lo, -z0 / a)
+    elif a < 0.0:
+        hi = min(hi, z0 / -a)
+    return n, c, hl, z0, a, lo, hi
 
 
 @njit
@@ -435,7 +444,7 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
     the clusters of undecided intervals, each no wider than RESOLUTION x the scene's size, that hold every
     place where that may change or a spot's cone level be crossed (CLUSTER; module docstring of `_scan`); and
     whether every segment's scan finished (SCAN_EVALS evaluations per face, SCAN_WORK tests of other triangles per
-    segment, eta > 1 and a finite tolerance).
+    segment, culling included, eta > 1 and a finite tolerance).
     dn, dc: the planes' errors on each normal component and on the offsets (`plane_errors`)."""
     out = np.empty((64, SCAN_COLUMNS))
     m = 0
@@ -464,17 +473,7 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
         work = SCAN_WORK
         for j in range(starts[s], stops[s]):
             f = faces[j]
-            n = planes[f, :3].copy()
-            c = planes[f, 3]
-            hl = n @ light - c
-            if hl < 0.0:
-                n, c, hl = -n, -c, -hl
-            z0, a = c - n @ p, -(n @ w)
-            lo, hi = 0.0, ell[s]
-            if a > 0.0:
-                lo = max(lo, -z0 / a)
-            elif a < 0.0:
-                hi = min(hi, z0 / -a)
+            n, c, hl, z0, a, lo, hi = _face_frame(planes[f], p, w, light, ell[s])
             if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
                 continue
             if work <= 0:
@@ -483,6 +482,7 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
             pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
             tol_r = _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags)
             nb = _blockers(tris, planes, boxes, f, n, c, p + lo * w, p + hi * w, light, dn, dc, size, blockers, flags)
+            work -= tris.shape[0]
             if not tol_r < math.inf or nb < 0:
                 found[s] = False
                 continue
