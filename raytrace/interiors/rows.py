@@ -908,7 +908,7 @@ def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, see
     kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
     args = (prep, sid, geo, ell, kts, kss, medium.phase, medium.g, kt_outs)
     v = np.zeros((len(ell), len(ch)))
-    err = np.full((len(ell), len(ch)), np.inf)
+    err = np.where((ell > 0.0)[:, None], np.inf, np.zeros(len(ch)))
     if rule.kind == QUAD:
         capped = np.zeros(1)
         val, err = paths.refracted_quadrature(*args, rule, capped)
