@@ -32,7 +32,8 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.nonconvex_refraction import PATH_COLUMNS, candidates, every, face_breaks, face_paths, face_planes
+from ..media.nonconvex_refraction import (CLUSTER, LIT, PATH_COLUMNS, RESOLUTION, candidates, every, face_breaks,
+                                          face_paths, face_planes, lit_scan, path_rounding, plane_errors, scan_status)
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -751,17 +752,28 @@ def _summed(paths, kts, kss, kt_outs):
     """`refracted_integrand`'s `values` from its `paths` (`refracted_paths`)."""
     def values(seg, x, cs, panels=None):
         pt, _, value, k, o = paths(seg, x, panels)
-        out = np.empty((len(x), len(cs)))
-        for j, c in enumerate(cs):
-            w = kss[c] * value * np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
-            out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
-        return out
+        return _sums(x, pt, value, k, o, kts, kss, kt_outs, cs)[0]
     return values
 
 
+def _sums(x, pt, value, k, o, kts, kss, kt_outs, cs, eps=None, spot=None):
+    """The paths' terms ks value exp(-kt (x + k) - kt_out o) summed per point (len(x), len(cs)), and with eps (paths,
+    len(cs)) and spot (paths,) their rounding bounds, the terms times eps plus ks spot exp(...), summed."""
+    out = np.empty((len(x), len(cs)))
+    err = np.empty((len(x), len(cs))) if eps is not None else None
+    for j, c in enumerate(cs):
+        att = np.exp(-kts[c] * (x[pt] + k) - kt_outs[c] * o)
+        w = kss[c] * value * att
+        out[:, j] = np.bincount(pt, weights=w, minlength=len(x))
+        if eps is not None:
+            err[:, j] = np.bincount(pt, weights=w * eps[:, j] + kss[c] * spot * att, minlength=len(x))
+    return out, err
+
+
 def refracted_paths(prep, sid, geo, ell, code, g):
-    """`refracted_integrand`'s paths as a function `paths(seg, x, panels=None)`: (point, face, value per unit
-    light without the exponential, k, o) of each path found (`face_paths`) whose legs are clear."""
+    """`refracted_integrand`'s paths as a function `paths(seg, x, panels=None, every=False)`: (point, face, value per
+    unit light without the exponential, k, o) of each path found (`face_paths`) whose legs are clear; with
+    `every`, (point, face, `face_paths`' rows, whether the legs are clear) of every path found."""
     own, tris, planes, eta, geo, ell = _faces(prep, sid, geo, ell)
     whole = _candidates(tris, planes, geo, eta, np.arange(len(ell)), np.zeros(len(ell)), ell,
                         np.zeros(len(ell), np.int64), *every(len(tris)))
@@ -778,7 +790,7 @@ def refracted_paths(prep, sid, geo, ell, code, g):
             start = stop
         return np.concatenate(rows) if rows else np.zeros((0, PATH_COLUMNS))
 
-    def paths(seg, x, panels=None):
+    def paths(seg, x, panels=None, every=False):
         if panels is None:
             rows = found(seg, x, seg, *whole)
         else:
@@ -787,6 +799,8 @@ def refracted_paths(prep, sid, geo, ell, code, g):
         pt, face = rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)
         keep = clear_legs(own, prep.accel.scale, geo[seg[pt], :3] + x[pt, None] * geo[seg[pt], 3:6], rows[:, 2:5],
                           geo[seg[pt], 6:9], face, rows[:, 8], rows[:, 9])
+        if every:
+            return pt, face, rows, keep
         return pt[keep], face[keep], rows[keep, 5], rows[keep, 6], rows[keep, 7]
     return paths
 
@@ -844,19 +858,98 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     a spot's cone) and then at those `set_breaks` finds between them (a leg starting or ceasing to meet
     another face, where the panel's ends see different sets of faces), placed by the exact leg test (`refined`);
     the jumps still not located are halved until narrower than NARROW x rtol x the segment, then accepted,
-    counted in stats[0] (a jump of size J adds at most about J x that width)."""
+    counted in stats[0] (a jump of size J adds at most about J x that width). Its bound (N, C), `_refracted_bound`:
+    the rule's and the paths' rounding (media/nonconvex_refraction.py `path_rounding`) where every node's paths
+    are those `lit_scan` proves lit, and the scan's clusters' widths times their jumps; inf where that fails."""
     paths = refracted_paths(prep, sid, geo, ell, code, g)
-    values = _summed(paths, kts, kss, kt_outs)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     bseg, bx, _ = refracted_breaks(prep, sid, geo, end)
     seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, bseg, bx))
     wide = b - a > SET_WIDTH * end[seg]
     more = refined(prep, sid, geo, end, code, g, paths, *set_breaks(paths, seg[wide], a[wide], b[wide]))
-    seg, a, b = _first_panels(geo, True, end, kinks=_kinks(end, np.concatenate([bseg, more[0]]),
-                                                             np.concatenate([bx, more[1]])))
+    kinks = _kinks(end, np.concatenate([bseg, more[0]]), np.concatenate([bx, more[1]]))
+    seg, a, b = _first_panels(geo, True, end, kinks=kinks)
+    scan = _lit_scan(prep, sid, geo, end, code, g)
+    unbounded = ~scan.found
     cs = list(range(len(kts)))
-    return adaptive(lambda ss, xs, panels: values(ss, xs, cs, panels), end, len(kts), seg, a, b, rule.rtol, stats,
-                    narrow=NARROW, by_panel=True)
+
+    def values(ss, xs, panels):
+        pt, face, rows, keep = paths(ss, xs, panels, every=True)
+        pseg, pa, pb, _ = panels
+        unbounded[pseg[pb - pa <= NARROW * rule.rtol * end[pseg]]] = True  # it may be accepted unconverged
+        status = scan.status(ss[pt], face, xs[pt])
+        unbounded[ss[pt[(status == CLUSTER) | ((status == LIT) != keep)]]] = True
+        pt, face, rows = pt[keep], face[keep], rows[keep]
+        eps, spot = scan.rounding(ss[pt], xs[pt], face, rows[:, 2:5], kts, kt_outs)
+        return _sums(xs, pt, rows[:, 5], rows[:, 6], rows[:, 7], kts, kss, kt_outs, cs, eps, spot)
+    val, err = adaptive(values, end, len(kts), seg, a, b, rule.rtol, stats, bounded=True, narrow=NARROW,
+                        by_panel=True)
+    err += scan.cluster_errors(kinks, end, kss)
+    err[unbounded] = np.inf
+    return val, err
+
+
+class _Scan(NamedTuple):
+    """media/nonconvex_refraction.py `lit_scan` of a shape's segments: whether each finished (found), the kind
+    at nodes (`status(seg, face, x)`: LIT, CLUSTER or 0), the paths' rounding (`rounding(seg, x, face, R, kts,
+    kt_outs)`: `path_rounding`'s eps, spot) and the clusters' bound (`cluster_errors`)."""
+    found: np.ndarray
+    status: object
+    rounding: object
+    cluster_errors: object
+
+
+def _lit_scan(prep, sid, geo, end, code, g):
+    """`lit_scan` of the segments (geo rows over [0, end]) in the refractive shape sid that is not convex."""
+    _, tris, planes, eta, geo, end = _faces(prep, sid, geo, end)
+    dn, dc = prep.memo(("face plane errors", sid), lambda: plane_errors(tris, planes))
+    n, nt = len(end), len(tris)
+    whole = _candidates(tris, planes, geo, eta, np.arange(n), np.zeros(n), end, np.zeros(n, np.int64),
+                        *every(nt))
+    rows, found = lit_scan(geo, end, tris, planes, *whole, eta, dn, dc, code, g)
+    gid = rows[:, 0].astype(np.int64) * nt + rows[:, 1].astype(np.int64)
+    order = np.lexsort((rows[:, 2], gid))
+    rows, gid = rows[order], gid[order]
+    cmax = float(np.max(np.abs(planes[:, 3]), initial=0.0))
+
+    def status(seg, face, x):
+        key = seg * nt + face
+        return scan_status(gid, rows[:, 2], rows[:, 3], rows[:, 4], key, x, np.searchsorted(gid, key))
+
+    def rounding(seg, x, face, rp, kts, kt_outs):
+        eps, spot = np.empty((len(x), len(kts))), np.empty(len(x))
+        path_rounding(seg, x, face, np.ascontiguousarray(rp), geo, planes, eta, end, np.asarray(kts, float), np.asarray(kt_outs, float), code,
+                      g, dn, dc, cmax, eps, spot)
+        return eps, spot
+
+    def cluster_errors(kinks, end, kss):
+        """Each cluster's width times its jump x ks per channel (N, C), widened by RESOLUTION x the scene's size
+        each side, where a cut (a first panel's end) lies within that of it; without one, where the face lights
+        one side of it and not the other, or a cone level may be crossed in it where it lights either: inf (an
+        unlocated jump or kink inside a panel)."""
+        out = np.zeros((len(end), len(kss)))
+        cl = np.flatnonzero(rows[:, 4] == CLUSTER)
+        if not len(cl):
+            return out
+        s = rows[cl, 0].astype(np.int64)
+        width = RESOLUTION * float(prep.accel.scale)
+        offsets, cuts = kinks
+        x0, x1 = rows[cl, 2] - width, rows[cl, 3] + width
+        near = np.array([u <= 0.0 or v >= end[k] or
+                         np.searchsorted(cuts[offsets[k]:offsets[k + 1]], u) < np.searchsorted(
+                             cuts[offsets[k]:offsets[k + 1]], v, "right")
+                         for k, u, v in zip(s.tolist(), x0.tolist(), x1.tolist())], bool)
+        lit = rows[:, 4] == LIT
+        prv = np.maximum(cl - 1, 0)
+        left = lit[prv] & (cl > 0) & (gid[prv] == gid[cl]) & (rows[prv, 3] == rows[cl, 2])
+        nxt = np.minimum(cl + 1, len(rows) - 1)
+        right = lit[nxt] & (gid[nxt] == gid[cl]) & (rows[nxt, 2] == rows[cl, 3])
+        bad = ~near & ((left != right) | ((rows[cl, 6] > 0.0) & (left | right)))
+        span = np.where(near, x1 - x0, rows[cl, 3] - rows[cl, 2])
+        np.add.at(out, s, (span * rows[cl, 5])[:, None] * np.asarray(kss, float)[None, :])
+        out[s[bad]] = np.inf
+        return out
+    return _Scan(found, status, rounding, cluster_errors)
 
 
 def _kinks(end, bseg, bx):

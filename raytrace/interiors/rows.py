@@ -255,7 +255,8 @@ def single_scattering(prep, method, params, sid, points, normals, w, ell, keys, 
             continue
         if refractive and sphere is None and not len(faces) and not sup.entry_plane:  # not convex: every face
             _through_faces(prep, sid, medium, geo, ell, lights.intensity[li], rule, keys,
-                           dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats)
+                           dims + (depth * len(lights) + li) * rule.steps, seed, out, var, bound, stats,
+                           lights.cone[li, 0])
             continue
         if refractive and (li, sid) in held_lights(prep):  # inside a convex refractive shape: straight, wholly inside
             integrate(li, distant, xh, h, hl, zero, zero, zero, zero, 1.0, planes, eta=1.0)
@@ -956,20 +957,21 @@ def _traced(prep, sid, medium, geo, distant, ell, intensity, rule, keys, dim0, s
         bound[:, c] += _light_bound(err[:, j], val[:, j] * intensity[c], intensity[c], cos_end)
 
 
-def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, seed, out, var, bound, stats):
+def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, seed, out, var, bound, stats, cos_end):
     """out, var, bound += one point or spot light's single scattering over the segments of the refractive shape
     sid that is not convex, on Fermat's paths through its faces (paths.refracted_integrand) by the inside `rule`;
-    the bound is infinite where anything scatters (quadrature locates the integrand's jumps, paths.refracted_quadrature,
-    but bounds neither their location errors nor the integrand's rounding: counted, UNLOCATED)."""
+    the bound is quadrature's (paths.refracted_quadrature: inf where a step is not proven, counted, UNLOCATED) with
+    a spot's rounding (`cos_end`), infinite for the other rules."""
     ch = np.nonzero((medium.sigma_s > 0.0) & (intensity != 0.0))[0]
     if not len(ch):
         return
     kts, kss, kt_outs = medium.sigma_t[ch], medium.sigma_s[ch], prep.scene.medium.sigma_t[ch]
     args = (prep, sid, geo, ell, kts, kss, medium.phase, medium.g, kt_outs)
     v = np.zeros((len(ell), len(ch)))
+    err = np.where((ell > 0.0)[:, None], np.inf, np.zeros(len(ch)))
     if rule.kind == QUAD:
         capped = np.zeros(1)
-        val = paths.refracted_quadrature(*args, rule, capped)
+        val, err = paths.refracted_quadrature(*args, rule, capped)
         stats[CAPPED] += capped[0]
     else:
         values = paths.refracted_integrand(*args)
@@ -981,6 +983,6 @@ def _through_faces(prep, sid, medium, geo, ell, intensity, rule, keys, dim0, see
             val, v = paths.segment_samples(*geo_args, keys, dim0, seed, channel=channel)
     out[:, ch] += val * intensity[ch]
     var[:, ch] += v * intensity[ch] ** 2
-    live = ell > 0.0
-    bound[np.ix_(live, ch)] = np.inf
-    stats[UNLOCATED] += np.count_nonzero(live)
+    for j, c in enumerate(ch.tolist()):
+        bound[:, c] += _light_bound(err[:, j], val[:, j] * intensity[c], intensity[c], cos_end)
+    stats[UNLOCATED] += np.count_nonzero((ell > 0.0) & ~np.all(np.isfinite(err), axis=1))

@@ -23,6 +23,21 @@ g = v.(R - E0), R inside F where the three are >= 0, |g'| <= |v| K_R. A cone lev
 change is bisected to the resolution of doubles (two roots closer than that, a sliver, are not resolved). A
 search cut off after MAX_EVALS evaluations takes its undecided intervals' ends as breaks and reports that the
 segment's breaks were not all found.
+
+The bound (interiors/paths.py `refracted_quadrature`). `lit_scan` proves where each face lights each segment:
+the same isolation over the face's edges, its cone levels and, for every other triangle G that may meet a leg
+(`_blockers`: not on the face's plane, its box meeting the leg's hull), the conditions under which G blocks it:
+the leg's ends on opposite sides of G's plane and the line from its apex (X inside, the light outside) through
+its other end inside G's three edge planes. The inside leg's conditions are functions of X (linear) and of R and
+X together (`_scan` bounds their derivatives); the outside leg's are linear in R. Tolerances are proven bounds
+on the values' rounding: R's error from media/fermat_rounding.py `point_error` (first order, doubled), the
+planes' from `plane_errors`. What is left undecided at RESOLUTION x the scene's size forms clusters; between
+them each face is proven lit or dark. The quadrature keeps Embree's leg tests (its image is unchanged) and
+checks them at every node against the scan: where they differ, or a node falls in a cluster, the bound is inf.
+Each cluster adds its width times twice the face's bare term at its ends (at least its jump: the term varies by
+far less over that width); one that holds a change of the lit state or a cone level with no panel end within
+RESOLUTION x the size of it (an unlocated jump inside a panel) makes the bound inf. The nodes' rounding is
+`path_rounding`'s (media/fermat_rounding.py `term_rounding` per path).
 """
 from __future__ import annotations
 
@@ -31,15 +46,17 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..lights import has_cone
-from .fermat_rounding import fermat_speed, refraction_newton
-from .slab import refracted_at
+from ..lights import NO_CONE, SMOOTHSTEP, band_slope, has_cone
+from .fermat_rounding import fermat_speed, point_error, refraction_newton, term_rounding
+from .slab import phase_condition, refracted_at
 
 SPAN_SLACK = 1e-9  # relative margin of the triangle's span along the foot's line (`_span`) before Snell's root
 PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit light value, k, o, the legs' cosines
 RESOLUTION = 1e-13  # x the scene's size: `face_breaks`' intervals this short are not halved, only bisected
 ROUNDING = 1e-14  # x the scene's size: the rounding allowed in R's position (`face_breaks`)
 MAX_EVALS = 4000  # evaluations of R per segment and face in `face_breaks`
+SCAN_EVALS = 4000  # and in `lit_scan`
+SCAN_WORK = 5000  # `lit_scan`'s tests of other triangles per segment, culling included (beyond: not found, bound inf)
 
 
 def face_planes(tris):
@@ -265,17 +282,7 @@ def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
         p, w, light = row[0:3], row[3:6], row[6:9]
         for j in range(starts[s], stops[s]):
             f = faces[j]
-            n = planes[f, :3].copy()
-            c = planes[f, 3]
-            hl = n @ light - c
-            if hl < 0.0:  # the normal turned toward the light
-                n, c, hl = -n, -c, -hl
-            z0, a = c - n @ p, -(n @ w)
-            lo, hi = 0.0, ell[s]  # where X lies below the plane
-            if a > 0.0:
-                lo = max(lo, -z0 / a)
-            elif a < 0.0:
-                hi = min(hi, z0 / -a)
+            n, c, hl, z0, a, lo, hi = _face_frame(planes[f], p, w, light, ell[s])
             if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
                 continue
             nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
@@ -283,6 +290,25 @@ def face_breaks(geo, ell, tris, planes, starts, stops, faces, eta, scale):
                                   level, lip, scale, stack, out, m)
             found[s] = found[s] and ok
     return out[:m].copy(), found
+
+
+@njit
+def _face_frame(plane, p, w, light, ell):
+    """A face's plane seen from a segment (start p, direction w, length ell) and the light: its normal n and offset
+    c turned toward the light, the light's height hl above it, the depth z0 of p below it and its rate a along
+    w, and [lo, hi] where X lies below it."""
+    n = plane[:3].copy()
+    c = plane[3]
+    hl = n @ light - c
+    if hl < 0.0:
+        n, c, hl = -n, -c, -hl
+    z0, a = c - n @ p, -(n @ w)
+    lo, hi = 0.0, ell
+    if a > 0.0:
+        lo = max(lo, -z0 / a)
+    elif a < 0.0:
+        hi = min(hi, z0 / -a)
+    return n, c, hl, z0, a, lo, hi
 
 
 @njit
@@ -398,3 +424,418 @@ def _push(out, m, s, x, f, rp):
         out = np.concatenate((out, np.empty_like(out)))
     out[m, 0], out[m, 1], out[m, 2], out[m, 3:6] = s, x, f, rp
     return out, m + 1
+
+
+# rows of `lit_scan`: segment, face, x0, x1, kind (LIT or CLUSTER), the face's bare term at the cluster's ends (per
+# unit light, no falloff nor exponential: at least its jump there), whether a spot's cone level may be crossed in it
+SCAN_COLUMNS = 7
+LIT, CLUSTER = 1.0, 2.0
+U = 2.0 ** -53
+SQ3 = math.sqrt(3.0)
+ZERO = np.zeros(3)  # the light's speed in `_apex_states`
+IN_LEG, OUT_LEG = 1, 2  # `_blockers`' flags: the triangle may meet the leg inside (X to R), outside (R to L)
+
+
+@njit
+def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g):
+    """Where each candidate face lights each segment (faces[starts[s]:stops[s]] of segment s, geo rows of
+    media/slab.py GEO_COLUMNS over [0, ell[s]]), proven: the rows (SCAN_COLUMNS) of the intervals where its
+    path's refraction point lies inside it and both legs are clear of the shape's other triangles (LIT), and of
+    the clusters of undecided intervals, each no wider than RESOLUTION x the scene's size, that hold every
+    place where that may change or a spot's cone level be crossed (CLUSTER; module docstring of `_scan`); and
+    whether every segment's scan finished (SCAN_EVALS evaluations per face, SCAN_WORK tests of other triangles per
+    segment, culling included, eta > 1 and a finite tolerance).
+    dn, dc: the planes' errors on each normal component and on the offsets (`plane_errors`)."""
+    out = np.empty((64, SCAN_COLUMNS))
+    m = 0
+    found = np.ones(ell.shape[0], np.bool_)
+    vec, e0, level, lip = np.empty((5, 3)), np.empty((5, 3)), np.empty(5), np.empty(5)
+    vmax, cmax = 0.0, 0.0
+    for t in range(tris.shape[0]):
+        cmax = max(cmax, abs(planes[t, 3]))
+        for k in range(3):
+            vmax = max(vmax, math.sqrt(tris[t, k] @ tris[t, k]))
+    blockers, flags = np.empty(tris.shape[0], np.int64), np.empty(tris.shape[0], np.int64)
+    boxes = np.empty((tris.shape[0], 2, 3))
+    for t in range(tris.shape[0]):
+        for k in range(3):
+            boxes[t, 0, k] = min(tris[t, 0, k], tris[t, 1, k], tris[t, 2, k])
+            boxes[t, 1, k] = max(tris[t, 0, k], tris[t, 1, k], tris[t, 2, k])
+    for s in range(ell.shape[0]):
+        row = geo[s]
+        p, w, light = row[0:3], row[3:6], row[6:9]
+        if not eta > 1.0:
+            found[s] = found[s] and starts[s] == stops[s]
+            continue
+        pn, ln = math.sqrt(p @ p), math.sqrt(light @ light)
+        size = max(pn + ell[s], ln, vmax)
+        mags = (pn, ln, math.sqrt((light - p) @ (light - p)), pn + ell[s] + ln + cmax)
+        work = SCAN_WORK
+        for j in range(starts[s], stops[s]):
+            f = faces[j]
+            n, c, hl, z0, a, lo, hi = _face_frame(planes[f], p, w, light, ell[s])
+            if not (hl > 0.0 and lo < hi and z0 + a * (0.5 * (lo + hi)) > 0.0):
+                continue
+            if work <= 0:
+                found[s] = False
+                break
+            pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
+            tol_r = _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags)
+            nb = _blockers(tris, planes, boxes, f, n, c, p + lo * w, p + hi * w, light, dn, dc, size, blockers, flags)
+            work -= tris.shape[0]
+            if not tol_r < math.inf or nb < 0:
+                found[s] = False
+                continue
+            nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
+            ok, out, m, work = _scan(work, s, f, lo, hi, ell[s], p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip,
+                               tris, planes, blockers[:nb], flags[:nb], tol_r, dn, dc, size, code, g, out, m)
+            found[s] = found[s] and ok
+    return out[:m].copy(), found
+
+
+@njit
+def _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags):
+    """A bound on the error of the refraction point R over [lo, hi] (media/fermat_rounding.py `point_error` at the
+    piece's worst: its largest x, legs and least horizontal distance rho, with `refraction_newton`'s 4e-16 rho of
+    bisection, doubled); inf below the light (rho <= 1e-12 (hl + z) somewhere)."""
+    d0, dw = lf - pf, wh @ wh
+    r0, r1 = math.sqrt((d0 - lo * wh) @ (d0 - lo * wh)), math.sqrt((d0 - hi * wh) @ (d0 - hi * wh))
+    rmin, rmax = min(r0, r1), max(r0, r1)
+    if dw > 0.0:
+        t = (d0 @ wh) / dw
+        if lo < t < hi:
+            rmin = math.sqrt(max((d0 - t * wh) @ (d0 - t * wh), 0.0))
+    zmax = max(z0 + a * lo, z0 + a * hi)
+    if not rmin > 1e-12 * (hl + zmax):
+        return math.inf
+    kmax = math.sqrt(rmax * rmax + zmax * zmax)
+    return point_error(hi, kmax, rmax, hl, d0 @ d0, rmin, eta, dn, dc, mags, False) + 8.0 * U * rmax
+
+
+@njit
+def _blockers(tris, planes, boxes, f, n, c, x0, x1, light, dn, dc, size, out, flags):
+    """The other triangles that may meet face f's legs (out, with IN_LEG / OUT_LEG flags; returns their number,
+    -1 where the light lies within rounding of one's plane): not within rounding of f's plane (its legs meet
+    that plane at R alone), some corner below it (the side of X) and its box (boxes: each triangle's least and
+    largest corner) meeting that of X's stretch x0 x1 and f (IN_LEG), some corner above it and its box meeting
+    that of f and the light (OUT_LEG)."""
+    tol = dc + SQ3 * dn * size + 16.0 * U * size
+    ilo, ihi = np.minimum(np.minimum(x0, x1), boxes[f, 0]), np.maximum(np.maximum(x0, x1), boxes[f, 1])
+    olo, ohi = np.minimum(light, boxes[f, 0]), np.maximum(light, boxes[f, 1])
+    m = 0
+    for t in range(tris.shape[0]):
+        if t == f or not _dot(planes[t, :3], planes[t, :3]) > 0.0:  # a degenerate triangle blocks nothing
+            continue
+        below, above = False, False
+        for k in range(3):
+            h = _dot(n, tris[t, k]) - c
+            below = below or h < -tol
+            above = above or h > tol
+        if not (below or above):
+            continue
+        inside, outside = below, above
+        for k in range(3):
+            inside = inside and boxes[t, 0, k] - tol <= ihi[k] and boxes[t, 1, k] + tol >= ilo[k]
+            outside = outside and boxes[t, 0, k] - tol <= ohi[k] and boxes[t, 1, k] + tol >= olo[k]
+        fl = (IN_LEG if inside else 0) | (OUT_LEG if outside else 0)
+        if outside and abs(_dot(planes[t, :3], light) - planes[t, 3]) <= tol:
+            return -1
+        if fl:
+            out[m], flags[m] = t, fl
+            m += 1
+    return m
+
+
+@njit
+def _state(v0, v1, span, tol):
+    """+1 (-1) where a function within tol of values v0, v1 at an interval's ends and changing by at most span
+    over it is positive (negative) all along; 0: undecided."""
+    if v0 + v1 > span + 2.0 * tol:
+        return 1
+    if v0 + v1 < -(span + 2.0 * tol):
+        return -1
+    return 0
+
+
+@njit
+def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tris, planes, blk,
+          flags, tol_r, dn, dc, size, code, g, out, m):
+    """`lit_scan` of face f along segment s over [lo, hi] (where X lies below its plane): an interval is decided
+    (module docstring's Lipschitz tests, `_state`, on the values at its ends) where an edge function of the face
+    is negative all along (R off the face: dark), where some other triangle blocks a leg all along (dark: the
+    leg's ends on opposite sides of its plane, and the line from the leg's apex, X inside, the light outside,
+    through the other end inside its three edges' planes, each sign proven), or where every edge function is
+    positive, each cone level's sign proven and every other triangle proven clear of both legs (the ends on
+    one side of its plane, or the edges' planes of opposite signs): LIT. A triangle proven clear of an interval
+    is not tested on its parts (`drop`: the depth it was dropped at, reset for the next sibling). The others
+    are halved down to RESOLUTION x size and appended as CLUSTER rows (adjacent ones merged). Lipschitz
+    bounds with K_R = `fermat_speed`: an edge's or a plane's value at R, |v| K_R; a cone level, K_R / hl;
+    a plane at X, |n·w|; the apex X's edge planes ((E_k - X) x (E_k+1 - X))·(R - X), whose derivative is
+    (w x (E_k - E_k+1))·(R - X) + ((E_k - X) x (E_k+1 - X))·(R' - w): |e| |R - X| + |(E_k - X) x (E_k+1 - X)|
+    (K_R + 1), the first at most the mean of its ends plus (K_R + 1) / 2 times the width, the second the
+    larger of its ends (convex); the light's, |(E_k - L) x (E_k+1 - L)| K_R. Tolerances: R within tol_r
+    (`_point_tolerance`), X within 8u size, the planes' errors dn, dc, and the products' rounding."""
+    width = RESOLUTION * size
+    tol_x = 8.0 * U * size
+    tol_plane = dc + 2.0 * SQ3 * dn * size + 16.0 * U * size
+    tol_tri = 4.0 * size * size * tol_r + 20.0 * size * size * tol_x + 400.0 * U * size ** 3
+    drop = np.full(blk.shape[0], 1 << 30)
+    tol = np.empty(nf)
+    for k in range(nf):
+        if math.isnan(level[k]):
+            tol[k] = lip[k] * tol_r + 8.0 * size * (SQ3 * dn + 16.0 * U) * (lip[k] + 1.0)
+        else:
+            tol[k] = 2.0 * tol_r / hl + 32.0 * U
+    stack = np.empty((128, 9))
+    stack[0, 0], stack[0, 1] = lo, hi
+    stack[0, 2:5], stack[0, 5:8], stack[0, 8] = _point(lo, pf, wh, lf, z0, a, hl, eta), \
+        _point(hi, pf, wh, lf, z0, a, hl, eta), 0.0
+    top, evals, ok = 1, 2, True
+    v0, v1 = np.empty(nf), np.empty(nf)
+    while top > 0:
+        top -= 1
+        x0, x1, depth = stack[top, 0], stack[top, 1], int(stack[top, 8])
+        r0, r1 = stack[top, 2:5].copy(), stack[top, 5:8].copy()
+        for b in range(blk.shape[0]):
+            if drop[b] >= depth:
+                drop[b] = 1 << 30
+        X0, X1 = p + x0 * w, p + x1 * w
+        d0, d1 = lf - pf - x0 * wh, lf - pf - x1 * wh
+        speed = fermat_speed(math.sqrt(d0 @ d0), math.sqrt(d1 @ d1), min(z0 + a * x0, z0 + a * x1), a, eta)
+        _face_values(r0, nf, vec, e0, level, v0)
+        _face_values(r1, nf, vec, e0, level, v1)
+        dark, edges, cones = False, True, True
+        for k in range(nf):
+            st = _state(v0[k], v1[k], lip[k] * speed * (x1 - x0), tol[k])
+            if math.isnan(level[k]):
+                dark = dark or st < 0
+                edges = edges and st > 0
+            else:
+                cones = cones and st != 0
+        undecided = False
+        if not dark:
+            for b in range(blk.shape[0]):
+                if drop[b] < depth:
+                    continue
+                work -= 1
+                st = _leg_states(tris[blk[b]], planes[blk[b]], flags[b], X0, X1, r0, r1, w, light, n,
+                                 speed, x1 - x0, tol_r, tol_x, tol_plane, tol_tri)
+                if st < 0:
+                    dark = True
+                    break
+                if st > 0:
+                    drop[b] = depth
+                else:
+                    undecided = True
+        if dark:
+            continue
+        if edges and cones and not undecided:
+            if x0 == lo and lo > 0.0:  # X leaves the face's plane lit: a jump where no break may be cut
+                out, m = _append(out, m, s, f, lo, lo, CLUSTER, math.inf, 1.0)
+            out, m = _append(out, m, s, f, x0, x1, LIT, 0.0, 0.0)
+            if x1 == hi and hi < full:
+                out, m = _append(out, m, s, f, hi, hi, CLUSTER, math.inf, 1.0)
+            continue
+        if x1 - x0 <= width:
+            jump = 2.0 * max(_plane_value(x0, p, w, light, n, hl, z0, a, eta, code, g),
+                             _plane_value(x1, p, w, light, n, hl, z0, a, eta, code, g))
+            cone = 0.0
+            for k in range(nf):
+                if not math.isnan(level[k]) and not v0[k] * v1[k] > 0.0:
+                    cone = 1.0
+            out, m = _append(out, m, s, f, x0, x1, CLUSTER, jump, cone)
+            continue
+        if evals >= SCAN_EVALS or work <= 0 or top + 2 > stack.shape[0]:
+            ok = False
+            continue
+        mid = 0.5 * (x0 + x1)
+        rm = _point(mid, pf, wh, lf, z0, a, hl, eta)
+        evals += 1
+        stack[top, 0], stack[top, 1], stack[top, 2:5], stack[top, 5:8], stack[top, 8] = mid, x1, rm, r1, depth + 1
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2:5], stack[top + 1, 5:8], stack[top + 1, 8] = \
+            x0, mid, r0, rm, depth + 1
+        top += 2
+    return ok, out, m, work
+
+
+@njit
+def _face_values(rp, nf, vec, e0, level, out):
+    """The face's break functions at R = rp (out[:nf]): v·(R - E0) of its edges, A·(R - L) / |R - L| - c of the
+    cone's levels."""
+    for k in range(nf):
+        q0, q1, q2 = rp[0] - e0[k, 0], rp[1] - e0[k, 1], rp[2] - e0[k, 2]
+        g = vec[k, 0] * q0 + vec[k, 1] * q1 + vec[k, 2] * q2
+        out[k] = g if math.isnan(level[k]) else g / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2) - level[k]
+
+
+@njit
+def _leg_states(tri, plane, flag, X0, X1, r0, r1, w, light, nf, speed, width, tol_r, tol_x, tol_plane, tol_tri):
+    """-1 where triangle tri blocks a leg all along the interval (`_scan`), +1 where it is clear of both, 0
+    undecided. nf: the face's normal (R moves in its plane: a function u·R changes at |u - (u·nf) nf| K_R)."""
+    n, c = plane[:3], plane[3]
+    sr = _state(_dot(n, r0) - c, _dot(n, r1) - c, _along(n, nf) * speed * width, tol_plane + tol_r)
+    clear = True
+    if flag & IN_LEG:
+        sx = _state(_dot(n, X0) - c, _dot(n, X1) - c, abs(_dot(n, w)) * width, tol_plane + tol_x)
+        if sx != 0 and sx == sr:
+            clear = True
+        else:
+            st = _apex_states(tri, X0, X1, r0, r1, w, nf, speed, width, tol_tri)
+            if sx != 0 and sr == -sx and abs(st) == 3:
+                return -1
+            clear = st == 0
+    if flag & OUT_LEG:
+        sl = 1 if _dot(n, light) - c > 0.0 else -1
+        if sr != sl:
+            st = _apex_states(tri, light, light, r0, r1, ZERO, nf, speed, width, tol_tri)
+            if sr == -sl and abs(st) == 3:
+                return -1
+            clear = clear and st == 0
+    return 1 if clear else 0
+
+
+@njit
+def _dot(u, v):
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+@njit
+def _along(u, nf):
+    """|u - (u·nf) nf|: the part of u in the plane of unit normal nf."""
+    d = _dot(u, nf)
+    return math.sqrt(max(_dot(u, u) - d * d, 0.0))
+
+
+@njit
+def _apex_states(tri, Y0, Y1, r0, r1, v, nf, speed, width, tol):
+    """For the line from apex Y (Y0, Y1 at the interval's ends, moving at v: X along the segment, or the light)
+    to R: +3 (-3) where its three edge planes' functions ((E_k - Y) x (E_k+1 - Y))·(R - Y) are all positive
+    (negative) all along (`_scan`'s bounds, R' in the face's plane of normal nf), 0 where two have opposite
+    signs all along, else 1."""
+    pos, neg = 0, 0
+    moving = v[0] != 0.0 or v[1] != 0.0 or v[2] != 0.0
+    q0 = math.sqrt((r0[0] - Y0[0]) ** 2 + (r0[1] - Y0[1]) ** 2 + (r0[2] - Y0[2]) ** 2)
+    q1 = math.sqrt((r1[0] - Y1[0]) ** 2 + (r1[1] - Y1[1]) ** 2 + (r1[2] - Y1[2]) ** 2)
+    for k in range(3):
+        ka, kb = k, (k + 1) % 3
+        g0, big0, par0 = _edge_plane(tri, ka, kb, Y0, r0, nf)
+        g1, big1, par1 = _edge_plane(tri, ka, kb, Y1, r1, nf)
+        turn = max(par0, par1) * speed
+        if moving:
+            e = math.sqrt((tri[ka, 0] - tri[kb, 0]) ** 2 + (tri[ka, 1] - tri[kb, 1]) ** 2
+                          + (tri[ka, 2] - tri[kb, 2]) ** 2)
+            turn += e * 0.5 * (q0 + q1 + (speed + 1.0) * width) + max(big0, big1)
+        st = _state(g0, g1, turn * width, tol)
+        pos += st > 0
+        neg += st < 0
+    if pos and neg:
+        return 0
+    return 3 if pos == 3 else (-3 if neg == 3 else 1)
+
+
+@njit
+def _edge_plane(tri, ka, kb, y, r, nf):
+    """(c·(R - Y), |c|, |c - (c·nf) nf|) of c = (E_ka - Y) x (E_kb - Y)."""
+    ax, ay, az = tri[ka, 0] - y[0], tri[ka, 1] - y[1], tri[ka, 2] - y[2]
+    bx, by, bz = tri[kb, 0] - y[0], tri[kb, 1] - y[1], tri[kb, 2] - y[2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    cc = cx * cx + cy * cy + cz * cz
+    cn = cx * nf[0] + cy * nf[1] + cz * nf[2]
+    return (cx * (r[0] - y[0]) + cy * (r[1] - y[1]) + cz * (r[2] - y[2]), math.sqrt(cc),
+            math.sqrt(max(cc - cn * cn, 0.0)))
+
+
+@njit
+def _plane_value(x, p, w, light, n, hl, z0, a, eta, code, g):
+    """The face's path's value per unit light at x through its whole plane (normal n toward the light, at height
+    hl above it; media/slab.py `refracted_at` with no falloff nor attenuation), 0 above the plane."""
+    z = z0 + a * x
+    if not z > 0.0:
+        return 0.0
+    l = light - (p + x * w) - (hl + z) * n
+    rho = math.sqrt(l @ l)
+    r = refraction_newton(rho, z, hl, eta)
+    return refracted_at(0.0, z, rho, r, w @ l, a, hl, eta, 0.0, 1.0, code, g, 0.0, 0.0, 0.0, 0.0, NO_CONE[0],
+                        NO_CONE[1], SMOOTHSTEP)
+
+
+@njit
+def _append(out, m, s, f, x0, x1, kind, jump, cone):
+    """Append a `lit_scan` row, merged into the last where it continues it (same segment, face and kind)."""
+    if m and out[m - 1, 0] == s and out[m - 1, 1] == f and out[m - 1, 4] == kind and out[m - 1, 3] == x0:
+        out[m - 1, 3] = x1
+        out[m - 1, 5] = max(out[m - 1, 5], jump)
+        out[m - 1, 6] = max(out[m - 1, 6], cone)
+        return out, m
+    if m == out.shape[0]:
+        out = np.concatenate((out, np.empty_like(out)))
+    out[m, 0], out[m, 1], out[m, 2], out[m, 3], out[m, 4], out[m, 5], out[m, 6] = s, f, x0, x1, kind, jump, cone
+    return out, m + 1
+
+
+def plane_errors(tris, planes):
+    """(dn, dc) of `face_planes` (T, 4) from the triangles (T, 3, 3) (each given exactly in float64: their edges are
+    exact): a cross product's component is within 3u |e1| |e2| of the exact one, so a unit normal's within
+    dn = 10u |e1| |e2| / |e1 x e2| + 4u, and an offset n·v0 within dc = sqrt(3) dn |v0| + 4u |v0| of the exact
+    plane's through the triangle (largest over the triangles, degenerate ones left out)."""
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    area = np.linalg.norm(np.cross(e1, e2), axis=1)
+    live = area > 0.0
+    if not np.any(live):
+        return 0.0, 0.0
+    dn = float(np.max(10.0 * U * np.linalg.norm(e1, axis=1)[live] * np.linalg.norm(e2, axis=1)[live] / area[live]))
+    dn += 4.0 * U
+    return dn, float(np.max((SQ3 * dn + 4.0 * U) * np.linalg.norm(tris[live, 0], axis=1)))
+
+
+@njit
+def scan_status(gid, x0, x1, kind, qgid, qx, first):
+    """For each query (face key qgid = segment x faces + face, x), `lit_scan`'s kind there (rows sorted by key
+    and x0: gid, x0, x1, kind; first: np.searchsorted(gid, qgid)): LIT, CLUSTER (a cluster's ends included), or
+    0 (dark: no row holds x)."""
+    out = np.zeros(qx.shape[0])
+    for i in range(qx.shape[0]):
+        j = first[i]
+        while j < gid.shape[0] and gid[j] == qgid[i] and x0[j] <= qx[i]:
+            if qx[i] <= x1[j] and (out[i] == 0.0 or kind[j] == CLUSTER):
+                out[i] = kind[j]
+            j += 1
+    return out
+
+
+@njit
+def path_rounding(seg, x, face, rp, geo, planes, eta, ell, kts, kt_outs, code, g, dn, dc, cmax, eps, spot):
+    """eps (M, C): a bound on the relative rounding of each path's term (point i: segment seg[i] at x[i], through
+    face[i] at its refraction point rp[i] (`face_paths`'); channels kts, kt_outs) by media/fermat_rounding.py `term_rounding` in the face's frame (dn, dc the
+    planes' errors, `plane_errors`; cmax the largest |c_f|; the phase's condition of code, g), and spot (M,) the
+    falloff's absolute part where the leaving cosine lies within its error of the spot's band (media/slab.py
+    `term_error`'s: the falloff's slope x the cosine's error x the term without falloff nor attenuation)."""
+    ph = phase_condition(code, g)
+    for i in range(x.shape[0]):
+        row = geo[seg[i]]
+        f = face[i]
+        sg = 1.0 if _dot(planes[f, :3], row[6:9]) - planes[f, 3] >= 0.0 else -1.0  # the normal toward the light
+        n0, n1, n2, c = sg * planes[f, 0], sg * planes[f, 1], sg * planes[f, 2], sg * planes[f, 3]
+        hl = n0 * row[6] + n1 * row[7] + n2 * row[8] - c
+        z0, a = c - (n0 * row[0] + n1 * row[1] + n2 * row[2]), -(n0 * row[3] + n1 * row[4] + n2 * row[5])
+        u = z0 + x[i] * a  # X's foot: X + z n; the light's: L - hl n
+        f0, f1, f2 = row[0] + x[i] * row[3] + u * n0, row[1] + x[i] * row[4] + u * n1, row[2] + x[i] * row[5] + u * n2
+        d0, d1, d2 = row[6] - hl * n0 - f0, row[7] - hl * n1 - f1, row[8] - hl * n2 - f2
+        b0, b1, b2 = row[6] - hl * n0 - row[0] - z0 * n0, row[7] - hl * n1 - row[1] - z0 * n1, \
+            row[8] - hl * n2 - row[2] - z0 * n2  # at x = 0
+        rho = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        r = math.sqrt((rp[i, 0] - f0) ** 2 + (rp[i, 1] - f1) ** 2 + (rp[i, 2] - f2) ** 2)
+        pn, ln = math.sqrt(_dot(row, row)), math.sqrt(_dot(row[6:9], row[6:9]))
+        lp = math.sqrt((row[6] - row[0]) ** 2 + (row[7] - row[1]) ** 2 + (row[8] - row[2]) ** 2)
+        mags = (pn, ln, lp, pn + ell[seg[i]] + ln + cmax)
+        dcos = 0.0
+        for ch in range(kts.shape[0]):
+            eps[i, ch], dcos = term_rounding(x[i], z0, a, hl, b0 * b0 + b1 * b1 + b2 * b2, rho, r, eta, kts[ch],
+                                             kt_outs[ch], ph, dn, dc, mags, False)
+        spot[i] = 0.0
+        if has_cone(row[13]) and row[13] > row[12]:
+            q = rp[i] - row[6:9]
+            cos = row[9:12] @ q / math.sqrt(q @ q)
+            if row[12] - dcos < cos < row[13] + dcos:
+                spot[i] = band_slope(row[12], row[13], int(row[17])) / (row[13] - row[12]) * dcos * (1.0 + eps[i, 0]) \
+                    * _plane_value(x[i], row[0:3], row[3:6], row[6:9], np.array([n0, n1, n2]), hl, z0, a, eta, code, g)
