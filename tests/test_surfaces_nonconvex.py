@@ -8,7 +8,7 @@ outside medium) or by the sun from behind (test_nonconvex_sun's). The twin reads
 corners and knows nothing of the renderer: Moller-Trumbore in float64 for every crossing; the camera ray refracted
 in at its first triangle (skipped where its mirror reflection meets the U again) to the first quad it meets inside;
 there the surface term rho / pi sum E cos_s exp(-sigma_t k - sigma_out o) over every triangle whose Fermat point
-(scipy `brentq` on Snell's law) lies on it and whose legs meet no other triangle (test_nonconvex_refraction.paths)
+(scipy `brentq` on Snell's law) lies on it and whose legs meet no other triangle (test_nonconvex_refraction.paths_of)
 nor quad, E the lamp's intensity times the spot's falloff times the ray tube's irradiance by central differences;
 for the sun, every triangle's beam whose path back first
 meets that triangle and whose leg from there toward the sun meets none (test_nonconvex_sun.beams), irradiance
@@ -29,10 +29,10 @@ from raytrace.scene.format import scene_from_text
 from . import oracle
 from .conftest import to_toml
 from .test_inside_paths import KA, KS, KT_OUT, u_obj
-from .test_nonconvex_refraction import ETA, NORMALS, first, paths, refract, transmittance
+from .test_nonconvex_refraction import ETA, NORMALS, first, paths_of, refract, transmittance
 from .test_nonconvex_sun import SUN, beams
 
-KT = KA + KS  # the glass's absorption (test_nonconvex_refraction.paths' attenuation), the outside's KT_OUT with a lamp
+KT = KA + KS  # the glass's absorption (the attenuation of test_nonconvex_refraction.paths_of), the outside's KT_OUT with a lamp
 RHO = 0.6
 FLOOR = [[-0.9, -0.75, -0.4], [0.9, -0.75, -0.4], [0.9, -0.75, 0.4], [-0.9, -0.75, 0.4]]  # in the base
 PLATE = [[0.5, 0.0, -0.4], [0.9, 0.0, -0.4], [0.9, 0.0, 0.4], [0.5, 0.0, 0.4]]  # in the right arm
@@ -62,7 +62,7 @@ def radiance(X, n, light):
             if cos_s > 0 and not quad_hit(X, -d)[0] < s:
                 out += RHO / math.pi * e * cos_s * np.exp(-KT * s)
         return out
-    for _, t, v in paths(X, light):  # t: the direction of travel inside, v: E exp(-sigma_t k - sigma_out o)
+    for _, t, v in paths_of(X, light):  # t: the direction of travel inside, v: E exp(-sigma_t k - sigma_out o)
         cos_s = -float(t @ n)
         if cos_s > 0 and not quad_hit(X, -t)[0] < first(X, -t)[0]:  # no quad before the path's triangle
             out += RHO / math.pi * v * cos_s
