@@ -161,16 +161,28 @@ def paths_of(X, light):
     return out
 
 
-def inside_stretch(o, d):
-    """(t0, cos_i, P, w, ell): the distance to the entry point, the cosine of incidence there, the entry point, the
-    refracted direction and the length of the camera ray (o, d)'s stretch inside the U, which it meets; None where
-    its reflection or its way out meets the U again (light the twins do not follow)."""
+def entering(o, d):
+    """(t0, n, P, w): the distance to the U's entry point, the face's normal against the ray, the entry point and
+    the refracted direction of the ray (o, d); None where it misses the U or its reflection meets the U again
+    (light the twins do not follow)."""
     t0, f0 = first(o, d)
+    if not np.isfinite(t0):
+        return None
     n = NORMALS[f0] * (-1.0 if NORMALS[f0] @ d > 0 else 1.0)
     P = o + t0 * d
     if np.isfinite(first(P, d - 2 * (d @ n) * n)[0]):
         return None
-    w = refract(d, n, ETA)
+    return t0, n, P, refract(d, n, ETA)
+
+
+def inside_stretch(o, d):
+    """(t0, cos_i, P, w, ell): the distance to the entry point, the cosine of incidence there, the entry point, the
+    refracted direction and the length of the camera ray (o, d)'s stretch inside the U (`entering`); None where it
+    misses the U, or its reflection or its way out meets the U again."""
+    hit = entering(o, d)
+    if hit is None:
+        return None
+    t0, n, P, w = hit
     ell, f1 = first(P, w)
     n1 = NORMALS[f1] * (1.0 if NORMALS[f1] @ w > 0 else -1.0)
     out_dir = refract(w, -n1, 1.0 / ETA)

@@ -29,7 +29,7 @@ from raytrace.scene.format import scene_from_text
 from . import oracle
 from .conftest import to_toml
 from .test_inside_paths import KA, KS, KT_OUT, u_obj
-from .test_nonconvex_refraction import ETA, NORMALS, first, paths_of, refract, transmittance
+from .test_nonconvex_refraction import ETA, entering, first, paths_of, transmittance
 from .test_nonconvex_sun import SUN, beams
 
 KT = KA + KS  # the glass's absorption (the attenuation of test_nonconvex_refraction.paths_of), the outside's KT_OUT with a lamp
@@ -73,14 +73,10 @@ def twin_pixel(light, i, j):
     """The pixel's radiance (3,) where the camera ray refracted into the U meets a quad first, else None (also
     where its mirror reflection meets the U again)."""
     o, d = oracle.camera_ray(VIEW, i, j)
-    t0, f0 = first(o, d)
-    if not np.isfinite(t0):
+    hit = entering(o, d)
+    if hit is None:
         return None
-    n = NORMALS[f0] * (-1.0 if NORMALS[f0] @ d > 0 else 1.0)
-    P = o + t0 * d
-    if np.isfinite(first(P, d - 2 * (d @ n) * n)[0]):
-        return None
-    w = refract(d, n, ETA)
+    t0, n, P, w = hit
     ell, m = quad_hit(P, w)
     if not ell < first(P, w)[0]:
         return None
