@@ -29,7 +29,6 @@ import numpy as np
 
 from .geometry.shadow_rays import shadow_rays_into
 from .jit import exact_jitable, exact_njit, njit
-from .lights import POINT
 from .lights.area import collapsed_variance
 from .lights.near_rules import free as free_of, rows_decide, seen_probes
 from .rng import uniform
@@ -238,12 +237,10 @@ def _add_batch(out, rows, accel, points, normals, facing, terminator, reflectanc
                 parts[j] = part
     idx, at, wi, back, dl, cl, ends = _reached_rays(seen, starts, blocked, points, to_light, dist, cos)
     tr = medium.transmittance_on(at, wi, 0.0, dl)
-    irradiance, point = np.empty((len(idx), 3)), lights.kind[run] == POINT
-    _point_irradiance(point, lights.intensity[run], ends, dl, irradiance)
+    irradiance = np.empty((len(idx), 3))
     for j in shines:
         got = slice(ends[j], ends[j + 1])
-        if not point[j]:
-            irradiance[got] = lights.irradiance(run[j], back[got], dl[got])
+        irradiance[got] = lights.irradiance(run[j], back[got], dl[got])
         if j in parts:
             tr[got] = tr[got] * parts[j]
     _add_reflected(out, idx, reflectance, irradiance, tr, cl)  # light after light at each point
@@ -295,19 +292,6 @@ def _light_rays_into(points, normals, facing, terminator, positions, eps, unit, 
         starts[j + 1] = m
         shadow_rays_into(points, normals, seen, starts[j], m, positions[j], eps, unit, o, d, t, o32, d32, t32)
     return m
-
-
-@exact_njit
-def _point_irradiance(point, intensity, ends, dist, out):
-    """out[ends[j]:ends[j + 1]] = I_j / d^2 per channel at the distances `dist` for the lights j of a batch
-    that are point lights (`point`; I_j their `intensity` rows), rounded as lights/point.py's `irradiance`
-    rounds it, in one GIL-free pass; the other lights' rows are left as they are."""
-    for j in range(point.shape[0]):
-        if point[j]:
-            for r in range(ends[j], ends[j + 1]):
-                square = dist[r] * dist[r]
-                for c in range(3):
-                    out[r, c] = intensity[j, c] / square
 
 
 @exact_njit
