@@ -805,14 +805,17 @@ def refracted_paths(prep, sid, geo, ell, code, g):
     return paths
 
 
-def _faces(prep, sid, geo, ell):
-    """(the shape's own accelerator, its triangles, their planes, its relative index, geo, ell) as
-    media/nonconvex_refraction.py's kernels take them."""
+def shape_faces(prep, sid):
+    """(the accelerator over shape sid's triangles alone, its triangles (T, 3, 3) in float64, their planes (T, 4))."""
     own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
     tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
-    planes = prep.memo(("face planes", sid), lambda: face_planes(tris))
-    return (own, tris, planes, float(prep.scene.shapes[sid].interior.ior), np.ascontiguousarray(geo, dtype=np.float64),
-            np.ascontiguousarray(ell, dtype=np.float64))
+    return own, tris, prep.memo(("face planes", sid), lambda: face_planes(tris))
+
+
+def _faces(prep, sid, geo, ell):
+    """(`shape_faces`, its relative index, geo, ell) as media/nonconvex_refraction.py's kernels take them."""
+    return (*shape_faces(prep, sid), float(prep.scene.shapes[sid].interior.ior),
+            np.ascontiguousarray(geo, dtype=np.float64), np.ascontiguousarray(ell, dtype=np.float64))
 
 
 def _candidates(tris, planes, geo, eta, seg, lo, hi, which, starts, stops, faces):

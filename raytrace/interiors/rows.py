@@ -50,7 +50,6 @@ from ..media.adaptive import CAPPED
 from ..media.convex_directional import EPS, MAX_FACES, beam_intervals, beams_closed, segments_bounded
 from ..media.inside_rule import MARCH, QUAD
 from ..media.nonconvex_directional import crossing_error, end_bounds, face_errors, lit_pieces
-from ..media.nonconvex_refraction import face_planes
 from ..media.slab import EVERY, GEO_COLUMNS, STREAM, inside_radiance, phase_condition, plane_closed, segment_reach
 from ..media.sphere_refraction import sphere_refracted
 from ..methods import Segments
@@ -524,9 +523,8 @@ def _sun_beams(prep, sid, li, planes, errs):
 
 
 def _shape_faces(prep, sid):
-    """(triangles (T, 3, 3), their planes (T, 4), their errors (`face_errors`)) of shape sid, in float64."""
-    tris = np.ascontiguousarray(prep.accel.triangles[prep.shape_ids == sid], dtype=np.float64)
-    planes = face_planes(tris)
+    """(triangles (T, 3, 3), their planes (T, 4): paths.shape_faces', their errors (`face_errors`)) of shape sid."""
+    _, tris, planes = paths.shape_faces(prep, sid)
     return tris, planes, face_errors(tris, planes)
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..media.nonconvex_directional import lit_pieces
-from ..media.nonconvex_refraction import PATH_COLUMNS, face_planes, face_paths, every
+from ..media.nonconvex_refraction import PATH_COLUMNS, face_paths, every
 from ..media.phase import ISOTROPIC
 from ..media.slab import GEO_COLUMNS, surface_through_faces
 from ..shading import facing_normals, shading_normals, surface_radiance
@@ -96,7 +96,7 @@ def _lit_through_triangles(prep, sid, q, normals, shading, refl, li, kt):
     value per unit light with an isotropic phase, times 4 pi, is Fresnel's T times the ray tube's irradiance E
     times the spot's falloff) and whose legs are clear of the shape (paths.clear_legs, as the air-light's
     paths.refracted_paths), shadowed as `_along_paths` says."""
-    own, tris, planes = _shape_faces(prep, sid)
+    own, tris, planes = paths.shape_faces(prep, sid)
     lights = prep.lights
     m = len(q)
     geo = np.zeros((m, GEO_COLUMNS))  # each point a segment's start; its direction enters the phase alone
@@ -147,14 +147,6 @@ def _along_paths(prep, sid, q, normals, shading, refl, li, kt, pt, u, value, k, 
     return out
 
 
-def _shape_faces(prep, sid):
-    """(the accelerator over shape sid's triangles alone, its triangles (T, 3, 3) in float64, their planes (T, 4))
-    as paths.refracted_paths takes them."""
-    own = prep.accel.subset(("shape", sid), lambda: np.nonzero(prep.shape_ids == sid)[0])
-    tris = np.ascontiguousarray(own.triangles, dtype=np.float64)
-    return own, tris, prep.memo(("face planes", sid), lambda: face_planes(tris))
-
-
 def _outside_clear(prep, sid, boundary, dirs, dist, cos):
     """Whether the light's straight legs outside shape sid, from the points `boundary` (M, 3) where it
     crosses in (cosine `cos` (M,) to the face) along the unit `dirs` (M, 3) toward the light for
@@ -182,7 +174,7 @@ def _triangle_beams(prep, sid, q, axis, eta):
     through that triangle and both legs are clear of the shape (media/nonconvex_directional.py `lit_pieces`, the
     air-light's test, on the points as segments of zero direction over [0, 1]); k: the distance to the triangle's
     plane, entry its normal."""
-    _, tris, planes = _shape_faces(prep, sid)
+    _, tris, planes = paths.shape_faces(prep, sid)
     turned = planes * np.where(planes[:, :3] @ axis > 0.0, -1.0, 1.0)[:, None]  # normals toward the light
     faces, towards, scales = refracted_beams(turned, axis, eta)
     q = np.ascontiguousarray(q, dtype=np.float64)
