@@ -70,10 +70,11 @@ class Prepared:
     emission: bool = True  # whether camera rays see the background and the emitters themselves (`only`)
     emissive: list = field(default_factory=list)  # the emissive shapes (`Lights.of`'s emitters)
     _memo: dict = field(default_factory=dict)
-    _memo_lock: threading.Lock = field(default_factory=threading.Lock)
+    _memo_lock: threading.RLock = field(default_factory=threading.RLock)
 
     def memo(self, key, build):
-        """`build()`, computed once per `key` for this scene (tiles run in threads: under a lock)."""
+        """`build()`, computed once per `key` for this scene (tiles run in threads: under a lock, re-entrant
+        because a build may memo its parts, as the sun's faces memo the shape's planes)."""
         with self._memo_lock:
             if key not in self._memo:
                 self._memo[key] = build()
@@ -178,13 +179,13 @@ def _pilot(prep: Prepared, method, params, seed, tol, ladders, counts) -> tuple[
     def rows_at(orders):
         return dataclasses.replace(prep, lights=Lights.of(scene.lights, prep.emissive, orders, prep.lights.emitters),
                                    _frusta=None,
-                                   _through=None, _memo={}, _memo_lock=threading.Lock())
+                                   _through=None, _memo={}, _memo_lock=threading.RLock())
 
     def shade(orders, rays):
         return shade_rays(rows_at(orders), method, params, o[rays], d[rays], keys[rays], seed)[0]
 
     orders, capped, n_near, stray = cubature.choose(ladders, counts, near, shade, tol)
-    adapted = dataclasses.replace(rows_at(orders), _memo={}, _memo_lock=threading.Lock())  # the frusta shared
+    adapted = dataclasses.replace(rows_at(orders), _memo={}, _memo_lock=threading.RLock())  # the frusta shared
     emitters = [s for s, ladder in enumerate(ladders) if ladder is not None]
     n_rows = int(np.count_nonzero(np.isin(adapted.lights.owner, emitters)))
     return adapted, {"cubature: rows": n_rows, "cubature: pilot rays": len(o),
@@ -764,7 +765,7 @@ def seeded(prep: Prepared, seed: int, sample: int, shadows: bool = False) -> Pre
         if sample not in last[1]:
             lights = environment.seeded(prep.lights, prep.scene.lights, seed, sample)
             last[1][sample] = prep if lights is prep.lights else dataclasses.replace(
-                prep, lights=lights, _frusta=None, _through=None, _memo={}, _memo_lock=threading.Lock())
+                prep, lights=lights, _frusta=None, _through=None, _memo={}, _memo_lock=threading.RLock())
         view = last[1][sample]
     if shadows:
         view.memo("frusta", view.frusta)  # under the view's lock: a tile of another sample does not wait
