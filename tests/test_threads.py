@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 
 import numpy as np
@@ -128,3 +129,15 @@ def test_a_tile_of_whole_rows_is_the_renders():
     task = renderer.Task("analytic", params, options.seed, options.shadows, (0, 0, 8, 6))
     rad = renderer.render_tile(prep, task, renderer.Tile(slice(2, 3), slice(0, 8), slice(0, 2)))[0]
     assert np.array_equal(rad / 2, image[2])
+
+
+def test_a_memo_built_inside_another_memo_does_not_wait_for_itself():
+    """Prepared.memo builds under the scene's lock; a build that memos its parts (the sun's faces memo the
+    shape's planes) must not deadlock on it (fails with a plain Lock after 10 s)."""
+    prep = renderer.prepare(raytrace.load(box_room()))
+    out = {}
+    nested = threading.Thread(target=lambda: out.update(v=prep.memo("outer", lambda: prep.memo("inner", lambda: 7))),
+                              daemon=True)  # a deadlocked thread must not keep pytest alive
+    nested.start()
+    nested.join(timeout=10)
+    assert not nested.is_alive() and out["v"] == 7 and prep.memo("inner", lambda: 0) == 7
