@@ -1,6 +1,6 @@
 """Writes tests/data/surfaces_sphere_twins.json, the twin of tests/test_surfaces_sphere.py: surfaces inside a glass
 exact sphere (ior 1.5) sunk into a floor, lit by a lamp and by a spot outside it, from the geometry alone in 30-digit
-mpmath (no project code; `python -m tests.make_surfaces_sphere_twins`, about a minute).
+mpmath (no project code; `python -m tests.make_surfaces_sphere_twins`, about 45 s CPU).
 
 Fermat's paths from the light L to an inside point X lie in the plane of L, the centre c and X (the normal at the
 refraction point P lies in it): P(theta) = c + R (cos theta ez + sin theta ey), the optical path F(theta) = |P - L|
