@@ -21,7 +21,6 @@ import math
 import numpy as np
 import pytest
 
-from raytrace.errors import UserError
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 from raytrace.scene.format import scene_from_text
@@ -119,17 +118,6 @@ def test_surfaces_inside_a_glass_u_match_the_twin(name):
     assert seen >= 30 and lit >= 10 and seen - lit >= {"lamp": 1, "spot": 5, "sun": 1}[name], (seen, lit)
     march = render(prep, "raymarch", {"steps": 4}, RenderOptions(threads=1)).image
     assert np.array_equal(march, img)
-
-
-def test_surfaces_inside_a_refractive_exact_sphere_with_a_lamp_are_still_refused():
-    """An exact sphere's surfaces inside are lit through the entry face's plane (directional lights only)."""
-    sc = {"camera": VIEW, "light": [LAMP],
-          "shape": [{"primitive": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.5, "exact": True,
-                     "interior": {"sigma_a": 0.1, "sigma_s": 0.0, "ior": ETA}},
-                    {"primitive": "quad", "corners": FLOOR}]}
-    with pytest.raises(UserError, match=r"shape\[1\]: lies inside shape\[0\], whose interior is refractive "
-                                        r"\(ior 1.5\) and an exact sphere"):
-        render(prepare(scene_from_text(to_toml(sc), "ball")), "quadrature", {}, RenderOptions(threads=1))
 
 
 @pytest.mark.parametrize("light", ["lamp", "spot"])

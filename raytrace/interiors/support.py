@@ -86,7 +86,6 @@ def check(prep, method, method_params, source: str, shadows: bool):
         raise UserError(f"{source}: --method {method.name}: it does not integrate media inside shapes ({key}); use "
                         f"--method {', '.join(_takers())}")
     kinds = prep.lights.kinds()
-    near = bool(np.any(~prep.lights.distant))  # rows with a position (point and spot lights, emitters' nodes)
     fixed = [k for k in sup.fixed if method_params.get(k, method.params[k].default) != method.params[k].default]
     if fixed:
         raise UserError(f"{source}: {' / '.join('--' + k.replace('_', '-') for k in fixed)} "
@@ -114,17 +113,6 @@ def check(prep, method, method_params, source: str, shadows: bool):
             raise UserError(f"{source}: shape[{i}].interior.ior: --method {method.name}: {kind} lights through a "
                             f"refractive boundary{why}; use ior = 1"
                             + (f", or --method {', '.join(takers)}" if takers else ""))
-    if near:  # surfaces inside a refractive exact sphere (interiors/surfaces.py: its entry plane's model)
-        for i in inner:
-            if prep.scene.shapes[i].interior.ior == 1.0 or paths.exact_sphere(prep, i) is None:
-                continue
-            for j in range(len(prep.scene.shapes)):
-                first = prep.accel.triangles[prep.shape_ids == j]
-                if j != i and len(first) and inside_of(prep, first[0, 0], [i]) is not None:
-                    raise UserError(f"{source}: shape[{j}]: lies inside shape[{i}], whose interior is refractive "
-                                    f"(ior {prep.scene.shapes[i].interior.ior:g}) and an exact sphere; surfaces "
-                                    "inside it are lit by directional lights only, whatever the method; use ior = 1, "
-                                    "a mesh (exact = false) or a directional light")
     inside = prep.camera_inside
     if inside is not None and (not sup.camera_inside or (prep.scene.shapes[inside].interior.ior != 1.0 and not len(
             refracting_planes(prep, inside)) and paths.exact_sphere(prep, inside) is None)):

@@ -1,15 +1,21 @@
 """Plain surfaces inside shapes that hold a medium, shaded where camera rays meet them there (`surface_inside`):
 through an index-matched interior with its transmittance, through a refractive one on the lights' refracted paths
-(every face of a convex shape, every triangle of one that is not convex, or the plane of the face the camera ray
-entered by in an exact sphere)."""
+(every face of a convex shape, every triangle of one that is not convex; in an exact sphere a point or spot light's
+exact paths, a directional light through the plane of the face the camera ray entered by)."""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
+from ..jit import njit
+from ..lights import falloff
 from ..media.nonconvex_directional import lit_pieces
 from ..media.nonconvex_refraction import PATH_COLUMNS, face_paths, every
 from ..media.phase import ISOTROPIC
-from ..media.slab import GEO_COLUMNS, surface_through_faces
+from ..media.slab import GEO_COLUMNS, fresnel, surface_through_faces
+from ..media.sphere_refraction import MAX_PATHS, U, Outward, _about, frame, incidence, paths as sphere_paths, \
+    tangential_curvature
 from ..shading import facing_normals, shading_normals, surface_radiance
 from . import paths
 from .fresnel import refract, refracted_beams, transmittance
@@ -26,11 +32,11 @@ def surface_inside(prep, sid, p, n, w, prim, ell):
     (`_convex_beams`, `_lit_by_beam`). In a triangle mesh that is not convex: point and spot lights on
     Fermat's path through every triangle whose legs are clear (`_lit_through_triangles`); directional ones
     by every triangle's beam where q's path back leaves through that triangle and both legs are clear
-    (`_triangle_beams`). In an exact sphere directional lights only (`check` refuses the rest) by the
-    note's planar boundary, the entry face's plane (outward normals n): the beam refracted into t through
-    it, irradiance E T cos_i / cos_t (eq. 5's E_in), attenuated over the path q - k t back to the plane,
-    k = depth / cos_t. Opaque surfaces shadow on the path inside and on the light's leg outside
-    (`_outside_clear`)."""
+    (`_triangle_beams`). In an exact sphere point and spot lights on their exact refracted paths
+    (`_lit_into_sphere`), directional ones by the note's planar boundary, the entry face's plane (outward
+    normals n): the beam refracted into t through it, irradiance E T cos_i / cos_t (eq. 5's E_in),
+    attenuated over the path q - k t back to the plane, k = depth / cos_t. Opaque surfaces shadow on the
+    path inside and on the light's leg outside (`_outside_clear`)."""
     accel = prep.accel
     medium = prep.scene.shapes[sid].interior
     q = p + ell[:, None] * w
@@ -50,6 +56,8 @@ def surface_inside(prep, sid, p, n, w, prim, ell):
                 lb += _lit_through_faces(prep, sid, q, normals, shading, refl, planes, li, kt)
             elif meshed:
                 lb += _lit_through_triangles(prep, sid, q, normals, shading, refl, li, kt)
+            else:
+                lb += _lit_into_sphere(prep, sid, q, normals, shading, refl, li, kt)
         for li in np.nonzero(lights.distant)[0]:
             axis = lights.axis[li]
             if len(planes):
@@ -121,6 +129,61 @@ def _lit_through_triangles(prep, sid, q, normals, shading, refl, li, kt):
     u = (rows[:, 2:5] - q[pt]) / np.maximum(k, 1e-300)[:, None]
     return _along_paths(prep, sid, q, normals, shading, refl, li, kt, pt, u, 4.0 * np.pi * rows[:, 5], k, rows[:, 7],
                         rows[:, 2:5], planes[face, :3])
+
+
+def _lit_into_sphere(prep, sid, q, normals, shading, refl, li, kt):
+    """rho / pi I E cos_s exp(-sigma_t k - sigma_out o) (M, 3) at surface points q inside the refractive exact
+    sphere sid from point or spot light li outside it, summed over its refracted paths in (`_into_sphere`: the
+    air-light's paths, media/sphere_refraction.py), shadowed as `_along_paths` says; none from a light inside
+    the sphere (support.py `check` refuses a shape inside the sphere with it)."""
+    sphere = np.asarray(paths.exact_sphere(prep, sid), dtype=np.float64)
+    lights, m = prep.lights, len(q)
+    value, inside, outside = np.zeros((m, MAX_PATHS)), np.zeros((m, MAX_PATHS)), np.zeros((m, MAX_PATHS))
+    toward, boundary = np.zeros((m, MAX_PATHS, 3)), np.zeros((m, MAX_PATHS, 3))
+    _into_sphere(np.ascontiguousarray(q, dtype=np.float64), sphere, lights.position[li], lights.axis[li],
+                 lights.cone[li], float(prep.scene.shapes[sid].interior.ior), value, toward, inside, outside, boundary)
+    pt, k = np.nonzero(value > 0.0)
+    return _along_paths(prep, sid, q, normals, shading, refl, li, kt, pt, toward[pt, k], value[pt, k], inside[pt, k],
+                        outside[pt, k], boundary[pt, k], (boundary[pt, k] - sphere[:3]) / sphere[3])
+
+
+@njit
+def _into_sphere(q, sphere, light, axis, cone, eta, value, toward, inside, outside, boundary):
+    """A unit point or spot light outside the refractive exact sphere (centre, radius; relative index eta inside)
+    at the points q (M, 3) inside it, through each of its refracted paths in (up to MAX_PATHS, the columns; value 0:
+    no path): media/sphere_refraction.py `paths` in the plane of the light's axis and the point, proven there. Per
+    path (`incidence`: P the refraction point, the cosines there, the leg outside o = |P - L|, the unit t inside,
+    the leg inside s = |q - P|) value the irradiance across the ray at q, F T cos_i / (o^2 cos_t |(1 - s kappa_t)
+    (1 - s kappa_s)|) (the module docstring's ray tube, Coddington's curvatures) with the spot's falloff F toward
+    (P - L) / o, toward = -t, inside s, outside o and boundary P. None from a light within the sphere."""
+    c, radius = sphere[:3], sphere[3]
+    value[:] = 0.0
+    ez, d, theta_a, cells = frame(sphere, light, False, eta)
+    if not d > radius:
+        return
+    scan = Outward(radius, d, eta, theta_a, cells)  # `paths`' light and sphere: the light on the axis at d
+    found, spread = np.empty(MAX_PATHS), np.empty(MAX_PATHS)
+    for i in range(q.shape[0]):
+        zx, yx, ey = _about(q[i] - c, ez)
+        dx = 16.0 * U * (math.sqrt(zx * zx + yx * yx) + 2.0 * radius + d)  # q's plane coordinates' rounding
+        m, _ = sphere_paths(scan, zx, yx, dx, found, spread)
+        for k in range(m):
+            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
+            s = tz * (zx - pz) + ty * (yx - py)
+            if cos_t == 0.0 or not s >= 0.0:
+                continue
+            tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
+                       * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
+            c_spot = 0.0
+            for j in range(3):
+                boundary[i, k, j] = c[j] + pz * ez[j] + py * ey[j]
+                toward[i, k, j] = -(tz * ez[j] + ty * ey[j])
+                c_spot += (boundary[i, k, j] - light[j]) * axis[j]
+            f = falloff(c_spot / o, cone[0], cone[1], int(cone[2]))
+            if f == 0.0 or not tube > 0.0:
+                continue
+            value[i, k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (o * o * cos_t * tube)
+            inside[i, k], outside[i, k] = s, o
 
 
 def _along_paths(prep, sid, q, normals, shading, refl, li, kt, pt, u, value, k, o, boundary, normal):
