@@ -125,11 +125,12 @@ def seen_probes(emitter, points, normals):
 
 
 def _planar_rule(planar, feet, rays, rs):
-    """rule(at, order) of a flat emitter about the `feet` [rs[at]] of camera rays rs[at] (`Near.rule`)."""
-    feet, dirs = feet[rs], rays[1][rs]
+    """rule(at, order) of a flat emitter about the `feet` [rs[at]] of camera rays rs[at] (`Near.rule`), what
+    does not depend on the order built once (`Planar.about`)."""
+    nodes = planar.about(feet[rs], rays[1][rs])
 
     def rule(at, order):
-        points, weights, owner = planar.rule(feet[at], order, dirs[at])
+        points, weights, owner = nodes(at, order)
         return points, np.broadcast_to(planar.normal, points.shape), weights, owner
     return rule
 

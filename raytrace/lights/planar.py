@@ -107,12 +107,16 @@ class Planar:
     emitter (0 on it), and `rule(f, order, dirs=None)` (points (M, 3), signed area weights (M,), owner (M,):
     the f of each node) a rule over the emitter singular at each f (module docstring) whose weights sum
     to the emitter's area for every f; `dirs` (P, 3) the rays' unit directions (the polygon's rule grades
-    its nodes toward a grazing ray's projection; the disk's ignores them)."""
+    its nodes toward a grazing ray's projection; the disk's ignores them). `about(f, dirs=None)` -> rule(at,
+    order): the same rule about f[at] (owner: the index into `at`), the polygon's part that does not depend
+    on the order built once for consecutive calls with the same `at` (a ladder's first two orders:
+    rendering/near_emitters.py `_values`)."""
     centre: np.ndarray
     normal: np.ndarray
     diameter: float
     outside: Callable
     rule: Callable
+    about: Callable
     pieces: tuple = ()  # (kinds (P,), frames (P, 3, 3)): the emitter as pieces uniform in area (`emitter_pieces`)
 
 
@@ -151,11 +155,11 @@ def polygon(corners, normal) -> Planar:
         along = (b - a) / np.linalg.norm(b - a)
         sides.append((a, b, along, np.linalg.norm(b - a), np.cross(normal, along)))
 
-    def rule(f, order, dirs=None):
-        r, wr = graded(order)
-        x, wx = gauss_legendre(order)
-        parts = []
+    def geometry(f, dirs):
+        """Per edge the order-independent part of the rule about the points f: the edge's signed distance h,
+        the range of u, its grading toward a grazing ray and the panels."""
         graze = grazing(normal, dirs, len(f))
+        out = []
         for a, b, along, length, across in sides:
             foot = a + ((f - a) @ along)[:, None] * along  # f's perpendicular foot on the edge's line
             h = cross(a - f, b - f) @ normal / length  # signed: > 0 on the inner side
@@ -164,6 +168,15 @@ def polygon(corners, normal) -> Planar:
             lo, hi = np.arcsinh((a - foot) @ along / scale), np.arcsinh((b - foot) @ along / scale)
             centre, width, s_lo, s_hi = peaks(graze, toward, along, lo, hi)
             panels = np.maximum(np.ceil((s_hi - s_lo) / SPAN), 1).astype(np.int64)
+            out.append((along, h, toward, scale, centre, width, s_lo, s_hi, panels))
+        return out
+
+    def nodes(f, edges, order):
+        """`rule`'s nodes about the points f from their `geometry`."""
+        r, wr = graded(order)
+        x, wx = gauss_legendre(order)
+        parts = []
+        for along, h, toward, scale, centre, width, s_lo, s_hi, panels in edges:
             for p in np.unique(panels):
                 at = np.nonzero(panels == p)[0]
                 t = ((np.arange(p)[:, None] + x[None]) / p).ravel()  # (p x order,) in [0, 1]
@@ -176,8 +189,20 @@ def polygon(corners, normal) -> Planar:
                 parts.append((points.reshape(-1, 3), weights.ravel(), np.repeat(at, weights[0].size)))
         return tuple(np.concatenate(c) for c in zip(*parts))
 
+    def about(f, dirs=None):
+        last = {}  # the geometry of the last points asked about (a ladder's first step: two orders of the same)
+
+        def rule_at(at, order):
+            if last.get("at") is None or not np.array_equal(last["at"], at):
+                last.update(at=at, edges=geometry(f[at], None if dirs is None else dirs[at]))
+            return nodes(f[at], last["edges"], order)
+        return rule_at
+
+    def rule(f, order, dirs=None):
+        return nodes(f, geometry(f, dirs), order)
+
     fan = np.stack([np.broadcast_to(corners[0], (len(corners) - 2, 3)), corners[1:-1], corners[2:]], axis=1)
-    return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule,
+    return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule, about,
                   (np.full(len(fan), TRIANGLE), fan))
 
 
@@ -219,8 +244,12 @@ def disk(centre, normal, t1, t2, radius: float) -> Planar:
         weights = dphi[:, :, None] * chord[:, :, None] * rho * wr[:, None, :]
         return points.reshape(-1, 3), weights.ravel(), np.repeat(np.arange(len(f)), weights[0].size)
 
+    def about(f, dirs=None):  # nothing to build once: the rule about f[at] at each call
+        return lambda at, order: rule(f[at], order)
+
     round_piece = np.array([[centre, radius * np.asarray(t1, float), radius * np.asarray(t2, float)]])
-    return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule, (np.array([ROUND]), round_piece))
+    return Planar(centre, np.asarray(normal, float), 2.0 * radius, outside, rule, about,
+                  (np.array([ROUND]), round_piece))
 
 
 # --- flat emitters sampled by the stochastic methods: the rows' nodes drawn over the emitter ---------------

@@ -131,17 +131,26 @@ def _stratified(accel, method, medium, params, emitter, rs, rays, select, strata
     sides = 2 if emitter.two_sided else 1
     segs = point_segments(samples, sides, rays, np.repeat(rs, per), accel.scale)
     lit = lit_pieces(accel, samples, segs, sides * per, select)
-    g = per * per_group(method, medium, params, samples, lit, len(rs) * per)  # one sample's estimate
+    m = len(rs) * per
+    states = _group_states(segs, lit, m).reshape(len(rs), per)
+    agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
+    free = segs.take(np.nonzero(np.repeat(agree, per)[segs.ray])[0])  # the floor's: the agreeing rays' unshadowed
+    both = per_group(method, medium, params, samples, _joined(lit, free, m), 2 * m)  # one batch: the lit, then free
+    g = per * both[:m]  # one sample's estimate
     value = g.reshape(len(rs), per, 3).mean(axis=1)
     var = collapsed_variance(g.reshape(len(rs), per, 3), strata)
-    states = _group_states(segs, lit, len(rs) * per).reshape(len(rs), per)
-    agree = np.all(states != MIXED, axis=1) & (np.all(states != DARK, axis=1) | np.all(states != LIT, axis=1))
     if agree.any():  # the floor: one sample's share of the unshadowed sum
-        free = per_group(method, medium, params, samples, segs.take(np.nonzero(np.repeat(agree, per)[segs.ray])[0]),
-                         len(rs) * per)
-        floor = free.reshape(len(rs), per, 3).sum(axis=1)[agree] ** 2 / per**2
+        floor = both[m:].reshape(len(rs), per, 3).sum(axis=1)[agree] ** 2 / per**2
         var[agree] = np.maximum(var[agree], floor)
     return value, var
+
+
+def _joined(a: Segments, b: Segments, offset: int) -> Segments:
+    """The segments of `a` then those of `b`, b's groups (`ray`) moved by `offset` (a's and b's kept apart)."""
+    cat = lambda x, y: np.concatenate((x, y))
+    return Segments(cat(a.origins, b.origins), cat(a.dirs, b.dirs), cat(a.length, b.length), cat(a.light, b.light),
+                    cat(a.ray, b.ray + offset), cat(a.t0, b.t0), cat(a.keys, b.keys), cat(a.stream, b.stream),
+                    a.seed, a.scale)
 
 
 def per_group(method, medium, params, lights, segs: Segments, groups: int) -> np.ndarray:
