@@ -465,6 +465,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
     else:
         ahead = compile_ahead.start(shadows, compile_airlight, prep.scene, method.name, params, seed)
     try:
+        if ahead is not None:  # (the air-light's kernels that the worker leaves to this process)
+            compile_ahead.compile_here(method, prep.scene.medium, prep.lights, params)
         if shadows:
             prep.frusta()  # before the tiles' threads share it
         o, d = warm_up_rays(prep)
@@ -510,8 +512,9 @@ def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
     loaded, their accelerator built: the lights suffice); then the inside integrals of the rays into media
     inside shapes (`interiors_ahead`: their boundary crossing and their inside rows, not the rays beyond
     them), which the render's warm-up shades after this worker. Where the camera is inside a medium, the
-    warm-up's rays shaded from there (crossing.start_inside)."""
-    method = get_method(method_name)
+    warm-up's rays shaded from there (crossing.start_inside). The air-light's kernels that the render's process
+    compiles meanwhile (`compile_ahead.compile_here`) are left out (`compile_ahead.ahead`)."""
+    method = compile_ahead.ahead(get_method(method_name))
     prep = prepare(scene) if any(s.interior is not None or s.emission is not None for s in scene.shapes) else None
     if prep is not None and prep.camera_inside is not None:
         o, d = warm_up_rays(prep)
