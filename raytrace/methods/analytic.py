@@ -1296,8 +1296,8 @@ RECURRENCES = (types.float64[:, ::1], types.float64[::1], types.float64, types.f
 
 def compile_recurrences(medium, lights, params):
     """The air-light's kernels that the render's process compiles by signature while the compile worker
-    compiles the rest (rendering/compile_ahead.py: `_airlight_ahead` there): the moment recurrences, where
-    `uses_recurrences`."""
+    compiles the rest on `_airlight.ahead` (rendering/compile_ahead.py): the moment recurrences, where
+    `uses_recurrences`, in the one signature `evaluate_deferred` calls them with."""
     if uses_recurrences(medium, lights, params):
         _pending_recurrences.compile(RECURRENCES)
 

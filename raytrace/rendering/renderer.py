@@ -447,7 +447,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
     """Build the lights' shadow frusta (with `shadows`) and compile the method's kernels on a few rays
     (`warm_up_rays`), so that the tiles compile nothing later; on an empty kernel cache the air-light's
     kernels and those of the media inside shapes compile meanwhile in a second process (compile_ahead.py,
-    `compile_airlight`; the rays into those media are shaded here after it), or, where a warm-up with shadows
+    `compile_airlight`; the rays into those media are shaded here after it; the air-light's kernels it leaves to
+    this process compiled here first, `compile_ahead.compile_here`), or, where a warm-up with shadows
     follows this one without (`then_shadows`: the cubature pilot's), the shadows' kernels
     (`compile_shadows`). Returns the seconds it took. Once per scene file (unchanged), method,
     parameters and `shadows` in a process: a later render of the same compiles nothing."""
