@@ -468,6 +468,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
     try:
         if ahead is not None:  # (the air-light's kernels that the worker leaves to this process)
             compile_ahead.compile_here(method, prep.scene.medium, prep.lights, params)
+        _tile_keys(0, 1, 0, 0, 1, 1, 1, 0, np.zeros(1, np.int64), np.zeros(1, np.int64),  # the tiles' pixels and keys
+                   np.zeros(1, np.uint64))  # (`render_tile`; before the worker's gate, where this process waits)
         if shadows:
             prep.frusta()  # before the tiles' threads share it
         o, d = warm_up_rays(prep)
