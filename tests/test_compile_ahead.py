@@ -229,3 +229,31 @@ def test_the_workers_segments_have_the_warm_ups_types():
     assert (type(axis.seed), type(axis.scale), axis.per_ray) == (type(warm.seed), type(warm.scale), warm.per_ray)
     assert np.array_equal(axis.light, np.arange(len(prep.lights))) and np.all(axis.t0 > 0.0)
     np.testing.assert_allclose(axis.origins, prep.scene.camera.position + axis.t0[:, None] * axis.dirs)
+
+
+RECURRENCES = """
+import json, sys
+import numpy as np
+from raytrace import api
+from raytrace.methods import analytic
+image = api.render(sys.argv[2], "analytic", width=12, height=8, spp=1, threads=1)
+np.save(sys.argv[1], image.array)
+print(json.dumps({k.__name__: [sum(k.stats.cache_hits.values()), sum(k.stats.cache_misses.values())]
+                  for k in (analytic.evaluate_segments, analytic._pending_recurrences)}))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="compile ahead needs two cores")
+def test_the_render_compiles_the_recurrences_while_the_worker_compiles_the_rest(tmp_path):
+    """shafts (point lights in HG): the worker compiles the segments' kernel without the moment recurrences,
+    which the render's process compiles meanwhile (`compile_ahead.compile_here`) and does not load: hits and
+    misses of (`evaluate_segments`, `_pending_recurrences`)."""
+    shafts = str(ROOT / "scenes" / "shafts.toml")
+    a, stats_a = _first_render(tmp_path, "a", True, RECURRENCES, shafts)
+    b, stats_b = _first_render(tmp_path, "b", True, RECURRENCES, shafts)
+    serial, stats_serial = _first_render(tmp_path, "serial", False, RECURRENCES, shafts)
+    assert stats_a == stats_b == {"evaluate_segments": [1, 0], "_pending_recurrences": [0, 1]}
+    assert stats_serial == {"evaluate_segments": [0, 1], "_pending_recurrences": [0, 1]}
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(a, serial, rtol=1e-13, atol=0)

@@ -37,6 +37,7 @@ import functools
 import math
 
 import numpy as np
+from numba.core import types
 
 from .. import error_bounds
 from ..jit import exact_njit, njit
@@ -1076,7 +1077,8 @@ def summarize_stats(stats):
 # ----------------------------------------------------------------------------------------------
 @njit
 def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, quadrature, spots, aniso, lamberts=True, points=True, taylor_mode=True):
+                      met, stats, quadrature, spots, aniso, lamberts=True, points=True, taylor_mode=True, pending=None,
+                      recurrences=True):
     """Unit-intensity air-light of every segment for one channel's coefficients, and whether each
     met the precision (`checked_airlight`'s choice, made here: a point light's path inlined, numba's
     inlining one level deep only, as each level types its callee's code again). With `quadrature` None
@@ -1085,8 +1087,10 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
     not counted (`evaluate_deferred`); returns how many. `taylor_mode` None: the Taylor mode's code is not
     compiled (`_piece`; `aniso_mode` is then the exact one). The exact mode's
     moment recurrences of point lights are run after the loop, batched (`_pending_recurrences`), in
-    either pass, so that deferring changes no bit."""
-    pending = np.empty((xh.shape[0] if aniso is not None else 0, PENDING))
+    either pass, so that deferring changes no bit; their rows go to `pending` where it is given (an (S, PENDING)
+    array), and with `recurrences` None they are left to the caller (`evaluate_deferred`: then not compiled
+    into this kernel, the branch pruned by numba as the None arguments' are)."""
+    batch = np.empty((xh.shape[0] if aniso is not None else 0, PENDING)) if pending is None else pending
     defer = aniso is not None
     left = 0
     for s in range(xh.shape[0]):
@@ -1116,11 +1120,12 @@ def evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, anis
             left += 1  # left to the second pass (its statistics counted there)
         if aniso is not None:
             for k in range(PENDING):
-                pending[s, k] = p[k]
+                batch[s, k] = p[k]
     if aniso is not None and points is not None and aniso_mode == ANISO_EXACT:  # (Taylor mode's coeffs: no blocks)
-        left += _pending_series(pending, xh, h, ell, kt, ks, code, g, precision, max_iter, cone, out, met, stats,
+        left += _pending_series(batch, xh, h, ell, kt, ks, code, g, precision, max_iter, cone, out, met, stats,
                                 quadrature)
-        _pending_recurrences(pending, coeffs, ks, out)
+        if recurrences is not None:
+            _pending_recurrences(batch, coeffs, ks, out)
     return left
 
 
@@ -1213,22 +1218,33 @@ def _pending_recurrences(pending, coeffs, ks, out):
 
 
 def evaluate_deferred(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                      met, stats, spots=True, aniso=True, lamberts=True, points=True):
+                      met, stats, spots=True, aniso=True, lamberts=True, points=True, recurrences=True):
     """`evaluate_segments` with the quadrature's kernels compiled on first need only: every segment
     without them, then again with them the few left nan (the quadrature fallback, or a nan of the
     closed form, which the second pass reproduces), so the result is that of one pass with them.
     `spots` False: the scene has no light with a cone but emitter points (`light_rows`), `aniso` False:
     its medium is isotropic, `lamberts` False: no emitter point, `points` False: no light without a cone;
     the first pass is then compiled without their code too (such segments, were there any, would be left
-    to the second pass). Both passes compile the Taylor mode's code only in that mode."""
+    to the second pass). Both passes compile the Taylor mode's code only in that mode. Each pass's moment
+    recurrences run here, after it (`_pending_recurrences`, a kernel of its own: the render's process compiles it
+    while the compile worker compiles the passes, `compile_recurrences`); `recurrences` False: not at all (the
+    worker's air-light, whose values are not used)."""
     taylor_mode = True if aniso_mode == ANISO_TAYLOR else None
-    if evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone, out,
-                         met, stats, None, True if spots else None, True if aniso else None,
-                         True if lamberts else None, True if points else None, taylor_mode):
+    pending = np.empty((len(xh) if aniso else 0, PENDING))
+    left = evaluate_segments(xh, h, da, ell, kt, ks, code, g, precision, max_iter, aniso_mode, terms, coeffs, cone,
+                             out, met, stats, None, True if spots else None, True if aniso else None,
+                             True if lamberts else None, True if points else None, taylor_mode, pending, None)
+    if recurrences and aniso and points and aniso_mode == ANISO_EXACT:
+        _pending_recurrences(pending, coeffs, ks, out)
+    if left:
         todo = np.flatnonzero(np.isnan(out))
         part, part_met = np.empty(len(todo)), np.empty(len(todo), dtype=np.bool_)
+        pending = np.empty((len(todo), PENDING))
         evaluate_segments(xh[todo], h[todo], da[todo], ell[todo], kt, ks, code, g, precision, max_iter, aniso_mode,
-                          terms, coeffs, cone[todo], part, part_met, stats, True, True, True, taylor_mode=taylor_mode)
+                          terms, coeffs, cone[todo], part, part_met, stats, True, True, True, taylor_mode=taylor_mode,
+                          pending=pending, recurrences=None)
+        if recurrences and aniso_mode == ANISO_EXACT:
+            _pending_recurrences(pending, coeffs, ks, part)
         out[todo], met[todo] = part, part_met
 
 
@@ -1268,7 +1284,25 @@ def mode_for(medium, params, lights):
     return ANISO_MODES[params["anisotropic"]]
 
 
-def _airlight(segs, medium, lights, params):
+def uses_recurrences(medium, lights, params) -> bool:
+    """Whether the air-light runs the batched moment recurrences (`_pending_recurrences`): point lights (rows
+    without a cone) in an anisotropic medium, in the exact mode."""
+    return medium.phase != ISOTROPIC and light_rows(lights.cone)[2] and mode_for(medium, params, lights) == ANISO_EXACT
+
+
+# `_pending_recurrences`' one signature: `evaluate_deferred`'s batch, `exact_coeffs`, ks, the pass's air-light
+RECURRENCES = (types.float64[:, ::1], types.float64[::1], types.float64, types.float64[::1])
+
+
+def compile_recurrences(medium, lights, params):
+    """The air-light's kernels that the render's process compiles by signature while the compile worker
+    compiles the rest on `_airlight.ahead` (rendering/compile_ahead.py): the moment recurrences, where
+    `uses_recurrences`, in the one signature `evaluate_deferred` calls them with."""
+    if uses_recurrences(medium, lights, params):
+        _pending_recurrences.compile(RECURRENCES)
+
+
+def _airlight(segs, medium, lights, params, recurrences=True):
     mode = mode_for(medium, params, lights)
     precision = working_precision(params["precision"])
     coeffs = make_coeffs(medium.phase, medium.g, mode, params["terms"], precision)
@@ -1281,12 +1315,19 @@ def _airlight(segs, medium, lights, params):
         out = np.empty_like(xh)
         met[(kt, ks)] = np.empty(len(xh), dtype=np.bool_)
         evaluate_deferred(xh, h, da, ell, kt, ks, medium.phase, medium.g, precision, params["max_iter"], mode,
-                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats, spots, aniso, lamberts, points)
+                          params["terms"], coeffs, cone, out, met[(kt, ks)], stats, spots, aniso, lamberts, points,
+                          recurrences)
         return out
 
     radiance = by_channel(segs, medium, lights, evaluate)
     return radiance, stats, error_bounds.relative_bound(radiance, params["precision"], met, medium,
                                                         lights.cone[segs.light, 0])
+
+
+# the split of the air-light's compile with rendering/compile_ahead.py: the kernels the render's process compiles
+# (`here`), and the air-light the worker compiles the rest on (`ahead`)
+_airlight.here = compile_recurrences
+_airlight.ahead = functools.partial(_airlight, recurrences=False)
 
 
 METHOD = Method(

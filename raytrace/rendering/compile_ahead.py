@@ -14,12 +14,15 @@ cubature pilot warms up first, unshadowed, before a render with shadows, the gro
 round: the pilot's warm-up compiles the air-light and the surfaces here while the worker compiles the
 shadows' kernels (renderer.compile_shadows), which the render's own warm-up then loads (`settle`
 waits for the worker first); ``RAYTRACE_COMPILE_AHEAD=0``
-turns it off. The worker is a fresh interpreter on this one's module path (not multiprocessing's
+turns it off. A method's air-light may leave some of its kernels to this process (`compile_here`: compiled
+by signature before the gate, so that neither process waits on them; analytic's moment recurrences), the worker
+running it without them (`ahead`). The worker is a fresh interpreter on this one's module path (not multiprocessing's
 spawn, which would run the caller's main script again where it has no ``if __name__ ==
 "__main__"`` guard).
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import pickle
 import subprocess
@@ -97,6 +100,21 @@ def settle(stop: bool = False) -> float:
     while _later:
         _later.pop().wait(stop)
     return time.perf_counter() - begin
+
+
+def compile_here(method, medium, lights, params):
+    """Compile in this process, by signature, the kernels of `method`'s air-light that it leaves to the render's
+    process while the worker compiles the rest (the air-light's `here`, where it has one)."""
+    here = getattr(method.airlight, "here", None)
+    if here is not None:
+        here(medium, lights, params)
+
+
+def ahead(method):
+    """`method` as the worker runs it: its air-light without the kernels `compile_here` compiles (the air-light's
+    `ahead`, where it has one; the values it gives are not used)."""
+    rest = getattr(method.airlight, "ahead", None)
+    return method if rest is None else dataclasses.replace(method, airlight=rest)
 
 
 def serve():

@@ -447,7 +447,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
     """Build the lights' shadow frusta (with `shadows`) and compile the method's kernels on a few rays
     (`warm_up_rays`), so that the tiles compile nothing later; on an empty kernel cache the air-light's
     kernels and those of the media inside shapes compile meanwhile in a second process (compile_ahead.py,
-    `compile_airlight`; the rays into those media are shaded here after it), or, where a warm-up with shadows
+    `compile_airlight`; the rays into those media are shaded here after it; the air-light's kernels it leaves to
+    this process compiled here first, `compile_ahead.compile_here`), or, where a warm-up with shadows
     follows this one without (`then_shadows`: the cubature pilot's), the shadows' kernels
     (`compile_shadows`). Returns the seconds it took. Once per scene file (unchanged), method,
     parameters and `shadows` in a process: a later render of the same compiles nothing."""
@@ -465,6 +466,10 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
     else:
         ahead = compile_ahead.start(shadows, compile_airlight, prep.scene, method.name, params, seed)
     try:
+        if ahead is not None:  # (the air-light's kernels that the worker leaves to this process)
+            compile_ahead.compile_here(method, prep.scene.medium, prep.lights, params)
+        _tile_keys(0, 1, 0, 0, 1, 1, 1, 0, np.zeros(1, np.int64), np.zeros(1, np.int64),  # the tiles' pixels and keys
+                   np.zeros(1, np.uint64))  # (`render_tile`; before the worker's gate, where this process waits)
         if shadows:
             prep.frusta()  # before the tiles' threads share it
         o, d = warm_up_rays(prep)
@@ -510,8 +515,9 @@ def compile_airlight(scene: Scene, method_name: str, params: dict, seed: int):
     loaded, their accelerator built: the lights suffice); then the inside integrals of the rays into media
     inside shapes (`interiors_ahead`: their boundary crossing and their inside rows, not the rays beyond
     them), which the render's warm-up shades after this worker. Where the camera is inside a medium, the
-    warm-up's rays shaded from there (crossing.start_inside)."""
-    method = get_method(method_name)
+    warm-up's rays shaded from there (crossing.start_inside). The air-light's kernels that the render's process
+    compiles meanwhile (`compile_ahead.compile_here`) are left out (`compile_ahead.ahead`)."""
+    method = compile_ahead.ahead(get_method(method_name))
     prep = prepare(scene) if any(s.interior is not None or s.emission is not None for s in scene.shapes) else None
     if prep is not None and prep.camera_inside is not None:
         o, d = warm_up_rays(prep)
