@@ -21,7 +21,7 @@ from scipy import integrate, optimize
 
 from raytrace.interiors import paths
 from raytrace.lights import NO_CONE, SMOOTHSTEP
-from raytrace.media.nonconvex_refraction import CLUSTER, LIT, face_planes, lit_scan, plane_errors
+from raytrace.media.nonconvex_refraction import CLUSTER, LIT, face_planes, face_tree, lit_scan, plane_errors
 from raytrace.media.phase import HG
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
@@ -312,7 +312,7 @@ def test_lit_intervals_match_the_twins_paths(name):
     geo = np.array([r for r, _ in geo])
     planes = face_planes(TRIS)
     n, nt = len(ell), len(TRIS)
-    rows, found = lit_scan(geo, ell, TRIS, planes, np.zeros(n, np.int64), np.full(n, nt), np.arange(nt), ETA,
+    rows, found = lit_scan(geo, ell, TRIS, planes, face_tree(TRIS), np.zeros(n, np.int64), np.full(n, nt), np.arange(nt), ETA,
                            *plane_errors(TRIS, planes), HG, G)
     assert found.all()
     clusters = rows[rows[:, 4] == CLUSTER]
