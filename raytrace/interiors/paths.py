@@ -863,7 +863,8 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     the jumps still not located are halved until narrower than NARROW x rtol x the segment, then accepted,
     counted in stats[0] (a jump of size J adds at most about J x that width). Its bound (N, C), `_refracted_bound`:
     the rule's and the paths' rounding (media/nonconvex_refraction.py `path_rounding`) where every node's paths
-    are those `lit_scan` proves lit, and the scan's clusters' widths times their jumps; inf where that fails."""
+    are those `lit_scan` proves lit, and the scan's clusters' widths times their jumps; inf where that fails, and
+    where a panel narrower than NARROW x rtol x the segment may be accepted unconverged (`_unconverged`)."""
     paths = refracted_paths(prep, sid, geo, ell, code, g)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     bseg, bx, _ = refracted_breaks(prep, sid, geo, end)

@@ -26,16 +26,22 @@ segment's breaks were not all found.
 
 The bound (interiors/paths.py `refracted_quadrature`). `lit_scan` proves where each face lights each segment:
 the same isolation over the face's edges, its cone levels and, for every other triangle G that may meet a leg
-(`_blockers`: not on the face's plane, its box meeting the leg's hull), the conditions under which G blocks it:
+(`_blockers`: not on the face's plane, meeting the hull the leg lies in: X's stretch where R may lie on the face
+(`_face_span`) and the face inside, the face and the light outside; found by descending a bounding-volume tree,
+`face_tree`, so that a fine mesh costs its neighbourhood, not its size), the conditions under which G blocks it:
 the leg's ends on opposite sides of G's plane and the line from its apex (X inside, the light outside) through
 its other end inside G's three edge planes. The inside leg's conditions are functions of X (linear) and of R and
-X together (`_scan` bounds their derivatives); the outside leg's are linear in R. Tolerances are proven bounds
+X together (`_scan` bounds their derivatives); the outside leg's are linear in R. Where the face lies on one side
+of G's plane (exactly: orient3d's sign beyond its error bound at each corner, `_face_side`) and the leg's apex
+(X, the light) strictly on that side too, G is clear of the leg for every R on the face: this settles G's
+neighbours on a fine tessellation, whose planes R stays within rounding of. Tolerances are proven bounds
 on the values' rounding: R's error from media/fermat_rounding.py `point_error` (first order, doubled), the
 planes' from `plane_errors`. What is left undecided at RESOLUTION x the scene's size forms clusters; between
 them each face is proven lit or dark. The quadrature keeps Embree's leg tests (its image is unchanged) and
 checks them at every node against the scan: where they differ, or a node falls in a cluster, the bound is inf.
 Each cluster adds its width times twice the face's bare term at its ends (at least its jump: the term varies by
-far less over that width); one that holds a change of the lit state or a cone level with no panel end within
+far less over that width; where X leaves the face's plane lit within RESOLUTION x the size of the segment's
+start or end, its value just inside); one that holds a change of the lit state or a cone level with no panel end within
 RESOLUTION x the size of it (an unlocated jump inside a panel) makes the bound inf. The nodes' rounding is
 `path_rounding`'s (media/fermat_rounding.py `term_rounding` per path).
 """
