@@ -21,7 +21,7 @@ from scipy import integrate, optimize
 
 from raytrace.interiors import paths
 from raytrace.lights import NO_CONE, SMOOTHSTEP
-from raytrace.media.nonconvex_refraction import CLUSTER, LIT, face_planes, lit_scan, plane_errors
+from raytrace.media.nonconvex_refraction import CLUSTER, LIT, face_planes, face_tree, lit_scan, plane_errors
 from raytrace.media.phase import HG
 from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
@@ -312,7 +312,7 @@ def test_lit_intervals_match_the_twins_paths(name):
     geo = np.array([r for r, _ in geo])
     planes = face_planes(TRIS)
     n, nt = len(ell), len(TRIS)
-    rows, found = lit_scan(geo, ell, TRIS, planes, np.zeros(n, np.int64), np.full(n, nt), np.arange(nt), ETA,
+    rows, found = lit_scan(geo, ell, TRIS, planes, face_tree(TRIS), np.zeros(n, np.int64), np.full(n, nt), np.arange(nt), ETA,
                            *plane_errors(TRIS, planes), HG, G)
     assert found.all()
     clusters = rows[rows[:, 4] == CLUSTER]
@@ -354,3 +354,21 @@ def test_analytic_and_slab_approx_refuse(tmp_path, method):
     with pytest.raises(UserError, match="quadrature") as err:
         render(scene(tmp_path, LAMP), method, {}, RenderOptions(threads=1))
     assert "\n" not in str(err.value)
+
+
+def test_the_bound_is_finite_on_a_fine_torus(tmp_path):
+    """The 1,000-triangle glass torus of benchmarks/torus.py (ior 1.5, a lamp beside it, an absorbing outside): the
+    scan finishes where R moves within rounding of its neighbours' planes (their side settled by the face's corners,
+    `_face_side`) and its blockers are culled by the tree, so the bound at rtol 1e-6 is finite on most lit pixels
+    (measured 82 % at 48 x 32; before: none, the culling alone spent the scan's budget), never below the distance
+    to the rtol 1e-10 image, its median 1.1 rtol of the value. The image is the same as before (the scan bounds it)."""
+    from benchmarks.torus import torus_scene
+
+    prep = prepare(torus_scene(tmp_path, 25, 12, 9, 1.5)[0])
+    res = render(prep, "quadrature", {"rtol": 1e-6}, RenderOptions(threads=1))
+    ref = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1))
+    lit = np.all(res.image > 0.0, axis=2)
+    bounded = lit & np.all(np.isfinite(res.error_bound), axis=2)
+    assert lit.sum() >= 20 and bounded.sum() >= 0.7 * lit.sum(), (bounded.sum(), lit.sum())
+    assert np.all(np.abs(res.image - ref.image)[bounded] <= res.error_bound[bounded])
+    assert np.median(res.error_bound[bounded] / res.image[bounded]) <= 10 * 1e-6

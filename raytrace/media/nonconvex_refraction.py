@@ -26,16 +26,22 @@ segment's breaks were not all found.
 
 The bound (interiors/paths.py `refracted_quadrature`). `lit_scan` proves where each face lights each segment:
 the same isolation over the face's edges, its cone levels and, for every other triangle G that may meet a leg
-(`_blockers`: not on the face's plane, its box meeting the leg's hull), the conditions under which G blocks it:
+(`_blockers`: not on the face's plane, meeting the hull the leg lies in: X's stretch where R may lie on the face
+(`_face_span`) and the face inside, the face and the light outside; found by descending a bounding-volume tree,
+`face_tree`, so that a fine mesh costs its neighbourhood, not its size), the conditions under which G blocks it:
 the leg's ends on opposite sides of G's plane and the line from its apex (X inside, the light outside) through
 its other end inside G's three edge planes. The inside leg's conditions are functions of X (linear) and of R and
-X together (`_scan` bounds their derivatives); the outside leg's are linear in R. Tolerances are proven bounds
+X together (`_scan` bounds their derivatives); the outside leg's are linear in R. Where the face lies on one side
+of G's plane (exactly: orient3d's sign beyond its error bound at each corner, `_face_side`) and the leg's apex
+(X, the light) strictly on that side too, G is clear of the leg for every R on the face: this settles G's
+neighbours on a fine tessellation, whose planes R stays within rounding of. Tolerances are proven bounds
 on the values' rounding: R's error from media/fermat_rounding.py `point_error` (first order, doubled), the
 planes' from `plane_errors`. What is left undecided at RESOLUTION x the scene's size forms clusters; between
 them each face is proven lit or dark. The quadrature keeps Embree's leg tests (its image is unchanged) and
 checks them at every node against the scan: where they differ, or a node falls in a cluster, the bound is inf.
 Each cluster adds its width times twice the face's bare term at its ends (at least its jump: the term varies by
-far less over that width); one that holds a change of the lit state or a cone level with no panel end within
+far less over that width; where X leaves the face's plane lit within RESOLUTION x the size of the segment's
+start or end, its value just inside); one that holds a change of the lit state or a cone level with no panel end within
 RESOLUTION x the size of it (an unlocated jump inside a panel) makes the bound inf. The nodes' rounding is
 `path_rounding`'s (media/fermat_rounding.py `term_rounding` per path).
 """
@@ -55,8 +61,8 @@ PATH_COLUMNS = 10  # rows of `face_paths`: point, face, R (3), the per unit ligh
 RESOLUTION = 1e-13  # x the scene's size: `face_breaks`' intervals this short are not halved, only bisected
 ROUNDING = 1e-14  # x the scene's size: the rounding allowed in R's position (`face_breaks`)
 MAX_EVALS = 4000  # evaluations of R per segment and face in `face_breaks`
-SCAN_EVALS = 4000  # and in `lit_scan`
-SCAN_WORK = 5000  # `lit_scan`'s tests of other triangles per segment, culling included (beyond: not found, bound inf)
+SCAN_EVALS = 16000  # in `lit_scan` (a leg grazing an edge: its band of rounding, some 1e-10 of the segment, is halved to RESOLUTION)
+SCAN_WORK = 40000  # `lit_scan`'s tests of other triangles per segment, the culled blockers included (beyond: not found, bound inf)
 
 
 def face_planes(tris):
@@ -434,17 +440,21 @@ U = 2.0 ** -53
 SQ3 = math.sqrt(3.0)
 ZERO = np.zeros(3)  # the light's speed in `_apex_states`
 IN_LEG, OUT_LEG = 1, 2  # `_blockers`' flags: the triangle may meet the leg inside (X to R), outside (R to L)
+FACE_POS, FACE_NEG = 4, 8  # and: the face lies on the closed positive (negative) side of the triangle's plane
+O3D = (7.0 + 56.0 * 2.0 ** -53) * 2.0 ** -53  # Shewchuk's orient3d error bound's factor (errboundA)
 
 
 @njit
-def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g):
+def lit_scan(geo, ell, tris, planes, tree, starts, stops, faces, eta, dn, dc, code, g):
     """Where each candidate face lights each segment (faces[starts[s]:stops[s]] of segment s, geo rows of
     media/slab.py GEO_COLUMNS over [0, ell[s]]), proven: the rows (SCAN_COLUMNS) of the intervals where its
     path's refraction point lies inside it and both legs are clear of the shape's other triangles (LIT), and of
     the clusters of undecided intervals, each no wider than RESOLUTION x the scene's size, that hold every
     place where that may change or a spot's cone level be crossed (CLUSTER; module docstring of `_scan`); and
     whether every segment's scan finished (SCAN_EVALS evaluations per face, SCAN_WORK tests of other triangles per
-    segment, culling included, eta > 1 and a finite tolerance).
+    segment, the blockers kept by the culling included, eta > 1 and a finite tolerance). A face is first bracketed
+    (`_face_span`: the stretch [a, b] outside which R is proven off it), then its blockers are culled by `face_tree`
+    (`tree`) against the hulls its legs lie in over that stretch (`_blockers`).
     dn, dc: the planes' errors on each normal component and on the offsets (`plane_errors`)."""
     out = np.empty((64, SCAN_COLUMNS))
     m = 0
@@ -456,11 +466,7 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
         for k in range(3):
             vmax = max(vmax, math.sqrt(tris[t, k] @ tris[t, k]))
     blockers, flags = np.empty(tris.shape[0], np.int64), np.empty(tris.shape[0], np.int64)
-    boxes = np.empty((tris.shape[0], 2, 3))
-    for t in range(tris.shape[0]):
-        for k in range(3):
-            boxes[t, 0, k] = min(tris[t, 0, k], tris[t, 1, k], tris[t, 2, k])
-            boxes[t, 1, k] = max(tris[t, 0, k], tris[t, 1, k], tris[t, 2, k])
+    nodes = np.empty(tree[0].shape[0], np.int64)
     for s in range(ell.shape[0]):
         row = geo[s]
         p, w, light = row[0:3], row[3:6], row[6:9]
@@ -481,14 +487,23 @@ def lit_scan(geo, ell, tris, planes, starts, stops, faces, eta, dn, dc, code, g)
                 break
             pf, wh, lf = p + z0 * n, w + a * n, light - hl * n
             tol_r = _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags)
-            nb = _blockers(tris, planes, boxes, f, n, c, p + lo * w, p + hi * w, light, dn, dc, size, blockers, flags)
-            work -= tris.shape[0]
-            if not tol_r < math.inf or nb < 0:
+            if not tol_r < math.inf:
                 found[s] = False
                 continue
             nf = _break_functions(tris[f], n, row, hl, vec, e0, level, lip)
-            ok, out, m, work = _scan(work, s, f, lo, hi, ell[s], p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip,
-                               tris, planes, blockers[:nb], flags[:nb], tol_r, dn, dc, size, code, g, out, m)
+            tol = _edge_tolerances(nf, level, lip, tol_r, dn, hl, size)
+            xa, xb = _face_span(lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tol)
+            if xa > xb:
+                continue  # R off the face all along: dark
+            nb = _blockers(tris, planes, tree, nodes, f, n, c, p + xa * w, p + xb * w, light, dn, dc, size,
+                           blockers, flags)
+            work -= max(nb, 0)
+            if nb < 0:
+                found[s] = False
+                continue
+            ok, out, m, work = _scan(work, s, f, lo, hi, ell[s], p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec,
+                                     e0, level, lip, tol, tris, planes, blockers[:nb], flags[:nb], tol_r, dn, dc, size,
+                                     code, g, out, m)
             found[s] = found[s] and ok
     return out[:m].copy(), found
 
@@ -513,37 +528,247 @@ def _point_tolerance(lo, hi, pf, wh, lf, z0, a, hl, eta, dn, dc, mags):
 
 
 @njit
-def _blockers(tris, planes, boxes, f, n, c, x0, x1, light, dn, dc, size, out, flags):
-    """The other triangles that may meet face f's legs (out, with IN_LEG / OUT_LEG flags; returns their number,
-    -1 where the light lies within rounding of one's plane): not within rounding of f's plane (its legs meet
-    that plane at R alone), some corner below it (the side of X) and its box (boxes: each triangle's least and
-    largest corner) meeting that of X's stretch x0 x1 and f (IN_LEG), some corner above it and its box meeting
-    that of f and the light (OUT_LEG)."""
-    tol = dc + SQ3 * dn * size + 16.0 * U * size
-    ilo, ihi = np.minimum(np.minimum(x0, x1), boxes[f, 0]), np.maximum(np.maximum(x0, x1), boxes[f, 1])
-    olo, ohi = np.minimum(light, boxes[f, 0]), np.maximum(light, boxes[f, 1])
+def _edge_tolerances(nf, level, lip, tol_r, dn, hl, size):
+    """The rounding allowed in the face's break functions at R (`_scan`'s module docstring): an edge's from R's
+    tolerance tol_r and the planes' errors, a cone level's from tol_r over the light's height hl."""
+    tol = np.empty(nf)
+    for k in range(nf):
+        if math.isnan(level[k]):
+            tol[k] = lip[k] * tol_r + 8.0 * size * (SQ3 * dn + 16.0 * U) * (lip[k] + 1.0)
+        else:
+            tol[k] = 2.0 * tol_r / hl + 32.0 * U
+    return tol
+
+
+SPAN_DEPTH = 8  # `_face_span` halves [lo, hi] this many times at most
+
+
+@njit
+def _face_span(lo, hi, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tol):
+    """(xa, xb): the least and largest x of the pieces of [lo, hi] (halved at most SPAN_DEPTH times) where R is not
+    proven off the face by `_scan`'s edge test (some edge function negative all along, tolerance tol); xa > xb
+    where it is proven off all along. `_scan`'s dark intervals lie outside [xa, xb] (the same dyadic pieces and
+    test), so the legs need be tested there alone."""
+    stack = np.empty((SPAN_DEPTH + 2, 9))
+    v0, v1 = np.empty(nf), np.empty(nf)
+    stack[0, 0], stack[0, 1], stack[0, 8] = lo, hi, 0.0
+    stack[0, 2:5], stack[0, 5:8] = _point(lo, pf, wh, lf, z0, a, hl, eta), _point(hi, pf, wh, lf, z0, a, hl, eta)
+    top, xa, xb = 1, math.inf, -math.inf
+    while top > 0:
+        top -= 1
+        x0, x1, depth = stack[top, 0], stack[top, 1], int(stack[top, 8])
+        if x0 >= xa and x1 <= xb:
+            continue  # inside the span already
+        r0, r1 = stack[top, 2:5].copy(), stack[top, 5:8].copy()
+        d0, d1 = lf - pf - x0 * wh, lf - pf - x1 * wh
+        speed = fermat_speed(math.sqrt(d0 @ d0), math.sqrt(d1 @ d1), min(z0 + a * x0, z0 + a * x1), a, eta)
+        _face_values(r0, nf, vec, e0, level, v0)
+        _face_values(r1, nf, vec, e0, level, v1)
+        dark = False
+        for k in range(nf):
+            if math.isnan(level[k]) and _state(v0[k], v1[k], lip[k] * speed * (x1 - x0), tol[k]) < 0:
+                dark = True
+        if dark:
+            continue
+        if depth >= SPAN_DEPTH:
+            xa, xb = min(xa, x0), max(xb, x1)
+            continue
+        mid = 0.5 * (x0 + x1)
+        rm = _point(mid, pf, wh, lf, z0, a, hl, eta)
+        stack[top, 0], stack[top, 1], stack[top, 2:5], stack[top, 5:8], stack[top, 8] = mid, x1, rm, r1, depth + 1
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2:5], stack[top + 1, 5:8], stack[top + 1, 8] = \
+            x0, mid, r0, rm, depth + 1
+        top += 2
+    return xa, xb
+
+
+LEAF = 8  # `face_tree`'s triangles per leaf at most
+
+
+@njit
+def face_tree(tris):
+    """A bounding-volume hierarchy over the triangles (T, 3, 3): (boxes (K, 2, 3): each node's least and largest
+    corner, kids (K, 2): its children (-1 at a leaf), span (K, 2): a leaf's range in order, order (T,)): median
+    splits of the centroids along their longest extent, at most LEAF triangles per leaf."""
+    nt = tris.shape[0]
+    order = np.arange(nt)
+    cent = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3.0
+    size = max(2 * nt, 1)
+    boxes, kids, span = np.empty((size, 2, 3)), np.full((size, 2), -1, np.int64), np.zeros((size, 2), np.int64)
+    stack = np.empty((size, 3), np.int64)
+    stack[0] = 0, 0, nt
+    top, count = 1, 1
+    while top > 0:
+        top -= 1
+        node, s, e = stack[top]
+        boxes[node, 0], boxes[node, 1] = math.inf, -math.inf
+        for i in range(s, e):
+            for k in range(3):
+                for c in range(3):
+                    boxes[node, 0, c] = min(boxes[node, 0, c], tris[order[i], k, c])
+                    boxes[node, 1, c] = max(boxes[node, 1, c], tris[order[i], k, c])
+        if e - s <= LEAF:
+            span[node] = s, e
+            continue
+        axis, best = 0, -1.0
+        for c in range(3):
+            ext = np.max(cent[order[s:e], c]) - np.min(cent[order[s:e], c])
+            if ext > best:
+                axis, best = c, ext
+        part = order[s:e].copy()
+        order[s:e] = part[np.argsort(cent[part, axis], kind="mergesort")]
+        mid = (s + e) // 2
+        kids[node] = count, count + 1
+        stack[top], stack[top + 1] = (count, s, mid), (count + 1, mid, e)
+        top += 2
+        count += 2
+    return boxes[:count].copy(), kids[:count].copy(), span[:count].copy(), order
+
+
+@njit
+def _hull_planes(pts, slack, margin, out):
+    """Planes (rows a, b, c, d: a·v <= d inside, unnormalised) whose intersection holds the hull of the points pts
+    (P, 3) with every point moved by at most slack: the hull's box, and the supporting planes through three of
+    the points (degenerate triples skipped; both sides where the points are flat), each widened by 2 margin +
+    slack |(a, b, c)| (margin bounds an evaluation's rounding: `_beyond` asks for more than margin beyond).
+    Returns their number (out holds 6 + 2 C(P, 3))."""
     m = 0
-    for t in range(tris.shape[0]):
-        if t == f or not _dot(planes[t, :3], planes[t, :3]) > 0.0:  # a degenerate triangle blocks nothing
-            continue
-        below, above = False, False
-        for k in range(3):
-            h = _dot(n, tris[t, k]) - c
-            below = below or h < -tol
-            above = above or h > tol
-        if not (below or above):
-            continue
-        inside, outside = below, above
-        for k in range(3):
-            inside = inside and boxes[t, 0, k] - tol <= ihi[k] and boxes[t, 1, k] + tol >= ilo[k]
-            outside = outside and boxes[t, 0, k] - tol <= ohi[k] and boxes[t, 1, k] + tol >= olo[k]
-        fl = (IN_LEG if inside else 0) | (OUT_LEG if outside else 0)
-        if outside and abs(_dot(planes[t, :3], light) - planes[t, 3]) <= tol:
-            return -1
-        if fl:
-            out[m], flags[m] = t, fl
-            m += 1
+    npt = pts.shape[0]
+    for k in range(3):
+        out[m], out[m + 1] = 0.0, 0.0
+        out[m, k], out[m, 3] = 1.0, np.max(pts[:, k]) + 2.0 * margin + slack
+        out[m + 1, k], out[m + 1, 3] = -1.0, -np.min(pts[:, k]) + 2.0 * margin + slack
+        m += 2
+    for i in range(npt):
+        for j in range(i + 1, npt):
+            for k in range(j + 1, npt):
+                u, v = pts[j] - pts[i], pts[k] - pts[i]
+                nv = np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
+                norm = math.sqrt(nv @ nv)
+                if not norm > 0.0:
+                    continue
+                d = nv @ pts[i]
+                widen = 2.0 * margin + slack * norm
+                hi, lo = -math.inf, math.inf
+                for q in range(npt):
+                    h = nv @ pts[q] - d
+                    hi, lo = max(hi, h), min(lo, h)
+                if hi <= margin:
+                    out[m, :3], out[m, 3] = nv, d + widen
+                    m += 1
+                if lo >= -margin:
+                    out[m, :3], out[m, 3] = -nv, -d + widen
+                    m += 1
     return m
+
+
+@njit
+def _beyond(planes, nh, lo, hi, margin):
+    """Whether the box [lo, hi] lies beyond one of the planes (`_hull_planes`) by more than margin."""
+    for h in range(nh):
+        least = 0.0
+        for k in range(3):
+            least += planes[h, k] * (lo[k] if planes[h, k] > 0.0 else hi[k])
+        if least - planes[h, 3] > margin:
+            return True
+    return False
+
+
+@njit
+def _corners_beyond(planes, nh, tri, margin):
+    """Whether the triangle's three corners lie beyond one of the planes (`_hull_planes`) by more than margin."""
+    for h in range(nh):
+        least = math.inf
+        for k in range(3):
+            least = min(least, planes[h, 0] * tri[k, 0] + planes[h, 1] * tri[k, 1] + planes[h, 2] * tri[k, 2])
+        if least - planes[h, 3] > margin:
+            return True
+    return False
+
+
+@njit
+def _blockers(tris, planes, tree, nodes, f, n, c, x0, x1, light, dn, dc, size, out, flags):
+    """The other triangles that may meet face f's legs over the stretch x0 x1 of X (out, with IN_LEG / OUT_LEG
+    flags; returns their number, -1 where the light lies within rounding of one's plane): not within rounding of
+    f's plane (its legs meet that plane at R alone), some corner below it (the side of X) and its box meeting the
+    hull of X's stretch and f, which holds every inside leg X R (IN_LEG), some corner above it and its box meeting
+    the hull of f and the light (OUT_LEG), found by descending `face_tree` (tree; nodes: its stack) with the
+    boxes and then the corners tested against both hulls' planes (`_hull_planes`; an evaluation's rounding at most
+    2048 u size^3, as the products of three differences of coordinates within size are; X within 8 u size)."""
+    tol = dc + SQ3 * dn * size + 16.0 * U * size
+    margin = 2048.0 * U * size ** 3
+    pin, pout = np.empty((5, 3)), np.empty((4, 3))
+    pin[0], pin[1], pin[2:] = x0, x1, tris[f]
+    pout[0], pout[1:] = light, tris[f]
+    hin, hout = np.empty((26, 4)), np.empty((14, 4))
+    nin = _hull_planes(pin, 8.0 * U * size + tol, margin, hin)
+    nout = _hull_planes(pout, tol, margin, hout)
+    boxes, kids, span, order = tree
+    m, top = 0, 1
+    nodes[0] = 0
+    while top > 0:
+        top -= 1
+        node = nodes[top]
+        lo, hi = boxes[node, 0], boxes[node, 1]
+        inside = not _beyond(hin, nin, lo, hi, margin)
+        outside = not _beyond(hout, nout, lo, hi, margin)
+        if not (inside or outside):
+            continue
+        if kids[node, 0] >= 0:
+            nodes[top], nodes[top + 1] = kids[node, 0], kids[node, 1]
+            top += 2
+            continue
+        for i in range(span[node, 0], span[node, 1]):
+            t = order[i]
+            if t == f or not _dot(planes[t, :3], planes[t, :3]) > 0.0:  # a degenerate triangle blocks nothing
+                continue
+            below, above = False, False
+            for k in range(3):
+                h = _dot(n, tris[t, k]) - c
+                below = below or h < -tol
+                above = above or h > tol
+            fin = below and inside and not _corners_beyond(hin, nin, tris[t], margin)
+            fout = above and outside and not _corners_beyond(hout, nout, tris[t], margin)
+            hl = _dot(planes[t, :3], light) - planes[t, 3]
+            if fout and abs(hl) <= tol:
+                return -1
+            side = _face_side(tris[t], tris[f])
+            if side != 0:  # the face on one side of the plane: a leg whose apex lies strictly on it is clear
+                fout = fout and hl * side < 0.0
+                h0, h1 = _dot(planes[t, :3], x0) - planes[t, 3], _dot(planes[t, :3], x1) - planes[t, 3]
+                fin = fin and not (h0 * side > tol + 8.0 * U * size and h1 * side > tol + 8.0 * U * size)
+            if fin or fout:
+                out[m] = t
+                flags[m] = (IN_LEG if fin else 0) | (OUT_LEG if fout else 0) | (FACE_POS if side > 0 else 0) | \
+                    (FACE_NEG if side < 0 else 0)
+                m += 1
+    return m
+
+
+@njit
+def _face_side(tri, face):
+    """+1 (-1) where the face's three corners lie on the closed positive (negative) side of the exact plane through
+    tri (its normal (B - A) x (C - A), as `face_planes`), not all on it; 0 where that is not proven. Each corner's
+    side is the sign of Shewchuk's orient3d, certain beyond its error bound (O3D x the permanent), exactly 0 where
+    every product is 0 (a shared corner)."""
+    pos, neg = False, False
+    for k in range(3):
+        d = face[k]
+        ax, ay, az = tri[0, 0] - d[0], tri[0, 1] - d[1], tri[0, 2] - d[2]
+        bx, by, bz = tri[1, 0] - d[0], tri[1, 1] - d[1], tri[1, 2] - d[2]
+        cx, cy, cz = tri[2, 0] - d[0], tri[2, 1] - d[1], tri[2, 2] - d[2]
+        det = ax * (by * cz - bz * cy) + bx * (cy * az - cz * ay) + cx * (ay * bz - az * by)
+        perm = (abs(by * cz) + abs(bz * cy)) * abs(ax) + (abs(cy * az) + abs(cz * ay)) * abs(bx) \
+            + (abs(ay * bz) + abs(az * by)) * abs(cx)
+        if det > O3D * perm:
+            neg = True  # orient3d > 0: the corner below the plane (opposite its normal)
+        elif det < -O3D * perm:
+            pos = True
+        elif perm != 0.0:
+            return 0
+    if pos and neg:
+        return 0
+    return 1 if pos else (-1 if neg else 0)
 
 
 @njit
@@ -558,8 +783,8 @@ def _state(v0, v1, span, tol):
 
 
 @njit
-def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tris, planes, blk,
-          flags, tol_r, dn, dc, size, code, g, out, m):
+def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, nf, vec, e0, level, lip, tol, tris,
+          planes, blk, flags, tol_r, dn, dc, size, code, g, out, m):
     """`lit_scan` of face f along segment s over [lo, hi] (where X lies below its plane): an interval is decided
     (module docstring's Lipschitz tests, `_state`, on the values at its ends) where an edge function of the face
     is negative all along (R off the face: dark), where some other triangle blocks a leg all along (dark: the
@@ -574,18 +799,12 @@ def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, 
     (w x (E_k - E_k+1))·(R - X) + ((E_k - X) x (E_k+1 - X))·(R' - w): |e| |R - X| + |(E_k - X) x (E_k+1 - X)|
     (K_R + 1), the first at most the mean of its ends plus (K_R + 1) / 2 times the width, the second the
     larger of its ends (convex); the light's, |(E_k - L) x (E_k+1 - L)| K_R. Tolerances: R within tol_r
-    (`_point_tolerance`), X within 8u size, the planes' errors dn, dc, and the products' rounding."""
+    (`_point_tolerance`; tol: the face's functions', `_edge_tolerances`), X within 8u size, the planes' errors
+    dn, dc, and the products' rounding."""
     width = RESOLUTION * size
     tol_x = 8.0 * U * size
     tol_plane = dc + 2.0 * SQ3 * dn * size + 16.0 * U * size
-    tol_tri = 4.0 * size * size * tol_r + 20.0 * size * size * tol_x + 400.0 * U * size ** 3
     drop = np.full(blk.shape[0], 1 << 30)
-    tol = np.empty(nf)
-    for k in range(nf):
-        if math.isnan(level[k]):
-            tol[k] = lip[k] * tol_r + 8.0 * size * (SQ3 * dn + 16.0 * U) * (lip[k] + 1.0)
-        else:
-            tol[k] = 2.0 * tol_r / hl + 32.0 * U
     stack = np.empty((128, 9))
     stack[0, 0], stack[0, 1] = lo, hi
     stack[0, 2:5], stack[0, 5:8], stack[0, 8] = _point(lo, pf, wh, lf, z0, a, hl, eta), \
@@ -619,7 +838,7 @@ def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, 
                     continue
                 work -= 1
                 st = _leg_states(tris[blk[b]], planes[blk[b]], flags[b], X0, X1, r0, r1, w, light, n,
-                                 speed, x1 - x0, tol_r, tol_x, tol_plane, tol_tri)
+                                 speed, x1 - x0, tol_r, tol_x, tol_plane)
                 if st < 0:
                     dark = True
                     break
@@ -631,10 +850,16 @@ def _scan(work, s, f, lo, hi, full, p, w, light, n, pf, wh, lf, z0, a, hl, eta, 
             continue
         if edges and cones and not undecided:
             if x0 == lo and lo > 0.0:  # X leaves the face's plane lit: a jump where no break may be cut
-                out, m = _append(out, m, s, f, lo, lo, CLUSTER, math.inf, 1.0)
+                jump = math.inf
+                if lo <= width:  # but within width of the segment's start, a panel's end
+                    jump = 2.0 * _plane_value(min(lo + width, x1), p, w, light, n, hl, z0, a, eta, code, g)
+                out, m = _append(out, m, s, f, lo, lo, CLUSTER, jump if jump > 0.0 else math.inf, 1.0)
             out, m = _append(out, m, s, f, x0, x1, LIT, 0.0, 0.0)
             if x1 == hi and hi < full:
-                out, m = _append(out, m, s, f, hi, hi, CLUSTER, math.inf, 1.0)
+                jump = math.inf
+                if full - hi <= width:  # within width of the segment's end
+                    jump = 2.0 * _plane_value(max(hi - width, x0), p, w, light, n, hl, z0, a, eta, code, g)
+                out, m = _append(out, m, s, f, hi, hi, CLUSTER, jump if jump > 0.0 else math.inf, 1.0)
             continue
         if x1 - x0 <= width:
             jump = 2.0 * max(_plane_value(x0, p, w, light, n, hl, z0, a, eta, code, g),
@@ -669,25 +894,26 @@ def _face_values(rp, nf, vec, e0, level, out):
 
 
 @njit
-def _leg_states(tri, plane, flag, X0, X1, r0, r1, w, light, nf, speed, width, tol_r, tol_x, tol_plane, tol_tri):
+def _leg_states(tri, plane, flag, X0, X1, r0, r1, w, light, nf, speed, width, tol_r, tol_x, tol_plane):
     """-1 where triangle tri blocks a leg all along the interval (`_scan`), +1 where it is clear of both, 0
     undecided. nf: the face's normal (R moves in its plane: a function u·R changes at |u - (u·nf) nf| K_R)."""
     n, c = plane[:3], plane[3]
     sr = _state(_dot(n, r0) - c, _dot(n, r1) - c, _along(n, nf) * speed * width, tol_plane + tol_r)
     clear = True
+    side = 1 if flag & FACE_POS else (-1 if flag & FACE_NEG else 0)
     if flag & IN_LEG:
         sx = _state(_dot(n, X0) - c, _dot(n, X1) - c, abs(_dot(n, w)) * width, tol_plane + tol_x)
-        if sx != 0 and sx == sr:
+        if sx != 0 and (sx == sr or sx == side):
             clear = True
         else:
-            st = _apex_states(tri, X0, X1, r0, r1, w, nf, speed, width, tol_tri)
+            st = _apex_states(tri, X0, X1, r0, r1, w, nf, speed, width, tol_r, tol_x)
             if sx != 0 and sr == -sx and abs(st) == 3:
                 return -1
             clear = st == 0
     if flag & OUT_LEG:
         sl = 1 if _dot(n, light) - c > 0.0 else -1
-        if sr != sl:
-            st = _apex_states(tri, light, light, r0, r1, ZERO, nf, speed, width, tol_tri)
+        if sr != sl and sl != side:
+            st = _apex_states(tri, light, light, r0, r1, ZERO, nf, speed, width, tol_r, 0.0)
             if sr == -sl and abs(st) == 3:
                 return -1
             clear = clear and st == 0
@@ -707,19 +933,26 @@ def _along(u, nf):
 
 
 @njit
-def _apex_states(tri, Y0, Y1, r0, r1, v, nf, speed, width, tol):
+def _apex_states(tri, Y0, Y1, r0, r1, v, nf, speed, width, tol_r, tol_y):
     """For the line from apex Y (Y0, Y1 at the interval's ends, moving at v: X along the segment, or the light)
     to R: +3 (-3) where its three edge planes' functions ((E_k - Y) x (E_k+1 - Y))·(R - Y) are all positive
     (negative) all along (`_scan`'s bounds, R' in the face's plane of normal nf), 0 where two have opposite
-    signs all along, else 1."""
+    signs all along, else 1. Each function's tolerance, with a = E_k - Y, b = E_k+1 - Y, r = R - Y at their
+    largest over the ends: R within tol_r moves it by |a x b| tol_r, Y within tol_y by (|a||b| + |a||r| +
+    |b||r|) tol_y (first order, both doubled), the products' rounding 32u |a||b||r|."""
     pos, neg = 0, 0
     moving = v[0] != 0.0 or v[1] != 0.0 or v[2] != 0.0
     q0 = math.sqrt((r0[0] - Y0[0]) ** 2 + (r0[1] - Y0[1]) ** 2 + (r0[2] - Y0[2]) ** 2)
     q1 = math.sqrt((r1[0] - Y1[0]) ** 2 + (r1[1] - Y1[1]) ** 2 + (r1[2] - Y1[2]) ** 2)
+    q = max(q0, q1) + tol_r + tol_y
     for k in range(3):
         ka, kb = k, (k + 1) % 3
         g0, big0, par0 = _edge_plane(tri, ka, kb, Y0, r0, nf)
         g1, big1, par1 = _edge_plane(tri, ka, kb, Y1, r1, nf)
+        la = max(_distance(tri[ka], Y0), _distance(tri[ka], Y1)) + tol_y
+        lb = max(_distance(tri[kb], Y0), _distance(tri[kb], Y1)) + tol_y
+        tol = 2.0 * ((max(big0, big1) + 4.0 * U * la * lb) * tol_r + (la * lb + la * q + lb * q) * tol_y) \
+            + 32.0 * U * la * lb * q
         turn = max(par0, par1) * speed
         if moving:
             e = math.sqrt((tri[ka, 0] - tri[kb, 0]) ** 2 + (tri[ka, 1] - tri[kb, 1]) ** 2
@@ -731,6 +964,11 @@ def _apex_states(tri, Y0, Y1, r0, r1, v, nf, speed, width, tol):
     if pos and neg:
         return 0
     return 3 if pos == 3 else (-3 if neg == 3 else 1)
+
+
+@njit
+def _distance(a, b):
+    return math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
 
 
 @njit
