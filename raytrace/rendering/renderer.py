@@ -813,6 +813,8 @@ def release(prep: Prepared, seed: int, sample: int, key):
             entry[1] -= 1
             if entry[1] <= 0:
                 del last[1][key, sample]
+                if entry[0] is not prep:  # its passes' views (copies sharing the memo) hold it in a cycle: freed now
+                    entry[0]._memo.clear()
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
