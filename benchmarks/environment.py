@@ -12,6 +12,11 @@ point under an opaque plate) against `quadrature` with N `directions`, over `see
 are its seed's: the error is random). Per count: the mean relative error (0 within its standard error: unbiased)
 and the rms relative error, each +- its standard error over the seeds, and mean e^2 / the mean variance the render
 reports (1 where the variance is the expected square error).
+Sampling error: the fog twin's relative error per count over `--sampling-seeds` seeds (default 4096) from the closed
+form of each seed's directions (tests/test_environment.py `fog_by_directions`, which a render equals to 1e-13:
+tests/test_environment_directions.py), the same three figures without rendering: with 32 seeds a mean 5 of its
+standard errors from 0 came from seeds 0 ... 31 alone (their mean at 1024 directions is the largest of 625 blocks
+of 32 seeds).
 """
 import argparse
 import math
@@ -87,10 +92,34 @@ def errors(counts, seeds):
         print(f"N = {n}: plate {figures(*relative_errors(plate, plate_ref, seeds))}")
 
 
+def sampling_errors(counts, seeds):
+    """The fog twin's relative errors per count over `seeds` seeds from its directions' closed form, with the
+    variance the render reports (the groups' spread: renderer.py `shade_groups`)."""
+    up = twins.scene([SKY], medium=twins.FOG, camera=twins.UP_CAMERA)
+    rays = list(zip(*generate_rays(up.camera)))
+    exact = np.array([twins.fog_twin(o, d, L, L, 0.02, 0.1, 2.0) for o, d in rays])
+    G = environment.GROUPS
+    print(f"sampling error over {seeds} seeds (closed form of each seed's directions)")
+    for n in counts:
+        e, v = [], []
+        for seed in range(seeds):
+            rows = environment.rows(up.lights[0], n, seed, 0)
+            parts = np.array([[twins.fog_by_directions(o, d, L if g == 0 else [0.0] * 3, rows.axis[mask],
+                                                       rows.intensity[mask], 0.02, 0.1, 2.0)
+                               for g, mask in enumerate(np.array_split(np.arange(n), G))] for o, d in rays])
+            e.append((parts.sum(axis=1) / exact - 1.0).ravel())
+            own = parts.copy()
+            own[:, 0] -= np.array([twins.fog_by_directions(o, d, L, np.zeros((0, 3)), np.zeros((0, 3)), 0.02, 0.1,
+                                                           2.0) for o, d in rays])  # a group's light only
+            v.append((G / (G - 1) * ((own - own.sum(axis=1, keepdims=True) / G) ** 2).sum(axis=1) / exact**2).ravel())
+        print(f"N = {n}: fog {figures(np.array(e), np.array(v))}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--seeds", type=int, default=None, help="seeds of each error figure (default 64; --quick 16)")
+    ap.add_argument("--sampling-seeds", type=int, default=4096, help="seeds of the closed-form sampling error")
     args = ap.parse_args()
     counts, rounds = ((16, 64), 1) if args.quick else ((16, 64, 256), 2)
     seeds = args.seeds or (16 if args.quick else 64)
@@ -103,6 +132,7 @@ def main():
     for name, s in best.items():
         print(f"{name}: {s:.2f} CPU s, {s / best['directional']:.1f} x directional")
     errors(counts + (1024,), seeds)
+    sampling_errors(counts + (1024,), args.sampling_seeds)
 
 
 if __name__ == "__main__":

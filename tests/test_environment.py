@@ -298,6 +298,19 @@ def fog_twin(origin, direction, seen, lit, sigma_a, sigma_s, H):
     return np.asarray(seen) * math.exp(-kt * H * math.exp(-h0 / H) / mu) + np.asarray(lit) * air
 
 
+def fog_by_directions(origin, direction, seen, axes, irradiance, sigma_a, sigma_s, H):
+    """The radiance along an upward ray through the exponential fog of `fog_twin` lit by directional rows
+    (travelling along `axes` (n, 3), `irradiance` (n, 3)) instead of the environment's integral: per row the air-light
+    in closed form, in the density s = e^{-h/H} (dt = H ds / (mu s)): sigma_s H / (4 pi mu) int_0^s0 e^{-A (s0 - s)}
+    e^{-B s} ds = sigma_s H / (4 pi mu) e^{-A s0} (e^{(A - B) s0} - 1) / (A - B), A = kt H / mu, B = kt H / mu_w
+    (mu_w the up-cosine toward the light; none from below the horizon)."""
+    kt, s0, mu = sigma_a + sigma_s, math.exp(-origin[1] / H), direction[1]
+    mu_w = -np.asarray(axes)[:, 1]
+    A, B = kt * H / mu, kt * H / np.where(mu_w > 0.0, mu_w, 1.0)
+    g = np.where(mu_w > 0.0, sigma_s * H / (4.0 * math.pi * mu) * math.exp(-A * s0) * np.expm1((A - B) * s0) / (A - B), 0.0)
+    return np.asarray(seen) * math.exp(-A * s0) + g @ np.asarray(irradiance)
+
+
 def test_the_direction_integral_is_e2():
     a = 0.37
     by_directions = integrate.dblquad(lambda mu, phi: math.exp(-a / mu) / (4 * math.pi), 0.0, 2 * math.pi, 0.0, 1.0,

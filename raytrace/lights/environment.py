@@ -264,10 +264,14 @@ def rows(light, count: int | None = None, seed: int = 0, sample: int = 0) -> Row
                 np.tile([*NO_CONE, 0.0], (count, 1)), cubature=True)
 
 
+def owned(lights) -> np.ndarray:
+    """(L,) whether each row of `lights` (Lights) is one of the scene's environment light's directions."""
+    return np.isin(lights.owner, [o for o, kind in enumerate(lights.scene_kinds) if kind == NAME])
+
+
 def _rows_of(lights) -> np.ndarray:
     """The indices of the rows of the scene's environment light among `lights` (Lights; none without one)."""
-    owners = [o for o, kind in enumerate(lights.scene_kinds) if kind == NAME]
-    return np.flatnonzero(np.isin(lights.owner, owners))
+    return np.flatnonzero(owned(lights))
 
 
 def seeded(lights, scene_lights, seed: int, sample: int):

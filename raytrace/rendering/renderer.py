@@ -69,6 +69,7 @@ class Prepared:
     lights_on: np.ndarray | None = None  # a light layer's pass (`only`): the lights it keeps (None: all)
     emission: bool = True  # whether camera rays see the background and the emitters themselves (`only`)
     emissive: list = field(default_factory=list)  # the emissive shapes (`Lights.of`'s emitters)
+    base: "Prepared | None" = None  # a pixel sample's scene (`seeded`): the one whose other lights' frusta it shares
     _memo: dict = field(default_factory=dict)
     _memo_lock: threading.RLock = field(default_factory=threading.RLock)
 
@@ -84,7 +85,7 @@ class Prepared:
         """The lights' texel lists of the shadow frusta of the triangles that stop light
         (shapes.blockers), for the exact lit intervals, built once (shadows/frusta.py)."""
         if self._frusta is None:
-            self._frusta = build_frusta(self.accel, self.lights, select=shapes.blockers(self))
+            self._frusta = self._built(shapes.blockers(self), "frusta")
         return self._frusta
 
     def through(self) -> list | None:
@@ -92,8 +93,18 @@ class Prepared:
         light (shapes.attenuators; None where none need it), built once."""
         mask = shapes.attenuators(self)
         if mask is not None and self._through is None:
-            self._through = build_frusta(self.accel, self.lights, select=mask)
+            self._through = self._built(mask, "through")
         return None if mask is None else self._through
+
+    def _built(self, select, which: str) -> list:
+        """`frusta` (`which`) or `through` of the triangles `select`; a pixel sample's (`base` given) builds its
+        environment directions' and takes the other lights' from `base` (built once, under its lock)."""
+        if self.base is None:
+            return build_frusta(self.accel, self.lights, select=select)
+        own = environment.owned(self.lights)
+        shared = self.base.memo(which, getattr(self.base, which))
+        return [b if o else s for o, b, s in zip(own, build_frusta(self.accel, self.lights, select=select, rows=own),
+                                                 shared)]
 
     def only(self, keep: np.ndarray, emission: bool | None = None) -> "Prepared":
         """This scene lit by the lights `keep` (a boolean mask over `lights`) only, for the output
@@ -634,23 +645,27 @@ def sample_ranges(cam) -> list[slice]:
     return [slice(s, min(s + n, cam.spp)) for s in range(0, cam.spp, n)]
 
 
-def tiles(cam, box) -> list[Tile]:
+def tiles(cam, box, by_sample: bool = False) -> list[Tile]:
     """The tasks of a render of the pixel block `box` = (x0, y0, x1, y1): bands of rows of about
     PHASES x RAYS_PER_TILE rays, each cut into PHASES tiles (fewer in a band of fewer than
     PHASES x MIN_TILE_RAYS rays) that take every PHASES-th pixel of its raster order, per sample
     range. A tile is a sample of the whole band, so no tile holds much more than 1/PHASES of a
     band's work even where it lies in a few rows (benchmarks/scenes/sun_over_height_fog.toml: 79 %
-    in its horizon row); nothing depends on the thread or worker count."""
+    in its horizon row); nothing depends on the thread or worker count. `by_sample` (an environment light,
+    whose directions and their frusta are a pixel sample's: `seeded`): every range one sample, a band's tiles
+    sample after sample, so that the tiles in flight need few samples."""
     x0, y0, x1, y1 = box
-    ranges = sample_ranges(cam)
-    n = ranges[0].stop - ranges[0].start
+    ranges = [slice(s, s + 1) for s in range(cam.spp)] if by_sample else sample_ranges(cam)
+    n = cam.spp if by_sample else ranges[0].stop - ranges[0].start
     band = max(1, PHASES * RAYS_PER_TILE // ((x1 - x0) * n))
     work = []
     for r in range(y0, y1, band):
         rows = slice(r, min(r + band, y1))
         pixels = (rows.stop - rows.start) * (x1 - x0)
-        stride = max(1, min(PHASES, pixels, pixels * n // MIN_TILE_RAYS))
-        work += [Tile(rows, slice(k, pixels, stride), s) for k in range(stride) for s in ranges]
+        per_tile = 1 if by_sample else n  # a tile's samples of a pixel
+        stride = max(1, min(PHASES, pixels, pixels * per_tile // MIN_TILE_RAYS))
+        work += ([Tile(rows, slice(k, pixels, stride), s) for s in ranges for k in range(stride)] if by_sample else
+                 [Tile(rows, slice(k, pixels, stride), s) for k in range(stride) for s in ranges])
     return work
 
 
@@ -717,25 +732,38 @@ def _tile_keys(first, step, row, x0, width, image_width, spp, sample, ys, xs, ke
 def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, dirs, keys):
     """`shade_rays`' four values and the layers' columns (None without layers) of the tile's rays (pixel by
     pixel, `tile.samples` each) with an environment light: each pixel sample index s its own directions
-    (`seeded`), their groups shaded apart (`shade_groups`); the statistics added in sample order."""
+    (`seeded`, shared with the band's other tiles of that sample and dropped after the last: `tile_uses`), their
+    groups shaded apart (`shade_groups`); the statistics added in sample order."""
     n = tile.samples.stop - tile.samples.start
     out = [np.zeros((len(keys), 3)) for _ in range(3)]
     layers, stats = None, 0.0
+    uses = tile_uses(prep, task.box)
     for j in range(n):
-        at = slice(j, None, n)
-        view = seeded(prep, task.seed, tile.samples.start + j, task.shadows)
-        o, d, k = origins[at], dirs[at], keys[at]
-        hits = first_hits(view.accel, view.scene.medium, o, d)  # shared by the passes
-        rad, st, var, bound = shade_groups(view, environment.groups(view.lights), method, task.params, o, d, k,
-                                           task.seed, task.shadows, hits)
-        for total, value in zip(out, (rad, var, bound)):
-            total[at] = value
-        stats = stats + st
-        if task.aov:
-            cols = layer_columns(view, method, task, o, d, k, hits)
-            layers = np.zeros((len(keys), cols.shape[1])) if layers is None else layers
-            layers[at] = cols
+        at, sample = slice(j, None, n), tile.samples.start + j
+        view = seeded(prep, task.seed, sample, task.shadows, (tile.rows.start, uses[tile.rows.start, sample]))
+        try:
+            o, d, k = origins[at], dirs[at], keys[at]
+            hits = first_hits(view.accel, view.scene.medium, o, d)  # shared by the passes
+            rad, st, var, bound = shade_groups(view, environment.groups(view.lights), method, task.params, o, d, k,
+                                               task.seed, task.shadows, hits)
+            for total, value in zip(out, (rad, var, bound)):
+                total[at] = value
+            stats = stats + st
+            if task.aov:
+                cols = layer_columns(view, method, task, o, d, k, hits)
+                layers = np.zeros((len(keys), cols.shape[1])) if layers is None else layers
+                layers[at] = cols
+        finally:
+            release(prep, task.seed, sample, tile.rows.start)
     return out[0], stats, out[1], out[2], layers
+
+
+def tile_uses(prep: Prepared, box) -> collections.Counter:
+    """(first row of a band, pixel sample) -> how many tiles of a render of `box` shade that sample in that band
+    (`tiles`, one sample a tile with an environment), once per camera."""
+    cam = prep.scene.camera
+    return prep.memo(("tile uses", box, cam.width, cam.height, cam.spp), lambda: collections.Counter(
+        (t.rows.start, s) for t in tiles(cam, box, by_sample=True) for s in range(t.samples.start, t.samples.stop)))
 
 
 def shade_groups(prep: Prepared, split: list, method, params, origins, dirs, keys, seed, shadows, hits):
@@ -759,23 +787,40 @@ def shade_groups(prep: Prepared, split: list, method, params, origins, dirs, key
     return rad, stats, spread if var is None else var + spread, bound
 
 
-def seeded(prep: Prepared, seed: int, sample: int, shadows: bool = False) -> Prepared:
+def seeded(prep: Prepared, seed: int, sample: int, shadows: bool = False, band: tuple | None = None) -> Prepared:
     """`prep` with the environment light's directions of the pixel sample `sample` for `seed`
-    (environment.seeded; `prep` itself where they are the same), its shadow frusta its own, built here
-    with `shadows` (once, before any view of it copies it: `shade_groups`' passes and the layers' views
-    share them); those of the last seed are kept."""
+    (environment.seeded; `prep` itself where they are the same), their shadow frusta its own and the other
+    lights' `prep`'s (`Prepared.base`), built here with `shadows` (once, before any view of it copies it:
+    `shade_groups`' passes and the layers' views share them). `band` = (key, uses): the view is shared by `uses`
+    calls with that key and dropped after the last one's `release` (a band of tiles: at most the samples in flight
+    are kept); without it, kept while `seed` is the last seed."""
+    key = (None if band is None else band[0], sample)
     with prep._memo_lock:
         last = prep._memo.get("seeded")
         if last is None or last[0] != seed:
             last = prep._memo["seeded"] = (seed, {})
-        if sample not in last[1]:
+        if key not in last[1]:
             lights = environment.seeded(prep.lights, prep.scene.lights, seed, sample)
-            last[1][sample] = prep if lights is prep.lights else dataclasses.replace(
-                prep, lights=lights, _frusta=None, _through=None, _memo={}, _memo_lock=threading.RLock())
-        view = last[1][sample]
+            last[1][key] = [prep if lights is prep.lights else dataclasses.replace(
+                prep, lights=lights, base=prep, _frusta=None, _through=None, _memo={}, _memo_lock=threading.RLock()),
+                0 if band is None else band[1]]
+        view = last[1][key][0]
     if shadows:
         view.memo("frusta", view.frusta)  # under the view's lock: a tile of another sample does not wait
     return view
+
+
+def release(prep: Prepared, seed: int, sample: int, key):
+    """One use of `seeded(prep, seed, sample, band=(key, uses))` done: the view is dropped after the last."""
+    with prep._memo_lock:
+        last = prep._memo.get("seeded")
+        entry = None if last is None or last[0] != seed else last[1].get((key, sample))
+        if entry is not None:
+            entry[1] -= 1
+            if entry[1] <= 0:
+                del last[1][key, sample]
+                if entry[0] is not prep:  # its passes' views (copies sharing the memo) hold it in a cycle: freed now
+                    entry[0]._memo.clear()
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
@@ -965,7 +1010,7 @@ def render(prep: Prepared, method_name: str, given_params: dict | None = None,
     options.apply_camera(cam)
     box = options.crop or (0, 0, cam.width, cam.height)
     task = Task(method.name, params, options.seed, options.shadows, box, options.aov)
-    work = tiles(cam, box)
+    work = tiles(cam, box, by_sample=bool(environment.groups(prep.lights)))
     acc = Accumulator(work, box, cam.spp, has_variance(prep, method), stats_size(method), aov.width(task.aov, aov.sources(prep.lights)))
     executor = executor if executor is not None else Threads(options.threads)
     pilot_start = time.perf_counter()

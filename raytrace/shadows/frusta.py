@@ -96,10 +96,13 @@ def default_resolution(n_triangles: int) -> int:
     return int(min(256, max(16, 2 ** round(math.log2(max(n_triangles, 1) ** 0.5 / 4.0)))))
 
 
-def build(accel, lights, resolution: int | None = None, select: np.ndarray | None = None) -> list[LightBins]:
+def build(accel, lights, resolution: int | None = None, select: np.ndarray | None = None,
+          rows: np.ndarray | None = None) -> list[LightBins | None]:
     """The frusta and texel lists of every light (a list indexed like `lights`) of the triangles
     `select` (a boolean mask over accel.triangles; all if None); the exact spheres among them
-    (accel.sphere_of) shadow as spheres (`LightBins.spheres`), not by their meshes."""
+    (accel.sphere_of) shadow as spheres (`LightBins.spheres`), not by their meshes. `rows` (a boolean
+    mask over `lights`; None: all): the lights built, None in the others' places (the kernels' variant
+    is still that of all of `lights`)."""
     select = np.ones(len(accel.triangles), bool) if select is None else select
     tris = accel.triangles[select & (accel.sphere_of < 0)]
     spheres = accel.spheres[np.unique(accel.sphere_of[select & (accel.sphere_of >= 0)])]
@@ -107,6 +110,9 @@ def build(accel, lights, resolution: int | None = None, select: np.ndarray | Non
     suns, points = bool(lights.distant.any()), bool((~lights.distant).any())
     out = []
     for li in range(len(lights)):
+        if rows is not None and not rows[li]:
+            out.append(None)
+            continue
         if lights.distant[li]:
             bins = sun_bins(tris, lights.axis[li], accel.epsilon, accel.scale, res, points)
         else:
