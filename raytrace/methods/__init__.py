@@ -201,6 +201,11 @@ class Method:
     # error_bounds.py)
     airlight: Callable
     error_law: ErrorLaw
+    # compile_here(medium, lights, params): compiles by signature, in the render's process, the air-light's
+    # kernels that `worker_airlight` (the air-light as the compile worker runs it) leaves out, so that the two
+    # processes share the first compile (rendering/compile_ahead.py); None: the worker compiles `airlight` whole
+    compile_here: Callable | None = None
+    worker_airlight: Callable | None = None
     stats_size: int = 0
     summarize: Callable[[np.ndarray], dict] = field(default=lambda stats: {})
     check: Callable = field(default=lambda medium, params: None)  # raises UserError if unsupported

@@ -1295,9 +1295,10 @@ RECURRENCES = (types.float64[:, ::1], types.float64[::1], types.float64, types.f
 
 
 def compile_recurrences(medium, lights, params):
-    """The air-light's kernels that the render's process compiles by signature while the compile worker
-    compiles the rest on `_airlight.ahead` (rendering/compile_ahead.py): the moment recurrences, where
-    `uses_recurrences`, in the one signature `evaluate_deferred` calls them with."""
+    """`Method.compile_here`: the air-light's kernels that the render's process compiles by signature while the
+    compile worker compiles the rest on the air-light without them (`Method.worker_airlight`,
+    rendering/compile_ahead.py): the moment recurrences, where `uses_recurrences`, in the one signature
+    `evaluate_deferred` calls them with."""
     if uses_recurrences(medium, lights, params):
         _pending_recurrences.compile(RECURRENCES)
 
@@ -1324,12 +1325,6 @@ def _airlight(segs, medium, lights, params, recurrences=True):
                                                         lights.cone[segs.light, 0])
 
 
-# the split of the air-light's compile with rendering/compile_ahead.py: the kernels the render's process compiles
-# (`here`), and the air-light the worker compiles the rest on (`ahead`)
-_airlight.here = compile_recurrences
-_airlight.ahead = functools.partial(_airlight, recurrences=False)
-
-
 METHOD = Method(
     name="analytic",
     summary="Pegoraro & Parker's closed form (eq. 13) with Ei series / scaled E1, to a requested precision",
@@ -1342,6 +1337,8 @@ METHOD = Method(
                        1, 40),
     },
     airlight=_airlight,
+    compile_here=compile_recurrences,
+    worker_airlight=functools.partial(_airlight, recurrences=False),
     error_law=ErrorLaw({"precision": 1e-6}, "max", 3e-7),  # measured worst 7.2e-8 (isotropic), tests/test_methods.py
     stats_size=STATS_SIZE,
     summarize=summarize_stats,

@@ -104,16 +104,15 @@ def settle(stop: bool = False) -> float:
 
 def compile_here(method, medium, lights, params):
     """Compile in this process, by signature, the kernels of `method`'s air-light that it leaves to the render's
-    process while the worker compiles the rest (the air-light's `here`, where it has one)."""
-    here = getattr(method.airlight, "here", None)
-    if here is not None:
-        here(medium, lights, params)
+    process while the worker compiles the rest (`Method.compile_here`, where it has one)."""
+    if method.compile_here is not None:
+        method.compile_here(medium, lights, params)
 
 
 def ahead(method):
-    """`method` as the worker runs it: its air-light without the kernels `compile_here` compiles (the air-light's
-    `ahead`, where it has one; the values it gives are not used)."""
-    rest = getattr(method.airlight, "ahead", None)
+    """`method` as the worker runs it: its air-light without the kernels `compile_here` compiles
+    (`Method.worker_airlight`, where it has one; the values it gives are not used)."""
+    rest = method.worker_airlight
     return method if rest is None else dataclasses.replace(method, airlight=rest)
 
 
