@@ -26,7 +26,8 @@ A flat emitter's rows (quad, disk, flat emissive shape) move their node, in ever
 the emitter uniform in area, drawn in the kernel (`drawn_segments`): the sum over the rows estimates the
 emitter's integral, not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows
 (`_whole`); where one does (volumetric shadows), and with shadow_test = samples everywhere, its medium points
-are those of the drawn points (`drawn_points`), each point's shadow ray to its own drawn point
+are those of the drawn points (`drawn_points`: homogeneous media, height fogs and atmospheres, each by its own
+distance sampling and transmittance, `draw_points`), each point's shadow ray to its own drawn point
 (shadows/penumbra_airlight.py `drawn`, shadows/shadow_rays.py): unbiased in penumbrae too.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
