@@ -8,7 +8,7 @@ emitter and along the ray) in an exponential fog of density rho(h) = e^{-h / H} 
 with the closed-form column between two points, tau(p, q) = |q - p| e^{-p_y / H} (1 - e^{-z}) / z,
 z = (q_y - p_y) / H (1 at z = 0).
 
-    python -m tests.make_montecarlo_fog_twins     # about two CPU minutes; writes tests/data/montecarlo_fog_twins.json
+    python -m tests.make_montecarlo_fog_twins     # about six CPU minutes; writes tests/data/montecarlo_fog_twins.json
 """
 from __future__ import annotations
 
