@@ -104,21 +104,27 @@ def _shadow(o, w, y):
     return lo, hi
 
 
-def _line(o, w, y, lo, hi, line):
-    """(M,) the integral in t over [lo, hi] (per emitter point) of L (2 - x_y) e^{-kt (t + r)} / r^3: `line`
-    equal panels of NODES Gauss–Legendre nodes."""
+def homogeneous(o, t, p, y, r):
+    """ks e^{-kt (t + r)}: the scattering coefficient at x = p times the transmittance camera -> x -> y."""
+    return KS * np.exp(-KT * (t + r))
+
+
+def _line(o, w, y, lo, hi, line, medium):
+    """(M,) the integral in t over [lo, hi] (per emitter point) of L (2 - x_y) medium(o, t, x, y, r) / r^3 (`medium`:
+    ks at x times the transmittance from o to x to y, `homogeneous`'s e.g.): `line` equal panels of NODES
+    Gauss–Legendre nodes."""
     x, wt = _composite(line)
     span = np.maximum(hi - lo, 0.0)
     t = lo[:, None] + span[:, None] * x[None, :]
     p = o[None, None, :] + t[..., None] * w[None, None, :]
     d = p - y[:, None, :]
     r = np.sqrt(np.einsum("mki,mki->mk", d, d))
-    f = RADIANCE * (2.0 - p[..., 1]) * np.exp(-KT * (t + r)) / r ** 3
+    f = RADIANCE * (2.0 - p[..., 1]) * medium(o, t, p, y[:, None, :], r) / r ** 3
     return span * (f @ wt)
 
 
-def pixel(o, w, panels=PANELS, line=LINE):
-    """The air-light of the ray o + t w (the module docstring's L)."""
+def pixel(o, w, panels=PANELS, line=LINE, medium=homogeneous):
+    """The air-light of the ray o + t w (the module docstring's L; `medium` as `_line`'s)."""
     end = _first_hit(o, w)
     if w[1] > 0.0:
         end = min(end, (2.0 - o[1]) / w[1])  # the emitter's plane: nothing beyond
@@ -127,19 +133,24 @@ def pixel(o, w, panels=PANELS, line=LINE):
     s0, s1 = np.clip(s0, 0.0, end), np.clip(s1, 0.0, end)
     empty = s1 <= s0
     s0[empty], s1[empty] = end, end
-    total = _line(o, w, y, np.zeros(len(y)), s0, line) + _line(o, w, y, s1, np.full(len(y), end), line)
-    return KS / (4.0 * math.pi) * float(total @ wy)
+    total = _line(o, w, y, np.zeros(len(y)), s0, line, medium) + _line(o, w, y, s1, np.full(len(y), end), line, medium)
+    return float(total @ wy) / (4.0 * math.pi)
+
+
+def write(out, medium, doc):
+    """The image of `pixel` (H, W) with `medium`, checked on every 5th pixel against twice the panels, to `out`."""
+    o, dirs = rays()
+    image = np.array([[pixel(o, d, medium=medium) for d in row] for row in dirs])
+    some = [divmod(k, image.shape[1]) for k in range(0, image.size, 5)]
+    spread = max(abs(pixel(o, dirs[p], 2 * PANELS, 2 * LINE, medium) / image[p] - 1.0) for p in some)
+    print(f"largest relative difference to {2 * PANELS} panels and {2 * LINE} along the ray (every 5th pixel): "
+          f"{spread:.2e}")
+    out.write_text(json.dumps({"doc": doc, "panels": PANELS, "line": LINE, "spread": spread,
+                               "image": image.tolist()}, indent=1) + "\n")
 
 
 def main():
-    o, dirs = rays()
-    image = np.array([[pixel(o, d) for d in row] for row in dirs])
-    some = [divmod(k, image.shape[1]) for k in range(0, image.size, 5)]
-    spread = max(abs(pixel(o, dirs[p], 2 * PANELS, 2 * LINE) / image[p] - 1.0) for p in some)
-    print(f"largest relative difference to {2 * PANELS} panels and {2 * LINE} along the ray (every 5th pixel): "
-          f"{spread:.2e}")
-    OUT.write_text(json.dumps({"doc": "tests/make_montecarlo_penumbra_twins.py", "panels": PANELS, "line": LINE,
-                               "spread": spread, "image": image.tolist()}, indent=1) + "\n")
+    write(OUT, homogeneous, "tests/make_montecarlo_penumbra_twins.py")
 
 
 if __name__ == "__main__":

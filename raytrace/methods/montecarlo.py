@@ -26,7 +26,8 @@ A flat emitter's rows (quad, disk, flat emissive shape) move their node, in ever
 the emitter uniform in area, drawn in the kernel (`drawn_segments`): the sum over the rows estimates the
 emitter's integral, not its cubature rule's (docs/area_lights.md), along rays where no shadow cuts the rows
 (`_whole`); where one does (volumetric shadows), and with shadow_test = samples everywhere, its medium points
-are those of the drawn points (`drawn_points`), each point's shadow ray to its own drawn point
+are those of the drawn points (`drawn_points`: homogeneous media, height fogs and atmospheres, each by its own
+distance sampling and transmittance, `draw_points`), each point's shadow ray to its own drawn point
 (shadows/penumbra_airlight.py `drawn`, shadows/shadow_rays.py): unbiased in penumbrae too.
 Each ray also returns the variance of its mean over the `samples` draws, which the renderer turns
 into per-pixel variance channels (the variance of the pixel's estimate).
@@ -236,16 +237,25 @@ def _iteration_points(o, w, xh, h, ell, cone, key, dim, seed, intensity, kt, ks,
             continue
         th_a, th_b, norm = _angles(xh, h, ell, kt[c])
         paths = HomogeneousPaths(Eq4(xh, h, kt[c], ks[c], code, g, cone_row(cone)), ell, norm)
-        xe = xf = we = wf = 0.0
-        if use_e:
-            xe, we = _sample(paths, 0, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, key, dim, seed)
-        if use_f:
-            xf, wf = _sample(paths, 1, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, key, dim + 1, seed)
-        for a in range(3):
-            pos[0, c, a] = o[a] + xe * w[a]
-            pos[1, c, a] = o[a] + xf * w[a]
-        weight[0, c] = we * intensity[c]
-        weight[1, c] = wf * intensity[c]
+        _paths_points(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, key, dim, seed, o, w, intensity[c], c, pos,
+                      weight)
+
+
+@njit
+def _paths_points(paths, use_e, use_f, xh, h, th_a, th_b, lo, hi, key, dim, seed, o, w, intensity, c, pos, weight):
+    """One iteration of `_estimate` over the paths record (dimensions dim, dim + 1) as points of the segment
+    o + x w: pos[k, c] (3,) strategy k's point (the segment's start for a strategy not used), weight[k, c] its
+    intensity f / p (0 for a strategy not used)."""
+    xe = xf = we = wf = 0.0
+    if use_e:
+        xe, we = _sample(paths, 0, use_e, use_f, xh, h, th_a, th_b, lo, hi, key, dim, seed)
+    if use_f:
+        xf, wf = _sample(paths, 1, use_e, use_f, xh, h, th_a, th_b, lo, hi, key, dim + 1, seed)
+    for a in range(3):
+        pos[0, c, a] = o[a] + xe * w[a]
+        pos[1, c, a] = o[a] + xf * w[a]
+    weight[0, c] = we * intensity
+    weight[1, c] = wf * intensity
 
 
 # ----------------------------------------------------------------------------------------------
@@ -461,9 +471,9 @@ def _airlight(segs, medium, lights, params):
     if not flat.any():
         return by_kind(_BY_KIND, medium)(segs, medium, lights, params)
     out, stats, var = np.zeros((len(segs), 3)), np.zeros(CDF_STATS), np.zeros((len(segs), 3))
-    for at, table in ((np.nonzero(~flat)[0], _BY_KIND), (np.nonzero(flat)[0], _DRAWS)):
+    for at, estimate in ((np.nonzero(~flat)[0], by_kind(_BY_KIND, medium)), (np.nonzero(flat)[0], _draws)):
         if len(at):
-            out[at], st, var[at] = by_kind(table, medium)(segs.take(at), medium, lights, params)
+            out[at], st, var[at] = estimate(segs.take(at), medium, lights, params)
             stats += st
     return out, stats, var
 
@@ -512,9 +522,10 @@ def _strategies(params):
 
 def _points(segs, medium, lights, params):
     """`Method.points`. With shadow_test = samples a flat emitter's rows (`flat_rows`) draw their light's point
-    per iteration (`drawn_points`) and a third array, targets (S, n, 3), says where each iteration's shadow
-    rays go (the other rows': their lights); with intervals (the points of the pieces whose light crosses
-    index-matched interiors, interiors/rows.py) every row keeps its node."""
+    per iteration (`drawn_points`, in any medium: the renderer hands it only those rows outside homogeneous
+    media) and a third array, targets (S, n, 3), says where each iteration's shadow rays go (the other rows':
+    their lights); with intervals (the points of the pieces whose light crosses index-matched interiors,
+    interiors/rows.py) every row keeps its node."""
     shape = (len(segs), params["samples"], _strategies(params), 3)
     flat = flat_rows(lights)[segs.light] if params["shadow_test"] == "samples" else np.zeros(len(segs), bool)
     if not flat.any():
@@ -525,16 +536,9 @@ def _points(segs, medium, lights, params):
         pos[rows], weight[rows] = _row_points(segs.take(rows), medium, lights, params, (len(rows),) + shape[1:])
     targets = np.repeat(lights.position[segs.light][:, None, :], params["samples"], axis=1)
     drawn = segs.take(at)
-    kind, frame, upper, first, last = emitter_pieces(lights)
-    owner = lights.owner[drawn.light]
     part = (np.zeros((len(at),) + shape[1:] + (3,)), np.zeros((len(at),) + shape[1:]), targets[at])
-    drawn_points(drawn.origins, drawn.dirs, np.asarray(drawn.length, float), lights.axis[drawn.light],
-                 lights.cone[drawn.light], first[owner], last[owner], kind, frame, upper,
-                 np.ascontiguousarray(drawn.keys, dtype=np.uint64), np.asarray(drawn.stream, np.int64),
-                 np.uint64(drawn.seed), float(drawn.scale), lights.intensity[drawn.light], medium.sigma_t,
-                 medium.sigma_s, medium.phase, medium.g, MODES[params["sampling"]], params["samples"],
-                 *(cdf_setup(medium) if params["sampling"] == "cdf" else (1.0, np.zeros(1))), *part,
-                 np.zeros(CDF_STATS))
+    drawn_points(by_kind(_RECORDS, medium)(drawn, medium, lights, params), *_emitter_args(drawn, lights),
+                 params["samples"], *part)
     pos[at], weight[at], targets[at] = part
     return pos, weight, targets
 
@@ -617,15 +621,14 @@ def _draw_block(origins, dirs, axis, lcone, first, last, kind, frame, upper, key
 
 
 @njit
-def drawn_points(origins, dirs, ell, axis, lcone, first, last, kind, frame, upper, keys, stream, seed, scale,
-                 intensity, kt, ks, code, g, mode, n, precision, coeffs, pos, weight, targets, stats):
-    """`sample_points` (cdf: `sample_points_cdf`) of a flat emitter's rows, each iteration's light moved to the
-    point of the emitter that `drawn_segments` draws for it (the same dimensions), targets[s, j] (3,): the
-    medium points' shadow rays go there, so that their visibility is the drawn point's, not the row's node's."""
+def drawn_points(rec, origins, dirs, axis, lcone, first, last, kind, frame, upper, keys, stream, seed, scale, intensity,
+                 n, pos, weight, targets):
+    """The draws of `drawn_segments` (the same points of the emitter and dimensions) as medium points for shadow
+    rays (`draw_points`): pos (S, n, K, 3, 3), weight (S, n, K, 3) as `sample_points`' (cdf: `sample_points_cdf`'s),
+    targets[s, j] (3,) the point of the emitter drawn in iteration j: the medium points' shadow rays go there, so
+    that their visibility is the drawn point's, not the row's node's."""
     points = np.empty((DRAW_BLOCK, 3))
     index = np.arange(DRAW_BLOCK)
-    astats, ftot, xs = np.zeros(STATS_SIZE), np.zeros(3), np.zeros(3)
-    use_e, use_f = _strategies_used(mode, False)
     for b0 in range(0, origins.shape[0], DRAW_BLOCK):
         m = min(DRAW_BLOCK, origins.shape[0] - b0)
         for j in range(n):
@@ -634,17 +637,16 @@ def drawn_points(origins, dirs, ell, axis, lcone, first, last, kind, frame, uppe
             for i in range(m):
                 s = b0 + i
                 targets[s, j] = points[i]
-                dim = 2 * n * stream[s] + 2 * j
-                if mode == CDF:
-                    _totals(xh[i], h[i], da[i], ell[s], kt, ks, code, g, cone[i], precision, coeffs, astats, ftot)
-                    _cdf_iteration(origins[s], dirs[s], xh[i], h[i], da[i], ell[s], cone[i], uniform(keys[s], dim, seed),
-                                   intensity[s], kt, ks, code, g, precision, coeffs, ftot, xs, astats, stats, pos[s, j],
-                                   weight[s, j])
-                else:
-                    _iteration_points(origins[s], dirs[s], xh[i], h[i], ell[s], cone[i], keys[s], dim, seed,
-                                      intensity[s], kt, ks, code, g, use_e, use_f, pos[s, j], weight[s, j])
-    stats[CS_EVALS] += astats[ST_EVALS]
-    stats[CS_FALLBACK] += astats[ST_FALLBACK]
+                draw_points(rec, s, points[i], xh[i], h[i], da[i], cone[i], origins[s], dirs[s], keys[s],
+                            2 * n * stream[s] + 2 * j, seed, intensity[s], pos[s, j], weight[s, j])
+
+
+def draw_points(rec, s, point, xh, h, da, cone, o, w, key, dim0, seed, intensity, pos, weight):
+    """`draw_estimate`'s draws as points of the segment o + x w: pos (K, 3, 3) per strategy and channel, weight
+    (K, 3) their intensity f / p (intensity (3,): the row's)."""
+
+
+_draw_points_of = record_dispatch(draw_points, 0)
 
 
 @njit
@@ -659,7 +661,7 @@ def _same_channel(kt, ks, c):
 class HomogeneousDraws(NamedTuple):
     """`draw_estimate`'s record in a homogeneous medium: segment lengths ell (S,), free-path norms 1 - exp(-kt ell)
     (S, 3), coefficients kt, ks (3,), phase, sampling mode, the cdf mode's (precision, coeffs) and scratch
-    (astats: analytic's counters)."""
+    (astats: analytic's counters, ftot and xs (3,), cstats: the cdf mode's counters)."""
     ell: np.ndarray
     norm: np.ndarray
     kt: np.ndarray
@@ -671,6 +673,8 @@ class HomogeneousDraws(NamedTuple):
     coeffs: np.ndarray
     astats: np.ndarray
     ftot: np.ndarray
+    xs: np.ndarray
+    cstats: np.ndarray
 
 
 @_draw_estimate_of(HomogeneousDraws, inline=True)
@@ -698,6 +702,21 @@ def _homogeneous_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
                                            th_b, rec.norm[s, c], 1, key, dim0, seed)[0]
 
 
+@_draw_points_of(HomogeneousDraws)
+@njit
+def _homogeneous_points(rec, s, point, xh, h, da, cone, o, w, key, dim0, seed, intensity, pos, weight):
+    """`_iteration_points` (cdf: `_cdf_iteration`, its number the equiangular draw's) of the segment."""
+    if rec.mode == CDF:
+        _totals(xh, h, da, rec.ell[s], rec.kt, rec.ks, rec.code, rec.g, cone, rec.precision, rec.coeffs, rec.astats,
+                rec.ftot)
+        _cdf_iteration(o, w, xh, h, da, rec.ell[s], cone, uniform(key, dim0, seed), intensity, rec.kt, rec.ks,
+                       rec.code, rec.g, rec.precision, rec.coeffs, rec.ftot, rec.xs, rec.astats, rec.cstats, pos, weight)
+        return
+    use_e, use_f = _strategies_used(rec.mode, False)
+    _iteration_points(o, w, xh, h, rec.ell[s], cone, key, dim0, seed, intensity, rec.kt, rec.ks, rec.code, rec.g,
+                      use_e, use_f, pos, weight)
+
+
 class FogDraws(NamedTuple):
     """`draw_estimate`'s record in a height fog: the segments' `fog_rows` (S, 5) (a row's light height HL is
     the drawn point's), lengths ell (S,), the fog's up (3,) and h0, coefficients kt, ks (3,), phase, scale
@@ -720,14 +739,35 @@ class FogDraws(NamedTuple):
 @njit
 def _fog_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
     """`_fog_estimate` of one iteration per channel, the light at `point`."""
-    row = rec.row
-    row[:] = rec.rows[s]
-    row[HL] = point[0] * rec.up[0] + point[1] * rec.up[1] + point[2] * rec.up[2] - rec.h0
+    row = _fog_row(rec, s, point)
     for c in range(3):
         same = _same_channel(rec.kt, rec.ks, c)
         est[c] = est[same] if same >= 0 else _fog_estimate(row, False, xh, h, rec.ell[s], rec.kt[c], rec.ks[c],
                                                            rec.code, rec.g, cone, rec.H, rec.profile, rec.mode, 1,
                                                            key, dim0, seed)[0]
+
+
+@_draw_points_of(FogDraws)
+@njit
+def _fog_points(rec, s, point, xh, h, da, cone, o, w, key, dim0, seed, intensity, pos, weight):
+    """`_fog_draw`'s draws as points (`_paths_points`; none where a channel does not scatter)."""
+    row = _fog_row(rec, s, point)
+    use_e, use_f = _strategies_used(rec.mode, False)
+    for c in range(3):
+        paths, th_a, th_b = _fog_paths(row, False, xh, h, rec.ell[s], rec.kt[c], rec.ks[c], rec.code, rec.g, cone,
+                                       rec.H, rec.profile)
+        if paths.norm > 0.0:
+            _paths_points(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, rec.ell[s], key, dim0, seed, o, w, intensity[c],
+                          c, pos, weight)
+
+
+@njit
+def _fog_row(rec, s, point):
+    """rec.row: segment s's fog row with its light's height HL the point's."""
+    row = rec.row
+    row[:] = rec.rows[s]
+    row[HL] = point[0] * rec.up[0] + point[1] * rec.up[1] + point[2] * rec.up[2] - rec.h0
+    return row
 
 
 class AtmosphereDraws(NamedTuple):
@@ -755,66 +795,91 @@ class AtmosphereDraws(NamedTuple):
 @njit
 def _atmosphere_draw(rec, s, point, xh, h, da, cone, key, dim0, seed, est):
     """`_atm_estimate` of one iteration per channel (0 where no layer scatters it), the light at `point`."""
-    row = rec.row
-    row[:] = rec.rows[s]
-    row[atmo.LX], row[atmo.LY], row[atmo.LZ] = (point[0] - rec.centre[0], point[1] - rec.centre[1],
-                                                point[2] - rec.centre[2])
+    row = _atm_row(rec, s, point)
     for c in range(3):
         est[c] = 0.0
         if not np.any(rec.ks[c] > 0.0):
             continue
-        est[c] = _atm_estimate(atmosphere_row(row), False, xh, h, cone, rec.kt[c], rec.ks[c], rec.codes, rec.gs,
-                               rec.Hs, rec.R, rec.top, rec.mode, 1, key, dim0, seed, rec.cols, rec.pieces, rec.buf)[0]
+        est[c] = _atm_estimate(row, False, xh, h, cone, rec.kt[c], rec.ks[c], rec.codes, rec.gs, rec.Hs, rec.R, rec.top,
+                               rec.mode, 1, key, dim0, seed, rec.cols, rec.pieces, rec.buf)[0]
 
 
-def _drawn(rec, segs, lights, params):
-    """(mean, variance) (S, 3) of `drawn_segments` over the segments segs of flat emitters' rows."""
+@_draw_points_of(AtmosphereDraws)
+@njit
+def _atmosphere_points(rec, s, point, xh, h, da, cone, o, w, key, dim0, seed, intensity, pos, weight):
+    """`_atmosphere_draw`'s draws as points (`_paths_points` on the part in the air; none where a channel does not
+    scatter)."""
+    row = _atm_row(rec, s, point)
+    use_e, use_f = _strategies_used(rec.mode, False)
+    for c in range(3):
+        if not np.any(rec.ks[c] > 0.0):
+            continue
+        paths, th_a, th_b = _atm_paths(row, False, xh, h, cone, rec.kt[c], rec.ks[c], rec.codes, rec.gs, rec.Hs,
+                                       rec.R, rec.top, rec.cols, rec.pieces, rec.buf)
+        if paths.norm > 0.0:
+            _paths_points(paths, use_e, use_f, xh, h, th_a, th_b, row[atmo.A], row[atmo.B], key, dim0, seed, o, w,
+                          intensity[c], c, pos, weight)
+
+
+@njit
+def _atm_row(rec, s, point):
+    """`atmosphere_row` of rec.row: segment s's row with its light LX, LY, LZ the point's."""
+    row = rec.row
+    row[:] = rec.rows[s]
+    row[atmo.LX], row[atmo.LY], row[atmo.LZ] = (point[0] - rec.centre[0], point[1] - rec.centre[1],
+                                                point[2] - rec.centre[2])
+    return atmosphere_row(row)
+
+
+def _emitter_args(segs, lights):
+    """The arguments of `drawn_segments` and `drawn_points` from the segments' origins to their intensities."""
     kind, frame, upper, first, last = emitter_pieces(lights)
     owner = lights.owner[segs.light]
+    return (segs.origins, segs.dirs, lights.axis[segs.light], lights.cone[segs.light], first[owner], last[owner], kind,
+            frame, upper, np.ascontiguousarray(segs.keys, dtype=np.uint64), np.asarray(segs.stream, np.int64),
+            np.uint64(segs.seed), float(segs.scale), lights.intensity[segs.light])
+
+
+def _draws(segs, medium, lights, params):
+    """`Method.airlight` of flat emitters' rows by `drawn_segments` (cdf: with its closed form's counters)."""
+    rec = by_kind(_RECORDS, medium)(segs, medium, lights, params)
     out, var = np.zeros((len(segs), 3)), np.zeros((len(segs), 3))
-    drawn_segments(rec, segs.origins, segs.dirs, lights.axis[segs.light], lights.cone[segs.light], first[owner],
-                   last[owner], kind, frame, upper, np.ascontiguousarray(segs.keys, dtype=np.uint64),
-                   np.asarray(segs.stream, np.int64), np.uint64(segs.seed), float(segs.scale),
-                   lights.intensity[segs.light], params["samples"], out, var)
-    return out, var
+    drawn_segments(rec, *_emitter_args(segs, lights), params["samples"], out, var)
+    stats = np.zeros(CDF_STATS)
+    if params["sampling"] == "cdf":  # homogeneous media only (`_check`)
+        stats[CS_EVALS], stats[CS_FALLBACK] = rec.astats[ST_EVALS], rec.astats[ST_FALLBACK]
+    return out, stats, var
 
 
-def _homogeneous_draws(segs, medium, lights, params):
+def _homogeneous_record(segs, medium, lights, params):
     cdf = params["sampling"] == "cdf"
     ell = np.asarray(segs.length, float)
     with np.errstate(invalid="ignore"):  # kt = 0 on rays to infinity: a channel that does not scatter (ks = 0)
         norm = -np.expm1(-np.outer(ell, medium.sigma_t))
-    rec = HomogeneousDraws(ell, norm, medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
-                           MODES[params["sampling"]], *(cdf_setup(medium) if cdf else (1.0, np.zeros(1))),
-                           np.zeros(STATS_SIZE), np.zeros(3))
-    out, var = _drawn(rec, segs, lights, params)
-    stats = np.zeros(CDF_STATS)
-    stats[CS_EVALS], stats[CS_FALLBACK] = rec.astats[ST_EVALS], rec.astats[ST_FALLBACK]
-    return out, stats, var
+    return HomogeneousDraws(ell, norm, medium.sigma_t, medium.sigma_s, medium.phase, medium.g,
+                            MODES[params["sampling"]], *(cdf_setup(medium) if cdf else (1.0, np.zeros(1))),
+                            np.zeros(STATS_SIZE), np.zeros(3), np.zeros(3), np.zeros(CDF_STATS))
 
 
-def _fog_draws(segs, medium, lights, params):
+def _fog_record(segs, medium, lights, params):
     rows, _ = fog_rows(segs, medium, lights)
-    rec = FogDraws(rows, np.asarray(segs.length, float), np.asarray(medium.up, float), float(medium.h0),
-                   medium.sigma_t, medium.sigma_s, medium.phase, medium.g, medium.scale_height, medium.profile,
-                   MODES[params["sampling"]], np.zeros(5))
-    out, var = _drawn(rec, segs, lights, params)
-    return out, np.zeros(CDF_STATS), var
+    return FogDraws(rows, np.asarray(segs.length, float), np.asarray(medium.up, float), float(medium.h0),
+                    medium.sigma_t, medium.sigma_s, medium.phase, medium.g, medium.scale_height, medium.profile,
+                    MODES[params["sampling"]], np.zeros(5))
 
 
-def _atmosphere_draws(segs, atm, lights, params):
+def _atmosphere_record(segs, atm, lights, params):
     rows = np.empty((len(segs), atmo.ROW))
     centre = np.asarray(atm.center, float)
     segment_rows(segs.origins, segs.dirs, np.asarray(segs.length, float), lights.position, lights.axis, segs.light,
                  np.zeros(len(segs), bool), *centre, float(atm.radius), float(atm.top), rows)
-    rec = AtmosphereDraws(rows, centre, np.ascontiguousarray(atm.layer_sigma_t.T),
-                          np.ascontiguousarray(atm.layer_sigma_s.T), atm.phases, atm.gs, atm.layers, float(atm.radius), float(atm.top), MODES[params["sampling"]],
-                          np.empty(atm.layers.shape[0]), np.empty((3, 4)), np.empty(2), np.empty(atmo.ROW))
-    out, var = _drawn(rec, segs, lights, params)
-    return out, np.zeros(CDF_STATS), var
+    return AtmosphereDraws(rows, centre, np.ascontiguousarray(atm.layer_sigma_t.T),
+                           np.ascontiguousarray(atm.layer_sigma_s.T), atm.phases, atm.gs, atm.layers, float(atm.radius),
+                           float(atm.top), MODES[params["sampling"]], np.empty(atm.layers.shape[0]), np.empty((3, 4)),
+                           np.empty(2), np.empty(atmo.ROW))
 
 
-_DRAWS = {Homogeneous: _homogeneous_draws, HeightFog: _fog_draws, Atmosphere: _atmosphere_draws}
+_RECORDS = {Homogeneous: _homogeneous_record, HeightFog: _fog_record, Atmosphere: _atmosphere_record}
 
 
 def _flat(segs, lights) -> np.ndarray:
@@ -923,15 +988,21 @@ def _fog_estimate(row, directional, xh, h, ell, kt, ks, code, g, cone, H, profil
     free-path draws invert the closed-form optical depth, x = column_distance(-log(1 - u N) / kt)
     with N = 1 - T_cam(ell) and p = kt rho(x) T_cam(x) / N (eq. 35 / 31); a directional light takes
     free-path draws in every mode (equiangular needs a light position)."""
-    if ks == 0.0 or not ell > 0.0:
+    paths, th_a, th_b = _fog_paths(row, directional, xh, h, ell, kt, ks, code, g, cone, H, profile)
+    if not paths.norm > 0.0:
         return 0.0, 0.0
-    norm = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
-    if not norm > 0.0:
-        return 0.0, 0.0
-    th_a, th_b, _ = _angles(xh, h, ell, kt)
     use_e, use_f = _strategies_used(mode, directional)
-    paths = FogPaths(FogInX(row, xh, h, kt, ks, code, g, cone_row(cone), H, profile, directional), ell, norm)
     return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, 0.0, ell, n, key, dim0, seed)
+
+
+@njit
+def _fog_paths(row, directional, xh, h, ell, kt, ks, code, g, cone, H, profile):
+    """(FogPaths, th_a, th_b) of `_fog_estimate`'s segment; the record's norm is 0 where nothing scatters."""
+    norm = 0.0
+    if ks != 0.0 and ell > 0.0:
+        norm = -math.expm1(-kt * column(row[HO], row[MU], 0.0, ell, H, profile))
+    th_a, th_b, _ = _angles(xh, h, ell, kt)
+    return FogPaths(FogInX(row, xh, h, kt, ks, code, g, cone_row(cone), H, profile, directional), ell, norm), th_a, th_b
 
 
 @njit
@@ -1006,14 +1077,25 @@ def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, 
     `atmosphere.free_path`, p = kt(x) T(A, x) / N with N its mass (1 - T(A, B) for one piece); a
     directional light takes free-path draws in every mode. row: `geometry.atmosphere_row`;
     pieces (3, 4), buf (2,): scratch."""
-    a, b = row[atmo.A], row[atmo.B]
-    if not b > a:
+    paths, th_a, th_b = _atm_paths(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, cols, pieces, buf)
+    if not paths.norm > 0.0:
         return 0.0, 0.0
+    use_e, use_f = _strategies_used(mode, directional)
+    return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, row[atmo.A], row[atmo.B], n, key, dim0, seed)
+
+
+@njit
+def _atm_paths(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, cols, pieces, buf):
+    """(AtmospherePaths, th_a, th_b) of `_atm_estimate`'s segment (its pieces filled in `pieces`); the record's
+    norm is 0 where the segment has no part in the air."""
+    a, b = row[atmo.A], row[atmo.B]
     h0, mu0 = row[atmo.H0], row[atmo.MU0]
-    m = 1
-    pieces[0, 0], pieces[0, 1] = a, b
-    if directional:
-        m = atmo.sunlit(row, R, buf, pieces)
+    m = 0
+    if b > a:
+        m = 1
+        pieces[0, 0], pieces[0, 1] = a, b
+        if directional:
+            m = atmo.sunlit(row, R, buf, pieces)
     norm = 0.0
     for k in range(m):  # pieces[k] = (lo, hi, tau(A, lo), mass)
         atmo.columns(h0, mu0, a, pieces[k, 0], R, top, Hs, cols)
@@ -1021,13 +1103,10 @@ def _atm_estimate(row, directional, xh, h, cone, kt, ks, codes, gs, Hs, R, top, 
         atmo.columns(h0, mu0, pieces[k, 0], pieces[k, 1], R, top, Hs, cols)
         pieces[k, 3] = math.exp(-pieces[k, 2]) * -math.expm1(-atmo.optical_depth(cols, kt))
         norm += pieces[k, 3]
-    if not norm > 0.0:
-        return 0.0, 0.0
     th_a, th_b = math.atan2(a - xh, h), math.atan2(b - xh, h)
-    use_e, use_f = _strategies_used(mode, directional)
     paths = AtmospherePaths(AtmosphereInX(row, directional, xh, h, cone_row(cone), kt, ks, codes, gs, Hs, R, top, cols),
                             pieces, m, norm)
-    return _estimate(paths, use_e, use_f, xh, h, th_a, th_b, a, b, n, key, dim0, seed)
+    return paths, th_a, th_b
 
 
 @njit
