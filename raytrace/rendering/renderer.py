@@ -33,7 +33,6 @@ from ..interiors import crossing, rows, shapes, support
 from ..interiors.held import held_airlight, held_lights, lit_from_inside
 from ..jit import exact_njit
 from ..lights import Lights, at_infinity, cubature, cubature_ladders, environment
-from ..lights.planar import flat_rows
 from ..media.particles import particle_radiance
 from ..methods import Segments, get_method, resolve_params
 from ..options import RenderOptions
@@ -337,8 +336,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
                     segs, *sampled = penumbra_airlight.sampled((prep.accel, prep.lights), method, medium, params,
                                                                cone, segs, (origins, dirs, t, keys, seed),
                                                                shapes.blockers(prep))
-                elif method.stochastic and method.points is not None and flat_rows(prep.lights).any():
-                    # flat emitters cut by occluders, by the method's drawn points (any medium: montecarlo._points)
+                elif penumbra_airlight.draws(prep.lights, method, shadows):  # by the method's drawn points
                     segs, drawn = penumbra_airlight.drawn((prep.accel, prep.lights), cone, segs,
                                                           (origins, dirs, t, keys, seed), shapes.blockers(prep))
             near = None

@@ -80,13 +80,12 @@ def sampled(ctx, method, medium, params, cone: Segments, lit: Segments, rays, se
     return kept, air, var, cut.any(axis=1)
 
 
-def draws(lights, method, medium, shadows: bool) -> bool:
+def draws(lights, method, shadows: bool) -> bool:
     """Whether a render shadow-tests flat emitters' penumbrae with the method's own drawn points (`drawn`):
     volumetric shadows by exact lit intervals, a stochastic method with medium points (montecarlo: its
-    `points` draw each flat emitter's point per iteration with shadow_test = samples), a homogeneous medium
-    (where it has them) and a flat emitter (lights/planar.py `flat_rows`)."""
-    return (shadows and method.stochastic and method.points is not None and medium.homogeneous
-            and bool(flat_rows(lights).any()))
+    `points` draw each flat emitter's point per iteration with shadow_test = samples, in any medium) and a
+    flat emitter (lights/planar.py `flat_rows`)."""
+    return shadows and method.stochastic and method.points is not None and bool(flat_rows(lights).any())
 
 
 def drawn(ctx, cone: Segments, lit: Segments, rays, select):
