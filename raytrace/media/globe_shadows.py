@@ -15,18 +15,19 @@ the tube of radius rho = h (1 + s_max / o_min) + slack about the midpoint's leg 
 - the leg's length o(x) is at most the tangent length sqrt(|q - c|^2 - R^2) (the leg does not cross the ball: E is
   visible from q), s_max its largest over the cell (the ends: |q - c| is convex in x).
 A patch's state is constant over the cell where each boundary edge keeps out of the tube (the part of the axis past
-E(m), inside the ball, by comparing with the edge's distance from the centre) and the cell's camera stretch misses
-it, and then is the midpoint leg's (it crosses a triangle of the patch or not, a float64 test with every edge more
+E(m), inside the ball, by comparing with the edge's distance from the centre) or out of the hull of the ball and
+the cell's camera stretch (every leg lies in it; it lies within R of the triangle of the stretch's ends and the
+centre: the legs of far cells, which converge on the ball, where the tube is as wide as the cell), and the cell's
+camera stretch misses it, and then is the midpoint leg's (it crosses a triangle of the patch or not, a float64 test with every edge more
 than rho away); or where the ball and the cell's camera stretch lie on one side of its plane (within slack: the
 camera segment ends on the surface it hits). A cell is dark where a patch blocks it so, lit where every patch
-clears it so, else halved; below MIN_WIDTH of its distance from the centre it is an undecided stretch
-(`out_of_sphere` counts it dark and adds twice its length times the larger unshadowed integrand of its ends to the
-bound: the integrand's change across 1e-13 of the scene is negligible, argued, not proven). slack (SLACK of the
+clears it so, else halved while that narrows the tube (rho > 2 slack); then it is an undecided stretch (about
+slack / (1 + s_max / o_min) wide; `out_of_sphere` counts it dark and adds twice its length times the larger
+unshadowed integrand of its ends to the bound: the integrand's change across 1e-12 of the scene is negligible,
+argued, not proven). slack (SLACK of the
 midpoint's distance from the centre plus R) covers t(m)'s and E(m)'s rounding (relative 1e-14 at most, as
 `fog_rounding` measures the paths' angles: argued). Unproven where a midpoint's path is not the one proven path, or
-after MAX_CELLS cells (the rest classified by their midpoint's leg): the tube is as wide at E as at q, so a long
-segment whose far legs pass a patch's edge by d needs cells of about d (the fog beyond the floor's edge, where the
-camera ray runs on to where its transmittance underflows, hundreds of times the scene's size)."""
+after MAX_CELLS cells (the rest classified by their midpoint's leg)."""
 from __future__ import annotations
 
 import math
@@ -36,9 +37,8 @@ import numpy as np
 from ..jit import njit
 from .sphere_refraction import MAX_PATHS, paths_out
 
-MIN_WIDTH = 1e-13  # the width, relative to the scene's size, below which a cell is an undecided stretch
 SLACK = 1e-12  # the tube's margin, relative to the scene's size: t(m)'s and E(m)'s rounding
-MAX_CELLS = 512  # cells scanned per segment before it is left unproven (the rest classified by their midpoints)
+MAX_CELLS = 1024  # cells scanned per segment before it is left unproven (the rest classified by their midpoints)
 LIT, DARK, UNDECIDED = 1.0, 0.0, -1.0  # a piece's flag
 
 
@@ -101,6 +101,34 @@ def _crosses(tri, p, q):
 
 
 @njit
+def _point_triangle(p, p0, p1, p2):
+    """The distance from the point p to the triangle p0 p1 p2: to its plane where p's foot falls inside, else to its
+    nearest edge."""
+    n = np.cross(p1 - p0, p2 - p0)
+    nn = _dot(n, n)
+    if nn > 0.0:
+        h = _dot(p - p0, n) / nn
+        f = p - h * n
+        inside = True
+        for a, b in ((p0, p1), (p1, p2), (p2, p0)):
+            inside = inside and _dot(np.cross(b - a, f - a), n) >= 0.0
+        if inside:
+            return abs(h) * math.sqrt(nn)
+    return min(_point_segment(p, p0, p1), _point_segment(p, p1, p2), _point_segment(p, p2, p0))
+
+
+@njit
+def _apart(a, b, p0, p1, p2, gap):
+    """Whether the segment ab keeps more than gap from the triangle p0 p1 p2."""
+    tri = np.empty((3, 3))
+    tri[0], tri[1], tri[2] = p0, p1, p2
+    if _crosses(tri, a, b):
+        return False
+    return min(_segments(a, b, p0, p1), _segments(a, b, p1, p2), _segments(a, b, p2, p0),
+               _point_triangle(a, p0, p1, p2), _point_triangle(b, p0, p1, p2)) > gap
+
+
+@njit
 def _one_side(tri, c, radius, qa, qb, slack):
     """Whether the ball (c, radius) lies strictly on one side of tri's plane and qa, qb on that side (within slack):
     no leg from the stretch qa qb to the sphere crosses the plane."""
@@ -129,6 +157,8 @@ def _state(tris, edges, c, radius, qa, qb, qm, e, far, rho, slack):
     inner = max(math.sqrt(_dot(e - c, e - c)), math.sqrt(_dot(far - c, far - c))) + rho
     for j in range(edges.shape[0]):
         a, b = edges[j, 0], edges[j, 1]
+        if _apart(a, b, qa, qb, c, radius + slack):  # out of the hull of the ball and the cell's stretch
+            continue
         if not _segments(a, b, qm, e) > rho:
             return UNDECIDED
         if not inner < _point_segment(c, a, b) and not _segments(a, b, e, far) > rho:
@@ -212,7 +242,7 @@ def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
                     for k in range(tstart[i], tstart[i + 1]):
                         if _crosses(tris[k], qm, e):
                             state = DARK
-            if state == UNDECIDED and h > MIN_WIDTH * size:
+            if state == UNDECIDED and rho > 2.0 * slack:  # halving still narrows the tube
                 stack.append((m, b))
                 stack.append((a, m))
                 continue
@@ -272,8 +302,8 @@ def shadow_pieces(geo, sphere, ell, eta, tris, tstart, edges, estart):
 
 def patches(tris, shape_ids, tol=1e-14):
     """(tris, tstart, edges, estart) of the triangles tris (T, 3, 3) of shapes shape_ids (T,) grouped into planar
-    patches for `shadow_pieces`: triangles of one shape sharing an edge (the same two corners) and one plane (unit
-    normals parallel and offsets equal within tol of the triangles' size) join; a patch's boundary edges are those
+    patches for `shadow_pieces`: triangles of one shape sharing an edge (the same two corners) and one plane (their
+    unit normals parallel: |n.n'| within tol of 1, a dihedral angle below 1.5e-7) join; a patch's boundary edges are those
     not shared inside it (a segment's crossing of a planar patch changes only where it meets one)."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
