@@ -169,7 +169,7 @@ def _not_held(prep, sid, li, shadows) -> str | None:
             return ("lights the scattering [medium] outside, where the other shapes' volumetric shadows on its "
                     "refracted light are implemented for an exact sphere only; use --no-volumetric-shadows, an exact "
                     "sphere, or a [medium] that does not scatter")
-        met = _meeting(prep, sid) if shadows else None
+        met = _meeting(prep, sid) if shadows and sphere else None
         if met is not None:
             return (f"lights the scattering [medium] outside, where shape[{met}]'s volumetric shadow is implemented "
                     f"for shapes outside the sphere only, and shape[{met}] reaches into it; move it out of the sphere "
