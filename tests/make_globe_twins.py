@@ -3,7 +3,8 @@ quad_vec at epsrel 1e-12 over 30-digit paths out, cut where a spot's leaving cos
 `band_cuts`, stored too) on its fog segments, for each of its lights; and for the spot tests/test_globe_spot.py's
 pixels of tests/test_globe_fog.py's scene (`pixels`). Too slow for CI (about 2.5 CPU min: the lamp 32 s, the spot
 118 s, 39 of them its segments): run `python -m tests.make_globe_twins` from the repository root after changing the
-segments, the lights or the scene (`python -m tests.make_globe_twins spot`: the spot's alone)."""
+segments, the lights or the scene (`python -m tests.make_globe_twins spot`: the spot's alone). `shadow`:
+tests/test_globe_shadow.py's pixels (the lamp's fog shadowed by a plate: `shadowed_air`, about 1 CPU min)."""
 import json
 import pathlib
 import sys
@@ -12,6 +13,7 @@ import numpy as np
 
 from .test_globe_bounds import LIGHTS, SEGMENTS, band_cuts
 from .test_globe_fog import airlight, fog_pixel
+from .test_globe_shadow import PIXELS, shadowed_air
 from .test_lamp_in_glass import CAMERA
 from .test_lamp_in_globe import twin
 
@@ -33,7 +35,11 @@ def main(names=None):
     """The twins of the lights `names` (all by default) into OUT, keeping the others' already there."""
     old = json.loads(OUT.read_text()) if OUT.exists() else {}
     twins, cuts, images = old.get("twins", {}), old.get("cuts", {}), old.get("pixels", {})
-    for name in names or list(LIGHTS):
+    shadow = old.get("shadow", {})
+    if not names or "shadow" in names:
+        air, shadow_cuts = zip(*(shadowed_air(j, i, 1e-12) for j, i in PIXELS))
+        shadow = {"air": [list(map(float, a)) for a in air], "cuts": [list(map(float, c)) for c in shadow_cuts]}
+    for name in [n for n in names or list(LIGHTS) if n != "shadow"]:
         light = LIGHTS[name]
         spot = light.get("type") == "spot"
         cuts[name] = [band_cuts(light, o, d, t) if spot else [] for o, d, t in SEGMENTS]
@@ -41,9 +47,9 @@ def main(names=None):
                        for (o, d, t), c in zip(SEGMENTS, cuts[name])]
         if name in PIXEL_LIGHTS:
             images[name] = dict(zip(("pixels", "air"), (a.tolist() for a in pixels(light))))
-        OUT.write_text(json.dumps({"segments": [[list(map(float, o)), list(map(float, d)), float(t)]
-                                                for o, d, t in SEGMENTS], "twins": twins, "cuts": cuts,
-                                   "pixels": images}, indent=1))
+    OUT.write_text(json.dumps({"segments": [[list(map(float, o)), list(map(float, d)), float(t)]
+                                            for o, d, t in SEGMENTS], "twins": twins, "cuts": cuts,
+                               "pixels": images, "shadow": shadow}, indent=1))
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ import pathlib
 import numpy as np
 import pytest
 
+from raytrace.media.globe_shadows import patches, shadow_pieces
 from raytrace.media.inside_rule import MARCH, QUAD, SAMPLE, inside_rule
 from raytrace.media.phase import HG
 from raytrace.media.sphere_refraction import UNBOUNDED, out_of_sphere
@@ -97,7 +98,7 @@ def kernel(light, rtol, kind=QUAD, steps=1, seed=0):
     out, var, err, stats = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(10)
     out_of_sphere(geo, SPHERE, ell, np.full(3, KA_OUT), np.full(3, KS_OUT), HG, G_OUT, KS + KA, ETA,
                   inside_rule(kind, rtol, steps), np.arange(n, dtype=np.uint64), np.uint64(0), np.uint64(seed), out,
-                  var, err, stats)
+                  var, err, stats, *shadow_pieces(geo, SPHERE, ell, ETA, *patches(np.zeros((0, 3, 3)), np.zeros(0))))
     inten = np.array(light["intensity"], float)
     return out * inten, (err * inten if kind == QUAD else var * inten * inten), stats[UNBOUNDED]
 
@@ -193,7 +194,7 @@ def test_an_evaluation_within_its_rounding_bound():
                 rec = GlobeFog(np.array(o), np.array(d), SPHERE[:3].copy(), SPHERE[3], np.array(LAMP["position"]),
                                np.array([0.0, 0.0, -1.0]), np.array([-2.0, -1.5, 1.0]), ETA, KA_OUT, KS_OUT, HG,
                                G_OUT, (KS + KA)[c], *(np.empty(MAX_PATHS) for _ in range(3)), np.empty((MAX_PATHS, 3)),
-                               np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.array([0.0, t]), track)
+                               np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.array([0.0, t]), np.ones(1), track)
                 got = fog_value(x, rec) * LAMP["intensity"][c]
                 bound = track[ROUNDING_ABS] * LAMP["intensity"][c]
                 assert 0.0 < bound <= 1e-5 * got, (k, f, bound / got)

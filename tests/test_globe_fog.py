@@ -19,6 +19,7 @@ import pytest
 from scipy import integrate
 
 from raytrace.errors import UserError
+from raytrace.media.globe_shadows import patches, shadow_pieces
 from raytrace.media.inside_rule import QUAD, inside_rule
 from raytrace.media.slab import GEO_COLUMNS
 from raytrace.media.sphere_refraction import UNBOUNDED, out_of_sphere
@@ -173,7 +174,8 @@ def test_the_guard_counts_points_with_other_than_one_path():
         out, var, err, stats = np.zeros((n, 1)), np.zeros((n, 1)), np.zeros((n, 1)), np.zeros(10)
         out_of_sphere(segments(light, rows), SPHERE, np.full(n, 6.0), np.array([KA_OUT]), np.array([KS_OUT]), 2, G_OUT,
                       np.array([KS[0] + KA[0]]), ETA, inside_rule(QUAD, 1e-4), np.zeros(n, np.uint64), np.uint64(0),
-                      np.uint64(0), out, var, err, stats)
+                      np.uint64(0), out, var, err, stats,
+                      *shadow_pieces(segments(light, rows), SPHERE, np.full(n, 6.0), ETA, *patches(np.zeros((0, 3, 3)), np.zeros(0))))
         assert np.all(out > 0.0) if light is LAMP else np.any(out > 0.0)
         assert np.all(np.isfinite(err)) if light is LAMP else np.any(np.isinf(err))
         counts.append(stats[UNBOUNDED])
@@ -212,11 +214,15 @@ def test_alone_with_shadows_is_the_same():
 
 
 def test_what_is_not_implemented_is_refused():
-    """A light beyond radius / ior (paths out totally reflected, a caustic outside), volumetric shadows with another
-    shape, and the methods without exact paths: refused in one line, naming what to change (a spot light is taken:
+    """A light beyond radius / ior (paths out totally reflected, a caustic outside), volumetric shadows of a shape
+    reaching into the globe (those of shapes outside it are taken: tests/test_globe_shadow.py), and the methods
+    without exact paths: refused in one line, naming what to change (a spot light is taken:
     tests/test_globe_bounds.py)."""
+    into = scene(LAMP, FOG)
+    into["shape"] = into["shape"] + [{"primitive": "quad", "corners": [[-0.5, 1.0, 0.5], [0.5, 1.0, 0.5],
+                                                                       [0.5, 1.0, -0.5], [-0.5, 1.0, -0.5]]}]
     for sc, method, shadows, words in ((scene(NEAR, FOG), "quadrature", False, r"within radius / ior \(0\.8\)"),
-                                       (scene(LAMP, FOG), "quadrature", True, "--no-volumetric-shadows"),
+                                       (into, "quadrature", True, r"shape\[2\] reaches into it"),
                                        (scene(LAMP, FOG), "analytic", False, "no closed form"),
                                        (scene(LAMP, FOG), "slab_approx", False, "--method quadrature")):
         with pytest.raises(UserError, match=words) as err:

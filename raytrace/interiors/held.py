@@ -6,22 +6,25 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..media.globe_shadows import patches, shadow_pieces
 from ..media.slab import GEO_COLUMNS, STREAM, out_of_faces, surface_out_of_faces
 from ..media.sphere_refraction import MAX_PATHS, out_of_sphere, surface_out_of_sphere
 from ..methods import Segments
 from . import paths
-from .shapes import KERNEL_PLANES, convex_planes, inside_of, matched, measured_plane_errors
+from .shapes import KERNEL_PLANES, blockers, convex_planes, inside_of, matched, measured_plane_errors
 from .support import STATS_SIZE
 
 
-def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int):
+def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int, shadows: bool):
     """The segments of `segs` (whole camera rays) whose light is not held in a refractive shape, and of the others
     (`held_lights`: inside a convex refractive mesh or an exact sphere) the outside medium's air-light (N, 3), its
     variance (N, 3; 0 but for a stochastic rule), bound (N, 3; quadrature's, else inf where lit) and the kernels'
     statistics (STATS_SIZE, support.py's slots: the exact sphere's unbounded segments): the light refracted out
     through every face (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact sphere
-    (media/sphere_refraction.py `out_of_sphere`), integrated by the method's inside rule (`check` refuses volumetric
-    shadows with another shape in the scene, and in an exact sphere a light beyond radius / ior of its centre)."""
+    (media/sphere_refraction.py `out_of_sphere`, with volumetric shadows on its pieces that other shapes' triangles
+    leave lit: `occluders`, media/globe_shadows.py), integrated by the method's inside rule (`check` refuses
+    volumetric shadows with another shape in the scene around a convex mesh, and in an exact sphere a light beyond
+    radius / ior of its centre)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
@@ -47,13 +50,29 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int)
         if sphere is None:
             out_of_faces(geo, planes, *args, 1.0 / inner.ior, *rest, measured_plane_errors(prep, sid))
         else:
-            out_of_sphere(geo, np.asarray(sphere, dtype=np.float64), *args, float(inner.ior), *rest)
+            ball = np.asarray(sphere, dtype=np.float64)
+            near = occluders(prep, sid) if shadows else patches(np.zeros((0, 3, 3)), np.zeros(0))
+            with np.errstate(divide="ignore"):  # where `out_of_sphere` stops integrating
+                reach = np.minimum(args[0], 745.0 / args[1].min())
+            out_of_sphere(geo, ball, *args, float(inner.ior), *rest,
+                          *shadow_pieces(geo, ball, reach, float(inner.ior), *near))
         inten = lights.intensity[li, ch]
         for acc, part in ((val, out * inten), (var, v * inten * inten), (bound, err * inten)):
             whole = np.zeros((len(sel), 3))
             whole[:, ch] = part
             np.add.at(acc, segs.ray[sel], whole)
     return segs.take(np.nonzero(~mine)[0]), val, var, bound, stats
+
+
+def occluders(prep, sid):
+    """The triangles that shadow the light refracted out of shape sid (`blockers` but sid's own) in planar patches
+    (media/globe_shadows.py `patches`)."""
+    def build():
+        mask = prep.shape_ids != sid
+        stop = blockers(prep)
+        mask = mask if stop is None else mask & stop
+        return patches(prep.accel.triangles[mask].astype(np.float64), prep.shape_ids[mask])
+    return prep.memo(("occluders", sid), build)
 
 
 def held_lights(prep) -> list[tuple[int, int]]:

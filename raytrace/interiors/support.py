@@ -21,6 +21,7 @@ from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.sphere_refraction import UNBOUNDED
 from ..methods import registry
+from ..shadows.frusta import _closest_distance
 from . import paths
 from .shapes import KERNEL_PLANES, convex_planes, inside_of, interiors, refracting_planes
 
@@ -142,7 +143,7 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
     scattering outside medium (`held_airlight`) a point or spot light in a convex mesh or well inside an exact sphere
-    (`_globe_fog`), and with volumetric shadows no other shape."""
+    (`_globe_fog`), and with volumetric shadows no other shape around a mesh, none reaching into a sphere."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     sphere = paths.exact_sphere(prep, sid) is not None
@@ -152,10 +153,15 @@ def _not_held(prep, sid, li, shadows) -> str | None:
         why = _globe_fog(prep, sid, li) if sphere else None
         if why:
             return why
-        if shadows and len(np.unique(prep.shape_ids)) > 1:
+        if shadows and len(np.unique(prep.shape_ids)) > 1 and not sphere:
             return ("lights the scattering [medium] outside, where the other shapes' volumetric shadows on its "
-                    "refracted light are not implemented yet; use --no-volumetric-shadows, or a [medium] that does "
-                    "not scatter")
+                    "refracted light are implemented for an exact sphere only; use --no-volumetric-shadows, an exact "
+                    "sphere, or a [medium] that does not scatter")
+        met = _meeting(prep, sid) if shadows and sphere else None
+        if met is not None:
+            return (f"lights the scattering [medium] outside, where shape[{met}]'s volumetric shadow is implemented "
+                    f"for shapes outside the sphere only, and shape[{met}] reaches into it; move it out of the sphere "
+                    "or use --no-volumetric-shadows")
     if prep.camera_inside == sid:
         return "is not implemented with the camera inside the same shape yet"
     media = [int(j) for j in prep.interior_shapes if j != sid]
@@ -165,6 +171,20 @@ def _not_held(prep, sid, li, shadows) -> str | None:
         first = prep.accel.triangles[prep.shape_ids == j]
         if j != sid and len(first) and inside_of(prep, first[0, 0], [sid]) is not None:
             return f"is not implemented with another shape inside it (shape[{j}]) yet"
+    return None
+
+
+def _meeting(prep, sid) -> int | None:
+    """The first other shape with a triangle within the exact sphere sid's ball (its shadow on the light refracted
+    out would start inside the glass: media/globe_shadows.py takes occluders outside), else None."""
+    sphere = paths.exact_sphere(prep, sid)
+    centre, radius = np.asarray(sphere[:3], float), float(sphere[3])
+    tris = prep.accel.triangles.astype(float)
+    near = np.nonzero((prep.shape_ids != sid) & (tris.min(axis=1) <= centre + radius).all(axis=1)
+                      & (tris.max(axis=1) >= centre - radius).all(axis=1))[0]
+    for t in near:
+        if _closest_distance(*centre, *tris[t]) <= radius:
+            return int(prep.shape_ids[t])
     return None
 
 

@@ -2051,7 +2051,8 @@ class GlobeFog(NamedTuple):
     """One segment o + x w of the scattering medium outside a refractive exact sphere (centre c, radius; relative
     index eta inside) and a unit point light inside it at c + rel (a spot: its axis and cone), for one channel
     (kt, ks and the phase: the outside medium's; kt_in: the inside's); `paths_out`'s rows and scratch; the pieces'
-    ends (ascending, the first 0: QUAD's cuts); and the track: the evaluations whose scan was unproven or that found
+    ends (ascending, the first 0: QUAD's cuts) and each piece's flag of other shapes' shadows (media/globe_shadows.py:
+> 0 lit, 0 shadowed, < 0 undecided: counted dark); and the track: the evaluations whose scan was unproven or that found
     a number of paths other than one, then (ROUNDING) the largest relative rounding of the evaluations
     (`fog_rounding`) and (ROUNDING_ABS + i) the largest absolute of those on piece i."""
     o: np.ndarray
@@ -2074,6 +2075,7 @@ class GlobeFog(NamedTuple):
     inside: np.ndarray
     outside: np.ndarray
     ends: np.ndarray
+    lit: np.ndarray
     track: np.ndarray
 
 
@@ -2142,14 +2144,10 @@ def fog_rounding(r, x, q, k):
 
 
 @njit
-def fog_value(x, r):
-    """The outside medium's single scattering at o + x w of the `GlobeFog` r: over the paths out (`paths_out`),
-    ks Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point); the
-    rounding of the sum (`fog_rounding`) into the track: the largest relative of the evaluations, and the largest
-    absolute of those on x's piece (between r.ends)."""
-    q = np.empty(3)
-    for j in range(3):
-        q[j] = r.o[j] + x * r.w[j]
+def fog_terms(x, r, q):
+    """(total, err, n, proven) at q = o + x w of the `GlobeFog` r, unshadowed: over the paths out (`paths_out`),
+    Phi(mu) E exp(-kt (x + o) - kt_in s), mu = toward . w (the light arrives from the refraction point); err the
+    rounding of ks times it (`fog_rounding`), n the count of paths, proven `paths_out`'s."""
     proven = paths_out(q, r.c, r.radius, r.rel, r.axis, r.cone, r.eta, r.found, r.spread, r.value, r.toward,
                        r.inside, r.outside)
     total = err = 0.0
@@ -2162,11 +2160,25 @@ def fog_value(x, r):
                                                                        - r.kt_in * r.inside[k])
             total += term
             err += r.ks * term * fog_rounding(r, x, q, k)
-    if n != 1 or not proven:
-        r.track[0] += 1.0
+    return total, err, n, proven
+
+
+@njit
+def fog_value(x, r):
+    """The outside medium's single scattering at o + x w of the `GlobeFog` r: ks `fog_terms` on the lit pieces, 0 on
+    the others; the rounding of the sum into the track: the largest relative of the evaluations, and the largest
+    absolute of those on x's piece (between r.ends)."""
     i = 1
     while i < r.ends.shape[0] - 1 and r.ends[i] <= x:
         i += 1
+    if not r.lit[i - 1] > 0.0:
+        return 0.0
+    q = np.empty(3)
+    for j in range(3):
+        q[j] = r.o[j] + x * r.w[j]
+    total, err, n, proven = fog_terms(x, r, q)
+    if n != 1 or not proven:
+        r.track[0] += 1.0
     _track_rounding(r.track, r.ks * total, err, ROUNDING_ABS + i - 1)
     return r.ks * total
 
@@ -2178,57 +2190,97 @@ def _fog_value(x, r):
 
 
 @njit
-def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim0, seed, out, var, err, stats):
+def _merged(cuts, m, ends, flags, ell):
+    """([0, the spot's cuts and the shadows' breaks ascending, ell], each piece's shadow flag) of a segment: cuts[1:m +
+    1] the spot's, ends and flags its shadow pieces (media/globe_shadows.py `shadow_pieces`, from 0 to ell)."""
+    k = ends.shape[0] - 1
+    br, lit = np.empty(m + k + 1), np.empty(m + k)
+    br[0] = 0.0
+    i, j, n = 1, 1, 1
+    while i <= m or j < k:
+        if j >= k or (i <= m and cuts[i] < ends[j]):
+            br[n] = cuts[i]
+            i += 1
+        else:
+            br[n] = ends[j]
+            j += 1
+        n += 1
+    br[n] = ell
+    p = 0
+    for i in range(n):
+        while p < k - 1 and ends[p + 1] <= 0.5 * (br[i] + br[i + 1]):
+            p += 1
+        lit[i] = flags[p]
+    return br[:n + 1], lit[:n]
+
+
+@njit
+def out_of_sphere(geo, sphere, ell, kt, ks, code, g, kt_in, eta, rule, keys, dim0, seed, out, var, err, stats, start,
+                  ends, flags, proven):
     """The outside medium's single scattering (N, C) over segments outside a refractive exact sphere (centre,
     radius; relative index eta = its ior > 1 inside) from a unit point or spot light inside it, closer to the centre
     than radius / eta (geo rows of media/slab.py's GEO_COLUMNS; kt, ks: the outside's, kt_in the inside's, one each per
-    channel): `fog_value` along each segment. There every path leaves the sphere (the distance from the centre of
-    a ray from the light, at most its own, is below radius / eta: the internal incidence below the critical
-    angle) and each point outside has one path, the outward rays crossing neither each other nor the axis ahead
-    (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the integrand is
-    smooth along the segment but where it crosses a spot's band edges (`out_edge_cuts`): QUAD media/adaptive.py
-    `bounded_piecewise` over [0, end], end = min(ell, 745 / kt), cut there (bound inf where that scan is not proven),
-    its bound the rule's b plus 3 min(rho (|value| + b), sum_i e_i l_i) (rho: the largest relative rounding of its
-    evaluations, `fog_rounding`; e_i: the largest absolute of those on piece i, of length l_i: the rule's weights
-    are positive and sum to each piece's length; a piece the spot does not reach adds 0); MARCH, SAMPLE
-    `march_or_sample` at dimensions dim0 (bound inf). The bound is inf on the segments with an evaluation whose
-    scan was unproven or whose count of paths was not one (the light beyond radius / eta, which `check`
-    refuses), counted in stats[UNBOUNDED] with the QUAD segments whose bound is inf for another reason."""
+    channel), shadowed by other shapes on the pieces media/globe_shadows.py `shadow_pieces` finds (start, ends,
+    flags, proven: its output): `fog_value` along each segment. There every path leaves the sphere (the distance
+    from the centre of a ray from the light, at most its own, is below radius / eta: the internal incidence below
+    the critical angle) and each point outside has one path, the outward rays crossing neither each other nor the
+    axis ahead (no real caustic; checked against the twin's own root-finding, tests/test_globe_fog.py), so the
+    integrand is smooth along the segment but where it crosses a spot's band edges (`out_edge_cuts`) or a shadow's
+    break: QUAD media/adaptive.py `bounded_piecewise` over [0, end], end = min(ell, 745 / kt), cut there (bound inf
+    where either scan is not proven), its bound the rule's b plus 3 min(rho (|value| + b), sum_i e_i l_i) (rho: the
+    largest relative rounding of its evaluations, `fog_rounding`; e_i: the largest absolute of those on piece i, of
+    length l_i: the rule's weights are positive and sum to each piece's length; a piece the spot does not reach or
+    a shadowed one adds 0) plus, per undecided piece (counted dark), its length times twice the larger of its ends'
+    unshadowed values; MARCH, SAMPLE `march_or_sample` at dimensions dim0 (bound inf). The bound is inf on the
+    segments with an evaluation whose scan was unproven or whose count of paths was not one (the light beyond
+    radius / eta, which `check` refuses), counted in stats[UNBOUNDED] with the QUAD segments whose bound is inf for
+    another reason."""
     nc = kt.shape[0]
     cone = np.empty(3)
+    q = np.empty(3)
     for s in range(geo.shape[0]):
         out[s, :], var[s, :], err[s, :] = 0.0, 0.0, 0.0
         if not ell[s] > 0.0:
             continue
         cone[0], cone[1], cone[2] = geo[s, 12], geo[s, 13], geo[s, 17]
-        track = np.zeros(ROUNDING_ABS + 2 * EDGES + 1)
         cuts = np.zeros(2 * EDGES + 2)
-        m, proven = 0, True
+        m, found = 0, True
         if rule.kind == QUAD:
-            m, proven = out_edge_cuts(geo[s, :3], geo[s, 3:6], sphere[:3], sphere[3], geo[s, 6:9], geo[s, 9:12],
-                                      cone, eta, ell[s], cuts[1:2 * EDGES + 1])
+            m, found = out_edge_cuts(geo[s, :3], geo[s, 3:6], sphere[:3], sphere[3], geo[s, 6:9], geo[s, 9:12],
+                                     cone, eta, ell[s], cuts[1:2 * EDGES + 1])
+        every, lit_of = _merged(cuts, m, ends[start[s]:start[s + 1]], flags[start[s] - s:start[s + 1] - s - 1],
+                                ell[s])
+        track = np.zeros(ROUNDING_ABS + every.shape[0])
         for c in range(nc):
             if ks[c] == 0.0:
                 continue
             end = min(ell[s], 745.0 / kt[c])
             n = 1
-            while n <= m and cuts[n] < end:
+            while n < every.shape[0] - 1 and every[n] < end:
                 n += 1
-            br = cuts[:n + 1].copy()  # 0, the cuts before end, end
+            br = every[:n + 1].copy()  # 0, the cuts before end, end
             br[n] = end
             rec = GlobeFog(geo[s, :3].copy(), geo[s, 3:6].copy(), sphere[:3].copy(), sphere[3],
                            geo[s, 6:9] - sphere[:3], geo[s, 9:12].copy(), cone, eta, kt[c], ks[c], code, g, kt_in[c],
                            np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty((MAX_PATHS, 3)),
-                           np.empty(MAX_PATHS), np.empty(MAX_PATHS), br, track)
+                           np.empty(MAX_PATHS), np.empty(MAX_PATHS), br, lit_of[:n].copy(), track)
             if rule.kind == QUAD:
                 track[ROUNDING:] = 0.0
                 out[s, c], b = bounded_piecewise(rec, br, n + 1, rule.rtol, N10, W10, N20, W20, stats)
-                if not proven:
+                if not (found and proven[s]):
                     b = math.inf
                 pieces = 0.0
                 for i in range(n):
                     pieces += track[ROUNDING_ABS + i] * (br[i + 1] - br[i])
                 err[s, c] = b + 3.0 * min(track[ROUNDING] * (abs(out[s, c]) + b), pieces)
+                for i in range(n):
+                    if rec.lit[i] < 0.0:
+                        most = 0.0
+                        for x in (br[i], br[i + 1]):
+                            for j in range(3):
+                                q[j] = rec.o[j] + x * rec.w[j]
+                            most = max(most, ks[c] * fog_terms(x, rec, q)[0])
+                        err[s, c] += 2.0 * most * (br[i + 1] - br[i])
             else:
                 out[s, c], var[s, c] = march_or_sample(rec, rule, cut_length(rule, ell[s], kt[c]), kt[c], keys[s],
                                                        dim0, seed)

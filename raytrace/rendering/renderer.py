@@ -307,7 +307,7 @@ def shade_rays(prep: Prepared, method, params, origins, dirs, keys, seed, shadow
         segs = whole_rays(origins, dirs, t, keys, len(prep.lights), seed, prep.accel.scale)
         held = None
         if held_lights(prep):  # lights inside refractive shapes: their light refracted out
-            segs, *held = held_airlight(prep, method, params, segs, len(origins), depth)
+            segs, *held = held_airlight(prep, method, params, segs, len(origins), depth, shadows)
         segs, _ = cone_segments(segs, prep.lights)
         if prep.lights_on is not None:  # a light layer's pass (Prepared.only)
             segs = segs.take(np.nonzero(prep.lights_on[segs.light])[0])
