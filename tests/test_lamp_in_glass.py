@@ -296,7 +296,7 @@ def test_what_is_not_implemented_is_refused():
     in one line, naming what to change (an exact sphere: tests/test_lamp_in_globe.py)."""
     inner, beside = inner_and_beside(scene)
     refused([(scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "no-volumetric-shadows"),
-             (inner, "quadrature", r"another shape inside it \(shape\[2\]\)"),
+             (inner, "quadrature", r"another shape inside it or reaching into it \(shape\[2\]\)"),
              (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
              (scene(LAMP), "analytic", "no closed form"),
              (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")])

@@ -256,14 +256,19 @@ def test_raymarch_and_montecarlo_from_a_lamp_in_a_globe(case):
 
 def test_what_is_not_implemented_is_refused():
     """Fog outside lit from beyond radius / ior (tests/test_globe_fog.py takes it nearer), the camera inside the
-    globe, a shape inside it, another medium beside it, and the methods without exact paths: refused in one line,
+    globe, a shape inside it, one reaching into it from outside (its first corner outside: not refused before, and
+    unlit inside), another medium beside it, and the methods without exact paths: refused in one line,
     naming what to change."""
     inside_camera = scene(LAMP)
     inside_camera["camera"] = dict(CAMERA, position=[0.0, -0.5, 0.5])
     inner, beside = inner_and_beside(scene)
+    through = scene(LAMP)  # a rod through the globe, every corner outside it
+    through["shape"].append({"primitive": "box", "min": (CENTRE - [5.0, 0.05, 0.05]).tolist(),
+                             "max": (CENTRE + [5.0, 0.05, 0.05]).tolist()})
     refused([(scene(NEAR, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "does not scatter"),
              (inside_camera, "quadrature", "camera"),
-             (inner, "quadrature", r"shape\[2\]: lies inside shape\[0\]"),
+             (inner, "quadrature", r"another shape inside it or reaching into it \(shape\[2\]\)"),
+             (through, "quadrature", r"another shape inside it or reaching into it \(shape\[2\]\)"),
              (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
              (scene(LAMP), "analytic", "no closed form"),
              (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")])

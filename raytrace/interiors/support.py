@@ -167,10 +167,11 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     media = [int(j) for j in prep.interior_shapes if j != sid]
     if media:  # the light refracted out into another medium
         return f"is not implemented with another shape holding a medium (shape[{media[0]}]) yet"
-    for j in range(len(prep.scene.shapes)):
-        first = prep.accel.triangles[prep.shape_ids == j]
-        if j != sid and len(first) and inside_of(prep, first[0, 0], [sid]) is not None:
-            return f"is not implemented with another shape inside it (shape[{j}]) yet"
+    inner = _meeting(prep, sid) if sphere else next(  # (a mesh: by each shape's first corner)
+        (j for j in range(len(prep.scene.shapes)) if j != sid and (prep.shape_ids == j).any()
+         and inside_of(prep, prep.accel.triangles[prep.shape_ids == j][0, 0], [sid]) is not None), None)
+    if inner is not None:
+        return f"is not implemented with another shape inside it or reaching into it (shape[{inner}]) yet"
     return None
 
 
