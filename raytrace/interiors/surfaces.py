@@ -14,8 +14,7 @@ from ..media.nonconvex_directional import lit_pieces
 from ..media.nonconvex_refraction import PATH_COLUMNS, face_paths, every
 from ..media.phase import ISOTROPIC
 from ..media.slab import GEO_COLUMNS, fresnel, surface_through_faces
-from ..media.sphere_refraction import MAX_PATHS, U, Outward, _about, frame, incidence, paths as sphere_paths, \
-    tangential_curvature
+from ..media.sphere_refraction import MAX_PATHS, U, Outward, _about, frame, path_to, paths as sphere_paths
 from ..shading import facing_normals, shading_normals, surface_radiance
 from . import paths
 from .fresnel import refract, refracted_beams, transmittance
@@ -168,12 +167,9 @@ def _into_sphere(q, sphere, light, axis, cone, eta, value, toward, inside, outsi
         dx = 16.0 * U * (math.sqrt(zx * zx + yx * yx) + 2.0 * radius + d)  # q's plane coordinates' rounding
         m, _ = sphere_paths(scan, zx, yx, dx, found, spread)
         for k in range(m):
-            pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
-            s = tz * (zx - pz) + ty * (yx - py)
-            if cos_t == 0.0 or not s >= 0.0:
+            pz, py, tz, ty, cos_i, cos_t, o, s, tube = path_to(found[k], zx, yx, radius, d, eta)
+            if math.isnan(tube):
                 continue
-            tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
-                       * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
             c_spot = 0.0
             for j in range(3):
                 boundary[i, k, j] = c[j] + pz * ez[j] + py * ey[j]

@@ -342,6 +342,21 @@ def incidence(theta, radius, d, eta):
 
 
 @njit
+def path_to(theta, zx, yx, radius, d, eta):
+    """(pz, py, tz, ty, cos_i, cos_t, o, s, tube) of the path refracted at theta (`incidence`) on to the
+    point (zx, yx) of its plane: s the leg inside, tube |(1 - s kappa_t)(1 - s kappa_s)| the ray tube's
+    factor (module docstring, Coddington's curvatures); tube nan where the path does not reach the point
+    (cos_t = 0, or the point behind the refraction point)."""
+    pz, py, tz, ty, cos_i, cos_t, o = incidence(theta, radius, d, eta)
+    s = tz * (zx - pz) + ty * (yx - py)
+    if cos_t == 0.0 or not s >= 0.0:
+        return pz, py, tz, ty, cos_i, cos_t, o, s, math.nan
+    tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
+               * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
+    return pz, py, tz, ty, cos_i, cos_t, o, s, tube
+
+
+@njit
 def lit_arc(radius, d, eta):
     """theta_a: the lit arc's half-width, where the incidence cosine (falling with |theta|) reaches 0,
     or sqrt(1 - eta^2) for eta < 1 (bisected to the resolution of doubles)."""
@@ -1885,15 +1900,12 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
     dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
     m, proven = paths(scan, zx, yx, dx, found, spread)
     for k in range(m):
-        pz, py, tz, ty, cos_i, cos_t, o = incidence(found[k], radius, d, eta)
-        s = tz * (zx - pz) + ty * (yx - py)
-        if cos_t == 0.0 or not s >= 0.0:
+        pz, py, tz, ty, cos_i, cos_t, o, s, tube = path_to(found[k], zx, yx, radius, d, eta)
+        if math.isnan(tube):
             continue
         inside[k], outside[k] = s, o
         f = falloff(-((tz * ez[0] + ty * ey[0]) * axis[0] + (tz * ez[1] + ty * ey[1]) * axis[1]
                       + (tz * ez[2] + ty * ey[2]) * axis[2]), cone[0], cone[1], int(cone[2]))
-        tube = abs((1.0 - s * tangential_curvature(cos_i, cos_t, 1.0 / o, radius, eta))
-                   * (1.0 - s * ((eta * cos_t - cos_i) / radius - 1.0 / o) / eta))
         if f == 0.0 or not tube > 0.0:
             continue
         value[k] = f * (1.0 - fresnel(cos_i, eta)) * cos_i / (eta * eta * o * o * cos_t * tube)
