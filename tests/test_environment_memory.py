@@ -1,6 +1,6 @@
 """What a render with an environment light keeps of its pixel samples (rendering/renderer.py `tiles`, `seeded`,
 `release`, `Prepared.base`): each pixel sample has its own directions and their shadow frusta; the tiles are one
-sample each, a band's samples in turn, and a sample's view is dropped when the band's last tile of it is done, so
+sample each, the image's samples in turn, and a sample's view is dropped when the last tile of it is done, so
 that at most the samples in flight hold frusta (on a9032ee all spp of them stayed until a render with another seed).
 The other lights' frusta are the scene's, shared by every sample.
 """
@@ -57,8 +57,8 @@ def test_the_other_lights_frusta_are_shared():
     assert not np.array_equal(view.lights.axis[own], prep.lights.axis[own])
 
 
-def test_a_band_shares_a_sample_until_its_last_tile():
-    """`seeded` with a band's uses gives one view to its tiles and drops it after the last `release`."""
+def test_the_tiles_share_a_sample_until_the_last():
+    """`seeded` with the tiles' uses gives one view to them and drops it after the last `release`."""
     prep = renderer.prepare(fog())
     views = [renderer.seeded(prep, 3, 1, True, ("band", 2)) for _ in range(2)]
     assert views[0] is views[1]
@@ -76,8 +76,8 @@ class Camera:  # what tiles() reads of a camera
 
 @pytest.mark.parametrize("width, height, spp", [(4, 3, 6), (300, 200, 64), (2100, 3, 8)])
 def test_tiles_by_sample(width, height, spp):
-    """Tiles of one sample each, a band's tiles sample after sample: every pixel once per sample, and
-    `tile_uses` counts the tiles of each band and sample."""
+    """Tiles of one sample each, the image's tiles sample after sample: every pixel once per sample, and
+    `tile_uses` counts the tiles of each sample."""
     cam = Camera(width, height, spp)
     box = (0, 0, width, height)
     work = renderer.tiles(cam, box, by_sample=True)
@@ -87,11 +87,24 @@ def test_tiles_by_sample(width, height, spp):
         q = np.arange(t.pixels.stop)[t.pixels] + t.rows.start * width
         seen[q, t.samples.start] += 1
     assert np.all(seen == 1)
-    bands = [t.rows.start for t in work]
-    assert bands == sorted(bands)
-    for b in set(bands):  # a band's samples in turn
-        samples = [t.samples.start for t in work if t.rows.start == b]
-        assert samples == sorted(samples)
+    samples = [t.samples.start for t in work]
+    assert samples == sorted(samples)  # the whole image's tiles sample after sample (each sample's frusta once)
     prep = type("P", (), {"scene": type("S", (), {"camera": cam}), "memo": lambda self, key, f: f()})()
     uses = renderer.tile_uses(prep, box)
-    assert sum(uses.values()) == len(work)
+    assert sum(uses.values()) == len(work) and all(uses[s] == samples.count(s) for s in range(spp))
+
+
+def test_each_sample_builds_its_frusta_once_whatever_the_bands(monkeypatch):
+    """With bands of one row (three here), each pixel sample's environment frusta are built once, not once a band."""
+    monkeypatch.setattr(renderer, "RAYS_PER_TILE", 4)
+    monkeypatch.setattr(renderer, "PHASES", 2)
+    assert len({t.rows.start for t in renderer.tiles(Camera(4, 3, 6), (0, 0, 4, 3), by_sample=True)}) == 3
+    views, build = [], renderer.build_frusta
+
+    def counted(accel, lights, *args, rows=None, **kw):
+        views.append(rows is not None)
+        return build(accel, lights, *args, rows=rows, **kw)
+
+    monkeypatch.setattr(renderer, "build_frusta", counted)
+    api.render(fog(), "quadrature", rtol=1e-6, threads=2, volumetric_shadows=True, seed=3)
+    assert sum(views) == CAMERA["spp"], sum(views)

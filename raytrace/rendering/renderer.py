@@ -652,21 +652,24 @@ def tiles(cam, box, by_sample: bool = False) -> list[Tile]:
     range. A tile is a sample of the whole band, so no tile holds much more than 1/PHASES of a
     band's work even where it lies in a few rows (benchmarks/scenes/sun_over_height_fog.toml: 79 %
     in its horizon row); nothing depends on the thread or worker count. `by_sample` (an environment light,
-    whose directions and their frusta are a pixel sample's: `seeded`): every range one sample, a band's tiles
-    sample after sample, so that the tiles in flight need few samples."""
+    whose directions and their frusta are a pixel sample's: `seeded`): every range one sample, the whole
+    image's tiles sample after sample, so that the tiles in flight need few samples and each sample's
+    frusta are built once."""
     x0, y0, x1, y1 = box
     ranges = [slice(s, s + 1) for s in range(cam.spp)] if by_sample else sample_ranges(cam)
     n = cam.spp if by_sample else ranges[0].stop - ranges[0].start
     band = max(1, PHASES * RAYS_PER_TILE // ((x1 - x0) * n))
-    work = []
+    bands = []  # (rows, pixels, stride)
     for r in range(y0, y1, band):
         rows = slice(r, min(r + band, y1))
         pixels = (rows.stop - rows.start) * (x1 - x0)
         per_tile = 1 if by_sample else n  # a tile's samples of a pixel
-        stride = max(1, min(PHASES, pixels, pixels * per_tile // MIN_TILE_RAYS))
-        work += ([Tile(rows, slice(k, pixels, stride), s) for s in ranges for k in range(stride)] if by_sample else
-                 [Tile(rows, slice(k, pixels, stride), s) for k in range(stride) for s in ranges])
-    return work
+        bands.append((rows, pixels, max(1, min(PHASES, pixels, pixels * per_tile // MIN_TILE_RAYS))))
+    if by_sample:
+        return [Tile(rows, slice(k, pixels, stride), s) for s in ranges for rows, pixels, stride in bands
+                for k in range(stride)]
+    return [Tile(rows, slice(k, pixels, stride), s) for rows, pixels, stride in bands for k in range(stride)
+            for s in ranges]
 
 
 def sum_samples(values: np.ndarray, samples: int) -> np.ndarray:
@@ -732,7 +735,7 @@ def _tile_keys(first, step, row, x0, width, image_width, spp, sample, ys, xs, ke
 def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, dirs, keys):
     """`shade_rays`' four values and the layers' columns (None without layers) of the tile's rays (pixel by
     pixel, `tile.samples` each) with an environment light: each pixel sample index s its own directions
-    (`seeded`, shared with the band's other tiles of that sample and dropped after the last: `tile_uses`), their
+    (`seeded`, shared with the other tiles of that sample and dropped after the last: `tile_uses`), their
     groups shaded apart (`shade_groups`); the statistics added in sample order."""
     n = tile.samples.stop - tile.samples.start
     out = [np.zeros((len(keys), 3)) for _ in range(3)]
@@ -740,7 +743,7 @@ def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, d
     uses = tile_uses(prep, task.box)
     for j in range(n):
         at, sample = slice(j, None, n), tile.samples.start + j
-        view = seeded(prep, task.seed, sample, task.shadows, (tile.rows.start, uses[tile.rows.start, sample]))
+        view = seeded(prep, task.seed, sample, task.shadows, ("tiles", uses[sample]))
         try:
             o, d, k = origins[at], dirs[at], keys[at]
             hits = first_hits(view.accel, view.scene.medium, o, d)  # shared by the passes
@@ -754,16 +757,16 @@ def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, d
                 layers = np.zeros((len(keys), cols.shape[1])) if layers is None else layers
                 layers[at] = cols
         finally:
-            release(prep, task.seed, sample, tile.rows.start)
+            release(prep, task.seed, sample, "tiles")
     return out[0], stats, out[1], out[2], layers
 
 
 def tile_uses(prep: Prepared, box) -> collections.Counter:
-    """(first row of a band, pixel sample) -> how many tiles of a render of `box` shade that sample in that band
-    (`tiles`, one sample a tile with an environment), once per camera."""
+    """pixel sample -> how many tiles of a render of `box` shade that sample (`tiles`, one sample a tile with an
+    environment), once per camera."""
     cam = prep.scene.camera
     return prep.memo(("tile uses", box, cam.width, cam.height, cam.spp), lambda: collections.Counter(
-        (t.rows.start, s) for t in tiles(cam, box, by_sample=True) for s in range(t.samples.start, t.samples.stop)))
+        s for t in tiles(cam, box, by_sample=True) for s in range(t.samples.start, t.samples.stop)))
 
 
 def shade_groups(prep: Prepared, split: list, method, params, origins, dirs, keys, seed, shadows, hits):
@@ -792,7 +795,7 @@ def seeded(prep: Prepared, seed: int, sample: int, shadows: bool = False, band: 
     (environment.seeded; `prep` itself where they are the same), their shadow frusta its own and the other
     lights' `prep`'s (`Prepared.base`), built here with `shadows` (once, before any view of it copies it:
     `shade_groups`' passes and the layers' views share them). `band` = (key, uses): the view is shared by `uses`
-    calls with that key and dropped after the last one's `release` (a band of tiles: at most the samples in flight
+    calls with that key and dropped after the last one's `release` (the tiles of a sample: at most the samples in flight
     are kept); without it, kept while `seed` is the last seed."""
     key = (None if band is None else band[0], sample)
     with prep._memo_lock:
