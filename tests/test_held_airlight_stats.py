@@ -22,10 +22,11 @@ def test_the_globes_unbounded_fog_segments_are_counted(monkeypatch):
     monkeypatch.setattr(renderer, "warm_up", lambda *args, **kw: 0.0)
     original, counted = held.out_of_sphere, []
 
-    def counting(*args):  # the kernel, its count of this call noted (its last argument: the statistics)
-        before = args[-1][support.SPHERE_UNBOUNDED]
+    def counting(*args):  # the kernel, its count of this call noted (its argument `stats`, after out, var, err)
+        stats = args[16]
+        before = stats[support.SPHERE_UNBOUNDED]
         original(*args)
-        counted.append(args[-1][support.SPHERE_UNBOUNDED] - before)
+        counted.append(stats[support.SPHERE_UNBOUNDED] - before)
 
     monkeypatch.setattr(held, "out_of_sphere", counting)
     sc = scene(NEAR, FOG)
