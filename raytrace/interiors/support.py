@@ -21,7 +21,7 @@ from ..media.adaptive import CAPPED
 from ..media.inside_rule import QUAD
 from ..media.sphere_refraction import UNBOUNDED
 from ..methods import registry
-from ..shadows.frusta import _closest_distance
+from ..shadows.frusta import point_triangle_distance
 from . import paths
 from .shapes import KERNEL_PLANES, convex_planes, inside_of, interiors, refracting_planes
 
@@ -184,7 +184,7 @@ def _meeting(prep, sid) -> int | None:
     near = np.nonzero((prep.shape_ids != sid) & (tris.min(axis=1) <= centre + radius).all(axis=1)
                       & (tris.max(axis=1) >= centre - radius).all(axis=1))[0]
     for t in near:
-        if _closest_distance(*centre, *tris[t]) <= radius:
+        if point_triangle_distance(*centre, *tris[t]) <= radius:
             return int(prep.shape_ids[t])
     return None
 

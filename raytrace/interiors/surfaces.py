@@ -14,7 +14,7 @@ from ..media.nonconvex_directional import lit_pieces
 from ..media.nonconvex_refraction import PATH_COLUMNS, face_paths, every
 from ..media.phase import ISOTROPIC
 from ..media.slab import GEO_COLUMNS, fresnel, surface_through_faces
-from ..media.sphere_refraction import MAX_PATHS, U, Outward, _about, frame, path_to, paths as sphere_paths
+from ..media.sphere_refraction import MAX_PATHS, U, Outward, about_axis, frame, path_to, paths as sphere_paths
 from ..shading import facing_normals, shading_normals, surface_radiance
 from . import paths
 from .fresnel import refract, refracted_beams, transmittance
@@ -163,7 +163,7 @@ def _into_sphere(q, sphere, light, axis, cone, eta, value, toward, inside, outsi
     scan = Outward(radius, d, eta, theta_a, cells)  # `paths`' light and sphere: the light on the axis at d
     found, spread = np.empty(MAX_PATHS), np.empty(MAX_PATHS)
     for i in range(q.shape[0]):
-        zx, yx, ey = _about(q[i] - c, ez)
+        zx, yx, ey = about_axis(q[i] - c, ez)
         dx = 16.0 * U * (math.sqrt(zx * zx + yx * yx) + 2.0 * radius + d)  # q's plane coordinates' rounding
         m, _ = sphere_paths(scan, zx, yx, dx, found, spread)
         for k in range(m):

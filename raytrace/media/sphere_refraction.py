@@ -1172,11 +1172,11 @@ def _plane(r, x):
     q = np.empty(3)
     for k in range(3):
         q[k] = r.o[k] + x * r.w[k] - r.c[k]
-    return _about(q, r.ez)
+    return about_axis(q, r.ez)
 
 
 @njit
-def _about(v, ez):
+def about_axis(v, ez):
     """(z, y, e_y) of the vector v about the unit axis ez: its component along the axis, its length across it and
     the unit direction across (any normal to the axis on the axis)."""
     zx = v[0] * ez[0] + v[1] * ez[1] + v[2] * ez[2]
@@ -1894,7 +1894,7 @@ def paths_out(q, c, radius, rel, axis, cone, eta, found, spread, value, toward, 
     if not d > radius:
         return True
     ez /= d
-    zx, yx, ey = _about(rel, ez)
+    zx, yx, ey = about_axis(rel, ez)
     theta_a = lit_arc(radius, d, eta)
     scan = Outward(radius, d, eta, theta_a, cell_table(theta_a, radius, d, eta))
     dx = 16.0 * U * (d + 2.0 * radius + math.sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]))
@@ -2102,7 +2102,7 @@ def fog_rounding(r, x, q, k):
     if not (d > radius and rn < radius):
         return math.inf
     ez /= d
-    zx, yx, ey = _about(r.rel, ez)
+    zx, yx, ey = about_axis(r.rel, ez)
     ev = 3.0 * U * (math.sqrt(r.o[0] * r.o[0] + r.o[1] * r.o[1] + r.o[2] * r.o[2]) + x) + 2.0 * U * d  # q - c's
     dd, dez = ev + 4.0 * U * d, ev / d + 8.0 * U  # d's error, ez's (absolute)
     dxy = rn * (3.0 * dez + 16.0 * U)  # X's coordinates'

@@ -184,7 +184,7 @@ def _light_bins(tris, frame, sun, res, epsilon, slack, suns=True, points=True) -
 
 
 @exact_njit
-def _closest_distance(px, py, pz, a, b, c):
+def point_triangle_distance(px, py, pz, a, b, c):
     """Distance from the point p to the triangle abc (Ericson, Real-Time Collision Detection 5.1.5).
     Without fastmath: inlined into `_frusta`'s variants (with and without the sun's code) it rounds the
     same in each, so a scene's texel lists do not depend on which variant built them."""
@@ -421,7 +421,7 @@ def _kernels(kinds: int):
                 area2 = math.sqrt(nx * nx + ny * ny + nz * nz)
                 if not (abs(D) > EDGE_ON * size * math.sqrt(r0 @ r0) and abs(D) > epsilon * area2):
                     continue
-                lb[t] = _closest_distance(L[0], L[1], L[2], v[0], v[1], v[2])
+                lb[t] = point_triangle_distance(L[0], L[1], L[2], v[0], v[1], v[2])
             keep[t] = True
             s = 1.0 if D > 0.0 else -1.0
             for e in range(3):
