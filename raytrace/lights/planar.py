@@ -142,38 +142,48 @@ def ridge_about(corners, normal, diameter, origins, dirs):
     ray, k = np.nonzero(cuts[:, 1:] > cuts[:, :-1])  # the strips between consecutive corners' b
     s_lo, s_hi = np.arcsinh(cuts[ray, k] / w[ray]), np.arcsinh(cuts[ray, k + 1] / w[ray])
     panels = np.maximum(np.ceil((s_hi - s_lo) / SPAN), 1).astype(np.int64)
-    a1, b1 = np.roll(a, -1, axis=1), np.roll(b, -1, axis=1)  # each edge's other end
 
     def nodes(at, order):
         x, wx = gauss_legendre(order)
         mine = np.nonzero(np.isin(ray, at))[0]
-        index = _positions(at, ray[mine])
-        parts = []
-        for n in np.unique(panels[mine]):
-            st = mine[panels[mine] == n]
-            r = ray[st]
-            t = ((np.arange(n)[:, None] + x[None]) / n).ravel()  # (n x order,) in [0, 1]
-            sigma = s_lo[st, None] + (s_hi - s_lo)[st, None] * t[None]
-            across = w[r, None] * np.sinh(sigma)  # (S, n order)
-            jb = w[r, None] * np.cosh(sigma) * (s_hi - s_lo)[st, None] * np.tile(wx, n)[None] / n
-            e_lo, e_hi = np.minimum(b[r], b1[r])[:, None], np.maximum(b[r], b1[r])[:, None]  # (S, 1, K)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                at_edge = a[r, None] + (across[..., None] - b[r, None]) / (b1 - b)[r, None] * (a1 - a)[r, None]
-            cut = (across[..., None] > e_lo) & (across[..., None] < e_hi)
-            c_lo = np.where(cut, at_edge, np.inf).min(axis=2)  # (S, n order) the chord's ends in a
-            c_hi = np.where(cut, at_edge, -np.inf).max(axis=2)
-            ok = np.isfinite(c_lo) & np.isfinite(c_hi)
-            c_lo, c_hi = np.where(ok, c_lo, 0.0), np.where(ok, c_hi, 0.0)
-            along = c_lo[..., None] + (c_hi - c_lo)[..., None] * x  # (S, n order, order)
-            points = (f0[r, None, None] + along[..., None] * p[r, None, None] +
-                      across[..., None, None] * q[r, None, None])
-            weights = (jb * (c_hi - c_lo))[..., None] * wx
-            owner = np.broadcast_to(index[np.searchsorted(mine, st)][:, None, None], weights.shape)
-            parts.append((points.reshape(-1, 3), weights.ravel(), owner.ravel()))
-        if not parts:
-            return np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64)
-        return tuple(np.concatenate(c) for c in zip(*parts))
+        start = np.concatenate(([0], np.cumsum(panels[mine] * order * order)))
+        return _ridge_nodes(ray[mine], _positions(at, ray[mine]), s_lo[mine], s_hi[mine], panels[mine], start, w,
+                            f0, p, q, a, b, x, wx)
     return nodes
+
+
+@njit
+def _ridge_nodes(ray, slot, s_lo, s_hi, panels, start, w, f0, p, q, a, b, x, wx):
+    """(points (M, 3), weights (M,), owner (M,)) of `ridge_about`'s strips: strip i of ray ray[i] (owner slot[i])
+    between sigma s_lo[i] and s_hi[i] in panels[i] panels, its nodes from start[i]; per ray its width w, frame
+    (f0, p, q) and corners' coordinates (a, b) (R, K); x, wx Gauss–Legendre on [0, 1]."""
+    n, k_corners, total = len(x), a.shape[1], start[-1]
+    points, weights, owner = np.empty((total, 3)), np.empty(total), np.empty(total, np.int64)
+    for i in range(len(ray)):
+        r, k = ray[i], start[i]
+        span = (s_hi[i] - s_lo[i]) / panels[i]
+        for j in range(panels[i]):
+            for u in range(n):
+                sigma = s_lo[i] + span * (j + x[u])
+                across = w[r] * math.sinh(sigma)
+                jb = w[r] * math.cosh(sigma) * span * wx[u]
+                lo, hi = math.inf, -math.inf  # the chord's ends: the two edges that straddle `across`
+                for e in range(k_corners):
+                    e1 = (e + 1) % k_corners
+                    b0, b1 = b[r, e], b[r, e1]
+                    if min(b0, b1) < across < max(b0, b1):
+                        t = a[r, e] + (across - b0) / (b1 - b0) * (a[r, e1] - a[r, e])
+                        lo, hi = min(lo, t), max(hi, t)
+                if not lo <= hi:
+                    lo, hi = 0.0, 0.0
+                for v in range(n):
+                    along = lo + (hi - lo) * x[v]
+                    for c in range(3):
+                        points[k, c] = f0[r, c] + along * p[r, c] + across * q[r, c]
+                    weights[k] = jb * (hi - lo) * wx[v]
+                    owner[k] = slot[i]
+                    k += 1
+    return points, weights, owner
 
 
 def _positions(at, rays):
