@@ -5,7 +5,8 @@ which kind an emitter is (docs/area_lights.md, "Rays near an emitter", "Sphere e
 A flat emitter (`Emitter.planar`) replaces its rows along the camera rays that cross its plane on or
 near it (within cubature.NEAR_FRACTION of its diameter) by a rule about the ray's foot point, and a
 sphere (`Emitter.ball`) along every camera ray from outside it by a rule about the ray's segment
-(`near`); an emissive shape keeps its rows. A sphere's rows' shadow states decide nothing (all lit, all
+(`near`); an emissive shape keeps its rows. Along the rays that pass within cubature.PASSING of a
+polygon grazing its plane, a rule graded toward the ray's projection on it (`passing_rule`). A sphere's rows' shadow states decide nothing (all lit, all
 dark or none shining: a cap between them may differ, `rows_decide`), so the occluders' geometry
 (`segments_clear`, `free`) and its probes of the part a point sees (`seen_probes`) tell instead.
 """
@@ -17,7 +18,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from .cubature import NEAR_FRACTION, PASSING, passes
-from .planar import plane_feet
+from .planar import GRAZE, plane_feet
 from .sphere_occluders import free as sphere_free, segments_free
 from .sphere_rule import FIRST
 
@@ -70,6 +71,33 @@ def passing(emitter, origins, dirs) -> np.ndarray:
     if emitter.planar is None:
         return np.zeros(len(origins), bool)
     return passes(emitter.sample, origins, dirs, PASSING)
+
+
+def passing_rule(emitter, rays, rs):
+    """rule(at, order) -> (points, normals, weights, owner) (`Near.rule`) of a flat emitter about the camera rays
+    rs[at] (rays = (origins, dirs, ...)) that pass near it (`passing`): those that graze its plane (sine below
+    planar.GRAZE) by its `Planar.ridge` where it has one, the others by its rows (`Emitter.rule`), the same nodes
+    for each ray."""
+    planar = emitter.planar
+    origins, dirs = rays[0][rs], rays[1][rs]
+    graze = (np.abs(dirs @ planar.normal) < GRAZE) & (planar.ridge is not None)
+    ridge = planar.ridge(origins[graze], dirs[graze]) if graze.any() else None
+    where = np.cumsum(graze) - 1  # each grazing ray's index among them
+
+    def rule(at, order):
+        parts = []
+        g = graze[at]
+        if g.any():
+            points, weights, owner = ridge(where[at[g]], order)
+            parts.append((points, np.broadcast_to(planar.normal, points.shape), weights, np.nonzero(g)[0][owner]))
+        if not g.all():
+            points, normals, weights = emitter.rule(order)
+            others = np.nonzero(~g)[0]
+            k = len(others)
+            parts.append((np.tile(points, (k, 1)), np.tile(normals, (k, 1)), np.tile(weights, k),
+                          np.repeat(others, len(weights))))
+        return tuple(np.concatenate(c) for c in zip(*parts))
+    return rule
 
 
 def own_estimate(emitter, estimate):

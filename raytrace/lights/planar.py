@@ -21,9 +21,16 @@ Jacobian vanishes like |y - f| makes that integrand smooth in its parameters:
   at right angles to that direction when f lies near the rim, which a = 1 - sqrt(R^2 - D^2) / D, D the
   distance of f from the centre, crowds the nodes toward); f outside: phi = phi_c + delta sin theta over
   the rim's tangent cone (theta Gauss–Legendre: the chord's square root at the tangents is smooth in theta).
+
+A ray that passes near the emitter grazing its plane but crosses it beyond (cubature.PASSING, not near by
+the foot-point test) puts the ridge along its projection over the emitter with no singular point on it: the
+polygon's rule for such rays (`ridge_about`) takes the coordinates along and across the projection, graded
+across it by sinh about the ridge's width, the tensor rule's 1 / n convergence on the ridge replaced by
+Gauss–Legendre's on a smooth function (a disk keeps its rows there).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Callable
@@ -38,6 +45,7 @@ SPAN = 2.0  # the longest stretch of u one Gauss–Legendre panel takes (a foot 
 TINY = 1e-9  # of an edge's length: nearer its line a foot point's triangle counts as of no area
 GRAZE = 0.5  # a ray whose sine to the plane is below this grazes it: the polygon's rule grades toward it
 MAX_TAN = 1e6  # a ray's projection nearer than this (tan) to an edge's direction is not graded toward it
+RIDGE_FLOOR = 1e-3  # of the diameter: the narrowest ridge a passing ray's rule grades toward (`ridge`)
 
 
 def graded(n: int):
@@ -100,6 +108,90 @@ def _ungraded(s, centre, width):
             np.where(graded, width * np.cosh(np.where(graded, s, 0.0)), 1.0))
 
 
+def ridge_about(corners, normal, diameter, origins, dirs):
+    """rule(at, order) -> (points (M, 3), signed area weights (M,), owner (M,): the index into `at`) over the
+    convex polygon `corners` (K, 3) graded toward the ridge of each camera ray (origins, unit dirs) (R, 3) that
+    passes near it grazing its plane (module docstring), what does not depend on the order built once.
+
+    In the plane, about f0 the projection of the ray's origin, a along the ray's projection p and b across it
+    (q = normal x p): the distance from the plane's point (a, b) to the ray's line is rho = sqrt(g(a)^2 + b^2),
+    g(a) = |h0 cos + a s| (h0 the origin's height, s = d . normal, cos = |d - s normal|), a ridge along b = 0
+    about g wide; a node's air-light is c(a, b) g / rho^2 (Lorentzian in b: the emission's cosine toward the ray
+    is g / rho at its nearest point) or 1 / rho. Outer b = w sinh(sigma), w the ridge's narrowest width over
+    the polygon's range of a (at least RIDGE_FLOOR of the diameter), Gauss–Legendre in sigma between the
+    corners' b (the chord's ends are linear there) in panels of at most SPAN; inner Gauss–Legendre in a over
+    the polygon's chord at b (its singular point, a = -h0 cos / s, lies at least NEAR_FRACTION of the
+    diameter from the polygon for a passing ray, where g is smooth at the chord's scale)."""
+    corners = np.asarray(corners, float)
+    dn = dirs @ normal
+    flat = dirs - dn[:, None] * normal
+    cos = np.linalg.norm(flat, axis=1)
+    p = flat / cos[:, None]
+    q = np.cross(normal[None], p)
+    h0 = (origins - corners[0]) @ normal
+    f0 = origins - h0[:, None] * normal
+    a = np.einsum("rkj,rj->rk", corners[None] - f0[:, None], p)  # (R, K) the corners' coordinates
+    b = np.einsum("rkj,rj->rk", corners[None] - f0[:, None], q)
+    lo, hi = a.min(axis=1), a.max(axis=1)
+    g = np.minimum(np.abs(h0 * cos + lo * dn), np.abs(h0 * cos + hi * dn))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zero = -h0 * cos / dn
+    g = np.where((zero > lo) & (zero < hi), 0.0, g)
+    w = np.maximum(g, RIDGE_FLOOR * diameter)
+    cuts = np.sort(b, axis=1)
+    ray, k = np.nonzero(cuts[:, 1:] > cuts[:, :-1])  # the strips between consecutive corners' b
+    s_lo, s_hi = np.arcsinh(cuts[ray, k] / w[ray]), np.arcsinh(cuts[ray, k + 1] / w[ray])
+    panels = np.maximum(np.ceil((s_hi - s_lo) / SPAN), 1).astype(np.int64)
+
+    def nodes(at, order):
+        x, wx = gauss_legendre(order)
+        mine = np.nonzero(np.isin(ray, at))[0]
+        start = np.concatenate(([0], np.cumsum(panels[mine] * order * order)))
+        return _ridge_nodes(ray[mine], _positions(at, ray[mine]), s_lo[mine], s_hi[mine], panels[mine], start, w,
+                            f0, p, q, a, b, x, wx)
+    return nodes
+
+
+@njit
+def _ridge_nodes(ray, slot, s_lo, s_hi, panels, start, w, f0, p, q, a, b, x, wx):
+    """(points (M, 3), weights (M,), owner (M,)) of `ridge_about`'s strips: strip i of ray ray[i] (owner slot[i])
+    between sigma s_lo[i] and s_hi[i] in panels[i] panels, its nodes from start[i]; per ray its width w, frame
+    (f0, p, q) and corners' coordinates (a, b) (R, K); x, wx Gauss–Legendre on [0, 1]."""
+    n, k_corners, total = len(x), a.shape[1], start[-1]
+    points, weights, owner = np.empty((total, 3)), np.empty(total), np.empty(total, np.int64)
+    for i in range(len(ray)):
+        r, k = ray[i], start[i]
+        span = (s_hi[i] - s_lo[i]) / panels[i]
+        for j in range(panels[i]):
+            for u in range(n):
+                sigma = s_lo[i] + span * (j + x[u])
+                across = w[r] * math.sinh(sigma)
+                jb = w[r] * math.cosh(sigma) * span * wx[u]
+                lo, hi = math.inf, -math.inf  # the chord's ends: the two edges that straddle `across`
+                for e in range(k_corners):
+                    e1 = (e + 1) % k_corners
+                    b0, b1 = b[r, e], b[r, e1]
+                    if min(b0, b1) < across < max(b0, b1):
+                        t = a[r, e] + (across - b0) / (b1 - b0) * (a[r, e1] - a[r, e])
+                        lo, hi = min(lo, t), max(hi, t)
+                if not lo <= hi:
+                    lo, hi = 0.0, 0.0
+                for v in range(n):
+                    along = lo + (hi - lo) * x[v]
+                    for c in range(3):
+                        points[k, c] = f0[r, c] + along * p[r, c] + across * q[r, c]
+                    weights[k] = jb * (hi - lo) * wx[v]
+                    owner[k] = slot[i]
+                    k += 1
+    return points, weights, owner
+
+
+def _positions(at, rays):
+    """(n,) the index in `at` of each of `rays` (each in `at`, `at` without repeats)."""
+    order = np.argsort(at)
+    return order[np.searchsorted(at[order], rays)]
+
+
 @dataclass(frozen=True)
 class Planar:
     """A flat emitter as near_emitters.py needs it: a point `centre` (3,) of its plane, the plane's unit
@@ -118,6 +210,9 @@ class Planar:
     rule: Callable
     about: Callable
     pieces: tuple = ()  # (kinds (P,), frames (P, 3, 3)): the emitter as pieces uniform in area (`emitter_pieces`)
+    # ridge(origins, dirs) -> rule(at, order) as `about`'s, graded toward the ridge of camera rays that pass near the
+    # emitter grazing its plane (`ridge_about`); None: the emitter's rows serve them (a disk)
+    ridge: Callable | None = None
 
 
 def plane_feet(centre, normal, origins, dirs, tmax):
@@ -203,7 +298,8 @@ def polygon(corners, normal) -> Planar:
 
     fan = np.stack([np.broadcast_to(corners[0], (len(corners) - 2, 3)), corners[1:-1], corners[2:]], axis=1)
     return Planar(corners.mean(axis=0), np.asarray(normal, float), diameter, outside, rule, about,
-                  (np.full(len(fan), TRIANGLE), fan))
+                  (np.full(len(fan), TRIANGLE), fan),
+                  functools.partial(ridge_about, corners, np.asarray(normal, float), diameter))
 
 
 def disk(centre, normal, t1, t2, radius: float) -> Planar:
