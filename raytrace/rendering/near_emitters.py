@@ -40,7 +40,7 @@ import numpy as np
 
 from ..lights.cubature import SHARE, agree
 from ..lights.near_rules import (ORDERS, cap_samplers, near as near_of, own_estimate, passing as passing_of,
-                                 replaces_rows, rows_decide, segments_clear)
+                                 passing_rule, replaces_rows, rows_decide, segments_clear)
 from ..shadows.penumbra_airlight import (LIT, NONE, emitter_estimate, emitter_states, lit_states, per_group,
                                          point_segments, spot_rows)
 
@@ -122,8 +122,8 @@ def replaced(lights, method, medium, params, tol, cone, segs, rays, shadows: boo
     for e in np.unique(np.nonzero(passing)[1]):
         rs = np.nonzero(passing[:, e])[0]
         em = lights.emitters[e]
-        value, stray = _ladder(em, _own_rule(em), ORDERS, method, medium, params, tol, rs, rays, segs.scale,
-                               np.abs(seen[rs]))
+        value, stray = _ladder(em, passing_rule(em, rays, rs), ORDERS, method, medium, params, tol, rs, rays,
+                               segs.scale, np.abs(seen[rs]))
         air[rs] += value
         stats += (len(rs), stray)
     return kept, air, stats, (near | hidden | passing).any(axis=1), var
@@ -188,21 +188,10 @@ def _undecided(lights) -> np.ndarray:
     return np.array([em is not None and not rows_decide(em) for em in lights.emitters], dtype=bool)
 
 
-def _own_rule(emitter):
-    """rule(at, order) -> (points, normals, weights, owner) of an emitter's own rows' rule (`Emitter.rule`),
-    the same nodes for each ray `at`."""
-    def rule(at, order):
-        points, normals, weights = emitter.rule(order)
-        k = len(at)
-        return (np.tile(points, (k, 1)), np.tile(normals, (k, 1)), np.tile(weights, k),
-                np.repeat(np.arange(k), len(weights)))
-    return rule
-
-
 def _ladder(emitter, rule, orders, method, medium, params, tol, rs, rays, scale, seen):
     """((P, 3) the air-light of `emitter` along camera rays `rs` by its `rule` (`near_rules.Near.rule`,
-    `_own_rule`) at `orders` in turn (the first two, which every ray takes, in one batch), the number
-    of rays whose last two orders disagree; `seen` (P, 3) the rays' other radiance)."""
+    `near_rules.passing_rule`) at `orders` in turn (the first two, which every ray takes, in one batch), the
+    number of rays whose last two orders disagree; `seen` (P, 3) the rays' other radiance)."""
     if tol is None:
         return _values(emitter, rule, method, medium, params, np.arange(len(rs)), rs, rays, scale,
                        (DEFAULT_ORDER,))[0], 0
