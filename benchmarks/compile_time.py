@@ -12,8 +12,8 @@ pointed at a fresh empty folder, renders the scene through the command line at `
 busy machine inflates far less than wall time. Per scene: the compile CPU seconds (the outermost
 compilations summed), the number of compiled specialisations, those compiled after the warm-up
 (`renderer.prepare_task`: a compile during the tiles is late, it happens after the compile notice),
-the wall seconds of the warm-up and the process's whole CPU time (in --json: the CPU seconds when the
-warm-up reached the compile worker's gate and the wall seconds it waited there); from outside the process, the wall
+the wall seconds of the warm-up and the process's whole CPU time (in --json: its CPU seconds when it started
+the compile worker and when the warm-up reached the worker's gate, and the wall seconds it waited there); from outside the process, the wall
 seconds to the first image (the command's whole run: start, imports, compile, render, writing) and
 the CPU seconds of the process and of its children (the compile worker of
 rendering/compile_ahead.py, whose compilations the listener does not see). The target: compile within 10 s
@@ -177,6 +177,13 @@ def worker(scene: str, width: int, out: Path, phases: bool = False, ahead: bool 
                 gate["wall"] = gate.get("wall", 0.0) + time.perf_counter() - start
 
         compile_ahead.Ahead.wait = waited
+        begin = compile_ahead.Ahead.__init__
+
+        def begun(self, *a):
+            gate.setdefault("start_cpu", time.process_time())  # this process's CPU seconds when the worker started
+            return begin(self, *a)
+
+        compile_ahead.Ahead.__init__ = begun
         if ahead:
             def start(split, fn, *args, later=False):
                 rec.phase = "worker"
@@ -211,7 +218,7 @@ def worker(scene: str, width: int, out: Path, phases: bool = False, ahead: bool 
             "late": sorted({e["name"] for e in top if e["phase"] == "late"}),
             "late_cpu": sum(e["end"] - e["start"] for e in top if e["phase"] == "late"),
             "warm_wall": warm.get("wall", 0.0), "process_cpu": usage.user + usage.system, "main_cpu": main_cpu,
-            "gate_cpu": gate.get("cpu"), "gate_wall": gate.get("wall"),
+            "gate_cpu": gate.get("cpu"), "gate_wall": gate.get("wall"), "start_cpu": gate.get("start_cpu"),
             "phases": sorted(split.seconds.items(), key=lambda kv: -kv[1]) if split else [],
             "phases_by_dispatcher": split.by_owner if split else {},
             "inclusive": sorted(inclusive.items(), key=lambda kv: -kv[1]),

@@ -126,8 +126,8 @@ def test_the_suns_shadow_kernels_without_the_cube_maps_code_give_the_same_pieces
     def called(kinds, which, *args):
         fresh = numba.njit(**OPTIONS)(frusta._kernels(kinds)[which].py_func)
         fresh(*args)
-        return set(re.findall(r"frusta\d+_(ortho_part|cube_parts|face_bbox|closest_distance)", fresh.inspect_llvm(
-            fresh.signatures[0])))
+        names = r"frusta\d+_?(ortho_part|cube_parts|face_bbox|point_triangle_distance)"
+        return set(re.findall(names, fresh.inspect_llvm(fresh.signatures[0])))
 
     frame = np.array([[0.3, 0.2, 0.1], [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
     point = frusta._light_bins(tris, frame, False, 16, 1e-6, frusta.REL * 10, suns=False)
@@ -141,7 +141,7 @@ def test_the_suns_shadow_kernels_without_the_cube_maps_code_give_the_same_pieces
     frusta_args = (tris, np.zeros(3), sun.frame[3], 1e-6, np.zeros((len(tris), 4, 4)), np.zeros((len(tris), 4)),
                    np.zeros(len(tris)), keep)
     assert called(frusta.SUNS, 0, *frusta_args, True) == set()
-    assert called(frusta.POINTS, 0, *frusta_args, False) == {"closest_distance"}
+    assert called(frusta.POINTS, 0, *frusta_args, False) == {"point_triangle_distance"}
 
 
 @pytest.mark.parametrize("which", ["atmosphere", pytest.param("fog", marks=pytest.mark.slow)])

@@ -337,13 +337,11 @@ def i01_series_lanes(args, rows, prec_col, max_iter, out):
             zar[j], zai[j], zbr[j], zbi[j] = za.real, za.imag, zb.real, zb.imag
             rka[j], rkb[j] = 1.0, 1.0
         k, live = 0, w
-        while live > 0 and k + 1 < max_iter:  # two iterations a pass: each lane's state loaded and stored once
-            live = _series_pass(w, k + 1, 2, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb,
-                                rva, rvb)
-            k += 2
-        if live > 0 and k < max_iter:
-            _series_pass(w, k + 1, 1, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka, rkb, rva,
-                         rvb)
+        while live > 0 and k < max_iter:  # two iterations a pass (one the last, where max_iter is odd): each lane's
+            steps = min(2, max_iter - k)  # state loaded and stored once; one call site, so its code is typed once
+            live = _series_pass(w, k + 1, steps, i0, i1, big, its, prec, par, pai, pbr, pbi, zar, zai, zbr, zbi, rka,
+                                rkb, rva, rvb)
+            k += steps
         for j in range(w):
             out[first + j, 0], out[first + j, 1] = i0[j], i1[j]
             out[first + j, 2] = its[j] if its[j] > 0.0 else float(max_iter)  # (a loop that never stopped)

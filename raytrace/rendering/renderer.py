@@ -485,6 +485,8 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
             prep.frusta()  # before the tiles' threads share it
         o, d = warm_up_rays(prep)
         hits = first_hits(prep.accel, prep.scene.medium, o, d)
+        if ahead is not None and prep.scene.medium.particles is not None:  # (this process compiles them: here,
+            particles_ahead(prep, o, d, hits[0], shadows)  # before the gate, not after the wait)
         later = interiors_ahead(prep, hits[1]) if ahead is not None else np.zeros(len(o), dtype=bool)
         for part in (~later, later):  # the rays into media inside shapes after the worker (it compiles their kernels)
             if part is later and np.any(later):
@@ -563,6 +565,14 @@ def axis_segments(camera, lights: Lights, seed: int) -> Segments:
     light = np.arange(n, dtype=np.int64)
     return Segments(camera.position + t0[:, None] * d, d, np.full(n, 0.75 * scale), light, np.zeros(n, np.int64), t0,
                     np.zeros(n, np.uint64), light.copy(), int(seed), scale)
+
+
+def particles_ahead(prep: Prepared, origins, dirs, t, shadows: bool):
+    """The particle layer's kernels (`particle_radiance`) on the warm-up's rays, compiled in this process before
+    the compile worker's gate: `shade_rays` adds the layer after the air-light, which waits for the worker, so
+    that this process compiled them after the wait (the worker does not: they are no air-light's)."""
+    particle_radiance(prep.scene.medium.particles, prep.scene.medium, prep.lights, prep.accel, origins, dirs, t,
+                      np.zeros(len(origins), dtype=np.uint64), shadows)
 
 
 def interiors_ahead(prep: Prepared, prim) -> np.ndarray:
