@@ -6,32 +6,37 @@ stretches between them (`face_pieces`). The exact sphere's counterpart is media/
 per-cell test (`_state`) and candidates (`_candidates`) this module reuses.
 
 The breaks are found, not sampled: `_scan` halves the part from [lo, hi]. On a cell (midpoint m, half width h) the
-legs of the cell lie within rho = max(h, D) + slack of the midpoint's leg q(m) E(m) (proven): the point a fraction
-lambda along the leg of x is (1 - lambda) q(x) + lambda E(x), within (1 - lambda) |q(x) - q(m)| + lambda |E(x) -
-E(m)| of the midpoint leg's, and |q(x) - q(m)| <= h; D bounds |E(x) - E(m)| (`_spread`):
-- |dE/dx| <= 1 / cos2(x), cos2 the leg's cosine to the face's normal (proven, elementary): in the plane of incidence
-  the refraction point lies between the feet of the light and of q, at distance rho_E from the light's foot, and q's
-  foot at rho_q = rho_E + z tan2 (z: q's height above the plane), tan2 increasing with rho_E (Snell: sin2 = sin1 /
-  eta, eta = 1 / ior, sin1 = rho_E / sqrt(rho_E^2 + hl^2)); so a sideways move of q turns E about the light's foot
-  by at most as much (rho_E <= rho_q), a move along rho_q moves rho_E by at most as much (d rho_q / d rho_E = 1 + z
-  d tan2 / d rho_E >= 1), a move up by dz moves rho_E by at most tan2 dz, and by Cauchy-Schwarz |dE| <= |dq| sqrt(1 +
-  tan2^2) = |dq| / cos2 (the same as the brief's tube: the refracted wavefront's focal surfaces are virtual, on the
-  light's side, so the legs spread at most as from E);
-- cos2 >= c(D) = sqrt(1 - (sin1(rho_E(m) + D) / eta)^2) wherever |E(x) - E(m)| <= D (rho_E(x) <= rho_E(m) + D);
-  with D0 = 2 h / cos2(m), if h / c(D0) < D0 then |E(x) - E(m)| stays below D0 over the cell (at a first x where
-  it reached D0 it would be at most h / c(D0)), so D = h / c(D0); else the cell is undecided.
-Every leg of the cell therefore lies in the tube of radius rho about the midpoint's leg and in the hull of the
-cell's camera stretch and the ball of radius D + slack about E(m): `_state` with the ball (E(m), D) and the axis
-q(m) -> E(m) decides each planar patch (its edges outside the hull or more than rho from the axis, the stretch not
-crossing it: the midpoint leg's state; the ball and the stretch on one side of its plane: lit). The leg's ends do
-not cross an occluder: q(x) where the stretch does not, E(x) on the glass's face, which no other shape reaches into
-(interiors/support.py refuses those). A cell is dark where a patch blocks it so, lit where every patch clears it so,
-else halved while h > slack (then an undecided stretch, about slack wide, which `out_of_faces` counts dark and
-bounds as the globe's). The legs of points whose refraction point lies off the face carry no light; the test covers
-them all the same (the infinite plane's path is unique and continuous in x). slack = SLACK of |q(m)| + |E(m)| + the
-leg covers E(m)'s rounding (bisection to the resolution of doubles: argued, as the globe's). Patches are culled
-against the shape's bounding ball (`_candidates`: every leg that carries light ends on the shape). Unproven after
-MAX_CELLS cells (the rest classified by their midpoints' legs)."""
+point a fraction lambda along the leg of x, (1 - lambda) q(x) + lambda E(x), lies within (1 - lambda) |q(x) - q(m)| +
+lambda |E(x) - E(m)| <= (1 - lambda) h + lambda D of the midpoint leg's (proven): a cone about the leg q(m) E(m),
+narrowing toward the glass, where D bounds |E(x) - E(m)| (`_spread`). The refraction point's speed:
+- |dE/dq| <= (r / (o + r)) / cos2 with o the leg's length, cos2 its cosine to the face's normal and r the larger of
+  the distances from E back to the refracted wavefront's two focal points, which are virtual, on the light's side
+  (argued from the focal distances of refraction at a plane: sagittal hl / (ior cos1), tangential hl cos2^2 / (ior
+  cos1^3), hl the light's depth; both at most r_max = hl / (ior cos_c^3), cos_c = sqrt(1 - eta^2), eta = 1 / ior,
+  since sin1 <= eta on every path): a move of q across the ray moves the ray about its focal point, so its crossing
+  of the plane by r / (o + r) of it, over cos2 along the plane; a move along the ray does not move E. The elementary
+  half of it, |dE/dq| <= 1 / cos2, is proven in the plane of incidence: E lies between the feet of the light and of
+  q, rho_q = rho_E + z tan2 with tan2 increasing in rho_E, so a move of q turns or slides E by at most as much
+  sideways or along rho, and up by dz moves it by at most tan2 dz (Cauchy-Schwarz).
+- So D = h r_max / z_min (1 / cos2 <= o / z), or from the bootstrap: cos2 >= c(D) = sqrt(1 - (sin1(rho_E(m) + D) /
+  eta)^2) wherever |E(x) - E(m)| <= D; with k = r_max / (o_min + r_max) and D0 = 2 h k / cos2(m), if h k / c(D0) <
+  D0 the distance never reaches D0 over the cell (at a first x where it did it would be at most h k / c(D0)), so D
+  = h k / c(D0); the smaller of the two, inf where neither holds. o_min: the larger of the least height z_min and the
+  stretch's distance from the disc about the light's foot that holds every E (sin1 <= eta).
+Every leg of the cell lies in that cone, in the hull of the cell's camera stretch and a ball holding every E(x) (E(m)'s
+of radius D, or the disc's), and between the face's plane and the stretch's greatest height above it; `_state`
+decides each planar patch with them (the patch off that slab, or its plane leaving the ball and the stretch on one
+side: lit; else its edges outside the hull or the slab or the cone (taken on CONE_STEPS pieces, each at its largest
+radius) and the stretch not crossing it: the midpoint leg's state). The leg's ends do not cross an occluder: q(x)
+where the stretch does not, E(x) on the glass's face, which no other shape reaches into (interiors/support.py
+refuses those). A cell is dark where a patch blocks it so, lit where every patch clears it so, else halved while h >
+slack (then an undecided stretch, about slack wide, which `out_of_faces` counts dark and bounds as the globe's). The
+legs of points whose refraction point lies off the face carry no light; the test covers them all the same (the
+infinite plane's path is unique and continuous in x). slack = SLACK of |q(m)| + |E(m)| + the leg covers E(m)'s
+rounding (bisection to the resolution of doubles: argued, as the globe's). Patches are culled against the shape's
+bounding ball (`_candidates`: every leg that carries light ends on the shape). Unproven after MAX_CELLS cells (the
+rest classified by their midpoints' legs): rays that graze an occluder's edge over a long stretch (below a finite
+floor, toward the horizon)."""
 from __future__ import annotations
 
 import math
