@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..media.globe_shadows import patches, shadow_pieces
+from ..media.mesh_lamp_shadows import face_pieces
 from ..media.slab import GEO_COLUMNS, STREAM, out_of_faces, surface_out_of_faces
 from ..media.sphere_refraction import MAX_PATHS, out_of_sphere, surface_out_of_sphere
 from ..methods import Segments
@@ -20,11 +21,11 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int,
     (`held_lights`: inside a convex refractive mesh or an exact sphere) the outside medium's air-light (N, 3), its
     variance (N, 3; 0 but for a stochastic rule), bound (N, 3; quadrature's, else inf where lit) and the kernels'
     statistics (STATS_SIZE, support.py's slots: the exact sphere's unbounded segments): the light refracted out
-    through every face (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact sphere
-    (media/sphere_refraction.py `out_of_sphere`, with volumetric shadows on its pieces that other shapes' triangles
-    leave lit: `occluders`, media/globe_shadows.py), integrated by the method's inside rule (`check` refuses
-    volumetric shadows with another shape in the scene around a convex mesh, and in an exact sphere a light beyond
-    radius / ior of its centre)."""
+    through every face of a convex mesh (media/slab.py `out_of_faces`, relative index 1 / ior) or out of an exact
+    sphere (media/sphere_refraction.py `out_of_sphere`), with volumetric shadows on the pieces that other shapes'
+    triangles leave lit (`occluders`; media/mesh_lamp_shadows.py per face, media/globe_shadows.py for the sphere),
+    integrated by the method's inside rule (`check` refuses a shape reaching into the lamp's shape, and in an exact
+    sphere a light beyond radius / ior of its centre)."""
     held = dict(held_lights(prep))
     mine = np.isin(segs.light, list(held))
     val, var, bound = np.zeros((n_rays, 3)), np.zeros((n_rays, 3)), np.zeros((n_rays, 3))
@@ -47,13 +48,14 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int,
         args = (np.ascontiguousarray(segs.length[sel]), medium.sigma_t[ch].astype(float),
                 medium.sigma_s[ch].astype(float), medium.phase, medium.g, inner.sigma_t[ch].astype(float))
         rest = (rule, segs.keys[sel], dim0, np.uint64(segs.seed), out, v, err, stats)
+        near = occluders(prep, sid) if shadows else patches(np.zeros((0, 3, 3)), np.zeros(0))
+        with np.errstate(divide="ignore"):  # where `out_of_faces` and `out_of_sphere` stop integrating
+            reach = np.minimum(args[0], 745.0 / args[1].min())
         if sphere is None:
-            out_of_faces(geo, planes, *args, 1.0 / inner.ior, *rest, measured_plane_errors(prep, sid))
+            lit = (face_pieces(geo, planes, reach, 1.0 / inner.ior, _ball(prep, sid), *near),) if len(near[0]) else ()
+            out_of_faces(geo, planes, *args, 1.0 / inner.ior, *rest, measured_plane_errors(prep, sid), *lit)
         else:
             ball = np.asarray(sphere, dtype=np.float64)
-            near = occluders(prep, sid) if shadows else patches(np.zeros((0, 3, 3)), np.zeros(0))
-            with np.errstate(divide="ignore"):  # where `out_of_sphere` stops integrating
-                reach = np.minimum(args[0], 745.0 / args[1].min())
             out_of_sphere(geo, ball, *args, float(inner.ior), *rest,
                           *shadow_pieces(geo, ball, reach, float(inner.ior), *near))
         inten = lights.intensity[li, ch]
@@ -62,6 +64,13 @@ def held_airlight(prep, method, params, segs: Segments, n_rays: int, depth: int,
             whole[:, ch] = part
             np.add.at(acc, segs.ray[sel], whole)
     return segs.take(np.nonzero(~mine)[0]), val, var, bound, stats
+
+
+def _ball(prep, sid):
+    """(centre, radius) (4,) of a ball holding shape sid's triangles."""
+    corners = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3).astype(np.float64)
+    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+    return np.append(centre, np.linalg.norm(corners - centre, axis=1).max() * (1.0 + 1e-12))
 
 
 def occluders(prep, sid):

@@ -143,7 +143,7 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     index-matched, or a convex refractive mesh of at most KERNEL_PLANES faces or an exact sphere
     (`lit_from_inside`) with no other shape inside, the camera outside and no other shape holding a medium; in a
     scattering outside medium (`held_airlight`) a point or spot light in a convex mesh or well inside an exact sphere
-    (`_globe_fog`), and with volumetric shadows no other shape around a mesh, none reaching into a sphere."""
+    (`_globe_fog`), and with volumetric shadows none reaching into a sphere."""
     if prep.scene.shapes[sid].interior.ior == 1.0:
         return None
     sphere = paths.exact_sphere(prep, sid) is not None
@@ -153,10 +153,6 @@ def _not_held(prep, sid, li, shadows) -> str | None:
         why = _globe_fog(prep, sid, li) if sphere else None
         if why:
             return why
-        if shadows and len(np.unique(prep.shape_ids)) > 1 and not sphere:
-            return ("lights the scattering [medium] outside, where the other shapes' volumetric shadows on its "
-                    "refracted light are implemented for an exact sphere only; use --no-volumetric-shadows, an exact "
-                    "sphere, or a [medium] that does not scatter")
         met = _meeting(prep, sid) if shadows and sphere else None
         if met is not None:
             return (f"lights the scattering [medium] outside, where shape[{met}]'s volumetric shadow is implemented "
@@ -167,12 +163,43 @@ def _not_held(prep, sid, li, shadows) -> str | None:
     media = [int(j) for j in prep.interior_shapes if j != sid]
     if media:  # the light refracted out into another medium
         return f"is not implemented with another shape holding a medium (shape[{media[0]}]) yet"
-    inner = _meeting(prep, sid) if sphere else next(  # (a mesh: by each shape's first corner)
-        (j for j in range(len(prep.scene.shapes)) if j != sid and (prep.shape_ids == j).any()
-         and inside_of(prep, prep.accel.triangles[prep.shape_ids == j][0, 0], [sid]) is not None), None)
+    inner = _meeting(prep, sid) if sphere else _reaching(prep, sid)
     if inner is not None:
         return f"is not implemented with another shape inside it or reaching into it (shape[{inner}]) yet"
     return None
+
+
+def _reaching(prep, sid, rel=1e-9) -> int | None:
+    """The first other shape with a triangle reaching into the convex mesh sid ({x : n_f·x <= c_f}), deeper than rel
+    of the mesh's size inside every plane (touching it is not reaching in), else None: each triangle not beyond one
+    plane with all its corners is clipped against every plane (Sutherland-Hodgman); it reaches in where some of it
+    is left."""
+    planes = convex_planes(prep, sid)
+    own = prep.accel.triangles[prep.shape_ids == sid].reshape(-1, 3).astype(float)
+    inset = planes[:, 3] - rel * (np.ptp(own, axis=0).max() + np.abs(own).max())
+    tris = prep.accel.triangles.astype(float)
+    depth = np.einsum("tkj,fj->tfk", tris, planes[:, :3]) - inset[None, :, None]  # (T, F, 3)
+    near = np.nonzero((prep.shape_ids != sid) & ~(depth >= 0.0).all(axis=2).any(axis=1))[0]
+    for t in near:
+        poly = list(tris[t])
+        for n, c in zip(planes[:, :3], inset):
+            poly = _clip(poly, n, c)
+        if poly:
+            return int(prep.shape_ids[t])
+    return None
+
+
+def _clip(poly, n, c):
+    """The convex polygon poly (a list of points) cut to n·x < c (Sutherland-Hodgman)."""
+    out = []
+    for i, p in enumerate(poly):
+        q = poly[(i + 1) % len(poly)]
+        dp, dq = float(p @ n) - c, float(q @ n) - c
+        if dp < 0.0:
+            out.append(p)
+        if (dp < 0.0) != (dq < 0.0):
+            out.append(p + dp / (dp - dq) * (q - p))
+    return out
 
 
 def _meeting(prep, sid) -> int | None:

@@ -2275,77 +2275,157 @@ def _surface_faces(q, toward_light, planes, light, axis, cone, eta, beyond, valu
 
 
 @njit
+def face_part(geo, plane, ell):
+    """(lo, hi) of the part of the segment [0, ell] (geo row) beyond the plane (n·q > c); hi <= lo: none."""
+    depth = plane[0] * geo[0] + plane[1] * geo[1] + plane[2] * geo[2] - plane[3]
+    rate = plane[0] * geo[3] + plane[1] * geo[4] + plane[2] * geo[5]
+    lo, hi = 0.0, ell
+    if rate > 0.0:
+        lo = max(lo, -depth / rate)
+    elif rate < 0.0:
+        hi = min(hi, depth / -rate)
+    elif not depth > 0.0:
+        hi = lo
+    return lo, hi
+
+
+@njit
+def leaving_row(geo, x, toward, f, start, rows):
+    """Face f's row (rows[0], `refracting_faces` of the planes `toward`: a convex shape's with their normals
+    toward the light inside) along the segment of the geo row from its point at x (start: that row,
+    GEO_COLUMNS); returns 1, or 0 where the light is not inside f's plane."""
+    for c in range(GEO_COLUMNS):
+        start[c] = geo[c]
+    for c in range(3):
+        start[c] = geo[c] + x * geo[3 + c]
+    return only_face(rows, refracting_faces(start, toward, 0.0, 0.0, 0.0, 0.0, NO_SPOT, rows), f)
+
+
+class LitFaces(NamedTuple):
+    """`faces_point` in x (no track) on its segment's lit pieces only: 0 but where lit[i] > 0 on [ends[i],
+    ends[i + 1]) (media/mesh_lamp_shadows.py `face_pieces`)."""
+    faces: np.ndarray
+    planes: np.ndarray
+    eta: float
+    kt: float
+    ks: float
+    code: int
+    g: float
+    kt_out: float
+    spot: tuple
+    ends: np.ndarray
+    lit: np.ndarray
+
+
+@integrand_of(LitFaces)
+@njit
+def _lit_faces_value(x, r):
+    i = 1
+    while i < r.ends.shape[0] - 1 and r.ends[i] <= x:
+        i += 1
+    if not r.lit[i - 1] > 0.0:
+        return 0.0
+    sp = r.spot
+    return faces_point(x, r.faces, r.planes, r.eta, r.kt, r.ks, r.code, r.g, r.kt_out, sp[0], sp[1], sp[2])
+
+
+@njit
 def out_of_faces(geo, planes, ell, kt, ks, code, g, kt_out, eta, rule, keys, dim0, seed, out, var, err, stats,
-                 dplanes=None):
+                 dplanes=None, shadows=None):
     """The outside medium's single scattering (N, C) over segments outside a convex refractive shape ({q :
     n_f·q <= c_f}, `planes`) from a unit point or spot light inside it (geo rows of GEO_COLUMNS, no entry
     normal; kt, ks: the outside's, kt_out the inside's, one each per channel; eta = 1 / the shape's ior):
     `surface_out_of_faces`' path along each segment, each face f over the part [lo, hi] of [0, ell] beyond its
-    plane (n_f·q > c_f), its row from the segment's point at lo (`refracting_faces` with the normals toward the
-    light, the face test against `planes`), times exp(-kt lo). QUAD: `faces_quadrature` per face (its breaks:
-    the refraction point's edge crossings and a spot's cone crossings, isolated with `_speed`'s eta < 1 bound;
-    its bound with the planes' errors dplanes (interiors/shapes.py `measured_plane_errors`; None: inf), plus
-    `_end_moved` where a piece ends on a face's plane); MARCH, SAMPLE: `march_or_sample` per face and
-    channel at dimensions dim0 + f STREAM, their variances summed (independent streams)."""
+    plane (`face_part`), its row from the segment's point at lo (`leaving_row`), times exp(-kt lo). With
+    `shadows` (start, ends, flags, proven of media/mesh_lamp_shadows.py `face_pieces`: the pieces of each face's
+    part, relative to lo, that other shapes leave lit, LIT, DARK or UNDECIDED), only the lit pieces count.
+    QUAD: `faces_quadrature` per face and lit piece, its row from the piece's start (its breaks: the refraction
+    point's edge crossings and a spot's cone crossings, isolated with `_speed`'s eta < 1 bound; its bound with
+    the planes' errors dplanes (interiors/shapes.py `measured_plane_errors`; None: inf), plus `_end_moved` where
+    a piece ends on a face's plane, plus per undecided piece (counted dark) its length times twice the larger of
+    its ends' unshadowed values, as media/sphere_refraction.py `out_of_sphere`; inf where a face's scan was not
+    proven); MARCH, SAMPLE: `march_or_sample` per face and channel at dimensions dim0 + f STREAM (of `LitFaces`
+    with shadows), their variances summed (independent streams)."""
     nf, nc = planes.shape[0], kt.shape[0]
     toward = -planes
     rows = np.empty((max(nf, 1), FACE_COLUMNS))
     start = np.empty(GEO_COLUMNS)
     value, bound = np.empty(nc), np.empty(nc)
-    no = (0.0, 0.0, 0.0, 0.0)
+    whole = np.ones(1)  # one lit piece (flags as media/globe_shadows.py's: > 0 lit, 0 dark, < 0 undecided)
     for s in range(geo.shape[0]):
         out[s, :], var[s, :], err[s, :] = 0.0, 0.0, 0.0
         for f in range(nf):
-            depth = planes[f, 0] * geo[s, 0] + planes[f, 1] * geo[s, 1] + planes[f, 2] * geo[s, 2] - planes[f, 3]
-            rate = planes[f, 0] * geo[s, 3] + planes[f, 1] * geo[s, 4] + planes[f, 2] * geo[s, 5]
-            lo, hi = 0.0, ell[s]
-            if rate > 0.0:
-                lo = max(lo, -depth / rate)
-            elif rate < 0.0:
-                hi = min(hi, depth / -rate)
-            elif not depth > 0.0:
+            lo, hi = face_part(geo[s], planes[f], ell[s])
+            if not hi > lo or leaving_row(geo[s], lo, toward, f, start, rows) == 0:
                 continue
-            if not hi > lo:
-                continue
-            for c in range(GEO_COLUMNS):
-                start[c] = geo[s, c]
-            for c in range(3):
-                start[c] = geo[s, c] + lo * geo[s, 3 + c]
-            m = only_face(rows, refracting_faces(start, toward, 0.0, 0.0, 0.0, 0.0, NO_SPOT, rows), f)
-            if m == 0:
-                continue
-            row = rows[:1]
+            row = rows[:1].copy()
             spot = (start[12], start[13], start[17])
+            ends, lit = np.array([0.0, hi - lo]), whole
+            if shadows is not None:
+                k = s * nf + f
+                ends, lit = shadows[1][shadows[0][k]:shadows[0][k + 1]], shadows[2][shadows[0][k] - k:
+                                                                                   shadows[0][k + 1] - k - 1]
             if rule.kind == QUAD:
-                errs = np.zeros(2) if dplanes is None else dplanes
-                mags = no if dplanes is None else _piece_mags(start, hi - lo, planes)
-                for c in range(nc):
-                    if ks[c] == 0.0:
-                        continue
-                    faces_quadrature(row, planes, hi - lo, min(hi - lo, 745.0 / kt[c]), kt[c:c + 1], ks[c:c + 1], code,
-                                     g, kt_out[c:c + 1], eta, spot, rule.rtol, errs, mags, -1, stats,
-                                     value[:1], bound[:1])
-                    t = math.exp(-kt[c] * lo)
-                    out[s, c] += value[0] * t
-                    if dplanes is None:
-                        err[s, c] = math.inf
-                    else:
-                        m_lo = _end_moved(geo[s], planes[f], lo, dplanes) if lo > 0.0 else 0.0
-                        m_hi = _end_moved(geo[s], planes[f], hi, dplanes) if hi < ell[s] else 0.0
-                        err[s, c] += (bound[0] + value[0] * (kt[c] * m_lo + 8.0 * U * (1.0 + kt[c] * lo))) * t
-                        for x, moved in ((0.0, m_lo), (hi - lo, m_hi)):
-                            if moved > 0.0:
-                                err[s, c] += moved * leaving_envelope(x, row[0], moved, ks[c], code, g, eta, errs[0],
-                                                                      errs[1], mags, False)
+                _faces_pieces(geo[s], planes, toward, f, lo, hi, ell[s], row, ends, lit, kt, ks, code, g, kt_out, eta,
+                              spot, rule.rtol, dplanes, start, rows, out[s], err[s], stats, value, bound)
+                if shadows is not None and not shadows[3][s * nf + f]:
+                    err[s, :] = math.inf
                 continue
             for c in range(nc):
                 if ks[c] == 0.0:
                     continue
-                rec = FacesPoint(row, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot, 0.0, 0.0, 0.0, no, -1,
-                                 np.zeros(0))
+                rec = LitFaces(row, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot, ends, lit)
                 v, vv = march_or_sample(rec, rule, cut_length(rule, hi - lo, kt[c]), kt[c], keys[s],
                                         dim0 + np.uint64(f) * np.uint64(STREAM), seed)
                 t = math.exp(-kt[c] * lo)
                 out[s, c] += v * t
                 var[s, c] += vv * t * t
                 err[s, c] = math.inf
+
+
+@njit
+def _faces_pieces(geo, planes, toward, f, lo, hi, ell, row, ends, lit, kt, ks, code, g, kt_out, eta, spot, rtol,
+                  dplanes, start, rows, out, err, stats, value, bound):
+    """`out_of_faces`' QUAD over face f's part [lo, hi] of the segment (geo row; row: its face row from lo), on its
+    pieces between ends (relative to lo) flagged lit: added into out and err (C,)."""
+    errs = np.zeros(2) if dplanes is None else dplanes
+    for i in range(lit.shape[0]):
+        a, b = ends[i], ends[i + 1]
+        if not b > a:
+            continue
+        if lit[i] < 0.0:  # undecided: dark, its length times twice its ends' larger value in the bound
+            for c in range(kt.shape[0]):
+                if ks[c] != 0.0:
+                    most = max(faces_point(a, row, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot[0], spot[1],
+                                           spot[2]),
+                               faces_point(b, row, planes, eta, kt[c], ks[c], code, g, kt_out[c], spot[0], spot[1],
+                                           spot[2]))
+                    err[c] += 2.0 * most * (b - a) * math.exp(-kt[c] * lo)
+            continue
+        if not lit[i] > 0.0:
+            continue
+        piece = row
+        if a > 0.0:  # (a == 0: start is the row at lo, `out_of_faces`')
+            if leaving_row(geo, lo + a, toward, f, start, rows) == 0:
+                continue
+            piece = rows[:1].copy()
+        p_lo, p_hi = lo + a, (hi if b == hi - lo else lo + b)
+        mags = (0.0, 0.0, 0.0, 0.0) if dplanes is None else _piece_mags(start, b - a, planes)
+        for c in range(kt.shape[0]):
+            if ks[c] == 0.0:
+                continue
+            faces_quadrature(piece, planes, b - a, min(b - a, 745.0 / kt[c]), kt[c:c + 1], ks[c:c + 1], code, g,
+                             kt_out[c:c + 1], eta, spot, rtol, errs, mags, -1, stats, value[:1], bound[:1])
+            t = math.exp(-kt[c] * p_lo)
+            out[c] += value[0] * t
+            if dplanes is None:
+                err[c] = math.inf
+                continue
+            m_lo = _end_moved(geo, planes[f], p_lo, dplanes) if a == 0.0 and lo > 0.0 else 0.0
+            m_hi = _end_moved(geo, planes[f], p_hi, dplanes) if b == hi - lo and hi < ell else 0.0
+            err[c] += (bound[0] + value[0] * (kt[c] * m_lo + 8.0 * U * (1.0 + kt[c] * p_lo))) * t
+            for x, moved in ((0.0, m_lo), (b - a, m_hi)):
+                if moved > 0.0:
+                    err[c] += moved * leaving_envelope(x, piece[0], moved, ks[c], code, g, eta, errs[0], errs[1], mags,
+                                                       False)
+
