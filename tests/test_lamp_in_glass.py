@@ -291,12 +291,11 @@ def test_raymarch_and_montecarlo_from_a_lamp_in_glass(case):
 
 
 def test_what_is_not_implemented_is_refused():
-    """Fog outside with volumetric shadows and a floor (its shadows on the light's legs), a shape inside the
-    lantern, another medium beside it (lit by its light refracted out), and the methods without exact paths: refused
-    in one line, naming what to change (an exact sphere: tests/test_lamp_in_globe.py)."""
+    """A shape inside the lantern, another medium beside it (lit by its light refracted out), and the methods
+    without exact paths: refused in one line, naming what to change (an exact sphere: tests/test_lamp_in_globe.py;
+    fog outside with volumetric shadows and a floor is rendered: tests/test_lamp_in_glass_shadows.py)."""
     inner, beside = inner_and_beside(scene)
-    refused([(scene(LAMP, {"sigma_a": 0.02, "sigma_s": 0.05}), "quadrature", "no-volumetric-shadows"),
-             (inner, "quadrature", r"another shape inside it or reaching into it \(shape\[2\]\)"),
+    refused([(inner, "quadrature", r"another shape inside it or reaching into it \(shape\[2\]\)"),
              (beside, "quadrature", r"another shape holding a medium \(shape\[2\]\)"),
              (scene(LAMP), "analytic", "no closed form"),
              (scene(LAMP), "slab_approx", "--method quadrature, raymarch, montecarlo")])
