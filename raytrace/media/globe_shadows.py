@@ -6,25 +6,45 @@ those where one blocks it, and undecided stretches between them (`shadow_pieces`
 The breaks are found, not sampled. Occluders are planar patches of triangles (`patches`: a quad's two triangles are
 one), outside the ball. A patch changes whether it blocks the leg only where the leg meets one of its boundary
 edges or the camera segment crosses it (the leg's ends: q(x), and E(x) on the sphere, never on it; a segment meets a
-plane once). `_scan` halves the segment from [0, ell]; on a cell [a, b] (midpoint m, half width h) every leg lies in
-the tube of radius rho = h (1 + s_max / o_min) + slack about the midpoint's leg q(m) + s t(m), s in [0, s_max]:
+plane once). `_scan` halves the segment from [0, ell] (`_split`); on a cell [a, b] (midpoint m, half width h) every
+leg lies in the tube of radius rho = h (1 + s_max / o_min) + slack about the midpoint's leg q(m) + s t(m), s in
+[0, s_max] (where o_min > 0):
 - q(x) is within h of q(m); the unit direction t(x) from q(x) toward E(x) is the outgoing wavefront's normal, whose
   derivative is its shape operator, of principal curvatures 1 / (o + r_i) with r_i >= 0 the distances from E back to
   the focal points (there is no real caustic outside: every point outside has one path, sphere_refraction.py's
-  claim, tests/test_globe_fog.py), so |dt/dx| <= 1 / o <= 1 / o_min, o_min = min over the cell of |q - c| - R;
+  claim, tests/test_globe_fog.py; proven below where k > 0), so |dt/dx| <= 1 / o <= 1 / o_min, o_min = min over the
+  cell of |q - c| - R;
 - the leg's length o(x) is at most the tangent length sqrt(|q - c|^2 - R^2) (the leg does not cross the ball: E is
   visible from q), s_max its largest over the cell (the ends: |q - c| is convex in x).
+Every leg also lies within width = h min(1, r_max / (o_min + r_max)) / cos_min + slack of the triangle q(a) q(b)
+E(m) (the hull of the stretch and the ball of that radius about E(m), which holds every E(x)), by the exit points'
+motion (`exit_rate`), proven: the light at distance d = rho R from the centre, a path leaves at E with cosines c1
+inside (to the normal) and c2 outside, sin(theta_1) <= rho (R sin(theta_1) is the centre's distance from the chord
+through L), so c2 = sqrt(1 - eta^2 sin^2(theta_1)) >= cos_min = sqrt(1 - eta^2 rho^2) > 0, and the chord from L is
+s <= R (c1 + rho). Coddington's equations for the way out (index eta to 1, the centre on the incoming side; the
+module docstring of sphere_refraction.py has the way in) give the outgoing wavefront's curvatures at E,
+    1 / r_s = eta / s - (eta c1 - c2) / R,   1 / r_t = (eta c1^2 / s - (eta c1 - c2) / R) / c2^2,
+and eta c1 - c2 grows with theta_1 (its derivative eta sin(theta_1) (eta / c2 - 1 / c1) >= 0), so with c1 >=
+sqrt(1 - rho^2), 1 / (1 + rho) >= 1 - rho and c2 <= 1 both are at least k / R, k = eta (1 - rho) - eta sqrt(1 -
+rho^2) + cos_min: 0 < r_i <= r_max = R / k where k > 0 (else r_max = inf). Moving q across the leg by v moves the
+leg's point at E across it by at most max_i r_i / (o + r_i) |v| (the wavefront's normals from focal distances o + r_i
+at q and r_i at E), and along the leg by what keeps E on the sphere: the leg meets the normal at cosine c2, so |dE/dx|
+<= min(1, r_max / (o + r_max)) / cos_min (checked against finite differences of `paths_out`'s exit points on random
+lights, iors and segments: at most 0.99999 of it). With o_min <= 0 (a segment leaving the sphere) only this hull
+applies. It is the one that settles far and grazing cells: its width at the leg's far end falls as 1 / o, as the legs
+converge on the ball, where the tube stays as wide as the cell; `_split` halves a cell whose ends' distances from
+the centre differ more than fourfold at their geometric mean, so that far cells are cut in proportion to their
+distance.
 A patch's state is constant over the cell where each boundary edge keeps out of the tube (the part of the axis past
-E(m), inside the ball, by comparing with the edge's distance from the centre) or out of the hull of the ball and
-the cell's camera stretch (every leg lies in it; it lies within R of the triangle of the stretch's ends and the
-centre: the legs of far cells, which converge on the ball, where the tube is as wide as the cell), and the cell's
-camera stretch misses it, and then is the midpoint leg's (it crosses a triangle of the patch or not, a float64 test with every edge more
-than rho away); or where the ball and the cell's camera stretch lie on one side of its plane (within slack: the
-camera segment ends on the surface it hits). A cell is dark where a patch blocks it so, lit where every patch
-clears it so, else halved while that narrows the tube (rho > 2 slack); then it is an undecided stretch (about
-slack / (1 + s_max / o_min) wide; `out_of_sphere` counts it dark and adds twice its length times the larger
-unshadowed integrand of its ends to the bound: the integrand's change across 1e-12 of the scene is negligible,
-argued, not proven). slack (SLACK of the
+E(m), inside the ball, by comparing with the edge's distance from the centre), out of the hull of the ball and the
+cell's camera stretch (every leg lies in it; it lies within R of the triangle of the stretch's ends and the centre)
+or out of the exit points' hull above, and the cell's camera stretch misses it, and then is the midpoint leg's (it
+crosses a triangle of the patch or not, a float64 test with every edge out of a hull holding that leg); or where the
+ball and the cell's camera stretch lie on one side of its plane (within slack: the camera segment ends on the
+surface it hits). A cell is dark where a patch blocks it so, lit where every patch clears it so, else halved while
+that narrows the tube or the hull (min(rho, width) > 2 slack); then it is an undecided stretch (at most about 2 slack
+wide; `out_of_sphere` counts it dark and adds twice its length times the larger unshadowed integrand of its ends to
+the bound: the integrand's change across 1e-12 of the scene is negligible, argued, not proven). slack (SLACK of the
 midpoint's distance from the centre plus R) covers t(m)'s and E(m)'s rounding (relative 1e-14 at most, as
 `fog_rounding` measures the paths' angles: argued). Unproven where a midpoint's path is not the one proven path, or
 after MAX_CELLS cells (the rest classified by their midpoint's leg)."""
@@ -145,10 +165,10 @@ def _one_side(tri, c, radius, qa, qb, slack):
 
 
 @njit
-def _state(tris, edges, c, radius, qa, qb, qm, e, far, rho, slack):
+def _state(tris, edges, c, radius, qa, qb, qm, e, far, rho, spread, slack):
     """LIT or DARK where the planar patch of triangles tris (its boundary edges (E, 2, 3)) keeps one state over the
     cell (module docstring), else UNDECIDED: the legs lie within rho of the axis qm -> far (E(m) = e on the way), its
-    part past e inside the ball."""
+    part past e inside the ball, and within spread of the triangle qa qb e."""
     if _one_side(tris[0], c, radius, qa, qb, slack):
         return LIT
     for t in range(tris.shape[0]):
@@ -157,7 +177,7 @@ def _state(tris, edges, c, radius, qa, qb, qm, e, far, rho, slack):
     inner = max(math.sqrt(_dot(e - c, e - c)), math.sqrt(_dot(far - c, far - c))) + rho
     for j in range(edges.shape[0]):
         a, b = edges[j, 0], edges[j, 1]
-        if _apart(a, b, qa, qb, c, radius + slack):  # out of the hull of the ball and the cell's stretch
+        if _apart(a, b, qa, qb, c, radius + slack) or _apart(a, b, qa, qb, e, spread):  # out of a hull of the legs
             continue
         if not _segments(a, b, qm, e) > rho:
             return UNDECIDED
@@ -167,6 +187,17 @@ def _state(tris, edges, c, radius, qa, qb, qm, e, far, rho, slack):
         if _crosses(tris[t], qm, e):
             return DARK
     return LIT
+
+
+@njit
+def exit_rate(d, radius, eta):
+    """(r_max, cos_min) for a light at d < radius / eta from the centre: the outgoing wavefront's focal distances
+    behind its exit point are at most r_max (inf where the module docstring's k is not positive) and the leg's cosine
+    to the normal there at least cos_min (0 for d >= radius / eta)."""
+    rho = d / radius
+    cos_min = math.sqrt(max(1.0 - eta * eta * rho * rho, 0.0))
+    k = eta * (1.0 - rho) - eta * math.sqrt(1.0 - rho * rho) + cos_min
+    return (radius / k if k > 0.0 else math.inf), cos_min
 
 
 @njit
@@ -199,6 +230,18 @@ def _push(ends, flags, n, x, flag):
 
 
 @njit
+def _split(a, b, da, db):
+    """Where the cell [a, b] is halved: its midpoint, or where the distance from the centre (da, db at its ends,
+    taken as linear) is their geometric mean where one exceeds four times the other (the hulls' widths scale with
+    the cell's width over that distance)."""
+    if db > 4.0 * da:
+        return a + (b - a) * (math.sqrt(da * db) - da) / (db - da)
+    if da > 4.0 * db:
+        return b - (b - a) * (math.sqrt(da * db) - db) / (da - db)
+    return 0.5 * (a + b)
+
+
+@njit
 def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
     """(ends, flags, count, proven) of one segment (module docstring) against the planar patches `near` (indices
     into tstart, estart: `shadow_pieces`): the pieces' ends (count + 1, from 0 to ell) and flags (count)."""
@@ -207,6 +250,7 @@ def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
     n, cells, proven = 0, 0, True
     found, spread, value = np.empty(MAX_PATHS), np.empty(MAX_PATHS), np.empty(MAX_PATHS)
     toward, inside, outside = np.empty((MAX_PATHS, 3)), np.empty(MAX_PATHS), np.empty(MAX_PATHS)
+    r_max, cos_min = exit_rate(math.sqrt(_dot(rel, rel)), radius, eta)
     stack = [(0.0, ell)]
     while len(stack):
         a, b = stack.pop()
@@ -220,16 +264,17 @@ def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
         f = min(max(_dot(c - qa, ab) / _dot(ab, ab), 0.0), 1.0) if _dot(ab, ab) > 0.0 else 0.0
         closest = qa + f * ab - c
         o_min = math.sqrt(_dot(closest, closest)) - radius
-        s_max = math.sqrt(max(_dot(qa - c, qa - c), _dot(qb - c, qb - c)) - radius * radius)
+        s_max = math.sqrt(max(_dot(qa - c, qa - c), _dot(qb - c, qb - c), radius * radius) - radius * radius)
         state = LIT
-        if not (o_min > 0.0 and ok):  # not the one proven path: unshadowed, unproven
+        if not (ok and cos_min > 0.0):  # not the one proven path: unshadowed, unproven
             proven = False
         else:
-            rho = h * (1.0 + s_max / o_min) + slack
+            rho = h * (1.0 + s_max / o_min) + slack if o_min > 0.0 else math.inf
+            width = h * min(1.0, r_max / (max(o_min, 0.0) + r_max)) / cos_min + slack
             e, far = qm + om * t, qm + max(s_max, om) * t
             for i in near:
                 st = _state(tris[tstart[i]:tstart[i + 1]], edges[estart[i]:estart[i + 1]], c, radius, qa, qb, qm, e,
-                            far, rho, slack)
+                            far, rho, width, slack)
                 if st == DARK:
                     state = DARK
                     break
@@ -242,9 +287,10 @@ def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
                     for k in range(tstart[i], tstart[i + 1]):
                         if _crosses(tris[k], qm, e):
                             state = DARK
-            if state == UNDECIDED and rho > 2.0 * slack:  # halving still narrows the tube
-                stack.append((m, b))
-                stack.append((a, m))
+            if state == UNDECIDED and min(rho, width) > 2.0 * slack:  # halving still narrows the hulls
+                split = _split(a, b, math.sqrt(_dot(qa - c, qa - c)), math.sqrt(_dot(qb - c, qb - c)))
+                stack.append((split, b))
+                stack.append((a, split))
                 continue
         n, ends, flags = _push(ends, flags, n, b, state)
     return ends, flags, n, proven
