@@ -91,8 +91,19 @@ async def _preload(job: Job):
 def _tile_task(job: Job, tile: renderer.Tile):
     prep, _, _ = _prepared(job)
     start = time.perf_counter()
-    result = renderer.render_tile(prep, job.task, tile)
+    result = renderer.render_tile(prep, job.task, tile, every_tile=False)
     return result, time.perf_counter() - start
+
+
+async def _forget(job: Job):
+    """client.run target: the render of `job` is over, so its pixel samples' views are dropped here
+    (renderer.forget; on the thread pool: it waits for the scene's lock)."""
+    def forget():
+        with _lock:
+            prep = _cache.get(job.scene_key)
+        if prep is not None:
+            renderer.forget(prep, job.task.seed)
+    await asyncio.get_running_loop().run_in_executor(None, forget)
 
 
 def prepare_workers(client: Client, job: Job) -> float:
@@ -124,6 +135,7 @@ def map_tiles(client: Client, job: Job, work: list[renderer.Tile], timings: list
         raise UserError(f"--scheduler: a worker failed: {exc}") from None
     finally:
         client.cancel(list(futures))
+        client.run(_forget, job, on_error="ignore")  # the last sample's views, and any a stop left
 
 
 class Cluster:
