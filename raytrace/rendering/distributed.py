@@ -6,8 +6,11 @@ in renderer.Accumulator's fixed order, so the image is the single machine's bit 
 the number of workers. A task carries the parsed scene, not its meshes: each worker process loads
 the meshes (through its own RAYTRACE_ASSETS), builds the Embree accelerator and compiles the
 kernels once per scene (`_prepared`), before the first tile (`prepare_workers`) or in the first
-tile of a worker that joins later. A worker lost mid-render loses its tasks in flight; the
-scheduler runs them again elsewhere, with the same result.
+tile of a worker that joins later. With an environment light a worker builds a pixel sample's view
+(its directions' shadow frusta: renderer.seeded) for the tiles of it that it is given, sample after sample, and
+drops it when it starts another sample's tile; the client has the workers drop the last ones when the render is
+over or stopped (`_forget`). A worker lost mid-render loses its tasks in flight; the scheduler runs them again
+elsewhere, with the same result.
 """
 from __future__ import annotations
 
