@@ -8,7 +8,9 @@ emitter and the ray), stored in tests/data/montecarlo_fog_twins.json; one penumb
 z-test of tests/test_montecarlo_penumbra.py over 2 seeds; the rows' estimate (what montecarlo drew in a fog's
 penumbrae before) fails it. The atmosphere's: tests/make_montecarlo_atmosphere_twins.py (the same scene in 8 x 6
 pixels in a planet's two-layer coloured air, one layer Henyey–Greenstein; its columns integrated from the density's
-definition, not the project's Chapman code), channels 0 and 2 (each its own test) over 4 seeds. In an atmosphere
+definition, not the project's Chapman code), channels 0 and 2 (each its own test), one seed (about 12 CPU s):
+mean z^2 0.69 and 0.71, largest |z| 2.7 and 2.8; with the drawn points' rows at their nodes' light (a scratch
+copy of montecarlo `_atm_row`) 2.19 and 1.58, 3.9 and 5.4, which fails. In an atmosphere
 (and the fog) the drawn points' weights are those `drawn_segments` averages, draw for draw, where nothing occludes.
 """
 from __future__ import annotations
@@ -77,7 +79,7 @@ def air_case():
 
 
 def test_the_atmosphere_penumbra_against_the_twin(air_case):
-    for c, z in zip(air.CHANNELS, _z(*air_case, range(4), air.CHANNELS)):
+    for c, z in zip(air.CHANNELS, _z(*air_case, range(1), air.CHANNELS)):
         assert _passes(z), (c, np.mean(z ** 2), np.abs(z).max())
 
 
