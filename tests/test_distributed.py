@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import time
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -194,6 +195,67 @@ def test_workers_that_cannot_find_the_meshes_are_one_line(client, tmp_path, caps
     monkeypatch.setenv("RAYTRACE_ASSETS", str(tmp_path / "assets"))  # here, not on the workers started before
     err = _refused([str(path), "--scheduler", client.scheduler.address], tmp_path, capsys, 30)
     assert "plate.obj" in err and "RAYTRACE_ASSETS" in err and "worker" in err
+
+
+_alive: list = []  # in a worker process: weak references to the pixel samples' environment frusta built there
+_peak = [0]  # the most of them alive at a build
+
+
+def _count_frusta():
+    """client.run target: count the pixel samples' environment frusta this worker builds from now on."""
+    _alive.clear()
+    _peak[0] = 0
+    build = getattr(renderer.build_frusta, "uncounted", renderer.build_frusta)
+
+    def counted(accel, lights, *args, rows=None, **kw):
+        out = build(accel, lights, *args, rows=rows, **kw)
+        if rows is not None:  # a pixel sample's view (`Prepared.base`)
+            _alive.append(weakref.ref(out[np.flatnonzero(rows)[0]]))
+            _peak[0] = max(_peak[0], sum(r() is not None for r in _alive))
+        return out
+
+    counted.uncounted = build
+    renderer.build_frusta = counted
+
+
+def _frusta_counts():
+    """client.run target: (built, most alive at once, alive now), the counting stopped."""
+    renderer.build_frusta = getattr(renderer.build_frusta, "uncounted", renderer.build_frusta)
+    return len(_alive), _peak[0], sum(r() is not None for r in _alive)
+
+
+def _min_tile_rays(n):
+    """client.run target (and here): renderer.MIN_TILE_RAYS = n; returns the value it had."""
+    old, renderer.MIN_TILE_RAYS = renderer.MIN_TILE_RAYS, n
+    return old
+
+
+def test_a_worker_keeps_only_the_samples_in_flight(client, monkeypatch):
+    """With an environment light every pixel sample has its own directions and shadow frusta (`renderer.seeded`):
+    a worker builds each sample's once and drops it when it starts a tile of another sample, and the rest when the
+    render is over, so that its memory does not grow with spp (on 2b62f87 a worker kept every sample it saw,
+    spp 8 here: 8 alive at once). The image is the threaded render's bit for bit."""
+    from .test_environment import ENV, FOG, GROUND, PLATE, scene as env_scene
+    from .test_environment_stats import LAMP
+
+    camera = {"position": [0.0, 0.6, 3.0], "look_at": [0.0, 0.4, 0.0], "fov": 40.0, "width": 8, "height": 6, "spp": 8}
+    scene = env_scene([ENV, LAMP], medium=FOG, camera=camera, shapes=[GROUND, PLATE])
+    opts = dict(method="quadrature", rtol=1e-6, volumetric_shadows=True, seed=3)
+    want = raytrace.render(scene, threads=2, **opts)
+    monkeypatch.setattr(renderer, "MIN_TILE_RAYS", 8)  # 6 tiles a sample (the workers' the same)
+    assert len(renderer.tiles(raytrace.load(scene).camera, (0, 0, 8, 6), by_sample=True)) == 6 * camera["spp"]
+    old = client.run(_min_tile_rays, 8)
+    client.run(_count_frusta)
+    try:
+        got = raytrace.render(scene, client=client, **opts)
+    finally:
+        counts = client.run(_frusta_counts)
+        for address, n in old.items():
+            client.run(_min_tile_rays, n, workers=[address])
+    assert got.array.tobytes() == want.array.tobytes() and got.variance.tobytes() == want.variance.tobytes()
+    built = sum(n for n, _, _ in counts.values())
+    assert built >= camera["spp"], counts  # every sample built on some worker
+    assert all(peak <= 2 and alive == 0 for _, peak, alive in counts.values()), counts  # one thread a worker
 
 
 def test_a_killed_worker_loses_only_its_tasks_in_flight(client, small_tiles):

@@ -69,6 +69,30 @@ def test_the_tiles_share_a_sample_until_the_last():
     assert renderer.seeded(prep, 3, 1, True, ("band", 2)) is not views[0]
 
 
+def test_a_workers_views_last_while_in_flight():
+    """Without the uses (a cluster's worker, given some of the tiles) a sample's view stays while a tile of it is in
+    flight or until a tile of another sample starts; `forget` (the render over) drops the idle ones at once and the
+    others after their tiles in flight."""
+    prep = renderer.prepare(fog())
+    one = renderer.seeded(prep, 3, 1, band=("tiles", None))
+    renderer.release(prep, 3, 1, "tiles")
+    assert renderer.seeded(prep, 3, 1, band=("tiles", None)) is one  # the next tile of sample 1: kept
+    two = renderer.seeded(prep, 3, 2, band=("tiles", None))
+    assert renderer.seeded(prep, 3, 1, band=("tiles", None)) is one  # still in flight
+    for _ in range(2):
+        renderer.release(prep, 3, 1, "tiles")
+    renderer.release(prep, 3, 2, "tiles")
+    three = renderer.seeded(prep, 3, 3, band=("tiles", None))
+    assert renderer.seeded(prep, 3, 1, band=("tiles", None)) is not one  # idle when sample 3 started: dropped
+    assert renderer.seeded(prep, 3, 2, band=("tiles", None)) is not two
+    renderer.release(prep, 3, 2, "tiles")
+    renderer.forget(prep, 3)
+    assert set(prep._memo["seeded"][1]) == {("tiles", 1), ("tiles", 3)}  # in flight
+    renderer.release(prep, 3, 1, "tiles")
+    renderer.release(prep, 3, 3, "tiles")
+    assert prep._memo["seeded"][1] == {} and three._memo == {}
+
+
 class Camera:  # what tiles() reads of a camera
     def __init__(self, width, height, spp):
         self.width, self.height, self.spp = width, height, spp

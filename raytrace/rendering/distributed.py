@@ -6,8 +6,11 @@ in renderer.Accumulator's fixed order, so the image is the single machine's bit 
 the number of workers. A task carries the parsed scene, not its meshes: each worker process loads
 the meshes (through its own RAYTRACE_ASSETS), builds the Embree accelerator and compiles the
 kernels once per scene (`_prepared`), before the first tile (`prepare_workers`) or in the first
-tile of a worker that joins later. A worker lost mid-render loses its tasks in flight; the
-scheduler runs them again elsewhere, with the same result.
+tile of a worker that joins later. With an environment light a worker builds a pixel sample's view
+(its directions' shadow frusta: renderer.seeded) for the tiles of it that it is given, sample after sample, and
+drops it when it starts another sample's tile; the client has the workers drop the last ones when the render is
+over or stopped (`_forget`). A worker lost mid-render loses its tasks in flight; the scheduler runs them again
+elsewhere, with the same result.
 """
 from __future__ import annotations
 
@@ -91,8 +94,19 @@ async def _preload(job: Job):
 def _tile_task(job: Job, tile: renderer.Tile):
     prep, _, _ = _prepared(job)
     start = time.perf_counter()
-    result = renderer.render_tile(prep, job.task, tile)
+    result = renderer.render_tile(prep, job.task, tile, every_tile=False)
     return result, time.perf_counter() - start
+
+
+async def _forget(job: Job):
+    """client.run target: the render of `job` is over, so its pixel samples' views are dropped here
+    (renderer.forget; on the thread pool: it waits for the scene's lock)."""
+    def forget():
+        with _lock:
+            prep = _cache.get(job.scene_key)
+        if prep is not None:
+            renderer.forget(prep, job.task.seed)
+    await asyncio.get_running_loop().run_in_executor(None, forget)
 
 
 def prepare_workers(client: Client, job: Job) -> float:
@@ -124,6 +138,7 @@ def map_tiles(client: Client, job: Job, work: list[renderer.Tile], timings: list
         raise UserError(f"--scheduler: a worker failed: {exc}") from None
     finally:
         client.cancel(list(futures))
+        client.run(_forget, job, on_error="ignore")  # the last sample's views, and any a stop left
 
 
 class Cluster:

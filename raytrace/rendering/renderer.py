@@ -705,11 +705,12 @@ def _sum_samples(values, samples, out):
 _method = functools.lru_cache(maxsize=None)(get_method)  # every tile asks: the registry's imports once
 
 
-def render_tile(prep: Prepared, task: Task, tile: Tile):
+def render_tile(prep: Prepared, task: Task, tile: Tile, every_tile: bool = True):
     """The tile's radiance summed over its samples (pixels, 3), its statistics, for a stochastic
     method its summed variance (else None), its summed error bound and its output layers' summed
     columns (pixels, aov.width; None without layers): a function of the arguments alone, the same
-    whichever thread or cluster worker computes it."""
+    whichever thread or cluster worker computes it. `every_tile`: this process runs every tile of the
+    render (False: a cluster worker, given some), which says when a pixel sample's view is done (`seeded`)."""
     cam = prep.scene.camera
     x0, _, x1, _ = task.box
     n = tile.samples.stop - tile.samples.start
@@ -719,7 +720,8 @@ def render_tile(prep: Prepared, task: Task, tile: Tile):
     o, d = pixel_rays(cam, ys, xs, tile.samples)
     method = _method(task.method)
     if prep.memo("environment", lambda: bool(environment.groups(prep.lights))):  # the views' lights share its rows
-        rad, stats, var, bound, layers = _sample_by_sample(prep, method, task, tile, o, d, keys)
+        uses = tile_uses(prep, task.box) if every_tile else None
+        rad, stats, var, bound, layers = _sample_by_sample(prep, method, task, tile, o, d, keys, uses)
     else:
         hits = first_hits(prep.accel, prep.scene.medium, o, d) if task.aov else None  # the layers' too
         rad, stats, var, bound = shade_rays(prep, method, task.params, o, d, keys, task.seed, task.shadows, hits=hits)
@@ -742,18 +744,18 @@ def _tile_keys(first, step, row, x0, width, image_width, spp, sample, ys, xs, ke
             keys[i * n + s] = np.uint64(ys[i] * image_width + xs[i]) * np.uint64(spp) + np.uint64(sample + s)
 
 
-def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, dirs, keys):
+def _sample_by_sample(prep: Prepared, method, task: Task, tile: Tile, origins, dirs, keys, uses):
     """`shade_rays`' four values and the layers' columns (None without layers) of the tile's rays (pixel by
     pixel, `tile.samples` each) with an environment light: each pixel sample index s its own directions
-    (`seeded`, shared with the other tiles of that sample and dropped after the last: `tile_uses`), their
-    groups shaded apart (`shade_groups`); the statistics added in sample order."""
+    (`seeded`, shared with the other tiles of that sample and dropped after the last: `uses`, `tile_uses`'
+    counts, or None on a cluster's worker), their groups shaded apart (`shade_groups`); the statistics added
+    in sample order."""
     n = tile.samples.stop - tile.samples.start
     out = [np.zeros((len(keys), 3)) for _ in range(3)]
     layers, stats = None, 0.0
-    uses = tile_uses(prep, task.box)
     for j in range(n):
         at, sample = slice(j, None, n), tile.samples.start + j
-        view = seeded(prep, task.seed, sample, task.shadows, ("tiles", uses[sample]))
+        view = seeded(prep, task.seed, sample, task.shadows, ("tiles", None if uses is None else uses[sample]))
         try:
             o, d, k = origins[at], dirs[at], keys[at]
             hits = first_hits(view.accel, view.scene.medium, o, d)  # shared by the passes
@@ -804,36 +806,72 @@ def seeded(prep: Prepared, seed: int, sample: int, shadows: bool = False, band: 
     """`prep` with the environment light's directions of the pixel sample `sample` for `seed`
     (environment.seeded; `prep` itself where they are the same), their shadow frusta its own and the other
     lights' `prep`'s (`Prepared.base`), built here with `shadows` (once, before any view of it copies it:
-    `shade_groups`' passes and the layers' views share them). `band` = (key, uses): the view is shared by `uses`
-    calls with that key and dropped after the last one's `release` (the tiles of a sample: at most the samples in flight
-    are kept); without it, kept while `seed` is the last seed."""
+    `shade_groups`' passes and the layers' views share them). `band` = (key, uses): one use of the view shared
+    by the calls with that key, each ended by `release`. With `uses` a count (the tiles of a sample in a render
+    that runs them all: `tile_uses`) the view is dropped after the last; with None (a cluster worker, given some
+    of the tiles, sample after sample) it is kept while a use is in flight and dropped when a use of another
+    sample starts (one that comes back later builds it again, the same). Without `band`, kept while `seed` is
+    the last seed."""
     key = (None if band is None else band[0], sample)
     with prep._memo_lock:
-        last = prep._memo.get("seeded")
-        if last is None or last[0] != seed:
-            last = prep._memo["seeded"] = (seed, {})
-        if key not in last[1]:
+        views = _views(prep, seed)
+        if key not in views:
             lights = environment.seeded(prep.lights, prep.scene.lights, seed, sample)
-            last[1][key] = [prep if lights is prep.lights else dataclasses.replace(
+            views[key] = [prep if lights is prep.lights else dataclasses.replace(
                 prep, lights=lights, base=prep, _frusta=None, _through=None, _memo={}, _memo_lock=threading.RLock()),
-                0 if band is None else band[1]]
-        view = last[1][key][0]
+                None if band is None else band[1], 0]  # view, uses left (None: unknown), uses in flight
+        views[key][2] += 1
+        if band is not None and band[1] is None:
+            for other in [k for k, (_, left, busy) in views.items() if k[0] == key[0] and k != key and left is None
+                          and busy <= 0]:
+                _drop(prep, views, other)
+        view = views[key][0]
     if shadows:
         view.memo("frusta", view.frusta)  # under the view's lock: a tile of another sample does not wait
     return view
 
 
 def release(prep: Prepared, seed: int, sample: int, key):
-    """One use of `seeded(prep, seed, sample, band=(key, uses))` done: the view is dropped after the last."""
+    """One use of `seeded(prep, seed, sample, band=(key, uses))` done: the view is dropped after the last of
+    `uses` (see `seeded` for None)."""
     with prep._memo_lock:
-        last = prep._memo.get("seeded")
-        entry = None if last is None or last[0] != seed else last[1].get((key, sample))
+        views = _views(prep, seed, create=False)
+        entry = views.get((key, sample))
         if entry is not None:
-            entry[1] -= 1
-            if entry[1] <= 0:
-                del last[1][key, sample]
-                if entry[0] is not prep:  # its passes' views (copies sharing the memo) hold it in a cycle: freed now
-                    entry[0]._memo.clear()
+            entry[2] -= 1
+            if entry[1] is not None:
+                entry[1] -= 1
+                if entry[1] <= 0:
+                    _drop(prep, views, (key, sample))
+
+
+def forget(prep: Prepared, seed: int):
+    """A render of `seed` over (finished or stopped: Ctrl-C, an error): the views of `seed` in no use now are
+    dropped, the others after their uses in flight."""
+    with prep._memo_lock:
+        views = _views(prep, seed, create=False)
+        for key, entry in list(views.items()):
+            if entry[2] <= 0:
+                _drop(prep, views, key)
+            else:
+                entry[1] = entry[2]
+
+
+def _views(prep: Prepared, seed: int, create: bool = True) -> dict:
+    """The views of `seed` (`seeded`): key -> [view, uses left, uses in flight]; another seed's are dropped
+    (`create`) or left ({} returned)."""
+    last = prep._memo.get("seeded")
+    if last is None or last[0] != seed:
+        if not create:
+            return {}
+        last = prep._memo["seeded"] = (seed, {})
+    return last[1]
+
+
+def _drop(prep: Prepared, views: dict, key):
+    view = views.pop(key)[0]
+    if view is not prep:  # its passes' views (copies sharing the memo) hold it in a cycle: freed now
+        view._memo.clear()
 
 
 def layer_columns(prep: Prepared, method, task: Task, origins, dirs, keys, hits) -> np.ndarray:
@@ -897,6 +935,7 @@ class Threads:
                 yield i, result
         finally:  # done, Ctrl-C, the generator closed (GeneratorExit) or a tile's error
             stop.set()
+            forget(prep, task.seed)  # the views of samples whose tiles will not run
 
 
 class Accumulator:
