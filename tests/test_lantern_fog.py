@@ -14,8 +14,11 @@ scipy quad_vec integrates the
 isotropic fog's in-scattering sigma_s / (4 pi) E exp(-sigma_t t) between those breaks. A pixel adds the
 air-light of its camera segment (and for a ray that enters the lantern, of its mirrored and its exiting rays,
 with Fresnel's weights) to tests/test_lamp_in_glass.py `twin`'s value (the fog's extinction is the twin's
-outside one)."""
+outside one). The air-light of the chosen pixels is stored (tests/make_lantern_fog_twins.py), one recomputed live."""
+import json
 import math
+import pathlib
+import types
 
 import mpmath as mp
 import numpy as np
@@ -23,8 +26,12 @@ import pytest
 from scipy import integrate, optimize
 
 from raytrace.errors import UserError
+from raytrace.options import RenderOptions
+from raytrace.rendering.renderer import prepare, render
+from raytrace.scene.format import scene_from_text
 
 from . import oracle
+from .conftest import to_toml
 from .test_bounded_media import box_entry, fresnel_t
 from .test_lamp_in_glass import (CAMERA, ETA, FACES, HI, KA, KA_OUT, KS, LAMP, LO, SPOT, dot, exit_point, irradiance,
                                  on_face, refract, scene, twin, unit)
@@ -35,6 +42,7 @@ KS_OUT = 0.02
 FOG = {"sigma_a": KA_OUT - KS_OUT, "sigma_s": KS_OUT}  # extinction KA_OUT, the twin's outside legs'
 FLOOR_Y = -1.6
 PIXELS = [(2, 1), (3, 5), (3, 2), (2, 3)]  # (row, column): the floor beside the lantern; (2, 3) the lantern's +z face
+TWINS = pathlib.Path(__file__).with_name("data") / "lantern_fog_twins.json"  # tests/make_lantern_fog_twins.py writes it
 
 
 def minimised_exit_point(L, X, n):
@@ -166,13 +174,47 @@ def fog_pixel(light, j, i, epsrel):
     return total
 
 
+def stored_air(name, pixels):
+    """The twin's air-light (n, 3) of `pixels` under the light `name` (quad_vec at epsrel 1e-10), as
+    tests/make_lantern_fog_twins.py stored it (tests/data/lantern_fog_twins.json)."""
+    twins = json.loads(TWINS.read_text())[name]
+    assert [tuple(p) for p in twins["pixels"]] == list(pixels), "run python -m tests.make_lantern_fog_twins"
+    return np.array(twins["air"])
+
+
+def test_the_stored_twin_is_the_twin():
+    """The stored twin's air-light of the lamp's first pixel (the floor beside the lantern) recomputed live: the same
+    to 1e-12 (quad_vec's result, the same on every run)."""
+    j, i = PIXELS[0]
+    assert np.allclose(fog_pixel(LAMP, j, i, 1e-10), stored_air("lamp", PIXELS)[0], rtol=1e-12, atol=0.0)
+
+
+def block(sc, method, params, pixels, seed=0):
+    """tests/test_light_inside.py `image` without volumetric shadows, rendered on the block of pixels holding
+    `pixels` alone (RenderOptions.crop: the same samples and random numbers as in the whole image): its image,
+    variance and error bound placed in the whole image's frame (NaN elsewhere)."""
+    rows, cols = zip(*pixels)
+    box = (min(cols), min(rows), max(cols) + 1, max(rows) + 1)
+    res = render(prepare(scene_from_text(to_toml(sc), sc["name"])), method, params,
+                 RenderOptions(threads=1, volumetric_shadows=False, seed=seed, crop=box))
+
+    def placed(layer):
+        whole = np.full((sc["camera"]["height"], sc["camera"]["width"], 3), np.nan)
+        whole[box[1]:box[3], box[0]:box[2]] = layer
+        return whole
+
+    return types.SimpleNamespace(image=placed(res.image), error_bound=placed(res.error_bound),
+                                 variance=None if res.variance is None else placed(res.variance))
+
+
 @pytest.fixture(scope="module")
 def reference():
-    """The twin's pixels (quad_vec at epsrel 1e-10) and the quadrature's image (rtol 1e-10)."""
+    """The twin's pixels (quad_vec at epsrel 1e-10, stored: `stored_air`) and the quadrature's image (rtol 1e-10) of
+    their `block`."""
     base = twin(LAMP)
-    air = np.array([fog_pixel(LAMP, j, i, 1e-10) for j, i in PIXELS])
-    return air + np.array([base[j, i] for j, i in PIXELS]), air, image(scene(LAMP, FOG), "quadrature", {"rtol": 1e-10},
-                                                                        shadows=False)
+    air = stored_air("lamp", PIXELS)
+    return air + np.array([base[j, i] for j, i in PIXELS]), air, block(scene(LAMP, FOG), "quadrature", {"rtol": 1e-10},
+                                                                        PIXELS)
 
 
 def test_the_pixels_are_lit_through_the_faces(reference):
@@ -191,14 +233,14 @@ def test_quadrature_against_the_twin(reference):
 
 def quadrature_against(reference, sc, pixels):
     """The fixture's quadrature render (rtol 1e-10) within 1e-9 of its twin `ref` on `pixels`, its bound holding;
-    the scene `sc` at rtol 1e-6 (no volumetric shadows) within 1e-5."""
+    the scene `sc` at rtol 1e-6 (no volumetric shadows; the pixels' `block`) within 1e-5."""
     ref, _, res = reference
     got = np.array([res.image[j, i] for j, i in pixels])
     err = np.abs(got - ref) / ref
     assert np.all(err <= 1e-9), err.max()
     bounds = np.array([res.error_bound[j, i] for j, i in pixels])
     assert np.all(bounds >= np.abs(got - ref))
-    coarse = image(sc, "quadrature", {"rtol": 1e-6}, shadows=False)
+    coarse = block(sc, "quadrature", {"rtol": 1e-6}, pixels)
     got = np.array([coarse.image[j, i] for j, i in pixels])
     assert np.all(np.abs(got - ref) <= 1e-5 * ref), (np.abs(got - ref) / ref).max()
 
@@ -211,17 +253,17 @@ def test_raymarch_converges_and_montecarlo_is_unbiased(reference):
 
 
 def march_and_sample(sc, pixels, ref, gain=4.0, within=1e-5):
-    """The scene `sc` without volumetric shadows: raymarch `gain` times closer to ref (the pixels' values) at 4096
-    steps than at 512 and within `within`; Monte Carlo with 256 samples: mean squared z-score over the pixels'
-    channels and seeds 3 to 6 in (0.3, 3)."""
+    """The scene `sc` without volumetric shadows (the pixels' `block`): raymarch `gain` times closer to ref (the
+    pixels' values) at 4096 steps than at 512 and within `within`; Monte Carlo with 256 samples: mean squared z-score
+    over the pixels' channels and seeds 3 to 6 in (0.3, 3)."""
     errs = []
     for steps in (512, 4096):
-        res = image(sc, "raymarch", {"steps": steps}, shadows=False)
+        res = block(sc, "raymarch", {"steps": steps}, pixels)
         errs.append(max(np.max(np.abs(res.image[j, i] - r) / r) for (j, i), r in zip(pixels, ref)))
     assert errs[1] < errs[0] / gain and errs[1] < within, errs
     z2 = []
     for seed in (3, 4, 5, 6):
-        mc = image(sc, "montecarlo", {"samples": 256}, shadows=False, seed=seed)
+        mc = block(sc, "montecarlo", {"samples": 256}, pixels, seed=seed)
         for (j, i), r in zip(pixels, ref):
             z2 += ((mc.image[j, i] - r) ** 2 / mc.variance[j, i]).tolist()
     assert 0.3 < np.mean(z2) < 3.0, np.mean(z2)

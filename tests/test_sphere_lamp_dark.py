@@ -7,11 +7,13 @@ from the geometry alone (numpy and scipy), the floor black:
 V(x) = int_cap exp(-kt r) max(0, n.(x - q) / r) / r^2 dA(q), r = |x - q|, over the cap's points q (the
 floor hides the rest and nothing else hides the cap), Gauss-Legendre in the polar angle about +y and
 equally spaced azimuths, along the ray by scipy's quad; plus the lamp's radiance through the fog where
-the ray meets the cap.
+the ray meets the cap. The twin is stored (tests/make_sphere_lamp_dark_twins.py), one pixel recomputed live.
 """
 from __future__ import annotations
 
+import json
 import math
+import pathlib
 import warnings
 
 import numpy as np
@@ -32,6 +34,7 @@ BLACK_FLOOR = {"primitive": "quad", "corners": [[-20.0, 0.0, 20.0], [20.0, 0.0, 
                                                 [-20.0, 0.0, -20.0]], "reflectance": 0.0}
 GX, GW = np.polynomial.legendre.leggauss(96)
 PHI = np.linspace(0.0, 2.0 * math.pi, 192, endpoint=False)
+TWINS = pathlib.Path(__file__).with_name("data") / "sphere_lamp_dark_twins.json"  # tests/make_sphere_lamp_dark_twins.py
 
 
 def scene():
@@ -72,17 +75,33 @@ def first_hit(o, d):
     return (t_lamp, True) if 0.0 < t_lamp < t_floor else (t_floor, False)
 
 
+def twin_pixel(o, d) -> float:
+    """The radiance along the camera ray o + t d (module docstring), quad to 1e-8."""
+    t_end, lamp = first_hit(o, d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", integrate.IntegrationWarning)
+        air = integrate.quad(lambda t: math.exp(-KT * t) * lit(o + t * d), 0.0, t_end, epsabs=0.0, epsrel=1e-8,
+                             limit=200)[0]
+    return KS / (4.0 * math.pi) * L * air + (L * math.exp(-KT * t_end) if lamp else 0.0)
+
+
 def twin():
-    """(H, W) each pixel's radiance (module docstring), quad to 1e-8."""
+    """(H, W) each pixel's radiance (`twin_pixel`)."""
     out = np.zeros((CAMERA["height"], CAMERA["width"]))
     for row, col, o, d in camera_rays(CAMERA):
-        t_end, lamp = first_hit(o, d)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", integrate.IntegrationWarning)
-            air = integrate.quad(lambda t: math.exp(-KT * t) * lit(o + t * d), 0.0, t_end, epsabs=0.0, epsrel=1e-8,
-                                 limit=200)[0]
-        out[row, col] = KS / (4.0 * math.pi) * L * air + (L * math.exp(-KT * t_end) if lamp else 0.0)
+        out[row, col] = twin_pixel(o, d)
     return out
+
+
+def stored_twin():
+    """`twin` as tests/make_sphere_lamp_dark_twins.py stored it (tests/data/sphere_lamp_dark_twins.json)."""
+    return np.array(json.loads(TWINS.read_text())["twin"])
+
+
+def test_the_stored_twin_is_the_twin():
+    """The stored twin's pixel (2, 3) recomputed live: the same to 1e-12 (quad's result, the same on every run)."""
+    row, col, o, d = next(ray for ray in camera_rays(CAMERA) if ray[:2] == (2, 3))
+    assert math.isclose(twin_pixel(o, d), stored_twin()[row, col], rel_tol=1e-12)
 
 
 def test_a_cap_between_the_rows_lights_the_fog():
@@ -92,7 +111,7 @@ def test_a_cap_between_the_rows_lights_the_fog():
     the dark rows taken for a proof, every pixel was 0)."""
     img = api.render(scene(), "quadrature", rtol=1e-6)
     assert img.stats["cubature: rows"] == 8
-    ref = twin()
+    ref = stored_twin()
     value, var = img.array[..., 0], img.variance[..., 0]
     assert np.all(ref > 1e-4), ref.min()
     assert np.all(var > 0.0)
