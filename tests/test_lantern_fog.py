@@ -280,10 +280,10 @@ def test_alone_with_shadows_is_the_same():
 
 
 def test_what_is_not_implemented_is_refused():
-    """Volumetric shadows with another shape, and the methods without exact paths: refused in one line, naming what
-    to change (a spot light: tests/test_lantern_fog_spot.py)."""
-    for sc, method, shadows, words in ((scene(LAMP, FOG), "quadrature", True, "--no-volumetric-shadows"),
-                                       (scene(LAMP, FOG), "analytic", False, "no closed form"),
+    """The methods without exact paths: refused in one line, naming what to change (a spot light:
+    tests/test_lantern_fog_spot.py; volumetric shadows of another shape are rendered:
+    tests/test_lamp_in_glass_shadows.py)."""
+    for sc, method, shadows, words in ((scene(LAMP, FOG), "analytic", False, "no closed form"),
                                        (scene(LAMP, FOG), "slab_approx", False, "--method quadrature")):
         with pytest.raises(UserError, match=words) as err:
             image(sc, method, {}, shadows=shadows)
