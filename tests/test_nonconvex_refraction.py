@@ -35,8 +35,18 @@ CAMERA = {"position": [0.3, 1.4, 3.0], "look_at": [0.0, -0.3, 0.0], "fov": 45.0,
 
 
 TRIS = obj_triangles(u_obj())
-TWINS = {name: Glass(TRIS, ETA, KA, KS, G, KT_OUT, light) for name, light in (("point", LAMP), ("spot", SPOT))}
-UTWIN = TWINS["point"]  # the U's own geometry (the light plays no part)
+TWINS = {}
+
+
+def twin_of(light) -> Glass:
+    """The U's twin (tests/refraction_twin.py) under `light` (a [[light]] table), made once per light."""
+    key = repr(sorted(light.items()))
+    if key not in TWINS:
+        TWINS[key] = Glass(TRIS, ETA, KA, KS, G, KT_OUT, light)
+    return TWINS[key]
+
+
+UTWIN = twin_of(LAMP)  # the U's own geometry (the light plays no part)
 NORMALS, hits, first, entering, inside_stretch = (UTWIN.normals, UTWIN.hits, UTWIN.first, UTWIN.entering,
                                                    UTWIN.inside_stretch)
 
@@ -44,13 +54,13 @@ NORMALS, hits, first, entering, inside_stretch = (UTWIN.normals, UTWIN.hits, UTW
 def paths_of(X, light):
     """(face, unit direction of travel at X, value per channel) of every path from the light to X (`Glass.paths_of`:
     the camera segment's own attenuation is the caller's)."""
-    return TWINS[light["type"]].paths_of(X)
+    return twin_of(light).paths_of(X)
 
 
 def twin_pixel(light, i, j):
     """The pixel's radiance (3,), or None where the camera ray's light is not the one inside stretch the twin
     follows (its reflection or its way out meets the U again)."""
-    out = TWINS[light["type"]].pixel(*oracle.camera_ray(CAMERA, i, j), epsrel=1e-10)
+    out = twin_of(light).pixel(*oracle.camera_ray(CAMERA, i, j), epsrel=1e-10)
     return None if out is None else out[0]
 
 
@@ -211,9 +221,11 @@ def test_analytic_and_slab_approx_refuse(tmp_path, method):
 def test_the_bound_is_finite_on_a_fine_torus(tmp_path):
     """The 1,000-triangle glass torus of benchmarks/torus.py (ior 1.5, a lamp beside it, an absorbing outside): the
     scan finishes where R moves within rounding of its neighbours' planes (their side settled by the face's corners,
-    `_face_side`) and its blockers are culled by the tree, so the bound at rtol 1e-6 is finite on most lit pixels
-    (measured 82 % at 48 x 32; before: none, the culling alone spent the scan's budget), never below the distance
-    to the rtol 1e-10 image, its median 1.1 rtol of the value. The image is the same as before (the scan bounds it)."""
+    `_face_side`) and its blockers are culled by the tree, and a node inside a cluster the scan left undecided (the
+    outer nodes of a panel between two faces' breaks a few ulps apart) adds its cluster's jump to its error bound,
+    so the bound at rtol 1e-6 is finite on every lit pixel (at 48 x 32 too; before: 82 % there, and before that
+    none, the culling alone spent the scan's budget), never below the distance to the rtol 1e-10 image, its median
+    1.1 rtol of the value. The image is the same as before (the scan bounds it)."""
     from benchmarks.torus import torus_scene
 
     prep = prepare(torus_scene(tmp_path, 25, 12, 9, 1.5)[0])
@@ -221,6 +233,6 @@ def test_the_bound_is_finite_on_a_fine_torus(tmp_path):
     ref = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1))
     lit = np.all(res.image > 0.0, axis=2)
     bounded = lit & np.all(np.isfinite(res.error_bound), axis=2)
-    assert lit.sum() >= 20 and bounded.sum() >= 0.7 * lit.sum(), (bounded.sum(), lit.sum())
+    assert lit.sum() >= 20 and bounded.sum() == lit.sum(), (bounded.sum(), lit.sum())
     assert np.all(np.abs(res.image - ref.image)[bounded] <= res.error_bound[bounded])
     assert np.median(res.error_bound[bounded] / res.image[bounded]) <= 10 * 1e-6
