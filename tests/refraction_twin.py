@@ -5,8 +5,9 @@ At each point X inside, for every triangle whose plane separates X from the lamp
 path L -> R -> X by Fermat's principle (Snell's law in the plane of incidence, sin1 = eta sin2, bisected to the
 last bit for all triangles at once), kept when R lies inside the triangle and neither leg (X to R, R to L) meets
 another triangle; Fresnel's unpolarised transmittance in its angle form; the ray tube's irradiance across the
-refracted beam at distance k beyond R in closed form (`tube_irradiance`, checked against central differences of
-the map R' -> R' + k t(R') by `tube_by_differences`). A camera ray's value is its first stretch inside the mesh:
+refracted beam at distance k beyond R in closed form (`tube_irradiance`, checked against the U twin's central
+differences of the map R' -> R' + k t(R') in tests/test_torus_glass_twin.py; its Fresnel T and refraction are the
+U twin's, tests/test_nonconvex_refraction.py). A camera ray's value is its first stretch inside the mesh:
 exp(-kt_out t0) T(cos_i) / eta^2 times the integral of ks p(mu) E exp(-kt x) over the stretch, split where the set
 of lit faces changes (`changes`) and integrated by scipy quad_vec between the cuts.
 """
@@ -19,6 +20,7 @@ import numpy as np
 from scipy import integrate
 
 from . import oracle
+from .test_nonconvex_refraction import refract, transmittance
 
 
 def obj_triangles(text: str) -> np.ndarray:
@@ -26,29 +28,6 @@ def obj_triangles(text: str) -> np.ndarray:
     lines = text.splitlines()
     v = [list(map(float, line.split()[1:4])) for line in lines if line.startswith("v ")]
     return np.array([[v[int(k.split("/")[0]) - 1] for k in line.split()[1:]] for line in lines if line.startswith("f ")])
-
-
-def transmittance(cos_i, eta):
-    """Fresnel's unpolarised transmittance in its angle form (Born & Wolf)."""
-    ti = math.acos(min(cos_i, 1.0))
-    st = math.sin(ti) / eta
-    if st >= 1.0:
-        return 0.0
-    tt = math.asin(st)
-    if ti < 1e-8:
-        return 1.0 - ((eta - 1) / (eta + 1)) ** 2
-    rs = math.sin(ti - tt) / math.sin(ti + tt)
-    rp = math.tan(ti - tt) / math.tan(ti + tt)
-    return 1.0 - 0.5 * (rs * rs + rp * rp)
-
-
-def refract(d, n, eta):
-    """d refracted through a face of normal n facing it into relative index eta (None on total reflection)."""
-    ci = -float(d @ n)
-    st2 = (1 - ci * ci) / eta ** 2
-    if st2 >= 1.0:
-        return None
-    return d / eta + (ci / eta - math.sqrt(1 - st2)) * n
 
 
 def tube_irradiance(o, hl, k, eta):
@@ -62,22 +41,6 @@ def tube_irradiance(o, hl, k, eta):
     sin2 = math.sqrt(max(o * o - hl * hl, 0.0)) / (eta * o)
     cos2 = math.sqrt(1.0 - sin2 * sin2)
     return cos1 / o ** 2 / ((1.0 + k / (eta * o)) * (cos2 + k * hl * hl / (eta * o ** 3 * cos2)))
-
-
-def tube_by_differences(L, R, n, k, eta, h=1e-5):
-    """`tube_irradiance` by central differences of R' -> R' + k t(R') across the plane (n toward L)."""
-    e1 = np.cross(n, [0.3, 0.5, 0.8])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-
-    def end(p):
-        return p + k * refract((p - L) / np.linalg.norm(p - L), n, eta)
-
-    du = (end(R + h * e1) - end(R - h * e1)) / (2 * h)
-    dv = (end(R + h * e2) - end(R - h * e2)) / (2 * h)
-    t = refract((R - L) / np.linalg.norm(R - L), n, eta)
-    o = np.linalg.norm(R - L)
-    return float((L - R) @ n) / o / o ** 2 / abs(np.cross(du, dv) @ t)
 
 
 def changes(signature, ell, n=401, tol=1e-15):

@@ -4,16 +4,20 @@
 The shape is the U-shaped prism of tests/test_inside_paths.py (a closed OBJ), glass of ior 1.5 holding a fog, in an
 absorbing outside, lit by a lamp beside its right arm and below the plane of its top face, through which the camera
 sees it: the entry plane's model (the light enters through the plane of the face the camera ray entered by) leaves
-those pixels black. The twin (tests/refraction_twin.py `Glass`) reads the OBJ's triangles and knows nothing of the
-renderer: its own ray-triangle test (Moller-Trumbore) for the camera ray's entry, exit and reflection; at each point
-X inside, for every triangle whose plane separates X from the lamp, the refraction point by bisection on Snell's
-law in the plane of incidence, kept when it lies inside the triangle and neither leg (X to it, it to the lamp)
-meets another triangle; Fresnel's transmittance in its angle form; the ray tube's irradiance in closed form
-(checked against central differences). The breaks along a camera segment where a path appears or disappears are
-found by the twin on a grid of 400 points and bisected; scipy `quad_vec` integrates between them.
+those pixels black. The twin reads the OBJ's triangles and knows nothing of the renderer: its own ray-triangle test
+(Moller-Trumbore) for the camera ray's entry, exit and reflection; at each point X inside, for every triangle whose
+plane separates X from the lamp, the refraction point by scipy `brentq` on Snell's law in the plane of incidence,
+kept when it lies inside the triangle and neither leg (X to it, it to the lamp) meets another triangle; Fresnel's
+transmittance in its angle form; the irradiance across the refracted beam by central differences of the map from the
+refraction point to the point at the same distance along its refracted ray (I T cos1 / o^2 per unit area of the
+plane, over the beam's cross-section there). The breaks along a camera segment where a path appears or disappears
+are found by the twin on a grid of 400 points and bisected; scipy `quad` integrates between them.
 """
+import math
+
 import numpy as np
 import pytest
+from scipy import integrate, optimize
 
 from raytrace.interiors import paths
 from raytrace.lights import NO_CONE, SMOOTHSTEP
@@ -25,7 +29,6 @@ from raytrace.scene.format import load_scene
 
 from . import oracle
 from .conftest import to_toml
-from .refraction_twin import Glass, obj_triangles, refract, transmittance, tube_by_differences, tube_irradiance
 from .test_inside_paths import G, KA, KS, KT_OUT, u_obj
 
 ETA = 1.5
@@ -34,34 +37,186 @@ SPOT = LAMP | {"type": "spot", "look_at": [0.0, -0.6, -0.1], "cone_angle": 30.0,
 CAMERA = {"position": [0.3, 1.4, 3.0], "look_at": [0.0, -0.3, 0.0], "fov": 45.0, "width": 10, "height": 7, "spp": 1}
 
 
-TRIS = obj_triangles(u_obj())
-TWINS = {}
+def triangles(obj: str) -> np.ndarray:
+    v = [list(map(float, line.split()[1:])) for line in obj.splitlines() if line.startswith("v ")]
+    return np.array([[v[int(k) - 1] for k in line.split()[1:]] for line in obj.splitlines() if line.startswith("f ")])
 
 
-def twin_of(light) -> Glass:
-    """The U's twin (tests/refraction_twin.py) under `light` (a [[light]] table), made once per light."""
-    key = repr(sorted(light.items()))
-    if key not in TWINS:
-        TWINS[key] = Glass(TRIS, ETA, KA, KS, G, KT_OUT, light)
-    return TWINS[key]
+TRIS = triangles(u_obj())
+E1, E2 = TRIS[:, 1] - TRIS[:, 0], TRIS[:, 2] - TRIS[:, 0]
+NORMALS = np.cross(E1, E2) / np.linalg.norm(np.cross(E1, E2), axis=1)[:, None]
+OFFSETS = np.einsum("ij,ij->i", NORMALS, TRIS[:, 0])
 
 
-UTWIN = twin_of(LAMP)  # the U's own geometry (the light plays no part)
-NORMALS, hits, first, entering, inside_stretch = (UTWIN.normals, UTWIN.hits, UTWIN.first, UTWIN.entering,
-                                                   UTWIN.inside_stretch)
+def hits(o, d):
+    """Moller-Trumbore (oracle.triangle_hits): the ray parameter t of o + t d on every triangle (inf where it
+    misses)."""
+    t, u, v, det = oracle.triangle_hits(TRIS, o, d)
+    with np.errstate(invalid="ignore"):
+        ok = (np.abs(det) > 1e-14) & (u >= 0) & (v >= 0) & (u + v <= 1)
+    return np.where(ok, t, np.inf)
+
+
+def first(o, d, tmin=1e-9):
+    t = hits(o, d)
+    t = np.where(t > tmin, t, np.inf)
+    k = int(np.argmin(t))
+    return t[k], k
+
+
+def crosses(a, b, skip):
+    """Whether the segment a b meets a triangle other than `skip` (away from its ends)."""
+    d = b - a
+    t = hits(a, d)
+    t[skip] = np.inf
+    return bool(np.any((t > 1e-9) & (t < 1.0 - 1e-9)))
+
+
+def transmittance(cos_i, eta):
+    """Fresnel's unpolarised transmittance in its angle form (Born & Wolf)."""
+    ti = math.acos(min(cos_i, 1.0))
+    st = math.sin(ti) / eta
+    if st >= 1.0:
+        return 0.0
+    tt = math.asin(st)
+    if ti < 1e-8:
+        return 1.0 - ((eta - 1) / (eta + 1)) ** 2
+    rs = math.sin(ti - tt) / math.sin(ti + tt)
+    rp = math.tan(ti - tt) / math.tan(ti + tt)
+    return 1.0 - 0.5 * (rs * rs + rp * rp)
+
+
+def refract(d, n, eta):
+    """d refracted through a face of normal n facing it into relative index eta (None on total reflection)."""
+    ci = -float(d @ n)
+    st2 = (1 - ci * ci) / eta ** 2
+    if st2 >= 1.0:
+        return None
+    return d / eta + (ci / eta - math.sqrt(1 - st2)) * n
+
+
+def fermat_point(X, L, f):
+    """The refraction point through triangle f's plane of the path from L to X (None where the plane does not
+    separate them or the point lies outside the triangle), with the plane's normal turned toward L."""
+    n, c = NORMALS[f], OFFSETS[f]
+    hl, z = n @ L - c, c - n @ X
+    if hl * z <= 0:
+        return None
+    if hl < 0:
+        n, hl, z = -n, -hl, -z
+    foot = X + z * n
+    lh = L - hl * n - foot
+    rho = np.linalg.norm(lh)
+    if rho < 1e-14:
+        r = 0.0
+    else:
+        r = optimize.brentq(lambda r: (rho - r) / math.hypot(rho - r, hl) - ETA * r / math.hypot(r, z), 0.0, rho,
+                            xtol=1e-15, rtol=1e-15)
+    R = foot + (r / rho if rho > 0 else 0.0) * lh
+    a, b, c3 = TRIS[f]
+    bary = np.linalg.lstsq(np.column_stack([b - a, c3 - a]), R - a, rcond=None)[0]
+    if bary[0] < 0 or bary[1] < 0 or bary.sum() > 1:
+        return None
+    return R, n
+
+
+def tube_irradiance(L, R, n, k):
+    """Irradiance per unit intensity across the refracted beam at distance k beyond R: I T cos1 / o^2 per unit
+    area of the plane, over the cross-section of the map R' -> R' + k t(R') (central differences)."""
+    e1 = np.cross(n, [0.3, 0.5, 0.8])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    h = 1e-5
+
+    def ray(p):
+        u = (p - L) / np.linalg.norm(p - L)
+        return refract(u, n, ETA)
+
+    def end(p):
+        return p + k * ray(p)
+
+    du = (end(R + h * e1) - end(R - h * e1)) / (2 * h)
+    dv = (end(R + h * e2) - end(R - h * e2)) / (2 * h)
+    t = ray(R)
+    o = np.linalg.norm(R - L)
+    cos1 = float((L - R) @ n) / o
+    return transmittance(cos1, ETA) * cos1 / o ** 2 / abs(np.cross(du, dv) @ t)
 
 
 def paths_of(X, light):
-    """(face, unit direction of travel at X, value per channel) of every path from the light to X (`Glass.paths_of`:
-    the camera segment's own attenuation is the caller's)."""
-    return twin_of(light).paths_of(X)
+    """(face, value per channel) of every path from the light to X: its emission, the ray tube's irradiance,
+    the phase and the transmittance of both legs (the camera segment's own attenuation is the caller's)."""
+    L = np.array(light["position"], float)
+    spot = oracle.spot_of(light)
+    out = []
+    for f in range(len(TRIS)):
+        found = fermat_point(X, L, f)
+        if found is None or crosses(X, found[0], f) or crosses(found[0], L, f):
+            continue
+        R, n = found
+        k, o = np.linalg.norm(R - X), np.linalg.norm(L - R)
+        t = (X - R) / k
+        e = light["intensity"] * oracle.emission(spot, (R - L) / o) * tube_irradiance(L, R, n, k)
+        out.append((f, t, e * np.exp(-(KA + KS) * k - KT_OUT * o)))
+    return out
+
+
+def entering(o, d):
+    """(t0, n, P, w): the distance to the U's entry point, the face's normal against the ray, the entry point and
+    the refracted direction of the ray (o, d); None where it misses the U or its reflection meets the U again
+    (light the twins do not follow)."""
+    t0, f0 = first(o, d)
+    if not np.isfinite(t0):
+        return None
+    n = NORMALS[f0] * (-1.0 if NORMALS[f0] @ d > 0 else 1.0)
+    P = o + t0 * d
+    if np.isfinite(first(P, d - 2 * (d @ n) * n)[0]):
+        return None
+    return t0, n, P, refract(d, n, ETA)
+
+
+def inside_stretch(o, d):
+    """(t0, cos_i, P, w, ell): the distance to the entry point, the cosine of incidence there, the entry point, the
+    refracted direction and the length of the camera ray (o, d)'s stretch inside the U (`entering`); None where it
+    misses the U, or its reflection or its way out meets the U again."""
+    hit = entering(o, d)
+    if hit is None:
+        return None
+    t0, n, P, w = hit
+    ell, f1 = first(P, w)
+    n1 = NORMALS[f1] * (1.0 if NORMALS[f1] @ w > 0 else -1.0)
+    out_dir = refract(w, -n1, 1.0 / ETA)
+    if out_dir is not None and np.isfinite(first(P + ell * w, out_dir)[0]):
+        return None
+    return t0, -float(d @ n), P, w, ell
 
 
 def twin_pixel(light, i, j):
     """The pixel's radiance (3,), or None where the camera ray's light is not the one inside stretch the twin
     follows (its reflection or its way out meets the U again)."""
-    out = twin_of(light).pixel(*oracle.camera_ray(CAMERA, i, j), epsrel=1e-10)
-    return None if out is None else out[0]
+    o, d = oracle.camera_ray(CAMERA, i, j)
+    if not np.isfinite(first(o, d)[0]):
+        return np.zeros(3)
+    stretch = inside_stretch(o, d)
+    if stretch is None:
+        return None
+    t0, cos_i, P, w, ell = stretch
+    kt = KA + KS
+
+    def value(x):
+        X = P + x * w
+        return sum((KS * oracle.phase("hg", G, float(-t @ w)) * v for _, t, v in paths_of(X, light)), np.zeros(3)) \
+            * np.exp(-kt * x)
+
+    def signature(x):
+        return frozenset(f for f, _, _ in paths_of(P + x * w, light))
+
+    cuts = oracle.set_changes(signature, ell)
+    total = np.zeros(3)
+    for c in range(3):
+        total[c] = sum(integrate.quad(lambda x: value(x)[c], a, b, epsabs=0.0, epsrel=1e-10, limit=200)[0]
+                       for a, b in zip(cuts, cuts[1:]))
+    return math.exp(-KT_OUT * t0) * transmittance(cos_i, ETA) / ETA ** 2 * total
 
 
 def scene(tmp_path, light):
@@ -91,23 +246,6 @@ def twins():
 
 
 LIGHTS = {"lamp": LAMP, "spot": SPOT}
-
-
-def test_the_twins_ray_tube_and_fresnel():
-    """The twin's own parts: its closed-form ray tube agrees with central differences of the refracted rays' map
-    on the U's paths, its refraction keeps Snell's law, its Fresnel T at normal incidence is 1 - ((eta-1)/(eta+1))^2."""
-    checked = 0
-    for x in np.linspace(0.1, 0.9, 5):
-        _, _, P, w, ell = inside_stretch(*oracle.camera_ray(CAMERA, 7, 2))
-        X = P + x * ell * w
-        for f, R, n in zip(*UTWIN.fermat_points(X)):
-            o, hl, k = np.linalg.norm(UTWIN.lamp - R), float((UTWIN.lamp - R) @ n), np.linalg.norm(R - X)
-            assert abs(tube_irradiance(o, hl, k, ETA) / tube_by_differences(UTWIN.lamp, R, n, k, ETA) - 1) < 1e-8
-            d = (R - UTWIN.lamp) / o
-            t = refract(d, n, ETA)
-            assert abs(np.linalg.norm(np.cross(d, n)) - ETA * np.linalg.norm(np.cross(t, n))) < 1e-14
-            checked += 1
-    assert checked >= 5 and abs(transmittance(1.0, ETA) - 0.96) < 1e-15
 
 
 @pytest.mark.parametrize("name", sorted(LIGHTS))

@@ -15,6 +15,10 @@ from raytrace.options import RenderOptions
 from raytrace.rendering.renderer import prepare, render
 
 from . import make_torus_twins as twins
+from . import oracle
+from .refraction_twin import tube_irradiance
+from .test_nonconvex_refraction import ETA, transmittance
+from .test_nonconvex_refraction import tube_irradiance as tube_by_differences
 
 DATA = json.loads(twins.PATH.read_text())
 LIVE = (4, 2)  # the quickest pixel to recompute (about 2 s)
@@ -25,6 +29,23 @@ def renders(tmp_path_factory):
     scene = torus_scene(tmp_path_factory.mktemp("torus"), DATA["sections"], DATA["width"], DATA["height"], 1.5)[0]
     prep = prepare(scene)
     return {rtol: render(prep, "quadrature", {"rtol": rtol}, RenderOptions(threads=1)) for rtol in (1e-6, 1e-10)}
+
+
+def test_the_twins_ray_tube_is_the_u_twins():
+    """The twin's closed-form ray tube agrees with the U twin's central differences of the refracted rays' map on
+    the torus's paths along pixel LIVE's stretch (the same index, 1.5)."""
+    glass = twins.glass()
+    assert glass.eta == ETA
+    _, _, P, w, ell = glass.inside_stretch(*oracle.camera_ray(twins.CAMERA, *LIVE))
+    checked = 0
+    for x in np.linspace(0.05, 0.95, 7):
+        X = P + x * ell * w
+        for f, R, n in zip(*glass.fermat_points(X)):
+            o, hl, k = np.linalg.norm(glass.lamp - R), float((glass.lamp - R) @ n), np.linalg.norm(R - X)
+            ref = tube_by_differences(glass.lamp, R, n, k) / transmittance(hl / o, ETA)  # the U's has T in it
+            assert abs(tube_irradiance(o, hl, k, ETA) / ref - 1) < 1e-8
+            checked += 1
+    assert checked >= 5
 
 
 def test_the_stored_twin_is_the_twin():
