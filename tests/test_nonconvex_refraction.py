@@ -359,9 +359,11 @@ def test_analytic_and_slab_approx_refuse(tmp_path, method):
 def test_the_bound_is_finite_on_a_fine_torus(tmp_path):
     """The 1,000-triangle glass torus of benchmarks/torus.py (ior 1.5, a lamp beside it, an absorbing outside): the
     scan finishes where R moves within rounding of its neighbours' planes (their side settled by the face's corners,
-    `_face_side`) and its blockers are culled by the tree, so the bound at rtol 1e-6 is finite on most lit pixels
-    (measured 82 % at 48 x 32; before: none, the culling alone spent the scan's budget), never below the distance
-    to the rtol 1e-10 image, its median 1.1 rtol of the value. The image is the same as before (the scan bounds it)."""
+    `_face_side`) and its blockers are culled by the tree, and a node inside a cluster the scan left undecided (the
+    outer nodes of a panel between two faces' breaks a few ulps apart) adds its cluster's jump to its error bound,
+    so the bound at rtol 1e-6 is finite on every lit pixel (at 48 x 32 too; before: 82 % there, and before that
+    none, the culling alone spent the scan's budget), never below the distance to the rtol 1e-10 image, its median
+    1.1 rtol of the value. The image is the same as before (the scan bounds it)."""
     from benchmarks.torus import torus_scene
 
     prep = prepare(torus_scene(tmp_path, 25, 12, 9, 1.5)[0])
@@ -369,6 +371,6 @@ def test_the_bound_is_finite_on_a_fine_torus(tmp_path):
     ref = render(prep, "quadrature", {"rtol": 1e-10}, RenderOptions(threads=1))
     lit = np.all(res.image > 0.0, axis=2)
     bounded = lit & np.all(np.isfinite(res.error_bound), axis=2)
-    assert lit.sum() >= 20 and bounded.sum() >= 0.7 * lit.sum(), (bounded.sum(), lit.sum())
+    assert lit.sum() >= 20 and bounded.sum() == lit.sum(), (bounded.sum(), lit.sum())
     assert np.all(np.abs(res.image - ref.image)[bounded] <= res.error_bound[bounded])
     assert np.median(res.error_bound[bounded] / res.image[bounded]) <= 10 * 1e-6

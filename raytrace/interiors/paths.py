@@ -33,7 +33,8 @@ from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_piece
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
 from ..media.nonconvex_refraction import (CLUSTER, LIT, PATH_COLUMNS, RESOLUTION, candidates, every, face_breaks,
-                                          face_paths, face_planes, face_tree, lit_scan, path_rounding, plane_errors, scan_status)
+                                          face_paths, face_planes, face_tree, lit_scan, path_rounding, plane_errors, scan_status,
+                                          cluster_jumps)
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding
@@ -864,7 +865,10 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     counted in stats[0] (a jump of size J adds at most about J x that width). Its bound (N, C), `_refracted_bound`:
     the rule's and the paths' rounding (media/nonconvex_refraction.py `path_rounding`) where every node's paths
     are those `lit_scan` proves lit, and the scan's clusters' widths times their jumps; inf where that fails, and
-    where a panel narrower than NARROW x rtol x the segment may be accepted unconverged (`_unconverged`)."""
+    where a panel narrower than NARROW x rtol x the segment may be accepted unconverged (`_unconverged`). A node
+    inside a cluster (a narrow panel between two faces' breaks a few ulps apart has its outer nodes there) may
+    count a face wrongly, by at most ks x the cluster's jump: that goes into the node's error bound, which `adaptive`
+    carries as it does rounding (2 G20 + G10 of it: the sum's own and its convergence test's)."""
     paths = refracted_paths(prep, sid, geo, ell, code, g)
     end = np.minimum(ell, 745.0 / max(float(np.min(kts)), 1e-300))
     bseg, bx, _ = refracted_breaks(prep, sid, geo, end)
@@ -880,10 +884,11 @@ def refracted_quadrature(prep, sid, geo, ell, kts, kss, code, g, kt_outs, rule, 
     def values(ss, xs, panels):
         pt, face, rows, keep = paths(ss, xs, panels, every=True)
         status = scan.status(ss[pt], face, xs[pt])
-        unbounded[ss[pt[(status == CLUSTER) | ((status == LIT) != keep)]]] = True
+        unbounded[ss[pt[(status != CLUSTER) & ((status == LIT) != keep)]]] = True
         pt, face, rows = pt[keep], face[keep], rows[keep]
         eps, spot = scan.rounding(ss[pt], xs[pt], face, rows[:, 2:5], kts, kt_outs)
         out = _sums(xs, pt, rows[:, 5], rows[:, 6], rows[:, 7], kts, kss, kt_outs, cs, eps, spot)
+        out[1][:] += scan.jumps(ss, xs)[:, None] * np.asarray(kss, float)[None, :]
         unbounded[_unconverged(panels, out[0], NARROW * rule.rtol * end, rule.rtol)] = True
         return out
     val, err = adaptive(values, end, len(kts), seg, a, b, rule.rtol, stats, bounded=True, narrow=NARROW,
@@ -913,10 +918,12 @@ def _unconverged(panels, f, narrow, rtol):
 
 class _Scan(NamedTuple):
     """media/nonconvex_refraction.py `lit_scan` of a shape's segments: whether each finished (found), the kind
-    at nodes (`status(seg, face, x)`: LIT, CLUSTER or 0), the paths' rounding (`rounding(seg, x, face, R, kts,
+    at nodes (`status(seg, face, x)`: LIT, CLUSTER or 0), the summed jumps of the clusters holding nodes
+    (`jumps(seg, x)`, media/nonconvex_refraction.py `cluster_jumps`), the paths' rounding (`rounding(seg, x, face, R, kts,
     kt_outs)`: `path_rounding`'s eps, spot) and the clusters' bound (`cluster_errors`)."""
     found: np.ndarray
     status: object
+    jumps: object
     rounding: object
     cluster_errors: object
 
@@ -938,6 +945,13 @@ def _lit_scan(prep, sid, geo, end, code, g):
     def status(seg, face, x):
         key = seg * nt + face
         return scan_status(gid, rows[:, 2], rows[:, 3], rows[:, 4], key, x, np.searchsorted(gid, key))
+
+    cl = rows[rows[:, 4] == CLUSTER]
+    cl = cl[np.lexsort((cl[:, 2], cl[:, 0]))]
+    cseg = cl[:, 0].astype(np.int64)
+
+    def jumps(seg, x):
+        return cluster_jumps(cseg, cl[:, 2], cl[:, 3], cl[:, 5], np.searchsorted(cseg, seg), seg, x)
 
     def rounding(seg, x, face, rp, kts, kt_outs):
         eps, spot = np.empty((len(x), len(kts))), np.empty(len(x))
@@ -972,7 +986,7 @@ def _lit_scan(prep, sid, geo, end, code, g):
         np.add.at(out, s, (span * rows[cl, 5])[:, None] * np.asarray(kss, float)[None, :])
         out[s[bad]] = np.inf
         return out
-    return _Scan(found, status, rounding, cluster_errors)
+    return _Scan(found, status, jumps, rounding, cluster_errors)
 
 
 def _kinks(end, bseg, bx):

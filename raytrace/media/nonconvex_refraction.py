@@ -1042,6 +1042,22 @@ def scan_status(gid, x0, x1, kind, qgid, qx, first):
 
 
 @njit
+def cluster_jumps(seg, x0, x1, jump, first, qseg, qx):
+    """For each query (segment qseg, x), the sum of the jumps of `lit_scan`'s clusters that hold x, its ends included
+    (cluster rows sorted by segment and x0: seg, x0, x1, jump; first: np.searchsorted(seg, qseg)): the most a node
+    there may be off where the legs' tests decide a face the scan could not (interiors/paths.py
+    `refracted_quadrature`)."""
+    out = np.zeros(qx.shape[0])
+    for i in range(qx.shape[0]):
+        j = first[i]
+        while j < seg.shape[0] and seg[j] == qseg[i] and x0[j] <= qx[i]:
+            if qx[i] <= x1[j]:
+                out[i] += jump[j]
+            j += 1
+    return out
+
+
+@njit
 def path_rounding(seg, x, face, rp, geo, planes, eta, ell, kts, kt_outs, code, g, dn, dc, cmax, eps, spot):
     """eps (M, C): a bound on the relative rounding of each path's term (point i: segment seg[i] at x[i], through
     face[i] at its refraction point rp[i] (`face_paths`'); channels kts, kt_outs) by media/fermat_rounding.py `term_rounding` in the face's frame (dn, dc the
