@@ -511,10 +511,11 @@ def warm_up(prep: Prepared, method, params, seed, shadows=False, then_shadows=Fa
 
 def warm_up_rays(prep: Prepared):
     """Origins and directions of the warm-up's rays: the first sample of the pixels of a grid over the
-    image (so that rays into a spot's cone or through a refracting surface are among them) and one
-    at each shape holding a medium."""
+    image (so that rays into a spot's cone or through a refracting surface are among them; each pixel once
+    where the image is narrower than the grid) and one at each shape holding a medium."""
     cam, n = prep.scene.camera, WARM_UP_GRID
-    ys, xs = np.meshgrid(np.arange(n) * cam.height // n, np.arange(n) * cam.width // n, indexing="ij")
+    ys, xs = np.meshgrid(np.unique(np.arange(n) * cam.height // n), np.unique(np.arange(n) * cam.width // n),
+                         indexing="ij")
     o, d = pixel_rays(cam, ys.ravel().astype(float), xs.ravel().astype(float), slice(0, 1))
     return crossing.warm_up_rays(prep, o, d)
 
