@@ -68,7 +68,7 @@ def _dot(a, b):
 
 
 @njit
-def _point_segment(p, a, b):
+def point_segment_distance(p, a, b):
     """The distance from the point p to the segment ab."""
     ab, ap = b - a, p - a
     den = _dot(ab, ab)
@@ -77,7 +77,7 @@ def _point_segment(p, a, b):
 
 
 @njit
-def _segments(p1, q1, p2, q2):
+def segment_distance(p1, q1, p2, q2):
     """The distance between the segments p1 q1 and p2 q2 (Ericson, Real-Time Collision Detection 5.1.9)."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a, e, f = _dot(d1, d1), _dot(d2, d2), _dot(d2, r)
@@ -103,7 +103,7 @@ def _segments(p1, q1, p2, q2):
 
 
 @njit
-def _crosses(tri, p, q):
+def segment_crosses(tri, p, q):
     """Whether the segment pq crosses the triangle tri (3, 3) (Moller-Trumbore)."""
     e1, e2, d = tri[1] - tri[0], tri[2] - tri[0], q - p
     h = np.array([d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]])
@@ -134,22 +134,22 @@ def _point_triangle(p, p0, p1, p2):
             inside = inside and _dot(np.cross(b - a, f - a), n) >= 0.0
         if inside:
             return abs(h) * math.sqrt(nn)
-    return min(_point_segment(p, p0, p1), _point_segment(p, p1, p2), _point_segment(p, p2, p0))
+    return min(point_segment_distance(p, p0, p1), point_segment_distance(p, p1, p2), point_segment_distance(p, p2, p0))
 
 
 @njit
-def _apart(a, b, p0, p1, p2, gap):
+def segment_apart(a, b, p0, p1, p2, gap):
     """Whether the segment ab keeps more than gap from the triangle p0 p1 p2."""
     tri = np.empty((3, 3))
     tri[0], tri[1], tri[2] = p0, p1, p2
-    if _crosses(tri, a, b):
+    if segment_crosses(tri, a, b):
         return False
-    return min(_segments(a, b, p0, p1), _segments(a, b, p1, p2), _segments(a, b, p2, p0),
+    return min(segment_distance(a, b, p0, p1), segment_distance(a, b, p1, p2), segment_distance(a, b, p2, p0),
                _point_triangle(a, p0, p1, p2), _point_triangle(b, p0, p1, p2)) > gap
 
 
 @njit
-def _one_side(tri, c, radius, qa, qb, slack):
+def one_side(tri, c, radius, qa, qb, slack):
     """Whether the ball (c, radius) lies strictly on one side of tri's plane and qa, qb on that side (within slack):
     no leg from the stretch qa qb to the sphere crosses the plane."""
     n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
@@ -169,22 +169,23 @@ def _state(tris, edges, c, radius, qa, qb, qm, e, far, rho, spread, slack):
     """LIT or DARK where the planar patch of triangles tris (its boundary edges (E, 2, 3)) keeps one state over the
     cell (module docstring), else UNDECIDED: the legs lie within rho of the axis qm -> far (E(m) = e on the way), its
     part past e inside the ball, and within spread of the triangle qa qb e."""
-    if _one_side(tris[0], c, radius, qa, qb, slack):
+    if one_side(tris[0], c, radius, qa, qb, slack):
         return LIT
     for t in range(tris.shape[0]):
-        if _crosses(tris[t], qa, qb):
+        if segment_crosses(tris[t], qa, qb):
             return UNDECIDED
     inner = max(math.sqrt(_dot(e - c, e - c)), math.sqrt(_dot(far - c, far - c))) + rho
     for j in range(edges.shape[0]):
         a, b = edges[j, 0], edges[j, 1]
-        if _apart(a, b, qa, qb, c, radius + slack) or _apart(a, b, qa, qb, e, spread):  # out of a hull of the legs
+        # out of a hull of the legs
+        if segment_apart(a, b, qa, qb, c, radius + slack) or segment_apart(a, b, qa, qb, e, spread):
             continue
-        if not _segments(a, b, qm, e) > rho:
+        if not segment_distance(a, b, qm, e) > rho:
             return UNDECIDED
-        if not inner < _point_segment(c, a, b) and not _segments(a, b, e, far) > rho:
+        if not inner < point_segment_distance(c, a, b) and not segment_distance(a, b, e, far) > rho:
             return UNDECIDED
     for t in range(tris.shape[0]):
-        if _crosses(tris[t], qm, e):
+        if segment_crosses(tris[t], qm, e):
             return DARK
     return LIT
 
@@ -214,7 +215,7 @@ def _leg(q, c, radius, rel, eta, found, spread, value, toward, inside, outside):
 
 
 @njit
-def _push(ends, flags, n, x, flag):
+def push_piece(ends, flags, n, x, flag):
     """Appends the piece ending at x with flag (merged with the last where they agree); returns the count and the
     arrays (grown where full)."""
     if n > 0 and flags[n - 1] == flag:
@@ -285,26 +286,26 @@ def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
                 state = LIT
                 for i in near:
                     for k in range(tstart[i], tstart[i + 1]):
-                        if _crosses(tris[k], qm, e):
+                        if segment_crosses(tris[k], qm, e):
                             state = DARK
             if state == UNDECIDED and min(rho, width) > 2.0 * slack:  # halving still narrows the hulls
                 split = _split(a, b, math.sqrt(_dot(qa - c, qa - c)), math.sqrt(_dot(qb - c, qb - c)))
                 stack.append((split, b))
                 stack.append((a, split))
                 continue
-        n, ends, flags = _push(ends, flags, n, b, state)
+        n, ends, flags = push_piece(ends, flags, n, b, state)
     return ends, flags, n, proven
 
 
 @njit
-def _candidates(o, w, ell, c, radius, tris, tstart):
+def candidate_patches(o, w, ell, c, radius, tris, tstart):
     """The patches that may block a leg from the segment: a triangle not wholly beyond one side of its plane with the
-    ball and the segment (`_one_side`), its box meeting the box of the ball and the segment."""
+    ball and the segment (`one_side`), its box meeting the box of the ball and the segment."""
     p, q = o, o + ell * w
     keep = []
     for i in range(tstart.shape[0] - 1):
         for j in range(tstart[i], tstart[i + 1]):
-            if _one_side(tris[j], c, radius, p, q, SLACK * (math.sqrt(_dot(p - c, p - c)) + ell + radius)):
+            if one_side(tris[j], c, radius, p, q, SLACK * (math.sqrt(_dot(p - c, p - c)) + ell + radius)):
                 continue
             meets = True
             for k in range(3):
@@ -332,7 +333,7 @@ def shadow_pieces(geo, sphere, ell, eta, tris, tstart, edges, estart):
     for s in range(nseg):
         o, w, rel = geo[s, :3].copy(), geo[s, 3:6].copy(), geo[s, 6:9] - c
         length = max(ell[s], 0.0)
-        near = _candidates(o, w, length, c, radius, tris, tstart)
+        near = candidate_patches(o, w, length, c, radius, tris, tstart)
         if length > 0.0 and len(near):
             e, f, n, proven[s] = _scan(o, w, length, c, radius, rel, eta, tris, tstart, edges, estart, near)
         else:

@@ -3,7 +3,7 @@ scattering medium outside (media/slab.py `out_of_faces`): along the part [lo, hi
 beyond a face's plane, the pieces where the light's straight leg outside, from its refraction point E(x) on that
 plane (Fermat's path, slab.py `fermat`) to q(x), clears every occluder, those where one blocks it, and undecided
 stretches between them (`face_pieces`). The exact sphere's counterpart is media/globe_shadows.py, whose patches,
-per-cell test (`_state`) and candidates (`_candidates`) this module reuses.
+per-cell test (`_state`) and candidates (`candidate_patches`) this module reuses.
 
 The breaks are found, not sampled: `_scan` halves the part from [lo, hi]. On a cell (midpoint m, half width h) the
 point a fraction lambda along the leg of x, (1 - lambda) q(x) + lambda E(x), lies within (1 - lambda) |q(x) - q(m)| +
@@ -34,7 +34,7 @@ slack (then an undecided stretch, about slack wide, which `out_of_faces` counts 
 legs of points whose refraction point lies off the face carry no light; the test covers them all the same (the
 infinite plane's path is unique and continuous in x). slack = SLACK of |q(m)| + |E(m)| + the leg covers E(m)'s
 rounding (bisection to the resolution of doubles: argued, as the globe's). Patches are culled against the shape's
-bounding ball (`_candidates`: every leg that carries light ends on the shape). Unproven after MAX_CELLS cells (the
+bounding ball (`candidate_patches`: every leg that carries light ends on the shape). Unproven after MAX_CELLS cells (the
 rest classified by their midpoints' legs): rays that graze an occluder's edge over a long stretch (below a finite
 floor, toward the horizon)."""
 from __future__ import annotations
@@ -44,8 +44,8 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .globe_shadows import (DARK, LIT, MAX_CELLS, SLACK, UNDECIDED, _apart, _candidates, _crosses, _one_side,
-                            _point_segment, _push, _segments)
+from .globe_shadows import (DARK, LIT, MAX_CELLS, SLACK, UNDECIDED, candidate_patches, one_side, point_segment_distance,
+                            push_piece, segment_apart, segment_crosses, segment_distance)
 from .slab import FACE_COLUMNS, GEO_COLUMNS, face_part, fermat, leaving_row
 
 
@@ -103,24 +103,24 @@ def _state(tris, edges, qa, qb, qm, e, h, d, c, radius, plane, top, slack):
     lambda d + slack of the midpoint's leg qm -> e (taken on CONE_STEPS pieces, each at its largest radius), between
     the cell's camera stretch qa qb and the ball (c, radius) that holds every E(x), and between the face's plane and
     the height top above it."""
-    if _off_slab(tris, plane, top, slack) or _one_side(tris[0], c, radius + slack, qa, qb, slack):
+    if _off_slab(tris, plane, top, slack) or one_side(tris[0], c, radius + slack, qa, qb, slack):
         return LIT
     for t in range(tris.shape[0]):
-        if _crosses(tris[t], qa, qb):
+        if segment_crosses(tris[t], qa, qb):
             return UNDECIDED
     for j in range(edges.shape[0]):
         a, b = edges[j, 0], edges[j, 1]
-        if _off_slab(edges[j], plane, top, slack) or _apart(a, b, qa, qb, c, radius + 2.0 * slack):
+        if _off_slab(edges[j], plane, top, slack) or segment_apart(a, b, qa, qb, c, radius + 2.0 * slack):
             continue
         lam, near = 0.0, qm
         for i in range(CONE_STEPS + 1):
             nxt = 1.0 if i == CONE_STEPS else 1.0 - 0.5 ** (i + 1)
             far = qm + nxt * (e - qm)
-            if not _segments(a, b, near, far) > (1.0 - lam) * h + nxt * d + slack:
+            if not segment_distance(a, b, near, far) > (1.0 - lam) * h + nxt * d + slack:
                 return UNDECIDED
             lam, near = nxt, far
     for t in range(tris.shape[0]):
-        if _crosses(tris[t], qm, e):
+        if segment_crosses(tris[t], qm, e):
             return DARK
     return LIT
 
@@ -143,7 +143,7 @@ def _scan(o, w, lo, ell, row, plane, eta, tris, tstart, edges, estart, near):
         slack = SLACK * (math.sqrt(qm[0] * qm[0] + qm[1] * qm[1] + qm[2] * qm[2])
                          + math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) + leg)
         z_min, top = min(row[0] + row[1] * a, row[0] + row[1] * b), max(row[0] + row[1] * a, row[0] + row[1] * b)
-        o_min = max(z_min, _point_segment(foot, qa, qb) - disc)
+        o_min = max(z_min, point_segment_distance(foot, qa, qb) - disc)
         d = _spread(h, z, z_min, leg, o_min, rho_e, row[2], eta)
         c, radius = (e, d) if d < disc else (foot, disc)
         cells += 1
@@ -161,13 +161,13 @@ def _scan(o, w, lo, ell, row, plane, eta, tris, tstart, edges, estart, near):
             state = LIT
             for i in near:
                 for k in range(tstart[i], tstart[i + 1]):
-                    if _crosses(tris[k], qm, e):
+                    if segment_crosses(tris[k], qm, e):
                         state = DARK
         if state == UNDECIDED and h > slack:
             stack.append((m, b))
             stack.append((a, m))
             continue
-        n, ends, flags = _push(ends, flags, n, b, state)
+        n, ends, flags = push_piece(ends, flags, n, b, state)
     return ends, flags, n, proven
 
 
@@ -191,7 +191,7 @@ def face_pieces(geo, planes, ell, eta, ball, tris, tstart, edges, estart):
     for s in range(nseg):
         o, w = geo[s, :3].copy(), geo[s, 3:6].copy()
         length = max(ell[s], 0.0)
-        near = _candidates(o, w, length, c, radius, tris, tstart)
+        near = candidate_patches(o, w, length, c, radius, tris, tstart)
         for f in range(nf):
             k = s * nf + f
             lo, hi = face_part(geo[s], planes[f], length)
