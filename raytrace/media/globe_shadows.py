@@ -215,6 +215,17 @@ def _leg(q, c, radius, rel, eta, found, spread, value, toward, inside, outside):
 
 
 @njit
+def midpoint_state(near, tris, tstart, qm, e):
+    """DARK where the midpoint's leg qm e crosses a triangle of the patches `near`, else LIT: a cell left undecided
+    after MAX_CELLS cells (unproven)."""
+    for i in near:
+        for k in range(tstart[i], tstart[i + 1]):
+            if segment_crosses(tris[k], qm, e):
+                return DARK
+    return LIT
+
+
+@njit
 def push_piece(ends, flags, n, x, flag):
     """Appends the piece ending at x with flag (merged with the last where they agree); returns the count and the
     arrays (grown where full)."""
@@ -283,11 +294,7 @@ def _scan(o, w, ell, c, radius, rel, eta, tris, tstart, edges, estart, near):
                     state = UNDECIDED
             if state == UNDECIDED and cells > MAX_CELLS:  # out of budget: the midpoint's leg decides
                 proven = False
-                state = LIT
-                for i in near:
-                    for k in range(tstart[i], tstart[i + 1]):
-                        if segment_crosses(tris[k], qm, e):
-                            state = DARK
+                state = midpoint_state(near, tris, tstart, qm, e)
             if state == UNDECIDED and min(rho, width) > 2.0 * slack:  # halving still narrows the hulls
                 split = _split(a, b, math.sqrt(_dot(qa - c, qa - c)), math.sqrt(_dot(qb - c, qb - c)))
                 stack.append((split, b))

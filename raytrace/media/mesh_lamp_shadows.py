@@ -44,8 +44,8 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .globe_shadows import (DARK, LIT, MAX_CELLS, SLACK, UNDECIDED, candidate_patches, one_side, point_segment_distance,
-                            push_piece, segment_apart, segment_crosses, segment_distance)
+from .globe_shadows import (DARK, LIT, MAX_CELLS, SLACK, UNDECIDED, candidate_patches, midpoint_state, one_side,
+                            point_segment_distance, push_piece, segment_apart, segment_crosses, segment_distance)
 from .slab import FACE_COLUMNS, GEO_COLUMNS, face_part, fermat, leaving_row
 
 
@@ -158,11 +158,7 @@ def _scan(o, w, lo, ell, row, plane, eta, tris, tstart, edges, estart, near):
                 state = UNDECIDED
         if state == UNDECIDED and cells > MAX_CELLS:  # out of budget: the midpoint's leg decides
             proven = False
-            state = LIT
-            for i in near:
-                for k in range(tstart[i], tstart[i + 1]):
-                    if segment_crosses(tris[k], qm, e):
-                        state = DARK
+            state = midpoint_state(near, tris, tstart, qm, e)
         if state == UNDECIDED and h > slack:
             stack.append((m, b))
             stack.append((a, m))
