@@ -32,9 +32,9 @@ from ..media.adaptive import CAPPED
 from ..media.convex_chords import PLANES, SPHERE, boundary_chords, through_pieces
 from ..media.phase import phase_value
 from ..media.gauss import N10, N20, W10, W20
-from ..media.nonconvex_refraction import (CLUSTER, LIT, PATH_COLUMNS, RESOLUTION, candidates, every, face_breaks,
-                                          face_paths, face_planes, face_tree, lit_scan, path_rounding, plane_errors, scan_status,
-                                          cluster_jumps)
+from ..media.nonconvex_refraction import (CLUSTER, LIT, PATH_COLUMNS, RESOLUTION, candidates, cluster_jumps, every,
+                                          face_breaks, face_paths, face_planes, face_tree, lit_scan, path_rounding,
+                                          plane_errors, scan_status)
 from ..media.slab import U, light_span, phase_condition, sphere_radiance, straight_cuts
 from ..rng import uniform
 from ..shadows.through_others import point_chord_rounding

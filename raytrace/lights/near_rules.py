@@ -6,9 +6,10 @@ A flat emitter (`Emitter.planar`) replaces its rows along the camera rays that c
 near it (within cubature.NEAR_FRACTION of its diameter) by a rule about the ray's foot point, and a
 sphere (`Emitter.ball`) along every camera ray from outside it by a rule about the ray's segment
 (`near`); an emissive shape keeps its rows. Along the rays that pass within cubature.PASSING of a
-polygon grazing its plane, a rule graded toward the ray's projection on it (`passing_rule`). A sphere's rows' shadow states decide nothing (all lit, all
-dark or none shining: a cap between them may differ, `rows_decide`), so the occluders' geometry
-(`segments_clear`, `free`) and its probes of the part a point sees (`seen_probes`) tell instead.
+polygon grazing its plane, a rule graded toward the ray's projection on it (`passing_rule`). A sphere's
+rows' shadow states decide nothing (all lit, all dark or none shining: a cap between them may differ,
+`rows_decide`), so the occluders' geometry (`segments_clear`, `free`) and its probes of the part a point
+sees (`seen_probes`) tell instead.
 """
 from __future__ import annotations
 

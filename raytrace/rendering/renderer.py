@@ -870,6 +870,7 @@ def _views(prep: Prepared, seed: int, create: bool = True) -> dict:
 
 
 def _drop(prep: Prepared, views: dict, key):
+    """The view under `key` forgotten (`_views`' entry removed, its memo cleared)."""
     view = views.pop(key)[0]
     if view is not prep:  # its passes' views (copies sharing the memo) hold it in a cycle: freed now
         view._memo.clear()
